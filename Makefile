@@ -1,0 +1,30 @@
+# Two commands on a fresh machine: `make demo` (install + run the main job) and `make test`.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+OUT ?= out
+
+.PHONY: install demo test bench clean
+
+$(BIN)/activate:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+
+install: $(BIN)/activate
+	$(BIN)/pip install --quiet -e ".[dev]"
+
+demo: install
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole linearize --out $(OUT)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole lqr --out $(OUT)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole swingup --method energy --out $(OUT)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole swingup --method trajopt --out $(OUT)
+	@echo "Figures, videos and metrics are under $(OUT)/"
+
+test: install
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n 2
+
+bench: install
+	$(BIN)/cartpole bench --out $(OUT)
+
+clean:
+	rm -rf $(VENV) $(OUT) *.egg-info

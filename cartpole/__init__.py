@@ -1,0 +1,26 @@
+"""cartpole: model-based control of the cart-pole, derived from an MJCF and proven in MuJoCo.
+
+Quick start::
+
+    import cartpole as cp
+    model = cp.build_model()                 # shipped MJCF -> symbolic CasADi model
+    A, B = model.linearize()                 # exact, at upright rest
+    K, S, E = cp.lqr(A, B, cp.Q_LAB, cp.R_LAB)
+"""
+import numpy as np
+
+from cartpole.errors import CartPoleError
+from cartpole.lqr import LQRError, dlqr, lqr
+from cartpole.models import SHIPPED_MJCF, CartPoleModel, CartPoleParams, MJCFError, build_model, read_params
+from cartpole.validation import Rollout, replay, simulate
+
+#: The lab's default LQR weights (state order [s, theta, s_dot, theta_dot]; input = MuJoCo ctrl).
+Q_LAB = np.diag([1.0, 10.0, 0.1, 0.1])
+Q_LAB.setflags(write=False)
+R_LAB = np.array([[0.1]])
+R_LAB.setflags(write=False)
+
+__version__ = "0.1.0"
+
+__all__ = ["CartPoleError", "LQRError", "dlqr", "lqr", "SHIPPED_MJCF", "CartPoleModel", "CartPoleParams",
+           "MJCFError", "build_model", "read_params", "Rollout", "replay", "simulate", "Q_LAB", "R_LAB"]
