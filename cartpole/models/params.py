@@ -206,7 +206,7 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
 
     m, path, text = load_model(mjcf, xml=xml)
     where = f"MJCF '{path}'" if path else "The MJCF"
-    supported = ("a cart-pole is one slide joint (the cart) carrying one hinge joint (the pole), "
+    supported = ("the toolkit supports one slide joint (the cart) carrying one hinge joint (the pole), "
                  "driven by one motor actuator on the slide")
 
     jtypes = [int(t) for t in m.jnt_type]
