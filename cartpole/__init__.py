@@ -9,6 +9,7 @@ Quick start::
 """
 import numpy as np
 
+from cartpole import control, models, validation
 from cartpole.errors import CartPoleError
 from cartpole.lqr import LQRError, dlqr, lqr
 from cartpole.models import SHIPPED_MJCF, CartPoleModel, CartPoleParams, MJCFError, build_model, read_params
@@ -22,5 +23,5 @@ R_LAB.setflags(write=False)
 
 __version__ = "0.1.0"
 
-__all__ = ["CartPoleError", "LQRError", "dlqr", "lqr", "SHIPPED_MJCF", "CartPoleModel", "CartPoleParams",
+__all__ = ["control", "models", "validation", "CartPoleError", "LQRError", "dlqr", "lqr", "SHIPPED_MJCF", "CartPoleModel", "CartPoleParams",
            "MJCFError", "build_model", "read_params", "Rollout", "replay", "simulate", "Q_LAB", "R_LAB"]
