@@ -2,3 +2,10 @@
 from cartpole.control.linear import LinearFeedback, state_error
 
 __all__ = ["LinearFeedback", "state_error"]
+from cartpole.control.tvlqr import TVLQRController  # noqa: E402
+
+__all__ += ["TVLQRController"]
+from cartpole.control.energy import EnergyGains, EnergyShapingController, energy_guess  # noqa: E402
+from cartpole.control.switching import Switch, SwitchingController, lab_catch  # noqa: E402
+
+__all__ += ["EnergyGains", "EnergyShapingController", "energy_guess", "Switch", "SwitchingController", "lab_catch"]

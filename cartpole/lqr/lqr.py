@@ -46,7 +46,8 @@ def check_weights(A, B, Q, R):
     if A.shape != (n, n):
         raise LQRError(f"A has shape {A.shape}; it must be square (n, n).")
     B = np.asarray(B, dtype=float)
-    B = B.reshape(n, -1) if B.ndim == 1 and B.size == n else _as2d("B", B)
+    # a 1-D B of length n is one input column; _as2d also rejects NaN/inf (the reshape path skipped that)
+    B = _as2d("B", B.reshape(n, -1) if B.ndim == 1 and B.size == n else B)
     if B.shape[0] != n:
         raise LQRError(f"B has shape {B.shape} but A is {A.shape}; B must have {n} rows.")
     m = B.shape[1]

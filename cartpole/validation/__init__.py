@@ -1,4 +1,18 @@
 """MuJoCo replay, metrics, Jacobian checks, plots and video: the proof of every control claim."""
+from cartpole.validation.batch import replay_benchmark, simulate_batch_linear
+from cartpole.validation.lab_plot import plot_lab
+from cartpole.validation.metrics import (RunMetrics, peak_ctrl, saturation_fraction, settling_time_seed,
+                                         settling_time_strict, summarize, track_margin)
 from cartpole.validation.replay import Rollout, make_mujoco, replay, replays_exactly, simulate
+from cartpole.validation.video import VideoUnavailable, render_video
 
-__all__ = ["Rollout", "make_mujoco", "replay", "replays_exactly", "simulate"]
+__all__ = ["Rollout", "make_mujoco", "replay", "replays_exactly", "simulate",
+           "RunMetrics", "peak_ctrl", "saturation_fraction", "settling_time_seed", "settling_time_strict",
+           "summarize", "track_margin", "render_video", "VideoUnavailable", "simulate_batch_linear",
+           "replay_benchmark", "plot_lab"]
+from cartpole.validation.basin import BasinCache, BasinEstimate, estimate_basin  # noqa: E402
+from cartpole.validation.swingup_metrics import swingup_metrics, swingup_success, time_to_upright  # noqa: E402
+from cartpole.validation.swingup_plot import plot_swingup  # noqa: E402
+
+__all__ += ["BasinCache", "BasinEstimate", "estimate_basin", "swingup_metrics", "swingup_success",
+            "time_to_upright", "plot_swingup"]

@@ -1,0 +1,342 @@
+"""Energy-shaping swing-up by collocated partial feedback linearisation (Spong's cart-pole swing-up).
+
+The controller chooses a desired cart acceleration
+
+    a_d = guard( sat(k_E (E_ref - E) w + a_D)  -  phi(E) (k_x s + k_v s_dot) ),   w = -theta_dot M21(theta) / (m l)
+
+and turns it into ctrl *exactly* with the model's mass matrix ``M``, bias ``b``, joint damping ``D`` and gear:
+the pole row of ``M qacc + b = tau - D v`` gives ``theta_ddot(a)`` for a cart acceleration ``a``, and the cart row
+then gives the slide force, hence ``ctrl = (M11 a + M12 theta_ddot(a) + b1 + D1 s_dot) / gear``.
+
+Why the sign is right for any hinge-axis sign: the pole's energy about its hinge ``E`` (zero at upright rest, see
+:attr:`CartPoleModel.pole_energy`) changes as ``dE/dt = -D2 theta_dot^2 - (J_h / M22) theta_dot M21 a`` (no
+armature: ``J_h = M22``), so ``dE/dt`` is affine in the cart acceleration ``a`` with slope ``(J_h m l / M22) w``.
+With ``w`` computed from the model's own ``M21`` (which carries the hinge axis sign and offset), choosing
+``a = k_E (E_ref - E) w`` makes the pumped power ``k_E (J_h m l / M22) (E_ref - E) w^2`` push ``E`` towards ``E_ref``
+whatever the axis convention. For a plain pole ``w = -sigma theta_dot cos(theta)`` (``sigma = +1`` for the
+shipped asset), i.e. the textbook ``a = k_E (E - E_up) theta_dot cos(theta)``.
+
+Why damping compensation and a small overshoot: the hinge damping drains ``D2 theta_dot^2`` every instant; with
+``E_ref = E_up`` and a timid gain the pumping vanishes as ``E -> E_up`` and the pole settles where pumping balances
+damping, short of the top (``tests/control/test_energy.py`` measures the deficit in MuJoCo). The law therefore puts
+the drained power back through the cart (``a_D``, softened where the pole cannot be pumped), aims slightly above
+the top (``E_ref = overshoot * 2 m g l``, 0.5 % by default) so the pole passes the top slowly instead of stalling
+just below it, and uses a strong, saturated energy gain. Cart centring is weighted down while the energy is far from
+its target (it would eat the pumping) and a control-barrier guard keeps the cart ``track_margin`` inside its joint
+range. The LQR catch (:mod:`cartpole.control.switching`) takes over once the state is in its verified basin.
+
+The energy regulated is the pole subsystem's own, ``E = pole_energy + 0.5 armature theta_dot^2`` (the hinge
+armature's kinetic energy belongs to what the pole's equation of motion conserves).
+
+Units: ``s`` m, ``theta`` rad, ``E`` J, ``a`` m/s^2, ``ctrl`` MuJoCo ctrl (slide force = ``gear * ctrl`` N).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import casadi as ca
+import numpy as np
+
+from cartpole.errors import CartPoleError
+from cartpole.models.symbolic import CartPoleModel, build_model
+
+
+class EnergyShapingError(CartPoleError):
+    """Bad gains or a model the energy-shaping controller cannot drive (no ctrl limit, no track limit...)."""
+
+
+@dataclass(frozen=True)
+class EnergyGains:
+    """The gains and limits an :class:`EnergyShapingController` actually uses, in SI units.
+
+    Attributes
+    ----------
+    k_energy : float
+        Energy gain ``k_E`` in (m/s^2) / (J rad/s): ``a_E = k_E (E_ref - E) w``.
+    k_x : float
+        Cart centring stiffness in 1/s^2 (m/s^2 per m).
+    k_v : float
+        Cart centring damping in 1/s (m/s^2 per m/s).
+    a_energy_max : float
+        Saturation of the energy part of the cart acceleration, m/s^2.
+    energy_target : float
+        ``E_ref`` in J (pole energy; 0 = upright rest).
+    kick_rate : float
+        Pole rates below this (rad/s) count as ``+-kick_rate`` in the pumping direction, so a pole at rest
+        is set swinging; 0 disables the kick.
+    track_margin : float
+        m: the track guard keeps the cart this far inside its joint range.
+    a_brake : float
+        m/s^2: deceleration the track guard plans to stop the cart with (below the available ``a_max`` so the
+        pole's reaction force and damping can still be overcome at full ctrl).
+    barrier_rate : float
+        1/s: how fast the guard lets the cart use up its stopping margin (control-barrier-function rate).
+    damping_softening : float
+        rad/s, ``eps`` of the hinge-damping compensation ``a_D = D2 theta_dot^2 w / (m l (w^2 + eps^2))``, which
+        replaces the power the hinge damping drains wherever pumping is effective (``|w| >> eps``); ``inf``
+        disables the compensation.
+    centring_band : float
+        J: the cart centring acts with weight ``1 / (1 + ((E_ref - E) / centring_band)^2)``, full strength once the
+        energy is right, fading while the pole is still being pumped (when it would eat the pumping).
+    """
+
+    k_energy: float
+    k_x: float
+    k_v: float
+    a_energy_max: float
+    energy_target: float
+    kick_rate: float
+    track_margin: float
+    a_brake: float
+    barrier_rate: float
+    damping_softening: float
+    centring_band: float
+
+
+def model_scales(model: CartPoleModel) -> dict:
+    """Physical scales the default gains are built from.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+
+    Returns
+    -------
+    dict
+        ``g`` (m/s^2), ``mgl`` (J, pole weight times COM distance: the swing-up needs ``2 mgl``),
+        ``omega0`` (rad/s, small-swing pendulum frequency ``sqrt(mgl / M22)``), ``a_max`` (m/s^2, the cart
+        acceleration full ctrl gives at upright rest with the pole's reaction, ``gear u_max / (M11 - M12^2 / M22)``),
+        ``half_track`` (m, half the cart joint range, inf when unlimited).
+    """
+    p = model.params
+    M = np.asarray(model.mass_matrix(np.zeros(4)))
+    mgl = p.pole_mass * p.g * p.pole_com_distance
+    m_eff = M[0, 0] - M[0, 1] ** 2 / M[1, 1]
+    return {"g": p.g, "mgl": mgl, "omega0": float(np.sqrt(mgl / M[1, 1])),
+            "a_max": float(p.gear * p.u_max / m_eff),
+            "half_track": float(0.5 * (p.cart_range[1] - p.cart_range[0]))}
+
+
+#: Dimensionless defaults of :func:`default_gains` (tuned on the shipped asset and checked on the test variants).
+DEFAULT_SCALING = dict(energy_gain=15.0, overshoot=0.005, energy_accel=1.0, centring_frequency=0.6,
+                       centring_damping=1.0, kick=0.05, track_margin=0.2, brake_accel=0.5, barrier_rate=2.0,
+                       damping_softening=0.3, centring_band=0.05)
+
+
+def default_gains(model: CartPoleModel, **scaling) -> EnergyGains:
+    """Gains scaled by the model's own parameters, so one set of dimensionless numbers fits every cart-pole.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    **scaling
+        Any of the dimensionless numbers below (defaults in :data:`DEFAULT_SCALING`):
+
+        ``energy_gain``  ``kappa``: ``k_E = kappa a_max / (2 mgl omega0)``, i.e. ``kappa`` times the gain at which a
+        full energy deficit ``2 mgl`` at pole rate ``omega0`` asks for the full acceleration ``a_max``;
+        ``overshoot``  ``E_ref = overshoot * 2 mgl`` J above upright rest (beats the hinge damping; the catch takes
+        over at the top); ``energy_accel``  fraction of ``a_max`` the energy term may use;
+        ``centring_frequency``  cart centring natural frequency as a fraction of ``omega0``;
+        ``centring_damping``  its damping ratio; ``kick``  kick rate as a fraction of ``omega0``;
+        ``track_margin``  m kept from each cart limit; ``brake_accel``  guard deceleration as a fraction of
+        ``a_max``; ``barrier_rate``  guard rate as a multiple of ``omega0``; ``damping_softening``  ``eps`` of the
+        damping compensation as a fraction of ``omega0`` (``inf`` = no compensation); ``centring_band``  energy
+        band of the centring weight as a fraction of ``2 mgl``.
+
+    Returns
+    -------
+    EnergyGains
+    """
+    unknown = set(scaling) - set(DEFAULT_SCALING)
+    if unknown:
+        raise EnergyShapingError(f"Unknown energy-shaping setting(s) {sorted(unknown)}; use "
+                                 f"{', '.join(DEFAULT_SCALING)}.")
+    c = {**DEFAULT_SCALING, **scaling}
+    if not (all(not np.isnan(float(v)) for v in c.values()) and c["energy_gain"] > 0 and c["overshoot"] >= 0
+            and 0 < c["energy_accel"] <= 1 and c["centring_frequency"] >= 0 and c["centring_damping"] >= 0
+            and c["kick"] >= 0 and c["track_margin"] >= 0 and 0 < c["brake_accel"] <= 1 and c["barrier_rate"] > 0
+            and c["damping_softening"] > 0 and c["centring_band"] > 0):
+        raise EnergyShapingError(f"Energy-shaping settings {c} are out of range: gains must be positive, "
+                                 "overshoot and margins non-negative, fractions in (0, 1].")
+    sc = model_scales(model)
+    if not np.isfinite(sc["a_max"]):
+        raise EnergyShapingError("The MJCF's actuator has no ctrlrange, so default energy gains cannot be scaled; "
+                                 "set ctrlrange on the motor or pass every gain explicitly.")
+    wx = c["centring_frequency"] * sc["omega0"]
+    return EnergyGains(k_energy=c["energy_gain"] * sc["a_max"] / (2 * sc["mgl"] * sc["omega0"]),
+                       k_x=wx**2, k_v=2 * c["centring_damping"] * wx,
+                       a_energy_max=c["energy_accel"] * sc["a_max"],
+                       energy_target=c["overshoot"] * 2 * sc["mgl"], kick_rate=c["kick"] * sc["omega0"],
+                       track_margin=float(c["track_margin"]), a_brake=c["brake_accel"] * sc["a_max"],
+                       barrier_rate=c["barrier_rate"] * sc["omega0"],
+                       damping_softening=c["damping_softening"] * sc["omega0"],
+                       centring_band=c["centring_band"] * 2 * sc["mgl"])
+
+
+_PRM = ("k_energy", "k_x", "k_v", "a_energy_max", "energy_target", "kick_rate", "track_margin", "a_brake",
+        "barrier_rate", "damping_softening", "centring_band")
+
+
+def _law(model: CartPoleModel) -> ca.Function:
+    """CasADi Function ``(x, [EnergyGains fields..., u_lo, u_hi]) -> (ctrl, a_d, E, w)``, built once."""
+    p = model.params
+    x = ca.SX.sym("x", 4)
+    prm = ca.SX.sym("prm", len(_PRM) + 2)
+    kE, kx, kv, aEmax, Eref, kick, margin, abrake, gamma, eps, band, ulo, uhi = (prm[i] for i in range(len(_PRM) + 2))
+    M = model.mass_matrix(x)
+    b = model.bias(x)
+    # The pole subsystem's energy as its own equation of motion conserves it: the hinge armature's kinetic energy
+    # belongs to it (pole_energy counts bodies only), so dE/dt = -D2 theta_dot^2 + m l w a exactly.
+    E = model.pole_energy(x) + 0.5 * float(p.armature[1]) * x[3] ** 2
+    D1, D2 = float(p.damping[0]), float(p.damping[1])
+    ml = p.pole_mass * p.pole_com_distance
+    s, sd = x[0], x[2]
+    # A pole at rest gives no pumping direction (the hanging state is an equilibrium of the law): replace a pole
+    # rate smaller than `kick` by +-kick so the law starts the swing itself instead of waiting for numerical noise.
+    thd = ca.if_else(ca.fabs(x[3]) < kick, ca.if_else(x[3] < 0, -kick, kick), x[3])
+    w = -thd * M[1, 0] / ml  # rad/s; direction in which cart acceleration pumps pole energy (hinge sign included)
+    w_true = -x[3] * M[1, 0] / ml
+    # Hinge-damping compensation: the power D2 theta_dot^2 put back through the cart, softened where the pole
+    # cannot be pumped (w ~ 0) so it stays bounded (at most D2 theta_dot^2 / (2 m l eps)).
+    aD = D2 * x[3] ** 2 * w_true / (ml * (w_true**2 + eps**2))
+    aE = ca.fmin(ca.fmax(kE * (Eref - E) * w + aD, -aEmax), aEmax)
+    # Cart centring fights the pumping while the energy is far from its target (it needs large cart velocities);
+    # weight it by how close the energy is: full strength within ~centring_band of E_ref, fading outside.
+    phi = 1 / (1 + ((Eref - E) / band) ** 2)
+    a = aE - phi * (kx * s + kv * sd)
+    # Track guard, a control barrier function on h = (distance to the limit minus margin) - (stopping distance at
+    # a_brake): dh/dt >= -gamma h gives, while moving towards that limit, a <= a_brake (gamma h / |s_dot| - 1).
+    big = 1e9
+    s_lo = float(p.cart_range[0]) if np.isfinite(p.cart_range[0]) else -big
+    s_hi = float(p.cart_range[1]) if np.isfinite(p.cart_range[1]) else big
+    h_hi = (s_hi - margin - s) - ca.fmax(sd, 0) ** 2 / (2 * abrake)
+    h_lo = (s - s_lo - margin) - ca.fmin(sd, 0) ** 2 / (2 * abrake)
+    eps = 1e-9
+    a_up = ca.if_else(sd > eps, abrake * (gamma * h_hi / ca.fmax(sd, eps) - 1), big)
+    a_dn = ca.if_else(sd < -eps, -abrake * (gamma * h_lo / ca.fmax(-sd, eps) - 1), -big)
+    a = ca.fmin(ca.fmax(a, a_dn), a_up)
+    # Collocated partial feedback linearisation: the force that gives the cart exactly the acceleration a.
+    thdd = (-D2 * x[3] - b[1] - M[1, 0] * a) / M[1, 1]
+    force = M[0, 0] * a + M[0, 1] * thdd + b[0] + D1 * sd
+    u = ca.fmin(ca.fmax(force / p.gear, ulo), uhi)
+    return ca.Function("energy_law", [x, prm], [u, a, E, w], ["x", "prm"], ["u", "a", "E", "w"])
+
+
+class EnergyShapingController:
+    """Swing the pole up by pumping its energy to ``E_ref`` through the cart acceleration; ``u = c(t, x)``.
+
+    Parameters
+    ----------
+    model : CartPoleModel or CartPoleParams or path or None
+        The symbolic model the law inverts (None = shipped asset).
+    k_energy : float, optional
+        Energy gain ``k_E`` in (m/s^2)/(J rad/s); default scaled from the model (:func:`default_gains`).
+    k_x : float, optional
+        Cart centring stiffness in 1/s^2; default scaled from the model.
+    k_v : float, optional
+        Cart centring damping in 1/s; default scaled from the model.
+    a_energy_max : float, optional
+        Saturation of the energy acceleration in m/s^2; default scaled from the model.
+    energy_target : float, optional
+        Pole energy to aim at, J (0 = exactly the upright value, which stalls short of the top under damping);
+        default ``overshoot * 2 m g l``.
+    gains : EnergyGains, optional
+        Every gain at once (the keywords above still override its fields).
+    **scaling
+        Dimensionless settings for :func:`default_gains` (``energy_gain``, ``overshoot``, ``energy_accel``,
+        ``centring_frequency``, ``centring_damping``, ``kick``, ``track_margin``, ``brake_accel``,
+        ``barrier_rate``), used for whatever is not given explicitly.
+
+    Attributes
+    ----------
+    gains : EnergyGains
+        The gains in use (SI).
+    model : CartPoleModel
+    """
+
+    def __init__(self, model=None, *, k_energy: float | None = None, k_x: float | None = None,
+                 k_v: float | None = None, a_energy_max: float | None = None, energy_target: float | None = None,
+                 gains: EnergyGains | None = None, **scaling):
+        self.model = model if isinstance(model, CartPoleModel) else build_model(model)
+        g = gains if gains is not None else default_gains(self.model, **scaling)
+        explicit = dict(k_energy=k_energy, k_x=k_x, k_v=k_v, a_energy_max=a_energy_max, energy_target=energy_target)
+        g = replace(g, **{k: float(v) for k, v in explicit.items() if v is not None})
+        vals = np.array([getattr(g, k) for k in _PRM], dtype=float)
+        if np.any(np.isnan(vals)) or g.k_energy <= 0 or g.a_energy_max <= 0 or g.a_brake <= 0 \
+                or g.barrier_rate <= 0 or min(g.k_x, g.k_v, g.kick_rate, g.track_margin) < 0:
+            raise EnergyShapingError(f"Energy-shaping gains {g} are invalid; k_energy, a_energy_max, a_brake and "
+                                     "barrier_rate must be positive, the others non-negative.")
+        self.gains = g
+        lo, hi = self.model.params.ctrl_range
+        self._prm = np.array([*vals, lo, hi], dtype=float)
+        self._fun = _law(self.model)
+
+    def __call__(self, t: float, x) -> float:
+        """ctrl (clipped to the ctrl range) at time ``t`` (s, unused) for state ``x`` (4,)."""
+        return float(self._fun(np.asarray(x, dtype=float), self._prm)[0])
+
+    def evaluate(self, x) -> dict:
+        """The law's internals at state ``x`` (4,): ``ctrl``, desired cart acceleration ``a`` (m/s^2), pole energy
+        ``E`` (J) and pumping direction ``w`` (rad/s)."""
+        u, a, E, w = self._fun(np.asarray(x, dtype=float), self._prm)
+        return {"ctrl": float(u), "a": float(a), "E": float(E), "w": float(w)}
+
+    def pole_energy(self, x) -> float:
+        """Pole energy about the hinge in J (0 = upright rest) at state ``x`` (4,)."""
+        return float(self.model.pole_energy(np.asarray(x, dtype=float)))
+
+
+def energy_guess(model=None, x0=(0.0, np.pi, 0.0, 0.0), T: float = 4.0, N: int = 100, *, controller=None,
+                 catch=True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A swing-up guess for trajectory optimisation: simulate the symbolic model under energy shaping.
+
+    The symbolic model's exact discrete step (``model.step``, the MJCF's integrator) is run for ``T`` seconds
+    under the energy controller (and, with ``catch``, the LQR catch once the state is near upright), and the
+    states and inputs are sampled on a uniform grid of ``N`` intervals.
+
+    Parameters
+    ----------
+    model : CartPoleModel or CartPoleParams or path or None
+    x0 : (4,) array
+        Start state.
+    T : float
+        Horizon in s.
+    N : int
+        Number of grid intervals.
+    controller : callable, optional
+        ``(t, x) -> ctrl`` to use instead of the default energy shaping (+ catch).
+    catch : bool
+        Switch to the lab LQR once ``e' S e`` is below a conservative level (no MuJoCo basin estimate here).
+
+    Returns
+    -------
+    t : (N+1,) array, s
+    x : (N+1, 4) array
+    u : (N, 1) array, ctrl applied from ``t[k]`` (zero-order sample of the simulated input)
+    """
+    model = model if isinstance(model, CartPoleModel) else build_model(model)
+    if not (T > 0 and int(N) >= 1):
+        raise EnergyShapingError(f"energy_guess needs T > 0 and N >= 1 (got T = {T}, N = {N}).")
+    N = int(N)
+    if controller is None:
+        controller = EnergyShapingController(model)
+        if catch:
+            from cartpole.control.switching import SwitchingController, lab_catch
+            c = lab_catch(model)
+            # Without a MuJoCo basin estimate use a small, safe level: 10 % of the cost of a 0.2 rad tilt.
+            rho = 0.1 * float(np.array([0, 0.2, 0, 0]) @ c.S @ np.array([0, 0.2, 0, 0]))
+            controller = SwitchingController(controller, c, rho)
+    h = model.dt
+    n = int(np.ceil(T / h))
+    xs = np.empty((n + 1, 4))
+    us = np.empty(n)
+    xs[0] = np.asarray(x0, dtype=float)
+    lo, hi = model.params.ctrl_range
+    for k in range(n):
+        us[k] = float(np.clip(controller(k * h, xs[k]), lo, hi))
+        xs[k + 1] = model.step_np(xs[k], us[k])
+    tk = np.arange(n + 1) * h
+    tg = np.linspace(0.0, T, N + 1)
+    xg = np.column_stack([np.interp(tg, tk, xs[:, i]) for i in range(4)])
+    idx = np.minimum((tg[:-1] / h).astype(int), n - 1)
+    return tg, xg, us[idx].reshape(-1, 1)

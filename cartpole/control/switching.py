@@ -1,0 +1,129 @@
+"""Hand a swing-up over to an LQR catch inside a basin ``e' S e < rho``, with hysteresis.
+
+Drake's acrobot swing-up does the same: the swing-up runs until the quadratic cost-to-go of the balancing LQR,
+evaluated on the *wrapped* error from upright, drops below a level ``rho`` that a basin estimate
+(:func:`cartpole.validation.basin.estimate_basin`) found safe; the catch then holds the pole. The controller
+goes back to the swing-up only when the cost exceeds ``release_factor * rho``, a much larger level, so noise
+or the transient right after the catch cannot make it chatter between the two laws.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cartpole.control.linear import LinearFeedback
+from cartpole.errors import CartPoleError
+
+
+class SwitchingError(CartPoleError):
+    """Bad switching level (rho not positive, release factor not above 1, catch without S)."""
+
+
+def lab_catch(model, Q=None, R=None) -> LinearFeedback:
+    """The LQR catch about upright rest: ``LinearFeedback(K, S=S)`` from ``lqr(A, B, Q, R)`` on the exact A, B.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        Symbolic model (its exact continuous linearisation at upright rest with zero ctrl is used).
+    Q : (4, 4) array, optional
+        State weight (default the lab's ``diag(1, 10, 0.1, 0.1)``).
+    R : (1, 1) array, optional
+        Input weight on MuJoCo ctrl (default the lab's 0.1).
+
+    Returns
+    -------
+    LinearFeedback
+        ``u = -K e`` clipped to the model's ctrl range, with the cost-to-go ``S`` attached.
+    """
+    from cartpole import Q_LAB, R_LAB
+    from cartpole.lqr import lqr
+
+    A, B = model.linearize()
+    res = lqr(A, B, Q_LAB if Q is None else Q, R_LAB if R is None else R)
+    return LinearFeedback(res.K, u_limits=tuple(model.params.ctrl_range), S=res.S)
+
+
+@dataclass(frozen=True)
+class Switch:
+    """One mode change: at time ``t`` (s) the controller switched to ``mode`` ("catch" or "swingup") with
+    ``cost`` = ``e' S e`` at that state."""
+
+    t: float
+    mode: str
+    cost: float
+
+
+class SwitchingController:
+    """Swing-up until ``e' S e < rho``, then the catch; back to swing-up only above ``release_factor * rho``.
+
+    Parameters
+    ----------
+    swingup : callable
+        ``(t, x) -> ctrl`` used outside the basin (e.g. :class:`EnergyShapingController`).
+    catch : LinearFeedback
+        The balancing law; must carry ``S`` (its :meth:`~LinearFeedback.cost_to_go` is the basin test, with the
+        pole-angle error wrapped so ``theta = 2 pi + 0.01`` counts as 0.01 rad from upright).
+    rho : float
+        Catch level (dimensionless cost units of ``S``), e.g. ``BasinEstimate.rho``.
+    release_factor : float
+        Hysteresis: hand back to the swing-up only when ``e' S e > release_factor * rho`` (> 1; default 20).
+
+    Attributes
+    ----------
+    mode : str
+        "swingup" or "catch", the current law.
+    switches : list of Switch
+        Every mode change since the last reset.
+
+    Notes
+    -----
+    The controller has state (its mode). It resets itself when called with a time earlier than the previous
+    call (a new run), or explicitly with :meth:`reset`.
+    """
+
+    def __init__(self, swingup, catch: LinearFeedback, rho: float, *, release_factor: float = 20.0):
+        if getattr(catch, "S", None) is None:
+            raise SwitchingError("The catch controller has no cost-to-go matrix S; build it with "
+                                 "LinearFeedback(K, S=S) from lqr().")
+        if not (np.isfinite(rho) and rho > 0):
+            raise SwitchingError(f"The catch level rho = {rho} is not a positive number; estimate it with "
+                                 "estimate_basin().")
+        if not (np.isfinite(release_factor) and release_factor > 1):
+            raise SwitchingError(f"release_factor = {release_factor} must be a finite number above 1 so the "
+                                 "release level is above the catch level.")
+        self.swingup = swingup
+        self.catch = catch
+        self.rho = float(rho)
+        self.release_factor = float(release_factor)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the mode and the switch log (start in swing-up mode)."""
+        self.mode = "swingup"
+        self.switches: list[Switch] = []
+        self._last_t = -np.inf
+
+    @property
+    def caught_at(self) -> float | None:
+        """Time (s) of the last switch to the catch if the catch is still in charge, else None."""
+        if self.mode == "catch" and self.switches:
+            return self.switches[-1].t
+        return None
+
+    def __call__(self, t: float, x) -> float:
+        """ctrl at time ``t`` (s) for state ``x`` (4,), switching modes as the cost ``e' S e`` dictates."""
+        t = float(t)
+        if t < self._last_t:
+            self.reset()
+        self._last_t = t
+        cost = self.catch.cost_to_go(x)
+        if self.mode == "swingup" and cost < self.rho:
+            self.mode = "catch"
+            self.switches.append(Switch(t, "catch", cost))
+        elif self.mode == "catch" and cost > self.release_factor * self.rho:
+            self.mode = "swingup"
+            self.switches.append(Switch(t, "swingup", cost))
+        law = self.catch if self.mode == "catch" else self.swingup
+        return law(t, x)

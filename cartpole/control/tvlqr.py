@@ -1,0 +1,66 @@
+"""Track a planned trajectory with TVLQR, then hand over to the LQR catch at the end of the plan."""
+from __future__ import annotations
+
+import numpy as np
+
+from cartpole.control.linear import LinearFeedback, state_error
+
+
+class TVLQRController:
+    """``u = u_ff(t) - K(t) (x - x_ff(t))`` for ``t < T``, then the LQR ``catch``; call shape ``u = c(t, x)``.
+
+    The angle error is wrapped to (-pi, pi], so a plan that ends at ``theta = 2 pi`` and a MuJoCo hinge
+    that never wraps agree. With discrete gains (held over each simulator step) the feed-forward is the
+    zero-order-hold equivalent of the plan's first-order-hold input, ``u_ff(t) = input(t + dt / 2)`` (the
+    mean over the step the gain was designed for); with continuous gains it is ``input(t)``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The plan (cubic-Hermite states, first-order-hold inputs); time 0 of the controller is ``traj.t[0]``.
+    gains : TVLQRGains
+        From :func:`cartpole.lqr.tvlqr.tvlqr` along ``traj``.
+    catch : LinearFeedback
+        Balancing controller that takes over at ``t >= traj.t[-1]``.
+    u_limits : (2,) array, optional
+        ``[low, high]`` ctrl clip (default: the catch's limits).
+
+    Attributes
+    ----------
+    handover_time : float or None
+        Time (s) of the first call that used the catch in the current run (reset when time goes back).
+    """
+
+    def __init__(self, traj, gains, catch: LinearFeedback, *, u_limits=None):
+        self.traj = traj
+        self.gains = gains
+        self.catch = catch
+        self.u_limits = tuple(catch.u_limits) if u_limits is None else tuple(float(v) for v in u_limits)
+        self._ff_shift = 0.5 * gains.dt if gains.method == "discrete" else 0.0
+        self.handover_time: float | None = None
+        self._last_t = -np.inf
+
+    @property
+    def T(self) -> float:
+        """End of the plan in s; the catch holds from then on."""
+        return float(self.traj.t[-1])
+
+    def reset(self) -> None:
+        """Forget the hand-over (done automatically when called with an earlier time than the last call)."""
+        self.handover_time = None
+        self._last_t = -np.inf
+
+    def __call__(self, t: float, x) -> float:
+        """ctrl at time ``t`` (s) for state ``x`` (4,), clipped to ``u_limits``."""
+        t = float(t)
+        if t < self._last_t:  # a new run started
+            self.reset()
+        self._last_t = t
+        if t >= self.T - 1e-12:
+            if self.handover_time is None:
+                self.handover_time = t
+            return float(np.clip(self.catch(t, x), *self.u_limits))
+        e = state_error(x, self.traj.state(t))
+        u_ff = float(self.traj.input(min(t + self._ff_shift, self.T))[0])
+        u = u_ff - float(self.gains.gain(t)[0] @ e)
+        return float(np.clip(u, *self.u_limits))

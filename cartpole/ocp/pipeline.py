@@ -1,0 +1,136 @@
+"""Swing-up by trajectory optimisation: collocation -> Trajectory -> TVLQR -> controller, in one call.
+
+``trajopt_swingup`` plans with a symbolic model (by default the MJCF's own; optionally a deliberately wrong
+one, to test robustness), tracks the plan with TVLQR on the exact discrete model at the simulator's step,
+and hands over to the LQR catch (the lab weights' continuous LQR at upright) when the plan ends. The plan's
+duration, unless given, is the minimum time the bounds allow times ``1 + time_margin``: the faster the
+better, but a plan that saturates the actuator everywhere leaves TVLQR no authority to correct errors.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.tvlqr import TVLQRController
+from cartpole.lqr.lqr import lqr
+from cartpole.lqr.tvlqr import TVLQRGains, tvlqr
+from cartpole.models.params import CartPoleParams, read_params
+from cartpole.models.symbolic import CartPoleModel, build_model
+from cartpole.ocp.collocation import DirectCollocation, SolveInfo
+from cartpole.ocp.trajectory import Trajectory
+
+#: The lab's weights (duplicated from ``cartpole.Q_LAB``/``R_LAB`` to avoid importing the top package here).
+_Q_LAB = np.diag([1.0, 10.0, 0.1, 0.1])
+_R_LAB = np.array([[0.1]])
+
+
+@dataclass(frozen=True)
+class SwingupPlan:
+    """Everything ``trajopt_swingup`` produced.
+
+    Attributes
+    ----------
+    trajectory : Trajectory
+        The optimised plan (its ``duration`` is the chosen T in s).
+    gains : TVLQRGains
+        TVLQR along the plan at the simulator's step.
+    controller : TVLQRController
+        ``u = controller(t, x)``: TVLQR tracking, then the catch; use it with ``cartpole.validation.simulate``.
+    solve_info : SolveInfo
+        The collocation solve of the returned plan.
+    catch : LinearFeedback
+        The LQR catch (K, S of ``lqr(A, B, Q, R)`` at upright rest of the planning model).
+    model : CartPoleModel
+        The model used for planning and TVLQR (may differ from the MJCF MuJoCo runs).
+    T_min : float or None
+        Minimum swing-up time in s found for the bounds (None when T was given).
+    """
+
+    trajectory: Trajectory
+    gains: TVLQRGains
+    controller: TVLQRController
+    solve_info: SolveInfo
+    catch: LinearFeedback
+    model: CartPoleModel
+    T_min: float | None = None
+
+    @property
+    def T(self) -> float:
+        """Duration of the plan in s."""
+        return self.trajectory.duration
+
+
+def minimum_time(model: CartPoleModel, x0=(0.0, np.pi, 0.0, 0.0), *, N: int = 60, solver: str = "ipopt",
+                 **bounds) -> tuple[float, Trajectory, SolveInfo]:
+    """The shortest swing-up the bounds allow: a free-final-time Hermite-Simpson solve.
+
+    Returns ``(T_min (s), trajectory, info)``. ``bounds`` go to :class:`DirectCollocation`
+    (``u_max``, ``cart_max``, ``cart_margin``).
+    """
+    ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, **bounds)
+    traj, info = ocp.solve(x0)
+    return info.T, traj, info
+
+
+def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=(0.0, np.pi, 0.0, 0.0), *,
+                    T: float | None = None, N: int = 100, model: CartPoleModel | None = None,
+                    solver: str = "ipopt", Q=None, R=None, Qf=None, time_margin: float = 0.2,
+                    solver_options: dict | None = None, cart_margin: float = 0.1) -> SwingupPlan:
+    """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
+
+    Parameters
+    ----------
+    source : CartPoleParams or MJCF path, optional
+        The cart-pole (default the shipped asset); its ctrlrange and slide range bound the plan, its
+        timestep is the TVLQR step.
+    x0 : (4,) array
+        Start state (default hanging at rest).
+    T : float, optional
+        Plan duration in s; default ``(1 + time_margin) * T_min`` with ``T_min`` from a minimum-time solve.
+    N : int
+        Collocation intervals.
+    model : CartPoleModel, optional
+        Model used for planning and TVLQR; default the MJCF's own. Give a deliberately wrong one (e.g.
+        ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
+    solver : {'ipopt', 'fatrop'}
+    Q, R : arrays, optional
+        Tracking and catch weights (default the lab's ``diag(1, 10, .1, .1)``, 0.1).
+    Qf : (4, 4) array, optional
+        TVLQR terminal cost; default the catch's discrete cost-to-go (seamless hand-over).
+    time_margin : float
+        Relative margin on the minimum time when T is chosen automatically (default 0.2).
+    solver_options : dict, optional
+        Passed straight to ``casadi.nlpsol``.
+    cart_margin : float
+        Distance in m kept from each end of the slide range.
+
+    Returns
+    -------
+    SwingupPlan
+    """
+    params = source if isinstance(source, CartPoleParams) else read_params(source)
+    plan_model = model if model is not None else build_model(params)
+    Q = _Q_LAB if Q is None else np.asarray(Q, float)
+    R = _R_LAB if R is None else np.atleast_2d(np.asarray(R, float))
+    x0 = np.asarray(x0, dtype=float)
+    # Bounds are the MJCF's (the real actuator and track), whatever model plans.
+    bounds = dict(u_max=params.u_max, cart_max=None if not np.all(np.isfinite(params.cart_range)) else
+                  0.5 * (params.cart_range[1] - params.cart_range[0]) - cart_margin)
+    T_min = None
+    if T is None:
+        T_min, _, _ = minimum_time(plan_model, x0, N=min(N, 60), solver=solver, **bounds)
+        T = (1.0 + time_margin) * T_min
+    ocp = DirectCollocation(plan_model, N=N, T=T, solver=solver, solver_options=solver_options, **bounds)
+    traj, info = ocp.solve(x0)
+    A, B = plan_model.linearize()
+    cat = lqr(A, B, Q, R)
+    catch = LinearFeedback(cat.K, u_limits=params.ctrl_range, S=cat.S)
+    # TVLQR at the MJCF's step, on the planning model's exact discrete step.
+    tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
+    gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=params.timestep)
+    controller = TVLQRController(traj, gains, catch, u_limits=params.ctrl_range)
+    return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
+                       model=plan_model, T_min=T_min)

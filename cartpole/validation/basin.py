@@ -1,0 +1,266 @@
+"""Estimate the LQR catch's basin ``{e : e' S e < rho}`` by replaying the catch in MuJoCo from sampled states.
+
+Method (documented in :class:`BasinEstimate`):
+
+1. draw ``n`` errors from upright rest spread over the ellipsoid ``e' S e <= level``: a direction ``d`` uniform on
+   the unit sphere, ``e = r sqrt(level) L^-T d`` with ``S = L L'`` (so ``e' S e = level r^2``) and ``r`` uniform in
+   ``[0, 1]``, from ``numpy.random.default_rng(seed)``; starts whose cart position is outside 90 % of the track are
+   redrawn. The level set is long and thin (rates and angle mix), so sampling in the metric of ``S`` puts every
+   sample where it informs rho, where a fixed box wastes most of them;
+2. run the catch ``u = clip(-K e)`` (``e`` the wrapped error) from each in MuJoCo on the MJCF for ``duration`` s;
+3. call a run a success when the cart never reaches its joint limit (kept ``limit_margin`` inside it) and at the
+   end the pole is upright and still: ``|wrapped theta| < 0.05`` rad, ``|theta_dot| < 0.1`` rad/s,
+   ``|s_dot| < 0.1`` m/s;
+4. ``rho_sampled`` is the largest level below which every sample succeeded: the smallest cost ``e' S e`` of a
+   failed sample. The samples only cover ``e' S e < rho_cover`` (``level``, or less where the track cuts the
+   ellipsoid: ``(0.9 half-track)^2 / (S^-1)_00``), so above that they say nothing; the estimate is
+   ``rho = safety_factor * min(rho_sampled, rho_cover)``. The safety factor (default 0.75) covers directions the
+   finite sample missed; it is a margin, not a proof.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cartpole.control.linear import LinearFeedback
+from cartpole.errors import CartPoleError
+from cartpole.models.params import CartPoleParams, read_params
+from cartpole.validation.replay import make_mujoco
+
+#: Final-state tolerances of a successful catch: |wrapped theta| (rad), |theta_dot| (rad/s), |s_dot| (m/s).
+UPRIGHT_TOL = 0.05
+RATE_TOL = 0.1
+CART_SPEED_TOL = 0.1
+
+
+class BasinError(CartPoleError):
+    """Bad sampling settings for a basin estimate."""
+
+
+def _ro(a, dtype=float) -> np.ndarray:
+    arr = np.array(a, dtype=dtype)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class BasinEstimate:
+    """A sampled estimate of the catch basin ``e' S e < rho``, with everything needed to inspect it.
+
+    Attributes
+    ----------
+    rho : float
+        The catch level to use: ``safety_factor * min(rho_sampled, rho_cover)``.
+    rho_sampled : float
+        Smallest cost of a failed sample (inf when none failed).
+    rho_cover : float
+        Level up to which the samples cover the set ``e' S e < rho_cover`` (``level``, less if the track cuts it).
+    samples : (n, 4) array
+        Start states (errors from upright rest), [m, rad, m/s, rad/s].
+    costs : (n,) array
+        ``e' S e`` of each sample.
+    success : (n,) bool array
+        Whether the catch brought that sample to upright rest without touching the cart limit.
+    S : (4, 4) array
+        Cost-to-go matrix of the catch.
+    K : (1, 4) array
+        Gain of the catch.
+    n : int
+    seed : int
+    level : float
+        Samples were drawn in ``e' S e <= level``.
+    box : (4,) array
+        Half-widths of the box enclosing the samples, ``max |samples|`` per state, [m, rad, m/s, rad/s].
+    duration : float
+        Seconds each sample was simulated.
+    safety_factor : float
+    limit_margin : float
+        m inside the cart joint limit that a run must stay.
+    mjcf : str
+        MJCF the runs used.
+    """
+
+    rho: float
+    rho_sampled: float
+    rho_cover: float
+    samples: np.ndarray
+    costs: np.ndarray
+    success: np.ndarray
+    S: np.ndarray
+    K: np.ndarray
+    n: int
+    seed: int
+    level: float
+    box: np.ndarray
+    duration: float
+    safety_factor: float
+    limit_margin: float
+    mjcf: str = ""
+
+    def __post_init__(self):
+        for name in ("samples", "costs", "S", "K", "box"):
+            object.__setattr__(self, name, _ro(getattr(self, name)))
+        object.__setattr__(self, "success", _ro(self.success, bool))
+
+    @property
+    def n_inside(self) -> int:
+        """Number of samples with cost below ``rho``."""
+        return int(np.sum(self.costs < self.rho))
+
+    def summary(self) -> dict:
+        """JSON-ready summary (no sample arrays)."""
+        return {"rho": self.rho, "rho_sampled": None if not np.isfinite(self.rho_sampled) else self.rho_sampled,
+                "rho_cover": self.rho_cover, "n": self.n, "seed": self.seed, "level": self.level,
+                "box": self.box.tolist(),
+                "duration": self.duration, "safety_factor": self.safety_factor,
+                "successes": int(self.success.sum()), "n_inside": self.n_inside}
+
+
+def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, limit_margin: float = 0.01,
+                   progress=None) -> np.ndarray:
+    """Run the catch in MuJoCo from each start state and say which runs end upright and still.
+
+    A plain ``mj_step`` loop on one ``MjData`` (no logging), the same physics as :func:`simulate`.
+
+    Parameters
+    ----------
+    source : CartPoleParams or MJCF path or None
+    catch : LinearFeedback
+        Evaluated as ``catch(t, x)`` every physics step; MuJoCo clips ctrl to ctrlrange.
+    starts : (n, 4) array
+        Start states.
+    duration : float
+        Seconds per run.
+    limit_margin : float
+        The cart must stay this far (m) inside its joint range the whole run.
+    progress : callable, optional
+        Called with the fraction done.
+
+    Returns
+    -------
+    (n,) bool array
+    """
+    import mujoco
+
+    from cartpole.models.symbolic import wrap_angle
+
+    m, d = make_mujoco(source)
+    h = float(m.opt.timestep)
+    steps = max(1, int(round(duration / h)))
+    lo, hi = (m.jnt_range[0] if m.jnt_limited[0] else (-np.inf, np.inf))
+    lo, hi = lo + limit_margin, hi - limit_margin
+    starts = np.atleast_2d(np.asarray(starts, dtype=float))
+    ok = np.zeros(len(starts), dtype=bool)
+    for i, x0 in enumerate(starts):
+        mujoco.mj_resetData(m, d)
+        d.qpos[:] = x0[:2]
+        d.qvel[:] = x0[2:]
+        mujoco.mj_forward(m, d)
+        hit = False
+        for k in range(steps):
+            d.ctrl[0] = catch(k * h, np.concatenate([d.qpos, d.qvel]))
+            mujoco.mj_step(m, d)
+            if not (lo < d.qpos[0] < hi) or not np.isfinite(d.qpos[1]):
+                hit = True
+                break
+        ok[i] = (not hit and abs(wrap_angle(d.qpos[1])) < UPRIGHT_TOL and abs(d.qvel[1]) < RATE_TOL
+                 and abs(d.qvel[0]) < CART_SPEED_TOL)
+        if progress is not None and ((i + 1) % max(1, len(starts) // 20) == 0 or i + 1 == len(starts)):
+            progress((i + 1) / len(starts))
+    return ok
+
+
+def sample_errors(S, n: int, *, level: float, seed: int, s_max: float = np.inf) -> np.ndarray:
+    """Errors (n, 4) spread over ``e' S e <= level`` (see the module notes), with ``|e_0| < s_max`` (m)."""
+    rng = np.random.default_rng(seed)
+    L = np.linalg.cholesky(np.asarray(S, dtype=float))
+    out = np.empty((0, 4))
+    while len(out) < n:
+        d = rng.standard_normal((n, 4))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        r = rng.uniform(0.0, 1.0, size=(n, 1))
+        e = np.linalg.solve(L.T, (np.sqrt(level) * r * d).T).T
+        out = np.vstack([out, e[np.abs(e[:, 0]) < s_max]])
+    return out[:n]
+
+
+def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int = 300, seed: int = 0,
+                   level: float = 1.0, duration: float = 4.0, safety_factor: float = 0.75,
+                   limit_margin: float = 0.01, progress=None) -> BasinEstimate:
+    """Sample start states around upright, replay the catch in MuJoCo from each and return the safe level rho.
+
+    Parameters
+    ----------
+    source : CartPoleParams or MJCF path or None
+        The cart-pole (None = shipped asset).
+    catch : LinearFeedback, optional
+        Catch with ``S``; default the lab LQR on the exact linearisation (:func:`lab_catch`).
+    n : int
+        Number of samples.
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    level : float
+        Samples fill ``e' S e <= level`` (cost units of ``S``); keep it well above the expected rho.
+    duration : float
+        Seconds each sample is simulated.
+    safety_factor : float
+        In (0, 1]: rho is this fraction of the sampled level.
+    limit_margin : float
+        m inside the cart joint range a successful run must stay.
+    progress : callable, optional
+        Called with the fraction done.
+
+    Returns
+    -------
+    BasinEstimate
+    """
+    from cartpole.control.switching import lab_catch
+    from cartpole.models.symbolic import build_model
+
+    params = source if isinstance(source, CartPoleParams) else read_params(source)
+    if catch is None:
+        catch = lab_catch(build_model(params))
+    if catch.S is None:
+        raise BasinError("The catch has no cost-to-go matrix S; build it with LinearFeedback(K, S=S).")
+    if int(n) < 1 or not (duration > 0) or not (0 < safety_factor <= 1) or not (level > 0):
+        raise BasinError(f"Basin sampling needs n >= 1, level > 0, duration > 0 and 0 < safety_factor <= 1 "
+                         f"(got n = {n}, level = {level}, duration = {duration}, safety_factor = {safety_factor}).")
+    S = np.asarray(catch.S, dtype=float)
+    half = 0.5 * (params.cart_range[1] - params.cart_range[0])
+    s_max = 0.9 * half if np.isfinite(half) else np.inf
+    samples = sample_errors(S, int(n), level=float(level), seed=int(seed), s_max=s_max)
+    costs = np.einsum("ni,ij,nj->n", samples, S, samples)
+    success = catch_succeeds(params, catch, samples, duration, limit_margin=limit_margin, progress=progress)
+    rho_sampled = float(costs[~success].min()) if np.any(~success) else np.inf
+    rho_cover = float(min(level, s_max**2 / np.linalg.inv(S)[0, 0]))
+    rho = float(safety_factor * min(rho_sampled, rho_cover))
+    return BasinEstimate(rho=rho, rho_sampled=rho_sampled, rho_cover=rho_cover, samples=samples, costs=costs,
+                         success=success, S=S, K=catch.K, n=int(n), seed=int(seed), level=float(level),
+                         box=np.abs(samples).max(axis=0), duration=float(duration),
+                         safety_factor=float(safety_factor), limit_margin=float(limit_margin), mjcf=params.mjcf)
+
+
+@dataclass
+class BasinCache:
+    """In-memory cache of basin estimates, keyed by the MJCF text, the catch gain and the sampling settings.
+
+    Pass one around explicitly (no module-level state); ``cache.get(source, catch, **kw)`` estimates once and
+    returns the same :class:`BasinEstimate` afterwards.
+    """
+
+    _store: dict = field(default_factory=dict)
+
+    def get(self, source=None, catch: LinearFeedback | None = None, **kwargs) -> BasinEstimate:
+        """:func:`estimate_basin` with the same arguments, computed once per distinct input."""
+        params = source if isinstance(source, CartPoleParams) else read_params(source)
+        kkey = b"" if catch is None else np.asarray(catch.K, float).tobytes() + np.asarray(catch.S, float).tobytes()
+        opts = tuple(sorted((k, repr(v)) for k, v in kwargs.items() if k != "progress"))
+        key = (hashlib.sha256(params.xml.encode() + kkey).hexdigest(), opts)
+        if key not in self._store:
+            self._store[key] = estimate_basin(params, catch, **kwargs)
+        return self._store[key]
+
+    def __len__(self) -> int:
+        return len(self._store)

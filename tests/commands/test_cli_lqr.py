@@ -1,0 +1,173 @@
+"""`cartpole lqr`: the JSON contract, prose, files, metrics row appended, clean failures, and the printed
+settling times reproduced by an independent mj_step replay of the printed K."""
+import csv
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cartpole.cli import main
+from cartpole.models import SHIPPED_MJCF
+
+CONTRACT = {"mjcf", "K", "initial_conditions", "settling_times_seed", "settling_times", "mean_settling_time_seed",
+            "settled", "figure", "video", "metrics"}
+
+
+def handout_settling_time(t, history, threshold=0.05):
+    """The lab handout's function, verbatim."""
+    abs_theta = np.abs(history[:, 1])
+    above = np.where(abs_theta > threshold)[0]
+    if len(above) == 0:
+        return 0.0
+    return t[above[-1] + 1] if above[-1] + 1 < len(t) else t[-1]
+
+
+def independent_replay(mjcf, K, x0, seconds=6.0):
+    """Plain MuJoCo: u = -K x clipped to ctrlrange, mj_step, log every state (no cartpole code)."""
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_path(str(mjcf))
+    d = mujoco.MjData(m)
+    d.qpos[:] = x0[:2]
+    d.qvel[:] = x0[2:]
+    mujoco.mj_forward(m, d)
+    n = int(round(seconds / m.opt.timestep))
+    xs = [np.concatenate([d.qpos, d.qvel])]
+    for _ in range(n):
+        d.ctrl[:] = np.clip(-K @ xs[-1], *m.actuator_ctrlrange[0])
+        mujoco.mj_step(m, d)
+        xs.append(np.concatenate([d.qpos, d.qvel]))
+    return np.arange(n + 1) * m.opt.timestep, np.array(xs)
+
+
+@pytest.fixture(scope="module")
+def lab_json(tmp_path_factory):
+    out = tmp_path_factory.mktemp("lab")
+    import io
+    from contextlib import redirect_stdout
+
+    buf = io.StringIO()
+    with redirect_stdout(buf):
+        assert main(["lqr", "--json", "--no-video", "--out", str(out)]) == 0
+    return json.loads(buf.getvalue()), out
+
+
+def test_json_follows_the_contract(lab_json):
+    doc, out = lab_json
+    assert CONTRACT <= set(doc)
+    assert Path(doc["mjcf"]) == SHIPPED_MJCF
+    assert np.array(doc["K"]).shape == (1, 4) and np.array(doc["initial_conditions"]).shape == (5, 4)
+    assert len(doc["settling_times_seed"]) == len(doc["settling_times"]) == len(doc["settled"]) == 5
+    assert all(isinstance(s, bool) for s in doc["settled"]) and all(doc["settled"])
+    assert doc["mean_settling_time_seed"] == pytest.approx(np.mean(doc["settling_times_seed"]), abs=1e-15)
+    assert doc["video"] is None
+    assert Path(doc["figure"]) == (out / "figures" / "day5_cartpole_lqr.png").resolve()
+    assert Path(doc["metrics"]) == (out / "metrics" / "metrics.csv").resolve()
+    assert Path(doc["figure"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (out / "videos").exists()
+
+
+def test_printed_settling_times_are_reproduced_by_an_independent_replay(lab_json):
+    doc, _ = lab_json
+    K = np.array(doc["K"])[0]
+    for x0, ts_seed, ts_strict in zip(np.array(doc["initial_conditions"]), doc["settling_times_seed"],
+                                      doc["settling_times"]):
+        t, x = independent_replay(doc["mjcf"], K, x0)
+        # the handout logged n states before each step; both conventions agree when the run settles
+        assert ts_seed == pytest.approx(handout_settling_time(t[:-1], x[:-1]), abs=1e-12)
+        inside = np.all(np.abs(x) <= 0.01, axis=1)
+        k = len(t) - np.argmin(inside[::-1]) if not inside.all() else 0
+        assert inside[-1] and ts_strict == pytest.approx(t[k], abs=1e-12)
+
+
+def test_metrics_row_is_appended_not_overwritten(tmp_path, capsys):
+    for _ in range(2):
+        assert main(["lqr", "--json", "--no-video", "--out", str(tmp_path)]) == 0
+    doc = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    rows = list(csv.reader((tmp_path / "metrics" / "metrics.csv").open()))
+    assert rows[0][0] == "run_id" and len(rows) == 3
+    for row in rows[1:]:
+        assert len(row) == 13
+        assert row[:4] == ["day5_cartpole_lqr", row[1], "5", "cartpole_lqr"]
+        assert re.fullmatch(r"\d{4}-\d{2}-\d{2}", row[1]) and re.fullmatch(r"[0-9a-f]{4,40}|nogit", row[4])
+        assert row[5:8] == ["0", "cartpole", "lqr"] and row[8] == "1200" and row[9] == "1"
+        assert row[10] == "settling_time_sec" and row[12] == "5_ICs"
+        assert float(row[11]) == pytest.approx(doc["mean_settling_time_seed"], abs=5e-5)
+
+
+def test_prose_prints_matrices_and_the_mean_line(lab_json, tmp_path, capsys):
+    assert main(["lqr", "--no-video", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    for word in ("A =", "B =", "K =", "Closed-loop eigenvalues"):
+        assert word in out
+    ts = re.findall(r"IC \d: .*settling time (\d+\.\d\d) s", out)
+    line = re.search(r"^Mean settling time: (\d+\.\d\d) s ± (\d+\.\d\d) s across 5 initial conditions$", out, re.M)
+    assert line and len(ts) == 5
+    # recomputed from plain mj_step replays with the JSON's full-precision K (the prose rounds K)
+    doc, _ = lab_json
+    K = np.array(doc["K"])[0]
+    ref = [handout_settling_time(*(a[:-1] for a in independent_replay(SHIPPED_MJCF, K, x0)))
+           for x0 in np.array(doc["initial_conditions"])]
+    assert line.groups() == (f"{np.mean(ref):.2f}", f"{np.std(ref):.2f}")
+    assert ts == [f"{v:.2f}" for v in ref]
+
+
+def test_stdout_is_pure_json_through_python_m(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "cartpole", "lqr", "--json", "--no-video", "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert CONTRACT <= set(json.loads(r.stdout))
+
+
+def test_video_is_10_s_at_30_fps(tmp_path, capsys):
+    import imageio_ffmpeg
+
+    assert main(["lqr", "--json", "--out", str(tmp_path)]) == 0
+    cap = capsys.readouterr()
+    doc = json.loads(cap.out)
+    if doc["video"] is None:
+        pytest.skip(f"no OpenGL backend on this machine: {cap.err.strip()}")
+    assert Path(doc["video"]) == (tmp_path / "videos" / "day5_cartpole.mp4").resolve()
+    frames, secs = imageio_ffmpeg.count_frames_and_secs(doc["video"])
+    gen = imageio_ffmpeg.read_frames(doc["video"])
+    meta = next(gen)
+    gen.close()
+    assert frames == 300 and tuple(meta["size"]) == (640, 480) and meta["fps"] == 30
+    assert "100%" in cap.err  # progress went to stderr
+    assert sorted(p.name for p in (tmp_path / "videos").iterdir()) == ["day5_cartpole.mp4"]
+
+
+def test_no_gl_backend_still_writes_the_rest(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["MUJOCO_GL"] = "glx"
+    r = subprocess.run([sys.executable, "-m", "cartpole", "lqr", "--json", "--out", str(tmp_path)],
+                       capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["video"] is None and Path(doc["figure"]).is_file() and Path(doc["metrics"]).is_file()
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "video" in lines[0] and "OpenGL" in lines[0]
+    assert not (tmp_path / "videos").exists()
+
+
+@pytest.mark.parametrize("case", ["missing", "not_a_cartpole"])
+def test_bad_mjcf_exits_2_with_one_line_and_writes_nothing(case, tmp_path, capsys):
+    from variants import variant_xml
+
+    bad = tmp_path / "in" / "model.xml"
+    if case == "not_a_cartpole":
+        bad.parent.mkdir()
+        bad.write_text(variant_xml("rk4_fine_step").replace('type="slide" axis="1 0 0"', 'type="hinge" axis="0 0 1"'))
+    out = tmp_path / "out"
+    assert main(["lqr", "--json", "--mjcf", str(bad), "--out", str(out)]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == ""
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cartpole lqr: ") and "Traceback" not in cap.err
+    assert ("does not exist" in lines[0]) if case == "missing" else ("hinge" in lines[0])
+    assert not out.exists()

@@ -1,0 +1,68 @@
+"""Switching between swing-up and LQR catch: hysteresis (no chattering), wrapped angle error, switch log."""
+import numpy as np
+import pytest
+
+import cartpole as cp
+from cartpole.control import LinearFeedback
+from cartpole.control.energy import EnergyShapingController
+from cartpole.control.switching import SwitchingController, SwitchingError, lab_catch
+from cartpole.validation import replays_exactly, simulate
+from cartpole.validation.basin import estimate_basin
+from cartpole.validation.swingup_metrics import swingup_success
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    params = cp.read_params()
+    model = cp.build_model(params)
+    catch = lab_catch(model)
+    return params, model, catch, estimate_basin(params, catch)
+
+
+def _unit_catch():
+    return LinearFeedback(np.zeros((1, 4)), u_limits=(-1, 1), S=np.eye(4))
+
+
+def test_hysteresis_catch_below_rho_release_only_above_release_level():
+    sw = SwitchingController(lambda t, x: 0.5, _unit_catch(), rho=1.0, release_factor=10.0)
+    assert sw(0.0, [2, 0, 0, 0]) == 0.5 and sw.mode == "swingup"       # cost 4 > rho
+    assert sw(0.1, [0.5, 0, 0, 0]) == 0.0 and sw.mode == "catch"       # cost 0.25 < rho
+    assert sw(0.2, [2, 0, 0, 0]) == 0.0 and sw.mode == "catch"         # 4: between rho and 10 rho, stays
+    assert sw(0.3, [4, 0, 0, 0]) == 0.5 and sw.mode == "swingup"       # 16 > 10 rho: released
+    assert [(s.t, s.mode) for s in sw.switches] == [(0.1, "catch"), (0.3, "swingup")]
+    assert sw.caught_at is None
+    sw(0.0, [0.1, 0, 0, 0])  # time going back = new run: log reset
+    assert [(s.t, s.mode) for s in sw.switches] == [(0.0, "catch")] and sw.caught_at == 0.0
+
+
+def test_bad_levels_raise():
+    with pytest.raises(SwitchingError):
+        SwitchingController(lambda t, x: 0.0, _unit_catch(), rho=0.0)
+    with pytest.raises(SwitchingError):
+        SwitchingController(lambda t, x: 0.0, _unit_catch(), rho=1.0, release_factor=1.0)
+    with pytest.raises(SwitchingError):
+        SwitchingController(lambda t, x: 0.0, LinearFeedback(np.zeros((1, 4))), rho=1.0)
+
+
+def test_shipped_swingup_switches_once_no_chattering(shipped):
+    params, model, catch, basin = shipped
+    sw = SwitchingController(EnergyShapingController(model), catch, basin.rho)
+    r = simulate(params, sw, (0, np.pi, 0, 0), 10.0)
+    assert replays_exactly(r)
+    assert len(sw.switches) == 1 and sw.switches[0].mode == "catch"
+    assert sw.caught_at == sw.switches[0].t
+    # the switch happened where the logged MuJoCo state is inside the basin
+    k = int(round(sw.caught_at / r.dt))
+    assert catch.cost_to_go(r.x[k]) < basin.rho
+    assert swingup_success(r, params)
+
+
+def test_start_one_turn_around_is_caught_at_once_not_swung_again(shipped):
+    params, model, catch, basin = shipped
+    sw = SwitchingController(EnergyShapingController(model), catch, basin.rho)
+    x0 = (0.0, 2 * np.pi + 0.01, 0.0, 0.0)
+    r = simulate(params, sw, x0, 3.0)
+    assert replays_exactly(r)
+    assert sw.switches[0].t == 0.0 and len(sw.switches) == 1
+    assert np.all(np.abs(r.qpos[:, 1] - 2 * np.pi) < 0.05)  # never swung: stays at the same upright (2 pi)
+    assert swingup_success(r, params)

@@ -1,0 +1,128 @@
+"""lqr / dlqr: the gain is SciPy's Riccati solution with python-control's sign (u = -K x), S is the true
+cost-to-go, and every bad input raises LQRError with a sentence naming the problem."""
+import numpy as np
+import pytest
+import scipy.linalg
+
+from cartpole import Q_LAB, R_LAB, build_model
+from cartpole.lqr import LQRError, dlqr, lqr
+
+
+@pytest.fixture(scope="module")
+def lab_matrices():
+    model = build_model()
+    A, B = model.linearize()
+    Ad, Bd = model.linearize(discrete=True)
+    return A, B, Ad, Bd
+
+
+def _random_system(seed, n=4, m=2):
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n))
+    B = rng.normal(size=(n, m))
+    L = rng.normal(size=(n, n))
+    Q = L @ L.T + 0.1 * np.eye(n)
+    M = rng.normal(size=(m, m))
+    R = M @ M.T + 0.5 * np.eye(m)
+    return A, B, Q, R
+
+
+def test_continuous_gain_is_scipy_care_with_u_equals_minus_Kx(lab_matrices):
+    A, B, _, _ = lab_matrices
+    K, S, E = lqr(A, B, Q_LAB, R_LAB)
+    S_ref = scipy.linalg.solve_continuous_are(A, B, Q_LAB, R_LAB)
+    np.testing.assert_allclose(S, S_ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(K, np.linalg.solve(R_LAB, B.T @ S_ref), rtol=1e-12, atol=1e-12)
+    # python-control's convention: the closed loop is A - B K (u = -K x) and E are its eigenvalues
+    np.testing.assert_allclose(np.sort_complex(E), np.sort_complex(np.linalg.eigvals(A - B @ K)), atol=1e-9)
+    assert E.real.max() < 0 and np.linalg.eigvals(A + B @ K).real.max() > 0
+
+
+def test_discrete_gain_is_scipy_dare(lab_matrices):
+    _, _, Ad, Bd = lab_matrices
+    K, S, E = dlqr(Ad, Bd, Q_LAB, R_LAB)
+    S_ref = scipy.linalg.solve_discrete_are(Ad, Bd, Q_LAB, R_LAB)
+    np.testing.assert_allclose(S, S_ref, rtol=1e-10, atol=1e-10)
+    K_ref = np.linalg.solve(R_LAB + Bd.T @ S_ref @ Bd, Bd.T @ S_ref @ Ad)
+    np.testing.assert_allclose(K, K_ref, rtol=1e-10, atol=1e-12)
+    assert np.abs(np.linalg.eigvals(Ad - Bd @ K)).max() < 1
+    np.testing.assert_allclose(np.sort_complex(E), np.sort_complex(np.linalg.eigvals(Ad - Bd @ K)), atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_S_is_the_cost_to_go_of_the_closed_loop(seed):
+    """Independent of the Riccati solver: S solves the closed-loop Lyapunov equation of cost Q + K'RK."""
+    A, B, Q, R = _random_system(seed)
+    K, S, _ = lqr(A, B, Q, R)
+    Acl = A - B @ K
+    P = scipy.linalg.solve_continuous_lyapunov(Acl.T, -(Q + K.T @ R @ K))
+    np.testing.assert_allclose(S, P, rtol=1e-8, atol=1e-10)
+    Ad = scipy.linalg.expm(0.05 * A)
+    Bd = 0.05 * B
+    Kd, Sd, _ = dlqr(Ad, Bd, Q, R)
+    Acl = Ad - Bd @ Kd
+    Pd = scipy.linalg.solve_discrete_lyapunov(Acl.T, Q + Kd.T @ R @ Kd)
+    np.testing.assert_allclose(Sd, Pd, rtol=1e-8, atol=1e-10)
+
+
+def test_scalar_R_and_1d_B_are_accepted(lab_matrices):
+    A, B, _, _ = lab_matrices
+    K1 = lqr(A, B, Q_LAB, 0.1).K
+    K2 = lqr(A, B.ravel(), Q_LAB, [[0.1]]).K
+    np.testing.assert_array_equal(K1, K2)
+
+
+def test_result_unpacks_like_python_control(lab_matrices):
+    A, B, _, _ = lab_matrices
+    res = lqr(A, B, Q_LAB, R_LAB)
+    K, S, E = res
+    assert K is res.K and S is res.S and E is res.E and K.shape == (1, 4) and S.shape == (4, 4)
+
+
+A2 = np.array([[0.0, 1.0], [2.0, 0.0]])
+B2 = np.array([[0.0], [1.0]])
+
+
+@pytest.mark.parametrize("A, B, Q, R, message", [
+    (A2, B2, [[1.0, 0.5], [0.0, 1.0]], 1.0, "Q is not symmetric"),
+    (A2, B2, np.diag([1.0, -0.5]), 1.0, "Q is not positive semidefinite"),
+    (A2, B2, np.eye(2), 0.0, "R is not positive definite"),
+    (A2, B2, np.eye(2), -1.0, "R is not positive definite"),
+    (A2, np.eye(2), np.eye(2), [[1.0, 0.3], [0.0, 1.0]], "R is not symmetric"),
+    (A2, np.ones((3, 1)), np.eye(2), 1.0, "B must have 2 rows"),
+    (A2, B2, np.eye(3), 1.0, "Q has shape (3, 3) but must be (2, 2)"),
+    (A2, B2, np.eye(2), np.eye(2), "R has shape (2, 2) but must be (1, 1)"),
+    (np.ones((2, 3)), B2, np.eye(2), 1.0, "must be square"),
+    (A2, np.array([0.0, np.nan]), np.eye(2), 1.0, "B contains NaN"),
+    (A2, B2, np.diag([1.0, np.inf]), 1.0, "Q contains NaN or inf"),
+])
+@pytest.mark.parametrize("solver", [lqr, dlqr])
+def test_bad_input_raises_its_message(solver, A, B, Q, R, message):
+    with pytest.raises(LQRError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        solver(A, B, Q, R)
+
+
+def test_unstabilisable_pair_is_named_with_its_mode():
+    # second state unstable (eigenvalue 1) and untouched by the input
+    A = np.array([[-1.0, 0.0], [0.0, 1.0]])
+    B = np.array([[1.0], [0.0]])
+    with pytest.raises(LQRError, match=r"not stabilisable: the mode with eigenvalue 1 "):
+        lqr(A, B, np.eye(2), 1.0)
+    Ad = np.array([[0.5, 0.0], [0.0, 1.2]])
+    with pytest.raises(LQRError, match=r"not stabilisable: the mode with eigenvalue 1.2 "):
+        dlqr(Ad, B, np.eye(2), 1.0)
+
+
+def test_stabilisable_but_uncontrollable_pair_is_fine():
+    # the uncontrollable mode is stable, so LQR exists
+    A = np.array([[-1.0, 0.0], [0.0, 1.0]])
+    B = np.array([[0.0], [1.0]])
+    K, S, E = lqr(A, B, np.eye(2), 1.0)
+    np.testing.assert_allclose(S, scipy.linalg.solve_continuous_are(A, B, np.eye(2), np.eye(1)), atol=1e-12)
+    assert E.real.max() < 0
+
+
+def test_cart_pole_without_actuator_on_the_cart_is_unstabilisable(lab_matrices):
+    A, _, _, _ = lab_matrices
+    with pytest.raises(LQRError, match="not stabilisable"):
+        lqr(A, np.zeros((4, 1)), Q_LAB, R_LAB)

@@ -1,0 +1,93 @@
+"""Trajectory: Hermite-Simpson interpolation (cubic-Hermite states, first-order-hold inputs) and files."""
+import json
+
+import numpy as np
+import pytest
+
+from cartpole.ocp.trajectory import Trajectory, TrajectoryError
+
+
+def _cubic_traj(n=7, seed=0):
+    """Knots of a known cubic state and linear input: Hermite interpolation must reproduce them exactly."""
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0, 2, n))
+    t[0] = 0.0
+    c = rng.normal(size=(4, 4))  # x_i(t) = c0 + c1 t + c2 t^2 + c3 t^3
+
+    def x(tt):
+        tt = np.asarray(tt)[:, None]
+        return c[0] + c[1] * tt + c[2] * tt**2 + c[3] * tt**3
+
+    def xd(tt):
+        tt = np.asarray(tt)[:, None]
+        return c[1] + 2 * c[2] * tt + 3 * c[3] * tt**2
+
+    u = (0.3 - 0.7 * t)[:, None]
+    return Trajectory(t=t, x=x(t), u=u, xdot=xd(t)), x, xd
+
+
+def test_state_reproduces_a_cubic_and_its_derivative_everywhere():
+    traj, x, xd = _cubic_traj()
+    tt = np.linspace(0, traj.t[-1], 57)
+    np.testing.assert_allclose(traj.state(tt), x(tt), atol=1e-10)
+    np.testing.assert_allclose(traj.state_derivative(tt), xd(tt), atol=1e-9)
+
+
+def test_state_at_knots_is_the_knot_and_scalar_calls_return_one_row():
+    traj, _, _ = _cubic_traj()
+    np.testing.assert_allclose(traj.state(traj.t), traj.x, atol=1e-12)
+    assert traj.state(0.3).shape == (4,) and traj.input(0.3).shape == (1,)
+    assert traj.state(traj.t).shape == (traj.t.size, 4) and traj.input(traj.t).shape == (traj.t.size, 1)
+
+
+def test_input_is_first_order_hold_and_clamped_outside():
+    traj, _, _ = _cubic_traj()
+    tt = np.linspace(-1, traj.t[-1] + 1, 101)
+    expected = np.interp(tt, traj.t, traj.u[:, 0])  # numpy's linear interpolation also clamps
+    np.testing.assert_allclose(traj.input(tt)[:, 0], expected, atol=1e-12)
+    np.testing.assert_array_equal(traj.state(-5.0), traj.x[0])
+    np.testing.assert_array_equal(traj.state(traj.t[-1] + 5), traj.x[-1])
+
+
+def test_midpoint_is_the_hermite_simpson_formula():
+    traj, _, _ = _cubic_traj()
+    h = np.diff(traj.t)[:, None]
+    xc = 0.5 * (traj.x[:-1] + traj.x[1:]) + h / 8 * (traj.xdot[:-1] - traj.xdot[1:])
+    np.testing.assert_allclose(traj.state(traj.t_mid), xc, atol=1e-12)
+
+
+def test_sample_is_time_first_and_includes_both_ends():
+    traj, _, _ = _cubic_traj()
+    t, x, u = traj.sample(0.01)
+    assert t[0] == traj.t[0] and t[-1] <= traj.t[-1] and traj.t[-1] - t[-1] < 0.01
+    assert x.shape == (t.size, 4) and u.shape == (t.size, 1)
+    with pytest.raises(TrajectoryError):
+        traj.sample(0.0)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".json"])
+def test_save_load_round_trip(tmp_path, suffix):
+    traj, _, _ = _cubic_traj()
+    traj = Trajectory(t=traj.t, x=traj.x, u=traj.u, xdot=traj.xdot, x_mid=traj.state(traj.t_mid),
+                      u_mid=traj.input(traj.t_mid))
+    path = traj.save(tmp_path / f"plan{suffix}")
+    back = Trajectory.load(path)
+    for name in ("t", "x", "u", "xdot", "x_mid", "u_mid"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(traj, name))
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary file left behind
+    if suffix == ".json":
+        assert json.loads(path.read_text())["format"].startswith("cartpole.Trajectory")
+
+
+def test_arrays_are_read_only_and_bad_input_is_one_clear_error(tmp_path):
+    traj, _, _ = _cubic_traj()
+    with pytest.raises(ValueError):
+        traj.x[0, 0] = 1.0
+    with pytest.raises(TrajectoryError, match="strictly increasing"):
+        Trajectory(t=[0, 0, 1], x=np.zeros((3, 4)), u=np.zeros(3), xdot=np.zeros((3, 4)))
+    with pytest.raises(TrajectoryError, match="shape"):
+        Trajectory(t=[0, 1], x=np.zeros((3, 4)), u=np.zeros(2), xdot=np.zeros((2, 4)))
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    with pytest.raises(TrajectoryError, match="does not hold"):
+        Trajectory.load(bad)

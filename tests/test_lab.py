@@ -1,0 +1,138 @@
+"""The LQR balance lab: K is SciPy's, the five starts settle in MuJoCo on every model and replay exactly,
+starts are scaled into a model's joint ranges, and the sign facts docs/lab.md states hold."""
+import numpy as np
+import pytest
+import scipy.linalg
+
+from cartpole import Q_LAB, R_LAB, build_model, read_params
+from cartpole.lab import LAB_INITIAL_CONDITIONS, LabError, lab_initial_conditions, run_lab
+from cartpole.validation import replays_exactly
+
+
+def test_five_starts_settle_and_replay_exactly(any_mjcf):
+    res = run_lab(any_mjcf)
+    assert res.x0s.shape == (5, 4) and len(res.rollouts) == 5
+    assert all(res.settled), (res.settling_times, [m.track_margin for m in res.metrics])
+    for run, x0 in zip(res.rollouts, res.x0s):
+        np.testing.assert_array_equal(run.x[0], x0)
+        assert replays_exactly(run, res.params)
+        # independent of the metrics module: the final state is at the equilibrium
+        assert np.abs(run.x[-1] - res.x_eq).max() < 0.01
+    assert np.all(np.isfinite(res.settling_times_seed)) and np.all(res.settling_times_seed < res.settling_times)
+
+
+def test_gains_are_scipys_riccati_gains():
+    model = build_model()
+    A, B = model.linearize()
+    Ad, Bd = model.linearize(discrete=True)
+    res = run_lab(duration=0.1)
+    S = scipy.linalg.solve_continuous_are(A, B, Q_LAB, R_LAB)
+    np.testing.assert_allclose(res.K, B.T @ S / R_LAB[0, 0], rtol=1e-12, atol=1e-12)
+    resd = run_lab(discrete=True, duration=0.1)
+    Sd = scipy.linalg.solve_discrete_are(Ad, Bd, Q_LAB, R_LAB)
+    np.testing.assert_allclose(resd.K, np.linalg.solve(R_LAB + Bd.T @ Sd @ Bd, Bd.T @ Sd @ Ad), rtol=1e-10)
+    assert resd.discrete and not res.discrete
+
+
+def test_discrete_design_settles_too():
+    res = run_lab(discrete=True)
+    assert all(res.settled)
+    assert all(replays_exactly(r, res.params) for r in res.rollouts)
+
+
+def test_shipped_asset_runs_the_handouts_starts():
+    np.testing.assert_array_equal(lab_initial_conditions(read_params()), LAB_INITIAL_CONDITIONS)
+    np.testing.assert_allclose(np.rad2deg(LAB_INITIAL_CONDITIONS[:, 1]), [5, -5, 8, 3, -4])
+
+
+def _variant_with(tmp_path, name, **swap):
+    from variants import variant_xml
+
+    xml = variant_xml("rk4_fine_step")
+    for old, new in swap.items():
+        assert old in xml
+        xml = xml.replace(old, new)
+    path = tmp_path / f"{name}.xml"
+    path.write_text(xml)
+    return path
+
+
+def test_starts_are_scaled_into_short_ranges(tmp_path):
+    path = _variant_with(tmp_path, "short",
+                         **{'range="-1.5 1.5"': 'range="0.2 0.6"',
+                            'type="hinge" axis="0 1 0"': 'type="hinge" axis="0 1 0" limited="true" range="-10 10"'})  # degrees
+    p = read_params(path)
+    x0s = lab_initial_conditions(p)
+    s_mid = 0.4
+    assert np.all(np.abs(x0s[:, 0] - s_mid) <= 0.5 * 0.2 + 1e-12)
+    room = 0.5 * np.deg2rad(10)
+    assert np.all(np.abs(x0s[:, 1]) <= room + 1e-12)
+    # one factor per joint: the pattern of the handout's starts is kept
+    off = LAB_INITIAL_CONDITIONS
+    np.testing.assert_allclose((x0s[:, 0] - s_mid) / 0.1, off[:, 0] / np.abs(off[:, 0]).max(), atol=1e-12)
+    np.testing.assert_allclose(x0s[:, 1] / room, off[:, 1] / np.abs(off[:, 1]).max(), atol=1e-12)
+    res = run_lab(path)
+    assert all(res.settled), res.settling_times
+
+
+def test_hinge_range_without_upright_is_refused(tmp_path):
+    path = _variant_with(tmp_path, "no_upright",
+                         **{'type="hinge" axis="0 1 0"': 'type="hinge" axis="0 1 0" limited="true" range="30 180"'})
+    with pytest.raises(LabError, match="does not contain the upright angle"):
+        run_lab(path)
+
+
+def test_sign_facts_of_the_shipped_asset():
+    """docs/lab.md derives: hinge axis +y, so theta > 0 tilts the pole toward +x, and K[1] < 0 pushes the cart
+    toward +x (under the pole) to catch it. Checked here against MuJoCo's kinematics and dynamics."""
+    import mujoco
+
+    from cartpole.validation import make_mujoco
+
+    m, d = make_mujoco(None)
+    d.qpos[:] = [0.0, 0.1]
+    mujoco.mj_forward(m, d)
+    pole = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "pole")
+    assert d.xipos[pole][0] > d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cart")][0]
+    assert d.qacc[1] > 0  # gravity tips it further: A[3, 1] > 0
+    res = run_lab(duration=0.1)
+    assert res.K[0, 1] < 0 and -res.K[0] @ [0, 0.1, 0, 0] > 0
+    # pushing the cart +x (ctrl > 0) makes theta accelerate negative: B[3] < 0
+    d.qpos[:] = 0.0
+    d.ctrl[0] = 1.0
+    mujoco.mj_forward(m, d)
+    assert d.qacc[1] < 0 and res.B[3, 0] < 0 and d.qacc[1] == pytest.approx(res.B[3, 0], rel=1e-9)
+
+
+HANDOUT_MJCF = """<mujoco model="cartpole">
+<option timestep="0.005" gravity="0 0 -9.81"/>
+<worldbody>
+<light pos="0 0 3"/>
+<geom name="floor" type="plane" size="2 2 0.1" rgba="0.8 0.8 0.8 1"/>
+<body name="cart" pos="0 0 0.1">
+<joint name="slider" type="slide" axis="1 0 0" limited="true" range="-1.5 1.5" damping="0.1"/>
+<geom name="cart_geom" type="box" size="0.1 0.05 0.05" rgba="0.2 0.2 0.8 1" mass="1"/>
+<body name="pole" pos="0 0 0.05">
+<joint name="hinge" type="hinge" axis="0 1 0" damping="0.01"/>
+<geom name="pole_geom" type="capsule" fromto="0 0 0 0 0 0.6" size="0.02" rgba="0.8 0.2 0.2 1" mass="0.1"/>
+</body>
+</body>
+</worldbody>
+<actuator>
+<motor name="motor" joint="slider" gear="20" ctrlrange="-1 1"/>
+</actuator>
+</mujoco>
+"""
+
+
+def test_shipped_asset_has_the_handout_files_dynamics(tmp_path):
+    """The shipped MJCF only raises the rail: K and every logged state equal those of the handout's own file
+    (up to rounding: the compiled inertias differ in the last bits because the bodies sit at other heights)."""
+    path = tmp_path / "handout_cartpole.xml"
+    path.write_text(HANDOUT_MJCF)
+    ours, theirs = run_lab(), run_lab(path)
+    np.testing.assert_allclose(ours.K, theirs.K, rtol=1e-12)
+    np.testing.assert_array_equal(ours.settling_times_seed, theirs.settling_times_seed)
+    for a, b in zip(ours.rollouts, theirs.rollouts):
+        np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(a.ctrl, b.ctrl, rtol=0, atol=1e-9)

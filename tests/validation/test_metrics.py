@@ -1,0 +1,103 @@
+"""Replay metrics against independent computations: the handout's own settling_time code, brute force."""
+import numpy as np
+import pytest
+
+from cartpole.validation.metrics import (STRICT_TOLERANCE, peak_ctrl, saturation_fraction, settling_time_seed,
+                                         settling_time_strict, summarize, track_margin)
+from cartpole.validation.replay import Rollout
+
+
+def handout_settling_time(t, history, threshold=0.05):
+    """The lab handout's function, verbatim (re-indented)."""
+    abs_theta = np.abs(history[:, 1])
+    above = np.where(abs_theta > threshold)[0]
+    if len(above) == 0:
+        return 0.0
+    return t[above[-1] + 1] if above[-1] + 1 < len(t) else t[-1]
+
+
+def brute_force_strict(t, x, tol):
+    for k in range(len(t)):
+        if all(np.all(np.abs(x[j]) <= tol) for j in range(k, len(t))):
+            return t[k]
+    return np.inf
+
+
+def _decaying(seed, n=400, dt=0.005):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n + 1) * dt
+    rates = rng.uniform(0.5, 4.0, size=4)
+    amp = rng.uniform(-0.3, 0.3, size=4)
+    x = amp * np.exp(-np.outer(t, rates)) * np.cos(np.outer(t, rng.uniform(0, 10, size=4)))
+    return t, x
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_seed_settling_time_is_the_handouts(seed):
+    t, x = _decaying(seed)
+    ref = handout_settling_time(t, x)
+    assert settling_time_seed(t, x) == ref
+    # and the only deviation: a run still outside the band at its last sample never settled
+    x[-1, 1] = 0.2
+    assert handout_settling_time(t, x) == t[-1] and settling_time_seed(t, x) == np.inf
+
+
+def test_seed_settling_time_never_outside_is_zero():
+    t = np.linspace(0, 1, 11)
+    x = np.zeros((11, 4))
+    x[:, 1] = 0.05  # the band is inclusive
+    assert settling_time_seed(t, x) == 0.0 == handout_settling_time(t, x)
+
+
+def test_seed_settling_time_wraps_the_angle_error():
+    t = np.linspace(0, 1, 11)
+    x = np.zeros((11, 4))
+    x[:, 1] = 2 * np.pi + 0.01  # upright, one turn later
+    assert settling_time_seed(t, x) == 0.0
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_strict_settling_time_matches_brute_force(seed):
+    t, x = _decaying(seed, n=200)
+    tol = np.array(STRICT_TOLERANCE) * 3
+    assert settling_time_strict(t, x, tol=tol) == brute_force_strict(t, x, tol)
+
+
+def test_strict_settling_time_uses_the_equilibrium_and_every_state():
+    t = np.arange(6) * 0.1
+    x = np.zeros((6, 4))
+    x[:, 0] = 0.5
+    assert settling_time_strict(t, x, [0.5, 0, 0, 0]) == 0.0
+    assert settling_time_strict(t, x) == np.inf  # 0.5 m from the origin
+    x[:3, 3] = 0.02  # pole rate out of the box until sample 3
+    assert settling_time_strict(t, x, [0.5, 0, 0, 0]) == pytest.approx(0.3)
+
+
+def test_peak_and_saturation():
+    u = np.array([[0.2], [-1.0], [1.0], [0.99], [-0.5]])
+    assert peak_ctrl(u) == 1.0
+    assert saturation_fraction(u, (-1.0, 1.0)) == pytest.approx(2 / 5)
+    assert saturation_fraction(u, (-np.inf, np.inf)) == 0.0
+    assert saturation_fraction(u, (-0.8, 0.8)) == pytest.approx(3 / 5)  # at or beyond a bound counts
+    assert saturation_fraction(u, (-1.0 - 1e-9, 1.0 + 1e-9)) == 0.0
+
+
+def test_track_margin():
+    x = np.zeros((4, 4))
+    x[:, 0] = [0.0, 1.2, -0.4, 0.3]
+    assert track_margin(x, (-1.5, 1.5)) == pytest.approx(0.3)
+    assert track_margin(x, (-np.inf, np.inf)) == np.inf
+    assert track_margin(x, (-1.0, 1.0)) == pytest.approx(-0.2)
+
+
+def test_summarize_a_rollout():
+    t, x = _decaying(3, n=100)
+    ctrl = np.clip(np.sin(np.arange(100))[:, None] * 2, -1, 1)
+    run = Rollout(t=t, qpos=x[:, :2], qvel=x[:, 2:], ctrl=ctrl)
+    m = summarize(run, ctrl_range=(-1, 1), cart_range=(-1.5, 1.5))
+    assert m.settling_time_seed == handout_settling_time(t, x)
+    assert m.settling_time_strict == brute_force_strict(t, x, np.array(STRICT_TOLERANCE))
+    assert m.peak_ctrl == np.abs(ctrl).max()
+    assert m.saturation_fraction == np.mean(np.abs(ctrl) == 1)
+    assert m.track_margin == pytest.approx(1.5 - np.abs(x[:, 0]).max())
+    assert m.settled == (np.isfinite(m.settling_time_strict) and m.track_margin > 0)
