@@ -76,6 +76,12 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        import mujoco  # noqa: F401  (MuJoCo 4 raises AttributeError, not ImportError, for a missing GL library)
+    except Exception as exc:  # pragma: no cover - depends on the machine's GL libraries
+        print(f"cartpole {args.command}: MuJoCo failed to load with MUJOCO_GL={os.environ.get('MUJOCO_GL')} "
+              f"({type(exc).__name__}); set MUJOCO_GL=egl (or unset it) and try again.", file=sys.stderr)
+        return 2
+    try:
         doc = args._run(args)
     except CartPoleError as exc:
         print(f"cartpole {args.command}: {exc}", file=sys.stderr)
