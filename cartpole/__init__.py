@@ -7,9 +7,17 @@ Quick start::
     A, B = model.linearize()                 # exact, at upright rest
     K, S, E = cp.lqr(A, B, cp.Q_LAB, cp.R_LAB)
 """
-import numpy as np
+import os
+import sys
 
-from cartpole import control, models, validation
+# Offscreen rendering needs MUJOCO_GL set before mujoco is first imported; default to headless EGL (works
+# with and without a display) unless the user chose a backend or already imported mujoco.
+if "mujoco" not in sys.modules:
+    os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+
+from cartpole import control, models, validation  # noqa: E402
 from cartpole.errors import CartPoleError
 from cartpole.lqr import LQRError, dlqr, lqr
 from cartpole.models import SHIPPED_MJCF, CartPoleModel, CartPoleParams, MJCFError, build_model, read_params
