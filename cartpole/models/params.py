@@ -170,13 +170,15 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
         model = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:
         raise MJCFError(f"MJCF file '{path}' does not compile: {_first_line(exc)}. "
-                        "Fix the XML (MuJoCo's message above) and try again.") from None
+                        "Fix the XML and try again.") from None
     return model, str(path), text
 
 
 def _first_line(exc: Exception) -> str:
-    msg = str(exc).strip().splitlines()
-    return msg[0].rstrip(".") if msg else type(exc).__name__
+    """MuJoCo's (often multi-line) message folded into one line, without a final period."""
+    msg = " ".join(part.strip() for part in str(exc).strip().splitlines() if part.strip())
+    msg = msg.replace(": Error=", ": ").rstrip(".")
+    return (msg[:240] + "...") if len(msg) > 240 else (msg or type(exc).__name__)
 
 
 def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> CartPoleParams:
