@@ -17,6 +17,7 @@ import numpy as np
 
 from cartpole.errors import CartPoleError
 from cartpole.models.params import CartPoleParams, read_params
+from cartpole._arrays import readonly
 
 #: The handout's five starts ``[s (m), theta (rad), s_dot, theta_dot]``: 5, -5 and 8 degrees at the centre,
 #: 3 degrees with the cart at 0.2 m, -4 degrees with the cart at -0.3 m.
@@ -38,12 +39,6 @@ _ROOM = 0.5
 
 class LabError(CartPoleError):
     """The lab cannot be run on this model (e.g. its joint ranges exclude upright rest)."""
-
-
-def _ro(a) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
 
 
 def lab_equilibrium(params: CartPoleParams) -> np.ndarray:
@@ -68,7 +63,7 @@ def lab_equilibrium(params: CartPoleParams) -> np.ndarray:
     if not hlo < 0.0 < hhi:
         raise LabError(f"The hinge range [{hlo:g}, {hhi:g}] rad does not contain the upright angle 0; "
                        "the lab balances the pole upright, so widen the hinge range.")
-    return _ro([s_eq, 0.0, 0.0, 0.0])
+    return readonly([s_eq, 0.0, 0.0, 0.0])
 
 
 def lab_initial_conditions(params: CartPoleParams) -> np.ndarray:
@@ -90,7 +85,7 @@ def lab_initial_conditions(params: CartPoleParams) -> np.ndarray:
         need = np.abs(offsets[:, col]).max()
         if need > room:
             offsets[:, col] *= room / need
-    return _ro(x_eq + offsets)
+    return readonly(x_eq + offsets)
 
 
 @dataclass(frozen=True)
@@ -244,13 +239,8 @@ def run_lab(mjcf: str | Path | CartPoleParams | None = None, *, Q=None, R=None, 
         mets.append(summarize(run, x_eq=x_eq, ctrl_range=params.ctrl_range, cart_range=params.cart_range))
         if progress is not None:
             progress((i + 1) / len(x0s))
-    return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete), A=_ro(A), B=_ro(B), Ad=_ro(Ad),
-                     Bd=_ro(Bd), Q=_ro(np.atleast_2d(Q)), R=_ro(np.atleast_2d(R)), K=_ro(res.K), S=_ro(res.S),
-                     E=_ro_c(res.E), x_eq=x_eq, x0s=x0s, duration=float(duration), rollouts=tuple(runs),
+    return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete), A=readonly(A), B=readonly(B),
+                     Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
+                     K=readonly(res.K), S=readonly(res.S),
+                     E=readonly(res.E, complex), x_eq=x_eq, x0s=x0s, duration=float(duration), rollouts=tuple(runs),
                      metrics=tuple(mets))
-
-
-def _ro_c(a) -> np.ndarray:
-    arr = np.array(a, dtype=complex)
-    arr.setflags(write=False)
-    return arr

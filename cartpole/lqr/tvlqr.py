@@ -22,14 +22,9 @@ import numpy as np
 
 from cartpole.lqr.lqr import LQRError, check_weights, dlqr, lqr
 from cartpole.models.symbolic import CartPoleModel
+from cartpole._arrays import readonly
 
 METHODS = ("discrete", "continuous")
-
-
-def _ro(a) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True)
@@ -58,7 +53,7 @@ class TVLQRGains:
 
     def __post_init__(self):
         for name in ("t", "K", "S"):
-            object.__setattr__(self, name, _ro(getattr(self, name)))
+            object.__setattr__(self, name, readonly(getattr(self, name)))
         n = self.t.size
         if self.K.shape != (n, 1, 4) or self.S.shape != (n + 1, 4, 4):
             raise LQRError(f"TVLQR arrays disagree: t {self.t.shape}, K {self.K.shape}, S {self.S.shape}; "

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 
 #: Integrators whose one-step map :mod:`cartpole.models.discrete` reproduces exactly.
@@ -23,12 +24,6 @@ SHIPPED_MJCF = Path(__file__).resolve().parent.parent / "assets" / "cartpole.xml
 
 class MJCFError(CartPoleError):
     """The MJCF file is missing, does not compile, or is not a cart-pole this toolkit supports."""
-
-
-def _readonly(a) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True)
@@ -124,7 +119,7 @@ class CartPoleParams:
 
     def replace(self, **changes) -> "CartPoleParams":
         """Return a copy with some fields changed (e.g. a deliberately wrong model for robustness tests)."""
-        return dataclasses.replace(self, **{k: (_readonly(v) if isinstance(v, (list, tuple, np.ndarray)) else v)
+        return dataclasses.replace(self, **{k: (readonly(v) if isinstance(v, (list, tuple, np.ndarray)) else v)
                                             for k, v in changes.items()})
 
     def scaled_pole(self, mass_factor: float = 1.0, length_factor: float = 1.0) -> "CartPoleParams":
@@ -323,18 +318,18 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
         timestep=float(m.opt.timestep),
         integrator=integ,
         euler_damping_implicit=not bool(m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP),
-        gravity=_readonly(gravity),
+        gravity=readonly(gravity),
         cart_mass=float(cart_mass),
         pole_mass=float(pole_mass),
-        slide_axis=_readonly(slide_axis),
-        hinge_axis=_readonly(hinge_axis),
-        hinge_offset=_readonly(anchor - cart_pos),
-        pole_com=_readonly(pole_com),
-        pole_inertia=_readonly(inertia),
-        damping=_readonly([m.dof_damping[m.jnt_dofadr[slide]], m.dof_damping[m.jnt_dofadr[hinge]]]),
-        armature=_readonly([m.dof_armature[m.jnt_dofadr[slide]], m.dof_armature[m.jnt_dofadr[hinge]]]),
+        slide_axis=readonly(slide_axis),
+        hinge_axis=readonly(hinge_axis),
+        hinge_offset=readonly(anchor - cart_pos),
+        pole_com=readonly(pole_com),
+        pole_inertia=readonly(inertia),
+        damping=readonly([m.dof_damping[m.jnt_dofadr[slide]], m.dof_damping[m.jnt_dofadr[hinge]]]),
+        armature=readonly([m.dof_armature[m.jnt_dofadr[slide]], m.dof_armature[m.jnt_dofadr[hinge]]]),
         gear=float(m.actuator_gear[0, 0]),
-        ctrl_range=_readonly(ctrl_range),
-        cart_range=_readonly(jrange(slide)),
-        hinge_range=_readonly(jrange(hinge)),
+        ctrl_range=readonly(ctrl_range),
+        cart_range=readonly(jrange(slide)),
+        hinge_range=readonly(jrange(hinge)),
     )

@@ -16,14 +16,9 @@ import numpy as np
 
 from cartpole.errors import CartPoleError
 from cartpole.models.params import CartPoleParams, load_model, read_params
+from cartpole._arrays import readonly
 
 Controller = Callable[[float, np.ndarray], "float | np.ndarray"]
-
-
-def _ro(a) -> np.ndarray:
-    arr = np.array(a, dtype=float)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True)
@@ -51,7 +46,7 @@ class Rollout:
 
     def __post_init__(self):
         for name in ("t", "qpos", "qvel", "ctrl"):
-            object.__setattr__(self, name, _ro(getattr(self, name)))
+            object.__setattr__(self, name, readonly(getattr(self, name)))
         n = self.ctrl.shape[0]
         if self.t.shape != (n + 1,) or self.qpos.shape[0] != n + 1 or self.qvel.shape[0] != n + 1:
             raise ValueError(f"Rollout arrays disagree: t {self.t.shape}, qpos {self.qpos.shape}, "
