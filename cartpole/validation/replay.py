@@ -96,6 +96,16 @@ def make_mujoco(source: CartPoleParams | str | Path | None = None):
     return m, mujoco.MjData(m)
 
 
+def source_path(source: CartPoleParams | str | Path | None) -> str:
+    """Absolute path of the MJCF a source names ("" for parameters read from XML text)."""
+    if isinstance(source, CartPoleParams):
+        return source.mjcf
+    if source is None:
+        from cartpole.models.params import SHIPPED_MJCF
+        return str(SHIPPED_MJCF)
+    return str(Path(source).expanduser().resolve())
+
+
 def _check_state(x0) -> np.ndarray:
     x0 = np.asarray(x0, dtype=float).ravel()
     if x0.shape != (4,):
@@ -177,11 +187,8 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         if stop is not None and stop((k + 1) * h, np.concatenate([d.qpos, d.qvel])):
             last = k + 1
             break
-    path = source.mjcf if isinstance(source, CartPoleParams) else str(Path(source).resolve()) if source else ""
-    if not path and source is None:
-        from cartpole.models.params import SHIPPED_MJCF
-        path = str(SHIPPED_MJCF)
-    return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last], mjcf=path)
+    return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
+                   mjcf=source_path(source))
 
 
 def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
@@ -215,7 +222,7 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
         mujoco.mj_step(m, d)
         qpos[k + 1], qvel[k + 1] = d.qpos, d.qvel
     return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl.reshape(-1, 1),
-                   mjcf=source.mjcf if isinstance(source, CartPoleParams) else str(source or ""))
+                   mjcf=source_path(source))
 
 
 def replays_exactly(rollout: Rollout, source: CartPoleParams | str | Path | None = None, *, atol: float = 0.0) -> bool:
