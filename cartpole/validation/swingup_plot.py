@@ -42,10 +42,9 @@ def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = 
     -------
     Path
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # object API on an Agg canvas: no pyplot, so a notebook's inline backend is left alone
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     from cartpole.models.symbolic import build_model
 
@@ -53,7 +52,9 @@ def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     t, x = rollout.t, rollout.x
-    fig, ax = plt.subplots(4, 1, figsize=(8, 9), sharex=True)
+    fig = Figure(figsize=(8, 9))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots(4, 1, sharex=True)
     ax[0].plot(t, wrap_angle(x[:, 1]), label="MuJoCo")
     ax[0].axhline(0.0, color="k", lw=0.5)
     ax[0].set_ylabel("pole angle from upright\n(rad, wrapped)")
@@ -95,7 +96,6 @@ def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = 
         fig.savefig(tmp, dpi=100)
         os.replace(tmp, path)
     finally:
-        plt.close(fig)
         if os.path.exists(tmp):
             os.unlink(tmp)
     return path
