@@ -88,22 +88,21 @@ print("midpoints on the interpolant:", np.abs(traj.state(traj.t_mid) - traj.x_mi
 
 One gain per 5 ms step. They change a lot along the swing: while the pole hangs the angle gain has the opposite
 sign to the upright one (a hanging pendulum is pushed the other way), it peaks on the way up, with the pole some
-60° from upright and moving fast, and near the top it approaches the discrete LQR gain at the 5 ms step (dotted; the
-terminal cost is that LQR's cost-to-go). At $T$ the package hands over to the *continuous* LQR catch (dashed): its
-gain is about 15 % larger than the discrete one, although the two give practically the same closed loop
-(docs/lab.md, "The discrete design").
+60° from upright and moving fast, and near the top it lands on the catch's gain (dashed): the catch is the discrete
+LQR at the same 5 ms step and weights, and TVLQR's terminal cost is its cost-to-go, so at $T$ neither the gain nor
+the cost-to-go jumps. The continuous lab LQR (dotted) would be about 15 % stiffer at this step, although the two
+give practically the same closed loop (docs/lab.md, "The discrete design").
 """),
 ("code", r"""
 G = sp.gains
 K_catch = sp.catch.K.ravel()
 labels = [r"$K_s$ (ctrl/m)", r"$K_\theta$ (ctrl/rad)", r"$K_{\dot s}$ (ctrl/(m/s))", r"$K_{\dot\theta}$ (ctrl/(rad/s))"]
-Ad, Bd = sp.model.linearize(discrete=True)
-K_dlqr = cp.dlqr(Ad, Bd, cp.Q_LAB, cp.R_LAB).K.ravel()
+K_lqr = cp.lqr(*sp.model.linearize(), cp.Q_LAB, cp.R_LAB).K.ravel()
 fig, ax = plt.subplots(2, 2, figsize=(12, 6), sharex=True)
 for i, a in enumerate(ax.ravel()):
     a.step(G.t, G.K[:, 0, i], where="post", label="TVLQR K(t)")
-    a.axhline(K_catch[i], color="k", ls="--", lw=.8, label=f"continuous LQR catch {K_catch[i]:.2f}")
-    a.axhline(K_dlqr[i], color="C3", ls=":", lw=1.2, label=f"discrete LQR (5 ms) {K_dlqr[i]:.2f}")
+    a.axhline(K_catch[i], color="k", ls="--", lw=.8, label=f"catch: discrete LQR (5 ms) {K_catch[i]:.2f}")
+    a.axhline(K_lqr[i], color="C3", ls=":", lw=1.2, label=f"continuous lab LQR {K_lqr[i]:.2f}")
     a.set_ylabel(labels[i]); a.grid(alpha=.3); a.legend(fontsize=8)
     ax2 = a.twinx()
     ax2.plot(tf, np.rad2deg(xf[:, 1]), color="gray", lw=.6, alpha=.5)
