@@ -2,7 +2,9 @@
 
 * ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
   the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
-  estimate_basin`), then the lab LQR, with hysteresis (:class:`~cartpole.control.switching.SwitchingController`);
+  estimate_basin`), then an LQR catch (the lab's Q with R = 1,
+  :func:`~cartpole.control.switching.swingup_catch`, whose verified basin is about five times the lab LQR's), with
+  hysteresis (:class:`~cartpole.control.switching.SwitchingController`);
 * ``trajopt``: direct collocation + TVLQR (:func:`cartpole.ocp.pipeline.trajopt_swingup`), handing over to the
   LQR hold after the plan.
 
@@ -107,7 +109,7 @@ def _stage(progress, name):
 
 def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0), duration: float | None = None,
                 progress: Callable[[str, float], None] | None = None, basin_cache=None,
-                energy_options: dict | None = None) -> SwingupResult:
+                energy_options: dict | None = None, catch_weights: tuple | None = None) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
 
     Parameters
@@ -125,6 +127,10 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
         Reuse basin estimates across calls (in memory).
     energy_options : dict, optional
         Keyword arguments for :class:`~cartpole.control.energy.EnergyShapingController`.
+    catch_weights : (Q, R), optional
+        LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
+        (:func:`~cartpole.control.switching.swingup_catch`; the lab's ``R = 0.1`` gives a much smaller basin).
+        Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR.
 
     Returns
     -------
@@ -136,7 +142,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
         Bad method, start state or duration; an MJCF that is not a cart-pole.
     """
     from cartpole.control.energy import EnergyShapingController
-    from cartpole.control.switching import SwitchingController, lab_catch
+    from cartpole.control.switching import SwitchingController, swingup_catch
     from cartpole.models.symbolic import build_model
     from cartpole.validation.basin import estimate_basin
     from cartpole.validation.swingup_metrics import swingup_metrics
@@ -148,7 +154,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
     if duration is not None and not (np.isfinite(duration) and duration > 0):
         raise SwingupError(f"Duration {duration} s is not a positive number of seconds; give e.g. --duration 8.")
     model = build_model(params)
-    catch = lab_catch(model)
+    catch = swingup_catch(model) if catch_weights is None else swingup_catch(model, *catch_weights)
     basin_kw = dict(progress=_stage(progress, "basin"))
     basin = basin_cache.get(params, catch, **basin_kw) if basin_cache is not None else \
         estimate_basin(params, catch, **basin_kw)

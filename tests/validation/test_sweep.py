@@ -1,0 +1,36 @@
+"""The robustness sweep: a few seeded perturbed starts on the shipped asset all swing up, every run from MuJoCo."""
+import numpy as np
+import pytest
+
+from cartpole.validation.sweep import SweepError, SweepResult, sweep_starts, swingup_sweep
+
+
+def test_quick_sweep_succeeds_on_the_shipped_asset():
+    seen = []
+    r = swingup_sweep(None, n=4, seed=0, progress=seen.append)
+    assert isinstance(r, SweepResult)
+    assert seen[-1] == pytest.approx(1.0) and len(seen) == 4  # progress after every run
+    # starts are the documented seeded box around hanging at rest
+    assert np.allclose(r.starts, sweep_starts(4, seed=0))
+    assert np.all(np.abs(r.starts - [0, np.pi, 0, 0]) <= [0.3, 0.3, 0.3, 1.0])
+    assert r.success_rate == 1.0, r.summary()["failed"]
+    assert np.all(r.time_to_upright <= r.duration) and r.t_max < 8.0
+    assert np.all(r.cart_clearance > 0.1) and np.all(r.peak_ctrl <= 1.0)
+    s = r.summary()
+    assert s["successes"] == 4 and s["time_to_upright_median"] == pytest.approx(r.t_median)
+    with pytest.raises(Exception):
+        r.rho = 1.0
+    assert not r.success.flags.writeable and not r.starts.flags.writeable
+
+
+def test_gain_jitter_is_seeded_and_bounded():
+    r = swingup_sweep(None, n=2, seed=5, gain_jitter=0.2, duration=2.0)
+    assert len(r.options) == 2 and r.options[0] != r.options[1]
+    assert all(0.8 * 15.0 <= o["energy_gain"] <= 1.2 * 15.0 and o["energy_accel"] <= 1.0 for o in r.options)
+
+
+def test_bad_settings_raise():
+    with pytest.raises(SweepError):
+        swingup_sweep(None, n=0)
+    with pytest.raises(SweepError):
+        swingup_sweep(None, n=2, gain_jitter=1.5)
