@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
+from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 from cartpole.models.params import CartPoleParams, read_params
 from cartpole.validation.replay import make_mujoco
@@ -37,12 +38,6 @@ CART_SPEED_TOL = 0.1
 
 class BasinError(CartPoleError):
     """Bad sampling settings for a basin estimate."""
-
-
-def _ro(a, dtype=float) -> np.ndarray:
-    arr = np.array(a, dtype=dtype)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True)
@@ -101,8 +96,8 @@ class BasinEstimate:
 
     def __post_init__(self):
         for name in ("samples", "costs", "S", "K", "box"):
-            object.__setattr__(self, name, _ro(getattr(self, name)))
-        object.__setattr__(self, "success", _ro(self.success, bool))
+            object.__setattr__(self, name, readonly(getattr(self, name)))
+        object.__setattr__(self, "success", readonly(self.success, bool))
 
     @property
     def n_inside(self) -> int:

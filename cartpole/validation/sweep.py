@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 
 #: Default start box: centre (hanging at rest) and half-widths [m, rad, m/s, rad/s].
@@ -35,12 +36,6 @@ JITTERED = ("energy_gain", "overshoot", "energy_accel", "centring_frequency", "c
 
 class SweepError(CartPoleError):
     """Bad sweep settings (no runs, negative widths, jitter outside [0, 1))."""
-
-
-def _ro(a, dtype=float) -> np.ndarray:
-    arr = np.array(a, dtype=dtype)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True)
@@ -91,8 +86,8 @@ class SweepResult:
 
     def __post_init__(self):
         for name in ("starts", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl", "half_widths"):
-            object.__setattr__(self, name, _ro(getattr(self, name)))
-        object.__setattr__(self, "success", _ro(self.success, bool))
+            object.__setattr__(self, name, readonly(getattr(self, name)))
+        object.__setattr__(self, "success", readonly(self.success, bool))
 
     @property
     def n(self) -> int:

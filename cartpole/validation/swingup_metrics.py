@@ -14,6 +14,7 @@ import numpy as np
 
 from cartpole.models.params import CartPoleParams
 from cartpole.models.symbolic import wrap_angle
+from cartpole.validation import metrics
 from cartpole.validation.replay import Rollout
 
 UPRIGHT_TOL = 0.05
@@ -45,8 +46,8 @@ def cart_range_used(rollout: Rollout) -> tuple[float, float]:
 
 
 def peak_ctrl(rollout: Rollout) -> float:
-    """Largest ``|ctrl|`` applied (MuJoCo ctrl units; 0 for an empty log)."""
-    return float(np.max(np.abs(rollout.ctrl))) if rollout.ctrl.size else 0.0
+    """Largest ``|ctrl|`` applied (MuJoCo ctrl units; 0 for an empty log); :func:`metrics.peak_ctrl` of the log."""
+    return metrics.peak_ctrl(rollout.ctrl)
 
 
 def ctrl_within_range(rollout: Rollout, params: CartPoleParams) -> bool:
