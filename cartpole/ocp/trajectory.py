@@ -9,13 +9,12 @@ derivatives so ``state(t)`` and ``input(t)`` return exactly the functions the op
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError
 
 
@@ -33,19 +32,6 @@ def _ro(a, name: str, shape: tuple) -> np.ndarray:
         raise TrajectoryError(f"Trajectory.{name} contains NaN or inf; a plan must be finite.")
     arr.setflags(write=False)
     return arr
-
-
-def _atomic_write(path: Path, write) -> None:
-    """Call ``write(fileobj)`` on a temporary file in ``path``'s directory, then rename it over ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 @dataclass(frozen=True)
@@ -181,12 +167,12 @@ class Trajectory:
         path = Path(path)
         if path.suffix == ".json":
             payload = json.dumps({"format": "cartpole.Trajectory/1", **self.to_dict()}).encode()
-            _atomic_write(path, lambda fh: fh.write(payload))
+            atomic_write(path, lambda fh: fh.write(payload))
         else:
             if path.suffix != ".npz":
                 path = path.with_name(path.name + ".npz")
             arrays = {k: np.asarray(v) for k, v in self.to_dict().items()}
-            _atomic_write(path, lambda fh: np.savez(fh, **arrays))
+            atomic_write(path, lambda fh: np.savez(fh, **arrays))
         return path
 
     @classmethod

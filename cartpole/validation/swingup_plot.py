@@ -4,12 +4,11 @@ For a trajectory-optimised swing-up the plan is drawn (dashed) beside what MuJoC
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from cartpole._files import atomic_write
 from cartpole.models.symbolic import wrap_angle
 
 
@@ -90,12 +89,4 @@ def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = 
         a.legend(loc="upper right", fontsize=7)
     fig.suptitle(title or "Swing-up in MuJoCo")
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=100)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=100, format="png"))
