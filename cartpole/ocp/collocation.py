@@ -16,7 +16,9 @@ changing them never rebuilds anything.
 Speed (the usual CasADi traps avoided): the NLP is built once per problem shape and cached; ``f`` is
 evaluated at all knots by one ``map`` call and the interval defects by another; the MX graph is expanded to
 SX (``expand=True``); variables and constraints are scaled to order one; warm starts reuse the last primal
-and dual solution.
+and dual solution. For the fixed-time effort problem the interval functions (defect, effort, their
+derivatives and the interval's Lagrangian Hessian block) are compiled to C once per model and mapped over the
+intervals (:mod:`cartpole.ocp.compiled`): the same NLP at about 2.5x less time a solve.
 """
 from __future__ import annotations
 
@@ -185,13 +187,19 @@ class DirectCollocation:
     separated : bool
         IPOPT only: make the midpoint states decision variables (separated Hermite-Simpson) instead of
         eliminating them (compressed, default). Same solution; a cheaper Hessian but a larger KKT system.
+    compiled : bool
+        IPOPT, fixed T, effort objective, compressed: evaluate the NLP and its derivatives with the
+        Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled`; the shared library is
+        cached in ``~/.cache/cartpole``, compiled once per model in about a second). Same NLP, iterates and
+        solution as the SX formulation, about 2.5x faster a solve. Without a C compiler the SX formulation is
+        used (a note on stderr). Default True.
     """
 
     def __init__(self, model: CartPoleModel, N: int = 100, T: float | None = 2.0, *, objective: str | None = None,
                  u_max: float | None = None, cart_max: float | None = None, cart_margin: float = 0.1,
                  T_range: tuple[float, float] = (0.2, 10.0), solver: str = "ipopt",
                  solver_options: dict | None = None, time_effort_weight: float = 1e-3,
-                 separated: bool = False):
+                 separated: bool = False, compiled: bool = True):
         if objective is None:
             objective = "time" if T is None else "effort"
         if objective not in OBJECTIVES:
@@ -219,8 +227,11 @@ class DirectCollocation:
         self.solver_options = dict(solver_options or {})
         self.time_effort_weight = float(time_effort_weight)
         self.separated = bool(separated)
+        self.compiled = bool(compiled)
+        self.compiled_library: str | None = None  # the shared library in use, once built
         self.scale = _scales(model, self.bounds)
         self._interval = hs_interval_function(model.f)
+        self._f_knots = model.f.map(self.N + 1)  # f at all knots (numeric, for the returned Trajectory)
         self._built: dict[tuple, _Built] = {}
         self._last: dict | None = None  # primal and dual values of the last converged solve
 
@@ -359,6 +370,18 @@ class DirectCollocation:
         lbg_all, ubg_all = np.concatenate(lbg), np.concatenate(ubg)
         if solver_name == "fatrop":
             opts.setdefault("equality", [bool(a == b) for a, b in zip(lbg_all, ubg_all)])
+        if (self.compiled and solver_name == "ipopt" and not relaxed and not self.separated
+                and not self.free_time and self.objective == "effort"):
+            # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled); None (the SX path
+            # is kept) when there is no C compiler or the build fails.
+            from cartpole.ocp.compiled import compiled_nlp
+
+            comp = compiled_nlp(self.model.f, N, sx, su, eff_scale)
+            if comp is not None:
+                nlp = comp.nlp
+                opts.update(comp.options)
+                opts["expand"] = False  # the compiled functions are called, not expanded
+                self.compiled_library = comp.library
         solver = ca.nlpsol(f"hs_swingup_{'relaxed' if relaxed else 'nlp'}", solver_name, nlp, opts)
         unpack = ca.Function("unpack", [w, p], [X, U, T, Xc, effort])
         b = _Built(solver=solver, nw=w.numel(), ng=int(sum(a.size for a in lbg)), lbg=np.concatenate(lbg),
@@ -418,7 +441,7 @@ class DirectCollocation:
         X, U, T, Xc, effort = b.unpack(w, T_param)
         X, U, Xc = np.asarray(X), np.asarray(U), np.asarray(Xc)
         T = float(T)
-        xdot = np.asarray(self.model.f.map(self.N + 1)(X, U))
+        xdot = np.asarray(self._f_knots(X, U))
         t = np.linspace(0.0, T, self.N + 1)
         traj = Trajectory(t=t, x=X.T, u=U.T, xdot=xdot.T, x_mid=Xc.T, u_mid=(0.5 * (U[:, :-1] + U[:, 1:])).T)
         return traj, T, float(effort)
