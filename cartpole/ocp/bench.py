@@ -7,7 +7,9 @@ minimising ``integral ctrl^2 dt``.
 * Baseline: what a CasADi user writes first - ``casadi.Opti`` with one Hermite-Simpson constraint per
   interval built from calls of the model's SX Function ``f`` on MX variables, IPOPT, no ``expand``.
 * Ours: :class:`~cartpole.ocp.collocation.DirectCollocation` (built once: ``map`` over knots and intervals,
-  expanded to SX, scaled), IPOPT; plus the same warm-started from the previous solution, and fatrop.
+  expanded to SX, scaled), IPOPT, first without and then with the interval functions compiled to C
+  (:mod:`cartpole.ocp.compiled`, the default); plus the latter warm-started from the previous solution, and
+  fatrop.
 
 Both solve from the SAME initial guess (the warm-start row re-plans from a moved start); "warm" means the solver already exists (the first, building call
 is not timed). Times are medians of ``repeats`` wall-clock solves, including each tool's Python overhead.
@@ -130,6 +132,11 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     warm_solve()  # builds the warm-start solver (not timed)
     warm_ms, (_, warm_info) = _median_ms(warm_solve, repeats)
 
+    say(f"ours without the compiled interval functions (SX virtual machine): {repeats} solves ...")
+    sx_ocp = DirectCollocation(model, N=N, T=T, u_max=u_max, cart_max=cart_max, cart_margin=0.0, compiled=False)
+    sx_ocp.solve_once(x0, guess=guess)
+    sx_ms, (_, sx_info) = _median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
+
     say("building the naive casadi.Opti baseline ...")
     base = NaiveOptiBaseline(model, N, T, u_max, cart_max, x0)
     base.solve(guess)  # builds IPOPT (not timed)
@@ -167,7 +174,9 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
             "objective_rel_diff": abs(info.objective - base_obj) / abs(base_obj),
             "warm_start_solve_ms_median": warm_ms, "warm_start_iterations": warm_info.iterations,
             "warm_start_objective": warm_info.objective, "warm_start_success": warm_info.success,
-            "warm_start_speedup": base_ms / warm_ms, "repeats": repeats, "u_max": u_max, "cart_max": cart_max,
+            "warm_start_speedup": base_ms / warm_ms, "compiled": ocp.compiled_library is not None,
+            "sx_solve_ms_median": sx_ms, "sx_iterations": sx_info.iterations, "sx_objective": sx_info.objective,
+            "sx_speedup": base_ms / sx_ms, "repeats": repeats, "u_max": u_max, "cart_max": cart_max,
             **fatrop,
         },
         "tvlqr": {"ms_median": tv_ms, "steps": int(gains.t.size), "dt": gains.dt},
@@ -186,7 +195,11 @@ def print_table(doc: dict, file=None) -> None:
     w(f"{'method':44s} {'solve ms':>10s} {'iters':>6s} {'objective':>12s} {'speedup':>8s}\n")
     w(f"{'baseline: casadi.Opti, SX f calls, no expand':44s} {tr['baseline_solve_ms_median']:10.1f} "
       f"{tr['baseline_iterations']:6d} {tr['baseline_objective']:12.6f} {1.0:8.1f}\n")
-    w(f"{'ours: map + expand + scaling, IPOPT':44s} {tr['solve_ms_median']:10.1f} {tr['iterations']:6d} "
+    if "sx_solve_ms_median" in tr:
+        w(f"{'ours, SX only: map + expand + scaling, IPOPT':44s} {tr['sx_solve_ms_median']:10.1f} "
+          f"{tr['sx_iterations']:6d} {tr['sx_objective']:12.6f} {tr['sx_speedup']:8.1f}\n")
+    label = "ours: + compiled interval functions, IPOPT" if tr.get("compiled") else "ours (no C compiler), IPOPT"
+    w(f"{label:44s} {tr['solve_ms_median']:10.1f} {tr['iterations']:6d} "
       f"{tr['objective']:12.6f} {tr['speedup']:8.1f}\n")
     w(f"{'ours, warm-started, start moved 2 cm/0.05 rad':44s} {tr['warm_start_solve_ms_median']:10.1f} "
       f"{tr['warm_start_iterations']:6d} {tr['warm_start_objective']:12.6f} {tr['warm_start_speedup']:8.1f}\n")
