@@ -224,6 +224,11 @@ def _bar(label):
     return f
 
 
+def _seconds(value) -> str:
+    """``'2.810 s'``, or ``'n/a'`` when no run reached upright (the summary holds None)."""
+    return "n/a" if value is None else f"{value:.3f} s"
+
+
 def main(argv=None) -> int:
     """``python -m cartpole.validation.sweep [--mjcf P ...] [--variants-dir D] [--n N] [--seed S] [--jitter J]
     [--json]``: one summary line (or JSON) per model."""
@@ -247,7 +252,7 @@ def main(argv=None) -> int:
         out.append(s)
         if not a.json:
             print(f"{s['mjcf']}: success {s['successes']}/{s['n']}, time to upright median "
-                  f"{s['time_to_upright_median']} s, max {s['time_to_upright_max']} s, "
+                  f"{_seconds(s['time_to_upright_median'])}, max {_seconds(s['time_to_upright_max'])}, "
                   f"min clearance {s['min_cart_clearance']:.3f} m, peak |ctrl| {s['max_peak_ctrl']:.3f}")
     if a.json:
         print(json.dumps(out))
