@@ -117,13 +117,16 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
                    progress=None) -> np.ndarray:
     """Run the catch in MuJoCo from each start state and say which runs end upright and still.
 
-    A plain ``mj_step`` loop on one ``MjData`` (no logging), the same physics as :func:`simulate`.
+    All runs advance together (:func:`~cartpole.validation.batch.simulate_batch_linear`: MuJoCo's own
+    ``mj_step`` through its threaded rollout, the catch's law evaluated for the batch in numpy), about ten
+    times faster than a Python loop of ``mj_step`` per run and the same physics as :func:`simulate`.
 
     Parameters
     ----------
     source : CartPoleParams or MJCF path or None
     catch : LinearFeedback
-        Evaluated as ``catch(t, x)`` every physics step; MuJoCo clips ctrl to ctrlrange.
+        Its law ``u* - K (x - x*)`` (wrapped angle error, its ``u_limits``) every physics step; MuJoCo clips ctrl
+        to ctrlrange.
     starts : (n, 4) array
         Start states.
     duration : float
@@ -137,34 +140,21 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     -------
     (n,) bool array
     """
-    import mujoco
-
     from cartpole.models.symbolic import wrap_angle
+    from cartpole.validation.batch import simulate_batch_linear
 
-    m, d = make_mujoco(source)
-    h = float(m.opt.timestep)
-    steps = max(1, int(round(duration / h)))
+    m, _ = make_mujoco(source)
     lo, hi = (m.jnt_range[0] if m.jnt_limited[0] else (-np.inf, np.inf))
     lo, hi = lo + limit_margin, hi - limit_margin
     starts = np.atleast_2d(np.asarray(starts, dtype=float))
-    ok = np.zeros(len(starts), dtype=bool)
-    for i, x0 in enumerate(starts):
-        mujoco.mj_resetData(m, d)
-        d.qpos[:] = x0[:2]
-        d.qvel[:] = x0[2:]
-        mujoco.mj_forward(m, d)
-        hit = False
-        for k in range(steps):
-            d.ctrl[0] = catch(k * h, np.concatenate([d.qpos, d.qvel]))
-            mujoco.mj_step(m, d)
-            if not (lo < d.qpos[0] < hi) or not np.isfinite(d.qpos[1]):
-                hit = True
-                break
-        ok[i] = (not hit and abs(wrap_angle(d.qpos[1])) < UPRIGHT_TOL and abs(d.qvel[1]) < RATE_TOL
-                 and abs(d.qvel[0]) < CART_SPEED_TOL)
-        if progress is not None and ((i + 1) % max(1, len(starts) // 20) == 0 or i + 1 == len(starts)):
-            progress((i + 1) / len(starts))
-    return ok
+    states, _ = simulate_batch_linear(source, catch.K, starts, duration, x_eq=catch.x_eq, u_eq=catch.u_eq,
+                                      u_limits=catch.u_limits, progress=progress)
+    s = states[:, 1:, 0]  # the cart after every step
+    stayed = np.all((lo < s) & (s < hi), axis=1)
+    end = states[:, -1]
+    still = ((np.abs(wrap_angle(end[:, 1])) < UPRIGHT_TOL) & (np.abs(end[:, 3]) < RATE_TOL)
+             & (np.abs(end[:, 2]) < CART_SPEED_TOL))
+    return stayed & still
 
 
 def sample_errors(S, n: int, *, level: float, seed: int, s_max: float = np.inf) -> np.ndarray:

@@ -44,8 +44,8 @@ def _initial_states(m, X0: np.ndarray) -> np.ndarray:
     return S0
 
 
-def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: float = 0.0,
-                          nthread: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: float = 0.0, u_limits=None,
+                          nthread: int | None = None, progress=None) -> tuple[np.ndarray, np.ndarray]:
     """Run ``u = u* - K (x - x*)`` (angle error wrapped, ctrl clipped to ``ctrlrange``) from every row of ``X0``.
 
     Parameters
@@ -62,8 +62,13 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
         Equilibrium (default the origin).
     u_eq : float
         Equilibrium ctrl (default 0).
+    u_limits : (2,) array, optional
+        ``[low, high]`` ctrl clip applied before MuJoCo's ``ctrlrange`` clip, as
+        :class:`~cartpole.control.linear.LinearFeedback` does (default none).
     nthread : int, optional
         Threads of MuJoCo's rollout pool (default: the CPUs this process may use; 0 = calling thread).
+    progress : callable, optional
+        Called with the fraction of physics steps done (about every 5 %).
 
     Returns
     -------
@@ -90,6 +95,7 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
     if n < 1:
         raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
     lo, hi = m.actuator_ctrlrange[0] if m.actuator_ctrllimited[0] else (-np.inf, np.inf)
+    u_lo, u_hi = (-np.inf, np.inf) if u_limits is None else (float(u_limits[0]), float(u_limits[1]))
     nthread = _nthread_default() if nthread is None else int(nthread)
     nb = X0.shape[0]
     # two state buffers used in turn: the output of one step is the input of the next, no copies
@@ -102,17 +108,20 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
     datas = [mujoco.MjData(m) for _ in range(max(1, nthread))]
     chunk = max(1, nb // max(1, nthread))
     spec = int(mujoco.mjtState.mjSTATE_CTRL)
+    every = max(1, n // 20)
     with mujoco.rollout.Rollout(nthread=nthread) as pool:
         for k in range(n):
             S, nxt = bufs[k % 2], bufs[(k + 1) % 2]
             e = S[:, 1:5] - x_eq  # full state layout: [time, qpos (2), qvel (2)]
             e[:, 1] = wrap_angle(e[:, 1])
-            # same arithmetic as LinearFeedback: u* - K e, then MuJoCo's clip to ctrlrange
-            u[:, 0, 0] = np.clip(u_eq - e @ K, lo, hi)
+            # same arithmetic as LinearFeedback: u* - K e clipped to its limits, then MuJoCo's clip to ctrlrange
+            u[:, 0, 0] = np.clip(np.clip(u_eq - e @ K, u_lo, u_hi), lo, hi)
             pool.rollout(models, datas, S, u, nstep=1, state=nxt, skip_checks=True, chunk_size=chunk,
                          control_spec=spec)
             ctrl[:, k] = u[:, 0]
             states[:, k + 1] = nxt[:, 1:5]
+            if progress is not None and ((k + 1) % every == 0 or k + 1 == n):
+                progress((k + 1) / n)
     if not np.all(np.isfinite(states)):
         raise CartPoleError("MuJoCo's state became NaN/inf in the batch; the gain or the model is unstable.")
     return states, ctrl

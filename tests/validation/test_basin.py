@@ -49,6 +49,21 @@ def test_samples_below_rho_succeed_when_rechecked_independently(basin):
         assert np.all(np.abs(r.qpos[:, 0]) < 1.5 - basin.limit_margin)
 
 
+def test_batched_verdicts_equal_single_runs_of_the_logging_simulator(basin):
+    """Successes and failures alike: the batched catch runs give the verdict of one ``simulate`` per start."""
+    params = cp.read_params()
+    catch = lab_catch(cp.build_model(params))
+    picks = np.r_[np.flatnonzero(basin.success)[:3], np.flatnonzero(~basin.success)[:3]]
+    assert picks.size == 6
+    lo, hi = params.cart_range[0] + basin.limit_margin, params.cart_range[1] - basin.limit_margin
+    for i in picks:
+        r = simulate(params, catch, basin.samples[i], basin.duration)
+        end = r.x[-1]
+        ok = (np.all((lo < r.qpos[1:, 0]) & (r.qpos[1:, 0] < hi)) and abs(wrap_angle(end[1])) < 0.05
+              and abs(end[3]) < 0.1 and abs(end[2]) < 0.1)
+        assert ok == basin.success[i], i
+
+
 def test_cache_estimates_once_per_model(variant_dir):
     cache = BasinCache()
     a = cache.get(None, n=20)

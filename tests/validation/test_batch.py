@@ -33,6 +33,20 @@ def test_batch_equals_simulate_with_linear_feedback(name, variant_dir):
         assert replays_exactly(log, params)
 
 
+def test_ctrl_limits_of_the_law_are_applied_like_linear_feedback():
+    params = read_params()
+    K = lqr(*build_model(params).linearize(), Q_LAB, R_LAB).K
+    X0 = np.array([[0.0, 0.2, 0.0, 0.0], [0.1, -0.1, 0.2, 0.0]])
+    fractions = []
+    states, ctrl = simulate_batch_linear(params, K, X0, 1.0, u_limits=(-0.3, 0.5), progress=fractions.append)
+    assert ctrl.min() == -0.3 and ctrl.max() == 0.5  # tighter than ctrlrange, and both reached
+    assert fractions[-1] == 1.0 and np.all(np.diff(fractions) > 0) and len(fractions) >= 10
+    for i, x0 in enumerate(X0):
+        run = simulate(params, LinearFeedback(K, u_limits=(-0.3, 0.5)), x0, 1.0)
+        np.testing.assert_allclose(states[i], run.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ctrl[i], run.ctrl, rtol=0, atol=1e-12)
+
+
 def test_batch_on_the_calling_thread_gives_the_same_runs():
     K = lqr(*build_model().linearize(), Q_LAB, R_LAB).K
     X0 = random_starts(3, seed=1)
