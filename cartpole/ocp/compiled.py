@@ -5,7 +5,7 @@ that costs about 30 of a solve's 50 ms, most of it the Hessian of the Lagrangian
 small interval function of ten scaled variables ``v = (z_k, z_k+1)``, ``z = (x, u)``. So only that interval's
 pieces are compiled: its defect and effort with their exact first derivatives, and the Hessian block of its
 share of the Lagrangian (SX, derived by CasADi). Their C source is small and compiles in about a second;
-compiling the whole expanded NLP instead takes minutes and gigabytes. The NLP's own functions (objective,
+code-generating the assembled NLP functions instead kept gcc busy for minutes at 2.5 GB. The NLP's own functions (objective,
 constraints, gradient, constraint Jacobian, Lagrangian Hessian) are then small MX graphs that ``map`` the
 compiled pieces over the N intervals and scatter the blocks into the NLP's sparse matrices; IPOPT gets them as
 ``grad_f``, ``jac_g`` and ``hess_lag``. Same NLP, same iterates, same solution as the SX formulation.
@@ -90,16 +90,17 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su: float, eff_scale: flo
         ``sigma e + lam' d`` in ``v``; and ``jac_hs_d``, ``jac_hs_e``, the Jacobians CasADi looks up by name
         when it differentiates an external function (it does once, for the final multipliers).
     """
+    from cartpole.ocp.collocation import hs_interval_function  # the one definition of the HS defect
+
     v = ca.SX.sym("v", 10)
     h = ca.SX.sym("h")
     lam = ca.SX.sym("lam", 4)
     sigma = ca.SX.sym("sigma")
     xk, uk = v[0:4] * ca.DM(sx), v[4] * su
     xk1, uk1 = v[5:9] * ca.DM(sx), v[9] * su
-    fk, fk1 = f(xk, uk), f(xk1, uk1)
+    defect, _ = hs_interval_function(f)(xk, uk, xk1, uk1, f(xk, uk), f(xk1, uk1), h)
+    d = defect / ca.DM(sx)
     uc = 0.5 * (uk + uk1)
-    xc = 0.5 * (xk + xk1) + h / 8 * (fk - fk1)
-    d = (xk1 - xk - h / 6 * (fk + 4 * f(xc, uc) + fk1)) / ca.DM(sx)
     e = h / 6 * (uk**2 + 4 * uc**2 + uk1**2) / eff_scale
     H = ca.densify(ca.hessian(sigma * e + ca.dot(lam, d), v)[0])
     hess_triu = ca.vertcat(*[H[a, b] for b in range(10) for a in range(b + 1)])
@@ -146,11 +147,6 @@ def _build_library(funcs: list[ca.Function]) -> tuple[str, bool]:
     return str(lib), True
 
 
-def _triplet_order(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """Permutation putting (row, col) triplets in CasADi's compressed-column order."""
-    return np.lexsort((rows, cols))
-
-
 def _assemble(ext: dict[str, ca.Function], N: int) -> tuple[dict, dict]:
     """The NLP (MX) and IPOPT's derivative Functions from the mapped interval functions."""
     n = 5 * (N + 1)
@@ -171,7 +167,7 @@ def _assemble(ext: dict[str, ca.Function], N: int) -> tuple[dict, dict]:
     # Jacobian of g: interval k's dense (4 x 10) block at rows 4k.., cols 5k.. (blocks do not overlap)
     k, b, a = np.meshgrid(np.arange(N), np.arange(10), np.arange(4), indexing="ij")
     rows, cols, src = (4 * k + a).ravel(), (5 * k + b).ravel(), (40 * k + 4 * b + a).ravel()
-    order = _triplet_order(rows, cols)
+    order = np.lexsort((rows, cols))  # CasADi's compressed-column order: by column, then row
     sp_j = ca.Sparsity.triplet(4 * N, n, rows.tolist(), cols.tolist())
     jac = ca.MX(sp_j, ca.vec(JD)[src[order].tolist()])
 
