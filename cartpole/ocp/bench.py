@@ -11,8 +11,8 @@ minimising ``integral ctrl^2 dt``.
   (:mod:`cartpole.ocp.compiled`, the default); plus the latter warm-started from the previous solution, and
   fatrop.
 
-Both solve from the SAME initial guess (the warm-start row re-plans from a moved start); "warm" means the solver already exists (the first, building call
-is not timed). Times are medians of ``repeats`` wall-clock solves, including each tool's Python overhead.
+Both solve from the SAME initial guess (the warm-start row re-plans from a moved start); every timed solve
+reuses a solver that already exists (the first, building call is not timed). Times are medians of ``repeats`` wall-clock solves, including each tool's Python overhead.
 """
 from __future__ import annotations
 

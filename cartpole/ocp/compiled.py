@@ -5,9 +5,10 @@ that costs about 30 of a solve's 50 ms, most of it the Hessian of the Lagrangian
 small interval function of ten scaled variables ``v = (z_k, z_k+1)``, ``z = (x, u)``. So only that interval's
 pieces are compiled: its defect and effort with their exact first derivatives, and the Hessian block of its
 share of the Lagrangian (SX, derived by CasADi). Their C source is small and compiles in about a second;
-code-generating the assembled NLP functions instead kept gcc busy for minutes at 2.5 GB. The NLP's own functions (objective,
-constraints, gradient, constraint Jacobian, Lagrangian Hessian) are then small MX graphs that ``map`` the
-compiled pieces over the N intervals and scatter the blocks into the NLP's sparse matrices; IPOPT gets them as
+code-generating the assembled NLP functions instead kept gcc busy for minutes at 2.5 GB. The NLP's own
+functions (objective, constraints, gradient, constraint Jacobian, Lagrangian Hessian) are small MX graphs
+that ``map`` the compiled pieces over the N intervals and scatter the blocks into the NLP's sparse matrices;
+IPOPT gets them as
 ``grad_f``, ``jac_g`` and ``hess_lag``. Same NLP, same iterates, same solution as the SX formulation.
 
 The shared library is cached in a user cache directory (:func:`cache_dir`) under a hash of its generated
