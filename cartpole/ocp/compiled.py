@@ -8,8 +8,8 @@ share of the Lagrangian (SX, derived by CasADi). Their C source is small and com
 code-generating the assembled NLP functions instead kept gcc busy for minutes at 2.5 GB. The NLP's own
 functions (objective, constraints, gradient, constraint Jacobian, Lagrangian Hessian) are small MX graphs
 that ``map`` the compiled pieces over the N intervals and scatter the blocks into the NLP's sparse matrices;
-IPOPT gets them as
-``grad_f``, ``jac_g`` and ``hess_lag``. Same NLP, same iterates, same solution as the SX formulation.
+IPOPT gets them as ``grad_f``, ``jac_g`` and ``hess_lag``. Same NLP, same iterates, same solution as the SX
+formulation.
 
 The shared library is cached in a user cache directory (:func:`cache_dir`) under a hash of its generated
 source, so the model's parameters, the scaling and the CasADi version are all in the key: it is compiled once
