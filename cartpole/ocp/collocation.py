@@ -231,7 +231,7 @@ class DirectCollocation:
         self.compiled_library: str | None = None  # the shared library in use, once built
         self.scale = _scales(model, self.bounds)
         self._interval = hs_interval_function(model.f)
-        self._f_knots = model.f.map(self.N + 1)  # f at all knots (numeric, for the returned Trajectory)
+        self._f_knots = model.f.map(self.N + 1)  # f at all N+1 knots: in the NLP and for the returned Trajectory
         self._built: dict[tuple, _Built] = {}
         self._last: dict | None = None  # primal and dual values of the last converged solve
 
@@ -276,7 +276,7 @@ class DirectCollocation:
             Wn = stages[5:, :]
             X = Z[:4, :] * ca.DM(sx)
             U = Z[4:, :] * su
-            F = self.model.f.map(N + 1)(X, U)
+            F = self._f_knots(X, U)
             Xn, Un = Wn[:4, :] * ca.DM(sx), Wn[4:, :] * su
             Fn = self.model.f.map(N)(Xn, Un)
             # Boundary states as equality constraints of the first/last stage (fatrop handles a pinned
@@ -308,7 +308,7 @@ class DirectCollocation:
             X = Z[:4, :] * ca.DM(sx)
             U = Z[4:, :] * su
             h = T / N
-            F = self.model.f.map(N + 1)(X, U)
+            F = self._f_knots(X, U)
             D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], X[:, 1:], U[:, 1:], F[:, :-1], F[:, 1:], h)
             # Defects scaled by the state scales (dimensionless), one block per interval, stage-ordered.
             g = [ca.vec(D / ca.DM(sx))]
@@ -335,7 +335,7 @@ class DirectCollocation:
             X = Z[:4, :] * ca.DM(sx)
             U = Z[4:, :] * su
             h = T / N
-            F = self.model.f.map(N + 1)(X, U)
+            F = self._f_knots(X, U)
             Uc_ = 0.5 * (U[:, :-1] + U[:, 1:])
             Fc = self.model.f.map(N)(Xc, Uc_)
             mid = Xc - (0.5 * (X[:, :-1] + X[:, 1:]) + h / 8 * (F[:, :-1] - F[:, 1:]))

@@ -28,7 +28,6 @@ from cartpole.control.linear import LinearFeedback
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 from cartpole.models.params import CartPoleParams, read_params
-from cartpole.validation.replay import make_mujoco
 
 #: Final-state tolerances of a successful catch: |wrapped theta| (rad), |theta_dot| (rad/s), |s_dot| (m/s).
 UPRIGHT_TOL = 0.05
@@ -143,11 +142,11 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     from cartpole.models.symbolic import wrap_angle
     from cartpole.validation.batch import simulate_batch_linear
 
-    m, _ = make_mujoco(source)
-    lo, hi = (m.jnt_range[0] if m.jnt_limited[0] else (-np.inf, np.inf))
+    params = source if isinstance(source, CartPoleParams) else read_params(source)
+    lo, hi = params.cart_range  # the slide joint's range (infinite when unlimited)
     lo, hi = lo + limit_margin, hi - limit_margin
     starts = np.atleast_2d(np.asarray(starts, dtype=float))
-    states, _ = simulate_batch_linear(source, catch.K, starts, duration, x_eq=catch.x_eq, u_eq=catch.u_eq,
+    states, _ = simulate_batch_linear(params, catch.K, starts, duration, x_eq=catch.x_eq, u_eq=catch.u_eq,
                                       u_limits=catch.u_limits, progress=progress)
     s = states[:, 1:, 0]  # the cart after every step
     stayed = np.all((lo < s) & (s < hi), axis=1)
