@@ -15,19 +15,11 @@ import sys
 if "mujoco" not in sys.modules:
     os.environ.setdefault("MUJOCO_GL", "egl")
 
-import numpy as np  # noqa: E402
-
 from cartpole import control, models, validation  # noqa: E402
 from cartpole.errors import CartPoleError
-from cartpole.lqr import LQRError, dlqr, lqr
+from cartpole.lqr import Q_LAB, R_LAB, LQRError, dlqr, lqr
 from cartpole.models import SHIPPED_MJCF, CartPoleModel, CartPoleParams, MJCFError, build_model, read_params
 from cartpole.validation import Rollout, replay, simulate
-
-#: The lab's default LQR weights (state order [s, theta, s_dot, theta_dot]; input = MuJoCo ctrl).
-Q_LAB = np.diag([1.0, 10.0, 0.1, 0.1])
-Q_LAB.setflags(write=False)
-R_LAB = np.array([[0.1]])
-R_LAB.setflags(write=False)
 
 __version__ = "0.1.0"
 

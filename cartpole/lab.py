@@ -218,7 +218,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | None = None, *, Q=None, R=None, 
     MJCFError, LQRError, LabError
         Bad MJCF, weights, or a model the lab cannot balance.
     """
-    from cartpole import Q_LAB, R_LAB
+    from cartpole.lqr import Q_LAB, R_LAB
     from cartpole.models.symbolic import build_model
     from cartpole.control.linear import LinearFeedback
     from cartpole.validation.metrics import summarize

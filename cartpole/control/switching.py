@@ -37,8 +37,7 @@ def lab_catch(model, Q=None, R=None) -> LinearFeedback:
     LinearFeedback
         ``u = -K e`` clipped to the model's ctrl range, with the cost-to-go ``S`` attached.
     """
-    from cartpole import Q_LAB, R_LAB
-    from cartpole.lqr import lqr
+    from cartpole.lqr import Q_LAB, R_LAB, lqr
 
     A, B = model.linearize()
     res = lqr(A, B, Q_LAB if Q is None else Q, R_LAB if R is None else R)

@@ -1,7 +1,8 @@
-"""Linear-quadratic regulators: infinite-horizon ``lqr``/``dlqr`` (and finite-horizon TVLQR in ``tvlqr``)."""
-from cartpole.lqr.lqr import LQRError, LQRResult, check_weights, dlqr, lqr
+"""Linear-quadratic regulators: infinite-horizon ``lqr``/``dlqr`` (:mod:`~cartpole.lqr.riccati`), finite-horizon
+TVLQR (:mod:`~cartpole.lqr.tvlqr`) and the lab's default weights (:mod:`~cartpole.lqr.weights`)."""
+from cartpole.lqr.riccati import LQRError, LQRResult, check_weights, dlqr, lqr
+from cartpole.lqr.tvlqr import TVLQRGains, tvlqr
+from cartpole.lqr.weights import Q_LAB, R_LAB, lab_weights
 
-__all__ = ["LQRError", "LQRResult", "check_weights", "dlqr", "lqr"]
-from cartpole.lqr.tvlqr import TVLQRGains, tvlqr  # noqa: E402
-
-__all__ += ["TVLQRGains", "tvlqr"]
+__all__ = ["LQRError", "LQRResult", "check_weights", "dlqr", "lqr", "TVLQRGains", "tvlqr", "Q_LAB", "R_LAB",
+           "lab_weights"]

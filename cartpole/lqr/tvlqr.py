@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.lqr.lqr import LQRError, check_weights, dlqr, lqr
-from cartpole.models.symbolic import CartPoleModel
+from cartpole.lqr.riccati import LQRError, check_weights, dlqr, lqr
+from cartpole.models import CartPoleModel
 from cartpole._arrays import readonly
 
 METHODS = ("discrete", "continuous")

@@ -101,8 +101,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         ``objective_rel_diff``, ``warm_start_solve_ms_median``, ``warm_start_speedup``, ``fatrop_...``},
         ``tvlqr`` {``ms_median``, ``steps``, ``dt``}, ``replay`` {...} (or None when not run).
     """
-    from cartpole import Q_LAB, R_LAB
-    from cartpole.lqr.tvlqr import tvlqr
+    from cartpole.lqr import Q_LAB, R_LAB, tvlqr
     from cartpole.models import build_model, read_params
     from cartpole.ocp.collocation import DirectCollocation
     from cartpole.ocp.guess import initial_guesses

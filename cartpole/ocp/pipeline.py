@@ -15,16 +15,10 @@ import numpy as np
 
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.lqr.lqr import dlqr
-from cartpole.lqr.tvlqr import TVLQRGains, tvlqr
-from cartpole.models.params import CartPoleParams, read_params
-from cartpole.models.symbolic import CartPoleModel, build_model
+from cartpole.lqr import Q_LAB, R_LAB, TVLQRGains, dlqr, tvlqr
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.ocp.collocation import DirectCollocation, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
-
-#: The lab's weights (duplicated from ``cartpole.Q_LAB``/``R_LAB`` to avoid importing the top package here).
-_Q_LAB = np.diag([1.0, 10.0, 0.1, 0.1])
-_R_LAB = np.array([[0.1]])
 
 
 @dataclass(frozen=True)
@@ -113,8 +107,8 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=(0.0, 
     """
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     plan_model = model if model is not None else build_model(params)
-    Q = _Q_LAB if Q is None else np.asarray(Q, float)
-    R = _R_LAB if R is None else np.atleast_2d(np.asarray(R, float))
+    Q = Q_LAB if Q is None else np.asarray(Q, float)
+    R = R_LAB if R is None else np.atleast_2d(np.asarray(R, float))
     x0 = np.asarray(x0, dtype=float)
     # Bounds are the MJCF's (the real actuator and track), whatever model plans.
     bounds = dict(u_max=params.u_max, cart_max=None if not np.all(np.isfinite(params.cart_range)) else

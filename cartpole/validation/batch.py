@@ -128,8 +128,7 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
 
 
 def _lab_gain(params):
-    from cartpole import Q_LAB, R_LAB
-    from cartpole.lqr import lqr
+    from cartpole.lqr import Q_LAB, R_LAB, lqr
     from cartpole.models.symbolic import build_model
 
     A, B = build_model(params).linearize()
