@@ -29,8 +29,10 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models.symbolic import CartPoleModel
+from cartpole.models import CartPoleModel
+from cartpole.ocp import compiled
 from cartpole.ocp.guess import linear_guess
+from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 from cartpole.ocp.trajectory import Trajectory
 
 OBJECTIVES = ("effort", "time")
@@ -130,18 +132,6 @@ def _scales(model: CartPoleModel, bounds: OCPBounds) -> np.ndarray:
     acc = p.gear * bounds.u_max / (p.cart_mass + p.pole_mass)
     vel = min(np.sqrt(acc * bounds.cart_max), 0.5 * acc)
     return np.array([bounds.cart_max, np.pi, vel, rate, bounds.u_max])
-
-
-def hs_interval_function(f: ca.Function) -> ca.Function:
-    """``(x_k, u_k, x_k1, u_k1, f_k, f_k1, h) -> (defect (4,), x_c (4,))`` of compressed Hermite-Simpson."""
-    xk, xk1, fk, fk1 = (ca.SX.sym(n, 4) for n in ("xk", "xk1", "fk", "fk1"))
-    uk, uk1 = ca.SX.sym("uk", 1), ca.SX.sym("uk1", 1)
-    h = ca.SX.sym("h")
-    xc = 0.5 * (xk + xk1) + h / 8 * (fk - fk1)
-    fc = f(xc, 0.5 * (uk + uk1))
-    defect = xk1 - xk - h / 6 * (fk + 4 * fc + fk1)
-    return ca.Function("hs_interval", [xk, uk, xk1, uk1, fk, fk1, h], [defect, xc],
-                       ["xk", "uk", "xk1", "uk1", "fk", "fk1", "h"], ["defect", "xc"])
 
 
 @dataclass
@@ -347,8 +337,7 @@ class DirectCollocation:
             zc0 = 5 * (N + 1)
             idx = np.concatenate([np.r_[5 * k:5 * k + 5, zc0 + 4 * k:zc0 + 4 * k + 4] for k in range(N)]
                                  + [np.r_[5 * N:5 * N + 5], np.arange(9 * N + 5, 9 * N + 5 + n_extra)])
-        Uc = 0.5 * (U[:, :-1] + U[:, 1:])
-        effort = h / 6 * ca.sum2(U[:, :-1] ** 2 + 4 * Uc**2 + U[:, 1:] ** 2)
+        effort = h / 6 * ca.sum2(simpson_effort_terms(U[:, :-1], U[:, 1:]))
         eff_scale = su**2 * (self.T or 1.0)
         if relaxed:
             # Slack on the cart and ctrl bounds (dimensionless): |s_k| <= cart_max (1 + slack_cart), etc.
@@ -374,9 +363,7 @@ class DirectCollocation:
                 and not self.free_time and self.objective == "effort"):
             # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled); None (the SX path
             # is kept) when there is no C compiler or the build fails.
-            from cartpole.ocp.compiled import compiled_nlp
-
-            comp = compiled_nlp(self.model.f, N, sx, su, eff_scale)
+            comp = compiled.compiled_nlp(self.model.f, N, sx, su, eff_scale)
             if comp is not None:
                 nlp = comp.nlp
                 opts.update(comp.options)

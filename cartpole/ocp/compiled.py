@@ -30,6 +30,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
+
 #: Flags for the C compiler; -O2 is as fast as -O3 here and compiles quicker.
 CFLAGS = ("-O2", "-fPIC", "-shared")
 _LIB_VERSION = "hs-interval-v2"  # bump when the generated functions change meaning
@@ -91,8 +93,6 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su: float, eff_scale: flo
         ``sigma e + lam' d`` in ``v``; and ``jac_hs_d``, ``jac_hs_e``, the Jacobians CasADi looks up by name
         when it differentiates an external function (it does once, for the final multipliers).
     """
-    from cartpole.ocp.collocation import hs_interval_function  # the one definition of the HS defect
-
     v = ca.SX.sym("v", 10)
     h = ca.SX.sym("h")
     lam = ca.SX.sym("lam", 4)
@@ -101,8 +101,7 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su: float, eff_scale: flo
     xk1, uk1 = v[5:9] * ca.DM(sx), v[9] * su
     defect, _ = hs_interval_function(f)(xk, uk, xk1, uk1, f(xk, uk), f(xk1, uk1), h)
     d = defect / ca.DM(sx)
-    uc = 0.5 * (uk + uk1)
-    e = h / 6 * (uk**2 + 4 * uc**2 + uk1**2) / eff_scale
+    e = h / 6 * simpson_effort_terms(uk, uk1) / eff_scale
     H = ca.densify(ca.hessian(sigma * e + ca.dot(lam, d), v)[0])
     hess_triu = ca.vertcat(*[H[a, b] for b in range(10) for a in range(b + 1)])
     hs_d = ca.Function("hs_d", [v, h], [d])
