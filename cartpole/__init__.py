@@ -15,13 +15,13 @@ import sys
 if "mujoco" not in sys.modules:
     os.environ.setdefault("MUJOCO_GL", "egl")
 
-from cartpole import control, models, validation  # noqa: E402
+from cartpole import control, models, sim, validation  # noqa: E402
 from cartpole.errors import CartPoleError
 from cartpole.lqr import Q_LAB, R_LAB, LQRError, dlqr, lqr
 from cartpole.models import SHIPPED_MJCF, CartPoleModel, CartPoleParams, MJCFError, build_model, read_params
-from cartpole.validation import Rollout, replay, simulate
+from cartpole.sim import Rollout, replay, simulate
 
 __version__ = "0.1.0"
 
-__all__ = ["control", "models", "validation", "CartPoleError", "LQRError", "dlqr", "lqr", "SHIPPED_MJCF", "CartPoleModel", "CartPoleParams",
+__all__ = ["control", "models", "sim", "validation", "CartPoleError", "LQRError", "dlqr", "lqr", "SHIPPED_MJCF", "CartPoleModel", "CartPoleParams",
            "MJCFError", "build_model", "read_params", "Rollout", "replay", "simulate", "Q_LAB", "R_LAB"]

@@ -222,7 +222,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | None = None, *, Q=None, R=None, 
     from cartpole.models.symbolic import build_model
     from cartpole.control.linear import LinearFeedback
     from cartpole.validation.metrics import summarize
-    from cartpole.validation.replay import simulate
+    from cartpole.sim import simulate
 
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     Q = Q_LAB if Q is None else Q

@@ -9,7 +9,7 @@
   LQR hold after the plan.
 
 Either way MuJoCo runs the controller on the MJCF and every physics step is logged, so the result replays
-exactly (:func:`~cartpole.validation.replay.replays_exactly`).
+exactly (:func:`~cartpole.sim.rollout.replays_exactly`).
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ import numpy as np
 
 from cartpole.errors import CartPoleError
 from cartpole.models.params import CartPoleParams, read_params
-from cartpole.validation.replay import Rollout, simulate
+from cartpole.sim import Rollout, simulate
 
 METHODS = ("energy", "trajopt")
 

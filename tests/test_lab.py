@@ -6,7 +6,7 @@ import scipy.linalg
 
 from cartpole import Q_LAB, R_LAB, build_model, read_params
 from cartpole.lab import LAB_INITIAL_CONDITIONS, LabError, lab_initial_conditions, run_lab
-from cartpole.validation import replays_exactly
+from cartpole.sim import replays_exactly
 
 
 def test_five_starts_settle_and_replay_exactly(any_mjcf):
@@ -87,7 +87,7 @@ def test_sign_facts_of_the_shipped_asset():
     toward +x (under the pole) to catch it. Checked here against MuJoCo's kinematics and dynamics."""
     import mujoco
 
-    from cartpole.validation import make_mujoco
+    from cartpole.sim import make_mujoco
 
     m, d = make_mujoco(None)
     d.qpos[:] = [0.0, 0.1]

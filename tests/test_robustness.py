@@ -9,7 +9,7 @@ import pytest
 from cartpole.models import build_model, read_params
 from cartpole.models.symbolic import wrap_angle
 from cartpole.ocp.pipeline import trajopt_swingup
-from cartpole.validation.replay import replays_exactly, simulate
+from cartpole.sim import replays_exactly, simulate
 
 HANGING = np.array([0.0, np.pi, 0.0, 0.0])
 

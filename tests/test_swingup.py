@@ -4,7 +4,7 @@ import pytest
 
 import cartpole as cp
 from cartpole.swingup import SwingupError, run_swingup
-from cartpole.validation import Rollout, replays_exactly
+from cartpole.sim import Rollout, replays_exactly
 from cartpole.validation.swingup_metrics import (cart_clearance, swingup_metrics, swingup_success,
                                                  time_to_upright)
 

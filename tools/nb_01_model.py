@@ -113,7 +113,7 @@ again. The model reproduces each.
 """),
 ("code", r"""
 import mujoco
-from cartpole.validation import make_mujoco
+from cartpole.sim import make_mujoco
 
 for integ in ("Euler", "RK4", "implicit", "implicitfast"):
     p = params.replace(xml=params.xml.replace('<option timestep="0.005"', f'<option integrator="{integ}" timestep="0.005"'), mjcf="")

@@ -235,7 +235,7 @@ try:
     display(Video(str(path), embed=True, width=480))
 except VideoUnavailable as err:
     print(err)
-print("the clip replays exactly with mj_step:", cp.validation.replays_exactly(clip))
+print("the clip replays exactly with mj_step:", cp.sim.replays_exactly(clip))
 """),
 ]
 write("notebooks/02_lqr_balance.ipynb", cells)

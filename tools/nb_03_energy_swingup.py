@@ -54,7 +54,8 @@ from cartpole.control.energy import EnergyShapingController, model_scales
 from cartpole.control.switching import swingup_catch
 from cartpole.models import wrap_angle
 from cartpole.swingup import run_swingup
-from cartpole.validation import BasinCache, replays_exactly, simulate
+from cartpole.sim import replays_exactly, simulate
+from cartpole.validation import BasinCache
 from cartpole.validation.swingup_plot import plot_swingup
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the simulations

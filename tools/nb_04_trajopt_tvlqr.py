@@ -36,7 +36,8 @@ from cartpole.models import wrap_angle
 from cartpole.ocp.pipeline import trajopt_swingup
 from cartpole.swingup import TRAJOPT_EXTRA          # s simulated after the plan (3 s, as `cartpole swingup`)
 from cartpole.validation.swingup_metrics import cart_clearance, held_upright
-from cartpole.validation import replays_exactly, simulate, swingup_metrics, swingup_success
+from cartpole.sim import replays_exactly, simulate
+from cartpole.validation import swingup_metrics, swingup_success
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the simulations
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook04"))

@@ -94,7 +94,7 @@ limit and the ctrl in range, and the logged ctrl replays exactly.
 """),
 ("code", r"""
 from cartpole.swingup import run_swingup
-from cartpole.validation import replays_exactly
+from cartpole.sim import replays_exactly
 from cartpole.validation.swingup_plot import plot_swingup
 
 results = {}

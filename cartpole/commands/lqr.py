@@ -77,7 +77,7 @@ def run(args) -> dict:
     """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
     from cartpole.lab import run_lab
     from cartpole.validation.lab_plot import plot_lab
-    from cartpole.validation.replay import simulate
+    from cartpole.sim import simulate
     from cartpole.validation.video import VideoUnavailable, render_video
 
     # Everything that can fail on bad input happens before the first file is written.

@@ -87,7 +87,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     repeats : int
         Timed solves per method (medians reported; at least 5 for the published figures).
     replay : bool
-        Also run the batched replay benchmark (``cartpole.validation.batch.replay_benchmark``).
+        Also run the batched replay benchmark (``cartpole.sim.batch.replay_benchmark``).
     replay_repeats, replay_rollouts : int
         Its repetitions (default ``repeats``) and batch size.
     progress : callable, optional
@@ -158,7 +158,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     replay_doc = None
     if replay:
         say(f"batched replay: {replay_rollouts} rollouts x 2 s ...")
-        from cartpole.validation.batch import replay_benchmark  # A's module
+        from cartpole.sim import replay_benchmark
 
         replay_doc = replay_benchmark(params, rollouts=replay_rollouts, seconds=2.0,
                                       repeats=replay_repeats or repeats)

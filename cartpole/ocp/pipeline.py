@@ -32,7 +32,7 @@ class SwingupPlan:
     gains : TVLQRGains
         TVLQR along the plan at the simulator's step.
     controller : TVLQRController
-        ``u = controller(t, x)``: TVLQR tracking, then the catch; use it with ``cartpole.validation.simulate``.
+        ``u = controller(t, x)``: TVLQR tracking, then the catch; use it with ``cartpole.sim.simulate``.
     solve_info : SolveInfo
         The collocation solve of the returned plan.
     catch : LinearFeedback

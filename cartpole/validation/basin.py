@@ -116,7 +116,7 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
                    progress=None) -> np.ndarray:
     """Run the catch in MuJoCo from each start state and say which runs end upright and still.
 
-    All runs advance together (:func:`~cartpole.validation.batch.simulate_batch_linear`: MuJoCo's own
+    All runs advance together (:func:`~cartpole.sim.batch.simulate_batch_linear`: MuJoCo's own
     ``mj_step`` through its threaded rollout, the catch's law evaluated for the batch in numpy), about ten
     times faster than a Python loop of ``mj_step`` per run and the same physics as :func:`simulate`.
 
@@ -140,7 +140,7 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     (n,) bool array
     """
     from cartpole.models.symbolic import wrap_angle
-    from cartpole.validation.batch import simulate_batch_linear
+    from cartpole.sim import simulate_batch_linear
 
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     lo, hi = params.cart_range  # the slide joint's range (infinite when unlimited)

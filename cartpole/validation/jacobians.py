@@ -8,7 +8,7 @@ import numpy as np
 
 from cartpole.models.params import CartPoleParams
 from cartpole.models.symbolic import CartPoleModel
-from cartpole.validation.replay import make_mujoco
+from cartpole.sim import make_mujoco
 
 
 def mujoco_fd_jacobians(source: CartPoleParams | str | None, x, u, *, eps: float = 1e-6,

@@ -1,6 +1,6 @@
 """Replay metrics: small pure functions of a logged run's arrays (``t`` (n+1,), ``x`` (n+1, 4), ``ctrl`` (n, 1)).
 
-Pass a :class:`~cartpole.validation.replay.Rollout` as ``run.t``, ``run.x``, ``run.ctrl``; :func:`summarize`
+Pass a :class:`~cartpole.sim.rollout.Rollout` as ``run.t``, ``run.x``, ``run.ctrl``; :func:`summarize`
 does that for every metric at once.
 
 Two settling times, because they answer different questions:
@@ -175,7 +175,7 @@ class RunMetrics:
 
 def summarize(run, *, x_eq=None, ctrl_range=(-np.inf, np.inf), cart_range=(-np.inf, np.inf),
               tol=STRICT_TOLERANCE) -> RunMetrics:
-    """All metrics of a :class:`~cartpole.validation.replay.Rollout` (anything with ``t``, ``x``, ``ctrl``).
+    """All metrics of a :class:`~cartpole.sim.rollout.Rollout` (anything with ``t``, ``x``, ``ctrl``).
 
     Parameters
     ----------

@@ -4,7 +4,7 @@ Each run is :func:`cartpole.swingup.run_swingup` (energy shaping + LQR catch, in
 measures exactly what ``cartpole swingup`` does. A run counts as a success when
 :func:`~cartpole.validation.swingup_metrics.swingup_success` holds (upright and at rest over the last second,
 cart never at its limit, every ctrl in range) *and* its log replays exactly with ``mj_step``
-(:func:`~cartpole.validation.replay.replays_exactly`). The basin estimate is computed once per model and reused
+(:func:`~cartpole.sim.rollout.replays_exactly`). The basin estimate is computed once per model and reused
 (:class:`~cartpole.validation.basin.BasinCache`).
 
 Starts: ``center + U(-half_widths, half_widths)`` per state from ``numpy.random.default_rng(seed)``, default
@@ -176,7 +176,7 @@ def swingup_sweep(mjcf=None, *, n: int = 20, seed: int = 0, center=HANGING, half
     from cartpole.models.params import CartPoleParams, read_params
     from cartpole.swingup import run_swingup
     from cartpole.validation.basin import BasinCache
-    from cartpole.validation.replay import replays_exactly
+    from cartpole.sim import replays_exactly
 
     if int(n) < 1 or not (0 <= gain_jitter < 1) or np.any(np.asarray(half_widths, float) < 0):
         raise SweepError(f"A sweep needs n >= 1, half-widths >= 0 and 0 <= gain_jitter < 1 (got n = {n}, "

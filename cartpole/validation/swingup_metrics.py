@@ -1,4 +1,4 @@
-"""Small pure metrics of a swing-up :class:`~cartpole.validation.replay.Rollout` (what MuJoCo did).
+"""Small pure metrics of a swing-up :class:`~cartpole.sim.rollout.Rollout` (what MuJoCo did).
 
 Definitions (all on the logged physics steps, angle errors wrapped to (-pi, pi]):
 
@@ -15,7 +15,7 @@ import numpy as np
 from cartpole.models.params import CartPoleParams
 from cartpole.models.symbolic import wrap_angle
 from cartpole.validation import metrics
-from cartpole.validation.replay import Rollout
+from cartpole.sim import Rollout
 
 UPRIGHT_TOL = 0.05
 REST_RATE_TOL = 0.1

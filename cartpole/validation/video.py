@@ -1,4 +1,4 @@
-"""Render a logged :class:`~cartpole.validation.replay.Rollout` to an H.264 mp4, headless.
+"""Render a logged :class:`~cartpole.sim.rollout.Rollout` to an H.264 mp4, headless.
 
 Frames come from ``mujoco.Renderer`` (offscreen OpenGL) on a clock of their own: frame ``i`` shows the logged
 state nearest to ``i / fps`` seconds, so a 10 s run at 30 fps is 300 frames played in real time whatever the
@@ -58,7 +58,7 @@ def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, p
     import imageio_ffmpeg
     import mujoco
 
-    from cartpole.validation.replay import make_mujoco
+    from cartpole.sim import make_mujoco
 
     m, d = make_mujoco(source if source is not None else (rollout.mjcf or None))
     # The offscreen buffer the MJCF declares bounds the frame size; even sizes keep yuv420p happy.
@@ -214,7 +214,7 @@ def render_video(source, rollout, path, *, fps: float = 30, width: int = 640, he
 
 def _child_main(argv) -> int:
     """Entry of the OSMesa fallback child: ``python -m cartpole.validation.video JOB_JSON``."""
-    from cartpole.validation.replay import Rollout
+    from cartpole.sim import Rollout
 
     job = json.loads(argv[0])
     try:

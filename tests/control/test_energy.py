@@ -6,7 +6,7 @@ import pytest
 import cartpole as cp
 from cartpole.control.energy import (EnergyShapingController, EnergyShapingError, default_gains, energy_guess,
                                      model_scales)
-from cartpole.validation import replays_exactly, simulate
+from cartpole.sim import replays_exactly, simulate
 
 
 def _random_states(rng, n):

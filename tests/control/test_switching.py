@@ -6,7 +6,7 @@ import cartpole as cp
 from cartpole.control import LinearFeedback
 from cartpole.control.energy import EnergyShapingController
 from cartpole.control.switching import SwitchingController, SwitchingError, lab_catch
-from cartpole.validation import replays_exactly, simulate
+from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.basin import estimate_basin
 from cartpole.validation.swingup_metrics import swingup_success
 

@@ -10,7 +10,7 @@ from cartpole.lqr.tvlqr import tvlqr
 from cartpole.models import build_model
 from cartpole.models.symbolic import wrap_angle
 from cartpole.ocp.pipeline import trajopt_swingup
-from cartpole.validation.replay import replays_exactly, simulate
+from cartpole.sim import replays_exactly, simulate
 
 
 @pytest.fixture(scope="module")

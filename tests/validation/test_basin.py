@@ -5,7 +5,7 @@ import pytest
 import cartpole as cp
 from cartpole.control.switching import lab_catch
 from cartpole.models import wrap_angle
-from cartpole.validation import replays_exactly, simulate
+from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.basin import BasinCache, BasinError, BasinEstimate, estimate_basin
 
 

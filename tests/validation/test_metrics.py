@@ -4,7 +4,7 @@ import pytest
 
 from cartpole.validation.metrics import (STRICT_TOLERANCE, peak_ctrl, saturation_fraction, settling_time_seed,
                                          settling_time_strict, summarize, track_margin)
-from cartpole.validation.replay import Rollout
+from cartpole.sim import Rollout
 
 
 def handout_settling_time(t, history, threshold=0.05):

@@ -4,8 +4,8 @@ import pytest
 
 from cartpole import Q_LAB, R_LAB, build_model, lqr, read_params, simulate
 from cartpole.control.linear import LinearFeedback
-from cartpole.validation import Rollout, replays_exactly
-from cartpole.validation.batch import random_starts, replay_benchmark, simulate_batch_linear
+from cartpole.sim import Rollout, replays_exactly
+from cartpole.sim.batch import random_starts, replay_benchmark, simulate_batch_linear
 
 
 @pytest.mark.parametrize("name", ["shipped", "flipped_offset_armature", "implicitfast_gear"])

@@ -14,9 +14,10 @@ from typing import Callable
 
 import numpy as np
 
-from cartpole.errors import CartPoleError
-from cartpole.models.params import CartPoleParams, load_model, read_params
 from cartpole._arrays import readonly
+from cartpole._files import atomic_write
+from cartpole.errors import CartPoleError
+from cartpole.models import SHIPPED_MJCF, CartPoleParams, load_model
 
 Controller = Callable[[float, np.ndarray], "float | np.ndarray"]
 
@@ -68,11 +69,9 @@ class Rollout:
                 "ctrl": self.ctrl.tolist()}
 
     def save(self, path: str | Path) -> None:
-        """Write the rollout as JSON (written to a temporary file first, then renamed)."""
-        path = Path(path)
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        tmp.write_text(json.dumps({"mjcf": self.mjcf, **self.to_dict()}))
-        tmp.replace(path)
+        """Write the rollout as JSON (whole or not at all: :func:`~cartpole._files.atomic_write`)."""
+        text = json.dumps({"mjcf": self.mjcf, **self.to_dict()})
+        atomic_write(path, lambda fh: fh.write(text.encode()))
 
     @classmethod
     def load(cls, path: str | Path) -> "Rollout":
@@ -101,7 +100,6 @@ def source_path(source: CartPoleParams | str | Path | None) -> str:
     if isinstance(source, CartPoleParams):
         return source.mjcf
     if source is None:
-        from cartpole.models.params import SHIPPED_MJCF
         return str(SHIPPED_MJCF)
     return str(Path(source).expanduser().resolve())
 

@@ -4,7 +4,7 @@ A Python loop of ``mj_step`` per rollout spends most of its time in the interpre
 together: each physics step is one call of MuJoCo's threaded ``mujoco.rollout`` with ``nstep=1`` over the whole
 batch (one persistent thread pool, one reused ``MjData`` per thread, preallocated state buffers), and the
 feedback law ``u = u* - K (x - x*)`` is evaluated for all runs at once in numpy between calls. The physics is
-MuJoCo's own ``mj_step``, so each run equals :func:`~cartpole.validation.replay.simulate` with
+MuJoCo's own ``mj_step``, so each run equals :func:`~cartpole.sim.rollout.simulate` with
 :class:`~cartpole.control.linear.LinearFeedback` (a test checks 1e-12).
 
 One caveat: ``mujoco.rollout`` restores the physics state but not the constraint solver's warm start, which
@@ -18,8 +18,11 @@ import time
 
 import numpy as np
 
+from cartpole.control.linear import LinearFeedback
 from cartpole.errors import CartPoleError
-from cartpole.models.symbolic import wrap_angle
+from cartpole.lqr import Q_LAB, R_LAB, lqr
+from cartpole.models import CartPoleParams, build_model, read_params, wrap_angle
+from cartpole.sim.rollout import make_mujoco
 
 
 def _nthread_default() -> int:
@@ -80,8 +83,6 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
     import mujoco
     import mujoco.rollout
 
-    from cartpole.validation.replay import make_mujoco
-
     K = np.asarray(K, dtype=float).reshape(-1)
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
     if K.shape != (4,) or X0.ndim != 2 or X0.shape[1] != 4:
@@ -128,9 +129,6 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
 
 
 def _lab_gain(params):
-    from cartpole.lqr import Q_LAB, R_LAB, lqr
-    from cartpole.models.symbolic import build_model
-
     A, B = build_model(params).linearize()
     return lqr(A, B, Q_LAB, R_LAB).K
 
@@ -171,9 +169,6 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
     """
     import mujoco
     import mujoco.rollout
-
-    from cartpole.models.params import CartPoleParams, read_params
-    from cartpole.validation.replay import make_mujoco
 
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     K = _lab_gain(params)
@@ -216,8 +211,6 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
 def _python_loop_rate(m, K, X0, n: int) -> float:
     """Steps/s of the naive baseline: for each run, a Python loop of feedback + ``mj_step`` on one MjData."""
     import mujoco
-
-    from cartpole.control.linear import LinearFeedback
 
     ctrl = LinearFeedback(K)
     d = mujoco.MjData(m)
