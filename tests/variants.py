@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 TEMPLATE = """<mujoco model="cartpole_{name}">
-  <option timestep="{timestep}" gravity="0 0 -9.81" integrator="{integrator}"/>
+  <option timestep="{timestep}" gravity="0 0 -9.81" integrator="{integrator}"><flag contact="disable"/></option>
   <visual><global offwidth="320" offheight="240"/></visual>
   <worldbody>
     <light pos="0 -1 3" dir="0 0.3 -1"/>

@@ -1,7 +1,10 @@
-"""Read a cart-pole's physical parameters from an MJCF file, via the compiled ``mujoco.MjModel``.
+"""Read a cart-pole (any tree of slide and hinge joints) from an MJCF file, via the compiled ``mujoco.MjModel``.
 
 Inertias come from the compiled model, never from the XML text: MuJoCo derives a capsule's mass
-distribution from its geometry, adds ``armature`` to the joint space inertia, and so on.
+distribution from its geometry, applies defaults and ``childclass``, adds ``armature`` to the joint-space
+inertia, and so on. What is read is exactly what the smooth model in :mod:`cartpole.models.symbolic`
+models; anything MuJoCo would add on top of it (contacts, fluid forces, gravity compensation, force
+clamping, friction loss, tendons, equality constraints) is refused with one sentence naming it and the fix.
 """
 from __future__ import annotations
 
@@ -12,14 +15,17 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.errors import CartPoleError
+from cartpole.errors import CartPoleError, first_line
 
-#: Integrators whose one-step map :mod:`cartpole.models.discrete` reproduces exactly.
+#: Integrators whose one-step map :mod:`cartpole.models.symbolic` reproduces exactly.
 SUPPORTED_INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 
 _INTEGRATOR_NAMES = {0: "Euler", 1: "RK4", 2: "implicit", 3: "implicitfast"}
 
 SHIPPED_MJCF = Path(__file__).resolve().parent.parent / "assets" / "cartpole.xml"
+
+_SUPPORTED = ("the toolkit supports a tree of slide and hinge joints (typically one slide, the cart, carrying a "
+              "chain of hinged poles) driven by motor actuators on those joints")
 
 
 class MJCFError(CartPoleError):
@@ -27,10 +33,106 @@ class MJCFError(CartPoleError):
 
 
 @dataclass(frozen=True)
-class CartPoleParams:
-    """Physical parameters of a cart with one hinged pole, as MuJoCo compiles them.
+class JointParams:
+    """One 1-DOF joint as MuJoCo compiled it (qpos order = joint order).
 
-    All vectors are expressed in the world frame at ``qpos = 0`` (the upright pose). SI units.
+    Attributes
+    ----------
+    name : str
+    kind : str
+        ``"slide"`` (qpos in m) or ``"hinge"`` (qpos in rad).
+    body : int
+        Index into :attr:`CartPoleParams.bodies` of the body the joint moves.
+    pos, axis : (3,) arrays
+        Anchor (m) and unit axis in the body frame (``jnt_pos``, ``jnt_axis``).
+    qpos0 : float
+        Reference position (``ref``): the joint's displacement is ``qpos - qpos0``.
+    damping : float
+        N s/m or N m s/rad (zero when the MJCF disables dampers).
+    armature : float
+        kg or kg m^2, added to the joint-space inertia.
+    stiffness : float
+        N/m or N m/rad (zero when the MJCF disables springs); spring force ``-stiffness (qpos - springref)``.
+    springref : float
+        Spring rest position (``qpos_spring``).
+    range : (2,) array
+        Joint limits ``[low, high]``; ``(-inf, inf)`` when unlimited. Limits are constraint forces outside the
+        smooth model: plans keep inside them, rollouts are checked against them.
+    """
+
+    name: str
+    kind: str
+    body: int
+    pos: np.ndarray
+    axis: np.ndarray
+    qpos0: float
+    damping: float
+    armature: float
+    stiffness: float
+    springref: float
+    range: np.ndarray
+
+
+@dataclass(frozen=True)
+class BodyParams:
+    """One moving rigid body (bodies welded to the world are left out: they add nothing).
+
+    Attributes
+    ----------
+    name : str
+    parent : int
+        Index of the parent in :attr:`CartPoleParams.bodies`, or -1 for a parent fixed to the world.
+    pos : (3,) array
+        Body frame origin in the parent frame, m (for parent -1: in the world frame).
+    quat : (4,) array
+        Body frame orientation in the parent frame, MuJoCo's ``(w, x, y, z)`` (for parent -1: in the world).
+    mass : float
+        kg.
+    ipos : (3,) array
+        Centre of mass in the body frame, m.
+    iquat : (4,) array
+        Principal inertia frame in the body frame ``(w, x, y, z)``.
+    inertia : (3,) array
+        Principal moments of inertia about the centre of mass, kg m^2.
+    joints : tuple of int
+        Indices into :attr:`CartPoleParams.joints` of the joints of this body, in MuJoCo's order.
+    """
+
+    name: str
+    parent: int
+    pos: np.ndarray
+    quat: np.ndarray
+    mass: float
+    ipos: np.ndarray
+    iquat: np.ndarray
+    inertia: np.ndarray
+    joints: tuple
+
+
+@dataclass(frozen=True)
+class ActuatorParams:
+    """One motor: generalized force ``gear * ctrl`` on one joint (N or N m per unit ctrl).
+
+    Attributes
+    ----------
+    name : str
+    joint : int
+        Index into :attr:`CartPoleParams.joints` (= qpos index).
+    gear : float
+        Force or torque per unit ctrl (MuJoCo's ``gear`` times the fixed gain, 1 for ``<motor>``).
+    ctrl_range : (2,) array
+        ``[low, high]`` of ``ctrl``, MuJoCo clamps to it; ``(-inf, inf)`` when not ctrl-limited.
+    """
+
+    name: str
+    joint: int
+    gear: float
+    ctrl_range: np.ndarray
+
+
+@dataclass(frozen=True)
+class CartPoleParams:
+    """Physical parameters of a tree of slide and hinge joints, as MuJoCo compiles them. SI units.
 
     Attributes
     ----------
@@ -45,33 +147,10 @@ class CartPoleParams:
     euler_damping_implicit : bool
         False when the MJCF disables ``eulerdamp`` (Euler then treats damping explicitly).
     gravity : (3,) array
-        ``opt.gravity`` in m/s^2.
-    cart_mass : float
-        Mass in kg of everything that moves with the slide joint only.
-    pole_mass : float
-        Mass in kg of everything below the hinge.
-    slide_axis : (3,) array
-        Unit direction in which positive cart position moves the cart.
-    hinge_axis : (3,) array
-        Unit axis of positive pole rotation (right-hand rule).
-    hinge_offset : (3,) array
-        Hinge anchor minus cart position, in m (constant: the cart does not rotate).
-    pole_com : (3,) array
-        Pole centre of mass minus hinge anchor at ``qpos = 0``, in m; points up (against gravity).
-    pole_inertia : (3, 3) array
-        Pole rotational inertia about its centre of mass, kg m^2, world frame at ``qpos = 0``.
-    damping : (2,) array
-        Joint damping of [slide (N s/m), hinge (N m s/rad)].
-    armature : (2,) array
-        Joint armature of [slide (kg), hinge (kg m^2)].
-    gear : float
-        Actuator gear: slide force in N is ``gear * ctrl`` (motor actuators only).
-    ctrl_range : (2,) array
-        ``[low, high]`` of ``ctrl``; ``(-inf, inf)`` when the actuator is not ctrl-limited.
-    cart_range : (2,) array
-        Slide joint range in m; ``(-inf, inf)`` when unlimited.
-    hinge_range : (2,) array
-        Hinge joint range in rad; ``(-inf, inf)`` when unlimited.
+        Gravity acting in the model, m/s^2 (``opt.gravity``, or zero when the MJCF disables gravity).
+    up : (3,) array
+        Unit vector against ``opt.gravity`` (``+z`` when it is zero): the direction "upright" points in.
+    joints, bodies, actuators : tuples of :class:`JointParams`, :class:`BodyParams`, :class:`ActuatorParams`
     """
 
     mjcf: str
@@ -80,58 +159,187 @@ class CartPoleParams:
     integrator: str
     euler_damping_implicit: bool
     gravity: np.ndarray
-    cart_mass: float
-    pole_mass: float
-    slide_axis: np.ndarray
-    hinge_axis: np.ndarray
-    hinge_offset: np.ndarray
-    pole_com: np.ndarray
-    pole_inertia: np.ndarray
-    damping: np.ndarray
-    armature: np.ndarray
-    gear: float
-    ctrl_range: np.ndarray
-    cart_range: np.ndarray
-    hinge_range: np.ndarray
+    up: np.ndarray
+    joints: tuple
+    bodies: tuple
+    actuators: tuple
 
-    # ---- derived quantities a control engineer reasons with -------------------------------
+    # ---- sizes and named indices ------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Number of joint coordinates (= ``nv``: every joint is 1-DOF)."""
+        return len(self.joints)
+
+    @property
+    def nu(self) -> int:
+        """Number of actuators (ctrl entries)."""
+        return len(self.actuators)
+
+    @property
+    def slides(self) -> tuple:
+        """qpos indices of the slide joints."""
+        return tuple(i for i, j in enumerate(self.joints) if j.kind == "slide")
+
+    @property
+    def hinges(self) -> tuple:
+        """qpos indices of the hinge joints (the poles), in tree order."""
+        return tuple(i for i, j in enumerate(self.joints) if j.kind == "hinge")
+
+    @property
+    def slide(self) -> int | None:
+        """qpos index of the cart's slide (the first slide joint), or None for a model without a cart."""
+        return self.slides[0] if self.slides else None
+
     @property
     def g(self) -> float:
         """Magnitude of gravity in m/s^2."""
         return float(np.linalg.norm(self.gravity))
 
     @property
-    def pole_com_distance(self) -> float:
-        """Distance in m from the hinge axis to the pole's centre of mass."""
-        r = self.pole_com - np.dot(self.pole_com, self.hinge_axis) * self.hinge_axis
-        return float(np.linalg.norm(r))
+    def ctrl_range(self) -> np.ndarray:
+        """(nu, 2) array of ``[low, high]`` per actuator."""
+        return readonly([a.ctrl_range for a in self.actuators]).reshape(self.nu, 2)
 
     @property
-    def pole_inertia_about_hinge(self) -> float:
-        """Pole moment of inertia about the hinge axis in kg m^2 (parallel axis, no armature)."""
-        n = self.hinge_axis
-        return float(n @ self.pole_inertia @ n + self.pole_mass * self.pole_com_distance**2)
+    def gears(self) -> np.ndarray:
+        """(nu,) generalized force per unit ctrl of each actuator."""
+        return readonly([a.gear for a in self.actuators])
+
+    @property
+    def actuated(self) -> tuple:
+        """qpos index of the joint each actuator drives, (nu,)."""
+        return tuple(a.joint for a in self.actuators)
+
+    @property
+    def damping(self) -> np.ndarray:
+        """(nq,) joint damping in qpos order."""
+        return readonly([j.damping for j in self.joints])
+
+    @property
+    def armature(self) -> np.ndarray:
+        """(nq,) joint armature in qpos order."""
+        return readonly([j.armature for j in self.joints])
+
+    @property
+    def joint_ranges(self) -> np.ndarray:
+        """(nq, 2) joint limits in qpos order (``+-inf`` when unlimited)."""
+        return readonly([j.range for j in self.joints]).reshape(self.nq, 2)
+
+    @property
+    def joint_names(self) -> tuple:
+        """Joint names in qpos order."""
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def cart_range(self) -> np.ndarray:
+        """Range in m of the cart's slide; ``(-inf, inf)`` when unlimited or when there is no slide."""
+        return self.joints[self.slide].range if self.slide is not None else readonly([-np.inf, np.inf])
+
+    # ---- the single-actuator view many applications use -----------------------------------------
+    def _one_actuator(self, what: str) -> ActuatorParams:
+        if self.nu != 1:
+            raise MJCFError(f"{what} is defined for one actuator and this model has {self.nu}; "
+                            "use the per-actuator arrays (gears, ctrl_range).")
+        return self.actuators[0]
+
+    @property
+    def gear(self) -> float:
+        """Force (N) or torque (N m) per unit ctrl of the only actuator (models with one actuator)."""
+        return float(self._one_actuator("gear").gear)
 
     @property
     def u_max(self) -> float:
-        """Largest |ctrl| allowed symmetrically, i.e. ``min(|low|, |high|)`` of ``ctrl_range``."""
-        return float(min(abs(self.ctrl_range[0]), abs(self.ctrl_range[1])))
+        """Largest |ctrl| allowed in both directions, ``min(|low|, |high|)``, of the only actuator."""
+        lo, hi = self._one_actuator("u_max").ctrl_range
+        return float(min(abs(lo), abs(hi)))
 
+    # ---- the first pole, what single-pole energy shaping reasons with -------------------------
+    def subtree(self, body: int) -> tuple:
+        """Indices of ``body`` and every body below it."""
+        out = [body]
+        for b in range(body + 1, len(self.bodies)):
+            p = self.bodies[b].parent
+            if p in out:
+                out.append(b)
+        return tuple(out)
+
+    @property
+    def pole_bodies(self) -> tuple:
+        """Bodies that rotate with the first hinge (the first pole and everything it carries)."""
+        if not self.hinges:
+            return ()
+        return self.subtree(self.joints[self.hinges[0]].body)
+
+    @property
+    def pole_mass(self) -> float:
+        """Mass in kg of everything that rotates with the first hinge."""
+        return float(sum(self.bodies[b].mass for b in self.pole_bodies))
+
+    @property
+    def cart_mass(self) -> float:
+        """Mass in kg of every moving body that does not rotate with the first hinge."""
+        pole = set(self.pole_bodies)
+        return float(sum(b.mass for i, b in enumerate(self.bodies) if i not in pole))
+
+    def _first_pole_geometry(self):
+        """(hinge axis (3,), COM minus hinge anchor (3,), inertia about the COM (3, 3)) at ``qpos = qpos0``."""
+        from cartpole.models.kinematics import forward_kinematics_np
+        if not self.hinges:
+            raise MJCFError("This model has no hinge, so it has no pole; add a hinged body.")
+        fk = forward_kinematics_np(self, np.array([j.qpos0 for j in self.joints]))
+        h = self.hinges[0]
+        axis, anchor = fk.joint_axis[h], fk.joint_anchor[h]
+        bodies = self.pole_bodies
+        m = np.array([self.bodies[b].mass for b in bodies])
+        c = np.array([fk.com[b] for b in bodies])
+        com = (m[:, None] * c).sum(0) / m.sum()
+        inertia = np.zeros((3, 3))
+        for b, mb, cb in zip(bodies, m, c):
+            r = cb - com
+            inertia += fk.inertia[b] + mb * (r @ r * np.eye(3) - np.outer(r, r))
+        return axis, com - anchor, inertia
+
+    @property
+    def pole_com_distance(self) -> float:
+        """Distance in m from the first hinge's axis to the centre of mass of what it carries."""
+        n, r, _ = self._first_pole_geometry()
+        return float(np.linalg.norm(r - (r @ n) * n))
+
+    @property
+    def pole_inertia_about_hinge(self) -> float:
+        """Moment of inertia in kg m^2 about the first hinge's axis of what it carries (no armature)."""
+        n, r, inertia = self._first_pole_geometry()
+        d = r - (r @ n) * n
+        return float(n @ inertia @ n + self.pole_mass * (d @ d))
+
+    # ---- deliberate model error ---------------------------------------------------------------
     def replace(self, **changes) -> "CartPoleParams":
-        """Return a copy with some fields changed (e.g. a deliberately wrong model for robustness tests)."""
-        return dataclasses.replace(self, **{k: (readonly(v) if isinstance(v, (list, tuple, np.ndarray)) else v)
+        """A copy with some fields changed (e.g. a deliberately wrong model for robustness tests)."""
+        return dataclasses.replace(self, **{k: (readonly(v) if isinstance(v, (list, np.ndarray)) else v)
                                             for k, v in changes.items()})
 
     def scaled_pole(self, mass_factor: float = 1.0, length_factor: float = 1.0) -> "CartPoleParams":
-        """Return parameters whose pole mass and length are scaled (uniform rod scaling of COM and inertia).
+        """Parameters whose poles (every body that rotates with the first hinge) are heavier and longer.
 
-        Used to build a *model* that is deliberately wrong relative to the MJCF MuJoCo runs.
+        Masses scale by ``mass_factor``; lengths (centres of mass, child-body and joint positions inside the
+        poles) by ``length_factor``; inertias by ``mass_factor * length_factor**2``, as for a uniformly
+        scaled body. Used to build a *planning model* that is deliberately wrong relative to the MJCF MuJoCo
+        runs. The hinge anchor of the first pole stays where it is.
         """
-        return self.replace(
-            pole_mass=self.pole_mass * mass_factor,
-            pole_com=self.pole_com * length_factor,
-            pole_inertia=self.pole_inertia * mass_factor * length_factor**2,
-        )
+        poles = set(self.pole_bodies)
+        bodies = []
+        for i, b in enumerate(self.bodies):
+            if i not in poles:
+                bodies.append(b)
+                continue
+            child = b.parent in poles  # the first pole's own frame stays on the cart
+            bodies.append(dataclasses.replace(
+                b, mass=b.mass * mass_factor, ipos=readonly(b.ipos * length_factor),
+                inertia=readonly(b.inertia * mass_factor * length_factor**2),
+                pos=readonly(b.pos * length_factor) if child else b.pos))
+        joints = tuple(dataclasses.replace(j, pos=readonly(j.pos * length_factor)) if j.body in poles
+                       and self.bodies[j.body].parent in poles else j for j in self.joints)
+        return dataclasses.replace(self, bodies=tuple(bodies), joints=joints)
 
 
 def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
@@ -154,7 +362,7 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
         try:
             return mujoco.MjModel.from_xml_string(xml), "", xml
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
-            raise MJCFError(f"The MJCF text does not compile: {_first_line(exc)}. "
+            raise MJCFError(f"The MJCF text does not compile: {first_line(exc)}. "
                             "Fix the XML and try again.") from None
     path = Path(mjcf) if mjcf is not None else SHIPPED_MJCF
     path = path.expanduser().resolve()
@@ -164,24 +372,126 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
         text = path.read_text()
         model = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:
-        raise MJCFError(f"MJCF file '{path}' does not compile: {_first_line(exc)}. "
+        raise MJCFError(f"MJCF file '{path}' does not compile: {first_line(exc)}. "
                         "Fix the XML and try again.") from None
     return model, str(path), text
 
 
-def _first_line(exc: Exception) -> str:
-    """MuJoCo's (often multi-line) message folded into one line, without a final period."""
-    msg = " ".join(part.strip() for part in str(exc).strip().splitlines() if part.strip())
-    msg = msg.replace(": Error=", ": ").rstrip(".")
-    return (msg[:240] + "...") if len(msg) > 240 else (msg or type(exc).__name__)
+def _name(m, objtype, i: int, fallback: str) -> str:
+    import mujoco
+    return mujoco.mj_id2name(m, objtype, i) or f"{fallback} {i}"
+
+
+def _check_supported(m, where: str) -> None:
+    """Refuse, with one sentence, everything MuJoCo would add that the smooth model does not model."""
+    import mujoco
+
+    jt = mujoco.mjtJoint
+    kinds = {int(jt.mjJNT_FREE): "free", int(jt.mjJNT_BALL): "ball", int(jt.mjJNT_SLIDE): "slide",
+             int(jt.mjJNT_HINGE): "hinge"}
+    types = [int(t) for t in m.jnt_type]
+    if m.njnt == 0:
+        raise MJCFError(f"{where} has no joints; {_SUPPORTED}.")
+    bad = [t for t in types if t in (jt.mjJNT_FREE, jt.mjJNT_BALL)]
+    if bad:
+        found = ", ".join(f"{types.count(t)} {kinds[t]}" for t in sorted(set(types)))
+        raise MJCFError(f"{where} has {found} joint(s); {_SUPPORTED}, without free or ball joints.")
+    if m.nu == 0:
+        raise MJCFError(f"{where} has no actuator; {_SUPPORTED}: add a <motor> on the cart's slide.")
+    if m.ntendon:
+        raise MJCFError(f"{where} has {m.ntendon} tendon(s); {_SUPPORTED}, without tendons.")
+    if m.neq:
+        raise MJCFError(f"{where} has {m.neq} equality constraint(s); {_SUPPORTED}, without equality constraints.")
+    for i in range(m.nu):
+        name = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i, "actuator")
+        if m.actuator_trntype[i] != mujoco.mjtTrn.mjTRN_JOINT:
+            raise MJCFError(f"{where} has actuator '{name}' on something other than a joint; {_SUPPORTED}.")
+        if (m.actuator_dyntype[i] != mujoco.mjtDyn.mjDYN_NONE or m.actuator_gaintype[i] != mujoco.mjtGain.mjGAIN_FIXED
+                or m.actuator_biastype[i] != mujoco.mjtBias.mjBIAS_NONE):
+            raise MJCFError(f"{where} has a non-motor actuator '{name}' (position, velocity, filtered or biased); "
+                            f"{_SUPPORTED}, i.e. <motor> with force = gear * ctrl.")
+        if m.actuator_forcelimited[i]:
+            lo, hi = m.actuator_forcerange[i]
+            gear = m.actuator_gear[i, 0] * m.actuator_gainprm[i, 0]
+            clo, chi = m.actuator_ctrlrange[i] if m.actuator_ctrllimited[i] else (-np.inf, np.inf)
+            reach = sorted([gear * clo, gear * chi])
+            if reach[0] < lo or reach[1] > hi:
+                raise MJCFError(f"{where} clamps actuator '{name}' to forcerange [{lo:g}, {hi:g}] inside what "
+                                f"its ctrlrange can ask for; the smooth model has force = gear * ctrl, so remove "
+                                "forcerange or narrow ctrlrange to match it.")
+    for j in range(m.njnt):
+        name = _name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
+        if m.dof_frictionloss[m.jnt_dofadr[j]] != 0:
+            raise MJCFError(f"{where} gives joint '{name}' frictionloss, a constraint force the smooth model "
+                            "does not have; remove frictionloss (damping is modelled).")
+        if m.jnt_actfrclimited[j]:
+            raise MJCFError(f"{where} limits the actuator force on joint '{name}' (actuatorfrcrange); "
+                            "the smooth model has force = gear * ctrl, so remove actuatorfrcrange.")
+    if np.any(m.body_gravcomp != 0):
+        b = int(np.flatnonzero(m.body_gravcomp)[0])
+        raise MJCFError(f"{where} gives body '{_name(m, mujoco.mjtObj.mjOBJ_BODY, b, 'body')}' gravcomp; "
+                        "the smooth model has no gravity compensation, so remove gravcomp.")
+    if m.opt.density != 0 or m.opt.viscosity != 0 or np.any(np.asarray(m.opt.wind) != 0):
+        raise MJCFError(f"{where} sets fluid forces (<option density, viscosity or wind>); the smooth model has "
+                        "none, so remove them.")
+    dis = int(m.opt.disableflags)
+    flags = mujoco.mjtDisableBit
+    if dis & flags.mjDSBL_ACTUATION:
+        raise MJCFError(f"{where} disables actuation (<flag actuation=\"disable\"/>), so nothing can be "
+                        "controlled; remove that flag.")
+    if dis & flags.mjDSBL_CLAMPCTRL:
+        raise MJCFError(f"{where} disables ctrl clamping (<flag clampctrl=\"disable\"/>), so ctrlrange would "
+                        "not hold in MuJoCo; remove that flag.")
+    contact_off = dis & (flags.mjDSBL_CONTACT | flags.mjDSBL_CONSTRAINT)
+    if not contact_off:
+        if m.npair:
+            raise MJCFError(f"{where} declares {m.npair} explicit contact pair(s); the smooth model has no "
+                            "contacts, so remove them or add <flag contact=\"disable\"/> under <option>.")
+        pair = _colliding_pair(m)
+        if pair:
+            raise MJCFError(f"{where} lets geoms '{pair[0]}' and '{pair[1]}' collide; the smooth model has no "
+                            "contacts, so add <flag contact=\"disable\"/> under <option> or give them "
+                            "contype=\"0\" conaffinity=\"0\".")
+    integ = _INTEGRATOR_NAMES.get(int(m.opt.integrator))
+    if integ is None:
+        raise MJCFError(f"{where} uses integrator {int(m.opt.integrator)}; supported integrators are "
+                        f"{', '.join(SUPPORTED_INTEGRATORS)}.")
+
+
+def _colliding_pair(m):
+    """Names of the first two geoms MuJoCo's collision filter would let touch, or None."""
+    import mujoco
+
+    filter_parent = not (int(m.opt.disableflags) & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+    weld = m.body_weldid
+    excluded = {int(s) for s in m.exclude_signature} if m.nexclude else set()
+    for g1 in range(m.ngeom):
+        for g2 in range(g1 + 1, m.ngeom):
+            if not ((m.geom_contype[g1] & m.geom_conaffinity[g2]) or (m.geom_contype[g2] & m.geom_conaffinity[g1])):
+                continue
+            b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+            w1, w2 = int(weld[b1]), int(weld[b2])
+            if w1 == w2:
+                continue  # same rigid body, or both fixed to the world
+            if filter_parent and w1 and w2 and (w1 == weld[m.body_parentid[w2]] or w2 == weld[m.body_parentid[w1]]):
+                continue
+            if ((min(b1, b2) << 16) + max(b1, b2)) in excluded:
+                continue
+            return (_name(m, mujoco.mjtObj.mjOBJ_GEOM, g1, "geom"), _name(m, mujoco.mjtObj.mjOBJ_GEOM, g2, "geom"))
+    return None
 
 
 def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> CartPoleParams:
     """Read the parameters of a cart-pole MJCF from its compiled ``MjModel``.
 
-    Accepts one slide joint (the cart) carrying, in its subtree, one hinge joint (the pole), driven by
-    one ``motor`` actuator on the slide; any gear, ctrlrange, timestep, hinge offset, hinge axis sign,
-    damping, armature and joint limits; integrators Euler, RK4, implicit and implicitfast.
+    Accepts a kinematic tree of slide and hinge joints (typically one slide, the cart, carrying a chain of
+    1..n hinged poles; also a pendulum or an acrobot-like chain without a cart), any number of bodies and
+    geoms, each body's compiled mass, centre of mass and full inertia, joint positions, axes, references,
+    damping, armature, stiffness and limits, driven by one or more ``<motor>`` (or fixed-gain ``<general>``)
+    actuators on any of those joints, with any (also asymmetric) ctrlrange; integrators Euler, RK4, implicit
+    and implicitfast; gravity, dampers and springs may be disabled. Refused, with one sentence naming it
+    and the fix: free and ball joints, tendons, equality constraints, non-motor actuators, force clamps that
+    can bite, friction loss, gravity compensation, fluid forces, geoms that can collide.
 
     Parameters
     ----------
@@ -203,133 +513,64 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
 
     m, path, text = load_model(mjcf, xml=xml)
     where = f"MJCF '{path}'" if path else "The MJCF"
-    supported = ("the toolkit supports one slide joint (the cart) carrying one hinge joint (the pole), "
-                 "driven by one motor actuator on the slide")
+    _check_supported(m, where)
 
-    jtypes = [int(t) for t in m.jnt_type]
-    names = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball",
-             int(mujoco.mjtJoint.mjJNT_SLIDE): "slide", int(mujoco.mjtJoint.mjJNT_HINGE): "hinge"}
-    found = ", ".join(f"{jtypes.count(t)} {names[t]}" for t in sorted(set(jtypes))) or "no"
-    if any(t in (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_BALL) for t in jtypes) \
-            or jtypes.count(mujoco.mjtJoint.mjJNT_SLIDE) != 1 or jtypes.count(mujoco.mjtJoint.mjJNT_HINGE) != 1 \
-            or m.njnt != 2:
-        raise MJCFError(f"{where} has {found} joint(s); {supported}.")
-    if m.nu != 1:
-        raise MJCFError(f"{where} has {m.nu} actuators; {supported}.")
-    if m.ntendon:
-        raise MJCFError(f"{where} has {m.ntendon} tendon(s); {supported}, without tendons.")
-    if m.neq:
-        raise MJCFError(f"{where} has {m.neq} equality constraint(s); {supported}, without equality constraints.")
-    slide = jtypes.index(mujoco.mjtJoint.mjJNT_SLIDE)
-    hinge = jtypes.index(mujoco.mjtJoint.mjJNT_HINGE)
-    if slide != 0 or m.jnt_qposadr[slide] != 0 or m.jnt_qposadr[hinge] != 1:
-        raise MJCFError(f"{where} declares the hinge before the slide; {supported}, with the slide first "
-                        "so that qpos = [cart position, pole angle].")
-    cart_body = int(m.jnt_bodyid[slide])
-    pole_body = int(m.jnt_bodyid[hinge])
-    # The pole must hang from the cart: the hinge body must be a descendant of the slide body.
-    b = pole_body
-    while b not in (0, cart_body):
-        b = int(m.body_parentid[b])
-    if b != cart_body or pole_body == cart_body:
-        raise MJCFError(f"{where} has a hinge that is not carried by the slide joint's body; {supported}.")
-    if m.actuator_trntype[0] != mujoco.mjtTrn.mjTRN_JOINT or m.actuator_trnid[0, 0] != slide:
-        raise MJCFError(f"{where} has its actuator on something other than the slide joint; {supported}.")
-    if (m.actuator_dyntype[0] != mujoco.mjtDyn.mjDYN_NONE or m.actuator_gaintype[0] != mujoco.mjtGain.mjGAIN_FIXED
-            or m.actuator_biastype[0] != mujoco.mjtBias.mjBIAS_NONE or m.actuator_gainprm[0, 0] != 1.0):
-        raise MJCFError(f"{where} has a non-motor actuator (position, velocity, filtered or scaled); "
-                        f"{supported}, i.e. <motor> with force = gear * ctrl.")
-    if np.any(m.jnt_stiffness != 0) or np.any(m.dof_frictionloss != 0):
-        raise MJCFError(f"{where} has joint stiffness or frictionloss; {supported}, with damping and armature "
-                        "only (remove stiffness/frictionloss).")
-    integ = _INTEGRATOR_NAMES.get(int(m.opt.integrator))
-    if integ is None:
-        raise MJCFError(f"{where} uses integrator {int(m.opt.integrator)}; supported integrators are "
-                        f"{', '.join(SUPPORTED_INTEGRATORS)}.")
-    # Bodies must not move relative to their parent except through the two joints.
-    for bid in range(1, m.nbody):
-        if m.body_jntnum[bid] and bid not in (cart_body, pole_body):
-            raise MJCFError(f"{where} has joints on body {bid}; {supported}.")
-    if m.body_jntnum[cart_body] != 1 or m.body_jntnum[pole_body] != 1:
-        raise MJCFError(f"{where} puts both joints on one body; {supported}.")
+    # Moving bodies: those with a joint somewhere on their path to the world.
+    weld = m.body_weldid
+    moving = [b for b in range(1, m.nbody) if weld[b] != 0]
+    index = {b: i for i, b in enumerate(moving)}
+    dis = int(m.opt.disableflags)
+    flags = mujoco.mjtDisableBit
+    no_damper, no_spring = bool(dis & flags.mjDSBL_DAMPER), bool(dis & flags.mjDSBL_SPRING)
 
-    d = mujoco.MjData(m)
-    d.qpos[:] = 0.0
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
+    bodies = []
+    for b in moving:
+        parent = int(m.body_parentid[b])
+        if parent in index:
+            pos, quat, pidx = m.body_pos[b], m.body_quat[b], index[parent]
+        else:  # parent welded to the world: express this body's frame in the world
+            d = mujoco.MjData(m)
+            mujoco.mj_kinematics(m, d)
+            pos, quat, pidx = _world_frame_of_static(m, d, parent, b)
+        jids = tuple(range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])) if m.body_jntnum[b] else ()
+        bodies.append(BodyParams(
+            name=_name(m, mujoco.mjtObj.mjOBJ_BODY, b, "body"), parent=pidx, pos=readonly(pos),
+            quat=readonly(quat), mass=float(m.body_mass[b]), ipos=readonly(m.body_ipos[b]),
+            iquat=readonly(m.body_iquat[b]), inertia=readonly(m.body_inertia[b]), joints=jids))
 
-    gravity = np.array(m.opt.gravity, dtype=float)
-    g = np.linalg.norm(gravity)
-    if g == 0:
-        raise MJCFError(f"{where} has zero gravity; a cart-pole needs gravity to have an upright equilibrium.")
-    down = gravity / g
-    slide_axis = np.array(d.xaxis[slide], dtype=float)
-    hinge_axis = np.array(d.xaxis[hinge], dtype=float)
-    anchor = np.array(d.xanchor[hinge], dtype=float)
-    if abs(slide_axis @ down) > 1e-9:
-        raise MJCFError(f"{where} has a slide axis that is not horizontal; the toolkit needs a horizontal "
-                        "rail so that upright rest needs no force.")
-    if abs(hinge_axis @ down) > 1e-9:
-        raise MJCFError(f"{where} has a hinge axis that is not horizontal; the pole must swing in gravity.")
+    joints = []
+    for j in range(m.njnt):
+        kind = "slide" if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE else "hinge"
+        dof, qadr = int(m.jnt_dofadr[j]), int(m.jnt_qposadr[j])
+        joints.append(JointParams(
+            name=_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint"), kind=kind, body=index[int(m.jnt_bodyid[j])],
+            pos=readonly(m.jnt_pos[j]), axis=readonly(m.jnt_axis[j]), qpos0=float(m.qpos0[qadr]),
+            damping=0.0 if no_damper else float(m.dof_damping[dof]), armature=float(m.dof_armature[dof]),
+            stiffness=0.0 if no_spring else float(m.jnt_stiffness[j]), springref=float(m.qpos_spring[qadr]),
+            range=readonly(m.jnt_range[j] if m.jnt_limited[j] else [-np.inf, np.inf])))
 
-    # Partition bodies: those in the pole body's subtree rotate with the hinge, other bodies in the
-    # cart's subtree only translate with the slide.
-    def in_subtree(bid: int, root: int) -> bool:
-        while bid not in (0, root):
-            bid = int(m.body_parentid[bid])
-        return bid == root
+    actuators = []
+    for i in range(m.nu):
+        lim = bool(m.actuator_ctrllimited[i])
+        actuators.append(ActuatorParams(
+            name=_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i, "actuator"), joint=int(m.actuator_trnid[i, 0]),
+            gear=float(m.actuator_gear[i, 0] * m.actuator_gainprm[i, 0]),
+            ctrl_range=readonly(m.actuator_ctrlrange[i] if lim else [-np.inf, np.inf])))
 
-    cart_mass = 0.0
-    pole_mass = 0.0
-    com_sum = np.zeros(3)
-    pole_bodies = []
-    for bid in range(1, m.nbody):
-        if in_subtree(bid, pole_body):
-            pole_bodies.append(bid)
-            pole_mass += m.body_mass[bid]
-            com_sum += m.body_mass[bid] * d.xipos[bid]
-        elif in_subtree(bid, cart_body):
-            cart_mass += m.body_mass[bid]
-    if pole_mass <= 0:
-        raise MJCFError(f"{where} has a massless pole; give the pole body a mass.")
-    com = com_sum / pole_mass
-    inertia = np.zeros((3, 3))
-    for bid in pole_bodies:
-        R = d.ximat[bid].reshape(3, 3)
-        Ib = R @ np.diag(m.body_inertia[bid]) @ R.T
-        r = d.xipos[bid] - com
-        inertia += Ib + m.body_mass[bid] * (r @ r * np.eye(3) - np.outer(r, r))
-    pole_com = com - anchor
-    perp = pole_com - (pole_com @ hinge_axis) * hinge_axis
-    if perp @ (-down) <= 0 or np.linalg.norm(np.cross(perp, down)) > 1e-6 * max(np.linalg.norm(perp), 1e-12):
-        raise MJCFError(f"{where} does not have the pole's centre of mass straight above its hinge at qpos = 0; "
-                        "the toolkit's convention is pole angle 0 = upright, so build the pole pointing up.")
-    cart_pos = np.array(d.xpos[cart_body], dtype=float)
-
-    def jrange(j):
-        if m.jnt_limited[j]:
-            return m.jnt_range[j].copy()
-        return np.array([-np.inf, np.inf])
-
-    ctrl_range = m.actuator_ctrlrange[0].copy() if m.actuator_ctrllimited[0] else np.array([-np.inf, np.inf])
+    raw_g = np.array(m.opt.gravity, dtype=float)
+    up = -raw_g / np.linalg.norm(raw_g) if np.linalg.norm(raw_g) > 0 else np.array([0.0, 0.0, 1.0])
+    gravity = np.zeros(3) if dis & flags.mjDSBL_GRAVITY else raw_g
     return CartPoleParams(
-        mjcf=path,
-        xml=text,
-        timestep=float(m.opt.timestep),
-        integrator=integ,
-        euler_damping_implicit=not bool(m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP),
-        gravity=readonly(gravity),
-        cart_mass=float(cart_mass),
-        pole_mass=float(pole_mass),
-        slide_axis=readonly(slide_axis),
-        hinge_axis=readonly(hinge_axis),
-        hinge_offset=readonly(anchor - cart_pos),
-        pole_com=readonly(pole_com),
-        pole_inertia=readonly(inertia),
-        damping=readonly([m.dof_damping[m.jnt_dofadr[slide]], m.dof_damping[m.jnt_dofadr[hinge]]]),
-        armature=readonly([m.dof_armature[m.jnt_dofadr[slide]], m.dof_armature[m.jnt_dofadr[hinge]]]),
-        gear=float(m.actuator_gear[0, 0]),
-        ctrl_range=readonly(ctrl_range),
-        cart_range=readonly(jrange(slide)),
-        hinge_range=readonly(jrange(hinge)),
-    )
+        mjcf=path, xml=text, timestep=float(m.opt.timestep), integrator=_INTEGRATOR_NAMES[int(m.opt.integrator)],
+        euler_damping_implicit=not bool(dis & flags.mjDSBL_EULERDAMP), gravity=readonly(gravity), up=readonly(up),
+        joints=tuple(joints), bodies=tuple(bodies), actuators=tuple(actuators))
+
+
+def _world_frame_of_static(m, d, parent: int, b: int):
+    """World position and orientation of body ``b``'s frame when its parent is fixed to the world."""
+    import mujoco
+
+    quat = np.zeros(4)
+    mujoco.mju_mulQuat(quat, d.xquat[parent], m.body_quat[b])
+    pos = d.xpos[parent] + d.xmat[parent].reshape(3, 3) @ m.body_pos[b]
+    return pos, quat, -1

@@ -1,21 +1,24 @@
-"""The cart-pole's equations of motion, derived symbolically in CasADi from :class:`CartPoleParams`.
+"""Equations of motion of a tree of slide and hinge joints, derived symbolically in CasADi from its params.
 
-State ``x = [s, theta, s_dot, theta_dot]`` (MuJoCo's ``[qpos, qvel]``), input ``u`` = MuJoCo ``ctrl``
-(slide force ``gear * u``). The Lagrangian is built from the compiled geometry (cart translation along
-the slide axis, pole rotation about the hinge axis by Rodrigues' formula), the mass matrix is its Hessian
-in the velocities, and every Jacobian is ``casadi.jacobian`` of an SX expression: exact, at any state.
+State ``x = [qpos, qvel]`` in MuJoCo's order (for a cart with n poles: cart position, hinge angles 1..n,
+cart velocity, hinge rates), input ``u`` = MuJoCo ``ctrl`` (generalized force ``gear * u`` on each actuated
+joint). The Lagrangian is built from the compiled geometry (:mod:`cartpole.models.kinematics`): the mass
+matrix is ``sum_b m_b Jv_b' Jv_b + Jw_b' I_b Jw_b`` plus armature, the Coriolis and centripetal forces
+``d(M v)/dq v - 1/2 d(v' M v)/dq``, gravity and springs the gradient of the potential. ``M qacc = F`` is
+solved by CasADi's symbolic ``solve`` (no hand-written inverse), and every Jacobian is
+``casadi.jacobian`` of an SX expression: exact, at any state.
 
 The discrete step reproduces one ``mj_step`` of the integrator the MJCF names:
 
-* ``Euler``: semi-implicit Euler whose joint damping is implicit, ``(M + h D) a = tau - bias``,
+* ``Euler``: semi-implicit Euler whose joint damping is implicit, ``(M + h D) a = F``,
   ``v+ = v + h a``, ``q+ = q + h v+`` (damping explicit when the MJCF disables ``eulerdamp``);
-* ``implicitfast``: ``(M - h dF/dv) a = F`` with ``dF/dv`` the passive and actuator velocity
-  derivatives only (for this system the same as Euler);
+* ``implicitfast``: ``(M - h dF/dv) a = F`` with ``dF/dv`` the damping derivative only (motors have no
+  velocity dependence), the same as Euler here;
 * ``implicit``: as implicitfast but ``dF/dv`` includes the Coriolis/centripetal derivative;
 * ``RK4``: classical fourth-order Runge-Kutta on ``f(x, u)`` with ``u`` held.
 
-The step assumes ``u`` is inside ``ctrl_range`` (MuJoCo clamps it) and that no joint limit or contact is
-active (those are constraint forces, outside a smooth model).
+The step assumes ``u`` is inside ``ctrl_range`` (MuJoCo clamps it) and that no joint limit is active
+(limits are constraint forces, outside a smooth model; contacts the reader refuses).
 """
 from __future__ import annotations
 
@@ -24,10 +27,14 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.models.params import CartPoleParams, read_params
+from cartpole._arrays import readonly
+from cartpole.models.equilibrium import find_equilibrium
+from cartpole.models.kinematics import forward_kinematics
+from cartpole.models.params import SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError, read_params
 
-NX = 4
-NU = 1
+
+#: Common-subexpression elimination shrinks the Jacobians' virtual-machine programs by about 30 %.
+_OPTS = {"cse": True}
 
 
 def wrap_angle(theta):
@@ -37,12 +44,24 @@ def wrap_angle(theta):
     return w if np.ndim(w) else float(w)
 
 
+def state_error(x, x_ref, hinges) -> np.ndarray:
+    """``x - x_ref`` (..., nx) with the hinge-angle entries (qpos indices ``hinges``) wrapped to (-pi, pi].
+
+    Hinge angles never wrap in MuJoCo; errors fed to a controller, a catch test or a metric do.
+    """
+    e = np.array(np.asarray(x, dtype=float) - np.asarray(x_ref, dtype=float), copy=True)
+    idx = list(hinges)
+    if idx:
+        e[..., idx] = wrap_angle(e[..., idx])
+    return e
+
+
 @dataclass(frozen=True)
 class CartPoleModel:
     """A compiled symbolic cart-pole: CasADi ``Function`` objects built once, evaluated many times.
 
-    Every Function takes ``x`` (4,) and, where it makes sense, ``u`` (1,), and returns CasADi ``DM``;
-    the numpy helpers (:meth:`linearize`, :meth:`dynamics`, :meth:`step_np`) convert.
+    Every Function takes ``x`` (nx,) and, where it makes sense, ``u`` (nu,), and returns CasADi ``DM``;
+    the numpy helpers (:meth:`linearize`, :meth:`dynamics`, :meth:`step_np`) convert. ``nx = 2 nq``.
 
     Attributes
     ----------
@@ -52,26 +71,30 @@ class CartPoleModel:
     integrator : str
         Integrator the discrete step reproduces.
     f : casadi.Function
-        ``(x, u) -> x_dot`` (4,), continuous dynamics.
+        ``(x, u) -> x_dot`` (nx,), continuous dynamics.
     A, B : casadi.Function
-        ``(x, u) -> df/dx (4, 4)``, ``(x, u) -> df/du (4, 1)``, exact Jacobians.
+        ``(x, u) -> df/dx (nx, nx)``, ``(x, u) -> df/du (nx, nu)``, exact Jacobians.
     AB : casadi.Function
         ``(x, u) -> (A, B)`` in one call.
     mass_matrix : casadi.Function
-        ``x (4,) -> M (2, 2)`` including armature, kg and kg m^2 (only ``q = x[:2]`` matters).
+        ``x (nx,) -> M (nq, nq)`` including armature, kg, kg m, kg m^2 (only ``q`` matters).
     bias : casadi.Function
-        ``x (4,) -> C(q, v) v + g(q)`` (2,), generalized Coriolis, centripetal and gravity forces.
+        ``x (nx,) -> C(q, v) v + g(q)`` (nq,), Coriolis, centripetal, gravity and spring forces.
     energy : casadi.Function
-        ``x -> total mechanical energy`` in J, zero at upright rest (armature excluded: it is not a body).
-    pole_energy : casadi.Function
-        ``x -> 0.5 J_h theta_dot^2 + m g l (cos theta - 1)`` in J, the pole's energy about its hinge,
-        zero at upright rest and ``-2 m g l`` hanging at rest; what energy shaping regulates.
+        ``x -> total mechanical energy`` in J (kinetic, gravity, springs), zero at upright rest ``x_eq``
+        (armature excluded: it is not a body).
+    pole_energy : casadi.Function or None
+        For a model with one hinge: ``x -> 1/2 J_h theta_dot^2 + (potential of the pole about its hinge)``,
+        zero at upright rest and ``-2 m g l`` hanging at rest; what energy shaping regulates. None otherwise.
     step : casadi.Function
         ``(x, u) -> x_next``, one step of ``integrator`` with step ``dt``.
-    Ad, Bd : casadi.Function
-        ``(x, u) -> d step/dx (4, 4)``, ``d step/du (4, 1)``.
-    ABd : casadi.Function
-        ``(x, u) -> (Ad, Bd)`` in one call.
+    Ad, Bd, ABd : casadi.Function
+        ``(x, u) -> d step/dx (nx, nx)``, ``d step/du (nx, nu)``, both in one call.
+    x_eq, u_eq : arrays (nx,), (nu,)
+        The upright equilibrium (every pole's centre of mass above its hinge), ``f(x_eq, u_eq) = 0``.
+    x_hanging : array (nx,)
+        Hanging rest (every pole's centre of mass below its hinge), ctrl ``u_hanging``.
+    u_hanging : array (nu,)
     """
 
     params: CartPoleParams
@@ -84,34 +107,84 @@ class CartPoleModel:
     mass_matrix: ca.Function
     bias: ca.Function
     energy: ca.Function
-    pole_energy: ca.Function
+    pole_energy: ca.Function | None
     step: ca.Function
     Ad: ca.Function
     Bd: ca.Function
     ABd: ca.Function
+    x_eq: np.ndarray
+    u_eq: np.ndarray
+    x_hanging: np.ndarray
+    u_hanging: np.ndarray
 
-    nx: int = NX
-    nu: int = NU
+    # ---- sizes and named indices ------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Number of joint coordinates."""
+        return self.params.nq
+
+    @property
+    def nv(self) -> int:
+        """Number of joint velocities (= nq)."""
+        return self.params.nq
+
+    @property
+    def nx(self) -> int:
+        """State dimension ``nq + nv``."""
+        return 2 * self.params.nq
+
+    @property
+    def nu(self) -> int:
+        """Number of inputs (actuators)."""
+        return self.params.nu
+
+    @property
+    def slide(self) -> int | None:
+        """qpos index of the cart's slide, or None."""
+        return self.params.slide
+
+    @property
+    def slides(self) -> tuple:
+        """qpos indices of every slide joint."""
+        return self.params.slides
+
+    @property
+    def hinges(self) -> tuple:
+        """qpos indices of the hinges (poles), in tree order."""
+        return self.params.hinges
+
+    @property
+    def u_low(self) -> np.ndarray:
+        """(nu,) lower ctrl bounds."""
+        return readonly(self.params.ctrl_range[:, 0])
+
+    @property
+    def u_high(self) -> np.ndarray:
+        """(nu,) upper ctrl bounds."""
+        return readonly(self.params.ctrl_range[:, 1])
+
+    def state_error(self, x, x_ref=None) -> np.ndarray:
+        """``x - x_ref`` (..., nx) with hinge-angle errors wrapped; ``x_ref`` defaults to ``x_eq``."""
+        return state_error(x, self.x_eq if x_ref is None else x_ref, self.hinges)
 
     # ---- numpy conveniences ------------------------------------------------------------------
     def dynamics(self, x, u) -> np.ndarray:
-        """Continuous dynamics ``x_dot = f(x, u)``; x (4,), u scalar or (1,); returns (4,)."""
+        """Continuous dynamics ``x_dot = f(x, u)``; x (nx,), u (nu,) or scalar; returns (nx,)."""
         return np.asarray(self.f(np.asarray(x, float), np.atleast_1d(u).astype(float))).ravel()
 
     def step_np(self, x, u) -> np.ndarray:
-        """One discrete step (the MJCF's integrator): x (4,), u scalar or (1,) ctrl; returns (4,)."""
+        """One discrete step (the MJCF's integrator): x (nx,), u (nu,) ctrl; returns (nx,)."""
         return np.asarray(self.step(np.asarray(x, float), np.atleast_1d(u).astype(float))).ravel()
 
     def linearize(self, x=None, u=None, *, discrete: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """Exact Jacobians at ``(x, u)`` (default upright rest, zero ctrl).
+        """Exact Jacobians at ``(x, u)`` (default the upright equilibrium ``x_eq``, ``u_eq``).
 
-        Returns ``(A (4, 4), B (4, 1))`` of ``f`` in 1/s and (m/s^2 or rad/s^2) per unit ctrl, or, with
-        ``discrete=True``, ``(Ad, Bd)`` of one step of the MJCF's integrator.
+        Returns ``(A (nx, nx), B (nx, nu))`` of ``f`` (B per unit ctrl), or, with ``discrete=True``,
+        ``(Ad, Bd)`` of one step of the MJCF's integrator.
         """
-        x = np.zeros(NX) if x is None else np.asarray(x, float)
-        u = np.zeros(NU) if u is None else np.atleast_1d(u).astype(float)
-        fun = self.ABd if discrete else self.AB
-        A, B = fun(x, u)
+        x = self.x_eq if x is None else np.asarray(x, float)
+        u = self.u_eq if u is None else np.atleast_1d(u).astype(float)
+        A, B = (self.ABd if discrete else self.AB)(x, u)
         return np.asarray(A), np.asarray(B)
 
     def rebuilt(self, *, dt: float | None = None, integrator: str | None = None) -> "CartPoleModel":
@@ -119,16 +192,39 @@ class CartPoleModel:
         return build_model(self.params, dt=dt or self.dt, integrator=integrator or self.integrator)
 
 
-def _rodrigues(n: np.ndarray, r: np.ndarray, th):
-    """Rotate the constant vector r about the unit axis n by the symbolic angle th (3-vector SX)."""
-    n = ca.DM(n)
-    r = ca.DM(r)
-    return r * ca.cos(th) + ca.cross(n, r) * ca.sin(th) + n * ca.dot(n, r) * (1 - ca.cos(th))
+def _lagrangian(p: CartPoleParams, q, v):
+    """(M_body (nq, nq) without armature, potential V) as SX in ``q``, ``v``."""
+    kin = forward_kinematics(p, q)
+    g = ca.DM(p.gravity)
+    M = ca.SX.zeros(p.nq, p.nq)
+    V = 0
+    for b, body in enumerate(p.bodies):
+        if body.mass == 0 and not np.any(body.inertia):
+            continue
+        Jv = ca.jacobian(kin.com[b], q)
+        Jw = kin.angular_jacobian[b]
+        M += body.mass * ca.mtimes(Jv.T, Jv) + ca.mtimes([Jw.T, kin.inertia[b], Jw])
+        V -= body.mass * ca.dot(g, kin.com[b])
+    for i, j in enumerate(p.joints):
+        if j.stiffness:
+            V += 0.5 * j.stiffness * (q[i] - j.springref) ** 2
+    return M, V, kin
+
+
+def _pole_energy(p: CartPoleParams, x, q, v, kin):
+    """The single pole's energy about its hinge (SX), before subtracting its value at upright."""
+    h = p.hinges[0]
+    g = ca.DM(p.gravity)
+    anchor = kin.joint_anchor[h]
+    V = 0
+    for b in p.pole_bodies:
+        V -= p.bodies[b].mass * ca.dot(g, kin.com[b] - anchor)
+    return 0.5 * p.pole_inertia_about_hinge * v[h] ** 2 + V
 
 
 def build_model(params: CartPoleParams | str | None = None, *, dt: float | None = None,
                 integrator: str | None = None) -> CartPoleModel:
-    """Derive the cart-pole's equations of motion in CasADi and compile its Functions.
+    """Derive the equations of motion in CasADi, compile their Functions and find the equilibria.
 
     Parameters
     ----------
@@ -142,53 +238,39 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     Returns
     -------
     CartPoleModel
+
+    Raises
+    ------
+    MJCFError
+        For an unsupported integrator, a non-positive step, or a model without an upright equilibrium.
     """
     if not isinstance(params, CartPoleParams):
         params = read_params(params)
     p = params
     h = float(p.timestep if dt is None else dt)
     integ = p.integrator if integrator is None else integrator
-    from cartpole.models.params import SUPPORTED_INTEGRATORS, MJCFError
     if integ not in SUPPORTED_INTEGRATORS:
         raise MJCFError(f"Integrator '{integ}' is not supported; choose one of {', '.join(SUPPORTED_INTEGRATORS)}.")
     if not h > 0:
         raise MJCFError(f"Time step {h} s is not positive; give a positive dt.")
 
-    x = ca.SX.sym("x", NX)
-    u = ca.SX.sym("u", NU)
-    q, v = x[:2], x[2:]
-    s, th = q[0], q[1]
-    sd, thd = v[0], v[1]
+    nq, nu = p.nq, p.nu
+    x = ca.SX.sym("x", 2 * nq)
+    u = ca.SX.sym("u", nu)
+    q, v = x[:nq], x[nq:]
 
-    a = ca.DM(p.slide_axis)
-    n = np.asarray(p.hinge_axis)
-    g = ca.DM(p.gravity)
-    mc, mp = p.cart_mass, p.pole_mass
-
-    # Pole centre of mass relative to its position at q = 0 (constants drop out of the Lagrangian).
-    com = a * s + _rodrigues(n, p.pole_com, th)
-    v_com = ca.jtimes(com, q, v)
-    Ic_n = float(n @ p.pole_inertia @ n)  # rotation only about n, so only this inertia component acts
-    T = 0.5 * mc * sd**2 + 0.5 * mp * ca.dot(v_com, v_com) + 0.5 * Ic_n * thd**2
-    V = -mc * ca.dot(g, a * s) - mp * ca.dot(g, com)
-    V0 = -mp * float(np.dot(p.gravity, p.pole_com))  # value of V at q = 0
-    M_body = ca.hessian(T, v)[0]
+    M_body, V, kin = _lagrangian(p, q, v)
     M = M_body + ca.diag(ca.DM(p.armature))
-    Mv = ca.mtimes(M_body, v)
-    bias = ca.mtimes(ca.jacobian(Mv, q), v) - ca.gradient(T, q) + ca.gradient(V, q)
+    T = 0.5 * ca.dot(v, ca.mtimes(M_body, v))
+    bias = ca.mtimes(ca.jacobian(ca.mtimes(M_body, v), q), v) - ca.gradient(T, q) + ca.gradient(V, q)
+    Bmat = np.zeros((nq, nu))
+    for i, a in enumerate(p.actuators):
+        Bmat[a.joint, i] = a.gear
     D = ca.DM(p.damping)
-    tau = ca.vertcat(p.gear * u[0], 0) - D * v  # actuator and passive (damping) forces
-    F = tau - bias  # everything but M qacc
-
-    def solve2(Mat, rhs):
-        # explicit 2x2 inverse keeps the SX graph small and branch-free
-        det = Mat[0, 0] * Mat[1, 1] - Mat[0, 1] * Mat[1, 0]
-        return ca.vertcat(Mat[1, 1] * rhs[0] - Mat[0, 1] * rhs[1],
-                          -Mat[1, 0] * rhs[0] + Mat[0, 0] * rhs[1]) / det
-
-    qacc = solve2(M, F)
+    F = ca.mtimes(ca.DM(Bmat), u) - D * v - bias  # everything but M qacc
+    qacc = ca.solve(M, F)
     xdot = ca.vertcat(v, qacc)
-    f = ca.Function("f", [x, u], [xdot], ["x", "u"], ["xdot"])
+    f = ca.Function("f", [x, u], [xdot], ["x", "u"], ["xdot"], _OPTS)
 
     # ---- one step of the MJCF's integrator ---------------------------------------------------
     if integ == "RK4":
@@ -199,44 +281,60 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         x_next = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     else:
         if integ == "Euler":
-            dFdv = -ca.diag(D) if p.euler_damping_implicit else ca.DM.zeros(2, 2)
+            dFdv = -ca.diag(D) if p.euler_damping_implicit else ca.DM.zeros(nq, nq)
         elif integ == "implicitfast":
             dFdv = -ca.diag(D)  # motor actuators have no velocity dependence
         else:  # implicit: full derivative including Coriolis/centripetal terms
             dFdv = ca.jacobian(F, v)
-        a_impl = solve2(M - h * dFdv, F)
+        a_impl = ca.solve(M - h * dFdv, F)
         v_next = v + h * a_impl
         x_next = ca.vertcat(q + h * v_next, v_next)
-    step = ca.Function("step", [x, u], [x_next], ["x", "u"], ["x_next"])
+    step = ca.Function("step", [x, u], [x_next], ["x", "u"], ["x_next"], _OPTS)
+
+    # ---- equilibria: upright (every COM above its hinge) and hanging ------------------------------
+    Vg = V - sum(0.5 * j.stiffness * (q[i] - j.springref) ** 2 for i, j in enumerate(p.joints) if j.stiffness)
+    H, dV = ca.hessian(V, q)
+    Hg, dVg = ca.hessian(Vg, q)
+    potential = ca.Function("potential", [q], [dV, H, dVg, Hg])
+    x_eq, u_eq = find_equilibrium(p, potential, Bmat, upright=True)
+    x_hang, u_hang = find_equilibrium(p, potential, Bmat, upright=False)
+    V0 = float(ca.Function("V", [q], [V])(x_eq[:nq]))
 
     E = T + V - V0
-    Jh = Ic_n + mp * float(np.linalg.norm(p.pole_com - (p.pole_com @ n) * n)) ** 2
-    E_pole = 0.5 * Jh * thd**2 - mp * ca.dot(g, _rodrigues(n, p.pole_com, th)) - V0
+    pole_energy = None
+    if len(p.hinges) == 1:
+        Ep = _pole_energy(p, x, q, v, kin)
+        Ep_fun = ca.Function("Ep", [x], [Ep])
+        pole_energy = ca.Function("pole_energy", [x], [Ep - float(Ep_fun(x_eq))], ["x"], ["E_pole"])
 
     Ax, Bu = ca.jacobian(xdot, x), ca.jacobian(xdot, u)
     Adx, Bdu = ca.jacobian(x_next, x), ca.jacobian(x_next, u)
+    fn = lambda name, i, o, names_in, names_out: ca.Function(name, i, o, names_in, names_out, _OPTS)  # noqa: E731
     funcs = dict(
         f=f,
-        A=ca.Function("A", [x, u], [Ax], ["x", "u"], ["A"]),
-        B=ca.Function("B", [x, u], [Bu], ["x", "u"], ["B"]),
-        AB=ca.Function("AB", [x, u], [Ax, Bu], ["x", "u"], ["A", "B"]),
-        mass_matrix=ca.Function("mass_matrix", [x], [M], ["x"], ["M"]),
-        bias=ca.Function("bias", [x], [bias], ["x"], ["bias"]),
-        energy=ca.Function("energy", [x], [E], ["x"], ["E"]),
-        pole_energy=ca.Function("pole_energy", [x], [E_pole], ["x"], ["E_pole"]),
+        A=fn("A", [x, u], [Ax], ["x", "u"], ["A"]),
+        B=fn("B", [x, u], [Bu], ["x", "u"], ["B"]),
+        AB=fn("AB", [x, u], [Ax, Bu], ["x", "u"], ["A", "B"]),
+        mass_matrix=fn("mass_matrix", [x], [M], ["x"], ["M"]),
+        bias=fn("bias", [x], [bias], ["x"], ["bias"]),
+        energy=fn("energy", [x], [E], ["x"], ["E"]),
+        pole_energy=pole_energy,
         step=step,
-        Ad=ca.Function("Ad", [x, u], [Adx], ["x", "u"], ["Ad"]),
-        Bd=ca.Function("Bd", [x, u], [Bdu], ["x", "u"], ["Bd"]),
-        ABd=ca.Function("ABd", [x, u], [Adx, Bdu], ["x", "u"], ["Ad", "Bd"]),
+        Ad=fn("Ad", [x, u], [Adx], ["x", "u"], ["Ad"]),
+        Bd=fn("Bd", [x, u], [Bdu], ["x", "u"], ["Bd"]),
+        ABd=fn("ABd", [x, u], [Adx, Bdu], ["x", "u"], ["Ad", "Bd"]),
     )
-    return CartPoleModel(params=p, dt=h, integrator=integ, **funcs)
+    return CartPoleModel(params=p, dt=h, integrator=integ, x_eq=readonly(x_eq), u_eq=readonly(u_eq),
+                         x_hanging=readonly(x_hang), u_hanging=readonly(u_hang), **funcs)
 
 
 def linearize(model: CartPoleModel, x=None, u=None) -> dict:
-    """Continuous and discrete linearisation at ``(x, u)`` (default upright rest, zero ctrl).
+    """Continuous and discrete linearisation at ``(x, u)`` (default the upright equilibrium).
 
-    Returns a dict with ``A`` (4, 4), ``B`` (4, 1), ``Ad`` (4, 4), ``Bd`` (4, 1), ``dt`` (s) and ``integrator``.
+    Returns a dict with ``x_eq`` (nx,), ``u_eq`` (nu,), ``A`` (nx, nx), ``B`` (nx, nu), ``Ad`` (nx, nx),
+    ``Bd`` (nx, nu), ``dt`` (s) and ``integrator``.
     """
     A, B = model.linearize(x, u)
     Ad, Bd = model.linearize(x, u, discrete=True)
-    return {"A": A, "B": B, "Ad": Ad, "Bd": Bd, "dt": model.dt, "integrator": model.integrator}
+    return {"x_eq": model.x_eq, "u_eq": model.u_eq, "A": A, "B": B, "Ad": Ad, "Bd": Bd, "dt": model.dt,
+            "integrator": model.integrator}

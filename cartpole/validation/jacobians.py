@@ -18,7 +18,7 @@ def mujoco_fd_jacobians(source: CartPoleParams | str | None, x, u, *, eps: float
     Parameters
     ----------
     source : CartPoleParams or MJCF path or None
-    x : (4,) state; u : scalar or (1,) ctrl
+    x : (nx,) state ``[qpos, qvel]``; u : (nu,) ctrl
     eps : float
         Perturbation, in the state's and ctrl's own units.
     discrete : bool
@@ -27,30 +27,34 @@ def mujoco_fd_jacobians(source: CartPoleParams | str | None, x, u, *, eps: float
 
     Returns
     -------
-    (A (4, 4), B (4, 1))
+    (A (nx, nx), B (nx, nu))
     """
     import mujoco
 
     m, d = _md if _md is not None else make_mujoco(source)
     x = np.asarray(x, float)
     u = np.atleast_1d(np.asarray(u, float))
+    nq = m.nq
 
     def fun(xx, uu):
         mujoco.mj_resetData(m, d)
-        d.qpos[:], d.qvel[:], d.ctrl[:] = xx[:2], xx[2:], uu
+        d.qpos[:], d.qvel[:], d.ctrl[:] = xx[:nq], xx[nq:], uu
         if discrete:
             mujoco.mj_step(m, d)
             return np.concatenate([d.qpos, d.qvel])
         mujoco.mj_forward(m, d)
         return np.concatenate([d.qvel, d.qacc])
 
-    A = np.empty((4, 4))
-    B = np.empty((4, 1))
-    for i in range(4):
-        dx = np.zeros(4)
+    A = np.empty((x.size, x.size))
+    B = np.empty((x.size, u.size))
+    for i in range(x.size):
+        dx = np.zeros(x.size)
         dx[i] = eps
         A[:, i] = (fun(x + dx, u) - fun(x - dx, u)) / (2 * eps)
-    B[:, 0] = (fun(x, u + eps) - fun(x, u - eps)) / (2 * eps)
+    for i in range(u.size):
+        du = np.zeros(u.size)
+        du[i] = eps
+        B[:, i] = (fun(x, u + du) - fun(x, u - du)) / (2 * eps)
     return A, B
 
 
@@ -60,7 +64,7 @@ class JacobianCheck:
 
     Attributes
     ----------
-    states : (k, 4) array; inputs : (k, 1) array
+    states : (k, nx) array; inputs : (k, nu) array
     err_A, err_B : (k,) arrays
         ``max|sym - fd| / max|fd|`` per state (dimensionless).
     eps : float; discrete : bool
@@ -81,18 +85,27 @@ class JacobianCheck:
 
 def random_states(params: CartPoleParams, n: int, *, seed: int = 0, speed: float = 2.0,
                   rate: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` random states (n, 4) and ctrls (n, 1) away from the joint limits, with nonzero velocities.
+    """``n`` random states (n, nx) and ctrls (n, nu) away from the joint limits, with nonzero velocities.
 
-    Cart positions stay within 60 % of the track (no limit constraint active), angles cover (-pi, pi),
-    cart speeds within ``speed`` m/s, pole rates within ``rate`` rad/s, ctrl within the ctrl range.
+    A limited joint stays within the middle 60 % of its range (no limit constraint active); an unlimited
+    slide within +-1 m, an unlimited hinge anywhere in (-pi, pi); slide speeds within ``speed`` m/s, hinge
+    rates within ``rate`` rad/s; ctrl within the ctrl range (+-1 where unlimited).
     """
     rng = np.random.default_rng(seed)
-    lo, hi = params.cart_range
-    s_max = min(1.0, 0.6 * (hi - lo) / 2) if np.isfinite(hi - lo) else 1.0
-    x = np.column_stack([rng.uniform(-s_max, s_max, n), rng.uniform(-np.pi, np.pi, n),
-                         rng.uniform(-speed, speed, n), rng.uniform(-rate, rate, n)])
-    umax = params.u_max if np.isfinite(params.u_max) else 1.0
-    return x, rng.uniform(-umax, umax, (n, 1))
+    cols = []
+    for j in params.joints:
+        lo, hi = j.range
+        if np.isfinite(lo) and np.isfinite(hi):
+            mid, half = 0.5 * (lo + hi), 0.3 * (hi - lo)
+            cols.append(rng.uniform(mid - half, mid + half, n))
+        else:
+            cols.append(rng.uniform(-1.0, 1.0, n) if j.kind == "slide" else rng.uniform(-np.pi, np.pi, n))
+    for j in params.joints:
+        lim = speed if j.kind == "slide" else rate
+        cols.append(rng.uniform(-lim, lim, n))
+    cr = np.where(np.isfinite(params.ctrl_range), params.ctrl_range, np.sign(params.ctrl_range))
+    u = rng.uniform(cr[:, 0], cr[:, 1], (n, params.nu))
+    return np.column_stack(cols), u
 
 
 def check_jacobians(model: CartPoleModel, states, inputs, *, eps: float = 1e-6,
@@ -102,7 +115,7 @@ def check_jacobians(model: CartPoleModel, states, inputs, *, eps: float = 1e-6,
     Parameters
     ----------
     model : CartPoleModel (its ``params`` name the MJCF MuJoCo runs)
-    states : (k, 4) array; inputs : (k, 1) array
+    states : (k, nx) array; inputs : (k, nu) array
     eps : float, finite-difference step
     discrete : bool, compare the discrete step instead of the continuous dynamics
     """

@@ -7,8 +7,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from cartpole.models import build_model, read_params, wrap_angle
+from cartpole.models import SHIPPED_MJCF, build_model, read_params, wrap_angle
 from cartpole.models.symbolic import linearize
+from cartpole.validation.jacobians import random_states
 
 N_RANDOM = 100
 
@@ -19,26 +20,23 @@ def _mujoco(path):
 
 
 def _random_states(params, n, seed):
-    """States with nonzero velocities and controls, away from the joint limits (no constraint forces)."""
-    rng = np.random.default_rng(seed)
-    lo, hi = params.cart_range
-    s_max = min(1.0, 0.6 * (hi - lo) / 2) if np.isfinite(hi - lo) else 1.0
-    x = np.column_stack([rng.uniform(-s_max, s_max, n), rng.uniform(-np.pi, np.pi, n),
-                         rng.uniform(-2, 2, n), rng.uniform(-6, 6, n)])
-    u = rng.uniform(-params.u_max, params.u_max, (n, 1))
-    x[0], u[0] = 0.0, 0.0  # upright rest is always checked
+    """States with nonzero velocities and controls, away from the joint limits (no constraint forces);
+    the first is the upright equilibrium."""
+    x, u = random_states(params, n, seed=seed)
+    model = build_model(params)
+    x[0], u[0] = model.x_eq, model.u_eq
     return x, u
 
 
 def _qacc(m, d, x, u):
-    d.qpos[:], d.qvel[:], d.ctrl[:] = x[:2], x[2:], u
+    d.qpos[:], d.qvel[:], d.ctrl[:] = x[:m.nq], x[m.nq:], u
     mujoco.mj_forward(m, d)
     return np.concatenate([d.qvel, d.qacc])
 
 
 def _mj_step(m, d, x, u):
     mujoco.mj_resetData(m, d)
-    d.qpos[:], d.qvel[:], d.ctrl[:] = x[:2], x[2:], u
+    d.qpos[:], d.qvel[:], d.ctrl[:] = x[:m.nq], x[m.nq:], u
     mujoco.mj_step(m, d)
     return np.concatenate([d.qpos, d.qvel])
 
@@ -63,17 +61,17 @@ def _rel_err(X, Y):
     return np.abs(X - Y).max() / np.abs(Y).max()
 
 
-def test_continuous_dynamics_equal_mujoco_forward_dynamics(any_mjcf):
-    model = build_model(any_mjcf)
-    m, d = _mujoco(any_mjcf)
+def test_continuous_dynamics_equal_mujoco_forward_dynamics(family_mjcf):
+    model = build_model(family_mjcf)
+    m, d = _mujoco(family_mjcf)
     xs, us = _random_states(model.params, N_RANDOM, 1)
     for x, u in zip(xs, us):
         np.testing.assert_allclose(model.dynamics(x, u), _qacc(m, d, x, u), rtol=1e-9, atol=1e-9)
 
 
-def test_symbolic_A_B_match_central_differences_of_mujoco_qacc(any_mjcf):
-    model = build_model(any_mjcf)
-    m, d = _mujoco(any_mjcf)
+def test_symbolic_A_B_match_central_differences_of_mujoco_qacc(family_mjcf):
+    model = build_model(family_mjcf)
+    m, d = _mujoco(family_mjcf)
     xs, us = _random_states(model.params, N_RANDOM, 2)
     worst = 0.0
     for x, u in zip(xs, us):
@@ -83,17 +81,17 @@ def test_symbolic_A_B_match_central_differences_of_mujoco_qacc(any_mjcf):
     assert worst < 1e-6, f"worst relative Jacobian error {worst:.2e}"
 
 
-def test_discrete_step_equals_one_mj_step(any_mjcf):
-    model = build_model(any_mjcf)
-    m, d = _mujoco(any_mjcf)
+def test_discrete_step_equals_one_mj_step(family_mjcf):
+    model = build_model(family_mjcf)
+    m, d = _mujoco(family_mjcf)
     xs, us = _random_states(model.params, N_RANDOM, 3)
     for x, u in zip(xs, us):
         np.testing.assert_allclose(model.step_np(x, u), _mj_step(m, d, x, u), rtol=0, atol=1e-9)
 
 
-def test_discrete_Ad_Bd_match_central_differences_of_mj_step(any_mjcf):
-    model = build_model(any_mjcf)
-    m, d = _mujoco(any_mjcf)
+def test_discrete_Ad_Bd_match_central_differences_of_mj_step(family_mjcf):
+    model = build_model(family_mjcf)
+    m, d = _mujoco(family_mjcf)
     xs, us = _random_states(model.params, 25, 4)
     worst = 0.0
     for x, u in zip(xs, us):
@@ -103,62 +101,98 @@ def test_discrete_Ad_Bd_match_central_differences_of_mj_step(any_mjcf):
     assert worst < 1e-6, f"worst relative discrete Jacobian error {worst:.2e}"
 
 
-def test_mjd_transitionFD_agrees_where_mujoco_offers_it(any_mjcf):
+def test_mjd_transitionFD_agrees_where_mujoco_offers_it(family_mjcf):
     """MuJoCo's own derivative (not for RK4) as a second, independent reference at upright."""
-    model = build_model(any_mjcf)
+    model = build_model(family_mjcf)
     if model.integrator == "RK4":
         pytest.skip("mjd_transitionFD does not support RK4; the central-difference test covers it")
-    m, d = _mujoco(any_mjcf)
+    m, d = _mujoco(family_mjcf)
     mujoco.mj_resetData(m, d)
+    d.qpos[:], d.ctrl[:] = model.x_eq[:model.nq], model.u_eq
     mujoco.mj_forward(m, d)
-    A = np.zeros((4, 4))
-    B = np.zeros((4, 1))
+    A = np.zeros((model.nx, model.nx))
+    B = np.zeros((model.nx, model.nu))
     mujoco.mjd_transitionFD(m, d, 1e-7, True, A, B, None, None)
     Ad, Bd = model.linearize(discrete=True)
     # mjd_transitionFD differentiates qpos in the tangent space, identical to qpos for slide/hinge joints
     assert _rel_err(Ad, A) < 1e-6 and _rel_err(Bd, B) < 1e-6
 
 
-def test_energy_rate_equals_power_of_damping_and_actuator(any_mjcf):
-    """dE/dt along f must equal gear*u*s_dot - d1 s_dot^2 - d2 theta_dot^2: checks M, bias and gravity together."""
+def test_energy_rate_equals_power_of_damping_and_actuator(family_mjcf):
+    """dE/dt along f must equal (B u - D v) . v: checks M, bias, gravity and springs together."""
     import casadi as ca
 
-    model = build_model(any_mjcf)
-    p = model.params
-    x = ca.SX.sym("x", 4)
+    model = build_model(family_mjcf)
+    p, nq = model.params, model.nq
+    x = ca.SX.sym("x", model.nx)
     dEdx = ca.Function("dE", [x], [ca.gradient(model.energy(x), x)])
     xs, us = _random_states(p, 30, 5)
     for xk, uk in zip(xs, us):
+        v, qacc = xk[nq:], model.dynamics(xk, uk)[nq:]
         rate = float(np.asarray(dEdx(xk)).ravel() @ model.dynamics(xk, uk))
-        power = p.gear * uk[0] * xk[2] - p.damping[0] * xk[2] ** 2 - p.damping[1] * xk[3] ** 2
+        tau = np.zeros(nq)
+        for a, uu in zip(p.actuators, uk):
+            tau[a.joint] += a.gear * uu
+        power = (tau - p.damping * v) @ v
         # armature adds rotor kinetic energy that `energy` (bodies only) leaves out
-        power -= p.armature @ (xk[2:] * model.dynamics(xk, uk)[2:])
-        assert rate == pytest.approx(power, rel=1e-9, abs=1e-9)
+        power -= p.armature @ (v * qacc)
+        assert rate == pytest.approx(power, rel=1e-8, abs=1e-8)
 
 
-def test_mass_matrix_equals_mujocos(any_mjcf):
-    model = build_model(any_mjcf)
-    m, d = _mujoco(any_mjcf)
+def test_mass_matrix_equals_mujocos(family_mjcf):
+    model = build_model(family_mjcf)
+    m, d = _mujoco(family_mjcf)
     xs, _ = _random_states(model.params, 10, 6)
     for x in xs:
-        d.qpos[:] = x[:2]
+        d.qpos[:] = x[:m.nq]
         mujoco.mj_forward(m, d)
-        M = np.zeros((2, 2))
+        M = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, M)
-        np.testing.assert_allclose(np.asarray(model.mass_matrix(x)), M, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(np.asarray(model.mass_matrix(x)), M, rtol=1e-11, atol=1e-13)
 
 
-def test_pole_energy_is_zero_upright_and_minus_2mgl_hanging(any_mjcf):
+def test_single_pole_energy_is_zero_upright_and_minus_2mgl_hanging(any_mjcf):
     model = build_model(any_mjcf)
     p = model.params
-    assert float(model.pole_energy([0, 0, 0, 0])) == pytest.approx(0.0, abs=1e-12)
-    assert float(model.pole_energy([0.3, np.pi, 0, 0])) == pytest.approx(
-        -2 * p.pole_mass * p.g * p.pole_com_distance, rel=1e-12)
+    assert float(model.pole_energy(model.x_eq)) == pytest.approx(0.0, abs=1e-12)
+    hanging = model.x_hanging.copy()
+    hanging[model.slide] = 0.3
+    assert float(model.pole_energy(hanging)) == pytest.approx(-2 * p.pole_mass * p.g * p.pole_com_distance, rel=1e-12)
 
 
-def test_upright_rest_is_an_equilibrium(any_mjcf):
-    model = build_model(any_mjcf)
-    np.testing.assert_allclose(model.dynamics(np.zeros(4), 0.0), 0.0, atol=1e-14)
+def test_pole_energy_exists_only_for_one_pole():
+    assert build_model(SHIPPED_MJCF.with_name("cartpole_two_pole.xml")).pole_energy is None
+
+
+def test_upright_equilibrium_is_a_rest_of_the_model(family_mjcf):
+    model = build_model(family_mjcf)
+    np.testing.assert_allclose(model.dynamics(model.x_eq, model.u_eq), 0.0, atol=1e-12)
+    np.testing.assert_allclose(model.dynamics(model.x_hanging, model.u_hanging), 0.0, atol=1e-12)
+
+
+def test_upright_equilibrium_is_a_rest_of_mujoco_for_one_second(family_mjcf):
+    """From x*, ctrl = u*, one second of mj_step moves no coordinate by more than 1e-6."""
+    model = build_model(family_mjcf)
+    m, d = _mujoco(family_mjcf)
+    d.qpos[:], d.ctrl[:] = model.x_eq[:m.nq], model.u_eq
+    for _ in range(int(round(1.0 / m.opt.timestep))):
+        mujoco.mj_step(m, d)
+    assert np.abs(d.qpos - model.x_eq[:m.nq]).max() < 1e-6 and np.abs(d.qvel).max() < 1e-6
+
+
+def test_upright_puts_every_pole_centre_of_mass_above_its_hinge(family_mjcf):
+    """What "upright" means, checked on MuJoCo's own kinematics at x*: each hinge's subtree COM is above it."""
+    model = build_model(family_mjcf)
+    m, d = _mujoco(family_mjcf)
+    d.qpos[:] = model.x_eq[:m.nq]
+    mujoco.mj_forward(m, d)
+    up = model.params.up
+    for j in model.hinges:
+        body = m.jnt_bodyid[j]
+        r = d.subtree_com[body] - d.xanchor[j]
+        n = d.xaxis[j]
+        r = r - (r @ n) * n
+        assert r @ up > 0 and np.linalg.norm(r - (r @ up) * up) < 1e-6 * np.linalg.norm(r)
 
 
 def test_linearize_returns_both_continuous_and_discrete_forms():
