@@ -22,6 +22,7 @@ The step assumes ``u`` is inside ``ctrl_range`` (MuJoCo clamps it) and that no j
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import casadi as ca
@@ -101,21 +102,42 @@ class CartPoleModel:
     dt: float
     integrator: str
     f: ca.Function
-    A: ca.Function
-    B: ca.Function
     AB: ca.Function
     mass_matrix: ca.Function
     bias: ca.Function
     energy: ca.Function
     pole_energy: ca.Function | None
     step: ca.Function
-    Ad: ca.Function
-    Bd: ca.Function
     ABd: ca.Function
     x_eq: np.ndarray
     u_eq: np.ndarray
     x_hanging: np.ndarray
     u_hanging: np.ndarray
+
+    # ---- single Jacobians, built on first use (AB and ABd serve every caller in the package) --------------
+    def _part(self, fun: ca.Function, k: int, name: str) -> ca.Function:
+        x, u = ca.SX.sym("x", self.nx), ca.SX.sym("u", self.nu)
+        return ca.Function(name, [x, u], [fun(x, u)[k]], ["x", "u"], [name], _OPTS)
+
+    @functools.cached_property
+    def A(self) -> ca.Function:
+        """``(x, u) -> df/dx`` (nx, nx)."""
+        return self._part(self.AB, 0, "A")
+
+    @functools.cached_property
+    def B(self) -> ca.Function:
+        """``(x, u) -> df/du`` (nx, nu)."""
+        return self._part(self.AB, 1, "B")
+
+    @functools.cached_property
+    def Ad(self) -> ca.Function:
+        """``(x, u) -> d step/dx`` (nx, nx)."""
+        return self._part(self.ABd, 0, "Ad")
+
+    @functools.cached_property
+    def Bd(self) -> ca.Function:
+        """``(x, u) -> d step/du`` (nx, nu)."""
+        return self._part(self.ABd, 1, "Bd")
 
     # ---- sizes and named indices ------------------------------------------------------------
     @property
@@ -312,16 +334,12 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     fn = lambda name, i, o, names_in, names_out: ca.Function(name, i, o, names_in, names_out, _OPTS)  # noqa: E731
     funcs = dict(
         f=f,
-        A=fn("A", [x, u], [Ax], ["x", "u"], ["A"]),
-        B=fn("B", [x, u], [Bu], ["x", "u"], ["B"]),
         AB=fn("AB", [x, u], [Ax, Bu], ["x", "u"], ["A", "B"]),
         mass_matrix=fn("mass_matrix", [x], [M], ["x"], ["M"]),
         bias=fn("bias", [x], [bias], ["x"], ["bias"]),
         energy=fn("energy", [x], [E], ["x"], ["E"]),
         pole_energy=pole_energy,
         step=step,
-        Ad=fn("Ad", [x, u], [Adx], ["x", "u"], ["Ad"]),
-        Bd=fn("Bd", [x, u], [Bdu], ["x", "u"], ["Bd"]),
         ABd=fn("ABd", [x, u], [Adx, Bdu], ["x", "u"], ["Ad", "Bd"]),
     )
     return CartPoleModel(params=p, dt=h, integrator=integ, x_eq=readonly(x_eq), u_eq=readonly(u_eq),
