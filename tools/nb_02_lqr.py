@@ -26,7 +26,7 @@ import matplotlib.pyplot as plt
 from IPython.display import Image, Video, display
 import cartpole as cp
 from cartpole.lab import run_lab
-from cartpole.validation.lab_plot import plot_lab
+from cartpole.viz import plot_lab
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the sweep and the video
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook02"))
@@ -226,7 +226,7 @@ The first start ($\theta_0 = 5°$) rendered offscreen from the logged rollout (`
 pole leans toward $+x$ in the first frame and the cart drives under it.
 """),
 ("code", r"""
-from cartpole.validation.video import VideoUnavailable, render_video
+from cartpole.viz import VideoUnavailable, render_video
 
 clip = cp.simulate(params, lab.controller(), lab.x0s[0], 3.0 if QUICK else 10.0)
 try:

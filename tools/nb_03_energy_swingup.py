@@ -56,7 +56,7 @@ from cartpole.models import wrap_angle
 from cartpole.swingup import run_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation import BasinCache
-from cartpole.validation.swingup_plot import plot_swingup
+from cartpole.viz import plot_swingup
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the simulations
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook03"))

@@ -77,7 +77,7 @@ joint ranges; every number from a MuJoCo run.
 """),
 ("code", r"""
 from cartpole.lab import run_lab
-from cartpole.validation.lab_plot import plot_lab
+from cartpole.viz import plot_lab
 
 lab = run_lab(MJCF, duration=3.0 if QUICK else 6.0)
 print("K =", lab.K.ravel())
@@ -95,7 +95,7 @@ limit and the ctrl in range, and the logged ctrl replays exactly.
 ("code", r"""
 from cartpole.swingup import run_swingup
 from cartpole.sim import replays_exactly
-from cartpole.validation.swingup_plot import plot_swingup
+from cartpole.viz import plot_swingup
 
 results = {}
 for method in ("energy", "trajopt"):
@@ -113,7 +113,7 @@ for method in ("energy", "trajopt"):
 Rendered offscreen with `mujoco.Renderer` from the logged rollout on its own 30 fps clock (H.264 via imageio-ffmpeg).
 """),
 ("code", r"""
-from cartpole.validation.video import VideoUnavailable, render_video
+from cartpole.viz import VideoUnavailable, render_video
 
 try:
     path = render_video(params, results["trajopt"].rollout, OUT / "my_cartpole_trajopt.mp4", width=320, height=240)

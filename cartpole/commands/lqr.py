@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cartpole._files import atomic_write
+
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
 
@@ -52,18 +54,12 @@ def metrics_row(result, *, date: str | None = None, commit: str | None = None) -
 
 
 def append_metrics(path: Path, row: str) -> Path:
-    """Append ``row`` to the CSV at ``path`` (header first when creating it); rewritten via a temporary file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """Append ``row`` to the CSV at ``path`` (header first when creating it); rewritten whole
+    (:func:`~cartpole._files.atomic_write`)."""
     old = path.read_text() if path.exists() else METRICS_HEADER + "\n"
     if old and not old.endswith("\n"):
         old += "\n"
-    tmp = path.with_name(f".{path.name}.partial")
-    try:
-        tmp.write_text(old + row + "\n")
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return atomic_write(path, lambda fh: fh.write((old + row + "\n").encode()))
 
 
 def _progress(label: str):
@@ -76,9 +72,8 @@ def _progress(label: str):
 def run(args) -> dict:
     """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
     from cartpole.lab import run_lab
-    from cartpole.validation.lab_plot import plot_lab
     from cartpole.sim import simulate
-    from cartpole.validation.video import VideoUnavailable, render_video
+    from cartpole.viz import VideoUnavailable, plot_lab, render_video
 
     # Everything that can fail on bad input happens before the first file is written.
     result = run_lab(args.mjcf, discrete=args.discrete)

@@ -30,7 +30,7 @@ def run(args) -> dict:
 
     from cartpole.models.params import read_params
     from cartpole.swingup import SwingupError, check_start, run_swingup
-    from cartpole.validation.swingup_plot import plot_swingup
+    from cartpole.viz import plot_swingup
 
     # Everything is validated before anything is computed or written.
     params = read_params(args.mjcf)
@@ -47,7 +47,7 @@ def run(args) -> dict:
                        title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
     video = None
     if not args.no_video:
-        from cartpole.validation.video import VideoUnavailable, render_video
+        from cartpole.viz import VideoUnavailable, render_video
         try:
             video = render_video(params, res.rollout, out / "videos" / f"swingup_{args.method}.mp4",
                                  progress=lambda f: _progress("video", f))

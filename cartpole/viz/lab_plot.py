@@ -3,13 +3,15 @@
 Drawn with matplotlib's object API on an Agg canvas (no pyplot, no global backend switch), laid out as the
 handout's: two stacked axes sharing time, one line per start labelled ``θ₀=5°, x₀=0, ts=0.06s`` (start angle,
 start cart position, the handout's settling time), a legend, units, and the mean ± population std of the
-handout's settling time in the title. Saved to a temporary file, then renamed.
+handout's settling time in the title. Written whole or not at all (:func:`~cartpole._files.atomic_write`).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+
+from cartpole._files import atomic_write
 
 
 def _label(x0, ts: float) -> str:
@@ -37,8 +39,6 @@ def plot_lab(result, path, *, dpi: int = 120) -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig = Figure(figsize=(10, 6))
     FigureCanvasAgg(fig)
     ax_th, ax_s = fig.subplots(2, 1, sharex=True)
@@ -59,10 +59,4 @@ def plot_lab(result, path, *, dpi: int = 120) -> Path:
                  f"± {result.std_settling_time_seed:.2f}s ({len(result.rollouts)} initial conditions, "
                  "|θ| ≤ 0.05 rad)")
     fig.tight_layout()
-    tmp = path.with_name(f".{path.stem}.partial{path.suffix or '.png'}")
-    try:
-        fig.savefig(tmp, dpi=dpi, format="png")
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))

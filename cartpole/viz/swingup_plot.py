@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._files import atomic_write
-from cartpole.models.symbolic import wrap_angle
+from cartpole.models import build_model, wrap_angle
 
 
 def _energy(model, x: np.ndarray) -> np.ndarray:
@@ -19,7 +19,7 @@ def _energy(model, x: np.ndarray) -> np.ndarray:
 
 def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = None, title: str | None = None,
                  model=None) -> Path:
-    """Draw a swing-up rollout and save it as PNG (written to a temporary file, then renamed).
+    """Draw a swing-up rollout and save it as PNG (whole or not at all: :func:`~cartpole._files.atomic_write`).
 
     Parameters
     ----------
@@ -45,11 +45,7 @@ def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from cartpole.models.symbolic import build_model
-
     model = model or build_model(params)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     t, x = rollout.t, rollout.x
     fig = Figure(figsize=(8, 9))
     FigureCanvasAgg(fig)

@@ -8,7 +8,8 @@ Headless OpenGL: ``MUJOCO_GL`` must name the backend *before* mujoco is first im
 command sets ``egl`` by default). If the backend in use cannot make a context and it was EGL, the frames are
 tried once more in a child process with ``MUJOCO_GL=osmesa`` (a process cannot switch backends once mujoco
 and PyOpenGL are loaded). Every failure ends in :class:`VideoUnavailable` with one sentence; the target file
-is never left half written (frames go to a temporary file that is renamed at the end).
+is never left half written (frames go to a temporary file that is renamed at the end,
+:func:`~cartpole._files.atomic_path`).
 """
 from __future__ import annotations
 
@@ -25,16 +26,14 @@ from typing import Callable
 
 import numpy as np
 
-from cartpole.errors import CartPoleError
+from cartpole._files import atomic_path
+from cartpole.errors import CartPoleError, first_line
+from cartpole.models import CartPoleParams
+from cartpole.sim import Rollout, make_mujoco
 
 
 class VideoUnavailable(CartPoleError):
     """No working OpenGL backend or video encoder: the video cannot be made on this machine."""
-
-
-def _first_line(exc: BaseException) -> str:
-    lines = str(exc).strip().splitlines()
-    return (lines[0].rstrip(".") if lines else type(exc).__name__)[:200]
 
 
 def frame_indices(t, fps: float) -> np.ndarray:
@@ -58,8 +57,6 @@ def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, p
     import imageio_ffmpeg
     import mujoco
 
-    from cartpole.sim import make_mujoco
-
     m, d = make_mujoco(source if source is not None else (rollout.mjcf or None))
     # The offscreen buffer the MJCF declares bounds the frame size; even sizes keep yuv420p happy.
     width = int(min(width, m.vis.global_.offwidth)) // 2 * 2
@@ -78,7 +75,7 @@ def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, p
             renderer = mujoco.Renderer(m, height=height, width=width)
         except Exception as exc:  # GL failures surface as ImportError, RuntimeError, mujoco.FatalError ...
             backend = os.environ.get("MUJOCO_GL", "") or "default"
-            why = _first_line(caught[0].message) if caught else _first_line(exc)
+            why = first_line(caught[0].message) if caught else first_line(exc)
             why = re.split(r"[,;] ", why.replace("b'", "").replace("'", ""))[0]
             raise VideoUnavailable(f"No working OpenGL backend for offscreen rendering (MUJOCO_GL={backend}: "
                                    f"{why}); install Mesa's EGL or OSMesa, or skip the video.") from None
@@ -104,7 +101,7 @@ def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, p
     except VideoUnavailable:
         raise
     except Exception as exc:
-        raise VideoUnavailable(f"Rendering or encoding the video failed ({_first_line(exc)}); "
+        raise VideoUnavailable(f"Rendering or encoding the video failed ({first_line(exc)}); "
                                "check MUJOCO_GL and that imageio-ffmpeg is installed.") from None
     finally:
         if writer is not None:
@@ -123,8 +120,6 @@ def _osmesa_available() -> bool:
 def _render_in_child(source, rollout, path: Path, *, fps, width, height, camera, progress,
                      backend: str = "osmesa"):
     """Render with ``MUJOCO_GL=backend`` in a fresh Python process (the only way to switch GL backends)."""
-    from cartpole.models.params import CartPoleParams
-
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "rollout.json"
         rollout.save(log)
@@ -141,7 +136,7 @@ def _render_in_child(source, rollout, path: Path, *, fps, width, height, camera,
         env = {**os.environ, "MUJOCO_GL": backend}
         if backend in ("osmesa", "egl"):
             env["PYOPENGL_PLATFORM"] = backend
-        r = subprocess.run([sys.executable, "-m", "cartpole.validation.video", json.dumps(job)],
+        r = subprocess.run([sys.executable, "-m", "cartpole.viz.video", json.dumps(job)],
                            env=env, capture_output=True, text=True)
     if r.returncode != 0:
         msg = (r.stderr.strip().splitlines() or ["unknown error"])[-1]
@@ -184,25 +179,23 @@ def render_video(source, rollout, path, *, fps: float = 30, width: int = 640, he
     """
     path = Path(path)
     made = [p for p in (path.parent, *path.parent.parents) if not p.exists()]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.partial{path.suffix or '.mp4'}")
     opts = dict(fps=fps, width=width, height=height, camera=camera, progress=progress)
     ok = False
     try:
-        try:
-            _render_frames(source, rollout, tmp, **opts)
-        except VideoUnavailable as first:
-            backend = os.environ.get("MUJOCO_GL", "").lower()
-            if backend != "egl" or not _osmesa_available() or "OpenGL" not in str(first):
-                raise
+        # the temporary file keeps the .mp4 ending: ffmpeg picks the container from the name
+        with atomic_path(path, suffix=path.suffix or ".mp4") as tmp:
             try:
-                _render_in_child(source, rollout, tmp, **opts)
-            except VideoUnavailable:
-                raise first from None
-        tmp.replace(path)
+                _render_frames(source, rollout, tmp, **opts)
+            except VideoUnavailable as first:
+                backend = os.environ.get("MUJOCO_GL", "").lower()
+                if backend != "egl" or not _osmesa_available() or "OpenGL" not in str(first):
+                    raise
+                try:
+                    _render_in_child(source, rollout, tmp, **opts)
+                except VideoUnavailable:
+                    raise first from None
         ok = True
     finally:
-        tmp.unlink(missing_ok=True)
         if not ok:  # leave no trace: remove the (empty) directories this call created
             for d in made:
                 try:
@@ -213,9 +206,7 @@ def render_video(source, rollout, path, *, fps: float = 30, width: int = 640, he
 
 
 def _child_main(argv) -> int:
-    """Entry of the OSMesa fallback child: ``python -m cartpole.validation.video JOB_JSON``."""
-    from cartpole.sim import Rollout
-
+    """Entry of the OSMesa fallback child: ``python -m cartpole.viz.video JOB_JSON``."""
     job = json.loads(argv[0])
     try:
         _render_frames(job["source"], Rollout.load(job["rollout"]), Path(job["path"]), fps=job["fps"],

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cartpole import replay
-from cartpole.validation.video import VideoUnavailable, frame_indices, render_video
+from cartpole.viz import VideoUnavailable, frame_indices, render_video
 
 
 def _read_video(path):
@@ -56,7 +56,7 @@ def test_unknown_camera_is_refused_without_a_file(tmp_path):
 def test_missing_gl_backend_is_one_sentence(tmp_path):
     """A backend that cannot work headless (GLX without a display) ends in VideoUnavailable, no file."""
     code = ("import numpy as np, cartpole as cp\n"
-            "from cartpole.validation.video import render_video, VideoUnavailable\n"
+            "from cartpole.viz import render_video, VideoUnavailable\n"
             "run = cp.replay(None, [0, 0, 0, 0], np.zeros(20))\n"
             f"try:\n    render_video(None, run, {str(tmp_path / 'v.mp4')!r})\n"
             "except VideoUnavailable as e:\n    print(str(e))\n")
@@ -71,7 +71,7 @@ def test_missing_gl_backend_is_one_sentence(tmp_path):
 
 def test_the_child_process_route_renders_the_same_video(tmp_path):
     """The OSMesa fallback renders in a child process; exercised here with the backend this machine has."""
-    from cartpole.validation.video import _render_frames, _render_in_child
+    from cartpole.viz.video import _render_frames, _render_in_child
 
     run = replay(None, [0.0, 0.1, 0.0, 0.0], np.zeros(100))  # 0.5 s
     opts = dict(fps=30, width=160, height=120, camera=None, progress=None)
