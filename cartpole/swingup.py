@@ -42,7 +42,7 @@ class SwingupResult:
     method : str
         "energy" or "trajopt".
     success : bool
-        :func:`~cartpole.validation.swingup_metrics.swingup_success` of the rollout.
+        :func:`~cartpole.validation.metrics.swingup_success` of the rollout.
     caught_at : float or None
         s: when the LQR catch took over for good (energy: last switch into the basin; trajopt: the plan's
         handover time), None if it never did.
@@ -53,7 +53,7 @@ class SwingupResult:
     basin : BasinEstimate or None
         The catch basin estimate used (energy) or checked against at the handover (trajopt).
     metrics : dict
-        :func:`~cartpole.validation.swingup_metrics.swingup_metrics` plus ``switches`` (list of
+        :func:`~cartpole.validation.metrics.swingup_metrics` plus ``switches`` (list of
         ``{"t", "mode", "cost"}``) and, for trajopt, ``handover_cost`` (``e' S e`` at the handover).
     """
 
@@ -145,7 +145,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
     from cartpole.control.switching import SwitchingController, swingup_catch
     from cartpole.models.symbolic import build_model
     from cartpole.validation.basin import estimate_basin
-    from cartpole.validation.swingup_metrics import swingup_metrics
+    from cartpole.validation.metrics import swingup_metrics
 
     if method not in METHODS:
         raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")

@@ -35,7 +35,7 @@ from cartpole.control.linear import state_error
 from cartpole.models import wrap_angle
 from cartpole.ocp.pipeline import trajopt_swingup
 from cartpole.swingup import TRAJOPT_EXTRA          # s simulated after the plan (3 s, as `cartpole swingup`)
-from cartpole.validation.swingup_metrics import cart_clearance, held_upright
+from cartpole.validation.metrics import held_upright, track_margin
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation import swingup_metrics, swingup_success
 
@@ -190,7 +190,7 @@ for f in factors:
         print(f"    why not: held upright at rest over the last 1 s: {held_upright(rf)} (max |theta| "
               f"{np.rad2deg(np.abs(wrap_angle(rf.qpos[last, 1])).max()):.2f} deg, max |s_dot| "
               f"{np.abs(rf.qvel[last, 0]).max():.3f} m/s, max |theta_dot| {np.abs(rf.qvel[last, 1]).max():.3f} rad/s); "
-              f"cart clearance {cart_clearance(rf, params):.2f} m")
+              f"cart clearance {track_margin(rf.qpos, params.cart_range):.2f} m")
 
 fig, ax = plt.subplots(1, 2, figsize=(13, 4.5))
 for i, (f, (spf, rf)) in enumerate(cases.items()):

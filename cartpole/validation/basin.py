@@ -10,7 +10,8 @@ Method (documented in :class:`BasinEstimate`):
 2. run the catch ``u = clip(-K e)`` (``e`` the wrapped error) from each in MuJoCo on the MJCF for ``duration`` s;
 3. call a run a success when the cart never reaches its joint limit (kept ``limit_margin`` inside it) and at the
    end the pole is upright and still: ``|wrapped theta| < 0.05`` rad, ``|theta_dot| < 0.1`` rad/s,
-   ``|s_dot| < 0.1`` m/s;
+   ``|s_dot| < 0.1`` m/s (:mod:`~cartpole.validation.metrics`' ``UPRIGHT_TOL``, ``REST_RATE_TOL``,
+   ``REST_SPEED_TOL``);
 4. ``rho_sampled`` is the largest level below which every sample succeeded: the smallest cost ``e' S e`` of a
    failed sample. The samples only cover ``e' S e < rho_cover`` (``level``, or less where the track cuts the
    ellipsoid: ``(0.9 half-track)^2 / (S^-1)_00``), so above that they say nothing; the estimate is
@@ -24,15 +25,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cartpole.control.linear import LinearFeedback
 from cartpole._arrays import readonly
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import lab_catch
 from cartpole.errors import CartPoleError
-from cartpole.models.params import CartPoleParams, read_params
-
-#: Final-state tolerances of a successful catch: |wrapped theta| (rad), |theta_dot| (rad/s), |s_dot| (m/s).
-UPRIGHT_TOL = 0.05
-RATE_TOL = 0.1
-CART_SPEED_TOL = 0.1
+from cartpole.models import CartPoleParams, build_model, read_params, wrap_angle
+from cartpole.sim import simulate_batch_linear
+from cartpole.validation.metrics import REST_RATE_TOL, REST_SPEED_TOL, UPRIGHT_TOL
 
 
 class BasinError(CartPoleError):
@@ -139,9 +138,6 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     -------
     (n,) bool array
     """
-    from cartpole.models.symbolic import wrap_angle
-    from cartpole.sim import simulate_batch_linear
-
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     lo, hi = params.cart_range  # the slide joint's range (infinite when unlimited)
     lo, hi = lo + limit_margin, hi - limit_margin
@@ -151,8 +147,8 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     s = states[:, 1:, 0]  # the cart after every step
     stayed = np.all((lo < s) & (s < hi), axis=1)
     end = states[:, -1]
-    still = ((np.abs(wrap_angle(end[:, 1])) < UPRIGHT_TOL) & (np.abs(end[:, 3]) < RATE_TOL)
-             & (np.abs(end[:, 2]) < CART_SPEED_TOL))
+    still = ((np.abs(wrap_angle(end[:, 1])) < UPRIGHT_TOL) & (np.abs(end[:, 3]) < REST_RATE_TOL)
+             & (np.abs(end[:, 2]) < REST_SPEED_TOL))
     return stayed & still
 
 
@@ -200,9 +196,6 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
     -------
     BasinEstimate
     """
-    from cartpole.control.switching import lab_catch
-    from cartpole.models.symbolic import build_model
-
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     if catch is None:
         catch = lab_catch(build_model(params))

@@ -1,7 +1,7 @@
 """Replay metrics: small pure functions of a logged run's arrays (``t`` (n+1,), ``x`` (n+1, 4), ``ctrl`` (n, 1)).
 
 Pass a :class:`~cartpole.sim.rollout.Rollout` as ``run.t``, ``run.x``, ``run.ctrl``; :func:`summarize`
-does that for every metric at once.
+does that for every metric of the lab at once, :func:`swingup_metrics` for a swing-up.
 
 Two settling times, because they answer different questions:
 
@@ -17,6 +17,17 @@ Two settling times, because they answer different questions:
   ``|s - s*| <= 0.01 m``, ``|theta - theta*| <= 0.01 rad``, ``|s_dot| <= 0.01 m/s`` and
   ``|theta_dot| <= 0.01 rad/s`` holds at every later sample up to the end of the run (``inf`` if the last
   sample is outside that box).
+
+The swing-up's metrics use the same functions (all on the logged physics steps, angle errors wrapped to
+(-pi, pi]):
+
+* *upright*: ``|wrapped theta| < UPRIGHT_TOL`` (0.05 rad, the lab's settling band);
+* *at rest*: additionally ``|theta_dot| < REST_RATE_TOL`` (0.1 rad/s) and ``|s_dot| < REST_SPEED_TOL`` (0.1 m/s);
+* *time to upright*: :func:`settling_time_seed` of the run, the first logged time after which the pole stays
+  within the band until the end of the log (``None`` in :func:`swingup_metrics` when it never does);
+* *cart clearance*: :func:`track_margin`, the smallest distance to a cart joint limit over the run;
+* *success*: upright and at rest over the last ``hold`` seconds, the cart never within ``limit_tol`` of its joint
+  limit (where MuJoCo's limit constraint would push it), and every ctrl inside the ctrl range.
 """
 from __future__ import annotations
 
@@ -24,10 +35,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.models.symbolic import wrap_angle
+from cartpole.models import CartPoleParams, wrap_angle
 
-#: The handout's band on |theta| in rad.
-SEED_ANGLE_BAND = 0.05
+#: Upright band on the wrapped |theta - theta*| in rad: the lab handout's settling band, the swing-up's upright
+#: test and the catch basin's final-state test.
+UPRIGHT_TOL = 0.05
+
+#: "At rest" besides upright: |theta_dot| (rad/s) and |s_dot| (m/s) below these.
+REST_RATE_TOL = 0.1
+REST_SPEED_TOL = 0.1
 
 #: Half-widths of the strict settling box on [s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)].
 STRICT_TOLERANCE = (0.01, 0.01, 0.01, 0.01)
@@ -41,7 +57,7 @@ def _times_states(t, x) -> tuple[np.ndarray, np.ndarray]:
     return t, x
 
 
-def settling_time_seed(t, x, *, band: float = SEED_ANGLE_BAND, theta_eq: float = 0.0) -> float:
+def settling_time_seed(t, x, *, band: float = UPRIGHT_TOL, theta_eq: float = 0.0) -> float:
     """The lab handout's settling time: the time after which ``|theta|`` stays within ``band``.
 
     Parameters
@@ -50,20 +66,21 @@ def settling_time_seed(t, x, *, band: float = SEED_ANGLE_BAND, theta_eq: float =
     x : (n+1, 4) array
         States ``[s, theta, s_dot, theta_dot]``; only ``theta`` (rad) is used.
     band : float, rad
-        The handout's threshold, 0.05 rad.
+        The handout's threshold, :data:`UPRIGHT_TOL` (0.05 rad).
     theta_eq : float, rad
         Upright angle (0 in this toolkit); the wrapped error ``theta - theta_eq`` is tested.
 
     Returns
     -------
     float, s
-        ``0.0`` if ``|theta|`` never exceeds ``band``; otherwise ``t`` of the sample after the last sample
-        with ``|theta| > band``; ``inf`` when that last exceedance is the final sample.
+        ``t[0]`` (the handout's ``0.0`` for a run from t = 0) if ``|theta|`` never exceeds ``band``; otherwise
+        ``t`` of the sample after the last sample with ``|theta| > band``; ``inf`` when that last exceedance is
+        the final sample. For a swing-up this is the time to upright.
     """
     t, x = _times_states(t, x)
     above = np.flatnonzero(np.abs(wrap_angle(x[:, 1] - theta_eq)) > band)
     if above.size == 0:
-        return 0.0
+        return float(t[0])
     k = int(above[-1]) + 1
     return float(t[k]) if k < t.size else float("inf")
 
@@ -195,3 +212,65 @@ def summarize(run, *, x_eq=None, ctrl_range=(-np.inf, np.inf), cart_range=(-np.i
         saturation_fraction=saturation_fraction(run.ctrl, ctrl_range),
         track_margin=track_margin(run.x, cart_range),
     )
+
+
+def cart_range_used(rollout) -> tuple[float, float]:
+    """``(min, max)`` cart position in m over a :class:`~cartpole.sim.rollout.Rollout`."""
+    s = rollout.qpos[:, 0]
+    return float(s.min()), float(s.max())
+
+
+def ctrl_within_range(rollout, params: CartPoleParams) -> bool:
+    """Whether every applied ctrl of ``rollout`` lies inside ``params.ctrl_range``."""
+    lo, hi = params.ctrl_range
+    return bool(np.all((rollout.ctrl >= lo) & (rollout.ctrl <= hi)))
+
+
+def held_upright(rollout, *, hold: float = 1.0) -> bool:
+    """Whether the last ``hold`` seconds (and at least the final state) of ``rollout`` are upright and at rest."""
+    if rollout.t[-1] - rollout.t[0] < hold:
+        return False
+    last = rollout.t >= rollout.t[-1] - hold - 1e-12
+    th = np.abs(wrap_angle(rollout.qpos[last, 1]))
+    return bool(np.all(th < UPRIGHT_TOL) and np.all(np.abs(rollout.qvel[last, 1]) < REST_RATE_TOL)
+                and np.all(np.abs(rollout.qvel[last, 0]) < REST_SPEED_TOL))
+
+
+def swingup_success(rollout, params: CartPoleParams, *, hold: float = 1.0, limit_tol: float = 1e-3) -> bool:
+    """The swing-up succeeded: held upright at rest for the last ``hold`` s, cart never at its limit, ctrl in range.
+
+    Parameters
+    ----------
+    rollout : Rollout
+    params : CartPoleParams
+        The MJCF's parameters (cart and ctrl ranges).
+    hold : float
+        Seconds at the end that must be upright and at rest.
+    limit_tol : float
+        m: coming closer than this to a cart limit (:func:`track_margin`) counts as hitting it.
+
+    Returns
+    -------
+    bool
+    """
+    return bool(held_upright(rollout, hold=hold) and track_margin(rollout.qpos, params.cart_range) > limit_tol
+                and ctrl_within_range(rollout, params))
+
+
+def swingup_metrics(rollout, params: CartPoleParams, *, hold: float = 1.0) -> dict:
+    """All swing-up metrics of a :class:`~cartpole.sim.rollout.Rollout` in one JSON-ready dict.
+
+    Returns
+    -------
+    dict
+        ``success`` (bool, :func:`swingup_success`), ``time_to_upright`` (s, :func:`settling_time_seed`; None if
+        the pole is not upright at the end), ``peak_ctrl`` (ctrl units), ``cart_min``, ``cart_max``,
+        ``cart_clearance`` (m, :func:`track_margin`), ``duration`` (s).
+    """
+    lo, hi = cart_range_used(rollout)
+    t_up = settling_time_seed(rollout.t, rollout.x)
+    return {"success": swingup_success(rollout, params, hold=hold),
+            "time_to_upright": t_up if np.isfinite(t_up) else None,
+            "peak_ctrl": peak_ctrl(rollout.ctrl), "cart_min": lo, "cart_max": hi,
+            "cart_clearance": track_margin(rollout.qpos, params.cart_range),
+            "duration": float(rollout.t[-1] - rollout.t[0])}

@@ -2,7 +2,7 @@
 
 Each run is :func:`cartpole.swingup.run_swingup` (energy shaping + LQR catch, in MuJoCo on the MJCF), so a sweep
 measures exactly what ``cartpole swingup`` does. A run counts as a success when
-:func:`~cartpole.validation.swingup_metrics.swingup_success` holds (upright and at rest over the last second,
+:func:`~cartpole.validation.metrics.swingup_success` holds (upright and at rest over the last second,
 cart never at its limit, every ctrl in range) *and* its log replays exactly with ``mj_step``
 (:func:`~cartpole.sim.rollout.replays_exactly`). The basin estimate is computed once per model and reused
 (:class:`~cartpole.validation.basin.BasinCache`).
@@ -51,7 +51,7 @@ class SweepResult:
     success : (n,) bool array
         ``swingup_success`` of the MuJoCo rollout and the rollout replays exactly.
     time_to_upright : (n,) array
-        s (:func:`~cartpole.validation.swingup_metrics.time_to_upright`); NaN where the run failed.
+        s (``time_to_upright`` of :func:`~cartpole.validation.metrics.swingup_metrics`); NaN where the run failed.
     caught_at : (n,) array
         s, when the LQR catch took over for good; NaN if it never did.
     cart_clearance : (n,) array

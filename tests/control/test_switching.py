@@ -8,7 +8,7 @@ from cartpole.control.energy import EnergyShapingController
 from cartpole.control.switching import SwitchingController, SwitchingError, lab_catch
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.basin import estimate_basin
-from cartpole.validation.swingup_metrics import swingup_success
+from cartpole.validation.metrics import swingup_success
 
 
 @pytest.fixture(scope="module")

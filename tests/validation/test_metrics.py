@@ -1,10 +1,13 @@
-"""Replay metrics against independent computations: the handout's own settling_time code, brute force."""
+"""Replay metrics against independent computations: the handout's own settling_time code, brute force; the
+pure swing-up metrics on hand-made rollouts."""
 import numpy as np
 import pytest
 
-from cartpole.validation.metrics import (STRICT_TOLERANCE, peak_ctrl, saturation_fraction, settling_time_seed,
-                                         settling_time_strict, summarize, track_margin)
+from cartpole.models import read_params
 from cartpole.sim import Rollout
+from cartpole.validation.metrics import (STRICT_TOLERANCE, peak_ctrl, saturation_fraction, settling_time_seed,
+                                         settling_time_strict, summarize, swingup_metrics, swingup_success,
+                                         track_margin)
 
 
 def handout_settling_time(t, history, threshold=0.05):
@@ -101,3 +104,36 @@ def test_summarize_a_rollout():
     assert m.saturation_fraction == np.mean(np.abs(ctrl) == 1)
     assert m.track_margin == pytest.approx(1.5 - np.abs(x[:, 0]).max())
     assert m.settled == (np.isfinite(m.settling_time_strict) and m.track_margin > 0)
+
+
+def _rollout(theta, s=None, dt=0.01):
+    n = len(theta) - 1
+    s = np.zeros(n + 1) if s is None else s
+    return Rollout(t=np.arange(n + 1) * dt, qpos=np.column_stack([s, theta]), qvel=np.zeros((n + 1, 2)),
+                   ctrl=np.zeros((n, 1)))
+
+
+def test_time_to_upright_is_the_first_time_it_stays_upright():
+    th = np.concatenate([np.linspace(np.pi, 0.3, 50), [0.04, 0.2, 0.03], np.full(300, 2 * np.pi + 0.01)])
+    r = _rollout(th)
+    k = 50 + 2  # first index from which |wrapped theta| < 0.05 until the end
+    assert settling_time_seed(r.t, r.x) == pytest.approx(r.t[k])
+    assert swingup_metrics(r, read_params())["time_to_upright"] == pytest.approx(r.t[k])
+    never = _rollout(np.full(10, 1.0))
+    assert settling_time_seed(never.t, never.x) == np.inf
+    assert swingup_metrics(never, read_params())["time_to_upright"] is None
+
+
+def test_success_needs_hold_no_limit_contact_and_ctrl_in_range():
+    params = read_params()
+    up = _rollout(np.full(201, 0.01))
+    assert swingup_success(up, params, hold=1.0)
+    assert not swingup_success(up, params, hold=5.0)  # shorter than the hold
+    s = np.zeros(201)
+    s[10] = params.cart_range[1]
+    assert not swingup_success(_rollout(np.full(201, 0.01), s), params)
+    assert track_margin(_rollout(np.full(201, 0.01), s).qpos, params.cart_range) == 0.0
+    bad = Rollout(t=up.t, qpos=up.qpos, qvel=up.qvel, ctrl=np.full((200, 1), 1.5))
+    assert not swingup_success(bad, params)
+    m = swingup_metrics(up, params)
+    assert m["success"] and m["time_to_upright"] == 0.0
