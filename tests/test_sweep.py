@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from cartpole.validation.sweep import SweepError, SweepResult, sweep_starts, swingup_sweep
+from cartpole.sweep import SweepError, SweepResult, sweep_starts, swingup_sweep
 
 
 def test_quick_sweep_succeeds_on_the_shipped_asset():
@@ -34,3 +34,15 @@ def test_bad_settings_raise():
         swingup_sweep(None, n=0)
     with pytest.raises(SweepError):
         swingup_sweep(None, n=2, gain_jitter=1.5)
+
+
+def test_python_m_cartpole_sweep_prints_one_json_summary_per_model():
+    import json
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "cartpole.sweep", "--n", "1", "--json"], capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    (summary,) = json.loads(r.stdout)
+    assert summary["n"] == 1 and summary["successes"] == 1 and summary["mjcf"].endswith("cartpole.xml")

@@ -14,7 +14,7 @@ multiplies each dimensionless setting in :data:`JITTERED` by an independent ``U(
 
 Example (the before/after numbers of the README)::
 
-    python -m cartpole.validation.sweep --n 20 --seed 0 --all-variants
+    python -m cartpole.sweep --n 20 --seed 0
 """
 from __future__ import annotations
 
@@ -24,7 +24,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole.control.energy import DEFAULT_SCALING
 from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleParams, read_params
+from cartpole.sim import replays_exactly
+from cartpole.swingup import run_swingup
+from cartpole.validation.basin import BasinCache
 
 #: Default start box: centre (hanging at rest) and half-widths [m, rad, m/s, rad/s].
 HANGING = (0.0, np.pi, 0.0, 0.0)
@@ -130,10 +135,14 @@ class SweepResult:
                 "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": self.rho}
 
 
-def sweep_starts(n: int, *, seed: int = 0, center=HANGING, half_widths=HALF_WIDTHS) -> np.ndarray:
-    """Seeded start states (n, 4): ``center + U(-half_widths, half_widths)``."""
-    rng = np.random.default_rng(seed)
+def _draw_starts(rng, n: int, center, half_widths) -> np.ndarray:
     return np.asarray(center, float) + rng.uniform(-1, 1, (int(n), 4)) * np.asarray(half_widths, float)
+
+
+def sweep_starts(n: int, *, seed: int = 0, center=HANGING, half_widths=HALF_WIDTHS) -> np.ndarray:
+    """Seeded start states (n, 4): ``center + U(-half_widths, half_widths)`` (the starts :func:`swingup_sweep`
+    draws first from the same seed)."""
+    return _draw_starts(np.random.default_rng(seed), n, center, half_widths)
 
 
 def swingup_sweep(mjcf=None, *, n: int = 20, seed: int = 0, center=HANGING, half_widths=HALF_WIDTHS,
@@ -172,19 +181,13 @@ def swingup_sweep(mjcf=None, *, n: int = 20, seed: int = 0, center=HANGING, half
     -------
     SweepResult
     """
-    from cartpole.control.energy import DEFAULT_SCALING
-    from cartpole.models.params import CartPoleParams, read_params
-    from cartpole.swingup import run_swingup
-    from cartpole.validation.basin import BasinCache
-    from cartpole.sim import replays_exactly
-
     if int(n) < 1 or not (0 <= gain_jitter < 1) or np.any(np.asarray(half_widths, float) < 0):
         raise SweepError(f"A sweep needs n >= 1, half-widths >= 0 and 0 <= gain_jitter < 1 (got n = {n}, "
                          f"half_widths = {half_widths}, gain_jitter = {gain_jitter}).")
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     cache = BasinCache() if basin_cache is None else basin_cache
     rng = np.random.default_rng(seed)
-    starts = np.asarray(center, float) + rng.uniform(-1, 1, (int(n), 4)) * np.asarray(half_widths, float)
+    starts = _draw_starts(rng, n, center, half_widths)
     lo, hi = params.cart_range
     starts[:, 0] = np.clip(starts[:, 0], lo + 1e-3, hi - 1e-3)
     base = dict(energy_options or {})
@@ -230,12 +233,12 @@ def _seconds(value) -> str:
 
 
 def main(argv=None) -> int:
-    """``python -m cartpole.validation.sweep [--mjcf P ...] [--variants-dir D] [--n N] [--seed S] [--jitter J]
-    [--json]``: one summary line (or JSON) per model."""
+    """``python -m cartpole.sweep [--mjcf P ...] [--n N] [--seed S] [--jitter J] [--options JSON] [--json]``: one
+    summary line (or JSON) per model."""
     import argparse
     import json
 
-    ap = argparse.ArgumentParser(prog="python -m cartpole.validation.sweep", description=main.__doc__)
+    ap = argparse.ArgumentParser(prog="python -m cartpole.sweep", description=main.__doc__)
     ap.add_argument("--mjcf", nargs="*", default=[None], help="MJCF files (default: the shipped asset)")
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
