@@ -17,10 +17,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> dict:
-    """Run :func:`cartpole.ocp.bench.run` on ``args.mjcf``; print a table unless ``--json``."""
+    """Run :func:`cartpole.benchmark.run` on ``args.mjcf``; print a table unless ``--json``."""
+    from cartpole.benchmark import print_table
+    from cartpole.benchmark import run as bench_run
     from cartpole.errors import CartPoleError
-    from cartpole.ocp.bench import print_table
-    from cartpole.ocp.bench import run as bench_run
 
     repeats = args.repeats if args.repeats is not None else (2 if args.quick else 7)
     if repeats < 1:

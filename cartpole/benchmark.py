@@ -1,4 +1,5 @@
-"""Speed of the trajectory-optimisation pipeline next to the naive CasADi baseline, measured in one run.
+"""Speed of the trajectory-optimisation pipeline next to the naive CasADi baseline, measured in one run
+(``cartpole bench`` and ``benchmarks/bench_trajopt.py`` run this).
 
 Standard problem: the given MJCF (default the shipped asset), from hanging rest ``[0, pi, 0, 0]`` to upright
 rest in ``T = 2 s`` with ``N = 100`` Hermite-Simpson intervals, ``|ctrl| <= 1``, ``|cart| <= 1.4 m``,
@@ -22,6 +23,12 @@ import time
 
 import casadi as ca
 import numpy as np
+
+from cartpole.lqr import Q_LAB, R_LAB, tvlqr
+from cartpole.models import build_model, read_params
+from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.guess import initial_guesses
+from cartpole.sim import replay_benchmark
 
 HANGING = (0.0, np.pi, 0.0, 0.0)
 
@@ -101,11 +108,6 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         ``objective_rel_diff``, ``warm_start_solve_ms_median``, ``warm_start_speedup``, ``fatrop_...``},
         ``tvlqr`` {``ms_median``, ``steps``, ``dt``}, ``replay`` {...} (or None when not run).
     """
-    from cartpole.lqr import Q_LAB, R_LAB, tvlqr
-    from cartpole.models import build_model, read_params
-    from cartpole.ocp.collocation import DirectCollocation
-    from cartpole.ocp.guess import initial_guesses
-
     say = progress or (lambda msg: None)
     repeats = max(1, int(repeats))
     params = read_params(mjcf)
@@ -158,8 +160,6 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     replay_doc = None
     if replay:
         say(f"batched replay: {replay_rollouts} rollouts x 2 s ...")
-        from cartpole.sim import replay_benchmark
-
         replay_doc = replay_benchmark(params, rollouts=replay_rollouts, seconds=2.0,
                                       repeats=replay_repeats or repeats)
 
