@@ -1,33 +1,39 @@
-"""Replay metrics: small pure functions of a logged run's arrays (``t`` (n+1,), ``x`` (n+1, 4), ``ctrl`` (n, 1)).
+"""Replay metrics: small pure functions of a logged run's arrays (``t`` (n+1,), ``x`` (n+1, 2 nq), ``ctrl`` (n, nu)).
 
 Pass a :class:`~cartpole.sim.rollout.Rollout` as ``run.t``, ``run.x``, ``run.ctrl``; :func:`summarize`
 does that for every metric of the lab at once, :func:`swingup_metrics` for a swing-up.
 
+Every function takes the model's layout by name, never by column literal: ``hinges`` (qpos indices of the pole
+angles), ``slide`` (qpos index of the cart, or None) and ``x_eq`` (the upright equilibrium, (2 nq,)). Pass a
+:class:`~cartpole.models.symbolic.CartPoleModel` to :func:`summarize` (or a model or parameters to the swing-up
+functions) and they are read from it. Without them the cart-first layout is assumed: qpos 0 the cart's slide,
+every other qpos a hinge, upright at the origin (the single-pole cart ``[s, theta, s_dot, theta_dot]``).
+Angle *errors* from ``x_eq`` are wrapped to (-pi, pi]; states are never wrapped.
+
 Two settling times, because they answer different questions:
 
 * :func:`settling_time_seed` is the lab handout's definition, computed exactly as its ``settling_time``
-  does: find every sample with ``|theta| > 0.05 rad``; none -> ``0.0``; otherwise the time of the sample
-  *after* the last exceedance. It looks at the pole angle only, so a cart still rolling back to the
-  middle (or the pole still swinging inside the band) counts as settled. One deviation: when the very last
-  sample still exceeds the band the handout returns the final time stamp, which reads as "settled at the
-  end"; we return ``inf`` (never settled). The handout logged the state *before* each of its 1200 steps
-  (t = 0 .. 5.995 s); a :class:`Rollout` also holds the final state (t = 6.0 s), which changes nothing
-  unless the run never settles.
-* :func:`settling_time_strict` asks for the whole state: the first time after which every one of
-  ``|s - s*| <= 0.01 m``, ``|theta - theta*| <= 0.01 rad``, ``|s_dot| <= 0.01 m/s`` and
-  ``|theta_dot| <= 0.01 rad/s`` holds at every later sample up to the end of the run (``inf`` if the last
-  sample is outside that box).
+  does, applied to every pole angle: find every sample where some ``|theta_i - theta_i*| > 0.05 rad``; none ->
+  ``0.0``; otherwise the time of the sample *after* the last exceedance. For one pole this is the handout's
+  function. It looks at the pole angles only, so a cart still rolling back to the middle (or a pole still
+  swinging inside the band) counts as settled. One deviation: when the very last sample still exceeds the
+  band the handout returns the final time stamp, which reads as "settled at the end"; we return ``inf`` (never
+  settled). The handout logged the state *before* each of its 1200 steps (t = 0 .. 5.995 s); a
+  :class:`Rollout` also holds the final state (t = 6.0 s), which changes nothing unless the run never settles.
+* :func:`settling_time_strict` asks for the whole state: the first time after which every entry of the state
+  error ``x - x*`` (angle entries wrapped) stays within :data:`STRICT_TOLERANCE` (0.01 m, rad, m/s or rad/s)
+  at every later sample up to the end of the run (``inf`` if the last sample is outside that box).
 
-The swing-up's metrics use the same functions (all on the logged physics steps, angle errors wrapped to
-(-pi, pi]):
+The swing-up's metrics use the same functions (all on the logged physics steps):
 
-* *upright*: ``|wrapped theta| < UPRIGHT_TOL`` (0.05 rad, the lab's settling band);
-* *at rest*: additionally ``|theta_dot| < REST_RATE_TOL`` (0.1 rad/s) and ``|s_dot| < REST_SPEED_TOL`` (0.1 m/s);
-* *time to upright*: :func:`settling_time_seed` of the run, the first logged time after which the pole stays
+* *upright*: every wrapped ``|theta_i - theta_i*| < UPRIGHT_TOL`` (0.05 rad, the lab's settling band);
+* *at rest*: additionally every ``|theta_i_dot| < REST_RATE_TOL`` (0.1 rad/s) and ``|s_dot| < REST_SPEED_TOL``
+  (0.1 m/s);
+* *time to upright*: :func:`settling_time_seed` of the run, the first logged time after which every pole stays
   within the band until the end of the log (``None`` in :func:`swingup_metrics` when it never does);
 * *cart clearance*: :func:`track_margin`, the smallest distance to a cart joint limit over the run;
 * *success*: upright and at rest over the last ``hold`` seconds, the cart never within ``limit_tol`` of its joint
-  limit (where MuJoCo's limit constraint would push it), and every ctrl inside the ctrl range.
+  limit (where MuJoCo's limit constraint would push it), and every ctrl inside its actuator's ctrl range.
 """
 from __future__ import annotations
 
@@ -35,68 +41,110 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.models import CartPoleParams, wrap_angle
+from cartpole.models import CartPoleParams, state_error, wrap_angle
 
-#: Upright band on the wrapped |theta - theta*| in rad: the lab handout's settling band, the swing-up's upright
-#: test and the catch basin's final-state test.
+#: Upright band on every wrapped |theta_i - theta_i*| in rad: the lab handout's settling band, the swing-up's
+#: upright test and the catch basin's final-state test.
 UPRIGHT_TOL = 0.05
 
-#: "At rest" besides upright: |theta_dot| (rad/s) and |s_dot| (m/s) below these.
+#: "At rest" besides upright: every |theta_i_dot| (rad/s) and |s_dot| (m/s) below these.
 REST_RATE_TOL = 0.1
 REST_SPEED_TOL = 0.1
 
-#: Half-widths of the strict settling box on [s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)].
-STRICT_TOLERANCE = (0.01, 0.01, 0.01, 0.01)
+#: Half-width of the strict settling box on every entry of the state error (m, rad, m/s, rad/s).
+STRICT_TOLERANCE = 0.01
 
 
 def _times_states(t, x) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(t, dtype=float).ravel()
     x = np.asarray(x, dtype=float)
-    if x.ndim != 2 or x.shape[0] != t.shape[0] or x.shape[1] < 2:
-        raise ValueError(f"Need t (n+1,) and x (n+1, 4); got t {t.shape} and x {x.shape}.")
+    if x.ndim != 2 or x.shape[0] != t.shape[0] or x.shape[1] < 2 or x.shape[1] % 2:
+        raise ValueError(f"Need t (n+1,) and x (n+1, 2 nq) = [qpos, qvel]; got t {t.shape} and x {x.shape}.")
     return t, x
 
 
-def settling_time_seed(t, x, *, band: float = UPRIGHT_TOL, theta_eq: float = 0.0) -> float:
-    """The lab handout's settling time: the time after which ``|theta|`` stays within ``band``.
+def _hinges(hinges, nq: int) -> tuple:
+    """The hinge qpos indices given, or the cart-first default ``1 .. nq-1``."""
+    return tuple(range(1, nq)) if hinges is None else tuple(int(h) for h in hinges)
+
+
+def _x_eq(x_eq, nx: int) -> np.ndarray:
+    x_eq = np.zeros(nx) if x_eq is None else np.asarray(x_eq, dtype=float).ravel()
+    if x_eq.shape != (nx,):
+        raise ValueError(f"x_eq has {x_eq.size} entries but the states have {nx}.")
+    return x_eq
+
+
+def _layout(source):
+    """``(params, x_eq or None)`` of a model (anything with ``params`` and ``x_eq``) or of parameters."""
+    if isinstance(source, CartPoleParams):
+        return source, None
+    return source.params, np.asarray(source.x_eq, dtype=float)
+
+
+def pole_angle_errors(x, *, x_eq=None, hinges=None) -> np.ndarray:
+    """Wrapped angle errors from upright of every pole, (n+1, n_hinges) rad.
+
+    Parameters
+    ----------
+    x : (n+1, 2 nq) array
+        States ``[qpos, qvel]``.
+    x_eq : (2 nq,) array, optional
+        Upright equilibrium (default the origin).
+    hinges : sequence of int, optional
+        qpos indices of the pole angles (default ``1 .. nq-1``).
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    nq = x.shape[1] // 2
+    idx = list(_hinges(hinges, nq))
+    return wrap_angle(x[:, idx] - _x_eq(x_eq, x.shape[1])[idx])
+
+
+def settling_time_seed(t, x, *, band: float = UPRIGHT_TOL, x_eq=None, hinges=None) -> float:
+    """The lab handout's settling time: the time after which every ``|theta_i - theta_i*|`` stays within ``band``.
 
     Parameters
     ----------
     t : (n+1,) array, s
-    x : (n+1, 4) array
-        States ``[s, theta, s_dot, theta_dot]``; only ``theta`` (rad) is used.
+    x : (n+1, 2 nq) array
+        States ``[qpos, qvel]``; only the pole angles (rad) are used.
     band : float, rad
         The handout's threshold, :data:`UPRIGHT_TOL` (0.05 rad).
-    theta_eq : float, rad
-        Upright angle (0 in this toolkit); the wrapped error ``theta - theta_eq`` is tested.
+    x_eq : (2 nq,) array, optional
+        Upright equilibrium (default the origin); the wrapped errors ``theta_i - theta_i*`` are tested.
+    hinges : sequence of int, optional
+        qpos indices of the pole angles (default ``1 .. nq-1``: one pole -> column 1, the handout's).
 
     Returns
     -------
     float, s
-        ``t[0]`` (the handout's ``0.0`` for a run from t = 0) if ``|theta|`` never exceeds ``band``; otherwise
-        ``t`` of the sample after the last sample with ``|theta| > band``; ``inf`` when that last exceedance is
-        the final sample. For a swing-up this is the time to upright.
+        ``t[0]`` (the handout's ``0.0`` for a run from t = 0) if no angle error ever exceeds ``band``; otherwise
+        ``t`` of the sample after the last sample where one does; ``inf`` when that last exceedance is the
+        final sample. For a swing-up this is the time to upright.
     """
     t, x = _times_states(t, x)
-    above = np.flatnonzero(np.abs(wrap_angle(x[:, 1] - theta_eq)) > band)
+    err = pole_angle_errors(x, x_eq=x_eq, hinges=hinges)
+    above = np.flatnonzero(np.any(np.abs(err) > band, axis=1))
     if above.size == 0:
         return float(t[0])
     k = int(above[-1]) + 1
     return float(t[k]) if k < t.size else float("inf")
 
 
-def settling_time_strict(t, x, x_eq=None, *, tol=STRICT_TOLERANCE) -> float:
+def settling_time_strict(t, x, x_eq=None, *, tol=STRICT_TOLERANCE, hinges=None) -> float:
     """First time after which the whole state stays inside a box around the equilibrium until the end.
 
     Parameters
     ----------
     t : (n+1,) array, s
-    x : (n+1, 4) array
-        States ``[s, theta, s_dot, theta_dot]``.
-    x_eq : (4,) array, optional
-        Equilibrium ``x*`` (default the origin); the angle error is wrapped.
-    tol : (4,) sequence
-        Half-widths of the box, in m, rad, m/s, rad/s (default :data:`STRICT_TOLERANCE`).
+    x : (n+1, 2 nq) array
+        States ``[qpos, qvel]``.
+    x_eq : (2 nq,) array, optional
+        Equilibrium ``x*`` (default the origin); the angle errors are wrapped.
+    tol : float or (2 nq,) sequence
+        Half-widths of the box, in m, rad, m/s, rad/s (default :data:`STRICT_TOLERANCE` on every entry).
+    hinges : sequence of int, optional
+        qpos indices whose error is wrapped (default ``1 .. nq-1``).
 
     Returns
     -------
@@ -105,9 +153,7 @@ def settling_time_strict(t, x, x_eq=None, *, tol=STRICT_TOLERANCE) -> float:
         sample is outside (the run never settled).
     """
     t, x = _times_states(t, x)
-    x_eq = np.zeros(x.shape[1]) if x_eq is None else np.asarray(x_eq, dtype=float)
-    e = x - x_eq
-    e[:, 1] = wrap_angle(e[:, 1])
+    e = state_error(x, _x_eq(x_eq, x.shape[1]), _hinges(hinges, x.shape[1] // 2))
     inside = np.all(np.abs(e) <= np.asarray(tol, dtype=float), axis=1)
     if not inside[-1]:
         return float("inf")
@@ -115,48 +161,69 @@ def settling_time_strict(t, x, x_eq=None, *, tol=STRICT_TOLERANCE) -> float:
     return float(t[outside[-1] + 1]) if outside.size else float(t[0])
 
 
-def peak_ctrl(ctrl) -> float:
-    """Largest ``|ctrl|`` applied (MuJoCo ctrl units; force is ``gear`` times this), 0 for an empty log."""
+def _ctrl2d(ctrl) -> np.ndarray:
     ctrl = np.asarray(ctrl, dtype=float)
-    return float(np.abs(ctrl).max()) if ctrl.size else 0.0
+    return ctrl.reshape(-1, 1) if ctrl.ndim < 2 else ctrl
+
+
+def peak_ctrl_per_actuator(ctrl) -> np.ndarray:
+    """Largest ``|ctrl|`` of each actuator, (nu,) in MuJoCo ctrl units (zeros for an empty log).
+
+    ``ctrl`` is (n, nu) as a :class:`Rollout` logs it ((n,) is one actuator).
+    """
+    ctrl = _ctrl2d(ctrl)
+    return np.abs(ctrl).max(axis=0) if ctrl.shape[0] else np.zeros(ctrl.shape[1])
+
+
+def peak_ctrl(ctrl) -> float:
+    """Largest ``|ctrl|`` applied by any actuator: the max over actuators of :func:`peak_ctrl_per_actuator`
+    (MuJoCo ctrl units; force is ``gear`` times this), 0 for an empty log."""
+    peaks = peak_ctrl_per_actuator(ctrl)
+    return float(peaks.max()) if peaks.size else 0.0
 
 
 def saturation_fraction(ctrl, ctrl_range, *, atol: float = 1e-12) -> float:
-    """Fraction (0..1) of physics steps whose ctrl sits at a bound of ``ctrl_range`` (within ``atol``).
+    """Fraction (0..1) of physics steps in which some actuator's ctrl sits at a bound of its range (within ``atol``).
 
     Parameters
     ----------
-    ctrl : (n, 1) or (n,) array
+    ctrl : (n, nu) or (n,) array
         ctrl applied during each step (already clipped, as a :class:`Rollout` logs it).
-    ctrl_range : (2,) array
-        ``[low, high]``; infinite bounds never saturate.
+    ctrl_range : (nu, 2) or (2,) array
+        ``[low, high]`` per actuator (as ``CartPoleParams.ctrl_range``; one row is shared by all); infinite
+        bounds never saturate.
     """
-    u = np.asarray(ctrl, dtype=float).ravel()
-    if u.size == 0:
+    u = _ctrl2d(ctrl)
+    if u.shape[0] == 0:
         return 0.0
-    lo, hi = (float(v) for v in ctrl_range)
-    at_bound = (u <= lo + atol) | (u >= hi - atol)
+    rng = np.asarray(ctrl_range, dtype=float).reshape(-1, 2)
+    lo, hi = rng[:, 0], rng[:, 1]
+    at_bound = np.any((u <= lo + atol) | (u >= hi - atol), axis=1)
     return float(np.mean(at_bound))
 
 
-def track_margin(x, cart_range) -> float:
+def track_margin(x, cart_range, *, slide: int | None = 0) -> float:
     """Smallest distance in m of the cart to either end of its slide range over the run.
 
     Parameters
     ----------
-    x : (n+1, 4) or (n+1, 2) array
-        States or ``qpos``; column 0 is the cart position in m.
+    x : (n+1, 2 nq) or (n+1, nq) array
+        States or ``qpos``; column ``slide`` is the cart position in m.
     cart_range : (2,) array
         Slide joint range ``[low, high]`` in m (``inf`` when unlimited).
+    slide : int or None
+        qpos index of the cart's slide (``model.slide``; default 0); None (no cart) gives ``inf``.
 
     Returns
     -------
     float, m
-        ``min_k min(s_k - low, high - s_k)``: ``inf`` for an unlimited rail, ``<= 0`` when the cart reached
-        (or, through MuJoCo's soft limit, passed) a joint limit.
+        ``min_k min(s_k - low, high - s_k)``: ``inf`` for an unlimited rail or no cart, ``<= 0`` when the cart
+        reached (or, through MuJoCo's soft limit, passed) a joint limit.
     """
-    s = np.asarray(x, dtype=float)[:, 0]
-    lo, hi = (float(v) for v in cart_range)
+    if slide is None:
+        return float("inf")
+    s = np.asarray(x, dtype=float)[:, slide]
+    lo, hi = (float(v) for v in np.ravel(cart_range))
     return float(np.min(np.minimum(s - lo, hi - s)))
 
 
@@ -168,7 +235,7 @@ class RunMetrics:
     ----------
     settling_time_seed : float, s (``inf`` if never)
     settling_time_strict : float, s (``inf`` if never)
-    peak_ctrl : float, ctrl units
+    peak_ctrl : float, ctrl units (max over actuators)
     saturation_fraction : float, 0..1
     track_margin : float, m
     """
@@ -190,60 +257,89 @@ class RunMetrics:
         return bool(np.isfinite(self.settling_time_strict) and not self.hit_limit)
 
 
-def summarize(run, *, x_eq=None, ctrl_range=(-np.inf, np.inf), cart_range=(-np.inf, np.inf),
-              tol=STRICT_TOLERANCE) -> RunMetrics:
+def summarize(run, model=None, *, x_eq=None, hinges=None, slide: int | None = 0, ctrl_range=None,
+              cart_range=None, tol=STRICT_TOLERANCE) -> RunMetrics:
     """All metrics of a :class:`~cartpole.sim.rollout.Rollout` (anything with ``t``, ``x``, ``ctrl``).
 
     Parameters
     ----------
     run : Rollout
-    x_eq : (4,) array, optional
-        Equilibrium (default origin).
-    ctrl_range, cart_range : (2,) arrays
-        From :class:`~cartpole.models.params.CartPoleParams` (``ctrl_range``, ``cart_range``).
-    tol : (4,) sequence
+    model : CartPoleModel, optional
+        Supplies ``x_eq``, ``hinges``, ``slide``, the ctrl ranges and the cart range; keywords given override it.
+    x_eq : (2 nq,) array, optional
+        Equilibrium (default ``model.x_eq``, else the origin).
+    hinges : sequence of int, optional
+        Pole-angle qpos indices (default ``model.hinges``, else ``1 .. nq-1``).
+    slide : int or None
+        The cart's qpos index (used without ``model``; default 0).
+    ctrl_range : (nu, 2) or (2,) array, optional
+        Default ``model.params.ctrl_range``, else unbounded.
+    cart_range : (2,) array, optional
+        Default ``model.params.cart_range``, else unbounded.
+    tol : float or (2 nq,) sequence
         Strict settling box (m, rad, m/s, rad/s).
     """
-    x_eq = np.zeros(4) if x_eq is None else np.asarray(x_eq, dtype=float)
+    if model is not None:
+        x_eq = model.x_eq if x_eq is None else x_eq
+        hinges = model.hinges if hinges is None else hinges
+        slide = model.slide
+        ctrl_range = model.params.ctrl_range if ctrl_range is None else ctrl_range
+        cart_range = model.params.cart_range if cart_range is None else cart_range
+    ctrl_range = (-np.inf, np.inf) if ctrl_range is None else ctrl_range
+    cart_range = (-np.inf, np.inf) if cart_range is None else cart_range
     return RunMetrics(
-        settling_time_seed=settling_time_seed(run.t, run.x, theta_eq=float(x_eq[1])),
-        settling_time_strict=settling_time_strict(run.t, run.x, x_eq, tol=tol),
+        settling_time_seed=settling_time_seed(run.t, run.x, x_eq=x_eq, hinges=hinges),
+        settling_time_strict=settling_time_strict(run.t, run.x, x_eq, tol=tol, hinges=hinges),
         peak_ctrl=peak_ctrl(run.ctrl),
         saturation_fraction=saturation_fraction(run.ctrl, ctrl_range),
-        track_margin=track_margin(run.x, cart_range),
+        track_margin=track_margin(run.x, cart_range, slide=slide),
     )
 
 
-def cart_range_used(rollout) -> tuple[float, float]:
-    """``(min, max)`` cart position in m over a :class:`~cartpole.sim.rollout.Rollout`."""
-    s = rollout.qpos[:, 0]
+def cart_range_used(rollout, *, slide: int | None = 0) -> tuple[float, float]:
+    """``(min, max)`` cart position in m over a :class:`~cartpole.sim.rollout.Rollout` (``(0, 0)`` without a
+    cart, ``slide=None``)."""
+    if slide is None:
+        return 0.0, 0.0
+    s = rollout.qpos[:, slide]
     return float(s.min()), float(s.max())
 
 
 def ctrl_within_range(rollout, params: CartPoleParams) -> bool:
-    """Whether every applied ctrl of ``rollout`` lies inside ``params.ctrl_range``."""
-    lo, hi = params.ctrl_range
-    return bool(np.all((rollout.ctrl >= lo) & (rollout.ctrl <= hi)))
+    """Whether every applied ctrl of ``rollout`` lies inside its actuator's row of ``params.ctrl_range``."""
+    rng = np.asarray(params.ctrl_range, dtype=float).reshape(-1, 2)
+    u = _ctrl2d(rollout.ctrl)
+    return bool(np.all((u >= rng[:, 0]) & (u <= rng[:, 1])))
 
 
-def held_upright(rollout, *, hold: float = 1.0) -> bool:
-    """Whether the last ``hold`` seconds (and at least the final state) of ``rollout`` are upright and at rest."""
+def held_upright(rollout, *, hold: float = 1.0, x_eq=None, hinges=None, slide: int | None = 0) -> bool:
+    """Whether the last ``hold`` seconds (and at least the final state) of ``rollout`` are upright and at rest.
+
+    Every wrapped pole-angle error from ``x_eq`` must stay below :data:`UPRIGHT_TOL`, every hinge rate below
+    :data:`REST_RATE_TOL` and the cart speed (qvel ``slide``; skipped when None) below :data:`REST_SPEED_TOL`.
+    ``hinges`` defaults to ``1 .. nq-1``, ``x_eq`` to the origin.
+    """
     if rollout.t[-1] - rollout.t[0] < hold:
         return False
     last = rollout.t >= rollout.t[-1] - hold - 1e-12
-    th = np.abs(wrap_angle(rollout.qpos[last, 1]))
-    return bool(np.all(th < UPRIGHT_TOL) and np.all(np.abs(rollout.qvel[last, 1]) < REST_RATE_TOL)
-                and np.all(np.abs(rollout.qvel[last, 0]) < REST_SPEED_TOL))
+    x = rollout.x[last]
+    nq = x.shape[1] // 2
+    idx = list(_hinges(hinges, nq))
+    up = np.all(np.abs(pole_angle_errors(x, x_eq=x_eq, hinges=idx)) < UPRIGHT_TOL)
+    still = np.all(np.abs(x[:, [nq + h for h in idx]]) < REST_RATE_TOL)
+    cart = slide is None or np.all(np.abs(x[:, nq + slide]) < REST_SPEED_TOL)
+    return bool(up and still and cart)
 
 
-def swingup_success(rollout, params: CartPoleParams, *, hold: float = 1.0, limit_tol: float = 1e-3) -> bool:
+def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e-3) -> bool:
     """The swing-up succeeded: held upright at rest for the last ``hold`` s, cart never at its limit, ctrl in range.
 
     Parameters
     ----------
     rollout : Rollout
-    params : CartPoleParams
-        The MJCF's parameters (cart and ctrl ranges).
+    source : CartPoleModel or CartPoleParams
+        The model (its ``x_eq`` is the upright reference) or the MJCF's parameters (upright at qpos 0): hinges,
+        slide, cart and ctrl ranges.
     hold : float
         Seconds at the end that must be upright and at rest.
     limit_tol : float
@@ -253,24 +349,35 @@ def swingup_success(rollout, params: CartPoleParams, *, hold: float = 1.0, limit
     -------
     bool
     """
-    return bool(held_upright(rollout, hold=hold) and track_margin(rollout.qpos, params.cart_range) > limit_tol
+    params, x_eq = _layout(source)
+    return bool(held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
+                and track_margin(rollout.qpos, params.cart_range, slide=params.slide) > limit_tol
                 and ctrl_within_range(rollout, params))
 
 
-def swingup_metrics(rollout, params: CartPoleParams, *, hold: float = 1.0) -> dict:
+def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
     """All swing-up metrics of a :class:`~cartpole.sim.rollout.Rollout` in one JSON-ready dict.
+
+    Parameters
+    ----------
+    rollout : Rollout
+    source : CartPoleModel or CartPoleParams
+        As :func:`swingup_success`.
+    hold : float
+        Seconds at the end that must be upright and at rest.
 
     Returns
     -------
     dict
-        ``success`` (bool, :func:`swingup_success`), ``time_to_upright`` (s, :func:`settling_time_seed`; None if
-        the pole is not upright at the end), ``peak_ctrl`` (ctrl units), ``cart_min``, ``cart_max``,
-        ``cart_clearance`` (m, :func:`track_margin`), ``duration`` (s).
+        ``success`` (bool, :func:`swingup_success`), ``time_to_upright`` (s, :func:`settling_time_seed` over every
+        pole; None if not every pole is upright at the end), ``peak_ctrl`` (ctrl units, max over actuators),
+        ``cart_min``, ``cart_max``, ``cart_clearance`` (m, :func:`track_margin`), ``duration`` (s).
     """
-    lo, hi = cart_range_used(rollout)
-    t_up = settling_time_seed(rollout.t, rollout.x)
-    return {"success": swingup_success(rollout, params, hold=hold),
+    params, x_eq = _layout(source)
+    lo, hi = cart_range_used(rollout, slide=params.slide)
+    t_up = settling_time_seed(rollout.t, rollout.x, x_eq=x_eq, hinges=params.hinges)
+    return {"success": swingup_success(rollout, source, hold=hold),
             "time_to_upright": t_up if np.isfinite(t_up) else None,
             "peak_ctrl": peak_ctrl(rollout.ctrl), "cart_min": lo, "cart_max": hi,
-            "cart_clearance": track_margin(rollout.qpos, params.cart_range),
+            "cart_clearance": track_margin(rollout.qpos, params.cart_range, slide=params.slide),
             "duration": float(rollout.t[-1] - rollout.t[0])}

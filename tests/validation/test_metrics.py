@@ -5,9 +5,9 @@ import pytest
 
 from cartpole.models import read_params
 from cartpole.sim import Rollout
-from cartpole.validation.metrics import (STRICT_TOLERANCE, peak_ctrl, saturation_fraction, settling_time_seed,
-                                         settling_time_strict, summarize, swingup_metrics, swingup_success,
-                                         track_margin)
+from cartpole.validation.metrics import (STRICT_TOLERANCE, held_upright, peak_ctrl, peak_ctrl_per_actuator,
+                                         saturation_fraction, settling_time_seed, settling_time_strict, summarize,
+                                         swingup_metrics, swingup_success, track_margin)
 
 
 def handout_settling_time(t, history, threshold=0.05):
@@ -137,3 +137,109 @@ def test_success_needs_hold_no_limit_contact_and_ctrl_in_range():
     assert not swingup_success(bad, params)
     m = swingup_metrics(up, params)
     assert m["success"] and m["time_to_upright"] == 0.0
+
+
+def _chain_run(seed, nq=4, n=300, dt=0.005):
+    """A decaying run of a cart with nq - 1 poles, every angle one turn away from upright (wrapping matters)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n + 1) * dt
+    x = rng.uniform(-0.3, 0.3, 2 * nq) * np.exp(-np.outer(t, rng.uniform(2.0, 8.0, 2 * nq)))
+    x[:, 1:nq] += 2 * np.pi * rng.integers(-1, 2, nq - 1)
+    return t, x
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_seed_settling_time_is_the_handouts_applied_to_every_pole(seed):
+    t, x = _chain_run(seed)
+    # the handout's function on each pole's unwrapped error, the latest of them
+    per_pole = []
+    for h in (1, 2, 3):
+        one = np.zeros((len(t), 4))
+        one[:, 1] = np.mod(x[:, h] + np.pi, 2 * np.pi) - np.pi
+        per_pole.append(handout_settling_time(t, one))
+    assert settling_time_seed(t, x, hinges=(1, 2, 3)) == max(per_pole)
+    assert settling_time_seed(t, x) == max(per_pole)  # cart-first default: every qpos after the slide is a hinge
+
+
+def test_seed_settling_time_measures_from_the_equilibrium():
+    t = np.linspace(0, 1, 11)
+    x = np.zeros((11, 6))
+    x[:, 1], x[:, 2] = 0.01, -0.38  # the everything-chain's upright: the second link bent back
+    x_eq = np.array([0, 0.01, -0.38, 0, 0, 0])
+    assert settling_time_seed(t, x, x_eq=x_eq) == 0.0
+    assert settling_time_seed(t, x) == np.inf
+    # a model whose hinges are not after the slide (no cart: both qpos are hinges)
+    x = np.zeros((11, 4))
+    x[:5, 0] = 0.1
+    assert settling_time_seed(t, x, hinges=(0, 1)) == pytest.approx(0.5)
+    assert settling_time_seed(t, x) == 0.0  # the default layout reads column 0 as a cart
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_strict_settling_time_on_a_chain_matches_brute_force_on_wrapped_errors(seed):
+    t, x = _chain_run(seed, n=200)
+    e = x.copy()
+    e[:, 1:4] = np.mod(e[:, 1:4] + np.pi, 2 * np.pi) - np.pi
+    tol = STRICT_TOLERANCE * 3
+    assert settling_time_strict(t, x, tol=tol) == brute_force_strict(t, e, tol)
+    assert settling_time_strict(t, x, np.zeros(8), tol=tol, hinges=(1, 2, 3)) == brute_force_strict(t, e, tol)
+
+
+def test_peak_ctrl_is_per_actuator_then_max():
+    u = np.array([[0.2, -0.1], [-0.4, 0.3], [0.1, -0.45]])
+    np.testing.assert_array_equal(peak_ctrl_per_actuator(u), [0.4, 0.45])
+    assert peak_ctrl(u) == 0.45
+    assert peak_ctrl(np.zeros((0, 2))) == 0.0
+
+
+def test_saturation_counts_a_step_when_any_actuator_is_at_its_own_bound():
+    u = np.array([[1.0, 0.0], [0.0, 0.5], [0.0, 0.2], [-0.3, -0.5]])
+    assert saturation_fraction(u, [[-1, 1], [-0.5, 0.5]]) == pytest.approx(3 / 4)
+    assert saturation_fraction(u, [[-1, 1], [-np.inf, np.inf]]) == pytest.approx(1 / 4)
+
+
+def test_track_margin_reads_the_slide_column():
+    q = np.zeros((3, 3))
+    q[:, 2] = [0.0, 1.2, -0.4]  # a model whose slide is qpos 2
+    q[:, 0] = 5.0
+    assert track_margin(q, (-1.5, 1.5), slide=2) == pytest.approx(0.3)
+    assert track_margin(q, (-1.5, 1.5), slide=None) == np.inf
+
+
+def _chain_rollout(t, x, nu=1):
+    nq = x.shape[1] // 2
+    return Rollout(t=t, qpos=x[:, :nq], qvel=x[:, nq:], ctrl=np.zeros((len(t) - 1, nu)))
+
+
+def test_summarize_takes_the_layout_from_the_model():
+    from cartpole.models import build_model
+    from cartpole.models import SHIPPED_MJCF
+
+    model = build_model(SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
+    t, x = _chain_run(1, nq=model.nq)
+    x[:, 0] *= 10  # the cart goes out to a few metres
+    run = _chain_rollout(t, x)
+    m = summarize(run, model)
+    assert m.settling_time_seed == settling_time_seed(t, x, x_eq=model.x_eq, hinges=model.hinges)
+    assert m.settling_time_strict == settling_time_strict(t, x, model.x_eq, hinges=model.hinges)
+    lo, hi = model.params.cart_range
+    assert m.track_margin == pytest.approx(min(np.min(x[:, 0] - lo), np.min(hi - x[:, 0])))
+
+
+def test_swingup_metrics_need_every_pole_up_and_still():
+    from cartpole.models import SHIPPED_MJCF, read_params
+
+    params = read_params(SHIPPED_MJCF.with_name("cartpole_three_pole.xml"))
+    t = np.arange(401) * 0.005
+    x = np.zeros((401, 8))
+    run = _chain_rollout(t, x)
+    assert held_upright(run, hinges=params.hinges, slide=params.slide)
+    m = swingup_metrics(run, params)
+    assert m["success"] and m["time_to_upright"] == 0.0 and m["cart_clearance"] == pytest.approx(1.5)
+    x[:300, 3] = np.pi  # the last link hangs until t = 1.5 s
+    run = _chain_rollout(t, x)
+    assert not held_upright(run, hold=1.0, hinges=params.hinges) and held_upright(run, hold=0.4)
+    assert swingup_metrics(run, params)["time_to_upright"] == pytest.approx(1.5)
+    x[:] = 0
+    x[:, 7] = 0.2  # upright but the last link still turning
+    assert not swingup_metrics(_chain_rollout(t, x), params)["success"]
