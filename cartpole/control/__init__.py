@@ -5,7 +5,8 @@ __all__ = ["LinearFeedback", "state_error"]
 from cartpole.control.tvlqr import TVLQRController  # noqa: E402
 
 __all__ += ["TVLQRController"]
-from cartpole.control.energy import EnergyGains, EnergyShapingController, energy_guess  # noqa: E402
+from cartpole.control.energy import EnergyGains, EnergyShapingController, energy_guess, energy_rollout  # noqa: E402
 from cartpole.control.switching import Switch, SwitchingController, lab_catch  # noqa: E402
 
-__all__ += ["EnergyGains", "EnergyShapingController", "energy_guess", "Switch", "SwitchingController", "lab_catch"]
+__all__ += ["EnergyGains", "EnergyShapingController", "energy_guess", "energy_rollout", "Switch",
+            "SwitchingController", "lab_catch"]

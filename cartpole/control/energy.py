@@ -328,15 +328,43 @@ def energy_guess(model=None, x0=(0.0, np.pi, 0.0, 0.0), T: float = 4.0, N: int =
             controller = SwitchingController(controller, c, rho)
     h = model.dt
     n = int(np.ceil(T / h))
-    xs = np.empty((n + 1, 4))
-    us = np.empty(n)
-    xs[0] = np.asarray(x0, dtype=float)
-    lo, hi = model.params.ctrl_range
-    for k in range(n):
-        us[k] = float(np.clip(controller(k * h, xs[k]), lo, hi))
-        xs[k + 1] = model.step_np(xs[k], us[k])
+    xs, us = energy_rollout(model, controller, x0, n, u_limits=model.params.ctrl_range)
     tk = np.arange(n + 1) * h
     tg = np.linspace(0.0, T, N + 1)
     xg = np.column_stack([np.interp(tg, tk, xs[:, i]) for i in range(4)])
     idx = np.minimum((tg[:-1] / h).astype(int), n - 1)
     return tg, xg, us[idx].reshape(-1, 1)
+
+
+def energy_rollout(model: CartPoleModel, controller, x0, steps: int, *, u_limits) -> tuple[np.ndarray, np.ndarray]:
+    """Run the symbolic model's exact discrete step (``model.step_np``: the MJCF's integrator at ``model.dt``)
+    ``steps`` times under ``controller``, its ctrl clipped to ``u_limits``: the rollout behind every energy guess.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    controller : callable
+        ``(t (s), x (4,)) -> ctrl`` (scalar or (1,)), e.g. :class:`EnergyShapingController`.
+    x0 : (4,) array
+        Start state.
+    steps : int
+        Number of steps of ``model.dt`` s.
+    u_limits : (2,) array
+        ``[low, high]`` ctrl clip.
+
+    Returns
+    -------
+    x : (steps+1, 4) array
+        States, row 0 the start (NaN/inf are not caught: check them where it matters).
+    u : (steps,) array
+        ctrl applied during each step.
+    """
+    h = model.dt
+    lo, hi = u_limits
+    x = np.empty((steps + 1, 4))
+    u = np.empty(steps)
+    x[0] = np.asarray(x0, dtype=float)
+    for k in range(steps):
+        u[k] = float(np.clip(np.asarray(controller(k * h, x[k]), dtype=float).ravel()[0], lo, hi))
+        x[k + 1] = model.step_np(x[k], u[k])
+    return x, u

@@ -1,15 +1,16 @@
 """Initial guesses for the swing-up OCP that meet both boundary states.
 
 IPOPT started from a poor guess finds poor local minima or crawls. The guesses here, tried in order by
-:meth:`DirectCollocation.solve`: an energy-shaping rollout of the symbolic model (when
-``cartpole.control.energy`` is available), bent at the end onto the goal; then straight lines from start to
-goal turning the pole either way; then a pumping shape (one back-swing before the rise).
+:meth:`DirectCollocation.solve`: an energy-shaping rollout of the symbolic model
+(:func:`cartpole.control.energy.energy_rollout`), bent at the end onto the goal; then straight lines from start
+to goal turning the pole either way; then a pumping shape (one back-swing before the rise).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from cartpole.models.symbolic import CartPoleModel
+from cartpole.control.energy import EnergyShapingController, energy_rollout
+from cartpole.models import CartPoleModel
 from cartpole.ocp.trajectory import Trajectory
 
 
@@ -61,35 +62,29 @@ def pump_guess(x0, x_goal, t, *, swing: float = 1.0, cart: float = 0.3) -> tuple
     return x, u
 
 
-def energy_guess(model: CartPoleModel, x0, x_goal, T: float, N: int, *, u_max: float,
-                 cart_max: float) -> Trajectory | None:
-    """An energy-shaping rollout of the symbolic model over ``T`` s, bent linearly onto ``x_goal`` at the end.
+def energy_shaped_guess(model: CartPoleModel, x0, x_goal, T: float, N: int, *, u_max: float,
+                        cart_max: float) -> Trajectory | None:
+    """An energy-shaping rollout of the symbolic model over ``T`` s, bent onto ``x_goal`` at the end.
 
-    Uses ``cartpole.control.energy.EnergyShapingController(model)``; returns None when that module is not
-    available or the rollout fails. The goal angle is taken modulo 2 pi nearest to where the rollout ends.
+    The rollout is :func:`~cartpole.control.energy.energy_rollout` under ``EnergyShapingController(model)`` (no
+    catch), ctrl clipped to ``|u| <= u_max``, ``round(T / dt)`` steps, resampled on ``N + 1`` knots (states and
+    ctrl linearly) and bent quadratically in time onto ``x_goal``, the goal angle taken modulo 2 pi nearest to
+    where the rollout ends; cart positions clipped to ``|s| <= cart_max`` m. Returns None when the controller
+    cannot be built for the model or the rollout fails (NaN/inf).
     """
     try:
-        from cartpole.control.energy import EnergyShapingController
-    except ImportError:
-        return None
-    try:
         ctrl = EnergyShapingController(model)
-    except Exception:  # C's constructor may need other arguments in this checkout
+    except Exception:  # a model energy shaping cannot drive (no ctrl range ...)
         return None
     dt = model.dt
     n = max(1, int(round(T / dt)))
-    x = np.empty((n + 1, 4))
-    u = np.empty(n + 1)
-    x[0] = x0
     try:
-        for k in range(n):
-            u[k] = float(np.clip(np.asarray(ctrl(k * dt, x[k])).ravel()[0], -u_max, u_max))
-            x[k + 1] = model.step_np(x[k], u[k])
-            if not np.all(np.isfinite(x[k + 1])):
-                return None
+        x, u = energy_rollout(model, ctrl, x0, n, u_limits=(-u_max, u_max))
     except Exception:
         return None
-    u[n] = u[n - 1]
+    if not np.all(np.isfinite(x)):
+        return None
+    u = np.append(u, u[-1])  # the last knot holds the last ctrl
     t_fine = dt * np.arange(n + 1)
     t = np.linspace(0.0, T, N + 1)
     xs = np.column_stack([np.interp(t, t_fine, x[:, i]) for i in range(4)])
@@ -111,7 +106,7 @@ def initial_guesses(model: CartPoleModel, x0, x_goal, T: float, N: int, *, u_max
     x0 = np.asarray(x0, dtype=float)
     t = np.linspace(0.0, T, N + 1)
     out: list[Trajectory] = []
-    eg = energy_guess(model, x0, x_goal, T, N, u_max=u_max, cart_max=cart_max)
+    eg = energy_shaped_guess(model, x0, x_goal, T, N, u_max=u_max, cart_max=cart_max)
     if eg is not None:
         out.append(eg)
     # the two upright angles nearest the start, nearest first
