@@ -16,7 +16,7 @@ from typing import Callable
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models.params import CartPoleParams, read_params
+from cartpole.models import CartPoleParams, read_params
 from cartpole._arrays import readonly
 
 #: The handout's five starts ``[s (m), theta (rad), s_dot, theta_dot]``: 5, -5 and 8 degrees at the centre,
@@ -178,7 +178,7 @@ class LabResult:
 
 
 def design(model, Q, R, *, discrete: bool = False):
-    """LQR at upright rest of a :class:`~cartpole.models.symbolic.CartPoleModel`.
+    """LQR at upright rest of a :class:`~cartpole.models.CartPoleModel`.
 
     Returns ``(LQRResult, (A, B, Ad, Bd))``; ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``.
     """
@@ -219,7 +219,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | None = None, *, Q=None, R=None, 
         Bad MJCF, weights, or a model the lab cannot balance.
     """
     from cartpole.lqr import Q_LAB, R_LAB
-    from cartpole.models.symbolic import build_model
+    from cartpole.models import build_model
     from cartpole.control.linear import LinearFeedback
     from cartpole.validation.metrics import summarize
     from cartpole.sim import simulate

@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models.params import CartPoleParams, read_params
+from cartpole.models import CartPoleParams, read_params
 from cartpole.sim import Rollout, simulate
 
 METHODS = ("energy", "trajopt")
@@ -143,7 +143,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
     """
     from cartpole.control.energy import EnergyShapingController
     from cartpole.control.switching import SwitchingController, swingup_catch
-    from cartpole.models.symbolic import build_model
+    from cartpole.models import build_model
     from cartpole.validation.basin import estimate_basin
     from cartpole.validation.metrics import swingup_metrics
 

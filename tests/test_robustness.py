@@ -6,8 +6,7 @@ the cart inside the track for the last second), the cart never at its joint limi
 import numpy as np
 import pytest
 
-from cartpole.models import build_model, read_params
-from cartpole.models.symbolic import wrap_angle
+from cartpole.models import build_model, read_params, wrap_angle
 from cartpole.ocp.pipeline import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 

@@ -28,7 +28,7 @@ def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
 
-    from cartpole.models.params import read_params
+    from cartpole.models import read_params
     from cartpole.swingup import SwingupError, check_start, run_swingup
     from cartpole.viz import plot_swingup
 

@@ -38,7 +38,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models.symbolic import CartPoleModel, build_model
+from cartpole.models import CartPoleModel, build_model
 
 
 class EnergyShapingError(CartPoleError):

@@ -30,6 +30,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from cartpole._files import atomic_write
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 
 #: Flags for the C compiler; -O2 is as fast as -O3 here and compiles quicker.
@@ -141,9 +142,8 @@ def _build_library(funcs: list[ca.Function]) -> tuple[str, bool]:
         if proc.returncode != 0:
             last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
             raise RuntimeError(f"{Path(cc).name} failed: {last}")
-        partial = target / f".{lib.name}.{os.getpid()}.tmp"
-        shutil.copyfile(out, partial)
-        os.replace(partial, lib)  # atomic: a concurrent process sees the whole library or none
+        # atomic: a concurrent process sees the whole library or none
+        atomic_write(lib, lambda fh: fh.write(out.read_bytes()))
     return str(lib), True
 
 

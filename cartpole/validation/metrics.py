@@ -5,7 +5,7 @@ does that for every metric of the lab at once, :func:`swingup_metrics` for a swi
 
 Every function takes the model's layout by name, never by column literal: ``hinges`` (qpos indices of the pole
 angles), ``slide`` (qpos index of the cart, or None) and ``x_eq`` (the upright equilibrium, (2 nq,)). Pass a
-:class:`~cartpole.models.symbolic.CartPoleModel` to :func:`summarize` (or a model or parameters to the swing-up
+:class:`~cartpole.models.CartPoleModel` to :func:`summarize` (or a model or parameters to the swing-up
 functions) and they are read from it. Without them the cart-first layout is assumed: qpos 0 the cart's slide,
 every other qpos a hinge, upright at the origin (the single-pole cart ``[s, theta, s_dot, theta_dot]``).
 Angle *errors* from ``x_eq`` are wrapped to (-pi, pi]; states are never wrapped.
