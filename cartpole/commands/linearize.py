@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-HELP = "exact A, B (continuous) and Ad, Bd (one step of the MJCF's integrator) at upright rest"
+HELP = ("exact A, B (continuous) and Ad, Bd (one step of the MJCF's integrator) at the computed upright "
+        "equilibrium x_eq, u_eq")
 
 
 def add_arguments(parser) -> None:
@@ -11,22 +12,28 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> dict:
-    """Build the symbolic model from ``args.mjcf`` and return/print the linearisation."""
+    """Build the symbolic model from ``args.mjcf`` and return/print the linearisation at ``(x_eq, u_eq)``.
+
+    JSON: ``mjcf``, ``dt`` (s), ``integrator``, ``x_eq`` (2 nq,), ``u_eq`` (nu,), ``A`` (2 nq, 2 nq), ``B``
+    (2 nq, nu), ``Ad``, ``Bd`` (one step of the MJCF's integrator).
+    """
+    from cartpole.commands._state import state_sentence
     from cartpole.models import build_model, linearize
 
     model = build_model(args.mjcf)
     lin = linearize(model)
-    doc = {"mjcf": model.params.mjcf, "dt": lin["dt"], "integrator": lin["integrator"],
-           "A": lin["A"], "B": lin["B"], "Ad": lin["Ad"], "Bd": lin["Bd"]}
+    doc = {"mjcf": model.params.mjcf, "dt": lin["dt"], "integrator": lin["integrator"], "x_eq": lin["x_eq"],
+           "u_eq": lin["u_eq"], "A": lin["A"], "B": lin["B"], "Ad": lin["Ad"], "Bd": lin["Bd"]}
     if not args.json:
         with np.printoptions(precision=6, suppress=True, linewidth=100):
             print(f"MJCF: {doc['mjcf']}")
-            print("State x = [cart position (m), pole angle (rad), cart velocity (m/s), pole rate (rad/s)];"
-                  " input u = MuJoCo ctrl")
-            print("Continuous, at upright rest: x_dot = A x + B u")
+            print(state_sentence(model.params))
+            print("Upright equilibrium (computed): x_eq =", lin["x_eq"], " u_eq =", lin["u_eq"])
+            print("Continuous, at upright rest: d(x - x_eq)/dt = A (x - x_eq) + B (u - u_eq)")
             print("A =\n", lin["A"])
             print("B =\n", lin["B"])
-            print(f"Discrete, one {lin['integrator']} step of dt = {lin['dt']} s: x[k+1] = Ad x[k] + Bd u[k]")
+            print(f"Discrete, one {lin['integrator']} step of dt = {lin['dt']} s: "
+                  "x[k+1] - x_eq = Ad (x[k] - x_eq) + Bd (u[k] - u_eq)")
             print("Ad =\n", lin["Ad"])
             print("Bd =\n", lin["Bd"])
     return doc

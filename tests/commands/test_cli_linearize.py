@@ -13,7 +13,7 @@ from cartpole.models import SHIPPED_MJCF, build_model
 def test_linearize_json_follows_the_contract(capsys):
     assert main(["linearize", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert set(doc) == {"mjcf", "dt", "integrator", "A", "B", "Ad", "Bd"}
+    assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd"}
     assert Path(doc["mjcf"]).is_absolute() and Path(doc["mjcf"]) == SHIPPED_MJCF
     assert doc["dt"] == 0.005 and doc["integrator"] == "Euler"
     A, B, Ad, Bd = (np.array(doc[k]) for k in ("A", "B", "Ad", "Bd"))
@@ -22,6 +22,7 @@ def test_linearize_json_follows_the_contract(capsys):
     A_ref, B_ref = model.linearize()
     np.testing.assert_array_equal(A, A_ref)
     np.testing.assert_array_equal(Bd, model.linearize(discrete=True)[1])
+    assert doc["x_eq"] == [0, 0, 0, 0] and doc["u_eq"] == [0]
     # structure of a cart-pole at upright: positions integrate velocities, gravity destabilises the pole
     np.testing.assert_array_equal(A[:2], [[0, 0, 1, 0], [0, 0, 0, 1]])
     assert A[3, 1] > 0 and B[2, 0] > 0
@@ -50,12 +51,57 @@ def test_linearize_stdout_is_pure_json_through_python_m(tmp_path):
 
 
 def test_bad_mjcf_gives_one_sentence_and_exit_2(tmp_path):
-    bad = tmp_path / "two_hinges.xml"
+    bad = tmp_path / "ball_joint.xml"
     from variants import variant_xml
 
-    bad.write_text(variant_xml("rk4_fine_step").replace('type="slide" axis="1 0 0"', 'type="hinge" axis="0 0 1"'))
+    bad.write_text(variant_xml("rk4_fine_step").replace('type="slide" axis="1 0 0"', 'type="ball"'))
     r = subprocess.run([sys.executable, "-m", "cartpole", "linearize", "--json", "--mjcf", str(bad)],
                        capture_output=True, text=True)
     assert r.returncode == 2 and r.stdout == ""
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and "hinge" in lines[0] and "Traceback" not in r.stderr
+    assert len(lines) == 1 and "ball" in lines[0] and "Traceback" not in r.stderr
+
+
+def _linearize_json(path, capsys):
+    assert main(["linearize", "--json", "--mjcf", str(path)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    return doc, {k: np.array(doc[k]) for k in ("x_eq", "u_eq", "A", "B", "Ad", "Bd")}
+
+
+def test_linearize_json_shapes_on_the_two_pole_asset(capsys):
+    path = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+    doc, a = _linearize_json(path, capsys)
+    model = build_model(path)
+    assert (model.nq, model.nu) == (3, 1)
+    assert a["x_eq"].shape == (6,) and a["u_eq"].shape == (1,)
+    assert a["A"].shape == a["Ad"].shape == (6, 6) and a["B"].shape == a["Bd"].shape == (6, 1)
+    np.testing.assert_array_equal(a["x_eq"], model.x_eq)
+    A, B = model.linearize()
+    np.testing.assert_array_equal(a["A"], A)
+    np.testing.assert_array_equal(a["B"], B)
+    # positions integrate velocities; the motor pushes only through the rates
+    np.testing.assert_array_equal(a["A"][:3], np.hstack([np.zeros((3, 3)), np.eye(3)]))
+    np.testing.assert_array_equal(a["B"][:3], 0)
+    # the linearisation is at a rest point: the model's dynamics vanish there
+    assert np.abs(model.dynamics(a["x_eq"], a["u_eq"])).max() < 1e-9
+
+
+def test_linearize_json_shapes_with_two_motors(chain_dir, capsys):
+    path = chain_dir / "two_motors.xml"
+    doc, a = _linearize_json(path, capsys)
+    model = build_model(path)
+    assert (model.nq, model.nu) == (3, 2)
+    assert a["x_eq"].shape == (6,) and a["u_eq"].shape == (2,)
+    assert a["A"].shape == a["Ad"].shape == (6, 6) and a["B"].shape == a["Bd"].shape == (6, 2)
+    np.testing.assert_array_equal(a["Bd"], model.linearize(discrete=True)[1])
+    # each motor's column: the cart motor and the wrist motor drive different joints, so the columns differ
+    assert np.linalg.matrix_rank(a["B"][3:]) == 2
+    assert doc["integrator"] == "implicitfast"
+
+
+def test_linearize_prose_names_the_joints_and_the_equilibrium(capsys):
+    assert main(["linearize", "--mjcf", str(SHIPPED_MJCF.with_name("cartpole_three_pole.xml"))]) == 0
+    out = capsys.readouterr().out
+    assert "x_eq =" in out and "u_eq =" in out and "hinge3 rate (rad/s)" in out
+    A = out.split("A =")[1].split("B =")[0]
+    assert len([line for line in A.splitlines() if line.strip()]) == 8
