@@ -10,3 +10,6 @@ from cartpole.control.switching import Switch, SwitchingController, lab_catch  #
 
 __all__ += ["EnergyGains", "EnergyShapingController", "energy_guess", "energy_rollout", "Switch",
             "SwitchingController", "lab_catch"]
+from cartpole.control.pid import CascadedPID, PIDError, PIDGains, tune_pid  # noqa: E402
+
+__all__ += ["CascadedPID", "PIDError", "PIDGains", "tune_pid"]
