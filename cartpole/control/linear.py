@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.models.symbolic import wrap_angle
+from cartpole.models import wrap_angle
 
 
 def state_error(x, x_ref) -> np.ndarray:

@@ -33,7 +33,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models.symbolic import CartPoleModel, build_model
+from cartpole.models import CartPoleModel, build_model
 
 #: Defaults of :func:`tune_pid` (dimensionless), chosen on the shipped cart and checked on the test variants.
 DEFAULT_TUNING = dict(bandwidth_factor=1.0, integral_factor=10.0, filter_factor=10.0, tilt_fraction=0.1)
