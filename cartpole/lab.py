@@ -1,11 +1,19 @@
 """The day-5 LQR balance lab as one function call: design K, run five initial conditions in MuJoCo, measure.
 
-``run_lab()`` reproduces the lab handout's experiment on any cart-pole MJCF the toolkit reads: the exact
+``run_lab()`` reproduces the lab handout's experiment on any MJCF the toolkit reads and the LQR stabilises: a
+cart with one pole (the lab's), a chain of two or three, a pendulum with no cart, more than one motor. The exact
 linearisation at upright rest (continuous ``A, B`` from the symbolic model, or ``Ad, Bd`` of one step of the
-MJCF's integrator with ``discrete=True``), LQR with the lab's weights, and five 6 s MuJoCo runs of
-``u = u* - K (x - x*)`` (ctrl clipped to ``ctrlrange`` by MuJoCo) from the lab's five starts, each logged every
-physics step so it replays exactly. The settling statistics are those of
-:mod:`cartpole.validation.metrics` (the handout's definition and a strict one).
+MJCF's integrator with ``discrete=True``), LQR with the lab's weight pattern (:func:`~cartpole.lqr.lab_weights`:
+for one pole the handout's ``Q = diag(1, 10, 0.1, 0.1)``, ``R = 0.1``), and five 6 s MuJoCo runs of
+``u = u* - K (x - x*)`` (hinge errors wrapped, ctrl clipped to ``ctrlrange`` by MuJoCo) from the lab's five
+starts, each logged every physics step so it replays exactly. The settling statistics are those of
+:mod:`cartpole.validation.metrics` (the handout's definition over every pole angle, and a strict one).
+
+The starts (:func:`lab_initial_conditions`) are the handout's cart offsets on the slide and its angles on the
+*first* pole, every other joint at its upright equilibrium angle and everything at rest. When the model cannot
+catch them at full size (a triple pendulum on the lab's 20 N cart from 8 degrees), :func:`run_lab` scales all
+five down by the largest factor of 1, 1/2, 1/4, ... (:data:`START_SCALES`) from which every run settles, and
+reports that factor as ``start_scale``.
 """
 from __future__ import annotations
 
@@ -15,82 +23,132 @@ from typing import Callable
 
 import numpy as np
 
-from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, read_params
 from cartpole._arrays import readonly
+from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 
-#: The handout's five starts ``[s (m), theta (rad), s_dot, theta_dot]``: 5, -5 and 8 degrees at the centre,
-#: 3 degrees with the cart at 0.2 m, -4 degrees with the cart at -0.3 m.
-LAB_INITIAL_CONDITIONS = np.array([
-    [0.0, np.deg2rad(5.0), 0.0, 0.0],
-    [0.0, -np.deg2rad(5.0), 0.0, 0.0],
-    [0.0, np.deg2rad(8.0), 0.0, 0.0],
-    [0.2, np.deg2rad(3.0), 0.0, 0.0],
-    [-0.3, np.deg2rad(-4.0), 0.0, 0.0],
+#: The handout's five starts as offsets ``[cart (m), first pole angle (rad)]``: 5, -5 and 8 degrees at the centre,
+#: 3 degrees with the cart at 0.2 m, -4 degrees with the cart at -0.3 m (velocities zero).
+LAB_OFFSETS = np.array([
+    [0.0, np.deg2rad(5.0)],
+    [0.0, -np.deg2rad(5.0)],
+    [0.0, np.deg2rad(8.0)],
+    [0.2, np.deg2rad(3.0)],
+    [-0.3, np.deg2rad(-4.0)],
 ])
-LAB_INITIAL_CONDITIONS.setflags(write=False)
+LAB_OFFSETS.setflags(write=False)
+
+#: The handout's five starts on its single-pole cart, ``[s (m), theta (rad), s_dot, theta_dot]`` (5, 4).
+LAB_INITIAL_CONDITIONS = readonly(np.hstack([LAB_OFFSETS, np.zeros((5, 2))]))
 
 #: Seconds each lab run lasts (the handout's ``SIM_TIME_S``).
 LAB_DURATION = 6.0
 
+#: Factors tried in turn on the five starts: the first from which all five settle is used (1 when they settle
+#: at full size, as on every shipped asset); when none does, 1 (full size, reported unsettled).
+START_SCALES = tuple(0.5 ** k for k in range(7))
+
 #: Fraction of the room to a joint limit that a start may use (the rest is left for the transient).
 _ROOM = 0.5
+
+#: A state derivative below this (SI units) counts as rest when the cart is moved to the middle of its rail.
+_REST_TOL = 1e-9
 
 
 class LabError(CartPoleError):
     """The lab cannot be run on this model (e.g. its joint ranges exclude upright rest)."""
 
 
-def lab_equilibrium(params: CartPoleParams) -> np.ndarray:
-    """Upright rest ``x* = [s*, 0, 0, 0]`` (4,), ``s*`` the middle of the slide range (0 for a symmetric or
-    unlimited rail).
+def _model(source) -> CartPoleModel:
+    if isinstance(source, CartPoleModel):
+        return source
+    return build_model(source if isinstance(source, CartPoleParams) else read_params(source))
+
+
+def lab_equilibrium(source) -> np.ndarray:
+    """The lab's upright rest ``x*`` (2 nq,): the model's computed equilibrium with the cart in the middle of its rail.
+
+    Parameters
+    ----------
+    source : CartPoleModel, CartPoleParams or MJCF path
+        The model (its ``x_eq``: every pole's centre of mass above its hinge, at rest).
+
+    Returns
+    -------
+    (2 nq,) read-only array
+        ``model.x_eq`` with the slide at the middle of a finite rail (1 m clear of the only end of a rail limited on
+        one side, 0 on an unlimited one), provided the model rests there too (a slide without a spring); for one
+        pole on the shipped asset ``[0, 0, 0, 0]``.
 
     Raises
     ------
     LabError
-        When the hinge range excludes the upright angle 0.
+        When a hinge's range excludes its upright angle.
     """
-    lo, hi = (float(v) for v in params.cart_range)
-    if np.isfinite(lo) and np.isfinite(hi):
-        s_eq = 0.5 * (lo + hi)
-    elif np.isfinite(lo):  # a rail limited on one side only: start 1 m clear of that end
-        s_eq = max(0.0, lo + 1.0)
-    elif np.isfinite(hi):
-        s_eq = min(0.0, hi - 1.0)
-    else:
-        s_eq = 0.0
-    hlo, hhi = params.hinge_range
-    if not hlo < 0.0 < hhi:
-        raise LabError(f"The hinge range [{hlo:g}, {hhi:g}] rad does not contain the upright angle 0; "
-                       "the lab balances the pole upright, so widen the hinge range.")
-    return readonly([s_eq, 0.0, 0.0, 0.0])
+    model = _model(source)
+    p = model.params
+    x_eq = np.array(model.x_eq, dtype=float)
+    for h in model.hinges:
+        lo, hi = (float(v) for v in p.joints[h].range)
+        if not lo < x_eq[h] < hi:
+            raise LabError(f"The range [{lo:g}, {hi:g}] rad of hinge '{p.joints[h].name}' does not contain the "
+                           f"upright angle {x_eq[h]:g} rad; the lab balances the poles upright, so widen the "
+                           "hinge range.")
+    if model.slide is not None:
+        lo, hi = (float(v) for v in p.cart_range)
+        if np.isfinite(lo) and np.isfinite(hi):
+            s_eq = 0.5 * (lo + hi)
+        elif np.isfinite(lo):  # a rail limited on one side only: start 1 m clear of that end
+            s_eq = max(0.0, lo + 1.0)
+        elif np.isfinite(hi):
+            s_eq = min(0.0, hi - 1.0)
+        else:
+            s_eq = 0.0
+        moved = x_eq.copy()
+        moved[model.slide] = s_eq
+        if np.abs(model.dynamics(moved, model.u_eq)).max() <= _REST_TOL:
+            x_eq = moved
+    return readonly(x_eq)
 
 
-def lab_initial_conditions(params: CartPoleParams) -> np.ndarray:
-    """The lab's five starts (5, 4), moved to the model's equilibrium and scaled into its joint ranges.
+def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
+    """The lab's five starts (5, 2 nq), placed at the model's equilibrium and scaled into its joint ranges.
 
-    The handout's starts (:data:`LAB_INITIAL_CONDITIONS`) are offsets from ``x*`` (:func:`lab_equilibrium`).
-    When a cart offset uses more than half of the room to a slide limit, every cart offset is scaled by one
-    factor so the largest uses exactly half; the same for the pole angles and the hinge range. So on the
-    shipped MJCF (track +-1.5 m, free hinge) they are the handout's starts unchanged.
+    The handout's offsets (:data:`LAB_OFFSETS`) go on the cart's slide and on the *first* pole's hinge
+    (``model.hinges[0]``), from ``x*`` (:func:`lab_equilibrium`); every other joint stays at its ``x*`` value, every
+    rate at zero. When a cart offset uses more than half of the room to a slide limit, every cart offset is scaled
+    by one factor so the largest uses exactly half; the same for the angles and the first hinge's range. So on the
+    shipped MJCF (track +-1.5 m, free hinge) they are the handout's starts unchanged. A model with no cart gets
+    the angles only.
+
+    Parameters
+    ----------
+    source : CartPoleModel, CartPoleParams or MJCF path
+    scale : float
+        Factor on both offsets after the range scaling (:func:`run_lab`'s ``start_scale``; 1 = the handout's).
 
     Returns
     -------
-    (5, 4) read-only array, ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]`` per row.
+    (5, 2 nq) read-only array
+        One state ``[qpos, qvel]`` per row; for one pole ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]``.
     """
-    x_eq = lab_equilibrium(params)
-    offsets = np.array(LAB_INITIAL_CONDITIONS)
-    for col, (lo, hi) in ((0, params.cart_range), (1, params.hinge_range)):
+    model = _model(source)
+    x_eq = lab_equilibrium(model)
+    x0s = np.tile(x_eq, (len(LAB_OFFSETS), 1))
+    joints = ((model.slide, LAB_OFFSETS[:, 0]), (model.hinges[0] if model.hinges else None, LAB_OFFSETS[:, 1]))
+    for col, offsets in joints:
+        if col is None:
+            continue
+        lo, hi = (float(v) for v in model.params.joints[col].range)
         room = _ROOM * min(x_eq[col] - lo, hi - x_eq[col])
-        need = np.abs(offsets[:, col]).max()
-        if need > room:
-            offsets[:, col] *= room / need
-    return readonly(x_eq + offsets)
+        need = np.abs(offsets).max()
+        x0s[:, col] += float(scale) * (offsets * (room / need) if need > room else offsets)
+    return readonly(x0s)
 
 
 @dataclass(frozen=True)
 class LabResult:
-    """Everything the lab computed; arrays are read-only.
+    """Everything the lab computed; arrays are read-only. ``nx = 2 nq`` states, ``nu`` inputs.
 
     Attributes
     ----------
@@ -99,22 +157,26 @@ class LabResult:
     params : CartPoleParams
     discrete : bool
         True when K came from ``dlqr(Ad, Bd)`` at the MJCF's time step, else ``lqr(A, B)``.
-    A, B : (4, 4), (4, 1) arrays
+    A, B : (nx, nx), (nx, nu) arrays
         Continuous linearisation at upright rest (1/s; state derivative per unit ctrl).
-    Ad, Bd : (4, 4), (4, 1) arrays
+    Ad, Bd : (nx, nx), (nx, nu) arrays
         One step of the MJCF's integrator there.
-    Q, R : (4, 4), (1, 1) arrays
+    Q, R : (nx, nx), (nu, nu) arrays
         LQR weights used.
-    K : (1, 4) array
-        Gain, ctrl per [m, rad, m/s, rad/s]; the law is ``u = u* - K (x - x*)`` (python-control's sign).
-    S : (4, 4) array
+    K : (nu, nx) array
+        Gain, ctrl per state unit (m, rad, m/s, rad/s); the law is ``u = u* - K (x - x*)`` (python-control's sign).
+    S : (nx, nx) array
         Riccati solution (cost-to-go ``e' S e``).
-    E : (4,) complex array
+    E : (nx,) complex array
         Closed-loop eigenvalues of ``A - B K`` (or ``Ad - Bd K``).
-    x_eq : (4,) array
-        Equilibrium ``x*``.
-    x0s : (5, 4) array
+    x_eq : (nx,) array
+        Equilibrium ``x*`` (:func:`lab_equilibrium`).
+    u_eq : (nu,) array
+        Equilibrium ctrl ``u*`` (zero unless gravity has a horizontal part or a pole is built off vertical).
+    x0s : (5, nx) array
         Initial conditions run.
+    start_scale : float
+        Factor the lab's offsets were scaled by (1 = the handout's starts; see :data:`START_SCALES`).
     duration : float, s
     rollouts : tuple of Rollout
         One MuJoCo run per start, every physics step logged.
@@ -135,14 +197,16 @@ class LabResult:
     S: np.ndarray
     E: np.ndarray
     x_eq: np.ndarray
+    u_eq: np.ndarray
     x0s: np.ndarray
+    start_scale: float
     duration: float
     rollouts: tuple
     metrics: tuple
 
     @property
     def settling_times_seed(self) -> np.ndarray:
-        """(5,) s, the handout's definition per start."""
+        """(5,) s, the handout's definition per start (every pole angle within 0.05 rad)."""
         return np.array([m.settling_time_seed for m in self.metrics])
 
     @property
@@ -171,43 +235,50 @@ class LabResult:
         return int(self.rollouts[0].ctrl.shape[0])
 
     def controller(self):
-        """The lab's feedback law as a :class:`~cartpole.control.linear.LinearFeedback`."""
+        """The lab's feedback law as a :class:`~cartpole.control.linear.LinearFeedback` (hinge errors wrapped)."""
         from cartpole.control.linear import LinearFeedback
 
-        return LinearFeedback(self.K, self.x_eq, 0.0, S=self.S)
+        return LinearFeedback(self.K, self.x_eq, self.u_eq, S=self.S, hinges=self.params.hinges)
 
 
-def design(model, Q, R, *, discrete: bool = False):
+def design(model, Q, R, *, discrete: bool = False, x_eq=None):
     """LQR at upright rest of a :class:`~cartpole.models.CartPoleModel`.
 
-    Returns ``(LQRResult, (A, B, Ad, Bd))``; ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``.
+    Linearises at ``(x_eq, model.u_eq)`` (default ``model.x_eq``) and returns ``(LQRResult, (A, B, Ad, Bd))``;
+    ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``.
     """
     from cartpole.lqr import dlqr, lqr
 
-    A, B = model.linearize()
-    Ad, Bd = model.linearize(discrete=True)
+    x_eq = model.x_eq if x_eq is None else x_eq
+    A, B = model.linearize(x_eq, model.u_eq)
+    Ad, Bd = model.linearize(x_eq, model.u_eq, discrete=True)
     res = dlqr(Ad, Bd, Q, R) if discrete else lqr(A, B, Q, R)
     return res, (A, B, Ad, Bd)
 
 
-def run_lab(mjcf: str | Path | CartPoleParams | None = None, *, Q=None, R=None, discrete: bool = False,
-            duration: float = LAB_DURATION, progress: Callable[[float], None] | None = None) -> LabResult:
-    """Run the LQR balance lab on a cart-pole MJCF.
+def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, Q=None, R=None,
+            discrete: bool = False, duration: float = LAB_DURATION, scale_starts: bool = True,
+            progress: Callable[[float], None] | None = None) -> LabResult:
+    """Run the LQR balance lab on an MJCF: a cart with any chain of poles, or anything else the LQR stabilises.
 
     Parameters
     ----------
-    mjcf : path or CartPoleParams, optional
-        Cart-pole to balance (default the shipped asset).
-    Q : (4, 4) array, optional
-        State weights (default the lab's ``diag(1, 10, 0.1, 0.1)``).
-    R : (1, 1) array or float, optional
-        ctrl weight (default the lab's 0.1).
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+        Model to balance (default the shipped single-pole asset).
+    Q : (nx, nx) array, optional
+        State weights (default :func:`~cartpole.lqr.lab_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
+        for one pole the lab's ``diag(1, 10, 0.1, 0.1)``, :data:`~cartpole.lqr.Q_LAB`).
+    R : (nu, nu) array or float, optional
+        ctrl weights (default 0.1 per input; the lab's :data:`~cartpole.lqr.R_LAB` for one).
     discrete : bool
         Design on the exact discrete model ``(Ad, Bd)`` at the MJCF's time step (``dlqr``) instead of ``(A, B)``.
     duration : float, s
         Length of each MuJoCo run (default 6 s, the handout's).
+    scale_starts : bool
+        When some start does not settle, run the five again scaled by each factor of :data:`START_SCALES` in turn
+        and keep the first set that all settle (default True). False, or no factor working: the full-size starts.
     progress : callable, optional
-        Called with the fraction of runs done (0..1).
+        Called with the fraction of the current set of runs done (0..1).
 
     Returns
     -------
@@ -218,29 +289,41 @@ def run_lab(mjcf: str | Path | CartPoleParams | None = None, *, Q=None, R=None, 
     MJCFError, LQRError, LabError
         Bad MJCF, weights, or a model the lab cannot balance.
     """
-    from cartpole.lqr import Q_LAB, R_LAB
-    from cartpole.models import build_model
     from cartpole.control.linear import LinearFeedback
-    from cartpole.validation.metrics import summarize
+    from cartpole.lqr import lab_weights
     from cartpole.sim import simulate
+    from cartpole.validation.metrics import summarize
 
-    params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
-    Q = Q_LAB if Q is None else Q
-    R = R_LAB if R is None else R
-    model = build_model(params)
-    res, (A, B, Ad, Bd) = design(model, Q, R, discrete=discrete)
-    x_eq = lab_equilibrium(params)
-    x0s = lab_initial_conditions(params)
-    ctrl = LinearFeedback(res.K, x_eq, 0.0, S=res.S)
-    runs, mets = [], []
-    for i, x0 in enumerate(x0s):
-        run = simulate(params, ctrl, x0, duration)
-        runs.append(run)
-        mets.append(summarize(run, x_eq=x_eq, ctrl_range=params.ctrl_range, cart_range=params.cart_range))
-        if progress is not None:
-            progress((i + 1) / len(x0s))
+    model = _model(mjcf)
+    params = model.params
+    Q0, R0 = lab_weights(model)
+    Q = Q0 if Q is None else Q
+    R = R0 if R is None else R
+    x_eq = lab_equilibrium(model)
+    res, (A, B, Ad, Bd) = design(model, Q, R, discrete=discrete, x_eq=x_eq)
+    ctrl = LinearFeedback(res.K, x_eq, model.u_eq, S=res.S, hinges=model.hinges)
+
+    def five(scale):
+        x0s = lab_initial_conditions(model, scale=scale)
+        runs, mets = [], []
+        for i, x0 in enumerate(x0s):
+            run = simulate(params, ctrl, x0, duration)
+            runs.append(run)
+            mets.append(summarize(run, model, x_eq=x_eq))
+            if progress is not None:
+                progress((i + 1) / len(x0s))
+        return scale, x0s, runs, mets
+
+    attempt = first = five(START_SCALES[0])
+    for scale in (START_SCALES[1:] if scale_starts else ()):
+        if all(m.settled for m in attempt[3]):
+            break
+        attempt = five(scale)
+    if not all(m.settled for m in attempt[3]):
+        attempt = first
+    scale, x0s, runs, mets = attempt
     return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete), A=readonly(A), B=readonly(B),
                      Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
-                     K=readonly(res.K), S=readonly(res.S),
-                     E=readonly(res.E, complex), x_eq=x_eq, x0s=x0s, duration=float(duration), rollouts=tuple(runs),
-                     metrics=tuple(mets))
+                     K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,
+                     u_eq=readonly(model.u_eq), x0s=x0s, start_scale=float(scale), duration=float(duration),
+                     rollouts=tuple(runs), metrics=tuple(mets))

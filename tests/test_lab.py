@@ -5,8 +5,10 @@ import pytest
 import scipy.linalg
 
 from cartpole import Q_LAB, R_LAB, build_model, read_params
-from cartpole.lab import LAB_INITIAL_CONDITIONS, LabError, lab_initial_conditions, run_lab
-from cartpole.sim import replays_exactly
+from cartpole.lab import LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, lab_initial_conditions, run_lab
+from cartpole.lqr import lab_weights
+from cartpole.models import SHIPPED_MJCF, wrap_angle
+from cartpole.sim import replays_exactly, simulate
 
 
 def test_five_starts_settle_and_replay_exactly(any_mjcf):
@@ -127,12 +129,84 @@ HANDOUT_MJCF = """<mujoco model="cartpole">
 
 def test_shipped_asset_has_the_handout_files_dynamics(tmp_path):
     """The shipped MJCF only raises the rail: K and every logged state equal those of the handout's own file
-    (up to rounding: the compiled inertias differ in the last bits because the bodies sit at other heights)."""
+    (up to rounding: the compiled inertias differ in the last bits because the bodies sit at other heights).
+
+    The reader refuses geoms that may collide (the smooth model has no contacts), so the handout's file is run
+    with contacts disabled; its upright runs never touch the floor, so MuJoCo computes the same steps."""
     path = tmp_path / "handout_cartpole.xml"
-    path.write_text(HANDOUT_MJCF)
+    path.write_text(HANDOUT_MJCF.replace('gravity="0 0 -9.81"/>',
+                                         'gravity="0 0 -9.81"><flag contact="disable"/></option>'))
     ours, theirs = run_lab(), run_lab(path)
     np.testing.assert_allclose(ours.K, theirs.K, rtol=1e-12)
     np.testing.assert_array_equal(ours.settling_times_seed, theirs.settling_times_seed)
     for a, b in zip(ours.rollouts, theirs.rollouts):
         np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-9)
         np.testing.assert_allclose(a.ctrl, b.ctrl, rtol=0, atol=1e-9)
+
+
+def test_lab_weights_for_one_pole_are_the_labs():
+    Q, R = lab_weights(build_model())
+    np.testing.assert_array_equal(Q, Q_LAB)
+    np.testing.assert_array_equal(R, R_LAB)
+    res = run_lab(duration=0.1)
+    np.testing.assert_array_equal(res.Q, Q_LAB)
+    np.testing.assert_array_equal(res.R, R_LAB)
+    assert res.start_scale == 1.0
+
+
+def _final_error(run, x_eq, hinges):
+    """Largest entry of the wrapped state error at the end of a run, computed here (not by the metrics module)."""
+    e = run.x[-1] - x_eq
+    e[list(hinges)] = wrap_angle(e[list(hinges)])
+    return np.abs(e).max()
+
+
+@pytest.mark.parametrize("asset", ["cartpole_two_pole.xml", "cartpole_three_pole.xml"])
+def test_chain_balances_from_the_labs_five_starts_on_its_first_pole(asset):
+    path = SHIPPED_MJCF.with_name(asset)
+    model = build_model(path)
+    res = run_lab(path)
+    nq, (h1, *rest) = model.nq, model.hinges
+    assert res.K.shape == (1, 2 * nq) and res.x0s.shape == (5, 2 * nq) and res.start_scale == 1.0
+    np.testing.assert_array_equal(res.Q, lab_weights(model)[0])
+    assert np.all(res.E.real < 0)
+    # the handout's offsets on the slide and the first hinge; every other joint at x*, everything at rest
+    np.testing.assert_allclose(res.x0s[:, model.slide] - res.x_eq[model.slide], LAB_OFFSETS[:, 0], atol=1e-15)
+    np.testing.assert_allclose(res.x0s[:, h1] - res.x_eq[h1], LAB_OFFSETS[:, 1], atol=1e-15)
+    np.testing.assert_array_equal(res.x0s[:, rest], np.tile(res.x_eq[rest], (5, 1)))
+    np.testing.assert_array_equal(res.x0s[:, nq:], 0)
+    assert all(res.settled), res.settling_times
+    for run, x0 in zip(res.rollouts, res.x0s):
+        assert run.qpos.shape[1] == nq and run.ctrl.shape[1] == model.nu
+        np.testing.assert_array_equal(run.x[0], x0)
+        assert replays_exactly(run, res.params)
+        assert _final_error(run, res.x_eq, model.hinges) < 0.01
+    # every pole's angle counts in the handout's settling time: it is no earlier than the first pole's alone
+    for run, ts in zip(res.rollouts, res.settling_times_seed):
+        first = np.flatnonzero(np.abs(wrap_angle(run.qpos[:, h1] - res.x_eq[h1])) > 0.05)
+        assert ts >= (run.t[first[-1] + 1] if first.size else 0.0)
+
+
+def test_starts_a_chain_cannot_catch_are_scaled_by_the_largest_factor_that_settles(chain_dir):
+    """dm_control's triple pole on its 1 m cart is lighter on ctrl than the lab's: the full-size starts tip it."""
+    path = chain_dir / "dmc_3poles.xml"
+    res = run_lab(path)
+    assert res.start_scale < 1.0 and res.start_scale in START_SCALES
+    assert all(res.settled) and all(replays_exactly(r, res.params) for r in res.rollouts)
+    full = lab_initial_conditions(path)
+    np.testing.assert_allclose(res.x0s - res.x_eq, res.start_scale * (full - res.x_eq), atol=1e-15)
+    # the next larger factor leaves some start unsettled (checked here from plain final states)
+    model = build_model(path)
+    ctrl = res.controller()
+    bigger = lab_initial_conditions(path, scale=2 * res.start_scale)
+    errs = [_final_error(simulate(path, ctrl, x0, res.duration), res.x_eq, model.hinges) for x0 in bigger]
+    assert max(errs) > 0.01
+
+
+def test_pendulum_without_a_cart_gets_the_angles_only(chain_dir):
+    path = chain_dir / "pendulum.xml"
+    res = run_lab(path)
+    assert res.x0s.shape == (5, 2)
+    np.testing.assert_allclose(res.x0s[:, 0], LAB_OFFSETS[:, 1], atol=1e-15)
+    assert all(res.settled) and all(replays_exactly(r, res.params) for r in res.rollouts)
+    assert all(m.track_margin == np.inf for m in res.metrics)

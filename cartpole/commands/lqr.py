@@ -23,11 +23,36 @@ METRICS_HEADER = "run_id,date,day,task,commit,seed,env,method,steps,runs,metric,
 
 
 def add_arguments(parser) -> None:
-    """``--no-video`` and ``--discrete``."""
+    """``--no-video``, ``--discrete``, ``--Q`` and ``--R``."""
     parser.add_argument("--no-video", action="store_true", help="skip rendering the 10 s video")
     parser.add_argument("--discrete", action="store_true",
                         help="design K with dlqr on (Ad, Bd), one step of the MJCF's integrator, instead of "
                              "lqr on the continuous (A, B)")
+    parser.add_argument("--Q", nargs="+", type=float, default=None, metavar="V",
+                        help="state weights: 2 nq numbers (the diagonal, in the state's order) or (2 nq)^2 (the "
+                             "matrix, row by row); default 1 per slide, 10 per hinge angle, 0.1 per rate (the "
+                             "lab's 1 10 0.1 0.1 for one pole)")
+    parser.add_argument("--R", nargs="+", type=float, default=None, metavar="V",
+                        help="ctrl weights: nu numbers (the diagonal) or nu^2 (the matrix); default 0.1 per input")
+
+
+def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
+    """``--Q``/``--R`` numbers as an (n, n) matrix: n numbers are the diagonal, n*n the matrix row by row.
+
+    Raises
+    ------
+    CartPoleError
+        Any other count, naming the two counts accepted and the order of the entries.
+    """
+    from cartpole.errors import CartPoleError
+
+    v = np.asarray(values, dtype=float)
+    if v.size == n:
+        return np.diag(v)
+    if v.size == n * n:
+        return v.reshape(n, n)
+    raise CartPoleError(f"{flag} has {v.size} number(s); give {n} (the diagonal, for {order}) or {n * n} "
+                        "(the whole matrix, row by row).")
 
 
 def git_short_sha() -> str:
@@ -44,13 +69,18 @@ def git_short_sha() -> str:
 def metrics_row(result, *, date: str | None = None, commit: str | None = None) -> str:
     """The lab's ``metrics.csv`` row for a :class:`~cartpole.lab.LabResult` (no newline).
 
-    ``steps`` is the number of physics steps of one run; ``value`` the mean of the handout's settling time (s).
+    ``steps`` is the number of physics steps of one run; ``value`` the mean of the handout's settling time (s);
+    ``notes`` is ``5_ICs``, with ``_<k>_poles`` for a chain and ``_scaled_<f>`` when the starts were scaled.
     """
     date = date or datetime.date.today().isoformat()
     commit = commit or git_short_sha()
-    n = len(result.rollouts)
+    notes = f"{len(result.rollouts)}_ICs"
+    if len(result.params.hinges) != 1:
+        notes += f"_{len(result.params.hinges)}_poles"
+    if result.start_scale != 1.0:
+        notes += f"_scaled_{result.start_scale:g}"
     return (f"day5_cartpole_lqr,{date},5,cartpole_lqr,{commit},0,cartpole,lqr,{result.steps},1,"
-            f"settling_time_sec,{result.mean_settling_time_seed:.4f},{n}_ICs")
+            f"settling_time_sec,{result.mean_settling_time_seed:.4f},{notes}")
 
 
 def append_metrics(path: Path, row: str) -> Path:
@@ -71,12 +101,19 @@ def _progress(label: str):
 
 def run(args) -> dict:
     """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
+    from cartpole.commands._state import state_labels
     from cartpole.lab import run_lab
+    from cartpole.models import build_model
     from cartpole.sim import simulate
     from cartpole.viz import VideoUnavailable, plot_lab, render_video
 
     # Everything that can fail on bad input happens before the first file is written.
-    result = run_lab(args.mjcf, discrete=args.discrete)
+    model = build_model(args.mjcf)
+    names = state_labels(model.params)
+    Q = None if args.Q is None else weight_matrix(args.Q, model.nx, "--Q", "x = [" + ", ".join(names) + "]")
+    R = None if args.R is None else weight_matrix(
+        args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
+    result = run_lab(model, Q=Q, R=R, discrete=args.discrete)
     out = Path(args.out)
     figure = plot_lab(result, out / FIGURE).resolve()
     video = None
@@ -94,19 +131,24 @@ def run(args) -> dict:
         "mjcf": result.mjcf,
         "discrete": result.discrete,
         "A": result.A, "B": result.B,
+        "Q": result.Q, "R": result.R,
         "K": result.K,
         "closed_loop_eigenvalues": {"real": result.E.real, "imag": result.E.imag},
         "x_eq": result.x_eq,
+        "u_eq": result.u_eq,
         "initial_conditions": result.x0s,
+        "start_scale": result.start_scale,
         "duration": result.duration,
         "settling_times_seed": ts_seed,
         "settling_times": result.settling_times,
-        "settling_definition": ("settling_times_seed: t of the sample after the last with |theta| > 0.05 rad; "
-                                "settling_times: first t after which |s-s*|, |theta|, |s_dot|, |theta_dot| all "
-                                "stay <= 0.01 (m, rad, m/s, rad/s) to the end; null = never"),
+        "settling_definition": ("settling_times_seed: t of the sample after the last with some |theta_i - theta_i*| "
+                                "> 0.05 rad (every hinge, wrapped); settling_times: first t after which every "
+                                "entry of x - x* (hinges wrapped) stays within 0.01 (m, rad, m/s, rad/s) to the "
+                                "end; null = never"),
         "mean_settling_time_seed": result.mean_settling_time_seed,
         "std_settling_time_seed": result.std_settling_time_seed,
         "settled": list(result.settled),
+        "rollouts": [r.to_dict() for r in result.rollouts],
         "peak_ctrl": [m.peak_ctrl for m in result.metrics],
         "saturation_fraction": [m.saturation_fraction for m in result.metrics],
         "track_margin": [m.track_margin for m in result.metrics],
@@ -119,26 +161,50 @@ def run(args) -> dict:
     return doc
 
 
+def _start_text(result, x0) -> str:
+    """``theta0 = 5.00 deg, x0 = +0.00 m`` for one start: the first pole's angle from upright (named by its joint
+    for a chain) and the cart's position."""
+    p = result.params
+    parts = []
+    if p.hinges:
+        h = p.hinges[0]
+        which = "theta0" if len(p.hinges) == 1 else f"{p.joints[h].name}"
+        parts.append(f"{which} = {np.rad2deg(x0[h] - result.x_eq[h]):6.2f} deg")
+    if p.slide is not None:
+        parts.append(f"x0 = {x0[p.slide]:+.2f} m")
+    return ", ".join(parts)
+
+
 def _print_prose(result, doc) -> None:
+    from cartpole.commands._state import state_sentence
+
     q = ", ".join(f"{v:g}" for v in np.diag(result.Q))
-    r = ", ".join(f"{v:g}" for v in np.ravel(result.R))
+    r = ", ".join(f"{v:g}" for v in np.diag(result.R))
     kind = "dlqr on (Ad, Bd), one MJCF integrator step" if result.discrete else "lqr on the continuous (A, B)"
+    p = result.params
     with np.printoptions(precision=4, suppress=True, linewidth=100):
         print(f"MJCF: {result.mjcf}")
-        print("State x = [cart position (m), pole angle (rad), cart velocity (m/s), pole rate (rad/s)]; "
-              "u = MuJoCo ctrl (force = gear * ctrl)")
-        print("Linearized system at upright rest (exact, symbolic): x_dot = A x + B u")
+        print(state_sentence(p))
+        print("Upright equilibrium: x* =", result.x_eq, " u* =", result.u_eq)
+        print("Linearized system at upright rest (exact, symbolic): d(x - x*)/dt = A (x - x*) + B (u - u*)")
         print("A =\n", result.A)
         print("B =\n", result.B)
-        print(f"LQR ({kind}), Q = diag({q}), R = {r}, law u = -K (x - x*):")
+        off = "" if np.count_nonzero(result.Q - np.diag(np.diag(result.Q))) == 0 else " (plus off-diagonal terms)"
+        print(f"LQR ({kind}), Q = diag({q}){off}, R = diag({r}), law u = u* - K (x - x*):")
         print("K =", result.K)
         print("Closed-loop eigenvalues:", result.E)
-        print(f"Settling from {len(result.x0s)} initial conditions, {result.duration:g} s each in MuJoCo "
-              "(handout's definition: |theta| stays <= 0.05 rad; strict: whole state within 0.01 of x*):")
+        if result.start_scale != 1.0:
+            print(f"The lab's starts at full size do not all settle on this model; all five are scaled by "
+                  f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which every run settles.")
+        what = ("offsets from x* on the first pole's angle and the cart, the other poles at x*, at rest"
+                if len(p.hinges) > 1 else "offsets from x* on the pole's angle and the cart, at rest")
+        print(f"Settling from {len(result.x0s)} initial conditions ({what}), {result.duration:g} s each in MuJoCo "
+              "(handout's definition: every |theta_i - theta_i*| stays <= 0.05 rad; strict: whole state within "
+              "0.01 of x*):")
         for i, (x0, ts, st, ok) in enumerate(zip(result.x0s, doc["settling_times_seed"], doc["settling_times"],
                                                  doc["settled"]), 1):
-            print(f"  IC {i}: theta0 = {np.rad2deg(x0[1]):6.2f} deg, x0 = {x0[0]:+.2f} m: settling time "
-                  f"{ts:.2f} s, strict {st:.2f} s, {'settled' if ok else 'NOT settled'}")
+            print(f"  IC {i}: {_start_text(result, x0)}: settling time {ts:.2f} s, strict {st:.2f} s, "
+                  f"{'settled' if ok else 'NOT settled'}")
     print(f"Mean settling time: {result.mean_settling_time_seed:.2f} s ± {result.std_settling_time_seed:.2f} s "
           f"across {len(result.x0s)} initial conditions")
     print(f"Wrote {doc['figure']}")

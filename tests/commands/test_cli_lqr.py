@@ -162,12 +162,81 @@ def test_bad_mjcf_exits_2_with_one_line_and_writes_nothing(case, tmp_path, capsy
     bad = tmp_path / "in" / "model.xml"
     if case == "not_a_cartpole":
         bad.parent.mkdir()
-        bad.write_text(variant_xml("rk4_fine_step").replace('type="slide" axis="1 0 0"', 'type="hinge" axis="0 0 1"'))
+        bad.write_text(variant_xml("rk4_fine_step").replace('type="slide" axis="1 0 0"', 'type="ball"'))
     out = tmp_path / "out"
     assert main(["lqr", "--json", "--mjcf", str(bad), "--out", str(out)]) == 2
     cap = capsys.readouterr()
     assert cap.out == ""
     lines = cap.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("cartpole lqr: ") and "Traceback" not in cap.err
-    assert ("does not exist" in lines[0]) if case == "missing" else ("hinge" in lines[0])
+    assert ("does not exist" in lines[0]) if case == "missing" else ("ball" in lines[0])
+    assert not out.exists()
+
+
+def _lqr_json(capsys, *argv):
+    assert main(["lqr", "--json", "--no-video", *argv]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("asset", ["cartpole_two_pole.xml", "cartpole_three_pole.xml"])
+def test_chain_lab_settles_from_all_five_starts_and_its_rollouts_replay(asset, tmp_path, capsys):
+    from cartpole.models import build_model, wrap_angle
+    from cartpole.sim import Rollout, replays_exactly
+
+    path = SHIPPED_MJCF.with_name(asset)
+    doc = _lqr_json(capsys, "--mjcf", str(path), "--out", str(tmp_path))
+    model = build_model(path)
+    nx = model.nx
+    assert CONTRACT <= set(doc) and doc["mjcf"] == str(path)
+    assert np.array(doc["K"]).shape == (1, nx) and np.array(doc["initial_conditions"]).shape == (5, nx)
+    assert doc["settled"] == [True] * 5 and doc["start_scale"] == 1.0
+    x_eq = np.array(doc["x_eq"])
+    for row, x0 in zip(doc["rollouts"], doc["initial_conditions"]):
+        run = Rollout(t=row["t"], qpos=row["qpos"], qvel=row["qvel"], ctrl=row["ctrl"])
+        assert run.qpos.shape[1] == model.nq and run.ctrl.shape[1] == model.nu
+        np.testing.assert_array_equal(run.x[0], x0)
+        assert replays_exactly(run, doc["mjcf"])
+        e = run.x[-1] - x_eq
+        e[list(model.hinges)] = wrap_angle(e[list(model.hinges)])
+        assert np.abs(e).max() < 0.01  # at rest upright at the end, checked without the metrics module
+    assert Path(doc["figure"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    row = list(csv.reader((tmp_path / "metrics" / "metrics.csv").open()))[-1]
+    assert row[12] == f"5_ICs_{len(model.hinges)}_poles"
+    assert float(row[11]) == pytest.approx(doc["mean_settling_time_seed"], abs=5e-5)
+
+
+def test_chain_prose_names_the_first_pole_and_prints_the_mean_line(tmp_path, capsys):
+    path = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+    assert main(["lqr", "--no-video", "--mjcf", str(path), "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert len(re.findall(r"IC \d: hinge = .* deg, x0 = .* m: settling time", out)) == 5
+    assert re.search(r"^Mean settling time: \d+\.\d\d s ± \d+\.\d\d s across 5 initial conditions$", out, re.M)
+    assert "scaled" not in out
+
+
+def test_q_and_r_override_the_lab_weights(tmp_path, capsys):
+    import scipy.linalg
+
+    from cartpole.models import build_model
+
+    doc = _lqr_json(capsys, "--Q", "2", "10", "0.1", "0.1", "--R", "1", "--out", str(tmp_path))
+    A, B = build_model().linearize()
+    S = scipy.linalg.solve_continuous_are(A, B, np.diag([2, 10, 0.1, 0.1]), [[1.0]])
+    np.testing.assert_allclose(doc["K"], B.T @ S, rtol=1e-10)
+    assert doc["Q"] == np.diag([2, 10, 0.1, 0.1]).tolist() and doc["R"] == [[1.0]]
+    full = _lqr_json(capsys, "--Q", *map(str, np.diag([2, 10, 0.1, 0.1]).ravel()), "--R", "1", "--out",
+                     str(tmp_path))
+    assert full["K"] == doc["K"]
+
+
+@pytest.mark.parametrize("argv, count, names", [(["--Q", "1", "10", "0.1"], "give 6 ", "hinge2 rate (rad/s)"),
+                                                 (["--R", "1", "2"], "give 1 ", "u = [motor]")])
+def test_weights_of_the_wrong_size_are_one_sentence(argv, count, names, tmp_path, capsys):
+    out = tmp_path / "out"
+    path = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+    assert main(["lqr", "--json", "--no-video", "--mjcf", str(path), "--out", str(out), *argv]) == 2
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert cap.out == "" and len(lines) == 1 and lines[0].startswith("cartpole lqr: --")
+    assert count in lines[0] and names in lines[0]
     assert not out.exists()
