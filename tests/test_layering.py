@@ -45,9 +45,6 @@ LAYERS = (
 )
 TOP = "cartpole"
 
-#: Modules outside models/ still importing models' own modules, to be moved to ``cartpole.models`` by the owner of
-#: the file (validation/jacobians.py is being rewritten together with models/).
-DEEP_MODELS_IMPORTS_PENDING = {"cartpole.validation.jacobians"}
 
 
 def _module_name(path: Path) -> str:
@@ -190,7 +187,6 @@ def test_only_applications_and_commands_import_viz():
 def test_model_things_come_from_the_models_package():
     bad = sorted({f"{MODULES[src].relative_to(PACKAGE_DIR.parent)}:{line} imports {dst}"
                   for src, edges in GRAPH.items() if layer_of(src) != layer_of("cartpole.models")
-                  and src not in DEEP_MODELS_IMPORTS_PENDING
                   for dst, line, _ in edges if dst.startswith("cartpole.models.")})
     assert not bad, "import from cartpole.models, not its modules:\n" + "\n".join(bad)
 

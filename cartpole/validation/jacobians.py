@@ -6,8 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.models.params import CartPoleParams
-from cartpole.models.symbolic import CartPoleModel
+from cartpole.models import CartPoleModel, CartPoleParams
 from cartpole.sim import make_mujoco
 
 
