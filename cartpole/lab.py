@@ -221,8 +221,10 @@ class LabResult:
 
     @property
     def std_settling_time_seed(self) -> float:
-        """Population standard deviation (``np.std``, as the handout) of the handout's settling time, s."""
-        return float(np.std(self.settling_times_seed))
+        """Population standard deviation (``np.std``, as the handout) of the handout's settling time, s (``inf``
+        when some start never settled)."""
+        ts = self.settling_times_seed
+        return float(np.std(ts)) if np.all(np.isfinite(ts)) else float("inf")
 
     @property
     def settled(self) -> tuple:

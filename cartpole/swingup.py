@@ -1,15 +1,18 @@
-"""Swing the pole up and hold it, proven in MuJoCo: ``run_swingup(mjcf, method="energy" | "trajopt")``.
+"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(mjcf, method="energy" | "trajopt")``.
 
 * ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
   the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
   estimate_basin`), then an LQR catch (the lab's Q with R = 1,
   :func:`~cartpole.control.switching.swingup_catch`, whose verified basin is about five times the lab LQR's), with
-  hysteresis (:class:`~cartpole.control.switching.SwitchingController`);
+  hysteresis (:class:`~cartpole.control.switching.SwitchingController`). One pole on a cart driven by the cart
+  only: any other model is refused with the controller's one sentence, before anything runs;
 * ``trajopt``: direct collocation + TVLQR (:func:`cartpole.ocp.pipeline.trajopt_swingup`), handing over to the
-  LQR hold after the plan.
+  LQR hold after the plan; any model the planner takes.
 
-Either way MuJoCo runs the controller on the MJCF and every physics step is logged, so the result replays
-exactly (:func:`~cartpole.sim.rollout.replays_exactly`).
+The start state is ``[qpos, qvel]`` in MuJoCo's order (``2 nq`` numbers; default the model's hanging rest
+``x_hanging``). Either way MuJoCo runs the controller on the MJCF and every physics step is logged (``qpos``
+(n+1, nq), ``qvel`` (n+1, nq), ``ctrl`` (n, nu)), so the result replays exactly
+(:func:`~cartpole.sim.rollout.replays_exactly`).
 """
 from __future__ import annotations
 
@@ -19,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, read_params
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.sim import Rollout, simulate
 
 METHODS = ("energy", "trajopt")
@@ -66,40 +69,49 @@ class SwingupResult:
     metrics: dict = field(default_factory=dict)
 
 
+def _state_order(params: CartPoleParams) -> str:
+    """The state's order in words, from the MJCF's joint names: ``"slider (m), hinge (rad), then their rates"``."""
+    pos = ", ".join(f"{j.name} ({'m' if j.kind == 'slide' else 'rad'})" for j in params.joints)
+    return f"{pos}, then their rates in the same order"
+
+
 def check_start(x0, params: CartPoleParams) -> np.ndarray:
-    """Validate a start state against the MJCF: 4 finite numbers, cart strictly inside its joint range.
+    """Validate a start state against the MJCF: ``2 nq`` finite numbers, every joint inside its range.
 
     Parameters
     ----------
     x0 : array-like
-        ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]``.
+        ``[qpos, qvel]`` in MuJoCo's order; one pole: ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]``.
     params : CartPoleParams
 
     Returns
     -------
-    (4,) float array
+    (2 nq,) float array
 
     Raises
     ------
     SwingupError
+        Wrong count (the sentence names the expected count and the order, from the MJCF's joint names), not
+        finite, a slide not strictly inside its range or a hinge outside its range.
     """
+    n = 2 * params.nq
     try:
         x = np.asarray(x0, dtype=float).ravel()
     except (TypeError, ValueError):
-        raise SwingupError(f"The start state {x0!r} is not numeric; give four numbers X TH XD THD.") from None
-    if x.size != 4:
-        raise SwingupError(f"The start state has {x.size} number(s); give exactly four: cart position (m), "
-                           "pole angle (rad), cart velocity (m/s), pole rate (rad/s).")
+        raise SwingupError(f"The start state {x0!r} is not numeric; give {n} numbers: {_state_order(params)}.") \
+            from None
+    if x.size != n:
+        raise SwingupError(f"The start state has {x.size} number(s); give exactly {n}: {_state_order(params)}.")
     if not np.all(np.isfinite(x)):
-        raise SwingupError(f"The start state {x.tolist()} is not finite; give four finite numbers.")
-    lo, hi = params.cart_range
-    if not lo < x[0] < hi:
-        raise SwingupError(f"The start cart position {x[0]} m is outside the cart's joint range "
-                           f"[{lo}, {hi}] m; start the cart strictly inside it.")
-    hlo, hhi = params.hinge_range
-    if not hlo <= x[1] <= hhi:
-        raise SwingupError(f"The start pole angle {x[1]} rad is outside the hinge's joint range "
-                           f"[{hlo}, {hhi}] rad; start the pole inside it.")
+        raise SwingupError(f"The start state {x.tolist()} is not finite; give {n} finite numbers.")
+    for i, j in enumerate(params.joints):
+        lo, hi = (float(v) for v in j.range)
+        if j.kind == "slide" and not lo < x[i] < hi:
+            raise SwingupError(f"The start position {x[i]} m of slide '{j.name}' is outside its joint range "
+                               f"[{lo}, {hi}] m; start the cart strictly inside it.")
+        if j.kind == "hinge" and not lo <= x[i] <= hi:
+            raise SwingupError(f"The start angle {x[i]} rad of hinge '{j.name}' is outside its joint range "
+                               f"[{lo}, {hi}] rad; start the pole inside it.")
     return x
 
 
@@ -107,18 +119,19 @@ def _stage(progress, name):
     return None if progress is None else (lambda f: progress(name, f))
 
 
-def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0), duration: float | None = None,
+def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float | None = None,
                 progress: Callable[[str, float], None] | None = None, basin_cache=None,
                 energy_options: dict | None = None, catch_weights: tuple | None = None) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
 
     Parameters
     ----------
-    mjcf : path or CartPoleParams or None
-        The cart-pole (None = shipped asset).
+    mjcf : path, CartPoleParams, CartPoleModel or None
+        The model (None = shipped asset): one pole on a cart for ``energy``, any chain for ``trajopt``.
     method : {"energy", "trajopt"}
-    x0 : (4,) array
-        Start state; default hanging at rest.
+    x0 : (2 nq,) array, optional
+        Start state ``[qpos, qvel]``; default the model's hanging rest ``x_hanging`` (``[0, pi, 0, 0]`` for the
+        shipped cart).
     duration : float, optional
         Simulated seconds; default 10 s (energy) or the plan's horizon + 3 s (trajopt).
     progress : callable, optional
@@ -140,20 +153,28 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
     ------
     SwingupError, MJCFError
         Bad method, start state or duration; an MJCF that is not a cart-pole.
+    EnergyShapingError
+        ``energy`` on a model energy shaping does not drive (more than one pole, a motor on a hinge), raised
+        before the basin estimate or any simulation.
     """
     from cartpole.control.energy import EnergyShapingController
     from cartpole.control.switching import SwitchingController, swingup_catch
-    from cartpole.models import build_model
     from cartpole.validation.basin import estimate_basin
     from cartpole.validation.metrics import swingup_metrics
 
     if method not in METHODS:
         raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")
-    params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
-    x0 = check_start(x0, params)
+    if isinstance(mjcf, CartPoleModel):
+        model, params = mjcf, mjcf.params
+    else:
+        params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+        model = None
     if duration is not None and not (np.isfinite(duration) and duration > 0):
         raise SwingupError(f"Duration {duration} s is not a positive number of seconds; give e.g. --duration 8.")
-    model = build_model(params)
+    model = model if model is not None else build_model(params)
+    x0 = check_start(model.x_hanging if x0 is None else x0, params)
+    # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
+    energy = EnergyShapingController(model, **(energy_options or {})) if method == "energy" else None
     catch = swingup_catch(model) if catch_weights is None else swingup_catch(model, *catch_weights)
     basin_kw = dict(progress=_stage(progress, "basin"))
     basin = basin_cache.get(params, catch, **basin_kw) if basin_cache is not None else \
@@ -161,7 +182,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
 
     plan = None
     if method == "energy":
-        controller = SwitchingController(EnergyShapingController(model, **(energy_options or {})), catch, basin.rho)
+        controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if duration is None else float(duration)
         rollout = simulate(params, controller, x0, T, progress=_stage(progress, "simulate"))
         if progress is not None:
@@ -192,6 +213,6 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=(0.0, np.pi, 0.0, 0.0),
         extra = {"switches": [] if caught_at is None else [{"t": caught_at, "mode": "catch",
                                                             "cost": catch.cost_to_go(rollout.x[k])}],
                  "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k])}
-    metrics = {**swingup_metrics(rollout, params), **extra}
+    metrics = {**swingup_metrics(rollout, model), **extra}
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=plan, basin=basin, metrics=metrics)

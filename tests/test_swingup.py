@@ -3,7 +3,9 @@ import numpy as np
 import pytest
 
 import cartpole as cp
-from cartpole.swingup import SwingupError, run_swingup
+from cartpole.errors import CartPoleError
+from cartpole.models import SHIPPED_MJCF
+from cartpole.swingup import SwingupError, check_start, run_swingup
 from cartpole.sim import replays_exactly
 from cartpole.validation.metrics import swingup_success
 
@@ -37,3 +39,32 @@ def test_bad_start_states_raise(x0):
 def test_unknown_method_raises():
     with pytest.raises(SwingupError):
         run_swingup(None, method="magic")
+
+
+TWO_POLE = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+
+
+def test_energy_refuses_a_chain_before_anything_runs():
+    stages = []
+    with pytest.raises(CartPoleError, match=r"^Energy shaping is for one pole .*2 hinges.*--method trajopt") as err:
+        run_swingup(TWO_POLE, method="energy", progress=lambda stage, f: stages.append(stage))
+    assert "\n" not in str(err.value)
+    assert stages == []  # no basin estimate, no simulation
+
+
+def test_start_state_count_and_order_come_from_the_model():
+    params = cp.read_params(TWO_POLE)
+    with pytest.raises(SwingupError, match=r"has 4 number\(s\); give exactly 6: slider \(m\), hinge \(rad\), "
+                                           r"hinge2 \(rad\), then their rates in the same order\."):
+        check_start([0, np.pi, 0, 0], params)
+    x = check_start([0.1, np.pi, 0.2, 0, 0, 0], params)
+    assert x.shape == (6,)
+    with pytest.raises(SwingupError, match="slide 'slider' is outside"):
+        check_start([1.5, np.pi, 0, 0, 0, 0], params)
+
+
+def test_default_start_is_the_models_hanging_rest():
+    model = cp.build_model()
+    res = run_swingup(model, method="energy", duration=0.5)
+    np.testing.assert_array_equal(res.rollout.x[0], model.x_hanging)
+    assert res.rollout.qpos.shape[1] == model.nq and res.rollout.ctrl.shape[1] == model.nu

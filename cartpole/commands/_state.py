@@ -16,8 +16,3 @@ def state_sentence(params) -> str:
     acts = ", ".join(f"{a.name} on {params.joints[a.joint].name}, gear {a.gear:g}" for a in params.actuators)
     return (f"State x = [qpos, qvel] = [{', '.join(state_labels(params))}]; "
             f"u = MuJoCo ctrl [{acts}] (generalized force = gear * ctrl)")
-
-
-def state_order(params) -> str:
-    """The qpos order in words, for error sentences: ``"slider (m), hinge (rad), then their rates"``."""
-    return ", ".join(state_labels(params)[:params.nq]) + ", then their rates in the same order"

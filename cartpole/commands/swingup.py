@@ -12,8 +12,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--method", choices=("energy", "trajopt"), default="energy",
                         help="energy shaping with an LQR catch (default) or direct collocation + TVLQR")
     parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
-                        help="start state X TH XD THD: cart position (m), pole angle (rad, 0 = upright), "
-                             "cart velocity (m/s), pole rate (rad/s); default hanging at rest: 0 pi 0 0")
+                        help="start state [qpos, qvel], 2 nq numbers in MuJoCo's joint order: every joint's "
+                             "position (m or rad, 0 = upright as built), then every joint's rate; one pole: "
+                             "X TH XD THD; default every pole hanging at rest (0 pi 0 0 for one pole)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="simulated seconds (default 10 for energy, plan + 3 for trajopt)")
     parser.add_argument("--no-video", action="store_true", help="do not render videos/swingup_<method>.mp4")
@@ -28,22 +29,22 @@ def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
 
-    from cartpole.models import read_params
+    from cartpole.models import build_model
     from cartpole.swingup import SwingupError, check_start, run_swingup
     from cartpole.viz import plot_swingup
 
     # Everything is validated before anything is computed or written.
-    params = read_params(args.mjcf)
-    x0 = (0.0, math.pi, 0.0, 0.0) if args.x0 is None else args.x0
-    x0 = check_start(x0, params)
+    model = build_model(args.mjcf)
+    params = model.params
+    x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise SwingupError(f"Duration {args.duration} s is not a positive number of seconds; give e.g. "
                            "--duration 8.")
     out = Path(args.out)
 
-    res = run_swingup(params, method=args.method, x0=x0, duration=args.duration, progress=_progress)
+    res = run_swingup(model, method=args.method, x0=x0, duration=args.duration, progress=_progress)
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{args.method}.png", plan=res.plan,
-                       caught_at=res.caught_at,
+                       caught_at=res.caught_at, model=model,
                        title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
     video = None
     if not args.no_video:
@@ -65,7 +66,7 @@ def run(args) -> dict:
         print(f"Swing-up ({args.method}) from x0 = {list(map(float, x0))}: "
               f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
               "limits, ctrl in range)")
-        print(f"Caught at: {fmt(res.caught_at, 's')}; time to upright (|theta| < 0.05 rad for good): "
+        print(f"Caught at: {fmt(res.caught_at, 's')}; time to upright (every |theta_i| < 0.05 rad for good): "
               f"{fmt(m['time_to_upright'], 's')}")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "
               f"(closest to a limit: {m['cart_clearance']:.3f} m)")

@@ -1,6 +1,7 @@
 """Figures and video of MuJoCo runs. Only the applications, the commands and the notebooks import this package."""
-from cartpole.viz.lab_plot import plot_lab
-from cartpole.viz.swingup_plot import plot_swingup
+from cartpole.viz.lab_plot import lab_figure, plot_lab
+from cartpole.viz.swingup_plot import plot_swingup, swingup_figure
 from cartpole.viz.video import VideoUnavailable, frame_indices, render_video
 
-__all__ = ["plot_lab", "plot_swingup", "VideoUnavailable", "frame_indices", "render_video"]
+__all__ = ["lab_figure", "plot_lab", "plot_swingup", "swingup_figure", "VideoUnavailable", "frame_indices",
+           "render_video"]

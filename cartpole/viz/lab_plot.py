@@ -30,12 +30,11 @@ def _label(result, x0, ts: float) -> str:
 
 
 def plot_lab(result, path, *, dpi: int = 120) -> Path:
-    """Save the lab figure for a :class:`~cartpole.lab.LabResult` as a PNG.
+    """Save the lab figure (:func:`lab_figure`) for a :class:`~cartpole.lab.LabResult` as a PNG.
 
     Parameters
     ----------
     result : LabResult
-        Its ``rollouts``, ``x0s``, ``x_eq``, ``params``, ``settling_times_seed`` and mean/std are drawn.
     path : str or Path
         Output PNG (parent directories are created).
     dpi : int
@@ -45,6 +44,21 @@ def plot_lab(result, path, *, dpi: int = 120) -> Path:
     -------
     Path
         The PNG written.
+    """
+    fig = lab_figure(result)
+    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))
+
+
+def lab_figure(result):
+    """The lab figure as a matplotlib ``Figure`` on an Agg canvas (no pyplot).
+
+    Panels, sharing time (s): one per pole angle (wrapped error from ``x*``, deg), the cart position (m) when the
+    model has a slide, one per actuator's ctrl (with its ctrl range dotted); one line per start.
+
+    Parameters
+    ----------
+    result : LabResult
+        Its ``rollouts``, ``x0s``, ``x_eq``, ``params``, ``settling_times_seed`` and mean/std are drawn.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -99,4 +113,4 @@ def plot_lab(result, path, *, dpi: int = 120) -> Path:
                  f"{result.mean_settling_time_seed:.2f}s ± {result.std_settling_time_seed:.2f}s "
                  f"({len(result.rollouts)} initial conditions{scale}, every |θ| ≤ 0.05 rad)")
     fig.tight_layout()
-    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))
+    return fig

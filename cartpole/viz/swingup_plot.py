@@ -1,6 +1,11 @@
-"""Figure of a swing-up: pole angle, cart position, ctrl and pole energy over time, with the catch marked.
+"""Figure of a swing-up: each pole's angle, the cart position, each actuator's ctrl and the energy over time, with
+the catch marked.
 
-For a trajectory-optimised swing-up the plan is drawn (dashed) beside what MuJoCo did.
+One angle panel per pole (wrapped error from the upright equilibrium ``x*``, rad), a cart panel when the model has a
+slide, one ctrl panel per actuator, and an energy panel: the pole's own energy about its hinge where the model
+defines it (one pole, :attr:`~cartpole.models.CartPoleModel.pole_energy`), else the whole system's energy
+(:attr:`~cartpole.models.CartPoleModel.energy`); both are zero at upright rest. For a trajectory-optimised
+swing-up the plan is drawn (dashed) beside what MuJoCo did.
 """
 from __future__ import annotations
 
@@ -12,71 +17,100 @@ from cartpole._files import atomic_write
 from cartpole.models import build_model, wrap_angle
 
 
-def _energy(model, x: np.ndarray) -> np.ndarray:
-    """Pole energy (J) of each row of x (n, 4), in one vectorised CasADi call."""
-    return np.asarray(model.pole_energy.map(len(x))(x.T)).ravel()
+def _energy(fun, x: np.ndarray) -> np.ndarray:
+    """Energy (J) of each row of x (n, nx) by the CasADi Function ``fun``, in one vectorised call."""
+    return np.asarray(fun.map(len(x))(np.asarray(x, dtype=float).T)).ravel()
 
 
 def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = None, title: str | None = None,
                  model=None) -> Path:
-    """Draw a swing-up rollout and save it as PNG (whole or not at all: :func:`~cartpole._files.atomic_write`).
+    """Draw a swing-up rollout (:func:`swingup_figure`) and save it as PNG (whole or not at all:
+    :func:`~cartpole._files.atomic_write`); ``path`` is the output file (parent directories are created), the other
+    arguments are :func:`swingup_figure`'s. Returns the path written."""
+    fig = swingup_figure(rollout, params, plan=plan, caught_at=caught_at, title=title, model=model)
+    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=100, format="png"))
+
+
+def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None, title: str | None = None,
+                   model=None):
+    """A swing-up rollout as a matplotlib ``Figure`` on an Agg canvas (no pyplot); panels as the module says.
 
     Parameters
     ----------
     rollout : Rollout
-        What MuJoCo did.
+        What MuJoCo did: ``qpos`` (n+1, nq), ``qvel`` (n+1, nq), ``ctrl`` (n, nu).
     params : CartPoleParams
-        For the cart and ctrl ranges.
-    path : str or Path
-        Output file; parent directories are created.
+        For the joints, the cart and ctrl ranges.
     plan : Trajectory, optional
-        Planned trajectory (``t`` (N+1,), ``x`` (N+1, 4), ``u`` (N or N+1, 1)) drawn dashed.
+        Planned trajectory (``t`` (N+1,), ``x`` (N+1, nx), ``u`` (N or N+1, nu)) drawn dashed.
     caught_at : float, optional
         s; marked with a vertical line on every panel.
     title : str, optional
     model : CartPoleModel, optional
-        For the pole energy (default built from ``params``).
+        For the equilibrium and the energy (default built from ``params``).
 
     Returns
     -------
-    Path
+    matplotlib.figure.Figure
     """
     # object API on an Agg canvas: no pyplot, so a notebook's inline backend is left alone
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     model = model or build_model(params)
+    hinges, slide, nu = params.hinges, params.slide, params.nu
+    x_eq = np.asarray(model.x_eq)
+    single = model.pole_energy is not None
+    energy, energy_label = ((model.pole_energy, "pole energy (J)") if single
+                            else (model.energy, "total energy (J)"))
     t, x = rollout.t, rollout.x
-    fig = Figure(figsize=(8, 9))
+    n_panels = len(hinges) + (slide is not None) + nu + 1
+    fig = Figure(figsize=(8, max(9.0, 2.0 * n_panels)))
     FigureCanvasAgg(fig)
-    ax = fig.subplots(4, 1, sharex=True)
-    ax[0].plot(t, wrap_angle(x[:, 1]), label="MuJoCo")
-    ax[0].axhline(0.0, color="k", lw=0.5)
-    ax[0].set_ylabel("pole angle from upright\n(rad, wrapped)")
-    ax[1].plot(t, x[:, 0], label="MuJoCo")
-    lo, hi = params.cart_range
-    if np.isfinite(lo):
-        ax[1].axhline(lo, color="r", ls=":", label="joint limit")
-        ax[1].axhline(hi, color="r", ls=":")
-    ax[1].set_ylabel("cart position (m)")
-    ax[2].step(t[:-1], rollout.ctrl[:, 0], where="post", label="MuJoCo ctrl")
-    ulo, uhi = params.ctrl_range
-    if np.isfinite(ulo):
-        ax[2].axhline(ulo, color="r", ls=":", label="ctrl range")
-        ax[2].axhline(uhi, color="r", ls=":")
-    ax[2].set_ylabel(f"ctrl (force = {params.gear:g} N x ctrl)")
-    ax[3].plot(t, _energy(model, x), label="MuJoCo")
-    ax[3].axhline(0.0, color="k", ls="--", lw=0.8, label="upright rest (0 J)")
-    ax[3].set_ylabel("pole energy (J)")
-    ax[3].set_xlabel("time (s)")
-    if plan is not None:
-        px = np.asarray(plan.x)
-        pt = np.asarray(plan.t)
-        ax[0].plot(pt, wrap_angle(px[:, 1]), "--", label="plan")
-        ax[1].plot(pt, px[:, 0], "--", label="plan")
-        pu = np.asarray(plan.u).reshape(len(np.asarray(plan.u)), -1)[:, 0]
-        ax[2].plot(pt[:len(pu)], pu, "--", label="plan ctrl")
-        ax[3].plot(pt, _energy(model, px), "--", label="plan")
+    ax = list(np.atleast_1d(fig.subplots(n_panels, 1, sharex=True)))
+    ax_th, rest = ax[:len(hinges)], ax[len(hinges):]
+    ax_s = rest.pop(0) if slide is not None else None
+    ax_u, ax_e = rest[:nu], rest[nu]
+    px = None if plan is None else np.asarray(plan.x)
+    pt = None if plan is None else np.asarray(plan.t)
+    pu = None if plan is None else np.asarray(plan.u).reshape(len(np.asarray(plan.u)), -1)
+    for i, (a, h) in enumerate(zip(ax_th, hinges)):
+        a.plot(t, wrap_angle(x[:, h] - x_eq[h]), label="MuJoCo")
+        if px is not None:
+            a.plot(pt, wrap_angle(px[:, h] - x_eq[h]), "--", label="plan")
+        a.axhline(0.0, color="k", lw=0.5)
+        if len(hinges) == 1:
+            a.set_ylabel("pole angle from upright\n(rad, wrapped)")
+        else:
+            rel = "" if i == 0 else ", to its parent"
+            a.set_ylabel(f"pole {i + 1} ({params.joints[h].name})\nangle from x*{rel}\n(rad, wrapped)")
+    if ax_s is not None:
+        ax_s.plot(t, x[:, slide], label="MuJoCo")
+        if px is not None:
+            ax_s.plot(pt, px[:, slide], "--", label="plan")
+        lo, hi = params.cart_range
+        if np.isfinite(lo):
+            ax_s.axhline(lo, color="r", ls=":", label="joint limit")
+        if np.isfinite(hi):
+            ax_s.axhline(hi, color="r", ls=":")
+        ax_s.set_ylabel("cart position (m)")
+    for k, (a, act) in enumerate(zip(ax_u, params.actuators)):
+        a.step(t[:-1], rollout.ctrl[:, k], where="post", label="MuJoCo ctrl")
+        if pu is not None:
+            a.plot(pt[:len(pu)], pu[:, k], "--", label="plan ctrl")
+        ulo, uhi = params.ctrl_range[k]
+        if np.isfinite(ulo):
+            a.axhline(ulo, color="r", ls=":", label="ctrl range")
+        if np.isfinite(uhi):
+            a.axhline(uhi, color="r", ls=":")
+        unit = "N" if params.joints[act.joint].kind == "slide" else "N m"
+        a.set_ylabel(f"ctrl {act.name}\n(force = {act.gear:g} {unit} x ctrl)")
+    ax_e.plot(t, _energy(energy, x), label="MuJoCo")
+    if px is not None:
+        ax_e.plot(pt, _energy(energy, px), "--", label="plan")
+    ax_e.axhline(0.0, color="k", ls="--", lw=0.8, label="upright rest (0 J)")
+    ax_e.set_ylabel(energy_label)
+    ax[-1].set_xlabel("time (s)")
     if caught_at is not None:
         for a in ax:
             a.axvline(caught_at, color="g", lw=1.0, label=f"catch at {caught_at:.2f} s")
@@ -85,4 +119,4 @@ def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = 
         a.legend(loc="upper right", fontsize=7)
     fig.suptitle(title or "Swing-up in MuJoCo")
     fig.tight_layout()
-    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=100, format="png"))
+    return fig

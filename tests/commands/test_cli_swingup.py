@@ -77,3 +77,51 @@ def test_bad_input_is_one_sentence_exit_2_and_no_files(argv, tmp_path, capsys):
     lines = cap.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("cartpole swingup: ")
     assert not out.exists()
+
+
+TWO_POLE = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+
+
+def _fails_with_one_sentence(argv, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["swingup", "--json", "--no-video", "--out", str(out), *argv]) == 2
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert cap.out == "" and len(lines) == 1 and lines[0].startswith("cartpole swingup: ")
+    assert "Traceback" not in cap.err and not out.exists()
+    return lines[0]
+
+
+def test_energy_on_a_two_pole_cart_is_refused_with_the_controllers_sentence(tmp_path, capsys):
+    line = _fails_with_one_sentence(["--mjcf", str(TWO_POLE)], tmp_path, capsys)
+    assert "Energy shaping is for one pole" in line and "2 hinges" in line and "--method trajopt" in line
+
+
+def test_x0_of_the_wrong_length_names_the_count_and_order(tmp_path, capsys):
+    line = _fails_with_one_sentence(["--mjcf", str(TWO_POLE), "--method", "trajopt", "--x0", "0", "3.14", "0", "0"],
+                                    tmp_path, capsys)
+    assert "give exactly 6: slider (m), hinge (rad), hinge2 (rad), then their rates" in line
+
+
+def test_trajopt_on_a_two_pole_cart_succeeds_or_fails_with_one_sentence(tmp_path, capsys):
+    from cartpole.models import build_model
+
+    pytest.importorskip("cartpole.ocp.pipeline")
+    out = tmp_path / "out"
+    rc = main(["swingup", "--method", "trajopt", "--json", "--no-video", "--mjcf", str(TWO_POLE), "--out", str(out)])
+    cap = capsys.readouterr()
+    if rc == 2:  # refused: one sentence, nothing written
+        lines = cap.err.strip().splitlines()
+        assert cap.out == "" and len(lines) == 1 and lines[0].startswith("cartpole swingup: ")
+        assert not out.exists()
+        return
+    assert rc == 0
+    doc = json.loads(cap.out)
+    model = build_model(TWO_POLE)
+    ro = doc["rollout"]
+    assert np.array(ro["qpos"]).shape[1] == np.array(ro["qvel"]).shape[1] == 3 and np.array(ro["ctrl"]).shape[1] == 1
+    np.testing.assert_array_equal(np.hstack([ro["qpos"][0], ro["qvel"][0]]), model.x_hanging)
+    qpos, qvel = _replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
+    assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
+    assert isinstance(doc["success"], bool)
+    assert sorted(p.name for p in out.rglob("*") if p.is_file()) == ["swingup_trajopt.png"]

@@ -84,3 +84,25 @@ def test_the_child_process_route_renders_the_same_video(tmp_path):
     child, meta_child, first_child = _read_video(tmp_path / "child.mp4")
     assert here == child == 15 and meta_here["size"] == meta_child["size"] == (160, 120)
     np.testing.assert_array_equal(first_here, first_child)
+
+
+def test_video_draws_every_link_of_a_three_pole_chain(tmp_path):
+    """Bending only the third link changes the picture: the renderer draws the whole chain from the logged qpos."""
+    from cartpole.models import SHIPPED_MJCF, build_model
+
+    path = SHIPPED_MJCF.with_name("cartpole_three_pole.xml")
+    model = build_model(path)
+    bent = np.array(model.x_eq)
+    bent[model.hinges[-1]] = 0.8
+    clips = []
+    for x0 in (model.x_eq, bent):
+        run = replay(path, x0, np.zeros((20, model.nu)))  # 0.1 s
+        assert run.qpos.shape[1] == 4
+        try:
+            out = render_video(path, run, tmp_path / f"clip{len(clips)}.mp4", width=320, height=240)
+        except VideoUnavailable as exc:
+            pytest.skip(f"no OpenGL backend on this machine: {exc}")
+        clips.append(_read_video(out))
+    (n0, meta0, first0), (n1, _, first1) = clips
+    assert n0 == n1 == 3 and tuple(meta0["size"]) == (320, 240)
+    assert np.abs(first0.astype(int) - first1.astype(int)).max() > 50
