@@ -11,9 +11,11 @@ starts, each logged every physics step so it replays exactly. The settling stati
 
 The starts (:func:`lab_initial_conditions`) are the handout's cart offsets on the slide and its angles on the
 *first* pole, every other joint at its upright equilibrium angle and everything at rest. When the model cannot
-catch them at full size (a triple pendulum on the lab's 20 N cart from 8 degrees), :func:`run_lab` scales all
-five down by the largest factor of 1, 1/2, 1/4, ... (:data:`START_SCALES`) from which every run settles, and
-reports that factor as ``start_scale``.
+catch them at full size (dm_control's triple pole on its cart from 8 degrees), all five are scaled down by one
+factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_SCALES`) from which the lab's own
+LQR (:func:`~cartpole.lqr.lab_weights`, continuous) settles every start in the lab's 6 s. It depends on the model
+only, not on the weights or duration a run asks for, so a sweep over Q or R runs the same starts throughout; it is
+1 on every shipped asset, and :func:`run_lab` reports it as ``start_scale``.
 """
 from __future__ import annotations
 
@@ -44,8 +46,8 @@ LAB_INITIAL_CONDITIONS = readonly(np.hstack([LAB_OFFSETS, np.zeros((5, 2))]))
 #: Seconds each lab run lasts (the handout's ``SIM_TIME_S``).
 LAB_DURATION = 6.0
 
-#: Factors tried in turn on the five starts: the first from which all five settle is used (1 when they settle
-#: at full size, as on every shipped asset); when none does, 1 (full size, reported unsettled).
+#: Factors :func:`lab_start_scale` tries in turn on the five starts: the first from which all five settle under the
+#: lab's own LQR is used (1 when they settle at full size, as on every shipped asset); when none does, 1.
 START_SCALES = tuple(0.5 ** k for k in range(7))
 
 #: Fraction of the room to a joint limit that a start may use (the rest is left for the transient).
@@ -258,8 +260,70 @@ def design(model, Q, R, *, discrete: bool = False, x_eq=None):
     return res, (A, B, Ad, Bd)
 
 
+def _five_runs(model, ctrl, x_eq, scale: float, duration: float, progress=None):
+    """The five lab starts at ``scale`` run in MuJoCo under ``ctrl``: ``(x0s, rollouts, metrics)``."""
+    from cartpole.sim import simulate
+    from cartpole.validation.metrics import summarize
+
+    x0s = lab_initial_conditions(model, scale=scale)
+    runs, mets = [], []
+    for i, x0 in enumerate(x0s):
+        run = simulate(model.params, ctrl, x0, duration)
+        runs.append(run)
+        mets.append(summarize(run, model, x_eq=x_eq))
+        if progress is not None:
+            progress((i + 1) / len(x0s))
+    return x0s, runs, mets
+
+
+def _lab_controller(model, Q, R, *, discrete: bool = False):
+    """``(LinearFeedback, LQRResult, (A, B, Ad, Bd), x_eq)`` of the lab's design about :func:`lab_equilibrium`."""
+    from cartpole.control.linear import LinearFeedback
+
+    x_eq = lab_equilibrium(model)
+    res, mats = design(model, Q, R, discrete=discrete, x_eq=x_eq)
+    return LinearFeedback(res.K, x_eq, model.u_eq, S=res.S, hinges=model.hinges), res, mats, x_eq
+
+
+def _search_scale(model, ctrl, x_eq, progress=None):
+    """``(scale, runs)``: the first factor of :data:`START_SCALES` from which all five settle under ``ctrl`` in
+    :data:`LAB_DURATION` s (with its runs), else ``(1.0, full-size runs)``."""
+    first = attempt = _five_runs(model, ctrl, x_eq, START_SCALES[0], LAB_DURATION, progress)
+    for scale in START_SCALES:
+        if scale != START_SCALES[0]:
+            attempt = _five_runs(model, ctrl, x_eq, scale, LAB_DURATION, progress)
+        if all(m.settled for m in attempt[2]):
+            return scale, attempt
+    return 1.0, first
+
+
+def lab_start_scale(mjcf=None) -> float:
+    """The factor on the lab's five starts for this model: the largest of :data:`START_SCALES` (1, 1/2, ... 1/64)
+    from which the lab's own LQR settles all five in MuJoCo within :data:`LAB_DURATION` s.
+
+    The lab's own LQR is ``lqr(A, B, *lab_weights(model))`` at :func:`lab_equilibrium`, whatever weights a run asks
+    for, so the factor is a property of the model (its masses, lengths and ctrl range). "Settles" is
+    :attr:`~cartpole.validation.metrics.RunMetrics.settled`: the whole state within 0.01 of ``x*`` to the end, the
+    cart off its limits.
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+
+    Returns
+    -------
+    float
+        1.0 on every shipped asset; 1.0 too when no factor works (the lab then reports its runs unsettled).
+    """
+    from cartpole.lqr import lab_weights
+
+    model = _model(mjcf)
+    ctrl, _, _, x_eq = _lab_controller(model, *lab_weights(model))
+    return _search_scale(model, ctrl, x_eq)[0]
+
+
 def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, Q=None, R=None,
-            discrete: bool = False, duration: float = LAB_DURATION, scale_starts: bool = True,
+            discrete: bool = False, duration: float = LAB_DURATION, start_scale: float | None = None,
             progress: Callable[[float], None] | None = None) -> LabResult:
     """Run the LQR balance lab on an MJCF: a cart with any chain of poles, or anything else the LQR stabilises.
 
@@ -276,11 +340,10 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
         Design on the exact discrete model ``(Ad, Bd)`` at the MJCF's time step (``dlqr``) instead of ``(A, B)``.
     duration : float, s
         Length of each MuJoCo run (default 6 s, the handout's).
-    scale_starts : bool
-        When some start does not settle, run the five again scaled by each factor of :data:`START_SCALES` in turn
-        and keep the first set that all settle (default True). False, or no factor working: the full-size starts.
+    start_scale : float, optional
+        Factor on the lab's starts; default :func:`lab_start_scale` of the model (1 on every shipped asset).
     progress : callable, optional
-        Called with the fraction of the current set of runs done (0..1).
+        Called with the fraction of the current set of five runs done (0..1).
 
     Returns
     -------
@@ -291,39 +354,20 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     MJCFError, LQRError, LabError
         Bad MJCF, weights, or a model the lab cannot balance.
     """
-    from cartpole.control.linear import LinearFeedback
     from cartpole.lqr import lab_weights
-    from cartpole.sim import simulate
-    from cartpole.validation.metrics import summarize
 
     model = _model(mjcf)
     params = model.params
     Q0, R0 = lab_weights(model)
+    own = Q is None and R is None and not discrete and duration == LAB_DURATION  # the design lab_start_scale uses
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
-    x_eq = lab_equilibrium(model)
-    res, (A, B, Ad, Bd) = design(model, Q, R, discrete=discrete, x_eq=x_eq)
-    ctrl = LinearFeedback(res.K, x_eq, model.u_eq, S=res.S, hinges=model.hinges)
-
-    def five(scale):
-        x0s = lab_initial_conditions(model, scale=scale)
-        runs, mets = [], []
-        for i, x0 in enumerate(x0s):
-            run = simulate(params, ctrl, x0, duration)
-            runs.append(run)
-            mets.append(summarize(run, model, x_eq=x_eq))
-            if progress is not None:
-                progress((i + 1) / len(x0s))
-        return scale, x0s, runs, mets
-
-    attempt = first = five(START_SCALES[0])
-    for scale in (START_SCALES[1:] if scale_starts else ()):
-        if all(m.settled for m in attempt[3]):
-            break
-        attempt = five(scale)
-    if not all(m.settled for m in attempt[3]):
-        attempt = first
-    scale, x0s, runs, mets = attempt
+    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(model, Q, R, discrete=discrete)
+    if start_scale is None and own:  # the scale search's runs are this lab's runs
+        scale, (x0s, runs, mets) = _search_scale(model, ctrl, x_eq, progress)
+    else:
+        scale = lab_start_scale(model) if start_scale is None else float(start_scale)
+        x0s, runs, mets = _five_runs(model, ctrl, x_eq, scale, duration, progress)
     return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete), A=readonly(A), B=readonly(B),
                      Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,

@@ -5,7 +5,8 @@ import pytest
 import scipy.linalg
 
 from cartpole import Q_LAB, R_LAB, build_model, read_params
-from cartpole.lab import LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, lab_initial_conditions, run_lab
+from cartpole.lab import (LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, lab_initial_conditions,
+                          lab_start_scale, run_lab)
 from cartpole.lqr import lab_weights
 from cartpole.models import SHIPPED_MJCF, wrap_angle
 from cartpole.sim import replays_exactly, simulate
@@ -201,6 +202,10 @@ def test_starts_a_chain_cannot_catch_are_scaled_by_the_largest_factor_that_settl
     bigger = lab_initial_conditions(path, scale=2 * res.start_scale)
     errs = [_final_error(simulate(path, ctrl, x0, res.duration), res.x_eq, model.hinges) for x0 in bigger]
     assert max(errs) > 0.01
+    # the factor belongs to the model: other weights or a shorter run use the same starts
+    other = run_lab(model, R=1.0, duration=0.5)
+    assert other.start_scale == res.start_scale and lab_start_scale(model) == res.start_scale
+    np.testing.assert_array_equal(other.x0s, res.x0s)
 
 
 def test_pendulum_without_a_cart_gets_the_angles_only(chain_dir):

@@ -15,7 +15,7 @@ def _labels(fig):
 
 @pytest.mark.parametrize("asset, poles", [("cartpole.xml", 1), ("cartpole_three_pole.xml", 3)])
 def test_lab_figure_has_a_panel_per_pole_the_cart_and_the_ctrl(asset, poles, tmp_path):
-    res = run_lab(SHIPPED_MJCF.with_name(asset), duration=1.0, scale_starts=False)
+    res = run_lab(SHIPPED_MJCF.with_name(asset), duration=1.0, start_scale=1.0)
     fig = lab_figure(res)
     labels = _labels(fig)
     assert len(labels) == poles + 2
