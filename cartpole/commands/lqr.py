@@ -194,8 +194,9 @@ def _print_prose(result, doc) -> None:
         print("K =", result.K)
         print("Closed-loop eigenvalues:", result.E)
         if result.start_scale != 1.0:
-            print(f"The lab's starts at full size do not all settle on this model; all five are scaled by "
-                  f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which every run settles.")
+            print(f"The lab's starts at full size are too large for this model: all five are scaled by "
+                  f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which the lab's own LQR settles "
+                  "every one (cartpole.lab.lab_start_scale).")
         what = ("offsets from x* on the first pole's angle and the cart, the other poles at x*, at rest"
                 if len(p.hinges) > 1 else "offsets from x* on the pole's angle and the cart, at rest")
         print(f"Settling from {len(result.x0s)} initial conditions ({what}), {result.duration:g} s each in MuJoCo "

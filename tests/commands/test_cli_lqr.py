@@ -240,3 +240,17 @@ def test_weights_of_the_wrong_size_are_one_sentence(argv, count, names, tmp_path
     assert cap.out == "" and len(lines) == 1 and lines[0].startswith("cartpole lqr: --")
     assert count in lines[0] and names in lines[0]
     assert not out.exists()
+
+
+def test_starts_scaled_for_a_model_are_said_in_prose_and_json(chain_dir, tmp_path, capsys):
+    from cartpole.lab import lab_initial_conditions, lab_start_scale
+
+    path = chain_dir / "dmc_3poles.xml"
+    doc = _lqr_json(capsys, "--mjcf", str(path), "--out", str(tmp_path))
+    scale = lab_start_scale(path)
+    assert doc["start_scale"] == scale < 1 and doc["settled"] == [True] * 5
+    np.testing.assert_array_equal(doc["initial_conditions"], lab_initial_conditions(path, scale=scale))
+    assert main(["lqr", "--no-video", "--mjcf", str(path), "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"all five are scaled by {scale:g}" in out
+    assert list(csv.reader((tmp_path / "metrics" / "metrics.csv").open()))[-1][12] == f"5_ICs_3_poles_scaled_{scale:g}"
