@@ -1,49 +1,61 @@
-from nbgen import write
+# ---
+# jupyter:
+#   jupytext:
+#     formats: ipynb,py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
 
-cells = [
-("md", r"""
-# 3. Energy-shaping swing-up with the LQR catch
+# %% [markdown]
+# # 3. Energy-shaping swing-up with the LQR catch
+#
+# From hanging at rest the pole is pumped up by moving the cart so that the pole's energy rises to its upright
+# value; near the top the lab's LQR takes over ("the catch") once the state is inside a basin that MuJoCo replays
+# have shown it can hold. Everything below calls the package: the law is
+# `cartpole.control.energy.EnergyShapingController`, the hand-over `cartpole.control.switching.SwitchingController`,
+# the basin `cartpole.validation.basin.estimate_basin`, and the whole run `cartpole.swingup.run_swingup`.
+#
+# ## The energy law and why it works
+#
+# Take the pole's energy about its hinge, zero at upright rest ($J_h$ the inertia about the hinge, $l$ the
+# hinge-to-COM distance):
+#
+# $$E(\theta, \dot\theta) = \tfrac12 J_h \dot\theta^2 + m g l\,(\cos\theta - 1)\qquad
+# (E = 0 \text{ upright at rest},\ E = -2mgl \text{ hanging at rest}).$$
+#
+# The pole's own equation of motion, $J_h\ddot\theta + m l\cos\theta\,\ddot s - m g l \sin\theta = -d_\theta\dot\theta$,
+# gives its rate of change with the cart acceleration $a = \ddot s$ as the input:
+#
+# $$\dot E = \dot\theta\,(J_h\ddot\theta - mgl\sin\theta) = m l\, w\, a - d_\theta\dot\theta^2,
+# \qquad w = -\dot\theta\cos\theta .$$
+#
+# So $\dot E$ is affine in $a$ with slope $m l w$. Choosing
+#
+# $$a = k_E\,(E_{\rm ref} - E)\,w \quad\Rightarrow\quad
+# \dot E = k_E\, m l\, (E_{\rm ref} - E)\, w^2 - d_\theta\dot\theta^2,$$
+#
+# the pumping term always pushes $E$ toward $E_{\rm ref}$ (in the package $w$ is computed from the model's own mass
+# matrix, $w = -\dot\theta M_{21}/(ml)$, which carries the hinge-axis sign). The cart acceleration is then turned into
+# ctrl exactly by collocated partial feedback linearisation with the model's $M$, bias and damping. On top of that
+# the package's law (i) puts the power the hinge damping drains back in, (ii) aims 0.5 % of $2mgl$ *above* the top
+# so the pole passes it slowly instead of creeping up to it, (iii) saturates $a$, (iv) centres the cart once the
+# energy is right and (v) keeps it off the track ends with a control-barrier guard. Why (i) and (ii) are needed is the
+# last section: with $E_{\rm ref} = 0$ and a timid gain the damping wins just below the top.
+#
+# **The catch.** An LQR $u = -Ke$ (wrapped angle error $e$) takes over when $e^\top S e < \rho$, $S$ its
+# Riccati cost-to-go, and hands back only above $20\rho$ (hysteresis). It uses the lab's $Q$ but $R = 1$ instead of
+# the lab's 0.1 (`swingup_catch`): the lab gain asks for more than the motor's 20 N a few degrees off upright, so its
+# verified basin is tiny ($\rho \approx 0.13$) and the pole often passes the top without being caught; with $R = 1$
+# the verified $\rho$ is about 0.64 on this asset and the catch takes over on the first pass.
 
-From hanging at rest the pole is pumped up by moving the cart so that the pole's energy rises to its upright
-value; near the top the lab's LQR takes over ("the catch") once the state is inside a basin that MuJoCo replays
-have shown it can hold. Everything below calls the package: the law is
-`cartpole.control.energy.EnergyShapingController`, the hand-over `cartpole.control.switching.SwitchingController`,
-the basin `cartpole.validation.basin.estimate_basin`, and the whole run `cartpole.swingup.run_swingup`.
-
-## The energy law and why it works
-
-Take the pole's energy about its hinge, zero at upright rest ($J_h$ the inertia about the hinge, $l$ the
-hinge-to-COM distance):
-
-$$E(\theta, \dot\theta) = \tfrac12 J_h \dot\theta^2 + m g l\,(\cos\theta - 1)\qquad
-(E = 0 \text{ upright at rest},\ E = -2mgl \text{ hanging at rest}).$$
-
-The pole's own equation of motion, $J_h\ddot\theta + m l\cos\theta\,\ddot s - m g l \sin\theta = -d_\theta\dot\theta$,
-gives its rate of change with the cart acceleration $a = \ddot s$ as the input:
-
-$$\dot E = \dot\theta\,(J_h\ddot\theta - mgl\sin\theta) = m l\, w\, a - d_\theta\dot\theta^2,
-\qquad w = -\dot\theta\cos\theta .$$
-
-So $\dot E$ is affine in $a$ with slope $m l w$. Choosing
-
-$$a = k_E\,(E_{\rm ref} - E)\,w \quad\Rightarrow\quad
-\dot E = k_E\, m l\, (E_{\rm ref} - E)\, w^2 - d_\theta\dot\theta^2,$$
-
-the pumping term always pushes $E$ toward $E_{\rm ref}$ (in the package $w$ is computed from the model's own mass
-matrix, $w = -\dot\theta M_{21}/(ml)$, which carries the hinge-axis sign). The cart acceleration is then turned into
-ctrl exactly by collocated partial feedback linearisation with the model's $M$, bias and damping. On top of that
-the package's law (i) puts the power the hinge damping drains back in, (ii) aims 0.5 % of $2mgl$ *above* the top
-so the pole passes it slowly instead of creeping up to it, (iii) saturates $a$, (iv) centres the cart once the
-energy is right and (v) keeps it off the track ends with a control-barrier guard. Why (i) and (ii) are needed is the
-last section: with $E_{\rm ref} = 0$ and a timid gain the damping wins just below the top.
-
-**The catch.** An LQR $u = -Ke$ (wrapped angle error $e$) takes over when $e^\top S e < \rho$, $S$ its
-Riccati cost-to-go, and hands back only above $20\rho$ (hysteresis). It uses the lab's $Q$ but $R = 1$ instead of
-the lab's 0.1 (`swingup_catch`): the lab gain asks for more than the motor's 20 N a few degrees off upright, so its
-verified basin is tiny ($\rho \approx 0.13$) and the pole often passes the top without being caught; with $R = 1$
-the verified $\rho$ is about 0.64 on this asset and the catch takes over on the first pass.
-"""),
-("code", r"""
+# %%
 import os
 from pathlib import Path
 import numpy as np
@@ -55,7 +67,7 @@ from cartpole.control.switching import swingup_catch
 from cartpole.models import wrap_angle
 from cartpole.swingup import run_swingup
 from cartpole.sim import replays_exactly, simulate
-from cartpole.validation import BasinCache
+from cartpole.validation import BasinCache, swingup_success
 from cartpole.viz import plot_swingup
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the simulations
@@ -72,15 +84,16 @@ g = law.gains
 print(f"2 m g l = {2 * sc['mgl']:.4f} J to gain; omega0 = {sc['omega0']:.2f} rad/s; a_max = {sc['a_max']:.2f} m/s^2")
 print(f"k_E = {g.k_energy:.2f} (m/s^2)/(J rad/s), E_ref = {g.energy_target * 1e3:.2f} mJ, |a_E| <= {g.a_energy_max:.2f} m/s^2, "
       f"hinge damping d = {params.damping[1]} N m s/rad")
-"""),
-("md", r"""
-## The run
 
-`run_swingup(method="energy")` estimates the catch basin in MuJoCo, then runs energy shaping + catch from hanging
-at rest, every physics step logged. A `BasinCache` lets us look at the very estimate the run used afterwards. (The package's
-`plot_swingup` switches matplotlib to its Agg backend, so the cell switches inline plotting back on.)
-"""),
-("code", r"""
+# %% [markdown]
+# ## The run
+#
+# `run_swingup(method="energy")` estimates the catch basin in MuJoCo, then runs energy shaping + catch from hanging
+# at rest, every physics step logged. A `BasinCache` lets us look at the very estimate the run used afterwards. The cell checks
+# what it prints: success by the package's metric (`swingup_success`, recomputed here from the rollout), the catch
+# inside the verified basin, and the logged ctrl replaying the run exactly with `mj_step`.
+
+# %%
 cache = BasinCache()
 T_run = 6.0 if QUICK else 10.0
 res = run_swingup(params, method="energy", duration=T_run, basin_cache=cache)
@@ -91,18 +104,21 @@ print(f"success {res.success}; catch at {res.caught_at:.3f} s (cost e'Se = {mt['
       f"< rho = {basin.rho:.4f}); upright from {mt['time_to_upright']:.3f} s; switches {len(mt['switches'])}")
 print(f"cart used [{mt['cart_min']:.2f}, {mt['cart_max']:.2f}] m of {params.cart_range.tolist()}; "
       f"peak |ctrl| {mt['peak_ctrl']:.2f}; replays exactly: {replays_exactly(r)}")
+assert replays_exactly(r), "the logged ctrl must replay the run exactly"
+assert res.success and swingup_success(r, params), "the energy swing-up must end upright and at rest"
+assert res.caught_at is not None and mt["switches"][-1]["cost"] < basin.rho
 display(Image(str(plot_swingup(r, params, OUT / "energy_swingup.png", caught_at=res.caught_at, model=model,
                                 title="Energy shaping + LQR catch in MuJoCo"))))
-"""),
-("md", r"""
-## Energy over time
 
-The strong saturated gain pumps the pole from $-2mgl$ to about $E = 0$ in one and a half swings (0.7 s), with
-the cart far out at +1.2 m. The pole then goes over the top and circles near $E \approx E_{\rm ref}$ while the
-cart centring brings the cart back; the catch takes over at the first pass near upright whose *whole* state, cart
-included, is inside the basin $e^\top S e < \rho$, and the LQR removes the few millijoules left.
-"""),
-("code", r"""
+# %% [markdown]
+# ## Energy over time
+#
+# The strong saturated gain pumps the pole from $-2mgl$ to about $E = 0$ in one and a half swings (0.7 s), with
+# the cart far out at +1.2 m. The pole then goes over the top and circles near $E \approx E_{\rm ref}$ while the
+# cart centring brings the cart back; the catch takes over at the first pass near upright whose *whole* state, cart
+# included, is inside the basin $e^\top S e < \rho$, and the LQR removes the few millijoules left.
+
+# %%
 E = energy(r.x)
 k_c = int(np.searchsorted(r.t, res.caught_at))
 fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
@@ -122,16 +138,16 @@ ins.plot(r.t[w], 1e3 * E[w]); ins.axvline(res.caught_at, color="g", lw=1); ins.a
 ins.set_title("around the catch (mJ)", fontsize=8); ins.tick_params(labelsize=7)
 fig.tight_layout()
 plt.show()
-"""),
-("md", r"""
-## Phase portrait
 
-Wrapped pole angle against pole rate. From hanging at rest ($\theta = \pi$, which wraps to $-\pi$ as soon as it
-moves) the pole makes one swing, then rides the separatrix $E = 0$ through upright ($\theta = 0$, where the two
-dashed branches cross) and circles over the top along it until the catch: the red star, on the separatrix, close
-to upright.
-"""),
-("code", r"""
+# %% [markdown]
+# ## Phase portrait
+#
+# Wrapped pole angle against pole rate. From hanging at rest ($\theta = \pi$, which wraps to $-\pi$ as soon as it
+# moves) the pole makes one swing, then rides the separatrix $E = 0$ through upright ($\theta = 0$, where the two
+# dashed branches cross) and circles over the top along it until the catch: the red star, on the separatrix, close
+# to upright.
+
+# %%
 th = wrap_angle(r.qpos[:, 1])
 thd = r.qvel[:, 1]
 def broken(a, b):                      # break the line where the wrapped angle jumps by 2 pi
@@ -155,20 +171,20 @@ ax.set_xticks(np.linspace(-np.pi, np.pi, 5), [r"$-\pi$", r"$-\pi/2$", "0 (up)", 
 ax.grid(alpha=.3); ax.legend(fontsize=8, loc="upper left")
 ax.set_title("Phase portrait of the energy swing-up (MuJoCo)")
 plt.show()
-"""),
-("md", r"""
-## The basin estimate
 
-`estimate_basin` draws errors from upright spread over the ellipsoid $e^\top S e \le 1$, runs the catch alone in
-MuJoCo from each for 4 s, and calls a run a success if it ends upright and still without touching the track ends.
-$\rho_{\rm sampled}$ is the cost of the cheapest failure; the level used is $\rho = 0.75\,\min(\rho_{\rm sampled},
-\rho_{\rm cover})$ (a margin for the directions the finite sample missed, not a proof). Left: each sample's success
-against its cost; right: the samples in the $(\theta, \dot\theta)$ plane with the projections of the level sets.
-"""),
-("code", r"""
+# %% [markdown]
+# ## The basin estimate
+#
+# `estimate_basin` draws errors from upright spread over the ellipsoid $e^\top S e \le 1$, runs the catch alone in
+# MuJoCo from each for 4 s, and calls a run a success if it ends upright and still without touching the track ends.
+# $\rho_{\rm sampled}$ is the cost of the cheapest failure; the level used is $\rho = 0.75\,\min(\rho_{\rm sampled},
+# \rho_{\rm cover})$ (a margin for the directions the finite sample missed, not a proof). Left: each sample's success
+# against its cost; right: the samples in the $(\theta, \dot\theta)$ plane with the projections of the level sets.
+
+# %%
 b = basin
 print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in b.summary().items() if k != "box"})
-e_c = cp.control.linear.state_error(r.x[k_c], np.zeros(4))
+e_c = model.state_error(r.x[k_c])   # wrapped error from upright
 
 fig, ax = plt.subplots(1, 2, figsize=(13, 5))
 ok = b.success
@@ -197,26 +213,26 @@ for a in ax:
     a.grid(alpha=.3)
 fig.tight_layout()
 plt.show()
-"""),
-("md", r"""
-By construction no sample below $\rho_{\rm sampled}$ failed, but above it failures and successes mix: the cost is a
-quadratic proxy, and whether the clipped catch holds depends on the direction of the error as well as its size. The
-swing-up's catch state sits just inside $\rho$. The projection is an outer shadow of a 4-D set: a sample can
-lie inside the projected ellipse and still have a large cost through its cart position or speed.
 
-## The timid-gain stall
+# %% [markdown]
+# By construction no sample below $\rho_{\rm sampled}$ failed, but above it failures and successes mix: the cost is a
+# quadratic proxy, and whether the clipped catch holds depends on the direction of the error as well as its size. The
+# swing-up's catch state sits just inside $\rho$. The projection is an outer shadow of a 4-D set: a sample can
+# lie inside the projected ellipse and still have a large cost through its cart position or speed.
+#
+# ## The timid-gain stall
+#
+# Replace the law by the textbook one: a small gain $k_E = 5$, target exactly the upright energy ($E_{\rm ref} = 0$),
+# no damping compensation. From the energy rate,
+#
+# $$\dot E = k_E\,m l\,(0 - E)\,w^2 - d_\theta\dot\theta^2 ,$$
+#
+# pumping fades as $E \to 0$ while the hinge damping keeps draining $d_\theta\dot\theta^2$, so $E$ settles where the
+# two balance: **below** the top. The pole swings forever without reaching upright (no catch here, energy shaping
+# alone, as in `tests/control/test_energy.py`). The package's default law (damping compensation, 0.5 % overshoot,
+# strong saturated gain) crosses $E = 0$ within seconds.
 
-Replace the law by the textbook one: a small gain $k_E = 5$, target exactly the upright energy ($E_{\rm ref} = 0$),
-no damping compensation. From the energy rate,
-
-$$\dot E = k_E\,m l\,(0 - E)\,w^2 - d_\theta\dot\theta^2 ,$$
-
-pumping fades as $E \to 0$ while the hinge damping keeps draining $d_\theta\dot\theta^2$, so $E$ settles where the
-two balance: **below** the top. The pole swings forever without reaching upright (no catch here, energy shaping
-alone, as in `tests/control/test_energy.py`). The package's default law (damping compensation, 0.5 % overshoot,
-strong saturated gain) crosses $E = 0$ within seconds.
-"""),
-("code", r"""
+# %%
 T_stall = 15.0
 timid = EnergyShapingController(model, k_energy=5.0, energy_target=0.0, damping_softening=np.inf, energy_accel=1.0)
 r_timid = simulate(params, timid, (0, np.pi, 0, 0), T_stall)
@@ -230,6 +246,9 @@ print(f"timid k_E = 5: energy deficit over the last 5 s {1e3 * deficit:.2f} mJ "
       f"replays exactly: {replays_exactly(r_timid)}")
 print(f"default law: max E {1e3 * E_d.max():.2f} mJ, first |theta| < 0.05 rad at "
       f"{r_dflt.t[np.argmax(np.abs(wrap_angle(r_dflt.qpos[:, 1])) < 0.05)]:.2f} s")
+assert replays_exactly(r_timid) and replays_exactly(r_dflt)
+assert deficit > 0 and closest > 1.0, "the timid law was expected to stall below the top"
+assert E_d.max() > 0 and np.any(np.abs(wrap_angle(r_dflt.qpos[:, 1])) < 0.05), "the default law reaches the top"
 
 fig, ax = plt.subplots(1, 2, figsize=(13, 4.5))
 ax[0].plot(r_timid.t, E_t, label=r"timid: $k_E$ = 5, $E_{\rm ref}$ = 0, no damping compensation")
@@ -249,6 +268,3 @@ for a in ax:
     a.grid(alpha=.3)
 fig.tight_layout()
 plt.show()
-"""),
-]
-write("notebooks/03_energy_swingup.ipynb", cells)
