@@ -28,6 +28,7 @@ def _start(p: CartPoleParams, target: np.ndarray) -> np.ndarray:
         lo, hi = p.joints[i].range
         q[i] = 0.0 if lo <= 0.0 <= hi else (0.5 * (lo + hi) if np.isfinite(lo + hi) else (lo if np.isfinite(lo) else hi))
     for _ in range(4):  # later hinges move what earlier ones carry: a few passes settle the chain
+        moved = 0.0
         for h in p.hinges:
             fk = forward_kinematics_np(p, q)
             bodies = p.subtree(p.joints[h].body)
@@ -40,7 +41,11 @@ def _start(p: CartPoleParams, target: np.ndarray) -> np.ndarray:
             r_perp, t_perp = r - (r @ n) * n, target - (target @ n) * n
             if np.linalg.norm(r_perp) < 1e-12 or np.linalg.norm(t_perp) < 1e-12:
                 continue  # centre of mass on the axis, or the axis along gravity: any angle will do
-            q[h] += np.arctan2(n @ np.cross(r_perp, t_perp), r_perp @ t_perp)
+            delta = np.arctan2(n @ np.cross(r_perp, t_perp), r_perp @ t_perp)
+            q[h] += delta
+            moved = max(moved, abs(delta))
+        if moved < 1e-12:
+            break
     return q
 
 

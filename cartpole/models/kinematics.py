@@ -7,6 +7,7 @@ expressions (what :mod:`cartpole.models.symbolic` differentiates); given numbers
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import casadi as ca
@@ -15,10 +16,17 @@ import numpy as np
 
 def quat_to_mat(quat) -> np.ndarray:
     """Rotation matrix (3, 3) of a unit quaternion ``(w, x, y, z)`` (MuJoCo's convention)."""
+    return _quat_to_mat(tuple(float(v) for v in quat))
+
+
+@functools.lru_cache(maxsize=256)
+def _quat_to_mat(quat: tuple) -> np.ndarray:
     w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+    out = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    out.setflags(write=False)
+    return out
 
 
 def axis_rotation(axis: np.ndarray, angle):

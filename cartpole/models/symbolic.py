@@ -30,12 +30,13 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.models.equilibrium import find_equilibrium
-from cartpole.models.kinematics import forward_kinematics
+from cartpole.models.kinematics import forward_kinematics, forward_kinematics_np
 from cartpole.models.params import SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError, read_params
 
 
-#: Common-subexpression elimination shrinks the Jacobians' virtual-machine programs by about 30 %.
-_OPTS = {"cse": True}
+#: Common-subexpression elimination shrinks the Jacobians' virtual-machine programs by about 30 % from two poles
+#: on (three poles: A, B 60 -> 50 us); on the single pole it only adds build time.
+_CSE_FROM_NQ = 3
 
 
 def wrap_angle(theta):
@@ -117,7 +118,7 @@ class CartPoleModel:
     # ---- single Jacobians, built on first use (AB and ABd serve every caller in the package) --------------
     def _part(self, fun: ca.Function, k: int, name: str) -> ca.Function:
         x, u = ca.SX.sym("x", self.nx), ca.SX.sym("u", self.nu)
-        return ca.Function(name, [x, u], [fun(x, u)[k]], ["x", "u"], [name], _OPTS)
+        return ca.Function(name, [x, u], [fun(x, u)[k]], ["x", "u"], [name], {"cse": self.nq >= _CSE_FROM_NQ})
 
     @functools.cached_property
     def A(self) -> ca.Function:
@@ -233,15 +234,21 @@ def _lagrangian(p: CartPoleParams, q, v):
     return M, V, kin
 
 
-def _pole_energy(p: CartPoleParams, x, q, v, kin):
-    """The single pole's energy about its hinge (SX), before subtracting its value at upright."""
+def _pole_energy(p: CartPoleParams, kin, v):
+    """The single pole's energy about its hinge (SX or float) for kinematics ``kin`` and rates ``v``."""
     h = p.hinges[0]
-    g = ca.DM(p.gravity)
-    anchor = kin.joint_anchor[h]
     V = 0
     for b in p.pole_bodies:
-        V -= p.bodies[b].mass * ca.dot(g, kin.com[b] - anchor)
+        V = V - p.bodies[b].mass * (p.gravity @ (kin.com[b] - kin.joint_anchor[h]) if isinstance(kin.com[b], np.ndarray)
+                                    else ca.dot(ca.DM(p.gravity), kin.com[b] - kin.joint_anchor[h]))
     return 0.5 * p.pole_inertia_about_hinge * v[h] ** 2 + V
+
+
+def _potential_np(p: CartPoleParams, q) -> float:
+    """Potential energy (gravity and springs, J) at numeric ``q``, the same sum as in :func:`_lagrangian`."""
+    kin = forward_kinematics_np(p, q)
+    V = -sum(b.mass * (p.gravity @ kin.com[i]) for i, b in enumerate(p.bodies))
+    return float(V + sum(0.5 * j.stiffness * (q[i] - j.springref) ** 2 for i, j in enumerate(p.joints)))
 
 
 def build_model(params: CartPoleParams | str | None = None, *, dt: float | None = None,
@@ -277,11 +284,12 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         raise MJCFError(f"Time step {h} s is not positive; give a positive dt.")
 
     nq, nu = p.nq, p.nu
+    opts = {"cse": nq >= _CSE_FROM_NQ}
     x = ca.SX.sym("x", 2 * nq)
     u = ca.SX.sym("u", nu)
     q, v = x[:nq], x[nq:]
 
-    M_body, V, kin = _lagrangian(p, q, v)
+    M_body, V, kin = _lagrangian(p, q, v)  # noqa: N806
     M = M_body + ca.diag(ca.DM(p.armature))
     T = 0.5 * ca.dot(v, ca.mtimes(M_body, v))
     bias = ca.mtimes(ca.jacobian(ca.mtimes(M_body, v), q), v) - ca.gradient(T, q) + ca.gradient(V, q)
@@ -292,7 +300,7 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     F = ca.mtimes(ca.DM(Bmat), u) - D * v - bias  # everything but M qacc
     qacc = ca.solve(M, F)
     xdot = ca.vertcat(v, qacc)
-    f = ca.Function("f", [x, u], [xdot], ["x", "u"], ["xdot"], _OPTS)
+    f = ca.Function("f", [x, u], [xdot], ["x", "u"], ["xdot"], opts)
 
     # ---- one step of the MJCF's integrator ---------------------------------------------------
     if integ == "RK4":
@@ -311,7 +319,7 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         a_impl = ca.solve(M - h * dFdv, F)
         v_next = v + h * a_impl
         x_next = ca.vertcat(q + h * v_next, v_next)
-    step = ca.Function("step", [x, u], [x_next], ["x", "u"], ["x_next"], _OPTS)
+    step = ca.Function("step", [x, u], [x_next], ["x", "u"], ["x_next"], opts)
 
     # ---- equilibria: upright (every COM above its hinge) and hanging ------------------------------
     Vg = V - sum(0.5 * j.stiffness * (q[i] - j.springref) ** 2 for i, j in enumerate(p.joints) if j.stiffness)
@@ -320,18 +328,17 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     potential = ca.Function("potential", [q], [dV, H, dVg, Hg])
     x_eq, u_eq = find_equilibrium(p, potential, Bmat, upright=True)
     x_hang, u_hang = find_equilibrium(p, potential, Bmat, upright=False)
-    V0 = float(ca.Function("V", [q], [V])(x_eq[:nq]))
+    V0 = _potential_np(p, x_eq[:nq])
 
     E = T + V - V0
     pole_energy = None
     if len(p.hinges) == 1:
-        Ep = _pole_energy(p, x, q, v, kin)
-        Ep_fun = ca.Function("Ep", [x], [Ep])
-        pole_energy = ca.Function("pole_energy", [x], [Ep - float(Ep_fun(x_eq))], ["x"], ["E_pole"])
+        Ep = _pole_energy(p, kin, v) - _pole_energy(p, forward_kinematics_np(p, x_eq[:nq]), np.zeros(nq))
+        pole_energy = ca.Function("pole_energy", [x], [Ep], ["x"], ["E_pole"])
 
     Ax, Bu = ca.jacobian(xdot, x), ca.jacobian(xdot, u)
     Adx, Bdu = ca.jacobian(x_next, x), ca.jacobian(x_next, u)
-    fn = lambda name, i, o, names_in, names_out: ca.Function(name, i, o, names_in, names_out, _OPTS)  # noqa: E731
+    fn = lambda name, i, o, names_in, names_out: ca.Function(name, i, o, names_in, names_out, opts)  # noqa: E731
     funcs = dict(
         f=f,
         AB=fn("AB", [x, u], [Ax, Bu], ["x", "u"], ["A", "B"]),
