@@ -1,15 +1,16 @@
 """Controllers with one call shape, ``u = controller(t, x)``: linear feedback, energy shaping, switching."""
-from cartpole.control.linear import LinearFeedback, state_error
+from cartpole.control.linear import FeedbackError, LinearFeedback
 
-__all__ = ["LinearFeedback", "state_error"]
+__all__ = ["FeedbackError", "LinearFeedback"]
 from cartpole.control.tvlqr import TVLQRController  # noqa: E402
 
 __all__ += ["TVLQRController"]
-from cartpole.control.energy import EnergyGains, EnergyShapingController, energy_guess, energy_rollout  # noqa: E402
-from cartpole.control.switching import Switch, SwitchingController, lab_catch  # noqa: E402
+from cartpole.control.energy import (EnergyGains, EnergyShapingController, EnergyShapingModelError,  # noqa: E402
+                                     energy_guess, energy_rollout)
+from cartpole.control.switching import Switch, SwitchingController, lab_catch, swingup_catch  # noqa: E402
 
-__all__ += ["EnergyGains", "EnergyShapingController", "energy_guess", "energy_rollout", "Switch",
-            "SwitchingController", "lab_catch"]
+__all__ += ["EnergyGains", "EnergyShapingController", "EnergyShapingModelError", "energy_guess", "energy_rollout",
+            "Switch", "SwitchingController", "lab_catch", "swingup_catch"]
 from cartpole.control.pid import CascadedPID, PIDError, PIDGains, tune_pid  # noqa: E402
 
 __all__ += ["CascadedPID", "PIDError", "PIDGains", "tune_pid"]

@@ -28,6 +28,12 @@ range. The LQR catch (:mod:`cartpole.control.switching`) takes over once the sta
 The energy regulated is the pole subsystem's own, ``E = pole_energy + 0.5 armature theta_dot^2`` (the hinge
 armature's kinetic energy belongs to what the pole's equation of motion conserves).
 
+The law is for one pole on a cart whose only actuator drives the cart's slide (any joint order: the slide and the
+hinge are ``model.slide`` and ``model.hinges[0]``); the cart position is measured from the computed upright
+equilibrium ``model.x_eq`` (the pole energy is zero there, so a pole built off vertical is handled). Anything else
+(two or more poles, a motor on a hinge) is refused with :class:`EnergyShapingModelError`: swing such a chain up by
+trajectory optimisation (``--method trajopt``).
+
 Units: ``s`` m, ``theta`` rad, ``E`` J, ``a`` m/s^2, ``ctrl`` MuJoCo ctrl (slide force = ``gear * ctrl`` N).
 """
 from __future__ import annotations
@@ -43,6 +49,34 @@ from cartpole.models import CartPoleModel, build_model
 
 class EnergyShapingError(CartPoleError):
     """Bad gains or a model the energy-shaping controller cannot drive (no ctrl limit, no track limit...)."""
+
+
+class EnergyShapingModelError(EnergyShapingError):
+    """The model is not one pole on a cart driven through the cart's slide, which is all energy shaping drives."""
+
+
+def check_single_pole(model: CartPoleModel) -> tuple[int, int]:
+    """``(slide, hinge)`` qpos indices of a model energy shaping can drive: one slide, one hinge, one actuator on
+    the slide.
+
+    Raises
+    ------
+    EnergyShapingModelError
+        With one sentence naming what the model has instead and pointing to ``--method trajopt``.
+    """
+    p = model.params
+    if len(p.hinges) != 1:
+        what = f"this model has {len(p.hinges)} hinges"
+    elif len(p.slides) != 1:
+        what = "this model has no slide for a cart" if not p.slides else f"this model has {len(p.slides)} slides"
+    elif p.nu != 1:
+        what = f"this model has {p.nu} actuators"
+    elif p.actuated[0] != p.slide:
+        what = f"its actuator drives joint '{p.joints[p.actuated[0]].name}', not the cart's slide"
+    else:
+        return p.slide, p.hinges[0]
+    raise EnergyShapingModelError(f"Energy shaping is for one pole driven by the cart and {what}; "
+                                  "use `--method trajopt` instead.")
 
 
 @dataclass(frozen=True)
@@ -106,13 +140,19 @@ def model_scales(model: CartPoleModel) -> dict:
         ``g`` (m/s^2), ``mgl`` (J, pole weight times COM distance: the swing-up needs ``2 mgl``),
         ``omega0`` (rad/s, small-swing pendulum frequency ``sqrt(mgl / M22)``), ``a_max`` (m/s^2, the cart
         acceleration full ctrl gives at upright rest with the pole's reaction, ``gear u_max / (M11 - M12^2 / M22)``),
-        ``half_track`` (m, half the cart joint range, inf when unlimited).
+        ``half_track`` (m, half the cart joint range, inf when unlimited). The mass matrix is taken at ``x_eq``.
+
+    Raises
+    ------
+    EnergyShapingModelError
+        For a model that is not one pole driven by the cart (:func:`check_single_pole`).
     """
+    si, hi = check_single_pole(model)
     p = model.params
-    M = np.asarray(model.mass_matrix(np.zeros(4)))
+    M = np.asarray(model.mass_matrix(model.x_eq))
     mgl = p.pole_mass * p.g * p.pole_com_distance
-    m_eff = M[0, 0] - M[0, 1] ** 2 / M[1, 1]
-    return {"g": p.g, "mgl": mgl, "omega0": float(np.sqrt(mgl / M[1, 1])),
+    m_eff = M[si, si] - M[si, hi] ** 2 / M[hi, hi]
+    return {"g": p.g, "mgl": mgl, "omega0": float(np.sqrt(mgl / M[hi, hi])),
             "a_max": float(p.gear * p.u_max / m_eff),
             "half_track": float(0.5 * (p.cart_range[1] - p.cart_range[0]))}
 
@@ -179,26 +219,31 @@ _PRM = ("k_energy", "k_x", "k_v", "a_energy_max", "energy_target", "kick_rate", 
 
 def _law(model: CartPoleModel) -> ca.Function:
     """CasADi Function ``(x, [EnergyGains fields..., u_lo, u_hi]) -> (ctrl, a_d, E, w)``, built once."""
+    si, hi = check_single_pole(model)
     p = model.params
-    x = ca.SX.sym("x", 4)
+    nq = p.nq
+    si_v, hi_v = nq + si, nq + hi  # state indices of the cart velocity and the pole rate
+    x = ca.SX.sym("x", 2 * nq)
     prm = ca.SX.sym("prm", len(_PRM) + 2)
     kE, kx, kv, aEmax, Eref, kick, margin, abrake, gamma, eps, band, ulo, uhi = (prm[i] for i in range(len(_PRM) + 2))
     M = model.mass_matrix(x)
     b = model.bias(x)
     # The pole subsystem's energy as its own equation of motion conserves it: the hinge armature's kinetic energy
     # belongs to it (pole_energy counts bodies only), so dE/dt = -D2 theta_dot^2 + m l w a exactly.
-    E = model.pole_energy(x) + 0.5 * float(p.armature[1]) * x[3] ** 2
-    D1, D2 = float(p.damping[0]), float(p.damping[1])
+    E = model.pole_energy(x) + 0.5 * float(p.armature[hi]) * x[hi_v] ** 2
+    D1, D2 = float(p.damping[si]), float(p.damping[hi])
     ml = p.pole_mass * p.pole_com_distance
-    s, sd = x[0], x[2]
+    s_eq = float(model.x_eq[si])  # centring is towards the equilibrium's cart position
+    s_abs, sd, thd_raw = x[si], x[si_v], x[hi_v]
+    s = s_abs - s_eq if s_eq else s_abs
     # A pole at rest gives no pumping direction (the hanging state is an equilibrium of the law): replace a pole
     # rate smaller than `kick` by +-kick so the law starts the swing itself instead of waiting for numerical noise.
-    thd = ca.if_else(ca.fabs(x[3]) < kick, ca.if_else(x[3] < 0, -kick, kick), x[3])
-    w = -thd * M[1, 0] / ml  # rad/s; direction in which cart acceleration pumps pole energy (hinge sign included)
-    w_true = -x[3] * M[1, 0] / ml
+    thd = ca.if_else(ca.fabs(thd_raw) < kick, ca.if_else(thd_raw < 0, -kick, kick), thd_raw)
+    w = -thd * M[hi, si] / ml  # rad/s; direction in which cart acceleration pumps pole energy (hinge sign included)
+    w_true = -thd_raw * M[hi, si] / ml
     # Hinge-damping compensation: the power D2 theta_dot^2 put back through the cart, softened where the pole
     # cannot be pumped (w ~ 0) so it stays bounded (at most D2 theta_dot^2 / (2 m l eps)).
-    aD = D2 * x[3] ** 2 * w_true / (ml * (w_true**2 + eps**2))
+    aD = D2 * thd_raw ** 2 * w_true / (ml * (w_true**2 + eps**2))
     aE = ca.fmin(ca.fmax(kE * (Eref - E) * w + aD, -aEmax), aEmax)
     # Cart centring fights the pumping while the energy is far from its target (it needs large cart velocities);
     # weight it by how close the energy is: full strength within ~centring_band of E_ref, fading outside.
@@ -209,15 +254,15 @@ def _law(model: CartPoleModel) -> ca.Function:
     big = 1e9
     s_lo = float(p.cart_range[0]) if np.isfinite(p.cart_range[0]) else -big
     s_hi = float(p.cart_range[1]) if np.isfinite(p.cart_range[1]) else big
-    h_hi = (s_hi - margin - s) - ca.fmax(sd, 0) ** 2 / (2 * abrake)
-    h_lo = (s - s_lo - margin) - ca.fmin(sd, 0) ** 2 / (2 * abrake)
+    h_hi = (s_hi - margin - s_abs) - ca.fmax(sd, 0) ** 2 / (2 * abrake)
+    h_lo = (s_abs - s_lo - margin) - ca.fmin(sd, 0) ** 2 / (2 * abrake)
     eps = 1e-9
     a_up = ca.if_else(sd > eps, abrake * (gamma * h_hi / ca.fmax(sd, eps) - 1), big)
     a_dn = ca.if_else(sd < -eps, -abrake * (gamma * h_lo / ca.fmax(-sd, eps) - 1), -big)
     a = ca.fmin(ca.fmax(a, a_dn), a_up)
     # Collocated partial feedback linearisation: the force that gives the cart exactly the acceleration a.
-    thdd = (-D2 * x[3] - b[1] - M[1, 0] * a) / M[1, 1]
-    force = M[0, 0] * a + M[0, 1] * thdd + b[0] + D1 * sd
+    thdd = (-D2 * thd_raw - b[hi] - M[hi, si] * a) / M[hi, hi]
+    force = M[si, si] * a + M[si, hi] * thdd + b[si] + D1 * sd
     u = ca.fmin(ca.fmax(force / p.gear, ulo), uhi)
     return ca.Function("energy_law", [x, prm], [u, a, E, w], ["x", "prm"], ["u", "a", "E", "w"])
 
@@ -252,12 +297,20 @@ class EnergyShapingController:
     gains : EnergyGains
         The gains in use (SI).
     model : CartPoleModel
+
+    Raises
+    ------
+    EnergyShapingModelError
+        For a model that is not one pole on a cart driven by the cart's slide (use ``--method trajopt``).
+    EnergyShapingError
+        For bad gains or settings.
     """
 
     def __init__(self, model=None, *, k_energy: float | None = None, k_x: float | None = None,
                  k_v: float | None = None, a_energy_max: float | None = None, energy_target: float | None = None,
                  gains: EnergyGains | None = None, **scaling):
         self.model = model if isinstance(model, CartPoleModel) else build_model(model)
+        check_single_pole(self.model)
         g = gains if gains is not None else default_gains(self.model, **scaling)
         explicit = dict(k_energy=k_energy, k_x=k_x, k_v=k_v, a_energy_max=a_energy_max, energy_target=energy_target)
         g = replace(g, **{k: float(v) for k, v in explicit.items() if v is not None})
@@ -267,26 +320,26 @@ class EnergyShapingController:
             raise EnergyShapingError(f"Energy-shaping gains {g} are invalid; k_energy, a_energy_max, a_brake and "
                                      "barrier_rate must be positive, the others non-negative.")
         self.gains = g
-        lo, hi = self.model.params.ctrl_range
+        lo, hi = self.model.params.ctrl_range[0]
         self._prm = np.array([*vals, lo, hi], dtype=float)
         self._fun = _law(self.model)
 
-    def __call__(self, t: float, x) -> float:
-        """ctrl (clipped to the ctrl range) at time ``t`` (s, unused) for state ``x`` (4,)."""
-        return float(self._fun(np.asarray(x, dtype=float), self._prm)[0])
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (1,) (clipped to the ctrl range) at time ``t`` (s, unused) for state ``x`` (nx,)."""
+        return np.array([float(self._fun(np.asarray(x, dtype=float), self._prm)[0])])
 
     def evaluate(self, x) -> dict:
-        """The law's internals at state ``x`` (4,): ``ctrl``, desired cart acceleration ``a`` (m/s^2), pole energy
+        """The law's internals at state ``x`` (nx,): ``ctrl``, desired cart acceleration ``a`` (m/s^2), pole energy
         ``E`` (J) and pumping direction ``w`` (rad/s)."""
         u, a, E, w = self._fun(np.asarray(x, dtype=float), self._prm)
         return {"ctrl": float(u), "a": float(a), "E": float(E), "w": float(w)}
 
     def pole_energy(self, x) -> float:
-        """Pole energy about the hinge in J (0 = upright rest) at state ``x`` (4,)."""
+        """Pole energy about the hinge in J (0 = upright rest) at state ``x`` (nx,)."""
         return float(self.model.pole_energy(np.asarray(x, dtype=float)))
 
 
-def energy_guess(model=None, x0=(0.0, np.pi, 0.0, 0.0), T: float = 4.0, N: int = 100, *, controller=None,
+def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controller=None,
                  catch=True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A swing-up guess for trajectory optimisation: simulate the symbolic model under energy shaping.
 
@@ -297,41 +350,45 @@ def energy_guess(model=None, x0=(0.0, np.pi, 0.0, 0.0), T: float = 4.0, N: int =
     Parameters
     ----------
     model : CartPoleModel or CartPoleParams or path or None
-    x0 : (4,) array
-        Start state.
+        One pole on a cart (see :func:`check_single_pole`) unless ``controller`` is given.
+    x0 : (nx,) array, optional
+        Start state; default the model's hanging rest ``model.x_hanging`` (``[0, pi, 0, 0]`` on the shipped cart).
     T : float
         Horizon in s.
     N : int
         Number of grid intervals.
     controller : callable, optional
-        ``(t, x) -> ctrl`` to use instead of the default energy shaping (+ catch).
+        ``(t, x) -> ctrl`` (one input) to use instead of the default energy shaping (+ catch).
     catch : bool
         Switch to the lab LQR once ``e' S e`` is below a conservative level (no MuJoCo basin estimate here).
 
     Returns
     -------
     t : (N+1,) array, s
-    x : (N+1, 4) array
+    x : (N+1, nx) array
     u : (N, 1) array, ctrl applied from ``t[k]`` (zero-order sample of the simulated input)
     """
     model = model if isinstance(model, CartPoleModel) else build_model(model)
     if not (T > 0 and int(N) >= 1):
         raise EnergyShapingError(f"energy_guess needs T > 0 and N >= 1 (got T = {T}, N = {N}).")
     N = int(N)
+    x0 = model.x_hanging if x0 is None else x0
     if controller is None:
         controller = EnergyShapingController(model)
         if catch:
             from cartpole.control.switching import SwitchingController, lab_catch
             c = lab_catch(model)
             # Without a MuJoCo basin estimate use a small, safe level: 10 % of the cost of a 0.2 rad tilt.
-            rho = 0.1 * float(np.array([0, 0.2, 0, 0]) @ c.S @ np.array([0, 0.2, 0, 0]))
+            tilt = np.zeros(model.nx)
+            tilt[model.hinges[0]] = 0.2
+            rho = 0.1 * float(tilt @ c.S @ tilt)
             controller = SwitchingController(controller, c, rho)
     h = model.dt
     n = int(np.ceil(T / h))
-    xs, us = energy_rollout(model, controller, x0, n, u_limits=model.params.ctrl_range)
+    xs, us = energy_rollout(model, controller, x0, n, u_limits=model.params.ctrl_range[0])
     tk = np.arange(n + 1) * h
     tg = np.linspace(0.0, T, N + 1)
-    xg = np.column_stack([np.interp(tg, tk, xs[:, i]) for i in range(4)])
+    xg = np.column_stack([np.interp(tg, tk, xs[:, i]) for i in range(model.nx)])
     idx = np.minimum((tg[:-1] / h).astype(int), n - 1)
     return tg, xg, us[idx].reshape(-1, 1)
 
@@ -343,25 +400,29 @@ def energy_rollout(model: CartPoleModel, controller, x0, steps: int, *, u_limits
     Parameters
     ----------
     model : CartPoleModel
+        A model with one input (what energy shaping drives).
     controller : callable
-        ``(t (s), x (4,)) -> ctrl`` (scalar or (1,)), e.g. :class:`EnergyShapingController`.
-    x0 : (4,) array
+        ``(t (s), x (nx,)) -> ctrl`` (scalar or (1,)), e.g. :class:`EnergyShapingController`.
+    x0 : (nx,) array
         Start state.
     steps : int
         Number of steps of ``model.dt`` s.
-    u_limits : (2,) array
+    u_limits : (2,) or (1, 2) array
         ``[low, high]`` ctrl clip.
 
     Returns
     -------
-    x : (steps+1, 4) array
+    x : (steps+1, nx) array
         States, row 0 the start (NaN/inf are not caught: check them where it matters).
     u : (steps,) array
         ctrl applied during each step.
     """
+    if model.nu != 1:
+        raise EnergyShapingModelError(f"Energy shaping is for one pole driven by the cart and this model has "
+                                      f"{model.nu} actuators; use `--method trajopt` instead.")
     h = model.dt
-    lo, hi = u_limits
-    x = np.empty((steps + 1, 4))
+    lo, hi = np.asarray(u_limits, dtype=float).reshape(2)
+    x = np.empty((steps + 1, model.nx))
     u = np.empty(steps)
     x[0] = np.asarray(x0, dtype=float)
     for k in range(steps):

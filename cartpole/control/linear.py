@@ -1,52 +1,183 @@
-"""Linear state feedback about an equilibrium: ``u = u* - K (x - x*)``, with the angle error wrapped."""
+"""Linear state feedback about an equilibrium: ``u = u* - K (x - x*)``, hinge-angle errors wrapped, per-actuator clip.
+
+For any model with ``nq`` joints (``nx = 2 nq`` states) and ``nu`` actuators. :meth:`LinearFeedback.for_model`
+designs the usual one: LQR on the exact linearisation at the model's computed upright equilibrium
+``(x_eq, u_eq)``, the lab's weight pattern (:func:`~cartpole.lqr.weights.lab_weights`), the model's hinges
+wrapped and its ctrl ranges as limits.
+"""
 from __future__ import annotations
 
 import numpy as np
 
-from cartpole.models import wrap_angle
+from cartpole._arrays import readonly
+from cartpole.errors import CartPoleError
+from cartpole.models import state_error
 
 
-def state_error(x, x_ref) -> np.ndarray:
-    """``x - x_ref`` (..., 4) with the pole-angle entry wrapped to (-pi, pi] (hinge angles never wrap in MuJoCo)."""
-    e = np.asarray(x, dtype=float) - np.asarray(x_ref, dtype=float)
-    e = np.array(e, copy=True)
-    e[..., 1] = wrap_angle(e[..., 1])
-    return e
+class FeedbackError(CartPoleError, ValueError):
+    """Shapes of a linear feedback law that do not agree (K, x_eq, u_eq, limits, S, hinges)."""
+
+
+def _limits(u_limits, nu: int) -> np.ndarray:
+    """``[low, high]`` per actuator, (nu, 2), from None (no clip), one ``[low, high]`` for all, or (nu, 2)."""
+    if u_limits is None:
+        return np.tile([-np.inf, np.inf], (nu, 1))
+    lim = np.asarray(u_limits, dtype=float)
+    if lim.shape == (2,):
+        lim = np.tile(lim, (nu, 1))
+    if lim.shape != (nu, 2) or np.any(np.isnan(lim)) or np.any(lim[:, 0] > lim[:, 1]):
+        raise FeedbackError(f"u_limits {lim.tolist()} must be [low, high] (low <= high) for all {nu} inputs or "
+                            f"one such row per input, shape ({nu}, 2).")
+    return lim
 
 
 class LinearFeedback:
-    """The controller ``u = u* - K (x - x*)`` clipped to ``[u_min, u_max]``, with the call shape ``u = c(t, x)``.
+    """The controller ``u = u* - K e`` clipped per actuator to ``[low, high]``, with the call shape ``u = c(t, x)``.
+
+    ``e = state_error(x, x*, hinges)``: ``x - x*`` with the hinge-angle entries wrapped to (-pi, pi] (MuJoCo hinge
+    angles never wrap; the error fed to K, and the cost ``e' S e``, must).
 
     Parameters
     ----------
-    K : (1, 4) or (4,) array
-        Gain in ctrl per state unit (ctrl/m, ctrl/rad, ctrl/(m/s), ctrl/(rad/s)).
-    x_eq : (4,) array, optional
-        Equilibrium state (default upright rest at the origin).
-    u_eq : float, optional
-        Equilibrium ctrl (default 0).
-    u_limits : (2,) array, optional
-        ``[low, high]`` ctrl clip (default none; MuJoCo clips to ctrlrange anyway).
-    S : (4, 4) array, optional
+    K : (nu, nx) array, or (nx,) for one input
+        Gain in ctrl per state unit (ctrl/m or ctrl/rad on positions, ctrl/(m/s) or ctrl/(rad/s) on rates).
+    x_eq : (nx,) array, optional
+        Equilibrium state ``x*`` (default the origin).
+    u_eq : (nu,) array or float, optional
+        Equilibrium ctrl ``u*`` (default 0; a scalar is used for every input).
+    u_limits : (2,) or (nu, 2) array, optional
+        ``[low, high]`` ctrl clip, one row per actuator (a single row applies to all); default none (MuJoCo clips to
+        ctrlrange anyway).
+    S : (nx, nx) array, optional
         LQR cost-to-go, kept so :meth:`cost_to_go` can test the catch basin ``e' S e < rho``.
+    hinges : sequence of int, optional
+        qpos indices of the hinge joints whose errors are wrapped; default every joint but the first (a cart at
+        qpos 0 carrying a chain of poles, e.g. ``(1,)`` for one pole). :meth:`for_model` passes the model's own.
+
+    Attributes
+    ----------
+    K : (nu, nx) array
+    x_eq : (nx,) array
+    u_eq : (nu,) array
+    u_limits : (nu, 2) array
+        ``[low, high]`` per actuator.
+    u_low, u_high : (nu,) arrays
+    S : (nx, nx) array or None
+    hinges : tuple of int
+    nx, nu : int
     """
 
-    def __init__(self, K, x_eq=None, u_eq: float = 0.0, *, u_limits=None, S=None):
-        self.K = np.asarray(K, dtype=float).reshape(1, -1)
-        self.x_eq = np.zeros(self.K.shape[1]) if x_eq is None else np.asarray(x_eq, dtype=float)
-        self.u_eq = float(u_eq)
-        self.u_limits = (-np.inf, np.inf) if u_limits is None else tuple(float(v) for v in u_limits)
-        self.S = None if S is None else np.asarray(S, dtype=float)
+    def __init__(self, K, x_eq=None, u_eq=None, *, u_limits=None, S=None, hinges=None):
+        K = np.asarray(K, dtype=float)
+        K = K.reshape(1, -1) if K.ndim == 1 else K
+        if K.ndim != 2 or K.shape[1] % 2:
+            raise FeedbackError(f"K has shape {K.shape}; it must be (nu, nx) with nx = 2 nq even.")
+        nu, nx = K.shape
+        self.K = readonly(K)
+        self.x_eq = readonly(np.zeros(nx) if x_eq is None else x_eq)
+        if self.x_eq.shape != (nx,):
+            raise FeedbackError(f"x_eq has shape {self.x_eq.shape} but K {K.shape} needs ({nx},).")
+        u_eq = np.zeros(nu) if u_eq is None else np.asarray(u_eq, dtype=float)
+        self.u_eq = readonly(np.full(nu, float(u_eq)) if u_eq.ndim == 0 else u_eq.ravel())
+        if self.u_eq.shape != (nu,):
+            raise FeedbackError(f"u_eq has {self.u_eq.size} entries but K {K.shape} has {nu} input(s).")
+        self.u_limits = readonly(_limits(u_limits, nu))
+        self.S = None if S is None else readonly(S)
+        if self.S is not None and self.S.shape != (nx, nx):
+            raise FeedbackError(f"S has shape {self.S.shape} but K {K.shape} needs ({nx}, {nx}).")
+        self.hinges = tuple(range(1, nx // 2)) if hinges is None else tuple(int(h) for h in hinges)
+        if any(not 0 <= h < nx // 2 for h in self.hinges):
+            raise FeedbackError(f"hinges {list(self.hinges)} must be qpos indices in 0..{nx // 2 - 1}.")
 
-    def __call__(self, t: float, x) -> float:
-        """ctrl at time t (s) for state x (4,)."""
-        e = state_error(x, self.x_eq)
-        u = self.u_eq - float(self.K[0] @ e)
-        return float(np.clip(u, *self.u_limits))
+    @classmethod
+    def for_model(cls, model, Q=None, R=None, *, discrete: bool = False, u_limits="ctrlrange") -> "LinearFeedback":
+        """LQR about the model's upright equilibrium ``(x_eq, u_eq)`` on its exact linearisation.
 
-    def cost_to_go(self, x) -> float:
-        """``e' S e`` with ``e`` the wrapped error from the equilibrium (needs ``S``)."""
+        Parameters
+        ----------
+        model : CartPoleModel or CartPoleParams or MJCF path
+            Any number of joints and actuators (params and paths are built with
+            :func:`~cartpole.models.build_model`).
+        Q : (nx, nx) array, optional
+            State weight; default :func:`~cartpole.lqr.weights.lab_weights` (1 per slide, 10 per hinge, 0.1 per rate).
+        R : (nu, nu) array or float, optional
+            Input weight on MuJoCo ctrl; default 0.1 per input.
+        discrete : bool
+            False: ``lqr(A, B, Q, R)`` on the continuous Jacobians. True: ``dlqr(Ad, Bd, Q dt, R dt)`` on one step
+            of the MJCF's integrator at ``model.dt`` (the same cost per second, so ``S`` approximates the continuous
+            one; the gain does not depend on that scaling).
+        u_limits : "ctrlrange", None or array
+            Clip of the law; default the model's ctrl ranges, None for no clip.
+
+        Returns
+        -------
+        LinearFeedback
+            With ``S`` attached and ``hinges = model.hinges``.
+
+        Raises
+        ------
+        LQRError
+            Bad weights, an unstabilisable linearisation, a Riccati solution that does not check out, or (continuous
+            design) a gain whose loop sampled at the physics step ``model.dt`` is unstable.
+        """
+        from cartpole.lqr import LQRError, dlqr, lab_weights, lqr
+        from cartpole.models import CartPoleModel, build_model
+
+        if not isinstance(model, CartPoleModel):
+            model = build_model(model)
+        Q0, R0 = lab_weights(model)
+        Q = Q0 if Q is None else Q
+        R = R0 if R is None else R
+        Ad, Bd = model.linearize(discrete=True)
+        if discrete:
+            res = dlqr(Ad, Bd, np.asarray(Q, float) * model.dt, np.asarray(R, float) * model.dt)
+        else:
+            res = lqr(*model.linearize(), Q, R)
+            # MuJoCo applies the gain once per physics step: the sampled loop must be stable too (a fast
+            # closed-loop pole, e.g. a light motorised link, can be stable in continuous time and not at dt).
+            radius = float(np.abs(np.linalg.eigvals(Ad - Bd @ res.K)).max())
+            if not radius < 1:
+                raise LQRError(f"The continuous LQR gain is unstable when applied every {model.dt:g} s physics "
+                               f"step (closed-loop spectral radius {radius:.4g}); design it with discrete=True "
+                               "(dlqr on the exact discrete model) or raise R.")
+        lim = model.params.ctrl_range if isinstance(u_limits, str) and u_limits == "ctrlrange" else u_limits
+        return cls(res.K, model.x_eq, model.u_eq, u_limits=lim, S=res.S, hinges=model.hinges)
+
+    @property
+    def nx(self) -> int:
+        """Number of states."""
+        return int(self.K.shape[1])
+
+    @property
+    def nu(self) -> int:
+        """Number of inputs."""
+        return int(self.K.shape[0])
+
+    @property
+    def u_low(self) -> np.ndarray:
+        """(nu,) lower ctrl clip."""
+        return self.u_limits[:, 0]
+
+    @property
+    def u_high(self) -> np.ndarray:
+        """(nu,) upper ctrl clip."""
+        return self.u_limits[:, 1]
+
+    def error(self, x) -> np.ndarray:
+        """The wrapped error ``e`` (..., nx) of state(s) ``x`` from ``x_eq``."""
+        return state_error(x, self.x_eq, self.hinges)
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,) at time t (s) for state x (nx,)."""
+        u = self.u_eq - self.K @ self.error(x)
+        return np.clip(u, self.u_limits[:, 0], self.u_limits[:, 1])
+
+    def cost_to_go(self, x):
+        """``e' S e`` with ``e`` the wrapped error from the equilibrium (needs ``S``): float for x (nx,), (m,) array
+        for x (m, nx)."""
         if self.S is None:
-            raise ValueError("This LinearFeedback was built without S; pass S= to use cost_to_go.")
-        e = state_error(x, self.x_eq)
-        return float(e @ self.S @ e)
+            raise FeedbackError("This LinearFeedback was built without S; pass S= to use cost_to_go.")
+        e = self.error(x)
+        if e.ndim == 1:
+            return float(e @ self.S @ e)
+        return np.einsum("...i,ij,...j->...", e, self.S, e)

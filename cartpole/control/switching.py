@@ -1,8 +1,8 @@
 """Hand a swing-up over to an LQR catch inside a basin ``e' S e < rho``, with hysteresis.
 
 Drake's acrobot swing-up does the same: the swing-up runs until the quadratic cost-to-go of the balancing LQR,
-evaluated on the *wrapped* error from upright, drops below a level ``rho`` that a basin estimate
-(:func:`cartpole.validation.basin.estimate_basin`) found safe; the catch then holds the pole. The controller
+evaluated on the *wrapped* error from the upright equilibrium ``x_eq``, drops below a level ``rho`` that a basin
+estimate (:func:`cartpole.validation.basin.estimate_basin`) found safe; the catch then holds the pole. The controller
 goes back to the swing-up only when the cost exceeds ``release_factor * rho``, a much larger level, so noise
 or the transient right after the catch cannot make it chatter between the two laws.
 """
@@ -21,27 +21,26 @@ class SwitchingError(CartPoleError):
 
 
 def lab_catch(model, Q=None, R=None) -> LinearFeedback:
-    """The LQR catch about upright rest: ``LinearFeedback(K, S=S)`` from ``lqr(A, B, Q, R)`` on the exact A, B.
+    """The LQR catch about the upright equilibrium: :meth:`LinearFeedback.for_model` (continuous ``lqr`` on the
+    exact ``A, B`` at ``model.x_eq``, ``model.u_eq``).
 
     Parameters
     ----------
     model : CartPoleModel
-        Symbolic model (its exact continuous linearisation at upright rest with zero ctrl is used).
-    Q : (4, 4) array, optional
-        State weight (default the lab's ``diag(1, 10, 0.1, 0.1)``).
-    R : (1, 1) array, optional
-        Input weight on MuJoCo ctrl (default the lab's 0.1).
+        Symbolic model, any number of joints and actuators.
+    Q : (nx, nx) array, optional
+        State weight (default :func:`~cartpole.lqr.weights.lab_weights`: the lab's ``diag(1, 10, 0.1, 0.1)`` for
+        one pole, 1 per slide, 10 per hinge and 0.1 per rate otherwise).
+    R : (nu, nu) array, optional
+        Input weight on MuJoCo ctrl (default the lab's 0.1 per input).
 
     Returns
     -------
     LinearFeedback
-        ``u = -K e`` clipped to the model's ctrl range, with the cost-to-go ``S`` attached.
+        ``u = u_eq - K e`` (``e`` the error from ``x_eq``, hinge angles wrapped) clipped to the model's ctrl
+        ranges, with the cost-to-go ``S`` attached.
     """
-    from cartpole.lqr import Q_LAB, R_LAB, lqr
-
-    A, B = model.linearize()
-    res = lqr(A, B, Q_LAB if Q is None else Q, R_LAB if R is None else R)
-    return LinearFeedback(res.K, u_limits=tuple(model.params.ctrl_range), S=res.S)
+    return LinearFeedback.for_model(model, Q, R)
 
 
 #: Input weight of the swing-up's catch (:func:`swingup_catch`), on MuJoCo ctrl. The lab's R = 0.1 asks for more
@@ -57,17 +56,17 @@ def swingup_catch(model, Q=None, R=None) -> LinearFeedback:
     Parameters
     ----------
     model : CartPoleModel
-    Q : (4, 4) array, optional
-        State weight (default the lab's ``diag(1, 10, 0.1, 0.1)``).
-    R : (1, 1) array, optional
-        Input weight on MuJoCo ctrl (default :data:`SWINGUP_CATCH_R`).
+    Q : (nx, nx) array, optional
+        State weight (default :func:`~cartpole.lqr.weights.lab_weights`).
+    R : (nu, nu) array, optional
+        Input weight on MuJoCo ctrl (default :data:`SWINGUP_CATCH_R` per input).
 
     Returns
     -------
     LinearFeedback
         With ``S`` attached (its basin is estimated by :func:`~cartpole.validation.basin.estimate_basin`).
     """
-    return lab_catch(model, Q, np.array([[SWINGUP_CATCH_R]]) if R is None else R)
+    return lab_catch(model, Q, SWINGUP_CATCH_R * np.eye(model.nu) if R is None else R)
 
 
 @dataclass(frozen=True)
@@ -88,8 +87,9 @@ class SwitchingController:
     swingup : callable
         ``(t, x) -> ctrl`` used outside the basin (e.g. :class:`EnergyShapingController`).
     catch : LinearFeedback
-        The balancing law; must carry ``S`` (its :meth:`~LinearFeedback.cost_to_go` is the basin test, with the
-        pole-angle error wrapped so ``theta = 2 pi + 0.01`` counts as 0.01 rad from upright).
+        The balancing law; must carry ``S`` (its :meth:`~LinearFeedback.cost_to_go` is the basin test: ``e' S e``
+        on the error from its ``x_eq`` with the hinge-angle errors wrapped, so ``theta = 2 pi + 0.01`` counts as
+        0.01 rad from upright).
     rho : float
         Catch level (dimensionless cost units of ``S``), e.g. ``BasinEstimate.rho``.
     release_factor : float
@@ -137,8 +137,8 @@ class SwitchingController:
             return self.switches[-1].t
         return None
 
-    def __call__(self, t: float, x) -> float:
-        """ctrl at time ``t`` (s) for state ``x`` (4,), switching modes as the cost ``e' S e`` dictates."""
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,) at time ``t`` (s) for state ``x`` (nx,), switching modes as the cost ``e' S e`` dictates."""
         t = float(t)
         if t < self._last_t:
             self.reset()
@@ -151,4 +151,4 @@ class SwitchingController:
             self.mode = "swingup"
             self.switches.append(Switch(t, "swingup", cost))
         law = self.catch if self.mode == "catch" else self.swingup
-        return law(t, x)
+        return np.atleast_1d(np.asarray(law(t, x), dtype=float))

@@ -3,39 +3,47 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.control.linear import LinearFeedback, state_error
+from cartpole.control.linear import LinearFeedback, _limits
+from cartpole.models import state_error
 
 
 class TVLQRController:
     """``u = u_ff(t) - K(t) (x - x_ff(t))`` for ``t < T``, then the LQR ``catch``; call shape ``u = c(t, x)``.
 
-    The angle error is wrapped to (-pi, pi], so a plan that ends at ``theta = 2 pi`` and a MuJoCo hinge
-    that never wraps agree. With discrete gains (held over each simulator step) the feed-forward is the
-    zero-order-hold equivalent of the plan's first-order-hold input, ``u_ff(t) = input(t + dt / 2)`` (the
-    mean over the step the gain was designed for); with continuous gains it is ``input(t)``.
+    Any number of states ``nx`` and inputs ``nu``. The hinge-angle errors are wrapped to (-pi, pi], so a plan that
+    ends at ``theta = 2 pi`` and a MuJoCo hinge that never wraps agree. With discrete gains (held over each
+    simulator step) the feed-forward is the zero-order-hold equivalent of the plan's first-order-hold input,
+    ``u_ff(t) = input(t + dt / 2)`` (the mean over the step the gain was designed for); with continuous gains it is
+    ``input(t)``.
 
     Parameters
     ----------
     traj : Trajectory
         The plan (cubic-Hermite states, first-order-hold inputs); time 0 of the controller is ``traj.t[0]``.
     gains : TVLQRGains
-        From :func:`cartpole.lqr.tvlqr.tvlqr` along ``traj``.
+        From :func:`cartpole.lqr.tvlqr.tvlqr` along ``traj``: ``K`` (n, nu, nx).
     catch : LinearFeedback
         Balancing controller that takes over at ``t >= traj.t[-1]``.
-    u_limits : (2,) array, optional
-        ``[low, high]`` ctrl clip (default: the catch's limits).
+    u_limits : (2,) or (nu, 2) array, optional
+        ``[low, high]`` ctrl clip per actuator (default: the catch's limits).
+    hinges : sequence of int, optional
+        qpos indices of the hinges whose tracking errors are wrapped (default: the catch's).
 
     Attributes
     ----------
     handover_time : float or None
         Time (s) of the first call that used the catch in the current run (reset when time goes back).
+    u_limits : (nu, 2) array
+    hinges : tuple of int
     """
 
-    def __init__(self, traj, gains, catch: LinearFeedback, *, u_limits=None):
+    def __init__(self, traj, gains, catch: LinearFeedback, *, u_limits=None, hinges=None):
         self.traj = traj
         self.gains = gains
         self.catch = catch
-        self.u_limits = tuple(catch.u_limits) if u_limits is None else tuple(float(v) for v in u_limits)
+        nu = gains.K.shape[1]
+        self.u_limits = np.array(catch.u_limits if u_limits is None else _limits(u_limits, nu), dtype=float)
+        self.hinges = tuple(catch.hinges if hinges is None else hinges)
         self._ff_shift = 0.5 * gains.dt if gains.method == "discrete" else 0.0
         self.handover_time: float | None = None
         self._last_t = -np.inf
@@ -50,17 +58,18 @@ class TVLQRController:
         self.handover_time = None
         self._last_t = -np.inf
 
-    def __call__(self, t: float, x) -> float:
-        """ctrl at time ``t`` (s) for state ``x`` (4,), clipped to ``u_limits``."""
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,) at time ``t`` (s) for state ``x`` (nx,), clipped to ``u_limits``."""
         t = float(t)
         if t < self._last_t:  # a new run started
             self.reset()
         self._last_t = t
+        lo, hi = self.u_limits[:, 0], self.u_limits[:, 1]
         if t >= self.T - 1e-12:
             if self.handover_time is None:
                 self.handover_time = t
-            return float(np.clip(self.catch(t, x), *self.u_limits))
-        e = state_error(x, self.traj.state(t))
-        u_ff = float(self.traj.input(min(t + self._ff_shift, self.T))[0])
-        u = u_ff - float(self.gains.gain(t)[0] @ e)
-        return float(np.clip(u, *self.u_limits))
+            return np.clip(self.catch(t, x), lo, hi)
+        e = state_error(x, self.traj.state(t), self.hinges)
+        u_ff = np.asarray(self.traj.input(min(t + self._ff_shift, self.T)), dtype=float).ravel()
+        u = u_ff - self.gains.gain(t) @ e
+        return np.clip(u, lo, hi)

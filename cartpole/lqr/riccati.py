@@ -19,7 +19,8 @@ class LQRError(CartPoleError):
 
 
 class LQRResult(NamedTuple):
-    """Gain ``K`` (m, n), cost-to-go ``S`` (n, n) and closed-loop eigenvalues ``E`` (n,)."""
+    """Gain ``K`` (m, n), cost-to-go ``S`` (n, n) and closed-loop eigenvalues ``E`` (n,), for ``n`` states and
+    ``m`` inputs."""
 
     K: np.ndarray
     S: np.ndarray
@@ -36,7 +37,10 @@ def _as2d(name: str, M, shape=None) -> np.ndarray:
 
 
 def check_weights(A, B, Q, R):
-    """Validate shapes and definiteness; return float arrays ``(A, B, Q, R)``.
+    """Validate shapes and definiteness for ``n`` states and ``m`` inputs; return float arrays ``(A, B, Q, R)``.
+
+    ``A`` is (n, n); ``B`` (n, m) (a 1-D ``B`` of length n is one input column); ``Q`` (n, n); ``R`` (m, m) or a
+    scalar ``r``, meaning ``r I(m)``.
 
     Raises :class:`LQRError` naming the problem: non-square A, mismatched B/Q/R, Q not symmetric positive
     semidefinite, R not symmetric positive definite.
@@ -52,7 +56,7 @@ def check_weights(A, B, Q, R):
         raise LQRError(f"B has shape {B.shape} but A is {A.shape}; B must have {n} rows.")
     m = B.shape[1]
     Q = _as2d("Q", Q, (n, n))
-    R = _as2d("R", R, (m, m))
+    R = _as2d("R", float(R) * np.eye(m) if np.ndim(R) == 0 and np.isfinite(float(R)) else R, (m, m))
     if not np.allclose(Q, Q.T, rtol=1e-10, atol=1e-12):
         raise LQRError("Q is not symmetric; pass (Q + Q.T) / 2 or a diagonal of state weights.")
     if not np.allclose(R, R.T, rtol=1e-10, atol=1e-12):
@@ -68,17 +72,51 @@ def check_weights(A, B, Q, R):
     return A, B, Q, R
 
 
-def _check_stabilizable(A, B, *, discrete: bool) -> None:
-    """PBH test on the unstable modes: rank [A - lambda I, B] = n for every lambda with Re >= 0 (|lambda| >= 1)."""
+def uncontrollable_modes(A, B, *, discrete: bool | None = None) -> np.ndarray:
+    """Eigenvalues of ``A`` whose modes the input cannot move (PBH test: rank ``[A - lambda I, B] < n``).
+
+    Parameters
+    ----------
+    A : (n, n) array
+    B : (n, m) array
+    discrete : bool, optional
+        None: every mode; False: only those with ``Re lambda >= 0`` (the ones continuous LQR must move);
+        True: only those with ``|lambda| >= 1`` (discrete).
+
+    Returns
+    -------
+    (k,) complex array
+        Empty when ``(A, B)`` is controllable (``discrete=None``) or stabilisable (otherwise).
+    """
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float).reshape(A.shape[0], -1)
     n = A.shape[0]
+    out = []
     for lam in np.linalg.eigvals(A):
-        unstable = abs(lam) >= 1 - 1e-9 if discrete else lam.real >= -1e-9
-        if unstable:
-            M = np.hstack([A - lam * np.eye(n), B])
-            s = np.linalg.svd(M, compute_uv=False)
-            if s[-1] < 1e-9 * max(1.0, s[0]):
-                raise LQRError(f"(A, B) is not stabilisable: the mode with eigenvalue {lam:.4g} cannot be "
-                               "moved by the input; check the actuator (gear, joint) or linearisation point.")
+        if discrete is not None and not (abs(lam) >= 1 - 1e-9 if discrete else lam.real >= -1e-9):
+            continue
+        s = np.linalg.svd(np.hstack([A - lam * np.eye(n), B]), compute_uv=False)
+        if s[-1] < 1e-9 * max(1.0, s[0]):
+            out.append(lam)
+    return np.array(out, dtype=complex)
+
+
+def is_controllable(A, B) -> bool:
+    """True when every mode of ``A`` can be moved by the input (PBH test on each eigenvalue)."""
+    return uncontrollable_modes(A, B).size == 0
+
+
+def _check_stabilizable(A, B, *, discrete: bool) -> None:
+    """PBH test on the unstable modes: rank [A - lambda I, B] = n for every lambda with Re >= 0 (|lambda| >= 1).
+
+    A stable mode the input cannot move is allowed (LQR exists); an unstable one is named in the error.
+    """
+    bad = uncontrollable_modes(A, B, discrete=discrete)
+    if bad.size:
+        lam = bad[0]
+        lam = lam.real if abs(lam.imag) < 1e-12 else lam
+        raise LQRError(f"(A, B) is not stabilisable: the mode with eigenvalue {lam:.4g} cannot be "
+                       "moved by the input; check the actuator (gear, joint) or linearisation point.")
 
 
 def lqr(A, B, Q, R) -> LQRResult:
@@ -89,7 +127,7 @@ def lqr(A, B, Q, R) -> LQRResult:
     A : (n, n) array, 1/s
     B : (n, m) array, state-derivative units per unit input (per unit MuJoCo ctrl in this toolkit)
     Q : (n, n) symmetric positive semidefinite array
-    R : (m, m) symmetric positive definite array (a scalar is accepted for m = 1)
+    R : (m, m) symmetric positive definite array (a scalar ``r`` means ``r I(m)``)
 
     Returns
     -------
@@ -99,7 +137,8 @@ def lqr(A, B, Q, R) -> LQRResult:
     Raises
     ------
     LQRError
-        Bad weights or shapes, an unstabilisable pair, or a Riccati solution that does not check out.
+        Bad weights or shapes, an unstabilisable pair, or a Riccati solution that does not check out (closed
+        loop not stable, or residual of the Riccati equation above 1e-6 relative to ``S``).
     """
     A, B, Q, R = check_weights(A, B, Q, R)
     _check_stabilizable(A, B, discrete=False)

@@ -9,10 +9,12 @@ Two syntheses of the same regulator, with the law ``u = u0(t) - K(t) (x - x0(t))
   call of a CasADi ``map`` of ``ABd``. Stage weights are ``Q dt`` and ``R dt`` so the sum approximates the
   continuous cost ``integral (x'Qx + u'Ru) dt``; the terminal cost is ``dlqr(Ad, Bd, Q dt, R dt).S`` at
   the final state, the cost-to-go of the discrete LQR catch, so the hand-over is seamless.
+  The recursion itself is :func:`riccati_backward`.
 * ``method="continuous"``: the Riccati ODE ``-dS/dt = Q + A'S + SA - S B R^-1 B' S`` integrated backward
   with ``scipy.integrate.solve_ivp`` from ``S(T) = lqr(A, B, Q, R).S`` at the final state, ``K = R^-1 B'S``.
 
-For small ``dt`` the two agree (the recursion is a consistent discretisation of the ODE).
+For small ``dt`` the two agree (the recursion is a consistent discretisation of the ODE). Any number of states
+``nx`` and inputs ``nu``: gains are ``(n, nu, nx)``, cost-to-go matrices ``(n+1, nx, nx)``, time first.
 """
 from __future__ import annotations
 
@@ -20,24 +22,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.lqr.riccati import LQRError, check_weights, dlqr, lqr
-from cartpole.models import CartPoleModel
 from cartpole._arrays import readonly
+from cartpole.lqr.riccati import LQRError, check_weights, dlqr, lqr
+from cartpole.lqr.weights import lab_weights
+from cartpole.models import CartPoleModel
 
 METHODS = ("discrete", "continuous")
 
 
 @dataclass(frozen=True)
 class TVLQRGains:
-    """Time-varying gains and cost-to-go along a trajectory.
+    """Time-varying gains and cost-to-go along a trajectory, for ``nx`` states and ``nu`` inputs.
 
     Attributes
     ----------
     t : (n,) array, s
         Times at which ``K[k]`` starts to apply (step starts, ``t[k] = t0 + k dt``).
-    K : (n, 1, 4) array
+    K : (n, nu, nx) array
         Gains in ctrl per state unit, for ``u = u0 - K (x - x0)``.
-    S : (n+1, 4, 4) array
+    S : (n+1, nx, nx) array
         Cost-to-go matrices at ``t[0] .. t[-1] + dt`` (the last one is the terminal cost).
     dt : float
         Step of the grid in s (the simulator's step for the discrete method).
@@ -55,9 +58,20 @@ class TVLQRGains:
         for name in ("t", "K", "S"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         n = self.t.size
-        if self.K.shape != (n, 1, 4) or self.S.shape != (n + 1, 4, 4):
+        nx = self.K.shape[-1] if self.K.ndim == 3 else -1
+        if self.t.ndim != 1 or self.K.ndim != 3 or self.K.shape[0] != n or self.S.shape != (n + 1, nx, nx):
             raise LQRError(f"TVLQR arrays disagree: t {self.t.shape}, K {self.K.shape}, S {self.S.shape}; "
-                           "need t (n,), K (n, 1, 4), S (n+1, 4, 4).")
+                           "need t (n,), K (n, nu, nx), S (n+1, nx, nx).")
+
+    @property
+    def nx(self) -> int:
+        """Number of states."""
+        return int(self.K.shape[2])
+
+    @property
+    def nu(self) -> int:
+        """Number of inputs."""
+        return int(self.K.shape[1])
 
     @property
     def t_final(self) -> float:
@@ -69,29 +83,30 @@ class TVLQRGains:
                        self.t.size - 1)
 
     def gain(self, t) -> np.ndarray:
-        """``K(t)``: scalar t -> (1, 4), array (m,) -> (m, 1, 4); held (discrete) or interpolated (continuous),
-        clamped outside the horizon."""
+        """``K(t)``: scalar t -> (nu, nx), array (m,) -> (m, nu, nx); held (discrete) or interpolated
+        (continuous), clamped outside the horizon."""
         t_arr = np.atleast_1d(np.asarray(t, float))
         if self.method == "discrete":
             K = self.K[self._index(t_arr)]
         else:
             flat = self.K.reshape(self.t.size, -1)
             K = np.column_stack([np.interp(t_arr, self.t, flat[:, j]) for j in range(flat.shape[1])])
-            K = K.reshape(-1, 1, 4)
+            K = K.reshape(-1, self.nu, self.nx)
         return K[0] if np.ndim(t) == 0 else K
 
     def cost_to_go(self, t) -> np.ndarray:
-        """``S(t)`` (4, 4) (or (m, 4, 4) for an array of times), linear between grid points, clamped outside."""
+        """``S(t)`` (nx, nx) (or (m, nx, nx) for an array of times), linear between grid points, clamped outside."""
         t_arr = np.atleast_1d(np.asarray(t, float))
         grid = np.append(self.t, self.t_final)
         flat = self.S.reshape(grid.size, -1)
-        S = np.column_stack([np.interp(t_arr, grid, flat[:, j]) for j in range(16)]).reshape(-1, 4, 4)
+        S = np.column_stack([np.interp(t_arr, grid, flat[:, j]) for j in range(flat.shape[1])])
+        S = S.reshape(-1, self.nx, self.nx)
         return S[0] if np.ndim(t) == 0 else S
 
 
 def reference(traj, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The plan on the simulator's grid: times ``t`` (n,), states ``x`` (n+1, 4) at ``t0 + k dt``, and the
-    zero-order-hold input of each step ``u`` (n, 1) = mean of the first-order-hold input over the step."""
+    """The plan on the simulator's grid: times ``t`` (n,), states ``x`` (n+1, nx) at ``t0 + k dt``, and the
+    zero-order-hold input of each step ``u`` (n, nu) = mean of the first-order-hold input over the step."""
     n = max(1, int(round(traj.duration / dt)))
     tk = traj.t[0] + dt * np.arange(n + 1)
     x = traj.state(tk)
@@ -99,27 +114,57 @@ def reference(traj, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return tk[:-1], x, u
 
 
-def _riccati_backward(Ad, Bd, Qd, Rd, Sf):
-    """Backward discrete Riccati recursion for one input: returns K (n, 1, 4), S (n+1, 4, 4)."""
-    n = Ad.shape[0]
-    K = np.empty((n, 1, 4))
-    S = np.empty((n + 1, 4, 4))
+def riccati_backward(Ad, Bd, Qd, Rd, Sf) -> tuple[np.ndarray, np.ndarray]:
+    """Backward discrete Riccati recursion of the finite-horizon LQR ``sum x'Qd x + u'Rd u + x_n' Sf x_n``.
+
+    ``K[k] = (Rd + B'S[k+1]B)^-1 B'S[k+1]A``, ``S[k] = Qd + A'S[k+1](A - B K[k])`` (symmetrised) from
+    ``S[n] = Sf``, for ``x[k+1] = Ad[k] x[k] + Bd[k] u[k]`` and the law ``u[k] = -K[k] x[k]``.
+
+    Parameters
+    ----------
+    Ad : (n, nx, nx) array
+    Bd : (n, nx, nu) array
+    Qd : (nx, nx) array
+        Stage state weight.
+    Rd : (nu, nu) array
+        Stage input weight.
+    Sf : (nx, nx) array
+        Terminal cost.
+
+    Returns
+    -------
+    K : (n, nu, nx) array
+    S : (n+1, nx, nx) array
+    """
+    Ad = np.asarray(Ad, dtype=float)
+    Bd = np.asarray(Bd, dtype=float)
+    n, nx, nu = Bd.shape
+    if Ad.shape != (n, nx, nx):
+        raise LQRError(f"riccati_backward needs Ad (n, nx, nx) and Bd (n, nx, nu); got {Ad.shape} and {Bd.shape}.")
+    Qd, Rd, Sf = (np.asarray(M, dtype=float) for M in (Qd, Rd, Sf))
+    K = np.empty((n, nu, nx))
+    S = np.empty((n + 1, nx, nx))
     S[n] = Sf
     Sk = Sf
-    r = float(Rd[0, 0])
     for k in range(n - 1, -1, -1):
-        A = Ad[k]
-        b = Bd[k]  # (4,)
-        Sb = Sk @ b
-        Kk = (Sb @ A) / (r + b @ Sb)  # (4,)
-        Sk = Qd + A.T @ Sk @ (A - np.outer(b, Kk))
+        A, B = Ad[k], Bd[k]
+        if nu == 1:  # one input: a division instead of a solve (the arithmetic every one-input result uses)
+            b = B[:, 0]
+            Sb = Sk @ b
+            kk = (Sb @ A) / (float(Rd[0, 0]) + b @ Sb)
+            Kk, BK = kk[None, :], np.outer(b, kk)
+        else:
+            SB = Sk @ B
+            Kk = np.linalg.solve(Rd + B.T @ SB, SB.T @ A)
+            BK = B @ Kk
+        Sk = Qd + A.T @ Sk @ (A - BK)
         Sk = 0.5 * (Sk + Sk.T)
-        K[k, 0] = Kk
+        K[k] = Kk
         S[k] = Sk
     return K, S
 
 
-def tvlqr(model: CartPoleModel, traj, Q, R, *, Qf=None, dt: float | None = None,
+def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | None = None,
           method: str = "discrete", rtol: float = 1e-8) -> TVLQRGains:
     """Finite-horizon TVLQR along ``traj`` (see the module docstring for both methods).
 
@@ -128,12 +173,13 @@ def tvlqr(model: CartPoleModel, traj, Q, R, *, Qf=None, dt: float | None = None,
     model : CartPoleModel
         Symbolic model to linearise (the plan's model; ``model.ABd`` is one step of its integrator).
     traj : Trajectory
-        Reference (cubic-Hermite states, first-order-hold inputs).
-    Q : (4, 4) array
-        State weight (per s).
-    R : (1, 1) array or float
-        Input weight (per ctrl^2 per s).
-    Qf : (4, 4) array, optional
+        Reference (cubic-Hermite states, first-order-hold inputs): anything with ``t`` (knot times), ``x``
+        (knots, nx), ``u`` (knots, nu), ``duration``, ``state(t)`` and ``input(t)``.
+    Q : (nx, nx) array, optional
+        State weight (per s); default :func:`~cartpole.lqr.weights.lab_weights` of the model.
+    R : (nu, nu) array or float, optional
+        Input weight (per ctrl^2 per s); default the lab's 0.1 per input.
+    Qf : (nx, nx) array, optional
         Terminal cost; default the LQR catch's cost-to-go at the final state (``dlqr(Ad, Bd, Q dt, R dt).S``
         for ``discrete``, ``lqr(A, B, Q, R).S`` for ``continuous``).
     dt : float, optional
@@ -146,26 +192,35 @@ def tvlqr(model: CartPoleModel, traj, Q, R, *, Qf=None, dt: float | None = None,
     Returns
     -------
     TVLQRGains
+        ``K`` (n, nu, nx), ``S`` (n+1, nx, nx).
     """
     if method not in METHODS:
         raise LQRError(f"TVLQR method '{method}' is not known; choose one of {', '.join(METHODS)}.")
     dt = float(model.dt if dt is None else dt)
     if not dt > 0:
         raise LQRError(f"TVLQR step dt = {dt} s is not positive; give dt > 0.")
-    _, _, Q, R = check_weights(np.zeros((4, 4)), np.zeros((4, 1)), Q, np.atleast_2d(R))
-    x_end = traj.x[-1]
-    u_end = traj.u[-1]
+    nx, nu = model.nx, model.nu
+    Q0, R0 = lab_weights(model)
+    Q = Q0 if Q is None else Q
+    R = R0 if R is None else R
+    _, _, Q, R = check_weights(np.zeros((nx, nx)), np.zeros((nx, nu)), Q, R)
+    x_end = np.asarray(traj.x[-1], dtype=float)
+    u_end = np.asarray(traj.u[-1], dtype=float)
+    if Qf is not None:
+        Qf = np.asarray(Qf, dtype=float)
+        if Qf.shape != (nx, nx):
+            raise LQRError(f"Qf has shape {Qf.shape} but must be ({nx}, {nx}) for this model's {nx} states.")
     if method == "discrete":
         dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
         t, xr, ur = reference(traj, dt)
         n = t.size
-        Ad, Bd = dmodel.ABd.map(n)(xr[:-1].T, ur.T)  # all n linearisations in one call
-        Ad = np.asarray(Ad).reshape(4, n, 4).transpose(1, 0, 2)
-        Bd = np.asarray(Bd).T  # (n, 4)
+        Ad, Bd = dmodel.ABd.map(n)(xr[:-1].T, np.asarray(ur, float).reshape(n, nu).T)  # n linearisations, one call
+        Ad = np.asarray(Ad).reshape(nx, n, nx).transpose(1, 0, 2)
+        Bd = np.asarray(Bd).reshape(nx, n, nu).transpose(1, 0, 2)
         if Qf is None:
             A1, B1 = dmodel.linearize(x_end, u_end, discrete=True)
             Qf = dlqr(A1, B1, Q * dt, R * dt).S
-        K, S = _riccati_backward(Ad, Bd, Q * dt, R * dt, np.asarray(Qf, float))
+        K, S = riccati_backward(Ad, Bd, Q * dt, R * dt, Qf)
         return TVLQRGains(t=t, K=K, S=S, dt=dt, method="discrete")
     return _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol)
 
@@ -173,6 +228,7 @@ def tvlqr(model: CartPoleModel, traj, Q, R, *, Qf=None, dt: float | None = None,
 def _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol) -> TVLQRGains:
     from scipy.integrate import solve_ivp
 
+    nx, nu = model.nx, model.nu
     t0, T = float(traj.t[0]), float(traj.t[-1])
     n = max(1, int(round((T - t0) / dt)))
     grid = t0 + dt * np.arange(n + 1)
@@ -184,10 +240,10 @@ def _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol) -> TVLQRGains:
 
     def AB(t):
         A, B = model.AB(traj.state(t), traj.input(t))
-        return np.asarray(A), np.asarray(B)
+        return np.asarray(A), np.asarray(B).reshape(nx, nu)
 
     def rhs(t, s):
-        S = s.reshape(4, 4)
+        S = s.reshape(nx, nx)
         A, B = AB(t)
         SB = S @ B
         dS = -(Q + A.T @ S + S @ A - SB @ Rinv @ SB.T)
@@ -198,9 +254,9 @@ def _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol) -> TVLQRGains:
                     method="RK45")
     if not sol.success:
         raise LQRError(f"The Riccati ODE did not integrate ({sol.message}); use method='discrete'.")
-    S = sol.y.T[::-1].reshape(n + 1, 4, 4)
+    S = sol.y.T[::-1].reshape(n + 1, nx, nx)
     S = 0.5 * (S + S.transpose(0, 2, 1))
-    K = np.empty((n, 1, 4))
+    K = np.empty((n, nu, nx))
     for k in range(n):
         _, B = AB(grid[k])
         K[k] = Rinv @ B.T @ S[k]

@@ -3,7 +3,8 @@
 A Python loop of ``mj_step`` per rollout spends most of its time in the interpreter. Here all ``B`` runs advance
 together: each physics step is one call of MuJoCo's threaded ``mujoco.rollout`` with ``nstep=1`` over the whole
 batch (one persistent thread pool, one reused ``MjData`` per thread, preallocated state buffers), and the
-feedback law ``u = u* - K (x - x*)`` is evaluated for all runs at once in numpy between calls. The physics is
+feedback law ``u = u* - K (x - x*)`` (hinge-angle errors wrapped) is evaluated for all runs at once in numpy
+between calls. Any model the reader accepts: ``nq`` joints (``nx = 2 nq`` states), ``nu`` motors. The physics is
 MuJoCo's own ``mj_step``, so each run equals :func:`~cartpole.sim.rollout.simulate` with
 :class:`~cartpole.control.linear.LinearFeedback` (a test checks 1e-12).
 
@@ -18,11 +19,10 @@ import time
 
 import numpy as np
 
-from cartpole.control.linear import LinearFeedback
+from cartpole.control.linear import LinearFeedback, _limits
 from cartpole.errors import CartPoleError
-from cartpole.lqr import Q_LAB, R_LAB, lqr
 from cartpole.models import CartPoleParams, build_model, read_params, wrap_angle
-from cartpole.sim.rollout import make_mujoco
+from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 
 def _nthread_default() -> int:
@@ -33,7 +33,7 @@ def _nthread_default() -> int:
 
 
 def _initial_states(m, X0: np.ndarray) -> np.ndarray:
-    """Full physics states (B, nstate) at t = 0 for starts X0 (B, 4)."""
+    """Full physics states (B, nstate) at t = 0 for starts X0 (B, nq + nv)."""
     import mujoco
 
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -41,33 +41,37 @@ def _initial_states(m, X0: np.ndarray) -> np.ndarray:
     S0 = np.empty((X0.shape[0], mujoco.mj_stateSize(m, spec)))
     for i, x in enumerate(X0):
         mujoco.mj_resetData(m, d)
-        d.qpos[:] = x[:2]
-        d.qvel[:] = x[2:]
+        d.qpos[:] = x[:m.nq]
+        d.qvel[:] = x[m.nq:]
         mujoco.mj_getState(m, d, S0[i], spec)
     return S0
 
 
-def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: float = 0.0, u_limits=None,
-                          nthread: int | None = None, progress=None) -> tuple[np.ndarray, np.ndarray]:
-    """Run ``u = u* - K (x - x*)`` (angle error wrapped, ctrl clipped to ``ctrlrange``) from every row of ``X0``.
+def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=None, u_limits=None,
+                          hinges=None, nthread: int | None = None, progress=None) -> tuple[np.ndarray, np.ndarray]:
+    """Run ``u = u* - K (x - x*)`` (hinge-angle errors wrapped, ctrl clipped to ``ctrlrange``) from every row of
+    ``X0``.
 
     Parameters
     ----------
     source : CartPoleParams or MJCF path or None
-        The cart-pole (None = shipped asset).
-    K : (1, 4) or (4,) array
-        Gain in ctrl per [m, rad, m/s, rad/s].
-    X0 : (B, 4) array
-        Start states ``[s, theta, s_dot, theta_dot]``.
+        The model (None = shipped asset).
+    K : (nu, nx) array, (nx,) for one actuator, or LinearFeedback
+        Gain in ctrl per state unit (m, rad, m/s, rad/s). A :class:`~cartpole.control.linear.LinearFeedback`
+        brings its own ``x_eq``, ``u_eq``, ``u_limits`` and ``hinges`` (the keywords must then be left out).
+    X0 : (B, nx) array
+        Start states ``[qpos, qvel]``.
     duration : float, s
         Rounded to whole physics steps ``n``.
-    x_eq : (4,) array, optional
+    x_eq : (nx,) array, optional
         Equilibrium (default the origin).
-    u_eq : float
+    u_eq : (nu,) array or float, optional
         Equilibrium ctrl (default 0).
-    u_limits : (2,) array, optional
-        ``[low, high]`` ctrl clip applied before MuJoCo's ``ctrlrange`` clip, as
+    u_limits : (2,) or (nu, 2) array, optional
+        ``[low, high]`` ctrl clip per actuator applied before MuJoCo's ``ctrlrange`` clip, as
         :class:`~cartpole.control.linear.LinearFeedback` does (default none).
+    hinges : sequence of int, optional
+        qpos indices whose errors are wrapped to (-pi, pi]; default the model's hinge joints.
     nthread : int, optional
         Threads of MuJoCo's rollout pool (default: the CPUs this process may use; 0 = calling thread).
     progress : callable, optional
@@ -75,52 +79,72 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
 
     Returns
     -------
-    states : (B, n+1, 4) array
+    states : (B, n+1, nx) array
         ``[qpos, qvel]`` at every physics step, row 0 the start.
-    ctrl : (B, n, 1) array
+    ctrl : (B, n, nu) array
         ctrl applied (after clipping) during each step.
     """
     import mujoco
     import mujoco.rollout
 
-    K = np.asarray(K, dtype=float).reshape(-1)
+    m, _ = make_mujoco(source)
+    nq, nu = m.nq, m.nu
+    nx = nq + m.nv
+    if isinstance(K, LinearFeedback):
+        if not (x_eq is None and u_eq is None and u_limits is None and hinges is None):
+            raise CartPoleError("Give either a LinearFeedback or K with x_eq, u_eq, u_limits and hinges, not both.")
+        law = K
+        K, x_eq, u_eq, u_limits, hinges = law.K, law.x_eq, law.u_eq, law.u_limits, law.hinges
+    K = np.asarray(K, dtype=float)
+    K = K.reshape(1, -1) if K.ndim == 1 else K
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
-    if K.shape != (4,) or X0.ndim != 2 or X0.shape[1] != 4:
-        raise CartPoleError(f"Need K with 4 entries and X0 of shape (B, 4); got K {K.shape} and X0 {X0.shape}.")
+    if K.shape != (nu, nx) or X0.ndim != 2 or X0.shape[1] != nx:
+        raise CartPoleError(f"Need K of shape ({nu}, {nx}) and X0 of shape (B, {nx}) for this model; got K "
+                            f"{K.shape} and X0 {X0.shape}.")
     if not (np.all(np.isfinite(X0)) and np.all(np.isfinite(K))):
         raise CartPoleError("K or X0 contains NaN or inf; give finite gains and start states.")
-    x_eq = np.zeros(4) if x_eq is None else np.asarray(x_eq, dtype=float)
-    m, _ = make_mujoco(source)
+    x_eq = np.zeros(nx) if x_eq is None else np.asarray(x_eq, dtype=float).ravel()
+    u_eq = np.zeros(nu) if u_eq is None else np.asarray(u_eq, dtype=float).ravel()
+    u_eq = np.full(nu, u_eq[0]) if u_eq.size == 1 else u_eq
+    if x_eq.shape != (nx,) or u_eq.shape != (nu,):
+        raise CartPoleError(f"Need x_eq with {nx} entries and u_eq with {nu} for this model; got {x_eq.size} and "
+                            f"{u_eq.size}.")
+    if hinges is None:
+        hinges = [int(m.jnt_qposadr[j]) for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    hinges = [int(i) for i in hinges]
     h = float(m.opt.timestep)
     n = int(round(duration / h))
     if n < 1:
         raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
-    lo, hi = m.actuator_ctrlrange[0] if m.actuator_ctrllimited[0] else (-np.inf, np.inf)
-    u_lo, u_hi = (-np.inf, np.inf) if u_limits is None else (float(u_limits[0]), float(u_limits[1]))
+    lo, hi = ctrl_bounds(m)
+    lim = _limits(u_limits, nu)
+    u_lo, u_hi = lim[:, 0], lim[:, 1]
     nthread = _nthread_default() if nthread is None else int(nthread)
     nb = X0.shape[0]
     # two state buffers used in turn: the output of one step is the input of the next, no copies
     bufs = (_initial_states(m, X0), np.empty((nb, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))))
-    states = np.empty((nb, n + 1, 4))
-    ctrl = np.empty((nb, n, 1))
-    states[:, 0] = bufs[0][:, 1:5]
-    u = np.empty((nb, 1, 1))
+    states = np.empty((nb, n + 1, nx))
+    ctrl = np.empty((nb, n, nu))
+    states[:, 0] = bufs[0][:, 1:1 + nx]  # full physics state layout: [time, qpos (nq), qvel (nv), ...]
+    u = np.empty((nb, 1, nu))
     models = [m] * nb
     datas = [mujoco.MjData(m) for _ in range(max(1, nthread))]
     chunk = max(1, nb // max(1, nthread))
     spec = int(mujoco.mjtState.mjSTATE_CTRL)
     every = max(1, n // 20)
+    Kt = K.T
     with mujoco.rollout.Rollout(nthread=nthread) as pool:
         for k in range(n):
             S, nxt = bufs[k % 2], bufs[(k + 1) % 2]
-            e = S[:, 1:5] - x_eq  # full state layout: [time, qpos (2), qvel (2)]
-            e[:, 1] = wrap_angle(e[:, 1])
+            e = S[:, 1:1 + nx] - x_eq
+            if hinges:
+                e[:, hinges] = wrap_angle(e[:, hinges])
             # same arithmetic as LinearFeedback: u* - K e clipped to its limits, then MuJoCo's clip to ctrlrange
-            u[:, 0, 0] = np.clip(np.clip(u_eq - e @ K, u_lo, u_hi), lo, hi)
+            u[:, 0] = np.clip(np.clip(u_eq - e @ Kt, u_lo, u_hi), lo, hi)
             pool.rollout(models, datas, S, u, nstep=1, state=nxt, skip_checks=True, chunk_size=chunk,
                          control_spec=spec)
             ctrl[:, k] = u[:, 0]
-            states[:, k + 1] = nxt[:, 1:5]
+            states[:, k + 1] = nxt[:, 1:1 + nx]
             if progress is not None and ((k + 1) % every == 0 or k + 1 == n):
                 progress((k + 1) / n)
     if not np.all(np.isfinite(states)):
@@ -128,15 +152,23 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq: fl
     return states, ctrl
 
 
-def _lab_gain(params):
-    A, B = build_model(params).linearize()
-    return lqr(A, B, Q_LAB, R_LAB).K
+def random_starts(rollouts: int, *, seed: int = 0, model=None) -> np.ndarray:
+    """(rollouts, nx) starts ``x_eq + uniform(-span, span)``, reproducible from ``seed``.
 
-
-def random_starts(rollouts: int, *, seed: int = 0) -> np.ndarray:
-    """(rollouts, 4) starts uniform in +-[0.5 m, 0.15 rad, 0.3 m/s, 0.3 rad/s], reproducible from ``seed``."""
-    span = np.array([0.5, 0.15, 0.3, 0.3])
-    return np.random.default_rng(seed).uniform(-span, span, size=(rollouts, 4))
+    ``span`` is 0.5 m per slide, 0.15 rad divided by the number of hinges per hinge, 0.3 m/s or rad/s (divided
+    likewise for hinge rates) per rate; without ``model`` (a CartPoleModel) the one-pole layout
+    ``+-[0.5 m, 0.15 rad, 0.3 m/s, 0.3 rad/s]`` about the origin.
+    """
+    if model is None:
+        span, centre = np.array([0.5, 0.15, 0.3, 0.3]), np.zeros(4)
+    else:
+        nh = max(1, len(model.hinges))
+        q = np.zeros(model.nq)
+        v = np.zeros(model.nq)
+        q[list(model.slides)], v[list(model.slides)] = 0.5, 0.3
+        q[list(model.hinges)], v[list(model.hinges)] = 0.15 / nh, 0.3 / nh
+        span, centre = np.concatenate([q, v]), np.asarray(model.x_eq, dtype=float)
+    return centre + np.random.default_rng(seed).uniform(-span, span, size=(rollouts, span.size))
 
 
 def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, repeats: int = 5,
@@ -146,7 +178,8 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
     Both run the same model, the same ``rollouts`` random starts (:func:`random_starts`), ``seconds`` each, with
     the same number of threads, ``repeats`` times in this process; the medians are reported. The open loop
     replays random ctrl sequences in one ``rollout`` call (persistent pool), the closed loop runs the lab's
-    LQR with :func:`simulate_batch_linear`.
+    LQR (:meth:`~cartpole.control.linear.LinearFeedback.for_model`, about the model's ``x_eq``) with
+    :func:`simulate_batch_linear`. Any number of poles and actuators.
 
     Parameters
     ----------
@@ -171,8 +204,9 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
     import mujoco.rollout
 
     params = source if isinstance(source, CartPoleParams) else read_params(source)
-    K = _lab_gain(params)
-    X0 = random_starts(rollouts)
+    model = build_model(params)
+    law = LinearFeedback.for_model(model)
+    X0 = random_starts(rollouts, model=model)
     m, _ = make_mujoco(params)
     n = int(round(seconds / m.opt.timestep))
     total = rollouts * n
@@ -186,7 +220,7 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
         # interleaved, so both see the same load on a shared machine
         for _ in range(repeats):
             t0 = time.perf_counter()
-            simulate_batch_linear(params, K, X0, seconds, nthread=nthread)
+            simulate_batch_linear(params, law, X0, seconds, nthread=nthread)
             closed.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
             mujoco.rollout.rollout(m, datas, S0, U, persistent_pool=True)
@@ -204,22 +238,21 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
     }
     doc["ratio"] = doc["steps_per_s"] / doc["open_loop_steps_per_s"]
     if python_loop:
-        doc["python_loop_steps_per_s"] = _python_loop_rate(m, K, X0, n)
+        doc["python_loop_steps_per_s"] = _python_loop_rate(m, law, X0, n)
     return doc
 
 
-def _python_loop_rate(m, K, X0, n: int) -> float:
+def _python_loop_rate(m, law: LinearFeedback, X0, n: int) -> float:
     """Steps/s of the naive baseline: for each run, a Python loop of feedback + ``mj_step`` on one MjData."""
     import mujoco
 
-    ctrl = LinearFeedback(K)
     d = mujoco.MjData(m)
     t0 = time.perf_counter()
     for x0 in X0:
         mujoco.mj_resetData(m, d)
-        d.qpos[:] = x0[:2]
-        d.qvel[:] = x0[2:]
+        d.qpos[:] = x0[:m.nq]
+        d.qvel[:] = x0[m.nq:]
         for _ in range(n):
-            d.ctrl[0] = ctrl(0.0, np.concatenate([d.qpos, d.qvel]))
+            d.ctrl[:] = law(0.0, np.concatenate([d.qpos, d.qvel]))
             mujoco.mj_step(m, d)
     return X0.shape[0] * n / (time.perf_counter() - t0)

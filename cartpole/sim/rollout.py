@@ -1,9 +1,10 @@
 """Run controllers inside MuJoCo on the MJCF and log every physics step so the run replays exactly.
 
-A :class:`Rollout` holds ``t`` (n+1,), ``qpos`` (n+1, 2), ``qvel`` (n+1, 2) and ``ctrl`` (n, 1): row 0 is
+A :class:`Rollout` holds ``t`` (n+1,), ``qpos`` (n+1, nq), ``qvel`` (n+1, nq) and ``ctrl`` (n, nu): row 0 is
 the start state and ``ctrl[k]`` is what MuJoCo applied (after clipping to ``ctrlrange``) during the step
 from ``t[k]`` to ``t[k+1]``. :func:`replay` re-runs a logged ``ctrl`` open loop with ``mj_step`` and gives
-back the same states bit for bit, which is how every control claim in the toolkit is checked.
+back the same states bit for bit, which is how every control claim in the toolkit is checked. Any model the
+reader accepts (``nq`` one-DOF joints, so ``nv = nq``, and ``nu`` motors); states are ``x = [qpos, qvel]``.
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF, CartPoleParams, load_model
 
-Controller = Callable[[float, np.ndarray], "float | np.ndarray"]
+Controller = Callable[[float, np.ndarray], "float | np.ndarray"]  # (t, x (nx,)) -> ctrl (nu,), or a float for nu = 1
 
 
 @dataclass(frozen=True)
@@ -29,9 +30,10 @@ class Rollout:
     Attributes
     ----------
     t : (n+1,) array, s
-    qpos : (n+1, 2) array, [m, rad]
-    qvel : (n+1, 2) array, [m/s, rad/s]
-    ctrl : (n, 1) array, MuJoCo ctrl actually applied during step k (already clipped)
+    qpos : (n+1, nq) array, m (slides) and rad (hinges), MuJoCo's qpos order
+    qvel : (n+1, nq) array, m/s and rad/s
+    ctrl : (n, nu) array, MuJoCo ctrl actually applied during step k (already clipped); a flat (n,) is one
+        actuator
     mjcf : str
         Path of the MJCF MuJoCo ran ("" when built from text).
     info : dict
@@ -48,15 +50,28 @@ class Rollout:
     def __post_init__(self):
         for name in ("t", "qpos", "qvel", "ctrl"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
+        if self.ctrl.ndim == 1:  # one actuator given as a flat list
+            object.__setattr__(self, "ctrl", readonly(self.ctrl.reshape(-1, 1)))
         n = self.ctrl.shape[0]
-        if self.t.shape != (n + 1,) or self.qpos.shape[0] != n + 1 or self.qvel.shape[0] != n + 1:
+        if (self.t.shape != (n + 1,) or self.ctrl.ndim != 2 or self.qpos.ndim != 2 or self.qpos.shape[0] != n + 1
+                or self.qvel.shape != self.qpos.shape):
             raise ValueError(f"Rollout arrays disagree: t {self.t.shape}, qpos {self.qpos.shape}, "
                              f"qvel {self.qvel.shape}, ctrl {self.ctrl.shape}; need n+1 rows of states for n ctrl.")
 
     @property
     def x(self) -> np.ndarray:
-        """States (n+1, 4) = [qpos, qvel]."""
+        """States (n+1, nx) = [qpos, qvel]."""
         return np.hstack([self.qpos, self.qvel])
+
+    @property
+    def nq(self) -> int:
+        """Number of joint positions."""
+        return int(self.qpos.shape[1])
+
+    @property
+    def nu(self) -> int:
+        """Number of ctrl entries."""
+        return int(self.ctrl.shape[1])
 
     @property
     def dt(self) -> float:
@@ -77,12 +92,12 @@ class Rollout:
     def load(cls, path: str | Path) -> "Rollout":
         """Read a rollout written by :meth:`save`."""
         d = json.loads(Path(path).read_text())
-        ctrl = np.asarray(d["ctrl"], float).reshape(-1, 1)
-        return cls(t=d["t"], qpos=d["qpos"], qvel=d["qvel"], ctrl=ctrl, mjcf=d.get("mjcf", ""))
+        return cls(t=d["t"], qpos=d["qpos"], qvel=d["qvel"], ctrl=d["ctrl"], mjcf=d.get("mjcf", ""))
 
 
 def make_mujoco(source: CartPoleParams | str | Path | None = None):
-    """Compile a fresh ``(MjModel, MjData)`` for params (from their XML text) or an MJCF path."""
+    """Compile a fresh ``(MjModel, MjData)`` for params (from their MJCF path, else their XML text) or an MJCF path
+    (None = shipped asset); any number of joints and actuators."""
     import mujoco
 
     if isinstance(source, CartPoleParams):
@@ -104,14 +119,26 @@ def source_path(source: CartPoleParams | str | Path | None) -> str:
     return str(Path(source).expanduser().resolve())
 
 
-def _check_state(x0) -> np.ndarray:
+def _check_state(x0, m) -> np.ndarray:
+    """The start state as a float (nq + nv,) array for MuJoCo model ``m``, or one sentence saying what is wrong."""
+    import mujoco
+
+    nx = m.nq + m.nv
     x0 = np.asarray(x0, dtype=float).ravel()
-    if x0.shape != (4,):
-        raise CartPoleError(f"The start state has {x0.size} entries; give 4: [cart position, pole angle, "
-                            "cart velocity, pole angular velocity].")
+    if x0.shape != (nx,):
+        names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}" for j in range(m.njnt)]
+        raise CartPoleError(f"The start state has {x0.size} entries; give {nx}: the positions of "
+                            f"{', '.join(names)}, then their velocities.")
     if not np.all(np.isfinite(x0)):
-        raise CartPoleError(f"The start state {x0.tolist()} is not finite; give four finite numbers.")
+        raise CartPoleError(f"The start state {x0.tolist()} is not finite; give {nx} finite numbers.")
     return x0
+
+
+def ctrl_bounds(m) -> tuple[np.ndarray, np.ndarray]:
+    """(nu,) lower and upper ctrl bounds MuJoCo clamps to (``-inf``/``inf`` for an actuator without ctrlrange)."""
+    lim = np.asarray(m.actuator_ctrllimited, dtype=bool)
+    rng = np.asarray(m.actuator_ctrlrange, dtype=float).reshape(m.nu, 2)
+    return np.where(lim, rng[:, 0], -np.inf), np.where(lim, rng[:, 1], np.inf)
 
 
 def simulate(source: CartPoleParams | str | Path | None, controller: Controller, x0, duration: float, *,
@@ -124,9 +151,10 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     source : CartPoleParams or MJCF path or None
         The cart-pole MuJoCo runs (None = shipped asset).
     controller : callable
-        ``controller(t [s], x (4,)) -> ctrl`` (scalar or (1,)); MuJoCo clips it to ``ctrlrange``.
-    x0 : (4,) array
-        Start state ``[s, theta, s_dot, theta_dot]``.
+        ``controller(t [s], x (nx,)) -> ctrl`` (nu,) (a scalar for one actuator); MuJoCo clips it to
+        ``ctrlrange``.
+    x0 : (nx,) array
+        Start state ``[qpos, qvel]`` in MuJoCo's order (one pole: ``[s, theta, s_dot, theta_dot]``).
     duration : float
         Seconds to simulate; rounded to whole physics steps.
     control_period : float, optional
@@ -139,41 +167,43 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     Returns
     -------
     Rollout
-        Every physics step is logged even when the control is held.
+        Every physics step is logged even when the control is held: ``qpos`` (n+1, nq), ``qvel`` (n+1, nq),
+        ``ctrl`` (n, nu).
     """
     import mujoco
 
-    x0 = _check_state(x0)
     m, d = make_mujoco(source)
+    x0 = _check_state(x0, m)
+    nq, nv, nu = m.nq, m.nv, m.nu
     h = float(m.opt.timestep)
     n = int(round(duration / h))
     if n < 1:
         raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
     hold = 1 if control_period is None else max(1, int(round(control_period / h)))
-    lo, hi = (m.actuator_ctrlrange[0] if m.actuator_ctrllimited[0] else (-np.inf, np.inf))
-    d.qpos[:] = x0[:2]
-    d.qvel[:] = x0[2:]
+    lo, hi = ctrl_bounds(m)
+    d.qpos[:] = x0[:nq]
+    d.qvel[:] = x0[nq:]
     d.time = 0.0
     mujoco.mj_forward(m, d)
     t = np.empty(n + 1)
-    qpos = np.empty((n + 1, 2))
-    qvel = np.empty((n + 1, 2))
-    ctrl = np.empty((n, 1))
+    qpos = np.empty((n + 1, nq))
+    qvel = np.empty((n + 1, nv))
+    ctrl = np.empty((n, nu))
     t[0], qpos[0], qvel[0] = 0.0, d.qpos, d.qvel
-    u = 0.0
+    u = np.zeros(nu)
     every = max(1, n // 20)
     last = n
     for k in range(n):
         if k % hold == 0:
             xk = np.concatenate([d.qpos, d.qvel])
             u_raw = np.asarray(controller(k * h, xk), dtype=float).ravel()
-            if u_raw.size != 1 or not np.isfinite(u_raw[0]):
+            if u_raw.size != nu or not np.all(np.isfinite(u_raw)):
                 raise CartPoleError(f"The controller returned {u_raw.tolist()} at t = {k * h:.3f} s; "
-                                    "it must return one finite ctrl value.")
-            u = float(np.clip(u_raw[0], lo, hi))
-        d.ctrl[0] = u
+                                    f"it must return {nu} finite ctrl value{'s' if nu != 1 else ''}.")
+            u = np.clip(u_raw, lo, hi)
+        d.ctrl[:] = u
         mujoco.mj_step(m, d)
-        ctrl[k, 0] = u
+        ctrl[k] = u
         t[k + 1] = (k + 1) * h
         qpos[k + 1] = d.qpos
         qvel[k + 1] = d.qvel
@@ -195,8 +225,8 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
     Parameters
     ----------
     source : CartPoleParams or MJCF path or None
-    x0 : (4,) start state
-    ctrl : (n,) or (n, 1) ctrl applied during each step
+    x0 : (nx,) start state ``[qpos, qvel]``
+    ctrl : (n, nu) ctrl applied during each step ((n,) accepted for one actuator)
 
     Returns
     -------
@@ -204,27 +234,36 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
     """
     import mujoco
 
-    x0 = _check_state(x0)
-    ctrl = np.asarray(ctrl, dtype=float).reshape(-1)
     m, d = make_mujoco(source)
+    x0 = _check_state(x0, m)
+    nq, nv, nu = m.nq, m.nv, m.nu
+    ctrl = np.asarray(ctrl, dtype=float)
+    if ctrl.ndim == 1 and nu == 1:
+        ctrl = ctrl.reshape(-1, 1)
+    if ctrl.ndim != 2 or ctrl.shape[1] != nu:
+        raise CartPoleError(f"The ctrl log has shape {ctrl.shape}; give (n, {nu}), one row of {nu} ctrl per step.")
     h = float(m.opt.timestep)
-    n = ctrl.size
-    d.qpos[:] = x0[:2]
-    d.qvel[:] = x0[2:]
+    n = ctrl.shape[0]
+    d.qpos[:] = x0[:nq]
+    d.qvel[:] = x0[nq:]
     mujoco.mj_forward(m, d)
-    qpos = np.empty((n + 1, 2))
-    qvel = np.empty((n + 1, 2))
+    qpos = np.empty((n + 1, nq))
+    qvel = np.empty((n + 1, nv))
     qpos[0], qvel[0] = d.qpos, d.qvel
     for k in range(n):
-        d.ctrl[0] = ctrl[k]
+        d.ctrl[:] = ctrl[k]
         mujoco.mj_step(m, d)
         qpos[k + 1], qvel[k + 1] = d.qpos, d.qvel
-    return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl.reshape(-1, 1),
-                   mjcf=source_path(source))
+    return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl, mjcf=source_path(source))
 
 
 def replays_exactly(rollout: Rollout, source: CartPoleParams | str | Path | None = None, *, atol: float = 0.0) -> bool:
-    """True when replaying ``rollout.ctrl`` from its first state reproduces every logged state within ``atol``."""
-    src = source if source is not None else (rollout.mjcf or None)
+    """True when replaying ``rollout.ctrl`` (n, nu) from its first state reproduces every logged state within
+    ``atol`` (default 0: bit for bit). ``source`` defaults to the rollout's own MJCF file (required for a rollout
+    run on MJCF text)."""
+    if source is None and not rollout.mjcf:
+        raise CartPoleError("This rollout was run on MJCF text, not a file, so it cannot name its model; pass the "
+                            "CartPoleParams it ran on as source.")
+    src = source if source is not None else rollout.mjcf
     again = replay(src, rollout.x[0], rollout.ctrl)
     return bool(np.allclose(again.x, rollout.x, rtol=0.0, atol=atol))

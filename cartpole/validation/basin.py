@@ -1,22 +1,26 @@
 """Estimate the LQR catch's basin ``{e : e' S e < rho}`` by replaying the catch in MuJoCo from sampled states.
 
-Method (documented in :class:`BasinEstimate`):
+For any model the reader accepts (any number of poles and actuators); ``e = x - x_eq`` is the error from the
+catch's equilibrium (the model's computed upright ``x_eq``), hinge-angle entries wrapped. Method (documented in
+:class:`BasinEstimate`):
 
-1. draw ``n`` errors from upright rest spread over the ellipsoid ``e' S e <= level``: a direction ``d`` uniform on
-   the unit sphere, ``e = r sqrt(level) L^-T d`` with ``S = L L'`` (so ``e' S e = level r^2``) and ``r`` uniform in
-   ``[0, 1]``, from ``numpy.random.default_rng(seed)``; starts whose cart position is outside 90 % of the track are
-   redrawn. The level set is long and thin (rates and angle mix), so sampling in the metric of ``S`` puts every
-   sample where it informs rho, where a fixed box wastes most of them;
-2. run the catch ``u = clip(-K e)`` (``e`` the wrapped error) from each in MuJoCo on the MJCF for ``duration`` s;
+1. draw ``n`` errors spread over the ellipsoid ``e' S e <= level``, which perturbs every state component at once:
+   a direction ``d`` uniform on the unit sphere of dimension ``nx``, ``e = r sqrt(level) L^-T d`` with ``S = L L'``
+   (so ``e' S e = level r^2``) and ``r`` uniform in ``[0, 1]``, from ``numpy.random.default_rng(seed)``; errors whose
+   cart (slide) position is outside 90 % of the half-track are redrawn. The start states are ``x_eq + e``. The level
+   set is long and thin (rates and angles mix), so sampling in the metric of ``S`` puts every sample where it
+   informs rho, where a fixed box wastes most of them;
+2. run the catch ``u = clip(u_eq - K e)`` (``e`` the wrapped error) from each in MuJoCo on the MJCF for
+   ``duration`` s, all runs batched (:func:`~cartpole.sim.batch.simulate_batch_linear`);
 3. call a run a success when the cart never reaches its joint limit (kept ``limit_margin`` inside it) and at the
-   end the pole is upright and still: ``|wrapped theta| < 0.05`` rad, ``|theta_dot| < 0.1`` rad/s,
-   ``|s_dot| < 0.1`` m/s (:mod:`~cartpole.validation.metrics`' ``UPRIGHT_TOL``, ``REST_RATE_TOL``,
-   ``REST_SPEED_TOL``);
+   end every pole is upright and still: each wrapped hinge-angle error from ``x_eq`` below ``0.05`` rad, each
+   hinge rate below ``0.1`` rad/s and each slide rate below ``0.1`` m/s (:mod:`~cartpole.validation.metrics`'
+   ``UPRIGHT_TOL``, ``REST_RATE_TOL``, ``REST_SPEED_TOL``);
 4. ``rho_sampled`` is the largest level below which every sample succeeded: the smallest cost ``e' S e`` of a
    failed sample. The samples only cover ``e' S e < rho_cover`` (``level``, or less where the track cuts the
-   ellipsoid: ``(0.9 half-track)^2 / (S^-1)_00``), so above that they say nothing; the estimate is
-   ``rho = safety_factor * min(rho_sampled, rho_cover)``. The safety factor (default 0.75) covers directions the
-   finite sample missed; it is a margin, not a proof.
+   ellipsoid: ``(0.9 half-track)^2 / (S^-1)_ss``, ``s`` the slide's index), so above that they say nothing; the
+   estimate is ``rho = safety_factor * min(rho_sampled, rho_cover)``. The safety factor (default 0.75) covers
+   directions the finite sample missed; it is a margin, not a proof.
 """
 from __future__ import annotations
 
@@ -29,7 +33,7 @@ from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.switching import lab_catch
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, build_model, read_params, wrap_angle
+from cartpole.models import CartPoleParams, build_model, read_params, state_error
 from cartpole.sim import simulate_batch_linear
 from cartpole.validation.metrics import REST_RATE_TOL, REST_SPEED_TOL, UPRIGHT_TOL
 
@@ -50,22 +54,23 @@ class BasinEstimate:
         Smallest cost of a failed sample (inf when none failed).
     rho_cover : float
         Level up to which the samples cover the set ``e' S e < rho_cover`` (``level``, less if the track cuts it).
-    samples : (n, 4) array
-        Start states (errors from upright rest), [m, rad, m/s, rad/s].
+    samples : (n, nx) array
+        Start states ``x_eq + e``, [m, rad, m/s, rad/s] (for a model built upright ``x_eq = 0`` and these are the
+        errors themselves; :attr:`errors` gives ``e``).
     costs : (n,) array
         ``e' S e`` of each sample.
     success : (n,) bool array
         Whether the catch brought that sample to upright rest without touching the cart limit.
-    S : (4, 4) array
+    S : (nx, nx) array
         Cost-to-go matrix of the catch.
-    K : (1, 4) array
+    K : (nu, nx) array
         Gain of the catch.
     n : int
     seed : int
     level : float
         Samples were drawn in ``e' S e <= level``.
-    box : (4,) array
-        Half-widths of the box enclosing the samples, ``max |samples|`` per state, [m, rad, m/s, rad/s].
+    box : (nx,) array
+        Half-widths of the box enclosing the sampled errors, ``max |e|`` per state, [m, rad, m/s, rad/s].
     duration : float
         Seconds each sample was simulated.
     safety_factor : float
@@ -73,6 +78,8 @@ class BasinEstimate:
         m inside the cart joint limit that a run must stay.
     mjcf : str
         MJCF the runs used.
+    x_eq : (nx,) array or None
+        The catch's equilibrium the errors are measured from (None: the origin).
     """
 
     rho: float
@@ -91,11 +98,19 @@ class BasinEstimate:
     safety_factor: float
     limit_margin: float
     mjcf: str = ""
+    x_eq: np.ndarray | None = None
 
     def __post_init__(self):
         for name in ("samples", "costs", "S", "K", "box"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         object.__setattr__(self, "success", readonly(self.success, bool))
+        if self.x_eq is not None:
+            object.__setattr__(self, "x_eq", readonly(self.x_eq))
+
+    @property
+    def errors(self) -> np.ndarray:
+        """(n, nx) sampled errors ``samples - x_eq``."""
+        return self.samples - (0.0 if self.x_eq is None else self.x_eq)
 
     @property
     def n_inside(self) -> int:
@@ -123,9 +138,9 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     ----------
     source : CartPoleParams or MJCF path or None
     catch : LinearFeedback
-        Its law ``u* - K (x - x*)`` (wrapped angle error, its ``u_limits``) every physics step; MuJoCo clips ctrl
-        to ctrlrange.
-    starts : (n, 4) array
+        Its law ``u* - K (x - x*)`` (wrapped hinge errors, its ``u_limits``) every physics step; MuJoCo clips
+        ctrl to ctrlrange.
+    starts : (n, nx) array
         Start states.
     duration : float
         Seconds per run.
@@ -137,46 +152,59 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     Returns
     -------
     (n,) bool array
+        The cart inside its range throughout, and at the end every wrapped hinge error from ``catch.x_eq`` below
+        ``UPRIGHT_TOL``, every hinge rate below ``REST_RATE_TOL`` and every slide rate below ``REST_SPEED_TOL``.
     """
     params = source if isinstance(source, CartPoleParams) else read_params(source)
-    lo, hi = params.cart_range  # the slide joint's range (infinite when unlimited)
-    lo, hi = lo + limit_margin, hi - limit_margin
+    nq = params.nq
     starts = np.atleast_2d(np.asarray(starts, dtype=float))
     states, _ = simulate_batch_linear(params, catch.K, starts, duration, x_eq=catch.x_eq, u_eq=catch.u_eq,
-                                      u_limits=catch.u_limits, progress=progress)
-    s = states[:, 1:, 0]  # the cart after every step
-    stayed = np.all((lo < s) & (s < hi), axis=1)
-    end = states[:, -1]
-    still = ((np.abs(wrap_angle(end[:, 1])) < UPRIGHT_TOL) & (np.abs(end[:, 3]) < REST_RATE_TOL)
-             & (np.abs(end[:, 2]) < REST_SPEED_TOL))
+                                      u_limits=catch.u_limits, hinges=catch.hinges, progress=progress)
+    stayed = np.ones(starts.shape[0], dtype=bool)
+    if params.slide is not None:
+        lo, hi = params.cart_range  # the slide joint's range (infinite when unlimited)
+        lo, hi = lo + limit_margin, hi - limit_margin
+        s = states[:, 1:, params.slide]  # the cart after every step
+        stayed = np.all((lo < s) & (s < hi), axis=1)
+    hinges = list(params.hinges)
+    e = state_error(states[:, -1], catch.x_eq, hinges)
+    still = (np.all(np.abs(e[:, hinges]) < UPRIGHT_TOL, axis=1)
+             & np.all(np.abs(e[:, [nq + h for h in hinges]]) < REST_RATE_TOL, axis=1)
+             & np.all(np.abs(e[:, [nq + i for i in params.slides]]) < REST_SPEED_TOL, axis=1))
     return stayed & still
 
 
-def sample_errors(S, n: int, *, level: float, seed: int, s_max: float = np.inf) -> np.ndarray:
-    """Errors (n, 4) spread over ``e' S e <= level`` (see the module notes), with ``|e_0| < s_max`` (m)."""
+def sample_errors(S, n: int, *, level: float, seed: int, s_max: float = np.inf, slide: int | None = 0) -> np.ndarray:
+    """Errors (n, nx) spread over ``e' S e <= level`` (see the module notes), with ``|e[slide]| < s_max`` (m).
+
+    ``slide`` is the state index of the cart position (None: no cart, nothing redrawn).
+    """
+    S = np.asarray(S, dtype=float)
+    nx = S.shape[0]
     rng = np.random.default_rng(seed)
-    L = np.linalg.cholesky(np.asarray(S, dtype=float))
-    out = np.empty((0, 4))
+    L = np.linalg.cholesky(S)
+    out = np.empty((0, nx))
     while len(out) < n:
-        d = rng.standard_normal((n, 4))
+        d = rng.standard_normal((n, nx))
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         r = rng.uniform(0.0, 1.0, size=(n, 1))
         e = np.linalg.solve(L.T, (np.sqrt(level) * r * d).T).T
-        out = np.vstack([out, e[np.abs(e[:, 0]) < s_max]])
+        out = np.vstack([out, e if slide is None else e[np.abs(e[:, slide]) < s_max]])
     return out[:n]
 
 
 def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int = 300, seed: int = 0,
                    level: float = 1.0, duration: float = 4.0, safety_factor: float = 0.75,
                    limit_margin: float = 0.01, progress=None) -> BasinEstimate:
-    """Sample start states around upright, replay the catch in MuJoCo from each and return the safe level rho.
+    """Sample start states around ``x_eq``, replay the catch in MuJoCo from each and return the safe level rho.
 
     Parameters
     ----------
     source : CartPoleParams or MJCF path or None
-        The cart-pole (None = shipped asset).
+        The model, any number of poles and actuators (None = shipped asset).
     catch : LinearFeedback, optional
-        Catch with ``S``; default the lab LQR on the exact linearisation (:func:`lab_catch`).
+        Catch with ``S``; default the lab LQR about the model's ``x_eq`` on the exact linearisation
+        (:func:`~cartpole.control.switching.lab_catch`).
     n : int
         Number of samples.
     seed : int
@@ -205,18 +233,26 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
         raise BasinError(f"Basin sampling needs n >= 1, level > 0, duration > 0 and 0 < safety_factor <= 1 "
                          f"(got n = {n}, level = {level}, duration = {duration}, safety_factor = {safety_factor}).")
     S = np.asarray(catch.S, dtype=float)
+    if S.shape != (2 * params.nq, 2 * params.nq):
+        raise BasinError(f"The catch's S is {S.shape} but the MJCF has {2 * params.nq} states; design the catch on "
+                         "this model.")
+    slide = params.slide
     half = 0.5 * (params.cart_range[1] - params.cart_range[0])
     s_max = 0.9 * half if np.isfinite(half) else np.inf
-    samples = sample_errors(S, int(n), level=float(level), seed=int(seed), s_max=s_max)
-    costs = np.einsum("ni,ij,nj->n", samples, S, samples)
+    errors = sample_errors(S, int(n), level=float(level), seed=int(seed), s_max=s_max, slide=slide)
+    x_eq = np.asarray(catch.x_eq, dtype=float)
+    samples = x_eq + errors
+    costs = np.einsum("ni,ij,nj->n", errors, S, errors)
     success = catch_succeeds(params, catch, samples, duration, limit_margin=limit_margin, progress=progress)
     rho_sampled = float(costs[~success].min()) if np.any(~success) else np.inf
-    rho_cover = float(min(level, s_max**2 / np.linalg.inv(S)[0, 0]))
+    cut = s_max**2 / np.linalg.inv(S)[slide, slide] if slide is not None else np.inf
+    rho_cover = float(min(level, cut))
     rho = float(safety_factor * min(rho_sampled, rho_cover))
     return BasinEstimate(rho=rho, rho_sampled=rho_sampled, rho_cover=rho_cover, samples=samples, costs=costs,
                          success=success, S=S, K=catch.K, n=int(n), seed=int(seed), level=float(level),
-                         box=np.abs(samples).max(axis=0), duration=float(duration),
-                         safety_factor=float(safety_factor), limit_margin=float(limit_margin), mjcf=params.mjcf)
+                         box=np.abs(errors).max(axis=0), duration=float(duration),
+                         safety_factor=float(safety_factor), limit_margin=float(limit_margin), mjcf=params.mjcf,
+                         x_eq=x_eq)
 
 
 @dataclass
@@ -232,7 +268,8 @@ class BasinCache:
     def get(self, source=None, catch: LinearFeedback | None = None, **kwargs) -> BasinEstimate:
         """:func:`estimate_basin` with the same arguments, computed once per distinct input."""
         params = source if isinstance(source, CartPoleParams) else read_params(source)
-        kkey = b"" if catch is None else np.asarray(catch.K, float).tobytes() + np.asarray(catch.S, float).tobytes()
+        kkey = b"" if catch is None else b"".join(np.asarray(a, float).tobytes() for a in
+                                                  (catch.K, catch.S, catch.x_eq, catch.u_eq, catch.u_limits))
         opts = tuple(sorted((k, repr(v)) for k, v in kwargs.items() if k != "progress"))
         key = (hashlib.sha256(params.xml.encode() + kkey).hexdigest(), opts)
         if key not in self._store:

@@ -19,7 +19,7 @@ def test_ctrl_gives_exactly_the_requested_cart_acceleration(name, variant_dir):
     path = None if name == "shipped" else variant_dir / f"cartpole_{name}.xml"
     model = cp.build_model(path)
     c = EnergyShapingController(model)
-    lo, hi = model.params.ctrl_range
+    lo, hi = model.params.ctrl_range[0]
     checked = 0
     for x in _random_states(np.random.default_rng(1), 200):
         ev = c.evaluate(x)
@@ -104,3 +104,60 @@ def test_energy_guess_follows_the_models_own_step():
     assert np.allclose(x[0], [0, np.pi, 0, 0])
     assert np.all(np.abs(u) <= model.params.u_max)
     assert t[-1] == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("name, what", [
+    ("two_pole", "this model has 2 hinges"),
+    ("three_pole", "this model has 3 hinges"),
+    ("two_motors", "this model has 2 hinges"),
+    ("acrobot", "this model has 2 hinges"),
+    ("pendulum", "this model has no slide for a cart"),
+])
+def test_anything_but_one_pole_driven_by_the_cart_is_refused_with_one_sentence(name, what, chain_dir):
+    from cartpole.control.energy import EnergyShapingModelError
+
+    path = (cp.SHIPPED_MJCF.with_name(f"cartpole_{name}.xml") if name in ("two_pole", "three_pole")
+            else chain_dir / f"{name}.xml")
+    model = cp.build_model(path)
+    with pytest.raises(EnergyShapingModelError) as err:
+        EnergyShapingController(model)
+    msg = str(err.value)
+    assert msg == (f"Energy shaping is for one pole driven by the cart and {what}; use `--method trajopt` "
+                   "instead.")
+    assert isinstance(err.value, cp.CartPoleError) and msg.count(". ") == 0 and "\n" not in msg
+    with pytest.raises(EnergyShapingModelError, match="use `--method trajopt` instead"):
+        model_scales(model)
+
+
+def test_a_motor_on_the_hinge_of_a_cart_is_refused(tmp_path):
+    from cartpole.control.energy import EnergyShapingModelError
+
+    xml = cp.read_params().xml.replace('joint="slider"', 'joint="hinge"', 1)
+    assert 'joint="hinge"' in xml
+    path = tmp_path / "hinge_motor.xml"
+    path.write_text(xml)
+    with pytest.raises(EnergyShapingModelError, match=r"its actuator drives joint 'hinge', not the cart's slide; "
+                                                      r"use `--method trajopt` instead\.$"):
+        EnergyShapingController(cp.build_model(path))
+
+
+def test_a_pole_built_off_vertical_is_pumped_from_its_own_upright(chain_dir):
+    """Gymnasium's pendulum is 1 mm off vertical: the pole energy is zero at x_eq (not at qpos = 0), the law returns
+    one ctrl and realises the cart acceleration it asks for."""
+    model = cp.build_model(chain_dir / "gym_single_off_vertical.xml")
+    assert model.x_eq[1] != 0.0
+    c = EnergyShapingController(model)
+    assert c.pole_energy(model.x_eq) == pytest.approx(0.0, abs=1e-12)
+    assert c.pole_energy(np.zeros(4)) < 0  # qpos = 0 is below the true top
+    ev = c.evaluate(model.x_eq)
+    assert ev["E"] == pytest.approx(0.0, abs=1e-12)
+    u = c(0.0, model.x_hanging)
+    assert isinstance(u, np.ndarray) and u.shape == (1,)
+    lo, hi = model.params.ctrl_range[0]
+    checked = 0
+    for x in _random_states(np.random.default_rng(3), 100):
+        ev = c.evaluate(x)
+        if lo < ev["ctrl"] < hi:
+            assert model.dynamics(x, ev["ctrl"])[2] == pytest.approx(ev["a"], rel=1e-9, abs=1e-9)
+            checked += 1
+    assert checked > 5

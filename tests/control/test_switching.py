@@ -66,3 +66,32 @@ def test_start_one_turn_around_is_caught_at_once_not_swung_again(shipped):
     assert sw.switches[0].t == 0.0 and len(sw.switches) == 1
     assert np.all(np.abs(r.qpos[:, 1] - 2 * np.pi) < 0.05)  # never swung: stays at the same upright (2 pi)
     assert swingup_success(r, params)
+
+
+def test_catch_is_designed_and_tested_about_x_eq_of_any_model(chain_dir):
+    """The catch of a pole built off vertical holds x_eq (u = u_eq there) and its basin test wraps the error."""
+    model = cp.build_model(chain_dir / "gym_single_off_vertical.xml")
+    catch = lab_catch(model)
+    np.testing.assert_array_equal(catch.x_eq, model.x_eq)
+    assert catch.cost_to_go(model.x_eq) == 0.0
+    turned = np.array(model.x_eq) + np.array([0.0, 2 * np.pi + 0.01, 0.0, 0.0])
+    tilted = np.array(model.x_eq) + np.array([0.0, 0.01, 0.0, 0.0])
+    assert catch.cost_to_go(turned) == pytest.approx(catch.cost_to_go(tilted), rel=1e-9)
+    sw = SwitchingController(lambda t, x: 0.7, catch, rho=catch.cost_to_go(tilted) * 2)
+    u = sw(0.0, turned)
+    assert sw.mode == "catch" and isinstance(u, np.ndarray) and u.shape == (1,)
+    np.testing.assert_allclose(u, catch(0.0, tilted), rtol=1e-9)
+    assert sw(0.1, model.x_hanging).tolist() == [0.7] and sw.mode == "swingup"  # released far away
+
+
+def test_two_pole_catch_uses_the_lab_weight_pattern_and_returns_one_ctrl_per_actuator():
+    from cartpole.control.switching import swingup_catch
+    from cartpole.lqr import lab_weights, lqr
+
+    model = cp.build_model(cp.SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
+    Q, R = lab_weights(model)
+    np.testing.assert_array_equal(np.diag(Q), [1, 10, 10, 0.1, 0.1, 0.1])
+    A, B = model.linearize()
+    np.testing.assert_array_equal(lab_catch(model).K, lqr(A, B, Q, R).K)
+    np.testing.assert_array_equal(swingup_catch(model).K, lqr(A, B, Q, np.eye(1)).K)
+    assert lab_catch(model)(0.0, model.x_eq).shape == (1,)

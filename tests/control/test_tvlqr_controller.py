@@ -39,7 +39,7 @@ def test_hands_over_to_the_catch_at_the_end_of_the_plan(plan):
     assert c.handover_time == pytest.approx(T + 0.01)
     c(0.0, plan.trajectory.x[0])  # time went back: a new run
     assert c.handover_time is None
-    lo, hi = plan.model.params.ctrl_range
+    lo, hi = plan.model.params.ctrl_range[0]
     assert lo <= c(0.1, np.array([1.0, np.pi, 5.0, 20.0])) <= hi  # clipped to the ctrl range
 
 
@@ -86,3 +86,40 @@ def test_open_loop_feedforward_alone_does_not_swing_up_a_perturbed_start(plan):
     x0 = plan.trajectory.x[0] + np.array([0.05, 0.1, -0.1, 0.2])
     ro = simulate(None, c, x0, plan.T)
     assert abs(wrap_angle(ro.qpos[-1, 1])) > 0.05
+
+
+
+class _Hold:
+    """A plan resting at ``(x, u)`` for ``T`` s (any nx, nu): what TVLQR and its controller read from a plan."""
+
+    def __init__(self, x, u, T, n=11):
+        self.t = np.linspace(0.0, T, n)
+        self.x = np.tile(np.asarray(x, float), (n, 1))
+        self.u = np.tile(np.asarray(u, float), (n, 1))
+        self.duration = float(T)
+
+    def state(self, t):
+        return self.x[0] if np.ndim(t) == 0 else np.tile(self.x[0], (np.size(t), 1))
+
+    def input(self, t):
+        return self.u[0] if np.ndim(t) == 0 else np.tile(self.u[0], (np.size(t), 1))
+
+
+def test_two_inputs_law_shapes_wrapping_and_hand_over_in_mujoco(chain_dir):
+    path = chain_dir / "two_motors.xml"
+    model = build_model(path)
+    catch = LinearFeedback.for_model(model, discrete=True)
+    plan = _Hold(model.x_eq, model.u_eq, 1.0)
+    gains = tvlqr(model, plan)
+    c = TVLQRController(plan, gains, catch)
+    assert c.u_limits.shape == (2, 2) and c.hinges == (1, 2)
+    x = np.array(model.x_eq) + np.array([0.01, 0.02, -0.01, 0.0, 0.05, 0.0])
+    u = c(0.3, x)
+    assert u.shape == (2,)
+    np.testing.assert_allclose(u, np.clip(model.u_eq - gains.gain(0.3) @ (x - model.x_eq), *model.params.ctrl_range.T),
+                               rtol=1e-12)
+    np.testing.assert_allclose(c(0.31, x + np.array([0, 2 * np.pi, -2 * np.pi, 0, 0, 0])), u, rtol=1e-12)
+    ro = simulate(path, c, x, 3.0)
+    assert ro.ctrl.shape[1] == 2 and replays_exactly(ro)
+    assert c.handover_time == pytest.approx(1.0)
+    assert np.abs(model.state_error(ro.x[-1])).max() < 1e-2

@@ -126,3 +126,48 @@ def test_cart_pole_without_actuator_on_the_cart_is_unstabilisable(lab_matrices):
     A, _, _, _ = lab_matrices
     with pytest.raises(LQRError, match="not stabilisable"):
         lqr(A, np.zeros((4, 1)), Q_LAB, R_LAB)
+
+
+def _chain_model(name, chain_dir):
+    from cartpole.models import SHIPPED_MJCF
+    path = (SHIPPED_MJCF.with_name(f"cartpole_{name}.xml") if name in ("two_pole", "three_pole")
+            else chain_dir / f"{name}.xml")
+    return build_model(path)
+
+
+@pytest.mark.parametrize("name", ["two_pole", "three_pole", "two_motors"])
+def test_chains_of_poles_and_two_motors_give_a_stable_loop_and_a_small_residual(name, chain_dir):
+    from cartpole.lqr import is_controllable, lab_weights
+
+    model = _chain_model(name, chain_dir)
+    nx, nu = model.nx, model.nu
+    Q, R = lab_weights(model)
+    A, B = model.linearize()
+    Ad, Bd = model.linearize(discrete=True)
+    assert is_controllable(A, B) and is_controllable(Ad, Bd)
+    K, S, E = lqr(A, B, Q, R)
+    assert K.shape == (nu, nx) and S.shape == (nx, nx) and E.shape == (nx,)
+    assert np.linalg.eigvals(A - B @ K).real.max() < 0 and E.real.max() < 0
+    care = A.T @ S + S @ A - S @ B @ np.linalg.solve(R, B.T @ S) + Q  # residual computed here, not by lqr
+    assert np.abs(care).max() < 1e-9 * np.abs(S).max()
+    np.testing.assert_allclose(S, S.T, atol=1e-12 * np.abs(S).max())
+    assert np.linalg.eigvalsh(S).min() > 0
+    Kd, Sd, Ed = dlqr(Ad, Bd, Q * model.dt, R * model.dt)
+    assert Kd.shape == (nu, nx) and np.abs(np.linalg.eigvals(Ad - Bd @ Kd)).max() < 1
+    Rd = R * model.dt
+    dare = Ad.T @ Sd @ Ad - Sd - Ad.T @ Sd @ Bd @ np.linalg.solve(Rd + Bd.T @ Sd @ Bd, Bd.T @ Sd @ Ad) + Q * model.dt
+    assert np.abs(dare).max() < 1e-9 * np.abs(Sd).max()
+    # the same regulator as SciPy's
+    np.testing.assert_allclose(S, scipy.linalg.solve_continuous_are(A, B, Q, R), rtol=1e-9, atol=1e-9)
+
+
+def test_uncontrollable_modes_are_named_and_a_scalar_R_means_r_identity():
+    from cartpole.lqr import is_controllable, uncontrollable_modes
+
+    A = np.array([[-1.0, 0.0], [0.0, 1.0]])
+    B = np.array([[0.0], [1.0]])
+    np.testing.assert_allclose(uncontrollable_modes(A, B), [-1.0])
+    assert uncontrollable_modes(A, B, discrete=False).size == 0  # stable, so still stabilisable
+    assert not is_controllable(A, B) and is_controllable(A, np.ones((2, 1)))
+    A, B, Q, R = _random_system(3, n=4, m=2)
+    np.testing.assert_array_equal(lqr(A, B, Q, 0.7).K, lqr(A, B, Q, 0.7 * np.eye(2)).K)

@@ -95,3 +95,61 @@ def test_bad_input_is_an_lqr_error(model, swing):
         tvlqr(model, swing, Q_LAB, 0.0)
     with pytest.raises(LQRError, match="disagree"):
         TVLQRGains(t=np.zeros(3), K=np.zeros((2, 1, 4)), S=np.zeros((4, 4, 4)), dt=0.1)
+
+
+class _Hold:
+    """A plan that rests at ``(x, u)`` for ``T`` s: the least a TVLQR reference needs (any nx, nu)."""
+
+    def __init__(self, x, u, T, n=11):
+        self.t = np.linspace(0.0, T, n)
+        self.x = np.tile(np.asarray(x, float), (n, 1))
+        self.u = np.tile(np.atleast_1d(np.asarray(u, float)), (n, 1))
+        self.duration = float(T)
+
+    def state(self, t):
+        return self.x[0] if np.ndim(t) == 0 else np.tile(self.x[0], (np.size(t), 1))
+
+    def input(self, t):
+        return self.u[0] if np.ndim(t) == 0 else np.tile(self.u[0], (np.size(t), 1))
+
+
+def test_two_inputs_have_the_right_shapes_and_converge_to_dlqr_far_from_the_end(chain_dir):
+    """LTI: the two-motor cart resting at its upright equilibrium; far from the horizon end the finite-horizon
+    gain is the infinite-horizon dlqr gain, near it (zero terminal cost) it is not."""
+    from cartpole.lqr import lab_weights
+
+    model = build_model(chain_dir / "two_motors.xml")
+    Q, R = lab_weights(model)
+    dt = model.dt
+    g = tvlqr(model, _Hold(model.x_eq, model.u_eq, 10.0), Q, R, Qf=np.zeros((6, 6)))
+    n = int(round(10.0 / dt))
+    assert g.K.shape == (n, 2, 6) and g.S.shape == (n + 1, 6, 6) and (g.nu, g.nx) == (2, 6)
+    assert g.gain(0.3).shape == (2, 6) and g.gain(np.array([0.1, 0.2, 0.3])).shape == (3, 2, 6)
+    assert g.cost_to_go(0.3).shape == (6, 6) and g.cost_to_go(np.array([0.1, 0.2])).shape == (2, 6, 6)
+    Ad, Bd = model.linearize(discrete=True)
+    ref = dlqr(Ad, Bd, Q * dt, R * dt)
+    np.testing.assert_allclose(g.K[0], ref.K, rtol=1e-6, atol=1e-9 * np.abs(ref.K).max())
+    np.testing.assert_allclose(g.S[0], ref.S, rtol=1e-6, atol=1e-9 * np.abs(ref.S).max())
+    assert not np.allclose(g.K[-1], ref.K, rtol=1e-2)
+    # default terminal cost: the catch's S, so every step's gain is the dlqr gain
+    g2 = tvlqr(model, _Hold(model.x_eq, model.u_eq, 0.5), Q, R)
+    np.testing.assert_allclose(g2.K, np.broadcast_to(ref.K, g2.K.shape), rtol=1e-8, atol=1e-10)
+
+
+def test_riccati_backward_on_a_random_lti_system_with_two_inputs():
+    from cartpole.lqr import riccati_backward
+
+    rng = np.random.default_rng(4)
+    A = np.eye(5) + 0.05 * rng.normal(size=(5, 5))
+    B = 0.1 * rng.normal(size=(5, 2))
+    Q, R = np.diag(rng.uniform(0.5, 2.0, 5)), np.diag([0.3, 0.8])
+    K, S = riccati_backward(np.tile(A, (400, 1, 1)), np.tile(B, (400, 1, 1)), Q, R, np.zeros((5, 5)))
+    assert K.shape == (400, 2, 5) and S.shape == (401, 5, 5)
+    ref = dlqr(A, B, Q, R)
+    np.testing.assert_allclose(K[0], ref.K, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(S[0], ref.S, rtol=1e-8, atol=1e-12)
+    # the last step of a zero terminal cost is the one-step problem: K = 0, S = Q
+    np.testing.assert_allclose(K[-1], 0.0, atol=0)
+    np.testing.assert_allclose(S[-2], Q, atol=0)
+    with pytest.raises(LQRError, match="riccati_backward needs"):
+        riccati_backward(np.zeros((3, 5, 5)), np.zeros((4, 5, 2)), Q, R, Q)

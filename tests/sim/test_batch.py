@@ -72,3 +72,51 @@ def test_replay_benchmark_reports_its_keys():
     assert r["rollouts"] == 4 and r["seconds_each"] == 0.05 and r["physics_steps"] == 4 * 10
     assert r["ratio"] == pytest.approx(r["steps_per_s"] / r["open_loop_steps_per_s"])
     assert np.isfinite(r["steps_per_s"]) and r["steps_per_s"] > 0
+
+
+def test_batch_equals_simulate_for_a_two_pole_cart():
+    from cartpole.models import SHIPPED_MJCF
+
+    path = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+    params = read_params(path)
+    model = build_model(params)
+    law = LinearFeedback.for_model(model)
+    X0 = random_starts(5, seed=2, model=model)
+    assert X0.shape == (5, 6) and np.all(np.abs(X0 - model.x_eq) <= [0.5, 0.075, 0.075, 0.3, 0.15, 0.15])
+    X0[0, 2] += 2 * np.pi  # the second hinge one turn around: its error must wrap
+    states, ctrl = simulate_batch_linear(params, law, X0, 2.0, nthread=2)
+    n = int(round(2.0 / params.timestep))
+    assert states.shape == (5, n + 1, 6) and ctrl.shape == (5, n, 1)
+    for i, x0 in enumerate(X0):
+        run = simulate(params, law, x0, 2.0)
+        np.testing.assert_allclose(states[i], run.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ctrl[i], run.ctrl, rtol=0, atol=1e-12)
+    # the same law given as arrays (the model's hinges wrapped by default)
+    again, _ = simulate_batch_linear(params, law.K, X0, 2.0, x_eq=law.x_eq, u_eq=law.u_eq, u_limits=law.u_limits,
+                                     nthread=2)
+    np.testing.assert_array_equal(again, states)
+
+
+def test_batch_with_two_motors_equals_simulate(chain_dir):
+    path = chain_dir / "two_motors.xml"
+    model = build_model(path)
+    law = LinearFeedback.for_model(model, discrete=True)
+    X0 = random_starts(3, seed=5, model=model)
+    states, ctrl = simulate_batch_linear(path, law, X0, 1.0, nthread=0)
+    assert ctrl.shape[2] == 2
+    for i, x0 in enumerate(X0):
+        run = simulate(path, law, x0, 1.0)
+        np.testing.assert_allclose(states[i], run.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(ctrl[i], run.ctrl, rtol=0, atol=1e-12)
+
+
+def test_mismatched_batch_law_is_refused():
+    from cartpole import CartPoleError
+    from cartpole.models import SHIPPED_MJCF
+
+    path = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+    with pytest.raises(CartPoleError, match=r"Need K of shape \(1, 6\) and X0 of shape \(B, 6\)"):
+        simulate_batch_linear(path, np.ones(4), np.zeros((2, 4)), 1.0)
+    law = LinearFeedback(np.zeros(6))
+    with pytest.raises(CartPoleError, match="either a LinearFeedback or K"):
+        simulate_batch_linear(path, law, np.zeros((2, 6)), 1.0, x_eq=np.zeros(6))

@@ -35,3 +35,35 @@ def test_a_failed_save_leaves_the_old_file_untouched(run, tmp_path, monkeypatch)
     with pytest.raises(TypeError):
         run.save(path)
     assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["run.json"]
+
+
+def test_two_motor_rollout_logs_every_actuator_and_replays(chain_dir, tmp_path):
+    path = chain_dir / "two_motors.xml"
+    law = lambda t, x: np.array([0.3 * np.sin(10 * t), -2.0])  # noqa: E731  (the second is clipped to 0.5)
+    r = simulate(path, law, np.zeros(6), 0.1)
+    n = r.t.size - 1
+    assert r.qpos.shape == (n + 1, 3) and r.qvel.shape == (n + 1, 3) and r.ctrl.shape == (n, 2)
+    assert (r.nq, r.nu) == (3, 2) and np.all(r.ctrl[:, 1] == -0.5)
+    assert replays_exactly(r)
+    np.testing.assert_array_equal(replay(path, r.x[0], r.ctrl).x, r.x)
+    r.save(tmp_path / "two.json")
+    back = Rollout.load(tmp_path / "two.json")
+    np.testing.assert_array_equal(back.ctrl, r.ctrl)
+    assert replays_exactly(back)
+
+
+def test_bad_starts_controllers_and_logs_are_one_sentence(chain_dir):
+    from cartpole import CartPoleError, read_params
+
+    path = chain_dir / "two_motors.xml"
+    with pytest.raises(CartPoleError, match="has 4 entries; give 6: the positions of slider, hinge, hinge2, then"):
+        simulate(path, lambda t, x: np.zeros(2), np.zeros(4), 0.1)
+    with pytest.raises(CartPoleError, match="it must return 2 finite ctrl values"):
+        simulate(path, lambda t, x: 0.0, np.zeros(6), 0.1)
+    with pytest.raises(CartPoleError, match=r"give \(n, 2\)"):
+        replay(path, np.zeros(6), np.zeros(10))
+    params = read_params(xml=path.read_text())  # built from text: the rollout cannot name its file
+    r = simulate(params, lambda t, x: np.zeros(2), np.zeros(6), 0.02)
+    with pytest.raises(CartPoleError, match="pass the CartPoleParams"):
+        replays_exactly(r)
+    assert replays_exactly(r, params)

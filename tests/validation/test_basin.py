@@ -78,3 +78,47 @@ def test_bad_settings_raise():
         estimate_basin(None, n=0)
     with pytest.raises(BasinError):
         estimate_basin(None, n=5, safety_factor=1.5)
+
+
+TWO_POLE = cp.SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+
+
+@pytest.fixture(scope="module")
+def two_pole_basin():
+    return estimate_basin(TWO_POLE, n=80, seed=1, duration=3.0)
+
+
+def test_two_pole_basin_perturbs_every_state_and_its_verdicts_are_the_logging_simulators(two_pole_basin):
+    b = two_pole_basin
+    params = cp.read_params(TWO_POLE)
+    model = cp.build_model(params)
+    catch = lab_catch(model)
+    np.testing.assert_array_equal(b.S, catch.S)
+    assert b.samples.shape == (80, 6) and b.box.shape == (6,) and b.K.shape == (1, 6)
+    np.testing.assert_array_equal(b.x_eq, model.x_eq)
+    assert np.all(np.abs(b.errors).max(axis=0) > 0)  # every component moved: cart, both angles, all rates
+    assert np.all(np.abs(b.errors).max(axis=0) == b.box)
+    np.testing.assert_allclose(b.costs, catch.cost_to_go(b.samples), rtol=1e-10)
+    assert 0 < b.success.sum() < b.n  # the sample reaches beyond the basin
+    assert np.all(b.success[b.costs < b.rho]) and b.n_inside > 3
+    picks = np.r_[np.flatnonzero(b.success)[:2], np.flatnonzero(~b.success)[:2]]
+    lo, hi = params.cart_range[0] + b.limit_margin, params.cart_range[1] - b.limit_margin
+    for i in picks:
+        r = simulate(params, catch, b.samples[i], b.duration)
+        assert replays_exactly(r)
+        e = model.state_error(r.x[-1])
+        ok = (np.all((lo < r.qpos[1:, 0]) & (r.qpos[1:, 0] < hi)) and np.all(np.abs(e[[1, 2]]) < 0.05)
+              and np.all(np.abs(e[[4, 5]]) < 0.1) and abs(e[3]) < 0.1)
+        assert ok == b.success[i], i
+
+
+def test_basin_of_a_pole_built_off_vertical_is_sampled_around_its_x_eq(chain_dir):
+    path = chain_dir / "gym_single_off_vertical.xml"
+    model = cp.build_model(path)
+    b = estimate_basin(path, n=60, seed=0, duration=3.0)
+    np.testing.assert_array_equal(b.x_eq, model.x_eq)
+    np.testing.assert_allclose(b.samples - model.x_eq, b.errors, atol=0)
+    assert abs(np.mean(b.samples[:, 1]) - model.x_eq[1]) < 0.2
+    assert b.rho > 0 and np.all(b.success[b.costs < b.rho])
+    from cartpole.validation.basin import catch_succeeds
+    assert catch_succeeds(path, lab_catch(model), [model.x_eq], 2.0).tolist() == [True]  # x_eq itself is a rest
