@@ -92,7 +92,7 @@ def test_discrete_step_equals_one_mj_step(family_mjcf):
 def test_discrete_Ad_Bd_match_central_differences_of_mj_step(family_mjcf):
     model = build_model(family_mjcf)
     m, d = _mujoco(family_mjcf)
-    xs, us = _random_states(model.params, 25, 4)
+    xs, us = _random_states(model.params, N_RANDOM, 4)
     worst = 0.0
     for x, u in zip(xs, us):
         Ad, Bd = model.linearize(x, u, discrete=True)
