@@ -524,13 +524,17 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
     no_damper, no_spring = bool(dis & flags.mjDSBL_DAMPER), bool(dis & flags.mjDSBL_SPRING)
 
     bodies = []
+    d = None
     for b in moving:
         parent = int(m.body_parentid[b])
         if parent in index:
             pos, quat, pidx = m.body_pos[b], m.body_quat[b], index[parent]
+        elif parent == 0:
+            pos, quat, pidx = m.body_pos[b], m.body_quat[b], -1
         else:  # parent welded to the world: express this body's frame in the world
-            d = mujoco.MjData(m)
-            mujoco.mj_kinematics(m, d)
+            if d is None:
+                d = mujoco.MjData(m)
+                mujoco.mj_kinematics(m, d)
             pos, quat, pidx = _world_frame_of_static(m, d, parent, b)
         jids = tuple(range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])) if m.body_jntnum[b] else ()
         bodies.append(BodyParams(

@@ -94,9 +94,12 @@ class CartPoleModel:
         ``(x, u) -> d step/dx (nx, nx)``, ``d step/du (nx, nu)``, both in one call.
     x_eq, u_eq : arrays (nx,), (nu,)
         The upright equilibrium (every pole's centre of mass above its hinge), ``f(x_eq, u_eq) = 0``.
-    x_hanging : array (nx,)
-        Hanging rest (every pole's centre of mass below its hinge), ctrl ``u_hanging``.
-    u_hanging : array (nu,)
+    potential : casadi.Function
+        ``q -> (dV/dq, d2V/dq2, dVg/dq, d2Vg/dq2)``, the potential's gradient and Hessian (all, gravity alone).
+    actuation : (nq, nu) array
+        Generalized force per unit ctrl.
+    x_hanging, u_hanging : arrays (nx,), (nu,)
+        Hanging rest (every pole's centre of mass below its hinge), computed on first use.
     """
 
     params: CartPoleParams
@@ -112,8 +115,23 @@ class CartPoleModel:
     ABd: ca.Function
     x_eq: np.ndarray
     u_eq: np.ndarray
-    x_hanging: np.ndarray
-    u_hanging: np.ndarray
+    potential: ca.Function
+    actuation: np.ndarray
+
+    @functools.cached_property
+    def _hanging(self) -> tuple:
+        x, u = find_equilibrium(self.params, self.potential, self.actuation, upright=False)
+        return readonly(x), readonly(u)
+
+    @property
+    def x_hanging(self) -> np.ndarray:
+        """(nx,) hanging rest: every pole's centre of mass below its hinge."""
+        return self._hanging[0]
+
+    @property
+    def u_hanging(self) -> np.ndarray:
+        """(nu,) ctrl that holds :attr:`x_hanging`."""
+        return self._hanging[1]
 
     # ---- single Jacobians, built on first use (AB and ABd serve every caller in the package) --------------
     def _part(self, fun: ca.Function, k: int, name: str) -> ca.Function:
@@ -234,14 +252,15 @@ def _lagrangian(p: CartPoleParams, q, v):
     return M, V, kin
 
 
-def _pole_energy(p: CartPoleParams, kin, v):
-    """The single pole's energy about its hinge (SX or float) for kinematics ``kin`` and rates ``v``."""
+def _pole_energy(p: CartPoleParams, kin, v, inertia: float):
+    """The single pole's energy about its hinge (SX or float) for kinematics ``kin``, rates ``v`` and the pole's
+    inertia about the hinge ``inertia`` (kg m^2)."""
     h = p.hinges[0]
     V = 0
     for b in p.pole_bodies:
         V = V - p.bodies[b].mass * (p.gravity @ (kin.com[b] - kin.joint_anchor[h]) if isinstance(kin.com[b], np.ndarray)
                                     else ca.dot(ca.DM(p.gravity), kin.com[b] - kin.joint_anchor[h]))
-    return 0.5 * p.pole_inertia_about_hinge * v[h] ** 2 + V
+    return 0.5 * inertia * v[h] ** 2 + V
 
 
 def _potential_np(p: CartPoleParams, q) -> float:
@@ -327,13 +346,13 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     Hg, dVg = ca.hessian(Vg, q)
     potential = ca.Function("potential", [q], [dV, H, dVg, Hg])
     x_eq, u_eq = find_equilibrium(p, potential, Bmat, upright=True)
-    x_hang, u_hang = find_equilibrium(p, potential, Bmat, upright=False)
     V0 = _potential_np(p, x_eq[:nq])
 
     E = T + V - V0
     pole_energy = None
     if len(p.hinges) == 1:
-        Ep = _pole_energy(p, kin, v) - _pole_energy(p, forward_kinematics_np(p, x_eq[:nq]), np.zeros(nq))
+        J = p.pole_inertia_about_hinge
+        Ep = _pole_energy(p, kin, v, J) - _pole_energy(p, forward_kinematics_np(p, x_eq[:nq]), np.zeros(nq), J)
         pole_energy = ca.Function("pole_energy", [x], [Ep], ["x"], ["E_pole"])
 
     Ax, Bu = ca.jacobian(xdot, x), ca.jacobian(xdot, u)
@@ -350,7 +369,7 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         ABd=fn("ABd", [x, u], [Adx, Bdu], ["x", "u"], ["Ad", "Bd"]),
     )
     return CartPoleModel(params=p, dt=h, integrator=integ, x_eq=readonly(x_eq), u_eq=readonly(u_eq),
-                         x_hanging=readonly(x_hang), u_hanging=readonly(u_hang), **funcs)
+                         potential=potential, actuation=readonly(Bmat), **funcs)
 
 
 def linearize(model: CartPoleModel, x=None, u=None) -> dict:
