@@ -1,9 +1,10 @@
 """Speed of the trajectory-optimisation pipeline next to the naive CasADi baseline, measured in one run
 (``cartpole bench`` and ``benchmarks/bench_trajopt.py`` run this).
 
-Standard problem: the given MJCF (default the shipped asset), from hanging rest ``[0, pi, 0, 0]`` to upright
-rest in ``T = 2 s`` with ``N = 100`` Hermite-Simpson intervals, ``|ctrl| <= 1``, ``|cart| <= 1.4 m``,
-minimising ``integral ctrl^2 dt``.
+Standard problem: the given MJCF (default the shipped asset; any model with a cart), from hanging rest
+(``model.x_hanging``, ``[0, pi, 0, 0]`` for one pole) to the upright equilibrium ``model.x_eq`` in ``T = 2 s``
+with ``N = 100`` Hermite-Simpson intervals, ``|ctrl| <= 1`` for every actuator, ``|cart| <= 1.4 m`` (other
+limited joints inside their ranges), minimising ``integral ctrl'ctrl dt``.
 
 * Baseline: what a CasADi user writes first - ``casadi.Opti`` with one Hermite-Simpson constraint per
   interval built from calls of the model's SX Function ``f`` on MX variables, IPOPT, no ``expand``.
@@ -24,13 +25,12 @@ import time
 import casadi as ca
 import numpy as np
 
-from cartpole.lqr import Q_LAB, R_LAB, tvlqr
+from cartpole.lqr import lab_weights, tvlqr
 from cartpole.models import build_model, read_params
+from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
 from cartpole.sim import replay_benchmark
-
-HANGING = (0.0, np.pi, 0.0, 0.0)
 
 
 def _median_ms(fn, repeats: int) -> tuple[float, object]:
@@ -43,13 +43,17 @@ def _median_ms(fn, repeats: int) -> tuple[float, object]:
 
 
 class NaiveOptiBaseline:
-    """The Hermite-Simpson swing-up as a first ``casadi.Opti`` script (see the module docstring)."""
+    """The Hermite-Simpson swing-up as a first ``casadi.Opti`` script (see the module docstring).
 
-    def __init__(self, model, N: int, T: float, u_max: float, cart_max: float, x0, x_goal=None):
+    ``bounds`` (:class:`~cartpole.ocp.bounds.OCPBounds`) give the ctrl bounds per actuator and the joint bounds;
+    ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``).
+    """
+
+    def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None):
         f = model.f
         opti = ca.Opti()
-        X = opti.variable(4, N + 1)
-        U = opti.variable(1, N + 1)
+        X = opti.variable(model.nx, N + 1)
+        U = opti.variable(model.nu, N + 1)
         h = T / N
         J = 0
         for k in range(N):
@@ -59,11 +63,13 @@ class NaiveOptiBaseline:
             uc = 0.5 * (U[:, k] + U[:, k + 1])
             fc = f(xc, uc)
             opti.subject_to(X[:, k + 1] == X[:, k] + h / 6 * (fk + 4 * fc + fk1))
-            J = J + h / 6 * (U[:, k] ** 2 + 4 * uc**2 + U[:, k + 1] ** 2)
-        opti.subject_to(opti.bounded(-u_max, U, u_max))
-        opti.subject_to(opti.bounded(-cart_max, X[0, :], cart_max))
+            J = J + h / 6 * ca.sum1(U[:, k] ** 2 + 4 * uc**2 + U[:, k + 1] ** 2)
+        for j in range(model.nu):
+            opti.subject_to(opti.bounded(bounds.u_low[j], U[j, :], bounds.u_high[j]))
+        for i in bounds.bounded_joints:
+            opti.subject_to(opti.bounded(bounds.q_low[i], X[i, :], bounds.q_high[i]))
         opti.subject_to(X[:, 0] == np.asarray(x0, float))
-        opti.subject_to(X[:, N] == (np.zeros(4) if x_goal is None else np.asarray(x_goal, float)))
+        opti.subject_to(X[:, N] == np.asarray(model.x_eq if x_goal is None else x_goal, float))
         opti.minimize(J)
         opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes"})
         self.opti, self.X, self.U = opti, X, U
@@ -89,8 +95,8 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     Parameters
     ----------
     mjcf : path, optional
-        Cart-pole MJCF (default the shipped asset).
-    N, T, u_max, cart_max : problem size (intervals, s, ctrl, m).
+        Cart-pole MJCF (default the shipped asset), any number of poles and motors.
+    N, T, u_max, cart_max : problem size (intervals, s, ctrl bound of every actuator, m).
     repeats : int
         Timed solves per method (medians reported; at least 5 for the published figures).
     replay : bool
@@ -112,18 +118,22 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     repeats = max(1, int(repeats))
     params = read_params(mjcf)
     model = build_model(params)
-    x0 = np.array(HANGING)
-    guess = initial_guesses(model, x0, np.zeros(4), T, N, u_max=u_max, cart_max=cart_max, count=1)[0]
+    x0 = np.array(model.x_hanging)
+    bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max, cart_margin=0.0)
+    guess = initial_guesses(model, x0, model.x_eq, T, N, bounds=bounds, count=1)[0]
 
     say(f"building our collocation NLP (N = {N}, T = {T} s) ...")
-    ocp = DirectCollocation(model, N=N, T=T, u_max=u_max, cart_max=cart_max, cart_margin=0.0)
+    ocp = DirectCollocation(model, N=N, T=T, bounds=bounds)
     traj, info = ocp.solve_once(x0, guess=guess)  # builds the solver (not timed)
     say(f"ours (ipopt, from the guess): {repeats} solves ...")
     ours_ms, (traj, info) = _median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
     # Warm start, honestly: a NEW problem (start moved by 2 cm and 0.05 rad, as in re-planning) started from
     # the primal-dual solution of the nominal one; the nominal solution is restored before every timed solve.
     nominal = ocp._last
-    x0_moved = x0 + np.array([0.02, 0.05, 0.0, 0.0])
+    x0_moved = x0.copy()
+    if model.slide is not None:
+        x0_moved[model.slide] += 0.02
+    x0_moved[model.hinges[0]] += 0.05
 
     def warm_solve():
         ocp._last = nominal
@@ -134,12 +144,12 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     warm_ms, (_, warm_info) = _median_ms(warm_solve, repeats)
 
     say(f"ours without the compiled interval functions (SX virtual machine): {repeats} solves ...")
-    sx_ocp = DirectCollocation(model, N=N, T=T, u_max=u_max, cart_max=cart_max, cart_margin=0.0, compiled=False)
+    sx_ocp = DirectCollocation(model, N=N, T=T, bounds=bounds, compiled=False)
     sx_ocp.solve_once(x0, guess=guess)
     sx_ms, (_, sx_info) = _median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
 
     say("building the naive casadi.Opti baseline ...")
-    base = NaiveOptiBaseline(model, N, T, u_max, cart_max, x0)
+    base = NaiveOptiBaseline(model, N, T, bounds, x0)
     base.solve(guess)  # builds IPOPT (not timed)
     say(f"baseline (Opti, no expand): {repeats} solves ...")
     base_ms, (base_obj, base_it, base_ok) = _median_ms(lambda: base.solve(guess), repeats)
@@ -147,15 +157,16 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     fatrop = {}
     if ca.has_nlpsol("fatrop"):
         say(f"ours (fatrop): {repeats} solves ...")
-        focp = DirectCollocation(model, N=N, T=T, u_max=u_max, cart_max=cart_max, cart_margin=0.0, solver="fatrop")
+        focp = DirectCollocation(model, N=N, T=T, bounds=bounds, solver="fatrop")
         focp.solve_once(x0, guess=guess)
         f_ms, (_, finfo) = _median_ms(lambda: focp.solve_once(x0, guess=guess), repeats)
         fatrop = {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
                   "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations}
 
     say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
-    tvlqr(model, traj, Q_LAB, R_LAB)  # builds the mapped ABd (not timed)
-    tv_ms, gains = _median_ms(lambda: tvlqr(model, traj, Q_LAB, R_LAB), max(repeats, 20))
+    Q, R = lab_weights(model)
+    tvlqr(model, traj, Q, R)  # builds the mapped ABd (not timed)
+    tv_ms, gains = _median_ms(lambda: tvlqr(model, traj, Q, R), max(repeats, 20))
 
     replay_doc = None
     if replay:

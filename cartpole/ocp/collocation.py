@@ -1,6 +1,6 @@
 """Swing-up by direct collocation: Hermite-Simpson transcription in CasADi, built once, solved many times.
 
-Transcription (compressed Hermite-Simpson with a first-order-hold input): knots ``x_k`` (4,), ``u_k`` (1,)
+Transcription (compressed Hermite-Simpson with a first-order-hold input): knots ``x_k`` (nx,), ``u_k`` (nu,)
 at ``t_k = k h``, ``h = T / N``; on each interval
 
     f_k = f(x_k, u_k),   x_c = (x_k + x_k+1) / 2 + h (f_k - f_k+1) / 8,   u_c = (u_k + u_k+1) / 2,
@@ -8,10 +8,11 @@ at ``t_k = k h``, ``h = T / N``; on each interval
 
 The state between knots is therefore the cubic Hermite polynomial through the knots (``x_c`` is its value at
 the midpoint) and the input is piecewise linear; :class:`~cartpole.ocp.trajectory.Trajectory` interpolates
-the same way. The effort objective ``integral u^2 dt`` is Simpson's rule on that piecewise-linear input
-(exact). Bounds come from the MJCF: ``|u| <= u_max`` (ctrlrange) and the cart inside its joint range
-shrunk by a margin; the start and the final (upright rest) states are pinned through variable bounds, so
-changing them never rebuilds anything.
+the same way. The effort objective ``integral u'u dt`` is Simpson's rule on that piecewise-linear input
+(exact). Bounds come from the MJCF (:mod:`cartpole.ocp.bounds`): each actuator's ctrlrange, the cart inside
+its joint range shrunk by a margin, every other limited joint inside its range; the start and the final
+(by default the model's upright equilibrium ``x_eq``) states are pinned through variable bounds, so changing
+them never rebuilds anything. Any model shape works: the sizes come from the model's ``nx``, ``nu``.
 
 Speed (the usual CasADi traps avoided): the NLP is built once per problem shape and cached; ``f`` is
 evaluated at all knots by one ``map`` call and the interval defects by another; the MX graph is expanded to
@@ -28,9 +29,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel
 from cartpole.ocp import compiled
+from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model, bounds_from_params, scales
 from cartpole.ocp.guess import linear_guess
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 from cartpole.ocp.trajectory import Trajectory
@@ -39,8 +40,8 @@ OBJECTIVES = ("effort", "time")
 SOLVERS = ("ipopt", "fatrop")
 
 
-class OCPError(CartPoleError):
-    """A trajectory-optimisation problem that is badly posed or did not converge."""
+__all__ = ["DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasible", "SolveInfo", "bounds_from_model",
+           "bounds_from_params"]
 
 
 class OCPInfeasible(OCPError):
@@ -58,7 +59,7 @@ class SolveInfo:
     success : bool
     iterations : int
     objective : float
-        In physical units: ``integral u^2 dt`` (ctrl^2 s) for ``effort``, the final time T (s) for ``time``.
+        In physical units: ``integral u'u dt`` (ctrl^2 s) for ``effort``, the final time T (s) for ``time``.
     solve_time_s : float
         Wall time of the solver call in s.
     solver : str
@@ -79,61 +80,6 @@ class SolveInfo:
     start: int = 0
 
 
-@dataclass(frozen=True)
-class OCPBounds:
-    """Bounds of the swing-up OCP in physical units.
-
-    Attributes
-    ----------
-    u_max : float
-        ``|ctrl| <= u_max``.
-    cart_max : float
-        ``|s| <= cart_max`` in m (after the margin); the cart's joint range centre is assumed at 0.
-    cart_center : float
-        Centre of the cart's range in m.
-    """
-
-    u_max: float
-    cart_max: float
-    cart_center: float = 0.0
-
-
-def bounds_from_model(model: CartPoleModel, *, u_max: float | None = None, cart_max: float | None = None,
-                      cart_margin: float = 0.1) -> OCPBounds:
-    """OCP bounds from the MJCF behind ``model``: ctrlrange and the slide range shrunk by ``cart_margin`` (m).
-
-    ``u_max``/``cart_max`` override the MJCF (the benchmark's standard problem uses 1 and 1.4 m).
-    """
-    p = model.params
-    if u_max is None:
-        u_max = p.u_max
-        if not np.isfinite(u_max):
-            raise OCPError("The MJCF's actuator has no ctrlrange; give u_max explicitly for the trajectory "
-                           "optimisation.")
-    lo, hi = p.cart_range
-    center = 0.0 if not (np.isfinite(lo) and np.isfinite(hi)) else 0.5 * (lo + hi)
-    if cart_max is None:
-        if not (np.isfinite(lo) and np.isfinite(hi)):
-            raise OCPError("The MJCF's slide joint is unlimited; give cart_max explicitly for the trajectory "
-                           "optimisation.")
-        cart_max = 0.5 * (hi - lo) - cart_margin
-    if not (u_max > 0 and cart_max > 0):
-        raise OCPError(f"The OCP bounds u_max = {u_max} and cart_max = {cart_max} m must be positive; "
-                       "use a longer track or a smaller cart margin.")
-    return OCPBounds(float(u_max), float(cart_max), float(center))
-
-
-def _scales(model: CartPoleModel, bounds: OCPBounds) -> np.ndarray:
-    """Typical magnitudes (5,) of [s, theta, s_dot, theta_dot, u], to scale the NLP to order one."""
-    p = model.params
-    m, l, g = p.pole_mass, p.pole_com_distance, p.g
-    J = p.pole_inertia_about_hinge + p.armature[1]
-    rate = np.sqrt(4 * m * g * l / J)  # pole rate reached by falling from upright to hanging
-    acc = p.gear * bounds.u_max / (p.cart_mass + p.pole_mass)
-    vel = min(np.sqrt(acc * bounds.cart_max), 0.5 * acc)
-    return np.array([bounds.cart_max, np.pi, vel, rate, bounds.u_max])
-
-
 @dataclass
 class _Built:
     solver: ca.Function
@@ -141,14 +87,16 @@ class _Built:
     ng: int
     lbg: np.ndarray
     ubg: np.ndarray
-    unpack: ca.Function  # w -> (X (4, N+1), U (1, N+1), T, Xc (4, N)), physical units
+    unpack: ca.Function  # w -> (X (nx, N+1), U (nu, N+1), T, Xc (nx, N), effort), physical units
     relaxed: bool
     warm: bool
     idx: np.ndarray  # entries of the standard (ipopt) variable vector each solver variable holds
 
 
 class DirectCollocation:
-    """A Hermite-Simpson swing-up OCP for one model and problem shape, built once and solved many times.
+    """A Hermite-Simpson OCP for one model and problem shape, built once and solved many times.
+
+    Any model: states ``x`` (nx,) = ``[qpos, qvel]`` and inputs ``u`` (nu,) = MuJoCo ctrl, sizes from the model.
 
     Parameters
     ----------
@@ -160,12 +108,17 @@ class DirectCollocation:
         Duration in s; None makes the final time free (then ``objective`` defaults to ``time``). A fixed T
         is a parameter of the NLP: :meth:`solve` accepts another ``T`` without rebuilding.
     objective : {'effort', 'time'}, optional
-        ``effort`` minimises ``integral u^2 dt`` (Simpson quadrature, ctrl^2 s); ``time`` minimises T
-        (free final time) plus ``time_effort_weight * integral u^2 dt`` to make the bang-bang answer unique.
-    u_max, cart_max : float, optional
-        Bounds overriding the MJCF's (ctrl; m).
+        ``effort`` minimises ``integral u'u dt`` (Simpson quadrature, ctrl^2 s); ``time`` minimises T
+        (free final time) plus ``time_effort_weight * integral u'u dt`` to make the bang-bang answer unique.
+    u_max : float or (nu,) array, optional
+        Symmetric ctrl bound ``|u| <= u_max`` overriding the MJCF's ctrlranges.
+    cart_max : float, optional
+        Cart bound ``|s - centre| <= cart_max`` in m overriding the slide range and margin.
     cart_margin : float
         Shrinks the MJCF's slide range on each side, m (default 0.1).
+    bounds : OCPBounds, optional
+        All bounds at once (e.g. those of another MJCF, :func:`cartpole.ocp.bounds.bounds_from_params`);
+        overrides ``u_max``, ``cart_max`` and ``cart_margin``.
     T_range : (float, float)
         Bounds on the free final time in s.
     solver : {'ipopt', 'fatrop'}
@@ -173,23 +126,24 @@ class DirectCollocation:
     solver_options : dict, optional
         Passed straight to ``casadi.nlpsol`` (e.g. ``{"ipopt": {"tol": 1e-10}}``), merged over the defaults.
     time_effort_weight : float
-        Weight of the effort term in the minimum-time objective (1/s per ctrl^2 s).
+        Weight of the effort term in the minimum-time objective (1 per ctrl^2 s).
     separated : bool
         IPOPT only: make the midpoint states decision variables (separated Hermite-Simpson) instead of
         eliminating them (compressed, default). Same solution; a cheaper Hessian but a larger KKT system.
     compiled : bool
         IPOPT, fixed T, effort objective, compressed: evaluate the NLP and its derivatives with the
         Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled`; the shared library is
-        cached in ``~/.cache/cartpole``, compiled once per model in about a second). Same NLP, iterates and
-        solution as the SX formulation, 2 to 3x faster a solve. Without a C compiler the SX formulation is
-        used (a note on stderr). Default True.
+        cached in ``~/.cache/cartpole`` under a key of the model, compiled once per model: about 2 s for one
+        pole, 1.3 s for two and 6 s for three, the larger ones unoptimised). Same NLP, iterates and solution as
+        the SX formulation, 2 to 3x faster a solve for one pole (3 to 4x for two and three). Without a C compiler
+        the SX formulation is used (a note on stderr). Default True.
     """
 
     def __init__(self, model: CartPoleModel, N: int = 100, T: float | None = 2.0, *, objective: str | None = None,
                  u_max: float | None = None, cart_max: float | None = None, cart_margin: float = 0.1,
                  T_range: tuple[float, float] = (0.2, 10.0), solver: str = "ipopt",
                  solver_options: dict | None = None, time_effort_weight: float = 1e-3,
-                 separated: bool = False, compiled: bool = True):
+                 separated: bool = False, compiled: bool = True, bounds: OCPBounds | None = None):
         if objective is None:
             objective = "time" if T is None else "effort"
         if objective not in OBJECTIVES:
@@ -211,7 +165,13 @@ class DirectCollocation:
         self.T = None if T is None else float(T)
         self.free_time = T is None
         self.objective = objective
-        self.bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max, cart_margin=cart_margin)
+        self.nx, self.nu = int(model.nx), int(model.nu)
+        if bounds is None:
+            bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max, cart_margin=cart_margin)
+        if bounds.u_low.size != self.nu or bounds.q_low.size != model.nq:
+            raise OCPError(f"The bounds are for {bounds.u_low.size} inputs and {bounds.q_low.size} joints but the "
+                           f"model has {self.nu} and {model.nq}; build them from this model's MJCF.")
+        self.bounds = bounds
         self.T_range = (float(T_range[0]), float(T_range[1]))
         self.solver_name = solver
         self.solver_options = dict(solver_options or {})
@@ -219,7 +179,7 @@ class DirectCollocation:
         self.separated = bool(separated)
         self.compiled = bool(compiled)
         self.compiled_library: str | None = None  # the shared library in use, once built
-        self.scale = _scales(model, self.bounds)
+        self.scale = scales(model, self.bounds)  # (nx + nu,): states then inputs
         self._interval = hs_interval_function(model.f)
         self._f_knots = model.f.map(self.N + 1)  # f at all N+1 knots: in the NLP and for the returned Trajectory
         self._built: dict[tuple, _Built] = {}
@@ -250,43 +210,46 @@ class DirectCollocation:
         key = (relaxed, warm)
         if key in self._built:
             return self._built[key]
-        N, sc = self.N, self.scale
-        sx, su = sc[:4], sc[4]
+        N, sc, nx, nu = self.N, self.scale, self.nx, self.nu
+        nz = nx + nu  # one knot: state and input
+        sx, su = sc[:nx], sc[nx:]
         solver_name = "ipopt" if relaxed else self.solver_name
-        n_extra = int(self.free_time) + 2 * int(relaxed)
+        slacks = self._slack_names() if relaxed else []
+        n_slk = len(slacks)
+        n_extra = int(self.free_time) + n_slk
         # "standard" vector (what guesses and bounds are packed into, scaled):
-        #   [vec(Z) (5 (N+1): x_k, u_k per knot), vec(Xc) (4 N: midpoint states), (T), (slack_cart, slack_u)]
+        #   [vec(Z) (nz (N+1): x_k, u_k per knot), vec(Xc) (nx N: midpoint states), (T), (slacks)]
         if solver_name == "fatrop":
             # Fatrop needs explicit stage dynamics z_k+1 = F(z_k, w_k). Hermite-Simpson is implicit, so the
             # stage state is z_k = (x_k, u_k), the stage control w_k = (x_k+1, u_k+1) a copy of the next
             # knot, the dynamics are the copy z_k+1 = w_k, and the (compressed) defect is a path equality.
-            w = ca.MX.sym("w", 10 * N + 5)  # [z_0, w_0, z_1, w_1, ..., z_N]
-            stages = ca.reshape(w[:10 * N], 10, N)
-            Z = ca.horzcat(stages[:5, :], w[10 * N:])
-            Wn = stages[5:, :]
-            X = Z[:4, :] * ca.DM(sx)
-            U = Z[4:, :] * su
+            w = ca.MX.sym("w", 2 * nz * N + nz)  # [z_0, w_0, z_1, w_1, ..., z_N]
+            stages = ca.reshape(w[:2 * nz * N], 2 * nz, N)
+            Z = ca.horzcat(stages[:nz, :], w[2 * nz * N:])
+            Wn = stages[nz:, :]
+            X = Z[:nx, :] * ca.DM(sx)
+            U = Z[nx:, :] * ca.DM(su)
             F = self._f_knots(X, U)
-            Xn, Un = Wn[:4, :] * ca.DM(sx), Wn[4:, :] * su
+            Xn, Un = Wn[:nx, :] * ca.DM(sx), Wn[nx:, :] * ca.DM(su)
             Fn = self.model.f.map(N)(Xn, Un)
             # Boundary states as equality constraints of the first/last stage (fatrop handles a pinned
-            # variable, lb = ub, poorly), from parameters p = [T, x0 (4), x_goal (4)] (scaled).
-            p = ca.MX.sym("p", 9)
+            # variable, lb = ub, poorly), from parameters p = [T, x0 (nx), x_goal (nx)] (scaled).
+            p = ca.MX.sym("p", 1 + 2 * nx)
             T = p[0]
             h = T / N
             D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], Xn, Un, F[:, :-1], Fn, h)
-            blocks = [Z[:4, 0] - p[1:5]]
+            blocks = [Z[:nx, 0] - p[1:1 + nx]]
             blocks += [ca.vertcat(Z[:, k + 1] - Wn[:, k], D[:, k] / ca.DM(sx)) for k in range(N)]
-            blocks.append(Z[:4, N] - p[5:9])
+            blocks.append(Z[:nx, N] - p[1 + nx:])
             g = [ca.vertcat(*blocks)]
-            lbg = [np.zeros(9 * N + 8)]
-            ubg = [np.zeros(9 * N + 8)]
+            lbg = [np.zeros((nz + nx) * N + 2 * nx)]
+            ubg = [np.zeros((nz + nx) * N + 2 * nx)]
             # entries of the standard vector each fatrop entry holds: z_k, then z_k+1 (the copy)
-            idx = np.concatenate([np.r_[5 * k:5 * k + 10] for k in range(N)] + [np.r_[5 * N:5 * N + 5]])
+            idx = np.concatenate([np.r_[nz * k:nz * k + 2 * nz] for k in range(N)] + [np.r_[nz * N:nz * N + nz]])
         elif not self.separated:
-            w = ca.MX.sym("w", 5 * (N + 1) + n_extra)  # [x_0, u_0, x_1, u_1, ..., x_N, u_N, extra]
-            Z = ca.reshape(w[:5 * (N + 1)], 5, N + 1)
-            ex = w[5 * (N + 1):]
+            w = ca.MX.sym("w", nz * (N + 1) + n_extra)  # [x_0, u_0, x_1, u_1, ..., x_N, u_N, extra]
+            Z = ca.reshape(w[:nz * (N + 1)], nz, N + 1)
+            ex = w[nz * (N + 1):]
             if self.free_time:
                 T = ex[0]
                 p = ca.MX.sym("p", 0)
@@ -294,26 +257,28 @@ class DirectCollocation:
                 p = ca.MX.sym("p", 1)
                 T = p[0]
             if relaxed:
-                slk = ex[n_extra - 2:]
-            X = Z[:4, :] * ca.DM(sx)
-            U = Z[4:, :] * su
+                slk = ex[n_extra - n_slk:]
+            X = Z[:nx, :] * ca.DM(sx)
+            U = Z[nx:, :] * ca.DM(su)
             h = T / N
             F = self._f_knots(X, U)
             D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], X[:, 1:], U[:, 1:], F[:, :-1], F[:, 1:], h)
             # Defects scaled by the state scales (dimensionless), one block per interval, stage-ordered.
             g = [ca.vec(D / ca.DM(sx))]
-            lbg = [np.zeros(4 * N)]
-            ubg = [np.zeros(4 * N)]
-            idx = np.r_[np.arange(5 * (N + 1)), np.arange(9 * N + 5, 9 * N + 5 + n_extra)]
+            lbg = [np.zeros(nx * N)]
+            ubg = [np.zeros(nx * N)]
+            n_std = (nz + nx) * N + nz  # knots and midpoints of the standard vector
+            idx = np.r_[np.arange(nz * (N + 1)), np.arange(n_std, n_std + n_extra)]
         else:
             # Separated Hermite-Simpson: midpoint states are variables, so every f call depends on one
             # knot (or midpoint) only and the Hessian of the Lagrangian is block-diagonal and cheaper to
             # evaluate; the KKT system is larger, though (measured: slower overall at N = 100).
-            w = ca.MX.sym("w", 9 * N + 5 + n_extra)  # [x_0, u_0, xc_0, x_1, u_1, xc_1, ..., x_N, u_N, extra]
-            stages = ca.reshape(w[:9 * N], 9, N)
-            Z = ca.horzcat(stages[:5, :], w[9 * N:9 * N + 5])
-            Xc = stages[5:, :] * ca.DM(sx)
-            ex = w[9 * N + 5:]
+            ns = nz + nx  # one stage: knot and midpoint
+            w = ca.MX.sym("w", ns * N + nz + n_extra)  # [x_0, u_0, xc_0, x_1, u_1, xc_1, ..., x_N, u_N, extra]
+            stages = ca.reshape(w[:ns * N], ns, N)
+            Z = ca.horzcat(stages[:nz, :], w[ns * N:ns * N + nz])
+            Xc = stages[nz:, :] * ca.DM(sx)
+            ex = w[ns * N + nz:]
             if self.free_time:
                 T = ex[0]
                 p = ca.MX.sym("p", 0)
@@ -321,9 +286,9 @@ class DirectCollocation:
                 p = ca.MX.sym("p", 1)
                 T = p[0]
             if relaxed:
-                slk = ex[n_extra - 2:]
-            X = Z[:4, :] * ca.DM(sx)
-            U = Z[4:, :] * su
+                slk = ex[n_extra - n_slk:]
+            X = Z[:nx, :] * ca.DM(sx)
+            U = Z[nx:, :] * ca.DM(su)
             h = T / N
             F = self._f_knots(X, U)
             Uc_ = 0.5 * (U[:, :-1] + U[:, 1:])
@@ -332,23 +297,26 @@ class DirectCollocation:
             D = X[:, 1:] - X[:, :-1] - h / 6 * (F[:, :-1] + 4 * Fc + F[:, 1:])
             # both residuals scaled by the state scales (dimensionless), stage-ordered
             g = [ca.vec(ca.vertcat(mid, D) / ca.DM(np.r_[sx, sx]))]
-            lbg = [np.zeros(8 * N)]
-            ubg = [np.zeros(8 * N)]
-            zc0 = 5 * (N + 1)
-            idx = np.concatenate([np.r_[5 * k:5 * k + 5, zc0 + 4 * k:zc0 + 4 * k + 4] for k in range(N)]
-                                 + [np.r_[5 * N:5 * N + 5], np.arange(9 * N + 5, 9 * N + 5 + n_extra)])
-        effort = h / 6 * ca.sum2(simpson_effort_terms(U[:, :-1], U[:, 1:]))
-        eff_scale = su**2 * (self.T or 1.0)
+            lbg = [np.zeros(2 * nx * N)]
+            ubg = [np.zeros(2 * nx * N)]
+            zc0 = nz * (N + 1)
+            idx = np.concatenate([np.r_[nz * k:nz * k + nz, zc0 + nx * k:zc0 + nx * k + nx] for k in range(N)]
+                                 + [np.r_[nz * N:nz * N + nz], np.arange(ns * N + nz, ns * N + nz + n_extra)])
+        effort = h / 6 * ca.sum2(ca.sum1(simpson_effort_terms(U[:, :-1], U[:, 1:])))
+        eff_scale = float(np.sum(su**2)) * (self.T or 1.0)
         if relaxed:
-            # Slack on the cart and ctrl bounds (dimensionless): |s_k| <= cart_max (1 + slack_cart), etc.
-            c = self.bounds.cart_center
-            s_rel = (X[0, :] - c) / self.bounds.cart_max
-            u_rel = U / self.bounds.u_max
-            g += [ca.vec(s_rel - 1 - slk[0]), ca.vec(-s_rel - 1 - slk[0]),
-                  ca.vec(u_rel - 1 - slk[1]), ca.vec(-u_rel - 1 - slk[1])]
-            n4 = 4 * (N + 1)
-            lbg.append(-np.inf * np.ones(n4))
-            ubg.append(np.zeros(n4))
+            # Slack on each bounded joint and each ctrl (dimensionless, relative to the bound's half-width):
+            # |q_k - centre| <= half (1 + slack_joint), |u_k - centre| <= half (1 + slack_ctrl).
+            bd = self.bounds
+            rows = [(X[i, :], bd.q_low[i], bd.q_high[i]) for i in bd.bounded_joints]
+            rows += [(U[j, :], bd.u_low[j], bd.u_high[j]) for j in range(nu)]
+            for k, (row, lo, hi) in enumerate(rows):
+                c, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+                rel = (row - c) / half if c != 0 else row / half
+                g += [ca.vec(rel - 1 - slk[k]), ca.vec(-rel - 1 - slk[k])]
+            n_rel = 2 * len(rows) * (N + 1)
+            lbg.append(-np.inf * np.ones(n_rel))
+            ubg.append(np.zeros(n_rel))
             J = 1e3 * ca.sum1(slk) + 1e-3 * effort / eff_scale
         elif self.objective == "effort":
             J = effort / eff_scale
@@ -363,7 +331,7 @@ class DirectCollocation:
                 and not self.free_time and self.objective == "effort"):
             # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled); None (the SX path
             # is kept) when there is no C compiler or the build fails.
-            comp = compiled.compiled_nlp(self.model.f, N, sx, su, eff_scale)
+            comp = compiled.compiled_nlp(self.model, N, sx, su, eff_scale)
             if comp is not None:
                 nlp = comp.nlp
                 opts.update(comp.options)
@@ -377,51 +345,60 @@ class DirectCollocation:
         return b
 
     # ---- numbers in and out ----------------------------------------------------------------------
+    def _slack_names(self) -> list[tuple[str, int]]:
+        """The relaxed problem's slacks in order: ``("joint", qpos index)`` per bounded joint, then
+        ``("ctrl", actuator index)`` per actuator."""
+        return [("joint", i) for i in self.bounds.bounded_joints] + [("ctrl", j) for j in range(self.nu)]
+
     def _var_bounds(self, x0, x_goal, relaxed: bool, pin: bool = True):
-        N, sc, bd = self.N, self.scale, self.bounds
-        lb = -np.inf * np.ones((5, N + 1))
-        ub = np.inf * np.ones((5, N + 1))
-        if not relaxed:
-            lb[0, :] = (bd.cart_center - bd.cart_max) / sc[0]
-            ub[0, :] = (bd.cart_center + bd.cart_max) / sc[0]
-            lb[4, :] = -bd.u_max / sc[4]
-            ub[4, :] = bd.u_max / sc[4]
+        N, sc, bd, nx = self.N, self.scale, self.bounds, self.nx
+        nz = nx + self.nu
+        lb = -np.inf * np.ones((nz, N + 1))
+        ub = np.inf * np.ones((nz, N + 1))
+        lbc = -np.inf * np.ones((nx, N))
+        ubc = np.inf * np.ones((nx, N))
+        if not relaxed:  # joint bounds hold at the knots and at the midpoints; ctrl at the knots (FOH)
+            for i in bd.bounded_joints:
+                lb[i, :] = lbc[i, :] = bd.q_low[i] / sc[i]
+                ub[i, :] = ubc[i, :] = bd.q_high[i] / sc[i]
+            lb[nx:, :] = (bd.u_low / sc[nx:])[:, None]
+            ub[nx:, :] = (bd.u_high / sc[nx:])[:, None]
         if pin:
-            lb[:4, 0] = ub[:4, 0] = x0 / sc[:4]
-            lb[:4, -1] = ub[:4, -1] = x_goal / sc[:4]
-        lbc = -np.inf * np.ones((4, N))
-        ubc = np.inf * np.ones((4, N))
-        if not relaxed:  # the cart bound holds at the midpoints too
-            lbc[0, :] = (bd.cart_center - bd.cart_max) / sc[0]
-            ubc[0, :] = (bd.cart_center + bd.cart_max) / sc[0]
+            lb[:nx, 0] = ub[:nx, 0] = x0 / sc[:nx]
+            lb[:nx, -1] = ub[:nx, -1] = x_goal / sc[:nx]
         lb = [lb.ravel(order="F"), lbc.ravel(order="F")]
         ub = [ub.ravel(order="F"), ubc.ravel(order="F")]
         if self.free_time:
             lb.append([self.T_range[0]])
             ub.append([self.T_range[1]])
         if relaxed:
-            lb.append([0.0, 0.0])
-            ub.append([np.inf, np.inf])
+            n_slk = len(self._slack_names())
+            lb.append(np.zeros(n_slk))
+            ub.append(np.full(n_slk, np.inf))
         return np.concatenate(lb), np.concatenate(ub)
 
     def _pack_guess(self, traj: Trajectory | None, T: float, x0, x_goal, relaxed: bool) -> np.ndarray:
-        N, sc = self.N, self.scale
+        N, sc, nx, nq = self.N, self.scale, self.nx, self.model.nq
         t = np.linspace(0.0, T, 2 * N + 1)  # knots and midpoints
         if traj is None:
-            x, u = linear_guess(x0, x_goal, t)
+            u_rest = np.clip(self.model.u_eq, self.bounds.u_low, self.bounds.u_high)
+            x, u = linear_guess(x0, x_goal, t, u=u_rest)
         else:
+            if traj.x.shape[1] != nx or traj.u.shape[1] != self.nu:
+                raise OCPError(f"The initial guess has {traj.x.shape[1]} states and {traj.u.shape[1]} inputs but "
+                               f"the model has {nx} and {self.nu}; give a guess of this model.")
             tt = traj.t[0] + t * (traj.duration / T)  # stretch the guess onto this duration
             x, u = traj.state(tt), traj.input(tt)
             if traj.duration != T:
                 x = x.copy()
-                x[:, 2:] *= traj.duration / T
+                x[:, nq:] *= traj.duration / T  # rates
                 u = u.copy()
-        Z = np.vstack([x[::2].T / sc[:4, None], u[::2].T / sc[4]])
-        parts = [Z.ravel(order="F"), (x[1::2].T / sc[:4, None]).ravel(order="F")]
+        Z = np.vstack([x[::2].T / sc[:nx, None], u[::2].T / sc[nx:, None]])
+        parts = [Z.ravel(order="F"), (x[1::2].T / sc[:nx, None]).ravel(order="F")]
         if self.free_time:
             parts.append([T])
         if relaxed:
-            parts.append([0.1, 0.1])
+            parts.append(np.full(len(self._slack_names()), 0.1))
         return np.concatenate(parts)
 
     def _trajectory(self, b: _Built, w, T_param) -> tuple[Trajectory, float, float]:
@@ -435,17 +412,23 @@ class DirectCollocation:
 
     # ---- solving -----------------------------------------------------------------------------------
     def _goal(self, x0, x_goal, guess: Trajectory | None) -> np.ndarray:
-        """The goal angle shifted by whole turns to the one the guess ends nearest (upright is upright)."""
+        """The goal's hinge angles shifted by whole turns to the ones the guess ends nearest (upright is
+        upright); hinges with a joint range are left where they are."""
         x_goal = np.array(x_goal, dtype=float)
         if guess is not None:
-            turns = np.round((guess.x[-1, 1] - x_goal[1]) / (2 * np.pi))
-            x_goal[1] += 2 * np.pi * turns
+            for i in self.model.hinges:
+                if i in self.bounds.bounded_joints:
+                    continue
+                turns = np.round((guess.x[-1, i] - x_goal[i]) / (2 * np.pi))
+                x_goal[i] += 2 * np.pi * turns
         return x_goal
 
     def _check_state(self, name, x) -> np.ndarray:
         x = np.asarray(x, dtype=float).ravel()
-        if x.shape != (4,) or not np.all(np.isfinite(x)):
-            raise OCPError(f"The {name} {x.tolist()} must be 4 finite numbers [s, theta, s_dot, theta_dot].")
+        if x.shape != (self.nx,) or not np.all(np.isfinite(x)):
+            names = ", ".join(self.model.params.joint_names)
+            raise OCPError(f"The {name} {x.tolist()} must be {self.nx} finite numbers: the positions of "
+                           f"[{names}], then their rates.")
         return x
 
     def solve_once(self, x0, x_goal=None, *, guess: Trajectory | None = None, T: float | None = None,
@@ -454,9 +437,9 @@ class DirectCollocation:
 
         Parameters
         ----------
-        x0, x_goal : (4,) arrays
-            Start and final state (``x_goal`` default upright rest; its angle is shifted by whole turns to
-            the one ``guess`` ends nearest).
+        x0, x_goal : (nx,) arrays
+            Start and final state ``[qpos, qvel]`` (``x_goal`` default the model's upright equilibrium
+            ``x_eq``; its hinge angles are shifted by whole turns to the ones ``guess`` ends nearest).
         guess : Trajectory, optional
             Initial guess (stretched onto ``T``); default a straight line that meets both boundary states.
         T : float, optional
@@ -467,7 +450,7 @@ class DirectCollocation:
             re-solve from a nearby start); ignores ``guess``.
         """
         x0 = self._check_state("start state", x0)
-        x_goal = self._check_state("goal state", np.zeros(4) if x_goal is None else x_goal)
+        x_goal = self._check_state("goal state", self.model.x_eq if x_goal is None else x_goal)
         x_goal = self._goal(x0, x_goal, guess)
         T = float(T if T is not None else (self.T if self.T is not None else (guess.duration if guess else 2.0)))
         warm = warm and self.solver_name == "ipopt" and self._last is not None
@@ -475,7 +458,7 @@ class DirectCollocation:
         lbx, ubx = self._var_bounds(x0, x_goal, False)
         p = [] if self.free_time else [T]
         if self.solver_name == "fatrop":  # boundary states are constraints there, not pinned variables
-            sx = self.scale[:4]
+            sx = self.scale[:self.nx]
             p = np.concatenate([[T], x0 / sx, x_goal / sx])
             lbx, ubx = self._var_bounds(x0, x_goal, False, pin=False)
         args = dict(lbx=lbx[b.idx], ubx=ubx[b.idx], lbg=b.lbg, ubg=b.ubg, p=p)
@@ -510,19 +493,21 @@ class DirectCollocation:
                          solver=self.solver_name, T=T_sol, start=start)
         return traj, info
 
-    def solve(self, x0=(0.0, np.pi, 0.0, 0.0), x_goal=None, *, guess=None, T: float | None = None,
+    def solve(self, x0=None, x_goal=None, *, guess=None, T: float | None = None,
               starts: int = 3) -> tuple[Trajectory, SolveInfo]:
         """Solve from one or several initial guesses; return the best converged plan.
 
         Parameters
         ----------
-        x0 : (4,) array
-            Start state (default hanging at rest).
-        x_goal : (4,) array, optional
-            Final state, default upright rest (angle shifted by whole turns to the guess's nearest).
+        x0 : (nx,) array, optional
+            Start state ``[qpos, qvel]`` (default the model's hanging rest ``x_hanging``).
+        x_goal : (nx,) array, optional
+            Final state, default the upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
+            guess's nearest).
         guess : Trajectory or list of Trajectory, optional
-            Initial guess(es); default :func:`cartpole.ocp.guess.initial_guesses` (an energy-shaping rollout
-            of the symbolic model when available, then straight lines), ``starts`` of them.
+            Initial guess(es); default :func:`cartpole.ocp.guess.initial_guesses` (for one pole an
+            energy-shaping rollout of the symbolic model, then swing and straight-line shapes), ``starts``
+            of them.
         T : float, optional
             Duration in s (fixed-time problems; default the constructor's).
         starts : int
@@ -541,12 +526,12 @@ class DirectCollocation:
         """
         from cartpole.ocp.guess import initial_guesses
 
-        x0 = self._check_state("start state", x0)
-        x_goal = self._check_state("goal state", np.zeros(4) if x_goal is None else x_goal)
+        x0 = self._check_state("start state", self.model.x_hanging if x0 is None else x0)
+        x_goal = self._check_state("goal state", self.model.x_eq if x_goal is None else x_goal)
         T_use = T if T is not None else self.T
         if guess is None:
             guesses = initial_guesses(self.model, x0, x_goal, T_use if T_use is not None else 2.0, self.N,
-                                      u_max=self.bounds.u_max, cart_max=self.bounds.cart_max, count=starts)
+                                      bounds=self.bounds, count=starts)
         elif isinstance(guess, Trajectory):
             guesses = [guess]
         else:
@@ -563,7 +548,7 @@ class DirectCollocation:
         raise self.diagnose(x0, x_goal, guesses[0], T_use)
 
     def diagnose(self, x0, x_goal, guess: Trajectory | None, T: float | None) -> OCPError:
-        """Solve the problem with slack on the cart and ctrl bounds and name the bound whose slack is needed.
+        """Solve the problem with slack on every joint and ctrl bound and name the bounds whose slack is needed.
 
         Returns (does not raise) an :class:`OCPInfeasible` or, when no slack is needed, an :class:`OCPError`.
         """
@@ -575,20 +560,34 @@ class DirectCollocation:
                     lbg=b.lbg, ubg=b.ubg,
                     p=[] if self.free_time else [T])
         sol = b.solver(**args)
-        w = np.asarray(sol["x"]).ravel()
-        s_cart, s_u = w[-2], w[-1]
-        bd = self.bounds
+        names = self._slack_names()
+        slack = np.asarray(sol["x"]).ravel()[-len(names):]
         when = f"in T = {T:.3g} s" if not self.free_time else f"within T <= {self.T_range[1]:.3g} s"
         tol = 1e-4
-        if s_cart > tol or s_u > tol:
-            parts = []
-            if s_cart > tol:
-                parts.append(f"the cart bound |s| <= {bd.cart_max:.3g} m binds (the swing-up needs about "
-                             f"{bd.cart_max * (1 + s_cart):.3g} m)")
-            if s_u > tol:
-                parts.append(f"the ctrl bound |u| <= {bd.u_max:.3g} binds (the swing-up needs about "
-                             f"{bd.u_max * (1 + s_u):.3g})")
+        parts = [self._binding(kind, i, s) for (kind, i), s in zip(names, slack) if s > tol]
+        if parts:
             return OCPInfeasible(f"The swing-up OCP is infeasible {when}: {' and '.join(parts)}; "
                                  "give a longer T, a longer track or more actuator force.")
         return OCPError(f"The swing-up OCP did not converge {when} although no bound needs relaxing; "
                         "give another initial guess or more intervals N.")
+
+    def _binding(self, kind: str, i: int, slack: float) -> str:
+        """Words for a bound the relaxed problem had to widen by the relative ``slack``."""
+        bd = self.bounds
+        if kind == "joint" and i == self.model.slide:
+            return (f"the cart bound |s| <= {bd.cart_max:.3g} m binds (the swing-up needs about "
+                    f"{bd.cart_max * (1 + slack):.3g} m)")
+        if kind == "joint":
+            lo, hi = bd.q_low[i], bd.q_high[i]
+            c, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * (1 + slack)
+            unit = "m" if self.model.params.joints[i].kind == "slide" else "rad"
+            return (f"the range [{lo:.3g}, {hi:.3g}] {unit} of joint '{bd.joint_names[i]}' binds (the swing-up "
+                    f"needs about [{c - half:.3g}, {c + half:.3g}] {unit})")
+        lo, hi = bd.u_low[i], bd.u_high[i]
+        which = "" if self.nu == 1 else f" of actuator '{bd.actuator_names[i]}'"
+        if lo == -hi:
+            return (f"the ctrl bound |u| <= {hi:.3g}{which} binds (the swing-up needs about "
+                    f"{hi * (1 + slack):.3g})")
+        c, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * (1 + slack)
+        return (f"the ctrl bound {lo:.3g} <= u <= {hi:.3g}{which} binds (the swing-up needs about "
+                f"[{c - half:.3g}, {c + half:.3g}])")

@@ -1,9 +1,17 @@
-"""Initial guesses for the swing-up OCP that meet both boundary states.
+"""Initial guesses for trajectory optimisation that meet both boundary states, for any model shape.
 
 IPOPT started from a poor guess finds poor local minima or crawls. The guesses here, tried in order by
-:meth:`DirectCollocation.solve`: an energy-shaping rollout of the symbolic model
-(:func:`cartpole.control.energy.energy_rollout`), bent at the end onto the goal; then straight lines from start
-to goal turning the pole either way; then a pumping shape (one back-swing before the rise).
+:meth:`DirectCollocation.solve`:
+
+1. for a model with one pole and one input only: an energy-shaping rollout of the symbolic model
+   (:func:`cartpole.control.energy.energy_rollout`), bent at the end onto the goal (:func:`energy_shaped_guess`;
+   skipped for every other model);
+2. a pumping shape (:func:`pump_guess`: every hinge swings back once before it rises, the cart moves out and
+   back) towards the nearest upright angles, then towards the upright angles one turn the other way;
+3. smooth straight lines (:func:`linear_guess`) from the start to each of those goals.
+
+When every hinge starts within a quarter turn of its goal angle, the straight lines come before the pumping
+shapes (nothing needs pumping up).
 """
 from __future__ import annotations
 
@@ -11,12 +19,15 @@ import numpy as np
 
 from cartpole.control.energy import EnergyShapingController, energy_rollout
 from cartpole.models import CartPoleModel
+from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.trajectory import Trajectory
 
 
 def _traj(model: CartPoleModel | None, t, x, u) -> Trajectory:
-    """A Trajectory from knots; ``xdot`` from the model when given (else finite differences)."""
-    u = np.asarray(u, dtype=float).reshape(-1, 1)
+    """A Trajectory from knots ``x`` (n, nx), ``u`` (n, nu) or (n,); ``xdot`` from the model when given (else
+    finite differences)."""
+    t = np.asarray(t, dtype=float)
+    u = np.asarray(u, dtype=float).reshape(t.size, -1)
     if model is not None:
         xdot = np.asarray(model.f.map(len(t))(x.T, u.T)).T
     else:
@@ -24,62 +35,91 @@ def _traj(model: CartPoleModel | None, t, x, u) -> Trajectory:
     return Trajectory(t=t, x=x, u=u, xdot=xdot)
 
 
-def linear_guess(x0, x_goal, t) -> tuple[np.ndarray, np.ndarray]:
-    """Straight line in position from ``x0`` to ``x_goal`` over the times ``t`` (n,), with consistent rates.
+def linear_guess(x0, x_goal, t, u=None) -> tuple[np.ndarray, np.ndarray]:
+    """Smooth straight line in position from ``x0`` to ``x_goal`` (both (nx,) = ``[qpos, qvel]``) over the times
+    ``t`` (n,), with consistent rates.
 
-    Returns ``(x (n, 4), u (n, 1))`` with zero input; the end states are exactly ``x0`` and ``x_goal``.
+    Positions follow ``x0 + (3 tau^2 - 2 tau^3) (x_goal - x0)`` (``tau`` from 0 to 1); rates that step's
+    derivative plus a linear blend of the start and goal rates. ``u`` (nu,) is held constant (default one zero
+    input).
+
+    Returns ``(x (n, nx), u (n, nu))``; the end states are exactly ``x0`` and ``x_goal``.
     """
     x0 = np.asarray(x0, dtype=float)
     x_goal = np.asarray(x_goal, dtype=float)
     t = np.asarray(t, dtype=float)
+    nq = x0.size // 2
+    u = np.zeros(1) if u is None else np.atleast_1d(np.asarray(u, dtype=float))
     tau = (t - t[0]) / (t[-1] - t[0])
     # positions follow a smooth step (zero rate at both ends, matching rest states); rates its derivative
     sm = 3 * tau**2 - 2 * tau**3
     dsm = (6 * tau - 6 * tau**2) / (t[-1] - t[0])
-    x = np.empty((t.size, 4))
-    x[:, :2] = x0[:2] + np.outer(sm, x_goal[:2] - x0[:2])
-    x[:, 2:] = np.outer(dsm, x_goal[:2] - x0[:2]) + np.outer(1 - tau, x0[2:]) + np.outer(tau, x_goal[2:])
-    return x, np.zeros((t.size, 1))
+    dq = x_goal[:nq] - x0[:nq]
+    x = np.empty((t.size, x0.size))
+    x[:, :nq] = x0[:nq] + np.outer(sm, dq)
+    x[:, nq:] = np.outer(dsm, dq) + np.outer(1 - tau, x0[nq:]) + np.outer(tau, x_goal[nq:])
+    return x, np.tile(u, (t.size, 1))
 
 
-def pump_guess(x0, x_goal, t, *, swing: float = 1.0, cart: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
-    """A swing-up shape with one back-swing: the pole first swings by ``-swing`` rad away from its final
-    direction, then rises; the cart moves by ``cart`` m and back. Ends exactly at ``x0`` and ``x_goal``.
+def pump_guess(x0, x_goal, t, *, hinges, slide=None, swing: float = 1.0, cart: float = 0.3,
+               u=None) -> tuple[np.ndarray, np.ndarray]:
+    """A swing-up shape with one back-swing on :func:`linear_guess`: every hinge (qpos indices ``hinges``) first
+    swings by ``swing`` rad away from the direction it turns in (positive for a hinge that ends where it
+    starts), then rises; the cart (qpos index ``slide``, None for no cart) moves by ``cart`` m the way the first
+    hinge turns and back. Ends exactly at ``x0`` and ``x_goal`` (nx,).
 
-    Returns ``(x (n, 4), u (n, 1))``.
+    Returns ``(x (n, nx), u (n, nu))``.
     """
-    x, u = linear_guess(x0, x_goal, t)
+    x, u = linear_guess(x0, x_goal, t, u)
+    x0 = np.asarray(x0, dtype=float)
+    x_goal = np.asarray(x_goal, dtype=float)
+    nq = x0.size // 2
     t = np.asarray(t, dtype=float)
     T = t[-1] - t[0]
     tau = (t - t[0]) / T
-    direction = np.sign(x_goal[1] - x0[1]) or 1.0
     bump = np.sin(np.pi * tau) ** 2 * np.sin(np.pi * tau)  # zero value and slope at both ends
     dbump = 3 * np.sin(np.pi * tau) ** 2 * np.cos(np.pi * tau) * np.pi / T
-    x[:, 1] -= direction * swing * bump
-    x[:, 3] -= direction * swing * dbump
-    x[:, 0] += direction * cart * bump
-    x[:, 2] += direction * cart * dbump
+    directions = [np.sign(x_goal[i] - x0[i]) or 1.0 for i in hinges]
+    for i, direction in zip(hinges, directions):
+        x[:, i] -= direction * swing * bump
+        x[:, nq + i] -= direction * swing * dbump
+    if slide is not None and directions:
+        x[:, slide] += directions[0] * cart * bump
+        x[:, nq + slide] += directions[0] * cart * dbump
     return x, u
 
 
-def energy_shaped_guess(model: CartPoleModel, x0, x_goal, T: float, N: int, *, u_max: float,
-                        cart_max: float) -> Trajectory | None:
+def _clip_positions(x: np.ndarray, bounds: OCPBounds) -> np.ndarray:
+    """``x`` (n, nx) with each bounded joint's position clipped into its bounds (in place; returned)."""
+    for i in bounds.bounded_joints:
+        x[:, i] = np.clip(x[:, i], bounds.q_low[i], bounds.q_high[i])
+    return x
+
+
+def energy_shaped_guess(model: CartPoleModel, x0, x_goal, T: float, N: int, *,
+                        bounds: OCPBounds) -> Trajectory | None:
     """An energy-shaping rollout of the symbolic model over ``T`` s, bent onto ``x_goal`` at the end.
 
+    Single pole only: energy shaping pumps one pole with one input, so this returns None for any model without
+    exactly one hinge and one actuator (the other guesses of :func:`initial_guesses` cover those).
+
     The rollout is :func:`~cartpole.control.energy.energy_rollout` under ``EnergyShapingController(model)`` (no
-    catch), ctrl clipped to ``|u| <= u_max``, ``round(T / dt)`` steps, resampled on ``N + 1`` knots (states and
-    ctrl linearly) and bent quadratically in time onto ``x_goal``, the goal angle taken modulo 2 pi nearest to
-    where the rollout ends; cart positions clipped to ``|s| <= cart_max`` m. Returns None when the controller
-    cannot be built for the model or the rollout fails (NaN/inf).
+    catch), ctrl clipped to the bounds' ``[u_low, u_high]``, ``round(T / dt)`` steps, resampled on ``N + 1``
+    knots (states and ctrl linearly) and bent quadratically in time onto ``x_goal`` (nx,), the goal angle taken
+    modulo 2 pi nearest to where the rollout ends; bounded joint positions (the cart) clipped into the bounds.
+    Returns None when the controller cannot be built for the model or the rollout fails (NaN/inf).
     """
+    if len(model.hinges) != 1 or model.nu != 1:
+        return None
     try:
         ctrl = EnergyShapingController(model)
     except Exception:  # a model energy shaping cannot drive (no ctrl range ...)
         return None
     dt = model.dt
     n = max(1, int(round(T / dt)))
+    lo, hi = float(bounds.u_low[0]), float(bounds.u_high[0])
     try:
-        x, u = energy_rollout(model, ctrl, x0, n, u_limits=(-u_max, u_max))
+        x, u = energy_rollout(model, ctrl, x0, n, u_limits=(lo, hi))
     except Exception:
         return None
     if not np.all(np.isfinite(x)):
@@ -87,41 +127,71 @@ def energy_shaped_guess(model: CartPoleModel, x0, x_goal, T: float, N: int, *, u
     u = np.append(u, u[-1])  # the last knot holds the last ctrl
     t_fine = dt * np.arange(n + 1)
     t = np.linspace(0.0, T, N + 1)
-    xs = np.column_stack([np.interp(t, t_fine, x[:, i]) for i in range(4)])
+    xs = np.column_stack([np.interp(t, t_fine, x[:, i]) for i in range(model.nx)])
     us = np.interp(t, t_fine, u)
     goal = np.array(x_goal, dtype=float)
-    goal[1] += 2 * np.pi * np.round((xs[-1, 1] - goal[1]) / (2 * np.pi))
+    h = model.hinges[0]
+    goal[h] += 2 * np.pi * np.round((xs[-1, h] - goal[h]) / (2 * np.pi))
     tau = (t / T)[:, None]
     xs = xs + tau**2 * (goal - xs[-1])  # bend onto the goal; zero change at the start
-    xs[:, 0] = np.clip(xs[:, 0], -cart_max, cart_max)
-    return _traj(model, t, xs, np.clip(us, -u_max, u_max))
+    _clip_positions(xs, bounds)
+    return _traj(model, t, xs, np.clip(us, lo, hi))
 
 
-def initial_guesses(model: CartPoleModel, x0, x_goal, T: float, N: int, *, u_max: float, cart_max: float,
+def _upright_candidates(model: CartPoleModel, x0, x_goal, bounds: OCPBounds) -> list[np.ndarray]:
+    """Two goals: every free hinge at the upright angle (``x_goal``'s modulo whole turns) nearest its start, then
+    every free hinge one turn the other way (hinges with a joint range keep ``x_goal``'s angle)."""
+    base = np.array(x_goal, dtype=float)
+    goals = [base.copy(), base.copy()]
+    for i in model.hinges:
+        if i in bounds.bounded_joints:
+            continue
+        k = np.round((x0[i] - base[i]) / (2 * np.pi))
+        cands = sorted([base[i] + 2 * np.pi * k, base[i] + 2 * np.pi * (k + 1), base[i] + 2 * np.pi * (k - 1)],
+                       key=lambda a: abs(a - x0[i]))[:2]
+        goals[0][i], goals[1][i] = cands
+    return goals
+
+
+def initial_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int = 100, *,
+                    bounds: OCPBounds | None = None, u_max=None, cart_max: float | None = None,
                     count: int = 3) -> list[Trajectory]:
     """Up to ``count`` initial guesses on ``N + 1`` knots over ``T`` s, best first (see the module docstring).
 
-    Each meets ``x0`` and ``x_goal`` (the goal angle possibly shifted by whole turns).
+    Parameters
+    ----------
+    model : CartPoleModel
+    x0, x_goal : (nx,) arrays
+        Start and goal ``[qpos, qvel]`` (goal default the upright equilibrium ``model.x_eq``).
+    T : float
+        Duration in s.
+    N : int
+        Intervals.
+    bounds : OCPBounds, optional
+        The problem's bounds (the energy-shaped guess clips ctrl and positions into them); default
+        :func:`~cartpole.ocp.bounds.bounds_from_model` with ``u_max`` and ``cart_max`` passed on.
+    count : int
+        Most guesses returned.
+
+    Returns
+    -------
+    list of Trajectory
+        Each meets ``x0`` and ``x_goal`` (hinge angles possibly shifted by whole turns).
     """
+    if bounds is None:
+        bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max)
     x0 = np.asarray(x0, dtype=float)
+    x_goal = model.x_eq if x_goal is None else x_goal
     t = np.linspace(0.0, T, N + 1)
     out: list[Trajectory] = []
-    eg = energy_shaped_guess(model, x0, x_goal, T, N, u_max=u_max, cart_max=cart_max)
+    eg = energy_shaped_guess(model, x0, x_goal, T, N, bounds=bounds)
     if eg is not None:
         out.append(eg)
-    # the two upright angles nearest the start, nearest first
-    base = np.array(x_goal, dtype=float)
-    k = np.round((x0[1] - base[1]) / (2 * np.pi))
-    cands = sorted([base[1] + 2 * np.pi * k, base[1] + 2 * np.pi * (k + 1), base[1] + 2 * np.pi * (k - 1)],
-                   key=lambda a: abs(a - x0[1]))[:2]
-    for th in cands:
-        g = base.copy()
-        g[1] = th
-        x, u = pump_guess(x0, g, t)
-        out.append(_traj(model, t, x, u))
-    for th in cands:
-        g = base.copy()
-        g[1] = th
-        x, u = linear_guess(x0, g, t)
-        out.append(_traj(model, t, x, u))
+    goals = _upright_candidates(model, x0, x_goal, bounds)
+    u_rest = np.clip(model.u_eq, bounds.u_low, bounds.u_high)
+    pumps = [_traj(model, t, *pump_guess(x0, g, t, hinges=model.hinges, slide=model.slide, u=u_rest))
+             for g in goals]
+    lines = [_traj(model, t, *linear_guess(x0, g, t, u=u_rest)) for g in goals]
+    near = all(abs(x0[i] - goals[0][i]) < 0.5 * np.pi for i in model.hinges)
+    out += lines + pumps if near else pumps + lines
     return out[:max(1, count)]

@@ -15,9 +15,13 @@ import casadi as ca
 
 
 def hs_interval_function(f: ca.Function) -> ca.Function:
-    """``(x_k, u_k, x_k1, u_k1, f_k, f_k1, h) -> (defect (4,), x_c (4,))`` of compressed Hermite-Simpson."""
-    xk, xk1, fk, fk1 = (ca.SX.sym(n, 4) for n in ("xk", "xk1", "fk", "fk1"))
-    uk, uk1 = ca.SX.sym("uk", 1), ca.SX.sym("uk1", 1)
+    """``(x_k, u_k, x_k1, u_k1, f_k, f_k1, h) -> (defect (nx,), x_c (nx,))`` of compressed Hermite-Simpson.
+
+    ``f(x (nx,), u (nu,)) -> x_dot (nx,)``; the sizes are read from ``f``, ``h`` is in s.
+    """
+    nx, nu = f.size1_in(0), f.size1_in(1)
+    xk, xk1, fk, fk1 = (ca.SX.sym(n, nx) for n in ("xk", "xk1", "fk", "fk1"))
+    uk, uk1 = ca.SX.sym("uk", nu), ca.SX.sym("uk1", nu)
     h = ca.SX.sym("h")
     xc = 0.5 * (xk + xk1) + h / 8 * (fk - fk1)
     fc = f(xc, 0.5 * (uk + uk1))
@@ -29,7 +33,8 @@ def hs_interval_function(f: ca.Function) -> ca.Function:
 def simpson_effort_terms(uk, uk1):
     """``u_k^2 + 4 u_c^2 + u_k+1^2`` with ``u_c = (u_k + u_k+1) / 2``, elementwise (CasADi or numpy).
 
-    Times ``h / 6`` it is the interval's effort ``integral u^2 dt`` (ctrl^2 s) of the first-order-hold input.
+    Times ``h / 6`` it is the interval's effort ``integral u^2 dt`` (ctrl^2 s) of each input's first-order
+    hold; summed over the inputs it is ``integral u'u dt``.
     """
     uc = 0.5 * (uk + uk1)
     return uk**2 + 4 * uc**2 + uk1**2

@@ -2,7 +2,8 @@
 
 ``trajopt_swingup`` plans with a symbolic model (by default the MJCF's own; optionally a deliberately wrong
 one, to test robustness), tracks the plan with TVLQR on the exact discrete model at the simulator's step,
-and hands over to the LQR catch (the lab weights' continuous LQR at upright) when the plan ends. The plan's
+and hands over to the LQR catch (the discrete LQR of the lab's weight pattern at the model's upright equilibrium
+``x_eq``, ``u_eq``) when the plan ends. Any model shape: a cart with a chain of poles, several motors. The plan's
 duration, unless given, is the minimum time the bounds allow times ``1 + time_margin``: the faster the
 better, but a plan that saturates the actuator everywhere leaves TVLQR no authority to correct errors.
 """
@@ -15,8 +16,9 @@ import numpy as np
 
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.lqr import Q_LAB, R_LAB, TVLQRGains, dlqr, tvlqr
+from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.collocation import DirectCollocation, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
 
@@ -36,7 +38,8 @@ class SwingupPlan:
     solve_info : SolveInfo
         The collocation solve of the returned plan.
     catch : LinearFeedback
-        The LQR catch (K, S of ``dlqr(Ad, Bd, Q dt, R dt)`` at upright rest, one MJCF step of the planning model).
+        The LQR catch (K, S of ``dlqr(Ad, Bd, Q dt, R dt)`` at the planning model's ``x_eq``, ``u_eq``, one MJCF
+        step of the planning model; hinge errors wrapped; clipped to the MJCF's ctrlranges).
     model : CartPoleModel
         The model used for planning and TVLQR (may differ from the MJCF MuJoCo runs).
     T_min : float or None
@@ -57,19 +60,20 @@ class SwingupPlan:
         return self.trajectory.duration
 
 
-def minimum_time(model: CartPoleModel, x0=(0.0, np.pi, 0.0, 0.0), *, N: int = 60, solver: str = "ipopt",
+def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
                  **bounds) -> tuple[float, Trajectory, SolveInfo]:
-    """The shortest swing-up the bounds allow: a free-final-time Hermite-Simpson solve.
+    """The shortest motion from ``x0`` to ``x_goal`` the bounds allow: a free-final-time Hermite-Simpson solve.
 
-    Returns ``(T_min (s), trajectory, info)``. ``bounds`` go to :class:`DirectCollocation`
-    (``u_max``, ``cart_max``, ``cart_margin``).
+    Any model. ``x0`` (nx,) defaults to hanging rest ``model.x_hanging``, ``x_goal`` to the upright equilibrium
+    ``model.x_eq``. Returns ``(T_min (s), trajectory, info)``. ``bounds`` go to :class:`DirectCollocation`
+    (``u_max``, ``cart_max``, ``cart_margin`` or ``bounds``).
     """
     ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, **bounds)
-    traj, info = ocp.solve(x0)
+    traj, info = ocp.solve(x0, x_goal)
     return info.T, traj, info
 
 
-def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=(0.0, np.pi, 0.0, 0.0), *,
+def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
                     T: float | None = None, N: int = 100, model: CartPoleModel | None = None,
                     solver: str = "ipopt", Q=None, R=None, Qf=None, time_margin: float = 0.2,
                     solver_options: dict | None = None, cart_margin: float = 0.1) -> SwingupPlan:
@@ -78,10 +82,12 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=(0.0, 
     Parameters
     ----------
     source : CartPoleParams or MJCF path, optional
-        The cart-pole (default the shipped asset); its ctrlrange and slide range bound the plan, its
-        timestep is the TVLQR step.
-    x0 : (4,) array
-        Start state (default hanging at rest).
+        The cart-pole (default the shipped asset), any number of poles and motors; its ctrlranges and joint
+        ranges bound the plan, its timestep is the TVLQR step.
+    x0 : (nx,) array, optional
+        Start state ``[qpos, qvel]`` (default hanging at rest, the planning model's ``x_hanging``). The plan
+        ends at the planning model's upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
+        nearest).
     T : float, optional
         Plan duration in s; default ``(1 + time_margin) * T_min`` with ``T_min`` from a minimum-time solve.
     N : int
@@ -91,8 +97,10 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=(0.0, 
         ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
     solver : {'ipopt', 'fatrop'}
     Q, R : arrays, optional
-        Tracking and catch weights (default the lab's ``diag(1, 10, .1, .1)``, 0.1).
-    Qf : (4, 4) array, optional
+        Tracking and catch weights (nx, nx) and (nu, nu) (default :func:`cartpole.lqr.lab_weights` of the model:
+        1 per slide, 10 per hinge angle, 0.1 per rate, 0.1 per input; for one pole the lab's
+        ``diag(1, 10, .1, .1)``, 0.1).
+    Qf : (nx, nx) array, optional
         TVLQR terminal cost; default the catch's discrete cost-to-go (seamless hand-over).
     time_margin : float
         Relative margin on the minimum time when T is chosen automatically (default 0.2).
@@ -107,28 +115,31 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=(0.0, 
     """
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     plan_model = model if model is not None else build_model(params)
-    Q = Q_LAB if Q is None else np.asarray(Q, float)
-    R = R_LAB if R is None else np.atleast_2d(np.asarray(R, float))
-    x0 = np.asarray(x0, dtype=float)
-    # Bounds are the MJCF's (the real actuator and track), whatever model plans.
-    bounds = dict(u_max=params.u_max, cart_max=None if not np.all(np.isfinite(params.cart_range)) else
-                  0.5 * (params.cart_range[1] - params.cart_range[0]) - cart_margin)
+    Q0, R0 = lab_weights(plan_model)
+    Q = Q0 if Q is None else np.asarray(Q, float)
+    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
+    x0 = plan_model.x_hanging if x0 is None else np.asarray(x0, dtype=float)
+    # Bounds are the MJCF's (the real actuators and track), whatever model plans.
+    bounds = bounds_from_params(params, cart_margin=cart_margin)
     T_min = None
     if T is None:
-        T_min, _, _ = minimum_time(plan_model, x0, N=min(N, 60), solver=solver, **bounds)
+        T_min, _, _ = minimum_time(plan_model, x0, N=min(N, 60), solver=solver, bounds=bounds)
         T = (1.0 + time_margin) * T_min
-    ocp = DirectCollocation(plan_model, N=N, T=T, solver=solver, solver_options=solver_options, **bounds)
+    ocp = DirectCollocation(plan_model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
     traj, info = ocp.solve(x0)
     # TVLQR at the MJCF's step, on the planning model's exact discrete step.
     tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
-    # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)): TVLQR's default
-    # terminal cost is its S, so at the hand-over both the cost-to-go and the gain continue without a jump
-    # (the continuous lab gain is ~15 % larger at 5 ms because the fastest closed-loop pole is -51 1/s).
+    # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)) at the model's
+    # upright equilibrium: TVLQR's default terminal cost is its S, so at the hand-over both the cost-to-go and
+    # the gain continue without a jump (the continuous lab gain is ~15 % larger at 5 ms for one pole because
+    # the fastest closed-loop pole is -51 1/s).
     Ad, Bd = tv_model.linearize(discrete=True)
     dt = params.timestep
     cat = dlqr(Ad, Bd, Q * dt, R * dt)
-    catch = LinearFeedback(cat.K, u_limits=params.ctrl_range, S=cat.S)
+    u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
+    catch = LinearFeedback(cat.K, tv_model.x_eq, tv_model.u_eq, hinges=tv_model.hinges, u_limits=u_limits,
+                           S=cat.S)
     gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
-    controller = TVLQRController(traj, gains, catch, u_limits=params.ctrl_range)
+    controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
     return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
                        model=plan_model, T_min=T_min)

@@ -23,11 +23,14 @@ class TrajectoryError(CartPoleError):
 
 
 def _ro(a, name: str, shape: tuple) -> np.ndarray:
+    """``a`` as a read-only float array of ``shape``; a ``None`` entry of ``shape`` takes any size (the first
+    array fixes nx or nu); a 1-D array where a single column is expected becomes that column."""
     arr = np.array(a, dtype=float)
-    if arr.ndim == len(shape) - 1 and shape[-1] == 1:
+    if arr.ndim == len(shape) - 1 and shape[-1] in (1, None) and len(shape) == 2:
         arr = arr.reshape(*arr.shape, 1)
-    if arr.shape != shape:
-        raise TrajectoryError(f"Trajectory.{name} has shape {arr.shape} but must be {shape}.")
+    if arr.ndim != len(shape) or any(want is not None and got != want for got, want in zip(arr.shape, shape)):
+        want = tuple("any" if v is None else v for v in shape)
+        raise TrajectoryError(f"Trajectory.{name} has shape {arr.shape} but must be {want}.")
     if not np.all(np.isfinite(arr)):
         raise TrajectoryError(f"Trajectory.{name} contains NaN or inf; a plan must be finite.")
     arr.setflags(write=False)
@@ -47,15 +50,17 @@ class Trajectory:
     ----------
     t : (N+1,) array, s
         Knot times, strictly increasing.
-    x : (N+1, 4) array
-        Knot states ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]``.
-    u : (N+1, 1) array
-        Knot inputs (MuJoCo ctrl), held first-order between knots (one row per knot, not per interval).
-    xdot : (N+1, 4) array
+    x : (N+1, nx) array
+        Knot states ``[qpos, qvel]`` in MuJoCo's order (m and rad, m/s and rad/s); for one pole
+        ``[s, theta, s_dot, theta_dot]``.
+    u : (N+1, nu) array
+        Knot inputs (MuJoCo ctrl), held first-order between knots (one row per knot, not per interval); a
+        1-D array is taken as one input.
+    xdot : (N+1, nx) array
         State derivatives ``f(x_k, u_k)`` at the knots (units of ``x`` per s).
-    x_mid : (N, 4) array or None
+    x_mid : (N, nx) array or None
         Collocation midpoint states (equal to ``state((t_k + t_k+1) / 2)`` for a Hermite-Simpson plan).
-    u_mid : (N, 1) array or None
+    u_mid : (N, nu) array or None
         Midpoint inputs (``(u_k + u_k+1) / 2`` under the first-order hold).
     """
 
@@ -72,19 +77,32 @@ class Trajectory:
         if n < 2 or not np.all(np.diff(t) > 0):
             raise TrajectoryError("Trajectory.t needs at least two strictly increasing knot times.")
         object.__setattr__(self, "t", _ro(t, "t", (n,)))
-        object.__setattr__(self, "x", _ro(self.x, "x", (n, 4)))
-        object.__setattr__(self, "u", _ro(self.u, "u", (n, 1)))
-        object.__setattr__(self, "xdot", _ro(self.xdot, "xdot", (n, 4)))
+        x = _ro(self.x, "x", (n, None))
+        u = _ro(self.u, "u", (n, None))
+        nx, nu = x.shape[1], u.shape[1]
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "xdot", _ro(self.xdot, "xdot", (n, nx)))
         if self.x_mid is not None:
-            object.__setattr__(self, "x_mid", _ro(self.x_mid, "x_mid", (n - 1, 4)))
+            object.__setattr__(self, "x_mid", _ro(self.x_mid, "x_mid", (n - 1, nx)))
         if self.u_mid is not None:
-            object.__setattr__(self, "u_mid", _ro(self.u_mid, "u_mid", (n - 1, 1)))
+            object.__setattr__(self, "u_mid", _ro(self.u_mid, "u_mid", (n - 1, nu)))
 
     # ---- basic facts ---------------------------------------------------------------------------
     @property
     def N(self) -> int:
         """Number of intervals."""
         return self.t.size - 1
+
+    @property
+    def nx(self) -> int:
+        """State dimension."""
+        return self.x.shape[1]
+
+    @property
+    def nu(self) -> int:
+        """Number of inputs."""
+        return self.u.shape[1]
 
     @property
     def duration(self) -> float:
@@ -104,7 +122,7 @@ class Trajectory:
         return t, k, h, (t - self.t[k]) / h
 
     def state(self, t) -> np.ndarray:
-        """Cubic-Hermite state at time(s) ``t`` (s): scalar -> (4,), array (n,) -> (n, 4); clamped outside."""
+        """Cubic-Hermite state at time(s) ``t`` (s): scalar -> (nx,), array (n,) -> (n, nx); clamped outside."""
         scalar = np.ndim(t) == 0
         _, k, h, s = self._locate(np.atleast_1d(t))
         s = s[:, None]
@@ -117,7 +135,7 @@ class Trajectory:
         return x[0] if scalar else x
 
     def state_derivative(self, t) -> np.ndarray:
-        """Time derivative of the cubic-Hermite state at ``t``: scalar -> (4,), (n,) -> (n, 4), per s."""
+        """Time derivative of the cubic-Hermite state at ``t``: scalar -> (nx,), (n,) -> (n, nx), per s."""
         scalar = np.ndim(t) == 0
         _, k, h, s = self._locate(np.atleast_1d(t))
         s = s[:, None]
@@ -130,7 +148,7 @@ class Trajectory:
         return xd[0] if scalar else xd
 
     def input(self, t) -> np.ndarray:
-        """First-order-hold input at ``t`` (s): scalar -> (1,), array (n,) -> (n, 1); clamped outside."""
+        """First-order-hold input at ``t`` (s): scalar -> (nu,), array (n,) -> (n, nu); clamped outside."""
         scalar = np.ndim(t) == 0
         _, k, _, s = self._locate(np.atleast_1d(t))
         u = (1 - s)[:, None] * self.u[k] + s[:, None] * self.u[k + 1]
@@ -141,7 +159,7 @@ class Trajectory:
 
         Returns
         -------
-        (t (n,), x (n, 4), u (n, 1)), time first.
+        (t (n,), x (n, nx), u (n, nu)), time first.
         """
         if not dt > 0:
             raise TrajectoryError(f"Sampling step {dt} s is not positive; give dt > 0.")

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from cartpole.models import build_model
+from cartpole.models import SHIPPED_MJCF, build_model
+from cartpole.ocp.bounds import bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation, OCPError, OCPInfeasible
 from cartpole.ocp.pipeline import minimum_time
 
@@ -130,3 +131,111 @@ def test_variants_swing_up_within_their_own_limits(any_mjcf):
     k = traj.N // 2
     x_next = _integrate(model, traj, traj.t[k], traj.t[k + 1], traj.x[k])
     np.testing.assert_allclose(x_next, traj.x[k + 1], atol=1e-4)
+
+
+# ---- any chain of poles on a cart (issue 10) -------------------------------------------------------------------
+TWO_POLE = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+
+
+def _tilted(model, angle: float = 0.3) -> np.ndarray:
+    """The upright equilibrium with the first pole tilted by ``angle`` rad, at rest (a modest start)."""
+    x0 = np.array(model.x_eq, dtype=float)
+    x0[model.hinges[0]] += angle
+    return x0
+
+
+def _assert_plan_meets_model_and_bounds(model, ocp, traj, x0, *, tol: float, every: int = 4):
+    """Boundary states, per-side ctrl bounds of every actuator, the cart inside its shrunk range at the knots and
+    the midpoints, and each checked interval integrating with the model's own f to the next knot (within ``tol``,
+    Hermite-Simpson's O(h^5) local error)."""
+    np.testing.assert_allclose(traj.x[0], x0, atol=1e-12)
+    np.testing.assert_allclose(model.state_error(traj.x[-1]), 0.0, atol=1e-12)
+    lo, hi = model.u_low, model.u_high
+    assert np.all(traj.u >= lo - 1e-8) and np.all(traj.u <= hi + 1e-8)
+    c_lo, c_hi = model.params.cart_range
+    for s in (traj.x[:, model.slide], traj.x_mid[:, model.slide]):
+        assert np.all(s >= c_lo + 0.1 - 1e-8) and np.all(s <= c_hi - 0.1 + 1e-8)
+    errs = [np.abs(_integrate(model, traj, traj.t[k], traj.t[k + 1], traj.x[k]) - traj.x[k + 1]).max()
+            for k in range(0, traj.N, every)]
+    assert max(errs) < tol
+
+
+@pytest.fixture(scope="module")
+def two_pole():
+    model = build_model(TWO_POLE)
+    x0 = _tilted(model)
+    ocp = DirectCollocation(model, N=60, T=2.0)
+    traj, info = ocp.solve(x0)
+    return model, ocp, traj, info, x0
+
+
+def test_two_pole_cart_from_a_tilt_converges_meets_the_dynamics_and_keeps_its_bounds(two_pole):
+    model, ocp, traj, info, x0 = two_pole
+    assert model.nq == 3 and model.nu == 1
+    assert info.success and traj.x.shape == (61, model.nx) and traj.u.shape == (61, model.nu)
+    _assert_plan_meets_model_and_bounds(model, ocp, traj, x0, tol=1e-4)  # h = 33 ms
+    # the Simpson defect holds with the model's f at the midpoints, for every state
+    h = np.diff(traj.t)[:, None]
+    fc = np.array([model.dynamics(xc, uc) for xc, uc in zip(traj.x_mid, traj.u_mid)])
+    defect = traj.x[1:] - traj.x[:-1] - h / 6 * (traj.xdot[:-1] + 4 * fc + traj.xdot[1:])
+    assert np.abs(defect).max() < 1e-7
+
+
+def test_two_pole_default_goal_is_the_models_upright_equilibrium_and_states_have_nx_entries(two_pole):
+    model, ocp, traj, info, x0 = two_pole
+    again, info2 = ocp.solve(x0, model.x_eq)
+    np.testing.assert_allclose(again.x, traj.x, atol=1e-9)
+    with pytest.raises(OCPError, match=f"{model.nx} finite numbers"):
+        ocp.solve(x0[:4])
+
+
+@pytest.mark.parametrize("name", ["two_motors", "everything_Euler"])
+def test_two_motors_and_an_asymmetric_ctrlrange_keep_each_bound_per_side(chain_dir, name):
+    model = build_model(chain_dir / f"{name}.xml")
+    x0 = _tilted(model)
+    ocp = DirectCollocation(model, N=40, T=2.0)
+    np.testing.assert_array_equal(ocp.bounds.u_low, model.u_low)
+    np.testing.assert_array_equal(ocp.bounds.u_high, model.u_high)
+    traj, info = ocp.solve(x0)
+    assert info.success
+    _assert_plan_meets_model_and_bounds(model, ocp, traj, x0, tol=1e-3)  # h = 50 ms
+    if model.nu > 1:  # every motor takes part
+        assert np.all(np.abs(traj.u).max(axis=0) > 1e-3)
+    else:  # the range is asymmetric and the plan uses the side a symmetric |u| <= min(|low|, |high|) would cut
+        lo, hi = model.u_low[0], model.u_high[0]
+        assert lo != -hi
+        assert traj.u.max() > min(-lo, hi) + 1e-3 or traj.u.min() < -min(-lo, hi) - 1e-3
+
+
+def test_bounds_come_from_each_actuator_and_each_limited_joint(chain_dir):
+    limited = build_model(chain_dir / "gym_single_off_vertical.xml")  # hinge limited to +-90 deg
+    b = bounds_from_model(limited)
+    assert b.bounded_joints == (limited.slide, limited.hinges[0])
+    np.testing.assert_allclose([b.q_low[1], b.q_high[1]], limited.params.joints[1].range)
+    np.testing.assert_allclose([b.q_low[0], b.q_high[0]], limited.params.cart_range + np.array([0.1, -0.1]))
+    asym = build_model(chain_dir / "everything_Euler.xml")  # ctrlrange -0.8 1.2, slide range -1.2 1.3
+    b = bounds_from_model(asym, cart_margin=0.2)
+    np.testing.assert_array_equal(b.u_low, asym.u_low)
+    np.testing.assert_array_equal(b.u_high, asym.u_high)
+    assert b.cart_center == pytest.approx(np.mean(asym.params.cart_range))
+    assert b.cart_max == pytest.approx(0.5 * np.ptp(asym.params.cart_range) - 0.2)
+    free = build_model(chain_dir / "acrobot.xml")  # no cart, unlimited hinges
+    b = bounds_from_model(free)
+    assert b.cart_max is None and b.bounded_joints == ()
+    # scales: slides in m, hinges in pi rad, rates and ctrl positive and finite
+    sc = DirectCollocation(asym, N=4, T=1.0).scale
+    assert sc.shape == (asym.nx + asym.nu,) and np.all(np.isfinite(sc) & (sc > 0))
+    assert sc[asym.slide] == pytest.approx(0.5 * np.ptp(asym.params.cart_range) - 0.1)  # default margin
+    np.testing.assert_array_equal(sc[list(asym.hinges)], np.pi)
+
+
+def test_a_pendulum_without_a_cart_swings_up_from_its_default_hanging_start(chain_dir):
+    model = build_model(chain_dir / "pendulum.xml")  # motor on the hinge, no slide
+    ocp = DirectCollocation(model, N=40, T=2.0)
+    traj, info = ocp.solve()  # default start: hanging rest; default goal: upright
+    assert info.success and ocp.bounds.cart_max is None
+    np.testing.assert_allclose(traj.x[0], model.x_hanging, atol=1e-12)
+    np.testing.assert_allclose(model.state_error(traj.x[-1]), 0.0, atol=1e-12)
+    assert np.all(traj.u >= model.u_low - 1e-8) and np.all(traj.u <= model.u_high + 1e-8)
+    k = traj.N // 2
+    np.testing.assert_allclose(_integrate(model, traj, traj.t[k], traj.t[k + 1], traj.x[k]), traj.x[k + 1], atol=1e-3)

@@ -3,11 +3,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cartpole.models import build_model
+from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.ocp import compiled
 from cartpole.ocp.collocation import DirectCollocation
 
 HANGING = np.array([0.0, np.pi, 0.0, 0.0])
+TWO_POLE = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
 
 
 @pytest.fixture(scope="module")
@@ -15,58 +16,103 @@ def model():
     return build_model()
 
 
+@pytest.fixture(scope="module")
+def two_pole():
+    return build_model(TWO_POLE)
+
+
 @pytest.fixture
 def empty_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.delenv("CARTPOLE_NO_COMPILE", raising=False)
+    monkeypatch.delenv("CARTPOLE_CFLAGS", raising=False)
     return tmp_path / "cache"
 
 
-def test_compiled_and_sx_formulations_take_the_same_iterates_to_the_same_plan(model, empty_cache):
-    ocp_c = DirectCollocation(model, N=40, T=2.0, compiled=True)
-    traj_c, info_c = ocp_c.solve_once(HANGING)
-    assert ocp_c.compiled_library is not None and str(empty_cache) in ocp_c.compiled_library
-    ocp_s = DirectCollocation(model, N=40, T=2.0, compiled=False)
-    traj_s, info_s = ocp_s.solve_once(HANGING)
-    assert ocp_s.compiled_library is None
+def _scales(ocp):
+    """(state scales (nx,), ctrl scales (nu,), effort scale) of a DirectCollocation at its T."""
+    sx, su = ocp.scale[:ocp.nx], ocp.scale[ocp.nx:]
+    return sx, su, float(np.sum(su**2)) * ocp.T
+
+
+def _tilted(model, angle=0.3):
+    x0 = np.array(model.x_eq, dtype=float)
+    x0[model.hinges[0]] += angle
+    return x0
+
+
+def _same_plan(model, x0, N):
+    ocp_c = DirectCollocation(model, N=N, T=2.0, compiled=True)
+    traj_c, info_c = ocp_c.solve_once(x0)
+    ocp_s = DirectCollocation(model, N=N, T=2.0, compiled=False)
+    traj_s, info_s = ocp_s.solve_once(x0)
+    assert ocp_c.compiled_library is not None and ocp_s.compiled_library is None
     assert info_c.success and info_s.success
     assert info_c.iterations == info_s.iterations
     np.testing.assert_allclose(traj_c.x, traj_s.x, atol=1e-9)
     np.testing.assert_allclose(traj_c.u, traj_s.u, atol=1e-9)
     assert info_c.objective == pytest.approx(info_s.objective, rel=1e-10)
+    return ocp_c
+
+
+def test_compiled_and_sx_formulations_take_the_same_iterates_to_the_same_plan(model, empty_cache):
+    ocp_c = _same_plan(model, HANGING, 40)
+    assert str(empty_cache) in ocp_c.compiled_library
+
+
+def test_compiled_and_sx_give_the_same_plan_for_a_two_pole_cart(two_pole, empty_cache):
+    _same_plan(two_pole, _tilted(two_pole), 20)
 
 
 def test_library_is_compiled_once_then_taken_from_the_cache(model, empty_cache):
     ocp = DirectCollocation(model, N=20, T=2.0)
-    sx, su = ocp.scale[:4], ocp.scale[4]
-    first = compiled.compiled_nlp(model.f, 20, sx, su, su**2 * 2.0)
-    again = compiled.compiled_nlp(model.f, 20, sx, su, su**2 * 2.0)
+    sx, su, eff = _scales(ocp)
+    first = compiled.compiled_nlp(model, 20, sx, su, eff)
+    again = compiled.compiled_nlp(model, 20, sx, su, eff)
     assert first.compiled_now and not again.compiled_now and first.library == again.library
     # N is not baked into the library (the interval is): another N reuses it
-    other_n = compiled.compiled_nlp(model.f, 30, sx, su, su**2 * 2.0)
+    other_n = compiled.compiled_nlp(model, 30, sx, su, eff)
     assert not other_n.compiled_now and other_n.library == first.library
 
 
-def test_nlp_derivatives_match_casadi_derivatives_of_the_same_nlp(model, empty_cache):
+def test_different_models_never_share_a_library(model, two_pole, empty_cache):
+    # two carts that differ by one part in 1e9 in the pole masses, with the very same scaling
+    nearly = build_model(two_pole.params.scaled_pole(1.0 + 1e-9, 1.0))
+    scales = _scales(DirectCollocation(two_pole, N=10, T=2.0))
+    first = compiled.compiled_nlp(two_pole, 10, *scales)
+    other = compiled.compiled_nlp(nearly, 10, *scales)
+    assert first.compiled_now and other.compiled_now and first.library != other.library
+    assert compiled.model_key(nearly) != compiled.model_key(two_pole) != compiled.model_key(model)
+    # the key is of the model's physics, not of where its file lives; a bare f is keyed on its own graph
+    assert compiled.model_key(build_model(model.params.replace(mjcf="/elsewhere/cartpole.xml"))) == \
+        compiled.model_key(model)
+    assert compiled.model_key(model) != compiled.model_key(model.f)
+
+
+@pytest.mark.parametrize("which", ["one_pole", "two_pole"])
+def test_nlp_derivatives_match_casadi_derivatives_of_the_same_nlp(model, two_pole, which, empty_cache):
+    m = model if which == "one_pole" else two_pole
     N, T = 6, 1.5
-    ocp = DirectCollocation(model, N=N, T=T)
-    sx, su = ocp.scale[:4], ocp.scale[4]
-    comp = compiled.compiled_nlp(model.f, N, sx, su, su**2 * T)
+    nz = m.nx + m.nu
+    ocp = DirectCollocation(m, N=N, T=T)
+    sx, su, _ = _scales(ocp)
+    eff = float(np.sum(su**2)) * T
+    comp = compiled.compiled_nlp(m, N, sx, su, eff)
     assert comp is not None
     nlp, opt = comp.nlp, comp.options
     rng = np.random.default_rng(3)
-    w = rng.normal(size=5 * (N + 1))
-    lam_f, lam_g = 0.7, rng.normal(size=4 * N)
+    w = rng.normal(size=nz * (N + 1))
+    lam_f, lam_g = 0.7, rng.normal(size=m.nx * N)
     fg = ca.Function("fg", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]])
     # reference derivatives: the same f and g written directly in SX (no compiled code)
-    fns = compiled.interval_functions(model.f, sx, su, su**2 * T)
+    fns = compiled.interval_functions(m.f, sx, su, eff)
     hs_d, hs_e = fns[0], fns[1]
-    xs, ps = ca.SX.sym("x", 5 * (N + 1)), ca.SX.sym("p")
-    Z = ca.reshape(xs, 5, N + 1)
+    xs, ps = ca.SX.sym("x", nz * (N + 1)), ca.SX.sym("p")
+    Z = ca.reshape(xs, nz, N + 1)
     V = ca.vertcat(Z[:, :-1], Z[:, 1:])
     g_ref = ca.vec(hs_d.map(N)(V, ps / N))
     f_ref = ca.sum2(hs_e.map(N)(V, ps / N))
-    lg = ca.SX.sym("lg", 4 * N)
+    lg = ca.SX.sym("lg", m.nx * N)
     ref = ca.Function("ref", [xs, ps, lg], [ca.gradient(f_ref, xs), ca.jacobian(g_ref, xs),
                                            ca.triu(ca.hessian(lam_f * f_ref + ca.dot(lg, g_ref), xs)[0])])
     gr, jr, hr = (np.asarray(ca.densify(a)) for a in ref(w, T, lam_g))
@@ -81,6 +127,13 @@ def test_nlp_derivatives_match_casadi_derivatives_of_the_same_nlp(model, empty_c
                                atol=1e-10)
 
 
+def test_large_generated_sources_are_compiled_without_optimisation(monkeypatch):
+    assert compiled._cflags("x" * 10) == compiled.CFLAGS
+    assert compiled._cflags("x" * compiled.LARGE_SOURCE) == compiled.LARGE_CFLAGS
+    monkeypatch.setenv("CARTPOLE_CFLAGS", "-O3 -march=native")
+    assert compiled._cflags("x" * compiled.LARGE_SOURCE)[:2] == ("-O3", "-march=native")
+
+
 def test_a_failing_compiler_falls_back_to_sx_with_one_note(model, empty_cache, monkeypatch, capsys):
     monkeypatch.setattr(compiled, "_compiler", lambda: "false")
     ocp = DirectCollocation(model, N=20, T=2.0)
@@ -93,5 +146,5 @@ def test_a_failing_compiler_falls_back_to_sx_with_one_note(model, empty_cache, m
 
 def test_no_compiler_on_path_falls_back(model, empty_cache, monkeypatch, capsys):
     monkeypatch.setattr(compiled, "_compiler", lambda: None)
-    assert compiled.compiled_nlp(model.f, 10, np.ones(4), 1.0, 1.0) is None
+    assert compiled.compiled_nlp(model, 10, np.ones(model.nx), np.ones(model.nu), 1.0) is None
     assert "no C compiler" in capsys.readouterr().err

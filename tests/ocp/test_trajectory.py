@@ -91,3 +91,36 @@ def test_arrays_are_read_only_and_bad_input_is_one_clear_error(tmp_path):
     bad.write_text("{}")
     with pytest.raises(TrajectoryError, match="does not hold"):
         Trajectory.load(bad)
+
+
+def _cubic_chain_traj(nx=6, nu=2, n=9, seed=1):
+    """Knots of a known cubic state (nx,) and linear inputs (nu,): any model shape interpolates exactly."""
+    rng = np.random.default_rng(seed)
+    t = np.r_[0.0, np.sort(rng.uniform(0, 2, n - 1))]
+    c = rng.normal(size=(4, nx))
+    a, b = rng.normal(size=nu), rng.normal(size=nu)
+    x = lambda tt: c[0] + c[1] * tt[:, None] + c[2] * tt[:, None] ** 2 + c[3] * tt[:, None] ** 3  # noqa: E731
+    xd = lambda tt: c[1] + 2 * c[2] * tt[:, None] + 3 * c[3] * tt[:, None] ** 2  # noqa: E731
+    return Trajectory(t=t, x=x(t), u=a + np.outer(t, b), xdot=xd(t)), x, xd, (a, b)
+
+
+def test_any_state_and_input_size_interpolates_cubic_hermite_and_first_order_hold(tmp_path):
+    traj, x, xd, (a, b) = _cubic_chain_traj()
+    assert (traj.nx, traj.nu) == (6, 2)
+    tt = np.linspace(0, traj.t[-1], 41)
+    np.testing.assert_allclose(traj.state(tt), x(tt), atol=1e-10)
+    np.testing.assert_allclose(traj.state_derivative(tt), xd(tt), atol=1e-9)
+    np.testing.assert_allclose(traj.input(tt), a + np.outer(tt, b), atol=1e-12)
+    assert traj.state(0.3).shape == (6,) and traj.input(0.3).shape == (2,)
+    t_s, x_s, u_s = traj.sample(0.05)
+    assert x_s.shape == (t_s.size, 6) and u_s.shape == (t_s.size, 2)
+    full = Trajectory(t=traj.t, x=traj.x, u=traj.u, xdot=traj.xdot, x_mid=traj.state(traj.t_mid),
+                      u_mid=traj.input(traj.t_mid))
+    for suffix in (".npz", ".json"):
+        back = Trajectory.load(full.save(tmp_path / f"chain{suffix}"))
+        for name in ("t", "x", "u", "xdot", "x_mid", "u_mid"):
+            np.testing.assert_array_equal(getattr(back, name), getattr(full, name))
+    with pytest.raises(TrajectoryError, match="xdot"):
+        Trajectory(t=traj.t, x=traj.x, u=traj.u, xdot=traj.xdot[:, :4])
+    with pytest.raises(TrajectoryError, match="u_mid"):
+        Trajectory(t=traj.t, x=traj.x, u=traj.u, xdot=traj.xdot, u_mid=np.zeros((traj.N, 1)))
