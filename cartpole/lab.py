@@ -16,6 +16,13 @@ factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_S
 LQR (:func:`~cartpole.lqr.lab_weights`, continuous) settles every start in the lab's 6 s. It depends on the model
 only, not on the weights or duration a run asks for, so a sweep over Q or R runs the same starts throughout; it is
 1 on every shipped asset, and :func:`run_lab` reports it as ``start_scale``.
+
+The classical baseline beside it (``cartpole lqr --compare-pid``): :func:`compare_pid` runs the cascaded PID of
+:mod:`cartpole.control.pid` (gains by :func:`~cartpole.control.pid.tune_pid`, reset before each start) from the lab's
+own starts for its duration on its MJCF, measured the same way from the same ``x*`` (:class:`PIDLabResult`, with the
+same statistics as :class:`LabResult`, plus ``peak_ctrl`` and ``cart_excursion`` on both). A cascade needs one pole on
+an actuated cart, so on a chain it raises :class:`~cartpole.control.pid.PIDError` before anything runs.
+:func:`view_first_run` shows the first start live (``--view``) and logs the run shown.
 """
 from __future__ import annotations
 
@@ -148,8 +155,57 @@ def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
     return readonly(x0s)
 
 
+class _LabRuns:
+    """The statistics of a lab's five MuJoCo runs, shared by :class:`LabResult` (LQR) and :class:`PIDLabResult`.
+
+    Needs the attributes ``params``, ``x_eq`` (nx,), ``rollouts`` and ``metrics`` (one RunMetrics per run).
+    """
+
+    @property
+    def settling_times_seed(self) -> np.ndarray:
+        """(5,) s, the handout's definition per start (every pole angle within 0.05 rad)."""
+        return np.array([m.settling_time_seed for m in self.metrics])
+
+    @property
+    def settling_times(self) -> np.ndarray:
+        """(5,) s, the strict whole-state definition per start (``inf`` if never)."""
+        return np.array([m.settling_time_strict for m in self.metrics])
+
+    @property
+    def mean_settling_time_seed(self) -> float:
+        """Mean over the starts of the handout's settling time, s."""
+        return float(np.mean(self.settling_times_seed))
+
+    @property
+    def std_settling_time_seed(self) -> float:
+        """Population standard deviation (``np.std``, as the handout) of the handout's settling time, s (``inf``
+        when some start never settled)."""
+        ts = self.settling_times_seed
+        return float(np.std(ts)) if np.all(np.isfinite(ts)) else float("inf")
+
+    @property
+    def settled(self) -> tuple:
+        """Per start: strict settling time finite and the cart never reached its limit."""
+        return tuple(m.settled for m in self.metrics)
+
+    @property
+    def peak_ctrl(self) -> np.ndarray:
+        """(5,) largest ``|ctrl|`` of each run over every actuator, MuJoCo ctrl units (force = gear x ctrl)."""
+        return np.array([m.peak_ctrl for m in self.metrics])
+
+    @property
+    def cart_excursion(self) -> np.ndarray:
+        """(5,) m, each run's largest ``|cart - x*_cart|`` (:func:`cart_excursion`); NaN without a cart."""
+        return np.array([cart_excursion(r, self.x_eq, self.params.slide) for r in self.rollouts])
+
+    @property
+    def steps(self) -> int:
+        """Physics steps per run."""
+        return int(self.rollouts[0].ctrl.shape[0])
+
+
 @dataclass(frozen=True)
-class LabResult:
+class LabResult(_LabRuns):
     """Everything the lab computed; arrays are read-only. ``nx = 2 nq`` states, ``nu`` inputs.
 
     Attributes
@@ -206,38 +262,6 @@ class LabResult:
     rollouts: tuple
     metrics: tuple
 
-    @property
-    def settling_times_seed(self) -> np.ndarray:
-        """(5,) s, the handout's definition per start (every pole angle within 0.05 rad)."""
-        return np.array([m.settling_time_seed for m in self.metrics])
-
-    @property
-    def settling_times(self) -> np.ndarray:
-        """(5,) s, the strict whole-state definition per start (``inf`` if never)."""
-        return np.array([m.settling_time_strict for m in self.metrics])
-
-    @property
-    def mean_settling_time_seed(self) -> float:
-        """Mean over the starts of the handout's settling time, s."""
-        return float(np.mean(self.settling_times_seed))
-
-    @property
-    def std_settling_time_seed(self) -> float:
-        """Population standard deviation (``np.std``, as the handout) of the handout's settling time, s (``inf``
-        when some start never settled)."""
-        ts = self.settling_times_seed
-        return float(np.std(ts)) if np.all(np.isfinite(ts)) else float("inf")
-
-    @property
-    def settled(self) -> tuple:
-        """Per start: strict settling time finite and the cart never reached its limit."""
-        return tuple(m.settled for m in self.metrics)
-
-    @property
-    def steps(self) -> int:
-        """Physics steps per run."""
-        return int(self.rollouts[0].ctrl.shape[0])
-
     def controller(self):
         """The lab's feedback law as a :class:`~cartpole.control.linear.LinearFeedback` (hinge errors wrapped)."""
         from cartpole.control.linear import LinearFeedback
@@ -262,18 +286,26 @@ def design(model, Q, R, *, discrete: bool = False, x_eq=None):
 
 def _five_runs(model, ctrl, x_eq, scale: float, duration: float, progress=None):
     """The five lab starts at ``scale`` run in MuJoCo under ``ctrl``: ``(x0s, rollouts, metrics)``."""
+    x0s = lab_initial_conditions(model, scale=scale)
+    return (x0s, *_runs(model, ctrl, x0s, x_eq, duration, progress))
+
+
+def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None):
+    """``ctrl`` run in MuJoCo from each row of ``x0s`` for ``duration`` s (``reset()`` called before each run):
+    ``(rollouts, metrics)``, the metrics measured from ``x_eq``."""
     from cartpole.sim import simulate
     from cartpole.validation.metrics import summarize
 
-    x0s = lab_initial_conditions(model, scale=scale)
     runs, mets = [], []
     for i, x0 in enumerate(x0s):
+        if reset is not None:
+            reset()
         run = simulate(model.params, ctrl, x0, duration)
         runs.append(run)
         mets.append(summarize(run, model, x_eq=x_eq))
         if progress is not None:
             progress((i + 1) / len(x0s))
-    return x0s, runs, mets
+    return runs, mets
 
 
 def _lab_controller(model, Q, R, *, discrete: bool = False):
@@ -373,3 +405,166 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,
                      u_eq=readonly(model.u_eq), x0s=x0s, start_scale=float(scale), duration=float(duration),
                      rollouts=tuple(runs), metrics=tuple(mets))
+
+
+def cart_excursion(run, x_eq, slide: int | None) -> float:
+    """Largest distance in m of the cart from its equilibrium position over a run: ``max_k |s_k - x*_slide|``.
+
+    Parameters
+    ----------
+    run : Rollout
+        ``qpos`` (n+1, nq) is read.
+    x_eq : (2 nq,) array
+        Equilibrium ``x*`` (:func:`lab_equilibrium`).
+    slide : int or None
+        qpos index of the cart's slide; None (no cart) gives NaN.
+    """
+    from cartpole.validation.metrics import cart_range_used
+
+    if slide is None:
+        return float("nan")
+    lo, hi = cart_range_used(run, slide=slide)
+    s_eq = float(np.asarray(x_eq, dtype=float)[slide])
+    return max(abs(lo - s_eq), abs(hi - s_eq))
+
+
+@dataclass(frozen=True)
+class PIDLabResult(_LabRuns):
+    """The cascaded PID baseline (:mod:`cartpole.control.pid`) run from the lab's starts; arrays are read-only.
+
+    The same statistics as :class:`LabResult` (``settling_times_seed``, ``settling_times``,
+    ``mean_settling_time_seed``, ``std_settling_time_seed``, ``settled``, ``peak_ctrl``, ``cart_excursion``), measured
+    the same way from ``x_eq``.
+
+    Attributes
+    ----------
+    mjcf : str
+        Absolute path of the MJCF run.
+    params : CartPoleParams
+    gains : PIDGains
+        From :func:`~cartpole.control.pid.tune_pid` (pole placement on the exact linearisation).
+    x_eq : (4,) array
+        The lab's equilibrium (:func:`lab_equilibrium`) the PID regulates to and the metrics measure from.
+    x0s : (5, 4) array
+        Starts run (the LQR lab's, for :func:`compare_pid`).
+    duration : float, s
+        Length of each run.
+    rollouts : tuple of Rollout
+        One MuJoCo run per start, every physics step logged (replays exactly); the PID is reset before each.
+    metrics : tuple of RunMetrics
+        Per run (:func:`cartpole.validation.metrics.summarize` from ``x_eq``).
+    """
+
+    mjcf: str
+    params: CartPoleParams
+    gains: object
+    x_eq: np.ndarray
+    x0s: np.ndarray
+    duration: float
+    rollouts: tuple
+    metrics: tuple
+
+
+def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, x0s=None,
+                duration: float = LAB_DURATION, start_scale: float | None = None,
+                progress: Callable[[float], None] | None = None, **tuning) -> PIDLabResult:
+    """The lab's experiment with the cascaded PID instead of the LQR: one MuJoCo run per start.
+
+    The PID is :class:`~cartpole.control.pid.CascadedPID` with gains from
+    :func:`~cartpole.control.pid.tune_pid` (``tuning`` = its keyword settings), reset before each start. It
+    regulates to the lab's equilibrium :func:`lab_equilibrium` (the model's ``x_eq`` with the cart in the middle of
+    its rail: the state it sees is shifted along the rail by the difference, which changes nothing else since the
+    cart has no spring).
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+        One pole on a cart driven by one motor on the slide (default the shipped asset).
+    x0s : (k, 4) array, optional
+        Starts ``[s, theta, s_dot, theta_dot]`` (default :func:`lab_initial_conditions` at ``start_scale``).
+    duration : float, s
+        Length of each run (default the lab's 6 s).
+    start_scale : float, optional
+        Factor on the lab's starts when ``x0s`` is not given; default :func:`lab_start_scale`.
+    progress : callable, optional
+        Called with the fraction of the runs done (0..1).
+
+    Returns
+    -------
+    PIDLabResult
+
+    Raises
+    ------
+    PIDError
+        A model where a cascade does not apply (not exactly one pole on an actuated cart: one sentence, before
+        anything runs), bad tuning settings, or a tuned loop that is not stable.
+    """
+    from cartpole.control.pid import CascadedPID, tune_pid
+
+    model = _model(mjcf)
+    gains = tune_pid(model, **tuning)
+    x_eq = lab_equilibrium(model)
+    if x0s is None:
+        scale = lab_start_scale(model) if start_scale is None else float(start_scale)
+        x0s = lab_initial_conditions(model, scale=scale)
+    x0s = readonly(np.atleast_2d(np.asarray(x0s, dtype=float)))
+    pid = CascadedPID(gains, model)
+    shift = x_eq - np.asarray(model.x_eq, dtype=float)
+    controller = pid if not np.any(shift) else (lambda t, x: pid(t, np.asarray(x, dtype=float) - shift))
+    runs, mets = _runs(model, controller, x0s, x_eq, duration, progress, reset=pid.reset)
+    return PIDLabResult(mjcf=model.params.mjcf, params=model.params, gains=gains, x_eq=x_eq, x0s=x0s,
+                        duration=float(duration), rollouts=tuple(runs), metrics=tuple(mets))
+
+
+def compare_pid(lab: LabResult, model: CartPoleModel | None = None, *,
+                progress: Callable[[float], None] | None = None, **tuning) -> PIDLabResult:
+    """The PID baseline beside an LQR lab: :func:`run_pid_lab` from the lab's own starts, for its duration, on its
+    MJCF (same physics), measured from the same ``x*``.
+
+    Parameters
+    ----------
+    lab : LabResult
+        From :func:`run_lab`.
+    model : CartPoleModel, optional
+        The lab's model, if already built (else built from ``lab.params``).
+    progress : callable, optional
+        Called with the fraction of the five runs done.
+
+    Raises
+    ------
+    PIDError
+        As :func:`run_pid_lab`, e.g. on a two- or three-pole cart.
+    """
+    return run_pid_lab(lab.params if model is None else model, x0s=lab.x0s, duration=lab.duration,
+                       progress=progress, **tuning)
+
+
+def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object]:
+    """Show the lab's first start live and log the run shown: ``(lab with rollouts[0] the shown run, shown)``.
+
+    ``watcher`` is :func:`cartpole.viz.viewer.watch` (or anything with :func:`~cartpole.sim.simulate`'s call shape
+    ``watcher(source, controller, x0, duration) -> Rollout``); it runs the lab's LQR law from ``lab.x0s[0]`` for
+    ``lab.duration`` with simulate's physics, so its rollout must equal the logged ``lab.rollouts[0]`` step for step,
+    and this is checked. The shown rollout then replaces the logged one (the same numbers, so every metric stands).
+    When the window was closed early the shown run is the first part of the logged one (checked the same way) and
+    the full logged run is kept.
+
+    Raises
+    ------
+    ViewerUnavailable
+        From ``watcher``, when there is no display (raised before any physics runs; ``lab`` is untouched).
+    LabError
+        The shown run differs from the logged one (it cannot, unless MuJoCo is not deterministic here).
+    """
+    from dataclasses import replace
+
+    logged = lab.rollouts[0]
+    shown = watcher(lab.params, lab.controller(), lab.x0s[0], lab.duration)
+    n = shown.ctrl.shape[0]
+    if n > logged.ctrl.shape[0] or not (np.array_equal(shown.x, logged.x[:n + 1])
+                                        and np.array_equal(shown.ctrl, logged.ctrl[:n])):
+        raise LabError("The run shown in the live viewer differs from the logged run of the first start; MuJoCo "
+                       "is not deterministic here, so report this with your MuJoCo version.")
+    if n < logged.ctrl.shape[0]:
+        return lab, shown
+    return replace(lab, rollouts=(shown,) + tuple(lab.rollouts[1:])), shown

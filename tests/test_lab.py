@@ -1,12 +1,13 @@
 """The LQR balance lab: K is SciPy's, the five starts settle in MuJoCo on every model and replay exactly,
-starts are scaled into a model's joint ranges, and the sign facts docs/lab.md states hold."""
+starts are scaled into a model's joint ranges, and the sign facts docs/lab.md states hold; the PID baseline runs
+the same starts (reset for each) and balances them, and the live view logs the run it shows."""
 import numpy as np
 import pytest
 import scipy.linalg
 
 from cartpole import Q_LAB, R_LAB, build_model, read_params
-from cartpole.lab import (LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, lab_initial_conditions,
-                          lab_start_scale, run_lab)
+from cartpole.lab import (LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, compare_pid,
+                          lab_initial_conditions, lab_start_scale, run_lab, run_pid_lab, view_first_run)
 from cartpole.lqr import lab_weights
 from cartpole.models import SHIPPED_MJCF, wrap_angle
 from cartpole.sim import replays_exactly, simulate
@@ -215,3 +216,98 @@ def test_pendulum_without_a_cart_gets_the_angles_only(chain_dir):
     np.testing.assert_allclose(res.x0s[:, 0], LAB_OFFSETS[:, 1], atol=1e-15)
     assert all(res.settled) and all(replays_exactly(r, res.params) for r in res.rollouts)
     assert all(m.track_margin == np.inf for m in res.metrics)
+
+
+# ---- the PID baseline beside the LQR (cartpole lqr --compare-pid) -----------------------------------------------
+
+@pytest.fixture(scope="module")
+def shipped_lab():
+    return run_lab()
+
+
+def test_pid_balances_the_labs_five_starts_and_each_run_replays_exactly(shipped_lab):
+    from cartpole.control.pid import CascadedPID, tune_pid
+
+    lab = shipped_lab
+    model = build_model()
+    pid = compare_pid(lab, model)
+    np.testing.assert_array_equal(pid.x0s, lab.x0s)
+    assert pid.duration == lab.duration and pid.gains.to_dict() == tune_pid(model).to_dict()
+    assert all(pid.settled), pid.settling_times
+    for run, lqr_run, x0 in zip(pid.rollouts, lab.rollouts, lab.x0s):
+        np.testing.assert_array_equal(run.x[0], x0)
+        np.testing.assert_array_equal(run.t, lqr_run.t)  # same duration, same physics step
+        assert replays_exactly(run, pid.params)
+        assert _final_error(run, pid.x_eq, model.hinges) < 0.01
+        assert not np.array_equal(run.ctrl, lqr_run.ctrl)  # the PID ran, not the LQR
+        # reset for each start: the same as a freshly built PID from this start
+        fresh = simulate(SHIPPED_MJCF, CascadedPID.for_model(model), x0, lab.duration)
+        np.testing.assert_array_equal(run.ctrl, fresh.ctrl)
+    # the two added statistics, computed here from the logs
+    for res in (lab, pid):
+        np.testing.assert_array_equal(res.peak_ctrl, [np.abs(r.ctrl).max() for r in res.rollouts])
+        np.testing.assert_array_equal(res.cart_excursion,
+                                      [np.abs(r.qpos[:, 0] - res.x_eq[0]).max() for r in res.rollouts])
+
+
+def test_pid_regulates_to_the_labs_equilibrium_on_a_rail_off_the_origin(tmp_path):
+    """On a rail from -0.5 to 2.5 m the lab balances at its middle, s* = 1 m, and so must the PID."""
+    path = _variant_with(tmp_path, "off_origin", **{'range="-1.5 1.5"': 'range="-0.5 2.5"'})
+    res = run_pid_lab(path)
+    assert res.x_eq[0] == pytest.approx(1.0) and np.all(np.abs(res.x0s[:, 0] - 1.0) <= 0.3 + 1e-12)
+    assert all(res.settled), res.settling_times
+    for run in res.rollouts:
+        assert replays_exactly(run, res.params)
+        assert abs(run.qpos[-1, 0] - 1.0) < 0.01
+    assert np.all(res.cart_excursion < 0.5)
+
+
+def test_pid_on_a_two_pole_cart_is_refused_in_one_sentence_before_anything_runs(monkeypatch):
+    import cartpole.sim
+    from cartpole.control.pid import PIDError
+
+    monkeypatch.setattr(cartpole.sim, "simulate", None)  # a run attempted would fail with a TypeError
+    with pytest.raises(PIDError) as err:
+        run_pid_lab(SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
+    msg = str(err.value)
+    assert "one pole on an actuated cart" in msg and "2 poles" in msg and "\n" not in msg
+
+
+# ---- the live view (cartpole lqr --view) logs the run it shows --------------------------------------------------
+
+def test_the_run_shown_replaces_the_logged_first_run_and_is_the_same(shipped_lab):
+    shown_runs = []
+
+    def watcher(*a, **k):
+        shown_runs.append(simulate(*a, **k))
+        return shown_runs[-1]
+
+    lab, shown = view_first_run(shipped_lab, watcher)
+    assert shown is shown_runs[0] and lab.rollouts[0] is shown
+    assert all(a is b for a, b in zip(lab.rollouts[1:], shipped_lab.rollouts[1:], strict=True))
+    np.testing.assert_array_equal(shown.x, shipped_lab.rollouts[0].x)
+    np.testing.assert_array_equal(lab.settling_times_seed, shipped_lab.settling_times_seed)
+
+
+def test_a_window_closed_early_keeps_the_full_logged_run(shipped_lab):
+    lab, shown = view_first_run(shipped_lab, lambda *a, **k: simulate(*a, stop=lambda t, x: t >= 1.0, **k))
+    assert shown.t[-1] == pytest.approx(1.0) and lab is shipped_lab
+
+
+def test_a_shown_run_that_differs_from_the_logged_one_is_refused(shipped_lab):
+    from cartpole.control.linear import LinearFeedback
+
+    def other(source, ctrl, x0, duration):
+        return simulate(source, LinearFeedback(1.1 * ctrl.K, ctrl.x_eq, ctrl.u_eq, hinges=(1,)), x0, duration)
+
+    with pytest.raises(LabError, match="differs from the logged run"):
+        view_first_run(shipped_lab, other)
+
+
+def test_no_display_leaves_the_lab_untouched(shipped_lab, monkeypatch):
+    from cartpole.viz.viewer import ViewerUnavailable, watch
+
+    for var in ("DISPLAY", "WAYLAND_DISPLAY"):
+        monkeypatch.delenv(var, raising=False)
+    with pytest.raises(ViewerUnavailable, match="DISPLAY is not set"):
+        view_first_run(shipped_lab, watch)

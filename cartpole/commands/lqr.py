@@ -14,6 +14,7 @@ HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJ
         "and a metrics row")
 
 FIGURE = Path("figures") / "day5_cartpole_lqr.png"
+PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
 VIDEO = Path("videos") / "day5_cartpole.mp4"
 METRICS = Path("metrics") / "metrics.csv"
 VIDEO_SECONDS = 10.0
@@ -23,8 +24,15 @@ METRICS_HEADER = "run_id,date,day,task,commit,seed,env,method,steps,runs,metric,
 
 
 def add_arguments(parser) -> None:
-    """``--no-video``, ``--discrete``, ``--Q`` and ``--R``."""
+    """``--no-video``, ``--discrete``, ``--Q``, ``--R``, ``--compare-pid`` and ``--view``."""
     parser.add_argument("--no-video", action="store_true", help="skip rendering the 10 s video")
+    parser.add_argument("--compare-pid", action="store_true",
+                        help="also run the cascaded PID baseline (cartpole.control.pid) from the same five starts "
+                             "in MuJoCo and print one table and one figure of both (one pole on a cart only; "
+                             "elsewhere a note on stderr and the LQR lab as usual)")
+    parser.add_argument("--view", action="store_true",
+                        help="show the first start's LQR run live in MuJoCo's viewer (the run logged is the run "
+                             "shown); without a display a note on stderr and the rest as usual")
     parser.add_argument("--discrete", action="store_true",
                         help="design K with dlqr on (Ad, Bd), one step of the MJCF's integrator, instead of "
                              "lqr on the continuous (A, B)")
@@ -114,8 +122,25 @@ def run(args) -> dict:
     R = None if args.R is None else weight_matrix(
         args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete)
+    if args.view:
+        result = _view(result)
+    pid = skipped = None
+    if args.compare_pid:
+        from cartpole.control.pid import PIDError
+        from cartpole.lab import compare_pid
+
+        try:
+            pid = compare_pid(result, model)
+        except PIDError as exc:
+            skipped = str(exc)
+            print(f"cartpole lqr: --compare-pid skipped: {skipped}", file=sys.stderr)
     out = Path(args.out)
     figure = plot_lab(result, out / FIGURE).resolve()
+    pid_figure = None
+    if pid is not None:
+        from cartpole.viz.lab_plot import plot_pid_vs_lqr
+
+        pid_figure = plot_pid_vs_lqr(result, pid, out / PID_FIGURE).resolve()
     video = None
     if not args.no_video:
         clip = simulate(result.params, result.controller(), result.x0s[0], VIDEO_SECONDS)
@@ -148,17 +173,66 @@ def run(args) -> dict:
         "mean_settling_time_seed": result.mean_settling_time_seed,
         "std_settling_time_seed": result.std_settling_time_seed,
         "settled": list(result.settled),
-        "rollouts": [r.to_dict() for r in result.rollouts],
-        "peak_ctrl": [m.peak_ctrl for m in result.metrics],
+        "rollouts": [_rollout_dict(r) for r in result.rollouts],
+        "peak_ctrl": result.peak_ctrl,
+        "cart_excursion": result.cart_excursion,
         "saturation_fraction": [m.saturation_fraction for m in result.metrics],
         "track_margin": [m.track_margin for m in result.metrics],
         "figure": str(figure),
         "video": None if video is None else str(video),
         "metrics": str(metrics),
     }
+    if args.compare_pid:
+        doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
     if not args.json:
-        _print_prose(result, doc)
+        _print_prose(result, doc, pid)
     return doc
+
+
+def _rollout_dict(run) -> dict:
+    """A rollout in the swing-up's JSON contract: ``t``, ``qpos``, ``qvel``, ``ctrl`` and ``push`` (zeros: the lab
+    pushes nothing), so it replays with ``mj_step``."""
+    d = run.to_dict()
+    d.setdefault("push", [0.0] * int(run.ctrl.shape[0]))
+    return d
+
+
+def _pid_doc(pid, figure) -> dict:
+    """The JSON ``pid`` object: the LQR side's keys for the PID runs, its gains and its figure."""
+    return {
+        "gains": pid.gains.to_dict(),
+        "initial_conditions": pid.x0s,
+        "duration": pid.duration,
+        "settling_times_seed": pid.settling_times_seed,
+        "settling_times": pid.settling_times,
+        "mean_settling_time_seed": pid.mean_settling_time_seed,
+        "std_settling_time_seed": pid.std_settling_time_seed,
+        "settled": list(pid.settled),
+        "peak_ctrl": pid.peak_ctrl,
+        "cart_excursion": pid.cart_excursion,
+        "saturation_fraction": [m.saturation_fraction for m in pid.metrics],
+        "track_margin": [m.track_margin for m in pid.metrics],
+        "rollouts": [_rollout_dict(r) for r in pid.rollouts],
+        "figure": str(figure),
+    }
+
+
+def _view(result):
+    """``--view``: the first start's LQR run shown live (:func:`cartpole.viz.viewer.watch`) and logged as shown
+    (:func:`cartpole.lab.view_first_run`); without a display, the viewer's sentence on stderr and ``result``
+    unchanged."""
+    from cartpole.lab import view_first_run
+    from cartpole.viz.viewer import ViewerUnavailable, watch
+
+    try:
+        result, shown = view_first_run(result, watch)
+    except ViewerUnavailable as exc:
+        print(f"cartpole lqr: {exc}", file=sys.stderr)
+        return result
+    if shown.info.get("closed_early"):
+        print(f"cartpole lqr: the viewer was closed at t = {shown.t[-1]:.2f} s; the logged run of IC 1 is the "
+              "full run, of which the window showed the first part (checked identical).", file=sys.stderr)
+    return result
 
 
 def _start_text(result, x0) -> str:
@@ -175,7 +249,7 @@ def _start_text(result, x0) -> str:
     return ", ".join(parts)
 
 
-def _print_prose(result, doc) -> None:
+def _print_prose(result, doc, pid=None) -> None:
     from cartpole.commands._state import state_sentence
 
     q = ", ".join(f"{v:g}" for v in np.diag(result.Q))
@@ -208,7 +282,40 @@ def _print_prose(result, doc) -> None:
                   f"{'settled' if ok else 'NOT settled'}")
     print(f"Mean settling time: {result.mean_settling_time_seed:.2f} s ± {result.std_settling_time_seed:.2f} s "
           f"across {len(result.x0s)} initial conditions")
+    if pid is not None:
+        _print_pid_table(result, pid)
     print(f"Wrote {doc['figure']}")
+    if pid is not None:
+        print(f"Wrote {doc['pid']['figure']}")
     if doc["video"]:
         print(f"Wrote {doc['video']}")
     print(f"Appended a row to {doc['metrics']}")
+
+
+#: Rows of the PID-beside-LQR table: attribute of LabResult / PIDLabResult, label, number format.
+PID_TABLE_ROWS = (
+    ("settling_times_seed", "settling time, handout (s)", "{:.3f}"),
+    ("settling_times", "settling time, strict (s)", "{:.3f}"),
+    ("peak_ctrl", "peak |ctrl|", "{:.3f}"),
+    ("cart_excursion", "cart excursion (m)", "{:.3f}"),
+)
+
+
+def _print_pid_table(lqr, pid) -> None:
+    """One table of both controllers: a row per metric and controller, a column per start and the mean."""
+    g = pid.gains
+    n = len(lqr.rollouts)
+    print(f"PID beside LQR: the same {n} starts, {lqr.duration:g} s each in MuJoCo, the PID reset for each.")
+    print(f"  cascaded PID (cartpole.control.pid.tune_pid): kp = {g.kp:.4g}, ki = {g.ki:.4g}, kd = {g.kd:.4g}, "
+          f"kp_cart = {g.kp_cart:.4g}, kd_cart = {g.kd_cart:.4g}, rate filter {g.filter_tau * 1e3:.3g} ms, "
+          f"tilt limit {g.tilt_limit:.3g} rad")
+    print("  settling: handout = every |theta_i - theta_i*| stays <= 0.05 rad, strict = whole state within 0.01 "
+          "of x*; cart excursion = max |cart - x*_cart|")
+    head = f"{'':28s} {'':4s}" + "".join(f"{f'IC {i}':>8s}" for i in range(1, n + 1)) + f"{'mean':>8s}"
+    print(head)
+    for key, label, fmt in PID_TABLE_ROWS:
+        for j, (name, res) in enumerate((("LQR", lqr), ("PID", pid))):
+            vals = np.asarray(getattr(res, key), dtype=float)
+            cells = [fmt.format(v) if np.isfinite(v) else "never" for v in vals]
+            mean = fmt.format(vals.mean()) if np.all(np.isfinite(vals)) else "n/a"
+            print(f"{label if j == 0 else '':28s} {name:4s}" + "".join(f"{c:>8s}" for c in cells + [mean]))

@@ -19,14 +19,19 @@ from cartpole.models import wrap_angle
 
 
 def _label(result, x0, ts: float) -> str:
-    p = result.params
     ts_txt = f"{ts:.2f}s" if np.isfinite(ts) else "never"
+    return ", ".join([_start_label(result, x0, cart_unit=""), f"ts={ts_txt}"])
+
+
+def _start_label(result, x0, *, cart_unit: str = " m") -> str:
+    """``θ₀=5°, x₀=0 m``: a start's first-pole angle from ``x*`` and its cart position."""
+    p = result.params
     parts = []
     if p.hinges:
         parts.append(f"θ₀={np.rad2deg(x0[p.hinges[0]] - result.x_eq[p.hinges[0]]):.3g}°")
     if p.slide is not None:
-        parts.append(f"x₀={x0[p.slide]:.3g}")
-    return ", ".join(parts + [f"ts={ts_txt}"])
+        parts.append(f"x₀={x0[p.slide]:.3g}{cart_unit}")
+    return ", ".join(parts)
 
 
 def plot_lab(result, path, *, dpi: int = 120) -> Path:
@@ -60,18 +65,9 @@ def lab_figure(result):
     result : LabResult
         Its ``rollouts``, ``x0s``, ``x_eq``, ``params``, ``settling_times_seed`` and mean/std are drawn.
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     p = result.params
     hinges, slide = p.hinges, p.slide
-    n_panels = len(hinges) + (slide is not None) + p.nu
-    fig = Figure(figsize=(10, max(6.0, 2.0 * n_panels)))
-    FigureCanvasAgg(fig)
-    axes = np.atleast_1d(fig.subplots(n_panels, 1, sharex=True))
-    ax_th = axes[:len(hinges)]
-    ax_s = axes[len(hinges)] if slide is not None else None
-    ax_u = axes[n_panels - p.nu:]
+    fig, axes, ax_th, ax_s, ax_u = _panels(p)
     for run, x0, ts in zip(result.rollouts, result.x0s, result.settling_times_seed):
         label = _label(result, x0, ts)
         for ax, h in zip(ax_th, hinges):
@@ -80,6 +76,36 @@ def lab_figure(result):
             ax_s.plot(run.t, run.qpos[:, slide], label=label)
         for ax, k in zip(ax_u, range(p.nu)):
             ax.step(run.t[:-1], run.ctrl[:, k], where="post", lw=0.8, label=label)
+    _dress(p, result.x_eq, result.rollouts, axes, ax_th, ax_s, ax_u)
+    axes[0].legend(fontsize=8, loc="upper right")
+    many = len(hinges) > 1
+    kind = "discrete" if result.discrete else "continuous"
+    scale = "" if getattr(result, "start_scale", 1.0) == 1.0 else f", starts x{result.start_scale:g}"
+    fig.suptitle(f"LQR balance ({kind}, {len(hinges)} pole{'s' if many else ''}): mean settling time "
+                 f"{result.mean_settling_time_seed:.2f}s ± {result.std_settling_time_seed:.2f}s "
+                 f"({len(result.rollouts)} initial conditions{scale}, every |θ| ≤ 0.05 rad)")
+    fig.tight_layout()
+    return fig
+
+
+def _panels(p):
+    """``(fig, axes, angle axes, cart axis or None, ctrl axes)``: stacked panels sharing time on an Agg canvas, one
+    per pole angle, the cart (when there is a slide), one per actuator."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    n_panels = len(p.hinges) + (p.slide is not None) + p.nu
+    fig = Figure(figsize=(10, max(6.0, 2.0 * n_panels)))
+    FigureCanvasAgg(fig)
+    axes = np.atleast_1d(fig.subplots(n_panels, 1, sharex=True))
+    ax_s = axes[len(p.hinges)] if p.slide is not None else None
+    return fig, axes, axes[:len(p.hinges)], ax_s, axes[n_panels - p.nu:]
+
+
+def _dress(p, x_eq, rollouts, axes, ax_th, ax_s, ax_u) -> None:
+    """Axis labels with units, the upright and x* lines, the rail's ends when a run came near them, the ctrl range
+    dotted, the grid."""
+    hinges, slide = p.hinges, p.slide
     many = len(hinges) > 1
     for i, (ax, h) in enumerate(zip(ax_th, hinges)):
         ax.axhline(0.0, color="k", linewidth=0.5)
@@ -90,11 +116,11 @@ def lab_figure(result):
         else:  # MuJoCo measures each hinge relative to its parent link
             ax.set_ylabel(f"Pole {i + 1} ({p.joints[h].name}) angle\nto its parent, from x* (deg)")
     if ax_s is not None:
-        ax_s.axhline(result.x_eq[slide], color="k", linewidth=0.5)
+        ax_s.axhline(x_eq[slide], color="k", linewidth=0.5)
         # the rail's ends only when a run came within half the way to one (else they squash the traces)
-        reach = max(np.abs(r.qpos[:, slide] - result.x_eq[slide]).max() for r in result.rollouts)
+        reach = max(np.abs(r.qpos[:, slide] - x_eq[slide]).max() for r in rollouts)
         for v in p.cart_range:
-            if np.isfinite(v) and abs(v - result.x_eq[slide]) < 2 * reach:
+            if np.isfinite(v) and abs(v - x_eq[slide]) < 2 * reach:
                 ax_s.axhline(v, color="r", ls=":", lw=0.8)
         ax_s.set_ylabel("Cart position (m)")
     for ax, act, (ulo, uhi) in zip(ax_u, p.actuators, p.ctrl_range):
@@ -104,13 +130,56 @@ def lab_figure(result):
         unit = "N" if p.joints[act.joint].kind == "slide" else "N m"
         ax.set_ylabel(f"ctrl {act.name}\n(force = {act.gear:g} {unit} x ctrl)")
     axes[-1].set_xlabel("Time (s)")
-    axes[0].legend(fontsize=8, loc="upper right")
     for ax in axes:
         ax.grid(alpha=0.3)
-    kind = "discrete" if result.discrete else "continuous"
-    scale = "" if getattr(result, "start_scale", 1.0) == 1.0 else f", starts x{result.start_scale:g}"
-    fig.suptitle(f"LQR balance ({kind}, {len(hinges)} pole{'s' if many else ''}): mean settling time "
-                 f"{result.mean_settling_time_seed:.2f}s ± {result.std_settling_time_seed:.2f}s "
-                 f"({len(result.rollouts)} initial conditions{scale}, every |θ| ≤ 0.05 rad)")
+
+
+def plot_pid_vs_lqr(lqr, pid, path, *, dpi: int = 120) -> Path:
+    """Save :func:`pid_vs_lqr_figure` as a PNG at ``path`` (parent directories created, written whole or not at all).
+
+    Returns
+    -------
+    Path
+        The PNG written.
+    """
+    fig = pid_vs_lqr_figure(lqr, pid)
+    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))
+
+
+def pid_vs_lqr_figure(lqr, pid):
+    """The PID baseline beside the LQR from the same starts, as a matplotlib ``Figure`` on an Agg canvas.
+
+    Panels sharing time (s): one per pole angle (wrapped error from ``x*``, deg), the cart position (m), one per
+    actuator's ctrl (with its ctrl range dotted). One colour per start; the LQR run solid, the PID run dashed.
+
+    Parameters
+    ----------
+    lqr : LabResult
+        The LQR lab (:func:`cartpole.lab.run_lab`): its ``rollouts``, ``x0s``, ``x_eq``, ``params`` and settling times.
+    pid : PIDLabResult
+        The PID from the same starts (:func:`cartpole.lab.compare_pid`).
+    """
+    from matplotlib.lines import Line2D
+
+    p = lqr.params
+    hinges, slide = p.hinges, p.slide
+    fig, axes, ax_th, ax_s, ax_u = _panels(p)
+    colours = [f"C{i % 10}" for i in range(len(lqr.rollouts))]
+    for res, ls in ((lqr, "-"), (pid, "--")):
+        for run, colour in zip(res.rollouts, colours):
+            for ax, h in zip(ax_th, hinges):
+                ax.plot(run.t, np.rad2deg(wrap_angle(run.qpos[:, h] - res.x_eq[h])), ls=ls, color=colour, lw=1.0)
+            if ax_s is not None:
+                ax_s.plot(run.t, run.qpos[:, slide], ls=ls, color=colour, lw=1.0)
+            for ax, k in zip(ax_u, range(p.nu)):
+                ax.step(run.t[:-1], run.ctrl[:, k], where="post", ls=ls, color=colour, lw=0.8)
+    _dress(p, lqr.x_eq, lqr.rollouts + pid.rollouts, axes, ax_th, ax_s, ax_u)
+    starts = [Line2D([], [], color=c, lw=2, label=_start_label(lqr, x0)) for c, x0 in zip(colours, lqr.x0s)]
+    styles = [Line2D([], [], color="k", ls="-", label="LQR (solid)"),
+              Line2D([], [], color="k", ls="--", label="PID (dashed)")]
+    axes[0].legend(handles=starts + styles, fontsize=8, loc="upper right", ncol=2)
+    fig.suptitle(f"PID (dashed) beside LQR (solid) from the same {len(lqr.rollouts)} starts in MuJoCo\n"
+                 f"mean settling time (every |θ| ≤ 0.05 rad): LQR {lqr.mean_settling_time_seed:.2f} s, "
+                 f"PID {pid.mean_settling_time_seed:.2f} s")
     fig.tight_layout()
     return fig

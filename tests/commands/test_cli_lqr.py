@@ -254,3 +254,141 @@ def test_starts_scaled_for_a_model_are_said_in_prose_and_json(chain_dir, tmp_pat
     out = capsys.readouterr().out
     assert f"all five are scaled by {scale:g}" in out
     assert list(csv.reader((tmp_path / "metrics" / "metrics.csv").open()))[-1][12] == f"5_ICs_3_poles_scaled_{scale:g}"
+
+
+# ---- --compare-pid: the cascaded PID beside the LQR from the same five starts -----------------------------------
+
+PID_KEYS = {"gains", "settling_times_seed", "settling_times", "mean_settling_time_seed", "settled", "peak_ctrl",
+            "cart_excursion", "rollouts"}
+
+
+def mj_step_replay(mjcf, x0, ctrl, push):
+    """Plain MuJoCo (no cartpole code): from x0, apply each logged ctrl and push for one mj_step; every state."""
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_path(str(mjcf))
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:] = x0[:m.nq], x0[m.nq:]
+    mujoco.mj_forward(m, d)
+    cart = m.jnt_bodyid[0]
+    xs = [np.concatenate([d.qpos, d.qvel])]
+    for u, f in zip(ctrl, push):
+        d.ctrl[:] = u
+        d.xfrc_applied[cart, 0] = f
+        mujoco.mj_step(m, d)
+        xs.append(np.concatenate([d.qpos, d.qvel]))
+    return np.array(xs)
+
+
+@pytest.fixture(scope="module")
+def pid_json(tmp_path_factory):
+    import io
+    from contextlib import redirect_stderr, redirect_stdout
+
+    out = tmp_path_factory.mktemp("pid")
+    buf, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(buf), redirect_stderr(err):
+        assert main(["lqr", "--json", "--no-video", "--compare-pid", "--out", str(out)]) == 0
+    return json.loads(buf.getvalue()), out, err.getvalue()
+
+
+def test_compare_pid_balances_all_five_starts_and_every_pid_rollout_replays_exactly(pid_json):
+    from cartpole.control.pid import tune_pid
+
+    doc, _, err = pid_json
+    pid = doc["pid"]
+    assert CONTRACT <= set(doc) and PID_KEYS <= set(pid) and err == ""
+    assert pid["gains"] == json.loads(json.dumps(tune_pid(None).to_dict()))
+    assert pid["settled"] == [True] * 5 and len(pid["rollouts"]) == 5
+    for row, lqr_row, x0 in zip(pid["rollouts"], doc["rollouts"], doc["initial_conditions"]):
+        assert set(row) == set(lqr_row) == {"t", "qpos", "qvel", "ctrl", "push"}
+        assert row["push"] == [0.0] * len(row["ctrl"]) and row["t"] == lqr_row["t"]  # same duration and step
+        logged = np.hstack([row["qpos"], row["qvel"]])
+        np.testing.assert_array_equal(logged[0], x0)  # the LQR's own start
+        np.testing.assert_array_equal(mj_step_replay(doc["mjcf"], logged[0], row["ctrl"], row["push"]), logged)
+        assert np.abs(logged[-1]).max() < 0.01  # balanced upright at rest at x* = 0, checked without the metrics
+        assert row["ctrl"] != lqr_row["ctrl"]
+
+
+def test_compare_pid_writes_one_png_figure_under_out_beside_the_lqr_figure(pid_json):
+    doc, out, _ = pid_json
+    assert Path(doc["pid"]["figure"]) == (out / "figures" / "day5_cartpole_pid_vs_lqr.png").resolve()
+    assert Path(doc["pid"]["figure"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert Path(doc["figure"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in (out / "figures").iterdir()) == ["day5_cartpole_lqr.png",
+                                                                    "day5_cartpole_pid_vs_lqr.png"]
+
+
+def _strict_settling(t, x, tol=0.01):
+    inside = np.all(np.abs(x) <= tol, axis=1)
+    if not inside[-1]:
+        return np.inf
+    outside = np.flatnonzero(~inside)
+    return t[outside[-1] + 1] if outside.size else t[0]
+
+
+def test_printed_table_equals_the_metrics_recomputed_from_the_json_rollouts(pid_json, tmp_path, capsys):
+    doc, _, _ = pid_json
+    assert main(["lqr", "--no-video", "--compare-pid", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    head = next(i for i, line in enumerate(lines) if re.fullmatch(r"\s+IC 1\s+IC 2\s+IC 3\s+IC 4\s+IC 5\s+mean", line))
+    table = [re.findall(r"\b(LQR|PID)\s+(.*)$", line)[0] for line in lines[head + 1:head + 9]]
+    assert [name for name, _ in table] == ["LQR", "PID"] * 4
+    printed = {}
+    for k, (name, cells) in enumerate(table):
+        printed[(k // 2, name)] = cells.split()
+    # recomputed here from the JSON's logs (x* = 0 on the shipped cart), not with cartpole.validation.metrics
+    for name, side in (("LQR", doc), ("PID", doc["pid"])):
+        stats = [[], [], [], []]
+        for row in side["rollouts"]:
+            t, x = np.array(row["t"]), np.hstack([row["qpos"], row["qvel"]])
+            stats[0].append(handout_settling_time(t[:-1], x[:-1]))  # settled runs: both conventions agree
+            stats[1].append(_strict_settling(t, x))
+            stats[2].append(np.abs(row["ctrl"]).max())
+            stats[3].append(np.abs(np.array(row["qpos"])[:, 0]).max())
+        for k, vals in enumerate(stats):
+            expect = [f"{v:.3f}" for v in vals] + [f"{np.mean(vals):.3f}"]
+            assert printed[(k, name)] == expect, (k, name)
+        # and the JSON's own numbers are those
+        np.testing.assert_allclose(side["peak_ctrl"], stats[2], rtol=0, atol=0)
+        np.testing.assert_allclose(side["cart_excursion"], stats[3], rtol=0, atol=0)
+        np.testing.assert_allclose(side["settling_times"], stats[1], rtol=0, atol=1e-12)
+    assert re.search(r"^Wrote .*day5_cartpole_pid_vs_lqr\.png$", out, re.M)
+
+
+def test_compare_pid_on_a_two_pole_cart_is_a_note_and_the_lqr_lab_runs_as_usual(tmp_path, capsys):
+    from cartpole.control.pid import PIDError, check_cascade
+    from cartpole.models import build_model
+
+    path = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
+    with pytest.raises(PIDError) as refusal:
+        check_cascade(build_model(path))
+    assert main(["lqr", "--json", "--no-video", "--compare-pid", "--mjcf", str(path), "--out", str(tmp_path)]) == 0
+    cap = capsys.readouterr()
+    doc = json.loads(cap.out)
+    assert cap.err.strip().splitlines() == [f"cartpole lqr: --compare-pid skipped: {refusal.value}"]
+    assert doc["pid"] == {"skipped": str(refusal.value)}
+    assert CONTRACT <= set(doc) and doc["settled"] == [True] * 5
+    assert sorted(p.name for p in (tmp_path / "figures").iterdir()) == ["day5_cartpole_lqr.png"]
+    assert (tmp_path / "metrics" / "metrics.csv").is_file()
+
+
+# ---- --view without a display: the viewer's sentence on stderr, the rest as usual ------------------------------
+
+def test_view_without_a_display_says_so_and_writes_every_output(tmp_path, capsys, monkeypatch):
+    from cartpole.sim import Rollout, replays_exactly
+
+    for var in ("DISPLAY", "WAYLAND_DISPLAY"):
+        monkeypatch.delenv(var, raising=False)
+    assert main(["lqr", "--json", "--no-video", "--view", "--out", str(tmp_path)]) == 0
+    cap = capsys.readouterr()
+    doc = json.loads(cap.out)
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cartpole lqr: No display for the live viewer")
+    assert "DISPLAY is not set" in lines[0] and "Traceback" not in cap.err
+    assert CONTRACT <= set(doc) and doc["settled"] == [True] * 5
+    assert Path(doc["figure"]).is_file() and Path(doc["metrics"]).is_file()
+    first = doc["rollouts"][0]
+    assert replays_exactly(Rollout(t=first["t"], qpos=first["qpos"], qvel=first["qvel"], ctrl=first["ctrl"]),
+                           doc["mjcf"])
