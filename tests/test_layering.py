@@ -40,7 +40,8 @@ LAYERS = (
     ("ocp", ("cartpole.ocp",)),
     ("validation", ("cartpole.validation",)),
     ("viz", ("cartpole.viz",)),
-    ("applications", ("cartpole.lab", "cartpole.swingup", "cartpole.sweep", "cartpole.benchmark")),
+    ("applications", ("cartpole.lab", "cartpole.swingup", "cartpole.sweep", "cartpole.benchmark",
+                      "cartpole.feedforward")),
     ("commands", ("cartpole.commands", "cartpole.cli", "cartpole.__main__")),
 )
 TOP = "cartpole"

@@ -1,0 +1,111 @@
+"""``cartpole feedforward``: a planned swing-up's ctrl played open loop beside the same plan tracked by TVLQR, on the
+true model and on one whose pole mass is wrong, in MuJoCo; one table, one figure (and a video per run)."""
+from __future__ import annotations
+
+import sys
+
+HELP = ("feedforward beside feedback: the trajopt swing-up's ctrl open loop vs feedforward + TVLQR, also planned "
+        "with a wrong pole mass, in MuJoCo")
+
+
+def add_arguments(parser) -> None:
+    """``--mass-error``, ``--no-video``."""
+    parser.add_argument("--mass-error", type=str, default="0.1", metavar="F",
+                        help="relative error of the wrong planning model's pole mass (default 0.1: 10 %% heavier; "
+                             "a finite number above -1)")
+    parser.add_argument("--no-video", action="store_true",
+                        help="do not render videos/feedforward_<run>.mp4")
+
+
+def _rollout_doc(rollout) -> dict:
+    """The DESIGN contract's rollout: ``t``, ``qpos``, ``qvel``, ``ctrl`` and ``push`` (n zeros: no pushes here)."""
+    doc = rollout.to_dict()
+    if "push" not in doc:
+        doc["push"] = [0.0] * len(doc["ctrl"])
+    return doc
+
+
+def _fmt(v, spec: str, unit: str = "") -> str:
+    return "never" if v is None else f"{v:{spec}}{unit}"
+
+
+def run(args) -> dict:
+    """Validate the input, plan, run the four controllers, write the figure (and videos), return the JSON document."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from cartpole.feedforward import check_mass_error, run_feedforward
+    from cartpole.models import read_params
+    from cartpole.viz.feedforward_plot import plot_feedforward
+
+    # everything is validated before anything is solved or written
+    mass_error = check_mass_error(args.mass_error)
+    params = read_params(args.mjcf)
+    out = Path(args.out)
+
+    study = run_feedforward(params, mass_error=mass_error)   # its stages report through cartpole.progress
+    model = study.model
+    pct = f"{100 * mass_error:+g} %"
+    true_label = f"plan (MJCF's model), T = {study.plan.T:.2f} s"
+    wrong_label = f"plan (pole mass {pct}), T = {study.wrong_plan.T:.2f} s"
+    plans = {true_label: study.plan.trajectory}
+    if study.wrong_plan is not study.plan:
+        plans[wrong_label] = study.wrong_plan.trajectory
+    names = {"feedforward": "feedforward only", "feedforward_tvlqr": "feedforward + TVLQR",
+             "wrong_mass_tvlqr": f"feedforward + TVLQR, pole mass {pct}",
+             "wrong_mass_feedforward": f"feedforward only, pole mass {pct}"}
+    runs = {f"{names[n]}: {'success' if r.success else 'FAILED'}": r.rollout for n, r in study.runs.items()}
+    fig = plot_feedforward(runs, plans, params, out / "figures" / "feedforward.png", model=model,
+                           title=f"Feedforward beside feedback in MuJoCo ({Path(params.mjcf).name or 'MJCF text'})")
+
+    videos = None
+    if not args.no_video:
+        from cartpole.progress import stage
+        from cartpole.viz import VideoUnavailable, render_video
+
+        videos = {}
+        seconds = max(float(r.rollout.t[-1]) for r in study.runs.values())
+        with stage("videos", size=f"{len(study.runs)} x {seconds:.1f} s at 30 fps") as tick:
+            for i, (name, r) in enumerate(study.runs.items()):
+                try:
+                    path = render_video(params, r.rollout, out / "videos" / f"feedforward_{name}.mp4",
+                                        progress=lambda f, i=i: tick((i + f) / len(study.runs)))
+                except VideoUnavailable as exc:
+                    tick.close(ok=False)   # the stage failed: its line is not printed, the sentence below is
+                    print(f"cartpole feedforward: no videos ({exc})", file=sys.stderr)
+                    videos = None
+                    break
+                videos[name] = str(path.resolve())
+
+    doc = {"mjcf": params.mjcf, "mass_error": mass_error,
+           "plan": {"T": study.plan.T, "T_min": study.plan.T_min, "N": study.plan.trajectory.N},
+           "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
+                          "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},
+           "runs": {n: {**r.summary(), "rollout": _rollout_doc(r.rollout)} for n, r in study.runs.items()},
+           "figure": str(fig.resolve()), "videos": videos}
+    if not args.json:
+        joints = [params.joints[h].name for h in model.hinges]
+        print(f"MJCF: {params.mjcf}")
+        print(f"Plans (Hermite-Simpson, minimum time + 20 %): the MJCF's own model T = {study.plan.T:.3f} s; "
+              f"pole mass {pct} T = {study.wrong_plan.T:.3f} s. Each run starts hanging at rest and lasts its "
+              f"plan + 2 s in MuJoCo on the true MJCF.")
+        print("Success: upright and at rest for the last 1 s, cart off its limits, ctrl in range. Tracking errors "
+              "over the plan's span; final angle error wrapped, from upright.")
+        head = (f"{'run':<44} {'success':>7} {'upright at':>10} {'final angle':>12} {'max |dtheta|':>12} "
+                f"{'max |ds|':>9} {'peak |u|':>8}")
+        print(head)
+        print("-" * len(head))
+        for n, r in study.runs.items():
+            fin = np.rad2deg(np.abs(r.final_angle_error)).max() if r.final_angle_error.size else 0.0
+            print(f"{names[n]:<44} {'yes' if r.success else 'NO':>7} "
+                  f"{_fmt(r.time_to_upright, '.3f', ' s'):>10} {fin:>10.2f} ° "
+                  f"{np.rad2deg(r.max_angle_tracking_error):>10.2f} ° "
+                  f"{_fmt(r.max_cart_tracking_error, '.3f', ' m'):>9} {r.peak_ctrl:>8.3f}")
+        if len(joints) > 1:
+            print(f"(angles: the largest over the poles {', '.join(joints)})")
+        print(f"Every rollout replays exactly from its logged ctrl: "
+              f"{all(r.replays_exactly for r in study.runs.values())}")
+        print(f"Figure: {fig}")
+        print("Videos: " + ("not written" if not videos else ", ".join(videos.values())))
+    return doc

@@ -1,0 +1,136 @@
+"""Figure of feedforward beside feedback: several MuJoCo runs against the plans they follow, on one set of axes.
+
+One angle panel per pole (wrapped angle error from the upright equilibrium ``x*``, degrees; each plan dashed, each
+run solid, lines broken where the wrapped angle jumps by a turn), the cart position (with its joint limits) when the
+model has a slide, and one ctrl panel per actuator (each run's applied ctrl as steps, each plan's knot input dashed,
+the ctrl range dotted). Vertical lines mark each plan's end (where TVLQR hands over to the LQR catch).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from cartpole._files import atomic_write
+from cartpole.models import build_model, wrap_angle
+
+#: Line colours of the runs, in order; plans are drawn in shades of grey.
+RUN_COLOURS = ("C3", "C0", "C2", "C1", "C4", "C5")
+PLAN_COLOURS = ("k", "0.45", "0.7")
+
+
+def _broken(y: np.ndarray) -> np.ndarray:
+    """``y`` with NaN inserted where consecutive samples jump by more than 180 degrees (a wrap, not motion)."""
+    y = np.asarray(y, dtype=float).copy()
+    jump = np.flatnonzero(np.abs(np.diff(y)) > 180.0)
+    return np.insert(y, jump + 1, np.nan)
+
+
+def _broken_t(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    jump = np.flatnonzero(np.abs(np.diff(np.asarray(y, dtype=float))) > 180.0)
+    return np.insert(np.asarray(t, dtype=float), jump + 1, np.nan)
+
+
+def plot_feedforward(runs: Mapping, plans: Mapping, params, path, *, model=None, title: str | None = None) -> Path:
+    """Draw :func:`feedforward_figure` and save it as PNG (whole or not at all:
+    :func:`~cartpole._files.atomic_write`; parent directories are created). Returns the path written."""
+    fig = feedforward_figure(runs, plans, params, model=model, title=title)
+    return atomic_write(path, lambda fh: fig.savefig(fh, dpi=100, format="png"))
+
+
+def feedforward_figure(runs: Mapping, plans: Mapping, params, *, model=None, title: str | None = None):
+    """Runs beside plans as a matplotlib ``Figure`` on an Agg canvas (no pyplot); panels as the module says.
+
+    Parameters
+    ----------
+    runs : mapping of str -> Rollout
+        Legend label -> what MuJoCo did (``t`` (n+1,), ``qpos`` (n+1, nq), ``ctrl`` (n, nu)), drawn solid.
+    plans : mapping of str -> Trajectory
+        Legend label -> planned trajectory (knots ``t`` (N+1,), ``state(t)``, ``u`` (N+1, nu)), drawn dashed; its
+        end is marked on every panel.
+    params : CartPoleParams
+        Joints, cart and ctrl ranges, actuator names and gears.
+    model : CartPoleModel, optional
+        For the upright equilibrium ``x_eq`` (default built from ``params``).
+    title : str, optional
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    model = model or build_model(params)
+    hinges, slide, nu = params.hinges, params.slide, params.nu
+    x_eq = np.asarray(model.x_eq)
+    n_panels = len(hinges) + (slide is not None) + nu
+    fig = Figure(figsize=(10, 2.6 * n_panels + 1.0))
+    FigureCanvasAgg(fig)
+    ax = list(np.atleast_1d(fig.subplots(n_panels, 1, sharex=True)))
+    ax_th, rest = ax[:len(hinges)], ax[len(hinges):]
+    ax_s = rest.pop(0) if slide is not None else None
+    ax_u = rest[:nu]
+
+    plan_lines = {}
+    for j, (label, plan) in enumerate(plans.items()):
+        c = PLAN_COLOURS[j % len(PLAN_COLOURS)]
+        tp = np.linspace(plan.t[0], plan.t[-1], 600)
+        xp = plan.state(tp)
+        plan_lines[label] = (tp, xp, c)
+        for a, h in zip(ax_th, hinges):
+            y = np.rad2deg(wrap_angle(xp[:, h] - x_eq[h]))
+            a.plot(_broken_t(tp, y), _broken(y), "--", color=c, lw=1.6, label=label)
+        if ax_s is not None:
+            ax_s.plot(tp, xp[:, slide], "--", color=c, lw=1.6, label=label)
+        u = np.asarray(plan.u).reshape(len(plan.t), -1)
+        for k, a in enumerate(ax_u):
+            a.plot(plan.t, u[:, k], "--", color=c, lw=1.6, label=label)
+        for a in ax:
+            a.axvline(plan.t[-1], color=c, lw=0.8, ls=":")
+
+    for i, (label, run) in enumerate(runs.items()):
+        c = RUN_COLOURS[i % len(RUN_COLOURS)]
+        for a, h in zip(ax_th, hinges):
+            y = np.rad2deg(wrap_angle(run.qpos[:, h] - x_eq[h]))
+            a.plot(_broken_t(run.t, y), _broken(y), color=c, lw=1.0, label=label)
+        if ax_s is not None:
+            ax_s.plot(run.t, run.qpos[:, slide], color=c, lw=1.0, label=label)
+        for k, a in enumerate(ax_u):
+            a.step(run.t[:-1], run.ctrl[:, k], where="post", color=c, lw=0.8, label=label)
+
+    for i, (a, h) in enumerate(zip(ax_th, hinges)):
+        a.axhline(0.0, color="k", lw=0.5)
+        a.set_ylim(-190, 190)
+        a.set_yticks([-180, -90, 0, 90, 180])
+        name = params.joints[h].name
+        rel = "" if i == 0 else ", to its parent"
+        a.set_ylabel(f"pole {i + 1} ({name})\nangle from upright{rel}\n(deg, wrapped)")
+    if ax_s is not None:
+        lo, hi = params.cart_range
+        for v, lab in ((lo, "joint limit"), (hi, None)):
+            if np.isfinite(v):
+                ax_s.axhline(v, color="r", ls=":", lw=1.0, label=lab)
+        ax_s.set_ylabel(f"cart ({params.joints[slide].name})\nposition (m)")
+    for k, (a, act) in enumerate(zip(ax_u, params.actuators)):
+        ulo, uhi = params.ctrl_range[k]
+        for v, lab in ((ulo, "ctrl range"), (uhi, None)):
+            if np.isfinite(v):
+                a.axhline(v, color="r", ls=":", lw=1.0, label=lab)
+        unit = "N" if params.joints[act.joint].kind == "slide" else "N m"
+        a.set_ylabel(f"ctrl {act.name}\n(force = {act.gear:g} {unit} x ctrl)")
+    ax[-1].set_xlabel("time (s); dotted vertical: end of each plan (hand-over to the LQR catch)")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+    # one legend per panel kind, outside the busy curves
+    ax[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, title="plans (dashed), runs (solid)",
+                 title_fontsize=8)
+    for a in ax[1:]:
+        handles, labels = a.get_legend_handles_labels()
+        keep = [(h_, l_) for h_, l_ in zip(handles, labels) if l_ in ("joint limit", "ctrl range")]
+        if keep:
+            a.legend(*zip(*keep), loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    fig.suptitle(title or "Feedforward beside feedback, in MuJoCo")
+    fig.tight_layout()
+    return fig
