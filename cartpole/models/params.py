@@ -281,36 +281,42 @@ class CartPoleParams:
         pole = set(self.pole_bodies)
         return float(sum(b.mass for i, b in enumerate(self.bodies) if i not in pole))
 
-    def _first_pole_geometry(self):
-        """(hinge axis (3,), COM minus hinge anchor (3,), inertia about the COM (3, 3)) at ``qpos = qpos0``."""
+    def carried_by(self, hinge: int) -> tuple[float, float, float]:
+        """What hinge ``hinge`` (a qpos index) carries, as one rigid body at ``qpos = qpos0``.
+
+        Returns ``(mass kg, distance m of its centre of mass from the hinge axis, moment of inertia kg m^2
+        about the axis without armature)``; zeros when it carries no mass.
+        """
         from cartpole.models.kinematics import forward_kinematics_np
-        if not self.hinges:
-            raise MJCFError("This model has no hinge, so it has no pole; add a hinged body.")
         fk = forward_kinematics_np(self, np.array([j.qpos0 for j in self.joints]))
-        h = self.hinges[0]
-        axis, anchor = fk.joint_axis[h], fk.joint_anchor[h]
-        bodies = self.pole_bodies
+        n, anchor = fk.joint_axis[hinge], fk.joint_anchor[hinge]
+        bodies = self.subtree(self.joints[hinge].body)
         m = np.array([self.bodies[b].mass for b in bodies])
+        if not m.sum() > 0:
+            return 0.0, 0.0, 0.0
         c = np.array([fk.com[b] for b in bodies])
         com = (m[:, None] * c).sum(0) / m.sum()
         inertia = np.zeros((3, 3))
         for b, mb, cb in zip(bodies, m, c):
             r = cb - com
             inertia += fk.inertia[b] + mb * (r @ r * np.eye(3) - np.outer(r, r))
-        return axis, com - anchor, inertia
+        d = (com - anchor) - ((com - anchor) @ n) * n
+        return float(m.sum()), float(np.linalg.norm(d)), float(n @ inertia @ n + m.sum() * (d @ d))
+
+    def _first_hinge(self) -> int:
+        if not self.hinges:
+            raise MJCFError("This model has no hinge, so it has no pole; add a hinged body.")
+        return self.hinges[0]
 
     @property
     def pole_com_distance(self) -> float:
         """Distance in m from the first hinge's axis to the centre of mass of what it carries."""
-        n, r, _ = self._first_pole_geometry()
-        return float(np.linalg.norm(r - (r @ n) * n))
+        return self.carried_by(self._first_hinge())[1]
 
     @property
     def pole_inertia_about_hinge(self) -> float:
         """Moment of inertia in kg m^2 about the first hinge's axis of what it carries (no armature)."""
-        n, r, inertia = self._first_pole_geometry()
-        d = r - (r @ n) * n
-        return float(n @ inertia @ n + self.pole_mass * (d @ d))
+        return self.carried_by(self._first_hinge())[2]
 
     # ---- deliberate model error ---------------------------------------------------------------
     def replace(self, **changes) -> "CartPoleParams":

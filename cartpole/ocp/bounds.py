@@ -128,29 +128,6 @@ def bounds_from_model(model: CartPoleModel, **overrides) -> OCPBounds:
     return bounds_from_params(model.params, **overrides)
 
 
-def _hinge_geometry(params: CartPoleParams, hinge: int) -> tuple[float, float, float]:
-    """(mass kg, COM distance from the axis m, inertia about the axis kg m^2) of everything ``hinge`` carries,
-    as one rigid body at ``qpos = qpos0`` (the joints below it held)."""
-    from cartpole.models import forward_kinematics_np
-
-    fk = forward_kinematics_np(params, np.array([j.qpos0 for j in params.joints]))
-    n, anchor = fk.joint_axis[hinge], fk.joint_anchor[hinge]
-    bodies = params.subtree(params.joints[hinge].body)
-    m = np.array([params.bodies[b].mass for b in bodies])
-    if not m.sum() > 0:
-        return 0.0, 0.0, 0.0
-    c = np.array([fk.com[b] for b in bodies])
-    com = (m[:, None] * c).sum(0) / m.sum()
-    inertia = np.zeros((3, 3))
-    for b, mb, cb in zip(bodies, m, c):
-        r = cb - com
-        inertia += fk.inertia[b] + mb * (r @ r * np.eye(3) - np.outer(r, r))
-    r = com - anchor
-    d = r - (r @ n) * n
-    mass = float(sum(params.bodies[b].mass for b in bodies))
-    return mass, float(np.linalg.norm(d)), float(n @ inertia @ n + mass * (d @ d))
-
-
 def scales(model: CartPoleModel, bounds: OCPBounds) -> np.ndarray:
     """Typical magnitudes (nx + nu,) of ``[qpos, qvel, ctrl]``, to scale the NLP to order one.
 
@@ -170,7 +147,7 @@ def scales(model: CartPoleModel, bounds: OCPBounds) -> np.ndarray:
     for i, joint in enumerate(p.joints):
         if joint.kind == "hinge":
             pos[i] = np.pi
-            m, l, J = _hinge_geometry(p, i)
+            m, l, J = p.carried_by(i)
             J = J + p.armature[i]
             rate[i] = np.sqrt(4 * m * p.g * l / J) if m * p.g * l > 0 and J > 0 else np.pi
             continue
