@@ -1,17 +1,125 @@
-"""Write output files whole or not at all."""
+"""Write output files whole or not at all; turn every file-system failure into one sentence.
+
+* :func:`atomic_write` / :func:`atomic_path`: write beside the target, rename over it at the end; a failure part-way
+  leaves no file (an existing target untouched) and removes the directories it had created.
+* :func:`write_csv`, :func:`append_csv_row`: CSV through the :mod:`csv` module, atomically.
+* :func:`check_out_dir`: before any work, is ``--out`` a directory that exists or can be created, and writable?
+* :func:`output_transaction`: a command's outputs as a set: when the block fails, the files and directories it
+  created are removed again, so a failed command leaves the ``--out`` tree as it found it (files it *replaced* keep
+  their new, whole content).
+
+Every :class:`OSError` on the way (no space left, a read-only file system, a file where a directory should be, no
+permission) becomes :class:`OutputError`: one sentence naming the path, the reason and what to do.
+"""
 from __future__ import annotations
 
+import csv
+import errno
+import io
 import os
 import tempfile
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
-from typing import IO, Callable, Iterator
+from typing import IO, Callable, Iterable, Iterator, Sequence
+
+from cartpole.errors import CartPoleError
+
+_ADVICE = {
+    errno.ENOSPC: "free some space or choose another --out",
+    errno.EDQUOT: "free some space or choose another --out",
+    errno.EROFS: "the file system is read-only; choose a writable --out",
+    errno.EACCES: "choose a directory you may write to as --out",
+    errno.EPERM: "choose a directory you may write to as --out",
+    errno.ENOTDIR: "a file stands where a directory is needed; remove it or choose another --out",
+    errno.EEXIST: "a file stands where a directory is needed; remove it or choose another --out",
+    errno.EISDIR: "a directory stands where the file goes; remove it or choose another --out",
+    errno.ENAMETOOLONG: "choose a shorter --out",
+}
+
+
+def short(path, width: int = 90) -> str:
+    """``path`` as text, its middle elided (``/tmp/run/...long/figure.png``) past ``width`` characters, so that a
+    sentence naming it stays short."""
+    text = str(path)
+    if len(text) <= width:
+        return text
+    head = width // 3
+    return text[:head] + "..." + text[-(width - head - 3):]
+
+
+class OutputError(CartPoleError, OSError):
+    """An output file or directory cannot be written (one sentence: the path, why, what to do).
+
+    Also an :class:`OSError`, so code that caught the file system's own error still catches this one.
+    """
+
+
+def output_error(path, exc: OSError, what: str = "write") -> OutputError:
+    """:class:`OutputError` for ``exc`` raised while trying to ``what`` ``path``."""
+    code = getattr(exc, "errno", None)
+    reason = exc.strerror or type(exc).__name__
+    advice = _ADVICE.get(code, "check the path or choose another --out")
+    err = OutputError(f"Cannot {what} {short(path)} ({reason}); {advice}.")
+    err.errno = code
+    return err
 
 
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+# ---- a command's outputs as one set ---------------------------------------------------------------------------
+
+_CREATED: ContextVar[list | None] = ContextVar("cartpole_output_transaction", default=None)
+
+
+@contextmanager
+def output_transaction() -> Iterator[list]:
+    """Inside the block, remember every file and directory :func:`atomic_path` creates; if the block raises,
+    remove them again (newest first; directories only when empty) and re-raise. Yields that list of paths."""
+    created: list[Path] = []
+    token = _CREATED.set(created)
+    try:
+        yield created
+    except BaseException:
+        _remove(created)
+        raise
+    finally:
+        _CREATED.reset(token)
+
+
+def _remove(paths) -> None:
+    for p in reversed(list(paths)):
+        try:
+            if p.is_dir() and not p.is_symlink():
+                p.rmdir()
+            else:
+                p.unlink()
+        except OSError:
+            pass  # not empty (something else wrote there), already gone: leave it
+
+
+def _missing_parents(path: Path) -> list[Path]:
+    """The ancestors of ``path`` that do not exist yet, outermost first."""
+    missing = []
+    for p in path.parents:
+        if os.path.lexists(p):
+            break
+        missing.append(p)
+    return missing[::-1]
+
+
+def _make_parents(path: Path) -> list[Path]:
+    missing = _missing_parents(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        _remove(p for p in missing if p.exists())
+        raise output_error(path.parent, exc, "create the directory") from None
+    return missing
 
 
 @contextmanager
@@ -21,20 +129,41 @@ def atomic_path(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
     For writers that take a file name rather than a file object (an encoder in another process, say). The
     temporary file exists (empty) when the block starts, its name ends with ``suffix`` (give the target's own,
     e.g. ``".mp4"``, when the writer picks its format from the name). A failure part-way leaves no file behind
-    (and an existing ``path`` untouched). The result gets the usual permissions (``0o666`` less the umask), not
-    ``mkstemp``'s private ``0o600``. Parent directories are created.
+    (and an existing ``path`` untouched) and removes the parent directories this call created. The result gets
+    the usual permissions (``0o666`` less the umask), not ``mkstemp``'s private ``0o600``. Parent directories are
+    created.
+
+    Raises
+    ------
+    OutputError
+        The directory cannot be created, the temporary file cannot be made or renamed (errors raised inside the
+        block itself pass through unchanged).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    created = _make_parents(path)
+    existed = os.path.lexists(path)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    except OSError as exc:
+        _remove(created)
+        raise output_error(path, exc) from None
     os.close(fd)
     try:
         yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
+        try:
+            os.chmod(tmp, 0o666 & ~_umask())
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise output_error(path, exc) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
+        _remove(created)
         raise
+    log = _CREATED.get()
+    if log is not None:
+        log.extend(created)
+        if not existed:
+            log.append(path)
 
 
 def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> Path:
@@ -43,8 +172,109 @@ def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> Path:
     A failure part-way leaves no file behind (and an existing ``path`` untouched). The result gets the usual
     permissions (``0o666`` less the umask), not ``mkstemp``'s private ``0o600``. Parent directories are
     created. Returns ``path``.
+
+    Raises
+    ------
+    OutputError
+        Any :class:`OSError` while creating, writing, flushing or renaming (a full disk, a read-only file system,
+        a file where a directory should be...), as one sentence.
     """
     path = Path(path)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        write(fh)
+    with atomic_path(path) as tmp:
+        try:
+            with open(tmp, "wb") as fh:
+                write(fh)
+        except OutputError:
+            raise
+        except OSError as exc:
+            raise output_error(path, exc) from None
     return path
+
+
+# ---- CSV ---------------------------------------------------------------------------------------------------
+
+def _csv_text(rows: Iterable[Sequence]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    return buf.getvalue()
+
+
+def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence]) -> Path:
+    """Write ``header`` and ``rows`` as CSV (the :mod:`csv` module's quoting, ``\\n`` line ends), whole or not at
+    all (:func:`atomic_write`). Returns ``path``."""
+    text = _csv_text([list(header), *(list(r) for r in rows)])
+    return atomic_write(path, lambda fh: fh.write(text.encode()))
+
+
+def append_csv_row(path: str | Path, header: Sequence[str], row: Sequence) -> Path:
+    """Append one CSV ``row`` to ``path``, writing ``header`` first when the file is new (or empty).
+
+    Atomic, copy-append-rename: the old content and the new row go to a temporary file beside ``path``, which is
+    renamed over it, so a reader never sees half a row and a failure leaves the old file as it was. The row is
+    quoted by the :mod:`csv` module (a comma or a quote inside a field stays one field). Returns ``path``.
+
+    Raises
+    ------
+    OutputError
+        ``path`` exists with another header (the sentence says which), or cannot be read or written.
+    """
+    path = Path(path)
+    header = [str(h) for h in header]
+    row = list(row)
+    if len(row) != len(header):
+        raise ValueError(f"append_csv_row: the row has {len(row)} fields but the header {len(header)}.")
+    try:
+        old = path.read_bytes() if path.exists() else b""
+    except OSError as exc:
+        raise output_error(path, exc, "read") from None
+    if old.strip():
+        first = next(csv.reader(io.StringIO(old.decode(errors="replace").splitlines()[0])), [])
+        if first != header:
+            raise OutputError(f"Cannot append to {short(path)}: its header is {short(','.join(first), 60)}, not "
+                              f"{short(','.join(header), 60)}; move it away (a new file gets the right header).")
+        if not old.endswith(b"\n"):
+            old += b"\n"
+        new = old + _csv_text([row]).encode()
+    else:
+        new = _csv_text([header, row]).encode()
+    return atomic_write(path, lambda fh: fh.write(new))
+
+
+# ---- --out --------------------------------------------------------------------------------------------------
+
+def check_out_dir(out: str | Path) -> Path:
+    """Check, before any work and without creating anything, that ``out`` is a directory that exists or can be
+    created, and that it is writable. Returns ``Path(out)``.
+
+    Raises
+    ------
+    OutputError
+        ``out`` (or one of its ancestors) is a file; the nearest existing ancestor cannot be written (no permission,
+        a read-only file system); the name is too long.
+    """
+    out = Path(out)
+    if os.path.lexists(out) and not out.is_dir():
+        raise OutputError(f"--out {short(out)} is a file, not a directory; give a directory (it is created if "
+                          "missing).")
+    probe = out
+    while not os.path.lexists(probe):
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise OutputError(f"--out {short(out)} cannot be created: {short(probe)} is a file, not a directory; give "
+                          "another --out.")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        try:
+            readonly = bool(os.statvfs(probe).f_flag & os.ST_RDONLY)
+        except (OSError, AttributeError):
+            readonly = False
+        why = "is on a read-only file system" if readonly else "is not writable"
+        raise OutputError(f"--out {short(out)} cannot be written: {short(probe)} {why}; choose a writable --out.")
+    try:
+        max_name = os.pathconf(probe, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        max_name = 255
+    if any(len(part.encode()) > max_name for part in out.parts):
+        raise OutputError(f"--out {short(out)} has a name longer than {max_name} bytes; choose a shorter --out.")
+    return out

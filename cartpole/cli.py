@@ -1,21 +1,37 @@
 """The ``cartpole`` command line: one subcommand per module in :mod:`cartpole.commands`.
 
-Every subcommand takes ``--mjcf PATH`` (default: the shipped asset), ``--out DIR`` (default: the current
-directory) and ``--json`` (print exactly one JSON document on stdout, nothing else). Bad input ends with
-one sentence on stderr and exit status 2, never a traceback.
+Every subcommand takes ``--mjcf PATH`` (default: the shipped asset) and ``--json`` (print exactly one JSON document
+on stdout, nothing else); those that write files take ``--out DIR`` (default: the current directory), checked
+before any work. Bad input ends with one sentence on stderr and exit status 2, never a traceback, and leaves the
+``--out`` tree as it was (:func:`cartpole._files.output_transaction`). Long stages report on stderr through
+:mod:`cartpole.progress` (a live bar on a terminal, one line per stage otherwise, nothing with ``--json``).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import os
 import sys
 
-from cartpole.errors import CartPoleError
+from cartpole.errors import CartPoleError, first_line
 
-#: Subcommand modules, in the order ``cartpole --help`` lists them.
-COMMANDS = ("linearize", "lqr", "swingup", "bench")
+#: Subcommand modules, in the order ``cartpole --help`` lists them (one per line: add a command with one line).
+COMMANDS = (
+    "linearize",
+    "lqr",
+    "swingup",
+    "sweep",
+    "bench",
+)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors as one line (``cartpole swingup: argument --x0: ...; see --help``), exit 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: {message}; see `{self.prog} --help`.\n")
 
 
 def _load_commands():
@@ -29,19 +45,34 @@ def _load_commands():
     return mods
 
 
+def sentence(exc: BaseException) -> str:
+    """The error's message as one line ending in a full stop (:func:`cartpole.errors.first_line`)."""
+    text = first_line(exc)
+    return text if text.endswith(".") else text + "."
+
+
+def writes_files(mod) -> bool:
+    """Whether a command module writes files (``WRITES_FILES``, default True): only those take ``--out``."""
+    return bool(getattr(mod, "WRITES_FILES", True))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every available subcommand and the common options."""
-    parser = argparse.ArgumentParser(prog="cartpole", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="cartpole", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name, mod in _load_commands().items():
-        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        p = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         p.add_argument("--mjcf", default=None, metavar="PATH",
                        help="cart-pole MJCF file (default: the shipped cartpole/assets/cartpole.xml)")
-        p.add_argument("--out", default=".", metavar="DIR", help="directory for outputs (default: .)")
+        if writes_files(mod):
+            p.add_argument("--out", default=".", metavar="DIR",
+                           help="directory for outputs, created if missing (default: .)")
+        else:  # accepted and ignored for old scripts (deprecated): this command writes no files
+            p.add_argument("--out", default=None, help=argparse.SUPPRESS)
         p.add_argument("--json", action="store_true", help="print one JSON document on stdout instead of prose")
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        p.set_defaults(_run=mod.run, _writes=writes_files(mod))
     return parser
 
 
@@ -69,12 +100,33 @@ def to_jsonable(obj):
     return obj
 
 
+def _run(args):
+    """Run the command inside its progress reporter (and, when it writes files, its output transaction)."""
+    from cartpole._files import check_out_dir, output_transaction
+    from cartpole.progress import reporting
+
+    with contextlib.ExitStack() as stack:
+        if args._writes:
+            args.out = str(check_out_dir(args.out))
+            stack.enter_context(output_transaction())
+        elif args.out is not None:
+            print(f"cartpole {args.command}: --out is ignored: {args.command} writes no files (the option is "
+                  "deprecated and will be removed; drop it).", file=sys.stderr)
+        stack.enter_context(reporting(args.command, enabled=not args.json))
+        if args.json:  # a stray print must not spoil the one JSON document
+            stack.enter_context(contextlib.redirect_stdout(sys.stderr))
+        return args._run(args)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``cartpole`` console script; returns the exit status."""
     # Headless rendering: MUJOCO_GL must be set before mujoco is first imported.
     os.environ.setdefault("MUJOCO_GL", "egl")
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a bad option (2, one line already printed)
+        return exc.code if isinstance(exc.code, int) else 2
     try:
         import mujoco  # noqa: F401  (MuJoCo 4 raises AttributeError, not ImportError, for a missing GL library)
     except Exception as exc:  # pragma: no cover - depends on the machine's GL libraries
@@ -82,9 +134,18 @@ def main(argv=None) -> int:
               f"({type(exc).__name__}); set MUJOCO_GL=egl (or unset it) and try again.", file=sys.stderr)
         return 2
     try:
-        doc = args._run(args)
+        doc = _run(args)
     except CartPoleError as exc:
-        print(f"cartpole {args.command}: {exc}", file=sys.stderr)
+        print(f"cartpole {args.command}: {sentence(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"cartpole {args.command}: ran out of memory; give a shorter --duration or fewer runs.",
+              file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file-system failure outside cartpole._files (its own are OutputError)
+        where = f" {exc.filename}" if getattr(exc, "filename", None) else ""
+        print(f"cartpole {args.command}: cannot read or write{where} ({exc.strerror or sentence(exc)[:-1]}); "
+              "check the path or choose another --out.", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"cartpole {args.command}: interrupted.", file=sys.stderr)

@@ -1,58 +1,75 @@
-"""Robustness sweep of the energy swing-up: many seeded starts (and optionally jittered gains), one summary.
+"""Robustness sweep of the swing-up: many seeded starts (optionally jittered gains), one row per run, one summary.
 
-Each run is :func:`cartpole.swingup.run_swingup` (energy shaping + LQR catch, in MuJoCo on the MJCF), so a sweep
-measures exactly what ``cartpole swingup`` does. A run counts as a success when
-:func:`~cartpole.validation.metrics.swingup_success` holds (upright and at rest over the last second,
-cart never at its limit, every ctrl in range) *and* its log replays exactly with ``mj_step``
-(:func:`~cartpole.sim.rollout.replays_exactly`). The basin estimate is computed once per model and reused
-(:class:`~cartpole.validation.basin.BasinCache`).
+Each run is :func:`cartpole.swingup.run_swingup` (``method="energy"``: energy shaping + LQR catch, or
+``"trajopt"``: collocation + TVLQR), in MuJoCo on the MJCF, so a sweep measures exactly what ``cartpole swingup``
+does. A run counts as a success when :func:`~cartpole.validation.metrics.swingup_success` holds (upright and at
+rest over the last second, cart never at its limit, every ctrl in range) *and* its log replays exactly with
+``mj_step`` (:func:`~cartpole.sim.rollout.replays_exactly`). A run that raises a :class:`CartPoleError` (an
+infeasible plan from that start, say) is a failure whose row carries the sentence as ``error``. The catch basin is
+estimated once, before the runs (:class:`~cartpole.validation.basin.BasinCache`), and handed to every run.
 
 Starts: ``center + U(-half_widths, half_widths)`` per state from ``numpy.random.default_rng(seed)``, default
-around hanging at rest with half-widths ``(0.3 m, 0.3 rad, 0.3 m/s, 1 rad/s)``. Gain jitter (``gain_jitter = j``)
-multiplies each dimensionless setting in :data:`JITTERED` by an independent ``U(1 - j, 1 + j)`` factor per run
-(``energy_accel`` is capped at 1), drawn from the same generator after the starts.
+around the model's hanging rest ``x_hanging`` with half-widths 0.3 m per slide, 0.3 rad per hinge, 0.3 m/s per
+slide rate and 1 rad/s per hinge rate (one pole: ``(0.3 m, 0.3 rad, 0.3 m/s, 1 rad/s)``); cart positions are kept
+1 mm inside the rail. Gain jitter (``gain_jitter = j``, energy only) multiplies each dimensionless setting in
+:data:`JITTERED` by an independent ``U(1 - j, 1 + j)`` factor per run (``energy_accel`` is capped at 1), drawn from
+the same generator after the starts.
 
-Example (the before/after numbers of the README)::
+Parallel runs (``workers > 1``): a :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` start method) whose
+initializer builds the model once per worker process; every run depends only on the model, its start and its
+settings, so the rows are the same, bit for bit, for any number of workers, and they come back in run order.
+This machine only: no cluster address yet.
 
-    python -m cartpole.sweep --n 20 --seed 0
+Example (the README's numbers)::
+
+    cartpole sweep --n 20 --seed 0 --workers 2          # or: python -m cartpole.sweep --n 20
 """
 from __future__ import annotations
 
-import sys
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.energy import DEFAULT_SCALING
-from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, read_params
+from cartpole.errors import CartPoleError, first_line
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.progress import stage
 from cartpole.sim import replays_exactly
-from cartpole.swingup import run_swingup
+from cartpole.swingup import ENERGY_DURATION, run_swingup
 from cartpole.validation.basin import BasinCache
 
-#: Default start box: centre (hanging at rest) and half-widths [m, rad, m/s, rad/s].
+#: Default start box for one pole: centre (hanging at rest) and half-widths [m, rad, m/s, rad/s].
 HANGING = (0.0, np.pi, 0.0, 0.0)
 HALF_WIDTHS = (0.3, 0.3, 0.3, 1.0)
+#: Half-widths per joint kind for any model: (position, rate) for a slide [m, m/s] and a hinge [rad, rad/s].
+SLIDE_HALF_WIDTHS = (0.3, 0.3)
+HINGE_HALF_WIDTHS = (0.3, 1.0)
 #: Dimensionless energy-shaping settings that ``gain_jitter`` perturbs.
 JITTERED = ("energy_gain", "overshoot", "energy_accel", "centring_frequency", "centring_damping",
             "damping_softening", "centring_band")
+METHODS = ("energy", "trajopt")
+#: Most runs in one sweep (their rows are held in memory and printed as one JSON document).
+MAX_RUNS = 100_000
+#: Most worker processes.
+MAX_WORKERS = 256
 
 
 class SweepError(CartPoleError):
-    """Bad sweep settings (no runs, negative widths, jitter outside [0, 1))."""
+    """Bad sweep settings (no runs, negative widths, jitter outside [0, 1), an unknown method, bad workers)."""
 
 
 @dataclass(frozen=True)
 class SweepResult:
-    """What a robustness sweep found; arrays are read-only, one entry per run.
+    """What a robustness sweep found; arrays are read-only, one entry per run, in run order.
 
     Attributes
     ----------
     mjcf : str
         The MJCF every run used.
-    starts : (n, 4) array
-        Start states [m, rad, m/s, rad/s].
+    starts : (n, 2 nq) array
+        Start states ``[qpos, qvel]`` [m, rad, m/s, rad/s].
     success : (n,) bool array
         ``swingup_success`` of the MuJoCo rollout and the rollout replays exactly.
     time_to_upright : (n,) array
@@ -60,18 +77,27 @@ class SweepResult:
     caught_at : (n,) array
         s, when the LQR catch took over for good; NaN if it never did.
     cart_clearance : (n,) array
-        m, smallest distance to a cart limit over each run.
+        m, smallest distance to a cart limit over each run (NaN for a run that raised).
     peak_ctrl : (n,) array
-        Largest |ctrl| of each run.
+        Largest |ctrl| of each run (NaN for a run that raised).
     options : tuple of dict
         The energy-shaping keyword arguments of each run (jittered settings), as passed to the controller.
     rho : float
         Catch level used (the basin estimate's).
     seed : int
-    duration : float
-        Simulated seconds per run.
-    half_widths : (4,) array
+    duration : float or None
+        Simulated seconds per run (energy default 10 s; None for trajopt's default, each plan + 3 s).
+    half_widths : (2 nq,) array
     gain_jitter : float
+    base_options : dict
+    method : str
+        "energy" or "trajopt".
+    replays : (n,) bool array
+        The run's log replays exactly with ``mj_step``.
+    errors : tuple of (str or None)
+        The sentence of a run that raised, else None.
+    workers : int
+        Processes the runs were spread over.
     """
 
     mjcf: str
@@ -84,15 +110,23 @@ class SweepResult:
     options: tuple
     rho: float
     seed: int
-    duration: float
+    duration: float | None
     half_widths: np.ndarray
     gain_jitter: float
     base_options: dict = field(default_factory=dict)
+    method: str = "energy"
+    replays: np.ndarray | None = None
+    errors: tuple = ()
+    workers: int = 1
 
     def __post_init__(self):
         for name in ("starts", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl", "half_widths"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         object.__setattr__(self, "success", readonly(self.success, bool))
+        rep = self.success if self.replays is None else self.replays
+        object.__setattr__(self, "replays", readonly(rep, bool))
+        if not self.errors:
+            object.__setattr__(self, "errors", (None,) * self.n)
 
     @property
     def n(self) -> int:
@@ -119,80 +153,200 @@ class SweepResult:
         t = self._t()
         return float(np.max(t)) if t.size else float("nan")
 
+    def rows(self) -> list[dict]:
+        """One JSON-ready dict per run, in run order: ``run`` (index), ``start`` (2 nq numbers), ``success``,
+        ``replays``, ``time_to_upright`` (s or None), ``caught_at`` (s or None), ``cart_clearance`` (m),
+        ``peak_ctrl``, ``error`` (the sentence of a run that raised, else None)."""
+        return [{"run": i, "start": self.starts[i].tolist(), "success": bool(self.success[i]),
+                 "replays": bool(self.replays[i]), "time_to_upright": _num(self.time_to_upright[i]),
+                 "caught_at": _num(self.caught_at[i]), "cart_clearance": _num(self.cart_clearance[i]),
+                 "peak_ctrl": _num(self.peak_ctrl[i]), "error": self.errors[i]} for i in range(self.n)]
+
     def summary(self) -> dict:
-        """JSON-ready summary: ``mjcf``, ``n``, ``successes``, ``success_rate``, ``time_to_upright_median``,
-        ``time_to_upright_max``, ``caught_at_median``, ``min_cart_clearance``, ``max_peak_ctrl``, ``failed`` (start
-        states of the failures), ``seed``, ``duration``, ``half_widths``, ``gain_jitter``, ``rho``."""
-        nan = lambda v: None if not np.isfinite(v) else float(v)  # noqa: E731
+        """JSON-ready summary: ``mjcf``, ``method``, ``n``, ``successes``, ``success_rate``,
+        ``time_to_upright_median``, ``time_to_upright_max``, ``caught_at_median``, ``min_cart_clearance``,
+        ``max_peak_ctrl``, ``failed`` (start states of the failures), ``seed``, ``duration``, ``half_widths``,
+        ``gain_jitter``, ``rho``, ``workers``."""
         ca_ok = self.caught_at[self.success]
-        return {"mjcf": self.mjcf, "n": self.n, "successes": int(self.success.sum()),
-                "success_rate": self.success_rate, "time_to_upright_median": nan(self.t_median),
-                "time_to_upright_max": nan(self.t_max),
-                "caught_at_median": nan(float(np.median(ca_ok)) if ca_ok.size else np.nan),
-                "min_cart_clearance": float(self.cart_clearance.min()),
-                "max_peak_ctrl": float(self.peak_ctrl.max()),
+        return {"mjcf": self.mjcf, "method": self.method, "n": self.n, "successes": int(self.success.sum()),
+                "success_rate": self.success_rate, "time_to_upright_median": _num(self.t_median),
+                "time_to_upright_max": _num(self.t_max),
+                "caught_at_median": _num(float(np.median(ca_ok)) if ca_ok.size else np.nan),
+                "min_cart_clearance": _num(np.nanmin(self.cart_clearance) if np.any(np.isfinite(
+                    self.cart_clearance)) else np.nan),
+                "max_peak_ctrl": _num(np.nanmax(self.peak_ctrl) if np.any(np.isfinite(self.peak_ctrl)) else np.nan),
                 "failed": self.starts[~self.success].tolist(), "seed": self.seed, "duration": self.duration,
-                "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": self.rho}
+                "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": self.rho,
+                "workers": self.workers}
+
+
+def _num(v):
+    """A float, or None for NaN/inf (JSON has neither)."""
+    return None if v is None or not np.isfinite(v) else float(v)
 
 
 def _draw_starts(rng, n: int, center, half_widths) -> np.ndarray:
-    return np.asarray(center, float) + rng.uniform(-1, 1, (int(n), 4)) * np.asarray(half_widths, float)
+    c = np.asarray(center, float)
+    return c + rng.uniform(-1, 1, (int(n), c.size)) * np.asarray(half_widths, float)
 
 
 def sweep_starts(n: int, *, seed: int = 0, center=HANGING, half_widths=HALF_WIDTHS) -> np.ndarray:
-    """Seeded start states (n, 4): ``center + U(-half_widths, half_widths)`` (the starts :func:`swingup_sweep`
-    draws first from the same seed)."""
+    """Seeded start states (n, len(center)): ``center + U(-half_widths, half_widths)`` (the starts
+    :func:`swingup_sweep` draws first from the same seed, before keeping the cart inside its rail)."""
     return _draw_starts(np.random.default_rng(seed), n, center, half_widths)
 
 
-def swingup_sweep(mjcf=None, *, n: int = 20, seed: int = 0, center=HANGING, half_widths=HALF_WIDTHS,
-                  gain_jitter: float = 0.0, energy_options: dict | None = None, duration: float | None = None,
-                  catch_weights: tuple | None = None, basin_cache=None, progress=None) -> SweepResult:
-    """Run the energy swing-up from ``n`` seeded starts (optionally with jittered gains) and summarise.
+def default_half_widths(params: CartPoleParams) -> np.ndarray:
+    """(2 nq,) start half-widths for a model: :data:`SLIDE_HALF_WIDTHS` / :data:`HINGE_HALF_WIDTHS` per joint,
+    positions first, then rates (one pole on a cart: :data:`HALF_WIDTHS`)."""
+    kinds = [SLIDE_HALF_WIDTHS if j.kind == "slide" else HINGE_HALF_WIDTHS for j in params.joints]
+    return np.array([k[0] for k in kinds] + [k[1] for k in kinds], float)
+
+
+class _Runner:
+    """One process's share of a sweep: the model (built once), the basin cache, and the settings every run shares.
+
+    The same object serves the in-process loop (``workers = 1``) and each worker process (through
+    :func:`_init_worker`), so a run computes the same thing wherever it runs.
+    """
+
+    def __init__(self, params: CartPoleParams, method: str, duration, catch_weights, cache: BasinCache,
+                 model: CartPoleModel | None = None):
+        self.params = params
+        self.model = build_model(params) if model is None else model
+        self.method = method
+        self.duration = duration
+        self.catch_weights = catch_weights
+        self.cache = cache
+
+    def basin(self):
+        """The catch basin every run uses (estimated here once, then found in the cache)."""
+        from cartpole.control.switching import swingup_catch
+
+        catch = swingup_catch(self.model) if self.catch_weights is None else \
+            swingup_catch(self.model, *self.catch_weights)
+        return self.cache.get(self.params, catch)
+
+    def run(self, x0, options: dict) -> dict:
+        """One swing-up from ``x0``: its row's numbers (``success``, ``replays``, ``time_to_upright``, ...)."""
+        try:
+            res = run_swingup(self.model, method=self.method, x0=x0, duration=self.duration,
+                              basin_cache=self.cache, energy_options=options if self.method == "energy" else None,
+                              catch_weights=self.catch_weights)
+        except CartPoleError as exc:
+            return {"success": False, "replays": False, "time_to_upright": math.nan, "caught_at": math.nan,
+                    "cart_clearance": math.nan, "peak_ctrl": math.nan, "rho": math.nan,
+                    "error": first_line(exc) + "."}
+        m = res.metrics
+        replays = bool(replays_exactly(res.rollout, self.params))
+        ok = bool(res.success and replays)
+        tu = m["time_to_upright"]
+        return {"success": ok, "replays": replays,
+                "time_to_upright": float(tu) if (ok and tu is not None) else math.nan,
+                "caught_at": math.nan if res.caught_at is None else float(res.caught_at),
+                "cart_clearance": float(m["cart_clearance"]), "peak_ctrl": float(m["peak_ctrl"]),
+                "rho": float(res.basin.rho) if res.basin is not None else math.nan, "error": None}
+
+
+_WORKER: _Runner | None = None  # set in each worker process by _init_worker
+
+
+def _init_worker(params, method, duration, catch_weights, cache) -> None:
+    """ProcessPoolExecutor initializer: build this worker's model (once) and keep the shared settings."""
+    global _WORKER
+    _WORKER = _Runner(params, method, duration, catch_weights, cache)
+
+
+def _run_in_worker(x0, options) -> dict:
+    row = _WORKER.run(x0, options)
+    row["basins"] = len(_WORKER.cache)  # 1: the parent's estimate was reused, not redone here
+    return row
+
+
+def _check(method, n, workers, gain_jitter, half_widths, energy_options) -> None:
+    if method not in METHODS:
+        raise SweepError(f"Unknown sweep method '{method}'; choose one of {', '.join(METHODS)}.")
+    if not (isinstance(n, (int, np.integer)) and 1 <= n <= MAX_RUNS):
+        raise SweepError(f"A sweep needs 1 to {MAX_RUNS} runs (got n = {n}).")
+    if not (isinstance(workers, (int, np.integer)) and 1 <= workers <= MAX_WORKERS):
+        raise SweepError(f"--workers must be 1 to {MAX_WORKERS} processes on this machine (got {workers}).")
+    if not (0 <= gain_jitter < 1):
+        raise SweepError(f"A sweep needs 0 <= gain_jitter < 1 (got {gain_jitter}).")
+    if half_widths is not None and not np.all(np.asarray(half_widths, float) >= 0):
+        raise SweepError(f"A sweep needs half-widths >= 0 (got {half_widths}).")
+    if method != "energy" and (gain_jitter > 0 or energy_options):
+        raise SweepError("Gain jitter and energy options perturb energy shaping; drop them or use --method energy.")
+
+
+def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int = 0, center=None,
+                  half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
+                  duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
+                  progress=None, workers: int = 1) -> SweepResult:
+    """Run the swing-up from ``n`` seeded starts (optionally with jittered gains) and summarise.
 
     Parameters
     ----------
     mjcf : path or CartPoleParams or None
         The cart-pole (None = shipped asset).
+    method : {"energy", "trajopt"}
+        Swing-up of every run (:func:`~cartpole.swingup.run_swingup`).
     n : int
-        Number of runs.
+        Number of runs (1 to :data:`MAX_RUNS`).
     seed : int
         Seed of ``numpy.random.default_rng`` for the starts (and the gain jitter).
-    center : (4,) array
-        Centre of the start box, default hanging at rest.
-    half_widths : (4,) array
-        Half-widths of the start box [m, rad, m/s, rad/s]; default ``(0.3, 0.3, 0.3, 1.0)``.
+    center : (2 nq,) array, optional
+        Centre of the start box, default the model's hanging rest ``x_hanging``.
+    half_widths : (2 nq,) array, optional
+        Half-widths of the start box [m, rad, m/s, rad/s]; default :func:`default_half_widths` (one pole:
+        ``(0.3, 0.3, 0.3, 1.0)``).
     gain_jitter : float
-        In [0, 1): relative jitter of the settings in :data:`JITTERED` (0 = the gains as given).
+        In [0, 1): relative jitter of the settings in :data:`JITTERED` (0 = the gains as given); energy only.
     energy_options : dict, optional
         Energy-shaping settings (``EnergyShapingController`` keywords / ``default_gains`` scalings) every run
         starts from; default the package defaults.
     duration : float, optional
-        Simulated seconds per run (default that of :func:`~cartpole.swingup.run_swingup`, 10 s).
+        Simulated seconds per run (default that of :func:`~cartpole.swingup.run_swingup`).
     catch_weights : (Q, R), optional
         LQR weights of the catch (default :func:`~cartpole.control.switching.swingup_catch`'s), passed to
         :func:`~cartpole.swingup.run_swingup`.
     basin_cache : BasinCache, optional
         Reuse basin estimates across sweeps.
     progress : callable, optional
-        ``progress(fraction)`` after each run.
+        ``progress(fraction)`` after each run (the sweep is also a :func:`cartpole.progress.stage`).
+    workers : int
+        Processes to spread the runs over (1 = this process; results identical for any number).
 
     Returns
     -------
     SweepResult
+
+    Raises
+    ------
+    SweepError
+        Bad settings. Errors of the model (an MJCF that is not a cart-pole, energy on a chain) are raised before
+        any run; a run that raises on its own start is a failed row instead.
     """
-    if int(n) < 1 or not (0 <= gain_jitter < 1) or np.any(np.asarray(half_widths, float) < 0):
-        raise SweepError(f"A sweep needs n >= 1, half-widths >= 0 and 0 <= gain_jitter < 1 (got n = {n}, "
-                         f"half_widths = {half_widths}, gain_jitter = {gain_jitter}).")
+    _check(method, n, workers, gain_jitter, half_widths, energy_options)
+    n, workers = int(n), int(workers)
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
-    cache = BasinCache() if basin_cache is None else basin_cache
+    model = build_model(params)
+    nx = 2 * params.nq
+    center = model.x_hanging if center is None else np.asarray(center, float)
+    half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
+    if center.shape != (nx,) or half_widths.shape != (nx,):
+        raise SweepError(f"The start box needs {nx} centre values and {nx} half-widths for this model (got "
+                         f"{center.size} and {half_widths.size}).")
+    if method == "energy":  # refuse a model energy shaping cannot drive before anything runs
+        from cartpole.control.energy import EnergyShapingController
+        EnergyShapingController(model, **(energy_options or {}))
     rng = np.random.default_rng(seed)
     starts = _draw_starts(rng, n, center, half_widths)
-    lo, hi = params.cart_range
-    starts[:, 0] = np.clip(starts[:, 0], lo + 1e-3, hi - 1e-3)
+    if params.slide is not None:
+        lo, hi = params.cart_range
+        starts[:, params.slide] = np.clip(starts[:, params.slide], lo + 1e-3, hi - 1e-3)
     base = dict(energy_options or {})
     opts = []
-    for _ in range(int(n)):
+    for _ in range(n):
         o = dict(base)
         if gain_jitter > 0:
             f = rng.uniform(1 - gain_jitter, 1 + gain_jitter, len(JITTERED))
@@ -200,31 +354,53 @@ def swingup_sweep(mjcf=None, *, n: int = 20, seed: int = 0, center=HANGING, half
                 v = float(o.get(k, DEFAULT_SCALING[k])) * fk
                 o[k] = min(v, 1.0) if k == "energy_accel" else v
         opts.append(o)
-    ok = np.zeros(n, bool)
-    tu, ca, clr, pk = (np.full(n, np.nan) for _ in range(4))
-    rho = np.nan
-    for i, x0 in enumerate(starts):
-        res = run_swingup(params, method="energy", x0=x0, duration=duration, basin_cache=cache,
-                          energy_options=opts[i], catch_weights=catch_weights)
-        m = res.metrics
-        rho = res.basin.rho
-        ok[i] = bool(res.success and replays_exactly(res.rollout, params))
-        tu[i] = m["time_to_upright"] if (ok[i] and m["time_to_upright"] is not None) else np.nan
-        ca[i] = np.nan if res.caught_at is None else res.caught_at
-        clr[i], pk[i] = m["cart_clearance"], m["peak_ctrl"]
-        if progress is not None:
-            progress((i + 1) / n)
-    return SweepResult(mjcf=params.mjcf, starts=starts, success=ok, time_to_upright=tu, caught_at=ca,
-                       cart_clearance=clr, peak_ctrl=pk, options=tuple(opts), rho=float(rho), seed=int(seed),
-                       duration=float(10.0 if duration is None else duration),
-                       half_widths=np.asarray(half_widths, float), gain_jitter=float(gain_jitter),
-                       base_options=base)
+    cache = BasinCache() if basin_cache is None else basin_cache
+    runner = _Runner(params, method, duration, catch_weights, cache, model=model)
+    rho = float(runner.basin().rho)  # once, here, before the runs (and shipped to the workers in the cache)
+    workers = min(workers, n)
+    size = f"{n} runs" + (f" on {workers} workers" if workers > 1 else "")
+    with stage(f"{method} swing-ups", size=size, callback=progress) as tick:
+        if workers == 1:
+            out = []
+            for i, x0 in enumerate(starts):
+                out.append(runner.run(x0, opts[i]))
+                tick((i + 1) / n)
+        else:
+            out = _run_parallel(runner, starts, opts, workers, tick)
+    return SweepResult(mjcf=params.mjcf, starts=starts, success=np.array([r["success"] for r in out], bool),
+                       time_to_upright=np.array([r["time_to_upright"] for r in out], float),
+                       caught_at=np.array([r["caught_at"] for r in out], float),
+                       cart_clearance=np.array([r["cart_clearance"] for r in out], float),
+                       peak_ctrl=np.array([r["peak_ctrl"] for r in out], float), options=tuple(opts), rho=rho,
+                       seed=int(seed), duration=float(duration) if duration is not None else (
+                           ENERGY_DURATION if method == "energy" else None),
+                       half_widths=half_widths, gain_jitter=float(gain_jitter), base_options=base, method=method,
+                       replays=np.array([r["replays"] for r in out], bool),
+                       errors=tuple(r["error"] for r in out), workers=workers)
 
 
-def _bar(label):
-    def f(frac):
-        print(f"\r{label}: {100 * frac:5.1f} %", end="" if frac < 1 else "\n", file=sys.stderr, flush=True)
-    return f
+def _run_parallel(runner: _Runner, starts, opts, workers: int, tick) -> list[dict]:
+    """The runs on a process pool (one model per worker, built by the initializer), back in run order."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+
+    n = len(starts)
+    out: list = [None] * n
+    ctx = multiprocessing.get_context("spawn")  # no fork of a process holding MuJoCo and CasADi threads
+    init = (runner.params, runner.method, runner.duration, runner.catch_weights, runner.cache)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=init)
+    try:
+        futures = {pool.submit(_run_in_worker, starts[i], opts[i]): i for i in range(n)}
+        for done, fut in enumerate(as_completed(futures), 1):
+            out[futures[fut]] = fut.result()
+            tick(done / n)
+    except BrokenProcessPool:
+        raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer --workers than "
+                         f"{workers}.") from None
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return out
 
 
 def _seconds(value) -> str:
@@ -232,31 +408,55 @@ def _seconds(value) -> str:
     return "n/a" if value is None else f"{value:.3f} s"
 
 
+def summary_line(s: dict) -> str:
+    """One line of prose for a :meth:`SweepResult.summary`."""
+    clear = "n/a" if s["min_cart_clearance"] is None else f"{s['min_cart_clearance']:.3f} m"
+    peak = "n/a" if s["max_peak_ctrl"] is None else f"{s['max_peak_ctrl']:.3f}"
+    return (f"{s['mjcf']}: {s['method']} success {s['successes']}/{s['n']}, time to upright median "
+            f"{_seconds(s['time_to_upright_median'])}, max {_seconds(s['time_to_upright_max'])}, "
+            f"min clearance {clear}, peak |ctrl| {peak}")
+
+
 def main(argv=None) -> int:
-    """``python -m cartpole.sweep [--mjcf P ...] [--n N] [--seed S] [--jitter J] [--options JSON] [--json]``: one
-    summary line (or JSON) per model."""
+    """``python -m cartpole.sweep [--mjcf P ...] [--method M] [--n N] [--seed S] [--workers W] [--jitter J]
+    [--options JSON] [--json]``: one summary line (or a JSON list of summaries) per model. ``cartpole sweep`` is
+    the command-line contract (one model, rows and a CSV results file); this entry point is kept for scripts."""
     import argparse
     import json
+    import sys
+
+    from cartpole.progress import reporting
 
     ap = argparse.ArgumentParser(prog="python -m cartpole.sweep", description=main.__doc__)
     ap.add_argument("--mjcf", nargs="*", default=[None], help="MJCF files (default: the shipped asset)")
+    ap.add_argument("--method", choices=METHODS, default="energy")
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--jitter", type=float, default=0.0, help="relative gain jitter (0 = none)")
     ap.add_argument("--options", default="{}", help="JSON dict of energy-shaping settings")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
-    opts = json.loads(a.options)
     out = []
-    for path in a.mjcf:
-        r = swingup_sweep(path, n=a.n, seed=a.seed, gain_jitter=a.jitter, energy_options=opts,
-                          progress=_bar(str(path or "shipped")))
-        s = r.summary()
-        out.append(s)
-        if not a.json:
-            print(f"{s['mjcf']}: success {s['successes']}/{s['n']}, time to upright median "
-                  f"{_seconds(s['time_to_upright_median'])}, max {_seconds(s['time_to_upright_max'])}, "
-                  f"min clearance {s['min_cart_clearance']:.3f} m, peak |ctrl| {s['max_peak_ctrl']:.3f}")
+    try:
+        try:
+            opts = json.loads(a.options)
+        except ValueError:
+            raise SweepError(f"--options {a.options!r} is not a JSON object; give e.g. '{{\"energy_gain\": 12}}'.") \
+                from None
+        if not isinstance(opts, dict):
+            raise SweepError(f"--options {a.options!r} is not a JSON object; give e.g. '{{\"energy_gain\": 12}}'.")
+        with reporting("sweep", enabled=not a.json):
+            for path in a.mjcf:
+                r = swingup_sweep(path, method=a.method, n=a.n, seed=a.seed, gain_jitter=a.jitter,
+                                  energy_options=opts, workers=a.workers)
+                s = r.summary()
+                out.append(s)
+                if not a.json:
+                    print(summary_line(s))
+    except CartPoleError as exc:
+        print(f"python -m cartpole.sweep: {first_line(exc)}.", file=sys.stderr)
+        return 2
     if a.json:
         print(json.dumps(out))
     return 0

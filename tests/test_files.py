@@ -46,3 +46,101 @@ def test_atomic_path_keeps_the_suffix_and_renames_at_the_end(tmp_path):
             tmp.write_bytes(b"half")
             raise ValueError
     assert [p.name for p in tmp_path.iterdir()] == ["clip.mp4"]
+
+
+# ---- CSV -----------------------------------------------------------------------------------------------------
+
+def test_append_csv_row_writes_the_header_once_and_quotes_fields(tmp_path):
+    import csv
+
+    from cartpole._files import append_csv_row
+
+    path = tmp_path / "metrics" / "metrics.csv"
+    header = ["run_id", "value", "notes"]
+    append_csv_row(path, header, ["a", 0.125, "5_ICs"])
+    append_csv_row(path, header, ["b", 1.5, 'with, a comma and "quotes"'])
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows == [header, ["a", "0.125", "5_ICs"], ["b", "1.5", 'with, a comma and "quotes"']]
+    assert [p.name for p in path.parent.iterdir()] == ["metrics.csv"]
+
+
+def test_append_csv_row_completes_a_last_line_without_newline_and_refuses_another_header(tmp_path):
+    from cartpole._files import OutputError, append_csv_row
+
+    path = tmp_path / "m.csv"
+    path.write_text("x,y\n1,2")  # written by hand, no final newline
+    append_csv_row(path, ["x", "y"], [3, 4])
+    assert path.read_text() == "x,y\n1,2\n3,4\n"
+    with pytest.raises(OutputError, match="its header is x,y, not a,b"):
+        append_csv_row(path, ["a", "b"], [1, 2])
+    assert path.read_text() == "x,y\n1,2\n3,4\n"
+
+
+def test_write_csv_is_whole_or_nothing(tmp_path):
+    from cartpole._files import write_csv
+
+    path = write_csv(tmp_path / "r.csv", ["a", "b"], [[1, "x"], [2, "y,z"]])
+    assert path.read_text() == 'a,b\n1,x\n2,"y,z"\n'
+
+    def rows():
+        yield [3, "w"]
+        raise RuntimeError("interrupted")
+
+    with pytest.raises(RuntimeError):
+        write_csv(path, ["a", "b"], rows())
+    assert path.read_text() == 'a,b\n1,x\n2,"y,z"\n' and [p.name for p in tmp_path.iterdir()] == ["r.csv"]
+
+
+# ---- failures as one sentence, nothing left behind -------------------------------------------------------------
+
+def test_an_oserror_while_writing_is_an_output_error_and_the_new_directories_go_too(tmp_path, monkeypatch):
+    import errno
+
+    import cartpole._files as files
+    from cartpole._files import OutputError
+    from cartpole.errors import CartPoleError
+
+    def full(fh):
+        fh.write(b"half")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.raises(OutputError, match=r"Cannot write .*out\.bin \(No space left on device\); free some space") \
+            as info:
+        files.atomic_write(tmp_path / "new" / "deeper" / "out.bin", full)
+    assert isinstance(info.value, CartPoleError) and isinstance(info.value, OSError)
+    assert info.value.errno == errno.ENOSPC
+    assert list(tmp_path.iterdir()) == []  # no temporary file, no directories made for it
+
+
+def test_output_transaction_removes_what_a_failed_block_created_and_keeps_what_was_there(tmp_path):
+    from cartpole._files import atomic_write, output_transaction
+
+    (tmp_path / "figures").mkdir()
+    old = tmp_path / "figures" / "old.png"
+    old.write_bytes(b"old")
+    with pytest.raises(RuntimeError):
+        with output_transaction() as created:
+            atomic_write(tmp_path / "figures" / "new.png", lambda fh: fh.write(b"new"))
+            atomic_write(old, lambda fh: fh.write(b"replaced"))
+            atomic_write(tmp_path / "videos" / "clip.mp4", lambda fh: fh.write(b"frames"))
+            assert [p.name for p in created] == ["new.png", "videos", "clip.mp4"]
+            raise RuntimeError("the command failed after writing")
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == ["figures", "figures/old.png"]
+    assert old.read_bytes() == b"replaced"  # replaced whole, not restored
+    with output_transaction():
+        atomic_write(tmp_path / "kept.txt", lambda fh: fh.write(b"ok"))
+    assert (tmp_path / "kept.txt").read_bytes() == b"ok"
+
+
+def test_check_out_dir_refuses_files_in_the_way_without_creating_anything(tmp_path):
+    from cartpole._files import OutputError, check_out_dir
+
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert check_out_dir(tmp_path / "a" / "b") == tmp_path / "a" / "b"
+    with pytest.raises(OutputError, match="is a file, not a directory"):
+        check_out_dir(f)
+    with pytest.raises(OutputError, match="cannot be created: .*file is a file"):
+        check_out_dir(f / "sub" / "dir")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]

@@ -2,7 +2,7 @@
 
 Layers, lowest first; a module may import its own layer and the layers below it, never one above:
 
-    base          cartpole.errors, cartpole._arrays, cartpole._files
+    base          cartpole.errors, cartpole._arrays, cartpole._files, cartpole.progress
     models        cartpole.models          MJCF -> parameters -> symbolic model
     lqr           cartpole.lqr             lqr / dlqr, TVLQR, the lab's weights
     control       cartpole.control         controllers u = c(t, x)
@@ -32,7 +32,7 @@ import pytest
 PACKAGE_DIR = Path(__file__).resolve().parent.parent / "cartpole"
 
 LAYERS = (
-    ("base", ("cartpole.errors", "cartpole._arrays", "cartpole._files")),
+    ("base", ("cartpole.errors", "cartpole._arrays", "cartpole._files", "cartpole.progress")),
     ("models", ("cartpole.models",)),
     ("lqr", ("cartpole.lqr",)),
     ("control", ("cartpole.control",)),

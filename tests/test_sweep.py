@@ -34,6 +34,32 @@ def test_bad_settings_raise():
         swingup_sweep(None, n=0)
     with pytest.raises(SweepError):
         swingup_sweep(None, n=2, gain_jitter=1.5)
+    with pytest.raises(SweepError, match="Unknown sweep method"):
+        swingup_sweep(None, method="mpc", n=1)
+    with pytest.raises(SweepError, match="use --method energy"):
+        swingup_sweep(None, method="trajopt", n=1, gain_jitter=0.1)
+    with pytest.raises(SweepError, match="workers"):
+        swingup_sweep(None, n=1, workers=0)
+
+
+def test_a_run_that_raises_is_a_failed_row_with_its_sentence(monkeypatch):
+    import cartpole.sweep as sweep_mod
+    from cartpole.swingup import SwingupError
+
+    real = sweep_mod.run_swingup
+    starts = sweep_starts(3, seed=2)
+
+    def flaky(model, **kw):
+        if np.allclose(kw["x0"], starts[1]):
+            raise SwingupError("No plan from this start; try another.")
+        return real(model, **kw)
+
+    monkeypatch.setattr(sweep_mod, "run_swingup", flaky)
+    r = swingup_sweep(None, n=3, seed=2, duration=1.0)
+    rows = r.rows()
+    assert [row["run"] for row in rows] == [0, 1, 2]
+    assert rows[1]["success"] is False and rows[1]["error"] == "No plan from this start; try another."
+    assert rows[1]["time_to_upright"] is None and rows[0]["error"] is None and rows[0]["replays"] is True
 
 
 def test_python_m_cartpole_sweep_prints_one_json_summary_per_model():

@@ -7,8 +7,12 @@ HELP = ("exact A, B (continuous) and Ad, Bd (one step of the MJCF's integrator) 
         "equilibrium x_eq, u_eq")
 
 
+#: linearize prints and writes no files, so it takes no --out (an old --out is accepted, ignored, with a note).
+WRITES_FILES = False
+
+
 def add_arguments(parser) -> None:
-    """No options beyond the common --mjcf/--out/--json."""
+    """No options beyond the common --mjcf/--json."""
 
 
 def run(args) -> dict:

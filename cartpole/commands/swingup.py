@@ -6,9 +6,14 @@ import sys
 
 HELP = "swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, or trajopt + TVLQR)"
 
+#: Largest rollout log a run may hold in memory, bytes: (duration / timestep) steps, each 8 bytes for t, each of
+#: the 2 nq state entries and the nu ctrl entries (256 MiB: for the shipped cart, 5 ms and nq = 2, nu = 1, about
+#: 28 000 s of simulated time). Longer durations are refused before anything runs.
+MAX_LOG_BYTES = 256 * 2**20
+
 
 def add_arguments(parser) -> None:
-    """``--method``, ``--x0``, ``--duration``, ``--no-video``."""
+    """``--method``, ``--x0``, ``--duration``, ``--view``, ``--no-video``."""
     parser.add_argument("--method", choices=("energy", "trajopt"), default="energy",
                         help="energy shaping with an LQR catch (default) or direct collocation + TVLQR")
     parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
@@ -16,13 +21,109 @@ def add_arguments(parser) -> None:
                              "position (m or rad, 0 = upright as built), then every joint's rate; one pole: "
                              "X TH XD THD; default every pole hanging at rest (0 pi 0 0 for one pole)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="simulated seconds (default 10 for energy, plan + 3 for trajopt)")
+                        help="simulated seconds (default 10 for energy, plan + 3 for trajopt); the log must fit "
+                             f"in {MAX_LOG_BYTES // 2**20} MiB (duration / timestep x (1 + 2 nq + nu) x 8 bytes)")
+    parser.add_argument("--view", action="store_true",
+                        help="show the run in MuJoCo's live viewer, in real time: the logged ctrl replayed step "
+                             "for step, so the window shows exactly the run logged (checked); without a display "
+                             "a one-line note on stderr and the rest as usual")
     parser.add_argument("--no-video", action="store_true", help="do not render videos/swingup_<method>.mp4")
 
 
-def _progress(stage: str, fraction: float) -> None:
-    print(f"\rswingup: {stage} {100 * fraction:5.1f} %", end="" if fraction < 1 else "\n", file=sys.stderr,
-          flush=True)
+def log_bytes(duration: float, params) -> float:
+    """Bytes of the rollout log of ``duration`` s on ``params``: steps x (1 + 2 nq + nu) float64 (t, qpos, qvel,
+    ctrl)."""
+    steps = float(duration) / float(params.timestep)
+    return steps * 8.0 * (1 + 2 * params.nq + params.nu)
+
+
+def check_duration(duration, params, *, flag: str = "--duration") -> float | None:
+    """``duration`` (s) if it is a positive finite number whose log fits in :data:`MAX_LOG_BYTES`, None if None.
+
+    Raises
+    ------
+    SwingupError
+        Not positive or not finite; or too long to hold (the sentence gives the largest duration accepted).
+    """
+    from cartpole.swingup import SwingupError
+
+    if duration is None:
+        return None
+    if not (math.isfinite(duration) and duration > 0):
+        raise SwingupError(f"Duration {duration} s is not a positive number of seconds; give e.g. {flag} 8.")
+    if log_bytes(duration, params) > MAX_LOG_BYTES:
+        longest = MAX_LOG_BYTES / log_bytes(1.0, params)
+        raise SwingupError(f"{flag} {duration:g} s is too long to hold in memory ({log_bytes(duration, params) / 2**20:.3g} "
+                           f"MiB of log at the {params.timestep:g} s time step, more than "
+                           f"{MAX_LOG_BYTES // 2**20} MiB); give at most {longest:.0f} s.")
+    return float(duration)
+
+
+class _Stages:
+    """:func:`cartpole.swingup.run_swingup`'s ``progress(stage, fraction)`` as :mod:`cartpole.progress` stages.
+
+    The basin estimate reports itself (it is a stage of its own); ``trajopt`` and ``simulate`` open a stage on their
+    first fraction and end it at 1.
+    """
+
+    LABELS = {"trajopt": "trajectory optimisation", "simulate": "MuJoCo rollout"}
+
+    def __init__(self, sizes: dict | None = None):
+        self.open = {}
+        self.done = set()
+        self.sizes = sizes or {}
+
+    def __call__(self, name: str, fraction: float) -> None:
+        from cartpole.progress import stage
+
+        if name not in self.LABELS:
+            return
+        st = self.open.get(name)
+        if st is None:
+            if fraction >= 1.0 and name in self.done:  # the closing 1.0 of a stage that reached 1 already
+                return
+            st = self.open[name] = stage(self.LABELS[name], size=self.sizes.get(name, ""))
+            self.done.discard(name)
+        st(fraction)
+        if fraction >= 1.0:
+            st.close()
+            del self.open[name]
+            self.done.add(name)
+
+
+def show(params, rollout, *, command: str = "swingup"):
+    """Show ``rollout`` in MuJoCo's live viewer, in real time (:func:`cartpole.viz.viewer.watch`), by replaying its
+    logged ctrl step for step from its first state; returns the rollout the viewer ran, or None without a display
+    (its one sentence printed on stderr).
+
+    Raises
+    ------
+    CartPoleError
+        The viewer's run differs from the log (it would not be the run logged).
+    """
+    import numpy as np
+
+    from cartpole.errors import CartPoleError, first_line
+    from cartpole.viz.viewer import ViewerUnavailable, watch
+
+    ctrl = np.asarray(rollout.ctrl)
+    h = float(params.timestep)
+    last = len(ctrl) - 1
+
+    def logged_ctrl(t, x):
+        return ctrl[min(last, int(round(t / h)))]
+
+    pushes = rollout.info.get("push") if isinstance(rollout.info, dict) else None
+    push = None if pushes is None else (lambda t: float(pushes[min(last, int(round(t / h)))]))
+    try:
+        shown = watch(params, logged_ctrl, rollout.x[0], float(rollout.t[-1]), push=push)
+    except ViewerUnavailable as exc:
+        print(f"cartpole {command}: no live view: {first_line(exc)}.", file=sys.stderr)
+        return None
+    k = len(shown.t)
+    if not (np.array_equal(shown.qpos, rollout.qpos[:k]) and np.array_equal(shown.qvel, rollout.qvel[:k])):
+        raise CartPoleError("The live viewer's run differs from the logged run; report this with the MJCF.")
+    return shown
 
 
 def run(args) -> dict:
@@ -30,28 +131,32 @@ def run(args) -> dict:
     from pathlib import Path
 
     from cartpole.models import build_model
-    from cartpole.swingup import SwingupError, check_start, run_swingup
+    from cartpole.progress import stage
+    from cartpole.swingup import check_start, run_swingup
     from cartpole.viz import plot_swingup
 
     # Everything is validated before anything is computed or written.
     model = build_model(args.mjcf)
     params = model.params
     x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise SwingupError(f"Duration {args.duration} s is not a positive number of seconds; give e.g. "
-                           "--duration 8.")
+    duration = check_duration(args.duration, params)
     out = Path(args.out)
 
-    res = run_swingup(model, method=args.method, x0=x0, duration=args.duration, progress=_progress)
+    sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
+        {"simulate": "10 s"} if args.method == "energy" else {})
+    res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes))
+    viewed = show(params, res.rollout) if args.view else None
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{args.method}.png", plan=res.plan,
                        caught_at=res.caught_at, model=model,
                        title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
     video = None
     if not args.no_video:
         from cartpole.viz import VideoUnavailable, render_video
+        seconds = float(res.rollout.t[-1])
         try:
-            video = render_video(params, res.rollout, out / "videos" / f"swingup_{args.method}.mp4",
-                                 progress=lambda f: _progress("video", f))
+            with stage("video", size=f"{seconds:g} s at 30 fps") as tick:
+                video = render_video(params, res.rollout, out / "videos" / f"swingup_{args.method}.mp4",
+                                     progress=tick)
         except VideoUnavailable as exc:
             print(f"cartpole swingup: no video ({exc})", file=sys.stderr)
     m = res.metrics
@@ -59,6 +164,10 @@ def run(args) -> dict:
            "rollout": res.rollout.to_dict(), "time_to_upright": m["time_to_upright"],
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
+    if args.view:
+        doc["viewer"] = None if viewed is None else {
+            "frames": viewed.info.get("frames"), "closed_early": viewed.info.get("closed_early"),
+            "wall_time": viewed.info.get("wall_time"), "steps_shown": len(viewed.ctrl)}
     if not args.json:
         def fmt(v, unit):
             return "never" if v is None else f"{v:.3f} {unit}"
@@ -73,6 +182,10 @@ def run(args) -> dict:
         if res.basin is not None:
             print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
                   f"{res.basin.seed}, safety factor {res.basin.safety_factor})")
+        if viewed is not None:
+            print(f"Live view: {len(viewed.ctrl)} of {len(res.rollout.ctrl)} steps shown, "
+                  f"{viewed.info.get('frames')} frames in {viewed.info.get('wall_time', 0.0):.1f} s, identical "
+                  "to the log")
         print(f"Figure: {fig}")
         print(f"Video: {video if video is not None else 'not written'}")
     return doc

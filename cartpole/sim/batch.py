@@ -22,6 +22,7 @@ import numpy as np
 from cartpole.control.linear import LinearFeedback, _limits
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, build_model, read_params, wrap_angle
+from cartpole.progress import stage
 from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 
@@ -75,7 +76,8 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
     nthread : int, optional
         Threads of MuJoCo's rollout pool (default: the CPUs this process may use; 0 = calling thread).
     progress : callable, optional
-        Called with the fraction of physics steps done (about every 5 %).
+        Called with the fraction of physics steps done (about every 5 %); the batch is also a
+        :func:`cartpole.progress.stage` ("batch rollouts"), silent inside another stage.
 
     Returns
     -------
@@ -133,7 +135,8 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
     spec = int(mujoco.mjtState.mjSTATE_CTRL)
     every = max(1, n // 20)
     Kt = K.T
-    with mujoco.rollout.Rollout(nthread=nthread) as pool:
+    with stage("batch rollouts", size=f"{nb} x {n * h:g} s", callback=progress) as tick, \
+            mujoco.rollout.Rollout(nthread=nthread) as pool:
         for k in range(n):
             S, nxt = bufs[k % 2], bufs[(k + 1) % 2]
             e = S[:, 1:1 + nx] - x_eq
@@ -145,8 +148,8 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
                          control_spec=spec)
             ctrl[:, k] = u[:, 0]
             states[:, k + 1] = nxt[:, 1:1 + nx]
-            if progress is not None and ((k + 1) % every == 0 or k + 1 == n):
-                progress((k + 1) / n)
+            if (k + 1) % every == 0 or k + 1 == n:
+                tick((k + 1) / n)
     if not np.all(np.isfinite(states)):
         raise CartPoleError("MuJoCo's state became NaN/inf in the batch; the gain or the model is unstable.")
     return states, ctrl

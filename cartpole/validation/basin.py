@@ -34,6 +34,7 @@ from cartpole.control.linear import LinearFeedback
 from cartpole.control.switching import lab_catch
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, build_model, read_params, state_error
+from cartpole.progress import stage
 from cartpole.sim import simulate_batch_linear
 from cartpole.validation.metrics import REST_RATE_TOL, REST_SPEED_TOL, UPRIGHT_TOL
 
@@ -218,7 +219,7 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
     limit_margin : float
         m inside the cart joint range a successful run must stay.
     progress : callable, optional
-        Called with the fraction done.
+        Called with the fraction done; the estimate is also a :func:`cartpole.progress.stage` ("basin estimate").
 
     Returns
     -------
@@ -243,7 +244,8 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
     x_eq = np.asarray(catch.x_eq, dtype=float)
     samples = x_eq + errors
     costs = np.einsum("ni,ij,nj->n", errors, S, errors)
-    success = catch_succeeds(params, catch, samples, duration, limit_margin=limit_margin, progress=progress)
+    with stage("basin estimate", size=f"{int(n)} runs", callback=progress) as tick:
+        success = catch_succeeds(params, catch, samples, duration, limit_margin=limit_margin, progress=tick)
     rho_sampled = float(costs[~success].min()) if np.any(~success) else np.inf
     cut = s_max**2 / np.linalg.inv(S)[slide, slide] if slide is not None else np.inf
     rho_cover = float(min(level, cut))

@@ -23,13 +23,28 @@ def test_bench_json_follows_the_contract(capsys):
     for key in ("steps_per_s", "rollouts", "seconds_each"):
         assert key in rp, key
     assert rp["steps_per_s"] > 0 and rp["seconds_each"] == 2.0
-    assert "cartpole bench:" in captured.err  # progress went to stderr
+    assert captured.err == ""  # --json: no progress at all
 
 
-def test_bench_prose_prints_a_table_without_replay(capsys):
+def test_bench_prose_prints_a_table_and_one_stderr_line_per_measurement(capsys):
     assert main(["bench", "--quick", "--no-replay", "--repeats", "1"]) == 0
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
     assert "baseline: casadi.Opti" in out and "TVLQR synthesis" in out and "Batched replay" not in out
+    # stderr is not a terminal here: one finished line per measurement, no carriage returns, nothing on stdout
+    lines = captured.err.splitlines()
+    assert "\r" not in captured.err and len(lines) >= 5
+    assert all(line.startswith("bench: ") and line.endswith(" s") and " in " in line for line in lines)
+    assert any(line.startswith("bench: baseline (Opti, no expand): 1 solves in ") for line in lines)
+    assert "bench: " not in out
+
+
+def test_bench_writes_no_files_so_out_is_hidden_but_still_accepted(capsys):
+    from cartpole.cli import build_parser
+
+    assert build_parser().parse_args(["bench", "--out", "somewhere"]).out == "somewhere"  # old scripts still parse
+    assert main(["bench", "--help"]) == 0
+    assert "--out" not in capsys.readouterr().out
 
 
 def test_bad_repeats_is_one_sentence_and_exit_2(capsys):

@@ -45,9 +45,22 @@ def test_linearize_prose_prints_the_matrices(capsys):
 
 
 def test_linearize_stdout_is_pure_json_through_python_m(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "cartpole", "linearize", "--json", "--out", str(tmp_path)],
-                       capture_output=True, text=True, check=True)
+    r = subprocess.run([sys.executable, "-m", "cartpole", "linearize", "--json"], capture_output=True, text=True,
+                       check=True)
     json.loads(r.stdout)
+    assert r.stderr == ""
+
+
+def test_linearize_writes_nothing_and_an_old_out_is_ignored_with_a_note(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["linearize", "--json", "--out", str(out)]) == 0
+    cap = capsys.readouterr()
+    assert set(json.loads(cap.out)) >= {"A", "B", "Ad", "Bd"}
+    assert cap.err.splitlines() == ["cartpole linearize: --out is ignored: linearize writes no files (the option "
+                                    "is deprecated and will be removed; drop it)."]
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+    assert main(["linearize", "--help"]) == 0
+    assert "--out" not in capsys.readouterr().out
 
 
 def test_bad_mjcf_gives_one_sentence_and_exit_2(tmp_path):

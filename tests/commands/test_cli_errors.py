@@ -1,0 +1,140 @@
+"""Everything a user can get wrong about where outputs go ends in one sentence on stderr, exit status 2, and the
+``--out`` tree exactly as it was: an ``--out`` that is a file or sits under one, a read-only file system, a full
+disk (a tiny tmpfs when we may mount one, and ENOSPC injected into the writer), a duration too long to hold, NaN in
+``--x0``; and a failure after some files were written removes them again."""
+import errno
+import os
+import subprocess
+import uuid
+
+import pytest
+
+import cartpole._files as files
+from cartpole.cli import main
+
+
+def _tree(root):
+    """Every path under root with its bytes (None for a directory)."""
+    if not root.exists():
+        return None
+    return {str(p.relative_to(root)): (None if p.is_dir() else p.read_bytes()) for p in sorted(root.rglob("*"))}
+
+
+def _fails_cleanly(argv, root, capsys, *words):
+    before = _tree(root)
+    rc = main(argv)
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert rc == 2, cap.err
+    assert cap.out == "" and len(lines) == 1 and lines[0].startswith(f"cartpole {argv[0]}: "), cap.err
+    assert "Traceback" not in cap.err and lines[0].endswith(".")
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    assert _tree(root) == before, "the --out tree changed"
+    return lines[0]
+
+
+SWINGUP = ["swingup", "--json", "--no-video", "--duration", "0.5"]
+
+
+def test_an_out_that_is_a_file_is_refused(tmp_path, capsys):
+    f = tmp_path / "results.txt"
+    f.write_text("keep me")
+    _fails_cleanly([*SWINGUP, "--out", str(f)], tmp_path, capsys, "is a file, not a directory")
+    _fails_cleanly(["sweep", "--json", "--n", "1", "--out", str(f / "sub")], tmp_path, capsys,
+                   "cannot be created", "is a file")
+
+
+def test_an_out_that_cannot_be_created_is_refused(tmp_path, capsys):
+    long = tmp_path / ("x" * 300)
+    _fails_cleanly([*SWINGUP, "--out", str(long)], tmp_path, capsys, "shorter --out")
+
+
+def test_a_duration_too_long_to_hold_is_refused_before_running(tmp_path, capsys):
+    line = _fails_cleanly([*SWINGUP[:-2], "--duration", "1e9", "--out", str(tmp_path / "out")], tmp_path, capsys,
+                          "too long to hold in memory", "give at most")
+    assert "MiB" in line
+
+
+def test_nan_in_x0_is_refused(tmp_path, capsys):
+    _fails_cleanly([*SWINGUP, "--x0", "0", "nan", "0", "0", "--out", str(tmp_path / "out")], tmp_path, capsys,
+                   "not finite")
+
+
+def _raise_enospc_for(name):
+    """An ``open`` for cartpole._files whose files raise ENOSPC on write when their target's name contains
+    ``name``."""
+    real = open
+
+    class Full:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        def __getattr__(self, attr):
+            return getattr(self.fh, attr)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+    def fake_open(path, mode="r", *args, **kwargs):
+        fh = real(path, mode, *args, **kwargs)
+        return Full(fh) if name in os.path.basename(str(path)) and "w" in mode else fh
+
+    return fake_open
+
+
+def test_a_full_disk_while_writing_is_one_sentence_and_leaves_no_file(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.txt").write_text("from before")
+    monkeypatch.setattr(files, "open", _raise_enospc_for("swingup_energy.png"), raising=False)
+    _fails_cleanly([*SWINGUP, "--out", str(out)], tmp_path, capsys, "No space left on device",
+                   "free some space")
+
+
+def test_a_failure_after_some_files_were_written_removes_them(tmp_path, monkeypatch, capsys):
+    # the lab writes its figure first, then appends its metrics row: make the second write hit a full disk
+    out = tmp_path / "out"
+    monkeypatch.setattr(files, "open", _raise_enospc_for("metrics.csv"), raising=False)
+    _fails_cleanly(["lqr", "--json", "--no-video", "--out", str(out)], tmp_path, capsys, "metrics.csv",
+                   "No space left")
+    assert not out.exists()
+
+
+@pytest.fixture
+def mount_point(tmp_path):
+    """A fresh directory to mount a tmpfs on, unmounted afterwards; skips where we may not mount."""
+    if os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root")
+    d = tmp_path / f"mnt-{uuid.uuid4().hex[:6]}"
+    d.mkdir()
+    mounted = []
+
+    def mount(options):
+        r = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(d)], capture_output=True, text=True)
+        if r.returncode != 0:
+            pytest.skip(f"cannot mount a tmpfs here: {r.stderr.strip()}")
+        mounted.append(d)
+        return d
+
+    yield mount
+    for m in mounted:
+        subprocess.run(["umount", "-l", str(m)], capture_output=True)
+
+
+def test_a_really_full_tmpfs_is_one_sentence_and_stays_empty(mount_point, capsys):
+    d = mount_point("size=16k")
+    line = _fails_cleanly([*SWINGUP, "--out", str(d)], d, capsys, "No space left on device")
+    assert "swingup_energy.png" in line and list(d.iterdir()) == []
+
+
+def test_a_read_only_file_system_is_refused_before_any_work(mount_point, capsys):
+    d = mount_point("ro,size=1m")
+    _fails_cleanly([*SWINGUP, "--out", str(d / "results")], d, capsys, "read-only file system")
+    _fails_cleanly(["sweep", "--json", "--n", "1", "--out", str(d)], d, capsys, "read-only")
