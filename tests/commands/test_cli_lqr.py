@@ -137,9 +137,9 @@ def test_video_is_10_s_at_30_fps(tmp_path, capsys):
     gen = imageio_ffmpeg.read_frames(doc["video"])
     meta = next(gen)
     gen.close()
-    assert frames == 300 and tuple(meta["size"]) == (640, 480) and meta["fps"] == 30
+    assert frames == 300 and tuple(meta["size"]) == (960, 540) and meta["fps"] == 30
     assert "100%" in cap.err  # progress went to stderr
-    assert sorted(p.name for p in (tmp_path / "videos").iterdir()) == ["day5_cartpole.mp4"]
+    assert sorted(p.name for p in (tmp_path / "videos").iterdir()) == ["day5_cartpole.gif", "day5_cartpole.mp4"]
 
 
 def test_no_gl_backend_still_writes_the_rest(tmp_path):
