@@ -8,9 +8,10 @@ What the video shows
       dressed for reading on a small screen: a gradient sky, a floor with a 0.5 m checker and a line every metre
       (it gives the scale; the MJCF's own plane is reused when it has one), poles drawn thicker (capsule radius
       about 1.6 % of the view's height, at most 12 % of the link's length, never thinner than the MJCF's) in one
-      colour per link (:data:`LINK_COLOURS`, first link red). Only the copy's ``geom_size`` and ``geom_rgba`` are
-      changed after compiling, so its bodies, joints and inertias stay the physics model's; the physics model
-      itself is never touched.
+      colour per link (:data:`LINK_COLOURS`, first link red). Before compiling only textures, materials and (when
+      the MJCF has no plane) a floor are added; the thicker radii and the colours are set on the compiled copy
+      (``geom_size``, ``geom_rgba``), so its bodies, joints, masses and inertias stay the physics model's. The
+      physics model itself is never touched.
     * **A camera computed from the model and the rollout** (a free ``mujoco.MjvCamera``, not the MJCF's camera):
       it looks across the plane of motion (perpendicular to the slide and to gravity), 12 degrees from above, and
       frames every moving geom in every frame plus the chain's full upright height (the geoms at ``x_eq``).
@@ -278,7 +279,6 @@ class _Display:
     m: object            # mujoco.MjModel, render-only
     d: object            # mujoco.MjData of it
     hinges: list         # qpos addresses of the hinges, tree order
-    hinge_names: list
     link_geoms: list     # per hinge: geom ids of its body
     moving: np.ndarray   # geom ids on moving bodies
     slide: int | None    # qpos address of the first slide
@@ -323,21 +323,21 @@ def _build_display(source, *, width, height, floor_z=None):
     for b in spec.bodies:
         if b is not spec.worldbody:
             for g in b.geoms:
-                g.material = pre + "link"
+                if not g.material:  # a geom's own material (a texture, say) is kept
+                    g.material = pre + "link"
     try:
         m = spec.compile()
     except Exception as exc:
         raise VideoUnavailable(f"The render-only copy of the MJCF does not compile ({first_line(exc)}); "
-                               "render with camera='track' or skip the video.") from None
+                               "skip the video (--no-video).") from None
     d = mujoco.MjData(m)
-    hinges, names, link_geoms = [], [], []
+    hinges, link_geoms = [], []
     slide = None
     slide_axis = np.array([1.0, 0.0, 0.0])
     mujoco.mj_kinematics(m, d)
     for j in range(m.njnt):
         if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
             hinges.append(int(m.jnt_qposadr[j]))
-            names.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"hinge {len(hinges)}")
             link_geoms.append([g for g in range(m.ngeom) if m.geom_bodyid[g] == m.jnt_bodyid[j]])
         elif m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE and slide is None:
             slide = int(m.jnt_qposadr[j])
@@ -360,7 +360,7 @@ def _build_display(source, *, width, height, floor_z=None):
     lo = np.where(m.actuator_ctrllimited.astype(bool), m.actuator_ctrlrange[:, 0], -np.inf)
     hi = np.where(m.actuator_ctrllimited.astype(bool), m.actuator_ctrlrange[:, 1], np.inf)
     ctrl_names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"u{a}" for a in range(m.nu)]
-    return _Display(m=m, d=d, hinges=hinges, hinge_names=names, link_geoms=link_geoms, moving=moving, slide=slide,
+    return _Display(m=m, d=d, hinges=hinges, link_geoms=link_geoms, moving=moving, slide=slide,
                     h_axis=h_axis, up=up, ctrl_range=np.stack([lo, hi], 1) if m.nu else np.zeros((0, 2)),
                     ctrl_names=ctrl_names)
 
@@ -547,7 +547,6 @@ class _Overlay:
 
         p, L, fs = self.pad, self.line, self.fs
         n = len(angles_deg)
-        rows = max(1, -(-n // self.per_row))
         top_w = min(self.w, self.t_w + min(n, self.per_row) * self.item_w + 2 * p)
         self._shade(frame, 0, 0, top_w, self.top)
         nu = len(self.ctrl_names)
@@ -564,7 +563,6 @@ class _Overlay:
             y = p + row * L
             dr.rectangle([x, y + 2, x + fs - 2, y + fs], fill=self.colours[i])
             dr.text((x + fs + p, y), f"{self.theta[i]} {a:+6.1f}°", font=self.font, fill=self.INK)
-        del rows
         for k, name in enumerate(self.ctrl_names):
             y = y_bars + p + L * k
             u = float(ctrl[k])
