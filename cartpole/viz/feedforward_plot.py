@@ -13,23 +13,12 @@ from typing import Mapping
 import numpy as np
 
 from cartpole._files import atomic_write
-from cartpole.models import build_model, wrap_angle
+from cartpole.models import build_model
+from cartpole.viz.traces import wrapped_angle_trace
 
 #: Line colours of the runs, in order; plans are drawn in shades of grey.
 RUN_COLOURS = ("C3", "C0", "C2", "C1", "C4", "C5")
 PLAN_COLOURS = ("k", "0.45", "0.7")
-
-
-def _broken(y: np.ndarray) -> np.ndarray:
-    """``y`` with NaN inserted where consecutive samples jump by more than 180 degrees (a wrap, not motion)."""
-    y = np.asarray(y, dtype=float).copy()
-    jump = np.flatnonzero(np.abs(np.diff(y)) > 180.0)
-    return np.insert(y, jump + 1, np.nan)
-
-
-def _broken_t(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-    jump = np.flatnonzero(np.abs(np.diff(np.asarray(y, dtype=float))) > 180.0)
-    return np.insert(np.asarray(t, dtype=float), jump + 1, np.nan)
 
 
 def plot_feedforward(runs: Mapping, plans: Mapping, params, path, *, model=None, title: str | None = None) -> Path:
@@ -80,8 +69,7 @@ def feedforward_figure(runs: Mapping, plans: Mapping, params, *, model=None, tit
         xp = plan.state(tp)
         plan_lines[label] = (tp, xp, c)
         for a, h in zip(ax_th, hinges):
-            y = np.rad2deg(wrap_angle(xp[:, h] - x_eq[h]))
-            a.plot(_broken_t(tp, y), _broken(y), "--", color=c, lw=1.6, label=label)
+            a.plot(*wrapped_angle_trace(tp, xp[:, h], x_eq[h]), "--", color=c, lw=1.6, label=label)
         if ax_s is not None:
             ax_s.plot(tp, xp[:, slide], "--", color=c, lw=1.6, label=label)
         u = np.asarray(plan.u).reshape(len(plan.t), -1)
@@ -93,8 +81,7 @@ def feedforward_figure(runs: Mapping, plans: Mapping, params, *, model=None, tit
     for i, (label, run) in enumerate(runs.items()):
         c = RUN_COLOURS[i % len(RUN_COLOURS)]
         for a, h in zip(ax_th, hinges):
-            y = np.rad2deg(wrap_angle(run.qpos[:, h] - x_eq[h]))
-            a.plot(_broken_t(run.t, y), _broken(y), color=c, lw=1.0, label=label)
+            a.plot(*wrapped_angle_trace(run.t, run.qpos[:, h], x_eq[h]), color=c, lw=1.0, label=label)
         if ax_s is not None:
             ax_s.plot(run.t, run.qpos[:, slide], color=c, lw=1.0, label=label)
         for k, a in enumerate(ax_u):
@@ -106,7 +93,7 @@ def feedforward_figure(runs: Mapping, plans: Mapping, params, *, model=None, tit
         a.set_yticks([-180, -90, 0, 90, 180])
         name = params.joints[h].name
         rel = "" if i == 0 else ", to its parent"
-        a.set_ylabel(f"pole {i + 1} ({name})\nangle from upright{rel}\n(deg, wrapped)")
+        a.set_ylabel(f"pole {i + 1} ({name})\nangle from upright{rel}\n(deg, wrapped: gaps mark a turn)")
     if ax_s is not None:
         lo, hi = params.cart_range
         for v, lab in ((lo, "joint limit"), (hi, None)):

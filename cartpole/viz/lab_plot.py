@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._files import atomic_write
-from cartpole.models import wrap_angle
+from cartpole.viz.traces import wrapped_angle_trace
 
 
 def _label(result, x0, ts: float) -> str:
@@ -71,7 +71,7 @@ def lab_figure(result):
     for run, x0, ts in zip(result.rollouts, result.x0s, result.settling_times_seed):
         label = _label(result, x0, ts)
         for ax, h in zip(ax_th, hinges):
-            ax.plot(run.t, np.rad2deg(wrap_angle(run.qpos[:, h] - result.x_eq[h])), label=label)
+            ax.plot(*wrapped_angle_trace(run.t, run.qpos[:, h], result.x_eq[h]), label=label)
         if ax_s is not None:
             ax_s.plot(run.t, run.qpos[:, slide], label=label)
         for ax, k in zip(ax_u, range(p.nu)):
@@ -168,7 +168,7 @@ def pid_vs_lqr_figure(lqr, pid):
     for res, ls in ((lqr, "-"), (pid, "--")):
         for run, colour in zip(res.rollouts, colours):
             for ax, h in zip(ax_th, hinges):
-                ax.plot(run.t, np.rad2deg(wrap_angle(run.qpos[:, h] - res.x_eq[h])), ls=ls, color=colour, lw=1.0)
+                ax.plot(*wrapped_angle_trace(run.t, run.qpos[:, h], res.x_eq[h]), ls=ls, color=colour, lw=1.0)
             if ax_s is not None:
                 ax_s.plot(run.t, run.qpos[:, slide], ls=ls, color=colour, lw=1.0)
             for ax, k in zip(ax_u, range(p.nu)):

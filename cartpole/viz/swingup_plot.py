@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._files import atomic_write
-from cartpole.models import build_model, wrap_angle
+from cartpole.models import build_model
+from cartpole.viz.traces import wrapped_angle_trace
 
 
 def _energy(fun, x: np.ndarray) -> np.ndarray:
@@ -75,15 +76,15 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
     pt = None if plan is None else np.asarray(plan.t)
     pu = None if plan is None else np.asarray(plan.u).reshape(len(np.asarray(plan.u)), -1)
     for i, (a, h) in enumerate(zip(ax_th, hinges)):
-        a.plot(t, wrap_angle(x[:, h] - x_eq[h]), label="MuJoCo")
+        a.plot(*wrapped_angle_trace(t, x[:, h], x_eq[h], degrees=False), label="MuJoCo")
         if px is not None:
-            a.plot(pt, wrap_angle(px[:, h] - x_eq[h]), "--", label="plan")
+            a.plot(*wrapped_angle_trace(pt, px[:, h], x_eq[h], degrees=False), "--", label="plan")
         a.axhline(0.0, color="k", lw=0.5)
         if len(hinges) == 1:
-            a.set_ylabel("pole angle from upright\n(rad, wrapped)")
+            a.set_ylabel("pole angle from upright\n(rad, wrapped: gaps mark a turn)")
         else:
             rel = "" if i == 0 else ", to its parent"
-            a.set_ylabel(f"pole {i + 1} ({params.joints[h].name})\nangle from x*{rel}\n(rad, wrapped)")
+            a.set_ylabel(f"pole {i + 1} ({params.joints[h].name})\nangle from x*{rel}\n(rad, wrapped: gaps mark a turn)")
     if ax_s is not None:
         ax_s.plot(t, x[:, slide], label="MuJoCo")
         if px is not None:
