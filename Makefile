@@ -14,7 +14,7 @@ install: $(BIN)/activate
 	$(BIN)/pip install --quiet -e ".[dev]"
 
 demo: install
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole linearize --out $(OUT)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole linearize
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole lqr --out $(OUT)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole swingup --method energy --out $(OUT)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole swingup --method trajopt --out $(OUT)
@@ -24,7 +24,7 @@ test: install
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n 2
 
 bench: install
-	$(BIN)/cartpole bench --out $(OUT)
+	$(BIN)/cartpole bench
 
 clean:
 	rm -rf $(VENV) $(OUT) *.egg-info

@@ -22,6 +22,7 @@ COMMANDS = (
     "linearize",
     "lqr",
     "swingup",
+    "feedforward",
     "sweep",
     "bench",
 )
@@ -100,11 +101,52 @@ def to_jsonable(obj):
     return obj
 
 
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """Send everything written to stdout inside the block to stderr: Python's ``print`` and, at the file-descriptor
+    level, what C libraries print (LAPACK's XERBLA, a solver's banner), so the one JSON document stays alone."""
+    import ctypes
+
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+        os.dup2(2, 1)
+    except OSError:  # no file descriptor 1 or 2: nothing to protect
+        saved = None
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        sys.stderr.flush()
+        if saved is not None:
+            try:
+                ctypes.CDLL(None).fflush(None)  # C stdio buffers still holding output meant for the old fd 1
+            except (OSError, AttributeError):
+                pass
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+@contextlib.contextmanager
+def _mujoco_warnings(notes: list):
+    """Collect MuJoCo's warnings in ``notes`` instead of its default (a line on stderr and a MUJOCO_LOG.TXT file
+    in the current directory, which is not the command's to write)."""
+    import mujoco
+
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: notes.append(" ".join(str(msg).split())))
+    try:
+        yield notes
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
 def _run(args):
     """Run the command inside its progress reporter (and, when it writes files, its output transaction)."""
     from cartpole._files import check_out_dir, output_transaction
     from cartpole.progress import reporting
 
+    notes: list[str] = []
     with contextlib.ExitStack() as stack:
         if args._writes:
             args.out = str(check_out_dir(args.out))
@@ -112,10 +154,14 @@ def _run(args):
         elif args.out is not None:
             print(f"cartpole {args.command}: --out is ignored: {args.command} writes no files (the option is "
                   "deprecated and will be removed; drop it).", file=sys.stderr)
+        stack.enter_context(_mujoco_warnings(notes))
         stack.enter_context(reporting(args.command, enabled=not args.json))
         if args.json:  # a stray print must not spoil the one JSON document
-            stack.enter_context(contextlib.redirect_stdout(sys.stderr))
-        return args._run(args)
+            stack.enter_context(_stdout_to_stderr())
+        doc = args._run(args)
+    for note in dict.fromkeys(notes):  # each distinct warning once, after a run that succeeded
+        print(f"cartpole {args.command}: MuJoCo warned: {note}", file=sys.stderr)
+    return doc
 
 
 def main(argv=None) -> int:
@@ -124,9 +170,13 @@ def main(argv=None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
     except SystemExit as exc:  # --help (0) or a bad option (2, one line already printed)
         return exc.code if isinstance(exc.code, int) else 2
+    if extra:
+        print(f"cartpole {args.command}: unrecognized arguments: {' '.join(extra)}; see `cartpole {args.command} "
+              "--help`.", file=sys.stderr)
+        return 2
     try:
         import mujoco  # noqa: F401  (MuJoCo 4 raises AttributeError, not ImportError, for a missing GL library)
     except Exception as exc:  # pragma: no cover - depends on the machine's GL libraries

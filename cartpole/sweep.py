@@ -252,8 +252,14 @@ _WORKER: _Runner | None = None  # set in each worker process by _init_worker
 
 
 def _init_worker(params, method, duration, catch_weights, cache) -> None:
-    """ProcessPoolExecutor initializer: build this worker's model (once) and keep the shared settings."""
+    """ProcessPoolExecutor initializer: build this worker's model (once) and keep the shared settings.
+
+    MuJoCo's warnings are dropped here (the parent loaded the same MJCF first and reported them), so a worker
+    neither prints them nor writes MUJOCO_LOG.TXT into the current directory."""
+    import mujoco
+
     global _WORKER
+    mujoco.set_mju_user_warning(lambda msg: None)
     _WORKER = _Runner(params, method, duration, catch_weights, cache)
 
 

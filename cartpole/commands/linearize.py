@@ -22,10 +22,15 @@ def run(args) -> dict:
     (2 nq, nu), ``Ad``, ``Bd`` (one step of the MJCF's integrator).
     """
     from cartpole.commands._state import state_sentence
+    from cartpole.errors import CartPoleError
     from cartpole.models import build_model, linearize
 
     model = build_model(args.mjcf)
     lin = linearize(model)
+    bad = [k for k in ("x_eq", "u_eq", "A", "B", "Ad", "Bd") if not np.all(np.isfinite(lin[k]))]
+    if bad:
+        raise CartPoleError(f"The linearisation has NaN or inf entries in {', '.join(bad)}: the MJCF holds a number "
+                            "that is not finite (a damping, mass, gear, armature or time step); fix it.")
     doc = {"mjcf": model.params.mjcf, "dt": lin["dt"], "integrator": lin["integrator"], "x_eq": lin["x_eq"],
            "u_eq": lin["u_eq"], "A": lin["A"], "B": lin["B"], "Ad": lin["Ad"], "Bd": lin["Bd"]}
     if not args.json:

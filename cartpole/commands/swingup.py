@@ -126,6 +126,15 @@ def show(params, rollout, *, command: str = "swingup"):
     return shown
 
 
+def rollout_doc(rollout) -> dict:
+    """The JSON contract's rollout: ``t``, ``qpos``, ``qvel`` (n+1 rows), ``ctrl`` (n rows) and ``push`` (n entries:
+    the world-x force in N on the cart during each step; zeros when nothing pushed)."""
+    doc = rollout.to_dict()
+    push = rollout.info.get("push") if isinstance(rollout.info, dict) else None
+    doc.setdefault("push", [0.0] * len(doc["ctrl"]) if push is None else [float(f) for f in push])
+    return doc
+
+
 def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
@@ -161,7 +170,7 @@ def run(args) -> dict:
             print(f"cartpole swingup: no video ({exc})", file=sys.stderr)
     m = res.metrics
     doc = {"mjcf": params.mjcf, "method": args.method, "success": res.success, "caught_at": res.caught_at,
-           "rollout": res.rollout.to_dict(), "time_to_upright": m["time_to_upright"],
+           "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
     if args.view:

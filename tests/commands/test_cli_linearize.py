@@ -118,3 +118,13 @@ def test_linearize_prose_names_the_joints_and_the_equilibrium(capsys):
     assert "x_eq =" in out and "u_eq =" in out and "hinge3 rate (rad/s)" in out
     A = out.split("A =")[1].split("B =")[0]
     assert len([line for line in A.splitlines() if line.strip()]) == 8
+
+
+def test_a_damping_that_is_not_a_number_is_one_sentence_not_a_matrix_of_nulls(tmp_path, capsys):
+    path = tmp_path / "nan_damping.xml"
+    path.write_text(SHIPPED_MJCF.read_text().replace('damping="0.01"', 'damping="nan"'))
+    assert main(["linearize", "--json", "--mjcf", str(path)]) == 2
+    cap = capsys.readouterr()
+    (line,) = cap.err.strip().splitlines()  # MuJoCo's own NaN warning is not printed on a failure
+    assert cap.out == "" and line.startswith("cartpole linearize: The linearisation has NaN or inf entries in A")
+    assert not (Path.cwd() / "MUJOCO_LOG.TXT").exists()

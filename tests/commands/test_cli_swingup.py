@@ -29,6 +29,7 @@ def _check_contract(doc, method, out):
     ro = doc["rollout"]
     n = len(ro["ctrl"])
     assert len(ro["t"]) == len(ro["qpos"]) == len(ro["qvel"]) == n + 1
+    assert ro["push"] == [0.0] * n  # no pushes: n zeros
     assert np.allclose(ro["qpos"][0], [0, np.pi]) and np.allclose(ro["qvel"][0], [0, 0])
     qpos, qvel = _replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
     assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
