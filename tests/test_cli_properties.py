@@ -188,28 +188,6 @@ def _check_outcome(command, argv, rc, out, err, out_dir: Path, json_mode: bool):
     assert not out_dir.exists() or not any(out_dir.iterdir()), f"files left under --out: {list(out_dir.rglob('*'))}"
 
 
-# Crashes this test found in modules the command line does not own, reported with their exact inputs; each is pinned
-# by an xfail case of test_known_crashes_end_in_one_sentence and tolerated here until its owner fixes it (then drop
-# it from both places).
-KNOWN_CRASHES = {
-    # a number in the MJCF that is not finite (gear="nan", a joint axis="nan 0 0", gravity="0 0 nan") reaches the
-    # equilibrium solver's least squares: read_params should refuse a compiled model with NaN/inf in it
-    "models/equilibrium.py": ("LinAlgError", lambda xml: "nan" in xml or "inf" in xml),
-    # gravity="0 0 0": the energy-shaping gains divide by m g l; EnergyShapingController should refuse it
-    "control/energy.py": ("ZeroDivisionError", lambda xml: 'gravity="0 0 0"' in xml),
-}
-
-
-def _known_crash(exc: BaseException, xml: str) -> bool:
-    import traceback
-
-    frames = [f.filename.replace(os.sep, "/") for f in traceback.extract_tb(exc.__traceback__)]
-    for where, (name, matches) in KNOWN_CRASHES.items():
-        if type(exc).__name__ == name and any(f.endswith("cartpole/" + where) for f in frames) and matches(xml):
-            return True
-    return False
-
-
 def _run_cli(command, data):
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "model.xml"
@@ -220,13 +198,8 @@ def _run_cli(command, data):
         if command != "linearize":
             argv[1:1] = ["--out", str(out_dir)]
         out, err = io.StringIO(), io.StringIO()
-        try:
-            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-                rc = main(argv)
-        except Exception as exc:
-            if _known_crash(exc, path.read_text()):
-                return  # reported to its owner and pinned below (test_known_crashes_end_in_one_sentence)
-            raise
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            rc = main(argv)
         _check_outcome(command, argv, rc, out.getvalue(), err.getvalue(), out_dir,
                        json_mode)
 
@@ -261,8 +234,7 @@ def _edited(old: str, new: str) -> str:
     pytest.param("swingup", 'gravity="0 0 -9.81"', 'gravity="0 0 nan"', id="gravity-nan"),
     pytest.param("swingup", 'gravity="0 0 -9.81"', 'gravity="0 0 0"', id="no-gravity"),
 ])
-@pytest.mark.xfail(reason="crash in cartpole.models / cartpole.control.energy, reported to their owners", strict=False)
-def test_known_crashes_end_in_one_sentence(command, old, new, tmp_path, capsys):
+def test_crashes_hypothesis_found_end_in_one_sentence(command, old, new, tmp_path, capsys):
     path = tmp_path / "model.xml"
     path.write_text(_edited(old, new))
     argv = [command, "--json", "--mjcf", str(path)]

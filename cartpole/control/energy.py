@@ -73,6 +73,10 @@ def check_single_pole(model: CartPoleModel) -> tuple[int, int]:
         what = f"this model has {p.nu} actuators"
     elif p.actuated[0] != p.slide:
         what = f"its actuator drives joint '{p.joints[p.actuated[0]].name}', not the cart's slide"
+    elif not p.g > 0 or not p.pole_com_distance > 0:
+        raise EnergyShapingModelError("Energy shaping pumps the pole's energy against gravity and this model has "
+                                      + ("no gravity" if not p.g > 0 else "its pole's centre of mass on the hinge axis")
+                                      + "; use `--method trajopt` instead.")
     else:
         return p.slide, p.hinges[0]
     raise EnergyShapingModelError(f"Energy shaping is for one pole driven by the cart and {what}; "

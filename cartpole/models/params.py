@@ -458,10 +458,23 @@ def _check_supported(m, where: str) -> None:
             raise MJCFError(f"{where} lets geoms '{pair[0]}' and '{pair[1]}' collide; the smooth model has no "
                             "contacts, so add <flag contact=\"disable\"/> under <option> or give them "
                             "contype=\"0\" conaffinity=\"0\".")
+    for field in _FINITE_FIELDS:
+        values = np.asarray(getattr(m, field) if not field.startswith("opt.") else getattr(m.opt, field[4:]), float)
+        if not np.all(np.isfinite(values)):
+            raise MJCFError(f"{where} has a number that is not finite in {field} (nan or inf in the XML); "
+                            "give every mass, size, position, axis, gear, range and option a finite value.")
     integ = _INTEGRATOR_NAMES.get(int(m.opt.integrator))
     if integ is None:
         raise MJCFError(f"{where} uses integrator {int(m.opt.integrator)}; supported integrators are "
                         f"{', '.join(SUPPORTED_INTEGRATORS)}.")
+
+
+#: Compiled fields the model reads that must hold finite numbers (joint and ctrl ranges may be infinite only when
+#: unlimited, which MuJoCo stores as zeros, so they are checked too).
+_FINITE_FIELDS = ("opt.gravity", "opt.timestep", "body_pos", "body_quat", "body_mass", "body_ipos", "body_iquat",
+                  "body_inertia", "jnt_pos", "jnt_axis", "jnt_range", "jnt_stiffness", "qpos0", "qpos_spring",
+                  "dof_damping", "dof_armature", "actuator_gear", "actuator_gainprm", "actuator_ctrlrange",
+                  "actuator_forcerange")
 
 
 def _colliding_pair(m):

@@ -136,6 +136,8 @@ REFUSED = {
                            r"disables actuation"),
     "ctrl clamping disabled": (BASE.replace(NO_CONTACT, '<flag contact="disable" clampctrl="disable"/>'),
                                r"disables ctrl clamping"),
+    "not-finite gear": (BASE.replace('gear="20"', 'gear="nan"'), r"not finite in actuator_gear"),
+    "not-finite gravity": (BASE.replace('gravity="0 0 -9.81"', 'gravity="0 0 inf"'), r"not finite in opt.gravity"),
     "tilted rail without equilibrium": (BASE.replace('type="slide" axis="1 0 0"', 'type="slide" axis="1 0 0.2"')
                                         .replace('joint="slider"', 'joint="hinge"'), r"no upright rest.*'slider'"),
 }

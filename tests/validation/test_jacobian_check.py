@@ -1,5 +1,4 @@
 """The Jacobian-check utilities the notebooks use agree with the exact model and detect a wrong one."""
-import numpy as np
 
 from cartpole.models import build_model, read_params
 from cartpole.validation.jacobians import check_jacobians, random_states
