@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole._files import atomic_write
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -74,8 +73,8 @@ def git_short_sha() -> str:
     return sha if r.returncode == 0 and sha else "nogit"
 
 
-def metrics_row(result, *, date: str | None = None, commit: str | None = None) -> str:
-    """The lab's ``metrics.csv`` row for a :class:`~cartpole.lab.LabResult` (no newline).
+def metrics_row(result, *, date: str | None = None, commit: str | None = None) -> list:
+    """The lab's ``metrics.csv`` row for a :class:`~cartpole.lab.LabResult`, one field per ``METRICS_HEADER`` column.
 
     ``steps`` is the number of physics steps of one run; ``value`` the mean of the handout's settling time (s);
     ``notes`` is ``5_ICs``, with ``_<k>_poles`` for a chain and ``_scaled_<f>`` when the starts were scaled.
@@ -87,24 +86,16 @@ def metrics_row(result, *, date: str | None = None, commit: str | None = None) -
         notes += f"_{len(result.params.hinges)}_poles"
     if result.start_scale != 1.0:
         notes += f"_scaled_{result.start_scale:g}"
-    return (f"day5_cartpole_lqr,{date},5,cartpole_lqr,{commit},0,cartpole,lqr,{result.steps},1,"
-            f"settling_time_sec,{result.mean_settling_time_seed:.4f},{notes}")
+    return ["day5_cartpole_lqr", date, 5, "cartpole_lqr", commit, 0, "cartpole", "lqr", result.steps, 1,
+            "settling_time_sec", f"{result.mean_settling_time_seed:.4f}", notes]
 
 
-def append_metrics(path: Path, row: str) -> Path:
-    """Append ``row`` to the CSV at ``path`` (header first when creating it); rewritten whole
-    (:func:`~cartpole._files.atomic_write`)."""
-    old = path.read_text() if path.exists() else METRICS_HEADER + "\n"
-    if old and not old.endswith("\n"):
-        old += "\n"
-    return atomic_write(path, lambda fh: fh.write((old + row + "\n").encode()))
+def append_metrics(path: Path, row: list) -> Path:
+    """Append ``row`` to the CSV at ``path`` (header first when creating it), whole or not at all, through the csv
+    module (:func:`~cartpole._files.append_csv_row`)."""
+    from cartpole._files import append_csv_row
 
-
-def _progress(label: str):
-    def report(frac: float) -> None:
-        end = "\n" if frac >= 1.0 else ""
-        print(f"\r{label}: {frac:4.0%}", end=end, file=sys.stderr, flush=True)
-    return report
+    return append_csv_row(path, METRICS_HEADER.split(","), row)
 
 
 def run(args) -> dict:
@@ -141,12 +132,16 @@ def run(args) -> dict:
         from cartpole.viz.lab_plot import plot_pid_vs_lqr
 
         pid_figure = plot_pid_vs_lqr(result, pid, out / PID_FIGURE).resolve()
-    video = None
+    video = video_render_s = None
     if not args.no_video:
+        from cartpole.progress import stage
+
         clip = simulate(result.params, result.controller(), result.x0s[0], VIDEO_SECONDS)
         try:
-            video = render_video(result.params, clip, out / VIDEO,
-                                 progress=_progress(f"rendering {VIDEO.as_posix()}")).resolve()
+            with stage("video", size=f"{VIDEO_SECONDS:g} s at 30 fps") as tick:
+                info = render_video(result.params, clip, out / VIDEO, progress=tick, modes=[(0.0, "LQR")],
+                                    model=model)
+            video, video_render_s = info.resolve(), float(info.render_s)
         except VideoUnavailable as exc:
             print(f"cartpole lqr: no video: {exc}", file=sys.stderr)
     metrics = append_metrics(out / METRICS, metrics_row(result)).resolve()
@@ -180,6 +175,7 @@ def run(args) -> dict:
         "track_margin": [m.track_margin for m in result.metrics],
         "figure": str(figure),
         "video": None if video is None else str(video),
+        "video_render_s": video_render_s,
         "metrics": str(metrics),
     }
     if args.compare_pid:
@@ -288,7 +284,7 @@ def _print_prose(result, doc, pid=None) -> None:
     if pid is not None:
         print(f"Wrote {doc['pid']['figure']}")
     if doc["video"]:
-        print(f"Wrote {doc['video']}")
+        print(f"Wrote {doc['video']} (rendered in {doc['video_render_s']:.1f} s)")
     print(f"Appended a row to {doc['metrics']}")
 
 

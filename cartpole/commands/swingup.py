@@ -160,12 +160,12 @@ def run(args) -> dict:
                        title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
     video = None
     if not args.no_video:
-        from cartpole.viz import VideoUnavailable, render_video
+        from cartpole.viz import VideoUnavailable, render_video, swingup_modes
         seconds = float(res.rollout.t[-1])
         try:
             with stage("video", size=f"{seconds:g} s at 30 fps") as tick:
                 video = render_video(params, res.rollout, out / "videos" / f"swingup_{args.method}.mp4",
-                                     progress=tick)
+                                     progress=tick, modes=swingup_modes(res), model=model)
         except VideoUnavailable as exc:
             print(f"cartpole swingup: no video ({exc})", file=sys.stderr)
     m = res.metrics
@@ -196,5 +196,5 @@ def run(args) -> dict:
                   f"{viewed.info.get('frames')} frames in {viewed.info.get('wall_time', 0.0):.1f} s, identical "
                   "to the log")
         print(f"Figure: {fig}")
-        print(f"Video: {video if video is not None else 'not written'}")
+        print(f"Video: {video.summary() if video is not None else 'not written'}")
     return doc

@@ -138,7 +138,7 @@ def test_video_is_10_s_at_30_fps(tmp_path, capsys):
     meta = next(gen)
     gen.close()
     assert frames == 300 and tuple(meta["size"]) == (960, 540) and meta["fps"] == 30
-    assert "100%" in cap.err  # progress went to stderr
+    assert "\r" not in cap.err and "%" not in cap.err  # --json: no progress fragments anywhere
     assert sorted(p.name for p in (tmp_path / "videos").iterdir()) == ["day5_cartpole.gif", "day5_cartpole.mp4"]
 
 
