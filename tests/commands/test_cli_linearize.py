@@ -126,5 +126,6 @@ def test_a_damping_that_is_not_a_number_is_one_sentence_not_a_matrix_of_nulls(tm
     assert main(["linearize", "--json", "--mjcf", str(path)]) == 2
     cap = capsys.readouterr()
     (line,) = cap.err.strip().splitlines()  # MuJoCo's own NaN warning is not printed on a failure
-    assert cap.out == "" and line.startswith("cartpole linearize: The linearisation has NaN or inf entries in A")
+    # the reader refuses the number itself before anything is derived from it
+    assert cap.out == "" and line.startswith("cartpole linearize: MJCF") and "not finite in dof_damping" in line
     assert not (Path.cwd() / "MUJOCO_LOG.TXT").exists()
