@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from cartpole.commands._rollouts import rollout_doc, show_logged
+
 HELP = ("feedforward beside feedback: the trajopt swing-up's ctrl open loop vs feedforward + TVLQR, also planned "
         "with a wrong pole mass, in MuJoCo")
 
@@ -15,14 +17,9 @@ def add_arguments(parser) -> None:
                              "a finite number above -1)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render videos/feedforward_<run>.mp4")
-
-
-def _rollout_doc(rollout) -> dict:
-    """The DESIGN contract's rollout: ``t``, ``qpos``, ``qvel``, ``ctrl`` and ``push`` (n zeros: no pushes here)."""
-    doc = rollout.to_dict()
-    if "push" not in doc:
-        doc["push"] = [0.0] * len(doc["ctrl"])
-    return doc
+    parser.add_argument("--view", action="store_true",
+                        help="show each run in MuJoCo's live viewer, in real time, one after the other (without a "
+                             "display: a note on stderr and the rest as usual)")
 
 
 def _fmt(v, spec: str, unit: str = "") -> str:
@@ -46,6 +43,10 @@ def run(args) -> dict:
 
     study = run_feedforward(params, mass_error=mass_error)   # its stages report through cartpole.progress
     model = study.model
+    if args.view:
+        for r in study.runs.values():
+            if show_logged(params, r.rollout, command="feedforward") is None:
+                break  # no display: said once
     pct = f"{100 * mass_error:+g} %"
     true_label = f"plan (MJCF's model), T = {study.plan.T:.2f} s"
     wrong_label = f"plan (pole mass {pct}), T = {study.wrong_plan.T:.2f} s"
@@ -82,7 +83,7 @@ def run(args) -> dict:
            "plan": {"T": study.plan.T, "T_min": study.plan.T_min, "N": study.plan.trajectory.N},
            "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
                           "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},
-           "runs": {n: {**r.summary(), "rollout": _rollout_doc(r.rollout)} for n, r in study.runs.items()},
+           "runs": {n: {**r.summary(), "rollout": rollout_doc(r.rollout)} for n, r in study.runs.items()},
            "figure": str(fig.resolve()), "videos": videos}
     if not args.json:
         joints = [params.joints[h].name for h in model.hinges]

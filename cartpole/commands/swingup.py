@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 import sys
 
+from cartpole.commands._rollouts import rollout_doc, show_logged
+
 HELP = "swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, or trajopt + TVLQR)"
 
 #: Largest rollout log a run may hold in memory, bytes: (duration / timestep) steps, each 8 bytes for t, each of
@@ -91,50 +93,6 @@ class _Stages:
             self.done.add(name)
 
 
-def show(params, rollout, *, command: str = "swingup"):
-    """Show ``rollout`` in MuJoCo's live viewer, in real time (:func:`cartpole.viz.viewer.watch`), by replaying its
-    logged ctrl step for step from its first state; returns the rollout the viewer ran, or None without a display
-    (its one sentence printed on stderr).
-
-    Raises
-    ------
-    CartPoleError
-        The viewer's run differs from the log (it would not be the run logged).
-    """
-    import numpy as np
-
-    from cartpole.errors import CartPoleError, first_line
-    from cartpole.viz.viewer import ViewerUnavailable, watch
-
-    ctrl = np.asarray(rollout.ctrl)
-    h = float(params.timestep)
-    last = len(ctrl) - 1
-
-    def logged_ctrl(t, x):
-        return ctrl[min(last, int(round(t / h)))]
-
-    pushes = rollout.info.get("push") if isinstance(rollout.info, dict) else None
-    push = None if pushes is None else (lambda t: float(pushes[min(last, int(round(t / h)))]))
-    try:
-        shown = watch(params, logged_ctrl, rollout.x[0], float(rollout.t[-1]), push=push)
-    except ViewerUnavailable as exc:
-        print(f"cartpole {command}: no live view: {first_line(exc)}.", file=sys.stderr)
-        return None
-    k = len(shown.t)
-    if not (np.array_equal(shown.qpos, rollout.qpos[:k]) and np.array_equal(shown.qvel, rollout.qvel[:k])):
-        raise CartPoleError("The live viewer's run differs from the logged run; report this with the MJCF.")
-    return shown
-
-
-def rollout_doc(rollout) -> dict:
-    """The JSON contract's rollout: ``t``, ``qpos``, ``qvel`` (n+1 rows), ``ctrl`` (n rows) and ``push`` (n entries:
-    the world-x force in N on the cart during each step; zeros when nothing pushed)."""
-    doc = rollout.to_dict()
-    push = rollout.info.get("push") if isinstance(rollout.info, dict) else None
-    doc.setdefault("push", [0.0] * len(doc["ctrl"]) if push is None else [float(f) for f in push])
-    return doc
-
-
 def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
@@ -154,7 +112,7 @@ def run(args) -> dict:
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
         {"simulate": "10 s"} if args.method == "energy" else {})
     res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes))
-    viewed = show(params, res.rollout) if args.view else None
+    viewed = show_logged(params, res.rollout, command="swingup") if args.view else None
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{args.method}.png", plan=res.plan,
                        caught_at=res.caught_at, model=model,
                        title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")

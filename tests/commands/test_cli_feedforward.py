@@ -90,3 +90,15 @@ def test_a_swingup_the_optimiser_cannot_plan_ends_with_its_one_sentence(tmp_path
     assert cap.out == "" and len(lines) == 1 and lines[0].startswith("cartpole feedforward: ")
     assert "infeasible" in lines[0] and "Traceback" not in cap.err
     assert not out.exists()
+
+
+def test_view_without_a_display_says_so_once_and_runs_as_usual(tmp_path, monkeypatch, capsys):
+    for var in ("DISPLAY", "WAYLAND_DISPLAY", "XDG_SESSION_TYPE"):
+        monkeypatch.delenv(var, raising=False)
+    assert main(["feedforward", "--view", "--json", "--no-video", "--out", str(tmp_path)]) == 0
+    cap = capsys.readouterr()
+    doc = json.loads(cap.out)
+    assert set(doc["runs"]) == set(RUNS)
+    (line,) = [ln for ln in cap.err.strip().splitlines() if "live view" in ln]
+    assert line.startswith("cartpole feedforward: no live view: No display for the live viewer")
+    assert (tmp_path / "figures" / "feedforward.png").exists()

@@ -1,0 +1,48 @@
+"""What several commands share about a logged MuJoCo run: its JSON document and showing it in the live viewer."""
+from __future__ import annotations
+
+import sys
+
+
+def show_logged(params, rollout, *, command: str):
+    """Show ``rollout`` in MuJoCo's live viewer, in real time (:func:`cartpole.viz.viewer.watch`), by replaying its
+    logged ctrl step for step from its first state; returns the rollout the viewer ran, or None without a display
+    (its one sentence printed on stderr).
+
+    Raises
+    ------
+    CartPoleError
+        The viewer's run differs from the log (it would not be the run logged).
+    """
+    import numpy as np
+
+    from cartpole.errors import CartPoleError, first_line
+    from cartpole.viz.viewer import ViewerUnavailable, watch
+
+    ctrl = np.asarray(rollout.ctrl)
+    h = float(params.timestep)
+    last = len(ctrl) - 1
+
+    def logged_ctrl(t, x):
+        return ctrl[min(last, int(round(t / h)))]
+
+    pushes = rollout.info.get("push") if isinstance(rollout.info, dict) else None
+    push = None if pushes is None else (lambda t: float(pushes[min(last, int(round(t / h)))]))
+    try:
+        shown = watch(params, logged_ctrl, rollout.x[0], float(rollout.t[-1]), push=push)
+    except ViewerUnavailable as exc:
+        print(f"cartpole {command}: no live view: {first_line(exc)}.", file=sys.stderr)
+        return None
+    k = len(shown.t)
+    if not (np.array_equal(shown.qpos, rollout.qpos[:k]) and np.array_equal(shown.qvel, rollout.qvel[:k])):
+        raise CartPoleError("The live viewer's run differs from the logged run; report this with the MJCF.")
+    return shown
+
+
+def rollout_doc(rollout) -> dict:
+    """The JSON contract's rollout: ``t``, ``qpos``, ``qvel`` (n+1 rows), ``ctrl`` (n rows) and ``push`` (n entries:
+    the world-x force in N on the cart during each step; zeros when nothing pushed)."""
+    doc = rollout.to_dict()
+    push = rollout.info.get("push") if isinstance(rollout.info, dict) else None
+    doc.setdefault("push", [0.0] * len(doc["ctrl"]) if push is None else [float(f) for f in push])
+    return doc
