@@ -8,7 +8,9 @@ clamping, friction loss, tendons, equality constraints) is refused with one sent
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -366,7 +368,8 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
 
     if xml is not None:
         try:
-            return mujoco.MjModel.from_xml_string(xml), "", xml
+            with _compiler_warnings():
+                return mujoco.MjModel.from_xml_string(xml), "", xml
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
             raise MJCFError(f"The MJCF text does not compile: {first_line(exc)}. "
                             "Fix the XML and try again.") from None
@@ -376,11 +379,33 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
         raise MJCFError(f"MJCF file '{path}' does not exist; pass --mjcf with the path of a cart-pole MJCF.")
     try:
         text = path.read_text()
-        model = mujoco.MjModel.from_xml_path(str(path))
+        with _compiler_warnings():
+            model = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:
         raise MJCFError(f"MJCF file '{path}' does not compile: {first_line(exc)}. "
                         "Fix the XML and try again.") from None
     return model, str(path), text
+
+
+@contextlib.contextmanager
+def _compiler_warnings():
+    """Route MuJoCo's compiler warnings (e.g. "XML contains a 'NaN'") to the handler already installed, or else to
+    Python's ``warnings``, instead of MuJoCo's default of a line on stderr and a MUJOCO_LOG.TXT file in the current
+    directory; the previous handler is restored afterwards."""
+    import mujoco
+
+    caught: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: caught.append(" ".join(str(msg).split())))
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+        for msg in dict.fromkeys(caught):
+            if previous is not None:  # someone collects MuJoCo's warnings (the command line does): give them theirs
+                previous(msg)
+            else:
+                warnings.warn(f"MuJoCo: {msg}", RuntimeWarning, stacklevel=3)
 
 
 def _name(m, objtype, i: int, fallback: str) -> str:

@@ -120,7 +120,8 @@ def test_linearize_prose_names_the_joints_and_the_equilibrium(capsys):
     assert len([line for line in A.splitlines() if line.strip()]) == 8
 
 
-def test_a_damping_that_is_not_a_number_is_one_sentence_not_a_matrix_of_nulls(tmp_path, capsys):
+def test_a_damping_that_is_not_a_number_is_one_sentence_not_a_matrix_of_nulls(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a private cwd: MUJOCO_LOG.TXT from other tests' processes cannot show up here
     path = tmp_path / "nan_damping.xml"
     path.write_text(SHIPPED_MJCF.read_text().replace('damping="0.01"', 'damping="nan"'))
     assert main(["linearize", "--json", "--mjcf", str(path)]) == 2
