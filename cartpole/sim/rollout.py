@@ -141,9 +141,21 @@ def ctrl_bounds(m) -> tuple[np.ndarray, np.ndarray]:
     return np.where(lim, rng[:, 0], -np.inf), np.where(lim, rng[:, 1], np.inf)
 
 
+def cart_body(m) -> int:
+    """Index of the cart's body in the MjModel ``m``: the body of the first slide joint."""
+    import mujoco
+
+    for j in range(m.njnt):
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+            return int(m.jnt_bodyid[j])
+    raise CartPoleError("The MJCF has no slide joint, so there is no cart to push; drop the push.")
+
+
 def simulate(source: CartPoleParams | str | Path | None, controller: Controller, x0, duration: float, *,
              control_period: float | None = None, progress: Callable[[float], None] | None = None,
-             stop: Callable[[float, np.ndarray], bool] | None = None) -> Rollout:
+             stop: Callable[[float, np.ndarray], bool] | None = None,
+             push: Callable[[float], float] | None = None,
+             on_step: Callable[[object, object], bool | None] | None = None) -> Rollout:
     """Run ``u = controller(t, x)`` in MuJoCo from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -163,6 +175,12 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         Called with the fraction done (0..1) about 20 times.
     stop : callable, optional
         ``stop(t, x) -> bool`` ends the run early (after logging that state).
+    push : callable, optional
+        ``push(t [s]) -> force [N]``: world-x force on the cart body during the step from ``t`` (MuJoCo's
+        ``xfrc_applied``), logged as ``rollout.info["push"]`` (n,).
+    on_step : callable, optional
+        ``on_step(m, d)`` on the start state and after each logged step (e.g. :class:`cartpole.viz.viewer.LiveViewer`);
+        returning False ends the run there.
 
     Returns
     -------
@@ -193,6 +211,10 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     u = np.zeros(nu)
     every = max(1, n // 20)
     last = n
+    cart = cart_body(m) if push is not None else -1
+    forces = np.zeros(n) if push is not None else None
+    if on_step is not None and on_step(m, d) is False:  # the start state too (a viewer opens on it)
+        n = last = 0
     for k in range(n):
         if k % hold == 0:
             xk = np.concatenate([d.qpos, d.qvel])
@@ -201,6 +223,9 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
                 raise CartPoleError(f"The controller returned {u_raw.tolist()} at t = {k * h:.3f} s; "
                                     f"it must return {nu} finite ctrl value{'s' if nu != 1 else ''}.")
             u = np.clip(u_raw, lo, hi)
+        if push is not None:
+            forces[k] = float(push(k * h))
+            d.xfrc_applied[cart, 0] = forces[k]
         d.ctrl[:] = u
         mujoco.mj_step(m, d)
         ctrl[k] = u
@@ -212,11 +237,15 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
                                 "the controller or the model is unstable, reduce gains or the time step.")
         if progress is not None and (k + 1) % every == 0:
             progress((k + 1) / n)
+        if on_step is not None and on_step(m, d) is False:
+            last = k + 1
+            break
         if stop is not None and stop((k + 1) * h, np.concatenate([d.qpos, d.qvel])):
             last = k + 1
             break
+    info = {} if forces is None else {"push": forces[:last].copy()}
     return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
-                   mjcf=source_path(source))
+                   mjcf=source_path(source), info=info)
 
 
 def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:

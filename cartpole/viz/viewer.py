@@ -50,7 +50,7 @@ import numpy as np
 from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams
-from cartpole.sim import Rollout, make_mujoco, source_path
+from cartpole.sim import Rollout, simulate
 
 #: Most frames a second handed to the viewer (``viewer.sync()``); physics steps in between are not drawn.
 MAX_FPS = 60.0
@@ -236,6 +236,7 @@ class LiveViewer:
         self._next_frame = 0.0
         self._state = None
         self._spec = None
+        self._md = None
 
     # -- window ------------------------------------------------------------------------------------------------
     def open(self, m, d) -> None:
@@ -293,6 +294,7 @@ class LiveViewer:
 
     def __call__(self, m, d) -> bool:
         """After one physics step: pace, maybe draw. False when the window is closed (stop the loop)."""
+        self._md = (m, d)
         if self._viewer is None:
             if self._opened:  # closed already
                 return False
@@ -313,8 +315,13 @@ class LiveViewer:
         self.wall_time = time.perf_counter() - self._opened_at
         return True
 
-    def finish(self, m, d, *, settle: float = 0.0) -> None:
-        """Draw the last state (and wait ``settle`` s so the window shows it, e.g. before a screenshot)."""
+    def finish(self, m=None, d=None, *, settle: float = 0.0) -> None:
+        """Draw the last state (and wait ``settle`` s so the window shows it, e.g. before a screenshot); ``m, d``
+        default to those of the last call."""
+        if m is None or d is None:
+            if self._md is None:
+                return
+            m, d = self._md
         if self.realtime and self._viewer is not None:
             ahead = (float(d.time) - self._t0) - (time.perf_counter() - self._anchor)
             if ahead > 0:
@@ -350,24 +357,6 @@ class LiveViewer:
 
 
 # ---- the run ----------------------------------------------------------------------------------------------
-
-def _start_state(x0, nq: int, nv: int) -> np.ndarray:
-    x0 = np.asarray(x0, dtype=float).ravel()
-    if x0.shape != (nq + nv,):
-        raise CartPoleError(f"The start state has {x0.size} entries; give {nq + nv}: qpos ({nq}) then qvel ({nv}).")
-    if not np.all(np.isfinite(x0)):
-        raise CartPoleError(f"The start state {x0.tolist()} is not finite; give {nq + nv} finite numbers.")
-    return x0
-
-
-def _cart_body(m) -> int:
-    import mujoco
-
-    for j in range(m.njnt):
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-            return int(m.jnt_bodyid[j])
-    raise CartPoleError("The MJCF has no slide joint, so there is no cart to push; drop the push.")
-
 
 def watch(source: CartPoleParams | str | Path | None, controller: Callable, x0, duration: float, *,
           realtime: bool = True, push: Callable[[float], float] | None = None, screenshot: str | Path | None = None,
@@ -424,78 +413,24 @@ def watch(source: CartPoleParams | str | Path | None, controller: Callable, x0, 
 
     Notes
     -----
-    The viewer part is the hook :class:`LiveViewer`; a ``simulate`` that calls ``on_step(m, d)`` after each
-    logged step (ending the run when it returns False) would make this ``simulate(..., on_step=LiveViewer())``.
+    The run is :func:`~cartpole.sim.rollout.simulate` with the hook :class:`LiveViewer` as its ``on_step``.
     """
     why = _display_problem()
     if why is not None:
         raise _unavailable(why)
-    import mujoco
-
-    m, d = make_mujoco(source)
-    nq, nv, nu = m.nq, m.nv, m.nu
-    x0 = _start_state(x0, nq, nv)
-    h = float(m.opt.timestep)
-    n = int(round(duration / h))
-    if n < 1:
-        raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
-    hold = 1 if control_period is None else max(1, int(round(control_period / h)))
-    limited = m.actuator_ctrllimited.astype(bool)
-    lo = np.where(limited, m.actuator_ctrlrange[:, 0], -np.inf)
-    hi = np.where(limited, m.actuator_ctrlrange[:, 1], np.inf)
-    cart = _cart_body(m) if push is not None else -1
-    d.qpos[:] = x0[:nq]
-    d.qvel[:] = x0[nq:]
-    d.time = 0.0
-    mujoco.mj_forward(m, d)
-    t = np.empty(n + 1)
-    qpos = np.empty((n + 1, nq))
-    qvel = np.empty((n + 1, nv))
-    ctrl = np.empty((n, nu))
-    forces = np.zeros(n)
-    t[0], qpos[0], qvel[0] = 0.0, d.qpos, d.qvel
-    u = np.zeros(nu)
-    last = n
     view = LiveViewer(realtime=realtime, show_ui=show_ui, camera=camera)
     shot = window = None
     try:
-        view.open(m, d)
-        for k in range(n):
-            if k % hold == 0:
-                xk = np.concatenate([d.qpos, d.qvel])
-                u_raw = np.asarray(controller(k * h, xk), dtype=float).ravel()
-                if u_raw.size != nu or not np.all(np.isfinite(u_raw)):
-                    raise CartPoleError(f"The controller returned {u_raw.tolist()} at t = {k * h:.3f} s; "
-                                        f"it must return {nu} finite ctrl value(s).")
-                u = np.clip(u_raw, lo, hi)
-            if push is not None:
-                forces[k] = float(push(k * h))
-                d.xfrc_applied[cart, 0] = forces[k]
-            d.ctrl[:] = u
-            mujoco.mj_step(m, d)
-            ctrl[k] = u
-            t[k + 1] = (k + 1) * h
-            qpos[k + 1] = d.qpos
-            qvel[k + 1] = d.qvel
-            if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
-                raise CartPoleError(f"MuJoCo's state became NaN/inf at t = {(k + 1) * h:.3f} s; "
-                                    "the controller or the model is unstable, reduce gains or the time step.")
-            if not view(m, d):
-                last = k + 1
-                break
-            if stop is not None and stop((k + 1) * h, np.concatenate([d.qpos, d.qvel])):
-                last = k + 1
-                break
-        view.finish(m, d, settle=0.3 if screenshot is not None else 0.0)
+        run = simulate(source, controller, x0, duration, control_period=control_period, stop=stop, push=push,
+                       on_step=view)
+        view.finish(settle=0.3 if screenshot is not None else 0.0)
         if screenshot is not None and view.is_running:
             window = find_window("MuJoCo")
             image = grab_screen(window)
             shot = atomic_write(screenshot, lambda fh: image.save(fh, format="PNG"))
     finally:
         view.close()
-    info = {"viewer": True, "closed_early": view.closed, "frames": view.frames, "wall_time": view.wall_time,
-            "screenshot": None if shot is None else str(shot), "window": window}
-    if push is not None:
-        info["push"] = forces[:last].copy()
-    return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
-                   mjcf=source_path(source), info=info)
+    run.info.update({"viewer": True, "closed_early": view.closed, "frames": view.frames,
+                     "wall_time": view.wall_time, "screenshot": None if shot is None else str(shot),
+                     "window": window})
+    return run

@@ -116,7 +116,7 @@ def test_watch_shows_the_cart_in_the_real_window_and_the_run_replays_exactly(scr
 def test_without_a_display_watch_refuses_in_one_sentence_before_touching_mujoco(monkeypatch):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("XDG_SESSION_TYPE", raising=False)
-    monkeypatch.setattr(viewer_mod, "make_mujoco", lambda *a: pytest.fail("watch touched MuJoCo"))
+    monkeypatch.setattr(viewer_mod, "simulate", lambda *a, **k: pytest.fail("watch touched MuJoCo"))
     assert not display_available()
     with pytest.raises(ViewerUnavailable) as err:
         watch(SHIPPED_MJCF, lambda t, x: np.zeros(1), START, 1.0)
