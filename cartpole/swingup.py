@@ -6,8 +6,11 @@
   :func:`~cartpole.control.switching.swingup_catch`, whose verified basin is about five times the lab LQR's), with
   hysteresis (:class:`~cartpole.control.switching.SwitchingController`). One pole on a cart driven by the cart
   only: any other model is refused with the controller's one sentence, before anything runs;
-* ``trajopt``: direct collocation + TVLQR (:func:`cartpole.ocp.pipeline.trajopt_swingup`), handing over to the
-  LQR hold after the plan; any model the planner takes.
+* ``trajopt``: direct collocation + TVLQR (:func:`cartpole.ocp.pipeline.trajopt_swingup`) for the chosen
+  ``objective`` (:mod:`cartpole.ocp.objectives`), handing over to the LQR hold after the plan; any model the
+  planner takes. The basin reported is the hand-over LQR's (:func:`cartpole.ocp.pipeline.handover_catch`), the
+  controller that actually takes over; with ``objective="dmc_swingup"`` the metrics add dm_control's ``return``
+  of the logged run (:func:`~cartpole.validation.metrics.dmc_swingup_return`) and its ``return_steps``.
 
 The start state is ``[qpos, qvel]`` in MuJoCo's order (``2 nq`` numbers; default the model's hanging rest
 ``x_hanging``). Either way MuJoCo runs the controller on the MJCF and every physics step is logged (``qpos``
@@ -121,7 +124,8 @@ def _stage(progress, name):
 
 def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float | None = None,
                 progress: Callable[[str, float], None] | None = None, basin_cache=None,
-                energy_options: dict | None = None, catch_weights: tuple | None = None) -> SwingupResult:
+                energy_options: dict | None = None, catch_weights: tuple | None = None,
+                objective=None) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
 
     Parameters
@@ -133,7 +137,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
         Start state ``[qpos, qvel]``; default the model's hanging rest ``x_hanging`` (``[0, pi, 0, 0]`` for the
         shipped cart).
     duration : float, optional
-        Simulated seconds; default 10 s (energy) or the plan's horizon + 3 s (trajopt).
+        Simulated seconds; default 10 s (energy) or the plan's horizon + 3 s (trajopt; with ``dmc_swingup`` at
+        least dm_control's episode, 1000 MJCF steps, so the return counts all of them).
     progress : callable, optional
         ``progress(stage, fraction)`` with stage "basin", "trajopt" or "simulate".
     basin_cache : BasinCache, optional
@@ -143,7 +148,11 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
     catch_weights : (Q, R), optional
         LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
         (:func:`~cartpole.control.switching.swingup_catch`; the lab's ``R = 0.1`` gives a much smaller basin).
-        Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR.
+        Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR. Energy method only: the trajopt hand-over is
+        :func:`cartpole.ocp.pipeline.handover_catch`.
+    objective : str or callable, optional
+        ``trajopt`` only: the plan's objective (``effort`` default, ``time``, ``tracking``, ``dmc_swingup``,
+        ``"MODULE:FUNCTION"`` or a function; see :func:`cartpole.ocp.pipeline.trajopt_swingup`).
 
     Returns
     -------
@@ -160,7 +169,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
     from cartpole.control.energy import EnergyShapingController
     from cartpole.control.switching import SwitchingController, swingup_catch
     from cartpole.validation.basin import estimate_basin
-    from cartpole.validation.metrics import swingup_metrics
+    from cartpole.validation.metrics import DMC_STEPS, dmc_swingup_rewards, swingup_metrics
 
     if method not in METHODS:
         raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")
@@ -175,13 +184,19 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
     x0 = check_start(model.x_hanging if x0 is None else x0, params)
     # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
     energy = EnergyShapingController(model, **(energy_options or {})) if method == "energy" else None
-    catch = swingup_catch(model) if catch_weights is None else swingup_catch(model, *catch_weights)
+    if objective is not None and method != "trajopt":
+        raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
+                           "trajopt.")
     basin_kw = dict(progress=_stage(progress, "basin"))
-    basin = basin_cache.get(params, catch, **basin_kw) if basin_cache is not None else \
-        estimate_basin(params, catch, **basin_kw)
+
+    def basin_of(catch):
+        return basin_cache.get(params, catch, **basin_kw) if basin_cache is not None else \
+            estimate_basin(params, catch, **basin_kw)
 
     plan = None
     if method == "energy":
+        catch = swingup_catch(model) if catch_weights is None else swingup_catch(model, *catch_weights)
+        basin = basin_of(catch)
         controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if duration is None else float(duration)
         rollout = simulate(params, controller, x0, T, progress=_stage(progress, "simulate"))
@@ -197,13 +212,17 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
                                "have; use --method energy.") from None
         if progress is not None:
             progress("trajopt", 0.0)
-        sp = trajopt_swingup(params, x0=tuple(x0), model=model)
+        sp = trajopt_swingup(params, x0=tuple(x0), model=model, objective=objective)
         if progress is not None:
             progress("trajopt", 1.0)
         plan = sp.trajectory
         controller = sp.controller
+        catch = sp.catch  # the controller that takes over: its basin is the one reported
+        basin = basin_of(catch)
         T_plan = float(plan.t[-1] - plan.t[0])
         T = T_plan + TRAJOPT_EXTRA if duration is None else float(duration)
+        if duration is None and sp.objective == "dmc_swingup":
+            T = max(T, DMC_STEPS * params.timestep)
         rollout = simulate(params, controller, x0, T, progress=_stage(progress, "simulate"))
         if progress is not None:
             progress("simulate", 1.0)
@@ -212,7 +231,11 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
         k = int(np.searchsorted(rollout.t, handover)) if caught_at is not None else None
         extra = {"switches": [] if caught_at is None else [{"t": caught_at, "mode": "catch",
                                                             "cost": catch.cost_to_go(rollout.x[k])}],
-                 "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k])}
+                 "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k]),
+                 "objective": sp.objective}
+        if sp.objective == "dmc_swingup":
+            rewards = dmc_swingup_rewards(rollout, model)
+            extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
     metrics = {**swingup_metrics(rollout, model), **extra}
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=plan, basin=basin, metrics=metrics)

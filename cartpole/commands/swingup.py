@@ -15,9 +15,17 @@ MAX_LOG_BYTES = 256 * 2**20
 
 
 def add_arguments(parser) -> None:
-    """``--method``, ``--x0``, ``--duration``, ``--view``, ``--no-video``."""
+    """``--method``, ``--objective``, ``--x0``, ``--duration``, ``--view``, ``--no-video``."""
     parser.add_argument("--method", choices=("energy", "trajopt"), default="energy",
                         help="energy shaping with an LQR catch (default) or direct collocation + TVLQR")
+    parser.add_argument("--objective", default=None, metavar="OBJ",
+                        help="trajopt only: what the plan optimises: effort (default; minimum integral of "
+                             "ctrl^2 over 1.2 x the minimum time), time (the minimum-time plan), tracking "
+                             "(quadratic cost toward upright, 2 (1 - cos) per hinge error), dmc_swingup "
+                             "(dm_control's smooth swing-up reward, maximised over the minimum time + 1.5 s at "
+                             "the MJCF step; the JSON adds its 'return' over 1000 steps), or MODULE:FUNCTION, a "
+                             "function (x, u) -> scalar of CasADi symbols: a cost, or a reward to maximise when "
+                             "wrapped with cartpole.ocp.objectives.reward")
     parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
                         help="start state [qpos, qvel], 2 nq numbers in MuJoCo's joint order: every joint's "
                              "position (m or rad, 0 = upright as built), then every joint's rate; one pole: "
@@ -107,11 +115,21 @@ def run(args) -> dict:
     params = model.params
     x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
+    objective = getattr(args, "objective", None)
+    if objective is not None:
+        from cartpole.ocp.objectives import make_objective
+        from cartpole.swingup import SwingupError
+
+        if args.method != "trajopt":
+            raise SwingupError("--objective chooses what the trajectory optimisation optimises; use it with "
+                               "--method trajopt.")
+        make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
     out = Path(args.out)
 
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
         {"simulate": "10 s"} if args.method == "energy" else {})
-    res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes))
+    res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes),
+                      objective=objective)
     viewed = show_logged(params, res.rollout, command="swingup") if args.view else None
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{args.method}.png", plan=res.plan,
                        caught_at=res.caught_at, model=model,
@@ -131,6 +149,10 @@ def run(args) -> dict:
            "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
+    if args.method == "trajopt":
+        doc["objective"] = m.get("objective")
+        if "return" in m:
+            doc["return"], doc["return_steps"] = m["return"], m["return_steps"]
     if args.view:
         doc["viewer"] = None if viewed is None else {
             "frames": viewed.info.get("frames"), "closed_early": viewed.info.get("closed_early"),
@@ -149,6 +171,9 @@ def run(args) -> dict:
         if res.basin is not None:
             print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
                   f"{res.basin.seed}, safety factor {res.basin.safety_factor})")
+        if "return" in m:
+            print(f"dm_control return (smooth swing-up reward): {m['return']:.1f} over {m['return_steps']} "
+                  "control steps")
         if viewed is not None:
             print(f"Live view: {len(viewed.ctrl)} of {len(res.rollout.ctrl)} steps shown, "
                   f"{viewed.info.get('frames')} frames in {viewed.info.get('wall_time', 0.0):.1f} s, identical "

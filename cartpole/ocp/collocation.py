@@ -34,9 +34,10 @@ from cartpole.ocp import compiled
 from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model, bounds_from_params, scales
 from cartpole.ocp.guess import linear_guess
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
+from cartpole.ocp.objectives import NAMED, Objective, make_objective
 from cartpole.ocp.trajectory import Trajectory
 
-OBJECTIVES = ("effort", "time")
+OBJECTIVES = NAMED  # plus any function (x, u) -> scalar (see cartpole.ocp.objectives)
 SOLVERS = ("ipopt", "fatrop")
 
 
@@ -59,7 +60,9 @@ class SolveInfo:
     success : bool
     iterations : int
     objective : float
-        In physical units: ``integral u'u dt`` (ctrl^2 s) for ``effort``, the final time T (s) for ``time``.
+        In physical units and the user's sign: ``integral u'u dt`` (ctrl^2 s) for ``effort``, the final time T
+        (s) for ``time``, the running cost's integral for ``tracking`` and cost functions, the reward's integral
+        (higher is better) for ``dmc_swingup`` and :func:`~cartpole.ocp.objectives.reward` functions.
     solve_time_s : float
         Wall time of the solver call in s.
     solver : str
@@ -87,7 +90,7 @@ class _Built:
     ng: int
     lbg: np.ndarray
     ubg: np.ndarray
-    unpack: ca.Function  # w -> (X (nx, N+1), U (nu, N+1), T, Xc (nx, N), effort), physical units
+    unpack: ca.Function  # w -> (X (nx, N+1), U (nu, N+1), T, Xc (nx, N), effort, running cost), physical
     relaxed: bool
     warm: bool
     idx: np.ndarray  # entries of the standard (ipopt) variable vector each solver variable holds
@@ -107,9 +110,14 @@ class DirectCollocation:
     T : float or None
         Duration in s; None makes the final time free (then ``objective`` defaults to ``time``). A fixed T
         is a parameter of the NLP: :meth:`solve` accepts another ``T`` without rebuilding.
-    objective : {'effort', 'time'}, optional
+    objective : {'effort', 'time', 'tracking', 'dmc_swingup'}, callable or Objective, optional
         ``effort`` minimises ``integral u'u dt`` (Simpson quadrature, ctrl^2 s); ``time`` minimises T
-        (free final time) plus ``time_effort_weight * integral u'u dt`` to make the bang-bang answer unique.
+        (free final time) plus ``time_effort_weight * integral u'u dt`` to make the bang-bang answer unique;
+        ``tracking`` a quadratic cost toward ``x*`` (``2 (1 - cos e)`` per hinge error), ``dmc_swingup``
+        maximises dm_control's smooth swing-up reward; a function ``(x, u) -> scalar`` of CasADi SX symbols is
+        a running cost (minimised), or a running reward (maximised) when wrapped with
+        :func:`cartpole.ocp.objectives.reward`. Every objective but ``time`` needs a fixed T. See
+        :mod:`cartpole.ocp.objectives`.
     u_max : float or (nu,) array, optional
         Symmetric ctrl bound ``|u| <= u_max`` overriding the MJCF's ctrlranges.
     cart_max : float, optional
@@ -144,12 +152,12 @@ class DirectCollocation:
                  T_range: tuple[float, float] = (0.2, 10.0), solver: str = "ipopt",
                  solver_options: dict | None = None, time_effort_weight: float = 1e-3,
                  separated: bool = False, compiled: bool = True, bounds: OCPBounds | None = None):
-        if objective is None:
-            objective = "time" if T is None else "effort"
-        if objective not in OBJECTIVES:
-            raise OCPError(f"Objective '{objective}' is not known; choose one of {', '.join(OBJECTIVES)}.")
-        if objective == "time" and T is not None:
+        obj = make_objective(model, objective, free_time=T is None)
+        objective = obj.name
+        if obj.free_time and T is not None:
             raise OCPError("A minimum-time objective needs a free final time; pass T=None.")
+        if obj.kind == "running" and T is None:
+            raise OCPError(f"The objective '{obj.name}' needs a fixed duration; give T (s).")
         if solver not in SOLVERS:
             raise OCPError(f"Solver '{solver}' is not supported; choose one of {', '.join(SOLVERS)}.")
         if solver == "fatrop" and T is None:
@@ -165,6 +173,7 @@ class DirectCollocation:
         self.T = None if T is None else float(T)
         self.free_time = T is None
         self.objective = objective
+        self.objective_spec: Objective = obj
         self.nx, self.nu = int(model.nx), int(model.nu)
         if bounds is None:
             bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max, cart_margin=cart_margin)
@@ -303,6 +312,13 @@ class DirectCollocation:
             idx = np.concatenate([np.r_[nz * k:nz * k + nz, zc0 + nx * k:zc0 + nx * k + nx] for k in range(N)]
                                  + [np.r_[nz * N:nz * N + nz], np.arange(ns * N + nz, ns * N + nz + n_extra)])
         effort = h / 6 * ca.sum2(ca.sum1(simpson_effort_terms(U[:, :-1], U[:, 1:])))
+        run = self.objective_spec.running
+        if run is not None:  # Simpson on each interval: knots and the Hermite / first-order-hold midpoints
+            Lk = run.map(N + 1)(X, U)
+            Lc = run.map(N)(Xc, 0.5 * (U[:, :-1] + U[:, 1:]))
+            running = h / 6 * (ca.sum2(Lk[:, :-1]) + 4 * ca.sum2(Lc) + ca.sum2(Lk[:, 1:]))
+        else:
+            running = ca.MX(0)
         eff_scale = float(np.sum(su**2)) * (self.T or 1.0)
         if relaxed:
             # Slack on each bounded joint and each ctrl (dimensionless, relative to the bound's half-width):
@@ -318,8 +334,10 @@ class DirectCollocation:
             lbg.append(-np.inf * np.ones(n_rel))
             ubg.append(np.zeros(n_rel))
             J = 1e3 * ca.sum1(slk) + 1e-3 * effort / eff_scale
-        elif self.objective == "effort":
+        elif self.objective_spec.kind == "effort":
             J = effort / eff_scale
+        elif self.objective_spec.kind == "running":
+            J = running / (self.T or 1.0)  # the mean running cost: order one for the named objectives
         else:
             J = T + self.time_effort_weight * effort
         nlp = {"x": w, "f": J, "g": ca.vertcat(*g), "p": p}
@@ -328,7 +346,7 @@ class DirectCollocation:
         if solver_name == "fatrop":
             opts.setdefault("equality", [bool(a == b) for a, b in zip(lbg_all, ubg_all)])
         if (self.compiled and solver_name == "ipopt" and not relaxed and not self.separated
-                and not self.free_time and self.objective == "effort"):
+                and not self.free_time and self.objective_spec.kind == "effort"):
             # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled); None (the SX path
             # is kept) when there is no C compiler or the build fails.
             comp = compiled.compiled_nlp(self.model, N, sx, su, eff_scale)
@@ -338,7 +356,7 @@ class DirectCollocation:
                 opts["expand"] = False  # the compiled functions are called, not expanded
                 self.compiled_library = comp.library
         solver = ca.nlpsol(f"hs_swingup_{'relaxed' if relaxed else 'nlp'}", solver_name, nlp, opts)
-        unpack = ca.Function("unpack", [w, p], [X, U, T, Xc, effort])
+        unpack = ca.Function("unpack", [w, p], [X, U, T, Xc, effort, running])
         b = _Built(solver=solver, nw=w.numel(), ng=int(sum(a.size for a in lbg)), lbg=np.concatenate(lbg),
                    ubg=np.concatenate(ubg), unpack=unpack, relaxed=relaxed, warm=warm, idx=idx)
         self._built[key] = b
@@ -401,14 +419,18 @@ class DirectCollocation:
             parts.append(np.full(len(self._slack_names()), 0.1))
         return np.concatenate(parts)
 
-    def _trajectory(self, b: _Built, w, T_param) -> tuple[Trajectory, float, float]:
-        X, U, T, Xc, effort = b.unpack(w, T_param)
+    def _trajectory(self, b: _Built, w, T_param) -> tuple[Trajectory, float, float, float]:
+        X, U, T, Xc, effort, running = b.unpack(w, T_param)
         X, U, Xc = np.asarray(X), np.asarray(U), np.asarray(Xc)
         T = float(T)
         xdot = np.asarray(self._f_knots(X, U))
         t = np.linspace(0.0, T, self.N + 1)
         traj = Trajectory(t=t, x=X.T, u=U.T, xdot=xdot.T, x_mid=Xc.T, u_mid=(0.5 * (U[:, :-1] + U[:, 1:])).T)
-        return traj, T, float(effort)
+        return traj, T, float(effort), float(running)
+
+    def _cost(self, info: SolveInfo) -> float:
+        """The minimised quantity of ``info.objective`` (a reward's integral negated)."""
+        return -info.objective if self.objective_spec.is_reward else info.objective
 
     # ---- solving -----------------------------------------------------------------------------------
     def _goal(self, x0, x_goal, guess: Trajectory | None) -> np.ndarray:
@@ -484,8 +506,10 @@ class DirectCollocation:
             # any solver of this shape may warm-start from here
             self._last = {"x": w, "lam_x": np.asarray(sol["lam_x"]).ravel(),
                           "lam_g": np.asarray(sol["lam_g"]).ravel()}
-        traj, T_sol, effort = self._trajectory(b, w, args["p"])
-        objective = T_sol if self.objective == "time" else effort
+        traj, T_sol, effort, running = self._trajectory(b, w, args["p"])
+        kind = self.objective_spec.kind
+        objective = T_sol if kind == "time" else effort if kind == "effort" else (
+            -running if self.objective_spec.is_reward else running)
         it = stats.get("iter_count", stats.get("iterations", {}).get("iter", [-1])[-1]
                        if isinstance(stats.get("iterations"), dict) else -1)
         info = SolveInfo(status=str(stats.get("return_status", "unknown")), success=success,
@@ -539,9 +563,9 @@ class DirectCollocation:
         best = None
         for i, g in enumerate(guesses):
             traj, info = self.solve_once(x0, x_goal, guess=g, T=T_use, start=i)
-            if info.success and (best is None or info.objective < best[1].objective - 1e-9):
+            if info.success and (best is None or self._cost(info) < self._cost(best[1]) - 1e-9):
                 best = (traj, info)
-                if self.objective == "effort" or i == 0:
+                if self.objective != "time" or i == 0:
                     break  # one converged local optimum is enough; more starts only when asked by failure
         if best is not None:
             return best

@@ -20,6 +20,7 @@ from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.collocation import DirectCollocation, SolveInfo
+from cartpole.ocp.objectives import make_objective
 from cartpole.ocp.trajectory import Trajectory
 
 
@@ -44,6 +45,9 @@ class SwingupPlan:
         The model used for planning and TVLQR (may differ from the MJCF MuJoCo runs).
     T_min : float or None
         Minimum swing-up time in s found for the bounds (None when T was given).
+    objective : str
+        Name of the objective the plan optimised (``effort``, ``time``, ``tracking``, ``dmc_swingup`` or the user
+        function's name).
     """
 
     trajectory: Trajectory
@@ -53,6 +57,7 @@ class SwingupPlan:
     catch: LinearFeedback
     model: CartPoleModel
     T_min: float | None = None
+    objective: str = "effort"
 
     @property
     def T(self) -> float:
@@ -73,10 +78,47 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     return info.T, traj, info
 
 
+#: Seconds of the horizon beyond the minimum swing-up time for the running objectives (tracking, dmc_swingup,
+#: user functions) when T is not given: long enough to arrive and hold, so the plan is scored on holding too.
+RUNNING_HOLD = 1.5
+
+
+def _padded(traj: Trajectory, T: float) -> Trajectory:
+    """``traj`` followed by resting at its final state until ``T`` s (exact when that state is an equilibrium):
+    a feasible initial guess for a longer horizon."""
+    if T <= traj.duration + 1e-9:
+        return traj
+    n = max(2, int(np.ceil((T - traj.duration) / (traj.duration / traj.N))))
+    tp = np.linspace(traj.t[-1], traj.t[0] + T, n + 1)[1:]
+    return Trajectory(t=np.r_[traj.t, tp], x=np.vstack([traj.x, np.repeat(traj.x[-1:], n, 0)]),
+                      u=np.vstack([traj.u, np.repeat(traj.u[-1:], n, 0)]),
+                      xdot=np.vstack([traj.xdot, np.zeros((n, traj.nx))]))
+
+
+def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None) -> LinearFeedback:
+    """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
+    (``dt = params.timestep``) of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors
+    wrapped, ctrl clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`.
+
+    The catch basin ``cartpole swingup --method trajopt`` reports is this controller's.
+    """
+    model = build_model(params) if model is None else model
+    Q0, R0 = lab_weights(model)
+    Q = Q0 if Q is None else np.asarray(Q, float)
+    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
+    tv_model = model if abs(model.dt - params.timestep) < 1e-15 else model.rebuilt(dt=params.timestep)
+    Ad, Bd = tv_model.linearize(discrete=True)
+    dt = params.timestep
+    cat = dlqr(Ad, Bd, Q * dt, R * dt)
+    return LinearFeedback(cat.K, tv_model.x_eq, tv_model.u_eq, hinges=tv_model.hinges,
+                          u_limits=np.asarray(params.ctrl_range, float), S=cat.S)
+
+
 def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
-                    T: float | None = None, N: int = 100, model: CartPoleModel | None = None,
+                    T: float | None = None, N: int | None = None, model: CartPoleModel | None = None,
                     solver: str = "ipopt", Q=None, R=None, Qf=None, time_margin: float = 0.2,
-                    solver_options: dict | None = None, cart_margin: float = 0.1) -> SwingupPlan:
+                    solver_options: dict | None = None, cart_margin: float = 0.1,
+                    objective=None) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -89,9 +131,17 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         ends at the planning model's upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
         nearest).
     T : float, optional
-        Plan duration in s; default ``(1 + time_margin) * T_min`` with ``T_min`` from a minimum-time solve.
-    N : int
-        Collocation intervals.
+        Plan duration in s; default ``(1 + time_margin) * T_min`` with ``T_min`` from a minimum-time solve
+        (``effort``), ``T_min`` itself (``time``), or ``T_min + RUNNING_HOLD`` (1.5 s; running objectives).
+    N : int, optional
+        Collocation intervals; default 100, except ``dmc_swingup``: one interval per MJCF step (dm_control's
+        control step is its file's timestep), ``round(T / timestep)``.
+    objective : str, callable or Objective, optional
+        ``effort`` (default: minimum ``integral u'u dt`` for T), ``time`` (the minimum-time plan itself),
+        ``tracking`` (quadratic toward ``x*``, weights ``Q``, ``R``), ``dmc_swingup`` (dm_control's smooth reward,
+        maximised), ``"MODULE:FUNCTION"`` or a function ``(x, u) -> scalar`` of CasADi symbols (a cost; wrap a
+        reward with :func:`cartpole.ocp.objectives.reward`). See :mod:`cartpole.ocp.objectives`. The running
+        objectives start from the minimum-time plan padded with rest at upright.
     model : CartPoleModel, optional
         Model used for planning and TVLQR; default the MJCF's own. Give a deliberately wrong one (e.g.
         ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
@@ -121,25 +171,39 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     x0 = plan_model.x_hanging if x0 is None else np.asarray(x0, dtype=float)
     # Bounds are the MJCF's (the real actuators and track), whatever model plans.
     bounds = bounds_from_params(params, cart_margin=cart_margin)
+    obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
     T_min = None
-    if T is None:
-        T_min, _, _ = minimum_time(plan_model, x0, N=min(N, 60), solver=solver, bounds=bounds)
-        T = (1.0 + time_margin) * T_min
-    ocp = DirectCollocation(plan_model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
-    traj, info = ocp.solve(x0)
+    if obj.kind == "time":
+        ocp = DirectCollocation(plan_model, N=N or 100, T=None, objective="time", solver="ipopt",
+                                solver_options=solver_options, bounds=bounds)
+        traj, info = ocp.solve(x0)
+        T_min = info.T
+    elif obj.kind == "effort":
+        if T is None:
+            T_min, _, _ = minimum_time(plan_model, x0, N=min(N or 100, 60), solver=solver, bounds=bounds)
+            T = (1.0 + time_margin) * T_min
+        ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
+                                bounds=bounds)
+        traj, info = ocp.solve(x0)
+    else:
+        T_min, fast, _ = minimum_time(plan_model, x0, N=60, solver="ipopt", bounds=bounds)
+        if T is None:
+            T = T_min + RUNNING_HOLD
+        if N is None:
+            N = max(2, int(round(T / params.timestep))) if obj.name == "dmc_swingup" else 100
+        ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver, solver_options=solver_options,
+                                bounds=bounds)
+        traj, info = ocp.solve(x0, guess=[_padded(fast, T), None] if T > fast.duration else [fast, None])
     # TVLQR at the MJCF's step, on the planning model's exact discrete step.
     tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
     # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)) at the model's
     # upright equilibrium: TVLQR's default terminal cost is its S, so at the hand-over both the cost-to-go and
     # the gain continue without a jump (the continuous lab gain is ~15 % larger at 5 ms for one pole because
     # the fastest closed-loop pole is -51 1/s).
-    Ad, Bd = tv_model.linearize(discrete=True)
     dt = params.timestep
-    cat = dlqr(Ad, Bd, Q * dt, R * dt)
     u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
-    catch = LinearFeedback(cat.K, tv_model.x_eq, tv_model.u_eq, hinges=tv_model.hinges, u_limits=u_limits,
-                           S=cat.S)
+    catch = handover_catch(params, plan_model, Q, R)
     gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
     controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
     return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
-                       model=plan_model, T_min=T_min)
+                       model=plan_model, T_min=T_min, objective=obj.name)

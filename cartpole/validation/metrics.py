@@ -381,3 +381,63 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
             "peak_ctrl": peak_ctrl(rollout.ctrl), "cart_min": lo, "cart_max": hi,
             "cart_clearance": track_margin(rollout.qpos, params.cart_range, slide=params.slide),
             "duration": float(rollout.t[-1] - rollout.t[0])}
+
+
+#: dm_control's cart-pole episode: 1000 control steps (of 0.01 s on its own file).
+DMC_STEPS = 1000
+
+
+def dmc_swingup_reward(model, x, u) -> np.ndarray:
+    """dm_control's smooth cart-pole swing-up reward in numpy, exactly as ``dm_control/suite/cartpole.py`` computes
+    it (``Balance._get_reward(sparse=False)``), for states ``x`` (..., 2 nq) and ctrl ``u`` (..., nu).
+
+    ``upright = mean_i (cos(phi_i) + 1) / 2`` (``phi_i`` pole ``i``'s angle from vertical: the sum of the hinge
+    errors from ``model.x_eq`` along the chain, dm_control's ``xmat`` zz for parallel hinge axes), ``centered = (1 +
+    tol(cart position, margin 2)) / 2``, ``small_control = (4 + max(0, 1 - u_0^2)) / 5``, ``small_velocity = (1 +
+    min_i tol(hinge rate_i, margin 5)) / 2``, with the gaussian ``tol(v) = exp(-0.5 (v sqrt(-2 ln 0.1) /
+    margin)^2)``; the reward is their product, in [0, 1].
+    """
+    x = np.asarray(x, float)
+    u = np.asarray(u, float)
+    params = model.params
+    nq = params.nq
+    x_eq = np.asarray(model.x_eq, float)
+    hinges = list(params.hinges)
+    phi = np.cumsum(x[..., hinges] - x_eq[hinges], axis=-1)
+    upright = ((np.cos(phi) + 1) / 2).mean(axis=-1)
+    scale = np.sqrt(-2.0 * np.log(0.1))
+    s = x[..., params.slide] if params.slide is not None else 0.0
+    centered = (1 + np.exp(-0.5 * (s * scale / 2.0) ** 2)) / 2
+    u0 = u[..., 0]
+    small_control = (4 + np.where(np.abs(u0) < 1, 1 - u0**2, 0.0)) / 5
+    rates = x[..., [nq + h for h in hinges]]
+    small_velocity = (1 + np.exp(-0.5 * (rates * scale / 5.0) ** 2).min(axis=-1)) / 2
+    return upright * small_control * small_velocity * centered
+
+
+def dmc_swingup_rewards(rollout, model, control_dt: float | None = None, *, steps: int | None = DMC_STEPS) -> np.ndarray:
+    """The reward dm_control would pay at each control step of a logged rollout, (n_steps,).
+
+    dm_control applies the action for one control step (``control_dt``, a whole number of physics steps), then
+    pays the reward of the state reached and that action: reward ``j`` is :func:`dmc_swingup_reward` of the state
+    logged at ``(j + 1) control_dt`` and the ctrl of the last physics step before it. ``control_dt`` defaults to
+    the MJCF's timestep (dm_control's cart-pole: 0.01 s, its own timestep); at most ``steps`` control steps are
+    counted (dm_control's episode: 1000; None: as many as the log holds).
+    """
+    dt = float(model.params.timestep)
+    control_dt = dt if control_dt is None else float(control_dt)
+    m = int(round(control_dt / dt))
+    if m < 1 or abs(m * dt - control_dt) > 1e-9 * max(1.0, control_dt):
+        raise ValueError(f"control_dt = {control_dt} s must be a whole number of MJCF steps of {dt} s.")
+    ctrl = np.asarray(rollout.ctrl, float).reshape(len(rollout.ctrl), -1)
+    n = ctrl.shape[0] // m
+    if steps is not None:
+        n = min(n, int(steps))
+    idx = m * np.arange(1, n + 1)
+    return dmc_swingup_reward(model, np.asarray(rollout.x, float)[idx], ctrl[idx - 1])
+
+
+def dmc_swingup_return(rollout, model, control_dt: float | None = None, *, steps: int | None = DMC_STEPS) -> float:
+    """dm_control's return of a logged rollout: the sum of :func:`dmc_swingup_rewards` (at most 1000 control steps;
+    1000 is the most an episode of dm_control's cart-pole can earn)."""
+    return float(np.sum(dmc_swingup_rewards(rollout, model, control_dt, steps=steps)))

@@ -181,3 +181,42 @@ def test_view_on_a_screen_shows_exactly_the_logged_run(tmp_path):
     qpos, qvel = _replay_with_mj_step(doc["mjcf"], doc["rollout"]["qpos"][0], doc["rollout"]["qvel"][0],
                                       doc["rollout"]["ctrl"])
     assert np.array_equal(qpos, np.array(doc["rollout"]["qpos"]))
+
+
+def test_objective_errors_end_in_one_sentence_and_no_files(tmp_path, capsys, monkeypatch):
+    (tmp_path / "cli_costs.py").write_text("import math\n\ndef vec(x, u):\n    return x\n\n"
+                                           "def nan(x, u):\n    return math.cos(x[1])\n\n"
+                                           "def boom(x, u):\n    raise ValueError('no good')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    cases = [(["--objective", "no_such_mod_q:f"], "cannot be imported"),
+             (["--objective", "cli_costs:missing"], "has no function 'missing'"),
+             (["--objective", "cli_costs:vec"], "not a scalar"),
+             (["--objective", "cli_costs:nan"], "casadi operations"),
+             (["--objective", "cli_costs:boom"], "failed on CasADi symbols (ValueError: no good)"),
+             (["--objective", "fastest"], "not known"),
+             ([], "use it with --method trajopt")]
+    for extra, words in cases:
+        method = [] if not extra else ["--method", "trajopt"]
+        line = _fails_with_one_sentence([*method, *(extra or ["--objective", "time"])], tmp_path, capsys)
+        assert words in line, line
+
+
+def test_trajopt_dmc_swingup_objective_reports_the_return(tmp_path, capsys):
+    from chains import dmc_cartpole
+    from cartpole.models import build_model
+    from cartpole.sim import Rollout
+    from cartpole.validation.metrics import dmc_swingup_return
+
+    mjcf = tmp_path / "dmc.xml"
+    mjcf.write_text(dmc_cartpole(1))
+    assert main(["swingup", "--mjcf", str(mjcf), "--method", "trajopt", "--objective", "dmc_swingup", "--json",
+                 "--no-video", "--out", str(tmp_path / "out")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["objective"] == "dmc_swingup" and doc["success"] is True and doc["return_steps"] == 1000
+    ro = doc["rollout"]
+    assert ro["t"][-1] == pytest.approx(10.0)  # dm_control's episode is simulated by default
+    model = build_model(str(mjcf))
+    run = Rollout(t=np.array(ro["t"]), qpos=np.array(ro["qpos"]), qvel=np.array(ro["qvel"]),
+                  ctrl=np.array(ro["ctrl"]))
+    assert doc["return"] == pytest.approx(dmc_swingup_return(run, model, 0.01), abs=1e-9)
+    assert doc["return"] > 850

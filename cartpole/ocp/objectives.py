@@ -1,0 +1,256 @@
+"""Objectives of the swing-up OCP: what a user picks, as one small object the transcription integrates.
+
+Sign convention: **an objective is a cost, minimised**. A running *reward* ``r(x, u)`` (higher is better) is
+given by wrapping it, :func:`reward`, which the transcription minimises as ``-r``; every reported value is in the
+user's own sign (a reward's integral is reported as the reward's integral, positive when the reward is).
+
+* ``effort``: ``integral u'u dt`` over a fixed T (ctrl^2 s), Simpson's rule on the first-order-hold input (exact);
+* ``time``: the final time T (free) plus a small effort term that makes the bang-bang answer unique;
+* ``tracking``: ``integral (d' Q d + (u - u*)' R (u - u*)) dt`` toward the upright equilibrium ``x*``, ``u*``
+  with ``Q``, ``R`` diagonal (default the lab's weight pattern, :func:`cartpole.lqr.lab_weights`). The wrapped
+  hinge-angle error is not smooth at +-pi, so for each hinge ``d_i^2`` is ``2 (1 - cos e_i)`` (``e_i = theta_i -
+  theta_i*``): equal to ``e_i^2`` up to ``O(e_i^4)`` near upright, smooth and 2 pi-periodic everywhere;
+  the other entries are the plain errors;
+* ``dmc_swingup``: dm_control's smooth cart-pole swing-up reward (:func:`dmc_swingup_reward`), maximised;
+* any Python function ``(x, u) -> scalar`` of CasADi symbols (``x`` (nx,) SX, ``u`` (nu,) SX): a running cost, or
+  a running reward when wrapped with :func:`reward`. On the command line ``--objective MODULE:FUNCTION`` imports
+  it with :mod:`importlib` (:func:`load_objective`).
+
+A running cost ``L`` is integrated with Simpson's rule on every collocation interval, using the Hermite
+midpoint state and the first-order-hold midpoint input: ``h (L_k + 4 L_c + L_k+1) / 6``.
+"""
+from __future__ import annotations
+
+import importlib
+import re
+from dataclasses import dataclass
+from typing import Callable
+
+import casadi as ca
+import numpy as np
+
+from cartpole.errors import first_line
+from cartpole.ocp.bounds import OCPError
+
+NAMED = ("effort", "time", "tracking", "dmc_swingup")
+
+#: dm_control's default ``value_at_margin`` of ``rewards.tolerance`` (gaussian sigmoid).
+DMC_VALUE_AT_MARGIN = 0.1
+
+
+class Reward:
+    """A running reward ``(x, u) -> scalar`` to be maximised (see :func:`reward`)."""
+
+    def __init__(self, fn: Callable, name: str | None = None):
+        self.fn = fn
+        self.name = name or getattr(fn, "__name__", "reward")
+
+    def __call__(self, x, u):
+        return self.fn(x, u)
+
+
+def reward(fn: Callable) -> Reward:
+    """Mark ``fn(x, u) -> scalar`` as a reward: the OCP maximises its integral (minimises ``-integral``).
+
+    Usable as a decorator in a module given to ``--objective MODULE:FUNCTION``::
+
+        from cartpole.ocp.objectives import reward
+
+        @reward
+        def upright(x, u):
+            return casadi.cos(x[1])
+    """
+    return fn if isinstance(fn, Reward) else Reward(fn)
+
+
+@dataclass(frozen=True)
+class Objective:
+    """One objective of the swing-up OCP.
+
+    Attributes
+    ----------
+    name : str
+        ``effort``, ``time``, ``tracking``, ``dmc_swingup`` or the user function's name.
+    running : casadi.Function or None
+        ``(x (nx,), u (nu,)) -> cost`` per second, already signed as a cost (a reward negated); None for ``effort``
+        and ``time``, which the transcription builds itself.
+    is_reward : bool
+        The user's quantity is a reward: reported values are ``-cost``.
+    free_time : bool
+        The final time is a decision variable (``time`` only).
+    """
+
+    name: str
+    running: ca.Function | None = None
+    is_reward: bool = False
+    free_time: bool = False
+
+    @property
+    def kind(self) -> str:
+        """``effort``, ``time`` or ``running``."""
+        return self.name if self.name in ("effort", "time") else "running"
+
+
+def _gauss_tolerance(v, margin: float, value_at_margin: float = DMC_VALUE_AT_MARGIN):
+    """dm_control ``tolerance(v, bounds=(0, 0), margin, sigmoid='gaussian')``: ``exp(-0.5 (v scale / margin)^2)``."""
+    scale = np.sqrt(-2.0 * np.log(value_at_margin))
+    return ca.exp(-0.5 * (v * scale / margin) ** 2)
+
+
+def dmc_swingup_reward(model, x, u):
+    """dm_control's smooth cart-pole swing-up reward as a CasADi expression of ``x`` (nx,) and ``u`` (nu,).
+
+    As ``dm_control/suite/cartpole.py`` (``Balance._get_reward``, ``sparse=False``) defines it::
+
+        upright        = mean_i (cos(phi_i) + 1) / 2
+        centered       = (1 + tolerance(cart position, margin=2)) / 2
+        small_control  = (4 + tolerance(ctrl, margin=1, value_at_margin=0, sigmoid='quadratic')) / 5
+        small_velocity = (1 + min_i tolerance(hinge rate_i, margin=5)) / 2
+        reward         = upright * small_control * small_velocity * centered
+
+    with dm_control's default gaussian sigmoid and ``value_at_margin = 0.1`` (``tolerance(v) = exp(-0.5 (v s)^2)``,
+    ``s = sqrt(-2 ln 0.1) / margin``). ``phi_i`` is pole ``i``'s angle from vertical, what dm_control reads as the
+    body's ``xmat`` zz entry: the sum of the hinge errors from ``x*`` along the chain up to pole ``i`` (hinge
+    axes parallel, as in dm_control's files). The quadratic tolerance is ``1 - u^2`` clipped at 0 for ``|u| >=
+    1``; here it is ``1 - u^2`` unclipped (smooth), the same value wherever ``|ctrl| <= 1``, which the OCP's
+    bounds enforce on dm_control's file (ctrlrange -1 1). The min over several hinge rates is CasADi's ``fmin``
+    (smooth except where two rates tie); one pole has no min. The first actuator's ctrl is dm_control's
+    ``control()[0]``. :func:`cartpole.validation.metrics.dmc_swingup_reward` is the same reward in numpy, exactly
+    as dm_control computes it, for scoring a logged rollout (:func:`~cartpole.validation.metrics.dmc_swingup_return`).
+    """
+    hinges = list(model.hinges)
+    nq = model.nq
+    x_eq = np.asarray(model.x_eq, float)
+    phi = 0
+    ups = []
+    for h in hinges:
+        phi = phi + (x[h] - x_eq[h])
+        ups.append((ca.cos(phi) + 1) / 2)
+    upright = sum(ups) / len(ups)
+    s = x[model.slide] if model.slide is not None else 0
+    centered = (1 + _gauss_tolerance(s, 2.0)) / 2
+    small_control = (4 + (1 - u[0] ** 2)) / 5
+    tol = [_gauss_tolerance(x[nq + h], 5.0) for h in hinges]
+    m = tol[0]
+    for t in tol[1:]:
+        m = ca.fmin(m, t)
+    small_velocity = (1 + m) / 2
+    return upright * small_control * small_velocity * centered
+
+
+def tracking_cost(model, x, u, Q=None, R=None):
+    """The tracking running cost toward ``x*``, ``u*`` (see the module notes) as a CasADi expression.
+
+    ``Q`` (nx,) or diagonal (nx, nx), ``R`` (nu,) or diagonal (nu, nu); default :func:`cartpole.lqr.lab_weights`.
+    """
+    from cartpole.lqr import lab_weights
+
+    Q0, R0 = lab_weights(model)
+    q = np.diag(Q0) if Q is None else (np.diag(Q) if np.ndim(Q) == 2 else np.asarray(Q, float))
+    r = np.diag(np.atleast_2d(R0)) if R is None else (np.diag(R) if np.ndim(R) == 2 else np.atleast_1d(R))
+    x_eq, u_eq = np.asarray(model.x_eq, float), np.asarray(model.u_eq, float)
+    hinges = set(model.hinges)
+    J = 0
+    for i in range(model.nx):
+        e = x[i] - x_eq[i]
+        J = J + q[i] * (2 * (1 - ca.cos(e)) if i in hinges else e**2)
+    for j in range(model.nu):
+        J = J + r[j] * (u[j] - u_eq[j]) ** 2
+    return J
+
+
+def _short(exc: BaseException) -> str:
+    """The first line of an exception's message, without a final period (user code's errors can be long)."""
+    lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()]
+    return first_line(lines[0]) if lines else type(exc).__name__
+
+
+def _from_function(model, fn: Callable, label: str) -> Objective:
+    """Check a user's ``(x, u) -> scalar`` on SX symbols and wrap it (a :class:`Reward` is negated)."""
+    is_rew = isinstance(fn, Reward)
+    name = fn.name if is_rew else getattr(fn, "__name__", "objective")
+    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    try:
+        val = fn(x, u)
+    except Exception as exc:  # noqa: BLE001 - any failure of user code is reported in one sentence
+        raise OCPError(f"The objective {label} failed on CasADi symbols ({type(exc).__name__}: "
+                       f"{_short(exc)}); write it with casadi "
+                       f"operations (casadi.cos, casadi.exp, ...) of x ({model.nx},) and u ({model.nu},).") \
+            from None
+    try:
+        val = ca.SX(val) if not isinstance(val, ca.SX) else val
+    except Exception:  # noqa: BLE001
+        raise OCPError(f"The objective {label} returned {type(val).__name__}, not a CasADi expression; "
+                       "return one scalar expression of x and u.") from None
+    if val.shape != (1, 1):
+        raise OCPError(f"The objective {label} returned a {val.shape[0]}x{val.shape[1]} expression, not a "
+                       "scalar; return one number per (x, u), e.g. a sum.")
+    fname = re.sub(r"_+", "_", re.sub(r"\W", "_", name)).strip("_")  # CasADi: a letter, then no "__"
+    fname = fname if re.match(r"[A-Za-z]", fname) else f"objective_{fname}".rstrip("_")
+    try:
+        f = ca.Function(fname, [x, u], [-val if is_rew else val], ["x", "u"], ["cost"])
+    except RuntimeError as exc:
+        why = ("depends on CasADi symbols other than x and u; build it from the two arguments only"
+               if "free" in str(exc).lower() else f"cannot be made a CasADi Function ({first_line(exc)})")
+        raise OCPError(f"The objective {label} {why}.") from None
+    v = float(f(model.x_eq, model.u_eq))
+    if not np.isfinite(v):
+        raise OCPError(f"The objective {label} is {v} at the upright equilibrium, not a finite number (math or "
+                       "numpy functions turn a CasADi symbol into nan); write it with casadi operations "
+                       "(casadi.cos, casadi.exp, ...) and keep it finite there.")
+    return Objective(name=name, running=f, is_reward=is_rew)
+
+
+def make_objective(model, objective=None, *, free_time: bool = False, Q=None, R=None) -> Objective:
+    """The :class:`Objective` for ``objective``: a name of :data:`NAMED`, an :class:`Objective`, a callable
+    ``(x, u) -> scalar`` cost or a :func:`reward`; None is ``time`` when ``free_time`` else ``effort``.
+
+    ``Q``, ``R`` weight ``tracking`` (diagonal; default the lab's pattern).
+    """
+    if objective is None:
+        objective = "time" if free_time else "effort"
+    if isinstance(objective, Objective):
+        return objective
+    if isinstance(objective, str):
+        if objective == "effort":
+            return Objective("effort")
+        if objective == "time":
+            return Objective("time", free_time=True)
+        x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+        if objective == "tracking":
+            return Objective("tracking", ca.Function("tracking", [x, u], [tracking_cost(model, x, u, Q, R)],
+                                                     ["x", "u"], ["cost"]))
+        if objective == "dmc_swingup":
+            return Objective("dmc_swingup", ca.Function("dmc_swingup", [x, u], [-dmc_swingup_reward(model, x, u)],
+                                                        ["x", "u"], ["cost"]), is_reward=True)
+        if ":" in objective:
+            return _from_function(model, load_objective(objective), f"'{objective}'")
+        raise OCPError(f"Objective '{objective}' is not known; choose one of {', '.join(NAMED)} or give "
+                       "MODULE:FUNCTION.")
+    if callable(objective):
+        return _from_function(model, objective, f"'{getattr(objective, '__name__', 'function')}'")
+    raise OCPError(f"Objective {objective!r} is neither a name ({', '.join(NAMED)}) nor a function (x, u) -> scalar.")
+
+
+def load_objective(spec: str) -> Callable:
+    """Import ``MODULE:FUNCTION`` with :mod:`importlib` and return the function (checked later on SX symbols).
+
+    Raises
+    ------
+    OCPError
+        Not of the form MODULE:FUNCTION, the module cannot be imported, or it has no such callable.
+    """
+    mod_name, _, fn_name = spec.partition(":")
+    if not mod_name or not fn_name:
+        raise OCPError(f"The objective '{spec}' is not of the form MODULE:FUNCTION (e.g. mycosts:upright).")
+    try:
+        mod = importlib.import_module(mod_name)
+    except Exception as exc:  # noqa: BLE001 - ImportError, or an error inside the user's module
+        raise OCPError(f"The objective module '{mod_name}' cannot be imported ({type(exc).__name__}: "
+                       f"{_short(exc)}); put it on PYTHONPATH or in "
+                       "the current directory.") from None
+    fn = getattr(mod, fn_name, None)
+    if fn is None or not callable(fn):
+        raise OCPError(f"The objective module '{mod_name}' has no function '{fn_name}'; give MODULE:FUNCTION of "
+                       "a function (x, u) -> scalar.")
+    return fn
