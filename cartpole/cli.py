@@ -197,8 +197,9 @@ def main(argv=None) -> int:
         print(f"cartpole {args.command}: cannot read or write{where} ({exc.strerror or sentence(exc)[:-1]}); "
               "check the path or choose another --out.", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"cartpole {args.command}: interrupted.", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # a command may say what it kept and how to go on (sweep: --resume)
+        said = exc.args[0] if exc.args and isinstance(exc.args[0], str) else "interrupted."
+        print(f"cartpole {args.command}: {said}", file=sys.stderr)
         return 130
     if args.json:
         sys.stdout.write(json.dumps(to_jsonable(doc)) + "\n")

@@ -18,7 +18,9 @@ the same generator after the starts.
 Parallel runs (``workers > 1``): a :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` start method) whose
 initializer builds the model once per worker process; every run depends only on the model, its start and its
 settings, so the rows are the same, bit for bit, for any number of workers, and they come back in run order.
-This machine only: no cluster address yet.
+On a cluster (``address``): the same runs as Dask distributed tasks on an existing scheduler; each worker process
+builds the model on its first run of the sweep and keeps it (:func:`_run_on_dask`). Runs already finished
+(``done``) are skipped, and ``on_row`` sees each row as it finishes (the command appends it to its results file).
 
 Example (the README's numbers)::
 
@@ -54,6 +56,8 @@ METHODS = ("energy", "trajopt")
 MAX_RUNS = 100_000
 #: Most worker processes.
 MAX_WORKERS = 256
+#: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
+CONNECT_TIMEOUT = 10.0
 
 
 class SweepError(CartPoleError):
@@ -97,7 +101,9 @@ class SweepResult:
     errors : tuple of (str or None)
         The sentence of a run that raised, else None.
     workers : int
-        Processes the runs were spread over.
+        Processes of this machine the runs were spread over (1 when they ran on a Dask cluster, see ``address``).
+    address : str or None
+        The Dask scheduler the runs went to, or None.
     """
 
     mjcf: str
@@ -118,6 +124,7 @@ class SweepResult:
     replays: np.ndarray | None = None
     errors: tuple = ()
     workers: int = 1
+    address: str | None = None
 
     def __post_init__(self):
         for name in ("starts", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl", "half_widths"):
@@ -166,7 +173,7 @@ class SweepResult:
         """JSON-ready summary: ``mjcf``, ``method``, ``n``, ``successes``, ``success_rate``,
         ``time_to_upright_median``, ``time_to_upright_max``, ``caught_at_median``, ``min_cart_clearance``,
         ``max_peak_ctrl``, ``failed`` (start states of the failures), ``seed``, ``duration``, ``half_widths``,
-        ``gain_jitter``, ``rho``, ``workers``."""
+        ``gain_jitter``, ``rho``, ``workers``, ``address``."""
         ca_ok = self.caught_at[self.success]
         return {"mjcf": self.mjcf, "method": self.method, "n": self.n, "successes": int(self.success.sum()),
                 "success_rate": self.success_rate, "time_to_upright_median": _num(self.t_median),
@@ -177,7 +184,7 @@ class SweepResult:
                 "max_peak_ctrl": _num(np.nanmax(self.peak_ctrl) if np.any(np.isfinite(self.peak_ctrl)) else np.nan),
                 "failed": self.starts[~self.success].tolist(), "seed": self.seed, "duration": self.duration,
                 "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": self.rho,
-                "workers": self.workers}
+                "workers": self.workers, "address": self.address}
 
 
 def _num(v):
@@ -255,9 +262,13 @@ def _init_worker(params, method, duration, catch_weights, cache) -> None:
     """ProcessPoolExecutor initializer: build this worker's model (once) and keep the shared settings.
 
     MuJoCo's warnings are dropped here (the parent loaded the same MJCF first and reported them), so a worker
-    neither prints them nor writes MUJOCO_LOG.TXT into the current directory."""
+    neither prints them nor writes MUJOCO_LOG.TXT into the current directory. Ctrl-C is left to the parent (which
+    keeps the finished rows and stops the pool), so a worker does not die of it mid-run."""
+    import signal
+
     import mujoco
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     global _WORKER
     mujoco.set_mju_user_warning(lambda msg: None)
     _WORKER = _Runner(params, method, duration, catch_weights, cache)
@@ -287,7 +298,8 @@ def _check(method, n, workers, gain_jitter, half_widths, energy_options) -> None
 def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int = 0, center=None,
                   half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
                   duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
-                  progress=None, workers: int = 1) -> SweepResult:
+                  progress=None, workers: int = 1, address: str | None = None, done: dict | None = None,
+                  on_row=None) -> SweepResult:
     """Run the swing-up from ``n`` seeded starts (optionally with jittered gains) and summarise.
 
     Parameters
@@ -321,6 +333,15 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         ``progress(fraction)`` after each run (the sweep is also a :func:`cartpole.progress.stage`).
     workers : int
         Processes to spread the runs over (1 = this process; results identical for any number).
+    address : str, optional
+        A running Dask distributed scheduler (``tcp://host:port``): the runs go to its workers instead (one model
+        per worker process, built on its first run there); ``workers`` is then ignored. Same rows, bit for bit.
+    done : dict, optional
+        ``{run index: row}`` of runs already finished (a resumed sweep): they are not run again, their rows (the
+        keys :meth:`_Runner.run` returns) are used as given.
+    on_row : callable, optional
+        ``on_row(index, start, row)`` as each run finishes, in the order they finish (the command appends it to the
+        results file). An exception it raises (KeyboardInterrupt, say) stops the sweep; finished rows stay reported.
 
     Returns
     -------
@@ -363,16 +384,33 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     cache = BasinCache() if basin_cache is None else basin_cache
     runner = _Runner(params, method, duration, catch_weights, cache, model=model)
     rho = float(runner.basin().rho)  # once, here, before the runs (and shipped to the workers in the cache)
-    workers = min(workers, n)
-    size = f"{n} runs" + (f" on {workers} workers" if workers > 1 else "")
+    out: list = [None] * n
+    for i, row in (done or {}).items():
+        if 0 <= int(i) < n:
+            out[int(i)] = row
+    todo = [i for i in range(n) if out[i] is None]
+    workers = min(workers, max(len(todo), 1))
+    where = f" on {address}" if address else (f" on {workers} workers" if workers > 1 else "")
+    size = f"{len(todo)} runs" + (f" of {n}" if len(todo) < n else "") + where
     with stage(f"{method} swing-ups", size=size, callback=progress) as tick:
-        if workers == 1:
-            out = []
-            for i, x0 in enumerate(starts):
-                out.append(runner.run(x0, opts[i]))
-                tick((i + 1) / n)
+        counter = [0]
+
+        def finished(i, row):
+            out[i] = row
+            counter[0] += 1
+            if on_row is not None:
+                on_row(i, starts[i], row)
+            tick(counter[0] / len(todo))
+
+        if not todo:
+            pass
+        elif address:
+            _run_dask(address, runner, starts, opts, todo, finished)
+        elif workers == 1:
+            for i in todo:
+                finished(i, runner.run(starts[i], opts[i]))
         else:
-            out = _run_parallel(runner, starts, opts, workers, tick)
+            _run_parallel(runner, starts, opts, workers, todo, finished)
     return SweepResult(mjcf=params.mjcf, starts=starts, success=np.array([r["success"] for r in out], bool),
                        time_to_upright=np.array([r["time_to_upright"] for r in out], float),
                        caught_at=np.array([r["caught_at"] for r in out], float),
@@ -382,31 +420,91 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                            ENERGY_DURATION if method == "energy" else None),
                        half_widths=half_widths, gain_jitter=float(gain_jitter), base_options=base, method=method,
                        replays=np.array([r["replays"] for r in out], bool),
-                       errors=tuple(r["error"] for r in out), workers=workers)
+                       errors=tuple(r["error"] for r in out), workers=1 if address else workers,
+                       address=address or None)
 
 
-def _run_parallel(runner: _Runner, starts, opts, workers: int, tick) -> list[dict]:
-    """The runs on a process pool (one model per worker, built by the initializer), back in run order."""
+def _run_parallel(runner: _Runner, starts, opts, workers: int, todo, finished) -> None:
+    """The runs ``todo`` on a process pool (one model per worker, built by the initializer); ``finished(i, row)``
+    as each one comes back."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
 
-    n = len(starts)
-    out: list = [None] * n
     ctx = multiprocessing.get_context("spawn")  # no fork of a process holding MuJoCo and CasADi threads
     init = (runner.params, runner.method, runner.duration, runner.catch_weights, runner.cache)
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=init)
     try:
-        futures = {pool.submit(_run_in_worker, starts[i], opts[i]): i for i in range(n)}
-        for done, fut in enumerate(as_completed(futures), 1):
-            out[futures[fut]] = fut.result()
-            tick(done / n)
+        futures = {pool.submit(_run_in_worker, starts[i], opts[i]): i for i in todo}
+        for fut in as_completed(futures):
+            finished(futures[fut], fut.result())
     except BrokenProcessPool:
         raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer --workers than "
                          f"{workers}.") from None
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    return out
+
+
+#: Per-process cache of runners on Dask workers, keyed by the sweep's token (models built once per worker).
+_RUNNERS: dict = {}
+#: How many runners this process has built for Dask tasks (a test checks: once per worker, not once per run).
+_BUILT = [0]
+
+
+def _run_on_dask(token: str, init: tuple, x0, options) -> dict:
+    """One run on a Dask worker: the runner for ``token`` is built on this worker process's first run of the
+    sweep (MuJoCo's warnings dropped, as in a pool worker) and reused by every later one."""
+    runner = _RUNNERS.get(token)
+    if runner is None:
+        import mujoco
+
+        mujoco.set_mju_user_warning(lambda msg: None)
+        _RUNNERS.clear()  # one sweep's model per worker at a time
+        runner = _RUNNERS[token] = _Runner(*init)
+        _BUILT[0] += 1
+    row = runner.run(x0, options)
+    row["basins"] = len(runner.cache)
+    return row
+
+
+def _run_dask(address: str, runner: _Runner, starts, opts, todo, finished) -> None:
+    """The runs ``todo`` on the Dask scheduler at ``address``; ``finished(i, row)`` as each one comes back."""
+    import uuid
+
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise SweepError("--address needs Dask distributed; install it with `pip install 'dask[distributed]'`.") \
+            from None
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SweepError(f"Cannot reach a Dask scheduler at {address} ({type(exc).__name__}); start one "
+                         "(`dask scheduler`, then `dask worker ADDRESS`) or give its tcp://host:port.") from None
+    futures = []
+    try:
+        init = (runner.params, runner.method, runner.duration, runner.catch_weights, runner.cache)
+        [init_f] = client.scatter([init], broadcast=True)
+        token = uuid.uuid4().hex
+        index = {}
+        for i in todo:
+            f = client.submit(_run_on_dask, token, init_f, np.asarray(starts[i]), opts[i], pure=False)
+            index[f.key] = i
+            futures.append(f)
+        for fut in as_completed(futures, loop=client.loop):
+            try:
+                row = fut.result()
+            except CartPoleError:
+                raise
+            except Exception as exc:  # a worker died (KilledWorker), or a run failed outside CartPoleError
+                raise SweepError(f"A run failed on the Dask cluster at {address}: {type(exc).__name__}: "
+                                 f"{first_line(exc)}.") from None
+            finished(index[fut.key], row)
+    finally:
+        pending = [f for f in futures if not f.done()]
+        if pending:
+            client.cancel(pending)
+        client.close()
 
 
 def _seconds(value) -> str:

@@ -72,3 +72,30 @@ def test_python_m_cartpole_sweep_prints_one_json_summary_per_model():
     assert r.returncode == 0, r.stderr
     (summary,) = json.loads(r.stdout)
     assert summary["n"] == 1 and summary["successes"] == 1 and summary["mjcf"].endswith("cartpole.xml")
+
+
+def test_done_runs_are_skipped_and_on_row_sees_each_finished_run():
+    full = swingup_sweep(None, n=3, seed=4, duration=2.0)
+    seen = []
+    row1 = {k: v for k, v in zip(("success", "replays", "time_to_upright", "caught_at", "cart_clearance",
+                                  "peak_ctrl", "error"), (bool(full.success[1]), bool(full.replays[1]),
+                                                          full.time_to_upright[1], full.caught_at[1],
+                                                          full.cart_clearance[1], full.peak_ctrl[1], None))}
+    part = swingup_sweep(None, n=3, seed=4, duration=2.0, done={1: row1},
+                         on_row=lambda i, x0, row: seen.append((i, tuple(x0))))
+    assert [i for i, _ in seen] == [0, 2]  # run 1 was not run again
+    assert [x0 for _, x0 in seen] == [tuple(full.starts[0]), tuple(full.starts[2])]
+    assert part.rows() == full.rows()
+
+
+def test_success_map_is_a_labelled_png(tmp_path):
+    from cartpole.models import read_params
+    from cartpole.viz.sweep_plot import plot_success_map, success_map_figure
+
+    r = swingup_sweep(None, n=3, seed=1, duration=1.0)  # too short to hold: failures drawn as crosses
+    params = read_params(None)
+    fig = success_map_figure(r, params)
+    ax = fig.axes[0]
+    assert "[rad]" in ax.get_xlabel() and "[rad/s]" in ax.get_ylabel() and "of 3 starts" in ax.get_title()
+    path = plot_success_map(r, params, tmp_path / "figures" / "map.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

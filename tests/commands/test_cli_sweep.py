@@ -1,5 +1,5 @@
-"""``cartpole sweep``: the JSON contract of DESIGN.md, the CSV results file, the same rows for 1 and 2 workers,
-and clean refusals."""
+"""``cartpole sweep``: the JSON contract of DESIGN.md, the CSV results file, the same rows for 1 and 2 workers and
+through a real local Dask cluster, interrupt and --resume, the success map, and clean refusals."""
 import csv
 import json
 
@@ -37,7 +37,14 @@ def test_sweep_json_follows_the_contract_and_the_csv_holds_the_rows(tmp_path, ca
         start = [float(t[k]) for k in ("x0_slider", "x0_hinge", "x0_slider_rate", "x0_hinge_rate")]
         assert start == r["start"]  # written with repr: the same doubles
         assert t["success"] == str(r["success"]) and float(t["time_to_upright_s"]) == r["time_to_upright"]
-    assert sorted(p.name for p in tmp_path.rglob("*")) == ["sweep_energy.csv", "sweeps"]
+    assert all(t["sweep"] == doc["sweep"] and t["failure"] == "" for t in table)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["figures", "sweep_energy.csv", "sweep_energy.png",
+                                                          "sweeps"]
+    png = tmp_path / "figures" / "sweep_energy.png"
+    assert doc["figure"] == str(png.resolve()) and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from PIL import Image
+    with Image.open(png) as im:
+        assert im.format == "PNG" and im.size[0] >= 600 and im.size[1] >= 400
 
 
 def test_one_and_two_workers_give_the_same_rows_bit_for_bit(tmp_path, capsys):
@@ -81,10 +88,98 @@ def test_energy_sweep_on_a_two_pole_cart_is_refused_before_any_run(tmp_path, cap
     assert not out.exists()
 
 
-def test_help_documents_the_flags_and_says_there_is_no_address_yet(capsys):
+def test_help_documents_the_flags(capsys):
     assert main(["sweep", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
-    for flag in ("--method", "--n N", "--seed S", "--workers W", "--duration", "--jitter", "--json", "--mjcf",
-                 "--out"):
+    for flag in ("--method", "--n N", "--seed S", "--workers W", "--address ADDR", "--duration", "--jitter",
+                 "--resume", "--json", "--mjcf", "--out"):
         assert flag in text, flag
-    assert "--address is not implemented" in text and "--view" in text
+    assert "Dask" in text and "--view" in text and "--stop-after" not in text  # a testing option, hidden
+
+
+QUICK = ("--n", "4", "--seed", "3", "--duration", "4")
+
+
+def test_interrupted_sweep_keeps_its_rows_and_resume_finishes_it_like_an_uninterrupted_run(tmp_path, capsys):
+    ref = _sweep(capsys, *QUICK, "--out", str(tmp_path / "ref"))
+    out = tmp_path / "cut"
+    results = out / "sweeps" / "sweep_energy.csv"
+    # interrupted (as by Ctrl-C) after two runs: the two rows are in the file, one sentence says how to go on
+    assert main(["sweep", "--json", *QUICK, "--out", str(out), "--stop-after", "2"]) == 130
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert cap.out == "" and len(lines) == 1 and "2 of 4 runs" in lines[0] and "--resume" in lines[0], cap.err
+    with open(results, newline="") as fh:
+        part = list(csv.DictReader(fh))
+    assert [int(t["run"]) for t in part] == [0, 1]
+    # resumed: only the other two run; the rows and the file are those of the uninterrupted sweep, no duplicates
+    doc = _sweep(capsys, *QUICK, "--out", str(out), "--resume")
+    assert doc["resumed"] == 2 and doc["rows"] == ref["rows"] and doc["sweep"] == ref["sweep"]
+    assert results.read_bytes() == (tmp_path / "ref" / "sweeps" / "sweep_energy.csv").read_bytes()
+    # resuming a finished sweep runs nothing and changes nothing
+    again = _sweep(capsys, *QUICK, "--out", str(out), "--resume")
+    assert again["resumed"] == 4 and again["rows"] == ref["rows"]
+
+
+def test_resume_survives_a_row_cut_short_and_refuses_another_sweeps_file(tmp_path, capsys):
+    ref = _sweep(capsys, *QUICK, "--out", str(tmp_path))
+    results = tmp_path / "sweeps" / "sweep_energy.csv"
+    whole = results.read_bytes()
+    lines = whole.splitlines(keepends=True)
+    results.write_bytes(b"".join(lines[:3]) + lines[3][:20])  # header, runs 0 and 1, run 2 cut by a crash
+    doc = _sweep(capsys, *QUICK, "--out", str(tmp_path), "--resume")
+    assert doc["resumed"] == 2 and doc["rows"] == ref["rows"] and results.read_bytes() == whole
+    # another seed is another sweep: refused in one sentence, the file untouched
+    assert main(["sweep", "--json", "--n", "4", "--seed", "4", "--duration", "4", "--out", str(tmp_path),
+                 "--resume"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Cannot resume" in err[0] and "--seed" in err[0]
+    assert results.read_bytes() == whole
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """A real Dask distributed cluster on loopback: two worker processes, one thread each, no dashboard."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None, silence_logs=50) as cluster:
+        yield cluster
+
+
+def test_a_local_dask_cluster_gives_the_rows_of_one_worker_bit_for_bit(dask_cluster, tmp_path, capsys):
+    addr = dask_cluster.scheduler_address
+    assert addr.startswith("tcp://127.0.0.1:")
+    one = _sweep(capsys, *QUICK, "--workers", "1", "--out", str(tmp_path / "a"))
+    dask = _sweep(capsys, *QUICK, "--address", addr, "--out", str(tmp_path / "b"))
+    assert dask["address"] == addr and dask["rows"] == one["rows"]  # floats compared exactly
+    a = (tmp_path / "a" / "sweeps" / "sweep_energy.csv").read_bytes()
+    assert a == (tmp_path / "b" / "sweeps" / "sweep_energy.csv").read_bytes()
+    # the model is built once per worker process (two at most), not once per run
+    import distributed
+
+    with distributed.Client(addr, set_as_default=False) as client:
+        built = client.run(_models_built)
+    assert 1 <= sum(built.values()) <= 2, built
+
+
+def _models_built() -> int:
+    from cartpole.sweep import _BUILT
+
+    return _BUILT[0]
+
+
+def test_an_unreachable_address_is_one_sentence(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("distributed")
+    import socket
+
+    import cartpole.sweep as sweep_mod
+
+    monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT", 1.0)
+    with socket.socket() as s:  # a loopback port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    out = tmp_path / "out"
+    assert main(["sweep", "--json", "--n", "1", "--address", f"tcp://127.0.0.1:{port}", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Cannot reach a Dask scheduler" in err[0], err
+    assert not out.exists()
