@@ -125,7 +125,7 @@ def _stage(progress, name):
 def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float | None = None,
                 progress: Callable[[str, float], None] | None = None, basin_cache=None,
                 energy_options: dict | None = None, catch_weights: tuple | None = None,
-                objective=None) -> SwingupResult:
+                objective=None, on_step=None) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
 
     Parameters
@@ -153,6 +153,9 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
     objective : str or callable, optional
         ``trajopt`` only: the plan's objective (``effort`` default, ``time``, ``tracking``, ``dmc_swingup``,
         ``"MODULE:FUNCTION"`` or a function; see :func:`cartpole.ocp.pipeline.trajopt_swingup`).
+    on_step : callable, optional
+        ``on_step(m, d)`` during the MuJoCo run (e.g. :class:`cartpole.viz.viewer.LiveViewer`, to watch it live);
+        returning False ends the run (see :func:`cartpole.sim.rollout.simulate`).
 
     Returns
     -------
@@ -199,7 +202,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
         basin = basin_of(catch)
         controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if duration is None else float(duration)
-        rollout = simulate(params, controller, x0, T, progress=_stage(progress, "simulate"))
+        rollout = simulate(params, controller, x0, T, progress=_stage(progress, "simulate"), on_step=on_step)
         if progress is not None:
             progress("simulate", 1.0)
         caught_at = controller.caught_at
@@ -223,7 +226,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
         T = T_plan + TRAJOPT_EXTRA if duration is None else float(duration)
         if duration is None and sp.objective == "dmc_swingup":
             T = max(T, DMC_STEPS * params.timestep)
-        rollout = simulate(params, controller, x0, T, progress=_stage(progress, "simulate"))
+        rollout = simulate(params, controller, x0, T, progress=_stage(progress, "simulate"), on_step=on_step)
         if progress is not None:
             progress("simulate", 1.0)
         handover = getattr(controller, "handover_time", T_plan)

@@ -46,3 +46,17 @@ def rollout_doc(rollout) -> dict:
     push = rollout.info.get("push") if isinstance(rollout.info, dict) else None
     doc.setdefault("push", [0.0] * len(doc["ctrl"]) if push is None else [float(f) for f in push])
     return doc
+
+
+def live_viewer(command: str):
+    """A :class:`~cartpole.viz.viewer.LiveViewer` to pass as a run's ``on_step``, or None without a display (its one
+    sentence printed on stderr, so the command goes on without the viewer)."""
+    from cartpole.errors import first_line
+    from cartpole.viz.viewer import LiveViewer, ViewerUnavailable, require_display
+
+    try:
+        require_display()
+    except ViewerUnavailable as exc:
+        print(f"cartpole {command}: no live view: {first_line(exc)}.", file=sys.stderr)
+        return None
+    return LiveViewer()

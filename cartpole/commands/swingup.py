@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import sys
 
-from cartpole.commands._rollouts import rollout_doc, show_logged
+from cartpole.commands._rollouts import live_viewer, rollout_doc
 
 HELP = "swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, or trajopt + TVLQR)"
 
@@ -128,9 +128,15 @@ def run(args) -> dict:
 
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
         {"simulate": "10 s"} if args.method == "energy" else {})
-    res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes),
-                      objective=objective)
-    viewed = show_logged(params, res.rollout, command="swingup") if args.view else None
+    viewer = live_viewer("swingup") if args.view else None
+    try:
+        res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes),
+                          objective=objective, on_step=viewer)
+        if viewer is not None:
+            viewer.finish()
+    finally:
+        if viewer is not None:
+            viewer.close()
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{args.method}.png", plan=res.plan,
                        caught_at=res.caught_at, model=model,
                        title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
@@ -154,9 +160,9 @@ def run(args) -> dict:
         if "return" in m:
             doc["return"], doc["return_steps"] = m["return"], m["return_steps"]
     if args.view:
-        doc["viewer"] = None if viewed is None else {
-            "frames": viewed.info.get("frames"), "closed_early": viewed.info.get("closed_early"),
-            "wall_time": viewed.info.get("wall_time"), "steps_shown": len(viewed.ctrl)}
+        doc["viewer"] = None if viewer is None else {
+            "frames": viewer.frames, "closed_early": viewer.closed, "wall_time": viewer.wall_time,
+            "steps_shown": len(res.rollout.ctrl)}
     if not args.json:
         def fmt(v, unit):
             return "never" if v is None else f"{v:.3f} {unit}"
@@ -174,10 +180,9 @@ def run(args) -> dict:
         if "return" in m:
             print(f"dm_control return (smooth swing-up reward): {m['return']:.1f} over {m['return_steps']} "
                   "control steps")
-        if viewed is not None:
-            print(f"Live view: {len(viewed.ctrl)} of {len(res.rollout.ctrl)} steps shown, "
-                  f"{viewed.info.get('frames')} frames in {viewed.info.get('wall_time', 0.0):.1f} s, identical "
-                  "to the log")
+        if viewer is not None:
+            print(f"Live view: the run stepped in MuJoCo's viewer in real time ({viewer.frames} frames in "
+                  f"{viewer.wall_time:.1f} s{', window closed early' if viewer.closed else ''}); it is the run logged")
         print(f"Figure: {fig}")
         print(f"Video: {video.summary() if video is not None else 'not written'}")
     return doc

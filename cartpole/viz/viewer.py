@@ -358,6 +358,13 @@ class LiveViewer:
 
 # ---- the run ----------------------------------------------------------------------------------------------
 
+def require_display() -> None:
+    """Raise :class:`ViewerUnavailable` (one sentence) unless a display the viewer can open is there."""
+    why = _display_problem()
+    if why is not None:
+        raise _unavailable(why)
+
+
 def watch(source: CartPoleParams | str | Path | None, controller: Callable, x0, duration: float, *,
           realtime: bool = True, push: Callable[[float], float] | None = None, screenshot: str | Path | None = None,
           control_period: float | None = None, stop: Callable[[float, np.ndarray], bool] | None = None,
@@ -415,9 +422,7 @@ def watch(source: CartPoleParams | str | Path | None, controller: Callable, x0, 
     -----
     The run is :func:`~cartpole.sim.rollout.simulate` with the hook :class:`LiveViewer` as its ``on_step``.
     """
-    why = _display_problem()
-    if why is not None:
-        raise _unavailable(why)
+    require_display()
     view = LiveViewer(realtime=realtime, show_ui=show_ui, camera=camera)
     shot = window = None
     try:
