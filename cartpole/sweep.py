@@ -29,6 +29,7 @@ Example (the README's numbers)::
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -435,7 +436,8 @@ def _run_parallel(runner: _Runner, starts, opts, workers: int, todo, finished) -
     init = (runner.params, runner.method, runner.duration, runner.catch_weights, runner.cache)
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=init)
     try:
-        futures = {pool.submit(_run_in_worker, starts[i], opts[i]): i for i in todo}
+        with _sigint_ignored():  # workers start while submitting: they inherit the ignored Ctrl-C from birth
+            futures = {pool.submit(_run_in_worker, starts[i], opts[i]): i for i in todo}
         for fut in as_completed(futures):
             finished(futures[fut], fut.result())
     except BrokenProcessPool:
@@ -443,6 +445,24 @@ def _run_parallel(runner: _Runner, starts, opts, workers: int, todo, finished) -
                          f"{workers}.") from None
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextmanager
+def _sigint_ignored():
+    """Ignore Ctrl-C (SIGINT) inside the block, in the main thread (elsewhere: no change). Processes spawned inside
+    inherit the ignored signal, so a Ctrl-C that reaches the whole process group cannot kill a worker while it is
+    still importing (a traceback on stderr); the parent alone handles it and keeps the finished rows."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 #: Per-process cache of runners on Dask workers, keyed by the sweep's token (models built once per worker).

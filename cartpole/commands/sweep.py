@@ -190,6 +190,7 @@ def run(args) -> dict:
     ``sweep`` (the description's id) and ``resumed`` (runs taken from the file)."""
     from cartpole._files import short, write_csv
     from cartpole.commands.swingup import check_duration
+    from cartpole.errors import CartPoleError
     from cartpole.models import read_params
     from cartpole.sweep import SweepError, _check, summary_line, swingup_sweep
     from cartpole.viz.sweep_plot import plot_success_map
@@ -218,18 +219,25 @@ def run(args) -> dict:
         result = swingup_sweep(params, method=args.method, n=args.n, seed=args.seed, workers=args.workers,
                                duration=duration, gain_jitter=args.jitter, address=args.address, done=done,
                                on_row=on_row)
+        for a in appender:
+            a.close()
+        rows = result.rows()
+        for r in rows:
+            r["failure"] = failure(r)
+        write_csv(path, head, [_csv_line(sid, r["run"], r["start"], r) for r in rows])  # whole, in run order
     except KeyboardInterrupt:
-        finished = len(done) + count[0]
+        for a in appender:
+            a.close()
+        try:  # what the file holds now is what a resume will keep
+            finished = len(read_done(path, head, sid, args.n))
+        except CartPoleError:
+            finished = len(done) + count[0]
         again = "the same command with --resume" if not args.resume else "the same command again"
         raise KeyboardInterrupt(f"interrupted after {finished} of {args.n} runs, kept in {short(path)}; run "
                                 f"{again} to finish the others.") from None
     finally:
         for a in appender:
             a.close()
-    rows = result.rows()
-    for r in rows:
-        r["failure"] = failure(r)
-    write_csv(path, head, [_csv_line(sid, r["run"], r["start"], r) for r in rows])  # whole, in run order
     figure = plot_success_map(result, params, Path(args.out) / str(FIGURE).format(method=args.method))
     doc = {**result.summary(), "rows": rows, "results": str(path.resolve()), "figure": str(Path(figure).resolve()),
            "sweep": sid, "resumed": len(done)}

@@ -183,3 +183,38 @@ def test_an_unreachable_address_is_one_sentence(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Cannot reach a Dask scheduler" in err[0], err
     assert not out.exists()
+
+
+def test_ctrl_c_on_a_two_worker_sweep_keeps_the_finished_rows_and_resume_completes_them(tmp_path, capsys):
+    """A real SIGINT to the process group of a running ``cartpole sweep --workers 2`` (as Ctrl-C sends it)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    ref = _sweep(capsys, *QUICK[2:], "--n", "10", "--out", str(tmp_path / "ref"))
+    out = tmp_path / "cut"
+    results = out / "sweeps" / "sweep_energy.csv"
+    argv = [sys.executable, "-m", "cartpole", "sweep", "--n", "10", *QUICK[2:], "--workers", "2", "--out", str(out)]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env={**os.environ, "MUJOCO_GL": "egl"},
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if results.exists() and len(results.read_text().splitlines()) >= 3:  # header and two finished runs
+            break
+        time.sleep(0.05)
+    if proc.poll() is not None:
+        pytest.skip("the sweep finished before it could be interrupted (a very fast machine)")
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    kept = len(results.read_text().splitlines()) - 1
+    if proc.returncode == 0:
+        pytest.skip("the sweep finished as the interrupt arrived")
+    assert proc.returncode == 130, err
+    last = err.strip().splitlines()[-1]
+    assert f"interrupted after {kept} of 10 runs" in last and "--resume" in last and "Traceback" not in err
+    doc = _sweep(capsys, *QUICK[2:], "--n", "10", "--out", str(out), "--resume", "--workers", "2")
+    assert doc["resumed"] == kept and doc["rows"] == ref["rows"]
+    assert results.read_bytes() == (tmp_path / "ref" / "sweeps" / "sweep_energy.csv").read_bytes()
