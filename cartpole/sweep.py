@@ -228,7 +228,12 @@ class _Runner:
         self.cache = cache
 
     def basin(self):
-        """The catch basin every run uses (estimated here once, then found in the cache)."""
+        """The catch basin every run uses (estimated here once, then found in the cache): the energy method's LQR
+        catch, or for trajopt the hand-over LQR that takes over when the plan ends."""
+        if self.method == "trajopt":
+            from cartpole.ocp.pipeline import handover_catch
+
+            return self.cache.get(self.params, handover_catch(self.params, self.model))
         from cartpole.control.switching import swingup_catch
 
         catch = swingup_catch(self.model) if self.catch_weights is None else \

@@ -99,3 +99,15 @@ def test_success_map_is_a_labelled_png(tmp_path):
     assert "[rad]" in ax.get_xlabel() and "[rad/s]" in ax.get_ylabel() and "of 3 starts" in ax.get_title()
     path = plot_success_map(r, params, tmp_path / "figures" / "map.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_trajopt_sweep_reports_the_basin_of_the_hand_over_lqr():
+    from cartpole.models import build_model, read_params
+    from cartpole.ocp.pipeline import handover_catch
+    from cartpole.sweep import swingup_sweep
+    from cartpole.validation.basin import estimate_basin
+
+    params = read_params()
+    res = swingup_sweep(params, method="trajopt", n=1, seed=0)
+    direct = estimate_basin(params, handover_catch(params, build_model(params)))  # estimated anew, no cache
+    assert res.rho == direct.rho
