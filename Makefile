@@ -15,9 +15,11 @@ install: $(BIN)/activate
 
 demo: install
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole linearize
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole lqr --out $(OUT)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole lqr --compare-pid --out $(OUT)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole lqr --mjcf cartpole/assets/cartpole_two_pole.xml --out $(OUT)/two_pole
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole swingup --method energy --out $(OUT)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole swingup --method trajopt --out $(OUT)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole feedforward --out $(OUT)
 	@echo "Figures, videos and metrics are under $(OUT)/"
 
 test: install
