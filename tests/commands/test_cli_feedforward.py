@@ -8,24 +8,9 @@ import pytest
 from cartpole.cli import main
 from cartpole.feedforward import RUNS
 from cartpole.models import SHIPPED_MJCF
+from mj_replay import replay_with_mj_step
 
 ROLLOUT_KEYS = {"t", "qpos", "qvel", "ctrl", "push"}
-
-
-def _replay_with_mj_step(mjcf, qpos0, qvel0, ctrl):
-    import mujoco
-
-    m = mujoco.MjModel.from_xml_path(str(mjcf))
-    d = mujoco.MjData(m)
-    d.qpos[:], d.qvel[:] = qpos0, qvel0
-    mujoco.mj_forward(m, d)
-    qpos, qvel = [d.qpos.copy()], [d.qvel.copy()]
-    for u in ctrl:
-        d.ctrl[:] = u
-        mujoco.mj_step(m, d)
-        qpos.append(d.qpos.copy())
-        qvel.append(d.qvel.copy())
-    return np.array(qpos), np.array(qvel)
 
 
 def test_json_contract_every_run_replays_exactly_and_the_figure_is_written(tmp_path, capsys):
@@ -43,7 +28,7 @@ def test_json_contract_every_run_replays_exactly_and_the_figure_is_written(tmp_p
         assert len(ro["t"]) == len(ro["qpos"]) == len(ro["qvel"]) == n + 1 and len(ro["push"]) == n
         assert not any(ro["push"])
         assert np.allclose(ro["qpos"][0], [0, np.pi]) and np.allclose(ro["qvel"][0], [0, 0])
-        qpos, qvel = _replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
+        qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
         assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
         assert run["replays_exactly"] is True
         assert run["peak_ctrl"] == np.abs(np.array(ro["ctrl"])).max()

@@ -6,22 +6,7 @@ import pytest
 
 from cartpole.cli import main
 from cartpole.models import SHIPPED_MJCF
-
-
-def _replay_with_mj_step(mjcf, qpos0, qvel0, ctrl):
-    import mujoco
-
-    m = mujoco.MjModel.from_xml_path(str(mjcf))
-    d = mujoco.MjData(m)
-    d.qpos[:], d.qvel[:] = qpos0, qvel0
-    mujoco.mj_forward(m, d)
-    qpos, qvel = [d.qpos.copy()], [d.qvel.copy()]
-    for u in ctrl:
-        d.ctrl[:] = u
-        mujoco.mj_step(m, d)
-        qpos.append(d.qpos.copy())
-        qvel.append(d.qvel.copy())
-    return np.array(qpos), np.array(qvel)
+from mj_replay import replay_with_mj_step
 
 
 def _check_contract(doc, method, out):
@@ -31,7 +16,7 @@ def _check_contract(doc, method, out):
     assert len(ro["t"]) == len(ro["qpos"]) == len(ro["qvel"]) == n + 1
     assert ro["push"] == [0.0] * n  # no pushes: n zeros
     assert np.allclose(ro["qpos"][0], [0, np.pi]) and np.allclose(ro["qvel"][0], [0, 0])
-    qpos, qvel = _replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
+    qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
     assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
     assert doc["success"] is True
     assert isinstance(doc["caught_at"], float) and 0 < doc["caught_at"] < ro["t"][-1]
@@ -122,7 +107,7 @@ def test_trajopt_on_a_two_pole_cart_succeeds_or_fails_with_one_sentence(tmp_path
     ro = doc["rollout"]
     assert np.array(ro["qpos"]).shape[1] == np.array(ro["qvel"]).shape[1] == 3 and np.array(ro["ctrl"]).shape[1] == 1
     np.testing.assert_array_equal(np.hstack([ro["qpos"][0], ro["qvel"][0]]), model.x_hanging)
-    qpos, qvel = _replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
+    qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
     assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
     assert isinstance(doc["success"], bool)
     assert sorted(p.name for p in out.rglob("*") if p.is_file()) == ["swingup_trajopt.png"]
@@ -178,7 +163,7 @@ def test_view_on_a_screen_shows_exactly_the_logged_run(tmp_path):
     # the window showed the run itself, stepped in real time: what it showed is what was logged
     assert view["steps_shown"] == len(doc["rollout"]["ctrl"]) == 100 and view["frames"] >= 2
     assert view["closed_early"] is False and view["wall_time"] >= 0.45  # real time: 0.5 s simulated
-    qpos, qvel = _replay_with_mj_step(doc["mjcf"], doc["rollout"]["qpos"][0], doc["rollout"]["qvel"][0],
+    qpos, qvel = replay_with_mj_step(doc["mjcf"], doc["rollout"]["qpos"][0], doc["rollout"]["qvel"][0],
                                       doc["rollout"]["ctrl"])
     assert np.array_equal(qpos, np.array(doc["rollout"]["qpos"]))
 
