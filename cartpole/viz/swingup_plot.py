@@ -81,10 +81,10 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
             a.plot(*wrapped_angle_trace(pt, px[:, h], x_eq[h], degrees=False), "--", label="plan")
         a.axhline(0.0, color="k", lw=0.5)
         if len(hinges) == 1:
-            a.set_ylabel("pole angle from upright\n(rad, wrapped: gaps mark a turn)")
+            a.set_ylabel("pole angle from upright\n(rad, wrapped)")
         else:
-            rel = "" if i == 0 else ", to its parent"
-            a.set_ylabel(f"pole {i + 1} ({params.joints[h].name})\nangle from x*{rel}\n(rad, wrapped: gaps mark a turn)")
+            rel = "" if i == 0 else " to parent"
+            a.set_ylabel(f"pole {i + 1} ({params.joints[h].name}){rel}\nfrom x* (rad, wrapped)")
     if ax_s is not None:
         ax_s.plot(t, x[:, slide], label="MuJoCo")
         if px is not None:
@@ -118,6 +118,7 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
     for a in ax:
         a.grid(True, alpha=0.3)
         a.legend(loc="upper right", fontsize=7)
-    fig.suptitle(title or "Swing-up in MuJoCo")
+    fig.suptitle((title or "Swing-up in MuJoCo") + "\n(angles wrapped to (-pi, pi]: a gap in a trace marks a full turn)",
+                 fontsize="medium")
     fig.tight_layout()
     return fig
