@@ -14,6 +14,7 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.models import build_model
+from cartpole.viz.panels import pole_panels
 from cartpole.viz.traces import wrapped_angle_trace
 
 #: Line colours of the runs, in order; plans are drawn in shades of grey.
@@ -48,19 +49,10 @@ def feedforward_figure(runs: Mapping, plans: Mapping, params, *, model=None, tit
     -------
     matplotlib.figure.Figure
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     model = model or build_model(params)
-    hinges, slide, nu = params.hinges, params.slide, params.nu
+    hinges, slide = params.hinges, params.slide
     x_eq = np.asarray(model.x_eq)
-    n_panels = len(hinges) + (slide is not None) + nu
-    fig = Figure(figsize=(10, 2.6 * n_panels + 1.0))
-    FigureCanvasAgg(fig)
-    ax = list(np.atleast_1d(fig.subplots(n_panels, 1, sharex=True)))
-    ax_th, rest = ax[:len(hinges)], ax[len(hinges):]
-    ax_s = rest.pop(0) if slide is not None else None
-    ax_u = rest[:nu]
+    fig, ax, ax_th, ax_s, ax_u, _ = pole_panels(params, size=lambda n: (10, 2.6 * n + 1.0))
 
     plan_lines = {}
     for j, (label, plan) in enumerate(plans.items()):

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._files import atomic_write
+from cartpole.viz.panels import pole_panels
 from cartpole.viz.traces import wrapped_angle_trace
 
 
@@ -67,7 +68,7 @@ def lab_figure(result):
     """
     p = result.params
     hinges, slide = p.hinges, p.slide
-    fig, axes, ax_th, ax_s, ax_u = _panels(p)
+    fig, axes, ax_th, ax_s, ax_u, _ = pole_panels(p)
     for run, x0, ts in zip(result.rollouts, result.x0s, result.settling_times_seed):
         label = _label(result, x0, ts)
         for ax, h in zip(ax_th, hinges):
@@ -86,20 +87,6 @@ def lab_figure(result):
                  f"({len(result.rollouts)} initial conditions{scale}, every |θ| ≤ 0.05 rad)")
     fig.tight_layout()
     return fig
-
-
-def _panels(p):
-    """``(fig, axes, angle axes, cart axis or None, ctrl axes)``: stacked panels sharing time on an Agg canvas, one
-    per pole angle, the cart (when there is a slide), one per actuator."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    n_panels = len(p.hinges) + (p.slide is not None) + p.nu
-    fig = Figure(figsize=(10, max(6.0, 2.0 * n_panels)))
-    FigureCanvasAgg(fig)
-    axes = np.atleast_1d(fig.subplots(n_panels, 1, sharex=True))
-    ax_s = axes[len(p.hinges)] if p.slide is not None else None
-    return fig, axes, axes[:len(p.hinges)], ax_s, axes[n_panels - p.nu:]
 
 
 def _dress(p, x_eq, rollouts, axes, ax_th, ax_s, ax_u) -> None:
@@ -163,7 +150,7 @@ def pid_vs_lqr_figure(lqr, pid):
 
     p = lqr.params
     hinges, slide = p.hinges, p.slide
-    fig, axes, ax_th, ax_s, ax_u = _panels(p)
+    fig, axes, ax_th, ax_s, ax_u, _ = pole_panels(p)
     colours = [f"C{i % 10}" for i in range(len(lqr.rollouts))]
     for res, ls in ((lqr, "-"), (pid, "--")):
         for run, colour in zip(res.rollouts, colours):

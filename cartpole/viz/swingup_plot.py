@@ -15,6 +15,7 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.models import build_model
+from cartpole.viz.panels import pole_panels
 from cartpole.viz.traces import wrapped_angle_trace
 
 
@@ -54,24 +55,14 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
     -------
     matplotlib.figure.Figure
     """
-    # object API on an Agg canvas: no pyplot, so a notebook's inline backend is left alone
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     model = model or build_model(params)
-    hinges, slide, nu = params.hinges, params.slide, params.nu
+    hinges, slide = params.hinges, params.slide
     x_eq = np.asarray(model.x_eq)
     single = model.pole_energy is not None
     energy, energy_label = ((model.pole_energy, "pole energy (J)") if single
                             else (model.energy, "total energy (J)"))
     t, x = rollout.t, rollout.x
-    n_panels = len(hinges) + (slide is not None) + nu + 1
-    fig = Figure(figsize=(8, max(9.0, 2.0 * n_panels)))
-    FigureCanvasAgg(fig)
-    ax = list(np.atleast_1d(fig.subplots(n_panels, 1, sharex=True)))
-    ax_th, rest = ax[:len(hinges)], ax[len(hinges):]
-    ax_s = rest.pop(0) if slide is not None else None
-    ax_u, ax_e = rest[:nu], rest[nu]
+    fig, ax, ax_th, ax_s, ax_u, (ax_e,) = pole_panels(params, extra=1, size=lambda n: (8, max(9.0, 2.0 * n)))
     px = None if plan is None else np.asarray(plan.x)
     pt = None if plan is None else np.asarray(plan.t)
     pu = None if plan is None else np.asarray(plan.u).reshape(len(np.asarray(plan.u)), -1)

@@ -62,7 +62,7 @@ from cartpole._files import atomic_path
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams, wrap_angle
 from cartpole.progress import stage
-from cartpole.sim import Rollout, make_mujoco
+from cartpole.sim import Rollout, ctrl_bounds, make_mujoco
 
 #: Display colours (RGB, 0..1) of the links, first pole first; more links than colours cycle.
 LINK_COLOURS = ((0.86, 0.15, 0.15), (0.97, 0.60, 0.05), (0.15, 0.62, 0.20), (0.55, 0.30, 0.78),
@@ -311,7 +311,7 @@ def _build_display(source, *, width, height, floor_z=None):
     grid = spec.add_material(name=pre + "grid", texrepeat=[1, 1], texuniform=True, reflectance=0.0,
                              specular=0.0, shininess=0.0, emission=0.08)
     grid.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = pre + "grid"
-    link = spec.add_material(name=pre + "link", specular=0.25, shininess=0.4, emission=0.15)
+    spec.add_material(name=pre + "link", specular=0.25, shininess=0.4, emission=0.15)  # used by name below
     planes = [g for g in spec.worldbody.geoms if g.type == mujoco.mjtGeom.mjGEOM_PLANE]
     if not planes and floor_z is not None:
         planes = [spec.worldbody.add_geom(name=pre + "floor", type=mujoco.mjtGeom.mjGEOM_PLANE,
@@ -357,8 +357,7 @@ def _build_display(source, *, width, height, floor_z=None):
     for i, gs in enumerate(link_geoms):
         for g in gs:
             m.geom_rgba[g] = (*LINK_COLOURS[i % len(LINK_COLOURS)], 1.0)
-    lo = np.where(m.actuator_ctrllimited.astype(bool), m.actuator_ctrlrange[:, 0], -np.inf)
-    hi = np.where(m.actuator_ctrllimited.astype(bool), m.actuator_ctrlrange[:, 1], np.inf)
+    lo, hi = ctrl_bounds(m)
     ctrl_names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"u{a}" for a in range(m.nu)]
     return _Display(m=m, d=d, hinges=hinges, link_geoms=link_geoms, moving=moving, slide=slide,
                     h_axis=h_axis, up=up, ctrl_range=np.stack([lo, hi], 1) if m.nu else np.zeros((0, 2)),
