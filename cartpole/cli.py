@@ -127,23 +127,10 @@ def _stdout_to_stderr():
             os.close(saved)
 
 
-@contextlib.contextmanager
-def _mujoco_warnings(notes: list):
-    """Collect MuJoCo's warnings in ``notes`` instead of its default (a line on stderr and a MUJOCO_LOG.TXT file
-    in the current directory, which is not the command's to write)."""
-    import mujoco
-
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda msg: notes.append(" ".join(str(msg).split())))
-    try:
-        yield notes
-    finally:
-        mujoco.set_mju_user_warning(previous)
-
-
 def _run(args):
     """Run the command inside its progress reporter (and, when it writes files, its output transaction)."""
     from cartpole._files import check_out_dir, output_transaction
+    from cartpole.models import mujoco_warnings
     from cartpole.progress import reporting
 
     notes: list[str] = []
@@ -154,7 +141,7 @@ def _run(args):
         elif args.out is not None:
             print(f"cartpole {args.command}: --out is ignored: {args.command} writes no files (the option is "
                   "deprecated and will be removed; drop it).", file=sys.stderr)
-        stack.enter_context(_mujoco_warnings(notes))
+        stack.enter_context(mujoco_warnings(notes.append))  # not MUJOCO_LOG.TXT in the cwd: not ours to write
         stack.enter_context(reporting(args.command, enabled=not args.json))
         if args.json:  # a stray print must not spoil the one JSON document
             stack.enter_context(_stdout_to_stderr())

@@ -1,9 +1,10 @@
 """MJCF -> parameters -> kinematics -> symbolic CasADi model -> equilibria -> exact continuous and discrete linearisation."""
 from cartpole.models.params import (SHIPPED_MJCF, SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError,
-                                    load_model, read_params)
+                                    load_model, mujoco_warnings, read_params)
 from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_kinematics_np
 from cartpole.models.symbolic import CartPoleModel, build_model, linearize, state_error, wrap_angle
 
-__all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError", "load_model", "read_params",
+__all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError", "load_model", "mujoco_warnings",
+           "read_params",
            "CartPoleModel", "build_model", "linearize", "state_error", "wrap_angle", "Kinematics",
            "forward_kinematics", "forward_kinematics_np"]

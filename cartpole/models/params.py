@@ -13,6 +13,7 @@ import dataclasses
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -388,24 +389,32 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
 
 
 @contextlib.contextmanager
-def _compiler_warnings():
-    """Route MuJoCo's compiler warnings (e.g. "XML contains a 'NaN'") to the handler already installed, or else to
-    Python's ``warnings``, instead of MuJoCo's default of a line on stderr and a MUJOCO_LOG.TXT file in the current
-    directory; the previous handler is restored afterwards."""
+def mujoco_warnings(handler: Callable[[str], None]):
+    """Send MuJoCo's warnings to ``handler(message)`` (folded into one line) inside the block, instead of MuJoCo's
+    default of a line on stderr and a MUJOCO_LOG.TXT file in the current directory; yields the handler that was
+    installed before (None for MuJoCo's default) and puts it back afterwards."""
     import mujoco
 
-    caught: list[str] = []
     previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda msg: caught.append(" ".join(str(msg).split())))
+    mujoco.set_mju_user_warning(lambda msg: handler(" ".join(str(msg).split())))
     try:
-        yield
+        yield previous
     finally:
         mujoco.set_mju_user_warning(previous)
-        for msg in dict.fromkeys(caught):
-            if previous is not None:  # someone collects MuJoCo's warnings (the command line does): give them theirs
-                previous(msg)
-            else:
-                warnings.warn(f"MuJoCo: {msg}", RuntimeWarning, stacklevel=3)
+
+
+@contextlib.contextmanager
+def _compiler_warnings():
+    """MuJoCo's compiler warnings (e.g. "XML contains a 'NaN'") while compiling go to the handler already installed
+    (the command line collects them), or else to Python's ``warnings``; never to MUJOCO_LOG.TXT."""
+    caught: list[str] = []
+    with mujoco_warnings(caught.append) as previous:
+        yield
+    for msg in dict.fromkeys(caught):
+        if previous is not None:
+            previous(msg)
+        else:
+            warnings.warn(f"MuJoCo: {msg}", RuntimeWarning, stacklevel=3)
 
 
 def _name(m, objtype, i: int, fallback: str) -> str:
