@@ -6,12 +6,14 @@ Standard problem: the given MJCF (default the shipped asset; any model with a ca
 with ``N = 100`` Hermite-Simpson intervals, ``|ctrl| <= 1`` for every actuator, ``|cart| <= 1.4 m`` (other
 limited joints inside their ranges), minimising ``integral ctrl'ctrl dt``.
 
-* Baseline: what a CasADi user writes first - ``casadi.Opti`` with one Hermite-Simpson constraint per
-  interval built from calls of the model's SX Function ``f`` on MX variables, IPOPT, no ``expand``.
+* Baselines: what a CasADi user writes first - ``casadi.Opti`` with one Hermite-Simpson constraint per
+  interval built from calls of the model's SX Function ``f`` on MX variables (``f`` once per knot and once per
+  midpoint), IPOPT with its defaults; then the same script with ``expand=True`` (the one-option fix a user finds
+  next: the MX graph expanded to SX before IPOPT).
 * Ours: :class:`~cartpole.ocp.collocation.DirectCollocation` (built once: ``map`` over knots and intervals,
   expanded to SX, scaled), IPOPT, first without and then with the interval functions compiled to C
   (:mod:`cartpole.ocp.compiled`, the default); plus the latter warm-started from the previous solution, and
-  fatrop.
+  fatrop (the structure-exploiting interior point CasADi ships).
 
 Both solve from the SAME initial guess (the warm-start row re-plans from a moved start); every timed solve
 reuses a solver that already exists (the first, building call is not timed). Times are medians of ``repeats`` wall-clock solves, including each tool's Python overhead.
@@ -46,23 +48,24 @@ class NaiveOptiBaseline:
     """The Hermite-Simpson swing-up as a first ``casadi.Opti`` script (see the module docstring).
 
     ``bounds`` (:class:`~cartpole.ocp.bounds.OCPBounds`) give the ctrl bounds per actuator and the joint bounds;
-    ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``).
+    ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``). ``expand=True`` is the same script
+    with Opti's ``expand`` option (the MX graph expanded to SX for IPOPT).
     """
 
-    def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None):
+    def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None, *, expand: bool = False):
         f = model.f
         opti = ca.Opti()
         X = opti.variable(model.nx, N + 1)
         U = opti.variable(model.nu, N + 1)
         h = T / N
         J = 0
+        # f once per knot (each knot's derivative is shared by its two intervals), once per midpoint
+        F = [f(X[:, k], U[:, k]) for k in range(N + 1)]
         for k in range(N):
-            fk = f(X[:, k], U[:, k])
-            fk1 = f(X[:, k + 1], U[:, k + 1])
-            xc = 0.5 * (X[:, k] + X[:, k + 1]) + h / 8 * (fk - fk1)
+            xc = 0.5 * (X[:, k] + X[:, k + 1]) + h / 8 * (F[k] - F[k + 1])
             uc = 0.5 * (U[:, k] + U[:, k + 1])
             fc = f(xc, uc)
-            opti.subject_to(X[:, k + 1] == X[:, k] + h / 6 * (fk + 4 * fc + fk1))
+            opti.subject_to(X[:, k + 1] == X[:, k] + h / 6 * (F[k] + 4 * fc + F[k + 1]))
             J = J + h / 6 * ca.sum1(U[:, k] ** 2 + 4 * uc**2 + U[:, k + 1] ** 2)
         for j in range(model.nu):
             opti.subject_to(opti.bounded(bounds.u_low[j], U[j, :], bounds.u_high[j]))
@@ -71,7 +74,7 @@ class NaiveOptiBaseline:
         opti.subject_to(X[:, 0] == np.asarray(x0, float))
         opti.subject_to(X[:, N] == np.asarray(model.x_eq if x_goal is None else x_goal, float))
         opti.minimize(J)
-        opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes"})
+        opti.solver("ipopt", {"print_time": False, "expand": bool(expand)}, {"print_level": 0, "sb": "yes"})
         self.opti, self.X, self.U = opti, X, U
 
     def solve(self, guess) -> tuple[float, int, bool]:
@@ -153,6 +156,10 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     base.solve(guess)  # builds IPOPT (not timed)
     say(f"baseline (Opti, no expand): {repeats} solves ...")
     base_ms, (base_obj, base_it, base_ok) = _median_ms(lambda: base.solve(guess), repeats)
+    exp = NaiveOptiBaseline(model, N, T, bounds, x0, expand=True)
+    exp.solve(guess)
+    say(f"baseline (Opti, expand=True): {repeats} solves ...")
+    exp_ms, (exp_obj, exp_it, exp_ok) = _median_ms(lambda: exp.solve(guess), repeats)
 
     fatrop = {}
     if ca.has_nlpsol("fatrop"):
@@ -181,6 +188,9 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
             "iterations": info.iterations, "success": info.success,
             "baseline_solve_ms_median": base_ms, "baseline_objective": base_obj, "baseline_iterations": base_it,
             "baseline_success": base_ok, "speedup": base_ms / ours_ms,
+            "expand_baseline_solve_ms_median": exp_ms, "expand_baseline_objective": exp_obj,
+            "expand_baseline_iterations": exp_it, "expand_baseline_success": exp_ok,
+            "speedup_vs_expand": exp_ms / ours_ms,
             "objective_rel_diff": abs(info.objective - base_obj) / abs(base_obj),
             "warm_start_solve_ms_median": warm_ms, "warm_start_iterations": warm_info.iterations,
             "warm_start_objective": warm_info.objective, "warm_start_success": warm_info.success,
@@ -194,6 +204,119 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     }
 
 
+#: The shipped carts the plan-time benchmark swings up: (label, asset file name).
+PLAN_MODELS = (("1 pole", "cartpole.xml"), ("2 poles", "cartpole_two_pole.xml"), ("3 poles", "cartpole_three_pole.xml"))
+
+
+def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progress=None) -> list[dict]:
+    """Swing-up plan time, all initial guesses included, and time to upright, for carts with 1, 2 and 3 poles.
+
+    Each repeat reads the MJCF anew, builds the model, plans (:func:`cartpole.ocp.pipeline.trajopt_swingup`
+    from hanging rest: the minimum-time solve, every guess it tries, the effort solve, TVLQR), runs the plan in
+    MuJoCo for the plan + 3 s and checks that the log replays exactly; the compiled interval functions come
+    from the on-disk cache after the first build (the cold figure is the first repeat's). With ``command`` the
+    whole command ``cartpole swingup --method trajopt --no-video --json`` is also timed once in a fresh Python
+    process (imports, basin estimate or its cache, JSON included).
+
+    Parameters
+    ----------
+    mjcfs : sequence of (label, path), optional
+        Default :data:`PLAN_MODELS` (the shipped 1-, 2- and 3-pole carts).
+    repeats : int
+        Repeats per model; medians reported.
+    command : bool
+        Also time the whole command once per model.
+    progress : callable, optional
+        ``progress(message)``.
+
+    Returns
+    -------
+    list of dict
+        Per model: ``model``, ``mjcf``, ``plan_s_median`` (s: read + build + plan), ``plan_s`` (every repeat, the
+        first cold), ``verify_s_median`` (MuJoCo run + exact replay, s), ``total_s_median``, ``T`` (plan, s),
+        ``T_min`` (s), ``time_to_upright`` (s, of the MuJoCo run), ``success``, ``replays``, ``attempts`` (solves
+        tried by the last plan), ``command_s`` (or None).
+    """
+    import subprocess
+    import tempfile
+
+    from cartpole.models import SHIPPED_MJCF
+    from cartpole.ocp.pipeline import trajopt_swingup
+    from cartpole.sim import replays_exactly, simulate
+    from cartpole.validation.metrics import swingup_metrics
+
+    say = progress or (lambda msg: None)
+    items = [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS] if mjcfs is None else list(mjcfs)
+    rows = []
+    for label, path in items:
+        say(f"swing-up plan, {label}: {repeats} plans + MuJoCo runs ...")
+        plan_s, verify_s, last = [], [], None
+        for _ in range(max(1, int(repeats))):
+            tic = time.perf_counter()
+            params = read_params(path)
+            sp = trajopt_swingup(params, model=build_model(params))
+            toc = time.perf_counter()
+            run = simulate(params, sp.controller, sp.model.x_hanging, sp.T + 3.0)
+            ok = replays_exactly(run, params)
+            plan_s.append(toc - tic)
+            verify_s.append(time.perf_counter() - toc)
+            last = (params, sp, run, ok)
+        params, sp, run, ok = last
+        met = swingup_metrics(run, params)
+        cmd_s = None
+        if command:
+            say(f"the whole command on {label} ...")
+            with tempfile.TemporaryDirectory() as out:
+                tic = time.perf_counter()
+                done = subprocess.run([sys.executable, "-m", "cartpole", "swingup", "--method", "trajopt",
+                                       "--mjcf", path, "--no-video", "--json", "--out", out],
+                                      capture_output=True, text=True)
+                cmd_s = time.perf_counter() - tic if done.returncode == 0 else None
+        attempts = getattr(sp.solve_info, "attempts", None)
+        rows.append({"model": label, "mjcf": params.mjcf, "plan_s_median": statistics.median(plan_s),
+                     "plan_s": plan_s, "verify_s_median": statistics.median(verify_s),
+                     "total_s_median": statistics.median([a + b for a, b in zip(plan_s, verify_s)]),
+                     "T": sp.T, "T_min": sp.T_min, "time_to_upright": met["time_to_upright"],
+                     "success": bool(met["success"]), "replays": bool(ok),
+                     "attempts": None if attempts is None else len(attempts), "command_s": cmd_s})
+    return rows
+
+
+def print_plan_table(rows: list[dict], file=None) -> None:
+    """Prose table of :func:`plan_benchmark` rows."""
+    w = (sys.stdout if file is None else file).write
+    w(f"\n{'swing-up from hanging (trajopt + TVLQR)':40s} {'plan s':>8s} {'+ verify s':>10s} {'command s':>10s} "
+      f"{'T plan s':>9s} {'upright s':>10s} {'success':>8s}\n")
+    for r in rows:
+        cmd = "-" if r["command_s"] is None else f"{r['command_s']:.2f}"
+        up = "-" if r["time_to_upright"] is None else f"{r['time_to_upright']:.2f}"
+        w(f"{r['model']:40s} {r['plan_s_median']:8.2f} {r['total_s_median']:10.2f} {cmd:>10s} {r['T']:9.2f} "
+          f"{up:>10s} {str(r['success'] and r['replays']):>8s}\n")
+
+
+def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None) -> dict | None:
+    """The NMPC row (:func:`cartpole.benchmark_mpc.run_mpc_benchmark`): per-control-step solve time over a
+    single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess; None when this
+    installation has no NMPC."""
+    try:
+        from cartpole.benchmark_mpc import run_mpc_benchmark
+    except ImportError:
+        return None
+    (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
+    return run_mpc_benchmark(mjcf, repeats=1 if quick else 3)
+
+
+def print_mpc_table(doc: dict, file=None) -> None:
+    """Prose lines of an :func:`mpc_benchmark` document (keys of :func:`cartpole.benchmark_mpc.run_mpc_benchmark`)."""
+    w = (sys.stdout if file is None else file).write
+    base = doc.get("baseline") or {}
+    w(f"\nNMPC in the MuJoCo loop ({doc.get('N')} stages, horizon {doc.get('horizon')} s, period {doc.get('period')} s, "
+      f"QP: {doc.get('qp_solver')}): solve per control step median {doc.get('solve_ms_median', float('nan')):.3f} ms, "
+      f"max {doc.get('solve_ms_max', float('nan')):.3f} ms over {doc.get('steps')} steps; IPOPT re-solving from the "
+      f"shifted guess: median {base.get('solve_ms_median', float('nan')):.2f} ms, max "
+      f"{base.get('solve_ms_max', float('nan')):.2f} ms; speed-up {doc.get('speedup_median', float('nan')):.1f}x\n")
+
+
 def print_table(doc: dict, file=None) -> None:
     """Prose table of a :func:`run` document, on ``file`` (default the current ``sys.stdout``)."""
     file = sys.stdout if file is None else file
@@ -205,6 +328,10 @@ def print_table(doc: dict, file=None) -> None:
     w(f"{'method':44s} {'solve ms':>10s} {'iters':>6s} {'objective':>12s} {'speedup':>8s}\n")
     w(f"{'baseline: casadi.Opti, SX f calls, no expand':44s} {tr['baseline_solve_ms_median']:10.1f} "
       f"{tr['baseline_iterations']:6d} {tr['baseline_objective']:12.6f} {1.0:8.1f}\n")
+    if "expand_baseline_solve_ms_median" in tr:
+        w(f"{'baseline: the same casadi.Opti, expand=True':44s} {tr['expand_baseline_solve_ms_median']:10.1f} "
+          f"{tr['expand_baseline_iterations']:6d} {tr['expand_baseline_objective']:12.6f} "
+          f"{tr['baseline_solve_ms_median'] / tr['expand_baseline_solve_ms_median']:8.1f}\n")
     if "sx_solve_ms_median" in tr:
         w(f"{'ours, SX only: map + expand + scaling, IPOPT':44s} {tr['sx_solve_ms_median']:10.1f} "
           f"{tr['sx_iterations']:6d} {tr['sx_objective']:12.6f} {tr['sx_speedup']:8.1f}\n")

@@ -1,8 +1,10 @@
 """``cartpole bench``: trajectory-optimisation, TVLQR and batched-replay speed, measured in one run."""
 from __future__ import annotations
 
-HELP = ("time the swing-up collocation solve (ours vs the naive casadi.Opti baseline), TVLQR synthesis "
-        "and batched MuJoCo replay")
+from pathlib import Path
+
+HELP = ("time the swing-up collocation solve (ours vs naive casadi.Opti baselines), TVLQR synthesis, batched "
+        "MuJoCo replay, the swing-up plan on 1, 2 and 3 poles and NMPC in the loop")
 
 #: bench prints its figures and writes no files, so it takes no --out (an old --out is accepted and ignored).
 WRITES_FILES = False
@@ -15,6 +17,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--repeats", type=int, default=None, metavar="K",
                         help="timed solves per method, medians reported (default 7; --quick 2)")
     parser.add_argument("--no-replay", action="store_true", help="skip the batched replay benchmark")
+    parser.add_argument("--no-plan", action="store_true",
+                        help="skip the swing-up plan times (default: the shipped 1-, 2- and 3-pole carts, or the "
+                             "--mjcf given; --quick: one pole, one plan)")
+    parser.add_argument("--no-mpc", action="store_true", help="skip the NMPC-in-the-loop benchmark")
 
 
 class _Steps:
@@ -50,8 +56,27 @@ def run(args) -> dict:
     doc = bench_run(args.mjcf, repeats=repeats, replay=not args.no_replay,
                     replay_repeats=1 if args.quick else repeats, replay_rollouts=16 if args.quick else 256,
                     progress=steps)
+    from cartpole.benchmark import mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table
+
+    doc["plan"] = None
+    if not args.no_plan:
+        if args.mjcf is not None:
+            models = [(Path(args.mjcf).stem, args.mjcf)]
+        else:
+            from cartpole.benchmark import PLAN_MODELS
+            from cartpole.models import SHIPPED_MJCF
+
+            models = [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS]
+            models = models[:1] if args.quick else models
+        doc["plan"] = plan_benchmark(models, repeats=1 if args.quick else 3, command=not args.quick,
+                                     progress=steps)
+    doc["mpc"] = None if args.no_mpc else mpc_benchmark(args.mjcf, quick=args.quick, progress=steps)
     steps.close()
     doc["quick"] = bool(args.quick)
     if not args.json:
         print_table(doc)
+        if doc["plan"]:
+            print_plan_table(doc["plan"])
+        if doc["mpc"]:
+            print_mpc_table(doc["mpc"])
     return doc

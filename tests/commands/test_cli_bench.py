@@ -7,7 +7,7 @@ from cartpole.models import SHIPPED_MJCF
 
 
 def test_bench_json_follows_the_contract(capsys):
-    assert main(["bench", "--json", "--quick"]) == 0
+    assert main(["bench", "--json", "--quick", "--no-mpc"]) == 0
     captured = capsys.readouterr()
     doc = json.loads(captured.out)  # stdout is exactly one JSON document
     assert Path(doc["mjcf"]) == SHIPPED_MJCF
@@ -20,14 +20,21 @@ def test_bench_json_follows_the_contract(capsys):
     assert tr["speedup"] == tr["baseline_solve_ms_median"] / tr["solve_ms_median"]
     # ours and the naive Opti transcription solve the same problem: same optimum within 1 %
     assert abs(tr["objective"] - tr["baseline_objective"]) <= 0.01 * abs(tr["baseline_objective"])
+    # the same Opti script with expand=True finds the same optimum
+    assert abs(tr["expand_baseline_objective"] - tr["baseline_objective"]) <= 1e-6 * abs(tr["baseline_objective"])
+    assert tr["speedup_vs_expand"] == tr["expand_baseline_solve_ms_median"] / tr["solve_ms_median"]
     for key in ("steps_per_s", "rollouts", "seconds_each"):
         assert key in rp, key
     assert rp["steps_per_s"] > 0 and rp["seconds_each"] == 2.0
+    # --quick: the plan row for one pole, planned, run in MuJoCo and replayed
+    (plan,) = doc["plan"]
+    assert plan["model"] == "1 pole" and plan["success"] and plan["replays"] and plan["plan_s_median"] > 0
+    assert plan["time_to_upright"] is not None and plan["time_to_upright"] <= plan["T"] + 3.0
     assert captured.err == ""  # --json: no progress at all
 
 
 def test_bench_prose_prints_a_table_and_one_stderr_line_per_measurement(capsys):
-    assert main(["bench", "--quick", "--no-replay", "--repeats", "1"]) == 0
+    assert main(["bench", "--quick", "--no-replay", "--no-plan", "--no-mpc", "--repeats", "1"]) == 0
     captured = capsys.readouterr()
     out = captured.out
     assert "baseline: casadi.Opti" in out and "TVLQR synthesis" in out and "Batched replay" not in out
@@ -51,3 +58,15 @@ def test_bad_repeats_is_one_sentence_and_exit_2(capsys):
     assert main(["bench", "--json", "--repeats", "0"]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and "repeats" in captured.err
+
+
+def test_bench_json_has_an_mpc_row_beside_its_ipopt_baseline(capsys):
+    """With NMPC installed, `--quick` measures it in the MuJoCo loop beside IPOPT re-solving the same NLP."""
+    import pytest
+
+    pytest.importorskip("cartpole.benchmark_mpc")
+    assert main(["bench", "--json", "--quick", "--no-replay", "--no-plan", "--repeats", "1"]) == 0
+    mpc = json.loads(capsys.readouterr().out)["mpc"]
+    assert mpc["solve_ms_median"] > 0 and mpc["solve_ms_max"] >= mpc["solve_ms_median"]
+    assert mpc["baseline"]["solve_ms_median"] > 0
+    assert mpc["speedup_median"] == pytest.approx(mpc["baseline"]["solve_ms_median"] / mpc["solve_ms_median"])
