@@ -5,16 +5,20 @@ from __future__ import annotations
 import numpy as np
 
 
-def replay_with_mj_step(mjcf, qpos0, qvel0, ctrl) -> tuple[np.ndarray, np.ndarray]:
-    """``(qpos (n+1, nq), qvel (n+1, nv))`` of ``ctrl`` (n, nu) applied step by step from ``(qpos0, qvel0)``."""
+def replay_with_mj_step(mjcf, qpos0, qvel0, ctrl, push=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(qpos (n+1, nq), qvel (n+1, nv))`` of ``ctrl`` (n, nu) applied step by step from ``(qpos0, qvel0)``, with
+    ``push`` (n,) the world-x force in N on the cart body (the first slide joint's) during each step, if given."""
     import mujoco
 
     m = mujoco.MjModel.from_xml_path(str(mjcf))
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = qpos0, qvel0
     mujoco.mj_forward(m, d)
+    cart = next(int(m.jnt_bodyid[j]) for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE)
     qpos, qvel = [d.qpos.copy()], [d.qvel.copy()]
-    for u in ctrl:
+    for k, u in enumerate(ctrl):
+        if push is not None:
+            d.xfrc_applied[cart, 0] = push[k]
         d.ctrl[:] = u
         mujoco.mj_step(m, d)
         qpos.append(d.qpos.copy())

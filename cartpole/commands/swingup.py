@@ -6,7 +6,8 @@ import sys
 
 from cartpole.commands._rollouts import live_viewer, rollout_doc
 
-HELP = "swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, or trajopt + TVLQR)"
+HELP = ("swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, trajopt + TVLQR, or "
+        "nonlinear MPC), optionally pushed and with a wrong planning model")
 
 #: Largest rollout log a run may hold in memory, bytes: (duration / timestep) steps, each 8 bytes for t, each of
 #: the 2 nq state entries and the nu ctrl entries (256 MiB: for the shipped cart, 5 ms and nq = 2, nu = 1, about
@@ -15,9 +16,11 @@ MAX_LOG_BYTES = 256 * 2**20
 
 
 def add_arguments(parser) -> None:
-    """``--method``, ``--objective``, ``--x0``, ``--duration``, ``--view``, ``--no-video``."""
-    parser.add_argument("--method", choices=("energy", "trajopt"), default="energy",
-                        help="energy shaping with an LQR catch (default) or direct collocation + TVLQR")
+    """``--method``, ``--objective``, ``--x0``, ``--duration``, ``--push``, ``--model-error``, ``--period``,
+    ``--horizon``, ``--view``, ``--no-video``."""
+    parser.add_argument("--method", choices=("energy", "trajopt", "mpc"), default="energy",
+                        help="energy shaping with an LQR catch (default), direct collocation + TVLQR, or nonlinear "
+                             "MPC re-planning every control period (mpc)")
     parser.add_argument("--objective", default=None, metavar="OBJ",
                         help="trajopt only: what the plan optimises: effort (default; minimum integral of "
                              "ctrl^2 over 1.2 x the minimum time), time (the minimum-time plan), tracking "
@@ -33,6 +36,18 @@ def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="simulated seconds (default 10 for energy, plan + 3 for trajopt); the log must fit "
                              f"in {MAX_LOG_BYTES // 2**20} MiB (duration / timestep x (1 + 2 nq + nu) x 8 bytes)")
+    parser.add_argument("--push", action="append", default=None, metavar="T:F",
+                        help="push the cart: a horizontal (world x) force of F newtons for 0.1 s from time T s, "
+                             "through MuJoCo's xfrc_applied; repeatable; logged per physics step in the rollout's "
+                             "'push', so the run replays exactly")
+    parser.add_argument("--model-error", type=float, default=None, metavar="S",
+                        help="scale the planning model's pole masses and lengths by S (e.g. 1.2: 20 %% heavier and "
+                             "longer); the controller is designed on that model, MuJoCo keeps the MJCF's")
+    parser.add_argument("--period", type=float, default=None, metavar="S",
+                        help="mpc only: control period in s (a whole number of physics steps; default the "
+                             "controller's)")
+    parser.add_argument("--horizon", type=float, default=None, metavar="S",
+                        help="mpc only: prediction horizon in s (default the controller's, 1.2 s)")
     parser.add_argument("--view", action="store_true",
                         help="show the run in MuJoCo's live viewer, in real time: the logged ctrl replayed step "
                              "for step, so the window shows exactly the run logged (checked); without a display "
@@ -76,7 +91,7 @@ class _Stages:
     first fraction and end it at 1.
     """
 
-    LABELS = {"trajopt": "trajectory optimisation", "simulate": "MuJoCo rollout"}
+    LABELS = {"trajopt": "trajectory optimisation", "mpc": "NMPC set-up", "simulate": "MuJoCo rollout"}
 
     def __init__(self, sizes: dict | None = None):
         self.open = {}
@@ -107,7 +122,7 @@ def run(args) -> dict:
 
     from cartpole.models import build_model
     from cartpole.progress import stage
-    from cartpole.swingup import check_start, run_swingup
+    from cartpole.swingup import SwingupError, check_model_error, check_push, check_start, parse_push, run_swingup
     from cartpole.viz import plot_swingup
 
     # Everything is validated before anything is computed or written.
@@ -115,10 +130,23 @@ def run(args) -> dict:
     params = model.params
     x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
+    push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)
+    model_error = check_model_error(getattr(args, "model_error", None))
+    period, horizon = getattr(args, "period", None), getattr(args, "horizon", None)
+    for flag, v in (("--period", period), ("--horizon", horizon)):
+        if v is not None and args.method != "mpc":
+            raise SwingupError(f"{flag} sets the NMPC's control period and horizon; use it with --method mpc.")
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise SwingupError(f"{flag} {v:g} s is not a positive number of seconds; give e.g. {flag} 0.02.")
+    if args.method == "mpc":
+        import importlib.util
+
+        if importlib.util.find_spec("cartpole.ocp.nmpc") is None:
+            raise SwingupError("The mpc method needs cartpole.ocp.nmpc (nonlinear MPC), which this installation "
+                               "does not have yet; use --method trajopt or energy.")
     objective = getattr(args, "objective", None)
     if objective is not None:
         from cartpole.ocp.objectives import make_objective
-        from cartpole.swingup import SwingupError
 
         if args.method != "trajopt":
             raise SwingupError("--objective chooses what the trajectory optimisation optimises; use it with "
@@ -126,12 +154,16 @@ def run(args) -> dict:
         make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
     out = Path(args.out)
 
+    from cartpole.swingup import ENERGY_DURATION, MPC_DURATION
+
+    default = {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(args.method)
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
-        {"simulate": "10 s"} if args.method == "energy" else {})
+        {"simulate": f"{default:g} s"} if default is not None else {})
     viewer = live_viewer("swingup") if args.view else None
     try:
         res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes),
-                          objective=objective, on_step=viewer)
+                          objective=objective, on_step=viewer, push=push, model_error=model_error, period=period,
+                          horizon=horizon)
         if viewer is not None:
             viewer.finish()
     finally:
@@ -155,6 +187,13 @@ def run(args) -> dict:
            "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
+    doc["push"] = [list(p) for p in res.push]
+    doc["model_error"] = res.model_error
+    if args.method == "mpc":
+        ctrl = res.controller
+        doc["solve_ms"] = [float(v) for v in getattr(ctrl, "solve_ms", [])]
+        doc["period"], doc["horizon"] = float(ctrl.period), float(ctrl.horizon)
+        doc["failures"] = m.get("failures", 0)
     if args.method == "trajopt":
         doc["objective"] = m.get("objective")
         if "return" in m:
@@ -167,7 +206,9 @@ def run(args) -> dict:
         def fmt(v, unit):
             return "never" if v is None else f"{v:.3f} {unit}"
         print(f"MJCF: {params.mjcf}")
-        print(f"Swing-up ({args.method}) from x0 = {list(map(float, x0))}: "
+        scenario = "".join(f", pushed {F:+g} N at {T:g} s" for T, F in res.push) + (
+            f", planning model's poles scaled by {res.model_error:g}" if res.model_error != 1.0 else "")
+        print(f"Swing-up ({args.method}) from x0 = {list(map(float, x0))}{scenario}: "
               f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
               "limits, ctrl in range)")
         print(f"Caught at: {fmt(res.caught_at, 's')}; time to upright (every |theta_i| < 0.05 rad for good): "
@@ -177,6 +218,12 @@ def run(args) -> dict:
         if res.basin is not None:
             print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
                   f"{res.basin.seed}, safety factor {res.basin.safety_factor})")
+        if args.method == "mpc" and doc["solve_ms"]:
+            import numpy as np
+
+            print(f"NMPC: period {doc['period']:g} s, horizon {doc['horizon']:g} s; solve per control step median "
+                  f"{np.median(doc['solve_ms']):.2f} ms, max {np.max(doc['solve_ms']):.2f} ms, "
+                  f"{doc['failures']} failure(s)")
         if "return" in m:
             print(f"dm_control return (smooth swing-up reward): {m['return']:.1f} over {m['return_steps']} "
                   "control steps")

@@ -84,15 +84,20 @@ class Rollout:
                 "ctrl": self.ctrl.tolist()}
 
     def save(self, path: str | Path) -> None:
-        """Write the rollout as JSON (whole or not at all: :func:`~cartpole._files.atomic_write`)."""
-        text = json.dumps({"mjcf": self.mjcf, **self.to_dict()})
+        """Write the rollout as JSON (whole or not at all: :func:`~cartpole._files.atomic_write`), with its push log
+        (``info["push"]``) when it has one."""
+        doc = {"mjcf": self.mjcf, **self.to_dict()}
+        if isinstance(self.info, dict) and self.info.get("push") is not None:
+            doc["push"] = np.asarray(self.info["push"], dtype=float).tolist()
+        text = json.dumps(doc)
         atomic_write(path, lambda fh: fh.write(text.encode()))
 
     @classmethod
     def load(cls, path: str | Path) -> "Rollout":
         """Read a rollout written by :meth:`save`."""
         d = json.loads(Path(path).read_text())
-        return cls(t=d["t"], qpos=d["qpos"], qvel=d["qvel"], ctrl=d["ctrl"], mjcf=d.get("mjcf", ""))
+        info = {"push": np.asarray(d["push"], dtype=float)} if d.get("push") is not None else {}
+        return cls(t=d["t"], qpos=d["qpos"], qvel=d["qvel"], ctrl=d["ctrl"], mjcf=d.get("mjcf", ""), info=info)
 
 
 def make_mujoco(source: CartPoleParams | str | Path | None = None):
@@ -248,7 +253,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
                    mjcf=source_path(source), info=info)
 
 
-def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
+def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -> Rollout:
     """Re-run a logged ctrl sequence open loop with ``mj_step``.
 
     Parameters
@@ -256,6 +261,9 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
     source : CartPoleParams or MJCF path or None
     x0 : (nx,) start state ``[qpos, qvel]``
     ctrl : (n, nu) ctrl applied during each step ((n,) accepted for one actuator)
+    push : (n,) array, optional
+        World-x force in N on the cart body during each step (``xfrc_applied``), as :func:`simulate` logs it in
+        ``rollout.info["push"]``; default none.
 
     Returns
     -------
@@ -273,6 +281,10 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
         raise CartPoleError(f"The ctrl log has shape {ctrl.shape}; give (n, {nu}), one row of {nu} ctrl per step.")
     h = float(m.opt.timestep)
     n = ctrl.shape[0]
+    forces = None if push is None else np.asarray(push, dtype=float).ravel()
+    if forces is not None and forces.shape != (n,):
+        raise CartPoleError(f"The push log has {forces.size} entries for {n} ctrl rows; give one force per step.")
+    cart = cart_body(m) if forces is not None else -1
     d.qpos[:] = x0[:nq]
     d.qvel[:] = x0[nq:]
     mujoco.mj_forward(m, d)
@@ -280,19 +292,23 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl) -> Rollout:
     qvel = np.empty((n + 1, nv))
     qpos[0], qvel[0] = d.qpos, d.qvel
     for k in range(n):
+        if forces is not None:
+            d.xfrc_applied[cart, 0] = forces[k]
         d.ctrl[:] = ctrl[k]
         mujoco.mj_step(m, d)
         qpos[k + 1], qvel[k + 1] = d.qpos, d.qvel
-    return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl, mjcf=source_path(source))
+    info = {} if forces is None else {"push": forces.copy()}
+    return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl, mjcf=source_path(source), info=info)
 
 
 def replays_exactly(rollout: Rollout, source: CartPoleParams | str | Path | None = None, *, atol: float = 0.0) -> bool:
-    """True when replaying ``rollout.ctrl`` (n, nu) from its first state reproduces every logged state within
-    ``atol`` (default 0: bit for bit). ``source`` defaults to the rollout's own MJCF file (required for a rollout
-    run on MJCF text)."""
+    """True when replaying ``rollout.ctrl`` (n, nu) from its first state, with the logged pushes
+    (``rollout.info["push"]``, if any), reproduces every logged state within ``atol`` (default 0: bit for bit).
+    ``source`` defaults to the rollout's own MJCF file (required for a rollout run on MJCF text)."""
     if source is None and not rollout.mjcf:
         raise CartPoleError("This rollout was run on MJCF text, not a file, so it cannot name its model; pass the "
                             "CartPoleParams it ran on as source.")
     src = source if source is not None else rollout.mjcf
-    again = replay(src, rollout.x[0], rollout.ctrl)
+    push = rollout.info.get("push") if isinstance(rollout.info, dict) else None
+    again = replay(src, rollout.x[0], rollout.ctrl, push=push)
     return bool(np.allclose(again.x, rollout.x, rtol=0.0, atol=atol))

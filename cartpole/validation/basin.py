@@ -21,11 +21,22 @@ catch's equilibrium (the model's computed upright ``x_eq``), hinge-angle entries
    ellipsoid: ``(0.9 half-track)^2 / (S^-1)_ss``, ``s`` the slide's index), so above that they say nothing; the
    estimate is ``rho = safety_factor * min(rho_sampled, rho_cover)``. The safety factor (default 0.75) covers
    directions the finite sample missed; it is a margin, not a proof.
+
+Estimates are cached (:class:`BasinCache`): in memory, and with ``BasinCache.on_disk()`` (what
+:func:`cartpole.swingup.run_swingup` and the sweeps use) as ``.npz`` files under the user cache directory
+(``$CARTPOLE_CACHE_DIR``, else ``$XDG_CACHE_HOME/cartpole``, else ``~/.cache/cartpole``; subdirectory ``basins``),
+named by :func:`basin_key`: a SHA-256 of the MJCF text, the catch (``K``, ``S``, ``x_eq``, ``u_eq``, ``u_limits``,
+``hinges``), every sampling setting (``n``, ``seed``, ``level``, ``duration``, ``safety_factor``, ``limit_margin``),
+MuJoCo's version, :data:`BASIN_VERSION` and the source of the code that estimates it. So a second ``cartpole
+swingup`` does not estimate it again, and an edit to the method never reads a stale estimate.
 """
 from __future__ import annotations
 
 import hashlib
+import io
+import json
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -37,6 +48,12 @@ from cartpole.models import CartPoleParams, build_model, read_params, state_erro
 from cartpole.progress import stage
 from cartpole.sim import simulate_batch_linear
 from cartpole.validation.metrics import REST_RATE_TOL, REST_SPEED_TOL, UPRIGHT_TOL
+
+
+#: Version of the estimate's method, part of every cache key: bump it when :func:`estimate_basin` changes.
+BASIN_VERSION = 1
+#: :func:`estimate_basin`'s sampling settings and defaults (the cache key holds every one of them).
+DEFAULTS = {"n": 300, "seed": 0, "level": 1.0, "duration": 4.0, "safety_factor": 0.75, "limit_margin": 0.01}
 
 
 class BasinError(CartPoleError):
@@ -257,26 +274,138 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
                          x_eq=x_eq)
 
 
+def basin_key(params: CartPoleParams, catch: LinearFeedback, **settings) -> str:
+    """SHA-256 hex digest naming one estimate: the MJCF text, the catch's ``K``, ``S``, ``x_eq``, ``u_eq``,
+    ``u_limits`` and ``hinges``, the sampling settings (``n``, ``seed``, ``level``, ``duration``, ``safety_factor``,
+    ``limit_margin``; missing ones take :data:`DEFAULTS`), MuJoCo's version, :data:`BASIN_VERSION` and a digest of
+    the estimating code's source (this module, :mod:`cartpole.sim.batch`, :mod:`cartpole.control.linear`).
+
+    Raises
+    ------
+    BasinError
+        A setting :func:`estimate_basin` does not take.
+    """
+    import mujoco
+
+    unknown = set(settings) - set(DEFAULTS) - {"progress"}
+    if unknown:
+        raise BasinError(f"Unknown basin setting(s) {', '.join(sorted(unknown))}; use {', '.join(DEFAULTS)}.")
+    opts = {k: float(settings.get(k, v)) for k, v in DEFAULTS.items()}
+    h = hashlib.sha256()
+    h.update(json.dumps({"version": BASIN_VERSION, "mujoco": mujoco.__version__, "code": _code_digest(), **opts},
+                        sort_keys=True).encode())
+    h.update(params.xml.encode())
+    for a in (catch.K, catch.S, catch.x_eq, catch.u_eq, catch.u_limits):
+        arr = np.ascontiguousarray(np.asarray(a, dtype=float))
+        h.update(repr(arr.shape).encode() + arr.tobytes())
+    h.update(repr(tuple(int(i) for i in (catch.hinges or ()))).encode())
+    return h.hexdigest()
+
+
+def _code_digest() -> str:
+    """SHA-256 of the source of the code an estimate runs (this module, the batch rollouts, the linear law), so an
+    edit to it never finds a stale estimate on disk."""
+    import sys
+
+    import cartpole.control.linear
+    import cartpole.sim.batch
+
+    h = hashlib.sha256()
+    for mod in (__name__, cartpole.sim.batch.__name__, cartpole.control.linear.__name__):
+        try:
+            h.update(Path(sys.modules[mod].__file__).read_bytes())
+        except (OSError, TypeError, KeyError):
+            h.update(mod.encode())
+    return h.hexdigest()
+
+
+def _default_directory() -> Path:
+    from cartpole.ocp.compiled import cache_dir
+
+    return cache_dir() / "basins"
+
+
+_ARRAYS = ("samples", "costs", "success", "S", "K", "box", "x_eq")
+_SCALARS = ("rho", "rho_sampled", "rho_cover", "n", "seed", "level", "duration", "safety_factor", "limit_margin")
+
+
+def _save(path: Path, est: BasinEstimate) -> None:
+    """Write ``est`` as ``.npz`` (whole or not at all); an unwritable cache is skipped silently (it is a cache)."""
+    from cartpole._files import OutputError, atomic_write
+
+    buf = io.BytesIO()
+    arrays = {k: np.asarray(getattr(est, k)) for k in _ARRAYS if getattr(est, k) is not None}
+    np.savez(buf, **arrays, scalars=np.array([float(getattr(est, k)) for k in _SCALARS]))
+    try:
+        atomic_write(path, lambda fh: fh.write(buf.getvalue()))
+    except OutputError:
+        pass
+
+
+def _load(path: Path, mjcf: str) -> BasinEstimate | None:
+    """The estimate stored at ``path``, or None when absent or unreadable (then it is estimated again)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: np.array(z[k]) for k in _ARRAYS if k in z.files}
+            sc = dict(zip(_SCALARS, (float(v) for v in z["scalars"])))
+    except (OSError, ValueError, KeyError, EOFError):
+        return None
+    try:
+        return BasinEstimate(rho=sc["rho"], rho_sampled=sc["rho_sampled"], rho_cover=sc["rho_cover"],
+                             samples=arrays["samples"], costs=arrays["costs"], success=arrays["success"],
+                             S=arrays["S"], K=arrays["K"], n=int(sc["n"]), seed=int(sc["seed"]), level=sc["level"],
+                             box=arrays["box"], duration=sc["duration"], safety_factor=sc["safety_factor"],
+                             limit_margin=sc["limit_margin"], mjcf=mjcf, x_eq=arrays.get("x_eq"))
+    except (KeyError, ValueError, TypeError):
+        return None
+
+
 @dataclass
 class BasinCache:
-    """In-memory cache of basin estimates, keyed by the MJCF text, the catch gain and the sampling settings.
+    """Cache of basin estimates, keyed by :func:`basin_key` (the MJCF text, the catch, the sampling settings).
 
     Pass one around explicitly (no module-level state); ``cache.get(source, catch, **kw)`` estimates once and
-    returns the same :class:`BasinEstimate` afterwards.
+    returns the same :class:`BasinEstimate` afterwards. With a ``directory`` (:meth:`on_disk`: the user cache
+    directory's ``basins``) every estimate is also kept on disk as ``<key>.npz`` and found there by any later
+    process; ``hits`` and ``misses`` count lookups that did not / did run the estimate.
     """
 
     _store: dict = field(default_factory=dict)
+    directory: Path | None = None
+    hits: int = 0
+    misses: int = 0
+
+    @classmethod
+    def on_disk(cls, directory: str | Path | None = None) -> "BasinCache":
+        """A cache backed by ``directory`` (default ``cache_dir() / "basins"``, which honours
+        ``$CARTPOLE_CACHE_DIR``)."""
+        return cls(directory=Path(directory) if directory is not None else _default_directory())
 
     def get(self, source=None, catch: LinearFeedback | None = None, **kwargs) -> BasinEstimate:
-        """:func:`estimate_basin` with the same arguments, computed once per distinct input."""
+        """:func:`estimate_basin` with the same arguments, computed once per distinct input (and, on disk, once per
+        machine)."""
         params = source if isinstance(source, CartPoleParams) else read_params(source)
-        kkey = b"" if catch is None else b"".join(np.asarray(a, float).tobytes() for a in
-                                                  (catch.K, catch.S, catch.x_eq, catch.u_eq, catch.u_limits))
-        opts = tuple(sorted((k, repr(v)) for k, v in kwargs.items() if k != "progress"))
-        key = (hashlib.sha256(params.xml.encode() + kkey).hexdigest(), opts)
-        if key not in self._store:
-            self._store[key] = estimate_basin(params, catch, **kwargs)
-        return self._store[key]
+        if catch is None:
+            catch = lab_catch(build_model(params))
+        if catch.S is None:
+            raise BasinError("The catch has no cost-to-go matrix S; build it with LinearFeedback(K, S=S).")
+        key = basin_key(params, catch, **kwargs)
+        if key in self._store:
+            self.hits += 1
+            return self._store[key]
+        est = None
+        path = None if self.directory is None else Path(self.directory) / f"{key}.npz"
+        if path is not None and path.is_file():
+            est = _load(path, params.mjcf)
+        if est is not None:
+            self.hits += 1
+        else:
+            self.misses += 1
+            est = estimate_basin(params, catch, **kwargs)
+            if path is not None:
+                _save(path, est)
+        self._store[key] = est
+        return est
 
     def __len__(self) -> int:
         return len(self._store)

@@ -49,6 +49,9 @@ def test_prose_summary(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv", [["--x0", "0", "nan", "0", "0"], ["--x0", "0", "3.14", "0"],
                                   ["--x0", "1.6", "3.14", "0", "0"], ["--duration", "-1"],
+                                  ["--push", "abc"], ["--push", "1:nan"], ["--push", "-1:5"], ["--push", "1:2:3"],
+                                  ["--model-error", "0"], ["--model-error", "nan"], ["--model-error", "x"],
+                                  ["--period", "0.02"], ["--method", "trajopt", "--horizon", "1"],
                                   ["--mjcf", "NOT_A_CARTPOLE"]])
 def test_bad_input_is_one_sentence_exit_2_and_no_files(argv, tmp_path, capsys):
     if argv[-1] == "NOT_A_CARTPOLE":
@@ -205,3 +208,44 @@ def test_trajopt_dmc_swingup_objective_reports_the_return(tmp_path, capsys):
                   ctrl=np.array(ro["ctrl"]))
     assert doc["return"] == pytest.approx(dmc_swingup_return(run, model, 0.01), abs=1e-9)
     assert doc["return"] > 850
+
+
+def test_push_and_model_error_json_replays_with_mj_step_and_its_pushes(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    assert main(["swingup", "--json", "--no-video", "--out", str(tmp_path), "--duration", "4", "--push", "1:25",
+                 "--push", "2.5:-10", "--model-error", "1.1"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["push"] == [[1.0, 25.0], [2.5, -10.0]] and doc["model_error"] == 1.1
+    ro = doc["rollout"]
+    push = np.array(ro["push"])
+    assert push.shape == (len(ro["ctrl"]),) and np.count_nonzero(push == 25.0) == np.count_nonzero(push == -10.0) == 20
+    qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"], push)
+    assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
+    unpushed, _ = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
+    assert not np.allclose(unpushed, np.array(ro["qpos"]))
+
+
+def test_a_second_swingup_is_a_basin_cache_hit_with_the_identical_estimate(tmp_path, capsys, monkeypatch):
+    import cartpole.validation.basin as basin_mod
+
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    argv = ["swingup", "--json", "--no-video", "--out", str(tmp_path), "--duration", "1"]
+    assert main(argv) == 0
+    first = json.loads(capsys.readouterr().out)["basin"]
+    monkeypatch.setattr(basin_mod, "estimate_basin", lambda *a, **k: pytest.fail("estimated again"))
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["basin"] == first
+
+
+def test_mpc_json_contract_adds_solve_times_period_and_horizon(tmp_path, capsys):
+    pytest.importorskip("cartpole.ocp.nmpc")
+    assert main(["swingup", "--method", "mpc", "--json", "--no-video", "--out", str(tmp_path), "--push", "4:10",
+                 "--horizon", "1.2"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    ro = doc["rollout"]
+    assert doc["method"] == "mpc" and doc["horizon"] == 1.2 and doc["period"] > 0 and doc["basin"] is None
+    hold = round(doc["period"] / (ro["t"][1] - ro["t"][0]))
+    assert len(doc["solve_ms"]) == -(-len(ro["ctrl"]) // hold) and all(v > 0 for v in doc["solve_ms"])
+    qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"], ro["push"])
+    assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
+    assert doc["success"] is True
