@@ -1,0 +1,173 @@
+"""The functions a nonlinear MPC evaluates every control period, compiled to C (with the SX fallback).
+
+One stage of the multiple-shooting problem is ``steps`` MJCF physics steps of the model's exact discrete step
+(``model.step``: one step of the MJCF's own integrator) with the ctrl held, i.e. one control period. Its value and
+its exact Jacobians come from one SX function of a single physics step, ``(x, u) -> (x+, dx+/dx, dx+/du)``, chained
+``steps`` times by the chain rule (``A = A_m ... A_1``, ``B = sum A_m ... A_{i+1} B_i``) in an MX function, and that
+stage is mapped over the ``N`` stages of the horizon: one call evaluates every stage (the Gauss-Newton
+linearisation of the whole horizon). The generated C holds the single step once, so its size does not grow with
+``steps`` or ``N`` and any number of poles compiles.
+
+The shared library is cached like the collocation's (:mod:`cartpole.ocp.compiled`: :func:`~cartpole.ocp.compiled.cache_dir`,
+keyed by :func:`~cartpole.ocp.compiled.model_key`, the source, flags and CasADi version). With ``CARTPOLE_NO_COMPILE``
+set, without a C compiler, or when the build fails, the same CasADi functions run in CasADi's virtual machine
+(same numbers, slower), with a note on stderr.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+
+import casadi as ca
+
+from cartpole.models import CartPoleModel
+from cartpole.ocp.compiled import _build_library, model_key
+
+_LIB_VERSION = "nmpc-stages-v1"  # bump when the generated functions change meaning
+
+
+@dataclass(frozen=True)
+class StageFunctions:
+    """The horizon's stage evaluations for one model, period and horizon length.
+
+    Attributes
+    ----------
+    stages : casadi.Function
+        ``(S (nx, N), U (nu, N)) -> (F (nx, N), A (nx, nx N), B (nx, nu N))``: column ``k`` of ``F`` is the state
+        one control period after ``S[:, k]`` under the held ctrl ``U[:, k]``; ``A``, ``B`` hold each stage's
+        exact Jacobians side by side.
+    qp_data : casadi.Function
+        ``(x (nx,), S (nx, N+1), U (nu, N), x_goal (nx,), u_goal (nu,), Q (nx, nx), R (nu, nu), P (nx, nx)) ->
+        (H (N nu, N nu), h (N nu,), g (nx, N+1), G ((N+1) nx, N nu))``: the Gauss-Newton QP of the step
+        ``du`` from nodes ``S``, inputs ``U`` with ``s_0 = x``, condensed onto the inputs: cost
+        ``1/2 du' H du + h' du`` (half the OCP's cost, constants dropped) and state corrections
+        ``ds_k = g_k + G_k du``. Stages, Jacobians and condensing in one call.
+    stage : casadi.Function
+        One stage ``(x (nx,), u (nu,)) -> (x_next, A (nx, nx), B (nx, nu))`` (compiled with ``stages``).
+    step_expr : casadi.Function
+        One control period as one SX expression ``(x, u) -> x_next`` (for an NLP with ``expand=True``).
+    library : str or None
+        Path of the compiled shared library in use, None on the SX fallback.
+    steps : int
+        Physics steps per stage.
+    N : int
+        Stages.
+    """
+
+    stages: ca.Function
+    qp_data: ca.Function
+    stage: ca.Function
+    step_expr: ca.Function
+    library: str | None
+    steps: int
+    N: int
+
+
+def _one_step(model: CartPoleModel) -> ca.Function:
+    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    xn = model.step(x, u)
+    return ca.Function("nmpc_step", [x, u], [xn, ca.jacobian(xn, x), ca.jacobian(xn, u)], ["x", "u"],
+                       ["x_next", "A", "B"], {"cse": True})
+
+
+def _chained(one: ca.Function, steps: int, nx: int, nu: int) -> ca.Function:
+    x, u = ca.MX.sym("x", nx), ca.MX.sym("u", nu)
+    xk, A, B = x, ca.MX.eye(nx), ca.MX.zeros(nx, nu)
+    for _ in range(steps):
+        xk, Ai, Bi = one(xk, u)
+        A = ca.mtimes(Ai, A)
+        B = ca.mtimes(Ai, B) + Bi
+    return ca.Function("nmpc_stage", [x, u], [xk, A, B], ["x", "u"], ["x_next", "A", "B"])
+
+
+def _period_expr(model: CartPoleModel, steps: int) -> ca.Function:
+    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    xk = x
+    for _ in range(steps):
+        xk = model.step(xk, u)
+    return ca.Function("nmpc_period", [x, u], [xk], ["x", "u"], ["x_next"])
+
+
+def _qp_data(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Function:
+    """The condensed Gauss-Newton QP of one MPC step (MX; see :attr:`StageFunctions.qp_data`).
+
+    Forward: ``ds_0 = x - s_0``, ``ds_k+1 = A_k ds_k + B_k du_k + c_k`` (``c_k = F(s_k, u_k) - s_k+1``), so
+    ``ds_k = g_k + G_k du`` with ``G_k+1 = [A_k G_k[:, :k nu], B_k, 0]``. Backward (the O(N^2) condensing: no
+    ``G' W G`` product): ``Lambda_N = P``, ``Lambda_k = Q + A_k' Lambda_k+1 A_k``, ``lambda_N = P e_N``,
+    ``lambda_k = Q e_k + A_k' lambda_k+1`` with ``e_k = s_k + g_k - x*``; then ``H[i, :i+1] = B_i' Lambda_i+1
+    G_i+1[:, :(i+1) nu]`` (+ R on the diagonal) and ``h_j = B_j' lambda_j+1 + R (u_j - u*)``. The generated C is
+    about 3 N small dense products, compact for any nx, nu, N.
+    """
+    x, S, U = ca.MX.sym("x", nx), ca.MX.sym("S", nx, N + 1), ca.MX.sym("U", nu, N)
+    goal, u_goal = ca.MX.sym("x_goal", nx), ca.MX.sym("u_goal", nu)
+    Q, R, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("R", nu, nu), ca.MX.sym("P", nx, nx)
+    F, A, B = stage.map(N)(S[:, :N], U)
+    c = F - S[:, 1:]
+    As = [A[:, k * nx:(k + 1) * nx] for k in range(N)]
+    Bs = [B[:, k * nu:(k + 1) * nu] for k in range(N)]
+    gk = x - S[:, 0]
+    gs, Gs, cur = [gk], [ca.MX.zeros(nx, N * nu)], []  # cur[k]: the non-zero columns of G_k+1, (nx, (k+1) nu)
+    for k in range(N):
+        gk = ca.mtimes(As[k], gk) + c[:, k]
+        cur.append(Bs[k] if k == 0 else ca.horzcat(ca.mtimes(As[k], cur[-1]), Bs[k]))
+        rest = (N - k - 1) * nu
+        Gs.append(ca.horzcat(cur[-1], ca.MX.zeros(nx, rest)) if rest else cur[-1])
+        gs.append(gk)
+    e = [S[:, k] + gs[k] - goal for k in range(N + 1)]
+    Lam, lam = P, ca.mtimes(P, e[N])
+    rows, h = [None] * N, [None] * N
+    for k in range(N - 1, -1, -1):
+        BtL = ca.mtimes(Bs[k].T, Lam)  # (nu, nx), Lambda_k+1
+        rest = (N - k - 1) * nu
+        row = ca.mtimes(BtL, cur[k])
+        rows[k] = ca.horzcat(row, ca.MX.zeros(nu, rest)) if rest else row
+        h[k] = ca.mtimes(Bs[k].T, lam) + ca.mtimes(R, U[:, k] - u_goal)
+        Lam = Q + ca.mtimes([As[k].T, Lam, As[k]])
+        lam = ca.mtimes(Q, e[k]) + ca.mtimes(As[k].T, lam)
+    L = ca.vertcat(*rows)
+    H = L + L.T - ca.diag(ca.diag(L)) + ca.kron(ca.MX.eye(N), R)
+    return ca.Function("nmpc_qp_data", [x, S, U, goal, u_goal, Q, R, P],
+                       [ca.densify(H), ca.vertcat(*h), ca.horzcat(*gs), ca.densify(ca.vertcat(*Gs))],
+                       ["x", "S", "U", "x_goal", "u_goal", "Q", "R", "P"], ["H", "h", "g", "G"])
+
+
+def stage_functions(model: CartPoleModel, steps: int, N: int, *, compiled: bool = True) -> StageFunctions:
+    """Build (and, unless ``compiled`` is False or ``CARTPOLE_NO_COMPILE`` is set, compile to C) the stage functions.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        Its ``step`` is one physics step of ``model.dt`` s (the MJCF's integrator); any number of poles.
+    steps : int
+        Physics steps per stage (control period = ``steps * model.dt``).
+    N : int
+        Stages in the horizon.
+    compiled : bool
+        False keeps CasADi's virtual machine (the fallback, same numbers).
+
+    Returns
+    -------
+    StageFunctions
+    """
+    nx, nu = model.nx, model.nu
+    one = _one_step(model)
+    stage = _chained(one, steps, nx, nu)
+    S, U = ca.MX.sym("S", nx, N), ca.MX.sym("U", nu, N)
+    F, A, B = stage.map(N)(S, U)
+    stages = ca.Function("nmpc_stages", [S, U], [F, A, B], ["S", "U"], ["F", "A", "B"])
+    qp_data = _qp_data(stage, nx, nu, N)
+    library = None
+    if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
+        try:
+            library, _ = _build_library([stages, stage, qp_data], _LIB_VERSION + model_key(model) + f"/{steps}x{N}")
+            stages = ca.external("nmpc_stages", library)
+            stage = ca.external("nmpc_stage", library)
+            qp_data = ca.external("nmpc_qp_data", library)
+        except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+            print(f"cartpole: compiled NMPC functions unavailable ({reason}); using CasADi's virtual machine "
+                  "(same results, slower).", file=sys.stderr)
+            library = None
+    return StageFunctions(stages=stages, stage=stage, qp_data=qp_data, step_expr=_period_expr(model, steps), library=library,
+                          steps=int(steps), N=int(N))

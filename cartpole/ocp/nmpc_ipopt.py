@@ -1,0 +1,96 @@
+"""The baseline a do-mpc or plain CasADi user gets: the same MPC problem re-solved by IPOPT every period.
+
+:class:`IpoptMPC` is :class:`~cartpole.ocp.nmpc.NMPCController` with its real-time iteration replaced by a full
+IPOPT solve (``casadi.nlpsol("ipopt")``, ``expand=True``: one SX graph, IPOPT's defaults) of the same
+multiple-shooting NLP (same stages, cost, terminal weight, ctrl bounds and soft rail), from the previous solution
+shifted by one period (the same shift). Used by :func:`cartpole.benchmark_mpc.run_mpc_benchmark` as the speed
+baseline; it is a controller too (same call shape, ``solve_ms``, ``failures``). An instant whose IPOPT status is
+not a success applies IPOPT's returned iterate when it is finite, as do-mpc does, and appends the status to
+``unconverged``; a non-finite one takes the documented safe action and is a failure.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from cartpole.ocp.nmpc import NMPCController, _StepFailed
+
+
+class IpoptMPC(NMPCController):
+    """Nonlinear MPC by a full IPOPT solve each control instant (the baseline); arguments as
+    :class:`~cartpole.ocp.nmpc.NMPCController` plus ``ipopt_options`` (dict, merged into ``{"ipopt.print_level": 0,
+    "print_time": False, "ipopt.sb": "yes", "expand": True}``). ``iterations`` is ignored (IPOPT runs to its own
+    tolerance); the first iterate is converged by one IPOPT solve when ``x0`` is given."""
+
+    def __init__(self, *args, ipopt_options: dict | None = None, **kwargs):
+        self._ipopt_options = dict(ipopt_options or {})
+        self.last_stats: dict = {}
+        super().__init__(*args, **kwargs)
+        self.qp_solver = "ipopt"
+
+    def _setup_solver(self) -> None:
+        p = self.problem
+        N, nx, nu = p.N, p.nx, p.nu
+        S = ca.SX.sym("S", nx, N + 1)
+        U = ca.SX.sym("U", nu, N)
+        sigma = ca.SX.sym("sigma")
+        x0 = ca.SX.sym("x0", nx)
+        goal = ca.SX.sym("goal", nx)
+        F = self.functions.step_expr.map(N)(S[:, :N], U)
+        Qs, Rs, P = ca.DM(p.Qs), ca.DM(p.Rs), ca.DM(p.P)
+        ug = ca.DM(p.u_goal)
+        J = 0
+        for k in range(N):
+            e = S[:, k] - goal
+            v = U[:, k] - ug
+            J += 0.5 * (ca.bilin(Qs, e, e) + ca.bilin(Rs, v, v))
+        eN = S[:, N] - goal
+        J += 0.5 * ca.bilin(P, eN, eN) + p.rho1 * sigma + 0.5 * p.rho2 * sigma**2
+        g = [S[:, 0] - x0, ca.vec(F - S[:, 1:])]
+        nb = len(p.bounded)
+        if nb:
+            q = S[list(p.bounded), 1:]  # (nb, N)
+            g += [ca.vec(q) - sigma, ca.vec(q) + sigma]
+        w = ca.vertcat(ca.vec(S), ca.vec(U), sigma)
+        opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "expand": True}
+        opts.update(self._ipopt_options)
+        self._nlp = ca.nlpsol("nmpc_ipopt", "ipopt", {"x": w, "p": ca.vertcat(x0, goal), "f": J, "g": ca.vertcat(*g)},
+                              opts)
+        neq = nx * (N + 1)
+        inf = np.inf
+        self._lbg = np.r_[np.zeros(neq), np.full(N * nb, -inf), np.tile(p.q_low, N)]
+        self._ubg = np.r_[np.zeros(neq), np.tile(p.q_high, N), np.full(N * nb, inf)]
+        self._lbw = np.r_[np.full(nx * (N + 1), -inf), np.tile(p.u_low, N), 0.0]
+        self._ubw = np.r_[np.full(nx * (N + 1), inf), np.tile(p.u_high, N), inf]
+
+    def _ipopt(self, x, S, U):
+        p = self.problem
+        N, nx, nu = p.N, p.nx, p.nu
+        w0 = np.r_[S.ravel(), U.ravel(), 0.0]  # (N+1, nx) row-major = vec of (nx, N+1)
+        sol = self._nlp(x0=w0, p=np.r_[x, p.goal_near(S[-1])], lbx=self._lbw, ubx=self._ubw, lbg=self._lbg,
+                        ubg=self._ubg)
+        self.last_stats = self._nlp.stats()
+        w = np.asarray(sol["x"]).ravel()
+        S_new = w[:nx * (N + 1)].reshape(N + 1, nx)
+        U_new = w[nx * (N + 1):nx * (N + 1) + N * nu].reshape(N, nu)
+        if not (np.all(np.isfinite(S_new)) and np.all(np.isfinite(U_new))):
+            raise _StepFailed(f"IPOPT returned a non-finite iterate ({self.last_stats.get('return_status')})")
+        return S_new, U_new
+
+    def _solve_instant(self, x, S, U):
+        S_new, U_new = self._ipopt(x, S, U)
+        if not self.last_stats.get("success", False):
+            # do-mpc applies what IPOPT returned; keep the record so the benchmark can say how often it happened
+            self.unconverged.append(str(self.last_stats.get("return_status")))
+        return S_new, U_new
+
+    def reset(self) -> None:
+        """As :meth:`NMPCController.reset`; also empties :attr:`unconverged`."""
+        super().reset()
+        self.unconverged: list[str] = []
+
+    def _converge(self, x0, S, U, iters):
+        S, U = self._ipopt(x0, self._align(x0, S), U)
+        self.init_info = {"iterations": int(self.last_stats.get("iter_count", 0)),
+                          "converged": bool(self.last_stats.get("success", False)), "step": float("nan")}
+        return S, U
