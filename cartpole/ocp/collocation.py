@@ -24,7 +24,7 @@ intervals (:mod:`cartpole.ocp.compiled`): the same NLP in 2 to 3x less time a so
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -41,7 +41,7 @@ OBJECTIVES = NAMED  # plus any function (x, u) -> scalar (see cartpole.ocp.objec
 SOLVERS = ("ipopt", "fatrop")
 
 
-__all__ = ["DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasible", "SolveInfo", "bounds_from_model",
+__all__ = ["Attempt", "DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasible", "SolveInfo", "bounds_from_model",
            "bounds_from_params"]
 
 
@@ -71,6 +71,11 @@ class SolveInfo:
         Duration of the plan in s.
     start : int
         Index of the initial guess (start) the returned solution came from.
+    guess : str
+        Name of that guess (:func:`cartpole.ocp.guess.named_guesses`; ``"given"`` for a caller's trajectory).
+    attempts : tuple of Attempt
+        Every solver call that led to this plan, in the order made (a multi-start's failures included; the
+        pipeline's earlier stages too), each with its iterations, status and objective.
     """
 
     status: str
@@ -81,6 +86,60 @@ class SolveInfo:
     solver: str
     T: float
     start: int = 0
+    guess: str = ""
+    attempts: tuple = ()
+
+    @property
+    def total_iterations(self) -> int:
+        """Iterations of every attempt (this solve's own when there is no attempt record)."""
+        return sum(a.iterations for a in self.attempts) if self.attempts else self.iterations
+
+    @property
+    def total_solve_time_s(self) -> float:
+        """Solver wall time of every attempt in s (this solve's own when there is no attempt record)."""
+        return sum(a.solve_time_s for a in self.attempts) if self.attempts else self.solve_time_s
+
+
+@dataclass(frozen=True)
+class Attempt:
+    """One solver call of a multi-start or of one stage of the swing-up pipeline.
+
+    Attributes
+    ----------
+    stage : str
+        What was solved (e.g. ``"time"`` for a minimum-time problem, ``"effort"``).
+    guess : str
+        Name of the initial guess.
+    N : int
+        Collocation intervals.
+    status : str
+        The solver's return status.
+    success : bool
+    iterations : int
+    objective : float
+        As :attr:`SolveInfo.objective` (user's sign and units).
+    T : float
+        Duration in s of the solution (the guess's T when a free-time solve failed).
+    solve_time_s : float
+        Wall time of the solver call in s.
+    chosen : bool
+        This attempt's solution was kept (the best of its multi-start).
+    """
+
+    stage: str
+    guess: str
+    N: int
+    status: str
+    success: bool
+    iterations: int
+    objective: float
+    T: float
+    solve_time_s: float
+    chosen: bool = False
+
+    def as_dict(self) -> dict:
+        """JSON-ready dict of the fields."""
+        return {f: getattr(self, f) for f in self.__dataclass_fields__}
 
 
 @dataclass
@@ -345,11 +404,17 @@ class DirectCollocation:
         lbg_all, ubg_all = np.concatenate(lbg), np.concatenate(ubg)
         if solver_name == "fatrop":
             opts.setdefault("equality", [bool(a == b) for a, b in zip(lbg_all, ubg_all)])
-        if (self.compiled and solver_name == "ipopt" and not relaxed and not self.separated
-                and not self.free_time and self.objective_spec.kind == "effort"):
+        if self.compiled and solver_name == "ipopt" and not relaxed and not self.separated:
             # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled); None (the SX path
             # is kept) when there is no C compiler or the build fails.
-            comp = compiled.compiled_nlp(self.model, N, sx, su, eff_scale)
+            kind = self.objective_spec.kind
+            if kind == "effort":
+                comp = compiled.compiled_nlp(self.model, N, sx, su, eff_scale)
+            elif kind == "running":
+                comp = compiled.compiled_nlp(self.model, N, sx, su, self.T or 1.0, running=run)
+            else:  # time: T + time_effort_weight * effort, T the last variable
+                comp = compiled.compiled_nlp(self.model, N, sx, su, 1.0 / self.time_effort_weight,
+                                             free_time=True, time_weight=1.0)
             if comp is not None:
                 nlp = comp.nlp
                 opts.update(comp.options)
@@ -518,7 +583,8 @@ class DirectCollocation:
         return traj, info
 
     def solve(self, x0=None, x_goal=None, *, guess=None, T: float | None = None,
-              starts: int = 3) -> tuple[Trajectory, SolveInfo]:
+              starts: int = 3, best_of: bool | None = None, stage: str | None = None
+              ) -> tuple[Trajectory, SolveInfo]:
         """Solve from one or several initial guesses; return the best converged plan.
 
         Parameters
@@ -528,18 +594,25 @@ class DirectCollocation:
         x_goal : (nx,) array, optional
             Final state, default the upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
             guess's nearest).
-        guess : Trajectory or list of Trajectory, optional
-            Initial guess(es); default :func:`cartpole.ocp.guess.initial_guesses` (for one pole an
-            energy-shaping rollout of the symbolic model, then swing and straight-line shapes), ``starts``
+        guess : Trajectory, list of Trajectory or of (name, Trajectory), optional
+            Initial guess(es), tried in order; default :func:`cartpole.ocp.guess.named_guesses` (for one pole an
+            energy-shaping rollout of the symbolic model, then pumping and straight-line shapes), ``starts``
             of them.
         T : float, optional
             Duration in s (fixed-time problems; default the constructor's).
         starts : int
-            How many default guesses to try before giving up.
+            How many default guesses to try.
+        best_of : bool, optional
+            True: solve from every guess and keep the converged solution of least cost (a multi-start);
+            False: stop at the first that converges. Default True for the default guesses of a
+            minimum-time problem, False otherwise.
+        stage : str, optional
+            Label of the attempts in :attr:`SolveInfo.attempts` (default the objective's name).
 
         Returns
         -------
         (Trajectory, SolveInfo)
+            ``info.start`` and ``info.guess`` name the guess that won; ``info.attempts`` lists every try.
 
         Raises
         ------
@@ -548,28 +621,38 @@ class DirectCollocation:
         OCPError
             No start converged but no bound is to blame (try another guess or a longer T).
         """
-        from cartpole.ocp.guess import initial_guesses
+        from cartpole.ocp.guess import named_guesses
 
         x0 = self._check_state("start state", self.model.x_hanging if x0 is None else x0)
         x_goal = self._check_state("goal state", self.model.x_eq if x_goal is None else x_goal)
         T_use = T if T is not None else self.T
         if guess is None:
-            guesses = initial_guesses(self.model, x0, x_goal, T_use if T_use is not None else 2.0, self.N,
-                                      bounds=self.bounds, count=starts)
+            guesses = named_guesses(self.model, x0, x_goal, T_use if T_use is not None else 2.0, self.N,
+                                    bounds=self.bounds, count=starts)
+            if best_of is None:
+                best_of = self.objective_spec.kind == "time"
         elif isinstance(guess, Trajectory):
-            guesses = [guess]
+            guesses = [("given", guess)]
         else:
-            guesses = list(guess)
-        best = None
-        for i, g in enumerate(guesses):
+            guesses = [g if isinstance(g, tuple) else (f"given {i}" if len(guess) > 1 else "given", g)
+                       for i, g in enumerate(guess)]
+        best_of = bool(best_of)
+        label = stage or self.objective
+        best, attempts = None, []
+        for i, (name, g) in enumerate(guesses):
             traj, info = self.solve_once(x0, x_goal, guess=g, T=T_use, start=i)
+            attempts.append(Attempt(stage=label, guess=name, N=self.N, status=info.status, success=info.success,
+                                    iterations=info.iterations, objective=info.objective, T=info.T,
+                                    solve_time_s=info.solve_time_s))
             if info.success and (best is None or self._cost(info) < self._cost(best[1]) - 1e-9):
-                best = (traj, info)
-                if self.objective != "time" or i == 0:
-                    break  # one converged local optimum is enough; more starts only when asked by failure
+                best = (traj, info, i, name)
+                if not best_of:
+                    break
         if best is not None:
-            return best
-        raise self.diagnose(x0, x_goal, guesses[0], T_use)
+            traj, info, i, name = best
+            attempts[i] = replace(attempts[i], chosen=True)
+            return traj, replace(info, start=i, guess=name, attempts=tuple(attempts))
+        raise self.diagnose(x0, x_goal, guesses[0][1], T_use)
 
     def diagnose(self, x0, x_goal, guess: Trajectory | None, T: float | None) -> OCPError:
         """Solve the problem with slack on every joint and ctrl bound and name the bounds whose slack is needed.

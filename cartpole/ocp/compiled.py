@@ -46,7 +46,7 @@ CFLAGS = ("-O2", "-fPIC", "-shared")
 LARGE_SOURCE = 400_000
 #: Flags for large generated sources (see :data:`LARGE_SOURCE`).
 LARGE_CFLAGS = ("-O0", "-fPIC", "-shared")
-_LIB_VERSION = "hs-interval-v3"  # bump when the generated functions change meaning
+_LIB_VERSION = "hs-interval-v4"  # bump when the generated functions change meaning
 
 
 @dataclass(frozen=True)
@@ -127,26 +127,34 @@ def model_key(model: CartPoleModel | ca.Function) -> str:
     return h.hexdigest()
 
 
-def interval_functions(f: ca.Function, sx: np.ndarray, su, eff_scale: float) -> list[ca.Function]:
+def interval_functions(f: ca.Function, sx: np.ndarray, su, eff_scale: float = 1.0, *,
+                       running: ca.Function | None = None) -> list[ca.Function]:
     """SX functions of one Hermite-Simpson interval in scaled variables ``v = (x_k, u_k, x_k+1, u_k+1) / scale``.
+
+    Every derivative is taken in ``(v, h)`` (``nv + 1`` entries, ``nv = 2 (nx + nu)``), the interval length
+    ``h`` in s last: a free-final-time problem needs the ``h`` entries, a fixed-time one drops them.
 
     Parameters
     ----------
     f : casadi.Function
         Continuous dynamics ``x_dot = f(x (nx,), u (nu,))`` (sizes read from it).
     sx : (nx,) array
-        State scales; ``su`` (nu,) the ctrl scales (a scalar for nu = 1); ``eff_scale`` divides the effort
-        (ctrl^2 s).
+        State scales; ``su`` (nu,) the ctrl scales (a scalar for nu = 1); ``eff_scale`` divides the interval
+        cost.
+    running : casadi.Function, optional
+        A running cost ``L(x (nx,), u (nu,)) -> scalar`` (SX): the interval cost is then its Simpson integral
+        ``h (L_k + 4 L_c + L_k+1) / 6`` on the Hermite midpoint state and the first-order-hold midpoint input;
+        default the effort ``integral u'u dt`` (ctrl^2 s).
 
     Returns
     -------
     list of casadi.Function
-        With ``nv = 2 (nx + nu)``: ``hs_d(v, h) -> d`` (nx,) the defect divided by ``sx``; ``hs_e(v, h) -> e``
-        the interval's effort ``integral u'u dt / eff_scale``; ``hs_dj(v, h) -> (d, dd/dv (nx, nv))``;
-        ``hs_eg(v, h) -> (e, de/dv (nv,))``; ``hs_hl(v, h, lam (nx,), sigma) ->`` upper triangle
-        (nv (nv + 1) / 2,) column-major of the Hessian of ``sigma e + lam' d`` in ``v``; and ``jac_hs_d``,
-        ``jac_hs_e``, the Jacobians CasADi looks up by name when it differentiates an external function (it
-        does once, for the final multipliers).
+        ``hs_d(v, h) -> d`` (nx,) the defect divided by ``sx``; ``hs_e(v, h) -> e`` the interval cost
+        divided by ``eff_scale``; ``hs_dj(v, h) -> (d, d(d)/d(v, h) (nx, nv + 1))``;
+        ``hs_eg(v, h) -> (e, de/d(v, h) (nv + 1,))``; ``hs_hl(v, h, lam (nx,), sigma) ->`` upper triangle
+        ((nv + 1) (nv + 2) / 2,) column-major of the Hessian of ``sigma e + lam' d`` in ``(v, h)``; and
+        ``jac_hs_d``, ``jac_hs_e``, the Jacobians CasADi looks up by name when it differentiates an external
+        function (it does once, for the final multipliers).
     """
     nx, nu = f.size1_in(0), f.size1_in(1)
     nz = nx + nu
@@ -154,45 +162,70 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su, eff_scale: float) -> 
     su = ca.DM(np.broadcast_to(np.asarray(su, float), (nu,)))
     v = ca.SX.sym("v", nv)
     h = ca.SX.sym("h")
+    vh = ca.vertcat(v, h)
     lam = ca.SX.sym("lam", nx)
     sigma = ca.SX.sym("sigma")
     xk, uk = v[0:nx] * ca.DM(sx), v[nx:nz] * su
     xk1, uk1 = v[nz:nz + nx] * ca.DM(sx), v[nz + nx:nv] * su
-    defect, _ = hs_interval_function(f)(xk, uk, xk1, uk1, f(xk, uk), f(xk1, uk1), h)
+    defect, xc = hs_interval_function(f)(xk, uk, xk1, uk1, f(xk, uk), f(xk1, uk1), h)
     d = defect / ca.DM(sx)
-    e = h / 6 * ca.sum1(simpson_effort_terms(uk, uk1)) / eff_scale
-    H = ca.densify(ca.hessian(sigma * e + ca.dot(lam, d), v)[0])
-    hess_triu = ca.vertcat(*[H[a, b] for b in range(nv) for a in range(b + 1)])
+    if running is None:
+        e = h / 6 * ca.sum1(simpson_effort_terms(uk, uk1)) / eff_scale
+    else:
+        e = h / 6 * (running(xk, uk) + 4 * running(xc, 0.5 * (uk + uk1)) + running(xk1, uk1)) / eff_scale
+    H = ca.densify(ca.hessian(sigma * e + ca.dot(lam, d), vh)[0])
+    hess_triu = ca.vertcat(*[H[a, b] for b in range(nv + 1) for a in range(b + 1)])
     hs_d = ca.Function("hs_d", [v, h], [d])
     hs_e = ca.Function("hs_e", [v, h], [e])
     return [
         hs_d,
         hs_e,
-        ca.Function("hs_dj", [v, h], [d, ca.densify(ca.jacobian(d, v))]),
-        ca.Function("hs_eg", [v, h], [e, ca.densify(ca.gradient(e, v))]),
+        ca.Function("hs_dj", [v, h], [d, ca.densify(ca.jacobian(d, vh))]),
+        ca.Function("hs_eg", [v, h], [e, ca.densify(ca.gradient(e, vh))]),
         ca.Function("hs_hl", [v, h, lam, sigma], [hess_triu]),
         hs_d.jacobian(),  # named jac_hs_d
         hs_e.jacobian(),
     ]
 
 
-def _build_library(funcs: list[ca.Function], model_digest: str = "") -> tuple[str, bool]:
+def recipe_key(f: ca.Function, sx, su, running: ca.Function | None = None) -> str:
+    """Hex digest of everything the interval functions are generated from: ``f``'s serialised expression graph,
+    the scales ``sx``, ``su``, the running cost's graph (if any), :data:`_LIB_VERSION`, the CasADi version and
+    ``$CARTPOLE_CFLAGS``. A library found under it is used without generating its C source again."""
+    h = hashlib.sha256()
+    h.update((_LIB_VERSION + ca.__version__ + os.environ.get("CARTPOLE_CFLAGS", "")).encode())
+    h.update(f.serialize().encode())
+    _digest(np.asarray(sx, float), h)
+    _digest(np.asarray(su, float).ravel(), h)
+    h.update(b"running:" + (running.serialize().encode() if running is not None else b"-"))
+    return h.hexdigest()
+
+
+def _build_library(funcs, model_digest: str = "", recipe: str | None = None) -> tuple[str, bool]:
     """C source of ``funcs`` compiled to a cached shared library; returns (path, compiled_now).
 
-    The library's name is a hash of ``model_digest`` (:func:`model_key`), the source, the flags (:func:`_cflags`)
-    and the CasADi version.
+    ``funcs`` is a list of Functions or a callable returning it. Without ``recipe`` the library's name is a hash
+    of ``model_digest`` (:func:`model_key`), the source, the flags (:func:`_cflags`) and the CasADi version; with
+    ``recipe`` (:func:`recipe_key`) a hash of ``model_digest`` and ``recipe``, looked up before any source is
+    generated (generating the three-pole cart's source takes about half a second).
     """
+    target = cache_dir()
+    if recipe is not None:
+        key = "r" + hashlib.sha256((model_digest + recipe).encode()).hexdigest()[:20]
+        lib = target / f"hs_interval_{key}.so"
+        if lib.exists():
+            return str(lib), False
     gen = ca.CodeGenerator("hs_interval.c", {"with_header": False, "casadi_real": "double"})
-    for fn in funcs:
+    for fn in (funcs() if callable(funcs) else funcs):
         gen.add(fn)
     src = gen.dump()
     flags = _cflags(src)
-    key = hashlib.sha256((_LIB_VERSION + model_digest + " ".join(flags) + ca.__version__ + src).encode()
-                         ).hexdigest()[:20]
-    target = cache_dir()
-    lib = target / f"hs_interval_{key}.so"
-    if lib.exists():
-        return str(lib), False
+    if recipe is None:
+        key = hashlib.sha256((_LIB_VERSION + model_digest + " ".join(flags) + ca.__version__ + src).encode()
+                             ).hexdigest()[:20]
+        lib = target / f"hs_interval_{key}.so"
+        if lib.exists():
+            return str(lib), False
     cc = _compiler()
     if cc is None:
         raise RuntimeError("no C compiler (gcc or cc) on PATH")
@@ -211,49 +244,86 @@ def _build_library(funcs: list[ca.Function], model_digest: str = "") -> tuple[st
     return str(lib), True
 
 
-def _assemble(ext: dict[str, ca.Function], N: int, nx: int, nu: int) -> tuple[dict, dict]:
-    """The NLP (MX) and IPOPT's derivative Functions from the mapped interval functions."""
+def _assemble(ext: dict[str, ca.Function], N: int, nx: int, nu: int, *, free_time: bool = False,
+              cost_weight: float = 1.0, time_weight: float = 0.0) -> tuple[dict, dict]:
+    """The NLP (MX) and IPOPT's derivative Functions from the mapped interval functions.
+
+    Objective ``time_weight T + cost_weight sum_k e_k``. Fixed time: variables ``[z_0 .. z_N]``, parameter T.
+    Free time: variables ``[z_0 .. z_N, T]`` (T in s) and no parameter; T couples every interval (``h = T / N``),
+    so the constraint Jacobian has one dense column and the Hessian one dense column (upper triangle), both
+    assembled from the interval functions' ``h`` entries by the chain rule (``d/dT = d/dh / N``).
+    """
     nz = nx + nu  # one knot
     nv = 2 * nz  # one interval's variables
-    ntri = nv * (nv + 1) // 2
-    n = nz * (N + 1)
+    nvh = nv + 1  # and h
+    ntri = nvh * (nvh + 1) // 2
+    n_z = nz * (N + 1)
+    n = n_z + int(free_time)
     w = ca.MX.sym("x", n)
-    p = ca.MX.sym("p", 1)
-    h = p[0] / N
-    Z = ca.reshape(w, nz, N + 1)
+    if free_time:
+        p = ca.MX.sym("p", 0)
+        T = w[n_z]
+    else:
+        p = ca.MX.sym("p", 1)
+        T = p[0]
+    h = T / N
+    Z = ca.reshape(w[:n_z], nz, N + 1)
     V = ca.vertcat(Z[:, :-1], Z[:, 1:])  # (nv, N): interval k's variables in column k
     g = ca.vec(ext["hs_d"].map(N)(V, h))
-    fobj = ca.sum2(ext["hs_e"].map(N)(V, h))
+    fobj = cost_weight * ca.sum2(ext["hs_e"].map(N)(V, h))
+    if free_time and time_weight:
+        fobj = fobj + time_weight * T
     nlp = {"x": w, "p": p, "f": fobj, "g": g}
 
-    D, JD = ext["hs_dj"].map(N)(V, h)  # (nx, N), (nx, nv N)
-    E, GE = ext["hs_eg"].map(N)(V, h)  # (1, N), (nv, N)
+    D, JD = ext["hs_dj"].map(N)(V, h)  # (nx, N), (nx, nvh N)
+    E, GE = ext["hs_eg"].map(N)(V, h)  # (1, N), (nvh, N)
+    GE = cost_weight * GE
     # gradient of f: knot k's nz entries get the right half of interval k-1 and the left half of interval k
-    grad_f = ca.vec(ca.horzcat(GE[:nz, :], ca.DM.zeros(nz, 1)) + ca.horzcat(ca.DM.zeros(nz, 1), GE[nz:, :]))
+    grad_f = ca.vec(ca.horzcat(GE[:nz, :], ca.DM.zeros(nz, 1)) + ca.horzcat(ca.DM.zeros(nz, 1), GE[nz:nv, :]))
+    if free_time:
+        grad_f = ca.vertcat(grad_f, time_weight + ca.sum2(GE[nv, :]) / N)
 
-    # Jacobian of g: interval k's dense (nx x nv) block at rows nx k.., cols nz k.. (blocks do not overlap)
-    k, b, a = np.meshgrid(np.arange(N), np.arange(nv), np.arange(nx), indexing="ij")
-    rows, cols, src = (nx * k + a).ravel(), (nz * k + b).ravel(), (nx * nv * k + nx * b + a).ravel()
+    # Jacobian of g: interval k's dense (nx x nv) block at rows nx k.., cols nz k.. (blocks do not overlap);
+    # free time: its h column, divided by N, in the dense column of T
+    nb = nvh if free_time else nv
+    k, b, a = np.meshgrid(np.arange(N), np.arange(nb), np.arange(nx), indexing="ij")
+    k, b, a = k.ravel(), b.ravel(), a.ravel()
+    rows = nx * k + a
+    cols = np.where(b < nv, nz * k + b, n_z)
+    src = nx * nvh * k + nx * b + a
+    fac = np.where(b < nv, 1.0, 1.0 / N)
     order = np.lexsort((rows, cols))  # CasADi's compressed-column order: by column, then row
     sp_j = ca.Sparsity.triplet(nx * N, n, rows.tolist(), cols.tolist())
-    jac = ca.MX(sp_j, ca.vec(JD)[src[order].tolist()])
+    vals = ca.vec(JD)[src[order].tolist()]
+    jac = ca.MX(sp_j, vals if not free_time else vals * ca.DM(fac[order]))
 
-    # Hessian (upper triangle): the interval blocks summed where they overlap on the shared knots
+    # Hessian (upper triangle): the interval blocks summed where they overlap on the shared knots (and, free
+    # time, every interval's h entries summed into T's column)
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", nx * N)
-    HB = ext["hs_hl"].map(N)(V, h, ca.reshape(lam_g, nx, N), lam_f)  # (ntri, N)
-    tri_a, tri_b = zip(*[(a_, b_) for b_ in range(nv) for a_ in range(b_ + 1)])
-    tri_a, tri_b = np.array(tri_a), np.array(tri_b)
-    h_rows = (nz * np.arange(N)[:, None] + tri_a[None, :]).ravel()
-    h_cols = (nz * np.arange(N)[:, None] + tri_b[None, :]).ravel()
+    HB = ext["hs_hl"].map(N)(V, h, ca.reshape(lam_g, nx, N), cost_weight * lam_f)  # (ntri, N)
+    tri = [(a_, b_) for b_ in range(nvh) for a_ in range(b_ + 1)]
+    keep = np.array([i for i, (a_, b_) in enumerate(tri) if free_time or b_ < nv])
+    tri_a = np.array([tri[i][0] for i in keep])
+    tri_b = np.array([tri[i][1] for i in keep])
+    kk = np.arange(N)[:, None]
+
+    def glob(c):
+        return np.where(c[None, :] < nv, nz * kk + c[None, :], n_z + 0 * kk)
+
+    h_rows, h_cols = glob(tri_a).ravel(), glob(tri_b).ravel()
+    h_fac = ((tri_a < nv).astype(float) + (tri_a == nv) / N) * np.where(tri_b < nv, 1.0, 1.0 / N)
+    h_fac = np.broadcast_to(h_fac[None, :], (N, keep.size)).ravel()
+    h_src = (ntri * kk + keep[None, :]).ravel()  # entry of vec(HB)
     sp_h = ca.Sparsity.triplet(n, n, h_rows.tolist(), h_cols.tolist())  # duplicates merged
     # nonzero index in sp_h of each triplet, then one constant sparse matrix that sums the blocks into it
-    nz_idx = np.full((n, n), -1, dtype=np.int64)
     colind, row = np.array(sp_h.colind()), np.array(sp_h.row())
+    lookup = {}
     for c in range(n):
-        nz_idx[row[colind[c]:colind[c + 1]], c] = np.arange(colind[c], colind[c + 1])
-    dst = nz_idx[h_rows, h_cols]
-    scatter = ca.DM(ca.Sparsity.triplet(sp_h.nnz(), ntri * N, dst.tolist(), list(range(ntri * N))), 1.0)
+        for j in range(colind[c], colind[c + 1]):
+            lookup[(int(row[j]), c)] = j
+    dst = np.array([lookup[(int(r), int(c))] for r, c in zip(h_rows, h_cols)])
+    scatter = ca.DM.triplet(dst.tolist(), h_src.tolist(), h_fac.tolist(), sp_h.nnz(), ntri * N)
     hess = ca.MX(sp_h, ca.mtimes(scatter, ca.vec(HB)))
 
     options = {
@@ -265,9 +335,26 @@ def _assemble(ext: dict[str, ca.Function], N: int, nx: int, nu: int) -> tuple[di
     return nlp, options
 
 
-def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su, eff_scale: float
+_LOADED: dict[str, dict[str, ca.Function]] = {}
+
+
+def _load(lib: str) -> dict[str, ca.Function]:
+    """The interval functions of the shared library ``lib`` (loaded once per process)."""
+    if lib not in _LOADED:
+        _LOADED[lib] = {name: ca.external(name, lib) for name in ("hs_d", "hs_e", "hs_dj", "hs_eg", "hs_hl")}
+    return _LOADED[lib]
+
+
+def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su, eff_scale: float = 1.0, *,
+                 free_time: bool = False, time_weight: float = 1.0, running: ca.Function | None = None
                  ) -> CompiledNLP | None:
-    """The fixed-time effort NLP on compiled interval functions, or None where C cannot be built.
+    """The Hermite-Simpson NLP on compiled interval functions, or None where C cannot be built.
+
+    Fixed time (default): objective ``cost / eff_scale``, variables ``[z_0 .. z_N]`` scaled, parameter T (s).
+    Free time: objective ``time_weight T + cost / eff_scale``, variables ``[z_0 .. z_N, T]``, no parameter. The
+    cost is the effort ``integral u'u dt`` (ctrl^2 s), or the integral of ``running`` when given. The library
+    holds the interval functions only (:func:`interval_functions` with ``eff_scale = 1``): one library per
+    model, scaling and running cost serves every N, T, ``eff_scale`` and both fixed and free time.
 
     Parameters
     ----------
@@ -280,7 +367,13 @@ def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su,
         State scales (the NLP's variables are state / scale); ``su`` (nu,) the ctrl scales (a scalar for one
         input).
     eff_scale : float
-        The objective is ``integral u'u dt / eff_scale``.
+        The cost is divided by it.
+    free_time : bool
+        T is the last variable (s) instead of the parameter.
+    time_weight : float
+        Weight of T in a free-time objective (1/s).
+    running : casadi.Function, optional
+        Running cost ``(x (nx,), u (nu,)) -> scalar`` (SX) integrated instead of the effort.
 
     Returns
     -------
@@ -293,13 +386,16 @@ def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su,
     f = model if isinstance(model, ca.Function) else model.f
     nx, nu = f.size1_in(0), f.size1_in(1)
     try:
-        funcs = interval_functions(f, np.asarray(sx, float), np.asarray(su, float), float(eff_scale))
-        lib, now = _build_library(funcs, model_key(model))
-        ext = {name: ca.external(name, lib) for name in ("hs_d", "hs_e", "hs_dj", "hs_eg", "hs_hl")}
+        sx, su = np.asarray(sx, float), np.asarray(su, float)
+        recipe = recipe_key(f, sx, su, running)
+        lib, now = _build_library(lambda: interval_functions(f, sx, su, 1.0, running=running), model_key(model),
+                                  recipe=recipe)
+        ext = _load(lib)
     except Exception as exc:  # noqa: BLE001 - any failure here means: keep the SX path
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
         print(f"cartpole: compiled collocation functions unavailable ({reason}); using the slower SX "
               "formulation (same results).", file=sys.stderr)
         return None
-    nlp, options = _assemble(ext, int(N), nx, nu)
+    nlp, options = _assemble(ext, int(N), nx, nu, free_time=free_time, cost_weight=1.0 / float(eff_scale),
+                             time_weight=float(time_weight) if free_time else 0.0)
     return CompiledNLP(nlp=nlp, options=options, library=lib, compiled_now=now)

@@ -7,11 +7,13 @@ IPOPT started from a poor guess finds poor local minima or crawls. The guesses h
    (:func:`cartpole.control.energy.energy_rollout`), bent at the end onto the goal (:func:`energy_shaped_guess`;
    skipped for every other model);
 2. a pumping shape (:func:`pump_guess`: every hinge swings back once before it rises, the cart moves out and
-   back) towards the nearest upright angles, then towards the upright angles one turn the other way;
-3. smooth straight lines (:func:`linear_guess`) from the start to each of those goals.
+   back) and a smooth straight line (:func:`linear_guess`) towards the nearest upright angles;
+3. the same two shapes towards a second goal: for a chain, every link after the first looping once more
+   relative to its parent the way the first swings up (on the shipped two-pole cart the fastest swing-up);
+   for a single hinge, upright one turn the other way.
 
 When every hinge starts within a quarter turn of its goal angle, the straight lines come before the pumping
-shapes (nothing needs pumping up).
+shapes (nothing needs pumping up). :func:`named_guesses` gives them with names (reported by the multi-start).
 """
 from __future__ import annotations
 
@@ -153,10 +155,31 @@ def _upright_candidates(model: CartPoleModel, x0, x_goal, bounds: OCPBounds) -> 
     return goals
 
 
-def initial_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int = 100, *,
-                    bounds: OCPBounds | None = None, u_max=None, cart_max: float | None = None,
-                    count: int = 3) -> list[Trajectory]:
-    """Up to ``count`` initial guesses on ``N + 1`` knots over ``T`` s, best first (see the module docstring).
+def _co_turn_goal(model: CartPoleModel, x0, nearest: np.ndarray, bounds: OCPBounds) -> np.ndarray | None:
+    """``nearest`` with every free hinge after the first turned one more whole turn the way the first hinge turns
+    (each link loops once relative to its parent, with the swing); None with fewer than two free hinges."""
+    free = [i for i in model.hinges if i not in bounds.bounded_joints]
+    if len(free) < 2:
+        return None
+    first = free[0]
+    direction = np.sign(nearest[first] - x0[first]) or 1.0
+    goal = nearest.copy()
+    for i in free[1:]:
+        goal[i] += 2 * np.pi * direction
+    return goal
+
+
+def named_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int = 100, *,
+                  bounds: OCPBounds | None = None, u_max=None, cart_max: float | None = None,
+                  count: int = 4) -> list[tuple[str, Trajectory]]:
+    """Up to ``count`` named initial guesses on ``N + 1`` knots over ``T`` s, in the order they are tried.
+
+    A deterministic set (no randomness): for a single pole with one input the energy-shaping rollout
+    (``"energy"``) first; then the pumping shape (``"pump"``) and the straight line (``"line"``) to the nearest
+    upright angles (the line first when every hinge starts within a quarter turn of upright); then the same two
+    shapes to a second goal, ``"... co-turn"`` (every link after the first loops once more relative to its parent,
+    the way the first swings up; chains of two or more free hinges) or ``"... other turn"`` (every free hinge one
+    turn the other way; a single hinge).
 
     Parameters
     ----------
@@ -175,23 +198,40 @@ def initial_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: in
 
     Returns
     -------
-    list of Trajectory
-        Each meets ``x0`` and ``x_goal`` (hinge angles possibly shifted by whole turns).
+    list of (str, Trajectory)
+        Name and guess; each guess meets ``x0`` and ``x_goal`` (hinge angles possibly shifted by whole turns).
     """
     if bounds is None:
         bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max)
     x0 = np.asarray(x0, dtype=float)
     x_goal = model.x_eq if x_goal is None else x_goal
     t = np.linspace(0.0, T, N + 1)
-    out: list[Trajectory] = []
+    out: list[tuple[str, Trajectory]] = []
     eg = energy_shaped_guess(model, x0, x_goal, T, N, bounds=bounds)
     if eg is not None:
-        out.append(eg)
+        out.append(("energy", eg))
     goals = _upright_candidates(model, x0, x_goal, bounds)
+    co = _co_turn_goal(model, x0, goals[0], bounds)
+    second = [(" other turn", goals[1])] if co is None else [(" co-turn", co)]
     u_rest = np.clip(model.u_eq, bounds.u_low, bounds.u_high)
-    pumps = [_traj(model, t, *pump_guess(x0, g, t, hinges=model.hinges, slide=model.slide, u=u_rest))
-             for g in goals]
-    lines = [_traj(model, t, *linear_guess(x0, g, t, u=u_rest)) for g in goals]
     near = all(abs(x0[i] - goals[0][i]) < 0.5 * np.pi for i in model.hinges)
-    out += lines + pumps if near else pumps + lines
+    for tag, g in [("", goals[0]), *second]:
+        pump = ("pump" + tag, _traj(model, t, *pump_guess(x0, g, t, hinges=model.hinges, slide=model.slide,
+                                                         u=u_rest)))
+        line = ("line" + tag, _traj(model, t, *linear_guess(x0, g, t, u=u_rest)))
+        out += [line, pump] if near else [pump, line]
     return out[:max(1, count)]
+
+
+def initial_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int = 100, *,
+                    bounds: OCPBounds | None = None, u_max=None, cart_max: float | None = None,
+                    count: int = 3) -> list[Trajectory]:
+    """The guesses of :func:`named_guesses` without their names (same arguments), best first.
+
+    Returns
+    -------
+    list of Trajectory
+        Each meets ``x0`` and ``x_goal`` (hinge angles possibly shifted by whole turns).
+    """
+    return [g for _, g in named_guesses(model, x0, x_goal, T, N, bounds=bounds, u_max=u_max, cart_max=cart_max,
+                                        count=count)]

@@ -9,7 +9,7 @@ better, but a plan that saturates the actuator everywhere leaves TVLQR no author
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +19,8 @@ from cartpole.control.tvlqr import TVLQRController
 from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.ocp.bounds import bounds_from_params
-from cartpole.ocp.collocation import DirectCollocation, SolveInfo
+from cartpole.ocp.bounds import OCPError
+from cartpole.ocp.collocation import Attempt, DirectCollocation, SolveInfo
 from cartpole.ocp.objectives import make_objective
 from cartpole.ocp.trajectory import Trajectory
 
@@ -65,17 +66,61 @@ class SwingupPlan:
         return self.trajectory.duration
 
 
+#: IPOPT iterations allowed to each start of the coarse minimum-time multi-start: a start that has not converged
+#: by then counts as failed (a converging start needs 30 to 200 on the shipped carts).
+EXPLORE_MAX_ITER = 250
+
+
 def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
-                 **bounds) -> tuple[float, Trajectory, SolveInfo]:
+                 starts: int = 4, coarse_N: int | None = None, **bounds) -> tuple[float, Trajectory, SolveInfo]:
     """The shortest motion from ``x0`` to ``x_goal`` the bounds allow: a free-final-time Hermite-Simpson solve.
 
-    Any model. ``x0`` (nx,) defaults to hanging rest ``model.x_hanging``, ``x_goal`` to the upright equilibrium
-    ``model.x_eq``. Returns ``(T_min (s), trajectory, info)``. ``bounds`` go to :class:`DirectCollocation`
-    (``u_max``, ``cart_max``, ``cart_margin`` or ``bounds``).
+    Any model. A deterministic multi-start on a coarse mesh, then a refinement: every guess of
+    :func:`cartpole.ocp.guess.named_guesses` (``starts`` of them) is solved on ``coarse_N`` intervals (default
+    ``N // 2``, at most :data:`EXPLORE_MAX_ITER` iterations each), the fastest converged one is kept, and it is
+    the initial guess of the same problem on ``N`` intervals (if that fails, the guesses are tried again on ``N``
+    intervals). ``info.attempts`` lists every solve, ``info.guess`` names the guess that won.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    x0, x_goal : (nx,) arrays, optional
+        Start (default hanging rest ``model.x_hanging``) and goal (default upright ``model.x_eq``).
+    N : int
+        Intervals of the returned plan.
+    solver : str
+        ``ipopt`` (the only solver for a free final time).
+    starts : int
+        Guesses of the multi-start.
+    coarse_N : int, optional
+        Intervals of the multi-start; ``coarse_N >= N`` solves the multi-start on ``N`` directly.
+    bounds
+        Passed to :class:`DirectCollocation` (``u_max``, ``cart_max``, ``cart_margin`` or ``bounds``).
+
+    Returns
+    -------
+    (T_min (s), Trajectory, SolveInfo)
+
+    Raises
+    ------
+    OCPInfeasible, OCPError
+        No guess converged (the message names a binding bound when there is one).
     """
+    N = int(N)
+    Nc = max(2, N // 2) if coarse_N is None else int(coarse_N)
+    if Nc >= N:
+        ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, **bounds)
+        traj, info = ocp.solve(x0, x_goal, starts=starts, best_of=True, stage=f"time N={N}")
+        return info.T, traj, info
+    coarse = DirectCollocation(model, N=Nc, T=None, objective="time", solver=solver,
+                               solver_options={"ipopt": {"max_iter": EXPLORE_MAX_ITER}}, **bounds)
+    rough, rinfo = coarse.solve(x0, x_goal, starts=starts, best_of=True, stage=f"time N={Nc}")
     ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, **bounds)
-    traj, info = ocp.solve(x0, x_goal)
-    return info.T, traj, info
+    try:
+        traj, info = ocp.solve(x0, x_goal, guess=[(f"{rinfo.guess} refined", rough)], stage=f"time N={N}")
+    except OCPError:
+        traj, info = ocp.solve(x0, x_goal, starts=starts, best_of=True, stage=f"time N={N}")
+    return info.T, traj, replace(info, attempts=rinfo.attempts + info.attempts)
 
 
 #: Seconds of the horizon beyond the minimum swing-up time for the running objectives (tracking, dmc_swingup,
@@ -93,6 +138,20 @@ def _padded(traj: Trajectory, T: float) -> Trajectory:
     return Trajectory(t=np.r_[traj.t, tp], x=np.vstack([traj.x, np.repeat(traj.x[-1:], n, 0)]),
                       u=np.vstack([traj.u, np.repeat(traj.u[-1:], n, 0)]),
                       xdot=np.vstack([traj.xdot, np.zeros((n, traj.nx))]))
+
+
+def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, stage: str
+                   ) -> tuple[Trajectory, SolveInfo]:
+    """``ocp`` solved from ``guess`` (an earlier stage's plan); if that fails, from its default guesses (and
+    their diagnosis when all fail). The returned info's attempts include the failed first try."""
+    traj, info = ocp.solve_once(x0, guess=guess)
+    first = Attempt(stage=stage, guess=name, N=ocp.N, status=info.status, success=info.success,
+                    iterations=info.iterations, objective=info.objective, T=info.T,
+                    solve_time_s=info.solve_time_s, chosen=info.success)
+    if info.success:
+        return traj, replace(info, guess=name, attempts=(first,))
+    traj, info = ocp.solve(x0, stage=stage)
+    return traj, replace(info, start=info.start + 1, attempts=(first,) + info.attempts)
 
 
 def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None) -> LinearFeedback:
@@ -174,26 +233,29 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
     T_min = None
     if obj.kind == "time":
-        ocp = DirectCollocation(plan_model, N=N or 100, T=None, objective="time", solver="ipopt",
-                                solver_options=solver_options, bounds=bounds)
-        traj, info = ocp.solve(x0)
-        T_min = info.T
-    elif obj.kind == "effort":
-        if T is None:
-            T_min, _, _ = minimum_time(plan_model, x0, N=min(N or 100, 60), solver=solver, bounds=bounds)
-            T = (1.0 + time_margin) * T_min
+        T_min, traj, info = minimum_time(plan_model, x0, N=N or 100, bounds=bounds)
+    elif obj.kind == "effort" and T is not None:
         ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
                                 bounds=bounds)
         traj, info = ocp.solve(x0)
     else:
-        T_min, fast, _ = minimum_time(plan_model, x0, N=60, solver="ipopt", bounds=bounds)
-        if T is None:
-            T = T_min + RUNNING_HOLD
-        if N is None:
-            N = max(2, int(round(T / params.timestep))) if obj.name == "dmc_swingup" else 100
-        ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver, solver_options=solver_options,
-                                bounds=bounds)
-        traj, info = ocp.solve(x0, guess=[_padded(fast, T), None] if T > fast.duration else [fast, None])
+        T_min, fast, tinfo = minimum_time(plan_model, x0, N=60 if obj.kind == "running" else min(N or 100, 60),
+                                          bounds=bounds)
+        if obj.kind == "effort":
+            T = (1.0 + time_margin) * T_min
+            ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
+                                    bounds=bounds)
+            first = fast  # the minimum-time plan, stretched onto T
+        else:
+            if T is None:
+                T = T_min + RUNNING_HOLD
+            if N is None:
+                N = max(2, int(round(T / params.timestep))) if obj.name == "dmc_swingup" else 100
+            ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
+                                    solver_options=solver_options, bounds=bounds)
+            first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright
+        traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name)
+        info = replace(info, attempts=tinfo.attempts + info.attempts)
     # TVLQR at the MJCF's step, on the planning model's exact discrete step.
     tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
     # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)) at the model's
