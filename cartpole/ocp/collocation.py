@@ -636,23 +636,50 @@ class DirectCollocation:
         else:
             guesses = [g if isinstance(g, tuple) else (f"given {i}" if len(guess) > 1 else "given", g)
                        for i, g in enumerate(guess)]
-        best_of = bool(best_of)
+        sols, attempts = self.multistart(x0, x_goal, guesses, T=T_use, stage=stage, best_of=bool(best_of))
+        if sols:
+            return sols[0]
+        raise self.diagnose(x0, x_goal, guesses[0][1], T_use)
+
+    def multistart(self, x0, x_goal, guesses, *, T: float | None = None, stage: str | None = None,
+                   best_of: bool = True) -> tuple[list[tuple[Trajectory, SolveInfo]], list[Attempt]]:
+        """Solve from each named guess in turn; never raises on non-convergence.
+
+        Parameters
+        ----------
+        x0, x_goal : (nx,) arrays
+            Start and goal ``[qpos, qvel]`` (the goal's hinge angles shifted by whole turns to each guess's end).
+        guesses : list of (str, Trajectory)
+            Named initial guesses, tried in order.
+        T : float, optional
+            Duration (fixed time) or the guess of T (free time), as :meth:`solve_once`.
+        stage : str, optional
+            Label of the attempts (default the objective's name).
+        best_of : bool
+            Solve from every guess (True) or stop at the first that converges.
+
+        Returns
+        -------
+        (solutions, attempts)
+            The converged ``(Trajectory, SolveInfo)`` pairs, least cost first (each info's ``attempts`` is every
+            attempt, the best one marked ``chosen``), and every attempt in the order made.
+        """
         label = stage or self.objective
-        best, attempts = None, []
+        found, attempts = [], []
         for i, (name, g) in enumerate(guesses):
-            traj, info = self.solve_once(x0, x_goal, guess=g, T=T_use, start=i)
+            traj, info = self.solve_once(x0, x_goal, guess=g, T=T, start=i)
             attempts.append(Attempt(stage=label, guess=name, N=self.N, status=info.status, success=info.success,
                                     iterations=info.iterations, objective=info.objective, T=info.T,
                                     solve_time_s=info.solve_time_s))
-            if info.success and (best is None or self._cost(info) < self._cost(best[1]) - 1e-9):
-                best = (traj, info, i, name)
+            if info.success:
+                found.append((traj, replace(info, start=i, guess=name)))
                 if not best_of:
                     break
-        if best is not None:
-            traj, info, i, name = best
-            attempts[i] = replace(attempts[i], chosen=True)
-            return traj, replace(info, start=i, guess=name, attempts=tuple(attempts))
-        raise self.diagnose(x0, x_goal, guesses[0][1], T_use)
+        found.sort(key=lambda ti: (self._cost(ti[1]), ti[1].start))
+        if found:
+            k = found[0][1].start
+            attempts[k] = replace(attempts[k], chosen=True)
+        return [(tr, replace(inf, attempts=tuple(attempts))) for tr, inf in found], attempts
 
     def diagnose(self, x0, x_goal, guess: Trajectory | None, T: float | None) -> OCPError:
         """Solve the problem with slack on every joint and ctrl bound and name the bounds whose slack is needed.

@@ -106,21 +106,35 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     OCPInfeasible, OCPError
         No guess converged (the message names a binding bound when there is one).
     """
+    from cartpole.ocp.guess import named_guesses
+
     N = int(N)
     Nc = max(2, N // 2) if coarse_N is None else int(coarse_N)
-    if Nc >= N:
-        ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, **bounds)
-        traj, info = ocp.solve(x0, x_goal, starts=starts, best_of=True, stage=f"time N={N}")
-        return info.T, traj, info
-    coarse = DirectCollocation(model, N=Nc, T=None, objective="time", solver=solver,
-                               solver_options={"ipopt": {"max_iter": EXPLORE_MAX_ITER}}, **bounds)
-    rough, rinfo = coarse.solve(x0, x_goal, starts=starts, best_of=True, stage=f"time N={Nc}")
-    ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, **bounds)
-    try:
-        traj, info = ocp.solve(x0, x_goal, guess=[(f"{rinfo.guess} refined", rough)], stage=f"time N={N}")
-    except OCPError:
-        traj, info = ocp.solve(x0, x_goal, starts=starts, best_of=True, stage=f"time N={N}")
-    return info.T, traj, replace(info, attempts=rinfo.attempts + info.attempts)
+    capped = {"ipopt": {"max_iter": EXPLORE_MAX_ITER}}
+    ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, solver_options=capped, **bounds)
+    x0 = ocp._check_state("start state", model.x_hanging if x0 is None else x0)
+    x_goal = ocp._check_state("goal state", model.x_eq if x_goal is None else x_goal)
+
+    def guesses(n):
+        return named_guesses(model, x0, x_goal, 2.0, n, bounds=ocp.bounds, count=starts)
+
+    attempts: list = []
+    if Nc < N:
+        coarse = DirectCollocation(model, N=Nc, T=None, objective="time", solver=solver, solver_options=capped,
+                                   **bounds)
+        rough, tried = coarse.multistart(x0, x_goal, guesses(Nc), stage=f"time N={Nc}")
+        attempts += tried
+        # refine the coarse solutions, fastest first: a coarse mesh can admit a motion the fine one does not
+        for traj, info in rough:
+            sols, tried = ocp.multistart(x0, x_goal, [(f"{info.guess} refined", traj)], stage=f"time N={N}")
+            attempts += tried
+            if sols:
+                return sols[0][1].T, sols[0][0], replace(sols[0][1], attempts=tuple(attempts))
+    sols, tried = ocp.multistart(x0, x_goal, guesses(N), stage=f"time N={N}")
+    attempts += tried
+    if sols:
+        return sols[0][1].T, sols[0][0], replace(sols[0][1], attempts=tuple(attempts))
+    raise ocp.diagnose(x0, x_goal, guesses(N)[0][1], None)
 
 
 #: Seconds of the horizon beyond the minimum swing-up time for the running objectives (tracking, dmc_swingup,
