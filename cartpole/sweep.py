@@ -1,12 +1,23 @@
-"""Robustness sweep of the swing-up: many seeded starts (optionally jittered gains), one row per run, one summary.
+"""Robustness sweeps of the swing-up: one description, many runs, one row per run, one summary.
 
-Each run is :func:`cartpole.swingup.run_swingup` (``method="energy"``: energy shaping + LQR catch, or
-``"trajopt"``: collocation + TVLQR), in MuJoCo on the MJCF, so a sweep measures exactly what ``cartpole swingup``
+A sweep is described by axes (:class:`Axis`), each a grid (``linspace(low, high, count)``) or a seeded uniform
+sample (``U(low, high)`` per run) of one input: a start-state component (any joint's position or rate, ``start:<joint>``
+or ``start:<joint>_rate``), a push (``push_force`` N and ``push_time`` s: one push of :data:`~cartpole.swingup.
+PUSH_SECONDS`), the planning model's error ``model_error`` (pole masses and lengths scaled,
+:meth:`~cartpole.models.CartPoleParams.scaled_pole`) or a controller setting (``setting:<name>``: an energy-shaping
+scaling of :data:`~cartpole.control.energy.DEFAULT_SCALING` for ``energy``, ``period`` or ``horizon`` for ``mpc``).
+The runs are the Cartesian product of the grid axes (the first axis varies slowest), repeated ``n`` times with fresh
+draws when any axis is sampled; every input not on an axis is fixed (the start at the model's hanging rest, no push,
+no model error, the controller's own settings). Without axes a sweep is the classic start box below.
+
+Each run is :func:`cartpole.swingup.run_swingup` (``method="energy"``: energy shaping + LQR catch,
+``"trajopt"``: collocation + TVLQR, or ``"mpc"``: nonlinear MPC), in MuJoCo on the MJCF, so a sweep measures exactly what ``cartpole swingup``
 does. A run counts as a success when :func:`~cartpole.validation.metrics.swingup_success` holds (upright and at
 rest over the last second, cart never at its limit, every ctrl in range) *and* its log replays exactly with
 ``mj_step`` (:func:`~cartpole.sim.rollout.replays_exactly`). A run that raises a :class:`CartPoleError` (an
 infeasible plan from that start, say) is a failure whose row carries the sentence as ``error``. The catch basin is
-estimated once, before the runs (:class:`~cartpole.validation.basin.BasinCache`), and handed to every run.
+estimated once per planning model, before the runs, found on disk when an earlier run estimated it
+(:meth:`~cartpole.validation.basin.BasinCache.on_disk`), and handed to every run.
 
 Starts: ``center + U(-half_widths, half_widths)`` per state from ``numpy.random.default_rng(seed)``, default
 around the model's hanging rest ``x_hanging`` with half-widths 0.3 m per slide, 0.3 rad per hinge, 0.3 m/s per
@@ -15,16 +26,22 @@ slide rate and 1 rad/s per hinge rate (one pole: ``(0.3 m, 0.3 rad, 0.3 m/s, 1 r
 :data:`JITTERED` by an independent ``U(1 - j, 1 + j)`` factor per run (``energy_accel`` is capped at 1), drawn from
 the same generator after the starts.
 
+Every run's inputs are drawn in this process before any run starts, from ``numpy.random.default_rng(seed)``
+in a fixed order (the start box, then each sampled axis by name, then the gain jitter), so a description and a
+seed give the same runs in any order and on any number of workers.
+
 Parallel runs (``workers > 1``): a :class:`concurrent.futures.ProcessPoolExecutor` (``spawn`` start method) whose
-initializer builds the model once per worker process; every run depends only on the model, its start and its
-settings, so the rows are the same, bit for bit, for any number of workers, and they come back in run order.
+initializer builds the model once per worker process (and each planning model once, on its first run there);
+every run depends only on the model and its inputs, so the rows are the same, bit for bit, for any number of
+workers, and they come back in run order.
 On a cluster (``address``): the same runs as Dask distributed tasks on an existing scheduler; each worker process
 builds the model on its first run of the sweep and keeps it (:func:`_run_on_dask`). Runs already finished
 (``done``) are skipped, and ``on_row`` sees each row as it finishes (the command appends it to its results file).
 
-Example (the README's numbers)::
+Examples (the README's numbers)::
 
     cartpole sweep --n 20 --seed 0 --workers 2          # or: python -m cartpole.sweep --n 20
+    cartpole sweep --method trajopt --push-force -20 20 5 --model-error 0.8 1.2 5 --push-time 0.5
 """
 from __future__ import annotations
 
@@ -40,7 +57,7 @@ from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.progress import stage
 from cartpole.sim import replays_exactly
-from cartpole.swingup import ENERGY_DURATION, run_swingup
+from cartpole.swingup import ENERGY_DURATION, MPC_DURATION, check_model_error, planning_model, run_swingup
 from cartpole.validation.basin import BasinCache
 
 #: Default start box for one pole: centre (hanging at rest) and half-widths [m, rad, m/s, rad/s].
@@ -52,7 +69,11 @@ HINGE_HALF_WIDTHS = (0.3, 1.0)
 #: Dimensionless energy-shaping settings that ``gain_jitter`` perturbs.
 JITTERED = ("energy_gain", "overshoot", "energy_accel", "centring_frequency", "centring_damping",
             "damping_softening", "centring_band")
-METHODS = ("energy", "trajopt")
+METHODS = ("energy", "trajopt", "mpc")
+#: Controller settings an axis may sweep, per method (energy: its dimensionless scalings).
+SETTINGS = {"energy": tuple(DEFAULT_SCALING), "trajopt": (), "mpc": ("period", "horizon")}
+#: Push time (s) of a sweep that sweeps the push force but gives no push time.
+DEFAULT_PUSH_TIME = 0.5
 #: Most runs in one sweep (their rows are held in memory and printed as one JSON document).
 MAX_RUNS = 100_000
 #: Most worker processes.
@@ -62,7 +83,83 @@ CONNECT_TIMEOUT = 10.0
 
 
 class SweepError(CartPoleError):
-    """Bad sweep settings (no runs, negative widths, jitter outside [0, 1), an unknown method, bad workers)."""
+    """Bad sweep settings (no runs, negative widths, jitter outside [0, 1), an unknown method, bad workers or axes)."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept input of a sweep description.
+
+    Attributes
+    ----------
+    name : str
+        ``"push_force"`` (N), ``"push_time"`` (s), ``"model_error"`` (scale), ``"start:<joint>"`` (m or rad) or
+        ``"start:<joint>_rate"`` (m/s or rad/s) for a joint of the MJCF, or ``"setting:<name>"`` (a controller
+        setting, :data:`SETTINGS`).
+    low, high : float
+        The range (``low == high`` with ``count == 1``: a fixed value).
+    count : int or None
+        ``count`` grid points ``linspace(low, high, count)``; None: a seeded uniform sample in ``[low, high]`` per
+        run.
+    """
+
+    name: str
+    low: float
+    high: float
+    count: int | None = None
+
+    @property
+    def random(self) -> bool:
+        """True for a sampled axis, False for a grid (or a fixed value)."""
+        return self.count is None
+
+    def values(self) -> np.ndarray:
+        """The grid (``count`` values); a sampled axis has none."""
+        return np.linspace(self.low, self.high, int(self.count)) if self.count else np.empty(0)
+
+    def describe(self) -> dict:
+        """JSON-ready: ``name``, ``low``, ``high``, ``count`` (None: sampled)."""
+        return {"name": self.name, "low": float(self.low), "high": float(self.high), "count": self.count}
+
+    @property
+    def label(self) -> str:
+        """Axis label with its unit, for figures and prose."""
+        if self.name == "push_force":
+            return "push force [N]"
+        if self.name == "push_time":
+            return "push time [s]"
+        if self.name == "model_error":
+            return "planning model's pole mass and length scale"
+        if self.name.startswith("setting:"):
+            return self.name[len("setting:"):]
+        return f"start {self.name[len('start:'):]}"
+
+
+def axis(name: str, *values) -> Axis:
+    """An :class:`Axis` from the command line's numbers: ``V`` (fixed), ``LO HI`` (seeded uniform sample) or
+    ``LO HI K`` (grid of K points).
+
+    Raises
+    ------
+    SweepError
+        Not one, two or three finite numbers, ``K`` not a whole number >= 1, or ``LO > HI``.
+    """
+    try:
+        v = [float(x) for x in values]
+    except (TypeError, ValueError):
+        raise SweepError(f"The sweep axis {name} needs numbers (V, LO HI or LO HI K); got {list(values)}.") from None
+    if len(v) not in (1, 2, 3) or not all(math.isfinite(x) for x in v):
+        raise SweepError(f"The sweep axis {name} takes V (fixed), LO HI (random) or LO HI K (grid) finite numbers; "
+                         f"got {list(values)}.")
+    if len(v) == 1:
+        return Axis(name, v[0], v[0], 1)
+    if v[0] > v[1]:
+        raise SweepError(f"The sweep axis {name} runs from LO to HI; got LO {v[0]:g} > HI {v[1]:g}.")
+    if len(v) == 2:
+        return Axis(name, v[0], v[1], None)
+    if not (v[2] >= 1 and v[2] == int(v[2])):
+        raise SweepError(f"The sweep axis {name} needs a whole number K >= 1 of grid points; got {v[2]:g}.")
+    return Axis(name, v[0], v[1], int(v[2]))
 
 
 @dataclass(frozen=True)
@@ -105,6 +202,14 @@ class SweepResult:
         Processes of this machine the runs were spread over (1 when they ran on a Dask cluster, see ``address``).
     address : str or None
         The Dask scheduler the runs went to, or None.
+    pushes : tuple of tuple
+        Each run's pushes ``((T [s], F [N]),)`` or ``()``.
+    model_errors : (n,) array
+        Each run's planning-model scale (1: the MJCF's own).
+    settings : tuple of dict
+        Each run's swept controller settings (``{}`` when none is swept).
+    axes : tuple of Axis
+        The sweep description (empty: the classic start box).
     """
 
     mjcf: str
@@ -126,9 +231,21 @@ class SweepResult:
     errors: tuple = ()
     workers: int = 1
     address: str | None = None
+    pushes: tuple = ()
+    model_errors: np.ndarray | None = None
+    settings: tuple = ()
+    axes: tuple = ()
 
     def __post_init__(self):
-        for name in ("starts", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl", "half_widths"):
+        n = len(self.success)
+        if self.model_errors is None:
+            object.__setattr__(self, "model_errors", np.ones(n))
+        if not self.pushes:
+            object.__setattr__(self, "pushes", ((),) * n)
+        if not self.settings:
+            object.__setattr__(self, "settings", ({},) * n)
+        for name in ("starts", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl", "half_widths",
+                     "model_errors"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         object.__setattr__(self, "success", readonly(self.success, bool))
         rep = self.success if self.replays is None else self.replays
@@ -161,11 +278,28 @@ class SweepResult:
         t = self._t()
         return float(np.max(t)) if t.size else float("nan")
 
+    def axis_values(self, ax: Axis | str, params: CartPoleParams) -> np.ndarray:
+        """(n,) value of one swept input per run (``ax`` an :class:`Axis` or its name), e.g. for a figure."""
+        name = ax.name if isinstance(ax, Axis) else str(ax)
+        if name == "push_force":
+            return np.array([sum(F for _, F in p) for p in self.pushes], float)
+        if name == "push_time":
+            return np.array([p[0][0] if p else np.nan for p in self.pushes], float)
+        if name == "model_error":
+            return np.asarray(self.model_errors, float)
+        if name.startswith("setting:"):
+            key = name[len("setting:"):]
+            return np.array([st.get(key, np.nan) for st in self.settings], float)
+        return np.asarray(self.starts, float)[:, start_index(name, params)]
+
     def rows(self) -> list[dict]:
-        """One JSON-ready dict per run, in run order: ``run`` (index), ``start`` (2 nq numbers), ``success``,
-        ``replays``, ``time_to_upright`` (s or None), ``caught_at`` (s or None), ``cart_clearance`` (m),
-        ``peak_ctrl``, ``error`` (the sentence of a run that raised, else None)."""
-        return [{"run": i, "start": self.starts[i].tolist(), "success": bool(self.success[i]),
+        """One JSON-ready dict per run, in run order: ``run`` (index), ``start`` (2 nq numbers), ``push`` (list of
+        ``[T s, F N]``), ``model_error``, ``settings`` (swept controller settings), ``success``, ``replays``,
+        ``time_to_upright`` (s or None), ``caught_at`` (s or None), ``cart_clearance`` (m), ``peak_ctrl``,
+        ``error`` (the sentence of a run that raised, else None)."""
+        return [{"run": i, "start": self.starts[i].tolist(), "push": [list(p) for p in self.pushes[i]],
+                 "model_error": float(self.model_errors[i]), "settings": dict(self.settings[i]),
+                 "success": bool(self.success[i]),
                  "replays": bool(self.replays[i]), "time_to_upright": _num(self.time_to_upright[i]),
                  "caught_at": _num(self.caught_at[i]), "cart_clearance": _num(self.cart_clearance[i]),
                  "peak_ctrl": _num(self.peak_ctrl[i]), "error": self.errors[i]} for i in range(self.n)]
@@ -184,8 +318,8 @@ class SweepResult:
                     self.cart_clearance)) else np.nan),
                 "max_peak_ctrl": _num(np.nanmax(self.peak_ctrl) if np.any(np.isfinite(self.peak_ctrl)) else np.nan),
                 "failed": self.starts[~self.success].tolist(), "seed": self.seed, "duration": self.duration,
-                "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": self.rho,
-                "workers": self.workers, "address": self.address}
+                "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": _num(self.rho),
+                "workers": self.workers, "address": self.address, "axes": [a.describe() for a in self.axes]}
 
 
 def _num(v):
@@ -204,6 +338,136 @@ def sweep_starts(n: int, *, seed: int = 0, center=HANGING, half_widths=HALF_WIDT
     return _draw_starts(np.random.default_rng(seed), n, center, half_widths)
 
 
+def start_index(name: str, params: CartPoleParams) -> int:
+    """State index of a start axis ``start:<joint>`` (its position) or ``start:<joint>_rate`` (its rate).
+
+    Raises
+    ------
+    SweepError
+        No joint of that name in the MJCF (the sentence lists them).
+    """
+    key = name[len("start:"):] if name.startswith("start:") else name
+    names = [j.name for j in params.joints]
+    for i, j in enumerate(names):
+        if key == j:
+            return i
+        if key == f"{j}_rate":
+            return params.nq + i
+    raise SweepError(f"No joint '{key}' to sweep the start of; this MJCF's are {', '.join(names)} (add _rate for "
+                     "a rate).")
+
+
+def check_axes(axes, params: CartPoleParams, method: str) -> tuple:
+    """Validate a sweep description for this model and method; returns the axes as a tuple.
+
+    Raises
+    ------
+    SweepError
+        An unknown axis name, a start component of no joint, a setting the method does not have, a repeated axis, a
+        push time without a push force, a model error outside (0, 10] or a bad push time.
+    """
+    axes = tuple(axes or ())
+    seen = set()
+    for a in axes:
+        if not isinstance(a, Axis):
+            raise SweepError(f"A sweep axis must be an Axis (cartpole.sweep.axis(name, ...)); got {a!r}.")
+        if a.name in seen:
+            raise SweepError(f"The sweep axis {a.name} is given twice; give each input once.")
+        seen.add(a.name)
+        if a.name.startswith("start:"):
+            start_index(a.name, params)
+        elif a.name.startswith("setting:"):
+            key = a.name[len("setting:"):]
+            if key not in SETTINGS[method]:
+                have = ", ".join(SETTINGS[method]) or "none"
+                raise SweepError(f"The {method} method has no setting '{key}' to sweep (it has: {have}).")
+        elif a.name == "model_error":
+            for v in (a.low, a.high):
+                try:
+                    check_model_error(v)
+                except CartPoleError as exc:
+                    raise SweepError(first_line(exc) + ".") from None
+        elif a.name == "push_time":
+            if a.low < 0:
+                raise SweepError(f"The push time starts at {a.low:g} s; give times >= 0 s.")
+        elif a.name != "push_force":
+            raise SweepError(f"Unknown sweep axis '{a.name}'; sweep push_force, push_time, model_error, "
+                             "start:<joint>[_rate] or setting:<name>.")
+    if "push_time" in seen and "push_force" not in seen:
+        raise SweepError("A push time without a push force pushes nothing; add --push-force.")
+    if ("push_force" in seen or "push_time" in seen) and params.slide is None:
+        raise SweepError("This MJCF has no slide joint, so there is no cart to push; drop the push axes.")
+    return axes
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """Every run's inputs, drawn before any run starts (see the module notes)."""
+
+    starts: np.ndarray
+    options: tuple
+    pushes: tuple
+    model_errors: np.ndarray
+    settings: tuple
+
+
+def plan_runs(params: CartPoleParams, x0, axes: tuple, n: int, seed: int, *, center, half_widths,
+              gain_jitter: float = 0.0, base_options: dict | None = None) -> _Runs:
+    """The runs of a sweep description, in run order (deterministic in ``seed``; see the module notes).
+
+    Without axes: ``n`` starts ``center + U(-half_widths, half_widths)``. With axes: the grid axes' product
+    (first axis slowest), times ``n`` when any axis is sampled; starts default to ``x0``."""
+    rng = np.random.default_rng(seed)
+    base = dict(base_options or {})
+    nx = 2 * params.nq
+    if not axes:
+        starts = _draw_starts(rng, n, center, half_widths)
+        total = int(n)
+        grid_vals = {}
+        random_vals = {}
+    else:
+        grid = [a for a in axes if not a.random]
+        sampled = sorted((a for a in axes if a.random), key=lambda a: a.name)
+        reps = int(n) if sampled else 1
+        mesh = np.meshgrid(*[a.values() for a in grid], indexing="ij") if grid else []
+        cells = int(np.prod([a.count for a in grid])) if grid else 1
+        total = cells * reps
+        grid_vals = {a.name: np.repeat(m.ravel(), reps) for a, m in zip(grid, mesh)}
+        random_vals = {a.name: rng.uniform(a.low, a.high, total) for a in sampled}
+        starts = np.tile(np.asarray(x0, float), (total, 1))
+    if total > MAX_RUNS:
+        raise SweepError(f"This sweep description has {total} runs, more than {MAX_RUNS}; use fewer grid points.")
+    vals = {**grid_vals, **random_vals}
+    for name, v in vals.items():
+        if name.startswith("start:"):
+            starts[:, start_index(name, params)] = v
+    if params.slide is not None:
+        lo, hi = params.cart_range
+        starts[:, params.slide] = np.clip(starts[:, params.slide], lo + 1e-3, hi - 1e-3)
+    opts, settings = [], []
+    for i in range(total):
+        o = dict(base)
+        st = {}
+        for name, v in vals.items():
+            if name.startswith("setting:"):
+                st[name[len("setting:"):]] = float(v[i])
+        if gain_jitter > 0:
+            f = rng.uniform(1 - gain_jitter, 1 + gain_jitter, len(JITTERED))
+            for k, fk in zip(JITTERED, f):
+                val = float(o.get(k, DEFAULT_SCALING[k])) * fk
+                o[k] = min(val, 1.0) if k == "energy_accel" else val
+        opts.append(o)
+        settings.append(st)
+    force = vals.get("push_force")
+    when = vals.get("push_time")
+    pushes = tuple(() if force is None or force[i] == 0 else
+                   ((float(DEFAULT_PUSH_TIME if when is None else when[i]), float(force[i])),) for i in range(total))
+    model_errors = np.asarray(vals.get("model_error", np.ones(total)), float)
+    assert starts.shape == (total, nx)
+    return _Runs(starts=starts, options=tuple(opts), pushes=pushes, model_errors=model_errors,
+                 settings=tuple(settings))
+
+
 def default_half_widths(params: CartPoleParams) -> np.ndarray:
     """(2 nq,) start half-widths for a model: :data:`SLIDE_HALF_WIDTHS` / :data:`HINGE_HALF_WIDTHS` per joint,
     positions first, then rates (one pole on a cart: :data:`HALF_WIDTHS`)."""
@@ -212,7 +476,8 @@ def default_half_widths(params: CartPoleParams) -> np.ndarray:
 
 
 class _Runner:
-    """One process's share of a sweep: the model (built once), the basin cache, and the settings every run shares.
+    """One process's share of a sweep: the model (built once), each planning model (built once, on first use), the
+    basin cache, and the settings every run shares.
 
     The same object serves the in-process loop (``workers = 1``) and each worker process (through
     :func:`_init_worker`), so a run computes the same thing wherever it runs.
@@ -226,26 +491,42 @@ class _Runner:
         self.duration = duration
         self.catch_weights = catch_weights
         self.cache = cache
+        self.plans = {1.0: self.model}
 
-    def basin(self):
-        """The catch basin every run uses (estimated here once, then found in the cache): the energy method's LQR
-        catch, or for trajopt the hand-over LQR that takes over when the plan ends."""
+    def plan_model(self, model_error: float) -> CartPoleModel:
+        """The planning model of scale ``model_error`` (:func:`~cartpole.swingup.planning_model`), built once."""
+        S = float(model_error)
+        if S not in self.plans:
+            self.plans[S] = planning_model(self.model, S)
+        return self.plans[S]
+
+    def basin(self, model_error: float = 1.0):
+        """The catch basin the runs of this planning model use (estimated once, then found in the cache): the
+        energy method's LQR catch, or for trajopt the hand-over LQR that takes over when the plan ends; None for
+        mpc (no catch)."""
+        pm = self.plan_model(model_error)
+        if self.method == "mpc":
+            return None
         if self.method == "trajopt":
             from cartpole.ocp.pipeline import handover_catch
 
-            return self.cache.get(self.params, handover_catch(self.params, self.model))
+            return self.cache.get(self.params, handover_catch(self.params, pm))
         from cartpole.control.switching import swingup_catch
 
-        catch = swingup_catch(self.model) if self.catch_weights is None else \
-            swingup_catch(self.model, *self.catch_weights)
+        catch = swingup_catch(pm) if self.catch_weights is None else swingup_catch(pm, *self.catch_weights)
         return self.cache.get(self.params, catch)
 
-    def run(self, x0, options: dict) -> dict:
-        """One swing-up from ``x0``: its row's numbers (``success``, ``replays``, ``time_to_upright``, ...)."""
+    def run(self, x0, options: dict, push=(), model_error: float = 1.0, settings: dict | None = None) -> dict:
+        """One swing-up from ``x0`` with its push, model error and settings: its row's numbers (``success``,
+        ``replays``, ``time_to_upright``, ...)."""
+        settings = dict(settings or {})
+        energy = {**options, **settings} if self.method == "energy" else None
+        mpc = {k: settings.get(k) for k in ("period", "horizon")} if self.method == "mpc" else {}
         try:
             res = run_swingup(self.model, method=self.method, x0=x0, duration=self.duration,
-                              basin_cache=self.cache, energy_options=options if self.method == "energy" else None,
-                              catch_weights=self.catch_weights)
+                              basin_cache=self.cache, energy_options=energy, catch_weights=self.catch_weights,
+                              push=push or None, model_error=model_error, plan_model=self.plan_model(model_error),
+                              **mpc)
         except CartPoleError as exc:
             return {"success": False, "replays": False, "time_to_upright": math.nan, "caught_at": math.nan,
                     "cart_clearance": math.nan, "peak_ctrl": math.nan, "rho": math.nan,
@@ -280,8 +561,8 @@ def _init_worker(params, method, duration, catch_weights, cache) -> None:
     _WORKER = _Runner(params, method, duration, catch_weights, cache)
 
 
-def _run_in_worker(x0, options) -> dict:
-    row = _WORKER.run(x0, options)
+def _run_in_worker(x0, options, push=(), model_error=1.0, settings=None) -> dict:
+    row = _WORKER.run(x0, options, push, model_error, settings)
     row["basins"] = len(_WORKER.cache)  # 1: the parent's estimate was reused, not redone here
     return row
 
@@ -289,6 +570,12 @@ def _run_in_worker(x0, options) -> dict:
 def _check(method, n, workers, gain_jitter, half_widths, energy_options) -> None:
     if method not in METHODS:
         raise SweepError(f"Unknown sweep method '{method}'; choose one of {', '.join(METHODS)}.")
+    if method == "mpc":
+        import importlib.util
+
+        if importlib.util.find_spec("cartpole.ocp.nmpc") is None:
+            raise SweepError("The mpc method needs cartpole.ocp.nmpc (nonlinear MPC), which this installation does "
+                             "not have yet; use --method trajopt or energy.")
     if not (isinstance(n, (int, np.integer)) and 1 <= n <= MAX_RUNS):
         raise SweepError(f"A sweep needs 1 to {MAX_RUNS} runs (got n = {n}).")
     if not (isinstance(workers, (int, np.integer)) and 1 <= workers <= MAX_WORKERS):
@@ -305,17 +592,24 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                   half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
                   duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
                   progress=None, workers: int = 1, address: str | None = None, done: dict | None = None,
-                  on_row=None) -> SweepResult:
-    """Run the swing-up from ``n`` seeded starts (optionally with jittered gains) and summarise.
+                  on_row=None, axes=(), x0=None) -> SweepResult:
+    """Run the swing-up over a sweep description (``axes``; without: ``n`` seeded starts in a box, optionally with
+    jittered gains) and summarise.
 
     Parameters
     ----------
     mjcf : path or CartPoleParams or None
         The cart-pole (None = shipped asset).
-    method : {"energy", "trajopt"}
+    method : {"energy", "trajopt", "mpc"}
         Swing-up of every run (:func:`~cartpole.swingup.run_swingup`).
     n : int
-        Number of runs (1 to :data:`MAX_RUNS`).
+        Number of runs (1 to :data:`MAX_RUNS`) without axes; with axes, the number of draws per grid cell when
+        any axis is sampled (ignored for a pure grid, whose size is the product of the counts).
+    axes : sequence of Axis
+        The sweep description (:class:`Axis`, :func:`axis`): grids and seeded samples over start components,
+        the push, the model error and controller settings.
+    x0 : (2 nq,) array, optional
+        With axes: the start of every run where no start axis sets a component (default the hanging rest).
     seed : int
         Seed of ``numpy.random.default_rng`` for the starts (and the gain jitter).
     center : (2 nq,) array, optional
@@ -347,7 +641,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         keys :meth:`_Runner.run` returns) are used as given.
     on_row : callable, optional
         ``on_row(index, start, row)`` as each run finishes, in the order they finish (the command appends it to the
-        results file). An exception it raises (KeyboardInterrupt, say) stops the sweep; finished rows stay reported.
+        results file); ``row`` also carries the run's ``push``, ``model_error`` and ``settings``. An exception it raises (KeyboardInterrupt, say) stops the sweep; finished rows stay reported.
 
     Returns
     -------
@@ -364,32 +658,37 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     model = build_model(params)
     nx = 2 * params.nq
+    axes = check_axes(axes, params, method)
     center = model.x_hanging if center is None else np.asarray(center, float)
     half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
     if center.shape != (nx,) or half_widths.shape != (nx,):
         raise SweepError(f"The start box needs {nx} centre values and {nx} half-widths for this model (got "
                          f"{center.size} and {half_widths.size}).")
+    if x0 is not None and not axes:
+        raise SweepError("A fixed start x0 is for a sweep over axes; without axes the starts fill the start box.")
+    if x0 is not None:
+        from cartpole.swingup import check_start
+        try:
+            x0 = check_start(x0, params)
+        except CartPoleError as exc:
+            raise SweepError(first_line(exc) + ".") from None
+    base = dict(energy_options or {})
     if method == "energy":  # refuse a model energy shaping cannot drive before anything runs
         from cartpole.control.energy import EnergyShapingController
-        EnergyShapingController(model, **(energy_options or {}))
-    rng = np.random.default_rng(seed)
-    starts = _draw_starts(rng, n, center, half_widths)
-    if params.slide is not None:
-        lo, hi = params.cart_range
-        starts[:, params.slide] = np.clip(starts[:, params.slide], lo + 1e-3, hi - 1e-3)
-    base = dict(energy_options or {})
-    opts = []
-    for _ in range(n):
-        o = dict(base)
-        if gain_jitter > 0:
-            f = rng.uniform(1 - gain_jitter, 1 + gain_jitter, len(JITTERED))
-            for k, fk in zip(JITTERED, f):
-                v = float(o.get(k, DEFAULT_SCALING[k])) * fk
-                o[k] = min(v, 1.0) if k == "energy_accel" else v
-        opts.append(o)
-    cache = BasinCache() if basin_cache is None else basin_cache
+        EnergyShapingController(model, **base)
+    runs = plan_runs(params, model.x_hanging if x0 is None else x0, axes, n, seed, center=center,
+                     half_widths=half_widths, gain_jitter=gain_jitter, base_options=base)
+    starts, opts = runs.starts, list(runs.options)
+    n = len(starts)
+    cache = BasinCache.on_disk() if basin_cache is None else basin_cache
     runner = _Runner(params, method, duration, catch_weights, cache, model=model)
-    rho = float(runner.basin().rho)  # once, here, before the runs (and shipped to the workers in the cache)
+    # each planning model's basin once, here, before the runs (and shipped to the workers in the cache)
+    rhos = {}
+    for S in sorted(set(runs.model_errors.tolist())):
+        b = runner.basin(S)
+        rhos[S] = math.nan if b is None else float(b.rho)
+    rho = rhos.get(1.0, rhos[sorted(rhos)[0]])
+    jobs = [(starts[i], opts[i], runs.pushes[i], float(runs.model_errors[i]), runs.settings[i]) for i in range(n)]
     out: list = [None] * n
     for i, row in (done or {}).items():
         if 0 <= int(i) < n:
@@ -405,32 +704,34 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
             out[i] = row
             counter[0] += 1
             if on_row is not None:
-                on_row(i, starts[i], row)
+                on_row(i, starts[i], {**row, "push": runs.pushes[i], "model_error": float(runs.model_errors[i]),
+                                      "settings": dict(runs.settings[i])})
             tick(counter[0] / len(todo))
 
         if not todo:
             pass
         elif address:
-            _run_dask(address, runner, starts, opts, todo, finished)
+            _run_dask(address, runner, jobs, todo, finished)
         elif workers == 1:
             for i in todo:
-                finished(i, runner.run(starts[i], opts[i]))
+                finished(i, runner.run(*jobs[i]))
         else:
-            _run_parallel(runner, starts, opts, workers, todo, finished)
+            _run_parallel(runner, jobs, workers, todo, finished)
     return SweepResult(mjcf=params.mjcf, starts=starts, success=np.array([r["success"] for r in out], bool),
                        time_to_upright=np.array([r["time_to_upright"] for r in out], float),
                        caught_at=np.array([r["caught_at"] for r in out], float),
                        cart_clearance=np.array([r["cart_clearance"] for r in out], float),
                        peak_ctrl=np.array([r["peak_ctrl"] for r in out], float), options=tuple(opts), rho=rho,
                        seed=int(seed), duration=float(duration) if duration is not None else (
-                           ENERGY_DURATION if method == "energy" else None),
+                           {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method)),
                        half_widths=half_widths, gain_jitter=float(gain_jitter), base_options=base, method=method,
                        replays=np.array([r["replays"] for r in out], bool),
                        errors=tuple(r["error"] for r in out), workers=1 if address else workers,
-                       address=address or None)
+                       address=address or None, pushes=runs.pushes, model_errors=runs.model_errors,
+                       settings=runs.settings, axes=axes)
 
 
-def _run_parallel(runner: _Runner, starts, opts, workers: int, todo, finished) -> None:
+def _run_parallel(runner: _Runner, jobs, workers: int, todo, finished) -> None:
     """The runs ``todo`` on a process pool (one model per worker, built by the initializer); ``finished(i, row)``
     as each one comes back."""
     import multiprocessing
@@ -442,7 +743,7 @@ def _run_parallel(runner: _Runner, starts, opts, workers: int, todo, finished) -
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=init)
     try:
         with _sigint_ignored():  # workers start while submitting: they inherit the ignored Ctrl-C from birth
-            futures = {pool.submit(_run_in_worker, starts[i], opts[i]): i for i in todo}
+            futures = {pool.submit(_run_in_worker, *jobs[i]): i for i in todo}
         for fut in as_completed(futures):
             finished(futures[fut], fut.result())
     except BrokenProcessPool:
@@ -476,7 +777,7 @@ _RUNNERS: dict = {}
 _BUILT = [0]
 
 
-def _run_on_dask(token: str, init: tuple, x0, options) -> dict:
+def _run_on_dask(token: str, init: tuple, x0, options, push=(), model_error=1.0, settings=None) -> dict:
     """One run on a Dask worker: the runner for ``token`` is built on this worker process's first run of the
     sweep (MuJoCo's warnings dropped, as in a pool worker) and reused by every later one."""
     runner = _RUNNERS.get(token)
@@ -487,12 +788,12 @@ def _run_on_dask(token: str, init: tuple, x0, options) -> dict:
         _RUNNERS.clear()  # one sweep's model per worker at a time
         runner = _RUNNERS[token] = _Runner(*init)
         _BUILT[0] += 1
-    row = runner.run(x0, options)
+    row = runner.run(x0, options, push, model_error, settings)
     row["basins"] = len(runner.cache)
     return row
 
 
-def _run_dask(address: str, runner: _Runner, starts, opts, todo, finished) -> None:
+def _run_dask(address: str, runner: _Runner, jobs, todo, finished) -> None:
     """The runs ``todo`` on the Dask scheduler at ``address``; ``finished(i, row)`` as each one comes back."""
     import uuid
 
@@ -513,7 +814,9 @@ def _run_dask(address: str, runner: _Runner, starts, opts, todo, finished) -> No
         token = uuid.uuid4().hex
         index = {}
         for i in todo:
-            f = client.submit(_run_on_dask, token, init_f, np.asarray(starts[i]), opts[i], pure=False)
+            x0, options, push, model_error, settings = jobs[i]
+            f = client.submit(_run_on_dask, token, init_f, np.asarray(x0), options, push, model_error, settings,
+                              pure=False)
             index[f.key] = i
             futures.append(f)
         for fut in as_completed(futures, loop=client.loop):

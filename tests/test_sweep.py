@@ -35,7 +35,7 @@ def test_bad_settings_raise():
     with pytest.raises(SweepError):
         swingup_sweep(None, n=2, gain_jitter=1.5)
     with pytest.raises(SweepError, match="Unknown sweep method"):
-        swingup_sweep(None, method="mpc", n=1)
+        swingup_sweep(None, method="magic", n=1)
     with pytest.raises(SweepError, match="use --method energy"):
         swingup_sweep(None, method="trajopt", n=1, gain_jitter=0.1)
     with pytest.raises(SweepError, match="workers"):
@@ -111,3 +111,95 @@ def test_a_trajopt_sweep_reports_the_basin_of_the_hand_over_lqr():
     res = swingup_sweep(params, method="trajopt", n=1, seed=0)
     direct = estimate_basin(params, handover_catch(params, build_model(params)))  # estimated anew, no cache
     assert res.rho == direct.rho
+
+
+# ---- sweep descriptions: axes over starts, pushes, model error and controller settings -------------------------
+
+def test_axis_reads_a_fixed_value_a_sample_or_a_grid():
+    from cartpole.sweep import Axis, axis
+
+    assert axis("push_time", "0.5") == Axis("push_time", 0.5, 0.5, 1)
+    assert axis("push_force", -20, 20) == Axis("push_force", -20.0, 20.0, None) and axis("push_force", -20, 20).random
+    g = axis("model_error", 0.8, 1.2, 5)
+    assert not g.random and np.allclose(g.values(), [0.8, 0.9, 1.0, 1.1, 1.2])
+    for bad in [("a",), (1, 2, 3, 4), (2, 1), (0, 1, 2.5), (0, 1, 0), (np.nan,)]:
+        with pytest.raises(SweepError):
+            axis("push_force", *bad)
+
+
+def test_a_grid_sweep_is_the_product_of_its_axes_and_each_run_is_exactly_run_swingup():
+    from cartpole.models import build_model, read_params
+    from cartpole.sweep import axis
+    from cartpole.swingup import run_swingup
+
+    axes = [axis("push_force", -15, 15, 2), axis("model_error", 0.9, 1.1, 2), axis("push_time", 1.0)]
+    r = swingup_sweep(None, axes=axes, duration=4.0)
+    rows = r.rows()
+    assert [(row["push"], row["model_error"]) for row in rows] == [
+        ([[1.0, -15.0]], 0.9), ([[1.0, -15.0]], 1.1), ([[1.0, 15.0]], 0.9), ([[1.0, 15.0]], 1.1)]
+    assert all(row["start"] == list(build_model().x_hanging) for row in rows)  # no start axis: hanging rest
+    np.testing.assert_array_equal(r.axis_values("push_force", read_params()), [-15, -15, 15, 15])
+    one = run_swingup(None, method="energy", duration=4.0, push=[(1.0, 15.0)], model_error=0.9)
+    assert rows[2]["success"] == one.success
+    assert rows[2]["time_to_upright"] == (one.metrics["time_to_upright"] if one.success else None)
+    assert rows[2]["peak_ctrl"] == one.metrics["peak_ctrl"] and rows[2]["cart_clearance"] == one.metrics["cart_clearance"]
+    assert [a["name"] for a in r.summary()["axes"]] == ["push_force", "model_error", "push_time"]
+
+
+def test_sampled_axes_are_seeded_and_give_the_same_rows_on_two_workers():
+    from cartpole.sweep import axis
+
+    axes = [axis("start:hinge", 2.9, 3.4), axis("start:slider_rate", -0.2, 0.2), axis("setting:energy_gain", 12, 18, 2)]
+    one = swingup_sweep(None, axes=axes, n=2, seed=7, duration=2.0)
+    assert one.n == 4  # 2 grid points x 2 draws
+    starts = np.asarray(one.starts)
+    assert np.all((2.9 <= starts[:, 1]) & (starts[:, 1] <= 3.4)) and np.all(starts[:, [0, 3]] == 0)
+    assert [row["settings"] for row in one.rows()] == [{"energy_gain": 12.0}] * 2 + [{"energy_gain": 18.0}] * 2
+    assert not np.allclose(swingup_sweep(None, axes=axes, n=2, seed=8, duration=2.0).starts, starts)
+    two = swingup_sweep(None, axes=axes, n=2, seed=7, duration=2.0, workers=2)
+    assert two.rows() == one.rows()  # floats compared exactly
+
+
+@pytest.mark.parametrize("axes, words", [
+    ([("wind", 1.0)], "Unknown sweep axis"), ([("start:elbow", 1.0)], "No joint 'elbow'"),
+    ([("setting:horizon", 1.0)], "no setting 'horizon'"), ([("push_time", 1.0)], "without a push force"),
+    ([("model_error", 0.0, 1.0, 3)], "scale in"), ([("push_force", 1.0), ("push_force", 2.0)], "twice"),
+])
+def test_bad_axes_are_refused_before_any_run(axes, words):
+    from cartpole.sweep import axis
+
+    with pytest.raises(SweepError, match=words):
+        swingup_sweep(None, axes=[axis(name, *v) for name, *v in axes], on_row=lambda *a: pytest.fail("ran"))
+
+
+def test_a_sweep_finds_its_basins_on_disk_the_second_time(tmp_path, monkeypatch):
+    import cartpole.validation.basin as basin_mod
+    from cartpole.sweep import axis
+
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    axes = [axis("model_error", 0.9, 1.1, 2)]
+    first = swingup_sweep(None, axes=axes, duration=0.5)
+    assert len(list((tmp_path / "basins").glob("*.npz"))) == 2  # one catch per planning model
+    monkeypatch.setattr(basin_mod, "estimate_basin", lambda *a, **k: pytest.fail("estimated again"))
+    again = swingup_sweep(None, axes=axes, duration=0.5)
+    assert again.rows() == first.rows() and again.rho == first.rho
+
+
+def test_comparison_figure_puts_two_methods_side_by_side(tmp_path):
+    from cartpole.models import read_params
+    from cartpole.sweep import axis
+    from cartpole.viz.sweep_plot import comparison_figure, plot_comparison
+
+    axes = [axis("push_force", -10, 10, 2), axis("model_error", 0.9, 1.1, 2), axis("push_time", 0.5)]
+    res = [swingup_sweep(None, method=m, axes=axes, duration=3.0) for m in ("trajopt", "energy")]
+    params = read_params()
+    fig = comparison_figure(res, params)
+    maps = [ax for ax in fig.axes if ax.get_xlabel()]
+    assert len(maps) == 2 and all(ax.get_xlabel() == "push force [N]" for ax in maps)
+    assert "model error" in maps[0].get_ylabel() or "scale" in maps[0].get_ylabel()
+    assert "TVLQR" in maps[0].get_title() and "energy" in maps[1].get_title()
+    assert all(f"of {r.n} succeed" in ax.get_title() for ax, r in zip(maps, res))
+    path = plot_comparison(res, params, tmp_path / "cmp.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(ValueError):
+        comparison_figure(res[:1], params)

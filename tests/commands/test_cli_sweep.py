@@ -218,3 +218,85 @@ def test_ctrl_c_on_a_two_worker_sweep_keeps_the_finished_rows_and_resume_complet
     doc = _sweep(capsys, *QUICK[2:], "--n", "10", "--out", str(out), "--resume", "--workers", "2")
     assert doc["resumed"] == kept and doc["rows"] == ref["rows"]
     assert results.read_bytes() == (tmp_path / "ref" / "sweeps" / "sweep_energy.csv").read_bytes()
+
+
+def test_a_push_by_mass_error_trajopt_sweep_writes_its_map_and_results_and_every_success_replays(tmp_path, capsys,
+                                                                                                monkeypatch):
+    """The issue's 2-axis sweep of the single pole (push size x model error): results file and success map exist,
+    and every success, run again as `cartpole swingup` with its push and model error, replays with plain mj_step."""
+    pytest.importorskip("cartpole.ocp.pipeline")
+    from mj_replay import replay_with_mj_step
+
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    doc = _sweep(capsys, "--method", "trajopt", "--push-force", "-20", "20", "3", "--model-error", "0.9", "1.1", "3",
+                 "--push-time", "0.5", "--out", str(tmp_path))
+    rows = doc["rows"]
+    assert doc["n"] == len(rows) == 9 and [a["name"] for a in doc["axes"]] == ["push_force", "model_error",
+                                                                               "push_time"]
+    assert [(r["push"][0][1] if r["push"] else 0.0, r["model_error"]) for r in rows] == [
+        (f, s) for f in (-20.0, 0.0, 20.0) for s in (0.9, 1.0, 1.1)]
+    with open(tmp_path / "sweeps" / "sweep_trajopt.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert [float(t["push_force_N"]) for t in table] == [r["push"][0][1] if r["push"] else 0.0 for r in rows]
+    assert [float(t["model_error"]) for t in table] == [r["model_error"] for r in rows]
+    png = tmp_path / "figures" / "sweep_trajopt.png"
+    assert doc["figure"] == str(png.resolve()) and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    wins = [r for r in rows if r["success"]]
+    assert wins and all(r["replays"] for r in wins)
+    for r in wins:
+        push = [f"{T}:{F}" for T, F in r["push"]]
+        argv = ["swingup", "--method", "trajopt", "--json", "--no-video", "--out", str(tmp_path / "one"),
+                "--model-error", str(r["model_error"]), *[a for p in push for a in ("--push", p)]]
+        assert main(argv) == 0
+        one = json.loads(capsys.readouterr().out)
+        assert one["success"] is True and one["time_to_upright"] == r["time_to_upright"]
+        ro = one["rollout"]
+        qpos, qvel = replay_with_mj_step(one["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"], ro["push"])
+        assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
+
+
+def test_two_methods_write_each_sweep_and_the_maps_side_by_side(tmp_path, capsys):
+    pytest.importorskip("cartpole.ocp.pipeline")
+    doc = _sweep(capsys, "--method", "trajopt", "energy", "--push-force", "-10", "10", "2", "--model-error", "1.0",
+                 "1.1", "2", "--duration", "3", "--out", str(tmp_path))
+    assert doc["methods"] == ["trajopt", "energy"] and [s["method"] for s in doc["sweeps"]] == doc["methods"]
+    assert all(s["n"] == 4 for s in doc["sweeps"])
+    fig = tmp_path / "figures" / "sweep_compare.png"
+    assert doc["figure"] == str(fig.resolve()) and fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for m in doc["methods"]:
+        assert (tmp_path / "sweeps" / f"sweep_{m}.csv").exists() and (tmp_path / "figures" / f"sweep_{m}.png").exists()
+
+
+def test_trajopt_against_mpc_over_push_and_model_error(tmp_path, capsys):
+    pytest.importorskip("cartpole.ocp.nmpc")
+    doc = _sweep(capsys, "--method", "trajopt", "mpc", "--push-force", "0", "30", "2", "--model-error", "1.0", "1.2",
+                 "2", "--push-time", "3", "--workers", "2", "--out", str(tmp_path))
+    assert doc["methods"] == ["trajopt", "mpc"]
+    for s in doc["sweeps"]:
+        assert all(r["replays"] or r["error"] for r in s["rows"])
+    assert (tmp_path / "figures" / "sweep_compare.png").exists()
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--push-force", "a"], "needs numbers"), (["--push-force", "1", "2", "3", "4"], "takes V"),
+    (["--push-time", "1"], "without a push force"), (["--model-error", "0", "1", "3"], "scale in"),
+    (["--start", "elbow", "1"], "No joint 'elbow'"), (["--start", "hinge"], "takes a name"),
+    (["--setting", "horizon", "1"], "no setting 'horizon'"), (["--push-force", "-10", "10", "3", "--n", "4"], "grid"),
+    (["--x0", "0", "3.14", "0", "0"], "--x0 fixes the start"),
+    (["--push-force", "1", "--x0", "0", "3.14", "0"], "give exactly 4"),
+])
+def test_bad_axes_are_one_sentence_exit_2_and_nothing_written(argv, words, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["sweep", "--json", "--out", str(out), *argv]) == 2
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert cap.out == "" and len(lines) == 1 and lines[0].startswith("cartpole sweep: ") and words in lines[0], cap.err
+    assert not out.exists()
+
+
+def test_a_basin_style_sweep_over_start_angle_and_rate_maps_them(tmp_path, capsys):
+    doc = _sweep(capsys, "--start", "hinge", "2.9", "3.3", "2", "--start", "hinge_rate", "-1", "1", "2",
+                 "--duration", "2", "--out", str(tmp_path))
+    assert doc["n"] == 4 and sorted({tuple(r["start"][1::2]) for r in doc["rows"]}) == [
+        (2.9, -1.0), (2.9, 1.0), (3.3, -1.0), (3.3, 1.0)]
+    assert (tmp_path / "figures" / "sweep_energy.png").exists()
