@@ -27,10 +27,12 @@ step: the stages' values and exact Jacobians ``A_k``, ``B_k`` in one call of C c
 and solved by qpOASES (shipped with CasADi, ``casadi.conic("qpoases")``), hot-started from the previous step's
 active set. Why this solver: see ``README.md`` (NMPC) and :func:`cartpole.benchmark_mpc.run_mpc_benchmark`.
 
-Safe action: a QP that fails, or a step that returns anything non-finite, never raises inside the loop: the
-controller applies the previous plan's input for this instant (that plan shifted by the periods since it was
-solved) while the plan has stages left, else the upright discrete LQR of the period clipped to the ctrlranges,
-and records the instant in :attr:`NMPCController.failures`. The next instant tries again from the shifted plan.
+Safe action: a QP that fails, or a step that returns anything non-finite, never raises inside the loop. The
+controller applies the upright discrete LQR of the period (clipped to the ctrlranges) when every pole is within
+:data:`SAFE_LQR_ANGLE` of upright; otherwise (mid swing-up) the previous plan's input for this instant (that plan
+shifted by the periods since it was solved) while the plan has stages left, else that LQR. It records the instant
+in :attr:`NMPCController.failures`, and the next instant tries again from the plan's inputs simulated from the
+measured state.
 """
 from __future__ import annotations
 
@@ -55,6 +57,9 @@ DEFAULT_PERIOD = 0.02
 #: qpOASES (shipped with CasADi).
 QP_SOLVERS = ("daqp", "qpoases")
 _BIG = 1e30  # DAQP's "no bound"
+#: rad: within this of upright (every pole, wrapped) the safe action is the upright LQR, not the previous plan.
+SAFE_LQR_ANGLE = 0.5
+_RESEED_ABOVE = 1e3  # an iterate with an entry this large (m, rad, m/s, rad/s) is garbage: re-seed it
 #: Default exact-penalty weight on the rail slack, cost per m (or rad) of violation.
 RAIL_PENALTY = 1e3
 
@@ -338,6 +343,8 @@ class NMPCController:
         nb = len(p.bounded)
         nc = 2 * p.N * nb
         self._qp_data = _Buffered(self.functions.qp_data)
+        self._rollout = _Buffered(self.functions.rollout)
+        self._qp_flag = 0
         self._H = np.zeros((nz, nz))
         self._H[nzu, nzu] = p.rho2
         self._h = np.zeros(nz)
@@ -367,7 +374,8 @@ class NMPCController:
         upper = np.minimum(np.r_[ubx, uba], _BIG)
         lower = np.maximum(np.r_[lbx, lba], -_BIG)
         z, _, flag, _ = self._daqp(H, h, A, upper, lower, self._sense)
-        return np.asarray(z) if flag == 1 else None
+        self._qp_flag = int(flag)
+        return np.asarray(z) if flag in (1, 2) else None  # optimal, or optimal with soft constraints
 
     def _gn_step(self, x, S, U):
         """One Gauss-Newton step from nodes S (N+1, nx), inputs U (N, nu) with s_0 = x; returns (S, U, max|du|) or
@@ -397,7 +405,8 @@ class NMPCController:
         ubx = np.r_[(p.u_high - U).ravel(), np.inf]
         z = self._solve_qp(H, h, A_qp, lba, uba, lbx, ubx)
         if z is None:
-            raise _StepFailed("the QP solver reported failure")
+            raise _StepFailed(f"the QP solver ({self.qp_solver}) reported failure"
+                              + (f" (exit flag {self._qp_flag})" if self.qp_solver == "daqp" else ""))
         du = z[:nzu]
         if not np.all(np.isfinite(du)):
             raise _StepFailed("the QP returned non-finite inputs")
@@ -406,6 +415,12 @@ class NMPCController:
         if not np.all(np.isfinite(S_new)):
             raise _StepFailed("the linearised prediction is not finite")
         return S_new, U_new, float(np.abs(du).max()) if du.size else 0.0
+
+    def _reseed(self, x, U):
+        """Nodes (N+1, nx) simulated from the measured ``x`` under the inputs ``U`` (N, nu) (rest at ``x`` where
+        that simulation is not finite): a dynamically consistent iterate after a failure."""
+        S = np.vstack([x, self._rollout(x, U)[0].reshape(self.N, self.problem.nx)])
+        return S if np.all(np.isfinite(S)) and np.abs(S).max() < _RESEED_ABOVE else np.tile(x, (self.N + 1, 1))
 
     def _solve_instant(self, x, S, U):
         """The solve of one control instant from the shifted iterate: ``iterations`` Gauss-Newton steps."""
@@ -475,16 +490,25 @@ class NMPCController:
         try:
             if not np.all(np.isfinite(x)):
                 raise _StepFailed("the measured state is not finite")
+            if not (np.all(np.isfinite(self._S)) and np.abs(self._S).max() < _RESEED_ABOVE):
+                self._S = self._reseed(x, self._U)
             S, U = self._solve_instant(x, self._align(x, self._S), self._U)
             self._S, self._U, self._age = S, U, 0
             u = np.clip(U[0], self.problem.u_low, self.problem.u_high)
         except Exception as exc:  # noqa: BLE001 - never raise inside the loop: the documented safe action
-            if self._age < self.N:
+            finite = bool(np.all(np.isfinite(x)))
+            near = finite and np.all(np.abs(self.lqr.error(x)[list(self.problem.hinges)]) <= SAFE_LQR_ANGLE)
+            if not near and self._age < self.N:
                 u, action = np.clip(self._U[0], self.problem.u_low, self.problem.u_high), "previous plan"
             else:
-                u, action = self.lqr(t, x) if np.all(np.isfinite(x)) else self.problem.u_goal.copy(), "upright LQR"
+                u, action = self.lqr(t, x) if finite else self.problem.u_goal.copy(), "upright LQR"
             u = np.where(np.isfinite(u), u, self.problem.u_goal)
             self.failures.append({"t": float(t), "reason": str(exc) or type(exc).__name__, "action": action})
+            if np.all(np.isfinite(x)):  # next instant starts from a simulation of the plan's inputs from here
+                try:
+                    self._S = self._reseed(x, self._U)
+                except Exception:  # noqa: BLE001 - keep the shifted plan
+                    pass
         self.solve_ms.append(1e3 * (time.perf_counter() - t0))
         self._k_last = k
         self._u_hold = np.array(u, dtype=float)

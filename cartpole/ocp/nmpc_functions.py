@@ -3,10 +3,11 @@
 One stage of the multiple-shooting problem is ``steps`` MJCF physics steps of the model's exact discrete step
 (``model.step``: one step of the MJCF's own integrator) with the ctrl held, i.e. one control period. Its value and
 its exact Jacobians come from one SX function of a single physics step, ``(x, u) -> (x+, dx+/dx, dx+/du)``, chained
-``steps`` times by the chain rule (``A = A_m ... A_1``, ``B = sum A_m ... A_{i+1} B_i``) in an MX function, and that
-stage is mapped over the ``N`` stages of the horizon: one call evaluates every stage (the Gauss-Newton
-linearisation of the whole horizon). The generated C holds the single step once, so its size does not grow with
-``steps`` or ``N`` and any number of poles compiles.
+``steps`` times by the chain rule (``A = A_m ... A_1``, ``B = sum A_m ... A_{i+1} B_i``) in an MX function. That
+stage mapped over the ``N`` stages of the horizon, followed by the condensing of the Gauss-Newton QP onto the inputs
+(:func:`_qp_data`), is one function: one call per SQP step gives the QP's Hessian, gradient and state predictions.
+The generated C holds the single step once and the condensing as small dense products, so its size grows neither
+with ``steps`` nor much with ``N``, and any number of poles compiles in seconds.
 
 The shared library is cached like the collocation's (:mod:`cartpole.ocp.compiled`: :func:`~cartpole.ocp.compiled.cache_dir`,
 keyed by :func:`~cartpole.ocp.compiled.model_key`, the source, flags and CasADi version). With ``CARTPOLE_NO_COMPILE``
@@ -33,10 +34,6 @@ class StageFunctions:
 
     Attributes
     ----------
-    stages : casadi.Function
-        ``(S (nx, N), U (nu, N)) -> (F (nx, N), A (nx, nx N), B (nx, nu N))``: column ``k`` of ``F`` is the state
-        one control period after ``S[:, k]`` under the held ctrl ``U[:, k]``; ``A``, ``B`` hold each stage's
-        exact Jacobians side by side.
     qp_data : casadi.Function
         ``(x (nx,), S (nx, N+1), U (nu, N), x_goal (nx,), u_goal (nu,), Q (nx, nx), R (nu, nu), P (nx, nx)) ->
         (H (N nu, N nu), h (N nu,), g (nx, N+1), G ((N+1) nx, N nu))``: the Gauss-Newton QP of the step
@@ -44,7 +41,10 @@ class StageFunctions:
         ``1/2 du' H du + h' du`` (half the OCP's cost, constants dropped) and state corrections
         ``ds_k = g_k + G_k du``. Stages, Jacobians and condensing in one call.
     stage : casadi.Function
-        One stage ``(x (nx,), u (nu,)) -> (x_next, A (nx, nx), B (nx, nu))`` (compiled with ``stages``).
+        One stage ``(x (nx,), u (nu,)) -> (x_next, A (nx, nx), B (nx, nu))`` (compiled with ``qp_data``).
+    rollout : casadi.Function
+        ``(x (nx,), U (nu, N)) -> (nx, N)``: the states after each stage from ``x`` under the inputs ``U`` (a
+        forward simulation, to re-seed the iterate from a measured state).
     step_expr : casadi.Function
         One control period as one SX expression ``(x, u) -> x_next`` (for an NLP with ``expand=True``).
     library : str or None
@@ -55,8 +55,8 @@ class StageFunctions:
         Stages.
     """
 
-    stages: ca.Function
     qp_data: ca.Function
+    rollout: ca.Function
     stage: ca.Function
     step_expr: ca.Function
     library: str | None
@@ -153,21 +153,20 @@ def stage_functions(model: CartPoleModel, steps: int, N: int, *, compiled: bool 
     nx, nu = model.nx, model.nu
     one = _one_step(model)
     stage = _chained(one, steps, nx, nu)
-    S, U = ca.MX.sym("S", nx, N), ca.MX.sym("U", nu, N)
-    F, A, B = stage.map(N)(S, U)
-    stages = ca.Function("nmpc_stages", [S, U], [F, A, B], ["S", "U"], ["F", "A", "B"])
     qp_data = _qp_data(stage, nx, nu, N)
+    step_expr = _period_expr(model, steps)
+    x0, Ur = ca.MX.sym("x", nx), ca.MX.sym("U", nu, N)
+    rollout = ca.Function("nmpc_rollout", [x0, Ur], [step_expr.mapaccum(N)(x0, Ur)], ["x", "U"], ["S"])
     library = None
     if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
         try:
-            library, _ = _build_library([stages, stage, qp_data], _LIB_VERSION + model_key(model) + f"/{steps}x{N}")
-            stages = ca.external("nmpc_stages", library)
-            stage = ca.external("nmpc_stage", library)
-            qp_data = ca.external("nmpc_qp_data", library)
+            lib, _ = _build_library([stage, qp_data, rollout], _LIB_VERSION + model_key(model) + f"/{steps}x{N}")
+            ext = [ca.external(name, lib) for name in ("nmpc_stage", "nmpc_qp_data", "nmpc_rollout")]
+            stage, qp_data, rollout = ext
+            library = lib
         except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
             reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
             print(f"cartpole: compiled NMPC functions unavailable ({reason}); using CasADi's virtual machine "
                   "(same results, slower).", file=sys.stderr)
-            library = None
-    return StageFunctions(stages=stages, stage=stage, qp_data=qp_data, step_expr=_period_expr(model, steps), library=library,
+    return StageFunctions(stage=stage, qp_data=qp_data, rollout=rollout, step_expr=step_expr, library=library,
                           steps=int(steps), N=int(N))
