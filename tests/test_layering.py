@@ -41,7 +41,7 @@ LAYERS = (
     ("validation", ("cartpole.validation",)),
     ("viz", ("cartpole.viz",)),
     ("applications", ("cartpole.lab", "cartpole.swingup", "cartpole.sweep", "cartpole.benchmark",
-                      "cartpole.feedforward")),
+                      "cartpole.benchmark_mpc", "cartpole.feedforward")),
     ("commands", ("cartpole.commands", "cartpole.cli", "cartpole.__main__")),
 )
 TOP = "cartpole"
