@@ -9,3 +9,5 @@ from cartpole.ocp.trajectory import Trajectory, TrajectoryError
 __all__ = ["OCPBounds", "bounds_from_model", "bounds_from_params", "DirectCollocation", "OCPError", "OCPInfeasible",
            "SolveInfo", "SwingupPlan", "handover_catch", "minimum_time", "trajopt_swingup", "Trajectory", "TrajectoryError",
            "Objective", "Reward", "make_objective", "reward"]
+from cartpole.ocp.nmpc import NMPCController, NMPCError, nmpc_swingup  # noqa: E402
+__all__ += ["NMPCController", "NMPCError", "nmpc_swingup"]
