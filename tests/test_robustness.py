@@ -10,7 +10,7 @@ import pytest
 from cartpole.models import SHIPPED_MJCF, build_model, read_params
 from cartpole.ocp.pipeline import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
-from cartpole.validation.metrics import cart_range_used, ctrl_within_range, pole_angle_errors
+from cartpole.validation.metrics import cart_range_used, ctrl_within_range, pole_angle_errors, swingup_metrics
 
 HANGING = np.array([0.0, np.pi, 0.0, 0.0])
 
@@ -105,3 +105,60 @@ def test_pipeline_tracks_a_tilted_two_pole_cart_and_hands_over_to_lqr():
     err = model.state_error(x[on_plan], plan.trajectory.state(ro.t[on_plan]))
     assert np.abs(err[:, :model.nq]).max() < 0.05
     assert np.abs(model.state_error(x[-1])).max() < 0.01
+
+
+# ---- two and three poles (issue 11, item 5) ----------------------------------------------------------------------
+# Planned on a wrong model or from hanging rest, run in MuJoCo on the file from hanging rest or from a start a few
+# hundredths of a radian off; success is swingup_success over the last 3 s (every pole within 0.05 rad of upright,
+# hinge rates and cart speed below 0.1, cart off its limits, ctrl in range) on a log that replays exactly.
+CHAIN_HOLD = 3.0
+CHAIN_AFTER = 8.0  # s after the plan: the catch brings the cart back to rest (slowest on a wrong model), then the hold
+#: start offsets (rad) on (first hinge, ..., last hinge): all one way, all the other, first and last opposed
+OFFSET = 0.03
+
+
+def _offsets(model, d):
+    hinges = list(model.hinges)
+    rows = [np.full(len(hinges), d), np.full(len(hinges), -d), np.zeros(len(hinges))]
+    rows[2][0], rows[2][-1] = d, -d
+    out = []
+    for r in rows:
+        x0 = np.array(model.x_hanging, dtype=float)
+        x0[hinges] += r
+        out.append(x0)
+    return out
+
+
+def _chain_run(params, plan, x0, label):
+    model = build_model(params)
+    ro = simulate(params, plan.controller, x0, plan.T + CHAIN_AFTER)
+    assert replays_exactly(ro, params)
+    m = swingup_metrics(ro, model, hold=CHAIN_HOLD)
+    print(f"{label}: success {m['success']}, time to upright {m['time_to_upright']} s, "
+          f"final max |error| {np.abs(model.state_error(ro.x[-1])).max():.2g}, cart clearance "
+          f"{m['cart_clearance']:.3f} m")
+    return m
+
+
+@pytest.fixture(scope="module", params=["two_pole", "three_pole"])
+def chain_params(request):
+    return request.param, read_params(SHIPPED_MJCF.with_name(f"cartpole_{request.param}.xml"))
+
+
+@pytest.mark.parametrize("mass_factor", [1.05, 0.95])
+def test_chain_swings_up_with_the_planning_models_pole_masses_off_by_5_percent(chain_params, mass_factor):
+    name, params = chain_params
+    wrong = build_model(params.scaled_pole(mass_factor, 1.0))
+    plan = trajopt_swingup(params, model=wrong)
+    assert plan.model is wrong
+    m = _chain_run(params, plan, build_model(params).x_hanging, f"{name}, pole masses x{mass_factor} in the plan")
+    assert m["success"], m
+
+
+def test_chain_swings_up_from_starts_a_few_hundredths_of_a_radian_off(chain_params):
+    name, params = chain_params
+    model = build_model(params)
+    plan = trajopt_swingup(params)  # planned from hanging rest; TVLQR absorbs the offset
+    results = [_chain_run(params, plan, x0, f"{name}, start offsets {np.round(x0[list(model.hinges)] - model.x_hanging[list(model.hinges)], 3).tolist()} rad")
+               for x0 in _offsets(model, OFFSET)]
+    assert all(m["success"] for m in results), results
