@@ -9,6 +9,7 @@ better, but a plan that saturates the actuator everywhere leaves TVLQR no author
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -18,8 +19,7 @@ from cartpole.control.linear import LinearFeedback
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
-from cartpole.ocp.bounds import bounds_from_params
-from cartpole.ocp.bounds import OCPError
+from cartpole.ocp.bounds import OCPError, bounds_from_params
 from cartpole.ocp.collocation import Attempt, DirectCollocation, SolveInfo
 from cartpole.ocp.objectives import make_objective
 from cartpole.ocp.trajectory import Trajectory
@@ -49,6 +49,9 @@ class SwingupPlan:
     objective : str
         Name of the objective the plan optimised (``effort``, ``time``, ``tracking``, ``dmc_swingup`` or the user
         function's name).
+    plan_time_s : float
+        Wall time in s of the whole :func:`trajopt_swingup` call that made this plan: every guess of the
+        multi-start, every stage, building (and compiling, on a cold cache) the solvers, and TVLQR.
     """
 
     trajectory: Trajectory
@@ -59,6 +62,7 @@ class SwingupPlan:
     model: CartPoleModel
     T_min: float | None = None
     objective: str = "effort"
+    plan_time_s: float = float("nan")
 
     @property
     def T(self) -> float:
@@ -69,6 +73,8 @@ class SwingupPlan:
 #: IPOPT iterations allowed to each start of the coarse minimum-time multi-start: a start that has not converged
 #: by then counts as failed (a converging start needs 30 to 200 on the shipped carts).
 EXPLORE_MAX_ITER = 250
+#: Duration in s of the initial guesses of a minimum-time multi-start (a free-time solve moves it).
+GUESS_T = 2.0
 
 
 def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
@@ -115,26 +121,38 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     x0 = ocp._check_state("start state", model.x_hanging if x0 is None else x0)
     x_goal = ocp._check_state("goal state", model.x_eq if x_goal is None else x_goal)
 
-    def guesses(n):
-        return named_guesses(model, x0, x_goal, 2.0, n, bounds=ocp.bounds, count=starts)
-
+    # From near upright (every hinge within a quarter turn of the goal) a free-time solve from a guess tends to
+    # shrink T faster than it gains feasibility and stops at T's lower bound, locally infeasible; there each guess
+    # is first made dynamically feasible by the fixed-time effort problem at the guess's T (a homotopy in T).
+    near = all(abs((x0[i] - x_goal[i] + np.pi) % (2 * np.pi) - np.pi) < 0.5 * np.pi for i in model.hinges)
     attempts: list = []
+
+    def explore(target: DirectCollocation):
+        n = target.N
+        named = named_guesses(model, x0, x_goal, GUESS_T, n, bounds=target.bounds, count=starts)
+        if near:
+            eff = DirectCollocation(model, N=n, T=GUESS_T, solver=solver, solver_options=capped, **bounds)
+            feasible, tried = eff.multistart(x0, x_goal, named, stage=f"effort T={GUESS_T:g} N={n}")
+            attempts.extend(tried)
+            named = [(f"{info.guess} via effort", traj) for traj, info in sorted(feasible, key=lambda s: s[1].start)]
+        sols, tried = target.multistart(x0, x_goal, named, stage=f"time N={n}")
+        attempts.extend(tried)
+        return sols
+
     if Nc < N:
         coarse = DirectCollocation(model, N=Nc, T=None, objective="time", solver=solver, solver_options=capped,
                                    **bounds)
-        rough, tried = coarse.multistart(x0, x_goal, guesses(Nc), stage=f"time N={Nc}")
-        attempts += tried
         # refine the coarse solutions, fastest first: a coarse mesh can admit a motion the fine one does not
-        for traj, info in rough:
+        for traj, info in explore(coarse):
             sols, tried = ocp.multistart(x0, x_goal, [(f"{info.guess} refined", traj)], stage=f"time N={N}")
-            attempts += tried
+            attempts.extend(tried)
             if sols:
                 return sols[0][1].T, sols[0][0], replace(sols[0][1], attempts=tuple(attempts))
-    sols, tried = ocp.multistart(x0, x_goal, guesses(N), stage=f"time N={N}")
-    attempts += tried
+    sols = explore(ocp)
     if sols:
         return sols[0][1].T, sols[0][0], replace(sols[0][1], attempts=tuple(attempts))
-    raise ocp.diagnose(x0, x_goal, guesses(N)[0][1], None)
+    raise ocp.diagnose(x0, x_goal, named_guesses(model, x0, x_goal, GUESS_T, N, bounds=ocp.bounds, count=1)[0][1],
+                       None)
 
 
 #: Seconds of the horizon beyond the minimum swing-up time for the running objectives (tracking, dmc_swingup,
@@ -236,6 +254,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     -------
     SwingupPlan
     """
+    tic = time.perf_counter()
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     plan_model = model if model is not None else build_model(params)
     Q0, R0 = lab_weights(plan_model)
@@ -282,4 +301,4 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
     controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
     return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
-                       model=plan_model, T_min=T_min, objective=obj.name)
+                       model=plan_model, T_min=T_min, objective=obj.name, plan_time_s=time.perf_counter() - tic)
