@@ -25,9 +25,9 @@ def main() -> None:
     b = r["baseline"]
     print(f"NMPC (RTI, {r['qp_solver']}, compiled={r['compiled']}), period {r['period']:g} s, horizon "
           f"{r['horizon']:g} s (N = {r['N']}), single-pole swing-up in MuJoCo, {r['steps']} control steps:")
-    print(f"  RTI      median {r['solve_ms_median']:.3f} ms, max {r['solve_ms_max']:.3f} ms, "
+    print(f"  RTI      median {r['solve_ms_median']:.3f} ms, p99 {r['solve_ms_p99']:.3f} ms, max {r['solve_ms_max']:.3f} ms, "
           f"swing-up success {r['success']}, safe-action fallbacks {r['failures']}")
-    print(f"  IPOPT    median {b['solve_ms_median']:.3f} ms, max {b['solve_ms_max']:.3f} ms, "
+    print(f"  IPOPT    median {b['solve_ms_median']:.3f} ms, p99 {b['solve_ms_p99']:.3f} ms, max {b['solve_ms_max']:.3f} ms, "
           f"swing-up success {b['success']}, unconverged {b['unconverged']}")
     print(f"  speed-up (medians) {r['speedup_median']:.1f}x")
 

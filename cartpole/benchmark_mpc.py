@@ -48,8 +48,9 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
     Returns
     -------
     dict
-        ``solve_ms_median``, ``solve_ms_max`` (ms per control step, pooled), ``steps`` (control steps timed),
-        ``baseline`` {``solve_ms_median``, ``solve_ms_max``, ``steps``, ``success``, ``unconverged``},
+        ``solve_ms_median``, ``solve_ms_max``, ``solve_ms_p99`` (ms per control step, pooled), ``steps`` (control
+        steps timed), ``baseline`` {``solve_ms_median``, ``solve_ms_max``, ``solve_ms_p99``, ``steps``, ``success``,
+        ``unconverged`` (instants IPOPT did not converge), ``solver``},
         ``speedup_median`` (baseline median / NMPC median), ``period``, ``horizon`` (s), ``N``, ``qp_solver``,
         ``compiled`` (bool), ``success`` (every NMPC run swung up and held, :func:`swingup_success`),
         ``failures`` (NMPC instants that took the safe action), ``repeats``, ``duration``.
@@ -64,8 +65,10 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
     failures = len(rti.failures)
     t_base, ok_base = _runs(base, params, x0, duration, max(1, int(baseline_repeats)))
     med, med_b = float(np.median(t_rti)), float(np.median(t_base))
-    return {"solve_ms_median": med, "solve_ms_max": float(np.max(t_rti)), "steps": len(t_rti),
-            "baseline": {"solve_ms_median": med_b, "solve_ms_max": float(np.max(t_base)), "steps": len(t_base),
+    return {"solve_ms_median": med, "solve_ms_max": float(np.max(t_rti)),
+            "solve_ms_p99": float(np.percentile(t_rti, 99)), "steps": len(t_rti),
+            "baseline": {"solve_ms_median": med_b, "solve_ms_max": float(np.max(t_base)),
+                         "solve_ms_p99": float(np.percentile(t_base, 99)), "steps": len(t_base),
                          "success": all(ok_base), "unconverged": len(base.unconverged), "solver": "ipopt"},
             "speedup_median": med_b / med, "period": rti.period, "horizon": rti.horizon, "N": rti.N,
             "qp_solver": rti.qp_solver, "compiled": rti.library is not None, "success": all(ok_rti),

@@ -172,3 +172,15 @@ def test_bad_construction_arguments_raise_one_sentence(params, model, kwargs):
     assert isinstance(err.value, CartPoleError)
     msg = str(err.value)
     assert "\n" not in msg and msg.endswith(".")
+
+
+def test_nmpc_swings_the_two_pole_cart_up_from_hanging_rest():
+    """Not required by the issue, reported: the double pole swung up and held by NMPC from its offline plan."""
+    params2 = read_params(TWO_POLE)
+    model2 = build_model(params2)
+    ctrl = nmpc_swingup(params2, model=model2, init_iterations=200)
+    assert ctrl.init_info["converged"]
+    ro = simulate(params2, ctrl, model2.x_hanging, 5.0)
+    assert replays_exactly(ro)
+    assert swingup_success(ro, params2)
+    assert ctrl.failures == []
