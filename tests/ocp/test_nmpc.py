@@ -67,15 +67,19 @@ def test_nmpc_swings_the_pole_up_from_hanging_rest_and_holds_it(params, model, s
 
 
 def test_nmpc_recovers_from_a_push_that_the_tvlqr_pipeline_does_not_survive(params, model, swingup, tvlqr_plan):
-    push = _push(0.5, 40.0)  # 40 N for 0.1 s, half a second into the swing-up
+    """60 N for 0.1 s at 1.0 s, as the pole nears upright: the middle of a region (0.95-1.1 s, 55-65 N) where NMPC
+    recovered and TVLQR did not in every run we made, compiled or not (recoveries near the rail are sensitive to
+    rounding, single pushes at the region's edge are not a fair test)."""
+    push = _push(1.0, 60.0)
     swingup.reset()
     tvlqr_plan.controller.reset()
-    ro_mpc = simulate(params, swingup, model.x_hanging, 4.0, push=push)
-    ro_tv = simulate(params, tvlqr_plan.controller, model.x_hanging, 4.0, push=push)
-    assert np.max(ro_mpc.info["push"]) == 40.0 and np.max(ro_tv.info["push"]) == 40.0
+    ro_mpc = simulate(params, swingup, model.x_hanging, 6.0, push=push)
+    ro_tv = simulate(params, tvlqr_plan.controller, model.x_hanging, 6.0, push=push)
+    assert np.max(ro_mpc.info["push"]) == 60.0 and np.max(ro_tv.info["push"]) == 60.0
     assert replays_exactly(ro_mpc) and replays_exactly(ro_tv)
     assert not swingup_success(ro_tv, params)
     assert swingup_success(ro_mpc, params)
+    assert swingup.failures == []
 
 
 @pytest.mark.parametrize("mass_factor", [0.8, 1.2])
@@ -152,7 +156,9 @@ def test_gauss_newton_iterated_to_convergence_reaches_the_ipopt_solution_of_the_
     np.testing.assert_allclose(S_gn, S_ip, atol=1e-5)
 
 
-def test_compiled_and_virtual_machine_functions_and_both_qp_solvers_give_the_same_control(params, model):
+def test_compiled_and_virtual_machine_functions_and_both_qp_solvers_give_the_same_control(params, model,
+                                                                                        monkeypatch):
+    monkeypatch.delenv("CARTPOLE_NO_COMPILE", raising=False)
     x = _tilted(model, 0.2)
     ref = NMPCController(model, params, horizon=0.6, qp_solver="daqp")
     others = [NMPCController(model, params, horizon=0.6, qp_solver="daqp", compiled=False),
