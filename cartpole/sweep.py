@@ -76,6 +76,8 @@ SETTINGS = {"energy": tuple(DEFAULT_SCALING), "trajopt": (), "mpc": ("period", "
 DEFAULT_PUSH_TIME = 0.5
 #: Most runs in one sweep (their rows are held in memory and printed as one JSON document).
 MAX_RUNS = 100_000
+#: Most distinct planning models whose basins the sweep estimates before its runs (more: each run its own).
+MAX_SHARED_BASINS = 32
 #: Most worker processes.
 MAX_WORKERS = 256
 #: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
@@ -185,7 +187,7 @@ class SweepResult:
     options : tuple of dict
         The energy-shaping keyword arguments of each run (jittered settings), as passed to the controller.
     rho : float
-        Catch level used (the basin estimate's).
+        Catch level of the nominal planning model (the basin estimate's; NaN for mpc, which has no catch).
     seed : int
     duration : float or None
         Simulated seconds per run (energy default 10 s; None for trajopt's default, each plan + 3 s).
@@ -682,12 +684,14 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     n = len(starts)
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
     runner = _Runner(params, method, duration, catch_weights, cache, model=model)
-    # each planning model's basin once, here, before the runs (and shipped to the workers in the cache)
+    # each planning model's basin once, here, before the runs (and shipped to the workers in the cache); a sampled
+    # model error has a planning model per run: those runs estimate their own basin where they run (in parallel)
+    scales = sorted(set(runs.model_errors.tolist()))
     rhos = {}
-    for S in sorted(set(runs.model_errors.tolist())):
+    for S in (scales if len(scales) <= MAX_SHARED_BASINS else [1.0]):
         b = runner.basin(S)
         rhos[S] = math.nan if b is None else float(b.rho)
-    rho = rhos.get(1.0, rhos[sorted(rhos)[0]])
+    rho = rhos.get(1.0, rhos[scales[0]] if scales[0] in rhos else math.nan)
     jobs = [(starts[i], opts[i], runs.pushes[i], float(runs.model_errors[i]), runs.settings[i]) for i in range(n)]
     out: list = [None] * n
     for i, row in (done or {}).items():
@@ -742,7 +746,8 @@ def _run_parallel(runner: _Runner, jobs, workers: int, todo, finished) -> None:
     init = (runner.params, runner.method, runner.duration, runner.catch_weights, runner.cache)
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=init)
     try:
-        with _sigint_ignored():  # workers start while submitting: they inherit the ignored Ctrl-C from birth
+        # workers start while submitting: they inherit the ignored Ctrl-C and one BLAS/OpenMP thread from birth
+        with _sigint_ignored(), _one_blas_thread():
             futures = {pool.submit(_run_in_worker, *jobs[i]): i for i in todo}
         for fut in as_completed(futures):
             finished(futures[fut], fut.result())
@@ -751,6 +756,27 @@ def _run_parallel(runner: _Runner, jobs, workers: int, todo, finished) -> None:
                          f"{workers}.") from None
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: Environment of a pool worker: one BLAS / OpenMP thread (what Dask's nanny gives its workers too). OpenBLAS's
+#: threads spin after each call; two workers with two each on two cores take turns instead of running (measured:
+#: a 2-worker energy sweep 10-40 % slower with the default).
+_WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+@contextmanager
+def _one_blas_thread():
+    """Processes spawned inside get :data:`_WORKER_ENV` (unless the user set those variables); this process's own
+    environment is restored after the block."""
+    import os
+
+    added = {k: v for k, v in _WORKER_ENV.items() if k not in os.environ}
+    os.environ.update(added)
+    try:
+        yield
+    finally:
+        for k in added:
+            os.environ.pop(k, None)
 
 
 @contextmanager
@@ -850,9 +876,10 @@ def summary_line(s: dict) -> str:
 
 
 def main(argv=None) -> int:
-    """``python -m cartpole.sweep [--mjcf P ...] [--method M] [--n N] [--seed S] [--workers W] [--jitter J]
-    [--options JSON] [--json]``: one summary line (or a JSON list of summaries) per model. ``cartpole sweep`` is
-    the command-line contract (one model, rows and a CSV results file); this entry point is kept for scripts."""
+    """``python -m cartpole.sweep [--mjcf P ...] [--method M] [--n N] [--seed S] [--workers W] [--address ADDR]
+    [--duration S] [--jitter J] [--options JSON] [--json]``: one summary line (or a JSON list of summaries) per model.
+    ``cartpole sweep`` is the command-line contract (one model, axes, rows and a CSV results file); this entry point
+    is kept for scripts."""
     import argparse
     import json
     import sys
@@ -865,6 +892,8 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--address", default=None, help="a Dask distributed scheduler (tcp://host:port) to run on")
+    ap.add_argument("--duration", type=float, default=None, help="simulated seconds per run")
     ap.add_argument("--jitter", type=float, default=0.0, help="relative gain jitter (0 = none)")
     ap.add_argument("--options", default="{}", help="JSON dict of energy-shaping settings")
     ap.add_argument("--json", action="store_true")
@@ -881,7 +910,7 @@ def main(argv=None) -> int:
         with reporting("sweep", enabled=not a.json):
             for path in a.mjcf:
                 r = swingup_sweep(path, method=a.method, n=a.n, seed=a.seed, gain_jitter=a.jitter,
-                                  energy_options=opts, workers=a.workers)
+                                  energy_options=opts, workers=a.workers, address=a.address, duration=a.duration)
                 s = r.summary()
                 out.append(s)
                 if not a.json:

@@ -162,6 +162,18 @@ def test_a_local_dask_cluster_gives_the_rows_of_one_worker_bit_for_bit(dask_clus
     assert 1 <= sum(built.values()) <= 2, built
 
 
+def test_python_m_cartpole_sweep_runs_on_a_dask_address_too(dask_cluster, capsys):
+    from cartpole.sweep import main as sweep_main
+
+    addr = dask_cluster.scheduler_address
+    assert sweep_main(["--n", "2", "--seed", "3", "--duration", "2", "--address", addr, "--json"]) == 0
+    (summary,) = json.loads(capsys.readouterr().out)
+    assert summary["address"] == addr and summary["n"] == 2
+    assert sweep_main(["--n", "2", "--seed", "3", "--duration", "2", "--json"]) == 0
+    (local,) = json.loads(capsys.readouterr().out)
+    assert {k: v for k, v in local.items() if k != "address"} == {k: v for k, v in summary.items() if k != "address"}
+
+
 def _models_built() -> int:
     from cartpole.sweep import _BUILT
 
