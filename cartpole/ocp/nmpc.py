@@ -398,10 +398,9 @@ class NMPCController:
         N, nx, nu = p.N, p.nx, p.nu
         nzu = N * nu
         # (N+1, nx) row-major is (nx, N+1) column-major: CasADi's layout, no copies
-        Hu, hu, g, Gt = self._qp_data(x, S, U, p.goal_near(S[-1]), p.u_goal, p.Qs, p.Rs, p.P)
+        Hu, hu, g, G1 = self._qp_data(x, S, U, p.goal_near(S[-1]), p.u_goal, p.Qs, p.Rs, p.P)
         g = g.reshape(N + 1, nx)
-        Gt = Gt.reshape(nzu, N + 1, nx)  # G' ((N+1) nx, nzu), column-major
-        Gf = Gt.reshape(nzu, -1)
+        G1 = G1.reshape(N, nzu, nx)  # [k] = G_k+1' (stages 1..N; G_0 = 0)
         H, h = self._H, self._h
         H[:nzu, :nzu] = Hu.reshape(nzu, nzu)
         h[:nzu] = hu
@@ -409,7 +408,7 @@ class NMPCController:
         A_qp, lba, uba = self._A, self._lba, self._uba
         if nb:
             idx = list(p.bounded)
-            rows = Gt[:, 1:, idx].transpose(1, 2, 0).reshape(N * nb, nzu)  # stage-major, bound-minor
+            rows = G1[:, :, idx].transpose(0, 2, 1).reshape(N * nb, nzu)  # stage-major, bound-minor
             val = (S[1:, idx] + g[1:, idx]).ravel()
             A_qp[:N * nb, :nzu] = rows
             A_qp[N * nb:, :nzu] = rows
@@ -424,7 +423,8 @@ class NMPCController:
         du = z[:nzu]
         if not np.all(np.isfinite(du)):
             raise _StepFailed("the QP returned non-finite inputs")
-        ds = g + (du @ Gf).reshape(N + 1, nx)
+        ds = g.copy()
+        ds[1:] += np.tensordot(G1, du, axes=([1], [0]))
         S_new, U_new = S + ds, np.clip(U + du.reshape(N, nu), p.u_low, p.u_high)
         if not np.all(np.isfinite(S_new)):
             raise _StepFailed("the linearised prediction is not finite")

@@ -174,7 +174,7 @@ def test_compiled_and_virtual_machine_functions_and_both_qp_solvers_give_the_sam
                                     {"x0": [0.0, np.nan, 0.0, 0.0]}])
 def test_bad_construction_arguments_raise_one_sentence(params, model, kwargs):
     with pytest.raises(NMPCError) as err:
-        NMPCController(model, params, **{"horizon": 0.2, **kwargs})
+        NMPCController(model, params, **{"horizon": 0.6, **kwargs})
     assert isinstance(err.value, CartPoleError)
     msg = str(err.value)
     assert "\n" not in msg and msg.endswith(".")
