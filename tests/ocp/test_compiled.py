@@ -148,3 +148,62 @@ def test_no_compiler_on_path_falls_back(model, empty_cache, monkeypatch, capsys)
     monkeypatch.setattr(compiled, "_compiler", lambda: None)
     assert compiled.compiled_nlp(model, 10, np.ones(model.nx), np.ones(model.nu), 1.0) is None
     assert "no C compiler" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("objective,T", [("time", None), ("tracking", 2.5)])
+def test_free_time_and_running_cost_nlps_compiled_take_the_sx_iterates(model, two_pole, objective, T, empty_cache):
+    # the free final time couples every interval (a dense column in the Jacobian and the Hessian); a running cost
+    # is integrated inside the compiled interval: both give the SX formulation's iterates and solution
+    for m, x0, N in ((model, HANGING, 30), (two_pole, two_pole.x_hanging, 20)):
+        ocp_c = DirectCollocation(m, N=N, T=T, objective=objective, compiled=True)
+        ocp_s = DirectCollocation(m, N=N, T=T, objective=objective, compiled=False)
+        traj_c, info_c = ocp_c.solve_once(x0)
+        traj_s, info_s = ocp_s.solve_once(x0)
+        assert ocp_c.compiled_library is not None and ocp_s.compiled_library is None
+        assert info_c.success and info_s.success and info_c.iterations == info_s.iterations
+        assert info_c.T == pytest.approx(info_s.T, rel=1e-9)
+        np.testing.assert_allclose(traj_c.x, traj_s.x, atol=1e-7)
+        assert info_c.objective == pytest.approx(info_s.objective, rel=1e-9)
+
+
+def test_free_time_nlp_derivatives_match_casadi_derivatives(two_pole, empty_cache):
+    m, N = two_pole, 5
+    nz = m.nx + m.nu
+    ocp = DirectCollocation(m, N=N, T=None, objective="time")
+    sx, su = ocp.scale[:m.nx], ocp.scale[m.nx:]
+    weight = 1e-3
+    comp = compiled.compiled_nlp(m, N, sx, su, 1.0 / weight, free_time=True, time_weight=1.0)
+    nlp, opt = comp.nlp, comp.options
+    n = nz * (N + 1) + 1
+    rng = np.random.default_rng(5)
+    w = np.r_[rng.normal(size=n - 1), 1.7]
+    lam_f, lam_g = 0.6, rng.normal(size=m.nx * N)
+    # reference: the same NLP written in SX, T the last variable, derivatives by CasADi
+    fns = compiled.interval_functions(m.f, sx, su, 1.0 / weight)
+    xs = ca.SX.sym("x", n)
+    Z = ca.reshape(xs[:-1], nz, N + 1)
+    V = ca.vertcat(Z[:, :-1], Z[:, 1:])
+    g_ref = ca.vec(fns[0].map(N)(V, xs[-1] / N))
+    f_ref = xs[-1] + ca.sum2(fns[1].map(N)(V, xs[-1] / N))
+    lg = ca.SX.sym("lg", m.nx * N)
+    ref = ca.Function("ref", [xs, lg], [f_ref, g_ref, ca.gradient(f_ref, xs), ca.jacobian(g_ref, xs),
+                                        ca.triu(ca.hessian(lam_f * f_ref + ca.dot(lg, g_ref), xs)[0])])
+    f_r, g_r, gr, jr, hr = (np.asarray(ca.densify(a)) for a in ref(w, lam_g))
+    fg = ca.Function("fg", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]])
+    f_val, g_val = fg(w, [])
+    assert float(f_val) == pytest.approx(float(f_r.ravel()[0]), rel=1e-12)
+    np.testing.assert_allclose(np.asarray(g_val).ravel(), g_r.ravel(), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(np.asarray(opt["grad_f"](w, [])[1]).ravel(), gr.ravel(), rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(np.asarray(ca.densify(opt["jac_g"](w, [])[1])), jr, rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(np.asarray(ca.densify(opt["hess_lag"](w, [], lam_f, lam_g))), hr, rtol=1e-9,
+                               atol=1e-10)
+
+
+def test_one_library_serves_fixed_and_free_time_and_any_T(model, empty_cache):
+    ocp = DirectCollocation(model, N=20, T=2.0)
+    sx, su, eff = _scales(ocp)
+    first = compiled.compiled_nlp(model, 20, sx, su, eff)
+    free = compiled.compiled_nlp(model, 20, sx, su, 1e3, free_time=True)
+    other_T = compiled.compiled_nlp(model, 20, sx, su, eff * 1.7)
+    assert first.compiled_now and not free.compiled_now and not other_T.compiled_now
+    assert first.library == free.library == other_T.library
