@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import importlib.util
 import os
 import sys
 import time
@@ -301,11 +302,7 @@ class NMPCController:
         if int(iterations) < 1 or int(init_iterations) < 0:
             raise NMPCError(f"iterations ({iterations}) must be >= 1 and init_iterations ({init_iterations}) >= 0.")
         if qp_solver is None:
-            try:
-                import daqp  # noqa: F401
-                qp_solver = "daqp"
-            except ImportError:
-                qp_solver = "qpoases"
+            qp_solver = "daqp" if importlib.util.find_spec("daqp") is not None else "qpoases"
         if qp_solver not in QP_SOLVERS:
             raise NMPCError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         self.qp_solver = qp_solver
@@ -469,8 +466,9 @@ class NMPCController:
     # ---- shifting ----------------------------------------------------------------------------------------------
     def _tail_input(self, k_phys: int, s_last) -> np.ndarray:
         t = k_phys * self.problem.dt
-        if self._plan is not None and t < self._plan.t[-1]:
-            return np.clip(self._plan.input(t + 0.5 * self.period), self.problem.u_low, self.problem.u_high)
+        if self._plan is not None and self._plan.t[0] + t < self._plan.t[-1]:
+            u = self._plan.input(self._plan.t[0] + t + 0.5 * self.period)
+            return np.clip(u, self.problem.u_low, self.problem.u_high)
         return self.lqr(t, s_last)
 
     def _shift(self, n: int) -> None:

@@ -8,7 +8,7 @@ from cartpole.ocp.nmpc import NMPCController, NMPCError, nmpc_swingup
 from cartpole.ocp.nmpc_ipopt import IpoptMPC
 from cartpole.ocp.pipeline import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
-from cartpole.validation.metrics import held_upright, swingup_success
+from cartpole.validation.metrics import swingup_success
 
 TWO_POLE = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
 
