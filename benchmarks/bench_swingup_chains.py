@@ -8,8 +8,9 @@ rollout, interpreter start-up included), ``import_s``, ``plan_s`` (``SwingupPlan
 and the plan's ``T_min``, ``T``, ``time_to_upright``, solver calls and iterations. The compile cache is whatever
 the machine has: run once before to measure warm (the first run after a model change compiles its library).
 
-Run: ``python benchmarks/bench_swingup_chains.py [--repeats 5] [--json]``. Set ``PYTHONPATH`` to another checkout's
-root to measure that code the same way (the baseline of a change).
+Run: ``python benchmarks/bench_swingup_chains.py [--repeats 5] [--poles 1,2,3] [--baseline ROOT] [--json]``;
+``--baseline`` runs another checkout's code (e.g. ``git archive <commit> cartpole | tar -x -C ROOT``) the same way,
+alternating with ours run by run, so both see the same machine load.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -49,15 +51,21 @@ print(json.dumps({"import_s": t1 - t0, "plan_s": t2 - t1, "rollout_s": t3 - t2, 
 """
 
 
-def measure(path: Path, repeats: int) -> dict:
-    """Medians over ``repeats`` fresh processes planning and verifying the swing-up of ``path``."""
-    runs = []
-    for _ in range(repeats):
+def _run_once(path: Path, code_root: str | None) -> dict:
+    """One fresh process planning and verifying ``path``; ``code_root`` (a checkout's root) is put first on its
+    path to measure that code instead of the installed one."""
+    env = dict(os.environ)
+    if code_root:
+        env["PYTHONPATH"] = code_root + os.pathsep + env.get("PYTHONPATH", "")
+    with tempfile.TemporaryDirectory() as cwd:  # not the checkout: python -c puts the cwd first on sys.path
         tic = time.perf_counter()
-        out = subprocess.run([sys.executable, "-c", CHILD, str(path)], capture_output=True, text=True,
-                             env=dict(os.environ), check=True).stdout
+        out = subprocess.run([sys.executable, "-c", CHILD, str(path)], capture_output=True, text=True, env=env,
+                             cwd=cwd, check=True).stdout
         wall = time.perf_counter() - tic
-        runs.append({**json.loads(out.strip().splitlines()[-1]), "wall_s": wall})
+    return {**json.loads(out.strip().splitlines()[-1]), "wall_s": wall}
+
+
+def _summary(runs: list[dict]) -> dict:
     med = {k: statistics.median(r[k] for r in runs) for k in ("wall_s", "import_s", "plan_s", "rollout_s")}
     last = runs[-1]
     return {**med, "wall_s_runs": [r["wall_s"] for r in runs], "plan_s_runs": [r["plan_s"] for r in runs],
@@ -65,11 +73,27 @@ def measure(path: Path, repeats: int) -> dict:
             "all_succeeded": all(r["success"] for r in runs)}
 
 
+def measure(path: Path, repeats: int, baseline: str | None = None) -> dict:
+    """Medians over ``repeats`` fresh processes planning and verifying the swing-up of ``path``; with ``baseline``
+    (another checkout's root) its code is run too, alternating with ours, under ``"baseline"``."""
+    ours, theirs = [], []
+    for _ in range(repeats):
+        ours.append(_run_once(path, None))
+        if baseline:
+            theirs.append(_run_once(path, baseline))
+    out = _summary(ours)
+    if baseline:
+        out["baseline"] = _summary(theirs)
+    return out
+
+
 def main(argv: list[str]) -> dict:
     repeats = int(argv[argv.index("--repeats") + 1]) if "--repeats" in argv else 5
-    doc = {"repeats": repeats, "python": sys.executable, "pythonpath": os.environ.get("PYTHONPATH", ""),
-           "carts": {n: {"mjcf": str(ASSETS / f), **measure(ASSETS / f, repeats)} for n, f in CARTS.items()}}
-    return doc
+    baseline = argv[argv.index("--baseline") + 1] if "--baseline" in argv else None
+    poles = [int(a) for a in argv[argv.index("--poles") + 1].split(",")] if "--poles" in argv else list(CARTS)
+    return {"repeats": repeats, "python": sys.executable, "baseline": baseline,
+            "carts": {n: {"mjcf": str(ASSETS / CARTS[n]), **measure(ASSETS / CARTS[n], repeats, baseline)}
+                      for n in poles}}
 
 
 if __name__ == "__main__":
@@ -79,7 +103,11 @@ if __name__ == "__main__":
     else:
         print(f"{'poles':>5} {'wall s':>7} {'import':>7} {'plan s':>7} {'rollout':>7} {'T_min':>6} {'T':>6} "
               f"{'upright':>7} {'solves':>6} {'iters':>6} ok")
-        for n, r in doc["carts"].items():
-            print(f"{n:>5} {r['wall_s']:7.2f} {r['import_s']:7.2f} {r['plan_s']:7.2f} {r['rollout_s']:7.2f} "
-                  f"{r['T_min']:6.3f} {r['T']:6.3f} {r['time_to_upright'] or float('nan'):7.3f} "
-                  f"{r['solves'] or '-':>6} {r['iterations']:6d} {r['all_succeeded']}")
+        for n, cart in doc["carts"].items():
+            for label, r in [("", cart), (" base", cart.get("baseline"))]:
+                if r is None:
+                    continue
+                print(f"{str(n) + label:>5} {r['wall_s']:7.2f} {r['import_s']:7.2f} {r['plan_s']:7.2f} "
+                      f"{r['rollout_s']:7.2f} {r['T_min']:6.3f} {r['T']:6.3f} "
+                      f"{r['time_to_upright'] or float('nan'):7.3f} {r['solves'] or '-':>6} {r['iterations']:6d} "
+                      f"{r['all_succeeded']}")

@@ -17,9 +17,17 @@ them never rebuilds anything. Any model shape works: the sizes come from the mod
 Speed (the usual CasADi traps avoided): the NLP is built once per problem shape and cached; ``f`` is
 evaluated at all knots by one ``map`` call and the interval defects by another; the MX graph is expanded to
 SX (``expand=True``); variables and constraints are scaled to order one; warm starts reuse the last primal
-and dual solution. For the fixed-time effort problem the interval functions (defect, effort, their
-derivatives and the interval's Lagrangian Hessian block) are compiled to C once per model and mapped over the
-intervals (:mod:`cartpole.ocp.compiled`): the same NLP in 2 to 3x less time a solve (2.2x to 2.7x measured).
+and dual solution. With IPOPT (compressed) the interval functions (defect, interval cost, their derivatives in
+the knots and the interval length, and the interval's Lagrangian Hessian block) are compiled to C once per model
+and mapped over the intervals (:mod:`cartpole.ocp.compiled`), for every objective: fixed-time effort, running
+costs, and minimum time, whose free T couples every interval (one dense column in the constraint Jacobian and
+in the Hessian). Same NLP, same iterates; measured 2 to 4x less time a solve (the minimum-time solve of the
+three-pole cart 5x).
+
+Multi-start: :meth:`DirectCollocation.solve` tries named, deterministic guesses
+(:func:`cartpole.ocp.guess.named_guesses`) in turn and keeps the best converged one (``best_of``) or the first;
+:meth:`DirectCollocation.multistart` returns all of them; every try is an :class:`Attempt` in
+:attr:`SolveInfo.attempts`.
 """
 from __future__ import annotations
 
@@ -198,12 +206,13 @@ class DirectCollocation:
         IPOPT only: make the midpoint states decision variables (separated Hermite-Simpson) instead of
         eliminating them (compressed, default). Same solution; a cheaper Hessian but a larger KKT system.
     compiled : bool
-        IPOPT, fixed T, effort objective, compressed: evaluate the NLP and its derivatives with the
+        IPOPT, compressed, any objective (fixed T or free): evaluate the NLP and its derivatives with the
         Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled`; the shared library is
-        cached in ``~/.cache/cartpole`` under a key of the model, compiled once per model: about 2 s for one
-        pole, 1.3 s for two and 6 s for three, the larger ones unoptimised). Same NLP, iterates and solution as
-        the SX formulation, 2 to 3x faster a solve for one pole (3 to 4x for two and three). Without a C compiler
-        the SX formulation is used (a note on stderr). Default True.
+        cached in ``~/.cache/cartpole`` under a key of the model, its scaling and running cost, compiled once per
+        model: about 2 s for one pole, 1.3 s for two and 6 s for three, the larger ones unoptimised; one library
+        serves every T, N and both fixed and free time). Same NLP, iterates and solution as the SX formulation,
+        2 to 3x faster a solve for one pole (3 to 5x for two and three). Without a C compiler the SX formulation
+        is used (a note on stderr). Default True.
     """
 
     def __init__(self, model: CartPoleModel, N: int = 100, T: float | None = 2.0, *, objective: str | None = None,

@@ -6,6 +6,17 @@ and hands over to the LQR catch (the discrete LQR of the lab's weight pattern at
 ``x_eq``, ``u_eq``) when the plan ends. Any model shape: a cart with a chain of poles, several motors. The plan's
 duration, unless given, is the minimum time the bounds allow times ``1 + time_margin``: the faster the
 better, but a plan that saturates the actuator everywhere leaves TVLQR no authority to correct errors.
+
+No hand-holding: the stages and the mesh are the code's. (1) :func:`minimum_time`: a deterministic multi-start
+of named guesses (:func:`cartpole.ocp.guess.named_guesses`: pumping and straight-line shapes towards the nearest
+upright angles and towards every link looping once more with the swing; for one pole an energy-shaping rollout
+first) on a coarse mesh (N = 30), each capped at :data:`EXPLORE_MAX_ITER` iterations, the fastest converged one
+refined on N = 60 (the next if that refinement fails); from near upright each guess first goes through the
+fixed-time effort problem (a homotopy in T). (2) The chosen objective at its T on N = 100 (or the file's step
+for ``dmc_swingup``), started from the minimum-time plan stretched (or padded with rest) onto T; the default guesses
+only if that fails. Every solver call of every stage is in ``plan.solve_info.attempts`` (guess, N, iterations,
+status, objective, which were kept), and ``plan.plan_time_s`` is the wall time of the whole call. Measured
+(warm compile cache, quiet 2-core machine): 0.3 s for one pole, 0.75 s for two, 3.6 s for three.
 """
 from __future__ import annotations
 
