@@ -24,14 +24,17 @@ plan's input while the plan lasts, else the upright LQR's) and applies the first
 quadratic, so Gauss-Newton is exact in the cost and drops only the dynamics' second derivatives. The QP of a
 step comes from one call of C compiled from CasADi (:mod:`cartpole.ocp.nmpc_functions`): the stages' values and
 exact Jacobians ``A_k``, ``B_k``, condensed onto the inputs by the O(N^2) backward recursion (``ds = g + G du``;
-``N nu + 1`` variables with the slack, dense Hessian), evaluated on numpy buffers (no CasADi DM conversions). It
-is solved by DAQP (a dual active-set solver for small dense QPs, PyPI ``daqp``) or qpOASES (shipped with CasADi,
-``casadi.conic("qpoases")``); both give the same solution. Measured on the single pole (N = 60, over a MuJoCo
-swing-up, 2 shared cores): DAQP 0.15 ms a QP at the median, qpOASES 0.7 ms even hot-started with zero working-set
-changes (its dense re-factorisation of new matrices), so DAQP is the default; HPIPM through ``sqpmethod`` was 2-4
-ms (DESIGN.md). The whole step is about 0.5 ms; :func:`cartpole.benchmark_mpc.run_mpc_benchmark` measures it
-against IPOPT. Condensing is ill-conditioned over long horizons of an unstable plant: at 3 s (N = 150) DAQP hits
-its iteration cap (:data:`QP_ITER_LIMIT`) on some instants, which then take the safe action.
+``N nu + 1`` variables with the slack, dense Hessian), evaluated on numpy buffers (no CasADi DM conversions).
+Condensing in ``du`` is ill-conditioned when the plant's fastest unstable mode grows by much over the horizon
+(``exp(lambda T)``: 260 for the single pole at 1.2 s, 2e5 for three poles): above :data:`GROWTH_LIMIT` the QP is
+pre-stabilised by default (``prestabilize``): its unknowns are the steps relative to the Riccati feedback along
+the iterate, ``du_k = -K_k ds_k + dv_k``, which is well conditioned for any horizon and costs about twice as much.
+The QP is solved by DAQP (a dual active-set solver for small dense QPs, PyPI ``daqp``) or qpOASES (shipped with
+CasADi, ``casadi.conic("qpoases")``); both give the same solution. Measured on the single pole (N = 60, over a
+MuJoCo swing-up, 2 shared cores): DAQP 0.15 ms a QP at the median, qpOASES 0.7 ms even hot-started with zero
+working-set changes (its dense re-factorisation of new matrices), so DAQP is the default; HPIPM through
+``sqpmethod`` was 2-4 ms (DESIGN.md). The whole step is about 0.5 ms; :func:`cartpole.benchmark_mpc.run_mpc_benchmark`
+measures it against IPOPT.
 
 Safe action: a QP that fails, or a step that returns anything non-finite, never raises inside the loop. The
 controller applies the upright discrete LQR of the period (clipped to the ctrlranges) when every pole is within
@@ -73,6 +76,10 @@ _BIG = 1e30  # DAQP's "no bound"
 QP_ITER_LIMIT = 1000
 #: rad: within this of upright (every pole, wrapped) the safe action is the upright LQR, not the previous plan.
 SAFE_LQR_ANGLE = 0.5
+#: Growth ``exp(lambda_max horizon)`` of the fastest upright mode above which the QP is pre-stabilised by default:
+#: measured, plain condensing solved every instant up to 1.1e4 (single pole at 2 s) and failed some from 2e5
+#: (three poles at 1.2 s, two poles at 2 s, single pole at 3 s).
+GROWTH_LIMIT = 1e5
 _RESEED_ABOVE = 1e3  # an iterate with an entry this large (m, rad, m/s, rad/s) is garbage: re-seed it
 #: Default exact-penalty weight on the rail slack, cost per m (or rad) of violation.
 RAIL_PENALTY = 1e3
@@ -260,6 +267,14 @@ class NMPCController:
         Exact-penalty weight of the rail slack (default :data:`RAIL_PENALTY`).
     compiled : bool
         False evaluates the stage functions in CasADi's virtual machine (the fallback, same numbers).
+    prestabilize : bool, optional
+        True: the QP's unknowns are the input steps relative to the finite-horizon LQR's feedback (the
+        Riccati gains ``K_k`` along the current iterate) on the predicted state corrections, ``du_k = -K_k ds_k +
+        dv_k`` (the closed-loop paradigm), which keeps the condensed QP well conditioned over long horizons and fast
+        chains of poles, at about twice the cost of a step; False: plain condensing in ``du``. The same QP, so the
+        same solution, either way. Default: True when the fastest unstable mode of the upright linearisation grows
+        by more than :data:`GROWTH_LIMIT` over the horizon (single pole at 1.2 s: 260, plain; two poles: 6.7e3,
+        plain; three poles: 2e5, pre-stabilised).
     qp_solver : {'daqp', 'qpoases'}, optional
         The condensed QP's solver; default DAQP when installed, else qpOASES (same solutions; DAQP is about
         five times faster on this QP, see the README).
@@ -287,7 +302,8 @@ class NMPCController:
     def __init__(self, model: CartPoleModel, params: CartPoleParams, *, period: float | None = None,
                  horizon: float = 1.2, Q=None, R=None, x_goal=None, iterations: int = 1, guess=None,
                  u_goal=None, x0=None, init_iterations: int = 50, cart_margin: float = 0.1,
-                 rail_penalty: float = RAIL_PENALTY, compiled: bool = True, qp_solver: str | None = None):
+                 rail_penalty: float = RAIL_PENALTY, compiled: bool = True, qp_solver: str | None = None,
+                 prestabilize: bool | None = None):
         if not isinstance(model, CartPoleModel) or not isinstance(params, CartPoleParams):
             raise NMPCError("NMPCController needs a CartPoleModel (planning) and the CartPoleParams MuJoCo runs.")
         if model.nx != 2 * params.nq or model.nu != params.nu:
@@ -308,12 +324,16 @@ class NMPCController:
         self.qp_solver = qp_solver
         steps = max(1, int(round(period / dt)))
         N = max(1, int(round(horizon / (steps * dt))))
+        if prestabilize is None:  # growth of the fastest upright mode over the horizon
+            lam = float(np.linalg.eigvals(model.linearize()[0]).real.max())
+            prestabilize = lam * N * steps * dt > np.log(GROWTH_LIMIT)
+        self.prestabilize = bool(prestabilize)
         self.model = model
         self.params = params
         self.steps, self.N = steps, N
         self.period, self.horizon = steps * dt, N * steps * dt
         self.iterations = int(iterations)
-        self.functions = stage_functions(model, steps, N, compiled=compiled)
+        self.functions = stage_functions(model, steps, N, compiled=compiled, prestabilized=self.prestabilize)
         self.library = self.functions.library
         self.problem, self.lqr = mpc_problem(model, params, self.functions, Q=Q, R=R, x_goal=x_goal, u_goal=u_goal,
                                              cart_margin=cart_margin, rail_penalty=rail_penalty)
@@ -351,7 +371,10 @@ class NMPCController:
         nzu = p.N * p.nu
         nz = nzu + 1
         nb = len(p.bounded)
-        nc = 2 * p.N * nb
+        nr = p.N * nb
+        nuc = nzu if self.prestabilize else 0  # pre-stabilised: the ctrl bounds are general rows in dv
+        nc = nuc + 2 * nr  # rows: [u_k (nuc)], q_k - sigma <= q_high (nr), q_k + sigma >= q_low (nr)
+        self._nuc = nuc
         self._qp_data = _Buffered(self.functions.qp_data)
         self._rollout = _Buffered(self.functions.rollout)
         self._qp_flag = 0
@@ -359,12 +382,15 @@ class NMPCController:
         self._H[nzu, nzu] = p.rho2
         self._h = np.zeros(nz)
         self._h[nzu] = p.rho1
-        self._A = np.zeros((nc, nz))  # rows: q_k - sigma <= q_high (N nb), then q_k + sigma >= q_low (N nb)
-        self._A[:nc // 2, nzu] = -1.0
-        self._A[nc // 2:, nzu] = 1.0
-        self._lba = np.r_[np.full(nc // 2, -np.inf), np.zeros(nc // 2)]
-        self._uba = np.r_[np.zeros(nc // 2), np.full(nc // 2, np.inf)]
+        self._A = np.zeros((nc, nz))
+        self._A[nuc:nuc + nr, nzu] = -1.0
+        self._A[nuc + nr:, nzu] = 1.0
+        self._lba = np.r_[np.zeros(nuc), np.full(nr, -np.inf), np.zeros(nr)]
+        self._uba = np.r_[np.zeros(nuc), np.zeros(nr), np.full(nr, np.inf)]
+        self._lbx = np.r_[np.full(nzu, -np.inf), 0.0]  # pre-stabilised: dv free; sigma >= 0
+        self._ubx = np.full(nz, np.inf)
         self._q_low, self._q_high = np.tile(p.q_low, p.N), np.tile(p.q_high, p.N)
+        self._u_low, self._u_high = np.tile(p.u_low, p.N), np.tile(p.u_high, p.N)
         if self.qp_solver == "qpoases":
             opts = {"printLevel": "none", "error_on_fail": False, "nWSR": QP_ITER_LIMIT}
             with _stdout_to_stderr():  # qpOASES prints its licence banner on stdout
@@ -395,33 +421,45 @@ class NMPCController:
         N, nx, nu = p.N, p.nx, p.nu
         nzu = N * nu
         # (N+1, nx) row-major is (nx, N+1) column-major: CasADi's layout, no copies
-        Hu, hu, g, G1 = self._qp_data(x, S, U, p.goal_near(S[-1]), p.u_goal, p.Qs, p.Rs, p.P)
+        out = self._qp_data(x, S, U, p.goal_near(S[-1]), p.u_goal, p.Qs, p.Rs, p.P)
+        Hu, hu, g, G1 = out[:4]
         g = g.reshape(N + 1, nx)
         G1 = G1.reshape(N, nzu, nx)  # [k] = G_k+1' (stages 1..N; G_0 = 0)
         H, h = self._H, self._h
         H[:nzu, :nzu] = Hu.reshape(nzu, nzu)
         h[:nzu] = hu
-        nb = len(p.bounded)
         A_qp, lba, uba = self._A, self._lba, self._uba
+        nuc = self._nuc
+        if nuc:  # z = dv, du = fu + Fu dv: the ctrl bounds are rows
+            Fu, fu = out[4].reshape(nzu, nzu).T, out[5]
+            A_qp[:nzu, :nzu] = Fu
+            u_now = U.ravel() + fu
+            lba[:nzu] = self._u_low - u_now
+            uba[:nzu] = self._u_high - u_now
+            lbx, ubx = self._lbx, self._ubx
+        else:  # z = du: the ctrl bounds are bounds
+            lbx = np.r_[(p.u_low - U).ravel(), 0.0]
+            ubx = np.r_[(p.u_high - U).ravel(), np.inf]
+        nb = len(p.bounded)
         if nb:
             idx = list(p.bounded)
-            rows = G1[:, :, idx].transpose(0, 2, 1).reshape(N * nb, nzu)  # stage-major, bound-minor
+            nr = N * nb
+            rows = G1[:, :, idx].transpose(0, 2, 1).reshape(nr, nzu)  # stage-major, bound-minor
             val = (S[1:, idx] + g[1:, idx]).ravel()
-            A_qp[:N * nb, :nzu] = rows
-            A_qp[N * nb:, :nzu] = rows
-            uba[:N * nb] = self._q_high - val
-            lba[N * nb:] = self._q_low - val
-        lbx = np.r_[(p.u_low - U).ravel(), 0.0]
-        ubx = np.r_[(p.u_high - U).ravel(), np.inf]
+            A_qp[nuc:nuc + nr, :nzu] = rows
+            A_qp[nuc + nr:, :nzu] = rows
+            uba[nuc:nuc + nr] = self._q_high - val
+            lba[nuc + nr:] = self._q_low - val
         z = self._solve_qp(H, h, A_qp, lba, uba, lbx, ubx)
         if z is None:
             raise _StepFailed(f"the QP solver ({self.qp_solver}) reported failure"
                               + (f" (exit flag {self._qp_flag})" if self.qp_solver == "daqp" else ""))
-        du = z[:nzu]
-        if not np.all(np.isfinite(du)):
+        dz = z[:nzu]
+        if not np.all(np.isfinite(dz)):
             raise _StepFailed("the QP returned non-finite inputs")
+        du = fu + Fu @ dz if nuc else dz
         ds = g.copy()
-        ds[1:] += np.tensordot(G1, du, axes=([1], [0]))
+        ds[1:] += np.tensordot(G1, dz, axes=([1], [0]))
         S_new, U_new = S + ds, np.clip(U + du.reshape(N, nu), p.u_low, p.u_high)
         if not np.all(np.isfinite(S_new)):
             raise _StepFailed("the linearised prediction is not finite")
