@@ -27,7 +27,7 @@ import numpy as np
 from cartpole.models import CartPoleModel
 from cartpole.ocp.compiled import _build_library, model_key
 
-_LIB_VERSION = "nmpc-stages-v5"  # bump when the generated functions change meaning
+_LIB_VERSION = "nmpc-stages-v6"  # bump when the generated functions change meaning
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def _qp_data_plain(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Function:
     ``ds_k = g_k + G_k du`` with ``G_k+1 = A_k G_k + B_k E_k`` (``E_k`` selects ``du_k``). Backward (the O(N^2)
     condensing: no ``G' W G`` product): ``Lambda_N = P``, ``Lambda_k = Q + A_k' Lambda_k+1 A_k``, ``lambda_N =
     P e_N``, ``lambda_k = Q e_k + A_k' lambda_k+1`` with ``e_k = s_k + g_k - x*``; then row block ``i`` of the
-    Hessian is ``B_i' Lambda_i+1 G_i+1`` (+ R on the diagonal; ``G_i+1`` is zero right of block ``i``) and
+    Hessian is ``B_i' Lambda_i+1 G_i+1`` (+ R on the diagonal block; ``G_i+1`` is zero right of block ``i``) and
     ``h_i = B_i' lambda_i+1 + R (u_i - u*)``. Both recursions are ``mapaccum`` loops over one stage's SX function
     and the rows a ``map``, so the generated C holds each stage's arithmetic once: compact for any N.
     """
@@ -142,10 +142,14 @@ def _qp_data_plain(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Function:
     Gk1, Lk1, lk1, uk, ug_, R_ = (ca.SX.sym("G", nx, nz), ca.SX.sym("L", nx, nx), ca.SX.sym("l", nx),
                                   ca.SX.sym("u", nu), ca.SX.sym("ug", nu), ca.SX.sym("R", nu, nu))
     BtL = ca.mtimes(B_.T, Lk1)
-    row = ca.Function("nmpc_row", [B_, Lk1, Gk1, lk1, uk, ug_, R_],
-                      [ca.mtimes(BtL, Gk1).T, ca.mtimes(B_.T, lk1) + ca.mtimes(R_, uk - ug_)]).map(N)
-    Ht, h = row(B, L_next, Gs, l_next, U, u_goal, R)  # Ht (nz, nz): column block k = row block k of H (lower)
-    H = Ht + Ht.T - ca.diag(ca.diag(Ht)) + ca.kron(ca.MX.eye(N), R)
+    E_ = ca.SX.sym("E", nu, nz)
+    D = ca.mtimes(BtL, B_)  # the diagonal block (without R)
+    row = ca.Function("nmpc_row", [B_, Lk1, Gk1, E_, lk1, uk, ug_, R_],
+                      [(ca.mtimes(BtL, Gk1) - ca.mtimes(D, E_)).T, D + R_,
+                       ca.mtimes(B_.T, lk1) + ca.mtimes(R_, uk - ug_)]).map(N)
+    # Ht (nz, nz): column block k = the strictly lower part of row block k of H; Dk the diagonal blocks
+    Ht, Dk, h = row(B, L_next, Gs, E, l_next, U, u_goal, R)
+    H = Ht + Ht.T + ca.diagcat(*ca.horzsplit(Dk, nu))
     return ca.Function("nmpc_qp_data", [x, S, U, goal, u_goal, Q, R, P],
                        [ca.densify(H), ca.vec(h), g_all, Gs],
                        ["x", "S", "U", "x_goal", "u_goal", "Q", "R", "P"], ["H", "h", "g", "G"])

@@ -212,3 +212,17 @@ def test_nmpc_swings_the_two_pole_cart_up_from_hanging_rest():
     assert replays_exactly(ro)
     assert swingup_success(ro, params2)
     assert ctrl.failures == []
+
+
+def test_two_motors_plain_and_prestabilised_agree_and_balance(chain_dir):
+    params2 = read_params(chain_dir / "two_motors.xml")
+    model2 = build_model(params2)
+    assert model2.nu == 2
+    x = _tilted(model2, 0.1)
+    ctrls = [NMPCController(model2, params2, horizon=0.6, prestabilize=pre) for pre in (False, True)]
+    np.testing.assert_allclose(ctrls[0](0.0, x), ctrls[1](0.0, x), atol=1e-6)
+    for ctrl in ctrls:
+        ctrl.reset()
+        ro = simulate(params2, ctrl, x, 3.0)
+        assert replays_exactly(ro)
+        assert swingup_success(ro, params2)
