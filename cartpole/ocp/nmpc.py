@@ -253,6 +253,9 @@ class NMPCController:
         ``model.u_eq``).
     iterations : int
         Gauss-Newton SQP steps per control instant (1: RTI; more iterates toward the converged NLP solution).
+    tol : float
+        With ``iterations`` > 1: stop iterating once a step changes no input by more than ``tol`` (ctrl units);
+        ``iterations=50, tol=1e-6`` solves the NLP to convergence every instant. Default 0: always ``iterations``.
     guess : Trajectory or (S (N+1, nx), U (N, nu)), optional
         First iterate; a Trajectory (e.g. an offline plan) is sampled on the MPC grid from its start. Default:
         rest at ``x0`` (else at ``x_goal``) with ``u_goal``: enough to balance near upright.
@@ -303,7 +306,7 @@ class NMPCController:
                  horizon: float = 1.2, Q=None, R=None, x_goal=None, iterations: int = 1, guess=None,
                  u_goal=None, x0=None, init_iterations: int = 50, cart_margin: float = 0.1,
                  rail_penalty: float = RAIL_PENALTY, compiled: bool = True, qp_solver: str | None = None,
-                 prestabilize: bool | None = None):
+                 prestabilize: bool | None = None, tol: float = 0.0):
         if not isinstance(model, CartPoleModel) or not isinstance(params, CartPoleParams):
             raise NMPCError("NMPCController needs a CartPoleModel (planning) and the CartPoleParams MuJoCo runs.")
         if model.nx != 2 * params.nq or model.nu != params.nu:
@@ -333,6 +336,9 @@ class NMPCController:
         self.steps, self.N = steps, N
         self.period, self.horizon = steps * dt, N * steps * dt
         self.iterations = int(iterations)
+        if not (np.isfinite(tol) and tol >= 0):
+            raise NMPCError(f"tol ({tol}) must be a finite number >= 0 (ctrl units).")
+        self.tol = float(tol)
         self.functions = stage_functions(model, steps, N, compiled=compiled, prestabilized=self.prestabilize)
         self.library = self.functions.library
         self.problem, self.lqr = mpc_problem(model, params, self.functions, Q=Q, R=R, x_goal=x_goal, u_goal=u_goal,
@@ -472,9 +478,12 @@ class NMPCController:
         return S if np.all(np.isfinite(S)) and np.abs(S).max() < _RESEED_ABOVE else np.tile(x, (self.N + 1, 1))
 
     def _solve_instant(self, x, S, U):
-        """The solve of one control instant from the shifted iterate: ``iterations`` Gauss-Newton steps."""
+        """The solve of one control instant from the shifted iterate: up to ``iterations`` Gauss-Newton steps, fewer
+        once a step changes no input by more than ``tol``."""
         for _ in range(self.iterations):
-            S, U, _ = self._gn_step(x, S, U)
+            S, U, step = self._gn_step(x, S, U)
+            if step <= self.tol:
+                break
         return S, U
 
     def _align(self, x, S):

@@ -191,9 +191,17 @@ def test_compiled_and_virtual_machine_functions_and_both_qp_solvers_give_the_sam
         np.testing.assert_allclose(other(0.0, x), u, atol=1e-7)
 
 
+def test_iterating_to_convergence_each_instant_matches_ipopt_resolving_the_same_nlp(params, model):
+    x0 = _tilted(model, 0.4)
+    gn = NMPCController(model, params, horizon=0.6, iterations=50, tol=1e-9)
+    ip = IpoptMPC(model, params, horizon=0.6, ipopt_options={"ipopt.tol": 1e-10})
+    np.testing.assert_allclose(gn(0.0, x0), ip(0.0, x0), atol=1e-5)
+    np.testing.assert_allclose(gn.plan[1], ip.plan[1], atol=1e-5)
+
+
 @pytest.mark.parametrize("kwargs", [{"period": 0.0}, {"horizon": -1.0}, {"iterations": 0}, {"Q": np.eye(3)},
                                     {"R": -1.0}, {"qp_solver": "osqp"}, {"guess": (np.zeros((3, 4)), np.zeros(2))},
-                                    {"x0": [0.0, np.nan, 0.0, 0.0]}])
+                                    {"x0": [0.0, np.nan, 0.0, 0.0]}, {"tol": -1.0}])
 def test_bad_construction_arguments_raise_one_sentence(params, model, kwargs):
     with pytest.raises(NMPCError) as err:
         NMPCController(model, params, **{"horizon": 0.6, **kwargs})
