@@ -78,6 +78,7 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
                     "success": all(ok_base), "unconverged": len(base.unconverged), "solver": "ipopt"}
     return {"solve_ms_median": med, "solve_ms_max": float(np.max(t_rti)),
             "solve_ms_p99": float(np.percentile(t_rti, 99)), "steps": len(t_rti), "baseline": base_doc,
-            "speedup_median": None if base_doc is None else base_doc["solve_ms_median"] / med, "period": rti.period, "horizon": rti.horizon, "N": rti.N,
+            "speedup_median": None if base_doc is None else base_doc["solve_ms_median"] / med,
+            "period": rti.period, "horizon": rti.horizon, "N": rti.N,
             "qp_solver": rti.qp_solver, "compiled": rti.library is not None, "success": all(ok_rti),
             "failures": failures, "repeats": int(repeats), "duration": float(duration)}

@@ -10,10 +10,11 @@ The generated C holds the single step once and each stage's condensing arithmeti
 loops), so its size grows neither with ``steps`` nor with ``N``, and any number of poles compiles in seconds
 (one pole: 0.1 MB of C, about 3 s of gcc -O2, once per model, period and horizon).
 
-The shared library is cached like the collocation's (:mod:`cartpole.ocp.compiled`: :func:`~cartpole.ocp.compiled.cache_dir`,
-keyed by :func:`~cartpole.ocp.compiled.model_key`, the source, flags and CasADi version). With ``CARTPOLE_NO_COMPILE``
-set, without a C compiler, or when the build fails, the same CasADi functions run in CasADi's virtual machine
-(same numbers, slower), with a note on stderr.
+The shared library is cached like the collocation's (:mod:`cartpole.ocp.compiled`:
+:func:`~cartpole.ocp.compiled.cache_dir`, keyed by :func:`~cartpole.ocp.compiled.model_key`, period, horizon,
+variant, source, flags and CasADi version). With ``CARTPOLE_NO_COMPILE`` set, without a C compiler, or when the
+build fails, the same CasADi functions run in CasADi's virtual machine (same numbers, slower), with a note on
+stderr.
 """
 from __future__ import annotations
 
@@ -161,10 +162,10 @@ def _qp_data_stabilized(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Func
 
     The step of the inputs is written ``du_k = -K_k ds_k + dv_k`` and the QP is solved for ``dv`` (the closed-loop
     paradigm). ``K_k`` are the gains of the finite-horizon LQR along the current iterate (the Riccati recursion of
-    ``A_k``, ``B_k``, ``Q``, ``R`` from ``P``). The prediction then runs on ``Abar_k = A_k - B_k K_k``, whose products stay moderate where those of
-    ``A_k`` (an unstable plant) grow like ``exp(lambda t)`` and make the condensed QP of a long horizon, or of a
-    fast chain of poles, ill-conditioned; with the exact Riccati gains the Hessian in ``dv`` is even block
-    diagonal (the constraints carry the coupling).
+    ``A_k``, ``B_k``, ``Q``, ``R`` from ``P``). The prediction then runs on ``Abar_k = A_k - B_k K_k``, whose
+    products stay moderate where those of ``A_k`` (an unstable plant) grow like ``exp(lambda t)`` and make the
+    condensed QP of a long horizon, or of a fast chain of poles, ill-conditioned; with the exact Riccati gains the
+    Hessian in ``dv`` is even block diagonal (the constraints carry the coupling).
 
     Forward: ``ds_0 = x - s_0``, ``ds_k+1 = Abar_k ds_k + B_k dv_k + c_k`` (``c_k = F(s_k, u_k) - s_k+1``), so
     ``ds_k = g_k + G_k dv`` with ``G_k+1 = Abar_k G_k + B_k E_k`` (``E_k`` selects ``dv_k``), and
