@@ -61,7 +61,7 @@ def test_the_multi_start_reports_every_attempt_and_the_guess_that_won(chain):
     # a coarse minimum-time multi-start over several named guesses, its refinement, then the effort plan
     assert stages[0].startswith("time") and stages[-1] == "effort"
     first = [a for a in info.attempts if a.stage == stages[0]]
-    assert len({a.guess for a in first}) == len(first) >= 3
+    assert len({a.guess for a in first}) == len(first) >= 2
     for stage in stages:
         chosen = [a for a in info.attempts if a.stage == stage and a.chosen]
         assert len(chosen) <= 1

@@ -171,7 +171,7 @@ def _co_turn_goal(model: CartPoleModel, x0, nearest: np.ndarray, bounds: OCPBoun
 
 def named_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int = 100, *,
                   bounds: OCPBounds | None = None, u_max=None, cart_max: float | None = None,
-                  count: int = 4) -> list[tuple[str, Trajectory]]:
+                  count: int = 4, second_goal: bool = True) -> list[tuple[str, Trajectory]]:
     """Up to ``count`` named initial guesses on ``N + 1`` knots over ``T`` s, in the order they are tried.
 
     A deterministic set (no randomness): for a single pole with one input the energy-shaping rollout
@@ -195,6 +195,9 @@ def named_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int 
         :func:`~cartpole.ocp.bounds.bounds_from_model` with ``u_max`` and ``cart_max`` passed on.
     count : int
         Most guesses returned.
+    second_goal : bool
+        Include the shapes towards the second goal (False: the energy guess and the two shapes towards the
+        nearest upright angles only).
 
     Returns
     -------
@@ -212,7 +215,7 @@ def named_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int 
         out.append(("energy", eg))
     goals = _upright_candidates(model, x0, x_goal, bounds)
     co = _co_turn_goal(model, x0, goals[0], bounds)
-    second = [(" other turn", goals[1])] if co is None else [(" co-turn", co)]
+    second = [] if not second_goal else [(" other turn", goals[1])] if co is None else [(" co-turn", co)]
     u_rest = np.clip(model.u_eq, bounds.u_low, bounds.u_high)
     near = all(abs(x0[i] - goals[0][i]) < 0.5 * np.pi for i in model.hinges)
     for tag, g in [("", goals[0]), *second]:
