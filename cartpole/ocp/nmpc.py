@@ -260,8 +260,9 @@ class NMPCController:
         First iterate; a Trajectory (e.g. an offline plan) is sampled on the MPC grid from its start. Default:
         rest at ``x0`` (else at ``x_goal``) with ``u_goal``: enough to balance near upright.
     x0 : (nx,) array, optional
-        When given, the first iterate is converged (up to ``init_iterations`` Gauss-Newton steps) for this start
-        state before the loop, offline: that time is not in :attr:`solve_ms`.
+        When given, the first iterate is converged for this start state before the loop, offline (that time is
+        not in :attr:`solve_ms`): up to ``init_iterations`` full Gauss-Newton steps, and when they do not converge
+        IPOPT on the same NLP from the same guess, then Gauss-Newton steps from its solution.
     init_iterations : int
         Cap on that offline convergence (default 50).
     cart_margin : float
@@ -299,7 +300,8 @@ class NMPCController:
     lqr : LinearFeedback
         The upright LQR of one period (terminal cost ``S``, safe action).
     init_info : dict
-        The offline convergence: ``iterations``, ``converged`` (bool), ``step`` (last max |du|).
+        The offline convergence: ``iterations`` (Gauss-Newton steps), ``converged`` (bool), ``step`` (last max
+        |du|), ``method`` (``"gauss-newton"``, or ``"ipopt"`` with ``ipopt_iterations``).
     """
 
     def __init__(self, model: CartPoleModel, params: CartPoleParams, *, period: float | None = None,
@@ -497,18 +499,37 @@ class NMPCController:
         return S
 
     def _converge(self, x0, S, U, iters):
-        S = self._align(x0, S)
-        step = float("nan")
-        for i in range(iters):
-            try:
-                S, U, step = self._gn_step(x0, S, U)
-            except _StepFailed as exc:
-                raise NMPCError(f"The initial NMPC problem from x0 = {x0.tolist()} could not be solved "
-                                f"({exc}); give a feasible guess or another start.") from None
-            self.init_info = {"iterations": i + 1, "converged": step < 1e-6, "step": step}
-            if step < 1e-6:
-                break
-        return S, U
+        """The first iterate converged for ``x0``: full Gauss-Newton steps; when they do not converge within
+        ``iters`` (full steps have no globalisation), IPOPT on the same NLP from the same guess
+        (:class:`cartpole.ocp.nmpc_ipopt.IpoptNLP`), then Gauss-Newton steps from its solution."""
+        S, U = self._align(x0, S), np.array(U)
+        S_gn, U_gn, step, i = S, U, float("nan"), 0
+        try:
+            for i in range(1, iters + 1):
+                S_gn, U_gn, step = self._gn_step(x0, S_gn, U_gn)
+                if step < 1e-6:
+                    break
+        except _StepFailed:
+            step = float("nan")
+        self.init_info = {"iterations": i, "converged": bool(step < 1e-6), "step": step, "method": "gauss-newton"}
+        if self.init_info["converged"]:
+            return S_gn, U_gn
+        from cartpole.ocp.nmpc_ipopt import IpoptNLP
+
+        try:
+            nlp = IpoptNLP(self.problem, self.functions.step_expr, {"ipopt.tol": 1e-10})
+            S_ip, U_ip = nlp.solve(x0, S, U)
+            ok = bool(nlp.stats.get("success", False))
+            for j in range(1, iters + 1):
+                S_ip, U_ip, step = self._gn_step(x0, S_ip, U_ip)
+                if step < 1e-6:
+                    break
+        except _StepFailed as exc:
+            raise NMPCError(f"The initial NMPC problem from x0 = {x0.tolist()} could not be solved ({exc}); give a "
+                            "feasible guess or another start.") from None
+        self.init_info = {"iterations": i + j, "converged": bool(ok and step < 1e-6), "step": step,
+                          "method": "ipopt", "ipopt_iterations": int(nlp.stats.get("iter_count", 0))}
+        return S_ip, U_ip
 
     # ---- shifting ----------------------------------------------------------------------------------------------
     def _tail_input(self, k_phys: int, s_last) -> np.ndarray:
@@ -624,8 +645,8 @@ def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None
     """A controller set up to swing up from ``x0`` and balance at ``model.x_eq``.
 
     The first iterate is an offline plan: :func:`cartpole.ocp.pipeline.trajopt_swingup` from ``x0`` on the planning
-    model, sampled on the MPC grid, then converged fully for ``x0`` before the loop (offline, not counted in
-    ``solve_ms``). From then on every control instant is one real-time iteration; beyond the horizon the shifted
+    model, sampled on the MPC grid, then converged fully for ``x0`` before the loop (Gauss-Newton, or IPOPT where
+    full Gauss-Newton steps do not converge; offline, not counted in ``solve_ms``). From then on every control instant is one real-time iteration; beyond the horizon the shifted
     tail follows the offline plan's inputs while it lasts. An RTI step from a cold guess (rest) over a 1.2 s
     horizon does not find a swing-up; this initialisation is what makes it one.
 

@@ -16,27 +16,27 @@ import numpy as np
 from cartpole.ocp.nmpc import NMPCController, _StepFailed
 
 
-class IpoptMPC(NMPCController):
-    """Nonlinear MPC by a full IPOPT solve each control instant (the baseline); arguments as
-    :class:`~cartpole.ocp.nmpc.NMPCController` plus ``ipopt_options`` (dict, merged into ``{"ipopt.print_level": 0,
-    "print_time": False, "ipopt.sb": "yes", "expand": True}``). ``iterations`` is ignored (IPOPT runs to its own
-    tolerance); the first iterate is converged by one IPOPT solve when ``x0`` is given."""
+class IpoptNLP:
+    """The MPC problem of a controller as one IPOPT NLP (SX, ``expand=True``), built once, solved from any guess.
 
-    def __init__(self, *args, ipopt_options: dict | None = None, **kwargs):
-        self._ipopt_options = dict(ipopt_options or {})
-        self.last_stats: dict = {}
-        super().__init__(*args, **kwargs)
-        self.qp_solver = "ipopt"
+    Parameters
+    ----------
+    problem : MPCProblem
+    step_expr : casadi.Function
+        One control period ``(x, u) -> x_next`` as SX (:attr:`StageFunctions.step_expr`).
+    options : dict, optional
+        Merged into ``{"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "expand": True}``.
+    """
 
-    def _setup_solver(self) -> None:
-        p = self.problem
+    def __init__(self, problem, step_expr: ca.Function, options: dict | None = None):
+        p = self.problem = problem
         N, nx, nu = p.N, p.nx, p.nu
         S = ca.SX.sym("S", nx, N + 1)
         U = ca.SX.sym("U", nu, N)
         sigma = ca.SX.sym("sigma")
         x0 = ca.SX.sym("x0", nx)
         goal = ca.SX.sym("goal", nx)
-        F = self.functions.step_expr.map(N)(S[:, :N], U)
+        F = step_expr.map(N)(S[:, :N], U)
         Qs, Rs, P = ca.DM(p.Qs), ca.DM(p.Rs), ca.DM(p.P)
         ug = ca.DM(p.u_goal)
         J = 0
@@ -53,29 +53,53 @@ class IpoptMPC(NMPCController):
             g += [ca.vec(q) - sigma, ca.vec(q) + sigma]
         w = ca.vertcat(ca.vec(S), ca.vec(U), sigma)
         opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "expand": True}
-        opts.update(self._ipopt_options)
-        self._nlp = ca.nlpsol("nmpc_ipopt", "ipopt", {"x": w, "p": ca.vertcat(x0, goal), "f": J, "g": ca.vertcat(*g)},
-                              opts)
+        opts.update(options or {})
+        self.nlp = ca.nlpsol("nmpc_ipopt", "ipopt", {"x": w, "p": ca.vertcat(x0, goal), "f": J, "g": ca.vertcat(*g)},
+                             opts)
         neq = nx * (N + 1)
         inf = np.inf
         self._lbg = np.r_[np.zeros(neq), np.full(N * nb, -inf), np.tile(p.q_low, N)]
         self._ubg = np.r_[np.zeros(neq), np.tile(p.q_high, N), np.full(N * nb, inf)]
         self._lbw = np.r_[np.full(nx * (N + 1), -inf), np.tile(p.u_low, N), 0.0]
         self._ubw = np.r_[np.full(nx * (N + 1), inf), np.tile(p.u_high, N), inf]
+        self.stats: dict = {}
 
-    def _ipopt(self, x, S, U):
+    def solve(self, x, S, U) -> tuple[np.ndarray, np.ndarray]:
+        """``(S (N+1, nx), U (N, nu))`` solved from the guess ``S``, ``U`` for the start ``x`` (nx,); IPOPT's
+        statistics in :attr:`stats`. Raises ``_StepFailed`` when the result is not finite."""
         p = self.problem
         N, nx, nu = p.N, p.nx, p.nu
         w0 = np.r_[S.ravel(), U.ravel(), 0.0]  # (N+1, nx) row-major = vec of (nx, N+1)
-        sol = self._nlp(x0=w0, p=np.r_[x, p.goal_near(S[-1])], lbx=self._lbw, ubx=self._ubw, lbg=self._lbg,
-                        ubg=self._ubg)
-        self.last_stats = self._nlp.stats()
+        sol = self.nlp(x0=w0, p=np.r_[x, p.goal_near(S[-1])], lbx=self._lbw, ubx=self._ubw, lbg=self._lbg,
+                       ubg=self._ubg)
+        self.stats = self.nlp.stats()
         w = np.asarray(sol["x"]).ravel()
         S_new = w[:nx * (N + 1)].reshape(N + 1, nx)
         U_new = w[nx * (N + 1):nx * (N + 1) + N * nu].reshape(N, nu)
         if not (np.all(np.isfinite(S_new)) and np.all(np.isfinite(U_new))):
-            raise _StepFailed(f"IPOPT returned a non-finite iterate ({self.last_stats.get('return_status')})")
+            raise _StepFailed(f"IPOPT returned a non-finite iterate ({self.stats.get('return_status')})")
         return S_new, U_new
+
+
+class IpoptMPC(NMPCController):
+    """Nonlinear MPC by a full IPOPT solve each control instant (the baseline); arguments as
+    :class:`~cartpole.ocp.nmpc.NMPCController` plus ``ipopt_options`` (dict, merged into ``{"ipopt.print_level": 0,
+    "print_time": False, "ipopt.sb": "yes", "expand": True}``). ``iterations`` is ignored (IPOPT runs to its own
+    tolerance); the first iterate is converged by one IPOPT solve when ``x0`` is given."""
+
+    def __init__(self, *args, ipopt_options: dict | None = None, **kwargs):
+        self._ipopt_options = dict(ipopt_options or {})
+        self.last_stats: dict = {}
+        super().__init__(*args, **kwargs)
+        self.qp_solver = "ipopt"
+
+    def _setup_solver(self) -> None:
+        self._nlp = IpoptNLP(self.problem, self.functions.step_expr, self._ipopt_options)
+
+    def _ipopt(self, x, S, U):
+        out = self._nlp.solve(x, S, U)
+        self.last_stats = self._nlp.stats
+        return out
 
     def _solve_instant(self, x, S, U):
         S_new, U_new = self._ipopt(x, S, U)
@@ -92,5 +116,6 @@ class IpoptMPC(NMPCController):
     def _converge(self, x0, S, U, iters):
         S, U = self._ipopt(x0, self._align(x0, S), U)
         self.init_info = {"iterations": int(self.last_stats.get("iter_count", 0)),
-                          "converged": bool(self.last_stats.get("success", False)), "step": float("nan")}
+                          "converged": bool(self.last_stats.get("success", False)), "step": float("nan"),
+                          "method": "ipopt"}
         return S, U

@@ -216,7 +216,7 @@ def test_nmpc_swings_the_two_pole_cart_up_from_hanging_rest():
     model2 = build_model(params2)
     ctrl = nmpc_swingup(params2, model=model2, init_iterations=200)
     assert ctrl.init_info["converged"]
-    ro = simulate(params2, ctrl, model2.x_hanging, 5.0)
+    ro = simulate(params2, ctrl, model2.x_hanging, 6.0)
     assert replays_exactly(ro)
     assert swingup_success(ro, params2)
     assert ctrl.failures == []
