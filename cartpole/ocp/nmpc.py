@@ -63,6 +63,8 @@ from cartpole.lqr import dlqr, lab_weights
 from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.nmpc_functions import StageFunctions, stage_functions
+from cartpole.ocp.nmpc_nlp import IpoptNLP
+from cartpole.ocp.nmpc_nlp import StepFailed as _StepFailed
 from cartpole.ocp.trajectory import Trajectory
 
 #: Control period in s when none is given (rounded to whole MJCF steps).
@@ -501,7 +503,7 @@ class NMPCController:
     def _converge(self, x0, S, U, iters):
         """The first iterate converged for ``x0``: full Gauss-Newton steps; when they do not converge within
         ``iters`` (full steps have no globalisation), IPOPT on the same NLP from the same guess
-        (:class:`cartpole.ocp.nmpc_ipopt.IpoptNLP`), then Gauss-Newton steps from its solution."""
+        (:class:`cartpole.ocp.nmpc_nlp.IpoptNLP`), then Gauss-Newton steps from its solution."""
         S, U = self._align(x0, S), np.array(U)
         S_gn, U_gn, step, i = S, U, float("nan"), 0
         try:
@@ -514,8 +516,6 @@ class NMPCController:
         self.init_info = {"iterations": i, "converged": bool(step < 1e-6), "step": step, "method": "gauss-newton"}
         if self.init_info["converged"]:
             return S_gn, U_gn
-        from cartpole.ocp.nmpc_ipopt import IpoptNLP
-
         try:
             nlp = IpoptNLP(self.problem, self.functions.step_expr, {"ipopt.tol": 1e-10})
             S_ip, U_ip = nlp.solve(x0, S, U)
@@ -634,10 +634,6 @@ class _Buffered:
             self._buf.set_arg(i, memoryview(a))
         self._eval()
         return self.out
-
-
-class _StepFailed(Exception):
-    """A Gauss-Newton step that could not be taken (internal: turned into the safe action)."""
 
 
 def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None, period: float | None = None,
