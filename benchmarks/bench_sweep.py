@@ -79,12 +79,15 @@ def main(argv=None) -> int:
                 steady[where].append((len(stamps) - 1) / (stamps[-1] - stamps[0]))
                 rows.setdefault(where, res.rows())
                 print(f"round {r + 1} {where:>4}: {a.n / times[where][-1]:.2f} runs/s whole sweep, "
-                      f"{steady[where][-1]:.2f} runs/s first to last run (load {os.getloadavg()[0]:.1f})", flush=True)
+                      f"{steady[where][-1]:.2f} runs/s first to last run (load {os.getloadavg()[0]:.1f})",
+                      flush=True)
     same = rows["1"] == rows["2"] == rows["dask"]
     med = {k: a.n / statistics.median(v) for k, v in times.items()}
     doc = {"method": a.method, "n": a.n, "rounds": a.rounds, "runs_per_s_median": med,
            "runs_per_s": {k: [a.n / t for t in v] for k, v in times.items()},
            "speedup_2_workers": med["2"] / med["1"], "speedup_dask": med["dask"] / med["1"], "same_rows": same,
+           "round_ratios_2_workers": [b / a for a, b in zip(times["2"], times["1"])],
+           "round_ratios_dask": [b / a for a, b in zip(times["dask"], times["1"])],
            "steady_runs_per_s_median": {k: statistics.median(v) for k, v in steady.items()},
            "steady_runs_per_s": steady,
            "steady_speedup_2_workers": statistics.median(steady["2"]) / statistics.median(steady["1"]),

@@ -1,6 +1,8 @@
-"""``cartpole sweep``: the swing-up's robustness sweep, one row per seeded start, appended to a CSV results file as
-each run finishes (so an interrupt or a crash keeps what finished; ``--resume`` goes on from there), on this
-machine's processes or on a Dask distributed cluster, and a success map figure."""
+"""``cartpole sweep``: robustness sweeps of the swing-up over a description (grids and seeded samples of starts, pushes,
+model error and controller settings; :mod:`cartpole.sweep`), one row per run, appended to a CSV results file as each
+run finishes (so an interrupt or a crash keeps what finished; ``--resume`` goes on from there), on this machine's
+processes or on a Dask distributed cluster, and a success map figure (with several ``--method``, also side by
+side)."""
 from __future__ import annotations
 
 import csv
