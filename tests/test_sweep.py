@@ -203,3 +203,40 @@ def test_comparison_figure_puts_two_methods_side_by_side(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(ValueError):
         comparison_figure(res[:1], params)
+
+
+def test_success_maps_of_sampled_and_one_axis_sweeps_are_labelled_scatters():
+    from cartpole.models import read_params
+    from cartpole.sweep import axis
+    from cartpole.viz.sweep_plot import success_map_figure
+
+    params = read_params()
+    two = swingup_sweep(None, axes=[axis("push_force", -10, 10), axis("push_time", 0.2, 0.6)], n=3, duration=1.0)
+    fig = success_map_figure(two, params)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "push force [N]" and ax.get_ylabel() == "push time [s]"
+    assert "of 3 runs succeed" in ax.get_title()
+    xs = np.concatenate([c.get_offsets()[:, 0] for c in ax.collections])
+    np.testing.assert_allclose(np.sort(xs), np.sort(two.axis_values("push_force", params)))
+    one = swingup_sweep(None, axes=[axis("setting:energy_gain", 10, 20, 3)], duration=1.0)
+    ax = success_map_figure(one, params).axes[0]
+    assert ax.get_xlabel() == "energy_gain" and "of 3 runs" in ax.get_title()
+
+
+def test_mpc_settings_reach_the_controller(monkeypatch):
+    pytest.importorskip("cartpole.ocp.nmpc")
+    import cartpole.sweep as sweep_mod
+    from cartpole.sweep import axis
+
+    seen = []
+    real = sweep_mod.run_swingup
+
+    def spy(model, **kw):
+        seen.append((kw["period"], kw["horizon"]))
+        return real(model, **kw)
+
+    monkeypatch.setattr(sweep_mod, "run_swingup", spy)
+    r = swingup_sweep(None, method="mpc", axes=[axis("setting:horizon", 0.8, 1.2, 2)], duration=0.5)
+    assert seen == [(None, 0.8), (None, 1.2)] and [row["settings"] for row in r.rows()] == [
+        {"horizon": 0.8}, {"horizon": 1.2}]
+    assert np.isnan(r.rho) and all(row["replays"] for row in r.rows())
