@@ -312,3 +312,10 @@ def test_a_basin_style_sweep_over_start_angle_and_rate_maps_them(tmp_path, capsy
     assert doc["n"] == 4 and sorted({tuple(r["start"][1::2]) for r in doc["rows"]}) == [
         (2.9, -1.0), (2.9, 1.0), (3.3, -1.0), (3.3, 1.0)]
     assert (tmp_path / "figures" / "sweep_energy.png").exists()
+
+
+def test_x0_fixes_the_start_of_an_axis_sweep(tmp_path, capsys):
+    doc = _sweep(capsys, "--push-force", "0", "5", "2", "--x0", "0.1", "3.0", "0", "0", "--duration", "1",
+                 "--out", str(tmp_path))
+    assert [r["start"] for r in doc["rows"]] == [[0.1, 3.0, 0.0, 0.0]] * 2
+    assert [r["push"] for r in doc["rows"]] == [[], [[0.5, 5.0]]]  # 0 N is no push; the default push time 0.5 s
