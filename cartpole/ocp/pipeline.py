@@ -16,7 +16,9 @@ fixed-time effort problem (a homotopy in T). (2) The chosen objective at its T o
 for ``dmc_swingup``), started from the minimum-time plan stretched (or padded with rest) onto T; the default guesses
 only if that fails. Every solver call of every stage is in ``plan.solve_info.attempts`` (guess, N, iterations,
 status, objective, which were kept), and ``plan.plan_time_s`` is the wall time of the whole call. Measured
-(warm compile cache, quiet 2-core machine): 0.3 s for one pole, 0.75 s for two, 3.6 s for three.
+(``benchmarks/bench_swingup_chains.py``, medians of 3 fresh processes, 2 cores at load 2-3, warm compile cache):
+0.40 s for one pole, 0.55 s for two, 2.5 s for three (the previous pipeline: 0.66 s, 2.7 s, 36 s, same plans);
+with a cold cache (the interval functions compiled first) 1.4 s, 2.2 s, 10.2 s.
 """
 from __future__ import annotations
 
