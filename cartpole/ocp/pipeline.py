@@ -34,6 +34,7 @@ from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.ocp.bounds import OCPError, bounds_from_params
 from cartpole.ocp.collocation import Attempt, DirectCollocation, SolveInfo
+from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.objectives import make_objective
 from cartpole.ocp.trajectory import Trajectory
 
@@ -96,10 +97,13 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     """The shortest motion from ``x0`` to ``x_goal`` the bounds allow: a free-final-time Hermite-Simpson solve.
 
     Any model. A deterministic multi-start on a coarse mesh, then a refinement: every guess of
-    :func:`cartpole.ocp.guess.named_guesses` (``starts`` of them) is solved on ``coarse_N`` intervals (default
-    ``N // 2``, at most :data:`EXPLORE_MAX_ITER` iterations each), the fastest converged one is kept, and it is
-    the initial guess of the same problem on ``N`` intervals (if that fails, the guesses are tried again on ``N``
-    intervals). ``info.attempts`` lists every solve, ``info.guess`` names the guess that won.
+    :func:`cartpole.ocp.guess.named_guesses` is solved on ``coarse_N`` intervals (default ``N // 2``, at most
+    :data:`EXPLORE_MAX_ITER` iterations each); the converged ones, fastest first, are refined on ``N`` intervals
+    until one converges (a coarse mesh can admit a motion the fine one does not); if none does, the guesses are
+    solved on ``N`` intervals directly. From near upright (every hinge within a quarter turn of the goal) each
+    guess first goes through the fixed-time effort problem at :data:`GUESS_T` (a homotopy in T: a free-time solve
+    from a guess there tends to shrink T to its lower bound and stop, locally infeasible). ``info.attempts`` lists
+    every solve, ``info.guess`` names the guess that won.
 
     Parameters
     ----------
@@ -131,8 +135,6 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     OCPInfeasible, OCPError
         No guess converged (the message names a binding bound when there is one).
     """
-    from cartpole.ocp.guess import named_guesses
-
     N = int(N)
     Nc = max(2, N // 2) if coarse_N is None else int(coarse_N)
     capped = {"ipopt": {"max_iter": EXPLORE_MAX_ITER}}
@@ -140,9 +142,7 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     x0 = ocp._check_state("start state", model.x_hanging if x0 is None else x0)
     x_goal = ocp._check_state("goal state", model.x_eq if x_goal is None else x_goal)
 
-    # From near upright (every hinge within a quarter turn of the goal) a free-time solve from a guess tends to
-    # shrink T faster than it gains feasibility and stops at T's lower bound, locally infeasible; there each guess
-    # is first made dynamically feasible by the fixed-time effort problem at the guess's T (a homotopy in T).
+    # near upright: each guess is first made dynamically feasible at a fixed T (see the docstring)
     near = all(abs((x0[i] - x_goal[i] + np.pi) % (2 * np.pi) - np.pi) < 0.5 * np.pi for i in model.hinges)
     attempts: list = []
 
