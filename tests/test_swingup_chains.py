@@ -7,6 +7,8 @@ below 0.1, the cart never at its limit, ctrl inside ``ctrlrange``; the log repla
 Carts: the shipped two- and three-pole files, a two-pole cart written the way dm_control extends its single-pole
 file (RK4 at 0.01 s, gear 10, rail +-1.8 m) and Gymnasium's double pendulum on a cart (RK4 at 0.01 s, gear 500).
 """
+import json
+
 import numpy as np
 import pytest
 
@@ -74,3 +76,6 @@ def test_the_multi_start_reports_every_attempt_and_the_guess_that_won(chain):
     assert final[0].objective == pytest.approx(info.objective)
     assert plan.T == pytest.approx((1.2) * plan.T_min)
     assert info.total_iterations == sum(a.iterations for a in info.attempts)
+    # the report is JSON-ready, and the plan says how long all of it took (every stage, guess and TVLQR)
+    json.dumps([a.as_dict() for a in info.attempts])
+    assert info.total_solve_time_s < plan.plan_time_s
