@@ -21,13 +21,18 @@ def _stage_lines(err: str, command: str) -> list[str]:
     return lines
 
 
-def test_swingup_prints_one_line_per_stage_and_json_mode_prints_none(tmp_path, capsys):
+def test_swingup_prints_one_line_per_stage_and_json_mode_prints_none(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))  # an empty cache: the basin is estimated here
     assert main(["swingup", "--no-video", "--duration", "3", "--out", str(tmp_path)]) == 0
     cap = capsys.readouterr()
     lines = _stage_lines(cap.err, "swingup")
     assert [line.rsplit(" in ", 1)[0] for line in lines] == ["swingup: basin estimate 300 runs",
                                                              "swingup: MuJoCo rollout 3 s"]
     assert "basin estimate" not in cap.out and ("SUCCESS" in cap.out or "FAILED" in cap.out)
+
+    assert main(["swingup", "--no-video", "--duration", "3", "--out", str(tmp_path)]) == 0   # the basin from disk
+    assert [line.rsplit(" in ", 1)[0] for line in _stage_lines(capsys.readouterr().err, "swingup")] == [
+        "swingup: MuJoCo rollout 3 s"]
 
     assert main(["swingup", "--json", "--no-video", "--duration", "3", "--out", str(tmp_path)]) == 0
     cap = capsys.readouterr()
@@ -36,7 +41,8 @@ def test_swingup_prints_one_line_per_stage_and_json_mode_prints_none(tmp_path, c
     assert cap.err == ""
 
 
-def test_sweep_reports_the_basin_and_the_runs_as_two_lines(tmp_path, capsys):
+def test_sweep_reports_the_basin_and_the_runs_as_two_lines(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))  # an empty cache: the basin is estimated here
     assert main(["sweep", "--n", "2", "--duration", "3", "--out", str(tmp_path)]) == 0
     lines = _stage_lines(capsys.readouterr().err, "sweep")
     assert [line.rsplit(" in ", 1)[0] for line in lines] == ["sweep: basin estimate 300 runs",
