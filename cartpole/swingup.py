@@ -233,6 +233,20 @@ def _stage(progress, name):
     return None if progress is None else (lambda f: progress(name, f))
 
 
+def plan_report(sp) -> dict:
+    """What the trajectory optimisation did, JSON-ready: ``plan_time_s`` (s, wall time of the whole plan, every
+    guess and stage included), ``T_min`` and ``T`` (s), ``solver``, ``status``, ``iterations`` (of the kept plan),
+    ``total_iterations``, ``guess`` (the initial guess that won) and ``attempts`` (every solver call: stage, guess,
+    N, status, success, iterations, objective, T, solve time, whether it was kept)."""
+    info = sp.solve_info
+    attempts = getattr(info, "attempts", None) or ()
+    return {"plan_time_s": float(getattr(sp, "plan_time_s", float("nan"))),
+            "T_min": None if sp.T_min is None else float(sp.T_min), "T": float(sp.T), "solver": info.solver,
+            "status": info.status, "iterations": int(info.iterations),
+            "total_iterations": int(getattr(info, "total_iterations", info.iterations)),
+            "guess": getattr(info, "guess", None), "attempts": [a.as_dict() for a in attempts]}
+
+
 def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float | None = None,
                 progress: Callable[[str, float], None] | None = None, basin_cache=None,
                 energy_options: dict | None = None, catch_weights: tuple | None = None,
@@ -394,7 +408,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
         extra = {"switches": [] if caught_at is None else [{"t": caught_at, "mode": "catch",
                                                             "cost": catch.cost_to_go(rollout.x[k])}],
                  "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k]),
-                 "objective": sp.objective}
+                 "objective": sp.objective, "plan": plan_report(sp)}
         if sp.objective == "dmc_swingup":
             rewards = dmc_swingup_rewards(rollout, model)
             extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})

@@ -196,6 +196,7 @@ def run(args) -> dict:
         doc["failures"] = m.get("failures", 0)
     if args.method == "trajopt":
         doc["objective"] = m.get("objective")
+        doc["plan"] = m.get("plan")
         if "return" in m:
             doc["return"], doc["return_steps"] = m["return"], m["return_steps"]
     if args.view:
@@ -224,6 +225,14 @@ def run(args) -> dict:
             print(f"NMPC: period {doc['period']:g} s, horizon {doc['horizon']:g} s; solve per control step median "
                   f"{np.median(doc['solve_ms']):.2f} ms, max {np.max(doc['solve_ms']):.2f} ms, "
                   f"{doc['failures']} failure(s)")
+        if m.get("plan"):
+            pl = m["plan"]
+            tried = len(pl["attempts"])
+            print(f"Plan: T = {pl['T']:.3f} s (minimum time {pl['T_min']:.3f} s), {pl['solver']} {pl['status']}, "
+                  f"guess '{pl['guess']}' won; {tried} solver call(s), {pl['total_iterations']} iterations, "
+                  f"{pl['plan_time_s']:.2f} s" if pl["T_min"] is not None else
+                  f"Plan: T = {pl['T']:.3f} s, {pl['solver']} {pl['status']}, guess '{pl['guess']}' won; {tried} "
+                  f"solver call(s), {pl['total_iterations']} iterations, {pl['plan_time_s']:.2f} s")
         if "return" in m:
             print(f"dm_control return (smooth swing-up reward): {m['return']:.1f} over {m['return_steps']} "
                   "control steps")

@@ -39,6 +39,14 @@ def test_trajopt_json_contract_and_exact_replay(tmp_path, capsys):
     assert main(["swingup", "--method", "trajopt", "--json", "--no-video", "--out", str(tmp_path)]) == 0
     doc = json.loads(capsys.readouterr().out)
     _check_contract(doc, "trajopt", tmp_path)
+    # the plan's report: every solver call, the guess that won among them, the kept plan's status and time
+    plan = doc["plan"]
+    kept = [a for a in plan["attempts"] if a["chosen"]]
+    assert kept and all(a["success"] for a in kept) and plan["guess"] == kept[-1]["guess"]
+    assert plan["status"] == kept[-1]["status"] and plan["iterations"] == kept[-1]["iterations"]
+    assert plan["total_iterations"] == sum(a["iterations"] for a in plan["attempts"])
+    assert plan["T"] == pytest.approx(doc["caught_at"], abs=0.01) and plan["T_min"] < plan["T"]
+    assert plan["plan_time_s"] >= sum(a["solve_time_s"] for a in plan["attempts"])
 
 
 def test_prose_summary(tmp_path, capsys):
