@@ -12,8 +12,9 @@ limited joints inside their ranges), minimising ``integral ctrl'ctrl dt``.
   next: the MX graph expanded to SX before IPOPT).
 * Ours: :class:`~cartpole.ocp.collocation.DirectCollocation` (built once: ``map`` over knots and intervals,
   expanded to SX, scaled), IPOPT, first without and then with the interval functions compiled to C
-  (:mod:`cartpole.ocp.compiled`, the default); plus the latter warm-started from the previous solution, and
-  fatrop (the structure-exploiting interior point CasADi ships).
+  (:mod:`cartpole.ocp.compiled`, the default); plus the latter warm-started from the previous solution,
+  fatrop (the structure-exploiting interior point CasADi ships), and the SQP on the stage-structured QP of the same
+  NLP (:mod:`cartpole.ocp.sqp`).
 
 Both solve from the SAME initial guess (the warm-start row re-plans from a moved start); every timed solve
 reuses a solver that already exists (the first, building call is not timed). Times are medians of ``repeats`` wall-clock solves, including each tool's Python overhead.
@@ -32,6 +33,7 @@ from cartpole.models import build_model, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
+from cartpole.ocp.sqp import CollocationSQP
 from cartpole.sim import replay_benchmark
 
 
@@ -114,7 +116,10 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     dict
         ``mjcf``, ``trajopt`` {``solve_ms_median``, ``objective``, ``N``, ``T``, ``solver``, ``iterations``,
         ``baseline_solve_ms_median``, ``baseline_objective``, ``baseline_iterations``, ``speedup``,
-        ``objective_rel_diff``, ``warm_start_solve_ms_median``, ``warm_start_speedup``, ``fatrop_...``},
+        ``objective_rel_diff``, ``warm_start_solve_ms_median``, ``warm_start_speedup``, ``fatrop_...``,
+        ``sqp_solve_ms_median``, ``sqp_iterations``, ``sqp_objective``, ``sqp_success``, ``sqp_status``,
+        ``sqp_speedup`` (naive Opti / SQP), ``sqp_speedup_vs_expand``, ``sqp_vs_ipopt`` (our IPOPT / SQP),
+        ``sqp_objective_rel_diff`` (vs our IPOPT)},
         ``tvlqr`` {``ms_median``, ``steps``, ``dt``}, ``replay`` {...} (or None when not run).
     """
     say = progress or (lambda msg: None)
@@ -170,6 +175,18 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         fatrop = {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
                   "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations}
 
+    sqp = {}
+    if ca.has_conic("qrqp") and ca.has_conic("hpipm"):
+        say(f"ours (SQP on the stage-structured QP): {repeats} solves ...")
+        sqp_solver = CollocationSQP(ocp)  # the same problem object: same NLP, same scaling
+        sqp_solver.solve_once(x0, guess=guess)  # builds the QP solvers (not timed)
+        s_ms, (_, s_info) = _median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
+        sqp = {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
+               "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
+               "sqp_speedup": base_ms / s_ms, "sqp_speedup_vs_expand": exp_ms / s_ms,
+               "sqp_vs_ipopt": ours_ms / s_ms,
+               "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective)}
+
     say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
     Q, R = lab_weights(model)
     tvlqr(model, traj, Q, R)  # builds the mapped ABd (not timed)
@@ -197,7 +214,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
             "warm_start_speedup": base_ms / warm_ms, "compiled": ocp.compiled_library is not None,
             "sx_solve_ms_median": sx_ms, "sx_iterations": sx_info.iterations, "sx_objective": sx_info.objective,
             "sx_speedup": base_ms / sx_ms, "repeats": repeats, "u_max": u_max, "cart_max": cart_max,
-            **fatrop,
+            **fatrop, **sqp,
         },
         "tvlqr": {"ms_median": tv_ms, "steps": int(gains.t.size), "dt": gains.dt},
         "replay": replay_doc,
@@ -343,6 +360,10 @@ def print_table(doc: dict, file=None) -> None:
     if "fatrop_solve_ms_median" in tr:
         w(f"{'ours, fatrop (tol 1e-6)':44s} {tr['fatrop_solve_ms_median']:10.1f} {tr['fatrop_iterations']:6d} "
           f"{tr['fatrop_objective']:12.6f} {tr['baseline_solve_ms_median'] / tr['fatrop_solve_ms_median']:8.1f}\n")
+    if "sqp_solve_ms_median" in tr:
+        label = f"ours, SQP on the stage QP ({tr['sqp_qp_solver']})" + ("" if tr["sqp_success"] else ", FAILED")
+        w(f"{label:44s} {tr['sqp_solve_ms_median']:10.1f} {tr['sqp_iterations']:6d} {tr['sqp_objective']:12.6f} "
+          f"{tr['sqp_speedup']:8.1f}\n")
     w(f"\nobjective ours vs baseline: relative difference {tr['objective_rel_diff']:.2e}\n")
     w(f"TVLQR synthesis ({tv['steps']} steps at dt = {tv['dt']} s): {tv['ms_median']:.2f} ms (median)\n")
     if rp:

@@ -23,6 +23,13 @@ def test_bench_json_follows_the_contract(capsys):
     # the same Opti script with expand=True finds the same optimum
     assert abs(tr["expand_baseline_objective"] - tr["baseline_objective"]) <= 1e-6 * abs(tr["baseline_objective"])
     assert tr["speedup_vs_expand"] == tr["expand_baseline_solve_ms_median"] / tr["solve_ms_median"]
+    # the SQP on the stage-structured QP solves the same NLP from the same guess: same optimum as our IPOPT
+    for key in ("sqp_solve_ms_median", "sqp_iterations", "sqp_objective", "sqp_success", "sqp_speedup",
+                "sqp_speedup_vs_expand"):
+        assert key in tr, key
+    assert tr["sqp_success"] and tr["sqp_solve_ms_median"] > 0
+    assert abs(tr["sqp_objective"] - tr["objective"]) <= 1e-6 * abs(tr["objective"])
+    assert tr["sqp_speedup"] == tr["baseline_solve_ms_median"] / tr["sqp_solve_ms_median"]
     for key in ("steps_per_s", "rollouts", "seconds_each"):
         assert key in rp, key
     assert rp["steps_per_s"] > 0 and rp["seconds_each"] == 2.0
@@ -38,6 +45,7 @@ def test_bench_prose_prints_a_table_and_one_stderr_line_per_measurement(capsys):
     captured = capsys.readouterr()
     out = captured.out
     assert "baseline: casadi.Opti" in out and "TVLQR synthesis" in out and "Batched replay" not in out
+    assert "ours, SQP on the stage QP" in out
     # stderr is not a terminal here: one finished line per measurement, no carriage returns, nothing on stdout
     lines = captured.err.splitlines()
     assert "\r" not in captured.err and len(lines) >= 5
