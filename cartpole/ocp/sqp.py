@@ -24,10 +24,11 @@ of the stage dynamics (the substitution adds interval k's gradient in ``z_k+1`` 
 QP solver: ``qrqp`` (default; CasADi's sparse active-set solver, which factorises the banded KKT system of the stage
 QP by sparse QR, hot-started from the previous iteration's active set) or ``hpipm`` (CasADi's interface to the
 Riccati-recursion interior point). Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a
-failed check is solved again cold, then by HPIPM. Measured on the standard problem (N = 100, one pole): a qrqp
-solve 1-4 ms, an HPIPM solve 1-4 ms (CasADi's interface allocates HPIPM's workspace on every call, and HPIPM needs
-``balance`` or ``robust`` mode and finite stand-ins for free bounds, :data:`QP_INF`); the compiled evaluations about
-0.2 ms an iteration.
+failed check is solved again cold, then by HPIPM. Measured on the standard problem (N = 100, one pole, 2 shared
+cores): a qrqp solve about 1 ms; HPIPM 1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call;
+HPIPM needs ``balance`` or ``robust`` mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less
+accurate answers cost SQP iterations (101 instead of 9); the compiled evaluations about 0.2 ms an iteration, the
+compiled Riccati check about 0.1 ms (in numpy it was 2.4 ms).
 
 Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
@@ -45,6 +46,8 @@ with ``fallback=True`` then solves with IPOPT; IPOPT stays the default everywher
 """
 from __future__ import annotations
 
+import os
+import sys
 import time
 
 import casadi as ca
@@ -75,6 +78,34 @@ def _tri_index(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Row and column of each entry of a column-major upper triangle of an (n, n) matrix."""
     pairs = [(a, b) for b in range(n) for a in range(b + 1)]
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+
+
+def _lower_eig(M: np.ndarray) -> float:
+    """Gershgorin lower bound of the eigenvalues of the symmetric (n, n) ``M`` (its only entry when n = 1)."""
+    off = np.abs(M).sum(axis=1) - np.abs(np.diag(M))
+    return float(np.min(np.diag(M) - off))
+
+
+def _riccati_function(nz: int, nw: int, steps: int, eps: float) -> ca.Function:
+    """SX recursion over ``steps`` stages (the last first): ``(P (nz, nz), A (nz, nz steps), B (nz, nw steps), Q (nz,
+    nz steps), S (nw, nz steps), R (nw, nw steps)) -> (P after each stage (nz, nz steps), added damping (1, steps))``,
+    the regularised Riccati recursion of :meth:`CollocationSQP._reduced_hessian_reg` (Gershgorin's bound)."""
+    P, A, B, Q = (ca.SX.sym(n, nz, nz) for n in "PAcQ")
+    B = ca.SX.sym("B", nz, nw)
+    S, R = ca.SX.sym("S", nw, nz), ca.SX.sym("R", nw, nw)
+    BP = ca.mtimes(B.T, P)
+    Rb = R + ca.mtimes(BP, B)
+    lmin = None
+    for i in range(nw):
+        gi = Rb[i, i] - sum(ca.fabs(Rb[i, j]) for j in range(nw) if j != i)
+        lmin = gi if lmin is None else ca.fmin(lmin, gi)
+    d = ca.if_else(lmin < eps, ca.fmax(eps, ca.fabs(lmin)) - lmin, 0)
+    Rb = Rb + d * ca.SX.eye(nw)
+    L = S + ca.mtimes(BP, A)
+    Pn = Q + ca.mtimes([A.T, P, A]) - ca.mtimes(L.T, ca.solve(Rb, L))
+    Pn = 0.5 * (Pn + Pn.T)
+    stage = ca.Function("sqp_riccati_stage", [P, A, B, Q, S, R], [Pn, d])
+    return stage.mapaccum("sqp_riccati", steps, 1)
 
 
 class CollocationSQP:
@@ -165,7 +196,23 @@ class CollocationSQP:
         self._e = _Buffered(ext["hs_e"].map(N))
         self._tri = _tri_index(2 * self.nz + 1)
         self._setup_qp(qp_options or {})
+        self._riccati = self._riccati_recursion()
         self.history: list[dict] = []
+
+    def _riccati_recursion(self) -> _Buffered:
+        """The regularised Riccati recursion of stages N-1..1 (:func:`_riccati_function`), compiled to C and cached
+        like the interval functions (CasADi's virtual machine where that fails or ``compiled`` is off)."""
+        fn = _riccati_function(self.nz, self.nw, max(self.N - 1, 1), self.reg_min)
+        if self.ocp.compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
+            try:
+                key = f"sqp-riccati-v1/{self.nz}x{self.nw}x{self.N}/{self.reg_min!r}"
+                lib, _ = compiled._build_library([fn], key)
+                fn = ca.external("sqp_riccati", lib)
+            except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
+                reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+                print(f"cartpole: compiled SQP recursion unavailable ({reason}); using CasADi's virtual machine "
+                      "(same results).", file=sys.stderr)
+        return _Buffered(fn)
 
     # ---- the QP's layout ------------------------------------------------------------------------------------
     def _setup_qp(self, qp_options: dict) -> None:
@@ -353,32 +400,41 @@ class CollocationSQP:
         """Make the QP's Hessian positive definite on the stage dynamics' null space, in place: the backward
         Riccati recursion of the stages (cost blocks ``Hy`` (N, nz + nu, nz + nu) in ``(s_k, w_k)``, dynamics ``T``
         (N, nz, nz + nu)); where a stage's reduced Hessian ``R + B' P B`` (nu x nu) has an eigenvalue below
-        ``reg_min``, the difference is added to that stage's ``w`` block (the next knot's inputs), and the free
-        first stage ``s_0 = du_0`` likewise. Unchanged where the exact Hessian is fine. Returns how many stages
-        were changed."""
+        ``reg_min`` (for several inputs: its Gershgorin lower bound), the difference (mirrored: up to
+        ``max(reg_min, |lambda|)``) is added to that stage's ``w`` block (the next knot's inputs), and the free
+        first stage ``s_0 = du_0`` likewise. Unchanged where the exact Hessian is fine. Stages N-1..1 run in the
+        compiled recursion (:func:`_riccati_function`), the first here. Returns how many stages were changed."""
         N, nx, nz, nu = self.N, self.nx, self.nz, self.nu
-        eps = self.reg_min
+        nw, eps = self.nw, self.reg_min
+        eye = np.eye(nw)
         P = np.zeros((nz, nz))
         changed = 0
-        eye = np.eye(self.nw)
-        for k in range(N - 1, -1, -1):
-            lo = nx if k == 0 else 0
-            A = T[k][:, lo:nz]
-            B = T[k][:, nz:]
-            Q = Hy[k][lo:nz, lo:nz]
-            S = Hy[k][nz:, lo:nz]
-            BP = B.T @ P
-            Rb = Hy[k][nz:, nz:] + BP @ B
-            lmin = float(np.linalg.eigvalsh(Rb)[0]) if self.nw > 1 else float(Rb[0, 0])
-            if lmin < eps:
-                d = max(eps, abs(lmin)) - lmin  # mirrored
-                Hy[k][nz:, nz:] += d * eye
-                Rb = Rb + d * eye
-                changed += 1
-            L = S + BP @ A
-            P = Q + A.T @ P @ A - L.T @ np.linalg.solve(Rb, L)
-            P = 0.5 * (P + P.T)
-        lmin = float(np.linalg.eigvalsh(P)[0]) if nu > 1 else float(P[0, 0])  # P_0 is in s_0 = du_0 (nu)
+        if N > 1:
+            rev = slice(N - 1, 0, -1)
+
+            def cm(blocks):  # blocks (N-1, r, c) side by side, CasADi's column-major
+                return np.ascontiguousarray(blocks.transpose(0, 2, 1)).ravel()
+
+            Ps, dk = self._riccati(P, cm(T[rev, :, :nz]), cm(T[rev, :, nz:]), cm(Hy[rev, :nz, :nz]),
+                                   cm(Hy[rev, nz:, :nz]), cm(Hy[rev, nz:, nz:]))
+            d = dk.copy()  # stages N-1 .. 1
+            if np.any(d > 0):
+                Hy[rev, nz:, nz:] += d[:, None, None] * eye
+                changed += int(np.count_nonzero(d))
+            P = Ps[-nz * nz:].reshape(nz, nz).T.copy()
+        A, B = T[0][:, nx:nz], T[0][:, nz:]
+        Q, S = Hy[0][nx:nz, nx:nz], Hy[0][nz:, nx:nz]
+        BP = B.T @ P
+        Rb = Hy[0][nz:, nz:] + BP @ B
+        lmin = _lower_eig(Rb)
+        if lmin < eps:
+            dd = max(eps, abs(lmin)) - lmin
+            Hy[0][nz:, nz:] += dd * eye
+            Rb = Rb + dd * eye
+            changed += 1
+        L = S + BP @ A
+        P = Q + A.T @ P @ A - L.T @ np.linalg.solve(Rb, L)
+        lmin = _lower_eig(0.5 * (P + P.T))  # P_0 is in s_0 = du_0 (nu)
         if lmin < eps:
             Hy[0][nx:nz, nx:nz] += (max(eps, abs(lmin)) - lmin) * np.eye(nu)
             changed += 1
