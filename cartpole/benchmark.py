@@ -118,8 +118,8 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         ``baseline_solve_ms_median``, ``baseline_objective``, ``baseline_iterations``, ``speedup``,
         ``objective_rel_diff``, ``warm_start_solve_ms_median``, ``warm_start_speedup``, ``fatrop_...``,
         ``sqp_solve_ms_median``, ``sqp_iterations``, ``sqp_objective``, ``sqp_success``, ``sqp_status``,
-        ``sqp_speedup`` (naive Opti / SQP), ``sqp_speedup_vs_expand``, ``sqp_vs_ipopt`` (our IPOPT / SQP),
-        ``sqp_objective_rel_diff`` (vs our IPOPT)},
+        ``sqp_speedup`` (naive Opti / SQP), ``sqp_speedup_vs_expand``, ``sqp_vs_ipopt`` (our IPOPT / SQP; the
+        three None when the SQP did not converge), ``sqp_objective_rel_diff`` (vs our IPOPT)},
         ``tvlqr`` {``ms_median``, ``steps``, ``dt``}, ``replay`` {...} (or None when not run).
     """
     say = progress or (lambda msg: None)
@@ -183,8 +183,10 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         s_ms, (_, s_info) = _median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
         sqp = {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
                "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
-               "sqp_speedup": base_ms / s_ms, "sqp_speedup_vs_expand": exp_ms / s_ms,
-               "sqp_vs_ipopt": ours_ms / s_ms,
+               # ratios only for a converged solve (a failed one is not a faster way to the plan)
+               "sqp_speedup": base_ms / s_ms if s_info.success else None,
+               "sqp_speedup_vs_expand": exp_ms / s_ms if s_info.success else None,
+               "sqp_vs_ipopt": ours_ms / s_ms if s_info.success else None,
                "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective)}
 
     say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
@@ -362,8 +364,9 @@ def print_table(doc: dict, file=None) -> None:
           f"{tr['fatrop_objective']:12.6f} {tr['baseline_solve_ms_median'] / tr['fatrop_solve_ms_median']:8.1f}\n")
     if "sqp_solve_ms_median" in tr:
         label = f"ours, SQP on the stage QP ({tr['sqp_qp_solver']})" + ("" if tr["sqp_success"] else ", FAILED")
+        ratio = "-" if tr["sqp_speedup"] is None else f"{tr['sqp_speedup']:.1f}"
         w(f"{label:44s} {tr['sqp_solve_ms_median']:10.1f} {tr['sqp_iterations']:6d} {tr['sqp_objective']:12.6f} "
-          f"{tr['sqp_speedup']:8.1f}\n")
+          f"{ratio:>8s}\n")
     w(f"\nobjective ours vs baseline: relative difference {tr['objective_rel_diff']:.2e}\n")
     w(f"TVLQR synthesis ({tv['steps']} steps at dt = {tv['dt']} s): {tv['ms_median']:.2f} ms (median)\n")
     if rp:
