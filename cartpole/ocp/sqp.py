@@ -3,8 +3,7 @@
 The NLP is :class:`~cartpole.ocp.collocation.DirectCollocation`'s compressed Hermite-Simpson problem, variable for
 variable: scaled knots ``z_k = (x_k / s_x, u_k / s_u)`` (nz = nx + nu), k = 0..N, the defects
 ``d_k(z_k, z_k+1) = 0`` (nx each, divided by ``s_x``), box bounds on the knots (ctrl, cart rail, limited joints),
-``x_0`` and ``x_N`` pinned, objective the effort ``integral u'u dt`` divided by ``sum(s_u^2) T`` (or a running
-cost's integral divided by T). Its pieces are the interval functions compiled to C (:mod:`cartpole.ocp.compiled`:
+``x_0`` and ``x_N`` pinned, objective the effort ``integral u'u dt`` divided by ``sum(s_u^2) T``. Its pieces are the interval functions compiled to C (:mod:`cartpole.ocp.compiled`:
 ``hs_dj`` defect and Jacobian, ``hs_eg`` cost and gradient, ``hs_hl`` the exact Hessian block of the interval's
 Lagrangian), mapped over the N intervals.
 
@@ -90,7 +89,7 @@ def _riccati_function(nz: int, nw: int, steps: int, eps: float) -> ca.Function:
     """SX recursion over ``steps`` stages (the last first): ``(P (nz, nz), A (nz, nz steps), B (nz, nw steps), Q (nz,
     nz steps), S (nw, nz steps), R (nw, nw steps)) -> (P after each stage (nz, nz steps), added damping (1, steps))``,
     the regularised Riccati recursion of :meth:`CollocationSQP._reduced_hessian_reg` (Gershgorin's bound)."""
-    P, A, B, Q = (ca.SX.sym(n, nz, nz) for n in "PAcQ")
+    P, A, Q = ca.SX.sym("P", nz, nz), ca.SX.sym("A", nz, nz), ca.SX.sym("Q", nz, nz)
     B = ca.SX.sym("B", nz, nw)
     S, R = ca.SX.sym("S", nw, nz), ca.SX.sym("R", nw, nw)
     BP = ca.mtimes(B.T, P)
@@ -109,7 +108,7 @@ def _riccati_function(nz: int, nw: int, steps: int, eps: float) -> ca.Function:
 
 
 class CollocationSQP:
-    """The Hermite-Simpson swing-up of a :class:`DirectCollocation` solved by SQP on HPIPM (module docstring).
+    """The Hermite-Simpson swing-up of a :class:`DirectCollocation` solved by SQP on its stage-structured QP.
 
     Same NLP as the collocation's IPOPT path (same scaled variables, defects, bounds, objective), so the same
     optimum from the same guess; built once, solved many times.
@@ -117,7 +116,8 @@ class CollocationSQP:
     Parameters
     ----------
     ocp : DirectCollocation
-        The problem: model, N, T (fixed), bounds, objective (``effort`` or a running cost).
+        The problem: model, N, T (fixed), bounds, objective ``effort`` (the running costs, ``tracking`` and
+        ``dmc_swingup``, were measured not to converge: IPOPT only).
     tol : float
         Converged when the largest defect and the largest entry of the Lagrangian's gradient (bound multipliers
         included, scaled units) are below ``tol`` (default 1e-8, the collocation's IPOPT ``tol``).
@@ -162,8 +162,9 @@ class CollocationSQP:
             raise SQPError("The SQP solver works on the compressed transcription; build the problem with "
                            "separated=False.")
         kind = ocp.objective_spec.kind
-        if kind not in ("effort", "running"):
-            raise SQPError(f"The SQP solver handles the effort and running-cost objectives, not '{kind}'.")
+        if kind != "effort":  # measured: the tracking and dmc_swingup plans did not converge (N = 60, T = 3 s)
+            raise SQPError(f"The SQP solver handles the effort objective only, not '{ocp.objective}'; solve it with "
+                           "IPOPT (DirectCollocation.solve).")
         if qp_solver not in QP_SOLVERS:
             raise SQPError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         if not ca.has_conic(qp_solver):
@@ -177,17 +178,14 @@ class CollocationSQP:
         self.nw = nu  # stage controls: du_k+1
         sc = ocp.scale
         self.sx, self.su = np.array(sc[:nx]), np.array(sc[nx:])
-        run = ocp.objective_spec.running if kind == "running" else None
-        # the IPOPT problem's objective scaling (DirectCollocation._build): effort / (sum su^2 T), running / T
-        self._cost_div = float(ocp.T) if run is not None else float(np.sum(self.su ** 2)) * float(ocp.T)
-        comp = compiled.compiled_nlp(ocp.model, N, self.sx, self.su, self._cost_div, running=run) \
-            if ocp.compiled else None
+        # the IPOPT problem's objective scaling (DirectCollocation._build): effort / (sum su^2 T)
+        self._cost_div = float(np.sum(self.su ** 2)) * float(ocp.T)
+        comp = compiled.compiled_nlp(ocp.model, N, self.sx, self.su, self._cost_div) if ocp.compiled else None
         if comp is not None:
             ext = compiled._load(comp.library)
             self.library = comp.library
         else:
-            ext = {fn.name(): fn for fn in compiled.interval_functions(ocp.model.f, self.sx, self.su, 1.0,
-                                                                       running=run)}
+            ext = {fn.name(): fn for fn in compiled.interval_functions(ocp.model.f, self.sx, self.su, 1.0)}
             self.library = None
         self._dj = _Buffered(ext["hs_dj"].map(N))
         self._eg = _Buffered(ext["hs_eg"].map(N))
@@ -563,10 +561,8 @@ class CollocationSQP:
         if not np.all(np.isfinite(Z)):
             Z = np.clip(np.nan_to_num(Z), lbz, ubz)
             success = False
-        traj, effort, running = self._trajectory(Z, T)
-        kind = ocp.objective_spec.kind
-        objective = effort if kind == "effort" else (-running if ocp.objective_spec.is_reward else running)
-        info = SolveInfo(status=status, success=success, iterations=it, objective=float(objective),
+        traj, effort = self._trajectory(Z, T)
+        info = SolveInfo(status=status, success=success, iterations=it, objective=float(effort),
                          solve_time_s=elapsed, solver="sqp", T=T, start=start)
         return traj, info
 
@@ -603,9 +599,9 @@ class CollocationSQP:
         raise SQPError(f"The SQP swing-up solve did not converge ({info.status} after {info.iterations} "
                        f"iterations); give another initial guess or solve with IPOPT.")
 
-    def _trajectory(self, Z, T) -> tuple[Trajectory, float, float]:
-        """The plan of knots ``Z`` (N+1, nz) scaled, as DirectCollocation returns it, with its effort and running
-        cost (physical units)."""
+    def _trajectory(self, Z, T) -> tuple[Trajectory, float]:
+        """The plan of knots ``Z`` (N+1, nz) scaled, as DirectCollocation returns it, and its effort
+        ``integral u'u dt`` (ctrl^2 s)."""
         ocp, N, nx = self.ocp, self.N, self.nx
         X = (Z[:, :nx] * self.sx).T
         U = (Z[:, nx:] * self.su).T
@@ -614,11 +610,5 @@ class CollocationSQP:
         Xc = 0.5 * (X[:, :-1] + X[:, 1:]) + h / 8 * (xdot[:, :-1] - xdot[:, 1:])
         Uc = 0.5 * (U[:, :-1] + U[:, 1:])
         effort = float(h / 6 * np.sum(U[:, :-1] ** 2 + 4 * Uc ** 2 + U[:, 1:] ** 2))
-        running = 0.0
-        run = ocp.objective_spec.running
-        if run is not None:
-            Lk = np.asarray(run.map(N + 1)(X, U)).ravel()
-            Lc = np.asarray(run.map(N)(Xc, Uc)).ravel()
-            running = float(h / 6 * (Lk[:-1].sum() + 4 * Lc.sum() + Lk[1:].sum()))
         t = np.linspace(0.0, T, N + 1)
-        return Trajectory(t=t, x=X.T, u=U.T, xdot=xdot.T, x_mid=Xc.T, u_mid=Uc.T), effort, running
+        return Trajectory(t=t, x=X.T, u=U.T, xdot=xdot.T, x_mid=Xc.T, u_mid=Uc.T), effort

@@ -93,5 +93,7 @@ def test_sqp_refuses_problems_it_does_not_handle_in_one_sentence():
     model = build_model(read_params(SHIPPED_MJCF))
     with pytest.raises(SQPError, match="fixed duration"):
         CollocationSQP(DirectCollocation(model, N=20, T=None))
+    with pytest.raises(SQPError, match="effort objective only"):
+        CollocationSQP(DirectCollocation(model, N=20, T=2.0, objective="tracking"))
     with pytest.raises(SQPError, match="qp_solver"):
         CollocationSQP(DirectCollocation(model, N=20, T=2.0), qp_solver="nope")
