@@ -97,6 +97,17 @@ def _period_expr(model: CartPoleModel, steps: int) -> ca.Function:
     return ca.Function("nmpc_period", [x, u], [xk], ["x", "u"], ["x_next"])
 
 
+def _condensing_inputs(stage: ca.Function, nx: int, nu: int, N: int) -> tuple:
+    """The symbols both condensings take (``x``, ``S`` (nx, N+1), ``U`` (nu, N), ``x_goal``, ``u_goal``, ``Q``, ``R``,
+    ``P``) and the stages along ``S``, ``U``: ``F`` (nx, N), ``A`` (nx, nx N), ``B`` (nx, nu N) and the shooting
+    gaps ``c = F - S[:, 1:]``."""
+    x, S, U = ca.MX.sym("x", nx), ca.MX.sym("S", nx, N + 1), ca.MX.sym("U", nu, N)
+    goal, u_goal = ca.MX.sym("x_goal", nx), ca.MX.sym("u_goal", nu)
+    Q, R, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("R", nu, nu), ca.MX.sym("P", nx, nx)
+    F, A, B = stage.map(N)(S[:, :N], U)  # (nx, N), (nx, nx N), (nx, nu N)
+    return x, S, U, goal, u_goal, Q, R, P, F, A, B, F - S[:, 1:]
+
+
 def _qp_data_plain(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Function:
     """The condensed Gauss-Newton QP of one MPC step in the input steps ``du`` (MX; see
     :attr:`StageFunctions.qp_data`, ``prestabilized=False``).
@@ -110,11 +121,7 @@ def _qp_data_plain(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Function:
     and the rows a ``map``, so the generated C holds each stage's arithmetic once: compact for any N.
     """
     nz = N * nu
-    x, S, U = ca.MX.sym("x", nx), ca.MX.sym("S", nx, N + 1), ca.MX.sym("U", nu, N)
-    goal, u_goal = ca.MX.sym("x_goal", nx), ca.MX.sym("u_goal", nu)
-    Q, R, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("R", nu, nu), ca.MX.sym("P", nx, nx)
-    F, A, B = stage.map(N)(S[:, :N], U)  # (nx, N), (nx, nx N), (nx, nu N)
-    c = F - S[:, 1:]
+    x, S, U, goal, u_goal, Q, R, P, F, A, B, c = _condensing_inputs(stage, nx, nu, N)
     # forward: (g, G) accumulated; inputs A_k, B_k, c_k, E_k
     # (the per-stage functions are SX: unrolled, they run 1.7x faster than MX's generic dense loops and compile
     # in about 3 s for one pole)
@@ -177,11 +184,7 @@ def _qp_data_stabilized(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Func
     one stage's SX function and the rows a ``map``, so the generated C holds each stage's arithmetic once.
     """
     nz = N * nu
-    x, S, U = ca.MX.sym("x", nx), ca.MX.sym("S", nx, N + 1), ca.MX.sym("U", nu, N)
-    goal, u_goal = ca.MX.sym("x_goal", nx), ca.MX.sym("u_goal", nu)
-    Q, R, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("R", nu, nu), ca.MX.sym("P", nx, nx)
-    F, A, B = stage.map(N)(S[:, :N], U)  # (nx, N), (nx, nx N), (nx, nu N)
-    c = F - S[:, 1:]
+    x, S, U, goal, u_goal, Q, R, P, F, A, B, c = _condensing_inputs(stage, nx, nu, N)
     rev = list(range(N - 1, -1, -1))
     A_rev = ca.horzcat(*[A[:, k * nx:(k + 1) * nx] for k in rev])
     B_rev = ca.horzcat(*[B[:, k * nu:(k + 1) * nu] for k in rev])
