@@ -21,13 +21,22 @@ of the stage dynamics (the substitution adds interval k's gradient in ``z_k+1`` 
 ``lambda_k = -(J^b_x)^-T mu_k``).
 
 QP solver: ``qrqp`` (default; CasADi's sparse active-set solver, which factorises the banded KKT system of the stage
-QP by sparse QR, hot-started from the previous iteration's active set) or ``hpipm`` (CasADi's interface to the
-Riccati-recursion interior point). Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a
-failed check is solved again cold, then by HPIPM. Measured on the standard problem (N = 100, one pole, 2 shared
-cores): a qrqp solve about 1 ms; HPIPM 1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call;
-HPIPM needs ``balance`` or ``robust`` mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less
-accurate answers cost SQP iterations (101 instead of 9); the compiled evaluations about 0.2 ms an iteration, the
-compiled Riccati check about 0.1 ms (in numpy it was 2.4 ms).
+QP by sparse QR, hot-started from the previous iteration's active set), ``daqp`` (the stage QP condensed onto the
+knot controls ``v = (du_0 .. du_N)``, (N+1) nu unknowns, ``dx_k = g_k + G_k v`` by the stage dynamics, and solved
+by DAQP, PyPI ``daqp``, the dense dual active-set solver the NMPC uses, hot-started from the last QP's
+multipliers; see :meth:`CollocationSQP._daqp_step`) or ``hpipm`` (CasADi's interface to the Riccati-recursion
+interior point). Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a failed check is
+solved again cold, then by HPIPM. Measured on the standard problem (N = 100, one pole, 2 shared cores): a qrqp
+solve about 1 ms; HPIPM 1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call; HPIPM needs
+``balance`` or ``robust`` mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less accurate answers
+cost SQP iterations (101 instead of 9); the compiled evaluations about 0.2 ms an iteration, the compiled Riccati
+check about 0.1 ms (in numpy it was 2.4 ms). DAQP takes the same 9 iterations to the same optimum as qrqp and
+costs about the same, 1.1-1.2 ms a QP: the condensing recursion (compiled, 0.2 ms) and the condensed Hessian
+(O(N^3) dense products, 0.35 ms: run in chunks below OpenBLAS's threading threshold, since on a loaded 2-core
+machine the threaded product took 2-20 ms) and DAQP's own set-up of the dense 101-unknown QP (its Cholesky and
+transformed constraints, 0.3-0.4 ms; the active-set iterations themselves 0.015 ms). The solve measured 20.7 ms
+with DAQP against 22.9 ms with qrqp in one run: neither reaches the issue's 3-8 ms, which needs the O(N^2)
+condensing or a Riccati-based QP solver called directly.
 
 Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
@@ -38,9 +47,15 @@ on (``||d||_1``, cost) (Fletcher and Leyffer) with a second-order correction aga
 than ``max_step`` (scaled units) shortened. Converged when the largest defect and the largest entry of the
 Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT ``tol``).
 
-Limits (measured): no elastic mode, so a linearisation whose QP is infeasible ends the solve
+Infeasible linearisations: with ``qrqp`` and ``hpipm`` a linearisation whose QP is infeasible ends the solve
 (``QP_Failed``): the two-pole standard problem from the benchmark's guess does so at the first iteration, whereas
-from a point near its optimum the SQP converges in 7 iterations to IPOPT's optimum. :meth:`CollocationSQP.solve`
+from a point near its optimum the SQP converges in 7 iterations to IPOPT's optimum. With ``daqp`` the state-bound
+rows (rail, limited joints, the pinned ``x_N``) are made soft when the hard QP is infeasible (DAQP's soft
+constraints): the step leaves the bounds, is projected back into them, the defects it leaves are the filter's to
+judge, and that QP's multipliers are not taken (they price the penalty). Measured: on the two-pole problem from
+the bench's guess that gives steps where qrqp gives none, but the iterates do not converge (the Hessian blows up
+at the fourth iteration: ``Line_Search_Failed`` or ``QP_Failed``); an l1 or l2 elastic qrqp QP (slacks on every
+linearised defect) was tried too and is not kept: 0.4 s a QP and no convergence either. :meth:`CollocationSQP.solve`
 with ``fallback=True`` then solves with IPOPT; IPOPT stays the default everywhere.
 """
 from __future__ import annotations
@@ -63,10 +78,12 @@ class SQPError(OCPError):
     """The SQP solver cannot be set up for this problem, or its solve did not converge."""
 
 
-#: QP solvers: ``qrqp`` (CasADi's sparse active-set solver: the banded KKT system by sparse QR, hot-started from the
-#: previous SQP iteration's active set; when its answer fails the check of feasibility, HPIPM solves that QP) and
-#: ``hpipm`` alone (Riccati-recursion interior point, through CasADi's interface).
-QP_SOLVERS = ("qrqp", "hpipm")
+#: QP solvers: ``daqp`` (the stage QP condensed onto the knot controls, DAQP's dense dual active set; qrqp then
+#: HPIPM when it fails), ``qrqp`` (CasADi's sparse active-set solver: the banded KKT system by sparse QR,
+#: hot-started from the previous SQP iteration's active set; when its answer fails the check of feasibility, HPIPM
+#: solves that QP) and ``hpipm`` alone (Riccati-recursion interior point, through CasADi's interface).
+QP_SOLVERS = ("daqp", "qrqp", "hpipm")
+_BIG = 1e30  # DAQP's "no bound"
 _GAMMA = 1e-5  # the filter's margin
 #: Bound magnitude that stands for "no bound" in the QP (scaled units; HPIPM treats every variable as boxed and
 #: converges badly with CasADi's default 1e8; steps of the scaled NLP are of order one).
@@ -107,6 +124,18 @@ def _riccati_function(nz: int, nw: int, steps: int, eps: float) -> ca.Function:
     return stage.mapaccum("sqp_riccati", steps, 1)
 
 
+def _condensing_functions(nx: int, nv: int, N: int) -> list[ca.Function]:
+    """The two recursions of the condensed QP as mapped SX stages, on numpy C-order blocks read as CasADi's
+    column-major transposes: ``sqp_cond_fwd (G^T (nv+1, nx), A^T (nx, nx N), B^T (nv+1, nx N)) -> G^T after each
+    stage (nv+1, nx N)`` (``[G_k+1, g_k+1] = A_k [G_k, g_k] + B_k``), and ``sqp_cond_adj (m (nx,), A^T (nx, nx S),
+    r (nx, S)) -> m after each stage (nx, S)`` (``m <- A_k' m + r_k``, S = N - 1 stages, the last first)."""
+    GT, AT, BT = ca.SX.sym("GT", nv + 1, nx), ca.SX.sym("AT", nx, nx), ca.SX.sym("BT", nv + 1, nx)
+    fwd = ca.Function("sqp_cond_fwd_stage", [GT, AT, BT], [ca.mtimes(GT, AT) + BT])
+    m, r = ca.SX.sym("m", nx), ca.SX.sym("r", nx)
+    adj = ca.Function("sqp_cond_adj_stage", [m, AT, r], [ca.mtimes(AT, m) + r])  # AT as passed is A_k'
+    return [fwd.mapaccum("sqp_cond_fwd", N, 1), adj.mapaccum("sqp_cond_adj", max(N - 1, 1), 1)]
+
+
 class CollocationSQP:
     """The Hermite-Simpson swing-up of a :class:`DirectCollocation` solved by SQP on its stage-structured QP.
 
@@ -128,8 +157,8 @@ class CollocationSQP:
     lm_init : float
         First Levenberg-Marquardt damping of the stage Hessian blocks (default 1e-2; the scaled effort Hessian's
         diagonal is about 1e-2 at N = 100).
-    qp_solver : {'qrqp', 'hpipm'}
-        The QP solver (module docstring); HPIPM also backs up qrqp.
+    qp_solver : {'qrqp', 'daqp', 'hpipm'}
+        The QP solver (module docstring); HPIPM also backs up qrqp, qrqp and HPIPM back up DAQP.
     qp_options : dict, optional
         Merged into the options of ``casadi.conic`` for ``qp_solver`` (for HPIPM, ``{"hpipm": {...}}`` for its own).
     warm_qp : bool
@@ -148,7 +177,9 @@ class CollocationSQP:
         ``step`` (max scaled step), ``damping`` (the Levenberg-Marquardt ``delta`` used), ``alpha`` (line-search
         step), ``soc`` (the second-order correction was taken).
     qp_counts : dict
-        QP solves of the last solve per solver (``qrqp``, ``hpipm``).
+        QP solves of the last solve per solver (``qrqp``, ``hpipm``, ``daqp``: DAQP calls, row screening included).
+    qp_soft : int
+        QPs of the last solve solved with soft state rows (``daqp`` only: the hard QP was infeasible).
     """
 
     def __init__(self, ocp: DirectCollocation, *, tol: float = 1e-8, max_iter: int = 200, reg_min: float = 1e-4,
@@ -167,7 +198,12 @@ class CollocationSQP:
                            "IPOPT (DirectCollocation.solve).")
         if qp_solver not in QP_SOLVERS:
             raise SQPError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
-        if not ca.has_conic(qp_solver):
+        if qp_solver == "daqp":
+            import importlib.util
+
+            if importlib.util.find_spec("daqp") is None:
+                raise SQPError("qp_solver 'daqp' needs the daqp package (pip install daqp); use 'qrqp'.")
+        elif not ca.has_conic(qp_solver):
             raise SQPError(f"This CasADi build has no '{qp_solver}' QP plugin; use IPOPT (DirectCollocation.solve).")
         self.qp_solver, self.warm_qp, self.soc = qp_solver, bool(warm_qp), bool(soc)
         self.lm_init, self.max_step = float(lm_init), float(max_step)
@@ -272,7 +308,7 @@ class CollocationSQP:
         x0, lx0, la0 = ca.MX.sym("x0", n), ca.MX.sym("lam_x0", n), ca.MX.sym("lam_a0", nz * N)
         self._qps = {}
         for name, opts in (("hpipm", hp_opts), ("qrqp", qr_opts)):
-            if name == "qrqp" and self.qp_solver != "qrqp":
+            if name == "qrqp" and self.qp_solver == "hpipm":
                 continue
             qp = ca.conic(f"hs_sqp_{name}", name, {"h": self._sp_h, "a": self._sp_a}, opts)
             sol = qp(h=ca.MX(self._sp_h, hn), g=gn, a=ca.MX(self._sp_a, an), lba=bn, uba=bn, lbx=lx, ubx=ux, x0=x0,
@@ -345,6 +381,11 @@ class CollocationSQP:
         if lm > 0:  # Levenberg-Marquardt damping of every stage block
             Hy += lm * np.eye(ny)
         self._reduced_hessian_reg(Hy, T)
+        if self.qp_solver == "daqp":
+            out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
+            if out is not None:
+                return out
+            self._warm_ready = False  # DAQP failed: qrqp (cold), then HPIPM
         hvals = np.concatenate([Hy[0, nx:, nx:].ravel(), Hy[1:].ravel(), np.zeros(nz * nz)])[self._h_order]
         gvec = np.concatenate([gy[0, nx:], gy[1:].ravel(), np.zeros(nz)])
         self._a_vals[:self._a_count] = np.concatenate([T[0][:, nx:].ravel(), T[1:].ravel()])
@@ -355,7 +396,7 @@ class CollocationSQP:
         rhs = np.zeros((N, nz))
         rhs[:, :nx] = -ct
         rhs = rhs.ravel()
-        tries = [("qrqp", self.warm_qp), ("qrqp", False)] if self.qp_solver == "qrqp" else []
+        tries = [("qrqp", self.warm_qp), ("qrqp", False)] if self.qp_solver != "hpipm" else []
         ok = False
         for name, warm in tries + [("hpipm", False)]:
             if warm and not self._warm_ready:
@@ -364,7 +405,7 @@ class CollocationSQP:
             self.qp_counts[name] += 1
             if ok:
                 break
-        if self.warm_qp and ok:  # the next QP starts from this one's active set
+        if self.warm_qp and ok and not self._soft_step:  # the next QP starts from this one's active set
             self._lam_y, self._lam_a, self._warm_ready = nub, mu, True
         dZ = np.zeros((N + 1, nz))
         dZ.ravel()[self._zi] = y[self._qi]
@@ -375,6 +416,154 @@ class CollocationSQP:
         mu_orig = mu.reshape(N, nz) + (H @ dV[:, :, None])[:, nz:, 0] + G[:, nz:]
         lam = -(M.transpose(0, 2, 1) @ mu_orig[:, :nx, None])[:, :, 0]
         return dZ, lam, Nb, ok
+
+    def _daqp_step(self, Z, T, ct, Hy, gy, H, G, M, lbz, ubz):
+        """The stage QP condensed onto the knot controls ``v = (du_0 .. du_N)`` ((N+1) nu, the states
+        ``dx_k = g_k + G_k v`` by the stage dynamics, ``dx_0 = 0``) and solved by DAQP, hot-started from the previous
+        QP's multipliers. The ctrl bounds are bounds on ``v``; the finite state bounds (rail, limited joints, the
+        pinned ``x_N``) rows of ``G_k``, screened: DAQP sees the equalities and the rows active in the last QP, and
+        any row its answer violates is added and the QP solved again (the answer is the full QP's: the rows left out
+        are inactive). The multipliers of the stage dynamics follow by the backward recursion of the stage states'
+        stationarity (compiled with the forward one, :func:`_condensing_functions`). An infeasible QP (the linearised defects cannot meet the state bounds) is
+        solved again with those rows soft: the step then leaves the bounds, is projected back into them, and the
+        filter judges the defects that leaves. Returns what :meth:`_qp_step` does, or None when DAQP failed."""
+        N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
+        nv = (N + 1) * nu
+        Ax = T[:, :nx, :nx]
+        # dx_k+1 = Ax_k dx_k + Au_k du_k + Aw_k du_k+1 + t_k: (G_k, g_k) as one (nx, nv + 1) block per knot
+        Bf = self._cB
+        Bf[self._bk_k, :, self._bk_c] = T[:, :nx, nx:].transpose(0, 2, 1).reshape(-1, nx)
+        Bf[:, :, nv] = ct
+        Axc = np.ascontiguousarray(Ax)
+        Ga = self._cG
+        (gout,) = self._cond_fwd(Ga[0], Axc, Bf)
+        Ga[1:] = gout.reshape(N, nx, nv + 1)
+        Gs, gs = Ga[:, :, :nv], Ga[:, :, nv]
+        Y = self._cY
+        Y[:, :nx, :] = Gs[:N]
+        Yf = Y.reshape(N * Y.shape[1], nv)
+        HY = (Hy @ Y).reshape(Yf.shape)
+        # Hc = Yf' HY over chunks of stages, each only in the controls it reaches (Y_k is zero beyond du_k+1):
+        # a third of the flops, and products small enough that a shared machine's threaded BLAS stays out
+        ny = Y.shape[1]
+        cs = max(1, 24 // ny)
+        Hc = np.zeros((nv, nv))
+        for a in range(0, N, cs):
+            b = min(N, a + cs)
+            mcol = min(nv, (b + 1) * nu)
+            Hc[:mcol, :mcol] += Yf[a * ny:b * ny, :mcol].T @ HY[a * ny:b * ny, :mcol]
+        Hc = 0.5 * (Hc + Hc.T)
+        c = np.zeros((N, Y.shape[1]))
+        c[:, :nx] = gs[:N]
+        fc = Yf.T @ ((Hy @ c[:, :, None])[:, :, 0] + gy).ravel()
+        ri, rc = self._rows_k, self._rows_i
+        A_all = Gs[ri, rc, :]
+        dz_lo, dz_hi = lbz - Z, ubz - Z
+        lo = dz_lo[ri, rc] - gs[ri, rc]
+        hi = dz_hi[ri, rc] - gs[ri, rc]
+        vb_hi = np.minimum(dz_hi[:, nx:].ravel(), _BIG)
+        vb_lo = np.maximum(dz_lo[:, nx:].ravel(), -_BIG)
+        hi_c, lo_c = np.minimum(hi, _BIG), np.maximum(lo, -_BIG)
+        warm = self.warm_qp and self._warm_ready
+        lam_prev = self._daqp_lam if warm else None
+        nr = ri.size
+        v, lam_all, flag, soft = None, None, -1, False
+        for sense_all in (self._sense_hard, self._sense_soft):
+            # rows screened: the equalities, the rows active in the last QP, then any row the answer violates
+            inset = self._row_eq.copy()
+            if lam_prev is not None:
+                inset |= lam_prev[nv:] != 0
+            for _ in range(nr + 1):
+                sel = np.flatnonzero(inset)
+                sense = np.r_[sense_all[:nv], sense_all[nv:][sel]].astype(np.int32)
+                dual = None if lam_prev is None else np.r_[lam_prev[:nv], lam_prev[nv:][sel]]
+                v, _, flag, info = self._daqp(Hc, fc, A_all[sel], np.r_[vb_hi, hi_c[sel]], np.r_[vb_lo, lo_c[sel]],
+                                              sense, dual_start=dual, iter_limit=2000)
+                self.qp_counts["daqp"] += 1
+                if flag not in (1, 2):
+                    if dual is not None:  # a hot start that failed: once more cold
+                        lam_prev = None
+                        continue
+                    break
+                v = np.asarray(v)
+                rv = A_all @ v
+                add = ~inset & ((rv > hi + 1e-9) | (rv < lo - 1e-9))
+                if not add.any():
+                    break
+                inset |= add
+            if flag in (1, 2):
+                lam_all = np.zeros(nv + nr)
+                la = np.asarray(info["lam"])
+                lam_all[:nv] = la[:nv]
+                lam_all[nv + sel] = la[nv:]
+                break
+            soft, lam_prev = True, None
+        if flag not in (1, 2) or not (np.all(np.isfinite(v)) and np.all(np.isfinite(lam_all))):
+            return None
+        self._daqp_lam, self._warm_ready = lam_all, True
+        if soft:
+            self.qp_soft += 1
+            self._soft_step = True
+        dZ = np.empty((N + 1, nz))
+        dZ[:, nx:] = v.reshape(N + 1, nu)
+        dZ[:, :nx] = gs + Gs @ v
+        Nb = np.zeros((N + 1, nz))
+        Nb[:, nx:] = lam_all[:nv].reshape(N + 1, nu)
+        Nb[ri, rc] = lam_all[nv:]
+        if soft:  # the soft rows' violation: projected into the bounds, the defects carry it
+            dZ = np.clip(Z + dZ, lbz, ubz) - Z
+        # multipliers of the stage dynamics (x rows), backward: mu_k-1 = [Hy_k y_k + gy_k]_x + Ax_k' mu_k + nu_x(dx_k)
+        Ystep = np.hstack([dZ[:N], dZ[1:, nx:]])  # y_k = (dx_k, du_k, du_k+1)
+        r = (Hy[:, :nx, :] @ Ystep[:, :, None])[:, :, 0] + gy[:, :nx]
+        r += Nb[:N, :nx]
+        mu = np.zeros((N, nz))
+        mx = mu[:, :nx]
+        mx[N - 1] = Nb[N, :nx]
+        if N > 1:  # mx[k-1] = Ax_k' mx[k] + r_k, k = N-1 .. 1
+            (mout,) = self._cond_adj(mx[N - 1], Axc[N - 1:0:-1], r[N - 1:0:-1])
+            mx[N - 2::-1] = mout.reshape(N - 1, nx)
+        dV = np.hstack([dZ[:-1], dZ[1:]])
+        mu_orig = mu + (H @ dV[:, :, None])[:, nz:, 0] + G[:, nz:]
+        lam = -(M.transpose(0, 2, 1) @ mu_orig[:, :nx, None])[:, :, 0]
+        return dZ, lam, Nb, True
+
+    def _condensing_setup(self, lbz, ubz) -> None:
+        """Buffers of the condensed QP and its state rows (the finite state bounds of knots 1..N)."""
+        N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
+        nv = (N + 1) * nu
+        self._cG = np.zeros((N + 1, nx, nv + 1))  # [G_k, g_k]; G_0 = 0, g_0 = 0
+        self._cB = np.zeros((N, nx, nv + 1))  # [Au_k, Aw_k] placed at du_k, du_k+1; t_k last
+        kk = np.arange(N)
+        cols = np.concatenate([kk[:, None] * nu + np.arange(2 * nu)[None, :]], axis=0)  # (N, 2 nu)
+        self._bk_k = np.repeat(kk, 2 * nu)
+        self._bk_c = cols.ravel()
+        Y = np.zeros((N, nz + nu, nv))
+        for k in range(N):
+            Y[k, nx:nz, k * nu:(k + 1) * nu] = np.eye(nu)
+            Y[k, nz:, (k + 1) * nu:(k + 2) * nu] = np.eye(nu)
+        self._cY = Y
+        fin = np.isfinite(lbz[:, :nx]) | np.isfinite(ubz[:, :nx])
+        fin[0] = False  # x_0 is pinned: dx_0 = 0 by construction
+        self._rows_k, self._rows_i = np.nonzero(fin)
+        eq = lbz[self._rows_k, self._rows_i] == ubz[self._rows_k, self._rows_i]
+        nr = self._rows_k.size
+        self._row_eq = eq
+        self._sense_hard = np.r_[np.zeros(nv), np.where(eq, 5, 0)].astype(np.int32)
+        self._sense_soft = np.r_[np.zeros(nv), np.full(nr, 8)].astype(np.int32)
+        self._daqp_lam = None
+        if not hasattr(self, "_cond_fwd"):
+            funcs = _condensing_functions(nx, nv, N)
+            if self.ocp.compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
+                try:
+                    lib, _ = compiled._build_library(funcs, f"sqp-condense-v1/{nx}x{nv}x{N}")
+                    funcs = [ca.external(f.name(), lib) for f in funcs]
+                except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
+                    reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+                    print(f"cartpole: compiled SQP condensing unavailable ({reason}); using CasADi's virtual "
+                          "machine (same results).", file=sys.stderr)
+            self._cond_fwd, self._cond_adj = (_Buffered(f) for f in funcs)
+        if "daqp" not in self.qp_counts:
+            self.qp_counts["daqp"] = 0
 
     def _solve_qp(self, name, T, hvals, gvec, avals, rhs, lbx, ubx, *, warm: bool):
         """One QP solve; ``(y, lam_a, lam_x, ok)`` with ok: finite, inside the bounds and on the stage dynamics
@@ -503,11 +692,20 @@ class CollocationSQP:
         self._warm_ready = False
         lm = self.lm_init
         self.qp_counts = {name: 0 for name in self._qps}
+        self.qp_soft = 0
+        self._soft_step = False
+        if self.qp_solver == "daqp":
+            import daqp
+
+            self._daqp = daqp.solve
+            self._condensing_setup(lbz, ubz)
         try:
             D, J, f, G, H = self._eval(Z, lam)
             theta_max = 1e4 * max(1.0, float(np.abs(D).sum()))
             for it in range(1, self.max_iter + 1):
+                self._soft_step = False
                 dZ, lam_qp, Nb, ok = self._qp_step(Z, D, J, G, H, lbz, ubz, lm)
+                soft_step = self._soft_step
                 infeas = float(np.abs(D).max())
                 kkt = self._stationarity(J, G, lam_qp, Nb)
                 step = float(np.abs(dZ).max())
@@ -553,7 +751,8 @@ class CollocationSQP:
                 if not ft <= f - _GAMMA * c1:  # accepted for its feasibility: the current point joins the filter
                     filt.append((c1, f))
                 Z = Z_new
-                lam = lam_qp
+                if not soft_step:  # an elastic QP's multipliers price its penalty, not the NLP: kept
+                    lam = lam_qp
                 D, J, f, G, H = self._eval(Z, lam)
         except (RuntimeError, np.linalg.LinAlgError) as exc:  # a singular defect Jacobian, a NaN in CasADi
             status = f"Error: {(str(exc).strip().splitlines() or [type(exc).__name__])[-1]}"

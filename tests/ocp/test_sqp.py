@@ -39,10 +39,13 @@ def _assert_same_plan(a: Trajectory, b: Trajectory, ocp: DirectCollocation):
     assert np.max(np.abs(a.u - b.u) / su) < 1e-4
 
 
-def test_sqp_reaches_ipopts_optimum_on_the_standard_problem_from_the_same_guess(single):
+@pytest.mark.parametrize("qp_solver", ["qrqp", "daqp"])
+def test_sqp_reaches_ipopts_optimum_on_the_standard_problem_from_the_same_guess(single, qp_solver):
     ocp, x0, guess, (traj_ip, info_ip) = single
     assert info_ip.success
-    traj, info = CollocationSQP(ocp).solve_once(x0, guess=guess)
+    sqp = CollocationSQP(ocp, qp_solver=qp_solver)
+    traj, info = sqp.solve_once(x0, guess=guess)
+    assert sqp.qp_counts[qp_solver] >= info.iterations  # every QP by the chosen solver, no fallback
     assert info.success and info.status == "Solve_Succeeded" and info.solver == "sqp"
     assert 0 < info.iterations < 200
     assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
@@ -69,6 +72,16 @@ def test_sqp_converges_fast_near_the_optimum_of_the_two_pole_problem_to_ipopts_o
     _assert_same_plan(traj, traj_ip, ocp)
     # the damping has vanished: the last steps are exact-Hessian Newton steps
     assert sqp.history[-1]["damping"] < 1e-4
+
+
+def test_an_infeasible_linearisation_still_gives_a_step_with_daqps_soft_rows(two_pole):
+    ocp, x0, guess, _ = two_pole
+    sqp = CollocationSQP(ocp, qp_solver="daqp", max_iter=1)
+    sqp.solve_once(x0, guess=guess)
+    (first,) = sqp.history
+    # the hard QP of the bench guess is infeasible (qrqp fails here): the soft one gives a step the filter takes
+    assert sqp.qp_soft >= 1 and sqp.qp_counts.get("qrqp", 0) == 0
+    assert first["step"] > 0 and first["alpha"] > 0
 
 
 def test_sqp_failure_is_one_sentence_and_the_fallback_is_ipopts_optimum(two_pole):
