@@ -20,23 +20,22 @@ controls, the pinned ``x_0`` dropped from the first stage. The multipliers of th
 of the stage dynamics (the substitution adds interval k's gradient in ``z_k+1`` to them, then
 ``lambda_k = -(J^b_x)^-T mu_k``).
 
-QP solver: ``qrqp`` (default; CasADi's sparse active-set solver, which factorises the banded KKT system of the stage
-QP by sparse QR, hot-started from the previous iteration's active set), ``daqp`` (the stage QP condensed onto the
-knot controls ``v = (du_0 .. du_N)``, (N+1) nu unknowns, ``dx_k = g_k + G_k v`` by the stage dynamics, and solved
-by DAQP, PyPI ``daqp``, the dense dual active-set solver the NMPC uses, hot-started from the last QP's
-multipliers; see :meth:`CollocationSQP._daqp_step`) or ``hpipm`` (CasADi's interface to the Riccati-recursion
-interior point). Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a failed check is
-solved again cold, then by HPIPM. Measured on the standard problem (N = 100, one pole, 2 shared cores): a qrqp
-solve about 1 ms; HPIPM 1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call; HPIPM needs
-``balance`` or ``robust`` mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less accurate answers
-cost SQP iterations (101 instead of 9); the compiled evaluations about 0.2 ms an iteration, the compiled Riccati
-check about 0.1 ms (in numpy it was 2.4 ms). DAQP takes the same 9 iterations to the same optimum as qrqp and
-costs about the same, 1.1-1.2 ms a QP: the condensing recursion (compiled, 0.2 ms) and the condensed Hessian
-(O(N^3) dense products, 0.35 ms: run in chunks below OpenBLAS's threading threshold, since on a loaded 2-core
-machine the threaded product took 2-20 ms) and DAQP's own set-up of the dense 101-unknown QP (its Cholesky and
-transformed constraints, 0.3-0.4 ms; the active-set iterations themselves 0.015 ms). The solve measured 20.7 ms
-with DAQP against 22.9 ms with qrqp in one run: neither reaches the issue's 3-8 ms, which needs the O(N^2)
-condensing or a Riccati-based QP solver called directly.
+QP solver: ``daqp`` (default; the stage QP condensed onto the knot controls ``v = (du_0 .. du_N)``, (N+1) nu
+unknowns, ``dx_k = g_k + G_k v`` by the stage dynamics, and solved by DAQP, PyPI ``daqp``, the dense dual active-set
+solver the NMPC uses, hot-started from the last QP's multipliers; see :meth:`CollocationSQP._daqp_step`), ``qrqp``
+(CasADi's sparse active-set solver, which factorises the banded KKT system of the stage QP by sparse QR, hot-started
+from the previous iteration's active set) or ``hpipm`` (CasADi's interface to the Riccati-recursion interior point).
+Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a failed check is solved again cold,
+then by HPIPM. Measured on the standard problem (N = 100, one pole, 2 shared cores): a qrqp solve about 1 ms; HPIPM
+1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call; HPIPM needs ``balance`` or ``robust``
+mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less accurate answers cost SQP iterations (101
+instead of 9); the compiled evaluations about 0.2 ms an iteration, the compiled Riccati check about 0.1 ms (in numpy
+it was 2.4 ms). DAQP takes the same iterations to the same optimum as qrqp at 1.0-1.2 ms a QP: the condensing
+recursion (compiled, 0.2 ms), the condensed Hessian (O(N^3) dense products, 0.35 ms, run in chunks below OpenBLAS's
+threading threshold: on the loaded 2-core machine the threaded product took 2-20 ms) and DAQP's own set-up of the
+dense 101-unknown QP (its Cholesky and transformed constraints, 0.3-0.4 ms; its active-set iterations 0.015 ms). One
+run, same process: 12.7 ms a solve with DAQP, 16.2 ms with qrqp (8 iterations, 7 QPs); so DAQP is the default. The
+issue's 3-8 ms needs more: the O(N^2) condensing recursion, or a Riccati-based QP solver called directly.
 
 Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
@@ -45,7 +44,9 @@ where it is not: a backward Riccati recursion over the stages raises any stage's
 ``reg_min`` (:meth:`CollocationSQP._reduced_hessian_reg`), so every QP is convex. Globalisation: a filter line search
 on (``||d||_1``, cost) (Fletcher and Leyffer) with a second-order correction against the Maratos effect, steps longer
 than ``max_step`` (scaled units) shortened. Converged when the largest defect and the largest entry of the
-Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT ``tol``).
+Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT ``tol``); after a full step that test
+is first made with the last QP's multipliers (the step was full, so that QP's active bounds hold at the new point),
+so no QP is solved only to confirm convergence.
 
 Infeasible linearisations: with ``qrqp`` and ``hpipm`` a linearisation whose QP is infeasible ends the solve
 (``QP_Failed``): the two-pole standard problem from the benchmark's guess does so at the first iteration, whereas
@@ -157,7 +158,7 @@ class CollocationSQP:
     lm_init : float
         First Levenberg-Marquardt damping of the stage Hessian blocks (default 1e-2; the scaled effort Hessian's
         diagonal is about 1e-2 at N = 100).
-    qp_solver : {'qrqp', 'daqp', 'hpipm'}
+    qp_solver : {'daqp', 'qrqp', 'hpipm'}
         The QP solver (module docstring); HPIPM also backs up qrqp, qrqp and HPIPM back up DAQP.
     qp_options : dict, optional
         Merged into the options of ``casadi.conic`` for ``qp_solver`` (for HPIPM, ``{"hpipm": {...}}`` for its own).
@@ -183,7 +184,7 @@ class CollocationSQP:
     """
 
     def __init__(self, ocp: DirectCollocation, *, tol: float = 1e-8, max_iter: int = 200, reg_min: float = 1e-4,
-                 lm_init: float = 1e-2, qp_solver: str = "qrqp", qp_options: dict | None = None, warm_qp: bool = True,
+                 lm_init: float = 1e-2, qp_solver: str = "daqp", qp_options: dict | None = None, warm_qp: bool = True,
                  soc: bool = True, max_step: float = 1.0):
         if not isinstance(ocp, DirectCollocation):
             raise SQPError("CollocationSQP needs a DirectCollocation problem (cartpole.ocp.collocation).")
@@ -424,7 +425,8 @@ class CollocationSQP:
         pinned ``x_N``) rows of ``G_k``, screened: DAQP sees the equalities and the rows active in the last QP, and
         any row its answer violates is added and the QP solved again (the answer is the full QP's: the rows left out
         are inactive). The multipliers of the stage dynamics follow by the backward recursion of the stage states'
-        stationarity (compiled with the forward one, :func:`_condensing_functions`). An infeasible QP (the linearised defects cannot meet the state bounds) is
+        stationarity (compiled with the forward one, :func:`_condensing_functions`). An infeasible QP (the
+        linearised defects cannot meet the state bounds) is
         solved again with those rows soft: the step then leaves the bounds, is projected back into them, and the
         filter judges the defects that leaves. Returns what :meth:`_qp_step` does, or None when DAQP failed."""
         N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
@@ -702,7 +704,18 @@ class CollocationSQP:
         try:
             D, J, f, G, H = self._eval(Z, lam)
             theta_max = 1e4 * max(1.0, float(np.abs(D).sum()))
+            last = None  # (defect, bound multipliers) of the last full, hard step
             for it in range(1, self.max_iter + 1):
+                if last is not None and float(np.abs(D).max()) <= self.tol:
+                    # converged already with the last QP's multipliers (its step was full, so its active bounds
+                    # hold here): no QP solved just to confirm it
+                    kkt = self._stationarity(J, G, *last)
+                    if kkt <= self.tol:
+                        self.history.append({"objective": f, "infeasibility": float(np.abs(D).max()),
+                                             "stationarity": kkt, "step": 0.0, "damping": lm, "alpha": 0.0,
+                                             "soc": False})
+                        status, success = "Solve_Succeeded", True
+                        break
                 self._soft_step = False
                 dZ, lam_qp, Nb, ok = self._qp_step(Z, D, J, G, H, lbz, ubz, lm)
                 soft_step = self._soft_step
@@ -753,6 +766,7 @@ class CollocationSQP:
                 Z = Z_new
                 if not soft_step:  # an elastic QP's multipliers price its penalty, not the NLP: kept
                     lam = lam_qp
+                last = (lam_qp, Nb) if (alpha == 1.0 and not soft_step and not rec["soc"]) else None
                 D, J, f, G, H = self._eval(Z, lam)
         except (RuntimeError, np.linalg.LinAlgError) as exc:  # a singular defect Jacobian, a NaN in CasADi
             status = f"Error: {(str(exc).strip().splitlines() or [type(exc).__name__])[-1]}"

@@ -45,7 +45,9 @@ def test_sqp_reaches_ipopts_optimum_on_the_standard_problem_from_the_same_guess(
     assert info_ip.success
     sqp = CollocationSQP(ocp, qp_solver=qp_solver)
     traj, info = sqp.solve_once(x0, guess=guess)
-    assert sqp.qp_counts[qp_solver] >= info.iterations  # every QP by the chosen solver, no fallback
+    # every QP by the chosen solver, no fallback (the last iteration may only confirm convergence)
+    assert sqp.qp_counts[qp_solver] >= info.iterations - 1
+    assert all(count == 0 for name, count in sqp.qp_counts.items() if name != qp_solver)
     assert info.success and info.status == "Solve_Succeeded" and info.solver == "sqp"
     assert 0 < info.iterations < 200
     assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
