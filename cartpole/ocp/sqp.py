@@ -560,20 +560,21 @@ class CollocationSQP:
         """Buffers of the condensed QP and its state rows (the finite state bounds of knots 1..N)."""
         N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
         nv = (N + 1) * nu
-        self._cG = np.zeros((N + 1, nx, nv + 1))  # [G_k, g_k]; G_0 = 0, g_0 = 0
-        self._cB = np.zeros((N, nx, nv + 1))  # [Au_k, Aw_k] placed at du_k, du_k+1; t_k last
-        kk = np.arange(N)
-        cols = np.concatenate([kk[:, None] * nu + np.arange(2 * nu)[None, :]], axis=0)  # (N, 2 nu)
-        self._bk_k = np.repeat(kk, 2 * nu)
-        self._bk_c = cols.ravel()
-        Y = np.zeros((N, nz + nu, nv))
-        for k in range(N):
-            Y[k, nx:nz, k * nu:(k + 1) * nu] = np.eye(nu)
-            Y[k, nz:, (k + 1) * nu:(k + 2) * nu] = np.eye(nu)
-        self._cY = Y
-        e = (np.arange(N)[:, None] * nu + np.arange(2 * nu)[None, :])  # du_k, du_k+1 in v
-        self._band_r = np.broadcast_to(e[:, :, None], (N, 2 * nu, 2 * nu)).copy()
-        self._band_c = np.broadcast_to(e[:, None, :], (N, 2 * nu, 2 * nu)).copy()
+        if not hasattr(self, "_cY"):  # the buffers (their constant entries stay from solve to solve)
+            self._cG = np.zeros((N + 1, nx, nv + 1))  # [G_k, g_k]; G_0 = 0, g_0 = 0
+            self._cB = np.zeros((N, nx, nv + 1))  # [Au_k, Aw_k] placed at du_k, du_k+1; t_k last
+            kk = np.arange(N)
+            cols = np.concatenate([kk[:, None] * nu + np.arange(2 * nu)[None, :]], axis=0)  # (N, 2 nu)
+            self._bk_k = np.repeat(kk, 2 * nu)
+            self._bk_c = cols.ravel()
+            Y = np.zeros((N, nz + nu, nv))
+            for k in range(N):
+                Y[k, nx:nz, k * nu:(k + 1) * nu] = np.eye(nu)
+                Y[k, nz:, (k + 1) * nu:(k + 2) * nu] = np.eye(nu)
+            self._cY = Y
+            e = (np.arange(N)[:, None] * nu + np.arange(2 * nu)[None, :])  # du_k, du_k+1 in v
+            self._band_r = np.broadcast_to(e[:, :, None], (N, 2 * nu, 2 * nu)).copy()
+            self._band_c = np.broadcast_to(e[:, None, :], (N, 2 * nu, 2 * nu)).copy()
         fin = np.isfinite(lbz[:, :nx]) | np.isfinite(ubz[:, :nx])
         fin[0] = False  # x_0 is pinned: dx_0 = 0 by construction
         self._rows_k, self._rows_i = np.nonzero(fin)
