@@ -849,7 +849,11 @@ class CollocationSQP:
         ocp, N, nx = self.ocp, self.N, self.nx
         X = (Z[:, :nx] * self.sx).T
         U = (Z[:, nx:] * self.su).T
-        xdot = np.asarray(ocp._f_knots(X, U))
+        if not hasattr(self, "_f_knots"):
+            self._f_knots = _Buffered(ocp._f_knots)
+        # (N+1, nx) C-order is CasADi's (nx, N+1) column-major
+        (F,) = self._f_knots(Z[:, :nx] * self.sx, Z[:, nx:] * self.su)
+        xdot = F.reshape(N + 1, nx).T.copy()
         h = T / N
         Xc = 0.5 * (X[:, :-1] + X[:, 1:]) + h / 8 * (xdot[:, :-1] - xdot[:, 1:])
         Uc = 0.5 * (U[:, :-1] + U[:, 1:])
