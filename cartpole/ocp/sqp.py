@@ -31,12 +31,12 @@ then by HPIPM. Measured on the standard problem (N = 100, one pole, 2 shared cor
 mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less accurate answers cost SQP iterations (101
 instead of 9); the compiled evaluations about 0.2 ms an iteration, the compiled Riccati check about 0.1 ms (in numpy
 it was 2.4 ms). DAQP takes the same iterations to the same optimum as qrqp at 1.0-1.2 ms a QP: the condensing
-recursion (compiled, 0.2 ms), the condensed Hessian (O(N^3) dense products by its structure, 0.3 ms, in chunks below OpenBLAS's
-threading threshold: on the loaded 2-core machine the threaded product took 2-20 ms) and DAQP's own set-up of the
-dense 101-unknown QP (its Cholesky and transformed constraints, 0.3-0.4 ms; its active-set iterations 0.015 ms).
-Alternating in one process: DAQP 10.9 and 12.6 ms a solve, qrqp 14.5 and 13.0 ms (8 iterations, 7 QPs each); so DAQP
-is the default. The issue's 3-8 ms needs more: the O(N^2) condensing recursion, or a Riccati-based QP solver called
-directly.
+recursion (compiled, 0.2 ms), the condensed Hessian (O(N^3) dense products by its structure, 0.3 ms, in chunks below
+OpenBLAS's threading threshold: on the loaded 2-core machine the threaded product took 2-20 ms) and DAQP's own
+set-up of the dense 101-unknown QP (its Cholesky and transformed constraints, 0.3-0.4 ms; its active-set iterations
+0.015 ms). Alternating in one process: DAQP 10.9 and 12.6 ms a solve, qrqp 14.5 and 13.0 ms (8 iterations, 7 QPs
+each); so DAQP is the default. The issue's 3-8 ms needs more: the O(N^2) condensing recursion, or a Riccati-based QP
+solver called directly.
 
 Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
