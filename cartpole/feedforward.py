@@ -291,9 +291,11 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     with stage("trajectory optimisation", size=f"{n_plans} plan{'s' if n_plans != 1 else ''}",
                callback=forward("plan")) as tick:
         if plan is None:
-            plan = trajopt_swingup(params, model=model)
+            # the collocation plan's own feedforward inside TVLQR (not the exact-discrete re-solve)
+            plan = trajopt_swingup(params, model=model, exact_discrete=False)
             tick(1.0 / max(n_plans, 1))
-        wrong = plan if f == 0.0 else trajopt_swingup(params, model=build_model(params.scaled_pole(1.0 + f, 1.0)))
+        wrong = plan if f == 0.0 else trajopt_swingup(params, model=build_model(params.scaled_pole(1.0 + f, 1.0)),
+                                                      exact_discrete=False)
         tick(1.0)
 
     x0 = model.x_hanging

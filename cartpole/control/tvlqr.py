@@ -14,7 +14,10 @@ class TVLQRController:
     ends at ``theta = 2 pi`` and a MuJoCo hinge that never wraps agree. With discrete gains (held over each
     simulator step) the feed-forward is the zero-order-hold equivalent of the plan's first-order-hold input,
     ``u_ff(t) = input(t + dt / 2)`` (the mean over the step the gain was designed for); with continuous gains it is
-    ``input(t)``.
+    ``input(t)``. When the gains carry their own discrete reference (``gains.has_reference``: an exact solution of
+    the discrete model, e.g. :func:`cartpole.ocp.pipeline.exact_discrete_plan`), the law follows it instead,
+    ``u = u_ref[k] - K[k] (x - x_ref[k])`` for the step ``k`` that contains ``t``, and the catch takes over at the
+    end of that reference, ``gains.t_final``.
 
     Parameters
     ----------
@@ -45,13 +48,15 @@ class TVLQRController:
         self.u_limits = np.array(catch.u_limits if u_limits is None else _limits(u_limits, nu), dtype=float)
         self.hinges = tuple(catch.hinges if hinges is None else hinges)
         self._ff_shift = 0.5 * gains.dt if gains.method == "discrete" else 0.0
+        self._exact = bool(getattr(gains, "has_reference", False))
+        self._t_end = float(gains.t_final) if self._exact else float(traj.t[-1])
         self.handover_time: float | None = None
         self._last_t = -np.inf
 
     @property
     def T(self) -> float:
-        """End of the plan in s; the catch holds from then on."""
-        return float(self.traj.t[-1])
+        """End of the plan in s (of the gains' own reference when they carry one); the catch holds from then on."""
+        return self._t_end
 
     def reset(self) -> None:
         """Forget the hand-over (done automatically when called with an earlier time than the last call)."""
@@ -69,6 +74,11 @@ class TVLQRController:
             if self.handover_time is None:
                 self.handover_time = t
             return np.clip(self.catch(t, x), lo, hi)
+        if self._exact:
+            k = self.gains.index(t)
+            e = state_error(x, self.gains.x_ref[k], self.hinges)
+            u = self.gains.u_ref[k] - self.gains.K[k] @ e
+            return np.clip(u, lo, hi)
         e = state_error(x, self.traj.state(t), self.hinges)
         u_ff = np.asarray(self.traj.input(min(t + self._ff_shift, self.T)), dtype=float).ravel()
         u = u_ff - self.gains.gain(t) @ e

@@ -46,6 +46,12 @@ class TVLQRGains:
         Step of the grid in s (the simulator's step for the discrete method).
     method : str
         ``discrete`` (K held over each step) or ``continuous`` (K interpolated linearly in time).
+    x_ref : (n+1, nx) array or None
+        The discrete reference the gains were designed along, when it was given explicitly (``tvlqr(...,
+        reference=(x, u))``, e.g. a plan that is an exact solution of the discrete model): the tracking controller
+        then follows ``x_ref[k]`` instead of the plan's cubic-Hermite states. None otherwise.
+    u_ref : (n, nu) array or None
+        The ctrl of each step of that reference (held over the step), or None.
     """
 
     t: np.ndarray
@@ -53,6 +59,8 @@ class TVLQRGains:
     S: np.ndarray
     dt: float
     method: str = "discrete"
+    x_ref: np.ndarray | None = None
+    u_ref: np.ndarray | None = None
 
     def __post_init__(self):
         for name in ("t", "K", "S"):
@@ -62,6 +70,26 @@ class TVLQRGains:
         if self.t.ndim != 1 or self.K.ndim != 3 or self.K.shape[0] != n or self.S.shape != (n + 1, nx, nx):
             raise LQRError(f"TVLQR arrays disagree: t {self.t.shape}, K {self.K.shape}, S {self.S.shape}; "
                            "need t (n,), K (n, nu, nx), S (n+1, nx, nx).")
+        if (self.x_ref is None) != (self.u_ref is None):
+            raise LQRError("TVLQR reference needs both x_ref (n+1, nx) and u_ref (n, nu), or neither.")
+        if self.x_ref is not None:
+            x_ref = readonly(np.asarray(self.x_ref, float))
+            u_ref = readonly(np.asarray(self.u_ref, float).reshape(n, -1))
+            if x_ref.shape != (n + 1, nx) or u_ref.shape != (n, self.K.shape[1]):
+                raise LQRError(f"TVLQR reference arrays disagree with the gains: x_ref {x_ref.shape}, u_ref "
+                               f"{u_ref.shape}, K {self.K.shape}; need x_ref (n+1, nx), u_ref (n, nu).")
+            object.__setattr__(self, "x_ref", x_ref)
+            object.__setattr__(self, "u_ref", u_ref)
+
+    @property
+    def has_reference(self) -> bool:
+        """True when the gains carry their own discrete reference (``x_ref``, ``u_ref``)."""
+        return self.x_ref is not None
+
+    def index(self, t) -> np.ndarray:
+        """Step index ``k`` (int array, or int for a scalar) whose gain applies at time ``t`` s, clamped."""
+        k = self._index(np.atleast_1d(np.asarray(t, float)))
+        return int(k[0]) if np.ndim(t) == 0 else k
 
     @property
     def nx(self) -> int:
@@ -102,6 +130,10 @@ class TVLQRGains:
         S = np.column_stack([np.interp(t_arr, grid, flat[:, j]) for j in range(flat.shape[1])])
         S = S.reshape(-1, self.nx, self.nx)
         return S[0] if np.ndim(t) == 0 else S
+
+
+def _reference(traj, dt):
+    return reference(traj, dt)
 
 
 def reference(traj, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -165,7 +197,7 @@ def riccati_backward(Ad, Bd, Qd, Rd, Sf) -> tuple[np.ndarray, np.ndarray]:
 
 
 def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | None = None,
-          method: str = "discrete", rtol: float = 1e-8) -> TVLQRGains:
+          method: str = "discrete", rtol: float = 1e-8, reference=None) -> TVLQRGains:
     """Finite-horizon TVLQR along ``traj`` (see the module docstring for both methods).
 
     Parameters
@@ -188,6 +220,12 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
     method : {'discrete', 'continuous'}
     rtol : float
         Relative tolerance of the ODE solver (``continuous`` only).
+    reference : (x, u), optional
+        ``discrete`` only: the reference on the step grid ``traj.t[0] + k dt`` itself, states ``x`` (n+1, nx) and
+        the ctrl held over each step ``u`` (n, nu) (e.g. :func:`cartpole.ocp.pipeline.exact_discrete_plan`, an
+        exact solution of ``model.step``), instead of :func:`reference` of ``traj``. It is linearised along and
+        kept in the gains (``x_ref``, ``u_ref``), so the controller tracks it; the terminal cost is taken at
+        ``x[-1]``, ``u[-1]``.
 
     Returns
     -------
@@ -212,7 +250,16 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
             raise LQRError(f"Qf has shape {Qf.shape} but must be ({nx}, {nx}) for this model's {nx} states.")
     if method == "discrete":
         dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
-        t, xr, ur = reference(traj, dt)
+        if reference is None:
+            t, xr, ur = _reference(traj, dt)
+        else:
+            xr = np.asarray(reference[0], dtype=float)
+            ur = np.asarray(reference[1], dtype=float).reshape(-1, nu)
+            if xr.ndim != 2 or xr.shape != (ur.shape[0] + 1, nx):
+                raise LQRError(f"TVLQR reference has x {xr.shape} and u {ur.shape}; need x (n+1, {nx}) and "
+                               f"u (n, {nu}).")
+            t = float(traj.t[0]) + dt * np.arange(ur.shape[0])
+            x_end, u_end = xr[-1], ur[-1]
         n = t.size
         Ad, Bd = dmodel.ABd.map(n)(xr[:-1].T, np.asarray(ur, float).reshape(n, nu).T)  # n linearisations, one call
         Ad = np.asarray(Ad).reshape(nx, n, nx).transpose(1, 0, 2)
@@ -221,7 +268,11 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
             A1, B1 = dmodel.linearize(x_end, u_end, discrete=True)
             Qf = dlqr(A1, B1, Q * dt, R * dt).S
         K, S = riccati_backward(Ad, Bd, Q * dt, R * dt, Qf)
-        return TVLQRGains(t=t, K=K, S=S, dt=dt, method="discrete")
+        if reference is None:
+            return TVLQRGains(t=t, K=K, S=S, dt=dt, method="discrete")
+        return TVLQRGains(t=t, K=K, S=S, dt=dt, method="discrete", x_ref=xr, u_ref=ur)
+    if reference is not None:
+        raise LQRError("An explicit TVLQR reference is a discrete one; use method='discrete' with it.")
     return _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol)
 
 

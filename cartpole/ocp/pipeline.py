@@ -23,7 +23,7 @@ with a cold cache (the interval functions compiled first) 1.4 s, 2.2 s, 10.2 s.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +31,7 @@ import numpy as np
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
+from cartpole.lqr.tvlqr import reference as _on_step_grid
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.ocp.bounds import OCPError, bounds_from_params
 from cartpole.ocp.collocation import Attempt, DirectCollocation, SolveInfo
@@ -66,6 +67,9 @@ class SwingupPlan:
     plan_time_s : float
         Wall time in s of the whole :func:`trajopt_swingup` call that made this plan: every guess of the
         multi-start, every stage, building (and compiling, on a cold cache) the solvers, and TVLQR.
+    discrete : DiscretePlan or None
+        The plan re-solved on the exact discrete model (:func:`exact_discrete_plan`) that TVLQR tracks, or None
+        when TVLQR tracks ``trajectory`` itself (``exact_discrete=False``, or the re-solve failed).
     """
 
     trajectory: Trajectory
@@ -77,11 +81,163 @@ class SwingupPlan:
     T_min: float | None = None
     objective: str = "effort"
     plan_time_s: float = float("nan")
+    discrete: "DiscretePlan | None" = field(default=None, compare=False)
 
     @property
     def T(self) -> float:
         """Duration of the plan in s."""
         return self.trajectory.duration
+
+
+@dataclass(frozen=True)
+class DiscretePlan:
+    """A plan that is an exact solution of the MJCF's own discrete step (``model.step`` = one ``mj_step``).
+
+    Attributes
+    ----------
+    t : (n,) array, s
+        Step starts ``t0 + k dt``.
+    x : (n+1, nx) array
+        States at ``t0 + k dt``; ``x[k+1] = model.step(x[k], u[k])`` to the solver's tolerance.
+    u : (n, nu) array
+        ctrl held over each step.
+    dt : float
+        s, the MJCF's timestep.
+    u_margin : float
+        Fraction of each actuator's half ctrl range kept free on both sides (0: the full range).
+    status : str
+        IPOPT's return status.
+    iterations : int
+    solve_time_s : float
+        Wall time of building and solving the problem in s.
+    defect_before : float
+        Largest one-step defect ``|model.step(x_k, u_k) - x_k+1|`` of the collocation plan on the same grid
+        (what TVLQR would have had to absorb every step), in state units.
+    defect_after : float
+        The same for this plan.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    dt: float
+    u_margin: float
+    status: str
+    iterations: int
+    solve_time_s: float
+    defect_before: float
+    defect_after: float
+
+    def __post_init__(self):
+        from cartpole._arrays import readonly
+
+        for name in ("t", "x", "u"):
+            object.__setattr__(self, name, readonly(np.asarray(getattr(self, name), float)))
+
+    @property
+    def t_final(self) -> float:
+        """End of the plan in s."""
+        return float(self.t[0] + self.dt * self.t.size)
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (no arrays)."""
+        return {"steps": int(self.t.size), "dt": self.dt, "u_margin": self.u_margin, "status": self.status,
+                "iterations": self.iterations, "solve_time_s": self.solve_time_s,
+                "defect_before": self.defect_before, "defect_after": self.defect_after}
+
+
+#: Fraction of each actuator's half ctrl range the exact discrete plan leaves free on both sides, so TVLQR keeps
+#: authority to correct errors where the plan would otherwise ride the limit (0 when that is infeasible).
+U_MARGIN = 0.05
+
+
+def _defects(model: CartPoleModel, x, u) -> float:
+    n = u.shape[0]
+    xn = np.asarray(model.step.map(n)(np.asarray(x[:-1]).T, np.asarray(u).reshape(n, -1).T)).T
+    return float(np.abs(xn - x[1:]).max())
+
+
+def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, dt: float | None = None,
+                        u_margin: float = U_MARGIN, x_goal=None, max_iter: int = 100) -> DiscretePlan | None:
+    """Re-solve a collocation plan on the exact discrete model: the closest motion MuJoCo can follow exactly.
+
+    The collocation plan satisfies the continuous dynamics; MuJoCo steps the MJCF's integrator (semi-implicit
+    Euler at 5 ms on the shipped carts), whose local error per step is what TVLQR must absorb all along the plan.
+    On the shipped three-pole cart that one-step defect is up to 0.05 rad/s on the last hinge rate every 5 ms
+    (whatever the collocation mesh: it is the integrator's, not the mesh's) and the plan run open loop in the
+    discrete model is off by 0.1 rad after half the swing. This solves, by IPOPT,
+
+        min  sum_k |u_k - u_plan,k|^2 dt
+        s.t. x_0 = x0,  x_k+1 = model.step(x_k, u_k),  x_n = x_goal,
+             u_low + m <= u_k <= u_high - m  (m = u_margin * half each ctrl range),  joint bounds on every x_k,
+
+    on the plan's step grid (``n = round(T / dt)`` steps), started from the plan itself (its zero-order-hold
+    inputs, :func:`cartpole.lqr.tvlqr.reference`), so the result is as near the plan as the exact discrete
+    dynamics allow and leaves feedback a ctrl margin.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        Planning model; its discrete step at ``dt`` is the constraint (rebuilt at ``dt`` when it differs).
+    traj : Trajectory
+        The collocation plan.
+    x0 : (nx,) array
+        Start state.
+    bounds : OCPBounds
+        ctrl and joint bounds (as the collocation's).
+    dt : float, optional
+        Step in s; default ``model.dt``.
+    u_margin : float
+        Fraction in [0, 1) of each actuator's half ctrl range kept free on each side.
+    x_goal : (nx,) array, optional
+        Final state; default the plan's last knot.
+    max_iter : int
+        IPOPT iteration cap.
+
+    Returns
+    -------
+    DiscretePlan, or None when IPOPT did not converge (the caller keeps the collocation plan).
+    """
+    import casadi as ca
+
+    tic = time.perf_counter()
+    dt = float(model.dt if dt is None else dt)
+    if not 0.0 <= u_margin < 1.0:
+        raise OCPError(f"u_margin = {u_margin} must be a fraction in [0, 1) of each half ctrl range.")
+    dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
+    t, xr, ur = _on_step_grid(traj, dt)
+    n, nx, nu, nq = t.size, dmodel.nx, dmodel.nu, dmodel.nq
+    x0 = np.asarray(x0, float).ravel()
+    x_goal = np.asarray(traj.x[-1] if x_goal is None else x_goal, float).ravel()
+    before = _defects(dmodel, xr, ur)
+    X = ca.MX.sym("X", nx, n + 1)
+    U = ca.MX.sym("U", nu, n)
+    gap = ca.vec(dmodel.step.map(n)(X[:, :-1], U) - X[:, 1:])
+    cost = ca.sumsqr(U - ur.T) * dt
+    half = 0.5 * (bounds.u_high - bounds.u_low)
+    u_lo, u_hi = bounds.u_low + u_margin * half, bounds.u_high - u_margin * half
+    lx = np.full((nx, n + 1), -np.inf)
+    hx = np.full((nx, n + 1), np.inf)
+    lx[:nq] = np.asarray(bounds.q_low, float)[:, None]
+    hx[:nq] = np.asarray(bounds.q_high, float)[:, None]
+    lx[:, 0] = hx[:, 0] = x0
+    lx[:, -1] = hx[:, -1] = x_goal
+    lw = np.r_[lx.ravel(order="F"), np.tile(u_lo, n)]
+    hw = np.r_[hx.ravel(order="F"), np.tile(u_hi, n)]
+    w0 = np.clip(np.r_[xr.ravel(), ur.ravel()], lw, hw)
+    solver = ca.nlpsol("exact_discrete", "ipopt", {"x": ca.veccat(X, U), "f": cost, "g": gap},
+                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": 1e-10})
+    sol = solver(x0=w0, lbx=lw, ubx=hw, lbg=0.0, ubg=0.0)
+    stats = solver.stats()
+    if not stats.get("success", False):
+        return None
+    w = np.asarray(sol["x"], float).ravel()
+    x = w[:nx * (n + 1)].reshape(n + 1, nx)
+    u = w[nx * (n + 1):].reshape(n, nu)
+    return DiscretePlan(t=t, x=x, u=u, dt=dt, u_margin=float(u_margin), status=str(stats["return_status"]),
+                        iterations=int(stats["iter_count"]), solve_time_s=time.perf_counter() - tic,
+                        defect_before=before, defect_after=_defects(dmodel, x, u))
 
 
 #: IPOPT iterations allowed to each start of the coarse minimum-time multi-start: a start that has not converged
@@ -229,7 +385,8 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
                     T: float | None = None, N: int | None = None, model: CartPoleModel | None = None,
                     solver: str = "ipopt", Q=None, R=None, Qf=None, time_margin: float = 0.2,
                     solver_options: dict | None = None, cart_margin: float = 0.1,
-                    objective=None, starts: int | None = None) -> SwingupPlan:
+                    objective=None, starts: int | None = None, exact_discrete: bool = True,
+                    u_margin: float = U_MARGIN) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -273,6 +430,14 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Guesses of the minimum-time multi-start (:func:`minimum_time`; default the pumping and straight-line
         shapes to the nearest upright angles, after the energy-shaping rollout for one pole; 4 adds the routes in
         which every link loops once more).
+    exact_discrete : bool
+        Re-solve the plan on the exact discrete model at the MJCF step (:func:`exact_discrete_plan`) and track
+        that (default True): the collocation plan obeys the continuous dynamics, and MuJoCo's integrator's
+        per-step error along it is otherwise a disturbance TVLQR must reject every step. If the re-solve fails
+        (with ``u_margin``, then with no margin), TVLQR tracks the collocation plan as before.
+    u_margin : float
+        Fraction of each actuator's half ctrl range the exact discrete plan keeps free for feedback (default
+        :data:`U_MARGIN`, 5 %).
 
     Returns
     -------
@@ -323,7 +488,17 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     dt = params.timestep
     u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
     catch = handover_catch(params, plan_model, Q, R)
-    gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
+    exact = None
+    if exact_discrete:
+        for margin in dict.fromkeys((float(u_margin), 0.0)):
+            exact = exact_discrete_plan(tv_model, traj, x0, bounds, dt=dt, u_margin=margin)
+            if exact is not None:
+                break
+    if exact is None:
+        gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
+    else:
+        gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt, reference=(exact.x, exact.u))
     controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
     return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
-                       model=plan_model, T_min=T_min, objective=obj.name, plan_time_s=time.perf_counter() - tic)
+                       model=plan_model, T_min=T_min, objective=obj.name, plan_time_s=time.perf_counter() - tic,
+                       discrete=exact)

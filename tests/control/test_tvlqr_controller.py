@@ -14,7 +14,8 @@ from cartpole.sim import replays_exactly, simulate
 
 @pytest.fixture(scope="module")
 def plan():
-    return trajopt_swingup()
+    # the law along the collocation plan itself (the exact-discrete reference is tests/test_swingup_starts.py's)
+    return trajopt_swingup(exact_discrete=False)
 
 
 def test_law_is_feedforward_minus_gain_times_wrapped_error(plan):
