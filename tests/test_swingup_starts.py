@@ -3,7 +3,8 @@
 The collocation plan obeys the continuous dynamics; MuJoCo steps the MJCF's integrator (semi-implicit Euler at
 5 ms on the shipped carts), and that integrator's per-step error along the plan is a disturbance TVLQR had to
 reject every step (on the three-pole cart it made the re-planned swing-up from the cart at 0.3 m lose the track
-and hit the rail). ``trajopt_swingup`` now re-solves the plan on the exact discrete model with a ctrl margin
+and hit the rail). ``trajopt_swingup`` predicts TVLQR on the exact discrete step and, where it strays from the plan,
+re-solves the plan on the exact discrete model with a ctrl margin
 (:func:`cartpole.ocp.pipeline.exact_discrete_plan`) and TVLQR tracks that. Every claim here is a MuJoCo rollout
 that replays exactly; success is :func:`cartpole.validation.metrics.swingup_metrics` over the last 3 s.
 """
@@ -63,7 +64,7 @@ def test_the_exact_discrete_plan_is_a_solution_of_the_mjcf_step_with_a_ctrl_marg
 def test_tvlqr_on_the_exact_plan_keeps_mujoco_on_it_and_hands_over_at_its_end():
     params = _params("two_pole")
     model = build_model(params)
-    plan = trajopt_swingup(params)
+    plan = trajopt_swingup(params, exact_discrete=True)
     assert plan.discrete is not None and plan.gains.has_reference
     ro, m = _run(params, plan, model.x_hanging)
     assert m["success"], m
@@ -85,8 +86,30 @@ def test_the_triple_replanned_with_the_cart_off_centre_swings_up_and_holds():
     x0 = np.array(model.x_hanging, dtype=float)
     x0[model.slide] = 0.3
     plan = trajopt_swingup(params, x0)
+    # the prediction on the exact discrete step strays from the collocation plan, so the plan is re-solved on it
+    assert plan.discrete is not None and plan.gains.has_reference
     ro, m = _run(params, plan, x0)
     print(f"three_pole from the cart at 0.3 m: {m}, discrete plan {plan.discrete and plan.discrete.as_dict()}")
+    assert m["success"], m
+
+
+def test_auto_keeps_the_collocation_plan_where_tvlqr_is_predicted_to_track_it():
+    from cartpole.control.tvlqr import TVLQRController
+    from cartpole.lqr import tvlqr
+    from cartpole.ocp.pipeline import TRACK_TOL, predicted_tracking_error
+
+    params = _params("two_pole")
+    model = build_model(params)
+    plan = trajopt_swingup(params)  # exact_discrete="auto"
+    assert plan.discrete is None and not plan.gains.has_reference
+    # the prediction is the MuJoCo run (the MJCF's own model): its largest hinge deviation is within TRACK_TOL
+    err = predicted_tracking_error(model, TVLQRController(plan.trajectory, plan.gains, plan.catch,
+                                                         u_limits=params.ctrl_range), plan.trajectory, model.x_hanging)
+    ro, m = _run(params, plan, model.x_hanging)
+    n = int(round(plan.T / params.timestep))
+    dev = max(np.abs(ro.x[k][list(model.hinges)] - plan.trajectory.state(ro.t[k])[list(model.hinges)]).max()
+              for k in range(1, n + 1))
+    assert err == pytest.approx(dev, abs=1e-9) and err <= TRACK_TOL
     assert m["success"], m
 
 
