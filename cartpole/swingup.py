@@ -237,14 +237,16 @@ def plan_report(sp) -> dict:
     """What the trajectory optimisation did, JSON-ready: ``plan_time_s`` (s, wall time of the whole plan, every
     guess and stage included), ``T_min`` and ``T`` (s), ``solver``, ``status``, ``iterations`` (of the kept plan),
     ``total_iterations``, ``guess`` (the initial guess that won) and ``attempts`` (every solver call: stage, guess,
-    N, status, success, iterations, objective, T, solve time, whether it was kept)."""
+    N, status, success, iterations, objective, T, solve time, whether it was kept) and ``discrete`` (the re-solve on
+    the exact discrete step that TVLQR tracks, :func:`cartpole.ocp.pipeline.exact_discrete_plan`, or None)."""
     info = sp.solve_info
     attempts = getattr(info, "attempts", None) or ()
     return {"plan_time_s": float(getattr(sp, "plan_time_s", float("nan"))),
             "T_min": None if sp.T_min is None else float(sp.T_min), "T": float(sp.T), "solver": info.solver,
             "status": info.status, "iterations": int(info.iterations),
             "total_iterations": int(getattr(info, "total_iterations", info.iterations)),
-            "guess": getattr(info, "guess", None), "attempts": [a.as_dict() for a in attempts]}
+            "guess": getattr(info, "guess", None), "attempts": [a.as_dict() for a in attempts],
+            "discrete": None if getattr(sp, "discrete", None) is None else sp.discrete.as_dict()}
 
 
 def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float | None = None,
