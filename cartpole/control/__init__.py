@@ -2,6 +2,9 @@
 from cartpole.control.linear import FeedbackError, LinearFeedback
 
 __all__ = ["FeedbackError", "LinearFeedback"]
+from cartpole.control.model_rollout import model_rollout  # noqa: E402
+
+__all__ += ["model_rollout"]
 from cartpole.control.tvlqr import TVLQRController  # noqa: E402
 
 __all__ += ["TVLQRController"]

@@ -43,6 +43,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
+from cartpole.control.model_rollout import model_rollout
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, build_model
 
@@ -398,8 +399,8 @@ def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controlle
 
 
 def energy_rollout(model: CartPoleModel, controller, x0, steps: int, *, u_limits) -> tuple[np.ndarray, np.ndarray]:
-    """Run the symbolic model's exact discrete step (``model.step_np``: the MJCF's integrator at ``model.dt``)
-    ``steps`` times under ``controller``, its ctrl clipped to ``u_limits``: the rollout behind every energy guess.
+    """:func:`~cartpole.control.model_rollout.model_rollout` for a one-input model, its ctrl clipped to ``u_limits``:
+    the rollout behind every energy guess.
 
     Parameters
     ----------
@@ -424,12 +425,5 @@ def energy_rollout(model: CartPoleModel, controller, x0, steps: int, *, u_limits
     if model.nu != 1:
         raise EnergyShapingModelError(f"Energy shaping is for one pole driven by the cart and this model has "
                                       f"{model.nu} actuators; use `--method trajopt` instead.")
-    h = model.dt
-    lo, hi = np.asarray(u_limits, dtype=float).reshape(2)
-    x = np.empty((steps + 1, model.nx))
-    u = np.empty(steps)
-    x[0] = np.asarray(x0, dtype=float)
-    for k in range(steps):
-        u[k] = float(np.clip(np.asarray(controller(k * h, x[k]), dtype=float).ravel()[0], lo, hi))
-        x[k + 1] = model.step_np(x[k], u[k])
-    return x, u
+    x, u = model_rollout(model, controller, x0, steps, u_limits=np.asarray(u_limits, dtype=float).reshape(1, 2))
+    return x, u[:, 0]

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
+from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.lqr.tvlqr import reference as _on_step_grid
@@ -166,23 +167,19 @@ TRACK_TOL = 0.1
 
 def predicted_tracking_error(model: CartPoleModel, controller, traj: Trajectory, x0) -> float:
     """Largest hinge-angle deviation in rad from ``traj`` of ``controller`` run on ``model.step`` (the planning
-    model's exact discrete step, one MJCF step each) from ``x0`` over the plan's duration; inf when the state
-    leaves the finite numbers. Cheap (one CasADi call and one controller call a step): a prediction of the MuJoCo
-    run, exact when ``model`` is the MJCF's own."""
-    x = np.asarray(x0, float).copy()
-    hinges = list(model.hinges)
+    model's exact discrete step, one MJCF step each; :func:`cartpole.control.model_rollout.model_rollout`) from
+    ``x0`` over the plan's duration; inf when the state leaves the finite numbers. Cheap (one CasADi call and one
+    controller call a step): a prediction of the MuJoCo run, exact when ``model`` is the MJCF's own."""
     n = int(round(traj.duration / model.dt))
-    worst = 0.0
     t0 = float(traj.t[0])
-    for k in range(n):
-        t = t0 + k * model.dt
-        u = np.asarray(controller(t, x), float)
-        x = np.asarray(model.step(x, u), float).ravel()
-        if not np.all(np.isfinite(x)):
-            return float("inf")
-        dev = np.abs(x[hinges] - traj.state(t + model.dt)[hinges]).max() if hinges else 0.0
-        worst = max(worst, float(dev))
-    return worst
+    x, _ = model_rollout(model, controller, x0, n, t0=t0)
+    if not np.all(np.isfinite(x)):
+        return float("inf")
+    hinges = list(model.hinges)
+    if not hinges or n == 0:
+        return 0.0
+    ends = (t0 + np.arange(n) * model.dt) + model.dt  # the end of each step, as the plan's time
+    return float(np.abs(x[1:, hinges] - traj.state(ends)[:, hinges]).max())
 
 
 def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, dt: float | None = None,
@@ -520,7 +517,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     dt = params.timestep
     u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
     catch = handover_catch(params, plan_model, Q, R)
-    exact = None
+    exact, gains = None, None
     if exact_discrete == "auto":
         gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
         err = predicted_tracking_error(tv_model, TVLQRController(traj, gains, catch, u_limits=u_limits), traj, x0)
@@ -531,7 +528,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
             if exact is not None:
                 break
     if exact is None:
-        gains = gains if "gains" in locals() else tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
+        gains = gains if gains is not None else tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
     else:
         gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt, reference=(exact.x, exact.u))
     controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
