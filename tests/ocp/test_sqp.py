@@ -39,6 +39,14 @@ def _assert_same_plan(a: Trajectory, b: Trajectory, ocp: DirectCollocation):
     assert np.max(np.abs(a.u - b.u) / su) < 1e-4
 
 
+def _assert_ipopts_optimum(traj, info, traj_ip, info_ip, ocp: DirectCollocation, x0):
+    """The SQP's plan is IPOPT's: same objective (1e-6 relative), same plan, the boundary states and |ctrl| <= 1."""
+    assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
+    _assert_same_plan(traj, traj_ip, ocp)
+    assert np.allclose(traj.x[0], x0) and np.allclose(traj.x[-1], ocp.model.x_eq, atol=1e-12)
+    assert np.all(np.abs(traj.u) <= 1.0 + 1e-9)
+
+
 @pytest.mark.parametrize("qp_solver", ["qrqp", "daqp"])
 def test_sqp_reaches_ipopts_optimum_on_the_standard_problem_from_the_same_guess(single, qp_solver):
     ocp, x0, guess, (traj_ip, info_ip) = single
@@ -50,11 +58,7 @@ def test_sqp_reaches_ipopts_optimum_on_the_standard_problem_from_the_same_guess(
     assert all(count == 0 for name, count in sqp.qp_counts.items() if name != qp_solver)
     assert info.success and info.status == "Solve_Succeeded" and info.solver == "sqp"
     assert 0 < info.iterations < 200
-    assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
-    _assert_same_plan(traj, traj_ip, ocp)
-    # the plan meets the boundary states and the bounds
-    assert np.allclose(traj.x[0], x0) and np.allclose(traj.x[-1], ocp.model.x_eq, atol=1e-12)
-    assert np.all(np.abs(traj.u) <= 1.0 + 1e-9)
+    _assert_ipopts_optimum(traj, info, traj_ip, info_ip, ocp, x0)
 
 
 def test_sqp_converges_fast_near_the_optimum_of_the_two_pole_problem_to_ipopts_optimum(two_pole):
@@ -93,10 +97,7 @@ def test_sqp_reaches_ipopts_optimum_on_the_two_pole_problem_from_the_bench_guess
     traj, info = sqp.solve_once(x0, guess=guess)
     assert info.success and info.status == "Solve_Succeeded"
     assert sqp.qp_soft >= 1  # its first linearisations are infeasible: the soft QP carried it through
-    assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
-    _assert_same_plan(traj, traj_ip, ocp)
-    assert np.allclose(traj.x[0], x0) and np.allclose(traj.x[-1], ocp.model.x_eq, atol=1e-12)
-    assert np.all(np.abs(traj.u) <= 1.0 + 1e-9)
+    _assert_ipopts_optimum(traj, info, traj_ip, info_ip, ocp, x0)
 
 
 def test_sqp_failure_is_one_sentence_and_the_fallback_is_ipopts_optimum(two_pole):
