@@ -259,6 +259,13 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
 PLAN_MODELS = (("1 pole", "cartpole.xml"), ("2 poles", "cartpole_two_pole.xml"), ("3 poles", "cartpole_three_pole.xml"))
 
 
+def shipped_plan_models() -> list[tuple[str, str]]:
+    """(label, path) of each shipped cart in :data:`PLAN_MODELS`."""
+    from cartpole.models import SHIPPED_MJCF
+
+    return [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS]
+
+
 def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progress=None) -> list[dict]:
     """Swing-up plan time, all initial guesses included, and time to upright, for carts with 1, 2 and 3 poles.
 
@@ -291,13 +298,12 @@ def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progre
     import subprocess
     import tempfile
 
-    from cartpole.models import SHIPPED_MJCF
     from cartpole.ocp.pipeline import trajopt_swingup
     from cartpole.sim import replays_exactly, simulate
     from cartpole.validation.metrics import swingup_metrics
 
     say = progress or (lambda msg: None)
-    items = [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS] if mjcfs is None else list(mjcfs)
+    items = shipped_plan_models() if mjcfs is None else list(mjcfs)
     rows = []
     for label, path in items:
         say(f"swing-up plan, {label}: {repeats} plans + MuJoCo runs ...")

@@ -56,18 +56,15 @@ def run(args) -> dict:
     doc = bench_run(args.mjcf, repeats=repeats, replay=not args.no_replay,
                     replay_repeats=1 if args.quick else repeats, replay_rollouts=16 if args.quick else 256,
                     progress=steps)
-    from cartpole.benchmark import mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table
+    from cartpole.benchmark import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table,
+                                    shipped_plan_models)
 
     doc["plan"] = None
     if not args.no_plan:
         if args.mjcf is not None:
             models = [(Path(args.mjcf).stem, args.mjcf)]
         else:
-            from cartpole.benchmark import PLAN_MODELS
-            from cartpole.models import SHIPPED_MJCF
-
-            models = [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS]
-            models = models[:1] if args.quick else models
+            models = shipped_plan_models()[:1] if args.quick else shipped_plan_models()
         doc["plan"] = plan_benchmark(models, repeats=1 if args.quick else 3, command=not args.quick,
                                      progress=steps)
     doc["mpc"] = None if args.no_mpc else mpc_benchmark(args.mjcf, quick=args.quick, progress=steps)
