@@ -201,13 +201,15 @@ def recipe_key(f: ca.Function, sx, su, running: ca.Function | None = None) -> st
     return h.hexdigest()
 
 
-def _build_library(funcs, model_digest: str = "", recipe: str | None = None) -> tuple[str, bool]:
+def _build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
+                   cflags: tuple | None = None) -> tuple[str, bool]:
     """C source of ``funcs`` compiled to a cached shared library; returns (path, compiled_now).
 
     ``funcs`` is a list of Functions or a callable returning it. Without ``recipe`` the library's name is a hash
     of ``model_digest`` (:func:`model_key`), the source, the flags (:func:`_cflags`) and the CasADi version; with
     ``recipe`` (:func:`recipe_key`) a hash of ``model_digest`` and ``recipe``, looked up before any source is
-    generated (generating the three-pole cart's source takes about half a second).
+    generated (generating the three-pole cart's source takes about half a second). ``cflags``: the compiler flags
+    (``-fPIC -shared`` added) instead of :func:`_cflags`'s choice, unless ``$CARTPOLE_CFLAGS`` is set.
     """
     target = cache_dir()
     if recipe is not None:
@@ -219,7 +221,10 @@ def _build_library(funcs, model_digest: str = "", recipe: str | None = None) -> 
     for fn in (funcs() if callable(funcs) else funcs):
         gen.add(fn)
     src = gen.dump()
-    flags = _cflags(src)
+    if cflags is not None and not os.environ.get("CARTPOLE_CFLAGS"):
+        flags = (*cflags, "-fPIC", "-shared")
+    else:
+        flags = _cflags(src)
     if recipe is None:
         key = hashlib.sha256((_LIB_VERSION + model_digest + " ".join(flags) + ca.__version__ + src).encode()
                              ).hexdigest()[:20]

@@ -67,14 +67,12 @@ not kept: 0.4 s a QP and no convergence. When the SQP does not converge, :meth:`
 """
 from __future__ import annotations
 
-import os
-import sys
 import time
 
 import casadi as ca
 import numpy as np
 
-from cartpole.ocp import compiled
+from cartpole.ocp import compiled, sqp_functions
 from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.collocation import DirectCollocation, SolveInfo
 from cartpole.ocp.nmpc import _Buffered
@@ -101,46 +99,6 @@ def _tri_index(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Row and column of each entry of a column-major upper triangle of an (n, n) matrix."""
     pairs = [(a, b) for b in range(n) for a in range(b + 1)]
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
-
-
-def _lower_eig(M: np.ndarray) -> float:
-    """Gershgorin lower bound of the eigenvalues of the symmetric (n, n) ``M`` (its only entry when n = 1)."""
-    off = np.abs(M).sum(axis=1) - np.abs(np.diag(M))
-    return float(np.min(np.diag(M) - off))
-
-
-def _riccati_function(nz: int, nw: int, steps: int, eps: float) -> ca.Function:
-    """SX recursion over ``steps`` stages (the last first): ``(P (nz, nz), A (nz, nz steps), B (nz, nw steps), Q (nz,
-    nz steps), S (nw, nz steps), R (nw, nw steps)) -> (P after each stage (nz, nz steps), added damping (1, steps))``,
-    the regularised Riccati recursion of :meth:`CollocationSQP._reduced_hessian_reg` (Gershgorin's bound)."""
-    P, A, Q = ca.SX.sym("P", nz, nz), ca.SX.sym("A", nz, nz), ca.SX.sym("Q", nz, nz)
-    B = ca.SX.sym("B", nz, nw)
-    S, R = ca.SX.sym("S", nw, nz), ca.SX.sym("R", nw, nw)
-    BP = ca.mtimes(B.T, P)
-    Rb = R + ca.mtimes(BP, B)
-    lmin = None
-    for i in range(nw):
-        gi = Rb[i, i] - sum(ca.fabs(Rb[i, j]) for j in range(nw) if j != i)
-        lmin = gi if lmin is None else ca.fmin(lmin, gi)
-    d = ca.if_else(lmin < eps, ca.fmax(eps, ca.fabs(lmin)) - lmin, 0)
-    Rb = Rb + d * ca.SX.eye(nw)
-    L = S + ca.mtimes(BP, A)
-    Pn = Q + ca.mtimes([A.T, P, A]) - ca.mtimes(L.T, ca.solve(Rb, L))
-    Pn = 0.5 * (Pn + Pn.T)
-    stage = ca.Function("sqp_riccati_stage", [P, A, B, Q, S, R], [Pn, d])
-    return stage.mapaccum("sqp_riccati", steps, 1)
-
-
-def _condensing_functions(nx: int, nv: int, N: int) -> list[ca.Function]:
-    """The two recursions of the condensed QP as mapped SX stages, on numpy C-order blocks read as CasADi's
-    column-major transposes: ``sqp_cond_fwd (G^T (nv+1, nx), A^T (nx, nx N), B^T (nv+1, nx N)) -> G^T after each
-    stage (nv+1, nx N)`` (``[G_k+1, g_k+1] = A_k [G_k, g_k] + B_k``), and ``sqp_cond_adj (m (nx,), A^T (nx, nx S),
-    r (nx, S)) -> m after each stage (nx, S)`` (``m <- A_k' m + r_k``, S = N - 1 stages, the last first)."""
-    GT, AT, BT = ca.SX.sym("GT", nv + 1, nx), ca.SX.sym("AT", nx, nx), ca.SX.sym("BT", nv + 1, nx)
-    fwd = ca.Function("sqp_cond_fwd_stage", [GT, AT, BT], [ca.mtimes(GT, AT) + BT])
-    m, r = ca.SX.sym("m", nx), ca.SX.sym("r", nx)
-    adj = ca.Function("sqp_cond_adj_stage", [m, AT, r], [ca.mtimes(AT, m) + r])  # AT as passed is A_k'
-    return [fwd.mapaccum("sqp_cond_fwd", N, 1), adj.mapaccum("sqp_cond_adj", max(N - 1, 1), 1)]
 
 
 class CollocationSQP:
@@ -240,24 +198,10 @@ class CollocationSQP:
         self._d = _Buffered(ext["hs_d"].map(N))
         self._e = _Buffered(ext["hs_e"].map(N))
         self._tri = _tri_index(2 * self.nz + 1)
+        funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled)
+        self._stages, self._condense, self._mult = (_Buffered(f) for f in funcs)
         self._setup_qp(qp_options or {})
-        self._riccati = self._riccati_recursion()
         self.history: list[dict] = []
-
-    def _riccati_recursion(self) -> _Buffered:
-        """The regularised Riccati recursion of stages N-1..1 (:func:`_riccati_function`), compiled to C and cached
-        like the interval functions (CasADi's virtual machine where that fails or ``compiled`` is off)."""
-        fn = _riccati_function(self.nz, self.nw, max(self.N - 1, 1), self.reg_min)
-        if self.ocp.compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
-            try:
-                key = f"sqp-riccati-v1/{self.nz}x{self.nw}x{self.N}/{self.reg_min!r}"
-                lib, _ = compiled._build_library([fn], key)
-                fn = ca.external("sqp_riccati", lib)
-            except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
-                reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-                print(f"cartpole: compiled SQP recursion unavailable ({reason}); using CasADi's virtual machine "
-                      "(same results).", file=sys.stderr)
-        return _Buffered(fn)
 
     # ---- the QP's layout ------------------------------------------------------------------------------------
     def _setup_qp(self, qp_options: dict) -> None:
@@ -374,26 +318,12 @@ class CollocationSQP:
     def _qp_step(self, Z, D, J, G, H, lbz, ubz, lm: float):
         """The SQP step from ``Z``: ``(dZ (N+1, nz), defect multipliers (N, nx), bound multipliers (N+1, nz),
         success)``."""
-        N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
-        nw = self.nw
-        nv, ny = 2 * nz, nz + nw
-        Ja, Jbx, Jbu = J[:, :, :nz], J[:, :, nz:nz + nx], J[:, :, nz + nx:]
-        M = np.linalg.inv(Jbx)
-        T = np.zeros((N, nz, ny))
-        T[:, :nx, :nz] = -M @ Ja
-        T[:, :nx, nz:nz + nu] = -M @ Jbu
-        T[:, nx:, nz:nz + nu] = np.eye(nu)
-        ct = -(M @ D[:, :, None])[:, :, 0]
-        P = np.zeros((N, nv, ny))
-        P[:, :nz, :nz] = np.eye(nz)
-        P[:, nz:, :] = T
-        Pt = P.transpose(0, 2, 1)
-        Hy = Pt @ (H @ P)
-        Hy = 0.5 * (Hy + Hy.transpose(0, 2, 1))
-        gy = (Pt @ ((H[:, :, nz:nz + nx] @ ct[:, :, None])[:, :, 0] + G)[:, :, None])[:, :, 0]
-        if lm > 0:  # Levenberg-Marquardt damping of every stage block
-            Hy += lm * np.eye(ny)
-        self._reduced_hessian_reg(Hy, T)
+        N, nx, nz = self.N, self.nx, self.nz
+        ny = nz + self.nw
+        # stage form, Levenberg-Marquardt damping and convexification in one compiled call (sqp_functions)
+        T, ct, Hy, gy, M = self._stages(J, H, G, D, float(lm))
+        T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
+        Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
         if self.qp_solver == "daqp":
             out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
             if out is not None:
@@ -437,29 +367,32 @@ class CollocationSQP:
         pinned ``x_N``) rows of ``G_k``, screened: DAQP sees the equalities and the rows active in the last QP, and
         any row its answer violates is added and the QP solved again (the answer is the full QP's: the rows left out
         are inactive). The multipliers of the stage dynamics follow by the backward recursion of the stage states'
-        stationarity (compiled with the forward one, :func:`_condensing_functions`). An infeasible QP (the
+        stationarity (compiled, :mod:`cartpole.ocp.sqp_functions`). An infeasible QP (the
         linearised defects cannot meet the state bounds) is
         solved again with those rows soft: the step then leaves the bounds, is projected back into them, and the
         filter judges the defects that leaves. Returns what :meth:`_qp_step` does, or None when DAQP failed."""
         N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
         nv = (N + 1) * nu
-        Ax = T[:, :nx, :nx]
-        # dx_k+1 = Ax_k dx_k + Au_k du_k + Aw_k du_k+1 + t_k: (G_k, g_k) as one (nx, nv + 1) block per knot
-        Bf = self._cB
-        Bf[self._bk_k, :, self._bk_c] = T[:, :nx, nx:].transpose(0, 2, 1).reshape(-1, nx)
-        Bf[:, :, nv] = ct
-        Axc = np.ascontiguousarray(Ax)
-        Ga = self._cG
-        (gout,) = self._cond_fwd(Ga[0], Axc, Bf)
-        Ga[1:] = gout.reshape(N, nx, nv + 1)
+        # condensed in one compiled call (sqp_functions): the stages' parts of the Hessian and gradient, and
+        # [G_k, g_k] of knots 1..N (G_0 = 0, g_0 = 0)
+        Yt, band, f_g, f_e, GT = self._condense(T, ct, Hy, gy)
+        Yt, band, f_e = Yt.reshape(N, 2 * nu, nv), band.reshape(N, 2 * nu, 2 * nu), f_e.reshape(N, 2 * nu)
+        Hc = np.zeros((nv, nv))  # sum_k (Y_k E_k + E_k' Y_k') + sum_k E_k' band_k E_k (sqp_functions)
+        Hc[:N * nu] += Yt[:, :nu].reshape(N * nu, nv)
+        Hc[nu:] += Yt[:, nu:].reshape(N * nu, nv)
+        Hc += Hc.T
+        H4 = Hc.reshape(N + 1, nu, N + 1, nu)
+        k0, k1 = self._knots[:-1], self._knots[1:]
+        H4[k0, :, k0, :] += band[:, :nu, :nu]
+        H4[k1, :, k1, :] += band[:, nu:, nu:]
+        H4[k0, :, k1, :] += band[:, :nu, nu:]
+        H4[k1, :, k0, :] += band[:, nu:, :nu]
+        fc = f_g.copy()
+        fc[:N * nu] += f_e[:, :nu].ravel()
+        fc[nu:] += f_e[:, nu:].ravel()
+        Ga = np.zeros((N + 1, nx, nv + 1))
+        Ga[1:] = GT.reshape(N, nx, nv + 1)
         Gs, gs = Ga[:, :, :nv], Ga[:, :, nv]
-        Y = self._cY
-        Y[:, :nx, :] = Gs[:N]
-        Yf = Y.reshape(N * Y.shape[1], nv)
-        Hc = self._condensed_hessian(Gs, Hy)
-        c = np.zeros((N, Y.shape[1]))
-        c[:, :nx] = gs[:N]
-        fc = Yf.T @ ((Hy @ c[:, :, None])[:, :, 0] + gy).ravel()
         ri, rc = self._rows_k, self._rows_i
         A_all = Gs[ri, rc, :]
         dz_lo, dz_hi = lbz - Z, ubz - Z
@@ -516,86 +449,25 @@ class CollocationSQP:
         Nb[ri, rc] = lam_all[nv:]
         if soft:  # the soft rows' violation: projected into the bounds, the defects carry it
             dZ = np.clip(Z + dZ, lbz, ubz) - Z
-        # multipliers of the stage dynamics (x rows), backward: mu_k-1 = [Hy_k y_k + gy_k]_x + Ax_k' mu_k + nu_x(dx_k)
-        Ystep = np.hstack([dZ[:N], dZ[1:, nx:]])  # y_k = (dx_k, du_k, du_k+1)
-        r = (Hy[:, :nx, :] @ Ystep[:, :, None])[:, :, 0] + gy[:, :nx]
-        r += Nb[:N, :nx]
-        mu = np.zeros((N, nz))
-        mx = mu[:, :nx]
-        mx[N - 1] = Nb[N, :nx]
-        if N > 1:  # mx[k-1] = Ax_k' mx[k] + r_k, k = N-1 .. 1
-            (mout,) = self._cond_adj(mx[N - 1], Axc[N - 1:0:-1], r[N - 1:0:-1])
-            mx[N - 2::-1] = mout.reshape(N - 1, nx)
-        dV = np.hstack([dZ[:-1], dZ[1:]])
-        mu_orig = mu + (H @ dV[:, :, None])[:, nz:, 0] + G[:, nz:]
-        lam = -(M.transpose(0, 2, 1) @ mu_orig[:, :nx, None])[:, :, 0]
+        # the defects' multipliers: the stage dynamics' backward recursion, then through M_k (compiled)
+        (lam,) = self._mult(dZ, Nb[:, :nx], Hy, gy, T, H, G, M)
+        lam = lam.reshape(N, nx).copy()
         return dZ, lam, Nb, True
 
-    def _condensed_hessian(self, Gs: np.ndarray, Hy: np.ndarray) -> np.ndarray:
-        """``sum_k Y_k' Hy_k Y_k`` ((N+1) nu square) with ``Y_k = [G_k; E_k; E_k+1]`` (``dx_k``, ``du_k``,
-        ``du_k+1`` in ``v``), by its structure: the states' term ``sum G_k' Q_k G_k`` over chunks of stages, each
-        only in the controls ``G_k`` reaches (``du_0 .. du_k``), in products small enough that a shared machine's
-        threaded BLAS stays out (threaded, the product took 2-20 ms on the loaded 2-core machine); the cross terms
-        and the controls' band placed by index."""
+    def _condensing_setup(self, lbz, ubz) -> None:
+        """The condensed QP's state rows (the finite state bounds of knots 1..N) and their constraint types."""
         N, nx, nu = self.N, self.nx, self.nu
         nv = (N + 1) * nu
-        G = Gs[:N]
-        QG = Hy[:, :nx, :nx] @ G
-        Gf, QGf = G.reshape(N * nx, nv), QG.reshape(N * nx, nv)
-        cs = max(1, 24 // nx)
-        Hc = np.zeros((nv, nv))
-        for a in range(0, N, cs):
-            b = min(N, a + cs)
-            mcol = min(nv, b * nu)
-            Hc[:mcol, :mcol] += Gf[a * nx:b * nx, :mcol].T @ QGf[a * nx:b * nx, :mcol]
-        C = G.transpose(0, 2, 1) @ Hy[:, :nx, nx:]  # (N, nv, 2 nu): G_k' [Q_xu Q_xw]_k
-        X = np.zeros((nv, nv))
-        X[:, :N * nu] = C[:, :, :nu].transpose(1, 0, 2).reshape(nv, N * nu)
-        X[:, nu:] += C[:, :, nu:].transpose(1, 0, 2).reshape(nv, N * nu)
-        Hc += X
-        Hc += X.T
-        np.add.at(Hc, (self._band_r, self._band_c), Hy[:, nx:, nx:])
-        return 0.5 * (Hc + Hc.T)
-
-    def _condensing_setup(self, lbz, ubz) -> None:
-        """Buffers of the condensed QP and its state rows (the finite state bounds of knots 1..N)."""
-        N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
-        nv = (N + 1) * nu
-        if not hasattr(self, "_cY"):  # the buffers (their constant entries stay from solve to solve)
-            self._cG = np.zeros((N + 1, nx, nv + 1))  # [G_k, g_k]; G_0 = 0, g_0 = 0
-            self._cB = np.zeros((N, nx, nv + 1))  # [Au_k, Aw_k] placed at du_k, du_k+1; t_k last
-            kk = np.arange(N)
-            cols = np.concatenate([kk[:, None] * nu + np.arange(2 * nu)[None, :]], axis=0)  # (N, 2 nu)
-            self._bk_k = np.repeat(kk, 2 * nu)
-            self._bk_c = cols.ravel()
-            Y = np.zeros((N, nz + nu, nv))
-            for k in range(N):
-                Y[k, nx:nz, k * nu:(k + 1) * nu] = np.eye(nu)
-                Y[k, nz:, (k + 1) * nu:(k + 2) * nu] = np.eye(nu)
-            self._cY = Y
-            e = (np.arange(N)[:, None] * nu + np.arange(2 * nu)[None, :])  # du_k, du_k+1 in v
-            self._band_r = np.broadcast_to(e[:, :, None], (N, 2 * nu, 2 * nu)).copy()
-            self._band_c = np.broadcast_to(e[:, None, :], (N, 2 * nu, 2 * nu)).copy()
         fin = np.isfinite(lbz[:, :nx]) | np.isfinite(ubz[:, :nx])
         fin[0] = False  # x_0 is pinned: dx_0 = 0 by construction
         self._rows_k, self._rows_i = np.nonzero(fin)
+        self._knots = np.arange(N + 1)
         eq = lbz[self._rows_k, self._rows_i] == ubz[self._rows_k, self._rows_i]
         nr = self._rows_k.size
         self._row_eq = eq
         self._sense_hard = np.r_[np.zeros(nv), np.where(eq, 5, 0)].astype(np.int32)
         self._sense_soft = np.r_[np.zeros(nv), np.full(nr, 8)].astype(np.int32)
         self._daqp_lam = None
-        if not hasattr(self, "_cond_fwd"):
-            funcs = _condensing_functions(nx, nv, N)
-            if self.ocp.compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
-                try:
-                    lib, _ = compiled._build_library(funcs, f"sqp-condense-v1/{nx}x{nv}x{N}")
-                    funcs = [ca.external(f.name(), lib) for f in funcs]
-                except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
-                    reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-                    print(f"cartpole: compiled SQP condensing unavailable ({reason}); using CasADi's virtual "
-                          "machine (same results).", file=sys.stderr)
-            self._cond_fwd, self._cond_adj = (_Buffered(f) for f in funcs)
         if "daqp" not in self.qp_counts:
             self.qp_counts["daqp"] = 0
 
@@ -616,50 +488,6 @@ class CollocationSQP:
         Yk = np.hstack([np.vstack([np.zeros(nx), dZ[1:N, :nx]]), np.vstack([y[:nu], dZ[1:N, nx:]]), W])
         gap = float(np.abs((T @ Yk[:, :, None])[:, :, 0] - rhs.reshape(N, nz) - dZ[1:]).max())
         return y, mu, nub, viol <= 1e-6 and gap <= 1e-6
-
-    def _reduced_hessian_reg(self, Hy: np.ndarray, T: np.ndarray) -> int:
-        """Make the QP's Hessian positive definite on the stage dynamics' null space, in place: the backward
-        Riccati recursion of the stages (cost blocks ``Hy`` (N, nz + nu, nz + nu) in ``(s_k, w_k)``, dynamics ``T``
-        (N, nz, nz + nu)); where a stage's reduced Hessian ``R + B' P B`` (nu x nu) has an eigenvalue below
-        ``reg_min`` (for several inputs: its Gershgorin lower bound), the difference (mirrored: up to
-        ``max(reg_min, |lambda|)``) is added to that stage's ``w`` block (the next knot's inputs), and the free
-        first stage ``s_0 = du_0`` likewise. Unchanged where the exact Hessian is fine. Stages N-1..1 run in the
-        compiled recursion (:func:`_riccati_function`), the first here. Returns how many stages were changed."""
-        N, nx, nz, nu = self.N, self.nx, self.nz, self.nu
-        nw, eps = self.nw, self.reg_min
-        eye = np.eye(nw)
-        P = np.zeros((nz, nz))
-        changed = 0
-        if N > 1:
-            rev = slice(N - 1, 0, -1)
-
-            def cm(blocks):  # blocks (N-1, r, c) side by side, CasADi's column-major
-                return np.ascontiguousarray(blocks.transpose(0, 2, 1)).ravel()
-
-            Ps, dk = self._riccati(P, cm(T[rev, :, :nz]), cm(T[rev, :, nz:]), cm(Hy[rev, :nz, :nz]),
-                                   cm(Hy[rev, nz:, :nz]), cm(Hy[rev, nz:, nz:]))
-            d = dk.copy()  # stages N-1 .. 1
-            if np.any(d > 0):
-                Hy[rev, nz:, nz:] += d[:, None, None] * eye
-                changed += int(np.count_nonzero(d))
-            P = Ps[-nz * nz:].reshape(nz, nz).T.copy()
-        A, B = T[0][:, nx:nz], T[0][:, nz:]
-        Q, S = Hy[0][nx:nz, nx:nz], Hy[0][nz:, nx:nz]
-        BP = B.T @ P
-        Rb = Hy[0][nz:, nz:] + BP @ B
-        lmin = _lower_eig(Rb)
-        if lmin < eps:
-            dd = max(eps, abs(lmin)) - lmin
-            Hy[0][nz:, nz:] += dd * eye
-            Rb = Rb + dd * eye
-            changed += 1
-        L = S + BP @ A
-        P = Q + A.T @ P @ A - L.T @ np.linalg.solve(Rb, L)
-        lmin = _lower_eig(0.5 * (P + P.T))  # P_0 is in s_0 = du_0 (nu)
-        if lmin < eps:
-            Hy[0][nx:nz, nx:nz] += (max(eps, abs(lmin)) - lmin) * np.eye(nu)
-            changed += 1
-        return changed
 
     @staticmethod
     def _acceptable(ft, ct, f, c, filt, theta_max) -> bool:
