@@ -51,12 +51,12 @@ def _acc(steps: int) -> dict:
     """``mapaccum`` options for ``steps`` stages, unnested: its default nesting (base 10) copies the accumulator and
     the outputs at every level."""
     return {"base": max(int(steps), 1)}
-#: Compiler flags of this library, first choice then fallback. The stage functions are straight-line arithmetic
-#: on small blocks that gcc vectorises for the machine's own instruction set: measured on the one-pole condensing
-#: (N = 100, 0.8 MB of C, about 5 s to compile) -O3 -march=native 0.135 ms a call, -O2 0.34 ms, -O0 1.6 ms. A
-#: library built for one CPU is keyed by it (:func:`_cpu_key`), so a cache shared between machines stays correct.
-CFLAGS_NATIVE = ("-O3", "-march=native")
-CFLAGS_PORTABLE = ("-O2",)
+#: Compiler flags of this library, whatever its length (:func:`cartpole.ocp.compiled._cflags` compiles long
+#: sources without optimisation): it is many small stage functions, which gcc optimises in about linear time.
+#: Measured on the one-pole condensing (N = 100, 0.8 MB of C, about 5 s to compile): -O3 -march=native 0.135 ms a
+#: call, -O2 0.34 ms, -O0 1.6 ms; the two-pole library (N = 60, 0.8 MB) compiles in 9 s, three poles (N = 100,
+#: 1.8 MB) in 20 s.
+CFLAGS = ("-O3", "-march=native")
 
 
 def _gershgorin_low(M: ca.SX) -> ca.SX:
@@ -230,22 +230,6 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
 
 
-def _cpu_key() -> str:
-    """The machine's architecture and CPU model and feature flags (Linux ``/proc/cpuinfo``), hashed: what code
-    compiled with ``-march=native`` depends on."""
-    import platform
-
-    h = hashlib.sha256(platform.machine().encode())
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith(("model name", "flags", "Features", "CPU part")):
-                h.update(line.encode())
-                break
-    except OSError:
-        h.update(platform.processor().encode())
-    return h.hexdigest()[:16]
-
-
 def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled: bool = True
                           ) -> tuple[list[ca.Function], str | None]:
     """:func:`qp_functions` compiled to C and cached (one library per size and ``reg_min``), with the path of the
@@ -255,14 +239,11 @@ def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled:
         raise ValueError("the SQP's QP functions need N >= 2 intervals")
     if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
         recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
-        reason = "no attempt"
-        for flags, key in ((CFLAGS_NATIVE, _cpu_key()), (CFLAGS_PORTABLE, "portable")):
-            try:
-                lib, _ = _build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=f"{recipe}/{key}",
-                                        cflags=flags)
-                return [ca.external(name, lib) for name in ("sqp_stages", "sqp_condense", "sqp_multipliers")], lib
-            except Exception as exc:  # noqa: BLE001 - any failure here means: the next flags, then the VM
-                reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-        print(f"cartpole: compiled SQP QP functions unavailable ({reason}); using CasADi's virtual machine "
-              "(same results).", file=sys.stderr)
+        try:
+            lib, _ = _build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=recipe, cflags=CFLAGS)
+            return [ca.external(name, lib) for name in ("sqp_stages", "sqp_condense", "sqp_multipliers")], lib
+        except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+            print(f"cartpole: compiled SQP QP functions unavailable ({reason}); using CasADi's virtual machine "
+                  "(same results).", file=sys.stderr)
     return qp_functions(nx, nu, N, reg_min), None
