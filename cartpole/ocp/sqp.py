@@ -26,23 +26,23 @@ solver the NMPC uses, hot-started from the last QP's multipliers; see :meth:`Col
 (CasADi's sparse active-set solver, which factorises the banded KKT system of the stage QP by sparse QR, hot-started
 from the previous iteration's active set) or ``hpipm`` (CasADi's interface to the Riccati-recursion interior point).
 Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a failed check is solved again cold,
-then by HPIPM. Measured on the standard problem (N = 100, one pole, 2 shared cores): a qrqp solve about 1 ms; HPIPM
-1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call; HPIPM needs ``balance`` or ``robust``
-mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less accurate answers cost SQP iterations (101
-instead of 9); the compiled evaluations about 0.2 ms an iteration, the compiled Riccati check about 0.1 ms (in numpy
-it was 2.4 ms). DAQP takes the same iterations to the same optimum as qrqp at 1.0-1.2 ms a QP: the condensing
-recursion (compiled, 0.2 ms), the condensed Hessian (O(N^3) dense products by its structure, 0.3 ms, in chunks below
-OpenBLAS's threading threshold: on the loaded 2-core machine the threaded product took 2-20 ms) and DAQP's own
-set-up of the dense 101-unknown QP (its Cholesky and transformed constraints, 0.3-0.4 ms; its active-set iterations
-0.015 ms). Alternating in one process: DAQP 10.9 and 12.6 ms a solve, qrqp 14.5 and 13.0 ms (8 iterations, 7 QPs
-each); so DAQP is the default. The issue's 3-8 ms needs more: the O(N^2) condensing recursion, or a Riccati-based QP
-solver called directly.
+then by HPIPM. The QP of each iteration is built in compiled C (:mod:`cartpole.ocp.sqp_functions`: the stage form
+and its convexification in one call, the condensing in another, without any ``G' Q G`` product, and the defects'
+multipliers from the QP's in a third). Measured on the standard problem (N = 100, one pole, 2 shared cores): a
+qrqp solve about 1 ms; HPIPM 1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call; HPIPM needs
+``balance`` or ``robust`` mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less accurate answers
+cost SQP iterations (101 instead of 9). DAQP takes the same iterations to the same optimum as qrqp; per QP: stage
+form 0.055 ms, condensing 0.16 ms, DAQP 0.25 ms (almost all its own set-up of the dense 101-unknown QP, Cholesky and
+the inverse factor; its active-set iterations 0.01 ms), multipliers 0.03 ms; the interval evaluations 0.22 ms an
+iteration. A solve (8 iterations, 7 QPs) took 7.2-7.8 ms where the same algorithm with the QP built in numpy took
+11-14 ms (numpy's O(N^3) condensed Hessian alone 0.3 ms a QP). DAQP is the default; the next lever would be a
+Riccati-based QP called directly, which avoids DAQP's dense set-up.
 
 Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
 iterates converge: quadratic convergence at the end), then made positive definite on the stage dynamics' null space
 where it is not: a backward Riccati recursion over the stages raises any stage's reduced Hessian ``R + B' P B`` below
-``reg_min`` (:meth:`CollocationSQP._reduced_hessian_reg`), so every QP is convex. Globalisation: a filter line search
+``reg_min`` (``sqp_stages`` in :mod:`cartpole.ocp.sqp_functions`), so every QP is convex. Globalisation: a filter line search
 on (``||d||_1``, cost) (Fletcher and Leyffer) with a second-order correction against the Maratos effect, steps longer
 than ``max_step`` (scaled units) shortened. Converged when the largest defect and the largest entry of the
 Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT ``tol``); after a full step that test
@@ -140,6 +140,8 @@ class CollocationSQP:
     ----------
     library : str or None
         The compiled interval functions in use (None: CasADi's virtual machine, same numbers).
+    qp_library : str or None
+        The compiled QP-building functions in use (:mod:`cartpole.ocp.sqp_functions`; None: the virtual machine).
     history : list of dict
         Per iteration of the last solve: ``objective`` (scaled), ``infeasibility`` (max defect), ``stationarity``,
         ``step`` (max scaled step), ``damping`` (the Levenberg-Marquardt ``delta`` used), ``alpha`` (line-search
