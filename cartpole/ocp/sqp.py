@@ -392,14 +392,13 @@ class CollocationSQP:
         fc = f_g.copy()
         fc[:N * nu] += f_e[:, :nu].ravel()
         fc[nu:] += f_e[:, nu:].ravel()
-        Ga = np.zeros((N + 1, nx, nv + 1))
-        Ga[1:] = GT.reshape(N, nx, nv + 1)
+        Ga = GT.reshape(N, nx, nv + 1)  # knots 1..N
         Gs, gs = Ga[:, :, :nv], Ga[:, :, nv]
-        ri, rc = self._rows_k, self._rows_i
-        A_all = Gs[ri, rc, :]
+        ri, rc = self._rows_k, self._rows_i  # knots >= 1: the rows of knot k are Ga[k - 1]
+        A_all = Gs[ri - 1, rc, :]
         dz_lo, dz_hi = lbz - Z, ubz - Z
-        lo = dz_lo[ri, rc] - gs[ri, rc]
-        hi = dz_hi[ri, rc] - gs[ri, rc]
+        lo = dz_lo[ri, rc] - gs[ri - 1, rc]
+        hi = dz_hi[ri, rc] - gs[ri - 1, rc]
         vb_hi = np.minimum(dz_hi[:, nx:].ravel(), _BIG)
         vb_lo = np.maximum(dz_lo[:, nx:].ravel(), -_BIG)
         hi_c, lo_c = np.minimum(hi, _BIG), np.maximum(lo, -_BIG)
@@ -414,10 +413,11 @@ class CollocationSQP:
                 inset |= lam_prev[nv:] != 0
             for _ in range(nr + 1):
                 sel = np.flatnonzero(inset)
-                sense = np.r_[sense_all[:nv], sense_all[nv:][sel]].astype(np.int32)
-                dual = None if lam_prev is None else np.r_[lam_prev[:nv], lam_prev[nv:][sel]]
-                v, _, flag, info = self._daqp(Hc, fc, A_all[sel], np.r_[vb_hi, hi_c[sel]], np.r_[vb_lo, lo_c[sel]],
-                                              sense, dual_start=dual, iter_limit=2000)
+                sense = np.concatenate((sense_all[:nv], sense_all[nv:][sel]))
+                dual = None if lam_prev is None else np.concatenate((lam_prev[:nv], lam_prev[nv:][sel]))
+                v, _, flag, info = self._daqp(Hc, fc, A_all[sel], np.concatenate((vb_hi, hi_c[sel])),
+                                              np.concatenate((vb_lo, lo_c[sel])), sense, dual_start=dual,
+                                              iter_limit=2000)
                 self.qp_counts["daqp"] += 1
                 if flag not in (1, 2):
                     if dual is not None:  # a hot start that failed: once more cold
@@ -437,7 +437,7 @@ class CollocationSQP:
                 lam_all[nv + sel] = la[nv:]
                 break
             soft, lam_prev = True, None
-        if flag not in (1, 2) or not (np.all(np.isfinite(v)) and np.all(np.isfinite(lam_all))):
+        if flag not in (1, 2) or not np.isfinite(float(v.sum()) + float(lam_all.sum())):
             return None
         self._daqp_lam, self._warm_ready = lam_all, True
         if soft:
@@ -445,7 +445,8 @@ class CollocationSQP:
             self._soft_step = True
         dZ = np.empty((N + 1, nz))
         dZ[:, nx:] = v.reshape(N + 1, nu)
-        dZ[:, :nx] = gs + Gs @ v
+        dZ[0, :nx] = 0.0  # x_0 pinned
+        dZ[1:, :nx] = gs + Gs @ v
         Nb = np.zeros((N + 1, nz))
         Nb[:, nx:] = lam_all[:nv].reshape(N + 1, nu)
         Nb[ri, rc] = lam_all[nv:]
