@@ -434,3 +434,22 @@ def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su,
     nlp, options = _assemble(ext, int(N), nx, nu, free_time=free_time, cost_weight=1.0 / float(eff_scale),
                              time_weight=float(time_weight) if free_time else 0.0)
     return CompiledNLP(nlp=nlp, options=options, library=lib, compiled_now=now)
+
+
+class _Buffered:
+    """A CasADi Function evaluated on numpy buffers (no DM conversions): call with C-contiguous float arrays laid
+    out as CasADi's column-major inputs; returns its outputs as flat arrays, overwritten by the next call."""
+
+    def __init__(self, fun: ca.Function):
+        self._buf, self._eval = fun.buffer()
+        self._n_in = fun.n_in()
+        self.out = [np.zeros(fun.nnz_out(i)) for i in range(fun.n_out())]
+        for i, o in enumerate(self.out):
+            self._buf.set_res(i, memoryview(o))
+
+    def __call__(self, *args):
+        keep = [np.ascontiguousarray(a, dtype=float) for a in args]
+        for i, a in enumerate(keep):
+            self._buf.set_arg(i, memoryview(a))
+        self._eval()
+        return self.out

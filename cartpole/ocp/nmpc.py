@@ -62,6 +62,7 @@ from cartpole.errors import CartPoleError
 from cartpole.lqr import dlqr, lab_weights
 from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.ocp.bounds import bounds_from_params
+from cartpole.ocp.compiled import _Buffered
 from cartpole.ocp.nmpc_functions import StageFunctions, stage_functions
 from cartpole.ocp.nmpc_nlp import IpoptNLP
 from cartpole.ocp.nmpc_nlp import StepFailed as _StepFailed
@@ -615,25 +616,6 @@ def _stdout_to_stderr():
             pass
         os.dup2(saved, 1)
         os.close(saved)
-
-
-class _Buffered:
-    """A CasADi Function evaluated on numpy buffers (no DM conversions): call with C-contiguous float arrays laid
-    out as CasADi's column-major inputs; returns its outputs as flat arrays, overwritten by the next call."""
-
-    def __init__(self, fun: ca.Function):
-        self._buf, self._eval = fun.buffer()
-        self._n_in = fun.n_in()
-        self.out = [np.zeros(fun.nnz_out(i)) for i in range(fun.n_out())]
-        for i, o in enumerate(self.out):
-            self._buf.set_res(i, memoryview(o))
-
-    def __call__(self, *args):
-        keep = [np.ascontiguousarray(a, dtype=float) for a in args]
-        for i, a in enumerate(keep):
-            self._buf.set_arg(i, memoryview(a))
-        self._eval()
-        return self.out
 
 
 def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None, period: float | None = None,

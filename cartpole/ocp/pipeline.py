@@ -38,6 +38,7 @@ from cartpole.ocp.bounds import OCPError, bounds_from_params
 from cartpole.ocp.collocation import Attempt, DirectCollocation, SolveInfo
 from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.objectives import make_objective
+from cartpole.ocp.sqp import CollocationSQP, SQPError
 from cartpole.ocp.trajectory import Trajectory
 
 
@@ -373,18 +374,37 @@ def _padded(traj: Trajectory, T: float) -> Trajectory:
                       xdot=np.vstack([traj.xdot, np.zeros((n, traj.nx))]))
 
 
-def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, stage: str
+#: SQP iterations the effort stage is given with ``solver="sqp"`` before IPOPT takes over (from the time plan the
+#: shipped one- and two-pole carts converge in 7).
+SQP_MAX_ITER = 30
+
+
+def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, stage: str, *, sqp: bool = False
                    ) -> tuple[Trajectory, SolveInfo]:
     """``ocp`` solved from ``guess`` (an earlier stage's plan); if that fails, from its default guesses (and
-    their diagnosis when all fail). The returned info's attempts include the failed first try."""
+    their diagnosis when all fail). The returned info's attempts include the failed first try. ``sqp``: first
+    by :class:`~cartpole.ocp.sqp.CollocationSQP` (at most :data:`SQP_MAX_ITER` iterations; its attempt's stage is
+    ``"<stage> (sqp)"``), then as before with IPOPT if it does not converge or does not handle the problem."""
+    tried: tuple[Attempt, ...] = ()
+    if sqp:
+        try:
+            traj, info = CollocationSQP(ocp, max_iter=SQP_MAX_ITER).solve_once(x0, guess=guess)
+        except SQPError:
+            info = None
+        if info is not None:
+            tried = (Attempt(stage=f"{stage} (sqp)", guess=name, N=ocp.N, status=info.status, success=info.success,
+                             iterations=info.iterations, objective=info.objective, T=info.T,
+                             solve_time_s=info.solve_time_s, chosen=info.success),)
+            if info.success:
+                return traj, replace(info, guess=name, attempts=tried)
     traj, info = ocp.solve_once(x0, guess=guess)
     first = Attempt(stage=stage, guess=name, N=ocp.N, status=info.status, success=info.success,
                     iterations=info.iterations, objective=info.objective, T=info.T,
                     solve_time_s=info.solve_time_s, chosen=info.success)
     if info.success:
-        return traj, replace(info, guess=name, attempts=(first,))
+        return traj, replace(info, guess=name, attempts=tried + (first,))
     traj, info = ocp.solve(x0, stage=stage)
-    return traj, replace(info, start=info.start + 1, attempts=(first,) + info.attempts)
+    return traj, replace(info, start=info.start + 1, attempts=tried + (first,) + info.attempts)
 
 
 def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None) -> LinearFeedback:
@@ -438,7 +458,13 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     model : CartPoleModel, optional
         Model used for planning and TVLQR; default the MJCF's own. Give a deliberately wrong one (e.g.
         ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
-    solver : {'ipopt', 'fatrop'}
+    solver : {'ipopt', 'fatrop', 'sqp'}
+        NLP solver of the plan's last stage (the minimum-time stages are IPOPT's: a free final time). ``sqp``:
+        the fixed-time effort plan by :class:`~cartpole.ocp.sqp.CollocationSQP` from the minimum-time plan, IPOPT
+        when it does not converge in :data:`SQP_MAX_ITER` iterations (measured from the time plan, N = 100: one
+        pole 10 ms against IPOPT's 27 ms, two poles 54 against 189 ms, same optimum to 5e-8; three poles: no
+        convergence, IPOPT 0.54 s; the first use per cart and N compiles its QP library, 5-20 s). Other
+        objectives and a given ``T`` use IPOPT.
     Q, R : arrays, optional
         Tracking and catch weights (nx, nx) and (nu, nu) (default :func:`cartpole.lqr.lab_weights` of the model:
         1 per slide, 10 per hinge angle, 0.1 per rate, 0.1 per input; for one pole the lab's
@@ -474,6 +500,8 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         ``plan.solve_info.attempts`` lists every solver call of every stage; ``plan.plan_time_s`` their wall time.
     """
     tic = time.perf_counter()
+    use_sqp = solver == "sqp"
+    solver = "ipopt" if use_sqp else solver
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     plan_model = model if model is not None else build_model(params)
     Q0, R0 = lab_weights(plan_model)
@@ -506,7 +534,8 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
             ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
                                     solver_options=solver_options, bounds=bounds)
             first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright
-        traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name)
+        traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
+                                    sqp=use_sqp and obj.kind == "effort")
         info = replace(info, attempts=tinfo.attempts + info.attempts)
     # TVLQR at the MJCF's step, on the planning model's exact discrete step.
     tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)

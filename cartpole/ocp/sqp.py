@@ -73,9 +73,9 @@ import casadi as ca
 import numpy as np
 
 from cartpole.ocp import compiled, sqp_functions
+from cartpole.ocp.compiled import _Buffered
 from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.collocation import DirectCollocation, SolveInfo
-from cartpole.ocp.nmpc import _Buffered
 from cartpole.ocp.trajectory import Trajectory
 
 
