@@ -377,22 +377,7 @@ class CollocationSQP:
         nv = (N + 1) * nu
         # condensed in one compiled call (sqp_functions): the stages' parts of the Hessian and gradient, and
         # [G_k, g_k] of knots 1..N (G_0 = 0, g_0 = 0)
-        Yt, band, f_g, f_e, GT = self._condense(T, ct, Hy, gy)
-        Yt, band, f_e = Yt.reshape(N, 2 * nu, nv), band.reshape(N, 2 * nu, 2 * nu), f_e.reshape(N, 2 * nu)
-        Hc = np.zeros((nv, nv))  # sum_k (Y_k E_k + E_k' Y_k') + sum_k E_k' band_k E_k (sqp_functions)
-        Hc[:N * nu] += Yt[:, :nu].reshape(N * nu, nv)
-        Hc[nu:] += Yt[:, nu:].reshape(N * nu, nv)
-        Hc += Hc.T
-        H4 = Hc.reshape(N + 1, nu, N + 1, nu)
-        k0, k1 = self._knots[:-1], self._knots[1:]
-        H4[k0, :, k0, :] += band[:, :nu, :nu]
-        H4[k1, :, k1, :] += band[:, nu:, nu:]
-        H4[k0, :, k1, :] += band[:, :nu, nu:]
-        H4[k1, :, k0, :] += band[:, nu:, :nu]
-        fc = f_g.copy()
-        fc[:N * nu] += f_e[:, :nu].ravel()
-        fc[nu:] += f_e[:, nu:].ravel()
-        Ga = GT.reshape(N, nx, nv + 1)  # knots 1..N
+        Hc, fc, Ga = sqp_functions.assemble_condensed(self._condense(T, ct, Hy, gy), N, nx, nu)  # knots 1..N
         Gs, gs = Ga[:, :, :nv], Ga[:, :, nv]
         ri, rc = self._rows_k, self._rows_i  # knots >= 1: the rows of knot k are Ga[k - 1]
         A_all = Gs[ri - 1, rc, :]
@@ -464,7 +449,6 @@ class CollocationSQP:
         fin = np.isfinite(lbz[:, :nx]) | np.isfinite(ubz[:, :nx])
         fin[0] = False  # x_0 is pinned: dx_0 = 0 by construction
         self._rows_k, self._rows_i = np.nonzero(fin)
-        self._knots = np.arange(N + 1)
         eq = lbz[self._rows_k, self._rows_i] == ubz[self._rows_k, self._rows_i]
         nr = self._rows_k.size
         self._row_eq = eq

@@ -17,16 +17,17 @@ gy (ny, N), M (nx, nx N))``
     ``R + B' P B`` whose Gershgorin bound is below ``reg_min`` (the first stage, whose state ``s_0 = du_0`` is free,
     included), so the QP is convex. Inputs and outputs are numpy's C-order blocks (``J`` (N, nx, nv) is CasADi's
     ``J_k'`` side by side), so each output reads as (N, rows, cols) of the named matrix.
-``sqp_condense (T, ct, Hy, gy) -> (Hc (nv_c, nv_c), fc (nv_c,), GT (nv_c + 1, nx (N+1)))``
-    The QP condensed onto the knot controls ``v = (du_0 .. du_N)`` (nv_c = (N+1) nu): ``dx_k = g_k + G_k v``
-    (``GT`` holds ``[G_k, g_k]'`` for k = 0..N, ``G_0 = 0``) by the forward recursion ``G_k+1 = A_k G_k + Bw_k E_k``
-    (``A_k``, ``Bw_k`` the state rows of ``T_k``, ``E_k`` selecting ``du_k, du_k+1``); the Hessian without any
-    ``G' Q G`` product: with ``P_N = 0``, ``P_k = Q_k + A_k' P_k+1 A_k`` (the states' cost-to-go of the linear
-    system), ``sum_k G_k' Q_k G_k = sum_k (X_k E_k + E_k' X_k' - E_k' Bw_k' P_k+1 Bw_k E_k)`` with
-    ``X_k = G_k+1' P_k+1 Bw_k`` (each pair of inputs counted once through the later state it reaches), so
-    ``Hc = sum_k (X_k E_k + E_k' X_k') + sum_k E_k' (R_k - Bw_k' P_k+1 Bw_k) E_k`` with
-    ``X_k = G_k' S_k' + G_k+1' P_k+1 Bw_k`` (``Q``, ``S``, ``R`` the blocks of ``Hy_k`` in ``(dx_k; du_k, du_k+1)``):
-    O(N^2 nx nu) flops instead of O(N^3).
+``sqp_condense (T, ct, Hy, gy) -> (Y (nc, 2nu N), band (2nu, 2nu N), f (nc,), e (2nu, N), GT (nc + 1, nx N))``
+    The QP condensed onto the knot controls ``v = (du_0 .. du_N)`` (nc = (N+1) nu): ``dx_k = g_k + G_k v``
+    (``GT`` holds ``[G_k, g_k]'`` for knots k = 1..N; ``G_0 = 0``, ``g_0 = 0``) by the forward recursion ``G_k+1 =
+    A_k G_k + Bw_k E_k`` (``A_k``, ``Bw_k`` the state rows of ``T_k``, ``E_k`` selecting ``du_k, du_k+1``); the
+    Hessian without any ``G' Q G`` product: with ``P_N = 0``, ``P_k = Q_k + A_k' P_k+1 A_k`` (the states' cost-to-go
+    of the linear system), ``sum_k G_k' Q_k G_k = sum_k (X_k E_k + E_k' X_k' - E_k' Bw_k' P_k+1 Bw_k E_k)`` with
+    ``X_k = G_k+1' P_k+1 Bw_k`` (each pair of inputs counted once through the later state it reaches), which with
+    the cross terms gives ``Hc = sum_k (Y_k E_k + E_k' Y_k') + sum_k E_k' band_k E_k``, ``Y_k = G_k' (S_k' + A_k'
+    P_k+1 Bw_k)``, ``band_k = R_k + Bw_k' P_k+1 Bw_k`` (``Q``, ``S``, ``R`` the blocks of ``Hy_k`` in ``(dx_k;
+    du_k, du_k+1)``), and the gradient ``fc = f + sum_k E_k' e_k``: O(N^2 nx nu) flops instead of O(N^3), the
+    stage terms fused into the forward recursion. :func:`assemble_condensed` places the blocks.
 ``sqp_multipliers (dZ (nz, N+1), nbx (nx, N+1), Hy, gy, T, H, G, M) -> lam (nx, N)``
     The defects' multipliers from a QP step ``dZ`` and the state bounds' multipliers: the stage dynamics'
     multipliers by the backward recursion of the stage states' stationarity, then ``lambda_k =
@@ -42,9 +43,10 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.compiled import _build_library
 
-_LIB_VERSION = "sqp-qp-v1"  # bump when the generated functions change meaning
+_LIB_VERSION = "sqp-qp-v2"  # bump when the generated functions change meaning
 
 
 def _acc(steps: int) -> dict:
@@ -83,8 +85,9 @@ def _stage_function(nx: int, nu: int) -> ca.Function:
     J = Jt.T
     Ja, Jbx, Jbu = J[:, :nz], J[:, nz:nz + nx], J[:, nz + nx:]
     M = ca.solve(Jbx, ca.SX.eye(nx))
-    T = ca.vertcat(ca.horzcat(-ca.mtimes(M, Ja), -ca.mtimes(M, Jbu)),
-                   ca.horzcat(ca.SX.zeros(nu, nz), ca.SX.eye(nu)))  # (nz, ny)
+    # dense: the flat output buffer is read as (N, nz, ny) (eye's off-diagonal zeros are otherwise not stored)
+    T = ca.densify(ca.vertcat(ca.horzcat(-ca.mtimes(M, Ja), -ca.mtimes(M, Jbu)),
+                              ca.horzcat(ca.SX.zeros(nu, nz), ca.SX.eye(nu))))  # (nz, ny)
     ct = -ca.mtimes(M, d)
     P = ca.vertcat(ca.horzcat(ca.SX.eye(nz), ca.SX.zeros(nz, nu)), T)  # (nv, ny)
     Hy = ca.mtimes([P.T, H, P])
@@ -230,13 +233,36 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
 
 
+def assemble_condensed(outputs, N: int, nx: int, nu: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The condensed QP from ``sqp_condense``'s outputs (flat numpy buffers, in its order): ``(Hc (nc, nc), fc
+    (nc,), Ga (N, nx, nc + 1))`` with nc = (N+1) nu; ``Ga[k - 1] = [G_k, g_k]`` for knots k = 1..N (module
+    docstring). New arrays, except ``Ga``: a view of the last output's buffer."""
+    Yt, band, f_g, f_e, GT = outputs
+    nc = (N + 1) * nu
+    Yt, band, f_e = Yt.reshape(N, 2 * nu, nc), band.reshape(N, 2 * nu, 2 * nu), f_e.reshape(N, 2 * nu)
+    Hc = np.zeros((nc, nc))  # rows of sum_k E_k' Y_k', then its transpose added
+    Hc[:N * nu] += Yt[:, :nu].reshape(N * nu, nc)
+    Hc[nu:] += Yt[:, nu:].reshape(N * nu, nc)
+    Hc += Hc.T
+    H4 = Hc.reshape(N + 1, nu, N + 1, nu)
+    k0, k1 = np.arange(N), np.arange(1, N + 1)
+    H4[k0, :, k0, :] += band[:, :nu, :nu]
+    H4[k1, :, k1, :] += band[:, nu:, nu:]
+    H4[k0, :, k1, :] += band[:, :nu, nu:]
+    H4[k1, :, k0, :] += band[:, nu:, :nu]
+    fc = f_g.copy()
+    fc[:N * nu] += f_e[:, :nu].ravel()
+    fc[nu:] += f_e[:, nu:].ravel()
+    return Hc, fc, GT.reshape(N, nx, nc + 1)
+
+
 def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled: bool = True
                           ) -> tuple[list[ca.Function], str | None]:
     """:func:`qp_functions` compiled to C and cached (one library per size and ``reg_min``), with the path of the
     library; CasADi's virtual machine (same numbers, and None) with ``compiled`` False, ``CARTPOLE_NO_COMPILE`` set
     or when the build fails (one line on stderr)."""
     if N < 2:
-        raise ValueError("the SQP's QP functions need N >= 2 intervals")
+        raise OCPError(f"The SQP's QP functions need N >= 2 intervals, not {N}; use N >= 2 (100 is typical).")
     if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
         recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
         try:

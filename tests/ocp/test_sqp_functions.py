@@ -8,24 +8,16 @@ import numpy as np
 import pytest
 
 from cartpole.ocp import sqp_functions
+from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.compiled import _Buffered
 
 REG = 1e-4
 
 
 def _call(fn, *arrays):
-    """``fn`` on numpy buffers as the SQP calls it; copies of the flat outputs, scattered to dense column-major
-    where an output is structurally sparse (sqp_stages' T for nu >= 2, see the xfail test below)."""
-    outs = []
-    for i, o in enumerate(_Buffered(fn)(*arrays)):
-        sp = fn.sparsity_out(i)
-        if sp.is_dense():
-            outs.append(o.copy())
-        else:
-            full = np.zeros(sp.numel())
-            full[np.array(sp.find(), dtype=int)] = o
-            outs.append(full)
-    return outs
+    """``fn`` on numpy buffers as the SQP calls it; copies of the flat outputs (every output is dense: see
+    test_every_output_is_dense_so_flat_buffers_reshape)."""
+    return [o.copy() for o in _Buffered(fn)(*arrays)]
 
 
 def _data(nx, nu, N, seed, *, indefinite=False):
@@ -93,26 +85,8 @@ def _condensed_reference(nx, nu, T, ct, Hy, gy):
 
 
 def _assemble(nx, nu, N, outs):
-    """Hc, fc and GT (N, nx, nc + 1) from sqp_condense's outputs, copied from CollocationSQP._daqp_step (the
-    assembly lives inline there)."""
-    Yt, band, f_g, f_e, GT = outs
-    nv = (N + 1) * nu
-    Yt, band, f_e = Yt.reshape(N, 2 * nu, nv), band.reshape(N, 2 * nu, 2 * nu), f_e.reshape(N, 2 * nu)
-    Hc = np.zeros((nv, nv))
-    Hc[:N * nu] += Yt[:, :nu].reshape(N * nu, nv)
-    Hc[nu:] += Yt[:, nu:].reshape(N * nu, nv)
-    Hc += Hc.T
-    H4 = Hc.reshape(N + 1, nu, N + 1, nu)
-    knots = np.arange(N + 1)
-    k0, k1 = knots[:-1], knots[1:]
-    H4[k0, :, k0, :] += band[:, :nu, :nu]
-    H4[k1, :, k1, :] += band[:, nu:, nu:]
-    H4[k0, :, k1, :] += band[:, :nu, nu:]
-    H4[k1, :, k0, :] += band[:, nu:, :nu]
-    fc = f_g.copy()
-    fc[:N * nu] += f_e[:, :nu].ravel()
-    fc[nu:] += f_e[:, nu:].ravel()
-    return Hc, fc, GT.reshape(N, nx, nv + 1)
+    """Hc, fc and GT (N, nx, nc + 1) from sqp_condense's outputs, placed as the SQP places them."""
+    return sqp_functions.assemble_condensed(outs, N, nx, nu)
 
 
 def _rel(a, b):
@@ -229,9 +203,7 @@ def test_condensed_step_and_multipliers_solve_the_original_qp(nx, nu, N):
     assert np.abs(gr).max() < 1e-9 * max(1.0, np.abs(grad).max())
 
 
-@pytest.mark.parametrize("nu", [1, pytest.param(2, marks=pytest.mark.xfail(
-    strict=True, reason="sqp_stages' T is structurally sparse for nu >= 2 (SX.eye(nu)'s zeros), so "
-    "CollocationSQP._qp_step's T.reshape(N, nz, ny) fails on the flat buffer"))])
+@pytest.mark.parametrize("nu", [1, 2])
 def test_every_output_is_dense_so_flat_buffers_reshape(nu):
     for fn in sqp_functions.qp_functions(4, nu, 3, REG):
         for i in range(fn.n_out()):
@@ -274,6 +246,6 @@ def test_no_compile_environment_gives_virtual_machine(monkeypatch):
     assert [f.name() for f in fns] == ["sqp_stages", "sqp_condense", "sqp_multipliers"]
 
 
-def test_single_interval_is_refused():
-    with pytest.raises(ValueError):
+def test_single_interval_is_refused_in_one_sentence():
+    with pytest.raises(OCPError, match="N >= 2"):
         sqp_functions.compiled_qp_functions(4, 1, 1, REG)
