@@ -124,3 +124,25 @@ def test_sqp_refuses_problems_it_does_not_handle_in_one_sentence():
         CollocationSQP(DirectCollocation(model, N=20, T=2.0, objective="tracking"))
     with pytest.raises(SQPError, match="qp_solver"):
         CollocationSQP(DirectCollocation(model, N=20, T=2.0), qp_solver="nope")
+
+
+def test_two_motors_run_through_the_sqp_and_end_at_ipopts_optimum(chain_dir):
+    """Several inputs (a motor on the cart and one on the hinge): the SQP's QP has two controls per knot. Whether
+    or not the SQP converges on this problem (measured at N = 12, 30 and 60: it does not, as before its QP was
+    compiled), ``fallback=True`` ends at IPOPT's
+    optimum from the same guess."""
+    model = build_model(read_params(chain_dir / "two_motors.xml"))
+    assert model.nu == 2
+    x0 = np.array(model.x_hanging)
+    bounds = bounds_from_model(model, u_max=1.0, cart_max=1.4, cart_margin=0.0)
+    n = 12
+    guess = initial_guesses(model, x0, model.x_eq, T, n, bounds=bounds, count=1)[0]
+    ocp = DirectCollocation(model, N=n, T=T, bounds=bounds)
+    traj_ip, info_ip = ocp.solve_once(x0, guess=guess)
+    assert info_ip.success
+    sqp = CollocationSQP(ocp, max_iter=40)
+    traj, info = sqp.solve(x0, guess=guess, fallback=True)
+    assert sqp.history and all(np.isfinite(h["objective"]) for h in sqp.history)
+    assert info.success
+    assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
+    assert traj.u.shape == traj_ip.u.shape == (n + 1, 2)
