@@ -96,21 +96,26 @@ def _stage_function(nx: int, nu: int) -> ca.Function:
     return ca.Function("sqp_stage", [Jt, H, g, d, lm], [T.T, ct, Hy, gy, M.T], {"cse": True})
 
 
-def _riccati_stage(nz: int, nw: int, eps: float) -> ca.Function:
-    """One step of the regularised Riccati recursion: ``(P, Tt (ny, nz), Hy) -> (P_prev, d)``; ``d`` the shift
-    added to the stage's ``w`` block so that ``R + B' P B`` keeps its Gershgorin bound above ``eps``."""
-    ny = nz + nw
-    P, Tt, Hy = ca.SX.sym("P", nz, nz), ca.SX.sym("Tt", ny, nz), ca.SX.sym("Hy", ny, ny)
-    T = Tt.T
-    A, B = T[:, :nz], T[:, nz:]
-    Q, S, R = Hy[:nz, :nz], Hy[nz:, :nz], Hy[nz:, nz:]
+def _riccati_step(P, A, B, Q, S, R, eps: float) -> tuple:
+    """One regularised Riccati step (SX): ``(P_prev, d)`` with ``d`` the shift added to ``R`` so that
+    ``R + B' P B`` keeps its Gershgorin bound above ``eps``."""
     BP = ca.mtimes(B.T, P)
     Rb = R + ca.mtimes(BP, B)
     d = _raise_to(_gershgorin_low(Rb), eps)
-    Rb = Rb + d * ca.SX.eye(nw)
+    Rb = Rb + d * ca.SX.eye(R.size1())
     L = S + ca.mtimes(BP, A)
     Pn = Q + ca.mtimes([A.T, P, A]) - ca.mtimes(L.T, ca.solve(Rb, L))
-    return ca.Function("sqp_riccati_stage", [P, Tt, Hy], [0.5 * (Pn + Pn.T), d], {"cse": True})
+    return 0.5 * (Pn + Pn.T), d
+
+
+def _riccati_stage(nz: int, nw: int, eps: float) -> ca.Function:
+    """One step of the regularised Riccati recursion over a stage: ``(P, Tt (ny, nz), Hy) -> (P_prev, d)``
+    (:func:`_riccati_step`; ``d`` goes to the stage's ``w`` block)."""
+    ny = nz + nw
+    P, Tt, Hy = ca.SX.sym("P", nz, nz), ca.SX.sym("Tt", ny, nz), ca.SX.sym("Hy", ny, ny)
+    T = Tt.T
+    Pn, d = _riccati_step(P, T[:, :nz], T[:, nz:], Hy[:nz, :nz], Hy[nz:, :nz], Hy[nz:, nz:], eps)
+    return ca.Function("sqp_riccati_stage", [P, Tt, Hy], [Pn, d], {"cse": True})
 
 
 def _first_stage(nx: int, nu: int, eps: float) -> ca.Function:
@@ -120,15 +125,8 @@ def _first_stage(nx: int, nu: int, eps: float) -> ca.Function:
     ny = nz + nu
     P, Tt, Hy = ca.SX.sym("P", nz, nz), ca.SX.sym("Tt", ny, nz), ca.SX.sym("Hy", ny, ny)
     T = Tt.T
-    A, B = T[:, nx:nz], T[:, nz:]
-    Q, S, R = Hy[nx:nz, nx:nz], Hy[nz:, nx:nz], Hy[nz:, nz:]
-    BP = ca.mtimes(B.T, P)
-    Rb = R + ca.mtimes(BP, B)
-    dw = _raise_to(_gershgorin_low(Rb), eps)
-    Rb = Rb + dw * ca.SX.eye(nu)
-    L = S + ca.mtimes(BP, A)
-    P0 = Q + ca.mtimes([A.T, P, A]) - ca.mtimes(L.T, ca.solve(Rb, L))
-    du = _raise_to(_gershgorin_low(0.5 * (P0 + P0.T)), eps)
+    P0, dw = _riccati_step(P, T[:, nx:nz], T[:, nz:], Hy[nx:nz, nx:nz], Hy[nz:, nx:nz], Hy[nz:, nz:], eps)
+    du = _raise_to(_gershgorin_low(P0), eps)
     shift = ca.diagcat(ca.SX.zeros(nx, nx), du * ca.SX.eye(nu), dw * ca.SX.eye(nu))
     return ca.Function("sqp_first_stage", [P, Tt, Hy], [Hy + shift], {"cse": True})
 
