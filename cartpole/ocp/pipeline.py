@@ -463,7 +463,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         the fixed-time effort plan by :class:`~cartpole.ocp.sqp.CollocationSQP` from the minimum-time plan, IPOPT
         when it does not converge in :data:`SQP_MAX_ITER` iterations (measured from the time plan, N = 100: one
         pole 10 ms against IPOPT's 27 ms, two poles 54 against 189 ms, same optimum to 5e-8; three poles: no
-        convergence, IPOPT 0.54 s; the first use per cart and N compiles its QP library, 5-20 s). Other
+        convergence, IPOPT 0.54 s; the first use per cart and N compiles its QP library, 5-45 s). Other
         objectives and a given ``T`` use IPOPT.
     Q, R : arrays, optional
         Tracking and catch weights (nx, nx) and (nu, nu) (default :func:`cartpole.lqr.lab_weights` of the model:
