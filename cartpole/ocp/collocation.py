@@ -145,6 +145,13 @@ class Attempt:
     solve_time_s: float
     chosen: bool = False
 
+    @classmethod
+    def of(cls, info: "SolveInfo", stage: str, guess: str, N: int, *, chosen: bool = False) -> "Attempt":
+        """The attempt that ``info`` (a solver call's :class:`SolveInfo`) reports, labelled ``stage``, ``guess``."""
+        return cls(stage=stage, guess=guess, N=N, status=info.status, success=info.success,
+                   iterations=info.iterations, objective=info.objective, T=info.T, solve_time_s=info.solve_time_s,
+                   chosen=chosen)
+
     def as_dict(self) -> dict:
         """JSON-ready dict of the fields."""
         return {f: getattr(self, f) for f in self.__dataclass_fields__}
@@ -677,9 +684,7 @@ class DirectCollocation:
         found, attempts = [], []
         for i, (name, g) in enumerate(guesses):
             traj, info = self.solve_once(x0, x_goal, guess=g, T=T, start=i)
-            attempts.append(Attempt(stage=label, guess=name, N=self.N, status=info.status, success=info.success,
-                                    iterations=info.iterations, objective=info.objective, T=info.T,
-                                    solve_time_s=info.solve_time_s))
+            attempts.append(Attempt.of(info, label, name, self.N))
             if info.success:
                 found.append((traj, replace(info, start=i, guess=name)))
                 if not best_of:

@@ -21,6 +21,7 @@ and the caller keeps the SX formulation.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import os
 import shutil
@@ -87,15 +88,18 @@ def cache_dir() -> Path:
     return Path(base) / "cartpole"
 
 
+@functools.lru_cache(maxsize=None)
 def cpu_key() -> str:
-    """The machine's architecture, CPU model and feature flags (Linux ``/proc/cpuinfo``), hashed: what code
-    compiled with ``-march=native`` depends on."""
+    """The machine's architecture, CPU model and feature flags (Linux ``/proc/cpuinfo``, its first processor),
+    hashed: what code compiled with ``-march=native`` depends on. Read once per process."""
     import platform
 
     h = hashlib.sha256(platform.machine().encode())
     try:
         seen = set()
         for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if not line.strip() and seen:  # the end of the first processor's block
+                break
             name = line.split(":", 1)[0].strip()
             if name in ("model name", "flags", "Features", "CPU part") and name not in seen:
                 seen.add(name)

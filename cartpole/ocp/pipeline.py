@@ -392,15 +392,11 @@ def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, sta
         except SQPError:
             info = None
         if info is not None:
-            tried = (Attempt(stage=f"{stage} (sqp)", guess=name, N=ocp.N, status=info.status, success=info.success,
-                             iterations=info.iterations, objective=info.objective, T=info.T,
-                             solve_time_s=info.solve_time_s, chosen=info.success),)
+            tried = (Attempt.of(info, f"{stage} (sqp)", name, ocp.N, chosen=info.success),)
             if info.success:
                 return traj, replace(info, guess=name, attempts=tried)
     traj, info = ocp.solve_once(x0, guess=guess)
-    first = Attempt(stage=stage, guess=name, N=ocp.N, status=info.status, success=info.success,
-                    iterations=info.iterations, objective=info.objective, T=info.T,
-                    solve_time_s=info.solve_time_s, chosen=info.success)
+    first = Attempt.of(info, stage, name, ocp.N, chosen=info.success)
     if info.success:
         return traj, replace(info, guess=name, attempts=tried + (first,))
     traj, info = ocp.solve(x0, stage=stage)

@@ -3,9 +3,9 @@
 The NLP is :class:`~cartpole.ocp.collocation.DirectCollocation`'s compressed Hermite-Simpson problem, variable for
 variable: scaled knots ``z_k = (x_k / s_x, u_k / s_u)`` (nz = nx + nu), k = 0..N, the defects
 ``d_k(z_k, z_k+1) = 0`` (nx each, divided by ``s_x``), box bounds on the knots (ctrl, cart rail, limited joints),
-``x_0`` and ``x_N`` pinned, objective the effort ``integral u'u dt`` divided by ``sum(s_u^2) T``. Its pieces are the interval functions compiled to C (:mod:`cartpole.ocp.compiled`:
-``hs_dj`` defect and Jacobian, ``hs_eg`` cost and gradient, ``hs_hl`` the exact Hessian block of the interval's
-Lagrangian), mapped over the N intervals.
+``x_0`` and ``x_N`` pinned, objective the effort ``integral u'u dt`` divided by ``sum(s_u^2) T``. Its pieces are
+the interval functions compiled to C (:mod:`cartpole.ocp.compiled`: ``hs_dj`` defect and Jacobian, ``hs_eg`` cost
+and gradient, ``hs_hl`` the exact Hessian block of the interval's Lagrangian), mapped over the N intervals.
 
 Each SQP step solves the QP of the exact Lagrangian Hessian and the linearised defects. That QP is an optimal
 control problem once the defects are read as dynamics: the linearised defect
@@ -42,9 +42,9 @@ Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
 iterates converge: quadratic convergence at the end), then made positive definite on the stage dynamics' null space
 where it is not: a backward Riccati recursion over the stages raises any stage's reduced Hessian ``R + B' P B`` below
-``reg_min`` (``sqp_stages`` in :mod:`cartpole.ocp.sqp_functions`), so every QP is convex. Globalisation: a filter line search
-on (``||d||_1``, cost) (Fletcher and Leyffer) with a second-order correction against the Maratos effect, steps longer
-than ``max_step`` (scaled units) shortened. Converged when the largest defect and the largest entry of the
+``reg_min`` (``sqp_stages`` in :mod:`cartpole.ocp.sqp_functions`), so every QP is convex. Globalisation: a filter
+line search on (``||d||_1``, cost) (Fletcher and Leyffer) with a second-order correction against the Maratos effect,
+steps longer than ``max_step`` (scaled units) shortened. Converged when the largest defect and the largest entry of the
 Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT ``tol``); after a full step that test
 is first made with the last QP's multipliers (the step was full, so that QP's active bounds hold at the new point),
 so no QP is solved only to confirm convergence.
@@ -650,10 +650,9 @@ class CollocationSQP:
             return traj, info
         if fallback:
             tr2, info2 = ocp.solve_once(x0, x_goal, guess=guess, T=T)
-            attempts = tuple(Attempt(stage=ocp.objective, guess="given" if guess is not None else "line", N=self.N,
-                                     status=i.status, success=i.success, iterations=i.iterations,
-                                     objective=i.objective, T=i.T, solve_time_s=i.solve_time_s,
-                                     chosen=i is info2 and i.success) for i in (info, info2))
+            name = "given" if guess is not None else "line"
+            attempts = tuple(Attempt.of(i, ocp.objective, name, self.N, chosen=i is info2 and i.success)
+                             for i in (info, info2))
             if info2.success:
                 return tr2, replace(info2, attempts=attempts)
         raise SQPError(f"The SQP swing-up solve did not converge ({info.status} after {info.iterations} "

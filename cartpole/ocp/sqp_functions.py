@@ -53,6 +53,8 @@ def _acc(steps: int) -> dict:
     """``mapaccum`` options for ``steps`` stages, unnested: its default nesting (base 10) copies the accumulator and
     the outputs at every level."""
     return {"base": max(int(steps), 1)}
+
+
 #: Compiler flags of this library, whatever its length (:func:`cartpole.ocp.compiled._cflags` compiles long
 #: sources without optimisation): it is many small stage functions, which gcc optimises in about linear time.
 #: Measured on the one-pole condensing (N = 100, 0.8 MB of C, about 5 s to compile): -O3 -march=native 0.135 ms a
@@ -131,6 +133,11 @@ def _first_stage(nx: int, nu: int, eps: float) -> ca.Function:
     return ca.Function("sqp_first_stage", [P, Tt, Hy], [Hy + shift], {"cse": True})
 
 
+def _block_cols(width: int, n: int, count: int) -> list[int]:
+    """Column indices of the first ``n`` columns of each of ``count`` blocks ``width`` wide, side by side."""
+    return np.concatenate([np.arange(k * width, k * width + n) for k in range(count)]).tolist()
+
+
 def _reverse_blocks(X: ca.MX, width: int, count: int) -> ca.MX:
     """The ``count`` column blocks (``width`` wide) of ``X`` in reverse order."""
     cols = np.concatenate([np.arange(k * width, (k + 1) * width) for k in range(count - 1, -1, -1)])
@@ -163,12 +170,13 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
     Ti, cti = ca.MX.sym("T", ny, nz * N), ca.MX.sym("ct", nx, N)
     Hyi, gyi = ca.MX.sym("Hy", ny, ny * N), ca.MX.sym("gy", ny, N)
     # Ti's block k is T_k' (ny, nz): its first nx rows and columns A_k', the rows below them Bw_k' (2nu, nx)
-    a_cols = np.concatenate([np.arange(k * nz, k * nz + nx) for k in range(N)]).tolist()
+    a_cols = _block_cols(nz, nx, N)
     ATs, BWs = Ti[:nx, a_cols], Ti[nx:, a_cols]  # (nx, nx N), (2nu, nx N)
-    Qs = Hyi[:nx, np.concatenate([np.arange(k * ny, k * ny + nx) for k in range(N)]).tolist()]  # (nx, nx N)
+    Qs = Hyi[:nx, _block_cols(ny, nx, N)]  # (nx, nx N)
     # backward: P_k = Q_k + A_k' P_k+1 A_k, k = N-1 .. 1 (P_N = 0)
     P_, Q_, AT_ = ca.SX.sym("P", nx, nx), ca.SX.sym("Q", nx, nx), ca.SX.sym("AT", nx, nx)
-    lyap = ca.Function("sqp_lyap", [P_, AT_, Q_], [ca.mtimes([AT_, P_, AT_.T]) + Q_]).mapaccum("sqp_lyap_acc", N - 1, [0], [0], _acc(N - 1))
+    lyap = ca.Function("sqp_lyap", [P_, AT_, Q_], [ca.mtimes([AT_, P_, AT_.T]) + Q_]
+                       ).mapaccum("sqp_lyap_acc", N - 1, [0], [0], _acc(N - 1))
     Prev = lyap(ca.MX.zeros(nx, nx), _reverse_blocks(ATs[:, nx:], nx, N - 1), _reverse_blocks(Qs[:, nx:], nx, N - 1))
     Pnext = ca.horzcat(_reverse_blocks(Prev, nx, N - 1), ca.MX.zeros(nx, nx))  # P_1 .. P_N
     # forward, one stage per knot: GT_k+1 = GT_k A_k' + Bf_k' with GT = [G; g]' (nc + 1, nx), Bf_k' holding Bw_k' in
@@ -212,12 +220,11 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
     ck = (ca.mtimes(Hv, ca.vertcat(zk, zk1)) + gv)[nz:nz + nx]
     loc = ca.Function("sqp_mult_stage", [zk, zk1, nb, Hk, gk, Hv, gv], [rk, ck]).map(N)
     r, cc = loc(dZ[:, :N], dZ[:, 1:], nbx[:, :N], Hyi, gyi, Hm, Gm_)
-    # Ti's block k holds A_k' in its first nx rows and columns
-    ATs_m = Ti[:nx, :][:, np.concatenate([np.arange(k * nz, k * nz + nx) for k in range(N)]).tolist()]
     m_, r_ = ca.SX.sym("m", nx), ca.SX.sym("r", nx)
-    adj = ca.Function("sqp_adj", [m_, AT_, r_], [ca.mtimes(AT_, m_) + r_]).mapaccum("sqp_adj_acc", N - 1, [0], [0], _acc(N - 1))
-    # m_k-1 = A_k' m_k + r_k, k = N-1 .. 1, from m_N-1 = nbx_N; AT_ as passed is A_k' (Ti's block rows)
-    mrev = adj(nbx[:, N], _reverse_blocks(ATs_m[:, nx:], nx, N - 1), _reverse_blocks(r[:, 1:], 1, N - 1))
+    adj = ca.Function("sqp_adj", [m_, AT_, r_], [ca.mtimes(AT_, m_) + r_]
+                      ).mapaccum("sqp_adj_acc", N - 1, [0], [0], _acc(N - 1))
+    # m_k-1 = A_k' m_k + r_k, k = N-1 .. 1, from m_N-1 = nbx_N; ATs (the condensing's) holds A_k' side by side
+    mrev = adj(nbx[:, N], _reverse_blocks(ATs[:, nx:], nx, N - 1), _reverse_blocks(r[:, 1:], 1, N - 1))
     mx = ca.horzcat(_reverse_blocks(mrev, 1, N - 1), nbx[:, N])  # m_0 .. m_N-1
     mu_, c_, Mk = ca.SX.sym("mu", nx), ca.SX.sym("c", nx), ca.SX.sym("Mt", nx, nx)
     lamf = ca.Function("sqp_lam", [mu_, c_, Mk], [-ca.mtimes(Mk, mu_ + c_)]).map(N)  # Mk as passed is M_k'
