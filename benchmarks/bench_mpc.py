@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from cartpole.benchmark_mpc import run_mpc_benchmark
+from cartpole.apps.bench.mpc import run_mpc_benchmark
 
 
 def main() -> None:

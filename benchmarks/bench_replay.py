@@ -1,6 +1,6 @@
 """Closed-loop MuJoCo replay throughput (issue 3): a batch of LQR rollouts stepped in lockstep.
 
-Prints the figures of :func:`cartpole.sim.batch.replay_benchmark`: physics steps per second of 256
+Prints the figures of :func:`cartpole.apps.bench.replay.replay_benchmark`: physics steps per second of 256
 closed-loop LQR rollouts of 2 s from random starts (``simulate_batch_linear``: one threaded
 ``mujoco.rollout`` call per physics step over the whole batch, feedback vectorised in numpy), next to MuJoCo's
 own open-loop ``mujoco.rollout.rollout`` of the same batch in the same run, and (``--python-loop``) the naive
@@ -17,7 +17,7 @@ import sys
 
 def main(argv=None) -> int:
     """Run the benchmark and print it (prose or ``--json``)."""
-    from cartpole.sim import replay_benchmark
+    from cartpole.apps.bench.replay import replay_benchmark
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--mjcf", default=None, help="cart-pole MJCF (default: the shipped asset)")

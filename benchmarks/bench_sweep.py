@@ -58,7 +58,7 @@ def main(argv=None) -> int:
 
     from distributed import LocalCluster
 
-    from cartpole.sweep import swingup_sweep
+    from cartpole.apps.sweep import swingup_sweep
 
     kw = dict(method=a.method, n=a.n, seed=0)
     swingup_sweep(None, **{**kw, "n": 1})  # basin on disk, compiled functions built

@@ -1,7 +1,7 @@
 """Swing-up plan time for carts with 1, 2 and 3 poles, from a fresh process to a verified MuJoCo rollout.
 
 Each run is a new Python process (as ``cartpole swingup --method trajopt`` is): import, read the MJCF, plan with
-:func:`cartpole.ocp.pipeline.trajopt_swingup` (every guess of the minimum-time multi-start, its refinement, the
+:func:`cartpole.planning.trajopt.trajopt_swingup` (every guess of the minimum-time multi-start, its refinement, the
 effort plan, TVLQR), then one MuJoCo rollout from hanging rest checked with ``replays_exactly`` and
 ``swingup_metrics`` (3 s hold). Reported per cart, medians over the runs: ``wall_s`` (process start to the verified
 rollout, interpreter start-up included), ``import_s``, ``plan_s`` (``SwingupPlan.plan_time_s``), ``rollout_s``,
@@ -30,7 +30,7 @@ CHILD = r"""
 import json, sys, time
 t0 = time.perf_counter()
 from cartpole.models import build_model, read_params
-from cartpole.ocp.pipeline import trajopt_swingup
+from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.metrics import swingup_metrics
 t1 = time.perf_counter()

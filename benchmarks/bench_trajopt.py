@@ -1,6 +1,6 @@
 """Swing-up collocation speed: ours vs the naive ``casadi.Opti`` baseline, TVLQR synthesis, batched replay.
 
-The measurement lives in :mod:`cartpole.benchmark` (so ``cartpole bench`` runs the same code).
+The measurement lives in :mod:`cartpole.apps.bench.trajopt` (so ``cartpole bench`` runs the same code).
 
 Run: ``python benchmarks/bench_trajopt.py`` (add ``--json`` for the JSON document, ``--no-replay`` to skip
 the batched replay). Progress goes to stderr.
@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import sys
 
-from cartpole.benchmark import print_table, run
+from cartpole.apps.bench.trajopt import print_table, run
 
 if __name__ == "__main__":
     doc = run(repeats=7, replay="--no-replay" not in sys.argv,

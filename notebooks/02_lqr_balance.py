@@ -17,7 +17,7 @@
 # # 2. The LQR balance lab: the true numbers, and what Q and R do
 #
 # The day-5 handout balances its MuJoCo cart-pole with LQR about upright rest and prints "expected" numbers. This
-# notebook runs the lab with `cartpole.lab.run_lab` - exact linearisation, LQR, five 6 s MuJoCo runs, every physics
+# notebook runs the lab with `cartpole.apps.lab.run_lab` - exact linearisation, LQR, five 6 s MuJoCo runs, every physics
 # step logged - and puts the numbers it computes next to the handout's. Then it sweeps the weights $Q$ and $R$,
 # every point from MuJoCo runs, and shows the lab's video.
 #
@@ -37,7 +37,7 @@ import numpy as np
 import matplotlib.pyplot as plt
 from IPython.display import Image, Video, display
 import cartpole as cp
-from cartpole.lab import run_lab
+from cartpole.apps.lab import run_lab
 from cartpole.viz import plot_lab
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the sweep and the video

@@ -20,7 +20,7 @@
 # value; near the top the lab's LQR takes over ("the catch") once the state is inside a basin that MuJoCo replays
 # have shown it can hold. Everything below calls the package: the law is
 # `cartpole.control.energy.EnergyShapingController`, the hand-over `cartpole.control.switching.SwitchingController`,
-# the basin `cartpole.validation.basin.estimate_basin`, and the whole run `cartpole.swingup.run_swingup`.
+# the basin `cartpole.validation.basin.estimate_basin`, and the whole run `cartpole.apps.swingup.run_swingup`.
 #
 # ## The energy law and why it works
 #
@@ -65,7 +65,7 @@ import cartpole as cp
 from cartpole.control.energy import EnergyShapingController, model_scales
 from cartpole.control.switching import swingup_catch
 from cartpole.models import wrap_angle
-from cartpole.swingup import run_swingup
+from cartpole.apps.swingup import run_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation import BasinCache, swingup_success
 from cartpole.viz import plot_swingup

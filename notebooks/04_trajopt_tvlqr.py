@@ -35,7 +35,7 @@
 #    from the LQR catch's cost-to-go at $T$; the law is $u = u_{\rm ff}(t) - K(t)\,(x - x_{\rm plan}(t))$.
 # 3. After $T$ the lab's LQR holds the pole upright.
 #
-# All of it is `cartpole.ocp.pipeline.trajopt_swingup`; MuJoCo runs the controller on the MJCF.
+# All of it is `cartpole.planning.trajopt.trajopt_swingup`; MuJoCo runs the controller on the MJCF.
 
 # %%
 import os
@@ -44,8 +44,8 @@ import numpy as np
 import matplotlib.pyplot as plt
 import cartpole as cp
 from cartpole.models import wrap_angle
-from cartpole.ocp.pipeline import trajopt_swingup
-from cartpole.swingup import TRAJOPT_EXTRA          # s simulated after the plan (3 s, as `cartpole swingup`)
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.apps.swingup import TRAJOPT_EXTRA          # s simulated after the plan (3 s, as `cartpole swingup`)
 from cartpole.validation.metrics import held_upright, track_margin
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation import swingup_metrics, swingup_success

@@ -102,7 +102,7 @@ for discrete in (False, True):
 # joint ranges; every number from a MuJoCo run.
 
 # %%
-from cartpole.lab import run_lab
+from cartpole.apps.lab import run_lab
 from cartpole.sim import replays_exactly
 from cartpole.validation import swingup_success
 from cartpole.viz import plot_lab
@@ -122,7 +122,7 @@ display(Image(str(plot_lab(lab, OUT / "lab.png"))))
 # limit and the ctrl in range, and the logged ctrl replays exactly.
 
 # %%
-from cartpole.swingup import run_swingup
+from cartpole.apps.swingup import run_swingup
 from cartpole.viz import plot_swingup
 
 results = {}

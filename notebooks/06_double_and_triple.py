@@ -179,7 +179,7 @@ plt.show()
 
 # %%
 import time
-from cartpole.ocp.pipeline import trajopt_swingup
+from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.validation.metrics import swingup_metrics
 
 plans = {}

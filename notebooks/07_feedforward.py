@@ -33,7 +33,7 @@
 # | (c) `wrong_mass_tvlqr` | (b), but planned **and** tuned on a model whose pole is 10 % heavier (`params.scaled_pole(1.1, 1.0)`) while MuJoCo runs the true MJCF |
 # | (d) `wrong_mass_feedforward` | (a) of that wrong plan |
 #
-# All four are `cartpole.feedforward.run_feedforward` (the command `cartpole feedforward` prints the same table and
+# All four are `cartpole.apps.feedforward.run_feedforward` (the command `cartpole feedforward` prints the same table and
 # draws the same figure), each judged by the toolkit's swing-up test (`cartpole.validation.metrics.swingup_success`:
 # upright and at rest for the last second, cart off its limits, ctrl in range).
 
@@ -46,7 +46,7 @@ import numpy as np
 from IPython.display import Image, display
 from scipy.integrate import solve_ivp
 
-from cartpole.feedforward import EXTRA, RUNS, PlanFeedforward, run_feedforward
+from cartpole.apps.feedforward import EXTRA, RUNS, PlanFeedforward, run_feedforward
 from cartpole.sim import replays_exactly
 from cartpole.validation.metrics import UPRIGHT_TOL, swingup_success
 from cartpole.viz.feedforward_plot import plot_feedforward

@@ -2,21 +2,30 @@
 
 Layers, lowest first; a module may import its own layer and the layers below it, never one above:
 
-    base          cartpole.errors, cartpole._arrays, cartpole._files, cartpole.progress
+    base          cartpole.errors, _arrays, _files, progress, codegen   errors, read-only arrays, atomic files,
+                                                                        progress, generated C built and cached
     models        cartpole.models          MJCF -> parameters -> symbolic model
     lqr           cartpole.lqr             lqr / dlqr, TVLQR, the lab's weights
     control       cartpole.control         controllers u = c(t, x)
+    estimation    cartpole.estimation      (reserved) sensors, KF, EKF, MHE: x_hat from y
     sim           cartpole.sim             MuJoCo runs, exact replay, batch rollouts
-    ocp           cartpole.ocp             trajectory optimisation (uses control for a guess, lqr for TVLQR)
+    ocp           cartpole.ocp             trajectory-optimisation problems: transcription, guesses, objectives,
+                                           trajectories, solve records
+    solvers       cartpole.solvers         the SQP and its QP back-ends (iLQR / DDP to come)
+    planning      cartpole.planning        the swing-up planner: minimum time, objectives, starts, TVLQR along it
+    mpc           cartpole.mpc             NMPC, its compiled functions, the IPOPT baseline
+    identify      cartpole.identify        (reserved) system identification, the fitted MJCF
+    export        cartpole.export          (reserved) standalone C of controllers and estimators
     validation    cartpole.validation      metrics, Jacobian checks, catch basins
     viz           cartpole.viz             figures and video
-    applications  cartpole.lab, cartpole.swingup, cartpole.sweep, cartpole.benchmark
-    commands      cartpole.commands, cartpole.cli, cartpole.__main__
+    apps          cartpole.apps            what each command does (lab, swingup, feedforward, sweep, bench)
+    commands      cartpole.commands, cartpole.cli, cartpole.__main__   argparse and printing
 
 Besides: no import cycles between modules; only ``cartpole/__init__.py`` imports the package top ``cartpole``
-(nothing below it takes defaults from there); only applications and commands import ``cartpole.viz`` (the package
+(nothing below it takes defaults from there); only apps and commands import ``cartpole.viz`` (the package
 top neither); outside ``cartpole.models`` model things come from the package ``cartpole.models``, never from its
-modules, so models/ can be reorganised inside.
+modules, so models/ can be reorganised inside; no private name (``_name``) crosses a module boundary: neither
+``from x import _name`` nor ``x._name`` on an imported module, in the package (tests may).
 
 How an import names its target: ``import a.b`` names ``a.b``; ``from a.b import c`` names ``a.b.c`` when that is a
 module, else ``a.b``. The parent packages Python imports on the way (``a`` for ``a.b``) are not counted: every
@@ -32,16 +41,21 @@ import pytest
 PACKAGE_DIR = Path(__file__).resolve().parent.parent / "cartpole"
 
 LAYERS = (
-    ("base", ("cartpole.errors", "cartpole._arrays", "cartpole._files", "cartpole.progress")),
+    ("base", ("cartpole.errors", "cartpole._arrays", "cartpole._files", "cartpole.progress", "cartpole.codegen")),
     ("models", ("cartpole.models",)),
     ("lqr", ("cartpole.lqr",)),
     ("control", ("cartpole.control",)),
+    ("estimation", ("cartpole.estimation",)),
     ("sim", ("cartpole.sim",)),
     ("ocp", ("cartpole.ocp",)),
+    ("solvers", ("cartpole.solvers",)),
+    ("planning", ("cartpole.planning",)),
+    ("mpc", ("cartpole.mpc",)),
+    ("identify", ("cartpole.identify",)),
+    ("export", ("cartpole.export",)),
     ("validation", ("cartpole.validation",)),
     ("viz", ("cartpole.viz",)),
-    ("applications", ("cartpole.lab", "cartpole.swingup", "cartpole.sweep", "cartpole.benchmark",
-                      "cartpole.benchmark_mpc", "cartpole.feedforward")),
+    ("apps", ("cartpole.apps",)),
     ("commands", ("cartpole.commands", "cartpole.cli", "cartpole.__main__")),
 )
 TOP = "cartpole"
@@ -178,8 +192,8 @@ def test_only_the_package_top_imports_the_package_top():
     assert not bad, f"import the defaults from their own module, not from the package top: {bad}"
 
 
-def test_only_applications_and_commands_import_viz():
-    allowed = {"viz", "applications", "commands"}
+def test_only_apps_and_commands_import_viz():
+    allowed = {"viz", "apps", "commands"}
     bad = [f"{src} imports {dst}" for src, edges in GRAPH.items() for dst, _, _ in edges
            if layer_of(dst) == layer_of("cartpole.viz") and (src == TOP or LAYERS[layer_of(src)][0] not in allowed)]
     assert not bad, bad
@@ -190,6 +204,73 @@ def test_model_things_come_from_the_models_package():
                   for src, edges in GRAPH.items() if layer_of(src) != layer_of("cartpole.models")
                   for dst, line, _ in edges if dst.startswith("cartpole.models.")})
     assert not bad, "import from cartpole.models, not its modules:\n" + "\n".join(bad)
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def private_uses(name: str) -> list[tuple[int, str]]:
+    """``(line, what)`` for every private name module ``name`` takes from another module of the package:
+    ``from x import _y`` and ``x._y`` where ``x`` is bound to a package module by an import."""
+    path = MODULES[name]
+    tree = ast.parse(path.read_text(), filename=str(path))
+    package = name if _is_package(name) else name.rpartition(".")[0]
+    modules_bound: dict[str, str] = {}  # local name -> package module it refers to
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if _resolve(alias.name) is not None:
+                    local = alias.asname or alias.name.split(".")[0]
+                    modules_bound[local] = alias.name if alias.asname else alias.name.split(".")[0]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[:len(package.split(".")) - node.level + 1]
+                src = ".".join(base + ([node.module] if node.module else []))
+            else:
+                src = node.module or ""
+            if _resolve(src) is None:
+                continue
+            for alias in node.names:
+                full = f"{src}.{alias.name}"
+                if full in MODULES:  # a module (cartpole._files is private to the package, its names are its API)
+                    modules_bound[alias.asname or alias.name] = full
+                elif _is_private(alias.name) and _resolve(src) != name:
+                    out.append((node.lineno, f"from {src} import {alias.name}"))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and _is_private(node.attr):
+            chain, value = [node.attr], node.value
+            while isinstance(value, ast.Attribute):
+                chain.append(value.attr)
+                value = value.value
+            if isinstance(value, ast.Name) and value.id in modules_bound:
+                dotted = ".".join([modules_bound[value.id], *reversed(chain[1:])])
+                if dotted in MODULES and dotted != name:
+                    out.append((node.lineno, f"{dotted}.{node.attr}"))
+    return out
+
+
+def test_no_private_name_crosses_a_module_boundary():
+    bad = [f"{MODULES[m].relative_to(PACKAGE_DIR.parent)}:{line} uses {what}"
+           for m in MODULES for line, what in private_uses(m)]
+    assert not bad, "make the name public (and document it) or keep it in its module:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize("code, expected", [
+    ("from cartpole.sim.rollout import _helper", ["from cartpole.sim.rollout import _helper"]),
+    ("import cartpole.sim.rollout as r\nr._helper()", ["cartpole.sim.rollout._helper"]),
+    ("import cartpole.sim.rollout\ncartpole.sim.rollout._helper()", ["cartpole.sim.rollout._helper"]),
+    ("from cartpole.sim import rollout\nrollout._helper", ["cartpole.sim.rollout._helper"]),
+    ("from cartpole.sim.rollout import simulate as _simulate", []),
+    ("from cartpole._files import atomic_write", []),
+    ("class A:\n    def f(self):\n        return self._x", []),
+    ("import numpy as np\nnp._private", []),
+])
+def test_private_uses_are_read_as_documented(code, expected, tmp_path, monkeypatch):
+    monkeypatch.setitem(MODULES, "cartpole.sim.fake", tmp_path / "fake.py")
+    (tmp_path / "fake.py").write_text(code)
+    assert [what for _, what in private_uses("cartpole.sim.fake")] == expected
 
 
 @pytest.mark.parametrize("code, expected", [

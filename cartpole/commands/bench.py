@@ -44,9 +44,9 @@ class _Steps:
 
 
 def run(args) -> dict:
-    """Run :func:`cartpole.benchmark.run` on ``args.mjcf``; print a table unless ``--json``."""
-    from cartpole.benchmark import print_table
-    from cartpole.benchmark import run as bench_run
+    """Run :func:`cartpole.apps.bench.trajopt.run` on ``args.mjcf``; print a table unless ``--json``."""
+    from cartpole.apps.bench.trajopt import print_table
+    from cartpole.apps.bench.trajopt import run as bench_run
     from cartpole.errors import CartPoleError
 
     repeats = args.repeats if args.repeats is not None else (2 if args.quick else 7)
@@ -56,7 +56,7 @@ def run(args) -> dict:
     doc = bench_run(args.mjcf, repeats=repeats, replay=not args.no_replay,
                     replay_repeats=1 if args.quick else repeats, replay_rollouts=16 if args.quick else 256,
                     progress=steps)
-    from cartpole.benchmark import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table,
+    from cartpole.apps.bench.trajopt import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table,
                                     shipped_plan_models)
 
     doc["plan"] = None

@@ -32,7 +32,7 @@ def run(args) -> dict:
 
     import numpy as np
 
-    from cartpole.feedforward import check_mass_error, run_feedforward
+    from cartpole.apps.feedforward import check_mass_error, run_feedforward
     from cartpole.models import read_params
     from cartpole.viz.feedforward_plot import plot_feedforward
 

@@ -1,8 +1,6 @@
 """``cartpole lqr``: the day-5 LQR balance lab with its true numbers, figure, video and metrics row."""
 from __future__ import annotations
 
-import datetime
-import subprocess
 import sys
 from pathlib import Path
 
@@ -17,9 +15,6 @@ PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
 VIDEO = Path("videos") / "day5_cartpole.mp4"
 METRICS = Path("metrics") / "metrics.csv"
 VIDEO_SECONDS = 10.0
-
-#: Columns of ``metrics.csv`` (the handout's row shape; the header is written only when the file is created).
-METRICS_HEADER = "run_id,date,day,task,commit,seed,env,method,steps,runs,metric,value,notes"
 
 
 def add_arguments(parser) -> None:
@@ -62,46 +57,10 @@ def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
                         "(the whole matrix, row by row).")
 
 
-def git_short_sha() -> str:
-    """Short commit hash of the repository holding this package, or ``'nogit'``."""
-    try:
-        r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).resolve().parent,
-                           capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return "nogit"
-    sha = r.stdout.strip()
-    return sha if r.returncode == 0 and sha else "nogit"
-
-
-def metrics_row(result, *, date: str | None = None, commit: str | None = None) -> list:
-    """The lab's ``metrics.csv`` row for a :class:`~cartpole.lab.LabResult`, one field per ``METRICS_HEADER`` column.
-
-    ``steps`` is the number of physics steps of one run; ``value`` the mean of the handout's settling time (s);
-    ``notes`` is ``5_ICs``, with ``_<k>_poles`` for a chain and ``_scaled_<f>`` when the starts were scaled.
-    """
-    date = date or datetime.date.today().isoformat()
-    commit = commit or git_short_sha()
-    notes = f"{len(result.rollouts)}_ICs"
-    if len(result.params.hinges) != 1:
-        notes += f"_{len(result.params.hinges)}_poles"
-    if result.start_scale != 1.0:
-        notes += f"_scaled_{result.start_scale:g}"
-    return ["day5_cartpole_lqr", date, 5, "cartpole_lqr", commit, 0, "cartpole", "lqr", result.steps, 1,
-            "settling_time_sec", f"{result.mean_settling_time_seed:.4f}", notes]
-
-
-def append_metrics(path: Path, row: list) -> Path:
-    """Append ``row`` to the CSV at ``path`` (header first when creating it), whole or not at all, through the csv
-    module (:func:`~cartpole._files.append_csv_row`)."""
-    from cartpole._files import append_csv_row
-
-    return append_csv_row(path, METRICS_HEADER.split(","), row)
-
-
 def run(args) -> dict:
     """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
     from cartpole.commands._state import state_labels
-    from cartpole.lab import run_lab
+    from cartpole.apps.lab import run_lab
     from cartpole.models import build_model
     from cartpole.sim import simulate
     from cartpole.viz import VideoUnavailable, plot_lab, render_video
@@ -118,7 +77,7 @@ def run(args) -> dict:
     pid = skipped = None
     if args.compare_pid:
         from cartpole.control.pid import PIDError
-        from cartpole.lab import compare_pid
+        from cartpole.apps.lab import compare_pid
 
         try:
             pid = compare_pid(result, model)
@@ -144,6 +103,8 @@ def run(args) -> dict:
             video, video_render_s = info.resolve(), float(info.render_s)
         except VideoUnavailable as exc:
             print(f"cartpole lqr: no video: {exc}", file=sys.stderr)
+    from cartpole.apps.metrics_csv import append_metrics, metrics_row
+
     metrics = append_metrics(out / METRICS, metrics_row(result)).resolve()
 
     ts_seed = result.settling_times_seed
@@ -215,9 +176,9 @@ def _pid_doc(pid, figure) -> dict:
 
 def _view(result):
     """``--view``: the first start's LQR run shown live (:func:`cartpole.viz.viewer.watch`) and logged as shown
-    (:func:`cartpole.lab.view_first_run`); without a display, the viewer's sentence on stderr and ``result``
+    (:func:`cartpole.apps.lab.view_first_run`); without a display, the viewer's sentence on stderr and ``result``
     unchanged."""
-    from cartpole.lab import view_first_run
+    from cartpole.apps.lab import view_first_run
     from cartpole.viz.viewer import ViewerUnavailable, watch
 
     try:
@@ -266,7 +227,7 @@ def _print_prose(result, doc, pid=None) -> None:
         if result.start_scale != 1.0:
             print(f"The lab's starts at full size are too large for this model: all five are scaled by "
                   f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which the lab's own LQR settles "
-                  "every one (cartpole.lab.lab_start_scale).")
+                  "every one (cartpole.apps.lab.lab_start_scale).")
         what = ("offsets from x* on the first pole's angle and the cart, the other poles at x*, at rest"
                 if len(p.hinges) > 1 else "offsets from x* on the pole's angle and the cart, at rest")
         print(f"Settling from {len(result.x0s)} initial conditions ({what}), {result.duration:g} s each in MuJoCo "

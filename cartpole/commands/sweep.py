@@ -1,5 +1,5 @@
 """``cartpole sweep``: robustness sweeps of the swing-up over a description (grids and seeded samples of starts, pushes,
-model error and controller settings; :mod:`cartpole.sweep`), one row per run, appended to a CSV results file as each
+model error and controller settings; :mod:`cartpole.apps.sweep`), one row per run, appended to a CSV results file as each
 run finishes (so an interrupt or a crash keeps what finished; ``--resume`` goes on from there), on this machine's
 processes or on a Dask distributed cluster, and a success map figure (with several ``--method``, also side by
 side)."""
@@ -39,7 +39,7 @@ def add_arguments(parser) -> None:
     (and the hidden testing option ``--stop-after K``)."""
     import argparse
 
-    from cartpole.sweep import MAX_RUNS, MAX_WORKERS
+    from cartpole.apps.sweep import MAX_RUNS, MAX_WORKERS
 
     parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc"), default=["energy"],
                         metavar="M", help="swing-up of every run: energy (energy shaping + LQR catch, default), "
@@ -144,7 +144,7 @@ def _csv_line(sid, i, start, row, settings=()) -> list:
 
 
 def _parse(line: dict) -> dict:
-    """A runner row (the keys :class:`cartpole.sweep._Runner` returns) from one CSV row."""
+    """A runner row (the keys :class:`cartpole.apps.sweep._Runner` returns) from one CSV row."""
     def f(text):
         return math.nan if text == "" else float(text)
     return {"success": line["success"] == "True", "replays": line["replays"] == "True",
@@ -162,7 +162,7 @@ def read_done(path: Path, head: list[str], sid: str, n: int) -> dict:
         The file holds another sweep's rows (or another header), in one sentence.
     """
     from cartpole._files import short
-    from cartpole.sweep import SweepError
+    from cartpole.apps.sweep import SweepError
 
     if not path.exists():
         return {}
@@ -233,9 +233,9 @@ def sweep_axes(args) -> tuple:
     Raises
     ------
     SweepError
-        Bad numbers for an axis (:func:`cartpole.sweep.axis`).
+        Bad numbers for an axis (:func:`cartpole.apps.sweep.axis`).
     """
-    from cartpole.sweep import SweepError, axis
+    from cartpole.apps.sweep import SweepError, axis
 
     axes = []
     for flag, name in (("push_force", "push_force"), ("model_error", "model_error"), ("push_time", "push_time")):
@@ -253,7 +253,7 @@ def sweep_axes(args) -> tuple:
 def _plan(args, params):
     """Validate everything before any run: the methods, n, workers, duration, axes and x0 for every method."""
     from cartpole.commands.swingup import check_duration
-    from cartpole.sweep import SweepError, _check, check_axes
+    from cartpole.apps.sweep import SweepError, _check, check_axes
 
     methods = list(dict.fromkeys(args.method if isinstance(args.method, list) else [args.method]))
     axes = sweep_axes(args)
@@ -276,7 +276,7 @@ def _plan(args, params):
     duration = check_duration(args.duration, params)
     x0 = None
     if args.x0 is not None:
-        from cartpole.swingup import check_start
+        from cartpole.apps.swingup import check_start
         x0 = check_start(args.x0, params)
     return methods, axes, n, duration, x0
 
@@ -307,14 +307,14 @@ def run(args) -> dict:
 def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, duration=None, x0=None):
     """Run one method's sweep on ``params``, appending each finished run to the CSV results under ``args.out``, then
     rewrite it in run order and draw the success map; return ``(doc, SweepResult)``, the JSON document being:
-    ``mjcf``, ``method``, ``n``, ``successes`` and the rest of :meth:`~cartpole.sweep.SweepResult.summary`, ``rows``
+    ``mjcf``, ``method``, ``n``, ``successes`` and the rest of :meth:`~cartpole.apps.sweep.SweepResult.summary`, ``rows``
     (one per run, in run order: ``run``, ``start``, ``push``, ``model_error``, ``settings``, ``success``,
     ``replays``, ``time_to_upright``, ``caught_at``, ``cart_clearance``, ``peak_ctrl``, ``error``, ``failure``),
     ``results`` (the CSV's absolute path), ``figure`` (the PNG's), ``sweep`` (the description's id) and ``resumed``
     (runs taken from the file)."""
     from cartpole._files import short, write_csv
     from cartpole.errors import CartPoleError
-    from cartpole.sweep import summary_line, swingup_sweep
+    from cartpole.apps.sweep import summary_line, swingup_sweep
     from cartpole.viz.sweep_plot import plot_success_map
 
     args.n = n

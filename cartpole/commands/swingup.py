@@ -70,7 +70,7 @@ def check_duration(duration, params, *, flag: str = "--duration") -> float | Non
     SwingupError
         Not positive or not finite; or too long to hold (the sentence gives the largest duration accepted).
     """
-    from cartpole.swingup import SwingupError
+    from cartpole.apps.swingup import SwingupError
 
     if duration is None:
         return None
@@ -85,7 +85,7 @@ def check_duration(duration, params, *, flag: str = "--duration") -> float | Non
 
 
 class _Stages:
-    """:func:`cartpole.swingup.run_swingup`'s ``progress(stage, fraction)`` as :mod:`cartpole.progress` stages.
+    """:func:`cartpole.apps.swingup.run_swingup`'s ``progress(stage, fraction)`` as :mod:`cartpole.progress` stages.
 
     The basin estimate reports itself (it is a stage of its own); ``trajopt`` and ``simulate`` open a stage on their
     first fraction and end it at 1.
@@ -122,7 +122,7 @@ def run(args) -> dict:
 
     from cartpole.models import build_model
     from cartpole.progress import stage
-    from cartpole.swingup import SwingupError, check_model_error, check_push, check_start, parse_push, run_swingup
+    from cartpole.apps.swingup import SwingupError, check_model_error, check_push, check_start, parse_push, run_swingup
     from cartpole.viz import plot_swingup
 
     # Everything is validated before anything is computed or written.
@@ -141,8 +141,8 @@ def run(args) -> dict:
     if args.method == "mpc":
         import importlib.util
 
-        if importlib.util.find_spec("cartpole.ocp.nmpc") is None:
-            raise SwingupError("The mpc method needs cartpole.ocp.nmpc (nonlinear MPC), which this installation "
+        if importlib.util.find_spec("cartpole.mpc.nmpc") is None:
+            raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
                                "does not have yet; use --method trajopt or energy.")
     objective = getattr(args, "objective", None)
     if objective is not None:
@@ -154,7 +154,7 @@ def run(args) -> dict:
         make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
     out = Path(args.out)
 
-    from cartpole.swingup import ENERGY_DURATION, MPC_DURATION
+    from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
 
     default = {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(args.method)
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (

@@ -9,10 +9,10 @@ from cartpole.control.tvlqr import TVLQRController  # noqa: E402
 
 __all__ += ["TVLQRController"]
 from cartpole.control.energy import (EnergyGains, EnergyShapingController, EnergyShapingModelError,  # noqa: E402
-                                     energy_guess, energy_rollout)
+                                     energy_rollout)
 from cartpole.control.switching import Switch, SwitchingController, lab_catch, swingup_catch  # noqa: E402
 
-__all__ += ["EnergyGains", "EnergyShapingController", "EnergyShapingModelError", "energy_guess", "energy_rollout",
+__all__ += ["EnergyGains", "EnergyShapingController", "EnergyShapingModelError", "energy_rollout",
             "Switch", "SwitchingController", "lab_catch", "swingup_catch"]
 from cartpole.control.pid import CascadedPID, PIDError, PIDGains, tune_pid  # noqa: E402
 

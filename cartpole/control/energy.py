@@ -344,60 +344,6 @@ class EnergyShapingController:
         return float(self.model.pole_energy(np.asarray(x, dtype=float)))
 
 
-def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controller=None,
-                 catch=True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A swing-up guess for trajectory optimisation: simulate the symbolic model under energy shaping.
-
-    The symbolic model's exact discrete step (``model.step``, the MJCF's integrator) is run for ``T`` seconds
-    under the energy controller (and, with ``catch``, the LQR catch once the state is near upright), and the
-    states and inputs are sampled on a uniform grid of ``N`` intervals.
-
-    Parameters
-    ----------
-    model : CartPoleModel or CartPoleParams or path or None
-        One pole on a cart (see :func:`check_single_pole`) unless ``controller`` is given.
-    x0 : (nx,) array, optional
-        Start state; default the model's hanging rest ``model.x_hanging`` (``[0, pi, 0, 0]`` on the shipped cart).
-    T : float
-        Horizon in s.
-    N : int
-        Number of grid intervals.
-    controller : callable, optional
-        ``(t, x) -> ctrl`` (one input) to use instead of the default energy shaping (+ catch).
-    catch : bool
-        Switch to the lab LQR once ``e' S e`` is below a conservative level (no MuJoCo basin estimate here).
-
-    Returns
-    -------
-    t : (N+1,) array, s
-    x : (N+1, nx) array
-    u : (N, 1) array, ctrl applied from ``t[k]`` (zero-order sample of the simulated input)
-    """
-    model = model if isinstance(model, CartPoleModel) else build_model(model)
-    if not (T > 0 and int(N) >= 1):
-        raise EnergyShapingError(f"energy_guess needs T > 0 and N >= 1 (got T = {T}, N = {N}).")
-    N = int(N)
-    x0 = model.x_hanging if x0 is None else x0
-    if controller is None:
-        controller = EnergyShapingController(model)
-        if catch:
-            from cartpole.control.switching import SwitchingController, lab_catch
-            c = lab_catch(model)
-            # Without a MuJoCo basin estimate use a small, safe level: 10 % of the cost of a 0.2 rad tilt.
-            tilt = np.zeros(model.nx)
-            tilt[model.hinges[0]] = 0.2
-            rho = 0.1 * float(tilt @ c.S @ tilt)
-            controller = SwitchingController(controller, c, rho)
-    h = model.dt
-    n = int(np.ceil(T / h))
-    xs, us = energy_rollout(model, controller, x0, n, u_limits=model.params.ctrl_range[0])
-    tk = np.arange(n + 1) * h
-    tg = np.linspace(0.0, T, N + 1)
-    xg = np.column_stack([np.interp(tg, tk, xs[:, i]) for i in range(model.nx)])
-    idx = np.minimum((tg[:-1] / h).astype(int), n - 1)
-    return tg, xg, us[idx].reshape(-1, 1)
-
-
 def energy_rollout(model: CartPoleModel, controller, x0, steps: int, *, u_limits) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~cartpole.control.model_rollout.model_rollout` for a one-input model, its ctrl clipped to ``u_limits``:
     the rollout behind every energy guess.

@@ -18,8 +18,9 @@ class FeedbackError(CartPoleError, ValueError):
     """Shapes of a linear feedback law that do not agree (K, x_eq, u_eq, limits, S, hinges)."""
 
 
-def _limits(u_limits, nu: int) -> np.ndarray:
-    """``[low, high]`` per actuator, (nu, 2), from None (no clip), one ``[low, high]`` for all, or (nu, 2)."""
+def ctrl_limits(u_limits, nu: int) -> np.ndarray:
+    """``[low, high]`` ctrl clip per actuator, (nu, 2) (ctrl units), from None (no clip), one ``[low, high]`` for
+    all, or (nu, 2); a malformed one raises :class:`FeedbackError`."""
     if u_limits is None:
         return np.tile([-np.inf, np.inf], (nu, 1))
     lim = np.asarray(u_limits, dtype=float)
@@ -81,7 +82,7 @@ class LinearFeedback:
         self.u_eq = readonly(np.full(nu, float(u_eq)) if u_eq.ndim == 0 else u_eq.ravel())
         if self.u_eq.shape != (nu,):
             raise FeedbackError(f"u_eq has {self.u_eq.size} entries but K {K.shape} has {nu} input(s).")
-        self.u_limits = readonly(_limits(u_limits, nu))
+        self.u_limits = readonly(ctrl_limits(u_limits, nu))
         self.S = None if S is None else readonly(S)
         if self.S is not None and self.S.shape != (nx, nx):
             raise FeedbackError(f"S has shape {self.S.shape} but K {K.shape} needs ({nx}, {nx}).")

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.control.linear import LinearFeedback, _limits
+from cartpole.control.linear import LinearFeedback, ctrl_limits
 from cartpole.models import state_error
 
 
@@ -15,7 +15,7 @@ class TVLQRController:
     simulator step) the feed-forward is the zero-order-hold equivalent of the plan's first-order-hold input,
     ``u_ff(t) = input(t + dt / 2)`` (the mean over the step the gain was designed for); with continuous gains it is
     ``input(t)``. When the gains carry their own discrete reference (``gains.has_reference``: an exact solution of
-    the discrete model, e.g. :func:`cartpole.ocp.pipeline.exact_discrete_plan`), the law follows it instead,
+    the discrete model, e.g. :func:`cartpole.planning.trajopt.exact_discrete_plan`), the law follows it instead,
     ``u = u_ref[k] - K[k] (x - x_ref[k])`` for the step ``k`` that contains ``t``, and the catch takes over at the
     end of that reference, ``gains.t_final``.
 
@@ -45,7 +45,7 @@ class TVLQRController:
         self.gains = gains
         self.catch = catch
         nu = gains.K.shape[1]
-        self.u_limits = np.array(catch.u_limits if u_limits is None else _limits(u_limits, nu), dtype=float)
+        self.u_limits = np.array(catch.u_limits if u_limits is None else ctrl_limits(u_limits, nu), dtype=float)
         self.hinges = tuple(catch.hinges if hinges is None else hinges)
         self._ff_shift = 0.5 * gains.dt if gains.method == "discrete" else 0.0
         self._exact = bool(getattr(gains, "has_reference", False))

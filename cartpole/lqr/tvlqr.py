@@ -222,7 +222,7 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
         Relative tolerance of the ODE solver (``continuous`` only).
     reference : (x, u), optional
         ``discrete`` only: the reference on the step grid ``traj.t[0] + k dt`` itself, states ``x`` (n+1, nx) and
-        the ctrl held over each step ``u`` (n, nu) (e.g. :func:`cartpole.ocp.pipeline.exact_discrete_plan`, an
+        the ctrl held over each step ``u`` (n, nu) (e.g. :func:`cartpole.planning.trajopt.exact_discrete_plan`, an
         exact solution of ``model.step``), instead of :func:`reference` of ``traj``. It is linearised along and
         kept in the gains (``x_ref``, ``u_ref``), so the controller tracks it; the terminal cost is taken at
         ``x[-1]``, ``u[-1]``.

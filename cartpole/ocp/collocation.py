@@ -19,7 +19,7 @@ evaluated at all knots by one ``map`` call and the interval defects by another; 
 SX (``expand=True``); variables and constraints are scaled to order one; warm starts reuse the last primal
 and dual solution. With IPOPT (compressed) the interval functions (defect, interval cost, their derivatives in
 the knots and the interval length, and the interval's Lagrangian Hessian block) are compiled to C once per model
-and mapped over the intervals (:mod:`cartpole.ocp.compiled`), for every objective: fixed-time effort, running
+and mapped over the intervals (:mod:`cartpole.ocp.compiled_nlp`), for every objective: fixed-time effort, running
 costs, and minimum time, whose free T couples every interval (one dense column in the constraint Jacobian and
 in the Hessian). Same NLP, same iterates; measured 2 to 4x less time a solve (the minimum-time solve of the
 three-pole cart 5x).
@@ -38,11 +38,12 @@ import casadi as ca
 import numpy as np
 
 from cartpole.models import CartPoleModel
-from cartpole.ocp import compiled
+from cartpole.ocp import compiled_nlp
 from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model, bounds_from_params, scales
 from cartpole.ocp.guess import linear_guess
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 from cartpole.ocp.objectives import NAMED, Objective, make_objective
+from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
 
 OBJECTIVES = NAMED  # plus any function (x, u) -> scalar (see cartpole.ocp.objectives)
@@ -55,106 +56,6 @@ __all__ = ["Attempt", "DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasib
 
 class OCPInfeasible(OCPError):
     """The swing-up problem has no solution within the bounds; the message names the bound that binds."""
-
-
-@dataclass(frozen=True)
-class SolveInfo:
-    """What the NLP solver reported.
-
-    Attributes
-    ----------
-    status : str
-        The solver's return status (e.g. IPOPT's ``Solve_Succeeded``).
-    success : bool
-    iterations : int
-    objective : float
-        In physical units and the user's sign: ``integral u'u dt`` (ctrl^2 s) for ``effort``, the final time T
-        (s) for ``time``, the running cost's integral for ``tracking`` and cost functions, the reward's integral
-        (higher is better) for ``dmc_swingup`` and :func:`~cartpole.ocp.objectives.reward` functions.
-    solve_time_s : float
-        Wall time of the solver call in s.
-    solver : str
-        ``ipopt`` or ``fatrop``.
-    T : float
-        Duration of the plan in s.
-    start : int
-        Index of the initial guess (start) the returned solution came from.
-    guess : str
-        Name of that guess (:func:`cartpole.ocp.guess.named_guesses`; ``"given"`` for a caller's trajectory).
-    attempts : tuple of Attempt
-        Every solver call that led to this plan, in the order made (a multi-start's failures included; the
-        pipeline's earlier stages too), each with its iterations, status and objective.
-    """
-
-    status: str
-    success: bool
-    iterations: int
-    objective: float
-    solve_time_s: float
-    solver: str
-    T: float
-    start: int = 0
-    guess: str = ""
-    attempts: tuple = ()
-
-    @property
-    def total_iterations(self) -> int:
-        """Iterations of every attempt (this solve's own when there is no attempt record)."""
-        return sum(a.iterations for a in self.attempts) if self.attempts else self.iterations
-
-    @property
-    def total_solve_time_s(self) -> float:
-        """Solver wall time of every attempt in s (this solve's own when there is no attempt record)."""
-        return sum(a.solve_time_s for a in self.attempts) if self.attempts else self.solve_time_s
-
-
-@dataclass(frozen=True)
-class Attempt:
-    """One solver call of a multi-start or of one stage of the swing-up pipeline.
-
-    Attributes
-    ----------
-    stage : str
-        What was solved (e.g. ``"time"`` for a minimum-time problem, ``"effort"``).
-    guess : str
-        Name of the initial guess.
-    N : int
-        Collocation intervals.
-    status : str
-        The solver's return status.
-    success : bool
-    iterations : int
-    objective : float
-        As :attr:`SolveInfo.objective` (user's sign and units).
-    T : float
-        Duration in s of the solution (the guess's T when a free-time solve failed).
-    solve_time_s : float
-        Wall time of the solver call in s.
-    chosen : bool
-        This attempt's solution was kept (the best of its multi-start).
-    """
-
-    stage: str
-    guess: str
-    N: int
-    status: str
-    success: bool
-    iterations: int
-    objective: float
-    T: float
-    solve_time_s: float
-    chosen: bool = False
-
-    @classmethod
-    def of(cls, info: "SolveInfo", stage: str, guess: str, N: int, *, chosen: bool = False) -> "Attempt":
-        """The attempt that ``info`` (a solver call's :class:`SolveInfo`) reports, labelled ``stage``, ``guess``."""
-        return cls(stage=stage, guess=guess, N=N, status=info.status, success=info.success,
-                   iterations=info.iterations, objective=info.objective, T=info.T, solve_time_s=info.solve_time_s,
-                   chosen=chosen)
-
-    def as_dict(self) -> dict:
-        """JSON-ready dict of the fields."""
-        return {f: getattr(self, f) for f in self.__dataclass_fields__}
 
 
 @dataclass
@@ -214,7 +115,7 @@ class DirectCollocation:
         eliminating them (compressed, default). Same solution; a cheaper Hessian but a larger KKT system.
     compiled : bool
         IPOPT, compressed, any objective (fixed T or free): evaluate the NLP and its derivatives with the
-        Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled`; the shared library is
+        Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled_nlp`; the shared library is
         cached in ``~/.cache/cartpole`` under a key of the model, its scaling and running cost, compiled once per
         model: about 2 s for one pole, 1.3 s for two and 6 s for three, the larger ones unoptimised; one library
         serves every T, N and both fixed and free time). Same NLP, iterates and solution as the SX formulation,
@@ -421,15 +322,15 @@ class DirectCollocation:
         if solver_name == "fatrop":
             opts.setdefault("equality", [bool(a == b) for a, b in zip(lbg_all, ubg_all)])
         if self.compiled and solver_name == "ipopt" and not relaxed and not self.separated:
-            # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled); None (the SX path
+            # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled_nlp); None (the SX path
             # is kept) when there is no C compiler or the build fails.
             kind = self.objective_spec.kind
             if kind == "effort":
-                comp = compiled.compiled_nlp(self.model, N, sx, su, eff_scale)
+                comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, eff_scale)
             elif kind == "running":
-                comp = compiled.compiled_nlp(self.model, N, sx, su, self.T or 1.0, running=run)
+                comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, self.T or 1.0, running=run)
             else:  # time: T + time_effort_weight * effort, T the last variable
-                comp = compiled.compiled_nlp(self.model, N, sx, su, 1.0 / self.time_effort_weight,
+                comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, 1.0 / self.time_effort_weight,
                                              free_time=True, time_weight=1.0)
             if comp is not None:
                 nlp = comp.nlp

@@ -20,8 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.control.energy import EnergyShapingController, energy_rollout
-from cartpole.models import CartPoleModel
-from cartpole.ocp.bounds import OCPBounds, bounds_from_model
+from cartpole.control.switching import SwitchingController, lab_catch
+from cartpole.models import CartPoleModel, build_model
+from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model
 from cartpole.ocp.trajectory import Trajectory
 
 
@@ -238,3 +239,56 @@ def initial_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: in
     """
     return [g for _, g in named_guesses(model, x0, x_goal, T, N, bounds=bounds, u_max=u_max, cart_max=cart_max,
                                         count=count)]
+
+
+def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controller=None,
+                 catch=True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A swing-up guess for trajectory optimisation: simulate the symbolic model under energy shaping.
+
+    The symbolic model's exact discrete step (``model.step``, the MJCF's integrator) is run for ``T`` seconds
+    under the energy controller (and, with ``catch``, the LQR catch once the state is near upright), and the
+    states and inputs are sampled on a uniform grid of ``N`` intervals.
+
+    Parameters
+    ----------
+    model : CartPoleModel or CartPoleParams or path or None
+        One pole on a cart (see :func:`cartpole.control.energy.check_single_pole`) unless ``controller`` is given.
+    x0 : (nx,) array, optional
+        Start state; default the model's hanging rest ``model.x_hanging`` (``[0, pi, 0, 0]`` on the shipped cart).
+    T : float
+        Horizon in s.
+    N : int
+        Number of grid intervals.
+    controller : callable, optional
+        ``(t, x) -> ctrl`` (one input) to use instead of the default energy shaping (+ catch).
+    catch : bool
+        Switch to the lab LQR once ``e' S e`` is below a conservative level (no MuJoCo basin estimate here).
+
+    Returns
+    -------
+    t : (N+1,) array, s
+    x : (N+1, nx) array
+    u : (N, 1) array, ctrl applied from ``t[k]`` (zero-order sample of the simulated input)
+    """
+    model = model if isinstance(model, CartPoleModel) else build_model(model)
+    if not (T > 0 and int(N) >= 1):
+        raise OCPError(f"energy_guess needs T > 0 and N >= 1 (got T = {T}, N = {N}).")
+    N = int(N)
+    x0 = model.x_hanging if x0 is None else x0
+    if controller is None:
+        controller = EnergyShapingController(model)
+        if catch:
+            c = lab_catch(model)
+            # Without a MuJoCo basin estimate use a small, safe level: 10 % of the cost of a 0.2 rad tilt.
+            tilt = np.zeros(model.nx)
+            tilt[model.hinges[0]] = 0.2
+            rho = 0.1 * float(tilt @ c.S @ tilt)
+            controller = SwitchingController(controller, c, rho)
+    h = model.dt
+    n = int(np.ceil(T / h))
+    xs, us = energy_rollout(model, controller, x0, n, u_limits=model.params.ctrl_range[0])
+    tk = np.arange(n + 1) * h
+    tg = np.linspace(0.0, T, N + 1)
+    xg = np.column_stack([np.interp(tg, tk, xs[:, i]) for i in range(model.nx)])
+    idx = np.minimum((tg[:-1] / h).astype(int), n - 1)
+    return tg, xg, us[idx].reshape(-1, 1)

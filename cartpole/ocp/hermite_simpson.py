@@ -7,7 +7,7 @@ On an interval of length ``h`` with knots ``(x_k, u_k)``, ``(x_k+1, u_k+1)`` and
 
 and the effort ``integral u^2 dt`` over the interval of the piecewise-linear input is Simpson's rule,
 ``h (u_k^2 + 4 u_c^2 + u_k+1^2) / 6`` (exact). Both the SX transcription (:mod:`cartpole.ocp.collocation`) and
-the compiled interval functions (:mod:`cartpole.ocp.compiled`) are built from these.
+the compiled interval functions (:mod:`cartpole.ocp.compiled_nlp`) are built from these.
 """
 from __future__ import annotations
 

@@ -15,25 +15,25 @@ from a single-``MjData`` run. Runs that stay off their limits are identical.
 from __future__ import annotations
 
 import os
-import time
 
 import numpy as np
 
-from cartpole.control.linear import LinearFeedback, _limits
+from cartpole.control.linear import LinearFeedback, ctrl_limits
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, build_model, read_params, wrap_angle
+from cartpole.models import wrap_angle
 from cartpole.progress import stage
 from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 
-def _nthread_default() -> int:
+def default_threads() -> int:
+    """The CPUs this process may run on (its affinity on Linux, else the CPU count): the default thread count."""
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
         return max(1, os.cpu_count() or 1)
 
 
-def _initial_states(m, X0: np.ndarray) -> np.ndarray:
+def initial_states(m, X0: np.ndarray) -> np.ndarray:
     """Full physics states (B, nstate) at t = 0 for starts X0 (B, nq + nv)."""
     import mujoco
 
@@ -119,12 +119,12 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
     if n < 1:
         raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
     lo, hi = ctrl_bounds(m)
-    lim = _limits(u_limits, nu)
+    lim = ctrl_limits(u_limits, nu)
     u_lo, u_hi = lim[:, 0], lim[:, 1]
-    nthread = _nthread_default() if nthread is None else int(nthread)
+    nthread = default_threads() if nthread is None else int(nthread)
     nb = X0.shape[0]
     # two state buffers used in turn: the output of one step is the input of the next, no copies
-    bufs = (_initial_states(m, X0), np.empty((nb, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))))
+    bufs = (initial_states(m, X0), np.empty((nb, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))))
     states = np.empty((nb, n + 1, nx))
     ctrl = np.empty((nb, n, nu))
     states[:, 0] = bufs[0][:, 1:1 + nx]  # full physics state layout: [time, qpos (nq), qvel (nv), ...]
@@ -172,90 +172,3 @@ def random_starts(rollouts: int, *, seed: int = 0, model=None) -> np.ndarray:
         q[list(model.hinges)], v[list(model.hinges)] = 0.15 / nh, 0.3 / nh
         span, centre = np.concatenate([q, v]), np.asarray(model.x_eq, dtype=float)
     return centre + np.random.default_rng(seed).uniform(-span, span, size=(rollouts, span.size))
-
-
-def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, repeats: int = 5,
-                     python_loop: bool = False) -> dict:
-    """Closed-loop batch replay throughput next to MuJoCo's open-loop ``mujoco.rollout.rollout``.
-
-    Both run the same model, the same ``rollouts`` random starts (:func:`random_starts`), ``seconds`` each, with
-    the same number of threads, ``repeats`` times in this process; the medians are reported. The open loop
-    replays random ctrl sequences in one ``rollout`` call (persistent pool), the closed loop runs the lab's
-    LQR (:meth:`~cartpole.control.linear.LinearFeedback.for_model`, about the model's ``x_eq``) with
-    :func:`simulate_batch_linear`. Any number of poles and actuators.
-
-    Parameters
-    ----------
-    source : CartPoleParams or MJCF path or None
-    rollouts : int
-        Batch size.
-    seconds : float
-        Simulated seconds per rollout.
-    repeats : int
-        Timed repetitions (medians reported).
-    python_loop : bool
-        Also time the plain per-rollout Python ``mj_step`` loop with the same law (once; slow).
-
-    Returns
-    -------
-    dict
-        ``steps_per_s`` (closed loop, median), ``open_loop_steps_per_s`` (median), ``ratio`` (closed / open),
-        ``rollouts``, ``seconds_each``, ``nthread``, ``physics_steps`` (per repetition) and, with
-        ``python_loop``, ``python_loop_steps_per_s``.
-    """
-    import mujoco
-    import mujoco.rollout
-
-    params = source if isinstance(source, CartPoleParams) else read_params(source)
-    model = build_model(params)
-    law = LinearFeedback.for_model(model)
-    X0 = random_starts(rollouts, model=model)
-    m, _ = make_mujoco(params)
-    n = int(round(seconds / m.opt.timestep))
-    total = rollouts * n
-    nthread = _nthread_default()
-
-    S0 = _initial_states(m, X0)
-    U = np.random.default_rng(1).uniform(-1, 1, size=(rollouts, n, m.nu))
-    datas = [mujoco.MjData(m) for _ in range(nthread)]
-    closed, opened = [], []
-    try:
-        # interleaved, so both see the same load on a shared machine
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            simulate_batch_linear(params, law, X0, seconds, nthread=nthread)
-            closed.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
-            mujoco.rollout.rollout(m, datas, S0, U, persistent_pool=True)
-            opened.append(time.perf_counter() - t0)
-    finally:
-        mujoco.rollout.shutdown_persistent_pool()
-
-    doc = {
-        "steps_per_s": total / float(np.median(closed)),
-        "open_loop_steps_per_s": total / float(np.median(opened)),
-        "rollouts": int(rollouts),
-        "seconds_each": float(seconds),
-        "nthread": nthread,
-        "physics_steps": total,
-    }
-    doc["ratio"] = doc["steps_per_s"] / doc["open_loop_steps_per_s"]
-    if python_loop:
-        doc["python_loop_steps_per_s"] = _python_loop_rate(m, law, X0, n)
-    return doc
-
-
-def _python_loop_rate(m, law: LinearFeedback, X0, n: int) -> float:
-    """Steps/s of the naive baseline: for each run, a Python loop of feedback + ``mj_step`` on one MjData."""
-    import mujoco
-
-    d = mujoco.MjData(m)
-    t0 = time.perf_counter()
-    for x0 in X0:
-        mujoco.mj_resetData(m, d)
-        d.qpos[:] = x0[:m.nq]
-        d.qvel[:] = x0[m.nq:]
-        for _ in range(n):
-            d.ctrl[:] = law(0.0, np.concatenate([d.qpos, d.qvel]))
-            mujoco.mj_step(m, d)
-    return X0.shape[0] * n / (time.perf_counter() - t0)

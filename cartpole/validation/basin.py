@@ -23,7 +23,7 @@ catch's equilibrium (the model's computed upright ``x_eq``), hinge-angle entries
    directions the finite sample missed; it is a margin, not a proof.
 
 Estimates are cached (:class:`BasinCache`): in memory, and with ``BasinCache.on_disk()`` (what
-:func:`cartpole.swingup.run_swingup` and the sweeps use) as ``.npz`` files under the user cache directory
+:func:`cartpole.apps.swingup.run_swingup` and the sweeps use) as ``.npz`` files under the user cache directory
 (``$CARTPOLE_CACHE_DIR``, else ``$XDG_CACHE_HOME/cartpole``, else ``~/.cache/cartpole``; subdirectory ``basins``),
 named by :func:`basin_key`: a SHA-256 of the MJCF text, the catch (``K``, ``S``, ``x_eq``, ``u_eq``, ``u_limits``,
 ``hinges``), every sampling setting (``n``, ``seed``, ``level``, ``duration``, ``safety_factor``, ``limit_margin``),
@@ -320,7 +320,7 @@ def _code_digest() -> str:
 
 
 def _default_directory() -> Path:
-    from cartpole.ocp.compiled import cache_dir
+    from cartpole.codegen import cache_dir
 
     return cache_dir() / "basins"
 

@@ -36,7 +36,7 @@ def _start_label(result, x0, *, cart_unit: str = " m") -> str:
 
 
 def plot_lab(result, path, *, dpi: int = 120) -> Path:
-    """Save the lab figure (:func:`lab_figure`) for a :class:`~cartpole.lab.LabResult` as a PNG.
+    """Save the lab figure (:func:`lab_figure`) for a :class:`~cartpole.apps.lab.LabResult` as a PNG.
 
     Parameters
     ----------
@@ -142,9 +142,9 @@ def pid_vs_lqr_figure(lqr, pid):
     Parameters
     ----------
     lqr : LabResult
-        The LQR lab (:func:`cartpole.lab.run_lab`): its ``rollouts``, ``x0s``, ``x_eq``, ``params`` and settling times.
+        The LQR lab (:func:`cartpole.apps.lab.run_lab`): its ``rollouts``, ``x0s``, ``x_eq``, ``params`` and settling times.
     pid : PIDLabResult
-        The PID from the same starts (:func:`cartpole.lab.compare_pid`).
+        The PID from the same starts (:func:`cartpole.apps.lab.compare_pid`).
     """
     from matplotlib.lines import Line2D
 

@@ -1,6 +1,6 @@
 """Success maps of robustness sweeps, read at a glance.
 
-* A sweep over two or more axes (:class:`cartpole.sweep.Axis`): success over the first two swept axes (e.g. push
+* A sweep over two or more axes (:class:`cartpole.apps.sweep.Axis`): success over the first two swept axes (e.g. push
   force x model error). Two grid axes make a map of cells, green where the run succeeded (annotated with its time to
   upright), red where it failed (a cross), shaded by the success fraction when a cell holds several runs; a sampled
   axis makes a scatter, successes coloured by their time to upright, failures as red crosses.

@@ -206,7 +206,7 @@ def modes_from_switches(switches, *, initial: str = "energy", labels: dict | Non
 
 
 def swingup_modes(result) -> list:
-    """The ``modes`` of a :class:`~cartpole.swingup.SwingupResult` (read by duck typing: ``method``, ``metrics``).
+    """The ``modes`` of a :class:`~cartpole.apps.swingup.SwingupResult` (read by duck typing: ``method``, ``metrics``).
 
     ``energy``: "energy" then "LQR catch" at each switch the controller logged (and back); ``trajopt``: "TVLQR"
     along the plan, "LQR" from the handover; ``mpc``: "MPC"; any other method: its name.

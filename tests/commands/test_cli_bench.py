@@ -72,7 +72,7 @@ def test_bench_json_has_an_mpc_row_beside_its_ipopt_baseline(capsys):
     """With NMPC installed, `--quick` measures it in the MuJoCo loop beside IPOPT re-solving the same NLP."""
     import pytest
 
-    pytest.importorskip("cartpole.benchmark_mpc")
+    pytest.importorskip("cartpole.apps.bench.mpc")
     assert main(["bench", "--json", "--quick", "--no-replay", "--no-plan", "--repeats", "1"]) == 0
     mpc = json.loads(capsys.readouterr().out)["mpc"]
     assert mpc["solve_ms_median"] > 0 and mpc["solve_ms_max"] >= mpc["solve_ms_median"]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cartpole.cli import main
-from cartpole.feedforward import RUNS
+from cartpole.apps.feedforward import RUNS
 from cartpole.models import SHIPPED_MJCF
 from mj_replay import replay_with_mj_step
 

@@ -243,7 +243,7 @@ def test_weights_of_the_wrong_size_are_one_sentence(argv, count, names, tmp_path
 
 
 def test_starts_scaled_for_a_model_are_said_in_prose_and_json(chain_dir, tmp_path, capsys):
-    from cartpole.lab import lab_initial_conditions, lab_start_scale
+    from cartpole.apps.lab import lab_initial_conditions, lab_start_scale
 
     path = chain_dir / "dmc_3poles.xml"
     doc = _lqr_json(capsys, "--mjcf", str(path), "--out", str(tmp_path))

@@ -8,7 +8,7 @@ import pytest
 
 from cartpole.cli import main
 from cartpole.models import SHIPPED_MJCF
-from cartpole.sweep import sweep_starts
+from cartpole.apps.sweep import sweep_starts
 
 
 def _sweep(capsys, *argv):
@@ -57,7 +57,7 @@ def test_one_and_two_workers_give_the_same_rows_bit_for_bit(tmp_path, capsys):
 
 
 def test_trajopt_sweep_rows(tmp_path, capsys):
-    pytest.importorskip("cartpole.ocp.pipeline")
+    pytest.importorskip("cartpole.planning.trajopt")
     doc = _sweep(capsys, "--method", "trajopt", "--n", "1", "--seed", "1", "--out", str(tmp_path))
     assert doc["method"] == "trajopt" and len(doc["rows"]) == 1
     for r in doc["rows"]:
@@ -163,7 +163,7 @@ def test_a_local_dask_cluster_gives_the_rows_of_one_worker_bit_for_bit(dask_clus
 
 
 def test_python_m_cartpole_sweep_runs_on_a_dask_address_too(dask_cluster, capsys):
-    from cartpole.sweep import main as sweep_main
+    from cartpole.apps.sweep import main as sweep_main
 
     addr = dask_cluster.scheduler_address
     assert sweep_main(["--n", "2", "--seed", "3", "--duration", "2", "--address", addr, "--json"]) == 0
@@ -175,7 +175,7 @@ def test_python_m_cartpole_sweep_runs_on_a_dask_address_too(dask_cluster, capsys
 
 
 def _models_built() -> int:
-    from cartpole.sweep import _BUILT
+    from cartpole.apps.sweep import _BUILT
 
     return _BUILT[0]
 
@@ -184,7 +184,7 @@ def test_an_unreachable_address_is_one_sentence(tmp_path, capsys, monkeypatch):
     pytest.importorskip("distributed")
     import socket
 
-    import cartpole.sweep as sweep_mod
+    import cartpole.apps.sweep as sweep_mod
 
     monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT", 1.0)
     with socket.socket() as s:  # a loopback port nobody listens on
@@ -236,7 +236,7 @@ def test_a_push_by_mass_error_trajopt_sweep_writes_its_map_and_results_and_every
                                                                                                 monkeypatch):
     """The issue's 2-axis sweep of the single pole (push size x model error): results file and success map exist,
     and every success, run again as `cartpole swingup` with its push and model error, replays with plain mj_step."""
-    pytest.importorskip("cartpole.ocp.pipeline")
+    pytest.importorskip("cartpole.planning.trajopt")
     from mj_replay import replay_with_mj_step
 
     monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
@@ -268,7 +268,7 @@ def test_a_push_by_mass_error_trajopt_sweep_writes_its_map_and_results_and_every
 
 
 def test_two_methods_write_each_sweep_and_the_maps_side_by_side(tmp_path, capsys):
-    pytest.importorskip("cartpole.ocp.pipeline")
+    pytest.importorskip("cartpole.planning.trajopt")
     doc = _sweep(capsys, "--method", "trajopt", "energy", "--push-force", "-10", "10", "2", "--model-error", "1.0",
                  "1.1", "2", "--duration", "3", "--out", str(tmp_path))
     assert doc["methods"] == ["trajopt", "energy"] and [s["method"] for s in doc["sweeps"]] == doc["methods"]
@@ -280,7 +280,7 @@ def test_two_methods_write_each_sweep_and_the_maps_side_by_side(tmp_path, capsys
 
 
 def test_trajopt_against_mpc_over_push_and_model_error(tmp_path, capsys):
-    pytest.importorskip("cartpole.ocp.nmpc")
+    pytest.importorskip("cartpole.mpc.nmpc")
     doc = _sweep(capsys, "--method", "trajopt", "mpc", "--push-force", "0", "30", "2", "--model-error", "1.0", "1.2",
                  "2", "--push-time", "3", "--workers", "2", "--out", str(tmp_path))
     assert doc["methods"] == ["trajopt", "mpc"]

@@ -35,7 +35,7 @@ def test_energy_json_contract_and_exact_replay(tmp_path, capsys):
 
 
 def test_trajopt_json_contract_and_exact_replay(tmp_path, capsys):
-    pytest.importorskip("cartpole.ocp.pipeline")
+    pytest.importorskip("cartpole.planning.trajopt")
     assert main(["swingup", "--method", "trajopt", "--json", "--no-video", "--out", str(tmp_path)]) == 0
     doc = json.loads(capsys.readouterr().out)
     _check_contract(doc, "trajopt", tmp_path)
@@ -103,7 +103,7 @@ def test_x0_of_the_wrong_length_names_the_count_and_order(tmp_path, capsys):
 def test_trajopt_on_a_two_pole_cart_succeeds_or_fails_with_one_sentence(tmp_path, capsys):
     from cartpole.models import build_model
 
-    pytest.importorskip("cartpole.ocp.pipeline")
+    pytest.importorskip("cartpole.planning.trajopt")
     out = tmp_path / "out"
     rc = main(["swingup", "--method", "trajopt", "--json", "--no-video", "--mjcf", str(TWO_POLE), "--out", str(out)])
     cap = capsys.readouterr()
@@ -246,7 +246,7 @@ def test_a_second_swingup_is_a_basin_cache_hit_with_the_identical_estimate(tmp_p
 
 
 def test_mpc_json_contract_adds_solve_times_period_and_horizon(tmp_path, capsys):
-    pytest.importorskip("cartpole.ocp.nmpc")
+    pytest.importorskip("cartpole.mpc.nmpc")
     assert main(["swingup", "--method", "mpc", "--json", "--no-video", "--out", str(tmp_path), "--push", "4:10",
                  "--horizon", "1.2"]) == 0
     doc = json.loads(capsys.readouterr().out)

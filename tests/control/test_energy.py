@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 import cartpole as cp
-from cartpole.control.energy import (EnergyShapingController, EnergyShapingError, default_gains, energy_guess,
-                                     model_scales)
+from cartpole.control.energy import (EnergyShapingController, EnergyShapingError, default_gains, model_scales)
 from cartpole.sim import replays_exactly, simulate
 
 
@@ -96,14 +95,6 @@ def test_bad_gains_raise_one_sentence():
     with pytest.raises(EnergyShapingError):
         EnergyShapingController(None, no_such_gain=1.0)
 
-
-def test_energy_guess_follows_the_models_own_step():
-    model = cp.build_model()
-    t, x, u = energy_guess(model, (0, np.pi, 0, 0), T=3.0, N=60)
-    assert t.shape == (61,) and x.shape == (61, 4) and u.shape == (60, 1)
-    assert np.allclose(x[0], [0, np.pi, 0, 0])
-    assert np.all(np.abs(u) <= model.params.u_max)
-    assert t[-1] == pytest.approx(3.0)
 
 
 @pytest.mark.parametrize("name, what", [

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cartpole.control.pid import CascadedPID, PIDError, PIDGains, tune_pid
-from cartpole.lab import LAB_INITIAL_CONDITIONS
+from cartpole.apps.lab import LAB_INITIAL_CONDITIONS
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.sim import replays_exactly, simulate
 

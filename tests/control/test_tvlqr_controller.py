@@ -8,7 +8,7 @@ from cartpole.control.tvlqr import TVLQRController
 from cartpole.lqr import dlqr, lqr
 from cartpole.lqr.tvlqr import tvlqr
 from cartpole.models import build_model, wrap_angle
-from cartpole.ocp.pipeline import trajopt_swingup
+from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 
 

@@ -7,7 +7,7 @@ from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.collocation import DirectCollocation, OCPInfeasible
 from cartpole.ocp.guess import initial_guesses, named_guesses
-from cartpole.ocp.pipeline import minimum_time
+from cartpole.planning.trajopt import minimum_time
 
 TWO_POLE = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
 

@@ -5,7 +5,7 @@ import pytest
 from cartpole import Q_LAB, R_LAB, build_model, lqr, read_params, simulate
 from cartpole.control.linear import LinearFeedback
 from cartpole.sim import Rollout, replays_exactly
-from cartpole.sim.batch import random_starts, replay_benchmark, simulate_batch_linear
+from cartpole.sim.batch import random_starts, simulate_batch_linear
 
 
 @pytest.mark.parametrize("name", ["shipped", "flipped_offset_armature", "implicitfast_gear"])
@@ -64,14 +64,6 @@ def test_bad_batch_input_is_refused():
     with pytest.raises(CartPoleError, match="NaN"):
         simulate_batch_linear(None, np.ones(4), np.full((2, 4), np.nan), 1.0)
 
-
-def test_replay_benchmark_reports_its_keys():
-    r = replay_benchmark(rollouts=4, seconds=0.05, repeats=1)
-    for key in ("steps_per_s", "open_loop_steps_per_s", "ratio", "rollouts", "seconds_each"):
-        assert key in r
-    assert r["rollouts"] == 4 and r["seconds_each"] == 0.05 and r["physics_steps"] == 4 * 10
-    assert r["ratio"] == pytest.approx(r["steps_per_s"] / r["open_loop_steps_per_s"])
-    assert np.isfinite(r["steps_per_s"]) and r["steps_per_s"] > 0
 
 
 def test_batch_equals_simulate_for_a_two_pole_cart():

@@ -3,7 +3,7 @@ drawn from real MuJoCo runs (the lab's and an open-loop replay), saved whole."""
 import numpy as np
 import pytest
 
-from cartpole.lab import run_lab
+from cartpole.apps.lab import run_lab
 from cartpole.models import SHIPPED_MJCF, build_model, wrap_angle
 from cartpole.sim import replay
 from cartpole.viz import lab_figure, plot_lab, plot_swingup, swingup_figure

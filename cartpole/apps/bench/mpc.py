@@ -1,0 +1,84 @@
+"""Benchmark of the nonlinear MPC in the MuJoCo loop: real-time iteration against IPOPT re-solves.
+
+:func:`run_mpc_benchmark` swings the single pole up from hanging rest in MuJoCo twice, in one process, from the same
+first iterate (the offline plan converged for the start state, :func:`cartpole.mpc.nmpc.nmpc_swingup`): once under
+:class:`~cartpole.mpc.nmpc.NMPCController` (one Gauss-Newton step on the condensed QP per period) and once under
+:class:`~cartpole.mpc.ipopt_baseline.IpoptMPC` (the same NLP re-solved by IPOPT from the shifted previous solution each
+period: what a do-mpc user gets). Each controller's per-control-step solve times (wall clock, ms) are pooled over
+``repeats`` runs; medians and maxima are reported, the speed-up is the ratio of medians. Timings are noisy on a
+shared machine: compare medians, in one process.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from cartpole.models import build_model, read_params
+from cartpole.mpc.nmpc import NMPCController
+from cartpole.mpc.ipopt_baseline import IpoptMPC
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.sim import simulate
+from cartpole.validation.metrics import swingup_success
+
+
+def _runs(controller, params, x0, duration: float, repeats: int) -> tuple[list, list]:
+    times, ok = [], []
+    for _ in range(repeats):
+        controller.reset()
+        ro = simulate(params, controller, x0, duration)
+        times.extend(controller.solve_ms)
+        ok.append(swingup_success(ro, params))
+    return times, ok
+
+
+def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, repeats: int = 3,
+                      duration: float = 4.0, baseline_repeats: int = 1, qp_solver: str | None = None,
+                      baseline: bool = True) -> dict:
+    """Per-control-step solve time of the NMPC over a single-pole swing-up in MuJoCo, and of the IPOPT baseline.
+
+    Parameters
+    ----------
+    mjcf : path, optional
+        The cart-pole (default the shipped single pole).
+    period, horizon : float
+        Control period and prediction horizon in s (rounded as :class:`~cartpole.mpc.nmpc.NMPCController` does).
+    repeats : int
+        Closed-loop runs of the NMPC (times pooled); ``baseline_repeats`` those of the baseline (slower).
+    duration : float
+        s of each run, from hanging rest.
+    qp_solver : {'daqp', 'qpoases'}, optional
+        The NMPC's QP solver (default :class:`~cartpole.mpc.nmpc.NMPCController`'s).
+    baseline : bool
+        False skips the IPOPT runs (``baseline`` and ``speedup_median`` are then None).
+
+    Returns
+    -------
+    dict
+        ``solve_ms_median``, ``solve_ms_max``, ``solve_ms_p99`` (ms per control step, pooled), ``steps`` (control
+        steps timed), ``baseline`` {``solve_ms_median``, ``solve_ms_max``, ``solve_ms_p99``, ``steps``, ``success``,
+        ``unconverged`` (instants IPOPT did not converge), ``solver``},
+        ``speedup_median`` (baseline median / NMPC median), ``period``, ``horizon`` (s), ``N``, ``qp_solver``,
+        ``compiled`` (bool), ``success`` (every NMPC run swung up and held, :func:`swingup_success`),
+        ``failures`` (NMPC instants that took the safe action), ``repeats``, ``duration``.
+    """
+    params = read_params(mjcf)
+    model = build_model(params)
+    x0 = model.x_hanging
+    plan = trajopt_swingup(params, x0=x0, model=model)
+    rti = NMPCController(model, params, period=period, horizon=horizon, guess=plan.trajectory, x0=x0,
+                         qp_solver=qp_solver)
+    t_rti, ok_rti = _runs(rti, params, x0, duration, max(1, int(repeats)))
+    failures = len(rti.failures)
+    med = float(np.median(t_rti))
+    base_doc = None
+    if baseline:
+        base = IpoptMPC(model, params, period=period, horizon=horizon, guess=plan.trajectory, x0=x0)
+        t_base, ok_base = _runs(base, params, x0, duration, max(1, int(baseline_repeats)))
+        base_doc = {"solve_ms_median": float(np.median(t_base)), "solve_ms_max": float(np.max(t_base)),
+                    "solve_ms_p99": float(np.percentile(t_base, 99)), "steps": len(t_base),
+                    "success": all(ok_base), "unconverged": len(base.unconverged), "solver": "ipopt"}
+    return {"solve_ms_median": med, "solve_ms_max": float(np.max(t_rti)),
+            "solve_ms_p99": float(np.percentile(t_rti, 99)), "steps": len(t_rti), "baseline": base_doc,
+            "speedup_median": None if base_doc is None else base_doc["solve_ms_median"] / med,
+            "period": rti.period, "horizon": rti.horizon, "N": rti.N,
+            "qp_solver": rti.qp_solver, "compiled": rti.library is not None, "success": all(ok_rti),
+            "failures": failures, "repeats": int(repeats), "duration": float(duration)}

@@ -1,0 +1,420 @@
+"""Speed of the trajectory-optimisation pipeline next to the naive CasADi baseline, measured in one run
+(``cartpole bench`` and ``benchmarks/bench_trajopt.py`` run this).
+
+Standard problem: the given MJCF (default the shipped asset; any model with a cart), from hanging rest
+(``model.x_hanging``, ``[0, pi, 0, 0]`` for one pole) to the upright equilibrium ``model.x_eq`` in ``T = 2 s``
+with ``N = 100`` Hermite-Simpson intervals, ``|ctrl| <= 1`` for every actuator, ``|cart| <= 1.4 m`` (other
+limited joints inside their ranges), minimising ``integral ctrl'ctrl dt``.
+
+* Baselines: what a CasADi user writes first - ``casadi.Opti`` with one Hermite-Simpson constraint per
+  interval built from calls of the model's SX Function ``f`` on MX variables (``f`` once per knot and once per
+  midpoint), IPOPT with its defaults; then the same script with ``expand=True`` (the one-option fix a user finds
+  next: the MX graph expanded to SX before IPOPT).
+* Ours: :class:`~cartpole.ocp.collocation.DirectCollocation` (built once: ``map`` over knots and intervals,
+  expanded to SX, scaled), IPOPT, first without and then with the interval functions compiled to C
+  (:mod:`cartpole.ocp.compiled_nlp`, the default); plus the latter warm-started from the previous solution,
+  fatrop (the structure-exploiting interior point CasADi ships), and the SQP on the stage-structured QP of the same
+  NLP (:mod:`cartpole.solvers.sqp`).
+
+All solve from the SAME initial guess; the warm-start rows re-plan from a moved start (2 cm, 0.05 rad), ours
+from our nominal primal-dual solution, the ``expand=True`` script from its own with the same IPOPT warm-start
+settings, and are compared only with each other. Every timed solve
+reuses a solver that already exists (the first, building call is not timed). Times are medians of ``repeats`` wall-clock solves, including each tool's Python overhead.
+"""
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+
+import casadi as ca
+import numpy as np
+
+from cartpole.lqr import lab_weights, tvlqr
+from cartpole.models import build_model, read_params
+from cartpole.ocp.bounds import OCPBounds, bounds_from_model
+from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.guess import initial_guesses
+from cartpole.solvers.sqp import CollocationSQP
+from cartpole.apps.bench.replay import replay_benchmark
+
+
+def _median_ms(fn, repeats: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(repeats):
+        tic = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - tic)
+    return 1e3 * statistics.median(times), out
+
+
+class NaiveOptiBaseline:
+    """The Hermite-Simpson swing-up as a first ``casadi.Opti`` script (see the module docstring).
+
+    ``bounds`` (:class:`~cartpole.ocp.bounds.OCPBounds`) give the ctrl bounds per actuator and the joint bounds;
+    ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``). ``expand=True`` is the same script
+    with Opti's ``expand`` option (the MX graph expanded to SX for IPOPT).
+    """
+
+    def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None, *, expand: bool = False,
+                 warm: bool = False):
+        f = model.f
+        opti = ca.Opti()
+        X = opti.variable(model.nx, N + 1)
+        U = opti.variable(model.nu, N + 1)
+        P0 = opti.parameter(model.nx)  # the start: a parameter, so a re-plan from a moved start reuses the solver
+        h = T / N
+        J = 0
+        # f once per knot (each knot's derivative is shared by its two intervals), once per midpoint
+        F = [f(X[:, k], U[:, k]) for k in range(N + 1)]
+        for k in range(N):
+            xc = 0.5 * (X[:, k] + X[:, k + 1]) + h / 8 * (F[k] - F[k + 1])
+            uc = 0.5 * (U[:, k] + U[:, k + 1])
+            fc = f(xc, uc)
+            opti.subject_to(X[:, k + 1] == X[:, k] + h / 6 * (F[k] + 4 * fc + F[k + 1]))
+            J = J + h / 6 * ca.sum1(U[:, k] ** 2 + 4 * uc**2 + U[:, k + 1] ** 2)
+        for j in range(model.nu):
+            opti.subject_to(opti.bounded(bounds.u_low[j], U[j, :], bounds.u_high[j]))
+        for i in bounds.bounded_joints:
+            opti.subject_to(opti.bounded(bounds.q_low[i], X[i, :], bounds.q_high[i]))
+        opti.subject_to(X[:, 0] == P0)
+        opti.subject_to(X[:, N] == np.asarray(model.x_eq if x_goal is None else x_goal, float))
+        opti.minimize(J)
+        opti.set_value(P0, np.asarray(x0, float))
+        ip = {"print_level": 0, "sb": "yes"}
+        if warm:  # IPOPT's warm start, with the same settings as ours (cartpole.ocp.collocation)
+            ip.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
+                       "warm_start_mult_bound_push": 1e-9, "mu_init": 1e-6})
+        opti.solver("ipopt", {"print_time": False, "expand": bool(expand)}, ip)
+        self.opti, self.X, self.U, self.P0 = opti, X, U, P0
+        self.solution = None  # (x, u, lam_g) of the last solve
+
+    def solve(self, guess, x0=None, *, duals=None) -> tuple[float, int, bool]:
+        """Solve from ``guess`` (Trajectory on the same knots), optionally from another start ``x0`` (nx,) and with
+        initial constraint multipliers ``duals`` (a warm start); returns (objective, iterations, success)."""
+        if x0 is not None:
+            self.opti.set_value(self.P0, np.asarray(x0, float))
+        self.opti.set_initial(self.X, guess.x.T)
+        self.opti.set_initial(self.U, guess.u.T)
+        if duals is not None:
+            self.opti.set_initial(self.opti.lam_g, duals)
+        try:
+            sol = self.opti.solve()
+            st = sol.stats()
+            self.solution = (np.asarray(sol.value(self.X)).T, np.asarray(sol.value(self.U)).reshape(self.U.shape).T,
+                             np.asarray(sol.value(self.opti.lam_g)).ravel())
+            return float(sol.value(self.opti.f)), int(st["iter_count"]), bool(st["success"])
+        except RuntimeError:
+            st = self.opti.stats()
+            return float(self.opti.debug.value(self.opti.f)), int(st.get("iter_count", -1)), False
+
+
+def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max: float = 1.4,
+        repeats: int = 5, replay: bool = True, replay_repeats: int | None = None, replay_rollouts: int = 256,
+        progress=None) -> dict:
+    """Measure the standard problem (module docstring); return the ``cartpole bench`` JSON document.
+
+    Parameters
+    ----------
+    mjcf : path, optional
+        Cart-pole MJCF (default the shipped asset), any number of poles and motors.
+    N, T, u_max, cart_max : problem size (intervals, s, ctrl bound of every actuator, m).
+    repeats : int
+        Timed solves per method (medians reported; at least 5 for the published figures).
+    replay : bool
+        Also run the batched replay benchmark (``cartpole.apps.bench.replay.replay_benchmark``).
+    replay_repeats, replay_rollouts : int
+        Its repetitions (default ``repeats``) and batch size.
+    progress : callable, optional
+        ``progress(message)`` for progress lines (the command sends them to stderr).
+
+    Returns
+    -------
+    dict
+        ``mjcf``, ``trajopt`` {``solve_ms_median``, ``objective``, ``N``, ``T``, ``solver``, ``iterations``,
+        ``baseline_solve_ms_median``, ``baseline_objective``, ``baseline_iterations``, ``speedup``,
+        ``objective_rel_diff``, ``warm_start_solve_ms_median``, ``warm_start_speedup``, ``fatrop_...``,
+        ``sqp_solve_ms_median``, ``sqp_iterations``, ``sqp_objective``, ``sqp_success``, ``sqp_status``,
+        ``sqp_speedup`` (naive Opti / SQP), ``sqp_speedup_vs_expand``, ``sqp_vs_ipopt`` (our IPOPT / SQP; the
+        three None when the SQP did not converge), ``sqp_objective_rel_diff`` (vs our IPOPT)},
+        ``tvlqr`` {``ms_median``, ``steps``, ``dt``}, ``replay`` {...} (or None when not run).
+    """
+    say = progress or (lambda msg: None)
+    repeats = max(1, int(repeats))
+    params = read_params(mjcf)
+    model = build_model(params)
+    x0 = np.array(model.x_hanging)
+    bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max, cart_margin=0.0)
+    guess = initial_guesses(model, x0, model.x_eq, T, N, bounds=bounds, count=1)[0]
+
+    say(f"building our collocation NLP (N = {N}, T = {T} s) ...")
+    ocp = DirectCollocation(model, N=N, T=T, bounds=bounds)
+    traj, info = ocp.solve_once(x0, guess=guess)  # builds the solver (not timed)
+    say(f"ours (ipopt, from the guess): {repeats} solves ...")
+    ours_ms, (traj, info) = _median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
+    # Warm start, honestly: a NEW problem (start moved by 2 cm and 0.05 rad, as in re-planning) started from
+    # the primal-dual solution of the nominal one; the nominal solution is restored before every timed solve.
+    nominal = ocp._last
+    x0_moved = x0.copy()
+    if model.slide is not None:
+        x0_moved[model.slide] += 0.02
+    x0_moved[model.hinges[0]] += 0.05
+
+    def warm_solve():
+        ocp._last = nominal
+        return ocp.solve_once(x0_moved, warm=True)
+
+    say(f"ours (ipopt, warm-started from the nominal solution, moved start): {repeats} solves ...")
+    warm_solve()  # builds the warm-start solver (not timed)
+    warm_ms, (_, warm_info) = _median_ms(warm_solve, repeats)
+
+    say(f"ours without the compiled interval functions (SX virtual machine): {repeats} solves ...")
+    sx_ocp = DirectCollocation(model, N=N, T=T, bounds=bounds, compiled=False)
+    sx_ocp.solve_once(x0, guess=guess)
+    sx_ms, (_, sx_info) = _median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
+
+    say("building the naive casadi.Opti baseline ...")
+    base = NaiveOptiBaseline(model, N, T, bounds, x0)
+    base.solve(guess)  # builds IPOPT (not timed)
+    say(f"baseline (Opti, no expand): {repeats} solves ...")
+    base_ms, (base_obj, base_it, base_ok) = _median_ms(lambda: base.solve(guess), repeats)
+    exp = NaiveOptiBaseline(model, N, T, bounds, x0, expand=True)
+    exp.solve(guess)
+    say(f"baseline (Opti, expand=True): {repeats} solves ...")
+    exp_ms, (exp_obj, exp_it, exp_ok) = _median_ms(lambda: exp.solve(guess), repeats)
+    # Warm against warm: the expand=True script re-planning from the same moved start, from its own nominal
+    # primal-dual solution, with IPOPT's warm start set as ours is.
+    wexp = NaiveOptiBaseline(model, N, T, bounds, x0, expand=True, warm=True)
+    wexp.solve(guess)
+    nom_x, nom_u, nom_lam = exp.solution if exp.solution is not None else (guess.x, guess.u, None)
+    nominal_guess = type(guess)(t=guess.t, x=nom_x, u=nom_u, xdot=guess.xdot)
+
+    def warm_base():
+        return wexp.solve(nominal_guess, x0_moved, duals=nom_lam)
+
+    warm_base()
+    say(f"baseline (Opti, expand=True, warm-started the same way): {repeats} solves ...")
+    wexp_ms, (wexp_obj, wexp_it, wexp_ok) = _median_ms(warm_base, repeats)
+
+    fatrop = {}
+    if ca.has_nlpsol("fatrop"):
+        say(f"ours (fatrop): {repeats} solves ...")
+        focp = DirectCollocation(model, N=N, T=T, bounds=bounds, solver="fatrop")
+        focp.solve_once(x0, guess=guess)
+        f_ms, (_, finfo) = _median_ms(lambda: focp.solve_once(x0, guess=guess), repeats)
+        fatrop = {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
+                  "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations}
+
+    sqp = {}
+    if ca.has_conic("qrqp") and ca.has_conic("hpipm"):
+        say(f"ours (SQP on the stage-structured QP): {repeats} solves ...")
+        sqp_solver = CollocationSQP(ocp)  # the same problem object: same NLP, same scaling
+        sqp_solver.solve_once(x0, guess=guess)  # builds the QP solvers (not timed)
+        s_ms, (_, s_info) = _median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
+        sqp = {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
+               "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
+               # ratios only for a converged solve (a failed one is not a faster way to the plan)
+               "sqp_speedup": base_ms / s_ms if s_info.success else None,
+               "sqp_speedup_vs_expand": exp_ms / s_ms if s_info.success else None,
+               "sqp_vs_ipopt": ours_ms / s_ms if s_info.success else None,
+               "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective)}
+
+    say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
+    Q, R = lab_weights(model)
+    tvlqr(model, traj, Q, R)  # builds the mapped ABd (not timed)
+    tv_ms, gains = _median_ms(lambda: tvlqr(model, traj, Q, R), max(repeats, 20))
+
+    replay_doc = None
+    if replay:
+        say(f"batched replay: {replay_rollouts} rollouts x 2 s ...")
+        replay_doc = replay_benchmark(params, rollouts=replay_rollouts, seconds=2.0,
+                                      repeats=replay_repeats or repeats)
+
+    return {
+        "mjcf": params.mjcf,
+        "trajopt": {
+            "solve_ms_median": ours_ms, "objective": info.objective, "N": N, "T": T, "solver": "ipopt",
+            "iterations": info.iterations, "success": info.success,
+            "baseline_solve_ms_median": base_ms, "baseline_objective": base_obj, "baseline_iterations": base_it,
+            "baseline_success": base_ok, "speedup": base_ms / ours_ms,
+            "expand_baseline_solve_ms_median": exp_ms, "expand_baseline_objective": exp_obj,
+            "expand_baseline_iterations": exp_it, "expand_baseline_success": exp_ok,
+            "speedup_vs_expand": exp_ms / ours_ms,
+            "objective_rel_diff": abs(info.objective - base_obj) / abs(base_obj),
+            "warm_start_solve_ms_median": warm_ms, "warm_start_iterations": warm_info.iterations,
+            "warm_start_objective": warm_info.objective, "warm_start_success": warm_info.success,
+            "warm_start_speedup": wexp_ms / warm_ms, "compiled": ocp.compiled_library is not None,
+            "warm_baseline_solve_ms_median": wexp_ms, "warm_baseline_iterations": wexp_it,
+            "warm_baseline_objective": wexp_obj, "warm_baseline_success": wexp_ok,
+            "sx_solve_ms_median": sx_ms, "sx_iterations": sx_info.iterations, "sx_objective": sx_info.objective,
+            "sx_speedup": base_ms / sx_ms, "repeats": repeats, "u_max": u_max, "cart_max": cart_max,
+            **fatrop, **sqp,
+        },
+        "tvlqr": {"ms_median": tv_ms, "steps": int(gains.t.size), "dt": gains.dt},
+        "replay": replay_doc,
+    }
+
+
+#: The shipped carts the plan-time benchmark swings up: (label, asset file name).
+PLAN_MODELS = (("1 pole", "cartpole.xml"), ("2 poles", "cartpole_two_pole.xml"), ("3 poles", "cartpole_three_pole.xml"))
+
+
+def shipped_plan_models() -> list[tuple[str, str]]:
+    """(label, path) of each shipped cart in :data:`PLAN_MODELS`."""
+    from cartpole.models import SHIPPED_MJCF
+
+    return [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS]
+
+
+def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progress=None) -> list[dict]:
+    """Swing-up plan time, all initial guesses included, and time to upright, for carts with 1, 2 and 3 poles.
+
+    Each repeat reads the MJCF anew, builds the model, plans (:func:`cartpole.planning.trajopt.trajopt_swingup`
+    from hanging rest: the minimum-time solve, every guess it tries, the effort solve, TVLQR), runs the plan in
+    MuJoCo for the plan + 3 s and checks that the log replays exactly; the compiled interval functions come
+    from the on-disk cache after the first build (the cold figure is the first repeat's). With ``command`` the
+    whole command ``cartpole swingup --method trajopt --no-video --json`` is also timed once in a fresh Python
+    process (imports, basin estimate or its cache, JSON included).
+
+    Parameters
+    ----------
+    mjcfs : sequence of (label, path), optional
+        Default :data:`PLAN_MODELS` (the shipped 1-, 2- and 3-pole carts).
+    repeats : int
+        Repeats per model; medians reported.
+    command : bool
+        Also time the whole command once per model.
+    progress : callable, optional
+        ``progress(message)``.
+
+    Returns
+    -------
+    list of dict
+        Per model: ``model``, ``mjcf``, ``plan_s_median`` (s: read + build + plan), ``plan_s`` (every repeat, the
+        first cold), ``verify_s_median`` (MuJoCo run + exact replay, s), ``total_s_median``, ``T`` (plan, s),
+        ``T_min`` (s), ``time_to_upright`` (s, of the MuJoCo run), ``success``, ``replays``, ``attempts`` (solves
+        tried by the last plan), ``command_s`` (or None).
+    """
+    import subprocess
+    import tempfile
+
+    from cartpole.planning.trajopt import trajopt_swingup
+    from cartpole.sim import replays_exactly, simulate
+    from cartpole.validation.metrics import swingup_metrics
+
+    say = progress or (lambda msg: None)
+    items = shipped_plan_models() if mjcfs is None else list(mjcfs)
+    rows = []
+    for label, path in items:
+        say(f"swing-up plan, {label}: {repeats} plans + MuJoCo runs ...")
+        plan_s, verify_s, last = [], [], None
+        for _ in range(max(1, int(repeats))):
+            tic = time.perf_counter()
+            params = read_params(path)
+            sp = trajopt_swingup(params, model=build_model(params))
+            toc = time.perf_counter()
+            run = simulate(params, sp.controller, sp.model.x_hanging, sp.T + 3.0)
+            ok = replays_exactly(run, params)
+            plan_s.append(toc - tic)
+            verify_s.append(time.perf_counter() - toc)
+            last = (params, sp, run, ok)
+        params, sp, run, ok = last
+        met = swingup_metrics(run, params)
+        cmd_s = None
+        if command:
+            say(f"the whole command on {label} ...")
+            with tempfile.TemporaryDirectory() as out:
+                tic = time.perf_counter()
+                done = subprocess.run([sys.executable, "-m", "cartpole", "swingup", "--method", "trajopt",
+                                       "--mjcf", path, "--no-video", "--json", "--out", out],
+                                      capture_output=True, text=True)
+                cmd_s = time.perf_counter() - tic if done.returncode == 0 else None
+        attempts = getattr(sp.solve_info, "attempts", None)
+        rows.append({"model": label, "mjcf": params.mjcf, "plan_s_median": statistics.median(plan_s),
+                     "plan_s": plan_s, "verify_s_median": statistics.median(verify_s),
+                     "total_s_median": statistics.median([a + b for a, b in zip(plan_s, verify_s)]),
+                     "T": sp.T, "T_min": sp.T_min, "time_to_upright": met["time_to_upright"],
+                     "success": bool(met["success"]), "replays": bool(ok),
+                     "attempts": None if attempts is None else len(attempts), "command_s": cmd_s})
+    return rows
+
+
+def print_plan_table(rows: list[dict], file=None) -> None:
+    """Prose table of :func:`plan_benchmark` rows."""
+    w = (sys.stdout if file is None else file).write
+    w(f"\n{'swing-up from hanging (trajopt + TVLQR)':40s} {'plan s':>8s} {'+ verify s':>10s} {'command s':>10s} "
+      f"{'T plan s':>9s} {'upright s':>10s} {'success':>8s}\n")
+    for r in rows:
+        cmd = "-" if r["command_s"] is None else f"{r['command_s']:.2f}"
+        up = "-" if r["time_to_upright"] is None else f"{r['time_to_upright']:.2f}"
+        w(f"{r['model']:40s} {r['plan_s_median']:8.2f} {r['total_s_median']:10.2f} {cmd:>10s} {r['T']:9.2f} "
+          f"{up:>10s} {str(r['success'] and r['replays']):>8s}\n")
+
+
+def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None) -> dict | None:
+    """The NMPC row (:func:`cartpole.apps.bench.mpc.run_mpc_benchmark`): per-control-step solve time over a
+    single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess; None when this
+    installation has no NMPC."""
+    try:
+        from cartpole.apps.bench.mpc import run_mpc_benchmark
+    except ImportError:
+        return None
+    (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
+    return run_mpc_benchmark(mjcf, repeats=1 if quick else 3)
+
+
+def print_mpc_table(doc: dict, file=None) -> None:
+    """Prose lines of an :func:`mpc_benchmark` document (keys of :func:`cartpole.apps.bench.mpc.run_mpc_benchmark`)."""
+    w = (sys.stdout if file is None else file).write
+    base = doc.get("baseline") or {}
+    w(f"\nNMPC in the MuJoCo loop ({doc.get('N')} stages, horizon {doc.get('horizon')} s, period {doc.get('period')} s, "
+      f"QP: {doc.get('qp_solver')}): solve per control step median {doc.get('solve_ms_median', float('nan')):.3f} ms, "
+      f"max {doc.get('solve_ms_max', float('nan')):.3f} ms over {doc.get('steps')} steps; IPOPT re-solving from the "
+      f"shifted guess: median {base.get('solve_ms_median', float('nan')):.2f} ms, max "
+      f"{base.get('solve_ms_max', float('nan')):.2f} ms; speed-up {doc.get('speedup_median', float('nan')):.1f}x\n")
+
+
+def print_table(doc: dict, file=None) -> None:
+    """Prose table of a :func:`run` document, on ``file`` (default the current ``sys.stdout``)."""
+    file = sys.stdout if file is None else file
+    tr, tv, rp = doc["trajopt"], doc["tvlqr"], doc["replay"]
+    w = file.write
+    w(f"MJCF: {doc['mjcf']}\n")
+    w(f"Swing-up OCP: N = {tr['N']}, T = {tr['T']} s, |ctrl| <= {tr['u_max']}, |cart| <= {tr['cart_max']} m, "
+      f"min integral ctrl^2; medians of {tr['repeats']} warm solves from the same guess\n\n")
+    w(f"{'method':44s} {'solve ms':>10s} {'iters':>6s} {'objective':>12s} {'speedup':>8s}\n")
+    w(f"{'baseline: casadi.Opti, SX f calls, no expand':44s} {tr['baseline_solve_ms_median']:10.1f} "
+      f"{tr['baseline_iterations']:6d} {tr['baseline_objective']:12.6f} {1.0:8.1f}\n")
+    if "expand_baseline_solve_ms_median" in tr:
+        w(f"{'baseline: the same casadi.Opti, expand=True':44s} {tr['expand_baseline_solve_ms_median']:10.1f} "
+          f"{tr['expand_baseline_iterations']:6d} {tr['expand_baseline_objective']:12.6f} "
+          f"{tr['baseline_solve_ms_median'] / tr['expand_baseline_solve_ms_median']:8.1f}\n")
+    if "sx_solve_ms_median" in tr:
+        w(f"{'ours, SX only: map + expand + scaling, IPOPT':44s} {tr['sx_solve_ms_median']:10.1f} "
+          f"{tr['sx_iterations']:6d} {tr['sx_objective']:12.6f} {tr['sx_speedup']:8.1f}\n")
+    label = "ours: + compiled interval functions, IPOPT" if tr.get("compiled") else "ours (no C compiler), IPOPT"
+    w(f"{label:44s} {tr['solve_ms_median']:10.1f} {tr['iterations']:6d} "
+      f"{tr['objective']:12.6f} {tr['speedup']:8.1f}\n")
+    if "fatrop_solve_ms_median" in tr:
+        w(f"{'ours, fatrop (tol 1e-6)':44s} {tr['fatrop_solve_ms_median']:10.1f} {tr['fatrop_iterations']:6d} "
+          f"{tr['fatrop_objective']:12.6f} {tr['baseline_solve_ms_median'] / tr['fatrop_solve_ms_median']:8.1f}\n")
+    if "sqp_solve_ms_median" in tr:
+        label = f"ours, SQP on the stage QP ({tr['sqp_qp_solver']})" + ("" if tr["sqp_success"] else ", FAILED")
+        ratio = "-" if tr["sqp_speedup"] is None else f"{tr['sqp_speedup']:.1f}"
+        w(f"{label:44s} {tr['sqp_solve_ms_median']:10.1f} {tr['sqp_iterations']:6d} {tr['sqp_objective']:12.6f} "
+          f"{ratio:>8s}\n")
+    w(f"\nwarm starts (start moved 2 cm / 0.05 rad, from the nominal primal-dual solution; speed-up against the "
+      f"warm baseline)\n")
+    if "warm_baseline_solve_ms_median" in tr:
+        w(f"{'baseline: Opti, expand=True, IPOPT warm start':44s} {tr['warm_baseline_solve_ms_median']:10.1f} "
+          f"{tr['warm_baseline_iterations']:6d} {tr['warm_baseline_objective']:12.6f} {1.0:8.1f}\n")
+    w(f"{'ours, warm-started, start moved 2 cm/0.05 rad':44s} {tr['warm_start_solve_ms_median']:10.1f} "
+      f"{tr['warm_start_iterations']:6d} {tr['warm_start_objective']:12.6f} {tr['warm_start_speedup']:8.1f}\n")
+    w(f"\nobjective ours vs baseline: relative difference {tr['objective_rel_diff']:.2e}\n")
+    w(f"TVLQR synthesis ({tv['steps']} steps at dt = {tv['dt']} s): {tv['ms_median']:.2f} ms (median)\n")
+    if rp:
+        w(f"Batched replay: {rp['steps_per_s']:.3g} closed-loop steps/s ({rp['rollouts']} rollouts x "
+          f"{rp['seconds_each']} s)")
+        if "open_loop_steps_per_s" in rp:
+            w(f", open loop {rp['open_loop_steps_per_s']:.3g} steps/s, ratio {rp.get('ratio', float('nan')):.2f}")
+        w("\n")

@@ -1,0 +1,319 @@
+"""Feedforward beside feedback: a planned swing-up played open loop, and the same plan tracked by TVLQR, in MuJoCo.
+
+:func:`run_feedforward` plans the swing-up once by direct collocation (:func:`cartpole.planning.trajopt.trajopt_swingup`,
+on the MJCF's own model) and once more on a deliberately wrong model (every pole link ``1 + mass_error`` times as
+heavy, :meth:`~cartpole.models.CartPoleParams.scaled_pole`), then runs four controllers in MuJoCo on the true MJCF,
+each from the model's hanging rest ``x_hanging`` for its plan's duration plus :data:`EXTRA` seconds:
+
+``feedforward``
+    the plan's ctrl alone, played open loop (:class:`PlanFeedforward`; after the plan, the upright rest input
+    ``u_eq``);
+``feedforward_tvlqr``
+    the same feedforward plus TVLQR feedback along the plan, handing over to the LQR catch at the plan's end
+    (the pipeline's :class:`~cartpole.control.tvlqr.TVLQRController`);
+``wrong_mass_tvlqr``
+    feedforward + TVLQR of the plan made on the wrong model (gains from the wrong model too);
+``wrong_mass_feedforward``
+    that wrong plan's ctrl alone, open loop.
+
+Each run is judged by the toolkit's swing-up test (:func:`cartpole.validation.metrics.swingup_metrics` with the true
+model's upright ``x_eq``: upright and at rest over the last 1 s, cart off its limits, ctrl in range) and measured
+against the plan it follows: tracking errors over the plan's span ``0 <= t <= T`` (state error with the hinge entries
+wrapped), the final wrapped angle error of every pole from ``x_eq``, the peak ctrl. Every rollout is checked to
+replay exactly from its logged ctrl (:func:`cartpole.sim.replays_exactly`).
+
+Why the open loop fails even on a perfect model: the plan satisfies the collocation's cubic/linear interpolation of
+the dynamics, not MuJoCo's 5 ms semi-implicit Euler steps, so the rollout leaves the plan by a little; the upright
+the plan ends at is unstable (the shipped pole's linearisation there has an eigenvalue of +4.6 1/s: an error grows
+e-fold every 0.22 s), and nothing measures it. With a wrong model the feedforward is wrong from the
+first step. The feedback measures the error and corrects it while it is small.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from cartpole._arrays import readonly
+from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.progress import stage
+from cartpole.sim import Rollout, replays_exactly, simulate
+
+#: Seconds simulated after each plan's end (the LQR catch must hold for the success test's last 1 s).
+EXTRA = 2.0
+
+#: Default relative error of the wrong planning model's pole mass (+10 %).
+MASS_ERROR = 0.1
+
+#: The four runs in the order they are reported: name -> one-line description.
+RUNS = {
+    "feedforward": "feedforward only (plan ctrl open loop)",
+    "feedforward_tvlqr": "feedforward + TVLQR feedback",
+    "wrong_mass_tvlqr": "feedforward + TVLQR, planned with the wrong pole mass",
+    "wrong_mass_feedforward": "feedforward only, planned with the wrong pole mass",
+}
+
+
+class FeedforwardError(CartPoleError):
+    """Bad request for the feedforward study (a mass error that is not a number above -1, a bad duration)."""
+
+
+def check_mass_error(mass_error) -> float:
+    """``mass_error`` as a float, or one sentence: it must be a finite number above -1 (the pole keeps a mass).
+
+    The wrong planning model's pole links weigh ``1 + mass_error`` times the MJCF's (0.1 = 10 % heavier).
+    """
+    try:
+        f = float(mass_error)
+    except (TypeError, ValueError):
+        raise FeedforwardError(f"The mass error {mass_error!r} is not a number; give a relative error such as "
+                               "0.1 (the planning model's pole 10 % heavier).") from None
+    if not (math.isfinite(f) and f > -1.0):
+        raise FeedforwardError(f"The mass error {mass_error!r} must be a finite number above -1 (the planning "
+                               "model's pole weighs 1 + error times the MJCF's); give e.g. 0.1 or -0.1.")
+    return f
+
+
+class PlanFeedforward:
+    """The plan's ctrl alone, ``u = u_ff(t)`` whatever the state: the feedforward part of the TVLQR controller.
+
+    ``u_ff(t) = traj.input(min(t + shift, T))`` with ``shift = dt / 2`` for discrete TVLQR gains held over each
+    simulator step of ``dt`` s (the mean of the plan's first-order-hold input over the step, exactly what
+    :class:`~cartpole.control.tvlqr.TVLQRController` feeds forward), else 0. From the plan's end ``T`` on it
+    gives ``u_rest`` (nu,), the input that keeps the plan's final state at rest (the planning model's upright
+    ``u_eq``; default the last knot input, which collocation does not pin and which is generally not a rest
+    input). Returns (nu,) ctrl, clipped to ``u_limits`` (nu, 2).
+    """
+
+    def __init__(self, traj, *, shift: float = 0.0, u_rest=None, u_limits=None):
+        self.traj = traj
+        self.shift = float(shift)
+        self.T = float(traj.t[-1])
+        self.u_rest = np.array(traj.u[-1] if u_rest is None else u_rest, dtype=float).ravel()
+        self.u_limits = None if u_limits is None else np.asarray(u_limits, dtype=float).reshape(-1, 2)
+
+    @classmethod
+    def of_plan(cls, plan, params: CartPoleParams) -> "PlanFeedforward":
+        """The feedforward of a :class:`~cartpole.planning.trajopt.SwingupPlan`: the shift its TVLQR gains use, its
+        planning model's ``u_eq`` after the plan, the MJCF's ctrl ranges."""
+        shift = 0.5 * plan.gains.dt if plan.gains.method == "discrete" else 0.0
+        return cls(plan.trajectory, shift=shift, u_rest=plan.model.u_eq, u_limits=params.ctrl_range)
+
+    def __call__(self, t: float, x=None) -> np.ndarray:
+        """ctrl (nu,) at ``t`` s; ``x`` is ignored (open loop)."""
+        t = float(t)
+        if t >= self.T - 1e-12:
+            u = self.u_rest
+        else:
+            u = np.asarray(self.traj.input(min(t + self.shift, self.T)), dtype=float).ravel()
+        if self.u_limits is not None:
+            u = np.clip(u, self.u_limits[:, 0], self.u_limits[:, 1])
+        return u
+
+
+@dataclass(frozen=True)
+class FeedforwardRun:
+    """One MuJoCo run of the study and its judgement.
+
+    Attributes
+    ----------
+    name : str
+        Key of :data:`RUNS`.
+    label : str
+        One-line description.
+    rollout : Rollout
+        Every physics step on the true MJCF: ``qpos`` (n+1, nq), ``qvel`` (n+1, nq), ``ctrl`` (n, nu).
+    plan : Trajectory
+        The plan the run follows (the true or the wrong one).
+    success : bool
+        :func:`~cartpole.validation.metrics.swingup_success` against the true model's ``x_eq``.
+    time_to_upright : float or None
+        s: every pole within 0.05 rad of upright from then to the end; None if never.
+    final_angle_error : (n_hinges,) array, rad
+        Wrapped angle error of each pole from ``x_eq`` in the last logged state.
+    max_angle_tracking_error : float, rad
+        Largest wrapped ``|theta_i - theta_i,plan|`` over every pole and every step with ``t <= T``.
+    max_cart_tracking_error : float or None, m
+        Largest ``|s - s_plan|`` over ``t <= T`` (None without a cart).
+    peak_ctrl : float
+        Largest ``|ctrl|`` applied (ctrl units; force = gear x ctrl).
+    handover_time : float or None
+        s: when the LQR catch took over (TVLQR runs), None for open-loop runs.
+    replays_exactly : bool
+        The logged ctrl replayed with ``mj_step`` from the first state reproduces every state bit for bit.
+    metrics : dict
+        All of :func:`~cartpole.validation.metrics.swingup_metrics`.
+    """
+
+    name: str
+    label: str
+    rollout: Rollout
+    plan: object
+    success: bool
+    time_to_upright: float | None
+    final_angle_error: np.ndarray
+    max_angle_tracking_error: float
+    max_cart_tracking_error: float | None
+    peak_ctrl: float
+    handover_time: float | None
+    replays_exactly: bool
+    metrics: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "final_angle_error", readonly(self.final_angle_error))
+
+    def summary(self) -> dict:
+        """JSON-ready dict of the judgement (no rollout)."""
+        return {"label": self.label, "success": self.success, "time_to_upright": self.time_to_upright,
+                "final_angle_error": self.final_angle_error.tolist(),
+                "max_angle_tracking_error": self.max_angle_tracking_error,
+                "max_cart_tracking_error": self.max_cart_tracking_error, "peak_ctrl": self.peak_ctrl,
+                "handover_time": self.handover_time, "replays_exactly": self.replays_exactly}
+
+
+@dataclass(frozen=True)
+class FeedforwardStudy:
+    """The two plans and the four runs of :func:`run_feedforward`.
+
+    Attributes
+    ----------
+    params : CartPoleParams
+        The MJCF MuJoCo ran.
+    model : CartPoleModel
+        Its own model (upright ``x_eq``, the reference of every judgement).
+    plan : SwingupPlan
+        Planned and tracked on the true model.
+    wrong_plan : SwingupPlan
+        Planned and tracked on the model whose pole mass is ``1 + mass_error`` times the MJCF's.
+    mass_error : float
+        Relative pole-mass error of the wrong model.
+    runs : dict of str -> FeedforwardRun
+        In the order of :data:`RUNS`.
+    """
+
+    params: CartPoleParams
+    model: CartPoleModel
+    plan: object
+    wrong_plan: object
+    mass_error: float
+    runs: dict
+
+    @property
+    def mjcf(self) -> str:
+        """Absolute path of the MJCF ("" for parameters read from text)."""
+        return self.params.mjcf
+
+
+def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_time: float | None = None,
+          label: str | None = None) -> FeedforwardRun:
+    """Judge one MuJoCo ``rollout`` of the true MJCF against the true ``model`` and the ``plan`` it followed.
+
+    Parameters
+    ----------
+    name : str
+    rollout : Rollout
+    plan : Trajectory
+        The plan followed; tracking errors are taken over the steps with ``t <= plan.t[-1]``.
+    model : CartPoleModel
+        The MJCF's own model: ``x_eq``, hinges, slide, ranges for the success test.
+    handover_time : float, optional
+        s, recorded as given.
+    label : str, optional
+        Default ``RUNS[name]``.
+
+    Returns
+    -------
+    FeedforwardRun
+    """
+    from cartpole.validation.metrics import pole_angle_errors, swingup_metrics
+
+    m = swingup_metrics(rollout, model)
+    span = rollout.t <= plan.t[-1] + 1e-12
+    err = model.state_error(rollout.x[span], plan.state(rollout.t[span]))
+    hinges = list(model.hinges)
+    final = pole_angle_errors(rollout.x[-1:], x_eq=model.x_eq, hinges=hinges)[0]
+    return FeedforwardRun(
+        name=name, label=RUNS.get(name, name) if label is None else label, rollout=rollout, plan=plan,
+        success=bool(m["success"]), time_to_upright=m["time_to_upright"], final_angle_error=final,
+        max_angle_tracking_error=float(np.abs(err[:, hinges]).max()) if hinges else 0.0,
+        max_cart_tracking_error=None if model.slide is None else float(np.abs(err[:, model.slide]).max()),
+        peak_ctrl=float(m["peak_ctrl"]), handover_time=handover_time,
+        replays_exactly=replays_exactly(rollout, model.params), metrics=m)
+
+
+def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
+                    plan=None, progress: Callable[[str, float], None] | None = None) -> FeedforwardStudy:
+    """Plan the swing-up, then run feedforward alone and feedforward + TVLQR in MuJoCo, on a true and a wrong model.
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or None
+        The cart-pole MuJoCo runs (default the shipped asset); any model the trajectory optimiser takes.
+    mass_error : float
+        Relative error of the wrong planning model's pole mass (default 0.1: every pole link 10 % heavier;
+        lengths unchanged). Must be finite and above -1.
+    extra : float
+        Seconds simulated after each plan's end (default :data:`EXTRA`, 2 s).
+    plan : SwingupPlan, optional
+        A plan already made on the MJCF's own model (skips that solve); it must be for this MJCF.
+    progress : callable, optional
+        ``progress(stage, fraction)`` with stage ``"plan"`` (both trajectory optimisations) or ``"simulate"`` (the four
+        MuJoCo runs). Either is also a :func:`cartpole.progress.stage`, shown by the caller's reporter if any.
+
+    Returns
+    -------
+    FeedforwardStudy
+
+    Raises
+    ------
+    FeedforwardError
+        A bad ``mass_error`` or ``extra`` (checked before anything is solved).
+    MJCFError, OCPError
+        An MJCF that is not a cart-pole; a swing-up the optimiser cannot plan (its one sentence).
+    """
+    from cartpole.planning.trajopt import trajopt_swingup
+
+    f = check_mass_error(mass_error)
+    if not (math.isfinite(extra) and extra >= 1.0):
+        raise FeedforwardError(f"The time after the plan, {extra} s, must be at least 1 s (the success test "
+                               "looks at the last 1 s); give e.g. 2.")
+    params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+    model = build_model(params)
+
+    def forward(name):
+        return None if progress is None else (lambda frac: progress(name, frac))
+
+    n_plans = 1 if plan is None else 0
+    n_plans += 0 if f == 0.0 else 1
+    with stage("trajectory optimisation", size=f"{n_plans} plan{'s' if n_plans != 1 else ''}",
+               callback=forward("plan")) as tick:
+        if plan is None:
+            # the collocation plan's own feedforward inside TVLQR (not the exact-discrete re-solve)
+            plan = trajopt_swingup(params, model=model, exact_discrete=False)
+            tick(1.0 / max(n_plans, 1))
+        wrong = plan if f == 0.0 else trajopt_swingup(params, model=build_model(params.scaled_pole(1.0 + f, 1.0)),
+                                                      exact_discrete=False)
+        tick(1.0)
+
+    x0 = model.x_hanging
+    controllers = {
+        "feedforward": (PlanFeedforward.of_plan(plan, params), plan),
+        "feedforward_tvlqr": (plan.controller, plan),
+        "wrong_mass_tvlqr": (wrong.controller, wrong),
+        "wrong_mass_feedforward": (PlanFeedforward.of_plan(wrong, params), wrong),
+    }
+    runs = {}
+    seconds = max(plan.T, wrong.T) + extra
+    with stage("MuJoCo rollouts", size=f"{len(controllers)} x {seconds:.1f} s", callback=forward("simulate")) as tick:
+        for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
+            if hasattr(ctrl, "reset"):
+                ctrl.reset()
+            rollout = simulate(params, ctrl, x0, sp.T + extra,
+                               progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
+            runs[name] = judge(name, rollout, sp.trajectory, model,
+                               handover_time=getattr(ctrl, "handover_time", None))
+            tick((i + 1) / len(controllers))
+    return FeedforwardStudy(params=params, model=model, plan=plan, wrong_plan=wrong, mass_error=f, runs=runs)

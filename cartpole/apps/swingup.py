@@ -1,0 +1,424 @@
+"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(mjcf, method="energy" | "trajopt")``.
+
+* ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
+  the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
+  estimate_basin`), then an LQR catch (the lab's Q with R = 1,
+  :func:`~cartpole.control.switching.swingup_catch`, whose verified basin is about five times the lab LQR's), with
+  hysteresis (:class:`~cartpole.control.switching.SwitchingController`). One pole on a cart driven by the cart
+  only: any other model is refused with the controller's one sentence, before anything runs;
+* ``trajopt``: direct collocation + TVLQR (:func:`cartpole.planning.trajopt.trajopt_swingup`) for the chosen
+  ``objective`` (:mod:`cartpole.ocp.objectives`), handing over to the LQR hold after the plan; any model the
+  planner takes. The basin reported is the hand-over LQR's (:func:`cartpole.planning.trajopt.handover_catch`), the
+  controller that actually takes over; with ``objective="dmc_swingup"`` the metrics add dm_control's ``return``
+  of the logged run (:func:`~cartpole.validation.metrics.dmc_swingup_return`) and its ``return_steps``.
+
+* ``mpc``: nonlinear MPC re-planning every control period (:func:`cartpole.mpc.nmpc.nmpc_swingup`), MuJoCo holding
+  each ctrl for the controller's ``period``; no catch, no basin.
+
+Scenario options every method takes: ``push=[(T, F), ...]`` (a horizontal force of F N on the cart body for
+:data:`PUSH_SECONDS` from time T s, through MuJoCo's ``xfrc_applied``; logged per physics step in
+``rollout.info["push"]``, so the run still replays exactly) and ``model_error=S`` (the *planning* model's pole masses
+and lengths scaled by S, :meth:`~cartpole.models.CartPoleParams.scaled_pole`; MuJoCo keeps the file's). With model
+error, energy shaping and its catch (energy), the plan and its TVLQR (trajopt) or the NMPC's model (mpc) are built on
+the scaled model; the catch basin is still measured in MuJoCo on the MJCF (the basin of the catch as built).
+
+The start state is ``[qpos, qvel]`` in MuJoCo's order (``2 nq`` numbers; default the model's hanging rest
+``x_hanging``). Either way MuJoCo runs the controller on the MJCF and every physics step is logged (``qpos``
+(n+1, nq), ``qvel`` (n+1, nq), ``ctrl`` (n, nu)), so the result replays exactly
+(:func:`~cartpole.sim.rollout.replays_exactly`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.sim import Rollout, simulate
+
+METHODS = ("energy", "trajopt", "mpc")
+
+#: Default simulated time in s after the start (energy, mpc) or after the plan's end (trajopt).
+ENERGY_DURATION = 10.0
+TRAJOPT_EXTRA = 3.0
+MPC_DURATION = 8.0
+#: Seconds each push lasts.
+PUSH_SECONDS = 0.1
+
+
+class SwingupError(CartPoleError):
+    """Bad swing-up request: unknown method, start state not finite or outside the joint range, bad duration."""
+
+
+@dataclass(frozen=True)
+class SwingupResult:
+    """What a swing-up did in MuJoCo.
+
+    Attributes
+    ----------
+    method : str
+        "energy", "trajopt" or "mpc".
+    success : bool
+        :func:`~cartpole.validation.metrics.swingup_success` of the rollout.
+    caught_at : float or None
+        s: when the LQR catch took over for good (energy: last switch into the basin; trajopt: the plan's
+        handover time), None if it never did.
+    rollout : Rollout
+        Every physics step MuJoCo took.
+    plan : Trajectory or None
+        The optimised trajectory (trajopt), else None.
+    basin : BasinEstimate or None
+        The catch basin estimate used (energy) or checked against at the handover (trajopt).
+    metrics : dict
+        :func:`~cartpole.validation.metrics.swingup_metrics` plus ``switches`` (list of
+        ``{"t", "mode", "cost"}``) and, for trajopt, ``handover_cost`` (``e' S e`` at the handover).
+    push : tuple of (float, float)
+        The pushes ``(T [s], F [N])`` the run had (each :data:`PUSH_SECONDS` long).
+    model_error : float
+        Scale of the planning model's pole masses and lengths (1: the MJCF's own).
+    controller : object
+        The controller MuJoCo ran (for mpc: its ``solve_ms``, ``period``, ``horizon``, ``failures``).
+    """
+
+    method: str
+    success: bool
+    caught_at: float | None
+    rollout: Rollout
+    plan: object = None
+    basin: object = None
+    metrics: dict = field(default_factory=dict)
+    push: tuple = ()
+    model_error: float = 1.0
+    controller: object = field(default=None, compare=False, repr=False)
+
+
+def _state_order(params: CartPoleParams) -> str:
+    """The state's order in words, from the MJCF's joint names: ``"slider (m), hinge (rad), then their rates"``."""
+    pos = ", ".join(f"{j.name} ({'m' if j.kind == 'slide' else 'rad'})" for j in params.joints)
+    return f"{pos}, then their rates in the same order"
+
+
+def check_start(x0, params: CartPoleParams) -> np.ndarray:
+    """Validate a start state against the MJCF: ``2 nq`` finite numbers, every joint inside its range.
+
+    Parameters
+    ----------
+    x0 : array-like
+        ``[qpos, qvel]`` in MuJoCo's order; one pole: ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]``.
+    params : CartPoleParams
+
+    Returns
+    -------
+    (2 nq,) float array
+
+    Raises
+    ------
+    SwingupError
+        Wrong count (the sentence names the expected count and the order, from the MJCF's joint names), not
+        finite, a slide not strictly inside its range or a hinge outside its range.
+    """
+    n = 2 * params.nq
+    try:
+        x = np.asarray(x0, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise SwingupError(f"The start state {x0!r} is not numeric; give {n} numbers: {_state_order(params)}.") \
+            from None
+    if x.size != n:
+        raise SwingupError(f"The start state has {x.size} number(s); give exactly {n}: {_state_order(params)}.")
+    if not np.all(np.isfinite(x)):
+        raise SwingupError(f"The start state {x.tolist()} is not finite; give {n} finite numbers.")
+    for i, j in enumerate(params.joints):
+        lo, hi = (float(v) for v in j.range)
+        if j.kind == "slide" and not lo < x[i] < hi:
+            raise SwingupError(f"The start position {x[i]} m of slide '{j.name}' is outside its joint range "
+                               f"[{lo}, {hi}] m; start the cart strictly inside it.")
+        if j.kind == "hinge" and not lo <= x[i] <= hi:
+            raise SwingupError(f"The start angle {x[i]} rad of hinge '{j.name}' is outside its joint range "
+                               f"[{lo}, {hi}] rad; start the pole inside it.")
+    return x
+
+
+def check_push(push, params: CartPoleParams | None = None) -> tuple:
+    """Validate pushes: a sequence of ``(T, F)`` pairs, ``T >= 0`` s and ``F`` N finite; the model must have a cart.
+
+    Returns
+    -------
+    tuple of (float, float), sorted by time
+
+    Raises
+    ------
+    SwingupError
+        Not pairs of finite numbers, a negative time, or a model without a slide joint to push.
+    """
+    if push is None:
+        return ()
+    try:
+        pairs = [(float(T), float(F)) for T, F in push]
+    except (TypeError, ValueError):
+        raise SwingupError(f"A push is a pair (T, F) of a start time in s and a force in N; got {push!r}.") from None
+    for T, F in pairs:
+        if not (np.isfinite(T) and np.isfinite(F) and T >= 0):
+            raise SwingupError(f"The push ({T:g} s, {F:g} N) needs a start time >= 0 s and a finite force; give "
+                               "e.g. --push 1.5:20.")
+    if pairs and params is not None and params.slide is None:
+        raise SwingupError("This MJCF has no slide joint, so there is no cart to push; drop the push.")
+    return tuple(sorted(pairs))
+
+
+def parse_push(text: str) -> tuple[float, float]:
+    """``"T:F"`` (the command line's ``--push``) as ``(T [s], F [N])``.
+
+    Raises
+    ------
+    SwingupError
+        Not two numbers separated by a colon, or a bad pair (:func:`check_push`).
+    """
+    parts = str(text).split(":")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        pair = (float(parts[0]), float(parts[1]))
+    except ValueError:
+        raise SwingupError(f"--push {text!r} is not T:F (a start time in s and a force in N); give e.g. --push "
+                           "1.5:20 for 20 N on the cart for 0.1 s from t = 1.5 s.") from None
+    return check_push([pair])[0]
+
+
+def check_model_error(model_error) -> float:
+    """The planning model's scale ``S`` (1.0 for None): a finite number, ``0 < S <= 10``.
+
+    Raises
+    ------
+    SwingupError
+    """
+    if model_error is None:
+        return 1.0
+    try:
+        S = float(model_error)
+    except (TypeError, ValueError):
+        raise SwingupError(f"The model error {model_error!r} is not a number; give a scale such as 0.8.") from None
+    if not (np.isfinite(S) and 0 < S <= 10):
+        raise SwingupError(f"The model error {S:g} is not a scale in (0, 10] of the poles' masses and lengths; give "
+                           "e.g. 1.2 for 20 % heavier and longer.")
+    return S
+
+
+def push_force(push, timestep: float):
+    """``push`` pairs as the ``push(t) -> F`` callable :func:`~cartpole.sim.rollout.simulate` takes, or None.
+
+    Each push acts on the physics steps ``k`` with ``round(T / h) <= k < round((T + PUSH_SECONDS) / h)``
+    (``h = timestep``); overlapping pushes add."""
+    pairs = check_push(push)
+    if not pairs:
+        return None
+    h = float(timestep)
+    spans = [(int(round(T / h)), int(round((T + PUSH_SECONDS) / h)), F) for T, F in pairs]
+
+    def force(t: float) -> float:
+        k = int(round(t / h))
+        return float(sum(F for a, b, F in spans if a <= k < b))
+    return force
+
+
+def planning_model(model: CartPoleModel, model_error: float = 1.0) -> CartPoleModel:
+    """The model a controller is designed on: ``model`` itself for ``model_error == 1``, else
+    ``build_model(model.params.scaled_pole(S, S))`` (pole masses and lengths scaled by ``S``)."""
+    S = check_model_error(model_error)
+    return model if S == 1.0 else build_model(model.params.scaled_pole(S, S))
+
+
+def _stage(progress, name):
+    return None if progress is None else (lambda f: progress(name, f))
+
+
+def plan_report(sp) -> dict:
+    """What the trajectory optimisation did, JSON-ready: ``plan_time_s`` (s, wall time of the whole plan, every
+    guess and stage included), ``T_min`` and ``T`` (s), ``solver``, ``status``, ``iterations`` (of the kept plan),
+    ``total_iterations``, ``guess`` (the initial guess that won) and ``attempts`` (every solver call: stage, guess,
+    N, status, success, iterations, objective, T, solve time, whether it was kept) and ``discrete`` (the re-solve on
+    the exact discrete step that TVLQR tracks, :func:`cartpole.planning.trajopt.exact_discrete_plan`, or None)."""
+    info = sp.solve_info
+    attempts = getattr(info, "attempts", None) or ()
+    return {"plan_time_s": float(getattr(sp, "plan_time_s", float("nan"))),
+            "T_min": None if sp.T_min is None else float(sp.T_min), "T": float(sp.T), "solver": info.solver,
+            "status": info.status, "iterations": int(info.iterations),
+            "total_iterations": int(getattr(info, "total_iterations", info.iterations)),
+            "guess": getattr(info, "guess", None), "attempts": [a.as_dict() for a in attempts],
+            "discrete": None if getattr(sp, "discrete", None) is None else sp.discrete.as_dict()}
+
+
+def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float | None = None,
+                progress: Callable[[str, float], None] | None = None, basin_cache=None,
+                energy_options: dict | None = None, catch_weights: tuple | None = None,
+                objective=None, on_step=None, push=None, model_error: float | None = None,
+                plan_model: CartPoleModel | None = None, period: float | None = None,
+                horizon: float | None = None) -> SwingupResult:
+    """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams, CartPoleModel or None
+        The model (None = shipped asset): one pole on a cart for ``energy``, any chain for ``trajopt``.
+    method : {"energy", "trajopt", "mpc"}
+    x0 : (2 nq,) array, optional
+        Start state ``[qpos, qvel]``; default the model's hanging rest ``x_hanging`` (``[0, pi, 0, 0]`` for the
+        shipped cart).
+    duration : float, optional
+        Simulated seconds; default 10 s (energy), 8 s (mpc) or the plan's horizon + 3 s (trajopt; with
+        ``dmc_swingup`` at least dm_control's episode, 1000 MJCF steps, so the return counts all of them).
+    progress : callable, optional
+        ``progress(stage, fraction)`` with stage "basin", "trajopt" or "simulate".
+    basin_cache : BasinCache, optional
+        Where basin estimates are looked up and kept; default ``BasinCache.on_disk()`` (the user cache directory,
+        ``$CARTPOLE_CACHE_DIR`` honoured), so a second run with the same model and catch does not estimate again.
+    energy_options : dict, optional
+        Keyword arguments for :class:`~cartpole.control.energy.EnergyShapingController`.
+    catch_weights : (Q, R), optional
+        LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
+        (:func:`~cartpole.control.switching.swingup_catch`; the lab's ``R = 0.1`` gives a much smaller basin).
+        Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR. Energy method only: the trajopt hand-over is
+        :func:`cartpole.planning.trajopt.handover_catch`.
+    objective : str or callable, optional
+        ``trajopt`` only: the plan's objective (``effort`` default, ``time``, ``tracking``, ``dmc_swingup``,
+        ``"MODULE:FUNCTION"`` or a function; see :func:`cartpole.planning.trajopt.trajopt_swingup`).
+    on_step : callable, optional
+        ``on_step(m, d)`` during the MuJoCo run (e.g. :class:`cartpole.viz.viewer.LiveViewer`, to watch it live);
+        returning False ends the run (see :func:`cartpole.sim.rollout.simulate`).
+    push : sequence of (T, F), optional
+        Pushes: a world-x force of F N on the cart body for :data:`PUSH_SECONDS` from time T s (physics steps
+        :func:`push_force`), logged per step in ``rollout.info["push"]``.
+    model_error : float, optional
+        Scale S of the planning model's pole masses and lengths (:func:`planning_model`); MuJoCo keeps the MJCF's.
+    plan_model : CartPoleModel, optional
+        The planning model itself, built once by a caller that runs many swing-ups (a sweep); default
+        :func:`planning_model` of ``model_error``.
+    period, horizon : float, optional
+        ``mpc`` only: control period and prediction horizon in s (default the controller's).
+
+    Returns
+    -------
+    SwingupResult
+
+    Raises
+    ------
+    SwingupError, MJCFError
+        Bad method, start state, duration, push or model error; an MJCF that is not a cart-pole; ``mpc`` without
+        :mod:`cartpole.mpc.nmpc`.
+    EnergyShapingError
+        ``energy`` on a model energy shaping does not drive (more than one pole, a motor on a hinge), raised
+        before the basin estimate or any simulation.
+    """
+    from cartpole.control.energy import EnergyShapingController
+    from cartpole.control.switching import SwitchingController, swingup_catch
+    from cartpole.validation.basin import BasinCache
+    from cartpole.validation.metrics import DMC_STEPS, dmc_swingup_rewards, swingup_metrics
+
+    if method not in METHODS:
+        raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")
+    if isinstance(mjcf, CartPoleModel):
+        model, params = mjcf, mjcf.params
+    else:
+        params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+        model = None
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise SwingupError(f"Duration {duration} s is not a positive number of seconds; give e.g. --duration 8.")
+    model = model if model is not None else build_model(params)
+    x0 = check_start(model.x_hanging if x0 is None else x0, params)
+    pushes = check_push(push, params)
+    S = check_model_error(model_error)
+    pm = plan_model if plan_model is not None else planning_model(model, S)
+    force = push_force(pushes, params.timestep)
+    if method != "mpc" and (period is not None or horizon is not None):
+        raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
+                           "--method mpc.")
+    # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
+    energy = EnergyShapingController(pm, **(energy_options or {})) if method == "energy" else None
+    if objective is not None and method != "trajopt":
+        raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
+                           "trajopt.")
+    basin_kw = dict(progress=_stage(progress, "basin"))
+
+    cache = BasinCache.on_disk() if basin_cache is None else basin_cache
+
+    def basin_of(catch):
+        return cache.get(params, catch, **basin_kw)
+
+    plan = None
+    if method == "mpc":
+        try:
+            from cartpole.mpc.nmpc import nmpc_swingup
+        except ModuleNotFoundError as exc:
+            if exc.name not in ("cartpole.mpc.nmpc",):
+                raise
+            raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
+                               "does not have yet; use --method trajopt or energy.") from None
+        if progress is not None:
+            progress("mpc", 0.0)
+        # period / horizon left out when None: the controller's own defaults
+        settings = {k: float(v) for k, v in (("period", period), ("horizon", horizon)) if v is not None}
+        controller = nmpc_swingup(params, x0=x0, model=pm, **settings)
+        if progress is not None:
+            progress("mpc", 1.0)
+        basin = None
+        T = MPC_DURATION if duration is None else float(duration)
+        rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
+                           progress=_stage(progress, "simulate"), on_step=on_step)
+        if progress is not None:
+            progress("simulate", 1.0)
+        caught_at = None
+        extra = {"switches": [], "period": float(controller.period), "horizon": float(controller.horizon),
+                 "failures": _count(getattr(controller, "failures", 0))}
+    elif method == "energy":
+        catch = swingup_catch(pm) if catch_weights is None else swingup_catch(pm, *catch_weights)
+        basin = basin_of(catch)
+        controller = SwitchingController(energy, catch, basin.rho)
+        T = ENERGY_DURATION if duration is None else float(duration)
+        rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
+                           on_step=on_step)
+        if progress is not None:
+            progress("simulate", 1.0)
+        caught_at = controller.caught_at
+        extra = {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in controller.switches]}
+    else:
+        try:
+            from cartpole.planning.trajopt import trajopt_swingup
+        except ImportError:
+            raise SwingupError("The trajopt method needs cartpole.planning.trajopt, which this installation does not "
+                               "have; use --method energy.") from None
+        if progress is not None:
+            progress("trajopt", 0.0)
+        sp = trajopt_swingup(params, x0=tuple(x0), model=pm, objective=objective)
+        if progress is not None:
+            progress("trajopt", 1.0)
+        plan = sp.trajectory
+        controller = sp.controller
+        catch = sp.catch  # the controller that takes over: its basin is the one reported
+        basin = basin_of(catch)
+        T_plan = float(plan.t[-1] - plan.t[0])
+        T = T_plan + TRAJOPT_EXTRA if duration is None else float(duration)
+        if duration is None and sp.objective == "dmc_swingup":
+            T = max(T, DMC_STEPS * params.timestep)
+        rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
+                           on_step=on_step)
+        if progress is not None:
+            progress("simulate", 1.0)
+        handover = getattr(controller, "handover_time", T_plan)
+        caught_at = float(handover) if handover is not None and rollout.t[-1] >= handover else None
+        k = int(np.searchsorted(rollout.t, handover)) if caught_at is not None else None
+        extra = {"switches": [] if caught_at is None else [{"t": caught_at, "mode": "catch",
+                                                            "cost": catch.cost_to_go(rollout.x[k])}],
+                 "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k]),
+                 "objective": sp.objective, "plan": plan_report(sp)}
+        if sp.objective == "dmc_swingup":
+            rewards = dmc_swingup_rewards(rollout, model)
+            extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
+    metrics = {**swingup_metrics(rollout, model), **extra}
+    return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
+                         plan=plan, basin=basin, metrics=metrics, push=pushes, model_error=S, controller=controller)
+
+
+def _count(failures) -> int:
+    """A controller's ``failures`` as a count (it may keep a number or a list of what failed)."""
+    return int(failures) if isinstance(failures, (int, np.integer)) else len(failures or ())

@@ -1,0 +1,206 @@
+"""Generated C, built once and cached: CasADi Functions code-generated, compiled to a shared library in a user
+cache directory, and loaded back; and :class:`Buffered`, a Function evaluated on numpy buffers without DM
+conversions. Everyone in the package who compiles goes through here (the collocation NLP's interval functions,
+the SQP's QP assembly, the NMPC's stage functions).
+
+A library's file name is a hash of what it was built from (the model's parameters, :func:`model_key`; the source
+or a recipe; the compiler flags; the CasADi version; the CPU, :func:`cpu_key`), so two models or two machines
+never share one, and it is compiled once per machine and model, never into the package. Writes are atomic: a
+concurrent process sees a whole library or none.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from cartpole._files import atomic_write
+
+#: Flags for the C compiler: the generated functions are straight-line arithmetic that gcc vectorises for the
+#: machine's own instruction set (one pole, N = 100 intervals mapped: exact Hessian blocks 0.148 ms at -O2, 0.116 at
+#: -O3 -march=native; defect Jacobians 0.066 and 0.039 ms; same compile time, 1.9 s). A library is keyed by the CPU
+#: (:func:`cpu_key`), so a cache shared between machines stays correct; where the compiler refuses
+#: ``-march=native`` the library is built with :data:`PORTABLE_CFLAGS`.
+CFLAGS = ("-O3", "-march=native", "-fPIC", "-shared")
+#: The fallback of :data:`CFLAGS`.
+PORTABLE_CFLAGS = ("-O2", "-fPIC", "-shared")
+#: Generated C longer than this (characters) is compiled with :data:`LARGE_CFLAGS`: gcc's optimiser is superlinear
+#: in the size of one function and the interval Hessian grows fast with the number of poles. Measured (gcc, one
+#: core): one pole 0.16 MB, -O2 2.4 s; two poles 1.1 MB, -O2 43 s, -O1 20 s, -O0 1.3 s (solves at -O0 still 3.4x
+#: faster than the SX virtual machine, at -O1 8x); three poles 5.2 MB, -O1 340 s, -O0 6 s.
+LARGE_SOURCE = 400_000
+#: Flags for large generated sources (see :data:`LARGE_SOURCE`).
+LARGE_CFLAGS = ("-O0", "-fPIC", "-shared")
+#: Part of every library's key: bump when the meaning of generated functions changes for the same source.
+LIB_VERSION = "hs-interval-v5"
+
+
+def cache_dir() -> Path:
+    """``$CARTPOLE_CACHE_DIR``, else ``$XDG_CACHE_HOME/cartpole``, else ``~/.cache/cartpole``."""
+    env = os.environ.get("CARTPOLE_CACHE_DIR")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "cartpole"
+
+
+@functools.lru_cache(maxsize=None)
+def cpu_key() -> str:
+    """The machine's architecture, CPU model and feature flags (Linux ``/proc/cpuinfo``, its first processor),
+    hashed: what code compiled with ``-march=native`` depends on. Read once per process."""
+    import platform
+
+    h = hashlib.sha256(platform.machine().encode())
+    try:
+        seen = set()
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if not line.strip() and seen:  # the end of the first processor's block
+                break
+            name = line.split(":", 1)[0].strip()
+            if name in ("model name", "flags", "Features", "CPU part") and name not in seen:
+                seen.add(name)
+                h.update(line.encode())
+    except OSError:
+        h.update(platform.processor().encode())
+    return h.hexdigest()[:16]
+
+
+def choose_cflags(src: str) -> tuple:
+    """Compiler flags for generated C ``src``: ``$CARTPOLE_CFLAGS`` (e.g. ``-O2`` to optimise a large model once
+    and for all) with ``-fPIC -shared``, else :data:`CFLAGS` or, above :data:`LARGE_SOURCE`, :data:`LARGE_CFLAGS`."""
+    env = os.environ.get("CARTPOLE_CFLAGS")
+    if env:
+        return (*env.split(), "-fPIC", "-shared")
+    return CFLAGS if len(src) < LARGE_SOURCE else LARGE_CFLAGS
+
+
+def compiler() -> str | None:
+    """The C compiler: ``$CC``, else ``gcc``, else ``cc`` on PATH (None when there is none)."""
+    cc = os.environ.get("CC") or "gcc"
+    return shutil.which(cc) or shutil.which("cc")
+
+
+def digest(obj, h) -> None:
+    """Feed a canonical, exact serialisation of ``obj`` (dataclasses, arrays, numbers, strings, sequences) to ``h``."""
+    if dataclasses.is_dataclass(obj):
+        h.update(type(obj).__name__.encode())
+        for fld in dataclasses.fields(obj):
+            h.update(fld.name.encode())
+            digest(getattr(obj, fld.name), h)
+    elif isinstance(obj, np.ndarray):
+        arr = np.ascontiguousarray(obj)
+        h.update(f"{arr.dtype.str}{arr.shape}".encode() + arr.tobytes())
+    elif isinstance(obj, (tuple, list)):
+        h.update(f"[{len(obj)}".encode())
+        for item in obj:
+            digest(item, h)
+    else:
+        h.update(f"{type(obj).__name__}:{obj!r};".encode())  # repr of a float is exact
+
+
+def model_key(model) -> str:
+    """Hex digest of what makes a model's interval functions: ``nx``, ``nu`` and every parameter it was built from
+    (all joints, bodies, actuators, gravity, integrator...; not the MJCF's path). For a bare CasADi Function:
+    its sizes and serialised expression graph. ``model`` is a :class:`cartpole.models.CartPoleModel` (anything with
+    ``nx``, ``nu`` and a dataclass ``params`` with an ``mjcf`` field) or a ``casadi.Function``."""
+    h = hashlib.sha256()
+    if isinstance(model, ca.Function):
+        h.update(f"f{model.size1_in(0)}x{model.size1_in(1)}:".encode() + model.serialize().encode())
+    else:
+        h.update(f"model{model.nx}x{model.nu}:".encode())
+        params = dataclasses.replace(model.params, mjcf="")
+        digest(params, h)
+    return h.hexdigest()
+
+
+def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
+                   cflags: tuple | None = None) -> tuple[str, bool]:
+    """C source of ``funcs`` (CasADi Functions) compiled to a cached shared library; returns (path, compiled_now).
+
+    ``funcs`` is a list of Functions or a callable returning it. Without ``recipe`` the library's name is a hash
+    of ``model_digest`` (:func:`model_key`), the source, the flags (:func:`choose_cflags`) and the CasADi version; with
+    ``recipe`` (a digest of what the functions are generated from, e.g.
+    :func:`cartpole.ocp.compiled_nlp.recipe_key`) a hash of ``model_digest`` and ``recipe``, looked up before any source is
+    generated (generating the three-pole cart's source takes about half a second); both with :func:`cpu_key`.
+    ``cflags``: the compiler flags (``-fPIC -shared`` added) instead of :func:`choose_cflags`'s choice, unless
+    ``$CARTPOLE_CFLAGS`` is set. Flags with ``-march=native`` that the compiler refuses are retried as
+    :data:`PORTABLE_CFLAGS`.
+    """
+    target = cache_dir()
+    cpu = cpu_key()
+    if recipe is not None:
+        key = "r" + hashlib.sha256((model_digest + recipe + cpu).encode()).hexdigest()[:20]
+        lib = target / f"hs_interval_{key}.so"
+        if lib.exists():
+            return str(lib), False
+    gen = ca.CodeGenerator("hs_interval.c", {"with_header": False, "casadi_real": "double"})
+    for fn in (funcs() if callable(funcs) else funcs):
+        gen.add(fn)
+    src = gen.dump()
+    if cflags is not None and not os.environ.get("CARTPOLE_CFLAGS"):
+        flags = (*cflags, "-fPIC", "-shared")
+    else:
+        flags = choose_cflags(src)
+    if recipe is None:
+        key = hashlib.sha256((LIB_VERSION + model_digest + " ".join(flags) + ca.__version__ + cpu + src).encode()
+                             ).hexdigest()[:20]
+        lib = target / f"hs_interval_{key}.so"
+        if lib.exists():
+            return str(lib), False
+    cc = compiler()
+    if cc is None:
+        raise RuntimeError("no C compiler (gcc or cc) on PATH")
+    target.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="cartpole-cc-") as tmp:
+        c_file = Path(tmp) / f"hs_interval_{key}.c"
+        c_file.write_text(src)
+        out = Path(tmp) / lib.name
+        proc = subprocess.run([cc, *flags, str(c_file), "-o", str(out), "-lm"], capture_output=True, text=True,
+                              timeout=120)
+        if proc.returncode != 0 and "-march=native" in flags:
+            proc = subprocess.run([cc, *PORTABLE_CFLAGS, str(c_file), "-o", str(out), "-lm"], capture_output=True,
+                                  text=True, timeout=120)
+        if proc.returncode != 0:
+            last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
+            raise RuntimeError(f"{Path(cc).name} failed: {last}")
+        # atomic: a concurrent process sees the whole library or none
+        atomic_write(lib, lambda fh: fh.write(out.read_bytes()))
+    return str(lib), True
+
+
+@functools.lru_cache(maxsize=None)
+def _load(lib: str, names: tuple) -> dict:
+    return {name: ca.external(name, lib) for name in names}
+
+
+def load_library(lib: str | Path, names) -> dict[str, ca.Function]:
+    """The functions ``names`` (str sequence) of the shared library ``lib``, as ``casadi.external`` Functions by
+    name; each library is loaded once per process."""
+    return dict(_load(str(lib), tuple(names)))
+
+
+class Buffered:
+    """A CasADi Function evaluated on numpy buffers (no DM conversions): call with C-contiguous float arrays laid
+    out as CasADi's column-major inputs; returns its outputs as flat arrays, overwritten by the next call."""
+
+    def __init__(self, fun: ca.Function):
+        self._buf, self._eval = fun.buffer()
+        self._n_in = fun.n_in()
+        self.out = [np.zeros(fun.nnz_out(i)) for i in range(fun.n_out())]
+        for i, o in enumerate(self.out):
+            self._buf.set_res(i, memoryview(o))
+
+    def __call__(self, *args):
+        keep = [np.ascontiguousarray(a, dtype=float) for a in args]
+        for i, a in enumerate(keep):
+            self._buf.set_arg(i, memoryview(a))
+        self._eval()
+        return self.out

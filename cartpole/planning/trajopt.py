@@ -1,0 +1,563 @@
+"""Swing-up by trajectory optimisation: collocation -> Trajectory -> TVLQR -> controller, in one call.
+
+``trajopt_swingup`` plans with a symbolic model (by default the MJCF's own; optionally a deliberately wrong
+one, to test robustness), tracks the plan with TVLQR on the exact discrete model at the simulator's step,
+and hands over to the LQR catch (the discrete LQR of the lab's weight pattern at the model's upright equilibrium
+``x_eq``, ``u_eq``) when the plan ends. Any model shape: a cart with a chain of poles, several motors. The plan's
+duration, unless given, is the minimum time the bounds allow times ``1 + time_margin``: the faster the
+better, but a plan that saturates the actuator everywhere leaves TVLQR no authority to correct errors.
+
+No hand-holding: the stages and the mesh are the code's. (1) :func:`minimum_time`: a deterministic multi-start
+of named guesses (:func:`cartpole.ocp.guess.named_guesses`: pumping and straight-line shapes towards the nearest
+upright angles, for one pole an energy-shaping rollout first; ``starts=4`` adds the routes in which every link
+loops once more) on a coarse mesh (N = 30), each capped at :data:`EXPLORE_MAX_ITER` iterations, the fastest converged one
+refined on N = 60 (the next if that refinement fails); from near upright each guess first goes through the
+fixed-time effort problem (a homotopy in T). (2) The chosen objective at its T on N = 100 (or the file's step
+for ``dmc_swingup``), started from the minimum-time plan stretched (or padded with rest) onto T; the default guesses
+only if that fails. Every solver call of every stage is in ``plan.solve_info.attempts`` (guess, N, iterations,
+status, objective, which were kept), and ``plan.plan_time_s`` is the wall time of the whole call. Measured
+(``benchmarks/bench_swingup_chains.py``, medians of 3 fresh processes, 2 cores at load 2-3, warm compile cache):
+0.40 s for one pole, 0.55 s for two, 2.5 s for three (the previous pipeline: 0.66 s, 2.7 s, 36 s, same plans);
+with a cold cache (the interval functions compiled first) 1.4 s, 2.2 s, 10.2 s.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.model_rollout import model_rollout
+from cartpole.control.tvlqr import TVLQRController
+from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
+from cartpole.lqr.tvlqr import reference as _on_step_grid
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.ocp.bounds import OCPError, bounds_from_params
+from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.records import Attempt, SolveInfo
+from cartpole.ocp.guess import named_guesses
+from cartpole.ocp.objectives import make_objective
+from cartpole.solvers.sqp import CollocationSQP, SQPError
+from cartpole.ocp.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class SwingupPlan:
+    """Everything ``trajopt_swingup`` produced.
+
+    Attributes
+    ----------
+    trajectory : Trajectory
+        The optimised plan (its ``duration`` is the chosen T in s).
+    gains : TVLQRGains
+        TVLQR along the plan at the simulator's step.
+    controller : TVLQRController
+        ``u = controller(t, x)``: TVLQR tracking, then the catch; use it with ``cartpole.sim.simulate``.
+    solve_info : SolveInfo
+        The collocation solve of the returned plan.
+    catch : LinearFeedback
+        The LQR catch (K, S of ``dlqr(Ad, Bd, Q dt, R dt)`` at the planning model's ``x_eq``, ``u_eq``, one MJCF
+        step of the planning model; hinge errors wrapped; clipped to the MJCF's ctrlranges).
+    model : CartPoleModel
+        The model used for planning and TVLQR (may differ from the MJCF MuJoCo runs).
+    T_min : float or None
+        Minimum swing-up time in s found for the bounds (None when T was given).
+    objective : str
+        Name of the objective the plan optimised (``effort``, ``time``, ``tracking``, ``dmc_swingup`` or the user
+        function's name).
+    plan_time_s : float
+        Wall time in s of the whole :func:`trajopt_swingup` call that made this plan: every guess of the
+        multi-start, every stage, building (and compiling, on a cold cache) the solvers, and TVLQR.
+    discrete : DiscretePlan or None
+        The plan re-solved on the exact discrete model (:func:`exact_discrete_plan`) that TVLQR tracks, or None
+        when TVLQR tracks ``trajectory`` itself (``exact_discrete=False``, or the re-solve failed).
+    """
+
+    trajectory: Trajectory
+    gains: TVLQRGains
+    controller: TVLQRController
+    solve_info: SolveInfo
+    catch: LinearFeedback
+    model: CartPoleModel
+    T_min: float | None = None
+    objective: str = "effort"
+    plan_time_s: float = float("nan")
+    discrete: "DiscretePlan | None" = field(default=None, compare=False)
+
+    @property
+    def T(self) -> float:
+        """Duration of the plan in s."""
+        return self.trajectory.duration
+
+
+@dataclass(frozen=True)
+class DiscretePlan:
+    """A plan that is an exact solution of the MJCF's own discrete step (``model.step`` = one ``mj_step``).
+
+    Attributes
+    ----------
+    t : (n,) array, s
+        Step starts ``t0 + k dt``.
+    x : (n+1, nx) array
+        States at ``t0 + k dt``; ``x[k+1] = model.step(x[k], u[k])`` to the solver's tolerance.
+    u : (n, nu) array
+        ctrl held over each step.
+    dt : float
+        s, the MJCF's timestep.
+    u_margin : float
+        Fraction of each actuator's half ctrl range kept free on both sides (0: the full range).
+    status : str
+        IPOPT's return status.
+    iterations : int
+    solve_time_s : float
+        Wall time of building and solving the problem in s.
+    defect_before : float
+        Largest one-step defect ``|model.step(x_k, u_k) - x_k+1|`` of the collocation plan on the same grid
+        (what TVLQR would have had to absorb every step), in state units.
+    defect_after : float
+        The same for this plan.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    dt: float
+    u_margin: float
+    status: str
+    iterations: int
+    solve_time_s: float
+    defect_before: float
+    defect_after: float
+
+    def __post_init__(self):
+        from cartpole._arrays import readonly
+
+        for name in ("t", "x", "u"):
+            object.__setattr__(self, name, readonly(np.asarray(getattr(self, name), float)))
+
+    @property
+    def t_final(self) -> float:
+        """End of the plan in s."""
+        return float(self.t[0] + self.dt * self.t.size)
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (no arrays)."""
+        return {"steps": int(self.t.size), "dt": self.dt, "u_margin": self.u_margin, "status": self.status,
+                "iterations": self.iterations, "solve_time_s": self.solve_time_s,
+                "defect_before": self.defect_before, "defect_after": self.defect_after}
+
+
+#: Fraction of each actuator's half ctrl range the exact discrete plan leaves free on both sides, so TVLQR keeps
+#: authority to correct errors where the plan would otherwise ride the limit (0 when that is infeasible).
+U_MARGIN = 0.05
+
+
+def _defects(model: CartPoleModel, x, u) -> float:
+    n = u.shape[0]
+    xn = np.asarray(model.step.map(n)(np.asarray(x[:-1]).T, np.asarray(u).reshape(n, -1).T)).T
+    return float(np.abs(xn - x[1:]).max())
+
+
+#: rad: largest hinge-angle deviation from the collocation plan, predicted for TVLQR on the exact discrete step,
+#: that ``trajopt_swingup(exact_discrete="auto")`` accepts without re-solving the plan on that step. Measured on
+#: the shipped carts from hanging: 0.026 (two poles) and 0.042 rad (three); the failures it catches stray by 1 rad
+#: and more (the triple re-planned with the cart at 0.3 m: 1.1 rad at 2.06 s, 2.2 rad at 2.4 s).
+TRACK_TOL = 0.1
+
+
+def predicted_tracking_error(model: CartPoleModel, controller, traj: Trajectory, x0) -> float:
+    """Largest hinge-angle deviation in rad from ``traj`` of ``controller`` run on ``model.step`` (the planning
+    model's exact discrete step, one MJCF step each; :func:`cartpole.control.model_rollout.model_rollout`) from
+    ``x0`` over the plan's duration; inf when the state leaves the finite numbers. Cheap (one CasADi call and one
+    controller call a step): a prediction of the MuJoCo run, exact when ``model`` is the MJCF's own."""
+    n = int(round(traj.duration / model.dt))
+    t0 = float(traj.t[0])
+    x, _ = model_rollout(model, controller, x0, n, t0=t0)
+    if not np.all(np.isfinite(x)):
+        return float("inf")
+    hinges = list(model.hinges)
+    if not hinges or n == 0:
+        return 0.0
+    ends = (t0 + np.arange(n) * model.dt) + model.dt  # the end of each step, as the plan's time
+    return float(np.abs(x[1:, hinges] - traj.state(ends)[:, hinges]).max())
+
+
+def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, dt: float | None = None,
+                        u_margin: float = U_MARGIN, x_goal=None, max_iter: int = 100) -> DiscretePlan | None:
+    """Re-solve a collocation plan on the exact discrete model: the closest motion MuJoCo can follow exactly.
+
+    The collocation plan satisfies the continuous dynamics; MuJoCo steps the MJCF's integrator (semi-implicit
+    Euler at 5 ms on the shipped carts), whose local error per step is what TVLQR must absorb all along the plan.
+    On the shipped three-pole cart that one-step defect is up to 0.05 rad/s on the last hinge rate every 5 ms
+    (whatever the collocation mesh: it is the integrator's, not the mesh's) and the plan run open loop in the
+    discrete model is off by 0.1 rad after half the swing. This solves, by IPOPT,
+
+        min  sum_k |u_k - u_plan,k|^2 dt
+        s.t. x_0 = x0,  x_k+1 = model.step(x_k, u_k),  x_n = x_goal,
+             u_low + m <= u_k <= u_high - m  (m = u_margin * half each ctrl range),  joint bounds on every x_k,
+
+    on the plan's step grid (``n = round(T / dt)`` steps), started from the plan itself (its zero-order-hold
+    inputs, :func:`cartpole.lqr.tvlqr.reference`), so the result is as near the plan as the exact discrete
+    dynamics allow and leaves feedback a ctrl margin.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        Planning model; its discrete step at ``dt`` is the constraint (rebuilt at ``dt`` when it differs).
+    traj : Trajectory
+        The collocation plan.
+    x0 : (nx,) array
+        Start state.
+    bounds : OCPBounds
+        ctrl and joint bounds (as the collocation's).
+    dt : float, optional
+        Step in s; default ``model.dt``.
+    u_margin : float
+        Fraction in [0, 1) of each actuator's half ctrl range kept free on each side.
+    x_goal : (nx,) array, optional
+        Final state; default the plan's last knot.
+    max_iter : int
+        IPOPT iteration cap.
+
+    Returns
+    -------
+    DiscretePlan, or None when IPOPT did not converge (the caller keeps the collocation plan).
+    """
+    import casadi as ca
+
+    tic = time.perf_counter()
+    dt = float(model.dt if dt is None else dt)
+    if not 0.0 <= u_margin < 1.0:
+        raise OCPError(f"u_margin = {u_margin} must be a fraction in [0, 1) of each half ctrl range.")
+    dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
+    t, xr, ur = _on_step_grid(traj, dt)
+    n, nx, nu, nq = t.size, dmodel.nx, dmodel.nu, dmodel.nq
+    x0 = np.asarray(x0, float).ravel()
+    x_goal = np.asarray(traj.x[-1] if x_goal is None else x_goal, float).ravel()
+    before = _defects(dmodel, xr, ur)
+    X = ca.MX.sym("X", nx, n + 1)
+    U = ca.MX.sym("U", nu, n)
+    gap = ca.vec(dmodel.step.map(n)(X[:, :-1], U) - X[:, 1:])
+    cost = ca.sumsqr(U - ur.T) * dt
+    half = 0.5 * (bounds.u_high - bounds.u_low)
+    u_lo, u_hi = bounds.u_low + u_margin * half, bounds.u_high - u_margin * half
+    lx = np.full((nx, n + 1), -np.inf)
+    hx = np.full((nx, n + 1), np.inf)
+    lx[:nq] = np.asarray(bounds.q_low, float)[:, None]
+    hx[:nq] = np.asarray(bounds.q_high, float)[:, None]
+    lx[:, 0] = hx[:, 0] = x0
+    lx[:, -1] = hx[:, -1] = x_goal
+    lw = np.r_[lx.ravel(order="F"), np.tile(u_lo, n)]
+    hw = np.r_[hx.ravel(order="F"), np.tile(u_hi, n)]
+    w0 = np.clip(np.r_[xr.ravel(), ur.ravel()], lw, hw)
+    solver = ca.nlpsol("exact_discrete", "ipopt", {"x": ca.veccat(X, U), "f": cost, "g": gap},
+                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": 1e-10})
+    sol = solver(x0=w0, lbx=lw, ubx=hw, lbg=0.0, ubg=0.0)
+    stats = solver.stats()
+    if not stats.get("success", False):
+        return None
+    w = np.asarray(sol["x"], float).ravel()
+    x = w[:nx * (n + 1)].reshape(n + 1, nx)
+    u = w[nx * (n + 1):].reshape(n, nu)
+    return DiscretePlan(t=t, x=x, u=u, dt=dt, u_margin=float(u_margin), status=str(stats["return_status"]),
+                        iterations=int(stats["iter_count"]), solve_time_s=time.perf_counter() - tic,
+                        defect_before=before, defect_after=_defects(dmodel, x, u))
+
+
+#: IPOPT iterations allowed to each start of the coarse minimum-time multi-start: a start that has not converged
+#: by then counts as failed (a converging start needs 30 to 200 on the shipped carts).
+EXPLORE_MAX_ITER = 250
+#: Duration in s of the initial guesses of a minimum-time multi-start (a free-time solve moves it).
+GUESS_T = 2.0
+
+
+def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
+                 starts: int | None = None, coarse_N: int | None = None, **bounds
+                 ) -> tuple[float, Trajectory, SolveInfo]:
+    """The shortest motion from ``x0`` to ``x_goal`` the bounds allow: a free-final-time Hermite-Simpson solve.
+
+    Any model. A deterministic multi-start on a coarse mesh, then a refinement: every guess of
+    :func:`cartpole.ocp.guess.named_guesses` is solved on ``coarse_N`` intervals (default ``N // 2``, at most
+    :data:`EXPLORE_MAX_ITER` iterations each); the converged ones, fastest first, are refined on ``N`` intervals
+    until one converges (a coarse mesh can admit a motion the fine one does not); if none does, the guesses are
+    solved on ``N`` intervals directly. From near upright (every hinge within a quarter turn of the goal) each
+    guess first goes through the fixed-time effort problem at :data:`GUESS_T` (a homotopy in T: a free-time solve
+    from a guess there tends to shrink T to its lower bound and stop, locally infeasible). ``info.attempts`` lists
+    every solve, ``info.guess`` names the guess that won.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    x0, x_goal : (nx,) arrays, optional
+        Start (default hanging rest ``model.x_hanging``) and goal (default upright ``model.x_eq``).
+    N : int
+        Intervals of the returned plan.
+    solver : str
+        ``ipopt`` (the only solver for a free final time).
+    starts : int, optional
+        Guesses of the multi-start, the first ``starts`` of :func:`~cartpole.ocp.guess.named_guesses`; default
+        those towards the nearest upright angles (pumping and straight-line shapes, and for one pole the
+        energy-shaping rollout first). 4 (5 for one pole) adds the shapes in which every link loops once more
+        relative to its parent (one turn the other way for one pole): on the shipped two-pole cart that route is
+        10 % faster (T_min 1.53 s instead of 1.70 s) but TVLQR tracks it less well (upright in MuJoCo at 2.49 s
+        instead of 1.99 s), on the other carts measured it is not faster.
+    coarse_N : int, optional
+        Intervals of the multi-start; ``coarse_N >= N`` solves the multi-start on ``N`` directly.
+    bounds
+        Passed to :class:`DirectCollocation` (``u_max``, ``cart_max``, ``cart_margin`` or ``bounds``).
+
+    Returns
+    -------
+    (T_min (s), Trajectory, SolveInfo)
+
+    Raises
+    ------
+    OCPInfeasible, OCPError
+        No guess converged (the message names a binding bound when there is one).
+    """
+    N = int(N)
+    Nc = max(2, N // 2) if coarse_N is None else int(coarse_N)
+    capped = {"ipopt": {"max_iter": EXPLORE_MAX_ITER}}
+    ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, solver_options=capped, **bounds)
+    x0 = ocp._check_state("start state", model.x_hanging if x0 is None else x0)
+    x_goal = ocp._check_state("goal state", model.x_eq if x_goal is None else x_goal)
+
+    # near upright: each guess is first made dynamically feasible at a fixed T (see the docstring)
+    near = all(abs((x0[i] - x_goal[i] + np.pi) % (2 * np.pi) - np.pi) < 0.5 * np.pi for i in model.hinges)
+    attempts: list = []
+
+    def explore(target: DirectCollocation):
+        n = target.N
+        named = named_guesses(model, x0, x_goal, GUESS_T, n, bounds=target.bounds, count=starts or 10,
+                              second_goal=starts is not None)
+        if near:
+            eff = DirectCollocation(model, N=n, T=GUESS_T, solver=solver, solver_options=capped, **bounds)
+            feasible, tried = eff.multistart(x0, x_goal, named, stage=f"effort T={GUESS_T:g} N={n}")
+            attempts.extend(tried)
+            named = [(f"{info.guess} via effort", traj) for traj, info in sorted(feasible, key=lambda s: s[1].start)]
+        sols, tried = target.multistart(x0, x_goal, named, stage=f"time N={n}")
+        attempts.extend(tried)
+        return sols
+
+    if Nc < N:
+        coarse = DirectCollocation(model, N=Nc, T=None, objective="time", solver=solver, solver_options=capped,
+                                   **bounds)
+        # refine the coarse solutions, fastest first: a coarse mesh can admit a motion the fine one does not
+        for traj, info in explore(coarse):
+            sols, tried = ocp.multistart(x0, x_goal, [(f"{info.guess} refined", traj)], stage=f"time N={N}")
+            attempts.extend(tried)
+            if sols:
+                return sols[0][1].T, sols[0][0], replace(sols[0][1], attempts=tuple(attempts))
+    sols = explore(ocp)
+    if sols:
+        return sols[0][1].T, sols[0][0], replace(sols[0][1], attempts=tuple(attempts))
+    raise ocp.diagnose(x0, x_goal, named_guesses(model, x0, x_goal, GUESS_T, N, bounds=ocp.bounds, count=1)[0][1],
+                       None)
+
+
+#: Seconds of the horizon beyond the minimum swing-up time for the running objectives (tracking, dmc_swingup,
+#: user functions) when T is not given: long enough to arrive and hold, so the plan is scored on holding too.
+RUNNING_HOLD = 1.5
+
+
+def _padded(traj: Trajectory, T: float) -> Trajectory:
+    """``traj`` followed by resting at its final state until ``T`` s (exact when that state is an equilibrium):
+    a feasible initial guess for a longer horizon."""
+    if T <= traj.duration + 1e-9:
+        return traj
+    n = max(2, int(np.ceil((T - traj.duration) / (traj.duration / traj.N))))
+    tp = np.linspace(traj.t[-1], traj.t[0] + T, n + 1)[1:]
+    return Trajectory(t=np.r_[traj.t, tp], x=np.vstack([traj.x, np.repeat(traj.x[-1:], n, 0)]),
+                      u=np.vstack([traj.u, np.repeat(traj.u[-1:], n, 0)]),
+                      xdot=np.vstack([traj.xdot, np.zeros((n, traj.nx))]))
+
+
+#: SQP iterations the effort stage is given with ``solver="sqp"`` before IPOPT takes over (from the time plan the
+#: shipped one- and two-pole carts converge in 7).
+SQP_MAX_ITER = 30
+
+
+def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, stage: str, *, sqp: bool = False
+                   ) -> tuple[Trajectory, SolveInfo]:
+    """``ocp`` solved from ``guess`` (an earlier stage's plan); if that fails, from its default guesses (and
+    their diagnosis when all fail). The returned info's attempts include the failed first try. ``sqp``: first
+    by :class:`~cartpole.solvers.sqp.CollocationSQP` (at most :data:`SQP_MAX_ITER` iterations; its attempt's stage is
+    ``"<stage> (sqp)"``), then as before with IPOPT if it does not converge or does not handle the problem."""
+    tried: tuple[Attempt, ...] = ()
+    if sqp:
+        try:
+            traj, info = CollocationSQP(ocp, max_iter=SQP_MAX_ITER).solve_once(x0, guess=guess)
+        except SQPError:
+            info = None
+        if info is not None:
+            tried = (Attempt.of(info, f"{stage} (sqp)", name, ocp.N, chosen=info.success),)
+            if info.success:
+                return traj, replace(info, guess=name, attempts=tried)
+    traj, info = ocp.solve_once(x0, guess=guess)
+    first = Attempt.of(info, stage, name, ocp.N, chosen=info.success)
+    if info.success:
+        return traj, replace(info, guess=name, attempts=tried + (first,))
+    traj, info = ocp.solve(x0, stage=stage)
+    return traj, replace(info, start=info.start + 1, attempts=tried + (first,) + info.attempts)
+
+
+def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None) -> LinearFeedback:
+    """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
+    (``dt = params.timestep``) of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors
+    wrapped, ctrl clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`.
+
+    The catch basin ``cartpole swingup --method trajopt`` reports is this controller's.
+    """
+    model = build_model(params) if model is None else model
+    Q0, R0 = lab_weights(model)
+    Q = Q0 if Q is None else np.asarray(Q, float)
+    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
+    tv_model = model if abs(model.dt - params.timestep) < 1e-15 else model.rebuilt(dt=params.timestep)
+    Ad, Bd = tv_model.linearize(discrete=True)
+    dt = params.timestep
+    cat = dlqr(Ad, Bd, Q * dt, R * dt)
+    return LinearFeedback(cat.K, tv_model.x_eq, tv_model.u_eq, hinges=tv_model.hinges,
+                          u_limits=np.asarray(params.ctrl_range, float), S=cat.S)
+
+
+def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
+                    T: float | None = None, N: int | None = None, model: CartPoleModel | None = None,
+                    solver: str = "ipopt", Q=None, R=None, Qf=None, time_margin: float = 0.2,
+                    solver_options: dict | None = None, cart_margin: float = 0.1,
+                    objective=None, starts: int | None = None, exact_discrete: bool | str = "auto",
+                    u_margin: float = U_MARGIN) -> SwingupPlan:
+    """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
+
+    Parameters
+    ----------
+    source : CartPoleParams or MJCF path, optional
+        The cart-pole (default the shipped asset), any number of poles and motors; its ctrlranges and joint
+        ranges bound the plan, its timestep is the TVLQR step.
+    x0 : (nx,) array, optional
+        Start state ``[qpos, qvel]`` (default hanging at rest, the planning model's ``x_hanging``). The plan
+        ends at the planning model's upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
+        nearest).
+    T : float, optional
+        Plan duration in s; default ``(1 + time_margin) * T_min`` with ``T_min`` from a minimum-time solve
+        (``effort``), ``T_min`` itself (``time``), or ``T_min + RUNNING_HOLD`` (1.5 s; running objectives).
+    N : int, optional
+        Collocation intervals; default 100, except ``dmc_swingup``: one interval per MJCF step (dm_control's
+        control step is its file's timestep), ``round(T / timestep)``.
+    objective : str, callable or Objective, optional
+        ``effort`` (default: minimum ``integral u'u dt`` for T), ``time`` (the minimum-time plan itself),
+        ``tracking`` (quadratic toward ``x*``, weights ``Q``, ``R``), ``dmc_swingup`` (dm_control's smooth reward,
+        maximised), ``"MODULE:FUNCTION"`` or a function ``(x, u) -> scalar`` of CasADi symbols (a cost; wrap a
+        reward with :func:`cartpole.ocp.objectives.reward`). See :mod:`cartpole.ocp.objectives`. The running
+        objectives start from the minimum-time plan padded with rest at upright.
+    model : CartPoleModel, optional
+        Model used for planning and TVLQR; default the MJCF's own. Give a deliberately wrong one (e.g.
+        ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
+    solver : {'ipopt', 'fatrop', 'sqp'}
+        NLP solver of the plan's last stage (the minimum-time stages are IPOPT's: a free final time). ``sqp``:
+        the fixed-time effort plan by :class:`~cartpole.solvers.sqp.CollocationSQP` from the minimum-time plan, IPOPT
+        when it does not converge in :data:`SQP_MAX_ITER` iterations (measured from the time plan, N = 100: one
+        pole 10 ms against IPOPT's 27 ms, two poles 54 against 189 ms, same optimum to 5e-8; three poles: no
+        convergence, IPOPT 0.54 s; the first use per cart and N compiles its QP library, 5-45 s). Other
+        objectives and a given ``T`` use IPOPT.
+    Q, R : arrays, optional
+        Tracking and catch weights (nx, nx) and (nu, nu) (default :func:`cartpole.lqr.lab_weights` of the model:
+        1 per slide, 10 per hinge angle, 0.1 per rate, 0.1 per input; for one pole the lab's
+        ``diag(1, 10, .1, .1)``, 0.1).
+    Qf : (nx, nx) array, optional
+        TVLQR terminal cost; default the catch's discrete cost-to-go (seamless hand-over).
+    time_margin : float
+        Relative margin on the minimum time when T is chosen automatically (default 0.2).
+    solver_options : dict, optional
+        Passed straight to ``casadi.nlpsol``.
+    cart_margin : float
+        Distance in m kept from each end of the slide range.
+    starts : int, optional
+        Guesses of the minimum-time multi-start (:func:`minimum_time`; default the pumping and straight-line
+        shapes to the nearest upright angles, after the energy-shaping rollout for one pole; 4 adds the routes in
+        which every link loops once more).
+    exact_discrete : bool or "auto"
+        Re-solve the plan on the exact discrete model at the MJCF step (:func:`exact_discrete_plan`) and track
+        that: the collocation plan obeys the continuous dynamics, and MuJoCo's integrator's per-step error along
+        it is otherwise a disturbance TVLQR must reject every step. ``"auto"`` (default) first predicts TVLQR
+        tracking the collocation plan on the planning model's exact discrete step (the step MuJoCo takes, so for
+        the MJCF's own model this is the MuJoCo run) and re-solves only when that prediction strays more than
+        :data:`TRACK_TOL` from the plan in any hinge angle (:func:`predicted_tracking_error`); True always
+        re-solves, False never. If the re-solve fails (with ``u_margin``, then with no margin), TVLQR tracks the
+        collocation plan as before.
+    u_margin : float
+        Fraction of each actuator's half ctrl range the exact discrete plan keeps free for feedback (default
+        :data:`U_MARGIN`, 5 %).
+
+    Returns
+    -------
+    SwingupPlan
+        ``plan.solve_info.attempts`` lists every solver call of every stage; ``plan.plan_time_s`` their wall time.
+    """
+    tic = time.perf_counter()
+    use_sqp = solver == "sqp"
+    solver = "ipopt" if use_sqp else solver
+    params = source if isinstance(source, CartPoleParams) else read_params(source)
+    plan_model = model if model is not None else build_model(params)
+    Q0, R0 = lab_weights(plan_model)
+    Q = Q0 if Q is None else np.asarray(Q, float)
+    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
+    x0 = plan_model.x_hanging if x0 is None else np.asarray(x0, dtype=float)
+    # Bounds are the MJCF's (the real actuators and track), whatever model plans.
+    bounds = bounds_from_params(params, cart_margin=cart_margin)
+    obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
+    T_min = None
+    if obj.kind == "time":
+        T_min, traj, info = minimum_time(plan_model, x0, N=N or 100, starts=starts, bounds=bounds)
+    elif obj.kind == "effort" and T is not None:
+        ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
+                                bounds=bounds)
+        traj, info = ocp.solve(x0)
+    else:
+        T_min, fast, tinfo = minimum_time(plan_model, x0, N=60 if obj.kind == "running" else min(N or 100, 60),
+                                          starts=starts, bounds=bounds)
+        if obj.kind == "effort":
+            T = (1.0 + time_margin) * T_min
+            ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
+                                    bounds=bounds)
+            first = fast  # the minimum-time plan, stretched onto T
+        else:
+            if T is None:
+                T = T_min + RUNNING_HOLD
+            if N is None:
+                N = max(2, int(round(T / params.timestep))) if obj.name == "dmc_swingup" else 100
+            ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
+                                    solver_options=solver_options, bounds=bounds)
+            first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright
+        traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
+                                    sqp=use_sqp and obj.kind == "effort")
+        info = replace(info, attempts=tinfo.attempts + info.attempts)
+    # TVLQR at the MJCF's step, on the planning model's exact discrete step.
+    tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
+    # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)) at the model's
+    # upright equilibrium: TVLQR's default terminal cost is its S, so at the hand-over both the cost-to-go and
+    # the gain continue without a jump (the continuous lab gain is ~15 % larger at 5 ms for one pole because
+    # the fastest closed-loop pole is -51 1/s).
+    dt = params.timestep
+    u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
+    catch = handover_catch(params, plan_model, Q, R)
+    exact, gains = None, None
+    if exact_discrete == "auto":
+        gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
+        err = predicted_tracking_error(tv_model, TVLQRController(traj, gains, catch, u_limits=u_limits), traj, x0)
+        exact_discrete = not err <= TRACK_TOL
+    if exact_discrete:
+        for margin in dict.fromkeys((float(u_margin), 0.0)):
+            exact = exact_discrete_plan(tv_model, traj, x0, bounds, dt=dt, u_margin=margin)
+            if exact is not None:
+                break
+    if exact is None:
+        gains = gains if gains is not None else tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
+    else:
+        gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt, reference=(exact.x, exact.u))
+    controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
+    return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
+                       model=plan_model, T_min=T_min, objective=obj.name, plan_time_s=time.perf_counter() - tic,
+                       discrete=exact)

@@ -1,0 +1,280 @@
+"""The SQP's QP, built in compiled C: stage form, convexification and condensing of one iteration in two calls.
+
+:class:`cartpole.solvers.sqp.CollocationSQP` evaluates the interval functions (defects, Jacobians, gradient, exact
+Hessian blocks) and then needs, per iteration, the QP of its module docstring. Built in numpy that took about
+0.9 ms a QP on the standard problem (N = 100, one pole), as much as everything else in the iteration: many small
+batched products, a Python-side Riccati pass and an O(N^3) dense condensed Hessian. Here the same arithmetic is
+three CasADi Functions generated from one stage's SX and mapped over the stages (``map``/``mapaccum``: the C holds
+each stage's arithmetic once, compact for any N), compiled to C once per size and cached like the interval
+functions (:func:`cartpole.codegen.build_library`), CasADi's virtual machine as the fallback:
+
+``sqp_stages (J (nv, nx N), H (nv, nv N), G (nv, N), D (nx, N), lm) -> (T (ny, nz N), ct (nx, N), Hy (ny, ny N),
+gy (ny, N), M (nx, nx N))``
+    Interval k's linearised defect ``D_k + J^a dz_k + J^b_x dx_k+1 + J^b_u du_k+1`` solved for ``dx_k+1``
+    (``M_k = (J^b_x)^-1``): the stage dynamics ``s_k+1 = T_k (s_k, w_k) + (ct_k, 0)``; the Hessian block and
+    gradient in the stage variables ``y_k = (s_k, w_k)`` (``Hy_k = P_k' H_k P_k + lm I``, ``P_k`` the map from
+    ``y_k`` to ``(z_k, z_k+1)``); then the backward Riccati recursion that raises any stage's reduced Hessian
+    ``R + B' P B`` whose Gershgorin bound is below ``reg_min`` (the first stage, whose state ``s_0 = du_0`` is free,
+    included), so the QP is convex. Inputs and outputs are numpy's C-order blocks (``J`` (N, nx, nv) is CasADi's
+    ``J_k'`` side by side), so each output reads as (N, rows, cols) of the named matrix.
+``sqp_condense (T, ct, Hy, gy) -> (Y (nc, 2nu N), band (2nu, 2nu N), f (nc,), e (2nu, N), GT (nc + 1, nx N))``
+    The QP condensed onto the knot controls ``v = (du_0 .. du_N)`` (nc = (N+1) nu): ``dx_k = g_k + G_k v``
+    (``GT`` holds ``[G_k, g_k]'`` for knots k = 1..N; ``G_0 = 0``, ``g_0 = 0``) by the forward recursion ``G_k+1 =
+    A_k G_k + Bw_k E_k`` (``A_k``, ``Bw_k`` the state rows of ``T_k``, ``E_k`` selecting ``du_k, du_k+1``); the
+    Hessian without any ``G' Q G`` product: with ``P_N = 0``, ``P_k = Q_k + A_k' P_k+1 A_k`` (the states' cost-to-go
+    of the linear system), ``sum_k G_k' Q_k G_k = sum_k (X_k E_k + E_k' X_k' - E_k' Bw_k' P_k+1 Bw_k E_k)`` with
+    ``X_k = G_k+1' P_k+1 Bw_k`` (each pair of inputs counted once through the later state it reaches), which with
+    the cross terms gives ``Hc = sum_k (Y_k E_k + E_k' Y_k') + sum_k E_k' band_k E_k``, ``Y_k = G_k' (S_k' + A_k'
+    P_k+1 Bw_k)``, ``band_k = R_k + Bw_k' P_k+1 Bw_k`` (``Q``, ``S``, ``R`` the blocks of ``Hy_k`` in ``(dx_k;
+    du_k, du_k+1)``), and the gradient ``fc = f + sum_k E_k' e_k``: O(N^2 nx nu) flops instead of O(N^3), the
+    stage terms fused into the forward recursion. :func:`assemble_condensed` places the blocks.
+``sqp_multipliers (dZ (nz, N+1), nbx (nx, N+1), Hy, gy, T, H, G, M) -> lam (nx, N)``
+    The defects' multipliers from a QP step ``dZ`` and the state bounds' multipliers: the stage dynamics'
+    multipliers by the backward recursion of the stage states' stationarity, then ``lambda_k =
+    -M_k' (mu_k + [H_k dV_k + G_k]_(z_k+1))`` (:mod:`cartpole.solvers.sqp`).
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from cartpole.ocp.bounds import OCPError
+from cartpole.codegen import build_library
+
+_LIB_VERSION = "sqp-qp-v2"  # bump when the generated functions change meaning
+
+
+def _acc(steps: int) -> dict:
+    """``mapaccum`` options for ``steps`` stages, unnested: its default nesting (base 10) copies the accumulator and
+    the outputs at every level."""
+    return {"base": max(int(steps), 1)}
+
+
+#: Compiler flags of this library, whatever its length (:func:`cartpole.codegen.choose_cflags` compiles long
+#: sources without optimisation): it is many small stage functions, which gcc optimises in about linear time.
+#: Measured on the one-pole condensing (N = 100, 0.8 MB of C, about 5 s to compile): -O3 -march=native 0.135 ms a
+#: call, -O2 0.34 ms, -O0 1.6 ms; the two-pole library (N = 60, 0.8 MB) compiles in 9 s, three poles (N = 100,
+#: 1.8 MB) in 20 s.
+CFLAGS = ("-O3", "-march=native")
+
+
+def _gershgorin_low(M: ca.SX) -> ca.SX:
+    """Gershgorin lower bound of the eigenvalues of the symmetric SX matrix ``M``."""
+    n = M.size1()
+    low = None
+    for i in range(n):
+        gi = M[i, i] - sum(ca.fabs(M[i, j]) for j in range(n) if j != i)
+        low = gi if low is None else ca.fmin(low, gi)
+    return low
+
+
+def _raise_to(low: ca.SX, eps: float) -> ca.SX:
+    """Shift that lifts a lower eigenvalue bound ``low`` to ``max(eps, |low|)`` where it is below ``eps``."""
+    return ca.if_else(low < eps, ca.fmax(eps, ca.fabs(low)) - low, 0)
+
+
+def _stage_function(nx: int, nu: int) -> ca.Function:
+    """One interval's stage form (module docstring, ``sqp_stages`` before the Riccati pass)."""
+    nz = nx + nu
+    nv, ny = 2 * nz, nz + nu
+    Jt, H = ca.SX.sym("Jt", nv, nx), ca.SX.sym("H", nv, nv)
+    g, d, lm = ca.SX.sym("g", nv), ca.SX.sym("d", nx), ca.SX.sym("lm")
+    J = Jt.T
+    Ja, Jbx, Jbu = J[:, :nz], J[:, nz:nz + nx], J[:, nz + nx:]
+    M = ca.solve(Jbx, ca.SX.eye(nx))
+    # dense: the flat output buffer is read as (N, nz, ny) (eye's off-diagonal zeros are otherwise not stored)
+    T = ca.densify(ca.vertcat(ca.horzcat(-ca.mtimes(M, Ja), -ca.mtimes(M, Jbu)),
+                              ca.horzcat(ca.SX.zeros(nu, nz), ca.SX.eye(nu))))  # (nz, ny)
+    ct = -ca.mtimes(M, d)
+    P = ca.vertcat(ca.horzcat(ca.SX.eye(nz), ca.SX.zeros(nz, nu)), T)  # (nv, ny)
+    Hy = ca.mtimes([P.T, H, P])
+    Hy = 0.5 * (Hy + Hy.T) + lm * ca.SX.eye(ny)
+    gy = ca.mtimes(P.T, ca.mtimes(H[:, nz:nz + nx], ct) + g)
+    return ca.Function("sqp_stage", [Jt, H, g, d, lm], [T.T, ct, Hy, gy, M.T], {"cse": True})
+
+
+def _riccati_step(P, A, B, Q, S, R, eps: float) -> tuple:
+    """One regularised Riccati step (SX): ``(P_prev, d)`` with ``d`` the shift added to ``R`` so that
+    ``R + B' P B`` keeps its Gershgorin bound above ``eps``."""
+    BP = ca.mtimes(B.T, P)
+    Rb = R + ca.mtimes(BP, B)
+    d = _raise_to(_gershgorin_low(Rb), eps)
+    Rb = Rb + d * ca.SX.eye(R.size1())
+    L = S + ca.mtimes(BP, A)
+    Pn = Q + ca.mtimes([A.T, P, A]) - ca.mtimes(L.T, ca.solve(Rb, L))
+    return 0.5 * (Pn + Pn.T), d
+
+
+def _riccati_stage(nz: int, nw: int, eps: float) -> ca.Function:
+    """One step of the regularised Riccati recursion over a stage: ``(P, Tt (ny, nz), Hy) -> (P_prev, d)``
+    (:func:`_riccati_step`; ``d`` goes to the stage's ``w`` block)."""
+    ny = nz + nw
+    P, Tt, Hy = ca.SX.sym("P", nz, nz), ca.SX.sym("Tt", ny, nz), ca.SX.sym("Hy", ny, ny)
+    T = Tt.T
+    Pn, d = _riccati_step(P, T[:, :nz], T[:, nz:], Hy[:nz, :nz], Hy[nz:, :nz], Hy[nz:, nz:], eps)
+    return ca.Function("sqp_riccati_stage", [P, Tt, Hy], [Pn, d], {"cse": True})
+
+
+def _first_stage(nx: int, nu: int, eps: float) -> ca.Function:
+    """The first stage's convexification (its state ``s_0 = du_0``, nu, is free: ``dx_0 = 0``): ``(P_1, Tt_0, Hy_0)
+    -> Hy_0`` with the ``w`` block and then the ``du_0`` block raised as needed."""
+    nz = nx + nu
+    ny = nz + nu
+    P, Tt, Hy = ca.SX.sym("P", nz, nz), ca.SX.sym("Tt", ny, nz), ca.SX.sym("Hy", ny, ny)
+    T = Tt.T
+    P0, dw = _riccati_step(P, T[:, nx:nz], T[:, nz:], Hy[nx:nz, nx:nz], Hy[nz:, nx:nz], Hy[nz:, nz:], eps)
+    du = _raise_to(_gershgorin_low(P0), eps)
+    shift = ca.diagcat(ca.SX.zeros(nx, nx), du * ca.SX.eye(nu), dw * ca.SX.eye(nu))
+    return ca.Function("sqp_first_stage", [P, Tt, Hy], [Hy + shift], {"cse": True})
+
+
+def _block_cols(width: int, n: int, count: int) -> list[int]:
+    """Column indices of the first ``n`` columns of each of ``count`` blocks ``width`` wide, side by side."""
+    return np.concatenate([np.arange(k * width, k * width + n) for k in range(count)]).tolist()
+
+
+def _reverse_blocks(X: ca.MX, width: int, count: int) -> ca.MX:
+    """The ``count`` column blocks (``width`` wide) of ``X`` in reverse order."""
+    cols = np.concatenate([np.arange(k * width, (k + 1) * width) for k in range(count - 1, -1, -1)])
+    return X[:, cols.tolist()]
+
+
+def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
+    """``[sqp_stages, sqp_condense, sqp_multipliers]`` (module docstring) for ``nx`` states, ``nu`` inputs and
+    ``N >= 2`` intervals, in CasADi's virtual machine (:func:`compiled_qp_functions` compiles them)."""
+    nz = nx + nu
+    nv, ny = 2 * nz, nz + nu
+    nc = (N + 1) * nu  # condensed unknowns
+    Jt, H = ca.MX.sym("J", nv, nx * N), ca.MX.sym("H", nv, nv * N)
+    G, D, lm = ca.MX.sym("G", nv, N), ca.MX.sym("D", nx, N), ca.MX.sym("lm")
+    Tt, ct, Hy, gy, Mt = _stage_function(nx, nu).map(N)(Jt, H, G, D, lm)
+    # the Riccati pass over stages N-1 .. 1, then the first stage
+    ric = _riccati_stage(nz, nu, reg_min).mapaccum("sqp_riccati", N - 1, [0], [0], _acc(N - 1))
+    Ps, dk = ric(ca.MX.zeros(nz, nz), _reverse_blocks(Tt[:, nz:], nz, N - 1), _reverse_blocks(Hy[:, ny:], ny, N - 1))
+    d = _reverse_blocks(dk, 1, N - 1)  # stages 1 .. N-1
+    Pl = Ps[:, (N - 2) * nz:]  # P after stage 1
+    Hs_, ds_ = ca.SX.sym("Hy", ny, ny), ca.SX.sym("d")
+    wblock = ca.DM(np.diag(np.r_[np.zeros(nz), np.ones(nu)]))
+    lift = ca.Function("sqp_lift", [Hs_, ds_], [Hs_ + ds_ * wblock]).map(N - 1)
+    Hy0 = _first_stage(nx, nu, reg_min)(Pl, Tt[:, :nz], Hy[:, :ny])
+    Hy_reg = ca.horzcat(Hy0, lift(Hy[:, ny:], d))
+    stages = ca.Function("sqp_stages", [Jt, H, G, D, lm], [Tt, ct, Hy_reg, gy, Mt],
+                         ["J", "H", "G", "D", "lm"], ["T", "ct", "Hy", "gy", "M"])
+
+    # ---- condensing -------------------------------------------------------------------------------------------
+    Ti, cti = ca.MX.sym("T", ny, nz * N), ca.MX.sym("ct", nx, N)
+    Hyi, gyi = ca.MX.sym("Hy", ny, ny * N), ca.MX.sym("gy", ny, N)
+    # Ti's block k is T_k' (ny, nz): its first nx rows and columns A_k', the rows below them Bw_k' (2nu, nx)
+    a_cols = _block_cols(nz, nx, N)
+    ATs, BWs = Ti[:nx, a_cols], Ti[nx:, a_cols]  # (nx, nx N), (2nu, nx N)
+    Qs = Hyi[:nx, _block_cols(ny, nx, N)]  # (nx, nx N)
+    # backward: P_k = Q_k + A_k' P_k+1 A_k, k = N-1 .. 1 (P_N = 0)
+    P_, Q_, AT_ = ca.SX.sym("P", nx, nx), ca.SX.sym("Q", nx, nx), ca.SX.sym("AT", nx, nx)
+    lyap = ca.Function("sqp_lyap", [P_, AT_, Q_], [ca.mtimes([AT_, P_, AT_.T]) + Q_]
+                       ).mapaccum("sqp_lyap_acc", N - 1, [0], [0], _acc(N - 1))
+    Prev = lyap(ca.MX.zeros(nx, nx), _reverse_blocks(ATs[:, nx:], nx, N - 1), _reverse_blocks(Qs[:, nx:], nx, N - 1))
+    Pnext = ca.horzcat(_reverse_blocks(Prev, nx, N - 1), ca.MX.zeros(nx, nx))  # P_1 .. P_N
+    # forward, one stage per knot: GT_k+1 = GT_k A_k' + Bf_k' with GT = [G; g]' (nc + 1, nx), Bf_k' holding Bw_k' in
+    # the rows du_k, du_k+1 and ct_k' in the last; and, from G_k, the stage's part of the Hessian and gradient:
+    # with G_k+1' = G_k' A_k' + E_k' Bw_k', X_k = G_k' W_k + E_k' Bw_k' P_k+1 Bw_k, W_k = S_k' + A_k' P_k+1 Bw_k
+    # (nx, 2nu), so Hc = sum_k (Y_k E_k + E_k' Y_k') + sum_k E_k' (R_k + Bw_k' P_k+1 Bw_k) E_k with Y_k = G_k' W_k;
+    # the gradient's G_k' (Q_k g_k + q_k) in the same product
+    GT_, BT_ = ca.SX.sym("GT", nc + 1, nx), ca.SX.sym("BT", nc + 1, nx)
+    Pk1, Tk, Hk, gk = ca.SX.sym("P", nx, nx), ca.SX.sym("Tt", ny, nz), ca.SX.sym("Hy", ny, ny), ca.SX.sym("gy", ny)
+    Ak, Bw = Tk[:nx, :nx].T, Tk[nx:, :nx].T  # (nx, nx), (nx, 2nu)
+    Qk, Sk, Rk = Hk[:nx, :nx], Hk[nx:, :nx], Hk[nx:, nx:]
+    gm = GT_[nc, :].T  # g_k (nx,)
+    PB = ca.mtimes(Pk1, Bw)
+    W = ca.horzcat(Sk.T + ca.mtimes(Ak.T, PB), ca.mtimes(Qk, gm) + gk[:nx])  # (nx, 2nu + 1)
+    GW = ca.mtimes(GT_[:nc, :], W)  # (nc, 2nu + 1)
+    band = Rk + ca.mtimes(Bw.T, PB)
+    ek = ca.mtimes(Sk, gm) + gk[nx:]
+    fwd = ca.Function("sqp_cond_stage", [GT_, BT_, Pk1, Tk, Hk, gk],
+                      [ca.mtimes(GT_, Ak.T) + BT_, GW[:, :2 * nu], band, GW[:, 2 * nu], ek]
+                      ).mapaccum("sqp_cond_acc", N, [0], [0], _acc(N))
+    blocks = []
+    for k in range(N):  # Bf_k' (nc + 1, nx), structurally sparse
+        parts = [ca.MX(k * nu, nx)] if k else []
+        parts.append(BWs[:, k * nx:(k + 1) * nx])
+        if nc - (k + 2) * nu:
+            parts.append(ca.MX(nc - (k + 2) * nu, nx))
+        parts.append(cti[:, k].T)
+        blocks.append(ca.vertcat(*parts))
+    BT = ca.horzcat(*blocks)
+    GTs, Yt, B_, F_, E_ = fwd(ca.MX.zeros(nc + 1, nx), ca.densify(BT), Pnext, Ti, Hyi, gyi)
+    condense = ca.Function("sqp_condense", [Ti, cti, Hyi, gyi], [Yt, B_, ca.sum2(F_), E_, GTs],
+                           ["T", "ct", "Hy", "gy"], ["Y", "band", "f", "e", "GT"])
+
+    # ---- multipliers ------------------------------------------------------------------------------------------
+    dZ, nbx = ca.MX.sym("dZ", nz, N + 1), ca.MX.sym("nbx", nx, N + 1)
+    Hm, Gm_, Mm = ca.MX.sym("H", nv, nv * N), ca.MX.sym("G", nv, N), ca.MX.sym("M", nx, nx * N)
+    zk, zk1, nb = ca.SX.sym("zk", nz), ca.SX.sym("zk1", nz), ca.SX.sym("nb", nx)
+    Hv, gv = ca.SX.sym("H", nv, nv), ca.SX.sym("g", nv)
+    yk = ca.vertcat(zk, zk1[nx:])  # (dx_k, du_k, du_k+1)
+    rk = ca.mtimes(Hk[:nx, :], yk) + gk[:nx] + nb
+    ck = (ca.mtimes(Hv, ca.vertcat(zk, zk1)) + gv)[nz:nz + nx]
+    loc = ca.Function("sqp_mult_stage", [zk, zk1, nb, Hk, gk, Hv, gv], [rk, ck]).map(N)
+    r, cc = loc(dZ[:, :N], dZ[:, 1:], nbx[:, :N], Hyi, gyi, Hm, Gm_)
+    m_, r_ = ca.SX.sym("m", nx), ca.SX.sym("r", nx)
+    adj = ca.Function("sqp_adj", [m_, AT_, r_], [ca.mtimes(AT_, m_) + r_]
+                      ).mapaccum("sqp_adj_acc", N - 1, [0], [0], _acc(N - 1))
+    # m_k-1 = A_k' m_k + r_k, k = N-1 .. 1, from m_N-1 = nbx_N; ATs (the condensing's) holds A_k' side by side
+    mrev = adj(nbx[:, N], _reverse_blocks(ATs[:, nx:], nx, N - 1), _reverse_blocks(r[:, 1:], 1, N - 1))
+    mx = ca.horzcat(_reverse_blocks(mrev, 1, N - 1), nbx[:, N])  # m_0 .. m_N-1
+    mu_, c_, Mk = ca.SX.sym("mu", nx), ca.SX.sym("c", nx), ca.SX.sym("Mt", nx, nx)
+    lamf = ca.Function("sqp_lam", [mu_, c_, Mk], [-ca.mtimes(Mk, mu_ + c_)]).map(N)  # Mk as passed is M_k'
+    lam = lamf(mx, cc, Mm)
+    mult = ca.Function("sqp_multipliers", [dZ, nbx, Hyi, gyi, Ti, Hm, Gm_, Mm], [lam],
+                       ["dZ", "nbx", "Hy", "gy", "T", "H", "G", "M"], ["lam"])
+    return [stages, condense, mult]
+
+
+#: This module's source: a library built from another version of these functions is never reused.
+_SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+
+
+def assemble_condensed(outputs, N: int, nx: int, nu: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The condensed QP from ``sqp_condense``'s outputs (flat numpy buffers, in its order): ``(Hc (nc, nc), fc
+    (nc,), Ga (N, nx, nc + 1))`` with nc = (N+1) nu; ``Ga[k - 1] = [G_k, g_k]`` for knots k = 1..N (module
+    docstring). New arrays, except ``Ga``: a view of the last output's buffer."""
+    Yt, band, f_g, f_e, GT = outputs
+    nc = (N + 1) * nu
+    Yt, band, f_e = Yt.reshape(N, 2 * nu, nc), band.reshape(N, 2 * nu, 2 * nu), f_e.reshape(N, 2 * nu)
+    Hc = np.zeros((nc, nc))  # rows of sum_k E_k' Y_k', then its transpose added
+    Hc[:N * nu] += Yt[:, :nu].reshape(N * nu, nc)
+    Hc[nu:] += Yt[:, nu:].reshape(N * nu, nc)
+    Hc += Hc.T
+    H4 = Hc.reshape(N + 1, nu, N + 1, nu)
+    k0, k1 = np.arange(N), np.arange(1, N + 1)
+    H4[k0, :, k0, :] += band[:, :nu, :nu]
+    H4[k1, :, k1, :] += band[:, nu:, nu:]
+    H4[k0, :, k1, :] += band[:, :nu, nu:]
+    H4[k1, :, k0, :] += band[:, nu:, :nu]
+    fc = f_g.copy()
+    fc[:N * nu] += f_e[:, :nu].ravel()
+    fc[nu:] += f_e[:, nu:].ravel()
+    return Hc, fc, GT.reshape(N, nx, nc + 1)
+
+
+def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled: bool = True
+                          ) -> tuple[list[ca.Function], str | None]:
+    """:func:`qp_functions` compiled to C and cached (one library per size and ``reg_min``), with the path of the
+    library; CasADi's virtual machine (same numbers, and None) with ``compiled`` False, ``CARTPOLE_NO_COMPILE`` set
+    or when the build fails (one line on stderr)."""
+    if N < 2:
+        raise OCPError(f"The SQP's QP functions need N >= 2 intervals, not {N}; use N >= 2 (100 is typical).")
+    if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
+        recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
+        try:
+            lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=recipe, cflags=CFLAGS)
+            return [ca.external(name, lib) for name in ("sqp_stages", "sqp_condense", "sqp_multipliers")], lib
+        except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+            print(f"cartpole: compiled SQP QP functions unavailable ({reason}); using CasADi's virtual machine "
+                  "(same results).", file=sys.stderr)
+    return qp_functions(nx, nu, N, reg_min), None

@@ -1,0 +1,42 @@
+"""cartpole.codegen: compiler flags by source size, the cache key, buffered evaluation, a library built and loaded."""
+import casadi as ca
+import numpy as np
+
+from cartpole import codegen
+
+def test_large_generated_sources_are_compiled_without_optimisation(monkeypatch):
+    assert codegen.choose_cflags("x" * 10) == codegen.CFLAGS
+    assert codegen.choose_cflags("x" * codegen.LARGE_SOURCE) == codegen.LARGE_CFLAGS
+    monkeypatch.setenv("CARTPOLE_CFLAGS", "-O3 -march=native")
+    assert codegen.choose_cflags("x" * codegen.LARGE_SOURCE)[:2] == ("-O3", "-march=native")
+
+
+def test_a_library_is_built_once_cached_by_content_and_loaded_by_name(tmp_path, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    x = ca.SX.sym("x", 3)
+    fn = ca.Function("cg_square", [x], [x * x])
+    lib, now = codegen.build_library([fn], "test-digest")
+    again, now_again = codegen.build_library([fn], "test-digest")
+    assert now and not now_again and lib == again and lib.startswith(str(tmp_path))
+    other, _ = codegen.build_library([fn], "another-digest")
+    assert other != lib
+    loaded = codegen.load_library(lib, ["cg_square"])["cg_square"]
+    np.testing.assert_array_equal(np.asarray(loaded([1.0, 2.0, -3.0])).ravel(), [1.0, 4.0, 9.0])
+
+
+def test_buffered_evaluation_equals_the_function_and_reuses_its_output_arrays():
+    x = ca.SX.sym("x", 2)
+    y = ca.SX.sym("y", 2, 2)
+    fn = ca.Function("f", [x, y], [ca.mtimes(y, x), ca.sum1(x)])
+    buffered = codegen.Buffered(fn)
+    Y = np.array([[1.0, 2.0], [3.0, 4.0]])
+    out = buffered(np.array([1.0, -1.0]), Y.ravel(order="F"))
+    np.testing.assert_allclose(out[0], (Y @ [1.0, -1.0]))
+    np.testing.assert_allclose(out[1], [0.0])
+    first = out[0]
+    assert buffered(np.array([2.0, 0.0]), Y.ravel(order="F"))[0] is first  # overwritten in place
+    np.testing.assert_allclose(first, Y @ [2.0, 0.0])
+
+
+def test_the_cpu_key_is_stable_within_a_process():
+    assert codegen.cpu_key() == codegen.cpu_key() and len(codegen.cpu_key()) == 16
