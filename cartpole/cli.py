@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         if writes_files(mod):
             p.add_argument("--out", default=".", metavar="DIR",
                            help="directory for outputs, created if missing (default: .)")
-        else:  # accepted and ignored for old scripts (deprecated): this command writes no files
+        else:  # removed (it was ignored): parsed only to say so in one sentence
             p.add_argument("--out", default=None, help=argparse.SUPPRESS)
         p.add_argument("--json", action="store_true", help="print one JSON document on stdout instead of prose")
         mod.add_arguments(p)
@@ -139,8 +139,8 @@ def _run(args):
             args.out = str(check_out_dir(args.out))
             stack.enter_context(output_transaction())
         elif args.out is not None:
-            print(f"cartpole {args.command}: --out is ignored: {args.command} writes no files (the option is "
-                  "deprecated and will be removed; drop it).", file=sys.stderr)
+            raise CartPoleError(f"--out was removed from {args.command}: {args.command} writes no files; drop the "
+                                "option")
         stack.enter_context(mujoco_warnings(notes.append))  # not MUJOCO_LOG.TXT in the cwd: not ours to write
         stack.enter_context(reporting(args.command, enabled=not args.json))
         if args.json:  # a stray print must not spoil the one JSON document

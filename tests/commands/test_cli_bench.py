@@ -54,10 +54,11 @@ def test_bench_prose_prints_a_table_and_one_stderr_line_per_measurement(capsys):
     assert "bench: " not in out
 
 
-def test_bench_writes_no_files_so_out_is_hidden_but_still_accepted(capsys):
-    from cartpole.cli import build_parser
-
-    assert build_parser().parse_args(["bench", "--out", "somewhere"]).out == "somewhere"  # old scripts still parse
+def test_bench_writes_no_files_so_out_is_hidden_and_refused(tmp_path, capsys):
+    assert main(["bench", "--quick", "--out", str(tmp_path / "somewhere")]) == 2
+    err = capsys.readouterr().err
+    assert err == "cartpole bench: --out was removed from bench: bench writes no files; drop the option.\n"
+    assert list(tmp_path.iterdir()) == []
     assert main(["bench", "--help"]) == 0
     assert "--out" not in capsys.readouterr().out
 

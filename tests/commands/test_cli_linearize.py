@@ -51,14 +51,16 @@ def test_linearize_stdout_is_pure_json_through_python_m(tmp_path):
     assert r.stderr == ""
 
 
-def test_linearize_writes_nothing_and_an_old_out_is_ignored_with_a_note(tmp_path, capsys):
+def test_linearize_writes_nothing_and_refuses_the_removed_out_in_one_sentence(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["linearize", "--json", "--out", str(out)]) == 0
+    assert main(["linearize", "--json", "--out", str(out)]) == 2
     cap = capsys.readouterr()
-    assert set(json.loads(cap.out)) >= {"A", "B", "Ad", "Bd"}
-    assert cap.err.splitlines() == ["cartpole linearize: --out is ignored: linearize writes no files (the option "
-                                    "is deprecated and will be removed; drop it)."]
+    assert cap.out == ""
+    assert cap.err.splitlines() == ["cartpole linearize: --out was removed from linearize: linearize writes no "
+                                    "files; drop the option."]
     assert not out.exists() and list(tmp_path.iterdir()) == []
+    assert main(["linearize", "--json"]) == 0
+    assert set(json.loads(capsys.readouterr().out)) >= {"A", "B", "Ad", "Bd"}
     assert main(["linearize", "--help"]) == 0
     assert "--out" not in capsys.readouterr().out
 
