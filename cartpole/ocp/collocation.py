@@ -202,6 +202,16 @@ class DirectCollocation:
         slacks = self._slack_names() if relaxed else []
         n_slk = len(slacks)
         n_extra = int(self.free_time) + n_slk
+
+        def knots(Z, ex):
+            """T (s, a variable when free, else the parameter p), p, the slacks, and the unscaled knot states,
+            inputs and their derivatives, from the scaled knots Z and the extra variables ex [(T), (slacks)]."""
+            p = ca.MX.sym("p", 0 if self.free_time else 1)
+            T = ex[0] if self.free_time else p[0]
+            slack = ex[n_extra - n_slk:] if relaxed else None
+            X, U = Z[:nx, :] * ca.DM(sx), Z[nx:, :] * ca.DM(su)
+            return T, p, slack, X, U, self._f_knots(X, U)
+
         # "standard" vector (what guesses and bounds are packed into, scaled):
         #   [vec(Z) (nz (N+1): x_k, u_k per knot), vec(Xc) (nx N: midpoint states), (T), (slacks)]
         if solver_name == "fatrop":
@@ -234,19 +244,8 @@ class DirectCollocation:
         elif not self.separated:
             w = ca.MX.sym("w", nz * (N + 1) + n_extra)  # [x_0, u_0, x_1, u_1, ..., x_N, u_N, extra]
             Z = ca.reshape(w[:nz * (N + 1)], nz, N + 1)
-            ex = w[nz * (N + 1):]
-            if self.free_time:
-                T = ex[0]
-                p = ca.MX.sym("p", 0)
-            else:
-                p = ca.MX.sym("p", 1)
-                T = p[0]
-            if relaxed:
-                slk = ex[n_extra - n_slk:]
-            X = Z[:nx, :] * ca.DM(sx)
-            U = Z[nx:, :] * ca.DM(su)
+            T, p, slk, X, U, F = knots(Z, w[nz * (N + 1):])
             h = T / N
-            F = self._f_knots(X, U)
             D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], X[:, 1:], U[:, 1:], F[:, :-1], F[:, 1:], h)
             # Defects scaled by the state scales (dimensionless), one block per interval, stage-ordered.
             g = [ca.vec(D / ca.DM(sx))]
@@ -263,19 +262,8 @@ class DirectCollocation:
             stages = ca.reshape(w[:ns * N], ns, N)
             Z = ca.horzcat(stages[:nz, :], w[ns * N:ns * N + nz])
             Xc = stages[nz:, :] * ca.DM(sx)
-            ex = w[ns * N + nz:]
-            if self.free_time:
-                T = ex[0]
-                p = ca.MX.sym("p", 0)
-            else:
-                p = ca.MX.sym("p", 1)
-                T = p[0]
-            if relaxed:
-                slk = ex[n_extra - n_slk:]
-            X = Z[:nx, :] * ca.DM(sx)
-            U = Z[nx:, :] * ca.DM(su)
+            T, p, slk, X, U, F = knots(Z, w[ns * N + nz:])
             h = T / N
-            F = self._f_knots(X, U)
             Uc_ = 0.5 * (U[:, :-1] + U[:, 1:])
             Fc = self.model.f.map(N)(Xc, Uc_)
             mid = Xc - (0.5 * (X[:, :-1] + X[:, 1:]) + h / 8 * (F[:, :-1] - F[:, 1:]))
