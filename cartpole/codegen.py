@@ -25,17 +25,15 @@ import numpy as np
 from cartpole._files import atomic_write
 
 #: Flags for the C compiler: the generated functions are straight-line arithmetic that gcc vectorises for the
-#: machine's own instruction set (one pole, N = 100 intervals mapped: exact Hessian blocks 0.148 ms at -O2, 0.116 at
-#: -O3 -march=native; defect Jacobians 0.066 and 0.039 ms; same compile time, 1.9 s). A library is keyed by the CPU
+#: machine's own instruction set (-O3 -march=native runs them faster than -O2 for the same compile time). A library is keyed by the CPU
 #: (:func:`cpu_key`), so a cache shared between machines stays correct; where the compiler refuses
 #: ``-march=native`` the library is built with :data:`PORTABLE_CFLAGS`.
 CFLAGS = ("-O3", "-march=native", "-fPIC", "-shared")
 #: The fallback of :data:`CFLAGS`.
 PORTABLE_CFLAGS = ("-O2", "-fPIC", "-shared")
 #: Generated C longer than this (characters) is compiled with :data:`LARGE_CFLAGS`: gcc's optimiser is superlinear
-#: in the size of one function and the interval Hessian grows fast with the number of poles. Measured (gcc, one
-#: core): one pole 0.16 MB, -O2 2.4 s; two poles 1.1 MB, -O2 43 s, -O1 20 s, -O0 1.3 s (solves at -O0 still 3.4x
-#: faster than the SX virtual machine, at -O1 8x); three poles 5.2 MB, -O1 340 s, -O0 6 s.
+#: in the size of one function and the interval Hessian grows fast with the number of poles (a two- or three-pole
+#: source at -O1 or -O2 takes gcc minutes, at -O0 seconds, and -O0 code still beats CasADi's SX virtual machine).
 LARGE_SOURCE = 400_000
 #: Flags for large generated sources (see :data:`LARGE_SOURCE`).
 LARGE_CFLAGS = ("-O0", "-fPIC", "-shared")

@@ -7,11 +7,11 @@ its exact Jacobians come from one SX function of a single physics step, ``(x, u)
 stage mapped over the ``N`` stages of the horizon, followed by the condensing of the Gauss-Newton QP onto the inputs
 (:func:`_qp_data`), is one function: one call per SQP step gives the QP's Hessian, gradient and state predictions.
 The generated C holds the single step once and each stage's condensing arithmetic once (``map`` and ``mapaccum``
-loops), so its size grows neither with ``steps`` nor with ``N``, and any number of poles compiles in seconds
-(one pole: 0.1 MB of C, about 3 s of gcc -O2, once per model, period and horizon).
+loops), so its size grows neither with ``steps`` nor with ``N``, and any number of poles compiles in seconds, once
+per model, period and horizon.
 
-The shared library is cached like the collocation's (:mod:`cartpole.ocp.compiled_nlp`:
-:func:`~cartpole.ocp.compiled_nlp.cache_dir`, keyed by :func:`~cartpole.ocp.compiled_nlp.model_key`, period, horizon,
+The shared library is cached like the collocation's (:mod:`cartpole.codegen`:
+:func:`~cartpole.codegen.cache_dir`, keyed by :func:`~cartpole.codegen.model_key`, period, horizon,
 variant, source, flags and CasADi version). With ``CARTPOLE_NO_COMPILE`` set, without a C compiler, or when the
 build fails, the same CasADi functions run in CasADi's virtual machine (same numbers, slower), with a note on
 stderr.
@@ -123,8 +123,8 @@ def _qp_data_plain(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Function:
     nz = N * nu
     x, S, U, goal, u_goal, Q, R, P, F, A, B, c = _condensing_inputs(stage, nx, nu, N)
     # forward: (g, G) accumulated; inputs A_k, B_k, c_k, E_k
-    # (the per-stage functions are SX: unrolled, they run 1.7x faster than MX's generic dense loops and compile
-    # in about 3 s for one pole)
+    # (the per-stage functions are SX: unrolled, they run faster than MX's generic dense loops and still compile
+    # in seconds)
     g_, G_ = ca.SX.sym("g", nx), ca.SX.sym("G", nx, nz)
     A_, B_, c_, E_ = ca.SX.sym("A", nx, nx), ca.SX.sym("B", nx, nu), ca.SX.sym("c", nx), ca.SX.sym("E", nu, nz)
     fwd = ca.Function("nmpc_fwd", [g_, G_, A_, B_, c_, E_],
@@ -188,8 +188,8 @@ def _qp_data_stabilized(stage: ca.Function, nx: int, nu: int, N: int) -> ca.Func
     rev = list(range(N - 1, -1, -1))
     A_rev = ca.horzcat(*[A[:, k * nx:(k + 1) * nx] for k in rev])
     B_rev = ca.horzcat(*[B[:, k * nu:(k + 1) * nu] for k in rev])
-    # (the per-stage functions are SX: unrolled, they run 1.7x faster than MX's generic dense loops and compile
-    # in about 3 s for one pole)
+    # (the per-stage functions are SX: unrolled, they run faster than MX's generic dense loops and still compile
+    # in seconds)
     g_, G_ = ca.SX.sym("g", nx), ca.SX.sym("G", nx, nz)
     A_, B_, c_, E_, K_ = (ca.SX.sym("A", nx, nx), ca.SX.sym("B", nx, nu), ca.SX.sym("c", nx), ca.SX.sym("E", nu, nz),
                           ca.SX.sym("K", nu, nx))

@@ -21,8 +21,7 @@ and dual solution. With IPOPT (compressed) the interval functions (defect, inter
 the knots and the interval length, and the interval's Lagrangian Hessian block) are compiled to C once per model
 and mapped over the intervals (:mod:`cartpole.ocp.compiled_nlp`), for every objective: fixed-time effort, running
 costs, and minimum time, whose free T couples every interval (one dense column in the constraint Jacobian and
-in the Hessian). Same NLP, same iterates; measured 2 to 4x less time a solve (the minimum-time solve of the
-three-pole cart 5x).
+in the Hessian). Same NLP, same iterates, several times less time a solve (``cartpole bench`` measures it).
 
 Multi-start: :meth:`DirectCollocation.solve` tries named, deterministic guesses
 (:func:`cartpole.ocp.guess.named_guesses`) in turn and keeps the best converged one (``best_of``) or the first;
@@ -117,9 +116,8 @@ class DirectCollocation:
         IPOPT, compressed, any objective (fixed T or free): evaluate the NLP and its derivatives with the
         Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled_nlp`; the shared library is
         cached in ``~/.cache/cartpole`` under a key of the model, its scaling and running cost, compiled once per
-        model: about 2 s for one pole, 1.3 s for two and 6 s for three, the larger ones unoptimised; one library
-        serves every T, N and both fixed and free time). Same NLP, iterates and solution as the SX formulation,
-        2 to 3x faster a solve for one pole (3 to 5x for two and three). Without a C compiler the SX formulation
+        model, the larger sources unoptimised; one library serves every T, N and both fixed and free time). Same
+        NLP, iterates and solution as the SX formulation, and faster a solve. Without a C compiler the SX formulation
         is used (a note on stderr). Default True.
     """
 

@@ -1,13 +1,12 @@
 """Hermite-Simpson interval functions compiled to C, for the fixed-time effort swing-up solved by IPOPT.
 
-Why: with ``expand=True`` the NLP is one flat SX graph that CasADi's virtual machine interprets; at N = 100
-that costs about 30 of a solve's 50 ms, most of it the Hessian of the Lagrangian. The NLP is N copies of one
+Why: with ``expand=True`` the NLP is one flat SX graph that CasADi's virtual machine interprets, and that
+interpretation is most of a solve's time, the Hessian of the Lagrangian above all. The NLP is N copies of one
 small interval function of ``2 (nx + nu)`` scaled variables ``v = (z_k, z_k+1)``, ``z = (x, u)`` (ten for one
 pole). So only that interval's pieces are compiled: its defect and effort with their exact first derivatives,
 and the Hessian block of its share of the Lagrangian (SX, derived by CasADi). For one pole their C source is
-small and compiles in about a second; code-generating the assembled NLP functions instead kept gcc busy for
-minutes at 2.5 GB. The interval source grows fast with the number of poles (1.1 MB for two, 5.2 MB for three),
-so large sources are compiled without optimisation (:data:`cartpole.codegen.LARGE_SOURCE`). The NLP's own functions (objective,
+small and compiles in seconds; code-generating the assembled NLP functions instead kept gcc busy for minutes and
+gigabytes. The interval source grows fast with the number of poles (megabytes for two and three), so large sources are compiled without optimisation (:data:`cartpole.codegen.LARGE_SOURCE`). The NLP's own functions (objective,
 constraints, gradient, constraint Jacobian, Lagrangian Hessian) are small MX graphs that ``map`` the compiled
 pieces over the N intervals and scatter the blocks into the NLP's sparse matrices; IPOPT gets them as
 ``grad_f``, ``jac_g`` and ``hess_lag``. Same NLP, same iterates, same solution as the SX formulation.

@@ -28,15 +28,13 @@ from the previous iteration's active set) or ``hpipm`` (CasADi's interface to th
 Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a failed check is solved again cold,
 then by HPIPM. The QP of each iteration is built in compiled C (:mod:`cartpole.solvers.sqp_functions`: the stage form
 and its convexification in one call, the condensing in another, without any ``G' Q G`` product, and the defects'
-multipliers from the QP's in a third). Measured on the standard problem (N = 100, one pole, 2 shared cores): a
-qrqp solve about 1 ms; HPIPM 1-4 ms a QP (CasADi's interface allocates HPIPM's workspace on every call; HPIPM needs
-``balance`` or ``robust`` mode and finite stand-ins for free bounds, :data:`QP_INF`) and its less accurate answers
-cost SQP iterations (101 instead of 9). DAQP takes the same iterations to the same optimum as qrqp; per QP: stage
-form 0.055 ms, condensing 0.16 ms, DAQP 0.25 ms (almost all its own set-up of the dense 101-unknown QP, Cholesky and
-the inverse factor; its active-set iterations 0.01 ms), multipliers 0.03 ms; the interval evaluations 0.22 ms an
-iteration. A solve (8 iterations, 7 QPs) took 7.2-7.8 ms where the same algorithm with the QP built in numpy took
-11-14 ms (numpy's O(N^3) condensed Hessian alone 0.3 ms a QP). DAQP is the default; the next lever would be a
-Riccati-based QP called directly, which avoids DAQP's dense set-up.
+multipliers from the QP's in a third). Why DAQP is the default: CasADi's HPIPM interface allocates HPIPM's workspace
+on every call, HPIPM needs ``balance`` or ``robust`` mode and finite stand-ins for free bounds (:data:`QP_INF`), and
+its less accurate answers cost many more SQP iterations; DAQP takes the same iterations to the same optimum as qrqp
+and costs less a QP, most of it its own set-up of the dense condensed QP (Cholesky and the inverse factor), little
+its active-set iterations. Building the QP in compiled C instead of numpy removes numpy's O(N^3) condensed Hessian
+and the Python-side loops. The next lever would be a Riccati-based QP called directly, which avoids DAQP's dense
+set-up. What each part costs today is measured by ``cartpole bench`` (the docs' benchmarks page), not written here.
 
 Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
@@ -56,13 +54,12 @@ is infeasible (DAQP's soft constraints): the step leaves the bounds, is projecte
 leaves are the filter's to judge, and that QP's multipliers are not taken (they price the penalty). Far from
 feasibility (largest scaled defect above ``exact_hessian_below``) the Hessian is the cost's curvature only (the
 defect multipliers dropped from it): the exact Hessian there, with multipliers from nearly infeasible QPs, is so
-indefinite that its convexification blows up. Measured on the two-pole problem from the bench's guess: the SQP
-reaches IPOPT's optimum (relative difference 1e-11) in 21 iterations and 0.17 s, against IPOPT's 114 iterations
-and 0.68 s, with ``exact_hessian_below`` 0.1; with 0.05, 0.03 and 0.01 also (29, 30, 44 iterations); with 0.2, 0.3
-or 1 (the exact Hessian from the start) it fails at the fourth iteration (``QP_Failed``). On the single pole the
-first defects are below 0.1, so the default leaves its solve unchanged (8 iterations; 10 with 0.05 or 0.03, 16 with
-0.01). An l1 or l2 elastic qrqp QP (slacks on every linearised defect) was tried before the soft DAQP rows and is
-not kept: 0.4 s a QP and no convergence. When the SQP does not converge, :meth:`CollocationSQP.solve` with
+indefinite that its convexification blows up. On the two-pole problem from the bench's guess the SQP reaches
+IPOPT's optimum, in far fewer iterations, with ``exact_hessian_below`` 0.1 (and with smaller thresholds, in more
+iterations), while larger ones, the exact Hessian from the start among them, end in ``QP_Failed`` within a few
+iterations (``tests/solvers/test_sqp.py`` holds this case). On the single pole the first defects are below 0.1, so
+the default leaves its solve unchanged. An l1 or l2 elastic qrqp QP (slacks on every linearised defect) was tried
+before the soft DAQP rows and is not kept: each QP was slow and the SQP did not converge. When the SQP does not converge, :meth:`CollocationSQP.solve` with
 ``fallback=True`` solves with IPOPT; IPOPT stays the default everywhere else.
 """
 from __future__ import annotations
@@ -136,7 +133,7 @@ class CollocationSQP:
         Longest step (max over the scaled variables) taken; longer QP steps are shortened.
     exact_hessian_below : float
         Largest scaled defect at which the Hessian includes the defects' curvature (the exact Lagrangian); above
-        it, the cost's only (default 0.1; the measured window is in the module docstring).
+        it, the cost's only (default 0.1; why, in the module docstring).
 
     Attributes
     ----------

@@ -1,9 +1,9 @@
 """The SQP's QP, built in compiled C: stage form, convexification and condensing of one iteration in two calls.
 
 :class:`cartpole.solvers.sqp.CollocationSQP` evaluates the interval functions (defects, Jacobians, gradient, exact
-Hessian blocks) and then needs, per iteration, the QP of its module docstring. Built in numpy that took about
-0.9 ms a QP on the standard problem (N = 100, one pole), as much as everything else in the iteration: many small
-batched products, a Python-side Riccati pass and an O(N^3) dense condensed Hessian. Here the same arithmetic is
+Hessian blocks) and then needs, per iteration, the QP of its module docstring. Built in numpy that cost as much as
+everything else in the iteration: many small batched products, a Python-side Riccati pass and an O(N^3) dense
+condensed Hessian. Here the same arithmetic is
 three CasADi Functions generated from one stage's SX and mapped over the stages (``map``/``mapaccum``: the C holds
 each stage's arithmetic once, compact for any N), compiled to C once per size and cached like the interval
 functions (:func:`cartpole.codegen.build_library`), CasADi's virtual machine as the fallback:
@@ -56,10 +56,8 @@ def _acc(steps: int) -> dict:
 
 
 #: Compiler flags of this library, whatever its length (:func:`cartpole.codegen.choose_cflags` compiles long
-#: sources without optimisation): it is many small stage functions, which gcc optimises in about linear time.
-#: Measured on the one-pole condensing (N = 100, 0.8 MB of C, about 5 s to compile): -O3 -march=native 0.135 ms a
-#: call, -O2 0.34 ms, -O0 1.6 ms; the two-pole library (N = 60, 0.8 MB) compiles in 9 s, three poles (N = 100,
-#: 1.8 MB) in 20 s.
+#: sources without optimisation): it is many small stage functions, which gcc optimises in about linear time, and
+#: the optimised build is several times faster a call than -O0.
 CFLAGS = ("-O3", "-march=native")
 
 
