@@ -97,8 +97,12 @@ def _gauss_tolerance(v, margin: float, value_at_margin: float = DMC_VALUE_AT_MAR
     return ca.exp(-0.5 * (v * scale / margin) ** 2)
 
 
-def dmc_swingup_reward(model, x, u):
+def dmc_swingup_reward(model, x, u, *, clip_control: bool = False):
     """dm_control's smooth cart-pole swing-up reward as a CasADi expression of ``x`` (nx,) and ``u`` (nu,).
+
+    The one definition of this reward in the toolkit: the OCP's ``dmc_swingup`` objective integrates it
+    symbolically, and :func:`dmc_swingup_function` wraps it as a Function that
+    :func:`cartpole.validation.metrics.dmc_swingup_reward` evaluates over a logged rollout's rows for scoring.
 
     As ``dm_control/suite/cartpole.py`` (``Balance._get_reward``, ``sparse=False``) defines it::
 
@@ -109,14 +113,30 @@ def dmc_swingup_reward(model, x, u):
         reward         = upright * small_control * small_velocity * centered
 
     with dm_control's default gaussian sigmoid and ``value_at_margin = 0.1`` (``tolerance(v) = exp(-0.5 (v s)^2)``,
-    ``s = sqrt(-2 ln 0.1) / margin``). ``phi_i`` is pole ``i``'s angle from vertical, what dm_control reads as the
-    body's ``xmat`` zz entry: the sum of the hinge errors from ``x*`` along the chain up to pole ``i`` (hinge
-    axes parallel, as in dm_control's files). The quadratic tolerance is ``1 - u^2`` clipped at 0 for ``|u| >=
-    1``; here it is ``1 - u^2`` unclipped (smooth), the same value wherever ``|ctrl| <= 1``, which the OCP's
-    bounds enforce on dm_control's file (ctrlrange -1 1). The min over several hinge rates is CasADi's ``fmin``
-    (smooth except where two rates tie); one pole has no min. The first actuator's ctrl is dm_control's
-    ``control()[0]``. :func:`cartpole.validation.metrics.dmc_swingup_reward` is the same reward in numpy, exactly
-    as dm_control computes it, for scoring a logged rollout (:func:`~cartpole.validation.metrics.dmc_swingup_return`).
+    ``s = sqrt(-2 ln 0.1) / margin``). ``phi_i`` is pole ``i``'s angle from vertical (rad), what dm_control reads as
+    the body's ``xmat`` zz entry: the sum of the hinge errors from ``x*`` along the chain up to pole ``i`` (hinge
+    axes parallel, as in dm_control's files); the cart position is in m, the hinge rates in rad/s. The min over
+    several hinge rates is CasADi's ``fmin`` (smooth except where two rates tie); one pole has no min. The first
+    actuator's ctrl is dm_control's ``control()[0]``.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        Supplies ``hinges``, ``slide``, ``nq`` and ``x_eq``.
+    x : casadi.SX or MX (nx,)
+        State ``[qpos, qvel]``.
+    u : casadi.SX or MX (nu,)
+        ctrl.
+    clip_control : bool
+        False (default, what the OCP optimises): the quadratic tolerance is ``1 - u_0^2`` unclipped (smooth), the
+        same value wherever ``|u_0| <= 1``, which the OCP's bounds enforce on dm_control's file (ctrlrange -1 1).
+        True (what scoring uses): ``fmax(0, 1 - u_0^2)``, dm_control's value for any ctrl.
+
+    Returns
+    -------
+    casadi expression, scalar
+        The reward, in [0, 1] with ``clip_control`` (unclipped it can only leave that range below, for
+        ``|u_0| > sqrt(5)``).
     """
     hinges = list(model.hinges)
     nq = model.nq
@@ -129,13 +149,26 @@ def dmc_swingup_reward(model, x, u):
     upright = sum(ups) / len(ups)
     s = x[model.slide] if model.slide is not None else 0
     centered = (1 + _gauss_tolerance(s, 2.0)) / 2
-    small_control = (4 + (1 - u[0] ** 2)) / 5
+    quadratic = 1 - u[0] ** 2
+    small_control = (4 + (ca.fmax(0, quadratic) if clip_control else quadratic)) / 5
     tol = [_gauss_tolerance(x[nq + h], 5.0) for h in hinges]
     m = tol[0]
     for t in tol[1:]:
         m = ca.fmin(m, t)
     small_velocity = (1 + m) / 2
     return upright * small_control * small_velocity * centered
+
+
+def dmc_swingup_function(model, *, clip_control: bool = False) -> ca.Function:
+    """:func:`dmc_swingup_reward` as a CasADi Function of SX symbols, ``(x (nx,), u (nu,)) -> reward`` (scalar).
+
+    Inputs are named ``x`` and ``u``, the output ``reward``. ``clip_control`` as in :func:`dmc_swingup_reward`:
+    False for the OCP's smooth form, True for dm_control's exact value (scoring; e.g. ``F.map(n)`` evaluates ``n``
+    states at once, columns ``x`` (nx, n), ``u`` (nu, n) -> (1, n)).
+    """
+    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    return ca.Function("dmc_swingup_reward", [x, u], [dmc_swingup_reward(model, x, u, clip_control=clip_control)],
+                       ["x", "u"], ["reward"])
 
 
 def tracking_cost(model, x, u, Q=None, R=None):

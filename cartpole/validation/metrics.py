@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cartpole.models import CartPoleParams, state_error, wrap_angle
+from cartpole.ocp.objectives import dmc_swingup_function
 
 #: Upright band on every wrapped |theta_i - theta_i*| in rad: the lab handout's settling band, the swing-up's
 #: upright test and the catch basin's final-state test.
@@ -388,31 +389,23 @@ DMC_STEPS = 1000
 
 
 def dmc_swingup_reward(model, x, u) -> np.ndarray:
-    """dm_control's smooth cart-pole swing-up reward in numpy, exactly as ``dm_control/suite/cartpole.py`` computes
-    it (``Balance._get_reward(sparse=False)``), for states ``x`` (..., 2 nq) and ctrl ``u`` (..., nu).
+    """dm_control's cart-pole swing-up reward exactly as ``dm_control/suite/cartpole.py`` computes it
+    (``Balance._get_reward(sparse=False)``), for states ``x`` (..., 2 nq) and ctrl ``u`` (..., nu): (...,), in [0, 1].
 
-    ``upright = mean_i (cos(phi_i) + 1) / 2`` (``phi_i`` pole ``i``'s angle from vertical: the sum of the hinge
-    errors from ``model.x_eq`` along the chain, dm_control's ``xmat`` zz for parallel hinge axes), ``centered = (1 +
-    tol(cart position, margin 2)) / 2``, ``small_control = (4 + max(0, 1 - u_0^2)) / 5``, ``small_velocity = (1 +
-    min_i tol(hinge rate_i, margin 5)) / 2``, with the gaussian ``tol(v) = exp(-0.5 (v sqrt(-2 ln 0.1) /
-    margin)^2)``; the reward is their product, in [0, 1].
+    The definition is :func:`cartpole.ocp.objectives.dmc_swingup_reward` (the one the OCP optimises), here with
+    dm_control's clipped quadratic control term (``clip_control=True``), built as a CasADi Function of the model
+    (:func:`~cartpole.ocp.objectives.dmc_swingup_function`) and evaluated on every row at once (``Function.map``).
+    States are in m, rad, m/s, rad/s; ``model.x_eq`` is upright.
     """
     x = np.asarray(x, float)
     u = np.asarray(u, float)
-    params = model.params
-    nq = params.nq
-    x_eq = np.asarray(model.x_eq, float)
-    hinges = list(params.hinges)
-    phi = np.cumsum(x[..., hinges] - x_eq[hinges], axis=-1)
-    upright = ((np.cos(phi) + 1) / 2).mean(axis=-1)
-    scale = np.sqrt(-2.0 * np.log(0.1))
-    s = x[..., params.slide] if params.slide is not None else 0.0
-    centered = (1 + np.exp(-0.5 * (s * scale / 2.0) ** 2)) / 2
-    u0 = u[..., 0]
-    small_control = (4 + np.where(np.abs(u0) < 1, 1 - u0**2, 0.0)) / 5
-    rates = x[..., [nq + h for h in hinges]]
-    small_velocity = (1 + np.exp(-0.5 * (rates * scale / 5.0) ** 2).min(axis=-1)) / 2
-    return upright * small_control * small_velocity * centered
+    batch = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
+    X = np.broadcast_to(x, (*batch, x.shape[-1])).reshape(-1, x.shape[-1])
+    U = np.broadcast_to(u, (*batch, u.shape[-1])).reshape(-1, u.shape[-1])
+    if X.shape[0] == 0:
+        return np.zeros(batch)
+    f = dmc_swingup_function(model, clip_control=True).map(X.shape[0])
+    return np.asarray(f(X.T, U.T), float).reshape(batch)
 
 
 def dmc_swingup_rewards(rollout, model, control_dt: float | None = None, *, steps: int | None = DMC_STEPS) -> np.ndarray:

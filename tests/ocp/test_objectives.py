@@ -6,7 +6,7 @@ import pytest
 
 from cartpole.models import build_model
 from cartpole.ocp import DirectCollocation, OCPError, make_objective, reward
-from cartpole.ocp.objectives import dmc_swingup_reward, load_objective
+from cartpole.ocp.objectives import dmc_swingup_function, dmc_swingup_reward, load_objective
 from cartpole.validation.metrics import dmc_swingup_reward as dmc_reward_np
 from chains import dmc_cartpole
 
@@ -118,6 +118,12 @@ def test_dmc_swingup_reward_equals_dm_controls_definition(tmp_path, n_poles):
     assert np.allclose(sym, ref, rtol=1e-12, atol=1e-14)
     assert np.allclose(dmc_reward_np(m, X, U), ref, rtol=1e-12, atol=1e-14)
     assert float(f(m.x_eq, [0.0])) == pytest.approx(1.0)
+    # beyond dm_control's ctrlrange only the clipped form (scoring's) is dm_control's value
+    wide = rng.uniform(-3, 3, (200, 1))
+    ref_wide = np.array([_reference_reward(xi, ui, n_poles) for xi, ui in zip(X, wide)])
+    clipped = dmc_swingup_function(m, clip_control=True)
+    assert np.allclose([float(clipped(xi, ui)) for xi, ui in zip(X, wide)], ref_wide, rtol=1e-12, atol=1e-14)
+    assert np.allclose(dmc_reward_np(m, X, wide), ref_wide, rtol=1e-12, atol=1e-14)
     # make_objective's running cost is the negated reward
     assert float(make_objective(m, "dmc_swingup").running(X[0], U[0])) == pytest.approx(-ref[0])
 

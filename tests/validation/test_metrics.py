@@ -243,3 +243,35 @@ def test_swingup_metrics_need_every_pole_up_and_still():
     x[:] = 0
     x[:, 7] = 0.2  # upright but the last link still turning
     assert not swingup_metrics(_chain_rollout(t, x), params)["success"]
+
+
+@pytest.mark.parametrize("n_poles", [1, 2, 3])
+def test_dmc_scoring_evaluates_the_objectives_reward_function_over_the_rows(chain_dir, n_poles):
+    """The numeric dm_control reward used for scoring is the OCP's symbolic definition (clipped control term)
+    mapped over the rows: equal at random states of any batch shape, and the OCP's running cost is its negation
+    wherever the ctrl is inside dm_control's ctrlrange (-1, 1)."""
+    import casadi as ca
+
+    from cartpole.models import build_model
+    from cartpole.ocp import make_objective
+    from cartpole.ocp.objectives import dmc_swingup_reward as symbolic
+    from cartpole.validation.metrics import dmc_swingup_reward
+
+    m = build_model(str(chain_dir / f"dmc_{n_poles}pole{'s' if n_poles > 1 else ''}.xml"))
+    rng = np.random.default_rng(10 + n_poles)
+    X = rng.uniform(-1, 1, (3, 40, m.nx)) * np.r_[2.5, [7.0] * n_poles, 4.0, [15.0] * n_poles]
+    U = rng.uniform(-2.5, 2.5, (3, 40, m.nu))  # past the clip at |u| = 1 and past sqrt(5), where 1 - u^2 < -4
+    x, u = ca.SX.sym("x", m.nx), ca.SX.sym("u", m.nu)
+    point = ca.Function("point", [x, u], [symbolic(m, x, u, clip_control=True)])
+    by_point = np.array([[float(point(xi, ui)) for xi, ui in zip(xr, ur)] for xr, ur in zip(X, U)])
+    scored = dmc_swingup_reward(m, X, U)
+    assert scored.shape == (3, 40)
+    np.testing.assert_allclose(scored, by_point, rtol=1e-15, atol=1e-16)
+    assert np.all((scored >= 0) & (scored <= 1))
+    assert dmc_swingup_reward(m, X[0, 0], U[0, 0]).shape == () and dmc_swingup_reward(m, X[:0, 0], U[:0, 0]).size == 0
+    cost = make_objective(m, "dmc_swingup").running
+    inside = np.abs(U[..., 0]) <= 1
+    assert inside.any() and (~inside).any()
+    ocp = np.array([[float(cost(xi, ui)) for xi, ui in zip(xr, ur)] for xr, ur in zip(X, U)])
+    np.testing.assert_allclose(-ocp[inside], scored[inside], rtol=1e-15, atol=1e-16)
+    assert np.all(-ocp[~inside] < scored[~inside])  # outside the range only the smooth form goes on falling
