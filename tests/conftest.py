@@ -1,4 +1,5 @@
 import os
+import random
 import sys
 from pathlib import Path
 
@@ -9,6 +10,60 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from chains import CHAINS, write_chain  # noqa: E402
 from variants import VARIANTS, write_variant  # noqa: E402
+
+
+# ---- hypothesis: randomised, its seed printed so that a failure reproduces with one environment variable ---------
+# Every run draws fresh examples from one seed: --hypothesis-seed, else $HYPOTHESIS_SEED, else a new random one. The
+# controller picks it and hands it to the xdist workers, hypothesis' own plugin applies it (each test then draws from
+# that seed, whatever runs beside it), and the header (without -q) and the summary (always) print it. No example
+# database: a failure found once is kept as an explicit @example in the test module, not in a local cache.
+SEED_VARIABLE = "HYPOTHESIS_SEED"
+
+try:
+    from hypothesis import settings as _hypothesis_settings
+except ImportError:  # the property tests skip without the dev extra
+    _hypothesis_settings = None
+else:
+    _hypothesis_settings.register_profile("cartpole", derandomize=False, database=None)
+    _hypothesis_settings.load_profile("cartpole")
+
+
+def _hypothesis_seed(config):
+    """The seed of this run (a decimal string), or None without hypothesis."""
+    if _hypothesis_settings is None:
+        return None
+    if hasattr(config, "workerinput"):  # an xdist worker: the controller's seed
+        return config.workerinput.get("hypothesis_seed")
+    return (config.getoption("hypothesis_seed", None) or os.environ.get(SEED_VARIABLE)
+            or str(random.SystemRandom().randrange(2**32)))
+
+
+@pytest.hookimpl(tryfirst=True)  # before hypothesis' plugin reads --hypothesis-seed in its own pytest_configure
+def pytest_configure(config):
+    seed = _hypothesis_seed(config)
+    if seed is not None:
+        config.option.hypothesis_seed = seed
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node):
+    """xdist: every worker draws from the controller's seed."""
+    node.workerinput["hypothesis_seed"] = getattr(node.config.option, "hypothesis_seed", None)
+
+
+def _seed_line(config):
+    seed = getattr(config.option, "hypothesis_seed", None)
+    return None if seed is None else f"hypothesis seed: {seed} (rerun with {SEED_VARIABLE}={seed})"
+
+
+def pytest_report_header(config):
+    return _seed_line(config)
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    line = _seed_line(config)
+    if line is not None and not hasattr(config, "workerinput"):
+        terminalreporter.write_line(line)
 
 
 @pytest.fixture(scope="session")
