@@ -57,6 +57,14 @@ RUNS = {
 }
 
 
+def plan_options():
+    """The study's default planner settings: ``PlanOptions(exact_discrete=False)``, the collocation plan's own
+    feedforward inside TVLQR (not the exact-discrete re-solve)."""
+    from cartpole.planning.options import PlanOptions
+
+    return PlanOptions(exact_discrete=False)
+
+
 class FeedforwardError(CartPoleError):
     """Bad request for the feedforward study (a mass error that is not a number above -1, a bad duration)."""
 
@@ -192,6 +200,8 @@ class FeedforwardStudy:
         Relative pole-mass error of the wrong model.
     runs : dict of str -> FeedforwardRun
         In the order of :data:`RUNS`.
+    options : PlanOptions or None
+        The planner settings both plans were made with.
     """
 
     params: CartPoleParams
@@ -200,6 +210,7 @@ class FeedforwardStudy:
     wrong_plan: object
     mass_error: float
     runs: dict
+    options: object = None
 
     @property
     def mjcf(self) -> str:
@@ -245,7 +256,8 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
 
 
 def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
-                    plan=None, progress: Callable[[str, float], None] | None = None) -> FeedforwardStudy:
+                    plan=None, options=None, progress: Callable[[str, float], None] | None = None
+                    ) -> FeedforwardStudy:
     """Plan the swing-up, then run feedforward alone and feedforward + TVLQR in MuJoCo, on a true and a wrong model.
 
     Parameters
@@ -259,6 +271,10 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
         Seconds simulated after each plan's end (default :data:`EXTRA`, 2 s).
     plan : SwingupPlan, optional
         A plan already made on the MJCF's own model (skips that solve); it must be for this MJCF.
+    options : PlanOptions, optional
+        The planner's settings for both plans (:class:`~cartpole.planning.options.PlanOptions`); default
+        :func:`plan_options`, the collocation plan tracked as it is (``exact_discrete=False``: this study is about
+        that plan's own feedforward, not a re-solve on the exact discrete step).
     progress : callable, optional
         ``progress(stage, fraction)`` with stage ``"plan"`` (both trajectory optimisations) or ``"simulate"`` (the four
         MuJoCo runs). Either is also a :func:`cartpole.progress.stage`, shown by the caller's reporter if any.
@@ -276,6 +292,7 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     """
     from cartpole.planning.trajopt import trajopt_swingup
 
+    options = plan_options() if options is None else options
     f = check_mass_error(mass_error)
     if not (math.isfinite(extra) and extra >= 1.0):
         raise FeedforwardError(f"The time after the plan, {extra} s, must be at least 1 s (the success test "
@@ -291,11 +308,10 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     with stage("trajectory optimisation", size=f"{n_plans} plan{'s' if n_plans != 1 else ''}",
                callback=forward("plan")) as tick:
         if plan is None:
-            # the collocation plan's own feedforward inside TVLQR (not the exact-discrete re-solve)
-            plan = trajopt_swingup(params, model=model, exact_discrete=False)
+            plan = trajopt_swingup(params, model=model, options=options)
             tick(1.0 / max(n_plans, 1))
         wrong = plan if f == 0.0 else trajopt_swingup(params, model=build_model(params.scaled_pole(1.0 + f, 1.0)),
-                                                      exact_discrete=False)
+                                                      options=options)
         tick(1.0)
 
     x0 = model.x_hanging
@@ -316,4 +332,5 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
             runs[name] = judge(name, rollout, sp.trajectory, model,
                                handover_time=getattr(ctrl, "handover_time", None))
             tick((i + 1) / len(controllers))
-    return FeedforwardStudy(params=params, model=model, plan=plan, wrong_plan=wrong, mass_error=f, runs=runs)
+    return FeedforwardStudy(params=params, model=model, plan=plan, wrong_plan=wrong, mass_error=f, runs=runs,
+                            options=options)

@@ -15,12 +15,14 @@
 * ``mpc``: nonlinear MPC re-planning every control period (:func:`cartpole.mpc.nmpc.nmpc_swingup`), MuJoCo holding
   each ctrl for the controller's ``period``; no catch, no basin.
 
-Scenario options every method takes: ``push=[(T, F), ...]`` (a horizontal force of F N on the cart body for
-:data:`PUSH_SECONDS` from time T s, through MuJoCo's ``xfrc_applied``; logged per physics step in
-``rollout.info["push"]``, so the run still replays exactly) and ``model_error=S`` (the *planning* model's pole masses
-and lengths scaled by S, :meth:`~cartpole.models.CartPoleParams.scaled_pole`; MuJoCo keeps the file's). With model
-error, energy shaping and its catch (energy), the plan and its TVLQR (trajopt) or the NMPC's model (mpc) are built on
-the scaled model; the catch basin is still measured in MuJoCo on the MJCF (the basin of the catch as built).
+Each stage takes its settings as one value: ``plan=`` :class:`~cartpole.planning.options.PlanOptions` (trajopt, and
+mpc's offline plan), ``mpc=`` :class:`~cartpole.mpc.options.MPCOptions`, and for every method ``loop=``
+:class:`~cartpole.sim.options.LoopOptions`, the closed loop's scenario: ``push=((T, F), ...)`` (a horizontal force
+of F N on the cart body for :data:`PUSH_SECONDS` from time T s, through MuJoCo's ``xfrc_applied``; logged per physics
+step in ``rollout.info["push"]``, so the run still replays exactly) and ``model_error=S`` (the *planning* model's pole
+masses and lengths scaled by S, :meth:`~cartpole.models.CartPoleParams.scaled_pole`; MuJoCo keeps the file's). With
+model error, energy shaping and its catch (energy), the plan and its TVLQR (trajopt) or the NMPC's model (mpc) are
+built on the scaled model; the catch basin is still measured in MuJoCo on the MJCF (the basin of the catch as built).
 
 The start state is ``[qpos, qvel]`` in MuJoCo's order (``2 nq`` numbers; default the model's hanging rest
 ``x_hanging``). Either way MuJoCo runs the controller on the MJCF and every physics step is logged (``qpos``
@@ -37,6 +39,13 @@ import numpy as np
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.sim import Rollout, simulate
+from cartpole.sim.options import PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push, push_force
+
+#: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
+#: sweep import them from here).
+__all__ = ["ENERGY_DURATION", "METHODS", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
+           "SwingupResult", "check_model_error", "check_push", "check_start", "parse_push", "plan_report",
+           "planning_model", "push_force", "run_swingup"]
 
 METHODS = ("energy", "trajopt", "mpc")
 
@@ -44,12 +53,14 @@ METHODS = ("energy", "trajopt", "mpc")
 ENERGY_DURATION = 10.0
 TRAJOPT_EXTRA = 3.0
 MPC_DURATION = 8.0
-#: Seconds each push lasts.
-PUSH_SECONDS = 0.1
 
 
 class SwingupError(CartPoleError):
-    """Bad swing-up request: unknown method, start state not finite or outside the joint range, bad duration."""
+    """Bad swing-up request: unknown method, start state not finite or outside the joint range, a stage's options
+    given to a method that has no such stage. (Bad closed-loop settings, pushes and model error, are
+    :class:`~cartpole.sim.options.LoopError`; bad planner or NMPC settings
+    :class:`~cartpole.planning.options.PlanOptionsError`, :class:`~cartpole.mpc.options.NMPCError`; all are
+    :class:`~cartpole.errors.CartPoleError`.)"""
 
 
 @dataclass(frozen=True)
@@ -80,6 +91,11 @@ class SwingupResult:
         Scale of the planning model's pole masses and lengths (1: the MJCF's own).
     controller : object
         The controller MuJoCo ran (for mpc: its ``solve_ms``, ``period``, ``horizon``, ``failures``).
+    options : dict of str -> options object
+        The settings of each stage the method ran, as run: ``"plan"``
+        (:class:`~cartpole.planning.options.PlanOptions`; trajopt, and mpc's offline plan), ``"loop"``
+        (:class:`~cartpole.sim.options.LoopOptions`; every method), ``"mpc"`` (:class:`~cartpole.mpc.options.
+        MPCOptions`; mpc, its period the loop's when it gave none).
     """
 
     method: str
@@ -92,6 +108,7 @@ class SwingupResult:
     push: tuple = ()
     model_error: float = 1.0
     controller: object = field(default=None, compare=False, repr=False)
+    options: dict = field(default_factory=dict, compare=False)
 
 
 def _state_order(params: CartPoleParams) -> str:
@@ -140,40 +157,15 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
     return x
 
 
-def check_push(push, params: CartPoleParams | None = None) -> tuple:
-    """Validate pushes: a sequence of ``(T, F)`` pairs, ``T >= 0`` s and ``F`` N finite; the model must have a cart.
-
-    Returns
-    -------
-    tuple of (float, float), sorted by time
-
-    Raises
-    ------
-    SwingupError
-        Not pairs of finite numbers, a negative time, or a model without a slide joint to push.
-    """
-    if push is None:
-        return ()
-    try:
-        pairs = [(float(T), float(F)) for T, F in push]
-    except (TypeError, ValueError):
-        raise SwingupError(f"A push is a pair (T, F) of a start time in s and a force in N; got {push!r}.") from None
-    for T, F in pairs:
-        if not (np.isfinite(T) and np.isfinite(F) and T >= 0):
-            raise SwingupError(f"The push ({T:g} s, {F:g} N) needs a start time >= 0 s and a finite force; give "
-                               "e.g. --push 1.5:20.")
-    if pairs and params is not None and params.slide is None:
-        raise SwingupError("This MJCF has no slide joint, so there is no cart to push; drop the push.")
-    return tuple(sorted(pairs))
-
-
 def parse_push(text: str) -> tuple[float, float]:
     """``"T:F"`` (the command line's ``--push``) as ``(T [s], F [N])``.
 
     Raises
     ------
     SwingupError
-        Not two numbers separated by a colon, or a bad pair (:func:`check_push`).
+        Not two numbers separated by a colon.
+    LoopError
+        A bad pair (:func:`~cartpole.sim.options.check_push`).
     """
     parts = str(text).split(":")
     try:
@@ -183,43 +175,7 @@ def parse_push(text: str) -> tuple[float, float]:
     except ValueError:
         raise SwingupError(f"--push {text!r} is not T:F (a start time in s and a force in N); give e.g. --push "
                            "1.5:20 for 20 N on the cart for 0.1 s from t = 1.5 s.") from None
-    return check_push([pair])[0]
-
-
-def check_model_error(model_error) -> float:
-    """The planning model's scale ``S`` (1.0 for None): a finite number, ``0 < S <= 10``.
-
-    Raises
-    ------
-    SwingupError
-    """
-    if model_error is None:
-        return 1.0
-    try:
-        S = float(model_error)
-    except (TypeError, ValueError):
-        raise SwingupError(f"The model error {model_error!r} is not a number; give a scale such as 0.8.") from None
-    if not (np.isfinite(S) and 0 < S <= 10):
-        raise SwingupError(f"The model error {S:g} is not a scale in (0, 10] of the poles' masses and lengths; give "
-                           "e.g. 1.2 for 20 % heavier and longer.")
-    return S
-
-
-def push_force(push, timestep: float):
-    """``push`` pairs as the ``push(t) -> F`` callable :func:`~cartpole.sim.rollout.simulate` takes, or None.
-
-    Each push acts on the physics steps ``k`` with ``round(T / h) <= k < round((T + PUSH_SECONDS) / h)``
-    (``h = timestep``); overlapping pushes add."""
-    pairs = check_push(push)
-    if not pairs:
-        return None
-    h = float(timestep)
-    spans = [(int(round(T / h)), int(round((T + PUSH_SECONDS) / h)), F) for T, F in pairs]
-
-    def force(t: float) -> float:
-        k = int(round(t / h))
-        return float(sum(F for a, b, F in spans if a <= k < b))
-    return force
+    return check_push([pair])[0]  # a bad pair: LoopError
 
 
 def planning_model(model: CartPoleModel, model_error: float = 1.0) -> CartPoleModel:
@@ -249,12 +205,15 @@ def plan_report(sp) -> dict:
             "discrete": None if getattr(sp, "discrete", None) is None else sp.discrete.as_dict()}
 
 
-def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float | None = None,
-                progress: Callable[[str, float], None] | None = None, basin_cache=None,
-                energy_options: dict | None = None, catch_weights: tuple | None = None,
-                objective=None, on_step=None, push=None, model_error: float | None = None,
-                plan_model: CartPoleModel | None = None, period: float | None = None,
-                horizon: float | None = None) -> SwingupResult:
+#: The keywords ``run_swingup`` took before the options objects, and the stage each one sets (a compatibility layer).
+LEGACY_KEYWORDS = {"duration": "loop", "push": "loop", "model_error": "loop", "objective": "plan", "period": "mpc",
+                   "horizon": "mpc"}
+
+
+def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: LoopOptions | None = None,
+                mpc=None, energy_options: dict | None = None, catch_weights: tuple | None = None,
+                plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
+                basin_cache=None, on_step=None, **legacy) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
 
     Parameters
@@ -265,47 +224,55 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
     x0 : (2 nq,) array, optional
         Start state ``[qpos, qvel]``; default the model's hanging rest ``x_hanging`` (``[0, pi, 0, 0]`` for the
         shipped cart).
-    duration : float, optional
-        Simulated seconds; default 10 s (energy), 8 s (mpc) or the plan's horizon + 3 s (trajopt; with
-        ``dmc_swingup`` at least dm_control's episode, 1000 MJCF steps, so the return counts all of them).
-    progress : callable, optional
-        ``progress(stage, fraction)`` with stage "basin", "trajopt" or "simulate".
-    basin_cache : BasinCache, optional
-        Where basin estimates are looked up and kept; default ``BasinCache.on_disk()`` (the user cache directory,
-        ``$CARTPOLE_CACHE_DIR`` honoured), so a second run with the same model and catch does not estimate again.
+    plan : PlanOptions, optional
+        ``trajopt`` and ``mpc`` (its offline plan): the planner's settings
+        (:class:`~cartpole.planning.options.PlanOptions`); default ``PlanOptions()`` (mpc:
+        ``PlanOptions(cart_margin=mpc.cart_margin)``).
+    loop : LoopOptions, optional
+        The closed loop (:class:`~cartpole.sim.options.LoopOptions`): ``duration`` (s; None: 10 s energy, 8 s mpc,
+        the plan's horizon + 3 s trajopt, with ``dmc_swingup`` at least dm_control's episode of 1000 MJCF steps so
+        the return counts all of them), ``period`` (s; ``mpc`` only: the NMPC re-plans at it), ``push`` and
+        ``model_error`` (the planning model is :func:`planning_model` of it; MuJoCo keeps the MJCF's).
+    mpc : MPCOptions, optional
+        ``mpc`` only: the controller's settings (:class:`~cartpole.mpc.options.MPCOptions`); its period, when None,
+        is the loop's, else the controller's default.
     energy_options : dict, optional
-        Keyword arguments for :class:`~cartpole.control.energy.EnergyShapingController`.
+        Keyword arguments for :class:`~cartpole.control.energy.EnergyShapingController` (``energy`` only).
     catch_weights : (Q, R), optional
         LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
         (:func:`~cartpole.control.switching.swingup_catch`; the lab's ``R = 0.1`` gives a much smaller basin).
         Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR. Energy method only: the trajopt hand-over is
         :func:`cartpole.planning.trajopt.handover_catch`.
-    objective : str or callable, optional
-        ``trajopt`` only: the plan's objective (``effort`` default, ``time``, ``tracking``, ``dmc_swingup``,
-        ``"MODULE:FUNCTION"`` or a function; see :func:`cartpole.planning.trajopt.trajopt_swingup`).
+    plan_model : CartPoleModel, optional
+        The planning model itself, built once by a caller that runs many swing-ups (a sweep); default
+        :func:`planning_model` of ``loop.model_error``.
+    progress : callable, optional
+        ``progress(stage, fraction)`` with stage "basin", "trajopt", "mpc" or "simulate".
+    basin_cache : BasinCache, optional
+        Where basin estimates are looked up and kept; default ``BasinCache.on_disk()`` (the user cache directory,
+        ``$CARTPOLE_CACHE_DIR`` honoured), so a second run with the same model and catch does not estimate again.
     on_step : callable, optional
         ``on_step(m, d)`` during the MuJoCo run (e.g. :class:`cartpole.viz.viewer.LiveViewer`, to watch it live);
         returning False ends the run (see :func:`cartpole.sim.rollout.simulate`).
-    push : sequence of (T, F), optional
-        Pushes: a world-x force of F N on the cart body for :data:`PUSH_SECONDS` from time T s (physics steps
-        :func:`push_force`), logged per step in ``rollout.info["push"]``.
-    model_error : float, optional
-        Scale S of the planning model's pole masses and lengths (:func:`planning_model`); MuJoCo keeps the MJCF's.
-    plan_model : CartPoleModel, optional
-        The planning model itself, built once by a caller that runs many swing-ups (a sweep); default
-        :func:`planning_model` of ``model_error``.
-    period, horizon : float, optional
-        ``mpc`` only: control period and prediction horizon in s (default the controller's).
+    **legacy
+        A compatibility layer for the keywords this function took before the options objects
+        (:data:`LEGACY_KEYWORDS`): ``duration``, ``push``, ``model_error`` (fields of ``loop``), ``objective``
+        (``plan``; trajopt only), ``period``, ``horizon`` (``mpc``; mpc only). Each replaces that field of the
+        stage's options (None leaves it as it is) and does nothing else.
 
     Returns
     -------
     SwingupResult
+        ``result.options`` holds the options of each stage as run.
 
     Raises
     ------
     SwingupError, MJCFError
-        Bad method, start state, duration, push or model error; an MJCF that is not a cart-pole; ``mpc`` without
-        :mod:`cartpole.mpc.nmpc`.
+        Bad method or start state; a stage's options given to a method without that stage (``plan`` to energy,
+        ``mpc`` or a loop period to energy or trajopt, ``objective`` to energy or mpc); an unknown keyword; an
+        MJCF that is not a cart-pole; ``mpc`` without :mod:`cartpole.mpc.nmpc`.
+    LoopError, PlanOptionsError, NMPCError
+        Bad loop, planner or NMPC settings (a push, a model error, a duration...).
     EnergyShapingError
         ``energy`` on a model energy shaping does not drive (more than one pole, a motor on a hinge), raised
         before the basin estimate or any simulation.
@@ -317,27 +284,36 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
 
     if method not in METHODS:
         raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")
+    unknown = sorted(set(legacy) - set(LEGACY_KEYWORDS))
+    if unknown:
+        raise SwingupError(f"run_swingup has no keyword {', '.join(map(repr, unknown))}; give the stages' settings "
+                           f"as plan=, loop=, mpc= options (or the keywords {', '.join(LEGACY_KEYWORDS)}).")
+    given = {stage: {k: v for k, v in legacy.items() if LEGACY_KEYWORDS[k] == stage and v is not None}
+             for stage in ("plan", "loop", "mpc")}
     if isinstance(mjcf, CartPoleModel):
         model, params = mjcf, mjcf.params
     else:
         params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
         model = None
-    if duration is not None and not (np.isfinite(duration) and duration > 0):
-        raise SwingupError(f"Duration {duration} s is not a positive number of seconds; give e.g. --duration 8.")
+    loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
     model = model if model is not None else build_model(params)
     x0 = check_start(model.x_hanging if x0 is None else x0, params)
-    pushes = check_push(push, params)
-    S = check_model_error(model_error)
-    pm = plan_model if plan_model is not None else planning_model(model, S)
-    force = push_force(pushes, params.timestep)
-    if method != "mpc" and (period is not None or horizon is not None):
+    check_push(loop.push, params)  # a push needs a cart
+    pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
+    force = loop.push_force(params.timestep)
+    if method != "mpc" and (mpc is not None or given["mpc"]):
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
                            "--method mpc.")
+    if method != "mpc" and loop.period is not None:
+        raise SwingupError(f"A loop period of {loop.period:g} s is for --method mpc (the NMPC re-plans at it); "
+                           f"{method} runs its controller every physics step, as it is designed.")
     # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
     energy = EnergyShapingController(pm, **(energy_options or {})) if method == "energy" else None
-    if objective is not None and method != "trajopt":
+    if given["plan"] and method != "trajopt":
         raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
                            "trajopt.")
+    if plan is not None and method == "energy":
+        raise SwingupError("Plan options set the trajectory optimisation; use them with --method trajopt or mpc.")
     basin_kw = dict(progress=_stage(progress, "basin"))
 
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
@@ -345,7 +321,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
     def basin_of(catch):
         return cache.get(params, catch, **basin_kw)
 
-    plan = None
+    T = loop.duration
+    trajectory = None
     if method == "mpc":
         try:
             from cartpole.mpc.nmpc import nmpc_swingup
@@ -354,15 +331,19 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
                 raise
             raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
                                "does not have yet; use --method trajopt or energy.") from None
+        from cartpole.mpc.options import MPCOptions
+        from cartpole.planning.options import PlanOptions
+
+        mpc = _mpc_period((MPCOptions() if mpc is None else mpc).replace(**given["mpc"]), loop, params.timestep)
+        plan = PlanOptions(cart_margin=mpc.cart_margin) if plan is None else plan
+        options = {"plan": plan, "loop": loop, "mpc": mpc}
         if progress is not None:
             progress("mpc", 0.0)
-        # period / horizon left out when None: the controller's own defaults
-        settings = {k: float(v) for k, v in (("period", period), ("horizon", horizon)) if v is not None}
-        controller = nmpc_swingup(params, x0=x0, model=pm, **settings)
+        controller = nmpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
         if progress is not None:
             progress("mpc", 1.0)
         basin = None
-        T = MPC_DURATION if duration is None else float(duration)
+        T = MPC_DURATION if T is None else T
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
                            progress=_stage(progress, "simulate"), on_step=on_step)
         if progress is not None:
@@ -371,10 +352,11 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
         extra = {"switches": [], "period": float(controller.period), "horizon": float(controller.horizon),
                  "failures": _count(getattr(controller, "failures", 0))}
     elif method == "energy":
+        options = {"loop": loop}
         catch = swingup_catch(pm) if catch_weights is None else swingup_catch(pm, *catch_weights)
         basin = basin_of(catch)
         controller = SwitchingController(energy, catch, basin.rho)
-        T = ENERGY_DURATION if duration is None else float(duration)
+        T = ENERGY_DURATION if T is None else T
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step)
         if progress is not None:
@@ -383,23 +365,27 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
         extra = {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in controller.switches]}
     else:
         try:
+            from cartpole.planning.options import PlanOptions
             from cartpole.planning.trajopt import trajopt_swingup
         except ImportError:
             raise SwingupError("The trajopt method needs cartpole.planning.trajopt, which this installation does not "
                                "have; use --method energy.") from None
+        plan = (PlanOptions() if plan is None else plan).replace(**given["plan"])
+        options = {"plan": plan, "loop": loop}
         if progress is not None:
             progress("trajopt", 0.0)
-        sp = trajopt_swingup(params, x0=tuple(x0), model=pm, objective=objective)
+        sp = trajopt_swingup(params, x0=tuple(x0), model=pm, options=plan)
         if progress is not None:
             progress("trajopt", 1.0)
-        plan = sp.trajectory
+        trajectory = sp.trajectory
         controller = sp.controller
         catch = sp.catch  # the controller that takes over: its basin is the one reported
         basin = basin_of(catch)
-        T_plan = float(plan.t[-1] - plan.t[0])
-        T = T_plan + TRAJOPT_EXTRA if duration is None else float(duration)
-        if duration is None and sp.objective == "dmc_swingup":
-            T = max(T, DMC_STEPS * params.timestep)
+        T_plan = float(trajectory.t[-1] - trajectory.t[0])
+        if T is None:
+            T = T_plan + TRAJOPT_EXTRA
+            if sp.objective == "dmc_swingup":
+                T = max(T, DMC_STEPS * params.timestep)
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step)
         if progress is not None:
@@ -416,7 +402,21 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, duration: float |
             extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
     metrics = {**swingup_metrics(rollout, model), **extra}
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
-                         plan=plan, basin=basin, metrics=metrics, push=pushes, model_error=S, controller=controller)
+                         plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
+                         controller=controller, options=options)
+
+
+def _mpc_period(mpc, loop: LoopOptions, timestep: float):
+    """``mpc`` with its period the loop's when it has none; one sentence when both are given and differ by a
+    physics step or more (``timestep``, s)."""
+    if loop.period is None:
+        return mpc
+    if mpc.period is None:
+        return mpc.replace(period=loop.period)
+    if round(mpc.period / timestep) != round(loop.period / timestep):
+        raise SwingupError(f"The loop's period {loop.period:g} s and the NMPC's {mpc.period:g} s differ; give the "
+                           "control period once.")
+    return mpc
 
 
 def _count(failures) -> int:

@@ -84,7 +84,8 @@ def run(args) -> dict:
            "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
                           "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},
            "runs": {n: {**r.summary(), "rollout": rollout_doc(r.rollout)} for n, r in study.runs.items()},
-           "figure": str(fig.resolve()), "videos": videos}
+           "figure": str(fig.resolve()), "videos": videos,
+           "options": {"plan": study.options.as_dict()}}
     if not args.json:
         joints = [params.joints[h].name for h in model.hinges]
         print(f"MJCF: {params.mjcf}")

@@ -123,6 +123,7 @@ def run(args) -> dict:
     from cartpole.models import build_model
     from cartpole.progress import stage
     from cartpole.apps.swingup import SwingupError, check_model_error, check_push, check_start, parse_push, run_swingup
+    from cartpole.sim.options import LoopOptions
     from cartpole.viz import plot_swingup
 
     # Everything is validated before anything is computed or written.
@@ -138,6 +139,9 @@ def run(args) -> dict:
             raise SwingupError(f"{flag} sets the NMPC's control period and horizon; use it with --method mpc.")
         if v is not None and not (math.isfinite(v) and v > 0):
             raise SwingupError(f"{flag} {v:g} s is not a positive number of seconds; give e.g. {flag} 0.02.")
+    # each stage's settings as one value: the loop always, the planner for trajopt, the NMPC for mpc
+    loop = LoopOptions(duration=duration, period=period, push=push, model_error=model_error)
+    plan = mpc = None
     if args.method == "mpc":
         import importlib.util
 
@@ -152,6 +156,14 @@ def run(args) -> dict:
             raise SwingupError("--objective chooses what the trajectory optimisation optimises; use it with "
                                "--method trajopt.")
         make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
+    if args.method == "trajopt":
+        from cartpole.planning.options import PlanOptions
+
+        plan = PlanOptions(objective=objective)
+    if args.method == "mpc":
+        from cartpole.mpc.options import MPCOptions
+
+        mpc = MPCOptions() if horizon is None else MPCOptions(horizon=horizon)
     out = Path(args.out)
 
     from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
@@ -161,9 +173,8 @@ def run(args) -> dict:
         {"simulate": f"{default:g} s"} if default is not None else {})
     viewer = live_viewer("swingup") if args.view else None
     try:
-        res = run_swingup(model, method=args.method, x0=x0, duration=duration, progress=_Stages(sizes),
-                          objective=objective, on_step=viewer, push=push, model_error=model_error, period=period,
-                          horizon=horizon)
+        res = run_swingup(model, method=args.method, x0=x0, plan=plan, loop=loop, mpc=mpc, progress=_Stages(sizes),
+                          on_step=viewer)
         if viewer is not None:
             viewer.finish()
     finally:
@@ -203,6 +214,8 @@ def run(args) -> dict:
         doc["viewer"] = None if viewer is None else {
             "frames": viewer.frames, "closed_early": viewer.closed, "wall_time": viewer.wall_time,
             "steps_shown": len(res.rollout.ctrl)}
+    # the settings each stage ran with (PlanOptions, LoopOptions, MPCOptions .as_dict())
+    doc["options"] = {name: opts.as_dict() for name, opts in res.options.items()}
     if not args.json:
         def fmt(v, unit):
             return "never" if v is None else f"{v:.3f} {unit}"

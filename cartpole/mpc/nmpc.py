@@ -58,7 +58,6 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
-from cartpole.errors import CartPoleError
 from cartpole.lqr import dlqr, lab_weights
 from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.ocp.bounds import bounds_from_params
@@ -66,13 +65,10 @@ from cartpole.codegen import Buffered
 from cartpole.mpc.stage_functions import StageFunctions, stage_functions
 from cartpole.mpc.ipopt_nlp import IpoptNLP
 from cartpole.mpc.ipopt_nlp import StepFailed as _StepFailed
+# QP_SOLVERS and RAIL_PENALTY are re-exported: they were defined here before the options module
+from cartpole.mpc.options import DEFAULT_PERIOD, QP_SOLVERS, RAIL_PENALTY, MPCOptions, NMPCError  # noqa: F401
 from cartpole.ocp.trajectory import Trajectory
 
-#: Control period in s when none is given (rounded to whole MJCF steps).
-DEFAULT_PERIOD = 0.02
-#: QP solvers the controller can use: DAQP (PyPI ``daqp``, dual active set, the default when installed) and
-#: qpOASES (shipped with CasADi).
-QP_SOLVERS = ("daqp", "qpoases")
 _BIG = 1e30  # DAQP's "no bound"
 #: Active-set iterations a QP may take (DAQP's ``iter_limit``, qpOASES' ``nWSR``); beyond, the instant counts as a
 #: failure and takes the safe action. Typical: 2-5 per instant, about 40 for a cold start (single pole, N = 60).
@@ -84,12 +80,6 @@ SAFE_LQR_ANGLE = 0.5
 #: (three poles at 1.2 s, two poles at 2 s, single pole at 3 s).
 GROWTH_LIMIT = 1e5
 _RESEED_ABOVE = 1e3  # an iterate with an entry this large (m, rad, m/s, rad/s) is garbage: re-seed it
-#: Default exact-penalty weight on the rail slack, cost per m (or rad) of violation.
-RAIL_PENALTY = 1e3
-
-
-class NMPCError(CartPoleError, ValueError):
-    """Construction arguments of a nonlinear MPC that cannot work (period, horizon, weights, guess, state)."""
 
 
 @dataclass(frozen=True)
@@ -244,50 +234,38 @@ class NMPCController:
         at ``params.timestep`` when its ``dt`` differs). May differ from the MJCF on purpose.
     params : CartPoleParams
         The MJCF MuJoCo runs: timestep, ctrlranges, joint ranges.
-    period : float, optional
-        Control period in s, rounded to a whole number (>= 1) of MJCF steps; default 0.02 s so rounded.
-    horizon : float
-        Prediction horizon in s, rounded to whole periods (``N`` stages, >= 1).
-    Q, R : arrays, optional
-        Running weights per second on the state error (nx, nx) and on ``u - u*`` (nu, nu) (diagonals or scalars
-        accepted); default :func:`cartpole.lqr.lab_weights`. The terminal weight is the upright LQR's ``S``.
+    options : MPCOptions, optional
+        The controller's settings (:class:`~cartpole.mpc.options.MPCOptions`: period, horizon, iterations, tol,
+        init_iterations, cart_margin, rail_penalty, Q, R, qp_solver, prestabilize, compiled; meaning, units and
+        defaults there); default ``MPCOptions()`` (a period of :data:`DEFAULT_PERIOD` when it gives none).
     x_goal : (nx,) array, optional
         Target state (default the upright equilibrium ``model.x_eq``); ``u_goal`` (nu,) target ctrl (default
         ``model.u_eq``).
-    iterations : int
-        Gauss-Newton SQP steps per control instant (1: RTI; more iterates toward the converged NLP solution).
-    tol : float
-        With ``iterations`` > 1: stop iterating once a step changes no input by more than ``tol`` (ctrl units);
-        ``iterations=50, tol=1e-6`` solves the NLP to convergence every instant. Default 0: always ``iterations``.
     guess : Trajectory or (S (N+1, nx), U (N, nu)), optional
         First iterate; a Trajectory (e.g. an offline plan) is sampled on the MPC grid from its start. Default:
         rest at ``x0`` (else at ``x_goal``) with ``u_goal``: enough to balance near upright.
     x0 : (nx,) array, optional
         When given, the first iterate is converged for this start state before the loop, offline (that time is
-        not in :attr:`solve_ms`): up to ``init_iterations`` full Gauss-Newton steps, and when they do not converge
-        IPOPT on the same NLP from the same guess, then Gauss-Newton steps from its solution.
-    init_iterations : int
-        Cap on that offline convergence (default 50).
-    cart_margin : float
-        m kept from each end of the cart's rail (default 0.1, as the offline plans).
-    rail_penalty : float
-        Exact-penalty weight of the rail slack (default :data:`RAIL_PENALTY`).
-    compiled : bool
-        False evaluates the stage functions in CasADi's virtual machine (the fallback, same numbers).
-    prestabilize : bool, optional
-        True: the QP's unknowns are the input steps relative to the finite-horizon LQR's feedback (the
-        Riccati gains ``K_k`` along the current iterate) on the predicted state corrections, ``du_k = -K_k ds_k +
-        dv_k`` (the closed-loop paradigm), which keeps the condensed QP well conditioned over long horizons and fast
-        chains of poles, at about twice the cost of a step; False: plain condensing in ``du``. The same QP, so the
-        same solution, either way. Default: True when the fastest unstable mode of the upright linearisation grows
-        by more than :data:`GROWTH_LIMIT` over the horizon (single pole at 1.2 s: 260, plain; two poles: 6.7e3,
-        plain; three poles: 2e5, pre-stabilised).
-    qp_solver : {'daqp', 'qpoases'}, optional
-        The condensed QP's solver; default DAQP when installed, else qpOASES (same solutions; DAQP is about
-        five times faster on this QP, see the README).
+        not in :attr:`solve_ms`): up to ``options.init_iterations`` full Gauss-Newton steps, and when they do not
+        converge IPOPT on the same NLP from the same guess, then Gauss-Newton steps from its solution.
+    **settings
+        A compatibility layer for the keywords this class took before :class:`MPCOptions` (``period=``,
+        ``horizon=``, ``Q=``...): any of its field names. They only build the options
+        (``options.replace(**settings)``) and nothing else; an unknown name raises :class:`NMPCError` listing the
+        fields.
+
+    With ``prestabilize`` the QP's unknowns are the input steps relative to the finite-horizon LQR's feedback (the
+    Riccati gains ``K_k`` along the current iterate) on the predicted state corrections, ``du_k = -K_k ds_k +
+    dv_k`` (the closed-loop paradigm), which keeps the condensed QP well conditioned over long horizons and fast
+    chains of poles, at about twice the cost of a step; without, plain condensing in ``du``. The same QP, so the
+    same solution, either way. By default it is on when the fastest unstable mode of the upright linearisation
+    grows by more than :data:`GROWTH_LIMIT` over the horizon (single pole at 1.2 s: 260, plain; two poles: 6.7e3,
+    plain; three poles: 2e5, pre-stabilised).
 
     Attributes
     ----------
+    options : MPCOptions
+        The settings it was built with (period and horizon as given, before rounding).
     period, horizon : float
         s, after rounding.
     N, steps : int
@@ -307,11 +285,12 @@ class NMPCController:
         |du|), ``method`` (``"gauss-newton"``, or ``"ipopt"`` with ``ipopt_iterations``).
     """
 
-    def __init__(self, model: CartPoleModel, params: CartPoleParams, *, period: float | None = None,
-                 horizon: float = 1.2, Q=None, R=None, x_goal=None, iterations: int = 1, guess=None,
-                 u_goal=None, x0=None, init_iterations: int = 50, cart_margin: float = 0.1,
-                 rail_penalty: float = RAIL_PENALTY, compiled: bool = True, qp_solver: str | None = None,
-                 prestabilize: bool | None = None, tol: float = 0.0):
+    def __init__(self, model: CartPoleModel, params: CartPoleParams, *, options: MPCOptions | None = None,
+                 x_goal=None, u_goal=None, guess=None, x0=None, **settings):
+        options = (MPCOptions() if options is None else options).replace(**settings)
+        self.options = options
+        period, horizon, iterations, tol = options.period, options.horizon, options.iterations, options.tol
+        init_iterations, qp_solver, prestabilize = options.init_iterations, options.qp_solver, options.prestabilize
         if not isinstance(model, CartPoleModel) or not isinstance(params, CartPoleParams):
             raise NMPCError("NMPCController needs a CartPoleModel (planning) and the CartPoleParams MuJoCo runs.")
         if model.nx != 2 * params.nq or model.nu != params.nu:
@@ -320,15 +299,9 @@ class NMPCController:
         dt = float(params.timestep)
         if abs(model.dt - dt) > 1e-15:
             model = model.rebuilt(dt=dt)
-        period = DEFAULT_PERIOD if period is None else period
-        if not (np.isfinite(period) and period > 0 and np.isfinite(horizon) and horizon > 0):
-            raise NMPCError(f"period ({period} s) and horizon ({horizon} s) must be positive and finite.")
-        if int(iterations) < 1 or int(init_iterations) < 0:
-            raise NMPCError(f"iterations ({iterations}) must be >= 1 and init_iterations ({init_iterations}) >= 0.")
+        period = DEFAULT_PERIOD if period is None else period  # the options checked the ranges
         if qp_solver is None:
             qp_solver = "daqp" if importlib.util.find_spec("daqp") is not None else "qpoases"
-        if qp_solver not in QP_SOLVERS:
-            raise NMPCError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         self.qp_solver = qp_solver
         steps = max(1, int(round(period / dt)))
         N = max(1, int(round(horizon / (steps * dt))))
@@ -341,13 +314,12 @@ class NMPCController:
         self.steps, self.N = steps, N
         self.period, self.horizon = steps * dt, N * steps * dt
         self.iterations = int(iterations)
-        if not (np.isfinite(tol) and tol >= 0):
-            raise NMPCError(f"tol ({tol}) must be a finite number >= 0 (ctrl units).")
         self.tol = float(tol)
-        self.functions = stage_functions(model, steps, N, compiled=compiled, prestabilized=self.prestabilize)
+        self.functions = stage_functions(model, steps, N, compiled=options.compiled, prestabilized=self.prestabilize)
         self.library = self.functions.library
-        self.problem, self.lqr = mpc_problem(model, params, self.functions, Q=Q, R=R, x_goal=x_goal, u_goal=u_goal,
-                                             cart_margin=cart_margin, rail_penalty=rail_penalty)
+        self.problem, self.lqr = mpc_problem(model, params, self.functions, Q=options.Q, R=options.R, x_goal=x_goal,
+                                             u_goal=u_goal, cart_margin=options.cart_margin,
+                                             rail_penalty=options.rail_penalty)
         self._plan = guess if isinstance(guess, Trajectory) else None
         if x0 is not None:
             x0 = np.asarray(x0, dtype=float).ravel()
@@ -618,15 +590,16 @@ def _stdout_to_stderr():
         os.close(saved)
 
 
-def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None, period: float | None = None,
-                 horizon: float = 1.2, **options) -> NMPCController:
+def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
+                 options: MPCOptions | None = None, plan=None, **settings) -> NMPCController:
     """A controller set up to swing up from ``x0`` and balance at ``model.x_eq``.
 
-    The first iterate is an offline plan: :func:`cartpole.planning.trajopt.trajopt_swingup` from ``x0`` on the planning
-    model, sampled on the MPC grid, then converged fully for ``x0`` before the loop (Gauss-Newton, or IPOPT where
-    full Gauss-Newton steps do not converge; offline, not counted in ``solve_ms``). From then on every control instant is one real-time iteration; beyond the horizon the shifted
-    tail follows the offline plan's inputs while it lasts. An RTI step from a cold guess (rest) over a 1.2 s
-    horizon does not find a swing-up; this initialisation is what makes it one.
+    The first iterate is an offline plan: :func:`cartpole.planning.trajopt.trajopt_swingup` from ``x0`` on the
+    planning model, sampled on the MPC grid, then converged fully for ``x0`` before the loop (Gauss-Newton, or
+    IPOPT where full Gauss-Newton steps do not converge; offline, not counted in ``solve_ms``). From then on every
+    control instant is one real-time iteration; beyond the horizon the shifted tail follows the offline plan's
+    inputs while it lasts. An RTI step from a cold guess (rest) over a 1.2 s horizon does not find a swing-up; this
+    initialisation is what makes it one.
 
     Parameters
     ----------
@@ -636,20 +609,28 @@ def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None
         Start state (default the planning model's hanging rest ``x_hanging``).
     model : CartPoleModel, optional
         The planning model (default the MJCF's own); may be wrong on purpose (``build_model(params.scaled_pole(1.2))``).
-    period, horizon : float
-        s; see :class:`NMPCController`.
-    **options
-        Passed to :class:`NMPCController` (``Q``, ``R``, ``iterations``, ``cart_margin``...).
+    options : MPCOptions, optional
+        The controller's settings (:class:`~cartpole.mpc.options.MPCOptions`); default ``MPCOptions()``.
+    plan : PlanOptions, optional
+        The offline plan's settings (:class:`~cartpole.planning.options.PlanOptions`); default
+        ``PlanOptions(cart_margin=options.cart_margin)``, the same rail as the controller's.
+    **settings
+        Compatibility layer: :class:`MPCOptions` field names (``period=``, ``horizon=``, ``iterations=``...) that
+        only build the options (``options.replace(**settings)``).
 
     Returns
     -------
     NMPCController
     """
-    from cartpole.planning.trajopt import trajopt_swingup  # planning sits below mpc: no cycle, imported lazily for start-up time
+    # planning sits below mpc: no cycle, imported lazily for start-up time
+    from cartpole.planning.options import PlanOptions
+    from cartpole.planning.trajopt import trajopt_swingup
 
     if not isinstance(params, CartPoleParams):
         raise NMPCError("nmpc_swingup needs the CartPoleParams MuJoCo runs (cartpole.models.read_params(path)).")
+    options = (MPCOptions() if options is None else options).replace(**settings)
+    plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
     model = build_model(params) if model is None else model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-    plan = trajopt_swingup(params, x0=x0, model=model, cart_margin=options.get("cart_margin", 0.1))
-    return NMPCController(model, params, period=period, horizon=horizon, guess=plan.trajectory, x0=x0, **options)
+    sp = trajopt_swingup(params, x0=x0, model=model, options=plan)
+    return NMPCController(model, params, options=options, guess=sp.trajectory, x0=x0)

@@ -39,6 +39,7 @@ from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.objectives import make_objective
+from cartpole.planning.options import U_MARGIN, PlanOptions
 from cartpole.solvers.sqp import CollocationSQP, SQPError
 from cartpole.ocp.trajectory import Trajectory
 
@@ -73,6 +74,8 @@ class SwingupPlan:
     discrete : DiscretePlan or None
         The plan re-solved on the exact discrete model (:func:`exact_discrete_plan`) that TVLQR tracks, or None
         when TVLQR tracks ``trajectory`` itself (``exact_discrete=False``, or the re-solve failed).
+    options : PlanOptions or None
+        The planner settings the plan was made with.
     """
 
     trajectory: Trajectory
@@ -85,6 +88,7 @@ class SwingupPlan:
     objective: str = "effort"
     plan_time_s: float = float("nan")
     discrete: "DiscretePlan | None" = field(default=None, compare=False)
+    options: PlanOptions | None = field(default=None, compare=False)
 
     @property
     def T(self) -> float:
@@ -149,9 +153,6 @@ class DiscretePlan:
                 "defect_before": self.defect_before, "defect_after": self.defect_after}
 
 
-#: Fraction of each actuator's half ctrl range the exact discrete plan leaves free on both sides, so TVLQR keeps
-#: authority to correct errors where the plan would otherwise ride the limit (0 when that is infeasible).
-U_MARGIN = 0.05
 
 
 def _defects(model: CartPoleModel, x, u) -> float:
@@ -424,11 +425,8 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
 
 
 def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
-                    T: float | None = None, N: int | None = None, model: CartPoleModel | None = None,
-                    solver: str = "ipopt", Q=None, R=None, Qf=None, time_margin: float = 0.2,
-                    solver_options: dict | None = None, cart_margin: float = 0.1,
-                    objective=None, starts: int | None = None, exact_discrete: bool | str = "auto",
-                    u_margin: float = U_MARGIN) -> SwingupPlan:
+                    model: CartPoleModel | None = None, options: PlanOptions | None = None,
+                    **settings) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -440,73 +438,59 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Start state ``[qpos, qvel]`` (default hanging at rest, the planning model's ``x_hanging``). The plan
         ends at the planning model's upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
         nearest).
-    T : float, optional
-        Plan duration in s; default ``(1 + time_margin) * T_min`` with ``T_min`` from a minimum-time solve
-        (``effort``), ``T_min`` itself (``time``), or ``T_min + RUNNING_HOLD`` (1.5 s; running objectives).
-    N : int, optional
-        Collocation intervals; default 100, except ``dmc_swingup``: one interval per MJCF step (dm_control's
-        control step is its file's timestep), ``round(T / timestep)``.
-    objective : str, callable or Objective, optional
-        ``effort`` (default: minimum ``integral u'u dt`` for T), ``time`` (the minimum-time plan itself),
-        ``tracking`` (quadratic toward ``x*``, weights ``Q``, ``R``), ``dmc_swingup`` (dm_control's smooth reward,
-        maximised), ``"MODULE:FUNCTION"`` or a function ``(x, u) -> scalar`` of CasADi symbols (a cost; wrap a
-        reward with :func:`cartpole.ocp.objectives.reward`). See :mod:`cartpole.ocp.objectives`. The running
-        objectives start from the minimum-time plan padded with rest at upright.
     model : CartPoleModel, optional
         Model used for planning and TVLQR; default the MJCF's own. Give a deliberately wrong one (e.g.
         ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
-    solver : {'ipopt', 'fatrop', 'sqp'}
-        NLP solver of the plan's last stage (the minimum-time stages are IPOPT's: a free final time). ``sqp``:
-        the fixed-time effort plan by :class:`~cartpole.solvers.sqp.CollocationSQP` from the minimum-time plan, IPOPT
-        when it does not converge in :data:`SQP_MAX_ITER` iterations (measured from the time plan, N = 100: one
-        pole 10 ms against IPOPT's 27 ms, two poles 54 against 189 ms, same optimum to 5e-8; three poles: no
-        convergence, IPOPT 0.54 s; the first use per cart and N compiles its QP library, 5-45 s). Other
-        objectives and a given ``T`` use IPOPT.
-    Q, R : arrays, optional
-        Tracking and catch weights (nx, nx) and (nu, nu) (default :func:`cartpole.lqr.lab_weights` of the model:
-        1 per slide, 10 per hinge angle, 0.1 per rate, 0.1 per input; for one pole the lab's
-        ``diag(1, 10, .1, .1)``, 0.1).
-    Qf : (nx, nx) array, optional
-        TVLQR terminal cost; default the catch's discrete cost-to-go (seamless hand-over).
-    time_margin : float
-        Relative margin on the minimum time when T is chosen automatically (default 0.2).
-    solver_options : dict, optional
-        Passed straight to ``casadi.nlpsol``.
-    cart_margin : float
-        Distance in m kept from each end of the slide range.
-    starts : int, optional
-        Guesses of the minimum-time multi-start (:func:`minimum_time`; default the pumping and straight-line
-        shapes to the nearest upright angles, after the energy-shaping rollout for one pole; 4 adds the routes in
-        which every link loops once more).
-    exact_discrete : bool or "auto"
-        Re-solve the plan on the exact discrete model at the MJCF step (:func:`exact_discrete_plan`) and track
-        that: the collocation plan obeys the continuous dynamics, and MuJoCo's integrator's per-step error along
-        it is otherwise a disturbance TVLQR must reject every step. ``"auto"`` (default) first predicts TVLQR
-        tracking the collocation plan on the planning model's exact discrete step (the step MuJoCo takes, so for
-        the MJCF's own model this is the MuJoCo run) and re-solves only when that prediction strays more than
-        :data:`TRACK_TOL` from the plan in any hinge angle (:func:`predicted_tracking_error`); True always
-        re-solves, False never. If the re-solve fails (with ``u_margin``, then with no margin), TVLQR tracks the
-        collocation plan as before.
-    u_margin : float
-        Fraction of each actuator's half ctrl range the exact discrete plan keeps free for feedback (default
-        :data:`U_MARGIN`, 5 %).
+    options : PlanOptions, optional
+        The planner's settings (:class:`~cartpole.planning.options.PlanOptions`: objective, T, N, time_margin,
+        cart_margin, u_margin, solver, solver_options, starts, exact_discrete, Q, R, Qf; their meaning, units and
+        defaults are documented there); default ``PlanOptions()``.
+    **settings
+        A compatibility layer for the keywords this function took before :class:`PlanOptions`: any of its field
+        names, e.g. ``trajopt_swingup(params, N=40, exact_discrete=False)``. They only build the options
+        (``options.replace(**settings)``) and nothing else; an unknown name raises
+        :class:`~cartpole.planning.options.PlanOptionsError` listing the fields.
+
+    With ``solver="sqp"`` the fixed-time effort plan is made by :class:`~cartpole.solvers.sqp.CollocationSQP` from
+    the minimum-time plan, IPOPT when it does not converge in :data:`SQP_MAX_ITER` iterations (the first use per
+    cart and N compiles its QP library); other objectives and a given ``T`` use IPOPT. With
+    ``exact_discrete="auto"`` TVLQR tracking the collocation plan is first predicted on the planning model's exact
+    discrete step (the step MuJoCo takes, so for the MJCF's own model this is the MuJoCo run) and the plan is
+    re-solved on that step (:func:`exact_discrete_plan`) only when the prediction strays more than
+    :data:`TRACK_TOL` from the plan in any hinge angle (:func:`predicted_tracking_error`). If the re-solve fails
+    (with ``u_margin``, then with no margin), TVLQR tracks the collocation plan.
 
     Returns
     -------
     SwingupPlan
-        ``plan.solve_info.attempts`` lists every solver call of every stage; ``plan.plan_time_s`` their wall time.
+        ``plan.solve_info.attempts`` lists every solver call of every stage; ``plan.plan_time_s`` their wall time;
+        ``plan.options`` the options it was made with.
+
+    Raises
+    ------
+    PlanOptionsError, OCPError
+        Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
+    opts = (PlanOptions() if options is None else options).replace(**settings)
+    return _plan(source, x0, plan_model=model, options=opts)
+
+
+def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions) -> SwingupPlan:
+    """:func:`trajopt_swingup` with its options made."""
+    T, N, solver, objective, starts = options.T, options.N, options.solver, options.objective, options.starts
+    Qf, exact_discrete = options.Qf, options.exact_discrete
+    solver_options = None if options.solver_options is None else dict(options.solver_options)
     tic = time.perf_counter()
     use_sqp = solver == "sqp"
     solver = "ipopt" if use_sqp else solver
     params = source if isinstance(source, CartPoleParams) else read_params(source)
-    plan_model = model if model is not None else build_model(params)
+    plan_model = plan_model if plan_model is not None else build_model(params)
     Q0, R0 = lab_weights(plan_model)
-    Q = Q0 if Q is None else np.asarray(Q, float)
-    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
+    Q = Q0 if options.Q is None else np.asarray(options.Q, float)
+    R = R0 if options.R is None else np.atleast_2d(np.asarray(options.R, float))
     x0 = plan_model.x_hanging if x0 is None else np.asarray(x0, dtype=float)
     # Bounds are the MJCF's (the real actuators and track), whatever model plans.
-    bounds = bounds_from_params(params, cart_margin=cart_margin)
+    bounds = bounds_from_params(params, cart_margin=options.cart_margin)
     obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
     T_min = None
     if obj.kind == "time":
@@ -519,7 +503,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         T_min, fast, tinfo = minimum_time(plan_model, x0, N=60 if obj.kind == "running" else min(N or 100, 60),
                                           starts=starts, bounds=bounds)
         if obj.kind == "effort":
-            T = (1.0 + time_margin) * T_min
+            T = (1.0 + options.time_margin) * T_min
             ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
                                     bounds=bounds)
             first = fast  # the minimum-time plan, stretched onto T
@@ -549,7 +533,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         err = predicted_tracking_error(tv_model, TVLQRController(traj, gains, catch, u_limits=u_limits), traj, x0)
         exact_discrete = not err <= TRACK_TOL
     if exact_discrete:
-        for margin in dict.fromkeys((float(u_margin), 0.0)):
+        for margin in dict.fromkeys((float(options.u_margin), 0.0)):
             exact = exact_discrete_plan(tv_model, traj, x0, bounds, dt=dt, u_margin=margin)
             if exact is not None:
                 break
@@ -560,4 +544,4 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
     controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
     return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
                        model=plan_model, T_min=T_min, objective=obj.name, plan_time_s=time.perf_counter() - tic,
-                       discrete=exact)
+                       discrete=exact, options=options)

@@ -1,7 +1,10 @@
 """MuJoCo on the MJCF: closed-loop runs logged every physics step (:mod:`~cartpole.sim.rollout`), their exact
-open-loop replay, and many linear-feedback runs at once (:mod:`~cartpole.sim.batch`)."""
+open-loop replay, many linear-feedback runs at once (:mod:`~cartpole.sim.batch`), and the closed loop's settings as
+one value (:mod:`~cartpole.sim.options`: :class:`~cartpole.sim.options.LoopOptions`, and the base every stage's
+options share)."""
 from cartpole.sim.batch import random_starts, simulate_batch_linear
+from cartpole.sim.options import LoopError, LoopOptions
 from cartpole.sim.rollout import Rollout, cart_body, ctrl_bounds, make_mujoco, replay, replays_exactly, simulate, source_path
 
-__all__ = ["Rollout", "cart_body", "ctrl_bounds", "make_mujoco", "replay", "replays_exactly", "simulate", "source_path",
-           "random_starts", "simulate_batch_linear"]
+__all__ = ["LoopError", "LoopOptions", "Rollout", "cart_body", "ctrl_bounds", "make_mujoco", "replay",
+           "replays_exactly", "simulate", "source_path", "random_starts", "simulate_batch_linear"]

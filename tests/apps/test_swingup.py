@@ -6,7 +6,10 @@ import cartpole as cp
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF
 from cartpole.apps.swingup import SwingupError, check_start, run_swingup
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
 from cartpole.sim import replays_exactly
+from cartpole.sim.options import LoopError, LoopOptions
 from cartpole.validation.metrics import swingup_success
 
 
@@ -157,24 +160,61 @@ def test_trajopt_with_model_error_plans_and_tracks_on_the_scaled_model():
     assert replays_exactly(res.rollout, params)
 
 
-@pytest.mark.parametrize("kw, words", [
-    (dict(push=[(1.0, np.nan)]), "finite force"), (dict(push=[(-1.0, 5.0)]), "start time >= 0"),
-    (dict(push=[(1.0,)]), "pair"), (dict(model_error=0.0), "scale in"), (dict(model_error=np.inf), "scale in"),
-    (dict(model_error="heavy"), "not a number"), (dict(period=0.02), "--method mpc"),
+@pytest.mark.parametrize("kw, error, words", [
+    (dict(push=[(1.0, np.nan)]), LoopError, "finite force"), (dict(push=[(-1.0, 5.0)]), LoopError, "start time >= 0"),
+    (dict(push=[(1.0,)]), LoopError, "pair"), (dict(model_error=0.0), LoopError, "scale in"),
+    (dict(model_error=np.inf), LoopError, "scale in"), (dict(model_error="heavy"), LoopError, "not a number"),
+    (dict(duration=-1.0), LoopError, "positive number of seconds"), (dict(period=0.02), SwingupError, "--method mpc"),
+    (dict(loop=LoopOptions(period=0.02)), SwingupError, "is for --method mpc"),
+    (dict(plan=PlanOptions()), SwingupError, "--method trajopt or mpc"),
+    (dict(mpc=MPCOptions()), SwingupError, "--method mpc"), (dict(objective="time"), SwingupError, "--method trajopt"),
+    (dict(horizon_s=1.0), SwingupError, "no keyword 'horizon_s'"),
 ])
-def test_bad_scenarios_raise_one_sentence(kw, words):
-    with pytest.raises(SwingupError, match=words) as err:
-        run_swingup(None, method="energy", duration=0.1, **kw)
-    assert "\n" not in str(err.value)
+def test_bad_scenarios_raise_one_sentence(kw, error, words):
+    """Bad loop settings are the loop's error; a stage's options given to a method without that stage, the swing-up's;
+    both before anything runs."""
+    stages = []
+    with pytest.raises(error, match=words) as err:
+        run_swingup(None, method="energy", **{"duration": 0.1, **kw}, progress=lambda st, f: stages.append(st))
+    assert isinstance(err.value, CartPoleError) and "\n" not in str(err.value)
+    assert stages == []
 
 
 def test_parse_push_reads_t_colon_f():
     from cartpole.apps.swingup import parse_push
 
     assert parse_push("1.5:-20") == (1.5, -20.0)
-    for bad in ("1.5", "1:2:3", "a:b", "nan:1"):
-        with pytest.raises(SwingupError):
+    for bad, error in (("1.5", SwingupError), ("1:2:3", SwingupError), ("a:b", SwingupError), ("nan:1", LoopError)):
+        with pytest.raises(error):
             parse_push(bad)
+
+
+def test_loop_options_and_the_old_keywords_run_the_same_swingup_and_the_result_echoes_them():
+    params = cp.read_params()
+    loop = LoopOptions(duration=1.0, push=[(0.5, 10.0)], model_error=1.2)
+    res = run_swingup(params, method="energy", loop=loop)
+    old = run_swingup(params, method="energy", duration=1.0, push=[(0.5, 10.0)], model_error=1.2)
+    np.testing.assert_array_equal(res.rollout.x, old.rollout.x)
+    np.testing.assert_array_equal(res.rollout.ctrl, old.rollout.ctrl)
+    assert res.options == old.options == {"loop": loop}
+    assert res.push == ((0.5, 10.0),) and res.model_error == 1.2
+    # a keyword replaces that field of the options given, and nothing else
+    short = run_swingup(params, method="energy", loop=loop, duration=0.5)
+    assert short.options["loop"] == loop.replace(duration=0.5)
+    np.testing.assert_array_equal(short.rollout.x, res.rollout.x[:len(short.rollout.t)])
+
+
+def test_mpc_takes_the_loops_period_and_refuses_two_different_ones():
+    pytest.importorskip("cartpole.mpc.nmpc")
+    params = cp.read_params()
+    res = run_swingup(params, method="mpc", loop=LoopOptions(duration=0.2, period=0.04), mpc=MPCOptions(horizon=0.8))
+    ctrl = res.controller
+    assert ctrl.period == pytest.approx(0.04) and ctrl.horizon == pytest.approx(0.8)
+    assert res.options["mpc"] == MPCOptions(period=0.04, horizon=0.8)
+    assert res.options["plan"] == PlanOptions(cart_margin=MPCOptions().cart_margin)
+    assert len(ctrl.solve_ms) == -(-len(res.rollout.ctrl) // int(round(0.04 / params.timestep)))
+    with pytest.raises(SwingupError, match="differ; give the control period once"):
+        run_swingup(params, method="mpc", loop=LoopOptions(duration=0.2, period=0.04), mpc=MPCOptions(period=0.02))
 
 
 def test_a_second_swingup_finds_the_basin_on_disk_and_gets_the_identical_estimate(tmp_path, monkeypatch):

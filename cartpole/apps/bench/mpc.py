@@ -14,6 +14,7 @@ import numpy as np
 
 from cartpole.models import build_model, read_params
 from cartpole.mpc.nmpc import NMPCController
+from cartpole.mpc.options import MPCOptions
 from cartpole.mpc.ipopt_baseline import IpoptMPC
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import simulate
@@ -64,14 +65,14 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
     model = build_model(params)
     x0 = model.x_hanging
     plan = trajopt_swingup(params, x0=x0, model=model)
-    rti = NMPCController(model, params, period=period, horizon=horizon, guess=plan.trajectory, x0=x0,
-                         qp_solver=qp_solver)
+    options = MPCOptions(period=period, horizon=horizon, qp_solver=qp_solver)
+    rti = NMPCController(model, params, options=options, guess=plan.trajectory, x0=x0)
     t_rti, ok_rti = _runs(rti, params, x0, duration, max(1, int(repeats)))
     failures = len(rti.failures)
     med = float(np.median(t_rti))
     base_doc = None
     if baseline:
-        base = IpoptMPC(model, params, period=period, horizon=horizon, guess=plan.trajectory, x0=x0)
+        base = IpoptMPC(model, params, options=options.replace(qp_solver=None), guess=plan.trajectory, x0=x0)
         t_base, ok_base = _runs(base, params, x0, duration, max(1, int(baseline_repeats)))
         base_doc = {"solve_ms_median": float(np.median(t_base)), "solve_ms_max": float(np.max(t_base)),
                     "solve_ms_p99": float(np.percentile(t_base, 99)), "steps": len(t_base),

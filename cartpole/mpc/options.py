@@ -1,0 +1,102 @@
+"""The NMPC's settings as one value: :class:`MPCOptions` (what :class:`cartpole.mpc.nmpc.NMPCController` and
+:func:`cartpole.mpc.nmpc.nmpc_swingup` take; ``replace``, ``as_dict`` and by-name variation from
+:class:`cartpole.sim.options.StageOptions`)."""
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+from cartpole.errors import CartPoleError
+from cartpole.sim.options import StageOptions
+
+#: Control period in s when none is given (rounded to whole MJCF steps).
+DEFAULT_PERIOD = 0.02
+#: Prediction horizon in s when none is given (rounded to whole periods).
+DEFAULT_HORIZON = 1.2
+#: QP solvers the controller can use: DAQP (PyPI ``daqp``, dual active set, the default when installed) and
+#: qpOASES (shipped with CasADi).
+QP_SOLVERS = ("daqp", "qpoases")
+#: Default exact-penalty weight on the rail slack, cost per m (or rad) of violation.
+RAIL_PENALTY = 1e3
+
+
+class NMPCError(CartPoleError, ValueError):
+    """Construction arguments of a nonlinear MPC that cannot work (period, horizon, weights, guess, state)."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MPCOptions(StageOptions):
+    """Settings of the nonlinear MPC (:class:`~cartpole.mpc.nmpc.NMPCController`), validated on creation.
+
+    Attributes
+    ----------
+    period : float or None
+        Control period in s (> 0), rounded to a whole number (>= 1) of MJCF steps; None: the closed loop's period
+        when it has one, else :data:`DEFAULT_PERIOD` (0.02 s).
+    horizon : float
+        Prediction horizon in s (> 0), rounded to whole periods (``N`` stages, >= 1); default 1.2 s.
+    iterations : int
+        Gauss-Newton SQP steps per control instant (>= 1; 1: real-time iteration).
+    tol : float
+        With ``iterations`` > 1: stop once a step changes no input by more than ``tol`` (ctrl units, >= 0);
+        0: always ``iterations``.
+    init_iterations : int
+        Cap (>= 0) on the offline convergence of the first iterate for the start state (default 50).
+    cart_margin : float
+        m (>= 0) kept from each end of the cart's rail (default 0.1, as the offline plans).
+    rail_penalty : float
+        Exact-penalty weight (> 0) of the rail slack, cost per m (or rad) of violation (default
+        :data:`RAIL_PENALTY`).
+    Q, R : arrays or None
+        Running weights per second on the state error (nx, nx) and on ``u - u*`` (nu, nu) (diagonals or scalars
+        accepted; read-only); None: :func:`cartpole.lqr.lab_weights`. Shapes are checked against the model.
+    qp_solver : {'daqp', 'qpoases'} or None
+        The condensed QP's solver; None: DAQP when installed, else qpOASES.
+    prestabilize : bool or None
+        The QP in steps relative to the Riccati feedback (True) or plain condensing (False); None: True when the
+        fastest upright mode grows by more than :data:`~cartpole.mpc.nmpc.GROWTH_LIMIT` over the horizon.
+    compiled : bool
+        False evaluates the stage functions in CasADi's virtual machine (the fallback, same numbers).
+
+    Raises
+    ------
+    NMPCError
+        A value outside the ranges above.
+    """
+
+    period: float | None = None
+    horizon: float = DEFAULT_HORIZON
+    iterations: int = 1
+    tol: float = 0.0
+    init_iterations: int = 50
+    cart_margin: float = 0.1
+    rail_penalty: float = RAIL_PENALTY
+    Q: object = None
+    R: object = None
+    qp_solver: str | None = None
+    prestabilize: bool | None = None
+    compiled: bool = True
+
+    error: ClassVar[type] = NMPCError
+    SCALARS: ClassVar[tuple] = ("period", "horizon", "iterations", "tol", "init_iterations", "cart_margin",
+                                "rail_penalty")
+
+    def __post_init__(self):
+        self.number("period", low=0.0, low_open=True, unit="s", optional=True)
+        self.number("horizon", low=0.0, low_open=True, unit="s")
+        self.number("iterations", low=1, integer=True)
+        self.number("init_iterations", low=0, integer=True)
+        self.number("tol", low=0.0)
+        self.number("cart_margin", low=0.0, unit="m")
+        self.number("rail_penalty", low=0.0, low_open=True)
+        if self.qp_solver is not None and self.qp_solver not in QP_SOLVERS:
+            raise NMPCError(f"qp_solver '{self.qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
+        if self.prestabilize is not None:
+            if self.prestabilize not in (True, False):
+                raise NMPCError(f"prestabilize = {self.prestabilize!r} must be True, False or None.")
+            self.set_field("prestabilize", bool(self.prestabilize))
+        if self.compiled not in (True, False):
+            raise NMPCError(f"compiled = {self.compiled!r} must be True or False.")
+        self.set_field("compiled", bool(self.compiled))
+        for name in ("Q", "R"):
+            self.freeze_array(name)

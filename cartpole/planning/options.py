@@ -1,0 +1,109 @@
+"""The swing-up planner's settings as one value: :class:`PlanOptions`, what
+:func:`cartpole.planning.trajopt.trajopt_swingup` takes (``replace``, ``as_dict`` and by-name variation from
+:class:`cartpole.sim.options.StageOptions`)."""
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+from cartpole.ocp.bounds import OCPError
+from cartpole.sim.options import StageOptions
+
+#: Fraction of each actuator's half ctrl range the exact discrete plan leaves free on both sides, so TVLQR keeps
+#: authority to correct errors where the plan would otherwise ride the limit (0 when that is infeasible).
+U_MARGIN = 0.05
+#: NLP solvers of the plan's last stage.
+PLAN_SOLVERS = ("ipopt", "fatrop", "sqp")
+
+
+class PlanOptionsError(OCPError, ValueError):
+    """Planner settings that cannot work (a negative margin, an unknown solver, a mesh of fewer than 2 intervals,
+    an unknown field)."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PlanOptions(StageOptions):
+    """Settings of the swing-up planner (:func:`cartpole.planning.trajopt.trajopt_swingup`), validated on creation.
+
+    Attributes
+    ----------
+    objective : str, callable, Objective or None
+        ``effort`` (None: the default, minimum ``integral u'u dt`` for T), ``time`` (the minimum-time plan itself),
+        ``tracking`` (quadratic toward ``x*``, weights ``Q``, ``R``), ``dmc_swingup`` (dm_control's smooth reward,
+        maximised), ``"MODULE:FUNCTION"`` or a function ``(x, u) -> scalar`` of CasADi symbols (a cost); see
+        :mod:`cartpole.ocp.objectives`. Names are checked against the model when the planner runs.
+    T : float or None
+        Plan duration in s; None: ``(1 + time_margin) * T_min`` (``effort``), ``T_min`` (``time``) or
+        ``T_min + RUNNING_HOLD`` (the running objectives), ``T_min`` from a minimum-time solve.
+    N : int or None
+        Collocation intervals (>= 2); None: 100, except ``dmc_swingup``: one interval per MJCF step.
+    time_margin : float
+        Relative margin (>= 0, dimensionless) on the minimum time when T is chosen automatically (0.2: 20 %).
+    cart_margin : float
+        Distance in m (>= 0) kept from each end of the slide range.
+    u_margin : float
+        Fraction in [0, 1) of each actuator's half ctrl range the exact discrete plan keeps free for feedback
+        (default :data:`U_MARGIN`, 5 %).
+    solver : {'ipopt', 'fatrop', 'sqp'}
+        NLP solver of the plan's last stage (the minimum-time stages are IPOPT's); ``sqp``: the effort stage by
+        :class:`~cartpole.solvers.sqp.CollocationSQP`, IPOPT when it does not converge.
+    solver_options : mapping or None
+        Passed straight to ``casadi.nlpsol`` (stored read-only).
+    starts : int or None
+        Guesses (>= 1) of the minimum-time multi-start (:func:`~cartpole.planning.trajopt.minimum_time`); None: the
+        default shapes to the nearest upright angles.
+    exact_discrete : bool or "auto"
+        Re-solve the plan on the exact discrete model at the MJCF step and track that (True), never (False), or
+        when TVLQR's predicted tracking strays more than :data:`~cartpole.planning.trajopt.TRACK_TOL` ("auto").
+    Q, R : arrays or None
+        Tracking and catch weights (nx, nx) and (nu, nu), read-only; None: :func:`cartpole.lqr.lab_weights` of the
+        model (1 per slide, 10 per hinge angle, 0.1 per rate, 0.1 per input).
+    Qf : (nx, nx) array or None
+        TVLQR terminal cost; None: the catch's discrete cost-to-go (seamless hand-over).
+
+    Raises
+    ------
+    PlanOptionsError
+        A value outside the ranges above (shapes are checked against the model when the planner runs).
+    """
+
+    objective: object = None
+    T: float | None = None
+    N: int | None = None
+    time_margin: float = 0.2
+    cart_margin: float = 0.1
+    u_margin: float = U_MARGIN
+    solver: str = "ipopt"
+    solver_options: object = None
+    starts: int | None = None
+    exact_discrete: object = "auto"
+    Q: object = None
+    R: object = None
+    Qf: object = None
+
+    error: ClassVar[type] = PlanOptionsError
+    SCALARS: ClassVar[tuple] = ("T", "N", "time_margin", "cart_margin", "u_margin", "starts")
+
+    def __post_init__(self):
+        self.number("T", low=0.0, low_open=True, unit="s", optional=True)
+        self.number("N", low=2, integer=True, optional=True)
+        self.number("time_margin", low=0.0)
+        self.number("cart_margin", low=0.0, unit="m")
+        self.number("u_margin", low=0.0)
+        if not self.u_margin < 1.0:
+            raise PlanOptionsError(f"u_margin = {self.u_margin} must be a fraction in [0, 1) of each half ctrl "
+                                   "range.")
+        self.number("starts", low=1, integer=True, optional=True)
+        if self.solver not in PLAN_SOLVERS:
+            raise PlanOptionsError(f"Solver '{self.solver}' is not supported; choose one of "
+                                   f"{', '.join(PLAN_SOLVERS)}.")
+        if not (self.exact_discrete == "auto" or isinstance(self.exact_discrete, bool)):
+            raise PlanOptionsError(f"exact_discrete = {self.exact_discrete!r} must be True, False or 'auto'.")
+        ok = (self.objective is None or isinstance(self.objective, str) or callable(self.objective)
+              or isinstance(getattr(self.objective, "name", None), str))
+        if not ok:
+            raise PlanOptionsError(f"Objective {self.objective!r} is neither a name nor a function (x, u) -> "
+                                   "scalar.")
+        self.freeze_mapping("solver_options")
+        for name in ("Q", "R", "Qf"):
+            self.freeze_array(name)

@@ -1,0 +1,64 @@
+"""The options values every stage shares (StageOptions) and the closed loop's own (LoopOptions)."""
+import json
+
+import numpy as np
+import pytest
+
+from cartpole.errors import CartPoleError
+from cartpole.sim.options import PUSH_SECONDS, LoopError, LoopOptions, json_ready
+
+
+def test_loop_options_normalise_pushes_and_scales_and_echo_as_json():
+    loop = LoopOptions(duration=3, push=[(2, -5), (1.0, 20)], model_error=np.float64(1.2))
+    assert loop.push == ((1.0, 20.0), (2.0, -5.0)) and loop.duration == 3.0 and type(loop.model_error) is float
+    doc = loop.as_dict()
+    assert doc == {"duration": 3.0, "period": None, "push": [[1.0, 20.0], [2.0, -5.0]], "model_error": 1.2}
+    assert json.loads(json.dumps(doc)) == doc
+
+
+@pytest.mark.parametrize("changes, words", [
+    (dict(duration=0.0), "Duration 0.0 s is not a positive number"), (dict(period=-0.02), "Period -0.02 s"),
+    (dict(duration="long"), "not a positive number"), (dict(push=[(1.0, np.nan)]), "finite force"),
+    (dict(push=[(1.0,)]), "pair"), (dict(model_error=11.0), "scale in \\(0, 10\\]"),
+    (dict(durations=1.0), "LoopOptions has no field 'durations'; the fields are duration, period, push, model_error"),
+])
+def test_bad_loop_settings_are_one_sentence_of_the_loops_error(changes, words):
+    with pytest.raises(LoopError, match=words) as err:
+        LoopOptions().replace(**changes)
+    assert isinstance(err.value, CartPoleError) and isinstance(err.value, ValueError)
+    msg = str(err.value)
+    assert "\n" not in msg and msg.endswith(".")
+
+
+def test_options_are_frozen_values_varied_by_field_name():
+    loop = LoopOptions(duration=2.0)
+    with pytest.raises(AttributeError):
+        loop.duration = 3.0
+    assert loop.replace() is loop
+    for name in LoopOptions.scalar_names():
+        assert getattr(loop.replace(**{name: 0.5}), name) == 0.5
+    assert LoopOptions.names() == ("duration", "period", "push", "model_error")
+    assert loop == LoopOptions(duration=2.0) and hash(loop) == hash(LoopOptions(duration=2.0))
+    assert loop != loop.replace(duration=2.5) and len({loop, LoopOptions(duration=2.0)}) == 1
+
+
+def test_push_force_acts_for_push_seconds_on_whole_physics_steps():
+    h = 0.005
+    force = LoopOptions(push=[(1.0, 20.0), (1.05, 5.0)]).push_force(h)
+    steps = np.arange(0, 400) * h
+    f = np.array([force(t) for t in steps])
+    k = int(round(1.0 / h))
+    n = int(round(PUSH_SECONDS / h))
+    assert np.count_nonzero(f) == n + int(round(0.05 / h))
+    assert f[k] == 20.0 and f[k + n - 1] == 25.0 and f[k + n] == 5.0 and f[k - 1] == 0.0
+    assert LoopOptions().push_force(h) is None
+
+
+def test_json_ready_turns_arrays_functions_and_mappings_into_plain_json():
+    def cost(x, u):
+        return x
+
+    doc = json_ready({"a": np.eye(2), "f": cost, "n": np.int64(3), "t": (1, 2.5), "m": {"k": np.float32(0.5)}})
+    assert doc == {"a": [[1.0, 0.0], [0.0, 1.0]], "f": f"{__name__}:{cost.__qualname__}", "n": 3, "t": [1, 2.5],
+                   "m": {"k": 0.5}}
+    assert json.loads(json.dumps(doc)) == doc
