@@ -23,11 +23,12 @@ The claims file's schema, per ``[[claim]]``:
   repository root with the running Python's ``bin`` first on ``PATH``, ``MUJOCO_GL=egl`` unless set, and
   ``$CLAIMS_OUT`` a fresh empty directory for the files a command writes);
 - ``key``: an expression over the command's JSON document: its top-level keys are names, ``a.b`` reads key ``b``
-  of object ``a``, ``a[0]`` indexes, ``doc`` is the whole document; arithmetic, comparisons, comprehensions and the
+  of object ``a``, ``a[0]`` indexes, ``doc`` is the whole document, ``command_seconds`` the command's wall time
+  (s, for the timing of a whole command); arithmetic, comparisons, comprehensions and the
   functions ``abs all any deg len max mean median min round sorted std sum zip`` (``deg``: radians to degrees) are allowed, nothing else;
 - ``value``: a number, a list of numbers, a boolean or a string; every number of it must be written in ``text``;
-- ``tolerance`` (absolute) or ``rel_tolerance`` (a fraction of ``value``): exactly one for numeric values, none for
-  booleans and strings (compared exactly);
+- ``tolerance`` (absolute) or ``rel_tolerance`` (a fraction of ``value``): exactly one for numeric values (a number,
+  or for a list value a list of one per entry), none for booleans and strings (compared exactly);
 - optional ``kind`` (``"result"``, the default, or ``"timing"``: a speed measured on a shared machine, given a wide
   relative tolerance), ``quick`` (default false: cheap enough for the test suite), ``timeout`` (s, default 3600),
   ``note`` (free text).
@@ -76,8 +77,8 @@ class Claim:
     command: str
     key: str
     value: object
-    tolerance: float | None = None
-    rel_tolerance: float | None = None
+    tolerance: float | list | None = None
+    rel_tolerance: float | list | None = None
     kind: str = "result"
     quick: bool = False
     timeout: float = 3600.0
@@ -128,8 +129,11 @@ def _claim_from(entry, index: int) -> Claim:
         if (tol is None) == (rel is None):
             raise ClaimsFileError(f"{where} needs exactly one of 'tolerance' (absolute) and 'rel_tolerance'.")
         t = tol if tol is not None else rel
-        if not _is_number(t) or not math.isfinite(t) or t < 0:
-            raise ClaimsFileError(f"{where}: the tolerance must be a finite number >= 0.")
+        ts = t if isinstance(t, list) else [t]
+        if isinstance(t, list) and not (isinstance(value, list) and len(t) == len(value)):
+            raise ClaimsFileError(f"{where}: a list of tolerances needs a list value of the same length.")
+        if not all(_is_number(x) and math.isfinite(x) and x >= 0 for x in ts):
+            raise ClaimsFileError(f"{where}: the tolerance must be a finite number >= 0 (or a list of them).")
     elif tol is not None or rel is not None:
         raise ClaimsFileError(f"{where}: a boolean or string value is compared exactly and takes no tolerance.")
     kind = entry.get("kind", "result")
@@ -278,14 +282,17 @@ def _parse_key(key: str):
     return compile(tree, "<key>", "eval")
 
 
-def evaluate_key(key: str, doc):
-    """The value of ``key`` (see the module docstring) in the JSON document ``doc``."""
+def evaluate_key(key: str, doc, extra: dict | None = None):
+    """The value of ``key`` (see the module docstring) in the JSON document ``doc``; ``extra`` adds names (the
+    runner adds ``command_seconds``)."""
     code = _parse_key(key)
     doc = _wrap(doc)
     names = dict(doc) if isinstance(doc, dict) else {}
+    names.update(extra or {})
     names.update(_FUNCTIONS, doc=doc)
     try:
-        return eval(code, {"__builtins__": {}}, names)  # noqa: S307 - the AST is checked by _parse_key
+        # one namespace (globals), so that comprehensions, which have a scope of their own, see the names too
+        return eval(code, {**names, "__builtins__": {}})  # noqa: S307 - the AST is checked by _parse_key
     except KeyError_:
         raise
     except Exception as e:  # a missing key, an index out of range, a type error: say which
@@ -311,10 +318,13 @@ def holds(claim: Claim, measured) -> bool:
     got = measured if isinstance(value, list) else [measured]
     if not isinstance(got, (list, tuple)) or len(got) != len(values):
         return False
-    for v, m in zip(values, got):
+    absolute = claim.tolerance is not None
+    tols = claim.tolerance if absolute else claim.rel_tolerance
+    tols = tols if isinstance(tols, list) else [tols] * len(values)
+    for v, m, t in zip(values, got, tols):
         if not _is_number(m) or not math.isfinite(m):
             return False
-        tol = claim.tolerance if claim.tolerance is not None else claim.rel_tolerance * abs(v)
+        tol = t if absolute else t * abs(v)
         if abs(m - v) > tol * (1 + 1e-9) + 1e-12:
             return False
     return True
@@ -375,7 +385,7 @@ def run_claims(claims, *, pages: dict[str, str] | None = None, measure: bool = T
                 result = Result(claim, "error", detail=error, seconds=seconds)
             else:
                 try:
-                    measured = _plain(evaluate_key(claim.key, doc))
+                    measured = _plain(evaluate_key(claim.key, doc, {"command_seconds": seconds}))
                 except KeyError_ as e:
                     result = Result(claim, "error", detail=str(e), seconds=seconds)
                 else:
@@ -398,8 +408,10 @@ def _fmt(v) -> str:
 def describe(result: Result) -> str:
     """One line for a result."""
     c = result.claim
+    rel = c.rel_tolerance
     tol = (f" ± {_fmt(c.tolerance)}" if c.tolerance is not None else
-           f" ± {100 * c.rel_tolerance:g} %" if c.rel_tolerance is not None else "")
+           f" ± {_fmt([100 * r for r in rel]) if isinstance(rel, list) else format(100 * rel, 'g')} %" if rel is not None
+           else "")
     if result.status == "held":
         return f"held     {c.id}: {_fmt(c.value)}{tol} (now {_fmt(result.measured)})"
     if result.status == "moved":
