@@ -66,7 +66,7 @@ from cartpole.control.energy import EnergyShapingController, model_scales
 from cartpole.control.switching import swingup_catch
 from cartpole.models import wrap_angle
 from cartpole.apps.swingup import run_swingup
-from cartpole.sim import replays_exactly, simulate
+from cartpole.sim import LoopOptions, replays_exactly, simulate
 from cartpole.validation import BasinCache, swingup_success
 from cartpole.viz import plot_swingup
 
@@ -89,14 +89,15 @@ print(f"k_E = {g.k_energy:.2f} (m/s^2)/(J rad/s), E_ref = {g.energy_target * 1e3
 # ## The run
 #
 # `run_swingup(method="energy")` estimates the catch basin in MuJoCo, then runs energy shaping + catch from hanging
-# at rest, every physics step logged. A `BasinCache` lets us look at the very estimate the run used afterwards. The cell checks
+# at rest, every physics step logged; the closed loop's settings (duration, pushes, model error) travel as one
+# `LoopOptions` value, echoed in `res.options`. A `BasinCache` lets us look at the very estimate the run used afterwards. The cell checks
 # what it prints: success by the package's metric (`swingup_success`, recomputed here from the rollout), the catch
 # inside the verified basin, and the logged ctrl replaying the run exactly with `mj_step`.
 
 # %%
 cache = BasinCache()
 T_run = 6.0 if QUICK else 10.0
-res = run_swingup(params, method="energy", duration=T_run, basin_cache=cache)
+res = run_swingup(params, method="energy", loop=LoopOptions(duration=T_run), basin_cache=cache)
 r = res.rollout
 basin = cache.get(params, swingup_catch(model))  # same key as inside run_swingup: the estimate it used
 mt = res.metrics

@@ -7,6 +7,7 @@ import pytest
 
 from cartpole.cli import main
 from cartpole.apps.feedforward import RUNS
+from cartpole.planning.options import PlanOptions
 from cartpole.models import SHIPPED_MJCF
 from mj_replay import replay_with_mj_step
 
@@ -18,6 +19,7 @@ def test_json_contract_every_run_replays_exactly_and_the_figure_is_written(tmp_p
     doc = json.loads(capsys.readouterr().out)          # stdout is exactly one JSON document
     assert doc["mjcf"] == str(SHIPPED_MJCF) and doc["mass_error"] == 0.1
     assert doc["wrong_plan"]["pole_mass_factor"] == pytest.approx(1.1)
+    assert doc["options"] == {"plan": PlanOptions(exact_discrete=False).as_dict()}  # both plans' settings
     assert list(doc["runs"]) == list(RUNS)
     for name, run in doc["runs"].items():
         assert {"success", "time_to_upright", "final_angle_error", "max_angle_tracking_error",

@@ -6,6 +6,9 @@ import pytest
 
 from cartpole.cli import main
 from cartpole.models import SHIPPED_MJCF
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
+from cartpole.sim.options import LoopOptions
 from mj_replay import replay_with_mj_step
 
 
@@ -32,6 +35,7 @@ def test_energy_json_contract_and_exact_replay(tmp_path, capsys):
     doc = json.loads(out)  # stdout is exactly one JSON document
     _check_contract(doc, "energy", tmp_path)
     assert not (tmp_path / "videos").exists()
+    assert doc["options"] == {"loop": LoopOptions().as_dict()}  # the stages' settings, echoed
 
 
 def test_trajopt_json_contract_and_exact_replay(tmp_path, capsys):
@@ -39,6 +43,7 @@ def test_trajopt_json_contract_and_exact_replay(tmp_path, capsys):
     assert main(["swingup", "--method", "trajopt", "--json", "--no-video", "--out", str(tmp_path)]) == 0
     doc = json.loads(capsys.readouterr().out)
     _check_contract(doc, "trajopt", tmp_path)
+    assert doc["options"] == {"plan": PlanOptions().as_dict(), "loop": LoopOptions().as_dict()}
     # the plan's report: every solver call, the guess that won among them, the kept plan's status and time
     plan = doc["plan"]
     kept = [a for a in plan["attempts"] if a["chosen"]]
@@ -252,6 +257,9 @@ def test_mpc_json_contract_adds_solve_times_period_and_horizon(tmp_path, capsys)
     doc = json.loads(capsys.readouterr().out)
     ro = doc["rollout"]
     assert doc["method"] == "mpc" and doc["horizon"] == 1.2 and doc["period"] > 0 and doc["basin"] is None
+    opts = doc["options"]
+    assert opts["mpc"] == MPCOptions(horizon=1.2).as_dict() and opts["plan"] == PlanOptions().as_dict()
+    assert opts["loop"] == LoopOptions(push=[(4.0, 10.0)]).as_dict()
     hold = round(doc["period"] / (ro["t"][1] - ro["t"][0]))
     assert len(doc["solve_ms"]) == -(-len(ro["ctrl"]) // hold) and all(v > 0 for v in doc["solve_ms"])
     qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"], ro["push"])
