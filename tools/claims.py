@@ -23,9 +23,10 @@ The claims file's schema, per ``[[claim]]``:
   repository root with the running Python's ``bin`` first on ``PATH``, ``MUJOCO_GL=egl`` unless set, and
   ``$CLAIMS_OUT`` a fresh empty directory for the files a command writes);
 - ``key``: an expression over the command's JSON document: its top-level keys are names, ``a.b`` reads key ``b``
-  of object ``a``, ``a[0]`` indexes, ``doc`` is the whole document, ``command_seconds`` the command's wall time
-  (s, for the timing of a whole command); arithmetic, comparisons, comprehensions and the
-  functions ``abs all any deg len max mean median min round sorted std sum zip`` (``deg``: radians to degrees) are allowed, nothing else;
+  of object ``a`` (``a["b"]`` where ``b`` is a keyword or a dict method name), ``a[0]`` indexes, ``doc`` is the
+  whole document, ``command_seconds`` the command's wall time (s, for the timing of a whole command); arithmetic,
+  comparisons, comprehensions and the functions ``abs all any deg len max mean median min round sorted std sum
+  zip`` (``deg``: radians to degrees) are allowed, nothing else;
 - ``value``: a number, a list of numbers, a boolean or a string; every number of it must be written in ``text``;
 - ``tolerance`` (absolute) or ``rel_tolerance`` (a fraction of ``value``): exactly one for numeric values (a number,
   or for a list value a list of one per entry), none for booleans and strings (compared exactly);
