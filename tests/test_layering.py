@@ -2,8 +2,8 @@
 
 Layers, lowest first; a module may import its own layer and the layers below it, never one above:
 
-    base          cartpole.errors, _arrays, _files, progress, codegen   errors, read-only arrays, atomic files,
-                                                                        progress, generated C built and cached
+    base          cartpole.errors, _arrays, _files, progress, codegen, options   errors, read-only arrays, atomic
+                  files, progress, generated C built and cached, the options values' shared shape
     models        cartpole.models          MJCF -> parameters -> symbolic model
     lqr           cartpole.lqr             lqr / dlqr, TVLQR, the lab's weights
     control       cartpole.control         controllers u = c(t, x)
@@ -41,7 +41,8 @@ import pytest
 PACKAGE_DIR = Path(__file__).resolve().parent.parent / "cartpole"
 
 LAYERS = (
-    ("base", ("cartpole.errors", "cartpole._arrays", "cartpole._files", "cartpole.progress", "cartpole.codegen")),
+    ("base", ("cartpole.errors", "cartpole._arrays", "cartpole._files", "cartpole.progress", "cartpole.codegen",
+              "cartpole.options")),
     ("models", ("cartpole.models",)),
     ("lqr", ("cartpole.lqr",)),
     ("control", ("cartpole.control",)),

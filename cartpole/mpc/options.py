@@ -1,13 +1,13 @@
 """The NMPC's settings as one value: :class:`MPCOptions` (what :class:`cartpole.mpc.nmpc.NMPCController` and
 :func:`cartpole.mpc.nmpc.nmpc_swingup` take; ``replace``, ``as_dict`` and by-name variation from
-:class:`cartpole.sim.options.StageOptions`)."""
+:class:`cartpole.options.StageOptions`)."""
 from __future__ import annotations
 
 import dataclasses
 from typing import ClassVar
 
 from cartpole.errors import CartPoleError
-from cartpole.sim.options import StageOptions
+from cartpole.options import StageOptions
 
 #: Control period in s when none is given (rounded to whole MJCF steps).
 DEFAULT_PERIOD = 0.02

@@ -1,13 +1,13 @@
 """The swing-up planner's settings as one value: :class:`PlanOptions`, what
 :func:`cartpole.planning.trajopt.trajopt_swingup` takes (``replace``, ``as_dict`` and by-name variation from
-:class:`cartpole.sim.options.StageOptions`)."""
+:class:`cartpole.options.StageOptions`)."""
 from __future__ import annotations
 
 import dataclasses
 from typing import ClassVar
 
 from cartpole.ocp.bounds import OCPError
-from cartpole.sim.options import StageOptions
+from cartpole.options import StageOptions
 
 #: Fraction of each actuator's half ctrl range the exact discrete plan leaves free on both sides, so TVLQR keeps
 #: authority to correct errors where the plan would otherwise ride the limit (0 when that is infeasible).

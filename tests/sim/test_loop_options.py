@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from cartpole.errors import CartPoleError
-from cartpole.sim.options import PUSH_SECONDS, LoopError, LoopOptions, json_ready
+from cartpole.options import json_ready
+from cartpole.sim.options import PUSH_SECONDS, LoopError, LoopOptions
 
 
 def test_loop_options_normalise_pushes_and_scales_and_echo_as_json():
