@@ -4,7 +4,9 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 OUT ?= out
 
-.PHONY: install demo test bench clean
+DOCS_OUT ?= docs/_build/html
+
+.PHONY: install demo test bench docs clean
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -28,5 +30,11 @@ test: install
 bench: install
 	$(BIN)/cartpole bench
 
+# The documentation site, warnings as errors (the API reference imports the package: headless GL as for the tests).
+docs: install
+	rm -rf docs/api/generated
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/sphinx-build -W --keep-going -q -b html docs $(DOCS_OUT)
+	@echo "The site is at $(DOCS_OUT)/index.html"
+
 clean:
-	rm -rf $(VENV) $(OUT) *.egg-info
+	rm -rf $(VENV) $(OUT) *.egg-info docs/_build docs/api/generated docs/notebooks

@@ -1,0 +1,172 @@
+"""Sphinx configuration of the cartpole documentation site (``make docs``; warnings are errors there).
+
+The pages are Markdown (MyST). The API reference is generated from the package's numpydoc docstrings
+(one page per public module, written at build time into ``docs/api/generated/`` by layer, autodoc reads
+it, numpydoc lays out its sections). The notebooks are
+rendered from the committed ``notebooks/*.ipynb`` (myst-nb, execution off: the test suite runs them), copied at
+build time into ``docs/notebooks/`` (git-ignored), because Sphinx reads sources only below this directory.
+"""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parent
+REPO = DOCS.parent
+
+project = "cartpole"
+author = "the cartpole authors"
+copyright = "the cartpole authors, MIT licence"
+
+extensions = [
+    "myst_nb",                      # Markdown pages (myst-parser inside) and .ipynb notebooks
+    "sphinx.ext.autodoc",
+    "numpydoc",
+    "sphinx.ext.mathjax",
+]
+
+# ---- sources -------------------------------------------------------------------------------------------------
+exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", "notebooks/*.py"]
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
+myst_enable_extensions = ["dollarmath", "colon_fence"]
+myst_heading_anchors = 3            # `[text](page.md#a-heading)` links resolve to headings
+nb_execution_mode = "off"           # rendered as committed; tests/test_notebooks.py executes them
+
+# ---- API reference -------------------------------------------------------------------------------------------
+autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-module-all": True}
+autodoc_member_order = "bysource"
+autodoc_typehints = "none"          # the signatures are shown; the types are in the numpydoc sections
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+numpydoc_validation_checks: set = set()
+
+html_theme = "alabaster"
+html_title = "cartpole"
+html_static_path: list = []
+
+
+def _copy_notebooks() -> None:
+    """Copy ``notebooks/*.ipynb`` (the committed, output-free pairs) into ``docs/notebooks/`` for myst-nb."""
+    target = DOCS / "notebooks"
+    target.mkdir(exist_ok=True)
+    for old in target.glob("*.ipynb"):
+        old.unlink()
+    for nb in sorted((REPO / "notebooks").glob("*.ipynb")):
+        shutil.copy2(nb, target / nb.name)
+
+
+_copy_notebooks()
+
+
+def _layers() -> list[tuple[str, tuple[str, ...]]]:
+    """``LAYERS`` of ``tests/test_layering.py`` (the one statement of the layer order), read without importing it."""
+    import ast
+
+    tree = ast.parse((REPO / "tests" / "test_layering.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "LAYERS" for t in node.targets):
+            return ast.literal_eval(node.value)
+    raise RuntimeError("tests/test_layering.py defines no LAYERS")
+
+
+def _public_modules() -> list[str]:
+    """Every module of the package, from its files, but private ones (a part starting with ``_``)."""
+    names = []
+    for path in sorted((REPO / "cartpole").rglob("*.py")):
+        parts = list(path.relative_to(REPO).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        if not any(p.startswith("_") for p in parts):
+            names.append(".".join(parts))
+    return names
+
+
+API_INTRO = """API reference
+=============
+
+Every public module of the package, generated from its docstrings (numpydoc style: parameters with their units and
+shapes, what is returned, what is raised), grouped by layer, lowest first, in the order the layering test enforces
+(:doc:`../architecture`). The names most people start from are re-exported by the package top, ``cartpole``.
+"""
+
+
+def _write_api_pages() -> None:
+    """``docs/api/index.rst`` and one page per public module under ``docs/api/generated/``, by layer. ``automodule``
+    imports each by its module path, so a subpackage that the package above shadows with a function of the same name
+    (``cartpole.lqr``) is still documented."""
+    api = DOCS / "api"
+    out = api / "generated"
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    modules = _public_modules()
+    sections, placed = [], set()
+    for layer, prefixes in _layers():
+        mine = [m for m in modules if m not in placed and any(m == p or m.startswith(p + ".") for p in prefixes)]
+        placed.update(mine)
+        if mine:
+            sections.append((layer, mine))
+    top = [m for m in modules if m not in placed]  # the package top
+    for name in modules:
+        (out / f"{name}.rst").write_text(f"{name}\n{'=' * len(name)}\n\n.. automodule:: {name}\n")
+    lines = [API_INTRO]
+    for layer, mine in [("package top", top)] + sections:
+        lines += [layer, "-" * len(layer), "", ".. toctree::", "   :maxdepth: 1", ""]
+        lines += [f"   generated/{m}" for m in mine] + [""]
+    (api / "index.rst").write_text("\n".join(lines))
+
+
+_write_api_pages()
+
+
+# ---- docstrings as written -----------------------------------------------------------------------------------
+# The package's docstrings are numpydoc sections around plain-text prose that writes absolute values as |x| and
+# formulas in indented blocks. reStructuredText reads |x| as a substitution and an indented block as a quotation,
+# so before numpydoc lays out the sections: bars outside literals are escaped, and prose that still is not valid
+# reStructuredText is shown preformatted, as written (tests/test_docstrings.py checks what the docstrings say).
+import io  # noqa: E402
+import re  # noqa: E402
+
+from docutils.core import publish_doctree  # noqa: E402
+from docutils.utils import Reporter  # noqa: E402
+
+_SECTION = re.compile(r"^(Parameters|Returns|Yields|Raises|Warns|Attributes|Methods|See Also|Notes|References|"
+                      r"Examples|Other Parameters|Receives|Warnings)\s*$")
+_LITERAL = re.compile(r"(``.*?``|`[^`]*`)")
+
+
+def _escape_bars(line: str) -> str:
+    """``|`` outside literal and interpreted text escaped (an absolute value, not a substitution)."""
+    row = line.strip()
+    if (row.startswith("|") and row.endswith("|") and len(row) > 2) or row.startswith(("+-", "+=")):  # a table
+        return line
+    return "".join(part if _LITERAL.fullmatch(part) else part.replace("|", r"\|") for part in _LITERAL.split(line))
+
+
+def _valid_rst(text: str) -> bool:
+    """Whether docutils parses ``text`` without a warning (Sphinx roles replaced by literals bare docutils knows)."""
+    text = re.sub(r":[a-z:]+:`([^`]*)`", r"``\1``", text)
+    stream = io.StringIO()
+    publish_doctree(text, settings_overrides={"report_level": Reporter.WARNING_LEVEL, "halt_level": 5,
+                                              "warning_stream": stream})
+    return not stream.getvalue()
+
+
+def _prose_then_sections(lines: list[str]) -> int:
+    """Index of the first numpydoc section header (a known name underlined by dashes), or len(lines)."""
+    for i in range(len(lines) - 1):
+        if _SECTION.match(lines[i].strip()) and set(lines[i + 1].strip()) == {"-"}:
+            return i
+    return len(lines)
+
+
+def _docstring_as_written(app, what, name, obj, options, lines):
+    lines[:] = [_escape_bars(line) for line in lines]
+    end = _prose_then_sections(lines)
+    start = next((i for i, line in enumerate(lines[:end]) if not line.strip()), end)  # after the summary line(s)
+    prose = lines[start:end]
+    if any(line.strip() for line in prose) and not _valid_rst("\n".join(prose)):
+        lines[start:end] = ["", "::", ""] + ["    " + line if line.strip() else "" for line in prose] + [""]
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _docstring_as_written, priority=400)  # before numpydoc (500)
