@@ -9,10 +9,12 @@ build time into ``docs/notebooks/`` (git-ignored), because Sphinx reads sources 
 from __future__ import annotations
 
 import shutil
+import sys
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
 REPO = DOCS.parent
+sys.path.insert(0, str(REPO))  # document this checkout's package, whatever the environment has installed
 
 project = "cartpole"
 author = "the cartpole authors"
