@@ -5,12 +5,6 @@ processes or on a Dask distributed cluster, and a success map figure (with sever
 side)."""
 from __future__ import annotations
 
-import csv
-import hashlib
-import io
-import json
-import math
-import os
 from pathlib import Path
 
 HELP = ("robustness sweep of the swing-up over starts, pushes, model error and controller settings (grids or "
@@ -83,148 +77,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--stop-after", type=int, default=None, help=argparse.SUPPRESS)  # testing: interrupt after K
 
 
-def sweep_id(params, args, duration, method: str | None = None, axes=(), x0=None) -> str:
-    """12 hex digits naming the sweep description (MJCF path and content, method, n, seed, duration, jitter, axes,
-    x0): the ``sweep`` column of every row, which ``--resume`` matches. (A description without axes keeps the id it
-    had before axes existed.)"""
-    try:
-        digest = hashlib.sha256(Path(params.mjcf).read_bytes()).hexdigest()
-    except OSError:
-        digest = ""
-    method = method or (args.method if isinstance(args.method, str) else args.method[0])
-    desc = {"mjcf": str(params.mjcf), "mjcf_sha256": digest, "method": method, "n": int(args.n),
-            "seed": int(args.seed), "duration": duration, "jitter": float(args.jitter)}
-    if axes:
-        desc["axes"] = [a.describe() for a in axes]
-    if x0 is not None:
-        desc["x0"] = [float(v) for v in x0]
-    return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:12]
-
-
-def header(params, settings=()) -> list[str]:
-    """The CSV header: ``sweep``, ``run``, the start (columns named by the MJCF's joints), the push
-    (``push_time_s``, empty without a push, and ``push_force_N``), ``model_error``, one ``setting_<name>`` per
-    swept controller setting, the outcome."""
-    names = [j.name for j in params.joints]
-    return (["sweep", "run"] + [f"x0_{n}" for n in names] + [f"x0_{n}_rate" for n in names]
-            + ["push_time_s", "push_force_N", "model_error"] + [f"setting_{k}" for k in settings]
-            + ["success", "replays", "time_to_upright_s", "caught_at_s", "cart_clearance_m", "peak_ctrl", "failure",
-               "error"])
-
-
-def failure(row) -> str:
-    """Why a run failed, in a few words ('' for a success)."""
-    if row["success"]:
-        return ""
-    if row["error"]:
-        return "raised"
-    if not row["replays"]:
-        return "log does not replay"
-    if row["cart_clearance"] is not None and row["cart_clearance"] <= 1e-3:
-        return "cart reached its limit"
-    return "not upright at rest over the last second"
-
-
-def _cell(v):
-    return "" if v is None else v
-
-
-def _csv_line(sid, i, start, row, settings=()) -> list:
-    num = {k: (None if row[k] is None or not math.isfinite(row[k]) else float(row[k]))
-           for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")}
-    r = {**row, **num}
-    push = list(row.get("push") or ())
-    when = repr(float(push[0][0])) if push else ""
-    force = repr(float(sum(F for _, F in push)))
-    st = row.get("settings") or {}
-    return [sid, int(i), *[repr(float(v)) for v in start], when, force, repr(float(row.get("model_error", 1.0))),
-            *[repr(float(st[k])) if k in st else "" for k in settings], bool(r["success"]), bool(r["replays"]),
-            *[_cell(num[k]) for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")],
-            failure(r), _cell(r["error"])]
-
-
-def _parse(line: dict) -> dict:
-    """A runner row (the keys :class:`cartpole.apps.sweep._Runner` returns) from one CSV row."""
-    def f(text):
-        return math.nan if text == "" else float(text)
-    return {"success": line["success"] == "True", "replays": line["replays"] == "True",
-            "time_to_upright": f(line["time_to_upright_s"]), "caught_at": f(line["caught_at_s"]),
-            "cart_clearance": f(line["cart_clearance_m"]), "peak_ctrl": f(line["peak_ctrl"]),
-            "rho": math.nan, "error": line["error"] or None}
-
-
-def read_done(path: Path, head: list[str], sid: str, n: int) -> dict:
-    """``{run: row}`` of the runs already in the results file ``path`` for the sweep ``sid``.
-
-    Raises
-    ------
-    SweepError
-        The file holds another sweep's rows (or another header), in one sentence.
-    """
-    from cartpole._files import short
-    from cartpole.apps.sweep import SweepError
-
-    if not path.exists():
-        return {}
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SweepError(f"Cannot read {short(path)} to resume ({exc.strerror}); check it or drop --resume.") \
-            from None
-    lines = text.splitlines()
-    if not lines:
-        return {}
-    if not text.endswith("\n"):
-        lines = lines[:-1]  # a row cut short by a crash: run it again
-    reader = csv.reader(io.StringIO("\n".join(lines) + "\n"))
-    first = next(reader, [])
-    if first != head:
-        raise SweepError(f"Cannot resume from {short(path)}: its columns are not this sweep's; move it away or drop "
-                         "--resume.")
-    done = {}
-    for fields in reader:
-        if len(fields) != len(head):
-            continue
-        line = dict(zip(head, fields))
-        if line["sweep"] != sid:
-            raise SweepError(f"Cannot resume from {short(path)}: it holds sweep {line['sweep']}, not this one "
-                             f"({sid}: other method, --n, --seed, --duration, --jitter or MJCF); give the same "
-                             "settings, another --out, or drop --resume.")
-        i = int(line["run"])
-        if 0 <= i < n:
-            done[i] = _parse(line)
-    return done
-
-
-class _Appender:
-    """The results file, opened for appending: one CSV row written and flushed as each run finishes."""
-
-    def __init__(self, path: Path, head: list[str], fresh: bool):
-        from cartpole._files import output_error
-
-        self.path = path
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            new = fresh or not path.exists() or path.stat().st_size == 0
-            if not new and not path.read_bytes().endswith(b"\n"):  # drop a row a crash cut short
-                data = path.read_bytes()
-                path.write_bytes(data[:data.rfind(b"\n") + 1])
-            self.fh = open(path, "w" if new else "a", newline="")
-        except OSError as exc:
-            raise output_error(path, exc) from None
-        self.writer = csv.writer(self.fh, lineterminator="\n")
-        if new:
-            self.write(head)
-
-    def write(self, fields) -> None:
-        self.writer.writerow(fields)
-        self.fh.flush()
-        os.fsync(self.fh.fileno())
-
-    def close(self) -> None:
-        self.fh.close()
-
-
 def sweep_axes(args) -> tuple:
     """The sweep description of the command line's axis options, in a fixed order (``--push-force``,
     ``--model-error``, ``--push-time``, each ``--start``, each ``--setting``): the first grid axis varies slowest and
@@ -253,7 +105,7 @@ def sweep_axes(args) -> tuple:
 def _plan(args, params):
     """Validate everything before any run: the methods, n, workers, duration, axes and x0 for every method."""
     from cartpole.commands.swingup import check_duration
-    from cartpole.apps.sweep import SweepError, _check, check_axes
+    from cartpole.apps.sweep import SweepError, check_axes, check_settings
 
     methods = list(dict.fromkeys(args.method if isinstance(args.method, list) else [args.method]))
     axes = sweep_axes(args)
@@ -269,7 +121,7 @@ def _plan(args, params):
                          "box (give e.g. --push-force -20 20 5).")
     n = DEFAULT_N if args.n is None else args.n
     for m in methods:
-        _check(m, n, args.workers, args.jitter, None, None)
+        check_settings(m, n, args.workers, args.jitter)
         check_axes(axes, params, m)
     if args.stop_after is not None and args.stop_after < 1:
         raise SweepError(f"--stop-after needs at least 1 run (got {args.stop_after}).")
@@ -305,63 +157,36 @@ def run(args) -> dict:
 
 
 def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, duration=None, x0=None):
-    """Run one method's sweep on ``params``, appending each finished run to the CSV results under ``args.out``, then
-    rewrite it in run order and draw the success map; return ``(doc, SweepResult)``, the JSON document being:
-    ``mjcf``, ``method``, ``n``, ``successes`` and the rest of :meth:`~cartpole.apps.sweep.SweepResult.summary`, ``rows``
-    (one per run, in run order: ``run``, ``start``, ``push``, ``model_error``, ``settings``, ``success``,
-    ``replays``, ``time_to_upright``, ``caught_at``, ``cart_clearance``, ``peak_ctrl``, ``error``, ``failure``),
-    ``results`` (the CSV's absolute path), ``figure`` (the PNG's), ``sweep`` (the description's id) and ``resumed``
-    (runs taken from the file)."""
-    from cartpole._files import short, write_csv
-    from cartpole.errors import CartPoleError
-    from cartpole.apps.sweep import summary_line, swingup_sweep
-    from cartpole.viz.sweep_plot import plot_success_map
+    """Run one method's sweep on ``params`` (:func:`cartpole.apps.sweep.recorded_sweep`: each finished run appended
+    to the CSV results under ``args.out``, which is then rewritten in run order, and the success map drawn); return
+    ``(doc, SweepResult)``, the JSON document being: ``mjcf``, ``method``, ``n``, ``successes`` and the rest of
+    :meth:`~cartpole.apps.sweep.SweepResult.summary`, ``rows`` (one per run, in run order: ``run``, ``start``,
+    ``push``, ``model_error``, ``settings``, ``success``, ``replays``, ``time_to_upright``, ``caught_at``,
+    ``cart_clearance``, ``peak_ctrl``, ``error``, ``failure``), ``results`` (the CSV's absolute path), ``figure``
+    (the PNG's), ``sweep`` (the description's id) and ``resumed`` (runs taken from the file).
 
-    args.n = n
-    sid = sweep_id(params, args, duration, method, axes, x0)
-    settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
-    head = header(params, settings)
-    path = Path(args.out) / str(RESULTS).format(method=method)
-    done = read_done(path, head, sid, MAX_READ) if args.resume else {}
-    appender = []  # opened on the first finished run, so a sweep refused before any run writes nothing
-    count = [0]
+    Raises
+    ------
+    KeyboardInterrupt
+        Interrupted: its one sentence says how many runs the results file kept and how to go on.
+    """
+    from cartpole._files import short
+    from cartpole.apps.sweep import SweepInterrupted, recorded_sweep, summary_line
 
-    def on_row(i, start, row):
-        if not appender:
-            appender.append(_Appender(path, head, fresh=not args.resume))
-        appender[0].write(_csv_line(sid, i, start, row, settings))
-        count[0] += 1
-        if args.stop_after is not None and count[0] >= args.stop_after and \
-                len(done) + count[0] < _total_runs(axes, n):
-            raise KeyboardInterrupt
-
+    out = Path(args.out)
     try:
-        result = swingup_sweep(params, method=method, n=n, seed=args.seed, workers=args.workers,
-                               duration=duration, gain_jitter=args.jitter, address=args.address, done=done,
-                               on_row=on_row, axes=axes, x0=x0)
-        for a in appender:
-            a.close()
-        rows = result.rows()
-        for r in rows:
-            r["failure"] = failure(r)
-        write_csv(path, head, [_csv_line(sid, r["run"], r["start"], r, settings) for r in rows])  # in run order
-    except KeyboardInterrupt:
-        for a in appender:
-            a.close()
-        try:  # what the file holds now is what a resume will keep
-            finished = len(read_done(path, head, sid, MAX_READ))
-        except CartPoleError:
-            finished = len(done) + count[0]
+        rec = recorded_sweep(params, method=method, n=n, seed=args.seed, workers=args.workers, duration=duration,
+                             gain_jitter=args.jitter, address=args.address, axes=axes, x0=x0,
+                             results=out / str(RESULTS).format(method=method),
+                             figure=out / str(FIGURE).format(method=method), resume=args.resume,
+                             stop_after=args.stop_after)
+    except SweepInterrupted as stop:
         again = "the same command with --resume" if not args.resume else "the same command again"
-        runs = _total_runs(axes, n)
-        raise KeyboardInterrupt(f"interrupted after {finished} of {runs} runs, kept in {short(path)}; run "
-                                f"{again} to finish the others.") from None
-    finally:
-        for a in appender:
-            a.close()
-    figure = plot_success_map(result, params, Path(args.out) / str(FIGURE).format(method=method))
-    doc = {**result.summary(), "rows": rows, "results": str(path.resolve()), "figure": str(Path(figure).resolve()),
-           "sweep": sid, "resumed": len(done)}
+        raise KeyboardInterrupt(f"interrupted after {stop.finished} of {stop.total} runs, kept in "
+                                f"{short(stop.path)}; run {again} to finish the others.") from None
+    result = rec.result
+    doc = {**result.summary(), "rows": rec.rows, "results": str(rec.results.resolve()),
+           "figure": str(rec.figure.resolve()), "sweep": rec.sweep, "resumed": rec.resumed}
     if not args.json:
         print(summary_line(doc))
         for r in doc["rows"]:
@@ -373,23 +198,8 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
             why = f" ({r['error']})" if r["error"] else (f" ({r['failure']})" if r["failure"] else "")
             print(f"  run {r['run']:3d}: start [{start}]{scenario}: {'success' if r['success'] else 'FAILED'}, "
                   f"time to upright {t}{why}")
-        if done:
-            print(f"Resumed: {len(done)} of {result.n} runs were already in the results file.")
+        if rec.resumed:
+            print(f"Resumed: {rec.resumed} of {result.n} runs were already in the results file.")
         print(f"Results: {doc['results']}")
         print(f"Success map: {doc['figure']}")
     return doc, result
-
-
-#: Largest run index read back from a results file (the sweep itself keeps only its own runs).
-MAX_READ = 10**9
-
-
-def _total_runs(axes, n: int) -> int:
-    """Runs of a description (for the interrupt sentence): the grid's cells, times n with a sampled axis."""
-    if not axes:
-        return int(n)
-    cells = 1
-    for a in axes:
-        if not a.random:
-            cells *= a.count
-    return cells * (int(n) if any(a.random for a in axes) else 1)

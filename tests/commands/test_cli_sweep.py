@@ -162,31 +162,19 @@ def test_a_local_dask_cluster_gives_the_rows_of_one_worker_bit_for_bit(dask_clus
     assert 1 <= sum(built.values()) <= 2, built
 
 
-def test_python_m_cartpole_sweep_runs_on_a_dask_address_too(dask_cluster, capsys):
-    from cartpole.apps.sweep import main as sweep_main
-
-    addr = dask_cluster.scheduler_address
-    assert sweep_main(["--n", "2", "--seed", "3", "--duration", "2", "--address", addr, "--json"]) == 0
-    (summary,) = json.loads(capsys.readouterr().out)
-    assert summary["address"] == addr and summary["n"] == 2
-    assert sweep_main(["--n", "2", "--seed", "3", "--duration", "2", "--json"]) == 0
-    (local,) = json.loads(capsys.readouterr().out)
-    assert {k: v for k, v in local.items() if k != "address"} == {k: v for k, v in summary.items() if k != "address"}
-
-
 def _models_built() -> int:
-    from cartpole.apps.sweep import _BUILT
+    from cartpole.apps.sweep import runners_built
 
-    return _BUILT[0]
+    return runners_built()
 
 
 def test_an_unreachable_address_is_one_sentence(tmp_path, capsys, monkeypatch):
     pytest.importorskip("distributed")
     import socket
 
-    import cartpole.apps.sweep as sweep_mod
+    import cartpole.apps.sweep.executors as executors
 
-    monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT", 1.0)
     with socket.socket() as s:  # a loopback port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
@@ -319,3 +307,75 @@ def test_x0_fixes_the_start_of_an_axis_sweep(tmp_path, capsys):
                  "--out", str(tmp_path))
     assert [r["start"] for r in doc["rows"]] == [[0.1, 3.0, 0.0, 0.0]] * 2
     assert [r["push"] for r in doc["rows"]] == [[], [[0.5, 5.0]]]  # 0 N is no push; the default push time 0.5 s
+
+
+def test_the_sweep_has_one_command_line():
+    """``python -m cartpole.apps.sweep`` (a second, weaker CLI) is gone: ``cartpole sweep`` is the command."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "cartpole.apps.sweep", "--n", "1"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode != 0 and "cannot be directly executed" in r.stderr and r.stdout == ""
+
+
+def _running_sweep(out, workers=3, n=40):
+    """A ``cartpole sweep --workers W`` started in a session of its own, once two runs are in its results file
+    (None if it finished first), with the processes below it then."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    psutil = pytest.importorskip("psutil")
+    results = out / "sweeps" / "sweep_energy.csv"
+    argv = [sys.executable, "-m", "cartpole", "sweep", "--n", str(n), "--duration", "4", "--workers", str(workers),
+            "--out", str(out)]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env={**os.environ, "MUJOCO_GL": "egl"})
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if results.exists() and len(results.read_text().splitlines()) >= 3:
+            break
+        time.sleep(0.05)
+    if proc.poll() is not None:
+        return proc, []
+    below = psutil.Process(proc.pid).children(recursive=True)
+    return proc, below
+
+
+def _alive_after(procs, seconds=60):
+    import psutil
+
+    _, alive = psutil.wait_procs(procs, timeout=seconds)
+    return [p for p in alive if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+
+
+def test_sigterm_stops_a_pool_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path):
+    import os
+    import signal
+
+    out = tmp_path / "cut"
+    proc, below = _running_sweep(out)
+    if proc.poll() is not None:
+        pytest.skip("the sweep finished before it could be stopped (a very fast machine)")
+    assert len(below) >= 2  # the fork server (or spawned workers) and at least one worker
+    os.kill(proc.pid, signal.SIGTERM)  # the sweep's process alone, as a service manager sends it
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    last = err.strip().splitlines()[-1]
+    kept = len((out / "sweeps" / "sweep_energy.csv").read_text().splitlines()) - 1
+    assert f"interrupted after {kept} of 40 runs" in last and "Traceback" not in err
+    assert _alive_after(below) == []
+
+
+def test_a_killed_pool_sweep_leaves_no_worker(tmp_path):
+    import os
+    import signal
+
+    proc, below = _running_sweep(tmp_path / "killed")
+    if proc.poll() is not None:
+        pytest.skip("the sweep finished before it could be killed (a very fast machine)")
+    os.kill(proc.pid, signal.SIGKILL)  # no handler runs: the workers must notice on their own
+    proc.communicate(timeout=60)
+    assert _alive_after(below) == []

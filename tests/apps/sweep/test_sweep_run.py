@@ -1,8 +1,9 @@
-"""The robustness sweep: a few seeded perturbed starts on the shipped asset all swing up, every run from MuJoCo."""
+"""The robustness sweep end to end (cartpole.apps.sweep.swingup_sweep): a few seeded perturbed starts on the shipped
+asset all swing up, every run from MuJoCo; resumed runs, grids, basins found on disk, and the success maps."""
 import numpy as np
 import pytest
 
-from cartpole.apps.sweep import SweepError, SweepResult, sweep_starts, swingup_sweep
+from cartpole.apps.sweep import SweepResult, axis, sweep_starts, swingup_sweep
 
 
 def test_quick_sweep_succeeds_on_the_shipped_asset():
@@ -29,51 +30,6 @@ def test_gain_jitter_is_seeded_and_bounded():
     assert all(0.8 * 15.0 <= o["energy_gain"] <= 1.2 * 15.0 and o["energy_accel"] <= 1.0 for o in r.options)
 
 
-def test_bad_settings_raise():
-    with pytest.raises(SweepError):
-        swingup_sweep(None, n=0)
-    with pytest.raises(SweepError):
-        swingup_sweep(None, n=2, gain_jitter=1.5)
-    with pytest.raises(SweepError, match="Unknown sweep method"):
-        swingup_sweep(None, method="magic", n=1)
-    with pytest.raises(SweepError, match="use --method energy"):
-        swingup_sweep(None, method="trajopt", n=1, gain_jitter=0.1)
-    with pytest.raises(SweepError, match="workers"):
-        swingup_sweep(None, n=1, workers=0)
-
-
-def test_a_run_that_raises_is_a_failed_row_with_its_sentence(monkeypatch):
-    import cartpole.apps.sweep as sweep_mod
-    from cartpole.apps.swingup import SwingupError
-
-    real = sweep_mod.run_swingup
-    starts = sweep_starts(3, seed=2)
-
-    def flaky(model, **kw):
-        if np.allclose(kw["x0"], starts[1]):
-            raise SwingupError("No plan from this start; try another.")
-        return real(model, **kw)
-
-    monkeypatch.setattr(sweep_mod, "run_swingup", flaky)
-    r = swingup_sweep(None, n=3, seed=2, duration=1.0)
-    rows = r.rows()
-    assert [row["run"] for row in rows] == [0, 1, 2]
-    assert rows[1]["success"] is False and rows[1]["error"] == "No plan from this start; try another."
-    assert rows[1]["time_to_upright"] is None and rows[0]["error"] is None and rows[0]["replays"] is True
-
-
-def test_python_m_cartpole_sweep_prints_one_json_summary_per_model():
-    import json
-    import subprocess
-    import sys
-
-    r = subprocess.run([sys.executable, "-m", "cartpole.apps.sweep", "--n", "1", "--json"], capture_output=True,
-                       text=True, timeout=600)
-    assert r.returncode == 0, r.stderr
-    (summary,) = json.loads(r.stdout)
-    assert summary["n"] == 1 and summary["successes"] == 1 and summary["mjcf"].endswith("cartpole.xml")
-
-
 def test_done_runs_are_skipped_and_on_row_sees_each_finished_run():
     full = swingup_sweep(None, n=3, seed=4, duration=2.0)
     seen = []
@@ -88,23 +44,9 @@ def test_done_runs_are_skipped_and_on_row_sees_each_finished_run():
     assert part.rows() == full.rows()
 
 
-def test_success_map_is_a_labelled_png(tmp_path):
-    from cartpole.models import read_params
-    from cartpole.viz.sweep_plot import plot_success_map, success_map_figure
-
-    r = swingup_sweep(None, n=3, seed=1, duration=1.0)  # too short to hold: failures drawn as crosses
-    params = read_params(None)
-    fig = success_map_figure(r, params)
-    ax = fig.axes[0]
-    assert "[rad]" in ax.get_xlabel() and "[rad/s]" in ax.get_ylabel() and "of 3 starts" in ax.get_title()
-    path = plot_success_map(r, params, tmp_path / "figures" / "map.png")
-    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-
-
 def test_a_trajopt_sweep_reports_the_basin_of_the_hand_over_lqr():
     from cartpole.models import build_model, read_params
     from cartpole.planning.trajopt import handover_catch
-    from cartpole.apps.sweep import swingup_sweep
     from cartpole.validation.basin import estimate_basin
 
     params = read_params()
@@ -113,23 +55,8 @@ def test_a_trajopt_sweep_reports_the_basin_of_the_hand_over_lqr():
     assert res.rho == direct.rho
 
 
-# ---- sweep descriptions: axes over starts, pushes, model error and controller settings -------------------------
-
-def test_axis_reads_a_fixed_value_a_sample_or_a_grid():
-    from cartpole.apps.sweep import Axis, axis
-
-    assert axis("push_time", "0.5") == Axis("push_time", 0.5, 0.5, 1)
-    assert axis("push_force", -20, 20) == Axis("push_force", -20.0, 20.0, None) and axis("push_force", -20, 20).random
-    g = axis("model_error", 0.8, 1.2, 5)
-    assert not g.random and np.allclose(g.values(), [0.8, 0.9, 1.0, 1.1, 1.2])
-    for bad in [("a",), (1, 2, 3, 4), (2, 1), (0, 1, 2.5), (0, 1, 0), (np.nan,)]:
-        with pytest.raises(SweepError):
-            axis("push_force", *bad)
-
-
 def test_a_grid_sweep_is_the_product_of_its_axes_and_each_run_is_exactly_run_swingup():
     from cartpole.models import build_model, read_params
-    from cartpole.apps.sweep import axis
     from cartpole.apps.swingup import run_swingup
 
     axes = [axis("push_force", -15, 15, 2), axis("model_error", 0.9, 1.1, 2), axis("push_time", 1.0)]
@@ -146,35 +73,8 @@ def test_a_grid_sweep_is_the_product_of_its_axes_and_each_run_is_exactly_run_swi
     assert [a["name"] for a in r.summary()["axes"]] == ["push_force", "model_error", "push_time"]
 
 
-def test_sampled_axes_are_seeded_and_give_the_same_rows_on_two_workers():
-    from cartpole.apps.sweep import axis
-
-    axes = [axis("start:hinge", 2.9, 3.4), axis("start:slider_rate", -0.2, 0.2), axis("setting:energy_gain", 12, 18, 2)]
-    one = swingup_sweep(None, axes=axes, n=2, seed=7, duration=2.0)
-    assert one.n == 4  # 2 grid points x 2 draws
-    starts = np.asarray(one.starts)
-    assert np.all((2.9 <= starts[:, 1]) & (starts[:, 1] <= 3.4)) and np.all(starts[:, [0, 3]] == 0)
-    assert [row["settings"] for row in one.rows()] == [{"energy_gain": 12.0}] * 2 + [{"energy_gain": 18.0}] * 2
-    assert not np.allclose(swingup_sweep(None, axes=axes, n=2, seed=8, duration=2.0).starts, starts)
-    two = swingup_sweep(None, axes=axes, n=2, seed=7, duration=2.0, workers=2)
-    assert two.rows() == one.rows()  # floats compared exactly
-
-
-@pytest.mark.parametrize("axes, words", [
-    ([("wind", 1.0)], "Unknown sweep axis"), ([("start:elbow", 1.0)], "No joint 'elbow'"),
-    ([("setting:horizon", 1.0)], "no setting 'horizon'"), ([("push_time", 1.0)], "without a push force"),
-    ([("model_error", 0.0, 1.0, 3)], "scale in"), ([("push_force", 1.0), ("push_force", 2.0)], "twice"),
-])
-def test_bad_axes_are_refused_before_any_run(axes, words):
-    from cartpole.apps.sweep import axis
-
-    with pytest.raises(SweepError, match=words):
-        swingup_sweep(None, axes=[axis(name, *v) for name, *v in axes], on_row=lambda *a: pytest.fail("ran"))
-
-
 def test_a_sweep_finds_its_basins_on_disk_the_second_time(tmp_path, monkeypatch):
     import cartpole.validation.basin as basin_mod
-    from cartpole.apps.sweep import axis
 
     monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
     axes = [axis("model_error", 0.9, 1.1, 2)]
@@ -185,9 +85,21 @@ def test_a_sweep_finds_its_basins_on_disk_the_second_time(tmp_path, monkeypatch)
     assert again.rows() == first.rows() and again.rho == first.rho
 
 
+def test_success_map_is_a_labelled_png(tmp_path):
+    from cartpole.models import read_params
+    from cartpole.viz.sweep_plot import plot_success_map, success_map_figure
+
+    r = swingup_sweep(None, n=3, seed=1, duration=1.0)  # too short to hold: failures drawn as crosses
+    params = read_params(None)
+    fig = success_map_figure(r, params)
+    ax = fig.axes[0]
+    assert "[rad]" in ax.get_xlabel() and "[rad/s]" in ax.get_ylabel() and "of 3 starts" in ax.get_title()
+    path = plot_success_map(r, params, tmp_path / "figures" / "map.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_comparison_figure_puts_two_methods_side_by_side(tmp_path):
     from cartpole.models import read_params
-    from cartpole.apps.sweep import axis
     from cartpole.viz.sweep_plot import comparison_figure, plot_comparison
 
     axes = [axis("push_force", -10, 10, 2), axis("model_error", 0.9, 1.1, 2), axis("push_time", 0.5)]
@@ -207,7 +119,6 @@ def test_comparison_figure_puts_two_methods_side_by_side(tmp_path):
 
 def test_success_maps_of_sampled_and_one_axis_sweeps_are_labelled_scatters():
     from cartpole.models import read_params
-    from cartpole.apps.sweep import axis
     from cartpole.viz.sweep_plot import success_map_figure
 
     params = read_params()
@@ -221,22 +132,3 @@ def test_success_maps_of_sampled_and_one_axis_sweeps_are_labelled_scatters():
     one = swingup_sweep(None, axes=[axis("setting:energy_gain", 10, 20, 3)], duration=1.0)
     ax = success_map_figure(one, params).axes[0]
     assert ax.get_xlabel() == "energy_gain" and "of 3 runs" in ax.get_title()
-
-
-def test_mpc_settings_reach_the_controller(monkeypatch):
-    pytest.importorskip("cartpole.mpc.nmpc")
-    import cartpole.apps.sweep as sweep_mod
-    from cartpole.apps.sweep import axis
-
-    seen = []
-    real = sweep_mod.run_swingup
-
-    def spy(model, **kw):
-        seen.append((kw["period"], kw["horizon"]))
-        return real(model, **kw)
-
-    monkeypatch.setattr(sweep_mod, "run_swingup", spy)
-    r = swingup_sweep(None, method="mpc", axes=[axis("setting:horizon", 0.8, 1.2, 2)], duration=0.5)
-    assert seen == [(None, 0.8), (None, 1.2)] and [row["settings"] for row in r.rows()] == [
-        {"horizon": 0.8}, {"horizon": 1.2}]
-    assert np.isnan(r.rho) and all(row["replays"] for row in r.rows())

@@ -1,0 +1,401 @@
+"""Where a sweep's runs run: this process (:func:`run_here`), this process beside worker processes
+(:func:`run_pool`), or the workers of a Dask distributed scheduler (:func:`run_dask`). Every run is
+:meth:`Runner.run` on the same inputs, so the rows are the same, bit for bit, wherever they ran.
+
+The local pool (``workers = W > 1``): this process runs its share in one thread with the model it has already
+built, beside ``W - 1`` worker processes of a :class:`concurrent.futures.ProcessPoolExecutor`; each run goes to
+whichever is free, and the rows come back in the order they finish. The worker processes are forked from
+multiprocessing's fork server, which :func:`start_server` starts at the beginning of the sweep (the parent
+meanwhile plans the runs and reads the basin) with the toolkit already imported (:data:`PRELOAD`), so a worker
+starts in milliseconds instead of importing NumPy, SciPy, CasADi, MuJoCo and the toolkit anew; each builds the
+model once (:func:`_init_worker`) and keeps it for all its runs. Where the platform has no fork server, the workers
+are spawned (the same rows, a slower start). No worker is forked from this process itself: it holds MuJoCo,
+CasADi and BLAS state and, during a sweep, threads.
+
+Interrupts: workers ignore Ctrl-C (SIGINT), which a terminal sends to the whole process group; the parent handles
+it, keeps the rows that finished and shuts the pool down (a run under way finishes first). During a pool sweep
+SIGTERM is handled the same way. A worker whose parent is gone (killed with SIGKILL, say) exits at once
+(:func:`_exit_with_parent`), so no worker outlives its sweep.
+"""
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from contextlib import contextmanager
+
+import numpy as np
+
+from cartpole.errors import CartPoleError, first_line
+from cartpole.models import CartPoleModel, CartPoleParams, build_model
+from cartpole.sim import replays_exactly
+from cartpole.apps.swingup import planning_model, run_swingup
+from cartpole.validation.basin import BasinCache
+from cartpole.apps.sweep.plan import SweepError
+
+#: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
+CONNECT_TIMEOUT = 10.0
+#: Modules the pool's fork server imports before it forks any worker, per method: what a run imports (this module
+#: brings the swing-up, the model, MuJoCo and CasADi; the rest are imported by a run on first use).
+PRELOAD = {
+    "energy": ("cartpole.apps.sweep.executors", "cartpole.control.switching", "cartpole.control.energy",
+               "cartpole.validation.metrics"),
+    "trajopt": ("cartpole.apps.sweep.executors", "cartpole.planning.trajopt", "cartpole.validation.metrics"),
+    "mpc": ("cartpole.apps.sweep.executors", "cartpole.mpc.nmpc", "cartpole.validation.metrics"),
+}
+#: Environment of a pool worker: one BLAS / OpenMP thread (what Dask's nanny gives its workers too). OpenBLAS's
+#: threads spin after each call; two workers with two each on two cores take turns instead of running.
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+class Runner:
+    """One process's share of a sweep: the model (built once), each planning model (built once, on first use), the
+    basin cache, and the settings every run shares.
+
+    The same object serves this process (``workers = 1``, and its share of a pool) and each worker process
+    (through :func:`_init_worker`), so a run computes the same thing wherever it runs.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The cart-pole MuJoCo runs on.
+    method : {"energy", "trajopt", "mpc"}
+    duration : float or None
+        Simulated seconds per run (None: :func:`~cartpole.apps.swingup.run_swingup`'s default).
+    catch_weights : (Q, R) or None
+        LQR weights of the catch.
+    cache : BasinCache
+        The basins the runs use (shipped to the workers with what it holds).
+    model : CartPoleModel, optional
+        The model of ``params`` when already built.
+    """
+
+    def __init__(self, params: CartPoleParams, method: str, duration, catch_weights, cache: BasinCache,
+                 model: CartPoleModel | None = None):
+        self.params = params
+        self.model = build_model(params) if model is None else model
+        self.method = method
+        self.duration = duration
+        self.catch_weights = catch_weights
+        self.cache = cache
+        self.plans = {1.0: self.model}
+
+    def settings(self) -> tuple:
+        """``(params, method, duration, catch_weights, cache)``: what a worker needs to build the same runner."""
+        return (self.params, self.method, self.duration, self.catch_weights, self.cache)
+
+    def plan_model(self, model_error: float) -> CartPoleModel:
+        """The planning model of scale ``model_error`` (:func:`~cartpole.apps.swingup.planning_model`), built once."""
+        S = float(model_error)
+        if S not in self.plans:
+            self.plans[S] = planning_model(self.model, S)
+        return self.plans[S]
+
+    def basin(self, model_error: float = 1.0):
+        """The catch basin the runs of this planning model use (estimated once, then found in the cache): the
+        energy method's LQR catch, or for trajopt the hand-over LQR that takes over when the plan ends; None for
+        mpc (no catch)."""
+        pm = self.plan_model(model_error)
+        if self.method == "mpc":
+            return None
+        if self.method == "trajopt":
+            from cartpole.planning.trajopt import handover_catch
+
+            return self.cache.get(self.params, handover_catch(self.params, pm))
+        from cartpole.control.switching import swingup_catch
+
+        catch = swingup_catch(pm) if self.catch_weights is None else swingup_catch(pm, *self.catch_weights)
+        return self.cache.get(self.params, catch)
+
+    def run(self, x0, options: dict, push=(), model_error: float = 1.0, settings: dict | None = None) -> dict:
+        """One swing-up from ``x0`` ((2 nq,) [m, rad, m/s, rad/s]) with its push (``((T s, F N),)``), model error
+        and settings: its row's numbers, ``success``, ``replays``, ``time_to_upright`` (s, NaN unless a success),
+        ``caught_at`` (s or NaN), ``cart_clearance`` (m), ``peak_ctrl``, ``rho`` and ``error`` (the sentence of a
+        :class:`CartPoleError` the run raised, else None)."""
+        settings = dict(settings or {})
+        energy = {**options, **settings} if self.method == "energy" else None
+        mpc = {k: settings.get(k) for k in ("period", "horizon")} if self.method == "mpc" else {}
+        try:
+            res = run_swingup(self.model, method=self.method, x0=x0, duration=self.duration,
+                              basin_cache=self.cache, energy_options=energy, catch_weights=self.catch_weights,
+                              push=push or None, model_error=model_error, plan_model=self.plan_model(model_error),
+                              **mpc)
+        except CartPoleError as exc:
+            return {"success": False, "replays": False, "time_to_upright": math.nan, "caught_at": math.nan,
+                    "cart_clearance": math.nan, "peak_ctrl": math.nan, "rho": math.nan,
+                    "error": first_line(exc) + "."}
+        m = res.metrics
+        replays = bool(replays_exactly(res.rollout, self.params))
+        ok = bool(res.success and replays)
+        tu = m["time_to_upright"]
+        return {"success": ok, "replays": replays,
+                "time_to_upright": float(tu) if (ok and tu is not None) else math.nan,
+                "caught_at": math.nan if res.caught_at is None else float(res.caught_at),
+                "cart_clearance": float(m["cart_clearance"]), "peak_ctrl": float(m["peak_ctrl"]),
+                "rho": float(res.basin.rho) if res.basin is not None else math.nan, "error": None}
+
+
+# ---- this process ------------------------------------------------------------------------------------------------
+
+def run_here(runner: Runner, jobs, todo, finished) -> None:
+    """The runs ``todo`` (indices into ``jobs``, each ``(x0, options, push, model_error, settings)``) one after
+    the other in this process; ``finished(i, row)`` after each."""
+    for i in todo:
+        finished(i, runner.run(*jobs[i]))
+
+
+# ---- the local pool ----------------------------------------------------------------------------------------------
+
+def start_server(method: str):
+    """The multiprocessing context the pool's workers start from, its fork server started now if it is not running
+    yet: with :data:`PRELOAD` of ``method`` imported, :data:`WORKER_ENV` in its environment (unless the user set
+    those variables) and Ctrl-C ignored, all of which the workers it forks inherit. Returns at once: the server
+    imports in the background while the caller goes on; the first worker waits for it. Without a fork server on
+    this platform: the ``spawn`` context (each worker then imports the toolkit itself).
+
+    The fork server is multiprocessing's own, one per process, and it stays up for later sweeps; where another
+    part of the program started it first, its workers import what it lacks on their first run."""
+    import multiprocessing
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    from multiprocessing import forkserver
+
+    ctx = multiprocessing.get_context("forkserver")
+    with _sigint_ignored(), _one_blas_thread():
+        ctx.set_forkserver_preload(list(PRELOAD.get(method, PRELOAD["energy"])))  # read only by a server not yet up
+        forkserver.ensure_running()
+    return ctx
+
+
+def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None) -> None:
+    """The runs ``todo`` spread over this process (one thread, ``runner``) and ``workers - 1`` worker processes
+    (one :class:`Runner` each, built once); each run goes to whichever is free. ``finished(i, row)`` is called in
+    this thread as each run comes back; an exception it raises (KeyboardInterrupt, say) stops the sweep, and the
+    workers are shut down before this returns or raises.
+
+    Parameters
+    ----------
+    context : multiprocessing context, optional
+        Where the workers start from (default :func:`start_server` of the runner's method).
+
+    Raises
+    ------
+    SweepError
+        A worker process died (out of memory, or killed).
+    """
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    ctx = start_server(runner.method) if context is None else context
+    env = dict(os.environ)
+    for k, v in WORKER_ENV.items():
+        env.setdefault(k, v)
+    with _sigint_ignored(), _one_blas_thread():  # spawned workers inherit both from birth
+        pool = ProcessPoolExecutor(max_workers=workers - 1, mp_context=ctx, initializer=_init_worker,
+                                   initargs=(runner.settings(), env))
+    here = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cartpole-sweep")
+    pending = deque(todo)
+    running: dict = {}  # future -> (executor, run index)
+    busy = {pool: 0, here: 0}
+    room = {pool: workers - 1, here: 1}
+    try:
+        with _sigterm_as_interrupt():
+            while pending or running:
+                for ex in (pool, here):
+                    while pending and busy[ex] < room[ex]:
+                        i = pending.popleft()
+                        fut = ex.submit(_run_in_worker if ex is pool else runner.run, *jobs[i])
+                        running[fut] = (ex, i)
+                        busy[ex] += 1
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    ex, i = running.pop(fut)
+                    busy[ex] -= 1
+                    finished(i, fut.result())
+    except BrokenProcessPool:
+        raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer --workers than "
+                         f"{workers}.") from None
+    finally:
+        here.shutdown(wait=True, cancel_futures=True)
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+_WORKER: Runner | None = None  # set in each worker process by _init_worker
+
+
+def _init_worker(settings: tuple, env: dict) -> None:
+    """ProcessPoolExecutor initializer: this worker's runner (its model built once) from
+    :meth:`Runner.settings`, and the parent's environment ``env`` (a forked worker has the fork server's, from
+    when it started).
+
+    MuJoCo's warnings are dropped here (the parent loaded the same MJCF first and reported them), so a worker
+    neither prints them nor writes MUJOCO_LOG.TXT into the current directory. Ctrl-C is left to the parent (which
+    keeps the finished rows and stops the pool), so a worker does not die of it mid-run."""
+    import signal
+
+    import mujoco
+
+    global _WORKER
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _exit_with_parent()
+    os.environ.clear()
+    os.environ.update(env)
+    mujoco.set_mju_user_warning(lambda msg: None)
+    _WORKER = Runner(*settings)
+
+
+def _run_in_worker(x0, options, push=(), model_error=1.0, settings=None) -> dict:
+    return _WORKER.run(x0, options, push, model_error, settings)
+
+
+def _exit_with_parent() -> None:
+    """In a worker process: a daemon thread that ends the process as soon as its parent is gone. A pool worker
+    waits for work on a pipe the parent's death does not close, so without this a killed sweep would leave it
+    running."""
+    import multiprocessing
+    import threading
+    from multiprocessing.connection import wait
+
+    parent = multiprocessing.parent_process()
+    if parent is None or parent.sentinel is None:
+        return
+
+    def watch():
+        wait([parent.sentinel])
+        os._exit(1)
+
+    threading.Thread(target=watch, name="cartpole-sweep-parent", daemon=True).start()
+
+
+@contextmanager
+def _one_blas_thread():
+    """Processes started inside get :data:`WORKER_ENV` (unless the user set those variables); this process's own
+    environment is restored after the block."""
+    added = {k: v for k, v in WORKER_ENV.items() if k not in os.environ}
+    os.environ.update(added)
+    try:
+        yield
+    finally:
+        for k in added:
+            os.environ.pop(k, None)
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+@contextmanager
+def _sigint_ignored():
+    """Ignore Ctrl-C (SIGINT) inside the block, in the main thread (elsewhere: no change). Processes started inside
+    inherit the ignored signal, so a Ctrl-C that reaches the whole process group cannot kill a worker while it is
+    still importing (a traceback on stderr); the parent alone handles it and keeps the finished rows."""
+    import signal
+
+    if not _main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
+def _sigterm_as_interrupt():
+    """Inside the block (main thread, SIGTERM at its default): SIGTERM raises KeyboardInterrupt, as Ctrl-C does, so
+    the pool is shut down and the finished rows kept instead of the process dying with its workers orphaned."""
+    import signal
+
+    if not _main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+# ---- a Dask cluster ----------------------------------------------------------------------------------------------
+
+#: Per-process cache of runners on Dask workers, keyed by the sweep's token (models built once per worker).
+_RUNNERS: dict = {}
+#: How many runners this process has built for Dask tasks (:func:`runners_built`).
+_BUILT = [0]
+
+
+def runners_built() -> int:
+    """How many runners this process has built for Dask tasks: one per sweep a Dask worker took part in, not one
+    per run (run it on the workers with ``client.run``)."""
+    return _BUILT[0]
+
+
+def _run_on_dask(token: str, settings: tuple, x0, options, push=(), model_error=1.0, run_settings=None) -> dict:
+    """One run on a Dask worker: the runner for ``token`` is built on this worker process's first run of the
+    sweep (MuJoCo's warnings dropped, as in a pool worker) and reused by every later one."""
+    runner = _RUNNERS.get(token)
+    if runner is None:
+        import mujoco
+
+        mujoco.set_mju_user_warning(lambda msg: None)
+        _RUNNERS.clear()  # one sweep's model per worker at a time
+        runner = _RUNNERS[token] = Runner(*settings)
+        _BUILT[0] += 1
+    return runner.run(x0, options, push, model_error, run_settings)
+
+
+def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
+    """The runs ``todo`` on the Dask scheduler at ``address`` (``tcp://host:port``); ``finished(i, row)`` as each
+    one comes back.
+
+    Raises
+    ------
+    SweepError
+        Dask distributed is not installed, the scheduler cannot be reached within :data:`CONNECT_TIMEOUT` s, or a
+        run failed on the cluster outside :class:`CartPoleError` (a worker died, say).
+    """
+    import uuid
+
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise SweepError("--address needs Dask distributed; install it with `pip install 'dask[distributed]'`.") \
+            from None
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SweepError(f"Cannot reach a Dask scheduler at {address} ({type(exc).__name__}); start one "
+                         "(`dask scheduler`, then `dask worker ADDRESS`) or give its tcp://host:port.") from None
+    futures = []
+    try:
+        [init_f] = client.scatter([runner.settings()], broadcast=True)
+        token = uuid.uuid4().hex
+        index = {}
+        for i in todo:
+            x0, options, push, model_error, settings = jobs[i]
+            f = client.submit(_run_on_dask, token, init_f, np.asarray(x0), options, push, model_error, settings,
+                              pure=False)
+            index[f.key] = i
+            futures.append(f)
+        for fut in as_completed(futures, loop=client.loop):
+            try:
+                row = fut.result()
+            except CartPoleError:
+                raise
+            except Exception as exc:  # a worker died (KilledWorker), or a run failed outside CartPoleError
+                raise SweepError(f"A run failed on the Dask cluster at {address}: {type(exc).__name__}: "
+                                 f"{first_line(exc)}.") from None
+            finished(index[fut.key], row)
+    finally:
+        pending = [f for f in futures if not f.done()]
+        if pending:
+            client.cancel(pending)
+        client.close()

@@ -1,0 +1,369 @@
+"""What a sweep found and how it is kept: :class:`SweepResult` (one entry per run, its rows and summary), the
+sweep's id (:func:`sweep_id`), and the CSV results file: its columns (:func:`header`), one line per run
+(:func:`csv_row`), appended and flushed as each run finishes (:class:`ResultsFile`) and read back to resume
+(:func:`read_done`).
+
+The results file: a header, then one line per finished run in the order runs finish (rewritten in run order when
+the sweep ends); floats written with ``repr`` (the same doubles read back), empty cells for None/NaN. Its
+``sweep`` column is the description's id, which a resumed sweep must match.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cartpole._arrays import readonly
+from cartpole._files import output_error, short
+from cartpole.models import CartPoleParams
+from cartpole.apps.sweep.plan import Axis, SweepError, start_index
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What a robustness sweep found; arrays are read-only, one entry per run, in run order.
+
+    Attributes
+    ----------
+    mjcf : str
+        The MJCF every run used.
+    starts : (n, 2 nq) array
+        Start states ``[qpos, qvel]`` [m, rad, m/s, rad/s].
+    success : (n,) bool array
+        ``swingup_success`` of the MuJoCo rollout and the rollout replays exactly.
+    time_to_upright : (n,) array
+        s (``time_to_upright`` of :func:`~cartpole.validation.metrics.swingup_metrics`); NaN where the run failed.
+    caught_at : (n,) array
+        s, when the LQR catch took over for good; NaN if it never did.
+    cart_clearance : (n,) array
+        m, smallest distance to a cart limit over each run (NaN for a run that raised).
+    peak_ctrl : (n,) array
+        Largest |ctrl| of each run (NaN for a run that raised).
+    options : tuple of dict
+        The energy-shaping keyword arguments of each run (jittered settings), as passed to the controller.
+    rho : float
+        Catch level of the nominal planning model (the basin estimate's; NaN for mpc, which has no catch).
+    seed : int
+    duration : float or None
+        Simulated seconds per run (energy default 10 s; None for trajopt's default, each plan + 3 s).
+    half_widths : (2 nq,) array
+    gain_jitter : float
+    base_options : dict
+    method : str
+        "energy", "trajopt" or "mpc".
+    replays : (n,) bool array
+        The run's log replays exactly with ``mj_step``.
+    errors : tuple of (str or None)
+        The sentence of a run that raised, else None.
+    workers : int
+        Processes of this machine the runs were spread over (1 when they ran on a Dask cluster, see ``address``).
+    address : str or None
+        The Dask scheduler the runs went to, or None.
+    pushes : tuple of tuple
+        Each run's pushes ``((T [s], F [N]),)`` or ``()``.
+    model_errors : (n,) array
+        Each run's planning-model scale (1: the MJCF's own).
+    settings : tuple of dict
+        Each run's swept controller settings (``{}`` when none is swept).
+    axes : tuple of Axis
+        The sweep description (empty: the classic start box).
+    """
+
+    mjcf: str
+    starts: np.ndarray
+    success: np.ndarray
+    time_to_upright: np.ndarray
+    caught_at: np.ndarray
+    cart_clearance: np.ndarray
+    peak_ctrl: np.ndarray
+    options: tuple
+    rho: float
+    seed: int
+    duration: float | None
+    half_widths: np.ndarray
+    gain_jitter: float
+    base_options: dict = field(default_factory=dict)
+    method: str = "energy"
+    replays: np.ndarray | None = None
+    errors: tuple = ()
+    workers: int = 1
+    address: str | None = None
+    pushes: tuple = ()
+    model_errors: np.ndarray | None = None
+    settings: tuple = ()
+    axes: tuple = ()
+
+    def __post_init__(self):
+        n = len(self.success)
+        if self.model_errors is None:
+            object.__setattr__(self, "model_errors", np.ones(n))
+        if not self.pushes:
+            object.__setattr__(self, "pushes", ((),) * n)
+        if not self.settings:
+            object.__setattr__(self, "settings", ({},) * n)
+        for name in ("starts", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl", "half_widths",
+                     "model_errors"):
+            object.__setattr__(self, name, readonly(getattr(self, name)))
+        object.__setattr__(self, "success", readonly(self.success, bool))
+        rep = self.success if self.replays is None else self.replays
+        object.__setattr__(self, "replays", readonly(rep, bool))
+        if not self.errors:
+            object.__setattr__(self, "errors", (None,) * self.n)
+
+    @property
+    def n(self) -> int:
+        """Number of runs."""
+        return int(len(self.success))
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of runs that succeeded."""
+        return float(np.mean(self.success)) if self.n else 0.0
+
+    def _t(self):
+        return self.time_to_upright[self.success]
+
+    @property
+    def t_median(self) -> float:
+        """Median time to upright (s) over the successful runs (NaN if none)."""
+        t = self._t()
+        return float(np.median(t)) if t.size else float("nan")
+
+    @property
+    def t_max(self) -> float:
+        """Largest time to upright (s) over the successful runs (NaN if none)."""
+        t = self._t()
+        return float(np.max(t)) if t.size else float("nan")
+
+    def axis_values(self, ax: Axis | str, params: CartPoleParams) -> np.ndarray:
+        """(n,) value of one swept input per run (``ax`` an :class:`Axis` or its name), e.g. for a figure."""
+        name = ax.name if isinstance(ax, Axis) else str(ax)
+        if name == "push_force":
+            return np.array([sum(F for _, F in p) for p in self.pushes], float)
+        if name == "push_time":
+            return np.array([p[0][0] if p else np.nan for p in self.pushes], float)
+        if name == "model_error":
+            return np.asarray(self.model_errors, float)
+        if name.startswith("setting:"):
+            key = name[len("setting:"):]
+            return np.array([st.get(key, np.nan) for st in self.settings], float)
+        return np.asarray(self.starts, float)[:, start_index(name, params)]
+
+    def rows(self) -> list[dict]:
+        """One JSON-ready dict per run, in run order: ``run`` (index), ``start`` (2 nq numbers), ``push`` (list of
+        ``[T s, F N]``), ``model_error``, ``settings`` (swept controller settings), ``success``, ``replays``,
+        ``time_to_upright`` (s or None), ``caught_at`` (s or None), ``cart_clearance`` (m), ``peak_ctrl``,
+        ``error`` (the sentence of a run that raised, else None)."""
+        return [{"run": i, "start": self.starts[i].tolist(), "push": [list(p) for p in self.pushes[i]],
+                 "model_error": float(self.model_errors[i]), "settings": dict(self.settings[i]),
+                 "success": bool(self.success[i]),
+                 "replays": bool(self.replays[i]), "time_to_upright": _num(self.time_to_upright[i]),
+                 "caught_at": _num(self.caught_at[i]), "cart_clearance": _num(self.cart_clearance[i]),
+                 "peak_ctrl": _num(self.peak_ctrl[i]), "error": self.errors[i]} for i in range(self.n)]
+
+    def summary(self) -> dict:
+        """JSON-ready summary: ``mjcf``, ``method``, ``n``, ``successes``, ``success_rate``,
+        ``time_to_upright_median``, ``time_to_upright_max``, ``caught_at_median``, ``min_cart_clearance``,
+        ``max_peak_ctrl``, ``failed`` (start states of the failures), ``seed``, ``duration``, ``half_widths``,
+        ``gain_jitter``, ``rho``, ``workers``, ``address``, ``axes``."""
+        ca_ok = self.caught_at[self.success]
+        return {"mjcf": self.mjcf, "method": self.method, "n": self.n, "successes": int(self.success.sum()),
+                "success_rate": self.success_rate, "time_to_upright_median": _num(self.t_median),
+                "time_to_upright_max": _num(self.t_max),
+                "caught_at_median": _num(float(np.median(ca_ok)) if ca_ok.size else np.nan),
+                "min_cart_clearance": _num(np.nanmin(self.cart_clearance) if np.any(np.isfinite(
+                    self.cart_clearance)) else np.nan),
+                "max_peak_ctrl": _num(np.nanmax(self.peak_ctrl) if np.any(np.isfinite(self.peak_ctrl)) else np.nan),
+                "failed": self.starts[~self.success].tolist(), "seed": self.seed, "duration": self.duration,
+                "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": _num(self.rho),
+                "workers": self.workers, "address": self.address, "axes": [a.describe() for a in self.axes]}
+
+
+def _num(v):
+    """A float, or None for NaN/inf (JSON has neither)."""
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+def _seconds(value) -> str:
+    """``'2.810 s'``, or ``'n/a'`` when no run reached upright (the summary holds None)."""
+    return "n/a" if value is None else f"{value:.3f} s"
+
+
+def summary_line(s: dict) -> str:
+    """One line of prose for a :meth:`SweepResult.summary` (times in s, clearance in m)."""
+    clear = "n/a" if s["min_cart_clearance"] is None else f"{s['min_cart_clearance']:.3f} m"
+    peak = "n/a" if s["max_peak_ctrl"] is None else f"{s['max_peak_ctrl']:.3f}"
+    return (f"{s['mjcf']}: {s['method']} success {s['successes']}/{s['n']}, time to upright median "
+            f"{_seconds(s['time_to_upright_median'])}, max {_seconds(s['time_to_upright_max'])}, "
+            f"min clearance {clear}, peak |ctrl| {peak}")
+
+
+def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration, jitter: float, axes=(),
+             x0=None) -> str:
+    """12 hex digits naming the sweep description (MJCF path and content, method, ``n``, seed, ``duration`` s,
+    jitter, axes, ``x0``): the ``sweep`` column of every row, which a resumed sweep must match. (A description
+    without axes keeps the id it had before axes existed.)"""
+    try:
+        digest = hashlib.sha256(Path(params.mjcf).read_bytes()).hexdigest()
+    except OSError:
+        digest = ""
+    desc = {"mjcf": str(params.mjcf), "mjcf_sha256": digest, "method": method, "n": int(n), "seed": int(seed),
+            "duration": duration, "jitter": float(jitter)}
+    if axes:
+        desc["axes"] = [a.describe() for a in axes]
+    if x0 is not None:
+        desc["x0"] = [float(v) for v in x0]
+    return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def header(params: CartPoleParams, settings=()) -> list[str]:
+    """The CSV header: ``sweep``, ``run``, the start (columns named by the MJCF's joints), the push
+    (``push_time_s``, empty without a push, and ``push_force_N``), ``model_error``, one ``setting_<name>`` per
+    swept controller setting, the outcome."""
+    names = [j.name for j in params.joints]
+    return (["sweep", "run"] + [f"x0_{n}" for n in names] + [f"x0_{n}_rate" for n in names]
+            + ["push_time_s", "push_force_N", "model_error"] + [f"setting_{k}" for k in settings]
+            + ["success", "replays", "time_to_upright_s", "caught_at_s", "cart_clearance_m", "peak_ctrl", "failure",
+               "error"])
+
+
+def failure(row: dict) -> str:
+    """Why a run failed, in a few words ('' for a success)."""
+    if row["success"]:
+        return ""
+    if row["error"]:
+        return "raised"
+    if not row["replays"]:
+        return "log does not replay"
+    if row["cart_clearance"] is not None and row["cart_clearance"] <= 1e-3:
+        return "cart reached its limit"
+    return "not upright at rest over the last second"
+
+
+def _cell(v):
+    return "" if v is None else v
+
+
+def csv_row(sid: str, i: int, start, row: dict, settings=()) -> list:
+    """The CSV fields (:func:`header`'s columns) of run ``i`` of sweep ``sid``: its ``start`` ((2 nq,)), and
+    ``row`` (a runner's row or one of :meth:`SweepResult.rows`, with ``push``, ``model_error`` and ``settings``)."""
+    num = {k: (None if row[k] is None or not math.isfinite(row[k]) else float(row[k]))
+           for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")}
+    r = {**row, **num}
+    push = list(row.get("push") or ())
+    when = repr(float(push[0][0])) if push else ""
+    force = repr(float(sum(F for _, F in push)))
+    st = row.get("settings") or {}
+    return [sid, int(i), *[repr(float(v)) for v in start], when, force, repr(float(row.get("model_error", 1.0))),
+            *[repr(float(st[k])) if k in st else "" for k in settings], bool(r["success"]), bool(r["replays"]),
+            *[_cell(num[k]) for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")],
+            failure(r), _cell(r["error"])]
+
+
+def parse_row(line: dict) -> dict:
+    """A runner row (the keys :meth:`~cartpole.apps.sweep.executors.Runner.run` returns) from one CSV line read as
+    ``{column: text}``."""
+    def f(text):
+        return math.nan if text == "" else float(text)
+    return {"success": line["success"] == "True", "replays": line["replays"] == "True",
+            "time_to_upright": f(line["time_to_upright_s"]), "caught_at": f(line["caught_at_s"]),
+            "cart_clearance": f(line["cart_clearance_m"]), "peak_ctrl": f(line["peak_ctrl"]),
+            "rho": math.nan, "error": line["error"] or None}
+
+
+#: Largest run index read back from a results file (the sweep itself keeps only its own runs).
+MAX_READ = 10**9
+
+
+def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
+    """``{run: row}`` of the runs ``0 <= run < n`` already in the results file ``path`` for the sweep ``sid``
+    (none when the file does not exist; a last line a crash cut short is not counted).
+
+    Raises
+    ------
+    SweepError
+        The file cannot be read, or holds another sweep's rows (or another header), in one sentence.
+    """
+    path = Path(path)
+    if not path.exists():
+        return {}
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SweepError(f"Cannot read {short(path)} to resume ({exc.strerror}); check it or drop --resume.") \
+            from None
+    lines = text.splitlines()
+    if not lines:
+        return {}
+    if not text.endswith("\n"):
+        lines = lines[:-1]  # a row cut short by a crash: run it again
+    reader = csv.reader(io.StringIO("\n".join(lines) + "\n"))
+    first = next(reader, [])
+    if first != head:
+        raise SweepError(f"Cannot resume from {short(path)}: its columns are not this sweep's; move it away or drop "
+                         "--resume.")
+    done = {}
+    for fields in reader:
+        if len(fields) != len(head):
+            continue
+        line = dict(zip(head, fields))
+        if line["sweep"] != sid:
+            raise SweepError(f"Cannot resume from {short(path)}: it holds sweep {line['sweep']}, not this one "
+                             f"({sid}: other method, --n, --seed, --duration, --jitter or MJCF); give the same "
+                             "settings, another --out, or drop --resume.")
+        i = int(line["run"])
+        if 0 <= i < n:
+            done[i] = parse_row(line)
+    return done
+
+
+class ResultsFile:
+    """The results file, opened for appending: one CSV line written, flushed and synced as each run finishes, so an
+    interrupt or a crash keeps every finished run.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file (its directory is created).
+    head : list of str
+        :func:`header`; written first when the file is new, empty or ``fresh``.
+    fresh : bool
+        Start the file anew (a sweep not resumed); else append, dropping a last line a crash cut short.
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written.
+    """
+
+    def __init__(self, path: Path, head: list[str], fresh: bool):
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            new = fresh or not self.path.exists() or self.path.stat().st_size == 0
+            if not new and not self.path.read_bytes().endswith(b"\n"):  # drop a row a crash cut short
+                data = self.path.read_bytes()
+                self.path.write_bytes(data[:data.rfind(b"\n") + 1])
+            self.fh = open(self.path, "w" if new else "a", newline="")
+        except OSError as exc:
+            raise output_error(self.path, exc) from None
+        self.writer = csv.writer(self.fh, lineterminator="\n")
+        if new:
+            self.write(head)
+
+    def write(self, fields) -> None:
+        """Append one line and make it durable (flush and fsync) before returning."""
+        self.writer.writerow(fields)
+        self.fh.flush()
+        os.fsync(self.fh.fileno())
+
+    def close(self) -> None:
+        """Close the file (again: no effect)."""
+        self.fh.close()

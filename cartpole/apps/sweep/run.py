@@ -1,0 +1,283 @@
+"""Running a sweep: :func:`swingup_sweep` (plan the runs, read each planning model's basin once, hand the runs to an
+executor, gather the rows in run order) and :func:`recorded_sweep` (the same, each finished run appended to a CSV
+results file, resumable, then the file rewritten in run order and the success map drawn): what ``cartpole sweep``
+does."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cartpole.errors import CartPoleError, first_line
+from cartpole.models import CartPoleParams, build_model, read_params
+from cartpole.progress import stage
+from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+from cartpole.validation.basin import BasinCache
+from cartpole.apps.sweep.executors import Runner, run_dask, run_here, run_pool, start_server
+from cartpole.apps.sweep.plan import (MAX_SHARED_BASINS, SweepError, check_axes, check_settings, default_half_widths,
+                                      plan_runs, total_runs)
+from cartpole.apps.sweep.results import (MAX_READ, ResultsFile, SweepResult, csv_row, failure, header, read_done,
+                                         sweep_id)
+
+
+def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int = 0, center=None,
+                  half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
+                  duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
+                  progress=None, workers: int = 1, address: str | None = None, done: dict | None = None,
+                  on_row=None, axes=(), x0=None) -> SweepResult:
+    """Run the swing-up over a sweep description (``axes``; without: ``n`` seeded starts in a box, optionally with
+    jittered gains) and summarise.
+
+    Parameters
+    ----------
+    mjcf : path or CartPoleParams or None
+        The cart-pole (None = shipped asset).
+    method : {"energy", "trajopt", "mpc"}
+        Swing-up of every run (:func:`~cartpole.apps.swingup.run_swingup`).
+    n : int
+        Number of runs (1 to :data:`~cartpole.apps.sweep.plan.MAX_RUNS`) without axes; with axes, the number of
+        draws per grid cell when any axis is sampled (ignored for a pure grid, whose size is the product of the
+        counts).
+    axes : sequence of Axis
+        The sweep description (:class:`~cartpole.apps.sweep.plan.Axis`, :func:`~cartpole.apps.sweep.plan.axis`):
+        grids and seeded samples over start components, the push, the model error and controller settings.
+    x0 : (2 nq,) array, optional
+        With axes: the start of every run where no start axis sets a component (default the hanging rest).
+    seed : int
+        Seed of ``numpy.random.default_rng`` for the starts (and the gain jitter).
+    center : (2 nq,) array, optional
+        Centre of the start box, default the model's hanging rest ``x_hanging``.
+    half_widths : (2 nq,) array, optional
+        Half-widths of the start box [m, rad, m/s, rad/s]; default
+        :func:`~cartpole.apps.sweep.plan.default_half_widths` (one pole: ``(0.3, 0.3, 0.3, 1.0)``).
+    gain_jitter : float
+        In [0, 1): relative jitter of the settings in :data:`~cartpole.apps.sweep.plan.JITTERED` (0 = the gains
+        as given); energy only.
+    energy_options : dict, optional
+        Energy-shaping settings (``EnergyShapingController`` keywords / ``default_gains`` scalings) every run
+        starts from; default the package defaults.
+    duration : float, optional
+        Simulated seconds per run (default that of :func:`~cartpole.apps.swingup.run_swingup`).
+    catch_weights : (Q, R), optional
+        LQR weights of the catch (default :func:`~cartpole.control.switching.swingup_catch`'s), passed to
+        :func:`~cartpole.apps.swingup.run_swingup`.
+    basin_cache : BasinCache, optional
+        Reuse basin estimates across sweeps.
+    progress : callable, optional
+        ``progress(fraction)`` after each run (the sweep is also a :func:`cartpole.progress.stage`).
+    workers : int
+        Processes to spread the runs over (1 = this process; ``W``: this process and ``W - 1`` workers,
+        :func:`~cartpole.apps.sweep.executors.run_pool`); the rows are the same for any number.
+    address : str, optional
+        A running Dask distributed scheduler (``tcp://host:port``): the runs go to its workers instead (one model
+        per worker process, built on its first run there); ``workers`` is then ignored. Same rows, bit for bit.
+    done : dict, optional
+        ``{run index: row}`` of runs already finished (a resumed sweep): they are not run again, their rows (the
+        keys :meth:`~cartpole.apps.sweep.executors.Runner.run` returns) are used as given.
+    on_row : callable, optional
+        ``on_row(index, start, row)`` as each run finishes, in the order they finish (the command appends it to the
+        results file); ``row`` also carries the run's ``push``, ``model_error`` and ``settings``. An exception it
+        raises (KeyboardInterrupt, say) stops the sweep; finished rows stay reported.
+
+    Returns
+    -------
+    SweepResult
+
+    Raises
+    ------
+    SweepError
+        Bad settings. Errors of the model (an MJCF that is not a cart-pole, energy on a chain) are raised before
+        any run; a run that raises on its own start is a failed row instead.
+    """
+    check_settings(method, n, workers, gain_jitter, half_widths, energy_options)
+    n, workers = int(n), int(workers)
+    params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+    model = build_model(params)
+    nx = 2 * params.nq
+    axes = check_axes(axes, params, method)
+    center = model.x_hanging if center is None else np.asarray(center, float)
+    half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
+    if center.shape != (nx,) or half_widths.shape != (nx,):
+        raise SweepError(f"The start box needs {nx} centre values and {nx} half-widths for this model (got "
+                         f"{center.size} and {half_widths.size}).")
+    if x0 is not None and not axes:
+        raise SweepError("A fixed start x0 is for a sweep over axes; without axes the starts fill the start box.")
+    if x0 is not None:
+        from cartpole.apps.swingup import check_start
+        try:
+            x0 = check_start(x0, params)
+        except CartPoleError as exc:
+            raise SweepError(first_line(exc) + ".") from None
+    base = dict(energy_options or {})
+    if method == "energy":  # refuse a model energy shaping cannot drive before anything runs
+        from cartpole.control.energy import EnergyShapingController
+        EnergyShapingController(model, **base)
+    runs = plan_runs(params, model.x_hanging if x0 is None else x0, axes, n, seed, center=center,
+                     half_widths=half_widths, gain_jitter=gain_jitter, base_options=base)
+    starts = runs.starts
+    n = len(starts)
+    # the pool's fork server imports the toolkit while this process finds the basins (and runs its own share)
+    context = start_server(method) if workers > 1 and not address else None
+    cache = BasinCache.on_disk() if basin_cache is None else basin_cache
+    runner = Runner(params, method, duration, catch_weights, cache, model=model)
+    # each planning model's basin once, here, before the runs (and shipped to the workers in the cache); a sampled
+    # model error has a planning model per run: those runs estimate their own basin where they run (in parallel)
+    scales = sorted(set(runs.model_errors.tolist()))
+    rhos = {}
+    for S in (scales if len(scales) <= MAX_SHARED_BASINS else [1.0]):
+        b = runner.basin(S)
+        rhos[S] = math.nan if b is None else float(b.rho)
+    rho = rhos.get(1.0, rhos[scales[0]] if scales[0] in rhos else math.nan)
+    jobs = [runs.job(i) for i in range(n)]
+    out: list = [None] * n
+    for i, row in (done or {}).items():
+        if 0 <= int(i) < n:
+            out[int(i)] = row
+    todo = [i for i in range(n) if out[i] is None]
+    workers = min(workers, max(len(todo), 1))
+    where = f" on {address}" if address else (f" on {workers} workers" if workers > 1 else "")
+    size = f"{len(todo)} runs" + (f" of {n}" if len(todo) < n else "") + where
+    with stage(f"{method} swing-ups", size=size, callback=progress) as tick:
+        counter = [0]
+
+        def finished(i, row):
+            out[i] = row
+            counter[0] += 1
+            if on_row is not None:
+                on_row(i, starts[i], {**row, "push": runs.pushes[i], "model_error": float(runs.model_errors[i]),
+                                      "settings": dict(runs.settings[i])})
+            tick(counter[0] / len(todo))
+
+        if not todo:
+            pass
+        elif address:
+            run_dask(address, runner, jobs, todo, finished)
+        elif workers == 1:
+            run_here(runner, jobs, todo, finished)
+        else:
+            run_pool(runner, jobs, workers, todo, finished, context=context)
+    return SweepResult(mjcf=params.mjcf, starts=starts, success=np.array([r["success"] for r in out], bool),
+                       time_to_upright=np.array([r["time_to_upright"] for r in out], float),
+                       caught_at=np.array([r["caught_at"] for r in out], float),
+                       cart_clearance=np.array([r["cart_clearance"] for r in out], float),
+                       peak_ctrl=np.array([r["peak_ctrl"] for r in out], float), options=runs.options, rho=rho,
+                       seed=int(seed), duration=float(duration) if duration is not None else (
+                           {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method)),
+                       half_widths=half_widths, gain_jitter=float(gain_jitter), base_options=base, method=method,
+                       replays=np.array([r["replays"] for r in out], bool),
+                       errors=tuple(r["error"] for r in out), workers=1 if address else workers,
+                       address=address or None, pushes=runs.pushes, model_errors=runs.model_errors,
+                       settings=runs.settings, axes=axes)
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """A recorded sweep stopped by Ctrl-C (or SIGTERM during a pool sweep): ``finished`` of ``total`` runs are in
+    the results file ``path``, which a resumed sweep goes on from."""
+
+    def __init__(self, finished: int, total: int, path: Path):
+        super().__init__(f"interrupted after {finished} of {total} runs")
+        self.finished, self.total, self.path = int(finished), int(total), Path(path)
+
+
+@dataclass(frozen=True)
+class RecordedSweep:
+    """A sweep run by :func:`recorded_sweep`.
+
+    Attributes
+    ----------
+    result : SweepResult
+    rows : list of dict
+        :meth:`SweepResult.rows` with each row's ``failure`` (:func:`~cartpole.apps.sweep.results.failure`).
+    sweep : str
+        The description's id (:func:`~cartpole.apps.sweep.results.sweep_id`), the results file's ``sweep`` column.
+    results : Path
+        The CSV results file, rewritten in run order.
+    figure : Path
+        The success map (:func:`cartpole.viz.sweep_plot.plot_success_map`).
+    resumed : int
+        Runs taken from the results file instead of run again.
+    """
+
+    result: SweepResult
+    rows: list
+    sweep: str
+    results: Path
+    figure: Path
+    resumed: int
+
+
+def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, results: Path, figure: Path,
+                   workers: int = 1, duration: float | None = None, gain_jitter: float = 0.0,
+                   address: str | None = None, axes=(), x0=None, resume: bool = False,
+                   stop_after: int | None = None) -> RecordedSweep:
+    """:func:`swingup_sweep` with a results file: each finished run is appended to the CSV ``results`` (columns
+    :func:`~cartpole.apps.sweep.results.header`) as it finishes, so an interrupt or a crash keeps it; with
+    ``resume`` the runs of this sweep already in the file are kept and only the others run. At the end the file
+    is rewritten in run order and the success map drawn to ``figure``. Nothing is written before the first run
+    finishes.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+    method, n, seed, workers, duration, gain_jitter, address, axes, x0
+        As for :func:`swingup_sweep` (``duration`` in s; ``x0`` (2 nq,)).
+    results, figure : Path
+        The CSV results file and the PNG success map.
+    resume : bool
+        Keep this sweep's runs found in ``results`` (another sweep's file is refused).
+    stop_after : int, optional
+        For tests: stop as Ctrl-C would once this many runs have finished here (if runs remain).
+
+    Raises
+    ------
+    SweepInterrupted
+        Ctrl-C (or ``stop_after``): how many runs the results file holds now.
+    SweepError
+        Bad settings, or a results file that cannot be resumed from.
+    """
+    from cartpole._files import write_csv
+    from cartpole.viz.sweep_plot import plot_success_map
+
+    results, figure = Path(results), Path(figure)
+    sid = sweep_id(params, method=method, n=n, seed=seed, duration=duration, jitter=gain_jitter, axes=axes, x0=x0)
+    settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
+    head = header(params, settings)
+    done = read_done(results, head, sid, MAX_READ) if resume else {}
+    total = total_runs(axes, n)
+    opened = []  # opened on the first finished run, so a sweep refused before any run writes nothing
+    count = [0]
+
+    def on_row(i, start, row):
+        if not opened:
+            opened.append(ResultsFile(results, head, fresh=not resume))
+        opened[0].write(csv_row(sid, i, start, row, settings))
+        count[0] += 1
+        if stop_after is not None and count[0] >= stop_after and len(done) + count[0] < total:
+            raise KeyboardInterrupt
+
+    try:
+        result = swingup_sweep(params, method=method, n=n, seed=seed, workers=workers, duration=duration,
+                               gain_jitter=gain_jitter, address=address, done=done, on_row=on_row, axes=axes,
+                               x0=x0)
+        for f in opened:
+            f.close()
+        rows = result.rows()
+        for r in rows:
+            r["failure"] = failure(r)
+        write_csv(results, head, [csv_row(sid, r["run"], r["start"], r, settings) for r in rows])  # in run order
+    except KeyboardInterrupt:
+        for f in opened:
+            f.close()
+        try:  # what the file holds now is what a resume will keep
+            kept = len(read_done(results, head, sid, MAX_READ))
+        except CartPoleError:
+            kept = len(done) + count[0]
+        raise SweepInterrupted(kept, total, results) from None
+    finally:
+        for f in opened:
+            f.close()
+    drawn = plot_success_map(result, params, figure)
+    return RecordedSweep(result=result, rows=rows, sweep=sid, results=results, figure=Path(drawn),
+                         resumed=len(done))
