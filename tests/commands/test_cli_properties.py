@@ -247,19 +247,19 @@ def _run_cli(command: str, case: Case):
         _check_outcome(command, argv, rc, out.getvalue(), err.getvalue(), out_dir, case.json)
 
 
-@_settings(25)
+@_settings(200)
 @given(case=cases("linearize"))
 def test_linearize_on_mutated_mjcf_succeeds_or_says_one_sentence(case):
     _run_cli("linearize", case)
 
 
-@_settings(10)
+@_settings(50)
 @given(case=cases("lqr"))
 def test_lqr_on_mutated_mjcf_succeeds_or_says_one_sentence(case):
     _run_cli("lqr", case)
 
 
-@_settings(12)
+@_settings(60)
 @given(case=cases("swingup"))
 def test_swingup_on_mutated_mjcf_succeeds_or_says_one_sentence(case):
     _run_cli("swingup", case)
