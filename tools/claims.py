@@ -355,13 +355,13 @@ def run_command(command: str, *, timeout: float = 3600.0, cwd: Path | str = REPO
         except subprocess.TimeoutExpired:
             return None, time.perf_counter() - t0, f"timed out after {timeout:g} s"
         seconds = time.perf_counter() - t0
+    tail = (p.stderr.strip().splitlines() or [""])[-1]
     if p.returncode != 0:
-        tail = (p.stderr.strip().splitlines() or [""])[-1]
         return None, seconds, f"exit status {p.returncode}: {tail}"
     try:
         return json.loads(p.stdout), seconds, None
     except json.JSONDecodeError as e:
-        return None, seconds, f"stdout is not one JSON document ({e})"
+        return None, seconds, f"stdout is not one JSON document ({e}); last line on stderr: {tail}"
 
 
 def run_claims(claims, *, pages: dict[str, str] | None = None, measure: bool = True, on_result=None,
