@@ -14,12 +14,12 @@ The same seed draws the same examples for each test, whatever runs beside it, so
 per command is chosen so the three properties together stay within about a minute on two cores;
 ``CARTPOLE_PROPERTY_EXAMPLES=N`` draws N per command instead, to explore further.
 
-A failure found once stays: copy the ``case=Case(...)`` of hypothesis' "Falsifying example" into an
-``@example(case=Case(...))`` above the property, with a comment naming the seed and what went wrong, so every later
-run tries it first (hypothesis keeps no example database here; the explicit examples are the regression set).
-Until the package is fixed the example carries ``.xfail(raises=AssertionError, reason=...)``, strict, so the fix
-shows up as a failure that asks for the mark to go. The crashes found before the inputs were values are the plain
-tests at the end.
+A failure found once stays: hypothesis prints the failing input ("Failing test case") as ``case=Case(...)``, a value
+whose ``repr`` rebuilds it (checked below); paste it as ``@example(case=Case(...))`` above the property,
+with a comment naming the seed and what went wrong, so that every later run tries it first (there is no example
+database; the explicit examples are the regression set). Until the package is fixed the example carries
+``.xfail(raises=AssertionError, reason=...)``, which is strict: the fix then fails the example and asks for the mark
+to go. The crashes found before the inputs were values are the plain tests at the end.
 
 Time steps are drawn from plausible values (1 ms and up): below that a 300-sample basin estimate of 4 s per sample
 is a run of minutes, not a bad input.
@@ -36,7 +36,7 @@ from pathlib import Path
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, example, given, settings  # noqa: E402,F401
+from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from cartpole.cli import main  # noqa: E402
@@ -263,6 +263,12 @@ def test_lqr_on_mutated_mjcf_succeeds_or_says_one_sentence(case):
 @given(case=cases("swingup"))
 def test_swingup_on_mutated_mjcf_succeeds_or_says_one_sentence(case):
     _run_cli("swingup", case)
+
+
+@settings(max_examples=100, deadline=None)
+@given(case=st.one_of(cases("linearize"), cases("lqr"), cases("swingup")))
+def test_a_drawn_case_prints_as_the_example_that_rebuilds_it(case):
+    assert eval(repr(case), {"Case": Case}) == case  # what hypothesis prints can be pasted into an @example
 
 
 def _edited(old: str, new: str) -> str:
