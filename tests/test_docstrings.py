@@ -49,18 +49,8 @@ UNIT = re.compile(
 
 #: Names breaking a rule when this test was written: "module.name" -> the rule (lead: empty this list).
 KNOWN_GAPS: dict[str, str] = {
-    "cartpole.apps.bench.trajopt.NaiveOptiBaseline": "units of T",
     "cartpole.apps.sweep.results.sweep_id": "units of x0",
     "cartpole.commands.sweep.run_method": "units of duration; units of x0",
-    "cartpole.models.symbolic.linearize": "units of x; units of u",
-    "cartpole.mpc.nmpc.mpc_problem": "units of x_goal",
-    "cartpole.ocp.guess.energy_shaped_guess": "units of x0",
-    "cartpole.ocp.guess.initial_guesses": "units of x0; units of x_goal; units of T; units of u_max; units of cart_max",
-    "cartpole.ocp.guess.named_guesses": "units of u_max; units of cart_max",
-    "cartpole.ocp.guess.pump_guess": "units of t",
-    "cartpole.sim.options.check_push": "units of push",
-    "cartpole.validation.jacobians.mujoco_fd_jacobians": "units of u",
-    "cartpole.validation.metrics.held_upright": "units of x_eq",
 }
 
 

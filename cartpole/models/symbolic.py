@@ -218,7 +218,8 @@ class CartPoleModel:
         return np.asarray(self.step(np.asarray(x, float), np.atleast_1d(u).astype(float))).ravel()
 
     def linearize(self, x=None, u=None, *, discrete: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """Exact Jacobians at ``(x, u)`` (default the upright equilibrium ``x_eq``, ``u_eq``).
+        """Exact Jacobians at the state ``x`` (nx,) ``[qpos, qvel]`` (SI: m, rad, m/s, rad/s) and the ctrl ``u``
+        (nu,) (default the upright equilibrium ``x_eq``, ``u_eq``).
 
         Returns ``(A (nx, nx), B (nx, nu))`` of ``f`` (B per unit ctrl), or, with ``discrete=True``,
         ``(Ad, Bd)`` of one step of the MJCF's integrator.
@@ -373,7 +374,8 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
 
 
 def linearize(model: CartPoleModel, x=None, u=None) -> dict:
-    """Continuous and discrete linearisation at ``(x, u)`` (default the upright equilibrium).
+    """Continuous and discrete linearisation at the state ``x`` (nx,) ``[qpos, qvel]`` and ctrl ``u`` (nu,)
+    (default the upright equilibrium).
 
     Returns a dict with ``x_eq`` (nx,), ``u_eq`` (nu,), ``A`` (nx, nx), ``B`` (nx, nu), ``Ad`` (nx, nx),
     ``Bd`` (nx, nu), ``dt`` (s) and ``integrator``.

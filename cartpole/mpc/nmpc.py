@@ -167,6 +167,10 @@ def mpc_problem(model: CartPoleModel, params: CartPoleParams, stages: StageFunct
                 ) -> tuple[MPCProblem, LinearFeedback]:
     """The OCP of one MPC step and its upright LQR (the terminal cost's, and the safe action).
 
+    ``x_goal`` (nx,) and ``u_goal`` (nu,) are the state ``[qpos, qvel]`` and ctrl held at the end (default the
+    model's upright equilibrium ``x_eq``, ``u_eq``); ``Q``, ``R`` the stage weights (default the lab's),
+    ``cart_margin`` m kept from each rail end.
+
     Returns ``(problem, lqr)``: ``lqr`` is ``u = u* - K e`` of ``dlqr(Ad, Bd, Q period, R period)`` on one period
     of the exact model at ``x_eq``, ``u_eq``, clipped to the ctrlranges, with ``S = P``.
     """

@@ -69,7 +69,7 @@ def pump_guess(x0, x_goal, t, *, hinges, slide=None, swing: float = 1.0, cart: f
     """A swing-up shape with one back-swing on :func:`linear_guess`: every hinge (qpos indices ``hinges``) first
     swings by ``swing`` rad away from the direction it turns in (positive for a hinge that ends where it
     starts), then rises; the cart (qpos index ``slide``, None for no cart) moves by ``cart`` m the way the first
-    hinge turns and back. Ends exactly at ``x0`` and ``x_goal`` (nx,).
+    hinge turns and back. Ends exactly at ``x0`` and ``x_goal`` (nx,), on the times ``t`` (n,) in s.
 
     Returns ``(x (n, nx), u (n, nu))``.
     """
@@ -101,7 +101,7 @@ def _clip_positions(x: np.ndarray, bounds: OCPBounds) -> np.ndarray:
 
 def energy_shaped_guess(model: CartPoleModel, x0, x_goal, T: float, N: int, *,
                         bounds: OCPBounds) -> Trajectory | None:
-    """An energy-shaping rollout of the symbolic model over ``T`` s, bent onto ``x_goal`` at the end.
+    """An energy-shaping rollout of the symbolic model over ``T`` s from ``x0`` (nx,), bent onto ``x_goal`` at the end.
 
     Single pole only: energy shaping pumps one pole with one input, so this returns None for any model without
     exactly one hinge and one actuator (the other guesses of :func:`initial_guesses` cover those).
@@ -194,6 +194,10 @@ def named_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int 
     bounds : OCPBounds, optional
         The problem's bounds (the energy-shaped guess clips ctrl and positions into them); default
         :func:`~cartpole.ocp.bounds.bounds_from_model` with ``u_max`` and ``cart_max`` passed on.
+    u_max : float or (nu,) array, optional
+        ctrl bound (default the MJCF's ctrlranges).
+    cart_max : float, optional
+        Cart travel bound in m (default the MJCF's rail).
     count : int
         Most guesses returned.
     second_goal : bool
@@ -230,7 +234,8 @@ def named_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int 
 def initial_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: int = 100, *,
                     bounds: OCPBounds | None = None, u_max=None, cart_max: float | None = None,
                     count: int = 3) -> list[Trajectory]:
-    """The guesses of :func:`named_guesses` without their names (same arguments), best first.
+    """The guesses of :func:`named_guesses` without their names (same arguments: ``x0``, ``x_goal`` (nx,) states,
+    ``T`` in s, ``u_max`` ctrl, ``cart_max`` m), best first.
 
     Returns
     -------

@@ -23,7 +23,7 @@ PUSH_SECONDS = 0.1
 
 
 def check_push(push, params=None) -> tuple:
-    """Validate pushes: a sequence of ``(T, F)`` pairs, ``T >= 0`` s and ``F`` N finite; the model (``params``, a
+    """Validate pushes: ``push``, a sequence of ``(T, F)`` pairs, ``T >= 0`` s and ``F`` N finite; the model (``params``, a
     :class:`~cartpole.models.CartPoleParams`, optional) must have a cart.
 
     Returns

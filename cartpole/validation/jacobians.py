@@ -17,7 +17,10 @@ def mujoco_fd_jacobians(source: CartPoleParams | str | None, x, u, *, eps: float
     Parameters
     ----------
     source : CartPoleParams or MJCF path or None
-    x : (nx,) state ``[qpos, qvel]``; u : (nu,) ctrl
+    x : (nx,) array
+        State ``[qpos, qvel]`` (m, rad, m/s, rad/s).
+    u : (nu,) array
+        ctrl (MuJoCo's units: force = gear * ctrl).
     eps : float
         Perturbation, in the state's and ctrl's own units.
     discrete : bool

@@ -318,7 +318,7 @@ def held_upright(rollout, *, hold: float = 1.0, x_eq=None, hinges=None, slide: i
 
     Every wrapped pole-angle error from ``x_eq`` must stay below :data:`UPRIGHT_TOL`, every hinge rate below
     :data:`REST_RATE_TOL` and the cart speed (qvel ``slide``; skipped when None) below :data:`REST_SPEED_TOL`.
-    ``hinges`` defaults to ``1 .. nq-1``, ``x_eq`` to the origin.
+    ``hinges`` defaults to ``1 .. nq-1``, ``x_eq`` (nx,) to the origin.
     """
     if rollout.t[-1] - rollout.t[0] < hold:
         return False

@@ -52,8 +52,8 @@ class NaiveOptiBaseline:
     """The Hermite-Simpson swing-up as a first ``casadi.Opti`` script (see the module docstring).
 
     ``bounds`` (:class:`~cartpole.ocp.bounds.OCPBounds`) give the ctrl bounds per actuator and the joint bounds;
-    ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``). ``expand=True`` is the same script
-    with Opti's ``expand`` option (the MX graph expanded to SX for IPOPT).
+    ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``), ``N`` intervals over ``T`` s.
+    ``expand=True`` is the same script with Opti's ``expand`` option (the MX graph expanded to SX for IPOPT).
     """
 
     def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None, *, expand: bool = False,
