@@ -35,13 +35,16 @@ from cartpole.apps.sweep.plan import SweepError
 
 #: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
 CONNECT_TIMEOUT = 10.0
-#: Modules the pool's fork server imports before it forks any worker, per method: what a run imports (this module
-#: brings the swing-up, the model, MuJoCo and CasADi; the rest are imported by a run on first use).
+#: Modules the pool's fork server imports before it forks any worker, per method: what a worker and its runs
+#: import (this module brings the swing-up, the model and CasADi; MuJoCo and the method's own modules are imported
+#: lazily, on first use, so they are named here).
 PRELOAD = {
-    "energy": ("cartpole.apps.sweep.executors", "cartpole.control.switching", "cartpole.control.energy",
+    "energy": ("cartpole.apps.sweep.executors", "mujoco", "cartpole.control.switching", "cartpole.control.energy",
                "cartpole.validation.metrics"),
-    "trajopt": ("cartpole.apps.sweep.executors", "cartpole.planning.trajopt", "cartpole.validation.metrics"),
-    "mpc": ("cartpole.apps.sweep.executors", "cartpole.mpc.nmpc", "cartpole.validation.metrics"),
+    "trajopt": ("cartpole.apps.sweep.executors", "mujoco", "cartpole.planning.trajopt",
+                "cartpole.validation.metrics"),
+    "mpc": ("cartpole.apps.sweep.executors", "mujoco", "cartpole.mpc.nmpc", "cartpole.planning.trajopt",
+            "cartpole.validation.metrics"),
 }
 #: Environment of a pool worker: one BLAS / OpenMP thread (what Dask's nanny gives its workers too). OpenBLAS's
 #: threads spin after each call; two workers with two each on two cores take turns instead of running.
@@ -191,28 +194,31 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     env = dict(os.environ)
     for k, v in WORKER_ENV.items():
         env.setdefault(k, v)
-    with _sigint_ignored(), _one_blas_thread():  # spawned workers inherit both from birth
-        pool = ProcessPoolExecutor(max_workers=workers - 1, mp_context=ctx, initializer=_init_worker,
-                                   initargs=(runner.settings(), env))
+    pool = ProcessPoolExecutor(max_workers=workers - 1, mp_context=ctx, initializer=_init_worker,
+                               initargs=(runner.settings(), env))
     here = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cartpole-sweep")
     pending = deque(todo)
     running: dict = {}  # future -> (executor, run index)
-    busy = {pool: 0, here: 0}
     room = {pool: workers - 1, here: 1}
+
+    def feed():
+        for ex in (pool, here):
+            while pending and room[ex] > 0:
+                i = pending.popleft()
+                running[ex.submit(_run_in_worker if ex is pool else runner.run, *jobs[i])] = (ex, i)
+                room[ex] -= 1
+
     try:
+        with _sigint_ignored(), _one_blas_thread():  # the workers start here; spawned ones inherit both from birth
+            feed()
         with _sigterm_as_interrupt():
-            while pending or running:
-                for ex in (pool, here):
-                    while pending and busy[ex] < room[ex]:
-                        i = pending.popleft()
-                        fut = ex.submit(_run_in_worker if ex is pool else runner.run, *jobs[i])
-                        running[fut] = (ex, i)
-                        busy[ex] += 1
+            while running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for fut in done:
                     ex, i = running.pop(fut)
-                    busy[ex] -= 1
+                    room[ex] += 1
                     finished(i, fut.result())
+                feed()
     except BrokenProcessPool:
         raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer --workers than "
                          f"{workers}.") from None

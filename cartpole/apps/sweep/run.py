@@ -118,6 +118,13 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                      half_widths=half_widths, gain_jitter=gain_jitter, base_options=base)
     starts = runs.starts
     n = len(starts)
+    jobs = [runs.job(i) for i in range(n)]
+    out: list = [None] * n
+    for i, row in (done or {}).items():
+        if 0 <= int(i) < n:
+            out[int(i)] = row
+    todo = [i for i in range(n) if out[i] is None]
+    workers = min(workers, max(len(todo), 1))
     # the pool's fork server imports the toolkit while this process finds the basins (and runs its own share)
     context = start_server(method) if workers > 1 and not address else None
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
@@ -130,13 +137,6 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         b = runner.basin(S)
         rhos[S] = math.nan if b is None else float(b.rho)
     rho = rhos.get(1.0, rhos[scales[0]] if scales[0] in rhos else math.nan)
-    jobs = [runs.job(i) for i in range(n)]
-    out: list = [None] * n
-    for i, row in (done or {}).items():
-        if 0 <= int(i) < n:
-            out[int(i)] = row
-    todo = [i for i in range(n) if out[i] is None]
-    workers = min(workers, max(len(todo), 1))
     where = f" on {address}" if address else (f" on {workers} workers" if workers > 1 else "")
     size = f"{len(todo)} runs" + (f" of {n}" if len(todo) < n else "") + where
     with stage(f"{method} swing-ups", size=size, callback=progress) as tick:
