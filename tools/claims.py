@@ -188,9 +188,12 @@ def _squash(s: str) -> str:
 
 
 def page_texts(root: Path | str = REPO) -> dict[str, str]:
-    """``{relative path: text with whitespace runs squashed to one space}`` of README.md and docs/**/*.md."""
+    """``{relative path: text with whitespace runs squashed to one space}`` of README.md and docs/**/*.md (not under
+    a folder whose name starts with ``_``, such as Sphinx's ``_build``)."""
     root = Path(root)
-    paths = [root / "README.md", *sorted((root / "docs").glob("**/*.md"))]
+    docs = root / "docs"
+    paths = [root / "README.md", *sorted(p for p in docs.glob("**/*.md")
+                                          if not any(part.startswith("_") for part in p.relative_to(docs).parts))]
     return {str(p.relative_to(root)): _squash(p.read_text(encoding="utf-8")) for p in paths if p.is_file()}
 
 
