@@ -12,6 +12,10 @@ model once (:func:`_init_worker`) and keeps it for all its runs. Where the platf
 are spawned (the same rows, a slower start). No worker is forked from this process itself: it holds MuJoCo,
 CasADi and BLAS state and, during a sweep, threads.
 
+BLAS: a run's linear algebra is small, and OpenBLAS's threads cost more than they save (they spin after each call,
+and beside a pool worker they take the core it needs), so the runs here use one OpenBLAS thread
+(:func:`one_blas_thread_here`) and the workers start with :data:`WORKER_ENV`, unless the user set those variables.
+
 Interrupts: workers ignore Ctrl-C (SIGINT), which a terminal sends to the whole process group; the parent handles
 it, keeps the rows that finished and shuts the pool down (a run under way finishes first). During a pool sweep
 SIGTERM is handled the same way. A worker whose parent is gone (killed with SIGKILL, say) exits at once
@@ -143,8 +147,9 @@ class Runner:
 def run_here(runner: Runner, jobs, todo, finished) -> None:
     """The runs ``todo`` (indices into ``jobs``, each ``(x0, options, push, model_error, settings)``) one after
     the other in this process; ``finished(i, row)`` after each."""
-    for i in todo:
-        finished(i, runner.run(*jobs[i]))
+    with one_blas_thread_here():
+        for i in todo:
+            finished(i, runner.run(*jobs[i]))
 
 
 # ---- the local pool ----------------------------------------------------------------------------------------------
@@ -201,8 +206,8 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     running: dict = {}  # future -> (executor, run index)
     room = {pool: workers - 1, here: 1}
 
-    def feed():
-        for ex in (pool, here):
+    def feed():  # this process first: a pool's first submit waits until the fork server has imported the toolkit
+        for ex in (here, pool):
             while pending and room[ex] > 0:
                 i = pending.popleft()
                 running[ex.submit(_run_in_worker if ex is pool else runner.run, *jobs[i])] = (ex, i)
@@ -211,7 +216,7 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     try:
         with _sigint_ignored(), _one_blas_thread():  # the workers start here; spawned ones inherit both from birth
             feed()
-        with _sigterm_as_interrupt():
+        with _sigterm_as_interrupt(), one_blas_thread_here():
             while running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for fut in done:
@@ -248,6 +253,9 @@ def _init_worker(settings: tuple, env: dict) -> None:
     os.environ.clear()
     os.environ.update(env)
     mujoco.set_mju_user_warning(lambda msg: None)
+    if not _user_set_blas_threads():  # a fork server another part of the program started lacks WORKER_ENV
+        for get, set_threads in _loaded_openblas():
+            set_threads(1)
     _WORKER = Runner(*settings)
 
 
@@ -272,6 +280,58 @@ def _exit_with_parent() -> None:
         os._exit(1)
 
     threading.Thread(target=watch, name="cartpole-sweep-parent", daemon=True).start()
+
+
+#: OpenBLAS's (get, set) thread-count functions, per build: the plain library and the builds that NumPy's and SciPy's
+#: wheels bundle (each its own copy, each with its own threads).
+OPENBLAS_THREAD_FUNCTIONS = (("openblas_get_num_threads", "openblas_set_num_threads"),
+                             ("scipy_openblas_get_num_threads64_", "scipy_openblas_set_num_threads64_"),
+                             ("scipy_openblas_get_num_threads", "scipy_openblas_set_num_threads"))
+
+
+def _loaded_openblas() -> list:
+    """``(get, set)`` thread-count functions of every OpenBLAS this process has loaded (found in
+    ``/proc/self/maps``; none where there is no such file)."""
+    import ctypes
+
+    try:
+        with open("/proc/self/maps") as fh:
+            paths = sorted({f[5].strip() for f in (line.split(maxsplit=5) for line in fh)
+                            if len(f) == 6 and "openblas" in f[5].lower()})
+    except OSError:
+        return []
+    found = []
+    for path in paths:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for get, set_threads in OPENBLAS_THREAD_FUNCTIONS:
+            if hasattr(lib, get) and hasattr(lib, set_threads):
+                found.append((getattr(lib, get), getattr(lib, set_threads)))
+                break
+    return found
+
+
+def _user_set_blas_threads() -> bool:
+    return any(k in os.environ for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"))
+
+
+@contextmanager
+def one_blas_thread_here():
+    """Inside the block this process's OpenBLAS libraries use one thread each (their counts restored after), unless
+    the user set ``OPENBLAS_NUM_THREADS`` or ``OMP_NUM_THREADS``. A run's linear algebra is small (matrices of
+    the state's size): OpenBLAS's threads cost more CPU than they save, spinning after each call, and beside a pool
+    worker they take the core it needs. The rows do not depend on it."""
+    libs = [] if _user_set_blas_threads() else _loaded_openblas()
+    before = [get() for get, _ in libs]
+    for _, set_threads in libs:
+        set_threads(1)
+    try:
+        yield
+    finally:
+        for (_, set_threads), count in zip(libs, before):
+            set_threads(count)
 
 
 @contextmanager

@@ -93,6 +93,9 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     """
     check_settings(method, n, workers, gain_jitter, half_widths, energy_options)
     n, workers = int(n), int(workers)
+    # the pool's fork server imports the toolkit while this process reads the model, plans, finds the basins and
+    # starts its own share of the runs
+    context = start_server(method) if workers > 1 and not address else None
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     model = build_model(params)
     nx = 2 * params.nq
@@ -125,8 +128,6 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
             out[int(i)] = row
     todo = [i for i in range(n) if out[i] is None]
     workers = min(workers, max(len(todo), 1))
-    # the pool's fork server imports the toolkit while this process finds the basins (and runs its own share)
-    context = start_server(method) if workers > 1 and not address else None
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
     runner = Runner(params, method, duration, catch_weights, cache, model=model)
     # each planning model's basin once, here, before the runs (and shipped to the workers in the cache); a sampled
