@@ -4,13 +4,15 @@
 
 The local pool (``workers = W > 1``): this process runs its share in one thread with the model it has already
 built, beside ``W - 1`` worker processes of a :class:`concurrent.futures.ProcessPoolExecutor`; each run goes to
-whichever is free, and the rows come back in the order they finish. The worker processes are forked from
-multiprocessing's fork server, which :func:`start_server` starts at the beginning of the sweep (the parent
-meanwhile plans the runs and reads the basin) with the toolkit already imported (:data:`PRELOAD`), so a worker
-starts in milliseconds instead of importing NumPy, SciPy, CasADi, MuJoCo and the toolkit anew; each builds the
-model once (:func:`_init_worker`) and keeps it for all its runs. Where the platform has no fork server, the workers
-are spawned (the same rows, a slower start). No worker is forked from this process itself: it holds MuJoCo,
-CasADi and BLAS state and, during a sweep, threads.
+whichever is free, and the rows come back in the order they finish. Where the platform can fork and this process
+runs no other thread when the pool starts (:func:`pool_context`), the workers are forked from this process itself,
+after it has built its runner: they start with the toolkit imported, the model built and the basins read, so a
+worker's first run costs what its later ones do (a fresh ``cartpole sweep`` of a few seconds gains from the second
+core only this way). The pool's processes are all forked before this process starts its own runs' thread. Where a
+thread is running (an embedding program's, a GUI's), the workers come from multiprocessing's fork server instead,
+which :func:`start_server` starts with the toolkit imported (:data:`PRELOAD`); each of those workers builds the
+model once (:func:`_init_worker`). Where the platform has neither, the workers are spawned (the same rows, a slower
+start).
 
 BLAS: a run's linear algebra is small, and OpenBLAS's threads cost more than they save (they spin after each call,
 and beside a pool worker they take the core it needs), so the runs here use one OpenBLAS thread
@@ -176,6 +178,18 @@ def start_server(method: str):
     return ctx
 
 
+def pool_context(method: str):
+    """Where :func:`run_pool`'s workers start from: ``"fork"`` (this process, runner and all) on a platform that
+    forks when this process runs one thread only, else :func:`start_server` of ``method`` (a fork server, or
+    ``spawn``)."""
+    import multiprocessing
+    import threading
+
+    if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    return start_server(method)
+
+
 def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None) -> None:
     """The runs ``todo`` spread over this process (one thread, ``runner``) and ``workers - 1`` worker processes
     (one :class:`Runner` each, built once); each run goes to whichever is free. ``finished(i, row)`` is called in
@@ -185,7 +199,8 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     Parameters
     ----------
     context : multiprocessing context, optional
-        Where the workers start from (default :func:`start_server` of the runner's method).
+        Where the workers start from (default :func:`pool_context` of the runner's method). With ``fork`` the
+        workers inherit ``runner`` itself.
 
     Raises
     ------
@@ -195,19 +210,26 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    ctx = start_server(runner.method) if context is None else context
+    global _WORKER
+    ctx = pool_context(runner.method) if context is None else context
+    forked = ctx.get_start_method() == "fork"
     env = dict(os.environ)
     for k, v in WORKER_ENV.items():
         env.setdefault(k, v)
+    if forked:  # the workers inherit this runner (model, planning models, basins) as it is now
+        _WORKER = runner
     pool = ProcessPoolExecutor(max_workers=workers - 1, mp_context=ctx, initializer=_init_worker,
-                               initargs=(runner.settings(), env))
+                               initargs=(None if forked else runner.settings(), env))
     here = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cartpole-sweep")
     pending = deque(todo)
     running: dict = {}  # future -> (executor, run index)
     room = {pool: workers - 1, here: 1}
+    # forked: the pool first, so every worker is forked before this process's runs' thread exists; from a fork
+    # server: this process first, because a pool's first submit waits until the server has imported the toolkit
+    order = (pool, here) if forked else (here, pool)
 
-    def feed():  # this process first: a pool's first submit waits until the fork server has imported the toolkit
-        for ex in (here, pool):
+    def feed():
+        for ex in order:
             while pending and room[ex] > 0:
                 i = pending.popleft()
                 running[ex.submit(_run_in_worker if ex is pool else runner.run, *jobs[i])] = (ex, i)
@@ -230,15 +252,16 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     finally:
         here.shutdown(wait=True, cancel_futures=True)
         pool.shutdown(wait=True, cancel_futures=True)
+        _WORKER = None
 
 
 _WORKER: Runner | None = None  # set in each worker process by _init_worker
 
 
-def _init_worker(settings: tuple, env: dict) -> None:
+def _init_worker(settings: tuple | None, env: dict) -> None:
     """ProcessPoolExecutor initializer: this worker's runner (its model built once) from
-    :meth:`Runner.settings`, and the parent's environment ``env`` (a forked worker has the fork server's, from
-    when it started).
+    :meth:`Runner.settings` (None: forked from the parent, whose runner it has inherited), and the parent's
+    environment ``env`` (a worker of the fork server has the server's, from when it started).
 
     MuJoCo's warnings are dropped here (the parent loaded the same MJCF first and reported them), so a worker
     neither prints them nor writes MUJOCO_LOG.TXT into the current directory. Ctrl-C is left to the parent (which
@@ -256,7 +279,8 @@ def _init_worker(settings: tuple, env: dict) -> None:
     if not _user_set_blas_threads():  # a fork server another part of the program started lacks WORKER_ENV
         for get, set_threads in _loaded_openblas():
             set_threads(1)
-    _WORKER = Runner(*settings)
+    if settings is not None:
+        _WORKER = Runner(*settings)
 
 
 def _run_in_worker(x0, options, push=(), model_error=1.0, settings=None) -> dict:

@@ -1,0 +1,189 @@
+"""Sweep throughput: whole-sweep wall time on 1 and 2 local workers (and on a Dask LocalCluster), their ratio, and
+the engines' own per-run cost.
+
+The workload is real swing-ups (default ``energy``: 10 s MuJoCo runs from seeded starts; ``--method trajopt``: a plan
++ TVLQR + 3 s after it per run), so the runs dominate. The basin is estimated once before timing (on disk), the
+Dask cluster (2 worker processes, 1 thread each, loopback) is started once and warmed by one sweep; then the
+executors are timed alternately, ``--rounds`` times, in this process, and the medians reported, because the machine
+is shared. Two rates: the whole sweep (a local pool's time includes starting its workers, each building the model
+once; the fork server the workers start from is started by the first pool sweep of the process, so round 1 of
+``2`` pays for it and is reported on its own as ``first_round``; the Dask workers are already running) and first to
+last finished run, ``(n - 1) / (t_last - t_first)``, which leaves start-up out. ``--fresh`` also times each
+executor's sweep in a new process (imports not timed; the model, the basin read from disk and the fork server
+are), as one ``cartpole sweep`` command pays them.
+
+Beside them, the machine's own parallel capacity (:func:`parallel_capacity`): the wall time of one fixed CPU-bound
+task in one process against two copies of it in two processes at once, timed in the same rounds. On a shared machine
+whose two CPUs do not run two processes at full speed each (hyperthreads of one core, a neighbour on the host), no
+pool can reach 2x, and this ratio says how much room there was.
+
+Run by ``benchmarks/bench_sweep.py``::
+
+    python benchmarks/bench_sweep.py --n 24 --rounds 7 --where 1 2 --fresh 5   # the worker start-up figure
+    python benchmarks/bench_sweep.py --n 100 --rounds 3 [--method energy] [--json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+
+def _trivial(i):
+    return {"i": i}
+
+
+def engine_overhead(runs: int = 2000) -> dict:
+    """ms per trivial task (a function returning a dict) on a 2-process pool started as the sweep's are
+    (:func:`cartpole.apps.sweep.executors.start_server`) and on a 2-worker Dask LocalCluster, after warm-up."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from distributed import Client, LocalCluster
+
+    from cartpole.apps.sweep.executors import start_server
+
+    out = {}
+    with ProcessPoolExecutor(2, mp_context=start_server("energy")) as pool:
+        list(pool.map(_trivial, range(50)))
+        t0 = time.perf_counter()
+        for f in [pool.submit(_trivial, i) for i in range(runs)]:
+            f.result()
+        out["pool_ms"] = 1e3 * (time.perf_counter() - t0) / runs
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None,
+                      silence_logs=50) as cluster, Client(cluster) as client:
+        client.gather([client.submit(_trivial, i, pure=False) for i in range(50)])
+        t0 = time.perf_counter()
+        client.gather([client.submit(_trivial, i, pure=False) for i in range(runs)])
+        out["dask_ms"] = 1e3 * (time.perf_counter() - t0) / runs
+    return out
+
+
+def timed_sweep(kw: dict, where: str, address: str | None = None) -> tuple[float, float, list]:
+    """``(seconds, runs per s first to last run, rows)`` of one :func:`~cartpole.apps.sweep.swingup_sweep` on
+    ``where`` (``"1"``, ``"2"``: local workers; ``"dask"``: the cluster at ``address``)."""
+    from cartpole.apps.sweep import swingup_sweep
+
+    stamps = []
+    t0 = time.perf_counter()
+    res = swingup_sweep(None, **kw, **({"address": address} if where == "dask" else {"workers": int(where)}),
+                        on_row=lambda i, x0, row: stamps.append(time.perf_counter()))
+    seconds = time.perf_counter() - t0
+    steady = (len(stamps) - 1) / (stamps[-1] - stamps[0]) if len(stamps) > 1 else float("nan")
+    return seconds, steady, res.rows()
+
+
+def fresh_sweep(kw: dict, where: str) -> float:
+    """Seconds of one sweep in a new Python process (its imports not timed)."""
+    code = ("import json; from cartpole.apps.bench.sweep import timed_sweep; "
+            "print(json.dumps(timed_sweep(%r, %r)[0]))" % (kw, where))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def _burn(n: int) -> float:
+    """A fixed CPU-bound task (pure Python arithmetic); returns its own wall time in s."""
+    t0 = time.perf_counter()
+    s = 0
+    for i in range(n):
+        s += i * i
+    return time.perf_counter() - t0
+
+
+def parallel_capacity(n: int = 2_000_000, rounds: int = 3) -> dict:
+    """How much faster two processes finish two copies of :func:`_burn` than one process finishes one copy twice:
+    ``ratio = 2 t_one / t_two`` (2 on two free cores, 1 on one), medians of ``rounds`` alternated timings, with
+    ``t_one`` the task alone in one process and ``t_two`` the wall time of two processes running it at once."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    one, two = [], []
+    with ProcessPoolExecutor(2) as pool:
+        list(pool.map(_burn, [1000, 1000]))  # both started
+        for _ in range(rounds):
+            one.append(pool.submit(_burn, n).result())
+            t0 = time.perf_counter()
+            list(pool.map(_burn, [n, n]))
+            two.append(time.perf_counter() - t0)
+    t1, t2 = statistics.median(one), statistics.median(two)
+    return {"one_s": t1, "two_s": t2, "ratio": 2 * t1 / t2}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="bench_sweep.py", description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=100)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--method", default="energy")
+    ap.add_argument("--where", nargs="+", choices=("1", "2", "dask"), default=["1", "2", "dask"],
+                    help="executors to time (1 is always timed: the baseline)")
+    ap.add_argument("--fresh", type=int, default=0, metavar="R",
+                    help="also R alternated rounds of each local executor in a new process per sweep")
+    ap.add_argument("--no-engine", action="store_true", help="skip the trivial-task engine overhead")
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args(argv)
+    where = list(dict.fromkeys(["1", *a.where]))
+
+    from cartpole.apps.sweep import swingup_sweep
+
+    kw = dict(method=a.method, n=a.n, seed=0)
+    load_before = os.getloadavg()
+    swingup_sweep(None, **{**kw, "n": 1})  # basin on disk, compiled functions built
+    times = {k: [] for k in where}
+    steady = {k: [] for k in where}  # (n - 1) / (last row - first row): without pool start-up
+    rows = {}
+    cluster = None
+    addr = None
+    if "dask" in where:
+        from distributed import LocalCluster
+
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=50)
+        addr = cluster.scheduler_address
+        swingup_sweep(None, **{**kw, "n": 4}, address=addr)  # warm the Dask workers (imports)
+    try:
+        for r in range(a.rounds):
+            for k in where:
+                seconds, rate, rows_k = timed_sweep(kw, k, addr)
+                times[k].append(seconds)
+                steady[k].append(rate)
+                rows.setdefault(k, rows_k)
+                print(f"round {r + 1} {k:>4}: {seconds:.2f} s, {a.n / seconds:.2f} runs/s whole sweep, "
+                      f"{rate:.2f} runs/s first to last run (load {os.getloadavg()[0]:.1f})", file=sys.stderr,
+                      flush=True)
+    finally:
+        if cluster is not None:
+            cluster.close()
+    fresh = {k: [] for k in where if k != "dask"} if a.fresh else {}
+    for r in range(a.fresh):
+        for k in fresh:
+            fresh[k].append(fresh_sweep(kw, k))
+            print(f"fresh {r + 1} {k:>4}: {fresh[k][-1]:.2f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr,
+                  flush=True)
+    same = all(v == rows["1"] for v in rows.values())
+    med = {k: a.n / statistics.median(v) for k, v in times.items()}
+    steady_med = {k: statistics.median(v) for k, v in steady.items()}
+    doc = {"method": a.method, "n": a.n, "rounds": a.rounds, "where": where, "seconds": times,
+           "seconds_median": {k: statistics.median(v) for k, v in times.items()},
+           "runs_per_s_median": med, "runs_per_s": {k: [a.n / t for t in v] for k, v in times.items()},
+           "same_rows": same, "steady_runs_per_s_median": steady_med, "steady_runs_per_s": steady}
+    for k, name in (("2", "2_workers"), ("dask", "dask")):
+        if k in times:  # whole-sweep ratios to one worker: of the medians, per round, and round 1 alone
+            doc[f"speedup_{name}"] = med[k] / med["1"]
+            doc[f"round_ratios_{name}"] = [b / c for c, b in zip(times[k], times["1"])]
+            doc[f"first_round_speedup_{name}"] = times["1"][0] / times[k][0]
+            doc[f"steady_speedup_{name}"] = steady_med[k] / steady_med["1"]
+    if fresh:
+        doc["fresh_seconds"] = fresh
+        doc["fresh_seconds_median"] = {k: statistics.median(v) for k, v in fresh.items()}
+        if "2" in fresh:
+            doc["fresh_speedup_2_workers"] = statistics.median(fresh["1"]) / statistics.median(fresh["2"])
+            doc["fresh_round_ratios_2_workers"] = [b / c for c, b in zip(fresh["2"], fresh["1"])]
+    doc.update(load_before=load_before, load_after=os.getloadavg(), cpu_count=os.cpu_count(),
+               parallel_capacity=parallel_capacity())
+    if not a.no_engine:
+        doc["engine_ms_per_run"] = engine_overhead()
+    print(json.dumps(doc, indent=None if a.json else 2))
+    return 0
