@@ -36,6 +36,9 @@ from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.sim import replays_exactly
 from cartpole.apps.swingup import planning_model, run_swingup
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
+from cartpole.sim.options import LoopOptions
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.sweep.plan import SweepError
 
@@ -123,12 +126,14 @@ class Runner:
         :class:`CartPoleError` the run raised, else None)."""
         settings = dict(settings or {})
         energy = {**options, **settings} if self.method == "energy" else None
-        mpc = {k: settings.get(k) for k in ("period", "horizon")} if self.method == "mpc" else {}
         try:
-            res = run_swingup(self.model, method=self.method, x0=x0, duration=self.duration,
+            # the swept settings are fields of the method's options value, by name
+            plan = PlanOptions().replace(**settings) if self.method == "trajopt" else None
+            mpc = MPCOptions().replace(**settings) if self.method == "mpc" else None
+            loop = LoopOptions(duration=self.duration, push=tuple(push or ()), model_error=model_error)
+            res = run_swingup(self.model, method=self.method, x0=x0, plan=plan, loop=loop, mpc=mpc,
                               basin_cache=self.cache, energy_options=energy, catch_weights=self.catch_weights,
-                              push=push or None, model_error=model_error, plan_model=self.plan_model(model_error),
-                              **mpc)
+                              plan_model=self.plan_model(model_error))
         except CartPoleError as exc:
             return {"success": False, "replays": False, "time_to_upright": math.nan, "caught_at": math.nan,
                     "cart_clearance": math.nan, "peak_ctrl": math.nan, "rho": math.nan,

@@ -14,6 +14,8 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.energy import DEFAULT_SCALING
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams
 from cartpole.apps.swingup import check_model_error
@@ -28,8 +30,11 @@ HINGE_HALF_WIDTHS = (0.3, 1.0)
 JITTERED = ("energy_gain", "overshoot", "energy_accel", "centring_frequency", "centring_damping",
             "damping_softening", "centring_band")
 METHODS = ("energy", "trajopt", "mpc")
-#: Controller settings an axis may sweep, per method (energy: its dimensionless scalings).
-SETTINGS = {"energy": tuple(DEFAULT_SCALING), "trajopt": (), "mpc": ("period", "horizon")}
+#: The options value each method's swept settings are fields of (energy: a dict of its dimensionless scalings).
+OPTIONS = {"trajopt": PlanOptions, "mpc": MPCOptions}
+#: Controller settings an axis may sweep, per method: the energy shaping's dimensionless scalings, the planner's and
+#: the NMPC's numeric option fields by name (:meth:`cartpole.options.StageOptions.scalar_names`).
+SETTINGS = {"energy": tuple(DEFAULT_SCALING), "trajopt": PlanOptions.scalar_names(), "mpc": MPCOptions.scalar_names()}
 #: Push time (s) of a sweep that sweeps the push force but gives no push time.
 DEFAULT_PUSH_TIME = 0.5
 #: Most runs in one sweep (their rows are held in memory and printed as one JSON document).
@@ -225,6 +230,12 @@ def check_axes(axes, params: CartPoleParams, method: str) -> tuple:
             if key not in SETTINGS[method]:
                 have = ", ".join(SETTINGS[method]) or "none"
                 raise SweepError(f"The {method} method has no setting '{key}' to sweep (it has: {have}).")
+            if method in OPTIONS:
+                for v in (a.low, a.high):  # both ends of the axis must make a valid options value
+                    try:
+                        OPTIONS[method]().replace(**{key: v})
+                    except CartPoleError as exc:
+                        raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
         elif a.name == "model_error":
             for v in (a.low, a.high):
                 try:

@@ -79,7 +79,7 @@ def test_mpc_settings_reach_the_controller(monkeypatch):
     real = executors.run_swingup
 
     def spy(model, **kw):
-        seen.append((kw["period"], kw["horizon"]))
+        seen.append((kw["mpc"].period, kw["mpc"].horizon))
         return real(model, **kw)
 
     monkeypatch.setattr(executors, "run_swingup", spy)
@@ -108,3 +108,15 @@ def test_workers_fork_from_this_process_only_while_no_other_thread_runs():
         other.join()
     forked = swingup_sweep(None, n=3, seed=4, duration=1.0, workers=2)
     assert beside_a_thread.rows() == one.rows() == forked.rows()
+
+
+def test_planner_settings_are_swept_by_their_option_field_name_and_checked_first():
+    from cartpole.apps.sweep import SweepError
+    from cartpole.apps.sweep.plan import SETTINGS
+    from cartpole.planning.options import PlanOptions
+
+    assert SETTINGS["trajopt"] == PlanOptions.scalar_names() and "cart_margin" in SETTINGS["trajopt"]
+    with pytest.raises(SweepError, match=r"^The sweep axis setting:N reaches 0: .*\.$"):
+        swingup_sweep(None, method="trajopt", axes=[axis("setting:N", 0, 40, 2)])
+    with pytest.raises(SweepError, match="has no setting 'no_such'"):
+        swingup_sweep(None, method="trajopt", axes=[axis("setting:no_such", 1, 2, 2)])
