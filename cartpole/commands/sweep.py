@@ -158,7 +158,8 @@ def run(args) -> dict:
 
 def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, duration=None, x0=None):
     """Run one method's sweep on ``params`` (:func:`cartpole.apps.sweep.recorded_sweep`: each finished run appended
-    to the CSV results under ``args.out``, which is then rewritten in run order, and the success map drawn); return
+    to the CSV results under ``args.out``, which is then rewritten in run order, and the success map drawn), each
+    run ``duration`` s (None: the method's default) from the fixed start ``x0`` (nx,) where no axis sets one; return
     ``(doc, SweepResult)``, the JSON document being: ``mjcf``, ``method``, ``n``, ``successes`` and the rest of
     :meth:`~cartpole.apps.sweep.SweepResult.summary`, ``rows`` (one per run, in run order: ``run``, ``start``,
     ``push``, ``model_error``, ``settings``, ``success``, ``replays``, ``time_to_upright``, ``caught_at``,

@@ -113,6 +113,9 @@ def parallel_capacity(n: int = 2_000_000, rounds: int = 3) -> dict:
 
 
 def main(argv=None) -> int:
+    """``benchmarks/bench_sweep.py``: parse ``argv`` (``--n``, ``--rounds``, ``--method``, ``--where``, ``--fresh``,
+    ``--no-engine``, ``--json``), time the sweeps, print one JSON document (times in s, rates in runs/s, ratios to
+    one worker) on stdout and the rounds on stderr; returns the exit status."""
     ap = argparse.ArgumentParser(prog="bench_sweep.py", description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=100)
     ap.add_argument("--rounds", type=int, default=3)

@@ -208,7 +208,7 @@ def summary_line(s: dict) -> str:
 def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration, jitter: float, axes=(),
              x0=None) -> str:
     """12 hex digits naming the sweep description (MJCF path and content, method, ``n``, seed, ``duration`` s,
-    jitter, axes, ``x0``): the ``sweep`` column of every row, which a resumed sweep must match. (A description
+    jitter, axes, the fixed start ``x0`` (nx,) ``[qpos, qvel]``): the ``sweep`` column of every row, which a resumed sweep must match. (A description
     without axes keeps the id it had before axes existed.)"""
     try:
         digest = hashlib.sha256(Path(params.mjcf).read_bytes()).hexdigest()
