@@ -55,7 +55,9 @@ def add_arguments(parser) -> None:
                              f"NAME_rate (its rate), then {axis_help}; repeatable; other components from --x0")
     parser.add_argument("--setting", nargs="+", action="append", default=None, metavar="NAME V",
                         help="a controller setting: for energy a scaling of the energy shaping (energy_gain, "
-                             "overshoot, ...), for mpc period or horizon (s); then " + axis_help + "; repeatable")
+                             "overshoot, ...), for trajopt a numeric field of the planner's options (T, N, "
+                             "cart_margin, ...), for mpc one of the NMPC's (period, horizon, ...); then " + axis_help
+                             + "; repeatable")
     parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
                         help="with axis options: the start of every run where no --start sets a component, 2 nq "
                              "numbers [qpos, qvel] (default hanging at rest)")
