@@ -140,13 +140,7 @@ def lqr(A, B, Q, R) -> LQRResult:
         Bad weights or shapes, an unstabilisable pair, or a Riccati solution that does not check out (closed
         loop not stable, or residual of the Riccati equation above 1e-6 relative to ``S``).
     """
-    A, B, Q, R = check_weights(A, B, Q, R)
-    _check_stabilizable(A, B, discrete=False)
-    try:
-        S = scipy.linalg.solve_continuous_are(A, B, Q, R)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise LQRError(f"The continuous Riccati equation has no stabilising solution ({exc}); "
-                       "check that (A, Q) has no unobservable mode on the imaginary axis.") from None
+    A, B, Q, R, S = _riccati(A, B, Q, R, discrete=False)
     K = np.linalg.solve(R, B.T @ S)
     E = np.linalg.eigvals(A - B @ K)
     resid = A.T @ S + S @ A - S @ B @ K + Q
@@ -159,18 +153,27 @@ def dlqr(A, B, Q, R) -> LQRResult:
 
     Parameters and returns as :func:`lqr`; ``E`` are eigenvalues of ``A - B K`` (inside the unit circle).
     """
-    A, B, Q, R = check_weights(A, B, Q, R)
-    _check_stabilizable(A, B, discrete=True)
-    try:
-        S = scipy.linalg.solve_discrete_are(A, B, Q, R)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise LQRError(f"The discrete Riccati equation has no stabilising solution ({exc}); "
-                       "check that (A, Q) has no unobservable mode on the unit circle.") from None
+    A, B, Q, R, S = _riccati(A, B, Q, R, discrete=True)
     K = np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A)
     E = np.linalg.eigvals(A - B @ K)
     resid = A.T @ S @ A - S - A.T @ S @ B @ K + Q
     _verify(np.abs(E).max() < 1, resid, S, "discrete")
     return LQRResult(K, S, E)
+
+
+def _riccati(A, B, Q, R, *, discrete: bool):
+    """The checked weights and the stabilising solution ``S`` of the continuous or discrete algebraic Riccati
+    equation, or one LQRError sentence."""
+    A, B, Q, R = check_weights(A, B, Q, R)
+    _check_stabilizable(A, B, discrete=discrete)
+    solve = scipy.linalg.solve_discrete_are if discrete else scipy.linalg.solve_continuous_are
+    try:
+        S = solve(A, B, Q, R)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        kind, edge = ("discrete", "the unit circle") if discrete else ("continuous", "the imaginary axis")
+        raise LQRError(f"The {kind} Riccati equation has no stabilising solution ({exc}); "
+                       f"check that (A, Q) has no unobservable mode on {edge}.") from None
+    return A, B, Q, R, S
 
 
 def _verify(stable: bool, resid: np.ndarray, S: np.ndarray, kind: str) -> None:
