@@ -39,12 +39,12 @@ def _trivial(i):
 
 def engine_overhead(runs: int = 2000) -> dict:
     """ms per trivial task (a function returning a dict) on a 2-process pool started as the sweep's are
-    (:func:`cartpole.apps.sweep.executors.start_server`) and on a 2-worker Dask LocalCluster, after warm-up."""
+    (:func:`cartpole.apps.forkserver.start_server`) and on a 2-worker Dask LocalCluster, after warm-up."""
     from concurrent.futures import ProcessPoolExecutor
 
     from distributed import Client, LocalCluster
 
-    from cartpole.apps.sweep.executors import start_server
+    from cartpole.apps.forkserver import start_server
 
     out = {}
     with ProcessPoolExecutor(2, mp_context=start_server("energy")) as pool:

@@ -4,15 +4,15 @@
 
 The local pool (``workers = W > 1``): this process runs its share in one thread with the model it has already
 built, beside ``W - 1`` worker processes of a :class:`concurrent.futures.ProcessPoolExecutor`; each run goes to
-whichever is free, and the rows come back in the order they finish. Where the platform can fork and this process
-runs no other thread when the pool starts (:func:`pool_context`), the workers are forked from this process itself,
-after it has built its runner: they start with the toolkit imported, the model built and the basins read, so a
-worker's first run costs what its later ones do (a fresh ``cartpole sweep`` of a few seconds gains from the second
-core only this way). The pool's processes are all forked before this process starts its own runs' thread. Where a
-thread is running (an embedding program's, a GUI's), the workers come from multiprocessing's fork server instead,
-which :func:`start_server` starts with the toolkit imported (:data:`PRELOAD`); each of those workers builds the
-model once (:func:`_init_worker`). Where the platform has neither, the workers are spawned (the same rows, a slower
-start).
+whichever is free, and the rows come back in the order they finish. The worker processes are forked from
+multiprocessing's fork server (:mod:`cartpole.apps.forkserver`), which the sweep starts at its beginning (the parent
+meanwhile plans the runs and reads the basin), with the toolkit already imported
+(:data:`~cartpole.apps.forkserver.PRELOAD`), so a worker starts in milliseconds instead of importing NumPy, SciPy, CasADi, MuJoCo and the toolkit anew; each builds the model once
+(:func:`_init_worker`) and keeps it for all its runs. Where the platform has no fork server, the workers are spawned
+(the same rows, a slower start). No worker is forked from this process itself: measured, a worker forked from the
+parent with its runner built was slower a run than one from the fork server, and slowed the parent as well (the
+two processes then share every page of a large heap copy-on-write), besides the threads and library state a fork
+copies.
 
 BLAS: a run's linear algebra is small, and OpenBLAS's threads cost more than they save (they spin after each call,
 and beside a pool worker they take the core it needs), so the runs here use one OpenBLAS thread
@@ -40,26 +40,11 @@ from cartpole.mpc.options import MPCOptions
 from cartpole.planning.options import PlanOptions
 from cartpole.sim.options import LoopOptions
 from cartpole.validation.basin import BasinCache
+from cartpole.apps.forkserver import WORKER_ENV, main_thread, sigint_ignored, start_server, worker_env
 from cartpole.apps.sweep.plan import SweepError
 
 #: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
 CONNECT_TIMEOUT = 10.0
-#: Modules the pool's fork server imports before it forks any worker, per method: what a worker and its runs
-#: import (this module brings the swing-up, the model and CasADi; MuJoCo and the method's own modules are imported
-#: lazily, on first use, so they are named here).
-PRELOAD = {
-    "energy": ("cartpole.apps.sweep.executors", "mujoco", "cartpole.control.switching", "cartpole.control.energy",
-               "cartpole.validation.metrics"),
-    "trajopt": ("cartpole.apps.sweep.executors", "mujoco", "cartpole.planning.trajopt",
-                "cartpole.validation.metrics"),
-    "mpc": ("cartpole.apps.sweep.executors", "mujoco", "cartpole.mpc.nmpc", "cartpole.planning.trajopt",
-            "cartpole.validation.metrics"),
-}
-#: Environment of a pool worker: one BLAS / OpenMP thread (what Dask's nanny gives its workers too). OpenBLAS's
-#: threads spin after each call; two workers with two each on two cores take turns instead of running.
-WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
-
 class Runner:
     """One process's share of a sweep: the model (built once), each planning model (built once, on first use), the
     basin cache, and the settings every run shares.
@@ -161,40 +146,6 @@ def run_here(runner: Runner, jobs, todo, finished) -> None:
 
 # ---- the local pool ----------------------------------------------------------------------------------------------
 
-def start_server(method: str):
-    """The multiprocessing context the pool's workers start from, its fork server started now if it is not running
-    yet: with :data:`PRELOAD` of ``method`` imported, :data:`WORKER_ENV` in its environment (unless the user set
-    those variables) and Ctrl-C ignored, all of which the workers it forks inherit. Returns at once: the server
-    imports in the background while the caller goes on; the first worker waits for it. Without a fork server on
-    this platform: the ``spawn`` context (each worker then imports the toolkit itself).
-
-    The fork server is multiprocessing's own, one per process, and it stays up for later sweeps; where another
-    part of the program started it first, its workers import what it lacks on their first run."""
-    import multiprocessing
-
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("spawn")
-    from multiprocessing import forkserver
-
-    ctx = multiprocessing.get_context("forkserver")
-    with _sigint_ignored(), _one_blas_thread():
-        ctx.set_forkserver_preload(list(PRELOAD.get(method, PRELOAD["energy"])))  # read only by a server not yet up
-        forkserver.ensure_running()
-    return ctx
-
-
-def pool_context(method: str):
-    """Where :func:`run_pool`'s workers start from: ``"fork"`` (this process, runner and all) on a platform that
-    forks when this process runs one thread only, else :func:`start_server` of ``method`` (a fork server, or
-    ``spawn``)."""
-    import multiprocessing
-    import threading
-
-    if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
-        return multiprocessing.get_context("fork")
-    return start_server(method)
-
-
 def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None) -> None:
     """The runs ``todo`` spread over this process (one thread, ``runner``) and ``workers - 1`` worker processes
     (one :class:`Runner` each, built once); each run goes to whichever is free. ``finished(i, row)`` is called in
@@ -204,8 +155,8 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     Parameters
     ----------
     context : multiprocessing context, optional
-        Where the workers start from (default :func:`pool_context` of the runner's method). With ``fork`` the
-        workers inherit ``runner`` itself.
+        Where the workers start from (default :func:`~cartpole.apps.forkserver.start_server` of the runner's
+        method).
 
     Raises
     ------
@@ -215,33 +166,25 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    global _WORKER
-    ctx = pool_context(runner.method) if context is None else context
-    forked = ctx.get_start_method() == "fork"
+    ctx = start_server(runner.method) if context is None else context
     env = dict(os.environ)
     for k, v in WORKER_ENV.items():
         env.setdefault(k, v)
-    if forked:  # the workers inherit this runner (model, planning models, basins) as it is now
-        _WORKER = runner
     pool = ProcessPoolExecutor(max_workers=workers - 1, mp_context=ctx, initializer=_init_worker,
-                               initargs=(None if forked else runner.settings(), env))
+                               initargs=(runner.settings(), env))
     here = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cartpole-sweep")
     pending = deque(todo)
     running: dict = {}  # future -> (executor, run index)
     room = {pool: workers - 1, here: 1}
-    # forked: the pool first, so every worker is forked before this process's runs' thread exists; from a fork
-    # server: this process first, because a pool's first submit waits until the server has imported the toolkit
-    order = (pool, here) if forked else (here, pool)
-
-    def feed():
-        for ex in order:
+    def feed():  # this process first: a pool's first submit waits until the fork server has imported the toolkit
+        for ex in (here, pool):
             while pending and room[ex] > 0:
                 i = pending.popleft()
                 running[ex.submit(_run_in_worker if ex is pool else runner.run, *jobs[i])] = (ex, i)
                 room[ex] -= 1
 
     try:
-        with _sigint_ignored(), _one_blas_thread():  # the workers start here; spawned ones inherit both from birth
+        with sigint_ignored(), worker_env():  # the workers start here; spawned ones inherit both from birth
             feed()
         with _sigterm_as_interrupt(), one_blas_thread_here():
             while running:
@@ -257,16 +200,15 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     finally:
         here.shutdown(wait=True, cancel_futures=True)
         pool.shutdown(wait=True, cancel_futures=True)
-        _WORKER = None
 
 
 _WORKER: Runner | None = None  # set in each worker process by _init_worker
 
 
-def _init_worker(settings: tuple | None, env: dict) -> None:
+def _init_worker(settings: tuple, env: dict) -> None:
     """ProcessPoolExecutor initializer: this worker's runner (its model built once) from
-    :meth:`Runner.settings` (None: forked from the parent, whose runner it has inherited), and the parent's
-    environment ``env`` (a worker of the fork server has the server's, from when it started).
+    :meth:`Runner.settings`, and the parent's environment ``env`` (a forked worker has the fork server's, from
+    when it started).
 
     MuJoCo's warnings are dropped here (the parent loaded the same MJCF first and reported them), so a worker
     neither prints them nor writes MUJOCO_LOG.TXT into the current directory. Ctrl-C is left to the parent (which
@@ -284,8 +226,7 @@ def _init_worker(settings: tuple | None, env: dict) -> None:
     if not _user_set_blas_threads():  # a fork server another part of the program started lacks WORKER_ENV
         for get, set_threads in _loaded_openblas():
             set_threads(1)
-    if settings is not None:
-        _WORKER = Runner(*settings)
+    _WORKER = Runner(*settings)
 
 
 def _run_in_worker(x0, options, push=(), model_error=1.0, settings=None) -> dict:
@@ -364,48 +305,12 @@ def one_blas_thread_here():
 
 
 @contextmanager
-def _one_blas_thread():
-    """Processes started inside get :data:`WORKER_ENV` (unless the user set those variables); this process's own
-    environment is restored after the block."""
-    added = {k: v for k, v in WORKER_ENV.items() if k not in os.environ}
-    os.environ.update(added)
-    try:
-        yield
-    finally:
-        for k in added:
-            os.environ.pop(k, None)
-
-
-def _main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
-
-
-@contextmanager
-def _sigint_ignored():
-    """Ignore Ctrl-C (SIGINT) inside the block, in the main thread (elsewhere: no change). Processes started inside
-    inherit the ignored signal, so a Ctrl-C that reaches the whole process group cannot kill a worker while it is
-    still importing (a traceback on stderr); the parent alone handles it and keeps the finished rows."""
-    import signal
-
-    if not _main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-@contextmanager
 def _sigterm_as_interrupt():
     """Inside the block (main thread, SIGTERM at its default): SIGTERM raises KeyboardInterrupt, as Ctrl-C does, so
     the pool is shut down and the finished rows kept instead of the process dying with its workers orphaned."""
     import signal
 
-    if not _main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+    if not main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
         yield
         return
 

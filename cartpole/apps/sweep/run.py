@@ -15,6 +15,7 @@ from cartpole.models import CartPoleParams, build_model, read_params
 from cartpole.progress import stage
 from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
 from cartpole.validation.basin import BasinCache
+from cartpole.apps.forkserver import start_server
 from cartpole.apps.sweep.executors import Runner, run_dask, run_here, run_pool
 from cartpole.apps.sweep.plan import (MAX_SHARED_BASINS, SweepError, check_axes, check_settings, default_half_widths,
                                       plan_runs, total_runs)
@@ -93,6 +94,9 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     """
     check_settings(method, n, workers, gain_jitter, half_widths, energy_options)
     n, workers = int(n), int(workers)
+    # the pool's fork server imports the toolkit while this process reads the model, plans, finds the basins and
+    # starts its own share of the runs
+    context = start_server(method) if workers > 1 and not address else None
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     model = build_model(params)
     nx = 2 * params.nq
@@ -155,7 +159,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         elif workers == 1:
             run_here(runner, jobs, todo, finished)
         else:
-            run_pool(runner, jobs, workers, todo, finished)
+            run_pool(runner, jobs, workers, todo, finished, context=context)
     return SweepResult(mjcf=params.mjcf, starts=starts, success=np.array([r["success"] for r in out], bool),
                        time_to_upright=np.array([r["time_to_upright"] for r in out], float),
                        caught_at=np.array([r["caught_at"] for r in out], float),

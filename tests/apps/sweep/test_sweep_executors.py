@@ -89,27 +89,6 @@ def test_mpc_settings_reach_the_controller(monkeypatch):
     assert np.isnan(r.rho) and all(row["replays"] for row in r.rows())
 
 
-def test_workers_fork_from_this_process_only_while_no_other_thread_runs():
-    import multiprocessing
-    import threading
-
-    if "fork" not in multiprocessing.get_all_start_methods():
-        pytest.skip("this platform does not fork")
-    assert executors.pool_context("energy").get_start_method() == "fork"
-    stop = threading.Event()
-    other = threading.Thread(target=stop.wait, daemon=True)
-    other.start()
-    try:
-        assert executors.pool_context("energy").get_start_method() in ("forkserver", "spawn")
-        one = swingup_sweep(None, n=3, seed=4, duration=1.0)
-        beside_a_thread = swingup_sweep(None, n=3, seed=4, duration=1.0, workers=2)  # from the fork server
-    finally:
-        stop.set()
-        other.join()
-    forked = swingup_sweep(None, n=3, seed=4, duration=1.0, workers=2)
-    assert beside_a_thread.rows() == one.rows() == forked.rows()
-
-
 def test_planner_settings_are_swept_by_their_option_field_name_and_checked_first():
     from cartpole.apps.sweep import SweepError
     from cartpole.apps.sweep.plan import SETTINGS
