@@ -30,11 +30,9 @@ Condensing in ``du`` is ill-conditioned when the plant's fastest unstable mode g
 pre-stabilised by default (``prestabilize``): its unknowns are the steps relative to the Riccati feedback along
 the iterate, ``du_k = -K_k ds_k + dv_k``, which is well conditioned for any horizon and costs about twice as much.
 The QP is solved by DAQP (a dual active-set solver for small dense QPs, PyPI ``daqp``) or qpOASES (shipped with
-CasADi, ``casadi.conic("qpoases")``); both give the same solution. Measured on the single pole (N = 60, over a
-MuJoCo swing-up, 2 shared cores): DAQP 0.15 ms a QP at the median, qpOASES 0.7 ms even hot-started with zero
-working-set changes (its dense re-factorisation of new matrices), so DAQP is the default; HPIPM through
-``sqpmethod`` was 2-4 ms (DESIGN.md). The whole step is about 0.5 ms; :func:`cartpole.apps.bench.mpc.run_mpc_benchmark`
-measures it against IPOPT.
+CasADi, ``casadi.conic("qpoases")``); both give the same solution. DAQP is the default because qpOASES, even
+hot-started with no working-set change, re-factorises each new dense matrix, and HPIPM through ``sqpmethod`` costs
+more again (DESIGN.md); :func:`cartpole.apps.bench.mpc.run_mpc_benchmark` measures the step against IPOPT.
 
 Safe action: a QP that fails, or a step that returns anything non-finite, never raises inside the loop. The
 controller applies the upright discrete LQR of the period (clipped to the ctrlranges) when every pole is within

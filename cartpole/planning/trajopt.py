@@ -15,10 +15,8 @@ refined on N = 60 (the next if that refinement fails); from near upright each gu
 fixed-time effort problem (a homotopy in T). (2) The chosen objective at its T on N = 100 (or the file's step
 for ``dmc_swingup``), started from the minimum-time plan stretched (or padded with rest) onto T; the default guesses
 only if that fails. Every solver call of every stage is in ``plan.solve_info.attempts`` (guess, N, iterations,
-status, objective, which were kept), and ``plan.plan_time_s`` is the wall time of the whole call. Measured
-(``benchmarks/bench_swingup_chains.py``, medians of 3 fresh processes, 2 cores at load 2-3, warm compile cache):
-0.40 s for one pole, 0.55 s for two, 2.5 s for three (the previous pipeline: 0.66 s, 2.7 s, 36 s, same plans);
-with a cold cache (the interval functions compiled first) 1.4 s, 2.2 s, 10.2 s.
+status, objective, which were kept), and ``plan.plan_time_s`` is the wall time of the whole call
+(``benchmarks/bench_swingup_chains.py`` measures it on the shipped carts; the docs' benchmarks page states it).
 """
 from __future__ import annotations
 
@@ -162,9 +160,9 @@ def _defects(model: CartPoleModel, x, u) -> float:
 
 
 #: rad: largest hinge-angle deviation from the collocation plan, predicted for TVLQR on the exact discrete step,
-#: that ``trajopt_swingup(exact_discrete="auto")`` accepts without re-solving the plan on that step. Measured on
-#: the shipped carts from hanging: 0.026 (two poles) and 0.042 rad (three); the failures it catches stray by 1 rad
-#: and more (the triple re-planned with the cart at 0.3 m: 1.1 rad at 2.06 s, 2.2 rad at 2.4 s).
+#: that ``trajopt_swingup(exact_discrete="auto")`` accepts without re-solving the plan on that step. Why 0.1: the
+#: plans from hanging on the shipped carts are predicted well inside it, and the failures it must catch (the triple
+#: re-planned with the cart off centre) stray by a radian and more (the swing-up page's claims measure both).
 TRACK_TOL = 0.1
 
 
@@ -191,9 +189,9 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
 
     The collocation plan satisfies the continuous dynamics; MuJoCo steps the MJCF's integrator (semi-implicit
     Euler at 5 ms on the shipped carts), whose local error per step is what TVLQR must absorb all along the plan.
-    On the shipped three-pole cart that one-step defect is up to 0.05 rad/s on the last hinge rate every 5 ms
-    (whatever the collocation mesh: it is the integrator's, not the mesh's) and the plan run open loop in the
-    discrete model is off by 0.1 rad after half the swing. This solves, by IPOPT,
+    On the shipped three-pole cart that one-step defect is large on the last hinge rate (whatever the collocation
+    mesh: it is the integrator's, not the mesh's) and the plan run open loop in the discrete model drifts by a
+    tenth of a radian within the swing (the swing-up page states the measured figures, with their commands). This solves, by IPOPT,
 
         min  sum_k |u_k - u_plan,k|^2 dt
         s.t. x_0 = x0,  x_k+1 = model.step(x_k, u_k),  x_n = x_goal,
@@ -303,8 +301,8 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
         those towards the nearest upright angles (pumping and straight-line shapes, and for one pole the
         energy-shaping rollout first). 4 (5 for one pole) adds the shapes in which every link loops once more
         relative to its parent (one turn the other way for one pole): on the shipped two-pole cart that route is
-        10 % faster (T_min 1.53 s instead of 1.70 s) but TVLQR tracks it less well (upright in MuJoCo at 2.49 s
-        instead of 1.99 s), on the other carts measured it is not faster.
+        faster in the plan but TVLQR tracks it less well, so it is not among the defaults (the swing-up page
+        gives the figures).
     coarse_N : int, optional
         Intervals of the multi-start; ``coarse_N >= N`` solves the multi-start on ``N`` directly.
     bounds
