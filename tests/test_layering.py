@@ -92,6 +92,14 @@ def _resolve(name: str) -> str | None:
     return None
 
 
+def _source(node: ast.ImportFrom, package: str) -> str:
+    """The absolute module an ``ImportFrom`` reads from (relative ones, ``from . import x``, resolved in ``package``)."""
+    if node.level:
+        base = package.split(".")[:len(package.split(".")) - node.level + 1]
+        return ".".join(base + ([node.module] if node.module else []))
+    return node.module or ""
+
+
 def imports_of(name: str) -> list[tuple[str, int, bool]]:
     """``(target module, line, is a bare reference to the package top)`` for every import in module ``name``."""
     path = MODULES[name]
@@ -105,11 +113,7 @@ def imports_of(name: str) -> list[tuple[str, int, bool]]:
                 if target is not None:
                     out.append((target, node.lineno, alias.name == TOP))
         elif isinstance(node, ast.ImportFrom):
-            if node.level:  # relative: from . import x, from ..a import b
-                base = package.split(".")[:len(package.split(".")) - node.level + 1]
-                src = ".".join(base + ([node.module] if node.module else []))
-            else:
-                src = node.module or ""
+            src = _source(node, package)
             if _resolve(src) is None:
                 continue
             for alias in node.names:
@@ -226,11 +230,7 @@ def private_uses(name: str) -> list[tuple[int, str]]:
                     local = alias.asname or alias.name.split(".")[0]
                     modules_bound[local] = alias.name if alias.asname else alias.name.split(".")[0]
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")[:len(package.split(".")) - node.level + 1]
-                src = ".".join(base + ([node.module] if node.module else []))
-            else:
-                src = node.module or ""
+            src = _source(node, package)
             if _resolve(src) is None:
                 continue
             for alias in node.names:

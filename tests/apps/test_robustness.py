@@ -12,6 +12,8 @@ from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.metrics import cart_range_used, ctrl_within_range, pole_angle_errors, swingup_metrics
 
+from chain_robustness import offset_starts  # tests/ is on sys.path (conftest): the command the docs cite
+
 HANGING = np.array([0.0, np.pi, 0.0, 0.0])
 
 
@@ -117,18 +119,6 @@ CHAIN_AFTER = 8.0  # s after the plan: the catch brings the cart back to rest (s
 OFFSET = 0.03
 
 
-def _offsets(model, d):
-    hinges = list(model.hinges)
-    rows = [np.full(len(hinges), d), np.full(len(hinges), -d), np.zeros(len(hinges))]
-    rows[2][0], rows[2][-1] = d, -d
-    out = []
-    for r in rows:
-        x0 = np.array(model.x_hanging, dtype=float)
-        x0[hinges] += r
-        out.append(x0)
-    return out
-
-
 def _chain_run(params, plan, x0, label):
     model = build_model(params)
     ro = simulate(params, plan.controller, x0, plan.T + CHAIN_AFTER)
@@ -160,5 +150,5 @@ def test_chain_swings_up_from_starts_a_few_hundredths_of_a_radian_off(chain_para
     model = build_model(params)
     plan = trajopt_swingup(params)  # planned from hanging rest; TVLQR absorbs the offset
     results = [_chain_run(params, plan, x0, f"{name}, start offsets {np.round(x0[list(model.hinges)] - model.x_hanging[list(model.hinges)], 3).tolist()} rad")
-               for x0 in _offsets(model, OFFSET)]
+               for x0 in offset_starts(model, OFFSET)]
     assert all(m["success"] for m in results), results
