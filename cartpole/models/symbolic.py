@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole.models.discretize import hold_model
 from cartpole.models.equilibrium import find_equilibrium
 from cartpole.models.kinematics import forward_kinematics, forward_kinematics_np
 from cartpole.models.params import SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError, read_params
@@ -228,6 +229,14 @@ class CartPoleModel:
         u = self.u_eq if u is None else np.atleast_1d(u).astype(float)
         A, B = (self.ABd if discrete else self.AB)(x, u)
         return np.asarray(A), np.asarray(B)
+
+    def hold(self, steps: int):
+        """The exact discrete model over ``steps`` physics steps with the ctrl held
+        (:class:`~cartpole.models.discretize.HoldModel`), built on first use and kept with this model."""
+        holds = self.__dict__.setdefault("_holds", {})  # a frozen dataclass still has a __dict__ for caches
+        if steps not in holds:
+            holds[steps] = hold_model(self, steps)
+        return holds[steps]
 
     def rebuilt(self, *, dt: float | None = None, integrator: str | None = None) -> "CartPoleModel":
         """The same physics with another discrete step (e.g. a control period of several physics steps)."""
