@@ -1,0 +1,377 @@
+"""The functions a moving-horizon estimator evaluates every control period, compiled to C (with the SX fallback).
+
+One interval of the estimation window is one control period: ``steps`` physics steps of the model's exact discrete
+step (``model.step``, one step of the MJCF's integrator) with a ctrl of its own in each physics step, the same
+composition as :attr:`cartpole.models.HoldModel.step_inputs`. Its value and exact state Jacobian come from one SX
+function of a single physics step ``(x, u) -> (x+, dx+/dx)`` chained ``steps`` times by the chain rule
+(``A = A_m ... A_1``) in an MX function, so the generated C holds the physics step once whatever ``steps`` is. The
+measurement model ``h(x, u) -> y`` and its Jacobian ``dh/dx`` are one SX function. Both, mapped over a window of
+``N`` intervals (``N + 1`` nodes), make one function: one call per period gives every linearisation the
+Gauss-Newton step needs. The rest of a period is small numpy arithmetic, here too: the QP condensed onto the first
+node and the noise (:func:`condensed_qp`, an O(N^2) forward recursion), its solution (:func:`solve_window_qp`: one
+Cholesky solve, DAQP only when a position bound binds) and the arrival cost's EKF step (:func:`arrival_update`),
+with the checks of the covariances and the default first estimate the estimator
+(:class:`cartpole.estimation.mhe.MovingHorizonEstimator`) is built with.
+
+The shared library is cached by :func:`cartpole.codegen.build_library` (keyed by its source, the flags, the CasADi
+version and the CPU). With ``CARTPOLE_NO_COMPILE`` set, without a C compiler, or when the build fails, the same
+CasADi functions run in CasADi's virtual machine (same numbers, slower), with a note on stderr.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from cartpole.codegen import build_library, load_library
+from cartpole.estimation.base import EstimationError
+
+_LIB_VERSION = "mhe-window-v1"  # bump when the generated functions change meaning
+
+
+@dataclass(frozen=True)
+class WindowFunctions:
+    """The per-period evaluations of one estimator: model, steps per period, measurement model and window length.
+
+    Attributes
+    ----------
+    window : casadi.Function
+        ``(X (nx, N+1), UU (nu steps, N), UH (nu, N+1)) -> (F (nx, N), A (nx, nx N), Y (ny, N+1), C (ny, nx (N+1)))``:
+        for each interval ``j`` the state ``F_j`` one period after node ``X[:, j]`` under the ctrl ``UU[:, j]``
+        (``vec`` of the period's (nu, steps) ctrl, one column per physics step) and its Jacobian ``A_j`` (column
+        block ``j``); for each node ``j`` the predicted measurement ``h(X[:, j], UH[:, j])`` and ``C_j = dh/dx``.
+    stage : casadi.Function
+        One interval ``(x (nx,), Uvec (nu steps,)) -> (x_next (nx,), A (nx, nx))``.
+    measurement : casadi.Function
+        One node ``(x (nx,), u (nu,)) -> (y (ny,), C (ny, nx))``.
+    library : str or None
+        Path of the compiled shared library in use, None on the SX fallback.
+    steps, N, ny : int
+        Physics steps per period, intervals in the window, measurement size.
+    """
+
+    window: ca.Function
+    stage: ca.Function
+    measurement: ca.Function
+    library: str | None
+    steps: int
+    N: int
+    ny: int
+
+
+def _one_step(model) -> ca.Function:
+    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    xn = model.step(x, u)
+    return ca.Function("mhe_phys", [x, u], [xn, ca.jacobian(xn, x)], ["x", "u"], ["x_next", "A"], {"cse": True})
+
+
+def _stage(model, steps: int) -> ca.Function:
+    nx, nu = model.nx, model.nu
+    one = _one_step(model)
+    x, Uv = ca.MX.sym("x", nx), ca.MX.sym("U", nu * steps)
+    xk, A = x, ca.MX.eye(nx)
+    for j in range(steps):
+        xk, Aj = one(xk, Uv[j * nu:(j + 1) * nu])
+        A = ca.mtimes(Aj, A)
+    return ca.Function("mhe_stage", [x, Uv], [ca.densify(xk), ca.densify(A)], ["x", "U"], ["x_next", "A"])
+
+
+def _measurement(h: ca.Function, nx: int, nu: int) -> ca.Function:
+    for sym in (ca.SX, ca.MX):  # an MX-only h (e.g. with a lookup table) cannot take SX symbols
+        x, u = sym.sym("x", nx), sym.sym("u", nu)
+        try:
+            y = h(x, u)
+        except (RuntimeError, NotImplementedError, TypeError):
+            continue
+        y = y[0] if isinstance(y, (list, tuple)) else y
+        return ca.Function("mhe_meas", [x, u], [ca.densify(y), ca.densify(ca.jacobian(y, x))], ["x", "u"],
+                           ["y", "C"])
+    raise EstimationError("The measurement model h cannot be evaluated on symbols; give a CasADi Function "
+                          "h(x, u) -> y built from SX or MX expressions.")
+
+
+def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: bool = True) -> WindowFunctions:
+    """Build (and, unless ``compiled`` is False or ``CARTPOLE_NO_COMPILE`` is set, compile to C) the window's
+    evaluations.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        Anything with ``nx``, ``nu`` and ``step`` (one physics step of ``model.dt`` s, a CasADi Function
+        ``(x (nx,), u (nu,)) -> x+``); any number of poles.
+    steps : int
+        Physics steps per control period.
+    h : casadi.Function
+        Measurement model ``(x (nx,), u (nu,)) -> y (ny,)``.
+    N : int
+        Intervals in the full window (``N + 1`` nodes).
+    compiled : bool
+        False keeps CasADi's virtual machine (the fallback, same numbers).
+
+    Returns
+    -------
+    WindowFunctions
+    """
+    nx, nu = model.nx, model.nu
+    stage = _stage(model, steps)
+    meas = _measurement(h, nx, nu)
+    ny = meas.size1_out(0)
+    X, UU, UH = ca.MX.sym("X", nx, N + 1), ca.MX.sym("UU", nu * steps, N), ca.MX.sym("UH", nu, N + 1)
+    F, A = stage.map(N)(X[:, :N], UU)
+    Yh, C = meas.map(N + 1)(X, UH)
+    window = ca.Function("mhe_window", [X, UU, UH], [ca.densify(v) for v in (F, A, Yh, C)], ["X", "UU", "UH"],
+                         ["F", "A", "Y", "C"])
+    library = None
+    if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
+        try:
+            lib, _ = build_library([window, stage, meas], _LIB_VERSION + f"/{steps}x{N}")
+            ext = load_library(lib, ("mhe_window", "mhe_stage", "mhe_meas"))
+            window, stage, meas = ext["mhe_window"], ext["mhe_stage"], ext["mhe_meas"]
+            library = lib
+        except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+            print(f"cartpole: compiled MHE functions unavailable ({reason}); using CasADi's virtual machine "
+                  "(same results, slower).", file=sys.stderr)
+    return WindowFunctions(window=window, stage=stage, measurement=meas, library=library, steps=int(steps),
+                           N=int(N), ny=int(ny))
+
+
+#: DAQP's "no bound", and the active-set iterations it may take.
+_BIG = 1e30
+QP_ITER_LIMIT = 1000
+
+
+def condensed_qp(A, d, C, r_meas, RV, L, P_inv, arrival_gap, e):
+    """The window's Gauss-Newton QP condensed onto ``z = (dx_0, de_0 .. de_n-1)``.
+
+    The steps of the nodes are ``dx_j = c_j + S_j z`` through the linearised shooting constraints ``dx_j+1 = A_j dx_j
+    + L de_j + d_j``; the cost ``||x_0 + dx_0 - x_bar||^2_{P^-1} + sum_j ||RV (r_j + C_j dx_j)||^2 +
+    sum_j ||e_j + de_j||^2`` is ``z' H z + 2 g' z`` plus a constant.
+
+    Parameters
+    ----------
+    A : (n, nx, nx) array
+        State Jacobians of the intervals.
+    d : (n, nx) array
+        Shooting gaps ``F_j + L e_j - x_j+1`` (SI units).
+    C : (n+1, ny, nx) array
+        Measurement Jacobians of the nodes.
+    r_meas : (n+1, ny) array
+        Measurement residuals ``h(x_j, u_j) - y_j`` (sensor units).
+    RV : (ny, ny) array
+        ``RV' RV = V^-1``.
+    L : (nx, r) array
+        ``W = L L'``.
+    P_inv : (nx, nx) array
+        ``P^-1``, the arrival cost's weight.
+    arrival_gap : (nx,) array
+        ``x_0 - x_bar`` (SI units).
+    e : (n, r) array
+        The iterate's noise.
+
+    Returns
+    -------
+    H : (nz, nz) array
+        Positive definite Hessian, ``nz = nx + n r``.
+    g : (nz,) array
+        Gradient.
+    S : (n+1, nx, nz) array
+        Sensitivities of the nodes' steps.
+    c : (n+1, nx) array
+        Offsets of the nodes' steps (SI units).
+    """
+    n, nx, r = d.shape[0], P_inv.shape[0], L.shape[1]
+    nz = nx + n * r
+    # [S_j, c_j] side by side: one product per stage carries both
+    T = np.zeros((n + 1, nx, nz + 1))
+    T[0, :, :nx] = np.eye(nx)
+    for j in range(n):
+        T[j + 1] = A[j] @ T[j]
+        T[j + 1, :, nx + j * r:nx + (j + 1) * r] = L
+        T[j + 1, :, nz] += d[j]
+    B = ((RV @ C) @ T).reshape(-1, nz + 1)  # [RV C_j S_j, RV C_j c_j] stacked over the nodes
+    B[:, nz] += (r_meas @ RV.T).ravel()
+    M = B.T @ B[:, :nz]  # [H; g'] of the measurements in one product
+    H, g = M[:nz], M[nz].copy()
+    H[:nx, :nx] += P_inv
+    g[:nx] += P_inv @ arrival_gap
+    H.flat[nx * (nz + 1)::nz + 1] += 1.0
+    g[nx:] += e.ravel()
+    return H, g, T[:, :, :nz], T[:, :, nz]
+
+
+def solve_window_qp(H, g, S, c, q, joints, low, high):
+    """``min 1/2 z' H z + g' z`` with the positions ``q_j + c_j + S_j z`` of the bounded joints inside their ranges
+    at every node: the Cholesky solve when its minimiser respects them (then it is the solution: the QP is convex),
+    else DAQP.
+
+    Parameters
+    ----------
+    H, g : (nz, nz), (nz,) arrays
+        From :func:`condensed_qp` (``H`` is used in place by DAQP's copy, not changed).
+    S, c : (n+1, nx, nz), (n+1, nx) arrays
+        From :func:`condensed_qp`.
+    q : (n+1, nb) array
+        The iterate's positions of the bounded joints (m, rad).
+    joints : (nb,) int array
+        Their qpos indices.
+    low, high : (nb,) arrays
+        Their ranges (m, rad; one side may be infinite).
+
+    Returns
+    -------
+    (nz,) array or None
+        The step; the unconstrained one when DAQP fails, None when ``H`` is singular.
+    """
+    try:
+        z = np.linalg.solve(H, -g)
+    except np.linalg.LinAlgError:
+        return None
+    if not joints.size:
+        return z
+    Sb = S[:, joints, :]
+    v = q + c[:, joints]
+    qz = v + Sb @ z
+    if not ((qz > high + 1e-12).any() or (qz < low - 1e-12).any()):
+        return z
+    import daqp
+
+    nz = H.shape[0]
+    rows = np.ascontiguousarray(Sb.reshape(-1, nz))
+    upper = np.minimum((high - v).ravel(), _BIG)
+    lower = np.maximum((low - v).ravel(), -_BIG)
+    sense = np.zeros(rows.shape[0], dtype=np.int32)
+    zq, _, flag, _ = daqp.solve(np.ascontiguousarray(H), np.ascontiguousarray(g), rows, upper, lower, sense,
+                                iter_limit=QP_ITER_LIMIT)
+    return np.asarray(zq) if flag in (1, 2) else z
+
+
+def arrival_update(x_bar, P, x0, y0, h0, C0, F0, A0, V, W):
+    """The arrival cost one node later: an extended-Kalman-filter measurement update of ``(x_bar, P)`` with the
+    leaving measurement ``y0`` and its prediction over the leaving interval, linearised at the estimate ``x0`` of
+    the leaving node (:mod:`cartpole.estimation.mhe`'s module doc; Joseph form).
+
+    Parameters
+    ----------
+    x_bar : (nx,) array
+        The arrival cost's centre at the leaving node (SI units).
+    P : (nx, nx) array
+        Its covariance.
+    x0 : (nx,) array
+        The estimate of the leaving node (SI units).
+    y0 : (ny,) array
+        Its measurement (sensor units).
+    h0, C0 : (ny,), (ny, nx) arrays
+        ``h`` and ``dh/dx`` at ``x0``.
+    F0, A0 : (nx,), (nx, nx) arrays
+        The interval's end state and ``dF/dx`` from ``x0`` (SI units).
+    V, W : (ny, ny), (nx, nx) arrays
+        Measurement and process covariances.
+
+    Returns
+    -------
+    x_bar : (nx,) array
+        The centre at the next node (SI units).
+    P : (nx, nx) array
+        Its covariance, symmetric.
+    """
+    PCt = P @ C0.T
+    K = np.linalg.solve(C0 @ PCt + V, PCt.T).T
+    xf = x_bar + K @ (y0 - h0 - C0 @ (x_bar - x0))
+    IKC = np.eye(P.shape[0]) - K @ C0
+    Pf = IKC @ P @ IKC.T + K @ V @ K.T
+    P_new = A0 @ Pf @ A0.T + W
+    return F0 + A0 @ (xf - x0), 0.5 * (P_new + P_new.T)
+
+
+def symmetric_matrix(name: str, M, n: int) -> np.ndarray:
+    """The covariance ``name`` given as ``M`` as a finite symmetric (n, n) array (a number: that times I; a vector:
+    its diagonal); an :class:`EstimationError` sentence naming ``name`` otherwise."""
+    try:
+        M = np.array(M, dtype=float)
+    except (TypeError, ValueError):
+        raise EstimationError(f"The covariance {name} must be a ({n}, {n}) matrix of numbers.") from None
+    if M.ndim == 0:
+        M = M * np.eye(n)
+    elif M.shape == (n,):
+        M = np.diag(M)
+    if M.shape != (n, n) or not np.all(np.isfinite(M)):
+        raise EstimationError(f"The covariance {name} must be a finite ({n}, {n}) matrix (or its diagonal); got "
+                              f"shape {M.shape}.")
+    if not np.allclose(M, M.T, rtol=1e-9, atol=1e-12 * max(1.0, np.abs(M).max())):
+        raise EstimationError(f"The covariance {name} is not symmetric; give a symmetric ({n}, {n}) matrix.")
+    return 0.5 * (M + M.T)
+
+
+def positive_definite(name: str, M, n: int) -> np.ndarray:
+    """:func:`symmetric_matrix` that must also be positive definite (else one sentence naming ``name``)."""
+    M = symmetric_matrix(name, M, n)
+    try:
+        np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        raise EstimationError(f"The covariance {name} is not positive definite (smallest eigenvalue "
+                              f"{np.linalg.eigvalsh(M).min():.3g}); give variances > 0.") from None
+    return M
+
+
+def inverse_factor(P: np.ndarray) -> np.ndarray:
+    """``R`` with ``R' R = P^-1`` (``R = L^-1``, ``P = L L'``); a covariance that rounding made indefinite is lifted
+    by the least diagonal that restores its factor."""
+    jitter = 0.0
+    scale = max(float(np.trace(P)) / P.shape[0], 1e-300)
+    for _ in range(8):
+        try:
+            L = np.linalg.cholesky(P + jitter * np.eye(P.shape[0]))
+            return np.linalg.inv(L)
+        except np.linalg.LinAlgError:
+            jitter = 1e-14 * scale if jitter == 0.0 else 100 * jitter
+    raise EstimationError("The MHE's arrival covariance is not positive definite; give a P0 and W with variances "
+                          "> 0.")
+
+
+def measured_positions_first(measurement: ca.Function, model, ny: int):
+    """The default first estimate ``y0 (ny,) -> x0 (nx,)``: each position ``q_j`` that ``h`` measures one-to-one
+    (``y_i = q_j`` and ``dy_i/dx = e_j`` at three random states and ctrls) from ``y0``, the other positions from
+    ``model.x_hanging`` (zeros without one), zero rates (m, rad, m/s, rad/s).
+
+    Parameters
+    ----------
+    measurement : casadi.Function
+        ``(x (nx,), u (nu,)) -> (y (ny,), C (ny, nx))`` (:attr:`WindowFunctions.measurement`).
+    model : CartPoleModel
+        Its ``nq``, ``nx``, ``nu`` and ``x_hanging`` (nx,).
+    ny : int
+        Measurement size.
+
+    Returns
+    -------
+    callable
+        ``y0 -> x0``.
+    """
+    nq, nx, nu = model.nq, model.nx, model.nu
+    base = np.array(getattr(model, "x_hanging", np.zeros(nx)), dtype=float).ravel()
+    base[nq:] = 0.0
+    rng = np.random.default_rng(0)
+    evals = []
+    for _ in range(3):
+        x, u = rng.normal(size=nx), rng.normal(size=nu)
+        yv, C = (np.asarray(v, dtype=float) for v in measurement(x, u))
+        evals.append((x, yv.ravel(), C.reshape(ny, nx)))
+    rows, cols = [], []
+    for i in range(ny):
+        for j in range(nq):
+            unit = np.eye(nx)[j]
+            if all(abs(yv[i] - x[j]) <= 1e-12 and np.allclose(C[i], unit, rtol=0, atol=1e-12) for x, yv, C in evals):
+                rows.append(i)
+                cols.append(j)
+                break
+
+    def initial_state(y0):
+        x0 = base.copy()
+        x0[cols] = np.asarray(y0, dtype=float)[rows]
+        return x0
+
+    return initial_state
