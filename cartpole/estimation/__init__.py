@@ -1,6 +1,31 @@
 """State estimation for a rig that measures, not an oracle: sensors (encoders, noise, quantisation, bias), the
 Kalman filter (LQG), the extended Kalman filter and moving-horizon estimation, and prediction over a known delay."""
 from cartpole.estimation.base import EstimationError, Estimator
+from cartpole.estimation.measurement import initial_state, measurement_function
 from cartpole.estimation.mhe import MovingHorizonEstimator, bench_mhe, horizon_periods
+from cartpole.estimation.sensors import (
+    KINDS,
+    Sensor,
+    SensorError,
+    SensorFrame,
+    SensorSampler,
+    SensorSpec,
+    sensor_spec,
+)
 
-__all__ = ["EstimationError", "Estimator", "MovingHorizonEstimator", "bench_mhe", "horizon_periods"]
+__all__ = [
+    "KINDS",
+    "EstimationError",
+    "Estimator",
+    "MovingHorizonEstimator",
+    "Sensor",
+    "SensorError",
+    "SensorFrame",
+    "SensorSampler",
+    "SensorSpec",
+    "bench_mhe",
+    "horizon_periods",
+    "initial_state",
+    "measurement_function",
+    "sensor_spec",
+]
