@@ -91,7 +91,8 @@ class LinearFeedback:
             raise FeedbackError(f"hinges {list(self.hinges)} must be qpos indices in 0..{nx // 2 - 1}.")
 
     @classmethod
-    def for_model(cls, model, Q=None, R=None, *, discrete: bool = False, u_limits="ctrlrange") -> "LinearFeedback":
+    def for_model(cls, model, Q=None, R=None, *, discrete: bool = False, u_limits="ctrlrange",
+                  period: float | None = None) -> "LinearFeedback":
         """LQR about the model's upright equilibrium ``(x_eq, u_eq)`` on its exact linearisation.
 
         Parameters
@@ -109,6 +110,10 @@ class LinearFeedback:
             one; the gain does not depend on that scaling).
         u_limits : "ctrlrange", None or array
             Clip of the law; default the model's ctrl ranges, None for no clip.
+        period : float, optional
+            Control period in s, a whole number ``m`` of physics steps (the ctrl held in between). For ``m > 1`` the
+            gain is ``dlqr(Ad, Bd, Q T, R T)`` on the exact discrete model over the hold
+            (:meth:`~cartpole.models.CartPoleModel.hold`), whatever ``discrete`` says; ``m = 1`` is the default.
 
         Returns
         -------
@@ -129,6 +134,15 @@ class LinearFeedback:
         Q0, R0 = lab_weights(model)
         Q = Q0 if Q is None else Q
         R = R0 if R is None else R
+        from cartpole.models import steps_per_period
+
+        steps = steps_per_period(period, model.dt)
+        if steps > 1:
+            T = steps * model.dt
+            Ad, Bd = model.hold(steps).linearize(model.x_eq, model.u_eq)
+            res = dlqr(Ad, Bd, np.asarray(Q, float) * T, np.asarray(R, float) * T)
+            lim = model.params.ctrl_range if isinstance(u_limits, str) and u_limits == "ctrlrange" else u_limits
+            return cls(res.K, model.x_eq, model.u_eq, u_limits=lim, S=res.S, hinges=model.hinges)
         Ad, Bd = model.linearize(discrete=True)
         if discrete:
             res = dlqr(Ad, Bd, np.asarray(Q, float) * model.dt, np.asarray(R, float) * model.dt)

@@ -18,6 +18,9 @@ class LoopError(OptionsError):
     (0, 10], a duration or period that is not a positive number of seconds."""
 
 
+#: The estimators a loop can run (:attr:`LoopOptions.estimator`).
+ESTIMATORS = ("none", "kf", "ekf", "mhe")
+
 #: Seconds each push lasts.
 PUSH_SECONDS = 0.1
 
@@ -88,8 +91,9 @@ def push_force(push, timestep: float):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class LoopOptions(StageOptions):
-    """The MuJoCo closed loop's settings: how long it runs, at what control period, and the scenario it runs
-    (pushes on the cart, a planning model that is wrong on purpose).
+    """The MuJoCo closed loop's settings: how long it runs, at what control period, the scenario it runs (pushes on
+    the cart, a planning model that is wrong on purpose) and the rig between MuJoCo and the controller (delay,
+    sensors, estimator; :mod:`cartpole.sim.rig`).
 
     Attributes
     ----------
@@ -106,20 +110,56 @@ class LoopOptions(StageOptions):
     model_error : float
         Scale S in (0, 10] of the *planning* model's pole masses and lengths (1: the MJCF's own); MuJoCo always
         runs the MJCF. The scenario the controller is designed for, kept with the loop it is tested in.
+    delay : float
+        Seconds from sampling the sensors to the ctrl taking effect (computation and transport), a whole number of
+        physics steps >= 0; it may exceed the period.
+    estimator : str or None
+        ``"none"`` (the controller reads MuJoCo's exact state), ``"kf"`` (steady-state Kalman filter on the model
+        linearised at upright over the period: with LQR, LQG), ``"ekf"`` (extended Kalman filter on the exact
+        nonlinear model) or ``"mhe"`` (moving-horizon estimation). None: ``"none"`` unless a sensor option is
+        given, then ``"kf"`` for balancing and ``"ekf"`` for a swing-up.
+    encoder_cpr : int or None
+        Counts per revolution of every hinge's encoder (quantum ``2 pi / cpr`` rad); None: not quantised.
+    encoder_resolution : float or None
+        Metres per count of every slide's encoder; None: not quantised.
+    sensor_noise : float or None
+        Standard deviation of every sensor's noise in its own units (rad, m, ...); None: the MJCF's own ``noise``
+        attribute (0 without one).
+    process_noise : float or None
+        Standard deviation of the unknown acceleration the estimators allow per joint (m/s^2, rad/s^2); None: the
+        estimator's default.
+    mhe_horizon : float or None
+        The MHE's window in s (a whole number of periods); None: its default.
+    seed : int
+        Seed of the sensor noise (each run of a batch draws its own stream from it).
+    delay_compensation : bool
+        Predict the estimate forward through the model over the delay with the ctrl already sent (True), or act
+        on the stale estimate (False: what the delay costs).
 
     Raises
     ------
     LoopError
-        A duration or period that is not a positive number of seconds, a bad push or model error.
+        A duration or period that is not a positive number of seconds, a bad push or model error, a delay or noise
+        that is negative or not finite, an unknown estimator.
     """
 
     duration: float | None = None
     period: float | None = None
     push: tuple = ()
     model_error: float = 1.0
+    delay: float = 0.0
+    estimator: str | None = None
+    encoder_cpr: int | None = None
+    encoder_resolution: float | None = None
+    sensor_noise: float | None = None
+    process_noise: float | None = None
+    mhe_horizon: float | None = None
+    seed: int = 0
+    delay_compensation: bool = True
 
     error: ClassVar[type] = LoopError
-    SCALARS: ClassVar[tuple] = ("duration", "period", "model_error")
+    SCALARS: ClassVar[tuple] = ("duration", "period", "model_error", "delay", "encoder_cpr", "encoder_resolution",
+                                "sensor_noise", "process_noise", "mhe_horizon", "seed")
 
     def __post_init__(self):
         for name in ("duration", "period"):
@@ -137,6 +177,31 @@ class LoopOptions(StageOptions):
             self.set_field(name, float(v))
         self.set_field("push", check_push(self.push))
         self.set_field("model_error", check_model_error(self.model_error))
+        self.number("delay", low=0.0, unit="s")
+        self.number("encoder_cpr", low=1.0, integer=True, optional=True, unit="counts per revolution")
+        self.number("encoder_resolution", low=0.0, low_open=True, optional=True, unit="m per count")
+        self.number("sensor_noise", low=0.0, optional=True, unit="(each sensor's units)")
+        self.number("process_noise", low=0.0, optional=True, unit="m/s^2 or rad/s^2")
+        self.number("mhe_horizon", low=0.0, low_open=True, optional=True, unit="s")
+        self.number("seed", low=0.0, high=2.0 ** 63 - 1, integer=True)
+        if self.estimator is not None and self.estimator not in ESTIMATORS:
+            raise LoopError(f"The estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}; give e.g. "
+                            "--estimator kf.")
+        self.set_field("delay_compensation", bool(self.delay_compensation))
+
+    @property
+    def sensed(self) -> bool:
+        """True when a sensor option is given (quantisation or noise): the controller must not see the true state."""
+        return any(v is not None for v in (self.encoder_cpr, self.encoder_resolution, self.sensor_noise))
+
+    def estimator_for(self, task: str) -> str:
+        """The estimator this loop runs for ``task`` (``"balance"`` or ``"swingup"``): the one given, else
+        ``"none"`` without sensor options, ``"kf"`` for balancing and ``"ekf"`` for a swing-up with them."""
+        if self.estimator is not None:
+            return self.estimator
+        if not self.sensed:
+            return "none"
+        return "kf" if task == "balance" else "ekf"
 
     def push_force(self, timestep: float):
         """The pushes as the ``push(t) -> F`` (N) callable :func:`~cartpole.sim.rollout.simulate` takes at the

@@ -20,6 +20,9 @@ from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF, CartPoleParams, load_model
 
+#: The rig's per-control-instant log (None without a rig): times, measurements, estimates, estimator wall time.
+SAMPLE_FIELDS = ("t_sample", "y", "x_hat", "estimate_ms")
+
 Controller = Callable[[float, np.ndarray], "float | np.ndarray"]  # (t, x (nx,)) -> ctrl (nu,), or a float for nu = 1
 
 
@@ -37,7 +40,15 @@ class Rollout:
     mjcf : str
         Path of the MJCF MuJoCo ran ("" when built from text).
     info : dict
-        Free-form annotations (e.g. controller mode switches); not used for replay.
+        Free-form annotations (e.g. controller mode switches, ``push``, ``diverged``); not used for replay.
+    t_sample : (K,) array or None
+        With a rig (sensors, estimator, delay): the control instants in s, one per period.
+    y : (K, ny) array or None
+        The measurement the controller's estimator received at each control instant (sensor units).
+    x_hat : (K, nx) array or None
+        The estimate of the state at each control instant (before any prediction over the delay).
+    estimate_ms : (K,) array or None
+        Wall time of each estimator update, ms.
     """
 
     t: np.ndarray
@@ -46,10 +57,17 @@ class Rollout:
     ctrl: np.ndarray
     mjcf: str = ""
     info: dict = field(default_factory=dict, compare=False)
+    t_sample: np.ndarray | None = field(default=None, compare=False)
+    y: np.ndarray | None = field(default=None, compare=False)
+    x_hat: np.ndarray | None = field(default=None, compare=False)
+    estimate_ms: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self):
         for name in ("t", "qpos", "qvel", "ctrl"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
+        for name in SAMPLE_FIELDS:
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, readonly(getattr(self, name)))
         if self.ctrl.ndim == 1:  # one actuator given as a flat list
             object.__setattr__(self, "ctrl", readonly(self.ctrl.reshape(-1, 1)))
         n = self.ctrl.shape[0]
@@ -78,10 +96,23 @@ class Rollout:
         """Physics step in s."""
         return float(self.t[1] - self.t[0]) if len(self.t) > 1 else 0.0
 
+    @property
+    def x_sample(self) -> np.ndarray | None:
+        """The true states (K, nx) at the control instants :attr:`t_sample` (None without a rig)."""
+        if self.t_sample is None:
+            return None
+        idx = np.rint(np.asarray(self.t_sample) / self.dt).astype(int) if self.dt else np.zeros(0, int)
+        return self.x[idx]
+
     def to_dict(self) -> dict:
-        """JSON-ready dict with lists (the CLI's ``rollout`` contract)."""
-        return {"t": self.t.tolist(), "qpos": self.qpos.tolist(), "qvel": self.qvel.tolist(),
-                "ctrl": self.ctrl.tolist()}
+        """JSON-ready dict with lists (the CLI's ``rollout`` contract); with a rig also ``t_sample``, ``y``,
+        ``x_hat`` and ``estimate_ms``."""
+        doc = {"t": self.t.tolist(), "qpos": self.qpos.tolist(), "qvel": self.qvel.tolist(),
+               "ctrl": self.ctrl.tolist()}
+        for name in SAMPLE_FIELDS:
+            if getattr(self, name) is not None:
+                doc[name] = getattr(self, name).tolist()
+        return doc
 
     def save(self, path: str | Path) -> None:
         """Write the rollout as JSON (whole or not at all: :func:`~cartpole._files.atomic_write`), with its push log
@@ -97,7 +128,9 @@ class Rollout:
         """Read a rollout written by :meth:`save`."""
         d = json.loads(Path(path).read_text())
         info = {"push": np.asarray(d["push"], dtype=float)} if d.get("push") is not None else {}
-        return cls(t=d["t"], qpos=d["qpos"], qvel=d["qvel"], ctrl=d["ctrl"], mjcf=d.get("mjcf", ""), info=info)
+        extra = {k: np.asarray(d[k], dtype=float) for k in SAMPLE_FIELDS if d.get(k) is not None}
+        return cls(t=d["t"], qpos=d["qpos"], qvel=d["qvel"], ctrl=d["ctrl"], mjcf=d.get("mjcf", ""), info=info,
+                   **extra)
 
 
 def make_mujoco(source: CartPoleParams | str | Path | None = None):
@@ -157,7 +190,7 @@ def cart_body(m) -> int:
 
 
 def simulate(source: CartPoleParams | str | Path | None, controller: Controller, x0, duration: float, *,
-             control_period: float | None = None, progress: Callable[[float], None] | None = None,
+             control_period: float | None = None, rig=None, progress: Callable[[float], None] | None = None,
              stop: Callable[[float, np.ndarray], bool] | None = None,
              push: Callable[[float], float] | None = None,
              on_step: Callable[[object, object], bool | None] | None = None) -> Rollout:
@@ -169,13 +202,21 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         The cart-pole MuJoCo runs (None = shipped asset).
     controller : callable
         ``controller(t [s], x (nx,)) -> ctrl`` (nu,) (a scalar for one actuator); MuJoCo clips it to
-        ``ctrlrange``.
+        ``ctrlrange``. Without a ``rig``, ``x`` is MuJoCo's exact state; with one, the rig's estimate.
     x0 : (nx,) array
         Start state ``[qpos, qvel]`` in MuJoCo's order (one pole: ``[s, theta, s_dot, theta_dot]``).
     duration : float
         Seconds to simulate; rounded to whole physics steps.
     control_period : float, optional
-        Hold each ctrl for this long (rounded to whole physics steps); default every physics step.
+        Hold each ctrl for this long (rounded to whole physics steps); default every physics step. Ignored when a
+        ``rig`` is given (it has its own period).
+    rig : Rig, optional
+        What stands between MuJoCo and the controller on a real rig (:class:`cartpole.sim.rig.Rig`): the control
+        period, the delay from sampling to the ctrl taking effect, the sensors and the estimator. Every period the
+        loop samples the sensors, updates the estimate ``x_hat`` with the ctrl applied since the last sample,
+        predicts it over the delay (when the rig compensates it) and calls ``controller(t + delay, x)``; that ctrl
+        acts from ``delay`` later for one period. Until the first ctrl arrives MuJoCo applies zero ctrl (clipped to
+        ``ctrlrange``). The rollout then logs ``t_sample``, ``y`` and ``x_hat`` (one row per control instant).
     progress : callable, optional
         Called with the fraction done (0..1) about 20 times.
     stop : callable, optional
@@ -191,7 +232,8 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     -------
     Rollout
         Every physics step is logged even when the control is held: ``qpos`` (n+1, nq), ``qvel`` (n+1, nq),
-        ``ctrl`` (n, nu).
+        ``ctrl`` (n, nu); with a rig also the samples. ``info["diverged"]`` is the time (s) at which MuJoCo warned
+        of a blown-up acceleration and reset the state (a run that did is never a success), else None.
     """
     import mujoco
 
@@ -202,7 +244,10 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     n = int(round(duration / h))
     if n < 1:
         raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
-    hold = 1 if control_period is None else max(1, int(round(control_period / h)))
+    if rig is not None:
+        hold, lag = int(rig.steps), int(rig.delay_steps)
+    else:
+        hold, lag = (1 if control_period is None else max(1, int(round(control_period / h)))), 0
     lo, hi = ctrl_bounds(m)
     d.qpos[:] = x0[:nq]
     d.qvel[:] = x0[nq:]
@@ -213,21 +258,33 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     qvel = np.empty((n + 1, nv))
     ctrl = np.empty((n, nu))
     t[0], qpos[0], qvel[0] = 0.0, d.qpos, d.qvel
-    u = np.zeros(nu)
+    # the ctrl each physics step will apply, filled as commands are issued (a command issued at step k acts on
+    # steps k + lag .. k + lag + hold - 1); zero, clipped, until the first one arrives
+    planned = np.tile(np.clip(np.zeros(nu), lo, hi), (n + lag + hold, 1))
+    run = rig.start(m) if rig is not None else None
+    samples = _Samples() if run is not None else None
     every = max(1, n // 20)
     last = n
     cart = cart_body(m) if push is not None else -1
     forces = np.zeros(n) if push is not None else None
+    bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
+    warned0 = int(d.warning[bad_qacc].number)
+    diverged = None
     if on_step is not None and on_step(m, d) is False:  # the start state too (a viewer opens on it)
         n = last = 0
     for k in range(n):
         if k % hold == 0:
-            xk = np.concatenate([d.qpos, d.qvel])
-            u_raw = np.asarray(controller(k * h, xk), dtype=float).ravel()
+            x_true = np.concatenate([d.qpos, d.qvel])
+            if run is None:
+                x_used = x_true
+            else:
+                x_used = run.sample(m, d, k, planned[max(0, k - hold):k], planned[k:k + lag], samples)
+            u_raw = np.asarray(controller((k + lag) * h, x_used), dtype=float).ravel()
             if u_raw.size != nu or not np.all(np.isfinite(u_raw)):
-                raise CartPoleError(f"The controller returned {u_raw.tolist()} at t = {k * h:.3f} s; "
+                raise CartPoleError(f"The controller returned {u_raw.tolist()} at t = {(k + lag) * h:.3f} s; "
                                     f"it must return {nu} finite ctrl value{'s' if nu != 1 else ''}.")
-            u = np.clip(u_raw, lo, hi)
+            planned[k + lag:k + lag + hold] = np.clip(u_raw, lo, hi)
+        u = planned[k]
         if push is not None:
             forces[k] = float(push(k * h))
             d.xfrc_applied[cart, 0] = forces[k]
@@ -237,6 +294,8 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         t[k + 1] = (k + 1) * h
         qpos[k + 1] = d.qpos
         qvel[k + 1] = d.qvel
+        if diverged is None and int(d.warning[bad_qacc].number) > warned0:
+            diverged = (k + 1) * h
         if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
             raise CartPoleError(f"MuJoCo's state became NaN/inf at t = {(k + 1) * h:.3f} s; "
                                 "the controller or the model is unstable, reduce gains or the time step.")
@@ -249,8 +308,30 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
             last = k + 1
             break
     info = {} if forces is None else {"push": forces[:last].copy()}
+    info["diverged"] = diverged
+    kw = {} if samples is None else samples.arrays(last * h)
     return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
-                   mjcf=source_path(source), info=info)
+                   mjcf=source_path(source), info=info, **kw)
+
+
+class _Samples:
+    """The rig's log, one row per control instant: sample time (s), measurement ``y`` (ny,), estimate ``x_hat``
+    (nx,) at that instant, and the estimator's wall time (ms)."""
+
+    def __init__(self):
+        self.t, self.y, self.x_hat, self.ms = [], [], [], []
+
+    def add(self, t: float, y, x_hat, ms: float) -> None:
+        self.t.append(t)
+        self.y.append(np.asarray(y, dtype=float).ravel())
+        self.x_hat.append(np.asarray(x_hat, dtype=float).ravel())
+        self.ms.append(float(ms))
+
+    def arrays(self, t_end: float) -> dict:
+        keep = [i for i, ti in enumerate(self.t) if ti < t_end or i == 0]
+        return {"t_sample": np.asarray([self.t[i] for i in keep]), "y": np.asarray([self.y[i] for i in keep]),
+                "x_hat": np.asarray([self.x_hat[i] for i in keep]),
+                "estimate_ms": np.asarray([self.ms[i] for i in keep])}
 
 
 def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -> Rollout:

@@ -126,3 +126,24 @@ def test_two_motor_cart_continuous_gain_refused_at_its_step_discrete_design_bala
     assert replays_exactly(run)
     assert np.abs(model.state_error(run.x[-1])).max() < 1e-2
     assert np.all(np.abs(run.ctrl) <= model.params.ctrl_range[:, 1])
+
+
+def test_lqr_designed_over_a_five_step_hold_balances_gymnasiums_double_pendulum_held_five_steps():
+    """Gymnasium's InvertedDoublePendulum-v5 holds each action for 5 of its 0.01 s RK4 steps: the gain designed at
+    the physics step falls there, the one designed on the exact discrete model over the hold balances."""
+    from pathlib import Path
+
+    from cartpole.models import build_model
+    from cartpole.sim import replays_exactly, simulate
+
+    path = Path(__file__).resolve().parent.parent / "assets" / "gymnasium_inverted_double_pendulum.xml"
+    model = build_model(path)
+    period = 5 * model.dt
+    x0 = model.x_eq.copy()
+    x0[model.hinges[0]] += 0.05
+    x0[model.hinges[1]] -= 0.05
+    held = simulate(path, LinearFeedback.for_model(model, period=period), x0, 10.0, control_period=period)
+    naive = simulate(path, LinearFeedback.for_model(model), x0, 10.0, control_period=period)
+    assert np.abs(model.state_error(held.x[-1])).max() < 1e-3
+    assert replays_exactly(held)
+    assert np.abs(model.state_error(naive.x)[:, list(model.hinges)]).max() > 1.0  # the poles fell
