@@ -4,7 +4,9 @@ one value (:mod:`~cartpole.sim.options`: :class:`~cartpole.sim.options.LoopOptio
 options share)."""
 from cartpole.sim.batch import random_starts, simulate_batch_linear
 from cartpole.sim.options import LoopError, LoopOptions
+from cartpole.sim.rig import Rig, RigError, RigRun, build_rig, delay_steps
 from cartpole.sim.rollout import Rollout, cart_body, ctrl_bounds, make_mujoco, replay, replays_exactly, simulate, source_path
 
 __all__ = ["LoopError", "LoopOptions", "Rollout", "cart_body", "ctrl_bounds", "make_mujoco", "replay",
-           "replays_exactly", "simulate", "source_path", "random_starts", "simulate_batch_linear"]
+           "replays_exactly", "simulate", "source_path", "random_starts", "simulate_batch_linear",
+           "Rig", "RigError", "RigRun", "build_rig", "delay_steps"]
