@@ -240,6 +240,12 @@ class LabResult(_LabRuns):
         One MuJoCo run per start, every physics step logged.
     metrics : tuple of RunMetrics
         Per run (see :mod:`cartpole.validation.metrics`).
+    period : float
+        Control period in s (the ctrl held in between); K is designed on the exact discrete model over it when it
+        is more than one physics step.
+    rig : Rig or None
+        The period, delay, sensors and estimator the runs had (:mod:`cartpole.sim.rig`); None: MuJoCo's exact
+        state every physics step.
     """
 
     mjcf: str
@@ -261,6 +267,18 @@ class LabResult(_LabRuns):
     duration: float
     rollouts: tuple
     metrics: tuple
+    period: float = 0.0
+    rig: object = None
+
+    @property
+    def estimation(self) -> dict | None:
+        """The JSON ``estimation`` object of the five runs (:func:`~cartpole.validation.estimation.estimation_summary`),
+        None without an estimator."""
+        if self.rig is None or self.rig.estimator == "none":
+            return None
+        from cartpole.validation.estimation import estimation_summary
+
+        return estimation_summary(self.rollouts, self.rig.estimator, self.params.hinges, state_names(self.params))
 
     def controller(self):
         """The lab's feedback law as a :class:`~cartpole.control.linear.LinearFeedback` (hinge errors wrapped)."""
@@ -269,30 +287,43 @@ class LabResult(_LabRuns):
         return LinearFeedback(self.K, self.x_eq, self.u_eq, S=self.S, hinges=self.params.hinges)
 
 
-def design(model, Q, R, *, discrete: bool = False, x_eq=None):
+def design(model, Q, R, *, discrete: bool = False, x_eq=None, steps: int = 1):
     """LQR at upright rest of a :class:`~cartpole.models.CartPoleModel`.
 
     Linearises at ``(x_eq, model.u_eq)`` (default ``model.x_eq``) and returns ``(LQRResult, (A, B, Ad, Bd))``;
-    ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``.
+    ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``. With a control period of ``steps > 1`` physics steps,
+    ``Ad``, ``Bd`` are the exact discrete model over that hold (:meth:`~cartpole.models.CartPoleModel.hold`) and the
+    gain is ``dlqr(Ad, Bd, Q T, R T)`` (``T`` the period in s), whatever ``discrete`` says.
     """
     from cartpole.lqr import dlqr, lqr
 
     x_eq = model.x_eq if x_eq is None else x_eq
     A, B = model.linearize(x_eq, model.u_eq)
+    if steps > 1:
+        T = steps * model.dt
+        Ad, Bd = model.hold(steps).linearize(x_eq, model.u_eq)
+        return dlqr(Ad, Bd, np.asarray(Q, float) * T, np.asarray(R, float) * T), (A, B, Ad, Bd)
     Ad, Bd = model.linearize(x_eq, model.u_eq, discrete=True)
     res = dlqr(Ad, Bd, Q, R) if discrete else lqr(A, B, Q, R)
     return res, (A, B, Ad, Bd)
 
 
-def _five_runs(model, ctrl, x_eq, scale: float, duration: float, progress=None):
+def state_names(params) -> list[str]:
+    """One name per state entry (2 nq), MuJoCo's order: each joint's name, then ``<joint>_vel`` for each rate (the
+    names of the ``--log`` CSV columns and of the JSON ``estimation`` errors)."""
+    return [j.name for j in params.joints] + [f"{j.name}_vel" for j in params.joints]
+
+
+def _five_runs(model, ctrl, x_eq, scale: float, duration: float, progress=None, rig=None):
     """The five lab starts at ``scale`` run in MuJoCo under ``ctrl``: ``(x0s, rollouts, metrics)``."""
     x0s = lab_initial_conditions(model, scale=scale)
-    return (x0s, *_runs(model, ctrl, x0s, x_eq, duration, progress))
+    return (x0s, *_runs(model, ctrl, x0s, x_eq, duration, progress, rig=rig))
 
 
-def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None):
-    """``ctrl`` run in MuJoCo from each row of ``x0s`` for ``duration`` s (``reset()`` called before each run):
-    ``(rollouts, metrics)``, the metrics measured from ``x_eq``."""
+def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, rig=None):
+    """``ctrl`` run in MuJoCo from each row of ``x0s`` for ``duration`` s (``reset()`` called before each run), on
+    ``rig`` (each run its own noise stream) when given: ``(rollouts, metrics)``, the metrics measured from
+    ``x_eq``."""
     from cartpole.sim import simulate
     from cartpole.validation.metrics import summarize
 
@@ -300,7 +331,7 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None):
     for i, x0 in enumerate(x0s):
         if reset is not None:
             reset()
-        run = simulate(model.params, ctrl, x0, duration)
+        run = simulate(model.params, ctrl, x0, duration, rig=None if rig is None else rig.for_run(i))
         runs.append(run)
         mets.append(summarize(run, model, x_eq=x_eq))
         if progress is not None:
@@ -308,12 +339,12 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None):
     return runs, mets
 
 
-def _lab_controller(model, Q, R, *, discrete: bool = False):
+def _lab_controller(model, Q, R, *, discrete: bool = False, steps: int = 1):
     """``(LinearFeedback, LQRResult, (A, B, Ad, Bd), x_eq)`` of the lab's design about :func:`lab_equilibrium`."""
     from cartpole.control.linear import LinearFeedback
 
     x_eq = lab_equilibrium(model)
-    res, mats = design(model, Q, R, discrete=discrete, x_eq=x_eq)
+    res, mats = design(model, Q, R, discrete=discrete, x_eq=x_eq, steps=steps)
     return LinearFeedback(res.K, x_eq, model.u_eq, S=res.S, hinges=model.hinges), res, mats, x_eq
 
 
@@ -356,7 +387,7 @@ def lab_start_scale(mjcf=None) -> float:
 
 def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, Q=None, R=None,
             discrete: bool = False, duration: float = LAB_DURATION, start_scale: float | None = None,
-            progress: Callable[[float], None] | None = None) -> LabResult:
+            progress: Callable[[float], None] | None = None, loop=None) -> LabResult:
     """Run the LQR balance lab on an MJCF: a cart with any chain of poles, or anything else the LQR stabilises.
 
     Parameters
@@ -376,6 +407,10 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
         Factor on the lab's starts; default :func:`lab_start_scale` of the model (1 on every shipped asset).
     progress : callable, optional
         Called with the fraction of the current set of five runs done (0..1).
+    loop : LoopOptions, optional
+        The rig the runs have (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
+        estimator, noise seed; its duration, when given, replaces ``duration``). K is designed for the period
+        (:func:`design`); the starts are still :func:`lab_start_scale`'s, found on the perfect loop.
 
     Returns
     -------
@@ -388,23 +423,31 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     """
     from cartpole.lqr import lab_weights
 
+    from cartpole.models import steps_per_period
+    from cartpole.sim.rig import build_rig
+
     model = _model(mjcf)
     params = model.params
+    if loop is not None and loop.duration is not None:
+        duration = loop.duration
+    rig = build_rig(model, loop, task="balance")
+    steps = steps_per_period(None if loop is None else loop.period, model.dt)
     Q0, R0 = lab_weights(model)
-    own = Q is None and R is None and not discrete and duration == LAB_DURATION  # the design lab_start_scale uses
+    # the design and loop lab_start_scale uses
+    own = Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
-    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(model, Q, R, discrete=discrete)
+    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(model, Q, R, discrete=discrete, steps=steps)
     if start_scale is None and own:  # the scale search's runs are this lab's runs
         scale, (x0s, runs, mets) = _search_scale(model, ctrl, x_eq, progress)
     else:
         scale = lab_start_scale(model) if start_scale is None else float(start_scale)
-        x0s, runs, mets = _five_runs(model, ctrl, x_eq, scale, duration, progress)
-    return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete), A=readonly(A), B=readonly(B),
+        x0s, runs, mets = _five_runs(model, ctrl, x_eq, scale, duration, progress, rig=rig)
+    return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete) or steps > 1, A=readonly(A), B=readonly(B),
                      Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,
                      u_eq=readonly(model.u_eq), x0s=x0s, start_scale=float(scale), duration=float(duration),
-                     rollouts=tuple(runs), metrics=tuple(mets))
+                     rollouts=tuple(runs), metrics=tuple(mets), period=float(steps * model.dt), rig=rig)
 
 
 def cart_excursion(run, x_eq, slide: int | None) -> float:

@@ -239,6 +239,9 @@ class RunMetrics:
     peak_ctrl : float, ctrl units (max over actuators)
     saturation_fraction : float, 0..1
     track_margin : float, m
+    diverged : bool
+        MuJoCo warned of a blown-up acceleration and reset the state during the run (``info["diverged"]``): the run
+        is never settled, whatever its last states look like.
     """
 
     settling_time_seed: float
@@ -246,6 +249,7 @@ class RunMetrics:
     peak_ctrl: float
     saturation_fraction: float
     track_margin: float
+    diverged: bool = False
 
     @property
     def hit_limit(self) -> bool:
@@ -254,8 +258,8 @@ class RunMetrics:
 
     @property
     def settled(self) -> bool:
-        """Strict settling time finite and the cart never reached its limit."""
-        return bool(np.isfinite(self.settling_time_strict) and not self.hit_limit)
+        """Strict settling time finite, the cart never reached its limit, and the run did not diverge."""
+        return bool(np.isfinite(self.settling_time_strict) and not self.hit_limit and not self.diverged)
 
 
 def summarize(run, model=None, *, x_eq=None, hinges=None, slide: int | None = 0, ctrl_range=None,
@@ -294,7 +298,15 @@ def summarize(run, model=None, *, x_eq=None, hinges=None, slide: int | None = 0,
         peak_ctrl=peak_ctrl(run.ctrl),
         saturation_fraction=saturation_fraction(run.ctrl, ctrl_range),
         track_margin=track_margin(run.x, cart_range, slide=slide),
+        diverged=diverged(run),
     )
+
+
+def diverged(run) -> bool:
+    """True when MuJoCo reset a blown-up run (the rollout's ``info["diverged"]`` holds the time): such a run's last
+    states are MuJoCo's reset, not the controller's work, so no success test may count it."""
+    info = getattr(run, "info", None)
+    return bool(isinstance(info, dict) and info.get("diverged") is not None)
 
 
 def cart_range_used(rollout, *, slide: int | None = 0) -> tuple[float, float]:
@@ -351,7 +363,7 @@ def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e
     bool
     """
     params, x_eq = _layout(source)
-    return bool(held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
+    return bool(not diverged(rollout) and held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
                 and track_margin(rollout.qpos, params.cart_range, slide=params.slide) > limit_tol
                 and ctrl_within_range(rollout, params))
 
