@@ -12,27 +12,35 @@ WRITES_FILES = False
 
 
 def add_arguments(parser) -> None:
-    """No options beyond the common --mjcf/--json."""
+    """``--period``: Ad, Bd over a control period of whole MJCF steps with the ctrl held."""
+    parser.add_argument("--period", type=float, default=None, metavar="S",
+                        help="give Ad, Bd over this control period (a whole number of MJCF steps, the ctrl held): "
+                             "the exact discrete model a sampled controller sees; default one MJCF step")
 
 
 def run(args) -> dict:
     """Build the symbolic model from ``args.mjcf`` and return/print the linearisation at ``(x_eq, u_eq)``.
 
     JSON: ``mjcf``, ``dt`` (s), ``integrator``, ``x_eq`` (2 nq,), ``u_eq`` (nu,), ``A`` (2 nq, 2 nq), ``B``
-    (2 nq, nu), ``Ad``, ``Bd`` (one step of the MJCF's integrator).
+    (2 nq, nu), ``Ad``, ``Bd`` (one step of the MJCF's integrator, or with ``--period`` the held steps of the
+    period), ``period`` (s) and ``steps`` (MJCF steps per period).
     """
     from cartpole.commands._state import state_sentence
     from cartpole.errors import CartPoleError
-    from cartpole.models import build_model, linearize
+    from cartpole.models import build_model, linearize, steps_per_period
 
     model = build_model(args.mjcf)
+    steps = steps_per_period(getattr(args, "period", None), model.dt)
     lin = linearize(model)
+    if steps > 1:
+        lin["Ad"], lin["Bd"] = model.hold(steps).linearize()
     bad = [k for k in ("x_eq", "u_eq", "A", "B", "Ad", "Bd") if not np.all(np.isfinite(lin[k]))]
     if bad:
         raise CartPoleError(f"The linearisation has NaN or inf entries in {', '.join(bad)}: the MJCF holds a number "
                             "that is not finite (a damping, mass, gear, armature or time step); fix it.")
     doc = {"mjcf": model.params.mjcf, "dt": lin["dt"], "integrator": lin["integrator"], "x_eq": lin["x_eq"],
-           "u_eq": lin["u_eq"], "A": lin["A"], "B": lin["B"], "Ad": lin["Ad"], "Bd": lin["Bd"]}
+           "u_eq": lin["u_eq"], "A": lin["A"], "B": lin["B"], "Ad": lin["Ad"], "Bd": lin["Bd"],
+           "period": steps * lin["dt"], "steps": steps}
     if not args.json:
         with np.printoptions(precision=6, suppress=True, linewidth=100):
             print(f"MJCF: {doc['mjcf']}")
@@ -41,8 +49,12 @@ def run(args) -> dict:
             print("Continuous, at upright rest: d(x - x_eq)/dt = A (x - x_eq) + B (u - u_eq)")
             print("A =\n", lin["A"])
             print("B =\n", lin["B"])
-            print(f"Discrete, one {lin['integrator']} step of dt = {lin['dt']} s: "
-                  "x[k+1] - x_eq = Ad (x[k] - x_eq) + Bd (u[k] - u_eq)")
+            if steps > 1:
+                print(f"Discrete, over a control period of {steps * lin['dt']:g} s ({steps} {lin['integrator']} "
+                      f"steps of {lin['dt']} s, the ctrl held): x[k+1] - x_eq = Ad (x[k] - x_eq) + Bd (u[k] - u_eq)")
+            else:
+                print(f"Discrete, one {lin['integrator']} step of dt = {lin['dt']} s: "
+                      "x[k+1] - x_eq = Ad (x[k] - x_eq) + Bd (u[k] - u_eq)")
             print("Ad =\n", lin["Ad"])
             print("Bd =\n", lin["Bd"])
     return doc

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cartpole.commands._rig import add_rig_arguments, loop_from_args, rig_doc
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -36,6 +37,7 @@ def add_arguments(parser) -> None:
                              "lab's 1 10 0.1 0.1 for one pole)")
     parser.add_argument("--R", nargs="+", type=float, default=None, metavar="V",
                         help="ctrl weights: nu numbers (the diagonal) or nu^2 (the matrix); default 0.1 per input")
+    add_rig_arguments(parser)
 
 
 def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
@@ -71,7 +73,8 @@ def run(args) -> dict:
     Q = None if args.Q is None else weight_matrix(args.Q, model.nx, "--Q", "x = [" + ", ".join(names) + "]")
     R = None if args.R is None else weight_matrix(
         args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
-    result = run_lab(model, Q=Q, R=R, discrete=args.discrete)
+    loop = loop_from_args(args)
+    result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop)
     if args.view:
         result = _view(result)
     pid = skipped = None
@@ -95,7 +98,8 @@ def run(args) -> dict:
     if not args.no_video:
         from cartpole.progress import stage
 
-        clip = simulate(result.params, result.controller(), result.x0s[0], VIDEO_SECONDS)
+        clip = simulate(result.params, result.controller(), result.x0s[0], VIDEO_SECONDS,
+                        rig=None if result.rig is None else result.rig.for_run(0))
         try:
             with stage("video", size=f"{VIDEO_SECONDS:g} s at 30 fps") as tick:
                 info = render_video(result.params, clip, out / VIDEO, progress=tick, modes=[(0.0, "LQR")],
@@ -138,6 +142,8 @@ def run(args) -> dict:
         "video": None if video is None else str(video),
         "video_render_s": video_render_s,
         "metrics": str(metrics),
+        **rig_doc(result.rig, result.period),
+        "estimation": result.estimation,
     }
     if args.compare_pid:
         doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
@@ -206,12 +212,30 @@ def _start_text(result, x0) -> str:
     return ", ".join(parts)
 
 
+def _rig_sentence(rig) -> str:
+    """One line: the rig the runs had (period, delay, estimator, sensors)."""
+    comp = "predicted over the delay" if rig.compensate else "not compensated"
+    text = f"Rig: control period {rig.period:g} s, delay {rig.delay:g} s ({comp}), estimator {rig.estimator}"
+    if rig.spec is not None:
+        parts = []
+        for s in rig.spec.sensors:
+            q = f", {s.resolution:.3g} {s.units} a count" if s.resolution else ""
+            n = f", noise {s.noise_std:.3g}" if s.noise_std else ""
+            parts.append(f"{s.name} ({s.kind}{q}{n})")
+        text += "; sensors " + "; ".join(parts)
+    return text + "."
+
+
 def _print_prose(result, doc, pid=None) -> None:
     from cartpole.commands._state import state_sentence
 
     q = ", ".join(f"{v:g}" for v in np.diag(result.Q))
     r = ", ".join(f"{v:g}" for v in np.diag(result.R))
-    kind = "dlqr on (Ad, Bd), one MJCF integrator step" if result.discrete else "lqr on the continuous (A, B)"
+    steps = int(round(result.period / result.params.timestep)) if result.period else 1
+    if steps > 1:
+        kind = f"dlqr on (Ad, Bd) over the {result.period:g} s control period, {steps} MJCF steps with the ctrl held"
+    else:
+        kind = "dlqr on (Ad, Bd), one MJCF integrator step" if result.discrete else "lqr on the continuous (A, B)"
     p = result.params
     with np.printoptions(precision=4, suppress=True, linewidth=100):
         print(f"MJCF: {result.mjcf}")
@@ -224,6 +248,8 @@ def _print_prose(result, doc, pid=None) -> None:
         print(f"LQR ({kind}), Q = diag({q}){off}, R = diag({r}), law u = u* - K (x - x*):")
         print("K =", result.K)
         print("Closed-loop eigenvalues:", result.E)
+        if result.rig is not None:
+            print(_rig_sentence(result.rig))
         if result.start_scale != 1.0:
             print(f"The lab's starts at full size are too large for this model: all five are scaled by "
                   f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which the lab's own LQR settles "
@@ -239,6 +265,11 @@ def _print_prose(result, doc, pid=None) -> None:
                   f"{'settled' if ok else 'NOT settled'}")
     print(f"Mean settling time: {result.mean_settling_time_seed:.2f} s ± {result.std_settling_time_seed:.2f} s "
           f"across {len(result.x0s)} initial conditions")
+    if doc.get("estimation"):
+        est = doc["estimation"]
+        rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())
+        print(f"Estimation error ({est['estimator']}, RMS over {est['samples']} control instants): {rms}; "
+              f"{est['estimate_ms']['median']:.3f} ms a step (median)")
     if pid is not None:
         _print_pid_table(result, pid)
     print(f"Wrote {doc['figure']}")

@@ -13,7 +13,8 @@ from cartpole.models import SHIPPED_MJCF, build_model
 def test_linearize_json_follows_the_contract(capsys):
     assert main(["linearize", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd"}
+    assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd", "period", "steps"}
+    assert doc["period"] == doc["dt"] and doc["steps"] == 1
     assert Path(doc["mjcf"]).is_absolute() and Path(doc["mjcf"]) == SHIPPED_MJCF
     assert doc["dt"] == 0.005 and doc["integrator"] == "Euler"
     A, B, Ad, Bd = (np.array(doc[k]) for k in ("A", "B", "Ad", "Bd"))
@@ -132,3 +133,16 @@ def test_a_damping_that_is_not_a_number_is_one_sentence_not_a_matrix_of_nulls(tm
     # the reader refuses the number itself before anything is derived from it
     assert cap.out == "" and line.startswith("cartpole linearize: MJCF") and "not finite in dof_damping" in line
     assert not (Path.cwd() / "MUJOCO_LOG.TXT").exists()
+
+
+def test_linearize_period_gives_the_held_discrete_model_and_refuses_a_fraction_of_a_step(capsys):
+    assert main(["linearize", "--json", "--period", "0.02"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    model = build_model()
+    assert doc["steps"] == 4 and doc["period"] == 0.02
+    Ad, Bd = model.hold(4).linearize()
+    np.testing.assert_array_equal(np.array(doc["Ad"]), Ad)
+    np.testing.assert_array_equal(np.array(doc["Bd"]), Bd)
+    assert main(["linearize", "--json", "--period", "0.012"]) == 2
+    err = capsys.readouterr().err
+    assert "whole number" in err and err.count("\n") == 1

@@ -1,0 +1,71 @@
+"""The rig's command-line options, one definition for every command that runs MuJoCo (``--period``, ``--delay``,
+``--estimator``, ``--encoder-cpr``, ``--encoder-resolution``, ``--sensor-noise``, ``--process-noise``,
+``--mhe-horizon``, ``--noise-seed``, ``--no-delay-compensation``), and the :class:`~cartpole.sim.options.LoopOptions`
+they make."""
+from __future__ import annotations
+
+#: argparse destination -> LoopOptions field, for the rig's options.
+RIG_FIELDS = {"period": "period", "delay": "delay", "estimator": "estimator", "encoder_cpr": "encoder_cpr",
+              "encoder_resolution": "encoder_resolution", "sensor_noise": "sensor_noise",
+              "process_noise": "process_noise", "mhe_horizon": "mhe_horizon", "noise_seed": "seed"}
+
+
+def add_rig_arguments(parser, *, period_help: str | None = None) -> None:
+    """Add the rig's options to a subcommand's parser (``period_help`` replaces ``--period``'s help text)."""
+    from cartpole.sim.options import ESTIMATORS
+
+    parser.add_argument("--period", type=float, default=None, metavar="S",
+                        help=period_help or "control period in s, a whole number of MJCF steps (default one step): "
+                             "the ctrl is held in between and the controller is designed on the exact discrete "
+                             "model over the hold")
+    parser.add_argument("--delay", type=float, default=None, metavar="S",
+                        help="time from sampling the sensors to the ctrl taking effect, whole MJCF steps, may "
+                             "exceed the period (default 0); compensated by predicting the estimate through the "
+                             "model unless --no-delay-compensation")
+    parser.add_argument("--estimator", choices=ESTIMATORS, default=None,
+                        help="what the controller acts on: none (MuJoCo's exact state), kf (steady-state Kalman "
+                             "filter, with LQR = LQG), ekf (extended Kalman filter), mhe (moving-horizon "
+                             "estimation); default none, or with a sensor option kf for balancing and ekf for a "
+                             "swing-up")
+    parser.add_argument("--encoder-cpr", type=float, default=None, metavar="N",
+                        help="counts per revolution of every hinge encoder (e.g. 2048); default not quantised")
+    parser.add_argument("--encoder-resolution", type=float, default=None, metavar="M",
+                        help="metres per count of every slide encoder (e.g. 0.001); default not quantised")
+    parser.add_argument("--sensor-noise", type=float, default=None, metavar="STD",
+                        help="standard deviation of every sensor's noise in its units (rad, m, ...); default the "
+                             "MJCF's sensor noise attribute, else 0")
+    parser.add_argument("--process-noise", type=float, default=None, metavar="STD",
+                        help="standard deviation of the unknown acceleration per joint the estimator allows "
+                             "(m/s^2, rad/s^2); default the estimator's")
+    parser.add_argument("--mhe-horizon", type=float, default=None, metavar="S",
+                        help="the MHE's window in s, a whole number of periods (default 10 periods)")
+    parser.add_argument("--noise-seed", type=int, default=None, metavar="N",
+                        help="seed of the sensor noise (default 0); every run draws its own stream from it")
+    parser.add_argument("--no-delay-compensation", action="store_true",
+                        help="act on the estimate at the sample instant, not predicted over the delay (what the "
+                             "delay costs)")
+
+
+def rig_fields(args) -> dict:
+    """The LoopOptions fields the rig's options on ``args`` set (those given only)."""
+    out = {}
+    for dest, name in RIG_FIELDS.items():
+        v = getattr(args, dest, None)
+        if v is not None:
+            out[name] = v
+    if getattr(args, "no_delay_compensation", False):
+        out["delay_compensation"] = False
+    return out
+
+
+def loop_from_args(args, **fields):
+    """``LoopOptions(**rig_fields(args), **fields)``; its one-sentence :class:`~cartpole.sim.options.LoopError` on
+    bad values."""
+    from cartpole.sim.options import LoopOptions
+
+    return LoopOptions(**{**rig_fields(args), **fields})
+
+
+def rig_doc(rig, period: float) -> dict:
+    """The JSON ``period`` (s) and ``rig`` objects of a run (``rig`` None for MuJoCo's exact state every step)."""
+    return {"period": float(period), "rig": None if rig is None else rig.to_dict()}
