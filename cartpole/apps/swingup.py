@@ -279,6 +279,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     """
     from cartpole.control.energy import EnergyShapingController
     from cartpole.control.switching import SwitchingController, swingup_catch
+    from cartpole.sim.rig import build_rig
     from cartpole.validation.basin import BasinCache
     from cartpole.validation.metrics import DMC_STEPS, dmc_swingup_rewards, swingup_metrics
 
@@ -304,9 +305,6 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     if method != "mpc" and (mpc is not None or given["mpc"]):
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
                            "--method mpc.")
-    if method != "mpc" and loop.period is not None:
-        raise SwingupError(f"A loop period of {loop.period:g} s is for --method mpc (the NMPC re-plans at it); "
-                           f"{method} runs its controller every physics step, as it is designed.")
     # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
     energy = EnergyShapingController(pm, **(energy_options or {})) if method == "energy" else None
     if given["plan"] and method != "trajopt":
@@ -344,8 +342,9 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             progress("mpc", 1.0)
         basin = None
         T = MPC_DURATION if T is None else T
+        rig = build_rig(pm, loop.replace(period=float(controller.period)), task="swingup")
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
-                           progress=_stage(progress, "simulate"), on_step=on_step)
+                           progress=_stage(progress, "simulate"), on_step=on_step, rig=rig)
         if progress is not None:
             progress("simulate", 1.0)
         caught_at = None
@@ -353,12 +352,13 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
                  "failures": _count(getattr(controller, "failures", 0))}
     elif method == "energy":
         options = {"loop": loop}
-        catch = swingup_catch(pm) if catch_weights is None else swingup_catch(pm, *catch_weights)
+        catch = swingup_catch(pm, *(catch_weights or ()), period=loop.period)
         basin = basin_of(catch)
         controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if T is None else T
+        rig = build_rig(pm, loop, task="swingup")
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
-                           on_step=on_step)
+                           on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
             progress("simulate", 1.0)
         caught_at = controller.caught_at
@@ -374,7 +374,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         options = {"plan": plan, "loop": loop}
         if progress is not None:
             progress("trajopt", 0.0)
-        sp = trajopt_swingup(params, x0=tuple(x0), model=pm, options=plan)
+        sp = trajopt_swingup(params, x0=tuple(x0), model=pm, options=plan, period=loop.period)
         if progress is not None:
             progress("trajopt", 1.0)
         trajectory = sp.trajectory
@@ -386,8 +386,9 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             T = T_plan + TRAJOPT_EXTRA
             if sp.objective == "dmc_swingup":
                 T = max(T, DMC_STEPS * params.timestep)
+        rig = build_rig(pm, loop, task="swingup")
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
-                           on_step=on_step)
+                           on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
             progress("simulate", 1.0)
         handover = getattr(controller, "handover_time", T_plan)
@@ -401,6 +402,12 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             rewards = dmc_swingup_rewards(rollout, model)
             extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
     metrics = {**swingup_metrics(rollout, model), **extra}
+    if rig is not None and rig.estimator != "none":
+        from cartpole.apps.lab import state_names
+        from cartpole.validation.estimation import estimation_summary
+
+        metrics["estimation"] = estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))
+    metrics["rig"] = None if rig is None else rig.to_dict()
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
                          controller=controller, options=options)

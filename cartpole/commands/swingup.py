@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import sys
 
+from cartpole.commands._rig import add_rig_arguments, rig_fields
 from cartpole.commands._rollouts import live_viewer, rollout_doc
 
 HELP = ("swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, trajopt + TVLQR, or "
@@ -43,11 +44,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--model-error", type=float, default=None, metavar="S",
                         help="scale the planning model's pole masses and lengths by S (e.g. 1.2: 20 %% heavier and "
                              "longer); the controller is designed on that model, MuJoCo keeps the MJCF's")
-    parser.add_argument("--period", type=float, default=None, metavar="S",
-                        help="mpc only: control period in s (a whole number of physics steps; default the "
-                             "controller's)")
     parser.add_argument("--horizon", type=float, default=None, metavar="S",
                         help="mpc only: prediction horizon in s (default the controller's, 1.2 s)")
+    add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step; "
+                      "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
+                      "designed for it")
     parser.add_argument("--view", action="store_true",
                         help="show the run in MuJoCo's live viewer, in real time: the logged ctrl replayed step "
                              "for step, so the window shows exactly the run logged (checked); without a display "
@@ -135,12 +136,13 @@ def run(args) -> dict:
     model_error = check_model_error(getattr(args, "model_error", None))
     period, horizon = getattr(args, "period", None), getattr(args, "horizon", None)
     for flag, v in (("--period", period), ("--horizon", horizon)):
-        if v is not None and args.method != "mpc":
-            raise SwingupError(f"{flag} sets the NMPC's control period and horizon; use it with --method mpc.")
+        if v is not None and args.method != "mpc" and flag == "--horizon":
+            raise SwingupError(f"{flag} sets the NMPC's prediction horizon; use it with --method mpc.")
         if v is not None and not (math.isfinite(v) and v > 0):
             raise SwingupError(f"{flag} {v:g} s is not a positive number of seconds; give e.g. {flag} 0.02.")
     # each stage's settings as one value: the loop always, the planner for trajopt, the NMPC for mpc
-    loop = LoopOptions(duration=duration, period=period, push=push, model_error=model_error)
+    loop = LoopOptions(**{**rig_fields(args), "duration": duration, "period": period, "push": push,
+                          "model_error": model_error})
     plan = mpc = None
     if args.method == "mpc":
         import importlib.util
@@ -199,6 +201,10 @@ def run(args) -> dict:
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
     doc["push"] = [list(p) for p in res.push]
+    doc["rig"] = m.get("rig")
+    doc["estimation"] = m.get("estimation")
+    if args.method != "mpc":
+        doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
     if args.method == "mpc":
         ctrl = res.controller
@@ -229,6 +235,15 @@ def run(args) -> dict:
               f"{fmt(m['time_to_upright'], 's')}")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "
               f"(closest to a limit: {m['cart_clearance']:.3f} m)")
+        if doc["rig"] is not None:
+            r = doc["rig"]
+            print(f"Rig: control period {r['period']:g} s, delay {r['delay']:g} s"
+                  f"{'' if r['delay_compensation'] else ' (not compensated)'}, estimator {r['estimator']}")
+        if doc["estimation"]:
+            est = doc["estimation"]
+            rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())
+            print(f"Estimation error ({est['estimator']}, RMS over {est['samples']} control instants): {rms}; "
+                  f"{est['estimate_ms']['median']:.3f} ms a step (median)")
         if res.basin is not None:
             print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
                   f"{res.basin.seed}, safety factor {res.basin.safety_factor})")

@@ -215,8 +215,9 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
         Terminal cost; default the LQR catch's cost-to-go at the final state (``dlqr(Ad, Bd, Q dt, R dt).S``
         for ``discrete``, ``lqr(A, B, Q, R).S`` for ``continuous``).
     dt : float, optional
-        Grid step in s; default ``model.dt`` (the MJCF's timestep). For ``discrete`` the model is rebuilt at
-        this step when it differs.
+        Grid step in s; default ``model.dt`` (the MJCF's timestep). For ``discrete``: a control period of a whole
+        number of physics steps uses the exact discrete model over that hold (:func:`held_steps`), any other step
+        the model rebuilt at it.
     method : {'discrete', 'continuous'}
     rtol : float
         Relative tolerance of the ODE solver (``continuous`` only).
@@ -249,7 +250,11 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
         if Qf.shape != (nx, nx):
             raise LQRError(f"Qf has shape {Qf.shape} but must be ({nx}, {nx}) for this model's {nx} states.")
     if method == "discrete":
-        dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
+        held = held_steps(dt, model.dt)
+        if held:  # a control period of whole physics steps: the exact discrete model over the hold
+            dmodel = model.hold(held)
+        else:
+            dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
         if reference is None:
             t, xr, ur = _reference(traj, dt)
         else:
@@ -265,7 +270,7 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
         Ad = np.asarray(Ad).reshape(nx, n, nx).transpose(1, 0, 2)
         Bd = np.asarray(Bd).reshape(nx, n, nu).transpose(1, 0, 2)
         if Qf is None:
-            A1, B1 = dmodel.linearize(x_end, u_end, discrete=True)
+            A1, B1 = dmodel.linearize(x_end, u_end) if held else dmodel.linearize(x_end, u_end, discrete=True)
             Qf = dlqr(A1, B1, Q * dt, R * dt).S
         K, S = riccati_backward(Ad, Bd, Q * dt, R * dt, Qf)
         if reference is None:
@@ -274,6 +279,14 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
     if reference is not None:
         raise LQRError("An explicit TVLQR reference is a discrete one; use method='discrete' with it.")
     return _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol)
+
+
+def held_steps(dt: float, step: float) -> int:
+    """``m`` when ``dt`` (s) is a whole number ``m > 1`` of physics steps ``step`` (s), else 0: then the discrete
+    TVLQR runs on the exact model over the hold (:meth:`~cartpole.models.CartPoleModel.hold`), not on one
+    integrator step of size ``dt``."""
+    m = round(dt / step)
+    return int(m) if m > 1 and abs(m * step - dt) <= 1e-9 * dt else 0
 
 
 def _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol) -> TVLQRGains:

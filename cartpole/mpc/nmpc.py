@@ -529,12 +529,13 @@ class NMPCController:
 
     # ---- the loop ------------------------------------------------------------------------------------------------
     def __call__(self, t: float, x) -> np.ndarray:
-        """ctrl (nu,) at time ``t`` (s) for the measured state ``x`` (nx,); re-solves at control instants
-        (``t`` a multiple of ``period``), holds the last ctrl in between."""
+        """ctrl (nu,) at time ``t`` (s) for the measured state ``x`` (nx,); re-solves when a ``period`` has passed
+        since the last solve (the first call, then every period after it), holds the last ctrl in between."""
         k = int(round(float(t) / self.problem.dt))
         if self._k_last is not None and k < self._k_last:
             self.reset()
-        if self._u_hold is not None and (k == self._k_last or k % self.steps):
+        # re-solve once a period has passed since the last solve (instants may be offset by a loop's delay)
+        if self._u_hold is not None and k - self._k_last < self.steps:
             return self._u_hold.copy()
         x = np.asarray(x, dtype=float).ravel()
         if x.shape != (self.problem.nx,):

@@ -31,7 +31,7 @@ from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.lqr.tvlqr import reference as _on_step_grid
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, steps_per_period
 from cartpole.ocp.bounds import OCPError, bounds_from_params
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.records import Attempt, SolveInfo
@@ -403,10 +403,12 @@ def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, sta
     return traj, replace(info, start=info.start + 1, attempts=tried + (first,) + info.attempts)
 
 
-def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None) -> LinearFeedback:
+def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None, *,
+                   steps: int = 1) -> LinearFeedback:
     """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
-    (``dt = params.timestep``) of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors
-    wrapped, ctrl clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`.
+    (``dt = params.timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps * params.timestep``, a
+    control period), of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
+    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`.
 
     The catch basin ``cartpole swingup --method trajopt`` reports is this controller's.
     """
@@ -415,8 +417,11 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
     Q = Q0 if Q is None else np.asarray(Q, float)
     R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
     tv_model = model if abs(model.dt - params.timestep) < 1e-15 else model.rebuilt(dt=params.timestep)
-    Ad, Bd = tv_model.linearize(discrete=True)
-    dt = params.timestep
+    if steps > 1:
+        Ad, Bd = tv_model.hold(steps).linearize()
+    else:
+        Ad, Bd = tv_model.linearize(discrete=True)
+    dt = params.timestep * steps
     cat = dlqr(Ad, Bd, Q * dt, R * dt)
     return LinearFeedback(cat.K, tv_model.x_eq, tv_model.u_eq, hinges=tv_model.hinges,
                           u_limits=np.asarray(params.ctrl_range, float), S=cat.S)
@@ -424,7 +429,7 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
 
 def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
                     model: CartPoleModel | None = None, options: PlanOptions | None = None,
-                    **settings) -> SwingupPlan:
+                    period: float | None = None, **settings) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -443,6 +448,11 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         The planner's settings (:class:`~cartpole.planning.options.PlanOptions`: objective, T, N, time_margin,
         cart_margin, u_margin, solver, solver_options, starts, exact_discrete, Q, R, Qf; their meaning, units and
         defaults are documented there); default ``PlanOptions()``.
+    period : float, optional
+        The loop's control period in s, a whole number ``m`` of MJCF steps (default one step). With ``m > 1`` the
+        TVLQR and the catch are designed on the exact discrete model over the hold, and the plan is tracked as
+        collocated (its re-solve on the exact discrete step, ``exact_discrete``, is for a controller that acts
+        every physics step).
     **settings
         A compatibility layer for the keywords this function took before :class:`PlanOptions`: any of its field
         names, e.g. ``trajopt_swingup(params, N=40, exact_discrete=False)``. They only build the options
@@ -470,10 +480,11 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
     opts = (PlanOptions() if options is None else options).replace(**settings)
-    return _plan(source, x0, plan_model=model, options=opts)
+    return _plan(source, x0, plan_model=model, options=opts, period=period)
 
 
-def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions) -> SwingupPlan:
+def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
+          period: float | None = None) -> SwingupPlan:
     """:func:`trajopt_swingup` with its options made."""
     T, N, solver, objective, starts = options.T, options.N, options.solver, options.objective, options.starts
     Qf, exact_discrete = options.Qf, options.exact_discrete
@@ -522,9 +533,12 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions)
     # upright equilibrium: TVLQR's default terminal cost is its S, so at the hand-over both the cost-to-go and
     # the gain continue without a jump (the continuous lab gain is ~15 % larger at 5 ms for one pole because
     # the fastest closed-loop pole is -51 1/s).
-    dt = params.timestep
+    steps = steps_per_period(period, params.timestep)
+    dt = params.timestep * steps
+    if steps > 1:
+        exact_discrete = False
     u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
-    catch = handover_catch(params, plan_model, Q, R)
+    catch = handover_catch(params, plan_model, Q, R, steps=steps)
     exact, gains = None, None
     if exact_discrete == "auto":
         gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)

@@ -33,6 +33,17 @@ class RigError(LoopError):
 def delay_steps(delay: float, timestep: float) -> int:
     """Physics steps in ``delay`` s (0 for 0), or one sentence when it is not a whole number of them.
 
+    Parameters
+    ----------
+    delay : float
+        Seconds from sampling to the ctrl taking effect, >= 0.
+    timestep : float
+        The MJCF's physics step in s.
+
+    Returns
+    -------
+    int
+
     Raises
     ------
     RigError

@@ -2,6 +2,9 @@
 import numpy as np
 import pytest
 
+from cartpole.models import PeriodError
+from cartpole.sim.rig import RigError
+
 import cartpole as cp
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF
@@ -165,7 +168,8 @@ def test_trajopt_with_model_error_plans_and_tracks_on_the_scaled_model():
     (dict(push=[(1.0,)]), LoopError, "pair"), (dict(model_error=0.0), LoopError, "scale in"),
     (dict(model_error=np.inf), LoopError, "scale in"), (dict(model_error="heavy"), LoopError, "not a number"),
     (dict(duration=-1.0), LoopError, "positive number of seconds"), (dict(period=0.02), SwingupError, "--method mpc"),
-    (dict(loop=LoopOptions(period=0.02)), SwingupError, "is for --method mpc"),
+    (dict(loop=LoopOptions(period=0.013)), PeriodError, "whole number of the MJCF"),
+    (dict(loop=LoopOptions(delay=0.007)), RigError, "whole number of the MJCF"),
     (dict(plan=PlanOptions()), SwingupError, "--method trajopt or mpc"),
     (dict(mpc=MPCOptions()), SwingupError, "--method mpc"), (dict(objective="time"), SwingupError, "--method trajopt"),
     (dict(horizon_s=1.0), SwingupError, "no keyword 'horizon_s'"),

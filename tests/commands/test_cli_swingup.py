@@ -64,7 +64,9 @@ def test_prose_summary(tmp_path, capsys):
                                   ["--x0", "1.6", "3.14", "0", "0"], ["--duration", "-1"],
                                   ["--push", "abc"], ["--push", "1:nan"], ["--push", "-1:5"], ["--push", "1:2:3"],
                                   ["--model-error", "0"], ["--model-error", "nan"], ["--model-error", "x"],
-                                  ["--period", "0.02"], ["--method", "trajopt", "--horizon", "1"],
+                                  ["--period", "0.013"], ["--delay", "0.007"], ["--delay", "-0.01"],
+                                  ["--estimator", "none", "--encoder-cpr", "2048"], ["--encoder-cpr", "0"],
+                                  ["--sensor-noise", "nan"], ["--method", "trajopt", "--horizon", "1"],
                                   ["--mjcf", "NOT_A_CARTPOLE"]])
 def test_bad_input_is_one_sentence_exit_2_and_no_files(argv, tmp_path, capsys):
     if argv[-1] == "NOT_A_CARTPOLE":
