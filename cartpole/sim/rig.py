@@ -251,10 +251,10 @@ def estimator_factory(model, loop: LoopOptions, name: str, steps: int):
     first = (lambda y: initial_state(model, spec, y))  # noqa: E731
     noise = {} if loop.process_noise is None else {"accel_std": float(loop.process_noise)}
     if name == "kf":
-        from cartpole.estimation import KalmanFilter as cls
+        from cartpole.estimation.kalman import KalmanFilter as cls
         extra = {}
     elif name == "ekf":
-        from cartpole.estimation import ExtendedKalmanFilter as cls
+        from cartpole.estimation.ekf import ExtendedKalmanFilter as cls
         extra = {}
     elif name == "mhe":
         from cartpole.estimation import MovingHorizonEstimator as cls
