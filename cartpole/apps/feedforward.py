@@ -256,8 +256,8 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
 
 
 def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
-                    plan=None, options=None, progress: Callable[[str, float], None] | None = None
-                    ) -> FeedforwardStudy:
+                    plan=None, options=None, progress: Callable[[str, float], None] | None = None,
+                    loop=None) -> FeedforwardStudy:
     """Plan the swing-up, then run feedforward alone and feedforward + TVLQR in MuJoCo, on a true and a wrong model.
 
     Parameters
@@ -278,6 +278,9 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     progress : callable, optional
         ``progress(stage, fraction)`` with stage ``"plan"`` (both trajectory optimisations) or ``"simulate"`` (the four
         MuJoCo runs). Either is also a :func:`cartpole.progress.stage`, shown by the caller's reporter if any.
+    loop : LoopOptions, optional
+        The rig every run has (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
+        estimator); the TVLQR is designed for its period. Default MuJoCo's exact state every physics step.
 
     Returns
     -------
@@ -297,8 +300,12 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     if not (math.isfinite(extra) and extra >= 1.0):
         raise FeedforwardError(f"The time after the plan, {extra} s, must be at least 1 s (the success test "
                                "looks at the last 1 s); give e.g. 2.")
+    from cartpole.sim.rig import build_rig
+
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     model = build_model(params)
+    period = None if loop is None else loop.period
+    rig = build_rig(model, loop, task="swingup")  # a bad period, delay or sensor ends here, before any solve
 
     def forward(name):
         return None if progress is None else (lambda frac: progress(name, frac))
@@ -308,10 +315,10 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     with stage("trajectory optimisation", size=f"{n_plans} plan{'s' if n_plans != 1 else ''}",
                callback=forward("plan")) as tick:
         if plan is None:
-            plan = trajopt_swingup(params, model=model, options=options)
+            plan = trajopt_swingup(params, model=model, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
         wrong = plan if f == 0.0 else trajopt_swingup(params, model=build_model(params.scaled_pole(1.0 + f, 1.0)),
-                                                      options=options)
+                                                      options=options, period=period)
         tick(1.0)
 
     x0 = model.x_hanging
@@ -327,7 +334,8 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
         for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
             if hasattr(ctrl, "reset"):
                 ctrl.reset()
-            rollout = simulate(params, ctrl, x0, sp.T + extra,
+            rollout = simulate(params, ctrl, x0, sp.T + extra, control_period=period,
+                               rig=None if rig is None else rig.for_run(i),
                                progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
             runs[name] = judge(name, rollout, sp.trajectory, model,
                                handover_time=getattr(ctrl, "handover_time", None))

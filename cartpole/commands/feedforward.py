@@ -20,6 +20,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--view", action="store_true",
                         help="show each run in MuJoCo's live viewer, in real time, one after the other (without a "
                              "display: a note on stderr and the rest as usual)")
+    from cartpole.commands._rig import add_rig_arguments
+
+    add_rig_arguments(parser)
 
 
 def _fmt(v, spec: str, unit: str = "") -> str:
@@ -41,7 +44,10 @@ def run(args) -> dict:
     params = read_params(args.mjcf)
     out = Path(args.out)
 
-    study = run_feedforward(params, mass_error=mass_error)   # its stages report through cartpole.progress
+    from cartpole.commands._rig import loop_from_args, rig_doc
+
+    loop = loop_from_args(args)
+    study = run_feedforward(params, mass_error=mass_error, loop=loop)   # its stages report through cartpole.progress
     model = study.model
     if args.view:
         for r in study.runs.values():
@@ -79,7 +85,11 @@ def run(args) -> dict:
                     break
                 videos[name] = str(path.resolve())
 
+    from cartpole.sim.rig import build_rig
+
+    rig = build_rig(study.model, loop, task="swingup")
     doc = {"mjcf": params.mjcf, "mass_error": mass_error,
+           **rig_doc(rig, params.timestep if loop.period is None else loop.period),
            "plan": {"T": study.plan.T, "T_min": study.plan.T_min, "N": study.plan.trajectory.N},
            "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
                           "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},

@@ -35,6 +35,9 @@ def add_arguments(parser) -> None:
 
     from cartpole.apps.sweep import MAX_RUNS, MAX_WORKERS
 
+    from cartpole.commands._rig import add_rig_arguments
+
+    add_rig_arguments(parser)
     parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc"), default=["energy"],
                         metavar="M", help="swing-up of every run: energy (energy shaping + LQR catch, default), "
                                           "trajopt (collocation + TVLQR) or mpc (nonlinear MPC); two or more: the "
@@ -56,7 +59,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--setting", nargs="+", action="append", default=None, metavar="NAME V",
                         help="a controller setting: for energy a scaling of the energy shaping (energy_gain, "
                              "overshoot, ...), for trajopt a numeric field of the planner's options (T, N, "
-                             "cart_margin, ...), for mpc one of the NMPC's (period, horizon, ...); then " + axis_help
+                             "cart_margin, ...), for mpc one of the NMPC's (horizon, ...), and for every method one "
+                             "of the rig's (period, delay: rounded to whole MJCF steps; sensor_noise, encoder_cpr, "
+                             "encoder_resolution, process_noise); then " + axis_help
                              + "; repeatable")
     parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
                         help="with axis options: the start of every run where no --start sets a component, 2 nq "
@@ -175,21 +180,24 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
     """
     from cartpole._files import short
     from cartpole.apps.sweep import SweepInterrupted, recorded_sweep, summary_line
+    from cartpole.commands._rig import loop_from_args
 
+    loop = loop_from_args(args)
     out = Path(args.out)
     try:
         rec = recorded_sweep(params, method=method, n=n, seed=args.seed, workers=args.workers, duration=duration,
                              gain_jitter=args.jitter, address=args.address, axes=axes, x0=x0,
                              results=out / str(RESULTS).format(method=method),
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
-                             stop_after=args.stop_after)
+                             stop_after=args.stop_after, loop=loop)
     except SweepInterrupted as stop:
         again = "the same command with --resume" if not args.resume else "the same command again"
         raise KeyboardInterrupt(f"interrupted after {stop.finished} of {stop.total} runs, kept in "
                                 f"{short(stop.path)}; run {again} to finish the others.") from None
     result = rec.result
     doc = {**result.summary(), "rows": rec.rows, "results": str(rec.results.resolve()),
-           "figure": str(rec.figure.resolve()), "sweep": rec.sweep, "resumed": rec.resumed}
+           "figure": str(rec.figure.resolve()), "sweep": rec.sweep, "resumed": rec.resumed,
+           "loop": loop.as_dict()}
     if not args.json:
         print(summary_line(doc))
         for r in doc["rows"]:

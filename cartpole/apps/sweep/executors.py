@@ -41,7 +41,7 @@ from cartpole.planning.options import PlanOptions
 from cartpole.sim.options import LoopOptions
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import WORKER_ENV, main_thread, sigint_ignored, start_server, worker_env
-from cartpole.apps.sweep.plan import SweepError
+from cartpole.apps.sweep.plan import LOOP_SETTINGS, SweepError
 
 #: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
 CONNECT_TIMEOUT = 10.0
@@ -65,10 +65,14 @@ class Runner:
         The basins the runs use (shipped to the workers with what it holds).
     model : CartPoleModel, optional
         The model of ``params`` when already built.
+    loop : LoopOptions, optional
+        The rig every run has (period, delay, sensors, estimator); a run's swept loop settings
+        (:data:`~cartpole.apps.sweep.plan.LOOP_SETTINGS`) replace its fields, the period and delay rounded to whole
+        physics steps.
     """
 
     def __init__(self, params: CartPoleParams, method: str, duration, catch_weights, cache: BasinCache,
-                 model: CartPoleModel | None = None):
+                 model: CartPoleModel | None = None, loop: LoopOptions | None = None):
         self.params = params
         self.model = build_model(params) if model is None else model
         self.method = method
@@ -76,10 +80,12 @@ class Runner:
         self.catch_weights = catch_weights
         self.cache = cache
         self.plans = {1.0: self.model}
+        self.loop = LoopOptions() if loop is None else loop
 
     def settings(self) -> tuple:
-        """``(params, method, duration, catch_weights, cache)``: what a worker needs to build the same runner."""
-        return (self.params, self.method, self.duration, self.catch_weights, self.cache)
+        """``(params, method, duration, catch_weights, cache, None, loop)``: what a worker needs to build the same
+        runner (the model, None, it builds itself)."""
+        return (self.params, self.method, self.duration, self.catch_weights, self.cache, None, self.loop)
 
     def plan_model(self, model_error: float) -> CartPoleModel:
         """The planning model of scale ``model_error`` (:func:`~cartpole.apps.swingup.planning_model`), built once."""
@@ -98,10 +104,13 @@ class Runner:
         if self.method == "trajopt":
             from cartpole.planning.trajopt import handover_catch
 
-            return self.cache.get(self.params, handover_catch(self.params, pm))
+            from cartpole.models import steps_per_period
+
+            steps = steps_per_period(self.loop.period, self.params.timestep)
+            return self.cache.get(self.params, handover_catch(self.params, pm, steps=steps))
         from cartpole.control.switching import swingup_catch
 
-        catch = swingup_catch(pm) if self.catch_weights is None else swingup_catch(pm, *self.catch_weights)
+        catch = swingup_catch(pm, *(self.catch_weights or ()), period=self.loop.period)
         return self.cache.get(self.params, catch)
 
     def run(self, x0, options: dict, push=(), model_error: float = 1.0, settings: dict | None = None) -> dict:
@@ -110,12 +119,20 @@ class Runner:
         ``caught_at`` (s or NaN), ``cart_clearance`` (m), ``peak_ctrl``, ``rho`` and ``error`` (the sentence of a
         :class:`CartPoleError` the run raised, else None)."""
         settings = dict(settings or {})
+        looped = {k: settings.pop(k) for k in list(settings) if k in LOOP_SETTINGS}
+        h = float(self.params.timestep)
+        for k, least in (("period", 1), ("delay", 0)):  # a sampled period or delay: the nearest whole steps
+            if k in looped:
+                looped[k] = max(least, round(float(looped[k]) / h)) * h
+        if "encoder_cpr" in looped:
+            looped["encoder_cpr"] = max(1, round(float(looped["encoder_cpr"])))
         energy = {**options, **settings} if self.method == "energy" else None
         try:
-            # the swept settings are fields of the method's options value, by name
+            # the swept settings are fields of the method's options value (or of the loop's), by name
             plan = PlanOptions().replace(**settings) if self.method == "trajopt" else None
             mpc = MPCOptions().replace(**settings) if self.method == "mpc" else None
-            loop = LoopOptions(duration=self.duration, push=tuple(push or ()), model_error=model_error)
+            loop = self.loop.replace(duration=self.duration, push=tuple(push or ()), model_error=model_error,
+                                     **looped)
             res = run_swingup(self.model, method=self.method, x0=x0, plan=plan, loop=loop, mpc=mpc,
                               basin_cache=self.cache, energy_options=energy, catch_weights=self.catch_weights,
                               plan_model=self.plan_model(model_error))

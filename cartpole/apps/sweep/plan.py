@@ -34,7 +34,11 @@ METHODS = ("energy", "trajopt", "mpc")
 OPTIONS = {"trajopt": PlanOptions, "mpc": MPCOptions}
 #: Controller settings an axis may sweep, per method: the energy shaping's dimensionless scalings, the planner's and
 #: the NMPC's numeric option fields by name (:meth:`cartpole.options.StageOptions.scalar_names`).
-SETTINGS = {"energy": tuple(DEFAULT_SCALING), "trajopt": PlanOptions.scalar_names(), "mpc": MPCOptions.scalar_names()}
+#: The closed loop's fields a sweep may vary for every method (:class:`~cartpole.sim.options.LoopOptions`): the rig's
+#: period and delay (rounded to whole physics steps per run), sensor noise, encoder resolution, process noise.
+LOOP_SETTINGS = ("period", "delay", "sensor_noise", "encoder_cpr", "encoder_resolution", "process_noise")
+SETTINGS = {"energy": tuple(DEFAULT_SCALING) + LOOP_SETTINGS, "trajopt": PlanOptions.scalar_names() + LOOP_SETTINGS,
+            "mpc": tuple(k for k in MPCOptions.scalar_names() if k != "period") + LOOP_SETTINGS}
 #: Push time (s) of a sweep that sweeps the push force but gives no push time.
 DEFAULT_PUSH_TIME = 0.5
 #: Most runs in one sweep (their rows are held in memory and printed as one JSON document).
@@ -230,7 +234,15 @@ def check_axes(axes, params: CartPoleParams, method: str) -> tuple:
             if key not in SETTINGS[method]:
                 have = ", ".join(SETTINGS[method]) or "none"
                 raise SweepError(f"The {method} method has no setting '{key}' to sweep (it has: {have}).")
-            if method in OPTIONS:
+            if key in LOOP_SETTINGS:
+                from cartpole.sim.options import LoopOptions
+
+                for v in (a.low, a.high):
+                    try:
+                        LoopOptions().replace(**{key: round(v) if key == "encoder_cpr" else v})
+                    except CartPoleError as exc:
+                        raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
+            elif method in OPTIONS:
                 for v in (a.low, a.high):  # both ends of the axis must make a valid options value
                     try:
                         OPTIONS[method]().replace(**{key: v})

@@ -206,10 +206,11 @@ def summary_line(s: dict) -> str:
 
 
 def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration, jitter: float, axes=(),
-             x0=None) -> str:
+             x0=None, loop=None) -> str:
     """12 hex digits naming the sweep description (MJCF path and content, method, ``n``, seed, ``duration`` s,
     jitter, axes, the fixed start ``x0`` (nx,) ``[qpos, qvel]``): the ``sweep`` column of every row, which a resumed sweep must match. (A description
-    without axes keeps the id it had before axes existed.)"""
+    without axes keeps the id it had before axes existed; likewise one without a rig, ``loop``: the
+    :class:`~cartpole.sim.options.LoopOptions` every run has, when it is not the perfect loop.)"""
     try:
         digest = hashlib.sha256(Path(params.mjcf).read_bytes()).hexdigest()
     except OSError:
@@ -220,6 +221,8 @@ def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration
         desc["axes"] = [a.describe() for a in axes]
     if x0 is not None:
         desc["x0"] = [float(v) for v in x0]
+    if loop is not None and loop != type(loop)():
+        desc["loop"] = loop.as_dict()
     return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:12]
 
 

@@ -27,7 +27,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                   half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
                   duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
                   progress=None, workers: int = 1, address: str | None = None, done: dict | None = None,
-                  on_row=None, axes=(), x0=None) -> SweepResult:
+                  on_row=None, axes=(), x0=None, loop=None) -> SweepResult:
     """Run the swing-up over a sweep description (``axes``; without: ``n`` seeded starts in a box, optionally with
     jittered gains) and summarise.
 
@@ -82,6 +82,10 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         results file); ``row`` also carries the run's ``push``, ``model_error`` and ``settings``. An exception it
         raises (KeyboardInterrupt, say) stops the sweep; finished rows stay reported.
 
+    loop : LoopOptions, optional
+        The rig every run has (period, delay, sensors, estimator; :class:`~cartpole.sim.options.LoopOptions`); a
+        ``setting:<loop field>`` axis varies one of its fields per run.
+
     Returns
     -------
     SweepResult
@@ -130,7 +134,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     todo = [i for i in range(n) if out[i] is None]
     workers = min(workers, max(len(todo), 1))
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
-    runner = Runner(params, method, duration, catch_weights, cache, model=model)
+    runner = Runner(params, method, duration, catch_weights, cache, model=model, loop=loop)
     # each planning model's basin once, here, before the runs (and shipped to the workers in the cache); a sampled
     # model error has a planning model per run: those runs estimate their own basin where they run (in parallel)
     scales = sorted(set(runs.model_errors.tolist()))
@@ -213,7 +217,7 @@ class RecordedSweep:
 def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, results: Path, figure: Path,
                    workers: int = 1, duration: float | None = None, gain_jitter: float = 0.0,
                    address: str | None = None, axes=(), x0=None, resume: bool = False,
-                   stop_after: int | None = None) -> RecordedSweep:
+                   stop_after: int | None = None, loop=None) -> RecordedSweep:
     """:func:`swingup_sweep` with a results file: each finished run is appended to the CSV ``results`` (columns
     :func:`~cartpole.apps.sweep.results.header`) as it finishes, so an interrupt or a crash keeps it; with
     ``resume`` the runs of this sweep already in the file are kept and only the others run. At the end the file
@@ -223,7 +227,7 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
     Parameters
     ----------
     params : CartPoleParams
-    method, n, seed, workers, duration, gain_jitter, address, axes, x0
+    method, n, seed, workers, duration, gain_jitter, address, axes, x0, loop
         As for :func:`swingup_sweep` (``duration`` in s; ``x0`` (2 nq,)).
     results, figure : Path
         The CSV results file and the PNG success map.
@@ -243,7 +247,8 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
     from cartpole.viz.sweep_plot import plot_success_map
 
     results, figure = Path(results), Path(figure)
-    sid = sweep_id(params, method=method, n=n, seed=seed, duration=duration, jitter=gain_jitter, axes=axes, x0=x0)
+    sid = sweep_id(params, method=method, n=n, seed=seed, duration=duration, jitter=gain_jitter, axes=axes, x0=x0,
+                   loop=loop)
     settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
     head = header(params, settings)
     done = read_done(results, head, sid, MAX_READ) if resume else {}
@@ -262,7 +267,7 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
     try:
         result = swingup_sweep(params, method=method, n=n, seed=seed, workers=workers, duration=duration,
                                gain_jitter=gain_jitter, address=address, done=done, on_row=on_row, axes=axes,
-                               x0=x0)
+                               x0=x0, loop=loop)
         for f in opened:
             f.close()
         rows = result.rows()
