@@ -13,7 +13,10 @@ def test_loop_options_normalise_pushes_and_scales_and_echo_as_json():
     loop = LoopOptions(duration=3, push=[(2, -5), (1.0, 20)], model_error=np.float64(1.2))
     assert loop.push == ((1.0, 20.0), (2.0, -5.0)) and loop.duration == 3.0 and type(loop.model_error) is float
     doc = loop.as_dict()
-    assert doc == {"duration": 3.0, "period": None, "push": [[1.0, 20.0], [2.0, -5.0]], "model_error": 1.2}
+    assert doc == {"duration": 3.0, "period": None, "push": [[1.0, 20.0], [2.0, -5.0]], "model_error": 1.2,
+                   "delay": 0.0, "estimator": None, "encoder_cpr": None, "encoder_resolution": None,
+                   "sensor_noise": None, "process_noise": None, "mhe_horizon": None, "seed": 0,
+                   "delay_compensation": True}
     assert json.loads(json.dumps(doc)) == doc
 
 
@@ -22,6 +25,8 @@ def test_loop_options_normalise_pushes_and_scales_and_echo_as_json():
     (dict(duration="long"), "not a positive number"), (dict(push=[(1.0, np.nan)]), "finite force"),
     (dict(push=[(1.0,)]), "pair"), (dict(model_error=11.0), "scale in \\(0, 10\\]"),
     (dict(durations=1.0), "LoopOptions has no field 'durations'; the fields are duration, period, push, model_error"),
+    (dict(delay=-0.01), "delay = -0.01 must be a finite number >= 0"), (dict(encoder_cpr=0.5), "whole number"),
+    (dict(sensor_noise=np.inf), "sensor_noise"), (dict(estimator="ukf"), "not one of none, kf, ekf, mhe"),
 ])
 def test_bad_loop_settings_are_one_sentence_of_the_loops_error(changes, words):
     with pytest.raises(LoopError, match=words) as err:
@@ -37,8 +42,10 @@ def test_options_are_frozen_values_varied_by_field_name():
         loop.duration = 3.0
     assert loop.replace() is loop
     for name in LoopOptions.scalar_names():
-        assert getattr(loop.replace(**{name: 0.5}), name) == 0.5
-    assert LoopOptions.names() == ("duration", "period", "push", "model_error")
+        v = 3 if name in ("encoder_cpr", "seed") else 0.5  # counts and seeds are whole numbers
+        assert getattr(loop.replace(**{name: v}), name) == v
+    assert LoopOptions.names()[:4] == ("duration", "period", "push", "model_error")
+    assert set(LoopOptions.names()) >= {"delay", "estimator", "encoder_cpr", "encoder_resolution", "sensor_noise"}
     assert loop == LoopOptions(duration=2.0) and hash(loop) == hash(LoopOptions(duration=2.0))
     assert loop != loop.replace(duration=2.5) and len({loop, LoopOptions(duration=2.0)}) == 1
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import cartpole.apps.sweep.executors as executors
-from cartpole.apps.sweep import Runner, axis, sweep_starts, swingup_sweep
+from cartpole.apps.sweep import Runner, SweepError, axis, sweep_starts, swingup_sweep
 from cartpole.models import read_params
 from cartpole.validation.basin import BasinCache
 
@@ -91,11 +91,23 @@ def test_mpc_settings_reach_the_controller(monkeypatch):
 
 def test_planner_settings_are_swept_by_their_option_field_name_and_checked_first():
     from cartpole.apps.sweep import SweepError
-    from cartpole.apps.sweep.plan import SETTINGS
+    from cartpole.apps.sweep.plan import LOOP_SETTINGS, SETTINGS
     from cartpole.planning.options import PlanOptions
 
-    assert SETTINGS["trajopt"] == PlanOptions.scalar_names() and "cart_margin" in SETTINGS["trajopt"]
+    assert SETTINGS["trajopt"] == PlanOptions.scalar_names() + LOOP_SETTINGS and "cart_margin" in SETTINGS["trajopt"]
     with pytest.raises(SweepError, match=r"^The sweep axis setting:N reaches 0: .*\.$"):
         swingup_sweep(None, method="trajopt", axes=[axis("setting:N", 0, 40, 2)])
     with pytest.raises(SweepError, match="has no setting 'no_such'"):
         swingup_sweep(None, method="trajopt", axes=[axis("setting:no_such", 1, 2, 2)])
+
+
+def test_the_rigs_delay_is_swept_by_name_rounded_to_whole_steps_and_checked_first():
+    from cartpole.apps.sweep import axis
+
+    res = swingup_sweep(None, method="energy", axes=[axis("setting:delay", 0.0, 0.0126, 2)], duration=6.0)
+    rows = res.rows()
+    delays = [r["settings"]["delay"] for r in rows]
+    assert delays == [0.0, 0.0126]  # the row keeps the value drawn; the run used the nearest whole step
+    assert all(r["success"] and r["replays"] for r in rows)
+    with pytest.raises(SweepError, match=r"^The sweep axis setting:delay reaches -0.01: .*\.$"):
+        swingup_sweep(None, method="energy", axes=[axis("setting:delay", -0.01, 0.02, 2)])
