@@ -68,6 +68,9 @@ def run(args) -> dict:
         doc["plan"] = plan_benchmark(models, repeats=1 if args.quick else 3, command=not args.quick,
                                      progress=steps)
     doc["mpc"] = None if args.no_mpc else mpc_benchmark(args.mjcf, quick=args.quick, progress=steps)
+    from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
+
+    doc["estimation"] = estimation_benchmark(args.mjcf, quick=args.quick)
     steps.close()
     doc["quick"] = bool(args.quick)
     if not args.json:
@@ -76,4 +79,5 @@ def run(args) -> dict:
             print_plan_table(doc["plan"])
         if doc["mpc"]:
             print_mpc_table(doc["mpc"])
+        print_estimation_table(doc["estimation"])
     return doc

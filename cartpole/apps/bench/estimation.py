@@ -1,0 +1,45 @@
+"""The estimators' step times for ``cartpole bench``: MHE (one Gauss-Newton step a period) and EKF on the cart's
+encoders at a 10 ms period (medians of many updates, wall time; construction and compiles not timed)."""
+from __future__ import annotations
+
+#: Control period (s) and MHE window (s) the benchmark uses: 10 periods of 10 ms.
+PERIOD = 0.01
+MHE_HORIZON = 0.1
+
+
+def estimation_benchmark(mjcf=None, *, quick: bool = False) -> dict:
+    """``{"period", "mhe": {step_ms_median, step_ms_max, ...}, "ekf": {median_us, p90_us, updates}}`` on ``mjcf``
+    (default the shipped cart), its encoders as sensors (positions only).
+
+    Parameters
+    ----------
+    mjcf : path, optional
+    quick : bool
+        Fewer updates (for the test suite).
+
+    Returns
+    -------
+    dict
+        ``period`` (s); ``mhe`` from :func:`~cartpole.estimation.mhe.bench_mhe` (ms); ``ekf`` from
+        :func:`~cartpole.estimation.ekf.bench_ekf` (microseconds).
+    """
+    from cartpole.estimation import measurement_function, sensor_spec
+    from cartpole.estimation.ekf import bench_ekf
+    from cartpole.estimation.mhe import bench_mhe
+    from cartpole.models import build_model, steps_per_period
+
+    model = build_model(mjcf)
+    steps = steps_per_period(PERIOD, model.dt)
+    spec = sensor_spec(model, encoder_cpr=4096, encoder_resolution=0.0005, noise_std=0.001)
+    n = 100 if quick else 2000
+    mhe = bench_mhe(model, horizon=MHE_HORIZON, period=PERIOD, n=n)
+    ekf = bench_ekf(model, steps, measurement_function(model, spec), spec.measurement_covariance(), updates=n)
+    return {"period": PERIOD, "mhe": mhe, "ekf": ekf}
+
+
+def print_estimation_table(doc: dict) -> None:
+    """The estimators' step times as two lines."""
+    m, e = doc["mhe"], doc["ekf"]
+    print(f"Estimation at a {doc['period'] * 1e3:g} ms period from encoders: MHE ({m['N']} periods, one "
+          f"Gauss-Newton step) median {m['step_ms_median']:.3f} ms, max {m['step_ms_max']:.3f} ms a step; "
+          f"EKF median {e['median_us']:.1f} us")
