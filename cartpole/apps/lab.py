@@ -510,7 +510,7 @@ class PIDLabResult(_LabRuns):
 
 def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, x0s=None,
                 duration: float = LAB_DURATION, start_scale: float | None = None,
-                progress: Callable[[float], None] | None = None, **tuning) -> PIDLabResult:
+                progress: Callable[[float], None] | None = None, rig=None, **tuning) -> PIDLabResult:
     """The lab's experiment with the cascaded PID instead of the LQR: one MuJoCo run per start.
 
     The PID is :class:`~cartpole.control.pid.CascadedPID` with gains from
@@ -531,6 +531,9 @@ def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None,
         Factor on the lab's starts when ``x0s`` is not given; default :func:`lab_start_scale`.
     progress : callable, optional
         Called with the fraction of the runs done (0..1).
+    rig : Rig, optional
+        The period, delay, sensors and estimator of the runs (:mod:`cartpole.sim.rig`; the PID acts on the
+        estimate and is tuned for the period); default MuJoCo's exact state every physics step.
 
     Returns
     -------
@@ -545,6 +548,8 @@ def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None,
     from cartpole.control.pid import CascadedPID, tune_pid
 
     model = _model(mjcf)
+    if rig is not None:  # designed for the rig's period (the PID reads the rig's estimate, as the LQR does)
+        tuning = {"period": rig.period, **tuning}
     gains = tune_pid(model, **tuning)
     x_eq = lab_equilibrium(model)
     if x0s is None:
@@ -554,7 +559,7 @@ def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None,
     pid = CascadedPID(gains, model)
     shift = x_eq - np.asarray(model.x_eq, dtype=float)
     controller = pid if not np.any(shift) else (lambda t, x: pid(t, np.asarray(x, dtype=float) - shift))
-    runs, mets = _runs(model, controller, x0s, x_eq, duration, progress, reset=pid.reset)
+    runs, mets = _runs(model, controller, x0s, x_eq, duration, progress, reset=pid.reset, rig=rig)
     return PIDLabResult(mjcf=model.params.mjcf, params=model.params, gains=gains, x_eq=x_eq, x0s=x0s,
                         duration=float(duration), rollouts=tuple(runs), metrics=tuple(mets))
 
@@ -579,7 +584,7 @@ def compare_pid(lab: LabResult, model: CartPoleModel | None = None, *,
         As :func:`run_pid_lab`, e.g. on a two- or three-pole cart.
     """
     return run_pid_lab(lab.params if model is None else model, x0s=lab.x0s, duration=lab.duration,
-                       progress=progress, **tuning)
+                       progress=progress, rig=lab.rig, **tuning)
 
 
 def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object]:

@@ -172,10 +172,53 @@ def closed_loop_matrix(A, B, gains: PIDGains, slide: int = 0, hinge: int = 1) ->
     return M
 
 
+def sampled_closed_loop_matrix(Ad, Bd, gains: PIDGains, period: float, slide: int = 0,
+                               hinge: int = 1) -> np.ndarray:
+    """The sampled closed loop of the cascade as :class:`CascadedPID` runs it every ``period`` s, limits inactive.
+
+    Per sample ``k``: ``z_k = z_{k-1} + T e_i``, ``y_k = y_{k-1} + a (e_rate - y_{k-1})`` with ``a = 1 -
+    exp(-T / tau)``, ``u_k = -(kp e_i + ki z_k + kd y_k)`` and ``e_{k+1} = Ad e_k + Bd u_k``, on the state
+    ``[e_k, z_{k-1}, y_{k-1}]``.
+
+    Parameters
+    ----------
+    Ad : (4, 4) array
+        The held model over one period, errors ``[qpos, qvel]`` (slide at qpos ``slide``, hinge at ``hinge``).
+    Bd : (4, 1) array
+        Per unit ctrl.
+    gains : PIDGains
+    period : float
+        ``T`` in s.
+
+    Returns
+    -------
+    (6, 6) array
+        Stable when every eigenvalue is inside the unit circle.
+    """
+    Ad = np.asarray(Ad, float)
+    b = np.asarray(Bd, float).reshape(-1)
+    n = Ad.shape[0]
+    nq = n // 2
+    T = float(period)
+    c = np.zeros(n)
+    c[hinge], c[slide], c[nq + slide] = 1.0, gains.kp_cart, gains.kd_cart
+    r = np.zeros(n)
+    r[nq + hinge] = 1.0
+    a = 1.0 - np.exp(-T / gains.filter_tau) if gains.filter_tau > 0 else 1.0
+    Ue = -(gains.kp * c + gains.ki * T * c + gains.kd * a * r)
+    M = np.zeros((n + 2, n + 2))
+    M[:n, :n] = Ad + np.outer(b, Ue)
+    M[:n, n] = -b * gains.ki
+    M[:n, n + 1] = -b * gains.kd * (1.0 - a)
+    M[n, :n], M[n, n] = T * c, 1.0
+    M[n + 1, :n], M[n + 1, n + 1] = a * r, 1.0 - a
+    return M
+
+
 def tune_pid(model, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_factor"],
              integral_factor: float = DEFAULT_TUNING["integral_factor"],
              filter_factor: float = DEFAULT_TUNING["filter_factor"],
-             tilt_fraction: float = DEFAULT_TUNING["tilt_fraction"]) -> PIDGains:
+             tilt_fraction: float = DEFAULT_TUNING["tilt_fraction"], period: float | None = None) -> PIDGains:
     """Cascaded-PID gains from the model by pole placement on its exact linearisation (see the module docstring).
 
     Parameters
@@ -194,6 +237,11 @@ def tune_pid(model, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_facto
     tilt_fraction : float
         Tilt limit as a fraction of ``u_max |B_theta / A_theta,theta|`` (the tilt whose gravity torque the
         linearised pole needs full ctrl to hold), capped at :data:`MAX_TILT`. Default 0.1.
+    period : float, optional
+        Control period ``T`` in s, a whole number ``m`` of physics steps (the ctrl held in between). For ``m > 1``
+        the Butterworth poles are mapped to ``exp(s T)`` and placed on the exact discrete model over the hold
+        (:meth:`~cartpole.models.CartPoleModel.hold`), and the loop with integrator and filter is checked as the
+        sampled loop :class:`CascadedPID` runs (:func:`sampled_closed_loop_matrix`).
 
     Returns
     -------
@@ -223,8 +271,16 @@ def tune_pid(model, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_facto
     poles = butterworth_poles(omega)
     import scipy.signal
 
+    from cartpole.models import steps_per_period
+
+    steps = steps_per_period(period, model.dt)
+    T = steps * model.dt
+    Ad, Bd = model.hold(steps).linearize() if steps > 1 else (None, None)
     try:
-        K = scipy.signal.place_poles(A, B, poles).gain_matrix.reshape(-1)
+        if steps > 1:
+            K = scipy.signal.place_poles(Ad, Bd, np.exp(poles * T)).gain_matrix.reshape(-1)
+        else:
+            K = scipy.signal.place_poles(A, B, poles).gain_matrix.reshape(-1)
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise PIDError(f"Pole placement failed on this model's linearisation ({exc}); the cart cannot steer the "
                        f"pole here: {_USE_LQR}") from None
@@ -240,6 +296,14 @@ def tune_pid(model, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_facto
     gains = PIDGains(kp=kp, ki=ki, kd=float(K[nq + hinge]), kp_cart=float(K[slide]) / kp,
                      kd_cart=float(K[nq + slide]) / kp, filter_tau=tau, tilt_limit=tilt, bandwidth=omega,
                      poles=poles, closed_loop_poles=np.zeros(0))
+    if steps > 1:
+        cl = np.linalg.eigvals(sampled_closed_loop_matrix(Ad, Bd, gains, T, slide, hinge))
+        cl = cl[np.lexsort((cl.imag, cl.real))]
+        if not np.abs(cl).max() < 1:
+            raise PIDError(f"The tuned PID does not stabilise the sampled loop at a {T:g} s period once its integrator "
+                           f"and filter are included (eigenvalue {cl[np.argmax(np.abs(cl))]:.3g}); raise "
+                           "integral_factor or filter_factor, or lower bandwidth_factor.")
+        return PIDGains(**{**gains.__dict__, "closed_loop_poles": cl})
     cl = np.linalg.eigvals(closed_loop_matrix(A, B, gains, slide, hinge))
     cl = cl[np.lexsort((cl.imag, cl.real))]
     if not np.max(cl.real) < 0:

@@ -238,3 +238,32 @@ def test_pid_gains_are_frozen_with_read_only_poles(shipped):
         g.poles[0] = 0.0
     d = g.to_dict()
     assert set(d) >= {"kp", "ki", "kd", "kp_cart", "kd_cart", "filter_tau", "tilt_limit", "poles"}
+
+
+def test_pid_designed_for_a_period_is_the_sampled_loop_mujoco_runs():
+    """Tuned at a 20 ms period, the placed poles are those of the sampled loop on the held model, and that linear
+    sampled loop (integrator, filter) predicts the PID's MuJoCo run from a small start."""
+    from cartpole.control.pid import CascadedPID, sampled_closed_loop_matrix, tune_pid
+    from cartpole.models import build_model
+    from cartpole.sim import simulate
+
+    model = build_model()
+    period = 0.02
+    steps = round(period / model.dt)
+    g = tune_pid(model, period=period)
+    assert np.abs(g.closed_loop_poles).max() < 1
+    Ad, Bd = model.hold(steps).linearize()
+    M = sampled_closed_loop_matrix(Ad, Bd, g, period, model.slide, model.hinges[0])
+    x0 = model.x_eq.copy()
+    x0[model.hinges[0]] += 1e-4
+    ro = simulate(model.params, CascadedPID(g, model), x0, 1.0, control_period=period)
+    e0 = model.state_error(x0)
+    c = np.zeros(model.nx)  # the first call starts the integrator at 0 (it does not integrate): z_{-1} = -T e_i
+    c[model.hinges[0]], c[model.slide], c[model.nq + model.slide] = 1.0, g.kp_cart, g.kd_cart
+    xi = np.concatenate([e0, [-period * c @ e0, 0.0]])
+    pred = []
+    for _ in range(int(round(1.0 / period))):
+        pred.append(xi[:model.nx].copy())
+        xi = M @ xi
+    got = model.state_error(ro.x[::steps][:len(pred)])
+    assert np.abs(got - np.array(pred)).max() < 1e-3 * np.abs(got).max()
