@@ -616,3 +616,57 @@ def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object
     if n < logged.ctrl.shape[0]:
         return lab, shown
     return replace(lab, rollouts=(shown,) + tuple(lab.rollouts[1:])), shown
+
+
+def balances(result) -> bool:
+    """Every start of a lab run (:class:`LabResult` or :class:`PIDLabResult`) balanced: the handout's settling time
+    finite (every pole angle within 0.05 rad of upright for good), the cart never at its limit, no divergence."""
+    return all(np.isfinite(m.settling_time_seed) and not m.hit_limit and not m.diverged for m in result.metrics)
+
+
+def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = False, progress=None) -> dict:
+    """The largest delay (whole physics steps) at which the lab's controller still balances all five starts.
+
+    The delays ``0, h, 2h, ...`` up to ``max_delay`` are tried in turn on the rig ``loop`` (its ``delay`` replaced)
+    until one fails (:func:`balances`); the margin is the last that held.
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+    loop : LoopOptions, optional
+        The rig (period, sensors, estimator, delay compensation); default the perfect loop.
+    max_delay : float
+        Largest delay tried, s.
+    pid : bool
+        Also the cascaded PID's margin (one pole on a cart).
+    progress : callable, optional
+        Called with the fraction of the delays tried (0..1).
+
+    Returns
+    -------
+    dict
+        ``lqr`` (s, the margin; None when even no delay fails), ``lqr_first_failure`` (s or None), with ``pid`` the
+        same for the PID, and ``tried`` (the delays tried, s).
+    """
+    from cartpole.sim.options import LoopOptions
+
+    model = _model(mjcf)
+    loop = LoopOptions() if loop is None else loop
+    h = float(model.dt)
+    delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
+    out, tried = {}, set()
+    for name in ("lqr", "pid") if pid else ("lqr",):
+        margin = failed = None
+        for i, d in enumerate(delays):
+            run = run_lab(model, loop=loop.replace(delay=d))
+            ok = balances(run if name == "lqr" else compare_pid(run, model))
+            tried.add(d)
+            if progress is not None:
+                progress((i + 1) / len(delays))
+            if not ok:
+                failed = d
+                break
+            margin = d
+        out[name], out[f"{name}_first_failure"] = margin, failed
+    out["tried"] = sorted(tried)
+    return out

@@ -38,6 +38,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--R", nargs="+", type=float, default=None, metavar="V",
                         help="ctrl weights: nu numbers (the diagonal) or nu^2 (the matrix); default 0.1 per input")
     add_rig_arguments(parser)
+    parser.add_argument("--delay-margin", type=float, default=None, metavar="MAX",
+                        help="instead of one lab: the largest delay (whole MJCF steps up to MAX s) at which the lab's "
+                             "LQR (and with --compare-pid the PID) still balances all five starts on this rig; "
+                             "prints it, writes nothing")
 
 
 def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
@@ -74,6 +78,8 @@ def run(args) -> dict:
     R = None if args.R is None else weight_matrix(
         args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
     loop = loop_from_args(args)
+    if args.delay_margin is not None:
+        return _delay_margin(args, model, loop)
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop)
     if args.view:
         result = _view(result)
@@ -149,6 +155,33 @@ def run(args) -> dict:
         doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
     if not args.json:
         _print_prose(result, doc, pid)
+    return doc
+
+
+def _delay_margin(args, model, loop) -> dict:
+    """``--delay-margin MAX``: JSON ``mjcf``, ``period`` (s), ``rig`` (the rest of the rig), ``delay_margin``
+    (:func:`cartpole.apps.lab.delay_margin`: ``lqr``, ``lqr_first_failure``, and ``pid`` ones with
+    ``--compare-pid``, s)."""
+    import math
+
+    from cartpole.apps.lab import delay_margin
+    from cartpole.errors import CartPoleError
+    from cartpole.progress import stage
+
+    if not (math.isfinite(args.delay_margin) and args.delay_margin >= 0):
+        raise CartPoleError(f"--delay-margin {args.delay_margin:g} is not a delay in s >= 0; give e.g. "
+                            "--delay-margin 0.1.")
+    with stage("delay margin", size=f"delays up to {args.delay_margin:g} s") as tick:
+        found = delay_margin(model, loop=loop, max_delay=args.delay_margin, pid=args.compare_pid, progress=tick)
+    period = model.dt if loop.period is None else loop.period
+    doc = {"mjcf": model.params.mjcf, "period": float(period), "rig": loop.as_dict(), "delay_margin": found}
+    if not args.json:
+        for name in ("lqr", "pid"):
+            if name in found:
+                m, f = found[name], found[f"{name}_first_failure"]
+                print(f"{name.upper()}: balances all five starts up to a delay of "
+                      f"{'no delay at all' if m is None else f'{m:g} s'}"
+                      + (f"; fails at {f:g} s" if f is not None else f" (every delay tried, to {args.delay_margin:g} s)"))
     return doc
 
 

@@ -311,3 +311,15 @@ def test_no_display_leaves_the_lab_untouched(shipped_lab, monkeypatch):
         monkeypatch.delenv(var, raising=False)
     with pytest.raises(ViewerUnavailable, match="DISPLAY is not set"):
         view_first_run(shipped_lab, watch)
+
+
+def test_delay_margin_is_the_last_delay_that_balances_and_the_next_fails():
+    from cartpole.apps.lab import balances, delay_margin, run_lab
+    from cartpole.sim import LoopOptions
+
+    loop = LoopOptions(period=0.01, delay_compensation=False)
+    found = delay_margin(loop=loop, max_delay=0.06)
+    m, f = found["lqr"], found["lqr_first_failure"]
+    assert m is not None and f is not None and f == pytest.approx(m + 0.005)
+    assert balances(run_lab(loop=loop.replace(delay=m))) and not balances(run_lab(loop=loop.replace(delay=f)))
+    assert found["tried"][-1] == pytest.approx(f)
