@@ -13,6 +13,7 @@ HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJ
 
 FIGURE = Path("figures") / "day5_cartpole_lqr.png"
 PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
+ESTIMATION_FIGURE = Path("figures") / "day5_cartpole_estimation.png"
 VIDEO = Path("videos") / "day5_cartpole.mp4"
 METRICS = Path("metrics") / "metrics.csv"
 VIDEO_SECONDS = 10.0
@@ -95,6 +96,12 @@ def run(args) -> dict:
             print(f"cartpole lqr: --compare-pid skipped: {skipped}", file=sys.stderr)
     out = Path(args.out)
     figure = plot_lab(result, out / FIGURE).resolve()
+    est_figure = None
+    if result.estimation is not None:
+        from cartpole.viz.estimation_plot import plot_estimation
+
+        est_figure = str(plot_estimation(result.rollouts[0], result.params, out / ESTIMATION_FIGURE,
+                                         title=f"IC 1: {result.rig.estimator} estimate against MuJoCo").resolve())
     pid_figure = None
     if pid is not None:
         from cartpole.viz.lab_plot import plot_pid_vs_lqr
@@ -150,6 +157,7 @@ def run(args) -> dict:
         "metrics": str(metrics),
         **rig_doc(result.rig, result.period),
         "estimation": result.estimation,
+        "estimation_figure": est_figure,
     }
     if args.compare_pid:
         doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
@@ -306,6 +314,8 @@ def _print_prose(result, doc, pid=None) -> None:
     if pid is not None:
         _print_pid_table(result, pid)
     print(f"Wrote {doc['figure']}")
+    if doc.get("estimation_figure"):
+        print(f"Wrote {doc['estimation_figure']}")
     if pid is not None:
         print(f"Wrote {doc['pid']['figure']}")
     if doc["video"]:

@@ -185,6 +185,13 @@ def run(args) -> dict:
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{args.method}.png", plan=res.plan,
                        caught_at=res.caught_at, model=model,
                        title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
+    est_fig = None
+    if res.metrics.get("estimation"):
+        from cartpole.viz.estimation_plot import plot_estimation
+
+        est_fig = str(plot_estimation(res.rollout, params, out / "figures" / f"swingup_{args.method}_estimation.png",
+                                      title=f"Swing-up ({args.method}): {res.metrics['estimation']['estimator']} "
+                                            "estimate against MuJoCo").resolve())
     video = None
     if not args.no_video:
         from cartpole.viz import VideoUnavailable, render_video, swingup_modes
@@ -203,6 +210,7 @@ def run(args) -> dict:
     doc["push"] = [list(p) for p in res.push]
     doc["rig"] = m.get("rig")
     doc["estimation"] = m.get("estimation")
+    doc["estimation_figure"] = est_fig
     if args.method != "mpc":
         doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
