@@ -3,8 +3,13 @@
 Inertias come from the compiled model, never from the XML text: MuJoCo derives a capsule's mass
 distribution from its geometry, applies defaults and ``childclass``, adds ``armature`` to the joint-space
 inertia, and so on. What is read is exactly what the smooth model in :mod:`cartpole.models.symbolic`
-models; anything MuJoCo would add on top of it (contacts, fluid forces, gravity compensation, force
-clamping, friction loss, tendons, equality constraints) is refused with one sentence naming it and the fix.
+models, with one deliberate exception: a joint's ``frictionloss`` is read as it is (MuJoCo keeps its true
+friction constraint) and the symbolic model carries a smooth version of it (:mod:`cartpole.models.friction`).
+Actuators are MuJoCo's affine ones on joints, ``force = gain * ctrl + b0 + b1 * length + b2 * velocity`` with
+``length = gear * qpos`` and ``velocity = gear * qvel`` (``<motor>``, ``<position>``, ``<velocity>``, ``<general>``
+with ``biastype="affine"``), plus MuJoCo's actuator ``damping`` and ``armature``. Anything else MuJoCo would add
+(contacts, fluid forces, gravity compensation, force clamping that can bite, tendons, equality constraints,
+activation states, state-dependent gains) is refused with one sentence naming it and the fix.
 """
 from __future__ import annotations
 
@@ -61,6 +66,11 @@ class JointParams:
     range : (2,) array
         Joint limits ``[low, high]``; ``(-inf, inf)`` when unlimited. Limits are constraint forces outside the
         smooth model: plans keep inside them, rollouts are checked against them.
+    frictionloss : float
+        Dry (Coulomb) friction, N on a slide, N m on a hinge (``dof_frictionloss``; zero when the MJCF disables
+        frictionloss or constraints). MuJoCo applies it as a constraint force of at most this size opposing the
+        motion; the symbolic model has the smooth ``-frictionloss * tanh(qvel / width)``
+        (:func:`cartpole.models.friction.smooth_friction`).
     """
 
     name: str
@@ -74,6 +84,7 @@ class JointParams:
     stiffness: float
     springref: float
     range: np.ndarray
+    frictionloss: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -112,9 +123,21 @@ class BodyParams:
     joints: tuple
 
 
+def _no_bias() -> np.ndarray:
+    return readonly(np.zeros(3))
+
+
 @dataclass(frozen=True)
 class ActuatorParams:
-    """One motor: generalized force ``gear * ctrl`` on one joint (N or N m per unit ctrl).
+    """One actuator on one joint, MuJoCo's affine model with a joint transmission.
+
+    With ``r`` = :attr:`transmission` (MuJoCo's ``gear``), the actuator's length is ``r * qpos`` and its velocity
+    ``r * qvel`` (``qpos`` itself, not ``qpos - qpos0``, as MuJoCo defines them), its force
+    ``gain * ctrl + b0 + b1 * r * qpos + b2 * r * qvel``, and the generalized force on the joint ``r`` times that:
+    ``gear * ctrl + r * (b0 + b1 * r * qpos + b2 * r * qvel)``. A plain ``<motor>`` has ``gain = 1`` and no bias, so
+    its force is ``gear * ctrl``; a ``<position kp kv>`` has ``gain = kp``, ``bias = (0, -kp, -kv)``; a
+    ``<velocity kv>`` has ``gain = kv``, ``bias = (0, 0, -kv)``; a DC motor without inductance (current settles
+    at once) is ``gain = K / R`` per volt, ``b2 = -K**2 / R`` (back-EMF).
 
     Attributes
     ----------
@@ -122,15 +145,38 @@ class ActuatorParams:
     joint : int
         Index into :attr:`CartPoleParams.joints` (= qpos index).
     gear : float
-        Force or torque per unit ctrl (MuJoCo's ``gear`` times the fixed gain, 1 for ``<motor>``).
+        Generalized force per unit ctrl, N or N m (``transmission * gain``; MuJoCo's ``gear`` for ``<motor>``).
     ctrl_range : (2,) array
         ``[low, high]`` of ``ctrl``, MuJoCo clamps to it; ``(-inf, inf)`` when not ctrl-limited.
+    transmission : float
+        MuJoCo's ``gear[0]``: actuator length = ``transmission * qpos``, joint force = ``transmission`` times the
+        actuator force.
+    gain : float
+        Actuator force per unit ctrl (``gainprm[0]``, fixed gain).
+    bias : (3,) array
+        ``(b0, b1, b2)`` = ``biasprm[:3]`` of ``biastype="affine"`` (zeros for ``biastype="none"``): actuator
+        force ``b0`` (N or N m), ``b1`` per unit actuator length, ``b2`` per unit actuator velocity.
+    damping : float
+        MuJoCo's actuator ``damping``: actuator force ``-damping * velocity`` (a joint damping of
+        ``transmission**2 * damping``, treated by MuJoCo exactly as joint damping; zero when dampers are disabled).
+    armature : float
+        MuJoCo's actuator ``armature``: ``transmission**2 * armature`` is added to the joint's armature.
     """
 
     name: str
     joint: int
     gear: float
     ctrl_range: np.ndarray
+    transmission: float = 1.0
+    gain: float = 1.0
+    bias: np.ndarray = dataclasses.field(default_factory=_no_bias)
+    damping: float = 0.0
+    armature: float = 0.0
+
+    @property
+    def biased(self) -> bool:
+        """True when the actuator's force depends on the state (any of ``b0, b1, b2`` nonzero)."""
+        return bool(np.any(np.asarray(self.bias) != 0))
 
 
 @dataclass(frozen=True)
@@ -215,13 +261,38 @@ class CartPoleParams:
 
     @property
     def damping(self) -> np.ndarray:
-        """(nq,) joint damping in qpos order."""
-        return readonly([j.damping for j in self.joints])
+        """(nq,) damping in qpos order, N s/m or N m s/rad: each joint's own plus ``transmission**2 * damping`` of
+        every actuator on it (MuJoCo adds the two, and integrates them alike)."""
+        d = np.array([j.damping for j in self.joints])
+        for a in self.actuators:
+            if a.damping:
+                d[a.joint] += a.transmission ** 2 * a.damping
+        return readonly(d)
 
     @property
     def armature(self) -> np.ndarray:
-        """(nq,) joint armature in qpos order."""
-        return readonly([j.armature for j in self.joints])
+        """(nq,) armature in qpos order, kg or kg m^2: each joint's own plus ``transmission**2 * armature`` of every
+        actuator on it."""
+        arm = np.array([j.armature for j in self.joints])
+        for a in self.actuators:
+            if a.armature:
+                arm[a.joint] += a.transmission ** 2 * a.armature
+        return readonly(arm)
+
+    @property
+    def frictionloss(self) -> np.ndarray:
+        """(nq,) dry friction in qpos order, N on slides, N m on hinges (zero where there is none)."""
+        return readonly([j.frictionloss for j in self.joints])
+
+    @property
+    def has_friction(self) -> bool:
+        """True when any joint has frictionloss."""
+        return bool(np.any(self.frictionloss != 0))
+
+    @property
+    def has_actuator_bias(self) -> bool:
+        """True when any actuator's force depends on the state (an affine bias)."""
+        return any(a.biased for a in self.actuators)
 
     @property
     def joint_ranges(self) -> np.ndarray:
@@ -443,30 +514,12 @@ def _check_supported(m, where: str) -> None:
     if m.neq:
         raise MJCFError(f"{where} has {m.neq} equality constraint(s); {_SUPPORTED}, without equality constraints.")
     for i in range(m.nu):
-        name = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i, "actuator")
-        if m.actuator_trntype[i] != mujoco.mjtTrn.mjTRN_JOINT:
-            raise MJCFError(f"{where} has actuator '{name}' on something other than a joint; {_SUPPORTED}.")
-        if (m.actuator_dyntype[i] != mujoco.mjtDyn.mjDYN_NONE or m.actuator_gaintype[i] != mujoco.mjtGain.mjGAIN_FIXED
-                or m.actuator_biastype[i] != mujoco.mjtBias.mjBIAS_NONE):
-            raise MJCFError(f"{where} has a non-motor actuator '{name}' (position, velocity, filtered or biased); "
-                            f"{_SUPPORTED}, i.e. <motor> with force = gear * ctrl.")
-        if m.actuator_forcelimited[i]:
-            lo, hi = m.actuator_forcerange[i]
-            gear = m.actuator_gear[i, 0] * m.actuator_gainprm[i, 0]
-            clo, chi = m.actuator_ctrlrange[i] if m.actuator_ctrllimited[i] else (-np.inf, np.inf)
-            reach = sorted([gear * clo, gear * chi])
-            if reach[0] < lo or reach[1] > hi:
-                raise MJCFError(f"{where} clamps actuator '{name}' to forcerange [{lo:g}, {hi:g}] inside what "
-                                f"its ctrlrange can ask for; the smooth model has force = gear * ctrl, so remove "
-                                "forcerange or narrow ctrlrange to match it.")
+        _check_actuator(m, i, where)
     for j in range(m.njnt):
         name = _name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
-        if m.dof_frictionloss[m.jnt_dofadr[j]] != 0:
-            raise MJCFError(f"{where} gives joint '{name}' frictionloss, a constraint force the smooth model "
-                            "does not have; remove frictionloss (damping is modelled).")
         if m.jnt_actfrclimited[j]:
             raise MJCFError(f"{where} limits the actuator force on joint '{name}' (actuatorfrcrange); "
-                            "the smooth model has force = gear * ctrl, so remove actuatorfrcrange.")
+                            "the smooth model has no force clamp, so remove actuatorfrcrange.")
     if np.any(m.body_gravcomp != 0):
         b = int(np.flatnonzero(m.body_gravcomp)[0])
         raise MJCFError(f"{where} gives body '{_name(m, mujoco.mjtObj.mjOBJ_BODY, b, 'body')}' gravcomp; "
@@ -493,6 +546,8 @@ def _check_supported(m, where: str) -> None:
                             "contacts, so add <flag contact=\"disable\"/> under <option> or give them "
                             "contype=\"0\" conaffinity=\"0\".")
     for field in _FINITE_FIELDS:
+        if not field.startswith("opt.") and not hasattr(m, field):
+            continue  # older MuJoCo has no actuator damping or armature
         values = np.asarray(getattr(m, field) if not field.startswith("opt.") else getattr(m.opt, field[4:]), float)
         if not np.all(np.isfinite(values)):
             raise MJCFError(f"{where} has a number that is not finite in {field} (nan or inf in the XML); "
@@ -503,12 +558,67 @@ def _check_supported(m, where: str) -> None:
                         f"{', '.join(SUPPORTED_INTEGRATORS)}.")
 
 
+def _check_actuator(m, i: int, where: str) -> None:
+    """Refuse, with one sentence, an actuator whose force is not ``gain * ctrl + b0 + b1 length + b2 velocity``."""
+    import mujoco
+
+    name = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i, "actuator")
+    dyn, gain, bias = int(m.actuator_dyntype[i]), int(m.actuator_gaintype[i]), int(m.actuator_biastype[i])
+    dcmotor = any(hasattr(t, n) and value == int(getattr(t, n)) for value, t, n in (
+        (dyn, mujoco.mjtDyn, "mjDYN_DCMOTOR"), (gain, mujoco.mjtGain, "mjGAIN_DCMOTOR"),
+        (bias, mujoco.mjtBias, "mjBIAS_DCMOTOR")))
+    if m.actuator_trntype[i] != mujoco.mjtTrn.mjTRN_JOINT:
+        raise MJCFError(f"{where} has actuator '{name}' on something other than a joint; {_SUPPORTED}.")
+    if dcmotor:
+        raise MJCFError(f"{where} has actuator '{name}' of MuJoCo's dcmotor type, which the toolkit does not model; "
+                        "for a DC motor whose current settles at once use <general> with gainprm=\"K/R\", "
+                        "biastype=\"affine\" and biasprm=\"0 0 -K^2/R\" (back-EMF).")
+    if dyn in (mujoco.mjtDyn.mjDYN_FILTER, mujoco.mjtDyn.mjDYN_FILTEREXACT, mujoco.mjtDyn.mjDYN_INTEGRATOR):
+        kind = {int(mujoco.mjtDyn.mjDYN_FILTER): "filter", int(mujoco.mjtDyn.mjDYN_FILTEREXACT): "filterexact",
+                int(mujoco.mjtDyn.mjDYN_INTEGRATOR): "integrator"}[dyn]
+        raise MJCFError(f"{where} gives actuator '{name}' activation dynamics (dyntype {kind}, e.g. a timeconst or an "
+                        "<intvelocity>), which adds an activation state the toolkit does not model yet (its state "
+                        "is x = [qpos, qvel]); use a plain motor, or a <position>/<velocity> servo without timeconst.")
+    if dyn != mujoco.mjtDyn.mjDYN_NONE:
+        raise MJCFError(f"{where} gives actuator '{name}' activation dynamics (dyntype {dyn}), an extra state the "
+                        f"toolkit does not model; {_SUPPORTED}, i.e. <motor>, <position>, <velocity> or <general> "
+                        "without dyntype.")
+    if gain != mujoco.mjtGain.mjGAIN_FIXED:
+        raise MJCFError(f"{where} gives actuator '{name}' a gain that is not fixed (gaintype {gain}, e.g. <damper> "
+                        "or a muscle); the toolkit models force = gain * ctrl + bias with a fixed gain, so use "
+                        "<motor>, <position>, <velocity> or <general> with gaintype=\"fixed\".")
+    if bias not in (mujoco.mjtBias.mjBIAS_NONE, mujoco.mjtBias.mjBIAS_AFFINE):
+        raise MJCFError(f"{where} gives actuator '{name}' a bias that is not affine (biastype {bias}); the toolkit "
+                        "models force = gain * ctrl + b0 + b1 * length + b2 * velocity, so use biastype=\"affine\".")
+    delay = float(m.actuator_delay[i]) if hasattr(m, "actuator_delay") else 0.0
+    if delay:
+        raise MJCFError(f"{where} delays actuator '{name}' by {delay:g} s inside MuJoCo; the toolkit's model acts "
+                        "at once, so remove the actuator's delay (the rig's --delay models one).")
+    if m.actuator_forcelimited[i]:
+        # MuJoCo clamps the actuator force gain * ctrl + bias, before the transmission multiplies it by gear.
+        lo, hi = m.actuator_forcerange[i]
+        b = m.actuator_biasprm[i, :3] if bias == mujoco.mjtBias.mjBIAS_AFFINE else np.zeros(3)
+        if b[1] or b[2]:
+            raise MJCFError(f"{where} clamps actuator '{name}' to forcerange [{lo:g}, {hi:g}] while its force "
+                            "depends on the state (biasprm), so the clamp can bite; the smooth model has no clamp, "
+                            "so remove forcerange.")
+        g = float(m.actuator_gainprm[i, 0])
+        clo, chi = m.actuator_ctrlrange[i] if m.actuator_ctrllimited[i] else (-np.inf, np.inf)
+        with np.errstate(invalid="ignore"):
+            reach = sorted([g * clo + b[0], g * chi + b[0]])
+        if not (reach[0] >= lo and reach[1] <= hi):
+            raise MJCFError(f"{where} clamps actuator '{name}' to forcerange [{lo:g}, {hi:g}] inside what its "
+                            f"ctrlrange can ask for ([{reach[0]:g}, {reach[1]:g}] before the gear); the smooth model "
+                            "has no clamp, so remove forcerange or narrow ctrlrange to match it.")
+
+
 #: Compiled fields the model reads that must hold finite numbers (joint and ctrl ranges may be infinite only when
 #: unlimited, which MuJoCo stores as zeros, so they are checked too).
 _FINITE_FIELDS = ("opt.gravity", "opt.timestep", "body_pos", "body_quat", "body_mass", "body_ipos", "body_iquat",
                   "body_inertia", "jnt_pos", "jnt_axis", "jnt_range", "jnt_stiffness", "qpos0", "qpos_spring",
-                  "dof_damping", "dof_armature", "actuator_gear", "actuator_gainprm", "actuator_ctrlrange",
-                  "actuator_forcerange")
+                  "dof_damping", "dof_armature", "dof_frictionloss", "actuator_gear", "actuator_gainprm",
+                  "actuator_biasprm", "actuator_ctrlrange", "actuator_forcerange", "actuator_damping",
+                  "actuator_armature")
 
 
 def _colliding_pair(m):
@@ -540,11 +650,14 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
     Accepts a kinematic tree of slide and hinge joints (typically one slide, the cart, carrying a chain of
     1..n hinged poles; also a pendulum or an acrobot-like chain without a cart), any number of bodies and
     geoms, each body's compiled mass, centre of mass and full inertia, joint positions, axes, references,
-    damping, armature, stiffness and limits, driven by one or more ``<motor>`` (or fixed-gain ``<general>``)
-    actuators on any of those joints, with any (also asymmetric) ctrlrange; integrators Euler, RK4, implicit
-    and implicitfast; gravity, dampers and springs may be disabled. Refused, with one sentence naming it
-    and the fix: free and ball joints, tendons, equality constraints, non-motor actuators, force clamps that
-    can bite, friction loss, gravity compensation, fluid forces, geoms that can collide.
+    damping, armature, stiffness, limits and frictionloss, driven by one or more actuators on any of those
+    joints: ``<motor>``, ``<position>`` and ``<velocity>`` servos (without ``timeconst``), ``<general>`` with a
+    fixed gain and no or an affine bias (e.g. a DC motor's back-EMF), with MuJoCo's actuator damping and armature,
+    with any (also asymmetric) ctrlrange; integrators Euler, RK4, implicit and implicitfast; gravity, dampers,
+    springs and frictionloss may be disabled. Refused, with one sentence naming it and the fix: free and ball
+    joints, tendons, equality constraints, actuators with an activation state (dyntype filter, filterexact,
+    integrator, ...), state-dependent gains, non-affine biases, actuator delays, force clamps that can bite,
+    gravity compensation, fluid forces, geoms that can collide.
 
     Parameters
     ----------
@@ -575,6 +688,7 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
     dis = int(m.opt.disableflags)
     flags = mujoco.mjtDisableBit
     no_damper, no_spring = bool(dis & flags.mjDSBL_DAMPER), bool(dis & flags.mjDSBL_SPRING)
+    no_friction = bool(dis & (flags.mjDSBL_FRICTIONLOSS | flags.mjDSBL_CONSTRAINT))
 
     bodies = []
     d = None
@@ -604,15 +718,22 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
             pos=readonly(m.jnt_pos[j]), axis=readonly(m.jnt_axis[j]), qpos0=float(m.qpos0[qadr]),
             damping=0.0 if no_damper else float(m.dof_damping[dof]), armature=float(m.dof_armature[dof]),
             stiffness=0.0 if no_spring else float(m.jnt_stiffness[j]), springref=float(m.qpos_spring[qadr]),
-            range=readonly(m.jnt_range[j] if m.jnt_limited[j] else [-np.inf, np.inf])))
+            range=readonly(m.jnt_range[j] if m.jnt_limited[j] else [-np.inf, np.inf]),
+            frictionloss=0.0 if no_friction else float(m.dof_frictionloss[dof])))
 
     actuators = []
     for i in range(m.nu):
         lim = bool(m.actuator_ctrllimited[i])
+        affine = m.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_AFFINE
+        act_damping = float(m.actuator_damping[i]) if hasattr(m, "actuator_damping") and not no_damper else 0.0
+        act_armature = float(m.actuator_armature[i]) if hasattr(m, "actuator_armature") else 0.0
         actuators.append(ActuatorParams(
             name=_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i, "actuator"), joint=int(m.actuator_trnid[i, 0]),
             gear=float(m.actuator_gear[i, 0] * m.actuator_gainprm[i, 0]),
-            ctrl_range=readonly(m.actuator_ctrlrange[i] if lim else [-np.inf, np.inf])))
+            ctrl_range=readonly(m.actuator_ctrlrange[i] if lim else [-np.inf, np.inf]),
+            transmission=float(m.actuator_gear[i, 0]), gain=float(m.actuator_gainprm[i, 0]),
+            bias=readonly(m.actuator_biasprm[i, :3] if affine else np.zeros(3)),
+            damping=act_damping, armature=act_armature))
 
     raw_g = np.array(m.opt.gravity, dtype=float)
     up = -raw_g / np.linalg.norm(raw_g) if np.linalg.norm(raw_g) > 0 else np.array([0.0, 0.0, 1.0])

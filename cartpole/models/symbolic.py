@@ -8,14 +8,31 @@ matrix is ``sum_b m_b Jv_b' Jv_b + Jw_b' I_b Jw_b`` plus armature, the Coriolis 
 solved by CasADi's symbolic ``solve`` (no hand-written inverse), and every Jacobian is
 ``casadi.jacobian`` of an SX expression: exact, at any state.
 
+Actuators are MuJoCo's affine ones with a joint transmission (:class:`~cartpole.models.params.ActuatorParams`):
+the generalized force of actuator ``a`` on its joint is ``gear u + r (b0 + b1 r q + b2 r v)`` (``r`` its
+transmission), modelled exactly; MuJoCo's actuator damping and armature enter as joint damping and armature. A
+joint's ``frictionloss`` enters as the smooth ``-frictionloss tanh(v / friction_width)``
+(:mod:`cartpole.models.friction`), while MuJoCo keeps its true friction constraint.
+
 The discrete step reproduces one ``mj_step`` of the integrator the MJCF names:
 
-* ``Euler``: semi-implicit Euler whose joint damping is implicit, ``(M + h D) a = F``,
-  ``v+ = v + h a``, ``q+ = q + h v+`` (damping explicit when the MJCF disables ``eulerdamp``);
-* ``implicitfast``: ``(M - h dF/dv) a = F`` with ``dF/dv`` the damping derivative only (motors have no
-  velocity dependence), the same as Euler here;
+* ``Euler``: semi-implicit Euler whose damping is implicit, ``(M + h D) a = F``, ``v+ = v + h a``,
+  ``q+ = q + h v+`` (damping explicit when the MJCF disables ``eulerdamp``); as in MuJoCo, an actuator's
+  velocity bias ``b2`` stays explicit;
+* ``implicitfast``: ``(M - h dF/dv) a = F`` with ``dF/dv`` the damping and the actuators' velocity derivative
+  (``r**2 b2`` on the actuated joint);
 * ``implicit``: as implicitfast but ``dF/dv`` includes the Coriolis/centripetal derivative;
 * ``RK4``: classical fourth-order Runge-Kutta on ``f(x, u)`` with ``u`` held.
+
+With frictionloss the step is not ``mj_step`` exactly: MuJoCo solves its friction constraint, the model has the
+smooth force. Where MuJoCo's friction slides (its force at the bound, opposing the motion: on the shipped cart
+whenever the joints move faster than about 0.3 m/s or rad/s) and ``|v|`` is above about 20 widths, the two forces
+are equal and the steps agree to round-off; near rest MuJoCo sticks and the model creeps. The smooth friction's
+derivative ``-frictionloss / width sech^2(v / width)`` joins ``dF/dv`` in the Euler (with ``eulerdamp``),
+implicitfast and implicit steps: MuJoCo's constraint acts in the same step as the velocity it opposes, and an
+explicit treatment of a slope as steep as ``frictionloss / width`` makes the step chatter about rest for narrow
+widths (:mod:`cartpole.models.friction`); while sliding the derivative is zero, so the sliding-regime agreement is
+unchanged.
 
 The step assumes ``u`` is inside ``ctrl_range`` (MuJoCo clamps it) and that no joint limit is active
 (limits are constraint forces, outside a smooth model; contacts the reader refuses).
@@ -31,6 +48,7 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.models.discretize import hold_model
 from cartpole.models.equilibrium import find_equilibrium
+from cartpole.models.friction import DEFAULT_FRICTION_WIDTH, check_width, smooth_friction
 from cartpole.models.kinematics import forward_kinematics, forward_kinematics_np
 from cartpole.models.params import SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError, read_params
 
@@ -99,6 +117,17 @@ class CartPoleModel:
         ``q -> (dV/dq, d2V/dq2, dVg/dq, d2Vg/dq2)``, the potential's gradient and Hessian (all, gravity alone).
     actuation : (nq, nu) array
         Generalized force per unit ctrl.
+    friction : casadi.Function
+        ``x (nx,) -> F_friction (nq,)``: the smooth generalized friction force ``-frictionloss tanh(v / width)``,
+        N on slides, N m on hinges (zeros without frictionloss); it is part of ``f`` and ``step``.
+    friction_width : float
+        The smooth friction's velocity scale ``width``, m/s on slides, rad/s on hinges.
+    actuator_bias : casadi.Function
+        ``x (nx,) -> F_bias (nq,)``: the actuators' state-dependent generalized force
+        ``sum_a r_a (b0 + b1 r_a q + b2 r_a v)`` on their joints (zeros for plain motors); part of ``f``.
+    rest_potential : casadi.Function
+        As ``potential`` with the actuators' position-dependent force (``b0``, ``b1``) added as the potential
+        ``-integral F_bias dq``: what a rest balances (the same Function as ``potential`` without a bias).
     x_hanging, u_hanging : arrays (nx,), (nu,)
         Hanging rest (every pole's centre of mass below its hinge), computed on first use.
     """
@@ -118,10 +147,14 @@ class CartPoleModel:
     u_eq: np.ndarray
     potential: ca.Function
     actuation: np.ndarray
+    friction: ca.Function
+    friction_width: float
+    actuator_bias: ca.Function
+    rest_potential: ca.Function
 
     @functools.cached_property
     def _hanging(self) -> tuple:
-        x, u = find_equilibrium(self.params, self.potential, self.actuation, upright=False)
+        x, u = find_equilibrium(self.params, self.rest_potential, self.actuation, upright=False)
         return readonly(x), readonly(u)
 
     @property
@@ -239,8 +272,10 @@ class CartPoleModel:
         return holds[steps]
 
     def rebuilt(self, *, dt: float | None = None, integrator: str | None = None) -> "CartPoleModel":
-        """The same physics with another discrete step (e.g. a control period of several physics steps)."""
-        return build_model(self.params, dt=dt or self.dt, integrator=integrator or self.integrator)
+        """The same physics (and friction width) with another discrete step (e.g. a control period of several
+        physics steps)."""
+        return build_model(self.params, dt=dt or self.dt, integrator=integrator or self.integrator,
+                           friction_width=self.friction_width)
 
 
 def _lagrangian(p: CartPoleParams, q, v):
@@ -281,7 +316,7 @@ def _potential_np(p: CartPoleParams, q) -> float:
 
 
 def build_model(params: CartPoleParams | str | None = None, *, dt: float | None = None,
-                integrator: str | None = None) -> CartPoleModel:
+                integrator: str | None = None, friction_width: float = DEFAULT_FRICTION_WIDTH) -> CartPoleModel:
     """Derive the equations of motion in CasADi, compile their Functions and find the equilibria.
 
     Parameters
@@ -292,6 +327,10 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         Step in s of the discrete model; default the MJCF's ``timestep``.
     integrator : str, optional
         ``Euler``, ``RK4``, ``implicit`` or ``implicitfast``; default the MJCF's.
+    friction_width : float
+        Velocity scale of the smooth friction ``-frictionloss tanh(v / friction_width)``, m/s on slides and
+        rad/s on hinges (default :data:`~cartpole.models.friction.DEFAULT_FRICTION_WIDTH`, 0.01, justified there).
+        Without frictionloss it changes nothing.
 
     Returns
     -------
@@ -301,6 +340,8 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     ------
     MJCFError
         For an unsupported integrator, a non-positive step, or a model without an upright equilibrium.
+    FrictionWidthError
+        For a friction width that is not a finite positive velocity.
     """
     if not isinstance(params, CartPoleParams):
         params = read_params(params)
@@ -311,6 +352,7 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         raise MJCFError(f"Integrator '{integ}' is not supported; choose one of {', '.join(SUPPORTED_INTEGRATORS)}.")
     if not h > 0:
         raise MJCFError(f"Time step {h} s is not positive; give a positive dt.")
+    width = check_width(friction_width)
 
     nq, nu = p.nq, p.nu
     opts = {"cse": nq >= _CSE_FROM_NQ}
@@ -327,6 +369,14 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         Bmat[a.joint, i] = a.gear
     D = ca.DM(p.damping)
     F = ca.mtimes(ca.DM(Bmat), u) - D * v - bias  # everything but M qacc
+    # Friction and actuator bias are added only where present, so a model without them is the one it always was,
+    # bit for bit.
+    F_fric = smooth_friction(p.frictionloss, v, width) if p.has_friction else ca.SX.zeros(nq)
+    F_act, V_act = _actuator_bias(p, q, v)
+    if p.has_friction:
+        F = F + F_fric
+    if p.has_actuator_bias:
+        F = F + F_act
     qacc = ca.solve(M, F)
     xdot = ca.vertcat(v, qacc)
     f = ca.Function("f", [x, u], [xdot], ["x", "u"], ["xdot"], opts)
@@ -341,9 +391,15 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     else:
         if integ == "Euler":
             dFdv = -ca.diag(D) if p.euler_damping_implicit else ca.DM.zeros(nq, nq)
+            if p.has_friction and p.euler_damping_implicit:
+                dFdv = dFdv + ca.jacobian(F_fric, v)
         elif integ == "implicitfast":
-            dFdv = -ca.diag(D)  # motor actuators have no velocity dependence
-        else:  # implicit: full derivative including Coriolis/centripetal terms
+            dFdv = -ca.diag(D)  # plus the actuators' velocity derivative, without Coriolis/centripetal terms
+            if p.has_friction:
+                dFdv = dFdv + ca.jacobian(F_fric, v)
+            if p.has_actuator_bias:
+                dFdv = dFdv + ca.jacobian(F_act, v)
+        else:  # implicit: full derivative including Coriolis/centripetal terms, friction and actuator bias
             dFdv = ca.jacobian(F, v)
         a_impl = ca.solve(M - h * dFdv, F)
         v_next = v + h * a_impl
@@ -355,7 +411,12 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     H, dV = ca.hessian(V, q)
     Hg, dVg = ca.hessian(Vg, q)
     potential = ca.Function("potential", [q], [dV, H, dVg, Hg])
-    x_eq, u_eq = find_equilibrium(p, potential, Bmat, upright=True)
+    if p.has_actuator_bias:
+        H_rest, dV_rest = ca.hessian(V + V_act, q)
+        rest_potential = ca.Function("rest_potential", [q], [dV_rest, H_rest, dVg, Hg])
+    else:
+        rest_potential = potential
+    x_eq, u_eq = find_equilibrium(p, rest_potential, Bmat, upright=True)
     V0 = _potential_np(p, x_eq[:nq])
 
     E = T + V - V0
@@ -377,9 +438,29 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
         pole_energy=pole_energy,
         step=step,
         ABd=fn("ABd", [x, u], [Adx, Bdu], ["x", "u"], ["Ad", "Bd"]),
+        friction=fn("friction", [x], [F_fric], ["x"], ["F_friction"]),
+        actuator_bias=fn("actuator_bias", [x], [F_act], ["x"], ["F_bias"]),
     )
     return CartPoleModel(params=p, dt=h, integrator=integ, x_eq=readonly(x_eq), u_eq=readonly(u_eq),
-                         potential=potential, actuation=readonly(Bmat), **funcs)
+                         potential=potential, actuation=readonly(Bmat), friction_width=width,
+                         rest_potential=rest_potential, **funcs)
+
+
+def _actuator_bias(p: CartPoleParams, q, v):
+    """The actuators' state-dependent generalized force (nq,) SX and the potential (SX scalar) of its
+    position-dependent part: actuator ``a`` on joint ``j`` with transmission ``r`` and bias ``(b0, b1, b2)`` adds
+    ``r (b0 + b1 r q_j + b2 r v_j)`` to joint ``j`` (MuJoCo: length ``r q_j``, velocity ``r v_j``, joint force ``r``
+    times the actuator force), whose ``b0, b1`` part is ``-d/dq_j`` of ``-(r b0 q_j + 1/2 r^2 b1 q_j^2)``."""
+    F = ca.SX.zeros(p.nq)
+    V = 0
+    for a in p.actuators:
+        if not a.biased:
+            continue
+        r, (b0, b1, b2) = a.transmission, (float(b) for b in a.bias)
+        j = a.joint
+        F[j] = F[j] + r * (b0 + b1 * r * q[j] + b2 * r * v[j])
+        V = V - (r * b0 * q[j] + 0.5 * r * r * b1 * q[j] ** 2)
+    return F, V
 
 
 def linearize(model: CartPoleModel, x=None, u=None) -> dict:
