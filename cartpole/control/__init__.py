@@ -17,3 +17,6 @@ __all__ += ["EnergyGains", "EnergyShapingController", "EnergyShapingModelError",
 from cartpole.control.pid import CascadedPID, PIDError, PIDGains, tune_pid  # noqa: E402
 
 __all__ += ["CascadedPID", "PIDError", "PIDGains", "tune_pid"]
+from cartpole.control.friction import FrictionCompensation  # noqa: E402
+
+__all__ += ["FrictionCompensation"]
