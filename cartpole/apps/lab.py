@@ -199,6 +199,14 @@ class _LabRuns:
         return np.array([cart_excursion(r, self.x_eq, self.params.slide) for r in self.rollouts])
 
     @property
+    def residual_error(self) -> np.ndarray:
+        """(5, nx) each run's largest ``|x - x*|`` per state over its last second
+        (:func:`~cartpole.validation.metrics.residual_error`): the limit cycle or offset left (m, rad, m/s, rad/s)."""
+        from cartpole.validation.metrics import residual_error
+
+        return np.array([residual_error(r.t, r.x, self.x_eq, hinges=self.params.hinges) for r in self.rollouts])
+
+    @property
     def steps(self) -> int:
         """Physics steps per run."""
         return int(self.rollouts[0].ctrl.shape[0])
@@ -246,6 +254,9 @@ class LabResult(_LabRuns):
     rig : Rig or None
         The period, delay, sensors and estimator the runs had (:mod:`cartpole.sim.rig`); None: MuJoCo's exact
         state every physics step.
+    friction_compensation : bool
+        True when the MJCF's driven joints have frictionloss and the runs cancelled it
+        (:func:`~cartpole.control.friction.friction_design`): A, B, K are then those of the model without it.
     """
 
     mjcf: str
@@ -269,6 +280,7 @@ class LabResult(_LabRuns):
     metrics: tuple
     period: float = 0.0
     rig: object = None
+    friction_compensation: bool = False
 
     @property
     def estimation(self) -> dict | None:
@@ -293,11 +305,13 @@ def design(model, Q, R, *, discrete: bool = False, x_eq=None, steps: int = 1):
     Linearises at ``(x_eq, model.u_eq)`` (default ``model.x_eq``) and returns ``(LQRResult, (A, B, Ad, Bd))``;
     ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``. With a control period of ``steps > 1`` physics steps,
     ``Ad``, ``Bd`` are the exact discrete model over that hold (:meth:`~cartpole.models.CartPoleModel.hold`) and the
-    gain is ``dlqr(Ad, Bd, Q T, R T)`` (``T`` the period in s), whatever ``discrete`` says.
+    gain is ``dlqr(Ad, Bd, Q T, R T)`` (``T`` the period in s), whatever ``discrete`` says. A model with dry friction
+    is linearised without it (:meth:`~cartpole.models.CartPoleModel.without_friction`).
     """
     from cartpole.lqr import dlqr, lqr
 
     x_eq = model.x_eq if x_eq is None else x_eq
+    model = model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
     A, B = model.linearize(x_eq, model.u_eq)
     if steps > 1:
         T = steps * model.dt
@@ -426,18 +440,24 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     from cartpole.models import steps_per_period
     from cartpole.sim.rig import build_rig
 
-    model = _model(mjcf)
-    params = model.params
+    from cartpole.control.friction import friction_design
+
+    plant = _model(mjcf)
+    params = plant.params
     if loop is not None and loop.duration is not None:
         duration = loop.duration
+    # the model the LQR (and the estimator) is designed on: without the friction a compensation cancels
+    model, compensate = friction_design(plant, loop)
     rig = build_rig(model, loop, task="balance")
     steps = steps_per_period(None if loop is None else loop.period, model.dt)
     Q0, R0 = lab_weights(model)
     # the design and loop lab_start_scale uses
-    own = Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None
+    own = Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None and not compensate
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
     ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(model, Q, R, discrete=discrete, steps=steps)
+    if compensate:
+        ctrl = compensate(ctrl)
     if start_scale is None and own:  # the scale search's runs are this lab's runs
         scale, (x0s, runs, mets) = _search_scale(model, ctrl, x_eq, progress)
     else:
@@ -447,7 +467,8 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
                      Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,
                      u_eq=readonly(model.u_eq), x0s=x0s, start_scale=float(scale), duration=float(duration),
-                     rollouts=tuple(runs), metrics=tuple(mets), period=float(steps * model.dt), rig=rig)
+                     rollouts=tuple(runs), metrics=tuple(mets), period=float(steps * model.dt), rig=rig,
+                     friction_compensation=compensate is not None)
 
 
 def cart_excursion(run, x_eq, slide: int | None) -> float:

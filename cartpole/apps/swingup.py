@@ -36,6 +36,7 @@ from typing import Callable
 
 import numpy as np
 
+from cartpole.control.friction import friction_design, friction_summary
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.sim import Rollout, simulate
@@ -301,6 +302,9 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     x0 = check_start(model.x_hanging if x0 is None else x0, params)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
+    # designed without the friction a compensation cancels, run with it (cartpole.control.friction)
+    pm, compensate = friction_design(pm, loop)
+    wrap = compensate if compensate is not None else (lambda controller: controller)
     force = loop.push_force(params.timestep)
     if method != "mpc" and (mpc is not None or given["mpc"]):
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
@@ -343,6 +347,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         basin = None
         T = MPC_DURATION if T is None else T
         rig = build_rig(pm, loop.replace(period=float(controller.period)), task="swingup")
+        controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
                            progress=_stage(progress, "simulate"), on_step=on_step, rig=rig)
         if progress is not None:
@@ -357,6 +362,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if T is None else T
         rig = build_rig(pm, loop, task="swingup")
+        controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
@@ -387,6 +393,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             if sp.objective == "dmc_swingup":
                 T = max(T, DMC_STEPS * params.timestep)
         rig = build_rig(pm, loop, task="swingup")
+        controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
@@ -408,6 +415,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
 
         metrics["estimation"] = estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))
     metrics["rig"] = None if rig is None else rig.to_dict()
+    metrics["friction"] = friction_summary(params, compensate is not None)
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
                          controller=controller, options=options)

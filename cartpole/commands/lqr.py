@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole.commands._rig import add_rig_arguments, loop_from_args, rig_doc
+from cartpole.commands._rig import add_rig_arguments, friction_sentence, loop_from_args, rig_doc
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -71,6 +71,7 @@ def run(args) -> dict:
     from cartpole.models import build_model
     from cartpole.sim import simulate
     from cartpole.viz import VideoUnavailable, plot_lab, render_video
+    from cartpole.control.friction import friction_summary
 
     # Everything that can fail on bad input happens before the first file is written.
     model = build_model(args.mjcf)
@@ -149,6 +150,7 @@ def run(args) -> dict:
         "rollouts": [_rollout_dict(r) for r in result.rollouts],
         "peak_ctrl": result.peak_ctrl,
         "cart_excursion": result.cart_excursion,
+        "residual_error": result.residual_error,
         "saturation_fraction": [m.saturation_fraction for m in result.metrics],
         "track_margin": [m.track_margin for m in result.metrics],
         "figure": str(figure),
@@ -156,6 +158,7 @@ def run(args) -> dict:
         "video_render_s": video_render_s,
         "metrics": str(metrics),
         **rig_doc(result.rig, result.period),
+        "friction": friction_summary(result.params, result.friction_compensation),
         "estimation": result.estimation,
         "estimation_figure": est_figure,
     }
@@ -291,6 +294,8 @@ def _print_prose(result, doc, pid=None) -> None:
         print("Closed-loop eigenvalues:", result.E)
         if result.rig is not None:
             print(_rig_sentence(result.rig))
+        if doc["friction"] is not None:
+            print(friction_sentence(doc["friction"]))
         if result.start_scale != 1.0:
             print(f"The lab's starts at full size are too large for this model: all five are scaled by "
                   f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which the lab's own LQR settles "

@@ -209,6 +209,7 @@ def run(args) -> dict:
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
     doc["push"] = [list(p) for p in res.push]
     doc["rig"] = m.get("rig")
+    doc["friction"] = m.get("friction")
     doc["estimation"] = m.get("estimation")
     doc["estimation_figure"] = est_fig
     if args.method != "mpc":
@@ -247,6 +248,10 @@ def run(args) -> dict:
             r = doc["rig"]
             print(f"Rig: control period {r['period']:g} s, delay {r['delay']:g} s"
                   f"{'' if r['delay_compensation'] else ' (not compensated)'}, estimator {r['estimator']}")
+        if doc["friction"] is not None:
+            from cartpole.commands._rig import friction_sentence
+
+            print(friction_sentence(doc["friction"]))
         if doc["estimation"]:
             est = doc["estimation"]
             rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())

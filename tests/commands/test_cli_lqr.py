@@ -392,3 +392,17 @@ def test_view_without_a_display_says_so_and_writes_every_output(tmp_path, capsys
     first = doc["rollouts"][0]
     assert replays_exactly(Rollout(t=first["t"], qpos=first["qpos"], qvel=first["qvel"], ctrl=first["ctrl"]),
                            doc["mjcf"])
+
+
+def test_friction_is_reported_and_no_friction_compensation_turns_the_feedforward_off(tmp_path, capsys):
+    mjcf = str(SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml")
+    on = _lqr_json(capsys, "--mjcf", mjcf, "--out", str(tmp_path / "on"))
+    off = _lqr_json(capsys, "--mjcf", mjcf, "--no-friction-compensation", "--out", str(tmp_path / "off"))
+    assert on["friction"] == {"frictionloss": {"slider": 0.5, "hinge": 0.002}, "compensation": True}
+    assert off["friction"]["compensation"] is False
+    assert np.array(on["residual_error"]).shape == (5, 4)
+    # the feedforward changes the runs: the logged ctrl differs, the gain does not
+    assert on["K"] == off["K"] and on["settling_times_seed"] != off["settling_times_seed"]
+    assert _lqr_json(capsys, "--out", str(tmp_path / "plain"))["friction"] is None
+    assert main(["lqr", "--mjcf", mjcf, "--no-video", "--out", str(tmp_path / "prose")]) == 0
+    assert "Friction (frictionloss slider 0.5, hinge 0.002): designed without" in capsys.readouterr().out
