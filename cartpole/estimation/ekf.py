@@ -29,15 +29,9 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered
 from cartpole.estimation.base import EstimationError
-from cartpole.estimation.kalman import (
-    check_ctrl,
-    check_measurement_model,
-    check_steps,
-    measured_positions,
-    measurement_jacobians,
-    positions_initial_state,
-    process_noise,
-)
+from cartpole.estimation.kalman import check_ctrl, check_steps, process_noise
+from cartpole.estimation.measurement import (check_measurement_model, measured_positions, measurement_jacobians,
+                                             positions_initial_state)
 from cartpole.estimation.mhe_functions import positive_definite
 
 #: Default initial standard deviation of a position that no sensor reads one-to-one (m, rad): its first estimate
@@ -103,7 +97,7 @@ class ExtendedKalmanFilter:
         :data:`UNMEASURED_POSITION_STD` on other positions, :data:`INITIAL_RATE_STD` on the rates).
     initial_state : callable, optional
         ``y0 (ny,) -> x0 (nx,)``: the first estimate. Default
-        :func:`~cartpole.estimation.kalman.positions_initial_state` with base ``model.x_hanging`` (a swing-up
+        :func:`~cartpole.estimation.measurement.positions_initial_state` with base ``model.x_hanging`` (a swing-up
         starts hanging): positions ``h`` reads one-to-one from ``y0``, the others hanging, zero rates.
     name : str
         The estimator's name (the CLI's ``--estimator``).

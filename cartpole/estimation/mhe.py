@@ -51,12 +51,12 @@ from cartpole.estimation.mhe_functions import (
     arrival_update,
     condensed_qp,
     inverse_factor,
-    measured_positions_first,
     positive_definite,
     solve_window_qp,
     symmetric_matrix,
     window_functions,
 )
+from cartpole.estimation.measurement import positions_initial_state
 from cartpole.estimation.noise import process_covariance
 
 #: Periods in the window when none is given.
@@ -224,7 +224,7 @@ class MovingHorizonEstimator:
         self._stage = Buffered(self.functions.stage)
         self._meas = Buffered(self.functions.measurement)
         if initial_state is None:
-            initial_state = measured_positions_first(self.functions.measurement, model, self.ny)
+            initial_state = positions_initial_state(h, model, getattr(model, "x_hanging", np.zeros(nx)))
         self._initial_state = initial_state
         N, r = self.N, self._r
         self._X = np.zeros((N + 1, nx))  # row-major (N+1, nx) is CasADi's column-major (nx, N+1)
