@@ -446,9 +446,9 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     params = plant.params
     if loop is not None and loop.duration is not None:
         duration = loop.duration
-    # the model the LQR (and the estimator) is designed on: without the friction a compensation cancels
+    # the model the LQR is designed on: without the friction a compensation cancels
     model, compensate = friction_design(plant, loop)
-    rig = build_rig(model, loop, task="balance")
+    rig = build_rig(plant, loop, task="balance")
     steps = steps_per_period(None if loop is None else loop.period, model.dt)
     Q0, R0 = lab_weights(model)
     # the design and loop lab_start_scale uses

@@ -303,7 +303,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
     # designed without the friction a compensation cancels, run with it (cartpole.control.friction)
-    pm, compensate = friction_design(pm, loop)
+    plant, (pm, compensate) = pm, friction_design(pm, loop)
     wrap = compensate if compensate is not None else (lambda controller: controller)
     force = loop.push_force(params.timestep)
     if method != "mpc" and (mpc is not None or given["mpc"]):
@@ -346,7 +346,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             progress("mpc", 1.0)
         basin = None
         T = MPC_DURATION if T is None else T
-        rig = build_rig(pm, loop.replace(period=float(controller.period)), task="swingup")
+        rig = build_rig(plant, loop.replace(period=float(controller.period)), task="swingup")
         controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
                            progress=_stage(progress, "simulate"), on_step=on_step, rig=rig)
@@ -361,7 +361,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         basin = basin_of(catch)
         controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if T is None else T
-        rig = build_rig(pm, loop, task="swingup")
+        rig = build_rig(plant, loop, task="swingup")
         controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)
@@ -392,7 +392,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             T = T_plan + TRAJOPT_EXTRA
             if sp.objective == "dmc_swingup":
                 T = max(T, DMC_STEPS * params.timestep)
-        rig = build_rig(pm, loop, task="swingup")
+        rig = build_rig(plant, loop, task="swingup")
         controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)

@@ -52,3 +52,15 @@ def test_trajopt_tvlqr_swings_up_the_cart_with_dry_friction(compensation):
     assert replays_exactly(res.rollout)
     assert res.metrics["friction"] == {"frictionloss": {"slider": 0.5, "hinge": 0.002}, "compensation": compensation}
     assert hasattr(res.controller, "feedforward") == compensation  # the compensation wraps the controller that ran
+
+
+def test_trajopt_tvlqr_through_the_ekf_on_the_cart_with_friction_and_its_compensation():
+    """The EKF predicts through the smooth friction with the ctrl MuJoCo applied (the compensation included), so the
+    compensated swing-up from encoders holds; an estimator on the compensated design model would see the
+    compensation as a force the model lacks."""
+    loop = LoopOptions(period=0.01, delay=0.005, estimator="ekf", process_noise=0.1, **ENCODERS)
+    res = run_swingup(FRICTION_MJCF, method="trajopt", loop=loop)
+    assert res.success, res.metrics
+    assert replays_exactly(res.rollout)
+    assert res.metrics["friction"]["compensation"]
+    assert res.metrics["estimation"]["rms_error"]["hinge"] < 0.002
