@@ -666,8 +666,10 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     Returns
     -------
     dict
-        ``lqr`` (s, the margin; None when even no delay fails), ``lqr_first_failure`` (s or None), with ``pid`` the
-        same for the PID, and ``tried`` (the delays tried, s).
+        ``lqr`` (s, the margin; None when even no delay fails), ``lqr_first_failure`` (s or None), ``lqr_runs`` (per
+        delay tried: ``delay`` s, ``balances``, ``settling_time_seed_max`` (s, the worst start's handout settling
+        time; None when one never settles) and ``residual_angle_max`` (rad, the largest pole error over any run's last
+        second)), with ``pid`` the same for the PID, and ``tried`` (the delays tried, s).
     """
     from cartpole.sim.options import LoopOptions
 
@@ -678,9 +680,15 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     out, tried = {}, set()
     for name in ("lqr", "pid") if pid else ("lqr",):
         margin = failed = None
+        curve = []
         for i, d in enumerate(delays):
             run = run_lab(model, loop=loop.replace(delay=d))
-            ok = balances(run if name == "lqr" else compare_pid(run, model))
+            res = run if name == "lqr" else compare_pid(run, model)
+            ok = balances(res)
+            ts = [float(m.settling_time_seed) for m in res.metrics]
+            curve.append({"delay": d, "balances": bool(ok),
+                          "settling_time_seed_max": max(ts) if all(np.isfinite(ts)) else None,
+                          "residual_angle_max": float(res.residual_error[:, list(res.params.hinges)].max())})
             tried.add(d)
             if progress is not None:
                 progress((i + 1) / len(delays))
@@ -689,5 +697,6 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
                 break
             margin = d
         out[name], out[f"{name}_first_failure"] = margin, failed
+        out[f"{name}_runs"] = curve
     out["tried"] = sorted(tried)
     return out

@@ -14,6 +14,7 @@ HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJ
 FIGURE = Path("figures") / "day5_cartpole_lqr.png"
 PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
 ESTIMATION_FIGURE = Path("figures") / "day5_cartpole_estimation.png"
+DELAY_MARGIN_FIGURE = Path("figures") / "delay_margin.png"
 VIDEO = Path("videos") / "day5_cartpole.mp4"
 METRICS = Path("metrics") / "metrics.csv"
 VIDEO_SECONDS = 10.0
@@ -185,7 +186,11 @@ def _delay_margin(args, model, loop) -> dict:
     with stage("delay margin", size=f"delays up to {args.delay_margin:g} s") as tick:
         found = delay_margin(model, loop=loop, max_delay=args.delay_margin, pid=args.compare_pid, progress=tick)
     period = model.dt if loop.period is None else loop.period
-    doc = {"mjcf": model.params.mjcf, "period": float(period), "rig": loop.as_dict(), "delay_margin": found}
+    from cartpole.viz.delay_plot import plot_delay_margin
+
+    figure = plot_delay_margin(found, Path(args.out) / DELAY_MARGIN_FIGURE)
+    doc = {"mjcf": model.params.mjcf, "period": float(period), "rig": loop.as_dict(), "delay_margin": found,
+           "figure": str(figure.resolve())}
     if not args.json:
         for name in ("lqr", "pid"):
             if name in found:
@@ -193,6 +198,7 @@ def _delay_margin(args, model, loop) -> dict:
                 print(f"{name.upper()}: balances all five starts up to a delay of "
                       f"{'no delay at all' if m is None else f'{m:g} s'}"
                       + (f"; fails at {f:g} s" if f is not None else f" (every delay tried, to {args.delay_margin:g} s)"))
+        print(f"Wrote {doc['figure']}")
     return doc
 
 

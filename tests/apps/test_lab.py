@@ -321,8 +321,13 @@ def test_delay_margin_is_the_last_delay_that_balances_and_the_next_fails():
     found = delay_margin(loop=loop, max_delay=0.06)
     m, f = found["lqr"], found["lqr_first_failure"]
     assert m is not None and f is not None and f == pytest.approx(m + 0.005)
-    assert balances(run_lab(loop=loop.replace(delay=m))) and not balances(run_lab(loop=loop.replace(delay=f)))
+    at_margin, at_failure = run_lab(loop=loop.replace(delay=m)), run_lab(loop=loop.replace(delay=f))
+    assert balances(at_margin) and not balances(at_failure)
     assert found["tried"][-1] == pytest.approx(f)
+    runs = found["lqr_runs"]
+    assert [r["delay"] for r in runs] == found["tried"] and [r["balances"] for r in runs] == [True] * (len(runs) - 1) + [False]
+    assert runs[-2]["settling_time_seed_max"] == pytest.approx(max(at_margin.settling_times_seed))
+    assert runs[-2]["residual_angle_max"] == pytest.approx(at_margin.residual_error[:, 1].max())
 
 
 def test_lab_on_a_cart_with_dry_friction_balances_and_the_compensation_cuts_the_residual_cart_error():

@@ -406,3 +406,12 @@ def test_friction_is_reported_and_no_friction_compensation_turns_the_feedforward
     assert _lqr_json(capsys, "--out", str(tmp_path / "plain"))["friction"] is None
     assert main(["lqr", "--mjcf", mjcf, "--no-video", "--out", str(tmp_path / "prose")]) == 0
     assert "Friction (frictionloss slider 0.5, hinge 0.002): designed without" in capsys.readouterr().out
+
+
+def test_delay_margin_writes_its_figure_and_the_curve_behind_it(tmp_path, capsys):
+    doc = _lqr_json(capsys, "--delay-margin", "0.01", "--period", "0.005", "--out", str(tmp_path))
+    runs = doc["delay_margin"]["lqr_runs"]
+    assert [r["delay"] for r in runs] == pytest.approx([0.0, 0.005, 0.01]) and all(r["balances"] for r in runs)
+    assert doc["delay_margin"]["lqr"] == pytest.approx(0.01) and doc["delay_margin"]["lqr_first_failure"] is None
+    assert Path(doc["figure"]) == (tmp_path / "figures" / "delay_margin.png").resolve()
+    assert Path(doc["figure"]).read_bytes()[:4] == b"\x89PNG"
