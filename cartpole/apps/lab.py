@@ -649,7 +649,7 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     """The largest delay (whole physics steps) at which the lab's controller still balances all five starts.
 
     The delays ``0, h, 2h, ...`` up to ``max_delay`` are tried in turn on the rig ``loop`` (its ``delay`` replaced)
-    until one fails (:func:`balances`); the margin is the last that held.
+    until one fails (:func:`balances`); the margin is the last that held (:func:`rig_margin`).
 
     Parameters
     ----------
@@ -666,36 +666,95 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     Returns
     -------
     dict
-        ``lqr`` (s, the margin; None when even no delay fails), ``lqr_first_failure`` (s or None), ``lqr_runs`` (per
-        delay tried: ``delay`` s, ``balances``, ``settling_time_seed_max`` (s, the worst start's handout settling
-        time; None when one never settles) and ``residual_angle_max`` (rad, the largest pole error over any run's last
-        second)), with ``pid`` the same for the PID, and ``tried`` (the delays tried, s).
+        :func:`rig_margin`'s, with the setting ``delay`` (s).
+    """
+    h = float(_model(mjcf).dt)
+    delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
+    return rig_margin(mjcf, loop=loop, setting="delay", values=delays, pid=pid, progress=progress)
+
+
+#: Sensor noise levels :func:`noise_margin` tries below its largest, as fractions of it (0 and halvings).
+NOISE_FRACTIONS = (0.0,) + tuple(2.0 ** -k for k in range(9, -1, -1))
+
+
+def noise_margin(mjcf=None, *, loop=None, max_noise: float = 0.05, pid: bool = False, progress=None) -> dict:
+    """The largest sensor noise (standard deviation, each sensor's units) at which the lab's controller still
+    balances all five starts on the rig ``loop``: 0 and ``max_noise`` halved nine times to ``max_noise`` in turn
+    (:data:`NOISE_FRACTIONS`), until one fails (:func:`rig_margin`, setting ``sensor_noise``).
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+    loop : LoopOptions, optional
+        The rig; it needs an estimator (default ``kf`` once a sensor option is given) and usually encoders.
+    max_noise : float
+        Largest noise tried (m on slides, rad on hinges), > 0.
+    pid : bool
+        Also the cascaded PID's (on the measurements).
+    progress : callable, optional
+
+    Returns
+    -------
+    dict
+        :func:`rig_margin`'s, with the setting ``sensor_noise``.
+    """
+    values = [float(max_noise) * f for f in NOISE_FRACTIONS]
+    return rig_margin(mjcf, loop=loop, setting="sensor_noise", values=values, pid=pid, progress=progress)
+
+
+def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False, progress=None) -> dict:
+    """The largest value of one rig setting at which the lab's controller still balances all five starts.
+
+    The ``values`` are tried in increasing order on the rig ``loop`` (``setting`` replaced by each) until one fails
+    (:func:`balances`); the margin is the last that held.
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+    loop : LoopOptions, optional
+        The rig; default the perfect loop.
+    setting : str
+        A :class:`~cartpole.sim.options.LoopOptions` field (``delay``, ``sensor_noise``, ...).
+    values : sequence of float
+        Increasing values of it, in its units.
+    pid : bool
+        Also the cascaded PID's margin (one pole on a cart).
+    progress : callable, optional
+        Called with the fraction of the values tried (0..1).
+
+    Returns
+    -------
+    dict
+        ``lqr`` (the margin; None when the first value already fails), ``lqr_first_failure`` (None when none
+        fails), ``lqr_runs`` (per value tried: ``setting`` -> the value, ``balances``, ``settling_time_seed_max`` (s,
+        the worst start's handout settling time; None when one never settles) and ``residual_angle_max`` (rad, the
+        largest pole error over any run's last second)), with ``pid`` the same for the PID; ``setting`` and
+        ``tried`` (the values tried).
     """
     from cartpole.sim.options import LoopOptions
 
     model = _model(mjcf)
     loop = LoopOptions() if loop is None else loop
-    h = float(model.dt)
-    delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
-    out, tried = {}, set()
+    values = [float(v) for v in values]
+    out, tried = {"setting": setting}, set()
     for name in ("lqr", "pid") if pid else ("lqr",):
         margin = failed = None
         curve = []
-        for i, d in enumerate(delays):
-            run = run_lab(model, loop=loop.replace(delay=d))
+        for i, v in enumerate(values):
+            run = run_lab(model, loop=loop.replace(**{setting: v}))
             res = run if name == "lqr" else compare_pid(run, model)
             ok = balances(res)
             ts = [float(m.settling_time_seed) for m in res.metrics]
-            curve.append({"delay": d, "balances": bool(ok),
+            curve.append({setting: v, "balances": bool(ok),
                           "settling_time_seed_max": max(ts) if all(np.isfinite(ts)) else None,
                           "residual_angle_max": float(res.residual_error[:, list(res.params.hinges)].max())})
-            tried.add(d)
+            tried.add(v)
             if progress is not None:
-                progress((i + 1) / len(delays))
+                progress((i + 1) / len(values))
             if not ok:
-                failed = d
+                failed = v
                 break
-            margin = d
+            margin = v
         out[name], out[f"{name}_first_failure"] = margin, failed
         out[f"{name}_runs"] = curve
     out["tried"] = sorted(tried)

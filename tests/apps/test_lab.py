@@ -349,3 +349,18 @@ def test_lab_on_a_cart_with_dry_friction_balances_and_the_compensation_cuts_the_
     slide = on.params.slide
     assert on.residual_error[:, slide].max() < off.residual_error[:, slide].max()
     assert not any(on.settled)  # the hinge's stiction: never inside the strict 0.01 band
+
+
+def test_noise_tolerance_is_the_last_noise_that_balances_and_is_measured_through_the_estimator():
+    """rig_margin over the sensor noise (the search behind --noise-margin): the PID on the measurements gives up
+    between 1 mrad and 0.1 rad of noise, and its margin and first failure are what run_lab + compare_pid say."""
+    from cartpole.apps.lab import NOISE_FRACTIONS, balances, compare_pid, rig_margin, run_lab
+    from cartpole.sim import LoopOptions
+
+    loop = LoopOptions(period=0.01, encoder_cpr=2048, encoder_resolution=0.001)
+    found = rig_margin(loop=loop, setting="sensor_noise", values=[0.001, 0.1], pid=True)
+    assert found["setting"] == "sensor_noise" and found["pid"] == 0.001 and found["pid_first_failure"] == 0.1
+    assert not balances(compare_pid(run_lab(loop=loop.replace(sensor_noise=0.1)), None))
+    assert [r["sensor_noise"] for r in found["pid_runs"]] == [0.001, 0.1]
+    assert found["lqr_runs"][0]["balances"] and found["lqr"] is not None
+    assert NOISE_FRACTIONS[0] == 0.0 and NOISE_FRACTIONS[-1] == 1.0 and list(NOISE_FRACTIONS) == sorted(NOISE_FRACTIONS)

@@ -415,3 +415,13 @@ def test_delay_margin_writes_its_figure_and_the_curve_behind_it(tmp_path, capsys
     assert doc["delay_margin"]["lqr"] == pytest.approx(0.01) and doc["delay_margin"]["lqr_first_failure"] is None
     assert Path(doc["figure"]) == (tmp_path / "figures" / "delay_margin.png").resolve()
     assert Path(doc["figure"]).read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("argv, says", [(["--noise-margin", "0"], "--noise-margin 0 is not a sensor noise"),
+                                        (["--delay-margin", "-1"], "--delay-margin -1 is not a delay"),
+                                        (["--delay-margin", "0.01", "--noise-margin", "0.01"], "one at a time")])
+def test_bad_margin_searches_are_one_sentence_and_write_nothing(argv, says, tmp_path, capsys):
+    assert main(["lqr", *argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert says in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "out").exists()

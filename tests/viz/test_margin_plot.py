@@ -1,11 +1,11 @@
-"""The delay-margin figure: both controllers' curves against the delay in ms, the failed delays as crosses, the
+"""The rig-margin figure (here the delay margin): both controllers' curves against the delay in ms, the failed delays as crosses, the
 margins as dashed lines, written whole; drawn from a real delay_margin result."""
 import numpy as np
 import pytest
 
 from cartpole.apps.lab import delay_margin
 from cartpole.sim import LoopOptions
-from cartpole.viz.delay_plot import delay_margin_figure, plot_delay_margin
+from cartpole.viz.margin_plot import margin_figure, plot_margin
 
 
 @pytest.fixture(scope="module")
@@ -15,7 +15,7 @@ def found():
 
 
 def test_delay_figure_plots_each_delay_tried_and_marks_the_failure_and_the_margin(found, tmp_path):
-    fig = delay_margin_figure(found)
+    fig = margin_figure(found)
     ax_t, ax_e = fig.axes
     assert "settling time (s)" in ax_t.get_ylabel() and "(mrad)" in ax_e.get_ylabel()
     assert "(ms)" in ax_e.get_xlabel()
@@ -29,5 +29,5 @@ def test_delay_figure_plots_each_delay_tried_and_marks_the_failure_and_the_margi
     assert f"LQR: fails at {1e3 * found['lqr_first_failure']:g} ms" in labels
     margins = [ln for ln in ax_t.get_lines() if ln.get_linestyle() == "--"]
     assert [ln.get_xdata()[0] for ln in margins] == pytest.approx([1e3 * found["lqr"]])
-    out = plot_delay_margin(found, tmp_path / "figures" / "delay.png")
+    out = plot_margin(found, tmp_path / "figures" / "delay.png")
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
