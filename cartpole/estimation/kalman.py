@@ -41,7 +41,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.estimation.base import EstimationError
+from cartpole.estimation.base import EstimationError, check_measurement, first_estimate
 from cartpole.estimation.measurement import (check_measurement_model, measurement_jacobians,
                                           positions_initial_state)
 from cartpole.estimation.mhe_functions import positive_definite, symmetric_matrix
@@ -439,10 +439,7 @@ class KalmanFilter:
             The first estimate ``initial_state(y0)`` (zero rates).
         """
         y0 = self._check_y(y0)
-        x0 = np.array(self._initial_state(y0), dtype=float).ravel()
-        if x0.shape != (self.nx,) or not np.all(np.isfinite(x0)):
-            raise EstimationError(f"initial_state(y0) must return {self.nx} finite numbers [qpos, qvel]; got "
-                                  f"{x0.tolist()}.")
+        x0 = first_estimate(self._initial_state, y0, self.nx)
         self.x_hat = x0
         return x0.copy()
 
@@ -483,7 +480,4 @@ class KalmanFilter:
         return self._y_ref[key]
 
     def _check_y(self, y) -> np.ndarray:
-        y = np.asarray(y, dtype=float).ravel()
-        if y.shape != (self.ny,) or not math.isfinite(y.sum()):
-            raise EstimationError(f"The measurement must be {self.ny} finite numbers; got {y.tolist()}.")
-        return y
+        return check_measurement(y, self.ny)
