@@ -341,7 +341,12 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         options = {"plan": plan, "loop": loop, "mpc": mpc}
         if progress is not None:
             progress("mpc", 0.0)
-        controller = nmpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
+        if mpc.solver == "ddp":
+            from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
+
+            controller = ddp_mpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
+        else:
+            controller = nmpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
         if progress is not None:
             progress("mpc", 1.0)
         basin = None

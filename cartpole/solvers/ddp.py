@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
@@ -108,8 +108,9 @@ class DDPResult:
     outer : int
         Augmented-Lagrangian rounds.
     status : str
-        ``"converged"``, ``"max_iterations"``, ``"line_search"`` (no step decreased the cost at the largest
-        regularisation) or ``"infeasible start"``.
+        ``"converged"``, ``"constraints violated"`` (the last round converged with a violation above the
+        tolerance: every round used), ``"max_iterations"`` or ``"line_search"`` (no step decreased the cost at the
+        largest regularisation).
     history : tuple of float
         The penalised cost after each accepted iteration.
     """
@@ -154,6 +155,9 @@ class DDP:
         qpos indices of the hinges (their errors are wrapped).
     Qf : (nx, nx) array, optional
         Terminal quadratic weight on ``x_N - x_goal`` (needs ``x_goal``).
+    goal_constraint : bool
+        Hold ``x_N = x_goal`` as a constraint (True) or only weigh it by ``Qf`` (False: a receding horizon's
+        terminal cost).
     options : DDPOptions, optional
     compiled : bool
         Compile the stage derivatives to C (unless ``CARTPOLE_NO_COMPILE`` is set).
@@ -161,7 +165,7 @@ class DDP:
 
     def __init__(self, step: ca.Function, dt: float, N: int, *, running: ca.Function | None = None,
                  u_low, u_high, q_low=None, q_high=None, x_goal=None, hinges=(), Qf=None,
-                 options: DDPOptions | None = None, compiled: bool = True):
+                 goal_constraint: bool = True, options: DDPOptions | None = None, compiled: bool = True):
         self.options = DDPOptions() if options is None else options
         self.nx, self.nu = int(step.numel_in(0)), int(step.numel_in(1))
         nx, nu = self.nx, self.nu
@@ -185,6 +189,9 @@ class DDP:
         if self.x_goal is not None and self.x_goal.shape != (nx,):
             raise DDPError(f"The goal must be {nx} numbers [qpos, qvel].")
         self.Qf = None if Qf is None else np.asarray(Qf, float)
+        if self.Qf is not None and (self.x_goal is None or self.Qf.shape != (nx, nx)):
+            raise DDPError(f"The terminal weight Qf must be ({nx}, {nx}) and needs a goal x_goal.")
+        self.goal_constraint = bool(goal_constraint) and self.x_goal is not None
         self._build(step, running, compiled)
 
     # ---- the compiled pieces ----------------------------------------------------------------------------------
@@ -229,18 +236,16 @@ class DDP:
         cost = ca.Function("ddp_cost", [x, u, lam, rho], [ca.densify(stage_cost), ca.densify(pen), ca.densify(g)],
                            ["x", "u", "lam", "rho"], ["l", "pen", "g"])
         # terminal: the goal equality c = e(x) (wrapped), with multipliers nu_c, and Qf; and the bounds at x_N
-        nc = 0 if self.x_goal is None else nx
+        nc = nx if self.goal_constraint else 0
         mu_c = ca.SX.sym("mu_c", nc)
-        phi = ca.SX(0)
-        if self.x_goal is not None:
-            e = self._terminal_error(x)
-            phi = ca.dot(mu_c, e) + 0.5 * rho * ca.dot(e, e)
-            if self.Qf is not None:
-                phi = phi + ca.mtimes([e.T, ca.DM(self.Qf), e])
+        e = self._terminal_error(x) if self.x_goal is not None else ca.SX.zeros(0, 1)
+        qf = ca.mtimes([e.T, ca.DM(self.Qf), e]) if (self.Qf is not None and self.x_goal is not None) else ca.SX(0)
+        phi = qf
+        cterm = e if self.goal_constraint else ca.SX.zeros(0, 1)
+        if self.goal_constraint:
+            phi = phi + ca.dot(mu_c, e) + 0.5 * rho * ca.dot(e, e)
         phi_pen = phi + pen
         Vx, (Vxx, _) = ca.gradient(phi_pen, x), ca.hessian(phi_pen, x)
-        cterm = self._terminal_error(x) if self.x_goal is not None else ca.SX.zeros(0, 1)
-        qf = ca.mtimes([cterm.T, ca.DM(self.Qf), cterm]) if (self.Qf is not None and nc) else ca.SX(0)
         terminal = ca.Function("ddp_terminal", [x, lam, mu_c, rho],
                                [ca.densify(v) for v in (phi_pen, Vx, Vxx, cterm, g, qf)],
                                ["x", "lam", "mu_c", "rho"], ["phi", "Vx", "Vxx", "c", "g", "qf"])
@@ -367,15 +372,25 @@ class DDP:
             return None, None
         return Xn, out[1].reshape(N, self.nu).copy()
 
-    def solve(self, x0, U0=None) -> DDPResult:
+    def solve(self, x0, U0=None, *, max_iterations: int | None = None, max_outer: int | None = None) -> DDPResult:
         """Minimise from ``x0`` (nx,) starting at the ctrl sequence ``U0`` ((N, nu); default zeros, clipped into
         the bounds).
+
+        Parameters
+        ----------
+        x0 : (nx,) array
+        U0 : (N, nu) array, optional
+        max_iterations, max_outer : int, optional
+            Replace the options' limits for this solve (a receding horizon's few warm-started iterations).
 
         Returns
         -------
         DDPResult
         """
         o = self.options
+        if max_iterations is not None or max_outer is not None:
+            o = replace(o, **{k: int(v) for k, v in (("max_iterations", max_iterations), ("max_outer", max_outer))
+                              if v is not None})
         N, nx, nu, ng = self.N, self.nx, self.nu, self.ng
         x0 = np.asarray(x0, float).ravel()
         if x0.shape != (nx,) or not np.all(np.isfinite(x0)):
@@ -404,13 +419,16 @@ class DDP:
                 D = [np.array(d) for d in D]
                 _, VxN, VxxN, _, _, _ = (np.array(v) for v in self._terminal(X[N], lam[N], mu_c, np.array([rho])))
                 VxxN = VxxN.reshape(nx, nx).T
-                accepted = False
+                accepted = stationary = False
                 while mu <= o.mu_max:
                     back = self._backward(D, VxN, VxxN, U, mu)
                     if back is None:
                         mu = max(mu * 10, 1e-6)
                         continue
                     kff, Kb, (d1, d2) = back
+                    if -(d1 + d2) <= o.tolerance * max(1.0, abs(J)):  # no decrease to search for: stationary
+                        stationary = True
+                        break
                     for alpha in o.line_search:
                         Xn, Un = self._forward(X, U, kff, Kb, alpha)
                         if Xn is None:
@@ -423,6 +441,9 @@ class DDP:
                     if accepted:
                         break
                     mu = max(mu * 10, 1e-6)
+                if stationary:
+                    K, inner_ok = Kb, True
+                    break
                 if not accepted:
                     status = "line_search"
                     break
@@ -454,6 +475,8 @@ class DDP:
             status = "max_iterations" if status != "line_search" else status
             mu = o.mu0
         _, cost, viol = self._total(X, U, lam, mu_c, rho)
+        if status == "max_iterations" and inner_ok:  # the last round converged; its constraints still do not hold
+            status = "constraints violated"
         converged = status == "converged" and viol <= o.constraint_tolerance
         t = self.dt * np.arange(N + 1)
         return DDPResult(t=t, x=X, u=U, K=K, cost=cost, violation=viol, converged=bool(converged),
