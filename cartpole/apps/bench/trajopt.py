@@ -372,6 +372,10 @@ def print_mpc_table(doc: dict, file=None) -> None:
       f"max {doc.get('solve_ms_max', float('nan')):.3f} ms over {doc.get('steps')} steps; IPOPT re-solving from the "
       f"shifted guess: median {base.get('solve_ms_median', float('nan')):.2f} ms, max "
       f"{base.get('solve_ms_max', float('nan')):.2f} ms; speed-up {doc.get('speedup_median', float('nan')):.1f}x\n")
+    for name, row in (doc.get("ddp") or {}).items():
+        w(f"MPC by DDP ({name.replace('_', ' ')}, one warm-started iteration a period): median "
+          f"{row['solve_ms_median']:.3f} ms, max {row['solve_ms_max']:.3f} ms over {row['steps']} steps, "
+          f"{'swings up and holds' if row['success'] else 'FAILED'}\n")
 
 
 def print_table(doc: dict, file=None) -> None:
