@@ -10,7 +10,7 @@ The problem, on a discrete model ``x_k+1 = f(x_k, u_k)`` (one MJCF step, or a ho
 
 ``L`` is any running cost of the collocation (:func:`cartpole.ocp.objectives.make_objective`: ``effort``,
 ``tracking``, the ``dmc_*`` rewards negated, ``MODULE:FUNCTION``), ``Phi`` an optional terminal quadratic
-``(x_N - x_goal)' Qf (x_N - x_goal)``.
+``(x_N - x_goal)' Qf (x_N - x_goal)`` plus any terminal cost Function of ``x_N``.
 
 The method is box-DDP (Tassa, Mansard and Todorov, ICRA 2014) in its Gauss-Newton form (iLQR: the dynamics'
 second derivatives are dropped, the costs' are kept): a backward pass of the quadratic model of the cost-to-go,
@@ -158,6 +158,8 @@ class DDP:
     goal_constraint : bool
         Hold ``x_N = x_goal`` as a constraint (True) or only weigh it by ``Qf`` (False: a receding horizon's
         terminal cost).
+    terminal : casadi.Function, optional
+        ``x (nx,) -> cost``, a terminal cost of any form, added to ``Phi`` (e.g. a soft goal).
     options : DDPOptions, optional
     compiled : bool
         Compile the stage derivatives to C (unless ``CARTPOLE_NO_COMPILE`` is set).
@@ -165,7 +167,8 @@ class DDP:
 
     def __init__(self, step: ca.Function, dt: float, N: int, *, running: ca.Function | None = None,
                  u_low, u_high, q_low=None, q_high=None, x_goal=None, hinges=(), Qf=None,
-                 goal_constraint: bool = True, options: DDPOptions | None = None, compiled: bool = True):
+                 goal_constraint: bool = True, terminal: ca.Function | None = None,
+                 options: DDPOptions | None = None, compiled: bool = True):
         self.options = DDPOptions() if options is None else options
         self.nx, self.nu = int(step.numel_in(0)), int(step.numel_in(1))
         nx, nu = self.nx, self.nu
@@ -192,6 +195,10 @@ class DDP:
         if self.Qf is not None and (self.x_goal is None or self.Qf.shape != (nx, nx)):
             raise DDPError(f"The terminal weight Qf must be ({nx}, {nx}) and needs a goal x_goal.")
         self.goal_constraint = bool(goal_constraint) and self.x_goal is not None
+        if terminal is not None and (not isinstance(terminal, ca.Function) or terminal.n_in() != 1
+                                     or terminal.numel_in(0) != nx or terminal.numel_out(0) != 1):
+            raise DDPError(f"The terminal cost must be a CasADi Function x ({nx},) -> scalar.")
+        self.terminal_cost = terminal
         self._build(step, running, compiled)
 
     # ---- the compiled pieces ----------------------------------------------------------------------------------
@@ -240,6 +247,8 @@ class DDP:
         mu_c = ca.SX.sym("mu_c", nc)
         e = self._terminal_error(x) if self.x_goal is not None else ca.SX.zeros(0, 1)
         qf = ca.mtimes([e.T, ca.DM(self.Qf), e]) if (self.Qf is not None and self.x_goal is not None) else ca.SX(0)
+        if self.terminal_cost is not None:
+            qf = qf + self.terminal_cost(x)
         phi = qf
         cterm = e if self.goal_constraint else ca.SX.zeros(0, 1)
         if self.goal_constraint:
