@@ -445,10 +445,13 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
             raise MJCFError(f"The MJCF text does not compile: {first_line(exc)}. "
                             "Fix the XML and try again.") from None
-    path = Path(mjcf) if mjcf is not None else SHIPPED_MJCF
-    path = path.expanduser().resolve()
-    if not path.is_file():
-        raise MJCFError(f"MJCF file '{path}' does not exist; pass --mjcf with the path of a cart-pole MJCF.")
+    from cartpole._files import InputFileError, check_input_file
+
+    try:  # by kind, before opening: a FIFO would block, /dev/zero never ends, a symbolic-link loop raises
+        path = check_input_file(Path(mjcf) if mjcf is not None else SHIPPED_MJCF, what="MJCF file",
+                                flag="--mjcf")
+    except InputFileError as exc:
+        raise MJCFError(str(exc).replace("the path of a readable file", "the path of a cart-pole MJCF")) from None
     try:
         text = path.read_text()
         with _compiler_warnings():

@@ -17,7 +17,13 @@ def _tree(root):
     """Every path under root with its bytes (None for a directory)."""
     if not root.exists():
         return None
-    return {str(p.relative_to(root)): (None if p.is_dir() else p.read_bytes()) for p in sorted(root.rglob("*"))}
+    def content(p):
+        if p.is_symlink():
+            return "-> " + os.readlink(p)
+        if not p.is_file():  # a directory, a FIFO (reading it would block)
+            return None
+        return p.read_bytes()
+    return {str(p.relative_to(root)): content(p) for p in sorted(root.rglob("*"))}
 
 
 def _fails_cleanly(argv, root, capsys, *words):
@@ -138,3 +144,38 @@ def test_a_read_only_file_system_is_refused_before_any_work(mount_point, capsys)
     d = mount_point("ro,size=1m")
     _fails_cleanly([*SWINGUP, "--out", str(d / "results")], d, capsys, "read-only file system")
     _fails_cleanly(["sweep", "--json", "--n", "1", "--out", str(d)], d, capsys, "read-only")
+
+
+# ---- hostile paths (issue 24) -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kind", ["loop", "fifo", "device", "directory"])
+def test_an_mjcf_that_is_not_a_regular_file_is_one_sentence(tmp_path, capsys, kind):
+    path = tmp_path / "m.xml"
+    if kind == "loop":
+        os.symlink(tmp_path / "n.xml", path)
+        os.symlink(path, tmp_path / "n.xml")
+    elif kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "directory":
+        path.mkdir()
+    else:
+        path = "/dev/zero"
+    words = {"loop": "loop of symbolic links", "fifo": "FIFO", "device": "a device", "directory": "a directory"}
+    _fails_cleanly(["linearize", "--json", "--mjcf", str(path)], tmp_path, capsys, words[kind], "--mjcf")
+
+
+def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _fails_cleanly([*SWINGUP, "--out", ""], tmp_path, capsys, "--out is empty")
+
+
+@pytest.mark.parametrize("content", ["binary", "device"])
+def test_a_resume_file_that_is_binary_or_a_device_is_one_sentence(tmp_path, capsys, content):
+    results = tmp_path / "out" / "sweeps" / "sweep_energy.csv"
+    results.parent.mkdir(parents=True)
+    if content == "binary":
+        results.write_bytes(bytes(range(256)) * 8)
+    else:
+        os.symlink("/dev/zero", results)
+    _fails_cleanly(["sweep", "--json", "--n", "1", "--duration", "0.5", "--resume", "--out", str(tmp_path / "out")],
+                   tmp_path, capsys, "Cannot resume", "drop --resume")

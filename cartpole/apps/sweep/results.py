@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole._files import output_error, short
+from cartpole._files import InputFileError, output_error, read_bounded, short
 from cartpole.models import CartPoleParams
 from cartpole.apps.sweep.plan import Axis, SweepError, start_index
 
@@ -281,6 +281,9 @@ def parse_row(line: dict) -> dict:
             "rho": math.nan, "error": line["error"] or None}
 
 
+#: Largest results file read back to resume, bytes (:data:`~cartpole.apps.sweep.plan.MAX_RUNS` rows of about a
+#: kilobyte each fit many times over).
+MAX_RESULTS_BYTES = 256 * 2**20
 #: Largest run index read back from a results file (the sweep itself keeps only its own runs).
 MAX_READ = 10**9
 
@@ -295,13 +298,18 @@ def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
         The file cannot be read, or holds another sweep's rows (or another header), in one sentence.
     """
     path = Path(path)
-    if not path.exists():
+    if not os.path.lexists(path):
         return {}
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SweepError(f"Cannot read {short(path)} to resume ({exc.strerror}); check it or drop --resume.") \
+    try:  # by kind and with a bound: a FIFO, /dev/zero or a huge file is refused, not read whole
+        data = read_bounded(path, MAX_RESULTS_BYTES, what="Results file", flag="--resume")
+    except InputFileError as exc:
+        raise SweepError(f"Cannot resume from {short(path)}: it {exc.reason}; move it away or drop --resume.") \
             from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise SweepError(f"Cannot resume from {short(path)}: it is not a text CSV file (not UTF-8); move it away or "
+                         "drop --resume.") from None
     lines = text.splitlines()
     if not lines:
         return {}
