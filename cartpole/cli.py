@@ -14,6 +14,7 @@ import importlib
 import json
 import os
 import sys
+import warnings
 
 from cartpole.errors import CartPoleError, first_line
 
@@ -135,6 +136,10 @@ def _run(args):
 
     notes: list[str] = []
     with contextlib.ExitStack() as stack:
+        # NumPy's and SciPy's warnings (an overflow inside a Riccati solve, say) are kept, not printed as they come:
+        # a failing command prints its one sentence alone, a successful one each distinct warning once at the end
+        caught = stack.enter_context(warnings.catch_warnings(record=True))
+        warnings.simplefilter("default")
         if args._writes:
             args.out = str(check_out_dir(args.out))
             stack.enter_context(output_transaction())
@@ -148,6 +153,8 @@ def _run(args):
         doc = args._run(args)
     for note in dict.fromkeys(notes):  # each distinct warning once, after a run that succeeded
         print(f"cartpole {args.command}: MuJoCo warned: {note}", file=sys.stderr)
+    for note in dict.fromkeys(f"{w.category.__name__}: {' '.join(str(w.message).split())}" for w in caught):
+        print(f"cartpole {args.command}: warning: {note}", file=sys.stderr)
     return doc
 
 
@@ -164,6 +171,13 @@ def main(argv=None) -> int:
         print(f"cartpole {args.command}: unrecognized arguments: {' '.join(extra)}; see `cartpole {args.command} "
               "--help`.", file=sys.stderr)
         return 2
+    if os.environ.get("MPLBACKEND"):  # matplotlib refuses a bad one at import, with a traceback: say it here
+        try:
+            import matplotlib  # noqa: F401
+        except ValueError:
+            print(f"cartpole {args.command}: MPLBACKEND={os.environ['MPLBACKEND']!r} is not a matplotlib backend; "
+                  "unset it or set MPLBACKEND=Agg (the figures are written to files).", file=sys.stderr)
+            return 2
     try:
         import mujoco  # noqa: F401  (MuJoCo 4 raises AttributeError, not ImportError, for a missing GL library)
     except Exception as exc:  # pragma: no cover - depends on the machine's GL libraries

@@ -179,3 +179,67 @@ def test_a_resume_file_that_is_binary_or_a_device_is_one_sentence(tmp_path, caps
         os.symlink("/dev/zero", results)
     _fails_cleanly(["sweep", "--json", "--n", "1", "--duration", "0.5", "--resume", "--out", str(tmp_path / "out")],
                    tmp_path, capsys, "Cannot resume", "drop --resume")
+
+
+# ---- numbers range-checked before use (issue 24) ----------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, words", [
+    (["sweep", "--json", "--n", "1", "--seed", "-1"], ("--seed", "0 to 2**63 - 1")),
+    ([*SWINGUP, "--push", "1e308:1"], ("push", "start time in [0")),
+    ([*SWINGUP, "--push", "1:1e12"], ("push", "1000 N")),
+    ([*SWINGUP, "--push", "5:1"], ("starts after the run ends at 0.5 s",)),
+    (["sweep", "--json", "--duration", "1", "--push-force", "1", "--push-time", "1e308"], ("after the runs end",)),
+    (["sweep", "--json", "--duration", "1", "--push-force", "1e12"], ("1000 N limit",)),
+    (["sweep", "--json", "--duration", "1", "--start", "slider", "5"], ("start:slider", "outside its joint range")),
+    ([*SWINGUP, "--x0", "0", "3", "0", "1e308"], ("start rate", "100 rad/s limit")),
+    ([*SWINGUP, "--x0", "0", "1e308", "0", "0"], ("start angle", "rad limit")),
+    (["swingup", "--json", "--no-video", "--method", "mpc", "--horizon", "1e6"], ("stages", "500 limit")),
+    (["swingup", "--json", "--no-video", "--method", "mpc", "--period", "0.005", "--horizon", "30"], ("500 limit",)),
+    (["swingup", "--json", "--no-video", "--method", "mpc", "--period", "0.5", "--horizon", "0.2"],
+     ("shorter than its 0.5 s control period",)),
+    (["swingup", "--json", "--no-video", "--method", "mpc", "--period", "1e-9"], ("shorter than the MJCF's",)),
+    (["swingup", "--json", "--no-video", "--period", "1e-9"], ("physics steps",)),
+], ids=["seed", "push-time", "push-force", "push-after-end", "sweep-push-time", "sweep-push-force", "sweep-start",
+        "x0-rate", "x0-angle", "mpc-horizon", "mpc-stages", "mpc-horizon-below-period", "mpc-period", "period"])
+def test_a_number_out_of_range_is_refused_before_any_work(tmp_path, capsys, argv, words):
+    _fails_cleanly([*argv, "--out", str(tmp_path / "out")], tmp_path, capsys, *words)
+
+
+def _variant(tmp_path, old, new):
+    from cartpole.models import SHIPPED_MJCF
+
+    text = SHIPPED_MJCF.read_text()
+    assert old in text
+    path = tmp_path / "variant.xml"
+    path.write_text(text.replace(old, new))
+    return str(path)
+
+
+@pytest.mark.parametrize("old, new, argv, words", [
+    ('ctrlrange="-1 1"', 'ctrlrange="-1e300 1e300"', SWINGUP, ("ctrlrange", "limit")),
+    ('ctrlrange="-1 1"', 'ctrlrange="-1e300 1e300"', ["lqr", "--json", "--no-video"], ("ctrlrange", "limit")),
+    ('<joint name="hinge" type="hinge"', '<joint name="hinge" type="hinge" limited="true" range="60 300"', SWINGUP,
+     ("does not contain the upright angle",)),
+    ('gear="20"', 'gear="-20"', SWINGUP, ("positive gear",)),
+], ids=["ctrlrange-swingup", "ctrlrange-lqr", "hinge-range", "negative-gear"])
+def test_an_mjcf_no_swingup_can_use_as_given_is_one_sentence(tmp_path, capsys, old, new, argv, words):
+    mjcf = _variant(tmp_path, old, new)
+    line = _fails_cleanly([*argv, "--mjcf", mjcf, "--out", str(tmp_path / "out")], tmp_path, capsys, *words)
+    assert "EnergyGains(" not in line
+
+
+def test_a_bogus_matplotlib_backend_is_one_sentence(tmp_path):
+    import sys
+
+    # a process of its own: matplotlib imported with a bad backend leaves half a package in sys.modules
+    env = dict(os.environ, MPLBACKEND="bogus")
+    proc = subprocess.run([sys.executable, "-m", "cartpole", *SWINGUP, "--out", str(tmp_path / "out")], env=env,
+                          capture_output=True, text=True, timeout=120)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and "MPLBACKEND" in lines[0] and "Agg" in lines[0], proc.stderr
+    assert proc.stdout == "" and not (tmp_path / "out").exists()
+
+
+def test_weights_that_overflow_print_their_sentence_alone(tmp_path, capsys):
+    _fails_cleanly(["lqr", "--json", "--no-video", "--Q", *["1e308"] * 4, "--out", str(tmp_path / "out")],
+                   tmp_path, capsys, "Riccati")

@@ -96,7 +96,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         Bad settings. Errors of the model (an MJCF that is not a cart-pole, energy on a chain) are raised before
         any run; a run that raises on its own start is a failed row instead.
     """
-    check_settings(method, n, workers, gain_jitter, half_widths, energy_options)
+    check_settings(method, n, workers, gain_jitter, half_widths, energy_options, seed=seed)
     n, workers = int(n), int(workers)
     # the pool's fork server imports the toolkit while this process reads the model, plans, finds the basins and
     # starts its own share of the runs
@@ -104,7 +104,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     model = build_model(params)
     nx = 2 * params.nq
-    axes = check_axes(axes, params, method)
+    axes = check_axes(axes, params, method, duration=duration if duration is not None else
+                      {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method))
     center = model.x_hanging if center is None else np.asarray(center, float)
     half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
     if center.shape != (nx,) or half_widths.shape != (nx,):
