@@ -86,6 +86,37 @@ def compiler() -> str | None:
     return shutil.which(cc) or shutil.which("cc")
 
 
+#: Seconds a compiler run may take before its whole process group (the driver and its cc1, as, ld) is killed.
+COMPILE_TIMEOUT = 120.0
+
+
+def run_compiler(cmd, timeout: float | None = None) -> subprocess.CompletedProcess:
+    """Run the compiler command ``cmd`` (a list) in a session of its own and return its completed process (text
+    stdout and stderr).
+
+    On a timeout (``timeout`` s, default :data:`COMPILE_TIMEOUT`), an interrupt or any other exception, the
+    compiler's whole process group is killed (``os.killpg``), so no ``cc1`` outlives the driver; a timeout then
+    raises :class:`subprocess.TimeoutExpired`.
+    """
+    import signal
+
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=COMPILE_TIMEOUT if timeout is None else timeout)
+    except BaseException:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        proc.wait()
+        raise
+    try:  # the driver is gone; a child it left behind (it should not) goes with its group
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
 def digest(obj, h) -> None:
     """Feed a canonical, exact serialisation of ``obj`` (dataclasses, arrays, numbers, strings, sequences) to ``h``."""
     if dataclasses.is_dataclass(obj):
@@ -161,11 +192,9 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
         c_file = Path(tmp) / f"hs_interval_{key}.c"
         c_file.write_text(src)
         out = Path(tmp) / lib.name
-        proc = subprocess.run([cc, *flags, str(c_file), "-o", str(out), "-lm"], capture_output=True, text=True,
-                              timeout=120)
+        proc = run_compiler([cc, *flags, str(c_file), "-o", str(out), "-lm"])
         if proc.returncode != 0 and "-march=native" in flags:
-            proc = subprocess.run([cc, *PORTABLE_CFLAGS, str(c_file), "-o", str(out), "-lm"], capture_output=True,
-                                  text=True, timeout=120)
+            proc = run_compiler([cc, *PORTABLE_CFLAGS, str(c_file), "-o", str(out), "-lm"])
         if proc.returncode != 0:
             last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
             raise RuntimeError(f"{Path(cc).name} failed: {last}")

@@ -40,3 +40,35 @@ def test_buffered_evaluation_equals_the_function_and_reuses_its_output_arrays():
 
 def test_the_cpu_key_is_stable_within_a_process():
     assert codegen.cpu_key() == codegen.cpu_key() and len(codegen.cpu_key()) == 16
+
+
+def _alive(pid: int) -> bool:
+    """The process exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_a_compiler_timeout_kills_its_whole_process_group(tmp_path):
+    import subprocess
+    import time
+
+    import pytest
+
+    pidfile = tmp_path / "child.pid"
+    # a "compiler" whose driver waits on a child of its own (gcc and its cc1)
+    script = f"sleep 60 & echo $! > {pidfile}; wait"
+    with pytest.raises(subprocess.TimeoutExpired):
+        codegen.run_compiler(["sh", "-c", script], timeout=1.0)
+    child = int(pidfile.read_text())
+    deadline = time.monotonic() + 5
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(child), "the compiler's child outlived the timeout"
+
+
+def test_a_compiler_run_returns_its_status_and_output():
+    proc = codegen.run_compiler(["sh", "-c", "echo out; echo err >&2; exit 3"])
+    assert proc.returncode == 3 and proc.stdout.strip() == "out" and proc.stderr.strip() == "err"

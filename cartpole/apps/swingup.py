@@ -45,7 +45,7 @@ from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_mo
 #: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
 #: sweep import them from here).
 __all__ = ["ENERGY_DURATION", "METHODS", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
-           "SwingupResult", "check_model_error", "check_push", "check_start", "check_upright_reachable", "parse_push", "plan_report",
+           "SwingupResult", "check_model_error", "check_push", "check_plan_size", "check_start", "check_upright_reachable", "parse_push", "plan_report",
            "planning_model", "push_force", "run_swingup"]
 
 METHODS = ("energy", "trajopt", "mpc")
@@ -170,6 +170,26 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
             raise SwingupError(f"The start angle {x[i]} rad of hinge '{j.name}' is outside its joint range "
                                f"[{lo}, {hi}] rad; start the pole inside it.")
     return x
+
+
+#: Most poles a trajectory optimisation (trajopt, and the NMPC's plan) is built for: its generated C grows steeply with
+#: every pole (see :data:`cartpole.codegen.LARGE_SOURCE`); a longer chain is refused before anything is built.
+MAX_PLAN_POLES = 3
+
+
+def check_plan_size(model: CartPoleModel, method: str) -> None:
+    """Refuse, before anything is built, a chain too long for ``method``'s planner (:data:`MAX_PLAN_POLES`).
+
+    Raises
+    ------
+    SwingupError
+        ``method`` is trajopt or mpc and the model has more hinges than :data:`MAX_PLAN_POLES`.
+    """
+    n = len(model.hinges)
+    if method in ("trajopt", "mpc") and n > MAX_PLAN_POLES:
+        raise SwingupError(f"This MJCF has a chain of {n} poles and --method {method} plans for at most "
+                           f"{MAX_PLAN_POLES} (its generated code grows steeply with every pole and would not build "
+                           f"in reasonable time); use a chain of at most {MAX_PLAN_POLES} poles.")
 
 
 def check_upright_reachable(model: CartPoleModel) -> None:
@@ -332,6 +352,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
     model = model if model is not None else build_model(params)
     check_upright_reachable(model)
+    check_plan_size(model, method)
     x0 = check_start(model.x_hanging if x0 is None else x0, params)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)

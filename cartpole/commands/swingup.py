@@ -143,7 +143,7 @@ def run(args) -> dict:
 
     from cartpole.models import build_model
     from cartpole.progress import stage
-    from cartpole.apps.swingup import (SwingupError, check_model_error, check_push, check_start,
+    from cartpole.apps.swingup import (SwingupError, check_model_error, check_plan_size, check_push, check_start,
                                        check_upright_reachable, parse_push, run_swingup)
     from cartpole.sim.options import LoopOptions
     from cartpole.viz import plot_swingup
@@ -152,6 +152,7 @@ def run(args) -> dict:
     model = build_model(args.mjcf)
     params = model.params
     check_upright_reachable(model)
+    check_plan_size(model, args.method)
     x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)

@@ -243,3 +243,44 @@ def test_a_bogus_matplotlib_backend_is_one_sentence(tmp_path):
 def test_weights_that_overflow_print_their_sentence_alone(tmp_path, capsys):
     _fails_cleanly(["lqr", "--json", "--no-video", "--Q", *["1e308"] * 4, "--out", str(tmp_path / "out")],
                    tmp_path, capsys, "Riccati")
+
+
+# ---- bounded work (issue 24) ------------------------------------------------------------------------------------
+
+def test_lqr_refuses_a_time_step_whose_logs_do_not_fit(tmp_path, capsys):
+    mjcf = _variant(tmp_path, 'timestep="0.005"', 'timestep="1e-6"')
+    _fails_cleanly(["lqr", "--json", "--mjcf", mjcf, "--out", str(tmp_path / "out")], tmp_path, capsys,
+                   "256 MiB limit", "time step of at least")
+
+
+def _chain(n: int) -> str:
+    body = ""
+    for i in range(n, 0, -1):
+        body = (f'<body name="p{i}" pos="0 0 {0.05 if i == 1 else 0.3}"><joint name="h{i}" type="hinge" axis="0 1 0"'
+                f' damping="0.01"/><geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.02" mass="0.1"/>{body}</body>')
+    return ('<mujoco><option timestep="0.005"><flag contact="disable"/></option><worldbody><body name="cart" '
+            'pos="0 0 4"><joint name="slider" type="slide" axis="1 0 0" limited="true" range="-1.5 1.5" '
+            f'damping="0.1"/><geom type="box" size="0.1 0.05 0.05" mass="1"/>{body}</body></worldbody><actuator>'
+            '<motor name="motor" joint="slider" gear="20" ctrlrange="-1 1"/></actuator></mujoco>')
+
+
+@pytest.mark.parametrize("command", ["swingup", "sweep"])
+def test_a_chain_too_long_to_plan_is_refused_before_anything_is_built(tmp_path, capsys, command):
+    mjcf = tmp_path / "chain4.xml"
+    mjcf.write_text(_chain(4))
+    argv = [command, "--json", "--method", "trajopt", "--mjcf", str(mjcf), "--out", str(tmp_path / "out")]
+    _fails_cleanly(argv + (["--no-video"] if command == "swingup" else ["--n", "1"]), tmp_path, capsys,
+                   "chain of 4 poles", "at most 3")
+
+
+@pytest.mark.parametrize("body, words", [("raise SystemExit(7)\n", "called SystemExit(7) at import"),
+                                         ("raise RuntimeError('boom')\n", "raised RuntimeError (boom) at import"),
+                                         (None, "PYTHONPATH")])
+def test_an_objective_module_that_exits_or_raises_at_import_is_one_sentence(tmp_path, capsys, monkeypatch, body,
+                                                                             words):
+    name = f"cp_objective_{uuid.uuid4().hex[:8]}"
+    if body is not None:
+        (tmp_path / f"{name}.py").write_text(body)
+        monkeypatch.syspath_prepend(str(tmp_path))
+    _fails_cleanly(["swingup", "--json", "--method", "trajopt", "--objective", f"{name}:cost", "--out",
+                    str(tmp_path / "out")], tmp_path, capsys, "cannot be imported", words)

@@ -13,7 +13,7 @@ import numpy as np
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams, build_model, read_params
 from cartpole.progress import stage
-from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import start_server
 from cartpole.apps.sweep.executors import Runner, run_dask, run_here, run_pool
@@ -103,6 +103,10 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     context = start_server(method) if workers > 1 and not address else None
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     model = build_model(params)
+    try:
+        check_plan_size(model, method)
+    except CartPoleError as exc:
+        raise SweepError(first_line(exc) + ".") from None
     nx = 2 * params.nq
     axes = check_axes(axes, params, method, duration=duration if duration is not None else
                       {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method))
