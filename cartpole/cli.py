@@ -16,7 +16,7 @@ import os
 import sys
 import warnings
 
-from cartpole.errors import CartPoleError, first_line
+from cartpole.errors import CartPoleError, Terminated, first_line
 
 #: Subcommand modules, in the order ``cartpole --help`` lists them (one per line: add a command with one line).
 COMMANDS = (
@@ -158,6 +158,31 @@ def _run(args):
     return doc
 
 
+@contextlib.contextmanager
+def signals_as_interrupts():
+    """Inside the block (in the main thread), SIGTERM and SIGHUP raise :class:`Terminated`; the handlers before are
+    put back afterwards. A signal that was ignored stays ignored."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise Terminated(signum)
+
+    saved = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            saved[sig] = signal.signal(sig, terminate)
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
 def main(argv=None) -> int:
     """Entry point of the ``cartpole`` console script; returns the exit status."""
     # Headless rendering: MUJOCO_GL must be set before mujoco is first imported.
@@ -185,7 +210,8 @@ def main(argv=None) -> int:
               f"({type(exc).__name__}); set MUJOCO_GL=egl (or unset it) and try again.", file=sys.stderr)
         return 2
     try:
-        doc = _run(args)
+        with signals_as_interrupts():
+            doc = _run(args)
     except CartPoleError as exc:
         print(f"cartpole {args.command}: {sentence(exc)}", file=sys.stderr)
         return 2
@@ -200,8 +226,12 @@ def main(argv=None) -> int:
         return 2
     except KeyboardInterrupt as exc:  # a command may say what it kept and how to go on (sweep: --resume)
         said = exc.args[0] if exc.args and isinstance(exc.args[0], str) else "interrupted."
+        if isinstance(exc, Terminated) and not (exc.args and isinstance(exc.args[0], str)):
+            import signal
+
+            said = f"stopped by {signal.Signals(exc.signum).name} before it finished; no partial output is left."
         print(f"cartpole {args.command}: {said}", file=sys.stderr)
-        return 130
+        return 128 + exc.signum if isinstance(exc, Terminated) else 130
     if args.json:
         sys.stdout.write(json.dumps(to_jsonable(doc)) + "\n")
     return 0

@@ -195,9 +195,17 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
                              stop_after=args.stop_after, loop=loop)
     except SweepInterrupted as stop:
+        from cartpole.errors import Terminated
+
+        def interrupted(text):  # SIGTERM stays SIGTERM (exit status 143), Ctrl-C is KeyboardInterrupt (130)
+            return KeyboardInterrupt(text) if stop.signum is None else Terminated(stop.signum, text)
+
+        if stop.finished == 0 and not stop.path.exists():
+            raise interrupted(f"interrupted before any of the {stop.total} runs finished; nothing was "
+                              "written.") from None
         again = "the same command with --resume" if not args.resume else "the same command again"
-        raise KeyboardInterrupt(f"interrupted after {stop.finished} of {stop.total} runs, kept in "
-                                f"{short(stop.path)}; run {again} to finish the others.") from None
+        raise interrupted(f"interrupted after {stop.finished} of {stop.total} runs, kept in "
+                          f"{short(stop.path)}; run {again} to finish the others.") from None
     result = rec.result
     doc = {**result.summary(), "rows": rec.rows, "results": str(rec.results.resolve()),
            "figure": str(rec.figure.resolve()), "sweep": rec.sweep, "resumed": rec.resumed,

@@ -16,7 +16,7 @@ from cartpole.progress import stage
 from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import start_server
-from cartpole.apps.sweep.executors import Runner, run_dask, run_here, run_pool
+from cartpole.apps.sweep.executors import Runner, check_address, run_dask, run_here, run_pool
 from cartpole.apps.sweep.plan import (MAX_SHARED_BASINS, SweepError, check_axes, check_settings, default_half_widths,
                                       plan_runs, total_runs)
 from cartpole.apps.sweep.results import (MAX_READ, ResultsFile, SweepResult, csv_row, failure, header, read_done,
@@ -97,6 +97,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         any run; a run that raises on its own start is a failed row instead.
     """
     check_settings(method, n, workers, gain_jitter, half_widths, energy_options, seed=seed)
+    if address:
+        check_address(address)  # a malformed address before any work; an unreachable one when the runs start
     n, workers = int(n), int(workers)
     # the pool's fork server imports the toolkit while this process reads the model, plans, finds the basins and
     # starts its own share of the runs
@@ -187,9 +189,10 @@ class SweepInterrupted(KeyboardInterrupt):
     """A recorded sweep stopped by Ctrl-C (or SIGTERM during a pool sweep): ``finished`` of ``total`` runs are in
     the results file ``path``, which a resumed sweep goes on from."""
 
-    def __init__(self, finished: int, total: int, path: Path):
+    def __init__(self, finished: int, total: int, path: Path, signum: int | None = None):
         super().__init__(f"interrupted after {finished} of {total} runs")
         self.finished, self.total, self.path = int(finished), int(total), Path(path)
+        self.signum = signum  # the signal that stopped it (SIGTERM: cartpole.errors.Terminated), None for Ctrl-C
 
 
 @dataclass(frozen=True)
@@ -279,14 +282,14 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
         for r in rows:
             r["failure"] = failure(r)
         write_csv(results, head, [csv_row(sid, r["run"], r["start"], r, settings) for r in rows])  # in run order
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:
         for f in opened:
             f.close()
         try:  # what the file holds now is what a resume will keep
             kept = len(read_done(results, head, sid, MAX_READ))
         except CartPoleError:
             kept = len(done) + count[0]
-        raise SweepInterrupted(kept, total, results) from None
+        raise SweepInterrupted(kept, total, results, getattr(stop, "signum", None)) from None
     finally:
         for f in opened:
             f.close()
