@@ -3,6 +3,7 @@
 * :func:`atomic_write` / :func:`atomic_path`: write beside the target, rename over it at the end; a failure part-way
   leaves no file (an existing target untouched) and removes the directories it had created.
 * :func:`write_csv`, :func:`append_csv_row`: CSV through the :mod:`csv` module, atomically.
+* :func:`exclusive_lock`: an ``fcntl.flock`` held for a block, refused at once when another process holds it.
 * :func:`check_input_file`, :func:`read_bounded`: an input file checked by kind (a regular file, not a FIFO,
   device, directory or symbolic-link loop) and read with a size bound.
 * :func:`check_out_dir`: before any work, is ``--out`` a directory that exists or can be created, and writable?
@@ -146,12 +147,18 @@ def atomic_path(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
     Raises
     ------
     OutputError
-        The directory cannot be created, the temporary file cannot be made or renamed (errors raised inside the
-        block itself pass through unchanged).
+        The directory cannot be created, ``path`` is a read-only file (it is not replaced: renaming over it would
+        defeat its mode), the temporary file cannot be made or renamed (errors raised inside the block itself pass
+        through unchanged).
     """
     path = Path(path)
     created = _make_parents(path)
     existed = os.path.lexists(path)
+    try:
+        check_replaceable(path)
+    except OutputError:
+        _remove(created)
+        raise
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
     except OSError as exc:
@@ -174,6 +181,26 @@ def atomic_path(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
         log.extend(created)
         if not existed:
             log.append(path)
+
+
+def check_replaceable(path: str | Path) -> None:
+    """Refuse to replace ``path`` when it is a read-only file (no write permission, or its owner's write bit clear:
+    a file made read-only on purpose, even for root); nothing when it is missing or writable.
+
+    Raises
+    ------
+    OutputError
+        ``path`` is read-only (one sentence: make it writable, move it away or choose another ``--out``).
+    """
+    import stat
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        return
+    if stat.S_ISREG(st.st_mode) and (not os.access(path, os.W_OK) or not st.st_mode & stat.S_IWUSR):
+        raise OutputError(f"Cannot write {short(path)}: the file is read-only; make it writable (chmod u+w), move it "
+                          "away or choose another --out.")
 
 
 def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> Path:
@@ -366,3 +393,47 @@ def read_bounded(path: str | Path, max_bytes: int, *, what: str = "File", flag: 
         err.reason = f"grew past the {max_bytes / 2**20:.3g} MiB limit while read"
         raise err
     return data
+
+
+# ---- exclusive locks ------------------------------------------------------------------------------------------
+
+class LockedError(CartPoleError):
+    """Another process holds the lock (one sentence: what is locked, by which process, what to do)."""
+
+
+@contextmanager
+def exclusive_lock(lock_path: str | Path, what: str, advice: str) -> Iterator[Path]:
+    """Hold an exclusive ``fcntl.flock`` on ``lock_path`` (created, with its directory, if missing) inside the block;
+    refuse at once, without waiting, when another process holds it. The lock file keeps the holder's process id
+    (for the sentence) and stays on disk (removing it would let two processes lock two files of one name); the
+    kernel releases the lock when the block ends or the process dies, however it dies.
+
+    Raises
+    ------
+    LockedError
+        Another process holds the lock: ``"{what} is in use by process N; {advice}."``.
+    OutputError
+        The lock file cannot be created.
+    """
+    import fcntl
+
+    lock_path = Path(lock_path)
+    try:
+        lock_path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError as exc:
+        raise output_error(lock_path, exc, "create the lock file") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            except OSError:
+                holder = "?"
+            raise LockedError(f"{what} is in use by process {holder}; {advice}.") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield lock_path
+    finally:
+        os.close(fd)  # releases the lock

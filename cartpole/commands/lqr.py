@@ -87,6 +87,9 @@ def run(args) -> dict:
     check_log_size(runs * LAB_DURATION + clip, model.params,
                    what=f"the lab's {runs} runs of {LAB_DURATION:g} s" + (f" and its {clip:g} s video clip" if clip
                                                                         else ""))
+    from cartpole._files import check_replaceable
+
+    check_replaceable(Path(args.out) / METRICS)  # a read-only metrics.csv is refused before the lab runs
     if args.delay_margin is not None:
         return _delay_margin(args, model, loop)
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop)

@@ -284,3 +284,62 @@ def test_an_objective_module_that_exits_or_raises_at_import_is_one_sentence(tmp_
         monkeypatch.syspath_prepend(str(tmp_path))
     _fails_cleanly(["swingup", "--json", "--method", "trajopt", "--objective", f"{name}:cost", "--out",
                     str(tmp_path / "out")], tmp_path, capsys, "cannot be imported", words)
+
+
+# ---- resume and files (issue 24) -----------------------------------------------------------------------------
+
+def test_a_second_sweep_into_the_same_out_is_refused_while_the_first_runs(tmp_path, capsys):
+    import sys
+    import time
+
+    out = tmp_path / "out"
+    results = out / "sweeps" / "sweep_energy.csv"
+    first = subprocess.Popen([sys.executable, "-m", "cartpole", "sweep", "--n", "40", "--duration", "3", "--out",
+                              str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                             env={**os.environ, "MUJOCO_GL": "egl"})
+    try:
+        deadline = time.monotonic() + 120
+        while first.poll() is None and time.monotonic() < deadline and not (
+                results.exists() and len(results.read_text().splitlines()) >= 2):
+            time.sleep(0.05)
+        if first.poll() is not None:
+            pytest.skip("the first sweep finished before the second could start")
+        kept = results.read_bytes()
+        rc = main(["sweep", "--json", "--n", "40", "--duration", "3", "--out", str(out)])
+        cap = capsys.readouterr()
+        lines = cap.err.strip().splitlines()
+        assert rc == 2 and len(lines) == 1 and "is in use by process" in lines[0], cap.err
+        assert str(first.pid) in lines[0] and results.read_bytes().startswith(kept)
+    finally:
+        first.kill()
+        first.communicate()
+
+
+def test_resumed_counts_only_the_rows_that_are_kept(tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["sweep", "--json", "--n", "3", "--duration", "1", "--out", str(out)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    results = out / "sweeps" / "sweep_energy.csv"
+    lines = results.read_text().splitlines()
+    head = lines[0].split(",")
+    cells = lines[2].split(",")
+    cells[head.index("success")] = "banana"  # run 1 tampered with: not finished, run again
+    results.write_text("\n".join([lines[0], lines[1], ",".join(cells), lines[3]]) + "\n")
+    assert main([*argv, "--resume"]) == 0
+    import json
+
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["resumed"] == 2 and len(doc["rows"]) == 3
+    assert "banana" not in results.read_text()
+
+
+def test_a_read_only_metrics_file_is_refused_and_kept(tmp_path, capsys):
+    out = tmp_path / "out"
+    metrics = out / "metrics" / "metrics.csv"
+    metrics.parent.mkdir(parents=True)
+    metrics.write_text("kept,as,it,was\n")
+    metrics.chmod(0o444)
+    _fails_cleanly(["lqr", "--json", "--no-video", "--out", str(out)], tmp_path, capsys, "read-only",
+                   "metrics.csv")
+    assert metrics.read_text() == "kept,as,it,was\n" and metrics.stat().st_mode & 0o777 == 0o444

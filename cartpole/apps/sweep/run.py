@@ -19,8 +19,8 @@ from cartpole.apps.forkserver import start_server
 from cartpole.apps.sweep.executors import Runner, check_address, run_dask, run_here, run_pool
 from cartpole.apps.sweep.plan import (MAX_SHARED_BASINS, SweepError, check_axes, check_settings, default_half_widths,
                                       plan_runs, total_runs)
-from cartpole.apps.sweep.results import (MAX_READ, ResultsFile, SweepResult, csv_row, failure, header, read_done,
-                                         sweep_id)
+from cartpole.apps.sweep.results import (ResultsFile, SweepResult, csv_row, failure, header, read_done,
+                                         results_lock, sweep_id)
 
 
 def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int = 0, center=None,
@@ -250,7 +250,17 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
         Ctrl-C (or ``stop_after``): how many runs the results file holds now.
     SweepError
         Bad settings, or a results file that cannot be resumed from.
+    LockedError
+        Another sweep is writing the same results file (:func:`~cartpole.apps.sweep.results.results_lock`).
     """
+    with results_lock(results):
+        return _recorded_sweep(params, method=method, n=n, seed=seed, results=results, figure=figure,
+                               workers=workers, duration=duration, gain_jitter=gain_jitter, address=address,
+                               axes=axes, x0=x0, resume=resume, stop_after=stop_after, loop=loop)
+
+
+def _recorded_sweep(params, *, method, n, seed, results, figure, workers, duration, gain_jitter, address, axes, x0,
+                    resume, stop_after, loop) -> RecordedSweep:
     from cartpole._files import write_csv
     from cartpole.viz.sweep_plot import plot_success_map
 
@@ -259,8 +269,8 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
                    loop=loop)
     settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
     head = header(params, settings)
-    done = read_done(results, head, sid, MAX_READ) if resume else {}
     total = total_runs(axes, n)
+    done = read_done(results, head, sid, total) if resume else {}
     opened = []  # opened on the first finished run, so a sweep refused before any run writes nothing
     count = [0]
 
@@ -286,7 +296,7 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
         for f in opened:
             f.close()
         try:  # what the file holds now is what a resume will keep
-            kept = len(read_done(results, head, sid, MAX_READ))
+            kept = len(read_done(results, head, sid, total))
         except CartPoleError:
             kept = len(done) + count[0]
         raise SweepInterrupted(kept, total, results, getattr(stop, "signum", None)) from None
