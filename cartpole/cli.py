@@ -134,6 +134,12 @@ def _run(args):
     from cartpole.models import mujoco_warnings
     from cartpole.progress import reporting
 
+    from cartpole.codegen import private_cache_dir
+
+    try:  # a cache another user owns or may write to is refused before any work (CacheError, one sentence)
+        private_cache_dir()
+    except OSError:  # it cannot be created: the commands run without it (compiled code falls back)
+        pass
     notes: list[str] = []
     with contextlib.ExitStack() as stack:
         # NumPy's and SciPy's warnings (an overflow inside a Riccati solve, say) are kept, not printed as they come:
