@@ -15,7 +15,7 @@ from cartpole.options import OptionsError, StageOptions
 
 class LoopError(OptionsError):
     """Bad closed-loop settings: a push that is not a pair of finite numbers, a model error that is not a scale in
-    (0, 10], a duration or period that is not a positive number of seconds."""
+    [0.1, 10], a duration or period that is not a positive number of seconds."""
 
 
 #: The estimators a loop can run (:attr:`LoopOptions.estimator`).
@@ -74,7 +74,7 @@ def check_push_times(push, duration: float) -> None:
 
 
 def check_model_error(model_error) -> float:
-    """The planning model's scale ``S`` (1.0 for None): a finite number, ``0 < S <= 10``.
+    """The planning model's scale ``S`` (1.0 for None): a finite number, ``0.1 <= S <= 10``.
 
     Raises
     ------
@@ -86,8 +86,8 @@ def check_model_error(model_error) -> float:
         S = float(model_error)
     except (TypeError, ValueError):
         raise LoopError(f"The model error {model_error!r} is not a number; give a scale such as 0.8.") from None
-    if not (np.isfinite(S) and 0 < S <= 10):
-        raise LoopError(f"The model error {S:g} is not a scale in (0, 10] of the poles' masses and lengths; give "
+    if not (np.isfinite(S) and 0.1 <= S <= 10):
+        raise LoopError(f"The model error {S:g} is not a scale in [0.1, 10] of the poles' masses and lengths; give "
                         "e.g. 1.2 for 20 % heavier and longer.")
     return S
 
@@ -128,7 +128,7 @@ class LoopOptions(StageOptions):
         Pushes ``(T [s], F [N])``: a world-x force of F N on the cart body for :data:`PUSH_SECONDS` from time T s
         (:func:`push_force`), sorted by time; any sequence of pairs is accepted and normalised.
     model_error : float
-        Scale S in (0, 10] of the *planning* model's pole masses and lengths (1: the MJCF's own); MuJoCo always
+        Scale S in [0.1, 10] of the *planning* model's pole masses and lengths (1: the MJCF's own); MuJoCo always
         runs the MJCF. The scenario the controller is designed for, kept with the loop it is tested in.
     delay : float
         Seconds from sampling the sensors to the ctrl taking effect (computation and transport), a whole number of

@@ -199,8 +199,17 @@ def test_a_resume_file_that_is_binary_or_a_device_is_one_sentence(tmp_path, caps
      ("shorter than its 0.5 s control period",)),
     (["swingup", "--json", "--no-video", "--method", "mpc", "--period", "1e-9"], ("shorter than the MJCF's",)),
     (["swingup", "--json", "--no-video", "--period", "1e-9"], ("physics steps",)),
+    (["lqr", "--json", "--no-video", "--period", "1e308"], ("1 s limit",)),
+    (["lqr", "--json", "--no-video", "--delay", "1e6"], ("delay", "1 s limit")),
+    ([*SWINGUP, "--estimator", "mhe", "--mhe-horizon", "1e6"], ("MHE horizon", "100 limit")),
+    ([*SWINGUP, "--model-error", "1e-308"], ("[0.1, 10]",)),
+    (["sweep", "--json", "--duration", "1", "--setting", "period", "1e308"], ("setting:period", "to 1 s")),
+    (["sweep", "--json", "--duration", "1", "--setting", "period", "1e-9"], ("setting:period", "from 0.005")),
+    (["sweep", "--json", "--duration", "1", "--setting", "delay", "1e308"], ("setting:delay",)),
 ], ids=["seed", "push-time", "push-force", "push-after-end", "sweep-push-time", "sweep-push-force", "sweep-start",
-        "x0-rate", "x0-angle", "mpc-horizon", "mpc-stages", "mpc-horizon-below-period", "mpc-period", "period"])
+        "x0-rate", "x0-angle", "mpc-horizon", "mpc-stages", "mpc-horizon-below-period", "mpc-period", "period",
+        "period-long", "delay-long", "mhe-horizon", "model-error-tiny", "sweep-period-long", "sweep-period-short",
+        "sweep-delay-long"])
 def test_a_number_out_of_range_is_refused_before_any_work(tmp_path, capsys, argv, words):
     _fails_cleanly([*argv, "--out", str(tmp_path / "out")], tmp_path, capsys, *words)
 

@@ -240,7 +240,7 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
     SweepError
         An unknown axis name, a start component of no joint or outside what ``cartpole swingup`` accepts (a cart
         beyond its rail), a setting the method does not have, a repeated axis, a push time without a push force,
-        a model error outside (0, 10], a push time after the run ends (``duration``, s, when given) or a push
+        a model error outside [0.1, 10], a push time after the run ends (``duration``, s, when given) or a push
         force beyond :data:`~cartpole.sim.options.MAX_PUSH_FORCE`.
     """
     axes = tuple(axes or ())
@@ -263,8 +263,19 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
                 have = ", ".join(SETTINGS[method]) or "none"
                 raise SweepError(f"The {method} method has no setting '{key}' to sweep (it has: {have}).")
             if key in LOOP_SETTINGS:
+                from cartpole.models import MAX_PERIOD
                 from cartpole.sim.options import LoopOptions
+                from cartpole.sim.rig import MAX_DELAY
 
+                h = float(params.timestep)
+                limits = {"period": (0.5 * h, MAX_PERIOD), "delay": (0.0, MAX_DELAY)}
+                if key in limits:  # rounded to whole steps: each end must round to what it says, within limits
+                    lo, hi = limits[key]
+                    for v in (a.low, a.high):
+                        if not (math.isfinite(v) and lo <= v <= hi):
+                            raise SweepError(f"The sweep axis {a.name} reaches {v:g} s; give {key}s from "
+                                             f"{max(lo, h if key == 'period' else 0.0):g} to {hi:g} s (whole "
+                                             f"{h:g} s MJCF steps).")
                 for v in (a.low, a.high):
                     try:
                         LoopOptions().replace(**{key: round(v) if key == "encoder_cpr" else v})
