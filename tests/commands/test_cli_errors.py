@@ -352,3 +352,22 @@ def test_a_read_only_metrics_file_is_refused_and_kept(tmp_path, capsys):
     _fails_cleanly(["lqr", "--json", "--no-video", "--out", str(out)], tmp_path, capsys, "read-only",
                    "metrics.csv")
     assert metrics.read_text() == "kept,as,it,was\n" and metrics.stat().st_mode & 0o777 == 0o444
+
+
+def test_the_documented_limits_are_the_codes():
+    """docs/cli.md's "Limits and errors" table: each row's value is the constant it names."""
+    import importlib
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[2] / "docs" / "cli.md").read_text()
+    section = page.split("## Limits and errors", 1)[1]
+    rows = re.findall(r"^\| [^|]+ \| ([^|]+) \| `([\w.]+)` \|$", section, flags=re.M)
+    assert len(rows) >= 10
+    units = {"MiB": 2**20}
+    for value, dotted in rows:
+        module, _, name = dotted.rpartition(".")
+        actual = getattr(importlib.import_module(module), name)
+        number, *unit = value.split()
+        expected = float(number) * (units.get(unit[0], 1) if unit else 1)
+        assert actual == expected, (dotted, value, actual)
