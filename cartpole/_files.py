@@ -3,6 +3,9 @@
 * :func:`atomic_write` / :func:`atomic_path`: write beside the target, rename over it at the end; a failure part-way
   leaves no file (an existing target untouched) and removes the directories it had created.
 * :func:`write_csv`, :func:`append_csv_row`: CSV through the :mod:`csv` module, atomically.
+* :func:`exclusive_lock`: an ``fcntl.flock`` held for a block, refused at once when another process holds it.
+* :func:`check_input_file`, :func:`read_bounded`: an input file checked by kind (a regular file, not a FIFO,
+  device, directory or symbolic-link loop) and read with a size bound.
 * :func:`check_out_dir`: before any work, is ``--out`` a directory that exists or can be created, and writable?
 * :func:`output_transaction`: a command's outputs as a set: when the block fails, the files and directories it
   created are removed again, so a failed command leaves the ``--out`` tree as it found it (files it *replaced* keep
@@ -46,6 +49,14 @@ def short(path, width: int = 90) -> str:
         return text
     head = width // 3
     return text[:head] + "..." + text[-(width - head - 3):]
+
+
+class InputFileError(CartPoleError, OSError):
+    """An input file cannot be used: missing, a symbolic-link loop, a directory, FIFO or device, unreadable, or too
+    large (one sentence: the path, why, what to do). Also an :class:`OSError`; ``reason`` holds the why alone
+    (``"is a device, not a regular file"``)."""
+
+    reason: str = ""
 
 
 class OutputError(CartPoleError, OSError):
@@ -136,12 +147,18 @@ def atomic_path(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
     Raises
     ------
     OutputError
-        The directory cannot be created, the temporary file cannot be made or renamed (errors raised inside the
-        block itself pass through unchanged).
+        The directory cannot be created, ``path`` is a read-only file (it is not replaced: renaming over it would
+        defeat its mode), the temporary file cannot be made or renamed (errors raised inside the block itself pass
+        through unchanged).
     """
     path = Path(path)
     created = _make_parents(path)
     existed = os.path.lexists(path)
+    try:
+        check_replaceable(path)
+    except OutputError:
+        _remove(created)
+        raise
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
     except OSError as exc:
@@ -164,6 +181,26 @@ def atomic_path(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
         log.extend(created)
         if not existed:
             log.append(path)
+
+
+def check_replaceable(path: str | Path) -> None:
+    """Refuse to replace ``path`` when it is a read-only file (no write permission, or its owner's write bit clear:
+    a file made read-only on purpose, even for root); nothing when it is missing or writable.
+
+    Raises
+    ------
+    OutputError
+        ``path`` is read-only (one sentence: make it writable, move it away or choose another ``--out``).
+    """
+    import stat
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        return
+    if stat.S_ISREG(st.st_mode) and (not os.access(path, os.W_OK) or not st.st_mode & stat.S_IWUSR):
+        raise OutputError(f"Cannot write {short(path)}: the file is read-only; make it writable (chmod u+w), move it "
+                          "away or choose another --out.")
 
 
 def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> Path:
@@ -252,6 +289,8 @@ def check_out_dir(out: str | Path) -> Path:
         ``out`` (or one of its ancestors) is a file; the nearest existing ancestor cannot be written (no permission,
         a read-only file system); the name is too long.
     """
+    if str(out).strip() == "":
+        raise OutputError("--out is empty; give a directory (e.g. --out . for the current one).")
     out = Path(out)
     if os.path.lexists(out) and not out.is_dir():
         raise OutputError(f"--out {short(out)} is a file, not a directory; give a directory (it is created if "
@@ -278,3 +317,123 @@ def check_out_dir(out: str | Path) -> Path:
     if any(len(part.encode()) > max_name for part in out.parts):
         raise OutputError(f"--out {short(out)} has a name longer than {max_name} bytes; choose a shorter --out.")
     return out
+
+
+# ---- input files --------------------------------------------------------------------------------------------
+
+def check_input_file(path: str | Path, *, what: str = "File", flag: str = "", max_bytes: int | None = None) -> Path:
+    """Check, before reading it, that ``path`` names a regular file that can be read (and, with ``max_bytes``, is
+    at most that large); return its absolute path (symbolic links resolved).
+
+    ``what`` names the file in the sentence (``"MJCF file"``), ``flag`` the option that gave it (``"--mjcf"``).
+    Nothing is opened: a FIFO (which would block), a device such as ``/dev/zero`` (which never ends), a directory,
+    a socket or a symbolic-link loop is refused by its kind.
+
+    Raises
+    ------
+    InputFileError
+        Missing, a loop of symbolic links, not a regular file, not readable, or larger than ``max_bytes``.
+    """
+    import stat
+
+    text = os.path.expanduser(str(path))
+    give = f"pass {flag} with the path of a readable file" if flag else "give the path of a readable file"
+
+    def refuse(reason):
+        err = InputFileError(f"{what} '{short(text)}' {reason}; {give}.")
+        err.reason = reason
+        return err
+
+    try:
+        st = os.stat(text)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise refuse("is a loop of symbolic links") from None
+        if exc.errno in (errno.ENOENT, errno.ENOTDIR):
+            raise refuse("does not exist") from None
+        raise refuse(f"cannot be read ({exc.strerror})") from None
+    kind = None
+    if stat.S_ISDIR(st.st_mode):
+        kind = "a directory"
+    elif stat.S_ISFIFO(st.st_mode):
+        kind = "a FIFO (named pipe)"
+    elif stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode):
+        kind = "a device"
+    elif stat.S_ISSOCK(st.st_mode):
+        kind = "a socket"
+    elif not stat.S_ISREG(st.st_mode):
+        kind = "not a regular file"
+    if kind is not None:
+        raise refuse(f"is {kind}, not a regular file")
+    if not os.access(text, os.R_OK):
+        raise refuse("is not readable (permission denied)")
+    if max_bytes is not None and st.st_size > max_bytes:
+        raise refuse(f"is {st.st_size / 2**20:.3g} MiB, more than the {max_bytes / 2**20:.3g} MiB limit")
+    return Path(os.path.realpath(text))
+
+
+def read_bounded(path: str | Path, max_bytes: int, *, what: str = "File", flag: str = "") -> bytes:
+    """The bytes of the regular file ``path`` (:func:`check_input_file`), read with a bound: never more than
+    ``max_bytes`` + 1 bytes are read, so a file that grows (or a path swapped for a device) cannot exhaust memory.
+
+    Raises
+    ------
+    InputFileError
+        As :func:`check_input_file`, or the file grew past ``max_bytes`` while read.
+    """
+    real = check_input_file(path, what=what, flag=flag, max_bytes=max_bytes)
+    try:
+        with open(real, "rb") as fh:
+            data = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise InputFileError(f"{what} '{short(path)}' cannot be read ({exc.strerror}); check the path.") from None
+    if len(data) > max_bytes:
+        err = InputFileError(f"{what} '{short(path)}' grew past the {max_bytes / 2**20:.3g} MiB limit while read; "
+                             "give a smaller file.")
+        err.reason = f"grew past the {max_bytes / 2**20:.3g} MiB limit while read"
+        raise err
+    return data
+
+
+# ---- exclusive locks ------------------------------------------------------------------------------------------
+
+class LockedError(CartPoleError):
+    """Another process holds the lock (one sentence: what is locked, by which process, what to do)."""
+
+
+@contextmanager
+def exclusive_lock(lock_path: str | Path, what: str, advice: str) -> Iterator[Path]:
+    """Hold an exclusive ``fcntl.flock`` on ``lock_path`` (created, with its directory, if missing) inside the block;
+    refuse at once, without waiting, when another process holds it. The lock file keeps the holder's process id
+    (for the sentence) and stays on disk (removing it would let two processes lock two files of one name); the
+    kernel releases the lock when the block ends or the process dies, however it dies.
+
+    Raises
+    ------
+    LockedError
+        Another process holds the lock: ``"{what} is in use by process N; {advice}."``.
+    OutputError
+        The lock file cannot be created.
+    """
+    import fcntl
+
+    lock_path = Path(lock_path)
+    try:
+        lock_path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError as exc:
+        raise output_error(lock_path, exc, "create the lock file") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            except OSError:
+                holder = "?"
+            raise LockedError(f"{what} is in use by process {holder}; {advice}.") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield lock_path
+    finally:
+        os.close(fd)  # releases the lock

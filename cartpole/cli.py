@@ -14,8 +14,9 @@ import importlib
 import json
 import os
 import sys
+import warnings
 
-from cartpole.errors import CartPoleError, first_line
+from cartpole.errors import CartPoleError, Terminated, first_line
 
 #: Subcommand modules, in the order ``cartpole --help`` lists them (one per line: add a command with one line).
 COMMANDS = (
@@ -133,8 +134,18 @@ def _run(args):
     from cartpole.models import mujoco_warnings
     from cartpole.progress import reporting
 
+    from cartpole.codegen import private_cache_dir
+
+    try:  # a cache another user owns or may write to is refused before any work (CacheError, one sentence)
+        private_cache_dir()
+    except OSError:  # it cannot be created: the commands run without it (compiled code falls back)
+        pass
     notes: list[str] = []
     with contextlib.ExitStack() as stack:
+        # NumPy's and SciPy's warnings (an overflow inside a Riccati solve, say) are kept, not printed as they come:
+        # a failing command prints its one sentence alone, a successful one each distinct warning once at the end
+        caught = stack.enter_context(warnings.catch_warnings(record=True))
+        warnings.simplefilter("default")
         if args._writes:
             args.out = str(check_out_dir(args.out))
             stack.enter_context(output_transaction())
@@ -148,7 +159,34 @@ def _run(args):
         doc = args._run(args)
     for note in dict.fromkeys(notes):  # each distinct warning once, after a run that succeeded
         print(f"cartpole {args.command}: MuJoCo warned: {note}", file=sys.stderr)
+    for note in dict.fromkeys(f"{w.category.__name__}: {' '.join(str(w.message).split())}" for w in caught):
+        print(f"cartpole {args.command}: warning: {note}", file=sys.stderr)
     return doc
+
+
+@contextlib.contextmanager
+def signals_as_interrupts():
+    """Inside the block (in the main thread), SIGTERM and SIGHUP raise :class:`Terminated`; the handlers before are
+    put back afterwards. A signal that was ignored stays ignored."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise Terminated(signum)
+
+    saved = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            saved[sig] = signal.signal(sig, terminate)
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
 
 
 def main(argv=None) -> int:
@@ -164,6 +202,13 @@ def main(argv=None) -> int:
         print(f"cartpole {args.command}: unrecognized arguments: {' '.join(extra)}; see `cartpole {args.command} "
               "--help`.", file=sys.stderr)
         return 2
+    if os.environ.get("MPLBACKEND"):  # matplotlib refuses a bad one at import, with a traceback: say it here
+        try:
+            import matplotlib  # noqa: F401
+        except ValueError:
+            print(f"cartpole {args.command}: MPLBACKEND={os.environ['MPLBACKEND']!r} is not a matplotlib backend; "
+                  "unset it or set MPLBACKEND=Agg (the figures are written to files).", file=sys.stderr)
+            return 2
     try:
         import mujoco  # noqa: F401  (MuJoCo 4 raises AttributeError, not ImportError, for a missing GL library)
     except Exception as exc:  # pragma: no cover - depends on the machine's GL libraries
@@ -171,7 +216,8 @@ def main(argv=None) -> int:
               f"({type(exc).__name__}); set MUJOCO_GL=egl (or unset it) and try again.", file=sys.stderr)
         return 2
     try:
-        doc = _run(args)
+        with signals_as_interrupts():
+            doc = _run(args)
     except CartPoleError as exc:
         print(f"cartpole {args.command}: {sentence(exc)}", file=sys.stderr)
         return 2
@@ -186,8 +232,12 @@ def main(argv=None) -> int:
         return 2
     except KeyboardInterrupt as exc:  # a command may say what it kept and how to go on (sweep: --resume)
         said = exc.args[0] if exc.args and isinstance(exc.args[0], str) else "interrupted."
+        if isinstance(exc, Terminated) and not (exc.args and isinstance(exc.args[0], str)):
+            import signal
+
+            said = f"stopped by {signal.Signals(exc.signum).name} before it finished; no partial output is left."
         print(f"cartpole {args.command}: {said}", file=sys.stderr)
-        return 130
+        return 128 + exc.signum if isinstance(exc, Terminated) else 130
     if args.json:
         sys.stdout.write(json.dumps(to_jsonable(doc)) + "\n")
     return 0

@@ -7,6 +7,11 @@ A library's file name is a hash of what it was built from (the model's parameter
 or a recipe; the compiler flags; the CasADi version; the CPU, :func:`cpu_key`), so two models or two machines
 never share one, and it is compiled once per machine and model, never into the package. Writes are atomic: a
 concurrent process sees a whole library or none.
+
+The cache directory (:func:`private_cache_dir`) is created ``0700`` and refused when another user owns it or others
+may write to it; every library is found by its content, not its name: its SHA-256 is written beside it when it is
+built (:func:`write_verified`) and checked before it is used (:func:`is_verified`), so a corrupted, truncated or
+planted file is built again rather than loaded.
 """
 from __future__ import annotations
 
@@ -22,7 +27,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from cartpole._files import atomic_write
+from cartpole._files import atomic_write, output_error
+from cartpole.errors import CartPoleError
 
 #: Flags for the C compiler: the generated functions are straight-line arithmetic that gcc vectorises for the
 #: machine's own instruction set (-O3 -march=native runs them faster than -O2 for the same compile time). A library is keyed by the CPU
@@ -42,12 +48,114 @@ LIB_VERSION = "hs-interval-v5"
 
 
 def cache_dir() -> Path:
-    """``$CARTPOLE_CACHE_DIR``, else ``$XDG_CACHE_HOME/cartpole``, else ``~/.cache/cartpole``."""
+    """``$CARTPOLE_CACHE_DIR``, else ``$XDG_CACHE_HOME/cartpole``, else ``~/.cache/cartpole`` (not checked or
+    created: :func:`private_cache_dir` does both)."""
     env = os.environ.get("CARTPOLE_CACHE_DIR")
     if env:
         return Path(env)
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "cartpole"
+
+
+class CacheError(CartPoleError):
+    """The cache directory cannot be trusted or created (another user owns it, others may write to it, it is not
+    a directory): one sentence naming it and what to do."""
+
+
+def private_dir(path: str | Path) -> Path:
+    """``path`` as a directory only this user can write: created ``0700`` (with missing parents) when absent, and
+    refused when it is not a directory, another user owns it, or its group or others may write to it (anyone who
+    can write there could plant a library that ``cartpole`` then loads and runs). Returns ``Path(path)``.
+
+    Raises
+    ------
+    CacheError
+        One sentence: which directory, what is wrong, what to do (``chmod 700``, or another ``CARTPOLE_CACHE_DIR``).
+    OutputError
+        The directory cannot be created (then there is no cache; the callers build without one or fall back).
+    """
+    import stat
+
+    path = Path(path)
+    fix = "set CARTPOLE_CACHE_DIR to a directory of your own"
+    try:
+        path.mkdir(parents=True, exist_ok=True, mode=0o700)
+        st = os.stat(path)
+    except OSError as exc:  # no cache (a read-only home, say): the callers fall back, as without a compiler
+        raise output_error(path, exc, "create the cache directory") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise CacheError(f"The cache directory {path} is not a directory; {fix}.")
+    if st.st_uid != os.getuid():
+        raise CacheError(f"The cache directory {path} belongs to another user (uid {st.st_uid}), who could plant code "
+                         f"that cartpole would load; {fix}.")
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        raise CacheError(f"The cache directory {path} may be written by its group or by others (mode "
+                         f"{stat.S_IMODE(st.st_mode):03o}), who could plant code that cartpole would load; run chmod "
+                         f"700 {path} or {fix}.")
+    return path
+
+
+def private_cache_dir() -> Path:
+    """:func:`cache_dir`, checked and created private by :func:`private_dir`."""
+    return private_dir(cache_dir())
+
+
+# ---- files verified by a content hash ----------------------------------------------------------------------
+
+#: Suffix of the sidecar file holding the SHA-256 of a cached file's content, written when the file is built.
+HASH_SUFFIX = ".sha256"
+
+
+def _sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def write_verified(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` and its SHA-256 to the sidecar ``path + HASH_SUFFIX``, each atomically (a reader
+    sees whole files or none; a crash in between leaves a file without a sidecar, which :func:`is_verified`
+    refuses). Returns ``path``."""
+    path = Path(path)
+    atomic_write(path, lambda fh: fh.write(data))
+    digest_hex = hashlib.sha256(data).hexdigest()
+    atomic_write(Path(str(path) + HASH_SUFFIX), lambda fh: fh.write(digest_hex.encode()))
+    return path
+
+
+def is_verified(path: str | Path) -> bool:
+    """Whether ``path`` is a regular file whose content has the SHA-256 its sidecar recorded when it was built
+    (:func:`write_verified`); False when either is missing, unreadable, or they differ (a corrupted, truncated or
+    planted file: build it again)."""
+    import stat
+
+    path = Path(path)
+    try:
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            return False
+        with open(str(path) + HASH_SUFFIX, "rb") as fh:
+            recorded = fh.read(128).decode("ascii", errors="replace").strip()
+        return len(recorded) == 64 and _sha256_file(path) == recorded
+    except OSError:
+        return False
+
+
+def read_verified(path: str | Path) -> bytes | None:
+    """The content of ``path`` when it matches its recorded SHA-256 (:func:`is_verified`), else None."""
+    import stat
+
+    path = Path(path)
+    try:
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            return None
+        data = path.read_bytes()
+        with open(str(path) + HASH_SUFFIX, "rb") as fh:
+            recorded = fh.read(128).decode("ascii", errors="replace").strip()
+    except OSError:
+        return None
+    return data if hashlib.sha256(data).hexdigest() == recorded else None
 
 
 @functools.lru_cache(maxsize=None)
@@ -84,6 +192,37 @@ def compiler() -> str | None:
     """The C compiler: ``$CC``, else ``gcc``, else ``cc`` on PATH (None when there is none)."""
     cc = os.environ.get("CC") or "gcc"
     return shutil.which(cc) or shutil.which("cc")
+
+
+#: Seconds a compiler run may take before its whole process group (the driver and its cc1, as, ld) is killed.
+COMPILE_TIMEOUT = 120.0
+
+
+def run_compiler(cmd, timeout: float | None = None) -> subprocess.CompletedProcess:
+    """Run the compiler command ``cmd`` (a list) in a session of its own and return its completed process (text
+    stdout and stderr).
+
+    On a timeout (``timeout`` s, default :data:`COMPILE_TIMEOUT`), an interrupt or any other exception, the
+    compiler's whole process group is killed (``os.killpg``), so no ``cc1`` outlives the driver; a timeout then
+    raises :class:`subprocess.TimeoutExpired`.
+    """
+    import signal
+
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=COMPILE_TIMEOUT if timeout is None else timeout)
+    except BaseException:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        proc.wait()
+        raise
+    try:  # the driver is gone; a child it left behind (it should not) goes with its group
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
 
 
 def digest(obj, h) -> None:
@@ -132,12 +271,12 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
     ``$CARTPOLE_CFLAGS`` is set. Flags with ``-march=native`` that the compiler refuses are retried as
     :data:`PORTABLE_CFLAGS`.
     """
-    target = cache_dir()
+    target = private_cache_dir()
     cpu = cpu_key()
     if recipe is not None:
         key = "r" + hashlib.sha256((model_digest + recipe + cpu).encode()).hexdigest()[:20]
         lib = target / f"hs_interval_{key}.so"
-        if lib.exists():
+        if is_verified(lib):  # by content, not by name: a corrupted or planted file is built again
             return str(lib), False
     gen = ca.CodeGenerator("hs_interval.c", {"with_header": False, "casadi_real": "double"})
     for fn in (funcs() if callable(funcs) else funcs):
@@ -151,26 +290,23 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
         key = hashlib.sha256((LIB_VERSION + model_digest + " ".join(flags) + ca.__version__ + cpu + src).encode()
                              ).hexdigest()[:20]
         lib = target / f"hs_interval_{key}.so"
-        if lib.exists():
+        if is_verified(lib):
             return str(lib), False
     cc = compiler()
     if cc is None:
         raise RuntimeError("no C compiler (gcc or cc) on PATH")
-    target.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="cartpole-cc-") as tmp:
         c_file = Path(tmp) / f"hs_interval_{key}.c"
         c_file.write_text(src)
         out = Path(tmp) / lib.name
-        proc = subprocess.run([cc, *flags, str(c_file), "-o", str(out), "-lm"], capture_output=True, text=True,
-                              timeout=120)
+        proc = run_compiler([cc, *flags, str(c_file), "-o", str(out), "-lm"])
         if proc.returncode != 0 and "-march=native" in flags:
-            proc = subprocess.run([cc, *PORTABLE_CFLAGS, str(c_file), "-o", str(out), "-lm"], capture_output=True,
-                                  text=True, timeout=120)
+            proc = run_compiler([cc, *PORTABLE_CFLAGS, str(c_file), "-o", str(out), "-lm"])
         if proc.returncode != 0:
             last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
             raise RuntimeError(f"{Path(cc).name} failed: {last}")
-        # atomic: a concurrent process sees the whole library or none
-        atomic_write(lib, lambda fh: fh.write(out.read_bytes()))
+        # atomic: a concurrent process sees the whole library or none; its hash recorded beside it
+        write_verified(lib, out.read_bytes())
     return str(lib), True
 
 
@@ -181,7 +317,16 @@ def _load(lib: str, names: tuple) -> dict:
 
 def load_library(lib: str | Path, names) -> dict[str, ca.Function]:
     """The functions ``names`` (str sequence) of the shared library ``lib``, as ``casadi.external`` Functions by
-    name; each library is loaded once per process."""
+    name; each library is loaded once per process, and only when its content matches the hash recorded when it
+    was built (:func:`is_verified`).
+
+    Raises
+    ------
+    RuntimeError
+        The library does not match its recorded hash (the callers then build it again or fall back).
+    """
+    if not is_verified(lib):
+        raise RuntimeError(f"the library {lib} does not match the hash recorded when it was built")
     return dict(_load(str(lib), tuple(names)))
 
 

@@ -13,3 +13,14 @@ def first_line(exc: BaseException) -> str:
     msg = " ".join(part.strip() for part in str(exc).strip().splitlines() if part.strip())
     msg = msg.replace(": Error=", ": ").rstrip(".")
     return (msg[:240] + "...") if len(msg) > 240 else (msg or type(exc).__name__)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or SIGHUP) received by the command line (:func:`cartpole.cli.signals_as_interrupts`): raised in the
+    main thread like Ctrl-C's KeyboardInterrupt, so every ``finally`` runs, the output transaction removes what the
+    command had written, worker pools and encoders are shut down; the process exits with status 128 + ``signum``.
+    ``args[0]``, when given, is the sentence to print (what was kept, how to go on)."""
+
+    def __init__(self, signum: int, *args):
+        super().__init__(*args)
+        self.signum = int(signum)

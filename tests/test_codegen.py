@@ -40,3 +40,133 @@ def test_buffered_evaluation_equals_the_function_and_reuses_its_output_arrays():
 
 def test_the_cpu_key_is_stable_within_a_process():
     assert codegen.cpu_key() == codegen.cpu_key() and len(codegen.cpu_key()) == 16
+
+
+def _alive(pid: int) -> bool:
+    """The process exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_a_compiler_timeout_kills_its_whole_process_group(tmp_path):
+    import subprocess
+    import time
+
+    import pytest
+
+    pidfile = tmp_path / "child.pid"
+    # a "compiler" whose driver waits on a child of its own (gcc and its cc1)
+    script = f"sleep 60 & echo $! > {pidfile}; wait"
+    with pytest.raises(subprocess.TimeoutExpired):
+        codegen.run_compiler(["sh", "-c", script], timeout=1.0)
+    child = int(pidfile.read_text())
+    deadline = time.monotonic() + 5
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(child), "the compiler's child outlived the timeout"
+
+
+def test_a_compiler_run_returns_its_status_and_output():
+    proc = codegen.run_compiler(["sh", "-c", "echo out; echo err >&2; exit 3"])
+    assert proc.returncode == 3 and proc.stdout.strip() == "out" and proc.stderr.strip() == "err"
+
+
+# ---- a cache that cannot be turned against its user (issue 24) ------------------------------------------------
+
+def test_the_cache_directory_is_created_private(tmp_path, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "fresh" / "cache"))
+    d = codegen.private_cache_dir()
+    assert d.is_dir() and d.stat().st_mode & 0o777 == 0o700
+
+
+def test_a_cache_directory_others_may_write_to_is_refused(tmp_path, monkeypatch):
+    import pytest
+
+    d = tmp_path / "shared"
+    d.mkdir()
+    d.chmod(0o777)
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(d))
+    with pytest.raises(codegen.CacheError, match="may be written by its group or by others"):
+        codegen.private_cache_dir()
+    x = ca.SX.sym("x")
+    with pytest.raises(codegen.CacheError):
+        codegen.build_library([ca.Function("cg_never", [x], [x])], "t")
+    assert list(d.iterdir()) == []
+
+
+def test_a_cache_directory_of_another_user_is_refused(tmp_path, monkeypatch):
+    import os
+
+    import pytest
+
+    if os.getuid() != 0:
+        pytest.skip("giving a directory to another user needs root")
+    d = tmp_path / "theirs"
+    d.mkdir(mode=0o700)
+    os.chown(d, 65534, 65534)
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(d))
+    with pytest.raises(codegen.CacheError, match="belongs to another user"):
+        codegen.private_cache_dir()
+
+
+def _square_library(tmp_path, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    x = ca.SX.sym("x", 2)
+    fn = ca.Function("cg_tamper", [x], [x * x])
+    lib, now = codegen.build_library([fn], "tamper-digest")
+    assert now
+    return fn, lib
+
+
+def test_a_corrupted_library_is_built_again_not_loaded(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    fn, lib = _square_library(tmp_path, monkeypatch)
+    good = Path(lib).read_bytes()
+    Path(lib).write_bytes(good[: len(good) // 2])  # truncated (a full disk, a crash of another writer)
+    again, now = codegen.build_library([fn], "tamper-digest")
+    assert again == lib and now and Path(lib).read_bytes() != good[: len(good) // 2]
+    loaded = codegen.load_library(lib, ["cg_tamper"])["cg_tamper"]
+    np.testing.assert_array_equal(np.asarray(loaded([3.0, -2.0])).ravel(), [9.0, 4.0])
+
+
+def test_a_library_planted_under_the_expected_name_is_never_loaded(tmp_path, monkeypatch):
+    import subprocess
+    from pathlib import Path
+
+    import pytest
+
+    fn, lib = _square_library(tmp_path, monkeypatch)
+    marker = tmp_path / "constructor-ran"
+    src = tmp_path / "planted.c"
+    src.write_text('#include <stdio.h>\n__attribute__((constructor)) static void planted(void) { FILE *f = '
+                   f'fopen("{marker}", "w"); if (f) fclose(f); }}\n')
+    cc = codegen.compiler()
+    if cc is None:
+        pytest.skip("no C compiler")
+    subprocess.run([cc, "-shared", "-fPIC", str(src), "-o", lib], check=True)  # the sidecar still has the real hash
+    with pytest.raises(RuntimeError, match="does not match the hash"):
+        codegen.load_library(lib, ["cg_tamper"])
+    again, now = codegen.build_library([fn], "tamper-digest")
+    assert now and again == lib
+    codegen.load_library(lib, ["cg_tamper"])
+    assert not marker.exists(), "the planted library's constructor ran"
+    Path(lib + codegen.HASH_SUFFIX).unlink()  # a library with no recorded hash is not trusted either
+    assert codegen.build_library([fn], "tamper-digest")[1]
+
+
+def test_a_cache_others_may_write_to_is_one_sentence_on_the_command_line(tmp_path, monkeypatch, capsys):
+    from cartpole.cli import main
+
+    d = tmp_path / "shared"
+    d.mkdir()
+    d.chmod(0o757)
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(d))
+    out = tmp_path / "out"
+    assert main(["swingup", "--json", "--no-video", "--duration", "0.5", "--out", str(out)]) == 2
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert cap.out == "" and len(lines) == 1 and "chmod 700" in lines[0] and not out.exists()

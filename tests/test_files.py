@@ -1,9 +1,11 @@
 """Output files are written whole or not at all, with the usual permissions."""
 import os
 import stat
+from pathlib import Path
 
 import pytest
 
+import cartpole._files as files
 from cartpole._files import atomic_path, atomic_write
 
 
@@ -144,3 +146,38 @@ def test_check_out_dir_refuses_files_in_the_way_without_creating_anything(tmp_pa
     with pytest.raises(OutputError, match="cannot be created: .*file is a file"):
         check_out_dir(f / "sub" / "dir")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+# ---- input files by kind ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kind", ["loop", "fifo", "device", "directory", "missing"])
+def test_an_input_file_of_the_wrong_kind_is_refused_by_its_kind_without_opening_it(tmp_path, kind):
+    path = tmp_path / "model.xml"
+    if kind == "loop":
+        os.symlink(tmp_path / "other.xml", path)
+        os.symlink(path, tmp_path / "other.xml")
+    elif kind == "fifo":
+        os.mkfifo(path)  # opening it would block: the check must not open it
+    elif kind == "device":
+        path = Path("/dev/zero")
+    elif kind == "directory":
+        path.mkdir()
+    with pytest.raises(files.InputFileError) as info:
+        files.check_input_file(path, what="MJCF file", flag="--mjcf")
+    words = {"loop": "loop of symbolic links", "fifo": "FIFO", "device": "a device", "directory": "a directory",
+             "missing": "does not exist"}[kind]
+    assert words in str(info.value) and "--mjcf" in str(info.value)
+    assert str(info.value).count(".") >= 1 and "\n" not in str(info.value)
+
+
+def test_a_file_read_with_a_bound_refuses_a_larger_one_and_returns_a_smaller_whole(tmp_path):
+    f = tmp_path / "rows.csv"
+    f.write_bytes(b"x" * 100)
+    assert files.read_bounded(f, 100) == b"x" * 100
+    with pytest.raises(files.InputFileError, match="MiB limit"):
+        files.read_bounded(f, 99)
+
+
+def test_an_empty_out_is_refused_not_taken_as_the_current_directory():
+    with pytest.raises(files.OutputError, match="--out is empty"):
+        files.check_out_dir("")

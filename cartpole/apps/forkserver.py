@@ -29,7 +29,10 @@ def start_server(method: str):
     this platform: the ``spawn`` context (each worker then imports the toolkit itself).
 
     The fork server is multiprocessing's own, one per process, and it stays up for later sweeps; where another
-    part of the program started it first, its workers import what it lacks on their first run."""
+    part of the program started it first, its workers import what it lacks on their first run. It (and so every
+    worker) starts with its stderr on ``/dev/null``: a worker reports through its results (a run that raises is a row
+    with its sentence, a worker that dies is the parent's one sentence), and a worker still starting when the sweep
+    is interrupted must not print multiprocessing's traceback after the sweep's sentence."""
     import multiprocessing
 
     if "forkserver" not in multiprocessing.get_all_start_methods():
@@ -37,10 +40,31 @@ def start_server(method: str):
     from multiprocessing import forkserver
 
     ctx = multiprocessing.get_context("forkserver")
-    with sigint_ignored(), worker_env():
+    with sigint_ignored(), worker_env(), _quiet_stderr():
         ctx.set_forkserver_preload(list(PRELOAD.get(method, PRELOAD["energy"])))  # read only by a server not yet up
         forkserver.ensure_running()
     return ctx
+
+
+@contextmanager
+def _quiet_stderr():
+    """File descriptor 2 on ``/dev/null`` inside the block (processes started there inherit it); restored after."""
+    import sys
+
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # no stderr to protect
+        yield
+        return
+    try:
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
 
 
 @contextmanager

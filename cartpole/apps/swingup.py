@@ -40,12 +40,13 @@ from cartpole.control.friction import friction_design, friction_summary
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.sim import Rollout, simulate
-from cartpole.sim.options import PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push, push_force
+from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
+                                  check_push_times, push_force)
 
 #: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
 #: sweep import them from here).
 __all__ = ["ENERGY_DURATION", "METHODS", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
-           "SwingupResult", "check_model_error", "check_push", "check_start", "parse_push", "plan_report",
+           "SwingupResult", "check_model_error", "check_push", "check_plan_size", "check_start", "check_upright_reachable", "parse_push", "plan_report",
            "planning_model", "push_force", "run_swingup"]
 
 METHODS = ("energy", "trajopt", "mpc")
@@ -118,6 +119,12 @@ def _state_order(params: CartPoleParams) -> str:
     return f"{pos}, then their rates in the same order"
 
 
+#: Largest start rate accepted, in each joint's units (m/s, rad/s): a faster start only blows MuJoCo up.
+MAX_START_RATE = 100.0
+#: Largest start hinge angle accepted, rad (about 160 turns; MuJoCo's angles never wrap).
+MAX_START_ANGLE = 1000.0
+
+
 def check_start(x0, params: CartPoleParams) -> np.ndarray:
     """Validate a start state against the MJCF: ``2 nq`` finite numbers, every joint inside its range.
 
@@ -135,7 +142,8 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
     ------
     SwingupError
         Wrong count (the sentence names the expected count and the order, from the MJCF's joint names), not
-        finite, a slide not strictly inside its range or a hinge outside its range.
+        finite, a slide not strictly inside its range or a hinge outside its range, a rate beyond
+        :data:`MAX_START_RATE` or a hinge angle beyond :data:`MAX_START_ANGLE`.
     """
     n = 2 * params.nq
     try:
@@ -148,6 +156,13 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
     if not np.all(np.isfinite(x)):
         raise SwingupError(f"The start state {x.tolist()} is not finite; give {n} finite numbers.")
     for i, j in enumerate(params.joints):
+        rate, unit = x[params.nq + i], "m/s" if j.kind == "slide" else "rad/s"
+        if abs(rate) > MAX_START_RATE:
+            raise SwingupError(f"The start rate {rate:g} {unit} of joint '{j.name}' is beyond the {MAX_START_RATE:g} "
+                               f"{unit} limit; give a rate of at most {MAX_START_RATE:g} in magnitude.")
+        if j.kind == "hinge" and abs(x[i]) > MAX_START_ANGLE:
+            raise SwingupError(f"The start angle {x[i]:g} rad of hinge '{j.name}' is beyond the {MAX_START_ANGLE:g} "
+                               "rad limit; give the angle within a few turns of upright.")
         lo, hi = (float(v) for v in j.range)
         if j.kind == "slide" and not lo < x[i] < hi:
             raise SwingupError(f"The start position {x[i]} m of slide '{j.name}' is outside its joint range "
@@ -156,6 +171,44 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
             raise SwingupError(f"The start angle {x[i]} rad of hinge '{j.name}' is outside its joint range "
                                f"[{lo}, {hi}] rad; start the pole inside it.")
     return x
+
+
+#: Most poles a trajectory optimisation (trajopt, and the NMPC's plan) is built for: its generated C grows steeply with
+#: every pole (see :data:`cartpole.codegen.LARGE_SOURCE`); a longer chain is refused before anything is built.
+MAX_PLAN_POLES = 3
+
+
+def check_plan_size(model: CartPoleModel, method: str) -> None:
+    """Refuse, before anything is built, a chain too long for ``method``'s planner (:data:`MAX_PLAN_POLES`).
+
+    Raises
+    ------
+    SwingupError
+        ``method`` is trajopt or mpc and the model has more hinges than :data:`MAX_PLAN_POLES`.
+    """
+    n = len(model.hinges)
+    if method in ("trajopt", "mpc") and n > MAX_PLAN_POLES:
+        raise SwingupError(f"This MJCF has a chain of {n} poles and --method {method} plans for at most "
+                           f"{MAX_PLAN_POLES} (its generated code grows steeply with every pole and would not build "
+                           f"in reasonable time); use a chain of at most {MAX_PLAN_POLES} poles.")
+
+
+def check_upright_reachable(model: CartPoleModel) -> None:
+    """Refuse a model whose hinge ranges exclude upright (``model.x_eq``): no swing-up can end there (the lab's
+    ``cartpole lqr`` refuses it in the same words).
+
+    Raises
+    ------
+    SwingupError
+        A hinge's range does not contain its upright angle.
+    """
+    x_eq = np.asarray(model.x_eq, float)
+    for h in model.hinges:
+        j = model.params.joints[h]
+        lo, hi = (float(v) for v in j.range)
+        if not lo < x_eq[h] < hi:
+            raise SwingupError(f"The range [{lo:g}, {hi:g}] rad of hinge '{j.name}' does not contain the upright "
+                               f"angle {x_eq[h]:g} rad; a swing-up ends upright, so widen the hinge range.")
 
 
 def parse_push(text: str) -> tuple[float, float]:
@@ -299,6 +352,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         model = None
     loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
     model = model if model is not None else build_model(params)
+    check_upright_reachable(model)
+    check_plan_size(model, method)
     x0 = check_start(model.x_hanging if x0 is None else x0, params)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
@@ -306,6 +361,10 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     plant, (pm, compensate) = pm, friction_design(pm, loop)
     wrap = compensate if compensate is not None else (lambda controller: controller)
     force = loop.push_force(params.timestep)
+    if loop.duration is not None:
+        check_push_times(loop.push, loop.duration)
+    elif method != "trajopt":  # trajopt's length is known after the plan (checked there, before simulating)
+        check_push_times(loop.push, MPC_DURATION if method == "mpc" else ENERGY_DURATION)
     if method != "mpc" and (mpc is not None or given["mpc"]):
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
                            "--method mpc.")
@@ -333,10 +392,11 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
                 raise
             raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
                                "does not have yet; use --method trajopt or energy.") from None
-        from cartpole.mpc.options import MPCOptions
+        from cartpole.mpc.options import MPCOptions, mpc_grid
         from cartpole.planning.options import PlanOptions
 
         mpc = _mpc_period((MPCOptions() if mpc is None else mpc).replace(**given["mpc"]), loop, params.timestep)
+        mpc_grid(mpc, params.timestep)  # a horizon too long to solve, or a period it would round away: refused now
         plan = PlanOptions(cart_margin=mpc.cart_margin) if plan is None else plan
         options = {"plan": plan, "loop": loop, "mpc": mpc}
         if progress is not None:
@@ -397,6 +457,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             T = T_plan + TRAJOPT_EXTRA
             if sp.objective == "dmc_swingup":
                 T = max(T, DMC_STEPS * params.timestep)
+            check_push_times(loop.push, T)
         rig = build_rig(plant, loop, task="swingup")
         controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),

@@ -88,11 +88,22 @@ def run(args) -> dict:
     R = None if args.R is None else weight_matrix(
         args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
     loop = loop_from_args(args)
+    from cartpole.apps.lab import LAB_DURATION
+    from cartpole.commands.swingup import check_log_size
+
+    runs = 5 * (2 if args.compare_pid else 1)  # every start's rollout is kept (and the PID's beside)
+    clip = 0.0 if args.no_video else VIDEO_SECONDS
+    check_log_size(runs * LAB_DURATION + clip, model.params,
+                   what=f"the lab's {runs} runs of {LAB_DURATION:g} s" + (f" and its {clip:g} s video clip" if clip
+                                                                        else ""))
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
     for key in MARGINS:
         if getattr(args, key) is not None:
             return _margin(args, model, loop, key)
+    from cartpole._files import check_replaceable
+
+    check_replaceable(Path(args.out) / METRICS)  # a read-only metrics.csv is refused before the lab runs
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop)
     if args.view:
         result = _view(result)

@@ -127,12 +127,16 @@ def _plan(args, params):
         raise SweepError("--x0 fixes the start of a sweep over axis options; without them the starts fill the start "
                          "box (give e.g. --push-force -20 20 5).")
     n = DEFAULT_N if args.n is None else args.n
+    duration = check_duration(args.duration, params)
     for m in methods:
-        check_settings(m, n, args.workers, args.jitter)
-        check_axes(axes, params, m)
+        from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+
+        check_settings(m, n, args.workers, args.jitter, seed=args.seed)
+        # a push time checked against the run's length where it is known before any run (trajopt's is the plan's)
+        ends = duration if duration is not None else {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(m)
+        check_axes(axes, params, m, duration=ends)
     if args.stop_after is not None and args.stop_after < 1:
         raise SweepError(f"--stop-after needs at least 1 run (got {args.stop_after}).")
-    duration = check_duration(args.duration, params)
     x0 = None
     if args.x0 is not None:
         from cartpole.apps.swingup import check_start
@@ -191,9 +195,17 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
                              stop_after=args.stop_after, loop=loop)
     except SweepInterrupted as stop:
+        from cartpole.errors import Terminated
+
+        def interrupted(text):  # SIGTERM stays SIGTERM (exit status 143), Ctrl-C is KeyboardInterrupt (130)
+            return KeyboardInterrupt(text) if stop.signum is None else Terminated(stop.signum, text)
+
+        if stop.finished == 0 and not stop.path.exists():
+            raise interrupted(f"interrupted before any of the {stop.total} runs finished; nothing was "
+                              "written.") from None
         again = "the same command with --resume" if not args.resume else "the same command again"
-        raise KeyboardInterrupt(f"interrupted after {stop.finished} of {stop.total} runs, kept in "
-                                f"{short(stop.path)}; run {again} to finish the others.") from None
+        raise interrupted(f"interrupted after {stop.finished} of {stop.total} runs, kept in "
+                          f"{short(stop.path)}; run {again} to finish the others.") from None
     result = rec.result
     doc = {**result.summary(), "rows": rec.rows, "results": str(rec.results.resolve()),
            "figure": str(rec.figure.resolve()), "sweep": rec.sweep, "resumed": rec.resumed,

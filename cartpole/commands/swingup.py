@@ -88,6 +88,26 @@ def check_duration(duration, params, *, flag: str = "--duration") -> float | Non
     return float(duration)
 
 
+def check_log_size(seconds: float, params, *, what: str) -> None:
+    """Refuse, before anything runs, a command whose rollout logs (``seconds`` of simulated time in all, every run
+    it keeps counted) exceed :data:`MAX_LOG_BYTES` at the MJCF's time step; ``what`` names those runs in the
+    sentence (``"the lab's 5 runs of 6 s and its 10 s video clip"``).
+
+    Raises
+    ------
+    SwingupError
+        Too much log to hold (the sentence gives the time step that would fit).
+    """
+    from cartpole.apps.swingup import SwingupError
+
+    need = log_bytes(seconds, params)
+    if need > MAX_LOG_BYTES:
+        step = float(params.timestep) * need / MAX_LOG_BYTES
+        raise SwingupError(f"At the MJCF's {params.timestep:g} s time step {what} ({seconds:g} s simulated) log "
+                           f"{need / 2**20:.3g} MiB, more than the {MAX_LOG_BYTES // 2**20} MiB limit; give the MJCF "
+                           f"a time step of at least {step:.2g} s.")
+
+
 class _Stages:
     """:func:`cartpole.apps.swingup.run_swingup`'s ``progress(stage, fraction)`` as :mod:`cartpole.progress` stages.
 
@@ -126,13 +146,16 @@ def run(args) -> dict:
 
     from cartpole.models import build_model
     from cartpole.progress import stage
-    from cartpole.apps.swingup import SwingupError, check_model_error, check_push, check_start, parse_push, run_swingup
+    from cartpole.apps.swingup import (SwingupError, check_model_error, check_plan_size, check_push, check_start,
+                                       check_upright_reachable, parse_push, run_swingup)
     from cartpole.sim.options import LoopOptions
     from cartpole.viz import plot_swingup
 
     # Everything is validated before anything is computed or written.
     model = build_model(args.mjcf)
     params = model.params
+    check_upright_reachable(model)
+    check_plan_size(model, args.method)
     x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)

@@ -74,6 +74,10 @@ def check_single_pole(model: CartPoleModel) -> tuple[int, int]:
         what = f"this model has {p.nu} actuators"
     elif p.actuated[0] != p.slide:
         what = f"its actuator drives joint '{p.joints[p.actuated[0]].name}', not the cart's slide"
+    elif not p.gear > 0:
+        raise EnergyShapingModelError(f"Energy shaping needs the motor to push the cart along +x as ctrl grows, and "
+                                      f"this model's gear is {p.gear:g}; give the actuator a positive gear (flip "
+                                      "its sign) or use `--method trajopt` instead.")
     elif not p.g > 0 or not p.pole_com_distance > 0:
         raise EnergyShapingModelError("Energy shaping pumps the pole's energy against gravity and this model has "
                                       + ("no gravity" if not p.g > 0 else "its pole's centre of mass on the hinge axis")
@@ -322,8 +326,12 @@ class EnergyShapingController:
         vals = np.array([getattr(g, k) for k in _PRM], dtype=float)
         if np.any(np.isnan(vals)) or g.k_energy <= 0 or g.a_energy_max <= 0 or g.a_brake <= 0 \
                 or g.barrier_rate <= 0 or min(g.k_x, g.k_v, g.kick_rate, g.track_margin) < 0:
-            raise EnergyShapingError(f"Energy-shaping gains {g} are invalid; k_energy, a_energy_max, a_brake and "
-                                     "barrier_rate must be positive, the others non-negative.")
+            bad = [k for k in _PRM if not np.isfinite(getattr(g, k))
+                   or (getattr(g, k) <= 0 if k in ("k_energy", "a_energy_max", "a_brake", "barrier_rate")
+                       else getattr(g, k) < 0 and k in ("k_x", "k_v", "kick_rate", "track_margin"))]
+            raise EnergyShapingError(f"Energy-shaping gain(s) {', '.join(bad) or 'given'} out of range; k_energy, "
+                                     "a_energy_max, a_brake and barrier_rate must be positive, k_x, k_v, kick_rate "
+                                     "and track_margin non-negative.")
         self.gains = g
         lo, hi = self.model.params.ctrl_range[0]
         self._prm = np.array([*vals, lo, hi], dtype=float)

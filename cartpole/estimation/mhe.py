@@ -73,6 +73,10 @@ _WHOLE = 1e-6
 _RANK_TOL = 1e-12
 
 
+#: Most control periods an MHE window may span.
+MAX_WINDOW = 100
+
+
 def horizon_periods(horizon_s: float, period_s: float) -> int:
     """The MHE window ``N`` in control periods from a horizon in seconds.
 
@@ -105,6 +109,10 @@ def horizon_periods(horizon_s: float, period_s: float) -> int:
         raise EstimationError(f"The MHE horizon {H:g} s is not positive; give a whole number of {T:g} s periods, "
                               f"e.g. {10 * T:g} s.")
     N = round(H / T)
+    if N > MAX_WINDOW:
+        raise EstimationError(f"The MHE horizon {H:g} s is {H / T:.3g} control periods, more than the {MAX_WINDOW} "
+                              f"limit (each control step solves a problem over all of them); give at most "
+                              f"{MAX_WINDOW * T:g} s.")
     if N < 1 or abs(N * T - H) > _WHOLE * H:
         near = sorted({max(1, math.floor(H / T)) * T, max(1, math.ceil(H / T)) * T})
         raise EstimationError(f"The MHE horizon {H:g} s is not a whole number of {T:g} s control periods; give "

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import build_library, load_library
+from cartpole.codegen import CacheError, build_library, load_library
 from cartpole.estimation.base import EstimationError
 from cartpole.estimation.measurement import measurement_jacobians
 
@@ -126,6 +126,8 @@ def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: boo
             ext = load_library(lib, ("mhe_window", "mhe_stage", "mhe_meas"))
             window, stage, meas = ext["mhe_window"], ext["mhe_stage"], ext["mhe_meas"]
             library = lib
+        except CacheError:  # a cache others can write to: refused, never used or bypassed
+            raise
         except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
             reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
             print(f"cartpole: compiled MHE functions unavailable ({reason}); using CasADi's virtual machine "

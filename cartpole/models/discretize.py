@@ -23,6 +23,8 @@ import numpy as np
 from cartpole.errors import CartPoleError
 
 #: Relative tolerance with which a period must be a whole number of physics steps.
+#: Longest control period accepted, s (a hold of thousands of steps would also take long to build).
+MAX_PERIOD = 1.0
 _WHOLE = 1e-6
 
 
@@ -60,6 +62,9 @@ def steps_per_period(period: float | None, timestep: float) -> int:
     if not (math.isfinite(T) and T > 0):
         raise PeriodError(f"The control period {T:g} s is not a positive number of seconds; give a whole number of "
                           f"the MJCF's {timestep:g} s steps, e.g. --period {5 * timestep:g}.")
+    if T > MAX_PERIOD:
+        raise PeriodError(f"The control period {T:g} s is longer than the {MAX_PERIOD:g} s limit (no cart-pole is "
+                          f"balanced that slowly); give a whole number of the MJCF's {timestep:g} s steps below it.")
     m = round(T / timestep)
     if m < 1 or abs(m * timestep - T) > _WHOLE * T:
         lo, hi = max(1, math.floor(T / timestep)), max(1, math.ceil(T / timestep))

@@ -462,10 +462,13 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
             raise MJCFError(f"The MJCF text does not compile: {first_line(exc)}. "
                             "Fix the XML and try again.") from None
-    path = Path(mjcf) if mjcf is not None else SHIPPED_MJCF
-    path = path.expanduser().resolve()
-    if not path.is_file():
-        raise MJCFError(f"MJCF file '{path}' does not exist; pass --mjcf with the path of a cart-pole MJCF.")
+    from cartpole._files import InputFileError, check_input_file
+
+    try:  # by kind, before opening: a FIFO would block, /dev/zero never ends, a symbolic-link loop raises
+        path = check_input_file(Path(mjcf) if mjcf is not None else SHIPPED_MJCF, what="MJCF file",
+                                flag="--mjcf")
+    except InputFileError as exc:
+        raise MJCFError(str(exc).replace("the path of a readable file", "the path of a cart-pole MJCF")) from None
     try:
         text = path.read_text()
         with _compiler_warnings():
@@ -569,6 +572,14 @@ def _check_supported(m, where: str) -> None:
         if not np.all(np.isfinite(values)):
             raise MJCFError(f"{where} has a number that is not finite in {field} (nan or inf in the XML); "
                             "give every mass, size, position, axis, gear, range and option a finite value.")
+    for i in range(m.nu):  # a ctrlrange so wide that full ctrl is no physical force (1e300) is a typo, refused
+        if m.actuator_ctrllimited[i]:
+            reach = float(np.max(np.abs(m.actuator_ctrlrange[i]))) * abs(float(m.actuator_gainprm[i, 0])) \
+                * float(np.max(np.abs(m.actuator_gear[i])))
+            if reach > MAX_ACTUATOR_FORCE:
+                raise MJCFError(f"{where} lets actuator '{_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i, 'actuator')}' "
+                                f"ask for {reach:.3g} N (or N m: gain x gear x ctrlrange), more than the "
+                                f"{MAX_ACTUATOR_FORCE:g} limit; give a ctrlrange and gear of a real motor.")
     integ = _INTEGRATOR_NAMES.get(int(m.opt.integrator))
     if integ is None:
         raise MJCFError(f"{where} uses integrator {int(m.opt.integrator)}; supported integrators are "
@@ -627,6 +638,11 @@ def _check_actuator(m, i: int, where: str) -> None:
             raise MJCFError(f"{where} clamps actuator '{name}' to forcerange [{lo:g}, {hi:g}] inside what its "
                             f"ctrlrange can ask for ([{reach[0]:g}, {reach[1]:g}] before the gear); the smooth model "
                             "has no clamp, so remove forcerange or narrow ctrlrange to match it.")
+
+
+#: Largest force (N, or torque N m) an actuator's full ctrl may ask for: gain x gear x max |ctrlrange|; far beyond any
+#: real rig (the lab's motor: 20 N), so that a ctrlrange of 1e300 is refused rather than simulated into overflow.
+MAX_ACTUATOR_FORCE = 1e6
 
 
 #: Compiled fields the model reads that must hold finite numbers (joint and ctrl ranges may be infinite only when

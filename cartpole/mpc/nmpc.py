@@ -64,7 +64,8 @@ from cartpole.mpc.stage_functions import StageFunctions, stage_functions
 from cartpole.mpc.ipopt_nlp import IpoptNLP
 from cartpole.mpc.ipopt_nlp import StepFailed as _StepFailed
 # QP_SOLVERS and RAIL_PENALTY are re-exported: they were defined here before the options module
-from cartpole.mpc.options import DEFAULT_PERIOD, QP_SOLVERS, RAIL_PENALTY, MPCOptions, NMPCError  # noqa: F401
+from cartpole.mpc.options import (DEFAULT_PERIOD, QP_SOLVERS, RAIL_PENALTY, MPCOptions, NMPCError,  # noqa: F401
+                                  mpc_grid)
 from cartpole.ocp.trajectory import Trajectory
 
 _BIG = 1e30  # DAQP's "no bound"
@@ -305,8 +306,7 @@ class NMPCController:
         if qp_solver is None:
             qp_solver = "daqp" if importlib.util.find_spec("daqp") is not None else "qpoases"
         self.qp_solver = qp_solver
-        steps = max(1, int(round(period / dt)))
-        N = max(1, int(round(horizon / (steps * dt))))
+        steps, N = mpc_grid(options, dt)  # refused when the period or horizon cannot be used as given
         if prestabilize is None:  # growth of the fastest upright mode over the horizon
             lam = float(np.linalg.eigvals(model.linearize()[0]).real.max())
             prestabilize = lam * N * steps * dt > np.log(GROWTH_LIMIT)

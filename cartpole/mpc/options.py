@@ -20,6 +20,38 @@ QP_SOLVERS = ("daqp", "qpoases")
 MPC_SOLVERS = ("rti", "ddp")
 #: Default exact-penalty weight on the rail slack, cost per m (or rad) of violation.
 RAIL_PENALTY = 1e3
+#: Most prediction stages (horizon / period) an NMPC may have: its condensed QP grows with the square of the stages
+#: and every control step solves one (the default is 60); a longer horizon or a shorter period is refused before
+#: anything is built.
+MAX_STAGES = 500
+
+
+def mpc_grid(options: "MPCOptions", timestep: float) -> tuple[int, int]:
+    """``(steps, N)``: MJCF steps per control period and prediction stages of ``options`` on a model stepping
+    ``timestep`` s (the period rounded to whole steps, the horizon to whole periods), refused in one sentence when
+    they cannot be used as given.
+
+    Raises
+    ------
+    NMPCError
+        A period shorter than half a physics step (it would round to a step it is not), a horizon shorter than one
+        period, or more than :data:`MAX_STAGES` stages.
+    """
+    dt = float(timestep)
+    period = DEFAULT_PERIOD if options.period is None else float(options.period)
+    if period < 0.5 * dt:
+        raise NMPCError(f"The NMPC's period {period:g} s is shorter than the MJCF's {dt:g} s physics step; give a "
+                        f"whole number of steps (e.g. --period {dt:g}).")
+    steps = max(1, int(round(period / dt)))
+    if options.horizon < 0.5 * steps * dt:
+        raise NMPCError(f"The NMPC's horizon {options.horizon:g} s is shorter than its {steps * dt:g} s control "
+                        "period; give a horizon of at least one period (e.g. --horizon 1.2).")
+    N = options.horizon / (steps * dt)
+    if N > MAX_STAGES + 0.5:
+        raise NMPCError(f"The NMPC's horizon {options.horizon:g} s at a {steps * dt:g} s period is {N:.3g} stages, "
+                        f"more than the {MAX_STAGES} limit (each control step solves a QP over all of them); give "
+                        f"at most --horizon {MAX_STAGES * steps * dt:g} or a longer --period.")
+    return steps, max(1, int(round(N)))
 
 
 class NMPCError(CartPoleError, ValueError):

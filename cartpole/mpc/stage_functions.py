@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.models import CartPoleModel
-from cartpole.codegen import build_library, model_key
+from cartpole.codegen import CacheError, build_library, model_key
 
 _LIB_VERSION = "nmpc-stages-v6"  # bump when the generated functions change meaning
 
@@ -281,6 +281,8 @@ def stage_functions(model: CartPoleModel, steps: int, N: int, *, compiled: bool 
             ext = [ca.external(name, lib) for name in ("nmpc_stage", "nmpc_qp_data", "nmpc_rollout")]
             stage, qp_data, rollout = ext
             library = lib
+        except CacheError:  # a cache others can write to: refused, never used or bypassed
+            raise
         except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
             reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
             print(f"cartpole: compiled NMPC functions unavailable ({reason}); using CasADi's virtual machine "

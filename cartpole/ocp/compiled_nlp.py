@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import LIB_VERSION, build_library, digest, load_library, model_key
+from cartpole.codegen import LIB_VERSION, CacheError, build_library, digest, load_library, model_key
 from cartpole.models import CartPoleModel
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 
@@ -271,6 +271,8 @@ def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su,
         lib, now = build_library(lambda: interval_functions(f, sx, su, 1.0, running=running), model_key(model),
                                   recipe=recipe)
         ext = load_library(lib, INTERVAL_FUNCTIONS)
+    except CacheError:  # a cache others can write to: refused, never used or bypassed
+        raise
     except Exception as exc:  # noqa: BLE001 - any failure here means: keep the SX path
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
         print(f"cartpole: compiled collocation functions unavailable ({reason}); using the slower SX "

@@ -205,7 +205,7 @@ def _from_function(model, fn: Callable, label: str) -> Objective:
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     try:
         val = fn(x, u)
-    except Exception as exc:  # noqa: BLE001 - any failure of user code is reported in one sentence
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - any failure of user code is reported in one sentence
         raise OCPError(f"The objective {label} failed on CasADi symbols ({type(exc).__name__}: "
                        f"{_short(exc)}); write it with casadi "
                        f"operations (casadi.cos, casadi.exp, ...) of x ({model.nx},) and u ({model.nu},).") \
@@ -278,10 +278,20 @@ def load_objective(spec: str) -> Callable:
         raise OCPError(f"The objective '{spec}' is not of the form MODULE:FUNCTION (e.g. mycosts:upright).")
     try:
         mod = importlib.import_module(mod_name)
-    except Exception as exc:  # noqa: BLE001 - ImportError, or an error inside the user's module
-        raise OCPError(f"The objective module '{mod_name}' cannot be imported ({type(exc).__name__}: "
-                       f"{_short(exc)}); put it on PYTHONPATH or in "
-                       "the current directory.") from None
+    except ModuleNotFoundError as exc:
+        if exc.name != mod_name.split(".")[0] and exc.name != mod_name:  # the module itself imports a missing one
+            raise OCPError(f"The objective module '{mod_name}' cannot be imported: it raised ModuleNotFoundError "
+                           f"({_short(exc)}); fix that module.") from None
+        raise OCPError(f"The objective module '{mod_name}' cannot be imported: it is not found; make it a module "
+                       "on PYTHONPATH (the installed cartpole script does not search the current directory: run "
+                       "with PYTHONPATH=. for a file mymodule.py there).") from None
+    except SystemExit as exc:  # the user's module called sys.exit / raise SystemExit while imported
+        raise OCPError(f"The objective module '{mod_name}' cannot be imported: it called SystemExit({exc.code!r}) "
+                       "at import; remove the exit from the module's top level (guard it with if __name__ == "
+                       "'__main__').") from None
+    except Exception as exc:  # noqa: BLE001 - an error inside the user's module
+        raise OCPError(f"The objective module '{mod_name}' cannot be imported: it raised {type(exc).__name__} "
+                       f"({_short(exc)}) at import; fix that module.") from None
     fn = getattr(mod, fn_name, None)
     if fn is None or not callable(fn):
         raise OCPError(f"The objective module '{mod_name}' has no function '{fn_name}'; give MODULE:FUNCTION of "

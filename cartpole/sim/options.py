@@ -15,7 +15,7 @@ from cartpole.options import OptionsError, StageOptions
 
 class LoopError(OptionsError):
     """Bad closed-loop settings: a push that is not a pair of finite numbers, a model error that is not a scale in
-    (0, 10], a duration or period that is not a positive number of seconds."""
+    [0.1, 10], a duration or period that is not a positive number of seconds."""
 
 
 #: The estimators a loop can run (:attr:`LoopOptions.estimator`).
@@ -23,6 +23,11 @@ ESTIMATORS = ("none", "kf", "ekf", "mhe")
 
 #: Seconds each push lasts.
 PUSH_SECONDS = 0.1
+#: Largest push force, N (magnitude): 50 times the lab motor's 20 N. A larger one only blows MuJoCo up.
+MAX_PUSH_FORCE = 1000.0
+#: Latest push start time accepted before the run's length is known, s (a push must also start before the run ends,
+#: :func:`check_push_times`).
+MAX_PUSH_TIME = 1e6
 
 
 def check_push(push, params=None) -> tuple:
@@ -36,7 +41,8 @@ def check_push(push, params=None) -> tuple:
     Raises
     ------
     LoopError
-        Not pairs of finite numbers, a negative time, or a model without a slide joint to push.
+        Not pairs of finite numbers, a time outside ``[0, MAX_PUSH_TIME]``, a force above :data:`MAX_PUSH_FORCE`,
+        or a model without a slide joint to push.
     """
     if push is None:
         return ()
@@ -45,16 +51,30 @@ def check_push(push, params=None) -> tuple:
     except (TypeError, ValueError):
         raise LoopError(f"A push is a pair (T, F) of a start time in s and a force in N; got {push!r}.") from None
     for T, F in pairs:
-        if not (np.isfinite(T) and np.isfinite(F) and T >= 0):
-            raise LoopError(f"The push ({T:g} s, {F:g} N) needs a start time >= 0 s and a finite force; give "
-                            "e.g. --push 1.5:20.")
+        if not (np.isfinite(T) and np.isfinite(F) and 0 <= T <= MAX_PUSH_TIME and abs(F) <= MAX_PUSH_FORCE):
+            raise LoopError(f"The push ({T:g} s, {F:g} N) needs a start time in [0, {MAX_PUSH_TIME:g}] s and a "
+                            f"finite force of at most {MAX_PUSH_FORCE:g} N in magnitude; give e.g. --push 1.5:20.")
     if pairs and params is not None and params.slide is None:
         raise LoopError("This MJCF has no slide joint, so there is no cart to push; drop the push.")
     return tuple(sorted(pairs))
 
 
+def check_push_times(push, duration: float) -> None:
+    """Refuse a push that would never act: one starting at or after the end of the run (``duration``, s).
+
+    Raises
+    ------
+    LoopError
+        A push's start time is not before ``duration``.
+    """
+    for T, F in check_push(push):
+        if T >= float(duration):
+            raise LoopError(f"The push at {T:g} s ({F:g} N) starts after the run ends at {float(duration):g} s, so it "
+                            "would never act; give a time before the end or a longer --duration.")
+
+
 def check_model_error(model_error) -> float:
-    """The planning model's scale ``S`` (1.0 for None): a finite number, ``0 < S <= 10``.
+    """The planning model's scale ``S`` (1.0 for None): a finite number, ``0.1 <= S <= 10``.
 
     Raises
     ------
@@ -66,8 +86,8 @@ def check_model_error(model_error) -> float:
         S = float(model_error)
     except (TypeError, ValueError):
         raise LoopError(f"The model error {model_error!r} is not a number; give a scale such as 0.8.") from None
-    if not (np.isfinite(S) and 0 < S <= 10):
-        raise LoopError(f"The model error {S:g} is not a scale in (0, 10] of the poles' masses and lengths; give "
+    if not (np.isfinite(S) and 0.1 <= S <= 10):
+        raise LoopError(f"The model error {S:g} is not a scale in [0.1, 10] of the poles' masses and lengths; give "
                         "e.g. 1.2 for 20 % heavier and longer.")
     return S
 
@@ -108,7 +128,7 @@ class LoopOptions(StageOptions):
         Pushes ``(T [s], F [N])``: a world-x force of F N on the cart body for :data:`PUSH_SECONDS` from time T s
         (:func:`push_force`), sorted by time; any sequence of pairs is accepted and normalised.
     model_error : float
-        Scale S in (0, 10] of the *planning* model's pole masses and lengths (1: the MJCF's own); MuJoCo always
+        Scale S in [0.1, 10] of the *planning* model's pole masses and lengths (1: the MJCF's own); MuJoCo always
         runs the MJCF. The scenario the controller is designed for, kept with the loop it is tested in.
     delay : float
         Seconds from sampling the sensors to the ctrl taking effect (computation and transport), a whole number of

@@ -30,6 +30,10 @@ class RigError(LoopError):
     estimator, an estimator that cannot see the state from the sensors."""
 
 
+#: Longest sensing-to-actuation delay accepted, s.
+MAX_DELAY = 1.0
+
+
 def delay_steps(delay: float, timestep: float) -> int:
     """Physics steps in ``delay`` s (0 for 0), or one sentence when it is not a whole number of them.
 
@@ -51,6 +55,9 @@ def delay_steps(delay: float, timestep: float) -> int:
     d = float(delay)
     if d == 0:
         return 0
+    if np.isfinite(d) and d > MAX_DELAY:
+        raise RigError(f"The delay {d:g} s is longer than the {MAX_DELAY:g} s limit (the loop holds every sample of "
+                       "it in memory); give a shorter --delay.")
     k = round(d / timestep)
     if not np.isfinite(d) or d < 0 or abs(k * timestep - d) > 1e-6 * d:
         near = sorted({max(0, int(np.floor(d / timestep))) * timestep, int(np.ceil(d / timestep)) * timestep})

@@ -44,7 +44,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.ocp.bounds import OCPError
-from cartpole.codegen import build_library
+from cartpole.codegen import CacheError, build_library
 
 _LIB_VERSION = "sqp-qp-v2"  # bump when the generated functions change meaning
 
@@ -271,6 +271,8 @@ def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled:
         try:
             lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=recipe, cflags=CFLAGS)
             return [ca.external(name, lib) for name in ("sqp_stages", "sqp_condense", "sqp_multipliers")], lib
+        except CacheError:  # a cache others can write to: refused, never used or bypassed
+            raise
         except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
             reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
             print(f"cartpole: compiled SQP QP functions unavailable ({reason}); using CasADi's virtual machine "

@@ -330,34 +330,63 @@ _SCALARS = ("rho", "rho_sampled", "rho_cover", "n", "seed", "level", "duration",
 
 
 def _save(path: Path, est: BasinEstimate) -> None:
-    """Write ``est`` as ``.npz`` (whole or not at all); an unwritable cache is skipped silently (it is a cache)."""
-    from cartpole._files import OutputError, atomic_write
+    """Write ``est`` as ``.npz`` with its content hash beside it (:func:`cartpole.codegen.write_verified`, each whole
+    or not at all); an unwritable cache is skipped silently (it is a cache)."""
+    from cartpole._files import OutputError
+    from cartpole.codegen import private_dir, write_verified
 
     buf = io.BytesIO()
     arrays = {k: np.asarray(getattr(est, k)) for k in _ARRAYS if getattr(est, k) is not None}
     np.savez(buf, **arrays, scalars=np.array([float(getattr(est, k)) for k in _SCALARS]))
     try:
-        atomic_write(path, lambda fh: fh.write(buf.getvalue()))
+        private_dir(path.parent)
+        write_verified(path, buf.getvalue())
     except OutputError:
         pass
 
 
-def _load(path: Path, mjcf: str) -> BasinEstimate | None:
-    """The estimate stored at ``path``, or None when absent or unreadable (then it is estimated again)."""
+def plausible(est: BasinEstimate) -> bool:
+    """Whether a stored estimate holds values an estimate can have: finite arrays of consistent shapes, levels
+    ``rho_cover >= rho >= 0`` (``rho_sampled`` > 0 or inf), ``rho`` equal to ``safety_factor * min(rho_sampled,
+    rho_cover)``, a safety factor in (0, 1], ``n`` samples. A file failing this (a negative or NaN rho, say) is
+    discarded and the basin estimated again."""
     try:
-        with np.load(path, allow_pickle=False) as z:
+        n = int(est.n)
+        arrays_ok = (est.samples.ndim == 2 and est.samples.shape[0] == n and est.costs.shape == (n,)
+                     and est.success.shape == (n,) and all(np.all(np.isfinite(np.asarray(a, float))) for a in
+                                                             (est.samples, est.costs, est.S, est.K, est.box)))
+        levels = (np.isfinite(est.rho) and est.rho >= 0 and np.isfinite(est.rho_cover) and est.rho_cover >= est.rho
+                  and not np.isnan(est.rho_sampled) and est.rho_sampled > 0 and 0 < est.safety_factor <= 1)
+        consistent = levels and np.isclose(est.rho, est.safety_factor * min(est.rho_sampled, est.rho_cover),
+                                           rtol=1e-12, atol=0.0)
+        return bool(n > 0 and arrays_ok and consistent)
+    except (AttributeError, TypeError, ValueError):
+        return False
+
+
+def _load(path: Path, mjcf: str) -> BasinEstimate | None:
+    """The estimate stored at ``path``, or None when absent, unreadable, not the content recorded when it was saved
+    (:func:`cartpole.codegen.read_verified`) or not :func:`plausible` (then it is estimated again)."""
+    from cartpole.codegen import read_verified
+
+    data = read_verified(path)
+    if data is None:
+        return None
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
             arrays = {k: np.array(z[k]) for k in _ARRAYS if k in z.files}
             sc = dict(zip(_SCALARS, (float(v) for v in z["scalars"])))
     except (OSError, ValueError, KeyError, EOFError):
         return None
     try:
-        return BasinEstimate(rho=sc["rho"], rho_sampled=sc["rho_sampled"], rho_cover=sc["rho_cover"],
-                             samples=arrays["samples"], costs=arrays["costs"], success=arrays["success"],
-                             S=arrays["S"], K=arrays["K"], n=int(sc["n"]), seed=int(sc["seed"]), level=sc["level"],
-                             box=arrays["box"], duration=sc["duration"], safety_factor=sc["safety_factor"],
-                             limit_margin=sc["limit_margin"], mjcf=mjcf, x_eq=arrays.get("x_eq"))
+        est = BasinEstimate(rho=sc["rho"], rho_sampled=sc["rho_sampled"], rho_cover=sc["rho_cover"],
+                            samples=arrays["samples"], costs=arrays["costs"], success=arrays["success"],
+                            S=arrays["S"], K=arrays["K"], n=int(sc["n"]), seed=int(sc["seed"]), level=sc["level"],
+                            box=arrays["box"], duration=sc["duration"], safety_factor=sc["safety_factor"],
+                            limit_margin=sc["limit_margin"], mjcf=mjcf, x_eq=arrays.get("x_eq"))
     except (KeyError, ValueError, TypeError):
         return None
+    return est if plausible(est) else None
 
 
 @dataclass
@@ -395,6 +424,13 @@ class BasinCache:
             return self._store[key]
         est = None
         path = None if self.directory is None else Path(self.directory) / f"{key}.npz"
+        if path is not None:
+            from cartpole.codegen import private_dir
+
+            try:  # a basins directory others may write to is refused (CacheError), never read
+                private_dir(path.parent)
+            except OSError:  # cannot be created: no disk cache this time
+                path = None
         if path is not None and path.is_file():
             est = _load(path, params.mjcf)
         if est is not None:

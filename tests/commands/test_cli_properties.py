@@ -21,6 +21,12 @@ database; the explicit examples are the regression set). Until the package is fi
 ``.xfail(raises=AssertionError, reason=...)``, which is strict: the fix then fails the example and asks for the mark
 to go. The crashes found before the inputs were values are the plain tests at the end.
 
+Hostile inputs (issue 24) are drawn too: extreme numbers (1e308, denormals) for every numeric option, pushes
+after the run or beyond the force limit, NMPC horizons of a million seconds, negative seeds; ``--mjcf`` naming a
+symbolic-link loop, a FIFO, a directory, ``/dev/zero`` or an empty file; and for ``swingup`` a cache directory others
+may write to (always refused) or holding a truncated, impossible or unverifiable basin file or a planted library
+(discarded, estimated or built again).
+
 Time steps are drawn from plausible values (1 ms and up): below that a 300-sample basin estimate of 4 s per sample
 is a run of minutes, not a bad input.
 """
@@ -63,6 +69,10 @@ class Case:
     edits: tuple = ()
     options: tuple = ()
     json: bool = False
+    #: What ``--mjcf PATH`` is: the edited file, or a path of the wrong kind (see `_mjcf_path`).
+    mjcf_kind: str = "file"
+    #: How the example's own cache directory is tampered with before the run (see `_tamper`), or None.
+    cache: str | None = None
 
 
 # ---- MJCF edits -----------------------------------------------------------------------------------------------
@@ -178,7 +188,14 @@ def _mjcf(edits: tuple) -> str:
 
 # ---- argument lists -------------------------------------------------------------------------------------------
 
-FLOATS = _half_good(["0", "1", "0.1", "10", "2.5"], ["-1", "1e-12", "1e12", "nan", "inf", "-0.5", "x"])
+FLOATS = _half_good(["0", "1", "0.1", "10", "2.5"], ["-1", "1e-12", "1e12", "nan", "inf", "-0.5", "x", "1e308",
+                                                    "-1e308", "1e-308", "5e-324"])
+PUSHES = _half_good(["0.2:5", "0.1:-20", "0:1"], ["1e308:1", "1:1e12", "5:1", "nan:1", "-1:1", "1:inf", "1:", "x"])
+#: What ``--mjcf`` names: mostly the edited file, now and then a path no MJCF reader may open.
+MJCF_KINDS = st.one_of(st.just("file"), st.sampled_from(["loop", "fifo", "directory", "device", "missing", "empty"]))
+#: Tampering with the example's own cache directory (a copy of one holding a real basin estimate).
+CACHES = st.one_of(st.none(), st.sampled_from(["group-writable", "world-writable", "truncated-basin",
+                                                "impossible-basin", "garbage-sidecar", "planted-library"]))
 
 
 def _floats(draw, lo, hi):
@@ -202,15 +219,91 @@ def _options(draw, command: str) -> tuple:
             argv += ["--x0", *_floats(draw, *draw(st.sampled_from([(4, 4), (3, 5)])))]
         if draw(st.booleans()):
             argv += ["--method", draw(st.sampled_from(["energy", "energy", "energy", "mpc"]))]
+            if argv[-1] == "mpc" and draw(st.booleans()):
+                argv += ["--horizon", draw(_half_good(["1.2", "0.5"], ["1e6", "1e-9", "30", "nan", "-1"]))]
+        if draw(st.booleans()):
+            argv += ["--push", draw(PUSHES)]
+        if draw(st.sampled_from(range(4))) == 3:
+            argv += ["--noise-seed", draw(st.sampled_from(["0", "7", "-1", "1e30", "x"]))]
     if draw(st.sampled_from(range(10))) == 9:  # now and then an option that does not exist or lacks its value
         argv += [draw(st.sampled_from(["--bogus", "--duration", "--Q", "--x0", "-x"]))]
     return tuple(argv)
 
 
 def cases(command: str):
-    """Strategy: a `Case` for ``command`` (up to three MJCF edits, its options, with or without ``--json``)."""
+    """Strategy: a `Case` for ``command`` (up to three MJCF edits, its options, with or without ``--json``, what
+    ``--mjcf`` names, and for ``swingup`` a tampered cache)."""
     return st.builds(Case, edits=st.lists(EDITS, max_size=3).map(tuple), options=_options(command),
-                     json=st.booleans())
+                     json=st.booleans(), mjcf_kind=MJCF_KINDS,
+                     cache=CACHES if command == "swingup" else st.none())
+
+
+# ---- hostile paths and caches ---------------------------------------------------------------------------------
+
+def _mjcf_path(tmp: Path, kind: str, text: str) -> Path:
+    """``--mjcf``: the edited MJCF, or a symbolic-link loop, a FIFO, a directory, a device, a missing or empty
+    file."""
+    path = tmp / "model.xml"
+    if kind == "file":
+        path.write_text(text)
+    elif kind == "loop":
+        os.symlink(tmp / "other.xml", path)
+        os.symlink(path, tmp / "other.xml")
+    elif kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "directory":
+        path.mkdir()
+    elif kind == "device":
+        path = Path("/dev/zero")
+    elif kind == "empty":
+        path.write_text("")
+    return path
+
+
+_TEMPLATE: list = []  # a cache directory holding the shipped cart's basin estimate, made once per session
+
+
+def _template_cache() -> Path:
+    if not _TEMPLATE:
+        from cartpole.validation.basin import BasinCache
+
+        d = Path(tempfile.mkdtemp(prefix="cartpole-cache-template-"))
+        BasinCache.on_disk(d / "basins").get(None)
+        _TEMPLATE.append(d)
+    return _TEMPLATE[0]
+
+
+def _tamper(cache: Path, how: str) -> None:
+    """Copy the template cache to ``cache`` and tamper with it as ``how`` says."""
+    import shutil
+
+    import numpy as np
+
+    shutil.copytree(_template_cache(), cache)
+    cache.chmod(0o700)
+    basins = sorted((cache / "basins").glob("*.npz"))
+    if how == "group-writable":
+        cache.chmod(0o770)
+    elif how == "world-writable":
+        (cache / "basins").chmod(0o777)
+    elif how == "truncated-basin":
+        for b in basins:
+            b.write_bytes(b.read_bytes()[:100])
+    elif how == "impossible-basin":
+        from cartpole.codegen import write_verified
+
+        for b in basins:
+            with np.load(b) as z:
+                arrays = {k: np.array(z[k]) for k in z.files}
+            arrays["scalars"][:3] = [-1.0, np.nan, -2.0]
+            buf = io.BytesIO()
+            np.savez(buf, **arrays)
+            write_verified(b, buf.getvalue())  # a correct hash of impossible values
+    elif how == "garbage-sidecar":
+        for b in basins:
+            Path(str(b) + ".sha256").write_bytes(b"\x00garbage")
+    elif how == "planted-library":  # a file under a library's name, no recorded hash
+        (cache / "hs_interval_r0123456789abcdef0123.so").write_bytes(b"\x7fELF not really")
 
 
 # ---- the property -------------------------------------------------------------------------------------------
@@ -235,16 +328,28 @@ def _check_outcome(command, argv, rc, out, err, out_dir: Path, json_mode: bool):
 
 def _run_cli(command: str, case: Case):
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "model.xml"
-        path.write_text(_mjcf(case.edits))
+        path = _mjcf_path(Path(tmp), case.mjcf_kind, _mjcf(case.edits))
         out_dir = Path(tmp) / "out"
         argv = [command, "--mjcf", str(path), *(["--json"] if case.json else []), *case.options]
         if command != "linearize":
             argv[1:1] = ["--out", str(out_dir)]
+        saved = os.environ.get("CARTPOLE_CACHE_DIR")
+        if case.cache is not None:
+            _tamper(Path(tmp) / "cache", case.cache)
+            os.environ["CARTPOLE_CACHE_DIR"] = str(Path(tmp) / "cache")
         out, err = io.StringIO(), io.StringIO()
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            rc = main(argv)
+        try:
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                rc = main(argv)
+        finally:
+            if case.cache is not None:
+                if saved is None:
+                    os.environ.pop("CARTPOLE_CACHE_DIR", None)
+                else:
+                    os.environ["CARTPOLE_CACHE_DIR"] = saved
         _check_outcome(command, argv, rc, out.getvalue(), err.getvalue(), out_dir, case.json)
+        if case.mjcf_kind != "file" or case.cache in ("group-writable", "world-writable"):
+            assert rc == 2, (case, err.getvalue())  # never a run on such a path or from such a cache
 
 
 @_settings(200)

@@ -354,6 +354,8 @@ def _alive_after(procs, seconds=60):
 def test_sigterm_stops_a_pool_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path):
     import os
     import signal
+    import subprocess
+    import sys
 
     out = tmp_path / "cut"
     proc, below = _running_sweep(out)
@@ -362,11 +364,18 @@ def test_sigterm_stops_a_pool_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path
     assert len(below) >= 2  # the fork server (or spawned workers) and at least one worker
     os.kill(proc.pid, signal.SIGTERM)  # the sweep's process alone, as a service manager sends it
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130, err
+    assert proc.returncode == 128 + signal.SIGTERM, err  # the status of a process ended by SIGTERM
     last = err.strip().splitlines()[-1]
     kept = len((out / "sweeps" / "sweep_energy.csv").read_text().splitlines()) - 1
     assert f"interrupted after {kept} of 40 runs" in last and "Traceback" not in err
     assert _alive_after(below) == []
+    # the rows kept are resumable: the same sweep with --resume runs only the others
+    again = subprocess.run([sys.executable, "-m", "cartpole", "sweep", "--json", "--n", "40", "--duration", "4",
+                            "--workers", "2", "--out", str(out), "--resume"], capture_output=True, text=True,
+                           timeout=600, env={**os.environ, "MUJOCO_GL": "egl"})
+    assert again.returncode == 0, again.stderr
+    doc = json.loads(again.stdout)
+    assert doc["resumed"] == kept and len(doc["rows"]) == 40
 
 
 def test_a_killed_pool_sweep_leaves_no_worker(tmp_path):

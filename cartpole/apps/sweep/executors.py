@@ -369,6 +369,57 @@ def _run_on_dask(token: str, settings: tuple, x0, options, push=(), model_error=
     return runner.run(x0, options, push, model_error, run_settings)
 
 
+#: Dask address schemes a sweep connects to (``host:port`` alone means ``tcp://``).
+ADDRESS_SCHEMES = ("tcp", "tls")
+
+
+def check_address(address: str) -> tuple[str, int]:
+    """``(host, port)`` of a Dask scheduler address ``tcp://host:port`` (or ``tls://``, or ``host:port``).
+
+    Raises
+    ------
+    SweepError
+        Not of that form (another scheme such as ``http://``, no port, a port outside 1..65535).
+    """
+    text = str(address).strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    host, colon, port = rest.rstrip("/").rpartition(":")
+    host = host.strip("[]")
+    ok = scheme in ADDRESS_SCHEMES and colon and host and port.isdigit() and 1 <= int(port) <= 65535
+    if not ok:
+        raise SweepError(f"--address {text!r} is not a Dask scheduler address; give tcp://HOST:PORT (e.g. "
+                         "tcp://127.0.0.1:8786, what `dask scheduler` prints).")
+    return host, int(port)
+
+
+def _connect(Client, address: str):
+    """``(client, None)`` connected to the scheduler at ``address``, or ``(None, why)`` when that fails in any way
+    (refused, timed out, something that is not a Dask scheduler answering). A Client that failed inside its
+    constructor is marked closed and its event loop stopped here, so its ``__del__`` neither waits 20 s to close it
+    nor prints "Exception ignored in Client.__del__" after the sweep's sentence."""
+    import gc
+
+    try:
+        return Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False), None
+    except Exception as exc:  # noqa: BLE001 - anything the connection attempt raises is "cannot reach"
+        why = "something there is not a Dask scheduler" if isinstance(exc, MemoryError) else type(exc).__name__
+        tb = exc.__traceback__
+        while tb is not None:  # the half-built Client is `self` in its constructor's frame
+            half = tb.tb_frame.f_locals.get("self")
+            if isinstance(half, Client):
+                half.status = "closed"
+                try:
+                    half._loop_runner.stop()
+                except Exception:  # noqa: BLE001 - best effort: the loop may never have started
+                    pass
+            tb = tb.tb_next
+        del exc, tb
+    gc.collect()
+    return None, why
+
+
 def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
     """The runs ``todo`` on the Dask scheduler at ``address`` (``tcp://host:port``); ``finished(i, row)`` as each
     one comes back.
@@ -376,8 +427,9 @@ def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
     Raises
     ------
     SweepError
-        Dask distributed is not installed, the scheduler cannot be reached within :data:`CONNECT_TIMEOUT` s, or a
-        run failed on the cluster outside :class:`CartPoleError` (a worker died, say).
+        Dask distributed is not installed, the address is malformed (:func:`check_address`), the scheduler cannot
+        be reached within :data:`CONNECT_TIMEOUT` s, or a run failed on the cluster outside :class:`CartPoleError`
+        (a worker died, say).
     """
     import uuid
 
@@ -386,11 +438,18 @@ def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
     except ImportError:
         raise SweepError("--address needs Dask distributed; install it with `pip install 'dask[distributed]'`.") \
             from None
-    try:
-        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise SweepError(f"Cannot reach a Dask scheduler at {address} ({type(exc).__name__}); start one "
-                         "(`dask scheduler`, then `dask worker ADDRESS`) or give its tcp://host:port.") from None
+    host, port = check_address(address)
+    advice = "start one (`dask scheduler`, then `dask worker ADDRESS`) or give its tcp://host:port"
+    try:  # a plain TCP connection first: a closed port is one sentence at once, with no Client half-built
+        import socket
+
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
+    except OSError as exc:
+        raise SweepError(f"Cannot reach a Dask scheduler at {address} ({exc.strerror or type(exc).__name__}); "
+                         f"{advice}.") from None
+    client, why = _connect(Client, address)
+    if client is None:
+        raise SweepError(f"Cannot reach a Dask scheduler at {address} ({why}); {advice}.")
     futures = []
     try:
         [init_f] = client.scatter([runner.settings()], broadcast=True)

@@ -18,7 +18,8 @@ from cartpole.mpc.options import MPCOptions
 from cartpole.planning.options import PlanOptions
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams
-from cartpole.apps.swingup import check_model_error
+from cartpole.apps.swingup import check_model_error, check_start
+from cartpole.sim.options import MAX_PUSH_FORCE, MAX_PUSH_TIME
 
 #: Default start box for one pole: centre (hanging at rest) and half-widths [m, rad, m/s, rad/s].
 HANGING = (0.0, np.pi, 0.0, 0.0)
@@ -129,7 +130,8 @@ def axis(name: str, *values) -> Axis:
     return Axis(name, v[0], v[1], int(v[2]))
 
 
-def check_settings(method: str, n, workers, gain_jitter: float, half_widths=None, energy_options=None) -> None:
+def check_settings(method: str, n, workers, gain_jitter: float, half_widths=None, energy_options=None, *,
+                   seed=0) -> None:
     """Refuse sweep settings that no run could use, before anything runs.
 
     Parameters
@@ -146,6 +148,8 @@ def check_settings(method: str, n, workers, gain_jitter: float, half_widths=None
         Start-box half-widths [m, rad, m/s, rad/s], each >= 0.
     energy_options : dict, optional
         Energy-shaping settings; energy only.
+    seed : int
+        Seed of the starts, 0 to 2**63 - 1 (numpy's ``default_rng`` takes no negative seed).
 
     Raises
     ------
@@ -164,6 +168,8 @@ def check_settings(method: str, n, workers, gain_jitter: float, half_widths=None
         raise SweepError(f"A sweep needs 1 to {MAX_RUNS} runs (got n = {n}).")
     if not (isinstance(workers, (int, np.integer)) and 1 <= workers <= MAX_WORKERS):
         raise SweepError(f"--workers must be 1 to {MAX_WORKERS} processes on this machine (got {workers}).")
+    if not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2**63):
+        raise SweepError(f"--seed must be a whole number from 0 to 2**63 - 1 (got {seed}).")
     if not (0 <= gain_jitter < 1):
         raise SweepError(f"A sweep needs 0 <= gain_jitter < 1 (got {gain_jitter}).")
     if half_widths is not None and not np.all(np.asarray(half_widths, float) >= 0):
@@ -210,14 +216,32 @@ def start_index(name: str, params: CartPoleParams) -> int:
                      "a rate).")
 
 
-def check_axes(axes, params: CartPoleParams, method: str) -> tuple:
+def _check_component(x, i: int, params: CartPoleParams, name: str) -> None:
+    """Refuse start component ``i`` of ``x`` as :func:`cartpole.apps.swingup.check_start` would (the others are
+    taken inside their ranges)."""
+    x = np.array(x, float)
+    for k, j in enumerate(params.joints):  # the other positions at a valid point of their range
+        if k != i:
+            lo, hi = (float(v) for v in j.range)
+            x[k] = min(max(0.0, lo), hi)
+            if not lo < x[k] < hi:
+                x[k] = 0.5 * (lo + hi)
+    try:
+        check_start(x, params)
+    except CartPoleError as exc:
+        raise SweepError(f"The sweep axis {name} reaches {x[i]:g}: {first_line(exc)}.") from None
+
+
+def check_axes(axes, params: CartPoleParams, method: str, duration: float | None = None) -> tuple:
     """Validate a sweep description for this model and method; returns the axes as a tuple.
 
     Raises
     ------
     SweepError
-        An unknown axis name, a start component of no joint, a setting the method does not have, a repeated axis, a
-        push time without a push force, a model error outside (0, 10] or a bad push time.
+        An unknown axis name, a start component of no joint or outside what ``cartpole swingup`` accepts (a cart
+        beyond its rail), a setting the method does not have, a repeated axis, a push time without a push force,
+        a model error outside [0.1, 10], a push time after the run ends (``duration``, s, when given) or a push
+        force beyond :data:`~cartpole.sim.options.MAX_PUSH_FORCE`.
     """
     axes = tuple(axes or ())
     seen = set()
@@ -228,15 +252,30 @@ def check_axes(axes, params: CartPoleParams, method: str) -> tuple:
             raise SweepError(f"The sweep axis {a.name} is given twice; give each input once.")
         seen.add(a.name)
         if a.name.startswith("start:"):
-            start_index(a.name, params)
+            i = start_index(a.name, params)
+            for v in (a.low, a.high):  # each end as swingup would check it: a start is refused, never clamped
+                x = np.zeros(2 * params.nq)
+                x[i] = v
+                _check_component(x, i, params, a.name)
         elif a.name.startswith("setting:"):
             key = a.name[len("setting:"):]
             if key not in SETTINGS[method]:
                 have = ", ".join(SETTINGS[method]) or "none"
                 raise SweepError(f"The {method} method has no setting '{key}' to sweep (it has: {have}).")
             if key in LOOP_SETTINGS:
+                from cartpole.models import MAX_PERIOD
                 from cartpole.sim.options import LoopOptions
+                from cartpole.sim.rig import MAX_DELAY
 
+                h = float(params.timestep)
+                limits = {"period": (0.5 * h, MAX_PERIOD), "delay": (0.0, MAX_DELAY)}
+                if key in limits:  # rounded to whole steps: each end must round to what it says, within limits
+                    lo, hi = limits[key]
+                    for v in (a.low, a.high):
+                        if not (math.isfinite(v) and lo <= v <= hi):
+                            raise SweepError(f"The sweep axis {a.name} reaches {v:g} s; give {key}s from "
+                                             f"{max(lo, h if key == 'period' else 0.0):g} to {hi:g} s (whole "
+                                             f"{h:g} s MJCF steps).")
                 for v in (a.low, a.high):
                     try:
                         LoopOptions().replace(**{key: round(v) if key == "encoder_cpr" else v})
@@ -245,7 +284,10 @@ def check_axes(axes, params: CartPoleParams, method: str) -> tuple:
             elif method in OPTIONS:
                 for v in (a.low, a.high):  # both ends of the axis must make a valid options value
                     try:
-                        OPTIONS[method]().replace(**{key: v})
+                        opts = OPTIONS[method]().replace(**{key: v})
+                        if method == "mpc":
+                            from cartpole.mpc.options import mpc_grid
+                            mpc_grid(opts, params.timestep)
                     except CartPoleError as exc:
                         raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
         elif a.name == "model_error":
@@ -257,7 +299,17 @@ def check_axes(axes, params: CartPoleParams, method: str) -> tuple:
         elif a.name == "push_time":
             if a.low < 0:
                 raise SweepError(f"The push time starts at {a.low:g} s; give times >= 0 s.")
-        elif a.name != "push_force":
+            end = MAX_PUSH_TIME if duration is None else float(duration)
+            if not (a.high < end or (duration is None and a.high <= end)):
+                raise SweepError(f"The push time reaches {a.high:g} s, "
+                                 + (f"after the runs end at {end:g} s, so it would never act; give times before the "
+                                    "end or a longer --duration." if duration is not None else
+                                    f"beyond the {end:g} s limit; give earlier times."))
+        elif a.name == "push_force":
+            if max(abs(a.low), abs(a.high)) > MAX_PUSH_FORCE:
+                raise SweepError(f"The push force reaches {max(abs(a.low), abs(a.high)):g} N, beyond the "
+                                 f"{MAX_PUSH_FORCE:g} N limit; give smaller forces.")
+        else:
             raise SweepError(f"Unknown sweep axis '{a.name}'; sweep push_force, push_time, model_error, "
                              "start:<joint>[_rate] or setting:<name>.")
     if "push_time" in seen and "push_force" not in seen:

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole._files import output_error, short
+from cartpole._files import InputFileError, output_error, read_bounded, short
 from cartpole.models import CartPoleParams
 from cartpole.apps.sweep.plan import Axis, SweepError, start_index
 
@@ -270,38 +270,76 @@ def csv_row(sid: str, i: int, start, row: dict, settings=()) -> list:
             failure(r), _cell(r["error"])]
 
 
-def parse_row(line: dict) -> dict:
+#: The numeric outcome columns of a results row (empty: None / NaN).
+_OUTCOME_NUMBERS = ("time_to_upright_s", "caught_at_s", "cart_clearance_m", "peak_ctrl")
+
+
+def parse_row(line: dict) -> dict | None:
     """A runner row (the keys :meth:`~cartpole.apps.sweep.executors.Runner.run` returns) from one CSV line read as
-    ``{column: text}``."""
+    ``{column: text}``, checked field by field; None when any field is not what a finished run writes (then the run
+    is not finished and runs again): ``success`` and ``replays`` ``True`` or ``False`` (a success that does not
+    replay is no success), the start, push, model error and settings finite numbers (push time may be empty), the
+    outcome numbers finite or empty, and a success with no error."""
     def f(text):
-        return math.nan if text == "" else float(text)
-    return {"success": line["success"] == "True", "replays": line["replays"] == "True",
-            "time_to_upright": f(line["time_to_upright_s"]), "caught_at": f(line["caught_at_s"]),
-            "cart_clearance": f(line["cart_clearance_m"]), "peak_ctrl": f(line["peak_ctrl"]),
-            "rho": math.nan, "error": line["error"] or None}
+        if text == "":
+            return math.nan
+        v = float(text)
+        if not math.isfinite(v):
+            raise ValueError(text)
+        return v
+
+    try:
+        flags = {k: {"True": True, "False": False}[line[k]] for k in ("success", "replays")}
+        for k, text in line.items():
+            if k.startswith("x0_") or k in ("push_force_N", "model_error") or k.startswith("setting_"):
+                if text == "" and k.startswith("setting_"):
+                    continue
+                if not math.isfinite(float(text)):
+                    raise ValueError(k)
+        if line["push_time_s"] != "":
+            f(line["push_time_s"])
+        nums = {k: f(line[k]) for k in _OUTCOME_NUMBERS}
+    except (KeyError, ValueError, TypeError):
+        return None
+    if flags["success"] and (not flags["replays"] or line["error"] or math.isnan(nums["time_to_upright_s"])):
+        return None
+    return {**flags, "time_to_upright": nums["time_to_upright_s"], "caught_at": nums["caught_at_s"],
+            "cart_clearance": nums["cart_clearance_m"], "peak_ctrl": nums["peak_ctrl"], "rho": math.nan,
+            "error": line["error"] or None}
 
 
+#: Largest results file read back to resume, bytes (:data:`~cartpole.apps.sweep.plan.MAX_RUNS` rows of about a
+#: kilobyte each fit many times over).
+MAX_RESULTS_BYTES = 256 * 2**20
 #: Largest run index read back from a results file (the sweep itself keeps only its own runs).
 MAX_READ = 10**9
 
 
 def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
     """``{run: row}`` of the runs ``0 <= run < n`` already in the results file ``path`` for the sweep ``sid``
-    (none when the file does not exist; a last line a crash cut short is not counted).
+    (none when the file does not exist; a last line a crash cut short is not counted; a row whose fields are not
+    what a finished run writes, :func:`parse_row`, is not counted either, and the run is done again).
 
     Raises
     ------
     SweepError
-        The file cannot be read, or holds another sweep's rows (or another header), in one sentence.
+        The file cannot be read (a FIFO, a device, more than :data:`MAX_RESULTS_BYTES`, not UTF-8), holds
+        another sweep's rows (or another header), or a row whose run index is not one of this sweep's
+        ``0 .. n - 1``, in one sentence.
     """
     path = Path(path)
-    if not path.exists():
+    if not os.path.lexists(path):
         return {}
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SweepError(f"Cannot read {short(path)} to resume ({exc.strerror}); check it or drop --resume.") \
+    try:  # by kind and with a bound: a FIFO, /dev/zero or a huge file is refused, not read whole
+        data = read_bounded(path, MAX_RESULTS_BYTES, what="Results file", flag="--resume")
+    except InputFileError as exc:
+        raise SweepError(f"Cannot resume from {short(path)}: it {exc.reason}; move it away or drop --resume.") \
             from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise SweepError(f"Cannot resume from {short(path)}: it is not a text CSV file (not UTF-8); move it away or "
+                         "drop --resume.") from None
     lines = text.splitlines()
     if not lines:
         return {}
@@ -321,10 +359,34 @@ def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
             raise SweepError(f"Cannot resume from {short(path)}: it holds sweep {line['sweep']}, not this one "
                              f"({sid}: other method, --n, --seed, --duration, --jitter or MJCF); give the same "
                              "settings, another --out, or drop --resume.")
-        i = int(line["run"])
-        if 0 <= i < n:
-            done[i] = parse_row(line)
+        try:
+            i = int(line["run"])
+        except ValueError:
+            i = None
+        if i is None or not 0 <= i < n:
+            raise SweepError(f"Cannot resume from {short(path)}: it holds a row for run {short(line['run'], 20)!r}, "
+                             f"and this sweep has runs 0 to {n - 1}; move the file away or drop --resume.")
+        row = parse_row(line)
+        if row is not None:  # a row with a field a finished run never writes: not finished, run again
+            done[i] = row
+        else:
+            done.pop(i, None)
     return done
+
+
+def results_lock(path: Path):
+    """The exclusive lock (:func:`cartpole._files.exclusive_lock`) a sweep holds on its results file ``path`` while it
+    reads, appends and rewrites it, so two sweeps into one ``--out`` cannot both write one file: the second is
+    refused in one sentence. The lock file is kept in the user cache directory (``locks/``, keyed by the file's
+    absolute path), not beside the results, so ``--out`` holds only the sweep's outputs; sweeps of two users into
+    one ``--out`` are therefore not serialised."""
+    from cartpole._files import exclusive_lock
+    from cartpole.codegen import private_cache_dir
+
+    where = str(Path(path).expanduser().resolve())
+    key = hashlib.sha256(where.encode()).hexdigest()[:24]
+    return exclusive_lock(private_cache_dir() / "locks" / f"sweep-{key}.lock", f"The results file {short(where)}",
+                          "wait for that sweep to finish or give another --out")
 
 
 class ResultsFile:

@@ -13,14 +13,14 @@ import numpy as np
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams, build_model, read_params
 from cartpole.progress import stage
-from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import start_server
-from cartpole.apps.sweep.executors import Runner, run_dask, run_here, run_pool
+from cartpole.apps.sweep.executors import Runner, check_address, run_dask, run_here, run_pool
 from cartpole.apps.sweep.plan import (MAX_SHARED_BASINS, SweepError, check_axes, check_settings, default_half_widths,
                                       plan_runs, total_runs)
-from cartpole.apps.sweep.results import (MAX_READ, ResultsFile, SweepResult, csv_row, failure, header, read_done,
-                                         sweep_id)
+from cartpole.apps.sweep.results import (ResultsFile, SweepResult, csv_row, failure, header, read_done,
+                                         results_lock, sweep_id)
 
 
 def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int = 0, center=None,
@@ -96,15 +96,22 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         Bad settings. Errors of the model (an MJCF that is not a cart-pole, energy on a chain) are raised before
         any run; a run that raises on its own start is a failed row instead.
     """
-    check_settings(method, n, workers, gain_jitter, half_widths, energy_options)
+    check_settings(method, n, workers, gain_jitter, half_widths, energy_options, seed=seed)
+    if address:
+        check_address(address)  # a malformed address before any work; an unreachable one when the runs start
     n, workers = int(n), int(workers)
     # the pool's fork server imports the toolkit while this process reads the model, plans, finds the basins and
     # starts its own share of the runs
     context = start_server(method) if workers > 1 and not address else None
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     model = build_model(params)
+    try:
+        check_plan_size(model, method)
+    except CartPoleError as exc:
+        raise SweepError(first_line(exc) + ".") from None
     nx = 2 * params.nq
-    axes = check_axes(axes, params, method)
+    axes = check_axes(axes, params, method, duration=duration if duration is not None else
+                      {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method))
     center = model.x_hanging if center is None else np.asarray(center, float)
     half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
     if center.shape != (nx,) or half_widths.shape != (nx,):
@@ -182,9 +189,10 @@ class SweepInterrupted(KeyboardInterrupt):
     """A recorded sweep stopped by Ctrl-C (or SIGTERM during a pool sweep): ``finished`` of ``total`` runs are in
     the results file ``path``, which a resumed sweep goes on from."""
 
-    def __init__(self, finished: int, total: int, path: Path):
+    def __init__(self, finished: int, total: int, path: Path, signum: int | None = None):
         super().__init__(f"interrupted after {finished} of {total} runs")
         self.finished, self.total, self.path = int(finished), int(total), Path(path)
+        self.signum = signum  # the signal that stopped it (SIGTERM: cartpole.errors.Terminated), None for Ctrl-C
 
 
 @dataclass(frozen=True)
@@ -242,7 +250,17 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
         Ctrl-C (or ``stop_after``): how many runs the results file holds now.
     SweepError
         Bad settings, or a results file that cannot be resumed from.
+    LockedError
+        Another sweep is writing the same results file (:func:`~cartpole.apps.sweep.results.results_lock`).
     """
+    with results_lock(results):
+        return _recorded_sweep(params, method=method, n=n, seed=seed, results=results, figure=figure,
+                               workers=workers, duration=duration, gain_jitter=gain_jitter, address=address,
+                               axes=axes, x0=x0, resume=resume, stop_after=stop_after, loop=loop)
+
+
+def _recorded_sweep(params, *, method, n, seed, results, figure, workers, duration, gain_jitter, address, axes, x0,
+                    resume, stop_after, loop) -> RecordedSweep:
     from cartpole._files import write_csv
     from cartpole.viz.sweep_plot import plot_success_map
 
@@ -251,8 +269,8 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
                    loop=loop)
     settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
     head = header(params, settings)
-    done = read_done(results, head, sid, MAX_READ) if resume else {}
     total = total_runs(axes, n)
+    done = read_done(results, head, sid, total) if resume else {}
     opened = []  # opened on the first finished run, so a sweep refused before any run writes nothing
     count = [0]
 
@@ -274,14 +292,14 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
         for r in rows:
             r["failure"] = failure(r)
         write_csv(results, head, [csv_row(sid, r["run"], r["start"], r, settings) for r in rows])  # in run order
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:
         for f in opened:
             f.close()
         try:  # what the file holds now is what a resume will keep
-            kept = len(read_done(results, head, sid, MAX_READ))
+            kept = len(read_done(results, head, sid, total))
         except CartPoleError:
             kept = len(done) + count[0]
-        raise SweepInterrupted(kept, total, results) from None
+        raise SweepInterrupted(kept, total, results, getattr(stop, "signum", None)) from None
     finally:
         for f in opened:
             f.close()

@@ -62,7 +62,8 @@ def test_the_results_file_keeps_every_finished_run_and_resume_reads_them_back(tm
         assert [r["run"] for r in csv.DictReader(fh)] == ["2", "0"]
     done = read_done(path, head, "abc")
     assert sorted(done) == [0, 2] and done[2]["time_to_upright"] == ROW["time_to_upright"]
-    assert sorted(read_done(path, head, "abc", n=1)) == [0]
+    with pytest.raises(SweepError, match="a row for run '2', and this sweep has runs 0 to 0"):
+        read_done(path, head, "abc", n=1)  # a run this sweep does not have: refused, not silently dropped
     # a line a crash cut short is run again, and dropped when the file is appended to
     path.write_bytes(path.read_bytes() + b"abc,1,0.0,3.0")
     assert sorted(read_done(path, head, "abc")) == [0, 2]
@@ -74,3 +75,55 @@ def test_the_results_file_keeps_every_finished_run_and_resume_reads_them_back(tm
         read_done(path, head, "def")
     with pytest.raises(SweepError, match="columns are not this sweep's"):
         read_done(path, header(params, ("energy_gain",)), "abc")
+
+
+@pytest.mark.parametrize("column, value", [("success", "banana"), ("replays", "maybe"), ("time_to_upright_s", "nan"),
+                                           ("peak_ctrl", "inf"), ("x0_hinge", "zero"), ("model_error", ""),
+                                           ("replays", "False")])
+def test_a_row_with_a_field_no_finished_run_writes_is_not_finished(tmp_path, column, value):
+    params = read_params()
+    head = header(params)
+    path = tmp_path / "s.csv"
+    f = ResultsFile(path, head, fresh=True)
+    f.write(csv_row("abc", 0, [0, 3, 0, 0], ROW))
+    f.write(csv_row("abc", 1, [0, 3, 0, 0], ROW))
+    f.close()
+    lines = path.read_text().splitlines()
+    row = next(csv.DictReader(lines[:1] + lines[2:]))
+    row[column] = value  # run 1 tampered with: a success that does not replay is no success either
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(head)
+        w.writerow(lines[1].split(","))
+        w.writerow([row[k] for k in head])
+    assert sorted(read_done(path, head, "abc", n=2)) == [0]
+
+
+@pytest.mark.parametrize("run", ["999", "-1", "one"])
+def test_a_row_for_a_run_the_sweep_does_not_have_is_refused(tmp_path, run):
+    params = read_params()
+    head = header(params)
+    path = tmp_path / "s.csv"
+    f = ResultsFile(path, head, fresh=True)
+    f.write(csv_row("abc", 0, [0, 3, 0, 0], ROW))
+    f.close()
+    path.write_text(path.read_text().replace("abc,0,", f"abc,{run},"))
+    with pytest.raises(SweepError, match="holds a row for run"):
+        read_done(path, head, "abc", n=3)
+
+
+def test_two_sweeps_cannot_hold_one_results_file(tmp_path, monkeypatch):
+    from cartpole._files import LockedError
+    from cartpole.apps.sweep.results import results_lock
+
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    path = tmp_path / "out" / "sweeps" / "sweep_energy.csv"
+    with results_lock(path):
+        with pytest.raises(LockedError, match="is in use by process"):
+            with results_lock(tmp_path / "out" / "." / "sweeps" / "sweep_energy.csv"):
+                pass
+        with results_lock(tmp_path / "out" / "sweeps" / "sweep_trajopt.csv"):  # another file: its own lock
+            pass
+    with results_lock(path):  # released when the first sweep ended
+        pass
+    assert not (tmp_path / "out").exists()  # the lock lives in the cache, --out holds only outputs
