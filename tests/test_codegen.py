@@ -170,3 +170,34 @@ def test_a_cache_others_may_write_to_is_one_sentence_on_the_command_line(tmp_pat
     cap = capsys.readouterr()
     lines = cap.err.strip().splitlines()
     assert cap.out == "" and len(lines) == 1 and "chmod 700" in lines[0] and not out.exists()
+
+
+def test_an_interrupt_during_a_compile_kills_the_compilers_whole_process_group(tmp_path):
+    import os
+    import signal
+    import threading
+    import time
+
+    import pytest
+
+    class Stop(Exception):
+        pass
+
+    def stop(signum, frame):
+        raise Stop
+
+    pidfile = tmp_path / "child.pid"
+    previous = signal.signal(signal.SIGUSR1, stop)  # stands for SIGTERM / Ctrl-C arriving mid-compile
+    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGUSR1))
+    try:
+        timer.start()
+        with pytest.raises(Stop):
+            codegen.run_compiler(["sh", "-c", f"sleep 60 & echo $! > {pidfile}; wait"], timeout=30)
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGUSR1, previous)
+    child = int(pidfile.read_text())
+    deadline = time.monotonic() + 5
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(child), "the compiler's child outlived the interrupt"

@@ -70,7 +70,8 @@ class FeedforwardError(CartPoleError):
 
 
 def check_mass_error(mass_error) -> float:
-    """``mass_error`` as a float, or one sentence: it must be a finite number above -1 (the pole keeps a mass).
+    """``mass_error`` as a float, or one sentence: it must be a finite number from -0.9 to 9 (the pole keeps a
+    mass; the scale ``1 + mass_error`` lies in the model error's [0.1, 10]).
 
     The wrong planning model's pole links weigh ``1 + mass_error`` times the MJCF's (0.1 = 10 % heavier).
     """
@@ -79,9 +80,10 @@ def check_mass_error(mass_error) -> float:
     except (TypeError, ValueError):
         raise FeedforwardError(f"The mass error {mass_error!r} is not a number; give a relative error such as "
                                "0.1 (the planning model's pole 10 % heavier).") from None
-    if not (math.isfinite(f) and f > -1.0):
-        raise FeedforwardError(f"The mass error {mass_error!r} must be a finite number above -1 (the planning "
-                               "model's pole weighs 1 + error times the MJCF's); give e.g. 0.1 or -0.1.")
+    if not (math.isfinite(f) and -0.9 <= f <= 9.0):
+        raise FeedforwardError(f"The mass error {mass_error!r} must be a finite number from -0.9 to 9 (the planning "
+                               "model's pole weighs 1 + error times the MJCF's, as a model error of 0.1 to 10); give "
+                               "e.g. 0.1 or -0.1.")
     return f
 
 

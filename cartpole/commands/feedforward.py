@@ -14,7 +14,7 @@ def add_arguments(parser) -> None:
     """``--mass-error``, ``--no-video``."""
     parser.add_argument("--mass-error", type=str, default="0.1", metavar="F",
                         help="relative error of the wrong planning model's pole mass (default 0.1: 10 %% heavier; "
-                             "a finite number above -1)")
+                             "a finite number from -0.9 to 9)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render videos/feedforward_<run>.mp4")
     parser.add_argument("--view", action="store_true",

@@ -197,15 +197,14 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
     except SweepInterrupted as stop:
         from cartpole.errors import Terminated
 
-        def interrupted(text):  # SIGTERM stays SIGTERM (exit status 143), Ctrl-C is KeyboardInterrupt (130)
-            return KeyboardInterrupt(text) if stop.signum is None else Terminated(stop.signum, text)
-
+        signum = stop.signum  # SIGTERM stays SIGTERM (exit status 143), Ctrl-C is KeyboardInterrupt (130)
         if stop.finished == 0 and not stop.path.exists():
-            raise interrupted(f"interrupted before any of the {stop.total} runs finished; nothing was "
-                              "written.") from None
-        again = "the same command with --resume" if not args.resume else "the same command again"
-        raise interrupted(f"interrupted after {stop.finished} of {stop.total} runs, kept in "
-                          f"{short(stop.path)}; run {again} to finish the others.") from None
+            text = f"interrupted before any of the {stop.total} runs finished; nothing was written."
+        else:
+            again = "the same command with --resume" if not args.resume else "the same command again"
+            text = (f"interrupted after {stop.finished} of {stop.total} runs, kept in {short(stop.path)}; run "
+                    f"{again} to finish the others.")
+        raise (KeyboardInterrupt(text) if signum is None else Terminated(signum, text)) from None
     result = rec.result
     doc = {**result.summary(), "rows": rec.rows, "results": str(rec.results.resolve()),
            "figure": str(rec.figure.resolve()), "sweep": rec.sweep, "resumed": rec.resumed,

@@ -292,7 +292,7 @@ class NMPCController:
                  x_goal=None, u_goal=None, guess=None, x0=None, **settings):
         options = (MPCOptions() if options is None else options).replace(**settings)
         self.options = options
-        period, horizon, iterations, tol = options.period, options.horizon, options.iterations, options.tol
+        period, iterations, tol = options.period, options.iterations, options.tol
         init_iterations, qp_solver, prestabilize = options.init_iterations, options.qp_solver, options.prestabilize
         if not isinstance(model, CartPoleModel) or not isinstance(params, CartPoleParams):
             raise NMPCError("NMPCController needs a CartPoleModel (planning) and the CartPoleParams MuJoCo runs.")

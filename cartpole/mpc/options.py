@@ -26,7 +26,7 @@ RAIL_PENALTY = 1e3
 MAX_STAGES = 500
 
 
-def mpc_grid(options: "MPCOptions", timestep: float) -> tuple[int, int]:
+def mpc_grid(options: MPCOptions, timestep: float) -> tuple[int, int]:
     """``(steps, N)``: MJCF steps per control period and prediction stages of ``options`` on a model stepping
     ``timestep`` s (the period rounded to whole steps, the horizon to whole periods), refused in one sentence when
     they cannot be used as given.

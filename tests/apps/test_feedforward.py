@@ -87,7 +87,7 @@ def test_tracking_errors_are_the_largest_deviation_from_the_followed_plan_during
     assert run.peak_ctrl == np.abs(run.rollout.ctrl).max()
 
 
-@pytest.mark.parametrize("bad", [-2, -1, float("nan"), float("inf"), "abc", None])
+@pytest.mark.parametrize("bad", [-2, -1, -0.95, 1e308, float("nan"), float("inf"), "abc", None])
 def test_a_mass_error_that_is_not_a_finite_number_above_minus_one_is_one_sentence(bad):
     with pytest.raises(FeedforwardError) as exc:
         check_mass_error(bad)

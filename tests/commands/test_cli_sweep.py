@@ -372,7 +372,7 @@ def test_sigterm_stops_a_pool_sweep_keeps_its_rows_and_leaves_no_worker(tmp_path
     # the rows kept are resumable: the same sweep with --resume runs only the others
     again = subprocess.run([sys.executable, "-m", "cartpole", "sweep", "--json", "--n", "40", "--duration", "4",
                             "--workers", "2", "--out", str(out), "--resume"], capture_output=True, text=True,
-                           timeout=600, env={**os.environ, "MUJOCO_GL": "egl"})
+                           timeout=600, env={**os.environ, "MUJOCO_GL": "egl"}, check=False)
     assert again.returncode == 0, again.stderr
     doc = json.loads(again.stdout)
     assert doc["resumed"] == kept and len(doc["rows"]) == 40

@@ -9,7 +9,7 @@ import pytest
 from cartpole import codegen
 from cartpole.validation.basin import BasinCache, plausible
 
-KW = dict(n=40, duration=1.0)
+KW = {"n": 40, "duration": 1.0}
 
 
 @pytest.fixture

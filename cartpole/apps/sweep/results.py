@@ -291,7 +291,7 @@ def parse_row(line: dict) -> dict | None:
     try:
         flags = {k: {"True": True, "False": False}[line[k]] for k in ("success", "replays")}
         for k, text in line.items():
-            if k.startswith("x0_") or k in ("push_force_N", "model_error") or k.startswith("setting_"):
+            if k.startswith(("x0_", "setting_")) or k in ("push_force_N", "model_error"):
                 if text == "" and k.startswith("setting_"):
                     continue
                 if not math.isfinite(float(text)):
