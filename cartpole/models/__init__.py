@@ -3,9 +3,11 @@ from cartpole.models.params import (SHIPPED_MJCF, SUPPORTED_INTEGRATORS, CartPol
                                     load_model, mujoco_warnings, read_params)
 from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_kinematics_np
 from cartpole.models.discretize import HoldModel, PeriodError, hold_model, steps_per_period
-from cartpole.models.symbolic import CartPoleModel, build_model, linearize, state_error, wrap_angle
+from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equations, linearize, state_error,
+                                      wrap_angle)
 
 __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError", "load_model", "mujoco_warnings",
            "read_params",
-           "CartPoleModel", "build_model", "linearize", "state_error", "wrap_angle", "Kinematics",
-           "forward_kinematics", "forward_kinematics_np", "HoldModel", "PeriodError", "hold_model", "steps_per_period"]
+           "CartPoleModel", "Equations", "build_model", "equations", "linearize", "state_error", "wrap_angle",
+           "Kinematics", "forward_kinematics", "forward_kinematics_np", "HoldModel", "PeriodError", "hold_model",
+           "steps_per_period"]
