@@ -25,6 +25,8 @@ COMMANDS = (
     "feedforward",
     "sweep",
     "bench",
+    "excite",
+    "identify",
 )
 
 
