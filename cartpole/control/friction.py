@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.models.friction import check_width
+from cartpole.models import check_width
 
 
 class FrictionCompensation:

@@ -27,8 +27,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, equations
-from cartpole.models.friction import DEFAULT_FRICTION_WIDTH
+from cartpole.models import DEFAULT_FRICTION_WIDTH, CartPoleParams, equations
 
 KINDS = ("mass", "com", "inertia", "damping", "frictionloss", "armature", "gear")
 _AXES = "xyz"
@@ -89,7 +88,7 @@ def _hinge_axes(p: CartPoleParams, b: int) -> list:
 def hinge_moment(p: CartPoleParams, b: int) -> float:
     """The principal-inertia moment of body ``b`` about its first hinge axis (or its largest moment without a
     hinge), kg m^2: what ``inertia:BODY`` fits."""
-    from cartpole.models.kinematics import quat_to_mat
+    from cartpole.models import quat_to_mat
 
     body = p.bodies[b]
     axes = _hinge_axes(p, b)
