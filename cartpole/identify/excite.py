@@ -53,7 +53,8 @@ class Excitation:
 
 
 def natural_frequencies(model) -> np.ndarray:
-    """Natural frequencies (rad/s) of the hanging rest's oscillating modes, ascending.
+    """Undamped natural frequencies (rad/s) of the hanging rest's oscillating modes, ascending: the square roots of
+    the positive eigenvalues of ``M^-1 d2V/dq2`` there (damping and friction left out).
 
     Parameters
     ----------
@@ -63,9 +64,11 @@ def natural_frequencies(model) -> np.ndarray:
     -------
     (m,) array
     """
-    A, _ = model.linearize(model.x_hanging, model.u_hanging)
-    ev = np.linalg.eigvals(A)
-    w = np.sort(np.abs(ev[np.imag(ev) > 1e-6]))
+    x = np.asarray(model.x_hanging, float)
+    M = np.asarray(model.mass_matrix(x))
+    H = np.asarray(model.rest_potential(x[:model.nq])[1])  # stiffness of gravity, springs and actuator bias
+    ev = np.linalg.eigvals(np.linalg.solve(M, H)).real
+    w = np.sort(np.sqrt(ev[ev > 1e-9]))
     if not w.size:
         raise ExciteError("The hanging rest of this model does not oscillate, so there is no natural frequency to "
                           "excite around; check the MJCF's gravity and poles.")

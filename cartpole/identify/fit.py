@@ -291,7 +291,8 @@ def _gauss_newton(runs, params, delta, w, W, *, max_iter, tol):
         g0[:np_] += W * delta
         dH = np.maximum(np.diag(H0), 1e-12)
         accepted = False
-        for _trial in range(12):
+        for trial in range(16):
+            alpha = 1.0 if trial < 6 else 0.5 ** (trial - 5)  # damping alone cannot shorten the constraint step
             fixed: dict[int, float] = {}
             for _ in range(np_ + 1):
                 H, g, C, c = _kkt(runs, evals, W, np_, scale, fixed=fixed)
@@ -306,6 +307,8 @@ def _gauss_newton(runs, params, delta, w, W, *, max_iter, tol):
             mu = max(mu, 2 * float(np.max(np.abs(lam))) if lam.size else mu)
             phi0, viol0 = _merit(evals, delta, W, mu)
             pred = -(float(g @ dz) + 0.5 * float(dz @ (H0 @ dz))) + mu * viol0  # GN model's decrease
+            dz = alpha * dz
+            pred = alpha * pred
             d_try = np.clip(delta + dz[:np_], lo, hi)
             saved = [run.nodes.copy() for run in runs]
             off = np_
@@ -323,7 +326,7 @@ def _gauss_newton(runs, params, delta, w, W, *, max_iter, tol):
                 break
             for run, s0 in zip(runs, saved):
                 run.nodes[:] = s0
-            lm = max(4 * lm, 1e-4)
+            lm = max(4 * lm, 1e-4) if trial < 6 else lm
         step = float(np.max(np.abs(dz[:np_]))) if np_ else 0.0
         if not accepted:
             return it, viol0 < 1e-6 and pred <= tol * max(1.0, phi0)
@@ -374,16 +377,33 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     if not (np.isfinite(regularization) and regularization >= 0):
         raise FitError(f"The regularisation weight {regularization:g} is not a non-negative number; give e.g. 1.")
     nq, np_ = p.nq, len(params)
-    runs = _prepare(p, params, logs, segment_s, friction_width)
     w = np.concatenate([np.full(nq, 1 / PRIOR_STD), np.full(nq, 1 / PRIOR_RATE_STD)])
     delta = np.zeros(np_)
     iters = 0
+    runs = None
+    with_friction = p.has_friction or any(q.kind == "frictionloss" for q in params)
+    # Friction: continuation from a wider, smoother friction down to the model's (each fit warm-starts the next),
+    # as Gauss-Newton from the nominal on the steep one crawls.
+    for width in ((8 * friction_width, 4 * friction_width, 2 * friction_width) if with_friction else ()):
+        nodes = None if runs is None else [run.nodes.copy() for run in runs]
+        runs = _prepare(p, params, logs, segment_s, width)
+        for run, n0 in zip(runs, nodes or []):
+            run.nodes[:] = n0
+        it, _ = _gauss_newton(runs, params, delta, w, regularization, max_iter=max_iter, tol=tol)
+        iters += it
+    nodes = None if runs is None else [run.nodes.copy() for run in runs]
+    runs = _prepare(p, params, logs, segment_s, friction_width)
+    for run, n0 in zip(runs, nodes or []):
+        run.nodes[:] = n0
     for _ in range(2):  # fit, then re-weight each joint by its residual spread and polish
         it, ok = _gauss_newton(runs, params, delta, w, regularization, max_iter=max_iter, tol=tol)
         iters += it
         if not ok:
-            raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations; fit fewer parameters, "
-                           "raise --regularization, or give a more exciting run.")
+            hint = (" (a slide's frictionloss is the usual cause: MuJoCo's friction holds a slow cart where the smooth "
+                    "model creeps, so leave it out or give runs that keep the cart sliding)"
+                    if any(q.kind == "frictionloss" for q in params) else "")
+            raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations{hint}; fit fewer "
+                           "parameters, raise --regularization, or give a more exciting run.")
         theta = np.array([q.nominal + q.scale * d for q, d in zip(params, delta)])
         res = _residual_std(runs, theta, w, np_)
         floor = 1e-3 / w  # a spread below a thousandth of the prior's is rounding, not noise

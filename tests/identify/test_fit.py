@@ -102,3 +102,18 @@ def test_negative_regularisation_is_one_sentence(one_pole):
     p = read_params(SHIPPED_MJCF)
     with pytest.raises(FitError, match="regularisation weight"):
         fit(p, parse_parameters(p, ["damping:hinge"]), [log], regularization=-1)
+
+
+def test_hinge_frictionloss_is_fitted_within_2_percent(tmp_path):
+    """The smooth friction (continuation from wider widths) against MuJoCo's friction constraint on a swinging
+    pole: the hinge's frictionloss and the rest within 2 % (a model bias beyond the standard errors remains:
+    MuJoCo's constraint holds the pole at each turning point, the smooth model creeps)."""
+    truth = _variant(tmp_path, SHIPPED_MJCF, [('gear="20"', 'gear="24"'), ('0 0 0 0 0 0.6"', '0 0 0 0 0 0.72"'),
+                                              ('damping="0.01"', 'damping="0.012" frictionloss="0.002"')], "fr")
+    log = run_excite(truth, tmp_path, duration=12, **ENCODERS).log
+    p = read_params(SHIPPED_MJCF)
+    names = ["gear:motor", "com:pole:z", "inertia:pole", "damping:slider", "damping:hinge", "frictionloss:hinge"]
+    res = fit(p, parse_parameters(p, names), [log])
+    tv = {q.name: q.nominal for q in parse_parameters(read_params(truth), names)}
+    for name, v in zip(res.names, res.fitted):
+        assert v == pytest.approx(tv[name], rel=0.02), name

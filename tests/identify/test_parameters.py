@@ -68,7 +68,7 @@ def test_frictionloss_step_equals_mj_step_while_sliding():
 def test_all_expands_to_the_documented_default_set():
     names = [q.name for q in parse_parameters(read_params(SHIPPED_MJCF), ["all"])]
     assert names == ["gear:motor", "com:pole:x", "com:pole:z", "inertia:pole", "damping:slider", "damping:hinge",
-                     "frictionloss:slider", "frictionloss:hinge"]
+                     "frictionloss:hinge"]
 
 
 def test_bounds_keep_the_model_physical():
