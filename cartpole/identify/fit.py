@@ -480,14 +480,13 @@ def identifiability_warnings(params, info, corr) -> list:
         who = [names[i] for i in order if abs(v[i]) >= 0.15]
         involved.update(names[i] for i in order if abs(v[i]) >= 0.05)
         if len(who) == 1:
-            out.append(f"{who[0]} is not identifiable from these runs (its data-only standard error is "
-                       f"{_pct(std)} of its scale; it stays near the nominal by the regularisation): give a run that "
-                       "moves it, or leave it out of --fit.")
+            out.append(f"{who[0]} is not identifiable from these runs (data-only standard error {_pct(std)}; it "
+                       "stays near the nominal by the regularisation): give a run that moves it, or leave it out of "
+                       "--fit.")
         else:
             out.append(f"{', '.join(who[:-1])} and {who[-1]} are identifiable only as a combination from these runs "
-                       f"(e.g. a ratio; the combination's data-only standard error is {_pct(std)} of their scales, "
-                       "held near the nominal by the regularisation): fix one of them (weigh it) or give runs that "
-                       "separate them.")
+                       f"(e.g. a ratio; data-only standard error of the combination {_pct(std)}, held near the "
+                       "nominal by the regularisation): fix one of them (weigh it) or give runs that separate them.")
     n = len(names)
     pairs = [(names[i], names[j], corr[i, j]) for i in range(n) for j in range(i + 1, n)
              if abs(corr[i, j]) >= CORRELATION_WARN and not {names[i], names[j]} <= involved]
@@ -500,7 +499,7 @@ def identifiability_warnings(params, info, corr) -> list:
 
 
 def _pct(x: float) -> str:
-    return "unbounded" if not np.isfinite(x) else f"{100 * x:.0f} %"
+    return "unbounded" if not np.isfinite(x) or x > 1e6 else f"{100 * x:.0f} % of the scale"
 
 
 def _bound_warnings(params, theta) -> list:
