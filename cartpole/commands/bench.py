@@ -21,6 +21,8 @@ def add_arguments(parser) -> None:
                         help="skip the swing-up plan times (default: the shipped 1-, 2- and 3-pole carts, or the "
                              "--mjcf given; --quick: one pole, one plan)")
     parser.add_argument("--no-mpc", action="store_true", help="skip the NMPC-in-the-loop benchmark")
+    parser.add_argument("--no-identify", action="store_true",
+                        help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 
 
 class _Steps:
@@ -71,6 +73,11 @@ def run(args) -> dict:
     from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
 
     doc["estimation"] = estimation_benchmark(args.mjcf, quick=args.quick)
+    doc["identify"] = None
+    if not args.no_identify:
+        from cartpole.apps.bench.identify import identify_benchmark
+
+        doc["identify"] = identify_benchmark(quick=args.quick)
     steps.close()
     doc["quick"] = bool(args.quick)
     if not args.json:
@@ -80,4 +87,8 @@ def run(args) -> dict:
         if doc["mpc"]:
             print_mpc_table(doc["mpc"])
         print_estimation_table(doc["estimation"])
+        if doc["identify"]:
+            from cartpole.apps.bench.identify import print_identify_table
+
+            print_identify_table(doc["identify"])
     return doc
