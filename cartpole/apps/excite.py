@@ -1,9 +1,12 @@
 """``cartpole excite``: design an informative experiment and log it in the ``--log`` CSV format.
 
-Hanging, open loop: the multisine of :mod:`cartpole.identify.excite` from hanging rest, run in MuJoCo on the MJCF
-(the "rig"), each sample's joint positions read through the rig's sensors (encoder quantisation and noise of
-:func:`cartpole.estimation.sensor_spec`), the ctrl held over each sample. With ``dry_run`` only the ctrl is
-written (the positions left empty), to play the same signal on a real rig.
+``hanging``, open loop: the multisine of :mod:`cartpole.identify.excite` from hanging rest, run in MuJoCo on the
+MJCF (the "rig"). ``balance``: the lab's LQR (designed on the MJCF, for the sample period) holds the pole upright
+while the same multisine, at :data:`BALANCE_AMPLITUDE` of the ctrl half-range unless told, is added to its ctrl;
+the ctrl MuJoCo applied is logged. Each sample's joint positions are read through the rig's sensors (encoder
+quantisation and noise of :func:`cartpole.estimation.sensor_spec`), the ctrl held over each sample. With
+``dry_run`` (hanging only: a balancing ctrl depends on the state) only the ctrl is written (the positions left
+empty), to play the same signal on a real rig.
 """
 from __future__ import annotations
 
@@ -16,6 +19,13 @@ from cartpole._files import write_csv
 from cartpole.errors import CartPoleError
 from cartpole.identify.excite import Excitation, multisine
 from cartpole.identify.logs import RunLog
+
+#: Modes of the experiment.
+MODES = ("hanging", "balance")
+#: Default multisine envelope while balancing, as a fraction of the ctrl half-range.
+BALANCE_AMPLITUDE = 0.15
+#: Largest pole-angle error from upright (rad) a balancing run may reach and still count as balanced.
+BALANCE_LIMIT = 0.6
 
 
 @dataclass(frozen=True)
@@ -52,9 +62,38 @@ def _position_rows(spec, params) -> list:
     return [rows[j] for j in range(params.nq)]
 
 
+def _balance(model, exc: Excitation, ts: float, steps: int):
+    """MuJoCo run of the LQR plus the excitation from upright, the ctrl held over each sample: ``(rollout,
+    excitation with the ctrl MuJoCo applied)``."""
+    import dataclasses
+
+    from cartpole._arrays import readonly
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.models import state_error
+    from cartpole.sim.rollout import simulate
+    from cartpole.validation.metrics import diverged
+
+    p = model.params
+    lqr = LinearFeedback.for_model(model, period=ts if steps > 1 else None)
+    extra = exc.ctrl - exc.ctrl[0]  # the multisine about its middle
+
+    def controller(t, x):
+        k = min(int(round(t / ts)), len(extra) - 1)
+        return np.clip(lqr(t, x) + extra[k], model.u_low, model.u_high)
+
+    roll = simulate(p.mjcf or p, controller, model.x_eq, float(exc.t[-1]), control_period=ts if steps > 1 else None)
+    err = state_error(roll.x, model.x_eq, model.hinges)[:, list(model.hinges)]
+    if diverged(roll) or np.max(np.abs(err)) > BALANCE_LIMIT or len(roll.ctrl) != steps * (len(exc.t) - 1):
+        raise CartPoleError("The balancing experiment lost the pole (its angle left upright by more than "
+                            f"{BALANCE_LIMIT} rad); give a smaller --amplitude.")
+    ctrl = np.vstack([roll.ctrl[::steps], roll.ctrl[-1:]])
+    return roll, dataclasses.replace(exc, ctrl=readonly(ctrl))
+
+
 def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: float | None = None,
                amplitude: float | None = None, dry_run: bool = False, encoder_cpr=None, encoder_resolution=None,
-               sensor_noise=None, seed: int = 0, csv_name: str = "excite.csv") -> ExciteResult:
+               sensor_noise=None, seed: int = 0, csv_name: str = "excite.csv",
+               mode: str = "hanging") -> ExciteResult:
     """Design the excitation and (unless ``dry_run``) run and log it.
 
     Parameters
@@ -77,6 +116,8 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
         Seed of the sensor noise and of the frequencies' small shift.
     csv_name : str
         File name of the CSV under ``out``.
+    mode : str
+        ``"hanging"`` (open loop from hanging rest) or ``"balance"`` (LQR plus the multisine, from upright).
 
     Returns
     -------
@@ -88,10 +129,17 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
     from cartpole.models import build_model
     from cartpole.sim.rollout import make_mujoco, replay
 
+    if mode not in MODES:
+        raise CartPoleError(f"Unknown excitation mode '{mode}'; choose one of {', '.join(MODES)}.")
+    if mode == "balance" and dry_run:
+        raise CartPoleError("A balancing experiment's ctrl depends on the measured state, so it cannot be written "
+                            "ahead; use --dry-run with --mode hanging.")
     model = build_model(mjcf)
     p = model.params
     ts = p.timestep if sample_time is None else float(sample_time)
-    exc = multisine(model, duration, ts, amplitude=amplitude, seed=seed)
+    balance = mode == "balance"
+    exc = multisine(model, duration, ts, amplitude=(amplitude or BALANCE_AMPLITUDE) if balance else amplitude,
+                    seed=seed)
     out = Path(out)
     act = [a.name for a in p.actuators]
     path = out / csv_name
@@ -103,8 +151,11 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
                        noise_std=sensor_noise)
     rows = _position_rows(spec, p)
     steps = int(round(ts / p.timestep))
-    per_step = np.repeat(exc.ctrl[:-1], steps, axis=0)
-    roll = replay(p.mjcf or p, model.x_hanging, per_step)
+    if balance:
+        roll, exc = _balance(model, exc, ts, steps)
+    else:
+        per_step = np.repeat(exc.ctrl[:-1], steps, axis=0)
+        roll = replay(p.mjcf or p, model.x_hanging, per_step)
     rail = p.cart_range
     if model.slide is not None and np.any(np.abs(roll.qpos[:, model.slide] - rail.mean()) >= 0.98 * 0.5 * np.ptp(rail)):
         raise CartPoleError("The excitation drove the cart to the end of its rail on this MJCF; give a smaller "
@@ -114,7 +165,7 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
     y = np.empty((len(exc.t), p.nq))
     for k in range(len(exc.t)):
         d.qpos[:], d.qvel[:] = roll.qpos[k * steps], roll.qvel[k * steps]
-        d.ctrl[:] = exc.ctrl[k]
+        d.ctrl[:] = exc.ctrl[k]  # what MuJoCo applied from this sample on
         mujoco.mj_forward(m, d)
         y[k] = sampler(d)[rows]
     log = RunLog(name=str(path), t=exc.t, qpos=y, qvel=None, ctrl=exc.ctrl)

@@ -70,3 +70,12 @@ def test_plan_mjcf_of_another_machine_is_one_sentence(tmp_path, capsys):
     assert len(err) == 1 and "not the same machine" in err[0]
     assert main(["swingup", "--plan-mjcf", str(RIG), "--model-error", "1.2", "--out", str(tmp_path)]) == 2
     assert "give one of them" in capsys.readouterr().err
+
+
+def test_feedforward_plans_on_the_plan_mjcf_and_tracks_on_the_rig(fitted, capsys, tmp_path):
+    _, res = fitted
+    assert main(["feedforward", "--mjcf", str(RIG), "--plan-mjcf", str(res.mjcf), "--no-video", "--out",
+                 str(tmp_path), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["plan_mjcf"] == str(res.mjcf) and doc["runs"]["feedforward_tvlqr"]["success"]
+    assert doc["runs"]["feedforward_tvlqr"]["replays_exactly"]

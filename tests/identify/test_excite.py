@@ -46,3 +46,25 @@ def test_bad_excitation_is_one_sentence(kw, words):
     args = {"duration": 5, "sample_time": 0.005, **kw}
     with pytest.raises(ExciteError, match=words):
         multisine(build_model(), args["duration"], args["sample_time"], amplitude=kw.get("amplitude"))
+
+
+def test_balance_mode_holds_the_pole_logs_the_applied_ctrl_and_identifies(tmp_path):
+    from cartpole.identify.fit import fit
+    from cartpole.identify.parameters import parse_parameters
+
+    truth = tmp_path / "truth.xml"
+    truth.write_text(SHIPPED_MJCF.read_text().replace('gear="20"', 'gear="23"'))
+    res = run_excite(truth, tmp_path, duration=8, mode="balance", encoder_cpr=2048, encoder_resolution=1e-4)
+    assert replays_exactly(res.rollout)
+    assert np.max(np.abs(res.rollout.qpos[:, 1])) < 0.6
+    np.testing.assert_array_equal(res.log.ctrl[:-1, 0], res.rollout.ctrl[:, 0])
+    p = read_params(SHIPPED_MJCF)
+    out = fit(p, parse_parameters(p, ["gear:motor", "damping:slider", "damping:hinge"]), [res.log])
+    assert out.fitted[0] == pytest.approx(23, rel=0.01)
+
+
+def test_balance_dry_run_is_refused(tmp_path):
+    from cartpole.errors import CartPoleError
+
+    with pytest.raises(CartPoleError, match="cannot be written ahead"):
+        run_excite(None, tmp_path, duration=4, dry_run=True, mode="balance")
