@@ -78,7 +78,7 @@ def _balance(model, exc: Excitation, ts: float, steps: int):
     extra = exc.ctrl - exc.ctrl[0]  # the multisine about its middle
 
     def controller(t, x):
-        k = min(int(round(t / ts)), len(extra) - 1)
+        k = min(round(t / ts), len(extra) - 1)
         return np.clip(lqr(t, x) + extra[k], model.u_low, model.u_high)
 
     roll = simulate(p.mjcf or p, controller, model.x_eq, float(exc.t[-1]), control_period=ts if steps > 1 else None)
@@ -150,7 +150,7 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
     spec = sensor_spec(p.mjcf or None, encoder_cpr=encoder_cpr, encoder_resolution=encoder_resolution,
                        noise_std=sensor_noise)
     rows = _position_rows(spec, p)
-    steps = int(round(ts / p.timestep))
+    steps = round(ts / p.timestep)
     if balance:
         roll, exc = _balance(model, exc, ts, steps)
     else:

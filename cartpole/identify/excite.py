@@ -104,7 +104,7 @@ def multisine(model, duration: float, sample_time: float, *, amplitude: float | 
     """
     if not (np.isfinite(duration) and duration >= 3):
         raise ExciteError(f"The excitation's duration {duration:g} s is too short; give --duration of at least 3 s.")
-    steps = int(round(sample_time / model.dt))
+    steps = round(sample_time / model.dt)
     if steps < 1 or abs(steps * model.dt - sample_time) > 1e-9:
         raise ExciteError(f"The sample time {sample_time:g} s is not a whole number of MJCF steps ({model.dt:g} s); "
                           "give a multiple of the step.")
@@ -115,7 +115,7 @@ def multisine(model, duration: float, sample_time: float, *, amplitude: float | 
     w = np.linspace(0.7 * wn[0], 2.5 * wn[-1], N_SINES) * (1 + 0.03 * rng.uniform(-1, 1, N_SINES) * (seed != 0))
     k = np.arange(1, N_SINES + 1)
     phi = -np.pi * k * (k - 1) / N_SINES
-    n = int(round(duration / sample_time))
+    n = round(duration / sample_time)
     t = np.arange(n + 1) * sample_time
     s = np.sin(np.outer(t, w) + phi).sum(axis=1) / np.sqrt(N_SINES)
     fade = np.clip(np.minimum(t, t[-1] - t) / FADE_S, 0, 1)

@@ -157,7 +157,7 @@ def _prepare(p, params, logs, segment_s, friction_width) -> list:
     runs, funcs = [], {}
     for log in logs:
         Ts = log.sample_time
-        L = max(2, int(round(segment_s / Ts)))
+        L = max(2, round(segment_s / Ts))
         S = (log.n - 1) // L
         if S < 1:
             L, S = log.n - 1, 1

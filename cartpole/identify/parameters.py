@@ -256,7 +256,7 @@ def steps_per_sample(sample_time: float, timestep: float) -> tuple[int, float]:
     (int, float)
         Steps per sample and the step in s.
     """
-    m = max(1, int(round(sample_time / timestep)))
+    m = max(1, round(sample_time / timestep))
     if abs(m * timestep - sample_time) <= 1e-9 * sample_time:
         return m, float(timestep)
     m = int(np.ceil(sample_time / timestep - 1e-9))

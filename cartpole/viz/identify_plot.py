@@ -28,7 +28,7 @@ def identify_figure(log, simulations: dict, params, *, title: str | None = None)
     fig = Figure(figsize=(10, 2.6 * params.nq + 0.6))
     FigureCanvasAgg(fig)
     axes = np.atleast_1d(fig.subplots(params.nq, 1, sharex=True))
-    styles = {"nominal": dict(color="tab:red", ls="--"), "fitted": dict(color="tab:green")}
+    styles = {"nominal": {"color": "tab:red", "ls": "--"}, "fitted": {"color": "tab:green"}}
     for j, ax in enumerate(axes):
         unit = "m" if params.joints[j].kind == "slide" else "rad"
         ax.plot(log.t, log.qpos[:, j], ".", ms=2, color="k", label="measured")

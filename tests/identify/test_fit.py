@@ -79,8 +79,8 @@ def test_cart_mass_and_gear_fitted_together_are_flagged(tmp_path):
 
 def test_two_pole_fit_recovers_the_truth(tmp_path):
     truth = _variant(tmp_path, TWO_POLE, [('gear="20"', 'gear="17"'), ('damping="0.01"', 'damping="0.013"'),
-                                          ('0 0 0 0 0 0.6" size="0.02" rgba="0.9', '0 0 0 0 0 0.5" size="0.02" '
-                                           'rgba="0.9')], "two")
+                                          ('0 0 0 0 0 0.6" size="0.02" rgba="0.9',
+                                           '0 0 0 0 0 0.5" size="0.02" rgba="0.9')], "two")
     log = run_excite(truth, tmp_path, duration=8, **ENCODERS).log
     p = read_params(TWO_POLE)
     names = ["gear:motor", "com:pole2", "inertia:pole2", "damping:hinge"]

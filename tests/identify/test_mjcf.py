@@ -6,11 +6,28 @@ import mujoco
 import numpy as np
 import pytest
 
-from cartpole.identify.mjcf import FittedMJCFError, check_fitted, fitted_text, write_fitted_mjcf
+from cartpole.identify.mjcf import (
+    FittedMJCFError,
+    check_fitted,
+    fitted_text,
+    write_fitted_mjcf,
+)
 from cartpole.identify.parameters import hinge_moment, parse_parameters
 from cartpole.models import SHIPPED_MJCF, read_params
 
 TWO_POLE = SHIPPED_MJCF.parent / "cartpole_two_pole.xml"
+
+
+def _compiled_value(fp, q):
+    if q.kind == "mass":
+        return fp.bodies[q.index].mass
+    if q.kind == "com":
+        return fp.bodies[q.index].ipos[q.component]
+    if q.kind == "inertia":
+        return hinge_moment(fp, q.index)
+    if q.kind == "gear":
+        return fp.actuators[q.index].transmission
+    return getattr(fp.joints[q.index], q.kind)
 
 
 @pytest.mark.parametrize("path", [SHIPPED_MJCF, TWO_POLE])
@@ -22,10 +39,7 @@ def test_fitted_file_compiles_to_the_fitted_values_and_changes_nothing_else(tmp_
     out = write_fitted_mjcf(tmp_path / "fitted.xml", p, pars, vals)
     fp = read_params(out)
     for q, v in zip(pars, vals):  # an independent read of the compiled model
-        got = {"mass": lambda: fp.bodies[q.index].mass, "com": lambda: fp.bodies[q.index].ipos[q.component],
-               "inertia": lambda: hinge_moment(fp, q.index), "gear": lambda: fp.actuators[q.index].transmission}.get(
-            q.kind, lambda: getattr(fp.joints[q.index], q.kind))()
-        assert got == pytest.approx(v, rel=1e-9), q.name
+        assert _compiled_value(fp, q) == pytest.approx(v, rel=1e-9), q.name
     # the other principal moments scale with the fitted one: the body stays physical
     for q in pars:
         if q.kind == "inertia":
