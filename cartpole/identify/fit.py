@@ -128,8 +128,17 @@ def segment_function(p: CartPoleParams, params, sample_time: float, length: int,
     X = ca.hcat(xs[:-1])
     z = ca.vertcat(x0, th)
     Xv = ca.vec(X)
+    # no common-subexpression elimination: on the two-pole cart it halves an evaluation but takes seconds to build,
+    # more than a whole fit's evaluations save
     return ca.Function("segment", [x0, U, th], [X, xs[-1], ca.jacobian(Xv, z), ca.jacobian(xs[-1], z)],
-                       ["x0", "U", "theta"], ["X", "x_end", "dX", "dx_end"], {"cse": True})
+                       ["x0", "U", "theta"], ["X", "x_end", "dX", "dx_end"])
+
+
+def _values_only(seg: ca.Function) -> ca.Function:
+    """The segment's ``(X, x_end)`` without the Jacobians (line searches and residual spreads need no more)."""
+    x0, U, th = (ca.SX.sym(n, seg.size_in(i)) for i, n in enumerate(("x0", "U", "theta")))
+    X, xe = seg(x0, U, th)[:2]
+    return ca.Function("segment_values", [x0, U, th], [X, xe])
 
 
 @dataclass
@@ -139,6 +148,7 @@ class _Run:
     S: int
     L: int
     fun: object
+    values: object
     U: np.ndarray        # (nu, L S)
     meas: np.ndarray     # (nx, L S + 1): positions, rates (NaN where not measured)
     nodes: np.ndarray    # (nx, S + 1)
@@ -163,7 +173,8 @@ def _prepare(p, params, logs, segment_s, friction_width) -> list:
             L, S = log.n - 1, 1
         key = (round(Ts, 12), L)
         if key not in funcs:
-            funcs[key] = segment_function(p, params, Ts, L, friction_width=friction_width)
+            seg = segment_function(p, params, Ts, L, friction_width=friction_width)
+            funcs[key] = (seg, _values_only(seg))
         n = S * L
         meas = np.full((nx, n + 1), np.nan)
         meas[:nq] = log.qpos[:n + 1].T
@@ -171,7 +182,8 @@ def _prepare(p, params, logs, segment_s, friction_width) -> list:
             meas[nq:] = log.qvel[:n + 1].T
         rates = _initial_rates(log.t, log.qpos)[:n + 1].T
         guess = np.vstack([meas[:nq], np.where(np.isfinite(meas[nq:]), meas[nq:], rates)])
-        runs.append(_Run(S=S, L=L, fun=funcs[key], U=log.ctrl[:n].T.copy(), meas=meas, nodes=guess[:, ::L].copy()))
+        runs.append(_Run(S=S, L=L, fun=funcs[key][0], values=funcs[key][1], U=log.ctrl[:n].T.copy(), meas=meas,
+                         nodes=guess[:, ::L].copy()))
     return runs
 
 
@@ -180,7 +192,10 @@ def _evaluate(runs, theta, w, np_, want_jac=True):
     out = []
     for run in runs:
         nx = run.nodes.shape[0]
-        X, xe, dX, dxe = run.fun(run.nodes[:, :-1], run.U, theta)
+        if want_jac:
+            X, xe, dX, dxe = run.fun(run.nodes[:, :-1], run.U, theta)
+        else:
+            X, xe = run.values(run.nodes[:, :-1], run.U, theta)
         X = np.asarray(X)
         pred = np.hstack([X, run.nodes[:, -1:]])
         wmat = np.where(np.isfinite(run.meas), w[:, None], 0.0)

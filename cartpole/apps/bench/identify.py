@@ -75,7 +75,8 @@ def ipopt_fit(p, params, log, *, segment_s: float = 0.1, regularization: float =
     lo = np.array([(q.lower - q.nominal) / q.scale for q in params])
     hi = np.array([(q.upper - q.nominal) / q.scale for q in params])
     solver = ca.nlpsol("ipopt_fit", "ipopt", {"x": w, "f": f, "g": g},
-                       {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": 300, "ipopt.tol": 1e-8})
+                       {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": 300,
+                        "ipopt.tol": 1e-8})
     v = np.gradient(log.qpos, log.t, axis=0)
     guess = np.vstack([log.qpos.T, v.T])[:, ::L][:, :S + 1]
     sol = solver(x0=np.concatenate([np.zeros(np_), guess.T.ravel()]), lbg=0, ubg=0,
