@@ -117,3 +117,22 @@ def test_hinge_frictionloss_is_fitted_within_2_percent(tmp_path):
     tv = {q.name: q.nominal for q in parse_parameters(read_params(truth), names)}
     for name, v in zip(res.names, res.fitted):
         assert v == pytest.approx(tv[name], rel=0.02), name
+
+
+def test_a_log_at_another_sample_time_fits_the_same(one_pole, tmp_path):
+    """A 10 ms log (the ctrl held 10 ms, the model stepping twice per sample): the same truth."""
+    truth, _, _ = one_pole
+    log = run_excite(truth, tmp_path, duration=12, sample_time=0.01, **ENCODERS).log
+    assert log.sample_time == pytest.approx(0.01)
+    p = read_params(SHIPPED_MJCF)
+    names = ["gear:motor", "com:pole", "inertia:pole", "damping:slider", "damping:hinge"]
+    res = fit(p, parse_parameters(p, names), [log])
+    _check_against_truth(p, truth, names, res)
+
+
+def test_a_fit_that_does_not_converge_is_one_sentence(one_pole):
+    _, log, _ = one_pole
+    p = read_params(SHIPPED_MJCF)
+    with pytest.raises(FitError, match="did not converge in 1 Gauss-Newton iterations") as exc:
+        fit(p, parse_parameters(p, ["gear:motor", "com:pole", "inertia:pole"]), [log], max_iter=1)
+    assert "\n" not in str(exc.value)
