@@ -14,8 +14,9 @@ Names (one scalar each; a name without a component expands to several):
 * ``all`` — what a student with a scale cannot weigh: ``gear`` of every actuator, ``com`` and ``inertia`` of every
   hinged body, ``damping`` of every joint and ``frictionloss`` of every hinge; the masses are taken as weighed
   (fitting masses with the gear makes them identifiable only as ratios, and the fit says so). A slide's
-  ``frictionloss`` is left out: MuJoCo's friction constraint holds a slowly moving cart (below about 0.3 m/s on
-  the shipped cart) where the smooth model creeps, and a fit of it to such runs crawls (name it to fit it anyway).
+  ``frictionloss`` is left out: while an excited cart turns, MuJoCo's friction constraint and the smooth model
+  differ, and a fit of it comes out biased, traded against the slide's damping (docs/identify.md; name it to fit
+  it anyway).
 
 Bounds keep the model physical: masses and inertias positive, damping, frictionloss and armature non-negative, a
 gear keeping its sign.
