@@ -26,6 +26,8 @@ COMMANDS = (
     "feedforward",
     "sweep",
     "bench",
+    "excite",
+    "identify",
 )
 
 

@@ -259,7 +259,7 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
 
 def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
                     plan=None, options=None, progress: Callable[[str, float], None] | None = None,
-                    loop=None) -> FeedforwardStudy:
+                    loop=None, plan_model: CartPoleModel | None = None) -> FeedforwardStudy:
     """Plan the swing-up, then run feedforward alone and feedforward + TVLQR in MuJoCo, on a true and a wrong model.
 
     Parameters
@@ -283,6 +283,9 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     loop : LoopOptions, optional
         The rig every run has (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
         estimator); the TVLQR is designed for its period. Default MuJoCo's exact state every physics step.
+    plan_model : CartPoleModel, optional
+        Plan (and design the TVLQR of) the first plan on this model instead of the MJCF's own (``--plan-mjcf``: e.g.
+        a fitted MJCF); MuJoCo still runs ``mjcf``. The wrong-mass plan stays relative to ``mjcf``.
 
     Returns
     -------
@@ -322,7 +325,8 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     with stage("trajectory optimisation", size=f"{n_plans} plan{'s' if n_plans != 1 else ''}",
                callback=forward("plan")) as tick:
         if plan is None:
-            plan = trajopt_swingup(params, model=model, options=options, period=period)
+            design = model if plan_model is None else plan_model
+            plan = trajopt_swingup(design.params, model=design, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
         wrong = plan if f == 0.0 else trajopt_swingup(
             params, model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop)[0], options=options,

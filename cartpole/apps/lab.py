@@ -401,7 +401,8 @@ def lab_start_scale(mjcf=None) -> float:
 
 def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, Q=None, R=None,
             discrete: bool = False, duration: float = LAB_DURATION, start_scale: float | None = None,
-            progress: Callable[[float], None] | None = None, loop=None) -> LabResult:
+            progress: Callable[[float], None] | None = None, loop=None,
+            plan_model: CartPoleModel | None = None) -> LabResult:
     """Run the LQR balance lab on an MJCF: a cart with any chain of poles, or anything else the LQR stabilises.
 
     Parameters
@@ -425,6 +426,9 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
         The rig the runs have (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
         estimator, noise seed; its duration, when given, replaces ``duration``). K is designed for the period
         (:func:`design`); the starts are still :func:`lab_start_scale`'s, found on the perfect loop.
+    plan_model : CartPoleModel, optional
+        Design K (and its equilibrium) on this model while MuJoCo runs ``mjcf`` (``--plan-mjcf``: e.g. a fitted
+        MJCF); the settling metrics are measured from ``mjcf``'s own upright. Default: design on ``mjcf``.
 
     Returns
     -------
@@ -446,23 +450,28 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     params = plant.params
     if loop is not None and loop.duration is not None:
         duration = loop.duration
-    # the model the LQR is designed on: without the friction a compensation cancels
-    model, compensate = friction_design(plant, loop)
-    rig = build_rig(plant, loop, task="balance")
+    # the controller's knowledge: the planning model (the MJCF's own unless given), and from it the model the LQR
+    # is designed on, without the friction a compensation cancels; MuJoCo always runs the MJCF
+    known = plant if plan_model is None else plan_model
+    design, compensate = friction_design(known, loop)
+    rig = build_rig(known, loop, task="balance")
+    model = plant
     steps = steps_per_period(None if loop is None else loop.period, model.dt)
     Q0, R0 = lab_weights(model)
     # the design and loop lab_start_scale uses
-    own = Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None and not compensate
+    own = (Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None
+           and plan_model is None and not compensate)
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
-    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(model, Q, R, discrete=discrete, steps=steps)
+    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(design, Q, R, discrete=discrete, steps=steps)
     if compensate:
         ctrl = compensate(ctrl)
     if start_scale is None and own:  # the scale search's runs are this lab's runs
         scale, (x0s, runs, mets) = _search_scale(model, ctrl, x_eq, progress)
     else:
         scale = lab_start_scale(model) if start_scale is None else float(start_scale)
-        x0s, runs, mets = _five_runs(model, ctrl, x_eq, scale, duration, progress, rig=rig)
+        x_true = x_eq if plan_model is None else readonly(lab_equilibrium(model))
+        x0s, runs, mets = _five_runs(model, ctrl, x_true, scale, duration, progress, rig=rig)
     return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete) or steps > 1, A=readonly(A), B=readonly(B),
                      Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,

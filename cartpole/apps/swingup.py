@@ -46,7 +46,8 @@ from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_mo
 #: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
 #: sweep import them from here).
 __all__ = ["ENERGY_DURATION", "METHODS", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
-           "SwingupResult", "check_model_error", "check_push", "check_plan_size", "check_start", "check_upright_reachable", "parse_push", "plan_report",
+           "SwingupResult", "check_model_error", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
+           "parse_push", "plan_model_from", "plan_report",
            "planning_model", "push_force", "run_swingup"]
 
 METHODS = ("energy", "trajopt", "mpc")
@@ -237,6 +238,41 @@ def planning_model(model: CartPoleModel, model_error: float = 1.0) -> CartPoleMo
     ``build_model(model.params.scaled_pole(S, S))`` (pole masses and lengths scaled by ``S``)."""
     S = check_model_error(model_error)
     return model if S == 1.0 else build_model(model.params.scaled_pole(S, S))
+
+
+def plan_model_from(path, model: CartPoleModel) -> CartPoleModel:
+    """The model of the MJCF at ``path`` to design a controller on while MuJoCo runs ``model``'s (``--plan-mjcf``:
+    e.g. design on a fitted MJCF, run on the rig's), after checking the two describe the same machine: the same
+    joints and actuators by name and order, the same time step and integrator.
+
+    Parameters
+    ----------
+    path : path
+        The planning MJCF.
+    model : CartPoleModel
+        The model MuJoCo runs.
+
+    Returns
+    -------
+    CartPoleModel
+
+    Raises
+    ------
+    SwingupError
+        Joints, actuators, time step or integrator that differ.
+    MJCFError
+        A planning MJCF that is not a cart-pole.
+    """
+    pm = build_model(read_params(path))
+    a, b = pm.params, model.params
+    same = (a.joint_names == b.joint_names and [x.name for x in a.actuators] == [x.name for x in b.actuators]
+            and a.timestep == b.timestep and a.integrator == b.integrator)
+    if not same:
+        raise SwingupError(f"The planning MJCF {a.mjcf} is not the same machine as --mjcf {b.mjcf} (joints "
+                           f"{', '.join(a.joint_names)} vs {', '.join(b.joint_names)}, actuators, time step "
+                           f"{a.timestep:g} vs {b.timestep:g} s or integrator {a.integrator} vs {b.integrator} "
+                           "differ); give a --plan-mjcf fitted to or edited from the --mjcf file.")
+    return pm
 
 
 def _stage(progress, name):

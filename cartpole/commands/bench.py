@@ -23,6 +23,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-mpc", action="store_true", help="skip the NMPC-in-the-loop benchmark")
     parser.add_argument("--no-crocoddyl", action="store_true",
                         help="skip Crocoddyl's double-pendulum example (our DDP, and Crocoddyl's FDDP when installed)")
+    parser.add_argument("--no-identify", action="store_true",
+                        help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 
 
 class _Steps:
@@ -76,6 +78,11 @@ def run(args) -> dict:
     from cartpole.apps.bench.crocoddyl import crocoddyl_benchmark, print_crocoddyl
 
     doc["crocoddyl"] = None if args.no_crocoddyl else crocoddyl_benchmark(repeats=1 if args.quick else repeats)
+    doc["identify"] = None
+    if not args.no_identify:
+        from cartpole.apps.bench.identify import identify_benchmark
+
+        doc["identify"] = identify_benchmark(quick=args.quick)
     steps.close()
     doc["quick"] = bool(args.quick)
     if not args.json:
@@ -87,4 +94,8 @@ def run(args) -> dict:
         print_estimation_table(doc["estimation"])
         if doc["crocoddyl"]:
             print_crocoddyl(doc["crocoddyl"])
+        if doc["identify"]:
+            from cartpole.apps.bench.identify import print_identify_table
+
+            print_identify_table(doc["identify"])
     return doc

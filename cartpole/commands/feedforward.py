@@ -17,6 +17,9 @@ def add_arguments(parser) -> None:
                              "a finite number from -0.9 to 9)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render videos/feedforward_<run>.mp4")
+    parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
+                        help="plan the first swing-up (and its TVLQR) on this MJCF, e.g. one fitted by `cartpole "
+                             "identify`, while MuJoCo runs --mjcf (the same joints, actuators and step)")
     parser.add_argument("--view", action="store_true",
                         help="show each run in MuJoCo's live viewer, in real time, one after the other (without a "
                              "display: a note on stderr and the rest as usual)")
@@ -47,14 +50,22 @@ def run(args) -> dict:
     from cartpole.commands._rig import loop_from_args, rig_doc
 
     loop = loop_from_args(args)
-    study = run_feedforward(params, mass_error=mass_error, loop=loop)   # its stages report through cartpole.progress
+    plan_model = None
+    if getattr(args, "plan_mjcf", None) is not None:
+        from cartpole.apps.swingup import plan_model_from
+        from cartpole.models import build_model
+
+        plan_model = plan_model_from(args.plan_mjcf, build_model(params))
+    study = run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
+                            plan_model=plan_model)
     model = study.model
     if args.view:
         for r in study.runs.values():
             if show_logged(params, r.rollout, command="feedforward") is None:
                 break  # no display: said once
     pct = f"{100 * mass_error:+g} %"
-    true_label = f"plan (MJCF's model), T = {study.plan.T:.2f} s"
+    true_label = (f"plan (MJCF's model), T = {study.plan.T:.2f} s" if plan_model is None else
+                  f"plan ({Path(plan_model.params.mjcf).name}), T = {study.plan.T:.2f} s")
     wrong_label = f"plan (pole mass {pct}), T = {study.wrong_plan.T:.2f} s"
     plans = {true_label: study.plan.trajectory}
     if study.wrong_plan is not study.plan:
@@ -91,6 +102,7 @@ def run(args) -> dict:
     rig = build_rig(study.model, loop, task="swingup")
     doc = {"mjcf": params.mjcf, "mass_error": mass_error,
            **rig_doc(rig, params.timestep if loop.period is None else loop.period),
+           "plan_mjcf": None if plan_model is None else plan_model.params.mjcf,
            "plan": {"T": study.plan.T, "T_min": study.plan.T_min, "N": study.plan.trajectory.N},
            "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
                           "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},

@@ -31,6 +31,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--view", action="store_true",
                         help="show the first start's LQR run live in MuJoCo's viewer (the run logged is the run "
                              "shown); without a display a note on stderr and the rest as usual")
+    parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
+                        help="design K on this MJCF (e.g. one fitted by `cartpole identify`) while MuJoCo runs "
+                             "--mjcf (the same joints, actuators and step)")
     parser.add_argument("--discrete", action="store_true",
                         help="design K with dlqr on (Ad, Bd), one step of the MJCF's integrator, instead of "
                              "lqr on the continuous (A, B)")
@@ -104,7 +107,12 @@ def run(args) -> dict:
     from cartpole._files import check_replaceable
 
     check_replaceable(Path(args.out) / METRICS)  # a read-only metrics.csv is refused before the lab runs
-    result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop)
+    plan_model = None
+    if getattr(args, "plan_mjcf", None) is not None:
+        from cartpole.apps.swingup import plan_model_from
+
+        plan_model = plan_model_from(args.plan_mjcf, model)
+    result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model)
     if args.view:
         result = _view(result)
     pid = skipped = None
@@ -150,6 +158,7 @@ def run(args) -> dict:
     ts_seed = result.settling_times_seed
     doc = {
         "mjcf": result.mjcf,
+        "plan_mjcf": None if plan_model is None else plan_model.params.mjcf,
         "discrete": result.discrete,
         "A": result.A, "B": result.B,
         "Q": result.Q, "R": result.R,

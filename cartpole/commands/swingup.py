@@ -44,6 +44,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--model-error", type=float, default=None, metavar="S",
                         help="scale the planning model's pole masses and lengths by S (e.g. 1.2: 20 %% heavier and "
                              "longer); the controller is designed on that model, MuJoCo keeps the MJCF's")
+    parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
+                        help="design the controller (plan, catch, TVLQR, NMPC) on this MJCF, e.g. one fitted by "
+                             "`cartpole identify`, while MuJoCo runs --mjcf (the same joints, actuators and step)")
     parser.add_argument("--horizon", type=float, default=None, metavar="S",
                         help="mpc only: prediction horizon in s (default the controller's, 1.2 s)")
     parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
@@ -160,6 +163,14 @@ def run(args) -> dict:
     duration = check_duration(args.duration, params)
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)
     model_error = check_model_error(getattr(args, "model_error", None))
+    plan_mjcf = getattr(args, "plan_mjcf", None)
+    plan_model = None
+    if plan_mjcf is not None:
+        from cartpole.apps.swingup import plan_model_from
+
+        if model_error != 1.0:
+            raise SwingupError("--plan-mjcf and --model-error both choose the planning model; give one of them.")
+        plan_model = plan_model_from(plan_mjcf, model)
     period, horizon = getattr(args, "period", None), getattr(args, "horizon", None)
     for flag, v in (("--period", period), ("--horizon", horizon)):
         if v is not None and args.method != "mpc" and flag == "--horizon":
@@ -205,7 +216,7 @@ def run(args) -> dict:
     viewer = live_viewer("swingup") if args.view else None
     try:
         res = run_swingup(model, method=args.method, x0=x0, plan=plan, loop=loop, mpc=mpc, progress=_Stages(sizes),
-                          on_step=viewer)
+                          on_step=viewer, plan_model=plan_model)
         if viewer is not None:
             viewer.finish()
     finally:
@@ -244,6 +255,7 @@ def run(args) -> dict:
     if args.method != "mpc":
         doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
+    doc["plan_mjcf"] = None if plan_model is None else plan_model.params.mjcf
     if args.method == "mpc":
         ctrl = res.controller
         doc["solve_ms"] = [float(v) for v in getattr(ctrl, "solve_ms", [])]
@@ -265,7 +277,8 @@ def run(args) -> dict:
             return "never" if v is None else f"{v:.3f} {unit}"
         print(f"MJCF: {params.mjcf}")
         scenario = "".join(f", pushed {F:+g} N at {T:g} s" for T, F in res.push) + (
-            f", planning model's poles scaled by {res.model_error:g}" if res.model_error != 1.0 else "")
+            f", planning model's poles scaled by {res.model_error:g}" if res.model_error != 1.0 else "") + (
+            f", designed on {plan_model.params.mjcf}" if plan_model is not None else "")
         print(f"Swing-up ({args.method}) from x0 = {list(map(float, x0))}{scenario}: "
               f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
               "limits, ctrl in range)")

@@ -77,8 +77,9 @@ def smooth_friction(frictionloss, v, width: float = DEFAULT_FRICTION_WIDTH):
 
     Parameters
     ----------
-    frictionloss : (nq,) array
-        Dry friction per joint, N on slides, N m on hinges (:attr:`CartPoleParams.frictionloss`).
+    frictionloss : (nq,) array or casadi SX/MX
+        Dry friction per joint, N on slides, N m on hinges (:attr:`CartPoleParams.frictionloss`; symbols for a
+        parametric model).
     v : (nq,) array or casadi SX/MX
         Joint velocities ``qvel``, m/s or rad/s (numbers, or CasADi symbols for the symbolic model).
     width : float
@@ -90,6 +91,8 @@ def smooth_friction(frictionloss, v, width: float = DEFAULT_FRICTION_WIDTH):
         N on slides, N m on hinges; zero on joints without friction.
     """
     w = check_width(width)
+    if isinstance(frictionloss, (ca.SX, ca.MX)):
+        return -frictionloss * ca.tanh(v / w)
     if isinstance(v, (ca.SX, ca.MX)):
         return -ca.DM(np.asarray(frictionloss, float)) * ca.tanh(v / w)
     return -np.asarray(frictionloss, float) * np.tanh(np.asarray(v, float) / w)

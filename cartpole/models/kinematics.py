@@ -67,7 +67,9 @@ class Kinematics:
 def forward_kinematics(params, q) -> Kinematics:
     """Forward kinematics at ``q`` (nq,) for :class:`~cartpole.models.params.CartPoleParams`.
 
-    With CasADi ``q`` (SX/MX) every entry is an expression; with numbers, use :func:`forward_kinematics_np`.
+    With CasADi ``q`` (SX/MX) every entry is an expression; with numbers, use :func:`forward_kinematics_np`. A
+    body's ``ipos`` (3,) and ``inertia`` (3,) may be CasADi symbols too (with symbolic ``q``), for a model whose
+    inertial parameters are decision variables (system identification).
     """
     symbolic = isinstance(q, (ca.SX, ca.MX))
     mul = ca.mtimes if symbolic else np.matmul
@@ -99,11 +101,21 @@ def forward_kinematics(params, q) -> Kinematics:
         pos.append(p)
         rot.append(R)
         jw.append(J)
-        com.append(p + mul(R, const(np.reshape(b.ipos, (3, 1)))))
+        ipos, diag = _inertial(b, const)
+        com.append(p + mul(R, ipos))
         Ri = mul(R, const(quat_to_mat(b.iquat)))
-        inertia.append(mul(mul(Ri, const(np.diag(b.inertia))), Ri.T))
+        inertia.append(mul(mul(Ri, diag), Ri.T))
     return Kinematics(rotation=rot, com=com, inertia=inertia, joint_anchor=anchors, joint_axis=axes,
                       angular_jacobian=jw)
+
+
+def _inertial(body, const):
+    """The body's centre of mass (3, 1) and diagonal principal inertia (3, 3), either of which may be CasADi
+    symbols (a parametric model, :func:`cartpole.models.symbolic.equations`)."""
+    sym = (ca.SX, ca.MX)
+    ipos = ca.reshape(body.ipos, 3, 1) if isinstance(body.ipos, sym) else const(np.reshape(body.ipos, (3, 1)))
+    diag = ca.diag(body.inertia) if isinstance(body.inertia, sym) else const(np.diag(body.inertia))
+    return ipos, diag
 
 
 def forward_kinematics_np(params, q) -> Kinematics:

@@ -301,7 +301,7 @@ def _lagrangian(p: CartPoleParams, q, v):
     M = ca.SX.zeros(p.nq, p.nq)
     V = 0
     for b, body in enumerate(p.bodies):
-        if body.mass == 0 and not np.any(body.inertia):
+        if not (_is_symbol(body.mass) or _is_symbol(body.inertia)) and body.mass == 0 and not np.any(body.inertia):
             continue
         Jv = ca.jacobian(kin.com[b], q)
         Jw = kin.angular_jacobian[b]
@@ -375,51 +375,11 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     x = ca.SX.sym("x", 2 * nq)
     u = ca.SX.sym("u", nu)
     q, v = x[:nq], x[nq:]
-
-    M_body, V, kin = _lagrangian(p, q, v)  # noqa: N806
-    M = M_body + ca.diag(ca.DM(p.armature))
+    eq = equations(p, x, u, dt=h, integrator=integ, friction_width=width)
+    M, M_body, V, kin, bias, Bmat = eq.M, eq.M_body, eq.V, eq.kin, eq.bias, eq.actuation  # noqa: N806
+    F_fric, F_act, V_act, xdot, x_next = eq.F_friction, eq.F_actuator, eq.V_actuator, eq.xdot, eq.x_next
     T = 0.5 * ca.dot(v, ca.mtimes(M_body, v))
-    bias = ca.mtimes(ca.jacobian(ca.mtimes(M_body, v), q), v) - ca.gradient(T, q) + ca.gradient(V, q)
-    Bmat = np.zeros((nq, nu))
-    for i, a in enumerate(p.actuators):
-        Bmat[a.joint, i] = a.gear
-    D = ca.DM(p.damping)
-    F = ca.mtimes(ca.DM(Bmat), u) - D * v - bias  # everything but M qacc
-    # Friction and actuator bias are added only where present, so a model without them is the one it always was,
-    # bit for bit.
-    F_fric = smooth_friction(p.frictionloss, v, width) if p.has_friction else ca.SX.zeros(nq)
-    F_act, V_act = _actuator_bias(p, q, v)
-    if p.has_friction:
-        F = F + F_fric
-    if p.has_actuator_bias:
-        F = F + F_act
-    qacc = ca.solve(M, F)
-    xdot = ca.vertcat(v, qacc)
     f = ca.Function("f", [x, u], [xdot], ["x", "u"], ["xdot"], opts)
-
-    # ---- one step of the MJCF's integrator ---------------------------------------------------
-    if integ == "RK4":
-        k1 = f(x, u)
-        k2 = f(x + h / 2 * k1, u)
-        k3 = f(x + h / 2 * k2, u)
-        k4 = f(x + h * k3, u)
-        x_next = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    else:
-        if integ == "Euler":
-            dFdv = -ca.diag(D) if p.euler_damping_implicit else ca.DM.zeros(nq, nq)
-            if p.has_friction and p.euler_damping_implicit:
-                dFdv = dFdv + ca.jacobian(F_fric, v)
-        elif integ == "implicitfast":
-            dFdv = -ca.diag(D)  # plus the actuators' velocity derivative, without Coriolis/centripetal terms
-            if p.has_friction:
-                dFdv = dFdv + ca.jacobian(F_fric, v)
-            if p.has_actuator_bias:
-                dFdv = dFdv + ca.jacobian(F_act, v)
-        else:  # implicit: full derivative including Coriolis/centripetal terms, friction and actuator bias
-            dFdv = ca.jacobian(F, v)
-        a_impl = ca.solve(M - h * dFdv, F)
-        v_next = v + h * a_impl
-        x_next = ca.vertcat(q + h * v_next, v_next)
     step = ca.Function("step", [x, u], [x_next], ["x", "u"], ["x_next"], opts)
 
     # ---- equilibria: upright (every COM above its hinge) and hanging ------------------------------
@@ -460,6 +420,159 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     return CartPoleModel(params=p, dt=h, integrator=integ, x_eq=readonly(x_eq), u_eq=readonly(u_eq),
                          potential=potential, actuation=readonly(Bmat), friction_width=width,
                          rest_potential=rest_potential, **funcs)
+
+
+@dataclass(frozen=True)
+class Equations:
+    """The SX expressions of one model in the symbols ``x`` (nx,) and ``u`` (nu,) (and of any parameter symbols
+    the params carry), what :func:`build_model` compiles and a parametric model (system identification) reuses.
+
+    Attributes
+    ----------
+    xdot : SX (nx,)
+        ``f(x, u)``.
+    x_next : SX (nx,)
+        One step of the integrator.
+    M : SX (nq, nq)
+        Mass matrix with armature.
+    M_body : SX (nq, nq)
+        Mass matrix without armature, kg, kg m, kg m^2.
+    V : SX
+        Potential energy (gravity and springs), J.
+    kin : Kinematics
+        Forward kinematics at ``q``.
+    bias : SX (nq,)
+        ``C(q, v) v + g(q)``.
+    F_friction, F_actuator : SX (nq,)
+        Smooth friction and actuator bias forces (zeros when absent).
+    V_actuator : SX
+        Potential of the actuators' position-dependent force.
+    actuation : (nq, nu) array or SX
+        Generalized force per unit ctrl (SX when a gear is a symbol).
+    """
+
+    xdot: object
+    x_next: object
+    M: object
+    M_body: object
+    V: object
+    kin: object
+    bias: object
+    F_friction: object
+    F_actuator: object
+    V_actuator: object
+    actuation: object
+
+
+def _is_symbol(value) -> bool:
+    return isinstance(value, (ca.SX, ca.MX))
+
+
+def _symbolic_params(p: CartPoleParams) -> bool:
+    """True when any parameter the equations read is a CasADi symbol (a parametric model)."""
+    vals = [v for b in p.bodies for v in (b.mass, b.ipos, b.inertia)]
+    vals += [v for j in p.joints for v in (j.damping, j.armature, j.frictionloss)]
+    vals += [v for a in p.actuators for v in (a.gear, a.transmission, a.damping, a.armature)]
+    return any(_is_symbol(v) for v in vals)
+
+
+def _joint_vector(p: CartPoleParams, field: str):
+    """(nq,) SX of a joint field (``damping``, ``armature``, ``frictionloss``) with the actuators' share added as
+    :attr:`CartPoleParams.damping` and :attr:`CartPoleParams.armature` add it, for params holding symbols."""
+    vals = [getattr(j, field) for j in p.joints]
+    if field != "frictionloss":
+        for a in p.actuators:
+            extra = getattr(a, field)
+            if _is_symbol(extra) or extra:
+                vals[a.joint] = vals[a.joint] + a.transmission ** 2 * extra
+    return ca.vertcat(*[ca.SX(v) if not _is_symbol(v) else v for v in vals])
+
+
+def equations(p: CartPoleParams, x, u, *, dt: float, integrator: str, friction_width: float) -> Equations:
+    """Derive the equations of motion and one integrator step as SX in ``x`` and ``u``.
+
+    The parameters may hold CasADi SX symbols instead of numbers (a body's ``mass``, ``ipos`` (3,), ``inertia``
+    (3,); a joint's ``damping``, ``armature``, ``frictionloss``; an actuator's ``gear`` with its ``transmission``):
+    then the expressions are functions of those symbols too, the same derivation (what system identification
+    fits). With numbers only, this is exactly what :func:`build_model` compiles.
+
+    Parameters
+    ----------
+    p : CartPoleParams
+    x : SX (nx,)
+        State symbol ``[qpos, qvel]``.
+    u : SX (nu,)
+        Ctrl symbol.
+    dt : float
+        Step in s.
+    integrator : str
+        One of ``SUPPORTED_INTEGRATORS``.
+    friction_width : float
+        Velocity scale of the smooth friction, m/s or rad/s.
+
+    Returns
+    -------
+    Equations
+    """
+    nq, nu = p.nq, p.nu
+    h, integ = float(dt), integrator
+    q, v = x[:nq], x[nq:]
+    symbolic = _symbolic_params(p)
+    M_body, V, kin = _lagrangian(p, q, v)  # noqa: N806
+    M = M_body + ca.diag(_joint_vector(p, "armature") if symbolic else ca.DM(p.armature))
+    T = 0.5 * ca.dot(v, ca.mtimes(M_body, v))
+    bias = ca.mtimes(ca.jacobian(ca.mtimes(M_body, v), q), v) - ca.gradient(T, q) + ca.gradient(V, q)
+    if symbolic:
+        Bmat = ca.SX.zeros(nq, nu)
+        for i, a in enumerate(p.actuators):
+            Bmat[a.joint, i] = a.gear
+    else:
+        Bmat = np.zeros((nq, nu))
+        for i, a in enumerate(p.actuators):
+            Bmat[a.joint, i] = a.gear
+    D = _joint_vector(p, "damping") if symbolic else ca.DM(p.damping)
+    F = ca.mtimes(Bmat if symbolic else ca.DM(Bmat), u) - D * v - bias  # everything but M qacc
+    # Friction and actuator bias are added only where present, so a model without them is the one it always was,
+    # bit for bit.
+    has_friction = p.has_friction if not symbolic else any(
+        _is_symbol(j.frictionloss) or j.frictionloss for j in p.joints)
+    fl = _joint_vector(p, "frictionloss") if symbolic else p.frictionloss
+    F_fric = smooth_friction(fl, v, friction_width) if has_friction else ca.SX.zeros(nq)
+    F_act, V_act = _actuator_bias(p, q, v)
+    if has_friction:
+        F = F + F_fric
+    if p.has_actuator_bias:
+        F = F + F_act
+    qacc = ca.solve(M, F)
+    xdot = ca.vertcat(v, qacc)
+
+    # ---- one step of the MJCF's integrator ---------------------------------------------------
+    if integ == "RK4":
+        f = None if symbolic else ca.Function("f", [x, u], [xdot], ["x", "u"], ["xdot"], {"cse": nq >= _CSE_FROM_NQ})
+        fx = (lambda xx: f(xx, u)) if f is not None else (lambda xx: ca.substitute(xdot, x, xx))
+        k1 = fx(x)
+        k2 = fx(x + h / 2 * k1)
+        k3 = fx(x + h / 2 * k2)
+        k4 = fx(x + h * k3)
+        x_next = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    else:
+        if integ == "Euler":
+            dFdv = -ca.diag(D) if p.euler_damping_implicit else ca.DM.zeros(nq, nq)
+            if has_friction and p.euler_damping_implicit:
+                dFdv = dFdv + ca.jacobian(F_fric, v)
+        elif integ == "implicitfast":
+            dFdv = -ca.diag(D)  # plus the actuators' velocity derivative, without Coriolis/centripetal terms
+            if has_friction:
+                dFdv = dFdv + ca.jacobian(F_fric, v)
+            if p.has_actuator_bias:
+                dFdv = dFdv + ca.jacobian(F_act, v)
+        else:  # implicit: full derivative including Coriolis/centripetal terms, friction and actuator bias
+            dFdv = ca.jacobian(F, v)
+        a_impl = ca.solve(M - h * dFdv, F)
+        v_next = v + h * a_impl
+        x_next = ca.vertcat(q + h * v_next, v_next)
+    return Equations(xdot=xdot, x_next=x_next, M=M, M_body=M_body, V=V, kin=kin, bias=bias, F_friction=F_fric,
+                     F_actuator=F_act, V_actuator=V_act, actuation=Bmat)
 
 
 def _actuator_bias(p: CartPoleParams, q, v):

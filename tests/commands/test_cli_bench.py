@@ -37,6 +37,11 @@ def test_bench_json_follows_the_contract(capsys):
     (plan,) = doc["plan"]
     assert plan["model"] == "1 pole" and plan["success"] and plan["replays"] and plan["plan_s_median"] > 0
     assert plan["time_to_upright"] is not None and plan["time_to_upright"] <= plan["T"] + 3.0
+    # --quick: the identification fit on the one-pole cart, IPOPT on the same problem beside it, both on the truth
+    (row,) = doc["identify"]["rows"]
+    assert row["model"] == "cartpole" and row["fit_s"] > 0 and row["max_rel_error"] < 0.01
+    assert row["ipopt_status"] == "Solve_Succeeded" and row["ipopt_max_rel_error"] < 0.01
+    assert row["speedup"] == row["ipopt_s"] / row["fit_s"]
     assert captured.err == ""  # --json: no progress at all
 
 

@@ -1,0 +1,55 @@
+"""``cartpole excite``: log an informative experiment (hanging, open-loop multisine) in the ``--log`` CSV format."""
+from __future__ import annotations
+
+HELP = ("run an open-loop multisine from hanging rest around the pendulum's natural frequencies (or add it to the "
+        "LQR balancing the pole: --mode balance), inside the rail and ctrl limits, and log it as the CSV "
+        "`cartpole identify --log` reads")
+
+
+def add_arguments(parser) -> None:
+    """``--duration``, ``--sample``, ``--amplitude``, ``--dry-run``, ``--csv``, the encoder and noise options."""
+    parser.add_argument("--mode", choices=("hanging", "balance"), default="hanging",
+                        help="hanging: open loop from hanging rest (default); balance: the LQR holds the pole "
+                             "upright with the multisine added to its ctrl")
+    parser.add_argument("--duration", type=float, default=20.0, metavar="S", help="seconds to log (default 20)")
+    parser.add_argument("--sample", type=float, default=None, metavar="S",
+                        help="log step and ctrl hold in s, a whole number of MJCF steps (default one step)")
+    parser.add_argument("--amplitude", type=float, default=None, metavar="A",
+                        help="multisine envelope as a fraction of the ctrl half-range (default hanging: the "
+                             "largest, up to 0.8, keeping the nominal cart within 60 %% of its rail; balance: 0.15)")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="write the ctrl only (positions left empty), to play the signal on a real rig")
+    parser.add_argument("--csv", default="excite.csv", metavar="NAME", help="CSV file name under --out")
+    parser.add_argument("--encoder-cpr", type=float, default=None, metavar="N",
+                        help="counts per revolution of every hinge encoder (e.g. 2048); default not quantised")
+    parser.add_argument("--encoder-resolution", type=float, default=None, metavar="M",
+                        help="metres per count of every slide encoder (e.g. 0.001); default not quantised")
+    parser.add_argument("--sensor-noise", type=float, default=None, metavar="STD",
+                        help="standard deviation of every sensor's noise in its units; default the MJCF's, else 0")
+    parser.add_argument("--noise-seed", type=int, default=0, metavar="N", help="seed of the sensor noise")
+
+
+def run(args) -> dict:
+    """Design, run and log. JSON ``excite`` {``csv``, ``rollout``, ``duration``, ``sample_time``, ``amplitude``,
+    ``frequencies``, ``natural_frequencies``, ``dry_run``}."""
+    from pathlib import Path
+
+    from cartpole.apps.excite import run_excite
+
+    res = run_excite(args.mjcf, args.out, duration=args.duration, sample_time=args.sample,
+                     amplitude=args.amplitude, dry_run=args.dry_run, encoder_cpr=args.encoder_cpr,
+                     encoder_resolution=args.encoder_resolution, sensor_noise=args.sensor_noise,
+                     seed=args.noise_seed, csv_name=args.csv, mode=args.mode)
+    e = res.excitation
+    rollout = None if res.rollout is None else str(Path(args.out) / (Path(args.csv).stem + "_rollout.json"))
+    doc = {"mjcf": str(Path(args.mjcf).resolve()) if args.mjcf else None,
+           "excite": {"csv": str(res.csv), "rollout": rollout, "duration": float(e.t[-1]),
+                      "sample_time": float(e.t[1] - e.t[0]), "amplitude": e.amplitude,
+                      "frequencies": e.frequencies, "natural_frequencies": e.natural_frequencies,
+                      "dry_run": bool(args.dry_run), "mode": args.mode}}
+    if not args.json:
+        print(f"Hanging natural frequencies: {', '.join(f'{w:.3f}' for w in e.natural_frequencies)} rad/s; "
+              f"multisine of {len(e.frequencies)} sines {e.frequencies[0]:.2f}..{e.frequencies[-1]:.2f} rad/s at "
+              f"{e.amplitude:.2f} of the ctrl half-range.")
+        print(f"{'Ctrl written (dry run)' if args.dry_run else 'Logged'}: {res.csv}")
+    return doc
