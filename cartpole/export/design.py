@@ -1,0 +1,161 @@
+"""What an export is made of: the Python controller and rig it reproduces, and the :class:`CProgram` that does.
+
+:func:`design_export` builds, for a model and a :class:`~cartpole.sim.options.LoopOptions`, the controller the
+toolkit runs in Python (the LQR of :meth:`~cartpole.control.linear.LinearFeedback.for_model`, the
+:class:`~cartpole.control.pid.CascadedPID`, ...), the rig (:func:`cartpole.sim.rig.build_rig`: period, delay,
+sensors, estimator) and the C program that computes the same ctrl from the same measurements.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from cartpole.export.controllers import linear_part, pid_part
+from cartpole.export.estimators import ExportError, kalman_part, state_part
+from cartpole.export.program import CProgram
+
+#: The controllers ``cartpole export --controller`` names, and the task each runs (its success test).
+CONTROLLERS = {"lqr": "balance", "pid": "balance", "tvlqr": "swingup", "energy": "swingup", "nmpc": "swingup"}
+#: The estimators each controller's export supports (``none`` is MuJoCo's exact state ``[qpos, qvel]``).
+SUPPORTED_ESTIMATORS = {"lqr": ("none", "kf"), "pid": ("none", "kf"), "tvlqr": ("none",), "energy": ("none",),
+                        "nmpc": ()}
+
+
+@dataclass(frozen=True)
+class ExportDesign:
+    """An export's Python side and its C program.
+
+    Attributes
+    ----------
+    method : str
+        One of :data:`CONTROLLERS`.
+    estimator : str
+        ``"none"``, ``"kf"``, ...
+    model : CartPoleModel
+        The design model.
+    program : CProgram
+        The C that reproduces ``make_controller()`` on ``rig``.
+    make_controller : callable
+        ``() -> controller``: a fresh Python controller (``u = c(t, x)``) for a run.
+    rig : Rig or None
+        The rig the Python path runs on (None: MuJoCo's exact state every physics step).
+    spec : SensorSpec or None
+        The sensors (None with estimator ``"none"``).
+    task : str
+        ``"balance"`` or ``"swingup"``.
+    """
+
+    method: str
+    estimator: str
+    model: object
+    program: CProgram
+    make_controller: Callable
+    rig: object
+    spec: object
+    task: str
+
+    @property
+    def y_names(self) -> tuple:
+        """One name per entry of ``y`` (the sensors' names, or the joints' then ``<joint>_vel``)."""
+        if self.spec is not None:
+            return tuple(self.spec.names)
+        joints = [j.name for j in self.model.params.joints]
+        return tuple(joints + [f"{j}_vel" for j in joints])
+
+    @property
+    def y_units(self) -> tuple:
+        """One SI unit per entry of ``y``."""
+        if self.spec is not None:
+            return tuple(self.spec.units)
+        pos = ["rad" if j.kind == "hinge" else "m" for j in self.model.params.joints]
+        return tuple(pos + [f"{p}/s" for p in pos])
+
+
+def _predictor(model, lag: int) -> ca.Function:
+    """``cp_predict(x (nx,), U (nu, lag)) -> x`` over the delay: the rig's prediction (``model.hold(lag)``)."""
+    hm = model.hold(lag)
+    x, U = ca.SX.sym("x", model.nx), ca.SX.sym("U", model.nu, lag)
+    return ca.Function("cp_predict", [x, U], [hm.step_inputs(x, U)], ["x", "U"], ["x_next"])
+
+
+def design_export(model, method: str, loop=None, *, real: str = "double") -> ExportDesign:
+    """The Python controller, rig and C program of an export.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The design model (the MJCF's physics step).
+    method : str
+        A key of :data:`CONTROLLERS`.
+    loop : LoopOptions, optional
+        Period, delay, sensors, estimator (default: MuJoCo's exact state every physics step).
+    real : {"double", "float"}
+        ``cp_real``.
+
+    Returns
+    -------
+    ExportDesign
+
+    Raises
+    ------
+    ExportError
+        A method or estimator this export does not reproduce in C.
+    LQRError, PIDError, RigError, PeriodError, EstimationError
+        The Python design itself fails (its own sentence).
+    """
+    from cartpole.sim.rig import build_rig
+
+    if method not in CONTROLLERS:
+        raise ExportError(f"There is no controller {method!r} to export; choose one of {', '.join(CONTROLLERS)}.")
+    task = CONTROLLERS[method]
+    rig = build_rig(model, loop, task=task)
+    estimator = "none" if rig is None else rig.estimator
+    allowed = SUPPORTED_ESTIMATORS[method]
+    if estimator not in allowed:
+        have = f"supported: --estimator {' or '.join(allowed)}" if allowed else "it is not exported yet"
+        raise ExportError(f"The {method} export with --estimator {estimator} is not available ({have}); pick "
+                          "another estimator or controller.")
+    steps = 1 if rig is None else int(rig.steps)
+    lag = 0 if rig is None else int(rig.delay_steps)
+    period = steps * float(model.dt)
+    if method == "lqr":
+        from cartpole.control.linear import LinearFeedback
+
+        fb = LinearFeedback.for_model(model, period=period)
+
+        def make():
+            return fb
+        ctrl_part = linear_part(fb)
+        title = f"LQR balance at a {period:g} s period"
+    elif method == "pid":
+        from cartpole.control.pid import CascadedPID, tune_pid
+
+        gains = tune_pid(model, period=period)
+
+        def make():
+            return CascadedPID(gains, model)
+        ctrl_part = pid_part(make())
+        title = f"cascaded PID balance at a {period:g} s period"
+    else:
+        raise ExportError(f"The {method} export is not available yet; export lqr or pid.")
+    spec = None if rig is None else rig.spec
+    if estimator == "none":
+        est_part = state_part()
+    else:
+        est_part = kalman_part(rig.make_estimator(), model, spec)
+    ny = model.nx if spec is None else int(spec.ny)
+    compensate = rig is not None and rig.compensate and lag > 0
+    from cartpole.sim.rollout import ctrl_bounds, make_mujoco
+
+    m, _ = make_mujoco(model.params)
+    lo, hi = ctrl_bounds(m)
+    program = CProgram(nx=model.nx, nq=model.nq, nu=model.nu, ny=ny, steps=steps, lag=lag, dt=float(model.dt),
+                       real=real, u_low=np.asarray(lo, float), u_high=np.asarray(hi, float),
+                       hinges=tuple(model.hinges), estimator=est_part, controller=ctrl_part,
+                       predict=_predictor(model, lag) if compensate else None,
+                       title=f"{title}, estimator {estimator}, delay {lag * float(model.dt):g} s, {real}")
+    return ExportDesign(method=method, estimator=estimator, model=model, program=program, make_controller=make,
+                        rig=rig, spec=spec, task=task)
