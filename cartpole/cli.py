@@ -25,6 +25,7 @@ COMMANDS = (
     "feedforward",
     "sweep",
     "bench",
+    "export",
 )
 
 
