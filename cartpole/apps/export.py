@@ -67,6 +67,23 @@ def default_start(design) -> np.ndarray:
     return np.array(design.model.x_hanging, dtype=float)
 
 
+def catch_level(model, loop) -> float:
+    """The catch level ``rho`` of the energy swing-up's LQR catch at the loop's period: the verified basin
+    :func:`cartpole.apps.swingup.run_swingup` uses (:class:`cartpole.validation.basin.BasinCache`, on disk)."""
+    from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError
+    from cartpole.control.switching import swingup_catch
+    from cartpole.export import ExportError
+    from cartpole.validation.basin import BasinCache
+
+    try:
+        EnergyShapingController(model)
+    except EnergyShapingModelError:
+        raise ExportError(f"Energy shaping drives one pole on a cart and this model has {len(model.hinges)} "
+                          "hinges; export --controller tvlqr (or lqr) instead.") from None
+    period = None if loop is None else loop.period
+    return float(BasinCache.on_disk().get(model.params, swingup_catch(model, period=period)).rho)
+
+
 def task_success(design, rollout) -> bool:
     """The Python path's own success test of the task on ``rollout``: balanced as the lab's delay margin counts it
     (:func:`cartpole.apps.lab.balances`: the handout's settling time finite, the cart never at its limit) or swung
@@ -157,10 +174,14 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
     find_compiler()
     model = mjcf if isinstance(mjcf, CartPoleModel) else build_model(mjcf)
     real = "float" if float32 else "double"
-    design = design_export(model, controller, loop, real=real)
-    start = default_start(design) if x0 is None else np.asarray(x0, dtype=float).ravel()
-    if start.shape != (model.nx,) or not np.all(np.isfinite(start)):
-        raise CartPoleError(f"--x0 must be {model.nx} finite numbers [qpos, qvel]; got {np.asarray(x0).tolist()}.")
+    if x0 is not None:
+        x0 = np.asarray(x0, dtype=float).ravel()
+        if x0.shape != (model.nx,) or not np.all(np.isfinite(x0)):
+            raise CartPoleError(f"--x0 must be {model.nx} finite numbers [qpos, qvel] in MuJoCo's joint order; got "
+                                f"{x0.tolist()}.")
+    rho = catch_level(model, loop) if controller == "energy" else None
+    design = design_export(model, controller, loop, real=real, x0=x0, rho=rho)
+    start = default_start(design) if x0 is None else x0
     checks = {}
     if verify:
         T = VERIFY_DURATION[design.task] if duration is None else float(duration)

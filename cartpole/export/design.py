@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.export.controllers import linear_part, pid_part
+from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
 from cartpole.export.estimators import ExportError, kalman_part, state_part
 from cartpole.export.program import CProgram
 
@@ -81,7 +81,8 @@ def _predictor(model, lag: int) -> ca.Function:
     return ca.Function("cp_predict", [x, U], [hm.step_inputs(x, U)], ["x", "U"], ["x_next"])
 
 
-def design_export(model, method: str, loop=None, *, real: str = "double") -> ExportDesign:
+def design_export(model, method: str, loop=None, *, real: str = "double", x0=None, rho: float | None = None,
+                  plan=None) -> ExportDesign:
     """The Python controller, rig and C program of an export.
 
     Parameters
@@ -94,6 +95,12 @@ def design_export(model, method: str, loop=None, *, real: str = "double") -> Exp
         Period, delay, sensors, estimator (default: MuJoCo's exact state every physics step).
     real : {"double", "float"}
         ``cp_real``.
+    x0 : (nx,) array, optional
+        ``tvlqr``: the start the swing-up is planned from (default the hanging rest).
+    rho : float, optional
+        ``energy``: the catch level of the LQR catch's verified basin (``BasinEstimate.rho``; required).
+    plan : PlanOptions, optional
+        ``tvlqr``: the planner's settings (default ``PlanOptions()``).
 
     Returns
     -------
@@ -139,8 +146,37 @@ def design_export(model, method: str, loop=None, *, real: str = "double") -> Exp
             return CascadedPID(gains, model)
         ctrl_part = pid_part(make())
         title = f"cascaded PID balance at a {period:g} s period"
+    elif method == "tvlqr":
+        from cartpole.planning.trajopt import trajopt_swingup
+
+        start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
+        kw = {} if plan is None else {"options": plan}
+        sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), model=model,
+                             period=None if steps == 1 else period, **kw)
+        tv = sp.controller
+
+        def make():
+            tv.reset()
+            return tv
+        ctrl_part = tvlqr_part(tv)
+        title = (f"trajopt swing-up tracked by TVLQR ({sp.trajectory.N} intervals, {tv.T:.3g} s), then the LQR "
+                 f"catch, at a {period:g} s period")
+    elif method == "energy":
+        from cartpole.control.energy import EnergyShapingController
+        from cartpole.control.switching import SwitchingController, swingup_catch
+
+        if rho is None or not rho > 0:
+            raise ExportError("The energy export needs the catch level rho of the LQR catch's verified basin; "
+                              "give rho (cartpole export computes it).")
+        energy = EnergyShapingController(model)
+        catch = swingup_catch(model, period=None if steps == 1 else period)
+
+        def make():
+            return SwitchingController(energy, catch, float(rho))
+        ctrl_part = energy_part(make())
+        title = f"energy-shaping swing-up with the LQR catch below rho = {float(rho):.4g}, at a {period:g} s period"
     else:
-        raise ExportError(f"The {method} export is not available yet; export lqr or pid.")
+        raise ExportError(f"The {method} export is not available yet; export lqr, pid, tvlqr or energy.")
     spec = None if rig is None else rig.spec
     if estimator == "none":
         est_part = state_part()
