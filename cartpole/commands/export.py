@@ -26,7 +26,8 @@ def add_arguments(parser) -> None:
                              "load them through ctypes and drive MuJoCo with each beside the Python controller: C "
                              "ctrl = Python ctrl to 1e-9 (double), the run succeeds (both), it replays exactly")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="seconds of each verification run (default 5 for a balance, 10 for a swing-up)")
+                        help="seconds of each verification run (default what the Python path runs: 5 for a balance, "
+                             "10 for energy, the plan + 3 for tvlqr)")
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step): "
                       "CP_PERIOD, the period cp_step must be called at; the controller is designed for it")
 

@@ -14,13 +14,14 @@ import casadi as ca
 import numpy as np
 
 from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
-from cartpole.export.estimators import ExportError, kalman_part, state_part
+from cartpole.export.estimators import ExportError, ekf_part, kalman_part, state_part
 from cartpole.export.program import CProgram
 
 #: The controllers ``cartpole export --controller`` names, and the task each runs (its success test).
 CONTROLLERS = {"lqr": "balance", "pid": "balance", "tvlqr": "swingup", "energy": "swingup", "nmpc": "swingup"}
 #: The estimators each controller's export supports (``none`` is MuJoCo's exact state ``[qpos, qvel]``).
-SUPPORTED_ESTIMATORS = {"lqr": ("none", "kf"), "pid": ("none", "kf"), "tvlqr": ("none",), "energy": ("none",),
+SUPPORTED_ESTIMATORS = {"lqr": ("none", "kf", "ekf"), "pid": ("none", "kf", "ekf"), "tvlqr": ("none", "ekf"),
+                        "energy": ("none", "ekf"),
                         "nmpc": ()}
 
 
@@ -46,6 +47,8 @@ class ExportDesign:
         The sensors (None with estimator ``"none"``).
     task : str
         ``"balance"`` or ``"swingup"``.
+    plan_end : float or None
+        ``tvlqr``: the end of the plan in s (the catch holds from then on).
     """
 
     method: str
@@ -56,6 +59,7 @@ class ExportDesign:
     rig: object
     spec: object
     task: str
+    plan_end: float | None = None
 
     @property
     def y_names(self) -> tuple:
@@ -128,6 +132,7 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
     steps = 1 if rig is None else int(rig.steps)
     lag = 0 if rig is None else int(rig.delay_steps)
     period = steps * float(model.dt)
+    plan_end = None
     if method == "lqr":
         from cartpole.control.linear import LinearFeedback
 
@@ -154,6 +159,7 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), model=model,
                              period=None if steps == 1 else period, **kw)
         tv = sp.controller
+        plan_end = float(sp.trajectory.t[-1] - sp.trajectory.t[0])
 
         def make():
             tv.reset()
@@ -180,8 +186,10 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
     spec = None if rig is None else rig.spec
     if estimator == "none":
         est_part = state_part()
-    else:
+    elif estimator == "kf":
         est_part = kalman_part(rig.make_estimator(), model, spec)
+    else:
+        est_part = ekf_part(rig.make_estimator(), model, spec)
     ny = model.nx if spec is None else int(spec.ny)
     compensate = rig is not None and rig.compensate and lag > 0
     from cartpole.sim.rollout import ctrl_bounds, make_mujoco
@@ -194,4 +202,4 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
                        predict=_predictor(model, lag) if compensate else None,
                        title=f"{title}, estimator {estimator}, delay {lag * float(model.dt):g} s, {real}")
     return ExportDesign(method=method, estimator=estimator, model=model, program=program, make_controller=make,
-                        rig=rig, spec=spec, task=task)
+                        rig=rig, spec=spec, task=task, plan_end=plan_end)

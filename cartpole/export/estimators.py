@@ -181,3 +181,221 @@ static void est_update(const cp_real* y, const cp_real* U, cp_real* x)
 }}
 """
     return CPart(tables=tables, code=code, functions=(h,))
+
+
+#: Small dense linear algebra the EKF part uses (row-major, sizes as arguments).
+_LINALG = """
+/* C = A B with A (n x m), B (m x p), row-major */
+static void la_mul(const cp_real* A, const cp_real* B, cp_real* C, int n, int m, int p)
+{
+    int i, j, k;
+    cp_real acc;
+    for (i = 0; i < n; ++i) {
+        for (j = 0; j < p; ++j) {
+            acc = 0;
+            for (k = 0; k < m; ++k) {
+                acc += A[i * m + k] * B[k * p + j];
+            }
+            C[i * p + j] = acc;
+        }
+    }
+}
+
+/* C = A B' with A (n x m), B (p x m) */
+static void la_mul_t(const cp_real* A, const cp_real* B, cp_real* C, int n, int m, int p)
+{
+    int i, j, k;
+    cp_real acc;
+    for (i = 0; i < n; ++i) {
+        for (j = 0; j < p; ++j) {
+            acc = 0;
+            for (k = 0; k < m; ++k) {
+                acc += A[i * m + k] * B[j * m + k];
+            }
+            C[i * p + j] = acc;
+        }
+    }
+}
+
+/* X (r x n) = B (r x n) S^-1 for S (n x n) symmetric positive definite: solve S X' = B' by LU with partial
+   pivoting (as LAPACK gesv); S is overwritten. Returns 0, or 1 for a singular S. */
+static int la_right_solve(cp_real* Sm, const cp_real* B, cp_real* X, int n, int r)
+{
+    int i, j, k, piv;
+    cp_real big, f, tmp;
+    int perm[CP_NY];
+    cp_real col[CP_NY];
+    for (i = 0; i < n; ++i) {
+        perm[i] = i;
+    }
+    for (k = 0; k < n; ++k) {
+        piv = k;
+        big = fabs(Sm[k * n + k]);
+        for (i = k + 1; i < n; ++i) {
+            if (fabs(Sm[i * n + k]) > big) {
+                big = fabs(Sm[i * n + k]);
+                piv = i;
+            }
+        }
+        if (big == 0) {
+            return 1;
+        }
+        if (piv != k) {
+            for (j = 0; j < n; ++j) {
+                tmp = Sm[k * n + j];
+                Sm[k * n + j] = Sm[piv * n + j];
+                Sm[piv * n + j] = tmp;
+            }
+            i = perm[k];
+            perm[k] = perm[piv];
+            perm[piv] = i;
+        }
+        for (i = k + 1; i < n; ++i) {
+            f = Sm[i * n + k] / Sm[k * n + k];
+            Sm[i * n + k] = f;
+            for (j = k + 1; j < n; ++j) {
+                Sm[i * n + j] -= f * Sm[k * n + j];
+            }
+        }
+    }
+    for (j = 0; j < r; ++j) { /* column j of X' solves S c = B[j, :]' */
+        for (i = 0; i < n; ++i) {
+            col[i] = B[j * n + perm[i]];
+        }
+        for (i = 0; i < n; ++i) {
+            for (k = 0; k < i; ++k) {
+                col[i] -= Sm[i * n + k] * col[k];
+            }
+        }
+        for (i = n - 1; i >= 0; --i) {
+            for (k = i + 1; k < n; ++k) {
+                col[i] -= Sm[i * n + k] * col[k];
+            }
+            col[i] /= Sm[i * n + i];
+        }
+        for (i = 0; i < n; ++i) {
+            X[j * n + i] = col[i];
+        }
+    }
+    return 0;
+}
+"""
+
+
+def ekf_part(ekf, model, spec) -> CPart:
+    """The extended Kalman filter ``ekf`` (:class:`cartpole.estimation.ekf.ExtendedKalmanFilter`) in C: the
+    prediction over the period and its Jacobian (``model.hold(m)``) and the measurement and its Jacobian
+    CasADi-generated (``cp_ekf_predict``, ``cp_ekf_measure``), the covariance update in the Joseph form with
+    ``P`` symmetrised, a prediction that is not finite kept at the last estimate with ``P + W``, as the Python
+    filter does.
+
+    Parameters
+    ----------
+    ekf : ExtendedKalmanFilter
+    model : CartPoleModel
+    spec : SensorSpec
+
+    Returns
+    -------
+    CPart
+    """
+    import casadi as ca
+
+    from cartpole.estimation import measurement_function
+    from cartpole.export.csource import call
+
+    nx, nu, m = ekf.nx, ekf.nu, ekf.steps
+    hold = model.hold(m)
+    x, U = ca.SX.sym("x", nx), ca.SX.sym("U", nu, m)
+    predict = ca.Function("cp_ekf_predict", [x, U], [ca.densify(hold.step_inputs(x, U)),
+                                                      ca.densify(hold.ABd_inputs(x, U)[0])], {"cse": True})
+    u = ca.SX.sym("u", nu)
+    y = measurement_function(model, spec)(x, u)
+    measure = ca.Function("cp_ekf_measure", [x, u], [ca.densify(y), ca.densify(ca.jacobian(y, x))], {"cse": True})
+    rtab, rcode = _reset_code(model, spec, model.x_hanging)
+    tables = rtab + table("EKF_W", ekf.W) + table("EKF_V", ekf.V) + table("EKF_P0", ekf.P0)
+    c_pred = call(predict, ["x", "U"], ["xp", "Acm"])
+    c_meas = call(measure, ["xp", "U + (CP_STEPS - 1) * CP_NU"], ["yp", "Hcm"])
+    code = _LINALG + rcode + f"""
+static void ekf_reset(void)
+{{
+    int i;
+    for (i = 0; i < NX * NX; ++i) {{
+        S.P[i] = EKF_P0[i];
+    }}
+}}
+
+static void est_update(const cp_real* y, const cp_real* U, cp_real* x)
+{{
+    cp_real xp[NX], Acm[NX * NX], A[NX * NX], T1[NX * NX], P[NX * NX], yp[CP_NY], Hcm[CP_NY * NX], H[CP_NY * NX];
+    cp_real PHt[NX * CP_NY], Sm[CP_NY * CP_NY], K[NX * CP_NY], IKH[NX * NX];
+    cp_real KV[NX * CP_NY], T2[NX * NX];
+    int i, j, ok = 1;
+    {c_pred}
+    for (i = 0; i < NX; ++i) {{
+        ok = ok && isfinite(xp[i]);
+    }}
+    for (i = 0; i < NX * NX; ++i) {{
+        ok = ok && isfinite(Acm[i]);
+    }}
+    if (ok) {{
+        for (i = 0; i < NX; ++i) {{
+            for (j = 0; j < NX; ++j) {{
+                A[i * NX + j] = Acm[j * NX + i];
+            }}
+        }}
+        la_mul(A, S.P, T1, NX, NX, NX);
+        la_mul_t(T1, A, P, NX, NX, NX);
+        for (i = 0; i < NX * NX; ++i) {{
+            P[i] += EKF_W[i];
+        }}
+    }} else {{
+        for (i = 0; i < NX; ++i) {{
+            xp[i] = x[i];
+        }}
+        for (i = 0; i < NX * NX; ++i) {{
+            P[i] = S.P[i] + EKF_W[i];
+        }}
+    }}
+    {c_meas}
+    for (i = 0; i < CP_NY; ++i) {{
+        for (j = 0; j < NX; ++j) {{
+            H[i * NX + j] = Hcm[j * CP_NY + i];
+        }}
+    }}
+    la_mul_t(P, H, PHt, NX, NX, CP_NY);
+    la_mul(H, PHt, Sm, CP_NY, NX, CP_NY);
+    for (i = 0; i < CP_NY * CP_NY; ++i) {{
+        Sm[i] += EKF_V[i];
+    }}
+    /* K' = S^-1 PHt' (numpy: solve(S, PHt.T).T), i.e. rows of PHt right-divided by S (S symmetric) */
+    la_right_solve(Sm, PHt, K, CP_NY, NX);
+    for (i = 0; i < NX; ++i) {{
+        cp_real acc = 0;
+        for (j = 0; j < CP_NY; ++j) {{
+            acc += K[i * CP_NY + j] * (y[j] - yp[j]);
+        }}
+        x[i] = xp[i] + acc;
+    }}
+    la_mul(K, H, IKH, NX, CP_NY, NX);
+    for (i = 0; i < NX * NX; ++i) {{
+        IKH[i] = (i / NX == i % NX ? 1 : 0) - IKH[i];
+    }}
+    la_mul(IKH, P, T1, NX, NX, NX);
+    la_mul_t(T1, IKH, T2, NX, NX, NX);
+    la_mul(K, EKF_V, KV, NX, CP_NY, CP_NY);
+    la_mul_t(KV, K, T1, NX, CP_NY, NX);
+    for (i = 0; i < NX; ++i) {{
+        for (j = 0; j < NX; ++j) {{
+            P[i * NX + j] = T2[i * NX + j] + T1[i * NX + j];
+        }}
+    }}
+    for (i = 0; i < NX; ++i) {{
+        for (j = 0; j < NX; ++j) {{
+            S.P[i * NX + j] = 0.5 * (P[i * NX + j] + P[j * NX + i]);
+        }}
+    }}
+}}
+"""
+    return CPart(tables=tables, code=code, fields=("cp_real P[NX * NX];",), reset="    ekf_reset();\n",
+                 functions=(predict, measure))
