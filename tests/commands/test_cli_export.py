@@ -34,10 +34,11 @@ def test_export_json_follows_the_contract(tmp_path, capsys):
     assert exp["bytes"] == sum((out / f).stat().st_size for f in exp["files"])
 
 
-@pytest.mark.parametrize("controller", ["lqr", "pid"])
+@pytest.mark.parametrize("controller", ["lqr", "pid", "tvlqr", "energy"])
 def test_export_float32_verifies_on_the_shipped_carts(tmp_path, capsys, controller):
+    short = ["--duration", "3"] if controller in ("lqr", "pid") else []  # a swing-up runs as long as in Python
     code, stdout, _ = _run(["--json", "--out", str(tmp_path / "c"), "--controller", controller, "--float32",
-                            "--verify", "--duration", "3"], capsys)
+                            "--verify", *short], capsys)
     assert code == 0
     doc = json.loads(stdout)
     assert doc["real"] == "float" and doc["export"]["verified"]
@@ -63,6 +64,9 @@ def _nothing_written(tmp_path, before):
     (["--period", "0.0123"], "period"),                # not a whole number of physics steps
     (["--controller", "pid", "--mjcf", TWO_POLE], "one pole"),  # the cascade needs one pole
     (["--x0", "0", "1"], "--x0"),
+    (["--controller", "tvlqr", "--x0", "1.45", "3.14", "3", "0"], "infeasible"),  # no plan from this start
+    (["--controller", "energy", "--mjcf", TWO_POLE], "one pole"),
+    (["--controller", "nmpc"], "not available"),
 ])
 def test_bad_input_is_one_sentence_exit_2_nothing_written(tmp_path, capsys, args, words):
     code, stdout, err = _run(["--out", str(tmp_path / "c"), *args], capsys)

@@ -32,10 +32,6 @@ def _start(model, tilt=0.1):
 
 
 def _replays(run):
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parents[1]))
     from mj_replay import replay_with_mj_step
 
     r = run.rollout
