@@ -143,7 +143,7 @@ def check_build(design, real: str, x0, duration: float) -> BuildCheck:
 
 
 def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool = False, x0=None, out=".",
-               verify: bool = False, duration: float | None = None) -> dict:
+               verify: bool = False, duration: float | None = None, mcu: bool = False) -> dict:
     """Export a controller as standalone C to the folder ``out``, and with ``verify`` prove it in MuJoCo.
 
     Parameters
@@ -164,13 +164,17 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
         Run the double and the float build in MuJoCo beside the Python controller.
     duration : float, optional
         Seconds of each verification run (default :func:`verify_duration`).
+    mcu : bool
+        Also build the float export for a Cortex-M4F (:func:`cartpole.export.mcu.cross_build`) and report its
+        flash, RAM and worst stack.
 
     Returns
     -------
     dict
         ``mjcf``, ``controller``, ``estimator``, ``period``, ``delay``, ``real``, ``folder``, ``rig`` and
         ``export`` {``files``, ``bytes``, ``verified``, ``max_ctrl_diff``, ``step_us`` {``median``, ``max``},
-        ``float32`` {``success``, ``max_ctrl_diff``}, ``double`` {``success``, ``replays``}, ``codes``}.
+        ``float32`` {``success``, ``max_ctrl_diff``}, ``double`` {``success``, ``replays``}, ``codes``, with
+        ``mcu`` the Cortex-M4F build's ``flash``, ``ram``, ``stack`` (bytes) and the commands that measured them}.
 
     Raises
     ------
@@ -183,6 +187,11 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
 
     check_target(out)
     find_compiler()
+    if mcu:
+        from cartpole.export.mcu import cross_build, mcu_tools
+
+        if mcu_tools() is None:
+            cross_build({})  # its one sentence: install the ARM toolchain
     model = mjcf if isinstance(mjcf, CartPoleModel) else build_model(mjcf)
     real = "float" if float32 else "double"
     if x0 is not None:
@@ -198,6 +207,11 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
         T = verify_duration(design) if duration is None else float(duration)
         for r in ("double", "float"):
             checks[r] = check_build(design, r, start, T)
+    mcu_doc = None
+    if mcu:
+        from cartpole.export import export_files
+
+        mcu_doc = cross_build(export_files(design, "float"))
     written = write_export(design, out, real=real)
     doc = {"mjcf": model.params.mjcf, "controller": controller, "estimator": design.estimator,
            "period": design.program.period, "delay": design.program.delay, "real": real,
@@ -218,5 +232,7 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
                         "step_us": {"median": float(np.median(f.step_us)), "max": float(np.max(f.step_us))}},
             "duration": float(d.run.rollout.t[-1]),
         })
+    if mcu:
+        exp["mcu"] = mcu_doc
     doc["export"] = exp
     return doc

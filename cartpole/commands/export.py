@@ -9,7 +9,7 @@ HELP = ("write a controller (and its estimator) as standalone C99 for a rig or a
 
 
 def add_arguments(parser) -> None:
-    """``--controller``, ``--float32``, ``--x0``, ``--verify``, ``--duration`` and the rig's options."""
+    """``--controller``, ``--float32``, ``--x0``, ``--verify``, ``--duration``, ``--mcu`` and the rig's options."""
     from cartpole.export import CONTROLLERS
 
     parser.add_argument("--controller", choices=tuple(CONTROLLERS), default="lqr",
@@ -28,6 +28,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="seconds of each verification run (default what the Python path runs: 5 for a balance, "
                              "10 for energy, the plan + 3 for tvlqr)")
+    parser.add_argument("--mcu", action="store_true",
+                        help="also compile the float32 build for a Cortex-M4F (arm-none-eabi-gcc -mcpu=cortex-m4 "
+                             "-mfpu=fpv4-sp-d16 -mfloat-abi=hard -Os) and report its flash, RAM (arm-none-eabi-size) "
+                             "and worst stack (-fstack-usage, -fcallgraph-info)")
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step): "
                       "CP_PERIOD, the period cp_step must be called at; the controller is designed for it")
 
@@ -38,7 +42,7 @@ def run(args) -> dict:
 
     loop = loop_from_args(args)
     doc = run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
-                     out=args.out, verify=args.verify, duration=args.duration)
+                     out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu)
     if not args.json:
         exp = doc["export"]
         print(f"Exported {doc['controller']} (estimator {doc['estimator']}, {doc['real']}, period {doc['period']:g} s, "
@@ -49,4 +53,8 @@ def run(args) -> dict:
                   f"{exp['max_ctrl_diff']:.3g} (double), float32 run "
                   f"{'succeeded' if exp['float32']['success'] else 'FAILED'}; C step median "
                   f"{exp['step_us']['median']:.2f} us, max {exp['step_us']['max']:.2f} us (through ctypes).")
+        if args.mcu:
+            m = exp["mcu"]
+            print(f"Cortex-M4F float32 build: flash {m['flash']} B, RAM {m['ram']} B, worst stack {m['stack']} B "
+                  f"({' -> '.join(m['stack_chain'])}).")
     return doc
