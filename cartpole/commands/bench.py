@@ -71,6 +71,9 @@ def run(args) -> dict:
     from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
 
     doc["estimation"] = estimation_benchmark(args.mjcf, quick=args.quick)
+    from cartpole.apps.bench.export import export_benchmark, print_export_table
+
+    doc["export"] = export_benchmark(args.mjcf, quick=args.quick)
     steps.close()
     doc["quick"] = bool(args.quick)
     if not args.json:
@@ -80,4 +83,5 @@ def run(args) -> dict:
         if doc["mpc"]:
             print_mpc_table(doc["mpc"])
         print_estimation_table(doc["estimation"])
+        print_export_table(doc["export"])
     return doc

@@ -81,6 +81,11 @@ class LockstepRun:
         ``cp_step``'s return codes.
     step_us : (K,) array
         Wall time of each C step through ``ctypes``, microseconds.
+    y : (K, ny) array
+        The measurements the C received.
+    python_us : (K,) array
+        Wall time of the Python path at each instant, microseconds: its estimator's update (the rig's
+        ``estimate_ms``; 0 without an estimator) plus the controller call.
     """
 
     rollout: object
@@ -89,6 +94,8 @@ class LockstepRun:
     py_ctrl: np.ndarray
     codes: np.ndarray
     step_us: np.ndarray
+    y: np.ndarray | None = None
+    python_us: np.ndarray | None = None
 
     @property
     def max_ctrl_diff(self) -> float:
@@ -123,13 +130,16 @@ def run_lockstep(design, cctl, x0, duration: float) -> LockstepRun:
     if hasattr(py, "reset"):
         py.reset()
     cctl.reset()
-    rec_t, rec_c, rec_p, rec_code, rec_us = [], [], [], [], []
+    rec_t, rec_c, rec_p, rec_code, rec_us, rec_y, rec_py = [], [], [], [], [], [], []
 
     def lockstep(t_sample, y, t_ctrl, x):
         t0 = time.perf_counter_ns()
         code, u = cctl.step(t_sample, y)
         rec_us.append(1e-3 * (time.perf_counter_ns() - t0))
+        t1 = time.perf_counter_ns()
         up = np.clip(np.asarray(py(t_ctrl, x), dtype=float).ravel(), lo, hi)
+        rec_py.append(1e-3 * (time.perf_counter_ns() - t1))
+        rec_y.append(np.array(y, dtype=float))
         rec_t.append(t_sample)
         rec_c.append(u)
         rec_p.append(up)
@@ -143,7 +153,11 @@ def run_lockstep(design, cctl, x0, duration: float) -> LockstepRun:
             return lockstep(obs.t, obs.y, t_ctrl, obs.x)
         rollout = simulate(params, controller, x0, duration, rig=TapRig(design.rig))
     nu = design.program.nu
+    py_us = np.asarray(rec_py, float)
+    if rollout.estimate_ms is not None:
+        py_us = py_us + 1e3 * np.asarray(rollout.estimate_ms, float)[:py_us.size]
     return LockstepRun(rollout=rollout, t=readonly(np.asarray(rec_t, float)),
                        c_ctrl=readonly(np.asarray(rec_c, float).reshape(-1, nu)),
                        py_ctrl=readonly(np.asarray(rec_p, float).reshape(-1, nu)),
-                       codes=readonly(np.asarray(rec_code, int)), step_us=readonly(np.asarray(rec_us, float)))
+                       codes=readonly(np.asarray(rec_code, int)), step_us=readonly(np.asarray(rec_us, float)),
+                       y=readonly(np.asarray(rec_y, float).reshape(len(rec_y), -1)), python_us=readonly(py_us))

@@ -37,6 +37,9 @@ def test_bench_json_follows_the_contract(capsys):
     (plan,) = doc["plan"]
     assert plan["model"] == "1 pole" and plan["success"] and plan["replays"] and plan["plan_s_median"] > 0
     assert plan["time_to_upright"] is not None and plan["time_to_upright"] <= plan["T"] + 3.0
+    # the export row: the exported LQR + KF step, timed in C on the loop's measurements, beside the Python path
+    ex = doc["export"]["lqr_kf"]
+    assert ex["replayed_same_ctrl"] and ex["c_step_us_median"] > 0 and ex["python_step_us_median"] > 0
     assert captured.err == ""  # --json: no progress at all
 
 
