@@ -28,6 +28,10 @@ VERIFY_DURATION = {"balance": 5.0, "swingup": 10.0}
 def verify_duration(design) -> float:
     """Seconds of the verification runs of ``design``: what the Python path runs (the lab's balance 5 s of its 6,
     the energy swing-up 10 s, a TVLQR swing-up its plan + ``TRAJOPT_EXTRA``)."""
+    if design.method == "nmpc":
+        from cartpole.apps.swingup import MPC_DURATION
+
+        return float(MPC_DURATION)
     if design.plan_end is not None:
         from cartpole.apps.swingup import TRAJOPT_EXTRA
 

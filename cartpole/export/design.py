@@ -21,8 +21,7 @@ from cartpole.export.program import CProgram
 CONTROLLERS = {"lqr": "balance", "pid": "balance", "tvlqr": "swingup", "energy": "swingup", "nmpc": "swingup"}
 #: The estimators each controller's export supports (``none`` is MuJoCo's exact state ``[qpos, qvel]``).
 SUPPORTED_ESTIMATORS = {"lqr": ("none", "kf", "ekf"), "pid": ("none", "kf", "ekf"), "tvlqr": ("none", "ekf"),
-                        "energy": ("none", "ekf"),
-                        "nmpc": ()}
+                        "energy": ("none", "ekf"), "nmpc": ("none", "kf", "ekf")}
 
 
 @dataclass(frozen=True)
@@ -122,6 +121,12 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
     if method not in CONTROLLERS:
         raise ExportError(f"There is no controller {method!r} to export; choose one of {', '.join(CONTROLLERS)}.")
     task = CONTROLLERS[method]
+    if method == "nmpc":  # the NMPC runs at its own period (0.02 s) unless the loop gives one
+        from cartpole.mpc.options import DEFAULT_PERIOD
+        from cartpole.sim.options import LoopOptions
+
+        loop = LoopOptions() if loop is None else loop
+        loop = loop.replace(period=DEFAULT_PERIOD if loop.period is None else loop.period)
     rig = build_rig(model, loop, task=task)
     estimator = "none" if rig is None else rig.estimator
     allowed = SUPPORTED_ESTIMATORS[method]
@@ -182,7 +187,17 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         ctrl_part = energy_part(make())
         title = f"energy-shaping swing-up with the LQR catch below rho = {float(rho):.4g}, at a {period:g} s period"
     else:
-        raise ExportError(f"The {method} export is not available yet; export lqr, pid, tvlqr or energy.")
+        from cartpole.export.nmpc import nmpc_design, nmpc_part
+
+        start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
+        mpc, plan_traj = nmpc_design(model, start, period)
+
+        def make():
+            mpc.reset()
+            return mpc
+        ctrl_part = nmpc_part(mpc, plan_traj)
+        title = (f"nonlinear MPC by real-time iteration ({mpc.N} stages of {mpc.period:g} s, dual active-set QP in "
+                 "C), swing-up from the planned start")
     spec = None if rig is None else rig.spec
     if estimator == "none":
         est_part = state_part()

@@ -1,0 +1,325 @@
+"""A dense QP solver in C with static memory: Goldfarb and Idnani's dual active-set method (the one of quadprog;
+DAQP, the NMPC's Python solver, is a dual active-set method too), for
+
+    min 1/2 z' H z + h' z    s.t.  lbx <= z <= ubx,   lba <= A z <= uba
+
+with ``H`` positive definite (the condensed Gauss-Newton Hessian). From the unconstrained minimum it adds the most
+violated constraint, takes full or partial steps, and drops constraints whose multiplier would change sign, keeping
+``J = L^-T Q`` and the triangular ``R`` of the active normals up to date by Givens rotations (O(n^2) per change).
+A bound or a row whose limit is beyond +-1e20 is never active. The optimum is unique, so it is DAQP's solution to
+rounding (the NMPC export is checked against the Python controller step for step).
+
+:func:`qp_code` returns the C text for sizes ``nz`` (variables) and ``nr`` (general rows): ``qp_solve(H, h, A,
+lba, uba, lbx, ubx, z)`` returning 0 (optimal), 1 (``H`` not positive definite), 2 (infeasible) or 3 (iteration
+limit), its work arrays in the static state struct ``S``.
+"""
+from __future__ import annotations
+
+#: Active-set changes a QP may take before it counts as a failure (the Python NMPC's ``QP_ITER_LIMIT``).
+QP_ITER_LIMIT = 1000
+
+
+def qp_fields(nz: int) -> tuple:
+    """State-struct members of the solver's work arrays for ``nz`` variables."""
+    return (f"cp_real qp_J[{nz * nz}];", f"cp_real qp_R[{nz * nz}];", f"cp_real qp_d[{nz}];",
+            f"cp_real qp_zd[{nz}];", f"cp_real qp_r[{nz}];", f"cp_real qp_u[{nz + 1}];", f"int qp_act[{nz + 1}];")
+
+
+def qp_code(nz: int, nr: int) -> str:
+    """C text of ``qp_solve`` for ``nz`` variables and ``nr`` general rows (see the module doc)."""
+    return f"""
+#define QP_NZ {nz}
+#define QP_NR {nr}
+#define QP_NC (2 * QP_NZ + 2 * QP_NR)
+#define QP_BIG 1e20
+#if CP_REAL_IS_FLOAT
+#define QP_TOL 1e-5f
+#define QP_ZTOL 1e-6f
+#else
+#define QP_TOL 1e-12
+#define QP_ZTOL 1e-14
+#endif
+
+/* constraint i as n_i' z >= b_i: 2j lower bound of z_j, 2j+1 upper, 2 QP_NZ + 2r the row r's lower, +1 its upper */
+static int qp_inactive(int i, const cp_real* lba, const cp_real* uba, const cp_real* lbx, const cp_real* ubx)
+{{
+    if (i < 2 * QP_NZ) {{
+        return i % 2 ? !(ubx[i / 2] < QP_BIG) : !(lbx[i / 2] > -QP_BIG);
+    }}
+    i -= 2 * QP_NZ;
+    return i % 2 ? !(uba[i / 2] < QP_BIG) : !(lba[i / 2] > -QP_BIG);
+}}
+
+/* n_i' v - b_i */
+static cp_real qp_slack(int i, const cp_real* v, const cp_real* A, const cp_real* lba, const cp_real* uba,
+                        const cp_real* lbx, const cp_real* ubx)
+{{
+    int j, r;
+    cp_real acc = 0;
+    if (i < 2 * QP_NZ) {{
+        return i % 2 ? ubx[i / 2] - v[i / 2] : v[i / 2] - lbx[i / 2];
+    }}
+    r = (i - 2 * QP_NZ) / 2;
+    for (j = 0; j < QP_NZ; ++j) {{
+        acc += A[r * QP_NZ + j] * v[j];
+    }}
+    return (i % 2) ? uba[r] - acc : acc - lba[r];
+}}
+
+/* d = J' n_i */
+static void qp_jtn(int i, const cp_real* A, cp_real* d)
+{{
+    int j, k, r;
+    cp_real sg;
+    if (i < 2 * QP_NZ) {{
+        sg = i % 2 ? -1 : 1;
+        for (k = 0; k < QP_NZ; ++k) {{
+            d[k] = sg * S.qp_J[(i / 2) * QP_NZ + k];
+        }}
+        return;
+    }}
+    r = (i - 2 * QP_NZ) / 2;
+    sg = (i % 2) ? -1 : 1;
+    for (k = 0; k < QP_NZ; ++k) {{
+        cp_real acc = 0;
+        for (j = 0; j < QP_NZ; ++j) {{
+            acc += A[r * QP_NZ + j] * S.qp_J[j * QP_NZ + k];
+        }}
+        d[k] = sg * acc;
+    }}
+}}
+
+/* n_i' v */
+static cp_real qp_ndot(int i, const cp_real* A, const cp_real* v)
+{{
+    int j, r;
+    cp_real acc = 0;
+    if (i < 2 * QP_NZ) {{
+        return i % 2 ? -v[i / 2] : v[i / 2];
+    }}
+    r = (i - 2 * QP_NZ) / 2;
+    for (j = 0; j < QP_NZ; ++j) {{
+        acc += A[r * QP_NZ + j] * v[j];
+    }}
+    return (i % 2) ? -acc : acc;
+}}
+
+static void qp_givens(cp_real a, cp_real b, cp_real* c, cp_real* s, cp_real* r)
+{{
+    if (b == 0) {{
+        *c = 1;
+        *s = 0;
+        *r = a;
+        return;
+    }}
+    *r = sqrt(a * a + b * b);
+    *c = a / *r;
+    *s = b / *r;
+}}
+
+static void qp_rot_cols(int a, int b, cp_real c, cp_real s)
+{{
+    int k;
+    cp_real x, y;
+    for (k = 0; k < QP_NZ; ++k) {{
+        x = S.qp_J[k * QP_NZ + a];
+        y = S.qp_J[k * QP_NZ + b];
+        S.qp_J[k * QP_NZ + a] = c * x + s * y;
+        S.qp_J[k * QP_NZ + b] = -s * x + c * y;
+    }}
+}}
+
+/* the constraint with J' n = d joins the active set as number q */
+static void qp_add(int q)
+{{
+    int k;
+    cp_real c, s, r;
+    for (k = QP_NZ - 1; k > q; --k) {{
+        qp_givens(S.qp_d[k - 1], S.qp_d[k], &c, &s, &r);
+        S.qp_d[k - 1] = r;
+        S.qp_d[k] = 0;
+        qp_rot_cols(k - 1, k, c, s);
+    }}
+    for (k = 0; k <= q; ++k) {{
+        S.qp_R[k * QP_NZ + q] = S.qp_d[k];
+    }}
+}}
+
+/* active constraint l of q leaves */
+static void qp_drop(int q, int l)
+{{
+    int i, j;
+    cp_real c, s, r, x, y;
+    for (i = 0; i < q; ++i) {{
+        for (j = l; j < q - 1; ++j) {{
+            S.qp_R[i * QP_NZ + j] = S.qp_R[i * QP_NZ + j + 1];
+        }}
+        S.qp_R[i * QP_NZ + q - 1] = 0;
+    }}
+    for (j = l; j < q - 1; ++j) {{
+        qp_givens(S.qp_R[j * QP_NZ + j], S.qp_R[(j + 1) * QP_NZ + j], &c, &s, &r);
+        for (i = j; i < q - 1; ++i) {{
+            x = S.qp_R[j * QP_NZ + i];
+            y = S.qp_R[(j + 1) * QP_NZ + i];
+            S.qp_R[j * QP_NZ + i] = c * x + s * y;
+            S.qp_R[(j + 1) * QP_NZ + i] = -s * x + c * y;
+        }}
+        S.qp_R[(j + 1) * QP_NZ + j] = 0;
+        qp_rot_cols(j, j + 1, c, s);
+    }}
+    for (i = 0; i < QP_NZ; ++i) {{
+        S.qp_R[(q - 1) * QP_NZ + i] = 0;
+    }}
+    for (j = l; j < q - 1; ++j) {{
+        S.qp_act[j] = S.qp_act[j + 1];
+        S.qp_u[j] = S.qp_u[j + 1];
+    }}
+}}
+
+/* H is overwritten by its Cholesky factor */
+static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_real* lba, const cp_real* uba,
+                    const cp_real* lbx, const cp_real* ubx, cp_real* z)
+{{
+    int i, j, k, q = 0, p, l, it = 0;
+    cp_real acc, t1, t2, t, smin, sp, zn, unew, zmax, dmax;
+    /* H = L L' (lower, in place) */
+    for (j = 0; j < QP_NZ; ++j) {{
+        acc = H[j * QP_NZ + j];
+        for (k = 0; k < j; ++k) {{
+            acc -= H[j * QP_NZ + k] * H[j * QP_NZ + k];
+        }}
+        if (!(acc > 0)) {{
+            return 1;
+        }}
+        H[j * QP_NZ + j] = sqrt(acc);
+        for (i = j + 1; i < QP_NZ; ++i) {{
+            acc = H[i * QP_NZ + j];
+            for (k = 0; k < j; ++k) {{
+                acc -= H[i * QP_NZ + k] * H[j * QP_NZ + k];
+            }}
+            H[i * QP_NZ + j] = acc / H[j * QP_NZ + j];
+        }}
+    }}
+    /* J = L^-T: column c of L^-1 by forward substitution, stored as row c of J */
+    for (j = 0; j < QP_NZ; ++j) {{
+        for (i = 0; i < QP_NZ; ++i) {{
+            acc = i == j ? 1 : 0;
+            for (k = j; k < i; ++k) {{
+                acc -= H[i * QP_NZ + k] * S.qp_J[k * QP_NZ + j];
+            }}
+            S.qp_J[i * QP_NZ + j] = i < j ? 0 : acc / H[i * QP_NZ + i];
+        }}
+    }}
+    for (i = 0; i < QP_NZ; ++i) {{ /* J = (L^-1)' */
+        for (j = i + 1; j < QP_NZ; ++j) {{
+            acc = S.qp_J[i * QP_NZ + j];
+            S.qp_J[i * QP_NZ + j] = S.qp_J[j * QP_NZ + i];
+            S.qp_J[j * QP_NZ + i] = acc;
+        }}
+    }}
+    for (i = 0; i < QP_NZ * QP_NZ; ++i) {{
+        S.qp_R[i] = 0;
+    }}
+    for (k = 0; k < QP_NZ; ++k) {{ /* z = -J J' h */
+        acc = 0;
+        for (j = 0; j < QP_NZ; ++j) {{
+            acc += S.qp_J[j * QP_NZ + k] * h[j];
+        }}
+        S.qp_d[k] = acc;
+    }}
+    for (i = 0; i < QP_NZ; ++i) {{
+        acc = 0;
+        for (k = 0; k < QP_NZ; ++k) {{
+            acc += S.qp_J[i * QP_NZ + k] * S.qp_d[k];
+        }}
+        z[i] = -acc;
+    }}
+    for (;;) {{
+        p = -1;
+        smin = 0;
+        for (i = 0; i < QP_NC; ++i) {{
+            cp_real si;
+            int active = 0;
+            if (qp_inactive(i, lba, uba, lbx, ubx)) {{
+                continue;
+            }}
+            for (j = 0; j < q; ++j) {{
+                active = active || S.qp_act[j] == i;
+            }}
+            if (active) {{
+                continue;
+            }}
+            si = qp_slack(i, z, A, lba, uba, lbx, ubx);
+            if (p < 0 || si < smin) {{
+                smin = si;
+                p = i;
+            }}
+        }}
+        if (p < 0 || !(smin < -QP_TOL)) {{
+            return 0;
+        }}
+        unew = 0;
+        for (;;) {{
+            if (++it > {QP_ITER_LIMIT}) {{
+                return 3;
+            }}
+            qp_jtn(p, A, S.qp_d);
+            zmax = 0;
+            dmax = 1;
+            for (i = 0; i < QP_NZ; ++i) {{
+                acc = 0;
+                for (k = q; k < QP_NZ; ++k) {{
+                    acc += S.qp_J[i * QP_NZ + k] * S.qp_d[k];
+                }}
+                S.qp_zd[i] = acc;
+                zmax = fabs(acc) > zmax ? fabs(acc) : zmax;
+                dmax = fabs(S.qp_d[i]) > dmax ? fabs(S.qp_d[i]) : dmax;
+            }}
+            for (i = q - 1; i >= 0; --i) {{ /* R r = d[:q] */
+                acc = S.qp_d[i];
+                for (k = i + 1; k < q; ++k) {{
+                    acc -= S.qp_R[i * QP_NZ + k] * S.qp_r[k];
+                }}
+                S.qp_r[i] = acc / S.qp_R[i * QP_NZ + i];
+            }}
+            t1 = 0;
+            l = -1;
+            for (j = 0; j < q; ++j) {{
+                if (S.qp_r[j] > 0 && (l < 0 || S.qp_u[j] / S.qp_r[j] < t1)) {{
+                    t1 = S.qp_u[j] / S.qp_r[j];
+                    l = j;
+                }}
+            }}
+            zn = qp_ndot(p, A, S.qp_zd);
+            sp = qp_slack(p, z, A, lba, uba, lbx, ubx);
+            if (zmax > QP_ZTOL * dmax && zn > 0) {{
+                t2 = -sp / zn;
+                t = (l >= 0 && t1 < t2) ? t1 : t2;
+            }} else if (l >= 0) {{
+                t2 = -1;
+                t = t1;
+            }} else {{
+                return 2;
+            }}
+            if (t2 >= 0) {{
+                for (i = 0; i < QP_NZ; ++i) {{
+                    z[i] += t * S.qp_zd[i];
+                }}
+            }}
+            for (j = 0; j < q; ++j) {{
+                S.qp_u[j] -= t * S.qp_r[j];
+            }}
+            unew += t;
+            if (t2 >= 0 && !(l >= 0 && t1 < t2)) {{
+                qp_add(q);
+                S.qp_act[q] = p;
+                S.qp_u[q] = unew;
+                ++q;
+                break;
+            }}
+            qp_drop(q, l);
+            --q;
+        }}
+    }}
+}}
+"""
