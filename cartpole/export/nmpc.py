@@ -87,7 +87,7 @@ def nmpc_part(ctl, plan) -> CPart:
               f"cp_real mp_lbx[{nz}];", f"cp_real mp_ubx[{nz}];", f"cp_real mp_z[{nz}];",
               f"cp_real mp_Hu[{nzu * nzu}];", f"cp_real mp_hu[{nzu}];", f"cp_real mp_g[{nx * (N + 1)}];",
               f"cp_real mp_G[{nx * N * nzu}];", f"cp_real mp_goal[{nx}];", f"cp_real mp_tmp[{nx * N}];",
-              *qp_fields(nz))
+              *qp_fields(nz, nr))
     c_qp = call(qp_data, ["x", "Sx", "Ux", "S.mp_goal", "MP_UG", "MP_QS", "MP_RS", "MP_P"],
                 ["S.mp_Hu", "S.mp_hu", "S.mp_g", "S.mp_G"])
     c_stage = call(stage, ["S.mp_S + MP_N * NX", "ut"], ["xt"])
@@ -145,7 +145,8 @@ static void mp_plan_input(double t, cp_real* u)
         }
     }
 """ if nb else "    (void)b;\n"
-    code = lcode + qp_code(nz, nr) + plan_input + f"""
+    row_len = [(k + 1) * nu for _ in range(2) for k in range(N) for _b in range(nb)]
+    code = lcode + qp_code(nz, nr, row_len) + plan_input + f"""
 static void mp_reset(void)
 {{
     int i;

@@ -19,15 +19,26 @@ from __future__ import annotations
 QP_ITER_LIMIT = 1000
 
 
-def qp_fields(nz: int) -> tuple:
-    """State-struct members of the solver's work arrays for ``nz`` variables."""
+def qp_fields(nz: int, nr: int) -> tuple:
+    """State-struct members of the solver's work arrays for ``nz`` variables and ``nr`` general rows."""
     return (f"cp_real qp_J[{nz * nz}];", f"cp_real qp_R[{nz * nz}];", f"cp_real qp_d[{nz}];",
-            f"cp_real qp_zd[{nz}];", f"cp_real qp_r[{nz}];", f"cp_real qp_u[{nz + 1}];", f"int qp_act[{nz + 1}];")
+            f"cp_real qp_zd[{nz}];", f"cp_real qp_r[{nz}];", f"cp_real qp_u[{nz + 1}];", f"int qp_act[{nz + 1}];",
+            f"unsigned char qp_isact[{2 * nz + 2 * nr}];")
 
 
-def qp_code(nz: int, nr: int) -> str:
-    """C text of ``qp_solve`` for ``nz`` variables and ``nr`` general rows (see the module doc)."""
-    return f"""
+def qp_code(nz: int, nr: int, row_len=None) -> str:
+    """C text of ``qp_solve`` for ``nz`` variables and ``nr`` general rows (see the module doc).
+
+    ``row_len`` (nr,) ints: row ``r`` of ``A`` is zero from column ``row_len[r]`` on except its last column (the
+    condensed rows of a causal horizon: stage ``k`` depends on the first ``(k + 1) nu`` inputs and the slack);
+    default dense rows. ``J`` is stored transposed (``L^-1``, row by row) so that the rotations of its columns run
+    over contiguous memory.
+    """
+    from cartpole.export.csource import table
+
+    lens = [nz - 1] * max(1, nr) if row_len is None else [int(v) for v in row_len]
+    rlen = table("QP_RLEN", lens, "int") if nr else ""
+    return rlen + f"""
 #define QP_NZ {nz}
 #define QP_NR {nr}
 #define QP_NC (2 * QP_NZ + 2 * QP_NR)
@@ -60,13 +71,14 @@ static cp_real qp_slack(int i, const cp_real* v, const cp_real* A, const cp_real
         return i % 2 ? ubx[i / 2] - v[i / 2] : v[i / 2] - lbx[i / 2];
     }}
     r = (i - 2 * QP_NZ) / 2;
-    for (j = 0; j < QP_NZ; ++j) {{
+    for (j = 0; j < QP_RLEN[r]; ++j) {{
         acc += A[r * QP_NZ + j] * v[j];
     }}
+    acc += A[r * QP_NZ + QP_NZ - 1] * v[QP_NZ - 1];
     return (i % 2) ? uba[r] - acc : acc - lba[r];
 }}
 
-/* d = J' n_i */
+/* d = J' n_i (qp_J holds J', row k = column k of J) */
 static void qp_jtn(int i, const cp_real* A, cp_real* d)
 {{
     int j, k, r;
@@ -74,17 +86,19 @@ static void qp_jtn(int i, const cp_real* A, cp_real* d)
     if (i < 2 * QP_NZ) {{
         sg = i % 2 ? -1 : 1;
         for (k = 0; k < QP_NZ; ++k) {{
-            d[k] = sg * S.qp_J[(i / 2) * QP_NZ + k];
+            d[k] = sg * S.qp_J[k * QP_NZ + i / 2];
         }}
         return;
     }}
     r = (i - 2 * QP_NZ) / 2;
     sg = (i % 2) ? -1 : 1;
     for (k = 0; k < QP_NZ; ++k) {{
+        const cp_real* Jk = S.qp_J + k * QP_NZ;
         cp_real acc = 0;
-        for (j = 0; j < QP_NZ; ++j) {{
-            acc += A[r * QP_NZ + j] * S.qp_J[j * QP_NZ + k];
+        for (j = 0; j < QP_RLEN[r]; ++j) {{
+            acc += A[r * QP_NZ + j] * Jk[j];
         }}
+        acc += A[r * QP_NZ + QP_NZ - 1] * Jk[QP_NZ - 1];
         d[k] = sg * acc;
     }}
 }}
@@ -98,9 +112,10 @@ static cp_real qp_ndot(int i, const cp_real* A, const cp_real* v)
         return i % 2 ? -v[i / 2] : v[i / 2];
     }}
     r = (i - 2 * QP_NZ) / 2;
-    for (j = 0; j < QP_NZ; ++j) {{
+    for (j = 0; j < QP_RLEN[r]; ++j) {{
         acc += A[r * QP_NZ + j] * v[j];
     }}
+    acc += A[r * QP_NZ + QP_NZ - 1] * v[QP_NZ - 1];
     return (i % 2) ? -acc : acc;
 }}
 
@@ -117,15 +132,16 @@ static void qp_givens(cp_real a, cp_real b, cp_real* c, cp_real* s, cp_real* r)
     *s = b / *r;
 }}
 
+/* columns a and b of J (rows of J') */
 static void qp_rot_cols(int a, int b, cp_real c, cp_real s)
 {{
     int k;
-    cp_real x, y;
+    cp_real x, y, * Ja = S.qp_J + a * QP_NZ, * Jb = S.qp_J + b * QP_NZ;
     for (k = 0; k < QP_NZ; ++k) {{
-        x = S.qp_J[k * QP_NZ + a];
-        y = S.qp_J[k * QP_NZ + b];
-        S.qp_J[k * QP_NZ + a] = c * x + s * y;
-        S.qp_J[k * QP_NZ + b] = -s * x + c * y;
+        x = Ja[k];
+        y = Jb[k];
+        Ja[k] = c * x + s * y;
+        Jb[k] = -s * x + c * y;
     }}
 }}
 
@@ -170,6 +186,7 @@ static void qp_drop(int q, int l)
     for (i = 0; i < QP_NZ; ++i) {{
         S.qp_R[(q - 1) * QP_NZ + i] = 0;
     }}
+    S.qp_isact[S.qp_act[l]] = 0;
     for (j = l; j < q - 1; ++j) {{
         S.qp_act[j] = S.qp_act[j + 1];
         S.qp_u[j] = S.qp_u[j + 1];
@@ -200,22 +217,25 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
             H[i * QP_NZ + j] = acc / H[j * QP_NZ + j];
         }}
     }}
-    /* J = L^-T: column c of L^-1 by forward substitution, stored as row c of J */
-    for (j = 0; j < QP_NZ; ++j) {{
-        for (i = 0; i < QP_NZ; ++i) {{
-            acc = i == j ? 1 : 0;
-            for (k = j; k < i; ++k) {{
-                acc -= H[i * QP_NZ + k] * S.qp_J[k * QP_NZ + j];
+    /* J' = L^-1 (row-major), row by row: row i = (e_i - sum_k<i L_ik row k) / L_ii */
+    for (i = 0; i < QP_NZ; ++i) {{
+        cp_real* row = S.qp_J + i * QP_NZ;
+        for (j = 0; j < QP_NZ; ++j) {{
+            row[j] = i == j ? 1 : 0;
+        }}
+        for (k = 0; k < i; ++k) {{
+            const cp_real* rk = S.qp_J + k * QP_NZ;
+            cp_real lik = H[i * QP_NZ + k];
+            for (j = 0; j <= k; ++j) {{
+                row[j] -= lik * rk[j];
             }}
-            S.qp_J[i * QP_NZ + j] = i < j ? 0 : acc / H[i * QP_NZ + i];
+        }}
+        for (j = 0; j <= i; ++j) {{
+            row[j] /= H[i * QP_NZ + i];
         }}
     }}
-    for (i = 0; i < QP_NZ; ++i) {{ /* J = (L^-1)' */
-        for (j = i + 1; j < QP_NZ; ++j) {{
-            acc = S.qp_J[i * QP_NZ + j];
-            S.qp_J[i * QP_NZ + j] = S.qp_J[j * QP_NZ + i];
-            S.qp_J[j * QP_NZ + i] = acc;
-        }}
+    for (i = 0; i < QP_NC; ++i) {{
+        S.qp_isact[i] = 0;
     }}
     for (i = 0; i < QP_NZ * QP_NZ; ++i) {{
         S.qp_R[i] = 0;
@@ -223,30 +243,24 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
     for (k = 0; k < QP_NZ; ++k) {{ /* z = -J J' h */
         acc = 0;
         for (j = 0; j < QP_NZ; ++j) {{
-            acc += S.qp_J[j * QP_NZ + k] * h[j];
+            acc += S.qp_J[k * QP_NZ + j] * h[j];
         }}
         S.qp_d[k] = acc;
     }}
     for (i = 0; i < QP_NZ; ++i) {{
-        acc = 0;
-        for (k = 0; k < QP_NZ; ++k) {{
-            acc += S.qp_J[i * QP_NZ + k] * S.qp_d[k];
+        z[i] = 0;
+    }}
+    for (k = 0; k < QP_NZ; ++k) {{
+        for (i = 0; i < QP_NZ; ++i) {{
+            z[i] -= S.qp_J[k * QP_NZ + i] * S.qp_d[k];
         }}
-        z[i] = -acc;
     }}
     for (;;) {{
         p = -1;
         smin = 0;
         for (i = 0; i < QP_NC; ++i) {{
             cp_real si;
-            int active = 0;
-            if (qp_inactive(i, lba, uba, lbx, ubx)) {{
-                continue;
-            }}
-            for (j = 0; j < q; ++j) {{
-                active = active || S.qp_act[j] == i;
-            }}
-            if (active) {{
+            if (S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {{
                 continue;
             }}
             si = qp_slack(i, z, A, lba, uba, lbx, ubx);
@@ -267,12 +281,17 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
             zmax = 0;
             dmax = 1;
             for (i = 0; i < QP_NZ; ++i) {{
-                acc = 0;
-                for (k = q; k < QP_NZ; ++k) {{
-                    acc += S.qp_J[i * QP_NZ + k] * S.qp_d[k];
+                S.qp_zd[i] = 0;
+            }}
+            for (k = q; k < QP_NZ; ++k) {{ /* zd = J[:, q:] d[q:] */
+                const cp_real* Jk = S.qp_J + k * QP_NZ;
+                cp_real dk = S.qp_d[k];
+                for (i = 0; i < QP_NZ; ++i) {{
+                    S.qp_zd[i] += Jk[i] * dk;
                 }}
-                S.qp_zd[i] = acc;
-                zmax = fabs(acc) > zmax ? fabs(acc) : zmax;
+            }}
+            for (i = 0; i < QP_NZ; ++i) {{
+                zmax = fabs(S.qp_zd[i]) > zmax ? fabs(S.qp_zd[i]) : zmax;
                 dmax = fabs(S.qp_d[i]) > dmax ? fabs(S.qp_d[i]) : dmax;
             }}
             for (i = q - 1; i >= 0; --i) {{ /* R r = d[:q] */
@@ -313,6 +332,7 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
             if (t2 >= 0 && !(l >= 0 && t1 < t2)) {{
                 qp_add(q);
                 S.qp_act[q] = p;
+                S.qp_isact[p] = 1;
                 S.qp_u[q] = unew;
                 ++q;
                 break;
