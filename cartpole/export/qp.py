@@ -47,7 +47,7 @@ def qp_code(nz: int, nr: int, row_len=None) -> str:
 #define QP_TOL 1e-5f
 #define QP_ZTOL 1e-6f
 #else
-#define QP_TOL 1e-12
+#define QP_TOL 1e-6 /* DAQP's primal tolerance: a constraint violated by less is not added */
 #define QP_ZTOL 1e-14
 #endif
 

@@ -8,4 +8,4 @@ def test_export_row_times_the_c_step_on_the_loop_measurements():
     assert r["replayed_same_ctrl"] and r["max_ctrl_diff"] <= 1e-9
     assert r["steps"] == round(1.0 / doc["period"])
     assert 0 < r["c_step_us_median"] <= r["c_step_us_max"]
-    assert r["python_step_us_median"] > 0 and doc["nmpc"] is None
+    assert r["python_step_us_median"] > 0 and doc["nmpc"] is None  # --quick: LQR + KF only
