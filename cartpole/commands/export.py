@@ -14,7 +14,8 @@ def add_arguments(parser) -> None:
 
     parser.add_argument("--controller", choices=tuple(CONTROLLERS), default="lqr",
                         help="the law to export: lqr (balance, default), pid (cascaded PID balance), tvlqr "
-                             "(trajopt swing-up + TVLQR + LQR catch), energy (energy shaping + LQR catch), nmpc")
+                             "(trajopt swing-up + TVLQR + LQR catch), energy (energy shaping + LQR catch), nmpc "
+                             "(real-time-iteration NMPC swing-up at its own 20 ms period)")
     parser.add_argument("--float32", action="store_true",
                         help="write the single-precision build (cp_real is float; for a Cortex-M4F's FPU); "
                              "default double")
