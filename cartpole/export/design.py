@@ -20,8 +20,9 @@ from cartpole.export.program import CProgram
 #: The controllers ``cartpole export --controller`` names, and the task each runs (its success test).
 CONTROLLERS = {"lqr": "balance", "pid": "balance", "tvlqr": "swingup", "energy": "swingup", "nmpc": "swingup"}
 #: The estimators each controller's export supports (``none`` is MuJoCo's exact state ``[qpos, qvel]``).
-SUPPORTED_ESTIMATORS = {"lqr": ("none", "kf", "ekf"), "pid": ("none", "kf", "ekf"), "tvlqr": ("none", "ekf"),
-                        "energy": ("none", "ekf"), "nmpc": ("none", "kf", "ekf")}
+SUPPORTED_ESTIMATORS = {"lqr": ("none", "kf", "ekf", "mhe"), "pid": ("none", "kf", "ekf", "mhe"),
+                        "tvlqr": ("none", "ekf", "mhe"), "energy": ("none", "ekf", "mhe"),
+                        "nmpc": ("none", "kf", "ekf", "mhe")}
 
 
 @dataclass(frozen=True)
@@ -203,8 +204,12 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         est_part = state_part()
     elif estimator == "kf":
         est_part = kalman_part(rig.make_estimator(), model, spec)
-    else:
+    elif estimator == "ekf":
         est_part = ekf_part(rig.make_estimator(), model, spec)
+    else:
+        from cartpole.export.mhe import mhe_part
+
+        est_part = mhe_part(rig.make_estimator(), model, spec)
     ny = model.nx if spec is None else int(spec.ny)
     compensate = rig is not None and rig.compensate and lag > 0
     from cartpole.sim.rollout import ctrl_bounds, make_mujoco

@@ -75,14 +75,28 @@ def first_state_rows(model, spec) -> np.ndarray:
     return rows
 
 
-def _reset_code(model, spec, base) -> tuple[str, str]:
+def reset_code(model, spec, base) -> tuple[str, str]:
+    """Tables and ``first_state(y, x)``: the rig's first estimate (:func:`first_state_rows`: encoder positions,
+    ``base``'s elsewhere, zero rates) in C.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    spec : SensorSpec
+    base : (nx,) array
+        Where the unmeasured positions come from.
+
+    Returns
+    -------
+    (str, str)
+    """
     rows = first_state_rows(model, spec)
     nq = int(model.nq)
     base = np.array(base, dtype=float).ravel()
     base[nq:] = 0.0
     tables = table("EST_ROW", rows, "int") + table("EST_BASE", base)
     code = """
-static void est_reset(const cp_real* y, cp_real* x)
+static void first_state(const cp_real* y, cp_real* x)
 {
     int j;
     for (j = 0; j < NX; ++j) {
@@ -118,7 +132,8 @@ def kalman_part(kf, model, spec) -> CPart:
     nx, nu = kf.nx, kf.nu
     from cartpole.estimation import measurement_function
 
-    rtab, rcode = _reset_code(model, spec, model.x_hanging)
+    rtab, rcode = reset_code(model, spec, model.x_hanging)
+    rcode += _EST_RESET
     x, u = ca.SX.sym("x", nx), ca.SX.sym("u", nu)
     h = ca.Function("cp_h", [x, u], [ca.densify(measurement_function(model, spec)(x, u))])
     tables = (rtab + table("KF_A", kf.A) + table("KF_B", kf.B) + table("KF_C", kf.C) + table("KF_D", kf.D)
@@ -183,8 +198,16 @@ static void est_update(const cp_real* y, const cp_real* U, cp_real* x)
     return CPart(tables=tables, code=code, functions=(h,))
 
 
-#: Small dense linear algebra the EKF part uses (row-major, sizes as arguments).
-_LINALG = """
+#: ``est_reset`` of the filters: the first estimate, nothing else.
+_EST_RESET = """
+static void est_reset(const cp_real* y, cp_real* x)
+{
+    first_state(y, x);
+}
+"""
+
+#: Small dense linear algebra the EKF and MHE parts use (row-major, sizes as arguments).
+LINALG = """
 /* C = A B with A (n x m), B (m x p), row-major */
 static void la_mul(const cp_real* A, const cp_real* B, cp_real* C, int n, int m, int p)
 {
@@ -312,11 +335,12 @@ def ekf_part(ekf, model, spec) -> CPart:
     u = ca.SX.sym("u", nu)
     y = measurement_function(model, spec)(x, u)
     measure = ca.Function("cp_ekf_measure", [x, u], [ca.densify(y), ca.densify(ca.jacobian(y, x))], {"cse": True})
-    rtab, rcode = _reset_code(model, spec, model.x_hanging)
+    rtab, rcode = reset_code(model, spec, model.x_hanging)
+    rcode += _EST_RESET
     tables = rtab + table("EKF_W", ekf.W) + table("EKF_V", ekf.V) + table("EKF_P0", ekf.P0)
     c_pred = call(predict, ["x", "U"], ["xp", "Acm"])
     c_meas = call(measure, ["xp", "U + (CP_STEPS - 1) * CP_NU"], ["yp", "Hcm"])
-    code = _LINALG + rcode + f"""
+    code = LINALG + rcode + f"""
 static void ekf_reset(void)
 {{
     int i;
