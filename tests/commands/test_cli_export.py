@@ -66,7 +66,7 @@ def _nothing_written(tmp_path, before):
     (["--x0", "0", "1"], "--x0"),
     (["--controller", "tvlqr", "--x0", "1.45", "3.14", "3", "0"], "infeasible"),  # no plan from this start
     (["--controller", "energy", "--mjcf", TWO_POLE], "one pole"),
-    (["--controller", "nmpc", "--estimator", "mhe", "--encoder-cpr", "1024"], "not available"),
+    (["--controller", "tvlqr", "--estimator", "kf", "--encoder-cpr", "1024"], "not available"),
 ])
 def test_bad_input_is_one_sentence_exit_2_nothing_written(tmp_path, capsys, args, words):
     code, stdout, err = _run(["--out", str(tmp_path / "c"), *args], capsys)

@@ -63,4 +63,4 @@ def test_first_state_rows_follow_the_encoders():
 def test_estimators_the_export_does_not_reproduce_are_refused():
     model = build_model(None)
     with pytest.raises(CartPoleError, match="not available"):
-        design_export(model, "lqr", LoopOptions(estimator="mhe", encoder_cpr=1024))
+        design_export(model, "tvlqr", LoopOptions(estimator="kf", encoder_cpr=1024))  # a KF about upright
