@@ -28,6 +28,7 @@ COMMANDS = (
     "bench",
     "excite",
     "identify",
+    "export",
 )
 
 

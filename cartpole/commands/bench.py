@@ -83,6 +83,9 @@ def run(args) -> dict:
         from cartpole.apps.bench.identify import identify_benchmark
 
         doc["identify"] = identify_benchmark(quick=args.quick)
+    from cartpole.apps.bench.export import export_benchmark, print_export_table
+
+    doc["export"] = export_benchmark(args.mjcf, quick=args.quick)
     steps.close()
     doc["quick"] = bool(args.quick)
     if not args.json:
@@ -98,4 +101,5 @@ def run(args) -> dict:
             from cartpole.apps.bench.identify import print_identify_table
 
             print_identify_table(doc["identify"])
+        print_export_table(doc["export"])
     return doc

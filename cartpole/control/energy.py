@@ -341,6 +341,13 @@ class EnergyShapingController:
         """ctrl (1,) (clipped to the ctrl range) at time ``t`` (s, unused) for state ``x`` (nx,)."""
         return np.array([float(self._fun(np.asarray(x, dtype=float), self._prm)[0])])
 
+    @property
+    def law(self) -> tuple:
+        """``(Function, prm)``: the law as a CasADi Function ``(x (nx,), prm) -> (ctrl, a, E, w)`` and its parameter
+        vector (gains, then the ctrl range), so ``ctrl = law[0](x, law[1])[0]``; for code generation
+        (:mod:`cartpole.export`)."""
+        return self._fun, self._prm.copy()
+
     def evaluate(self, x) -> dict:
         """The law's internals at state ``x`` (nx,): ``ctrl``, desired cart acceleration ``a`` (m/s^2), pole energy
         ``E`` (J) and pumping direction ``w`` (rad/s)."""

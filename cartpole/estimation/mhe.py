@@ -324,6 +324,14 @@ class MovingHorizonEstimator:
         return self._xbar.copy(), self._P.copy()
 
     @property
+    def design(self) -> dict:
+        """What the estimator is built from, for code generation (:mod:`cartpole.export`): ``L`` (nx, r) with
+        ``W = L L'``, ``P0`` (nx, nx) the first arrival covariance, ``RV`` (ny, ny) with ``RV' RV = V^-1``,
+        ``bounded`` (the qpos indices with a range), ``low``, ``high`` (their ranges, m or rad); copies."""
+        return {"L": self._L.copy(), "P0": np.array(self._P0), "RV": self._RV.copy(), "bounded": self._bidx.copy(),
+                "low": np.array(self._lo), "high": np.array(self._hi)}
+
+    @property
     def library(self) -> str | None:
         """Path of the compiled C in use (None on CasADi's virtual machine)."""
         return self.functions.library

@@ -42,6 +42,9 @@ def test_bench_json_follows_the_contract(capsys):
     assert row["model"] == "cartpole" and row["fit_s"] > 0 and row["max_rel_error"] < 0.01
     assert row["ipopt_status"] == "Solve_Succeeded" and row["ipopt_max_rel_error"] < 0.01
     assert row["speedup"] == row["ipopt_s"] / row["fit_s"]
+    # the export row: the exported LQR + KF step, timed in C on the loop's measurements, beside the Python path
+    ex = doc["export"]["lqr_kf"]
+    assert ex["replayed_same_ctrl"] and ex["c_step_us_median"] > 0 and ex["python_step_us_median"] > 0
     assert captured.err == ""  # --json: no progress at all
 
 

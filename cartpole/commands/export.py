@@ -1,0 +1,61 @@
+"""``cartpole export``: a controller and its estimator as standalone C99 (static memory, a Makefile, an example),
+and with ``--verify`` its proof in the MuJoCo loop beside the Python controller."""
+from __future__ import annotations
+
+from cartpole.commands._rig import add_rig_arguments, loop_from_args
+
+HELP = ("write a controller (and its estimator) as standalone C99 for a rig or a microcontroller; --verify drives "
+        "MuJoCo with it beside the Python controller")
+
+
+def add_arguments(parser) -> None:
+    """``--controller``, ``--float32``, ``--x0``, ``--verify``, ``--duration``, ``--mcu`` and the rig's options."""
+    from cartpole.export import CONTROLLERS
+
+    parser.add_argument("--controller", choices=tuple(CONTROLLERS), default="lqr",
+                        help="the law to export: lqr (balance, default), pid (cascaded PID balance), tvlqr "
+                             "(trajopt swing-up + TVLQR + LQR catch), energy (energy shaping + LQR catch), nmpc "
+                             "(real-time-iteration NMPC swing-up at its own 20 ms period)")
+    parser.add_argument("--float32", action="store_true",
+                        help="write the single-precision build (cp_real is float; for a Cortex-M4F's FPU); "
+                             "default double")
+    parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
+                        help="start state [qpos, qvel] of the verification run (and the swing-up's plan); default "
+                             "the lab's first start for a balance, the hanging rest for a swing-up")
+    parser.add_argument("--verify", action="store_true",
+                        help="compile the double and the float build with -std=c99 -Wall -Wextra -Werror -pedantic, "
+                             "load them through ctypes and drive MuJoCo with each beside the Python controller: C "
+                             "ctrl = Python ctrl to 1e-9 (double), the run succeeds (both), it replays exactly")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="seconds of each verification run (default what the Python path runs: 5 for a balance, "
+                             "10 for energy, the plan + 3 for tvlqr)")
+    parser.add_argument("--mcu", action="store_true",
+                        help="also compile the float32 build for a Cortex-M4F (arm-none-eabi-gcc -mcpu=cortex-m4 "
+                             "-mfpu=fpv4-sp-d16 -mfloat-abi=hard -Os) and report its flash, RAM (arm-none-eabi-size) "
+                             "and worst stack (-fstack-usage, -fcallgraph-info)")
+    add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step): "
+                      "CP_PERIOD, the period cp_step must be called at; the controller is designed for it")
+
+
+def run(args) -> dict:
+    """Export (and verify); prose: the folder, its files and the verification's figures."""
+    from cartpole.apps.export import run_export
+
+    loop = loop_from_args(args)
+    doc = run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
+                     out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu)
+    if not args.json:
+        exp = doc["export"]
+        print(f"Exported {doc['controller']} (estimator {doc['estimator']}, {doc['real']}, period {doc['period']:g} s, "
+              f"delay {doc['delay']:g} s) to {doc['folder']}: {len(exp['files'])} files, {exp['bytes']} bytes.")
+        print(f"Build it: make -C {doc['folder']}   (shared library: make -C {doc['folder']} shared)")
+        if args.verify:
+            print(f"Verified in MuJoCo: {'yes' if exp['verified'] else 'NO'}; max |C - Python| ctrl "
+                  f"{exp['max_ctrl_diff']:.3g} (double), float32 run "
+                  f"{'succeeded' if exp['float32']['success'] else 'FAILED'}; C step median "
+                  f"{exp['step_us']['median']:.2f} us, max {exp['step_us']['max']:.2f} us (through ctypes).")
+        if args.mcu:
+            m = exp["mcu"]
+            print(f"Cortex-M4F float32 build: flash {m['flash']} B, RAM {m['ram']} B, worst stack {m['stack']} B "
+                  f"({' -> '.join(m['stack_chain'])}).")
+    return doc

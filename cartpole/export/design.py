@@ -1,0 +1,225 @@
+"""What an export is made of: the Python controller and rig it reproduces, and the :class:`CProgram` that does.
+
+:func:`design_export` builds, for a model and a :class:`~cartpole.sim.options.LoopOptions`, the controller the
+toolkit runs in Python (the LQR of :meth:`~cartpole.control.linear.LinearFeedback.for_model`, the
+:class:`~cartpole.control.pid.CascadedPID`, ...), the rig (:func:`cartpole.sim.rig.build_rig`: period, delay,
+sensors, estimator) and the C program that computes the same ctrl from the same measurements.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
+from cartpole.export.estimators import ExportError, ekf_part, kalman_part, state_part
+from cartpole.export.program import CProgram
+
+#: The controllers ``cartpole export --controller`` names, and the task each runs (its success test).
+CONTROLLERS = {"lqr": "balance", "pid": "balance", "tvlqr": "swingup", "energy": "swingup", "nmpc": "swingup"}
+#: The estimators each controller's export supports (``none`` is MuJoCo's exact state ``[qpos, qvel]``).
+SUPPORTED_ESTIMATORS = {"lqr": ("none", "kf", "ekf", "mhe"), "pid": ("none", "kf", "ekf", "mhe"),
+                        "tvlqr": ("none", "ekf", "mhe"), "energy": ("none", "ekf", "mhe"),
+                        "nmpc": ("none", "kf", "ekf", "mhe")}
+
+
+@dataclass(frozen=True)
+class ExportDesign:
+    """An export's Python side and its C program.
+
+    Attributes
+    ----------
+    method : str
+        One of :data:`CONTROLLERS`.
+    estimator : str
+        ``"none"``, ``"kf"``, ...
+    model : CartPoleModel
+        The design model.
+    program : CProgram
+        The C that reproduces ``make_controller()`` on ``rig``.
+    make_controller : callable
+        ``() -> controller``: a fresh Python controller (``u = c(t, x)``) for a run.
+    rig : Rig or None
+        The rig the Python path runs on (None: MuJoCo's exact state every physics step).
+    spec : SensorSpec or None
+        The sensors (None with estimator ``"none"``).
+    task : str
+        ``"balance"`` or ``"swingup"``.
+    plan_end : float or None
+        ``tvlqr``: the end of the plan in s (the catch holds from then on).
+    """
+
+    method: str
+    estimator: str
+    model: object
+    program: CProgram
+    make_controller: Callable
+    rig: object
+    spec: object
+    task: str
+    plan_end: float | None = None
+
+    @property
+    def y_names(self) -> tuple:
+        """One name per entry of ``y`` (the sensors' names, or the joints' then ``<joint>_vel``)."""
+        if self.spec is not None:
+            return tuple(self.spec.names)
+        joints = [j.name for j in self.model.params.joints]
+        return tuple(joints + [f"{j}_vel" for j in joints])
+
+    @property
+    def y_units(self) -> tuple:
+        """One SI unit per entry of ``y``."""
+        if self.spec is not None:
+            return tuple(self.spec.units)
+        pos = ["rad" if j.kind == "hinge" else "m" for j in self.model.params.joints]
+        return tuple(pos + [f"{p}/s" for p in pos])
+
+
+def _predictor(model, lag: int) -> ca.Function:
+    """``cp_predict(x (nx,), U (nu, lag)) -> x`` over the delay: the rig's prediction (``model.hold(lag)``)."""
+    hm = model.hold(lag)
+    x, U = ca.SX.sym("x", model.nx), ca.SX.sym("U", model.nu, lag)
+    return ca.Function("cp_predict", [x, U], [hm.step_inputs(x, U)], ["x", "U"], ["x_next"])
+
+
+def design_export(model, method: str, loop=None, *, real: str = "double", x0=None, rho: float | None = None,
+                  plan=None) -> ExportDesign:
+    """The Python controller, rig and C program of an export.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The design model (the MJCF's physics step).
+    method : str
+        A key of :data:`CONTROLLERS`.
+    loop : LoopOptions, optional
+        Period, delay, sensors, estimator (default: MuJoCo's exact state every physics step).
+    real : {"double", "float"}
+        ``cp_real``.
+    x0 : (nx,) array, optional
+        ``tvlqr``: the start the swing-up is planned from (default the hanging rest).
+    rho : float, optional
+        ``energy``: the catch level of the LQR catch's verified basin (``BasinEstimate.rho``; required).
+    plan : PlanOptions, optional
+        ``tvlqr``: the planner's settings (default ``PlanOptions()``).
+
+    Returns
+    -------
+    ExportDesign
+
+    Raises
+    ------
+    ExportError
+        A method or estimator this export does not reproduce in C.
+    LQRError, PIDError, RigError, PeriodError, EstimationError
+        The Python design itself fails (its own sentence).
+    """
+    from cartpole.sim.rig import build_rig
+
+    if method not in CONTROLLERS:
+        raise ExportError(f"There is no controller {method!r} to export; choose one of {', '.join(CONTROLLERS)}.")
+    task = CONTROLLERS[method]
+    if method == "nmpc":  # the NMPC runs at its own period (0.02 s) unless the loop gives one
+        from cartpole.mpc.options import DEFAULT_PERIOD
+        from cartpole.sim.options import LoopOptions
+
+        loop = LoopOptions() if loop is None else loop
+        loop = loop.replace(period=DEFAULT_PERIOD if loop.period is None else loop.period)
+    rig = build_rig(model, loop, task=task)
+    estimator = "none" if rig is None else rig.estimator
+    allowed = SUPPORTED_ESTIMATORS[method]
+    if estimator not in allowed:
+        have = f"supported: --estimator {' or '.join(allowed)}" if allowed else "it is not exported yet"
+        raise ExportError(f"The {method} export with --estimator {estimator} is not available ({have}); pick "
+                          "another estimator or controller.")
+    steps = 1 if rig is None else int(rig.steps)
+    lag = 0 if rig is None else int(rig.delay_steps)
+    period = steps * float(model.dt)
+    plan_end = None
+    if method == "lqr":
+        from cartpole.control.linear import LinearFeedback
+
+        fb = LinearFeedback.for_model(model, period=period)
+
+        def make():
+            return fb
+        ctrl_part = linear_part(fb)
+        title = f"LQR balance at a {period:g} s period"
+    elif method == "pid":
+        from cartpole.control.pid import CascadedPID, tune_pid
+
+        gains = tune_pid(model, period=period)
+
+        def make():
+            return CascadedPID(gains, model)
+        ctrl_part = pid_part(make())
+        title = f"cascaded PID balance at a {period:g} s period"
+    elif method == "tvlqr":
+        from cartpole.planning.trajopt import trajopt_swingup
+
+        start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
+        kw = {} if plan is None else {"options": plan}
+        sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), model=model,
+                             period=None if steps == 1 else period, **kw)
+        tv = sp.controller
+        plan_end = float(sp.trajectory.t[-1] - sp.trajectory.t[0])
+
+        def make():
+            tv.reset()
+            return tv
+        ctrl_part = tvlqr_part(tv)
+        title = (f"trajopt swing-up tracked by TVLQR ({sp.trajectory.N} intervals, {tv.T:.3g} s), then the LQR "
+                 f"catch, at a {period:g} s period")
+    elif method == "energy":
+        from cartpole.control.energy import EnergyShapingController
+        from cartpole.control.switching import SwitchingController, swingup_catch
+
+        if rho is None or not rho > 0:
+            raise ExportError("The energy export needs the catch level rho of the LQR catch's verified basin; "
+                              "give rho (cartpole export computes it).")
+        energy = EnergyShapingController(model)
+        catch = swingup_catch(model, period=None if steps == 1 else period)
+
+        def make():
+            return SwitchingController(energy, catch, float(rho))
+        ctrl_part = energy_part(make())
+        title = f"energy-shaping swing-up with the LQR catch below rho = {float(rho):.4g}, at a {period:g} s period"
+    else:
+        from cartpole.export.nmpc import nmpc_design, nmpc_part
+
+        start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
+        mpc, plan_traj = nmpc_design(model, start, period)
+
+        def make():
+            mpc.reset()
+            return mpc
+        ctrl_part = nmpc_part(mpc, plan_traj)
+        title = (f"nonlinear MPC by real-time iteration ({mpc.N} stages of {mpc.period:g} s, dual active-set QP in "
+                 "C), swing-up from the planned start")
+    spec = None if rig is None else rig.spec
+    if estimator == "none":
+        est_part = state_part()
+    elif estimator == "kf":
+        est_part = kalman_part(rig.make_estimator(), model, spec)
+    elif estimator == "ekf":
+        est_part = ekf_part(rig.make_estimator(), model, spec)
+    else:
+        from cartpole.export.mhe import mhe_part
+
+        est_part = mhe_part(rig.make_estimator(), model, spec)
+    ny = model.nx if spec is None else int(spec.ny)
+    compensate = rig is not None and rig.compensate and lag > 0
+    from cartpole.sim.rollout import ctrl_bounds, make_mujoco
+
+    m, _ = make_mujoco(model.params)
+    lo, hi = ctrl_bounds(m)
+    program = CProgram(nx=model.nx, nq=model.nq, nu=model.nu, ny=ny, steps=steps, lag=lag, dt=float(model.dt),
+                       real=real, u_low=np.asarray(lo, float), u_high=np.asarray(hi, float),
+                       hinges=tuple(model.hinges), estimator=est_part, controller=ctrl_part,
+                       predict=_predictor(model, lag) if compensate else None,
+                       title=f"{title}, estimator {estimator}, delay {lag * float(model.dt):g} s, {real}")
+    return ExportDesign(method=method, estimator=estimator, model=model, program=program, make_controller=make,
+                        rig=rig, spec=spec, task=task, plan_end=plan_end)

@@ -1,0 +1,76 @@
+"""Exported swing-ups in MuJoCo: TVLQR from a plan (+ EKF) and energy shaping + LQR catch, step for step the
+Python controller's ctrl (double), swung up and held in float32, the runs replaying bit for bit with mj_step."""
+import numpy as np
+import pytest
+from mj_replay import replay_with_mj_step
+
+from cartpole.export import design_export, load_design, run_lockstep
+from cartpole.export.folder import discard
+from cartpole.models import build_model
+from cartpole.sim.options import LoopOptions
+from cartpole.validation.metrics import swingup_success
+
+TWO_POLE = "cartpole/assets/cartpole_two_pole.xml"
+
+
+def _replays(rollout):
+    qpos, qvel = replay_with_mj_step(rollout.mjcf, rollout.qpos[0], rollout.qvel[0], rollout.ctrl)
+    return np.array_equal(qpos, rollout.qpos) and np.array_equal(qvel, rollout.qvel)
+
+
+def _both(design, x0, duration):
+    out = {}
+    for real in ("double", "float"):
+        ctl, folder = load_design(design, real)
+        try:
+            out[real] = run_lockstep(design, ctl, x0, duration)
+        finally:
+            discard(folder)
+    return out["double"], out["float"]
+
+
+@pytest.mark.parametrize("mjcf,loop", [
+    (None, None),
+    (None, LoopOptions(period=0.01, estimator="ekf", encoder_cpr=2048)),
+    (TWO_POLE, None),
+], ids=["one-pole", "one-pole-ekf-10ms", "two-pole"])
+def test_tvlqr_export_swings_up_like_python(mjcf, loop):
+    model = build_model(mjcf)
+    design = design_export(model, "tvlqr", loop)
+    T = design.plan_end + 3.0
+    d, f = _both(design, model.x_hanging, T)
+    assert d.max_ctrl_diff <= 1e-9
+    assert swingup_success(d.rollout, model.params) and swingup_success(f.rollout, model.params)
+    assert _replays(d.rollout) and _replays(f.rollout)
+    assert d.rollout.info["diverged"] is None and f.rollout.info["diverged"] is None
+
+
+def test_tvlqr_export_plans_from_the_given_start():
+    model = build_model(None)
+    x0 = np.array([0.2, np.pi - 0.3, 0.0, 0.5])
+    design = design_export(model, "tvlqr", None, x0=x0)
+    d, _ = _both(design, x0, design.plan_end + 3.0)
+    assert d.max_ctrl_diff <= 1e-9 and swingup_success(d.rollout, model.params)
+
+
+def test_energy_export_swings_up_and_catches_like_python():
+    from cartpole.control.switching import swingup_catch
+    from cartpole.validation.basin import BasinCache
+
+    model = build_model(None)
+    rho = BasinCache.on_disk().get(model.params, swingup_catch(model)).rho
+    design = design_export(model, "energy", None, rho=rho)
+    d, f = _both(design, model.x_hanging, 10.0)
+    assert d.max_ctrl_diff <= 1e-9
+    assert swingup_success(d.rollout, model.params) and swingup_success(f.rollout, model.params)
+    assert _replays(d.rollout) and _replays(f.rollout)
+
+
+def test_lqr_with_ekf_and_delay_matches_python():
+    model = build_model(None)
+    design = design_export(model, "lqr", LoopOptions(period=0.01, delay=0.01, estimator="ekf", encoder_cpr=2048))
+    x0 = np.array(model.x_eq, float)
+    x0[1] += 0.1
+    d, f = _both(design, x0, 3.0)
+    assert d.max_ctrl_diff <= 1e-9 and _replays(d.rollout) and _replays(f.rollout)
+    assert abs(model.state_error(f.rollout.x[-1])[1]) < 0.05
