@@ -271,6 +271,9 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
 EXPLORE_MAX_ITER = 250
 #: Duration in s of the initial guesses of a minimum-time multi-start (a free-time solve moves it).
 GUESS_T = 2.0
+#: s: the longest plan the minimum-time multi-start allows (:class:`~cartpole.ocp.collocation.DirectCollocation`'s
+#: default ``T_range``); beyond it the pumping search takes over, up to ``PlanOptions.T_max``.
+MINIMUM_TIME_T_MAX = 10.0
 
 
 def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
@@ -360,16 +363,17 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
 
 
 def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, starts, bounds, T_max: float,
-                       search_s: float | None = None) -> tuple[float | None, Trajectory, SolveInfo]:
+                       search_s: float | None = None) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
     """The time stage of the planner: :func:`minimum_time`; when no guess of it converges, the refusal at once if
     :func:`infeasibility_proof` proves upright out of reach, else (a weak actuator that must pump)
-    :func:`~cartpole.planning.pumping.pumping_search` up to ``T_max`` s within ``search_s`` s of wall time (its plan
-    is a fixed-time effort plan, so ``T_min`` is None then); when that finds nothing either, the refusal
-    (:func:`refusal`: no proof, so "no swing-up found")."""
+    :func:`~cartpole.planning.pumping.pumping_search` up to ``T_max`` s within ``search_s`` s of wall time, whose
+    fixed-time effort plan then seeds the free-time problem (same mesh, ``T <= T_max``): ``(T_min, time plan, info,
+    (pump plan, its info))``, or ``(None, pump plan, info, None)`` when that refinement does not converge; when the
+    search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found")."""
     from cartpole.planning.pumping import pumping_search
 
     try:
-        return minimum_time(model, x0, N=N, starts=starts, bounds=bounds)
+        return (*minimum_time(model, x0, N=N, starts=starts, bounds=bounds), None)
     except OCPNotSolved as exc:
         first = exc
     proof = infeasibility_proof(params, model, x0, bounds)
@@ -381,9 +385,36 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
         traj, info, tried = None, None, []
     attempts = tuple(first.attempts) + tuple(tried)
     if traj is not None:
-        return None, traj, replace(info, attempts=attempts)
-    T_reached = max([a.T for a in tried if a.stage.startswith("pump")] or [GUESS_T])
-    raise refusal(params, model, x0, bounds, attempts, T_max=min(T_max, T_reached), proof=proof)
+        ocp = DirectCollocation(model, N=traj.N, T=None, objective="time", T_range=(0.2, T_max), bounds=bounds,
+                                solver_options={"ipopt": {"max_iter": 500}})
+        fast, tinfo = ocp.solve_once(x0, model.x_eq, guess=traj)
+        kept = Attempt.of(tinfo, "time from the pumping plan", info.guess, traj.N, chosen=tinfo.success)
+        attempts = attempts + (kept,)
+        pump = (traj, replace(info, attempts=attempts))
+        if tinfo.success:
+            return tinfo.T, fast, replace(tinfo, guess=f"{info.guess} -> time", attempts=attempts), pump
+        return None, traj, replace(info, attempts=attempts), None
+    # the longest plan searched: the minimum-time stage's upper bound on T, or the pumping search's longest
+    T_searched = max([MINIMUM_TIME_T_MAX] + [a.T for a in tried if a.stage.startswith("pump")])
+    raise refusal(params, model, x0, bounds, attempts, T_max=T_searched, proof=proof)
+
+
+def _pumped_effort(model, x0, fast: Trajectory, tinfo: SolveInfo, pump: tuple, *, N: int, bounds, margin: float,
+                   solver: str, solver_options) -> tuple[Trajectory, SolveInfo]:
+    """The effort plan of a pumping swing-up: at ``(1 + margin) T_min`` from the minimum-time plan ``fast`` stretched,
+    then at half and a quarter of that margin (a pumping plan does not stretch far), else the pumping search's own
+    fixed-time plan ``pump`` (plan, info). Every solve joins the attempts."""
+    attempts = tuple(tinfo.attempts)
+    for m in (margin, 0.5 * margin, 0.25 * margin):
+        T = (1.0 + m) * tinfo.T
+        ocp = DirectCollocation(model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
+        traj, info = ocp.solve_once(x0, model.x_eq, guess=fast, T=T)
+        attempts = attempts + (Attempt.of(info, f"effort T={T:.3g}", f"time plan ({tinfo.guess})", N,
+                                          chosen=info.success),)
+        if info.success:
+            return traj, replace(info, guess=f"time plan ({tinfo.guess})", attempts=attempts)
+    traj, info = pump
+    return traj, replace(info, attempts=attempts)
 
 
 def infeasibility_proof(params: CartPoleParams, model: CartPoleModel, x0, bounds):
@@ -584,14 +615,14 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
     T_min = None
     if obj.kind == "time":
-        T_min, traj, info = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
+        T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
                                                T_max=options.T_max, search_s=options.search_s)
     elif obj.kind == "effort" and T is not None:
         ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
                                 bounds=bounds)
         traj, info = ocp.solve(x0)
     else:
-        T_min, fast, tinfo = _swingup_time_plan(plan_model, params, x0,
+        T_min, fast, tinfo, pump = _swingup_time_plan(plan_model, params, x0,
                                                 N=60 if obj.kind == "running" else min(N or 100, 60),
                                                 starts=starts, bounds=bounds, T_max=options.T_max,
                                                 search_s=options.search_s)
@@ -610,7 +641,10 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
             ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
                                     solver_options=solver_options, bounds=bounds)
             first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright
-        if not (obj.kind == "effort" and T_min is None):
+        if obj.kind == "effort" and pump is not None:  # a pumping plan: the margin shrunk if need be, else itself
+            traj, info = _pumped_effort(plan_model, x0, fast, tinfo, pump, N=N or 100, bounds=bounds,
+                                        margin=options.time_margin, solver=solver, solver_options=solver_options)
+        elif not (obj.kind == "effort" and T_min is None):
             traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
                                         sqp=use_sqp and obj.kind == "effort")
             info = replace(info, attempts=tinfo.attempts + info.attempts)
