@@ -622,9 +622,9 @@ class DirectCollocation:
         parts = [self._binding(kind, i, s) for (kind, i), s in zip(names, slack) if s > tol]
         tried = f"after {len(attempts)} attempt{'s' if len(attempts) != 1 else ''}" if attempts else "from its guess"
         if parts:
-            return OCPNotSolved(f"No swing-up found {when} {tried}: from the first guess a relaxed solve finds "
-                                f"{' and '.join(parts)}, a local figure and no proof of infeasibility; give a longer "
-                                "T, other guesses, a longer track or more actuator force.", attempts)
+            return OCPNotSolved(f"No swing-up found {when} {tried}; a relaxed solve from the first guess says "
+                                f"{' and '.join(parts)} (local, no proof); give a longer T, other guesses, a longer "
+                                "track or more force.", attempts)
         return OCPNotSolved(f"No swing-up found {when} {tried}, although a relaxed solve needs no bound widened; "
                             "give another initial guess or more intervals N.", attempts)
 

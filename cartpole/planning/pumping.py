@@ -200,7 +200,7 @@ def relaxed(bounds: OCPBounds, c: float) -> OCPBounds:
 
 
 def pumping_search(model: CartPoleModel, x0, x_goal, bounds: OCPBounds, *, T_max: float = T_MAX,
-                   seeds: int = 2, solver_options: dict | None = None, deadline_s: float | None = None
+                   seeds: int = 2, seed: int = 0, solver_options: dict | None = None, deadline_s: float | None = None
                    ) -> tuple[Trajectory | None, SolveInfo | None, list[Attempt]]:
     """Search for a pumping swing-up from ``x0`` to ``x_goal`` within the bounds (module notes).
 
@@ -214,8 +214,10 @@ def pumping_search(model: CartPoleModel, x0, x_goal, bounds: OCPBounds, *, T_max
     T_max : float
         s: the longest plan tried.
     seeds : int
-        Restarts per duration: the pumping rollout with the first push one way, the other way, and (3) one under
-        the most relaxed bound.
+        Restarts per duration: the pumping rollout with the first push one way, the other way, (3) one under the
+        most relaxed bound, and from 4 on rollouts with a random first push and relaxation in [1, 1.6].
+    seed : int
+        Seed of ``numpy.random.default_rng`` for those random restarts.
     solver_options : dict, optional
         Passed to :class:`~cartpole.ocp.collocation.DirectCollocation`.
     deadline_s : float, optional
@@ -237,7 +239,12 @@ def pumping_search(model: CartPoleModel, x0, x_goal, bounds: OCPBounds, *, T_max
         opts.update(solver_options)
     # how long pumping takes under the file's bound (and under a relaxed one)
     probes = []
-    for first, c0 in ((1.0, 1.0), (-1.0, 1.0), (1.0, RELAX[0]))[:max(1, seeds)]:
+    rng = np.random.default_rng(seed)
+    for i in range(max(1, seeds)):
+        if i < 3:  # deterministic: the first push either way, then one under the most relaxed bound
+            first, c0 = ((1.0, 1.0), (-1.0, 1.0), (1.0, RELAX[0]))[i]
+        else:  # seeded: a random first push and relaxation
+            first, c0 = float(rng.choice((-1.0, 1.0))), float(rng.uniform(1.0, RELAX[0]))
         x, u, t_up = pump_rollout(model, x0, T_max, relaxed(bounds, c0), first=first, mode=mode)
         probes.append((first, c0, x, u, t_up))
     reach = [p[4] for p in probes if p[4] is not None]
@@ -249,7 +256,7 @@ def pumping_search(model: CartPoleModel, x0, x_goal, bounds: OCPBounds, *, T_max
         for first, c0, x, u, _ in probes:
             if deadline_s is not None and time.perf_counter() - tic > deadline_s:
                 return None, None, attempts
-            name = f"pump {'+' if first > 0 else '-'}{'' if c0 == 1.0 else f' relaxed {c0:g}'} T={T:.2f}"
+            name = f"pump {'+' if first > 0 else '-'}{'' if c0 == 1.0 else f' relaxed {c0:.3g}'} T={T:.2f}"
             guess = bent_guess(model, x, u, x_goal, T, N, relaxed(bounds, RELAX[0]))
             traj, info = None, None
             if N not in built:  # one NLP per mesh, scaled for the widest bound; the continuation moves its bounds

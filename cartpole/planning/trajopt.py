@@ -363,10 +363,12 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
 
 
 def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, starts, bounds, T_max: float,
-                       search_s: float | None = None) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
+                       search_s: float | None = None, restarts: int = 2, seed: int = 0
+                       ) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
     """The time stage of the planner: :func:`minimum_time`; when no guess of it converges, the refusal at once if
     :func:`infeasibility_proof` proves upright out of reach, else (a weak actuator that must pump)
-    :func:`~cartpole.planning.pumping.pumping_search` up to ``T_max`` s within ``search_s`` s of wall time, whose
+    :func:`~cartpole.planning.pumping.pumping_search` (``restarts`` guesses per duration, random ones from ``seed``)
+    up to ``T_max`` s within ``search_s`` s of wall time, whose
     fixed-time effort plan then seeds the free-time problem (same mesh, ``T <= T_max``): ``(T_min, time plan, info,
     (pump plan, its info))``, or ``(None, pump plan, info, None)`` when that refinement does not converge; when the
     search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found")."""
@@ -380,7 +382,8 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
     if proof.proven:  # no need to search
         raise refusal(params, model, x0, bounds, first.attempts, T_max=T_max, proof=proof)
     try:
-        traj, info, tried = pumping_search(model, x0, model.x_eq, bounds, T_max=T_max, deadline_s=search_s)
+        traj, info, tried = pumping_search(model, x0, model.x_eq, bounds, T_max=T_max, deadline_s=search_s,
+                                           seeds=restarts, seed=seed)
     except OCPError:  # nothing to pump (no oscillating hanging mode)
         traj, info, tried = None, None, []
     attempts = tuple(first.attempts) + tuple(tried)
@@ -616,7 +619,8 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     T_min = None
     if obj.kind == "time":
         T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
-                                               T_max=options.T_max, search_s=options.search_s)
+                                               T_max=options.T_max, search_s=options.search_s,
+                                               restarts=options.pump_restarts, seed=options.pump_seed)
     elif obj.kind == "effort" and T is not None:
         ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
                                 bounds=bounds)
@@ -625,7 +629,8 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
         T_min, fast, tinfo, pump = _swingup_time_plan(plan_model, params, x0,
                                                 N=60 if obj.kind == "running" else min(N or 100, 60),
                                                 starts=starts, bounds=bounds, T_max=options.T_max,
-                                                search_s=options.search_s)
+                                                search_s=options.search_s, restarts=options.pump_restarts,
+                                                seed=options.pump_seed)
         if obj.kind == "effort" and T_min is None:  # a pumping plan: already the effort plan at its T
             traj, info = fast, tinfo
         elif obj.kind == "effort":

@@ -5,8 +5,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from cartpole.models import SHIPPED_MJCF, build_model
+from cartpole.ocp import OCPNotSolved
 from cartpole.ocp.bounds import bounds_from_model
-from cartpole.ocp.collocation import DirectCollocation, OCPError, OCPInfeasible, OCPNotSolved
+from cartpole.ocp.collocation import DirectCollocation, OCPError, OCPInfeasible
 from cartpole.planning.trajopt import minimum_time
 
 HANGING = np.array([0.0, np.pi, 0.0, 0.0])

@@ -36,7 +36,7 @@ def test_the_pumped_mode_is_the_hanging_pendulums_own():
 
 def test_the_carts_pumped_mode_swings_the_pole_against_the_cart(tmp_path):
     m = build_model(read_params(_cart(tmp_path, 5)))
-    omega, _, left, _ = hanging_mode(m)
+    omega = hanging_mode(m)[0]
     # the pole's hanging frequency on a free cart: I_eff = I - (m l)^2 / M_total (pole 0.1 kg capsule, 0.6 m, r 0.02)
     p = m.params
     M = np.asarray(m.mass_matrix(m.x_hanging), float)
@@ -93,3 +93,20 @@ def test_nothing_found_and_nothing_proven_is_said_so(tmp_path):
     assert not isinstance(exc.value, OCPInfeasible) and "infeasible" not in msg.lower()
     assert msg.startswith("No swing-up found within T <= ") and "attempts" in msg and "proves nothing" in msg
     assert len(exc.value.attempts) >= 1
+
+
+def test_the_pumping_rollout_is_deterministic_inside_its_bound_and_the_options_are_checked():
+    from cartpole.ocp.bounds import bounds_from_params
+    from cartpole.planning.options import PlanOptionsError
+    from cartpole.planning.pumping import pump_rollout
+
+    p = read_params(ASSETS / "dmc_pendulum.xml")
+    m = build_model(p)
+    b = bounds_from_params(p)
+    a = pump_rollout(m, m.x_hanging, 3.0, b, first=-1.0)
+    again = pump_rollout(m, m.x_hanging, 3.0, b, first=-1.0)
+    np.testing.assert_array_equal(a[0], again[0])
+    assert np.all(np.abs(a[1]) <= 1.0 + 1e-12) and a[2] is None  # within the bound; 3 s of pumping is not enough
+    for bad in ({"pump_restarts": 0}, {"pump_seed": -1}, {"T_max": 0.0}, {"search_s": -1.0}):
+        with pytest.raises(PlanOptionsError):
+            PlanOptions(**bad)
