@@ -84,18 +84,10 @@ def _left_eig(A):
 
 def pump_energy(model: CartPoleModel, x: np.ndarray) -> np.ndarray:
     """The chain's energy (J, zero at upright rest) less the part the cart's momentum carries, ``p^2 / (2 M_ss)``
-    (nothing without a cart), for states ``x`` (n, nx): the energy a swing-up must raise from hanging to zero."""
+    (nothing without a cart), for states ``x`` (n, nx): (n,), the energy a swing-up must raise from hanging to
+    zero."""
     x = np.atleast_2d(np.asarray(x, float))
-    E = np.asarray(model.energy.map(x.shape[0])(x.T), float).ravel()
-    if model.slide is None:
-        return E
-    s, nq = model.slide, model.nq
-    out = np.empty(x.shape[0])
-    for i in range(x.shape[0]):
-        Mi = np.asarray(model.mass_matrix(x[i]), float)
-        p = Mi[s] @ x[i, nq:]
-        out[i] = E[i] - 0.5 * p * p / Mi[s, s]
-    return out
+    return np.asarray(_energy_function(model).map(x.shape[0])(x.T), float).ravel()
 
 
 def _energy_function(model: CartPoleModel):
@@ -172,8 +164,8 @@ def pump_rollout(model: CartPoleModel, x0, duration: float, bounds: OCPBounds, *
 
 def bent_guess(model: CartPoleModel, x, u, x_goal, T: float, N: int, bounds: OCPBounds) -> Trajectory:
     """A rollout (``x`` (n+1, nx), ``u`` (n, nu) on ``model.dt``) resampled on ``N + 1`` knots over ``T`` s and bent
-    quadratically in time onto ``x_goal`` (hinge angles shifted by whole turns to the nearest), positions clipped
-    into the bounds."""
+    onto ``x_goal`` ((nx,) ``[qpos, qvel]``) by ``(t / T)^4`` times the gap at the end (hinge angles shifted by whole
+    turns to the nearest; the pumping early on untouched), positions clipped into the bounds."""
     n = u.shape[0]
     t_fine = model.dt * np.arange(n + 1)
     t = np.linspace(0.0, T, N + 1)
