@@ -101,3 +101,24 @@ def test_swingup_json_says_a_good_run_did_not_diverge(tmp_path, capsys):
     assert main(["swingup", "--json", "--no-video", "--duration", "5", "--out", str(tmp_path)]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["success"] is True and doc["diverged"] is False and doc["diverged_at"] is None
+
+
+def test_a_sweep_row_that_blew_up_is_a_diverged_failure_in_the_json_and_the_csv(tmp_path, capsys):
+    import csv
+
+    assert main(["sweep", "--json", "--push-force", "0", "1e12", "2", "--duration", "2", "--out", str(tmp_path)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    calm, blown = doc["rows"]
+    assert calm["diverged"] is False and calm["diverged_at"] is None
+    assert blown["diverged"] is True and blown["success"] is False and blown["failure"] == "diverged"
+    assert blown["diverged_at"] == pytest.approx(0.505)  # the push starts at 0.5 s: MuJoCo resets in its first step
+    with open(doc["results"], newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["diverged"] for r in rows] == ["False", "True"] and float(rows[1]["diverged_at_s"]) == 0.505
+    assert rows[1]["failure"] == "diverged" and rows[1]["success"] == "False"
+
+
+def test_the_lab_json_says_no_run_diverged(tmp_path, capsys):
+    assert main(["lqr", "--json", "--no-video", "--out", str(tmp_path)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["diverged"] == [False] * 5 and doc["diverged_at"] == [None] * 5
