@@ -14,7 +14,8 @@ def replay_with_mj_step(mjcf, qpos0, qvel0, ctrl, push=None) -> tuple[np.ndarray
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = qpos0, qvel0
     mujoco.mj_forward(m, d)
-    cart = next(int(m.jnt_bodyid[j]) for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE)
+    cart = None if push is None else next(int(m.jnt_bodyid[j]) for j in range(m.njnt)
+                                          if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE)  # none: no cart to push
     qpos, qvel = [d.qpos.copy()], [d.qvel.copy()]
     for k, u in enumerate(ctrl):
         if push is not None:

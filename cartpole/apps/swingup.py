@@ -78,7 +78,7 @@ class SwingupResult:
         :func:`~cartpole.validation.metrics.swingup_success` of the rollout.
     caught_at : float or None
         s: when the LQR catch took over for good (energy: last switch into the basin; trajopt: the plan's
-        handover time), None if it never did.
+        handover time), None if it never did or the run diverged (MuJoCo reset a blown-up state: never a catch).
     rollout : Rollout
         Every physics step MuJoCo took.
     plan : Trajectory or None
@@ -511,6 +511,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             rewards = dmc_swingup_rewards(rollout, model)
             extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
     metrics = {**swingup_metrics(rollout, model), **extra}
+    if metrics["diverged"]:  # MuJoCo reset a blown-up run: whatever came before, it is never caught
+        caught_at = None
     if rig is not None and rig.estimator != "none":
         from cartpole.apps.lab import state_names
         from cartpole.validation.estimation import estimation_summary

@@ -244,7 +244,7 @@ def run(args) -> dict:
             print(f"cartpole swingup: no video ({exc})", file=sys.stderr)
     m = res.metrics
     doc = {"mjcf": params.mjcf, "method": args.method, "success": res.success, "caught_at": res.caught_at,
-           "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
+           "diverged": bool(m["diverged"]), "diverged_at": m["diverged_at"], "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
     doc["push"] = [list(p) for p in res.push]
@@ -282,6 +282,9 @@ def run(args) -> dict:
         print(f"Swing-up ({args.method}) from x0 = {list(map(float, x0))}{scenario}: "
               f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
               "limits, ctrl in range)")
+        if m["diverged"]:
+            print(f"DIVERGED: MuJoCo warned that the simulation blew up ({m['diverged_warning']}) at "
+                  f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")
         print(f"Caught at: {fmt(res.caught_at, 's')}; time to upright (every |theta_i| < 0.05 rad for good): "
               f"{fmt(m['time_to_upright'], 's')}")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "

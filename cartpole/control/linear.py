@@ -195,6 +195,7 @@ class LinearFeedback:
         if self.S is None:
             raise FeedbackError("This LinearFeedback was built without S; pass S= to use cost_to_go.")
         e = self.error(x)
-        if e.ndim == 1:
-            return float(e @ self.S @ e)
-        return np.einsum("...i,ij,...j->...", e, self.S, e)
+        with np.errstate(over="ignore", invalid="ignore"):  # a blown-up state costs inf; MuJoCo flags the run
+            if e.ndim == 1:
+                return float(e @ self.S @ e)
+            return np.einsum("...i,ij,...j->...", e, self.S, e)

@@ -49,12 +49,22 @@ OBJECTIVES = NAMED  # plus any function (x, u) -> scalar (see cartpole.ocp.objec
 SOLVERS = ("ipopt", "fatrop")
 
 
-__all__ = ["Attempt", "DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasible", "SolveInfo", "bounds_from_model",
-           "bounds_from_params"]
+__all__ = ["Attempt", "DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasible", "OCPNotSolved", "SolveInfo",
+           "bounds_from_model", "bounds_from_params"]
 
 
 class OCPInfeasible(OCPError):
-    """The swing-up problem has no solution within the bounds; the message names the bound that binds."""
+    """The swing-up problem provably has no solution within the bounds; the message states the proof (e.g. the energy
+    ceiling of :mod:`cartpole.planning.energy_ceiling`). Raised only with a proof."""
+
+
+class OCPNotSolved(OCPError):
+    """No start converged: no solution was found, which proves nothing. The message says what was tried and, from a
+    relaxed solve, which bound a nearby solution would need (a local figure). ``attempts`` holds every solve."""
+
+    def __init__(self, message: str, attempts: tuple = ()):
+        super().__init__(message)
+        self.attempts = tuple(attempts)
 
 
 @dataclass
@@ -167,6 +177,15 @@ class DirectCollocation:
         self._f_knots = model.f.map(self.N + 1)  # f at all N+1 knots: in the NLP and for the returned Trajectory
         self._built: dict[tuple, _Built] = {}
         self._last: dict | None = None  # primal and dual values of the last converged solve
+
+    def set_bounds(self, bounds: OCPBounds) -> None:
+        """Solve from now on within ``bounds`` (an :class:`OCPBounds` of the same model), without rebuilding the NLP:
+        the bounds are the variables' bounds of each solve, while the scaling stays the one made at construction
+        (e.g. a continuation that shrinks the ctrl bound step by step)."""
+        if bounds.u_low.size != self.nu or bounds.q_low.size != self.model.nq:
+            raise OCPError(f"The bounds are for {bounds.u_low.size} inputs and {bounds.q_low.size} joints but the "
+                           f"model has {self.nu} and {self.model.nq}; build them from this model's MJCF.")
+        self.bounds = bounds
 
     # ---- building --------------------------------------------------------------------------------
     def _options(self, warm: bool, solver_name: str) -> dict:
@@ -519,10 +538,9 @@ class DirectCollocation:
 
         Raises
         ------
-        OCPInfeasible
-            No start converged and a relaxed problem shows a bound must be violated (the message names it).
-        OCPError
-            No start converged but no bound is to blame (try another guess or a longer T).
+        OCPNotSolved
+            No start converged (the message names the bound a relaxed solve from the first guess had to widen, a
+            local figure: no proof that the problem is infeasible).
         """
         from cartpole.ocp.guess import named_guesses
 
@@ -542,7 +560,7 @@ class DirectCollocation:
         sols, attempts = self.multistart(x0, x_goal, guesses, T=T_use, stage=stage, best_of=bool(best_of))
         if sols:
             return sols[0]
-        raise self.diagnose(x0, x_goal, guesses[0][1], T_use)
+        raise self.diagnose(x0, x_goal, guesses[0][1], T_use, attempts=attempts)
 
     def multistart(self, x0, x_goal, guesses, *, T: float | None = None, stage: str | None = None,
                    best_of: bool = True) -> tuple[list[tuple[Trajectory, SolveInfo]], list[Attempt]]:
@@ -582,10 +600,12 @@ class DirectCollocation:
             attempts[k] = replace(attempts[k], chosen=True)
         return [(tr, replace(inf, attempts=tuple(attempts))) for tr, inf in found], attempts
 
-    def diagnose(self, x0, x_goal, guess: Trajectory | None, T: float | None) -> OCPError:
-        """Solve the problem with slack on every joint and ctrl bound and name the bounds whose slack is needed.
+    def diagnose(self, x0, x_goal, guess: Trajectory | None, T: float | None, *, attempts=()) -> OCPNotSolved:
+        """Solve the problem with slack on every joint and ctrl bound from ``guess`` and name the bounds whose slack
+        it needed: what a failed multi-start (its ``attempts``) reports. One relaxed solve from one guess is a local
+        result, so the sentence says so and never calls the problem infeasible.
 
-        Returns (does not raise) an :class:`OCPInfeasible` or, when no slack is needed, an :class:`OCPError`.
+        Returns (does not raise) an :class:`OCPNotSolved` carrying ``attempts``.
         """
         b = self._build(relaxed=True)
         x_goal = self._goal(x0, x_goal, guess)
@@ -600,11 +620,13 @@ class DirectCollocation:
         when = f"in T = {T:.3g} s" if not self.free_time else f"within T <= {self.T_range[1]:.3g} s"
         tol = 1e-4
         parts = [self._binding(kind, i, s) for (kind, i), s in zip(names, slack) if s > tol]
+        tried = f"after {len(attempts)} attempt{'s' if len(attempts) != 1 else ''}" if attempts else "from its guess"
         if parts:
-            return OCPInfeasible(f"The swing-up OCP is infeasible {when}: {' and '.join(parts)}; "
-                                 "give a longer T, a longer track or more actuator force.")
-        return OCPError(f"The swing-up OCP did not converge {when} although no bound needs relaxing; "
-                        "give another initial guess or more intervals N.")
+            return OCPNotSolved(f"No swing-up found {when} {tried}; a relaxed solve from the first guess says "
+                                f"{' and '.join(parts)} (local, no proof); give a longer T, other guesses, a longer "
+                                "track or more force.", attempts)
+        return OCPNotSolved(f"No swing-up found {when} {tried}, although a relaxed solve needs no bound widened; "
+                            "give another initial guess or more intervals N.", attempts)
 
     def _binding(self, kind: str, i: int, slack: float) -> str:
         """Words for a bound the relaxed problem had to widen by the relative ``slack``."""

@@ -60,6 +60,17 @@ class PlanOptions(StageOptions):
         model (1 per slide, 10 per hinge angle, 0.1 per rate, 0.1 per input).
     Qf : (nx, nx) array or None
         TVLQR terminal cost; None: the catch's discrete cost-to-go (seamless hand-over).
+    T_max : float
+        s (> 0): the longest swing-up the pumping search tries when the minimum-time multi-start finds none
+        (:func:`~cartpole.planning.pumping.pumping_search`; default :data:`~cartpole.planning.pumping.T_MAX`).
+    search_s : float
+        s (> 0): wall-time budget of that pumping search (default 180); when it is spent the planner reports the
+        longest T it tried.
+    pump_restarts : int
+        Guesses (>= 1) of the pumping search per duration (default 2: the first push either way; 3 adds one under a
+        relaxed bound, more add seeded random ones).
+    pump_seed : int
+        Seed (>= 0) of the pumping search's random restarts.
 
     Raises
     ------
@@ -80,12 +91,21 @@ class PlanOptions(StageOptions):
     Q: object = None
     R: object = None
     Qf: object = None
+    T_max: float = 40.0
+    search_s: float = 180.0
+    pump_restarts: int = 2
+    pump_seed: int = 0
 
     error: ClassVar[type] = PlanOptionsError
-    SCALARS: ClassVar[tuple] = ("T", "N", "time_margin", "cart_margin", "u_margin", "starts")
+    SCALARS: ClassVar[tuple] = ("T", "N", "time_margin", "cart_margin", "u_margin", "starts", "T_max", "search_s",
+                                "pump_restarts", "pump_seed")
 
     def __post_init__(self):
         self.number("T", low=0.0, low_open=True, unit="s", optional=True)
+        self.number("T_max", low=0.0, low_open=True, unit="s")
+        self.number("search_s", low=0.0, low_open=True, unit="s")
+        self.number("pump_restarts", low=1, integer=True)
+        self.number("pump_seed", low=0, integer=True)
         self.number("N", low=2, integer=True, optional=True)
         self.number("time_margin", low=0.0)
         self.number("cart_margin", low=0.0, unit="m")

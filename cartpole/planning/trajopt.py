@@ -33,7 +33,7 @@ from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.lqr.tvlqr import reference as _on_step_grid
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, steps_per_period
 from cartpole.ocp.bounds import OCPError, bounds_from_params
-from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.objectives import make_objective
@@ -271,6 +271,9 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
 EXPLORE_MAX_ITER = 250
 #: Duration in s of the initial guesses of a minimum-time multi-start (a free-time solve moves it).
 GUESS_T = 2.0
+#: s: the longest plan the minimum-time multi-start allows (:class:`~cartpole.ocp.collocation.DirectCollocation`'s
+#: default ``T_range``); beyond it the pumping search takes over, up to ``PlanOptions.T_max``.
+MINIMUM_TIME_T_MAX = 10.0
 
 
 def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
@@ -314,8 +317,10 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
 
     Raises
     ------
-    OCPInfeasible, OCPError
-        No guess converged (the message names a binding bound when there is one).
+    OCPNotSolved
+        No guess converged (its ``attempts`` are every solve; the message names the bound a relaxed solve widened, a
+        local figure). :func:`trajopt_swingup` goes on to the pumping search, and refuses as infeasible only with a
+        proof.
     """
     N = int(N)
     Nc = max(2, N // 2) if coarse_N is None else int(coarse_N)
@@ -354,7 +359,117 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     if sols:
         return sols[0][1].T, sols[0][0], replace(sols[0][1], attempts=tuple(attempts))
     raise ocp.diagnose(x0, x_goal, named_guesses(model, x0, x_goal, GUESS_T, N, bounds=ocp.bounds, count=1)[0][1],
-                       None)
+                       None, attempts=tuple(attempts))
+
+
+def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, starts, bounds, T_max: float,
+                       search_s: float | None = None, restarts: int = 2, seed: int = 0
+                       ) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
+    """The time stage of the planner: :func:`minimum_time`; when no guess of it converges, the refusal at once if
+    :func:`infeasibility_proof` proves upright out of reach, else (a weak actuator that must pump)
+    :func:`~cartpole.planning.pumping.pumping_search` (``restarts`` guesses per duration, random ones from ``seed``)
+    up to ``T_max`` s within ``search_s`` s of wall time, whose
+    fixed-time effort plan then seeds the free-time problem (same mesh, ``T <= T_max``): ``(T_min, time plan, info,
+    (pump plan, its info))``, or ``(None, pump plan, info, None)`` when that refinement does not converge; when the
+    search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found")."""
+    from cartpole.planning.pumping import pumping_search
+
+    try:
+        return (*minimum_time(model, x0, N=N, starts=starts, bounds=bounds), None)
+    except OCPNotSolved as exc:
+        first = exc
+    proof = infeasibility_proof(params, model, x0, bounds)
+    if proof.proven:  # no need to search
+        raise refusal(params, model, x0, bounds, first.attempts, T_max=T_max, proof=proof)
+    try:
+        traj, info, tried = pumping_search(model, x0, model.x_eq, bounds, T_max=T_max, deadline_s=search_s,
+                                           seeds=restarts, seed=seed)
+    except OCPError:  # nothing to pump (no oscillating hanging mode)
+        traj, info, tried = None, None, []
+    attempts = tuple(first.attempts) + tuple(tried)
+    if traj is not None:
+        ocp = DirectCollocation(model, N=traj.N, T=None, objective="time", T_range=(0.2, T_max), bounds=bounds,
+                                solver_options={"ipopt": {"max_iter": 500}})
+        fast, tinfo = ocp.solve_once(x0, model.x_eq, guess=traj)
+        kept = Attempt.of(tinfo, "time from the pumping plan", info.guess, traj.N, chosen=tinfo.success)
+        attempts = attempts + (kept,)
+        pump = (traj, replace(info, attempts=attempts))
+        if tinfo.success:
+            return tinfo.T, fast, replace(tinfo, guess=f"{info.guess} -> time", attempts=attempts), pump
+        return None, traj, replace(info, attempts=attempts), None
+    # the longest plan searched: the minimum-time stage's upper bound on T, or the pumping search's longest
+    T_searched = max([MINIMUM_TIME_T_MAX] + [a.T for a in tried if a.stage.startswith("pump")])
+    raise refusal(params, model, x0, bounds, attempts, T_max=T_searched, proof=proof)
+
+
+def _pumped_effort(model, x0, fast: Trajectory, tinfo: SolveInfo, pump: tuple, *, N: int, bounds, margin: float,
+                   solver: str, solver_options) -> tuple[Trajectory, SolveInfo]:
+    """The effort plan of a pumping swing-up: at ``(1 + margin) T_min`` from the minimum-time plan ``fast`` stretched,
+    then at half and a quarter of that margin (a pumping plan does not stretch far), else the pumping search's own
+    fixed-time plan ``pump`` (plan, info). Every solve joins the attempts."""
+    attempts = tuple(tinfo.attempts)
+    for m in (margin, 0.5 * margin, 0.25 * margin):
+        T = (1.0 + m) * tinfo.T
+        ocp = DirectCollocation(model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
+        traj, info = ocp.solve_once(x0, model.x_eq, guess=fast, T=T)
+        attempts = attempts + (Attempt.of(info, f"effort T={T:.3g}", f"time plan ({tinfo.guess})", N,
+                                          chosen=info.success),)
+        if info.success:
+            return traj, replace(info, guess=f"time plan ({tinfo.guess})", attempts=attempts)
+    traj, info = pump
+    return traj, replace(info, attempts=attempts)
+
+
+def infeasibility_proof(params: CartPoleParams, model: CartPoleModel, x0, bounds):
+    """:func:`~cartpole.planning.energy_ceiling.energy_ceiling` of the start ``x0`` (nx,) with the cart inside the
+    bounds' slide range (the plan's, the file's rail shrunk by the margin): an
+    :class:`~cartpole.planning.energy_ceiling.EnergyCeiling` whose ``proven`` says upright is out of reach."""
+    from cartpole.planning.energy_ceiling import energy_ceiling
+
+    cart = None
+    if model.slide is not None:
+        cart = (float(bounds.q_low[model.slide]), float(bounds.q_high[model.slide]))
+    return energy_ceiling(params, np.asarray(x0, float), cart_range=cart)
+
+
+def refusal(params: CartPoleParams, model: CartPoleModel, x0, bounds, attempts, *, T_max: float,
+            proof=None) -> OCPError:
+    """What the planner says when it found no swing-up: :class:`~cartpole.ocp.collocation.OCPInfeasible` with the
+    proof (:func:`~cartpole.planning.energy_ceiling.energy_ceiling`: from a start at rest, the most energy the
+    actuator can pump in against the damping stays below upright's, with the cart inside the bounds' slide range)
+    when there is one, else :class:`~cartpole.ocp.collocation.OCPNotSolved` ("no swing-up found within T <= ... after
+    K attempts", with how far the search got). Returned, not raised.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+    model : CartPoleModel
+        The planning model (its ``x_eq`` is the goal).
+    x0 : (nx,) array
+        The start.
+    bounds : OCPBounds
+    attempts : sequence of Attempt
+        Every solve of the search.
+    T_max : float
+        s, the longest plan searched.
+    proof : EnergyCeiling, optional
+        :func:`infeasibility_proof` already made (made here when not given).
+    """
+    from cartpole.ocp.collocation import OCPInfeasible
+
+    ec = infeasibility_proof(params, model, x0, bounds) if proof is None else proof
+    if ec.proven:
+        return OCPInfeasible(f"The swing-up is infeasible: {ec.sentence()}.")
+    k = len(attempts)
+    pumped = [a for a in attempts if a.stage.startswith("pump effort") and a.success]
+    if pumped:
+        best = min(pumped, key=lambda a: (float(a.stage.rsplit("x", 1)[-1]), a.T))
+        how = (f"the pumping search got as far as a plan with the ctrl bound relaxed to {best.stage.rsplit('x', 1)[-1]}"
+               f" times the file's half range at T = {best.T:.3g} s")
+    else:
+        how = "no pumping plan converged even with the ctrl bound relaxed"
+    return OCPNotSolved(f"No swing-up found within T <= {T_max:.3g} s after {k} attempts ({how}); that proves "
+                        "nothing: give a longer T_max or search time, or more actuator force.", attempts)
 
 
 #: Seconds of the horizon beyond the minimum swing-up time for the running objectives (tracking, dmc_swingup,
@@ -505,30 +620,41 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
     T_min = None
     if obj.kind == "time":
-        T_min, traj, info = minimum_time(plan_model, x0, N=N or 100, starts=starts, bounds=bounds)
+        T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
+                                               T_max=options.T_max, search_s=options.search_s,
+                                               restarts=options.pump_restarts, seed=options.pump_seed)
     elif obj.kind == "effort" and T is not None:
         ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
                                 bounds=bounds)
         traj, info = ocp.solve(x0)
     else:
-        T_min, fast, tinfo = minimum_time(plan_model, x0, N=60 if obj.kind == "running" else min(N or 100, 60),
-                                          starts=starts, bounds=bounds)
-        if obj.kind == "effort":
+        T_min, fast, tinfo, pump = _swingup_time_plan(plan_model, params, x0,
+                                                N=60 if obj.kind == "running" else min(N or 100, 60),
+                                                starts=starts, bounds=bounds, T_max=options.T_max,
+                                                search_s=options.search_s, restarts=options.pump_restarts,
+                                                seed=options.pump_seed)
+        if obj.kind == "effort" and T_min is None:  # a pumping plan: already the effort plan at its T
+            traj, info = fast, tinfo
+        elif obj.kind == "effort":
             T = (1.0 + options.time_margin) * T_min
             ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
                                     bounds=bounds)
             first = fast  # the minimum-time plan, stretched onto T
         else:
             if T is None:
-                T = T_min + RUNNING_HOLD
+                T = (fast.duration if T_min is None else T_min) + RUNNING_HOLD
             if N is None:
                 N = max(2, int(round(T / params.timestep))) if obj.name == "dmc_swingup" else 100
             ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
                                     solver_options=solver_options, bounds=bounds)
             first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright
-        traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
-                                    sqp=use_sqp and obj.kind == "effort")
-        info = replace(info, attempts=tinfo.attempts + info.attempts)
+        if obj.kind == "effort" and pump is not None:  # a pumping plan: the margin shrunk if need be, else itself
+            traj, info = _pumped_effort(plan_model, x0, fast, tinfo, pump, N=N or 100, bounds=bounds,
+                                        margin=options.time_margin, solver=solver, solver_options=solver_options)
+        elif not (obj.kind == "effort" and T_min is None):
+            traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
+                                        sqp=use_sqp and obj.kind == "effort")
+            info = replace(info, attempts=tinfo.attempts + info.attempts)
     # TVLQR at the MJCF's step, on the planning model's exact discrete step.
     tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
     # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)) at the model's

@@ -8,6 +8,12 @@ between calls. Any model the reader accepts: ``nq`` joints (``nx = 2 nq`` states
 MuJoCo's own ``mj_step``, so each run equals :func:`~cartpole.sim.rollout.simulate` with
 :class:`~cartpole.control.linear.LinearFeedback` (a test checks 1e-12).
 
+Divergence: when a run blows up MuJoCo warns (a NaN, inf or huge position, velocity or acceleration) and resets that
+run's state to ``qpos0`` at rest and its clock to 0. The batch's clocks start at :data:`CLOCK_START` s, so a reset
+shows in the run's own clock after the step (``h`` instead of the previous time plus ``h``): that run is diverged
+from that step (``diverged_at``, s from the start), its states after that step are NaN (the reset state of the
+step itself is kept, as :func:`~cartpole.sim.rollout.simulate` logs it) and it is never a success.
+
 One caveat: ``mujoco.rollout`` restores the physics state but not the constraint solver's warm start, which
 stays per thread; while a joint limit is active the solver may therefore land a few ulp (within its tolerance)
 from a single-``MjData`` run. Runs that stay off their limits are identical.
@@ -24,6 +30,34 @@ from cartpole.models import wrap_angle
 from cartpole.progress import stage
 from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
+#: s: the batch's physics clock at the start of every run (any value well above one step; the dynamics do not
+#: depend on time), so that MuJoCo's divergence reset, which sets the clock to 0, is seen in each run's state.
+CLOCK_START = 1.0
+
+
+class BatchRollouts(tuple):
+    """What :func:`simulate_batch_linear` returns: unpacks as ``(states, ctrl)``, with ``diverged_at`` beside.
+
+    Attributes
+    ----------
+    states : (B, n+1, nx) array
+        ``[qpos, qvel]`` at every physics step, row 0 the start; NaN after a run's divergence step.
+    ctrl : (B, n, nu) array
+        ctrl applied (after clipping) during each step; NaN after a run's divergence step.
+    diverged_at : (B,) array
+        s: the end of the step in which MuJoCo reset each run as blown up; NaN for a run that did not diverge.
+    """
+
+    def __new__(cls, states, ctrl, diverged_at):
+        self = super().__new__(cls, (states, ctrl))
+        self.states, self.ctrl, self.diverged_at = states, ctrl, diverged_at
+        return self
+
+    @property
+    def diverged(self) -> np.ndarray:
+        """(B,) bool: which runs diverged."""
+        return np.isfinite(self.diverged_at)
+
 
 def default_threads() -> int:
     """The CPUs this process may run on (its affinity on Linux, else the CPU count): the default thread count."""
@@ -33,8 +67,8 @@ def default_threads() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def initial_states(m, X0: np.ndarray) -> np.ndarray:
-    """Full physics states (B, nstate) at t = 0 for starts X0 (B, nq + nv)."""
+def initial_states(m, X0: np.ndarray, t0: float = 0.0) -> np.ndarray:
+    """Full physics states (B, nstate) at time ``t0`` (s) for starts X0 (B, nq + nv)."""
     import mujoco
 
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -44,12 +78,13 @@ def initial_states(m, X0: np.ndarray) -> np.ndarray:
         mujoco.mj_resetData(m, d)
         d.qpos[:] = x[:m.nq]
         d.qvel[:] = x[m.nq:]
+        d.time = t0
         mujoco.mj_getState(m, d, S0[i], spec)
     return S0
 
 
 def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=None, u_limits=None,
-                          hinges=None, nthread: int | None = None, progress=None) -> tuple[np.ndarray, np.ndarray]:
+                          hinges=None, nthread: int | None = None, progress=None) -> BatchRollouts:
     """Run ``u = u* - K (x - x*)`` (hinge-angle errors wrapped, ctrl clipped to ``ctrlrange``) from every row of
     ``X0``.
 
@@ -81,10 +116,11 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
 
     Returns
     -------
-    states : (B, n+1, nx) array
-        ``[qpos, qvel]`` at every physics step, row 0 the start.
-    ctrl : (B, n, nu) array
-        ctrl applied (after clipping) during each step.
+    BatchRollouts
+        Unpacks as ``(states, ctrl)``: ``states`` (B, n+1, nx) ``[qpos, qvel]`` at every physics step, row 0 the
+        start; ``ctrl`` (B, n, nu) applied (after clipping) during each step; and ``diverged_at`` (B,) s, the step
+        in which MuJoCo reset a blown-up run (NaN: it did not), after which that run's rows are NaN (see the
+        module notes).
     """
     import mujoco
     import mujoco.rollout
@@ -124,7 +160,7 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
     nthread = default_threads() if nthread is None else int(nthread)
     nb = X0.shape[0]
     # two state buffers used in turn: the output of one step is the input of the next, no copies
-    bufs = (initial_states(m, X0), np.empty((nb, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))))
+    bufs = (initial_states(m, X0, CLOCK_START), np.empty((nb, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))))
     states = np.empty((nb, n + 1, nx))
     ctrl = np.empty((nb, n, nu))
     states[:, 0] = bufs[0][:, 1:1 + nx]  # full physics state layout: [time, qpos (nq), qvel (nv), ...]
@@ -135,6 +171,8 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
     spec = int(mujoco.mjtState.mjSTATE_CTRL)
     every = max(1, n // 20)
     Kt = K.T
+    diverged_at = np.full(nb, np.nan)
+    alive = np.ones(nb, dtype=bool)
     with stage("batch rollouts", size=f"{nb} x {n * h:g} s", callback=progress) as tick, \
             mujoco.rollout.Rollout(nthread=nthread) as pool:
         for k in range(n):
@@ -143,16 +181,26 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
             if hinges:
                 e[:, hinges] = wrap_angle(e[:, hinges])
             # same arithmetic as LinearFeedback: u* - K e clipped to its limits, then MuJoCo's clip to ctrlrange
-            u[:, 0] = np.clip(np.clip(u_eq - e @ Kt, u_lo, u_hi), lo, hi)
+            with np.errstate(over="ignore", invalid="ignore"):  # a blown-up start: MuJoCo resets it below
+                u[:, 0] = np.clip(np.clip(u_eq - e @ Kt, u_lo, u_hi), lo, hi)
             pool.rollout(models, datas, S, u, nstep=1, state=nxt, skip_checks=True, chunk_size=chunk,
                          control_spec=spec)
             ctrl[:, k] = u[:, 0]
             states[:, k + 1] = nxt[:, 1:1 + nx]
+            # a reset sets the clock to 0 (then one step: h); every other step adds h to the clock
+            reset = alive & (np.abs(nxt[:, 0] - (S[:, 0] + h)) > 0.5 * h)
+            if reset.any():
+                diverged_at[reset] = (k + 1) * h
+                alive &= ~reset
+            if not alive.all():
+                dead = ~alive & ~reset
+                states[dead, k + 1] = np.nan
+                ctrl[dead, k] = np.nan
             if (k + 1) % every == 0 or k + 1 == n:
                 tick((k + 1) / n)
-    if not np.all(np.isfinite(states)):
+    if not np.all(np.isfinite(states[alive])):
         raise CartPoleError("MuJoCo's state became NaN/inf in the batch; the gain or the model is unstable.")
-    return states, ctrl
+    return BatchRollouts(states, ctrl, diverged_at)
 
 
 def random_starts(rollouts: int, *, seed: int = 0, model=None) -> np.ndarray:

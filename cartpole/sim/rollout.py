@@ -116,10 +116,14 @@ class Rollout:
 
     def save(self, path: str | Path) -> None:
         """Write the rollout as JSON (whole or not at all: :func:`~cartpole._files.atomic_write`), with its push log
-        (``info["push"]``) when it has one."""
+        (``info["push"]``) when it has one and, for a run that diverged, ``diverged_at`` (s) and
+        ``diverged_warning``."""
         doc = {"mjcf": self.mjcf, **self.to_dict()}
         if isinstance(self.info, dict) and self.info.get("push") is not None:
             doc["push"] = np.asarray(self.info["push"], dtype=float).tolist()
+        if isinstance(self.info, dict) and self.info.get("diverged") is not None:
+            doc["diverged_at"] = float(self.info["diverged"])
+            doc["diverged_warning"] = self.info.get("diverged_warning")
         text = json.dumps(doc)
         atomic_write(path, lambda fh: fh.write(text.encode()))
 
@@ -128,6 +132,8 @@ class Rollout:
         """Read a rollout written by :meth:`save`."""
         d = json.loads(Path(path).read_text())
         info = {"push": np.asarray(d["push"], dtype=float)} if d.get("push") is not None else {}
+        if d.get("diverged_at") is not None:
+            info.update(diverged=float(d["diverged_at"]), diverged_warning=d.get("diverged_warning"))
         extra = {k: np.asarray(d[k], dtype=float) for k in SAMPLE_FIELDS if d.get(k) is not None}
         return cls(t=d["t"], qpos=d["qpos"], qvel=d["qvel"], ctrl=d["ctrl"], mjcf=d.get("mjcf", ""), info=info,
                    **extra)
@@ -189,6 +195,48 @@ def cart_body(m) -> int:
     raise CartPoleError("The MJCF has no slide joint, so there is no cart to push; drop the push.")
 
 
+#: MuJoCo's warnings of an unstable simulation (``mujoco.mjtWarning`` names): a NaN, inf or huge position, velocity,
+#: acceleration or ctrl. On the first three MuJoCo resets the state to ``qpos0`` at rest (on a file whose ``qpos0`` is
+#: upright a blown-up run then looks caught); on a bad ctrl it zeroes the ctrl. Any of them ends a run as diverged.
+INSTABILITY_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
+
+
+class WarningWatch:
+    """Watches one ``MjData`` for MuJoCo's instability warnings (:data:`INSTABILITY_WARNINGS`).
+
+    Made on the data before a run (its counts then are the baseline); :meth:`fired` after each ``mj_step`` names the
+    first warning whose count grew since, e.g. ``"BADQACC"``, or gives None.
+
+    Parameters
+    ----------
+    d : mujoco.MjData
+        The data the run steps.
+    """
+
+    def __init__(self, d):
+        import mujoco
+
+        self.indices = tuple(int(getattr(mujoco.mjtWarning, name)) for name in INSTABILITY_WARNINGS)
+        self.names = tuple(name.removeprefix("mjWARN_") for name in INSTABILITY_WARNINGS)
+        self.base = self.counts(d)
+
+    def counts(self, d) -> tuple:
+        """The warning counts (one per :data:`INSTABILITY_WARNINGS` entry) of ``d`` now."""
+        return tuple(int(d.warning[i].number) for i in self.indices)
+
+    def fired(self, d) -> str | None:
+        """The name (``BADQPOS``, ``BADQVEL``, ``BADQACC`` or ``BADCTRL``) of the first instability warning ``d``
+        raised since this watch was made (or last :meth:`reset`), else None."""
+        for name, i, n0 in zip(self.names, self.indices, self.base):
+            if int(d.warning[i].number) > n0:
+                return name
+        return None
+
+    def reset(self, d) -> None:
+        """Take ``d``'s counts now as the new baseline."""
+        self.base = self.counts(d)
+
+
 def simulate(source: CartPoleParams | str | Path | None, controller: Controller, x0, duration: float, *,
              control_period: float | None = None, rig=None, progress: Callable[[float], None] | None = None,
              stop: Callable[[float, np.ndarray], bool] | None = None,
@@ -232,8 +280,12 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     -------
     Rollout
         Every physics step is logged even when the control is held: ``qpos`` (n+1, nq), ``qvel`` (n+1, nq),
-        ``ctrl`` (n, nu); with a rig also the samples. ``info["diverged"]`` is the time (s) at which MuJoCo warned
-        of a blown-up acceleration and reset the state (a run that did is never a success), else None.
+        ``ctrl`` (n, nu); with a rig also the samples. ``info["diverged"]`` is the time (s) at the end of the step in
+        which MuJoCo first warned that the simulation is unstable (:data:`INSTABILITY_WARNINGS`: a bad position,
+        velocity, acceleration or ctrl; it then resets the state), else None, and ``info["diverged_warning"]`` names
+        that warning (``"BADQACC"`` ...). The run stops there: that step (MuJoCo's reset state) is the last logged,
+        so the log still replays exactly, and no success test may count the run
+        (:func:`cartpole.validation.metrics.diverged`).
     """
     import mujoco
 
@@ -267,9 +319,8 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     last = n
     cart = cart_body(m) if push is not None else -1
     forces = np.zeros(n) if push is not None else None
-    bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
-    warned0 = int(d.warning[bad_qacc].number)
-    diverged = None
+    watch = WarningWatch(d)
+    diverged, warning = None, None
     if on_step is not None and on_step(m, d) is False:  # the start state too (a viewer opens on it)
         n = last = 0
     for k in range(n):
@@ -294,8 +345,10 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         t[k + 1] = (k + 1) * h
         qpos[k + 1] = d.qpos
         qvel[k + 1] = d.qvel
-        if diverged is None and int(d.warning[bad_qacc].number) > warned0:
-            diverged = (k + 1) * h
+        warning = watch.fired(d)
+        if warning is not None:  # MuJoCo reset a blown-up state: the run ends here, diverged
+            diverged, last = (k + 1) * h, k + 1
+            break
         if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
             raise CartPoleError(f"MuJoCo's state became NaN/inf at t = {(k + 1) * h:.3f} s; "
                                 "the controller or the model is unstable, reduce gains or the time step.")
@@ -309,6 +362,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
             break
     info = {} if forces is None else {"push": forces[:last].copy()}
     info["diverged"] = diverged
+    info["diverged_warning"] = warning
     kw = {} if samples is None else samples.arrays(last * h)
     return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
                    mjcf=source_path(source), info=info, **kw)
@@ -348,7 +402,9 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -
 
     Returns
     -------
-    Rollout with n+1 states; equal to the logged one when the log is honest.
+    Rollout with n+1 states; equal to the logged one when the log is honest. Its ``info["diverged"]`` is the time
+    (s) of the step in which MuJoCo first warned of an unstable simulation (:data:`INSTABILITY_WARNINGS`), else
+    None: a replay does not stop there (a log that :func:`simulate` ended at its divergence ends at that step).
     """
     import mujoco
 
@@ -372,13 +428,18 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -
     qpos = np.empty((n + 1, nq))
     qvel = np.empty((n + 1, nv))
     qpos[0], qvel[0] = d.qpos, d.qvel
+    watch = WarningWatch(d)
+    diverged, warning = None, None
     for k in range(n):
         if forces is not None:
             d.xfrc_applied[cart, 0] = forces[k]
         d.ctrl[:] = ctrl[k]
         mujoco.mj_step(m, d)
         qpos[k + 1], qvel[k + 1] = d.qpos, d.qvel
+        if diverged is None and (warning := watch.fired(d)) is not None:
+            diverged = (k + 1) * h
     info = {} if forces is None else {"push": forces.copy()}
+    info.update(diverged=diverged, diverged_warning=warning)
     return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl, mjcf=source_path(source), info=info)
 
 

@@ -12,7 +12,8 @@ catch's equilibrium (the model's computed upright ``x_eq``), hinge-angle entries
    informs rho, where a fixed box wastes most of them;
 2. run the catch ``u = clip(u_eq - K e)`` (``e`` the wrapped error) from each in MuJoCo on the MJCF for
    ``duration`` s, all runs batched (:func:`~cartpole.sim.batch.simulate_batch_linear`);
-3. call a run a success when the cart never reaches its joint limit (kept ``limit_margin`` inside it) and at the
+3. call a run a success when MuJoCo never warned that it blew up (a diverged run, which MuJoCo resets to ``qpos0``
+   at rest, is a failure whatever its end state: :class:`~cartpole.sim.batch.BatchRollouts`), the cart never reaches its joint limit (kept ``limit_margin`` inside it) and at the
    end every pole is upright and still: each wrapped hinge-angle error from ``x_eq`` below ``0.05`` rad, each
    hinge rate below ``0.1`` rad/s and each slide rate below ``0.1`` m/s (:mod:`~cartpole.validation.metrics`'
    ``UPRIGHT_TOL``, ``REST_RATE_TOL``, ``REST_SPEED_TOL``);
@@ -51,7 +52,7 @@ from cartpole.validation.metrics import REST_RATE_TOL, REST_SPEED_TOL, UPRIGHT_T
 
 
 #: Version of the estimate's method, part of every cache key: bump it when :func:`estimate_basin` changes.
-BASIN_VERSION = 1
+BASIN_VERSION = 2
 #: :func:`estimate_basin`'s sampling settings and defaults (the cache key holds every one of them).
 DEFAULTS = {"n": 300, "seed": 0, "level": 1.0, "duration": 4.0, "safety_factor": 0.75, "limit_margin": 0.01}
 
@@ -78,7 +79,7 @@ class BasinEstimate:
     costs : (n,) array
         ``e' S e`` of each sample.
     success : (n,) bool array
-        Whether the catch brought that sample to upright rest without touching the cart limit.
+        Whether the catch brought that sample to upright rest without touching the cart limit and without diverging.
     S : (nx, nx) array
         Cost-to-go matrix of the catch.
     K : (nu, nx) array
@@ -98,6 +99,8 @@ class BasinEstimate:
         MJCF the runs used.
     x_eq : (nx,) array or None
         The catch's equilibrium the errors are measured from (None: the origin).
+    diverged : (n,) bool array or None
+        Whether MuJoCo warned that the run from that sample blew up (and reset it): each such sample is a failure.
     """
 
     rho: float
@@ -117,11 +120,14 @@ class BasinEstimate:
     limit_margin: float
     mjcf: str = ""
     x_eq: np.ndarray | None = None
+    diverged: np.ndarray | None = None
 
     def __post_init__(self):
         for name in ("samples", "costs", "S", "K", "box"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         object.__setattr__(self, "success", readonly(self.success, bool))
+        dv = np.zeros(self.success.shape, bool) if self.diverged is None else self.diverged
+        object.__setattr__(self, "diverged", readonly(dv, bool))
         if self.x_eq is not None:
             object.__setattr__(self, "x_eq", readonly(self.x_eq))
 
@@ -141,12 +147,20 @@ class BasinEstimate:
                 "rho_cover": self.rho_cover, "n": self.n, "seed": self.seed, "level": self.level,
                 "box": self.box.tolist(),
                 "duration": self.duration, "safety_factor": self.safety_factor,
-                "successes": int(self.success.sum()), "n_inside": self.n_inside}
+                "successes": int(self.success.sum()), "diverged": int(self.diverged.sum()),
+                "n_inside": self.n_inside}
 
 
 def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, limit_margin: float = 0.01,
                    progress=None) -> np.ndarray:
-    """Run the catch in MuJoCo from each start state and say which runs end upright and still.
+    """Which runs of the catch from ``starts`` (n, nx) end upright and still: the first output of
+    :func:`catch_outcomes` (same arguments: ``duration`` s, ``limit_margin`` m), (n,) bool."""
+    return catch_outcomes(source, catch, starts, duration, limit_margin=limit_margin, progress=progress)[0]
+
+
+def catch_outcomes(source, catch: LinearFeedback, starts, duration: float, *, limit_margin: float = 0.01,
+                   progress=None) -> tuple[np.ndarray, np.ndarray]:
+    """Run the catch in MuJoCo from each start state and say which runs end upright and still, and which diverged.
 
     All runs advance together (:func:`~cartpole.sim.batch.simulate_batch_linear`: MuJoCo's own
     ``mj_step`` through its threaded rollout, the catch's law evaluated for the batch in numpy), about ten
@@ -169,15 +183,19 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
 
     Returns
     -------
-    (n,) bool array
-        The cart inside its range throughout, and at the end every wrapped hinge error from ``catch.x_eq`` below
-        ``UPRIGHT_TOL``, every hinge rate below ``REST_RATE_TOL`` and every slide rate below ``REST_SPEED_TOL``.
+    success : (n,) bool array
+        The run never diverged, the cart stayed inside its range throughout, and at the end every wrapped hinge
+        error from ``catch.x_eq`` is below ``UPRIGHT_TOL``, every hinge rate below ``REST_RATE_TOL`` and every slide
+        rate below ``REST_SPEED_TOL``.
+    diverged : (n,) bool array
+        MuJoCo warned that the run blew up and reset it (:class:`~cartpole.sim.batch.BatchRollouts`).
     """
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     nq = params.nq
     starts = np.atleast_2d(np.asarray(starts, dtype=float))
-    states, _ = simulate_batch_linear(params, catch.K, starts, duration, x_eq=catch.x_eq, u_eq=catch.u_eq,
-                                      u_limits=catch.u_limits, hinges=catch.hinges, progress=progress)
+    runs = simulate_batch_linear(params, catch.K, starts, duration, x_eq=catch.x_eq, u_eq=catch.u_eq,
+                                 u_limits=catch.u_limits, hinges=catch.hinges, progress=progress)
+    states, diverged = runs.states, runs.diverged
     stayed = np.ones(starts.shape[0], dtype=bool)
     if params.slide is not None:
         lo, hi = params.cart_range  # the slide joint's range (infinite when unlimited)
@@ -189,7 +207,7 @@ def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, li
     still = (np.all(np.abs(e[:, hinges]) < UPRIGHT_TOL, axis=1)
              & np.all(np.abs(e[:, [nq + h for h in hinges]]) < REST_RATE_TOL, axis=1)
              & np.all(np.abs(e[:, [nq + i for i in params.slides]]) < REST_SPEED_TOL, axis=1))
-    return stayed & still
+    return stayed & still & ~diverged, diverged
 
 
 def sample_errors(S, n: int, *, level: float, seed: int, s_max: float = np.inf, slide: int | None = 0) -> np.ndarray:
@@ -262,7 +280,8 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
     samples = x_eq + errors
     costs = np.einsum("ni,ij,nj->n", errors, S, errors)
     with stage("basin estimate", size=f"{int(n)} runs", callback=progress) as tick:
-        success = catch_succeeds(params, catch, samples, duration, limit_margin=limit_margin, progress=tick)
+        success, diverged = catch_outcomes(params, catch, samples, duration, limit_margin=limit_margin,
+                                           progress=tick)
     rho_sampled = float(costs[~success].min()) if np.any(~success) else np.inf
     cut = s_max**2 / np.linalg.inv(S)[slide, slide] if slide is not None else np.inf
     rho_cover = float(min(level, cut))
@@ -271,7 +290,7 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
                          success=success, S=S, K=catch.K, n=int(n), seed=int(seed), level=float(level),
                          box=np.abs(errors).max(axis=0), duration=float(duration),
                          safety_factor=float(safety_factor), limit_margin=float(limit_margin), mjcf=params.mjcf,
-                         x_eq=x_eq)
+                         x_eq=x_eq, diverged=diverged)
 
 
 def basin_key(params: CartPoleParams, catch: LinearFeedback, **settings) -> str:
@@ -325,7 +344,7 @@ def _default_directory() -> Path:
     return cache_dir() / "basins"
 
 
-_ARRAYS = ("samples", "costs", "success", "S", "K", "box", "x_eq")
+_ARRAYS = ("samples", "costs", "success", "S", "K", "box", "x_eq", "diverged")
 _SCALARS = ("rho", "rho_sampled", "rho_cover", "n", "seed", "level", "duration", "safety_factor", "limit_margin")
 
 
@@ -383,7 +402,8 @@ def _load(path: Path, mjcf: str) -> BasinEstimate | None:
                             samples=arrays["samples"], costs=arrays["costs"], success=arrays["success"],
                             S=arrays["S"], K=arrays["K"], n=int(sc["n"]), seed=int(sc["seed"]), level=sc["level"],
                             box=arrays["box"], duration=sc["duration"], safety_factor=sc["safety_factor"],
-                            limit_margin=sc["limit_margin"], mjcf=mjcf, x_eq=arrays.get("x_eq"))
+                            limit_margin=sc["limit_margin"], mjcf=mjcf, x_eq=arrays.get("x_eq"),
+                            diverged=arrays.get("diverged"))
     except (KeyError, ValueError, TypeError):
         return None
     return est if plausible(est) else None

@@ -266,8 +266,10 @@ class RunMetrics:
     saturation_fraction : float, 0..1
     track_margin : float, m
     diverged : bool
-        MuJoCo warned of a blown-up acceleration and reset the state during the run (``info["diverged"]``): the run
-        is never settled, whatever its last states look like.
+        MuJoCo warned that the simulation blew up (a bad position, velocity, acceleration or ctrl) and reset the state
+        during the run (``info["diverged"]``): the run is never settled, whatever its last states look like.
+    diverged_at : float or None
+        s: when it did (:func:`diverged_at`), None when it did not.
     """
 
     settling_time_seed: float
@@ -276,6 +278,7 @@ class RunMetrics:
     saturation_fraction: float
     track_margin: float
     diverged: bool = False
+    diverged_at: float | None = None
 
     @property
     def hit_limit(self) -> bool:
@@ -325,14 +328,22 @@ def summarize(run, model=None, *, x_eq=None, hinges=None, slide: int | None = 0,
         saturation_fraction=saturation_fraction(run.ctrl, ctrl_range),
         track_margin=track_margin(run.x, cart_range, slide=slide),
         diverged=diverged(run),
+        diverged_at=diverged_at(run),
     )
 
 
 def diverged(run) -> bool:
     """True when MuJoCo reset a blown-up run (the rollout's ``info["diverged"]`` holds the time): such a run's last
     states are MuJoCo's reset, not the controller's work, so no success test may count it."""
+    return diverged_at(run) is not None
+
+
+def diverged_at(run) -> float | None:
+    """The time in s at which MuJoCo warned that ``run`` (a :class:`~cartpole.sim.rollout.Rollout`) blew up and reset
+    it (its ``info["diverged"]``), or None when it did not."""
     info = getattr(run, "info", None)
-    return bool(isinstance(info, dict) and info.get("diverged") is not None)
+    t = info.get("diverged") if isinstance(info, dict) else None
+    return None if t is None else float(t)
 
 
 def cart_range_used(rollout, *, slide: int | None = 0) -> tuple[float, float]:
@@ -409,17 +420,23 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
     -------
     dict
         ``success`` (bool, :func:`swingup_success`), ``time_to_upright`` (s, :func:`settling_time_seed` over every
-        pole; None if not every pole is upright at the end), ``peak_ctrl`` (ctrl units, max over actuators),
-        ``cart_min``, ``cart_max``, ``cart_clearance`` (m, :func:`track_margin`), ``duration`` (s).
+        pole; None if not every pole is upright at the end, or the run diverged), ``peak_ctrl`` (ctrl units, max over
+        actuators), ``cart_min``, ``cart_max``, ``cart_clearance`` (m, :func:`track_margin`), ``duration`` (s),
+        ``diverged`` (bool: MuJoCo reset the run as blown up, :func:`diverged`), ``diverged_at`` (s or None) and
+        ``diverged_warning`` (MuJoCo's warning, e.g. ``"BADQACC"``, or None).
     """
     params, x_eq = _layout(source)
     lo, hi = cart_range_used(rollout, slide=params.slide)
     t_up = settling_time_seed(rollout.t, rollout.x, x_eq=x_eq, hinges=params.hinges)
+    t_div = diverged_at(rollout)
+    info = rollout.info if isinstance(getattr(rollout, "info", None), dict) else {}
     return {"success": swingup_success(rollout, source, hold=hold),
-            "time_to_upright": t_up if np.isfinite(t_up) else None,
+            "time_to_upright": t_up if (np.isfinite(t_up) and t_div is None) else None,
             "peak_ctrl": peak_ctrl(rollout.ctrl), "cart_min": lo, "cart_max": hi,
             "cart_clearance": track_margin(rollout.qpos, params.cart_range, slide=params.slide),
-            "duration": float(rollout.t[-1] - rollout.t[0])}
+            "duration": float(rollout.t[-1] - rollout.t[0]),
+            "diverged": t_div is not None, "diverged_at": t_div,
+            "diverged_warning": info.get("diverged_warning") if t_div is not None else None}
 
 
 #: dm_control's cart-pole episode: 1000 control steps (of 0.01 s on its own file).

@@ -231,7 +231,7 @@ def test_a_second_swingup_finds_the_basin_on_disk_and_gets_the_identical_estimat
     def no_estimate(*a, **k):
         raise AssertionError("the basin was estimated again")
 
-    monkeypatch.setattr(basin_mod, "catch_succeeds", no_estimate)
+    monkeypatch.setattr(basin_mod, "catch_outcomes", no_estimate)  # what estimate_basin runs
     second = run_swingup(None, method="energy", duration=0.5)
     a, b = first.basin, second.basin
     for name in ("rho", "rho_sampled", "rho_cover", "n", "seed", "level", "duration", "safety_factor",

@@ -115,7 +115,8 @@ class Runner:
 
     def run(self, x0, options: dict, push=(), model_error: float = 1.0, settings: dict | None = None) -> dict:
         """One swing-up from ``x0`` ((2 nq,) [m, rad, m/s, rad/s]) with its push (``((T s, F N),)``), model error
-        and settings: its row's numbers, ``success``, ``replays``, ``time_to_upright`` (s, NaN unless a success),
+        and settings: its row's numbers, ``success``, ``replays``, ``diverged`` (MuJoCo reset the run as blown up:
+        never a success), ``diverged_at`` (s or NaN), ``time_to_upright`` (s, NaN unless a success),
         ``caught_at`` (s or NaN), ``cart_clearance`` (m), ``peak_ctrl``, ``rho`` and ``error`` (the sentence of a
         :class:`CartPoleError` the run raised, else None)."""
         settings = dict(settings or {})
@@ -137,14 +138,16 @@ class Runner:
                               basin_cache=self.cache, energy_options=energy, catch_weights=self.catch_weights,
                               plan_model=self.plan_model(model_error))
         except CartPoleError as exc:
-            return {"success": False, "replays": False, "time_to_upright": math.nan, "caught_at": math.nan,
+            return {"success": False, "replays": False, "diverged": False, "diverged_at": math.nan,
+                    "time_to_upright": math.nan, "caught_at": math.nan,
                     "cart_clearance": math.nan, "peak_ctrl": math.nan, "rho": math.nan,
                     "error": first_line(exc) + "."}
         m = res.metrics
         replays = bool(replays_exactly(res.rollout, self.params))
-        ok = bool(res.success and replays)
+        ok = bool(res.success and replays and not m["diverged"])
         tu = m["time_to_upright"]
-        return {"success": ok, "replays": replays,
+        return {"success": ok, "replays": replays, "diverged": bool(m["diverged"]),
+                "diverged_at": math.nan if m["diverged_at"] is None else float(m["diverged_at"]),
                 "time_to_upright": float(tu) if (ok and tu is not None) else math.nan,
                 "caught_at": math.nan if res.caught_at is None else float(res.caught_at),
                 "cart_clearance": float(m["cart_clearance"]), "peak_ctrl": float(m["peak_ctrl"]),

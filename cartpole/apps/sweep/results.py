@@ -74,6 +74,9 @@ class SweepResult:
         Each run's swept controller settings (``{}`` when none is swept).
     axes : tuple of Axis
         The sweep description (empty: the classic start box).
+    diverged_at : (n,) array or None
+        s: when MuJoCo warned that each run blew up and reset it (a diverged run is never a success); NaN for a run
+        that did not diverge (None: none did).
     """
 
     mjcf: str
@@ -99,9 +102,12 @@ class SweepResult:
     model_errors: np.ndarray | None = None
     settings: tuple = ()
     axes: tuple = ()
+    diverged_at: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.success)
+        if self.diverged_at is None:
+            object.__setattr__(self, "diverged_at", np.full(n, np.nan))
         if self.model_errors is None:
             object.__setattr__(self, "model_errors", np.ones(n))
         if not self.pushes:
@@ -109,7 +115,7 @@ class SweepResult:
         if not self.settings:
             object.__setattr__(self, "settings", ({},) * n)
         for name in ("starts", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl", "half_widths",
-                     "model_errors"):
+                     "model_errors", "diverged_at"):
             object.__setattr__(self, name, readonly(getattr(self, name)))
         object.__setattr__(self, "success", readonly(self.success, bool))
         rep = self.success if self.replays is None else self.replays
@@ -159,12 +165,13 @@ class SweepResult:
     def rows(self) -> list[dict]:
         """One JSON-ready dict per run, in run order: ``run`` (index), ``start`` (2 nq numbers), ``push`` (list of
         ``[T s, F N]``), ``model_error``, ``settings`` (swept controller settings), ``success``, ``replays``,
-        ``time_to_upright`` (s or None), ``caught_at`` (s or None), ``cart_clearance`` (m), ``peak_ctrl``,
+        ``diverged`` (bool), ``diverged_at`` (s or None), ``time_to_upright`` (s or None), ``caught_at`` (s or None), ``cart_clearance`` (m), ``peak_ctrl``,
         ``error`` (the sentence of a run that raised, else None)."""
         return [{"run": i, "start": self.starts[i].tolist(), "push": [list(p) for p in self.pushes[i]],
                  "model_error": float(self.model_errors[i]), "settings": dict(self.settings[i]),
                  "success": bool(self.success[i]),
-                 "replays": bool(self.replays[i]), "time_to_upright": _num(self.time_to_upright[i]),
+                 "replays": bool(self.replays[i]), "diverged": bool(np.isfinite(self.diverged_at[i])),
+                 "diverged_at": _num(self.diverged_at[i]), "time_to_upright": _num(self.time_to_upright[i]),
                  "caught_at": _num(self.caught_at[i]), "cart_clearance": _num(self.cart_clearance[i]),
                  "peak_ctrl": _num(self.peak_ctrl[i]), "error": self.errors[i]} for i in range(self.n)]
 
@@ -233,7 +240,7 @@ def header(params: CartPoleParams, settings=()) -> list[str]:
     names = [j.name for j in params.joints]
     return (["sweep", "run"] + [f"x0_{n}" for n in names] + [f"x0_{n}_rate" for n in names]
             + ["push_time_s", "push_force_N", "model_error"] + [f"setting_{k}" for k in settings]
-            + ["success", "replays", "time_to_upright_s", "caught_at_s", "cart_clearance_m", "peak_ctrl", "failure",
+            + ["success", "replays", "diverged", "diverged_at_s", "time_to_upright_s", "caught_at_s", "cart_clearance_m", "peak_ctrl", "failure",
                "error"])
 
 
@@ -243,6 +250,8 @@ def failure(row: dict) -> str:
         return ""
     if row["error"]:
         return "raised"
+    if row.get("diverged"):
+        return "diverged"
     if not row["replays"]:
         return "log does not replay"
     if row["cart_clearance"] is not None and row["cart_clearance"] <= 1e-3:
@@ -257,8 +266,8 @@ def _cell(v):
 def csv_row(sid: str, i: int, start, row: dict, settings=()) -> list:
     """The CSV fields (:func:`header`'s columns) of run ``i`` of sweep ``sid``: its ``start`` ((2 nq,)), and
     ``row`` (a runner's row or one of :meth:`SweepResult.rows`, with ``push``, ``model_error`` and ``settings``)."""
-    num = {k: (None if row[k] is None or not math.isfinite(row[k]) else float(row[k]))
-           for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")}
+    num = {k: (None if row.get(k) is None or not math.isfinite(row[k]) else float(row[k]))
+           for k in ("diverged_at", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")}
     r = {**row, **num}
     push = list(row.get("push") or ())
     when = repr(float(push[0][0])) if push else ""
@@ -266,6 +275,7 @@ def csv_row(sid: str, i: int, start, row: dict, settings=()) -> list:
     st = row.get("settings") or {}
     return [sid, int(i), *[repr(float(v)) for v in start], when, force, repr(float(row.get("model_error", 1.0))),
             *[repr(float(st[k])) if k in st else "" for k in settings], bool(r["success"]), bool(r["replays"]),
+            num["diverged_at"] is not None, _cell(num["diverged_at"]),
             *[_cell(num[k]) for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")],
             failure(r), _cell(r["error"])]
 
@@ -277,8 +287,8 @@ _OUTCOME_NUMBERS = ("time_to_upright_s", "caught_at_s", "cart_clearance_m", "pea
 def parse_row(line: dict) -> dict | None:
     """A runner row (the keys :meth:`~cartpole.apps.sweep.executors.Runner.run` returns) from one CSV line read as
     ``{column: text}``, checked field by field; None when any field is not what a finished run writes (then the run
-    is not finished and runs again): ``success`` and ``replays`` ``True`` or ``False`` (a success that does not
-    replay is no success), the start, push, model error and settings finite numbers (push time may be empty), the
+    is not finished and runs again): ``success``, ``replays`` and ``diverged`` ``True`` or ``False`` (a success that
+    does not replay, or diverged, is no success), the start, push, model error and settings finite numbers (push time may be empty), the
     outcome numbers finite or empty, and a success with no error."""
     def f(text):
         if text == "":
@@ -289,7 +299,7 @@ def parse_row(line: dict) -> dict | None:
         return v
 
     try:
-        flags = {k: {"True": True, "False": False}[line[k]] for k in ("success", "replays")}
+        flags = {k: {"True": True, "False": False}[line[k]] for k in ("success", "replays", "diverged")}
         for k, text in line.items():
             if k.startswith(("x0_", "setting_")) or k in ("push_force_N", "model_error"):
                 if text == "" and k.startswith("setting_"):
@@ -299,12 +309,14 @@ def parse_row(line: dict) -> dict | None:
         if line["push_time_s"] != "":
             f(line["push_time_s"])
         nums = {k: f(line[k]) for k in _OUTCOME_NUMBERS}
+        diverged_at = f(line["diverged_at_s"])
     except (KeyError, ValueError, TypeError):
         return None
-    if flags["success"] and (not flags["replays"] or line["error"] or math.isnan(nums["time_to_upright_s"])):
+    if flags["success"] and (not flags["replays"] or flags["diverged"] or line["error"]
+                             or math.isnan(nums["time_to_upright_s"])):
         return None
-    return {**flags, "time_to_upright": nums["time_to_upright_s"], "caught_at": nums["caught_at_s"],
-            "cart_clearance": nums["cart_clearance_m"], "peak_ctrl": nums["peak_ctrl"], "rho": math.nan,
+    return {**flags, "diverged_at": diverged_at, "time_to_upright": nums["time_to_upright_s"],
+            "caught_at": nums["caught_at_s"], "cart_clearance": nums["cart_clearance_m"], "peak_ctrl": nums["peak_ctrl"], "rho": math.nan,
             "error": line["error"] or None}
 
 

@@ -180,6 +180,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                            {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method)),
                        half_widths=half_widths, gain_jitter=float(gain_jitter), base_options=base, method=method,
                        replays=np.array([r["replays"] for r in out], bool),
+                       diverged_at=np.array([r.get("diverged_at", math.nan) for r in out], float),
                        errors=tuple(r["error"] for r in out), workers=1 if address else workers,
                        address=address or None, pushes=runs.pushes, model_errors=runs.model_errors,
                        settings=runs.settings, axes=axes)
