@@ -85,8 +85,29 @@ def test_a_saved_diverged_run_loads_diverged(catch, tmp_path):
     assert diverged_at(back) == diverged_at(run) and back.info["diverged_warning"] == "BADQACC"
 
 
+def _without_input_limits(monkeypatch):
+    """Lift the command line's range checks (issue 24 refuses these inputs up front) so that the run itself blows
+    up: what is tested here is that a diverged run is reported as one, whatever let it start."""
+    import cartpole.apps.sweep.plan as plan
+    import cartpole.apps.swingup as swingup
+    import cartpole.sim.options as options
+
+    monkeypatch.setattr(swingup, "MAX_START_RATE", float("inf"))
+    monkeypatch.setattr(options, "MAX_PUSH_FORCE", float("inf"))
+    monkeypatch.setattr(plan, "MAX_PUSH_FORCE", float("inf"))
+
+
 @pytest.mark.parametrize("argv", [["--x0", "0", "3", "0", "1e308"], ["--push", "1:1e12"]])
-def test_swingup_reports_a_blown_up_run_as_diverged_not_caught(argv, tmp_path, capsys):
+def test_the_command_line_refuses_inputs_that_would_blow_the_run_up(argv, tmp_path, capsys):
+    assert main(["swingup", "--json", "--no-video", "--duration", "2", "--out", str(tmp_path / "out"), *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and ("limit" in err or "at most" in err)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("argv", [["--x0", "0", "3", "0", "1e308"], ["--push", "1:1e12"]])
+def test_swingup_reports_a_blown_up_run_as_diverged_not_caught(argv, tmp_path, capsys, monkeypatch):
+    _without_input_limits(monkeypatch)
     assert main(["swingup", "--json", "--no-video", "--duration", "2", "--out", str(tmp_path), *argv]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["success"] is False and doc["caught_at"] is None and doc["time_to_upright"] is None
@@ -103,8 +124,10 @@ def test_swingup_json_says_a_good_run_did_not_diverge(tmp_path, capsys):
     assert doc["success"] is True and doc["diverged"] is False and doc["diverged_at"] is None
 
 
-def test_a_sweep_row_that_blew_up_is_a_diverged_failure_in_the_json_and_the_csv(tmp_path, capsys):
+def test_a_sweep_row_that_blew_up_is_a_diverged_failure_in_the_json_and_the_csv(tmp_path, capsys, monkeypatch):
     import csv
+
+    _without_input_limits(monkeypatch)
 
     assert main(["sweep", "--json", "--push-force", "0", "1e12", "2", "--duration", "2", "--out", str(tmp_path)]) == 0
     doc = json.loads(capsys.readouterr().out)
