@@ -249,9 +249,11 @@ def test_a_bogus_matplotlib_backend_is_one_sentence(tmp_path):
     assert proc.stdout == "" and not (tmp_path / "out").exists()
 
 
-def test_weights_that_overflow_print_their_sentence_alone(tmp_path, capsys):
-    _fails_cleanly(["lqr", "--json", "--no-video", "--Q", *["1e308"] * 4, "--out", str(tmp_path / "out")],
-                   tmp_path, capsys, "Riccati")
+@pytest.mark.parametrize("flag, values, words", [("--Q", ["1e308"] * 4, "1e+12 limit"),
+                                                  ("--R", ["1e-308"], "below the 1e-12 limit")])
+def test_weights_that_overflow_print_their_sentence_alone(tmp_path, capsys, flag, values, words):
+    _fails_cleanly(["lqr", "--json", "--no-video", flag, *values, "--out", str(tmp_path / "out")],
+                   tmp_path, capsys, words)
 
 
 # ---- bounded work (issue 24) ------------------------------------------------------------------------------------
