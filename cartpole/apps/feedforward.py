@@ -304,10 +304,15 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
                                "looks at the last 1 s); give e.g. 2.")
     from cartpole.sim.rig import build_rig
 
+    from cartpole.control.friction import friction_design
+
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
-    model = build_model(params)
+    # planned without the friction a compensation cancels, run with it (cartpole.control.friction)
+    plant = build_model(params)
+    model, compensate = friction_design(plant, loop)
+    wrap = compensate if compensate is not None else (lambda controller: controller)
     period = None if loop is None else loop.period
-    rig = build_rig(model, loop, task="swingup")  # a bad period, delay or sensor ends here, before any solve
+    rig = build_rig(plant, loop, task="swingup")  # a bad period, delay or sensor ends here, before any solve
 
     def forward(name):
         return None if progress is None else (lambda frac: progress(name, frac))
@@ -319,8 +324,9 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
         if plan is None:
             plan = trajopt_swingup(params, model=model, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
-        wrong = plan if f == 0.0 else trajopt_swingup(params, model=build_model(params.scaled_pole(1.0 + f, 1.0)),
-                                                      options=options, period=period)
+        wrong = plan if f == 0.0 else trajopt_swingup(
+            params, model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop)[0], options=options,
+            period=period)
         tick(1.0)
 
     x0 = model.x_hanging
@@ -336,7 +342,7 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
         for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
             if hasattr(ctrl, "reset"):
                 ctrl.reset()
-            rollout = simulate(params, ctrl, x0, sp.T + extra, control_period=period,
+            rollout = simulate(params, wrap(ctrl), x0, sp.T + extra, control_period=period,
                                rig=None if rig is None else rig.for_run(i),
                                progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
             runs[name] = judge(name, rollout, sp.trajectory, model,

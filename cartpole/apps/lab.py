@@ -199,6 +199,14 @@ class _LabRuns:
         return np.array([cart_excursion(r, self.x_eq, self.params.slide) for r in self.rollouts])
 
     @property
+    def residual_error(self) -> np.ndarray:
+        """(5, nx) each run's largest ``|x - x*|`` per state over its last second
+        (:func:`~cartpole.validation.metrics.residual_error`): the limit cycle or offset left (m, rad, m/s, rad/s)."""
+        from cartpole.validation.metrics import residual_error
+
+        return np.array([residual_error(r.t, r.x, self.x_eq, hinges=self.params.hinges) for r in self.rollouts])
+
+    @property
     def steps(self) -> int:
         """Physics steps per run."""
         return int(self.rollouts[0].ctrl.shape[0])
@@ -246,6 +254,9 @@ class LabResult(_LabRuns):
     rig : Rig or None
         The period, delay, sensors and estimator the runs had (:mod:`cartpole.sim.rig`); None: MuJoCo's exact
         state every physics step.
+    friction_compensation : bool
+        True when the MJCF's driven joints have frictionloss and the runs cancelled it
+        (:func:`~cartpole.control.friction.friction_design`): A, B, K are then those of the model without it.
     """
 
     mjcf: str
@@ -269,6 +280,7 @@ class LabResult(_LabRuns):
     metrics: tuple
     period: float = 0.0
     rig: object = None
+    friction_compensation: bool = False
 
     @property
     def estimation(self) -> dict | None:
@@ -293,11 +305,13 @@ def design(model, Q, R, *, discrete: bool = False, x_eq=None, steps: int = 1):
     Linearises at ``(x_eq, model.u_eq)`` (default ``model.x_eq``) and returns ``(LQRResult, (A, B, Ad, Bd))``;
     ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``. With a control period of ``steps > 1`` physics steps,
     ``Ad``, ``Bd`` are the exact discrete model over that hold (:meth:`~cartpole.models.CartPoleModel.hold`) and the
-    gain is ``dlqr(Ad, Bd, Q T, R T)`` (``T`` the period in s), whatever ``discrete`` says.
+    gain is ``dlqr(Ad, Bd, Q T, R T)`` (``T`` the period in s), whatever ``discrete`` says. A model with dry friction
+    is linearised without it (:meth:`~cartpole.models.CartPoleModel.without_friction`).
     """
     from cartpole.lqr import dlqr, lqr
 
     x_eq = model.x_eq if x_eq is None else x_eq
+    model = model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
     A, B = model.linearize(x_eq, model.u_eq)
     if steps > 1:
         T = steps * model.dt
@@ -426,18 +440,24 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     from cartpole.models import steps_per_period
     from cartpole.sim.rig import build_rig
 
-    model = _model(mjcf)
-    params = model.params
+    from cartpole.control.friction import friction_design
+
+    plant = _model(mjcf)
+    params = plant.params
     if loop is not None and loop.duration is not None:
         duration = loop.duration
-    rig = build_rig(model, loop, task="balance")
+    # the model the LQR is designed on: without the friction a compensation cancels
+    model, compensate = friction_design(plant, loop)
+    rig = build_rig(plant, loop, task="balance")
     steps = steps_per_period(None if loop is None else loop.period, model.dt)
     Q0, R0 = lab_weights(model)
     # the design and loop lab_start_scale uses
-    own = Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None
+    own = Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None and not compensate
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
     ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(model, Q, R, discrete=discrete, steps=steps)
+    if compensate:
+        ctrl = compensate(ctrl)
     if start_scale is None and own:  # the scale search's runs are this lab's runs
         scale, (x0s, runs, mets) = _search_scale(model, ctrl, x_eq, progress)
     else:
@@ -447,7 +467,8 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
                      Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,
                      u_eq=readonly(model.u_eq), x0s=x0s, start_scale=float(scale), duration=float(duration),
-                     rollouts=tuple(runs), metrics=tuple(mets), period=float(steps * model.dt), rig=rig)
+                     rollouts=tuple(runs), metrics=tuple(mets), period=float(steps * model.dt), rig=rig,
+                     friction_compensation=compensate is not None)
 
 
 def cart_excursion(run, x_eq, slide: int | None) -> float:
@@ -628,7 +649,7 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     """The largest delay (whole physics steps) at which the lab's controller still balances all five starts.
 
     The delays ``0, h, 2h, ...`` up to ``max_delay`` are tried in turn on the rig ``loop`` (its ``delay`` replaced)
-    until one fails (:func:`balances`); the margin is the last that held.
+    until one fails (:func:`balances`); the margin is the last that held (:func:`rig_margin`).
 
     Parameters
     ----------
@@ -645,28 +666,96 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     Returns
     -------
     dict
-        ``lqr`` (s, the margin; None when even no delay fails), ``lqr_first_failure`` (s or None), with ``pid`` the
-        same for the PID, and ``tried`` (the delays tried, s).
+        :func:`rig_margin`'s, with the setting ``delay`` (s).
+    """
+    h = float(_model(mjcf).dt)
+    delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
+    return rig_margin(mjcf, loop=loop, setting="delay", values=delays, pid=pid, progress=progress)
+
+
+#: Sensor noise levels :func:`noise_margin` tries below its largest, as fractions of it (0 and halvings).
+NOISE_FRACTIONS = (0.0,) + tuple(2.0 ** -k for k in range(9, -1, -1))
+
+
+def noise_margin(mjcf=None, *, loop=None, max_noise: float = 0.05, pid: bool = False, progress=None) -> dict:
+    """The largest sensor noise (standard deviation, each sensor's units) at which the lab's controller still
+    balances all five starts on the rig ``loop``: 0 and ``max_noise`` halved nine times to ``max_noise`` in turn
+    (:data:`NOISE_FRACTIONS`), until one fails (:func:`rig_margin`, setting ``sensor_noise``).
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+    loop : LoopOptions, optional
+        The rig; it needs an estimator (default ``kf`` once a sensor option is given) and usually encoders.
+    max_noise : float
+        Largest noise tried (m on slides, rad on hinges), > 0.
+    pid : bool
+        Also the cascaded PID's (on the measurements).
+    progress : callable, optional
+
+    Returns
+    -------
+    dict
+        :func:`rig_margin`'s, with the setting ``sensor_noise``.
+    """
+    values = [float(max_noise) * f for f in NOISE_FRACTIONS]
+    return rig_margin(mjcf, loop=loop, setting="sensor_noise", values=values, pid=pid, progress=progress)
+
+
+def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False, progress=None) -> dict:
+    """The largest value of one rig setting at which the lab's controller still balances all five starts.
+
+    The ``values`` are tried in increasing order on the rig ``loop`` (``setting`` replaced by each) until one fails
+    (:func:`balances`); the margin is the last that held.
+
+    Parameters
+    ----------
+    mjcf : path, CartPoleParams or CartPoleModel, optional
+    loop : LoopOptions, optional
+        The rig; default the perfect loop.
+    setting : str
+        A :class:`~cartpole.sim.options.LoopOptions` field (``delay``, ``sensor_noise``, ...).
+    values : sequence of float
+        Increasing values of it, in its units.
+    pid : bool
+        Also the cascaded PID's margin (one pole on a cart).
+    progress : callable, optional
+        Called with the fraction of the values tried (0..1).
+
+    Returns
+    -------
+    dict
+        ``lqr`` (the margin; None when the first value already fails), ``lqr_first_failure`` (None when none
+        fails), ``lqr_runs`` (per value tried: ``setting`` -> the value, ``balances``, ``settling_time_seed_max`` (s,
+        the worst start's handout settling time; None when one never settles) and ``residual_angle_max`` (rad, the
+        largest pole error over any run's last second)), with ``pid`` the same for the PID; ``setting`` and
+        ``tried`` (the values tried).
     """
     from cartpole.sim.options import LoopOptions
 
     model = _model(mjcf)
     loop = LoopOptions() if loop is None else loop
-    h = float(model.dt)
-    delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
-    out, tried = {}, set()
+    values = [float(v) for v in values]
+    out, tried = {"setting": setting}, set()
     for name in ("lqr", "pid") if pid else ("lqr",):
         margin = failed = None
-        for i, d in enumerate(delays):
-            run = run_lab(model, loop=loop.replace(delay=d))
-            ok = balances(run if name == "lqr" else compare_pid(run, model))
-            tried.add(d)
+        curve = []
+        for i, v in enumerate(values):
+            run = run_lab(model, loop=loop.replace(**{setting: v}))
+            res = run if name == "lqr" else compare_pid(run, model)
+            ok = balances(res)
+            ts = [float(m.settling_time_seed) for m in res.metrics]
+            curve.append({setting: v, "balances": bool(ok),
+                          "settling_time_seed_max": max(ts) if all(np.isfinite(ts)) else None,
+                          "residual_angle_max": float(res.residual_error[:, list(res.params.hinges)].max())})
+            tried.add(v)
             if progress is not None:
-                progress((i + 1) / len(delays))
+                progress((i + 1) / len(values))
             if not ok:
-                failed = d
+                failed = v
                 break
-            margin = d
+            margin = v
         out[name], out[f"{name}_first_failure"] = margin, failed
+        out[f"{name}_runs"] = curve
     out["tried"] = sorted(tried)
     return out

@@ -36,6 +36,7 @@ from typing import Callable
 
 import numpy as np
 
+from cartpole.control.friction import friction_design, friction_summary
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
 from cartpole.sim import Rollout, simulate
@@ -356,6 +357,9 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     x0 = check_start(model.x_hanging if x0 is None else x0, params)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
+    # designed without the friction a compensation cancels, run with it (cartpole.control.friction)
+    plant, (pm, compensate) = pm, friction_design(pm, loop)
+    wrap = compensate if compensate is not None else (lambda controller: controller)
     force = loop.push_force(params.timestep)
     if loop.duration is not None:
         check_push_times(loop.push, loop.duration)
@@ -397,12 +401,18 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         options = {"plan": plan, "loop": loop, "mpc": mpc}
         if progress is not None:
             progress("mpc", 0.0)
-        controller = nmpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
+        if mpc.solver == "ddp":
+            from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
+
+            controller = ddp_mpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
+        else:
+            controller = nmpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
         if progress is not None:
             progress("mpc", 1.0)
         basin = None
         T = MPC_DURATION if T is None else T
-        rig = build_rig(pm, loop.replace(period=float(controller.period)), task="swingup")
+        rig = build_rig(plant, loop.replace(period=float(controller.period)), task="swingup")
+        controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
                            progress=_stage(progress, "simulate"), on_step=on_step, rig=rig)
         if progress is not None:
@@ -416,7 +426,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         basin = basin_of(catch)
         controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if T is None else T
-        rig = build_rig(pm, loop, task="swingup")
+        rig = build_rig(plant, loop, task="swingup")
+        controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
@@ -447,7 +458,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             if sp.objective == "dmc_swingup":
                 T = max(T, DMC_STEPS * params.timestep)
             check_push_times(loop.push, T)
-        rig = build_rig(pm, loop, task="swingup")
+        rig = build_rig(plant, loop, task="swingup")
+        controller = wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
@@ -469,6 +481,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
 
         metrics["estimation"] = estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))
     metrics["rig"] = None if rig is None else rig.to_dict()
+    metrics["friction"] = friction_summary(params, compensate is not None)
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
                          controller=controller, options=options)

@@ -1,6 +1,6 @@
 """The rig's command-line options, one definition for every command that runs MuJoCo (``--period``, ``--delay``,
 ``--estimator``, ``--encoder-cpr``, ``--encoder-resolution``, ``--sensor-noise``, ``--process-noise``,
-``--mhe-horizon``, ``--noise-seed``, ``--no-delay-compensation``), and the :class:`~cartpole.sim.options.LoopOptions`
+``--mhe-horizon``, ``--noise-seed``, ``--no-delay-compensation``, ``--no-friction-compensation``), and the :class:`~cartpole.sim.options.LoopOptions`
 they make."""
 from __future__ import annotations
 
@@ -44,6 +44,10 @@ def add_rig_arguments(parser, *, period_help: str | None = None) -> None:
     parser.add_argument("--no-delay-compensation", action="store_true",
                         help="act on the estimate at the sample instant, not predicted over the delay (what the "
                              "delay costs)")
+    parser.add_argument("--no-friction-compensation", action="store_true",
+                        help="on an MJCF whose driven joints have frictionloss: design on the smooth friction "
+                             "model and add no ctrl cancelling it (default: design without that friction and "
+                             "cancel it, see docs/rig.md)")
 
 
 def rig_fields(args) -> dict:
@@ -55,6 +59,8 @@ def rig_fields(args) -> dict:
             out[name] = v
     if getattr(args, "no_delay_compensation", False):
         out["delay_compensation"] = False
+    if getattr(args, "no_friction_compensation", False):
+        out["friction_compensation"] = False
     return out
 
 
@@ -69,3 +75,12 @@ def loop_from_args(args, **fields):
 def rig_doc(rig, period: float) -> dict:
     """The JSON ``period`` (s) and ``rig`` objects of a run (``rig`` None for MuJoCo's exact state every step)."""
     return {"period": float(period), "rig": None if rig is None else rig.to_dict()}
+
+
+def friction_sentence(friction: dict) -> str:
+    """The prose line for a run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`)."""
+    loss = ", ".join(f"{name} {v:g}" for name, v in friction["frictionloss"].items())
+    how = ("designed without the driven joints' friction, which a feedforward cancels (--no-friction-compensation "
+           "to design on the smooth friction model instead)" if friction["compensation"] else
+           "designed on the smooth friction model, nothing cancelled")
+    return f"Friction (frictionloss {loss}): {how}."

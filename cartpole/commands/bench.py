@@ -21,6 +21,8 @@ def add_arguments(parser) -> None:
                         help="skip the swing-up plan times (default: the shipped 1-, 2- and 3-pole carts, or the "
                              "--mjcf given; --quick: one pole, one plan)")
     parser.add_argument("--no-mpc", action="store_true", help="skip the NMPC-in-the-loop benchmark")
+    parser.add_argument("--no-crocoddyl", action="store_true",
+                        help="skip Crocoddyl's double-pendulum example (our DDP, and Crocoddyl's FDDP when installed)")
 
 
 class _Steps:
@@ -71,6 +73,9 @@ def run(args) -> dict:
     from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
 
     doc["estimation"] = estimation_benchmark(args.mjcf, quick=args.quick)
+    from cartpole.apps.bench.crocoddyl import crocoddyl_benchmark, print_crocoddyl
+
+    doc["crocoddyl"] = None if args.no_crocoddyl else crocoddyl_benchmark(repeats=1 if args.quick else repeats)
     steps.close()
     doc["quick"] = bool(args.quick)
     if not args.json:
@@ -80,4 +85,6 @@ def run(args) -> dict:
         if doc["mpc"]:
             print_mpc_table(doc["mpc"])
         print_estimation_table(doc["estimation"])
+        if doc["crocoddyl"]:
+            print_crocoddyl(doc["crocoddyl"])
     return doc

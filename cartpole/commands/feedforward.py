@@ -85,6 +85,7 @@ def run(args) -> dict:
                     break
                 videos[name] = str(path.resolve())
 
+    from cartpole.control.friction import friction_summary
     from cartpole.sim.rig import build_rig
 
     rig = build_rig(study.model, loop, task="swingup")
@@ -93,7 +94,9 @@ def run(args) -> dict:
            "plan": {"T": study.plan.T, "T_min": study.plan.T_min, "N": study.plan.trajectory.N},
            "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
                           "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},
-           "runs": {n: {**r.summary(), "rollout": rollout_doc(r.rollout)} for n, r in study.runs.items()},
+           "runs": {n: {**r.summary(), "rollout": rollout_doc(r.rollout), "estimation": _estimation(r.rollout, rig)}
+                    for n, r in study.runs.items()},
+           "friction": friction_summary(params, loop.friction_compensation and params.driven_friction),
            "figure": str(fig.resolve()), "videos": videos,
            "options": {"plan": study.options.as_dict()}}
     if not args.json:
@@ -121,3 +124,15 @@ def run(args) -> dict:
         print(f"Figure: {fig}")
         print("Videos: " + ("not written" if not videos else ", ".join(videos.values())))
     return doc
+
+
+def _estimation(rollout, rig):
+    """A run's JSON ``estimation`` (:func:`~cartpole.validation.estimation.estimation_summary`); None without an
+    estimator."""
+    if rig is None or rig.estimator == "none":
+        return None
+    from cartpole.apps.lab import state_names
+    from cartpole.validation.estimation import estimation_summary
+
+    params = rig.model.params
+    return estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))

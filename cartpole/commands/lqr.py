@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole.commands._rig import add_rig_arguments, loop_from_args, rig_doc
+from cartpole.commands._rig import add_rig_arguments, friction_sentence, loop_from_args, rig_doc
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -14,6 +14,8 @@ HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJ
 FIGURE = Path("figures") / "day5_cartpole_lqr.png"
 PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
 ESTIMATION_FIGURE = Path("figures") / "day5_cartpole_estimation.png"
+DELAY_MARGIN_FIGURE = Path("figures") / "delay_margin.png"
+NOISE_MARGIN_FIGURE = Path("figures") / "noise_margin.png"
 VIDEO = Path("videos") / "day5_cartpole.mp4"
 METRICS = Path("metrics") / "metrics.csv"
 VIDEO_SECONDS = 10.0
@@ -42,7 +44,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--delay-margin", type=float, default=None, metavar="MAX",
                         help="instead of one lab: the largest delay (whole MJCF steps up to MAX s) at which the lab's "
                              "LQR (and with --compare-pid the PID) still balances all five starts on this rig; "
-                             "prints it, writes nothing")
+                             "prints it and writes figures/delay_margin.png")
+    parser.add_argument("--noise-margin", type=float, default=None, metavar="MAX",
+                        help="instead of one lab: the largest sensor noise (std in m or rad; 0 and MAX halved nine "
+                             "times to MAX) at which the LQR through the estimator (default kf; with --compare-pid "
+                             "also the PID on the measurements) still balances all five starts on this rig; prints "
+                             "it and writes figures/noise_margin.png")
 
 
 #: Largest magnitude of a --Q or --R entry (and 1 / it the smallest nonzero one): far outside it SciPy's Riccati solver
@@ -84,6 +91,8 @@ def run(args) -> dict:
     from cartpole.models import build_model
     from cartpole.sim import simulate
     from cartpole.viz import VideoUnavailable, plot_lab, render_video
+    from cartpole.control.friction import friction_summary
+    from cartpole.errors import CartPoleError
 
     # Everything that can fail on bad input happens before the first file is written.
     model = build_model(args.mjcf)
@@ -100,11 +109,14 @@ def run(args) -> dict:
     check_log_size(runs * LAB_DURATION + clip, model.params,
                    what=f"the lab's {runs} runs of {LAB_DURATION:g} s" + (f" and its {clip:g} s video clip" if clip
                                                                         else ""))
+    if args.delay_margin is not None and args.noise_margin is not None:
+        raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
+    for key in MARGINS:
+        if getattr(args, key) is not None:
+            return _margin(args, model, loop, key)
     from cartpole._files import check_replaceable
 
     check_replaceable(Path(args.out) / METRICS)  # a read-only metrics.csv is refused before the lab runs
-    if args.delay_margin is not None:
-        return _delay_margin(args, model, loop)
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop)
     if args.view:
         result = _view(result)
@@ -173,6 +185,7 @@ def run(args) -> dict:
         "rollouts": [_rollout_dict(r) for r in result.rollouts],
         "peak_ctrl": result.peak_ctrl,
         "cart_excursion": result.cart_excursion,
+        "residual_error": result.residual_error,
         "saturation_fraction": [m.saturation_fraction for m in result.metrics],
         "track_margin": [m.track_margin for m in result.metrics],
         "figure": str(figure),
@@ -180,6 +193,7 @@ def run(args) -> dict:
         "video_render_s": video_render_s,
         "metrics": str(metrics),
         **rig_doc(result.rig, result.period),
+        "friction": friction_summary(result.params, result.friction_compensation),
         "estimation": result.estimation,
         "estimation_figure": est_figure,
     }
@@ -190,30 +204,47 @@ def run(args) -> dict:
     return doc
 
 
-def _delay_margin(args, model, loop) -> dict:
-    """``--delay-margin MAX``: JSON ``mjcf``, ``period`` (s), ``rig`` (the rest of the rig), ``delay_margin``
-    (:func:`cartpole.apps.lab.delay_margin`: ``lqr``, ``lqr_first_failure``, and ``pid`` ones with
-    ``--compare-pid``, s)."""
+#: ``--delay-margin`` / ``--noise-margin``: the JSON key, the figure, what the setting is called, its unit.
+MARGINS = {"delay_margin": ("delay", DELAY_MARGIN_FIGURE, "a delay", "s"),
+           "noise_margin": ("sensor_noise", NOISE_MARGIN_FIGURE, "a sensor noise", "m or rad")}
+
+
+def _margin(args, model, loop, key: str) -> dict:
+    """``--delay-margin MAX`` or ``--noise-margin MAX``: JSON ``mjcf``, ``period`` (s), ``rig`` (the rest of the
+    rig), ``delay_margin`` or ``noise_margin`` (:func:`cartpole.apps.lab.rig_margin`: ``lqr``,
+    ``lqr_first_failure``, ``lqr_runs`` and the ``pid`` ones with ``--compare-pid``), ``figure``."""
     import math
 
-    from cartpole.apps.lab import delay_margin
+    from cartpole.apps.lab import delay_margin, noise_margin
     from cartpole.errors import CartPoleError
     from cartpole.progress import stage
+    from cartpole.viz.margin_plot import plot_margin
 
-    if not (math.isfinite(args.delay_margin) and args.delay_margin >= 0):
-        raise CartPoleError(f"--delay-margin {args.delay_margin:g} is not a delay in s >= 0; give e.g. "
-                            "--delay-margin 0.1.")
-    with stage("delay margin", size=f"delays up to {args.delay_margin:g} s") as tick:
-        found = delay_margin(model, loop=loop, max_delay=args.delay_margin, pid=args.compare_pid, progress=tick)
+    setting, path, what, unit = MARGINS[key]
+    flag = "--" + key.replace("_", "-")
+    top = getattr(args, key)
+    low_ok = top >= 0 if key == "delay_margin" else top > 0
+    if not (math.isfinite(top) and low_ok):
+        raise CartPoleError(f"{flag} {top:g} is not {what} in {unit} {'>=' if key == 'delay_margin' else '>'} 0; "
+                            f"give e.g. {flag} {0.1 if key == 'delay_margin' else 0.01}.")
+    if key == "noise_margin" and loop.estimator_for("balance") == "none":
+        loop = loop.replace(estimator="kf")  # noise on the sensors needs an estimator between them and the LQR
+    search = delay_margin if key == "delay_margin" else noise_margin
+    limit = {"max_delay": top} if key == "delay_margin" else {"max_noise": top}
+    with stage(key.replace("_", " "), size=f"{setting.replace('_', ' ')} up to {top:g} {unit}") as tick:
+        found = search(model, loop=loop, pid=args.compare_pid, progress=tick, **limit)
     period = model.dt if loop.period is None else loop.period
-    doc = {"mjcf": model.params.mjcf, "period": float(period), "rig": loop.as_dict(), "delay_margin": found}
+    figure = plot_margin(found, Path(args.out) / path)
+    doc = {"mjcf": model.params.mjcf, "period": float(period), "rig": loop.as_dict(), key: found,
+           "figure": str(figure.resolve())}
     if not args.json:
         for name in ("lqr", "pid"):
             if name in found:
                 m, f = found[name], found[f"{name}_first_failure"]
-                print(f"{name.upper()}: balances all five starts up to a delay of "
-                      f"{'no delay at all' if m is None else f'{m:g} s'}"
-                      + (f"; fails at {f:g} s" if f is not None else f" (every delay tried, to {args.delay_margin:g} s)"))
+                print(f"{name.upper()}: balances all five starts up to {what} of "
+                      f"{'none at all' if m is None else f'{m:g} {unit}'}"
+                      + (f"; fails at {f:g} {unit}" if f is not None else f" (every value tried, to {top:g} {unit})"))
+        print(f"Wrote {doc['figure']}")
     return doc
 
 
@@ -315,6 +346,8 @@ def _print_prose(result, doc, pid=None) -> None:
         print("Closed-loop eigenvalues:", result.E)
         if result.rig is not None:
             print(_rig_sentence(result.rig))
+        if doc["friction"] is not None:
+            print(friction_sentence(doc["friction"]))
         if result.start_scale != 1.0:
             print(f"The lab's starts at full size are too large for this model: all five are scaled by "
                   f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which the lab's own LQR settles "

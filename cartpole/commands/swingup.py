@@ -46,6 +46,9 @@ def add_arguments(parser) -> None:
                              "longer); the controller is designed on that model, MuJoCo keeps the MJCF's")
     parser.add_argument("--horizon", type=float, default=None, metavar="S",
                         help="mpc only: prediction horizon in s (default the controller's, 1.2 s)")
+    parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
+                        help="mpc only: real-time iteration on the condensed QP (rti, the default) or warm-started "
+                             "box-DDP on the exact held model (ddp)")
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step; "
                       "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
                       "designed for it")
@@ -188,7 +191,10 @@ def run(args) -> dict:
     if args.method == "mpc":
         from cartpole.mpc.options import MPCOptions
 
-        mpc = MPCOptions() if horizon is None else MPCOptions(horizon=horizon)
+        mpc = MPCOptions(**({} if horizon is None else {"horizon": horizon}),
+                         **({} if args.mpc_solver is None else {"solver": args.mpc_solver}))
+    elif getattr(args, "mpc_solver", None) is not None:
+        raise SwingupError("--mpc-solver picks the MPC's solver; use it with --method mpc.")
     out = Path(args.out)
 
     from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
@@ -232,6 +238,7 @@ def run(args) -> dict:
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
     doc["push"] = [list(p) for p in res.push]
     doc["rig"] = m.get("rig")
+    doc["friction"] = m.get("friction")
     doc["estimation"] = m.get("estimation")
     doc["estimation_figure"] = est_fig
     if args.method != "mpc":
@@ -270,6 +277,10 @@ def run(args) -> dict:
             r = doc["rig"]
             print(f"Rig: control period {r['period']:g} s, delay {r['delay']:g} s"
                   f"{'' if r['delay_compensation'] else ' (not compensated)'}, estimator {r['estimator']}")
+        if doc["friction"] is not None:
+            from cartpole.commands._rig import friction_sentence
+
+            print(friction_sentence(doc["friction"]))
         if doc["estimation"]:
             est = doc["estimation"]
             rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.models.friction import check_width
+from cartpole.models import check_width
 
 
 class FrictionCompensation:
@@ -94,3 +94,48 @@ class FrictionCompensation:
         if controller is None or name.startswith("__"):
             raise AttributeError(name)
         return getattr(controller, name)
+
+
+def friction_design(model, loop=None):
+    """The model to design controllers on, and the compensation to wrap them in, for a closed loop on ``model``.
+
+    On a model whose driven joints have ``frictionloss``, with ``loop.friction_compensation`` (the default), every
+    controller is designed on ``model.without_friction(driven joints)`` (the friction the compensation cancels is
+    gone; an undriven joint's stays, as the smooth model) and runs wrapped in :class:`FrictionCompensation` on
+    ``model``. Otherwise the controllers are designed on ``model`` itself (with its smooth friction, if any) and run
+    unwrapped.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The plant's model (the MJCF MuJoCo runs, or a planning model built from it).
+    loop : LoopOptions, optional
+        Its ``friction_compensation`` flag is read (default True).
+
+    Returns
+    -------
+    design : CartPoleModel
+        The model to design on.
+    compensate : callable or None
+        ``compensate(controller) -> FrictionCompensation(controller, model)``; None when nothing is compensated.
+    """
+    wanted = True if loop is None else bool(getattr(loop, "friction_compensation", True))
+    if not (wanted and model.params.driven_friction):
+        return model, None
+    driven = [a.joint for a in model.params.actuators if a.gear != 0]
+    return model.without_friction(driven), lambda controller: FrictionCompensation(controller, model)
+
+
+def friction_summary(params, compensated: bool) -> dict | None:
+    """JSON ``friction`` of a run: ``frictionloss`` per joint name (N or N m, the joints that have some) and
+    ``compensation`` (whether the controllers cancelled the driven joints'); None on a model without friction.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+    compensated : bool
+    """
+    loss = {j.name: float(j.frictionloss) for j in params.joints if j.frictionloss != 0}
+    if not loss:
+        return None
+    return {"frictionloss": loss, "compensation": bool(compensated)}

@@ -93,7 +93,8 @@ class LinearFeedback:
     @classmethod
     def for_model(cls, model, Q=None, R=None, *, discrete: bool = False, u_limits="ctrlrange",
                   period: float | None = None) -> "LinearFeedback":
-        """LQR about the model's upright equilibrium ``(x_eq, u_eq)`` on its exact linearisation.
+        """LQR about the model's upright equilibrium ``(x_eq, u_eq)`` on its exact linearisation (without dry
+        friction, which has no slope at rest: :meth:`~cartpole.models.CartPoleModel.without_friction`).
 
         Parameters
         ----------
@@ -131,6 +132,7 @@ class LinearFeedback:
 
         if not isinstance(model, CartPoleModel):
             model = build_model(model)
+        model = model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
         Q0, R0 = lab_weights(model)
         Q = Q0 if Q is None else Q
         R = R0 if R is None else R

@@ -38,3 +38,56 @@ class Estimator(Protocol):
     def update(self, y, U) -> np.ndarray:
         """Take the measurement ``y`` (ny,) and the ctrl ``U`` (nu, m) applied since the last sample; returns
         ``x_hat`` (nx,) at this sample."""
+
+
+def check_measurement(y, ny: int) -> np.ndarray:
+    """A measurement as ``ny`` finite floats (sensor units).
+
+    Parameters
+    ----------
+    y : array_like
+        The measurement.
+    ny : int
+        Its size.
+
+    Returns
+    -------
+    (ny,) array
+
+    Raises
+    ------
+    EstimationError
+        Another size, or a NaN or infinite entry.
+    """
+    y = np.asarray(y, dtype=float).ravel()
+    if y.shape != (ny,) or not np.isfinite(y.sum()):
+        raise EstimationError(f"The measurement must be {ny} finite numbers; got {y.tolist()}.")
+    return y
+
+
+def first_estimate(initial_state, y0, nx: int) -> np.ndarray:
+    """The first estimate ``initial_state(y0)`` as ``nx`` finite floats ``[qpos, qvel]`` (m, rad, m/s, rad/s).
+
+    Parameters
+    ----------
+    initial_state : callable
+        ``y0 (ny,) -> x0 (nx,)``.
+    y0 : (ny,) array
+        The first measurement (sensor units), already checked.
+    nx : int
+        State size.
+
+    Returns
+    -------
+    (nx,) array
+        A fresh copy.
+
+    Raises
+    ------
+    EstimationError
+        When ``initial_state`` returns another size or a non-finite entry.
+    """
+    x0 = np.array(initial_state(y0), dtype=float).ravel()
+    if x0.shape != (nx,) or not np.all(np.isfinite(x0)):
+        raise EstimationError(f"initial_state(y0) must return {nx} finite numbers [qpos, qvel]; got {x0.tolist()}.")
+    return x0

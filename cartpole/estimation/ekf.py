@@ -28,16 +28,10 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered
-from cartpole.estimation.base import EstimationError
-from cartpole.estimation.kalman import (
-    check_ctrl,
-    check_measurement_model,
-    check_steps,
-    measured_positions,
-    measurement_jacobians,
-    positions_initial_state,
-    process_noise,
-)
+from cartpole.estimation.base import EstimationError, check_measurement, first_estimate
+from cartpole.estimation.kalman import check_ctrl, check_steps, process_noise
+from cartpole.estimation.measurement import (check_measurement_model, measured_positions, measurement_jacobians,
+                                             positions_initial_state)
 from cartpole.estimation.mhe_functions import positive_definite
 
 #: Default initial standard deviation of a position that no sensor reads one-to-one (m, rad): its first estimate
@@ -103,7 +97,7 @@ class ExtendedKalmanFilter:
         :data:`UNMEASURED_POSITION_STD` on other positions, :data:`INITIAL_RATE_STD` on the rates).
     initial_state : callable, optional
         ``y0 (ny,) -> x0 (nx,)``: the first estimate. Default
-        :func:`~cartpole.estimation.kalman.positions_initial_state` with base ``model.x_hanging`` (a swing-up
+        :func:`~cartpole.estimation.measurement.positions_initial_state` with base ``model.x_hanging`` (a swing-up
         starts hanging): positions ``h`` reads one-to-one from ``y0``, the others hanging, zero rates.
     name : str
         The estimator's name (the CLI's ``--estimator``).
@@ -173,10 +167,7 @@ class ExtendedKalmanFilter:
             The first estimate ``initial_state(y0)`` (zero rates), with covariance ``P0``.
         """
         y0 = self._check_y(y0)
-        x0 = np.array(self._initial_state(y0), dtype=float).ravel()
-        if x0.shape != (self.nx,) or not np.all(np.isfinite(x0)):
-            raise EstimationError(f"initial_state(y0) must return {self.nx} finite numbers [qpos, qvel]; got "
-                                  f"{x0.tolist()}.")
+        x0 = first_estimate(self._initial_state, y0, self.nx)
         self.x_hat, self.P, self.K = x0, np.array(self.P0), None
         self.failures, self._k = [], 0
         return x0.copy()
@@ -225,10 +216,7 @@ class ExtendedKalmanFilter:
         return self.x_hat.copy()
 
     def _check_y(self, y) -> np.ndarray:
-        y = np.asarray(y, dtype=float).ravel()
-        if y.shape != (self.ny,) or not math.isfinite(y.sum()):
-            raise EstimationError(f"The measurement must be {self.ny} finite numbers; got {y.tolist()}.")
-        return y
+        return check_measurement(y, self.ny)
 
 
 def bench_ekf(model, steps: int, h: ca.Function, V, *, updates: int = 2000, seed: int = 0) -> dict:

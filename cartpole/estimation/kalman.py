@@ -26,21 +26,24 @@ The gain is the dual of the discrete LQR (estimation of ``(A, C)`` with weights 
 ``(A', C')``): :func:`kalman_gain` solves it with :func:`cartpole.lqr.dlqr` on ``(A', C', W, V)``, after checks that
 speak of estimation (which states the sensors cannot see, which covariance is wrong).
 
-Shared with :mod:`cartpole.estimation.ekf`: the measurement model's checks (:func:`check_measurement_model`), the
+Shared with :mod:`cartpole.estimation.ekf`: the measurement model's checks
+(:func:`~cartpole.estimation.measurement.check_measurement_model`), the
 states' names in sentences (:func:`state_names`), the positions a measurement gives one-to-one
-(:func:`measured_positions`) and the first estimate from the first measurement (:func:`positions_initial_state`).
+(:func:`~cartpole.estimation.measurement.measured_positions`) and the first estimate from the first measurement
+(:func:`~cartpole.estimation.measurement.positions_initial_state`).
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.estimation.base import EstimationError
+from cartpole.estimation.base import EstimationError, check_measurement, first_estimate
+from cartpole.estimation.measurement import (check_measurement_model, measurement_jacobians,
+                                          positions_initial_state)
 from cartpole.estimation.mhe_functions import positive_definite, symmetric_matrix
 from cartpole.estimation.noise import process_covariance
 from cartpole.lqr import LQRError, dlqr, uncontrollable_modes
@@ -56,8 +59,6 @@ from cartpole.models import state_error
 DEFAULT_SLIDE_ACCEL_STD = 1.0
 DEFAULT_HINGE_ACCEL_STD = 3.0
 
-#: Row ``i`` of ``C`` is taken for the unit vector ``e_j`` (a sensor reading joint ``j`` directly) within this.
-_UNIT_TOL = 1e-12
 #: A null vector's component below this fraction of its largest is not counted as a state the mode involves.
 _INVOLVED = 1e-6
 
@@ -121,138 +122,6 @@ def state_names(model) -> tuple[str, ...]:
                 pos.append(f"the angle of pole {k + 1}")
                 vel.append(f"the angular velocity of pole {k + 1}")
     return tuple(pos + vel)
-
-
-def check_measurement_model(h, nx: int, nu: int) -> int:
-    """Check that ``h`` is a CasADi Function ``h(x (nx,), u (nu,)) -> y (ny,)``; returns ``ny``.
-
-    Parameters
-    ----------
-    h : casadi.Function
-        The measurement model (sensor units).
-    nx, nu : int
-        State and input sizes.
-
-    Returns
-    -------
-    int
-        ``ny``, the measurement's size (>= 1).
-
-    Raises
-    ------
-    EstimationError
-        Anything else.
-    """
-    if not isinstance(h, ca.Function) or h.n_in() != 2 or h.n_out() < 1:
-        raise EstimationError("The measurement model h must be a CasADi Function h(x, u) -> y.")
-    if h.numel_in(0) != nx or h.numel_in(1) != nu or h.size2_out(0) != 1 or h.size1_out(0) < 1:
-        raise EstimationError(f"The measurement model h takes x ({h.numel_in(0)}) and u ({h.numel_in(1)}) and "
-                              f"returns {h.size1_out(0)} x {h.size2_out(0)}; it must take ({nx},) and ({nu},) and "
-                              "return a column y (ny,) with ny >= 1.")
-    return int(h.size1_out(0))
-
-
-def measurement_jacobians(h, nx: int, nu: int) -> ca.Function:
-    """``(x (nx,), u (nu,)) -> (y (ny,), dh/dx (ny, nx), dh/du (ny, nu))``, built once from ``h`` (SX where ``h``
-    takes SX symbols, else MX); dense outputs.
-
-    Parameters
-    ----------
-    h : casadi.Function
-        ``h(x, u) -> y`` (sensor units), checked by :func:`check_measurement_model`.
-    nx, nu : int
-        State and input sizes.
-
-    Returns
-    -------
-    casadi.Function
-    """
-    check_measurement_model(h, nx, nu)
-    for sym in (ca.SX, ca.MX):  # an MX-only h (e.g. with a lookup table) cannot take SX symbols
-        x, u = sym.sym("x", nx), sym.sym("u", nu)
-        try:
-            y = h(x, u)
-        except (RuntimeError, NotImplementedError, TypeError):
-            continue
-        y = y[0] if isinstance(y, (list, tuple)) else y
-        outs = [ca.densify(v) for v in (y, ca.jacobian(y, x), ca.jacobian(y, u))]
-        return ca.Function("h_jac", [x, u], outs, ["x", "u"], ["y", "C", "D"], {"cse": True} if sym is ca.SX else {})
-    raise EstimationError("The measurement model h cannot be evaluated on symbols; give a CasADi Function "
-                          "h(x, u) -> y built from SX or MX expressions.")
-
-
-def measured_positions(h, nq: int, nu: int) -> tuple[tuple[int, int], ...]:
-    """The positions a measurement reads one-to-one: pairs ``(i, j)`` with ``y_i = q_j`` (an encoder on joint
-    ``j``), found as rows of ``h`` that equal ``q_j`` with Jacobian ``e_j`` at three random states and ctrls.
-
-    Parameters
-    ----------
-    h : casadi.Function
-        ``h(x (2 nq,), u (nu,)) -> y (ny,)``.
-    nq, nu : int
-        Joints and inputs.
-
-    Returns
-    -------
-    tuple of (int, int)
-        ``(row of y, qpos index)``, at most one row per joint (the first), in order of ``y``.
-    """
-    nx = 2 * int(nq)
-    ny = check_measurement_model(h, nx, nu)
-    fun = measurement_jacobians(h, nx, nu)
-    rng = np.random.default_rng(0)
-    evals = []
-    for _ in range(3):
-        x, u = rng.normal(size=nx), rng.normal(size=nu)
-        y, C, _ = (np.asarray(v, dtype=float) for v in fun(x, u))
-        evals.append((x, y.ravel(), C.reshape(ny, nx)))
-    pairs, taken = [], set()
-    for i in range(ny):
-        for j in range(int(nq)):
-            if j in taken:
-                continue
-            unit = np.eye(nx)[j]
-            if all(abs(y[i] - x[j]) <= _UNIT_TOL and np.allclose(C[i], unit, rtol=0, atol=_UNIT_TOL)
-                   for x, y, C in evals):
-                pairs.append((i, j))
-                taken.add(j)
-                break
-    return tuple(pairs)
-
-
-def positions_initial_state(h, model, base) -> Callable[[np.ndarray], np.ndarray]:
-    """The default first estimate ``y0 (ny,) -> x0 (nx,)``: each position that ``h`` reads one-to-one
-    (:func:`measured_positions`) from ``y0``, the other positions from ``base``, all rates zero.
-
-    Parameters
-    ----------
-    h : casadi.Function
-        ``h(x (nx,), u (nu,)) -> y (ny,)``.
-    model : CartPoleModel
-        Its ``nq`` and ``nu``.
-    base : (nx,) array
-        Where the unmeasured positions come from (m, rad): the KF's operating point, the EKF's hanging rest.
-
-    Returns
-    -------
-    callable
-        ``y0 (ny,) -> x0 (nx,)`` (m, rad; rates m/s, rad/s zero).
-    """
-    nq, nu = int(model.nq), int(model.nu)
-    x_base = np.array(base, dtype=float).ravel()
-    if x_base.shape != (2 * nq,):
-        raise EstimationError(f"The base state of the first estimate must be {2 * nq} numbers [qpos, qvel].")
-    x_base[nq:] = 0.0
-    pairs = measured_positions(h, nq, nu)
-    rows = [i for i, _ in pairs]
-    cols = [j for _, j in pairs]
-
-    def initial_state(y0):
-        x0 = x_base.copy()
-        x0[cols] = np.asarray(y0, dtype=float).ravel()[rows]
-        return x0
-
-    return initial_state
 
 
 def _join(names) -> str:
@@ -485,7 +354,7 @@ class KalmanFilter:
     u_op : (nu,) array, optional
         Operating point's ctrl (ctrl units), default ``model.u_eq``.
     initial_state : callable, optional
-        ``y0 (ny,) -> x0 (nx,)``: the first estimate. Default :func:`positions_initial_state` with base ``x_op``:
+        ``y0 (ny,) -> x0 (nx,)``: the first estimate. Default :func:`~cartpole.estimation.measurement.positions_initial_state` with base ``x_op``:
         positions ``h`` reads one-to-one from ``y0``, the others from the operating point, zero rates.
     name : str
         The estimator's name (the CLI's ``--estimator``).
@@ -570,10 +439,7 @@ class KalmanFilter:
             The first estimate ``initial_state(y0)`` (zero rates).
         """
         y0 = self._check_y(y0)
-        x0 = np.array(self._initial_state(y0), dtype=float).ravel()
-        if x0.shape != (self.nx,) or not np.all(np.isfinite(x0)):
-            raise EstimationError(f"initial_state(y0) must return {self.nx} finite numbers [qpos, qvel]; got "
-                                  f"{x0.tolist()}.")
+        x0 = first_estimate(self._initial_state, y0, self.nx)
         self.x_hat = x0
         return x0.copy()
 
@@ -614,7 +480,4 @@ class KalmanFilter:
         return self._y_ref[key]
 
     def _check_y(self, y) -> np.ndarray:
-        y = np.asarray(y, dtype=float).ravel()
-        if y.shape != (self.ny,) or not math.isfinite(y.sum()):
-            raise EstimationError(f"The measurement must be {self.ny} finite numbers; got {y.tolist()}.")
-        return y
+        return check_measurement(y, self.ny)

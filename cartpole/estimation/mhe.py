@@ -45,18 +45,18 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered
-from cartpole.estimation.base import EstimationError
+from cartpole.estimation.base import EstimationError, check_measurement, first_estimate
 from cartpole.estimation.mhe_functions import (
     WindowFunctions,
     arrival_update,
     condensed_qp,
     inverse_factor,
-    measured_positions_first,
     positive_definite,
     solve_window_qp,
     symmetric_matrix,
     window_functions,
 )
+from cartpole.estimation.measurement import positions_initial_state
 from cartpole.estimation.noise import process_covariance
 
 #: Periods in the window when none is given.
@@ -232,7 +232,7 @@ class MovingHorizonEstimator:
         self._stage = Buffered(self.functions.stage)
         self._meas = Buffered(self.functions.measurement)
         if initial_state is None:
-            initial_state = measured_positions_first(self.functions.measurement, model, self.ny)
+            initial_state = positions_initial_state(h, model, getattr(model, "x_hanging", np.zeros(nx)))
         self._initial_state = initial_state
         N, r = self.N, self._r
         self._X = np.zeros((N + 1, nx))  # row-major (N+1, nx) is CasADi's column-major (nx, N+1)
@@ -260,10 +260,7 @@ class MovingHorizonEstimator:
             cost's centre; the window holds this one node.
         """
         y0 = self._check_y(y0)
-        x0 = np.array(self._initial_state(y0), dtype=float).ravel()
-        if x0.shape != (self.nx,) or not np.all(np.isfinite(x0)):
-            raise EstimationError(f"initial_state(y0) must return {self.nx} finite numbers [qpos, qvel]; got "
-                                  f"{x0.tolist()}.")
+        x0 = first_estimate(self._initial_state, y0, self.nx)
         x0[self._bidx] = np.clip(x0[self._bidx], self._lo, self._hi)
         self._X[:] = x0
         self._E[:] = 0.0
@@ -333,10 +330,7 @@ class MovingHorizonEstimator:
 
     # ---- internals --------------------------------------------------------------------------------------------
     def _check_y(self, y) -> np.ndarray:
-        y = np.asarray(y, dtype=float).ravel()
-        if y.shape != (self.ny,) or not math.isfinite(y.sum()):
-            raise EstimationError(f"The measurement must be {self.ny} finite numbers; got {y.tolist()}.")
-        return y
+        return check_measurement(y, self.ny)
 
     def _check_U(self, U) -> np.ndarray:
         U = np.asarray(U, dtype=float)

@@ -28,6 +28,7 @@ import numpy as np
 
 from cartpole.codegen import CacheError, build_library, load_library
 from cartpole.estimation.base import EstimationError
+from cartpole.estimation.measurement import measurement_jacobians
 
 _LIB_VERSION = "mhe-window-v1"  # bump when the generated functions change meaning
 
@@ -80,17 +81,11 @@ def _stage(model, steps: int) -> ca.Function:
 
 
 def _measurement(h: ca.Function, nx: int, nu: int) -> ca.Function:
-    for sym in (ca.SX, ca.MX):  # an MX-only h (e.g. with a lookup table) cannot take SX symbols
-        x, u = sym.sym("x", nx), sym.sym("u", nu)
-        try:
-            y = h(x, u)
-        except (RuntimeError, NotImplementedError, TypeError):
-            continue
-        y = y[0] if isinstance(y, (list, tuple)) else y
-        return ca.Function("mhe_meas", [x, u], [ca.densify(y), ca.densify(ca.jacobian(y, x))], ["x", "u"],
-                           ["y", "C"])
-    raise EstimationError("The measurement model h cannot be evaluated on symbols; give a CasADi Function "
-                          "h(x, u) -> y built from SX or MX expressions.")
+    # y and dy/dx only (the MHE's ctrl enters through the model), from the one builder of h's Jacobians
+    jac = measurement_jacobians(h, nx, nu)
+    x, u = jac.sx_in() if jac.is_a("SXFunction") else jac.mx_in()
+    y, C, _ = jac(x, u)
+    return ca.Function("mhe_meas", [x, u], [y, C], ["x", "u"], ["y", "C"])
 
 
 def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: bool = True) -> WindowFunctions:
@@ -333,47 +328,3 @@ def inverse_factor(P: np.ndarray) -> np.ndarray:
     raise EstimationError("The MHE's arrival covariance is not positive definite; give a P0 and W with variances "
                           "> 0.")
 
-
-def measured_positions_first(measurement: ca.Function, model, ny: int):
-    """The default first estimate ``y0 (ny,) -> x0 (nx,)``: each position ``q_j`` that ``h`` measures one-to-one
-    (``y_i = q_j`` and ``dy_i/dx = e_j`` at three random states and ctrls) from ``y0``, the other positions from
-    ``model.x_hanging`` (zeros without one), zero rates (m, rad, m/s, rad/s).
-
-    Parameters
-    ----------
-    measurement : casadi.Function
-        ``(x (nx,), u (nu,)) -> (y (ny,), C (ny, nx))`` (:attr:`WindowFunctions.measurement`).
-    model : CartPoleModel
-        Its ``nq``, ``nx``, ``nu`` and ``x_hanging`` (nx,).
-    ny : int
-        Measurement size.
-
-    Returns
-    -------
-    callable
-        ``y0 -> x0``.
-    """
-    nq, nx, nu = model.nq, model.nx, model.nu
-    base = np.array(getattr(model, "x_hanging", np.zeros(nx)), dtype=float).ravel()
-    base[nq:] = 0.0
-    rng = np.random.default_rng(0)
-    evals = []
-    for _ in range(3):
-        x, u = rng.normal(size=nx), rng.normal(size=nu)
-        yv, C = (np.asarray(v, dtype=float) for v in measurement(x, u))
-        evals.append((x, yv.ravel(), C.reshape(ny, nx)))
-    rows, cols = [], []
-    for i in range(ny):
-        for j in range(nq):
-            unit = np.eye(nx)[j]
-            if all(abs(yv[i] - x[j]) <= 1e-12 and np.allclose(C[i], unit, rtol=0, atol=1e-12) for x, yv, C in evals):
-                rows.append(i)
-                cols.append(j)
-                break
-
-    def initial_state(y0):
-        x0 = base.copy()
-        x0[cols] = np.asarray(y0, dtype=float)[rows]
-        return x0
-
-    return initial_state

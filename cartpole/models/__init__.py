@@ -4,9 +4,10 @@ from cartpole.models.params import (SHIPPED_MJCF, SUPPORTED_INTEGRATORS, CartPol
 from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_kinematics_np
 from cartpole.models.discretize import MAX_PERIOD, HoldModel, PeriodError, hold_model, steps_per_period
 from cartpole.models.symbolic import CartPoleModel, build_model, linearize, state_error, wrap_angle
+from cartpole.models.friction import DEFAULT_FRICTION_WIDTH, FrictionWidthError, check_width, smooth_friction
 
 __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError", "load_model", "mujoco_warnings",
            "read_params",
            "CartPoleModel", "build_model", "linearize", "state_error", "wrap_angle", "Kinematics",
            "forward_kinematics", "forward_kinematics_np", "MAX_PERIOD", "HoldModel", "PeriodError", "hold_model",
-           "steps_per_period"]
+           "steps_per_period", "DEFAULT_FRICTION_WIDTH", "FrictionWidthError", "check_width", "smooth_friction"]

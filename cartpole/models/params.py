@@ -398,6 +398,23 @@ class CartPoleParams:
         return dataclasses.replace(self, **{k: (readonly(v) if isinstance(v, (list, np.ndarray)) else v)
                                             for k, v in changes.items()})
 
+    @property
+    def driven_friction(self) -> bool:
+        """True when a joint an actuator drives (with a nonzero gear) has frictionloss: friction the controllers can
+        cancel (:class:`cartpole.control.friction.FrictionCompensation`)."""
+        return any(self.joints[a.joint].frictionloss != 0 and a.gear != 0 for a in self.actuators)
+
+    def without_friction(self, joints=None) -> "CartPoleParams":
+        """A copy with the ``frictionloss`` of ``joints`` (qpos indices; default every joint) set to zero.
+
+        The model controllers are designed on when a compensation cancels the friction of the driven joints
+        (``without_friction(params.actuated)``), or a frictionless reference. MuJoCo still runs the MJCF (its path or
+        XML text is kept), so the true friction stays in the loop.
+        """
+        drop = set(range(self.nq)) if joints is None else {int(j) for j in joints}
+        return dataclasses.replace(self, joints=tuple(
+            dataclasses.replace(j, frictionloss=0.0) if i in drop else j for i, j in enumerate(self.joints)))
+
     def scaled_pole(self, mass_factor: float = 1.0, length_factor: float = 1.0) -> "CartPoleParams":
         """Parameters whose poles (every body that rotates with the first hinge) are heavier and longer.
 

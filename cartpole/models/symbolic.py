@@ -271,6 +271,22 @@ class CartPoleModel:
             holds[steps] = hold_model(self, steps)
         return holds[steps]
 
+    def without_friction(self, joints=None) -> "CartPoleModel":
+        """The same model (step, integrator, friction width) with the ``frictionloss`` of ``joints`` (qpos indices;
+        default all) removed (:meth:`CartPoleParams.without_friction`); ``self`` when none of them has any.
+
+        Linear designs at rest use ``without_friction()``: there the smooth friction's slope ``frictionloss / width``
+        would be a viscous damping (50 N s/m for 0.5 N at the default width) that the joint, stuck or sliding at the
+        Coulomb level, does not have."""
+        drop = tuple(range(self.nq) if joints is None else sorted({int(j) for j in joints}))
+        if not any(self.params.joints[j].frictionloss != 0 for j in drop):
+            return self
+        built = self.__dict__.setdefault("_without_friction", {})  # a cache, like hold()'s
+        if drop not in built:
+            built[drop] = build_model(self.params.without_friction(drop), dt=self.dt, integrator=self.integrator,
+                                      friction_width=self.friction_width)
+        return built[drop]
+
     def rebuilt(self, *, dt: float | None = None, integrator: str | None = None) -> "CartPoleModel":
         """The same physics (and friction width) with another discrete step (e.g. a control period of several
         physics steps)."""

@@ -16,6 +16,8 @@ DEFAULT_HORIZON = 1.2
 #: QP solvers the controller can use: DAQP (PyPI ``daqp``, dual active set, the default when installed) and
 #: qpOASES (shipped with CasADi).
 QP_SOLVERS = ("daqp", "qpoases")
+#: The MPC's solvers: Gauss-Newton real-time iteration on the condensed QP, or warm-started box-DDP.
+MPC_SOLVERS = ("rti", "ddp")
 #: Default exact-penalty weight on the rail slack, cost per m (or rad) of violation.
 RAIL_PENALTY = 1e3
 #: Most prediction stages (horizon / period) an NMPC may have: its condensed QP grows with the square of the stages
@@ -89,6 +91,10 @@ class MPCOptions(StageOptions):
         fastest upright mode grows by more than :data:`~cartpole.mpc.nmpc.GROWTH_LIMIT` over the horizon.
     compiled : bool
         False evaluates the stage functions in CasADi's virtual machine (the fallback, same numbers).
+    solver : {'rti', 'ddp'}
+        ``rti``: :class:`~cartpole.mpc.nmpc.NMPCController` (Gauss-Newton SQP steps on the condensed QP); ``ddp``:
+        :class:`~cartpole.mpc.ddp_mpc.DDPMPCController` (``iterations`` warm-started box-DDP iterations a period;
+        ``qp_solver``, ``prestabilize`` and ``tol`` do not apply).
 
     Raises
     ------
@@ -108,6 +114,7 @@ class MPCOptions(StageOptions):
     qp_solver: str | None = None
     prestabilize: bool | None = None
     compiled: bool = True
+    solver: str = "rti"
 
     error: ClassVar[type] = NMPCError
     SCALARS: ClassVar[tuple] = ("period", "horizon", "iterations", "tol", "init_iterations", "cart_margin",
@@ -121,6 +128,9 @@ class MPCOptions(StageOptions):
         self.number("tol", low=0.0)
         self.number("cart_margin", low=0.0, unit="m")
         self.number("rail_penalty", low=0.0, low_open=True)
+        if self.solver not in MPC_SOLVERS:
+            raise NMPCError(f"The MPC solver '{self.solver}' is not one of {', '.join(MPC_SOLVERS)}; give e.g. "
+                            "--mpc-solver ddp.")
         if self.qp_solver is not None and self.qp_solver not in QP_SOLVERS:
             raise NMPCError(f"qp_solver '{self.qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         if self.prestabilize is not None:

@@ -408,7 +408,8 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
     """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
     (``dt = params.timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps * params.timestep``, a
     control period), of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
-    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`.
+    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`. Designed without
+    the model's dry friction (:meth:`~cartpole.models.CartPoleModel.without_friction`).
 
     The catch basin ``cartpole swingup --method trajopt`` reports is this controller's.
     """
@@ -417,6 +418,7 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
     Q = Q0 if Q is None else np.asarray(Q, float)
     R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
     tv_model = model if abs(model.dt - params.timestep) < 1e-15 else model.rebuilt(dt=params.timestep)
+    tv_model = tv_model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
     if steps > 1:
         Ad, Bd = tv_model.hold(steps).linearize()
     else:

@@ -155,6 +155,10 @@ class LoopOptions(StageOptions):
     delay_compensation : bool
         Predict the estimate forward through the model over the delay with the ctrl already sent (True), or act
         on the stale estimate (False: what the delay costs).
+    friction_compensation : bool
+        On a model whose driven joints have ``frictionloss``: design every controller on the model without that
+        friction and add the ctrl cancelling it (:class:`cartpole.control.friction.FrictionCompensation`, True), or
+        design on the smooth friction model and add nothing (False). Changes nothing on a model without it.
 
     Raises
     ------
@@ -176,6 +180,7 @@ class LoopOptions(StageOptions):
     mhe_horizon: float | None = None
     seed: int = 0
     delay_compensation: bool = True
+    friction_compensation: bool = True
 
     error: ClassVar[type] = LoopError
     SCALARS: ClassVar[tuple] = ("duration", "period", "model_error", "delay", "encoder_cpr", "encoder_resolution",
@@ -208,6 +213,7 @@ class LoopOptions(StageOptions):
             raise LoopError(f"The estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}; give e.g. "
                             "--estimator kf.")
         self.set_field("delay_compensation", bool(self.delay_compensation))
+        self.set_field("friction_compensation", bool(self.friction_compensation))
 
     @property
     def sensed(self) -> bool:

@@ -74,7 +74,8 @@ class Rig:
     Attributes
     ----------
     model : CartPoleModel
-        The model the estimator and the delay prediction use (the controller's design model).
+        The model the estimator and the delay prediction use: the controller's planning model with all its
+        friction (they see the ctrl MuJoCo applied, a friction compensation included).
     steps : int
         Physics steps per control period.
     delay_steps : int
@@ -272,7 +273,11 @@ def estimator_factory(model, loop: LoopOptions, name: str, steps: int):
     else:
         raise CartPoleError(f"No estimator named {name!r}.")
 
+    # the KF is linear at upright, where dry friction has no slope (CartPoleModel.without_friction); the EKF and
+    # the MHE predict through the smooth friction, as MuJoCo's friction acts on the ctrl they are given
+    est_model = model.without_friction() if name == "kf" else model
+
     def make():
-        return cls(model, steps, h, V, initial_state=first, **noise, **extra)
+        return cls(est_model, steps, h, V, initial_state=first, **noise, **extra)
     make()  # built once here so that a bad pair or horizon is refused before anything runs
     return spec, make

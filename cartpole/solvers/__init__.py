@@ -1,6 +1,8 @@
-"""Solvers of the collocation NLP beyond IPOPT and fatrop: an SQP whose QPs are condensed onto the knot controls and
+"""Solvers beyond IPOPT and fatrop: an SQP for the collocation NLP whose QPs are condensed onto the knot controls and
 solved by DAQP, qrqp or HPIPM (:mod:`~cartpole.solvers.sqp`, its compiled QP assembly in
-:mod:`~cartpole.solvers.sqp_functions`). Iterative LQR / DDP belongs here too."""
+:mod:`~cartpole.solvers.sqp_functions`), and control-limited iterative LQR / DDP on the exact discrete model with
+state constraints by augmented Lagrangian (:mod:`~cartpole.solvers.ddp`)."""
+from cartpole.solvers.ddp import DDP, DDPError, DDPOptions, DDPResult, ddp_for_model
 from cartpole.solvers.sqp import CollocationSQP, SQPError
 
-__all__ = ["CollocationSQP", "SQPError"]
+__all__ = ["DDP", "DDPError", "DDPOptions", "DDPResult", "ddp_for_model", "CollocationSQP", "SQPError"]

@@ -167,6 +167,32 @@ def _ctrl2d(ctrl) -> np.ndarray:
     return ctrl.reshape(-1, 1) if ctrl.ndim < 2 else ctrl
 
 
+def residual_error(t, x, x_eq, *, hinges, window: float = 1.0) -> np.ndarray:
+    """Largest ``|x - x*|`` per state over the last ``window`` seconds of a run (hinge errors wrapped): what is left
+    of the error once the transient is over (a limit cycle's amplitude, a cart stuck off centre by friction).
+
+    Parameters
+    ----------
+    t : (N+1,) array, s
+    x : (N+1, nx) array
+        States ``[qpos, qvel]``.
+    x_eq : (nx,) array
+        The equilibrium the run holds.
+    hinges : sequence of int
+        qpos indices of the hinges (their errors are wrapped).
+    window : float
+        Seconds at the end of the run, > 0 (the whole run when it is shorter).
+
+    Returns
+    -------
+    (nx,) array
+        m, rad, m/s, rad/s in state order.
+    """
+    t, x = _times_states(t, x)
+    tail = t >= t[-1] - float(window) - 1e-12
+    return np.abs(state_error(x[tail], x_eq, hinges)).max(axis=0)
+
+
 def peak_ctrl_per_actuator(ctrl) -> np.ndarray:
     """Largest ``|ctrl|`` of each actuator, (nu,) in MuJoCo ctrl units (zeros for an empty log).
 

@@ -321,5 +321,46 @@ def test_delay_margin_is_the_last_delay_that_balances_and_the_next_fails():
     found = delay_margin(loop=loop, max_delay=0.06)
     m, f = found["lqr"], found["lqr_first_failure"]
     assert m is not None and f is not None and f == pytest.approx(m + 0.005)
-    assert balances(run_lab(loop=loop.replace(delay=m))) and not balances(run_lab(loop=loop.replace(delay=f)))
+    at_margin, at_failure = run_lab(loop=loop.replace(delay=m)), run_lab(loop=loop.replace(delay=f))
+    assert balances(at_margin) and not balances(at_failure)
     assert found["tried"][-1] == pytest.approx(f)
+    runs = found["lqr_runs"]
+    assert [r["delay"] for r in runs] == found["tried"] and [r["balances"] for r in runs] == [True] * (len(runs) - 1) + [False]
+    assert runs[-2]["settling_time_seed_max"] == pytest.approx(max(at_margin.settling_times_seed))
+    assert runs[-2]["residual_angle_max"] == pytest.approx(at_margin.residual_error[:, 1].max())
+
+
+def test_lab_on_a_cart_with_dry_friction_balances_and_the_compensation_cuts_the_residual_cart_error():
+    """The shipped cart with 0.5 N on the slider and 0.002 N m on the hinge: the LQR (designed without the dry
+    friction) balances the five starts with and without the feedforward cancelling the slider's friction; the hinge's
+    friction, which no actuator cancels, leaves a limit cycle in both, and the compensation keeps the cart closer to
+    the centre in it."""
+    from cartpole.apps.lab import balances, run_lab
+    from cartpole.sim import LoopOptions
+
+    mjcf = SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml"
+    on = run_lab(mjcf)
+    off = run_lab(mjcf, loop=LoopOptions(friction_compensation=False))
+    assert on.friction_compensation and not off.friction_compensation
+    np.testing.assert_array_equal(on.K, off.K)
+    for res in (on, off):
+        assert balances(res)
+        assert all(replays_exactly(r) for r in res.rollouts)
+    slide = on.params.slide
+    assert on.residual_error[:, slide].max() < off.residual_error[:, slide].max()
+    assert not any(on.settled)  # the hinge's stiction: never inside the strict 0.01 band
+
+
+def test_noise_tolerance_is_the_last_noise_that_balances_and_is_measured_through_the_estimator():
+    """rig_margin over the sensor noise (the search behind --noise-margin): the PID on the measurements gives up
+    between 1 mrad and 0.1 rad of noise, and its margin and first failure are what run_lab + compare_pid say."""
+    from cartpole.apps.lab import NOISE_FRACTIONS, balances, compare_pid, rig_margin, run_lab
+    from cartpole.sim import LoopOptions
+
+    loop = LoopOptions(period=0.01, encoder_cpr=2048, encoder_resolution=0.001)
+    found = rig_margin(loop=loop, setting="sensor_noise", values=[0.001, 0.1], pid=True)
+    assert found["setting"] == "sensor_noise" and found["pid"] == 0.001 and found["pid_first_failure"] == 0.1
+    assert not balances(compare_pid(run_lab(loop=loop.replace(sensor_noise=0.1)), None))
+    assert [r["sensor_noise"] for r in found["pid_runs"]] == [0.001, 0.1]
+    assert found["lqr_runs"][0]["balances"] and found["lqr"] is not None
+    assert NOISE_FRACTIONS[0] == 0.0 and NOISE_FRACTIONS[-1] == 1.0 and list(NOISE_FRACTIONS) == sorted(NOISE_FRACTIONS)

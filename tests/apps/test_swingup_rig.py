@@ -38,3 +38,29 @@ def test_energy_swingup_on_the_rig_catches_on_the_estimate():
     res = run_swingup(None, method="energy", loop=LoopOptions(period=0.01, delay=0.01, **ENCODERS))
     assert res.success and replays_exactly(res.rollout)
     assert res.metrics["rig"]["estimator"] == "ekf"  # the default with sensors for a swing-up
+
+
+FRICTION_MJCF = SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml"
+
+
+@pytest.mark.parametrize("compensation", [True, False], ids=["compensated", "not_compensated"])
+def test_trajopt_tvlqr_swings_up_the_cart_with_dry_friction(compensation):
+    """0.5 N on the slider and 0.002 N m on the hinge, MuJoCo's friction constraint: planned on the smooth model
+    (without the slider's friction when a feedforward cancels it), the swing-up and its hold succeed either way."""
+    res = run_swingup(FRICTION_MJCF, method="trajopt", loop=LoopOptions(friction_compensation=compensation))
+    assert res.success, res.metrics
+    assert replays_exactly(res.rollout)
+    assert res.metrics["friction"] == {"frictionloss": {"slider": 0.5, "hinge": 0.002}, "compensation": compensation}
+    assert hasattr(res.controller, "feedforward") == compensation  # the compensation wraps the controller that ran
+
+
+def test_trajopt_tvlqr_through_the_ekf_on_the_cart_with_friction_and_its_compensation():
+    """The EKF predicts through the smooth friction with the ctrl MuJoCo applied (the compensation included), so the
+    compensated swing-up from encoders holds; an estimator on the compensated design model would see the
+    compensation as a force the model lacks."""
+    loop = LoopOptions(period=0.01, delay=0.005, estimator="ekf", process_noise=0.1, **ENCODERS)
+    res = run_swingup(FRICTION_MJCF, method="trajopt", loop=loop)
+    assert res.success, res.metrics
+    assert replays_exactly(res.rollout)
+    assert res.metrics["friction"]["compensation"]
+    assert res.metrics["estimation"]["rms_error"]["hinge"] < 0.002

@@ -392,3 +392,36 @@ def test_view_without_a_display_says_so_and_writes_every_output(tmp_path, capsys
     first = doc["rollouts"][0]
     assert replays_exactly(Rollout(t=first["t"], qpos=first["qpos"], qvel=first["qvel"], ctrl=first["ctrl"]),
                            doc["mjcf"])
+
+
+def test_friction_is_reported_and_no_friction_compensation_turns_the_feedforward_off(tmp_path, capsys):
+    mjcf = str(SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml")
+    on = _lqr_json(capsys, "--mjcf", mjcf, "--out", str(tmp_path / "on"))
+    off = _lqr_json(capsys, "--mjcf", mjcf, "--no-friction-compensation", "--out", str(tmp_path / "off"))
+    assert on["friction"] == {"frictionloss": {"slider": 0.5, "hinge": 0.002}, "compensation": True}
+    assert off["friction"]["compensation"] is False
+    assert np.array(on["residual_error"]).shape == (5, 4)
+    # the feedforward changes the runs: the logged ctrl differs, the gain does not
+    assert on["K"] == off["K"] and on["settling_times_seed"] != off["settling_times_seed"]
+    assert _lqr_json(capsys, "--out", str(tmp_path / "plain"))["friction"] is None
+    assert main(["lqr", "--mjcf", mjcf, "--no-video", "--out", str(tmp_path / "prose")]) == 0
+    assert "Friction (frictionloss slider 0.5, hinge 0.002): designed without" in capsys.readouterr().out
+
+
+def test_delay_margin_writes_its_figure_and_the_curve_behind_it(tmp_path, capsys):
+    doc = _lqr_json(capsys, "--delay-margin", "0.01", "--period", "0.005", "--out", str(tmp_path))
+    runs = doc["delay_margin"]["lqr_runs"]
+    assert [r["delay"] for r in runs] == pytest.approx([0.0, 0.005, 0.01]) and all(r["balances"] for r in runs)
+    assert doc["delay_margin"]["lqr"] == pytest.approx(0.01) and doc["delay_margin"]["lqr_first_failure"] is None
+    assert Path(doc["figure"]) == (tmp_path / "figures" / "delay_margin.png").resolve()
+    assert Path(doc["figure"]).read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("argv, says", [(["--noise-margin", "0"], "--noise-margin 0 is not a sensor noise"),
+                                        (["--delay-margin", "-1"], "--delay-margin -1 is not a delay"),
+                                        (["--delay-margin", "0.01", "--noise-margin", "0.01"], "one at a time")])
+def test_bad_margin_searches_are_one_sentence_and_write_nothing(argv, says, tmp_path, capsys):
+    assert main(["lqr", *argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert says in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "out").exists()

@@ -10,13 +10,8 @@ import pytest
 import scipy.linalg
 
 from cartpole.estimation import EstimationError
-from cartpole.estimation.kalman import (
-    KalmanFilter,
-    kalman_gain,
-    measured_positions,
-    positions_initial_state,
-    state_names,
-)
+from cartpole.estimation.kalman import KalmanFilter, kalman_gain, state_names
+from cartpole.estimation.measurement import measured_positions, positions_initial_state
 from cartpole.estimation.noise import process_covariance
 from cartpole.lqr import dlqr, lab_weights
 from cartpole.models import SHIPPED_MJCF, build_model

@@ -5,7 +5,7 @@ import pytest
 
 from cartpole.apps.lab import run_lab
 from cartpole.models import SHIPPED_MJCF, build_model
-from cartpole.sim import LoopOptions, RigError, build_rig, replays_exactly, simulate
+from cartpole.sim import LoopOptions, build_rig, replays_exactly, simulate
 
 ENCODERS = dict(encoder_cpr=2048, encoder_resolution=0.001)
 

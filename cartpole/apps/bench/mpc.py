@@ -33,7 +33,7 @@ def _runs(controller, params, x0, duration: float, repeats: int) -> tuple[list, 
 
 def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, repeats: int = 3,
                       duration: float = 4.0, baseline_repeats: int = 1, qp_solver: str | None = None,
-                      baseline: bool = True) -> dict:
+                      baseline: bool = True, ddp_two_pole: bool = True) -> dict:
     """Per-control-step solve time of the NMPC over a single-pole swing-up in MuJoCo, and of the IPOPT baseline.
 
     Parameters
@@ -50,6 +50,8 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
         The NMPC's QP solver (default :class:`~cartpole.mpc.nmpc.NMPCController`'s).
     baseline : bool
         False skips the IPOPT runs (``baseline`` and ``speedup_median`` are then None).
+    ddp_two_pole : bool
+        Also time the DDP MPC on the shipped two-pole cart.
 
     Returns
     -------
@@ -59,7 +61,10 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
         ``unconverged`` (instants IPOPT did not converge), ``solver``},
         ``speedup_median`` (baseline median / NMPC median), ``period``, ``horizon`` (s), ``N``, ``qp_solver``,
         ``compiled`` (bool), ``success`` (every NMPC run swung up and held, :func:`swingup_success`),
-        ``failures`` (NMPC instants that took the safe action), ``repeats``, ``duration``.
+        ``failures`` (NMPC instants that took the safe action), ``repeats``, ``duration``; ``ddp`` {``one_pole``,
+        ``two_pole``: the same swing-up under :class:`~cartpole.mpc.ddp_mpc.DDPMPCController` (one warm-started DDP
+        iteration a period), each {``solve_ms_median``, ``solve_ms_max``, ``steps``, ``period``, ``success``,
+        ``failures``}}.
     """
     params = read_params(mjcf)
     model = build_model(params)
@@ -77,9 +82,29 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
         base_doc = {"solve_ms_median": float(np.median(t_base)), "solve_ms_max": float(np.max(t_base)),
                     "solve_ms_p99": float(np.percentile(t_base, 99)), "steps": len(t_base),
                     "success": all(ok_base), "unconverged": len(base.unconverged), "solver": "ipopt"}
+    ddp_doc = {"one_pole": _ddp_row(params, model, plan, options, x0, duration, repeats)}
+    if ddp_two_pole:
+        from cartpole.models import SHIPPED_MJCF
+
+        p2 = read_params(SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
+        m2 = build_model(p2)
+        plan2 = trajopt_swingup(p2, x0=m2.x_hanging, model=m2)
+        # the double takes longer to swing up: 6 s so that its last second is the hold the success test needs
+        ddp_doc["two_pole"] = _ddp_row(p2, m2, plan2, options.replace(qp_solver=None), m2.x_hanging,
+                                       max(duration, 6.0), repeats)
     return {"solve_ms_median": med, "solve_ms_max": float(np.max(t_rti)),
+            "ddp": ddp_doc,
             "solve_ms_p99": float(np.percentile(t_rti, 99)), "steps": len(t_rti), "baseline": base_doc,
             "speedup_median": None if base_doc is None else base_doc["solve_ms_median"] / med,
             "period": rti.period, "horizon": rti.horizon, "N": rti.N,
             "qp_solver": rti.qp_solver, "compiled": rti.library is not None, "success": all(ok_rti),
             "failures": failures, "repeats": int(repeats), "duration": float(duration)}
+
+
+def _ddp_row(params, model, plan, options, x0, duration: float, repeats: int) -> dict:
+    from cartpole.mpc.ddp_mpc import DDPMPCController
+
+    ddp = DDPMPCController(model, params, options=options.replace(solver="ddp"), guess=plan.trajectory, x0=x0)
+    times, ok = _runs(ddp, params, x0, duration, max(1, int(repeats)))
+    return {"solve_ms_median": float(np.median(times)), "solve_ms_max": float(np.max(times)), "steps": len(times),
+            "period": ddp.period, "success": all(ok), "failures": len(ddp.failures)}

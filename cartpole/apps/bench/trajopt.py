@@ -372,6 +372,10 @@ def print_mpc_table(doc: dict, file=None) -> None:
       f"max {doc.get('solve_ms_max', float('nan')):.3f} ms over {doc.get('steps')} steps; IPOPT re-solving from the "
       f"shifted guess: median {base.get('solve_ms_median', float('nan')):.2f} ms, max "
       f"{base.get('solve_ms_max', float('nan')):.2f} ms; speed-up {doc.get('speedup_median', float('nan')):.1f}x\n")
+    for name, row in (doc.get("ddp") or {}).items():
+        w(f"MPC by DDP ({name.replace('_', ' ')}, one warm-started iteration a period): median "
+          f"{row['solve_ms_median']:.3f} ms, max {row['solve_ms_max']:.3f} ms over {row['steps']} steps, "
+          f"{'swings up and holds' if row['success'] else 'FAILED'}\n")
 
 
 def print_table(doc: dict, file=None) -> None:
@@ -403,8 +407,8 @@ def print_table(doc: dict, file=None) -> None:
         ratio = "-" if tr["sqp_speedup"] is None else f"{tr['sqp_speedup']:.1f}"
         w(f"{label:44s} {tr['sqp_solve_ms_median']:10.1f} {tr['sqp_iterations']:6d} {tr['sqp_objective']:12.6f} "
           f"{ratio:>8s}\n")
-    w(f"\nwarm starts (start moved 2 cm / 0.05 rad, from the nominal primal-dual solution; speed-up against the "
-      f"warm baseline)\n")
+    w("\nwarm starts (start moved 2 cm / 0.05 rad, from the nominal primal-dual solution; speed-up against the "
+      "warm baseline)\n")
     if "warm_baseline_solve_ms_median" in tr:
         w(f"{'baseline: Opti, expand=True, IPOPT warm start':44s} {tr['warm_baseline_solve_ms_median']:10.1f} "
           f"{tr['warm_baseline_iterations']:6d} {tr['warm_baseline_objective']:12.6f} {1.0:8.1f}\n")

@@ -133,18 +133,52 @@ def test_compensation_restores_the_frictionless_settling_when_the_friction_is_on
     assert np.all(plain[:, 3] > ref[:, 3] + 2.0)
 
 
-def test_under_compensation_the_lqr_designed_on_the_frictionless_model_beats_the_smooth_friction_linearisation(
-        frictionless, with_friction):
-    """Linearised at rest, the smooth friction is a viscous damping frictionloss / width (50 N s/m on the cart): a
-    design on it expects a damping that neither the compensated plant (friction cancelled) nor MuJoCo's Coulomb
-    friction has, so its gains are much higher and, with compensation, its runs settle later and swing the cart
-    further than the frictionless design's."""
+def test_linear_designs_ignore_dry_friction_and_beat_the_smooth_friction_linearisation(frictionless, with_friction):
+    """Linearised at rest, the smooth friction is a viscous damping frictionloss / width (50 N s/m on the cart): an
+    LQR on it expects a damping that neither the compensated plant (friction cancelled) nor MuJoCo's Coulomb friction
+    has, so its gains are much higher and its runs settle later and swing the cart further than the design without
+    friction, which is what LinearFeedback.for_model gives on a model with friction."""
+    from cartpole.lqr import lqr
+    from cartpole.lqr.weights import lab_weights
+
     x0s = lab_initial_conditions(frictionless)
     x_eq = frictionless.x_eq
-    on_frictionless = LinearFeedback.for_model(frictionless)
-    on_friction = LinearFeedback.for_model(with_friction)
-    assert abs(on_friction.K[0, 1]) > 2 * abs(on_frictionless.K[0, 1])
-    good, _ = _runs(with_friction.params, FrictionCompensation(on_frictionless, with_friction), x0s, x_eq)
-    other, _ = _runs(with_friction.params, FrictionCompensation(on_friction, with_friction), x0s, x_eq)
-    assert good[:, 0].max() < other[:, 0].max()
-    assert good[:, 2].sum() < other[:, 2].sum()
+    designed = LinearFeedback.for_model(with_friction)
+    np.testing.assert_array_equal(designed.K, LinearFeedback.for_model(frictionless).K)
+    smooth = lqr(*with_friction.linearize(), *lab_weights(with_friction))
+    assert abs(smooth.K[0, 1]) > 2 * abs(designed.K[0, 1])
+    on_friction = LinearFeedback(smooth.K, x_eq, with_friction.u_eq, u_limits=with_friction.params.ctrl_range,
+                                 S=smooth.S, hinges=with_friction.hinges)
+    for wrap in (lambda c: c, lambda c: FrictionCompensation(c, with_friction)):
+        good, _ = _runs(with_friction.params, wrap(designed), x0s, x_eq)
+        other, _ = _runs(with_friction.params, wrap(on_friction), x0s, x_eq)
+        assert good[:, 0].max() < other[:, 0].max()
+        assert good[:, 2].sum() < other[:, 2].sum()
+
+
+def test_friction_design_removes_only_the_driven_joints_friction_and_wraps_in_compensation(with_friction):
+    from cartpole.control.friction import friction_design
+    from cartpole.sim.options import LoopOptions
+
+    design, compensate = friction_design(with_friction)
+    assert design.params.frictionloss[with_friction.slide] == 0.0
+    assert design.params.frictionloss[with_friction.hinges[0]] == HINGE_FRICTION
+    assert design.params.mjcf == with_friction.params.mjcf and design.params.xml == with_friction.params.xml
+    law = LinearFeedback.for_model(design)
+    comp = compensate(law)
+    assert isinstance(comp, FrictionCompensation) and comp.controller is law
+    assert comp.frictionloss[0] == SLIDE_FRICTION
+    same, none = friction_design(with_friction, LoopOptions(friction_compensation=False))
+    assert same is with_friction and none is None
+
+
+def test_a_model_whose_driven_joints_are_frictionless_needs_no_compensation(frictionless):
+    from cartpole.control.friction import friction_design, friction_summary
+
+    hinge_only = build_model(_friction_params(slide=0.0))
+    for model in (frictionless, hinge_only):
+        design, compensate = friction_design(model)
+        assert design is model and compensate is None
+    assert friction_summary(frictionless.params, False) is None
+    assert friction_summary(hinge_only.params, False) == {"frictionloss": {"hinge": HINGE_FRICTION},
+                                                          "compensation": False}

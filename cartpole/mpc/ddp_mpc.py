@@ -1,0 +1,218 @@
+"""MPC by warm-started DDP: each control period, a few iterations of the box-DDP of :mod:`cartpole.solvers.ddp` on the
+exact held model, from the measured state and the previous solution shifted by one period.
+
+The problem is the NMPC's (:mod:`cartpole.mpc.nmpc`) with DDP's handling of its constraints::
+
+    min  sum_k period * [d_k' Q d_k + (u_k - u*)' R (u_k - u*)]  +  e_N' S e_N  +  rail penalty
+    s.t. s_0 = x,  s_k+1 = F(s_k, u_k)   (F: ``steps`` MJCF steps of the model with the ctrl held, exact)
+         u_low <= u_k <= u_high          (the box, inside the DDP's backward pass)
+
+with ``d_k`` the tracking error whose hinge entries are ``2 (1 - cos e)`` (:func:`cartpole.ocp.objectives.
+tracking_cost`: smooth and periodic), ``e_N`` the wrapped terminal error and ``S`` the cost-to-go of the discrete LQR
+of one period at upright (the infinite-horizon cost beyond the horizon, as in the NMPC). The rail (the slide's range
+shrunk by ``cart_margin``) and any other limited joint enter as the augmented-Lagrangian penalty of the DDP with its
+multipliers at zero and the penalty ``10 rail_penalty``: a soft constraint.
+
+The first solution is converged offline from the plan's inputs (:func:`cartpole.planning.trajopt.trajopt_swingup`,
+sampled on the MPC grid). In the loop each instant takes ``iterations`` DDP iterations (default one: real-time
+DDP) and applies the first input. Safe action as the NMPC's: a solve that fails or returns anything non-finite is
+recorded in :attr:`DDPMPCController.failures` and the upright LQR (near upright) or the previous solution's input
+is applied.
+"""
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from cartpole.control.linear import LinearFeedback
+from cartpole.lqr import dlqr, lab_weights
+from cartpole.models import CartPoleModel, CartPoleParams, build_model
+from cartpole.mpc.nmpc import SAFE_LQR_ANGLE, NMPCError
+from cartpole.mpc.options import DEFAULT_PERIOD, MPCOptions
+from cartpole.ocp.bounds import bounds_from_params
+from cartpole.ocp.objectives import tracking_cost
+from cartpole.ocp.trajectory import Trajectory
+from cartpole.solvers.ddp import DDP, DDPOptions
+
+
+class DDPMPCController:
+    """Receding-horizon DDP, call shape ``u = controller(t, x)`` (see the module doc).
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The planning model (rebuilt at ``params.timestep`` when its ``dt`` differs).
+    params : CartPoleParams
+        The MJCF MuJoCo runs: timestep, ctrlranges, joint ranges.
+    options : MPCOptions, optional
+        ``period``, ``horizon``, ``iterations``, ``init_iterations``, ``cart_margin``, ``rail_penalty``, ``Q``, ``R``,
+        ``compiled`` are read (:class:`~cartpole.mpc.options.MPCOptions`).
+    guess : Trajectory, optional
+        A plan whose inputs seed the first solution and extend the shifted tail while it lasts.
+    x0 : (nx,) array, optional
+        When given, the first solution is converged for this start offline (not in :attr:`solve_ms`).
+
+    Attributes
+    ----------
+    period, horizon : float
+        s, after rounding to whole MJCF steps and stages.
+    N, steps : int
+        Stages; physics steps per stage.
+    solve_ms : list of float
+        Wall-clock ms of each instant's DDP iterations.
+    failures : list of dict
+        ``{"t", "reason", "action"}`` per instant where the safe action ran.
+    lqr : LinearFeedback
+        The upright discrete LQR of one period (terminal cost ``S``, safe action).
+    init_info : dict
+        The offline solve: ``iterations``, ``status``, ``cost``.
+    """
+
+    def __init__(self, model: CartPoleModel, params: CartPoleParams, *, options: MPCOptions | None = None,
+                 guess=None, x0=None):
+        options = MPCOptions() if options is None else options
+        self.options = options
+        if not isinstance(model, CartPoleModel) or not isinstance(params, CartPoleParams):
+            raise NMPCError("DDPMPCController needs a CartPoleModel (planning) and the CartPoleParams MuJoCo runs.")
+        dt = float(params.timestep)
+        if abs(model.dt - dt) > 1e-15:
+            model = model.rebuilt(dt=dt)
+        period = DEFAULT_PERIOD if options.period is None else options.period
+        steps = max(1, int(round(period / dt)))
+        N = max(1, int(round(options.horizon / (steps * dt))))
+        self.model, self.params, self.steps, self.N = model, params, steps, N
+        self.period, self.horizon = steps * dt, N * steps * dt
+        self.iterations = int(options.iterations)
+        Q0, R0 = lab_weights(model)
+        Q = Q0 if options.Q is None else np.asarray(options.Q, float)
+        R = R0 if options.R is None else np.atleast_2d(np.asarray(options.R, float))
+        held = model.hold(steps)
+        Ad, Bd = held.linearize(model.x_eq, model.u_eq)
+        lq = dlqr(Ad, Bd, Q * self.period, R * self.period)
+        self.lqr = LinearFeedback(lq.K, model.x_eq, model.u_eq, hinges=model.hinges,
+                                  u_limits=np.asarray(params.ctrl_range), S=lq.S)
+        x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+        running = ca.Function("mpc_tracking", [x, u], [tracking_cost(model, x, u, np.diag(Q), np.diag(R))])
+        b = bounds_from_params(params, cart_margin=options.cart_margin)
+        q_low, q_high = np.array(b.q_low, float), np.array(b.q_high, float)
+        if b.cart_max is not None and params.slide is not None:
+            q_low[params.slide] = b.cart_center - b.cart_max
+            q_high[params.slide] = b.cart_center + b.cart_max
+        self.u_low, self.u_high = np.array(b.u_low, float), np.array(b.u_high, float)
+        self.ddp = DDP(held.step, self.period, N, running=running, u_low=self.u_low, u_high=self.u_high,
+                       q_low=q_low, q_high=q_high, x_goal=model.x_eq, hinges=model.hinges, Qf=np.asarray(lq.S),
+                       goal_constraint=False, compiled=options.compiled,
+                       options=DDPOptions(penalty=10 * options.rail_penalty, max_outer=1))
+        self._plan = guess if isinstance(guess, Trajectory) else None
+        U = np.array([self._tail_input(k * steps, None) for k in range(N)])
+        self.init_info = {"iterations": 0, "status": "not converged offline", "cost": float("nan")}
+        if x0 is not None:
+            x0 = np.asarray(x0, dtype=float).ravel()
+            if x0.shape != (model.nx,) or not np.all(np.isfinite(x0)):
+                raise NMPCError(f"x0 must be {model.nx} finite numbers [qpos, qvel].")
+            r = self.ddp.solve(x0, U, max_iterations=max(1, int(options.init_iterations)) * 20)
+            U = np.array(r.u)
+            self.init_info = {"iterations": r.iterations, "status": r.status, "cost": r.cost}
+        self._U0 = U
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new run: back to the first solution, empty :attr:`solve_ms` and :attr:`failures` (done
+        automatically when called with an earlier time than the last call)."""
+        self._U = self._U0.copy()
+        self._X = None
+        self._k_plan = 0
+        self._k_last = None
+        self._u_hold = None
+        self.solve_ms: list[float] = []
+        self.failures: list[dict] = []
+
+    def _tail_input(self, k_phys: int, x_last) -> np.ndarray:
+        t = k_phys * float(self.params.timestep)
+        if self._plan is not None and self._plan.t[0] + t < self._plan.t[-1]:
+            u = self._plan.input(self._plan.t[0] + t + 0.5 * self.period)
+            return np.clip(np.atleast_1d(u), self.u_low, self.u_high)
+        return self.lqr(t, self.model.x_eq if x_last is None else x_last)
+
+    def _shift(self, n: int) -> None:
+        for _ in range(min(n, self.N)):
+            k_end = self._k_plan + self.N * self.steps
+            last = None if self._X is None else self._X[-1]
+            self._U = np.vstack([self._U[1:], self._tail_input(k_end, last)])
+            self._k_plan += self.steps
+        if n > self.N:
+            self._k_plan += (n - self.N) * self.steps
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,) at time ``t`` (s) for the measured state ``x`` (nx,): re-solved once a period has passed since
+        the last solve, held in between."""
+        k = int(round(float(t) / float(self.params.timestep)))
+        if self._k_last is not None and k < self._k_last:
+            self.reset()
+        if self._u_hold is not None and k - self._k_last < self.steps:
+            return self._u_hold.copy()
+        x = np.asarray(x, dtype=float).ravel()
+        if x.shape != (self.model.nx,):
+            raise NMPCError(f"The state has {x.size} entries; the controller needs {self.model.nx} [qpos, qvel].")
+        t0 = time.perf_counter()
+        if k > self._k_plan:
+            self._shift((k - self._k_plan) // self.steps)
+        try:
+            if not np.all(np.isfinite(x)):
+                raise ValueError("the measured state is not finite")
+            r = self.ddp.solve(x, self._U, max_iterations=self.iterations, max_outer=1)
+            if not (np.all(np.isfinite(r.u)) and np.all(np.isfinite(r.x))):
+                raise ValueError("the DDP returned a non-finite solution")
+            self._U, self._X = np.array(r.u), np.array(r.x)
+            u = np.clip(self._U[0], self.u_low, self.u_high)
+        except Exception as exc:  # noqa: BLE001 - never raise inside the loop: the documented safe action
+            finite = bool(np.all(np.isfinite(x)))
+            near = finite and np.all(np.abs(self.lqr.error(x)[list(self.model.hinges)]) <= SAFE_LQR_ANGLE)
+            if finite and not near:
+                u, action = np.clip(self._U[0], self.u_low, self.u_high), "previous plan"
+            else:
+                u, action = (self.lqr(t, x) if finite else self.model.u_eq.copy()), "upright LQR"
+            self.failures.append({"t": float(t), "reason": str(exc) or type(exc).__name__, "action": action})
+        self.solve_ms.append(1e3 * (time.perf_counter() - t0))
+        self._k_last = k
+        self._u_hold = np.array(u, dtype=float)
+        return self._u_hold.copy()
+
+    @property
+    def plan(self) -> tuple[np.ndarray | None, np.ndarray]:
+        """The current solution: predicted states (N+1, nx) (None before the first solve) and inputs (N, nu)."""
+        return (None if self._X is None else self._X.copy()), self._U.copy()
+
+
+def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
+                    options: MPCOptions | None = None, plan=None) -> DDPMPCController:
+    """A DDP-MPC controller set up to swing up from ``x0`` and balance at ``model.x_eq``: the offline plan
+    (:func:`cartpole.planning.trajopt.trajopt_swingup`) seeds it, then the first solution is converged offline.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The MJCF MuJoCo runs.
+    x0 : (nx,) array, optional
+        Start (default the planning model's hanging rest).
+    model : CartPoleModel, optional
+        The planning model (default the MJCF's own).
+    options : MPCOptions, optional
+    plan : PlanOptions, optional
+        The offline plan's settings (default the same rail margin as the controller's).
+
+    Returns
+    -------
+    DDPMPCController
+    """
+    from cartpole.planning.options import PlanOptions
+    from cartpole.planning.trajopt import trajopt_swingup
+
+    options = MPCOptions() if options is None else options
+    plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
+    model = build_model(params) if model is None else model
+    x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
+    sp = trajopt_swingup(params, x0=x0, model=model, options=plan)
+    return DDPMPCController(model, params, options=options, guess=sp.trajectory, x0=x0)
