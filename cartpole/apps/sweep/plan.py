@@ -273,7 +273,7 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
                     lo, hi = limits[key]
                     for v in (a.low, a.high):
                         if not (math.isfinite(v) and lo <= v <= hi):
-                            raise SweepError(f"The sweep axis {a.name} reaches {v:g} s; give {key}s from "
+                            raise SweepError(f"The sweep axis {a.name} reaches {v:g}: give {key}s from "
                                              f"{max(lo, h if key == 'period' else 0.0):g} to {hi:g} s (whole "
                                              f"{h:g} s MJCF steps).")
                 for v in (a.low, a.high):
