@@ -375,3 +375,15 @@ def test_the_documented_limits_are_the_codes():
         number, *unit = value.split()
         expected = float(number) * (units.get(unit[0], 1) if unit else 1)
         assert actual == expected, (dotted, value, actual)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--start", "hinge", "0", "1", "1000000000"], ("grid points", "100000 runs")),
+    (["--start", "hinge", "0", "1", "1000", "--push-force", "0", "1", "1000"], ("1000000 runs",)),
+    (["--setting", "energy_gain", "1e308"], ("setting:energy_gain", "1000 times its default")),
+    (["--setting", "energy_gain", "0"], ("setting:energy_gain", "energy_gain = 0.0")),
+], ids=["grid-axis", "grid-product", "energy-setting-huge", "energy-setting-zero"])
+def test_a_sweep_description_no_run_could_use_is_refused_before_any_run(tmp_path, capsys, argv, words):
+    line = _fails_cleanly(["sweep", "--json", "--duration", "1", *argv, "--out", str(tmp_path / "out")], tmp_path,
+                          capsys, *words)
+    assert "{" not in line  # names the settings, no dump of them
