@@ -164,6 +164,21 @@ def test_an_mjcf_that_is_not_a_regular_file_is_one_sentence(tmp_path, capsys, ki
     _fails_cleanly(["linearize", "--json", "--mjcf", str(path)], tmp_path, capsys, words[kind], "--mjcf")
 
 
+@pytest.mark.parametrize("kind", ["fifo", "directory"])
+def test_an_mjcf_including_a_file_that_is_not_regular_is_one_sentence_not_a_hang(tmp_path, capsys, kind):
+    from cartpole.models import SHIPPED_MJCF
+
+    target = tmp_path / "part.xml"
+    if kind == "fifo":
+        os.mkfifo(target)  # MuJoCo's reader would wait for a writer forever
+    else:
+        target.mkdir()
+    mjcf = tmp_path / "m.xml"
+    mjcf.write_text(SHIPPED_MJCF.read_text().replace("<worldbody>", '<include file="part.xml"/><worldbody>', 1))
+    _fails_cleanly(["linearize", "--json", "--mjcf", str(mjcf)], tmp_path, capsys, "include file",
+                   "FIFO" if kind == "fifo" else "a directory")
+
+
 def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _fails_cleanly([*SWINGUP, "--out", ""], tmp_path, capsys, "--out is empty")
