@@ -402,3 +402,26 @@ def test_a_sweep_description_no_run_could_use_is_refused_before_any_run(tmp_path
     line = _fails_cleanly(["sweep", "--json", "--duration", "1", *argv, "--out", str(tmp_path / "out")], tmp_path,
                           capsys, *words)
     assert "{" not in line  # names the settings, no dump of them
+
+
+@pytest.mark.parametrize("where", ["full", "closed", "pipe-closed"])
+def test_a_json_document_that_cannot_be_written_is_one_sentence_not_a_traceback(tmp_path, where):
+    import sys
+
+    argv = [sys.executable, "-m", "cartpole", "linearize", "--json"]
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    if where == "pipe-closed":
+        r, w = os.pipe()
+        os.close(r)  # the reader is gone before anything is written: EPIPE
+        proc = subprocess.run(argv, stdout=w, stderr=subprocess.PIPE, text=True, env=env, timeout=120, check=False)
+        os.close(w)
+        assert proc.returncode == 141 and "Traceback" not in proc.stderr, proc.stderr
+        return
+    if where == "full" and not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    with open("/dev/full" if where == "full" else os.devnull, "w") as out:
+        kw = {"stdout": out} if where == "full" else {"stdout": subprocess.DEVNULL,
+                                                        "preexec_fn": lambda: os.close(1)}
+        proc = subprocess.run(argv, stderr=subprocess.PIPE, text=True, env=env, timeout=120, check=False, **kw)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and "cannot write the JSON document" in lines[0], proc.stderr
