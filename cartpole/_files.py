@@ -292,6 +292,9 @@ def check_out_dir(out: str | Path) -> Path:
     if str(out).strip() == "":
         raise OutputError("--out is empty; give a directory (e.g. --out . for the current one).")
     out = Path(out)
+    if os.path.islink(out) and not os.path.exists(out):
+        raise OutputError(f"--out {short(out)} is a symbolic link to nothing (a missing target or a loop of links); "
+                          "give a directory.")
     if os.path.lexists(out) and not out.is_dir():
         raise OutputError(f"--out {short(out)} is a file, not a directory; give a directory (it is created if "
                           "missing).")

@@ -111,7 +111,8 @@ def _stdout_to_stderr():
     level, what C libraries print (LAPACK's XERBLA, a solver's banner), so the one JSON document stays alone."""
     import ctypes
 
-    sys.stdout.flush()
+    if sys.stdout is not None:
+        sys.stdout.flush()
     try:
         saved = os.dup(1)
         os.dup2(2, 1)
@@ -242,7 +243,35 @@ def main(argv=None) -> int:
         print(f"cartpole {args.command}: {said}", file=sys.stderr)
         return 128 + exc.signum if isinstance(exc, Terminated) else 130
     if args.json:
-        sys.stdout.write(json.dumps(to_jsonable(doc)) + "\n")
+        return _print_document(args.command, doc)
+    return 0
+
+
+def _print_document(command: str, doc) -> int:
+    """Write the JSON document on stdout; a stdout that is closed, full or a pipe whose reader left is one sentence
+    on stderr (or, for the pipe, silence and status 141, as SIGPIPE would end a Unix tool), never a traceback."""
+    text = json.dumps(to_jsonable(doc)) + "\n"
+    try:
+        if sys.stdout is None:
+            raise OSError(9, "stdout is closed")
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        try:  # nothing more can reach the reader; keep the interpreter's own flush at exit quiet too
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, AttributeError, ValueError):
+            pass
+        return 141
+    except OSError as exc:
+        print(f"cartpole {command}: cannot write the JSON document to stdout ({exc.strerror or exc}); check where "
+              "stdout goes (a full disk, a closed descriptor).", file=sys.stderr)
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, 1)
+        except OSError:
+            pass
+        return 2
     return 0
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from cartpole._files import atomic_write, output_error
+from cartpole._files import OutputError, atomic_write
 from cartpole.errors import CartPoleError
 
 #: Flags for the C compiler: the generated functions are straight-line arithmetic that gcc vectorises for the
@@ -82,7 +82,10 @@ def private_dir(path: str | Path) -> Path:
         path.mkdir(parents=True, exist_ok=True, mode=0o700)
         st = os.stat(path)
     except OSError as exc:  # no cache (a read-only home, say): the callers fall back, as without a compiler
-        raise output_error(path, exc, "create the cache directory") from None
+        err = OutputError(f"Cannot create the cache directory {path} ({exc.strerror or type(exc).__name__}); set "
+                          "CARTPOLE_CACHE_DIR to a writable directory of your own")
+        err.errno = exc.errno
+        raise err from None
     if not stat.S_ISDIR(st.st_mode):
         raise CacheError(f"The cache directory {path} is not a directory; {fix}.")
     if st.st_uid != os.getuid():

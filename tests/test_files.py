@@ -181,3 +181,15 @@ def test_a_file_read_with_a_bound_refuses_a_larger_one_and_returns_a_smaller_who
 def test_an_empty_out_is_refused_not_taken_as_the_current_directory():
     with pytest.raises(files.OutputError, match="--out is empty"):
         files.check_out_dir("")
+
+
+def test_an_out_that_is_a_dangling_or_looping_link_is_refused(tmp_path):
+    loop = tmp_path / "a"
+    os.symlink(tmp_path / "b", loop)
+    os.symlink(loop, tmp_path / "b")
+    with pytest.raises(files.OutputError, match="symbolic link to nothing"):
+        files.check_out_dir(loop)
+    dangling = tmp_path / "c"
+    os.symlink(tmp_path / "missing", dangling)
+    with pytest.raises(files.OutputError, match="symbolic link to nothing"):
+        files.check_out_dir(dangling)

@@ -10,6 +10,10 @@ HELP = ("time the swing-up collocation solve (ours vs naive casadi.Opti baseline
 WRITES_FILES = False
 
 
+#: Most timed repeats a benchmark runs (medians settle long before).
+MAX_REPEATS = 100
+
+
 def add_arguments(parser) -> None:
     """``--quick`` (fewer repeats and rollouts, for tests), ``--repeats``, ``--no-replay``."""
     parser.add_argument("--quick", action="store_true",
@@ -56,6 +60,9 @@ def run(args) -> dict:
     repeats = args.repeats if args.repeats is not None else (2 if args.quick else 7)
     if repeats < 1:
         raise CartPoleError(f"--repeats {repeats} is not positive; give at least 1 (5 or more to publish).")
+    if repeats > MAX_REPEATS:
+        raise CartPoleError(f"--repeats {repeats} is more than the {MAX_REPEATS} limit (each repeat solves every "
+                            "benchmark again); give at most that, 7 is the default.")
     steps = _Steps()
     doc = bench_run(args.mjcf, repeats=repeats, replay=not args.no_replay,
                     replay_repeats=1 if args.quick else repeats, replay_rollouts=16 if args.quick else 256,

@@ -55,23 +55,36 @@ def add_arguments(parser) -> None:
                              "it and writes figures/noise_margin.png")
 
 
+#: Largest magnitude of a --Q or --R entry (and 1 / it the smallest nonzero one): far outside it SciPy's Riccati solver
+#: overflows or loses every digit.
+MAX_WEIGHT = 1e12
+
+
 def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
     """``--Q``/``--R`` numbers as an (n, n) matrix: n numbers are the diagonal, n*n the matrix row by row.
 
     Raises
     ------
     CartPoleError
-        Any other count, naming the two counts accepted and the order of the entries.
+        Any other count, naming the two counts accepted and the order of the entries; an entry beyond
+        :data:`MAX_WEIGHT` in magnitude, or a nonzero one below its inverse.
     """
     from cartpole.errors import CartPoleError
 
     v = np.asarray(values, dtype=float)
-    if v.size == n:
-        return np.diag(v)
-    if v.size == n * n:
-        return v.reshape(n, n)
-    raise CartPoleError(f"{flag} has {v.size} number(s); give {n} (the diagonal, for {order}) or {n * n} "
-                        "(the whole matrix, row by row).")
+    if v.size not in (n, n * n):
+        raise CartPoleError(f"{flag} has {v.size} number(s); give {n} (the diagonal, for {order}) or {n * n} "
+                            "(the whole matrix, row by row).")
+    big = v[np.isfinite(v)]
+    if big.size and np.abs(big).max() > MAX_WEIGHT:
+        raise CartPoleError(f"{flag} holds {np.abs(big).max():g}, beyond the {MAX_WEIGHT:g} limit of a weight (the "
+                            "Riccati equation overflows long before); scale the weights down together, only their "
+                            "ratios matter.")
+    nonzero = np.abs(big[big != 0])
+    if nonzero.size and nonzero.min() < 1.0 / MAX_WEIGHT:
+        raise CartPoleError(f"{flag} holds {nonzero.min():g}, below the {1.0 / MAX_WEIGHT:g} limit of a nonzero "
+                            "weight; scale the weights up together (only their ratios matter) or give 0.")
+    return np.diag(v) if v.size == n else v.reshape(n, n)
 
 
 def run(args) -> dict:

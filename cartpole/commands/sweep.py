@@ -127,6 +127,12 @@ def _plan(args, params):
         raise SweepError("--x0 fixes the start of a sweep over axis options; without them the starts fill the start "
                          "box (give e.g. --push-force -20 20 5).")
     n = DEFAULT_N if args.n is None else args.n
+    from cartpole.apps.sweep import MAX_RUNS
+    from cartpole.apps.sweep.plan import total_runs
+
+    if axes and total_runs(axes, n) > MAX_RUNS:
+        raise SweepError(f"This sweep description has {total_runs(axes, n)} runs, more than {MAX_RUNS}; use fewer "
+                         "grid points or a smaller --n.")
     duration = check_duration(args.duration, params)
     for m in methods:
         from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION

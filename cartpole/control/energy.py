@@ -38,6 +38,7 @@ Units: ``s`` m, ``theta`` rad, ``E`` J, ``a`` m/s^2, ``ctrl`` MuJoCo ctrl (slide
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import casadi as ca
@@ -166,6 +167,8 @@ def model_scales(model: CartPoleModel) -> dict:
             "half_track": float(0.5 * (p.cart_range[1] - p.cart_range[0]))}
 
 
+#: How far (a factor) an energy-shaping setting may go beyond its default (or beyond 1 for a small default).
+MAX_SCALING = 1000.0
 #: Dimensionless defaults of :func:`default_gains` (tuned on the shipped asset and checked on the test variants).
 DEFAULT_SCALING = dict(energy_gain=15.0, overshoot=0.005, energy_accel=1.0, centring_frequency=0.6,
                        centring_damping=1.0, kick=0.05, track_margin=0.2, brake_accel=0.5, barrier_rate=2.0,
@@ -201,12 +204,26 @@ def default_gains(model: CartPoleModel, **scaling) -> EnergyGains:
         raise EnergyShapingError(f"Unknown energy-shaping setting(s) {sorted(unknown)}; use "
                                  f"{', '.join(DEFAULT_SCALING)}.")
     c = {**DEFAULT_SCALING, **scaling}
-    if not (all(not np.isnan(float(v)) for v in c.values()) and c["energy_gain"] > 0 and c["overshoot"] >= 0
-            and 0 < c["energy_accel"] <= 1 and c["centring_frequency"] >= 0 and c["centring_damping"] >= 0
-            and c["kick"] >= 0 and c["track_margin"] >= 0 and 0 < c["brake_accel"] <= 1 and c["barrier_rate"] > 0
-            and c["damping_softening"] > 0 and c["centring_band"] > 0):
-        raise EnergyShapingError(f"Energy-shaping settings {c} are out of range: gains must be positive, "
-                                 "overshoot and margins non-negative, fractions in (0, 1].")
+    ok = {"energy_gain": lambda v: v > 0, "overshoot": lambda v: v >= 0, "energy_accel": lambda v: 0 < v <= 1,
+          "centring_frequency": lambda v: v >= 0, "centring_damping": lambda v: v >= 0, "kick": lambda v: v >= 0,
+          "track_margin": lambda v: v >= 0, "brake_accel": lambda v: 0 < v <= 1, "barrier_rate": lambda v: v > 0,
+          "damping_softening": lambda v: v > 0, "centring_band": lambda v: v > 0}
+    bad = []
+    for k, v in c.items():
+        try:
+            f = float(v)
+        except (TypeError, ValueError):
+            f = math.nan
+        # each a dimensionless scaling of order 1: beyond MAX_SCALING times its default it only overflows the law
+        # (damping_softening = inf is documented: no damping compensation)
+        if k == "damping_softening" and f == math.inf:
+            continue
+        if not (math.isfinite(f) and ok[k](f) and abs(f) <= MAX_SCALING * max(DEFAULT_SCALING[k], 1.0)):
+            bad.append(f"{k} = {v!r}")
+    if bad:
+        raise EnergyShapingError(f"Energy-shaping setting(s) {', '.join(bad)} out of range: gains must be positive, "
+                                 "overshoot and margins non-negative, fractions in (0, 1], none more than "
+                                 f"{MAX_SCALING:g} times its default.")
     sc = model_scales(model)
     if not np.isfinite(sc["a_max"]):
         raise EnergyShapingError("The MJCF's actuator has no ctrlrange, so default energy gains cannot be scaled; "

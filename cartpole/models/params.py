@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -471,12 +472,78 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
         raise MJCFError(str(exc).replace("the path of a readable file", "the path of a cart-pole MJCF")) from None
     try:
         text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MJCFError(f"MJCF file '{path}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
+                        "path of a cart-pole MJCF.") from None
+    check_referenced_files(path, text)  # an <include> or asset naming a FIFO would block MuJoCo's reader forever
+    try:
         with _compiler_warnings():
             model = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:
         raise MJCFError(f"MJCF file '{path}' does not compile: {first_line(exc)}. "
                         "Fix the XML and try again.") from None
     return model, str(path), text
+
+
+#: Most files an MJCF may pull in through nested <include> elements before it is refused (a loop of includes).
+MAX_INCLUDES = 100
+
+
+def check_referenced_files(path: Path, text: str) -> None:
+    """Refuse, before MuJoCo opens them, files an MJCF names (``<include file>``, nested, and every asset's
+    ``file`` attribute, resolved as MuJoCo does: includes beside the including file, assets under ``meshdir`` /
+    ``texturedir`` / ``assetdir`` or beside the model) that are not regular files when they exist: a FIFO would
+    block the reader forever, a device never end. Missing files and XML errors are left to MuJoCo's own sentence.
+
+    Raises
+    ------
+    MJCFError
+        A referenced file is a FIFO, a device, a directory, a socket or a loop of symbolic links, or the includes
+        pull in more than :data:`MAX_INCLUDES` files.
+    """
+    import xml.etree.ElementTree as ET
+
+    from cartpole._files import InputFileError, check_input_file
+
+    root_dir = Path(path).parent
+    todo, seen = [(Path(path), text)], 0
+    while todo:
+        where, body = todo.pop()
+        if "file" not in body or len(body) > 32 * 2**20:  # nothing named, or too big to parse twice: MuJoCo's turn
+            continue
+        try:
+            tree = ET.fromstring(body)
+        except ET.ParseError:
+            continue  # MuJoCo says what is wrong with the XML (expat also refuses entity amplification)
+        comp = tree.find("compiler")
+        dirs = {k: (comp.get(k) if comp is not None else None) for k in ("meshdir", "texturedir", "assetdir")}
+        for el in tree.iter():
+            name = el.get("file")
+            if not name:
+                continue
+            if el.tag == "include":
+                candidates = [where.parent / name]
+            else:
+                base = dirs.get("texturedir" if el.tag in ("texture", "hfield") else "meshdir") or dirs["assetdir"]
+                candidates = [root_dir / base / name if base else root_dir / name, root_dir / name]
+            for cand in candidates:
+                if not os.path.lexists(cand):
+                    continue
+                try:
+                    real = check_input_file(cand, what=f"The {el.tag} file")
+                except InputFileError as exc:
+                    raise MJCFError(f"MJCF file '{path}' names {cand} ({el.tag} file), which {exc.reason}; point it "
+                                    "at a regular file.") from None
+                if el.tag == "include":
+                    seen += 1
+                    if seen > MAX_INCLUDES:
+                        raise MJCFError(f"MJCF file '{path}' pulls in more than {MAX_INCLUDES} files through "
+                                        "<include>; remove the loop of includes.")
+                    try:
+                        todo.append((real, real.read_text()))
+                    except (OSError, UnicodeDecodeError):
+                        pass  # MuJoCo says what is wrong with it
+                break
 
 
 @contextlib.contextmanager

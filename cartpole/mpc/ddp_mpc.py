@@ -30,7 +30,7 @@ from cartpole.control.linear import LinearFeedback
 from cartpole.lqr import dlqr, lab_weights
 from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.mpc.nmpc import SAFE_LQR_ANGLE, NMPCError
-from cartpole.mpc.options import DEFAULT_PERIOD, MPCOptions
+from cartpole.mpc.options import MPCOptions, mpc_grid
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.objectives import tracking_cost
 from cartpole.ocp.trajectory import Trajectory
@@ -79,9 +79,7 @@ class DDPMPCController:
         dt = float(params.timestep)
         if abs(model.dt - dt) > 1e-15:
             model = model.rebuilt(dt=dt)
-        period = DEFAULT_PERIOD if options.period is None else options.period
-        steps = max(1, int(round(period / dt)))
-        N = max(1, int(round(options.horizon / (steps * dt))))
+        steps, N = mpc_grid(options, dt)  # refused when the period or horizon cannot be used as given
         self.model, self.params, self.steps, self.N = model, params, steps, N
         self.period, self.horizon = steps * dt, N * steps * dt
         self.iterations = int(options.iterations)

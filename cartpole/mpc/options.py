@@ -24,6 +24,9 @@ RAIL_PENALTY = 1e3
 #: and every control step solves one (the default is 60); a longer horizon or a shorter period is refused before
 #: anything is built.
 MAX_STAGES = 500
+#: Most SQP (or DDP) iterations a control step may take, and the offline first iterate.
+MAX_ITERATIONS = 100
+MAX_INIT_ITERATIONS = 1000
 
 
 def mpc_grid(options: MPCOptions, timestep: float) -> tuple[int, int]:
@@ -123,8 +126,8 @@ class MPCOptions(StageOptions):
     def __post_init__(self):
         self.number("period", low=0.0, low_open=True, unit="s", optional=True)
         self.number("horizon", low=0.0, low_open=True, unit="s")
-        self.number("iterations", low=1, integer=True)
-        self.number("init_iterations", low=0, integer=True)
+        self.number("iterations", low=1, high=MAX_ITERATIONS, integer=True)
+        self.number("init_iterations", low=0, high=MAX_INIT_ITERATIONS, integer=True)
         self.number("tol", low=0.0)
         self.number("cart_margin", low=0.0, unit="m")
         self.number("rail_penalty", low=0.0, low_open=True)

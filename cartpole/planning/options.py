@@ -12,6 +12,12 @@ from cartpole.options import StageOptions
 #: Fraction of each actuator's half ctrl range the exact discrete plan leaves free on both sides, so TVLQR keeps
 #: authority to correct errors where the plan would otherwise ride the limit (0 when that is infeasible).
 U_MARGIN = 0.05
+#: Longest plan accepted, s (a swing-up plan is seconds long; far longer ones only make huge problems).
+MAX_PLAN_T = 60.0
+#: Most collocation intervals a plan may have (its NLP grows with them; the default is about 100).
+MAX_PLAN_N = 2000
+#: Most starts (initial guesses) a plan may try.
+MAX_PLAN_STARTS = 100
 #: NLP solvers of the plan's last stage.
 PLAN_SOLVERS = ("ipopt", "fatrop", "sqp")
 
@@ -101,19 +107,19 @@ class PlanOptions(StageOptions):
                                 "pump_restarts", "pump_seed")
 
     def __post_init__(self):
-        self.number("T", low=0.0, low_open=True, unit="s", optional=True)
-        self.number("T_max", low=0.0, low_open=True, unit="s")
+        self.number("T", low=0.0, low_open=True, high=MAX_PLAN_T, unit="s", optional=True)
+        self.number("T_max", low=0.0, low_open=True, high=MAX_PLAN_T, unit="s")
         self.number("search_s", low=0.0, low_open=True, unit="s")
         self.number("pump_restarts", low=1, integer=True)
         self.number("pump_seed", low=0, integer=True)
-        self.number("N", low=2, integer=True, optional=True)
-        self.number("time_margin", low=0.0)
+        self.number("N", low=2, high=MAX_PLAN_N, integer=True, optional=True)
+        self.number("time_margin", low=0.0, high=10.0)
         self.number("cart_margin", low=0.0, unit="m")
         self.number("u_margin", low=0.0)
         if not self.u_margin < 1.0:
             raise PlanOptionsError(f"u_margin = {self.u_margin} must be a fraction in [0, 1) of each half ctrl "
                                    "range.")
-        self.number("starts", low=1, integer=True, optional=True)
+        self.number("starts", low=1, high=MAX_PLAN_STARTS, integer=True, optional=True)
         if self.solver not in PLAN_SOLVERS:
             raise PlanOptionsError(f"Solver '{self.solver}' is not supported; choose one of "
                                    f"{', '.join(PLAN_SOLVERS)}.")

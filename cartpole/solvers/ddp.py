@@ -36,7 +36,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.codegen import Buffered, build_library, load_library
+from cartpole.codegen import Buffered, CacheError, build_library, load_library
 from cartpole.errors import CartPoleError
 from cartpole.models import state_error
 
@@ -276,6 +276,8 @@ class DDP:
                 ext = load_library(lib, tuple(f.name() for f in funs))
                 funs = [ext[f.name()] for f in funs]
                 self.library = lib
+            except CacheError:  # a cache others can write to: refused, never used or bypassed
+                raise
             except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
                 reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
                 print(f"cartpole: compiled DDP functions unavailable ({reason}); using CasADi's virtual machine "

@@ -164,6 +164,21 @@ def test_an_mjcf_that_is_not_a_regular_file_is_one_sentence(tmp_path, capsys, ki
     _fails_cleanly(["linearize", "--json", "--mjcf", str(path)], tmp_path, capsys, words[kind], "--mjcf")
 
 
+@pytest.mark.parametrize("kind", ["fifo", "directory"])
+def test_an_mjcf_including_a_file_that_is_not_regular_is_one_sentence_not_a_hang(tmp_path, capsys, kind):
+    from cartpole.models import SHIPPED_MJCF
+
+    target = tmp_path / "part.xml"
+    if kind == "fifo":
+        os.mkfifo(target)  # MuJoCo's reader would wait for a writer forever
+    else:
+        target.mkdir()
+    mjcf = tmp_path / "m.xml"
+    mjcf.write_text(SHIPPED_MJCF.read_text().replace("<worldbody>", '<include file="part.xml"/><worldbody>', 1))
+    _fails_cleanly(["linearize", "--json", "--mjcf", str(mjcf)], tmp_path, capsys, "include file",
+                   "FIFO" if kind == "fifo" else "a directory")
+
+
 def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _fails_cleanly([*SWINGUP, "--out", ""], tmp_path, capsys, "--out is empty")
@@ -206,12 +221,14 @@ def test_a_resume_file_that_is_binary_or_a_device_is_one_sentence(tmp_path, caps
     (["sweep", "--json", "--duration", "1", "--setting", "period", "1e308"], ("setting:period", "to 1 s")),
     (["sweep", "--json", "--duration", "1", "--setting", "period", "1e-9"], ("setting:period", "from 0.005")),
     (["sweep", "--json", "--duration", "1", "--setting", "delay", "1e308"], ("setting:delay",)),
+    (["bench", "--json", "--repeats", "1000000000"], ("100 limit",)),
 ], ids=["seed", "push-time", "push-force", "push-after-end", "sweep-push-time", "sweep-push-force", "sweep-start",
         "x0-rate", "x0-angle", "mpc-horizon", "mpc-stages", "mpc-horizon-below-period", "mpc-period", "period",
         "period-long", "delay-long", "mhe-horizon", "model-error-tiny", "sweep-period-long", "sweep-period-short",
-        "sweep-delay-long"])
+        "sweep-delay-long", "bench-repeats"])
 def test_a_number_out_of_range_is_refused_before_any_work(tmp_path, capsys, argv, words):
-    _fails_cleanly([*argv, "--out", str(tmp_path / "out")], tmp_path, capsys, *words)
+    out = [] if argv[0] == "bench" else ["--out", str(tmp_path / "out")]  # bench writes no files
+    _fails_cleanly([*argv, *out], tmp_path, capsys, *words)
 
 
 def _variant(tmp_path, old, new):
@@ -249,9 +266,11 @@ def test_a_bogus_matplotlib_backend_is_one_sentence(tmp_path):
     assert proc.stdout == "" and not (tmp_path / "out").exists()
 
 
-def test_weights_that_overflow_print_their_sentence_alone(tmp_path, capsys):
-    _fails_cleanly(["lqr", "--json", "--no-video", "--Q", *["1e308"] * 4, "--out", str(tmp_path / "out")],
-                   tmp_path, capsys, "Riccati")
+@pytest.mark.parametrize("flag, values, words", [("--Q", ["1e308"] * 4, "1e+12 limit"),
+                                                  ("--R", ["1e-308"], "below the 1e-12 limit")])
+def test_weights_that_overflow_print_their_sentence_alone(tmp_path, capsys, flag, values, words):
+    _fails_cleanly(["lqr", "--json", "--no-video", flag, *values, "--out", str(tmp_path / "out")],
+                   tmp_path, capsys, words)
 
 
 # ---- bounded work (issue 24) ------------------------------------------------------------------------------------
@@ -371,3 +390,38 @@ def test_the_documented_limits_are_the_codes():
         number, *unit = value.split()
         expected = float(number) * (units.get(unit[0], 1) if unit else 1)
         assert actual == expected, (dotted, value, actual)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--start", "hinge", "0", "1", "1000000000"], ("grid points", "100000 runs")),
+    (["--start", "hinge", "0", "1", "1000", "--push-force", "0", "1", "1000"], ("1000000 runs",)),
+    (["--setting", "energy_gain", "1e308"], ("setting:energy_gain", "1000 times its default")),
+    (["--setting", "energy_gain", "0"], ("setting:energy_gain", "energy_gain = 0.0")),
+], ids=["grid-axis", "grid-product", "energy-setting-huge", "energy-setting-zero"])
+def test_a_sweep_description_no_run_could_use_is_refused_before_any_run(tmp_path, capsys, argv, words):
+    line = _fails_cleanly(["sweep", "--json", "--duration", "1", *argv, "--out", str(tmp_path / "out")], tmp_path,
+                          capsys, *words)
+    assert "{" not in line  # names the settings, no dump of them
+
+
+@pytest.mark.parametrize("where", ["full", "closed", "pipe-closed"])
+def test_a_json_document_that_cannot_be_written_is_one_sentence_not_a_traceback(tmp_path, where):
+    import sys
+
+    argv = [sys.executable, "-m", "cartpole", "linearize", "--json"]
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    if where == "pipe-closed":
+        r, w = os.pipe()
+        os.close(r)  # the reader is gone before anything is written: EPIPE
+        proc = subprocess.run(argv, stdout=w, stderr=subprocess.PIPE, text=True, env=env, timeout=120, check=False)
+        os.close(w)
+        assert proc.returncode == 141 and "Traceback" not in proc.stderr, proc.stderr
+        return
+    if where == "full" and not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    with open("/dev/full" if where == "full" else os.devnull, "w") as out:
+        kw = {"stdout": out} if where == "full" else {"stdout": subprocess.DEVNULL,
+                                                        "preexec_fn": lambda: os.close(1)}
+        proc = subprocess.run(argv, stderr=subprocess.PIPE, text=True, env=env, timeout=120, check=False, **kw)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and "cannot write the JSON document" in lines[0], proc.stderr

@@ -12,7 +12,8 @@ from cartpole.mpc.options import DEFAULT_HORIZON, MPCOptions
 
 @pytest.mark.parametrize("changes, words", [
     (dict(period=0.0), "period = 0.0 must be a finite number > 0 s"), (dict(horizon=np.inf), "horizon"),
-    (dict(iterations=0), "iterations"), (dict(iterations=1.5), "whole number"), (dict(init_iterations=-1), ">= 0"),
+    (dict(iterations=0), "iterations"), (dict(iterations=1.5), "whole number"), (dict(init_iterations=-1), r"in \[0, 1000\]"),
+    (dict(iterations=10**9), r"in \[1, 100\]"),
     (dict(tol=-1e-3), "tol"), (dict(rail_penalty=0.0), "rail_penalty"), (dict(qp_solver="osqp"), "daqp, qpoases"),
     (dict(prestabilize="yes"), "True, False or None"), (dict(R=[np.nan]), "R must be finite"),
     (dict(N=60), "MPCOptions has no field 'N'; the fields are period, horizon, iterations"),

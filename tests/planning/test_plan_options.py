@@ -10,7 +10,8 @@ from cartpole.planning.options import PlanOptions, PlanOptionsError
 
 
 @pytest.mark.parametrize("changes, words", [
-    (dict(N=1), "N = 1 must be a finite number >= 2"), (dict(N=40.5), "whole number"), (dict(T=0.0), "> 0 s"),
+    (dict(N=1), r"N = 1 must be a finite number in \[2, 2000\]"), (dict(N=40.5), "whole number"),
+    (dict(T=0.0), r"in \(0, 60\] s"), (dict(N=10**9), r"\[2, 2000\]"), (dict(T=1e308), r"\(0, 60\] s"),
     (dict(time_margin=-0.1), "time_margin"), (dict(cart_margin=np.nan), "cart_margin"),
     (dict(u_margin=1.0), "fraction in \\[0, 1\\)"), (dict(solver="snopt"), "ipopt, fatrop, sqp"),
     (dict(starts=0), "starts"), (dict(exact_discrete="sometimes"), "True, False or 'auto'"),

@@ -217,9 +217,22 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     except BrokenProcessPool:
         raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer --workers than "
                          f"{workers}.") from None
+    except BaseException:  # interrupted (Ctrl-C, SIGTERM) or failed: a run under way in a worker is not waited for
+        _terminate_workers(pool)
+        raise
     finally:
         here.shutdown(wait=True, cancel_futures=True)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate_workers(pool) -> None:
+    """SIGTERM to every worker process of ``pool`` (a :class:`concurrent.futures.ProcessPoolExecutor`), so that an
+    interrupted sweep does not wait for the runs under way there (their rows would not be kept anyway)."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            proc.terminate()
+        except (OSError, ValueError, AttributeError):  # already gone, or closed
+            pass
 
 
 _WORKER: Runner | None = None  # set in each worker process by _init_worker

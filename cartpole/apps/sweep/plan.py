@@ -110,7 +110,8 @@ def axis(name: str, *values) -> Axis:
     Raises
     ------
     SweepError
-        Not one, two or three finite numbers, ``K`` not a whole number >= 1, or ``LO > HI``.
+        Not one, two or three finite numbers, ``K`` not a whole number from 1 to :data:`MAX_RUNS`, or
+        ``LO > HI``.
     """
     try:
         v = [float(x) for x in values]
@@ -127,6 +128,9 @@ def axis(name: str, *values) -> Axis:
         return Axis(name, v[0], v[1], None)
     if not (v[2] >= 1 and v[2] == int(v[2])):
         raise SweepError(f"The sweep axis {name} needs a whole number K >= 1 of grid points; got {v[2]:g}.")
+    if v[2] > MAX_RUNS:
+        raise SweepError(f"The sweep axis {name} has {v[2]:g} grid points, more than a sweep's {MAX_RUNS} runs; "
+                         "give fewer points.")
     return Axis(name, v[0], v[1], int(v[2]))
 
 
@@ -273,7 +277,7 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
                     lo, hi = limits[key]
                     for v in (a.low, a.high):
                         if not (math.isfinite(v) and lo <= v <= hi):
-                            raise SweepError(f"The sweep axis {a.name} reaches {v:g} s; give {key}s from "
+                            raise SweepError(f"The sweep axis {a.name} reaches {v:g}: give {key}s from "
                                              f"{max(lo, h if key == 'period' else 0.0):g} to {hi:g} s (whole "
                                              f"{h:g} s MJCF steps).")
                 for v in (a.low, a.high):
@@ -379,6 +383,9 @@ def plan_runs(params: CartPoleParams, x0, axes: tuple, n: int, seed: int, *, cen
     SweepError
         More than :data:`MAX_RUNS` runs.
     """
+    if total_runs(axes, n) > MAX_RUNS:  # before any array of that size is made
+        raise SweepError(f"This sweep description has {total_runs(axes, n)} runs, more than {MAX_RUNS}; use fewer "
+                         "grid points.")
     rng = np.random.default_rng(seed)
     base = dict(base_options or {})
     nx = 2 * params.nq

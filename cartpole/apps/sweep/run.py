@@ -127,8 +127,16 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
             raise SweepError(first_line(exc) + ".") from None
     base = dict(energy_options or {})
     if method == "energy":  # refuse a model energy shaping cannot drive before anything runs
-        from cartpole.control.energy import EnergyShapingController
+        from cartpole.control.energy import DEFAULT_SCALING, EnergyShapingController
         EnergyShapingController(model, **base)
+        for a in axes:  # and an energy setting whose ends no controller takes (every run would only fail)
+            key = a.name[len("setting:"):]
+            if a.name.startswith("setting:") and key in DEFAULT_SCALING:
+                for v in (a.low, a.high):
+                    try:
+                        EnergyShapingController(model, **{**base, key: v})
+                    except CartPoleError as exc:
+                        raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
     runs = plan_runs(params, model.x_hanging if x0 is None else x0, axes, n, seed, center=center,
                      half_widths=half_widths, gain_jitter=gain_jitter, base_options=base)
     starts = runs.starts
