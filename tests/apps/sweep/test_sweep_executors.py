@@ -109,5 +109,5 @@ def test_the_rigs_delay_is_swept_by_name_rounded_to_whole_steps_and_checked_firs
     delays = [r["settings"]["delay"] for r in rows]
     assert delays == [0.0, 0.0126]  # the row keeps the value drawn; the run used the nearest whole step
     assert all(r["success"] and r["replays"] for r in rows)
-    with pytest.raises(SweepError, match=r"^The sweep axis setting:delay reaches -0.01 s; .*\.$"):
+    with pytest.raises(SweepError, match=r"^The sweep axis setting:delay reaches -0\.01: give delays from 0 to .*\.$"):
         swingup_sweep(None, method="energy", axes=[axis("setting:delay", -0.01, 0.02, 2)])
