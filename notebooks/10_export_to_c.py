@@ -14,7 +14,7 @@
 # ---
 
 # %% [markdown]
-# # 9. The controller as standalone C, proven in MuJoCo
+# # 10. The controller as standalone C, proven in MuJoCo
 #
 # The LQR + Kalman filter of notebook 8 (a 10 ms period, 2048-count encoders) leaves Python here: exported as a
 # folder of C99 with static memory, built with `make`, run as the shipped example on stdin, and then driven in
