@@ -193,10 +193,34 @@ def signals_as_interrupts():
             signal.signal(sig, handler)
 
 
+def _start_sweep_workers_early(argv: list) -> None:
+    """For ``cartpole sweep --workers W`` (W > 1, no ``--address``): start the pool's fork server now, before this
+    process imports NumPy, SciPy, CasADi and MuJoCo to build its parser and its model, so that the server imports
+    the toolkit for the workers at the same time (:func:`cartpole.apps.forkserver.start_server`). Anything unusual
+    (another command, a bad number) is left to the real parser."""
+    if not argv or argv[0] != "sweep":
+        return
+    import argparse
+
+    peek = argparse.ArgumentParser(add_help=False)
+    peek.add_argument("--workers", type=int, default=1)
+    peek.add_argument("--address", default=None)
+    peek.add_argument("--method", action="append", default=None)
+    try:
+        known, _ = peek.parse_known_args(argv[1:])
+    except (SystemExit, ValueError):
+        return
+    if known.workers > 1 and not known.address:
+        from cartpole.apps.forkserver import start_server
+
+        start_server((known.method or ["energy"])[0])
+
+
 def main(argv=None) -> int:
     """Entry point of the ``cartpole`` console script; returns the exit status."""
     # Headless rendering: MUJOCO_GL must be set before mujoco is first imported.
     os.environ.setdefault("MUJOCO_GL", "egl")
+    _start_sweep_workers_early(sys.argv[1:] if argv is None else list(argv))
     parser = build_parser()
     try:
         args, extra = parser.parse_known_args(argv)
