@@ -94,13 +94,9 @@ class DDPMPCController:
         x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
         running = ca.Function("mpc_tracking", [x, u], [tracking_cost(model, x, u, np.diag(Q), np.diag(R))])
         b = bounds_from_params(params, cart_margin=options.cart_margin)
-        q_low, q_high = np.array(b.q_low, float), np.array(b.q_high, float)
-        if b.cart_max is not None and params.slide is not None:
-            q_low[params.slide] = b.cart_center - b.cart_max
-            q_high[params.slide] = b.cart_center + b.cart_max
         self.u_low, self.u_high = np.array(b.u_low, float), np.array(b.u_high, float)
         self.ddp = DDP(held.step, self.period, N, running=running, u_low=self.u_low, u_high=self.u_high,
-                       q_low=q_low, q_high=q_high, x_goal=model.x_eq, hinges=model.hinges, Qf=np.asarray(lq.S),
+                       q_low=b.q_low, q_high=b.q_high, x_goal=model.x_eq, hinges=model.hinges, Qf=np.asarray(lq.S),
                        goal_constraint=False, compiled=options.compiled,
                        options=DDPOptions(penalty=10 * options.rail_penalty, max_outer=1))
         self._plan = guess if isinstance(guess, Trajectory) else None

@@ -38,7 +38,6 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered, CacheError, build_library, load_library
 from cartpole.errors import CartPoleError
-from cartpole.models import state_error
 
 _LIB_VERSION = "ddp-1"
 
@@ -533,16 +532,8 @@ def ddp_for_model(model, T: float, *, steps: int = 1, objective=None, x_goal=Non
     h = float(model.dt) * int(steps)
     step = model.step if int(steps) == 1 else model.hold(int(steps)).step
     N = max(1, int(round(float(T) / h)))
-    q_low, q_high = np.array(bounds.q_low, float), np.array(bounds.q_high, float)
-    slide = model.params.slide
-    if bounds.cart_max is not None and slide is not None:
-        q_low[slide] = max(q_low[slide], bounds.cart_center - bounds.cart_max)
-        q_high[slide] = min(q_high[slide], bounds.cart_center + bounds.cart_max)
     goal = model.x_eq if x_goal is None else (None if x_goal is False else x_goal)
-    return DDP(step, h, N, running=running, u_low=bounds.u_low, u_high=bounds.u_high, q_low=q_low, q_high=q_high,
-               x_goal=goal, hinges=model.hinges, Qf=Qf, options=options, compiled=compiled)
+    # the OCP's position bounds already hold the cart inside its rail less the margin (bounds_from_params)
+    return DDP(step, h, N, running=running, u_low=bounds.u_low, u_high=bounds.u_high, q_low=bounds.q_low,
+               q_high=bounds.q_high, x_goal=goal, hinges=model.hinges, Qf=Qf, options=options, compiled=compiled)
 
-
-def state_errors(result: DDPResult, x_goal, hinges) -> np.ndarray:
-    """``x_k - x_goal`` (N+1, nx) of a result, hinge errors wrapped (:func:`cartpole.models.state_error`)."""
-    return state_error(result.x, x_goal, hinges)

@@ -8,7 +8,7 @@ import pytest
 from cartpole.models import build_model
 from cartpole.ocp.bounds import bounds_from_model
 from cartpole.sim import replay
-from cartpole.solvers.ddp import DDP, DDPError, DDPOptions, ddp_for_model, state_errors
+from cartpole.solvers.ddp import DDP, DDPError, DDPOptions, ddp_for_model
 
 STEPS = 4  # the ctrl held for 4 MJCF steps (20 ms): the held model is exact, so the plan replays in MuJoCo
 
@@ -54,7 +54,7 @@ def test_ddp_swings_the_pole_up_inside_every_limit_and_replays_in_mujoco(model, 
     assert np.all(r.u >= b.u_low) and np.all(r.u <= b.u_high)
     s = model.params.slide
     assert np.abs(r.x[:, s] - b.cart_center).max() <= b.cart_max + ddp.options.constraint_tolerance
-    assert np.abs(state_errors(r, model.x_eq, model.hinges)[-1]).max() < 1e-5
+    assert np.abs(model.state_error(r.x[-1])).max() < 1e-5
     run = replay(None, model.x_hanging, np.repeat(r.u, STEPS, axis=0))
     assert run.info.get("diverged") is None
     np.testing.assert_allclose(run.x[::STEPS], r.x, atol=1e-9, rtol=0)
