@@ -204,6 +204,8 @@ class FeedforwardStudy:
         In the order of :data:`RUNS`.
     options : PlanOptions or None
         The planner settings both plans were made with.
+    friction_compensation : bool
+        The runs cancelled the driven joints' dry friction (:func:`~cartpole.control.friction.friction_design`).
     """
 
     params: CartPoleParams
@@ -213,6 +215,7 @@ class FeedforwardStudy:
     mass_error: float
     runs: dict
     options: object = None
+    friction_compensation: bool = False
 
     @property
     def mjcf(self) -> str:
@@ -312,8 +315,8 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
     # planned without the friction a compensation cancels, run with it (cartpole.control.friction)
     plant = build_model(params)
-    model, compensate = friction_design(plant, loop)
-    wrap = compensate if compensate is not None else (lambda controller: controller)
+    friction = friction_design(plant, loop)
+    model = friction.model
     period = None if loop is None else loop.period
     rig = build_rig(plant, loop, task="swingup")  # a bad period, delay or sensor ends here, before any solve
 
@@ -329,7 +332,7 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
             plan = trajopt_swingup(design.params, model=design, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
         wrong = plan if f == 0.0 else trajopt_swingup(
-            params, model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop)[0], options=options,
+            params, model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model, options=options,
             period=period)
         tick(1.0)
 
@@ -346,11 +349,11 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
         for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
             if hasattr(ctrl, "reset"):
                 ctrl.reset()
-            rollout = simulate(params, wrap(ctrl), x0, sp.T + extra, control_period=period,
+            rollout = simulate(params, friction.wrap(ctrl), x0, sp.T + extra, control_period=period,
                                rig=None if rig is None else rig.for_run(i),
                                progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
             runs[name] = judge(name, rollout, sp.trajectory, model,
                                handover_time=getattr(ctrl, "handover_time", None))
             tick((i + 1) / len(controllers))
     return FeedforwardStudy(params=params, model=model, plan=plan, wrong_plan=wrong, mass_error=f, runs=runs,
-                            options=options)
+                            options=options, friction_compensation=friction.compensated)

@@ -453,19 +453,18 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     # the controller's knowledge: the planning model (the MJCF's own unless given), and from it the model the LQR
     # is designed on, without the friction a compensation cancels; MuJoCo always runs the MJCF
     known = plant if plan_model is None else plan_model
-    design, compensate = friction_design(known, loop)
+    friction = friction_design(known, loop)
     rig = build_rig(known, loop, task="balance")
     model = plant
     steps = steps_per_period(None if loop is None else loop.period, model.dt)
     Q0, R0 = lab_weights(model)
     # the design and loop lab_start_scale uses
     own = (Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None
-           and plan_model is None and not compensate)
+           and plan_model is None and not friction.compensated)
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
-    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(design, Q, R, discrete=discrete, steps=steps)
-    if compensate:
-        ctrl = compensate(ctrl)
+    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(friction.model, Q, R, discrete=discrete, steps=steps)
+    ctrl = friction.wrap(ctrl)
     if start_scale is None and own:  # the scale search's runs are this lab's runs
         scale, (x0s, runs, mets) = _search_scale(model, ctrl, x_eq, progress)
     else:
@@ -477,7 +476,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,
                      u_eq=readonly(model.u_eq), x0s=x0s, start_scale=float(scale), duration=float(duration),
                      rollouts=tuple(runs), metrics=tuple(mets), period=float(steps * model.dt), rig=rig,
-                     friction_compensation=compensate is not None)
+                     friction_compensation=friction.compensated)
 
 
 def cart_excursion(run, x_eq, slide: int | None) -> float:

@@ -394,8 +394,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
     # designed without the friction a compensation cancels, run with it (cartpole.control.friction)
-    plant, (pm, compensate) = pm, friction_design(pm, loop)
-    wrap = compensate if compensate is not None else (lambda controller: controller)
+    friction = friction_design(pm, loop)
+    plant, pm = pm, friction.model
     force = loop.push_force(params.timestep)
     if loop.duration is not None:
         check_push_times(loop.push, loop.duration)
@@ -448,7 +448,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         basin = None
         T = MPC_DURATION if T is None else T
         rig = build_rig(plant, loop.replace(period=float(controller.period)), task="swingup")
-        controller = wrap(controller)  # the controller that runs, friction compensation outermost
+        controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
                            progress=_stage(progress, "simulate"), on_step=on_step, rig=rig)
         if progress is not None:
@@ -463,7 +463,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         controller = SwitchingController(energy, catch, basin.rho)
         T = ENERGY_DURATION if T is None else T
         rig = build_rig(plant, loop, task="swingup")
-        controller = wrap(controller)  # the controller that runs, friction compensation outermost
+        controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
@@ -495,7 +495,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
                 T = max(T, DMC_STEPS * params.timestep)
             check_push_times(loop.push, T)
         rig = build_rig(plant, loop, task="swingup")
-        controller = wrap(controller)  # the controller that runs, friction compensation outermost
+        controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
                            on_step=on_step, control_period=loop.period, rig=rig)
         if progress is not None:
@@ -519,7 +519,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
 
         metrics["estimation"] = estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))
     metrics["rig"] = None if rig is None else rig.to_dict()
-    metrics["friction"] = friction_summary(params, compensate is not None)
+    metrics["friction"] = friction_summary(params, friction.compensated)
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
                          controller=controller, options=options)

@@ -108,7 +108,7 @@ def run(args) -> dict:
                           "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},
            "runs": {n: {**r.summary(), "rollout": rollout_doc(r.rollout), "estimation": _estimation(r.rollout, rig)}
                     for n, r in study.runs.items()},
-           "friction": friction_summary(params, loop.friction_compensation and params.driven_friction),
+           "friction": friction_summary(params, study.friction_compensation),
            "figure": str(fig.resolve()), "videos": videos,
            "options": {"plan": study.options.as_dict()}}
     if not args.json:

@@ -16,6 +16,8 @@ motor); a joint driven by several actuators gets its compensation from the first
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from cartpole._arrays import readonly
@@ -96,7 +98,31 @@ class FrictionCompensation:
         return getattr(controller, name)
 
 
-def friction_design(model, loop=None):
+@dataclass(frozen=True)
+class FrictionDesign:
+    """How a closed loop treats a model's dry friction (:func:`friction_design`).
+
+    Attributes
+    ----------
+    model : CartPoleModel
+        The model to design controllers on.
+    plant : CartPoleModel
+        The model whose driven joints' friction is cancelled (the one :func:`friction_design` was given).
+    compensated : bool
+        Whether the controllers run wrapped in :class:`FrictionCompensation`.
+    """
+
+    model: object
+    plant: object
+    compensated: bool
+
+    def wrap(self, controller):
+        """The controller that runs: ``FrictionCompensation(controller, plant)`` when compensated, else
+        ``controller`` itself."""
+        return FrictionCompensation(controller, self.plant) if self.compensated else controller
+
+
+def friction_design(model, loop=None) -> FrictionDesign:
     """The model to design controllers on, and the compensation to wrap them in, for a closed loop on ``model``.
 
     On a model whose driven joints have ``frictionloss``, with ``loop.friction_compensation`` (the default), every
@@ -114,16 +140,13 @@ def friction_design(model, loop=None):
 
     Returns
     -------
-    design : CartPoleModel
-        The model to design on.
-    compensate : callable or None
-        ``compensate(controller) -> FrictionCompensation(controller, model)``; None when nothing is compensated.
+    FrictionDesign
     """
     wanted = True if loop is None else bool(getattr(loop, "friction_compensation", True))
     if not (wanted and model.params.driven_friction):
-        return model, None
+        return FrictionDesign(model=model, plant=model, compensated=False)
     driven = [a.joint for a in model.params.actuators if a.gear != 0]
-    return model.without_friction(driven), lambda controller: FrictionCompensation(controller, model)
+    return FrictionDesign(model=model.without_friction(driven), plant=model, compensated=True)
 
 
 def friction_summary(params, compensated: bool) -> dict | None:

@@ -160,16 +160,18 @@ def test_friction_design_removes_only_the_driven_joints_friction_and_wraps_in_co
     from cartpole.control.friction import friction_design
     from cartpole.sim.options import LoopOptions
 
-    design, compensate = friction_design(with_friction)
+    friction = friction_design(with_friction)
+    design = friction.model
+    assert friction.compensated and friction.plant is with_friction
     assert design.params.frictionloss[with_friction.slide] == 0.0
     assert design.params.frictionloss[with_friction.hinges[0]] == HINGE_FRICTION
     assert design.params.mjcf == with_friction.params.mjcf and design.params.xml == with_friction.params.xml
     law = LinearFeedback.for_model(design)
-    comp = compensate(law)
+    comp = friction.wrap(law)
     assert isinstance(comp, FrictionCompensation) and comp.controller is law
     assert comp.frictionloss[0] == SLIDE_FRICTION
-    same, none = friction_design(with_friction, LoopOptions(friction_compensation=False))
-    assert same is with_friction and none is None
+    off = friction_design(with_friction, LoopOptions(friction_compensation=False))
+    assert off.model is with_friction and not off.compensated and off.wrap(law) is law
 
 
 def test_a_model_whose_driven_joints_are_frictionless_needs_no_compensation(frictionless):
@@ -177,8 +179,8 @@ def test_a_model_whose_driven_joints_are_frictionless_needs_no_compensation(fric
 
     hinge_only = build_model(_friction_params(slide=0.0))
     for model in (frictionless, hinge_only):
-        design, compensate = friction_design(model)
-        assert design is model and compensate is None
+        friction = friction_design(model)
+        assert friction.model is model and not friction.compensated
     assert friction_summary(frictionless.params, False) is None
     assert friction_summary(hinge_only.params, False) == {"frictionloss": {"hinge": HINGE_FRICTION},
                                                           "compensation": False}
