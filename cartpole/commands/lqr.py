@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -215,9 +216,22 @@ def run(args) -> dict:
     return doc
 
 
-#: ``--delay-margin`` / ``--noise-margin``: the JSON key, the figure, what the setting is called, its unit.
-MARGINS = {"delay_margin": ("delay", DELAY_MARGIN_FIGURE, "a delay", "s"),
-           "noise_margin": ("sensor_noise", NOISE_MARGIN_FIGURE, "a sensor noise", "m or rad")}
+class _Margin(NamedTuple):
+    setting: str       # the LoopOptions field searched
+    figure: Path       # under --out
+    what: str          # in sentences
+    unit: str
+    zero_ok: bool      # 0 is a value to search from (a delay), else the largest value must be > 0
+    example: float     # for the refusal's "give e.g."
+    search: str        # the cartpole.apps.lab function
+    limit: str         # its keyword for the largest value
+
+
+#: ``--delay-margin`` / ``--noise-margin``, by JSON key.
+MARGINS = {"delay_margin": _Margin("delay", DELAY_MARGIN_FIGURE, "a delay", "s", True, 0.1, "delay_margin",
+                                   "max_delay"),
+           "noise_margin": _Margin("sensor_noise", NOISE_MARGIN_FIGURE, "a sensor noise", "m or rad", False, 0.01,
+                                   "noise_margin", "max_noise")}
 
 
 def _margin(args, model, loop, key: str) -> dict:
@@ -226,22 +240,22 @@ def _margin(args, model, loop, key: str) -> dict:
     ``lqr_first_failure``, ``lqr_runs`` and the ``pid`` ones with ``--compare-pid``), ``figure``."""
     import math
 
-    from cartpole.apps.lab import delay_margin, noise_margin
+    import cartpole.apps.lab as lab
     from cartpole.errors import CartPoleError
     from cartpole.progress import stage
     from cartpole.viz.margin_plot import plot_margin
 
-    setting, path, what, unit = MARGINS[key]
+    spec = MARGINS[key]
+    setting, path, what, unit = spec.setting, spec.figure, spec.what, spec.unit
     flag = "--" + key.replace("_", "-")
     top = getattr(args, key)
-    low_ok = top >= 0 if key == "delay_margin" else top > 0
-    if not (math.isfinite(top) and low_ok):
-        raise CartPoleError(f"{flag} {top:g} is not {what} in {unit} {'>=' if key == 'delay_margin' else '>'} 0; "
-                            f"give e.g. {flag} {0.1 if key == 'delay_margin' else 0.01}.")
-    if key == "noise_margin" and loop.estimator_for("balance") == "none":
+    if not (math.isfinite(top) and (top >= 0 if spec.zero_ok else top > 0)):
+        raise CartPoleError(f"{flag} {top:g} is not {what} in {unit} {'>=' if spec.zero_ok else '>'} 0; "
+                            f"give e.g. {flag} {spec.example}.")
+    if setting == "sensor_noise" and loop.estimator_for("balance") == "none":
         loop = loop.replace(estimator="kf")  # noise on the sensors needs an estimator between them and the LQR
-    search = delay_margin if key == "delay_margin" else noise_margin
-    limit = {"max_delay": top} if key == "delay_margin" else {"max_noise": top}
+    search = getattr(lab, spec.search)
+    limit = {spec.limit: top}
     with stage(key.replace("_", " "), size=f"{setting.replace('_', ' ')} up to {top:g} {unit}") as tick:
         found = search(model, loop=loop, pid=args.compare_pid, progress=tick, **limit)
     period = model.dt if loop.period is None else loop.period
