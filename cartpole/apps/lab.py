@@ -676,9 +676,10 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     dict
         :func:`rig_margin`'s, with the setting ``delay`` (s).
     """
-    h = float(_model(mjcf).dt)
+    model = _model(mjcf)  # built once, for the step and for every run of the search
+    h = float(model.dt)
     delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
-    return rig_margin(mjcf, loop=loop, setting="delay", values=delays, pid=pid, progress=progress)
+    return rig_margin(model, loop=loop, setting="delay", values=delays, pid=pid, progress=progress)
 
 
 #: Sensor noise levels :func:`noise_margin` tries below its largest, as fractions of it (0 and halvings).

@@ -111,14 +111,13 @@ def crocoddyl_benchmark(*, repeats: int = 3) -> dict:
             "cost": res.cost, "status": res.status, "final_state": res.x[-1].tolist()}
     out = {"ours": ours, "crocoddyl": None, "speedup": None, "cost_gap": None, "N": N, "dt": DT}
     try:
-        problem_of = _crocoddyl_problem
         import crocoddyl
     except ImportError as exc:
         out["crocoddyl_missing"] = f"{exc.name or exc}: pip install crocoddyl 'pin==4.0.0' example-robot-data"
         return out
     times, solver = [], None
     for _ in range(max(1, int(repeats))):
-        solver = crocoddyl.SolverFDDP(problem_of())
+        solver = crocoddyl.SolverFDDP(_crocoddyl_problem())
         t = time.perf_counter()
         solver.solve([np.array(X0)] * (N + 1), [np.zeros(1)] * N, 1000)
         times.append(1e3 * (time.perf_counter() - t))
