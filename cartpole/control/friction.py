@@ -145,8 +145,7 @@ def friction_design(model, loop=None) -> FrictionDesign:
     wanted = True if loop is None else bool(getattr(loop, "friction_compensation", True))
     if not (wanted and model.params.driven_friction):
         return FrictionDesign(model=model, plant=model, compensated=False)
-    driven = [a.joint for a in model.params.actuators if a.gear != 0]
-    return FrictionDesign(model=model.without_friction(driven), plant=model, compensated=True)
+    return FrictionDesign(model=model.without_friction(model.params.driven_joints), plant=model, compensated=True)
 
 
 def friction_summary(params, compensated: bool) -> dict | None:

@@ -400,10 +400,15 @@ class CartPoleParams:
                                             for k, v in changes.items()})
 
     @property
+    def driven_joints(self) -> tuple:
+        """qpos indices of the joints an actuator drives with a nonzero gear, each once, in actuator order."""
+        return tuple(dict.fromkeys(a.joint for a in self.actuators if a.gear != 0))
+
+    @property
     def driven_friction(self) -> bool:
         """True when a joint an actuator drives (with a nonzero gear) has frictionloss: friction the controllers can
         cancel (:class:`cartpole.control.friction.FrictionCompensation`)."""
-        return any(self.joints[a.joint].frictionloss != 0 and a.gear != 0 for a in self.actuators)
+        return any(self.joints[j].frictionloss != 0 for j in self.driven_joints)
 
     def without_friction(self, joints=None) -> "CartPoleParams":
         """A copy with the ``frictionloss`` of ``joints`` (qpos indices; default every joint) set to zero.
