@@ -28,8 +28,8 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered
-from cartpole.estimation.base import EstimationError, check_measurement, first_estimate
-from cartpole.estimation.kalman import check_ctrl, check_steps, process_noise
+from cartpole.estimation.base import SampledEstimator
+from cartpole.estimation.kalman import check_steps, process_noise
 from cartpole.estimation.measurement import (check_measurement_model, measured_positions, measurement_jacobians,
                                              positions_initial_state)
 from cartpole.estimation.mhe_functions import positive_definite
@@ -70,7 +70,7 @@ def default_initial_covariance(h, model, V) -> np.ndarray:
     return np.diag(d)
 
 
-class ExtendedKalmanFilter:
+class ExtendedKalmanFilter(SampledEstimator):
     """The extended Kalman filter on the exact discrete model over the control period with a ctrl per physics step
     (see the module doc); the :class:`~cartpole.estimation.base.Estimator` contract.
 
@@ -102,6 +102,9 @@ class ExtendedKalmanFilter:
     name : str
         The estimator's name (the CLI's ``--estimator``).
 
+    ``reset(y0)`` starts from ``initial_state(y0)`` (zero rates) with covariance ``P0``; ``update(y, U)`` predicts
+    with the nonlinear model over the ``m`` physics steps and corrects with ``y``.
+
     Attributes
     ----------
     x_hat : (nx,) array or None
@@ -125,6 +128,8 @@ class ExtendedKalmanFilter:
     EstimationError
         Covariances that are not symmetric positive (semi)definite, an ``h`` whose shapes disagree with the model.
     """
+
+    title = "extended Kalman filter"
 
     def __init__(self, model, steps: int, h: ca.Function, V, *, W=None, accel_std=None, P0=None,
                  initial_state=None, name: str = "ekf"):
@@ -153,46 +158,12 @@ class ExtendedKalmanFilter:
         self.failures: list[int] = []
         self._k = 0
 
-    def reset(self, y0) -> np.ndarray:
-        """Start from the first measurement.
-
-        Parameters
-        ----------
-        y0 : (ny,) array
-            The measurement at the first sample (sensor units).
-
-        Returns
-        -------
-        (nx,) array
-            The first estimate ``initial_state(y0)`` (zero rates), with covariance ``P0``.
-        """
-        y0 = self._check_y(y0)
-        x0 = first_estimate(self._initial_state, y0, self.nx)
+    def _start(self, y0, x0) -> np.ndarray:
         self.x_hat, self.P, self.K = x0, np.array(self.P0), None
         self.failures, self._k = [], 0
-        return x0.copy()
+        return x0
 
-    def update(self, y, U) -> np.ndarray:
-        """One period: predict with the nonlinear model over the ``m`` physics steps, correct with ``y``.
-
-        Parameters
-        ----------
-        y : (ny,) array
-            The measurement at this sample (sensor units).
-        U : (nu, m) array
-            The ctrl applied during each of the ``m`` physics steps since the last sample (ctrl units; a length-m
-            vector when nu = 1). Its last column is the ``u`` of ``h(x, u)``.
-
-        Returns
-        -------
-        (nx,) array
-            The estimate ``x_hat`` of the state at this sample (m, rad, m/s, rad/s; angles not wrapped).
-        """
-        if self.x_hat is None:
-            raise EstimationError("The extended Kalman filter has no first measurement; call reset(y0) before "
-                                  "update(y, U).")
-        y = self._check_y(y)
-        U = check_ctrl(U, self.nu, self.steps)
+    def _correct(self, y, U) -> np.ndarray:
         self._k += 1
         nx = self.nx
         x_pred, A = self._predict(self.x_hat, U.ravel(order="F"))
@@ -213,10 +184,7 @@ class ExtendedKalmanFilter:
         P = IKH @ P @ IKH.T + K @ self.V @ K.T
         self.P = 0.5 * (P + P.T)
         self.K = K
-        return self.x_hat.copy()
-
-    def _check_y(self, y) -> np.ndarray:
-        return check_measurement(y, self.ny)
+        return self.x_hat
 
 
 def bench_ekf(model, steps: int, h: ca.Function, V, *, updates: int = 2000, seed: int = 0) -> dict:

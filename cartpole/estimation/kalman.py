@@ -34,14 +34,13 @@ states' names in sentences (:func:`state_names`), the positions a measurement gi
 """
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.estimation.base import EstimationError, check_measurement, first_estimate
+from cartpole.estimation.base import EstimationError, SampledEstimator
 from cartpole.estimation.measurement import (check_measurement_model, measurement_jacobians,
                                           positions_initial_state)
 from cartpole.estimation.mhe_functions import positive_definite, symmetric_matrix
@@ -235,29 +234,6 @@ def check_steps(steps) -> int:
     return int(steps)
 
 
-def check_ctrl(U, nu: int, steps: int) -> np.ndarray:
-    """The ctrl since the last sample as a finite (nu, m) array, or one :class:`EstimationError` sentence.
-
-    Parameters
-    ----------
-    U : (nu, m) array
-        Ctrl (MuJoCo ctrl units) of each of the ``m`` physics steps; a length-m vector when nu = 1.
-    nu, steps : int
-        Inputs and physics steps per period ``m``.
-
-    Returns
-    -------
-    (nu, m) array
-    """
-    U = np.asarray(U, dtype=float)
-    if U.ndim == 1 and nu == 1:
-        U = U.reshape(1, -1)
-    if U.shape != (nu, steps) or not math.isfinite(U.sum()):
-        raise EstimationError(f"The ctrl since the last sample must be a finite ({nu}, {steps}) array (one column "
-                              f"per physics step); got shape {U.shape}.")
-    return U
-
-
 def process_noise(model, period: float, W=None, accel_std=None) -> np.ndarray:
     """The process covariance over one period: ``W`` as given, else
     :func:`~cartpole.estimation.noise.process_covariance` of ``accel_std``, else of the defaults
@@ -328,7 +304,7 @@ def _matrix_power_inputs(A1: np.ndarray, B1: np.ndarray, m: int) -> tuple[np.nda
     return np.linalg.matrix_power(A1, m), np.hstack(blocks)
 
 
-class KalmanFilter:
+class KalmanFilter(SampledEstimator):
     """The steady-state (time-invariant) Kalman filter of LQG on the cart-pole linearised about an operating point
     over the control period (see the module doc); the :class:`~cartpole.estimation.base.Estimator` contract.
 
@@ -358,6 +334,9 @@ class KalmanFilter:
         positions ``h`` reads one-to-one from ``y0``, the others from the operating point, zero rates.
     name : str
         The estimator's name (the CLI's ``--estimator``).
+
+    ``reset(y0)`` starts from ``initial_state(y0)`` (zero rates); ``update(y, U)`` predicts with the linear model
+    over the ``m`` physics steps and corrects with the steady gain.
 
     Attributes
     ----------
@@ -393,6 +372,8 @@ class KalmanFilter:
         sensors that cannot see every unstable state (the sentence names them).
     """
 
+    title = "Kalman filter"
+
     def __init__(self, model, steps: int, h: ca.Function, V, *, W=None, accel_std=None, x_op=None, u_op=None,
                  initial_state=None, name: str = "kf"):
         self.name = str(name)
@@ -425,51 +406,18 @@ class KalmanFilter:
         self._y_ref: dict[tuple, np.ndarray] = {(): self.y_op}
         self.x_hat: np.ndarray | None = None
 
-    def reset(self, y0) -> np.ndarray:
-        """Start from the first measurement.
-
-        Parameters
-        ----------
-        y0 : (ny,) array
-            The measurement at the first sample (sensor units).
-
-        Returns
-        -------
-        (nx,) array
-            The first estimate ``initial_state(y0)`` (zero rates).
-        """
-        y0 = self._check_y(y0)
-        x0 = first_estimate(self._initial_state, y0, self.nx)
+    def _start(self, y0, x0) -> np.ndarray:
         self.x_hat = x0
-        return x0.copy()
+        return x0
 
-    def update(self, y, U) -> np.ndarray:
-        """One period: predict with the linear model over the ``m`` physics steps, correct with the steady gain.
-
-        Parameters
-        ----------
-        y : (ny,) array
-            The measurement at this sample (sensor units).
-        U : (nu, m) array
-            The ctrl applied during each of the ``m`` physics steps since the last sample (ctrl units; a length-m
-            vector when nu = 1). Its last column is the ``u`` of ``h(x, u)``.
-
-        Returns
-        -------
-        (nx,) array
-            The estimate ``x_hat`` of the state at this sample (m, rad, m/s, rad/s; angles not wrapped).
-        """
-        if self.x_hat is None:
-            raise EstimationError("The Kalman filter has no first measurement; call reset(y0) before update(y, U).")
-        y = self._check_y(y)
-        U = check_ctrl(U, self.nu, self.steps)
+    def _correct(self, y, U) -> np.ndarray:
         dU = (U - self.u_op[:, None]).ravel(order="F")
         dx = state_error(self.x_hat, self.x_op, self.hinges)
         x_pred = (self.x_hat - dx) + self.A @ dx + self.B @ dU
         dxp = state_error(x_pred, self.x_op, self.hinges)
         y_pred = self._y_at(x_pred - dxp) + self.C @ dxp + self.D @ (U[:, -1] - self.u_op)
         self.x_hat = x_pred + self.L @ (y - y_pred)
-        return self.x_hat.copy()
+        return self.x_hat
 
     def _y_at(self, x_ref: np.ndarray) -> np.ndarray:
         """``h`` at the copy ``x_ref`` of the operating point (hinges shifted by whole turns), cached per copy."""
@@ -479,5 +427,3 @@ class KalmanFilter:
             self._y_ref[key] = np.asarray(self._h(x_ref, self.u_op)[0], dtype=float).ravel()
         return self._y_ref[key]
 
-    def _check_y(self, y) -> np.ndarray:
-        return check_measurement(y, self.ny)

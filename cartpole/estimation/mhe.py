@@ -45,7 +45,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered
-from cartpole.estimation.base import EstimationError, check_measurement, first_estimate
+from cartpole.estimation.base import EstimationError, SampledEstimator
 from cartpole.estimation.mhe_functions import (
     WindowFunctions,
     arrival_update,
@@ -120,9 +120,12 @@ def horizon_periods(horizon_s: float, period_s: float) -> int:
     return int(N)
 
 
-class MovingHorizonEstimator:
+class MovingHorizonEstimator(SampledEstimator):
     """Moving-horizon estimation of ``x = [qpos, qvel]`` from ``y = h(x, u) + v`` (see the module doc), one
-    Gauss-Newton step per control period; the :class:`~cartpole.estimation.base.Estimator` contract.
+    Gauss-Newton step per control period; the :class:`~cartpole.estimation.base.Estimator` contract:
+    ``reset(y0)`` starts from ``initial_state(y0)`` with its positions clipped to the joints' ranges (also the
+    arrival cost's centre; the window holds this one node), ``update(y, U)`` shifts the window, appends the sample
+    and takes one Gauss-Newton step.
 
     Parameters
     ----------
@@ -177,6 +180,8 @@ class MovingHorizonEstimator:
         A horizon that is not a whole number >= 1 of periods, covariances that are not symmetric positive
         (semi)definite, an ``h`` whose shapes disagree with the model, bounds that are not (nq, 2) with low <= high.
     """
+
+    title = "MHE"
 
     def __init__(self, model, steps: int, h: ca.Function, V, *, W=None, accel_std=None,
                  horizon: int = DEFAULT_HORIZON, P0=None, joint_ranges=None, initial_state=None,
@@ -245,22 +250,9 @@ class MovingHorizonEstimator:
         self.failures: list[int] = []
 
     # ---- the contract -----------------------------------------------------------------------------------------
-    def reset(self, y0) -> np.ndarray:
-        """Start from the first measurement.
-
-        Parameters
-        ----------
-        y0 : (ny,) array
-            The measurement at the first sample (sensor units).
-
-        Returns
-        -------
-        (nx,) array
-            The first estimate ``initial_state(y0)`` (positions clipped to the joints' ranges), also the arrival
-            cost's centre; the window holds this one node.
-        """
-        y0 = self._check_y(y0)
-        x0 = first_estimate(self._initial_state, y0, self.nx)
+    def _start(self, y0, x0) -> np.ndarray:
+        """The first estimate with its positions clipped to the joints' ranges, also the arrival cost's centre; the
+        window holds this one node."""
         x0[self._bidx] = np.clip(x0[self._bidx], self._lo, self._hi)
         self._X[:] = x0
         self._E[:] = 0.0
@@ -275,26 +267,9 @@ class MovingHorizonEstimator:
         self.failures = []
         return x0.copy()
 
-    def update(self, y, U) -> np.ndarray:
-        """One period: shift the window, append the sample, take one Gauss-Newton step.
-
-        Parameters
-        ----------
-        y : (ny,) array
-            The measurement at this sample (sensor units).
-        U : (nu, m) array
-            The ctrl applied during each of the ``m`` physics steps since the last sample (ctrl units; a length-m
-            vector when nu = 1).
-
-        Returns
-        -------
-        (nx,) array
-            The estimate of the state at this sample.
-        """
-        if self._n < 0:
-            raise EstimationError("The MHE has no first measurement; call reset(y0) before update(y, U).")
-        y = self._check_y(y)
-        Uv = self._check_U(U)
+    def _correct(self, y, U) -> np.ndarray:
+        """Shift the window, append the sample, take one Gauss-Newton step."""
+        Uv = U.ravel(order="F")
         if self._n == self.N:
             self._slide()
         n = self._n
@@ -310,7 +285,7 @@ class MovingHorizonEstimator:
         self._n = n + 1
         self._k += 1
         self._gn_step()
-        return self._X[self._n].copy()
+        return self._X[self._n]
 
     # ---- what a caller may read -------------------------------------------------------------------------------
     @property
@@ -337,17 +312,6 @@ class MovingHorizonEstimator:
         return self.functions.library
 
     # ---- internals --------------------------------------------------------------------------------------------
-    def _check_y(self, y) -> np.ndarray:
-        return check_measurement(y, self.ny)
-
-    def _check_U(self, U) -> np.ndarray:
-        U = np.asarray(U, dtype=float)
-        if U.ndim == 1 and self.nu == 1:
-            U = U.reshape(1, -1)
-        if U.shape != (self.nu, self.steps) or not math.isfinite(U.sum()):
-            raise EstimationError(f"The ctrl since the last sample must be a finite ({self.nu}, {self.steps}) array "
-                                  f"(one column per physics step); got shape {U.shape}.")
-        return U.ravel(order="F")
 
     def _slide(self) -> None:
         """Drop the window's first node into the arrival cost (module doc) and shift the buffers by one."""
