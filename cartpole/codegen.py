@@ -21,6 +21,7 @@ import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -311,6 +312,29 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
         # atomic: a concurrent process sees the whole library or none; its hash recorded beside it
         write_verified(lib, out.read_bytes())
     return str(lib), True
+
+
+def compiled_or_none(build, what: str, fallback: str = "using CasADi's virtual machine (same results, slower)"):
+    """What ``build()`` returns (a callable that generates, compiles and loads C: :func:`build_library` then
+    :func:`load_library`), or None where the caller keeps CasADi's virtual machine: with ``CARTPOLE_NO_COMPILE``
+    set (silently), or when the build fails (one line on stderr, ``cartpole: compiled WHAT unavailable (REASON);
+    FALLBACK.``: no compiler, a compiler error, a library that does not match its hash).
+
+    Raises
+    ------
+    CacheError
+        The cache is one others can write to: refused, never used or bypassed.
+    """
+    if os.environ.get("CARTPOLE_NO_COMPILE"):
+        return None
+    try:
+        return build()
+    except CacheError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
+        print(f"cartpole: compiled {what} unavailable ({reason}); {fallback}.", file=sys.stderr)
+        return None
 
 
 @functools.lru_cache(maxsize=None)

@@ -19,14 +19,12 @@ CasADi functions run in CasADi's virtual machine (same numbers, slower), with a 
 """
 from __future__ import annotations
 
-import os
-import sys
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import CacheError, build_library, load_library
+from cartpole.codegen import build_library, compiled_or_none, load_library
 from cartpole.estimation.base import EstimationError
 from cartpole.estimation.measurement import measurement_jacobians
 
@@ -120,18 +118,15 @@ def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: boo
     window = ca.Function("mhe_window", [X, UU, UH], [ca.densify(v) for v in (F, A, Yh, C)], ["X", "UU", "UH"],
                          ["F", "A", "Y", "C"])
     library = None
-    if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
-        try:
-            lib, _ = build_library([window, stage, meas], _LIB_VERSION + f"/{steps}x{N}")
-            ext = load_library(lib, ("mhe_window", "mhe_stage", "mhe_meas"))
-            window, stage, meas = ext["mhe_window"], ext["mhe_stage"], ext["mhe_meas"]
-            library = lib
-        except CacheError:  # a cache others can write to: refused, never used or bypassed
-            raise
-        except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
-            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-            print(f"cartpole: compiled MHE functions unavailable ({reason}); using CasADi's virtual machine "
-                  "(same results, slower).", file=sys.stderr)
+
+    def build():
+        lib, _ = build_library([window, stage, meas], _LIB_VERSION + f"/{steps}x{N}")
+        return lib, load_library(lib, ("mhe_window", "mhe_stage", "mhe_meas"))
+
+    built = compiled_or_none(build, "MHE functions") if compiled else None
+    if built is not None:
+        library, ext = built
+        window, stage, meas = ext["mhe_window"], ext["mhe_stage"], ext["mhe_meas"]
     return WindowFunctions(window=window, stage=stage, measurement=meas, library=library, steps=int(steps),
                            N=int(N), ny=int(ny))
 

@@ -18,15 +18,13 @@ stderr.
 """
 from __future__ import annotations
 
-import os
-import sys
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from cartpole.models import CartPoleModel
-from cartpole.codegen import CacheError, build_library, model_key
+from cartpole.codegen import build_library, compiled_or_none, load_library, model_key
 
 _LIB_VERSION = "nmpc-stages-v6"  # bump when the generated functions change meaning
 
@@ -274,19 +272,16 @@ def stage_functions(model: CartPoleModel, steps: int, N: int, *, compiled: bool 
     x0, Ur = ca.MX.sym("x", nx), ca.MX.sym("U", nu, N)
     rollout = ca.Function("nmpc_rollout", [x0, Ur], [step_expr.mapaccum(N)(x0, Ur)], ["x", "U"], ["S"])
     library = None
-    if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
-        try:
-            key = _LIB_VERSION + model_key(model) + f"/{steps}x{N}/{int(prestabilized)}"
-            lib, _ = build_library([stage, qp_data, rollout], key)
-            ext = [ca.external(name, lib) for name in ("nmpc_stage", "nmpc_qp_data", "nmpc_rollout")]
-            stage, qp_data, rollout = ext
-            library = lib
-        except CacheError:  # a cache others can write to: refused, never used or bypassed
-            raise
-        except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
-            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-            print(f"cartpole: compiled NMPC functions unavailable ({reason}); using CasADi's virtual machine "
-                  "(same results, slower).", file=sys.stderr)
+
+    def build():
+        lib, _ = build_library([stage, qp_data, rollout], _LIB_VERSION + model_key(model)
+                               + f"/{steps}x{N}/{int(prestabilized)}")
+        return lib, load_library(lib, ("nmpc_stage", "nmpc_qp_data", "nmpc_rollout"))
+
+    built = compiled_or_none(build, "NMPC functions") if compiled else None
+    if built is not None:
+        library, ext = built
+        stage, qp_data, rollout = ext["nmpc_stage"], ext["nmpc_qp_data"], ext["nmpc_rollout"]
     return StageFunctions(stage=stage, qp_data=qp_data, prestabilized=bool(prestabilized), rollout=rollout,
                           step_expr=step_expr, library=library,
                           steps=int(steps), N=int(N))

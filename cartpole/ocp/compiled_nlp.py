@@ -21,13 +21,12 @@ from __future__ import annotations
 
 import hashlib
 import os
-import sys
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import LIB_VERSION, CacheError, build_library, digest, load_library, model_key
+from cartpole.codegen import LIB_VERSION, build_library, compiled_or_none, digest, load_library, model_key
 from cartpole.models import CartPoleModel
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 
@@ -265,19 +264,17 @@ def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su,
         return None
     f = model if isinstance(model, ca.Function) else model.f
     nx, nu = f.size1_in(0), f.size1_in(1)
-    try:
-        sx, su = np.asarray(sx, float), np.asarray(su, float)
-        recipe = recipe_key(f, sx, su, running)
+    sx, su = np.asarray(sx, float), np.asarray(su, float)
+
+    def build():
         lib, now = build_library(lambda: interval_functions(f, sx, su, 1.0, running=running), model_key(model),
-                                  recipe=recipe)
-        ext = load_library(lib, INTERVAL_FUNCTIONS)
-    except CacheError:  # a cache others can write to: refused, never used or bypassed
-        raise
-    except Exception as exc:  # noqa: BLE001 - any failure here means: keep the SX path
-        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-        print(f"cartpole: compiled collocation functions unavailable ({reason}); using the slower SX "
-              "formulation (same results).", file=sys.stderr)
+                                 recipe=recipe_key(f, sx, su, running))
+        return lib, now, load_library(lib, INTERVAL_FUNCTIONS)
+
+    built = compiled_or_none(build, "collocation functions", "using the slower SX formulation (same results)")
+    if built is None:
         return None
+    lib, now, ext = built
     nlp, options = _assemble(ext, int(N), nx, nu, free_time=free_time, cost_weight=1.0 / float(eff_scale),
                              time_weight=float(time_weight) if free_time else 0.0)
     return CompiledNLP(nlp=nlp, options=options, library=lib, compiled_now=now)

@@ -28,15 +28,13 @@ through :mod:`cartpole.codegen`), so one call gives every stage's ``f_x``, ``f_u
 from __future__ import annotations
 
 import math
-import os
-import sys
 from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.codegen import Buffered, CacheError, build_library, load_library
+from cartpole.codegen import Buffered, build_library, compiled_or_none, load_library
 from cartpole.errors import CartPoleError
 
 _LIB_VERSION = "ddp-1"
@@ -269,18 +267,14 @@ class DDP:
         backward, forward = self._passes(xn, x, u)
         funs = [stages, costs, rollout, terminal, backward, forward]
         self.library = None
-        if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
-            try:
-                lib, _ = build_library(funs, _LIB_VERSION + f"/{N}")
-                ext = load_library(lib, tuple(f.name() for f in funs))
-                funs = [ext[f.name()] for f in funs]
-                self.library = lib
-            except CacheError:  # a cache others can write to: refused, never used or bypassed
-                raise
-            except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
-                reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-                print(f"cartpole: compiled DDP functions unavailable ({reason}); using CasADi's virtual machine "
-                      "(same results, slower).", file=sys.stderr)
+        def build():
+            lib, _ = build_library(funs, _LIB_VERSION + f"/{N}")
+            return lib, load_library(lib, tuple(f.name() for f in funs))
+
+        built = compiled_or_none(build, "DDP functions") if compiled else None
+        if built is not None:
+            self.library, ext = built
+            funs = [ext[f.name()] for f in funs]
         self._stages, self._costs, self._step, self._terminal, self._back, self._fwd = (Buffered(f) for f in funs)
 
     def _passes(self, xn, x, u):

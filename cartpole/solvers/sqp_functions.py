@@ -36,15 +36,13 @@ gy (ny, N), M (nx, nx N))``
 from __future__ import annotations
 
 import hashlib
-import os
-import sys
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 from cartpole.ocp.bounds import OCPError
-from cartpole.codegen import CacheError, build_library
+from cartpole.codegen import build_library, compiled_or_none, load_library
 
 _LIB_VERSION = "sqp-qp-v2"  # bump when the generated functions change meaning
 
@@ -266,15 +264,13 @@ def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled:
     or when the build fails (one line on stderr)."""
     if N < 2:
         raise OCPError(f"The SQP's QP functions need N >= 2 intervals, not {N}; use N >= 2 (100 is typical).")
-    if compiled and not os.environ.get("CARTPOLE_NO_COMPILE"):
+    def build():
         recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
-        try:
-            lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=recipe, cflags=CFLAGS)
-            return [ca.external(name, lib) for name in ("sqp_stages", "sqp_condense", "sqp_multipliers")], lib
-        except CacheError:  # a cache others can write to: refused, never used or bypassed
-            raise
-        except Exception as exc:  # noqa: BLE001 - any failure here means: keep the virtual machine
-            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[-1]
-            print(f"cartpole: compiled SQP QP functions unavailable ({reason}); using CasADi's virtual machine "
-                  "(same results).", file=sys.stderr)
-    return qp_functions(nx, nu, N, reg_min), None
+        lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=recipe, cflags=CFLAGS)
+        names = ("sqp_stages", "sqp_condense", "sqp_multipliers")
+        ext = load_library(lib, names)
+        return [ext[name] for name in names], lib
+
+    built = compiled_or_none(build, "SQP QP functions", "using CasADi's virtual machine (same results)") \
+        if compiled else None
+    return built if built is not None else (qp_functions(nx, nu, N, reg_min), None)
