@@ -103,23 +103,23 @@ def state_names(model) -> tuple[str, ...]:
     joints = tuple(getattr(getattr(model, "params", None), "joint_names", ()) or ())
     if len(slides) + len(hinges) != nq or len(joints) != nq:
         return tuple(f"x{i}" for i in range(2 * nq))
+    # (one of its kind, several of its kind by name or number): position and rate words per joint type
+    words = {True: (("the cart position", "the cart velocity"), "the position of slide '{}'",
+                    "the velocity of slide '{}'"),
+             False: (("the pole angle", "the pole angular velocity"), "the angle of pole {}",
+                     "the angular velocity of pole {}")}
     pos, vel = [], []
     for i in range(nq):
-        if i in slides:
-            if len(slides) == 1:
-                pos.append("the cart position")
-                vel.append("the cart velocity")
-            else:
-                pos.append(f"the position of slide '{joints[i]}'")
-                vel.append(f"the velocity of slide '{joints[i]}'")
+        slide = i in slides
+        group = slides if slide else hinges
+        alone, pos_fmt, vel_fmt = words[slide]
+        if len(group) == 1:
+            pos.append(alone[0])
+            vel.append(alone[1])
         else:
-            k = hinges.index(i)
-            if len(hinges) == 1:
-                pos.append("the pole angle")
-                vel.append("the pole angular velocity")
-            else:
-                pos.append(f"the angle of pole {k + 1}")
-                vel.append(f"the angular velocity of pole {k + 1}")
+            label = joints[i] if slide else group.index(i) + 1
+            pos.append(pos_fmt.format(label))
+            vel.append(vel_fmt.format(label))
     return tuple(pos + vel)
 
 
