@@ -20,6 +20,22 @@ import numpy as np
 from cartpole._files import atomic_write
 
 
+def preload() -> None:
+    """Import what drawing a success map needs (matplotlib's figure, Agg canvas and patches) and draw one tiny
+    figure in memory (fonts and the text renderer loaded), so that a sweep can do it ahead, in a thread while its
+    runs go on other processes, instead of after the last run (about half a second of a fresh process)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch, Rectangle  # noqa: F401  (imported for the map's legend and cells)
+
+    fig = Figure(figsize=(1, 1))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.set_title("success")
+    ax.plot([0.0, 1.0], [0.0, 1.0])
+    fig.canvas.draw()
+
+
 def plot_success_map(result, params, path, *, title: str | None = None) -> Path:
     """Draw :func:`success_map_figure` and save it as PNG (whole or not at all:
     :func:`~cartpole._files.atomic_write`; parent directories are created). Returns the path written."""

@@ -58,3 +58,16 @@ def test_swingup_figure_of_one_pole_draws_the_pole_energy():
     assert len(labels) == 4 and labels[-1] == "pole energy (J)"
     np.testing.assert_allclose(fig.axes[-1].get_lines()[0].get_ydata(),
                                [float(model.pole_energy(x)) for x in run.x], rtol=1e-9, atol=1e-12)
+
+
+def test_sweep_plot_preload_imports_what_the_success_map_needs_in_a_fresh_process():
+    import subprocess
+    import sys
+
+    code = ("import sys; from cartpole.viz.sweep_plot import preload\n"
+            "assert 'matplotlib.figure' not in sys.modules\n"
+            "preload()\n"
+            "print(all(m in sys.modules for m in ('matplotlib.figure', 'matplotlib.backends.backend_agg', "
+            "'matplotlib.patches')))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"

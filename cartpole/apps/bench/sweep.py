@@ -10,8 +10,9 @@ is shared. Two rates: the whole sweep (a local pool's time includes starting its
 once; the fork server the workers start from is started by the first pool sweep of the process, so round 1 of
 ``2`` pays for it and is reported on its own as ``first_round``; the Dask workers are already running) and first to
 last finished run, ``(n - 1) / (t_last - t_first)``, which leaves start-up out. ``--fresh`` also times each
-executor's sweep in a new process (imports not timed; the model, the basin read from disk and the fork server
-are), as one ``cartpole sweep`` command pays them.
+executor's sweep as ``cartpole sweep`` runs it, in a new process (the fork server started before the imports, as
+the command does; the imports not timed; the model, the basin read from disk, the runs, the results file and the
+success map timed), and ``--command`` the whole command from launch to exit, interpreter and imports included.
 
 Beside them, the machine's own parallel capacity (:func:`parallel_capacity`): the wall time of one fixed CPU-bound
 task in one process against two copies of it in two processes at once, timed in the same rounds. On a shared machine
@@ -20,7 +21,7 @@ pool can reach 2x, and this ratio says how much room there was.
 
 Run by ``benchmarks/bench_sweep.py``::
 
-    python benchmarks/bench_sweep.py --n 24 --rounds 7 --where 1 2 --fresh 5   # the worker start-up figure
+    python benchmarks/bench_sweep.py --n 24 --rounds 7 --where 1 2 --fresh 5 --command 5   # worker start-up
     python benchmarks/bench_sweep.py --n 100 --rounds 3 [--method energy] [--json]
 """
 from __future__ import annotations
@@ -116,12 +117,41 @@ def timed_sweep(kw: dict, where: str, address: str | None = None) -> tuple[float
 
 
 def fresh_sweep(kw: dict, where: str) -> float:
-    """Seconds of one sweep in a new Python process (its imports not timed)."""
-    code = ("import json; from cartpole.apps.bench.sweep import timed_sweep; "
-            "print(json.dumps(timed_sweep(%r, %r)[0]))" % (kw, where))
+    """Seconds of one sweep as ``cartpole sweep`` runs it, in a new Python process: the pool's fork server started
+    first, before the heavy imports (as the command does), then the imports (not timed), then the timed part: the
+    model, the basin read from disk, the runs, the results file and the success map
+    (:func:`~cartpole.apps.sweep.run.recorded_sweep`, into a scratch directory)."""
+    code = ("import json, sys, tempfile, time\n"
+            "from pathlib import Path\n"
+            "kw, where = %r, %r\n"
+            "if where != '1':\n"
+            "    from cartpole.apps.forkserver import start_server\n"
+            "    start_server(kw['method'])\n"
+            "from cartpole.apps.sweep.run import recorded_sweep\n"
+            "from cartpole.models import read_params\n"
+            "with tempfile.TemporaryDirectory() as tmp:\n"
+            "    t0 = time.perf_counter()\n"
+            "    recorded_sweep(read_params(None), method=kw['method'], n=kw['n'], seed=kw['seed'],\n"
+            "                   workers=int(where), results=Path(tmp) / 'r.csv', figure=Path(tmp) / 'f.png')\n"
+            "    print(json.dumps(time.perf_counter() - t0))\n" % (kw, where))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})
     return float(out.stdout.strip().splitlines()[-1])
+
+
+def command_sweep(kw: dict, where: str) -> float:
+    """Wall seconds of the whole command ``cartpole sweep --method M --n N --seed S --workers W --json`` (into a
+    scratch ``--out``), from launch to exit, as a user timing it sees: the interpreter, the imports, everything."""
+    import tempfile
+
+    exe = os.path.join(os.path.dirname(sys.executable), "cartpole")
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [exe, "sweep", "--method", kw["method"], "--n", str(kw["n"]), "--seed", str(kw["seed"]),
+               "--workers", where, "--json", "--out", tmp]
+        t0 = time.perf_counter()
+        subprocess.run(cmd, capture_output=True, text=True, check=True,
+                       env={**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})
+        return time.perf_counter() - t0
 
 
 def _burn(n: int) -> float:
@@ -153,7 +183,7 @@ def parallel_capacity(n: int = 2_000_000, rounds: int = 3) -> dict:
 
 def main(argv=None) -> int:
     """``benchmarks/bench_sweep.py``: parse ``argv`` (``--n``, ``--rounds``, ``--method``, ``--where``, ``--fresh``,
-    ``--no-engine``, ``--json``), time the sweeps, print one JSON document (times in s, rates in runs/s, ratios to
+    ``--command``, ``--no-engine``, ``--json``), time the sweeps, print one JSON document (times in s, rates in runs/s, ratios to
     one worker) on stdout and the rounds on stderr; returns the exit status."""
     ap = argparse.ArgumentParser(prog="bench_sweep.py", description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=100)
@@ -163,6 +193,8 @@ def main(argv=None) -> int:
                     help="executors to time (1 is always timed: the baseline)")
     ap.add_argument("--fresh", type=int, default=0, metavar="R",
                     help="also R alternated rounds of each local executor in a new process per sweep")
+    ap.add_argument("--command", type=int, default=0, metavar="R",
+                    help="also R alternated rounds of the whole `cartpole sweep` command per local executor")
     ap.add_argument("--no-engine", action="store_true", help="skip the trivial-task engine overhead")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
@@ -203,6 +235,12 @@ def main(argv=None) -> int:
             fresh[k].append(fresh_sweep(kw, k))
             print(f"fresh {r + 1} {k:>4}: {fresh[k][-1]:.2f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr,
                   flush=True)
+    command = {k: [] for k in where if k != "dask"} if a.command else {}
+    for r in range(a.command):
+        for k in command:
+            command[k].append(command_sweep(kw, k))
+            print(f"command {r + 1} {k:>4}: {command[k][-1]:.2f} s (load {os.getloadavg()[0]:.1f})",
+                  file=sys.stderr, flush=True)
     same = all(v == rows["1"] for v in rows.values())
     med = {k: a.n / statistics.median(v) for k, v in times.items()}
     steady_med = {k: statistics.median(v) for k, v in steady.items()}
@@ -222,6 +260,12 @@ def main(argv=None) -> int:
         if "2" in fresh:
             doc["fresh_speedup_2_workers"] = statistics.median(fresh["1"]) / statistics.median(fresh["2"])
             doc["fresh_round_ratios_2_workers"] = [b / c for c, b in zip(fresh["2"], fresh["1"])]
+    if command:
+        doc["command_seconds"] = command
+        doc["command_seconds_median"] = {k: statistics.median(v) for k, v in command.items()}
+        if "2" in command:
+            doc["command_speedup_2_workers"] = statistics.median(command["1"]) / statistics.median(command["2"])
+            doc["command_round_ratios_2_workers"] = [b / c for c, b in zip(command["2"], command["1"])]
     doc.update(load_before=load_before, load_after=os.getloadavg(), cpu_count=os.cpu_count(),
                parallel_capacity=parallel_capacity())
     if not a.no_engine:

@@ -291,6 +291,7 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
         if stop_after is not None and count[0] >= stop_after and len(done) + count[0] < total:
             raise KeyboardInterrupt
 
+    figure_ready = _preload_figure() if (workers > 1 or address) else None
     try:
         result = swingup_sweep(params, method=method, n=n, seed=seed, workers=workers, duration=duration,
                                gain_jitter=gain_jitter, address=address, done=done, on_row=on_row, axes=axes,
@@ -312,6 +313,28 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
     finally:
         for f in opened:
             f.close()
+    if figure_ready is not None:
+        figure_ready.join()
     drawn = plot_success_map(result, params, figure)
     return RecordedSweep(result=result, rows=rows, sweep=sid, results=results, figure=Path(drawn),
                          resumed=len(done))
+
+
+def _preload_figure():
+    """A daemon thread running :func:`cartpole.viz.sweep_plot.preload` (started; returned to be joined): while the
+    runs go on worker processes, this process's share waits on the GIL for a moment less than the plot's imports
+    would cost after the last run. Only for sweeps with workers elsewhere: with one worker nothing runs beside it.
+    A failure there is left to the real import, which raises it where the figure is drawn."""
+    import threading
+
+    from cartpole.viz.sweep_plot import preload
+
+    def run():
+        try:
+            preload()
+        except Exception:  # noqa: BLE001 - the figure's own import and drawing report it
+            pass
+
+    thread = threading.Thread(target=run, name="cartpole-sweep-figure", daemon=True)
+    thread.start()
+    return thread
