@@ -301,7 +301,7 @@ LEGACY_KEYWORDS = {"duration": "loop", "push": "loop", "model_error": "loop", "o
 
 
 def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: LoopOptions | None = None,
-                mpc=None, energy_options: dict | None = None, catch_weights: tuple | None = None,
+                mpc=None, energy_options=None, catch_weights: tuple | None = None,
                 plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
                 basin_cache=None, on_step=None, **legacy) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
@@ -326,8 +326,9 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     mpc : MPCOptions, optional
         ``mpc`` only: the controller's settings (:class:`~cartpole.mpc.options.MPCOptions`); its period, when None,
         is the loop's, else the controller's default.
-    energy_options : dict, optional
-        Keyword arguments for :class:`~cartpole.control.energy.EnergyShapingController` (``energy`` only).
+    energy_options : EnergyOptions or dict, optional
+        ``energy`` only: the energy shaping's settings (:class:`~cartpole.control.energy.EnergyOptions`, or a dict
+        of its field names); default its defaults.
     catch_weights : (Q, R), optional
         LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
         (:func:`~cartpole.control.switching.swingup_catch`; the lab's ``R = 0.1`` gives a much smaller basin).
@@ -405,7 +406,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
                            "--method mpc.")
     # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
-    energy = EnergyShapingController(pm, **(energy_options or {})) if method == "energy" else None
+    energy = EnergyShapingController(pm, energy_options) if method == "energy" else None
     if given["plan"] and method != "trajopt":
         raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
                            "trajopt.")
@@ -457,7 +458,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         extra = {"switches": [], "period": float(controller.period), "horizon": float(controller.horizon),
                  "failures": _count(getattr(controller, "failures", 0))}
     elif method == "energy":
-        options = {"loop": loop}
+        options = {"energy": energy.options, "loop": loop}
         catch = swingup_catch(pm, *(catch_weights or ()), period=loop.period)
         basin = basin_of(catch)
         controller = SwitchingController(energy, catch, basin.rho)

@@ -38,8 +38,11 @@ Units: ``s`` m, ``theta`` rad, ``E`` J, ``a`` m/s^2, ``ctrl`` MuJoCo ctrl (slide
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+import types
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -47,6 +50,7 @@ import numpy as np
 from cartpole.control.model_rollout import model_rollout
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, build_model
+from cartpole.options import StageOptions
 
 
 class EnergyShapingError(CartPoleError):
@@ -169,61 +173,169 @@ def model_scales(model: CartPoleModel) -> dict:
 
 #: How far (a factor) an energy-shaping setting may go beyond its default (or beyond 1 for a small default).
 MAX_SCALING = 1000.0
-#: Dimensionless defaults of :func:`default_gains` (tuned on the shipped asset and checked on the test variants).
-DEFAULT_SCALING = dict(energy_gain=15.0, overshoot=0.005, energy_accel=1.0, centring_frequency=0.6,
-                       centring_damping=1.0, kick=0.05, track_margin=0.2, brake_accel=0.5, barrier_rate=2.0,
-                       damping_softening=0.3, centring_band=0.05)
+#: The explicit SI gains an :class:`EnergyOptions` may set, overriding the scaled ones.
+SI_GAINS = ("k_energy", "k_x", "k_v", "a_energy_max", "energy_target")
 
 
-def default_gains(model: CartPoleModel, **scaling) -> EnergyGains:
+@dataclasses.dataclass(frozen=True, eq=False)
+class EnergyOptions(StageOptions):
+    """The energy-shaping swing-up's settings as one value (what :class:`EnergyShapingController` and
+    :func:`cartpole.apps.swingup.run_swingup` take; ``replace``, ``as_dict`` and by-name variation from
+    :class:`cartpole.options.StageOptions`: a sweep's ``setting:<name>`` axis varies a scaling by its name),
+    validated on creation. The scalings are dimensionless: :func:`default_gains` turns them into SI gains with the
+    model's own pole energy ``2 mgl``, natural rate ``omega0`` and largest cart acceleration ``a_max``, so one set
+    fits every cart-pole; the SI fields, when set, override the scaled gains.
+
+    Attributes
+    ----------
+    energy_gain : float
+        ``kappa`` > 0: ``k_E = kappa a_max / (2 mgl omega0)``, ``kappa`` times the gain at which a full energy
+        deficit ``2 mgl`` at pole rate ``omega0`` asks for the full acceleration ``a_max``.
+    overshoot : float
+        >= 0: ``E_ref = overshoot * 2 mgl`` J above upright rest (beats the hinge damping; the catch takes over at
+        the top).
+    energy_accel : float
+        In (0, 1]: the fraction of ``a_max`` the energy term may use.
+    centring_frequency : float
+        >= 0: cart centring natural frequency as a fraction of ``omega0``.
+    centring_damping : float
+        >= 0: its damping ratio.
+    kick : float
+        >= 0: kick rate (leaving rest at the bottom) as a fraction of ``omega0``.
+    track_margin : float
+        >= 0: m kept from each cart limit.
+    brake_accel : float
+        In (0, 1]: the rail guard's deceleration as a fraction of ``a_max``.
+    barrier_rate : float
+        > 0: the guard's rate as a multiple of ``omega0``.
+    damping_softening : float
+        > 0: ``eps`` of the damping compensation as a fraction of ``omega0`` (``inf``: no compensation).
+    centring_band : float
+        > 0: energy band of the centring weight as a fraction of ``2 mgl``.
+    k_energy, k_x, k_v, a_energy_max, energy_target : float or None
+        Explicit SI gains overriding the scaled ones (``k_E`` in (m/s^2)/(J rad/s), centring stiffness 1/s^2 and
+        damping 1/s, acceleration limit m/s^2, energy target J); None: scaled from the model.
+
+    Each scaling may go at most :data:`MAX_SCALING` times beyond its default (or beyond 1 for a small default):
+    farther it only overflows the law.
+    """
+
+    error: ClassVar[type] = EnergyShapingError
+
+    energy_gain: float = 15.0
+    overshoot: float = 0.005
+    energy_accel: float = 1.0
+    centring_frequency: float = 0.6
+    centring_damping: float = 1.0
+    kick: float = 0.05
+    track_margin: float = 0.2
+    brake_accel: float = 0.5
+    barrier_rate: float = 2.0
+    damping_softening: float = 0.3
+    centring_band: float = 0.05
+    k_energy: float | None = None
+    k_x: float | None = None
+    k_v: float | None = None
+    a_energy_max: float | None = None
+    energy_target: float | None = None
+
+    def __post_init__(self):
+        ok = {"energy_gain": lambda v: v > 0, "overshoot": lambda v: v >= 0, "energy_accel": lambda v: 0 < v <= 1,
+              "centring_frequency": lambda v: v >= 0, "centring_damping": lambda v: v >= 0,
+              "kick": lambda v: v >= 0, "track_margin": lambda v: v >= 0, "brake_accel": lambda v: 0 < v <= 1,
+              "barrier_rate": lambda v: v > 0, "damping_softening": lambda v: v > 0, "centring_band": lambda v: v > 0}
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        bad = []
+        for k, test in ok.items():
+            v = getattr(self, k)
+            try:
+                f = float(v)
+            except (TypeError, ValueError, OverflowError):
+                f = math.nan
+            # damping_softening = inf is documented: no damping compensation
+            if k == "damping_softening" and f == math.inf:
+                self.set_field(k, f)
+                continue
+            if isinstance(v, bool) or not (math.isfinite(f) and test(f)
+                                           and abs(f) <= MAX_SCALING * max(defaults[k], 1.0)):
+                bad.append(f"{k} = {v!r}")
+            else:
+                self.set_field(k, f)
+        if bad:
+            raise EnergyShapingError(f"Energy-shaping setting(s) {', '.join(bad)} out of range: gains must be "
+                                     "positive, overshoot and margins non-negative, fractions in (0, 1], none more "
+                                     f"than {MAX_SCALING:g} times its default.")
+        for k in SI_GAINS:
+            v = getattr(self, k)
+            if v is not None:
+                try:
+                    self.set_field(k, float(v))
+                except (TypeError, ValueError, OverflowError):
+                    raise EnergyShapingError(f"The energy-shaping gain {k} = {v!r} is not a number.") from None
+
+    SCALARS: ClassVar[tuple] = ("energy_gain", "overshoot", "energy_accel", "centring_frequency",
+                                "centring_damping", "kick", "track_margin", "brake_accel", "barrier_rate",
+                                "damping_softening", "centring_band")
+
+    @property
+    def scaling(self) -> dict:
+        """The dimensionless scalings (name -> value), as :func:`default_gains` takes them."""
+        return {k: getattr(self, k) for k in self.SCALARS}
+
+    @property
+    def explicit(self) -> dict:
+        """The SI gains set explicitly (name -> value), None ones left out."""
+        return {k: getattr(self, k) for k in SI_GAINS if getattr(self, k) is not None}
+
+
+def energy_options(value=None) -> EnergyOptions:
+    """``value`` as :class:`EnergyOptions`: itself, the defaults for None, or a mapping of field names (scalings
+    and SI gains) applied to the defaults.
+
+    Raises
+    ------
+    EnergyShapingError
+        An unknown name (the sentence lists the fields) or a value out of range.
+    """
+    if value is None:
+        return EnergyOptions()
+    if isinstance(value, EnergyOptions):
+        return value
+    if not isinstance(value, (dict, types.MappingProxyType)):
+        raise EnergyShapingError(f"Energy-shaping settings must be EnergyOptions or a dict; got {value!r}.")
+    return EnergyOptions().replace(**dict(value))
+
+
+#: Dimensionless defaults of :func:`default_gains` (tuned on the shipped asset and checked on the test variants):
+#: :class:`EnergyOptions`' scalings.
+DEFAULT_SCALING = types.MappingProxyType(EnergyOptions().scaling)
+
+
+def default_gains(model: CartPoleModel, options: EnergyOptions | None = None, **scaling) -> EnergyGains:
     """Gains scaled by the model's own parameters, so one set of dimensionless numbers fits every cart-pole.
 
     Parameters
     ----------
     model : CartPoleModel
+    options : EnergyOptions, optional
+        The scalings (default :class:`EnergyOptions`' defaults; its SI fields are not used here).
     **scaling
-        Any of the dimensionless numbers below (defaults in :data:`DEFAULT_SCALING`):
-
-        ``energy_gain``  ``kappa``: ``k_E = kappa a_max / (2 mgl omega0)``, i.e. ``kappa`` times the gain at which a
-        full energy deficit ``2 mgl`` at pole rate ``omega0`` asks for the full acceleration ``a_max``;
-        ``overshoot``  ``E_ref = overshoot * 2 mgl`` J above upright rest (beats the hinge damping; the catch takes
-        over at the top); ``energy_accel``  fraction of ``a_max`` the energy term may use;
-        ``centring_frequency``  cart centring natural frequency as a fraction of ``omega0``;
-        ``centring_damping``  its damping ratio; ``kick``  kick rate as a fraction of ``omega0``;
-        ``track_margin``  m kept from each cart limit; ``brake_accel``  guard deceleration as a fraction of
-        ``a_max``; ``barrier_rate``  guard rate as a multiple of ``omega0``; ``damping_softening``  ``eps`` of the
-        damping compensation as a fraction of ``omega0`` (``inf`` = no compensation); ``centring_band``  energy
-        band of the centring weight as a fraction of ``2 mgl``.
+        Scalings replacing those of ``options`` by name (any :attr:`EnergyOptions.SCALARS`).
 
     Returns
     -------
     EnergyGains
+
+    Raises
+    ------
+    EnergyShapingError
+        An unknown or out-of-range setting, or a model whose actuator has no ctrlrange.
     """
-    unknown = set(scaling) - set(DEFAULT_SCALING)
+    unknown = set(scaling) - set(EnergyOptions.SCALARS)
     if unknown:
         raise EnergyShapingError(f"Unknown energy-shaping setting(s) {sorted(unknown)}; use "
-                                 f"{', '.join(DEFAULT_SCALING)}.")
-    c = {**DEFAULT_SCALING, **scaling}
-    ok = {"energy_gain": lambda v: v > 0, "overshoot": lambda v: v >= 0, "energy_accel": lambda v: 0 < v <= 1,
-          "centring_frequency": lambda v: v >= 0, "centring_damping": lambda v: v >= 0, "kick": lambda v: v >= 0,
-          "track_margin": lambda v: v >= 0, "brake_accel": lambda v: 0 < v <= 1, "barrier_rate": lambda v: v > 0,
-          "damping_softening": lambda v: v > 0, "centring_band": lambda v: v > 0}
-    bad = []
-    for k, v in c.items():
-        try:
-            f = float(v)
-        except (TypeError, ValueError):
-            f = math.nan
-        # each a dimensionless scaling of order 1: beyond MAX_SCALING times its default it only overflows the law
-        # (damping_softening = inf is documented: no damping compensation)
-        if k == "damping_softening" and f == math.inf:
-            continue
-        if not (math.isfinite(f) and ok[k](f) and abs(f) <= MAX_SCALING * max(DEFAULT_SCALING[k], 1.0)):
-            bad.append(f"{k} = {v!r}")
-    if bad:
-        raise EnergyShapingError(f"Energy-shaping setting(s) {', '.join(bad)} out of range: gains must be positive, "
-                                 "overshoot and margins non-negative, fractions in (0, 1], none more than "
-                                 f"{MAX_SCALING:g} times its default.")
+                                 f"{', '.join(EnergyOptions.SCALARS)}.")
+    c = energy_options(options).replace(**scaling).scaling
     sc = model_scales(model)
     if not np.isfinite(sc["a_max"]):
         raise EnergyShapingError("The MJCF's actuator has no ctrlrange, so default energy gains cannot be scaled; "
@@ -300,28 +412,21 @@ class EnergyShapingController:
     ----------
     model : CartPoleModel or CartPoleParams or path or None
         The symbolic model the law inverts (None = shipped asset).
-    k_energy : float, optional
-        Energy gain ``k_E`` in (m/s^2)/(J rad/s); default scaled from the model (:func:`default_gains`).
-    k_x : float, optional
-        Cart centring stiffness in 1/s^2; default scaled from the model.
-    k_v : float, optional
-        Cart centring damping in 1/s; default scaled from the model.
-    a_energy_max : float, optional
-        Saturation of the energy acceleration in m/s^2; default scaled from the model.
-    energy_target : float, optional
-        Pole energy to aim at, J (0 = exactly the upright value, which stalls short of the top under damping);
-        default ``overshoot * 2 m g l``.
+    options : EnergyOptions, optional
+        The settings (dimensionless scalings of :func:`default_gains`, optional explicit SI gains ``k_energy``
+        (m/s^2)/(J rad/s), ``k_x`` 1/s^2, ``k_v`` 1/s, ``a_energy_max`` m/s^2, ``energy_target`` J); default
+        :class:`EnergyOptions`' defaults.
     gains : EnergyGains, optional
-        Every gain at once (the keywords above still override its fields).
-    **scaling
-        Dimensionless settings for :func:`default_gains` (``energy_gain``, ``overshoot``, ``energy_accel``,
-        ``centring_frequency``, ``centring_damping``, ``kick``, ``track_margin``, ``brake_accel``,
-        ``barrier_rate``), used for whatever is not given explicitly.
+        Every gain at once (the SI fields of ``options`` still override its fields).
+    **settings
+        :class:`EnergyOptions` fields replacing those of ``options`` by name (``energy_gain=20``, ``k_x=0``...).
 
     Attributes
     ----------
     gains : EnergyGains
         The gains in use (SI).
+    options : EnergyOptions
+        The settings they came from.
     model : CartPoleModel
 
     Raises
@@ -332,14 +437,13 @@ class EnergyShapingController:
         For bad gains or settings.
     """
 
-    def __init__(self, model=None, *, k_energy: float | None = None, k_x: float | None = None,
-                 k_v: float | None = None, a_energy_max: float | None = None, energy_target: float | None = None,
-                 gains: EnergyGains | None = None, **scaling):
+    def __init__(self, model=None, options: EnergyOptions | None = None, *, gains: EnergyGains | None = None,
+                 **settings):
         self.model = model if isinstance(model, CartPoleModel) else build_model(model)
         check_single_pole(self.model)
-        g = gains if gains is not None else default_gains(self.model, **scaling)
-        explicit = dict(k_energy=k_energy, k_x=k_x, k_v=k_v, a_energy_max=a_energy_max, energy_target=energy_target)
-        g = replace(g, **{k: float(v) for k, v in explicit.items() if v is not None})
+        self.options = opts = energy_options(options).replace(**settings)
+        g = gains if gains is not None else default_gains(self.model, opts)
+        g = replace(g, **opts.explicit)
         vals = np.array([getattr(g, k) for k in _PRM], dtype=float)
         if np.any(np.isnan(vals)) or g.k_energy <= 0 or g.a_energy_max <= 0 or g.a_brake <= 0 \
                 or g.barrier_rate <= 0 or min(g.k_x, g.k_v, g.kick_rate, g.track_margin) < 0:

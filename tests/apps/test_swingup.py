@@ -8,6 +8,7 @@ from cartpole.sim.rig import RigError
 import cartpole as cp
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF
+from cartpole.control.energy import EnergyOptions
 from cartpole.apps.swingup import SwingupError, check_start, run_swingup
 from cartpole.mpc.options import MPCOptions
 from cartpole.planning.options import PlanOptions
@@ -200,7 +201,7 @@ def test_loop_options_and_the_old_keywords_run_the_same_swingup_and_the_result_e
     old = run_swingup(params, method="energy", duration=1.0, push=[(0.5, 10.0)], model_error=1.2)
     np.testing.assert_array_equal(res.rollout.x, old.rollout.x)
     np.testing.assert_array_equal(res.rollout.ctrl, old.rollout.ctrl)
-    assert res.options == old.options == {"loop": loop}
+    assert res.options == old.options == {"energy": EnergyOptions(), "loop": loop}
     assert res.push == ((0.5, 10.0),) and res.model_error == 1.2
     # a keyword replaces that field of the options given, and nothing else
     short = run_swingup(params, method="energy", loop=loop, duration=0.75)  # the push at 0.5 s still acts

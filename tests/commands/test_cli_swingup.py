@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from cartpole.cli import main
+from cartpole.control.energy import EnergyOptions
 from cartpole.models import SHIPPED_MJCF
 from cartpole.mpc.options import MPCOptions
 from cartpole.planning.options import PlanOptions
@@ -35,7 +36,8 @@ def test_energy_json_contract_and_exact_replay(tmp_path, capsys):
     doc = json.loads(out)  # stdout is exactly one JSON document
     _check_contract(doc, "energy", tmp_path)
     assert not (tmp_path / "videos").exists()
-    assert doc["options"] == {"loop": LoopOptions().as_dict()}  # the stages' settings, echoed
+    # the stages' settings, echoed
+    assert doc["options"] == {"energy": EnergyOptions().as_dict(), "loop": LoopOptions().as_dict()}
 
 
 def test_trajopt_json_contract_and_exact_replay(tmp_path, capsys):

@@ -152,3 +152,26 @@ def test_a_pole_built_off_vertical_is_pumped_from_its_own_upright(chain_dir):
             assert model.dynamics(x, ev["ctrl"])[2] == pytest.approx(ev["a"], rel=1e-9, abs=1e-9)
             checked += 1
     assert checked > 5
+
+
+def test_energy_options_are_one_validated_value_the_controller_and_the_sweep_vary_by_name():
+    from cartpole.control.energy import DEFAULT_SCALING, EnergyOptions, EnergyShapingError, default_gains
+
+    model = cp.build_model(None)
+    opts = EnergyOptions(energy_gain=20.0)
+    assert opts.replace(energy_gain=15.0) == EnergyOptions() and hash(opts.replace(energy_gain=15.0)) == hash(
+        EnergyOptions())
+    assert dict(DEFAULT_SCALING) == EnergyOptions().scaling
+    # the options value, its keywords and default_gains' keywords give the same gains
+    assert EnergyShapingController(model, opts).gains == EnergyShapingController(model, energy_gain=20.0).gains \
+        == default_gains(model, energy_gain=20.0)
+    c = EnergyShapingController(model, opts, k_x=0.0)
+    assert c.gains.k_x == 0.0 and c.options.k_x == 0.0 and c.options.energy_gain == 20.0
+    assert EnergyOptions.scalar_names() == tuple(DEFAULT_SCALING)
+    with pytest.raises(EnergyShapingError, match="no field 'gain'"):
+        EnergyOptions().replace(gain=1.0)
+    with pytest.raises(EnergyShapingError, match="energy_accel = 2.0"):
+        EnergyOptions(energy_accel=2.0)
+    with pytest.raises(EnergyShapingError, match="not a number"):
+        EnergyOptions(k_energy="fast")
+    assert EnergyOptions(damping_softening=float("inf")).as_dict()["damping_softening"] == float("inf")
