@@ -14,7 +14,7 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.models import build_model
-from cartpole.viz.panels import pole_panels
+from cartpole.viz.panels import ctrl_label, mark_range, pole_panels
 from cartpole.viz.traces import wrapped_angle_trace
 
 #: Line colours of the runs, in order; plans are drawn in shades of grey.
@@ -87,18 +87,11 @@ def feedforward_figure(runs: Mapping, plans: Mapping, params, *, model=None, tit
         rel = "" if i == 0 else ", to its parent"
         a.set_ylabel(f"pole {i + 1} ({name})\nangle from upright{rel}\n(deg, wrapped: gaps mark a turn)")
     if ax_s is not None:
-        lo, hi = params.cart_range
-        for v, lab in ((lo, "joint limit"), (hi, None)):
-            if np.isfinite(v):
-                ax_s.axhline(v, color="r", ls=":", lw=1.0, label=lab)
+        mark_range(ax_s, *params.cart_range, "joint limit", lw=1.0)
         ax_s.set_ylabel(f"cart ({params.joints[slide].name})\nposition (m)")
-    for k, (a, act) in enumerate(zip(ax_u, params.actuators)):
-        ulo, uhi = params.ctrl_range[k]
-        for v, lab in ((ulo, "ctrl range"), (uhi, None)):
-            if np.isfinite(v):
-                a.axhline(v, color="r", ls=":", lw=1.0, label=lab)
-        unit = "N" if params.joints[act.joint].kind == "slide" else "N m"
-        a.set_ylabel(f"ctrl {act.name}\n(force = {act.gear:g} {unit} x ctrl)")
+    for k, a in enumerate(ax_u):
+        mark_range(a, *params.ctrl_range[k], "ctrl range", lw=1.0)
+        a.set_ylabel(ctrl_label(params, k))
     ax[-1].set_xlabel("time (s); dotted vertical: end of each plan (hand-over to the LQR catch)")
     for a in ax:
         a.grid(True, alpha=0.3)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._files import atomic_write
-from cartpole.viz.panels import pole_panels
+from cartpole.viz.panels import ctrl_label, mark_range, pole_panels
 from cartpole.viz.traces import wrapped_angle_trace
 
 
@@ -106,16 +106,11 @@ def _dress(p, x_eq, rollouts, axes, ax_th, ax_s, ax_u) -> None:
         ax_s.axhline(x_eq[slide], color="k", linewidth=0.5)
         # the rail's ends only when a run came within half the way to one (else they squash the traces)
         reach = max(np.abs(r.qpos[:, slide] - x_eq[slide]).max() for r in rollouts)
-        for v in p.cart_range:
-            if np.isfinite(v) and abs(v - x_eq[slide]) < 2 * reach:
-                ax_s.axhline(v, color="r", ls=":", lw=0.8)
+        mark_range(ax_s, *p.cart_range, keep=lambda v: abs(v - x_eq[slide]) < 2 * reach)
         ax_s.set_ylabel("Cart position (m)")
-    for ax, act, (ulo, uhi) in zip(ax_u, p.actuators, p.ctrl_range):
-        for v in (ulo, uhi):
-            if np.isfinite(v):
-                ax.axhline(v, color="r", ls=":", lw=0.8)
-        unit = "N" if p.joints[act.joint].kind == "slide" else "N m"
-        ax.set_ylabel(f"ctrl {act.name}\n(force = {act.gear:g} {unit} x ctrl)")
+    for k, (ax, (ulo, uhi)) in enumerate(zip(ax_u, p.ctrl_range)):
+        mark_range(ax, ulo, uhi)
+        ax.set_ylabel(ctrl_label(p, k))
     axes[-1].set_xlabel("Time (s)")
     for ax in axes:
         ax.grid(alpha=0.3)

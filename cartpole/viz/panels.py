@@ -33,3 +33,21 @@ def pole_panels(params, *, extra: int = 0, size: Callable[[int], tuple] = lambda
     first_u = n_th + has_cart
     return (fig, axes, list(axes[:n_th]), axes[n_th] if has_cart else None, list(axes[first_u:first_u + nu]),
             list(axes[first_u + nu:]))
+
+
+def mark_range(ax, lo: float, hi: float, label: str | None = None, *, lw: float = 0.8, keep=None) -> None:
+    """Dotted red horizontal lines at the finite ends of a range ``[lo, hi]`` (a joint's range in m or rad, a
+    ctrlrange in ctrl units) on ``ax``, the first one drawn carrying ``label`` for the legend. ``keep(v)``, when
+    given, says which ends to draw (e.g. only those near the traces)."""
+    for v in (lo, hi):
+        if np.isfinite(v) and (keep is None or keep(v)):
+            ax.axhline(v, color="r", ls=":", lw=lw, label=label)
+            label = None
+
+
+def ctrl_label(params, k: int) -> str:
+    """The y label of actuator ``k``'s ctrl panel: its name and what one unit of ctrl is (``force = gear N x ctrl``
+    on a slide, ``N m`` on a hinge)."""
+    act = params.actuators[k]
+    unit = "N" if params.joints[act.joint].kind == "slide" else "N m"
+    return f"ctrl {act.name}\n(force = {act.gear:g} {unit} x ctrl)"

@@ -15,7 +15,7 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.models import build_model
-from cartpole.viz.panels import pole_panels
+from cartpole.viz.panels import ctrl_label, mark_range, pole_panels
 from cartpole.viz.traces import wrapped_angle_trace
 
 
@@ -80,23 +80,14 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
         ax_s.plot(t, x[:, slide], label="MuJoCo")
         if px is not None:
             ax_s.plot(pt, px[:, slide], "--", label="plan")
-        lo, hi = params.cart_range
-        if np.isfinite(lo):
-            ax_s.axhline(lo, color="r", ls=":", label="joint limit")
-        if np.isfinite(hi):
-            ax_s.axhline(hi, color="r", ls=":")
+        mark_range(ax_s, *params.cart_range, "joint limit", lw=1.5)
         ax_s.set_ylabel("cart position (m)")
-    for k, (a, act) in enumerate(zip(ax_u, params.actuators)):
+    for k, a in enumerate(ax_u):
         a.step(t[:-1], rollout.ctrl[:, k], where="post", label="MuJoCo ctrl")
         if pu is not None:
             a.plot(pt[:len(pu)], pu[:, k], "--", label="plan ctrl")
-        ulo, uhi = params.ctrl_range[k]
-        if np.isfinite(ulo):
-            a.axhline(ulo, color="r", ls=":", label="ctrl range")
-        if np.isfinite(uhi):
-            a.axhline(uhi, color="r", ls=":")
-        unit = "N" if params.joints[act.joint].kind == "slide" else "N m"
-        a.set_ylabel(f"ctrl {act.name}\n(force = {act.gear:g} {unit} x ctrl)")
+        mark_range(a, *params.ctrl_range[k], "ctrl range", lw=1.5)
+        a.set_ylabel(ctrl_label(params, k))
     ax_e.plot(t, _energy(energy, x), label="MuJoCo")
     if px is not None:
         ax_e.plot(pt, _energy(energy, px), "--", label="plan")
