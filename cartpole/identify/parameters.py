@@ -30,7 +30,8 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import DEFAULT_FRICTION_WIDTH, CartPoleParams, equations
+from cartpole.models import DEFAULT_FRICTION_WIDTH, CartPoleParams, equations, load_model
+from cartpole.models.friction import MAX_CONSTRAINT_FRICTION_DOFS, FrictionConstraint, friction_constraint
 
 KINDS = ("mass", "com", "inertia", "damping", "frictionloss", "armature", "gear")
 _AXES = "xyz"
@@ -264,8 +265,24 @@ def steps_per_sample(sample_time: float, timestep: float) -> tuple[int, float]:
     return m, float(sample_time / m)
 
 
+def mujoco_friction(p: CartPoleParams) -> FrictionConstraint:
+    """MuJoCo's friction-loss constraint coefficients of the model's MJCF (its ``solreffriction``,
+    ``solimpfriction``, ``qpos0``): what :func:`sample_step` needs for the exact friction.
+
+    Parameters
+    ----------
+    p : CartPoleParams
+
+    Returns
+    -------
+    FrictionConstraint
+    """
+    m = load_model(p.mjcf or None, xml=None if p.mjcf else p.xml)[0]
+    return friction_constraint(m)
+
+
 def sample_step(p: CartPoleParams, params, sample_time: float, *,
-                friction_width: float = DEFAULT_FRICTION_WIDTH) -> ca.Function:
+                friction_width: float = DEFAULT_FRICTION_WIDTH, exact_friction: bool = True) -> ca.Function:
     """The model's map over one log sample, ctrl held, with the parameters as inputs:
     ``(x (nx,), u (nu,), theta (np,)) -> x_next (nx,)``, ``theta`` in the order of ``params`` (SI units).
 
@@ -279,18 +296,35 @@ def sample_step(p: CartPoleParams, params, sample_time: float, *,
     sample_time : float
         s.
     friction_width : float
-        The smooth friction's velocity scale, m/s or rad/s.
+        The smooth friction's velocity scale, m/s or rad/s (used only with ``exact_friction=False``).
+    exact_friction : bool
+        ``frictionloss`` as MuJoCo's friction constraint solved exactly (:func:`mujoco_friction`; the step equals
+        ``mj_step`` while a joint sticks too), else the smooth ``tanh`` force. At most
+        :data:`~cartpole.models.friction.MAX_CONSTRAINT_FRICTION_DOFS` joints with friction for the exact one.
 
     Returns
     -------
     casadi.Function
+
+    Raises
+    ------
+    ParameterError
+        Exact friction on more joints than the exact model solves.
     """
     theta = ca.SX.sym("theta", len(params))
     ps = with_values(p, params, [theta[i] for i in range(len(params))])
     x = ca.SX.sym("x", 2 * p.nq)
     u = ca.SX.sym("u", p.nu)
     m, h = steps_per_sample(sample_time, p.timestep)
-    eq = equations(ps, x, u, dt=h, integrator=p.integrator, friction_width=friction_width)
+    fc = None
+    if exact_friction:
+        dofs = [j.name for j in ps.joints if isinstance(j.frictionloss, ca.SX) or j.frictionloss]
+        if len(dofs) > MAX_CONSTRAINT_FRICTION_DOFS:
+            raise ParameterError(f"Frictionloss on {len(dofs)} joints ({', '.join(dofs)}) is more than the exact "
+                                 f"friction model solves ({MAX_CONSTRAINT_FRICTION_DOFS}); fit fewer joints' "
+                                 "frictionloss.")
+        fc = mujoco_friction(p) if dofs else None
+    eq = equations(ps, x, u, dt=h, integrator=p.integrator, friction_width=friction_width, friction_constraint=fc)
     one = ca.Function("one_step", [x, u, theta], [eq.x_next])
     xk = x
     for _ in range(m):

@@ -25,6 +25,7 @@ effective inertia), where an explicit step already chatters. Narrower widths cha
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -96,3 +97,138 @@ def smooth_friction(frictionloss, v, width: float = DEFAULT_FRICTION_WIDTH):
     if isinstance(v, (ca.SX, ca.MX)):
         return -ca.DM(np.asarray(frictionloss, float)) * ca.tanh(v / w)
     return -np.asarray(frictionloss, float) * np.tanh(np.asarray(v, float) / w)
+
+
+# ---- MuJoCo's friction-loss constraint, exactly -------------------------------------------------------------------
+#: MuJoCo's bounds on a constraint's impedance and its smallest regulariser (``mjMINIMP``, ``mjMAXIMP``, ``mjMINVAL``).
+_MIN_IMP, _MAX_IMP, _MIN_VAL = 0.0001, 0.9999, 1e-15
+#: Most friction joints the exact constraint model solves (its box QP enumerates ``3**n`` active sets).
+MAX_CONSTRAINT_FRICTION_DOFS = 3
+
+
+@dataclass(frozen=True)
+class FrictionConstraint:
+    """MuJoCo's soft-constraint coefficients of each joint's friction-loss row, read from the compiled model.
+
+    For a joint with frictionloss ``F`` MuJoCo adds one constraint row ``J = e_i`` whose force ``f`` solves the box
+    QP ``min 0.5 f' (A + R) f + f' (a0 - aref)``, ``|f| <= F`` (``A`` the friction block of ``M^-1``, ``a0`` the
+    unconstrained acceleration, ``aref = -b qvel``, ``R = r invweight0``, ``invweight0`` the diagonal of ``M^-1``
+    at ``qpos0``): what :func:`constraint_friction_force` solves exactly.
+
+    Attributes
+    ----------
+    damping : (nq,) array
+        ``b = 2 / (dmax timeconst)`` of each joint's ``solreffriction`` (1/s; ``timeconst`` at least two steps
+        unless the MJCF disables ``refsafe``; ``-solref[1] / dmax`` for MuJoCo's direct form).
+    regularizer : (nq,) array
+        ``r = (1 - d) / d``, ``d`` the impedance at zero violation (``solimpfriction``'s ``dmin``), no unit.
+    qpos0 : (nq,) array
+        The model's reference configuration, m or rad, where ``invweight0`` is taken.
+    """
+
+    damping: np.ndarray
+    regularizer: np.ndarray
+    qpos0: np.ndarray
+
+
+def friction_constraint(m) -> FrictionConstraint:
+    """The :class:`FrictionConstraint` of a compiled ``mujoco.MjModel`` (every dof a slide or hinge).
+
+    Parameters
+    ----------
+    m : mujoco.MjModel
+
+    Returns
+    -------
+    FrictionConstraint
+    """
+    import mujoco
+
+    refsafe = not (m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_REFSAFE)
+    b = np.zeros(m.nv)
+    r = np.zeros(m.nv)
+    for i in range(m.nv):
+        ref, imp = m.dof_solref[i], m.dof_solimp[i]
+        dmin, dmax = (float(np.clip(v, _MIN_IMP, _MAX_IMP)) for v in imp[:2])
+        if ref[0] > 0:
+            tc = max(float(ref[0]), 2 * float(m.opt.timestep)) if refsafe else float(ref[0])
+            b[i] = 2 / (dmax * tc)
+        else:
+            b[i] = -float(ref[1]) / dmax
+        r[i] = (1 - dmin) / dmin
+    return FrictionConstraint(damping=b, regularizer=r, qpos0=np.asarray(m.qpos0, float).copy())
+
+
+def _box_qp(H, g, F):
+    """The exact solution (n,) SX of ``min 0.5 f' H f + g' f``, ``-F <= f <= F`` (``H`` (n, n) positive definite)
+    by enumerating the ``3**n`` active sets (each checked by its KKT conditions; the first that holds is taken)."""
+    import itertools
+
+    n = g.shape[0]
+    if n == 1:
+        return ca.fmin(ca.fmax(-g / H, -F), F)
+    out = None
+    for states in reversed(list(itertools.product((0, 1, -1), repeat=n))):
+        free = [i for i in range(n) if states[i] == 0]
+        f = [states[i] * F[i] for i in range(n)]
+        if free:
+            clamp = [i for i in range(n) if states[i] != 0]
+            rhs = -g[free]
+            if clamp:
+                rhs = rhs - ca.mtimes(H[free, clamp], ca.vertcat(*[f[i] for i in clamp]))
+            sol = ca.solve(H[free, free], rhs)
+            for k, i in enumerate(free):
+                f[i] = sol[k]
+        fv = ca.vertcat(*f)
+        grad = ca.mtimes(H, fv) + g
+        ok = 1
+        for i in range(n):
+            if states[i] == 0:
+                ok = ca.logic_and(ok, ca.logic_and(fv[i] <= F[i], fv[i] >= -F[i]))
+            elif states[i] == 1:
+                ok = ca.logic_and(ok, grad[i] <= 0)
+            else:
+                ok = ca.logic_and(ok, grad[i] >= 0)
+        out = fv if out is None else ca.if_else(ok, fv, out)
+    return out
+
+
+def constraint_friction_force(M, M0, a0, v, frictionloss, dofs, fc: FrictionConstraint):
+    """MuJoCo's friction-loss constraint force (nq,) SX, solved exactly for the friction joints ``dofs``.
+
+    Parameters
+    ----------
+    M : SX (nq, nq)
+        Mass matrix with armature at the state, kg, kg m, kg m^2.
+    M0 : SX (nq, nq)
+        The same at ``qpos0`` (for ``invweight0``).
+    a0 : SX (nq,)
+        Unconstrained acceleration ``M^-1 F`` (everything but the constraint), m/s^2 or rad/s^2.
+    v : SX (nq,)
+        ``qvel``, m/s or rad/s.
+    frictionloss : SX (nq,)
+        N or N m (numbers or symbols).
+    dofs : sequence of int
+        The joints with a friction row (nonzero or symbolic frictionloss), at most
+        :data:`MAX_CONSTRAINT_FRICTION_DOFS`.
+    fc : FrictionConstraint
+
+    Returns
+    -------
+    SX (nq,)
+        Generalized friction force, N or N m (zero off ``dofs``).
+    """
+    nq = M.shape[0]
+    dofs = list(dofs)
+    out = ca.SX.zeros(nq)
+    if not dofs:
+        return out
+    E = ca.DM.zeros(nq, len(dofs))
+    for k, i in enumerate(dofs):
+        E[i, k] = 1
+    A = ca.mtimes(E.T, ca.solve(M, E))
+    w0 = ca.diag(ca.mtimes(E.T, ca.solve(M0, E)))
+    R = ca.fmax(_MIN_VAL, ca.DM(fc.regularizer[dofs]) * w0)
+    g = ca.mtimes(E.T, a0) + ca.DM(fc.damping[dofs]) * ca.mtimes(E.T, v)  # a0 - aref on the rows
+    f = _box_qp(A + ca.diag(R), g, ca.mtimes(E.T, frictionloss))
+    return ca.mtimes(E, f)

@@ -48,7 +48,8 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.models.discretize import hold_model
 from cartpole.models.equilibrium import find_equilibrium
-from cartpole.models.friction import DEFAULT_FRICTION_WIDTH, check_width, smooth_friction
+from cartpole.models.friction import (DEFAULT_FRICTION_WIDTH, FrictionConstraint, check_width,
+                                      constraint_friction_force, smooth_friction)
 from cartpole.models.kinematics import forward_kinematics, forward_kinematics_np
 from cartpole.models.params import SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError, read_params
 
@@ -488,7 +489,8 @@ def _joint_vector(p: CartPoleParams, field: str):
     return ca.vertcat(*[ca.SX(v) if not _is_symbol(v) else v for v in vals])
 
 
-def equations(p: CartPoleParams, x, u, *, dt: float, integrator: str, friction_width: float) -> Equations:
+def equations(p: CartPoleParams, x, u, *, dt: float, integrator: str, friction_width: float,
+              friction_constraint: FrictionConstraint | None = None) -> Equations:
     """Derive the equations of motion and one integrator step as SX in ``x`` and ``u``.
 
     The parameters may hold CasADi SX symbols instead of numbers (a body's ``mass``, ``ipos`` (3,), ``inertia``
@@ -509,6 +511,10 @@ def equations(p: CartPoleParams, x, u, *, dt: float, integrator: str, friction_w
         One of ``SUPPORTED_INTEGRATORS``.
     friction_width : float
         Velocity scale of the smooth friction, m/s or rad/s.
+    friction_constraint : FrictionConstraint, optional
+        Given, ``frictionloss`` is MuJoCo's friction constraint solved exactly
+        (:func:`~cartpole.models.friction.constraint_friction_force`: the joint sticks as in ``mj_step``), not the
+        smooth force; ``friction_width`` is then unused and ``F_friction`` is the constraint force.
 
     Returns
     -------
@@ -537,12 +543,20 @@ def equations(p: CartPoleParams, x, u, *, dt: float, integrator: str, friction_w
     has_friction = p.has_friction if not symbolic else any(
         _is_symbol(j.frictionloss) or j.frictionloss for j in p.joints)
     fl = _joint_vector(p, "frictionloss") if symbolic else p.frictionloss
-    F_fric = smooth_friction(fl, v, friction_width) if has_friction else ca.SX.zeros(nq)
+    exact = friction_constraint is not None and has_friction
     F_act, V_act = _actuator_bias(p, q, v)
-    if has_friction:
-        F = F + F_fric
     if p.has_actuator_bias:
         F = F + F_act
+    if exact:  # MuJoCo's constraint, on the acceleration everything else gives (it acts on no dF/dv below)
+        fl = ca.DM(fl) if not _is_symbol(fl) else fl
+        dofs = [i for i, j in enumerate(p.joints) if _is_symbol(j.frictionloss) or j.frictionloss]
+        M0 = ca.substitute(M, q, ca.DM(friction_constraint.qpos0))
+        F_fric = constraint_friction_force(M, M0, ca.solve(M, F), v, fl, dofs, friction_constraint)
+        F = F + F_fric
+    else:
+        F_fric = smooth_friction(fl, v, friction_width) if has_friction else ca.SX.zeros(nq)
+        if has_friction:
+            F = F + F_fric
     qacc = ca.solve(M, F)
     xdot = ca.vertcat(v, qacc)
 
@@ -558,16 +572,16 @@ def equations(p: CartPoleParams, x, u, *, dt: float, integrator: str, friction_w
     else:
         if integ == "Euler":
             dFdv = -ca.diag(D) if p.euler_damping_implicit else ca.DM.zeros(nq, nq)
-            if has_friction and p.euler_damping_implicit:
+            if has_friction and p.euler_damping_implicit and not exact:
                 dFdv = dFdv + ca.jacobian(F_fric, v)
         elif integ == "implicitfast":
             dFdv = -ca.diag(D)  # plus the actuators' velocity derivative, without Coriolis/centripetal terms
-            if has_friction:
+            if has_friction and not exact:
                 dFdv = dFdv + ca.jacobian(F_fric, v)
             if p.has_actuator_bias:
                 dFdv = dFdv + ca.jacobian(F_act, v)
         else:  # implicit: full derivative including Coriolis/centripetal terms, friction and actuator bias
-            dFdv = ca.jacobian(F, v)
+            dFdv = ca.jacobian(F - F_fric if exact else F, v)
         a_impl = ca.solve(M - h * dFdv, F)
         v_next = v + h * a_impl
         x_next = ca.vertcat(q + h * v_next, v_next)
