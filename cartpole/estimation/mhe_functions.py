@@ -198,7 +198,18 @@ def condensed_qp(A, d, C, r_meas, RV, L, P_inv, arrival_gap, e):
 def solve_window_qp(H, g, S, c, q, joints, low, high):
     """``min 1/2 z' H z + g' z`` with the positions ``q_j + c_j + S_j z`` of the bounded joints inside their ranges
     at every node: the Cholesky solve when its minimiser respects them (then it is the solution: the QP is convex),
-    else DAQP.
+    else DAQP on the same QP with its cost divided by ``max(diag H)`` (the same minimiser).
+
+    Why the division: an encoder-read position weighs ``1 / V`` (about 1e13 per m^2 for a 2048-count slide encoder)
+    against 1 for each noise entry, so ``H``'s condition number is about 1e13 and a position row ``a`` of the
+    constraints has ``a' H^-1 a`` about 1e-12, below DAQP's ``zero_tol`` (1e-11, absolute): DAQP then takes the
+    violated row for a zero row and reports the QP infeasible (exit flag -1), although it is feasible. Scaled so
+    that ``H``'s largest diagonal entry is 1, those products are of order one and DAQP solves it; the minimiser, the
+    active set and the constraints do not change (the multipliers are divided by the same factor). DAQP's own
+    iterate is accurate only to about ``1e-16 cond(H)`` relative in the weakly weighted directions (the noise: its
+    steps were off by thousands of units), so its answer is then polished (:func:`polish_active_set`): the
+    equality-constrained QP on DAQP's active set solved by one LU factorisation of its KKT matrix, kept when it is
+    feasible and its multipliers have the right signs, which makes it the QP's exact solution.
 
     Parameters
     ----------
@@ -236,9 +247,79 @@ def solve_window_qp(H, g, S, c, q, joints, low, high):
     upper = np.minimum((high - v).ravel(), _BIG)
     lower = np.maximum((low - v).ravel(), -_BIG)
     sense = np.zeros(rows.shape[0], dtype=np.int32)
-    zq, _, flag, _ = daqp.solve(np.ascontiguousarray(H), np.ascontiguousarray(g), rows, upper, lower, sense,
-                                iter_limit=QP_ITER_LIMIT)
-    return np.asarray(zq) if flag in (1, 2) else z
+    scale = 1.0 / float(np.max(np.diag(H)))
+    zq, _, flag, _ = daqp.solve(np.ascontiguousarray(H * scale), np.ascontiguousarray(g * scale), rows, upper, lower,
+                                sense, iter_limit=QP_ITER_LIMIT)
+    if flag not in (1, 2):
+        return z
+    return polish_active_set(H * scale, g * scale, rows, upper, lower, np.asarray(zq))
+
+
+#: m or rad: a row this close to one of its limits counts as active, or as violated beyond it, when a QP solution is
+#: polished; and the most working-set changes the polish may make.
+ACTIVE_TOL = 1e-9
+POLISH_ITER_LIMIT = 50
+
+
+def polish_active_set(H, g, rows, upper, lower, z):
+    """The solution of ``min 1/2 z' H z + g' z, lower <= rows z <= upper`` refined from an approximate solution
+    ``z``: a primal active-set iteration with exact linear algebra. The working set starts as the rows within
+    :data:`ACTIVE_TOL` of a limit at ``z``; each iteration solves the equality-constrained QP on it,
+    ``[H A'; A 0] [z; mu] = [-g; b]`` (LU with partial pivoting), then adds the most violated row if any is violated
+    by more than :data:`ACTIVE_TOL`, else drops the row whose multiplier has the wrong sign the most (an optimum has
+    ``mu >= 0`` on an upper limit, ``<= 0`` on a lower), else stops: the KKT conditions then hold and, the QP being
+    strictly convex, that is its solution.
+
+    Parameters
+    ----------
+    H, g : (nz, nz), (nz,) arrays
+        The cost (``H`` positive definite; scaled to a largest diagonal entry near 1 for the LU).
+    rows : (nr, nz) array
+        The constraint rows.
+    upper, lower : (nr,) arrays
+        Their limits (``+-1e30`` or infinite where absent).
+    z : (nz,) array
+        The approximate solution (a dual active-set solver's).
+
+    Returns
+    -------
+    (nz,) array
+        The solution satisfying the KKT conditions, or ``z`` unchanged when no such point was reached within
+        :data:`POLISH_ITER_LIMIT` working-set changes.
+    """
+    nz, nr = H.shape[0], rows.shape[0]
+    r = rows @ z
+    side = np.zeros(nr, dtype=int)  # +1 held at its upper limit, -1 at its lower, 0 free
+    side[r >= upper - ACTIVE_TOL] = 1
+    side[(r <= lower + ACTIVE_TOL) & (side == 0)] = -1
+    for _ in range(POLISH_ITER_LIMIT):
+        act = np.flatnonzero(side)
+        na = act.size
+        K = np.zeros((nz + na, nz + na))
+        K[:nz, :nz] = H
+        K[nz:, :nz] = rows[act]
+        K[:nz, nz:] = rows[act].T
+        b = np.where(side[act] > 0, upper[act], lower[act])
+        try:
+            sol = np.linalg.solve(K, np.r_[-g, b])
+        except np.linalg.LinAlgError:
+            return z
+        if not np.all(np.isfinite(sol)):
+            return z
+        zp, mu = sol[:nz], sol[nz:]
+        rp = rows @ zp
+        excess = np.maximum(rp - upper, lower - rp)
+        excess[act] = 0.0
+        if excess.size and excess.max() > ACTIVE_TOL:
+            i = int(np.argmax(excess))
+            side[i] = 1 if rp[i] > upper[i] else -1
+            continue
+        wrong = -mu * side[act]  # > 0: a multiplier of the wrong sign
+        if na and wrong.max() > 0:
+            side[act[int(np.argmax(wrong))]] = 0
+            continue
+        return zp
+    return z
 
 
 def arrival_update(x_bar, P, x0, y0, h0, C0, F0, A0, V, W):
