@@ -49,9 +49,10 @@ from cartpole.ocp.bounds import OCPError
 #: dm_control's ``_DEFAULT_VALUE_AT_MARGIN`` of ``rewards.tolerance``.
 VALUE_AT_MARGIN = 0.1
 
-#: Gaussian margin of the planning surrogates of the sparse rewards, in the unit of the quantity tolerated
-#: (m for the cart position and the acrobot's tip distance, 1 for a cosine).
-SURROGATE_MARGIN = 1.0
+#: Gaussian margins of the planning surrogates of the sparse rewards, by the quantity tolerated: a pole's angle
+#: cosine (1: 0.1 below the bound is about 27 degrees from upright on the pendulum), the cart position (m: its
+#: box's half-width) and the acrobot's tip distance (m: the smooth acrobot task's own margin).
+SURROGATE_MARGIN = {"cosine": 0.1, "cart": 0.25, "distance": 1.0}
 
 #: Floor under the acrobot's squared tip distance in the planning form (m^2): the distance's derivative at the target.
 DISTANCE_FLOOR = 1e-12
@@ -299,14 +300,15 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
         As :func:`check_model`.
     """
     t = check_model(model, name)
-    smooth_margin = SURROGATE_MARGIN if (t.sparse and not exact) else 0.0
+    surrogate = t.sparse and not exact
+    cos_margin = SURROGATE_MARGIN["cosine"] if surrogate else 0.0
     if t.domain == "cartpole":
         cosines = _pole_cosines(model, x)
         cart = x[model.slide]
         if t.sparse:
-            r = tolerance(cart, (-0.25, 0.25), margin=smooth_margin)
+            r = tolerance(cart, (-0.25, 0.25), margin=SURROGATE_MARGIN["cart"] if surrogate else 0.0)
             for c in cosines:
-                r = r * tolerance(c, (0.995, 1.0), margin=smooth_margin)
+                r = r * tolerance(c, (0.995, 1.0), margin=cos_margin)
             return r
         upright = sum((c + 1) / 2 for c in cosines) / len(cosines)
         centered = (1 + tolerance(cart, margin=2.0)) / 2
@@ -321,14 +323,14 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
         return upright * small_control * small_velocity * centered
     if t.domain == "pendulum":
         (c,) = _pole_cosines(model, x)
-        return tolerance(c, (float(np.cos(np.deg2rad(8))), 1.0), margin=smooth_margin)
+        return tolerance(c, (float(np.cos(np.deg2rad(8))), 1.0), margin=cos_margin)
     params = model.params
     tip, target = _site(params, "tip"), _site(params, "target")
     q = x[:model.nq]
     gap = _site_world(params, target, q) - _site_world(params, tip, q)
     d2 = ca.sumsqr(gap)
     dist = ca.sqrt(d2) if exact else ca.sqrt(d2 + DISTANCE_FLOOR)
-    margin = (0.0 if t.sparse else 1.0) if exact else (SURROGATE_MARGIN if t.sparse else 1.0)
+    margin = SURROGATE_MARGIN["distance"] if surrogate else (0.0 if t.sparse else 1.0)
     return tolerance(dist, (0.0, float(target[2][0])), margin=margin)
 
 
