@@ -9,8 +9,9 @@
 * ``trajopt``: direct collocation + TVLQR (:func:`cartpole.planning.trajopt.trajopt_swingup`) for the chosen
   ``objective`` (:mod:`cartpole.ocp.objectives`), handing over to the LQR hold after the plan; any model the
   planner takes. The basin reported is the hand-over LQR's (:func:`cartpole.planning.trajopt.handover_catch`), the
-  controller that actually takes over; with ``objective="dmc_swingup"`` the metrics add dm_control's ``return``
-  of the logged run (:func:`~cartpole.validation.metrics.dmc_swingup_return`) and its ``return_steps``.
+  controller that actually takes over; with a dm_control task as objective (``dmc_cartpole_swingup``, ...) the metrics add dm_control's
+  ``return`` of the logged run (:func:`~cartpole.validation.metrics.dmc_return`, the exact reward) and its
+  ``return_steps``.
 
 * ``mpc``: nonlinear MPC re-planning every control period (:func:`cartpole.mpc.nmpc.nmpc_swingup`), MuJoCo holding
   each ctrl for the controller's ``period``; no catch, no basin.
@@ -320,7 +321,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         ``PlanOptions(cart_margin=mpc.cart_margin)``).
     loop : LoopOptions, optional
         The closed loop (:class:`~cartpole.sim.options.LoopOptions`): ``duration`` (s; None: 10 s energy, 8 s mpc,
-        the plan's horizon + 3 s trajopt, with ``dmc_swingup`` at least dm_control's episode of 1000 MJCF steps so
+        the plan's horizon + 3 s trajopt, with a ``dmc_*`` task at least dm_control's episode (1000 control steps) so
         the return counts all of them), ``period`` (s; ``mpc`` only: the NMPC re-plans at it), ``push`` and
         ``model_error`` (the planning model is :func:`planning_model` of it; MuJoCo keeps the MJCF's).
     mpc : MPCOptions, optional
@@ -372,7 +373,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     from cartpole.control.switching import SwitchingController, swingup_catch
     from cartpole.sim.rig import build_rig
     from cartpole.validation.basin import BasinCache
-    from cartpole.validation.metrics import DMC_STEPS, dmc_swingup_rewards, swingup_metrics
+    from cartpole.ocp.dmc import is_task, task
+    from cartpole.validation.metrics import EPISODE, dmc_rewards, swingup_metrics
 
     if method not in METHODS:
         raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")
@@ -492,8 +494,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         T_plan = float(trajectory.t[-1] - trajectory.t[0])
         if T is None:
             T = T_plan + TRAJOPT_EXTRA
-            if sp.objective == "dmc_swingup":
-                T = max(T, DMC_STEPS * params.timestep)
+            if is_task(sp.objective):  # the whole episode is scored
+                T = max(T, task(sp.objective).steps(params.timestep) * task(sp.objective).control_dt(params.timestep))
             check_push_times(loop.push, T)
         rig = build_rig(plant, loop, task="swingup")
         controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
@@ -508,8 +510,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
                                                             "cost": catch.cost_to_go(rollout.x[k])}],
                  "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k]),
                  "objective": sp.objective, "plan": plan_report(sp)}
-        if sp.objective == "dmc_swingup":
-            rewards = dmc_swingup_rewards(rollout, model)
+        if is_task(sp.objective):  # dm_control's exact reward per control step of the episode
+            rewards = dmc_rewards(rollout, model, objective=sp.objective, steps=EPISODE)
             extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
     metrics = {**swingup_metrics(rollout, model), **extra}
     if metrics["diverged"]:  # MuJoCo reset a blown-up run: whatever came before, it is never caught

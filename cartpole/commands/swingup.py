@@ -25,9 +25,13 @@ def add_arguments(parser) -> None:
     parser.add_argument("--objective", default=None, metavar="OBJ",
                         help="trajopt only: what the plan optimises: effort (default; minimum integral of "
                              "ctrl^2 over 1.2 x the minimum time), time (the minimum-time plan), tracking "
-                             "(quadratic cost toward upright, 2 (1 - cos) per hinge error), dmc_swingup "
-                             "(dm_control's smooth swing-up reward, maximised over the minimum time + 1.5 s at "
-                             "the MJCF step; the JSON adds its 'return' over 1000 steps), or MODULE:FUNCTION, a "
+                             "(quadratic cost toward upright, 2 (1 - cos) per hinge error), a dm_control task "
+                             "(dmc_cartpole_swingup (alias dmc_swingup), dmc_cartpole_swingup_sparse, "
+                             "dmc_cartpole_balance, dmc_pendulum_swingup, dmc_acrobot_swingup, "
+                             "dmc_acrobot_swingup_sparse: its reward, or a smooth surrogate where sparse, maximised "
+                             "over the minimum time + 1.5 s at the MJCF step; the run lasts at least the task's "
+                             "episode and the JSON adds dm_control's exact 'return' over its 1000 control steps "
+                             "and 'return_steps'), or MODULE:FUNCTION, a "
                              "function (x, u) -> scalar of CasADi symbols: a cost, or a reward to maximise when "
                              "wrapped with cartpole.ocp.objectives.reward")
     parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",

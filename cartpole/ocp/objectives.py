@@ -11,7 +11,10 @@ user's own sign (a reward's integral is reported as the reward's integral, posit
   hinge-angle error is not smooth at +-pi, so for each hinge ``d_i^2`` is ``2 (1 - cos e_i)`` (``e_i = theta_i -
   theta_i*``): equal to ``e_i^2`` up to ``O(e_i^4)`` near upright, smooth and 2 pi-periodic everywhere;
   the other entries are the plain errors;
-* ``dmc_swingup``: dm_control's smooth cart-pole swing-up reward (:func:`dmc_swingup_reward`), maximised;
+* the dm_control suite's tasks (:mod:`cartpole.ocp.dmc`, :data:`DMC`): ``dmc_cartpole_swingup`` (alias
+  ``dmc_swingup``), ``dmc_cartpole_swingup_sparse``, ``dmc_cartpole_balance``, ``dmc_pendulum_swingup``,
+  ``dmc_acrobot_swingup``, ``dmc_acrobot_swingup_sparse``: each task's reward, maximised (a smooth surrogate of
+  it where dm_control's is sparse, :func:`cartpole.ocp.dmc.reward_expression`);
 * any Python function ``(x, u) -> scalar`` of CasADi symbols (``x`` (nx,) SX, ``u`` (nu,) SX): a running cost, or
   a running reward when wrapped with :func:`reward`. On the command line ``--objective MODULE:FUNCTION`` imports
   it with :mod:`importlib` (:func:`load_objective`).
@@ -30,12 +33,13 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import first_line
+from cartpole.ocp import dmc
 from cartpole.ocp.bounds import OCPError
 
-NAMED = ("effort", "time", "tracking", "dmc_swingup")
+#: The dm_control suite's tasks, by objective name, and the alias ``dmc_swingup``.
+DMC = tuple(dmc.TASKS) + tuple(dmc.ALIASES)
 
-#: dm_control's default ``value_at_margin`` of ``rewards.tolerance`` (gaussian sigmoid).
-DMC_VALUE_AT_MARGIN = 0.1
+NAMED = ("effort", "time", "tracking") + DMC
 
 
 class Reward:
@@ -70,7 +74,7 @@ class Objective:
     Attributes
     ----------
     name : str
-        ``effort``, ``time``, ``tracking``, ``dmc_swingup`` or the user function's name.
+        ``effort``, ``time``, ``tracking``, a dm_control task of :data:`DMC` or the user function's name.
     running : casadi.Function or None
         ``(x (nx,), u (nu,)) -> cost`` per second, already signed as a cost (a reward negated); None for ``effort``
         and ``time``, which the transcription builds itself.
@@ -91,84 +95,22 @@ class Objective:
         return self.name if self.name in ("effort", "time") else "running"
 
 
-def _gauss_tolerance(v, margin: float, value_at_margin: float = DMC_VALUE_AT_MARGIN):
-    """dm_control ``tolerance(v, bounds=(0, 0), margin, sigmoid='gaussian')``: ``exp(-0.5 (v scale / margin)^2)``."""
-    scale = np.sqrt(-2.0 * np.log(value_at_margin))
-    return ca.exp(-0.5 * (v * scale / margin) ** 2)
-
-
 def dmc_swingup_reward(model, x, u, *, clip_control: bool = False):
-    """dm_control's smooth cart-pole swing-up reward as a CasADi expression of ``x`` (nx,) and ``u`` (nu,).
+    """dm_control's smooth cart-pole swing-up reward as a CasADi expression of ``x`` (nx,) and ``u`` (nu,): the
+    task ``dmc_cartpole_swingup`` of :func:`cartpole.ocp.dmc.reward_expression` (``dm_control/suite/cartpole.py``,
+    ``Balance._get_reward(sparse=False)``).
 
-    The one definition of this reward in the toolkit: the OCP's ``dmc_swingup`` objective integrates it
-    symbolically, and :func:`dmc_swingup_function` wraps it as a Function that
-    :func:`cartpole.validation.metrics.dmc_swingup_reward` evaluates over a logged rollout's rows for scoring.
-
-    As ``dm_control/suite/cartpole.py`` (``Balance._get_reward``, ``sparse=False``) defines it::
-
-        upright        = mean_i (cos(phi_i) + 1) / 2
-        centered       = (1 + tolerance(cart position, margin=2)) / 2
-        small_control  = (4 + tolerance(ctrl, margin=1, value_at_margin=0, sigmoid='quadratic')) / 5
-        small_velocity = (1 + min_i tolerance(hinge rate_i, margin=5)) / 2
-        reward         = upright * small_control * small_velocity * centered
-
-    with dm_control's default gaussian sigmoid and ``value_at_margin = 0.1`` (``tolerance(v) = exp(-0.5 (v s)^2)``,
-    ``s = sqrt(-2 ln 0.1) / margin``). ``phi_i`` is pole ``i``'s angle from vertical (rad), what dm_control reads as
-    the body's ``xmat`` zz entry: the sum of the hinge errors from ``x*`` along the chain up to pole ``i`` (hinge
-    axes parallel, as in dm_control's files); the cart position is in m, the hinge rates in rad/s. The min over
-    several hinge rates is CasADi's ``fmin`` (smooth except where two rates tie); one pole has no min. The first
-    actuator's ctrl is dm_control's ``control()[0]``.
-
-    Parameters
-    ----------
-    model : CartPoleModel
-        Supplies ``hinges``, ``slide``, ``nq`` and ``x_eq``.
-    x : casadi.SX or MX (nx,)
-        State ``[qpos, qvel]``.
-    u : casadi.SX or MX (nu,)
-        ctrl.
-    clip_control : bool
-        False (default, what the OCP optimises): the quadratic tolerance is ``1 - u_0^2`` unclipped (smooth), the
-        same value wherever ``|u_0| <= 1``, which the OCP's bounds enforce on dm_control's file (ctrlrange -1 1).
-        True (what scoring uses): ``fmax(0, 1 - u_0^2)``, dm_control's value for any ctrl.
-
-    Returns
-    -------
-    casadi expression, scalar
-        The reward, in [0, 1] with ``clip_control`` (unclipped it can only leave that range below, for
-        ``|u_0| > sqrt(5)``).
+    ``clip_control`` False (what the OCP optimises): the quadratic control tolerance unclipped, ``1 - u_0^2``
+    (smooth; equal inside ``|u_0| <= 1``); True: dm_control's exact value for any ctrl. The reward is in [0, 1]
+    with ``clip_control``.
     """
-    hinges = list(model.hinges)
-    nq = model.nq
-    x_eq = np.asarray(model.x_eq, float)
-    phi = 0
-    ups = []
-    for h in hinges:
-        phi = phi + (x[h] - x_eq[h])
-        ups.append((ca.cos(phi) + 1) / 2)
-    upright = sum(ups) / len(ups)
-    s = x[model.slide] if model.slide is not None else 0
-    centered = (1 + _gauss_tolerance(s, 2.0)) / 2
-    quadratic = 1 - u[0] ** 2
-    small_control = (4 + (ca.fmax(0, quadratic) if clip_control else quadratic)) / 5
-    tol = [_gauss_tolerance(x[nq + h], 5.0) for h in hinges]
-    m = tol[0]
-    for t in tol[1:]:
-        m = ca.fmin(m, t)
-    small_velocity = (1 + m) / 2
-    return upright * small_control * small_velocity * centered
+    return dmc.reward_expression(model, "dmc_cartpole_swingup", x, u, exact=clip_control)
 
 
 def dmc_swingup_function(model, *, clip_control: bool = False) -> ca.Function:
-    """:func:`dmc_swingup_reward` as a CasADi Function of SX symbols, ``(x (nx,), u (nu,)) -> reward`` (scalar).
-
-    Inputs are named ``x`` and ``u``, the output ``reward``. ``clip_control`` as in :func:`dmc_swingup_reward`:
-    False for the OCP's smooth form, True for dm_control's exact value (scoring; e.g. ``F.map(n)`` evaluates ``n``
-    states at once, columns ``x`` (nx, n), ``u`` (nu, n) -> (1, n)).
-    """
-    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
-    return ca.Function("dmc_swingup_reward", [x, u], [dmc_swingup_reward(model, x, u, clip_control=clip_control)],
-                       ["x", "u"], ["reward"])
+    """:func:`dmc_swingup_reward` as a CasADi Function ``(x (nx,), u (nu,)) -> reward`` (scalar), built once per
+    model and form (:func:`cartpole.ocp.dmc.reward_function`)."""
+    return dmc.reward_function(model, "dmc_cartpole_swingup", exact=clip_control)
 
 
 def tracking_cost(model, x, u, Q=None, R=None):
@@ -253,9 +195,9 @@ def make_objective(model, objective=None, *, free_time: bool = False, Q=None, R=
         if objective == "tracking":
             return Objective("tracking", ca.Function("tracking", [x, u], [tracking_cost(model, x, u, Q, R)],
                                                      ["x", "u"], ["cost"]))
-        if objective == "dmc_swingup":
-            return Objective("dmc_swingup", ca.Function("dmc_swingup", [x, u], [-dmc_swingup_reward(model, x, u)],
-                                                        ["x", "u"], ["cost"]), is_reward=True)
+        if dmc.is_task(objective):  # the planner's form of the task's reward (a surrogate where it is sparse)
+            r = dmc.reward_expression(model, objective, x, u, exact=False)
+            return Objective(objective, ca.Function(objective, [x, u], [-r], ["x", "u"], ["cost"]), is_reward=True)
         if ":" in objective:
             return _from_function(model, load_objective(objective), f"'{objective}'")
         raise OCPError(f"Objective '{objective}' is not known; choose one of {', '.join(NAMED)} or give "

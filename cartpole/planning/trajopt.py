@@ -13,7 +13,7 @@ upright angles, for one pole an energy-shaping rollout first; ``starts=4`` adds 
 loops once more) on a coarse mesh (N = 30), each capped at :data:`EXPLORE_MAX_ITER` iterations, the fastest converged one
 refined on N = 60 (the next if that refinement fails); from near upright each guess first goes through the
 fixed-time effort problem (a homotopy in T). (2) The chosen objective at its T on N = 100 (or the file's step
-for ``dmc_swingup``), started from the minimum-time plan stretched (or padded with rest) onto T; the default guesses
+for the ``dmc_*`` tasks), started from the minimum-time plan stretched (or padded with rest) onto T; the default guesses
 only if that fails. Every solver call of every stage is in ``plan.solve_info.attempts`` (guess, N, iterations,
 status, objective, which were kept), and ``plan.plan_time_s`` is the wall time of the whole call
 (``benchmarks/bench_swingup_chains.py`` measures it on the shipped carts; the docs' benchmarks page states it).
@@ -36,6 +36,7 @@ from cartpole.ocp.bounds import OCPError, bounds_from_params
 from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
+from cartpole.ocp.dmc import is_task
 from cartpole.ocp.objectives import make_objective
 from cartpole.planning.options import U_MARGIN, PlanOptions
 from cartpole.solvers.sqp import CollocationSQP, SQPError
@@ -644,7 +645,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
             if T is None:
                 T = (fast.duration if T_min is None else T_min) + RUNNING_HOLD
             if N is None:
-                N = max(2, int(round(T / params.timestep))) if obj.name == "dmc_swingup" else 100
+                N = max(2, int(round(T / params.timestep))) if is_task(obj.name) else 100
             ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
                                     solver_options=solver_options, bounds=bounds)
             first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright

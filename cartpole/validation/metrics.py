@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cartpole.models import CartPoleParams, state_error, wrap_angle
-from cartpole.ocp.objectives import dmc_swingup_function
+from cartpole.ocp import dmc
 
 #: Upright band on every wrapped |theta_i - theta_i*| in rad: the lab handout's settling band, the swing-up's
 #: upright test and the catch basin's final-state test.
@@ -439,53 +439,69 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
             "diverged_warning": info.get("diverged_warning") if t_div is not None else None}
 
 
-#: dm_control's cart-pole episode: 1000 control steps (of 0.01 s on its own file).
+#: dm_control's episode of every task here: 1000 control steps (:meth:`cartpole.ocp.dmc.Task.steps` on its files).
 DMC_STEPS = 1000
+
+#: ``steps`` of :func:`dmc_rewards` meaning "the task's episode length".
+EPISODE = "episode"
+
+
+def dmc_reward(model, x, u, objective: str = "dmc_cartpole_swingup") -> np.ndarray:
+    """dm_control's exact reward of the task ``objective`` (:data:`cartpole.ocp.objectives.DMC`) for states ``x``
+    (..., 2 nq) and ctrl ``u`` (..., nu), broadcast: (...,), each in [0, 1].
+
+    The task's one definition (:func:`cartpole.ocp.dmc.reward_expression` with ``exact=True``: sparse indicators
+    as dm_control computes them), as a CasADi Function built once per model (:func:`cartpole.ocp.dmc.reward_function`)
+    and evaluated on every row at once (``Function.map``). States in m, rad, m/s, rad/s.
+    """
+    return dmc.rewards(model, objective, x, u)
 
 
 def dmc_swingup_reward(model, x, u) -> np.ndarray:
-    """dm_control's cart-pole swing-up reward exactly as ``dm_control/suite/cartpole.py`` computes it
-    (``Balance._get_reward(sparse=False)``), for states ``x`` (..., 2 nq) and ctrl ``u`` (..., nu): (...,), in [0, 1].
-
-    The definition is :func:`cartpole.ocp.objectives.dmc_swingup_reward` (the one the OCP optimises), here with
-    dm_control's clipped quadratic control term (``clip_control=True``), built as a CasADi Function of the model
-    (:func:`~cartpole.ocp.objectives.dmc_swingup_function`) and evaluated on every row at once (``Function.map``).
-    States are in m, rad, m/s, rad/s; ``model.x_eq`` is upright.
-    """
-    x = np.asarray(x, float)
-    u = np.asarray(u, float)
-    batch = np.broadcast_shapes(x.shape[:-1], u.shape[:-1])
-    X = np.broadcast_to(x, (*batch, x.shape[-1])).reshape(-1, x.shape[-1])
-    U = np.broadcast_to(u, (*batch, u.shape[-1])).reshape(-1, u.shape[-1])
-    if X.shape[0] == 0:
-        return np.zeros(batch)
-    f = dmc_swingup_function(model, clip_control=True).map(X.shape[0])
-    return np.asarray(f(X.T, U.T), float).reshape(batch)
+    """:func:`dmc_reward` of ``dmc_cartpole_swingup`` (``dm_control/suite/cartpole.py``,
+    ``Balance._get_reward(sparse=False)``): states ``x`` (..., 2 nq), ctrl ``u`` (..., nu) -> (...,) in [0, 1]."""
+    return dmc_reward(model, x, u, "dmc_cartpole_swingup")
 
 
-def dmc_swingup_rewards(rollout, model, control_dt: float | None = None, *, steps: int | None = DMC_STEPS) -> np.ndarray:
+def dmc_rewards(rollout, model, control_dt: float | None = None, *, objective: str = "dmc_cartpole_swingup",
+                steps: int | str | None = DMC_STEPS) -> np.ndarray:
     """The reward dm_control would pay at each control step of a logged rollout, (n_steps,).
 
     dm_control applies the action for one control step (``control_dt``, a whole number of physics steps), then
-    pays the reward of the state reached and that action: reward ``j`` is :func:`dmc_swingup_reward` of the state
-    logged at ``(j + 1) control_dt`` and the ctrl of the last physics step before it. ``control_dt`` defaults to
-    the MJCF's timestep (dm_control's cart-pole: 0.01 s, its own timestep); at most ``steps`` control steps are
-    counted (dm_control's episode: 1000; None: as many as the log holds).
+    pays the reward of the state reached and that action: reward ``j`` is :func:`dmc_reward` of the state logged at
+    ``(j + 1) control_dt`` and the ctrl of the last physics step before it. ``control_dt`` defaults to the task's
+    (:meth:`cartpole.ocp.dmc.Task.control_dt`: one MJCF step for every task here); at most ``steps`` control steps
+    are counted (default 1000; :data:`EPISODE`: the task's episode, :meth:`~cartpole.ocp.dmc.Task.steps`; None:
+    as many as the log holds).
     """
     dt = float(model.params.timestep)
-    control_dt = dt if control_dt is None else float(control_dt)
+    task = dmc.task(objective)
+    control_dt = task.control_dt(dt) if control_dt is None else float(control_dt)
     m = int(round(control_dt / dt))
     if m < 1 or abs(m * dt - control_dt) > 1e-9 * max(1.0, control_dt):
         raise ValueError(f"control_dt = {control_dt} s must be a whole number of MJCF steps of {dt} s.")
     ctrl = np.asarray(rollout.ctrl, float).reshape(len(rollout.ctrl), -1)
     n = ctrl.shape[0] // m
+    if steps == EPISODE:
+        steps = task.steps(dt)
     if steps is not None:
         n = min(n, int(steps))
     idx = m * np.arange(1, n + 1)
-    return dmc_swingup_reward(model, np.asarray(rollout.x, float)[idx], ctrl[idx - 1])
+    return dmc_reward(model, np.asarray(rollout.x, float)[idx], ctrl[idx - 1], objective)
+
+
+def dmc_swingup_rewards(rollout, model, control_dt: float | None = None, *, steps: int | None = DMC_STEPS) -> np.ndarray:
+    """:func:`dmc_rewards` of ``dmc_cartpole_swingup`` (n_steps,)."""
+    return dmc_rewards(rollout, model, control_dt, steps=steps)
+
+
+def dmc_return(rollout, model, control_dt: float | None = None, *, objective: str = "dmc_cartpole_swingup",
+               steps: int | str | None = DMC_STEPS) -> float:
+    """dm_control's return of a logged rollout: the sum of :func:`dmc_rewards` (1000 is the most an episode of
+    1000 control steps can earn)."""
+    return float(np.sum(dmc_rewards(rollout, model, control_dt, objective=objective, steps=steps)))
 
 
 def dmc_swingup_return(rollout, model, control_dt: float | None = None, *, steps: int | None = DMC_STEPS) -> float:
-    """dm_control's return of a logged rollout: the sum of :func:`dmc_swingup_rewards` (at most 1000 control steps;
-    1000 is the most an episode of dm_control's cart-pole can earn)."""
-    return float(np.sum(dmc_swingup_rewards(rollout, model, control_dt, steps=steps)))
+    """:func:`dmc_return` of ``dmc_cartpole_swingup``."""
+    return dmc_return(rollout, model, control_dt, steps=steps)
