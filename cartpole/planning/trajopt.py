@@ -608,8 +608,8 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     Qf, exact_discrete = options.Qf, options.exact_discrete
     solver_options = None if options.solver_options is None else dict(options.solver_options)
     tic = time.perf_counter()
-    use_sqp = solver == "sqp"
-    solver = "ipopt" if use_sqp else solver
+    use_sqp, use_ddp = solver == "sqp", solver == "ddp"
+    solver = "ipopt" if use_sqp or use_ddp else solver
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     plan_model = plan_model if plan_model is not None else build_model(params)
     Q0, R0 = lab_weights(plan_model)
@@ -620,22 +620,54 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     bounds = bounds_from_params(params, cart_margin=options.cart_margin)
     obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
     T_min = None
+    # TVLQR (and DDP) at the MJCF's step, on the planning model's exact discrete step, held over the period.
+    tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
+    steps = steps_per_period(period, params.timestep)
+    dt = params.timestep * steps
+    ddp_tried: list = []
+    by_ddp = None
+
+    def ddp_last_stage(guess, T_use, gname):
+        """The last stage by DDP (with the ctrl margin, then without); the converged DDPStage or None."""
+        from cartpole.planning.ddp_plan import ddp_stage
+
+        for margin in dict.fromkeys((float(options.u_margin), 0.0)):
+            st, tried = ddp_stage(tv_model, x0, guess, T_use, obj, bounds, steps=steps, u_margin=margin, Q=Q, R=R,
+                                  guess_name=gname)
+            ddp_tried.extend(replace(a, stage=f"{a.stage} u_margin={margin:g}") for a in tried)
+            if st.info.success:
+                return replace(st, margin=margin)
+        return None
+
     if obj.kind == "time":
         T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
                                                T_max=options.T_max, search_s=options.search_s,
                                                restarts=options.pump_restarts, seed=options.pump_seed)
+        if use_ddp:
+            from cartpole.planning.ddp_plan import ddp_time_search
+
+            by_ddp, tried = ddp_time_search(tv_model, x0, traj, T_min if T_min is not None else traj.duration,
+                                            bounds, steps=steps, Q=Q, R=R, guess_name=f"time plan ({info.guess})")
+            ddp_tried.extend(tried)
+            attempts_before = info.attempts
     elif obj.kind == "effort" and T is not None:
-        ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
-                                bounds=bounds)
-        traj, info = ocp.solve(x0)
+        if use_ddp:  # no earlier stage to start from: DDP from rest (zero ctrl clipped into the box)
+            by_ddp, attempts_before = ddp_last_stage(None, T, "rest"), ()
+        if by_ddp is None:
+            ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
+                                    bounds=bounds)
+            traj, info = ocp.solve(x0)
     else:
         T_min, fast, tinfo, pump = _swingup_time_plan(plan_model, params, x0,
                                                 N=60 if obj.kind == "running" else min(N or 100, 60),
                                                 starts=starts, bounds=bounds, T_max=options.T_max,
                                                 search_s=options.search_s, restarts=options.pump_restarts,
                                                 seed=options.pump_seed)
+        attempts_before = tinfo.attempts
         if obj.kind == "effort" and T_min is None:  # a pumping plan: already the effort plan at its T
             traj, info = fast, tinfo
+            if use_ddp:
+                by_ddp = ddp_last_stage(fast, fast.duration, f"pumping plan ({tinfo.guess})")
         elif obj.kind == "effort":
             T = (1.0 + options.time_margin) * T_min
             ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
@@ -649,26 +681,40 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
             ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
                                     solver_options=solver_options, bounds=bounds)
             first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright
-        if obj.kind == "effort" and pump is not None:  # a pumping plan: the margin shrunk if need be, else itself
+        if use_ddp and not (obj.kind == "effort" and T_min is None):
+            by_ddp = ddp_last_stage(first, T, f"time plan ({tinfo.guess})")
+        if by_ddp is not None:
+            pass
+        elif obj.kind == "effort" and pump is not None:  # a pumping plan: the margin shrunk if need be, else itself
             traj, info = _pumped_effort(plan_model, x0, fast, tinfo, pump, N=N or 100, bounds=bounds,
                                         margin=options.time_margin, solver=solver, solver_options=solver_options)
         elif not (obj.kind == "effort" and T_min is None):
             traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
                                         sqp=use_sqp and obj.kind == "effort")
             info = replace(info, attempts=tinfo.attempts + info.attempts)
-    # TVLQR at the MJCF's step, on the planning model's exact discrete step.
-    tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
+    exact = None
+    if by_ddp is not None:  # the plan is DDP's, exact on the discrete step: TVLQR tracks it as it is
+        traj = by_ddp.trajectory
+        info = replace(by_ddp.info, attempts=tuple(attempts_before) + tuple(ddp_tried))
+        dstep = tv_model.hold(steps) if steps > 1 else tv_model
+        exact = DiscretePlan(t=by_ddp.dt * np.arange(by_ddp.u.shape[0]), x=by_ddp.x, u=by_ddp.u, dt=by_ddp.dt,
+                             u_margin=by_ddp.margin, status=by_ddp.info.status, iterations=by_ddp.info.iterations,
+                             solve_time_s=by_ddp.info.solve_time_s, defect_before=by_ddp.defect_before,
+                             defect_after=_defects(dstep, by_ddp.x, by_ddp.u))
+        exact_discrete = False
+    elif ddp_tried:  # DDP did not converge: IPOPT's plan, every attempt in the order made
+        done = tuple(info.attempts)
+        k = len(attempts_before) if done[:len(attempts_before)] == tuple(attempts_before) else 0
+        info = replace(info, attempts=done[:k] + tuple(ddp_tried) + done[k:])
     # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)) at the model's
     # upright equilibrium: TVLQR's default terminal cost is its S, so at the hand-over both the cost-to-go and
     # the gain continue without a jump (the continuous lab gain is ~15 % larger at 5 ms for one pole because
     # the fastest closed-loop pole is -51 1/s).
-    steps = steps_per_period(period, params.timestep)
-    dt = params.timestep * steps
     if steps > 1:
         exact_discrete = False
     u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
     catch = handover_catch(params, plan_model, Q, R, steps=steps)
-    exact, gains = None, None
+    gains = None
     if exact_discrete == "auto":
         gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
         err = predicted_tracking_error(tv_model, TVLQRController(traj, gains, catch, u_limits=u_limits), traj, x0)
