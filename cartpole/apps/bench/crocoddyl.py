@@ -46,6 +46,13 @@ def _residual(x):
     return ca.vertcat(ca.sin(x[0]), ca.sin(x[1]), 1 - ca.cos(x[0]), 1 - ca.cos(x[1]), x[2], x[3])
 
 
+def example_model(name: str, model=None):
+    """``model`` when given, else the shipped example MJCF ``cartpole/assets/examples/NAME`` built."""
+    from cartpole.models import SHIPPED_MJCF, build_model
+
+    return build_model(SHIPPED_MJCF.parent / "examples" / name) if model is None else model
+
+
 def double_pendulum_ddp(model=None, *, compiled: bool = True):
     """The toolkit's :class:`~cartpole.solvers.ddp.DDP` of Crocoddyl's double-pendulum example (see the module doc).
 
@@ -59,10 +66,9 @@ def double_pendulum_ddp(model=None, *, compiled: bool = True):
     -------
     (DDP, x0 (4,) array)
     """
-    from cartpole.models import SHIPPED_MJCF, build_model
     from cartpole.solvers.ddp import DDP, DDPOptions
 
-    model = build_model(SHIPPED_MJCF.parent / "examples" / "crocoddyl_double_pendulum.xml") if model is None else model
+    model = example_model("crocoddyl_double_pendulum.xml", model)
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     r = _residual(x)
     goal = 0.5 * ca.dot(ca.DM(RESIDUAL_WEIGHTS) * r, r)
@@ -100,10 +106,9 @@ def cartpole_ddp(model=None, *, compiled: bool = True):
     -------
     (DDP, x0 (4,) array)
     """
-    from cartpole.models import SHIPPED_MJCF, build_model
     from cartpole.solvers.ddp import DDP, DDPOptions
 
-    model = build_model(SHIPPED_MJCF.parent / "examples" / "crocoddyl_cartpole.xml") if model is None else model
+    model = example_model("crocoddyl_cartpole.xml", model)
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     running = ca.Function("croc_cp_running", [x, u], [_cartpole_cost(x, u) / CP_DT])
     terminal = ca.Function("croc_cp_terminal", [x], [_cartpole_cost(x, 0)])
@@ -265,9 +270,8 @@ def cartpole_lqr_guess(model=None) -> np.ndarray:
     """(N, 1) ctrl of the upright LQR (:meth:`~cartpole.control.linear.LinearFeedback.for_model`, the lab's
     weights) run from the cart-pole example's start on its exact step: the ctrl guess of ours there."""
     from cartpole.control.linear import LinearFeedback
-    from cartpole.models import SHIPPED_MJCF, build_model
 
-    model = build_model(SHIPPED_MJCF.parent / "examples" / "crocoddyl_cartpole.xml") if model is None else model
+    model = example_model("crocoddyl_cartpole.xml", model)
     ctl = LinearFeedback.for_model(model)
     x, U = np.array(CP_X0), []
     for k in range(CP_N):

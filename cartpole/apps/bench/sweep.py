@@ -154,6 +154,18 @@ def command_sweep(kw: dict, where: str) -> float:
         return time.perf_counter() - t0
 
 
+def _alternated(label: str, rounds: int, where, timed) -> dict:
+    """``{executor: [seconds per round]}`` of ``timed(executor)`` for the local executors of ``where``, alternated
+    within each of ``rounds`` rounds (each printed on stderr with the load); empty for no rounds."""
+    out = {k: [] for k in where if k != "dask"} if rounds else {}
+    for r in range(rounds):
+        for k in out:
+            out[k].append(timed(k))
+            print(f"{label} {r + 1} {k:>4}: {out[k][-1]:.2f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr,
+                  flush=True)
+    return out
+
+
 def _burn(n: int) -> float:
     """A fixed CPU-bound task (pure Python arithmetic); returns its own wall time in s."""
     t0 = time.perf_counter()
@@ -229,18 +241,9 @@ def main(argv=None) -> int:
     finally:
         if cluster is not None:
             stop_dask_cluster(cluster)
-    fresh = {k: [] for k in where if k != "dask"} if a.fresh else {}
-    for r in range(a.fresh):
-        for k in fresh:
-            fresh[k].append(fresh_sweep(kw, k))
-            print(f"fresh {r + 1} {k:>4}: {fresh[k][-1]:.2f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr,
-                  flush=True)
-    command = {k: [] for k in where if k != "dask"} if a.command else {}
-    for r in range(a.command):
-        for k in command:
-            command[k].append(command_sweep(kw, k))
-            print(f"command {r + 1} {k:>4}: {command[k][-1]:.2f} s (load {os.getloadavg()[0]:.1f})",
-                  file=sys.stderr, flush=True)
+    # new processes: each local executor's sweep as the command runs it, then the whole command
+    fresh = _alternated("fresh", a.fresh, where, lambda k: fresh_sweep(kw, k))
+    command = _alternated("command", a.command, where, lambda k: command_sweep(kw, k))
     same = all(v == rows["1"] for v in rows.values())
     med = {k: a.n / statistics.median(v) for k, v in times.items()}
     steady_med = {k: statistics.median(v) for k, v in steady.items()}
@@ -254,18 +257,14 @@ def main(argv=None) -> int:
             doc[f"round_ratios_{name}"] = [b / c for c, b in zip(times[k], times["1"])]
             doc[f"first_round_speedup_{name}"] = times["1"][0] / times[k][0]
             doc[f"steady_speedup_{name}"] = steady_med[k] / steady_med["1"]
-    if fresh:
-        doc["fresh_seconds"] = fresh
-        doc["fresh_seconds_median"] = {k: statistics.median(v) for k, v in fresh.items()}
-        if "2" in fresh:
-            doc["fresh_speedup_2_workers"] = statistics.median(fresh["1"]) / statistics.median(fresh["2"])
-            doc["fresh_round_ratios_2_workers"] = [b / c for c, b in zip(fresh["2"], fresh["1"])]
-    if command:
-        doc["command_seconds"] = command
-        doc["command_seconds_median"] = {k: statistics.median(v) for k, v in command.items()}
-        if "2" in command:
-            doc["command_speedup_2_workers"] = statistics.median(command["1"]) / statistics.median(command["2"])
-            doc["command_round_ratios_2_workers"] = [b / c for c, b in zip(command["2"], command["1"])]
+    for name, seconds in (("fresh", fresh), ("command", command)):
+        if seconds:
+            doc[f"{name}_seconds"] = seconds
+            doc[f"{name}_seconds_median"] = {k: statistics.median(v) for k, v in seconds.items()}
+            if "2" in seconds:
+                doc[f"{name}_speedup_2_workers"] = (statistics.median(seconds["1"])
+                                                    / statistics.median(seconds["2"]))
+                doc[f"{name}_round_ratios_2_workers"] = [b / c for c, b in zip(seconds["2"], seconds["1"])]
     doc.update(load_before=load_before, load_after=os.getloadavg(), cpu_count=os.cpu_count(),
                parallel_capacity=parallel_capacity())
     if not a.no_engine:
