@@ -31,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.lqr import lab_weights, tvlqr
-from cartpole.models import build_model, read_params
+from cartpole.models import build_model, load_model, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
@@ -73,8 +73,6 @@ def hand_typed_cartpole(params) -> ca.Function | None:
         baseline is the only one).
     """
     import mujoco
-
-    from cartpole.models.params import load_model
 
     if params.nq != 2 or params.nu != 1 or params.slide is None:
         return None
