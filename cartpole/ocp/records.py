@@ -24,7 +24,8 @@ class SolveInfo:
     solve_time_s : float
         Wall time of the solver call in s.
     solver : str
-        ``ipopt`` or ``fatrop``.
+        ``ipopt``, ``fatrop``, ``sqp`` or ``ddp`` (:mod:`cartpole.planning.ddp_plan`: then ``iterations`` are DDP
+        iterations over every augmented-Lagrangian round).
     T : float
         Duration of the plan in s.
     start : int

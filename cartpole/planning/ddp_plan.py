@@ -196,6 +196,9 @@ def ddp_time_search(model: CartPoleModel, x0, guess: Trajectory, T_min: float, b
                     options: DDPOptions | None = None) -> tuple[DDPStage | None, list]:
     """The shortest duration at which an effort DDP (:func:`ddp_stage`) converges, by bisection on whole steps.
 
+    ``x0`` (nx,) is the start ``[qpos, qvel]`` (m, rad, m/s, rad/s); ``model``, ``bounds``, ``steps``, ``u_margin``,
+    ``Q``, ``R``, ``guess_name`` and ``options`` are :func:`ddp_stage`'s.
+
     The upper bracket starts at the collocation's minimum time ``T_min`` (s) rounded up to whole DDP steps and
     grows by 10 % (at most 5 times) until a DDP converges; the lower one at :data:`TIME_SEARCH_LOW` of it; then at
     most :data:`TIME_SEARCH_STEPS` bisections. Each solve starts from ``guess`` (the minimum-time plan) stretched

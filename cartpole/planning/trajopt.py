@@ -112,7 +112,7 @@ class DiscretePlan:
     u_margin : float
         Fraction of each actuator's half ctrl range kept free on both sides (0: the full range).
     status : str
-        IPOPT's return status.
+        IPOPT's return status (DDP's with ``solver="ddp"``: ``converged``).
     iterations : int
     solve_time_s : float
         Wall time of building and solving the problem in s.
@@ -577,6 +577,9 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         (``options.replace(**settings)``) and nothing else; an unknown name raises
         :class:`~cartpole.planning.options.PlanOptionsError` listing the fields.
 
+    With ``solver="ddp"`` the last stage (every objective; ``time`` by a search over T) is made by box-DDP on the
+    exact discrete step held over ``period`` (:mod:`cartpole.planning.ddp_plan`) from the minimum-time plan; the
+    result is ``plan.discrete``, which TVLQR tracks as it is; IPOPT's stage when DDP does not converge.
     With ``solver="sqp"`` the fixed-time effort plan is made by :class:`~cartpole.solvers.sqp.CollocationSQP` from
     the minimum-time plan, IPOPT when it does not converge in :data:`SQP_MAX_ITER` iterations (the first use per
     cart and N compiles its QP library); other objectives and a given ``T`` use IPOPT. With

@@ -30,6 +30,15 @@ def test_bench_json_follows_the_contract(capsys):
     assert tr["sqp_success"] and tr["sqp_solve_ms_median"] > 0
     assert abs(tr["sqp_objective"] - tr["objective"]) <= 1e-6 * abs(tr["objective"])
     assert tr["sqp_speedup"] == tr["baseline_solve_ms_median"] / tr["sqp_solve_ms_median"]
+    # the hand-typed naive script (one pole): the same optimum, and every ratio is taken against it
+    assert tr["reference_baseline"] == "hand" and tr["hand_baseline_success"]
+    assert abs(tr["hand_baseline_objective"] - tr["baseline_objective"]) <= 1e-6 * abs(tr["baseline_objective"])
+    assert tr["reference_solve_ms_median"] == tr["hand_baseline_solve_ms_median"]
+    assert tr["speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["solve_ms_median"]
+    assert tr["sqp_speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["sqp_solve_ms_median"]
+    # box-DDP on the exact discrete step of the same problem: it converges, inside the ctrl box
+    assert tr["ddp_success"] and tr["ddp_steps"] == round(tr["T"] / tr["ddp_dt"])
+    assert tr["ddp_speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["ddp_solve_ms_median"]
     for key in ("steps_per_s", "rollouts", "seconds_each"):
         assert key in rp, key
     assert rp["steps_per_s"] > 0 and rp["seconds_each"] == 2.0

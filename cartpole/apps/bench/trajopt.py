@@ -31,10 +31,12 @@ import casadi as ca
 import numpy as np
 
 from cartpole.lqr import lab_weights, tvlqr
-from cartpole.models import build_model, read_params
+from cartpole.models import build_model, load_model, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
+from cartpole.lqr.tvlqr import reference as _on_step_grid
+from cartpole.solvers.ddp import ddp_for_model
 from cartpole.solvers.sqp import CollocationSQP
 from cartpole.apps.bench.replay import replay_benchmark
 
@@ -48,17 +50,76 @@ def _median_ms(fn, repeats: int) -> tuple[float, object]:
     return 1e3 * statistics.median(times), out
 
 
+def hand_typed_cartpole(params) -> ca.Function | None:
+    """The one-pole cart-pole's equations of motion typed by hand, as a user writes them for the naive script.
+
+    ``M(theta) [s_dd, theta_dd] = tau - c``, with the 2x2 mass matrix ``M = [[m, a cos(theta)], [a cos(theta),
+    J]]`` solved in closed form (its determinant ``m J - a^2 cos^2(theta)``), the velocity product
+    ``c_s = -a sin(theta) theta_dot^2``, gravity ``c_theta = k sin(theta)``, and ``tau = [gear u - b_s s_dot,
+    -b_theta theta_dot]``. The numbers ``m`` (kg), ``a`` (kg m), ``J`` (kg m^2), ``k`` (N m), the dampings and
+    the gear are read off MuJoCo's compiled model of the file (``mj_fullM`` upright, ``qfrc_bias`` with the pole
+    horizontal), so the hand-typed equations are the file's (the bench's test checks them against the model's
+    ``f`` at many states).
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        A cart with one hinge and one actuator on the slide (the lab's cart-pole), upright at ``qpos = 0``.
+
+    Returns
+    -------
+    casadi.Function or None
+        ``f(x (4,), u (1,)) -> xdot (4,)`` as one SX Function, or None for any other shape (then the generic
+        baseline is the only one).
+    """
+    import mujoco
+
+    if params.nq != 2 or params.nu != 1 or params.slide is None:
+        return None
+    mj, _, _ = load_model(params.mjcf) if params.mjcf else load_model(xml=params.xml)
+    if mj.nq != 2 or mj.nu != 1 or int(mj.actuator_trnid[0, 0]) != params.slide:
+        return None
+    s, h = int(params.slide), 1 - int(params.slide)
+    data = mujoco.MjData(mj)
+    mujoco.mj_forward(mj, data)
+    M = np.zeros((2, 2))
+    mujoco.mj_fullM(mj, data, M)
+    if not np.allclose(np.asarray(data.qpos), 0.0) or abs(float(data.qfrc_bias[h])) > 1e-12:
+        return None  # upright is not qpos = 0: not the script the issue means
+    data.qpos[h] = 0.5 * np.pi
+    mujoco.mj_forward(mj, data)
+    k = -float(data.qfrc_bias[h])  # MuJoCo: M qdd + bias = tau; gravity pulls the pole over: bias = -k sin
+    m_, a, J = float(M[s, s]), float(M[s, h]), float(M[h, h])
+    b_s, b_h = float(mj.dof_damping[s]), float(mj.dof_damping[h])
+    gear = float(mj.actuator_gear[0, 0])
+    x, u = ca.SX.sym("x", 4), ca.SX.sym("u", 1)
+    q = [x[0], x[1]]
+    qd = [x[2], x[3]]
+    th, thd, sd = q[h], qd[h], qd[s]
+    c, sn = ca.cos(th), ca.sin(th)
+    m12 = a * c
+    tau_s = gear * u[0] - b_s * sd + a * sn * thd ** 2
+    tau_h = -b_h * thd + k * sn
+    det = m_ * J - m12 ** 2
+    acc_s = (J * tau_s - m12 * tau_h) / det
+    acc_h = (m_ * tau_h - m12 * tau_s) / det
+    acc = [None, None]
+    acc[s], acc[h] = acc_s, acc_h
+    return ca.Function("f_hand", [x, u], [ca.vertcat(qd[0], qd[1], acc[0], acc[1])], ["x", "u"], ["xdot"])
+
+
 class NaiveOptiBaseline:
     """The Hermite-Simpson swing-up as a first ``casadi.Opti`` script (see the module docstring).
 
     ``bounds`` (:class:`~cartpole.ocp.bounds.OCPBounds`) give the ctrl bounds per actuator and the joint bounds;
     ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``), ``N`` intervals over ``T`` s.
     ``expand=True`` is the same script with Opti's ``expand`` option (the MX graph expanded to SX for IPOPT).
+    ``f`` replaces the model's dynamics Function (``(x, u) -> xdot``, e.g. :func:`hand_typed_cartpole`).
     """
 
     def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None, *, expand: bool = False,
-                 warm: bool = False):
-        f = model.f
+                 warm: bool = False, f: ca.Function | None = None):
+        f = model.f if f is None else f
         opti = ca.Opti()
         X = opti.variable(model.nx, N + 1)
         U = opti.variable(model.nu, N + 1)
@@ -196,6 +257,19 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     say(f"baseline (Opti, expand=True, warm-started the same way): {repeats} solves ...")
     wexp_ms, (wexp_obj, wexp_it, wexp_ok) = _median_ms(warm_base, repeats)
 
+    hand = {}
+    f_hand = hand_typed_cartpole(params)
+    if f_hand is not None:
+        say("building the hand-typed naive casadi.Opti baseline (one pole's 2x2 equations as one SX Function) ...")
+        hb = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand)
+        hb.solve(guess)  # builds IPOPT (not timed)
+        say(f"baseline (Opti, hand-typed equations, IPOPT defaults): {repeats} solves ...")
+        h_ms, (h_obj, h_it, h_ok) = _median_ms(lambda: hb.solve(guess), repeats)
+        hand = {"hand_baseline_solve_ms_median": h_ms, "hand_baseline_objective": h_obj,
+                "hand_baseline_iterations": h_it, "hand_baseline_success": h_ok}
+    # the baseline the ratios are taken against: the hand-typed script for one pole, else the generic one
+    ref_ms = hand.get("hand_baseline_solve_ms_median", base_ms)
+
     fatrop = {}
     if ca.has_nlpsol("fatrop"):
         say(f"ours (fatrop): {repeats} solves ...")
@@ -203,7 +277,8 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         focp.solve_once(x0, guess=guess)
         f_ms, (_, finfo) = _median_ms(lambda: focp.solve_once(x0, guess=guess), repeats)
         fatrop = {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
-                  "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations}
+                  "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations,
+                  "fatrop_speedup_vs_reference": ref_ms / f_ms if finfo.success else None}
 
     sqp = {}
     if ca.has_conic("qrqp") and ca.has_conic("hpipm"):
@@ -217,7 +292,25 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
                "sqp_speedup": base_ms / s_ms if s_info.success else None,
                "sqp_speedup_vs_expand": exp_ms / s_ms if s_info.success else None,
                "sqp_vs_ipopt": ours_ms / s_ms if s_info.success else None,
-               "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective)}
+               "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective),
+               "sqp_speedup_vs_reference": ref_ms / s_ms if s_info.success else None}
+
+    say(f"ours (box-DDP on the exact discrete step, from the guess's ctrl): {repeats} solves ...")
+    ddp = ddp_for_model(model, T, bounds=bounds)
+    _, _, u_guess = _on_step_grid(guess, ddp.dt)
+    ddp.solve(x0, u_guess)  # loads (or compiles) its library (not timed)
+    d_ms, d_res = _median_ms(lambda: ddp.solve(x0, u_guess), repeats)
+    ddp_doc = {"ddp_solve_ms_median": d_ms, "ddp_iterations": d_res.iterations, "ddp_objective": d_res.cost,
+               "ddp_success": d_res.converged, "ddp_status": d_res.status, "ddp_steps": ddp.N, "ddp_dt": ddp.dt,
+               # DDP solves the exact discrete problem, not the collocation's: its optimum differs slightly, and from
+               # the guess's ctrl run open loop it can land in another local minimum (this says which)
+               "ddp_objective_rel_diff": abs(d_res.cost - info.objective) / abs(info.objective),
+               "ddp_speedup_vs_reference": ref_ms / d_ms if d_res.converged else None}
+    say(f"ours (box-DDP on the exact discrete step, from rest: zero ctrl): {repeats} solves ...")
+    r_ms, r_res = _median_ms(lambda: ddp.solve(x0, None), repeats)
+    ddp_doc.update({"ddp_rest_solve_ms_median": r_ms, "ddp_rest_iterations": r_res.iterations,
+                    "ddp_rest_objective": r_res.cost, "ddp_rest_success": r_res.converged,
+                    "ddp_rest_speedup_vs_reference": ref_ms / r_ms if r_res.converged else None})
 
     say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
     Q, R = lab_weights(model)
@@ -248,7 +341,9 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
             "warm_baseline_objective": wexp_obj, "warm_baseline_success": wexp_ok,
             "sx_solve_ms_median": sx_ms, "sx_iterations": sx_info.iterations, "sx_objective": sx_info.objective,
             "sx_speedup": base_ms / sx_ms, "repeats": repeats, "u_max": u_max, "cart_max": cart_max,
-            **fatrop, **sqp,
+            **hand, "reference_baseline": "hand" if hand else "generic", "reference_solve_ms_median": ref_ms,
+            "speedup_vs_reference": ref_ms / ours_ms if info.success else None,
+            **fatrop, **sqp, **ddp_doc,
         },
         "tvlqr": {"ms_median": tv_ms, "steps": int(gains.t.size), "dt": gains.dt},
         "replay": replay_doc,
@@ -389,6 +484,10 @@ def print_table(doc: dict, file=None) -> None:
     w(f"{'method':44s} {'solve ms':>10s} {'iters':>6s} {'objective':>12s} {'speedup':>8s}\n")
     w(f"{'baseline: casadi.Opti, SX f calls, no expand':44s} {tr['baseline_solve_ms_median']:10.1f} "
       f"{tr['baseline_iterations']:6d} {tr['baseline_objective']:12.6f} {1.0:8.1f}\n")
+    if "hand_baseline_solve_ms_median" in tr:
+        w(f"{'baseline: Opti, hand-typed 2x2 equations (ref.)':44s} {tr['hand_baseline_solve_ms_median']:10.1f} "
+          f"{tr['hand_baseline_iterations']:6d} {tr['hand_baseline_objective']:12.6f} "
+          f"{tr['baseline_solve_ms_median'] / tr['hand_baseline_solve_ms_median']:8.1f}\n")
     if "expand_baseline_solve_ms_median" in tr:
         w(f"{'baseline: the same casadi.Opti, expand=True':44s} {tr['expand_baseline_solve_ms_median']:10.1f} "
           f"{tr['expand_baseline_iterations']:6d} {tr['expand_baseline_objective']:12.6f} "
@@ -407,6 +506,19 @@ def print_table(doc: dict, file=None) -> None:
         ratio = "-" if tr["sqp_speedup"] is None else f"{tr['sqp_speedup']:.1f}"
         w(f"{label:44s} {tr['sqp_solve_ms_median']:10.1f} {tr['sqp_iterations']:6d} {tr['sqp_objective']:12.6f} "
           f"{ratio:>8s}\n")
+    if "ddp_solve_ms_median" in tr:
+        label = f"ours, box-DDP, exact step ({tr['ddp_steps']} steps)" + ("" if tr["ddp_success"] else ", FAILED")
+        w(f"{label:44s} {tr['ddp_solve_ms_median']:10.1f} {tr['ddp_iterations']:6d} {tr['ddp_objective']:12.6f} "
+          f"{tr['baseline_solve_ms_median'] / tr['ddp_solve_ms_median']:8.1f}\n")
+    if "ddp_rest_solve_ms_median" in tr:
+        label = "ours, box-DDP, exact step, from zero ctrl" + ("" if tr["ddp_rest_success"] else ", FAILED")
+        w(f"{label:44s} {tr['ddp_rest_solve_ms_median']:10.1f} {tr['ddp_rest_iterations']:6d} "
+          f"{tr['ddp_rest_objective']:12.6f} {tr['baseline_solve_ms_median'] / tr['ddp_rest_solve_ms_median']:8.1f}\n")
+    ratios = [(k[:-len('_speedup_vs_reference')] or 'ipopt', v) for k, v in tr.items()
+              if k.endswith("speedup_vs_reference") and v is not None]
+    w(f"\nratios against the {tr.get('reference_baseline', 'generic')} naive baseline "
+      f"({tr.get('reference_solve_ms_median', float('nan')):.1f} ms): "
+      + ", ".join(f"{k} {v:.1f}x" for k, v in ratios) + "\n")
     w("\nwarm starts (start moved 2 cm / 0.05 rad, from the nominal primal-dual solution; speed-up against the "
       "warm baseline)\n")
     if "warm_baseline_solve_ms_median" in tr:
