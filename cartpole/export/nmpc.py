@@ -21,7 +21,6 @@ import numpy as np
 
 from cartpole.export.controllers import linear_code
 from cartpole.export.csource import call, literal, table
-from cartpole.export.estimators import ExportError
 from cartpole.export.program import CPart
 from cartpole.export.qp import qp_code, qp_fields
 
