@@ -9,8 +9,10 @@ and the condensed QP solved by the static-memory dual active-set solver of :mod:
 input applied. A QP that fails, or a step that is not finite, takes the Python controller's safe action (the
 previous plan's input mid swing-up, the upright LQR near upright) and returns ``CP_FALLBACK``.
 
-Plain condensing only (the single and double pole at the default horizon); a pre-stabilised controller (three
-poles) is refused in one sentence.
+Both condensings of the Python controller: plain (``z = du``, the ctrl bounds are bounds of ``z``) and
+pre-stabilised (``z = dv`` with ``du = fu + Fu dv``, the ctrl bounds are general rows ``Fu``, causal like the rail's;
+the double pole at the default horizon: its plain Hessian's condition number is about 1e6, the pre-stabilised one's
+about 5), the same QP rows in the same order as :meth:`cartpole.mpc.nmpc.NMPCController._gn_step` builds them.
 """
 from __future__ import annotations
 
@@ -19,7 +21,6 @@ import numpy as np
 
 from cartpole.export.controllers import linear_code
 from cartpole.export.csource import call, literal, table
-from cartpole.export.estimators import ExportError
 from cartpole.export.program import CPart
 from cartpole.export.qp import qp_code, qp_fields
 
@@ -30,31 +31,25 @@ def nmpc_part(ctl, plan) -> CPart:
     Parameters
     ----------
     ctl : NMPCController
-        Plain condensing (``prestabilize`` False).
+        Plain or pre-stabilised condensing (``ctl.prestabilize``).
     plan : Trajectory or None
         The offline plan whose inputs extend the shifted tail (the controller's guess).
 
     Returns
     -------
     CPart
-
-    Raises
-    ------
-    ExportError
-        A pre-stabilised controller.
     """
     from cartpole.mpc.stage_functions import stage_functions
 
-    if ctl.prestabilize:
-        raise ExportError("The NMPC of this model is pre-stabilised (its upright mode grows too fast over the "
-                          "horizon), which the export does not generate; shorten the horizon or export tvlqr.")
+    pre = bool(ctl.prestabilize)
     p = ctl.problem
     N, steps, nx, nu = int(ctl.N), int(ctl.steps), p.nx, p.nu
     nzu = N * nu
     nz = nzu + 1
     nb = len(p.bounded)
-    nr = 2 * N * nb
-    fns = stage_functions(ctl.model, steps, N, compiled=False, prestabilized=False)
+    nuc = nzu if pre else 0  # pre-stabilised: the ctrl bounds are the first nuc rows
+    nr = nuc + 2 * N * nb
+    fns = stage_functions(ctl.model, steps, N, compiled=False, prestabilized=pre)
     args = [ca.MX.sym(f"a{i}", fns.qp_data.size_in(i)) for i in range(fns.qp_data.n_in())]
     qp_data = ca.Function("cp_nmpc_qp_data", args, fns.qp_data(*args))
     xs, us = ca.MX.sym("x", nx), ca.MX.sym("u", nu)
@@ -74,7 +69,7 @@ def nmpc_part(ctl, plan) -> CPart:
     if has_plan:
         tables += table("NP_T", plan.t, "double") + table("NP_U", plan.u)
     tables += (f"#define MP_N {N}\n#define MP_STEPS {steps}\n#define MP_NZU {nzu}\n#define MP_NB {nb}\n"
-               f"#define MP_NH {len(hinges)}\n#define MP_ITERS {int(ctl.iterations)}\n"
+               f"#define MP_NH {len(hinges)}\n#define MP_ITERS {int(ctl.iterations)}\n#define MP_NUC {nuc}\n"
                f"#define NP_N {int(plan.N) if has_plan else 0}\n"
                f"static const double MP_DT = {literal(p.dt)};\nstatic const cp_real MP_TOL = {literal(ctl.tol)};\n"
                f"static const cp_real MP_RHO1 = {literal(p.rho1)};\nstatic const cp_real MP_RHO2 = "
@@ -87,9 +82,10 @@ def nmpc_part(ctl, plan) -> CPart:
               f"cp_real mp_lbx[{nz}];", f"cp_real mp_ubx[{nz}];", f"cp_real mp_z[{nz}];",
               f"cp_real mp_Hu[{nzu * nzu}];", f"cp_real mp_hu[{nzu}];", f"cp_real mp_g[{nx * (N + 1)}];",
               f"cp_real mp_G[{nx * N * nzu}];", f"cp_real mp_goal[{nx}];", f"cp_real mp_tmp[{nx * N}];",
+              f"cp_real mp_Fu[{nzu * nzu if pre else 1}];", f"cp_real mp_fu[{nzu if pre else 1}];",
               *qp_fields(nz, nr))
     c_qp = call(qp_data, ["x", "Sx", "Ux", "S.mp_goal", "MP_UG", "MP_QS", "MP_RS", "MP_P"],
-                ["S.mp_Hu", "S.mp_hu", "S.mp_g", "S.mp_G"])
+                ["S.mp_Hu", "S.mp_hu", "S.mp_g", "S.mp_G"] + (["S.mp_Fu", "S.mp_fu"] if pre else []))
     c_stage = call(stage, ["S.mp_S + MP_N * NX", "ut"], ["xt"])
     c_roll = call(rollout, ["x", "U"], ["S.mp_tmp"])
     plan_input = """
@@ -129,7 +125,7 @@ static void mp_plan_input(double t, cp_real* u)
     rows = """
     for (k = 0; k < MP_N; ++k) { /* stage-major, bound-minor: q_k - sigma <= q_high, q_k + sigma >= q_low */
         for (b = 0; b < MP_NB; ++b) {
-            int rr = k * MP_NB + b, q = MP_BIDX[b];
+            int rr = MP_NUC + k * MP_NB + b, q = MP_BIDX[b];
             cp_real val = Sx[(k + 1) * NX + q] + S.mp_g[(k + 1) * NX + q];
             for (j = 0; j < MP_NZU; ++j) {
                 cp_real gv = S.mp_G[((long)k * MP_NZU + j) * NX + q];
@@ -145,7 +141,29 @@ static void mp_plan_input(double t, cp_real* u)
         }
     }
 """ if nb else "    (void)b;\n"
-    row_len = [(k + 1) * nu for _ in range(2) for k in range(N) for _b in range(nb)]
+    row_len = ([(k + 1) * nu for k in range(N) for _i in range(nu)] if pre else []) + [
+        (k + 1) * nu for _ in range(2) for k in range(N) for _b in range(nb)]
+    ctrl_rows = """
+    for (i = 0; i < MP_NUC; ++i) { /* ctrl rows: u_low - (U + fu) <= Fu dv <= u_high - (U + fu); Fu column-major */
+        cp_real un = Ux[i] + S.mp_fu[i];
+        for (j = 0; j < MP_NZU; ++j) {
+            S.mp_A[i * (MP_NZU + 1) + j] = S.mp_Fu[j * MP_NZU + i];
+        }
+        S.mp_A[i * (MP_NZU + 1) + MP_NZU] = 0;
+        S.mp_lba[i] = MP_ULO[i % CP_NU] - un;
+        S.mp_uba[i] = MP_UHI[i % CP_NU] - un;
+    }
+""" if pre else ""
+    bounds = ("""        S.mp_lbx[i] = -INFINITY;
+        S.mp_ubx[i] = INFINITY;
+""" if pre else """        S.mp_lbx[i] = MP_ULO[i % CP_NU] - Ux[i];
+        S.mp_ubx[i] = MP_UHI[i % CP_NU] - Ux[i];
+""")
+    du = ("""        du = S.mp_fu[i];
+        for (j = 0; j < (i / CP_NU + 1) * CP_NU; ++j) {
+            du += S.mp_Fu[j * MP_NZU + i] * S.mp_z[j];
+        }
+""" if pre else "        du = S.mp_z[i];\n")
     code = lcode + qp_code(nz, nr, row_len) + plan_input + f"""
 static void mp_reset(void)
 {{
@@ -248,14 +266,12 @@ static int mp_gn_step(const cp_real* x, const cp_real* Sx, const cp_real* Ux, cp
         S.mp_H[i * (MP_NZU + 1) + MP_NZU] = 0;
         S.mp_H[MP_NZU * (MP_NZU + 1) + i] = 0;
         S.mp_h[i] = S.mp_hu[i];
-        S.mp_lbx[i] = MP_ULO[i % CP_NU] - Ux[i];
-        S.mp_ubx[i] = MP_UHI[i % CP_NU] - Ux[i];
-    }}
+{bounds}    }}
     S.mp_H[MP_NZU * (MP_NZU + 1) + MP_NZU] = MP_RHO2;
     S.mp_h[MP_NZU] = MP_RHO1;
     S.mp_lbx[MP_NZU] = 0;
     S.mp_ubx[MP_NZU] = INFINITY;
-{rows}    code = qp_solve(S.mp_H, S.mp_h, S.mp_A, S.mp_lba, S.mp_uba, S.mp_lbx, S.mp_ubx, S.mp_z);
+{ctrl_rows}{rows}    code = qp_solve(S.mp_H, S.mp_h, S.mp_A, S.mp_lba, S.mp_uba, S.mp_lbx, S.mp_ubx, S.mp_z);
     if (code != 0 || !mp_finite(S.mp_z, MP_NZU)) {{
         return 1;
     }}
@@ -274,8 +290,7 @@ static int mp_gn_step(const cp_real* x, const cp_real* Sx, const cp_real* Ux, cp
         }}
     }}
     for (i = 0; i < MP_NZU; ++i) {{
-        du = S.mp_z[i];
-        S.mp_Un[i] = cp_clip(Ux[i] + du, MP_ULO[i % CP_NU], MP_UHI[i % CP_NU]);
+{du}        S.mp_Un[i] = cp_clip(Ux[i] + du, MP_ULO[i % CP_NU], MP_UHI[i % CP_NU]);
         *step = fabs(du) > *step ? fabs(du) : *step;
     }}
     return mp_finite(S.mp_Sn, (MP_N + 1) * NX) ? 0 : 2;

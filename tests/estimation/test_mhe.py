@@ -202,6 +202,44 @@ def test_a_measurement_beyond_the_rail_gives_an_estimate_on_it(model):
     assert est.failures == []
 
 
+def test_beyond_the_rail_with_a_fine_encoder_the_window_qp_meets_its_kkt_conditions(model, monkeypatch):
+    # a 1 um slide quantum weighs a reading ~1e13 per m^2 against 1 per noise entry (cond(H) ~ 1e13): DAQP alone
+    # called this feasible QP infeasible (its zero_tol), and when scaled, stopped on the wrong active set
+    import cartpole.estimation.mhe as mhe_module
+    from cartpole.estimation.mhe_functions import solve_window_qp
+
+    seen = []
+
+    def spy(H, g, S, c, q, joints, low, high):
+        z = solve_window_qp(H, g, S, c, q, joints, low, high)
+        seen.append((H, g, S[:, joints, :].reshape(-1, H.shape[0]), (q + c[:, joints]).ravel(), low, high, z))
+        return z
+
+    monkeypatch.setattr(mhe_module, "solve_window_qp", spy)
+    lo, hi = model.params.joint_ranges[model.slide]
+    m, N = 2, 10
+    est = MovingHorizonEstimator(model, m, _encoders(model), np.diag([1e-12 / 12, 1e-6]), accel_std=1.0, horizon=N)
+    y = np.array(model.x_hanging[:model.nq])
+    est.reset(y)
+    for k in range(2 * N):
+        y[model.slide] = hi + 0.12 + 0.02 * np.sin(0.4 * k)
+        est.update(y, np.zeros((model.nu, m)))
+    bounded = 0
+    for H, g, rows, v, low, high, z in seen:
+        r = v + rows @ z
+        up = np.flatnonzero(r >= high - 1e-9)
+        if not up.size:
+            continue
+        bounded += 1
+        assert np.all(r <= high + 1e-9) and np.all(r >= low - 1e-9)  # feasible
+        grad = H @ z + g  # stationarity with multipliers >= 0 on the rows held at the upper limit
+        mu, *_ = np.linalg.lstsq(rows[up].T, -grad, rcond=None)
+        assert np.all(mu >= 0)
+        assert np.abs(grad + rows[up].T @ mu).max() <= 1e-12 * np.abs(H).max() * max(1.0, np.abs(z).max())
+    assert bounded >= N and est.failures == []
+    assert est.window[-1, model.slide] == pytest.approx(hi, abs=1e-9)
+
+
 def test_bounded_mhe_on_a_linear_plant_is_scipys_bounded_least_squares(model):
     plant = LinearPlant(model)
     m, K = 2, 12
