@@ -39,8 +39,8 @@ PRIOR_RATE_STD = 1e-2
 #: identifiable from the runs; two parameters correlated beyond CORRELATION_WARN are named as a combination.
 UNIDENTIFIABLE_STD = 0.2
 CORRELATION_WARN = 0.99
-#: The fit has converged when one iteration lowers the objective by less than this fraction (a model with MuJoCo's
-#: friction constraint smoothed cannot match a sticking joint exactly, so the last digits are not worth chasing).
+#: The fit has converged when one iteration lowers the objective by less than this fraction (measurement noise
+#: decides the last digits; a smooth-friction fit cannot match a sticking joint exactly).
 REL_TOL = 1e-6
 
 
@@ -99,7 +99,7 @@ class FitResult:
 
 
 def segment_function(p: CartPoleParams, params, sample_time: float, length: int, *,
-                     friction_width: float = DEFAULT_FRICTION_WIDTH) -> ca.Function:
+                     friction_width: float = DEFAULT_FRICTION_WIDTH, exact_friction: bool = True) -> ca.Function:
     """One shooting segment and its Jacobians:
     ``(x0 (nx,), U (nu, L), theta (np,)) -> (X (nx, L), x_end (nx,), dX/d[x0, theta] (nx L, nx + np),
     dx_end/d[x0, theta] (nx, nx + np))``, ``X[:, k]`` the state at the segment's sample ``k`` (``X[:, 0] = x0``).
@@ -113,13 +113,15 @@ def segment_function(p: CartPoleParams, params, sample_time: float, length: int,
     length : int
         Samples per segment L (a count, no unit: the segment lasts ``length * sample_time`` s).
     friction_width : float
-        m/s or rad/s.
+        m/s or rad/s (the smooth friction's, with ``exact_friction=False``).
+    exact_friction : bool
+        MuJoCo's friction constraint solved exactly (:func:`~cartpole.identify.parameters.sample_step`).
 
     Returns
     -------
     casadi.Function
     """
-    F = sample_step(p, params, sample_time, friction_width=friction_width)
+    F = sample_step(p, params, sample_time, friction_width=friction_width, exact_friction=exact_friction)
     nx, nu, npar = 2 * p.nq, p.nu, len(params)
     x0, U, th = ca.SX.sym("x0", nx), ca.SX.sym("U", nu, length), ca.SX.sym("theta", npar)
     xs = [x0]
@@ -162,7 +164,7 @@ def _initial_rates(t, qpos) -> np.ndarray:
     return np.column_stack([np.convolve(np.pad(v[:, j], k // 2, mode="edge"), ker, "valid") for j in range(v.shape[1])])
 
 
-def _prepare(p, params, logs, segment_s, friction_width) -> list:
+def _prepare(p, params, logs, segment_s, friction_width, exact) -> list:
     nq, nx = p.nq, 2 * p.nq
     runs, funcs = [], {}
     for log in logs:
@@ -173,7 +175,7 @@ def _prepare(p, params, logs, segment_s, friction_width) -> list:
             L, S = log.n - 1, 1
         key = (round(Ts, 12), L)
         if key not in funcs:
-            seg = segment_function(p, params, Ts, L, friction_width=friction_width)
+            seg = segment_function(p, params, Ts, L, friction_width=friction_width, exact_friction=exact)
             funcs[key] = (seg, _values_only(seg))
         n = S * L
         meas = np.full((nx, n + 1), np.nan)
@@ -352,7 +354,7 @@ def _gauss_newton(runs, params, delta, w, W, *, max_iter, tol):
 
 def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGULARIZATION,
         segment_s: float = DEFAULT_SEGMENT_S, friction_width: float = DEFAULT_FRICTION_WIDTH,
-        max_iter: int = 60, tol: float = 1e-7) -> FitResult:
+        exact_friction: bool = True, max_iter: int = 60, tol: float = 1e-7) -> FitResult:
     """Fit ``params`` to the logged runs (module docstring).
 
     Parameters
@@ -368,7 +370,10 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     segment_s : float
         Shooting segment length, s.
     friction_width : float
-        The smooth friction's velocity scale, m/s or rad/s.
+        The smooth friction's velocity scale, m/s or rad/s (with ``exact_friction=False``).
+    exact_friction : bool
+        Fit with MuJoCo's friction constraint solved exactly (default), else with the smooth ``tanh`` friction
+        reached by continuation from wider widths.
     max_iter : int
         Gauss-Newton iterations per pass.
     tol : float
@@ -396,28 +401,25 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     delta = np.zeros(np_)
     iters = 0
     runs = None
-    with_friction = p.has_friction or any(q.kind == "frictionloss" for q in params)
+    with_friction = not exact_friction and (p.has_friction or any(q.kind == "frictionloss" for q in params))
     # Friction: continuation from a wider, smoother friction down to the model's (each fit warm-starts the next),
     # as Gauss-Newton from the nominal on the steep one crawls.
     for width in ((8 * friction_width, 4 * friction_width, 2 * friction_width) if with_friction else ()):
         nodes = None if runs is None else [run.nodes.copy() for run in runs]
-        runs = _prepare(p, params, logs, segment_s, width)
+        runs = _prepare(p, params, logs, segment_s, width, False)
         for run, n0 in zip(runs, nodes or []):
             run.nodes[:] = n0
         it, _ = _gauss_newton(runs, params, delta, w, regularization, max_iter=max_iter, tol=tol)
         iters += it
     nodes = None if runs is None else [run.nodes.copy() for run in runs]
-    runs = _prepare(p, params, logs, segment_s, friction_width)
+    runs = _prepare(p, params, logs, segment_s, friction_width, exact_friction)
     for run, n0 in zip(runs, nodes or []):
         run.nodes[:] = n0
     for _ in range(2):  # fit, then re-weight each joint by its residual spread and polish
         it, ok = _gauss_newton(runs, params, delta, w, regularization, max_iter=max_iter, tol=tol)
         iters += it
         if not ok:
-            hint = (" (a slide's frictionloss is the usual cause: MuJoCo's friction holds a slow cart where the smooth "
-                    "model creeps, so leave it out or give runs that keep the cart sliding)"
-                    if any(q.kind == "frictionloss" for q in params) else "")
-            raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations{hint}; fit fewer "
+            raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations; fit fewer "
                            "parameters, raise --regularization, or give a more exciting run.")
         theta = np.array([q.nominal + q.scale * d for q, d in zip(params, delta)])
         res = _residual_std(runs, theta, w, np_)
@@ -545,7 +547,7 @@ class Simulation:
 
 
 def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
-                 friction_width: float = DEFAULT_FRICTION_WIDTH) -> Simulation:
+                 friction_width: float = DEFAULT_FRICTION_WIDTH, exact_friction: bool = True) -> Simulation:
     """Simulate the model with parameter values ``theta`` on a log's ctrl: the start state (rates included) is
     fitted to the log's first ``start_s`` seconds with the parameters held (Gauss-Newton), then the model runs open
     loop over the whole log. What the held-out check compares (a hanging run; an open-loop unstable run grows
@@ -560,7 +562,9 @@ def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
     start_s : float
         Seconds of data that fix the start state.
     friction_width : float
-        m/s or rad/s.
+        m/s or rad/s (the smooth friction's, with ``exact_friction=False``).
+    exact_friction : bool
+        MuJoCo's friction constraint solved exactly.
 
     Returns
     -------
@@ -570,7 +574,7 @@ def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
     nq = p.nq
     Ts = log.sample_time
     L = int(min(log.n - 1, max(2, round(start_s / Ts))))
-    seg = segment_function(p, params, Ts, L, friction_width=friction_width)
+    seg = segment_function(p, params, Ts, L, friction_width=friction_width, exact_friction=exact_friction)
     x0 = np.concatenate([log.qpos[0], _initial_rates(log.t, log.qpos)[0]])
     meas = log.qpos[:L].T
     for _ in range(20):
@@ -581,7 +585,7 @@ def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
         x0 = x0 + dx
         if np.max(np.abs(dx)) < 1e-10:
             break
-    step = sample_step(p, params, Ts, friction_width=friction_width)
+    step = sample_step(p, params, Ts, friction_width=friction_width, exact_friction=exact_friction)
     run = step.mapaccum(log.n - 1)
     xs = np.asarray(run(x0, log.ctrl[:-1].T, theta)).T
     x = np.vstack([x0, xs])
