@@ -1,17 +1,18 @@
 """The fit: multiple-shooting least squares over logged runs, the parameters as decision variables.
 
-Each run is cut into shooting segments of ``segment`` samples. The decision variables are the parameters
-``theta = nominal + scale * delta`` (:class:`~cartpole.identify.parameters.Parameter`) and the full state
-``[qpos, qvel]`` at every segment's first sample (the rates are states of the fit, never differentiated data). The
-model (:func:`~cartpole.identify.parameters.sample_step`, the MJCF's integrator with the logged ctrl held over each
-sample) runs each segment from its node; the residuals are the measured positions (and rates, where a log has them)
-minus the simulated ones, each joint weighted by its measurement spread, and ``sqrt(W) delta`` pulling toward the
-nominal (``W`` the regularisation weight); continuity of the segments is an equality constraint. Gauss-Newton on the
-constrained problem (a dense KKT solve per iteration, a backtracking line search on an exact-penalty merit), bounds
-on the parameters kept by fixing those that would cross them. After convergence each joint's weight is re-set to
-its residual spread and the fit polished, so the covariance ``s^2 (J'J + W)^-1`` (the parameter block of the
-inverse KKT matrix) has a reduced chi-square of one; standard errors and correlations follow, and directions of the
-data-only information the runs hardly see are named in one sentence (:func:`identifiability_warnings`).
+Each run is cut into shooting segments of ``segment`` samples. The decision variables are the parameters ``theta =
+nominal + scale * delta`` (:class:`~cartpole.identify.parameters.Parameter`) and the full state ``[qpos, qvel]`` at
+every segment's first sample (the rates are states of the fit, never differentiated data). The model
+(:func:`~cartpole.identify.parameters.sample_step`, the MJCF's integrator with the logged ctrl held over each
+sample, MuJoCo's friction-loss constraint solved exactly) runs each segment from its node; the residuals are the
+measured positions (and rates, where a log has them) minus the simulated ones, each joint weighted by its
+measurement spread, and ``sqrt(W) delta`` pulling toward the nominal (``W`` the regularisation weight); continuity
+of the segments is an equality constraint. Gauss-Newton on the constrained problem (a dense KKT solve per iteration,
+a backtracking line search on an exact-penalty merit), bounds on the parameters kept by fixing those that would
+cross them. After convergence each joint's weight is re-set to its residual spread and the fit polished, so the
+covariance ``s^2 (J'J + W)^-1`` (the parameter block of the inverse KKT matrix) has a reduced chi-square of one;
+standard errors and correlations follow, and directions of the data-only information the runs hardly see are named
+in one sentence (:func:`identifiability_warnings`).
 """
 from __future__ import annotations
 
