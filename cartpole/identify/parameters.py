@@ -30,8 +30,8 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import DEFAULT_FRICTION_WIDTH, CartPoleParams, equations, load_model
-from cartpole.models.friction import MAX_CONSTRAINT_FRICTION_DOFS, FrictionConstraint, friction_constraint
+from cartpole.models import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, CartPoleParams,
+                             FrictionConstraint, equations, friction_constraint, load_model)
 
 KINDS = ("mass", "com", "inertia", "damping", "frictionloss", "armature", "gear")
 _AXES = "xyz"
