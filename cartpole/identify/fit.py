@@ -165,7 +165,46 @@ def _initial_rates(t, qpos) -> np.ndarray:
     return np.column_stack([np.convolve(np.pad(v[:, j], k // 2, mode="edge"), ker, "valid") for j in range(v.shape[1])])
 
 
-def _prepare(p, params, logs, segment_s, friction_width, exact) -> list:
+#: Part of a compiled segment library's key: bump when segment_function changes meaning for the same inputs.
+SEGMENT_RECIPE = "identify-segment-v1"
+
+
+def compiled_segment(p: CartPoleParams, params, sample_time: float, length: int, *,
+                     friction_width: float = DEFAULT_FRICTION_WIDTH, exact_friction: bool = True) -> tuple:
+    """:func:`segment_function` and its values-only twin compiled to C through :mod:`cartpole.codegen` (``-O0``:
+    gcc's optimiser is superlinear in these long straight-line functions), cached by a key of everything they are
+    built from: the first call per model, parameters, sample time and length compiles, later ones load.
+
+    Parameters
+    ----------
+    p, params, sample_time, length, friction_width, exact_friction
+        As :func:`segment_function` (s; samples; m/s or rad/s).
+
+    Returns
+    -------
+    (casadi.Function, casadi.Function)
+        The segment (as :func:`segment_function`) and its ``(X, x_end)``.
+    """
+    import dataclasses
+    import hashlib
+
+    from cartpole import codegen
+
+    h = hashlib.sha256(SEGMENT_RECIPE.encode())
+    codegen.digest([dataclasses.replace(p, mjcf=""), list(params), float(sample_time), int(length),
+                    float(friction_width), bool(exact_friction)], h)
+
+    def funcs():
+        seg = segment_function(p, params, sample_time, length, friction_width=friction_width,
+                               exact_friction=exact_friction)
+        return [seg, _values_only(seg)]
+
+    lib, _ = codegen.build_library(funcs, "identify", recipe=h.hexdigest(), cflags=("-O0",))
+    f = codegen.load_library(lib, ["segment", "segment_values"])
+    return f["segment"], f["segment_values"]
+
+
+def _prepare(p, params, logs, segment_s, friction_width, exact, compiled=False) -> list:
     nq, nx = p.nq, 2 * p.nq
     runs, funcs = [], {}
     for log in logs:
@@ -175,7 +214,9 @@ def _prepare(p, params, logs, segment_s, friction_width, exact) -> list:
         if S < 1:
             L, S = log.n - 1, 1
         key = (round(Ts, 12), L)
-        if key not in funcs:
+        if key not in funcs and compiled:
+            funcs[key] = compiled_segment(p, params, Ts, L, friction_width=friction_width, exact_friction=exact)
+        elif key not in funcs:
             seg = segment_function(p, params, Ts, L, friction_width=friction_width, exact_friction=exact)
             funcs[key] = (seg, _values_only(seg))
         n = S * L
@@ -355,7 +396,7 @@ def _gauss_newton(runs, params, delta, w, W, *, max_iter, tol):
 
 def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGULARIZATION,
         segment_s: float = DEFAULT_SEGMENT_S, friction_width: float = DEFAULT_FRICTION_WIDTH,
-        exact_friction: bool = True, max_iter: int = 60, tol: float = 1e-7) -> FitResult:
+        exact_friction: bool = True, compiled: bool = False, max_iter: int = 60, tol: float = 1e-7) -> FitResult:
     """Fit ``params`` to the logged runs (module docstring).
 
     Parameters
@@ -375,6 +416,9 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     exact_friction : bool
         Fit with MuJoCo's friction constraint solved exactly (default), else with the smooth ``tanh`` friction
         reached by continuation from wider widths.
+    compiled : bool
+        Evaluate the segments in compiled C (:func:`compiled_segment`, cached) instead of CasADi's virtual machine:
+        worth it only when the library is already cached (docs/identify.md, Speed).
     max_iter : int
         Gauss-Newton iterations per pass.
     tol : float
@@ -413,7 +457,7 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
         it, _ = _gauss_newton(runs, params, delta, w, regularization, max_iter=max_iter, tol=tol)
         iters += it
     nodes = None if runs is None else [run.nodes.copy() for run in runs]
-    runs = _prepare(p, params, logs, segment_s, friction_width, exact_friction)
+    runs = _prepare(p, params, logs, segment_s, friction_width, exact_friction, compiled)
     for run, n0 in zip(runs, nodes or []):
         run.nodes[:] = n0
     for _ in range(2):  # fit, then re-weight each joint by its residual spread and polish

@@ -153,3 +153,15 @@ def test_a_fit_that_does_not_converge_is_one_sentence(one_pole):
     with pytest.raises(FitError, match="did not converge in 1 Gauss-Newton iterations") as exc:
         fit(p, parse_parameters(p, ["gear:motor", "com:pole", "inertia:pole"]), [log], max_iter=1)
     assert "\n" not in str(exc.value)
+
+
+def test_compiled_and_uncompiled_fits_agree(one_pole):
+    """The segments compiled to C (cartpole.codegen, cached) and run in CasADi's VM: the same fit to 1e-9."""
+    _, log, _ = one_pole
+    p = read_params(SHIPPED_MJCF)
+    params = parse_parameters(p, ["gear:motor", "damping:hinge"])
+    short = type(log)(name="short", t=log.t[:401], qpos=log.qpos[:401], qvel=None, ctrl=log.ctrl[:401])
+    vm = fit(p, params, [short], segment_s=0.01)
+    cc = fit(p, params, [short], segment_s=0.01, compiled=True)
+    np.testing.assert_allclose(cc.fitted, vm.fitted, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(cc.std, vm.std, rtol=1e-9, atol=0)
