@@ -188,7 +188,7 @@ def compiled_segment(p: CartPoleParams, params, sample_time: float, length: int,
     import dataclasses
     import hashlib
 
-    from cartpole import codegen
+    import cartpole.codegen as codegen
 
     h = hashlib.sha256(SEGMENT_RECIPE.encode())
     codegen.digest([dataclasses.replace(p, mjcf=""), list(params), float(sample_time), int(length),
