@@ -155,3 +155,6 @@ def print_identify_table(doc: dict) -> None:
         print(f"Identify {r['model']}: {len(r['parameters'])} parameters from {doc['seconds']:g} s of "
               f"{1e3 * r['sample_time']:g} ms data in {r['fit_s']:.2f} s ({r['iterations']} Gauss-Newton "
               f"iterations, largest error {100 * r['max_rel_error']:.2f} %){base}")
+        if "compiled_s" in r:
+            print(f"  compiled C: {r['compiled_s']:.2f} s from the cache ({r['compiled_speedup']:.1f}x the VM), "
+                  f"first fit {r['compiled_first_s']:.2f} s with the compile")
