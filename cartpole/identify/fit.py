@@ -1,17 +1,18 @@
 """The fit: multiple-shooting least squares over logged runs, the parameters as decision variables.
 
-Each run is cut into shooting segments of ``segment`` samples. The decision variables are the parameters
-``theta = nominal + scale * delta`` (:class:`~cartpole.identify.parameters.Parameter`) and the full state
-``[qpos, qvel]`` at every segment's first sample (the rates are states of the fit, never differentiated data). The
-model (:func:`~cartpole.identify.parameters.sample_step`, the MJCF's integrator with the logged ctrl held over each
-sample) runs each segment from its node; the residuals are the measured positions (and rates, where a log has them)
-minus the simulated ones, each joint weighted by its measurement spread, and ``sqrt(W) delta`` pulling toward the
-nominal (``W`` the regularisation weight); continuity of the segments is an equality constraint. Gauss-Newton on the
-constrained problem (a dense KKT solve per iteration, a backtracking line search on an exact-penalty merit), bounds
-on the parameters kept by fixing those that would cross them. After convergence each joint's weight is re-set to
-its residual spread and the fit polished, so the covariance ``s^2 (J'J + W)^-1`` (the parameter block of the
-inverse KKT matrix) has a reduced chi-square of one; standard errors and correlations follow, and directions of the
-data-only information the runs hardly see are named in one sentence (:func:`identifiability_warnings`).
+Each run is cut into shooting segments of ``segment`` samples. The decision variables are the parameters ``theta =
+nominal + scale * delta`` (:class:`~cartpole.identify.parameters.Parameter`) and the full state ``[qpos, qvel]`` at
+every segment's first sample (the rates are states of the fit, never differentiated data). The model
+(:func:`~cartpole.identify.parameters.sample_step`, the MJCF's integrator with the logged ctrl held over each
+sample, MuJoCo's friction-loss constraint solved exactly) runs each segment from its node; the residuals are the
+measured positions (and rates, where a log has them) minus the simulated ones, each joint weighted by its
+measurement spread, and ``sqrt(W) delta`` pulling toward the nominal (``W`` the regularisation weight); continuity
+of the segments is an equality constraint. Gauss-Newton on the constrained problem (a dense KKT solve per iteration,
+a backtracking line search on an exact-penalty merit), bounds on the parameters kept by fixing those that would
+cross them. After convergence each joint's weight is re-set to its residual spread and the fit polished, so the
+covariance ``s^2 (J'J + W)^-1`` (the parameter block of the inverse KKT matrix) has a reduced chi-square of one;
+standard errors and correlations follow, and directions of the data-only information the runs hardly see are named
+in one sentence (:func:`identifiability_warnings`).
 """
 from __future__ import annotations
 
@@ -39,8 +40,8 @@ PRIOR_RATE_STD = 1e-2
 #: identifiable from the runs; two parameters correlated beyond CORRELATION_WARN are named as a combination.
 UNIDENTIFIABLE_STD = 0.2
 CORRELATION_WARN = 0.99
-#: The fit has converged when one iteration lowers the objective by less than this fraction (a model with MuJoCo's
-#: friction constraint smoothed cannot match a sticking joint exactly, so the last digits are not worth chasing).
+#: The fit has converged when one iteration lowers the objective by less than this fraction (measurement noise
+#: decides the last digits; a smooth-friction fit cannot match a sticking joint exactly).
 REL_TOL = 1e-6
 
 
@@ -99,7 +100,7 @@ class FitResult:
 
 
 def segment_function(p: CartPoleParams, params, sample_time: float, length: int, *,
-                     friction_width: float = DEFAULT_FRICTION_WIDTH) -> ca.Function:
+                     friction_width: float = DEFAULT_FRICTION_WIDTH, exact_friction: bool = True) -> ca.Function:
     """One shooting segment and its Jacobians:
     ``(x0 (nx,), U (nu, L), theta (np,)) -> (X (nx, L), x_end (nx,), dX/d[x0, theta] (nx L, nx + np),
     dx_end/d[x0, theta] (nx, nx + np))``, ``X[:, k]`` the state at the segment's sample ``k`` (``X[:, 0] = x0``).
@@ -113,13 +114,15 @@ def segment_function(p: CartPoleParams, params, sample_time: float, length: int,
     length : int
         Samples per segment L (a count, no unit: the segment lasts ``length * sample_time`` s).
     friction_width : float
-        m/s or rad/s.
+        m/s or rad/s (the smooth friction's, with ``exact_friction=False``).
+    exact_friction : bool
+        MuJoCo's friction constraint solved exactly (:func:`~cartpole.identify.parameters.sample_step`).
 
     Returns
     -------
     casadi.Function
     """
-    F = sample_step(p, params, sample_time, friction_width=friction_width)
+    F = sample_step(p, params, sample_time, friction_width=friction_width, exact_friction=exact_friction)
     nx, nu, npar = 2 * p.nq, p.nu, len(params)
     x0, U, th = ca.SX.sym("x0", nx), ca.SX.sym("U", nu, length), ca.SX.sym("theta", npar)
     xs = [x0]
@@ -162,7 +165,46 @@ def _initial_rates(t, qpos) -> np.ndarray:
     return np.column_stack([np.convolve(np.pad(v[:, j], k // 2, mode="edge"), ker, "valid") for j in range(v.shape[1])])
 
 
-def _prepare(p, params, logs, segment_s, friction_width) -> list:
+#: Part of a compiled segment library's key: bump when segment_function changes meaning for the same inputs.
+SEGMENT_RECIPE = "identify-segment-v1"
+
+
+def compiled_segment(p: CartPoleParams, params, sample_time: float, length: int, *,
+                     friction_width: float = DEFAULT_FRICTION_WIDTH, exact_friction: bool = True) -> tuple:
+    """:func:`segment_function` and its values-only twin compiled to C through :mod:`cartpole.codegen` (``-O0``:
+    gcc's optimiser is superlinear in these long straight-line functions), cached by a key of everything they are
+    built from: the first call per model, parameters, sample time and length compiles, later ones load.
+
+    Parameters
+    ----------
+    p, params, sample_time, length, friction_width, exact_friction
+        As :func:`segment_function` (s; samples; m/s or rad/s).
+
+    Returns
+    -------
+    (casadi.Function, casadi.Function)
+        The segment (as :func:`segment_function`) and its ``(X, x_end)``.
+    """
+    import dataclasses
+    import hashlib
+
+    import cartpole.codegen as codegen
+
+    h = hashlib.sha256(SEGMENT_RECIPE.encode())
+    codegen.digest([dataclasses.replace(p, mjcf=""), list(params), float(sample_time), int(length),
+                    float(friction_width), bool(exact_friction)], h)
+
+    def funcs():
+        seg = segment_function(p, params, sample_time, length, friction_width=friction_width,
+                               exact_friction=exact_friction)
+        return [seg, _values_only(seg)]
+
+    lib, _ = codegen.build_library(funcs, "identify", recipe=h.hexdigest(), cflags=("-O0",))
+    f = codegen.load_library(lib, ["segment", "segment_values"])
+    return f["segment"], f["segment_values"]
+
+
+def _prepare(p, params, logs, segment_s, friction_width, exact, compiled=False) -> list:
     nq, nx = p.nq, 2 * p.nq
     runs, funcs = [], {}
     for log in logs:
@@ -172,8 +214,10 @@ def _prepare(p, params, logs, segment_s, friction_width) -> list:
         if S < 1:
             L, S = log.n - 1, 1
         key = (round(Ts, 12), L)
-        if key not in funcs:
-            seg = segment_function(p, params, Ts, L, friction_width=friction_width)
+        if key not in funcs and compiled:
+            funcs[key] = compiled_segment(p, params, Ts, L, friction_width=friction_width, exact_friction=exact)
+        elif key not in funcs:
+            seg = segment_function(p, params, Ts, L, friction_width=friction_width, exact_friction=exact)
             funcs[key] = (seg, _values_only(seg))
         n = S * L
         meas = np.full((nx, n + 1), np.nan)
@@ -352,7 +396,7 @@ def _gauss_newton(runs, params, delta, w, W, *, max_iter, tol):
 
 def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGULARIZATION,
         segment_s: float = DEFAULT_SEGMENT_S, friction_width: float = DEFAULT_FRICTION_WIDTH,
-        max_iter: int = 60, tol: float = 1e-7) -> FitResult:
+        exact_friction: bool = True, compiled: bool = False, max_iter: int = 60, tol: float = 1e-7) -> FitResult:
     """Fit ``params`` to the logged runs (module docstring).
 
     Parameters
@@ -368,7 +412,13 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     segment_s : float
         Shooting segment length, s.
     friction_width : float
-        The smooth friction's velocity scale, m/s or rad/s.
+        The smooth friction's velocity scale, m/s or rad/s (with ``exact_friction=False``).
+    exact_friction : bool
+        Fit with MuJoCo's friction constraint solved exactly (default), else with the smooth ``tanh`` friction
+        reached by continuation from wider widths.
+    compiled : bool
+        Evaluate the segments in compiled C (:func:`compiled_segment`, cached) instead of CasADi's virtual machine:
+        worth it only when the library is already cached (docs/identify.md, Speed).
     max_iter : int
         Gauss-Newton iterations per pass.
     tol : float
@@ -396,28 +446,25 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     delta = np.zeros(np_)
     iters = 0
     runs = None
-    with_friction = p.has_friction or any(q.kind == "frictionloss" for q in params)
+    with_friction = not exact_friction and (p.has_friction or any(q.kind == "frictionloss" for q in params))
     # Friction: continuation from a wider, smoother friction down to the model's (each fit warm-starts the next),
     # as Gauss-Newton from the nominal on the steep one crawls.
     for width in ((8 * friction_width, 4 * friction_width, 2 * friction_width) if with_friction else ()):
         nodes = None if runs is None else [run.nodes.copy() for run in runs]
-        runs = _prepare(p, params, logs, segment_s, width)
+        runs = _prepare(p, params, logs, segment_s, width, False)
         for run, n0 in zip(runs, nodes or []):
             run.nodes[:] = n0
         it, _ = _gauss_newton(runs, params, delta, w, regularization, max_iter=max_iter, tol=tol)
         iters += it
     nodes = None if runs is None else [run.nodes.copy() for run in runs]
-    runs = _prepare(p, params, logs, segment_s, friction_width)
+    runs = _prepare(p, params, logs, segment_s, friction_width, exact_friction, compiled)
     for run, n0 in zip(runs, nodes or []):
         run.nodes[:] = n0
     for _ in range(2):  # fit, then re-weight each joint by its residual spread and polish
         it, ok = _gauss_newton(runs, params, delta, w, regularization, max_iter=max_iter, tol=tol)
         iters += it
         if not ok:
-            hint = (" (a slide's frictionloss is the usual cause: MuJoCo's friction holds a slow cart where the smooth "
-                    "model creeps, so leave it out or give runs that keep the cart sliding)"
-                    if any(q.kind == "frictionloss" for q in params) else "")
-            raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations{hint}; fit fewer "
+            raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations; fit fewer "
                            "parameters, raise --regularization, or give a more exciting run.")
         theta = np.array([q.nominal + q.scale * d for q, d in zip(params, delta)])
         res = _residual_std(runs, theta, w, np_)
@@ -545,7 +592,7 @@ class Simulation:
 
 
 def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
-                 friction_width: float = DEFAULT_FRICTION_WIDTH) -> Simulation:
+                 friction_width: float = DEFAULT_FRICTION_WIDTH, exact_friction: bool = True) -> Simulation:
     """Simulate the model with parameter values ``theta`` on a log's ctrl: the start state (rates included) is
     fitted to the log's first ``start_s`` seconds with the parameters held (Gauss-Newton), then the model runs open
     loop over the whole log. What the held-out check compares (a hanging run; an open-loop unstable run grows
@@ -560,7 +607,9 @@ def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
     start_s : float
         Seconds of data that fix the start state.
     friction_width : float
-        m/s or rad/s.
+        m/s or rad/s (the smooth friction's, with ``exact_friction=False``).
+    exact_friction : bool
+        MuJoCo's friction constraint solved exactly.
 
     Returns
     -------
@@ -570,7 +619,7 @@ def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
     nq = p.nq
     Ts = log.sample_time
     L = int(min(log.n - 1, max(2, round(start_s / Ts))))
-    seg = segment_function(p, params, Ts, L, friction_width=friction_width)
+    seg = segment_function(p, params, Ts, L, friction_width=friction_width, exact_friction=exact_friction)
     x0 = np.concatenate([log.qpos[0], _initial_rates(log.t, log.qpos)[0]])
     meas = log.qpos[:L].T
     for _ in range(20):
@@ -581,7 +630,7 @@ def simulate_log(p: CartPoleParams, params, theta, log, *, start_s: float = 0.5,
         x0 = x0 + dx
         if np.max(np.abs(dx)) < 1e-10:
             break
-    step = sample_step(p, params, Ts, friction_width=friction_width)
+    step = sample_step(p, params, Ts, friction_width=friction_width, exact_friction=exact_friction)
     run = step.mapaccum(log.n - 1)
     xs = np.asarray(run(x0, log.ctrl[:-1].T, theta)).T
     x = np.vstack([x0, xs])

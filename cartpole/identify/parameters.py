@@ -12,11 +12,11 @@ Names (one scalar each; a name without a component expands to several):
 * ``damping:JOINT`` (N s/m or N m s/rad), ``frictionloss:JOINT`` (N or N m), ``armature:JOINT`` (kg or kg m^2).
 * ``gear:ACTUATOR`` — MuJoCo's ``gear`` (the transmission; the generalized force per ctrl of a ``<motor>``).
 * ``all`` — what a student with a scale cannot weigh: ``gear`` of every actuator, ``com`` and ``inertia`` of every
-  hinged body, ``damping`` of every joint and ``frictionloss`` of every hinge; the masses are taken as weighed
-  (fitting masses with the gear makes them identifiable only as ratios, and the fit says so). A slide's
-  ``frictionloss`` is left out: while an excited cart turns, MuJoCo's friction constraint and the smooth model
-  differ, and a fit of it comes out biased, traded against the slide's damping (docs/identify.md; name it to fit
-  it anyway).
+  hinged body, ``damping`` and ``frictionloss`` of every joint; the masses are taken as weighed (fitting masses
+  with the gear makes them identifiable only as ratios, and the fit says so). The frictionloss is MuJoCo's
+  friction constraint solved exactly in the model (:func:`sample_step`), which solves at most
+  :data:`~cartpole.models.friction.MAX_CONSTRAINT_FRICTION_DOFS` friction joints: on a chain with more joints
+  ``all`` fits the frictionloss of those the nominal MJCF gives friction.
 
 Bounds keep the model physical: masses and inertias positive, damping, frictionloss and armature non-negative, a
 gear keeping its sign.
@@ -30,8 +30,8 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import DEFAULT_FRICTION_WIDTH, CartPoleParams, equations, load_model
-from cartpole.models.friction import MAX_CONSTRAINT_FRICTION_DOFS, FrictionConstraint, friction_constraint
+from cartpole.models import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, CartPoleParams,
+                             FrictionConstraint, equations, friction_constraint, load_model)
 
 KINDS = ("mass", "com", "inertia", "damping", "frictionloss", "armature", "gear")
 _AXES = "xyz"
@@ -135,7 +135,8 @@ def default_names(p: CartPoleParams) -> list:
         if _hinge_axes(p, b):
             names += [f"com:{body.name}", f"inertia:{body.name}"]
     names += [f"damping:{j.name}" for j in p.joints]
-    names += [f"frictionloss:{j.name}" for j in p.joints if j.kind == "hinge"]
+    few = p.nq <= MAX_CONSTRAINT_FRICTION_DOFS
+    names += [f"frictionloss:{j.name}" for j in p.joints if few or j.frictionloss]
     return names
 
 

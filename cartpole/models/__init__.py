@@ -1,7 +1,9 @@
 """MJCF -> parameters -> kinematics -> symbolic CasADi model -> equilibria -> exact continuous and discrete linearisation."""
 from cartpole.models.params import (SHIPPED_MJCF, SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError,
                                     load_model, mujoco_warnings, read_params)
-from cartpole.models.friction import DEFAULT_FRICTION_WIDTH, FrictionWidthError, check_width, smooth_friction
+from cartpole.models.friction import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, FrictionConstraint,
+                                      FrictionWidthError, check_width, constraint_friction_force,
+                                      friction_constraint, smooth_friction)
 from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_kinematics_np, quat_to_mat
 from cartpole.models.discretize import MAX_PERIOD, HoldModel, PeriodError, hold_model, steps_per_period
 from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equations, linearize, state_error,
@@ -12,4 +14,5 @@ __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError
            "CartPoleModel", "Equations", "build_model", "equations", "linearize", "state_error", "wrap_angle",
            "Kinematics", "forward_kinematics", "forward_kinematics_np", "MAX_PERIOD", "HoldModel", "PeriodError",
            "hold_model", "steps_per_period", "DEFAULT_FRICTION_WIDTH", "FrictionWidthError", "check_width",
-           "smooth_friction", "quat_to_mat"]
+           "smooth_friction", "quat_to_mat", "MAX_CONSTRAINT_FRICTION_DOFS", "FrictionConstraint",
+           "constraint_friction_force", "friction_constraint"]

@@ -34,6 +34,11 @@ explicit treatment of a slope as steep as ``frictionloss / width`` makes the ste
 widths (:mod:`cartpole.models.friction`); while sliding the derivative is zero, so the sliding-regime agreement is
 unchanged.
 
+:func:`equations` with a :class:`~cartpole.models.friction.FrictionConstraint` solves MuJoCo's friction
+constraint exactly instead (:func:`~cartpole.models.friction.constraint_friction_force`, a box QP over the friction
+joints, outside every ``dF/dv``): then the step equals ``mj_step`` sticking or sliding (system identification
+uses it; its Jacobians are piecewise, so planners keep the smooth force).
+
 The step assumes ``u`` is inside ``ctrl_range`` (MuJoCo clamps it) and that no joint limit is active
 (limits are constraint forces, outside a smooth model; contacts the reader refuses).
 """
