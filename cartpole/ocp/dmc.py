@@ -12,8 +12,8 @@ notes), each task's reward is written here **once**, as a CasADi SX expression o
   ctrl bounds hold on dm_control's files; the acrobot's distance with a ``1e-12 m^2`` floor under its square root
   so its derivative exists at the target). Where it is sparse (``dmc_cartpole_swingup_sparse``,
   ``dmc_pendulum_swingup``, ``dmc_acrobot_swingup_sparse``) it is a smooth surrogate: the same ``tolerance`` with
-  the same bounds but a gaussian margin (:data:`SURROGATE_MARGIN`) instead of ``margin = 0``, so it equals 1
-  wherever the exact reward is 1 and decays smoothly outside.
+  the same bounds but a margin (:data:`SURROGATE_MARGIN`, :data:`SURROGATE_SIGMOID`) instead of ``margin = 0``,
+  so it equals 1 wherever the exact reward is 1 and decays smoothly outside.
 
 The quantities dm_control reads from MuJoCo are computed from the model by name, never by literal index:
 
@@ -49,10 +49,13 @@ from cartpole.ocp.bounds import OCPError
 #: dm_control's ``_DEFAULT_VALUE_AT_MARGIN`` of ``rewards.tolerance``.
 VALUE_AT_MARGIN = 0.1
 
-#: Gaussian margins of the planning surrogates of the sparse rewards, by the quantity tolerated: a pole's angle
-#: cosine (1: 0.1 below the bound is about 27 degrees from upright on the pendulum), the cart position (m: its
-#: box's half-width) and the acrobot's tip distance (m: the smooth acrobot task's own margin).
-SURROGATE_MARGIN = {"cosine": 0.1, "cart": 0.25, "distance": 1.0}
+#: Margins of the planning surrogates of the sparse rewards, by the quantity tolerated, as multiples of the width
+#: of the task's own box (``1 - lower`` for a cosine, the half-width for the cart position) for the cosine and the
+#: cart, with dm_control's ``long_tail`` sigmoid (``1 / (1 + (d s)^2)``: as narrow as the box near it, and a
+#: gradient toward it from anywhere); the acrobot's tip distance takes the smooth acrobot task's own gaussian
+#: margin (1 m).
+SURROGATE_MARGIN = {"cosine": 1.0, "cart": 1.0, "distance": 1.0}
+SURROGATE_SIGMOID = "long_tail"
 
 #: Floor under the acrobot's squared tip distance in the planning form (m^2): the distance's derivative at the target.
 DISTANCE_FLOOR = 1e-12
@@ -301,14 +304,19 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
     """
     t = check_model(model, name)
     surrogate = t.sparse and not exact
-    cos_margin = SURROGATE_MARGIN["cosine"] if surrogate else 0.0
+
+    def box(v, lower: float, upper: float, width: float, kind: str):
+        """``tolerance(v, (lower, upper))``, or its surrogate (margin ``SURROGATE_MARGIN[kind] * width``)."""
+        if not surrogate:
+            return tolerance(v, (lower, upper))
+        return tolerance(v, (lower, upper), margin=SURROGATE_MARGIN[kind] * width, sigmoid=SURROGATE_SIGMOID)
     if t.domain == "cartpole":
         cosines = _pole_cosines(model, x)
         cart = x[model.slide]
         if t.sparse:
-            r = tolerance(cart, (-0.25, 0.25), margin=SURROGATE_MARGIN["cart"] if surrogate else 0.0)
+            r = box(cart, -0.25, 0.25, 0.25, "cart")
             for c in cosines:
-                r = r * tolerance(c, (0.995, 1.0), margin=cos_margin)
+                r = r * box(c, 0.995, 1.0, 1 - 0.995, "cosine")
             return r
         upright = sum((c + 1) / 2 for c in cosines) / len(cosines)
         centered = (1 + tolerance(cart, margin=2.0)) / 2
@@ -323,7 +331,8 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
         return upright * small_control * small_velocity * centered
     if t.domain == "pendulum":
         (c,) = _pole_cosines(model, x)
-        return tolerance(c, (float(np.cos(np.deg2rad(8))), 1.0), margin=cos_margin)
+        lower = float(np.cos(np.deg2rad(8)))
+        return box(c, lower, 1.0, 1 - lower, "cosine")
     params = model.params
     tip, target = _site(params, "tip"), _site(params, "target")
     q = x[:model.nq]
