@@ -66,6 +66,13 @@ def add_arguments(parser) -> None:
     parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
                         help="with axis options: the start of every run where no --start sets a component, 2 nq "
                              "numbers [qpos, qvel] (default hanging at rest)")
+    parser.add_argument("--objective", default=None, metavar="OBJ",
+                        help="trajopt only: what every plan optimises (as swingup's --objective); a dm_control task "
+                             "(dmc_cartpole_swingup, dmc_cartpole_swingup_sparse, dmc_cartpole_balance, "
+                             "dmc_pendulum_swingup, dmc_acrobot_swingup, dmc_acrobot_swingup_sparse) runs its "
+                             "episodes: the starts of its first N episodes seeded by --seed (numpy RandomState, as "
+                             "dm_control's task_kwargs={'random': S}), each run's 'return', and their "
+                             "'mean_return'")
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="seed of numpy's default_rng for the starts (and the jitter); default 0")
     parser.add_argument("--workers", type=int, default=1, metavar="W",
@@ -199,7 +206,7 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
                              gain_jitter=args.jitter, address=args.address, axes=axes, x0=x0,
                              results=out / str(RESULTS).format(method=method),
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
-                             stop_after=args.stop_after, loop=loop)
+                             stop_after=args.stop_after, loop=loop, objective=getattr(args, "objective", None))
     except SweepInterrupted as stop:
         from cartpole.errors import Terminated
 
@@ -217,6 +224,9 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
            "loop": loop.as_dict()}
     if not args.json:
         print(summary_line(doc))
+        if doc.get("mean_return") is not None:
+            print(f"{doc['objective']}: mean dm_control return {doc['mean_return']:.1f} over {doc['return_runs']} "
+                  f"episodes of {doc['n']}")
         for r in doc["rows"]:
             t = "never" if r["time_to_upright"] is None else f"{r['time_to_upright']:.3f} s"
             start = " ".join(f"{v:+.3f}" for v in r["start"])

@@ -11,9 +11,9 @@ notes), each task's reward is written here **once**, as a CasADi SX expression o
   cart-pole's quadratic control tolerance unclipped, ``1 - u_0^2``, equal inside ``|u_0| <= 1`` which the OCP's
   ctrl bounds hold on dm_control's files; the acrobot's distance with a ``1e-12 m^2`` floor under its square root
   so its derivative exists at the target). Where it is sparse (``dmc_cartpole_swingup_sparse``,
-  ``dmc_pendulum_swingup``, ``dmc_acrobot_swingup_sparse``) it is a smooth surrogate: the same ``tolerance`` with
-  the same bounds but a gaussian margin (:data:`SURROGATE_MARGIN`) instead of ``margin = 0``, so it equals 1
-  wherever the exact reward is 1 and decays smoothly outside.
+  ``dmc_pendulum_swingup``, ``dmc_acrobot_swingup_sparse``) it is a smooth surrogate (:data:`SURROGATE_SIGMOID`):
+  ``tolerance`` toward the centre of the task's box with a margin of the box's width (for the acrobot:
+  the smooth task's reward), 1 at the centre and decaying smoothly, through the box's edge, outside.
 
 The quantities dm_control reads from MuJoCo are computed from the model by name, never by literal index:
 
@@ -49,10 +49,15 @@ from cartpole.ocp.bounds import OCPError
 #: dm_control's ``_DEFAULT_VALUE_AT_MARGIN`` of ``rewards.tolerance``.
 VALUE_AT_MARGIN = 0.1
 
-#: Gaussian margins of the planning surrogates of the sparse rewards, by the quantity tolerated: a pole's angle
-#: cosine (1: 0.1 below the bound is about 27 degrees from upright on the pendulum), the cart position (m: its
-#: box's half-width) and the acrobot's tip distance (m: the smooth acrobot task's own margin).
-SURROGATE_MARGIN = {"cosine": 0.1, "cart": 0.25, "distance": 1.0}
+#: The planning surrogates of the sparse rewards: dm_control's ``tolerance`` toward the centre of the task's box
+#: (the cart position 0, a cosine's 1), with the ``long_tail`` sigmoid (``1 / (1 + (d s)^2)``: a gradient toward
+#: the box from anywhere) and the box's own width as margin (its half-width for the cart, ``1 - lower`` for a
+#: cosine), so the surrogate is ``value_at_margin`` (0.1) at the box's edge and 1 only at its centre. A surrogate
+#: that is 1 on the whole box (its edges flat) was measured to let the plan rest just outside the cart-pole's
+#: narrow angle bound (cos 0.995: 5.7 degrees), where the exact reward is 0; this one pulls it in. The acrobot's tip
+#: distance takes the smooth acrobot task's own gaussian margin (1 m) instead.
+SURROGATE_SIGMOID = "long_tail"
+SURROGATE_DISTANCE_MARGIN = 1.0
 
 #: Floor under the acrobot's squared tip distance in the planning form (m^2): the distance's derivative at the target.
 DISTANCE_FLOOR = 1e-12
@@ -301,14 +306,19 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
     """
     t = check_model(model, name)
     surrogate = t.sparse and not exact
-    cos_margin = SURROGATE_MARGIN["cosine"] if surrogate else 0.0
+
+    def box(v, lower: float, upper: float, centre: float, width: float):
+        """``tolerance(v, (lower, upper))``, or its surrogate: toward ``centre`` with margin ``width``."""
+        if not surrogate:
+            return tolerance(v, (lower, upper))
+        return tolerance(v, (centre, centre), margin=width, sigmoid=SURROGATE_SIGMOID)
     if t.domain == "cartpole":
         cosines = _pole_cosines(model, x)
         cart = x[model.slide]
         if t.sparse:
-            r = tolerance(cart, (-0.25, 0.25), margin=SURROGATE_MARGIN["cart"] if surrogate else 0.0)
+            r = box(cart, -0.25, 0.25, 0.0, 0.25)
             for c in cosines:
-                r = r * tolerance(c, (0.995, 1.0), margin=cos_margin)
+                r = r * box(c, 0.995, 1.0, 1.0, 1 - 0.995)
             return r
         upright = sum((c + 1) / 2 for c in cosines) / len(cosines)
         centered = (1 + tolerance(cart, margin=2.0)) / 2
@@ -323,14 +333,15 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
         return upright * small_control * small_velocity * centered
     if t.domain == "pendulum":
         (c,) = _pole_cosines(model, x)
-        return tolerance(c, (float(np.cos(np.deg2rad(8))), 1.0), margin=cos_margin)
+        lower = float(np.cos(np.deg2rad(8)))
+        return box(c, lower, 1.0, 1.0, 1 - lower)
     params = model.params
     tip, target = _site(params, "tip"), _site(params, "target")
     q = x[:model.nq]
     gap = _site_world(params, target, q) - _site_world(params, tip, q)
     d2 = ca.sumsqr(gap)
     dist = ca.sqrt(d2) if exact else ca.sqrt(d2 + DISTANCE_FLOOR)
-    margin = SURROGATE_MARGIN["distance"] if surrogate else (0.0 if t.sparse else 1.0)
+    margin = SURROGATE_DISTANCE_MARGIN if surrogate else (0.0 if t.sparse else 1.0)
     return tolerance(dist, (0.0, float(target[2][0])), margin=margin)
 
 

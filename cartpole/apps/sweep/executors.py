@@ -37,6 +37,7 @@ from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.sim import replays_exactly
 from cartpole.apps.swingup import planning_model, run_swingup
 from cartpole.mpc.options import MPCOptions
+from cartpole.ocp.dmc import is_task
 from cartpole.planning.options import PlanOptions
 from cartpole.sim.options import LoopOptions
 from cartpole.validation.basin import BasinCache
@@ -69,10 +70,13 @@ class Runner:
         The rig every run has (period, delay, sensors, estimator); a run's swept loop settings
         (:data:`~cartpole.apps.sweep.plan.LOOP_SETTINGS`) replace its fields, the period and delay rounded to whole
         physics steps.
+    objective : str, optional
+        trajopt: what every plan optimises (:class:`~cartpole.planning.options.PlanOptions` ``objective``); a
+        dm_control task adds each run's ``return`` and ``return_steps``.
     """
 
     def __init__(self, params: CartPoleParams, method: str, duration, catch_weights, cache: BasinCache,
-                 model: CartPoleModel | None = None, loop: LoopOptions | None = None):
+                 model: CartPoleModel | None = None, loop: LoopOptions | None = None, objective: str | None = None):
         self.params = params
         self.model = build_model(params) if model is None else model
         self.method = method
@@ -81,11 +85,13 @@ class Runner:
         self.cache = cache
         self.plans = {1.0: self.model}
         self.loop = LoopOptions() if loop is None else loop
+        self.objective = objective
 
     def settings(self) -> tuple:
-        """``(params, method, duration, catch_weights, cache, None, loop)``: what a worker needs to build the same
-        runner (the model, None, it builds itself)."""
-        return (self.params, self.method, self.duration, self.catch_weights, self.cache, None, self.loop)
+        """``(params, method, duration, catch_weights, cache, None, loop, objective)``: what a worker needs to build
+        the same runner (the model, None, it builds itself)."""
+        return (self.params, self.method, self.duration, self.catch_weights, self.cache, None, self.loop,
+                self.objective)
 
     def plan_model(self, model_error: float) -> CartPoleModel:
         """The planning model of scale ``model_error`` (:func:`~cartpole.apps.swingup.planning_model`), built once."""
@@ -118,7 +124,8 @@ class Runner:
         and settings: its row's numbers, ``success``, ``replays``, ``diverged`` (MuJoCo reset the run as blown up:
         never a success), ``diverged_at`` (s or NaN), ``time_to_upright`` (s, NaN unless a success),
         ``caught_at`` (s or NaN), ``cart_clearance`` (m), ``peak_ctrl``, ``rho`` and ``error`` (the sentence of a
-        :class:`CartPoleError` the run raised, else None)."""
+        :class:`CartPoleError` the run raised, else None); with a dm_control task's objective also ``return`` and
+        ``return_steps`` (NaN when the run raised)."""
         settings = dict(settings or {})
         looped = {k: settings.pop(k) for k in list(settings) if k in LOOP_SETTINGS}
         h = float(self.params.timestep)
@@ -130,7 +137,8 @@ class Runner:
         energy = {**options, **settings} if self.method == "energy" else None
         try:
             # the swept settings are fields of the method's options value (or of the loop's), by name
-            plan = PlanOptions().replace(**settings) if self.method == "trajopt" else None
+            plan = (PlanOptions(objective=self.objective).replace(**settings) if self.method == "trajopt"
+                    else None)
             mpc = MPCOptions().replace(**settings) if self.method == "mpc" else None
             loop = self.loop.replace(duration=self.duration, push=tuple(push or ()), model_error=model_error,
                                      **looped)
@@ -141,7 +149,7 @@ class Runner:
             return {"success": False, "replays": False, "diverged": False, "diverged_at": math.nan,
                     "time_to_upright": math.nan, "caught_at": math.nan,
                     "cart_clearance": math.nan, "peak_ctrl": math.nan, "rho": math.nan,
-                    "error": first_line(exc) + "."}
+                    "error": first_line(exc) + ".", **self._no_return()}
         m = res.metrics
         replays = bool(replays_exactly(res.rollout, self.params))
         ok = bool(res.success and replays and not m["diverged"])
@@ -151,7 +159,13 @@ class Runner:
                 "time_to_upright": float(tu) if (ok and tu is not None) else math.nan,
                 "caught_at": math.nan if res.caught_at is None else float(res.caught_at),
                 "cart_clearance": float(m["cart_clearance"]), "peak_ctrl": float(m["peak_ctrl"]),
-                "rho": float(res.basin.rho) if res.basin is not None else math.nan, "error": None}
+                "rho": float(res.basin.rho) if res.basin is not None else math.nan, "error": None,
+                **({"return": float(m["return"]), "return_steps": int(m["return_steps"])} if "return" in m
+                   else self._no_return())}
+
+    def _no_return(self) -> dict:
+        """A dm_control task's row keys for a run without an episode (NaN), else none."""
+        return {"return": math.nan, "return_steps": math.nan} if is_task(self.objective) else {}
 
 
 # ---- this process ------------------------------------------------------------------------------------------------

@@ -74,6 +74,13 @@ class SweepResult:
         Each run's swept controller settings (``{}`` when none is swept).
     axes : tuple of Axis
         The sweep description (empty: the classic start box).
+    objective : str or None
+        The trajopt objective every run planned with (None: the planner's default).
+    returns : (n,) array or None
+        With a dm_control task as ``objective``: each run's dm_control return (the exact reward summed over the
+        task's episode, :func:`cartpole.validation.metrics.dmc_return`; NaN for a run that raised); else None.
+    return_steps : (n,) array or None
+        The control steps each return sums (the task's 1000; NaN for a run that raised).
     diverged_at : (n,) array or None
         s: when MuJoCo warned that each run blew up and reset it (a diverged run is never a success); NaN for a run
         that did not diverge (None: none did).
@@ -103,6 +110,9 @@ class SweepResult:
     settings: tuple = ()
     axes: tuple = ()
     diverged_at: np.ndarray | None = None
+    objective: str | None = None
+    returns: np.ndarray | None = None
+    return_steps: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.success)
@@ -166,8 +176,13 @@ class SweepResult:
         """One JSON-ready dict per run, in run order: ``run`` (index), ``start`` (2 nq numbers), ``push`` (list of
         ``[T s, F N]``), ``model_error``, ``settings`` (swept controller settings), ``success``, ``replays``,
         ``diverged`` (bool), ``diverged_at`` (s or None), ``time_to_upright`` (s or None), ``caught_at`` (s or None), ``cart_clearance`` (m), ``peak_ctrl``,
-        ``error`` (the sentence of a run that raised, else None)."""
-        return [{"run": i, "start": self.starts[i].tolist(), "push": [list(p) for p in self.pushes[i]],
+        ``error`` (the sentence of a run that raised, else None); with returns also ``return`` and ``return_steps``
+        (None where the run raised)."""
+        extra = [{} if self.returns is None else
+                 {"return": _num(self.returns[i]),
+                  "return_steps": None if self.return_steps is None or not np.isfinite(self.return_steps[i])
+                  else int(self.return_steps[i])} for i in range(self.n)]
+        return [{**extra[i], "run": i, "start": self.starts[i].tolist(), "push": [list(p) for p in self.pushes[i]],
                  "model_error": float(self.model_errors[i]), "settings": dict(self.settings[i]),
                  "success": bool(self.success[i]),
                  "replays": bool(self.replays[i]), "diverged": bool(np.isfinite(self.diverged_at[i])),
@@ -179,7 +194,9 @@ class SweepResult:
         """JSON-ready summary: ``mjcf``, ``method``, ``n``, ``successes``, ``success_rate``,
         ``time_to_upright_median``, ``time_to_upright_max``, ``caught_at_median``, ``min_cart_clearance``,
         ``max_peak_ctrl``, ``failed`` (start states of the failures), ``seed``, ``duration``, ``half_widths``,
-        ``gain_jitter``, ``rho``, ``workers``, ``address``, ``axes``."""
+        ``gain_jitter``, ``rho``, ``workers``, ``address``, ``axes``, ``objective``; with a dm_control task's
+        returns also ``mean_return`` (over the runs that have one), ``returns`` (per run, None where a run raised)
+        and ``return_runs`` (how many runs the mean is over)."""
         ca_ok = self.caught_at[self.success]
         return {"mjcf": self.mjcf, "method": self.method, "n": self.n, "successes": int(self.success.sum()),
                 "success_rate": self.success_rate, "time_to_upright_median": _num(self.t_median),
@@ -190,7 +207,16 @@ class SweepResult:
                 "max_peak_ctrl": _num(np.nanmax(self.peak_ctrl) if np.any(np.isfinite(self.peak_ctrl)) else np.nan),
                 "failed": self.starts[~self.success].tolist(), "seed": self.seed, "duration": self.duration,
                 "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": _num(self.rho),
-                "workers": self.workers, "address": self.address, "axes": [a.describe() for a in self.axes]}
+                "workers": self.workers, "address": self.address, "axes": [a.describe() for a in self.axes],
+                "objective": self.objective, **self._return_summary()}
+
+    def _return_summary(self) -> dict:
+        if self.returns is None:
+            return {}
+        r = np.asarray(self.returns, float)
+        ok = np.isfinite(r)
+        return {"mean_return": _num(float(np.mean(r[ok])) if ok.any() else np.nan),
+                "returns": [_num(v) for v in r], "return_runs": int(ok.sum())}
 
 
 def _num(v):
@@ -213,7 +239,7 @@ def summary_line(s: dict) -> str:
 
 
 def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration, jitter: float, axes=(),
-             x0=None, loop=None) -> str:
+             x0=None, loop=None, objective: str | None = None) -> str:
     """12 hex digits naming the sweep description (MJCF path and content, method, ``n``, seed, ``duration`` s,
     jitter, axes, the fixed start ``x0`` (nx,) ``[qpos, qvel]``): the ``sweep`` column of every row, which a resumed sweep must match. (A description
     without axes keeps the id it had before axes existed; likewise one without a rig, ``loop``: the
@@ -230,18 +256,21 @@ def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration
         desc["x0"] = [float(v) for v in x0]
     if loop is not None and loop != type(loop)():
         desc["loop"] = loop.as_dict()
+    if objective is not None:  # (a sweep without one keeps its id)
+        desc["objective"] = str(objective)
     return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:12]
 
 
-def header(params: CartPoleParams, settings=()) -> list[str]:
+def header(params: CartPoleParams, settings=(), *, returns: bool = False) -> list[str]:
     """The CSV header: ``sweep``, ``run``, the start (columns named by the MJCF's joints), the push
     (``push_time_s``, empty without a push, and ``push_force_N``), ``model_error``, one ``setting_<name>`` per
-    swept controller setting, the outcome."""
+    swept controller setting, the outcome; with ``returns`` (a dm_control task's sweep) ``return`` and
+    ``return_steps`` last."""
     names = [j.name for j in params.joints]
     return (["sweep", "run"] + [f"x0_{n}" for n in names] + [f"x0_{n}_rate" for n in names]
             + ["push_time_s", "push_force_N", "model_error"] + [f"setting_{k}" for k in settings]
             + ["success", "replays", "diverged", "diverged_at_s", "time_to_upright_s", "caught_at_s", "cart_clearance_m", "peak_ctrl", "failure",
-               "error"])
+               "error"] + (["return", "return_steps"] if returns else []))
 
 
 def failure(row: dict) -> str:
@@ -263,9 +292,10 @@ def _cell(v):
     return "" if v is None else v
 
 
-def csv_row(sid: str, i: int, start, row: dict, settings=()) -> list:
+def csv_row(sid: str, i: int, start, row: dict, settings=(), *, returns: bool = False) -> list:
     """The CSV fields (:func:`header`'s columns) of run ``i`` of sweep ``sid``: its ``start`` ((2 nq,)), and
-    ``row`` (a runner's row or one of :meth:`SweepResult.rows`, with ``push``, ``model_error`` and ``settings``)."""
+    ``row`` (a runner's row or one of :meth:`SweepResult.rows`, with ``push``, ``model_error`` and ``settings``);
+    ``returns`` as for :func:`header`."""
     num = {k: (None if row.get(k) is None or not math.isfinite(row[k]) else float(row[k]))
            for k in ("diverged_at", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")}
     r = {**row, **num}
@@ -277,7 +307,13 @@ def csv_row(sid: str, i: int, start, row: dict, settings=()) -> list:
             *[repr(float(st[k])) if k in st else "" for k in settings], bool(r["success"]), bool(r["replays"]),
             num["diverged_at"] is not None, _cell(num["diverged_at"]),
             *[_cell(num[k]) for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")],
-            failure(r), _cell(r["error"])]
+            failure(r), _cell(r["error"])] + ([_cell(_finite(row.get("return"))), _cell(_finite(row.get("return_steps")))]
+                                              if returns else [])
+
+
+def _finite(v):
+    """``v`` as a float, None for None or NaN."""
+    return None if v is None or not math.isfinite(float(v)) else float(v)
 
 
 #: The numeric outcome columns of a results row (empty: None / NaN).
@@ -315,7 +351,13 @@ def parse_row(line: dict) -> dict | None:
     if flags["success"] and (not flags["replays"] or flags["diverged"] or line["error"]
                              or math.isnan(nums["time_to_upright_s"])):
         return None
-    return {**flags, "diverged_at": diverged_at, "time_to_upright": nums["time_to_upright_s"],
+    extra = {}
+    if "return" in line:
+        try:
+            extra = {"return": f(line["return"]), "return_steps": f(line["return_steps"])}
+        except (KeyError, ValueError):
+            return None
+    return {**flags, **extra, "diverged_at": diverged_at, "time_to_upright": nums["time_to_upright_s"],
             "caught_at": nums["caught_at_s"], "cart_clearance": nums["cart_clearance_m"], "peak_ctrl": nums["peak_ctrl"], "rho": math.nan,
             "error": line["error"] or None}
 

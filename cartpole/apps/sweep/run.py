@@ -5,13 +5,14 @@ does."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams, build_model, read_params
+from cartpole.ocp.dmc import episode_starts, is_task
 from cartpole.progress import stage
 from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size
 from cartpole.validation.basin import BasinCache
@@ -27,7 +28,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                   half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
                   duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
                   progress=None, workers: int = 1, address: str | None = None, done: dict | None = None,
-                  on_row=None, axes=(), x0=None, loop=None) -> SweepResult:
+                  on_row=None, axes=(), x0=None, loop=None, objective: str | None = None) -> SweepResult:
     """Run the swing-up over a sweep description (``axes``; without: ``n`` seeded starts in a box, optionally with
     jittered gains) and summarise.
 
@@ -85,6 +86,12 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     loop : LoopOptions, optional
         The rig every run has (period, delay, sensors, estimator; :class:`~cartpole.sim.options.LoopOptions`); a
         ``setting:<loop field>`` axis varies one of its fields per run.
+    objective : str, optional
+        trajopt only: what every plan optimises (a name of :data:`cartpole.ocp.objectives.NAMED` or
+        MODULE:FUNCTION). A dm_control task (``dmc_cartpole_swingup``, ...) makes the sweep dm_control's
+        evaluation: the ``n`` starts are its first ``n`` episodes' with ``task_kwargs={'random': seed}``
+        (:func:`cartpole.ocp.dmc.episode_starts`, instead of the start box; no axes), every run lasts at least the
+        episode, and the result holds each run's ``return`` (the summary their mean).
 
     Returns
     -------
@@ -110,6 +117,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     except CartPoleError as exc:
         raise SweepError(first_line(exc) + ".") from None
     nx = 2 * params.nq
+    dmc_task = _check_objective(model, method, objective, axes, center, half_widths)
     axes = check_axes(axes, params, method, duration=duration if duration is not None else
                       {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method))
     center = model.x_hanging if center is None else np.asarray(center, float)
@@ -139,6 +147,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                         raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
     runs = plan_runs(params, model.x_hanging if x0 is None else x0, axes, n, seed, center=center,
                      half_widths=half_widths, gain_jitter=gain_jitter, base_options=base)
+    if dmc_task:  # dm_control's own episodes: its initialize_episode from RandomState(seed)
+        runs = replace(runs, starts=episode_starts(model, objective, n, seed))
     starts = runs.starts
     n = len(starts)
     jobs = [runs.job(i) for i in range(n)]
@@ -149,7 +159,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     todo = [i for i in range(n) if out[i] is None]
     workers = min(workers, max(len(todo), 1))
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
-    runner = Runner(params, method, duration, catch_weights, cache, model=model, loop=loop)
+    runner = Runner(params, method, duration, catch_weights, cache, model=model, loop=loop, objective=objective)
     # each planning model's basin once, here, before the runs (and shipped to the workers in the cache); a sampled
     # model error has a planning model per run: those runs estimate their own basin where they run (in parallel)
     scales = sorted(set(runs.model_errors.tolist()))
@@ -191,7 +201,30 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                        diverged_at=np.array([r.get("diverged_at", math.nan) for r in out], float),
                        errors=tuple(r["error"] for r in out), workers=1 if address else workers,
                        address=address or None, pushes=runs.pushes, model_errors=runs.model_errors,
-                       settings=runs.settings, axes=axes)
+                       settings=runs.settings, axes=axes, objective=objective,
+                       returns=np.array([r["return"] for r in out], float) if dmc_task else None,
+                       return_steps=np.array([r["return_steps"] for r in out], float) if dmc_task else None)
+
+
+def _check_objective(model, method: str, objective, axes, center, half_widths) -> bool:
+    """Refuse an objective the sweep cannot run (one sentence, :class:`SweepError`); True for a dm_control task."""
+    if objective is None:
+        return False
+    if method != "trajopt":
+        raise SweepError(f"--objective chooses what the trajectory optimisation optimises; sweep it with --method "
+                         f"trajopt (not {method}).")
+    from cartpole.ocp.objectives import make_objective
+
+    try:
+        make_objective(model, objective)
+    except CartPoleError as exc:
+        raise SweepError(first_line(exc) + ".") from None
+    if not is_task(objective):
+        return False
+    if axes or center is not None or half_widths is not None:
+        raise SweepError(f"The {objective} sweep starts where dm_control's episodes start (seeded by --seed); drop "
+                         "the axes and the start box.")
+    return True
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -234,7 +267,7 @@ class RecordedSweep:
 def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, results: Path, figure: Path,
                    workers: int = 1, duration: float | None = None, gain_jitter: float = 0.0,
                    address: str | None = None, axes=(), x0=None, resume: bool = False,
-                   stop_after: int | None = None, loop=None) -> RecordedSweep:
+                   stop_after: int | None = None, loop=None, objective: str | None = None) -> RecordedSweep:
     """:func:`swingup_sweep` with a results file: each finished run is appended to the CSV ``results`` (columns
     :func:`~cartpole.apps.sweep.results.header`) as it finishes, so an interrupt or a crash keeps it; with
     ``resume`` the runs of this sweep already in the file are kept and only the others run. At the end the file
@@ -244,8 +277,9 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
     Parameters
     ----------
     params : CartPoleParams
-    method, n, seed, workers, duration, gain_jitter, address, axes, x0, loop
-        As for :func:`swingup_sweep` (``duration`` in s; ``x0`` (2 nq,)).
+    method, n, seed, workers, duration, gain_jitter, address, axes, x0, loop, objective
+        As for :func:`swingup_sweep` (``duration`` in s; ``x0`` (2 nq,)); a dm_control task's sweep adds the
+        ``return`` and ``return_steps`` columns.
     results, figure : Path
         The CSV results file and the PNG success map.
     resume : bool
@@ -265,19 +299,21 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
     with results_lock(results):
         return _recorded_sweep(params, method=method, n=n, seed=seed, results=results, figure=figure,
                                workers=workers, duration=duration, gain_jitter=gain_jitter, address=address,
-                               axes=axes, x0=x0, resume=resume, stop_after=stop_after, loop=loop)
+                               axes=axes, x0=x0, resume=resume, stop_after=stop_after, loop=loop,
+                               objective=objective)
 
 
 def _recorded_sweep(params, *, method, n, seed, results, figure, workers, duration, gain_jitter, address, axes, x0,
-                    resume, stop_after, loop) -> RecordedSweep:
+                    resume, stop_after, loop, objective=None) -> RecordedSweep:
     from cartpole._files import write_csv
     from cartpole.viz.sweep_plot import plot_success_map
 
     results, figure = Path(results), Path(figure)
     sid = sweep_id(params, method=method, n=n, seed=seed, duration=duration, jitter=gain_jitter, axes=axes, x0=x0,
-                   loop=loop)
+                   loop=loop, objective=objective)
     settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
-    head = header(params, settings)
+    returns = is_task(objective)
+    head = header(params, settings, returns=returns)
     total = total_runs(axes, n)
     done = read_done(results, head, sid, total) if resume else {}
     opened = []  # opened on the first finished run, so a sweep refused before any run writes nothing
@@ -286,7 +322,7 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
     def on_row(i, start, row):
         if not opened:
             opened.append(ResultsFile(results, head, fresh=not resume))
-        opened[0].write(csv_row(sid, i, start, row, settings))
+        opened[0].write(csv_row(sid, i, start, row, settings, returns=returns))
         count[0] += 1
         if stop_after is not None and count[0] >= stop_after and len(done) + count[0] < total:
             raise KeyboardInterrupt
@@ -295,13 +331,13 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
     try:
         result = swingup_sweep(params, method=method, n=n, seed=seed, workers=workers, duration=duration,
                                gain_jitter=gain_jitter, address=address, done=done, on_row=on_row, axes=axes,
-                               x0=x0, loop=loop)
+                               x0=x0, loop=loop, objective=objective)
         for f in opened:
             f.close()
         rows = result.rows()
         for r in rows:
             r["failure"] = failure(r)
-        write_csv(results, head, [csv_row(sid, r["run"], r["start"], r, settings) for r in rows])  # in run order
+        write_csv(results, head, [csv_row(sid, r["run"], r["start"], r, settings, returns=returns) for r in rows])  # in run order
     except KeyboardInterrupt as stop:
         for f in opened:
             f.close()
