@@ -349,18 +349,19 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
     finally:
         for f in opened:
             f.close()
-    if figure_ready is not None:
-        figure_ready.join()
+        if figure_ready is not None:  # never left importing at exit: a thread inside a C extension's import when
+            figure_ready.join()       # the interpreter finalises aborts the process
     drawn = plot_success_map(result, params, figure)
     return RecordedSweep(result=result, rows=rows, sweep=sid, results=results, figure=Path(drawn),
                          resumed=len(done))
 
 
 def _preload_figure():
-    """A daemon thread running :func:`cartpole.viz.sweep_plot.preload` (started; returned to be joined): while the
-    runs go on worker processes, this process's share waits on the GIL for a moment less than the plot's imports
-    would cost after the last run. Only for sweeps with workers elsewhere: with one worker nothing runs beside it.
-    A failure there is left to the real import, which raises it where the figure is drawn."""
+    """A thread running :func:`cartpole.viz.sweep_plot.preload` (started; returned to be joined on every way out of the
+    sweep, refused and interrupted ones included): while the runs go on worker processes, this process's share waits
+    on the GIL for a moment less than the plot's imports would cost after the last run. Only for sweeps with workers
+    elsewhere: with one worker nothing runs beside it. A failure there is left to the real import, which raises it
+    where the figure is drawn."""
     import threading
 
     from cartpole.viz.sweep_plot import preload
@@ -371,6 +372,6 @@ def _preload_figure():
         except Exception:  # noqa: BLE001 - the figure's own import and drawing report it
             pass
 
-    thread = threading.Thread(target=run, name="cartpole-sweep-figure", daemon=True)
+    thread = threading.Thread(target=run, name="cartpole-sweep-figure")
     thread.start()
     return thread
