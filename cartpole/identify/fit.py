@@ -214,9 +214,12 @@ def _prepare(p, params, logs, segment_s, friction_width, exact, compiled=False) 
         if S < 1:
             L, S = log.n - 1, 1
         key = (round(Ts, 12), L)
-        if key not in funcs and compiled:
-            funcs[key] = compiled_segment(p, params, Ts, L, friction_width=friction_width, exact_friction=exact)
-        elif key not in funcs:
+        if key not in funcs and compiled:  # the toolkit's one rule: C when it builds, else the virtual machine
+            from cartpole.codegen import compiled_or_none
+
+            funcs[key] = compiled_or_none(lambda: compiled_segment(p, params, Ts, L, friction_width=friction_width,
+                                                                   exact_friction=exact), "fit segments")
+        if funcs.get(key) is None:
             seg = segment_function(p, params, Ts, L, friction_width=friction_width, exact_friction=exact)
             funcs[key] = (seg, _values_only(seg))
         n = S * L

@@ -16,18 +16,23 @@ def _replays(rollout):
     return np.array_equal(qpos, rollout.qpos) and np.array_equal(qvel, rollout.qvel)
 
 
+def _double_and_float(design, x0, duration):
+    """The lockstep MuJoCo runs of the double and the float build of ``design`` from ``x0`` for ``duration`` s."""
+    runs = []
+    for real in ("double", "float"):
+        ctl, folder = load_design(design, real)
+        try:
+            runs.append(run_lockstep(design, ctl, x0, duration))
+        finally:
+            discard(folder)
+    return runs
+
+
 def test_nmpc_export_swings_up_step_for_step_like_python():
     model = build_model(None)
     design = design_export(model, "nmpc", None)
     assert design.program.period == 0.02 and design.program.steps == 4  # the NMPC's own period
-    runs = {}
-    for real in ("double", "float"):
-        ctl, folder = load_design(design, real)
-        try:
-            runs[real] = run_lockstep(design, ctl, model.x_hanging, 8.0)
-        finally:
-            discard(folder)
-    d, f = runs["double"], runs["float"]
+    d, f = _double_and_float(design, model.x_hanging, 8.0)
     assert d.max_ctrl_diff <= 1e-9 and np.all(d.codes == 0)
     for run in (d, f):
         assert swingup_success(run.rollout, model.params) and _replays(run.rollout)
@@ -41,14 +46,7 @@ def test_two_pole_nmpc_export_is_prestabilised_and_swings_up_in_float32_too():
     model = build_model(TWO_POLE)
     design = design_export(model, "nmpc", None)
     assert design.make_controller().prestabilize
-    runs = {}
-    for real in ("double", "float"):
-        ctl, folder = load_design(design, real)
-        try:
-            runs[real] = run_lockstep(design, ctl, model.x_hanging, 8.0)
-        finally:
-            discard(folder)
-    d, f = runs["double"], runs["float"]
+    d, f = _double_and_float(design, model.x_hanging, 8.0)
     assert d.max_ctrl_diff <= 1e-7 and np.all(d.codes == 0)
     late = d.t >= 1.0
     assert np.abs(d.c_ctrl[late] - d.py_ctrl[late]).max() <= 1e-9
