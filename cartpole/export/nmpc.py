@@ -4,9 +4,10 @@
 Each control instant: the stored iterate shifted by the periods since the last solve (its tail extended with the
 offline plan's input while the plan lasts, else the upright LQR's, through the CasADi-generated stage), re-seeded
 from the measured state when it is garbage, aligned to the measured hinge turns; then ``iterations`` Gauss-Newton
-steps, each the CasADi-generated condensing (``cp_nmpc_qp_data``, the same graph the Python controller compiles)
-and the condensed QP solved by the static-memory dual active-set solver of :mod:`cartpole.export.qp`; the first
-input applied. A QP that fails, or a step that is not finite, takes the Python controller's safe action (the
+steps, each the stages' exact linearisations (``cp_nmpc_lin``: the Python controller's stage, chain rule over the
+period's physics steps, as one CasADi-generated straight-line SX expression), the QP condensed in C by the Python
+controller's recursions (:func:`condense_code`: O(N^2) arithmetic on O(N) memory, no dense ``G``) and solved by the
+static-memory dual active-set solver of :mod:`cartpole.export.qp`; the first input applied. A QP that fails, or a step that is not finite, takes the Python controller's safe action (the
 previous plan's input mid swing-up, the upright LQR near upright) and returns ``CP_FALLBACK``.
 
 Both condensings of the Python controller: plain (``z = du``, the ctrl bounds are bounds of ``z``) and
@@ -39,7 +40,7 @@ def nmpc_part(ctl, plan) -> CPart:
     -------
     CPart
     """
-    from cartpole.mpc.stage_functions import stage_functions
+    from cartpole.mpc.stage_functions import stage_expression, stage_functions
 
     pre = bool(ctl.prestabilize)
     p = ctl.problem
@@ -50,10 +51,9 @@ def nmpc_part(ctl, plan) -> CPart:
     nuc = nzu if pre else 0  # pre-stabilised: the ctrl bounds are the first nuc rows
     nr = nuc + 2 * N * nb
     fns = stage_functions(ctl.model, steps, N, compiled=False, prestabilized=pre)
-    args = [ca.MX.sym(f"a{i}", fns.qp_data.size_in(i)) for i in range(fns.qp_data.n_in())]
-    qp_data = ca.Function("cp_nmpc_qp_data", args, fns.qp_data(*args))
-    xs, us = ca.MX.sym("x", nx), ca.MX.sym("u", nu)
-    stage = ca.Function("cp_nmpc_stage", [xs, us], [fns.stage(xs, us)[0]])
+    xs = ca.MX.sym("x", nx)
+    lin = stage_expression(ctl.model, steps)
+    lin = ca.Function("cp_nmpc_lin", lin.sx_in(), lin.call(lin.sx_in()), {"cse": True})  # A, B dense, column-major
     Ur = ca.MX.sym("U", nu, N)
     rollout = ca.Function("cp_nmpc_rollout", [xs, Ur], [fns.rollout(xs, Ur)])
     S0, U0 = ctl.plan
@@ -80,13 +80,18 @@ def nmpc_part(ctl, plan) -> CPart:
               f"cp_real mp_hold[{nu}];", f"cp_real mp_H[{nz * nz}];", f"cp_real mp_h[{nz}];",
               f"cp_real mp_A[{max(1, nr) * nz}];", f"cp_real mp_lba[{max(1, nr)}];", f"cp_real mp_uba[{max(1, nr)}];",
               f"cp_real mp_lbx[{nz}];", f"cp_real mp_ubx[{nz}];", f"cp_real mp_z[{nz}];",
-              f"cp_real mp_Hu[{nzu * nzu}];", f"cp_real mp_hu[{nzu}];", f"cp_real mp_g[{nx * (N + 1)}];",
-              f"cp_real mp_G[{nx * N * nzu}];", f"cp_real mp_goal[{nx}];", f"cp_real mp_tmp[{nx * N}];",
-              f"cp_real mp_Fu[{nzu * nzu if pre else 1}];", f"cp_real mp_fu[{nzu if pre else 1}];",
+              f"cp_real mp_g[{nx * (N + 1)}];", f"cp_real mp_e[{nx * (N + 1)}];", f"cp_real mp_c[{nx * N}];",
+              f"cp_real mp_Ak[{N * nx * nx}];", f"cp_real mp_Bk[{N * nx * nu}];", f"cp_real mp_Lam[{N * nx * nx}];",
+              f"cp_real mp_lam[{N * nx}];", f"cp_real mp_BtL[{N * nu * nx}];", f"cp_real mp_X[{nx * nu}];",
+              f"cp_real mp_T[{nx * nx}];", f"cp_real mp_T2[{nx * nx}];", f"cp_real mp_ds[{nx}];",
+              f"cp_real mp_ds2[{nx}];", f"cp_real mp_r[{nzu}];", f"cp_real mp_RK[{nu * nx}];",
+              f"cp_real mp_goal[{nx}];", f"cp_real mp_tmp[{nx * N}];",
+              *((f"cp_real mp_K[{N * nu * nx}];", f"cp_real mp_fu[{nzu}];", f"cp_real mp_Pn[{nx * nx}];",
+                 f"cp_real mp_BtP[{nu * nx}];", f"cp_real mp_M[{nu * nu}];", f"cp_real mp_KG[{nu * nu}];")
+                if pre else ()),
               *qp_fields(nz, nr))
-    c_qp = call(qp_data, ["x", "Sx", "Ux", "S.mp_goal", "MP_UG", "MP_QS", "MP_RS", "MP_P"],
-                ["S.mp_Hu", "S.mp_hu", "S.mp_g", "S.mp_G"] + (["S.mp_Fu", "S.mp_fu"] if pre else []))
-    c_stage = call(stage, ["S.mp_S + MP_N * NX", "ut"], ["xt"])
+    c_lin = call(lin, ["Sx + k * NX", "Ux + k * CP_NU"], ["ck", "S.mp_Ak + k * NX * NX", "S.mp_Bk + k * NX * CP_NU"])
+    c_stage = call(lin, ["S.mp_S + MP_N * NX", "ut"], ["xt", "0", "0"])
     c_roll = call(rollout, ["x", "U"], ["S.mp_tmp"])
     plan_input = """
 static void mp_plan_input(double t, cp_real* u)
@@ -122,49 +127,14 @@ static void mp_plan_input(double t, cp_real* u)
     }
     mlqr_eval(s_last, u);
 """ if has_plan else "    (void)k_phys;\n    mlqr_eval(s_last, u);\n")
-    rows = """
-    for (k = 0; k < MP_N; ++k) { /* stage-major, bound-minor: q_k - sigma <= q_high, q_k + sigma >= q_low */
-        for (b = 0; b < MP_NB; ++b) {
-            int rr = MP_NUC + k * MP_NB + b, q = MP_BIDX[b];
-            cp_real val = Sx[(k + 1) * NX + q] + S.mp_g[(k + 1) * NX + q];
-            for (j = 0; j < MP_NZU; ++j) {
-                cp_real gv = S.mp_G[((long)k * MP_NZU + j) * NX + q];
-                S.mp_A[rr * (MP_NZU + 1) + j] = gv;
-                S.mp_A[(MP_N * MP_NB + rr) * (MP_NZU + 1) + j] = gv;
-            }
-            S.mp_A[rr * (MP_NZU + 1) + MP_NZU] = -1;
-            S.mp_A[(MP_N * MP_NB + rr) * (MP_NZU + 1) + MP_NZU] = 1;
-            S.mp_lba[rr] = -INFINITY;
-            S.mp_uba[rr] = MP_QHI[b] - val;
-            S.mp_lba[MP_N * MP_NB + rr] = MP_QLO[b] - val;
-            S.mp_uba[MP_N * MP_NB + rr] = INFINITY;
-        }
-    }
-""" if nb else "    (void)b;\n"
     row_len = ([(k + 1) * nu for k in range(N) for _i in range(nu)] if pre else []) + [
         (k + 1) * nu for _ in range(2) for k in range(N) for _b in range(nb)]
-    ctrl_rows = """
-    for (i = 0; i < MP_NUC; ++i) { /* ctrl rows: u_low - (U + fu) <= Fu dv <= u_high - (U + fu); Fu column-major */
-        cp_real un = Ux[i] + S.mp_fu[i];
-        for (j = 0; j < MP_NZU; ++j) {
-            S.mp_A[i * (MP_NZU + 1) + j] = S.mp_Fu[j * MP_NZU + i];
-        }
-        S.mp_A[i * (MP_NZU + 1) + MP_NZU] = 0;
-        S.mp_lba[i] = MP_ULO[i % CP_NU] - un;
-        S.mp_uba[i] = MP_UHI[i % CP_NU] - un;
-    }
-""" if pre else ""
-    bounds = ("""        S.mp_lbx[i] = -INFINITY;
-        S.mp_ubx[i] = INFINITY;
-""" if pre else """        S.mp_lbx[i] = MP_ULO[i % CP_NU] - Ux[i];
-        S.mp_ubx[i] = MP_UHI[i % CP_NU] - Ux[i];
-""")
-    du = ("""        du = S.mp_fu[i];
-        for (j = 0; j < (i / CP_NU + 1) * CP_NU; ++j) {
-            du += S.mp_Fu[j * MP_NZU + i] * S.mp_z[j];
-        }
-""" if pre else "        du = S.mp_z[i];\n")
-    code = lcode + qp_code(nz, nr, row_len) + plan_input + f"""
+    du = ("""            du = zk[a];
+            for (j = 0; j < NX; ++j) {
+                du -= S.mp_K[(k * CP_NU + a) * NX + j] * S.mp_ds[j];
+            }
+""" if pre else "            du = zk[a];\n")
+    code = lcode + qp_code(nz, nr, row_len) + plan_input + condense_code(nu, pre, nb).replace("@LIN@", c_lin) + f"""
 static void mp_reset(void)
 {{
     int i;
@@ -249,7 +219,7 @@ static void mp_reseed(const cp_real* x, const cp_real* U, cp_real* Sout)
 /* one Gauss-Newton step from (Sx, Ux) with s_0 = x into (S.mp_Sn, S.mp_Un); 0, or nonzero for a failure */
 static int mp_gn_step(const cp_real* x, const cp_real* Sx, const cp_real* Ux, cp_real* step)
 {{
-    int i, j, k, b, code;
+    int i, j, k, a, code;
     cp_real acc, du;
     for (i = 0; i < NX; ++i) {{
         S.mp_goal[i] = MP_XG[i];
@@ -258,40 +228,40 @@ static int mp_gn_step(const cp_real* x, const cp_real* Sx, const cp_real* Ux, cp
         int hh = MP_HINGE[i];
         S.mp_goal[hh] += 2 * CP_PI_ * rint((Sx[MP_N * NX + hh] - S.mp_goal[hh]) / (2 * CP_PI_));
     }}
-    {c_qp}
-    for (i = 0; i < MP_NZU; ++i) {{
-        for (j = 0; j < MP_NZU; ++j) {{
-            S.mp_H[i * (MP_NZU + 1) + j] = S.mp_Hu[i * MP_NZU + j];
-        }}
-        S.mp_H[i * (MP_NZU + 1) + MP_NZU] = 0;
-        S.mp_H[MP_NZU * (MP_NZU + 1) + i] = 0;
-        S.mp_h[i] = S.mp_hu[i];
-{bounds}    }}
-    S.mp_H[MP_NZU * (MP_NZU + 1) + MP_NZU] = MP_RHO2;
-    S.mp_h[MP_NZU] = MP_RHO1;
-    S.mp_lbx[MP_NZU] = 0;
-    S.mp_ubx[MP_NZU] = INFINITY;
-{ctrl_rows}{rows}    code = qp_solve(S.mp_H, S.mp_h, S.mp_A, S.mp_lba, S.mp_uba, S.mp_lbx, S.mp_ubx, S.mp_z);
+    mp_condense(x, Sx, Ux);
+    code = qp_solve(S.mp_H, S.mp_h, S.mp_A, S.mp_lba, S.mp_uba, S.mp_lbx, S.mp_ubx, S.mp_z);
     if (code != 0 || !mp_finite(S.mp_z, MP_NZU)) {{
         return 1;
     }}
+    /* the linearised prediction ds_k+1 = A_k ds_k + B_k z_k + c_k from ds_0 = g_0 (A_k the closed loop's and
+       du_k = z_k - K_k ds_k when pre-stabilised; du_k = z_k when plain): the QP's g + G z */
     *step = 0;
-    for (k = 0; k <= MP_N; ++k) {{
-        for (i = 0; i < NX; ++i) {{
-            acc = S.mp_g[k * NX + i];
-            if (k > 0) {{
-                cp_real a2 = 0;
-                for (j = 0; j < MP_NZU; ++j) {{
-                    a2 += S.mp_G[((long)(k - 1) * MP_NZU + j) * NX + i] * S.mp_z[j];
-                }}
-                acc += a2;
-            }}
-            S.mp_Sn[k * NX + i] = Sx[k * NX + i] + acc;
-        }}
+    for (i = 0; i < NX; ++i) {{
+        S.mp_ds[i] = S.mp_g[i];
+        S.mp_Sn[i] = Sx[i] + S.mp_ds[i];
     }}
-    for (i = 0; i < MP_NZU; ++i) {{
-{du}        S.mp_Un[i] = cp_clip(Ux[i] + du, MP_ULO[i % CP_NU], MP_UHI[i % CP_NU]);
-        *step = fabs(du) > *step ? fabs(du) : *step;
+    for (k = 0; k < MP_N; ++k) {{
+        const cp_real* Ak = S.mp_Ak + k * NX * NX;
+        const cp_real* Bk = S.mp_Bk + k * NX * CP_NU;
+        const cp_real* zk = S.mp_z + k * CP_NU;
+        for (a = 0; a < CP_NU; ++a) {{
+{du}            S.mp_Un[k * CP_NU + a] = cp_clip(Ux[k * CP_NU + a] + du, MP_ULO[a], MP_UHI[a]);
+            *step = fabs(du) > *step ? fabs(du) : *step;
+        }}
+        for (i = 0; i < NX; ++i) {{
+            acc = 0;
+            for (j = 0; j < NX; ++j) {{
+                acc += Ak[i + j * NX] * S.mp_ds[j];
+            }}
+            for (a = 0; a < CP_NU; ++a) {{
+                acc += Bk[i + a * NX] * zk[a];
+            }}
+            S.mp_ds2[i] = acc + S.mp_c[k * NX + i];
+        }}
+        for (i = 0; i < NX; ++i) {{
+            S.mp_ds[i] = S.mp_ds2[i];
+            S.mp_Sn[(k + 1) * NX + i] = Sx[(k + 1) * NX + i] + S.mp_ds[i];
+        }}
     }}
     return mp_finite(S.mp_Sn, (MP_N + 1) * NX) ? 0 : 2;
 }}
@@ -399,8 +369,370 @@ static int ctrl_eval(double t, const cp_real* x, cp_real* u)
     return ok ? CP_OK : CP_FALLBACK;
 }}
 """
-    return CPart(tables=tables, code=code, fields=fields, reset="    mp_reset();\n",
-                 functions=(qp_data, stage, rollout))
+    return CPart(tables=tables, code=code, fields=fields, reset=condense_constants_code(pre, nb) + "    mp_reset();\n",
+                 functions=(lin, rollout))
+
+
+def condense_code(nu: int, pre: bool, nb: int) -> str:
+    """C text of ``mp_condense(x, Sx, Ux)``: the stage linearisations along the iterate (the CasADi-generated
+    ``cp_nmpc_lin``, one call per stage) and the Gauss-Newton QP condensed onto ``z`` as
+    :func:`cartpole.mpc.stage_functions.stage_functions`' ``qp_data`` condenses it (plain: ``z = du``;
+    pre-stabilised: ``z = dv``, ``du = fu + Fu dv`` with the Riccati gains ``K_k`` along the iterate), without the
+    dense ``G``: the backward recursion stores ``Lambda_k+1``, ``lambda_k+1`` per stage and each column block ``j``
+    of the Hessian and of the causal rows is produced by one forward sweep of ``G_k+1,j = A_k G_k,j`` (``A_k`` the
+    closed loop's when pre-stabilised), O(N^2 nx^2 nu) arithmetic on O(N nx^2) memory. It writes the lower triangle
+    of ``S.mp_H`` (all the QP solver reads), ``S.mp_h``, the varying entries of ``S.mp_A`` and the row and bound
+    limits; the constant ones (slack column, the identity blocks of the ctrl rows, zeros) are set once by
+    :func:`condense_constants_code`.
+
+    Parameters
+    ----------
+    nu : int
+        Inputs per stage (``CP_NU``).
+    pre : bool
+        Pre-stabilised condensing.
+    nb : int
+        Bounded joints (rail rows per stage and side).
+
+    Returns
+    -------
+    str
+    """
+    solve = ("""        for (a = 0; a < NX; ++a) { /* nu = 1: K = (B'PA) / (R + B'PB) */
+            S.mp_K[k * NX + a] = S.mp_T2[a] / S.mp_M[0];
+        }
+""" if nu == 1 else """        for (a = 0; a < CP_NU; ++a) { /* M = L L' (lower, in place), then K = M^-1 (B'PA) column by column */
+            for (b = 0; b <= a; ++b) {
+                acc = S.mp_M[a * CP_NU + b];
+                for (s = 0; s < b; ++s) {
+                    acc -= S.mp_M[a * CP_NU + s] * S.mp_M[b * CP_NU + s];
+                }
+                S.mp_M[a * CP_NU + b] = a == b ? sqrt(acc) : acc / S.mp_M[b * CP_NU + b];
+            }
+        }
+        for (c = 0; c < NX; ++c) {
+            cp_real* Kw = S.mp_K + k * CP_NU * NX;
+            for (a = 0; a < CP_NU; ++a) {
+                acc = S.mp_T2[a * NX + c];
+                for (s = 0; s < a; ++s) {
+                    acc -= S.mp_M[a * CP_NU + s] * Kw[s * NX + c];
+                }
+                Kw[a * NX + c] = acc / S.mp_M[a * CP_NU + a];
+            }
+            for (a = CP_NU - 1; a >= 0; --a) {
+                acc = Kw[a * NX + c];
+                for (s = a + 1; s < CP_NU; ++s) {
+                    acc -= S.mp_M[s * CP_NU + a] * Kw[s * NX + c];
+                }
+                Kw[a * NX + c] = acc / S.mp_M[a * CP_NU + a];
+            }
+        }
+""")
+    riccati = f"""
+    for (i = 0; i < NX * NX; ++i) {{
+        S.mp_Pn[i] = MP_P[i];
+    }}
+    for (k = MP_N - 1; k >= 0; --k) {{ /* K_k = (R + B'PB)^-1 B'PA, P <- Q + K'RK + Acl' P Acl; A_k <- Acl */
+        cp_real* Ak = S.mp_Ak + k * NX * NX;
+        const cp_real* Bk = S.mp_Bk + k * NX * CP_NU;
+        const cp_real* Kk = S.mp_K + k * CP_NU * NX;
+        for (a = 0; a < CP_NU; ++a) {{
+            for (c = 0; c < NX; ++c) {{
+                acc = 0;
+                for (s = 0; s < NX; ++s) {{
+                    acc += Bk[s + a * NX] * S.mp_Pn[s * NX + c];
+                }}
+                S.mp_BtP[a * NX + c] = acc;
+            }}
+            for (b = 0; b < CP_NU; ++b) {{
+                acc = 0;
+                for (s = 0; s < NX; ++s) {{
+                    acc += S.mp_BtP[a * NX + s] * Bk[s + b * NX];
+                }}
+                S.mp_M[a * CP_NU + b] = MP_RS[a * CP_NU + b] + acc;
+            }}
+            for (c = 0; c < NX; ++c) {{
+                acc = 0;
+                for (s = 0; s < NX; ++s) {{
+                    acc += S.mp_BtP[a * NX + s] * Ak[s + c * NX];
+                }}
+                S.mp_T2[a * NX + c] = acc;
+            }}
+        }}
+{solve}        for (r = 0; r < NX; ++r) {{
+            for (c = 0; c < NX; ++c) {{
+                acc = 0;
+                for (a = 0; a < CP_NU; ++a) {{
+                    acc += Bk[r + a * NX] * Kk[a * NX + c];
+                }}
+                Ak[r + c * NX] -= acc;
+            }}
+        }}
+        mp_lambda_update(S.mp_Pn, Ak, Kk, S.mp_Pn);
+    }}
+""" if pre else ""
+    kterm = """
+            acc = 0;
+            for (a = 0; a < CP_NU; ++a) {
+                acc += Kk[a * NX + r] * S.mp_RK[a * NX + c];
+            }
+            v += acc;""" if pre else ""
+    rk = """    for (a = 0; a < CP_NU; ++a) {
+        for (c = 0; c < NX; ++c) {
+            acc = 0;
+            for (b = 0; b < CP_NU; ++b) {
+                acc += MP_RS[a * CP_NU + b] * Kk[b * NX + c];
+            }
+            S.mp_RK[a * NX + c] = acc;
+        }
+    }
+""" if pre else "    (void)Kk;\n"
+    fu = """        for (a = 0; a < CP_NU; ++a) { /* f_k = -K_k g_k */
+            acc = 0;
+            for (s = 0; s < NX; ++s) {
+                acc += S.mp_K[(k * CP_NU + a) * NX + s] * gk[s];
+            }
+            S.mp_fu[k * CP_NU + a] = -acc;
+            S.mp_r[k * CP_NU + a] = Ux[k * CP_NU + a] + S.mp_fu[k * CP_NU + a] - MP_UG[a];
+        }
+""" if pre else """        for (a = 0; a < CP_NU; ++a) {
+            S.mp_r[k * CP_NU + a] = Ux[k * CP_NU + a] - MP_UG[a];
+        }
+"""
+    lterm = """
+            acc = 0;
+            for (a = 0; a < CP_NU; ++a) { /* - K' R r_k */
+                cp_real rr = 0;
+                for (b = 0; b < CP_NU; ++b) {
+                    rr += MP_RS[a * CP_NU + b] * S.mp_r[k * CP_NU + b];
+                }
+                acc += Kk[a * NX + r] * rr;
+            }
+            S.mp_lam[(k - 1) * NX + r] -= acc;""" if pre else ""
+    kg = """                for (a = 0; a < CP_NU; ++a) { /* K_i G_i,j; the ctrl rows' block F_i,j = -K_i G_i,j */
+                    for (b = 0; b < CP_NU; ++b) {
+                        acc = 0;
+                        for (s = 0; s < NX; ++s) {
+                            acc += S.mp_K[(i * CP_NU + a) * NX + s] * X[s + b * NX];
+                        }
+                        S.mp_KG[a * CP_NU + b] = acc;
+                        S.mp_A[(i * CP_NU + a) * (MP_NZU + 1) + j * CP_NU + b] = -acc;
+                    }
+                }
+""" if pre else ""
+    hterm = """
+                        for (c = 0; c < CP_NU; ++c) {
+                            acc -= MP_RS[a * CP_NU + c] * S.mp_KG[c * CP_NU + b];
+                        }""" if pre else ""
+    rails = """            for (bb = 0; bb < MP_NB; ++bb) { /* the rail rows of stage i: q_i+1 */
+                int rr = MP_NUC + i * MP_NB + bb, q = MP_BIDX[bb];
+                for (b = 0; b < CP_NU; ++b) {
+                    S.mp_A[rr * (MP_NZU + 1) + j * CP_NU + b] = X[q + b * NX];
+                    S.mp_A[(MP_N * MP_NB + rr) * (MP_NZU + 1) + j * CP_NU + b] = X[q + b * NX];
+                }
+            }
+""" if nb else "            (void)bb;\n"
+    limits = """    for (k = 0; k < MP_N; ++k) {
+        for (bb = 0; bb < MP_NB; ++bb) {
+            int rr = MP_NUC + k * MP_NB + bb, q = MP_BIDX[bb];
+            cp_real val = Sx[(k + 1) * NX + q] + S.mp_g[(k + 1) * NX + q];
+            S.mp_uba[rr] = MP_QHI[bb] - val;
+            S.mp_lba[MP_N * MP_NB + rr] = MP_QLO[bb] - val;
+        }
+    }
+""" if nb else ""
+    ulim = """    for (i = 0; i < MP_NZU; ++i) { /* ctrl rows: u_low - (U + fu) <= Fu dv <= u_high - (U + fu) */
+        cp_real un = Ux[i] + S.mp_fu[i];
+        S.mp_lba[i] = MP_ULO[i % CP_NU] - un;
+        S.mp_uba[i] = MP_UHI[i % CP_NU] - un;
+    }
+""" if pre else """    for (i = 0; i < MP_NZU; ++i) { /* z = du: the ctrl bounds are bounds */
+        S.mp_lbx[i] = MP_ULO[i % CP_NU] - Ux[i];
+        S.mp_ubx[i] = MP_UHI[i % CP_NU] - Ux[i];
+    }
+"""
+    return f"""
+/* L_out = Q + Acl' L Acl (+ K'RK when pre-stabilised) for one stage; L_out may be L (symmetric, row-major) */
+static void mp_lambda_update(const cp_real* L, const cp_real* Ak, const cp_real* Kk, cp_real* L_out)
+{{
+    int r, c, s, a, b;
+    cp_real acc, v;
+{rk}    for (r = 0; r < NX; ++r) {{
+        for (c = 0; c < NX; ++c) {{
+            acc = 0;
+            for (s = 0; s < NX; ++s) {{
+                acc += L[r * NX + s] * Ak[s + c * NX];
+            }}
+            S.mp_T[r * NX + c] = acc;
+        }}
+    }}
+    for (r = 0; r < NX; ++r) {{
+        for (c = 0; c < NX; ++c) {{
+            acc = 0;
+            for (s = 0; s < NX; ++s) {{
+                acc += Ak[s + r * NX] * S.mp_T[s * NX + c];
+            }}
+            v = MP_QS[r * NX + c] + acc;{kterm}
+            S.mp_T2[r * NX + c] = v;
+        }}
+    }}
+    for (r = 0; r < NX * NX; ++r) {{
+        L_out[r] = S.mp_T2[r];
+    }}
+    (void)a;
+    (void)b;
+}}
+
+/* the condensed Gauss-Newton QP of one step from (Sx, Ux) with s_0 = x (see the module doc) */
+static void mp_condense(const cp_real* x, const cp_real* Sx, const cp_real* Ux)
+{{
+    int i, j, k, a, b, c, r, s, bb;
+    cp_real acc;
+    for (k = 0; k < MP_N; ++k) {{ /* F_k, A_k, B_k; the gaps c_k = F_k - s_k+1 */
+        cp_real* ck = S.mp_c + k * NX;
+        @LIN@
+        for (r = 0; r < NX; ++r) {{
+            ck[r] -= Sx[(k + 1) * NX + r];
+        }}
+    }}
+{riccati}    for (r = 0; r < NX; ++r) {{
+        S.mp_g[r] = x[r] - Sx[r];
+    }}
+    for (k = 0; k < MP_N; ++k) {{ /* g_k+1 = A_k g_k + c_k */
+        const cp_real* Ak = S.mp_Ak + k * NX * NX;
+        const cp_real* gk = S.mp_g + k * NX;
+{fu}        for (r = 0; r < NX; ++r) {{
+            acc = 0;
+            for (s = 0; s < NX; ++s) {{
+                acc += Ak[r + s * NX] * gk[s];
+            }}
+            S.mp_g[(k + 1) * NX + r] = acc + S.mp_c[k * NX + r];
+        }}
+    }}
+    for (k = 0; k <= MP_N; ++k) {{ /* e_k = s_k + g_k - x* */
+        for (r = 0; r < NX; ++r) {{
+            S.mp_e[k * NX + r] = Sx[k * NX + r] + S.mp_g[k * NX + r] - S.mp_goal[r];
+        }}
+    }}
+    for (i = 0; i < NX * NX; ++i) {{ /* slot k holds Lambda_k+1, lambda_k+1: Lambda_N = P, lambda_N = P e_N */
+        S.mp_Lam[(MP_N - 1) * NX * NX + i] = MP_P[i];
+    }}
+    for (r = 0; r < NX; ++r) {{
+        acc = 0;
+        for (s = 0; s < NX; ++s) {{
+            acc += MP_P[r * NX + s] * S.mp_e[MP_N * NX + s];
+        }}
+        S.mp_lam[(MP_N - 1) * NX + r] = acc;
+    }}
+    for (k = MP_N - 1; k >= 1; --k) {{ /* Lambda_k = Q + A_k' Lambda_k+1 A_k, lambda_k = Q e_k + A_k' lambda_k+1 */
+        const cp_real* Ak = S.mp_Ak + k * NX * NX;
+        const cp_real* Kk = {"S.mp_K + k * CP_NU * NX" if pre else "0"};
+        mp_lambda_update(S.mp_Lam + k * NX * NX, Ak, Kk, S.mp_Lam + (k - 1) * NX * NX);
+        for (r = 0; r < NX; ++r) {{
+            cp_real v = 0;
+            acc = 0;
+            for (s = 0; s < NX; ++s) {{
+                v += MP_QS[r * NX + s] * S.mp_e[k * NX + s];
+                acc += Ak[s + r * NX] * S.mp_lam[k * NX + s];
+            }}
+            S.mp_lam[(k - 1) * NX + r] = v + acc;{lterm}
+        }}
+        (void)Kk;
+    }}
+    for (i = 0; i < MP_N; ++i) {{ /* B_i' Lambda_i+1; the diagonal blocks B_i' Lambda_i+1 B_i + R and h_i */
+        const cp_real* Bi = S.mp_Bk + i * NX * CP_NU;
+        cp_real* BtL = S.mp_BtL + i * CP_NU * NX;
+        for (a = 0; a < CP_NU; ++a) {{
+            for (c = 0; c < NX; ++c) {{
+                acc = 0;
+                for (s = 0; s < NX; ++s) {{
+                    acc += Bi[s + a * NX] * S.mp_Lam[i * NX * NX + s * NX + c];
+                }}
+                BtL[a * NX + c] = acc;
+            }}
+            for (b = 0; b <= a; ++b) {{
+                acc = 0;
+                for (s = 0; s < NX; ++s) {{
+                    acc += BtL[a * NX + s] * Bi[s + b * NX];
+                }}
+                S.mp_H[(i * CP_NU + a) * (MP_NZU + 1) + i * CP_NU + b] = acc + MP_RS[a * CP_NU + b];
+            }}
+            acc = 0;
+            for (s = 0; s < NX; ++s) {{
+                acc += Bi[s + a * NX] * S.mp_lam[i * NX + s];
+            }}
+            for (b = 0; b < CP_NU; ++b) {{
+                acc += MP_RS[a * CP_NU + b] * S.mp_r[i * CP_NU + b];
+            }}
+            S.mp_h[i * CP_NU + a] = acc;
+        }}
+    }}
+    for (j = 0; j < MP_N; ++j) {{ /* column block j: G_j+1,j = B_j, G_i+1,j = A_i G_i,j */
+        cp_real* X = S.mp_X;
+        for (i = 0; i < NX * CP_NU; ++i) {{
+            X[i] = S.mp_Bk[j * NX * CP_NU + i];
+        }}
+        for (i = j; i < MP_N; ++i) {{
+            if (i > j) {{
+                const cp_real* Ai = S.mp_Ak + i * NX * NX;
+                const cp_real* BtL = S.mp_BtL + i * CP_NU * NX;
+{kg}                for (b = 0; b < CP_NU; ++b) {{
+                    for (r = 0; r < NX; ++r) {{
+                        acc = 0;
+                        for (s = 0; s < NX; ++s) {{
+                            acc += Ai[r + s * NX] * X[s + b * NX];
+                        }}
+                        S.mp_ds[r] = acc;
+                    }}
+                    for (r = 0; r < NX; ++r) {{
+                        X[r + b * NX] = S.mp_ds[r];
+                    }}
+                }}
+                for (a = 0; a < CP_NU; ++a) {{ /* H_i,j = B_i' Lambda_i+1 G_i+1,j (- R K_i G_i,j) */
+                    for (b = 0; b < CP_NU; ++b) {{
+                        acc = 0;
+                        for (s = 0; s < NX; ++s) {{
+                            acc += BtL[a * NX + s] * X[s + b * NX];
+                        }}{hterm}
+                        S.mp_H[(i * CP_NU + a) * (MP_NZU + 1) + j * CP_NU + b] = acc;
+                    }}
+                }}
+            }}
+{rails}        }}
+    }}
+    for (i = 0; i < MP_NZU; ++i) {{ /* the slack's row (its Cholesky factor overwrote it) */
+        S.mp_H[MP_NZU * (MP_NZU + 1) + i] = 0;
+    }}
+    S.mp_H[MP_NZU * (MP_NZU + 1) + MP_NZU] = MP_RHO2;
+    S.mp_h[MP_NZU] = MP_RHO1;
+{ulim}{limits}}}
+"""
+
+
+def condense_constants_code(pre: bool, nb: int) -> str:
+    """C statements (run by ``cp_reset`` on the zeroed state) setting the QP entries :func:`condense_code` never
+    changes: the slack's bounds and column, the identity blocks of the pre-stabilised ctrl rows, the one-sided
+    rail rows' infinite limits and the pre-stabilised ``z``'s infinite bounds."""
+    ident = """    for (i = 0; i < MP_NZU; ++i) { /* F_k,k = I */
+        S.mp_A[i * (MP_NZU + 1) + i] = 1;
+        S.mp_lbx[i] = -INFINITY;
+        S.mp_ubx[i] = INFINITY;
+    }
+""" if pre else ""
+    rails = """    for (i = 0; i < MP_N * MP_NB; ++i) { /* q - sigma <= q_high, q + sigma >= q_low */
+        S.mp_A[(MP_NUC + i) * (MP_NZU + 1) + MP_NZU] = -1;
+        S.mp_A[(MP_NUC + MP_N * MP_NB + i) * (MP_NZU + 1) + MP_NZU] = 1;
+        S.mp_lba[MP_NUC + i] = -INFINITY;
+        S.mp_uba[MP_NUC + MP_N * MP_NB + i] = INFINITY;
+    }
+""" if nb else ""
+    return f"""    {{
+        int i;
+{ident}{rails}        S.mp_lbx[MP_NZU] = 0;
+        S.mp_ubx[MP_NZU] = INFINITY;
+        (void)i;
+    }}
+"""
 
 
 def nmpc_design(model, x0, period: float):

@@ -77,14 +77,35 @@ def _one_step(model: CartPoleModel) -> ca.Function:
                        ["x_next", "A", "B"], {"cse": True})
 
 
-def _chained(one: ca.Function, steps: int, nx: int, nu: int) -> ca.Function:
-    x, u = ca.MX.sym("x", nx), ca.MX.sym("u", nu)
-    xk, A, B = x, ca.MX.eye(nx), ca.MX.zeros(nx, nu)
+def _chained(one: ca.Function, steps: int, nx: int, nu: int, sym=ca.MX) -> ca.Function:
+    x, u = sym.sym("x", nx), sym.sym("u", nu)
+    xk, A, B = x, sym.eye(nx), sym.zeros(nx, nu)
     for _ in range(steps):
         xk, Ai, Bi = one(xk, u)
         A = ca.mtimes(Ai, A)
         B = ca.mtimes(Ai, B) + Bi
+    if sym is ca.SX:  # one flat expression (the single step inlined ``steps`` times), dense Jacobians
+        return ca.Function("nmpc_stage", [x, u], [xk, ca.densify(A), ca.densify(B)], ["x", "u"],
+                           ["x_next", "A", "B"], {"cse": True})
     return ca.Function("nmpc_stage", [x, u], [xk, A, B], ["x", "u"], ["x_next", "A", "B"])
+
+
+def stage_expression(model: CartPoleModel, steps: int) -> ca.Function:
+    """One stage ``(x (nx,), u (nu,)) -> (x_next (nx,), A (nx, nx), B (nx, nu))`` as one SX expression: the same
+    chain rule over ``steps`` physics steps as :attr:`StageFunctions.stage` (the same values), the single step
+    inlined ``steps`` times and the Jacobians dense, for straight-line generated C (the exported NMPC's).
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    steps : int
+        Physics steps per stage.
+
+    Returns
+    -------
+    casadi.Function
+    """
+    return _chained(_one_step(model), int(steps), model.nx, model.nu, ca.SX)
 
 
 def _period_expr(model: CartPoleModel, steps: int) -> ca.Function:
