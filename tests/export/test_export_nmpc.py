@@ -54,3 +54,67 @@ def test_two_pole_nmpc_export_is_prestabilised_and_swings_up_in_float32_too():
     for run in (d, f):
         assert swingup_success(run.rollout, model.params) and _replays(run.rollout)
         assert run.rollout.info["diverged"] is None
+
+
+_GN_HARNESS = r"""
+#include <stdio.h>
+#include "cartpole_controller.c"
+int main(void)
+{
+    static cp_real x[NX], Sx[(MP_N + 1) * NX], Ux[MP_NZU];
+    cp_real step;
+    int i;
+    cp_reset();
+    for (;;) {
+        for (i = 0; i < NX; ++i) if (scanf("%lf", &x[i]) != 1) return 0;
+        for (i = 0; i < (MP_N + 1) * NX; ++i) if (scanf("%lf", &Sx[i]) != 1) return 1;
+        for (i = 0; i < MP_NZU; ++i) if (scanf("%lf", &Ux[i]) != 1) return 1;
+        printf("%d", mp_gn_step(x, Sx, Ux, &step));
+        for (i = 0; i < MP_NZU; ++i) printf(" %.17g", S.mp_Un[i]);
+        for (i = 0; i < (MP_N + 1) * NX; ++i) printf(" %.17g", S.mp_Sn[i]);
+        printf("\n");
+    }
+}
+"""
+
+
+def test_two_pole_c_gauss_newton_step_equals_pythons_from_the_same_iterate(monkeypatch, tmp_path):
+    # the white-box half of the lockstep: each C step, from the Python controller's own iterate, is its step to
+    # 1e-9, also in the first half-second where the carried iterates drift apart (the test above)
+    import subprocess
+
+    from cartpole.export.build import find_compiler
+    from cartpole.mpc.nmpc import NMPCController
+
+    model = build_model(TWO_POLE)
+    design = design_export(model, "nmpc", None)
+    seen = []
+    gn = NMPCController._gn_step
+
+    def recording(self, x, S, U):
+        out = gn(self, x, S, U)
+        seen.append((np.array(x), np.array(S), np.array(U), np.array(out[0]), np.array(out[1])))
+        return out
+
+    monkeypatch.setattr(NMPCController, "_gn_step", recording)
+    ctl, folder = load_design(design, "double")
+    try:
+        run_lockstep(design, ctl, model.x_hanging, 0.6)
+        (tmp_path / "gn.c").write_text(_GN_HARNESS)
+        exe = tmp_path / "gn"
+        subprocess.run([find_compiler(), "-O2", f"-I{folder}/include", f"-I{folder}/src", "-o", str(exe),
+                        str(tmp_path / "gn.c"), f"{folder}/src/cp_generated.c", "-lm"], check=True)
+    finally:
+        discard(folder)
+    assert len(seen) >= 25  # every period of the first 0.6 s
+    text = "\n".join(" ".join(repr(float(v)) for v in np.concatenate([x.ravel(), S.ravel(), U.ravel()]))
+                     for x, S, U, _, _ in seen)
+    lines = subprocess.run([str(exe)], input=text, capture_output=True, text=True, check=True).stdout.splitlines()
+    assert len(lines) == len(seen)
+    for line, (_, S, U, S_py, U_py) in zip(lines, seen):
+        vals = line.split()
+        assert vals[0] == "0"
+        c = np.array([float(v) for v in vals[1:]])
+        U_c, S_c = c[:U.size], c[U.size:]
+        assert abs(U_c[0] - U_py.ravel()[0]) <= 1e-9  # the applied input
+        assert np.abs(U_c - U_py.ravel()).max() <= 1e-8 and np.abs(S_c - S_py.ravel()).max() <= 1e-8
