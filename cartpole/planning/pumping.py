@@ -9,14 +9,18 @@ A weak actuator swings a chain up only by pumping energy in over many swings (dm
    eigenvector ``l`` (``eta = l' (x - x_hanging)`` the mode's coordinate).
 2. :func:`pump_rollout`: the exact discrete model (``model.step``) from the start under the law that grows the mode's
    amplitude fastest, ``u = u_mid + u_half sign(Re(conj(eta) l' B))`` per actuator (hinge errors from hanging wrapped),
-   until the energy (less the cart's momentum part, :func:`pump_energy`) reaches upright's, then held there; cart
+   in proportion to the energy deficit (less the cart's momentum part, :func:`pump_energy`) until it reaches
+   upright's, then held there (or, ``full``, with the whole ctrl range below upright's energy: the proportional
+   push can stall short of upright against the damping); cart
    positions clipped into the bounds. A dynamically consistent shape of a pumping swing-up, seeded by the sign of the
    first push and a relaxed ctrl bound.
 3. :func:`pumping_search`: for durations ``T`` from the first pumping rollout that reaches upright energy, growing by
    a fraction of a mode period up to ``T_max``, each guess bent onto the goal at the end, solved as the fixed-time
    effort problem with the ctrl bound relaxed (``RELAX``: 1.6, 1.3, 1.1 times the half ranges) and shrunk to the
-   file's, each stage warm-started from the last; the first plan within the file's bound is kept. Every solve is an
-   :class:`~cartpole.ocp.records.Attempt`.
+   file's, each stage warm-started from the last; the first plan within the file's bound is kept. Where the
+   whole-range law under the file's bound reaches upright energy sooner than the gentle one (which stalls when
+   the damping takes out what its small pushes put in: the pendulum started near upright), the shorter durations
+   it opens are tried first from its rollouts. Every solve is an :class:`~cartpole.ocp.records.Attempt`.
 """
 from __future__ import annotations
 
@@ -104,7 +108,7 @@ def _energy_function(model: CartPoleModel):
 
 
 def pump_rollout(model: CartPoleModel, x0, duration: float, bounds: OCPBounds, *, relax: float = 1.0,
-                 first: float = 1.0, mode=None) -> tuple[np.ndarray, np.ndarray, float | None]:
+                 first: float = 1.0, mode=None, full: bool = False) -> tuple[np.ndarray, np.ndarray, float | None]:
     """Run the mode-pumping law (module notes) on ``model.step`` from ``x0`` for ``duration`` s.
 
     Parameters
@@ -121,6 +125,10 @@ def pump_rollout(model: CartPoleModel, x0, duration: float, bounds: OCPBounds, *
         +1 or -1: the sign of the first push (from rest the mode's amplitude is zero).
     mode : tuple, optional
         :func:`hanging_mode` (computed when not given).
+    full : bool
+        Below upright's energy push with the whole range; default in proportion to the energy deficit (four times
+        the deficit relative to hanging's, clipped to the range), which can stall short of upright against the
+        damping.
 
     Returns
     -------
@@ -150,7 +158,12 @@ def pump_rollout(model: CartPoleModel, x0, duration: float, bounds: OCPBounds, *
         Ek = float(energy(x[k]))
         if t_up is None and Ek >= 0.0:
             t_up = k * model.dt
-        level = np.clip(-Ek / max(1e-12, -E_h) * 4.0, -1.0, 1.0)  # below upright's energy: pump; above: brake
+        # below upright's energy: pump in proportion to the deficit (gentle near the top: the shape a plan can
+        # follow), or with the whole range (``full``: a proportional push stalls where it balances the
+        # damping's loss, short of upright); above: brake in proportion to the excess
+        level = float(np.clip(-Ek / max(1e-12, -E_h) * 4.0, -1.0, 1.0))
+        if full and Ek < 0.0:
+            level = 1.0
         u[k] = mid + half * sign * level
         x[k + 1] = np.asarray(model.step_np(x[k], u[k]), float).ravel()
         if not np.all(np.isfinite(x[k + 1])):
@@ -238,17 +251,29 @@ def pumping_search(model: CartPoleModel, x0, x_goal, bounds: OCPBounds, *, T_max
         else:  # seeded: a random first push and relaxation
             first, c0 = float(rng.choice((-1.0, 1.0))), float(rng.uniform(1.0, RELAX[0]))
         x, u, t_up = pump_rollout(model, x0, T_max, relaxed(bounds, c0), first=first, mode=mode)
-        probes.append((first, c0, x, u, t_up))
-    reach = [p[4] for p in probes if p[4] is not None]
+        probes.append((first, c0, False, x, u, t_up))
+    reach = [p[5] for p in probes if p[5] is not None]
     T0 = (min(reach) if reach else T_max / 4) + 0.5 * period
+    # the whole-range law under the file's bound: where it reaches upright energy before T0 (the gentle law stalls
+    # against the damping, e.g. a pendulum started near upright), the short durations it opens are tried first
+    full = []
+    for first in (1.0, -1.0):
+        x, u, t_up = pump_rollout(model, x0, T_max, bounds, first=first, mode=mode, full=True)
+        if t_up is not None and t_up + 0.5 * period < T0 - 1e-9:
+            full.append((first, 1.0, True, x, u, t_up))
+    schedule = []
+    if full:
+        schedule += [(float(T), full) for T in np.arange(min(p[5] for p in full) + 0.5 * period, T0 - 1e-9,
+                                                          0.5 * period)]
+    schedule += [(float(T), probes) for T in np.arange(T0, T_max + 1e-9, 0.5 * period)]
     built: dict[int, DirectCollocation] = {}
-    for T in np.arange(T0, T_max + 1e-9, 0.5 * period):
-        T = float(T)
+    for T, tried in schedule:
         N = max(MIN_N, 20 * math.ceil(N_PER_PERIOD * T / period / 20))  # nearby T share an NLP
-        for first, c0, x, u, _ in probes:
+        for first, c0, whole, x, u, _ in tried:
             if deadline_s is not None and time.perf_counter() - tic > deadline_s:
                 return None, None, attempts
-            name = f"pump {'+' if first > 0 else '-'}{'' if c0 == 1.0 else f' relaxed {c0:.3g}'} T={T:.2f}"
+            name = (f"pump{' full' if whole else ''} {'+' if first > 0 else '-'}"
+                    f"{'' if c0 == 1.0 else f' relaxed {c0:.3g}'} T={T:.2f}")
             guess = bent_guess(model, x, u, x_goal, T, N, relaxed(bounds, RELAX[0]))
             traj, info = None, None
             if N not in built:  # one NLP per mesh, scaled for the widest bound; the continuation moves its bounds
