@@ -7,8 +7,9 @@ from the measured state when it is garbage, aligned to the measured hinge turns;
 steps, each the stages' exact linearisations (``cp_nmpc_lin``: the Python controller's stage, chain rule over the
 period's physics steps, as one CasADi-generated straight-line SX expression), the QP condensed in C by the Python
 controller's recursions (:func:`condense_code`: O(N^2) arithmetic on O(N) memory, no dense ``G``) and solved by the
-static-memory dual active-set solver of :mod:`cartpole.export.qp`; the first input applied. A QP that fails, or a step that is not finite, takes the Python controller's safe action (the
-previous plan's input mid swing-up, the upright LQR near upright) and returns ``CP_FALLBACK``.
+static-memory dual active-set solver of :mod:`cartpole.export.qp`; the first input applied. A QP that fails, or a
+step that is not finite, takes the Python controller's safe action (the previous plan's input mid swing-up, the
+upright LQR near upright) and returns ``CP_FALLBACK``.
 
 Both condensings of the Python controller: plain (``z = du``, the ctrl bounds are bounds of ``z``) and
 pre-stabilised (``z = dv`` with ``du = fu + Fu dv``, the ctrl bounds are general rows ``Fu``, causal like the rail's;
@@ -17,7 +18,6 @@ about 5), the same QP rows in the same order as :meth:`cartpole.mpc.nmpc.NMPCCon
 """
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 
 from cartpole.export.controllers import linear_code
@@ -40,7 +40,7 @@ def nmpc_part(ctl, plan) -> CPart:
     -------
     CPart
     """
-    from cartpole.mpc.stage_functions import stage_expression, stage_functions
+    from cartpole.mpc.stage_functions import stage_expression, stage_rollout
 
     pre = bool(ctl.prestabilize)
     p = ctl.problem
@@ -50,12 +50,8 @@ def nmpc_part(ctl, plan) -> CPart:
     nb = len(p.bounded)
     nuc = nzu if pre else 0  # pre-stabilised: the ctrl bounds are the first nuc rows
     nr = nuc + 2 * N * nb
-    fns = stage_functions(ctl.model, steps, N, compiled=False, prestabilized=pre)
-    xs = ca.MX.sym("x", nx)
-    lin = stage_expression(ctl.model, steps)
-    lin = ca.Function("cp_nmpc_lin", lin.sx_in(), lin.call(lin.sx_in()), {"cse": True})  # A, B dense, column-major
-    Ur = ca.MX.sym("U", nu, N)
-    rollout = ca.Function("cp_nmpc_rollout", [xs, Ur], [fns.rollout(xs, Ur)])
+    lin = stage_expression(ctl.model, steps, "cp_nmpc_lin")  # (x_next, A, B); A, B dense, column-major
+    rollout = stage_rollout(ctl.model, steps, N, "cp_nmpc_rollout")
     S0, U0 = ctl.plan
     ltabs, lcode = linear_code(ctl.lqr, "mlqr")
     hinges = list(p.hinges)

@@ -77,7 +77,7 @@ def _one_step(model: CartPoleModel) -> ca.Function:
                        ["x_next", "A", "B"], {"cse": True})
 
 
-def _chained(one: ca.Function, steps: int, nx: int, nu: int, sym=ca.MX) -> ca.Function:
+def _chained(one: ca.Function, steps: int, nx: int, nu: int, sym=ca.MX, name: str = "nmpc_stage") -> ca.Function:
     x, u = sym.sym("x", nx), sym.sym("u", nu)
     xk, A, B = x, sym.eye(nx), sym.zeros(nx, nu)
     for _ in range(steps):
@@ -85,12 +85,12 @@ def _chained(one: ca.Function, steps: int, nx: int, nu: int, sym=ca.MX) -> ca.Fu
         A = ca.mtimes(Ai, A)
         B = ca.mtimes(Ai, B) + Bi
     if sym is ca.SX:  # one flat expression (the single step inlined ``steps`` times), dense Jacobians
-        return ca.Function("nmpc_stage", [x, u], [xk, ca.densify(A), ca.densify(B)], ["x", "u"],
+        return ca.Function(name, [x, u], [xk, ca.densify(A), ca.densify(B)], ["x", "u"],
                            ["x_next", "A", "B"], {"cse": True})
     return ca.Function("nmpc_stage", [x, u], [xk, A, B], ["x", "u"], ["x_next", "A", "B"])
 
 
-def stage_expression(model: CartPoleModel, steps: int) -> ca.Function:
+def stage_expression(model: CartPoleModel, steps: int, name: str = "nmpc_stage") -> ca.Function:
     """One stage ``(x (nx,), u (nu,)) -> (x_next (nx,), A (nx, nx), B (nx, nu))`` as one SX expression: the same
     chain rule over ``steps`` physics steps as :attr:`StageFunctions.stage` (the same values), the single step
     inlined ``steps`` times and the Jacobians dense, for straight-line generated C (the exported NMPC's).
@@ -100,12 +100,37 @@ def stage_expression(model: CartPoleModel, steps: int) -> ca.Function:
     model : CartPoleModel
     steps : int
         Physics steps per stage.
+    name : str
+        The Function's name (the C symbol it is generated under).
 
     Returns
     -------
     casadi.Function
     """
-    return _chained(_one_step(model), int(steps), model.nx, model.nu, ca.SX)
+    return _chained(_one_step(model), int(steps), model.nx, model.nu, ca.SX, name)
+
+
+def stage_rollout(model: CartPoleModel, steps: int, N: int, name: str = "nmpc_rollout") -> ca.Function:
+    """``(x (nx,), U (nu, N)) -> S (nx, N)``: the states after each of ``N`` stages of ``steps`` physics steps from
+    ``x`` under the inputs ``U`` (the forward simulation :attr:`StageFunctions.rollout` is).
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    steps : int
+        Physics steps per stage.
+    N : int
+        Stages.
+    name : str
+        The Function's name.
+
+    Returns
+    -------
+    casadi.Function
+    """
+    step_expr = _period_expr(model, int(steps))
+    x0, Ur = ca.MX.sym("x", model.nx), ca.MX.sym("U", model.nu, int(N))
+    return ca.Function(name, [x0, Ur], [step_expr.mapaccum(int(N))(x0, Ur)], ["x", "U"], ["S"])
 
 
 def _period_expr(model: CartPoleModel, steps: int) -> ca.Function:
@@ -290,8 +315,7 @@ def stage_functions(model: CartPoleModel, steps: int, N: int, *, compiled: bool 
     stage = _chained(one, steps, nx, nu)
     qp_data = (_qp_data_stabilized if prestabilized else _qp_data_plain)(stage, nx, nu, N)
     step_expr = _period_expr(model, steps)
-    x0, Ur = ca.MX.sym("x", nx), ca.MX.sym("U", nu, N)
-    rollout = ca.Function("nmpc_rollout", [x0, Ur], [step_expr.mapaccum(N)(x0, Ur)], ["x", "U"], ["S"])
+    rollout = stage_rollout(model, steps, N)
     library = None
 
     def build():
