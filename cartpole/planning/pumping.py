@@ -256,9 +256,10 @@ def pumping_search(model: CartPoleModel, x0, x_goal, bounds: OCPBounds, *, T_max
     T0 = (min(reach) if reach else T_max / 4) + 0.5 * period
     # the whole-range law under the file's bound: where it reaches upright energy before T0 (the gentle law stalls
     # against the damping, e.g. a pendulum started near upright), the short durations it opens are tried first
+    # (run only up to T0: its rollouts serve durations below it)
     full = []
     for first in (1.0, -1.0):
-        x, u, t_up = pump_rollout(model, x0, T_max, bounds, first=first, mode=mode, full=True)
+        x, u, t_up = pump_rollout(model, x0, T0, bounds, first=first, mode=mode, full=True)
         if t_up is not None and t_up + 0.5 * period < T0 - 1e-9:
             full.append((first, 1.0, True, x, u, t_up))
     schedule = []
