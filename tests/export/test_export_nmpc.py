@@ -1,11 +1,12 @@
 """The exported NMPC (real-time iteration, the condensed QP solved in C) in the MuJoCo swing-up: the Python
 controller's ctrl at every control step in double, swung up and held in float32, both runs replaying bit for bit."""
 import numpy as np
+import pytest
 from mj_replay import replay_with_mj_step
 
 from cartpole.export import design_export, load_design, run_lockstep
 from cartpole.export.folder import discard
-from cartpole.models import build_model
+from cartpole.models import build_model, read_params
 from cartpole.validation.metrics import swingup_success
 
 TWO_POLE = "cartpole/assets/cartpole_two_pole.xml"
@@ -78,16 +79,15 @@ int main(void)
 """
 
 
-def test_two_pole_c_gauss_newton_step_equals_pythons_from_the_same_iterate(monkeypatch, tmp_path):
-    # the white-box half of the lockstep: each C step, from the Python controller's own iterate, is its step to
-    # 1e-9, also in the first half-second where the carried iterates drift apart (the test above)
+def _c_steps_equal_pythons(monkeypatch, tmp_path, design, x0, duration):
+    """Record every Python Gauss-Newton step of a lockstep run of ``design`` from ``x0``, replay each from the same
+    iterate through the exported C's ``mp_gn_step`` and check they agree (applied input 1e-9, iterate 1e-8); the
+    number of steps compared."""
     import subprocess
 
     from cartpole.export.build import find_compiler
     from cartpole.mpc.nmpc import NMPCController
 
-    model = build_model(TWO_POLE)
-    design = design_export(model, "nmpc", None)
     seen = []
     gn = NMPCController._gn_step
 
@@ -99,14 +99,13 @@ def test_two_pole_c_gauss_newton_step_equals_pythons_from_the_same_iterate(monke
     monkeypatch.setattr(NMPCController, "_gn_step", recording)
     ctl, folder = load_design(design, "double")
     try:
-        run_lockstep(design, ctl, model.x_hanging, 0.6)
+        run_lockstep(design, ctl, x0, duration)
         (tmp_path / "gn.c").write_text(_GN_HARNESS)
         exe = tmp_path / "gn"
         subprocess.run([find_compiler(), "-O2", f"-I{folder}/include", f"-I{folder}/src", "-o", str(exe),
                         str(tmp_path / "gn.c"), f"{folder}/src/cp_generated.c", "-lm"], check=True)
     finally:
         discard(folder)
-    assert len(seen) >= 25  # every period of the first 0.6 s
     text = "\n".join(" ".join(repr(float(v)) for v in np.concatenate([x.ravel(), S.ravel(), U.ravel()]))
                      for x, S, U, _, _ in seen)
     lines = subprocess.run([str(exe)], input=text, capture_output=True, text=True, check=True).stdout.splitlines()
@@ -116,5 +115,32 @@ def test_two_pole_c_gauss_newton_step_equals_pythons_from_the_same_iterate(monke
         assert vals[0] == "0"
         c = np.array([float(v) for v in vals[1:]])
         U_c, S_c = c[:U.size], c[U.size:]
-        assert abs(U_c[0] - U_py.ravel()[0]) <= 1e-9  # the applied input
+        nu = U_py.shape[1]
+        assert np.abs(U_c[:nu] - U_py[0]).max() <= 1e-9  # the applied input
         assert np.abs(U_c - U_py.ravel()).max() <= 1e-8 and np.abs(S_c - S_py.ravel()).max() <= 1e-8
+    return len(seen)
+
+
+def test_two_pole_c_gauss_newton_step_equals_pythons_from_the_same_iterate(monkeypatch, tmp_path):
+    # the white-box half of the lockstep: each C step, from the Python controller's own iterate, is its step to
+    # 1e-9, also in the first half-second where the carried iterates drift apart (the test above)
+    model = build_model(TWO_POLE)
+    design = design_export(model, "nmpc", None)
+    assert _c_steps_equal_pythons(monkeypatch, tmp_path, design, model.x_hanging, 0.6) >= 25  # every period
+
+
+@pytest.mark.parametrize("prestabilize", [False, True])
+def test_two_motor_c_gauss_newton_step_equals_pythons_in_both_condensings(monkeypatch, tmp_path, chain_dir,
+                                                                          prestabilize):
+    # nu = 2 (the cart and the elbow driven): the condensing's per-input blocks, and pre-stabilised the Cholesky
+    # of R + B'PB; balanced from a tilt, in both condensings (GROWTH_LIMIT decides which the controller takes)
+    import cartpole.mpc.nmpc as nmpc
+
+    model = build_model(read_params(chain_dir / "two_motors.xml"))
+    assert model.nu == 2
+    monkeypatch.setattr(nmpc, "GROWTH_LIMIT", 1.0 if prestabilize else np.inf)
+    x0 = np.array(model.x_eq, float)
+    x0[list(model.hinges)] += 0.1
+    design = design_export(model, "nmpc", None, x0=x0)
+    assert design.make_controller().prestabilize is prestabilize
+    assert _c_steps_equal_pythons(monkeypatch, tmp_path, design, x0, 0.4) >= 15
