@@ -349,7 +349,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     **legacy
         A compatibility layer for the keywords this function took before the options objects
         (:data:`LEGACY_KEYWORDS`): ``duration``, ``push``, ``model_error`` (fields of ``loop``), ``objective``
-        (``plan``; trajopt only), ``period``, ``horizon`` (``mpc``; mpc only). Each replaces that field of the
+        (``plan`` for trajopt; for mpc the MPC's own objective, ``mpc.objective``), ``period``, ``horizon`` (``mpc``; mpc only). Each replaces that field of the
         stage's options (None leaves it as it is) and does nothing else.
 
     Returns
@@ -361,7 +361,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     ------
     SwingupError, MJCFError
         Bad method or start state; a stage's options given to a method without that stage (``plan`` to energy,
-        ``mpc`` or a loop period to energy or trajopt, ``objective`` to energy or mpc); an unknown keyword; an
+        ``mpc`` or a loop period to energy or trajopt, ``objective`` to energy); an unknown keyword; an
         MJCF that is not a cart-pole; ``mpc`` without :mod:`cartpole.mpc.nmpc`.
     LoopError, PlanOptionsError, NMPCError
         Bad loop, planner or NMPC settings (a push, a model error, a duration...).
@@ -409,9 +409,13 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
                            "--method mpc.")
     # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
     energy = EnergyShapingController(pm, energy_options) if method == "energy" else None
+    if method == "mpc" and "objective" in given["plan"]:  # the MPC's own objective (its seed plan follows it)
+        from cartpole.mpc.options import MPCOptions
+
+        mpc = (MPCOptions() if mpc is None else mpc).replace(objective=given["plan"].pop("objective"))
     if given["plan"] and method != "trajopt":
         raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
-                           "trajopt.")
+                           "trajopt or mpc.")
     if plan is not None and method == "energy":
         raise SwingupError("Plan options set the trajectory optimisation; use them with --method trajopt or mpc.")
     basin_kw = dict(progress=_stage(progress, "basin"))
@@ -437,6 +441,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         mpc = _mpc_period((MPCOptions() if mpc is None else mpc).replace(**given["mpc"]), loop, params.timestep)
         mpc_grid(mpc, params.timestep)  # a horizon too long to solve, or a period it would round away: refused now
         plan = PlanOptions(cart_margin=mpc.cart_margin) if plan is None else plan
+        if mpc.solver == "ddp" and plan.objective is None and mpc.objective is not None:
+            plan = plan.replace(objective=mpc.objective)  # the seed planned for what the MPC minimises
         options = {"plan": plan, "loop": loop, "mpc": mpc}
         if progress is not None:
             progress("mpc", 0.0)
@@ -449,7 +455,10 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         if progress is not None:
             progress("mpc", 1.0)
         basin = None
-        T = MPC_DURATION if T is None else T
+        if T is None:
+            T = MPC_DURATION
+            if is_task(mpc.objective):  # the whole episode is scored
+                T = max(T, task(mpc.objective).steps(params.timestep) * task(mpc.objective).control_dt(params.timestep))
         rig = build_rig(plant, loop.replace(period=float(controller.period)), task="swingup")
         controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
@@ -458,7 +467,11 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             progress("simulate", 1.0)
         caught_at = None
         extra = {"switches": [], "period": float(controller.period), "horizon": float(controller.horizon),
-                 "failures": _count(getattr(controller, "failures", 0))}
+                 "failures": _count(getattr(controller, "failures", 0)),
+                 "objective": getattr(controller, "objective", "tracking")}
+        if is_task(extra["objective"]):  # dm_control's exact reward per control step of the episode
+            rewards = dmc_rewards(rollout, model, objective=extra["objective"], steps=EPISODE)
+            extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
     elif method == "energy":
         options = {"energy": energy.options, "loop": loop}
         catch = swingup_catch(pm, *(catch_weights or ()), period=loop.period)

@@ -23,7 +23,8 @@ def add_arguments(parser) -> None:
                         help="energy shaping with an LQR catch (default), direct collocation + TVLQR, or nonlinear "
                              "MPC re-planning every control period (mpc)")
     parser.add_argument("--objective", default=None, metavar="OBJ",
-                        help="trajopt only: what the plan optimises: effort (default; minimum integral of "
+                        help="trajopt (and mpc with --mpc-solver ddp: the MPC's running cost, its seed plan the "
+                             "same; the RTI NMPC tracks upright only) : what the plan optimises: effort (default; minimum integral of "
                              "ctrl^2 over 1.2 x the minimum time), time (the minimum-time plan), tracking "
                              "(quadratic cost toward upright, 2 (1 - cos) per hinge error), a dm_control task "
                              "(dmc_cartpole_swingup (alias dmc_swingup), dmc_cartpole_swingup_sparse, "
@@ -199,9 +200,9 @@ def run(args) -> dict:
     if objective is not None:
         from cartpole.ocp.objectives import make_objective
 
-        if args.method != "trajopt":
-            raise SwingupError("--objective chooses what the trajectory optimisation optimises; use it with "
-                               "--method trajopt.")
+        if args.method not in ("trajopt", "mpc"):
+            raise SwingupError("--objective chooses what the trajectory optimisation (or the MPC) optimises; use "
+                               "it with --method trajopt or mpc.")
         make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
     if args.method == "trajopt":
         from cartpole.planning.options import PlanOptions
@@ -214,7 +215,8 @@ def run(args) -> dict:
         from cartpole.mpc.options import MPCOptions
 
         mpc = MPCOptions(**({} if horizon is None else {"horizon": horizon}),
-                         **({} if args.mpc_solver is None else {"solver": args.mpc_solver}))
+                         **({} if args.mpc_solver is None else {"solver": args.mpc_solver}),
+                         **({} if objective is None else {"objective": objective}))
     elif getattr(args, "mpc_solver", None) is not None:
         raise SwingupError("--mpc-solver picks the MPC's solver; use it with --method mpc.")
     out = Path(args.out)
@@ -272,6 +274,9 @@ def run(args) -> dict:
         doc["solve_ms"] = [float(v) for v in getattr(ctrl, "solve_ms", [])]
         doc["period"], doc["horizon"] = float(ctrl.period), float(ctrl.horizon)
         doc["failures"] = m.get("failures", 0)
+        doc["objective"] = m.get("objective")
+        if "return" in m:
+            doc["return"], doc["return_steps"] = m["return"], m["return_steps"]
     if args.method == "trajopt":
         doc["objective"] = m.get("objective")
         doc["plan"] = m.get("plan")

@@ -3,18 +3,26 @@ exact held model, from the measured state and the previous solution shifted by o
 
 The problem is the NMPC's (:mod:`cartpole.mpc.nmpc`) with DDP's handling of its constraints::
 
-    min  sum_k period * [d_k' Q d_k + (u_k - u*)' R (u_k - u*)]  +  e_N' S e_N  +  rail penalty
+    min  sum_k period * L(s_k, u_k)  +  e_N' S e_N  +  rail penalty
     s.t. s_0 = x,  s_k+1 = F(s_k, u_k)   (F: ``steps`` MJCF steps of the model with the ctrl held, exact)
          u_low <= u_k <= u_high          (the box, inside the DDP's backward pass)
 
-with ``d_k`` the tracking error whose hinge entries are ``2 (1 - cos e)`` (:func:`cartpole.ocp.objectives.
-tracking_cost`: smooth and periodic), ``e_N`` the wrapped terminal error and ``S`` the cost-to-go of the discrete LQR
-of one period at upright (the infinite-horizon cost beyond the horizon, as in the NMPC). The rail (the slide's range
-shrunk by ``cart_margin``) and any other limited joint enter as the augmented-Lagrangian penalty of the DDP with its
-multipliers at zero and the penalty ``10 rail_penalty``: a soft constraint.
+with ``e_N`` the wrapped terminal error. The running cost ``L`` is the MPC's objective (``MPCOptions.objective``):
+by default the NMPC's tracking ``d' Q d + (u - u*)' R (u - u*)`` with ``d`` the tracking error whose hinge entries are
+``2 (1 - cos e)`` (:func:`cartpole.ocp.objectives.tracking_cost`: smooth and periodic), and ``S`` the cost-to-go of the
+discrete LQR of one period at upright with the same ``Q``, ``R`` (the infinite-horizon cost beyond the horizon, as in
+the NMPC). Any other running objective of the trajectory optimisation (``effort``, the ``dmc_*`` rewards negated,
+``MODULE:FUNCTION``) is taken as it is, and ``S`` is then that objective's own cost-to-go near upright: the discrete
+LQR of its quadratic model there (``Q_L, R_L, N_L`` half the Hessian of ``L`` at ``(x*, u*)``, times the period), so
+the cost beyond the horizon is priced in the objective's units (:func:`objective_cost_to_go`). Where that LQR does not
+exist (``effort`` has no state cost: the cart's drift is free, the Riccati equation has no stabilising solution) the
+``Q``, ``R`` LQR's ``S`` is used, scaled to the objective's input weight (:attr:`DDPMPCController.terminal` says
+which). The rail (the slide's range shrunk by ``cart_margin``) and any other limited joint enter as the
+augmented-Lagrangian penalty of the DDP with its multipliers at zero and the penalty ``10 rail_penalty``: a soft
+constraint.
 
-The first solution is converged offline from the plan's inputs (:func:`cartpole.planning.trajopt.trajopt_swingup`,
-sampled on the MPC grid). In the loop each instant takes ``iterations`` DDP iterations (default one: real-time
+The first solution is converged offline from the plan's inputs (:func:`cartpole.planning.trajopt.trajopt_swingup`
+for the same objective, sampled on the MPC grid). In the loop each instant takes ``iterations`` DDP iterations (default one: real-time
 DDP) and applies the first input. Safe action as the NMPC's: a solve that fails or returns anything non-finite is
 recorded in :attr:`DDPMPCController.failures` and the upright LQR (near upright) or the previous solution's input
 is applied.
@@ -32,7 +40,9 @@ from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.mpc.nmpc import SAFE_LQR_ANGLE, NMPCError
 from cartpole.mpc.options import MPCOptions, mpc_grid
 from cartpole.ocp.bounds import bounds_from_params
-from cartpole.ocp.objectives import tracking_cost
+from cartpole.lqr.riccati import LQRError
+from cartpole.ocp.bounds import OCPError
+from cartpole.ocp.objectives import make_objective, tracking_cost
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.solvers.ddp import DDP, DDPOptions
 
@@ -48,7 +58,7 @@ class DDPMPCController:
         The MJCF MuJoCo runs: timestep, ctrlranges, joint ranges.
     options : MPCOptions, optional
         ``period``, ``horizon``, ``iterations``, ``init_iterations``, ``cart_margin``, ``rail_penalty``, ``Q``, ``R``,
-        ``compiled`` are read (:class:`~cartpole.mpc.options.MPCOptions`).
+        ``compiled``, ``objective`` are read (:class:`~cartpole.mpc.options.MPCOptions`).
     guess : Trajectory, optional
         A plan whose inputs seed the first solution and extend the shifted tail while it lasts.
     x0 : (nx,) array, optional
@@ -65,7 +75,14 @@ class DDPMPCController:
     failures : list of dict
         ``{"t", "reason", "action"}`` per instant where the safe action ran.
     lqr : LinearFeedback
-        The upright discrete LQR of one period (terminal cost ``S``, safe action).
+        The upright discrete LQR of one period with ``Q``, ``R`` (the safe action).
+    objective : str
+        The running objective's name (``tracking`` by default).
+    terminal : str
+        Where the terminal weight came from: ``"lqr"`` (the ``Q``, ``R`` LQR: tracking), ``"objective"`` (the
+        objective's own LQR cost-to-go at upright) or ``"lqr scaled"`` (the objective has none; module doc).
+    S : (nx, nx) array
+        The terminal weight on the wrapped error from upright.
     init_info : dict
         The offline solve: ``iterations``, ``status``, ``cost``.
     """
@@ -92,11 +109,25 @@ class DDPMPCController:
         self.lqr = LinearFeedback(lq.K, model.x_eq, model.u_eq, hinges=model.hinges,
                                   u_limits=np.asarray(params.ctrl_range), S=lq.S)
         x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
-        running = ca.Function("mpc_tracking", [x, u], [tracking_cost(model, x, u, np.diag(Q), np.diag(R))])
+        name = options.objective
+        if name is None or name == "tracking":
+            running = ca.Function("mpc_tracking", [x, u], [tracking_cost(model, x, u, np.diag(Q), np.diag(R))])
+            S, self.terminal, self.objective = np.asarray(lq.S), "lqr", "tracking"
+        else:
+            try:
+                obj = make_objective(model, name)
+            except OCPError as exc:
+                raise NMPCError(str(exc)) from None
+            if obj.kind == "time":
+                raise NMPCError("The MPC cannot minimise time: it is not a running cost over a receding horizon; "
+                                "give a running objective (tracking, effort, a dmc_* reward or MODULE:FUNCTION).")
+            running, self.objective = obj.running, obj.name  # None: effort, u'u (the DDP's own)
+            S, self.terminal = objective_cost_to_go(model, Ad, Bd, running, self.period, lq.S, R)
+        self.S = S
         b = bounds_from_params(params, cart_margin=options.cart_margin)
         self.u_low, self.u_high = np.array(b.u_low, float), np.array(b.u_high, float)
         self.ddp = DDP(held.step, self.period, N, running=running, u_low=self.u_low, u_high=self.u_high,
-                       q_low=b.q_low, q_high=b.q_high, x_goal=model.x_eq, hinges=model.hinges, Qf=np.asarray(lq.S),
+                       q_low=b.q_low, q_high=b.q_high, x_goal=model.x_eq, hinges=model.hinges, Qf=S,
                        goal_constraint=False, compiled=options.compiled,
                        options=DDPOptions(penalty=10 * options.rail_penalty, max_outer=1))
         self._plan = guess if isinstance(guess, Trajectory) else None
@@ -180,6 +211,62 @@ class DDPMPCController:
         return (None if self._X is None else self._X.copy()), self._U.copy()
 
 
+def objective_cost_to_go(model: CartPoleModel, Ad, Bd, running, period: float, S_lqr, R_lqr
+                         ) -> tuple[np.ndarray, str]:
+    """The terminal weight of a running objective ``L`` near upright: the cost-to-go ``S`` (nx, nx) of its discrete
+    LQR over one period and where it came from.
+
+    ``L``'s quadratic model at ``(x*, u*)`` is ``dz' H dz / 2`` (``H`` its Hessian in ``z = (x, u)``: exact, from
+    the symbols, taken 1e-9 off upright so that a dm_control ``tolerance`` whose bounds are the single point upright
+    contributes its sigmoid's curvature, not the flat in-bounds branch's), so the stage cost ``period * L`` is ``x' Q x + u' R u + 2 x' N u`` with ``(Q, N; N', R) = period H / 2``;
+    the LQR of that cost on ``(Ad, Bd)`` (cross term removed by ``u = v - R^-1 N' x``) prices the state beyond the
+    horizon in ``L``'s own units. When it does not exist (``R`` not positive definite, ``Q`` not positive
+    semi-definite, no stabilising Riccati solution: ``effort`` has no state cost at all) the ``Q_lqr, R_lqr`` LQR's
+    ``S_lqr`` is returned scaled by ``R``'s size over ``R_lqr``'s (the two weigh the input alike).
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    Ad, Bd : (nx, nx), (nx, nu) arrays
+        The model held over one period, linearised at upright.
+    running : casadi.Function or None
+        ``L(x, u)``, cost per second; None for ``effort`` (``u' u``).
+    period : float
+        s.
+    S_lqr, R_lqr : arrays
+        The fallback LQR's cost-to-go and its input weight (per second).
+
+    Returns
+    -------
+    (S, source)
+        ``source`` ``"objective"`` or ``"lqr scaled"``.
+    """
+    from cartpole.lqr import dlqr
+
+    nx, nu = model.nx, model.nu
+    z = ca.SX.sym("z", nx + nu)
+    L = ca.sumsqr(z[nx:]) if running is None else running(z[:nx], z[nx:])
+    # taken a hair (1e-9) off upright: dm_control's tolerance() is 1 inside its bounds and a sigmoid outside, and
+    # with bounds (0, 0) its "inside" is the single point upright, whose branch has no curvature; the sigmoid's
+    # (the function's curvature on either side) is the one that prices a state near upright
+    H = np.array(ca.Function("mpc_cost_hessian", [z], [ca.hessian(L, z)[0]])(
+        np.concatenate([model.x_eq, model.u_eq]) + 1e-9).full(), dtype=float)
+    W = 0.5 * float(period) * 0.5 * (H + H.T)
+    Q, N, R = W[:nx, :nx], W[:nx, nx:], W[nx:, nx:]
+    Ad, Bd = np.asarray(Ad, float), np.asarray(Bd, float)
+    if np.all(np.isfinite(W)) and np.linalg.eigvalsh(R).min() > 0:
+        RiN = np.linalg.solve(R, N.T)
+        Qt = Q - N @ RiN
+        Qt = 0.5 * (Qt + Qt.T)
+        if np.linalg.eigvalsh(Qt).min() >= -1e-12 * max(1.0, float(np.abs(Qt).max())):
+            try:
+                return np.asarray(dlqr(Ad - Bd @ RiN, Bd, Qt, R).S), "objective"
+            except LQRError:
+                pass
+    scale = float(np.trace(R)) / (float(period) * float(np.trace(np.atleast_2d(R_lqr)))) if np.trace(R) > 0 else 1.0
+    return np.asarray(S_lqr) * scale, "lqr scaled"
+
+
 def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
                     options: MPCOptions | None = None, plan=None) -> DDPMPCController:
     """A DDP-MPC controller set up to swing up from ``x0`` and balance at ``model.x_eq``: the offline plan
@@ -195,7 +282,8 @@ def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | N
         The planning model (default the MJCF's own).
     options : MPCOptions, optional
     plan : PlanOptions, optional
-        The offline plan's settings (default the same rail margin as the controller's).
+        The offline plan's settings (default the same rail margin as the controller's, and the MPC's objective when
+        the plan names none).
 
     Returns
     -------
@@ -206,6 +294,8 @@ def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | N
 
     options = MPCOptions() if options is None else options
     plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
+    if plan.objective is None and options.objective is not None:  # the seed planned for what the MPC minimises
+        plan = plan.replace(objective=options.objective)
     model = build_model(params) if model is None else model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
     sp = trajopt_swingup(params, x0=x0, model=model, options=plan)

@@ -98,6 +98,12 @@ class MPCOptions(StageOptions):
         ``rti``: :class:`~cartpole.mpc.nmpc.NMPCController` (Gauss-Newton SQP steps on the condensed QP); ``ddp``:
         :class:`~cartpole.mpc.ddp_mpc.DDPMPCController` (``iterations`` warm-started box-DDP iterations a period;
         ``qp_solver``, ``prestabilize`` and ``tol`` do not apply).
+    objective : str, callable or None
+        What the MPC minimises over its horizon: None (or ``tracking``) the tracking of upright with ``Q``, ``R``
+        (both solvers); with ``solver='ddp'`` also any running objective of the trajectory optimisation
+        (``effort``, the ``dmc_*`` rewards, ``MODULE:FUNCTION``, a callable; :func:`cartpole.ocp.objectives.
+        make_objective`), its seed plan planned for the same objective. ``time`` is not a running cost and is
+        refused; so is any objective but tracking with ``rti``, whose Gauss-Newton QP needs a least-squares cost.
 
     Raises
     ------
@@ -118,6 +124,7 @@ class MPCOptions(StageOptions):
     prestabilize: bool | None = None
     compiled: bool = True
     solver: str = "rti"
+    objective: object = None
 
     error: ClassVar[type] = NMPCError
     SCALARS: ClassVar[tuple] = ("period", "horizon", "iterations", "tol", "init_iterations", "cart_margin",
@@ -134,6 +141,17 @@ class MPCOptions(StageOptions):
         if self.solver not in MPC_SOLVERS:
             raise NMPCError(f"The MPC solver '{self.solver}' is not one of {', '.join(MPC_SOLVERS)}; give e.g. "
                             "--mpc-solver ddp.")
+        if self.objective is not None:
+            if not (isinstance(self.objective, str) or callable(self.objective)):
+                raise NMPCError(f"The MPC objective {self.objective!r} is neither a name nor a function (x, u) -> "
+                                "cost; give e.g. --objective dmc_cartpole_swingup.")
+            if self.objective == "time":
+                raise NMPCError("The MPC cannot minimise time: it is not a running cost over a receding horizon; "
+                                "give a running objective (tracking, effort, a dmc_* reward or MODULE:FUNCTION).")
+            if self.solver == "rti" and self.objective != "tracking":
+                raise NMPCError(f"The RTI NMPC's Gauss-Newton QP tracks upright (objective tracking, weights Q, R), "
+                                f"not '{getattr(self.objective, '__name__', self.objective)}'; run it with "
+                                "--mpc-solver ddp, which takes any running objective.")
         if self.qp_solver is not None and self.qp_solver not in QP_SOLVERS:
             raise NMPCError(f"qp_solver '{self.qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         if self.prestabilize is not None:
