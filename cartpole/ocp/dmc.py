@@ -345,6 +345,43 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
     return tolerance(dist, (0.0, float(target[2][0])), margin=margin)
 
 
+def sparse_box(model, name: str, x) -> tuple:
+    """Where a sparse task pays: its reward is 1 exactly when ``lower <= g(x) <= upper`` (every entry), else 0.
+
+    ``g`` is a CasADi expression (m,) of the state ``x`` (nx,) SX: cartpole ``swingup_sparse`` the cart position and
+    every pole's cosine (``[-0.25, 0.25]``, ``[0.995, 1]``); pendulum ``swingup`` the pole's cosine (``[cos 8 deg,
+    1]``); acrobot ``swingup_sparse`` the squared tip-to-target distance (``[0, r^2]``, ``r`` the target's radius).
+    These are the bounds of :func:`reward_expression`'s exact form (dm_control's ``tolerance`` with no margin is the
+    indicator of its closed bounds); a bound that always holds (a cosine's 1, a squared distance's 0) is returned
+    as infinite, so that a margin kept inside the box never excludes upright itself.
+
+    Returns
+    -------
+    (g, lower (m,), upper (m,))
+
+    Raises
+    ------
+    DMCError
+        Not a sparse task, or a model that lacks what it needs (:func:`check_model`).
+    """
+    t = check_model(model, name)
+    if not t.sparse:
+        raise DMCError(f"'{t.name}' pays a smooth reward, not a box; its reward has no sparse box.")
+    if t.domain == "cartpole":
+        cosines = _pole_cosines(model, x)
+        g = ca.vertcat(x[model.slide], *cosines)
+        return g, np.r_[-0.25, [0.995] * len(cosines)], np.r_[0.25, [np.inf] * len(cosines)]
+    if t.domain == "pendulum":
+        (c,) = _pole_cosines(model, x)
+        return ca.vertcat(c), np.array([float(np.cos(np.deg2rad(8)))]), np.array([np.inf])
+    params = model.params
+    tip, target = _site(params, "tip"), _site(params, "target")
+    q = x[:model.nq]
+    gap = _site_world(params, target, q) - _site_world(params, tip, q)
+    r = float(target[2][0])
+    return ca.vertcat(ca.sumsqr(gap)), np.array([-np.inf]), np.array([r * r])
+
+
 _FUNCTIONS: dict = {}
 
 

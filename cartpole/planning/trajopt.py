@@ -37,6 +37,7 @@ from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.dmc import is_task
+from cartpole.ocp.dmc import task as dmc_task
 from cartpole.ocp.objectives import make_objective
 from cartpole.planning.options import U_MARGIN, PlanOptions
 from cartpole.solvers.sqp import CollocationSQP, SQPError
@@ -121,6 +122,10 @@ class DiscretePlan:
         (what TVLQR would have had to absorb every step), in state units.
     defect_after : float
         The same for this plan.
+    box_entry : dict or None
+        A sparse dm_control task's plan (:mod:`cartpole.planning.box_entry`): ``K`` (the first control step from
+        which it stays in the task's box), ``K_surrogate`` (the surrogate plan's), ``solves``, ``status``; None
+        otherwise.
     """
 
     t: np.ndarray
@@ -133,6 +138,7 @@ class DiscretePlan:
     solve_time_s: float
     defect_before: float
     defect_after: float
+    box_entry: dict | None = None
 
     def __post_init__(self):
         from cartpole._arrays import readonly
@@ -149,9 +155,32 @@ class DiscretePlan:
         """JSON-ready summary (no arrays)."""
         return {"steps": int(self.t.size), "dt": self.dt, "u_margin": self.u_margin, "status": self.status,
                 "iterations": self.iterations, "solve_time_s": self.solve_time_s,
-                "defect_before": self.defect_before, "defect_after": self.defect_after}
+                "defect_before": self.defect_before, "defect_after": self.defect_after,
+                **({} if self.box_entry is None else {"box_entry": dict(self.box_entry)})}
 
 
+
+
+def _sparse_entry(model: CartPoleModel, name: str, x0, traj: Trajectory, exact, bounds, dt: float):
+    """The sparse task's earliest-entry plan (:func:`cartpole.planning.box_entry.box_entry_plan`) from the exact
+    plan (else the collocation plan on the step grid), as a :class:`DiscretePlan`, or None when it found none
+    earlier."""
+    from cartpole.planning.box_entry import box_entry_plan
+
+    dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
+    if exact is not None:
+        t, xr, ur = np.asarray(exact.t), np.asarray(exact.x), np.asarray(exact.u)
+    else:
+        t, xr, ur = _on_step_grid(traj, dt)
+    found = box_entry_plan(dmodel, name, x0, xr, ur, xr[-1] if exact is not None else traj.x[-1], bounds, dt=dt)
+    if found is None:
+        return None
+    x, u, K, K_ref, info = found
+    before = exact.defect_before if exact is not None else _defects(dmodel, xr, ur)
+    return DiscretePlan(t=t, x=x, u=u, dt=dt, u_margin=0.0, status=info["status"], iterations=info["iterations"],
+                        solve_time_s=info["solve_time_s"], defect_before=before, defect_after=_defects(dmodel, x, u),
+                        box_entry={"K": int(K), "K_surrogate": int(K_ref), "solves": int(info["solves"]),
+                                   "status": info["status"]})
 
 
 def _defects(model: CartPoleModel, x, u) -> float:
@@ -727,6 +756,11 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
             exact = exact_discrete_plan(tv_model, traj, x0, bounds, dt=dt, u_margin=margin)
             if exact is not None:
                 break
+    if is_task(obj.name) and dmc_task(obj.name).sparse and steps == 1:
+        # the indicator's own plan: into its box as early as the exact step allows (cartpole.planning.box_entry)
+        boxed = _sparse_entry(tv_model, obj.name, x0, traj, exact, bounds, dt)
+        if boxed is not None:
+            exact = boxed
     if exact is None:
         gains = gains if gains is not None else tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
     else:

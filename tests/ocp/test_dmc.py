@@ -219,3 +219,25 @@ def test_episode_starts_follow_initialize_episode(tmp_path):
         -np.pi, np.pi)
     assert dmc.task("dmc_pendulum_swingup").steps(pend.params.timestep) == 1000
     assert dmc.task("dmc_acrobot_swingup").steps(0.01) == 1000
+
+
+@pytest.mark.parametrize("name,n_poles", [c for c in CASES if dmc.task(c[0]).sparse])
+def test_a_sparse_tasks_box_is_exactly_where_its_reward_pays(tmp_path, name, n_poles):
+    t = dmc.task(name)
+    model = build_model(_mjcf(t.domain, tmp_path, n_poles))
+    rng = np.random.default_rng(9)
+    X = _states(model, rng, 300)
+    U = rng.uniform(-1, 1, (X.shape[0], model.nu))
+    x = ca.SX.sym("x", model.nx)
+    g, lower, upper = dmc.sparse_box(model, name, x)
+    G = np.asarray(ca.Function("g", [x], [g]).map(X.shape[0])(X.T)).T
+    inside = np.all((G >= lower) & (G <= upper), axis=1)
+    paid = dmc_reward(model, X, U, name)
+    assert 0 < inside.sum() < inside.size
+    assert np.array_equal(paid == 1.0, inside) and np.all((paid == 0.0) | (paid == 1.0))
+
+
+def test_a_smooth_task_has_no_box(tmp_path):
+    model = build_model(_mjcf("cartpole", tmp_path, 1))
+    with pytest.raises(dmc.DMCError, match="no sparse box"):
+        dmc.sparse_box(model, "dmc_cartpole_swingup", ca.SX.sym("x", model.nx))
