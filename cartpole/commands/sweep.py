@@ -67,7 +67,8 @@ def add_arguments(parser) -> None:
                         help="with axis options: the start of every run where no --start sets a component, 2 nq "
                              "numbers [qpos, qvel] (default hanging at rest)")
     parser.add_argument("--objective", default=None, metavar="OBJ",
-                        help="trajopt only: what every plan optimises (as swingup's --objective); a dm_control task "
+                        help="trajopt: what every plan optimises (as swingup's --objective); mpc: what the MPC minimises, "
+                             "run by the DDP MPC (swingup's --mpc-solver ddp --objective); a dm_control task "
                              "(dmc_cartpole_swingup, dmc_cartpole_swingup_sparse, dmc_cartpole_balance, "
                              "dmc_pendulum_swingup, dmc_acrobot_swingup, dmc_acrobot_swingup_sparse) runs its "
                              "episodes: the starts of its first N episodes seeded by --seed (numpy RandomState, as "

@@ -65,8 +65,21 @@ def test_sweep_runs_the_tasks_seeded_episodes_and_reports_their_mean_return(tmp_
     assert again["resumed"] == 2 and again["returns"] == pytest.approx(returns, abs=1e-9)
 
 
+def test_an_mpc_sweep_runs_the_ddp_mpc_on_the_tasks_reward_over_its_episodes(tmp_path, capsys):
+    model = build_model(CARTPOLE)
+    assert main(["sweep", "--mjcf", CARTPOLE, "--method", "mpc", "--objective", "dmc_cartpole_swingup", "--n", "2",
+                 "--seed", "0", "--json", "--out", str(tmp_path)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    starts = dmc.episode_starts(model, "dmc_cartpole_swingup", 2, seed=0)
+    assert np.allclose([r["start"] for r in doc["rows"]], starts, rtol=0, atol=1e-12)
+    assert doc["objective"] == "dmc_cartpole_swingup" and doc["return_runs"] == 2
+    assert all(r["return_steps"] == 1000 and r["success"] and r["replays"] and not r["diverged"] for r in doc["rows"])
+    assert all(800 < r["return"] <= 1000 for r in doc["rows"])  # swung up from hanging within about 2 s
+
+
 @pytest.mark.parametrize("extra,words", [
-    (["--method", "energy", "--objective", "dmc_cartpole_swingup"], "with --method trajopt"),
+    (["--method", "energy", "--objective", "dmc_cartpole_swingup"], "with --method trajopt or mpc"),
+    (["--method", "mpc", "--objective", "time"], "not a running cost"),
     (["--method", "trajopt", "--objective", "dmc_acrobot_swingup"], "without a cart"),
     (["--method", "trajopt", "--objective", "dmc_cartpole_swingup", "--model-error", "0.9", "1.1"],
      "where dm_control's episodes start"),

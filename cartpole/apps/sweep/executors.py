@@ -71,7 +71,8 @@ class Runner:
         (:data:`~cartpole.apps.sweep.plan.LOOP_SETTINGS`) replace its fields, the period and delay rounded to whole
         physics steps.
     objective : str, optional
-        trajopt: what every plan optimises (:class:`~cartpole.planning.options.PlanOptions` ``objective``); a
+        trajopt: what every plan optimises (:class:`~cartpole.planning.options.PlanOptions` ``objective``); mpc: the
+        DDP MPC's running objective (:class:`~cartpole.mpc.options.MPCOptions` ``objective``, ``solver='ddp'``); a
         dm_control task adds each run's ``return`` and ``return_steps``.
     """
 
@@ -139,7 +140,9 @@ class Runner:
             # the swept settings are fields of the method's options value (or of the loop's), by name
             plan = (PlanOptions(objective=self.objective).replace(**settings) if self.method == "trajopt"
                     else None)
-            mpc = MPCOptions().replace(**settings) if self.method == "mpc" else None
+            # an objective is the DDP MPC's (the RTI NMPC tracks upright only)
+            mpc = ((MPCOptions() if self.objective is None else MPCOptions(solver="ddp", objective=self.objective))
+                   .replace(**settings) if self.method == "mpc" else None)
             loop = self.loop.replace(duration=self.duration, push=tuple(push or ()), model_error=model_error,
                                      **looped)
             res = run_swingup(self.model, method=self.method, x0=x0, plan=plan, loop=loop, mpc=mpc,

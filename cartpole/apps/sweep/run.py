@@ -87,7 +87,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         The rig every run has (period, delay, sensors, estimator; :class:`~cartpole.sim.options.LoopOptions`); a
         ``setting:<loop field>`` axis varies one of its fields per run.
     objective : str, optional
-        trajopt only: what every plan optimises (a name of :data:`cartpole.ocp.objectives.NAMED` or
+        trajopt: what every plan optimises; mpc: what the MPC minimises, run by the DDP MPC (``MPCOptions(solver=
+        'ddp', objective=...)``, the MPC that takes any running objective), its seed plan the same (a name of :data:`cartpole.ocp.objectives.NAMED` or
         MODULE:FUNCTION). A dm_control task (``dmc_cartpole_swingup``, ...) makes the sweep dm_control's
         evaluation: the ``n`` starts are its first ``n`` episodes' with ``task_kwargs={'random': seed}``
         (:func:`cartpole.ocp.dmc.episode_starts`, instead of the start box; no axes), every run lasts at least the
@@ -210,9 +211,12 @@ def _check_objective(model, method: str, objective, axes, center, half_widths) -
     """Refuse an objective the sweep cannot run (one sentence, :class:`SweepError`); True for a dm_control task."""
     if objective is None:
         return False
-    if method != "trajopt":
-        raise SweepError(f"--objective chooses what the trajectory optimisation optimises; sweep it with --method "
-                         f"trajopt (not {method}).")
+    if method not in ("trajopt", "mpc"):
+        raise SweepError(f"--objective chooses what the trajectory optimisation (or the DDP MPC) optimises; sweep it "
+                         f"with --method trajopt or mpc (not {method}).")
+    if method == "mpc" and objective == "time":
+        raise SweepError("The MPC cannot minimise time: it is not a running cost over a receding horizon; sweep a "
+                         "running objective (tracking, effort, a dmc_* reward or MODULE:FUNCTION).")
     from cartpole.ocp.objectives import make_objective
 
     try:
