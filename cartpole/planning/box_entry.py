@@ -13,10 +13,11 @@ steps that ends at the goal (upright at rest, inside the box), the steps paid ar
 
 has a solution (``m`` a hair, so that tracking's round-off stays inside dm_control's closed bounds). Feasibility
 is monotone in ``K`` (a plan in the box from ``K`` on is in it from ``K + 1`` on), so ``K`` is searched downward
-from the surrogate plan's own entry, each problem solved by IPOPT on the exact step (multiple shooting, the step
-compiled as the model's ``step``) from the last feasible plan, the ctrl kept nearest the surrogate plan's
-(``min sum |u_k - u_ref,k|^2 dt``). It stops at the first ``K`` IPOPT finds no motion for: a local solver's answer,
-so the plan returned is the earliest entry found, not one proven earliest.
+from the surrogate plan's own entry, galloping (1, 2, 4, ... steps earlier) until a ``K`` is refused, then by
+bisection, each problem solved by IPOPT on the exact step (multiple shooting, the model's ``step``) from the last
+feasible plan, the ctrl kept nearest the surrogate plan's (``min sum |u_k - u_ref,k|^2 dt``), within
+:data:`MAX_STEPS` solves and :data:`MAX_SECONDS`. A refusal is a local solver's answer, so the plan returned is the
+earliest entry found, not one proven earliest.
 """
 from __future__ import annotations
 
@@ -29,12 +30,13 @@ from cartpole.ocp.dmc import sparse_box
 
 #: Distance kept inside the box's bounds (in g's units: m, cosine, m^2).
 BOX_MARGIN = 1e-6
-#: Most downward steps of the entry search (each one IPOPT solve).
-MAX_STEPS = 60
+#: Most IPOPT solves of the entry search, and its wall-time budget in s (the plan found so far is kept).
+MAX_STEPS = 30
+MAX_SECONDS = 60.0
 
 
 def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: float, max_steps: int = MAX_STEPS,
-                   margin: float = BOX_MARGIN):
+                   max_seconds: float = MAX_SECONDS, margin: float = BOX_MARGIN):
     """The plan of the module doc: the earliest box entry found, or None when it enters no earlier than ``x_ref``.
 
     Parameters
@@ -52,7 +54,9 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: fl
     dt : float
         s, the step of ``model.step``.
     max_steps : int
-        Most downward steps tried.
+        Most IPOPT solves.
+    max_seconds : float
+        Wall-time budget in s: no new solve starts after it (the earliest entry found so far is returned).
     margin : float
         Kept inside the box's bounds.
 
@@ -107,21 +111,36 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: fl
     lbg = np.r_[np.zeros(ng), np.zeros(box_rows.numel())]
     ubg = np.r_[np.zeros(ng), np.full(box_rows.numel(), np.inf)]
     w = np.clip(np.r_[x_ref.ravel(), u_ref.ravel()], lw, hw)
-    best, K, solves, iters, status = None, K_ref, 0, 0, "not tried"
-    while K > 1 and solves < int(max_steps):
-        on = (np.arange(n + 1) >= K - 1).astype(float)[None, :]
+    solves, iters, status = 0, 0, "not tried"
+
+    def feasible(K: int):
+        nonlocal solves, iters, status
+        on = (np.arange(n + 1) >= K).astype(float)[None, :]
         sol = solver(x0=w, p=on, lbx=lw, ubx=hw, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         solves += 1
         iters += int(stats.get("iter_count", 0))
         status = str(stats.get("return_status"))
-        if not stats.get("success", False):
+        return np.asarray(sol["x"], float).ravel() if stats.get("success", False) else None
+
+    # galloping down from the surrogate's entry (1, 2, 4, ... steps earlier), then bisection between the earliest
+    # entry found and the first refused; each solve from the last feasible plan
+    good, bad, step = K_ref, 0, 1
+    while good - step > bad and solves < int(max_steps) and time.perf_counter() - tic < max_seconds:
+        found = feasible(good - step)
+        if found is None:
+            bad = good - step
             break
-        w = np.asarray(sol["x"], float).ravel()
-        K -= 1
-        best = (w[:nx * (n + 1)].reshape(n + 1, nx), w[nx * (n + 1):].reshape(n, nu), K)
-    if best is None:
+        w, good, step = found, good - step, 2 * step
+    while good - bad > 1 and solves < int(max_steps) and time.perf_counter() - tic < max_seconds:
+        mid = (good + bad) // 2
+        found = feasible(mid)
+        if found is None:
+            bad = mid
+        else:
+            w, good = found, mid
+    if good == K_ref:
         return None
-    x, u, K = best
+    x, u, K = w[:nx * (n + 1)].reshape(n + 1, nx), w[nx * (n + 1):].reshape(n, nu), good
     info = {"iterations": iters, "solves": solves, "solve_time_s": time.perf_counter() - tic, "status": status}
     return x, u, K, K_ref, info
