@@ -721,9 +721,18 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
             traj, info = _pumped_effort(plan_model, x0, fast, tinfo, pump, N=N or 100, bounds=bounds,
                                         margin=options.time_margin, solver=solver, solver_options=solver_options)
         elif not (obj.kind == "effort" and T_min is None):
-            traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
-                                        sqp=use_sqp and obj.kind == "effort")
-            info = replace(info, attempts=tinfo.attempts + info.attempts)
+            try:
+                traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
+                                            sqp=use_sqp and obj.kind == "effort")
+                info = replace(info, attempts=tinfo.attempts + info.attempts)
+            except OCPNotSolved as exc:
+                if obj.kind != "running":
+                    raise
+                # a swing-up exists (the time stage's plan) though the running objective converged from no guess:
+                # that plan, resting at upright until T, every attempt kept and the status saying what it is
+                traj = first
+                info = replace(tinfo, status=f"{obj.name} not converged from any guess: the time plan kept",
+                               attempts=tuple(tinfo.attempts) + tuple(exc.attempts))
     exact = None
     if by_ddp is not None:  # the plan is DDP's, exact on the discrete step: TVLQR tracks it as it is
         traj = by_ddp.trajectory
