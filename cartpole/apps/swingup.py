@@ -373,8 +373,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     from cartpole.control.switching import SwitchingController, swingup_catch
     from cartpole.sim.rig import build_rig
     from cartpole.validation.basin import BasinCache
-    from cartpole.ocp.dmc import is_task, task
-    from cartpole.validation.metrics import EPISODE, dmc_rewards, swingup_metrics
+    from cartpole.validation.metrics import swingup_metrics
 
     if method not in METHODS:
         raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")
@@ -440,9 +439,11 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
 
         mpc = _mpc_period((MPCOptions() if mpc is None else mpc).replace(**given["mpc"]), loop, params.timestep)
         mpc_grid(mpc, params.timestep)  # a horizon too long to solve, or a period it would round away: refused now
+        from cartpole.mpc.ddp_mpc import seed_plan_options
+
         plan = PlanOptions(cart_margin=mpc.cart_margin) if plan is None else plan
-        if mpc.solver == "ddp" and plan.objective is None and mpc.objective is not None:
-            plan = plan.replace(objective=mpc.objective)  # the seed planned for what the MPC minimises
+        if mpc.solver == "ddp":
+            plan = seed_plan_options(plan, mpc)
         options = {"plan": plan, "loop": loop, "mpc": mpc}
         if progress is not None:
             progress("mpc", 0.0)
@@ -456,9 +457,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
             progress("mpc", 1.0)
         basin = None
         if T is None:
-            T = MPC_DURATION
-            if is_task(mpc.objective):  # the whole episode is scored
-                T = max(T, task(mpc.objective).steps(params.timestep) * task(mpc.objective).control_dt(params.timestep))
+            T = max(MPC_DURATION, _episode_seconds(mpc.objective, params.timestep))
         rig = build_rig(plant, loop.replace(period=float(controller.period)), task="swingup")
         controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
         rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
@@ -469,9 +468,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         extra = {"switches": [], "period": float(controller.period), "horizon": float(controller.horizon),
                  "failures": _count(getattr(controller, "failures", 0)),
                  "objective": getattr(controller, "objective", "tracking")}
-        if is_task(extra["objective"]):  # dm_control's exact reward per control step of the episode
-            rewards = dmc_rewards(rollout, model, objective=extra["objective"], steps=EPISODE)
-            extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
+        extra.update(_episode_return(rollout, model, extra["objective"]))
     elif method == "energy":
         options = {"energy": energy.options, "loop": loop}
         catch = swingup_catch(pm, *(catch_weights or ()), period=loop.period)
@@ -507,8 +504,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         T_plan = float(trajectory.t[-1] - trajectory.t[0])
         if T is None:
             T = T_plan + TRAJOPT_EXTRA
-            if is_task(sp.objective):  # the whole episode is scored
-                T = max(T, task(sp.objective).steps(params.timestep) * task(sp.objective).control_dt(params.timestep))
+            T = max(T, _episode_seconds(sp.objective, params.timestep))
             check_push_times(loop.push, T)
         rig = build_rig(plant, loop, task="swingup")
         controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
@@ -523,9 +519,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
                                                             "cost": catch.cost_to_go(rollout.x[k])}],
                  "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k]),
                  "objective": sp.objective, "plan": plan_report(sp)}
-        if is_task(sp.objective):  # dm_control's exact reward per control step of the episode
-            rewards = dmc_rewards(rollout, model, objective=sp.objective, steps=EPISODE)
-            extra.update({"return": float(np.sum(rewards)), "return_steps": int(rewards.size)})
+        extra.update(_episode_return(rollout, model, sp.objective))
     metrics = {**swingup_metrics(rollout, model), **extra}
     if metrics["diverged"]:  # MuJoCo reset a blown-up run: whatever came before, it is never caught
         caught_at = None
@@ -539,6 +533,29 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
                          controller=controller, options=options)
+
+
+def _episode_seconds(objective, timestep: float) -> float:
+    """s of a dm_control task's episode (its control steps times its control step) on a file stepping ``timestep``
+    s; 0 for any other objective."""
+    from cartpole.ocp.dmc import is_task, task
+
+    if not is_task(objective):
+        return 0.0
+    t = task(objective)
+    return t.steps(timestep) * t.control_dt(timestep)
+
+
+def _episode_return(rollout, model, objective) -> dict:
+    """``return`` and ``return_steps``: dm_control's exact reward summed over its episode of the logged run, for a
+    dm_control task's objective; empty for any other."""
+    from cartpole.ocp.dmc import is_task
+    from cartpole.validation.metrics import EPISODE, dmc_rewards
+
+    if not is_task(objective):
+        return {}
+    rewards = dmc_rewards(rollout, model, objective=objective, steps=EPISODE)
+    return {"return": float(np.sum(rewards)), "return_steps": int(rewards.size)}
 
 
 def _mpc_period(mpc, loop: LoopOptions, timestep: float):

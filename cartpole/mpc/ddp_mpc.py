@@ -118,9 +118,6 @@ class DDPMPCController:
                 obj = make_objective(model, name)
             except OCPError as exc:
                 raise NMPCError(str(exc)) from None
-            if obj.kind == "time":
-                raise NMPCError("The MPC cannot minimise time: it is not a running cost over a receding horizon; "
-                                "give a running objective (tracking, effort, a dmc_* reward or MODULE:FUNCTION).")
             running, self.objective = obj.running, obj.name  # None: effort, u'u (the DDP's own)
             S, self.terminal = objective_cost_to_go(model, Ad, Bd, running, self.period, lq.S, R)
         self.S = S
@@ -267,6 +264,14 @@ def objective_cost_to_go(model: CartPoleModel, Ad, Bd, running, period: float, S
     return np.asarray(S_lqr) * scale, "lqr scaled"
 
 
+def seed_plan_options(plan, options: MPCOptions):
+    """``plan`` (PlanOptions) for the DDP MPC's seed: its objective the MPC's when it names none (the seed is planned
+    for what the MPC minimises); ``plan`` itself when either has none."""
+    if plan.objective is None and options.objective is not None:
+        return plan.replace(objective=options.objective)
+    return plan
+
+
 def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
                     options: MPCOptions | None = None, plan=None) -> DDPMPCController:
     """A DDP-MPC controller set up to swing up from ``x0`` and balance at ``model.x_eq``: the offline plan
@@ -293,9 +298,7 @@ def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | N
     from cartpole.planning.trajopt import trajopt_swingup
 
     options = MPCOptions() if options is None else options
-    plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
-    if plan.objective is None and options.objective is not None:  # the seed planned for what the MPC minimises
-        plan = plan.replace(objective=options.objective)
+    plan = seed_plan_options(PlanOptions(cart_margin=options.cart_margin) if plan is None else plan, options)
     model = build_model(params) if model is None else model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
     sp = trajopt_swingup(params, x0=x0, model=model, options=plan)

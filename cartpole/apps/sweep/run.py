@@ -214,9 +214,13 @@ def _check_objective(model, method: str, objective, axes, center, half_widths) -
     if method not in ("trajopt", "mpc"):
         raise SweepError(f"--objective chooses what the trajectory optimisation (or the DDP MPC) optimises; sweep it "
                          f"with --method trajopt or mpc (not {method}).")
-    if method == "mpc" and objective == "time":
-        raise SweepError("The MPC cannot minimise time: it is not a running cost over a receding horizon; sweep a "
-                         "running objective (tracking, effort, a dmc_* reward or MODULE:FUNCTION).")
+    if method == "mpc":  # the DDP MPC's own refusals (time is not a running cost), before any run
+        from cartpole.mpc.options import MPCOptions
+
+        try:
+            MPCOptions(solver="ddp", objective=objective)
+        except CartPoleError as exc:
+            raise SweepError(first_line(exc) + ".") from None
     from cartpole.ocp.objectives import make_objective
 
     try:
