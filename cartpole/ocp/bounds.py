@@ -128,6 +128,23 @@ def bounds_from_model(model: CartPoleModel, **overrides) -> OCPBounds:
     return bounds_from_params(model.params, **overrides)
 
 
+def shooting_bounds(bounds: OCPBounds, nx: int, n: int, x0, x_goal, u_low=None, u_high=None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds ``(lw, hw)`` of a multiple-shooting problem's variables ``[vec(X), vec(U)]`` (CasADi's column-major
+    ``X`` (nx, n+1) then ``U`` (nu, n)): the position bounds of ``bounds`` on every state, ``X[:, 0] = x0`` and
+    ``X[:, n] = x_goal`` pinned, the ctrl inside ``[u_low, u_high]`` (default the bounds' own)."""
+    nq = np.asarray(bounds.q_low).size
+    lx = np.full((nx, n + 1), -np.inf)
+    hx = np.full((nx, n + 1), np.inf)
+    lx[:nq] = np.asarray(bounds.q_low, float)[:, None]
+    hx[:nq] = np.asarray(bounds.q_high, float)[:, None]
+    lx[:, 0] = hx[:, 0] = np.asarray(x0, float)
+    lx[:, -1] = hx[:, -1] = np.asarray(x_goal, float)
+    u_lo = bounds.u_low if u_low is None else u_low
+    u_hi = bounds.u_high if u_high is None else u_high
+    return (np.r_[lx.ravel(order="F"), np.tile(u_lo, n)], np.r_[hx.ravel(order="F"), np.tile(u_hi, n)])
+
+
 def scales(model: CartPoleModel, bounds: OCPBounds) -> np.ndarray:
     """Typical magnitudes (nx + nu,) of ``[qpos, qvel, ctrl]``, to scale the NLP to order one.
 

@@ -26,6 +26,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from cartpole.ocp.bounds import shooting_bounds
 from cartpole.ocp.dmc import sparse_box
 
 #: Distance kept inside the box's bounds (in g's units: m, cosine, m^2).
@@ -68,7 +69,7 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: fl
         the box, or no earlier entry was found.
     """
     tic = time.perf_counter()
-    nx, nu, nq = model.nx, model.nu, model.nq
+    nx, nu = model.nx, model.nu
     xs = ca.SX.sym("x", nx)
     g_expr, lower, upper = sparse_box(model, name, xs)
     g_fun = ca.Function("box", [xs], [g_expr])
@@ -95,14 +96,7 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: fl
             rows.append((upper[i] - margin) - Gx[i, :] + big * (1 - K_par))
     box_rows = ca.vec(ca.horzcat(*rows))
     cost = ca.sumsqr(U - u_ref.T) * dt
-    lx = np.full((nx, n + 1), -np.inf)
-    hx = np.full((nx, n + 1), np.inf)
-    lx[:nq] = np.asarray(bounds.q_low, float)[:, None]
-    hx[:nq] = np.asarray(bounds.q_high, float)[:, None]
-    lx[:, 0] = hx[:, 0] = np.asarray(x0, float)
-    lx[:, -1] = hx[:, -1] = np.asarray(x_goal, float)
-    lw = np.r_[lx.ravel(order="F"), np.tile(bounds.u_low, n)]
-    hw = np.r_[hx.ravel(order="F"), np.tile(bounds.u_high, n)]
+    lw, hw = shooting_bounds(bounds, nx, n, x0, x_goal)
     solver = ca.nlpsol("box_entry", "ipopt", {"x": ca.veccat(X, U), "p": K_par, "f": cost,
                                               "g": ca.vertcat(gap, box_rows)},
                        {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.max_iter": 200,

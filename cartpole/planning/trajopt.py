@@ -32,7 +32,7 @@ from cartpole.control.tvlqr import TVLQRController
 from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.lqr.tvlqr import reference as _on_step_grid
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, steps_per_period
-from cartpole.ocp.bounds import OCPError, bounds_from_params
+from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
 from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
@@ -262,7 +262,7 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
         raise OCPError(f"u_margin = {u_margin} must be a fraction in [0, 1) of each half ctrl range.")
     dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
     t, xr, ur = _on_step_grid(traj, dt)
-    n, nx, nu, nq = t.size, dmodel.nx, dmodel.nu, dmodel.nq
+    n, nx, nu = t.size, dmodel.nx, dmodel.nu
     x0 = np.asarray(x0, float).ravel()
     x_goal = np.asarray(traj.x[-1] if x_goal is None else x_goal, float).ravel()
     before = _defects(dmodel, xr, ur)
@@ -272,14 +272,7 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
     cost = ca.sumsqr(U - ur.T) * dt
     half = 0.5 * (bounds.u_high - bounds.u_low)
     u_lo, u_hi = bounds.u_low + u_margin * half, bounds.u_high - u_margin * half
-    lx = np.full((nx, n + 1), -np.inf)
-    hx = np.full((nx, n + 1), np.inf)
-    lx[:nq] = np.asarray(bounds.q_low, float)[:, None]
-    hx[:nq] = np.asarray(bounds.q_high, float)[:, None]
-    lx[:, 0] = hx[:, 0] = x0
-    lx[:, -1] = hx[:, -1] = x_goal
-    lw = np.r_[lx.ravel(order="F"), np.tile(u_lo, n)]
-    hw = np.r_[hx.ravel(order="F"), np.tile(u_hi, n)]
+    lw, hw = shooting_bounds(bounds, nx, n, x0, x_goal, u_lo, u_hi)
     w0 = np.clip(np.r_[xr.ravel(), ur.ravel()], lw, hw)
     solver = ca.nlpsol("exact_discrete", "ipopt", {"x": ca.veccat(X, U), "f": cost, "g": gap},
                        {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
