@@ -23,5 +23,7 @@ def test_a_running_objective_that_converges_nowhere_keeps_the_time_plan(monkeypa
     assert sp.T > sp.T_min  # the time plan, resting at upright until T = T_min + the running objective's hold
     # and it is a swing-up: tracked in MuJoCo, it ends upright, and the log replays
     run = simulate(model.params, sp.controller, model.x_hanging, sp.T + 1.0)
+    assert run.info.get("diverged") is None  # a blown-up run is reset to qpos0, upright on this file
+    assert run.t[-1] >= sp.T + 1.0 - 1e-9
     err = np.abs(np.angle(np.exp(1j * (run.x[-1][list(model.hinges)] - model.x_eq[list(model.hinges)]))))
     assert np.all(err < 0.05) and replays_exactly(run)
