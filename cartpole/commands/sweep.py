@@ -74,6 +74,11 @@ def add_arguments(parser) -> None:
                              "episodes: the starts of its first N episodes seeded by --seed (numpy RandomState, as "
                              "dm_control's task_kwargs={'random': S}), each run's 'return', and their "
                              "'mean_return'")
+    parser.add_argument("--horizon", type=float, default=None, metavar="S",
+                        help="mpc only: every run's prediction horizon in s (swingup's --horizon)")
+    parser.add_argument("--no-seed-plan", dest="seed_plan", action="store_false",
+                        help="mpc only: run the DDP MPC without an offline seed plan (swingup's --no-seed-plan; "
+                             "needs --objective)")
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="seed of numpy's default_rng for the starts (and the jitter); default 0")
     parser.add_argument("--workers", type=int, default=1, metavar="W",
@@ -115,6 +120,14 @@ def sweep_axes(args) -> tuple:
                 raise SweepError(f"--{flag} takes a name, then V, LO HI or LO HI K; got {' '.join(item)}.")
             axes.append(axis(prefix + item[0], *item[1:]))
     return tuple(axes)
+
+
+def mpc_settings(args) -> dict:
+    """The MPC fields every run of the sweep has from ``--horizon`` and ``--no-seed-plan`` (empty: the defaults)."""
+    fixed = {} if getattr(args, "horizon", None) is None else {"horizon": float(args.horizon)}
+    if not getattr(args, "seed_plan", True):
+        fixed["seed_plan"] = False
+    return fixed
 
 
 def _plan(args, params):
@@ -207,7 +220,8 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
                              gain_jitter=args.jitter, address=args.address, axes=axes, x0=x0,
                              results=out / str(RESULTS).format(method=method),
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
-                             stop_after=args.stop_after, loop=loop, objective=getattr(args, "objective", None))
+                             stop_after=args.stop_after, loop=loop, objective=getattr(args, "objective", None),
+                             mpc=mpc_settings(args))
     except SweepInterrupted as stop:
         from cartpole.errors import Terminated
 

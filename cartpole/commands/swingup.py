@@ -61,6 +61,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
                         help="mpc only: real-time iteration on the condensed QP (rti, the default) or warm-started "
                              "box-DDP on the exact held model (ddp)")
+    parser.add_argument("--no-seed-plan", dest="seed_plan", action="store_false",
+                        help="mpc with --mpc-solver ddp only: plan nothing offline; the MPC finds the swing-up "
+                             "itself in the loop (as MuJoCo MPC does), its first solution converged from u*")
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step; "
                       "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
                       "designed for it")
@@ -216,9 +219,13 @@ def run(args) -> dict:
 
         mpc = MPCOptions(**({} if horizon is None else {"horizon": horizon}),
                          **({} if args.mpc_solver is None else {"solver": args.mpc_solver}),
-                         **({} if objective is None else {"objective": objective}))
+                         **({} if objective is None else {"objective": objective}),
+                         **({} if getattr(args, "seed_plan", True) else {"seed_plan": False}))
     elif getattr(args, "mpc_solver", None) is not None:
         raise SwingupError("--mpc-solver picks the MPC's solver; use it with --method mpc.")
+    elif not getattr(args, "seed_plan", True):
+        raise SwingupError("--no-seed-plan runs the DDP MPC without an offline plan; use it with --method mpc "
+                           "--mpc-solver ddp.")
     out = Path(args.out)
 
     from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION

@@ -275,7 +275,8 @@ def seed_plan_options(plan, options: MPCOptions):
 def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
                     options: MPCOptions | None = None, plan=None) -> DDPMPCController:
     """A DDP-MPC controller set up to swing up from ``x0`` and balance at ``model.x_eq``: the offline plan
-    (:func:`cartpole.planning.trajopt.trajopt_swingup`) seeds it, then the first solution is converged offline.
+    (:func:`cartpole.planning.trajopt.trajopt_swingup`) seeds it (unless ``options.seed_plan`` is False: no plan,
+    the upright LQR's inputs), then the first solution is converged offline.
 
     Parameters
     ----------
@@ -301,5 +302,5 @@ def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | N
     plan = seed_plan_options(PlanOptions(cart_margin=options.cart_margin) if plan is None else plan, options)
     model = build_model(params) if model is None else model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-    sp = trajopt_swingup(params, x0=x0, model=model, options=plan)
-    return DDPMPCController(model, params, options=options, guess=sp.trajectory, x0=x0)
+    guess = trajopt_swingup(params, x0=x0, model=model, options=plan).trajectory if options.seed_plan else None
+    return DDPMPCController(model, params, options=options, guess=guess, x0=x0)

@@ -104,6 +104,13 @@ class MPCOptions(StageOptions):
         (``effort``, the ``dmc_*`` rewards, ``MODULE:FUNCTION``, a callable; :func:`cartpole.ocp.objectives.
         make_objective`), its seed plan planned for the same objective. ``time`` is not a running cost and is
         refused; so is any objective but tracking with ``rti``, whose Gauss-Newton QP needs a least-squares cost.
+    seed_plan : bool
+        With ``solver='ddp'``: True (default) plans the swing-up offline first
+        (:func:`cartpole.planning.trajopt.trajopt_swingup`) and seeds the MPC with it; False plans nothing: the first
+        solution is converged offline from ``u*`` (the equilibrium's input) and the MPC finds the swing-up itself in
+        the loop, each shifted horizon extended by the upright LQR's input at its last predicted state,
+        as MuJoCo MPC does (measured: the dm_control acrobot from its random starts, where an offline plan takes
+        minutes a start; docs' NMPC page). The RTI NMPC tracks a plan and always has one.
 
     Raises
     ------
@@ -125,6 +132,7 @@ class MPCOptions(StageOptions):
     compiled: bool = True
     solver: str = "rti"
     objective: object = None
+    seed_plan: bool = True
 
     error: ClassVar[type] = NMPCError
     SCALARS: ClassVar[tuple] = ("period", "horizon", "iterations", "tol", "init_iterations", "cart_margin",
@@ -152,6 +160,12 @@ class MPCOptions(StageOptions):
                 raise NMPCError(f"The RTI NMPC's Gauss-Newton QP tracks upright (objective tracking, weights Q, R), "
                                 f"not '{getattr(self.objective, '__name__', self.objective)}'; run it with "
                                 "--mpc-solver ddp, which takes any running objective.")
+        if self.seed_plan not in (True, False):
+            raise NMPCError(f"seed_plan = {self.seed_plan!r} must be True or False.")
+        self.set_field("seed_plan", bool(self.seed_plan))
+        if not self.seed_plan and self.solver != "ddp":
+            raise NMPCError("The RTI NMPC tracks an offline plan and cannot run without one; give --mpc-solver ddp "
+                            "with --no-seed-plan, or drop --no-seed-plan.")
         if self.qp_solver is not None and self.qp_solver not in QP_SOLVERS:
             raise NMPCError(f"qp_solver '{self.qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         if self.prestabilize is not None:

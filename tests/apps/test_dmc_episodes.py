@@ -17,6 +17,7 @@ from mj_replay import replay_with_mj_step
 
 PENDULUM = "cartpole/assets/dmc_pendulum.xml"
 CARTPOLE = "cartpole/assets/dmc_cartpole.xml"
+ACROBOT = "cartpole/assets/dmc_acrobot.xml"
 
 
 def _rollout(doc) -> Rollout:
@@ -75,6 +76,34 @@ def test_an_mpc_sweep_runs_the_ddp_mpc_on_the_tasks_reward_over_its_episodes(tmp
     assert doc["objective"] == "dmc_cartpole_swingup" and doc["return_runs"] == 2
     assert all(r["return_steps"] == 1000 and r["success"] and r["replays"] and not r["diverged"] for r in doc["rows"])
     assert all(800 < r["return"] <= 1000 for r in doc["rows"])  # swung up from hanging within about 2 s
+
+
+def test_the_ddp_mpc_without_a_seed_plan_swings_the_acrobot_up_from_its_episodes_starts(tmp_path, capsys):
+    # no offline plan at all: the MPC finds the pumping itself from the long-tailed surrogate (ocp.dmc)
+    model = build_model(ACROBOT)
+    assert main(["sweep", "--mjcf", ACROBOT, "--method", "mpc", "--objective", "dmc_acrobot_swingup",
+                 "--no-seed-plan", "--period", "0.01", "--horizon", "2", "--n", "2", "--seed", "0", "--json",
+                 "--out", str(tmp_path)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    starts = dmc.episode_starts(model, "dmc_acrobot_swingup", 2, seed=0)
+    assert np.allclose([r["start"] for r in doc["rows"]], starts, rtol=0, atol=1e-12)
+    assert doc["mpc"] == {"horizon": 2.0, "seed_plan": False}
+    assert all(r["return_steps"] == 1000 and r["success"] and r["replays"] and not r["diverged"] for r in doc["rows"])
+    assert all(r["return"] > 700 for r in doc["rows"])  # at the target within 3 s of a 10 s episode
+
+
+@pytest.mark.parametrize("args,words", [
+    (["swingup", "--method", "trajopt", "--no-seed-plan"], "use it with --method mpc --mpc-solver ddp"),
+    (["swingup", "--method", "mpc", "--no-seed-plan"], "cannot run without one"),
+    (["sweep", "--method", "trajopt", "--horizon", "2"], "the MPC's settings"),
+    (["sweep", "--method", "mpc", "--no-seed-plan"], "needs an objective"),
+])
+def test_no_seed_plan_is_refused_where_no_ddp_mpc_runs_in_one_sentence(tmp_path, capsys, args, words):
+    assert main([*args, "--mjcf", CARTPOLE, "--json", "--no-video" if args[0] == "swingup" else "--n", *(
+        [] if args[0] == "swingup" else ["1"]), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr()
+    assert err.out == "" and words in err.err and err.err.count("\n") == 1 and "Traceback" not in err.err
+    assert not any(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize("extra,words", [

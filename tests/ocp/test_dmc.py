@@ -128,7 +128,14 @@ def test_planning_form_is_the_reward_or_a_smooth_surrogate_of_it(tmp_path, name,
     exact = dmc_reward(model, X, U, name)
     cost = make_objective(model, name).running
     plan = -np.array([float(cost(x, u)) for x, u in zip(X, U)])
-    if t.sparse:  # smooth, positive, larger inside the indicator's box than outside it on average
+    if t.domain == "acrobot":  # both tasks: the distance's long-tailed tolerance less the small input cost
+        smooth = dmc_reward(model, X, U, "dmc_acrobot_swingup")  # decreasing in the tip's distance, as the plan's
+        tail = plan + dmc.ACROBOT_INPUT_WEIGHT * np.sum(U ** 2, axis=1)
+        order = np.argsort(smooth, kind="stable")
+        assert np.all(np.diff(tail[order]) >= -1e-12)
+        assert np.all(tail > 0) and np.all(tail <= 1)
+        assert -float(cost(model.x_eq, np.zeros(model.nu))) == pytest.approx(1.0)
+    elif t.sparse:  # smooth, positive, larger inside the indicator's box than outside it on average
         assert np.all((plan > 0) & (plan <= 1)) and plan[exact == 1].mean() > 2 * plan[exact == 0].mean()
         assert -float(cost(model.x_eq, np.zeros(model.nu))) == pytest.approx(1.0)
     else:
@@ -241,3 +248,15 @@ def test_a_smooth_task_has_no_box(tmp_path):
     model = build_model(_mjcf("cartpole", tmp_path, 1))
     with pytest.raises(dmc.DMCError, match="no sparse box"):
         dmc.sparse_box(model, "dmc_cartpole_swingup", ca.SX.sym("x", model.nx))
+
+
+def test_acrobot_planning_form_has_a_gradient_where_the_reward_is_flat():
+    # hanging, the tip 3.8 m beyond the target's radius: dm_control's gaussian is about 1e-15 and so is its gradient;
+    # a planner needs a slope there (the module notes)
+    model = build_model(ASSETS["acrobot"])
+    x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    exact = dmc.reward_expression(model, "dmc_acrobot_swingup", x, u, exact=True)
+    plan = make_objective(model, "dmc_acrobot_swingup").running(x, u)
+    grads = ca.Function("g", [x, u], [ca.gradient(exact, x), ca.gradient(plan, x)])
+    g_exact, g_plan = (np.abs(np.asarray(g)).max() for g in grads(model.x_hanging + 0.1, np.zeros(model.nu)))
+    assert g_exact < 1e-10 and g_plan > 1e-4 and g_plan > 1e6 * g_exact

@@ -46,6 +46,13 @@ from cartpole.apps.sweep.plan import LOOP_SETTINGS, SweepError
 
 #: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
 CONNECT_TIMEOUT = 10.0
+def mpc_fields(objective, mpc: dict | None = None) -> dict:
+    """The :class:`~cartpole.mpc.options.MPCOptions` fields of a sweep's mpc runs: with an ``objective`` the DDP
+    MPC's (``solver='ddp'`` and that objective: the RTI NMPC tracks upright only), then the fixed settings ``mpc``
+    (field -> value) every run has."""
+    return {**({} if objective is None else {"solver": "ddp", "objective": objective}), **dict(mpc or {})}
+
+
 class Runner:
     """One process's share of a sweep: the model (built once), each planning model (built once, on first use), the
     basin cache, and the settings every run shares.
@@ -74,10 +81,14 @@ class Runner:
         trajopt: what every plan optimises (:class:`~cartpole.planning.options.PlanOptions` ``objective``); mpc: the
         DDP MPC's running objective (:class:`~cartpole.mpc.options.MPCOptions` ``objective``, ``solver='ddp'``); a
         dm_control task adds each run's ``return`` and ``return_steps``.
+    mpc : dict, optional
+        mpc: fields of :class:`~cartpole.mpc.options.MPCOptions` every run has (``horizon``, ``seed_plan``), by
+        name.
     """
 
     def __init__(self, params: CartPoleParams, method: str, duration, catch_weights, cache: BasinCache,
-                 model: CartPoleModel | None = None, loop: LoopOptions | None = None, objective: str | None = None):
+                 model: CartPoleModel | None = None, loop: LoopOptions | None = None, objective: str | None = None,
+                 mpc: dict | None = None):
         self.params = params
         self.model = build_model(params) if model is None else model
         self.method = method
@@ -87,12 +98,13 @@ class Runner:
         self.plans = {1.0: self.model}
         self.loop = LoopOptions() if loop is None else loop
         self.objective = objective
+        self.mpc = dict(mpc or {})
 
     def settings(self) -> tuple:
-        """``(params, method, duration, catch_weights, cache, None, loop, objective)``: what a worker needs to build
-        the same runner (the model, None, it builds itself)."""
+        """``(params, method, duration, catch_weights, cache, None, loop, objective, mpc)``: what a worker needs
+        to build the same runner (the model, None, it builds itself)."""
         return (self.params, self.method, self.duration, self.catch_weights, self.cache, None, self.loop,
-                self.objective)
+                self.objective, self.mpc)
 
     def plan_model(self, model_error: float) -> CartPoleModel:
         """The planning model of scale ``model_error`` (:func:`~cartpole.apps.swingup.planning_model`), built once."""
@@ -141,8 +153,8 @@ class Runner:
             plan = (PlanOptions(objective=self.objective).replace(**settings) if self.method == "trajopt"
                     else None)
             # an objective is the DDP MPC's (the RTI NMPC tracks upright only)
-            mpc = ((MPCOptions() if self.objective is None else MPCOptions(solver="ddp", objective=self.objective))
-                   .replace(**settings) if self.method == "mpc" else None)
+            mpc = (MPCOptions(**mpc_fields(self.objective, self.mpc)).replace(**settings) if self.method == "mpc"
+                   else None)
             loop = self.loop.replace(duration=self.duration, push=tuple(push or ()), model_error=model_error,
                                      **looped)
             res = run_swingup(self.model, method=self.method, x0=x0, plan=plan, loop=loop, mpc=mpc,

@@ -81,6 +81,8 @@ class SweepResult:
         task's episode, :func:`cartpole.validation.metrics.dmc_return`; NaN for a run that raised); else None.
     return_steps : (n,) array or None
         The control steps each return sums (the task's 1000; NaN for a run that raised).
+    mpc : dict
+        mpc: the MPC settings every run had beyond its defaults (``horizon``, ``seed_plan``; empty: none).
     diverged_at : (n,) array or None
         s: when MuJoCo warned that each run blew up and reset it (a diverged run is never a success); NaN for a run
         that did not diverge (None: none did).
@@ -113,6 +115,7 @@ class SweepResult:
     objective: str | None = None
     returns: np.ndarray | None = None
     return_steps: np.ndarray | None = None
+    mpc: dict = field(default_factory=dict)
 
     def __post_init__(self):
         n = len(self.success)
@@ -194,7 +197,7 @@ class SweepResult:
         """JSON-ready summary: ``mjcf``, ``method``, ``n``, ``successes``, ``success_rate``,
         ``time_to_upright_median``, ``time_to_upright_max``, ``caught_at_median``, ``min_cart_clearance``,
         ``max_peak_ctrl``, ``failed`` (start states of the failures), ``seed``, ``duration``, ``half_widths``,
-        ``gain_jitter``, ``rho``, ``workers``, ``address``, ``axes``, ``objective``; with a dm_control task's
+        ``gain_jitter``, ``rho``, ``workers``, ``address``, ``axes``, ``objective``, ``mpc``; with a dm_control task's
         returns also ``mean_return`` (over the runs that have one), ``returns`` (per run, None where a run raised)
         and ``return_runs`` (how many runs the mean is over)."""
         ca_ok = self.caught_at[self.success]
@@ -208,7 +211,7 @@ class SweepResult:
                 "failed": self.starts[~self.success].tolist(), "seed": self.seed, "duration": self.duration,
                 "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": _num(self.rho),
                 "workers": self.workers, "address": self.address, "axes": [a.describe() for a in self.axes],
-                "objective": self.objective, **self._return_summary()}
+                "objective": self.objective, "mpc": dict(self.mpc), **self._return_summary()}
 
     def _return_summary(self) -> dict:
         if self.returns is None:
@@ -239,7 +242,7 @@ def summary_line(s: dict) -> str:
 
 
 def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration, jitter: float, axes=(),
-             x0=None, loop=None, objective: str | None = None) -> str:
+             x0=None, loop=None, objective: str | None = None, mpc: dict | None = None) -> str:
     """12 hex digits naming the sweep description (MJCF path and content, method, ``n``, seed, ``duration`` s,
     jitter, axes, the fixed start ``x0`` (nx,) ``[qpos, qvel]``): the ``sweep`` column of every row, which a resumed sweep must match. (A description
     without axes keeps the id it had before axes existed; likewise one without a rig, ``loop``: the
@@ -258,6 +261,8 @@ def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration
         desc["loop"] = loop.as_dict()
     if objective is not None:  # (a sweep without one keeps its id)
         desc["objective"] = str(objective)
+    if mpc:  # likewise one with the MPC's default settings
+        desc["mpc"] = {k: mpc[k] for k in sorted(mpc)}
     return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:12]
 
 

@@ -17,7 +17,7 @@ from cartpole.progress import stage
 from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import start_server
-from cartpole.apps.sweep.executors import Runner, check_address, run_dask, run_here, run_pool
+from cartpole.apps.sweep.executors import Runner, check_address, mpc_fields, run_dask, run_here, run_pool
 from cartpole.apps.sweep.plan import (MAX_SHARED_BASINS, SweepError, check_axes, check_settings, default_half_widths,
                                       plan_runs, total_runs)
 from cartpole.apps.sweep.results import (ResultsFile, SweepResult, csv_row, failure, header, read_done,
@@ -28,7 +28,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                   half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
                   duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
                   progress=None, workers: int = 1, address: str | None = None, done: dict | None = None,
-                  on_row=None, axes=(), x0=None, loop=None, objective: str | None = None) -> SweepResult:
+                  on_row=None, axes=(), x0=None, loop=None, objective: str | None = None,
+                  mpc: dict | None = None) -> SweepResult:
     """Run the swing-up over a sweep description (``axes``; without: ``n`` seeded starts in a box, optionally with
     jittered gains) and summarise.
 
@@ -93,6 +94,10 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
         evaluation: the ``n`` starts are its first ``n`` episodes' with ``task_kwargs={'random': seed}``
         (:func:`cartpole.ocp.dmc.episode_starts`, instead of the start box; no axes), every run lasts at least the
         episode, and the result holds each run's ``return`` (the summary their mean).
+    mpc : dict, optional
+        mpc: fields of :class:`~cartpole.mpc.options.MPCOptions` every run has, by name (``horizon``; ``seed_plan``
+        False: the DDP MPC without its offline seed plan, finding the swing-up itself in the loop, which needs an
+        ``objective``); refused with the other methods.
 
     Returns
     -------
@@ -118,7 +123,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     except CartPoleError as exc:
         raise SweepError(first_line(exc) + ".") from None
     nx = 2 * params.nq
-    dmc_task = _check_objective(model, method, objective, axes, center, half_widths)
+    mpc = dict(mpc or {})
+    dmc_task = _check_objective(model, method, objective, axes, center, half_widths, mpc)
     axes = check_axes(axes, params, method, duration=duration if duration is not None else
                       {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method))
     center = model.x_hanging if center is None else np.asarray(center, float)
@@ -160,7 +166,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     todo = [i for i in range(n) if out[i] is None]
     workers = min(workers, max(len(todo), 1))
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
-    runner = Runner(params, method, duration, catch_weights, cache, model=model, loop=loop, objective=objective)
+    runner = Runner(params, method, duration, catch_weights, cache, model=model, loop=loop, objective=objective,
+                    mpc=mpc)
     # each planning model's basin once, here, before the runs (and shipped to the workers in the cache); a sampled
     # model error has a planning model per run: those runs estimate their own basin where they run (in parallel)
     scales = sorted(set(runs.model_errors.tolist()))
@@ -202,25 +209,33 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                        diverged_at=np.array([r.get("diverged_at", math.nan) for r in out], float),
                        errors=tuple(r["error"] for r in out), workers=1 if address else workers,
                        address=address or None, pushes=runs.pushes, model_errors=runs.model_errors,
-                       settings=runs.settings, axes=axes, objective=objective,
+                       settings=runs.settings, axes=axes, objective=objective, mpc=mpc,
                        returns=np.array([r["return"] for r in out], float) if dmc_task else None,
                        return_steps=np.array([r["return_steps"] for r in out], float) if dmc_task else None)
 
 
-def _check_objective(model, method: str, objective, axes, center, half_widths) -> bool:
-    """Refuse an objective the sweep cannot run (one sentence, :class:`SweepError`); True for a dm_control task."""
-    if objective is None:
-        return False
-    if method not in ("trajopt", "mpc"):
+def _check_objective(model, method: str, objective, axes, center, half_widths, mpc: dict | None = None) -> bool:
+    """Refuse an objective (or MPC settings) the sweep cannot run (one sentence, :class:`SweepError`); True for a
+    dm_control task."""
+    mpc = dict(mpc or {})
+    if mpc and method != "mpc":
+        raise SweepError(f"--horizon and --no-seed-plan are the MPC's settings; use them with --method mpc (not "
+                         f"{method}).")
+    if objective is not None and method not in ("trajopt", "mpc"):
         raise SweepError(f"--objective chooses what the trajectory optimisation (or the DDP MPC) optimises; sweep it "
                          f"with --method trajopt or mpc (not {method}).")
-    if method == "mpc":  # the DDP MPC's own refusals (time is not a running cost), before any run
+    if method == "mpc" and not mpc.get("seed_plan", True) and objective is None:
+        raise SweepError("--no-seed-plan runs the DDP MPC, which needs an objective to find the swing-up by itself; "
+                         "give --objective (e.g. dmc_acrobot_swingup).")
+    if method == "mpc" and (mpc or objective is not None):  # the MPC's own refusals (time is not a running cost)
         from cartpole.mpc.options import MPCOptions
 
         try:
-            MPCOptions(solver="ddp", objective=objective)
+            MPCOptions(**mpc_fields(objective, mpc))
         except CartPoleError as exc:
             raise SweepError(first_line(exc) + ".") from None
+    if objective is None:
+        return False
     from cartpole.ocp.objectives import make_objective
 
     try:
@@ -275,7 +290,8 @@ class RecordedSweep:
 def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, results: Path, figure: Path,
                    workers: int = 1, duration: float | None = None, gain_jitter: float = 0.0,
                    address: str | None = None, axes=(), x0=None, resume: bool = False,
-                   stop_after: int | None = None, loop=None, objective: str | None = None) -> RecordedSweep:
+                   stop_after: int | None = None, loop=None, objective: str | None = None,
+                   mpc: dict | None = None) -> RecordedSweep:
     """:func:`swingup_sweep` with a results file: each finished run is appended to the CSV ``results`` (columns
     :func:`~cartpole.apps.sweep.results.header`) as it finishes, so an interrupt or a crash keeps it; with
     ``resume`` the runs of this sweep already in the file are kept and only the others run. At the end the file
@@ -285,7 +301,7 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
     Parameters
     ----------
     params : CartPoleParams
-    method, n, seed, workers, duration, gain_jitter, address, axes, x0, loop, objective
+    method, n, seed, workers, duration, gain_jitter, address, axes, x0, loop, objective, mpc
         As for :func:`swingup_sweep` (``duration`` in s; ``x0`` (2 nq,)); a dm_control task's sweep adds the
         ``return`` and ``return_steps`` columns.
     results, figure : Path
@@ -308,17 +324,17 @@ def recorded_sweep(params: CartPoleParams, *, method: str, n: int, seed: int, re
         return _recorded_sweep(params, method=method, n=n, seed=seed, results=results, figure=figure,
                                workers=workers, duration=duration, gain_jitter=gain_jitter, address=address,
                                axes=axes, x0=x0, resume=resume, stop_after=stop_after, loop=loop,
-                               objective=objective)
+                               objective=objective, mpc=mpc)
 
 
 def _recorded_sweep(params, *, method, n, seed, results, figure, workers, duration, gain_jitter, address, axes, x0,
-                    resume, stop_after, loop, objective=None) -> RecordedSweep:
+                    resume, stop_after, loop, objective=None, mpc=None) -> RecordedSweep:
     from cartpole._files import write_csv
     from cartpole.viz.sweep_plot import plot_success_map
 
     results, figure = Path(results), Path(figure)
     sid = sweep_id(params, method=method, n=n, seed=seed, duration=duration, jitter=gain_jitter, axes=axes, x0=x0,
-                   loop=loop, objective=objective)
+                   loop=loop, objective=objective, mpc=mpc)
     settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
     returns = is_task(objective)
     head = header(params, settings, returns=returns)
@@ -339,7 +355,7 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
     try:
         result = swingup_sweep(params, method=method, n=n, seed=seed, workers=workers, duration=duration,
                                gain_jitter=gain_jitter, address=address, done=done, on_row=on_row, axes=axes,
-                               x0=x0, loop=loop, objective=objective)
+                               x0=x0, loop=loop, objective=objective, mpc=mpc)
         for f in opened:
             f.close()
         rows = result.rows()
