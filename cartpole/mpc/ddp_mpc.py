@@ -214,8 +214,8 @@ def objective_cost_to_go(model: CartPoleModel, Ad, Bd, running, period: float, S
     LQR over one period and where it came from.
 
     ``L``'s quadratic model at ``(x*, u*)`` is ``dz' H dz / 2`` (``H`` its Hessian in ``z = (x, u)``: exact, from
-    the symbols, taken 1e-9 off upright so that a dm_control ``tolerance`` whose bounds are the single point upright
-    contributes its sigmoid's curvature, not the flat in-bounds branch's), so the stage cost ``period * L`` is ``x' Q x + u' R u + 2 x' N u`` with ``(Q, N; N', R) = period H / 2``;
+    the symbols; a dm_control ``tolerance`` whose bounds are the single point upright contributes its sigmoid's
+    curvature there, :func:`cartpole.ocp.dmc.tolerance`), so the stage cost ``period * L`` is ``x' Q x + u' R u + 2 x' N u`` with ``(Q, N; N', R) = period H / 2``;
     the LQR of that cost on ``(Ad, Bd)`` (cross term removed by ``u = v - R^-1 N' x``) prices the state beyond the
     horizon in ``L``'s own units. When it does not exist (``R`` not positive definite, ``Q`` not positive
     semi-definite, no stabilising Riccati solution: ``effort`` has no state cost at all) the ``Q_lqr, R_lqr`` LQR's
@@ -243,11 +243,8 @@ def objective_cost_to_go(model: CartPoleModel, Ad, Bd, running, period: float, S
     nx, nu = model.nx, model.nu
     z = ca.SX.sym("z", nx + nu)
     L = ca.sumsqr(z[nx:]) if running is None else running(z[:nx], z[nx:])
-    # taken a hair (1e-9) off upright: dm_control's tolerance() is 1 inside its bounds and a sigmoid outside, and
-    # with bounds (0, 0) its "inside" is the single point upright, whose branch has no curvature; the sigmoid's
-    # (the function's curvature on either side) is the one that prices a state near upright
     H = np.array(ca.Function("mpc_cost_hessian", [z], [ca.hessian(L, z)[0]])(
-        np.concatenate([model.x_eq, model.u_eq]) + 1e-9).full(), dtype=float)
+        np.concatenate([model.x_eq, model.u_eq])).full(), dtype=float)
     W = 0.5 * float(period) * 0.5 * (H + H.T)
     Q, N, R = W[:nx, :nx], W[:nx, nx:], W[nx:, nx:]
     Ad, Bd = np.asarray(Ad, float), np.asarray(Bd, float)

@@ -193,7 +193,13 @@ def tolerance(x, bounds=(0.0, 0.0), margin: float = 0.0, sigmoid: str = "gaussia
     """dm_control's ``rewards.tolerance`` on a CasADi expression ``x`` (scalar): 1 inside ``bounds`` (inclusive,
     may be infinite), outside it ``0`` when ``margin == 0``, else ``_sigmoids(distance / margin, value_at_margin,
     sigmoid)`` (``value_at_margin`` at ``margin`` from the nearest bound). Same checks and sentences as
-    dm_control's (``ValueError``); the result is a CasADi expression in [0, 1]."""
+    dm_control's (``ValueError``); the result is a CasADi expression in [0, 1].
+
+    Bounds that are one point (``lower == upper``, e.g. dm_control's default ``(0, 0)``) with a margin: the same
+    values, written as the sigmoid of the signed distance, with no "in bounds" branch. dm_control's branch is the
+    point itself, whose constant 1 has no derivatives, so a planner's Hessian at an iterate exactly there (a guess with
+    the cart at 0, rates at rest) would miss the sigmoid's curvature; the even sigmoids take the signed distance (the
+    same value, smooth through the point), ``linear`` and ``reciprocal`` its magnitude (their kink is dm_control's)."""
     lower, upper = bounds
     if lower > upper:
         raise ValueError("Lower bound must be <= upper bound.")
@@ -202,6 +208,9 @@ def tolerance(x, bounds=(0.0, 0.0), margin: float = 0.0, sigmoid: str = "gaussia
     in_bounds = ca.logic_and(x >= lower, x <= upper)
     if margin == 0:
         return ca.if_else(in_bounds, 1.0, 0.0)
+    if lower == upper and np.isfinite(lower):
+        d = (x - lower) / margin
+        return _sigmoids(ca.fabs(d) if sigmoid in ("linear", "reciprocal") else d, value_at_margin, sigmoid)
     d = ca.if_else(x < lower, lower - x, x - upper) / margin
     return ca.if_else(in_bounds, 1.0, _sigmoids(d, value_at_margin, sigmoid))
 

@@ -161,6 +161,19 @@ def test_tolerance_is_dm_controls_for_every_sigmoid(sigmoid):
         dmc.tolerance(v, margin=1, sigmoid="gaussian", value_at_margin=0)
 
 
+@pytest.mark.parametrize("sigmoid", ["gaussian", "hyperbolic", "long_tail", "cosine", "quadratic", "tanh_squared"])
+def test_point_bounds_keep_the_sigmoids_curvature_at_the_point(sigmoid):
+    # dm_control's "in bounds" at bounds (0, 0) is the point itself, a constant 1 without curvature; a planner's
+    # Hessian there must see the sigmoid's, which is what a finite difference across the point measures
+    v = ca.SX.sym("v")
+    f = ca.Function("t", [v], [dmc.tolerance(v, (0.3, 0.3), 2.0, sigmoid, 0.2)])
+    hess = ca.Function("h", [v], [ca.hessian(f(v), v)[0]])
+    h = 1e-4
+    fd = (float(f(0.3 + h)) - 2 * float(f(0.3)) + float(f(0.3 - h))) / h ** 2
+    assert float(f(0.3)) == 1.0 and fd < -1e-3
+    assert float(hess(0.3)) == pytest.approx(fd, rel=1e-5)
+
+
 def test_scoring_function_is_built_once_per_model(tmp_path):
     model = build_model(ASSETS["pendulum"])
     f = dmc.reward_function(model, "dmc_pendulum_swingup")
