@@ -71,7 +71,7 @@ import numpy as np
 
 from cartpole.codegen import Buffered, load_library
 from cartpole.ocp import compiled_nlp
-from cartpole.solvers import sqp_functions
+from cartpole.solvers import riccati_qp, sqp_functions
 from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.records import Attempt, SolveInfo
@@ -82,11 +82,12 @@ class SQPError(OCPError):
     """The SQP solver cannot be set up for this problem, or its solve did not converge."""
 
 
-#: QP solvers: ``daqp`` (the stage QP condensed onto the knot controls, DAQP's dense dual active set; qrqp then
+#: QP solvers: ``riccati`` (the stage QP by Riccati recursions and a primal-dual active set, in C:
+#: :mod:`cartpole.solvers.riccati_qp`; a QP it cannot settle goes to ``daqp``), ``daqp`` (the stage QP condensed onto the knot controls, DAQP's dense dual active set; qrqp then
 #: HPIPM when it fails), ``qrqp`` (CasADi's sparse active-set solver: the banded KKT system by sparse QR,
 #: hot-started from the previous SQP iteration's active set; when its answer fails the check of feasibility, HPIPM
 #: solves that QP) and ``hpipm`` alone (Riccati-recursion interior point, through CasADi's interface).
-QP_SOLVERS = ("daqp", "qrqp", "hpipm")
+QP_SOLVERS = ("riccati", "daqp", "qrqp", "hpipm")
 _BIG = 1e30  # DAQP's "no bound"
 _GAMMA = 1e-5  # the filter's margin
 #: Bound magnitude that stands for "no bound" in the QP (scaled units; HPIPM treats every variable as boxed and
@@ -152,7 +153,7 @@ class CollocationSQP:
     """
 
     def __init__(self, ocp: DirectCollocation, *, tol: float = 1e-8, max_iter: int = 200, reg_min: float = 1e-4,
-                 lm_init: float = 1e-2, qp_solver: str = "daqp", qp_options: dict | None = None, warm_qp: bool = True,
+                 lm_init: float = 1e-2, qp_solver: str = "riccati", qp_options: dict | None = None, warm_qp: bool = True,
                  soc: bool = True, max_step: float = 1.0, exact_hessian_below: float = 1e-1):
         if not isinstance(ocp, DirectCollocation):
             raise SQPError("CollocationSQP needs a DirectCollocation problem (cartpole.ocp.collocation).")
@@ -167,11 +168,13 @@ class CollocationSQP:
                            "IPOPT (DirectCollocation.solve).")
         if qp_solver not in QP_SOLVERS:
             raise SQPError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
-        if qp_solver == "daqp":
+        if qp_solver == "riccati" and not (ocp.compiled and riccati_qp.available(ocp.nx, ocp.nu)):
+            qp_solver = "daqp"  # no C compiler: the condensed route (same answers)
+        if qp_solver in ("riccati", "daqp"):
             import importlib.util
 
             if importlib.util.find_spec("daqp") is None:
-                raise SQPError("qp_solver 'daqp' needs the daqp package (pip install daqp); use 'qrqp'.")
+                raise SQPError(f"qp_solver '{qp_solver}' needs the daqp package (pip install daqp); use 'qrqp'.")
         elif not ca.has_conic(qp_solver):
             raise SQPError(f"This CasADi build has no '{qp_solver}' QP plugin; use IPOPT (DirectCollocation.solve).")
         self.qp_solver, self.warm_qp, self.soc = qp_solver, bool(warm_qp), bool(soc)
@@ -200,6 +203,7 @@ class CollocationSQP:
         self._e = Buffered(ext["hs_e"].map(N))
         self._tri = _tri_index(2 * self.nz + 1)
         funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled)
+        self._rqp = riccati_qp.StageQP(N, nx, nu) if qp_solver == "riccati" else None
         self._stages, self._condense, self._mult = (Buffered(f) for f in funcs)
         self._setup_qp(qp_options or {})
         self.history: list[dict] = []
@@ -325,7 +329,17 @@ class CollocationSQP:
         T, ct, Hy, gy, M = self._stages(J, H, G, D, float(lm))
         T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
         Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
-        if self.qp_solver == "daqp":
+        if self._rqp is not None:
+            rq = self._rqp
+            status = rq.solve(T, ct, Hy, gy, lbz - Z, ubz - Z)
+            self.qp_counts["riccati"] += 1
+            if status == 0:
+                dZ, Nb = rq.dz.copy(), rq.nb.copy()
+                (lam,) = self._mult(dZ, Nb[:, :nx], Hy, gy, T, H, G, M)
+                return dZ, lam.reshape(N, nx).copy(), Nb, True
+            self.qp_counts["riccati_unsettled"] += 1
+            rq.reset()  # this QP goes to DAQP; the next one starts afresh
+        if self.qp_solver in ("riccati", "daqp"):
             out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
             if out is not None:
                 return out
@@ -542,11 +556,14 @@ class CollocationSQP:
         self.qp_counts = {name: 0 for name in self._qps}
         self.qp_soft = 0
         self._soft_step = False
-        if self.qp_solver == "daqp":
+        if self.qp_solver in ("riccati", "daqp"):
             import daqp
 
             self._daqp = daqp.solve
             self._condensing_setup(lbz, ubz)
+        if self._rqp is not None:
+            self._rqp.reset()
+            self.qp_counts.update(riccati=0, riccati_unsettled=0)
         try:
             D, J, f, G, H = self._eval(Z, lam)
             theta_max = 1e4 * max(1.0, float(np.abs(D).sum()))

@@ -47,7 +47,7 @@ def _assert_ipopts_optimum(traj, info, traj_ip, info_ip, ocp: DirectCollocation,
     assert np.all(np.abs(traj.u) <= 1.0 + 1e-9)
 
 
-@pytest.mark.parametrize("qp_solver", ["qrqp", "daqp"])
+@pytest.mark.parametrize("qp_solver", ["riccati", "qrqp", "daqp"])
 def test_sqp_reaches_ipopts_optimum_on_the_standard_problem_from_the_same_guess(single, qp_solver):
     ocp, x0, guess, (traj_ip, info_ip) = single
     assert info_ip.success
