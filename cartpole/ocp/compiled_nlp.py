@@ -33,7 +33,7 @@ from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_te
 
 
 #: The names of the interval functions a compiled library holds (:func:`interval_functions`).
-INTERVAL_FUNCTIONS = ("hs_d", "hs_e", "hs_dj", "hs_eg", "hs_hl")
+INTERVAL_FUNCTIONS = ("hs_d", "hs_e", "hs_dj", "hs_eg", "hs_hl", "hs_hf")
 
 
 @dataclass(frozen=True)
@@ -84,7 +84,8 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su, eff_scale: float = 1.
         ``hs_d(v, h) -> d`` (nx,) the defect divided by ``sx``; ``hs_e(v, h) -> e`` the interval cost
         divided by ``eff_scale``; ``hs_dj(v, h) -> (d, d(d)/d(v, h) (nx, nv + 1))``;
         ``hs_eg(v, h) -> (e, de/d(v, h) (nv + 1,))``; ``hs_hl(v, h, lam (nx,), sigma) ->`` upper triangle
-        ((nv + 1) (nv + 2) / 2,) column-major of the Hessian of ``sigma e + lam' d`` in ``(v, h)``; and
+        ((nv + 1) (nv + 2) / 2,) column-major of the Hessian of ``sigma e + lam' d`` in ``(v, h)``; ``hs_hf(v, h,
+        lam, sigma) ->`` the same Hessian in ``v`` alone, dense (nv, nv) (a fixed duration's: the SQP's blocks); and
         ``jac_hs_d``, ``jac_hs_e``, the Jacobians CasADi looks up by name when it differentiates an external
         function (it does once, for the final multipliers).
     """
@@ -115,6 +116,7 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su, eff_scale: float = 1.
         ca.Function("hs_dj", [v, h], [d, ca.densify(ca.jacobian(d, vh))]),
         ca.Function("hs_eg", [v, h], [e, ca.densify(ca.gradient(e, vh))]),
         ca.Function("hs_hl", [v, h, lam, sigma], [hess_triu]),
+        ca.Function("hs_hf", [v, h, lam, sigma], [ca.densify(ca.hessian(sigma * e + ca.dot(lam, d), v)[0])]),
         hs_d.jacobian(),  # named jac_hs_d
         hs_e.jacobian(),
     ]

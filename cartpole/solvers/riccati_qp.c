@@ -343,6 +343,86 @@ static void column(rqp_ws* W, int kr, int i, double v, int all_rows, double* cp,
     }
 }
 
+/* every held row's response to a unit multiplier, all rows in one sweep over the stages (each stage's data read
+   once for all rows), read at every row: M[a][r] = the state entry of row a when row r's multiplier is one */
+static void responses(rqp_ws* W)
+{
+    const rqp_dims* d = &W->d;
+    const int nz = RQP_NZ, nu = RQP_NU, ny = RQP_NY, nx = RQP_NX, N = d->N, nr = W->nrow;
+    double* Pm = W->cs;            /* nr nz: the value functions' gradients, a row each */
+    double* Km = W->cp;            /* N nr nu: the feedforwards */
+    double* X = W->cs;             /* forward: nr nz (Pm is done by then) */
+    double tmp[16], pn[RQP_NZ], xn[RQP_NZ], w[RQP_NU];
+    memset(Pm, 0, sizeof(double) * nz * nr);
+    for (int r = 0; r < nr; ++r)
+        if (W->rk[r] == N) Pm[r * nz + W->ri[r]] = 1.0;
+    for (int k = N - 1; k >= 0; --k) {
+        const double* Tk = W->T + (size_t)k * nz * ny;
+        const double* S = W->S + (size_t)k * nu * nz;
+        const double* L = W->L + (size_t)k * nu * nu;
+        const int* fi = W->fidx + k * nu;
+        const int nf = W->nfree[k];
+        for (int r = 0; r < nr; ++r) {
+            double* p1 = Pm + r * nz;
+            double* kk = Km + ((size_t)k * nr + r) * nu;
+            for (int i = 0; i < nu; ++i) kk[i] = 0.0;
+            for (int a = 0; a < nf; ++a) {
+                double u = 0.0;
+                for (int m = 0; m < nz; ++m) u += Tk[m * ny + nz + fi[a]] * p1[m];
+                tmp[a] = -u;
+            }
+            if (nf) chol_solve(nf, L, tmp);
+            for (int a = 0; a < nf; ++a) kk[fi[a]] = tmp[a];
+            for (int j = 0; j < nz; ++j) {
+                double u = 0.0;
+                for (int m = 0; m < nz; ++m) u += Tk[m * ny + j] * p1[m];
+                for (int a = 0; a < nf; ++a) u += S[fi[a] * nz + j] * tmp[a];
+                pn[j] = u;
+            }
+            if (k >= 1 && W->rk[r] == k) pn[W->ri[r]] += 1.0;
+            for (int j = 0; j < nz; ++j) p1[j] = pn[j];
+        }
+    }
+    {
+        const int* fi = W->fidx + N * nu;
+        const int nf = W->nfree[N];
+        for (int r = 0; r < nr; ++r) {
+            double* x = X + r * nz;
+            for (int a = 0; a < nf; ++a) tmp[a] = -x[nx + fi[a]];
+            if (nf) chol_solve(nf, W->L0, tmp);
+            for (int i = 0; i < nz; ++i) x[i] = 0.0;
+            for (int a = 0; a < nf; ++a) x[nx + fi[a]] = tmp[a];
+        }
+    }
+    for (int k = 0; k < N; ++k) {
+        const double* Tk = W->T + (size_t)k * nz * ny;
+        const double* Kf = W->K + (size_t)k * nu * nz;
+        const int* fi = W->fidx + k * nu;
+        const int nf = W->nfree[k];
+        for (int r = 0; r < nr; ++r) {
+            double* x = X + r * nz;
+            const double* kk = Km + ((size_t)k * nr + r) * nu;
+            for (int i = 0; i < nu; ++i) w[i] = 0.0;
+            for (int a = 0; a < nf; ++a) {
+                const int i = fi[a];
+                double u = kk[i];
+                for (int j = 0; j < nz; ++j) u += Kf[i * nz + j] * x[j];
+                w[i] = u;
+            }
+            for (int i = 0; i < nz; ++i) {
+                double u = 0.0;
+                for (int j = 0; j < nz; ++j) u += Tk[i * ny + j] * x[j];
+                for (int j = 0; j < nu; ++j) u += Tk[i * ny + nz + j] * w[j];
+                xn[i] = u;
+            }
+            for (int i = 0; i < nz; ++i) x[i] = xn[i];
+        }
+        for (int a = 0; a < nr; ++a)
+            if (W->rk[a] == k + 1)
+                for (int r = 0; r < nr; ++r) W->M[a * nr + r] = X[r * nz + W->ri[a]];
+    }
+}
+
 /* the equality-constrained QP of the active set: W->s, W->w, W->ptot, W->nu_; 0, 1 (not convex), 2 (rows dependent) */
 static int solve_active(rqp_ws* W)
 {
@@ -366,12 +446,7 @@ static int solve_active(rqp_ws* W)
     memcpy(W->ptot, W->p, sizeof(double) * ns);
     int nr = W->nrow;
     if (!nr) return 0;
-    /* each row's response to a unit multiplier, read at every row: M */
-    for (int r = 0; r < nr; ++r) {
-        column(W, W->rk[r], W->ri[r], 1.0, 0, W->cp, W->ck);
-        forward(W, W->cp, W->ck, 1, W->cs, W->cw);
-        for (int a = 0; a < nr; ++a) W->M[a * nr + r] = W->cs[IDX(W->rk[a], W->ri[a])];
-    }
+    responses(W);
     for (int a = 0; a < nr; ++a) W->nu_[a] = W->rb[a] - W->s[IDX(W->rk[a], W->ri[a])];
     if (lu_solve(nr, W->M, W->nu_)) return 2;
     /* the solution: all the rows' terms at once, added to the base pass's, then one forward pass */
@@ -415,7 +490,8 @@ static size_t work_doubles(int N, int nx, int nu, int mr)
 {
     const size_t nz = nx + nu, ns = (size_t)(N + 1) * nz, nw = (size_t)N * nu;
     return (size_t)(N + 1) * nz * nz + ns + nw * nz + nw + nw * nz + (size_t)N * nu * nu + nu * nu + ns + nw + ns
-           + 2 * ns + 2 * nw + (size_t)mr * mr + 2 * (size_t)mr + 4 * nz * nz + 8 * nz + 8 * (size_t)nu * nu;
+           + 2 * ns + 2 * nw + (size_t)mr * mr + 2 * (size_t)mr + 4 * nz * nz + 8 * nz + 8 * (size_t)nu * nu
+           + 2 * nz * (size_t)mr + nw * (size_t)mr + (size_t)nu * mr;
 }
 
 static size_t work_ints(int N, int nx, int nu, int mr)
@@ -468,9 +544,9 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     W.s = o; o += ns;
     W.w = o; o += nw;
     W.ptot = o; o += ns;
-    W.cs = o; o += ns;
-    W.cp = o; o += ns;
-    W.cw = o; o += nw;
+    W.cs = o; o += 2 * (size_t)nz * mr;
+    W.cp = o; o += (ns > nw * (size_t)mr ? ns : nw * (size_t)mr);
+    W.cw = o; o += (nw > (size_t)nu * mr ? nw : (size_t)nu * mr);
     W.ck = o; o += nw;
     W.rb = o; o += mr;
     W.M = o; o += (size_t)mr * mr;

@@ -5,7 +5,7 @@ variable: scaled knots ``z_k = (x_k / s_x, u_k / s_u)`` (nz = nx + nu), k = 0..N
 ``d_k(z_k, z_k+1) = 0`` (nx each, divided by ``s_x``), box bounds on the knots (ctrl, cart rail, limited joints),
 ``x_0`` and ``x_N`` pinned, objective the effort ``integral u'u dt`` divided by ``sum(s_u^2) T``. Its pieces are
 the interval functions compiled to C (:mod:`cartpole.ocp.compiled_nlp`: ``hs_dj`` defect and Jacobian, ``hs_eg`` cost
-and gradient, ``hs_hl`` the exact Hessian block of the interval's Lagrangian), mapped over the N intervals.
+and gradient, ``hs_hf`` the exact Hessian block of the interval's Lagrangian), mapped over the N intervals.
 
 Each SQP step solves the QP of the exact Lagrangian Hessian and the linearised defects. That QP is an optimal
 control problem once the defects are read as dynamics: the linearised defect
@@ -93,12 +93,6 @@ _GAMMA = 1e-5  # the filter's margin
 #: Bound magnitude that stands for "no bound" in the QP (scaled units; HPIPM treats every variable as boxed and
 #: converges badly with CasADi's default 1e8; steps of the scaled NLP are of order one).
 QP_INF = 1e3
-
-
-def _tri_index(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column of each entry of a column-major upper triangle of an (n, n) matrix."""
-    pairs = [(a, b) for b in range(n) for a in range(b + 1)]
-    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
 class CollocationSQP:
@@ -198,10 +192,7 @@ class CollocationSQP:
             self.library = None
         self._dj = Buffered(ext["hs_dj"].map(N))
         self._eg = Buffered(ext["hs_eg"].map(N))
-        self._hl = Buffered(ext["hs_hl"].map(N))
-        self._d = Buffered(ext["hs_d"].map(N))
-        self._e = Buffered(ext["hs_e"].map(N))
-        self._tri = _tri_index(2 * self.nz + 1)
+        self._hf = Buffered(ext["hs_hf"].map(N))
         funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled)
         self._rqp = riccati_qp.StageQP(N, nx, nu) if qp_solver == "riccati" else None
         self._stages, self._condense, self._mult = (Buffered(f) for f in funcs)
@@ -287,10 +278,9 @@ class CollocationSQP:
         """Interval variables ``(z_k, z_k+1)`` as (N, 2 nz), i.e. CasADi's (2 nz, N) column-major."""
         return np.ascontiguousarray(np.hstack([Z[:-1], Z[1:]]))
 
-    def _eval(self, Z: np.ndarray, lam: np.ndarray):
-        """At knots ``Z`` (N+1, nz) with defect multipliers ``lam`` (N, nx): defects (N, nx), their Jacobian
-        blocks (N, nx, 2 nz), the cost, its gradient blocks (N, 2 nz) and the Lagrangian's Hessian blocks
-        (N, 2 nz, 2 nz) (copies)."""
+    def _first_order(self, Z: np.ndarray):
+        """At knots ``Z`` (N+1, nz): the defects (N, nx), their Jacobian blocks (N, nx, 2 nz), the cost and its
+        gradient blocks (N, 2 nz) (copies)."""
         N, nx, nz = self.N, self.nx, self.nz
         nv = 2 * nz
         V = self._intervals(Z)
@@ -301,23 +291,29 @@ class CollocationSQP:
         E, GE = self._eg(V, h)
         f = float(E.sum()) / self._cost_div
         G = GE.reshape(N, nv + 1)[:, :nv] / self._cost_div
+        return D, J, f, G
+
+    def _hessian(self, Z: np.ndarray, D: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """The Lagrangian's Hessian blocks (N, 2 nz, 2 nz) at knots ``Z`` with defects ``D`` and defect multipliers
+        ``lam`` (N, nx); far from feasible (module docstring) the cost's alone."""
+        N, nv = self.N, 2 * self.nz
         if float(np.abs(D).max()) > self.exact_hessian_below:  # far from feasible: the cost's curvature only
             lam = np.zeros_like(lam)
-        (HB,) = self._hl(V, h, np.ascontiguousarray(lam), self._sigma)
-        HB = HB.reshape(N, -1)
-        Hf = np.empty((N, nv + 1, nv + 1))
-        r, c = self._tri
-        Hf[:, r, c] = HB
-        Hf[:, c, r] = HB
-        return D, J, f, G, Hf[:, :nv, :nv].copy()
+        (HB,) = self._hf(self._intervals(Z), self._hvec, np.ascontiguousarray(lam), self._sigma)
+        return HB.reshape(N, nv, nv).copy()  # symmetric: CasADi's column-major block is its transpose
+
+    def _eval(self, Z: np.ndarray, lam: np.ndarray):
+        """At knots ``Z`` (N+1, nz) with defect multipliers ``lam`` (N, nx): :meth:`_first_order`'s four and the
+        Lagrangian's Hessian blocks (N, 2 nz, 2 nz) (copies)."""
+        D, J, f, G = self._first_order(Z)
+        return D, J, f, G, self._hessian(Z, D, lam)
 
     def _merit_parts(self, Z: np.ndarray) -> tuple[float, float, np.ndarray]:
-        """Cost, l1 norm of the defects and the defects (N, nx) at knots ``Z``."""
-        V = self._intervals(Z)
-        h = self._hvec
-        (D,) = self._d(V, h)
-        (E,) = self._e(V, h)
-        return float(E.sum()) / self._cost_div, float(np.abs(D).sum()), D.reshape(self.N, self.nx).copy()
+        """Cost, l1 norm of the defects and the defects (N, nx) at knots ``Z``; the first-order parts kept in
+        ``_trial`` (the point accepted next is usually this one: they are not evaluated twice)."""
+        D, J, f, G = self._first_order(Z)
+        self._trial = (Z, D, J, f, G)
+        return f, float(np.abs(D).sum()), D
 
     # ---- one QP ---------------------------------------------------------------------------------------------
     def _qp_step(self, Z, D, J, G, H, lbz, ubz, lm: float):
@@ -599,26 +595,29 @@ class CollocationSQP:
                 if step > self.max_step:  # a Newton step far outside where the linearisation holds: shortened
                     dZ = dZ * (self.max_step / step)
                 Z_new, alpha = None, 1.0
-                ft, ct, D_try = self._merit_parts(Z + dZ)
+                Z_try = Z + dZ
+                ft, ct, D_try = self._merit_parts(Z_try)
                 if self._acceptable(ft, ct, f, c1, filt, theta_max):
-                    Z_new = Z + dZ
+                    Z_new = Z_try
                 elif self.soc:
                     # second-order correction (Maratos): the same QP with the defects at the trial point
                     dV = np.hstack([dZ[:-1], dZ[1:]])
                     D_soc = D_try - (J @ dV[:, :, None])[:, :, 0]
                     dZ_c, _, _, ok_c = self._qp_step(Z, D_soc, J, G, H, lbz, ubz, lm)
                     if ok_c:
-                        ft, ct, _ = self._merit_parts(Z + dZ_c)
+                        Z_try = Z + dZ_c
+                        ft, ct, _ = self._merit_parts(Z_try)
                         if self._acceptable(ft, ct, f, c1, filt, theta_max):
-                            Z_new = Z + dZ_c
+                            Z_new = Z_try
                             rec["soc"] = True
                 while Z_new is None:
                     alpha *= 0.5
                     if alpha < 1e-8:
                         break
-                    ft, ct, _ = self._merit_parts(Z + alpha * dZ)
+                    Z_try = Z + alpha * dZ
+                    ft, ct, _ = self._merit_parts(Z_try)
                     if self._acceptable(ft, ct, f, c1, filt, theta_max):
-                        Z_new = Z + alpha * dZ
+                        Z_new = Z_try
                 rec["alpha"] = alpha
                 lm = lm / 4 if alpha == 1.0 else min(4 * lm, 1e3)  # less damping after a full step, more after less
                 if Z_new is None:
@@ -630,7 +629,8 @@ class CollocationSQP:
                 if not soft_step:  # an elastic QP's multipliers price its penalty, not the NLP: kept
                     lam = lam_qp
                 last = (lam_qp, Nb) if (alpha == 1.0 and not soft_step and not rec["soc"]) else None
-                D, J, f, G, H = self._eval(Z, lam)
+                _, D, J, f, G = self._trial  # the accepted point is the last one tried
+                H = self._hessian(Z, D, lam)
         except (RuntimeError, np.linalg.LinAlgError) as exc:  # a singular defect Jacobian, a NaN in CasADi
             status = f"Error: {(str(exc).strip().splitlines() or [type(exc).__name__])[-1]}"
         elapsed = time.perf_counter() - tic
