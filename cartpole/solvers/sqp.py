@@ -195,7 +195,7 @@ class CollocationSQP:
         self._hf = Buffered(ext["hs_hf"].map(N))
         funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled)
         self._rqp = riccati_qp.StageQP(N, nx, nu) if qp_solver == "riccati" else None
-        self._stages, self._condense, self._mult = (Buffered(f) for f in funcs)
+        self._stages, self._condense, self._mult, self._stat = (Buffered(f) for f in funcs)
         self._setup_qp(qp_options or {})
         self.history: list[dict] = []
 
@@ -495,13 +495,9 @@ class CollocationSQP:
         return all(ct <= (1 - _GAMMA) * cj or ft <= fj - _GAMMA * cj for cj, fj in filt)
 
     def _stationarity(self, J, G, lam, Nb) -> float:
-        """Largest entry of the Lagrangian's gradient (pinned boundary states excluded)."""
-        nx, nz = self.nx, self.nz
-        gr = Nb.copy()
-        gr[:-1] += G[:, :nz] + (J[:, :, :nz].transpose(0, 2, 1) @ lam[:, :, None])[:, :, 0]
-        gr[1:] += G[:, nz:] + (J[:, :, nz:].transpose(0, 2, 1) @ lam[:, :, None])[:, :, 0]
-        gr[0, :nx] = gr[-1, :nx] = 0.0
-        return float(np.abs(gr).max())
+        """Largest entry of the Lagrangian's gradient (pinned boundary states excluded; compiled:
+        ``sqp_stationarity`` of :mod:`cartpole.solvers.sqp_functions`)."""
+        return float(self._stat(J, G, lam, Nb)[0][0])
 
     # ---- solving --------------------------------------------------------------------------------------------
     def solve_once(self, x0, x_goal=None, *, guess: Trajectory | None = None, T: float | None = None,

@@ -32,6 +32,9 @@ gy (ny, N), M (nx, nx N))``
     The defects' multipliers from a QP step ``dZ`` and the state bounds' multipliers: the stage dynamics'
     multipliers by the backward recursion of the stage states' stationarity, then ``lambda_k =
     -M_k' (mu_k + [H_k dV_k + G_k]_(z_k+1))`` (:mod:`cartpole.solvers.sqp`).
+``sqp_stationarity (J, G, lam (nx, N), nb (nz, N+1)) -> kkt``
+    The largest entry of the NLP Lagrangian's gradient in the knots, ``nb_k + [G_k + J_k' lam_k]_(z_k) +
+    [G_k-1 + J_k-1' lam_k-1]_(z_k)``, the pinned ``x_0`` and ``x_N`` left out (the SQP's convergence test).
 """
 from __future__ import annotations
 
@@ -44,7 +47,7 @@ import numpy as np
 from cartpole.ocp.bounds import OCPError
 from cartpole.codegen import build_library, compiled_or_none, load_library
 
-_LIB_VERSION = "sqp-qp-v2"  # bump when the generated functions change meaning
+_LIB_VERSION = "sqp-qp-v3"  # bump when the generated functions change meaning
 
 
 def _acc(steps: int) -> dict:
@@ -141,7 +144,7 @@ def _reverse_blocks(X: ca.MX, width: int, count: int) -> ca.MX:
 
 
 def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
-    """``[sqp_stages, sqp_condense, sqp_multipliers]`` (module docstring) for ``nx`` states, ``nu`` inputs and
+    """``[sqp_stages, sqp_condense, sqp_multipliers, sqp_stationarity]`` (module docstring) for ``nx`` states, ``nu`` inputs and
     ``N >= 2`` intervals, in CasADi's virtual machine (:func:`compiled_qp_functions` compiles them)."""
     nz = nx + nu
     nv, ny = 2 * nz, nz + nu
@@ -227,7 +230,19 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
     lam = lamf(mx, cc, Mm)
     mult = ca.Function("sqp_multipliers", [dZ, nbx, Hyi, gyi, Ti, Hm, Gm_, Mm], [lam],
                        ["dZ", "nbx", "Hy", "gy", "T", "H", "G", "M"], ["lam"])
-    return [stages, condense, mult]
+
+    # ---- stationarity -----------------------------------------------------------------------------------------
+    Js, Gs_, lams, nbs = (ca.MX.sym("J", nv, nx * N), ca.MX.sym("G", nv, N), ca.MX.sym("lam", nx, N),
+                          ca.MX.sym("nb", nz, N + 1))
+    Jt_k, g_k, l_k = ca.SX.sym("Jt", nv, nx), ca.SX.sym("g", nv), ca.SX.sym("l", nx)
+    part = ca.mtimes(Jt_k, l_k) + g_k  # interval k's share of the gradient in (z_k, z_k+1)
+    a_, b_ = ca.Function("sqp_stat_stage", [Jt_k, g_k, l_k], [part[:nz], part[nz:]]).map(N)(Js, Gs_, lams)
+    gr = nbs + ca.horzcat(a_, ca.MX.zeros(nz, 1)) + ca.horzcat(ca.MX.zeros(nz, 1), b_)
+    free = np.ones((nz, N + 1))
+    free[:nx, 0] = free[:nx, N] = 0.0  # x_0 and x_N pinned: their multipliers are free
+    stat = ca.Function("sqp_stationarity", [Js, Gs_, lams, nbs], [ca.mmax(ca.fabs(gr * ca.DM(free)))],
+                       ["J", "G", "lam", "nb"], ["kkt"])
+    return [stages, condense, mult, stat]
 
 
 #: This module's source: a library built from another version of these functions is never reused.
@@ -267,7 +282,7 @@ def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled:
     def build():
         recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
         lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=recipe, cflags=CFLAGS)
-        names = ("sqp_stages", "sqp_condense", "sqp_multipliers")
+        names = ("sqp_stages", "sqp_condense", "sqp_multipliers", "sqp_stationarity")
         ext = load_library(lib, names)
         return [ext[name] for name in names], lib
 

@@ -170,6 +170,23 @@ def test_multipliers_match_numpy_reference(nx, nu, N):
 
 
 @pytest.mark.parametrize("nx,nu,N", SIZES)
+def test_stationarity_is_the_largest_lagrangian_gradient_entry_of_the_free_knot_variables(nx, nu, N):
+    fns = sqp_functions.qp_functions(nx, nu, N, REG)
+    nz = nx + nu
+    J, _, G, _ = _data(nx, nu, N, 8)
+    rng = np.random.default_rng(9)
+    lam, nb = rng.standard_normal((N, nx)), rng.standard_normal((N + 1, nz))
+    (kkt,) = _call(fns[3], J, G, lam, nb)
+    gr = nb.copy()
+    for k in range(N):  # interval k's defect and cost touch knots k and k+1
+        share = J[k].T @ lam[k] + G[k]
+        gr[k] += share[:nz]
+        gr[k + 1] += share[nz:]
+    gr[0, :nx] = gr[N, :nx] = 0.0  # pinned
+    assert abs(float(kkt[0]) - np.abs(gr).max()) <= 1e-12 * np.abs(gr).max()
+
+
+@pytest.mark.parametrize("nx,nu,N", SIZES)
 def test_condensed_step_and_multipliers_solve_the_original_qp(nx, nu, N):
     """End to end, as _daqp_step uses them: the condensed equality QP (dx_0 = 0, dx_N = 0) gives a step on the
     linearised defects, and sqp_multipliers' defect multipliers make the original QP's Lagrangian stationary."""
@@ -243,7 +260,7 @@ def test_no_compile_environment_gives_virtual_machine(monkeypatch):
     monkeypatch.setenv("CARTPOLE_NO_COMPILE", "1")
     fns, lib = sqp_functions.compiled_qp_functions(4, 1, 6, REG)
     assert lib is None
-    assert [f.name() for f in fns] == ["sqp_stages", "sqp_condense", "sqp_multipliers"]
+    assert [f.name() for f in fns] == ["sqp_stages", "sqp_condense", "sqp_multipliers", "sqp_stationarity"]
 
 
 def test_single_interval_is_refused_in_one_sentence():
