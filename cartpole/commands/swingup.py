@@ -54,10 +54,11 @@ def add_arguments(parser) -> None:
                              "`cartpole identify`, while MuJoCo runs --mjcf (the same joints, actuators and step)")
     parser.add_argument("--horizon", type=float, default=None, metavar="S",
                         help="mpc only: prediction horizon in s (default the controller's, 1.2 s)")
-    parser.add_argument("--solver", choices=("ipopt", "fatrop", "sqp", "ddp"), default=None,
-                        help="trajopt only: solver of the plan's last stage: ipopt (default), fatrop, sqp (the "
-                             "collocation SQP, effort only) or ddp (box-DDP on the exact discrete step, every "
-                             "objective; time by a search over T); IPOPT takes over when it does not converge")
+    parser.add_argument("--solver", choices=("auto", "ipopt", "fatrop", "sqp", "ddp"), default=None,
+                        help="trajopt only: solver of the plan's last stage: auto (default: the collocation SQP for "
+                             "the effort stage, IPOPT for the other objectives), ipopt, fatrop, sqp (the collocation "
+                             "SQP, effort only) or ddp (box-DDP on the exact discrete step, every objective; time by "
+                             "a search over T); IPOPT takes over when it does not converge")
     parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
                         help="mpc only: real-time iteration on the condensed QP (rti, the default) or warm-started "
                              "box-DDP on the exact held model (ddp)")

@@ -19,7 +19,7 @@ MAX_PLAN_N = 2000
 #: Most starts (initial guesses) a plan may try.
 MAX_PLAN_STARTS = 100
 #: NLP solvers of the plan's last stage.
-PLAN_SOLVERS = ("ipopt", "fatrop", "sqp", "ddp")
+PLAN_SOLVERS = ("auto", "ipopt", "fatrop", "sqp", "ddp")
 
 
 class PlanOptionsError(OCPError, ValueError):
@@ -50,9 +50,11 @@ class PlanOptions(StageOptions):
     u_margin : float
         Fraction in [0, 1) of each actuator's half ctrl range the exact discrete plan keeps free for feedback
         (default :data:`U_MARGIN`, 5 %).
-    solver : {'ipopt', 'fatrop', 'sqp', 'ddp'}
-        NLP solver of the plan's last stage (the minimum-time stages are IPOPT's); ``sqp``: the effort stage by
-        :class:`~cartpole.solvers.sqp.CollocationSQP`, IPOPT when it does not converge; ``ddp``: the last stage by
+    solver : {'auto', 'ipopt', 'fatrop', 'sqp', 'ddp'}
+        NLP solver of the plan's last stage (the minimum-time stages are IPOPT's); ``auto`` (default): the one
+        measured fastest, ``sqp`` for the effort stage unless ``solver_options`` (IPOPT's) are given, else IPOPT;
+        ``sqp``: the effort stage by :class:`~cartpole.solvers.sqp.CollocationSQP`, IPOPT when it does not converge
+        (both ``auto`` and ``sqp`` plan the running objectives and ``time`` by IPOPT); ``ddp``: the last stage by
         box-DDP on the exact discrete step (:mod:`cartpole.planning.ddp_plan`; every objective, ``time`` by a search
         over T of fixed-T solves; ``N`` is then ``T`` over the step), IPOPT when it does not converge.
     solver_options : mapping or None
@@ -92,7 +94,7 @@ class PlanOptions(StageOptions):
     time_margin: float = 0.2
     cart_margin: float = 0.1
     u_margin: float = U_MARGIN
-    solver: str = "ipopt"
+    solver: str = "auto"
     solver_options: object = None
     starts: int | None = None
     exact_discrete: object = "auto"

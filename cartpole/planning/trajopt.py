@@ -633,8 +633,9 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     Qf, exact_discrete = options.Qf, options.exact_discrete
     solver_options = None if options.solver_options is None else dict(options.solver_options)
     tic = time.perf_counter()
-    use_sqp, use_ddp = solver == "sqp", solver == "ddp"
-    solver = "ipopt" if use_sqp or use_ddp else solver
+    use_sqp = solver == "sqp" or (solver == "auto" and solver_options is None)
+    use_ddp = solver == "ddp"
+    solver = "ipopt" if solver in ("auto", "sqp", "ddp") else solver
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     plan_model = plan_model if plan_model is not None else build_model(params)
     Q0, R0 = lab_weights(plan_model)

@@ -14,7 +14,7 @@ def params():
 
 @pytest.fixture(scope="module")
 def ipopt_plan(params):
-    return trajopt_swingup(params, exact_discrete=False)
+    return trajopt_swingup(params, solver="ipopt", exact_discrete=False)
 
 
 def _effort_attempts(plan):
@@ -42,3 +42,15 @@ def test_an_sqp_that_does_not_converge_hands_the_effort_stage_to_ipopt(params, i
     assert not tried[0].success and not tried[0].chosen and tried[1].chosen
     assert plan.solve_info.solver == "ipopt"
     assert plan.solve_info.objective == pytest.approx(ipopt_plan.solve_info.objective, rel=1e-9)
+
+
+def test_the_default_plans_the_effort_stage_by_sqp(params, ipopt_plan):
+    plan = trajopt_swingup(params, exact_discrete=False)
+    assert plan.options.solver == "auto"
+    assert plan.solve_info.solver == "sqp" and [a.stage for a in _effort_attempts(plan)] == ["effort (sqp)"]
+    assert plan.solve_info.objective == pytest.approx(ipopt_plan.solve_info.objective, rel=1e-6)
+
+
+def test_ipopt_options_given_keep_the_effort_stage_ipopts(params):
+    plan = trajopt_swingup(params, exact_discrete=False, solver_options={"ipopt": {"tol": 1e-8}})
+    assert plan.solve_info.solver == "ipopt" and [a.stage for a in _effort_attempts(plan)] == ["effort"]
