@@ -27,6 +27,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-mpc", action="store_true", help="skip the NMPC-in-the-loop benchmark")
     parser.add_argument("--no-crocoddyl", action="store_true",
                         help="skip Crocoddyl's double-pendulum example (our DDP, and Crocoddyl's FDDP when installed)")
+    parser.add_argument("--no-objectives", action="store_true",
+                        help="skip the default planner on every objective of the standard problem against the naive "
+                             "script with that objective (--quick: effort and time only)")
     parser.add_argument("--no-identify", action="store_true",
                         help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 
@@ -70,6 +73,13 @@ def run(args) -> dict:
     from cartpole.apps.bench.trajopt import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table,
                                     shipped_plan_models)
 
+    doc["trajopt"]["objectives"] = None
+    if not args.no_objectives:
+        from cartpole.apps.bench.objectives import OBJECTIVES, objective_benchmark
+
+        names = ("effort", "time") if args.quick else OBJECTIVES
+        doc["trajopt"]["objectives"] = objective_benchmark(args.mjcf, objectives=names, repeats=repeats,
+                                                           progress=steps)
     doc["plan"] = None
     if not args.no_plan:
         if args.mjcf is not None:
@@ -97,6 +107,10 @@ def run(args) -> dict:
     doc["quick"] = bool(args.quick)
     if not args.json:
         print_table(doc)
+        if doc["trajopt"]["objectives"]:
+            from cartpole.apps.bench.objectives import print_objective_table
+
+            print_objective_table(doc["trajopt"]["objectives"])
         if doc["plan"]:
             print_plan_table(doc["plan"])
         if doc["mpc"]:

@@ -36,6 +36,17 @@ def test_bench_json_follows_the_contract(capsys):
     assert tr["reference_solve_ms_median"] == tr["hand_baseline_solve_ms_median"]
     assert tr["speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["solve_ms_median"]
     assert tr["sqp_speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["sqp_solve_ms_median"]
+    # the default planner (solver "auto"): the SQP's plan, the same optimum, its ratio against the reference
+    assert tr["default_success"] and tr["default_solver"] == "sqp"
+    assert abs(tr["default_objective"] - tr["objective"]) <= 1e-6 * abs(tr["objective"])
+    assert tr["default_speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["default_solve_ms_median"]
+    # --quick: the default planner on effort and time against the naive script with each objective, same optima
+    rows = {r["objective"]: r for r in tr["objectives"]}
+    assert set(rows) == {"effort", "time"}
+    for r in rows.values():
+        assert r["success"] and r["baseline_success"] and r["baseline"] == "hand"
+        assert r["cost_rel_diff"] < 1e-6 and r["speedup"] == r["baseline_solve_ms_median"] / r["solve_ms_median"]
+    assert rows["effort"]["solver"] == "sqp" and rows["time"]["solver"] == "ipopt"
     # box-DDP on the exact discrete step of the same problem: it converges, inside the ctrl box
     assert tr["ddp_success"] and tr["ddp_steps"] == round(tr["T"] / tr["ddp_dt"])
     assert tr["ddp_speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["ddp_solve_ms_median"]

@@ -115,25 +115,39 @@ class NaiveOptiBaseline:
     ``x0``, ``x_goal`` (nx,) the boundary states (goal default ``model.x_eq``), ``N`` intervals over ``T`` s.
     ``expand=True`` is the same script with Opti's ``expand`` option (the MX graph expanded to SX for IPOPT).
     ``f`` replaces the model's dynamics Function (``(x, u) -> xdot``, e.g. :func:`hand_typed_cartpole`).
+    ``objective`` (an :class:`~cartpole.ocp.objectives.Objective`, default effort): a running cost is integrated by
+    Simpson's rule on the same knots and midpoints (its SX Function called per knot and midpoint), ``time`` makes
+    ``T`` a variable (``T`` its initial value, ``h = T / N``) and minimises ``T + time_effort_weight * effort``, as
+    :class:`~cartpole.ocp.collocation.DirectCollocation` does.
     """
 
     def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None, *, expand: bool = False,
-                 warm: bool = False, f: ca.Function | None = None):
+                 warm: bool = False, f: ca.Function | None = None, objective=None, time_effort_weight: float = 1e-3):
         f = model.f if f is None else f
+        kind = "effort" if objective is None else objective.kind
         opti = ca.Opti()
         X = opti.variable(model.nx, N + 1)
         U = opti.variable(model.nu, N + 1)
         P0 = opti.parameter(model.nx)  # the start: a parameter, so a re-plan from a moved start reuses the solver
-        h = T / N
-        J = 0
-        # f once per knot (each knot's derivative is shared by its two intervals), once per midpoint
+        Tv = opti.variable() if kind == "time" else T
+        h = Tv / N
+        J, L = 0, objective.running if kind == "running" else None
+        # f (and a running cost) once per knot (each knot's shared by its two intervals), once per midpoint
         F = [f(X[:, k], U[:, k]) for k in range(N + 1)]
+        Lk = [L(X[:, k], U[:, k]) for k in range(N + 1)] if L is not None else None
         for k in range(N):
             xc = 0.5 * (X[:, k] + X[:, k + 1]) + h / 8 * (F[k] - F[k + 1])
             uc = 0.5 * (U[:, k] + U[:, k + 1])
             fc = f(xc, uc)
             opti.subject_to(X[:, k + 1] == X[:, k] + h / 6 * (F[k] + 4 * fc + F[k + 1]))
-            J = J + h / 6 * ca.sum1(U[:, k] ** 2 + 4 * uc**2 + U[:, k + 1] ** 2)
+            if L is None:
+                J = J + h / 6 * ca.sum1(U[:, k] ** 2 + 4 * uc**2 + U[:, k + 1] ** 2)
+            else:
+                J = J + h / 6 * (Lk[k] + 4 * L(xc, uc) + Lk[k + 1])
+        if kind == "time":
+            opti.subject_to(opti.bounded(0.1 * T, Tv, 10.0 * T))
+            opti.set_initial(Tv, T)
+            J = Tv + time_effort_weight * J
         for j in range(model.nu):
             opti.subject_to(opti.bounded(bounds.u_low[j], U[j, :], bounds.u_high[j]))
         for i in bounds.bounded_joints:
@@ -147,7 +161,7 @@ class NaiveOptiBaseline:
             ip.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
                        "warm_start_mult_bound_push": 1e-9, "mu_init": 1e-6})
         opti.solver("ipopt", {"print_time": False, "expand": bool(expand)}, ip)
-        self.opti, self.X, self.U, self.P0 = opti, X, U, P0
+        self.opti, self.X, self.U, self.P0, self.T = opti, X, U, P0, Tv
         self.solution = None  # (x, u, lam_g) of the last solve
 
     def solve(self, guess, x0=None, *, duals=None) -> tuple[float, int, bool]:
@@ -157,6 +171,8 @@ class NaiveOptiBaseline:
             self.opti.set_value(self.P0, np.asarray(x0, float))
         self.opti.set_initial(self.X, guess.x.T)
         self.opti.set_initial(self.U, guess.u.T)
+        if isinstance(self.T, ca.MX):
+            self.opti.set_initial(self.T, guess.duration)
         if duals is not None:
             self.opti.set_initial(self.opti.lam_g, duals)
         try:
@@ -295,6 +311,9 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
                "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective),
                "sqp_speedup_vs_reference": ref_ms / s_ms if s_info.success else None}
 
+    say(f"the default planner (solver 'auto': the SQP, IPOPT behind it): {repeats} solves ...")
+    default = default_planner_row(ocp, x0, guess, repeats, ref_ms)
+
     say(f"ours (box-DDP on the exact discrete step, from the guess's ctrl): {repeats} solves ...")
     ddp = ddp_for_model(model, T, bounds=bounds)
     _, _, u_guess = _on_step_grid(guess, ddp.dt)
@@ -343,11 +362,37 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
             "sx_speedup": base_ms / sx_ms, "repeats": repeats, "u_max": u_max, "cart_max": cart_max,
             **hand, "reference_baseline": "hand" if hand else "generic", "reference_solve_ms_median": ref_ms,
             "speedup_vs_reference": ref_ms / ours_ms if info.success else None,
-            **fatrop, **sqp, **ddp_doc,
+            **fatrop, **sqp, **ddp_doc, **default,
         },
         "tvlqr": {"ms_median": tv_ms, "steps": int(gains.t.size), "dt": gains.dt},
         "replay": replay_doc,
     }
+
+
+def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms: float) -> dict:
+    """The fixed-time effort problem ``ocp`` solved as the planner's default (``solver="auto"``) solves its effort
+    stage: :class:`~cartpole.solvers.sqp.CollocationSQP` (at most
+    :data:`cartpole.planning.trajopt.SQP_MAX_ITER` iterations), IPOPT from the same guess when it does not converge,
+    the two timed together. Keys ``default_solver`` (which one's plan it was), ``default_solve_ms_median``,
+    ``default_iterations``, ``default_objective``, ``default_success``, ``default_speedup_vs_reference`` (against
+    ``ref_ms``; None when no plan)."""
+    from cartpole.planning.trajopt import SQP_MAX_ITER
+    from cartpole.solvers.sqp import SQPError
+
+    solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER)
+
+    def solve():
+        try:
+            return solver.solve(x0, guess=guess, fallback=True)
+        except SQPError:
+            return None, None
+
+    solve()  # builds (not timed)
+    ms, (_, info) = _median_ms(solve, repeats)
+    ok = info is not None and info.success
+    return {"default_solver": info.solver if ok else None, "default_solve_ms_median": ms,
+            "default_iterations": info.iterations if ok else None, "default_objective": info.objective if ok else None,
+            "default_success": ok, "default_speedup_vs_reference": ref_ms / ms if ok else None}
 
 
 #: The shipped carts the plan-time benchmark swings up: (label, asset file name).
@@ -514,6 +559,12 @@ def print_table(doc: dict, file=None) -> None:
         label = "ours, box-DDP, exact step, from zero ctrl" + ("" if tr["ddp_rest_success"] else ", FAILED")
         w(f"{label:44s} {tr['ddp_rest_solve_ms_median']:10.1f} {tr['ddp_rest_iterations']:6d} "
           f"{tr['ddp_rest_objective']:12.6f} {tr['baseline_solve_ms_median'] / tr['ddp_rest_solve_ms_median']:8.1f}\n")
+    if "default_solve_ms_median" in tr:
+        ok = tr["default_success"]
+        label = f"the default planner (auto: {tr['default_solver'] or 'FAILED'})"
+        ratio = "-" if tr["default_speedup_vs_reference"] is None else f"{tr['default_speedup_vs_reference']:.1f}"
+        w(f"{label:44s} {tr['default_solve_ms_median']:10.1f} {tr['default_iterations'] if ok else -1:6d} "
+          f"{tr['default_objective'] if ok else float('nan'):12.6f} {ratio:>8s} (vs the reference)\n")
     ratios = [(k[:-len('_speedup_vs_reference')] or 'ipopt', v) for k, v in tr.items()
               if k.endswith("speedup_vs_reference") and v is not None]
     w(f"\nratios against the {tr.get('reference_baseline', 'generic')} naive baseline "

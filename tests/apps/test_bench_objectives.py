@@ -1,0 +1,30 @@
+"""cartpole.apps.bench.objectives: on each objective the default planner's solver and the naive Opti script with
+that objective written into it solve the same problem (same optimum), and the rows say whose plan it was."""
+import pytest
+
+from cartpole.apps.bench.objectives import objective_benchmark
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return {r["objective"]: r for r in objective_benchmark(N=30, repeats=1,
+                                                             objectives=("effort", "tracking", "dmc_swingup",
+                                                                         "time"))}
+
+
+@pytest.mark.parametrize("name", ["effort", "tracking", "dmc_swingup", "time"])
+def test_ours_and_the_naive_script_reach_the_same_optimum_on_every_objective(rows, name):
+    r = rows[name]
+    assert r["success"] and r["baseline_success"] and r["baseline"] == "hand"
+    assert r["cost_rel_diff"] < 1e-6
+    assert r["speedup"] == r["baseline_solve_ms_median"] / r["solve_ms_median"]
+
+
+def test_effort_is_the_sqps_and_the_other_objectives_ipopts(rows):
+    assert rows["effort"]["solver"] == "sqp"
+    assert all(rows[n]["solver"] == "ipopt" for n in ("tracking", "dmc_swingup", "time"))
+
+
+def test_the_time_row_minimises_the_duration_it_reports(rows):
+    r = rows["time"]
+    assert 0.5 < r["cost"] < 2.0  # T + 1e-3 effort, T well below the guess's 2 s
