@@ -129,6 +129,13 @@ class CollocationSQP:
     exact_hessian_below : float
         Largest scaled defect at which the Hessian includes the defects' curvature (the exact Lagrangian); above
         it, the cost's only (default 0.1; why, in the module docstring).
+    max_unsettled : int or None
+        With ``qp_solver="riccati"``: QPs the Riccati active set may hand to DAQP before the solve stops with status
+        ``QP_Unsettled`` (None, the default: no limit). A linearisation it cannot settle again and again is an
+        ill-conditioned stage elimination (a long horizon of fast unstable modes: on the triple pendulum's effort
+        stage the Riccati cost-to-go of ``du_0`` reaches 1e12 to 1e16), where IPOPT on the sparse problem is the
+        better solver; the planner stops early
+        (:data:`cartpole.planning.trajopt.SQP_MAX_UNSETTLED`) and lets IPOPT take over.
 
     Attributes
     ----------
@@ -148,7 +155,8 @@ class CollocationSQP:
 
     def __init__(self, ocp: DirectCollocation, *, tol: float = 1e-8, max_iter: int = 200, reg_min: float = 1e-4,
                  lm_init: float = 1e-2, qp_solver: str = "riccati", qp_options: dict | None = None, warm_qp: bool = True,
-                 soc: bool = True, max_step: float = 1.0, exact_hessian_below: float = 1e-1):
+                 soc: bool = True, max_step: float = 1.0, exact_hessian_below: float = 1e-1,
+                 max_unsettled: int | None = None):
         if not isinstance(ocp, DirectCollocation):
             raise SQPError("CollocationSQP needs a DirectCollocation problem (cartpole.ocp.collocation).")
         if ocp.free_time:
@@ -174,6 +182,7 @@ class CollocationSQP:
         self.qp_solver, self.warm_qp, self.soc = qp_solver, bool(warm_qp), bool(soc)
         self.lm_init, self.max_step = float(lm_init), float(max_step)
         self.exact_hessian_below = float(exact_hessian_below)
+        self.max_unsettled = None if max_unsettled is None else int(max_unsettled)
         self.ocp = ocp
         self.tol, self.max_iter, self.reg_min = float(tol), int(max_iter), float(reg_min)
         N, nx, nu = ocp.N, ocp.nx, ocp.nu
@@ -520,7 +529,8 @@ class CollocationSQP:
         -------
         (Trajectory, SolveInfo)
             ``info.solver`` is ``"sqp"``, ``info.iterations`` the SQP iterations, ``info.status``
-            ``Solve_Succeeded``, ``Maximum_Iterations_Exceeded``, ``QP_Failed`` or ``Line_Search_Failed``,
+            ``Solve_Succeeded``, ``Maximum_Iterations_Exceeded``, ``QP_Failed``, ``QP_Unsettled`` (``max_unsettled``)
+            or ``Line_Search_Failed``,
             ``info.objective`` as :class:`SolveInfo` (physical units).
         """
         ocp = self.ocp
@@ -582,6 +592,9 @@ class CollocationSQP:
                 self.history.append(rec)
                 if not ok:
                     status = "QP_Failed"
+                    break
+                if self.max_unsettled is not None and self.qp_counts.get("riccati_unsettled", 0) > self.max_unsettled:
+                    status = "QP_Unsettled"
                     break
                 if infeas <= self.tol and (kkt <= self.tol or step <= self.tol):
                     status, success = "Solve_Succeeded", True

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.apps.bench.trajopt import (NaiveOptiBaseline, _median_ms, default_planner_row,
-                                         hand_typed_cartpole)
+from cartpole.apps.bench.trajopt import NaiveOptiBaseline, default_planner_row, hand_typed_cartpole, median_ms
 from cartpole.models import build_model, read_params
 from cartpole.ocp.bounds import bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
@@ -65,7 +64,7 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
         say(f"objective {name}: the naive Opti script, {repeats} solves ...")
         base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand, objective=obj)
         base.solve(guess)  # builds IPOPT (not timed)
-        b_ms, (b_cost, b_it, b_ok) = _median_ms(lambda: base.solve(guess), repeats)
+        b_ms, (b_cost, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
         say(f"objective {name}: ours (the default planner's solver), {repeats} solves ...")
         ocp = DirectCollocation(model, N=N, T=None if obj.kind == "time" else T, bounds=bounds, objective=obj)
         if obj.kind == "effort":
@@ -75,7 +74,7 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
             cost = row["default_objective"]
         else:
             ocp.solve_once(x0, guess=guess)  # builds IPOPT (not timed)
-            ms, (traj, info) = _median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
+            ms, (traj, info) = median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
             ok, it, solver = info.success, info.iterations, info.solver
             if obj.kind == "time":  # what the script minimises: T + w * effort
                 cost = traj.duration + ocp.time_effort_weight * _effort(traj)

@@ -41,7 +41,8 @@ from cartpole.solvers.sqp import CollocationSQP
 from cartpole.apps.bench.replay import replay_benchmark
 
 
-def _median_ms(fn, repeats: int) -> tuple[float, object]:
+def median_ms(fn, repeats: int) -> tuple[float, object]:
+    """``(median wall time in ms of repeats calls of fn(), the last call's result)``."""
     times, out = [], None
     for _ in range(repeats):
         tic = time.perf_counter()
@@ -228,7 +229,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     ocp = DirectCollocation(model, N=N, T=T, bounds=bounds)
     traj, info = ocp.solve_once(x0, guess=guess)  # builds the solver (not timed)
     say(f"ours (ipopt, from the guess): {repeats} solves ...")
-    ours_ms, (traj, info) = _median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
+    ours_ms, (traj, info) = median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
     # Warm start, honestly: a NEW problem (start moved by 2 cm and 0.05 rad, as in re-planning) started from
     # the primal-dual solution of the nominal one; the nominal solution is restored before every timed solve.
     nominal = ocp._last
@@ -243,22 +244,22 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
 
     say(f"ours (ipopt, warm-started from the nominal solution, moved start): {repeats} solves ...")
     warm_solve()  # builds the warm-start solver (not timed)
-    warm_ms, (_, warm_info) = _median_ms(warm_solve, repeats)
+    warm_ms, (_, warm_info) = median_ms(warm_solve, repeats)
 
     say(f"ours without the compiled interval functions (SX virtual machine): {repeats} solves ...")
     sx_ocp = DirectCollocation(model, N=N, T=T, bounds=bounds, compiled=False)
     sx_ocp.solve_once(x0, guess=guess)
-    sx_ms, (_, sx_info) = _median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
+    sx_ms, (_, sx_info) = median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
 
     say("building the naive casadi.Opti baseline ...")
     base = NaiveOptiBaseline(model, N, T, bounds, x0)
     base.solve(guess)  # builds IPOPT (not timed)
     say(f"baseline (Opti, no expand): {repeats} solves ...")
-    base_ms, (base_obj, base_it, base_ok) = _median_ms(lambda: base.solve(guess), repeats)
+    base_ms, (base_obj, base_it, base_ok) = median_ms(lambda: base.solve(guess), repeats)
     exp = NaiveOptiBaseline(model, N, T, bounds, x0, expand=True)
     exp.solve(guess)
     say(f"baseline (Opti, expand=True): {repeats} solves ...")
-    exp_ms, (exp_obj, exp_it, exp_ok) = _median_ms(lambda: exp.solve(guess), repeats)
+    exp_ms, (exp_obj, exp_it, exp_ok) = median_ms(lambda: exp.solve(guess), repeats)
     # Warm against warm: the expand=True script re-planning from the same moved start, from its own nominal
     # primal-dual solution, with IPOPT's warm start set as ours is.
     wexp = NaiveOptiBaseline(model, N, T, bounds, x0, expand=True, warm=True)
@@ -271,7 +272,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
 
     warm_base()
     say(f"baseline (Opti, expand=True, warm-started the same way): {repeats} solves ...")
-    wexp_ms, (wexp_obj, wexp_it, wexp_ok) = _median_ms(warm_base, repeats)
+    wexp_ms, (wexp_obj, wexp_it, wexp_ok) = median_ms(warm_base, repeats)
 
     hand = {}
     f_hand = hand_typed_cartpole(params)
@@ -280,7 +281,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         hb = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand)
         hb.solve(guess)  # builds IPOPT (not timed)
         say(f"baseline (Opti, hand-typed equations, IPOPT defaults): {repeats} solves ...")
-        h_ms, (h_obj, h_it, h_ok) = _median_ms(lambda: hb.solve(guess), repeats)
+        h_ms, (h_obj, h_it, h_ok) = median_ms(lambda: hb.solve(guess), repeats)
         hand = {"hand_baseline_solve_ms_median": h_ms, "hand_baseline_objective": h_obj,
                 "hand_baseline_iterations": h_it, "hand_baseline_success": h_ok}
     # the baseline the ratios are taken against: the hand-typed script for one pole, else the generic one
@@ -291,7 +292,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         say(f"ours (fatrop): {repeats} solves ...")
         focp = DirectCollocation(model, N=N, T=T, bounds=bounds, solver="fatrop")
         focp.solve_once(x0, guess=guess)
-        f_ms, (_, finfo) = _median_ms(lambda: focp.solve_once(x0, guess=guess), repeats)
+        f_ms, (_, finfo) = median_ms(lambda: focp.solve_once(x0, guess=guess), repeats)
         fatrop = {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
                   "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations,
                   "fatrop_speedup_vs_reference": ref_ms / f_ms if finfo.success else None}
@@ -301,7 +302,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
         say(f"ours (SQP on the stage-structured QP): {repeats} solves ...")
         sqp_solver = CollocationSQP(ocp)  # the same problem object: same NLP, same scaling
         sqp_solver.solve_once(x0, guess=guess)  # builds the QP solvers (not timed)
-        s_ms, (_, s_info) = _median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
+        s_ms, (_, s_info) = median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
         sqp = {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
                "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
                # ratios only for a converged solve (a failed one is not a faster way to the plan)
@@ -318,7 +319,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     ddp = ddp_for_model(model, T, bounds=bounds)
     _, _, u_guess = _on_step_grid(guess, ddp.dt)
     ddp.solve(x0, u_guess)  # loads (or compiles) its library (not timed)
-    d_ms, d_res = _median_ms(lambda: ddp.solve(x0, u_guess), repeats)
+    d_ms, d_res = median_ms(lambda: ddp.solve(x0, u_guess), repeats)
     ddp_doc = {"ddp_solve_ms_median": d_ms, "ddp_iterations": d_res.iterations, "ddp_objective": d_res.cost,
                "ddp_success": d_res.converged, "ddp_status": d_res.status, "ddp_steps": ddp.N, "ddp_dt": ddp.dt,
                # DDP solves the exact discrete problem, not the collocation's: its optimum differs slightly, and from
@@ -326,7 +327,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
                "ddp_objective_rel_diff": abs(d_res.cost - info.objective) / abs(info.objective),
                "ddp_speedup_vs_reference": ref_ms / d_ms if d_res.converged else None}
     say(f"ours (box-DDP on the exact discrete step, from rest: zero ctrl): {repeats} solves ...")
-    r_ms, r_res = _median_ms(lambda: ddp.solve(x0, None), repeats)
+    r_ms, r_res = median_ms(lambda: ddp.solve(x0, None), repeats)
     ddp_doc.update({"ddp_rest_solve_ms_median": r_ms, "ddp_rest_iterations": r_res.iterations,
                     "ddp_rest_objective": r_res.cost, "ddp_rest_success": r_res.converged,
                     "ddp_rest_speedup_vs_reference": ref_ms / r_ms if r_res.converged else None})
@@ -334,7 +335,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
     Q, R = lab_weights(model)
     tvlqr(model, traj, Q, R)  # builds the mapped ABd (not timed)
-    tv_ms, gains = _median_ms(lambda: tvlqr(model, traj, Q, R), max(repeats, 20))
+    tv_ms, gains = median_ms(lambda: tvlqr(model, traj, Q, R), max(repeats, 20))
 
     replay_doc = None
     if replay:
@@ -372,14 +373,33 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
 def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms: float) -> dict:
     """The fixed-time effort problem ``ocp`` solved as the planner's default (``solver="auto"``) solves its effort
     stage: :class:`~cartpole.solvers.sqp.CollocationSQP` (at most
-    :data:`cartpole.planning.trajopt.SQP_MAX_ITER` iterations), IPOPT from the same guess when it does not converge,
-    the two timed together. Keys ``default_solver`` (which one's plan it was), ``default_solve_ms_median``,
-    ``default_iterations``, ``default_objective``, ``default_success``, ``default_speedup_vs_reference`` (against
-    ``ref_ms``; None when no plan)."""
-    from cartpole.planning.trajopt import SQP_MAX_ITER
+    :data:`cartpole.planning.trajopt.SQP_MAX_ITER` iterations and :data:`~cartpole.planning.trajopt.SQP_MAX_UNSETTLED`
+    QPs handed to DAQP), IPOPT from the same guess when it does not converge, the two timed together.
+
+    Parameters
+    ----------
+    ocp : DirectCollocation
+        The fixed-time effort problem.
+    x0 : (nx,) array
+        Start state ``[qpos, qvel]`` (m, rad, m/s, rad/s).
+    guess : Trajectory
+        The initial guess both solvers start from.
+    repeats : int
+        Timed solves (the median is reported).
+    ref_ms : float
+        The reference baseline's solve time in ms (the ratio's numerator).
+
+    Returns
+    -------
+    dict
+        ``default_solver`` (whose plan it was: ``sqp`` or ``ipopt``), ``default_solve_ms_median`` (ms),
+        ``default_iterations``, ``default_objective`` (ctrl^2 s), ``default_success``,
+        ``default_speedup_vs_reference`` (``ref_ms`` over it; None when no plan).
+    """
+    from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED
     from cartpole.solvers.sqp import SQPError
 
-    solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER)
+    solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED)
 
     def solve():
         try:
@@ -388,7 +408,7 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
             return None, None
 
     solve()  # builds (not timed)
-    ms, (_, info) = _median_ms(solve, repeats)
+    ms, (_, info) = median_ms(solve, repeats)
     ok = info is not None and info.success
     return {"default_solver": info.solver if ok else None, "default_solve_ms_median": ms,
             "default_iterations": info.iterations if ok else None, "default_objective": info.objective if ok else None,
