@@ -45,7 +45,7 @@ LARGE_SOURCE = 400_000
 #: Flags for large generated sources (see :data:`LARGE_SOURCE`).
 LARGE_CFLAGS = ("-O0", "-fPIC", "-shared")
 #: Part of every library's key: bump when the meaning of generated functions changes for the same source.
-LIB_VERSION = "hs-interval-v6"
+LIB_VERSION = "hs-interval-v7"
 
 
 def cache_dir() -> Path:

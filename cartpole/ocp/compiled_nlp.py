@@ -33,7 +33,9 @@ from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_te
 
 
 #: The names of the interval functions a compiled library holds (:func:`interval_functions`).
-INTERVAL_FUNCTIONS = ("hs_d", "hs_e", "hs_dj", "hs_eg", "hs_hl", "hs_hf")
+INTERVAL_FUNCTIONS = ("hs_d", "hs_e", "hs_dj", "hs_eg", "hs_hl")
+#: The knot-shared functions (:func:`knot_functions`), mapped over N (:func:`knot_maps`).
+KNOT_FUNCTIONS = ("hs_kf", "hs_mid1", "hs_mid2", "hs_kh")
 
 
 @dataclass(frozen=True)
@@ -84,8 +86,7 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su, eff_scale: float = 1.
         ``hs_d(v, h) -> d`` (nx,) the defect divided by ``sx``; ``hs_e(v, h) -> e`` the interval cost
         divided by ``eff_scale``; ``hs_dj(v, h) -> (d, d(d)/d(v, h) (nx, nv + 1))``;
         ``hs_eg(v, h) -> (e, de/d(v, h) (nv + 1,))``; ``hs_hl(v, h, lam (nx,), sigma) ->`` upper triangle
-        ((nv + 1) (nv + 2) / 2,) column-major of the Hessian of ``sigma e + lam' d`` in ``(v, h)``; ``hs_hf(v, h,
-        lam, sigma) ->`` the same Hessian in ``v`` alone, dense (nv, nv) (a fixed duration's: the SQP's blocks); and
+        ((nv + 1) (nv + 2) / 2,) column-major of the Hessian of ``sigma e + lam' d`` in ``(v, h)``; and
         ``jac_hs_d``, ``jac_hs_e``, the Jacobians CasADi looks up by name when it differentiates an external
         function (it does once, for the final multipliers).
     """
@@ -116,10 +117,108 @@ def interval_functions(f: ca.Function, sx: np.ndarray, su, eff_scale: float = 1.
         ca.Function("hs_dj", [v, h], [d, ca.densify(ca.jacobian(d, vh))]),
         ca.Function("hs_eg", [v, h], [e, ca.densify(ca.gradient(e, vh))]),
         ca.Function("hs_hl", [v, h, lam, sigma], [hess_triu]),
-        ca.Function("hs_hf", [v, h, lam, sigma], [ca.densify(ca.hessian(sigma * e + ca.dot(lam, d), v)[0])]),
         hs_d.jacobian(),  # named jac_hs_d
         hs_e.jacobian(),
     ]
+
+
+def knot_functions(f: ca.Function, sx: np.ndarray, su, *, running: ca.Function | None = None) -> list[ca.Function]:
+    """The same fixed-duration derivatives as ``hs_dj``, ``hs_eg`` and ``hs_hl`` in ``v`` (:func:`interval_functions`),
+    with every knot's dynamics and its curvature evaluated once instead of once per interval it touches (the SQP's
+    evaluation; scaled variables as there, ``z = (x / sx, u / su)``):
+
+    ``hs_kf(z (nz,)) -> (f (nx,), J (nx, nz))``
+        A knot's ``f(x, u)`` and its Jacobian in ``z``.
+    ``hs_mid1(z_k, z_k+1, f_k, f_k+1, J_k, J_k+1, h) -> (d (nx,), dd/dv (nx, nv), e, de/dv (nv,))``
+        The interval's defect (over ``sx``) and cost, and their total derivatives in ``v = (z_k, z_k+1)``.
+    ``hs_mid2(z_k, z_k+1, f_k, f_k+1, J_k, J_k+1, h, lam (nx,), sigma) -> (H (nv, nv), w_k (nx,), w_k+1 (nx,))``
+        The Hessian of ``sigma e + lam' d`` in ``v`` but for the knots' own curvature, which is ``w_k' f`` at each
+        knot: ``w_k = d(sigma e + lam' d)/d f_k`` (and ``w_k+1``), left to ``hs_kh``.
+    ``hs_kh(z (nz,), w (nx,)) -> (nz, nz)``
+        ``d^2 (w' f) / dz^2`` at a knot: with ``w`` the sum of its two intervals' weights, once per knot.
+
+    Summed over the intervals, ``hs_mid2``'s blocks with each knot's ``hs_kh`` added (to either interval touching
+    it) are the NLP Lagrangian's Hessian, equal to the sum of ``hs_hl``'s blocks (``tests/ocp/test_compiled_nlp.py``).
+    """
+    nx, nu = f.size1_in(0), f.size1_in(1)
+    nz = nx + nu
+    nv = 2 * nz
+    sxd = ca.DM(np.asarray(sx, float).ravel())
+    sud = ca.DM(np.broadcast_to(np.asarray(su, float).ravel(), (nu,)))
+    z = ca.SX.sym("z", nz)
+    fz = f(z[:nx] * sxd, z[nx:] * sud)
+    w = ca.SX.sym("w", nx)
+    hs_kf = ca.Function("hs_kf", [z], [fz, ca.densify(ca.jacobian(fz, z))], {"cse": True})
+    hs_kh = ca.Function("hs_kh", [z, w], [ca.densify(ca.hessian(ca.dot(w, fz), z)[0])], {"cse": True})
+    zk, zk1 = ca.SX.sym("zk", nz), ca.SX.sym("zk1", nz)
+    fk, fk1 = ca.SX.sym("fk", nx), ca.SX.sym("fk1", nx)
+    Jk, Jk1 = ca.SX.sym("Jk", nx, nz), ca.SX.sym("Jk1", nx, nz)
+    h, lam, sigma = ca.SX.sym("h"), ca.SX.sym("lam", nx), ca.SX.sym("sigma")
+    xk, uk = zk[:nx] * sxd, zk[nx:] * sud
+    xk1, uk1 = zk1[:nx] * sxd, zk1[nx:] * sud
+    defect, xc = hs_interval_function(f)(xk, uk, xk1, uk1, fk, fk1, h)
+    d = defect / sxd
+    if running is None:
+        e = h / 6 * ca.sum1(simpson_effort_terms(uk, uk1))
+    else:
+        e = h / 6 * (running(xk, uk) + 4 * running(xc, 0.5 * (uk + uk1)) + running(xk1, uk1))
+    v, g = ca.vertcat(zk, zk1), ca.vertcat(zk, zk1, fk, fk1)
+    # dg/dv: the knots' f are functions of their own z
+    Tg = ca.vertcat(ca.SX.eye(nv), ca.horzcat(Jk, ca.SX(nx, nz)), ca.horzcat(ca.SX(nx, nz), Jk1))
+    jd = ca.mtimes(ca.jacobian(d, g), Tg)
+    je = ca.mtimes(ca.jacobian(e, g), Tg)
+    hs_mid1 = ca.Function("hs_mid1", [zk, zk1, fk, fk1, Jk, Jk1, h], [d, ca.densify(jd), e, ca.densify(je.T)],
+                          {"cse": True})
+    lag = sigma * e + ca.dot(lam, d)
+    # The curvature of lag in v comes from three places: the knots' own f (left to hs_kh through w_k, w_k+1), the
+    # midpoint's f and running cost (through z_c = (x_c, u_c), linear in g: Dc' Hc Dc below, Hc the midpoint terms'
+    # Hessian in z_c alone, far cheaper than differentiating twice through g), and the cost's knot terms.
+    uc = 0.5 * (uk + uk1)
+    zc = ca.vertcat(xc, uc)
+    Dc = ca.mtimes(ca.jacobian(zc, g), Tg)  # (nz, nv)
+    zs = ca.SX.sym("zc", nz)
+    mid = -4 * h / 6 * ca.dot(lam / sxd, f(zs[:nx], zs[nx:]))
+    if running is None:
+        knots_e = e  # the effort: quadratic in the knot inputs, u_c included
+    else:
+        mid += sigma * 4 * h / 6 * running(zs[:nx], zs[nx:])
+        knots_e = h / 6 * (running(xk, uk) + running(xk1, uk1))
+    Hc = ca.substitute(ca.hessian(mid, zs)[0], zs, zc)
+    Hm = ca.mtimes([Dc.T, Hc, Dc]) + ca.hessian(sigma * knots_e, v)[0]
+    wk, wk1 = ca.gradient(lag, fk), ca.gradient(lag, fk1)
+    hs_mid2 = ca.Function("hs_mid2", [zk, zk1, fk, fk1, Jk, Jk1, h, lam, sigma],
+                          [ca.densify(0.5 * (Hm + Hm.T)), ca.densify(wk), ca.densify(wk1)], {"cse": True})
+    return [hs_kf, hs_mid1, hs_mid2, hs_kh]
+
+
+def knot_maps(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su, *, running: ca.Function | None = None,
+              compiled: bool = True) -> tuple[dict[str, ca.Function], str | None]:
+    """:func:`knot_functions` mapped over ``N`` intervals (``hs_kf`` and ``hs_kh`` over the N + 1 knots), by name,
+    and the path of their library (None: the virtual machine). ``h`` and ``sigma`` are one scalar for all intervals.
+
+    Compiled to C with the maps inside (one library per model, scaling, running cost and N, cached like the
+    interval functions; a map generated into the C runs each instance about twice as fast as ``map`` over an
+    external function); CasADi's virtual machine (same numbers) with ``compiled`` False, ``CARTPOLE_NO_COMPILE`` set
+    or when the build fails (one line on stderr). Arguments as :func:`compiled_nlp`.
+    """
+    f = model if isinstance(model, ca.Function) else model.f
+    sx, su = np.asarray(sx, float), np.asarray(su, float)
+    N = int(N)
+
+    def mapped():
+        fns = dict(zip(KNOT_FUNCTIONS, knot_functions(f, sx, su, running=running)))
+        return [fns[name].map(f"{name}_map", "serial", N + 1 if name in ("hs_kf", "hs_kh") else N,
+                              [6, 8] if name == "hs_mid2" else ([6] if name == "hs_mid1" else []), [])
+                for name in KNOT_FUNCTIONS]
+
+    def build():
+        lib, _ = build_library(mapped, model_key(model), recipe=f"knots/{N}/" + recipe_key(f, sx, su, running))
+        ext = load_library(lib, [f"{name}_map" for name in KNOT_FUNCTIONS])
+        return {name: ext[f"{name}_map"] for name in KNOT_FUNCTIONS}, lib
+
+    built = compiled_or_none(build, "collocation knot functions", "using CasADi's virtual machine (same results)") \
+        if compiled else None
+    return built if built is not None else (dict(zip(KNOT_FUNCTIONS, mapped())), None)
 
 
 def recipe_key(f: ca.Function, sx, su, running: ca.Function | None = None) -> str:

@@ -5,7 +5,9 @@ variable: scaled knots ``z_k = (x_k / s_x, u_k / s_u)`` (nz = nx + nu), k = 0..N
 ``d_k(z_k, z_k+1) = 0`` (nx each, divided by ``s_x``), box bounds on the knots (ctrl, cart rail, limited joints),
 ``x_0`` and ``x_N`` pinned, objective the effort ``integral u'u dt`` divided by ``sum(s_u^2) T``. Its pieces are
 the interval functions compiled to C (:mod:`cartpole.ocp.compiled_nlp`: ``hs_dj`` defect and Jacobian, ``hs_eg`` cost
-and gradient, ``hs_hf`` the exact Hessian block of the interval's Lagrangian), mapped over the N intervals.
+and gradient, the exact Hessian block of the interval's Lagrangian), here in their knot-shared form
+(:func:`cartpole.ocp.compiled_nlp.knot_functions`: each knot's dynamics and curvature once), mapped over the knots and
+intervals.
 
 Each SQP step solves the QP of the exact Lagrangian Hessian and the linearised defects. That QP is an optimal
 control problem once the defects are read as dynamics: the linearised defect
@@ -69,7 +71,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import Buffered, load_library
+from cartpole.codegen import Buffered
 from cartpole.ocp import compiled_nlp
 from cartpole.solvers import riccati_qp, sqp_functions
 from cartpole.ocp.bounds import OCPError
@@ -140,7 +142,8 @@ class CollocationSQP:
     Attributes
     ----------
     library : str or None
-        The compiled interval functions in use (None: CasADi's virtual machine, same numbers).
+        The compiled knot-shared functions in use (:func:`cartpole.ocp.compiled_nlp.knot_maps`; None: CasADi's
+        virtual machine, same numbers).
     qp_library : str or None
         The compiled QP-building functions in use (:mod:`cartpole.solvers.sqp_functions`; None: the virtual machine).
     history : list of dict
@@ -192,16 +195,10 @@ class CollocationSQP:
         self.sx, self.su = np.array(sc[:nx]), np.array(sc[nx:])
         # the IPOPT problem's objective scaling (DirectCollocation._build): effort / (sum su^2 T)
         self._cost_div = float(np.sum(self.su ** 2)) * float(ocp.T)
-        comp = compiled_nlp.compiled_nlp(ocp.model, N, self.sx, self.su, self._cost_div) if ocp.compiled else None
-        if comp is not None:
-            ext = load_library(comp.library, compiled_nlp.INTERVAL_FUNCTIONS)
-            self.library = comp.library
-        else:
-            ext = {fn.name(): fn for fn in compiled_nlp.interval_functions(ocp.model.f, self.sx, self.su, 1.0)}
-            self.library = None
-        self._dj = Buffered(ext["hs_dj"].map(N))
-        self._eg = Buffered(ext["hs_eg"].map(N))
-        self._hf = Buffered(ext["hs_hf"].map(N))
+        # each knot's dynamics and curvature once, the intervals' parts between them (compiled_nlp.knot_functions),
+        # the maps generated into one library per model and N
+        maps, self.library = compiled_nlp.knot_maps(ocp.model, N, self.sx, self.su, compiled=ocp.compiled)
+        self._kf, self._mid1, self._mid2, self._kh = (Buffered(maps[n]) for n in compiled_nlp.KNOT_FUNCTIONS)
         funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled)
         self._rqp = riccati_qp.StageQP(N, nx, nu) if qp_solver == "riccati" else None
         self._stages, self._condense, self._mult, self._stat = (Buffered(f) for f in funcs)
@@ -283,45 +280,54 @@ class CollocationSQP:
         self._ubx = np.full(n, np.inf)
 
     # ---- evaluations ----------------------------------------------------------------------------------------
-    def _intervals(self, Z: np.ndarray) -> np.ndarray:
-        """Interval variables ``(z_k, z_k+1)`` as (N, 2 nz), i.e. CasADi's (2 nz, N) column-major."""
-        return np.ascontiguousarray(np.hstack([Z[:-1], Z[1:]]))
-
     def _first_order(self, Z: np.ndarray):
-        """At knots ``Z`` (N+1, nz): the defects (N, nx), their Jacobian blocks (N, nx, 2 nz), the cost and its
-        gradient blocks (N, 2 nz) (copies)."""
+        """At knots ``Z`` (N+1, nz): the defects (N, nx), their Jacobian blocks (N, nx, 2 nz), the cost, its
+        gradient blocks (N, 2 nz), and the knots' ``f`` (N+1, nx) and its Jacobian (flat, CasADi's (nx, nz) blocks)
+        for :meth:`_hessian` (copies)."""
         N, nx, nz = self.N, self.nx, self.nz
-        nv = 2 * nz
-        V = self._intervals(Z)
-        h = self._hvec
-        D, JD = self._dj(V, h)
+        nv, nj = 2 * nz, nx * nz
+        Z = np.ascontiguousarray(Z)
+        F, JF = (a.copy() for a in self._kf(Z))
+        D, JD, E, GE = self._mid1(Z[:-1], Z[1:], F[:-nx], F[nx:], JF[:-nj], JF[nj:], self._h)
         D = D.reshape(N, nx).copy()
-        J = JD.reshape(N, nv + 1, nx).transpose(0, 2, 1)[:, :, :nv].copy()
-        E, GE = self._eg(V, h)
+        J = JD.reshape(N, nv, nx).transpose(0, 2, 1).copy()
         f = float(E.sum()) / self._cost_div
-        G = GE.reshape(N, nv + 1)[:, :nv] / self._cost_div
-        return D, J, f, G
+        G = GE.reshape(N, nv) / self._cost_div
+        return D, J, f, G, F, JF
 
-    def _hessian(self, Z: np.ndarray, D: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        """The Lagrangian's Hessian blocks (N, 2 nz, 2 nz) at knots ``Z`` with defects ``D`` and defect multipliers
-        ``lam`` (N, nx); far from feasible (module docstring) the cost's alone."""
-        N, nv = self.N, 2 * self.nz
+    def _hessian(self, Z: np.ndarray, D: np.ndarray, lam: np.ndarray, F: np.ndarray, JF: np.ndarray) -> np.ndarray:
+        """The Lagrangian's Hessian blocks (N, 2 nz, 2 nz) at knots ``Z`` with defects ``D``, defect multipliers
+        ``lam`` (N, nx) and the knots' ``F``, ``JF`` of :meth:`_first_order`; far from feasible (module docstring)
+        the cost's alone. Each knot's own curvature (weighted by both intervals touching it) is added to the block
+        of the interval it starts (the last knot's to the last interval): the blocks sum to the NLP's Hessian."""
+        N, nx, nz = self.N, self.nx, self.nz
+        nv, nj = 2 * nz, nx * nz
         if float(np.abs(D).max()) > self.exact_hessian_below:  # far from feasible: the cost's curvature only
             lam = np.zeros_like(lam)
-        (HB,) = self._hf(self._intervals(Z), self._hvec, np.ascontiguousarray(lam), self._sigma)
-        return HB.reshape(N, nv, nv).copy()  # symmetric: CasADi's column-major block is its transpose
+        Z = np.ascontiguousarray(Z)
+        HM, WK, WK1 = self._mid2(Z[:-1], Z[1:], F[:-nx], F[nx:], JF[:-nj], JF[nj:], self._h,
+                                 np.ascontiguousarray(lam), 1.0 / self._cost_div)
+        H = HM.reshape(N, nv, nv).copy()  # symmetric: CasADi's column-major block is its transpose
+        W = np.zeros((N + 1, nx))
+        W[:-1] += WK.reshape(N, nx)
+        W[1:] += WK1.reshape(N, nx)
+        (KH,) = self._kh(Z, W)
+        KH = KH.reshape(N + 1, nz, nz)
+        H[:, :nz, :nz] += KH[:-1]
+        H[-1, nz:, nz:] += KH[-1]
+        return H
 
     def _eval(self, Z: np.ndarray, lam: np.ndarray):
-        """At knots ``Z`` (N+1, nz) with defect multipliers ``lam`` (N, nx): :meth:`_first_order`'s four and the
-        Lagrangian's Hessian blocks (N, 2 nz, 2 nz) (copies)."""
-        D, J, f, G = self._first_order(Z)
-        return D, J, f, G, self._hessian(Z, D, lam)
+        """At knots ``Z`` (N+1, nz) with defect multipliers ``lam`` (N, nx): :meth:`_first_order`'s first four and
+        the Lagrangian's Hessian blocks (N, 2 nz, 2 nz) (copies)."""
+        D, J, f, G, F, JF = self._first_order(Z)
+        return D, J, f, G, self._hessian(Z, D, lam, F, JF)
 
     def _merit_parts(self, Z: np.ndarray) -> tuple[float, float, np.ndarray]:
         """Cost, l1 norm of the defects and the defects (N, nx) at knots ``Z``; the first-order parts kept in
         ``_trial`` (the point accepted next is usually this one: they are not evaluated twice)."""
-        D, J, f, G = self._first_order(Z)
-        self._trial = (Z, D, J, f, G)
+        D, J, f, G, F, JF = self._first_order(Z)
+        self._trial = (Z, D, J, f, G, F, JF)
         return f, float(np.abs(D).sum()), D
 
     # ---- one QP ---------------------------------------------------------------------------------------------
@@ -543,8 +549,6 @@ class CollocationSQP:
             raise SQPError(f"Duration T = {T} s is not positive; give T > 0.")
         tic = time.perf_counter()
         self._h = T / N
-        self._hvec = np.full(N, self._h)
-        self._sigma = np.full(N, 1.0 / self._cost_div)
         n_z = nz * (N + 1)
         lbv, ubv = ocp._var_bounds(x0, x_goal, False)
         lbz, ubz = lbv[:n_z].reshape(N + 1, nz), ubv[:n_z].reshape(N + 1, nz)
@@ -638,8 +642,8 @@ class CollocationSQP:
                 if not soft_step:  # an elastic QP's multipliers price its penalty, not the NLP: kept
                     lam = lam_qp
                 last = (lam_qp, Nb) if (alpha == 1.0 and not soft_step and not rec["soc"]) else None
-                _, D, J, f, G = self._trial  # the accepted point is the last one tried
-                H = self._hessian(Z, D, lam)
+                _, D, J, f, G, F, JF = self._trial  # the accepted point is the last one tried
+                H = self._hessian(Z, D, lam, F, JF)
         except (RuntimeError, np.linalg.LinAlgError) as exc:  # a singular defect Jacobian, a NaN in CasADi
             status = f"Error: {(str(exc).strip().splitlines() or [type(exc).__name__])[-1]}"
         elapsed = time.perf_counter() - tic

@@ -202,3 +202,65 @@ def test_one_library_serves_fixed_and_free_time_and_any_T(model, empty_cache):
     other_T = compiled_nlp.compiled_nlp(model, 20, sx, su, eff * 1.7)
     assert first.compiled_now and not free.compiled_now and not other_T.compiled_now
     assert first.library == free.library == other_T.library
+
+
+def _knot_shared(fns, Z, h, lam, sigma):
+    """hs_kf, hs_mid1, hs_mid2, hs_kh evaluated as the SQP evaluates them: D (N, nx), J (N, nx, nv), E (N,),
+    G (N, nv) and the full Hessian of the Lagrangian in all knots ((N+1) nz square)."""
+    byname = {fn.name(): fn for fn in fns}
+    N1, nz = Z.shape
+    N = N1 - 1
+    kf = [byname["hs_kf"](z) for z in Z]
+    F = [np.asarray(a).ravel() for a, _ in kf]
+    JF = [np.asarray(b) for _, b in kf]
+    D, J, E, G = [], [], [], []
+    H = np.zeros((N1 * nz, N1 * nz))
+    W = np.zeros((N1, len(F[0])))
+    for k in range(N):
+        args = (Z[k], Z[k + 1], F[k], F[k + 1], JF[k], JF[k + 1], h)
+        d, jd, e, ge = (np.asarray(a) for a in byname["hs_mid1"](*args))
+        D.append(d.ravel()), J.append(jd), E.append(float(e.ravel()[0])), G.append(ge.ravel())
+        hm, wk, wk1 = (np.asarray(a) for a in byname["hs_mid2"](*args, lam[k], sigma))
+        H[k * nz:(k + 2) * nz, k * nz:(k + 2) * nz] += hm
+        W[k] += wk.ravel()
+        W[k + 1] += wk1.ravel()
+    for k in range(N1):
+        H[k * nz:(k + 1) * nz, k * nz:(k + 1) * nz] += np.asarray(byname["hs_kh"](Z[k], W[k]))
+    return np.array(D), np.array(J), np.array(E), np.array(G), H
+
+
+@pytest.mark.parametrize("objective", ["effort", "tracking"])
+def test_knot_shared_derivatives_equal_the_interval_functions(objective):
+    """The SQP's knot-shared evaluation (each knot's f and curvature once) gives the interval functions' defects,
+    Jacobians, cost, gradient and, summed over the intervals, the same Lagrangian Hessian."""
+    from cartpole.ocp.objectives import make_objective
+
+    m = build_model()
+    nx, nu = m.nx, m.nu
+    nz, nv = nx + nu, 2 * (nx + nu)
+    sx, su = np.array([1.4, np.pi, 5.0, 20.0]), np.array([1.0])
+    run = make_objective(m, objective).running
+    fns = compiled_nlp.knot_functions(m.f, sx, su, running=run)
+    byname = {fn.name(): fn for fn in compiled_nlp.interval_functions(m.f, sx, su, 1.0, running=run)}
+    rng = np.random.default_rng(7)
+    N, h, sigma = 6, 0.02, 0.8
+    Z = rng.normal(size=(N + 1, nz))
+    lam = rng.normal(size=(N, nx))
+    D, J, E, G, H = _knot_shared(fns, Z, h, lam, sigma)
+    Href = np.zeros_like(H)
+    for k in range(N):
+        v = np.r_[Z[k], Z[k + 1]]
+        d, jd = (np.asarray(a) for a in byname["hs_dj"](v, h))
+        e, ge = (np.asarray(a) for a in byname["hs_eg"](v, h))
+        np.testing.assert_allclose(D[k], d.ravel(), rtol=1e-12, atol=1e-13)
+        np.testing.assert_allclose(J[k], jd[:, :nv], rtol=1e-11, atol=1e-12)
+        assert E[k] == pytest.approx(float(e.ravel()[0]), rel=1e-12, abs=1e-14)
+        np.testing.assert_allclose(G[k], ge.ravel()[:nv], rtol=1e-11, atol=1e-12)
+        tri = np.asarray(byname["hs_hl"](v, h, lam[k], sigma)).ravel()  # upper triangle of (v, h), column-major
+        full = np.zeros((nv + 1, nv + 1))
+        rows, cols = np.triu_indices(nv + 1)
+        order = np.lexsort((rows, cols))  # column-major order of the upper triangle
+        full[rows[order], cols[order]] = tri
+        full = full + np.triu(full, 1).T
+        Href[k * nz:(k + 2) * nz, k * nz:(k + 2) * nz] += full[:nv, :nv]
+    np.testing.assert_allclose(H, Href, rtol=1e-10, atol=1e-10 * np.abs(Href).max())
