@@ -132,8 +132,9 @@ class CollocationSQP:
         Largest scaled defect at which the Hessian includes the defects' curvature (the exact Lagrangian); above
         it, the cost's only (default 0.1; why, in the module docstring).
     max_unsettled : int or None
-        With ``qp_solver="riccati"``: QPs the Riccati active set may hand to DAQP before the solve stops with status
-        ``QP_Unsettled`` (None, the default: no limit). A linearisation it cannot settle again and again is an
+        With ``qp_solver="riccati"``: feasible QPs the Riccati active set may hand to DAQP (infeasible linearisations,
+        which DAQP solves with soft rows, are not counted) before the solve stops with status ``QP_Unsettled`` (None,
+        the default: no limit). A feasible linearisation it cannot settle again and again is an
         ill-conditioned stage elimination (a long horizon of fast unstable modes: on the triple pendulum's effort
         stage the Riccati cost-to-go of ``du_0`` reaches 1e12 to 1e16), where IPOPT on the sparse problem is the
         better solver; the planner stops early
@@ -353,8 +354,12 @@ class CollocationSQP:
         if self.qp_solver in ("riccati", "daqp"):
             out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
             if out is not None:
+                if self._rqp is not None and not self._soft_step:
+                    self._unsettled_feasible += 1  # a feasible QP the Riccati active set could not settle
                 return out
             self._warm_ready = False  # DAQP failed: qrqp (cold), then HPIPM
+            if self._rqp is not None:
+                self._unsettled_feasible += 1
         hvals = np.concatenate([Hy[0, nx:, nx:].ravel(), Hy[1:].ravel(), np.zeros(nz * nz)])[self._h_order]
         gvec = np.concatenate([gy[0, nx:], gy[1:].ravel(), np.zeros(nz)])
         self._a_vals[:self._a_count] = np.concatenate([T[0][:, nx:].ravel(), T[1:].ravel()])
@@ -570,6 +575,7 @@ class CollocationSQP:
         if self._rqp is not None:
             self._rqp.reset()
             self.qp_counts.update(riccati=0, riccati_unsettled=0)
+        self._unsettled_feasible = 0
         try:
             D, J, f, G, H = self._eval(Z, lam)
             theta_max = 1e4 * max(1.0, float(np.abs(D).sum()))
@@ -597,7 +603,7 @@ class CollocationSQP:
                 if not ok:
                     status = "QP_Failed"
                     break
-                if self.max_unsettled is not None and self.qp_counts.get("riccati_unsettled", 0) > self.max_unsettled:
+                if self.max_unsettled is not None and self._unsettled_feasible > self.max_unsettled:
                     status = "QP_Unsettled"
                     break
                 if infeas <= self.tol and (kkt <= self.tol or step <= self.tol):
