@@ -146,3 +146,25 @@ def test_two_motors_run_through_the_sqp_and_end_at_ipopts_optimum(chain_dir):
     assert info.success
     assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
     assert traj.u.shape == traj_ip.u.shape == (n + 1, 2)
+
+
+def test_infeasible_linearisations_do_not_count_against_max_unsettled(two_pole):
+    """From the bench's guess the two-pole problem's first linearisations are infeasible (DAQP's soft rows solve
+    them, the Riccati active set cannot): the SQP with max_unsettled=0 still reaches IPOPT's optimum."""
+    ocp, x0, guess, (traj_ip, info_ip) = two_pole
+    sqp = CollocationSQP(ocp, max_unsettled=0)
+    traj, info = sqp.solve_once(x0, guess=guess)
+    assert sqp.qp_soft > 0 and sqp.qp_counts["riccati_unsettled"] >= sqp.qp_soft
+    assert info.success
+    _assert_ipopts_optimum(traj, info, traj_ip, info_ip, ocp, x0)
+
+
+def test_feasible_qps_the_riccati_active_set_cannot_settle_stop_the_solve(single, monkeypatch):
+    from cartpole.solvers import riccati_qp
+
+    ocp, x0, guess, _ = single
+    monkeypatch.setattr(riccati_qp.StageQP, "solve", lambda self, *a, **k: 3)  # never settles
+    sqp = CollocationSQP(ocp, max_unsettled=2)
+    _, info = sqp.solve_once(x0, guess=guess)
+    assert not info.success and info.status == "QP_Unsettled" and info.iterations == 3
+    assert sqp.qp_counts["riccati_unsettled"] == 3 and sqp.qp_counts["daqp"] >= 3 and sqp.qp_soft == 0
