@@ -1,6 +1,7 @@
 """``cartpole bench``: trajectory-optimisation, TVLQR and batched-replay speed, measured in one run."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 HELP = ("time the swing-up collocation solve (ours vs naive casadi.Opti baselines), TVLQR synthesis, batched "
@@ -20,6 +21,9 @@ def add_arguments(parser) -> None:
                         help="few repeats and a small replay batch (smoke test; figures are not for publishing)")
     parser.add_argument("--repeats", type=int, default=None, metavar="K",
                         help="timed solves per method, medians reported (default 7; --quick 2)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="the standard problem's duration T in s (default 2; the three-pole cart needs at least "
+                             "its minimum time, 2.3 s)")
     parser.add_argument("--no-replay", action="store_true", help="skip the batched replay benchmark")
     parser.add_argument("--no-plan", action="store_true",
                         help="skip the swing-up plan times (default: the shipped 1-, 2- and 3-pole carts, or the "
@@ -66,8 +70,12 @@ def run(args) -> dict:
     if repeats > MAX_REPEATS:
         raise CartPoleError(f"--repeats {repeats} is more than the {MAX_REPEATS} limit (each repeat solves every "
                             "benchmark again); give at most that, 7 is the default.")
+    T = 2.0 if args.duration is None else float(args.duration)
+    if not (math.isfinite(T) and 0.1 <= T <= 60.0):
+        raise CartPoleError(f"--duration {args.duration} is not a duration from 0.1 to 60 s; give one (2 is the "
+                            "standard problem's).")
     steps = _Steps()
-    doc = bench_run(args.mjcf, repeats=repeats, replay=not args.no_replay,
+    doc = bench_run(args.mjcf, T=T, repeats=repeats, replay=not args.no_replay,
                     replay_repeats=1 if args.quick else repeats, replay_rollouts=16 if args.quick else 256,
                     progress=steps)
     from cartpole.apps.bench.trajopt import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table,
@@ -78,7 +86,7 @@ def run(args) -> dict:
         from cartpole.apps.bench.objectives import OBJECTIVES, objective_benchmark
 
         names = ("effort", "time") if args.quick else OBJECTIVES
-        doc["trajopt"]["objectives"] = objective_benchmark(args.mjcf, objectives=names, repeats=repeats,
+        doc["trajopt"]["objectives"] = objective_benchmark(args.mjcf, objectives=names, T=T, repeats=repeats,
                                                            progress=steps)
     doc["plan"] = None
     if not args.no_plan:

@@ -110,3 +110,9 @@ def test_bench_json_has_an_mpc_row_beside_its_ipopt_baseline(capsys):
     for row in mpc["ddp"].values():  # MPC by DDP on one and two poles, in the same loop
         assert row["success"] and 0 < row["solve_ms_median"] <= row["solve_ms_max"] and row["steps"] > 0
     assert set(mpc["ddp"]) == {"one_pole", "two_pole"}
+
+
+def test_a_duration_outside_its_range_is_one_sentence_and_exit_2(capsys):
+    assert main(["bench", "--duration", "0", "--json"]) == 2
+    err = capsys.readouterr().err
+    assert "--duration 0" in err and err.count("\n") == 1 and "Traceback" not in err
