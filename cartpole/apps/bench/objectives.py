@@ -19,6 +19,7 @@ from cartpole.models import build_model, read_params
 from cartpole.ocp.bounds import bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
+from cartpole.ocp.hermite_simpson import simpson_effort_terms
 from cartpole.ocp.objectives import make_objective
 
 #: The objectives measured, in order.
@@ -92,8 +93,7 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
 def _effort(traj) -> float:
     """``integral u'u dt`` of a Hermite-Simpson plan (ctrl^2 s), Simpson on its first-order-hold inputs."""
     h = np.diff(traj.t)[:, None]
-    um = 0.5 * (traj.u[:-1] + traj.u[1:])
-    return float(np.sum(h / 6 * (traj.u[:-1] ** 2 + 4 * um ** 2 + traj.u[1:] ** 2)))
+    return float(np.sum(h / 6 * simpson_effort_terms(traj.u[:-1], traj.u[1:])))
 
 
 def print_objective_table(rows: list[dict], file=None) -> None:
