@@ -22,21 +22,23 @@ controls, the pinned ``x_0`` dropped from the first stage. The multipliers of th
 of the stage dynamics (the substitution adds interval k's gradient in ``z_k+1`` to them, then
 ``lambda_k = -(J^b_x)^-T mu_k``).
 
-QP solver: ``daqp`` (default; the stage QP condensed onto the knot controls ``v = (du_0 .. du_N)``, (N+1) nu
-unknowns, ``dx_k = g_k + G_k v`` by the stage dynamics, and solved by DAQP, PyPI ``daqp``, the dense dual active-set
-solver the NMPC uses, hot-started from the last QP's multipliers; see :meth:`CollocationSQP._daqp_step`), ``qrqp``
-(CasADi's sparse active-set solver, which factorises the banded KKT system of the stage QP by sparse QR, hot-started
-from the previous iteration's active set) or ``hpipm`` (CasADi's interface to the Riccati-recursion interior point).
-Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a failed check is solved again cold,
-then by HPIPM. The QP of each iteration is built in compiled C (:mod:`cartpole.solvers.sqp_functions`: the stage form
-and its convexification in one call, the condensing in another, without any ``G' Q G`` product, and the defects'
-multipliers from the QP's in a third). Why DAQP is the default: CasADi's HPIPM interface allocates HPIPM's workspace
-on every call, HPIPM needs ``balance`` or ``robust`` mode and finite stand-ins for free bounds (:data:`QP_INF`), and
-its less accurate answers cost many more SQP iterations; DAQP takes the same iterations to the same optimum as qrqp
-and costs less a QP, most of it its own set-up of the dense condensed QP (Cholesky and the inverse factor), little
-its active-set iterations. Building the QP in compiled C instead of numpy removes numpy's O(N^3) condensed Hessian
-and the Python-side loops. The next lever would be a Riccati-based QP called directly, which avoids DAQP's dense
-set-up. What each part costs today is measured by ``cartpole bench`` (the docs' benchmarks page), not written here.
+QP solver: ``riccati`` (default; :mod:`cartpole.solvers.riccati_qp`: the stage QP itself by Riccati recursions in C,
+inputs held at their bounds removed from the recursion, held state bounds through their responses, a primal-dual
+active set hot-started from the last QP's; O(N) a set), ``daqp`` (the stage QP condensed onto the knot controls
+``v = (du_0 .. du_N)``, (N+1) nu unknowns, ``dx_k = g_k + G_k v`` by the stage dynamics, and solved by DAQP, PyPI
+``daqp``, the dense dual active-set solver the NMPC uses, hot-started from the last QP's multipliers; see
+:meth:`CollocationSQP._daqp_step`; it also takes every QP the Riccati active set cannot settle, infeasible
+linearisations among them), ``qrqp`` (CasADi's sparse active-set solver, which factorises the banded KKT system of the
+stage QP by sparse QR, hot-started from the previous iteration's active set) or ``hpipm`` (CasADi's interface to the
+Riccati-recursion interior point). Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a
+failed check is solved again cold, then by HPIPM. The QP of each iteration is built in compiled C
+(:mod:`cartpole.solvers.sqp_functions`: the stage form and its convexification in one call, the condensing (for DAQP)
+in another, without any ``G' Q G`` product, and the defects' multipliers from the QP's in a third). Why not HPIPM:
+CasADi's HPIPM interface allocates HPIPM's workspace on every call, HPIPM needs ``balance`` or ``robust`` mode and
+finite stand-ins for free bounds (:data:`QP_INF`), and its less accurate answers cost many more SQP iterations; DAQP
+takes the same iterations to the same optimum as qrqp, most of its time its own set-up of the dense condensed QP
+(Cholesky and the inverse factor), which the Riccati solver does not need. What each part costs today is measured by
+``cartpole bench`` (the docs' benchmarks page), not written here.
 
 Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
@@ -85,10 +87,11 @@ class SQPError(OCPError):
 
 
 #: QP solvers: ``riccati`` (the stage QP by Riccati recursions and a primal-dual active set, in C:
-#: :mod:`cartpole.solvers.riccati_qp`; a QP it cannot settle goes to ``daqp``), ``daqp`` (the stage QP condensed onto the knot controls, DAQP's dense dual active set; qrqp then
-#: HPIPM when it fails), ``qrqp`` (CasADi's sparse active-set solver: the banded KKT system by sparse QR,
-#: hot-started from the previous SQP iteration's active set; when its answer fails the check of feasibility, HPIPM
-#: solves that QP) and ``hpipm`` alone (Riccati-recursion interior point, through CasADi's interface).
+#: :mod:`cartpole.solvers.riccati_qp`; a QP it cannot settle goes to ``daqp``), ``daqp`` (the stage QP condensed
+#: onto the knot controls, DAQP's dense dual active set; qrqp then HPIPM when it fails), ``qrqp`` (CasADi's sparse
+#: active-set solver: the banded KKT system by sparse QR, hot-started from the previous SQP iteration's active set;
+#: when its answer fails the check of feasibility, HPIPM solves that QP) and ``hpipm`` alone (Riccati-recursion
+#: interior point, through CasADi's interface).
 QP_SOLVERS = ("riccati", "daqp", "qrqp", "hpipm")
 _BIG = 1e30  # DAQP's "no bound"
 _GAMMA = 1e-5  # the filter's margin
@@ -118,8 +121,9 @@ class CollocationSQP:
     lm_init : float
         First Levenberg-Marquardt damping of the stage Hessian blocks (default 1e-2; the scaled effort Hessian's
         diagonal is about 1e-2 at N = 100).
-    qp_solver : {'daqp', 'qrqp', 'hpipm'}
-        The QP solver (module docstring); HPIPM also backs up qrqp, qrqp and HPIPM back up DAQP.
+    qp_solver : {'riccati', 'daqp', 'qrqp', 'hpipm'}
+        The QP solver (module docstring); DAQP backs up the Riccati solver (which needs a C compiler: without one,
+        or with ``ocp.compiled`` False, DAQP is used), HPIPM also backs up qrqp, qrqp and HPIPM back up DAQP.
     qp_options : dict, optional
         Merged into the options of ``casadi.conic`` for ``qp_solver`` (for HPIPM, ``{"hpipm": {...}}`` for its own).
     warm_qp : bool
@@ -158,8 +162,8 @@ class CollocationSQP:
     """
 
     def __init__(self, ocp: DirectCollocation, *, tol: float = 1e-8, max_iter: int = 200, reg_min: float = 1e-4,
-                 lm_init: float = 1e-2, qp_solver: str = "riccati", qp_options: dict | None = None, warm_qp: bool = True,
-                 soc: bool = True, max_step: float = 1.0, exact_hessian_below: float = 1e-1,
+                 lm_init: float = 1e-2, qp_solver: str = "riccati", qp_options: dict | None = None,
+                 warm_qp: bool = True, soc: bool = True, max_step: float = 1.0, exact_hessian_below: float = 1e-1,
                  max_unsettled: int | None = None):
         if not isinstance(ocp, DirectCollocation):
             raise SQPError("CollocationSQP needs a DirectCollocation problem (cartpole.ocp.collocation).")

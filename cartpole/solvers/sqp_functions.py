@@ -144,8 +144,9 @@ def _reverse_blocks(X: ca.MX, width: int, count: int) -> ca.MX:
 
 
 def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
-    """``[sqp_stages, sqp_condense, sqp_multipliers, sqp_stationarity]`` (module docstring) for ``nx`` states, ``nu`` inputs and
-    ``N >= 2`` intervals, in CasADi's virtual machine (:func:`compiled_qp_functions` compiles them)."""
+    """``[sqp_stages, sqp_condense, sqp_multipliers, sqp_stationarity]`` (module docstring) for ``nx`` states,
+    ``nu`` inputs and ``N >= 2`` intervals, in CasADi's virtual machine (:func:`compiled_qp_functions` compiles
+    them)."""
     nz = nx + nu
     nv, ny = 2 * nz, nz + nu
     nc = (N + 1) * nu  # condensed unknowns
