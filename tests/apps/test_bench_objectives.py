@@ -28,3 +28,18 @@ def test_effort_is_the_sqps_and_the_other_objectives_ipopts(rows):
 def test_the_time_row_minimises_the_duration_it_reports(rows):
     r = rows["time"]
     assert 0.5 < r["cost"] < 2.0  # T + 1e-3 effort, T well below the guess's 2 s
+
+
+def test_an_objective_the_model_cannot_have_is_skipped_with_its_sentence(capsys):
+    from cartpole.apps.bench.objectives import print_objective_table
+    from cartpole.models import SHIPPED_MJCF
+
+    rows = objective_benchmark(SHIPPED_MJCF.with_name("dmc_pendulum.xml"), N=20, repeats=1,
+                               objectives=("dmc_cartpole_swingup", "effort"))
+    skipped, effort = rows
+    assert skipped["objective"] == "dmc_cartpole_swingup" and "needs a cart" in skipped["skipped"]
+    # the rest is measured (the 1 N m pendulum cannot swing up in 2 s: neither converges, no ratio is claimed)
+    assert effort["objective"] == "effort" and effort["baseline"] == "generic" and effort["solve_ms_median"] > 0
+    assert effort["speedup"] is None or (effort["success"] and effort["baseline_success"])
+    print_objective_table(rows)
+    assert "not measured: " in capsys.readouterr().out
