@@ -52,9 +52,9 @@ class PlanOptions(StageOptions):
         (default :data:`U_MARGIN`, 5 %).
     solver : {'auto', 'ipopt', 'fatrop', 'sqp', 'ddp'}
         NLP solver of the plan's last stage (the minimum-time stages are IPOPT's); ``auto`` (default): the one
-        measured fastest, ``sqp`` for the effort stage unless ``solver_options`` (IPOPT's) are given, else IPOPT;
-        ``sqp``: the effort stage by :class:`~cartpole.solvers.sqp.CollocationSQP`, IPOPT when it does not converge
-        (both ``auto`` and ``sqp`` plan the running objectives and ``time`` by IPOPT); ``ddp``: the last stage by
+        measured fastest, ``sqp`` for the fixed-time stage (effort or a running objective) unless ``solver_options``
+        (IPOPT's) are given, else IPOPT; ``sqp``: that stage by :class:`~cartpole.solvers.sqp.CollocationSQP`, IPOPT
+        when it does not converge (``time`` stays IPOPT's); ``ddp``: the last stage by
         box-DDP on the exact discrete step (:mod:`cartpole.planning.ddp_plan`; every objective, ``time`` by a search
         over T of fixed-T solves; ``N`` is then ``T`` over the step), IPOPT when it does not converge.
     solver_options : mapping or None

@@ -512,9 +512,10 @@ def _padded(traj: Trajectory, T: float) -> Trajectory:
                       xdot=np.vstack([traj.xdot, np.zeros((n, traj.nx))]))
 
 
-#: SQP iterations the effort stage is given with ``solver="sqp"`` before IPOPT takes over (from the time plan the
-#: shipped one- and two-pole carts converge in 7).
-SQP_MAX_ITER = 30
+#: SQP iterations the fixed-time stage is given (``solver="auto"`` or ``"sqp"``) before IPOPT takes over (from the
+#: time plan the shipped one- and two-pole carts' effort stage converges in 7; a running objective from the bench's
+#: guess in 20 to 40).
+SQP_MAX_ITER = 60
 #: QPs the SQP's Riccati active set may hand to DAQP before the effort stage goes to IPOPT (the shipped one- and
 #: two-pole carts need none from the time plan; the triple's stage elimination is ill-conditioned and needs one
 #: almost every iteration: stopping at the fourth saves about 1.5 s of a 2.7 s plan).
@@ -722,7 +723,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
         elif not (obj.kind == "effort" and T_min is None):
             try:
                 traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
-                                            sqp=use_sqp and obj.kind == "effort")
+                                            sqp=use_sqp and obj.kind in ("effort", "running"))
                 info = replace(info, attempts=tinfo.attempts + info.attempts)
             except OCPNotSolved as exc:
                 if obj.kind != "running":

@@ -44,7 +44,14 @@ Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`
 starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
 iterates converge: quadratic convergence at the end), then made positive definite on the stage dynamics' null space
 where it is not: a backward Riccati recursion over the stages raises any stage's reduced Hessian ``R + B' P B`` below
-``reg_min`` (``sqp_stages`` in :mod:`cartpole.solvers.sqp_functions`), so every QP is convex. Globalisation: a filter
+``reg_min`` (``sqp_stages`` in :mod:`cartpole.solvers.sqp_functions`), so every QP is convex. A running cost (tracking,
+a reward) is not convex in the inputs: where an input saturates the free problem's reduced Hessian is indefinite at
+the solution itself, and that stage-wise raise changes the QP there (measured: linear convergence, 200 iterations).
+With a running cost and the Riccati QP solver each QP is therefore first solved on the exact Hessian (``sqp_stages``
+without the raise) with IPOPT's inertia correction: no shift first, and where a reduced Hessian of the active set
+is not positive definite ``delta I`` added to every stage block, from a third of the last shift used (at least
+1e-4) up by 8 until it is; the convexified QP only when that fails. Near the solution the shift is zero: Newton
+steps. Globalisation: a filter
 line search on (``||d||_1``, cost) (Fletcher and Leyffer) with a second-order correction against the Maratos effect,
 steps longer than ``max_step`` (scaled units) shortened. Converged when the largest defect and the largest entry of the
 Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT ``tol``); after a full step that test
@@ -109,8 +116,9 @@ class CollocationSQP:
     Parameters
     ----------
     ocp : DirectCollocation
-        The problem: model, N, T (fixed), bounds, objective ``effort`` (the running costs, ``tracking`` and
-        ``dmc_swingup``, were measured not to converge: IPOPT only).
+        The problem: model, N, T (fixed), bounds, objective ``effort`` or a running cost (``tracking``, the
+        ``dmc_*`` rewards, ``MODULE:FUNCTION``: each QP then on the exact Hessian with IPOPT's inertia correction,
+        module docstring).
     tol : float
         Converged when the largest defect and the largest entry of the Lagrangian's gradient (bound multipliers
         included, scaled units) are below ``tol`` (default 1e-8, the collocation's IPOPT ``tol``).
@@ -156,7 +164,9 @@ class CollocationSQP:
         ``step`` (max scaled step), ``damping`` (the Levenberg-Marquardt ``delta`` used), ``alpha`` (line-search
         step), ``soc`` (the second-order correction was taken).
     qp_counts : dict
-        QP solves of the last solve per solver (``qrqp``, ``hpipm``, ``daqp``: DAQP calls, row screening included).
+        QP solves of the last solve per solver (``qrqp``, ``hpipm``, ``daqp``: DAQP calls, row screening included;
+        ``riccati``: the Riccati active set's convexified QPs, ``riccati_exact`` its QPs on the exact Hessian (a running
+        cost), ``riccati_unsettled`` those it handed to DAQP).
     qp_soft : int
         QPs of the last solve solved with soft state rows (``daqp`` only: the hard QP was infeasible).
     """
@@ -173,9 +183,9 @@ class CollocationSQP:
             raise SQPError("The SQP solver works on the compressed transcription; build the problem with "
                            "separated=False.")
         kind = ocp.objective_spec.kind
-        if kind != "effort":  # measured: the tracking and dmc_swingup plans did not converge (N = 60, T = 3 s)
-            raise SQPError(f"The SQP solver handles the effort objective only, not '{ocp.objective}'; solve it with "
-                           "IPOPT (DirectCollocation.solve).")
+        if kind not in ("effort", "running"):  # time: a free T is no stage; solve it with IPOPT
+            raise SQPError(f"The SQP solver handles the fixed-duration objectives (effort and the running costs), "
+                           f"not '{ocp.objective}'; solve it with IPOPT (DirectCollocation.solve).")
         if qp_solver not in QP_SOLVERS:
             raise SQPError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         if qp_solver == "riccati" and not (ocp.compiled and riccati_qp.available(ocp.nx, ocp.nu)):
@@ -199,12 +209,20 @@ class CollocationSQP:
         sc = ocp.scale
         self.sx, self.su = np.array(sc[:nx]), np.array(sc[nx:])
         # the IPOPT problem's objective scaling (DirectCollocation._build): effort / (sum su^2 T)
-        self._cost_div = float(np.sum(self.su ** 2)) * float(ocp.T)
+        run = ocp.objective_spec.running if kind == "running" else None
+        self._running = run is not None
+        self._cost_div = float(ocp.T) * (1.0 if self._running else float(np.sum(self.su ** 2)))
         # each knot's dynamics and curvature once, the intervals' parts between them (compiled_nlp.knot_functions),
         # the maps generated into one library per model and N
-        maps, self.library = compiled_nlp.knot_maps(ocp.model, N, self.sx, self.su, compiled=ocp.compiled)
+        maps, self.library = compiled_nlp.knot_maps(ocp.model, N, self.sx, self.su, running=run, compiled=ocp.compiled)
         self._kf, self._mid1, self._mid2, self._kh = (Buffered(maps[n]) for n in compiled_nlp.KNOT_FUNCTIONS)
         funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled)
+        # a running cost is not convex in the inputs: each QP is first solved on the exact Hessian with IPOPT's
+        # inertia correction (module docstring), the convexified QP only where that fails
+        self._stages_raw = None
+        if self._running and qp_solver == "riccati":
+            raw, _ = sqp_functions.compiled_qp_functions(nx, nu, N, -np.inf, compiled=ocp.compiled)
+            self._stages_raw = Buffered(raw[0])
         self._rqp = riccati_qp.StageQP(N, nx, nu) if qp_solver == "riccati" else None
         self._stages, self._condense, self._mult, self._stat = (Buffered(f) for f in funcs)
         self._setup_qp(qp_options or {})
@@ -342,6 +360,30 @@ class CollocationSQP:
         N, nx, nz = self.N, self.nx, self.nz
         ny = nz + self.nw
         # stage form, Levenberg-Marquardt damping and convexification in one compiled call (sqp_functions)
+        if self._stages_raw is not None:
+            T, ct, Hy, gy, M = self._stages_raw(J, H, G, D, float(lm))
+            T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
+            Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
+            rq = self._rqp
+            held = rq.active.copy()
+            lo, hi = lbz - Z, ubz - Z
+            diag = np.arange(ny)
+            delta = 0.0
+            for _ in range(12):  # IPOPT's inertia correction: no shift first, then from a third of the last one up by 8
+                Hs = Hy.copy()
+                Hs[:, diag, diag] += delta
+                st = rq.solve(T, ct, Hs, gy, lo, hi)
+                if st != 1:
+                    break
+                delta = max(1e-4, self._delta / 3) if delta == 0.0 else 8 * delta
+                rq.active[:] = held
+            if st == 0:
+                self._delta = delta if delta > 0 else self._delta
+                self.qp_counts["riccati_exact"] += 1
+                dZ, Nb = rq.dz.copy(), rq.nb.copy()
+                (lam,) = self._mult(dZ, Nb[:, :nx], Hs, gy, T, H, G, M)
+                return dZ, lam.reshape(N, nx).copy(), Nb, True
+            rq.active[:] = held
         T, ct, Hy, gy, M = self._stages(J, H, G, D, float(lm))
         T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
         Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
@@ -578,8 +620,9 @@ class CollocationSQP:
             self._condensing_setup(lbz, ubz)
         if self._rqp is not None:
             self._rqp.reset()
-            self.qp_counts.update(riccati=0, riccati_unsettled=0)
+            self.qp_counts.update(riccati=0, riccati_unsettled=0, riccati_exact=0)
         self._unsettled_feasible = 0
+        self._delta = 0.0
         try:
             D, J, f, G, H = self._eval(Z, lam)
             theta_max = 1e4 * max(1.0, float(np.abs(D).sum()))
@@ -660,8 +703,11 @@ class CollocationSQP:
         if not np.all(np.isfinite(Z)):
             Z = np.clip(np.nan_to_num(Z), lbz, ubz)
             success = False
-        traj, effort = self._trajectory(Z, T)
-        info = SolveInfo(status=status, success=success, iterations=it, objective=float(effort),
+        traj, objective = self._trajectory(Z, T)
+        if self._running:  # the running integral (a reward's, negated back), as DirectCollocation reports it
+            objective = self._first_order(Z)[2] * self._cost_div
+            objective = -objective if ocp.objective_spec.is_reward else objective
+        info = SolveInfo(status=status, success=success, iterations=it, objective=float(objective),
                          solve_time_s=elapsed, solver="sqp", T=T, start=start)
         return traj, info
 

@@ -120,8 +120,6 @@ def test_sqp_refuses_problems_it_does_not_handle_in_one_sentence():
     model = build_model(read_params(SHIPPED_MJCF))
     with pytest.raises(SQPError, match="fixed duration"):
         CollocationSQP(DirectCollocation(model, N=20, T=None))
-    with pytest.raises(SQPError, match="effort objective only"):
-        CollocationSQP(DirectCollocation(model, N=20, T=2.0, objective="tracking"))
     with pytest.raises(SQPError, match="qp_solver"):
         CollocationSQP(DirectCollocation(model, N=20, T=2.0), qp_solver="nope")
 
@@ -168,3 +166,20 @@ def test_feasible_qps_the_riccati_active_set_cannot_settle_stop_the_solve(single
     _, info = sqp.solve_once(x0, guess=guess)
     assert not info.success and info.status == "QP_Unsettled" and info.iterations == 3
     assert sqp.qp_counts["riccati_unsettled"] == 3 and sqp.qp_counts["daqp"] >= 3 and sqp.qp_soft == 0
+
+
+@pytest.mark.parametrize("objective", ["tracking", "dmc_swingup"])
+def test_a_running_cost_not_convex_in_the_inputs_converges_to_ipopts_optimum(objective):
+    """A running objective's Lagrangian is indefinite where inputs saturate: each QP is solved on the exact Hessian
+    shifted by IPOPT's inertia correction (0 first, then up from the last shift), and the SQP reaches IPOPT's
+    optimum from the same guess (before the correction it crawled: 200 iterations, not converged)."""
+    base, x0, guess = _standard("cartpole.xml")
+    ocp = DirectCollocation(base.model, N=N, T=T, bounds=base.bounds, objective=objective)
+    traj_ip, info_ip = ocp.solve_once(x0, guess=guess)
+    assert info_ip.success
+    sqp = CollocationSQP(ocp)
+    traj, info = sqp.solve_once(x0, guess=guess)
+    assert info.success and info.iterations < 60
+    assert sqp.qp_counts["riccati_exact"] >= info.iterations - 2  # the exact Hessian's QPs, not the convexified
+    assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
+    _assert_same_plan(traj, traj_ip, ocp)

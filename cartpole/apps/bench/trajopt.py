@@ -371,15 +371,15 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
 
 
 def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms: float) -> dict:
-    """The fixed-time effort problem ``ocp`` solved as the planner's default (``solver="auto"``) solves its effort
-    stage: :class:`~cartpole.solvers.sqp.CollocationSQP` (at most
+    """The fixed-time problem ``ocp`` (effort or a running cost) solved as the planner's default (``solver="auto"``)
+    solves that stage: :class:`~cartpole.solvers.sqp.CollocationSQP` (at most
     :data:`cartpole.planning.trajopt.SQP_MAX_ITER` iterations and :data:`~cartpole.planning.trajopt.SQP_MAX_UNSETTLED`
     QPs handed to DAQP), IPOPT from the same guess when it does not converge, the two timed together.
 
     Parameters
     ----------
     ocp : DirectCollocation
-        The fixed-time effort problem.
+        The fixed-time problem (effort or a running cost).
     x0 : (nx,) array
         Start state ``[qpos, qvel]`` (m, rad, m/s, rad/s).
     guess : Trajectory
@@ -393,7 +393,8 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
     -------
     dict
         ``default_solver`` (whose plan it was: ``sqp`` or ``ipopt``), ``default_solve_ms_median`` (ms),
-        ``default_iterations``, ``default_objective`` (ctrl^2 s), ``default_success``,
+        ``default_iterations``, ``default_objective`` (as ``SolveInfo.objective``: ctrl^2 s for effort),
+        ``default_success``,
         ``default_speedup_vs_reference`` (``ref_ms`` over it; None when no plan).
     """
     from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED
