@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.apps.bench.trajopt import (NaiveOptiBaseline, default_planner_row, hand_typed_cartpole,
-                                         paired_median_ms)
+from cartpole.apps.bench.trajopt import NaiveOptiBaseline, default_planner_row, hand_typed_cartpole, median_ms
 from cartpole.models import build_model, read_params
 from cartpole.ocp.bounds import OCPError, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
@@ -29,8 +28,7 @@ OBJECTIVES = ("effort", "tracking", "dmc_cartpole_swingup", "time")
 
 def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: float = 2.0, repeats: int = 5,
                         progress=None) -> list[dict]:
-    """Per objective (module docstring), ours against the naive script, medians of ``repeats`` solves each, the two
-    timed alternately (:func:`~cartpole.apps.bench.trajopt.paired_median_ms`).
+    """Per objective (module docstring), ours against the naive script, medians of ``repeats`` solves each.
 
     Parameters
     ----------
@@ -72,21 +70,19 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
         say(f"objective {name}: the naive Opti script, {repeats} solves ...")
         base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand, objective=obj)
         base.solve(guess)  # builds IPOPT (not timed)
-        say(f"objective {name}: ours (the default planner's solver) and the naive script, {repeats} solves each, "
-            "alternately ...")
+        b_ms, (b_cost, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
+        say(f"objective {name}: ours (the default planner's solver), {repeats} solves ...")
         ocp = DirectCollocation(model, N=N, T=None if obj.kind == "time" else T, bounds=bounds, objective=obj)
         if obj.kind in ("effort", "running"):  # the planner's SQP, IPOPT behind it
-            row = default_planner_row(ocp, x0, guess, repeats, lambda: base.solve(guess))
+            row = default_planner_row(ocp, x0, guess, repeats, b_ms)
             ms, ok, it, solver = (row["default_solve_ms_median"], row["default_success"], row["default_iterations"],
                                   row["default_solver"])
-            b_ms, (b_cost, b_it, b_ok) = row["default_reference_solve_ms_median"], row["default_reference_result"]
             cost = row["default_objective"]
             if ok and obj.is_reward:  # reported as the reward: the script minimises its negative
                 cost = -cost
         else:
             ocp.solve_once(x0, guess=guess)  # builds IPOPT (not timed)
-            b_ms, ms, (b_cost, b_it, b_ok), (traj, info) = paired_median_ms(
-                lambda: base.solve(guess), lambda: ocp.solve_once(x0, guess=guess), repeats)
+            ms, (traj, info) = median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
             ok, it, solver = info.success, info.iterations, info.solver
             if obj.kind == "time":  # what the script minimises: T + w * effort
                 cost = traj.duration + ocp.time_effort_weight * _effort(traj)

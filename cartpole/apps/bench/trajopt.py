@@ -51,21 +51,6 @@ def median_ms(fn, repeats: int) -> tuple[float, object]:
     return 1e3 * statistics.median(times), out
 
 
-def paired_median_ms(fa, fb, repeats: int) -> tuple[float, float, object, object]:
-    """``fa`` and ``fb`` timed alternately (a, b, a, b, ...), ``repeats`` calls each: ``(median ms of fa, median ms
-    of fb, fa's last result, fb's last result)``. A ratio of the two is then taken under the same load, where timing
-    one after the other lets a passing load on the shared machine fall on one side only."""
-    ta, tb, ra, rb = [], [], None, None
-    for _ in range(repeats):
-        tic = time.perf_counter()
-        ra = fa()
-        ta.append(time.perf_counter() - tic)
-        tic = time.perf_counter()
-        rb = fb()
-        tb.append(time.perf_counter() - tic)
-    return 1e3 * statistics.median(ta), 1e3 * statistics.median(tb), ra, rb
-
-
 def hand_typed_cartpole(params) -> ca.Function | None:
     """The one-pole cart-pole's equations of motion typed by hand, as a user writes them for the naive script.
 
@@ -327,11 +312,8 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
                "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective),
                "sqp_speedup_vs_reference": ref_ms / s_ms if s_info.success else None}
 
-    say(f"the default planner (solver 'auto': the SQP, IPOPT behind it), timed alternately with the reference "
-        f"baseline: {repeats} solves each ...")
-    default = default_planner_row(ocp, x0, guess, repeats, (lambda: hb.solve(guess)) if hand else
-                                  (lambda: base.solve(guess)))
-    default.pop("default_reference_result")
+    say(f"the default planner (solver 'auto': the SQP, IPOPT behind it): {repeats} solves ...")
+    default = default_planner_row(ocp, x0, guess, repeats, ref_ms)
 
     say(f"ours (box-DDP on the exact discrete step, from the guess's ctrl): {repeats} solves ...")
     ddp = ddp_for_model(model, T, bounds=bounds)
@@ -388,7 +370,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     }
 
 
-def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, reference) -> dict:
+def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms: float) -> dict:
     """The fixed-time problem ``ocp`` (effort or a running cost) solved as the planner's default (``solver="auto"``)
     solves that stage: :class:`~cartpole.solvers.sqp.CollocationSQP` (at most
     :data:`cartpole.planning.trajopt.SQP_MAX_ITER` iterations and :data:`~cartpole.planning.trajopt.SQP_MAX_UNSETTLED`
@@ -404,18 +386,16 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, referen
         The initial guess both solvers start from.
     repeats : int
         Timed solves (the median is reported).
-    reference : callable
-        The reference baseline's solve (built already); timed alternately with ours (:func:`paired_median_ms`), so
-        the ratio is taken under the same load.
+    ref_ms : float
+        The reference baseline's solve time in ms (the ratio's numerator).
 
     Returns
     -------
     dict
         ``default_solver`` (whose plan it was: ``sqp`` or ``ipopt``), ``default_solve_ms_median`` (ms),
         ``default_iterations``, ``default_objective`` (as ``SolveInfo.objective``: ctrl^2 s for effort),
-        ``default_success``, ``default_reference_solve_ms_median`` (ms, the reference timed alongside),
-        ``default_reference_result`` (its last result) and ``default_speedup_vs_reference`` (the two medians'
-        ratio; None when no plan).
+        ``default_success``,
+        ``default_speedup_vs_reference`` (``ref_ms`` over it; None when no plan).
     """
     from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED
     from cartpole.solvers.sqp import SQPError
@@ -429,12 +409,11 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, referen
             return None, None
 
     solve()  # builds (not timed)
-    ref_ms, ms, ref_out, (_, info) = paired_median_ms(reference, solve, repeats)
+    ms, (_, info) = median_ms(solve, repeats)
     ok = info is not None and info.success
     return {"default_solver": info.solver if ok else None, "default_solve_ms_median": ms,
             "default_iterations": info.iterations if ok else None, "default_objective": info.objective if ok else None,
-            "default_success": ok, "default_reference_solve_ms_median": ref_ms, "default_reference_result": ref_out,
-            "default_speedup_vs_reference": ref_ms / ms if ok else None}
+            "default_success": ok, "default_speedup_vs_reference": ref_ms / ms if ok else None}
 
 
 #: The shipped carts the plan-time benchmark swings up: (label, asset file name).
