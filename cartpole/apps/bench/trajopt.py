@@ -41,10 +41,13 @@ from cartpole.solvers.sqp import CollocationSQP
 from cartpole.apps.bench.replay import replay_benchmark
 
 
-def median_ms(fn, repeats: int) -> tuple[float, object]:
-    """``(median wall time in ms of repeats calls of fn(), the last call's result)``."""
+def median_ms(fn, repeats: int, *, min_seconds: float = 0.0) -> tuple[float, object]:
+    """``(median wall time in ms of the calls of fn(), the last call's result)``: ``repeats`` calls, and more until
+    ``min_seconds`` have passed (a fast solver's median then spans as long a window as a slow baseline's, so a
+    passing load on the shared machine weighs on both alike; each call still runs warm after the last)."""
     times, out = [], None
-    for _ in range(repeats):
+    start = time.perf_counter()
+    while len(times) < repeats or time.perf_counter() - start < min_seconds:
         tic = time.perf_counter()
         out = fn()
         times.append(time.perf_counter() - tic)
@@ -385,7 +388,7 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
     guess : Trajectory
         The initial guess both solvers start from.
     repeats : int
-        Timed solves (the median is reported).
+        Timed solves (the median is reported); more until they span the reference's ``repeats`` solves' time.
     ref_ms : float
         The reference baseline's solve time in ms (the ratio's numerator).
 
@@ -409,7 +412,7 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
             return None, None
 
     solve()  # builds (not timed)
-    ms, (_, info) = median_ms(solve, repeats)
+    ms, (_, info) = median_ms(solve, repeats, min_seconds=1e-3 * ref_ms * repeats)
     ok = info is not None and info.success
     return {"default_solver": info.solver if ok else None, "default_solve_ms_median": ms,
             "default_iterations": info.iterations if ok else None, "default_objective": info.objective if ok else None,
