@@ -46,7 +46,7 @@ iterates converge: quadratic convergence at the end), then made positive definit
 where it is not: a backward Riccati recursion over the stages raises any stage's reduced Hessian ``R + B' P B`` below
 ``reg_min`` (``sqp_stages`` in :mod:`cartpole.solvers.sqp_functions`), so every QP is convex. A running cost (tracking,
 a reward) is not convex in the inputs: where an input saturates the free problem's reduced Hessian is indefinite at
-the solution itself, and that stage-wise raise changes the QP there (measured: linear convergence, 200 iterations).
+the solution itself, and that stage-wise raise changes the QP there (measured: it converges only linearly).
 With a running cost and the Riccati QP solver each QP is therefore first solved on the exact Hessian (``sqp_stages``
 without the raise) with IPOPT's inertia correction: no shift first, and where a reduced Hessian of the active set
 is not positive definite ``delta I`` added to every stage block, from a third of the last shift used (at least
