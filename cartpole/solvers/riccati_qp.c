@@ -114,7 +114,6 @@ typedef struct {
 /* the value a fixed input of stage k (k = -1: du_0) is held at */
 static double fixed_value(const rqp_ws* W, int k, int i)
 {
-    const rqp_dims* d = &W->d;
     int a = W->act[IDX(k + 1, RQP_NX + i)];
     int j = IDX(k + 1, RQP_NX + i);
     return a < 0 ? W->lo[j] : W->hi[j];
@@ -122,7 +121,6 @@ static double fixed_value(const rqp_ws* W, int k, int i)
 
 static int input_fixed(const rqp_ws* W, int k, int i)
 {
-    const rqp_dims* d = &W->d;
     return W->act[IDX(k + 1, RQP_NX + i)] != 0;
 }
 
@@ -461,7 +459,6 @@ static int solve_active(rqp_ws* W)
 /* the gradient of the Lagrangian in the held input i of stage k (k = -1: du_0) */
 static double input_gradient(const rqp_ws* W, int k, int i)
 {
-    const rqp_dims* d = &W->d;
     const int nz = RQP_NZ, nu = RQP_NU, ny = RQP_NY, nx = RQP_NX;
     if (k < 0) {
         double v = W->ptot[nx + i];
