@@ -359,8 +359,7 @@ class CollocationSQP:
         success)``."""
         N, nx, nz = self.N, self.nx, self.nz
         ny = nz + self.nw
-        # stage form, Levenberg-Marquardt damping and convexification in one compiled call (sqp_functions)
-        if self._stages_raw is not None:
+        if self._stages_raw is not None:  # a running cost: the exact Hessian's QP first (module docstring)
             T, ct, Hy, gy, M = self._stages_raw(J, H, G, D, float(lm))
             T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
             Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
@@ -380,10 +379,9 @@ class CollocationSQP:
             if st == 0:
                 self._delta = delta if delta > 0 else self._delta
                 self.qp_counts["riccati_exact"] += 1
-                dZ, Nb = rq.dz.copy(), rq.nb.copy()
-                (lam,) = self._mult(dZ, Nb[:, :nx], Hs, gy, T, H, G, M)
-                return dZ, lam.reshape(N, nx).copy(), Nb, True
+                return self._riccati_step(Hs, gy, T, H, G, M)
             rq.active[:] = held
+        # stage form, Levenberg-Marquardt damping and convexification in one compiled call (sqp_functions)
         T, ct, Hy, gy, M = self._stages(J, H, G, D, float(lm))
         T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
         Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
@@ -392,9 +390,7 @@ class CollocationSQP:
             status = rq.solve(T, ct, Hy, gy, lbz - Z, ubz - Z)
             self.qp_counts["riccati"] += 1
             if status == 0:
-                dZ, Nb = rq.dz.copy(), rq.nb.copy()
-                (lam,) = self._mult(dZ, Nb[:, :nx], Hy, gy, T, H, G, M)
-                return dZ, lam.reshape(N, nx).copy(), Nb, True
+                return self._riccati_step(Hy, gy, T, H, G, M)
             self.qp_counts["riccati_unsettled"] += 1
             rq.reset()  # this QP goes to DAQP; the next one starts afresh
         if self.qp_solver in ("riccati", "daqp"):
@@ -436,6 +432,13 @@ class CollocationSQP:
         mu_orig = mu.reshape(N, nz) + (H @ dV[:, :, None])[:, nz:, 0] + G[:, nz:]
         lam = -(M.transpose(0, 2, 1) @ mu_orig[:, :nx, None])[:, :, 0]
         return dZ, lam, Nb, ok
+
+    def _riccati_step(self, Hy, gy, T, H, G, M):
+        """:meth:`_qp_step`'s answer from the Riccati solver's last solve (of the QP with stage Hessians ``Hy``): the
+        step, the defects' multipliers by the stage dynamics' backward recursion (compiled), the bounds'."""
+        dZ, Nb = self._rqp.dz.copy(), self._rqp.nb.copy()
+        (lam,) = self._mult(dZ, Nb[:, :self.nx], Hy, gy, T, H, G, M)
+        return dZ, lam.reshape(self.N, self.nx).copy(), Nb, True
 
     def _daqp_step(self, Z, T, ct, Hy, gy, H, G, M, lbz, ubz):
         """The stage QP condensed onto the knot controls ``v = (du_0 .. du_N)`` ((N+1) nu, the states
