@@ -205,10 +205,12 @@ def knot_maps(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su, *,
     sx, su = np.asarray(sx, float), np.asarray(su, float)
     N = int(N)
 
+    # per function: how many instances (knots or intervals) and the inputs shared by all (h, sigma: scalars)
+    layout = {"hs_kf": (N + 1, []), "hs_mid1": (N, [6]), "hs_mid2": (N, [6, 8]), "hs_kh": (N + 1, [])}
+
     def mapped():
         fns = dict(zip(KNOT_FUNCTIONS, knot_functions(f, sx, su, running=running)))
-        return [fns[name].map(f"{name}_map", "serial", N + 1 if name in ("hs_kf", "hs_kh") else N,
-                              [6, 8] if name == "hs_mid2" else ([6] if name == "hs_mid1" else []), [])
+        return [fns[name].map(f"{name}_map", "serial", layout[name][0], layout[name][1], [])
                 for name in KNOT_FUNCTIONS]
 
     def build():

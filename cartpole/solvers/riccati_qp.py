@@ -37,7 +37,7 @@ import numpy as np
 
 from cartpole.codegen import build_c_library, compiled_or_none
 
-#: Statuses of :func:`solve`.
+#: Statuses of :meth:`StageQP.solve`.
 STATUS = {0: "optimal", 1: "not convex", 2: "dependent rows (infeasible?)", 3: "active set did not settle"}
 #: Active sets tried before a QP counts as unsettled.
 MAX_ACTIVE_SETS = 60
