@@ -516,9 +516,9 @@ def _padded(traj: Trajectory, T: float) -> Trajectory:
 #: time plan the shipped one- and two-pole carts' effort stage converges in 7; a running objective from the bench's
 #: guess in 20 to 40).
 SQP_MAX_ITER = 60
-#: QPs the SQP's Riccati active set may hand to DAQP before the effort stage goes to IPOPT (the shipped one- and
-#: two-pole carts need none from the time plan; the triple's stage elimination is ill-conditioned and needs one
-#: almost every iteration: stopping at the fourth saves about 1.5 s of a 2.7 s plan).
+#: QPs the SQP's Riccati active set may hand to DAQP (feasible ones it could not settle) before the stage goes to
+#: IPOPT: a stage that needs them again and again is cheaper by IPOPT (the shipped carts need none from the time
+#: plan).
 SQP_MAX_UNSETTLED = 3
 
 

@@ -93,6 +93,7 @@ typedef struct {
     rqp_dims d;
     const double *T, *ct, *Hy, *gy, *lo, *hi;
     const int* act;   /* (N+1) nz: 0 free, -1 at lower, +1 at upper, 2 equality */
+    double rho;       /* the penalty on held state rows' residuals (zero at any point of the active set) */
     /* factorisation, per stage */
     double *P, *p, *K, *kk, *S, *L;
     int* nfree;       /* per stage (and the du_0 pseudo-stage at index N) */
@@ -124,6 +125,26 @@ static int input_fixed(const rqp_ws* W, int k, int i)
     return W->act[IDX(k + 1, RQP_NX + i)] != 0;
 }
 
+/* rho/2 (s_i - b)^2 on each state row of knot k the active set holds, added to the value function there: zero with
+   a zero gradient wherever the rows hold, so the active set's QP keeps its solution and its multipliers, but the
+   recursion now sees the held rows (a pinned end state makes the stages before it a stabilised, well-conditioned
+   regulator instead of an open-loop propagation through the unstable modes, and lends the curvature the rows
+   give the constrained problem to the reduced Hessians) */
+static void held_penalty(rqp_ws* W, int k)
+{
+    const int nz = RQP_NZ, nx = RQP_NX;
+    if (!(W->rho > 0.0)) return;
+    double* Pk = W->P + (size_t)k * nz * nz;
+    double* pk = W->p + (size_t)k * nz;
+    for (int i = 0; i < nx; ++i) {
+        int a = W->act[IDX(k, i)];
+        if (!a) continue;
+        double b = a < 0 ? W->lo[IDX(k, i)] : W->hi[IDX(k, i)];
+        Pk[i * nz + i] += W->rho;
+        pk[i] -= W->rho * b;
+    }
+}
+
 /* backward Riccati pass with the inputs of the active set held; 1 when a reduced Hessian is not positive definite */
 static int backward(rqp_ws* W)
 {
@@ -138,6 +159,7 @@ static int backward(rqp_ws* W)
     double* RF = q + nz;              /* nu nu */
     memset(W->P + (size_t)d->N * nz * nz, 0, sizeof(double) * nz * nz);
     memset(W->p + d->N * nz, 0, sizeof(double) * nz);
+    held_penalty(W, d->N);
     for (int k = d->N - 1; k >= 0; --k) {
         const double* Tk = W->T + (size_t)k * nz * ny;
         const double* H = W->Hy + (size_t)k * ny * ny;
@@ -235,6 +257,7 @@ static int backward(rqp_ws* W)
             for (int a = 0; a < nf; ++a) v += S[fi[a] * nz + i] * kk[fi[a]];
             pk[i] = v;
         }
+        if (k >= 1) held_penalty(W, k);
     }
     /* the du_0 pseudo-stage: R0 = P_0's input block */
     {
@@ -511,7 +534,7 @@ void rqp_work_size(int N, int nx, int nu, int maxrow, long* doubles, long* ints)
    3 (iteration limit); iters the active sets tried. */
 int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const double* Hy, const double* gy,
               const double* lo, const double* hi, int* act, double* dz, double* nb, int max_iter, double tol,
-              int maxrow, double* buf, int* ibuf, int* iters)
+              int maxrow, double rho, double* buf, int* ibuf, int* iters)
 {
     rqp_ws W;
     rqp_dims* d = &W.d;
@@ -528,6 +551,7 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     W.lo = lo;
     W.hi = hi;
     W.act = act;
+    W.rho = rho;
     int mr = maxrow > 0 ? maxrow : 1;
     W.maxrow = maxrow;
     double* o = buf;

@@ -13,8 +13,13 @@ O(N^2) condensing and an O(N^3) factorisation every iteration; here each active 
 - an **active set** holds some bounds: a held input bound removes that input from the stage's Riccati step (its
   value fixed), a held state bound (the rail, a limited joint, the pinned ``x_N``) is a row ``e' s_k = b`` whose
   multiplier enters the recursion as a linear term on ``s_k``;
-- the equality-constrained QP of an active set: one backward Riccati pass (the inputs' reduced Hessians are
-  positive definite: ``sqp_stages`` convexified them, and holding inputs keeps a principal block of each), one
+- the held state rows also enter the recursion as ``rho/2 (e' s_k - b)^2`` (``rho`` relative to the stage
+  Hessians, :data:`RHO`): zero with a zero gradient wherever the rows hold, so the active set's solution and
+  multipliers are the same, but the stages before a pinned end become a stabilised regulator instead of an open-loop
+  propagation through the unstable modes (on the triple the responses otherwise grew to 1e12 to 1e16 over 100
+  stages), and a reduced Hessian is indefinite only where the constrained problem is not convex;
+- the equality-constrained QP of an active set: one backward Riccati pass (status 1 when a reduced Hessian of
+  the active set is not positive definite: the SQP then shifts the Hessian, or convexifies it), one
   forward pass, and per held state row its response (a backward pass of the linear term, a forward pass), the
   rows' multipliers from the small system of their values (``nrow x nrow``, by pivoted elimination);
 - the **primal-dual active-set** update (Hintermuller, Ito and Kunisch): bounds the solution violates are added,
@@ -42,6 +47,9 @@ STATUS = {0: "optimal", 1: "not convex", 2: "dependent rows (infeasible?)", 3: "
 #: Active sets tried before a QP counts as unsettled.
 MAX_ACTIVE_SETS = 60
 
+#: The held rows' penalty (``rho`` of :meth:`StageQP.solve`) relative to the largest diagonal entry of the stage
+#: Hessians.
+RHO = 1e4
 _SOURCE = Path(__file__).with_name("riccati_qp.c")
 
 
@@ -52,7 +60,7 @@ def _library(nx: int, nu: int):
     lib = ctypes.CDLL(build_c_library(src, "riccati_qp"))
     vp, ci = ctypes.c_void_p, ctypes.c_int
     fn = lib.rqp_solve
-    fn.argtypes = [ci, ci, ci, vp, vp, vp, vp, vp, vp, vp, vp, vp, ci, ctypes.c_double, ci, vp, vp, vp]
+    fn.argtypes = [ci, ci, ci, vp, vp, vp, vp, vp, vp, vp, vp, vp, ci, ctypes.c_double, ci, ctypes.c_double, vp, vp, vp]
     fn.restype = ci
     size = lib.rqp_work_size
     size.argtypes = [ci, ci, ci, ci, ctypes.POINTER(ctypes.c_long), ctypes.POINTER(ctypes.c_long)]
@@ -100,7 +108,8 @@ class StageQP:
         """Start the next QP from no held bound (but the equalities)."""
         self.active[:] = 0
 
-    def solve(self, T, ct, Hy, gy, lo, hi, *, tol: float = 1e-9, max_iter: int = MAX_ACTIVE_SETS) -> int:
+    def solve(self, T, ct, Hy, gy, lo, hi, *, tol: float = 1e-9, max_iter: int = MAX_ACTIVE_SETS,
+              rho: float | None = None) -> int:
         """Solve one QP (module docstring) from the current active set.
 
         Parameters
@@ -118,6 +127,10 @@ class StageQP:
             Primal and dual tolerance of the active-set test (scaled units).
         max_iter : int
             Active sets tried before giving up.
+        rho : float, optional
+            Weight of ``rho/2 (e' s_k - b)^2`` added for each held state row (zero, with a zero gradient, wherever
+            the rows hold: the same solution and multipliers); default :data:`RHO` times the largest diagonal entry of
+            ``Hy``; 0 for none.
 
         Returns
         -------
@@ -131,7 +144,9 @@ class StageQP:
         for a, n in zip(arrs, (N * nz * ny, N * nx, N * ny * ny, N * ny, (N + 1) * nz, (N + 1) * nz)):
             if a.size != n:
                 raise ValueError(f"StageQP.solve: an input has {a.size} entries where {n} are expected.")
+        if rho is None:
+            rho = RHO * max(float(np.abs(np.diagonal(arrs[2].reshape(N, ny, ny), axis1=1, axis2=2)).max()), 1e-300)
         st = self._fn(N, nx, self.nu, *(a.ctypes.data for a in arrs), *self._fixed, int(max_iter), float(tol),
-                      self.maxrow, self._work.ctypes.data, self._iwork.ctypes.data, self._iters_ref)
+                      self.maxrow, float(rho), self._work.ctypes.data, self._iwork.ctypes.data, self._iters_ref)
         self.iterations = int(self._iters.value)
         return int(st)

@@ -119,3 +119,78 @@ def test_a_qp_of_the_wrong_size_is_refused_in_one_sentence():
     with pytest.raises(ValueError, match="entries where"):
         qp.solve(np.zeros((9, 5, 6)), np.zeros((10, 4)), np.zeros((10, 6, 6)), np.zeros((10, 6)),
                  np.zeros((11, 5)), np.zeros((11, 5)))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_held_rows_penalty_changes_neither_the_solution_nor_the_multipliers(seed):
+    rng = np.random.default_rng(100 + seed)
+    N, nx, nu = 30, 4, 1
+    T, ct, Hy, gy, lo, hi = _random_stage_qp(rng, N, nx, nu)
+    answers = []
+    for rho in (0.0, None, 1e8):
+        qp = riccati_qp.StageQP(N, nx, nu)
+        assert qp.solve(T, ct, Hy, gy, lo, hi, rho=rho) == 0
+        answers.append((qp.dz.copy(), qp.nb.copy()))
+    for dz, nb in answers[1:]:
+        assert np.abs(dz - answers[0][0]).max() <= 1e-8 * (1.0 + np.abs(dz).max())
+        assert np.abs(nb - answers[0][1]).max() <= 1e-6 * (1.0 + np.abs(nb).max())
+
+
+def _kkt_reference(T, ct, Hy, gy, b):
+    """The equality-constrained stage QP (no bounds but ``dx_0 = 0`` and ``dx_N = b``) by one sparse solve of its
+    full KKT system (well conditioned in this form however unstable the dynamics): ``(s (N+1, nz), multipliers of
+    dx_N = b (nx))``."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    N, nz, ny = T.shape
+    nu = ny - nz
+    nx = nz - nu
+    ns, nw = (N + 1) * nz, N * nu
+    n = ns + nw
+
+    def y_index(k):
+        return np.r_[k * nz + np.arange(nz), ns + k * nu + np.arange(nu)]
+
+    H = sp.lil_matrix((n, n))
+    g = np.zeros(n)
+    for k in range(N):
+        idx = y_index(k)
+        H[np.ix_(idx, idx)] = H[np.ix_(idx, idx)].toarray() + Hy[k]
+        g[idx] += gy[k]
+    rows, rhs = [], []
+    A = sp.lil_matrix((N * nz + 2 * nx, n))
+    for k in range(N):
+        r = k * nz + np.arange(nz)
+        A[np.ix_(r, (k + 1) * nz + np.arange(nz))] = np.eye(nz)
+        A[np.ix_(r, y_index(k))] = -T[k]
+        rhs.append(np.r_[ct[k], np.zeros(nu)])
+    A[np.ix_(N * nz + np.arange(nx), np.arange(nx))] = np.eye(nx)
+    A[np.ix_(N * nz + nx + np.arange(nx), N * nz + np.arange(nx))] = np.eye(nx)
+    rhs += [np.zeros(nx), b]
+    m = A.shape[0]
+    K = sp.bmat([[H, A.T], [A, None]]).tocsc()
+    sol = spla.spsolve(K, np.r_[-g, np.concatenate(rhs)])
+    return sol[:ns].reshape(N + 1, nz), sol[n + m - nx:]
+
+
+def test_a_pinned_end_behind_a_long_unstable_horizon_is_met_exactly():
+    """100 stages whose states grow 1.3x each (2.5e11 over the horizon) and cost nothing (the effort objective: the
+    triple's kind of stage elimination): the held rows' penalty keeps the recursion a stabilised regulator, and the
+    answer is the full KKT system's; without it the pinned end is missed by orders of magnitude."""
+    rng = np.random.default_rng(7)
+    N, nx, nu = 100, 4, 1
+    T, ct, Hy, gy, lo, hi = _random_stage_qp(rng, N, nx, nu)
+    T[:, :nx, :nx] = 1.3 * np.eye(nx) + 0.02 * rng.standard_normal((N, nx, nx))
+    Hy[:, :nx, :] = Hy[:, :, :nx] = 0.0  # inputs cost, states do not
+    lo[:, nx:], hi[:, nx:] = -np.inf, np.inf
+    lo[1:N, 0], hi[1:N, 0] = -np.inf, np.inf  # no rail (the end stays pinned)
+    s_ref, nu_ref = _kkt_reference(T, ct, Hy, gy, hi[N, :nx])
+    qp = riccati_qp.StageQP(N, nx, nu)
+    assert qp.solve(T, ct, Hy, gy, lo, hi, rho=0.0) == 0
+    assert np.abs(qp.dz[N, :nx] - hi[N, :nx]).max() > 1.0  # the open-loop propagation loses the end
+    assert qp.solve(T, ct, Hy, gy, lo, hi) == 0
+    scale = 1.0 + np.abs(s_ref).max()
+    assert np.abs(qp.dz[1:] - s_ref[1:]).max() <= 1e-8 * scale
+    assert np.abs(qp.dz[N, :nx] - hi[N, :nx]).max() <= 1e-10
+    assert np.abs(qp.nb[N, :nx] - nu_ref).max() <= 1e-6 * (1.0 + np.abs(nu_ref).max())
