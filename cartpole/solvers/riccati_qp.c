@@ -13,7 +13,12 @@
 #ifndef RQP_NX
 #error "define RQP_NX and RQP_NU"
 #endif
+#ifndef RQP_NP
+#define RQP_NP 0 /* the last RQP_NP state entries are free at knot 0 (parameters, e.g. a time scale) */
+#endif
 #define RQP_NZ (RQP_NX + RQP_NU)
+#define RQP_E0 (RQP_NX - RQP_NP) /* knot 0's first free entry: its free states, then its inputs */
+#define RQP_N0 (RQP_NP + RQP_NU)
 #define RQP_NY (RQP_NX + 2 * RQP_NU)
 
 typedef struct {
@@ -112,17 +117,22 @@ typedef struct {
 
 #define IDX(k, i) ((k) * RQP_NZ + (i))
 
-/* the value a fixed input of stage k (k = -1: du_0) is held at */
+/* the entry of knot k + 1 that stage k's input i is (k = -1: knot 0's free entry i, its free states then du_0) */
+static int input_entry(int k, int i)
+{
+    return k < 0 ? RQP_E0 + i : IDX(k + 1, RQP_NX + i);
+}
+
+/* the value a fixed input of stage k (k = -1: knot 0's free entries) is held at */
 static double fixed_value(const rqp_ws* W, int k, int i)
 {
-    int a = W->act[IDX(k + 1, RQP_NX + i)];
-    int j = IDX(k + 1, RQP_NX + i);
-    return a < 0 ? W->lo[j] : W->hi[j];
+    int j = input_entry(k, i);
+    return W->act[j] < 0 ? W->lo[j] : W->hi[j];
 }
 
 static int input_fixed(const rqp_ws* W, int k, int i)
 {
-    return W->act[IDX(k + 1, RQP_NX + i)] != 0;
+    return W->act[input_entry(k, i)] != 0;
 }
 
 /* rho/2 (s_i - b)^2 on each state row of knot k the active set holds, added to the value function there: zero with
@@ -259,18 +269,19 @@ static int backward(rqp_ws* W)
         }
         if (k >= 1) held_penalty(W, k);
     }
-    /* the du_0 pseudo-stage: R0 = P_0's input block */
+    /* knot 0's pseudo-stage (its free states and du_0): R0 = P_0's block of them */
     {
+        const int e0 = RQP_E0, n0 = RQP_N0;
         int* fi = W->fidx + d->N * nu;
         int nf = 0;
-        for (int i = 0; i < nu; ++i)
+        for (int i = 0; i < n0; ++i)
             if (!input_fixed(W, -1, i)) fi[nf++] = i;
         int t = nf;
-        for (int i = 0; i < nu; ++i)
+        for (int i = 0; i < n0; ++i)
             if (input_fixed(W, -1, i)) fi[t++] = i;
         W->nfree[d->N] = nf;
         for (int a = 0; a < nf; ++a)
-            for (int b = 0; b < nf; ++b) W->L0[a * nf + b] = W->P[(nx + fi[a]) * nz + nx + fi[b]];
+            for (int b = 0; b < nf; ++b) W->L0[a * nf + b] = W->P[(e0 + fi[a]) * nz + e0 + fi[b]];
         if (nf && chol(nf, W->L0)) return 1;
     }
     return 0;
@@ -283,19 +294,20 @@ static void forward(rqp_ws* W, const double* lin, const double* ff, int homogene
     const rqp_dims* d = &W->d;
     const int nz = RQP_NZ, nu = RQP_NU, ny = RQP_NY, nx = RQP_NX;
     double col[16];
-    /* du_0 */
+    /* knot 0's free entries */
     {
+        const int e0 = RQP_E0, n0 = RQP_N0;
         const int* fi = W->fidx + d->N * nu;
         int nf = W->nfree[d->N];
         memset(s, 0, sizeof(double) * nz);
-        for (int a = nf; a < nu; ++a) s[nx + fi[a]] = homogeneous ? 0.0 : fixed_value(W, -1, fi[a]);
+        for (int a = nf; a < n0; ++a) s[e0 + fi[a]] = homogeneous ? 0.0 : fixed_value(W, -1, fi[a]);
         for (int a = 0; a < nf; ++a) {
-            double v = lin[nx + fi[a]];
-            for (int b = nf; b < nu; ++b) v += W->P[(nx + fi[a]) * nz + nx + fi[b]] * s[nx + fi[b]];
+            double v = lin[e0 + fi[a]];
+            for (int b = nf; b < n0; ++b) v += W->P[(e0 + fi[a]) * nz + e0 + fi[b]] * s[e0 + fi[b]];
             col[a] = -v;
         }
         if (nf) chol_solve(nf, W->L0, col);
-        for (int a = 0; a < nf; ++a) s[nx + fi[a]] = col[a];
+        for (int a = 0; a < nf; ++a) s[e0 + fi[a]] = col[a];
     }
     for (int k = 0; k < d->N; ++k) {
         const double* Tk = W->T + (size_t)k * nz * ny;
@@ -409,10 +421,10 @@ static void responses(rqp_ws* W)
         const int nf = W->nfree[N];
         for (int r = 0; r < nr; ++r) {
             double* x = X + r * nz;
-            for (int a = 0; a < nf; ++a) tmp[a] = -x[nx + fi[a]];
+            for (int a = 0; a < nf; ++a) tmp[a] = -x[RQP_E0 + fi[a]];
             if (nf) chol_solve(nf, W->L0, tmp);
             for (int i = 0; i < nz; ++i) x[i] = 0.0;
-            for (int a = 0; a < nf; ++a) x[nx + fi[a]] = tmp[a];
+            for (int a = 0; a < nf; ++a) x[RQP_E0 + fi[a]] = tmp[a];
         }
     }
     for (int k = 0; k < N; ++k) {
@@ -479,13 +491,14 @@ static int solve_active(rqp_ws* W)
     return 0;
 }
 
-/* the gradient of the Lagrangian in the held input i of stage k (k = -1: du_0) */
+/* the gradient of the Lagrangian in the held input i of stage k (k = -1: knot 0's free entry i) */
 static double input_gradient(const rqp_ws* W, int k, int i)
 {
-    const int nz = RQP_NZ, nu = RQP_NU, ny = RQP_NY, nx = RQP_NX;
+    const int nz = RQP_NZ, nu = RQP_NU, ny = RQP_NY;
     if (k < 0) {
-        double v = W->ptot[nx + i];
-        for (int j = 0; j < nz; ++j) v += W->P[(nx + i) * nz + j] * W->s[j];
+        const int e = RQP_E0 + i;
+        double v = W->ptot[e];
+        for (int j = 0; j < nz; ++j) v += W->P[e * nz + j] * W->s[j];
         return v;
     }
     const double* Tk = W->T + (size_t)k * nz * ny;
@@ -509,14 +522,14 @@ static double input_gradient(const rqp_ws* W, int k, int i)
 static size_t work_doubles(int N, int nx, int nu, int mr)
 {
     const size_t nz = nx + nu, ns = (size_t)(N + 1) * nz, nw = (size_t)N * nu;
-    return (size_t)(N + 1) * nz * nz + ns + nw * nz + nw + nw * nz + (size_t)N * nu * nu + nu * nu + ns + nw + ns
+    return (size_t)(N + 1) * nz * nz + ns + nw * nz + nw + nw * nz + (size_t)N * nu * nu + RQP_N0 * RQP_N0 + ns + nw + ns
            + 2 * ns + 2 * nw + (size_t)mr * mr + 2 * (size_t)mr + 4 * nz * nz + 8 * nz + 8 * (size_t)nu * nu
            + 2 * nz * (size_t)mr + nw * (size_t)mr + (size_t)nu * mr;
 }
 
 static size_t work_ints(int N, int nx, int nu, int mr)
 {
-    return (size_t)(N + 1) * (nu + 1) + 2 * (size_t)mr + 2 * (size_t)(N + 1) * (nx + nu);
+    return (size_t)(N + 1) * (nu + 1) + RQP_NP + 2 * (size_t)mr + 2 * (size_t)(N + 1) * (nx + nu);
 }
 
 /* Sizes of rqp_solve's work arrays for at most maxrow held state rows: doubles, then ints. */
@@ -543,7 +556,7 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     const int nz = RQP_NZ;
     const size_t ns = (size_t)(N + 1) * nz, nw = (size_t)N * nu;
     int status = 3, it = 0;
-    if (nu > 16 || nx != RQP_NX || nu != RQP_NU) return 1;
+    if (RQP_N0 > 16 || nx != RQP_NX || nu != RQP_NU) return 1;
     W.T = T;
     W.ct = ct;
     W.Hy = Hy;
@@ -561,7 +574,7 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     W.kk = o; o += nw;
     W.S = o; o += nw * nz;
     W.L = o; o += (size_t)N * nu * nu;
-    W.L0 = o; o += nu * nu;
+    W.L0 = o; o += RQP_N0 * RQP_N0;
     W.s = o; o += ns;
     W.w = o; o += nw;
     W.ptot = o; o += ns;
@@ -575,7 +588,7 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     W.tmp = o;
     int* io = ibuf;
     W.nfree = io; io += N + 1;
-    W.fidx = io; io += (N + 1) * nu;
+    W.fidx = io; io += (N + 1) * nu + RQP_NP;
     W.rk = io; io += mr;
     W.ri = io; io += mr;
     int* prev = io; io += ns;
@@ -584,7 +597,7 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     for (int k = 0; k <= N; ++k)
         for (int i = 0; i < nz; ++i) {
             int j = IDX(k, i);
-            if (k == 0 && i < nx) { act[j] = 0; continue; }
+            if (k == 0 && i < RQP_E0) { act[j] = 0; continue; }
             if (isfinite(lo[j]) && lo[j] == hi[j]) act[j] = 2;
             else if (act[j] == 2 || (act[j] < 0 && !isfinite(lo[j])) || (act[j] > 0 && !isfinite(hi[j]))) act[j] = 0;
         }
@@ -608,7 +621,7 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
         for (int k = 0; k <= N; ++k)
             for (int i = 0; i < nz; ++i) {
                 int j = IDX(k, i);
-                if (k == 0 && i < nx) continue;
+                if (k == 0 && i < RQP_E0) continue;
                 int a = act[j];
                 if (a == 2) continue;
                 double val = (i < nx) ? W.s[j] : (k == 0 ? W.s[i] : W.w[(size_t)(k - 1) * nu + i - nx]);
@@ -619,7 +632,8 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
                     else if (val < lo[j] - tol) { viol = lo[j] - val; na = -1; }
                 } else {
                     double lam;
-                    if (i >= nx) lam = -input_gradient(&W, k - 1, i - nx);
+                    if (k == 0) lam = -input_gradient(&W, -1, i - RQP_E0);
+                    else if (i >= nx) lam = -input_gradient(&W, k - 1, i - nx);
                     else {
                         lam = 0.0;
                         for (int r = 0; r < W.nrow; ++r)
@@ -643,8 +657,10 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     if (status == 0) {
         memset(nb, 0, sizeof(double) * ns);
         memcpy(dz, W.s, sizeof(double) * ns);
-        for (int i = 0; i < nx; ++i) dz[i] = 0.0;
-        for (int k = 0; k <= N; ++k)
+        for (int i = 0; i < RQP_E0; ++i) dz[i] = 0.0;
+        for (int i = RQP_E0; i < nz; ++i)
+            if (act[i]) nb[i] = -input_gradient(&W, -1, i - RQP_E0);
+        for (int k = 1; k <= N; ++k)
             for (int i = nx; i < nz; ++i) {
                 int j = IDX(k, i);
                 if (act[j]) nb[j] = -input_gradient(&W, k - 1, i - nx);

@@ -54,9 +54,10 @@ _SOURCE = Path(__file__).with_name("riccati_qp.c")
 
 
 @functools.lru_cache(maxsize=None)
-def _library(nx: int, nu: int):
-    """The solver compiled for ``nx`` states and ``nu`` inputs (sizes fixed at compile time), loaded."""
-    src = f"#define RQP_NX {int(nx)}\n#define RQP_NU {int(nu)}\n" + _SOURCE.read_text()
+def _library(nx: int, nu: int, n_free: int = 0):
+    """The solver compiled for ``nx`` states (the last ``n_free`` free at knot 0) and ``nu`` inputs (sizes fixed at
+    compile time), loaded."""
+    src = f"#define RQP_NX {int(nx)}\n#define RQP_NU {int(nu)}\n#define RQP_NP {int(n_free)}\n" + _SOURCE.read_text()
     lib = ctypes.CDLL(build_c_library(src, "riccati_qp"))
     vp, ci = ctypes.c_void_p, ctypes.c_int
     fn = lib.rqp_solve
@@ -68,10 +69,10 @@ def _library(nx: int, nu: int):
     return fn, size
 
 
-def available(nx: int, nu: int) -> bool:
+def available(nx: int, nu: int, n_free: int = 0) -> bool:
     """True when the C solver for ``nx`` states and ``nu`` inputs is built (or was already) and loads; False without
     a C compiler or with ``CARTPOLE_NO_COMPILE`` set (then the SQP uses DAQP on the condensed QP)."""
-    return compiled_or_none(lambda: _library(nx, nu), "Riccati QP solver",
+    return compiled_or_none(lambda: _library(nx, nu, n_free), "Riccati QP solver",
                             "the SQP condenses its QPs for DAQP") is not None
 
 
@@ -83,14 +84,20 @@ def max_rows(N: int, nx: int) -> int:
 
 class StageQP:
     """The C solver bound to one size (``N`` stages, ``nx`` states, ``nu`` inputs), with its work and output buffers.
+    ``n_free``: the last ``n_free`` state entries are free at knot 0 (bounded there like ``du_0``; parameters the
+    dynamics carry from stage to stage, such as the SQP's time scale of a minimum-time problem); the others are
+    ``dx_0 = 0``.
 
     Call :meth:`solve` once per QP; ``active`` carries the active set from one call to the next (reset it with
     :meth:`reset`).
     """
 
-    def __init__(self, N: int, nx: int, nu: int):
+    def __init__(self, N: int, nx: int, nu: int, n_free: int = 0):
         self.N, self.nx, self.nu, self.nz = int(N), int(nx), int(nu), int(nx + nu)
-        self._fn, size = _library(self.nx, self.nu)
+        if not 0 <= int(n_free) <= self.nx:
+            raise ValueError(f"StageQP: n_free = {n_free} free states at knot 0 of {nx}; give 0 to {nx}.")
+        self.n_free = int(n_free)
+        self._fn, size = _library(self.nx, self.nu, self.n_free)
         self.maxrow = max_rows(self.N, self.nx)
         nd, ni = ctypes.c_long(0), ctypes.c_long(0)
         size(self.N, self.nx, self.nu, self.maxrow, ctypes.byref(nd), ctypes.byref(ni))
@@ -122,7 +129,7 @@ class StageQP:
             Stage Hessians (convexified), ``gy`` (N, nz + nu) the gradients.
         lo, hi : (N + 1, nz) arrays
             Bounds on the knots' steps (``-inf``/``inf`` where none; equal where pinned); knot 0's state entries
-            are ignored (``dx_0 = 0``).
+            are ignored (``dx_0 = 0``) but for the last ``n_free``.
         tol : float
             Primal and dual tolerance of the active-set test (scaled units).
         max_iter : int

@@ -29,29 +29,31 @@ def _random_stage_qp(rng, N, nx, nu, *, rail=0.3, u_box=0.5):
     return T, ct, Hy, gy, lo, hi
 
 
-def _dense_reference(T, ct, Hy, gy, lo, hi):
-    """The same QP condensed onto the inputs ``v = (du_0, w_0 .. w_N-1)`` and solved by DAQP: ``(dz (N+1, nz),
-    input multipliers (N+1, nu), state-row multipliers (N+1, nx))``."""
+def _dense_reference(T, ct, Hy, gy, lo, hi, n_free=0):
+    """The same QP condensed onto ``v = (knot 0's free entries, w_0 .. w_N-1)`` (the last ``n_free`` states of knot
+    0, then ``du_0``) and solved by DAQP: ``(dz (N+1, nz), input multipliers (N+1, nu), state-row multipliers
+    (N+1, nx), knot 0's free states' multipliers (n_free,))``."""
     import daqp
 
     N, nz, ny = T.shape
     nu = ny - nz
     nx = nz - nu
-    nv = (N + 1) * nu
+    e0, n0 = nx - n_free, n_free + nu
+    nv = n0 + N * nu
     # s_k = G_k v + g_k
     G = np.zeros((N + 1, nz, nv))
     g = np.zeros((N + 1, nz))
-    G[0, nx:, :nu] = np.eye(nu)
+    G[0, e0:, :n0] = np.eye(n0)
     for k in range(N):
         Wk = np.zeros((nu, nv))
-        Wk[:, (k + 1) * nu:(k + 2) * nu] = np.eye(nu)
+        Wk[:, n0 + k * nu:n0 + (k + 1) * nu] = np.eye(nu)
         G[k + 1] = T[k, :, :nz] @ G[k] + T[k, :, nz:] @ Wk
         g[k + 1] = T[k, :, :nz] @ g[k] + np.r_[ct[k], np.zeros(nu)]
     H = np.zeros((nv, nv))
     f = np.zeros(nv)
     for k in range(N):
         Wk = np.zeros((nu, nv))
-        Wk[:, (k + 1) * nu:(k + 2) * nu] = np.eye(nu)
+        Wk[:, n0 + k * nu:n0 + (k + 1) * nu] = np.eye(nu)
         Y = np.vstack([G[k], Wk])
         y0 = np.r_[g[k], np.zeros(nu)]
         H += Y.T @ Hy[k] @ Y
@@ -59,8 +61,10 @@ def _dense_reference(T, ct, Hy, gy, lo, hi):
     rows = [(k, i) for k in range(1, N + 1) for i in range(nx) if np.isfinite(lo[k, i]) or np.isfinite(hi[k, i])]
     A = np.array([G[k, i] for k, i in rows])
     big = 1e30
-    bu = np.r_[np.minimum(hi[:, nx:].ravel(), big), [min(hi[k, i], big) - g[k, i] for k, i in rows]]
-    bl = np.r_[np.maximum(lo[:, nx:].ravel(), -big), [max(lo[k, i], -big) - g[k, i] for k, i in rows]]
+    vlo = np.r_[lo[0, e0:], lo[1:, nx:].ravel()]
+    vhi = np.r_[hi[0, e0:], hi[1:, nx:].ravel()]
+    bu = np.r_[np.minimum(vhi, big), [min(hi[k, i], big) - g[k, i] for k, i in rows]]
+    bl = np.r_[np.maximum(vlo, -big), [max(lo[k, i], -big) - g[k, i] for k, i in rows]]
     sense = np.r_[np.zeros(nv), [5 if lo[k, i] == hi[k, i] else 0 for k, i in rows]].astype(np.int32)
     v, _, flag, info = daqp.solve(0.5 * (H + H.T), f, A, bu, bl, sense)
     assert flag == 1
@@ -69,7 +73,8 @@ def _dense_reference(T, ct, Hy, gy, lo, hi):
     rows_lam = np.zeros((N + 1, nx))
     for (k, i), value in zip(rows, lam[nv:]):
         rows_lam[k, i] = value
-    return dz, lam[:nv].reshape(N + 1, nu), rows_lam
+    lam_u = np.vstack([lam[n_free:n0], lam[n0:nv].reshape(N, nu)])
+    return dz, lam_u, rows_lam, lam[:n_free]
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -80,7 +85,7 @@ def test_the_riccati_active_set_finds_the_dense_qps_optimum_and_multipliers(seed
     T, ct, Hy, gy, lo, hi = _random_stage_qp(rng, N, nx, nu)
     qp = riccati_qp.StageQP(N, nx, nu)
     assert qp.solve(T, ct, Hy, gy, lo, hi) == 0
-    dz, lam_u, lam_rows = _dense_reference(T, ct, Hy, gy, lo, hi)
+    dz, lam_u, lam_rows, _ = _dense_reference(T, ct, Hy, gy, lo, hi)
     scale = 1.0 + np.abs(dz).max()
     assert np.abs(qp.dz[1:] - dz[1:]).max() <= 1e-8 * scale
     assert np.abs(qp.dz[0, nx:] - dz[0, nx:]).max() <= 1e-8 * scale and np.all(qp.dz[0, :nx] == 0.0)
@@ -194,3 +199,27 @@ def test_a_pinned_end_behind_a_long_unstable_horizon_is_met_exactly():
     assert np.abs(qp.dz[1:] - s_ref[1:]).max() <= 1e-8 * scale
     assert np.abs(qp.dz[N, :nx] - hi[N, :nx]).max() <= 1e-10
     assert np.abs(qp.nb[N, :nx] - nu_ref).max() <= 1e-6 * (1.0 + np.abs(nu_ref).max())
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_parameter_free_at_knot_0_is_chosen_with_the_inputs(seed):
+    """The last state free at knot 0 and carried unchanged (the SQP's time scale): the same optimum, and the
+    multipliers of its bounds, as the dense QP's in which it is one more unknown."""
+    rng = np.random.default_rng(200 + seed)
+    N, nx, nu = 30, 5, 1
+    T, ct, Hy, gy, lo, hi = _random_stage_qp(rng, N, nx, nu)
+    T[:, nx - 1, :] = 0.0
+    T[:, nx - 1, nx - 1] = 1.0  # p_k+1 = p_k
+    ct[:, nx - 1] = 0.0
+    T[:, :nx - 1, nx - 1] *= 5.0  # the parameter moves the others
+    lo[1:, nx - 1], hi[1:, nx - 1] = -np.inf, np.inf  # free: not pinned at the end either
+    lo[0, nx - 1], hi[0, nx - 1] = -0.03, 0.03  # bounded at knot 0 (held in one of the seeds)
+    qp = riccati_qp.StageQP(N, nx, nu, n_free=1)
+    assert qp.solve(T, ct, Hy, gy, lo, hi) == 0
+    dz, lam_u, lam_rows, lam_p = _dense_reference(T, ct, Hy, gy, lo, hi, n_free=1)
+    scale = 1.0 + np.abs(dz).max()
+    assert np.abs(qp.dz - dz).max() <= 1e-8 * scale
+    assert np.all(qp.dz[0, :nx - 1] == 0.0) and abs(qp.dz[0, nx - 1]) > 1e-6  # it moved
+    assert np.abs(qp.nb[:, nx:] - lam_u).max() <= 1e-7 * (1.0 + np.abs(lam_u).max())
+    assert np.abs(qp.nb[1:, :nx] - lam_rows[1:]).max() <= 1e-7 * (1.0 + np.abs(lam_rows).max())
+    assert abs(qp.nb[0, nx - 1] - lam_p[0]) <= 1e-7 * (1.0 + abs(lam_p[0]))
