@@ -529,7 +529,7 @@ static size_t work_doubles(int N, int nx, int nu, int mr)
 
 static size_t work_ints(int N, int nx, int nu, int mr)
 {
-    return (size_t)(N + 1) * (nu + 1) + RQP_NP + 2 * (size_t)mr + 2 * (size_t)(N + 1) * (nx + nu);
+    return (size_t)(N + 1) * (nu + 1) + RQP_NP + 2 * (size_t)mr + 3 * (size_t)(N + 1) * (nx + nu);
 }
 
 /* Sizes of rqp_solve's work arrays for at most maxrow held state rows: doubles, then ints. */
@@ -592,7 +592,9 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     W.rk = io; io += mr;
     W.ri = io; io += mr;
     int* prev = io; io += ns;
-    int* work = io;
+    int* work = io; io += ns;
+    int* blocked = io; /* bounds whose addition made the held rows dependent: left out of this solve */
+    memset(blocked, 0, sizeof(int) * ns);
     /* equalities always held; infinite sides never */
     for (int k = 0; k <= N; ++k)
         for (int i = 0; i < nz; ++i) {
@@ -601,12 +603,18 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
             if (isfinite(lo[j]) && lo[j] == hi[j]) act[j] = 2;
             else if (act[j] == 2 || (act[j] < 0 && !isfinite(lo[j])) || (act[j] > 0 && !isfinite(hi[j]))) act[j] = 0;
         }
-    int single = 0;
+    int single = 0, last = -1;
     for (it = 1; it <= max_iter; ++it) {
         int st = solve_active(&W);
         if (st && it == 1) { /* the starting guess is no use: from the equalities alone */
             for (size_t j = 0; j < ns; ++j)
                 if (act[j] != 2) act[j] = 0;
+            st = solve_active(&W);
+        } else if (st == 2 && single && last >= 0 && prev[last] == 0) {
+            /* adding that one bound made the held rows dependent (the rows need the input it holds): undo it and
+               leave it out; the other candidates go on */
+            memcpy(act, prev, sizeof(int) * ns);
+            blocked[last] = 1;
             st = solve_active(&W);
         } else if (st && !single) { /* a simultaneous change made the rows dependent: back, one change at a time */
             memcpy(act, prev, sizeof(int) * ns);
@@ -616,7 +624,7 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
         if (st) { status = st; break; }
         /* candidates: violated free bounds, held bounds with the wrong multiplier sign */
         double worst = 0.0;
-        int wj = -1, wa = 0, nchange = 0;
+        int wj = -1, wa = 0, nchange = 0, nblocked = 0;
         memcpy(work, act, sizeof(int) * ns);
         for (int k = 0; k <= N; ++k)
             for (int i = 0; i < nz; ++i) {
@@ -641,15 +649,20 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
                     }
                     if (a * lam < -tol) { viol = fabs(lam); na = 0; }
                 }
+                if (na != a && a == 0 && blocked[j]) {
+                    nblocked++;
+                    continue;
+                }
                 if (na != a) {
                     work[j] = na;
                     nchange++;
                     if (viol > worst) { worst = viol; wj = j; wa = na; }
                 }
             }
-        if (!nchange) { status = 0; break; }
+        if (!nchange) { status = nblocked ? 2 : 0; break; } /* a violated bound left out: no answer */
         if (it >= 10) single = 1;
         memcpy(prev, act, sizeof(int) * ns);
+        last = single ? wj : -1;
         if (single) act[wj] = wa;
         else memcpy(act, work, sizeof(int) * ns);
     }

@@ -107,9 +107,45 @@ class SQPError(OCPError):
 QP_SOLVERS = ("riccati", "daqp", "qrqp", "hpipm")
 _BIG = 1e30  # DAQP's "no bound"
 _GAMMA = 1e-5  # the filter's margin
+#: Largest relative change of a minimum-time problem's duration in one SQP step.
+TAU_STEP = 0.5
 #: Bound magnitude that stands for "no bound" in the QP (scaled units; HPIPM treats every variable as boxed and
 #: converges badly with CasADi's default 1e8; steps of the scaled NLP are of order one).
 QP_INF = 1e3
+
+
+def _positive_definite(H: np.ndarray) -> np.ndarray:
+    """``H`` (n, n) if its Cholesky factorisation exists, else ``H + delta I`` with the least ``delta`` of ``1e-8``,
+    ``1e-7``, ... times its largest diagonal entry that makes it so: DAQP factorises the condensed Hessian whole, where
+    the Riccati solver's inertia test saw only the reduced Hessians of its active set."""
+    try:
+        np.linalg.cholesky(H)
+        return H
+    except np.linalg.LinAlgError:
+        pass
+    scale = max(float(np.abs(np.diag(H)).max()), 1e-12)
+    n = H.shape[0]
+    for e in range(-8, 3):
+        Hs = H + (scale * 10.0 ** e) * np.eye(n)
+        try:
+            np.linalg.cholesky(Hs)
+            return Hs
+        except np.linalg.LinAlgError:
+            continue
+    return H  # DAQP reports it
+
+
+def _time_scaled(f: ca.Function, effort_weight: float) -> tuple[ca.Function, ca.Function]:
+    """The minimum-time problem as a fixed-duration one (module docstring): the dynamics of ``(x, tau)`` on the
+    reference clock, ``(tau f(x, u), 0)``, and the running cost ``tau (1 + effort_weight u'u)``, whose integral over
+    the reference duration ``T_0`` is ``T + effort_weight integral u'u dt`` (``T = tau T_0``). Hermite-Simpson with
+    step ``h_0`` on these is Hermite-Simpson with step ``tau h_0`` on ``f``: the collocation's free-time NLP."""
+    nx, nu = f.size1_in(0), f.size1_in(1)
+    xs, us = ca.SX.sym("x", nx + 1), ca.SX.sym("u", nu)
+    tau = xs[nx]
+    fs = ca.Function("f_time_scaled", [xs, us], [ca.vertcat(tau * f(xs[:nx], us), 0)], ["x", "u"], ["xdot"])
+    cost = ca.Function("time_cost", [xs, us], [tau * (1 + effort_weight * ca.sumsqr(us))], ["x", "u"], ["l"])
+    return fs, cost
 
 
 class CollocationSQP:
@@ -182,17 +218,22 @@ class CollocationSQP:
                  max_unsettled: int | None = None):
         if not isinstance(ocp, DirectCollocation):
             raise SQPError("CollocationSQP needs a DirectCollocation problem (cartpole.ocp.collocation).")
-        if ocp.free_time:
-            raise SQPError("The SQP solver needs a fixed duration T; solve minimum-time problems with IPOPT.")
         if ocp.separated:
             raise SQPError("The SQP solver works on the compressed transcription; build the problem with "
                            "separated=False.")
         kind = ocp.objective_spec.kind
-        if kind not in ("effort", "running"):  # time: a free T is no stage; solve it with IPOPT
-            raise SQPError(f"The SQP solver handles the fixed-duration objectives (effort and the running costs), "
-                           f"not '{ocp.objective}'; solve it with IPOPT (DirectCollocation.solve).")
+        if kind not in ("effort", "running", "time"):
+            raise SQPError(f"The SQP solver handles effort, time and the running costs, not '{ocp.objective}'; "
+                           f"solve it with IPOPT (DirectCollocation.solve).")
         if qp_solver not in QP_SOLVERS:
             raise SQPError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
+        # minimum time: the time scale tau = T / T_0 is one more state, free at knot 0 (module docstring); only the
+        # Riccati solver has a free state at knot 0
+        self._np = 1 if kind == "time" else 0
+        if self._np and not (qp_solver == "riccati" and ocp.compiled
+                             and riccati_qp.available(ocp.nx + 1, ocp.nu, 1)):
+            raise SQPError("The SQP solves minimum-time problems with its Riccati QP solver only (compiled, so it "
+                           "needs a C compiler); solve them with IPOPT (DirectCollocation.solve).")
         if qp_solver == "riccati" and not (ocp.compiled and riccati_qp.available(ocp.nx, ocp.nu)):
             qp_solver = "daqp"  # no C compiler: the condensed route (same answers)
         if qp_solver in ("riccati", "daqp"):
@@ -208,27 +249,32 @@ class CollocationSQP:
         self.max_unsettled = None if max_unsettled is None else int(max_unsettled)
         self.ocp = ocp
         self.tol, self.max_iter, self.reg_min = float(tol), int(max_iter), float(reg_min)
-        N, nx, nu = ocp.N, ocp.nx, ocp.nu
+        N, nu = ocp.N, ocp.nu
+        nx = ocp.nx + self._np  # the solver's states: the model's, then tau
         self.N, self.nx, self.nu, self.nz = N, nx, nu, nx + nu
         self.nw = nu  # stage controls: du_k+1
         sc = ocp.scale
-        self.sx, self.su = np.array(sc[:nx]), np.array(sc[nx:])
+        self.sx, self.su = np.r_[sc[:ocp.nx], np.ones(self._np)], np.array(sc[ocp.nx:])
         # the IPOPT problem's objective scaling (DirectCollocation._build): effort / (sum su^2 T)
         run = ocp.objective_spec.running if kind == "running" else None
+        dynamics = ocp.model
+        if self._np:
+            dynamics, run = _time_scaled(ocp.model.f, ocp.time_effort_weight)
         self._running = run is not None
-        self._cost_div = float(ocp.T) * (1.0 if self._running else float(np.sum(self.su ** 2)))
+        self._cost_div = 1.0 if self._np else float(ocp.T) * (1.0 if self._running else float(np.sum(self.su ** 2)))
         # each knot's dynamics and curvature once, the intervals' parts between them (compiled_nlp.knot_functions),
         # the maps generated into one library per model and N
-        maps, self.library = compiled_nlp.knot_maps(ocp.model, N, self.sx, self.su, running=run, compiled=ocp.compiled)
+        maps, self.library = compiled_nlp.knot_maps(dynamics, N, self.sx, self.su, running=run, compiled=ocp.compiled)
         self._kf, self._mid1, self._mid2, self._kh = (Buffered(maps[n]) for n in compiled_nlp.KNOT_FUNCTIONS)
-        funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled)
+        funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled,
+                                                                     n_free=self._np)
         # a running cost is not convex in the inputs: each QP is first solved on the exact Hessian with IPOPT's
         # inertia correction (module docstring), the convexified QP only where that fails
         self._stages_raw = None
         if qp_solver == "riccati":
-            raw, _ = sqp_functions.compiled_qp_functions(nx, nu, N, -np.inf, compiled=ocp.compiled)
+            raw, _ = sqp_functions.compiled_qp_functions(nx, nu, N, -np.inf, compiled=ocp.compiled, n_free=self._np)
             self._stages_raw = Buffered(raw[0])
-        self._rqp = riccati_qp.StageQP(N, nx, nu) if qp_solver == "riccati" else None
+        self._rqp = riccati_qp.StageQP(N, nx, nu, n_free=self._np) if qp_solver == "riccati" else None
         self._stages, self._condense, self._mult, self._stat = (Buffered(f) for f in funcs)
         self._setup_qp(qp_options or {})
         self.history: list[dict] = []
@@ -370,7 +416,7 @@ class CollocationSQP:
             Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
             rq = self._rqp
             held = rq.active.copy()
-            lo, hi = lbz - Z, ubz - Z
+            lo, hi = self._step_bounds(Z, lbz, ubz)
             diag = np.arange(ny)
             delta = 0.0
             for _ in range(12):  # IPOPT's inertia correction: no shift first, then from a third of the last one up by 8
@@ -385,6 +431,15 @@ class CollocationSQP:
                 self._delta = delta if delta > 0 else self._delta
                 self.qp_counts["riccati_exact"] += 1
                 return self._riccati_step(Hs, gy, T, H, G, M)
+            if st in (2, 3):  # convex where the active set stopped, but not settled: the same QP condensed for DAQP
+                self.qp_counts["riccati_unsettled"] += 1
+                self._delta = delta if delta > 0 else self._delta
+                out = self._daqp_step(Z, T, ct, Hs, gy, H, G, M, lbz, ubz)
+                if out is not None:
+                    if not self._soft_step:
+                        self._unsettled_feasible += 1
+                    rq.reset()
+                    return out
             rq.active[:] = held
         # stage form, Levenberg-Marquardt damping and convexification in one compiled call (sqp_functions)
         T, ct, Hy, gy, M = self._stages(J, H, G, D, float(lm))
@@ -392,12 +447,13 @@ class CollocationSQP:
         Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
         if self._rqp is not None:
             rq = self._rqp
-            status = rq.solve(T, ct, Hy, gy, lbz - Z, ubz - Z)
+            status = rq.solve(T, ct, Hy, gy, *self._step_bounds(Z, lbz, ubz))
             self.qp_counts["riccati"] += 1
             if status == 0:
                 return self._riccati_step(Hy, gy, T, H, G, M)
             self.qp_counts["riccati_unsettled"] += 1
-            rq.reset()  # this QP goes to DAQP; the next one starts afresh
+            rq.reset()  # this QP goes to DAQP; the next one starts afresh (a minimum time's at this T: the condensing
+            # has no free state at knot 0, so the time scale keeps its value for this one step)
         if self.qp_solver in ("riccati", "daqp"):
             out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
             if out is not None:
@@ -438,6 +494,17 @@ class CollocationSQP:
         lam = -(M.transpose(0, 2, 1) @ mu_orig[:, :nx, None])[:, :, 0]
         return dZ, lam, Nb, ok
 
+    def _step_bounds(self, Z, lbz, ubz) -> tuple[np.ndarray, np.ndarray]:
+        """The QP's bounds on the step from ``Z``: the knots' bounds, and for a minimum-time problem a trust region
+        on the time scale (a relative change of at most :data:`TAU_STEP` an iteration: the first linearisations
+        of a far guess ask for durations the plan cannot reach)."""
+        lo, hi = lbz - Z, ubz - Z
+        if self._np:
+            c = self.nx - 1
+            tau = Z[0, c]
+            lo[0, c], hi[0, c] = max(lo[0, c], -TAU_STEP * tau), min(hi[0, c], TAU_STEP * tau)
+        return lo, hi
+
     def _riccati_step(self, Hy, gy, T, H, G, M):
         """:meth:`_qp_step`'s answer from the Riccati solver's last solve (of the QP with stage Hessians ``Hy``): the
         step, the defects' multipliers by the stage dynamics' backward recursion (compiled), the bounds'."""
@@ -457,18 +524,24 @@ class CollocationSQP:
         solved again with those rows soft: the step then leaves the bounds, is projected back into them, and the
         filter judges the defects that leaves. Returns what :meth:`_qp_step` does, or None when DAQP failed."""
         N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
-        nv = (N + 1) * nu
+        nc = (N + 1) * nu
         # condensed in one compiled call (sqp_functions): the stages' parts of the Hessian and gradient, and
         # [G_k, g_k] of knots 1..N (G_0 = 0, g_0 = 0)
         Hc, fc, Ga = sqp_functions.assemble_condensed(self._condense(T, ct, Hy, gy), N, nx, nu)  # knots 1..N
-        Gs, gs = Ga[:, :, :nv], Ga[:, :, nv]
-        ri, rc = self._rows_k, self._rows_i  # knots >= 1: the rows of knot k are Ga[k - 1]
-        A_all = Gs[ri - 1, rc, :]
-        dz_lo, dz_hi = lbz - Z, ubz - Z
-        lo = dz_lo[ri, rc] - gs[ri - 1, rc]
-        hi = dz_hi[ri, rc] - gs[ri - 1, rc]
+        Gs, gs = Ga[:, :, :nc], Ga[:, :, nc]
+        dz_lo, dz_hi = self._step_bounds(Z, lbz, ubz)
         vb_hi = np.minimum(dz_hi[:, nx:].ravel(), _BIG)
         vb_lo = np.maximum(dz_lo[:, nx:].ravel(), -_BIG)
+        if self._np:  # the time scale's step one more unknown, first: its column appended to the condensed QP
+            Hc, fc, Gs = sqp_functions.free_state_column(T, Hy, gy, Hc, fc, Gs, gs)
+            vb_hi = np.r_[min(dz_hi[0, nx - 1], _BIG), vb_hi]
+            vb_lo = np.r_[max(dz_lo[0, nx - 1], -_BIG), vb_lo]
+        nv = nc + self._np
+        Hc = _positive_definite(Hc)
+        ri, rc = self._rows_k, self._rows_i  # knots >= 1: the rows of knot k are Ga[k - 1]
+        A_all = Gs[ri - 1, rc, :]
+        lo = dz_lo[ri, rc] - gs[ri - 1, rc]
+        hi = dz_hi[ri, rc] - gs[ri - 1, rc]
         hi_c, lo_c = np.minimum(hi, _BIG), np.maximum(lo, -_BIG)
         warm = self.warm_qp and self._warm_ready
         lam_prev = self._daqp_lam if warm else None
@@ -512,11 +585,13 @@ class CollocationSQP:
             self.qp_soft += 1
             self._soft_step = True
         dZ = np.empty((N + 1, nz))
-        dZ[:, nx:] = v.reshape(N + 1, nu)
+        dZ[:, nx:] = v[self._np:].reshape(N + 1, nu)
         dZ[0, :nx] = 0.0  # x_0 pinned
         dZ[1:, :nx] = gs + Gs @ v
         Nb = np.zeros((N + 1, nz))
-        Nb[:, nx:] = lam_all[:nv].reshape(N + 1, nu)
+        Nb[:, nx:] = lam_all[self._np:nv].reshape(N + 1, nu)
+        if self._np:
+            dZ[0, nx - 1], Nb[0, nx - 1] = v[0], lam_all[0]
         Nb[ri, rc] = lam_all[nv:]
         if soft:  # the soft rows' violation: projected into the bounds, the defects carry it
             dZ = np.clip(Z + dZ, lbz, ubz) - Z
@@ -528,7 +603,7 @@ class CollocationSQP:
     def _condensing_setup(self, lbz, ubz) -> None:
         """The condensed QP's state rows (the finite state bounds of knots 1..N) and their constraint types."""
         N, nx, nu = self.N, self.nx, self.nu
-        nv = (N + 1) * nu
+        nv = (N + 1) * nu + self._np  # a minimum time's d tau first
         fin = np.isfinite(lbz[:, :nx]) | np.isfinite(ubz[:, :nx])
         fin[0] = False  # x_0 is pinned: dx_0 = 0 by construction
         self._rows_k, self._rows_i = np.nonzero(fin)
@@ -603,15 +678,26 @@ class CollocationSQP:
         x0 = ocp._check_state("start state", x0)
         x_goal = ocp._check_state("goal state", ocp.model.x_eq if x_goal is None else x_goal)
         x_goal = ocp._goal(x0, x_goal, guess)
-        T = float(ocp.T if T is None else T)
+        if self._np:  # minimum time: T is the guess of T (default the guess's duration), the time scale's reference
+            T = float(T if T is not None else (guess.duration if guess is not None else 2.0))
+        else:
+            T = float(ocp.T if T is None else T)
         if not (np.isfinite(T) and T > 0):
             raise SQPError(f"Duration T = {T} s is not positive; give T > 0.")
         tic = time.perf_counter()
         self._h = T / N
-        n_z = nz * (N + 1)
+        n_z = (nz - self._np) * (N + 1)
         lbv, ubv = ocp._var_bounds(x0, x_goal, False)
-        lbz, ubz = lbv[:n_z].reshape(N + 1, nz), ubv[:n_z].reshape(N + 1, nz)
-        Z = np.clip(ocp._pack_guess(guess, T, x0, x_goal, False)[:n_z].reshape(N + 1, nz), lbz, ubz)
+        lbz, ubz = lbv[:n_z].reshape(N + 1, -1), ubv[:n_z].reshape(N + 1, -1)
+        Z = ocp._pack_guess(guess, T, x0, x_goal, False)[:n_z].reshape(N + 1, -1)
+        if self._np:  # tau = T / T_0: starts at one, bounded at knot 0 by the problem's T_range, free elsewhere
+            col = nx - self._np
+            lo_tau = np.full(N + 1, -np.inf)
+            hi_tau = np.full(N + 1, np.inf)
+            lo_tau[0], hi_tau[0] = ocp.T_range[0] / T, ocp.T_range[1] / T
+            lbz, ubz = np.insert(lbz, col, lo_tau, axis=1), np.insert(ubz, col, hi_tau, axis=1)
+            Z = np.insert(Z, col, 1.0, axis=1)
+        Z = np.clip(Z, lbz, ubz)
         lam = np.zeros((N, nx))
         filt: list[tuple[float, float]] = []
         status, success, it = "Maximum_Iterations_Exceeded", False, 0
@@ -661,7 +747,9 @@ class CollocationSQP:
                 if self.max_unsettled is not None and self._unsettled_feasible > self.max_unsettled:
                     status = "QP_Unsettled"
                     break
-                if infeas <= self.tol and (kkt <= self.tol or step <= self.tol):
+                # (a minimum time by stationarity only: the fallback QPs of qrqp and HPIPM keep the time scale, and
+                # their zero step at a fixed-time optimum is no minimum)
+                if infeas <= self.tol and (kkt <= self.tol or (step <= self.tol and not self._np)):
                     status, success = "Solve_Succeeded", True
                     break
                 # filter line search on (theta = ||d||_1, f) (Fletcher and Leyffer), second-order correction
@@ -711,8 +799,13 @@ class CollocationSQP:
         if not np.all(np.isfinite(Z)):
             Z = np.clip(np.nan_to_num(Z), lbz, ubz)
             success = False
+        if self._np:  # the plan's duration from its time scale, the knots without it
+            T = float(T * Z[0, nx - 1])
+            Z = np.delete(Z, np.s_[nx - self._np:nx], axis=1)
         traj, objective = self._trajectory(Z, T)
-        if self._running:  # the running integral (a reward's, negated back), as DirectCollocation reports it
+        if self._np:
+            objective = T  # as DirectCollocation reports a minimum-time solve
+        elif self._running:  # the running integral (a reward's, negated back), as DirectCollocation reports it
             objective = self._first_order(Z)[2] * self._cost_div
             objective = -objective if ocp.objective_spec.is_reward else objective
         info = SolveInfo(status=status, success=success, iterations=it, objective=float(objective),
@@ -752,13 +845,13 @@ class CollocationSQP:
     def _trajectory(self, Z, T) -> tuple[Trajectory, float]:
         """The plan of knots ``Z`` (N+1, nz) scaled, as DirectCollocation returns it, and its effort
         ``integral u'u dt`` (ctrl^2 s)."""
-        ocp, N, nx = self.ocp, self.N, self.nx
-        X = (Z[:, :nx] * self.sx).T
+        ocp, N, nx = self.ocp, self.N, self.nx - self._np
+        X = (Z[:, :nx] * self.sx[:nx]).T
         U = (Z[:, nx:] * self.su).T
         if not hasattr(self, "_f_knots"):
             self._f_knots = Buffered(ocp._f_knots)
         # (N+1, nx) C-order is CasADi's (nx, N+1) column-major
-        (F,) = self._f_knots(Z[:, :nx] * self.sx, Z[:, nx:] * self.su)
+        (F,) = self._f_knots(Z[:, :nx] * self.sx[:nx], Z[:, nx:] * self.su)
         xdot = F.reshape(N + 1, nx).T.copy()
         h = T / N
         Xc = 0.5 * (X[:, :-1] + X[:, 1:]) + h / 8 * (xdot[:, :-1] - xdot[:, 1:])

@@ -143,10 +143,10 @@ def _reverse_blocks(X: ca.MX, width: int, count: int) -> ca.MX:
     return X[:, cols.tolist()]
 
 
-def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
+def qp_functions(nx: int, nu: int, N: int, reg_min: float, n_free: int = 0) -> list[ca.Function]:
     """``[sqp_stages, sqp_condense, sqp_multipliers, sqp_stationarity]`` (module docstring) for ``nx`` states,
     ``nu`` inputs and ``N >= 2`` intervals, in CasADi's virtual machine (:func:`compiled_qp_functions` compiles
-    them)."""
+    them); the last ``n_free`` states are parameters free at the boundary knots (the stationarity counts them)."""
     nz = nx + nu
     nv, ny = 2 * nz, nz + nu
     nc = (N + 1) * nu  # condensed unknowns
@@ -240,7 +240,7 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float) -> list[ca.Function]:
     a_, b_ = ca.Function("sqp_stat_stage", [Jt_k, g_k, l_k], [part[:nz], part[nz:]]).map(N)(Js, Gs_, lams)
     gr = nbs + ca.horzcat(a_, ca.MX.zeros(nz, 1)) + ca.horzcat(ca.MX.zeros(nz, 1), b_)
     free = np.ones((nz, N + 1))
-    free[:nx, 0] = free[:nx, N] = 0.0  # x_0 and x_N pinned: their multipliers are free
+    free[:nx - n_free, 0] = free[:nx - n_free, N] = 0.0  # x_0 and x_N pinned (but parameters): multipliers free
     stat = ca.Function("sqp_stationarity", [Js, Gs_, lams, nbs], [ca.mmax(ca.fabs(gr * ca.DM(free)))],
                        ["J", "G", "lam", "nb"], ["kkt"])
     return [stages, condense, mult, stat]
@@ -273,20 +273,50 @@ def assemble_condensed(outputs, N: int, nx: int, nu: int) -> tuple[np.ndarray, n
     return Hc, fc, GT.reshape(N, nx, nc + 1)
 
 
-def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled: bool = True
+def free_state_column(T, Hy, gy, Hc, fc, Gs, gs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The condensed QP (:func:`assemble_condensed`, ``dx_0 = 0``) with knot 0's last state entry free: its step,
+    a parameter the stage dynamics carry (the SQP's time scale of a minimum-time problem), one more unknown, first.
+
+    Its response ``t_k`` (nx) through the stage dynamics ``T`` (N, nz, nz + nu) from the unit step (``t_0 = e_nx``),
+    its Hessian row and gradient entry from the stage blocks ``Hy`` (N, ny, ny), ``gy`` (N, ny) (``y_k = (t_k, 0,
+    0)`` per unit step, against ``Y_k`` of the inputs' columns ``Gs`` (N, nx, nc) of knots 1..N and the constants
+    ``gs`` (N, nx)), and its column of the states' map: ``(Hc (nc + 1, nc + 1), fc (nc + 1,), Gs (N, nx, nc + 1))``.
+    O(N nc nx) in numpy: the route of the QPs the Riccati solver does not settle."""
+    N, nz, ny = T.shape
+    nu = ny - nz
+    nx = nz - nu
+    nc = Hc.shape[0]
+    t = np.zeros((N + 1, nx))
+    t[0, nx - 1] = 1.0
+    for k in range(N):
+        t[k + 1] = T[k, :nx, :nx] @ t[k]
+    Ht = np.einsum("kij,kj->ki", Hy[:, :, :nx], t[:-1])  # (N, ny): Hy_k y_k per unit step
+    G0 = np.concatenate([np.zeros((1, nx, nc)), Gs[:-1]])  # G_k of knots 0..N-1
+    g0 = np.concatenate([np.zeros((1, nx)), gs[:-1]])
+    row = np.einsum("kir,ki->r", G0, Ht[:, :nx])
+    row[:N * nu] += Ht[:, nx:nz].ravel()  # du_k
+    row[nu:] += Ht[:, nz:].ravel()  # w_k = du_k+1
+    h_tt = float(np.einsum("ki,ki->", t[:-1], Ht[:, :nx]))
+    f_t = float(np.einsum("ki,ki->", t[:-1], np.einsum("kij,kj->ki", Hy[:, :nx, :nx], g0) + gy[:, :nx]))
+    H = np.empty((nc + 1, nc + 1))
+    H[0, 0], H[0, 1:], H[1:, 0], H[1:, 1:] = h_tt, row, row, Hc
+    return H, np.r_[f_t, fc], np.concatenate([t[1:, :, None], Gs], axis=2)
+
+
+def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled: bool = True, n_free: int = 0
                           ) -> tuple[list[ca.Function], str | None]:
     """:func:`qp_functions` compiled to C and cached (one library per size and ``reg_min``), with the path of the
-    library; CasADi's virtual machine (same numbers, and None) with ``compiled`` False, ``CARTPOLE_NO_COMPILE`` set
+    library (``n_free`` as :func:`qp_functions`); CasADi's virtual machine (same numbers, and None) with ``compiled`` False, ``CARTPOLE_NO_COMPILE`` set
     or when the build fails (one line on stderr)."""
     if N < 2:
         raise OCPError(f"The SQP's QP functions need N >= 2 intervals, not {N}; use N >= 2 (100 is typical).")
     def build():
-        recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
-        lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min), "", recipe=recipe, cflags=CFLAGS)
+        recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{n_free}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
+        lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min, n_free), "", recipe=recipe, cflags=CFLAGS)
         names = ("sqp_stages", "sqp_condense", "sqp_multipliers", "sqp_stationarity")
         ext = load_library(lib, names)
         return [ext[name] for name in names], lib
 
     built = compiled_or_none(build, "SQP QP functions", "using CasADi's virtual machine (same results)") \
         if compiled else None
-    return built if built is not None else (qp_functions(nx, nu, N, reg_min), None)
+    return built if built is not None else (qp_functions(nx, nu, N, reg_min, n_free), None)

@@ -120,8 +120,8 @@ def test_sqp_failure_is_one_sentence_and_the_fallback_is_ipopts_optimum(two_pole
 
 def test_sqp_refuses_problems_it_does_not_handle_in_one_sentence():
     model = build_model(read_params(SHIPPED_MJCF))
-    with pytest.raises(SQPError, match="fixed duration"):
-        CollocationSQP(DirectCollocation(model, N=20, T=None))
+    with pytest.raises(SQPError, match="Riccati QP solver only"):
+        CollocationSQP(DirectCollocation(model, N=20, T=None), qp_solver="qrqp")  # minimum time
     with pytest.raises(SQPError, match="qp_solver"):
         CollocationSQP(DirectCollocation(model, N=20, T=2.0), qp_solver="nope")
 
@@ -201,3 +201,29 @@ def test_a_running_cost_on_a_coarse_mesh_converges_without_the_shift_stalling():
     assert sqp.history[-1]["damping"] < 1e-4
     assert abs(info.objective - info_ip.objective) <= 1e-6 * abs(info_ip.objective)
     _assert_same_plan(traj, traj_ip, ocp)
+
+
+@pytest.fixture(scope="module")
+def minimum_time_problem():
+    base, x0, guess = _standard("cartpole.xml")
+    ocp = DirectCollocation(base.model, N=N, T=None, bounds=base.bounds, objective="time")
+    traj_ip, info_ip = ocp.solve_once(x0, guess=guess)
+    assert info_ip.success
+    return ocp, x0, guess, traj_ip, info_ip
+
+
+def test_minimum_time_by_the_sqp_reaches_ipopts_minimum(minimum_time_problem):
+    """A free T as the time scale tau = T / T_0, one more state free at knot 0: the same minimum as IPOPT's free-time
+    NLP from the same guess (T_0 the guess's 2 s, T_min about 0.99 s)."""
+    ocp, x0, guess, traj_ip, info_ip = minimum_time_problem
+    sqp = CollocationSQP(ocp)
+    traj, info = sqp.solve_once(x0, guess=guess)
+    assert info.success and info.solver == "sqp" and info.iterations < 30  # measured: 12
+    assert info.T == pytest.approx(info_ip.T, rel=1e-6) and info.objective == info.T
+    assert traj.duration == pytest.approx(info.T, rel=1e-12) and traj.N == ocp.N
+    np.testing.assert_allclose(traj.x[0], x0, atol=1e-12)
+    np.testing.assert_allclose(traj.x[-1], ocp.model.x_eq, atol=1e-9)
+    assert np.all(np.abs(traj.u) <= 1.0 + 1e-9)
+    # bang-bang: the inputs may differ where they switch; the states stay close
+    sx = ocp.scale[:ocp.nx]
+    assert np.max(np.abs(traj.x - traj_ip.x) / sx) < 1e-2

@@ -266,3 +266,31 @@ def test_no_compile_environment_gives_virtual_machine(monkeypatch):
 def test_single_interval_is_refused_in_one_sentence():
     with pytest.raises(OCPError, match="N >= 2"):
         sqp_functions.compiled_qp_functions(4, 1, 1, REG)
+
+
+@pytest.mark.parametrize("nx,nu,N", SIZES)
+def test_a_free_state_at_knot_0_condenses_as_one_more_unknown(nx, nu, N):
+    """free_state_column (the minimum time's route to DAQP) against brute-force dense condensing in which knot 0's
+    last state is an unknown before the inputs."""
+    fns = sqp_functions.qp_functions(nx, nu, N, REG, n_free=1)
+    J, H, G, D = _data(nx, nu, N, 6, indefinite=True)
+    T, ct, Hy, gy, _ = _stages(fns, nx, nu, N, J, H, G, D, 0.0)
+    Hc, fc, GT = _assemble(nx, nu, N, _call(fns[1], T, ct, Hy, gy))
+    nc = (N + 1) * nu
+    H1, f1, G1 = sqp_functions.free_state_column(T, Hy, gy, Hc, fc, GT[:, :, :nc], GT[:, :, nc])
+    # reference: s_0 = (e_nx * p, du_0), v = (p, du_0 .. du_N)
+    Gk, gk = np.zeros((nx, nc + 1)), np.zeros(nx)
+    Gk[nx - 1, 0] = 1.0
+    Gs = []
+    Hr, fr = np.zeros((nc + 1, nc + 1)), np.zeros(nc + 1)
+    for k in range(N):
+        E = np.zeros((2 * nu, nc + 1))
+        E[:, 1 + k * nu:1 + (k + 2) * nu] = np.eye(2 * nu)
+        Y = np.vstack([Gk, E])
+        c = np.r_[gk, np.zeros(2 * nu)]
+        Hr += Y.T @ Hy[k] @ Y
+        fr += Y.T @ (Hy[k] @ c + gy[k])
+        Gk, gk = T[k][:nx, :nx] @ Gk + T[k][:nx, nx:] @ E, T[k][:nx, :nx] @ gk + ct[k]
+        Gs.append(Gk)
+    assert _rel(H1, Hr) < 1e-10 and _rel(f1, fr) < 1e-10
+    assert _rel(G1, np.array(Gs)) < 1e-10
