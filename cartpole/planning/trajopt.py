@@ -300,7 +300,7 @@ MINIMUM_TIME_T_MAX = 10.0
 
 
 def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
-                 starts: int | None = None, coarse_N: int | None = None, **bounds
+                 starts: int | None = None, coarse_N: int | None = None, sqp: bool = False, **bounds
                  ) -> tuple[float, Trajectory, SolveInfo]:
     """The shortest motion from ``x0`` to ``x_goal`` the bounds allow: a free-final-time Hermite-Simpson solve.
 
@@ -331,6 +331,11 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
         gives the figures).
     coarse_N : int, optional
         Intervals of the multi-start; ``coarse_N >= N`` solves the multi-start on ``N`` directly.
+    sqp : bool
+        Refine each coarse plan by :class:`~cartpole.solvers.sqp.CollocationSQP` first (its time scale; at most
+        :data:`SQP_MAX_ITER` iterations, attempt stage ``"time N=<N> (sqp)"``), IPOPT when it does not converge (the
+        planner's ``solver="auto"``). The multi-start itself stays IPOPT's: from the named guesses, far from any
+        plan, its interior point finds plans the SQP's line search does not.
     bounds
         Passed to :class:`DirectCollocation` (``u_max``, ``cart_max``, ``cart_margin`` or ``bounds``).
 
@@ -374,6 +379,10 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
                                    **bounds)
         # refine the coarse solutions, fastest first: a coarse mesh can admit a motion the fine one does not
         for traj, info in explore(coarse):
+            if sqp:
+                found = _sqp_attempt(ocp, x0, x_goal, traj, f"{info.guess} refined", f"time N={N}", attempts)
+                if found is not None:
+                    return found[1].T, found[0], replace(found[1], attempts=tuple(attempts))
             sols, tried = ocp.multistart(x0, x_goal, [(f"{info.guess} refined", traj)], stage=f"time N={N}")
             attempts.extend(tried)
             if sols:
@@ -385,8 +394,23 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
                        None, attempts=tuple(attempts))
 
 
+def _sqp_attempt(ocp: DirectCollocation, x0, x_goal, guess: Trajectory, name: str, stage: str, attempts: list
+                 ) -> tuple[Trajectory, SolveInfo] | None:
+    """``ocp`` by :class:`~cartpole.solvers.sqp.CollocationSQP` from ``guess`` (at most :data:`SQP_MAX_ITER`
+    iterations); the try appended to ``attempts`` (stage ``"<stage> (sqp)"``); the plan if it converged, else None
+    (also when the SQP does not take the problem)."""
+    try:
+        traj, info = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED
+                                    ).solve_once(x0, x_goal, guess=guess)
+    except SQPError:
+        return None
+    info = replace(info, guess=name)
+    attempts.append(Attempt.of(info, f"{stage} (sqp)", name, ocp.N, chosen=info.success))
+    return (traj, info) if info.success else None
+
+
 def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, starts, bounds, T_max: float,
-                       search_s: float | None = None, restarts: int = 2, seed: int = 0
+                       search_s: float | None = None, restarts: int = 2, seed: int = 0, sqp: bool = False
                        ) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
     """The time stage of the planner: :func:`minimum_time`; when no guess of it converges, the refusal at once if
     :func:`infeasibility_proof` proves upright out of reach, else (a weak actuator that must pump)
@@ -398,7 +422,7 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
     from cartpole.planning.pumping import pumping_search
 
     try:
-        return (*minimum_time(model, x0, N=N, starts=starts, bounds=bounds), None)
+        return (*minimum_time(model, x0, N=N, starts=starts, bounds=bounds, sqp=sqp), None)
     except OCPNotSolved as exc:
         first = exc
     proof = infeasibility_proof(params, model, x0, bounds)
@@ -674,7 +698,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     if obj.kind == "time":
         T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
                                                T_max=options.T_max, search_s=options.search_s,
-                                               restarts=options.pump_restarts, seed=options.pump_seed)
+                                               restarts=options.pump_restarts, seed=options.pump_seed, sqp=use_sqp)
         if use_ddp:
             from cartpole.planning.ddp_plan import ddp_time_search
 
@@ -694,7 +718,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
                                                 N=60 if obj.kind == "running" else min(N or 100, 60),
                                                 starts=starts, bounds=bounds, T_max=options.T_max,
                                                 search_s=options.search_s, restarts=options.pump_restarts,
-                                                seed=options.pump_seed)
+                                                seed=options.pump_seed, sqp=use_sqp)
         attempts_before = tinfo.attempts
         if obj.kind == "effort" and T_min is None:  # a pumping plan: already the effort plan at its T
             traj, info = fast, tinfo

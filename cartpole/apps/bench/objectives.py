@@ -5,7 +5,7 @@ The standard problem of :mod:`cartpole.apps.bench.trajopt` (from hanging to upri
 intervals, |ctrl| <= 1, |cart| <= 1.4 m, the same guess), with each objective the swing-up command takes: ``effort``
 (T = 2 s), ``tracking`` and ``dmc_cartpole_swingup`` (running objectives over the same T), ``time`` (T free, from
 the guess's 2 s). Ours is what ``cartpole swingup`` runs for that stage by default (``solver="auto"``): the
-collocation SQP with IPOPT behind it for effort and the running objectives, IPOPT on the compiled NLP for time. The baseline is the naive
+collocation SQP with IPOPT behind it, for every objective (time by the SQP's time scale). The baseline is the naive
 script (:class:`~cartpole.apps.bench.trajopt.NaiveOptiBaseline`) with the same objective written into it (a running
 cost's SX Function called per knot and midpoint; ``T`` a variable for time), on the hand-typed one-pole equations
 where they apply (:func:`~cartpole.apps.bench.trajopt.hand_typed_cartpole`), else the model's ``f``.
@@ -73,18 +73,15 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
         b_ms, (b_cost, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
         say(f"objective {name}: ours (the default planner's solver), {repeats} solves ...")
         ocp = DirectCollocation(model, N=N, T=None if obj.kind == "time" else T, bounds=bounds, objective=obj)
-        if obj.kind in ("effort", "running"):  # the planner's SQP, IPOPT behind it
-            row = default_planner_row(ocp, x0, guess, repeats, b_ms)
-            ms, ok, it, solver = (row["default_solve_ms_median"], row["default_success"], row["default_iterations"],
-                                  row["default_solver"])
-            cost = row["default_objective"]
-            if ok and obj.is_reward:  # reported as the reward: the script minimises its negative
-                cost = -cost
-        else:  # time: IPOPT on the free-time NLP
-            ocp.solve_once(x0, guess=guess)  # builds IPOPT (not timed)
-            ms, (traj, info) = median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
-            ok, it, solver = info.success, info.iterations, info.solver
-            cost = traj.duration + ocp.time_effort_weight * _effort(traj)  # what the script minimises
+        # the planner's SQP, IPOPT behind it (time: T_0 the guess's duration, the script's initial T)
+        row = default_planner_row(ocp, x0, guess, repeats, b_ms)
+        ms, ok, it, solver = (row["default_solve_ms_median"], row["default_success"], row["default_iterations"],
+                              row["default_solver"])
+        cost = row["default_objective"]
+        if ok and obj.kind == "time":  # what the script minimises
+            cost = row["trajectory"].duration + ocp.time_effort_weight * _effort(row["trajectory"])
+        elif ok and obj.is_reward:  # reported as the reward: the script minimises its negative
+            cost = -cost
         both = ok and b_ok
         rows.append({"objective": name, "solver": solver, "solve_ms_median": ms, "iterations": it, "success": ok,
                      "cost": cost, "baseline": "hand" if f_hand is not None else "generic",

@@ -317,6 +317,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
 
     say(f"the default planner (solver 'auto': the SQP, IPOPT behind it): {repeats} solves ...")
     default = default_planner_row(ocp, x0, guess, repeats, ref_ms)
+    default.pop("trajectory")
 
     say(f"ours (box-DDP on the exact discrete step, from the guess's ctrl): {repeats} solves ...")
     ddp = ddp_for_model(model, T, bounds=bounds)
@@ -374,15 +375,16 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
 
 
 def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms: float) -> dict:
-    """The fixed-time problem ``ocp`` (effort or a running cost) solved as the planner's default (``solver="auto"``)
-    solves that stage: :class:`~cartpole.solvers.sqp.CollocationSQP` (at most
+    """The problem ``ocp`` (any objective: effort, a running cost, or ``time`` with ``guess``'s duration the guess of
+    T) solved as the planner's default (``solver="auto"``) solves it from one guess:
+    :class:`~cartpole.solvers.sqp.CollocationSQP` (at most
     :data:`cartpole.planning.trajopt.SQP_MAX_ITER` iterations and :data:`~cartpole.planning.trajopt.SQP_MAX_UNSETTLED`
     QPs handed to DAQP), IPOPT from the same guess when it does not converge, the two timed together.
 
     Parameters
     ----------
     ocp : DirectCollocation
-        The fixed-time problem (effort or a running cost).
+        The problem.
     x0 : (nx,) array
         Start state ``[qpos, qvel]`` (m, rad, m/s, rad/s).
     guess : Trajectory
@@ -398,7 +400,8 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
         ``default_solver`` (whose plan it was: ``sqp`` or ``ipopt``), ``default_solve_ms_median`` (ms),
         ``default_iterations``, ``default_objective`` (as ``SolveInfo.objective``: ctrl^2 s for effort),
         ``default_success``,
-        ``default_speedup_vs_reference`` (``ref_ms`` over it; None when no plan).
+        ``default_speedup_vs_reference`` (``ref_ms`` over it; None when no plan), and under ``"trajectory"`` the
+        plan (not JSON: the caller pops it).
     """
     from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED
     from cartpole.solvers.sqp import SQPError
@@ -412,11 +415,12 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
             return None, None
 
     solve()  # builds (not timed)
-    ms, (_, info) = median_ms(solve, repeats, min_seconds=1e-3 * ref_ms * repeats)
+    ms, (traj, info) = median_ms(solve, repeats, min_seconds=1e-3 * ref_ms * repeats)
     ok = info is not None and info.success
     return {"default_solver": info.solver if ok else None, "default_solve_ms_median": ms,
             "default_iterations": info.iterations if ok else None, "default_objective": info.objective if ok else None,
-            "default_success": ok, "default_speedup_vs_reference": ref_ms / ms if ok else None}
+            "default_success": ok, "default_speedup_vs_reference": ref_ms / ms if ok else None,
+            "trajectory": traj if ok else None}
 
 
 #: The shipped carts the plan-time benchmark swings up: (label, asset file name).
