@@ -46,7 +46,7 @@ def test_bench_json_follows_the_contract(capsys):
     for r in rows.values():
         assert r["success"] and r["baseline_success"] and r["baseline"] == "hand"
         assert r["cost_rel_diff"] < 1e-6 and r["speedup"] == r["baseline_solve_ms_median"] / r["solve_ms_median"]
-    assert rows["effort"]["solver"] == "sqp" and rows["time"]["solver"] == "ipopt"
+    assert rows["effort"]["solver"] == "sqp" and rows["time"]["solver"] == "sqp"
     # box-DDP on the exact discrete step of the same problem: it converges, inside the ctrl box
     assert tr["ddp_success"] and tr["ddp_steps"] == round(tr["T"] / tr["ddp_dt"])
     assert tr["ddp_speedup_vs_reference"] == tr["hand_baseline_solve_ms_median"] / tr["ddp_solve_ms_median"]
