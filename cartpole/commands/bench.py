@@ -34,6 +34,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-objectives", action="store_true",
                         help="skip the default planner on every objective of the standard problem against the naive "
                              "script with that objective (--quick: effort and time only)")
+    parser.add_argument("--no-planner-stage", action="store_true",
+                        help="skip the planner's effort stage (from its minimum-time plan) on the shipped 1-, 2- and "
+                             "3-pole carts, or the --mjcf given, against the naive script (--quick: one pole)")
     parser.add_argument("--no-identify", action="store_true",
                         help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 
@@ -88,6 +91,13 @@ def run(args) -> dict:
         names = ("effort", "time") if args.quick else OBJECTIVES
         doc["trajopt"]["objectives"] = objective_benchmark(args.mjcf, objectives=names, T=T, repeats=repeats,
                                                            progress=steps)
+    doc["trajopt"]["planner_stage"] = None
+    if not args.no_planner_stage:
+        from cartpole.apps.bench.planner_stage import planner_stage_benchmark
+
+        stage_models = [(Path(args.mjcf).stem, args.mjcf)] if args.mjcf is not None else (
+            shipped_plan_models()[:1] if args.quick else None)
+        doc["trajopt"]["planner_stage"] = planner_stage_benchmark(stage_models, repeats=repeats, progress=steps)
     doc["plan"] = None
     if not args.no_plan:
         if args.mjcf is not None:
@@ -119,6 +129,10 @@ def run(args) -> dict:
             from cartpole.apps.bench.objectives import print_objective_table
 
             print_objective_table(doc["trajopt"]["objectives"])
+        if doc["trajopt"]["planner_stage"]:
+            from cartpole.apps.bench.planner_stage import print_planner_stage_table
+
+            print_planner_stage_table(doc["trajopt"]["planner_stage"])
         if doc["plan"]:
             print_plan_table(doc["plan"])
         if doc["mpc"]:

@@ -39,7 +39,7 @@ import numpy as np
 from cartpole.models import CartPoleModel
 from cartpole.ocp import compiled_nlp
 from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model, bounds_from_params, scales
-from cartpole.ocp.guess import linear_guess
+from cartpole.ocp.guess import linear_guess, stretched
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 from cartpole.ocp.objectives import NAMED, Objective, make_objective
 from cartpole.ocp.records import Attempt, SolveInfo
@@ -392,12 +392,7 @@ class DirectCollocation:
             if traj.x.shape[1] != nx or traj.u.shape[1] != self.nu:
                 raise OCPError(f"The initial guess has {traj.x.shape[1]} states and {traj.u.shape[1]} inputs but "
                                f"the model has {nx} and {self.nu}; give a guess of this model.")
-            tt = traj.t[0] + t * (traj.duration / T)  # stretch the guess onto this duration
-            x, u = traj.state(tt), traj.input(tt)
-            if traj.duration != T:
-                x = x.copy()
-                x[:, nq:] *= traj.duration / T  # rates
-                u = u.copy()
+            x, u = stretched(traj, T, t, nq)  # the guess's path at this duration's pace
         Z = np.vstack([x[::2].T / sc[:nx, None], u[::2].T / sc[nx:, None]])
         parts = [Z.ravel(order="F"), (x[1::2].T / sc[:nx, None]).ravel(order="F")]
         if self.free_time:

@@ -64,6 +64,20 @@ def linear_guess(x0, x_goal, t, u=None) -> tuple[np.ndarray, np.ndarray]:
     return x, np.tile(u, (t.size, 1))
 
 
+def stretched(traj: Trajectory, T: float, t, nq: int) -> tuple[np.ndarray, np.ndarray]:
+    """``traj`` replayed over a duration ``T`` s instead of its own, sampled at the times ``t`` (s, on the new clock):
+    the same path at another pace, the rates (state entries ``nq`` on) scaled by ``traj.duration / T``; returns
+    ``(x (len(t), nx), u (len(t), nu))`` (the inputs as they are). How a plan seeds a problem of another duration."""
+    t = np.asarray(t, dtype=float)
+    ratio = traj.duration / T
+    x, u = traj.state(traj.t[0] + t * ratio), traj.input(traj.t[0] + t * ratio)
+    if ratio != 1.0:
+        x = x.copy()
+        x[:, nq:] *= ratio
+        u = u.copy()
+    return x, u
+
+
 def pump_guess(x0, x_goal, t, *, hinges, slide=None, swing: float = 1.0, cart: float = 0.3,
                u=None) -> tuple[np.ndarray, np.ndarray]:
     """A swing-up shape with one back-swing on :func:`linear_guess`: every hinge (qpos indices ``hinges``) first
