@@ -63,6 +63,18 @@ Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT `
 is first made with the last QP's multipliers (the step was full, so that QP's active bounds hold at the new point),
 so no QP is solved only to confirm convergence.
 
+Minimum time (objective ``time``, ``T`` free): solved as a fixed-duration problem on the reference clock of
+``T_0`` (the guess's duration, or ``T`` given to :meth:`CollocationSQP.solve_once`) with the time scale
+``tau = T / T_0`` one more state (``_time_scaled``): dynamics ``(tau f(x, u), 0)``, running cost ``tau (1 + w
+u'u)`` (``w`` the problem's ``time_effort_weight``), whose Simpson integral is ``T + w integral u'u dt``;
+Hermite-Simpson with step ``h_0`` on these is Hermite-Simpson with step ``tau h_0`` on ``f``, the collocation's
+free-time NLP, so the optimum is IPOPT's. ``tau`` is free at knot 0 (bounded by the problem's ``T_range``), the
+Riccati QP solver's ``n_free`` state, and each step of it is held within :data:`TAU_STEP` of its value (a trust
+region: the first linearisations of a far guess ask for durations the plan cannot reach). A QP the Riccati active set
+does not settle goes to DAQP with ``d tau`` one more unknown of the condensed QP
+(:func:`cartpole.solvers.sqp_functions.free_state_column`); qrqp and HPIPM, behind DAQP, keep ``tau`` for that step,
+so convergence is then only declared on the Lagrangian's gradient, ``tau``'s entry included.
+
 Infeasible linearisations: with ``qrqp`` and ``hpipm`` a linearisation whose QP is infeasible ends the solve
 (``QP_Failed``): the two-pole standard problem from the benchmark's guess does so at the first iteration. With
 ``daqp`` (the default) the state-bound rows (rail, limited joints, the pinned ``x_N``) are made soft when the hard QP
@@ -157,9 +169,9 @@ class CollocationSQP:
     Parameters
     ----------
     ocp : DirectCollocation
-        The problem: model, N, T (fixed), bounds, objective ``effort`` or a running cost (``tracking``, the
-        ``dmc_*`` rewards, ``MODULE:FUNCTION``: each QP then on the exact Hessian with IPOPT's inertia correction,
-        module docstring).
+        The problem: model, N, T, bounds, objective ``effort``, a running cost (``tracking``, the ``dmc_*`` rewards,
+        ``MODULE:FUNCTION``) or ``time`` (T free: by its time scale, module docstring; the Riccati QP solver only).
+        Each QP on the exact Hessian first, with IPOPT's inertia correction (module docstring).
     tol : float
         Converged when the largest defect and the largest entry of the Lagrangian's gradient (bound multipliers
         included, scaled units) are below ``tol`` (default 1e-8, the collocation's IPOPT ``tol``).
@@ -187,10 +199,8 @@ class CollocationSQP:
     max_unsettled : int or None
         With ``qp_solver="riccati"``: feasible QPs the Riccati active set may hand to DAQP (infeasible linearisations,
         which DAQP solves with soft rows, are not counted) before the solve stops with status ``QP_Unsettled`` (None,
-        the default: no limit). A feasible linearisation it cannot settle again and again is an
-        ill-conditioned stage elimination (a long horizon of fast unstable modes: on the triple pendulum's effort
-        stage the Riccati cost-to-go of ``du_0`` reaches 1e12 to 1e16), where IPOPT on the sparse problem is the
-        better solver; the planner stops early
+        the default: no limit). A feasible linearisation it cannot settle again and again makes each iteration cost a
+        dense condensed QP, where IPOPT on the sparse problem is the better solver; the planner stops early
         (:data:`cartpole.planning.trajopt.SQP_MAX_UNSETTLED`) and lets IPOPT take over.
 
     Attributes
@@ -663,7 +673,8 @@ class CollocationSQP:
             Initial guess (stretched onto ``T``); default the straight line between the boundary states. Its knots
             are clipped into the bounds and its boundary states set to ``x0``, ``x_goal``.
         T : float, optional
-            Duration in s (default the problem's).
+            Duration in s (default the problem's); for a minimum-time problem the reference ``T_0`` of the time scale,
+            the guess of T (default the guess's duration, else 2 s).
 
         Returns
         -------
