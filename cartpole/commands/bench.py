@@ -35,8 +35,9 @@ def add_arguments(parser) -> None:
                         help="skip the default planner on every objective of the standard problem against the naive "
                              "script with that objective (--quick: effort and time only)")
     parser.add_argument("--no-planner-stage", action="store_true",
-                        help="skip the planner's effort stage (from its minimum-time plan) on the shipped 1-, 2- and "
-                             "3-pole carts, or the --mjcf given, against the naive script (--quick: one pole)")
+                        help="skip the planner's stages (from its minimum-time plan: effort, tracking, time) on the "
+                             "shipped 1-, 2- and 3-pole carts, or the --mjcf given, against the naive script (--quick: "
+                             "one pole, effort and time)")
     parser.add_argument("--no-identify", action="store_true",
                         help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 
@@ -93,11 +94,13 @@ def run(args) -> dict:
                                                            progress=steps)
     doc["trajopt"]["planner_stage"] = None
     if not args.no_planner_stage:
-        from cartpole.apps.bench.planner_stage import planner_stage_benchmark
+        from cartpole.apps.bench.planner_stage import STAGE_OBJECTIVES, planner_stage_benchmark
 
         stage_models = [(Path(args.mjcf).stem, args.mjcf)] if args.mjcf is not None else (
             shipped_plan_models()[:1] if args.quick else None)
-        doc["trajopt"]["planner_stage"] = planner_stage_benchmark(stage_models, repeats=repeats, progress=steps)
+        stage_objectives = ("effort", "time") if args.quick else STAGE_OBJECTIVES
+        doc["trajopt"]["planner_stage"] = planner_stage_benchmark(stage_models, objectives=stage_objectives,
+                                                                  repeats=repeats, progress=steps)
     doc["plan"] = None
     if not args.no_plan:
         if args.mjcf is not None:

@@ -524,7 +524,7 @@ def refusal(params: CartPoleParams, model: CartPoleModel, x0, bounds, attempts, 
 RUNNING_HOLD = 1.5
 
 
-def _padded(traj: Trajectory, T: float) -> Trajectory:
+def padded(traj: Trajectory, T: float) -> Trajectory:
     """``traj`` followed by resting at its final state until ``T`` s (exact when that state is an equilibrium):
     a feasible initial guess for a longer horizon."""
     if T <= traj.duration + 1e-9:
@@ -736,7 +736,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
                 N = max(2, int(round(T / params.timestep))) if is_task(obj.name) else 100
             ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
                                     solver_options=solver_options, bounds=bounds)
-            first = _padded(fast, T) if T > fast.duration else fast  # then rest at upright
+            first = padded(fast, T) if T > fast.duration else fast  # then rest at upright
         if use_ddp and not (obj.kind == "effort" and T_min is None):
             by_ddp = ddp_last_stage(first, T, f"time plan ({tinfo.guess})")
         if by_ddp is not None:

@@ -79,7 +79,7 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
                               row["default_solver"])
         cost = row["default_objective"]
         if ok and obj.kind == "time":  # what the script minimises
-            cost = row["trajectory"].duration + ocp.time_effort_weight * _effort(row["trajectory"])
+            cost = row["trajectory"].duration + ocp.time_effort_weight * plan_effort(row["trajectory"])
         elif ok and obj.is_reward:  # reported as the reward: the script minimises its negative
             cost = -cost
         both = ok and b_ok
@@ -91,7 +91,7 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
     return rows
 
 
-def _effort(traj) -> float:
+def plan_effort(traj) -> float:
     """``integral u'u dt`` of a Hermite-Simpson plan (ctrl^2 s), Simpson on its first-order-hold inputs."""
     h = np.diff(traj.t)[:, None]
     return float(np.sum(h / 6 * simpson_effort_terms(traj.u[:-1], traj.u[1:])))

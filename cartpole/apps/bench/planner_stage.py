@@ -1,16 +1,18 @@
-"""The planner's own fixed-time stage on 1, 2 and 3 poles, against the naive ``casadi.Opti`` script from the same
-guess, in one run (``cartpole bench``'s ``trajopt.planner_stage`` rows).
+"""The planner's own stages on 1, 2 and 3 poles, every objective, against the naive ``casadi.Opti`` script from
+the same guess, in one run (``cartpole bench``'s ``trajopt.planner_stage`` rows).
 
 The standard problem (:mod:`cartpole.apps.bench.trajopt`: T = 2 s from the first default guess) has no answer on the
 shipped triple: T = 2 s is below its minimum time (2.3 s), and at longer T no solver converges from that guess. The
-planner never starts there. It plans a minimum-time swing-up first and solves the effort problem at
-``(1 + time_margin) T_min`` from that plan (:func:`cartpole.planning.trajopt.trajopt_swingup`): this row is that
-stage on every model. Per model (the bench's bounds: |ctrl| <= 1, |cart| <= 1.4 m): the minimum-time plan on 60
-intervals (:func:`~cartpole.planning.trajopt.minimum_time`, not timed), then the effort problem on N = 100 intervals
-at ``T = (1 + time_margin) T_min`` from that plan stretched onto T, solved by the default planner's solver
-(:func:`~cartpole.apps.bench.trajopt.default_planner_row`: the SQP, IPOPT behind it) and by the naive script
-(:class:`~cartpole.apps.bench.trajopt.NaiveOptiBaseline`, hand-typed equations for one pole, the model's ``f`` else)
-from the same guess.
+planner never starts there. It plans a minimum-time swing-up first and solves the objective's stage from that plan
+(:func:`cartpole.planning.trajopt.trajopt_swingup`): these rows are those stages on every model. Per model (the
+bench's bounds: |ctrl| <= 1, |cart| <= 1.4 m) the minimum-time plan on 60 intervals
+(:func:`~cartpole.planning.trajopt.minimum_time`, not timed), then per objective the problem on N = 100 intervals from
+that plan: ``effort`` at ``T = (1 + time_margin) T_min`` (the plan stretched onto T), ``time`` with T free (the plan
+at its own pace, as the planner refines a coarse plan), a running objective over ``T_min +``
+:data:`~cartpole.planning.trajopt.RUNNING_HOLD` (the plan, then rest at upright); each solved by the default
+planner's solver (:func:`~cartpole.apps.bench.trajopt.default_planner_row`: the SQP, IPOPT behind it) and by the
+naive script with that objective (:class:`~cartpole.apps.bench.trajopt.NaiveOptiBaseline`, hand-typed equations for
+one pole, the model's ``f`` else) from the same guess. An objective the model cannot have is a row saying why.
 """
 from __future__ import annotations
 
@@ -18,24 +20,36 @@ import numpy as np
 
 from cartpole.apps.bench.trajopt import (NaiveOptiBaseline, default_planner_row, hand_typed_cartpole, median_ms,
                                          shipped_plan_models)
+from cartpole.apps.bench.objectives import plan_effort
 from cartpole.models import build_model, read_params
-from cartpole.ocp.bounds import bounds_from_model
+from cartpole.ocp.bounds import OCPError, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
 from cartpole.ocp.guess import stretched
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.options import PlanOptions
-from cartpole.planning.trajopt import minimum_time
+from cartpole.ocp.objectives import make_objective
+from cartpole.planning.trajopt import RUNNING_HOLD, minimum_time, padded
 
 
-def planner_stage_benchmark(models=None, *, N: int = 100, repeats: int = 5, progress=None) -> list[dict]:
-    """One row per model: the planner's effort stage by the default planner and by the naive script.
+#: The objectives of the planner-stage rows: the effort, a running cost and the minimum time. dm_control's rewards
+#: are timed on the standard problem (:mod:`cartpole.apps.bench.objectives`) and scored on dm_control's own files;
+#: on the shipped two-pole cart, over ``T_min + RUNNING_HOLD`` from the time plan, neither solver converges (the
+#: naive script stops after 3000 iterations, 225 s).
+STAGE_OBJECTIVES = ("effort", "tracking", "time")
+
+
+def planner_stage_benchmark(models=None, *, objectives=STAGE_OBJECTIVES, N: int = 100, repeats: int = 5,
+                            progress=None) -> list[dict]:
+    """One row per model and objective: the planner's stage by the default planner and by the naive script.
 
     Parameters
     ----------
     models : list of (label, MJCF path), optional
         Default the shipped 1-, 2- and 3-pole carts.
+    objectives : sequence of str
+        Objective names (default :data:`STAGE_OBJECTIVES`).
     N : int
-        Intervals of the effort stage.
+        Intervals of each stage.
     repeats : int
         Timed solves of the naive script (medians; the default planner's repeated until they span as long).
     progress : callable, optional
@@ -44,11 +58,13 @@ def planner_stage_benchmark(models=None, *, N: int = 100, repeats: int = 5, prog
     Returns
     -------
     list of dict
-        ``model``, ``mjcf``, ``T_min`` (s), ``T`` (s), ``N``, ``solver`` (whose plan the default's was),
-        ``solve_ms_median``, ``iterations``, ``objective`` (ctrl^2 s), ``success``, ``baseline`` (``hand`` or
-        ``generic``), ``baseline_solve_ms_median``, ``baseline_iterations``, ``baseline_objective``,
-        ``baseline_success``, ``speedup`` (the script's time over ours; None unless both converged),
-        ``objective_rel_diff``; or ``model``, ``mjcf``, ``skipped`` (the sentence why) when no minimum-time plan.
+        ``model``, ``mjcf``, ``objective`` (its name), ``T_min`` (s), ``T`` (s: the stage's, for ``time`` the guess's),
+        ``N``, ``solver`` (whose plan the default's was), ``solve_ms_median``, ``iterations``, ``cost`` (what the
+        script minimises: ctrl^2 s for effort, ``T + w effort`` for time, the running integral, a reward's
+        negated), ``success``, ``baseline`` (``hand`` or ``generic``), ``baseline_solve_ms_median``,
+        ``baseline_iterations``, ``baseline_cost``, ``baseline_success``, ``speedup`` (the script's time over ours;
+        None unless both converged), ``cost_rel_diff``; or ``model``, ``mjcf``, ``objective`` and ``skipped`` (the
+        sentence why) when the model has no minimum-time plan or cannot have the objective.
     """
     say = progress or (lambda msg: None)
     margin = PlanOptions().time_margin
@@ -58,34 +74,58 @@ def planner_stage_benchmark(models=None, *, N: int = 100, repeats: int = 5, prog
         model = build_model(params)
         x0 = np.array(model.x_hanging)
         bounds = bounds_from_model(model, u_max=1.0, cart_max=1.4, cart_margin=0.0)
-        say(f"planner stage, {label}: the minimum-time plan (not timed) ...")
+        say(f"planner stages, {label}: the minimum-time plan (not timed) ...")
         try:
             T_min, fast, _ = minimum_time(model, x0, N=60, bounds=bounds, sqp=True)
         except OCPNotSolved as exc:
-            rows.append({"model": label, "mjcf": params.mjcf, "skipped": str(exc)})
+            rows += [{"model": label, "mjcf": params.mjcf, "objective": name, "skipped": str(exc)}
+                     for name in objectives]
             continue
-        T = (1.0 + margin) * T_min
-        t = np.linspace(0.0, T, N + 1)
-        x, u = stretched(fast, T, t, model.nq)
-        guess = Trajectory(t=t, x=x, u=u, xdot=np.zeros_like(x))
         f_hand = hand_typed_cartpole(params)
-        say(f"planner stage, {label}: the naive Opti script, {repeats} solves ...")
-        base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand)
-        base.solve(guess)  # builds IPOPT (not timed)
-        b_ms, (b_obj, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
-        say(f"planner stage, {label}: the default planner's solver ...")
-        ocp = DirectCollocation(model, N=N, T=T, bounds=bounds)
-        row = default_planner_row(ocp, x0, guess, repeats, b_ms)
-        ok = row["default_success"]
-        both = ok and b_ok
-        rows.append({"model": label, "mjcf": params.mjcf, "T_min": T_min, "T": T, "N": N,
-                     "solver": row["default_solver"], "solve_ms_median": row["default_solve_ms_median"],
-                     "iterations": row["default_iterations"], "objective": row["default_objective"], "success": ok,
-                     "baseline": "hand" if f_hand is not None else "generic", "baseline_solve_ms_median": b_ms,
-                     "baseline_iterations": b_it, "baseline_objective": b_obj, "baseline_success": b_ok,
-                     "speedup": b_ms / row["default_solve_ms_median"] if both else None,
-                     "objective_rel_diff": abs(row["default_objective"] - b_obj) / abs(b_obj) if both else None})
+        for name in objectives:
+            try:
+                obj = make_objective(model, name)
+            except OCPError as exc:  # a task this model cannot have: said, not run
+                rows.append({"model": label, "mjcf": params.mjcf, "objective": name, "skipped": str(exc)})
+                continue
+            rows.append(_stage_row(model, params, label, obj, name, fast, T_min, margin, x0, bounds, f_hand, N,
+                                   repeats, say))
     return rows
+
+
+def _stage_row(model, params, label, obj, name, fast, T_min, margin, x0, bounds, f_hand, N, repeats, say) -> dict:
+    """One objective's stage from the minimum-time plan ``fast`` (module docstring), both solvers, one row."""
+    if obj.kind == "effort":
+        T, plan = (1.0 + margin) * T_min, fast
+    elif obj.kind == "time":
+        T, plan = fast.duration, fast
+    else:
+        T = T_min + RUNNING_HOLD
+        plan = padded(fast, T)
+    t = np.linspace(0.0, T, N + 1)
+    x, u = stretched(plan, T, t, model.nq)
+    guess = Trajectory(t=t, x=x, u=u, xdot=np.zeros_like(x))
+    say(f"planner stages, {label}, {name}: the naive Opti script, {repeats} solves ...")
+    base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand, objective=obj)
+    base.solve(guess)  # builds IPOPT (not timed)
+    b_ms, (b_cost, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
+    say(f"planner stages, {label}, {name}: the default planner's solver ...")
+    ocp = DirectCollocation(model, N=N, T=None if obj.kind == "time" else T, bounds=bounds, objective=obj)
+    row = default_planner_row(ocp, x0, guess, repeats, b_ms)
+    ok = row["default_success"]
+    cost = row["default_objective"]
+    if ok and obj.kind == "time":  # what the script minimises
+        cost = row["trajectory"].duration + ocp.time_effort_weight * plan_effort(row["trajectory"])
+    elif ok and obj.is_reward:  # the script minimises the reward's negative
+        cost = -cost
+    both = ok and b_ok
+    return {"model": label, "mjcf": params.mjcf, "objective": name, "T_min": T_min, "T": T, "N": N,
+            "solver": row["default_solver"], "solve_ms_median": row["default_solve_ms_median"],
+            "iterations": row["default_iterations"], "cost": cost, "success": ok,
+            "baseline": "hand" if f_hand is not None else "generic", "baseline_solve_ms_median": b_ms,
+            "baseline_iterations": b_it, "baseline_cost": b_cost, "baseline_success": b_ok,
+            "speedup": b_ms / row["default_solve_ms_median"] if both else None,
+            "cost_rel_diff": abs(cost - b_cost) / max(abs(b_cost), 1e-12) if both else None}
 
 
 def print_planner_stage_table(rows: list[dict], file=None) -> None:
@@ -94,13 +134,13 @@ def print_planner_stage_table(rows: list[dict], file=None) -> None:
         print(line, file=file)
 
     w()
-    w("The planner's effort stage (T = 1.2 T_min, N = 100, from the minimum-time plan): default planner vs naive Opti")
-    w(f"{'model':10s} {'T (s)':>7s} {'solver':>7s} {'ours ms':>9s} {'naive ms':>10s} {'speed-up':>9s} "
-      f"{'iterations':>11s}")
+    w("The planner's stages (N = 100, from the minimum-time plan): default planner vs naive Opti")
+    w(f"{'model':10s} {'objective':22s} {'T (s)':>7s} {'solver':>7s} {'ours ms':>9s} {'naive ms':>10s} "
+      f"{'speed-up':>9s} {'iterations':>11s}")
     for r in rows:
         if "skipped" in r:
-            w(f"{r['model']:10s} not measured: {r['skipped']}")
+            w(f"{r['model']:10s} {r['objective']:22s} not measured: {r['skipped']}")
             continue
         ratio = f"{r['speedup']:.1f}x" if r["speedup"] is not None else "-"
-        w(f"{r['model']:10s} {r['T']:7.3f} {str(r['solver']):>7s} {r['solve_ms_median']:9.1f} "
+        w(f"{r['model']:10s} {r['objective']:22s} {r['T']:7.3f} {str(r['solver']):>7s} {r['solve_ms_median']:9.1f} "
           f"{r['baseline_solve_ms_median']:10.1f} {ratio:>9s} {str(r['iterations']):>5s} / {r['baseline_iterations']}")
