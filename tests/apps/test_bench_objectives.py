@@ -43,3 +43,11 @@ def test_an_objective_the_model_cannot_have_is_skipped_with_its_sentence(capsys)
     assert effort["speedup"] is None or (effort["success"] and effort["baseline_success"])
     print_objective_table(rows)
     assert "not measured: " in capsys.readouterr().out
+
+
+def test_without_a_c_compiler_the_time_row_is_ipopts(monkeypatch):
+    """The SQP's minimum time needs its compiled Riccati solver: without a compiler the row is IPOPT's, as the
+    planner's would be, and says so."""
+    monkeypatch.setenv("CARTPOLE_NO_COMPILE", "1")
+    (row,) = objective_benchmark(N=30, repeats=1, objectives=("time",))
+    assert row["success"] and row["solver"] == "ipopt" and row["cost_rel_diff"] < 1e-6

@@ -406,9 +406,14 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
     from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED
     from cartpole.solvers.sqp import SQPError
 
-    solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED)
+    try:
+        solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED)
+    except SQPError:  # a problem the SQP does not take here (time without a C compiler): IPOPT's, as the planner
+        solver = None
 
     def solve():
+        if solver is None:
+            return ocp.solve_once(x0, guess=guess)
         try:
             return solver.solve(x0, guess=guess, fallback=True)
         except SQPError:
