@@ -67,28 +67,48 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
         except OCPError as exc:  # a task this model cannot have (a cart-pole reward on a pendulum): said, not run
             rows.append({"objective": name, "skipped": str(exc)})
             continue
-        say(f"objective {name}: the naive Opti script, {repeats} solves ...")
-        base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand, objective=obj)
-        base.solve(guess)  # builds IPOPT (not timed)
-        b_ms, (b_cost, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
-        say(f"objective {name}: ours (the default planner's solver), {repeats} solves ...")
-        ocp = DirectCollocation(model, N=N, T=None if obj.kind == "time" else T, bounds=bounds, objective=obj)
-        # the planner's SQP, IPOPT behind it (time: T_0 the guess's duration, the script's initial T)
-        row = default_planner_row(ocp, x0, guess, repeats, b_ms)
-        ms, ok, it, solver = (row["default_solve_ms_median"], row["default_success"], row["default_iterations"],
-                              row["default_solver"])
-        cost = row["default_objective"]
-        if ok and obj.kind == "time":  # what the script minimises
-            cost = row["trajectory"].duration + ocp.time_effort_weight * plan_effort(row["trajectory"])
-        elif ok and obj.is_reward:  # reported as the reward: the script minimises its negative
-            cost = -cost
-        both = ok and b_ok
-        rows.append({"objective": name, "solver": solver, "solve_ms_median": ms, "iterations": it, "success": ok,
-                     "cost": cost, "baseline": "hand" if f_hand is not None else "generic",
-                     "baseline_solve_ms_median": b_ms, "baseline_iterations": b_it, "baseline_cost": b_cost,
-                     "baseline_success": b_ok, "speedup": b_ms / ms if both else None,
-                     "cost_rel_diff": abs(cost - b_cost) / max(abs(b_cost), 1e-12) if both else None})
+        rows.append({"objective": name, **against_naive(model, obj, guess, bounds, x0, N=N, T=T, f_hand=f_hand,
+                                                         repeats=repeats, say=say, label=f"objective {name}")})
     return rows
+
+
+def against_naive(model, obj, guess, bounds, x0, *, N: int, T: float, f_hand=None, repeats: int = 5,
+                  say=None, label: str = "") -> dict:
+    """One objective ``obj`` (:class:`~cartpole.ocp.objectives.Objective`) on ``N`` intervals over ``T`` s (for
+    ``time`` the guess of T) from ``guess`` (a Trajectory on those knots), by the naive script with it
+    (:class:`~cartpole.apps.bench.trajopt.NaiveOptiBaseline`; ``f_hand`` its dynamics where given, else the model's)
+    and by the default planner's solver (:func:`~cartpole.apps.bench.trajopt.default_planner_row`), ``repeats``
+    timed solves each; ``x0`` (nx,) the start, ``bounds`` the problem's.
+
+    Returns
+    -------
+    dict
+        ``solver``, ``solve_ms_median``, ``iterations``, ``success``, ``cost`` (what the script minimises: ctrl^2 s
+        for effort, ``T + w effort`` for time, the running integral, a reward as the reward), ``baseline`` (``hand``
+        or ``generic``), ``baseline_solve_ms_median``, ``baseline_iterations``, ``baseline_cost``,
+        ``baseline_success``, ``speedup`` and ``cost_rel_diff`` (None unless both converged).
+    """
+    say = say or (lambda msg: None)
+    say(f"{label}: the naive Opti script, {repeats} solves ...")
+    base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand, objective=obj)
+    base.solve(guess)  # builds IPOPT (not timed)
+    b_ms, (b_cost, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
+    say(f"{label}: ours (the default planner's solver), {repeats} solves ...")
+    ocp = DirectCollocation(model, N=N, T=None if obj.kind == "time" else T, bounds=bounds, objective=obj)
+    # the planner's SQP, IPOPT behind it (time: T_0 the guess's duration, the script's initial T)
+    row = default_planner_row(ocp, x0, guess, repeats, b_ms)
+    ms, ok = row["default_solve_ms_median"], row["default_success"]
+    cost = row["default_objective"]
+    if ok and obj.kind == "time":  # what the script minimises
+        cost = row["trajectory"].duration + ocp.time_effort_weight * plan_effort(row["trajectory"])
+    elif ok and obj.is_reward:  # reported as the reward: the script minimises its negative
+        cost = -cost
+    both = ok and b_ok
+    return {"solver": row["default_solver"], "solve_ms_median": ms, "iterations": row["default_iterations"],
+            "success": ok, "cost": cost, "baseline": "hand" if f_hand is not None else "generic",
+            "baseline_solve_ms_median": b_ms, "baseline_iterations": b_it, "baseline_cost": b_cost,
+            "baseline_success": b_ok, "speedup": b_ms / ms if both else None,
+            "cost_rel_diff": abs(cost - b_cost) / max(abs(b_cost), 1e-12) if both else None}
 
 
 def plan_effort(traj) -> float:

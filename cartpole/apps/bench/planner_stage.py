@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.apps.bench.trajopt import (NaiveOptiBaseline, default_planner_row, hand_typed_cartpole, median_ms,
-                                         shipped_plan_models)
-from cartpole.apps.bench.objectives import plan_effort
+from cartpole.apps.bench.objectives import against_naive
+from cartpole.apps.bench.trajopt import hand_typed_cartpole, shipped_plan_models
 from cartpole.models import build_model, read_params
 from cartpole.ocp.bounds import OCPError, bounds_from_model
-from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
+from cartpole.ocp.collocation import OCPNotSolved
 from cartpole.ocp.guess import stretched
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.options import PlanOptions
@@ -105,27 +104,9 @@ def _stage_row(model, params, label, obj, name, fast, T_min, margin, x0, bounds,
     t = np.linspace(0.0, T, N + 1)
     x, u = stretched(plan, T, t, model.nq)
     guess = Trajectory(t=t, x=x, u=u, xdot=np.zeros_like(x))
-    say(f"planner stages, {label}, {name}: the naive Opti script, {repeats} solves ...")
-    base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand, objective=obj)
-    base.solve(guess)  # builds IPOPT (not timed)
-    b_ms, (b_cost, b_it, b_ok) = median_ms(lambda: base.solve(guess), repeats)
-    say(f"planner stages, {label}, {name}: the default planner's solver ...")
-    ocp = DirectCollocation(model, N=N, T=None if obj.kind == "time" else T, bounds=bounds, objective=obj)
-    row = default_planner_row(ocp, x0, guess, repeats, b_ms)
-    ok = row["default_success"]
-    cost = row["default_objective"]
-    if ok and obj.kind == "time":  # what the script minimises
-        cost = row["trajectory"].duration + ocp.time_effort_weight * plan_effort(row["trajectory"])
-    elif ok and obj.is_reward:  # the script minimises the reward's negative
-        cost = -cost
-    both = ok and b_ok
     return {"model": label, "mjcf": params.mjcf, "objective": name, "T_min": T_min, "T": T, "N": N,
-            "solver": row["default_solver"], "solve_ms_median": row["default_solve_ms_median"],
-            "iterations": row["default_iterations"], "cost": cost, "success": ok,
-            "baseline": "hand" if f_hand is not None else "generic", "baseline_solve_ms_median": b_ms,
-            "baseline_iterations": b_it, "baseline_cost": b_cost, "baseline_success": b_ok,
-            "speedup": b_ms / row["default_solve_ms_median"] if both else None,
-            "cost_rel_diff": abs(cost - b_cost) / max(abs(b_cost), 1e-12) if both else None}
+            **against_naive(model, obj, guess, bounds, x0, N=N, T=T, f_hand=f_hand, repeats=repeats, say=say,
+                            label=f"planner stages, {label}, {name}")}
 
 
 def print_planner_stage_table(rows: list[dict], file=None) -> None:
