@@ -56,9 +56,10 @@ def add_arguments(parser) -> None:
                         help="mpc only: prediction horizon in s (default the controller's, 1.2 s)")
     parser.add_argument("--solver", choices=("auto", "ipopt", "fatrop", "sqp", "ddp"), default=None,
                         help="trajopt only: solver of the plan's last stage: auto (default: the collocation SQP for "
-                             "effort and the running objectives, IPOPT for time), ipopt, fatrop, sqp (the collocation "
-                             "SQP, every objective but time) or ddp (box-DDP on the exact discrete step, every "
-                             "objective; time by a search over T); IPOPT takes over when it does not converge")
+                             "every objective and for the minimum-time refinement before it; the coarse multi-start "
+                             "stays IPOPT's), ipopt (every stage), fatrop, sqp (as auto) or ddp (box-DDP on the exact "
+                             "discrete step, every objective; time by a search over T); IPOPT takes over when it does "
+                             "not converge")
     parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
                         help="mpc only: real-time iteration on the condensed QP (rti, the default) or warm-started "
                              "box-DDP on the exact held model (ddp)")

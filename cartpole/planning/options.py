@@ -51,10 +51,10 @@ class PlanOptions(StageOptions):
         Fraction in [0, 1) of each actuator's half ctrl range the exact discrete plan keeps free for feedback
         (default :data:`U_MARGIN`, 5 %).
     solver : {'auto', 'ipopt', 'fatrop', 'sqp', 'ddp'}
-        NLP solver of the plan's last stage (the minimum-time stages are IPOPT's); ``auto`` (default): the one
-        measured fastest, ``sqp`` for the fixed-time stage (effort or a running objective) unless ``solver_options``
-        (IPOPT's) are given, else IPOPT; ``sqp``: that stage by :class:`~cartpole.solvers.sqp.CollocationSQP`, IPOPT
-        when it does not converge (``time`` stays IPOPT's); ``ddp``: the last stage by
+        NLP solver of the plan's last stage; ``auto`` (default): the one measured fastest, ``sqp`` unless
+        ``solver_options`` (IPOPT's) are given, else IPOPT; ``sqp``: the last stage (any objective, ``time`` by its
+        time scale) and the minimum-time refinement before it by :class:`~cartpole.solvers.sqp.CollocationSQP`, IPOPT
+        when it does not converge (the coarse minimum-time multi-start stays IPOPT's); ``ddp``: the last stage by
         box-DDP on the exact discrete step (:mod:`cartpole.planning.ddp_plan`; every objective, ``time`` by a search
         over T of fixed-T solves; ``N`` is then ``T`` over the step), IPOPT when it does not converge.
     solver_options : mapping or None

@@ -552,17 +552,12 @@ def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, sta
     their diagnosis when all fail). The returned info's attempts include the failed first try. ``sqp``: first
     by :class:`~cartpole.solvers.sqp.CollocationSQP` (at most :data:`SQP_MAX_ITER` iterations; its attempt's stage is
     ``"<stage> (sqp)"``), then as before with IPOPT if it does not converge or does not handle the problem."""
-    tried: tuple[Attempt, ...] = ()
+    sqp_tried: list = []
     if sqp:
-        try:
-            traj, info = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED
-                                        ).solve_once(x0, guess=guess)
-        except SQPError:
-            info = None
-        if info is not None:
-            tried = (Attempt.of(info, f"{stage} (sqp)", name, ocp.N, chosen=info.success),)
-            if info.success:
-                return traj, replace(info, guess=name, attempts=tried)
+        found = _sqp_attempt(ocp, x0, None, guess, name, stage, sqp_tried)
+        if found is not None:
+            return found[0], replace(found[1], attempts=tuple(sqp_tried))
+    tried = tuple(sqp_tried)
     traj, info = ocp.solve_once(x0, guess=guess)
     first = Attempt.of(info, stage, name, ocp.N, chosen=info.success)
     if info.success:

@@ -2,7 +2,8 @@
 
    Stages k = 0..N-1: state s_k (nz), control w_k (nu), dynamics s_k+1 = A_k s_k + B_k w_k + c_k with
    [A_k B_k] = T_k (nz x ny, row-major), c_k = (ct_k, 0); cost sum_k 1/2 y_k' Hy_k y_k + gy_k' y_k, y_k = (s_k, w_k).
-   s_0 = (0_nx, du_0): du_0 is a free (bounded) variable. Bounds on the knots dz_k = s_k (k >= 1) and du_0:
+   s_0 = (0, p_0, du_0): the last RQP_NP states p_0 and du_0 are free (bounded) variables, the others zero. Bounds
+   on the knots dz_k = s_k (k >= 1) and du_0:
    the input entries of knot k >= 1 are w_k-1 (eliminated from the recursion when active), the state entries rows
    whose multipliers enter the recursion as linear terms (their responses superposed). */
 #include <math.h>

@@ -126,7 +126,8 @@ class StageQP:
         ct : (N, nx) array
             The dynamics' constant (state rows).
         Hy : (N, nz + nu, nz + nu) array
-            Stage Hessians (convexified), ``gy`` (N, nz + nu) the gradients.
+            Stage Hessians (a reduced Hessian that is not positive definite is status 1), ``gy`` (N, nz + nu) the
+            gradients.
         lo, hi : (N + 1, nz) arrays
             Bounds on the knots' steps (``-inf``/``inf`` where none; equal where pinned); knot 0's state entries
             are ignored (``dx_0 = 0``) but for the last ``n_free``.

@@ -216,8 +216,8 @@ class CollocationSQP:
         step), ``soc`` (the second-order correction was taken).
     qp_counts : dict
         QP solves of the last solve per solver (``qrqp``, ``hpipm``, ``daqp``: DAQP calls, row screening included;
-        ``riccati``: the Riccati active set's convexified QPs, ``riccati_exact`` its QPs on the exact Hessian (a running
-        cost), ``riccati_unsettled`` those it handed to DAQP).
+        ``riccati``: the Riccati active set's convexified QPs, ``riccati_exact`` its QPs on the exact Hessian,
+        ``riccati_unsettled`` those it handed to DAQP).
     qp_soft : int
         QPs of the last solve solved with soft state rows (``daqp`` only: the hard QP was infeasible).
     """
@@ -278,8 +278,8 @@ class CollocationSQP:
         self._kf, self._mid1, self._mid2, self._kh = (Buffered(maps[n]) for n in compiled_nlp.KNOT_FUNCTIONS)
         funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled,
                                                                      n_free=self._np)
-        # a running cost is not convex in the inputs: each QP is first solved on the exact Hessian with IPOPT's
-        # inertia correction (module docstring), the convexified QP only where that fails
+        # each QP is first solved on the exact Hessian with IPOPT's inertia correction (module docstring), the
+        # convexified QP only where that fails
         self._stages_raw = None
         if qp_solver == "riccati":
             raw, _ = sqp_functions.compiled_qp_functions(nx, nu, N, -np.inf, compiled=ocp.compiled, n_free=self._np)
@@ -420,7 +420,7 @@ class CollocationSQP:
         success)``."""
         N, nx, nz = self.N, self.nx, self.nz
         ny = nz + self.nw
-        if self._stages_raw is not None:  # a running cost: the exact Hessian's QP first (module docstring)
+        if self._stages_raw is not None:  # the exact Hessian's QP first (module docstring)
             T, ct, Hy, gy, M = self._stages_raw(J, H, G, D, float(lm))
             T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
             Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
@@ -444,7 +444,7 @@ class CollocationSQP:
             if st in (2, 3):  # convex where the active set stopped, but not settled: the same QP condensed for DAQP
                 self.qp_counts["riccati_unsettled"] += 1
                 self._delta = delta if delta > 0 else self._delta
-                out = self._daqp_step(Z, T, ct, Hs, gy, H, G, M, lbz, ubz)
+                out = self._daqp_step(Z, T, ct, Hs, gy, H, G, M, lbz, ubz, exact=True)
                 if out is not None:
                     if not self._soft_step:
                         self._unsettled_feasible += 1
@@ -522,7 +522,7 @@ class CollocationSQP:
         (lam,) = self._mult(dZ, Nb[:, :self.nx], Hy, gy, T, H, G, M)
         return dZ, lam.reshape(self.N, self.nx).copy(), Nb, True
 
-    def _daqp_step(self, Z, T, ct, Hy, gy, H, G, M, lbz, ubz):
+    def _daqp_step(self, Z, T, ct, Hy, gy, H, G, M, lbz, ubz, *, exact: bool = False):
         """The stage QP condensed onto the knot controls ``v = (du_0 .. du_N)`` ((N+1) nu, the states
         ``dx_k = g_k + G_k v`` by the stage dynamics, ``dx_0 = 0``) and solved by DAQP, hot-started from the previous
         QP's multipliers. The ctrl bounds are bounds on ``v``; the finite state bounds (rail, limited joints, the
@@ -532,7 +532,10 @@ class CollocationSQP:
         stationarity (compiled, :mod:`cartpole.solvers.sqp_functions`). An infeasible QP (the
         linearised defects cannot meet the state bounds) is
         solved again with those rows soft: the step then leaves the bounds, is projected back into them, and the
-        filter judges the defects that leaves. Returns what :meth:`_qp_step` does, or None when DAQP failed."""
+        filter judges the defects that leaves. ``exact``: ``Hy`` are exact (inertia-corrected) stage blocks, whose
+        condensed Hessian may be indefinite where the Riccati solver's test saw only its active set's reduced
+        Hessians (shifted then, :func:`_positive_definite`). Returns what :meth:`_qp_step` does, or None when DAQP
+        failed."""
         N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
         nc = (N + 1) * nu
         # condensed in one compiled call (sqp_functions): the stages' parts of the Hessian and gradient, and
@@ -547,7 +550,9 @@ class CollocationSQP:
             vb_hi = np.r_[min(dz_hi[0, nx - 1], _BIG), vb_hi]
             vb_lo = np.r_[max(dz_lo[0, nx - 1], -_BIG), vb_lo]
         nv = nc + self._np
-        Hc = _positive_definite(Hc)
+        if exact or self._np:  # the convexified stage blocks make it positive definite; exact ones, or tau's row,
+            # need not be
+            Hc = _positive_definite(Hc)
         ri, rc = self._rows_k, self._rows_i  # knots >= 1: the rows of knot k are Ga[k - 1]
         A_all = Gs[ri - 1, rc, :]
         lo = dz_lo[ri, rc] - gs[ri - 1, rc]
