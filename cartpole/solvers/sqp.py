@@ -51,7 +51,10 @@ effort's Lagrangian is indefinite too where the dynamics' curvature weighs (on t
 stationarity of 0.04 for 100 iterations). With the Riccati QP solver each QP is therefore first solved on the exact
 Hessian (``sqp_stages`` without the raise) with IPOPT's inertia correction: no shift first, and where a reduced
 Hessian of the active set is not positive definite ``delta I`` added to every stage block, from a third of the last
-shift used (at least 1e-4) up by 8 until it is; the convexified QP only when that fails. The Riccati solver adds
+shift used (1e-4 the first time; no floor after, as IPOPT's ``delta_w_min`` is 1e-20) up by 8 until it is; the
+convexified QP only when that fails. The shift must be free to decay: on the triple's minimum time the problem is
+nearly singular where inputs leave their bounds (reduced-Hessian eigenvalues of 1e-6), and a floor of 1e-4 made every
+step a proximal one that crept along that direction (200 iterations without converging; 14 without the floor). The Riccati solver adds
 ``rho/2`` times the squared residual of each held state row (the pinned ``x_N`` among them) to the recursion, which
 changes neither the QP's solution nor its multipliers but lends the recursion the curvature the rows give the
 constrained problem: without it the reduced Hessians near a pinned end were indefinite where the constrained QP is
@@ -429,13 +432,14 @@ class CollocationSQP:
             lo, hi = self._step_bounds(Z, lbz, ubz)
             diag = np.arange(ny)
             delta = 0.0
-            for _ in range(12):  # IPOPT's inertia correction: no shift first, then from a third of the last one up by 8
+            for _ in range(12):  # IPOPT's inertia correction: no shift first, then a third of the last one (1e-4 the
+                # first time) up by 8
                 Hs = Hy.copy()
                 Hs[:, diag, diag] += delta
                 st = rq.solve(T, ct, Hs, gy, lo, hi)
                 if st != 1:
                     break
-                delta = max(1e-4, self._delta / 3) if delta == 0.0 else 8 * delta
+                delta = (max(1e-20, self._delta / 3) if self._delta > 0 else 1e-4) if delta == 0.0 else 8 * delta
                 rq.active[:] = held
             if st == 0:
                 self._delta = delta if delta > 0 else self._delta
@@ -473,6 +477,7 @@ class CollocationSQP:
             self._warm_ready = False  # DAQP failed: qrqp (cold), then HPIPM
             if self._rqp is not None:
                 self._unsettled_feasible += 1
+        self._tau_kept = bool(self._np)  # qrqp and HPIPM take the time scale as given for this step
         hvals = np.concatenate([Hy[0, nx:, nx:].ravel(), Hy[1:].ravel(), np.zeros(nz * nz)])[self._h_order]
         gvec = np.concatenate([gy[0, nx:], gy[1:].ravel(), np.zeros(nz)])
         self._a_vals[:self._a_count] = np.concatenate([T[0][:, nx:].ravel(), T[1:].ravel()])
@@ -748,9 +753,9 @@ class CollocationSQP:
                                              "soc": False})
                         status, success = "Solve_Succeeded", True
                         break
-                self._soft_step = False
+                self._soft_step = self._tau_kept = False
                 dZ, lam_qp, Nb, ok = self._qp_step(Z, D, J, G, H, lbz, ubz, lm)
-                soft_step = self._soft_step
+                soft_step, tau_kept = self._soft_step, self._tau_kept
                 infeas = float(np.abs(D).max())
                 kkt = self._stationarity(J, G, lam_qp, Nb)
                 step = float(np.abs(dZ).max())
@@ -763,9 +768,9 @@ class CollocationSQP:
                 if self.max_unsettled is not None and self._unsettled_feasible > self.max_unsettled:
                     status = "QP_Unsettled"
                     break
-                # (a minimum time by stationarity only: the fallback QPs of qrqp and HPIPM keep the time scale, and
-                # their zero step at a fixed-time optimum is no minimum)
-                if infeas <= self.tol and (kkt <= self.tol or (step <= self.tol and not self._np)):
+                # (a zero step counts for a minimum time only from a QP with the time scale free: qrqp and HPIPM,
+                # behind DAQP, keep it, and their zero step at a fixed-time optimum is no minimum)
+                if infeas <= self.tol and (kkt <= self.tol or (step <= self.tol and not tau_kept)):
                     status, success = "Solve_Succeeded", True
                     break
                 # filter line search on (theta = ||d||_1, f) (Fletcher and Leyffer), second-order correction
