@@ -14,7 +14,7 @@ def test_a_model_without_a_minimum_time_plan_is_skipped_with_its_sentence(monkey
 
     monkeypatch.setattr(planner_stage, "minimum_time", no_plan)
     rows = planner_stage.planner_stage_benchmark([("weak", str(SHIPPED_MJCF))], repeats=1)
-    assert [r["objective"] for r in rows] == ["effort", "tracking", "time"]
+    assert [r["objective"] for r in rows] == list(planner_stage.STAGE_OBJECTIVES)
     assert all(r["model"] == "weak" and "No swing-up found" in r["skipped"] for r in rows)
     row = rows[0]
     planner_stage.print_planner_stage_table([row])
@@ -25,9 +25,13 @@ def test_the_two_pole_stages_are_the_sqps_at_the_scripts_optima():
     rows = planner_stage.planner_stage_benchmark([("2 poles", str(SHIPPED_MJCF.with_name("cartpole_two_pole.xml")))],
                                                  repeats=1)
     by = {r["objective"]: r for r in rows}
-    for name in ("effort", "tracking", "time"):
+    for name in planner_stage.STAGE_OBJECTIVES:
         r = by[name]
         assert r["success"] and r["baseline_success"] and r["solver"] == "sqp" and r["baseline"] == "generic", name
-        assert r["cost_rel_diff"] < 1e-6 and r["N"] == 100, name
+        assert r["N"] == 100, name
+        if name.startswith("dmc_"):  # a reward's landscape has several optima: ours at the script's or above it
+            assert r["cost"] <= r["baseline_cost"] + 1e-6 * abs(r["baseline_cost"]), name
+        else:
+            assert r["cost_rel_diff"] < 1e-6, name
     assert by["effort"]["T"] == pytest.approx(1.2 * by["effort"]["T_min"])
     assert by["time"]["T"] == by["time"]["T_min"]

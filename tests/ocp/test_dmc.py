@@ -138,8 +138,11 @@ def test_planning_form_is_the_reward_or_a_smooth_surrogate_of_it(tmp_path, name,
     elif t.sparse:  # smooth, positive, larger inside the indicator's box than outside it on average
         assert np.all((plan > 0) & (plan <= 1)) and plan[exact == 1].mean() > 2 * plan[exact == 0].mean()
         assert -float(cost(model.x_eq, np.zeros(model.nu))) == pytest.approx(1.0)
-    else:
+    elif len(model.hinges) == 1:
         assert np.allclose(plan, exact, rtol=1e-12, atol=1e-12)
+    else:  # the least rate tolerance smoothed: below the exact reward, by at most a quarter of the width
+        assert np.all(plan <= exact + 1e-12) and np.all(exact - plan <= dmc.SMOOTH_MIN_WIDTH / 4 + 1e-12)
+        assert np.abs(plan - exact).max() > 1e-6
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     g = ca.Function("g", [x, u], [ca.gradient(cost(x, u), ca.vertcat(x, u))])
     for xi, ui in [(model.x_eq, np.zeros(model.nu)), (X[0], U[0]), (X[-1], U[-1])]:  # the target included
@@ -273,3 +276,15 @@ def test_acrobot_planning_form_has_a_gradient_where_the_reward_is_flat():
     grads = ca.Function("g", [x, u], [ca.gradient(exact, x), ca.gradient(plan, x)])
     g_exact, g_plan = (np.abs(np.asarray(g)).max() for g in grads(model.x_hanging + 0.1, np.zeros(model.nu)))
     assert g_exact < 1e-10 and g_plan > 1e-4 and g_plan > 1e6 * g_exact
+
+
+def test_smooth_min_is_below_the_minimum_by_at_most_half_its_width_and_smooth_through_the_tie():
+    a = np.linspace(0, 1, 201)[:, None]
+    b = np.linspace(0, 1, 201)[None, :]
+    m = dmc.smooth_min(a, b, 0.05)
+    gap = np.minimum(a, b) - m
+    assert np.all(gap > 0) and gap.max() == pytest.approx(0.025) and gap[0, -1] < 0.05**2 / 4
+    x = ca.SX.sym("x")
+    d = ca.Function("d", [x], [ca.gradient(dmc.smooth_min(x, 0.5), x)])
+    slopes = [float(d(v)) for v in (0.5 - 1e-9, 0.5, 0.5 + 1e-9)]
+    assert slopes == pytest.approx([0.5, 0.5, 0.5], abs=1e-6)  # no kink where the two cross
