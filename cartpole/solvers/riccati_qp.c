@@ -607,6 +607,11 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     int single = 0, last = -1;
     for (it = 1; it <= max_iter; ++it) {
         int st = solve_active(&W);
+        if (st == 1 && it == 1) { /* not convex where it starts: with fewer bounds held the indefinite direction
+                                     stays free, so no reset to the equalities would help */
+            status = 1;
+            break;
+        }
         if (st && it == 1) { /* the starting guess is no use: from the equalities alone */
             for (size_t j = 0; j < ns; ++j)
                 if (act[j] != 2) act[j] = 0;
