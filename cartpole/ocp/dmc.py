@@ -74,8 +74,8 @@ ACROBOT_INPUT_WEIGHT = 1e-3
 DISTANCE_FLOOR = 1e-12
 
 #: Width of :func:`smooth_min`, the planning form's minimum of the cart-pole's rate tolerances on two or more poles
-#: (each in [0, 1]): it is below the minimum by at most half of it, so the planned reward is within 1.25 % of the
-#: exact one (the minimum enters as ``(1 + m) / 2``). dm_control's ``min`` has a kink wherever two poles' tolerances
+#: (each in [0, 1]): each pair's is below their minimum by at most half of it, so the planned reward is below the
+#: exact one by at most 1.25 % for each pole beyond the first (the minimum enters as ``(1 + m) / 2``). dm_control's ``min`` has a kink wherever two poles' tolerances
 #: cross, and a Newton-type solver stalls on it: the SQP on the shipped two-pole cart's running stage (the planner's
 #: minimum-time plan, then rest, over ``T_min + 1.5 s``) ended 300 iterations at a stationarity of 1.7e-4 (IPOPT
 #: unconverged after 500).

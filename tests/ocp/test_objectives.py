@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cartpole.models import build_model
-from cartpole.ocp import DirectCollocation, OCPError, make_objective, reward
+from cartpole.ocp import DirectCollocation, OCPError, dmc, make_objective, reward
 from cartpole.ocp.objectives import dmc_swingup_function, dmc_swingup_reward, load_objective
 from cartpole.validation.metrics import dmc_swingup_reward as dmc_reward_np
 from chains import dmc_cartpole
@@ -109,13 +109,20 @@ def test_dmc_swingup_reward_equals_dm_controls_definition(tmp_path, n_poles):
     m = build_model(str(path))
     assert np.allclose(m.x_eq, 0.0)
     x, u = ca.SX.sym("x", m.nx), ca.SX.sym("u", m.nu)
-    f = ca.Function("r", [x, u], [dmc_swingup_reward(m, x, u)])
+    f = ca.Function("r", [x, u], [dmc_swingup_reward(m, x, u, clip_control=True)])
+    plan = ca.Function("p", [x, u], [dmc_swingup_reward(m, x, u)])
     rng = np.random.default_rng(3)
     X = rng.uniform(-1, 1, (200, m.nx)) * np.r_[1.8, [7.0] * n_poles, 3.0, [12.0] * n_poles]
     U = rng.uniform(-1, 1, (200, 1))
     ref = np.array([_reference_reward(xi, ui, n_poles) for xi, ui in zip(X, U)])
     sym = np.array([float(f(xi, ui)) for xi, ui in zip(X, U)])
     assert np.allclose(sym, ref, rtol=1e-12, atol=1e-14)
+    # the planner's form: the same inside ctrlrange on one pole; on more the rates' minimum smoothed (just below)
+    planned = np.array([float(plan(xi, ui)) for xi, ui in zip(X, U)])
+    if n_poles == 1:
+        assert np.allclose(planned, ref, rtol=1e-12, atol=1e-14)
+    else:
+        assert np.all(planned <= ref + 1e-14) and np.all(ref - planned <= dmc.SMOOTH_MIN_WIDTH / 4 + 1e-14)
     assert np.allclose(dmc_reward_np(m, X, U), ref, rtol=1e-12, atol=1e-14)
     assert float(f(m.x_eq, [0.0])) == pytest.approx(1.0)
     # beyond dm_control's ctrlrange only the clipped form (scoring's) is dm_control's value
@@ -124,8 +131,8 @@ def test_dmc_swingup_reward_equals_dm_controls_definition(tmp_path, n_poles):
     clipped = dmc_swingup_function(m, clip_control=True)
     assert np.allclose([float(clipped(xi, ui)) for xi, ui in zip(X, wide)], ref_wide, rtol=1e-12, atol=1e-14)
     assert np.allclose(dmc_reward_np(m, X, wide), ref_wide, rtol=1e-12, atol=1e-14)
-    # make_objective's running cost is the negated reward
-    assert float(make_objective(m, "dmc_swingup").running(X[0], U[0])) == pytest.approx(-ref[0])
+    # make_objective's running cost is the negated reward in the planner's form
+    assert float(make_objective(m, "dmc_swingup").running(X[0], U[0])) == pytest.approx(-planned[0])
 
 
 def test_load_objective_returns_the_function(tmp_path, monkeypatch):

@@ -254,6 +254,7 @@ def test_dmc_scoring_evaluates_the_objectives_reward_function_over_the_rows(chai
 
     from cartpole.models import build_model
     from cartpole.ocp import make_objective
+    from cartpole.ocp.dmc import SMOOTH_MIN_WIDTH
     from cartpole.ocp.objectives import dmc_swingup_reward as symbolic
     from cartpole.validation.metrics import dmc_swingup_reward
 
@@ -273,5 +274,10 @@ def test_dmc_scoring_evaluates_the_objectives_reward_function_over_the_rows(chai
     inside = np.abs(U[..., 0]) <= 1
     assert inside.any() and (~inside).any()
     ocp = np.array([[float(cost(xi, ui)) for xi, ui in zip(xr, ur)] for xr, ur in zip(X, U)])
-    np.testing.assert_allclose(-ocp[inside], scored[inside], rtol=1e-15, atol=1e-16)
+    if n_poles == 1:
+        np.testing.assert_allclose(-ocp[inside], scored[inside], rtol=1e-15, atol=1e-16)
+    else:  # the planner's form smooths the least of the poles' rate tolerances: just below the reward (each
+        # smoothed pair at most half the width below its minimum, which enters the reward halved)
+        gap = scored[inside] + ocp[inside]
+        assert np.all(gap >= -1e-15) and np.all(gap <= (n_poles - 1) * SMOOTH_MIN_WIDTH / 4 + 1e-15)
     assert np.all(-ocp[~inside] < scored[~inside])  # outside the range only the smooth form goes on falling
