@@ -35,9 +35,9 @@ def add_arguments(parser) -> None:
                         help="skip the default planner on every objective of the standard problem against the naive "
                              "script with that objective (--quick: effort and time only)")
     parser.add_argument("--no-planner-stage", action="store_true",
-                        help="skip the planner's stages (from its minimum-time plan: effort, tracking, time) on the "
-                             "shipped 1-, 2- and 3-pole carts, or the --mjcf given, against the naive script (--quick: "
-                             "one pole, effort and time)")
+                        help="skip the planner's stages (from its minimum-time plan: effort, tracking, time, "
+                             "dm_control's cart-pole rewards) on the shipped 1-, 2- and 3-pole carts, or the --mjcf "
+                             "given, against the naive script (--quick: one pole, effort and time)")
     parser.add_argument("--no-identify", action="store_true",
                         help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 
