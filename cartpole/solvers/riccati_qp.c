@@ -103,6 +103,8 @@ typedef struct {
     /* factorisation, per stage */
     double *P, *p, *K, *kk, *S, *L;
     int* nfree;       /* per stage (and the du_0 pseudo-stage at index N) */
+    int* fact_act;    /* (N+1) nz: the active set the stages' factors are of (when fact_valid) */
+    int fact_valid;
     int* fidx;        /* (N+1) nu: free control indices, then fixed ones */
     double *L0;       /* du_0's factor */
     /* solution */
@@ -168,10 +170,29 @@ static int backward(rqp_ws* W)
     double* r = R + nu * nu;          /* nu */
     double* q = r + nu;               /* nz */
     double* RF = q + nz;              /* nu nu */
-    memset(W->P + (size_t)d->N * nz * nz, 0, sizeof(double) * nz * nz);
-    memset(W->p + d->N * nz, 0, sizeof(double) * nz);
-    held_penalty(W, d->N);
-    for (int k = d->N - 1; k >= 0; --k) {
+    /* the stages above the last change of the active set since the last factorisation keep their factors (the
+       same data, the same operations: the same numbers): a held input of knot k changes stage k - 1, a held state
+       row of knot k the value function there, so stage k (k < N) or every stage (k = N) */
+    int ks = d->N - 1, top = 1;
+    if (W->fact_valid) {
+        ks = -1;
+        top = 0;
+        for (int k = 1; k <= d->N; ++k)
+            for (int i = 0; i < nz; ++i) {
+                const int j = IDX(k, i);
+                if (W->act[j] == W->fact_act[j]) continue;
+                const int c = i >= nx ? k - 1 : (k == d->N ? d->N - 1 : k);
+                if (i < nx && k == d->N) top = 1;
+                if (c > ks) ks = c;
+            }
+    }
+    W->fact_valid = 0;
+    if (top) {
+        memset(W->P + (size_t)d->N * nz * nz, 0, sizeof(double) * nz * nz);
+        memset(W->p + d->N * nz, 0, sizeof(double) * nz);
+        held_penalty(W, d->N);
+    }
+    for (int k = ks; k >= 0; --k) {
         const double* Tk = W->T + (size_t)k * nz * ny;
         const double* H = W->Hy + (size_t)k * ny * ny;
         const double* g = W->gy + (size_t)k * ny;
@@ -285,6 +306,8 @@ static int backward(rqp_ws* W)
             for (int b = 0; b < nf; ++b) W->L0[a * nf + b] = W->P[(e0 + fi[a]) * nz + e0 + fi[b]];
         if (nf && chol(nf, W->L0)) return 1;
     }
+    memcpy(W->fact_act, W->act, sizeof(int) * (size_t)(d->N + 1) * nz);
+    W->fact_valid = 1;
     return 0;
 }
 
@@ -530,7 +553,7 @@ static size_t work_doubles(int N, int nx, int nu, int mr)
 
 static size_t work_ints(int N, int nx, int nu, int mr)
 {
-    return (size_t)(N + 1) * (nu + 1) + RQP_NP + 2 * (size_t)mr + 3 * (size_t)(N + 1) * (nx + nu);
+    return (size_t)(N + 1) * (nu + 1) + RQP_NP + 2 * (size_t)mr + 4 * (size_t)(N + 1) * (nx + nu);
 }
 
 /* Sizes of rqp_solve's work arrays for at most maxrow held state rows: doubles, then ints. */
@@ -594,7 +617,9 @@ int rqp_solve(int N, int nx, int nu, const double* T, const double* ct, const do
     W.ri = io; io += mr;
     int* prev = io; io += ns;
     int* work = io; io += ns;
-    int* blocked = io; /* bounds whose addition made the held rows dependent: left out of this solve */
+    int* blocked = io; io += ns; /* bounds whose addition made the held rows dependent: left out of this solve */
+    W.fact_act = io;
+    W.fact_valid = 0;
     memset(blocked, 0, sizeof(int) * ns);
     /* equalities always held; infinite sides never */
     for (int k = 0; k <= N; ++k)

@@ -19,7 +19,9 @@ O(N^2) condensing and an O(N^3) factorisation every iteration; here each active 
   propagation through the unstable modes (on the triple the responses otherwise grew to 1e12 to 1e16 over 100
   stages), and a reduced Hessian is indefinite only where the constrained problem is not convex;
 - the equality-constrained QP of an active set: one backward Riccati pass (status 1 when a reduced Hessian of
-  the active set is not positive definite: the SQP then shifts the Hessian, or convexifies it), one
+  the active set is not positive definite: the SQP then shifts the Hessian, or convexifies it; from the second
+  active set of a solve on, only the stages below its latest change are factorised again, the others' factors
+  being the same numbers), one
   forward pass, and per held state row its response (a backward pass of the linear term, a forward pass), the
   rows' multipliers from the small system of their values (``nrow x nrow``, by pivoted elimination);
 - the **primal-dual active-set** update (Hintermuller, Ito and Kunisch): bounds the solution violates are added,

@@ -434,8 +434,11 @@ class CollocationSQP:
             delta = 0.0
             for _ in range(12):  # IPOPT's inertia correction: no shift first, then a third of the last one (1e-4 the
                 # first time) up by 8
-                Hs = Hy.copy()
-                Hs[:, diag, diag] += delta
+                if delta > 0.0:
+                    Hs = Hy.copy()
+                    Hs[:, diag, diag] += delta
+                else:
+                    Hs = Hy
                 st = rq.solve(T, ct, Hs, gy, lo, hi)
                 if st != 1:
                     break
