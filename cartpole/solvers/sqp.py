@@ -469,8 +469,7 @@ class CollocationSQP:
             if status == 0:
                 return self._riccati_step(Hy, gy, T, H, G, M)
             self.qp_counts["riccati_unsettled"] += 1
-            rq.reset()  # this QP goes to DAQP; the next one starts afresh (a minimum time's at this T: the condensing
-            # has no free state at knot 0, so the time scale keeps its value for this one step)
+            rq.reset()  # this QP goes to DAQP (a minimum time's with d tau one more unknown); the next starts afresh
         if self.qp_solver in ("riccati", "daqp"):
             out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
             if out is not None:
