@@ -69,7 +69,11 @@ def build_parser() -> argparse.ArgumentParser:
     for name, mod in _load_commands().items():
         p = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         p.add_argument("--mjcf", default=None, metavar="PATH",
-                       help="cart-pole MJCF file (default: the shipped cartpole/assets/cartpole.xml)")
+                       help="cart-pole MJCF file, or a URDF (default: the shipped cartpole/assets/cartpole.xml)")
+        p.add_argument("--actuated-joint", action="append", default=None, metavar="NAME", dest="actuated_joint",
+                       help="URDF only, repeatable: put a motor (ctrl = the joint's force or torque, limited by its "
+                            "effort) on this joint, overriding the file's <transmission> elements (default: the "
+                            "transmissions, else the only prismatic joint)")
         if writes_files(mod):
             p.add_argument("--out", default=".", metavar="DIR",
                            help="directory for outputs, created if missing (default: .)")
@@ -157,15 +161,54 @@ def _run(args):
             raise CartPoleError(f"--out was removed from {args.command}: {args.command} writes no files; drop the "
                                 "option")
         stack.enter_context(mujoco_warnings(notes.append))  # not MUJOCO_LOG.TXT in the cwd: not ours to write
+        imports = stack.enter_context(_urdf_session(args))
         stack.enter_context(reporting(args.command, enabled=not args.json))
         if args.json:  # a stray print must not spoil the one JSON document
             stack.enter_context(_stdout_to_stderr())
         doc = args._run(args)
+    _report_urdf(args.command, imports, doc)
     for note in dict.fromkeys(notes):  # each distinct warning once, after a run that succeeded
         print(f"cartpole {args.command}: MuJoCo warned: {note}", file=sys.stderr)
     for note in dict.fromkeys(f"{w.category.__name__}: {' '.join(str(w.message).split())}" for w in caught):
         print(f"cartpole {args.command}: warning: {note}", file=sys.stderr)
     return doc
+
+
+def _urdf_session(args):
+    """The URDF choices of ``--actuated-joint`` for every model the command reads (refused for an MJCF), collecting
+    what each URDF read added (:func:`cartpole.models.urdf_session`)."""
+    from pathlib import Path
+
+    from cartpole.models import is_urdf, urdf_session
+
+    chosen = getattr(args, "actuated_joint", None)
+    if chosen and getattr(args, "mjcf", None) is not None:
+        try:
+            text = Path(args.mjcf).expanduser().read_text()
+        except (OSError, UnicodeDecodeError):
+            text = None  # the command's own reading says what is wrong with the file
+        if text is not None and not is_urdf(text):
+            raise CartPoleError(f"--actuated-joint chooses the driven joints of a URDF, and --mjcf {args.mjcf} is "
+                                "an MJCF with its own actuators; drop --actuated-joint or edit the MJCF's <actuator>")
+    elif chosen:
+        raise CartPoleError("--actuated-joint chooses the driven joints of a URDF, and no --mjcf was given (the "
+                            "shipped MJCF has its own motor); give --mjcf with a URDF or drop --actuated-joint")
+    return urdf_session(chosen, option="--actuated-joint NAME")
+
+
+def _report_urdf(command: str, imports: list, doc) -> None:
+    """Say what reading a URDF added: one sentence per motor and change on stderr, and in the JSON document under
+    ``model``: ``actuators_added`` (one object per motor, with its ``file``) and ``urdf_changes`` (sentences)."""
+    if not imports:
+        return
+    for rec in imports:
+        for line in rec.sentences():
+            print(f"cartpole {command}: {line}", file=sys.stderr)
+    if isinstance(doc, dict):
+        model = doc.setdefault("model", {})
+        if isinstance(model, dict):
+            model["actuators_added"] = [{**a.to_dict(), "file": rec.path} for rec in imports for a in rec.actuators]
+            model["urdf_changes"] = [line for rec in imports for line in rec.sentences()[len(rec.actuators):]]
 
 
 @contextlib.contextmanager

@@ -33,7 +33,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.estimation.base import EstimationError
-from cartpole.models import CartPoleModel, CartPoleParams, load_model
+from cartpole.models import CartPoleModel, CartPoleParams, load_model, mujoco_model
 
 #: Supported kinds -> (dim, what they depend on): "position" (qpos alone), "rate" (qvel too), "input" (ctrl),
 #: "acceleration" (qpos, qvel and ctrl, through the dynamics).
@@ -233,7 +233,7 @@ def _compiled(source):
     if isinstance(source, CartPoleModel):
         source = source.params
     if isinstance(source, CartPoleParams):
-        m = (load_model(source.mjcf) if source.mjcf else load_model(xml=source.xml))[0]
+        m = mujoco_model(source)  # a URDF's params: their MJCF text, motors included
         return m, f"MJCF '{source.mjcf}'" if source.mjcf else "The MJCF"
     m, path, _ = load_model(None if source is None else Path(source))
     return m, f"MJCF '{path}'"

@@ -17,7 +17,7 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, load_model
+from cartpole.models import CartPoleParams, mujoco_model
 
 _TAG = r"<({kinds})\b([^<>]*?)(/?)>"
 _ACTUATORS = "motor|general|position|velocity|intvelocity|damper|cylinder|muscle|adhesion|dcmotor"
@@ -85,7 +85,7 @@ def fitted_text(p: CartPoleParams, params, values) -> str:
         An element not found in the text, or a file that makes MuJoCo ignore ``<inertial>``.
     """
     text = p.xml
-    m_nom = load_model(p.mjcf or None, xml=None if p.mjcf else p.xml)[0]
+    m_nom = mujoco_model(p)
     body_vals: dict[int, dict] = {}
     for q, v in zip(params, values):
         if q.kind in ("damping", "frictionloss", "armature"):

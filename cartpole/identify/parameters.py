@@ -31,7 +31,7 @@ import numpy as np
 
 from cartpole.errors import CartPoleError
 from cartpole.models import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, CartPoleParams,
-                             FrictionConstraint, equations, friction_constraint, load_model)
+                             FrictionConstraint, equations, friction_constraint, mujoco_model)
 
 KINDS = ("mass", "com", "inertia", "damping", "frictionloss", "armature", "gear")
 _AXES = "xyz"
@@ -278,7 +278,7 @@ def mujoco_friction(p: CartPoleParams) -> FrictionConstraint:
     -------
     FrictionConstraint
     """
-    m = load_model(p.mjcf or None, xml=None if p.mjcf else p.xml)[0]
+    m = mujoco_model(p)
     return friction_constraint(m)
 
 

@@ -1,6 +1,7 @@
 """MJCF -> parameters -> kinematics -> symbolic CasADi model -> equilibria -> exact continuous and discrete linearisation."""
 from cartpole.models.params import (SHIPPED_MJCF, SUPPORTED_INTEGRATORS, CartPoleParams, MJCFError,
-                                    load_model, mujoco_warnings, read_params)
+                                    load_model, mujoco_model, mujoco_warnings, read_params)
+from cartpole.models.urdf import AddedActuator, URDFError, URDFImport, import_urdf, is_urdf, urdf_session
 from cartpole.models.friction import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, FrictionConstraint,
                                       FrictionWidthError, check_width, constraint_friction_force,
                                       friction_constraint, smooth_friction)
@@ -10,7 +11,8 @@ from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equ
                                       wrap_angle)
 
 __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError", "load_model", "mujoco_warnings",
-           "read_params",
+           "read_params", "mujoco_model", "AddedActuator", "URDFError", "URDFImport", "import_urdf", "is_urdf",
+           "urdf_session",
            "CartPoleModel", "Equations", "build_model", "equations", "linearize", "state_error", "wrap_angle",
            "Kinematics", "forward_kinematics", "forward_kinematics_np", "MAX_PERIOD", "HoldModel", "PeriodError",
            "hold_model", "steps_per_period", "DEFAULT_FRICTION_WIDTH", "FrictionWidthError", "check_width",

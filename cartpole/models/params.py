@@ -19,12 +19,13 @@ import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError, first_line
+from cartpole.models.urdf import URDFError, URDFImport, import_urdf, is_urdf
 
 #: Integrators whose one-step map :mod:`cartpole.models.symbolic` reproduces exactly.
 SUPPORTED_INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
@@ -201,6 +202,10 @@ class CartPoleParams:
     up : (3,) array
         Unit vector against ``opt.gravity`` (``+z`` when it is zero): the direction "upright" points in.
     joints, bodies, actuators : tuples of :class:`JointParams`, :class:`BodyParams`, :class:`ActuatorParams`
+    urdf : :class:`cartpole.models.urdf.URDFImport` or None
+        For a URDF (``mjcf`` its path): the motors added and the changes made so MuJoCo loads it; ``xml`` is then
+        the MJCF text (with those motors) that MuJoCo runs, so compile ``xml``, not the file
+        (:func:`mujoco_model`). None for an MJCF.
     """
 
     mjcf: str
@@ -213,6 +218,7 @@ class CartPoleParams:
     joints: tuple
     bodies: tuple
     actuators: tuple
+    urdf: URDFImport | None = None
 
     # ---- sizes and named indices ------------------------------------------------------------
     @property
@@ -445,26 +451,71 @@ class CartPoleParams:
         return dataclasses.replace(self, bodies=tuple(bodies), joints=joints)
 
 
-def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
-    """Compile an MJCF into a ``mujoco.MjModel``, turning MuJoCo's errors into :class:`MJCFError`.
+def load_model(mjcf: str | Path | None = None, *, xml: str | None = None,
+               actuated_joints: Sequence[str] | None = None):
+    """Compile an MJCF (or a URDF) into a ``mujoco.MjModel``, turning MuJoCo's errors into :class:`MJCFError`.
+
+    A URDF (root element ``<robot>``) is compiled with a motor on each driven joint
+    (:mod:`cartpole.models.urdf`: its transmissions, else its only prismatic joint, or ``actuated_joints``).
 
     Parameters
     ----------
     mjcf : path, optional
-        MJCF file; defaults to the shipped asset. Ignored when ``xml`` is given.
+        MJCF or URDF file; defaults to the shipped asset. Ignored when ``xml`` is given.
     xml : str, optional
-        MJCF text to compile instead of a file.
+        MJCF (or URDF) text to compile instead of a file.
+    actuated_joints : sequence of str, optional
+        URDF only: the joints to drive (ctrl order), overriding the file's transmissions.
 
     Returns
     -------
     (mujoco.MjModel, str path, str xml)
+        For a URDF, ``xml`` is the MJCF text, motors included, that recompiles to the model.
     """
+    m, path, text, _ = _load(mjcf, xml=xml, actuated_joints=actuated_joints)
+    return m, path, text
+
+
+def mujoco_model(params: "CartPoleParams"):
+    """Compile the MuJoCo model ``params`` were read from: the MJCF file, else the XML text (for a URDF: the MJCF
+    text with its added motors, never the URDF again, whose driven joints may have been chosen by the caller).
+
+    Parameters
+    ----------
+    params : CartPoleParams
+
+    Returns
+    -------
+    mujoco.MjModel
+    """
+    if params.mjcf and params.urdf is None:
+        return load_model(params.mjcf)[0]
+    return load_model(xml=params.xml)[0]
+
+
+def _urdf(text: str, path: str, actuated_joints):
+    """(model, MJCF text, URDFImport) of a URDF, MuJoCo's warnings collected as for an MJCF."""
+    try:
+        with _compiler_warnings():
+            return import_urdf(text, path, actuated_joints=actuated_joints)
+    except URDFError as exc:
+        raise MJCFError(str(exc)) from None
+
+
+def _load(mjcf=None, *, xml=None, actuated_joints=None):
+    """:func:`load_model` plus the :class:`URDFImport` of a URDF (None for an MJCF)."""
     import mujoco
 
     if xml is not None:
+        if is_urdf(xml):
+            m, text, record = _urdf(xml, "", actuated_joints)
+            return m, "", text, record
+        if actuated_joints:
+            raise MJCFError("actuated_joints chooses the driven joints of a URDF; this MJCF text declares its own "
+                            "actuators, so drop actuated_joints.")
         try:
             with _compiler_warnings():
-                return mujoco.MjModel.from_xml_string(xml), "", xml
+                return mujoco.MjModel.from_xml_string(xml), "", xml, None
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
             raise MJCFError(f"The MJCF text does not compile: {first_line(exc)}. "
                             "Fix the XML and try again.") from None
@@ -480,6 +531,12 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
     except (OSError, UnicodeDecodeError) as exc:
         raise MJCFError(f"MJCF file '{path}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
                         "path of a cart-pole MJCF.") from None
+    if is_urdf(text):
+        m, mjcf_text, record = _urdf(text, str(path), actuated_joints)
+        return m, str(path), mjcf_text, record
+    if actuated_joints:
+        raise MJCFError(f"MJCF file '{path}' declares its own actuators; actuated_joints (--actuated-joint) "
+                        "chooses the driven joints of a URDF only, so drop it.")
     check_referenced_files(path, text)  # an <include> or asset naming a FIFO would block MuJoCo's reader forever
     try:
         with _compiler_warnings():
@@ -487,7 +544,7 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
     except Exception as exc:
         raise MJCFError(f"MJCF file '{path}' does not compile: {first_line(exc)}. "
                         "Fix the XML and try again.") from None
-    return model, str(path), text
+    return model, str(path), text, None
 
 
 #: Most files an MJCF may pull in through nested <include> elements before it is refused (a loop of includes).
@@ -749,7 +806,8 @@ def _colliding_pair(m):
     return None
 
 
-def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> CartPoleParams:
+def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
+                actuated_joints: Sequence[str] | None = None) -> CartPoleParams:
     """Read the parameters of a cart-pole MJCF from its compiled ``MjModel``.
 
     Accepts a kinematic tree of slide and hinge joints (typically one slide, the cart, carrying a chain of
@@ -770,10 +828,14 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
         MJCF file; defaults to the shipped asset (``cartpole/assets/cartpole.xml``).
     xml : str, optional
         MJCF text instead of a file.
+    actuated_joints : sequence of str, optional
+        URDF only: the joints its motors drive, in ctrl order, overriding its ``<transmission>`` elements (default:
+        the transmissions, else the only prismatic joint; see :mod:`cartpole.models.urdf`).
 
     Returns
     -------
     CartPoleParams
+        For a URDF, ``urdf`` records the motors added and ``xml`` is the MJCF text MuJoCo runs.
 
     Raises
     ------
@@ -782,8 +844,8 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
     """
     import mujoco
 
-    m, path, text = load_model(mjcf, xml=xml)
-    where = f"MJCF '{path}'" if path else "The MJCF"
+    m, path, text, urdf = _load(mjcf, xml=xml, actuated_joints=actuated_joints)
+    where = (f"{'URDF' if urdf else 'MJCF'} '{path}'" if path else f"The {'URDF' if urdf else 'MJCF'}")
     _check_supported(m, where)
 
     # Moving bodies: those with a joint somewhere on their path to the world.
@@ -846,7 +908,7 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
     return CartPoleParams(
         mjcf=path, xml=text, timestep=float(m.opt.timestep), integrator=_INTEGRATOR_NAMES[int(m.opt.integrator)],
         euler_damping_implicit=not bool(dis & flags.mjDSBL_EULERDAMP), gravity=readonly(gravity), up=readonly(up),
-        joints=tuple(joints), bodies=tuple(bodies), actuators=tuple(actuators))
+        joints=tuple(joints), bodies=tuple(bodies), actuators=tuple(actuators), urdf=urdf)
 
 
 def _world_frame_of_static(m, d, parent: int, b: int):

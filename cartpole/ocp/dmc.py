@@ -238,7 +238,8 @@ def _pole_cosines(model, x) -> list:
 def _site(params, name: str):
     """``(body index or -1, position (3,) in that body's frame (in the world for -1), size (3,))`` of the MJCF's
     site ``name``, or None when it has none."""
-    return _sites(params.mjcf, params.xml, tuple(b.name for b in params.bodies)).get(name)
+    mjcf = params.mjcf if params.urdf is None else ""  # a URDF's params: their MJCF text
+    return _sites(mjcf, params.xml, tuple(b.name for b in params.bodies)).get(name)
 
 
 @functools.lru_cache(maxsize=32)

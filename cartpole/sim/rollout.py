@@ -18,7 +18,7 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError
-from cartpole.models import SHIPPED_MJCF, CartPoleParams, load_model
+from cartpole.models import SHIPPED_MJCF, CartPoleParams, load_model, mujoco_model
 
 #: The rig's per-control-instant log (None without a rig): times, measurements, estimates, estimator wall time.
 SAMPLE_FIELDS = ("t_sample", "y", "x_hat", "estimate_ms")
@@ -145,10 +145,7 @@ def make_mujoco(source: CartPoleParams | str | Path | None = None):
     import mujoco
 
     if isinstance(source, CartPoleParams):
-        if source.mjcf:
-            m, _, _ = load_model(source.mjcf)
-        else:
-            m, _, _ = load_model(xml=source.xml)
+        m = mujoco_model(source)  # a URDF's params: their MJCF text, with the motors added
     else:
         m, _, _ = load_model(source)
     return m, mujoco.MjData(m)

@@ -26,11 +26,12 @@ most of the GL time). Every failure is a :class:`VideoUnavailable` with one sent
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from cartpole.errors import CartPoleError, first_line
-from cartpole.models import CartPoleParams
+from cartpole.models import CartPoleParams, is_urdf, load_model
 from cartpole.sim import ctrl_bounds, make_mujoco
 
 #: Display colours (RGB, 0..1) of the links, first pole first; more links than colours cycle.
@@ -107,10 +108,14 @@ def _spec(source):
     params = source.params if hasattr(source, "params") and isinstance(source.params, CartPoleParams) else source
     make_mujoco(params)  # validates the source with the toolkit's one-sentence errors
     if isinstance(params, CartPoleParams):
-        return mujoco.MjSpec.from_file(params.mjcf) if params.mjcf else mujoco.MjSpec.from_string(params.xml)
+        if params.mjcf and params.urdf is None:
+            return mujoco.MjSpec.from_file(params.mjcf)
+        return mujoco.MjSpec.from_string(params.xml)  # MJCF text, or a URDF's with its motors
     from cartpole.sim import source_path
 
-    return mujoco.MjSpec.from_file(source_path(params))
+    path = source_path(params)
+    _, _, text = load_model(path)
+    return mujoco.MjSpec.from_string(text) if is_urdf(Path(path).read_text()) else mujoco.MjSpec.from_file(path)
 
 
 @dataclass

@@ -31,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.lqr import lab_weights, tvlqr
-from cartpole.models import build_model, load_model, read_params
+from cartpole.models import build_model, mujoco_model, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
@@ -80,7 +80,7 @@ def hand_typed_cartpole(params) -> ca.Function | None:
 
     if params.nq != 2 or params.nu != 1 or params.slide is None:
         return None
-    mj, _, _ = load_model(params.mjcf) if params.mjcf else load_model(xml=params.xml)
+    mj = mujoco_model(params)
     if mj.nq != 2 or mj.nu != 1 or int(mj.actuator_trnid[0, 0]) != params.slide:
         return None
     s, h = int(params.slide), 1 - int(params.slide)
