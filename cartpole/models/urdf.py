@@ -311,8 +311,7 @@ def _transmissions(robot, where: str) -> list:
         joints = _children(tr, "joint")
         if kind.rsplit("/", 1)[-1] != "SimpleTransmission" or len(joints) != 1:
             raise URDFError(f"{where} has <transmission> '{name}' of type '{kind or 'none'}' on {len(joints)} "
-                            "joint(s); the toolkit reads SimpleTransmission on one joint, so choose the driven "
-                            "joints with OPTION.")
+                            "joint(s), not a SimpleTransmission on one joint; choose the driven joints with OPTION.")
         act = _child(tr, "actuator")
         red_el = _child(act, "mechanicalreduction") if act is not None else None
         if red_el is None:
@@ -340,9 +339,9 @@ def _choose(joints: dict, drives: list, chosen, option: str, where: str) -> list
         out = []
         for name in dict.fromkeys(chosen):
             if name not in joints or joints[name].kind not in _MOVABLE:
-                what = f"is a {joints[name].kind} joint" if name in joints else "is not a joint of it"
-                raise URDFError(f"Joint '{name}' given to drive {what} in {where}; give {option} with one of its "
-                                f"prismatic, revolute or continuous joints ({listed}).")
+                what = f"is a {joints[name].kind} joint" if name in joints else "is not a joint"
+                raise URDFError(f"Joint '{name}' {what} of {where}; give {option} with one of its movable joints "
+                                f"({listed}).")
             out.append(_Drive(name, "actuated_joints"))
         return out
     if drives:
@@ -350,8 +349,8 @@ def _choose(joints: dict, drives: list, chosen, option: str, where: str) -> list
         for d in drives:
             if d.joint not in joints or joints[d.joint].kind not in _MOVABLE:
                 what = f"{joints[d.joint].kind} joint" if d.joint in joints else "joint that it does not have"
-                raise URDFError(f"{where} drives {what} '{d.joint}' through <{d.source}> '{d.transmission}'; fix "
-                                f"the joint name, or choose the driven joints with {option} ({listed}).")
+                raise URDFError(f"{where} drives {what} '{d.joint}' in <{d.source}> '{d.transmission}'; fix the "
+                                f"name, or choose with {option} ({listed}).")
             if d.joint not in seen:
                 seen.add(d.joint)
                 out.append(d)
@@ -361,8 +360,8 @@ def _choose(joints: dict, drives: list, chosen, option: str, where: str) -> list
         return [_Drive(prismatic[0], "single_prismatic")]
     found = (f"{len(prismatic)} prismatic joints ({', '.join(repr(n) for n in prismatic)})" if prismatic
              else "no prismatic joint (no cart)")
-    raise URDFError(f"{where} has no <transmission> and {found}, so which joint its motor drives is not clear; "
-                    f"name it with {option} (its movable joints: {listed}).")
+    raise URDFError(f"{where} has no <transmission> and {found}; name the joint to drive with {option} "
+                    f"(movable joints: {listed}).")
 
 
 def _package_candidates(uri: str, base: Path) -> list:
