@@ -479,6 +479,22 @@ def _name_of(m, objtype, i: int) -> str:
     return mujoco.mj_id2name(m, objtype, i) or ""
 
 
+def _name_geoms(spec) -> None:
+    """Name each unnamed geom after its link (``cart``, ``cart_2``, ...), so that a sentence about a contact names
+    the links, not ``geom 3``."""
+    taken = {g.name for g in spec.geoms if g.name}
+    for body in spec.bodies:
+        for k, g in enumerate(body.geoms):
+            if g.name:
+                continue
+            name, n = body.name, 1
+            while name in taken:
+                n += 1
+                name = f"{body.name}_{n}"
+            g.name = name
+            taken.add(name)
+
+
 def _adjacent_excludes(m, joints: dict) -> list:
     """(parent body, child body) names of moving joints whose parent body is welded to the world and whose geoms
     MuJoCo's masks would let touch."""
@@ -548,6 +564,7 @@ def import_urdf(text: str, path: str = "", *, actuated_joints: Sequence[str] | N
     drives = _choose(joints, found, actuated_joints, option, where)
     try:
         spec = mujoco.MjSpec.from_string(mj_text)
+        _name_geoms(spec)  # before compiling fuses static links into their parents
         m0 = spec.compile()
     except Exception as exc:
         msg = first_line(exc)
