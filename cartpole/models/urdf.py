@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import xml.parsers.expat
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -239,10 +240,14 @@ def is_urdf(text: str) -> bool:
     """
     if "robot" not in text:
         return False
-    try:
-        return _local(_parse_raw(text).tag) == "robot"
-    except (xml.parsers.expat.ExpatError, ValueError):
-        return False
+    head = _PROLOG.match(text)
+    rest = text[head.end():] if head else text
+    root = re.match(r"<([\w:.-]+)", rest)
+    return bool(root) and root.group(1) == "robot"  # as MuJoCo decides: the root element named robot
+
+
+#: What may come before the root element: an XML declaration, comments, processing instructions, a DOCTYPE, blanks.
+_PROLOG = re.compile(r"(?:\ufeff)?(?:\s+|<\?.*?\?>|<!--.*?-->|<!DOCTYPE[^>\[]*(?:\[.*?\])?\s*>)*", re.S)
 
 
 def _local(tag: str) -> str:

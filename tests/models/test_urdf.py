@@ -5,7 +5,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from cartpole.models import (MJCFError, build_model, load_model, mujoco_model, read_params, urdf_session)
+from cartpole.models import (MJCFError, build_model, is_urdf, load_model, mujoco_model, read_params, urdf_session)
 from cartpole.sim import make_mujoco
 from cartpole.validation.jacobians import check_jacobians, random_states
 from urdf_layouts import BULLET, DRAKE, ISAAC, LAYOUTS, ROS, write_layout
@@ -177,3 +177,13 @@ def test_ros2_control_effort_interfaces_become_motors(tmp_path):
       <joint name="cart_to_pole"><state_interface name="position"/></joint></ros2_control></robot>"""))
     p = read_params(path)
     assert p.urdf.actuators[0].source == "ros2_control" and p.joint_names[p.actuators[0].joint] == "slider_to_cart"
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('<?xml version="1.0"?>\n<!-- a <mujoco> comment -->\n<robot name="r"/>', True),
+    ("<!DOCTYPE robot>\n<robot/>", True),
+    ('<!-- <robot> --><mujoco model="robot"/>', False),
+    ('<mujoco model="robot"><worldbody/></mujoco>', False),
+])
+def test_a_urdf_is_told_by_its_root_element(text, expected):
+    assert is_urdf(text) is expected
