@@ -17,7 +17,8 @@ arrives without actuators, and a URDF cannot hold a ``<motor>``. This module rea
   ``mechanicalReduction`` (recorded, not applied: the reduction scales the *motor's* torque, and a URDF gives no
   rotor inertia that would make it matter to the dynamics; a joint force in N keeps ``R`` and ``ctrlrange`` in the
   units a control engineer reads). The ctrl range is the joint's ``<limit effort>`` (``+-effort``); no effort, or
-  an effort of 0, leaves the motor unlimited. MuJoCo's URDF reader turns ``effort`` into the joint's
+  an effort of 0 or one above :data:`EFFORT_AS_UNLIMITED` (a placeholder such as ``1e30``), leaves the motor
+  unlimited. MuJoCo's URDF reader turns ``effort`` into the joint's
   ``actuatorfrcrange``; that clamp is cleared (on a driven joint the ctrl range carries the same bound, on an
   undriven one it clamps nothing).
 * **What MuJoCo's reader keeps.** ``<dynamics damping friction>`` become the joint's ``damping`` and
@@ -59,6 +60,10 @@ from cartpole.errors import CartPoleError, first_line
 #: a point mass or an infinitely thin rod, which MuJoCo refuses. 1e-12 kg m^2 beside a 1 kg pole of 0.5 m (m l^2 =
 #: 0.25 kg m^2) changes its inertia about the hinge by 4e-12 relative.
 MIN_INERTIA = 1e-12
+
+#: An effort limit (N or N m) above this is a placeholder for "no limit" (``effort="1e30"``), read as unlimited:
+#: beyond it the toolkit refuses a ctrl range as no real motor (:data:`cartpole.models.params.MAX_ACTUATOR_FORCE`).
+EFFORT_AS_UNLIMITED = 1e6
 
 #: MuJoCo's mjMINVAL: the smallest mass and principal inertia it accepts on a moving body.
 _MJ_MINVAL = 1e-15
@@ -589,8 +594,11 @@ def import_urdf(text: str, path: str = "", *, actuated_joints: Sequence[str] | N
         j = joints[d.joint]
         name = d.actuator if d.actuator and d.actuator not in names else f"{d.joint}_motor"
         names.add(name)
-        limited = j.effort is not None and 0 < j.effort < np.inf
+        limited = j.effort is not None and 0 < j.effort <= EFFORT_AS_UNLIMITED
         rng = [-j.effort, j.effort] if limited else [-np.inf, np.inf]
+        if j.effort is not None and j.effort > EFFORT_AS_UNLIMITED:
+            changes.append(f"the effort limit {j.effort:g} of joint '{d.joint}' is read as no limit (above "
+                           f"{EFFORT_AS_UNLIMITED:g}, no real motor's)")
         act = spec.add_actuator(name=name, target=d.joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.gear[0] = 1.0
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE if limited else mujoco.mjtLimited.mjLIMITED_FALSE

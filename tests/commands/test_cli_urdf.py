@@ -58,6 +58,7 @@ def independent_replay(urdf, added, x0, ctrl):
     return np.array(xs)
 
 
+@pytest.mark.slow
 def test_lqr_balances_the_bullet_layout_and_its_runs_replay(tmp_path, capsys):
     path = write_layout("bullet", tmp_path)
     code, doc = run_json(["lqr", "--mjcf", str(path), "--no-video", "--json", "--out", str(tmp_path / "out")])

@@ -103,7 +103,8 @@ def test_a_mechanical_reduction_is_recorded_and_ctrl_stays_the_joint_force(tmp_p
     assert p.urdf.actuators[0].mechanical_reduction == 20.0 and "not applied" in p.urdf.actuators[0].sentence()
 
 
-@pytest.mark.parametrize("limit", ['effort="0" lower="-15" upper="15"', 'lower="-15" upper="15"'])
+@pytest.mark.parametrize("limit", ['effort="0" lower="-15" upper="15"', 'lower="-15" upper="15"',
+                                   'effort="1e30" lower="-15" upper="15"'])
 def test_no_effort_limit_leaves_the_motor_unlimited(tmp_path, limit):
     path = tmp_path / "u.urdf"
     path.write_text(BULLET.replace('effort="1000.0" lower="-15" upper="15"', limit))
@@ -187,3 +188,10 @@ def test_ros2_control_effort_interfaces_become_motors(tmp_path):
 ])
 def test_a_urdf_is_told_by_its_root_element(text, expected):
     assert is_urdf(text) is expected
+
+
+def test_the_effort_read_as_no_limit_is_the_largest_force_the_toolkit_accepts():
+    from cartpole.models.params import MAX_ACTUATOR_FORCE
+    from cartpole.models.urdf import EFFORT_AS_UNLIMITED
+
+    assert EFFORT_AS_UNLIMITED == MAX_ACTUATOR_FORCE
