@@ -506,8 +506,8 @@ def _name_geoms(spec) -> None:
 
 
 def _adjacent_excludes(m, joints: dict) -> list:
-    """(parent body, child body) names of moving joints whose parent body is welded to the world and whose geoms
-    MuJoCo's masks would let touch."""
+    """(parent body, child body, parent link, child link) of moving joints whose parent body is welded to the world
+    and whose geoms MuJoCo's masks would let touch (a link fused into the world is body ``world``)."""
     import mujoco
 
     def collides(b):
@@ -525,8 +525,8 @@ def _adjacent_excludes(m, joints: dict) -> list:
         if m.body_weldid[parent] == 0 and collides(child) and any(
                 collides(b) for b in range(m.nbody) if m.body_weldid[b] == 0):
             pair = (_name_of(m, mujoco.mjtObj.mjOBJ_BODY, parent) or "world",
-                    _name_of(m, mujoco.mjtObj.mjOBJ_BODY, child))
-            if pair not in out:
+                    _name_of(m, mujoco.mjtObj.mjOBJ_BODY, child), j.parent, j.child)
+            if pair[:2] not in [p[:2] for p in out]:
                 out.append(pair)
     return out
 
@@ -585,10 +585,10 @@ def import_urdf(text: str, path: str = "", *, actuated_joints: Sequence[str] | N
         raise URDFError(f"{where} does not compile in MuJoCo: {msg}; fix the URDF and try again.") from None
     for sj in spec.joints:
         sj.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE  # the effort limit becomes the motor's ctrlrange
-    for a, b in _adjacent_excludes(m0, joints):
+    for a, b, parent, child in _adjacent_excludes(m0, joints):
         spec.add_exclude(bodyname1=a, bodyname2=b)
-        changes.append(f"contacts between link '{a}' (welded to the world) and its child '{b}' are excluded, as "
-                       "Bullet, Gazebo and Drake keep adjacent links of one robot apart")
+        changes.append(f"contacts between link '{parent}' (welded to the world) and its child '{child}' are "
+                       "excluded, as Bullet, Gazebo and Drake keep adjacent links of one robot apart")
     added, names = [], set()
     for d in drives:
         j = joints[d.joint]
