@@ -54,8 +54,10 @@ def _seed(value) -> int:
     return int(text)
 
 
-def _inertia_and_authority(source, x_eq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(nv,) joint-space inertia diagonal and (nv,) largest acceleration the actuators give each joint, at ``x_eq``."""
+def joint_inertia_and_authority(source, x_eq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's joint-space inertia diagonal (nv,) (kg, kg m^2) and the largest acceleration (nv,) (m/s^2, rad/s^2)
+    the actuators can give each joint within their ctrl ranges (0 for unlimited ones), at the state ``x_eq`` (nx,)
+    at rest, for the MJCF ``source`` (CartPoleParams or path)."""
     import mujoco
 
     m, d = make_mujoco(source)
@@ -155,7 +157,7 @@ class KnockdownForce:
         self.x_eq = x_eq
         self.hinges = hinges
         self.nq = x_eq.size // 2
-        inertia, authority = _inertia_and_authority(source, x_eq)
+        inertia, authority = joint_inertia_and_authority(source, x_eq)
         self.scale = knock.strength * inertia * (4.0 / knock.length ** 2 + 2.0 * authority)
         self.rng = np.random.default_rng(knock.seed)
         self.upright_since: float | None = None
