@@ -14,7 +14,7 @@
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
   planner runs in the caller's thread and its wall time ``W`` is honest latency: the plan is used only from
   ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted is tracked from where its
-  clock has got to. A plan that fails, or takes more than ``plan_budget`` s, is logged and retried after
+  clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is logged and retried after
   ``retry_after`` s of braking.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again.
@@ -208,8 +208,9 @@ class Supervisor:
 
     @property
     def latency(self) -> float:
-        """s, the planning latency the next plan is predicted with: the median measured so far, else the option."""
-        return float(np.median(self.plan_seconds)) if self.plan_seconds else self.options.latency
+        """s, the planning latency the next plan is predicted with: 1.25 times the median measured so far (a plan
+        that comes late is tracked from where its clock has got to, so erring long is cheaper), else the option."""
+        return 1.25 * float(np.median(self.plan_seconds)) if self.plan_seconds else self.options.latency
 
     def _decide(self, t: float, kind: str, **detail) -> None:
         self.decisions.append(Decision(float(t), kind, detail))
@@ -328,6 +329,7 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
         check_single_pole(model)
     except EnergyShapingModelError:
         plan_opts = PlanOptions() if plan is None else plan
+        plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
 
         def planner(x0):
             return trajopt_swingup(params, x0=tuple(x0), model=model, options=plan_opts, period=period)

@@ -62,7 +62,7 @@ def test_a_plan_is_used_only_after_its_measured_wall_time(double, monkeypatch):
     assert np.allclose(sup(0.5, x), brake(0.5, x)) and sup.mode == "wait"  # 0.5 s < 0.8 s: still planning
     sup(0.8, x)
     assert sup.mode == "track" and sup.decisions[-1].detail["late_s"] == pytest.approx(0.5)
-    assert sup.latency == pytest.approx(0.8)  # the next plan is predicted over the measured latency
+    assert sup.latency == pytest.approx(1.25 * 0.8)  # the next plan is predicted over the measured latency
 
 
 def test_a_failed_plan_is_logged_and_retried_after_braking(double):
