@@ -268,3 +268,25 @@ class ThrowForce:
         self.mujoco.mj_fullM(self.m, self.d, M)
         self.events.append((float(t), float(t + self.h)))
         return M @ dv / self.h
+
+
+class Disturbances:
+    """Several disturbances at once: ``f(t, x)`` is their sum; :attr:`events` all their ``(start, end)`` times, in
+    time order.
+
+    Parameters
+    ----------
+    parts : tuple of callables
+        Each ``f(t [s], x (nx,)) -> (nv,)`` with an ``events`` list (:class:`KnockdownForce`, :class:`ThrowForce`).
+    """
+
+    def __init__(self, parts: tuple):
+        self.parts = parts
+
+    @property
+    def events(self) -> list[tuple[float, float]]:
+        """Every part's ``(start, end)`` times in s, sorted."""
+        return sorted(e for p in self.parts for e in p.events)
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        return sum(np.asarray(p(t, x), dtype=float) for p in self.parts)

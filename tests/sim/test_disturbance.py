@@ -99,3 +99,15 @@ def test_uptime_counts_a_run_held_upright_as_up_without_swingups(cart):
 def test_bad_knockdowns_are_refused_in_one_sentence(text, fix):
     with pytest.raises(DisturbanceError, match=fix):
         Knockdown.parse(text)
+
+
+def test_loop_options_take_a_knockdown_as_text_and_build_the_runs_disturbance(cart):
+    from cartpole.sim import LoopOptions
+
+    params, model = cart
+    loop = LoopOptions(knockdown="2:0.3:5", throw=Throw(1.0, seed=1))
+    assert loop.knockdown == Knockdown(2.0, 0.3, 5) and loop.disturbed and not LoopOptions().disturbed
+    force = loop.disturbance(params, x_eq=model.x_eq, hinges=model.hinges)
+    run = simulate(params, LinearFeedback.for_model(model), model.x_eq, 3.0, disturbance=force)
+    assert len(force.events) >= 2 and replays_exactly(run)
+    assert LoopOptions().disturbance(params, x_eq=model.x_eq, hinges=model.hinges) is None
