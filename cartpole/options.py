@@ -35,7 +35,7 @@ class OptionsError(CartPoleError, ValueError):
 def json_ready(value):
     """``value`` as plain JSON types: arrays and tuples as lists, mappings as dicts, numpy scalars as Python numbers,
     functions as ``"module:qualname"``, objects with a ``name`` (e.g. an :class:`~cartpole.ocp.objectives.Objective`)
-    by that name; anything else by ``str``."""
+    by that name, other dataclasses as dicts of their fields; anything else by ``str``."""
     if value is None or isinstance(value, (bool, str)):
         return value
     if isinstance(value, (int, np.integer)):
@@ -52,6 +52,8 @@ def json_ready(value):
         return f"{getattr(value, '__module__', '?')}:{value.__qualname__}"
     if isinstance(getattr(value, "name", None), str):
         return value.name
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):  # e.g. a knockdown: its fields
+        return {f.name: json_ready(getattr(value, f.name)) for f in dataclasses.fields(value)}
     return str(value)
 
 

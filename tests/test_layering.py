@@ -17,6 +17,7 @@ Layers, lowest first; a module may import its own layer and the layers below it,
     identify      cartpole.identify        (reserved) system identification, the fitted MJCF
     export        cartpole.export          (reserved) standalone C of controllers and estimators
     validation    cartpole.validation      metrics, Jacobian checks, catch basins
+    supervise     cartpole.supervise       the supervisor: catch, swing-up law, brake, plan and track, at run time
     viz           cartpole.viz             figures and video
     apps          cartpole.apps            what each command does (lab, swingup, feedforward, sweep, bench)
     commands      cartpole.commands, cartpole.cli, cartpole.__main__   argparse and printing
@@ -55,6 +56,7 @@ LAYERS = (
     ("identify", ("cartpole.identify",)),
     ("export", ("cartpole.export",)),
     ("validation", ("cartpole.validation",)),
+    ("supervise", ("cartpole.supervise",)),
     ("viz", ("cartpole.viz",)),
     ("apps", ("cartpole.apps",)),
     ("commands", ("cartpole.commands", "cartpole.cli", "cartpole.__main__")),

@@ -11,6 +11,7 @@ from typing import ClassVar
 import numpy as np
 
 from cartpole.options import OptionsError, StageOptions
+from cartpole.sim.disturbance import Disturbances, Knockdown, Throw
 
 
 class LoopError(OptionsError):
@@ -159,6 +160,11 @@ class LoopOptions(StageOptions):
         On a model whose driven joints have ``frictionloss``: design every controller on the model without that
         friction and add the ctrl cancelling it (:class:`cartpole.control.friction.FrictionCompensation`, True), or
         design on the smooth friction model and add nothing (False). Changes nothing on a model without it.
+    knockdown : Knockdown or str or None
+        Knock the poles down each time they have been upright for a while (:class:`cartpole.sim.disturbance.
+        Knockdown`, or its ``"AFTER:LENGTH[:SEED]"`` text); None: never.
+    throw : Throw or None
+        Throw the state at random times whatever it is doing (:class:`cartpole.sim.disturbance.Throw`); None: never.
 
     Raises
     ------
@@ -181,6 +187,8 @@ class LoopOptions(StageOptions):
     seed: int = 0
     delay_compensation: bool = True
     friction_compensation: bool = True
+    knockdown: object = None
+    throw: object = None
 
     error: ClassVar[type] = LoopError
     SCALARS: ClassVar[tuple] = ("duration", "period", "model_error", "delay", "encoder_cpr", "encoder_resolution",
@@ -214,6 +222,10 @@ class LoopOptions(StageOptions):
                             "--estimator kf.")
         self.set_field("delay_compensation", bool(self.delay_compensation))
         self.set_field("friction_compensation", bool(self.friction_compensation))
+        if self.knockdown is not None and not isinstance(self.knockdown, Knockdown):
+            self.set_field("knockdown", Knockdown.parse(self.knockdown))
+        if self.throw is not None and not isinstance(self.throw, Throw):
+            raise LoopError(f"LoopOptions.throw must be a cartpole.sim.disturbance.Throw; got {self.throw!r}.")
 
     @property
     def sensed(self) -> bool:
@@ -228,6 +240,21 @@ class LoopOptions(StageOptions):
         if not self.sensed:
             return "none"
         return "kf" if task == "balance" else "ekf"
+
+    @property
+    def disturbed(self) -> bool:
+        """True when the loop knocks or throws the poles (:meth:`disturbance` is not None)."""
+        return self.knockdown is not None or self.throw is not None
+
+    def disturbance(self, source, *, x_eq, hinges):
+        """The generalized-force disturbance ``f(t, x) -> (nv,)`` of one run on ``source`` (CartPoleParams; upright at
+        ``x_eq`` (nx,), pole angles at qpos ``hinges``), or None: the knockdowns and throws added."""
+        parts = []
+        if self.knockdown is not None:
+            parts.append(self.knockdown.start(source, x_eq=x_eq, hinges=hinges))
+        if self.throw is not None:
+            parts.append(self.throw.start(source, x_eq=x_eq, hinges=hinges, timestep=source.timestep))
+        return None if not parts else Disturbances(tuple(parts))
 
     def push_force(self, timestep: float):
         """The pushes as the ``push(t) -> F`` (N) callable :func:`~cartpole.sim.rollout.simulate` takes at the

@@ -116,11 +116,13 @@ class Rollout:
 
     def save(self, path: str | Path) -> None:
         """Write the rollout as JSON (whole or not at all: :func:`~cartpole._files.atomic_write`), with its push log
-        (``info["push"]``) when it has one and, for a run that diverged, ``diverged_at`` (s) and
+        (``info["push"]``) and generalized-force log (``info["qfrc_applied"]``) when it has them and, for a run that diverged, ``diverged_at`` (s) and
         ``diverged_warning``."""
         doc = {"mjcf": self.mjcf, **self.to_dict()}
         if isinstance(self.info, dict) and self.info.get("push") is not None:
             doc["push"] = np.asarray(self.info["push"], dtype=float).tolist()
+        if isinstance(self.info, dict) and self.info.get("qfrc_applied") is not None:
+            doc["qfrc_applied"] = np.asarray(self.info["qfrc_applied"], dtype=float).tolist()
         if isinstance(self.info, dict) and self.info.get("diverged") is not None:
             doc["diverged_at"] = float(self.info["diverged"])
             doc["diverged_warning"] = self.info.get("diverged_warning")
@@ -131,7 +133,7 @@ class Rollout:
     def load(cls, path: str | Path) -> "Rollout":
         """Read a rollout written by :meth:`save`."""
         d = json.loads(Path(path).read_text())
-        info = {"push": np.asarray(d["push"], dtype=float)} if d.get("push") is not None else {}
+        info = {k: np.asarray(d[k], dtype=float) for k in ("push", "qfrc_applied") if d.get(k) is not None}
         if d.get("diverged_at") is not None:
             info.update(diverged=float(d["diverged_at"]), diverged_warning=d.get("diverged_warning"))
         extra = {k: np.asarray(d[k], dtype=float) for k in SAMPLE_FIELDS if d.get(k) is not None}
@@ -238,6 +240,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
              control_period: float | None = None, rig=None, progress: Callable[[float], None] | None = None,
              stop: Callable[[float, np.ndarray], bool] | None = None,
              push: Callable[[float], float] | None = None,
+             disturbance: Callable[[float, np.ndarray], np.ndarray] | None = None,
              on_step: Callable[[object, object], bool | None] | None = None) -> Rollout:
     """Run ``u = controller(t, x)`` in MuJoCo from ``x0`` for ``duration`` seconds.
 
@@ -269,6 +272,11 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     push : callable, optional
         ``push(t [s]) -> force [N]``: world-x force on the cart body during the step from ``t`` (MuJoCo's
         ``xfrc_applied``), logged as ``rollout.info["push"]`` (n,).
+    disturbance : callable, optional
+        ``disturbance(t [s], x (nx,)) -> (nv,)``: generalized forces (N on slides, N m on hinges) on the joints
+        during the step from ``t``, given MuJoCo's true state at the start of that step (MuJoCo's
+        ``qfrc_applied``; e.g. :class:`cartpole.sim.disturbance.Knockdown`), logged as
+        ``rollout.info["qfrc_applied"]`` (n, nv) so the run replays exactly.
     on_step : callable, optional
         ``on_step(m, d)`` on the start state and after each logged step (e.g. :class:`cartpole.viz.viewer.LiveViewer`);
         returning False ends the run there.
@@ -316,6 +324,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     last = n
     cart = cart_body(m) if push is not None else -1
     forces = np.zeros(n) if push is not None else None
+    qfrc = np.zeros((n, nv)) if disturbance is not None else None
     watch = WarningWatch(d)
     diverged, warning = None, None
     if on_step is not None and on_step(m, d) is False:  # the start state too (a viewer opens on it)
@@ -336,6 +345,9 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         if push is not None:
             forces[k] = float(push(k * h))
             d.xfrc_applied[cart, 0] = forces[k]
+        if qfrc is not None:
+            qfrc[k] = _generalized_force(disturbance(k * h, np.concatenate([d.qpos, d.qvel])), nv, k * h)
+            d.qfrc_applied[:] = qfrc[k]
         d.ctrl[:] = u
         mujoco.mj_step(m, d)
         ctrl[k] = u
@@ -358,11 +370,22 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
             last = k + 1
             break
     info = {} if forces is None else {"push": forces[:last].copy()}
+    if qfrc is not None:
+        info["qfrc_applied"] = qfrc[:last].copy()
     info["diverged"] = diverged
     info["diverged_warning"] = warning
     kw = {} if samples is None else samples.arrays(last * h)
     return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
                    mjcf=source_path(source), info=info, **kw)
+
+
+def _generalized_force(f, nv: int, t: float) -> np.ndarray:
+    """A disturbance's value as a finite (nv,) array, or one sentence saying what is wrong."""
+    f = np.asarray(f, dtype=float).ravel()
+    if f.shape != (nv,) or not np.all(np.isfinite(f)):
+        raise CartPoleError(f"The disturbance returned {f.tolist()} at t = {t:.3f} s; it must return {nv} finite "
+                            "generalized forces (N on slides, N m on hinges).")
+    return f
 
 
 class _Samples:
@@ -385,7 +408,7 @@ class _Samples:
                 "estimate_ms": np.asarray([self.ms[i] for i in keep])}
 
 
-def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -> Rollout:
+def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None, qfrc_applied=None) -> Rollout:
     """Re-run a logged ctrl sequence open loop with ``mj_step``.
 
     Parameters
@@ -396,6 +419,9 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -
     push : (n,) array, optional
         World-x force in N on the cart body during each step (``xfrc_applied``), as :func:`simulate` logs it in
         ``rollout.info["push"]``; default none.
+    qfrc_applied : (n, nv) array, optional
+        Generalized forces on the joints during each step (MuJoCo's ``qfrc_applied``), as :func:`simulate` logs a
+        disturbance in ``rollout.info["qfrc_applied"]``; default none.
 
     Returns
     -------
@@ -419,6 +445,10 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -
     if forces is not None and forces.shape != (n,):
         raise CartPoleError(f"The push log has {forces.size} entries for {n} ctrl rows; give one force per step.")
     cart = cart_body(m) if forces is not None else -1
+    qfrc = None if qfrc_applied is None else np.asarray(qfrc_applied, dtype=float)
+    if qfrc is not None and qfrc.shape != (n, nv):
+        raise CartPoleError(f"The qfrc_applied log has shape {qfrc.shape} for {n} ctrl rows; give ({n}, {nv}), one "
+                            "row of generalized forces per step.")
     d.qpos[:] = x0[:nq]
     d.qvel[:] = x0[nq:]
     mujoco.mj_forward(m, d)
@@ -430,24 +460,28 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -
     for k in range(n):
         if forces is not None:
             d.xfrc_applied[cart, 0] = forces[k]
+        if qfrc is not None:
+            d.qfrc_applied[:] = qfrc[k]
         d.ctrl[:] = ctrl[k]
         mujoco.mj_step(m, d)
         qpos[k + 1], qvel[k + 1] = d.qpos, d.qvel
         if diverged is None and (warning := watch.fired(d)) is not None:
             diverged = (k + 1) * h
     info = {} if forces is None else {"push": forces.copy()}
+    if qfrc is not None:
+        info["qfrc_applied"] = qfrc.copy()
     info.update(diverged=diverged, diverged_warning=warning)
     return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl, mjcf=source_path(source), info=info)
 
 
 def replays_exactly(rollout: Rollout, source: CartPoleParams | str | Path | None = None, *, atol: float = 0.0) -> bool:
     """True when replaying ``rollout.ctrl`` (n, nu) from its first state, with the logged pushes
-    (``rollout.info["push"]``, if any), reproduces every logged state within ``atol`` (default 0: bit for bit).
+    (``rollout.info["push"]``, if any) and generalized forces (``rollout.info["qfrc_applied"]``, if any), reproduces every logged state within ``atol`` (default 0: bit for bit).
     ``source`` defaults to the rollout's own MJCF file (required for a rollout run on MJCF text)."""
     if source is None and not rollout.mjcf:
         raise CartPoleError("This rollout was run on MJCF text, not a file, so it cannot name its model; pass the "
                             "CartPoleParams it ran on as source.")
     src = source if source is not None else rollout.mjcf
-    push = rollout.info.get("push") if isinstance(rollout.info, dict) else None
-    again = replay(src, rollout.x[0], rollout.ctrl, push=push)
+    info = rollout.info if isinstance(rollout.info, dict) else {}
+    again = replay(src, rollout.x[0], rollout.ctrl, push=info.get("push"), qfrc_applied=info.get("qfrc_applied"))
     return bool(np.allclose(again.x, rollout.x, rtol=0.0, atol=atol))

@@ -3,8 +3,9 @@
 from cartpole.validation.basin import BasinCache, BasinEstimate, estimate_basin
 from cartpole.validation.metrics import (UPRIGHT_TOL, RunMetrics, held_upright, peak_ctrl, saturation_fraction,
                                          settling_time_seed, settling_time_strict, summarize, swingup_metrics,
-                                         swingup_success, track_margin)
+                                         swingup_success, track_margin, upright_segments,
+                                         uptime_metrics)
 
 __all__ = ["UPRIGHT_TOL", "RunMetrics", "held_upright", "peak_ctrl", "saturation_fraction", "settling_time_seed",
            "settling_time_strict", "summarize", "swingup_metrics", "swingup_success", "track_margin", "BasinCache",
-           "BasinEstimate", "estimate_basin"]
+           "BasinEstimate", "estimate_basin", "upright_segments", "uptime_metrics"]

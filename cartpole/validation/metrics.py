@@ -43,6 +43,7 @@ import numpy as np
 
 from cartpole.models import CartPoleParams, state_error, wrap_angle
 from cartpole.ocp import dmc
+from cartpole.sim.disturbance import UPRIGHT_BAND
 
 #: Upright band on every wrapped |theta_i - theta_i*| in rad: the lab handout's settling band, the swing-up's
 #: upright test and the catch basin's final-state test.
@@ -437,6 +438,75 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
             "duration": float(rollout.t[-1] - rollout.t[0]),
             "diverged": t_div is not None, "diverged_at": t_div,
             "diverged_warning": info.get("diverged_warning") if t_div is not None else None}
+
+
+#: Seconds a pole must stay in the upright band after entering it for :func:`uptime_metrics` to count a swing-up.
+SWINGUP_HOLD = 1.0
+
+
+def _upright_mask(rollout, source, band: float) -> np.ndarray:
+    params, x_eq = _layout(source)
+    return np.all(np.abs(pole_angle_errors(rollout.x, x_eq=x_eq, hinges=params.hinges)) < band, axis=1)
+
+
+def upright_segments(rollout, source, *, band: float = UPRIGHT_BAND) -> list[tuple[float, float]]:
+    """The spans ``(start, end)`` in s during which every pole is within ``band`` rad of upright (angle errors
+    wrapped), in time order.
+
+    Parameters
+    ----------
+    rollout : Rollout
+    source : CartPoleModel or CartPoleParams
+        As :func:`swingup_success`.
+    band : float
+        rad; default :data:`cartpole.sim.disturbance.UPRIGHT_BAND`.
+    """
+    up = _upright_mask(rollout, source, band)
+    t = np.asarray(rollout.t, dtype=float)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], up.astype(int), [0]])))
+    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def uptime_metrics(rollout, source, *, band: float = UPRIGHT_BAND, hold: float = SWINGUP_HOLD, events=(),
+                   duration: float | None = None) -> dict:
+    """How much of a long, disturbed run was spent upright, and how often it swung up again.
+
+    Parameters
+    ----------
+    rollout : Rollout
+    source : CartPoleModel or CartPoleParams
+        As :func:`swingup_success`.
+    band : float
+        rad: every pole's wrapped angle error below this counts as upright.
+    hold : float
+        s: an entry into the band counts as a swing-up when it stays upright at least this long (or to the end of
+        the run); a run that starts upright has not swung up at its start.
+    events : sequence of (float, float)
+        The disturbances' ``(start, end)`` times in s (e.g. :attr:`cartpole.sim.disturbance.KnockdownForce.events`).
+    duration : float, optional
+        s the run was asked to last; uptime is a fraction of it, so a run that stopped early (diverged) counts the
+        rest as down. Default the logged length.
+
+    Returns
+    -------
+    dict
+        ``uptime`` (fraction of ``duration`` upright; 0 for a diverged run from its divergence on), ``upright_band``
+        (rad), ``knockdowns`` (number of events), ``swingups`` (entries into the band held ``hold`` s),
+        ``swingup_times`` (s, each counted entry), ``recoveries`` (events followed by a counted swing-up before the
+        next event or the end), ``unrecovered_at`` (s, start of each other event: the last one may simply have had
+        too little run left).
+    """
+    t = np.asarray(rollout.t, dtype=float)
+    total = float(t[-1] - t[0]) if duration is None else float(duration)
+    segments = upright_segments(rollout, source, band=band)
+    up_time = float(np.sum(np.diff(t)[_upright_mask(rollout, source, band)[:-1]]))  # each step upright at its start
+    counted = [a for a, b in segments if a > t[0] and (b - a >= hold - 1e-9 or b >= t[-1])]
+    events = [(float(a), float(b)) for a, b in events]
+    ends = [a for a, _ in events[1:]] + [np.inf]
+    missed = [a for (a, _), nxt in zip(events, ends) if not any(a < s < nxt for s in counted)]
+    return {"uptime": up_time / total if total > 0 else 0.0, "upright_band": float(band), "knockdowns": len(events),
+            "swingups": len(counted), "swingup_times": counted, "recoveries": len(events) - len(missed),
+            "unrecovered_at": missed}
 
 
 #: dm_control's episode of every task here: 1000 control steps (:meth:`cartpole.ocp.dmc.Task.steps` on its files).

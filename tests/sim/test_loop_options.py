@@ -16,8 +16,10 @@ def test_loop_options_normalise_pushes_and_scales_and_echo_as_json():
     assert doc == {"duration": 3.0, "period": None, "push": [[1.0, 20.0], [2.0, -5.0]], "model_error": 1.2,
                    "delay": 0.0, "estimator": None, "encoder_cpr": None, "encoder_resolution": None,
                    "sensor_noise": None, "process_noise": None, "mhe_horizon": None, "seed": 0,
-                   "delay_compensation": True, "friction_compensation": True}
+                   "delay_compensation": True, "friction_compensation": True, "knockdown": None, "throw": None}
     assert json.loads(json.dumps(doc)) == doc
+    knocked = LoopOptions(knockdown="3:0.2:7").as_dict()["knockdown"]
+    assert knocked == {"after": 3.0, "length": 0.2, "seed": 7, "strength": 1.0}
 
 
 @pytest.mark.parametrize("changes, words", [

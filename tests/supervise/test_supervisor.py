@@ -1,0 +1,109 @@
+"""The supervisor: catch, swing-up law, brake, plan and track, chosen at run time; honest about planning latency."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from cartpole.control.model_rollout import model_rollout
+from cartpole.control.switching import swingup_catch
+from cartpole.errors import CartPoleError
+from cartpole.models import build_model, read_params
+from cartpole.ocp.trajectory import Trajectory
+from cartpole.sim import Knockdown, replays_exactly, simulate
+from cartpole.sim.disturbance import joint_inertia_and_authority
+from cartpole.supervise import PassiveBrake, Supervisor, SupervisorError, SupervisorOptions, supervisor_for
+from cartpole.validation import BasinCache, uptime_metrics
+
+
+@pytest.fixture(scope="module")
+def double(tmp_path_factory):
+    params = read_params("cartpole/assets/cartpole_two_pole.xml")
+    model = build_model(params)
+    catch = swingup_catch(model)
+    inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq))
+    brake = PassiveBrake(model, inertia, 0.5, catch.u_limits)
+    return params, model, catch, brake
+
+
+def test_the_brake_never_adds_energy_from_fast_states(double):
+    params, model, catch, brake = double
+    rng = np.random.default_rng(0)
+    spring = lambda x: sum(0.5 * kp * g * (x[j] - model.x_eq[j]) ** 2  # noqa: E731  the brake's own spring, J
+                           for kp, g, j in zip(brake.kp, params.gears, brake.joints))
+    for _ in range(5):
+        x0 = np.asarray(model.x_hanging, dtype=float).copy()
+        x0[model.nq + np.asarray(model.hinges)] = rng.uniform(-15, 15, len(model.hinges))
+        xs, us = model_rollout(model, brake, x0, 400, u_limits=catch.u_limits)
+        total = np.array([float(model.energy(x)) + spring(x) for x in xs])
+        # passive: energy only leaves (hinge damping, the brake); the discrete step's own energy error on fast
+        # swings is the only rise (well under 1 % of the swing's energy)
+        swing = total[0] - total.min()
+        assert np.max(np.maximum.accumulate(total) - total[0]) < 0.01 * swing
+        assert total[-1] < total[0] - 0.5 * swing
+
+
+def _stub_plan(model, duration, x_end):
+    t = np.array([0.0, duration])
+    x = np.vstack([x_end, x_end])
+    traj = Trajectory(t=t, x=x, u=np.tile(np.asarray(model.u_eq, float), (2, 1)), xdot=np.zeros_like(x))
+    return SimpleNamespace(trajectory=traj, controller=lambda t, x: np.asarray(model.u_eq, float))
+
+
+def test_a_plan_is_used_only_after_its_measured_wall_time(double, monkeypatch):
+    params, model, catch, brake = double
+    clock = iter([0.0, 0.8] + [0.8] * 100)
+    monkeypatch.setattr("cartpole.supervise.supervisor.time.perf_counter", lambda: next(clock))
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 2.0, model.x_eq),
+                     options=SupervisorOptions(latency=0.3, funnel=10.0))
+    x = np.asarray(model.x_hanging, float)
+    sup(0.0, x)
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds == ["plan"] and sup.decisions[0].detail["wall_s"] == pytest.approx(0.8)
+    assert np.allclose(sup(0.5, x), brake(0.5, x)) and sup.mode == "wait"  # 0.5 s < 0.8 s: still planning
+    sup(0.8, x)
+    assert sup.mode == "track" and sup.decisions[-1].detail["late_s"] == pytest.approx(0.5)
+    assert sup.latency == pytest.approx(1.25 * 0.8)  # the next plan is predicted over the measured latency
+
+
+def test_a_failed_plan_is_logged_and_retried_after_braking(double):
+    params, model, catch, brake = double
+    calls = []
+
+    def planner(x0):
+        calls.append(x0)
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner, options=SupervisorOptions(retry_after=0.5))
+    x = np.asarray(model.x_hanging, float)
+    for k in range(200):
+        sup(k * 0.005, x)
+    assert sup.failures == len(calls) >= 2 and sup.decisions[0].kind == "plan_failed"
+    assert "No swing-up found" in sup.decisions[0].detail["reason"]
+    gaps = np.diff([d.t for d in sup.decisions if d.kind == "plan_failed"])
+    assert np.all(gaps >= 0.5 - 1e-9)
+
+
+def test_fast_states_are_braked_before_any_plan(double):
+    params, model, catch, brake = double
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: pytest.fail("planned from a fast state"),
+                     options=SupervisorOptions(calm_rate=5.0))
+    x = np.asarray(model.x_hanging, float).copy()
+    x[model.nq + model.hinges[0]] = 20.0
+    assert np.allclose(sup(0.0, x), brake(0.0, x)) and sup.mode == "brake"
+
+
+def test_bad_options_are_refused():
+    with pytest.raises(SupervisorError, match="release_factor"):
+        SupervisorOptions(release_factor=1.0)
+
+
+def test_one_pole_knocked_down_swings_up_again_every_time_and_replays(tmp_path):
+    params = read_params(None)
+    model = build_model(params)
+    sup = supervisor_for(params, model, basin_cache=BasinCache.on_disk(tmp_path))
+    force = Knockdown(1.5, 0.3, seed=4).start(params, x_eq=model.x_eq, hinges=model.hinges)
+    run = simulate(params, sup, model.x_hanging, 20.0, disturbance=force)
+    assert run.info["diverged"] is None and replays_exactly(run)
+    stats = uptime_metrics(run, model, events=force.events)
+    assert stats["knockdowns"] >= 3 and stats["recoveries"] >= stats["knockdowns"] - 1
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds.count("catch") >= stats["knockdowns"] and sup.plans == 0  # the energy law needs no planner
