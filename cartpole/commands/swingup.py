@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import sys
 
+from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import add_rig_arguments, rig_fields
 from cartpole.commands._rollouts import live_viewer, rollout_doc
 
@@ -69,6 +70,7 @@ def add_arguments(parser) -> None:
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step; "
                       "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
                       "designed for it")
+    add_limit_arguments(parser)
     parser.add_argument("--view", action="store_true",
                         help="show the run in MuJoCo's live viewer, in real time: the logged ctrl replayed step "
                              "for step, so the window shows exactly the run logged (checked); without a display "
@@ -161,7 +163,7 @@ def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
 
-    from cartpole.models import build_model
+    from cartpole.models import build_model, start_on_range
     from cartpole.progress import stage
     from cartpole.apps.swingup import (SwingupError, check_model_error, check_plan_size, check_push, check_start,
                                        check_upright_reachable, parse_push, run_swingup)
@@ -173,7 +175,7 @@ def run(args) -> dict:
     params = model.params
     check_upright_reachable(model)
     check_plan_size(model, args.method)
-    x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
+    x0 = check_start(start_on_range(model.x_hanging, params)[0] if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)
     model_error = check_model_error(getattr(args, "model_error", None))
@@ -237,8 +239,9 @@ def run(args) -> dict:
         {"simulate": f"{default:g} s"} if default is not None else {})
     viewer = live_viewer("swingup") if args.view else None
     try:
-        res = run_swingup(model, method=args.method, x0=x0, plan=plan, loop=loop, mpc=mpc, progress=_Stages(sizes),
-                          on_step=viewer, plan_model=plan_model)
+        res = run_swingup(model, method=args.method, x0=None if args.x0 is None else x0, plan=plan, loop=loop,
+                          mpc=mpc, progress=_Stages(sizes), on_step=viewer, plan_model=plan_model,
+                          **limit_keywords(args))
         if viewer is not None:
             viewer.finish()
     finally:
@@ -277,6 +280,7 @@ def run(args) -> dict:
     if args.method != "mpc":
         doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
+    doc["limits"], doc["start_moved"] = m.get("limits"), m.get("start_moved", [])
     doc["plan_mjcf"] = None if plan_model is None else plan_model.params.mjcf
     if args.method == "mpc":
         ctrl = res.controller
@@ -310,6 +314,8 @@ def run(args) -> dict:
         if m["diverged"]:
             print(f"DIVERGED: MuJoCo warned that the simulation blew up ({m['diverged_warning']}) at "
                   f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")
+        for line in limit_lines(doc["limits"], doc["start_moved"]):
+            print(line)
         print(f"Caught at: {fmt(res.caught_at, 's')}; time to upright (every |theta_i| < 0.05 rad for good): "
               f"{fmt(m['time_to_upright'], 's')}")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "

@@ -641,11 +641,13 @@ def _check_supported(m, where: str) -> None:
         if not field.startswith("opt.") and not hasattr(m, field):
             continue  # older MuJoCo has no actuator damping or armature
         values = np.asarray(getattr(m, field) if not field.startswith("opt.") else getattr(m.opt, field[4:]), float)
+        if field in _INF_MEANS_NO_LIMIT:  # range="-inf inf": no limit on that side, as MuJoCo simulates it
+            values = np.where(np.isinf(values), 0.0, values)
         if not np.all(np.isfinite(values)):
             raise MJCFError(f"{where} has a number that is not finite in {field} (nan or inf in the XML); "
                             "give every mass, size, position, axis, gear, range and option a finite value.")
     for i in range(m.nu):  # a ctrlrange so wide that full ctrl is no physical force (1e300) is a typo, refused
-        if m.actuator_ctrllimited[i]:
+        if m.actuator_ctrllimited[i] and np.all(np.isfinite(m.actuator_ctrlrange[i])):
             reach = float(np.max(np.abs(m.actuator_ctrlrange[i]))) * abs(float(m.actuator_gainprm[i, 0])) \
                 * float(np.max(np.abs(m.actuator_gear[i])))
             if reach > MAX_ACTUATOR_FORCE:
@@ -724,6 +726,11 @@ _FINITE_FIELDS = ("opt.gravity", "opt.timestep", "body_pos", "body_quat", "body_
                   "dof_damping", "dof_armature", "dof_frictionloss", "actuator_gear", "actuator_gainprm",
                   "actuator_biasprm", "actuator_ctrlrange", "actuator_forcerange", "actuator_damping",
                   "actuator_armature")
+
+
+#: Range fields where an infinite bound means "no limit on that side" (``range="-inf inf"``, limited or not): only
+#: nan is refused there. :func:`read_params` reads an infinite side as unlimited.
+_INF_MEANS_NO_LIMIT = ("jnt_range", "actuator_ctrlrange", "actuator_forcerange")
 
 
 def _colliding_pair(m):
