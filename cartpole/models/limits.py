@@ -176,11 +176,17 @@ def _default_u_max(params: CartPoleParams) -> tuple[np.ndarray, tuple]:
             what = (f"{force:.4g} N m: {DEFAULT_TORQUE_FACTOR:g} x the torque holding the {m:.4g} kg hinge "
                     f"'{joint.name}' carries horizontal at {l:.4g} m, through gear {a.gear:g}")
         if force > 0 and abs(a.gear) > 0:
-            out[k] = force / abs(a.gear)
+            out[k] = _stated(force / abs(a.gear))
         else:
             what = "ctrl 1: the actuator has no gear or carries no mass"
         words.append(what)
     return out, tuple(words)
+
+
+def _stated(value: float) -> float:
+    """``value`` rounded to the 4 significant digits the sentence states, then to a float32 number (so a float32
+    controller's clip lands exactly on the bound a double check holds it to)."""
+    return float(np.float32(float(f"{value:.4g}")))
 
 
 def default_cart_max(params: CartPoleParams) -> float:
@@ -196,7 +202,7 @@ def default_cart_max(params: CartPoleParams) -> float:
     float
     """
     L = chain_length(params)
-    return DEFAULT_RAIL_LENGTHS * L if L > 0 else 1.0
+    return _stated(DEFAULT_RAIL_LENGTHS * L) if L > 0 else 1.0
 
 
 def _positive(value, name: str, flag: str, unit: str) -> np.ndarray:
