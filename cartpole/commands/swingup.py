@@ -61,6 +61,12 @@ def add_arguments(parser) -> None:
                              "stays IPOPT's), ipopt (every stage), fatrop, sqp (as auto) or ddp (box-DDP on the exact "
                              "discrete step, every objective; time by a search over T); IPOPT takes over when it does "
                              "not converge")
+    parser.add_argument("--T-max", type=float, default=None, metavar="S", dest="T_max",
+                        help="trajopt (and mpc's offline plan): the longest swing-up in s the pumping search tries "
+                             "when no direct swing-up is found (default 40)")
+    parser.add_argument("--search-s", type=float, default=None, metavar="S", dest="search_s",
+                        help="trajopt (and mpc's offline plan): wall-time budget in s of that pumping search "
+                             "(default 180)")
     parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
                         help="mpc only: real-time iteration on the condensed QP (rti, the default) or warm-started "
                              "box-DDP on the exact held model (ddp)")
@@ -76,6 +82,12 @@ def add_arguments(parser) -> None:
                              "for step, so the window shows exactly the run logged (checked); without a display "
                              "a one-line note on stderr and the rest as usual")
     parser.add_argument("--no-video", action="store_true", help="do not render videos/swingup_<method>.mp4")
+
+
+def search_fields(args) -> dict:
+    """``T_max`` and ``search_s`` of :class:`~cartpole.planning.options.PlanOptions` from ``--T-max`` and
+    ``--search-s`` (only those given)."""
+    return {k: getattr(args, k) for k in ("T_max", "search_s") if getattr(args, k, None) is not None}
 
 
 def log_bytes(duration: float, params) -> float:
@@ -215,7 +227,8 @@ def run(args) -> dict:
         from cartpole.planning.options import PlanOptions
 
         plan = PlanOptions(objective=objective,
-                           **({} if getattr(args, "solver", None) is None else {"solver": args.solver}))
+                           **({} if getattr(args, "solver", None) is None else {"solver": args.solver}),
+                           **search_fields(args))
     elif getattr(args, "solver", None) is not None:
         raise SwingupError("--solver picks the trajectory optimisation's solver; use it with --method trajopt.")
     if args.method == "mpc":
@@ -225,8 +238,15 @@ def run(args) -> dict:
                          **({} if args.mpc_solver is None else {"solver": args.mpc_solver}),
                          **({} if objective is None else {"objective": objective}),
                          **({} if getattr(args, "seed_plan", True) else {"seed_plan": False}))
+        if search_fields(args):  # the offline plan's search, at the MPC's own cart margin
+            from cartpole.planning.options import PlanOptions
+
+            plan = PlanOptions(cart_margin=mpc.cart_margin, **search_fields(args))
     elif getattr(args, "mpc_solver", None) is not None:
         raise SwingupError("--mpc-solver picks the MPC's solver; use it with --method mpc.")
+    if args.method == "energy" and search_fields(args):
+        raise SwingupError("--T-max and --search-s set the planner's pumping search; use them with --method trajopt "
+                           "or mpc.")
     elif not getattr(args, "seed_plan", True):
         raise SwingupError("--no-seed-plan runs the DDP MPC without an offline plan; use it with --method mpc "
                            "--mpc-solver ddp.")
