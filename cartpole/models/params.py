@@ -24,7 +24,8 @@ from typing import Callable
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.errors import CartPoleError, first_line
+from cartpole._files import short
+from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
 
 #: Integrators whose one-step map :mod:`cartpole.models.symbolic` reproduces exactly.
 SUPPORTED_INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
@@ -466,7 +467,7 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
             with _compiler_warnings():
                 return mujoco.MjModel.from_xml_string(xml), "", xml
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
-            raise MJCFError(f"The MJCF text does not compile: {first_line(exc)}. "
+            raise MJCFError(f"The MJCF text does not compile: {first_line(exc, FOREIGN_WIDTH)}. "
                             "Fix the XML and try again.") from None
     from cartpole._files import InputFileError, check_input_file
 
@@ -478,14 +479,14 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None):
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
-        raise MJCFError(f"MJCF file '{path}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
+        raise MJCFError(f"MJCF file '{short(path)}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
                         "path of a cart-pole MJCF.") from None
     check_referenced_files(path, text)  # an <include> or asset naming a FIFO would block MuJoCo's reader forever
     try:
         with _compiler_warnings():
             model = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:
-        raise MJCFError(f"MJCF file '{path}' does not compile: {first_line(exc)}. "
+        raise MJCFError(f"MJCF file '{short(path)}' does not compile: {first_line(exc, FOREIGN_WIDTH)}. "
                         "Fix the XML and try again.") from None
     return model, str(path), text
 
@@ -537,12 +538,12 @@ def check_referenced_files(path: Path, text: str) -> None:
                 try:
                     real = check_input_file(cand, what=f"The {el.tag} file")
                 except InputFileError as exc:
-                    raise MJCFError(f"MJCF file '{path}' names {cand} ({el.tag} file), which {exc.reason}; point it "
+                    raise MJCFError(f"MJCF file '{short(path)}' names {short(cand)} ({el.tag} file), which {exc.reason}; point it "
                                     "at a regular file.") from None
                 if el.tag == "include":
                     seen += 1
                     if seen > MAX_INCLUDES:
-                        raise MJCFError(f"MJCF file '{path}' pulls in more than {MAX_INCLUDES} files through "
+                        raise MJCFError(f"MJCF file '{short(path)}' pulls in more than {MAX_INCLUDES} files through "
                                         "<include>; remove the loop of includes.")
                     try:
                         todo.append((real, real.read_text()))
@@ -790,7 +791,7 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None) -> Ca
     import mujoco
 
     m, path, text = load_model(mjcf, xml=xml)
-    where = f"MJCF '{path}'" if path else "The MJCF"
+    where = f"MJCF '{short(path)}'" if path else "The MJCF"
     _check_supported(m, where)
 
     # Moving bodies: those with a joint somewhere on their path to the world.
