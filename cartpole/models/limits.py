@@ -11,16 +11,16 @@ or with what the caller gives (``u_max``, ``cart_max``; ``--u-max``, ``--cart-ma
   - on a slide: the force that accelerates everything the slide moves at one standard gravity,
     ``F = M g0`` (:data:`DEFAULT_FORCE_G` g0; for the lab's cart, 1.1 kg: 10.8 N, about half its motor's 20 N);
   - on a hinge: the torque that holds everything the hinge carries horizontal, ``F = m g0 l`` times
-    :data:`DEFAULT_TORQUE_FACTOR` (gravity's largest pull on it: a motor this strong lifts the chain with a pump or
-    two, a weaker one needs many, a much stronger one makes the swing-up trivial).
+    :data:`DEFAULT_TORQUE_FACTOR` (gravity's largest pull on it: the planners pump a weaker motor's chain up over
+    several swings, a much stronger one makes the swing-up trivial).
 
   ``g0 = 9.80665 m/s^2`` (standard gravity, also under a file whose gravity is off or unusual), so the default is a
   physical force of the model's own scale.
 * **Rail (an unlimited cart slide):** ``|s - centre| <= cart_max`` with ``cart_max`` = :data:`DEFAULT_RAIL_LENGTHS`
   times the chain's length ``L`` (twice the distance from the first hinge to the centre of mass of everything it
   carries: the length of a uniform pole with the same mass moment; exact for one or several equal uniform poles).
-  The lab's 0.6 m pole on its +-1.5 m rail has 2.5 L; energy shaping and the planners need about 1.5 L either way
-  at the default force, so 3 L leaves room without licensing an unbounded sprint.
+  The lab's 0.6 m pole on its +-1.5 m rail has 2.5 L; 3 L is a little more room than that, enough for energy
+  shaping and the planners at the default force, without licensing an unbounded sprint.
 
 The bounds are applied to the *planning* parameters only: MuJoCo keeps running the file as written, the
 controllers clip their ctrl to the bound (so the logged ctrl replays unchanged on the file), and the success check

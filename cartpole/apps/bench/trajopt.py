@@ -534,7 +534,24 @@ def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None, u_max=None,
                   cart_max: float | None = None) -> dict | None:
     """The NMPC row (:func:`cartpole.apps.bench.mpc.run_mpc_benchmark`): per-control-step solve time over a
     single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess; None when this
-    installation has no NMPC."""
+    installation has no NMPC.
+
+    Parameters
+    ----------
+    mjcf : path, optional
+    quick : bool
+        One run instead of three.
+    progress : callable, optional
+        ``progress(message)``.
+    u_max : float or (nu,) array, optional
+        ``|ctrl|`` bound (MuJoCo ctrl) the plan keeps to (default the file's, else a stated default).
+    cart_max : float, optional
+        m the cart may travel either side of its range's centre (default the file's, else a stated default).
+
+    Returns
+    -------
+    dict or None
+    """
     try:
         from cartpole.apps.bench.mpc import run_mpc_benchmark
     except ImportError:
