@@ -121,3 +121,37 @@ def test_a_refusal_about_a_file_under_a_400_character_path_ends_with_its_fix(tmp
     assert rc == 2 and len(err.splitlines()) == 1
     assert err.endswith("or a <position>/<velocity> servo without timeconst."), err  # the fix's last words
     assert "filtered_motor.xml" in err and "..." in err and str(mjcf) not in err  # the path lost its middle only
+
+
+def test_every_command_that_plans_offers_u_max_and_cart_max():
+    import argparse
+
+    from cartpole.cli import build_parser
+
+    (sub,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    for name in ("swingup", "sweep", "feedforward", "export", "bench"):
+        options = {o for a in sub.choices[name]._actions for o in a.option_strings}
+        assert {"--u-max", "--cart-max"} <= options, name
+    assert "--u-max" not in {o for a in sub.choices["lqr"]._actions for o in a.option_strings}  # balancing: none
+
+
+def test_a_sweep_on_a_file_without_limits_plans_within_the_stated_defaults(tmp_path, capsys):
+    mjcf = write(tmp_path, "no_limits.xml", NO_LIMITS)
+    doc, _ = run_json(["sweep", "--json", "--n", "1", "--workers", "1", "--mjcf", str(mjcf), "--out",
+                       str(tmp_path / "o")], capsys)
+    assert doc["limits"]["defaulted"] is True and doc["limits"]["u_source"] == ["default"]
+    assert doc["limits"]["cart_source"] == "default" and doc["successes"] == 1
+
+
+def test_an_exported_swingup_controller_of_a_file_without_limits_states_them(tmp_path, capsys):
+    import shutil
+
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler")
+    mjcf = write(tmp_path, "no_limits.xml", NO_LIMITS)
+    doc, _ = run_json(["export", "--json", "--controller", "energy", "--verify", "--duration", "6", "--mjcf",
+                       str(mjcf), "--out", str(tmp_path / "o")], capsys)
+    assert doc["limits"]["defaulted"] is True and doc["export"]["verified"] is True
+    balance, _ = run_json(["export", "--json", "--controller", "lqr", "--mjcf", str(mjcf), "--out",
+                           str(tmp_path / "p")], capsys)
+    assert balance["limits"] is None  # a balance needs no bound
