@@ -240,7 +240,7 @@ def planning_limits(params: CartPoleParams, *, u_max=None, cart_max: float | Non
     ------
     LimitsError
         ``u_max`` or ``cart_max`` not positive and finite, ``u_max`` of the wrong size, or wider than the file's own
-        ctrlrange or slide range.
+        ctrlrange or slide range; ``cart_max`` for a model without a cart.
     """
     names = tuple(a.name or f"#{i}" for i, a in enumerate(params.actuators))
     rng = np.asarray(params.ctrl_range, float).reshape(params.nu, 2).copy()
@@ -273,6 +273,8 @@ def planning_limits(params: CartPoleParams, *, u_max=None, cart_max: float | Non
             source.append("default")
     joints = list(params.joints)
     cart_range, cart_source = None, None
+    if params.slide is None and cart_max is not None:
+        raise LimitsError("cart_max bounds the cart's travel and this model has no slide joint; drop --cart-max.")
     if params.slide is not None:
         lo, hi = (float(v) for v in params.cart_range)
         limited = np.isfinite(lo) and np.isfinite(hi)

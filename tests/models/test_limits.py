@@ -88,6 +88,8 @@ def test_a_hinge_driven_pendulum_without_ctrlrange_gets_the_horizontal_holding_t
     m, l, _ = p.carried_by(p.hinges[0])
     assert q.ctrl_range[0][1] == pytest.approx(m * 9.80665 * l / abs(p.actuators[0].gear), rel=1e-3)
     assert lim.cart_range is None and "horizontal" in lim.notes[0]
+    with pytest.raises(LimitsError, match="no slide joint; drop --cart-max"):
+        planning_limits(p, cart_max=1.0)
 
 
 def test_a_default_start_a_hair_outside_a_hinge_range_is_moved_onto_its_edge():
