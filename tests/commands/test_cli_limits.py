@@ -155,3 +155,15 @@ def test_an_exported_swingup_controller_of_a_file_without_limits_states_them(tmp
     balance, _ = run_json(["export", "--json", "--controller", "lqr", "--mjcf", str(mjcf), "--out",
                            str(tmp_path / "p")], capsys)
     assert balance["limits"] is None  # a balance needs no bound
+
+
+def test_the_planners_search_options_belong_to_the_planner(tmp_path, capsys):
+    rc = main(["swingup", "--no-video", "--out", str(tmp_path / "o"), "--T-max", "20"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "--T-max" in err and "--method trajopt" in err and err.endswith(".")
+    from cartpole.commands.swingup import search_fields
+
+    class Args:
+        T_max, search_s = 20.0, None
+
+    assert search_fields(Args()) == {"T_max": 20.0}  # what PlanOptions(T_max=...) receives with --method trajopt
