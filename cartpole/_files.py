@@ -26,7 +26,7 @@ from contextvars import ContextVar
 from pathlib import Path
 from typing import IO, Callable, Iterable, Iterator, Sequence
 
-from cartpole.errors import CartPoleError
+from cartpole.errors import CartPoleError, elide
 
 _ADVICE = {
     errno.ENOSPC: "free some space or choose another --out",
@@ -43,12 +43,8 @@ _ADVICE = {
 
 def short(path, width: int = 90) -> str:
     """``path`` as text, its middle elided (``/tmp/run/...long/figure.png``) past ``width`` characters, so that a
-    sentence naming it stays short."""
-    text = str(path)
-    if len(text) <= width:
-        return text
-    head = width // 3
-    return text[:head] + "..." + text[-(width - head - 3):]
+    sentence naming it stays short and its advice is never pushed off the end (:func:`cartpole.errors.elide`)."""
+    return elide(str(path), width)
 
 
 class InputFileError(CartPoleError, OSError):

@@ -28,7 +28,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from cartpole._files import OutputError, atomic_write
+from cartpole._files import OutputError, atomic_write, short
 from cartpole.errors import CartPoleError
 
 #: Flags for the C compiler: the generated functions are straight-line arithmetic that gcc vectorises for the
@@ -83,17 +83,17 @@ def private_dir(path: str | Path) -> Path:
         path.mkdir(parents=True, exist_ok=True, mode=0o700)
         st = os.stat(path)
     except OSError as exc:  # no cache (a read-only home, say): the callers fall back, as without a compiler
-        err = OutputError(f"Cannot create the cache directory {path} ({exc.strerror or type(exc).__name__}); set "
+        err = OutputError(f"Cannot create the cache directory {short(path)} ({exc.strerror or type(exc).__name__}); set "
                           "CARTPOLE_CACHE_DIR to a writable directory of your own")
         err.errno = exc.errno
         raise err from None
     if not stat.S_ISDIR(st.st_mode):
-        raise CacheError(f"The cache directory {path} is not a directory; {fix}.")
+        raise CacheError(f"The cache directory {short(path)} is not a directory; {fix}.")
     if st.st_uid != os.getuid():
-        raise CacheError(f"The cache directory {path} belongs to another user (uid {st.st_uid}), who could plant code "
+        raise CacheError(f"The cache directory {short(path)} belongs to another user (uid {st.st_uid}), who could plant code "
                          f"that cartpole would load; {fix}.")
     if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        raise CacheError(f"The cache directory {path} may be written by its group or by others (mode "
+        raise CacheError(f"The cache directory {short(path)} may be written by its group or by others (mode "
                          f"{stat.S_IMODE(st.st_mode):03o}), who could plant code that cartpole would load; run chmod "
                          f"700 {path} or {fix}.")
     return path

@@ -1,5 +1,5 @@
 """errors.first_line: any exception message as the one line the toolkit's sentences embed."""
-from cartpole.errors import first_line
+from cartpole.errors import elide, first_line
 
 
 def test_multi_line_message_is_folded_without_the_final_period():
@@ -7,10 +7,20 @@ def test_multi_line_message_is_folded_without_the_final_period():
     assert first_line(exc) == "XML Error: Schema violation: unrecognized attribute 'foo' Element 'joint', line 7"
 
 
-def test_mujoco_error_prefix_is_dropped_and_long_messages_are_capped():
+def test_mujoco_error_prefix_is_dropped_and_a_long_message_keeps_its_last_words():
     assert first_line(RuntimeError("mjParseXML: Error=bad file.")) == "mjParseXML: bad file"
-    long = first_line(RuntimeError("x" * 500))
-    assert long == "x" * 240 + "..." and "\n" not in long
+    text = "start " + "x" * 500 + " so give --x0 inside it."
+    assert first_line(RuntimeError(text)) == text.rstrip(".")  # a toolkit sentence is never cut
+    long = first_line(RuntimeError(text), width=240)  # a foreign message inside one of ours loses its middle only
+    assert len(long) == 240 and long.startswith("start x") and long.endswith("so give --x0 inside it")
+    assert "..." in long and "\n" not in long
+
+
+def test_elide_keeps_both_ends_of_a_long_path():
+    path = "/very/" + "long/" * 80 + "file.xml"
+    short = elide(path, 60)
+    assert len(short) == 60 and short.startswith("/very/long") and short.endswith("long/file.xml")
+    assert elide("short.xml", 60) == "short.xml"
 
 
 def test_an_empty_message_names_the_exception_type():

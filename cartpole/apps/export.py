@@ -147,7 +147,8 @@ def check_build(design, real: str, x0, duration: float) -> BuildCheck:
 
 
 def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool = False, x0=None, out=".",
-               verify: bool = False, duration: float | None = None, mcu: bool = False) -> dict:
+               verify: bool = False, duration: float | None = None, mcu: bool = False, u_max=None,
+               cart_max: float | None = None) -> dict:
     """Export a controller as standalone C to the folder ``out``, and with ``verify`` prove it in MuJoCo.
 
     Parameters
@@ -171,11 +172,18 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
     mcu : bool
         Also build the float export for a Cortex-M4F (:func:`cartpole.export.mcu.cross_build`) and report its
         flash, RAM and worst stack.
+    u_max : float or (nu,) array, optional
+        A swing-up controller's (tvlqr, energy, nmpc) ``|ctrl|`` bound; default each actuator's ctrlrange, or a
+        stated default where the file has none (:func:`cartpole.models.planning_limits`; ``limits`` says which).
+        A balance controller (lqr, pid) needs none and takes it only when given.
+    cart_max : float, optional
+        m: likewise the cart's travel ``|s - centre| <= cart_max``.
 
     Returns
     -------
     dict
-        ``mjcf``, ``controller``, ``estimator``, ``period``, ``delay``, ``real``, ``folder``, ``rig`` and
+        ``limits`` (the bounds a swing-up plans within, :meth:`cartpole.models.PlanningLimits.to_dict`; None for a
+        balance without ``u_max``/``cart_max``), ``mjcf``, ``controller``, ``estimator``, ``period``, ``delay``, ``real``, ``folder``, ``rig`` and
         ``export`` {``files``, ``bytes``, ``verified``, ``max_ctrl_diff``, ``step_us`` {``median``, ``max``},
         ``float32`` {``success``, ``max_ctrl_diff``}, ``double`` {``success``, ``replays``}, ``codes``, with
         ``mcu`` the Cortex-M4F build's ``flash``, ``ram``, ``stack`` (bytes) and the commands that measured them}.
@@ -187,7 +195,8 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
         does not reproduce, a Python design that fails.
     """
     from cartpole.export import check_target, design_export, find_compiler, write_export
-    from cartpole.models import CartPoleModel, build_model
+    from cartpole.export.design import CONTROLLERS
+    from cartpole.models import CartPoleModel, build_model, planning_limits
 
     check_target(out)
     find_compiler()
@@ -197,6 +206,10 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
         if mcu_tools() is None:
             cross_build({})  # its one sentence: install the ARM toolchain
     model = mjcf if isinstance(mjcf, CartPoleModel) else build_model(mjcf)
+    limits = None
+    if CONTROLLERS.get(controller) == "swingup" or u_max is not None or cart_max is not None:
+        params, limits = planning_limits(model.params, u_max=u_max, cart_max=cart_max)  # defaults where unlimited
+        model = model if params is model.params else build_model(params)
     real = "float" if float32 else "double"
     if x0 is not None:
         x0 = np.asarray(x0, dtype=float).ravel()
@@ -220,7 +233,8 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
     doc = {"mjcf": model.params.mjcf, "controller": controller, "estimator": design.estimator,
            "period": design.program.period, "delay": design.program.delay, "real": real,
            "folder": str(Path(written.folder).resolve()),
-           "rig": None if design.rig is None else design.rig.to_dict(), "x0": start.tolist()}
+           "rig": None if design.rig is None else design.rig.to_dict(), "x0": start.tolist(),
+           "limits": None if limits is None else limits.to_dict()}
     exp = {"files": list(written.files), "bytes": written.bytes, "verified": False, "max_ctrl_diff": None,
            "step_us": None}
     if verify:

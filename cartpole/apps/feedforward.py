@@ -38,7 +38,8 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits,
+                             read_params)
 from cartpole.progress import stage
 from cartpole.sim import Rollout, replays_exactly, simulate
 
@@ -262,7 +263,8 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
 
 def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
                     plan=None, options=None, progress: Callable[[str, float], None] | None = None,
-                    loop=None, plan_model: CartPoleModel | None = None) -> FeedforwardStudy:
+                    loop=None, plan_model: CartPoleModel | None = None, u_max=None,
+                    cart_max: float | None = None) -> FeedforwardStudy:
     """Plan the swing-up, then run feedforward alone and feedforward + TVLQR in MuJoCo, on a true and a wrong model.
 
     Parameters
@@ -289,6 +291,9 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     plan_model : CartPoleModel, optional
         Plan (and design the TVLQR of) the first plan on this model instead of the MJCF's own (``--plan-mjcf``: e.g.
         a fitted MJCF); MuJoCo still runs ``mjcf``. The wrong-mass plan stays relative to ``mjcf``.
+    u_max, cart_max : optional
+        The ``|ctrl|`` bound and the cart's travel in m the plans keep to; default the file's, or a stated default
+        where it has none (:func:`cartpole.models.planning_limits`).
 
     Returns
     -------
@@ -313,6 +318,8 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     from cartpole.control.friction import friction_design
 
     params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+    params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
+    plan_model = None if plan_model is None else bounded_model(plan_model, limits)
     # planned without the friction a compensation cancels, run with it (cartpole.control.friction)
     plant = build_model(params)
     friction = friction_design(plant, loop)

@@ -39,7 +39,8 @@ import numpy as np
 
 from cartpole.control.friction import friction_design, friction_summary
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, read_params,
+                             start_on_range)
 from cartpole.sim import Rollout, simulate
 from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
                                   check_push_times, push_force)
@@ -168,10 +169,11 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
         lo, hi = (float(v) for v in j.range)
         if j.kind == "slide" and not lo < x[i] < hi:
             raise SwingupError(f"The start position {x[i]} m of slide '{j.name}' is outside its joint range "
-                               f"[{lo}, {hi}] m; start the cart strictly inside it.")
+                               f"[{lo}, {hi}] m; give a start (x0, --x0 on the command line) with the cart "
+                               "strictly inside it.")
         if j.kind == "hinge" and not lo <= x[i] <= hi:
             raise SwingupError(f"The start angle {x[i]} rad of hinge '{j.name}' is outside its joint range "
-                               f"[{lo}, {hi}] rad; start the pole inside it.")
+                               f"[{lo}, {hi}] rad; give a start (x0, --x0 on the command line) inside it.")
     return x
 
 
@@ -304,7 +306,8 @@ LEGACY_KEYWORDS = {"duration": "loop", "push": "loop", "model_error": "loop", "o
 def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: LoopOptions | None = None,
                 mpc=None, energy_options=None, catch_weights: tuple | None = None,
                 plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
-                basin_cache=None, on_step=None, **legacy) -> SwingupResult:
+                basin_cache=None, on_step=None, u_max=None, cart_max: float | None = None,
+                **legacy) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
 
     Parameters
@@ -346,6 +349,12 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     on_step : callable, optional
         ``on_step(m, d)`` during the MuJoCo run (e.g. :class:`cartpole.viz.viewer.LiveViewer`, to watch it live);
         returning False ends the run (see :func:`cartpole.sim.rollout.simulate`).
+    u_max : float or (nu,) array, optional
+        ``|ctrl| <= u_max`` the swing-up plans and runs within; default each actuator's ctrlrange, or where the
+        file has none a stated default (:func:`cartpole.models.planning_limits`; ``metrics["limits"]`` says which).
+    cart_max : float, optional
+        m: the cart keeps ``|s - centre| <= cart_max``; default the slide's range, or a stated default when the
+        file's slide is unlimited.
     **legacy
         A compatibility layer for the keywords this function took before the options objects
         (:data:`LEGACY_KEYWORDS`): ``duration``, ``push``, ``model_error`` (fields of ``loop``), ``objective``
@@ -389,10 +398,13 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
         model = None
     loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
-    model = model if model is not None else build_model(params)
+    params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
+    model = model if model is not None and model.params is params else build_model(params)
+    plan_model = None if plan_model is None else bounded_model(plan_model, limits)
     check_upright_reachable(model)
     check_plan_size(model, method)
-    x0 = check_start(model.x_hanging if x0 is None else x0, params)
+    x0, moves = start_on_range(model.x_hanging, params) if x0 is None else (x0, ())
+    x0 = check_start(x0, params)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
     # designed without the friction a compensation cancels, run with it (cartpole.control.friction)
@@ -530,6 +542,8 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         metrics["estimation"] = estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))
     metrics["rig"] = None if rig is None else rig.to_dict()
     metrics["friction"] = friction_summary(params, friction.compensated)
+    metrics["limits"] = limits.to_dict()
+    metrics["start_moved"] = [mv.to_dict() for mv in moves]
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
                          plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
                          controller=controller, options=options)

@@ -29,6 +29,9 @@ def add_arguments(parser) -> None:
                         help="skip the swing-up plan times (default: the shipped 1-, 2- and 3-pole carts, or the "
                              "--mjcf given; --quick: one pole, one plan)")
     parser.add_argument("--no-mpc", action="store_true", help="skip the NMPC-in-the-loop benchmark")
+    from cartpole.commands._limits import add_limit_arguments
+
+    add_limit_arguments(parser)  # the swing-up plans on --mjcf (the standard problem keeps its own fixed bounds)
     parser.add_argument("--no-crocoddyl", action="store_true",
                         help="skip Crocoddyl's double-pendulum example (our DDP, and Crocoddyl's FDDP when installed)")
     parser.add_argument("--no-objectives", action="store_true",
@@ -66,6 +69,7 @@ def run(args) -> dict:
     """Run :func:`cartpole.apps.bench.trajopt.run` on ``args.mjcf``; print a table unless ``--json``."""
     from cartpole.apps.bench.trajopt import print_table
     from cartpole.apps.bench.trajopt import run as bench_run
+    from cartpole.commands._limits import limit_keywords
     from cartpole.errors import CartPoleError
 
     repeats = args.repeats if args.repeats is not None else (2 if args.quick else 7)
@@ -108,8 +112,9 @@ def run(args) -> dict:
         else:
             models = shipped_plan_models()[:1] if args.quick else shipped_plan_models()
         doc["plan"] = plan_benchmark(models, repeats=1 if args.quick else 3, command=not args.quick,
-                                     progress=steps)
-    doc["mpc"] = None if args.no_mpc else mpc_benchmark(args.mjcf, quick=args.quick, progress=steps)
+                                     progress=steps, **limit_keywords(args))
+    doc["mpc"] = None if args.no_mpc else mpc_benchmark(args.mjcf, quick=args.quick, progress=steps,
+                                                        **limit_keywords(args))
     from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
 
     doc["estimation"] = estimation_benchmark(args.mjcf, quick=args.quick)
@@ -140,6 +145,11 @@ def run(args) -> dict:
             print_plan_table(doc["plan"])
         if doc["mpc"]:
             print_mpc_table(doc["mpc"])
+        from cartpole.commands._limits import limit_lines
+
+        said = [line for part in [*(doc["plan"] or []), doc["mpc"] or {}] for line in limit_lines(part.get("limits"))]
+        for line in dict.fromkeys(said):  # the defaults the swing-up plans on --mjcf used, each once
+            print(line)
         print_estimation_table(doc["estimation"])
         if doc["crocoddyl"]:
             print_crocoddyl(doc["crocoddyl"])

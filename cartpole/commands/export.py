@@ -33,6 +33,9 @@ def add_arguments(parser) -> None:
                         help="also compile the float32 build for a Cortex-M4F (arm-none-eabi-gcc -mcpu=cortex-m4 "
                              "-mfpu=fpv4-sp-d16 -mfloat-abi=hard -Os) and report its flash, RAM (arm-none-eabi-size) "
                              "and worst stack (-fstack-usage, -fcallgraph-info)")
+    from cartpole.commands._limits import add_limit_arguments
+
+    add_limit_arguments(parser)
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step): "
                       "CP_PERIOD, the period cp_step must be called at; the controller is designed for it")
 
@@ -40,11 +43,15 @@ def add_arguments(parser) -> None:
 def run(args) -> dict:
     """Export (and verify); prose: the folder, its files and the verification's figures."""
     from cartpole.apps.export import run_export
+    from cartpole.commands._limits import limit_keywords, limit_lines
 
     loop = loop_from_args(args)
     doc = run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
-                     out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu)
+                     out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu,
+                     **limit_keywords(args))
     if not args.json:
+        for line in limit_lines(doc.get("limits")):
+            print(line)
         exp = doc["export"]
         print(f"Exported {doc['controller']} (estimator {doc['estimator']}, {doc['real']}, period {doc['period']:g} s, "
               f"delay {doc['delay']:g} s) to {doc['folder']}: {len(exp['files'])} files, {exp['bytes']} bytes.")

@@ -23,8 +23,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--view", action="store_true",
                         help="show each run in MuJoCo's live viewer, in real time, one after the other (without a "
                              "display: a note on stderr and the rest as usual)")
+    from cartpole.commands._limits import add_limit_arguments
     from cartpole.commands._rig import add_rig_arguments
 
+    add_limit_arguments(parser)
     add_rig_arguments(parser)
 
 
@@ -39,12 +41,13 @@ def run(args) -> dict:
     import numpy as np
 
     from cartpole.apps.feedforward import check_mass_error, run_feedforward
-    from cartpole.models import read_params
+    from cartpole.commands._limits import limit_keywords, limit_lines
+    from cartpole.models import bounded_model, planning_limits, read_params
     from cartpole.viz.feedforward_plot import plot_feedforward
 
     # everything is validated before anything is solved or written
     mass_error = check_mass_error(args.mass_error)
-    params = read_params(args.mjcf)
+    params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # defaults where unlimited
     out = Path(args.out)
 
     from cartpole.commands._rig import loop_from_args, rig_doc
@@ -55,7 +58,7 @@ def run(args) -> dict:
         from cartpole.apps.swingup import plan_model_from
         from cartpole.models import build_model
 
-        plan_model = plan_model_from(args.plan_mjcf, build_model(params))
+        plan_model = bounded_model(plan_model_from(args.plan_mjcf, build_model(params)), limits)
     study = run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
                             plan_model=plan_model)
     model = study.model
@@ -110,10 +113,12 @@ def run(args) -> dict:
                     for n, r in study.runs.items()},
            "friction": friction_summary(params, study.friction_compensation),
            "figure": str(fig.resolve()), "videos": videos,
-           "options": {"plan": study.options.as_dict()}}
+           "options": {"plan": study.options.as_dict()}, "limits": limits.to_dict()}
     if not args.json:
         joints = [params.joints[h].name for h in model.hinges]
         print(f"MJCF: {params.mjcf}")
+        for line in limit_lines(doc["limits"]):
+            print(line)
         print(f"Plans (Hermite-Simpson, minimum time + 20 %): the MJCF's own model T = {study.plan.T:.3f} s; "
               f"pole mass {pct} T = {study.wrong_plan.T:.3f} s. Each run starts hanging at rest and lasts its "
               f"plan + 2 s in MuJoCo on the true MJCF.")

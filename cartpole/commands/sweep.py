@@ -38,6 +38,9 @@ def add_arguments(parser) -> None:
     from cartpole.commands._rig import add_rig_arguments
 
     add_rig_arguments(parser)
+    from cartpole.commands._limits import add_limit_arguments
+
+    add_limit_arguments(parser)
     parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc"), default=["energy"],
                         metavar="M", help="swing-up of every run: energy (energy shaping + LQR catch, default), "
                                           "trajopt (collocation + TVLQR) or mpc (nonlinear MPC); two or more: the "
@@ -175,13 +178,18 @@ def run(args) -> dict:
     """Run the sweep (one per ``--method``) and return the JSON document: for one method that of
     :func:`run_method`; for several ``mjcf``, ``methods``, ``sweeps`` (each method's document) and ``figure`` (the
     success maps side by side, :func:`cartpole.viz.sweep_plot.plot_comparison`)."""
-    from cartpole.models import read_params
+    from cartpole.commands._limits import limit_keywords, limit_lines
+    from cartpole.models import planning_limits, read_params
 
-    params = read_params(args.mjcf)
+    params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # every run plans within them
     methods, axes, n, duration, x0 = _plan(args, params)
+    if not args.json:
+        for line in limit_lines(limits.to_dict()):
+            print(line)
     docs, results = [], []
     for m in methods:
         doc, result = run_method(args, params, m, axes=axes, n=n, duration=duration, x0=x0)
+        doc["limits"] = limits.to_dict()
         docs.append(doc)
         results.append(result)
     if len(methods) == 1:
@@ -191,7 +199,8 @@ def run(args) -> dict:
     figure = plot_comparison(results, params, Path(args.out) / COMPARE)
     if not args.json:
         print(f"Success maps side by side: {Path(figure).resolve()}")
-    return {"mjcf": params.mjcf, "methods": methods, "sweeps": docs, "figure": str(Path(figure).resolve())}
+    return {"mjcf": params.mjcf, "methods": methods, "sweeps": docs, "figure": str(Path(figure).resolve()),
+            "limits": limits.to_dict()}
 
 
 def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, duration=None, x0=None):

@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import sys
 
+from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import add_rig_arguments, rig_fields
 from cartpole.commands._rollouts import live_viewer, rollout_doc
 
@@ -60,6 +61,12 @@ def add_arguments(parser) -> None:
                              "stays IPOPT's), ipopt (every stage), fatrop, sqp (as auto) or ddp (box-DDP on the exact "
                              "discrete step, every objective; time by a search over T); IPOPT takes over when it does "
                              "not converge")
+    parser.add_argument("--T-max", type=float, default=None, metavar="S", dest="T_max",
+                        help="trajopt (and mpc's offline plan): the longest swing-up in s the pumping search tries "
+                             "when no direct swing-up is found (default 40)")
+    parser.add_argument("--search-s", type=float, default=None, metavar="S", dest="search_s",
+                        help="trajopt (and mpc's offline plan): wall-time budget in s of that pumping search "
+                             "(default 180)")
     parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
                         help="mpc only: real-time iteration on the condensed QP (rti, the default) or warm-started "
                              "box-DDP on the exact held model (ddp)")
@@ -69,11 +76,18 @@ def add_arguments(parser) -> None:
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step; "
                       "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
                       "designed for it")
+    add_limit_arguments(parser)
     parser.add_argument("--view", action="store_true",
                         help="show the run in MuJoCo's live viewer, in real time: the logged ctrl replayed step "
                              "for step, so the window shows exactly the run logged (checked); without a display "
                              "a one-line note on stderr and the rest as usual")
     parser.add_argument("--no-video", action="store_true", help="do not render videos/swingup_<method>.mp4")
+
+
+def search_fields(args) -> dict:
+    """``T_max`` and ``search_s`` of :class:`~cartpole.planning.options.PlanOptions` from ``--T-max`` and
+    ``--search-s`` (only those given)."""
+    return {k: getattr(args, k) for k in ("T_max", "search_s") if getattr(args, k, None) is not None}
 
 
 def log_bytes(duration: float, params) -> float:
@@ -161,7 +175,7 @@ def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
 
-    from cartpole.models import build_model
+    from cartpole.models import build_model, start_on_range
     from cartpole.progress import stage
     from cartpole.apps.swingup import (SwingupError, check_model_error, check_plan_size, check_push, check_start,
                                        check_upright_reachable, parse_push, run_swingup)
@@ -173,7 +187,7 @@ def run(args) -> dict:
     params = model.params
     check_upright_reachable(model)
     check_plan_size(model, args.method)
-    x0 = check_start(model.x_hanging if args.x0 is None else args.x0, params)
+    x0 = check_start(start_on_range(model.x_hanging, params)[0] if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)
     model_error = check_model_error(getattr(args, "model_error", None))
@@ -213,7 +227,8 @@ def run(args) -> dict:
         from cartpole.planning.options import PlanOptions
 
         plan = PlanOptions(objective=objective,
-                           **({} if getattr(args, "solver", None) is None else {"solver": args.solver}))
+                           **({} if getattr(args, "solver", None) is None else {"solver": args.solver}),
+                           **search_fields(args))
     elif getattr(args, "solver", None) is not None:
         raise SwingupError("--solver picks the trajectory optimisation's solver; use it with --method trajopt.")
     if args.method == "mpc":
@@ -223,8 +238,15 @@ def run(args) -> dict:
                          **({} if args.mpc_solver is None else {"solver": args.mpc_solver}),
                          **({} if objective is None else {"objective": objective}),
                          **({} if getattr(args, "seed_plan", True) else {"seed_plan": False}))
+        if search_fields(args):  # the offline plan's search, at the MPC's own cart margin
+            from cartpole.planning.options import PlanOptions
+
+            plan = PlanOptions(cart_margin=mpc.cart_margin, **search_fields(args))
     elif getattr(args, "mpc_solver", None) is not None:
         raise SwingupError("--mpc-solver picks the MPC's solver; use it with --method mpc.")
+    if args.method == "energy" and search_fields(args):
+        raise SwingupError("--T-max and --search-s set the planner's pumping search; use them with --method trajopt "
+                           "or mpc.")
     elif not getattr(args, "seed_plan", True):
         raise SwingupError("--no-seed-plan runs the DDP MPC without an offline plan; use it with --method mpc "
                            "--mpc-solver ddp.")
@@ -237,8 +259,9 @@ def run(args) -> dict:
         {"simulate": f"{default:g} s"} if default is not None else {})
     viewer = live_viewer("swingup") if args.view else None
     try:
-        res = run_swingup(model, method=args.method, x0=x0, plan=plan, loop=loop, mpc=mpc, progress=_Stages(sizes),
-                          on_step=viewer, plan_model=plan_model)
+        res = run_swingup(model, method=args.method, x0=None if args.x0 is None else x0, plan=plan, loop=loop,
+                          mpc=mpc, progress=_Stages(sizes), on_step=viewer, plan_model=plan_model,
+                          **limit_keywords(args))
         if viewer is not None:
             viewer.finish()
     finally:
@@ -277,6 +300,7 @@ def run(args) -> dict:
     if args.method != "mpc":
         doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
+    doc["limits"], doc["start_moved"] = m.get("limits"), m.get("start_moved", [])
     doc["plan_mjcf"] = None if plan_model is None else plan_model.params.mjcf
     if args.method == "mpc":
         ctrl = res.controller
@@ -310,6 +334,8 @@ def run(args) -> dict:
         if m["diverged"]:
             print(f"DIVERGED: MuJoCo warned that the simulation blew up ({m['diverged_warning']}) at "
                   f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")
+        for line in limit_lines(doc["limits"], doc["start_moved"]):
+            print(line)
         print(f"Caught at: {fmt(res.caught_at, 's')}; time to upright (every |theta_i| < 0.05 rad for good): "
               f"{fmt(m['time_to_upright'], 's')}")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "

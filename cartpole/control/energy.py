@@ -339,7 +339,8 @@ def default_gains(model: CartPoleModel, options: EnergyOptions | None = None, **
     sc = model_scales(model)
     if not np.isfinite(sc["a_max"]):
         raise EnergyShapingError("The MJCF's actuator has no ctrlrange, so default energy gains cannot be scaled; "
-                                 "set ctrlrange on the motor or pass every gain explicitly.")
+                                 "design on cartpole.models.planning_limits(params) (a stated default bound; "
+                                 "--u-max on the command line), set ctrlrange on the motor, or pass every gain.")
     wx = c["centring_frequency"] * sc["omega0"]
     return EnergyGains(k_energy=c["energy_gain"] * sc["a_max"] / (2 * sc["mgl"] * sc["omega0"]),
                        k_x=wx**2, k_v=2 * c["centring_damping"] * wx,

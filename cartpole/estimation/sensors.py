@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole._files import short
 from cartpole.estimation.base import EstimationError
 from cartpole.models import CartPoleModel, CartPoleParams, load_model, mujoco_model
 
@@ -234,9 +235,9 @@ def _compiled(source):
         source = source.params
     if isinstance(source, CartPoleParams):
         m = mujoco_model(source)  # a URDF's params: their MJCF text, motors included
-        return m, f"MJCF '{source.mjcf}'" if source.mjcf else "The MJCF"
+        return m, f"MJCF '{short(source.mjcf)}'" if source.mjcf else "The MJCF"
     m, path, _ = load_model(None if source is None else Path(source))
-    return m, f"MJCF '{path}'"
+    return m, f"MJCF '{short(path)}'"
 
 
 def _frame(m, d, objtype: int, objid: int, moving: dict) -> SensorFrame:

@@ -13,6 +13,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from cartpole._files import short
 from cartpole.export.estimators import ExportError
 
 #: ``manifest.json``'s ``format``: what marks a folder as an earlier export that may be replaced.
@@ -142,7 +143,7 @@ def check_target(out: str | Path) -> Path:
     if not os.path.lexists(out):
         return out
     if not out.is_dir():
-        raise ExportError(f"--out {out} is a file; give a new folder or an earlier export's folder.")
+        raise ExportError(f"--out {short(out)} is a file; give a new folder or an earlier export's folder.")
     if not any(out.iterdir()):
         return out
     try:
@@ -150,7 +151,7 @@ def check_target(out: str | Path) -> Path:
     except (OSError, ValueError, AttributeError):
         fmt = None
     if fmt != MANIFEST_FORMAT:
-        raise ExportError(f"--out {out} exists and is not an earlier export (no cartpole manifest.json); give a new "
+        raise ExportError(f"--out {short(out)} exists and is not an earlier export (no cartpole manifest.json); give a new "
                           "folder, an empty one or an earlier export's folder.")
     return out
 

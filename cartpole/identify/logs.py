@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole._files import short
 from cartpole.errors import CartPoleError
 
 #: Relative spread of the sample intervals accepted as one fixed sample time (CSV times printed to 6-9 digits).
@@ -248,11 +249,11 @@ def read_log(path: str | Path, params) -> RunLog:
     """
     path = Path(path)
     if not path.is_file():
-        raise LogError(f"Log {path} does not exist; give the path of a CSV or rollout JSON file.")
+        raise LogError(f"Log {short(path)} does not exist; give the path of a CSV or rollout JSON file.")
     try:
         head = path.read_bytes()[:64].lstrip()
     except OSError as exc:
-        raise LogError(f"Log {path} cannot be read ({exc.strerror}); check the path.") from None
+        raise LogError(f"Log {short(path)} cannot be read ({exc.strerror}); check the path.") from None
     if head.startswith(b"{"):
         return read_json_log(path, params.nq, params.nu)
     return read_csv_log(path, params.joint_names, tuple(a.name for a in params.actuators))

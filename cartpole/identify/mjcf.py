@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole._files import atomic_write
+from cartpole._files import atomic_write, short
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, mujoco_model
 
@@ -164,7 +164,7 @@ def check_fitted(path: str | Path, params, values, *, rtol: float = 1e-9) -> Non
     try:
         fp = read_params(path)
     except CartPoleError as exc:
-        raise FittedMJCFError(f"The fitted MJCF {path} does not load ({exc}); write it beside the nominal file "
+        raise FittedMJCFError(f"The fitted MJCF {short(path)} does not load ({exc}); write it beside the nominal file "
                               "(relative includes) or report this.") from None
     for q, v in zip(params, values):
         if q.kind == "mass":
@@ -178,7 +178,7 @@ def check_fitted(path: str | Path, params, values, *, rtol: float = 1e-9) -> Non
         else:
             got = float(getattr(fp.joints[q.index], q.kind))
         if abs(got - v) > rtol * max(abs(v), q.scale) + 1e-15:
-            raise FittedMJCFError(f"The fitted MJCF {path} compiles {q.name} to {got:.9g}, not the fitted "
+            raise FittedMJCFError(f"The fitted MJCF {short(path)} compiles {q.name} to {got:.9g}, not the fitted "
                                   f"{v:.9g}; the file's defaults override the edit, so set it by hand.")
 
 

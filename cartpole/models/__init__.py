@@ -9,6 +9,8 @@ from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_k
 from cartpole.models.discretize import MAX_PERIOD, HoldModel, PeriodError, hold_model, steps_per_period
 from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equations, linearize, state_error,
                                       wrap_angle)
+from cartpole.models.limits import (START_SNAP, LimitsError, PlanningLimits, StartMove, bounded_model, chain_length,
+                                    default_cart_max, default_u_max, planning_limits, start_on_range)
 
 __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError", "load_model", "mujoco_warnings",
            "read_params", "mujoco_model", "AddedActuator", "URDFError", "URDFImport", "import_urdf", "is_urdf",
@@ -18,3 +20,5 @@ __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError
            "hold_model", "steps_per_period", "DEFAULT_FRICTION_WIDTH", "FrictionWidthError", "check_width",
            "smooth_friction", "quat_to_mat", "MAX_CONSTRAINT_FRICTION_DOFS", "FrictionConstraint",
            "constraint_friction_force", "friction_constraint"]
+__all__ += ["START_SNAP", "LimitsError", "PlanningLimits", "StartMove", "bounded_model", "chain_length", "default_cart_max",
+            "default_u_max", "planning_limits", "start_on_range"]

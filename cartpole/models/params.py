@@ -24,7 +24,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.errors import CartPoleError, first_line
+from cartpole._files import short
+from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
 from cartpole.models.urdf import URDFError, URDFImport, import_urdf, is_urdf
 
 #: Integrators whose one-step map :mod:`cartpole.models.symbolic` reproduces exactly.
@@ -517,7 +518,7 @@ def _load(mjcf=None, *, xml=None, actuated_joints=None):
             with _compiler_warnings():
                 return mujoco.MjModel.from_xml_string(xml), "", xml, None
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
-            raise MJCFError(f"The MJCF text does not compile: {first_line(exc)}. "
+            raise MJCFError(f"The MJCF text does not compile: {first_line(exc, FOREIGN_WIDTH)}. "
                             "Fix the XML and try again.") from None
     from cartpole._files import InputFileError, check_input_file
 
@@ -529,20 +530,20 @@ def _load(mjcf=None, *, xml=None, actuated_joints=None):
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
-        raise MJCFError(f"MJCF file '{path}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
+        raise MJCFError(f"MJCF file '{short(path)}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
                         "path of a cart-pole MJCF.") from None
     if is_urdf(text):
         m, mjcf_text, record = _urdf(text, str(path), actuated_joints)
         return m, str(path), mjcf_text, record
     if actuated_joints:
-        raise MJCFError(f"MJCF file '{path}' declares its own actuators; actuated_joints (--actuated-joint) "
+        raise MJCFError(f"MJCF file '{short(path)}' declares its own actuators; actuated_joints (--actuated-joint) "
                         "chooses the driven joints of a URDF only, so drop it.")
     check_referenced_files(path, text)  # an <include> or asset naming a FIFO would block MuJoCo's reader forever
     try:
         with _compiler_warnings():
             model = mujoco.MjModel.from_xml_path(str(path))
     except Exception as exc:
-        raise MJCFError(f"MJCF file '{path}' does not compile: {first_line(exc)}. "
+        raise MJCFError(f"MJCF file '{short(path)}' does not compile: {first_line(exc, FOREIGN_WIDTH)}. "
                         "Fix the XML and try again.") from None
     return model, str(path), text, None
 
@@ -594,12 +595,12 @@ def check_referenced_files(path: Path, text: str) -> None:
                 try:
                     real = check_input_file(cand, what=f"The {el.tag} file")
                 except InputFileError as exc:
-                    raise MJCFError(f"MJCF file '{path}' names {cand} ({el.tag} file), which {exc.reason}; point it "
+                    raise MJCFError(f"MJCF file '{short(path)}' names {short(cand)} ({el.tag} file), which {exc.reason}; point it "
                                     "at a regular file.") from None
                 if el.tag == "include":
                     seen += 1
                     if seen > MAX_INCLUDES:
-                        raise MJCFError(f"MJCF file '{path}' pulls in more than {MAX_INCLUDES} files through "
+                        raise MJCFError(f"MJCF file '{short(path)}' pulls in more than {MAX_INCLUDES} files through "
                                         "<include>; remove the loop of includes.")
                     try:
                         todo.append((real, real.read_text()))
@@ -698,11 +699,13 @@ def _check_supported(m, where: str) -> None:
         if not field.startswith("opt.") and not hasattr(m, field):
             continue  # older MuJoCo has no actuator damping or armature
         values = np.asarray(getattr(m, field) if not field.startswith("opt.") else getattr(m.opt, field[4:]), float)
+        if field in _INF_MEANS_NO_LIMIT:  # range="-inf inf": no limit on that side, as MuJoCo simulates it
+            values = np.where(np.isinf(values), 0.0, values)
         if not np.all(np.isfinite(values)):
             raise MJCFError(f"{where} has a number that is not finite in {field} (nan or inf in the XML); "
                             "give every mass, size, position, axis, gear, range and option a finite value.")
     for i in range(m.nu):  # a ctrlrange so wide that full ctrl is no physical force (1e300) is a typo, refused
-        if m.actuator_ctrllimited[i]:
+        if m.actuator_ctrllimited[i] and np.all(np.isfinite(m.actuator_ctrlrange[i])):
             reach = float(np.max(np.abs(m.actuator_ctrlrange[i]))) * abs(float(m.actuator_gainprm[i, 0])) \
                 * float(np.max(np.abs(m.actuator_gear[i])))
             if reach > MAX_ACTUATOR_FORCE:
@@ -783,6 +786,11 @@ _FINITE_FIELDS = ("opt.gravity", "opt.timestep", "body_pos", "body_quat", "body_
                   "actuator_armature")
 
 
+#: Range fields where an infinite bound means "no limit on that side" (``range="-inf inf"``, limited or not): only
+#: nan is refused there. :func:`read_params` reads an infinite side as unlimited.
+_INF_MEANS_NO_LIMIT = ("jnt_range", "actuator_ctrlrange", "actuator_forcerange")
+
+
 def _colliding_pair(m):
     """Names of the first two geoms MuJoCo's collision filter would let touch, or None."""
     import mujoco
@@ -845,7 +853,7 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
     import mujoco
 
     m, path, text, urdf = _load(mjcf, xml=xml, actuated_joints=actuated_joints)
-    where = (f"{'URDF' if urdf else 'MJCF'} '{path}'" if path else f"The {'URDF' if urdf else 'MJCF'}")
+    where = (f"{'URDF' if urdf else 'MJCF'} '{short(path)}'" if path else f"The {'URDF' if urdf else 'MJCF'}")
     _check_supported(m, where)
 
     # Moving bodies: those with a joint somewhere on their path to the world.

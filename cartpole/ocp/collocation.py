@@ -619,7 +619,8 @@ class DirectCollocation:
         if parts:
             return OCPNotSolved(f"No swing-up found {when} {tried}; a relaxed solve from the first guess says "
                                 f"{' and '.join(parts)} (local, no proof); give a longer T, other guesses, a longer "
-                                "track or more force.", attempts)
+                                "track or more force (in the MJCF, or --cart-max and --u-max where it has none).",
+                                attempts)
         return OCPNotSolved(f"No swing-up found {when} {tried}, although a relaxed solve needs no bound widened; "
                             "give another initial guess or more intervals N.", attempts)
 

@@ -32,7 +32,7 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
-from cartpole.errors import first_line
+from cartpole.errors import FOREIGN_WIDTH, first_line
 from cartpole.ocp import dmc
 from cartpole.ocp.bounds import OCPError
 
@@ -137,7 +137,7 @@ def tracking_cost(model, x, u, Q=None, R=None):
 def _short(exc: BaseException) -> str:
     """The first line of an exception's message, without a final period (user code's errors can be long)."""
     lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()]
-    return first_line(lines[0]) if lines else type(exc).__name__
+    return first_line(lines[0], FOREIGN_WIDTH) if lines else type(exc).__name__
 
 
 def _from_function(model, fn: Callable, label: str) -> Objective:
@@ -166,7 +166,8 @@ def _from_function(model, fn: Callable, label: str) -> Objective:
         f = ca.Function(fname, [x, u], [-val if is_rew else val], ["x", "u"], ["cost"])
     except RuntimeError as exc:
         why = ("depends on CasADi symbols other than x and u; build it from the two arguments only"
-               if "free" in str(exc).lower() else f"cannot be made a CasADi Function ({first_line(exc)})")
+               if "free" in str(exc).lower() else
+               f"cannot be made a CasADi Function ({first_line(exc, FOREIGN_WIDTH)})")
         raise OCPError(f"The objective {label} {why}.") from None
     v = float(f(model.x_eq, model.u_eq))
     if not np.isfinite(v):

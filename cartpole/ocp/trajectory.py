@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole._files import atomic_write
+from cartpole._files import atomic_write, short
 from cartpole.errors import CartPoleError
 
 
@@ -198,7 +198,7 @@ class Trajectory:
         """Read a trajectory written by :meth:`save` (``.npz`` or ``.json``)."""
         path = Path(path)
         if not path.is_file():
-            raise TrajectoryError(f"Trajectory file '{path}' does not exist; give the path save() returned.")
+            raise TrajectoryError(f"Trajectory file '{short(path)}' does not exist; give the path save() returned.")
         try:
             if path.suffix == ".json":
                 d = json.loads(path.read_text())
@@ -207,5 +207,5 @@ class Trajectory:
                     d = {k: z[k] for k in z.files}
             return cls(t=d["t"], x=d["x"], u=d["u"], xdot=d["xdot"], x_mid=d.get("x_mid"), u_mid=d.get("u_mid"))
         except (KeyError, ValueError, OSError) as exc:
-            raise TrajectoryError(f"'{path}' does not hold a trajectory ({exc}); give a file written by "
+            raise TrajectoryError(f"'{short(path)}' does not hold a trajectory ({exc}); give a file written by "
                                   "Trajectory.save.") from None

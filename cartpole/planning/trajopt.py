@@ -516,7 +516,8 @@ def refusal(params: CartPoleParams, model: CartPoleModel, x0, bounds, attempts, 
     else:
         how = "no pumping plan converged even with the ctrl bound relaxed"
     return OCPNotSolved(f"No swing-up found within T <= {T_max:.3g} s after {k} attempts ({how}); that proves "
-                        "nothing: give a longer T_max or search time, or more actuator force.", attempts)
+                        "nothing: give a longer T_max or search_s (--T-max, --search-s on the command line), or more actuator "
+                        "force (a wider ctrlrange, or --u-max where the file has none).", attempts)
 
 
 #: Seconds of the horizon beyond the minimum swing-up time for the running objectives (tracking, dmc_swingup,

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole.errors import CartPoleError, first_line
+from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
 from cartpole.models import CartPoleParams, is_urdf, load_model
 from cartpole.sim import ctrl_bounds, make_mujoco
 
@@ -206,7 +206,7 @@ def build_display(source, *, width: int, height: int, floor_z: float | None = No
     try:
         m = spec.compile()
     except Exception as exc:
-        raise VideoUnavailable(f"The render-only copy of the MJCF does not compile ({first_line(exc)}); "
+        raise VideoUnavailable(f"The render-only copy of the MJCF does not compile ({first_line(exc, FOREIGN_WIDTH)}); "
                                "skip the video (--no-video).") from None
     d = mujoco.MjData(m)
     hinges, link_geoms = [], []

@@ -36,7 +36,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from cartpole._files import atomic_path
-from cartpole.errors import CartPoleError, first_line
+from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
 from cartpole.models import CartPoleParams, wrap_angle
 from cartpole.progress import stage
 from cartpole.sim import Rollout
@@ -123,7 +123,7 @@ def _gl_renderer(m, height, width):
             return mujoco.Renderer(m, height=height, width=width)
         except Exception as exc:  # GL failures surface as ImportError, RuntimeError, mujoco.FatalError ...
             backend = os.environ.get("MUJOCO_GL", "") or "default"
-            why = first_line(caught[0].message) if caught else first_line(exc)
+            why = first_line(caught[0].message, FOREIGN_WIDTH) if caught else first_line(exc, FOREIGN_WIDTH)
             why = re.split(r"[,;] ", why.replace("b'", "").replace("'", ""))[0]
             raise VideoUnavailable(f"No working OpenGL backend for offscreen rendering (MUJOCO_GL={backend}: "
                                    f"{why}); install Mesa's EGL or OSMesa, or skip the video.") from None
@@ -293,7 +293,7 @@ def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, p
     except VideoUnavailable:
         raise
     except Exception as exc:
-        raise VideoUnavailable(f"Rendering or encoding the video failed ({first_line(exc)}); "
+        raise VideoUnavailable(f"Rendering or encoding the video failed ({first_line(exc, FOREIGN_WIDTH)}); "
                                "check MUJOCO_GL and that imageio-ffmpeg is installed.") from None
     finally:
         if bar is not None:

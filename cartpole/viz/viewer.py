@@ -48,7 +48,7 @@ from typing import Callable
 import numpy as np
 
 from cartpole._files import atomic_write
-from cartpole.errors import CartPoleError, first_line
+from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
 from cartpole.models import CartPoleParams
 from cartpole.sim import Rollout, simulate
 
@@ -180,7 +180,8 @@ def grab_screen(box: tuple[int, int, int, int] | None = None):
     try:
         screen = ImageGrab.grab(xdisplay=display or None)
     except Exception as exc:  # Pillow without XCB, a Wayland session...
-        raise ViewerUnavailable(f"Cannot read the screen for a screenshot of the viewer ({first_line(exc)}); "
+        raise ViewerUnavailable("Cannot read the screen for a screenshot of the viewer "
+                                f"({first_line(exc, FOREIGN_WIDTH)}); "
                                 "run under X (DISPLAY, e.g. `xvfb-run`).") from None
     if box is None:
         return screen
@@ -248,7 +249,7 @@ class LiveViewer:
         try:
             import mujoco.viewer
         except Exception as exc:  # no glfw wheel, no libglfw handle
-            raise _unavailable(f"mujoco.viewer cannot load GLFW: {first_line(exc)}") from None
+            raise _unavailable(f"mujoco.viewer cannot load GLFW: {first_line(exc, FOREIGN_WIDTH)}") from None
         before = set(threading.enumerate())
         got: list = []
         opener = threading.Thread(target=lambda: got.append(mujoco.viewer.launch_passive(

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.models import build_model, read_params
+from cartpole.models import build_model, planning_limits, read_params
 from cartpole.mpc.nmpc import NMPCController
 from cartpole.mpc.options import MPCOptions
 from cartpole.mpc.ipopt_baseline import IpoptMPC
@@ -33,7 +33,8 @@ def _runs(controller, params, x0, duration: float, repeats: int) -> tuple[list, 
 
 def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, repeats: int = 3,
                       duration: float = 4.0, baseline_repeats: int = 1, qp_solver: str | None = None,
-                      baseline: bool = True, ddp_two_pole: bool = True) -> dict:
+                      baseline: bool = True, ddp_two_pole: bool = True, u_max=None,
+                      cart_max: float | None = None) -> dict:
     """Per-control-step solve time of the NMPC over a single-pole swing-up in MuJoCo, and of the IPOPT baseline.
 
     Parameters
@@ -52,6 +53,9 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
         False skips the IPOPT runs (``baseline`` and ``speedup_median`` are then None).
     ddp_two_pole : bool
         Also time the DDP MPC on the shipped two-pole cart.
+    u_max, cart_max : optional
+        The bounds ``mjcf``'s swing-up plans within (:func:`cartpole.models.planning_limits`: the file's, else a
+        stated default; the JSON's ``limits``).
 
     Returns
     -------
@@ -66,7 +70,7 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
         iteration a period), each {``solve_ms_median``, ``solve_ms_max``, ``steps``, ``period``, ``success``,
         ``failures``}}.
     """
-    params = read_params(mjcf)
+    params, limits = planning_limits(read_params(mjcf), u_max=u_max, cart_max=cart_max)
     model = build_model(params)
     x0 = model.x_hanging
     plan = trajopt_swingup(params, x0=x0, model=model)
@@ -92,7 +96,7 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
         # the double takes longer to swing up: 6 s so that its last second is the hold the success test needs
         ddp_doc["two_pole"] = _ddp_row(p2, m2, plan2, options.replace(qp_solver=None), m2.x_hanging,
                                        max(duration, 6.0), repeats)
-    return {"solve_ms_median": med, "solve_ms_max": float(np.max(t_rti)),
+    return {"solve_ms_median": med, "solve_ms_max": float(np.max(t_rti)), "limits": limits.to_dict(),
             "ddp": ddp_doc,
             "solve_ms_p99": float(np.percentile(t_rti, 99)), "steps": len(t_rti), "baseline": base_doc,
             "speedup_median": None if base_doc is None else base_doc["solve_ms_median"] / med,

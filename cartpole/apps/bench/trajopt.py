@@ -31,7 +31,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.lqr import lab_weights, tvlqr
-from cartpole.models import build_model, mujoco_model, read_params
+from cartpole.models import build_model, mujoco_model, planning_limits, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
@@ -439,7 +439,8 @@ def shipped_plan_models() -> list[tuple[str, str]]:
     return [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS]
 
 
-def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progress=None) -> list[dict]:
+def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progress=None, u_max=None,
+                   cart_max: float | None = None) -> list[dict]:
     """Swing-up plan time, all initial guesses included, and time to upright, for carts with 1, 2 and 3 poles.
 
     Each repeat reads the MJCF anew, builds the model, plans (:func:`cartpole.planning.trajopt.trajopt_swingup`
@@ -459,11 +460,14 @@ def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progre
         Also time the whole command once per model.
     progress : callable, optional
         ``progress(message)``.
+    u_max, cart_max : optional
+        The bounds each plan keeps to (:func:`cartpole.models.planning_limits`: the file's, else a stated default;
+        each row's ``limits``); passed on to the timed command as ``--u-max``, ``--cart-max``.
 
     Returns
     -------
     list of dict
-        Per model: ``model``, ``mjcf``, ``plan_s_median`` (s: read + build + plan), ``plan_s`` (every repeat, the
+        Per model: ``model``, ``mjcf``, ``limits``, ``plan_s_median`` (s: read + build + plan), ``plan_s`` (every repeat, the
         first cold), ``verify_s_median`` (MuJoCo run + exact replay, s), ``total_s_median``, ``T`` (plan, s),
         ``T_min`` (s), ``time_to_upright`` (s, of the MuJoCo run), ``success``, ``replays``, ``attempts`` (solves
         tried by the last plan), ``command_s`` (or None).
@@ -477,13 +481,15 @@ def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progre
 
     say = progress or (lambda msg: None)
     items = shipped_plan_models() if mjcfs is None else list(mjcfs)
+    bound_flags = ([] if u_max is None else ["--u-max", *map(str, np.ravel(u_max))]) + (
+        [] if cart_max is None else ["--cart-max", str(cart_max)])
     rows = []
     for label, path in items:
         say(f"swing-up plan, {label}: {repeats} plans + MuJoCo runs ...")
         plan_s, verify_s, last = [], [], None
         for _ in range(max(1, int(repeats))):
             tic = time.perf_counter()
-            params = read_params(path)
+            params, limits = planning_limits(read_params(path), u_max=u_max, cart_max=cart_max)
             sp = trajopt_swingup(params, model=build_model(params))
             toc = time.perf_counter()
             run = simulate(params, sp.controller, sp.model.x_hanging, sp.T + 3.0)
@@ -499,11 +505,11 @@ def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progre
             with tempfile.TemporaryDirectory() as out:
                 tic = time.perf_counter()
                 done = subprocess.run([sys.executable, "-m", "cartpole", "swingup", "--method", "trajopt",
-                                       "--mjcf", path, "--no-video", "--json", "--out", out],
+                                       "--mjcf", path, "--no-video", "--json", "--out", out, *bound_flags],
                                       capture_output=True, text=True)
                 cmd_s = time.perf_counter() - tic if done.returncode == 0 else None
         attempts = getattr(sp.solve_info, "attempts", None)
-        rows.append({"model": label, "mjcf": params.mjcf, "plan_s_median": statistics.median(plan_s),
+        rows.append({"model": label, "mjcf": params.mjcf, "limits": limits.to_dict(), "plan_s_median": statistics.median(plan_s),
                      "plan_s": plan_s, "verify_s_median": statistics.median(verify_s),
                      "total_s_median": statistics.median([a + b for a, b in zip(plan_s, verify_s)]),
                      "T": sp.T, "T_min": sp.T_min, "time_to_upright": met["time_to_upright"],
@@ -524,16 +530,34 @@ def print_plan_table(rows: list[dict], file=None) -> None:
           f"{up:>10s} {str(r['success'] and r['replays']):>8s}\n")
 
 
-def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None) -> dict | None:
+def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None, u_max=None,
+                  cart_max: float | None = None) -> dict | None:
     """The NMPC row (:func:`cartpole.apps.bench.mpc.run_mpc_benchmark`): per-control-step solve time over a
     single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess; None when this
-    installation has no NMPC."""
+    installation has no NMPC.
+
+    Parameters
+    ----------
+    mjcf : path, optional
+    quick : bool
+        One run instead of three.
+    progress : callable, optional
+        ``progress(message)``.
+    u_max : float or (nu,) array, optional
+        ``|ctrl|`` bound (MuJoCo ctrl) the plan keeps to (default the file's, else a stated default).
+    cart_max : float, optional
+        m the cart may travel either side of its range's centre (default the file's, else a stated default).
+
+    Returns
+    -------
+    dict or None
+    """
     try:
         from cartpole.apps.bench.mpc import run_mpc_benchmark
     except ImportError:
         return None
     (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
-    return run_mpc_benchmark(mjcf, repeats=1 if quick else 3)
+    return run_mpc_benchmark(mjcf, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max)
 
 
 def print_mpc_table(doc: dict, file=None) -> None:

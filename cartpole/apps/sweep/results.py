@@ -22,7 +22,8 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole._files import InputFileError, output_error, read_bounded, short
-from cartpole.models import CartPoleParams
+from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleParams, read_params
 from cartpole.apps.sweep.plan import Axis, SweepError, start_index
 
 
@@ -241,6 +242,23 @@ def summary_line(s: dict) -> str:
             f"min clearance {clear}, peak |ctrl| {peak}")
 
 
+def _bounds_not_the_files(params: CartPoleParams) -> dict:
+    """The ctrl ranges and cart range of ``params`` where they are not those of its MJCF file (empty when they are,
+    or when there is no file to compare with)."""
+    if not params.mjcf:
+        return {}
+    try:
+        file = read_params(params.mjcf)
+    except CartPoleError:
+        return {}
+    out = {}
+    if not np.array_equal(np.asarray(file.ctrl_range, float), np.asarray(params.ctrl_range, float)):
+        out["ctrl_range"] = np.asarray(params.ctrl_range, float).tolist()
+    if not np.array_equal(np.asarray(file.cart_range, float), np.asarray(params.cart_range, float)):
+        out["cart_range"] = np.asarray(params.cart_range, float).tolist()
+    return out
+
+
 def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration, jitter: float, axes=(),
              x0=None, loop=None, objective: str | None = None, mpc: dict | None = None) -> str:
     """12 hex digits naming the sweep description (MJCF path and content, method, ``n``, seed, ``duration`` s,
@@ -263,6 +281,9 @@ def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration
         desc["objective"] = str(objective)
     if mpc:  # likewise one with the MPC's default settings
         desc["mpc"] = {k: mpc[k] for k in sorted(mpc)}
+    bounds = _bounds_not_the_files(params)
+    if bounds:  # ctrl or cart bounds given or defaulted (cartpole.models.planning_limits); the file's keep the id
+        desc["bounds"] = bounds
     return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:12]
 
 
