@@ -1,0 +1,203 @@
+"""``cartpole lqr --margins``: the loops of the lab's linear designs on a rig, broken at the plant input, and their
+margins (:mod:`cartpole.analysis`); and the same margins measured in MuJoCo (a delay and a loop gain at the ctrl).
+
+Designs, keyed as the JSON ``margins`` object keys them:
+
+* ``lqr``: the lab's LQR as the rig runs it on the true state (its period, its delay, predicted over when the rig
+  compensates), the exact discrete model of the MJCF's integrator;
+* ``lqr_continuous``: the same gain on the continuous linearisation, the textbook loop whose margins LQR guarantees
+  (only for a gain designed continuous, at one physics step);
+* ``lqg``: with ``estimator="kf"``, the LQR on the Kalman filter's estimate from the rig's sensors;
+* ``pid``: with ``pid=True``, the cascaded PID on the state at the rig's period and delay (one pole on a cart).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cartpole.analysis import (Loop, LoopError, Margins, closed_loop_stable, continuous_loop, loop_margins,
+                               pid_loop, sampled_loop)
+from cartpole.models import steps_per_period
+
+#: Designs with no linear loop to break, and why (for the refusal's sentence).
+NONLINEAR = {"energy": "energy shaping is a nonlinear law (its ctrl follows the pole's energy, not a linear map of "
+                       "the state)",
+             "mpc": "NMPC re-plans a nonlinear program every period, which is no fixed linear map of the state",
+             "ekf": "the EKF relinearises at its estimate every period",
+             "mhe": "the moving-horizon estimator solves a nonlinear program every period"}
+
+
+def refuse_nonlinear(design: str) -> None:
+    """Raise the :class:`~cartpole.analysis.LoopError` sentence for a design without a linear loop.
+
+    Parameters
+    ----------
+    design : str
+        A key of :data:`NONLINEAR` (``energy``, ``mpc``, ``ekf``, ``mhe``).
+    """
+    why = NONLINEAR.get(design, f"'{design}' is not a linear design")
+    raise LoopError(f"Margins are read on a linear loop and {why}; ask for the margins of the LQR (cartpole lqr "
+                    "--margins, with --estimator kf for LQG) or of the PID (--compare-pid).")
+
+
+@dataclass(frozen=True)
+class LabMargins:
+    """The loops and margins of the lab's designs on one rig.
+
+    Attributes
+    ----------
+    loops : dict
+        Design key -> :class:`~cartpole.analysis.Loop`.
+    margins : dict
+        Design key -> :class:`~cartpole.analysis.Margins`.
+    K : (nu, nx) array
+        The LQR gain the loops close.
+    steps, delay_steps : int
+        Physics steps per period and of delay.
+    """
+
+    loops: dict
+    margins: dict
+    K: np.ndarray
+    steps: int
+    delay_steps: int
+
+    def to_dict(self) -> dict:
+        """JSON ``margins``: design key -> :meth:`~cartpole.analysis.Margins.to_dict`."""
+        return {k: m.to_dict() for k, m in self.margins.items()}
+
+
+def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid: bool = False) -> LabMargins:
+    """The margins of the lab's LQR (and LQG, PID) on the rig ``loop``.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    Q, R : arrays, optional
+        LQR weights (default :func:`~cartpole.lqr.lab_weights`).
+    discrete : bool
+        Design with dlqr at the physics step (as ``cartpole lqr --discrete``).
+    loop : LoopOptions, optional
+        The rig: ``period``, ``delay``, ``delay_compensation``, the estimator (``kf`` adds ``lqg``) and sensors.
+    pid : bool
+        Add the cascaded PID's loop.
+
+    Returns
+    -------
+    LabMargins
+
+    Raises
+    ------
+    LoopError
+        An estimator with no linear loop (``ekf``, ``mhe``).
+    """
+    from cartpole.apps.lab import design, lab_equilibrium
+    from cartpole.lqr import lab_weights
+    from cartpole.sim.options import LoopOptions
+    from cartpole.sim.rig import delay_steps, estimator_factory
+
+    loop = LoopOptions() if loop is None else loop
+    h = float(model.dt)
+    m = steps_per_period(loop.period, h)
+    d = delay_steps(loop.delay, h)
+    Q0, R0 = lab_weights(model)
+    Q = Q0 if Q is None else Q
+    R = R0 if R is None else R
+    x_eq = lab_equilibrium(model)
+    res, _ = design(model, Q, R, discrete=discrete, x_eq=x_eq, steps=m)
+    K = res.K
+    comp = bool(loop.delay_compensation)
+    loops = {"lqr": sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, x=x_eq)}
+    if m == 1 and not discrete:
+        loops["lqr_continuous"] = continuous_loop(model, K, x=x_eq, name="lqr_continuous")
+    estimator = loop.estimator_for("balance")
+    if estimator in ("ekf", "mhe"):
+        refuse_nonlinear(estimator)
+    if estimator == "kf":
+        _, make = estimator_factory(model, loop, "kf", m)
+        loops["lqg"] = sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, kalman=make(), x=x_eq)
+    if pid:
+        from cartpole.control.pid import CascadedPID
+
+        loops["pid"] = pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d)
+    return LabMargins(loops, {k: loop_margins(v) for k, v in loops.items()}, K, m, d)
+
+
+def whole_step_delay_margin(build, start: int, limit: int) -> int | None:
+    """The largest total delay (physics steps, from ``start``) at which the loop ``build(delay_steps)`` is still
+    stable, trying ``start, start + 1, ..`` up to ``limit``: what ``cartpole lqr --delay-margin`` searches in MuJoCo,
+    on the linear loop.
+
+    Parameters
+    ----------
+    build : callable
+        ``delay_steps -> Loop``.
+    start, limit : int
+        First and last delay tried, physics steps.
+
+    Returns
+    -------
+    int or None
+        None when ``start`` is already unstable; ``limit`` when every delay tried is stable.
+    """
+    last = None
+    for dly in range(int(start), int(limit) + 1):
+        if not closed_loop_stable(build(dly).L):
+            return last
+        last = dly
+    return last
+
+
+def scaled_gain_stable(model, K, k: float, *, x_eq=None, tilt: float = 1e-3, duration: float = 6.0,
+                       window: float = 1.5) -> bool:
+    """Whether MuJoCo's loop is stable with the LQR's ctrl deviation scaled by ``k`` (a gain ``k`` at the plant
+    input: ``u = u* - k K (x - x*)``), run at the physics step from a tilt of ``tilt`` rad on every hinge.
+
+    Stable here means: no divergence, the ctrl off its limits over the last ``window`` s (a loop that is unstable
+    at the linear level grows until the ctrl saturates and then chatters there), and the largest state error over
+    the last ``window`` s below the largest over the window ending 3 s earlier (it decays).
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    K : (nu, nx) array
+    k : float
+        Loop gain at the plant input.
+    x_eq : (nx,) array, optional
+        Upright (default the lab's equilibrium).
+    tilt : float
+        Initial hinge error, rad (small: the loop is read linear).
+    duration : float
+        Run length, s (at least ``window + 3``).
+    window : float
+        Length of the two windows compared, s (longer than the slowest oscillation near the margin).
+
+    Returns
+    -------
+    bool
+    """
+    from cartpole.apps.lab import lab_equilibrium
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.sim import simulate
+
+    x_eq = lab_equilibrium(model) if x_eq is None else np.asarray(x_eq, float)
+    x0 = np.array(x_eq, dtype=float)
+    x0[list(model.hinges)] += tilt
+    ctrl = LinearFeedback(float(k) * np.asarray(K, float), x_eq, model.u_eq, hinges=model.hinges)
+    run = simulate(model.params, ctrl, x0, duration)
+    if isinstance(run.info, dict) and run.info.get("diverged") is not None:
+        return False
+    err = np.abs(model.state_error(run.x, x_eq)).max(axis=1)
+    t_end = float(run.t[-1])
+    late = run.t >= t_end - window
+    early = (run.t >= t_end - window - 3.0) & (run.t < t_end - 3.0)
+    u = run.ctrl[late[1:]]
+    lo, hi = model.u_low, model.u_high
+    pinned = np.any(np.isclose(u, lo) | np.isclose(u, hi))
+    return bool(np.all(np.isfinite(err)) and not pinned and err[late].max() < err[early].max())
+
+
+def loops_and_margins(found: LabMargins) -> list[tuple[Loop, Margins]]:
+    """``(Loop, Margins)`` pairs in the report's order (for figures and tables)."""
+    return [(found.loops[k], found.margins[k]) for k in found.loops]
