@@ -149,10 +149,16 @@ def whole_step_delay_margin(build, start: int, limit: int) -> int | None:
     return last
 
 
-def scaled_gain_stable(model, K, k: float, *, x_eq=None, tilt: float = 1e-3, duration: float = 6.0,
-                       window: float = 1.5) -> bool:
+def mujoco_stable(model, K, k: float = 1.0, *, loop=None, x_eq=None, tilt: float = 1e-3, duration: float = 6.0,
+                  window: float = 1.5) -> bool:
     """Whether MuJoCo's loop is stable with the LQR's ctrl deviation scaled by ``k`` (a gain ``k`` at the plant
-    input: ``u = u* - k K (x - x*)``), run at the physics step from a tilt of ``tilt`` rad on every hinge.
+    input: ``u = u* - k K (x - x*)``) on the rig ``loop`` (default the physics step, no delay), from a tilt of
+    ``tilt`` rad on every hinge.
+
+    This is the margin's own question asked of MuJoCo, stricter than the lab's "balances" (every pole within 0.05
+    rad for good, :func:`cartpole.apps.lab.balances`): past its delay margin the lab's LQR grows into a limit cycle
+    with the ctrl chattering between its limits while the pole stays within a few degrees, which the lab counts as
+    balanced.
 
     Stable here means: no divergence, the ctrl off its limits over the last ``window`` s (a loop that is unstable
     at the linear level grows until the ctrl saturates and then chatters there), and the largest state error over
@@ -164,6 +170,8 @@ def scaled_gain_stable(model, K, k: float, *, x_eq=None, tilt: float = 1e-3, dur
     K : (nu, nx) array
     k : float
         Loop gain at the plant input.
+    loop : LoopOptions, optional
+        The rig (period, delay, its compensation; the controller reads the true state).
     x_eq : (nx,) array, optional
         Upright (default the lab's equilibrium).
     tilt : float
@@ -180,12 +188,13 @@ def scaled_gain_stable(model, K, k: float, *, x_eq=None, tilt: float = 1e-3, dur
     from cartpole.apps.lab import lab_equilibrium
     from cartpole.control.linear import LinearFeedback
     from cartpole.sim import simulate
+    from cartpole.sim.rig import build_rig
 
     x_eq = lab_equilibrium(model) if x_eq is None else np.asarray(x_eq, float)
     x0 = np.array(x_eq, dtype=float)
     x0[list(model.hinges)] += tilt
     ctrl = LinearFeedback(float(k) * np.asarray(K, float), x_eq, model.u_eq, hinges=model.hinges)
-    run = simulate(model.params, ctrl, x0, duration)
+    run = simulate(model.params, ctrl, x0, duration, rig=build_rig(model, loop))
     if isinstance(run.info, dict) and run.info.get("diverged") is not None:
         return False
     err = np.abs(model.state_error(run.x, x_eq)).max(axis=1)

@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from cartpole.commands._rig import add_rig_arguments, friction_sentence, loop_from_args, rig_doc
+from cartpole.commands._margins import add_margins_argument, run_margins
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -54,6 +55,7 @@ def add_arguments(parser) -> None:
                              "times to MAX) at which the LQR through the estimator (default kf; with --compare-pid "
                              "also the PID on the measurements) still balances all five starts on this rig; prints "
                              "it and writes figures/noise_margin.png")
+    add_margins_argument(parser)
 
 
 #: Largest magnitude of a --Q or --R entry (and 1 / it the smallest nonzero one): far outside it SciPy's Riccati solver
@@ -115,6 +117,8 @@ def run(args) -> dict:
                                                                         else ""))
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
+    if args.margins:
+        return run_margins(args, model, loop, Q, R)
     for key in MARGINS:
         if getattr(args, key) is not None:
             return _margin(args, model, loop, key)

@@ -1,0 +1,49 @@
+"""``cartpole lqr --margins``: the frequency-domain margins of the lab's linear designs on the rig the other
+options describe (:mod:`cartpole.apps.margins`), printed as a table and drawn as Bode, Nyquist and sensitivity
+figures under ``--out``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+#: Where the figures go under --out.
+FIGURES = Path("figures")
+
+
+def add_margins_argument(parser) -> None:
+    """``--margins`` on ``cartpole lqr``."""
+    parser.add_argument("--margins", action="store_true",
+                        help="instead of the lab: the loop of the LQR (with --estimator kf also the LQG, with "
+                             "--compare-pid the PID) on this rig (--period, --delay) broken at the plant input: gain, "
+                             "phase and delay margins, Ms, Mt and crossovers (python-control); prints a table and "
+                             "writes figures/margins_bode.png, margins_nyquist.png, margins_sensitivity.png")
+
+
+def _fmt(v, scale: float = 1.0, digits: str = ".3g") -> str:
+    return "inf" if v is None else format(v * scale, digits)
+
+
+def run_margins(args, model, loop, Q, R) -> dict:
+    """The ``--margins`` document: ``mjcf``, ``period`` (s), ``rig``, ``margins`` (design key -> its margins:
+    ``gain_margin`` [low, high] ratio with null where unbounded, ``phase_margin_deg``, ``delay_margin_s``, ``ms``,
+    ``mt``, crossovers in rad/s), ``figures`` (kind -> path); prints a table unless ``--json``."""
+    from cartpole.apps.margins import lab_margins, loops_and_margins
+    from cartpole.viz.loop_plot import plot_loops
+
+    found = lab_margins(model, Q=Q, R=R, discrete=args.discrete, loop=loop, pid=args.compare_pid)
+    figures = plot_loops(loops_and_margins(found), Path(args.out) / FIGURES)
+    period = model.dt if loop.period is None else loop.period
+    doc = {"mjcf": model.params.mjcf, "period": float(period), "rig": loop.as_dict(), "margins": found.to_dict(),
+           "figures": {k: str(Path(p).resolve()) for k, p in figures.items()}}
+    if not args.json:
+        print(f"{'design':16s} {'gain margin':>18s} {'phase (deg)':>11s} {'delay (ms)':>10s} {'Ms':>6s} {'Mt':>6s} "
+              f"{'crossover (rad/s)':>17s}")
+        for key, m in doc["margins"].items():
+            lo, hi = m["gain_margin"]
+            print(f"{key:16s} {'[' + _fmt(lo) + ', ' + _fmt(hi) + ']':>18s} {_fmt(m['phase_margin_deg'], 1, '.1f'):>11s} "
+                  f"{_fmt(m['delay_margin_s'], 1e3, '.1f'):>10s} {m['ms']:6.3f} {m['mt']:6.3f} "
+                  f"{_fmt(m['gain_crossover_rad_s'], 1, '.1f'):>17s}")
+        for key, m in doc["margins"].items():
+            print(f"  {key}: {m['description']}")
+        for p in doc["figures"].values():
+            print(f"Wrote {p}")
+    return doc
