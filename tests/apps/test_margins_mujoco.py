@@ -1,0 +1,24 @@
+"""The margins predicted from the loop against MuJoCo: the LQR's gain band and whole-step delay margin on the
+shipped 1-, 2- and 3-pole carts, run at the physics step from a 1 mrad tilt (linear enough) with the search's own
+resolution (5 % of the gain, one 5 ms physics step of delay): exact agreement at that resolution is expected,
+since the sampled loop is the exact linearisation of MuJoCo's integrator and the small tilt keeps the ctrl far
+from its limits until an unstable loop grows there."""
+import pytest
+
+from cartpole.analysis import sampled_loop
+from cartpole.apps.margins import lab_margins, mujoco_stable, whole_step_delay_margin
+from cartpole.models import SHIPPED_MJCF, build_model
+from cartpole.sim.options import LoopOptions
+
+
+@pytest.mark.parametrize("asset", ["cartpole.xml", "cartpole_two_pole.xml", "cartpole_three_pole.xml"])
+def test_the_predicted_gain_band_and_delay_margin_hold_in_mujoco(asset):
+    m = build_model(str(SHIPPED_MJCF.parent / asset))
+    found = lab_margins(m)
+    low, high = found.margins["lqr"].gain_margin
+    assert not mujoco_stable(m, found.K, 0.95 * low) and mujoco_stable(m, found.K, 1.05 * low)
+    assert mujoco_stable(m, found.K, 0.95 * high) and not mujoco_stable(m, found.K, 1.05 * high)
+    d = whole_step_delay_margin(lambda k: sampled_loop(m, found.K, delay_steps=k, compensate=False), 0, 40)
+    h = float(m.dt)
+    assert mujoco_stable(m, found.K, loop=LoopOptions(delay=d * h, delay_compensation=False))
+    assert not mujoco_stable(m, found.K, loop=LoopOptions(delay=(d + 1) * h, delay_compensation=False))
