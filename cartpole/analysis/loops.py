@@ -32,7 +32,7 @@ import numpy as np
 from cartpole.errors import CartPoleError
 
 
-class LoopError(CartPoleError, ValueError):
+class AnalysisError(CartPoleError, ValueError):
     """A design that has no linear loop to analyse, or arguments that do not describe one."""
 
 
@@ -83,7 +83,7 @@ def _plant_matrices(model, x=None, u=None):
 def _check_gain(K, nu: int, nx: int) -> np.ndarray:
     K = np.atleast_2d(np.asarray(K, dtype=float))
     if K.shape != (nu, nx) or not np.all(np.isfinite(K)):
-        raise LoopError(f"The gain K has shape {K.shape}; a state feedback of this model needs a finite ({nu}, "
+        raise AnalysisError(f"The gain K has shape {K.shape}; a state feedback of this model needs a finite ({nu}, "
                         f"{nx}) matrix.")
     return K
 
@@ -110,7 +110,7 @@ def channel_loop(A, B, C, D, dt, channel: int):
 
     nu = B.shape[1]
     if np.any(D):
-        raise LoopError("A loop with a direct path from the plant input to the ctrl is not supported.")
+        raise AnalysisError("A loop with a direct path from the plant input to the ctrl is not supported.")
     others = [j for j in range(nu) if j != channel]
     Acl = A + B[:, others] @ C[others, :]
     return control.ss(Acl, B[:, [channel]], -C[[channel], :], np.zeros((1, 1)), dt)
@@ -126,8 +126,10 @@ def continuous_loop(model, K, *, x=None, u=None, name: str = "lqr", channel: int
         The plant (linearised without dry friction at ``(x, u)``).
     K : (nu, nx) array
         The gain, ctrl per state unit.
-    x, u : arrays (nx,), (nu,), optional
-        Operating point (default upright ``x_eq``, ``u_eq``); a TVLQR frozen at a time passes its plan's point.
+    x : (nx,) array, optional
+        Operating state, m, rad, m/s, rad/s (default upright ``x_eq``); a TVLQR frozen at a time passes its plan's.
+    u : (nu,) array, optional
+        Operating ctrl, ctrl units (default ``u_eq``).
     name : str
         The design's key.
     channel : int
@@ -207,8 +209,10 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
     kalman : KalmanFilter, optional
         The estimator (its ``A``, ``B`` over the period with a ctrl per physics step, ``C``, ``L``); built for the
         same ``steps``. None: the controller reads the true state.
-    x, u : arrays, optional
-        Operating point (default upright).
+    x : (nx,) array, optional
+        Operating state, m, rad, m/s, rad/s (default upright ``x_eq``).
+    u : (nu,) array, optional
+        Operating ctrl, ctrl units (default ``u_eq``).
     name : str, optional
         Default ``lqg`` with a filter, else ``lqr``.
     channel : int
@@ -220,7 +224,7 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
     """
     m, d = int(steps), int(delay_steps)
     if m < 1 or d < 0:
-        raise LoopError(f"A rig of {steps} physics steps per period and {delay_steps} steps of delay is not a "
+        raise AnalysisError(f"A rig of {steps} physics steps per period and {delay_steps} steps of delay is not a "
                         "period >= 1 step and a delay >= 0 steps.")
     _, _, A1, B1 = _plant_matrices(model, x, u)
     nx, nu = model.nx, model.nu
@@ -246,10 +250,10 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
         label = "state feedback on the true state"
     else:
         if int(kalman.steps) != m:
-            raise LoopError(f"The Kalman filter runs every {kalman.steps} physics steps but the loop every {m}; "
+            raise AnalysisError(f"The Kalman filter runs every {kalman.steps} physics steps but the loop every {m}; "
                             "build it for the same period.")
         if np.any(np.asarray(kalman.D)):
-            raise LoopError("A measurement that depends on the ctrl (D != 0) is not supported in the loop.")
+            raise AnalysisError("A measurement that depends on the ctrl (D != 0) is not supported in the loop.")
         Ck, Lk = np.asarray(kalman.C, float), np.asarray(kalman.L, float)
         Ak, Bk = np.asarray(kalman.A, float), np.asarray(kalman.B, float)  # B: (nx, nu m), per physics step
         IKC = np.eye(nx) - Lk @ Ck
@@ -330,7 +334,7 @@ def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, na
     act = model.params.actuators[0].name
     if steps is None:
         if delay_steps:
-            raise LoopError("A continuous PID loop has no delay in physics steps; give steps for the sampled loop.")
+            raise AnalysisError("A continuous PID loop has no delay in physics steps; give steps for the sampled loop.")
         filt = gains.filter_tau > 0
         # controller states [z, y]: z' = c e, y' = (r e - y) / tau; u = -(kp c e + ki z + kd y)
         Acn = np.array([[0.0, 0.0], [0.0, -1.0 / gains.filter_tau if filt else 0.0]])

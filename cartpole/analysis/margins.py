@@ -30,7 +30,7 @@ import numpy as np
 import scipy.optimize
 
 from cartpole._arrays import readonly
-from cartpole.analysis.loops import Loop, LoopError
+from cartpole.analysis.loops import Loop, AnalysisError
 
 #: Points per decade of the frequency sweep (then refined to round-off).
 POINTS_PER_DECADE = 400
@@ -234,15 +234,15 @@ def loop_margins(loop: Loop) -> Margins:
 
     Raises
     ------
-    LoopError
+    AnalysisError
         A loop whose nominal closed loop is not stable (it has no margins to give).
     """
     L = loop.L
     if L.ninputs != 1 or L.noutputs != 1:
-        raise LoopError(f"Margins are read on one loop at a time; this one has {L.ninputs} inputs and "
+        raise AnalysisError(f"Margins are read on one loop at a time; this one has {L.ninputs} inputs and "
                         f"{L.noutputs} outputs.")
     if not closed_loop_stable(L):
-        raise LoopError(f"The closed loop of '{loop.name}' ({loop.description}) is not stable, so it has no "
+        raise AnalysisError(f"The closed loop of '{loop.name}' ({loop.description}) is not stable, so it has no "
                         "margins; fix the design first.")
     w = frequency_grid(L)
     H = response(L, w)

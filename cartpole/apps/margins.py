@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.analysis import (Loop, LoopError, Margins, closed_loop_stable, continuous_loop, loop_margins,
+from cartpole.analysis import (Loop, AnalysisError, Margins, closed_loop_stable, continuous_loop, loop_margins,
                                pid_loop, sampled_loop)
 from cartpole.models import steps_per_period
 
@@ -29,7 +29,7 @@ NONLINEAR = {"energy": "energy shaping is a nonlinear law (its ctrl follows the 
 
 
 def refuse_nonlinear(design: str) -> None:
-    """Raise the :class:`~cartpole.analysis.LoopError` sentence for a design without a linear loop.
+    """Raise the :class:`~cartpole.analysis.AnalysisError` sentence for a design without a linear loop.
 
     Parameters
     ----------
@@ -37,7 +37,7 @@ def refuse_nonlinear(design: str) -> None:
         A key of :data:`NONLINEAR` (``energy``, ``mpc``, ``ekf``, ``mhe``).
     """
     why = NONLINEAR.get(design, f"'{design}' is not a linear design")
-    raise LoopError(f"Margins are read on a linear loop and {why}; ask for the margins of the LQR (cartpole lqr "
+    raise AnalysisError(f"Margins are read on a linear loop and {why}; ask for the margins of the LQR (cartpole lqr "
                     "--margins, with --estimator kf for LQG) or of the PID (--compare-pid).")
 
 
@@ -89,7 +89,7 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
 
     Raises
     ------
-    LoopError
+    AnalysisError
         An estimator with no linear loop (``ekf``, ``mhe``).
     """
     from cartpole.apps.lab import design, lab_equilibrium

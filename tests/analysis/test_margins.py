@@ -6,7 +6,7 @@ import control
 import numpy as np
 import pytest
 
-from cartpole.analysis import (LoopError, closed_loop_stable, continuous_loop, loop_margins, pid_loop,
+from cartpole.analysis import (AnalysisError, closed_loop_stable, continuous_loop, loop_margins, pid_loop,
                                sampled_loop)
 from cartpole.apps.lab import design
 from cartpole.estimation import measurement_function, sensor_spec
@@ -160,7 +160,7 @@ def test_lqg_from_encoders_with_delay_has_smaller_margins_and_recovery_restores_
 def test_an_unstable_closed_loop_has_no_margins(lab):
     A, B = lab.without_friction().linearize()
     K = lqr(A, B, *lab_weights(lab)).K
-    with pytest.raises(LoopError, match="not stable"):
+    with pytest.raises(AnalysisError, match="not stable"):
         loop_margins(continuous_loop(lab, 0.01 * K))
-    with pytest.raises(LoopError, match="shape"):
+    with pytest.raises(AnalysisError, match="shape"):
         continuous_loop(lab, K[:, :2])
