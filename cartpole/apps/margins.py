@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.analysis import (Loop, AnalysisError, Margins, closed_loop_stable, continuous_loop, loop_margins,
+from cartpole.analysis import (AnalysisError, Loop, Margins, closed_loop_stable, continuous_loop, loop_margins,
                                pid_loop, sampled_loop)
 from cartpole.models import steps_per_period
 
@@ -210,3 +210,71 @@ def mujoco_stable(model, K, k: float = 1.0, *, loop=None, x_eq=None, tilt: float
 def loops_and_margins(found: LabMargins) -> list[tuple[Loop, Margins]]:
     """``(Loop, Margins)`` pairs in the report's order (for figures and tables)."""
     return [(found.loops[k], found.margins[k]) for k in found.loops]
+
+
+def _bisect(stable, good: float, bad: float, rel: float) -> float:
+    """The boundary between a stable gain ``good`` and an unstable ``bad``, to ``rel`` relative (geometric
+    bisection); returns the last stable gain."""
+    while abs(np.log(bad / good)) > np.log1p(rel):
+        mid = float(np.sqrt(good * bad))
+        if stable(mid):
+            good = mid
+        else:
+            bad = mid
+    return good
+
+
+def mujoco_margins(model, found: LabMargins, *, rel: float = 0.01, max_delay_steps: int = 40) -> dict:
+    """The LQR's gain band and delay margin measured in MuJoCo (:func:`mujoco_stable` at the physics step, the delay
+    not compensated) beside the predictions of its sampled loop.
+
+    The gain band's ends are bisected to ``rel`` from brackets at half and twice the predicted ones (a bracket that
+    does not bracket is reported as that bracket); the delay is searched in whole physics steps from 0.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    found : LabMargins
+        :func:`lab_margins` on the perfect rig (one physics step, no delay).
+    rel : float
+        Relative resolution of the gain bisection.
+    max_delay_steps : int
+        Longest delay tried, physics steps.
+
+    Returns
+    -------
+    dict
+        ``gain_margin`` [low, high] and ``delay_margin_s`` (s) measured; ``gain_margin_predicted``,
+        ``delay_margin_predicted_s`` (the whole physics steps the sampled loop tolerates, s) and
+        ``delay_margin_phase_s`` (the sampled loop's phase margin over its crossover, s); ``rel``.
+
+    Raises
+    ------
+    AnalysisError
+        ``found`` not on the perfect rig.
+    """
+    from cartpole.sim.options import LoopOptions
+
+    if found.steps != 1 or found.delay_steps != 0:
+        raise AnalysisError("MuJoCo's margins are measured on the perfect rig (one physics step, no delay); "
+                            "compute lab_margins without period or delay.")
+    K, h = found.K, float(model.dt)
+    low, high = (float(v) for v in found.margins["lqr"].gain_margin)
+
+    def at(k):
+        return mujoco_stable(model, K, k)
+
+    lo = _bisect(at, 1.0, 0.5 * low, rel) if not at(0.5 * low) else 0.5 * low
+    hi = _bisect(at, 1.0, 2.0 * high, rel) if np.isfinite(high) and not at(2.0 * high) else (
+        2.0 * high if np.isfinite(high) else None)
+    measured = None
+    for dly in range(max_delay_steps + 1):
+        if not mujoco_stable(model, K, loop=LoopOptions(delay=dly * h, delay_compensation=False)):
+            break
+        measured = dly
+    predicted = whole_step_delay_margin(lambda d: sampled_loop(model, K, delay_steps=d, compensate=False), 0,
+                                        max_delay_steps)
+    return {"gain_margin": [lo, hi], "gain_margin_predicted": [low, high if np.isfinite(high) else None],
+            "delay_margin_s": None if measured is None else measured * h,
+            "delay_margin_predicted_s": None if predicted is None else predicted * h,
+            "delay_margin_phase_s": float(found.margins["lqr"].delay_margin_s), "rel": float(rel)}

@@ -16,6 +16,10 @@ def add_margins_argument(parser) -> None:
                              "--compare-pid the PID) on this rig (--period, --delay) broken at the plant input: gain, "
                              "phase and delay margins, Ms, Mt and crossovers (python-control); prints a table and "
                              "writes figures/margins_bode.png, margins_nyquist.png, margins_sensitivity.png")
+    parser.add_argument("--margins-mujoco", action="store_true",
+                        help="--margins and (perfect rig: no --period, --delay or estimator): also measure the "
+                             "LQR's gain band (bisected to 1 %%) and delay margin (whole physics steps, not "
+                             "compensated) in MuJoCo from a 1 mrad tilt; JSON margins_mujoco")
 
 
 def _fmt(v, scale: float = 1.0, digits: str = ".3g") -> str:
@@ -26,14 +30,21 @@ def run_margins(args, model, loop, Q, R) -> dict:
     """The ``--margins`` document: ``mjcf``, ``period`` (s), ``rig``, ``margins`` (design key -> its margins:
     ``gain_margin`` [low, high] ratio with null where unbounded, ``phase_margin_deg``, ``delay_margin_s``, ``ms``,
     ``mt``, crossovers in rad/s), ``figures`` (kind -> path); prints a table unless ``--json``."""
-    from cartpole.apps.margins import lab_margins, loops_and_margins
+    from cartpole.apps.margins import lab_margins, loops_and_margins, mujoco_margins
+    from cartpole.errors import CartPoleError
     from cartpole.viz.loop_plot import plot_loops
 
+    check = getattr(args, "margins_mujoco", False)
+    if check and (loop.period not in (None, model.dt) or loop.delay or loop.estimator_for("balance") != "none"):
+        raise CartPoleError("--margins-mujoco measures the LQR on the perfect rig; drop --period, --delay and the "
+                            "estimator options.")
     found = lab_margins(model, Q=Q, R=R, discrete=args.discrete, loop=loop, pid=args.compare_pid)
     figures = plot_loops(loops_and_margins(found), Path(args.out) / FIGURES)
     period = model.dt if loop.period is None else loop.period
     doc = {"mjcf": model.params.mjcf, "period": float(period), "rig": loop.as_dict(), "margins": found.to_dict(),
            "figures": {k: str(Path(p).resolve()) for k, p in figures.items()}}
+    if check:
+        doc["margins_mujoco"] = mujoco_margins(model, found)
     if not args.json:
         print(f"{'design':16s} {'gain margin':>18s} {'phase (deg)':>11s} {'delay (ms)':>10s} {'Ms':>6s} {'Mt':>6s} "
               f"{'crossover (rad/s)':>17s}")
@@ -44,6 +55,13 @@ def run_margins(args, model, loop, Q, R) -> dict:
                   f"{_fmt(m['gain_crossover_rad_s'], 1, '.1f'):>17s}")
         for key, m in doc["margins"].items():
             print(f"  {key}: {m['description']}")
+        if check:
+            mj = doc["margins_mujoco"]
+            print(f"MuJoCo (LQR, physics step, 1 mrad tilt): gain band [{mj['gain_margin'][0]:.4g}, "
+                  f"{_fmt(mj['gain_margin'][1], 1, '.4g')}] (predicted [{mj['gain_margin_predicted'][0]:.4g}, "
+                  f"{_fmt(mj['gain_margin_predicted'][1], 1, '.4g')}]); delay margin "
+                  f"{_fmt(mj['delay_margin_s'], 1e3, '.3g')} ms (predicted {_fmt(mj['delay_margin_predicted_s'], 1e3, '.3g')}"
+                  " ms in whole steps)")
         for p in doc["figures"].values():
             print(f"Wrote {p}")
     return doc

@@ -117,7 +117,7 @@ def run(args) -> dict:
                                                                         else ""))
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
-    if args.margins:
+    if args.margins or args.margins_mujoco:
         return run_margins(args, model, loop, Q, R)
     for key in MARGINS:
         if getattr(args, key) is not None:
