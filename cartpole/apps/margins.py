@@ -149,29 +149,42 @@ def whole_step_delay_margin(build, start: int, limit: int) -> int | None:
     return last
 
 
-def mujoco_stable(model, K, k: float = 1.0, *, loop=None, x_eq=None, tilt: float = 1e-3, duration: float = 6.0,
-                  window: float = 1.5) -> bool:
-    """Whether MuJoCo's loop is stable with the LQR's ctrl deviation scaled by ``k`` (a gain ``k`` at the plant
-    input: ``u = u* - k K (x - x*)``) on the rig ``loop`` (default the physics step, no delay), from a tilt of
-    ``tilt`` rad on every hinge.
+class _Scaled:
+    """A controller whose ctrl deviation from ``u_eq`` is scaled by ``k``: a gain ``k`` at the plant input."""
+
+    def __init__(self, inner, k: float, u_eq):
+        self.inner, self.k, self.u_eq = inner, float(k), np.asarray(u_eq, float)
+
+    def __call__(self, t, x):
+        return self.u_eq + self.k * (np.asarray(self.inner(t, x), float) - self.u_eq)
+
+
+def mujoco_stable(model, K=None, k: float = 1.0, *, controller=None, loop=None, x_eq=None, tilt: float = 1e-3,
+                  duration: float = 6.0, window: float = 1.5) -> bool:
+    """Whether MuJoCo's loop is stable with the controller's ctrl deviation scaled by ``k`` (a gain ``k`` at the
+    plant input: ``u = u* + k (c(t, x) - u*)``) on the rig ``loop`` (default the physics step, no delay), from a
+    tilt of ``tilt`` rad on every hinge.
 
     This is the margin's own question asked of MuJoCo, stricter than the lab's "balances" (every pole within 0.05
     rad for good, :func:`cartpole.apps.lab.balances`): past its delay margin the lab's LQR grows into a limit cycle
     with the ctrl chattering between its limits while the pole stays within a few degrees, which the lab counts as
-    balanced.
-
-    Stable here means: no divergence, the ctrl off its limits over the last ``window`` s (a loop that is unstable
-    at the linear level grows until the ctrl saturates and then chatters there), and the largest state error over
-    the last ``window`` s below the largest over the window ending 3 s earlier (it decays).
+    balanced. Stable means: no divergence, the ctrl off its limits over the last ``window`` s (a loop that is
+    unstable at the linear level grows until the ctrl saturates) and, on a rig without sensors, the largest state
+    error over the last ``window`` s below the largest over the window ending 3 s earlier (it decays; with encoders
+    their quantisation and the joints' dry friction leave a small limit cycle that does not, so only the ctrl
+    limit decides there).
 
     Parameters
     ----------
     model : CartPoleModel
-    K : (nu, nx) array
+    K : (nu, nx) array, optional
+        The gain of a state feedback ``u = u* - K (x - x*)`` (when ``controller`` is not given).
     k : float
         Loop gain at the plant input.
+    controller : callable, optional
+        ``u = c(t, x)`` instead of the state feedback (a fresh one per call: it may keep state).
     loop : LoopOptions, optional
-        The rig (period, delay, its compensation; the controller reads the true state).
+        The rig (period, delay, its compensation, sensors, estimator).
     x_eq : (nx,) array, optional
         Upright (default the lab's equilibrium).
     tilt : float
@@ -193,8 +206,11 @@ def mujoco_stable(model, K, k: float = 1.0, *, loop=None, x_eq=None, tilt: float
     x_eq = lab_equilibrium(model) if x_eq is None else np.asarray(x_eq, float)
     x0 = np.array(x_eq, dtype=float)
     x0[list(model.hinges)] += tilt
-    ctrl = LinearFeedback(float(k) * np.asarray(K, float), x_eq, model.u_eq, hinges=model.hinges)
-    run = simulate(model.params, ctrl, x0, duration, rig=build_rig(model, loop))
+    if controller is None:
+        controller = LinearFeedback(np.asarray(K, float), x_eq, model.u_eq, hinges=model.hinges)
+    rig = build_rig(model, loop)
+    run = simulate(model.params, _Scaled(controller, k, model.u_eq) if k != 1.0 else controller, x0, duration,
+                   rig=rig)
     if isinstance(run.info, dict) and run.info.get("diverged") is not None:
         return False
     err = np.abs(model.state_error(run.x, x_eq)).max(axis=1)
@@ -202,14 +218,9 @@ def mujoco_stable(model, K, k: float = 1.0, *, loop=None, x_eq=None, tilt: float
     late = run.t >= t_end - window
     early = (run.t >= t_end - window - 3.0) & (run.t < t_end - 3.0)
     u = run.ctrl[late[1:]]
-    lo, hi = model.u_low, model.u_high
-    pinned = np.any(np.isclose(u, lo) | np.isclose(u, hi))
-    return bool(np.all(np.isfinite(err)) and not pinned and err[late].max() < err[early].max())
-
-
-def loops_and_margins(found: LabMargins) -> list[tuple[Loop, Margins]]:
-    """``(Loop, Margins)`` pairs in the report's order (for figures and tables)."""
-    return [(found.loops[k], found.margins[k]) for k in found.loops]
+    pinned = np.any(np.isclose(u, model.u_low) | np.isclose(u, model.u_high))
+    decays = err[late].max() < err[early].max() if (rig is None or rig.spec is None) else True
+    return bool(np.all(np.isfinite(err)) and not pinned and decays)
 
 
 def _bisect(stable, good: float, bad: float, rel: float) -> float:
@@ -224,57 +235,97 @@ def _bisect(stable, good: float, bad: float, rel: float) -> float:
     return good
 
 
-def mujoco_margins(model, found: LabMargins, *, rel: float = 0.01, max_delay_steps: int = 40) -> dict:
-    """The LQR's gain band and delay margin measured in MuJoCo (:func:`mujoco_stable` at the physics step, the delay
-    not compensated) beside the predictions of its sampled loop.
+def _true_state_rig(loop):
+    """The rig ``loop`` with the controller reading MuJoCo's state (period, delay and its compensation kept)."""
+    from cartpole.sim.options import LoopOptions
 
-    The gain band's ends are bisected to ``rel`` from brackets at half and twice the predicted ones (a bracket that
-    does not bracket is reported as that bracket); the delay is searched in whole physics steps from 0.
+    return LoopOptions(period=loop.period, delay=loop.delay, delay_compensation=loop.delay_compensation)
+
+
+def mujoco_margins(model, found: LabMargins, *, loop=None, rel: float = 0.01, max_delay_steps: int = 40,
+                   tilt: float = 1e-3, designs=None) -> dict:
+    """The margins of the lab's designs measured in MuJoCo (:func:`mujoco_stable`) beside their loops' predictions.
+
+    Per design of ``found`` (not ``lqr_continuous``): the largest total delay in whole physics steps from the rig's
+    own at which MuJoCo stays stable (the rig's delay compensation kept), with the whole steps the sampled loop
+    tolerates; for the designs on the true state (``lqr``, ``pid``) also the gain band, each end bisected to ``rel``
+    from a bracket at half (low) or twice (high) the predicted end (a gain at the plant input of the LQG would
+    also reach its estimator, which takes the ctrl MuJoCo applied: no plant-input gain there).
 
     Parameters
     ----------
     model : CartPoleModel
     found : LabMargins
-        :func:`lab_margins` on the perfect rig (one physics step, no delay).
+        :func:`lab_margins` on the rig ``loop``.
+    loop : LoopOptions, optional
+        The rig (default the perfect loop).
     rel : float
         Relative resolution of the gain bisection.
     max_delay_steps : int
         Longest delay tried, physics steps.
+    tilt : float
+        Initial hinge error, rad (with encoders take it well above their resolution).
+    designs : sequence of str, optional
+        Which of ``found``'s designs (default all but ``lqr_continuous``).
 
     Returns
     -------
     dict
-        ``gain_margin`` [low, high] and ``delay_margin_s`` (s) measured; ``gain_margin_predicted``,
-        ``delay_margin_predicted_s`` (the whole physics steps the sampled loop tolerates, s) and
-        ``delay_margin_phase_s`` (the sampled loop's phase margin over its crossover, s); ``rel``.
-
-    Raises
-    ------
-    AnalysisError
-        ``found`` not on the perfect rig.
+        Design key -> ``delay_margin_s`` (s, measured; None when the rig's own delay already fails),
+        ``delay_margin_predicted_s`` (whole physics steps of the sampled loop, s), ``delay_margin_phase_s`` (phase
+        margin over crossover plus the rig's delay, s), and for ``lqr`` / ``pid`` ``gain_margin`` [low, high]
+        measured and ``gain_margin_predicted`` (null where unbounded); ``rel``.
     """
+    from cartpole.apps.lab import lab_equilibrium
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.pid import CascadedPID
     from cartpole.sim.options import LoopOptions
+    from cartpole.sim.rig import estimator_factory
 
-    if found.steps != 1 or found.delay_steps != 0:
-        raise AnalysisError("MuJoCo's margins are measured on the perfect rig (one physics step, no delay); "
-                            "compute lab_margins without period or delay.")
-    K, h = found.K, float(model.dt)
-    low, high = (float(v) for v in found.margins["lqr"].gain_margin)
+    loop = LoopOptions() if loop is None else loop
+    h, K, m, d0 = float(model.dt), found.K, found.steps, found.delay_steps
+    x_eq = lab_equilibrium(model)
+    comp = bool(loop.delay_compensation)
+    make_kf = None
+    if "lqg" in found.loops:
+        make_kf = estimator_factory(model, loop, "kf", m)[1]
+    runs = {"lqr": (lambda: LinearFeedback(K, x_eq, model.u_eq, hinges=model.hinges), _true_state_rig(loop)),
+            "lqg": (lambda: LinearFeedback(K, x_eq, model.u_eq, hinges=model.hinges), loop),
+            "pid": (lambda: CascadedPID.for_model(model), _true_state_rig(loop))}
+    builds = {"lqr": lambda d: sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, x=x_eq),
+              "lqg": lambda d: sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, kalman=make_kf(),
+                                            x=x_eq),
+              "pid": lambda d: pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d)}
+    out = {}
+    for key in designs or [k for k in found.loops if k != "lqr_continuous"]:
+        make, rig = runs[key]
 
-    def at(k):
-        return mujoco_stable(model, K, k)
+        def stable(k=1.0, delay=None, make=make, rig=rig):
+            r = rig if delay is None else rig.replace(delay=delay)
+            return mujoco_stable(model, controller=make(), k=k, loop=r, x_eq=x_eq, tilt=tilt)
 
-    lo = _bisect(at, 1.0, 0.5 * low, rel) if not at(0.5 * low) else 0.5 * low
-    hi = _bisect(at, 1.0, 2.0 * high, rel) if np.isfinite(high) and not at(2.0 * high) else (
-        2.0 * high if np.isfinite(high) else None)
-    measured = None
-    for dly in range(max_delay_steps + 1):
-        if not mujoco_stable(model, K, loop=LoopOptions(delay=dly * h, delay_compensation=False)):
-            break
-        measured = dly
-    predicted = whole_step_delay_margin(lambda d: sampled_loop(model, K, delay_steps=d, compensate=False), 0,
-                                        max_delay_steps)
-    return {"gain_margin": [lo, hi], "gain_margin_predicted": [low, high if np.isfinite(high) else None],
-            "delay_margin_s": None if measured is None else measured * h,
-            "delay_margin_predicted_s": None if predicted is None else predicted * h,
-            "delay_margin_phase_s": float(found.margins["lqr"].delay_margin_s), "rel": float(rel)}
+        measured = None
+        for dly in range(d0, d0 + max_delay_steps + 1):
+            if not stable(delay=dly * h):
+                break
+            measured = dly
+        predicted = whole_step_delay_margin(builds[key], d0, d0 + max_delay_steps)
+        mg = found.margins[key]
+        row = {"delay_margin_s": None if measured is None else measured * h,
+               "delay_margin_predicted_s": None if predicted is None else predicted * h,
+               "delay_margin_phase_s": float(found.delay_steps * h + mg.delay_margin_s)}
+        if key in ("lqr", "pid"):
+            low, high = (float(v) for v in mg.gain_margin)
+            lo = _bisect(stable, 1.0, 0.5 * low, rel) if not stable(0.5 * low) else 0.5 * low
+            hi = None
+            if np.isfinite(high):
+                hi = _bisect(stable, 1.0, 2.0 * high, rel) if not stable(2.0 * high) else 2.0 * high
+            row.update(gain_margin=[lo, hi], gain_margin_predicted=[low, high if np.isfinite(high) else None])
+        out[key] = row
+    out["rel"] = float(rel)
+    return out
+
+
+def loops_and_margins(found: LabMargins) -> list[tuple[Loop, Margins]]:
+    """``(Loop, Margins)`` pairs in the report's order (for figures and tables)."""
+    return [(found.loops[k], found.margins[k]) for k in found.loops]
