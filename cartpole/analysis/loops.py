@@ -184,6 +184,54 @@ def _period_inputs(A1, B1, m: int, d: int):
     return [(np.linalg.matrix_power(A1, m - 1 - j) @ B1, (j - d) // m) for j in range(m)]
 
 
+def _ahead(A1, B1, m: int, d: int, N: int, compensate: bool):
+    """The rig's prediction over the delay as ``x_ahead = Pd x_hat + Pu ub`` (``ub = [u_{k-1} .. u_{k-N}]`` the
+    controller's own past ctrl): ``A1^d x_hat + sum_i A1^(d-1-i) B1 u[k + floor((i - d) / m)]``, or ``x_hat``."""
+    nx, nu = B1.shape
+    Pd = np.linalg.matrix_power(A1, d) if compensate else np.eye(nx)
+    Pu = np.zeros((nx, N * nu))
+    if compensate:
+        for i in range(d):
+            pos = -((i - d) // m) - 1
+            Pu[:, pos * nu:(pos + 1) * nu] += np.linalg.matrix_power(A1, d - 1 - i) @ B1
+    return Pd, Pu
+
+
+def _assemble(Ap, per, N: int, nu: int, parts):
+    """The open loop ``v -> u`` of a sampled controller on the delayed plant, on the state ``[x_k, xc_{k-1}, ub_k,
+    vb_k]`` (plant, controller, its own last N ctrls, the last N injected ctrls): ``(A, B, C)``.
+
+    ``parts = (Ac, Bcy, Bcu, Cc, Dy, Du)``: at sample k the controller does ``xc_k = Ac xc_{k-1} + Bcy x_k +
+    Bcu ub_k`` and ``u_k = Cc xc_k + Dy x_k + Du ub_k``; the plant ``x_{k+1} = Ap x_k + sum_j Bj v[k + off_j]``
+    (``per``: the pairs ``(Bj, off_j)`` of :func:`_period_inputs`)."""
+    Ac, Bcy, Bcu, Cc, Dy, Du = parts
+    nx, nc = Ap.shape[0], Ac.shape[0]
+    n = nx + nc + 2 * N * nu
+    ix, ic, iu, iv = 0, nx, nx + nc, nx + nc + N * nu
+    Cu = np.zeros((nu, n))
+    Cu[:, ix:ix + nx] = Cc @ Bcy + Dy
+    Cu[:, ic:ic + nc] = Cc @ Ac
+    Cu[:, iu:iu + N * nu] = Cc @ Bcu + Du
+    Aol = np.zeros((n, n))
+    Bol = np.zeros((n, nu))
+    Aol[ix:ix + nx, ix:ix + nx] = Ap
+    for Bj, off in per:
+        if off == 0:
+            Bol[ix:ix + nx] += Bj
+        else:
+            pos = -off - 1
+            Aol[ix:ix + nx, iv + pos * nu:iv + (pos + 1) * nu] += Bj
+    Aol[ic:ic + nc, ix:ix + nx] = Bcy
+    Aol[ic:ic + nc, ic:ic + nc] = Ac
+    Aol[ic:ic + nc, iu:iu + N * nu] = Bcu
+    Aol[iu:iu + nu] = Cu  # ub_{k+1}[0] = u_k
+    for p in range(1, N):
+        Aol[iu + p * nu:iu + (p + 1) * nu, iu + (p - 1) * nu:iu + p * nu] = np.eye(nu)
+        Aol[iv + p * nu:iv + (p + 1) * nu, iv + (p - 1) * nu:iv + p * nu] = np.eye(nu)
+    Bol[iv:iv + nu] = np.eye(nu)  # vb_{k+1}[0] = v_k
+    return Aol, Bol, Cu
+
+
 def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: bool = True, kalman=None,
                  x=None, u=None, name: str | None = None, channel: int = 0) -> Loop:
     """The rig's loop of state feedback ``u = u* - K (x_ahead - x*)`` over a control period, broken at the plant
@@ -225,7 +273,7 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
     m, d = int(steps), int(delay_steps)
     if m < 1 or d < 0:
         raise AnalysisError(f"A rig of {steps} physics steps per period and {delay_steps} steps of delay is not a "
-                        "period >= 1 step and a delay >= 0 steps.")
+                            "period >= 1 step and a delay >= 0 steps.")
     _, _, A1, B1 = _plant_matrices(model, x, u)
     nx, nu = model.nx, model.nu
     K = _check_gain(K, nu, nx)
@@ -234,24 +282,17 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
     Ap = np.linalg.matrix_power(A1, m)
     q = d // m
     N = q + 2  # past ctrls kept: the filter's prediction reaches back to sample k - q - 2
-    # the prediction over the delay: x_ahead = A1^d x_hat + sum_i A1^(d-1-i) B1 u[k + floor((i - d) / m)]
-    Pd = np.linalg.matrix_power(A1, d) if compensate else np.eye(nx)
-    Pu = np.zeros((nx, N * nu))
-    if compensate:
-        for i in range(d):
-            pos = -((i - d) // m) - 1
-            Pu[:, pos * nu:(pos + 1) * nu] += np.linalg.matrix_power(A1, d - 1 - i) @ B1
+    Pd, Pu = _ahead(A1, B1, m, d, N, compensate)
     # the controller: xc_k = Ac xc_{k-1} + Bcy x_k + Bcu ub_k, u_k = Cc xc_k + Dy x_k + Du ub_k
     # (ub_k = [u_{k-1} .. u_{k-N}] its own past ctrl; the state enters through the sensors y = C x)
     if kalman is None:
-        nc = 0
         Ac, Bcy, Bcu = np.zeros((0, 0)), np.zeros((0, nx)), np.zeros((0, N * nu))
         Cc, Dy, Du = np.zeros((nu, 0)), -K @ Pd, -K @ Pu
         label = "state feedback on the true state"
     else:
         if int(kalman.steps) != m:
-            raise AnalysisError(f"The Kalman filter runs every {kalman.steps} physics steps but the loop every {m}; "
-                            "build it for the same period.")
+            raise AnalysisError(f"The Kalman filter runs every {kalman.steps} physics steps but the loop every "
+                                f"{m}; build it for the same period.")
         if np.any(np.asarray(kalman.D)):
             raise AnalysisError("A measurement that depends on the ctrl (D != 0) is not supported in the loop.")
         Ck, Lk = np.asarray(kalman.C, float), np.asarray(kalman.L, float)
@@ -262,34 +303,10 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
         for j, (_, off) in enumerate(per):
             pos = -off
             Bbuf[:, pos * nu:(pos + 1) * nu] += Bk[:, j * nu:(j + 1) * nu]
-        nc = nx
         Ac, Bcy, Bcu = IKC @ Ak, Lk @ Ck, IKC @ Bbuf
         Cc, Dy, Du = -K @ Pd, np.zeros((nu, nx)), -K @ Pu
         label = "state feedback on the Kalman filter's estimate (LQG)"
-    # open loop v -> u on [x_k, xc_{k-1}, ub_k, vb_k]
-    n = nx + nc + 2 * N * nu
-    ix, ic, iu, iv = 0, nx, nx + nc, nx + nc + N * nu
-    Cu = np.zeros((nu, n))
-    Cu[:, ix:ix + nx] = Cc @ Bcy + Dy
-    Cu[:, ic:ic + nc] = Cc @ Ac
-    Cu[:, iu:iu + N * nu] = Cc @ Bcu + Du
-    Aol = np.zeros((n, n))
-    Bol = np.zeros((n, nu))
-    Aol[ix:ix + nx, ix:ix + nx] = Ap
-    for Bj, off in per:
-        if off == 0:
-            Bol[ix:ix + nx] += Bj
-        else:
-            pos = -off - 1
-            Aol[ix:ix + nx, iv + pos * nu:iv + (pos + 1) * nu] += Bj
-    Aol[ic:ic + nc, ix:ix + nx] = Bcy
-    Aol[ic:ic + nc, ic:ic + nc] = Ac
-    Aol[ic:ic + nc, iu:iu + N * nu] = Bcu
-    Aol[iu:iu + nu] = Cu  # ub_{k+1}[0] = u_k
-    for p in range(1, N):
-        Aol[iu + p * nu:iu + (p + 1) * nu, iu + (p - 1) * nu:iu + p * nu] = np.eye(nu)
-        Aol[iv + p * nu:iv + (p + 1) * nu, iv + (p - 1) * nu:iv + p * nu] = np.eye(nu)
-    Bol[iv:iv + nu] = np.eye(nu)  # vb_{k+1}[0] = v_k
+    Aol, Bol, Cu = _assemble(Ap, per, N, nu, (Ac, Bcy, Bcu, Cc, Dy, Du))
     L = channel_loop(Aol, Bol, Cu, np.zeros((nu, nu)), T, channel)
     rig = f"period {T * 1e3:g} ms, delay {d * float(model.dt) * 1e3:g} ms" + (
         " predicted over" if compensate and d else "")
@@ -297,7 +314,8 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
                 d * float(model.dt), f"{label}; {rig}")
 
 
-def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, name: str = "pid") -> Loop:
+def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, compensate: bool = True,
+             name: str = "pid") -> Loop:
     """The cascaded PID's loop (one pole on a cart) on the state it measures, broken at the ctrl.
 
     Continuous (``steps`` None): the cascade of :func:`~cartpole.control.pid.closed_loop_matrix` opened at the
@@ -314,6 +332,8 @@ def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, na
         Physics steps per period; None for the continuous loop.
     delay_steps : int
         Physics steps from a sample to its ctrl taking effect (sampled loop only).
+    compensate : bool
+        The rig predicts the state over the delay before the PID reads it (its default, as for every controller).
     name : str
 
     Returns
@@ -351,30 +371,16 @@ def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, na
     m, dly = int(steps), int(delay_steps)
     T = m * float(model.dt)
     a = 1.0 - np.exp(-T / gains.filter_tau) if gains.filter_tau > 0 else 1.0
-    # controller state [z, y] advanced at each sample from the measured state x_k, then u_k from the new values
-    Ac = np.diag([1.0, 1.0 - a])
-    Bcy = np.vstack([T * c, a * r])
-    Cc = np.array([[-gains.ki, -gains.kd]])
-    Dy = -(gains.kp * c)[None, :]
-    per = _period_inputs(A1, B1, m, dly)
     N = dly // m + 2
-    n = nx + 2 + N
-    Aol = np.zeros((n, n))
-    Bol = np.zeros((n, 1))
-    Cu = np.zeros((1, n))
-    Cu[:, :nx] = Cc @ Bcy + Dy
-    Cu[:, nx:nx + 2] = Cc @ Ac
-    Aol[:nx, :nx] = np.linalg.matrix_power(A1, m)
-    iv = nx + 2
-    for Bj, off in per:
-        if off == 0:
-            Bol[:nx] += Bj
-        else:
-            Aol[:nx, iv - off - 1] += Bj[:, 0]
-    Aol[nx:nx + 2, :nx], Aol[nx:nx + 2, nx:nx + 2] = Bcy, Ac
-    for p in range(1, N):
-        Aol[iv + p, iv + p - 1] = 1.0
-    Bol[iv] = 1.0
+    Pd, Pu = _ahead(A1, B1, m, dly, N, compensate)
+    # controller state [z, y] advanced at each sample from the (predicted) state, then u_k from the new values
+    Ac = np.diag([1.0, 1.0 - a])
+    Bp = np.vstack([T * c, a * r])
+    Cc = np.array([[-gains.ki, -gains.kd]])
+    Dp = -(gains.kp * c)[None, :]
+    parts = (Ac, Bp @ Pd, Bp @ Pu, Cc, Dp @ Pd, Dp @ Pu)
+    Aol, Bol, Cu = _assemble(np.linalg.matrix_power(A1, m), _period_inputs(A1, B1, m, dly), N, 1, parts)
     L = control.ss(Aol, Bol, -Cu, np.zeros((1, 1)), T)
-    return Loop(name, L, act, T, dly * float(model.dt),
-                f"cascaded PID on the state; period {T * 1e3:g} ms, delay {dly * float(model.dt) * 1e3:g} ms")
+    rig = f"period {T * 1e3:g} ms, delay {dly * float(model.dt) * 1e3:g} ms" + (
+        " predicted over" if compensate and dly else "")
+    return Loop(name, L, act, T, dly * float(model.dt), f"cascaded PID on the state; {rig}")

@@ -120,7 +120,8 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     if pid:
         from cartpole.control.pid import CascadedPID
 
-        loops["pid"] = pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d)
+        loops["pid"] = pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d,
+                                compensate=comp)
     return LabMargins(loops, {k: loop_margins(v) for k, v in loops.items()}, K, m, d)
 
 
@@ -295,7 +296,8 @@ def mujoco_margins(model, found: LabMargins, *, loop=None, rel: float = 0.01, ma
     builds = {"lqr": lambda d: sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, x=x_eq),
               "lqg": lambda d: sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, kalman=make_kf(),
                                             x=x_eq),
-              "pid": lambda d: pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d)}
+              "pid": lambda d: pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d,
+                                        compensate=comp)}
     out = {}
     for key in designs or [k for k in found.loops if k != "lqr_continuous"]:
         make, rig = runs[key]
