@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from cartpole.errors import CartPoleError
 
@@ -54,6 +55,9 @@ class Loop:
         Delay from sample to ctrl already inside the loop, s.
     description : str
         One line saying what the loop is (for tables and figure titles).
+    noise : control.StateSpace or None
+        The closed loop (every channel closed) from the sensors' noise ``n`` (``y = C x + n``, sensor units) to
+        the ctrl: the control sensitivity of a design that reads sensors (LQG); None for one on the true state.
     """
 
     name: str
@@ -62,6 +66,7 @@ class Loop:
     period: float | None
     delay: float
     description: str
+    noise: object = None
 
     @property
     def continuous(self) -> bool:
@@ -308,10 +313,21 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
         label = "state feedback on the Kalman filter's estimate (LQG)"
     Aol, Bol, Cu = _assemble(Ap, per, N, nu, (Ac, Bcy, Bcu, Cc, Dy, Du))
     L = channel_loop(Aol, Bol, Cu, np.zeros((nu, nu)), T, channel)
+    noise = None
+    if kalman is not None:
+        import control  # python-control takes seconds to import: only loop users pay for it
+
+        # n_k enters the estimate (xc_k += Lk n_k) and through it u_k; closed loop v = u
+        ny = Ck.shape[0]
+        Dn = Cc @ Lk
+        Bn = np.zeros((Aol.shape[0], ny))
+        Bn[nx:2 * nx] = Lk
+        Bn[2 * nx:2 * nx + nu] = Dn
+        noise = control.ss(Aol + Bol @ Cu, Bol @ Dn + Bn, Cu, Dn, T)
     rig = f"period {T * 1e3:g} ms, delay {d * float(model.dt) * 1e3:g} ms" + (
         " predicted over" if compensate and d else "")
     return Loop(name or ("lqr" if kalman is None else "lqg"), L, model.params.actuators[channel].name, T,
-                d * float(model.dt), f"{label}; {rig}")
+                d * float(model.dt), f"{label}; {rig}", noise)
 
 
 def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, compensate: bool = True,
@@ -384,3 +400,35 @@ def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, co
     rig = f"period {T * 1e3:g} ms, delay {dly * float(model.dt) * 1e3:g} ms" + (
         " predicted over" if compensate and dly else "")
     return Loop(name, L, act, T, dly * float(model.dt), f"cascaded PID on the state; {rig}")
+
+
+def ctrl_noise_std(loop: Loop, V) -> np.ndarray:
+    """The steady standard deviation of each ctrl that white sensor noise of covariance ``V`` causes through the
+    closed loop (:attr:`Loop.noise`): ``sqrt(diag(C P C' + D V D'))`` with ``P`` the stationary state covariance,
+    ``P = A P A' + B V B'``.
+
+    Parameters
+    ----------
+    loop : Loop
+        A sampled loop that reads sensors (``sampled_loop(..., kalman=...)``).
+    V : (ny, ny) array
+        The noise covariance per sample, sensor units squared (e.g. an encoder of resolution ``q`` adds
+        ``q**2 / 12``: :meth:`~cartpole.estimation.SensorSpec.measurement_covariance`).
+
+    Returns
+    -------
+    (nu,) array
+        ctrl units.
+
+    Raises
+    ------
+    AnalysisError
+        A loop without sensors.
+    """
+    if loop.noise is None:
+        raise AnalysisError(f"The loop '{loop.name}' reads the true state, so sensor noise does not reach its ctrl; "
+                            "build it with a Kalman filter (kalman=...).")
+    A, B, C, D = (np.asarray(M, float) for M in (loop.noise.A, loop.noise.B, loop.noise.C, loop.noise.D))
+    V = np.atleast_2d(np.asarray(V, float))
+    P = scipy.linalg.solve_discrete_lyapunov(A, B @ V @ B.T)
+    return np.sqrt(np.diag(C @ P @ C.T + D @ V @ D.T))

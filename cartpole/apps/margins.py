@@ -12,12 +12,12 @@ Designs, keyed as the JSON ``margins`` object keys them:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from cartpole.analysis import (AnalysisError, Loop, Margins, closed_loop_stable, continuous_loop, loop_margins,
-                               pid_loop, sampled_loop)
+from cartpole.analysis import (AnalysisError, Loop, Margins, closed_loop_stable, continuous_loop, ctrl_noise_std,
+                               loop_margins, pid_loop, sampled_loop)
 from cartpole.models import steps_per_period
 
 #: Designs with no linear loop to break, and why (for the refusal's sentence).
@@ -55,6 +55,11 @@ class LabMargins:
         The LQR gain the loops close.
     steps, delay_steps : int
         Physics steps per period and of delay.
+    ctrl_noise : dict
+        Design key -> (nu,) predicted standard deviation of the ctrl that the sensors' noise causes
+        (:func:`~cartpole.analysis.ctrl_noise_std`; ctrl units), for the designs that read sensors.
+    ctrl_span : (nu,) array
+        Width of each ctrl range (ctrl units), for the fractions.
     """
 
     loops: dict
@@ -62,10 +67,18 @@ class LabMargins:
     K: np.ndarray
     steps: int
     delay_steps: int
+    ctrl_noise: dict = field(default_factory=dict)
+    ctrl_span: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        """JSON ``margins``: design key -> :meth:`~cartpole.analysis.Margins.to_dict`."""
-        return {k: m.to_dict() for k, m in self.margins.items()}
+        """JSON ``margins``: design key -> :meth:`~cartpole.analysis.Margins.to_dict`, with ``ctrl_noise_std`` (per
+        input, ctrl units) and ``ctrl_noise_fraction`` (of the ctrl range's width) for a design that reads
+        sensors."""
+        out = {k: m.to_dict() for k, m in self.margins.items()}
+        for k, std in self.ctrl_noise.items():
+            out[k]["ctrl_noise_std"] = [float(v) for v in std]
+            out[k]["ctrl_noise_fraction"] = [float(v) for v in np.asarray(std) / self.ctrl_span]
+        return out
 
 
 def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid: bool = False) -> LabMargins:
@@ -114,15 +127,18 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     estimator = loop.estimator_for("balance")
     if estimator in ("ekf", "mhe"):
         refuse_nonlinear(estimator)
+    noise = {}
     if estimator == "kf":
-        _, make = estimator_factory(model, loop, "kf", m)
+        spec, make = estimator_factory(model, loop, "kf", m)
         loops["lqg"] = sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, kalman=make(), x=x_eq)
+        noise["lqg"] = ctrl_noise_std(loops["lqg"], spec.measurement_covariance())
     if pid:
         from cartpole.control.pid import CascadedPID
 
         loops["pid"] = pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d,
                                 compensate=comp)
-    return LabMargins(loops, {k: loop_margins(v) for k, v in loops.items()}, K, m, d)
+    return LabMargins(loops, {k: loop_margins(v) for k, v in loops.items()}, K, m, d, noise,
+                      model.u_high - model.u_low)
 
 
 def whole_step_delay_margin(build, start: int, limit: int) -> int | None:
@@ -274,8 +290,9 @@ def mujoco_margins(model, found: LabMargins, *, loop=None, rel: float = 0.01, ma
     dict
         Design key -> ``delay_margin_s`` (s, measured; None when the rig's own delay already fails),
         ``delay_margin_predicted_s`` (whole physics steps of the sampled loop, s), ``delay_margin_phase_s`` (phase
-        margin over crossover plus the rig's delay, s), and for ``lqr`` / ``pid`` ``gain_margin`` [low, high]
-        measured and ``gain_margin_predicted`` (null where unbounded); ``rel``.
+        margin over crossover plus the rig's delay, s), for ``lqr`` / ``pid`` ``gain_margin`` [low, high]
+        measured and ``gain_margin_predicted`` (null where unbounded), for a design that reads sensors
+        ``ctrl_noise_std`` (:func:`mujoco_ctrl_noise`) and ``ctrl_noise_std_predicted`` (ctrl units); ``rel``.
     """
     from cartpole.apps.lab import lab_equilibrium
     from cartpole.control.linear import LinearFeedback
@@ -323,6 +340,9 @@ def mujoco_margins(model, found: LabMargins, *, loop=None, rel: float = 0.01, ma
             if np.isfinite(high):
                 hi = _bisect(stable, 1.0, 2.0 * high, rel) if not stable(2.0 * high) else 2.0 * high
             row.update(gain_margin=[lo, hi], gain_margin_predicted=[low, high if np.isfinite(high) else None])
+        if key in found.ctrl_noise:
+            row["ctrl_noise_std"] = [float(v) for v in mujoco_ctrl_noise(model, make(), loop, x_eq=x_eq)]
+            row["ctrl_noise_std_predicted"] = [float(v) for v in found.ctrl_noise[key]]
         out[key] = row
     out["rel"] = float(rel)
     return out
@@ -331,3 +351,41 @@ def mujoco_margins(model, found: LabMargins, *, loop=None, rel: float = 0.01, ma
 def loops_and_margins(found: LabMargins) -> list[tuple[Loop, Margins]]:
     """``(Loop, Margins)`` pairs in the report's order (for figures and tables)."""
     return [(found.loops[k], found.margins[k]) for k in found.loops]
+
+
+def mujoco_ctrl_noise(model, controller, loop, *, x_eq=None, tilt: float = 0.01, duration: float = 10.0,
+                      last: float = 4.0) -> np.ndarray:
+    """The standard deviation of each ctrl over the last ``last`` s of a MuJoCo run on the rig ``loop`` (sensors,
+    estimator) holding upright from a tilt of ``tilt`` rad: what the sensors' noise and quantisation do to the ctrl.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    controller : callable
+        ``u = c(t, x)``.
+    loop : LoopOptions
+        The rig.
+    x_eq : (nx,) array, optional
+        Upright (default the lab's equilibrium).
+    tilt : float
+        Initial hinge error, rad.
+    duration : float
+        Run length, s.
+    last : float
+        The window measured, s (the start's transient has died out before it).
+
+    Returns
+    -------
+    (nu,) array
+        ctrl units.
+    """
+    from cartpole.apps.lab import lab_equilibrium
+    from cartpole.sim import simulate
+    from cartpole.sim.rig import build_rig
+
+    x_eq = lab_equilibrium(model) if x_eq is None else np.asarray(x_eq, float)
+    x0 = np.array(x_eq, dtype=float)
+    x0[list(model.hinges)] += tilt
+    run = simulate(model.params, controller, x0, duration, rig=build_rig(model, loop))
+    u = run.ctrl[run.t[1:] > run.t[-1] - last]
+    return u.std(axis=0)

@@ -54,6 +54,9 @@ def run_margins(args, model, loop, Q, R) -> dict:
                   f"{_fmt(m['gain_crossover_rad_s'], 1, '.1f'):>17s}")
         for key, m in doc["margins"].items():
             print(f"  {key}: {m['description']}")
+            if "ctrl_noise_std" in m:
+                print(f"    ctrl noise from the sensors (predicted): std {', '.join(f'{v:.3g}' for v in m['ctrl_noise_std'])}"
+                      f" ({', '.join(f'{100 * v:.2g} %' for v in m['ctrl_noise_fraction'])} of the ctrl range)")
         if check:
             print("Measured in MuJoCo (from a small tilt; stable = decays or, with encoders, the ctrl off its limits):")
             for key, mj in doc["margins_mujoco"].items():
@@ -61,6 +64,9 @@ def run_margins(args, model, loop, Q, R) -> dict:
                     continue
                 line = (f"  {key}: delay margin {_fmt(mj['delay_margin_s'], 1e3, '.3g')} ms (predicted "
                         f"{_fmt(mj['delay_margin_predicted_s'], 1e3, '.3g')} ms in whole steps)")
+                if "ctrl_noise_std" in mj:
+                    line += (f"; ctrl noise std {', '.join(f'{v:.3g}' for v in mj['ctrl_noise_std'])} (predicted "
+                             f"{', '.join(f'{v:.3g}' for v in mj['ctrl_noise_std_predicted'])})")
                 if "gain_margin" in mj:
                     lo, hi = mj["gain_margin"]
                     plo, phi = mj["gain_margin_predicted"]
