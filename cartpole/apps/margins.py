@@ -389,3 +389,76 @@ def mujoco_ctrl_noise(model, controller, loop, *, x_eq=None, tilt: float = 0.01,
     run = simulate(model.params, controller, x0, duration, rig=build_rig(model, loop))
     u = run.ctrl[run.t[1:] > run.t[-1] - last]
     return u.std(axis=0)
+
+
+#: Largest factor :func:`noise_limited_R` multiplies ``R`` by (2^30) before it gives up.
+MAX_R_DOUBLINGS = 30
+
+
+def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = False) -> dict:
+    """The lab's LQR weight ``R`` scaled up (doubled until it holds) so that the ctrl noise the rig's sensors cause
+    through the LQG loop stays below ``fraction`` of the ctrl range's width: a design that respects its sensors.
+
+    The prediction is :func:`~cartpole.analysis.ctrl_noise_std` on the loop of the gain with the rig's Kalman filter
+    at upright (the linear stand-in for an EKF or MHE there), the sensors' covariance including their quantisation.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    Q : (nx, nx) array or None
+        State weights (default :func:`~cartpole.lqr.lab_weights`).
+    R : (nu, nu) array, float or None
+        ctrl weights to start from (default the lab's).
+    loop : LoopOptions
+        The rig: period, delay, sensors (an estimator and encoders or sensor noise).
+    fraction : float
+        Largest ctrl standard deviation from noise, as a fraction of the ctrl range's width, in (0, 1).
+    discrete : bool
+        As :func:`lab_margins`.
+
+    Returns
+    -------
+    dict
+        ``R`` (nu, nu) the weight found, ``factor`` (on the starting ``R``), ``fraction`` (asked),
+        ``predicted_std`` (nu,) and ``predicted_fraction`` (nu,) at that ``R`` (ctrl units, and of the range).
+
+    Raises
+    ------
+    AnalysisError
+        A fraction outside (0, 1), a rig without sensors (no noise reaches the ctrl), or no ``R`` up to
+        2^:data:`MAX_R_DOUBLINGS` times the start that is quiet enough.
+    """
+    import math
+
+    from cartpole.apps.lab import design, lab_equilibrium
+    from cartpole.lqr import lab_weights
+    from cartpole.sim.rig import delay_steps, estimator_factory
+
+    f = float(fraction)
+    if not (math.isfinite(f) and 0 < f < 1):
+        raise AnalysisError(f"The ctrl noise fraction {fraction!r} is not between 0 and 1; give e.g. --ctrl-noise "
+                            "0.1 (a tenth of the ctrl range).")
+    if loop is None or not loop.sensed or loop.estimator_for("balance") == "none":
+        raise AnalysisError("A ctrl noise limit needs sensors: with MuJoCo's exact state no noise reaches the ctrl; "
+                            "give an estimator and encoders (e.g. --estimator kf --encoder-cpr 2048).")
+    Q0, R0 = lab_weights(model)
+    Q = Q0 if Q is None else np.asarray(Q, float)
+    R = np.atleast_2d(np.asarray(R0 if R is None else R, float))
+    R = R * np.eye(model.nu) if R.shape == (1, 1) and model.nu > 1 else R
+    h = float(model.dt)
+    m = steps_per_period(loop.period, h)
+    d = delay_steps(loop.delay, h)
+    spec, make = estimator_factory(model, loop, "kf", m)
+    V = spec.measurement_covariance()
+    x_eq = lab_equilibrium(model)
+    span = model.u_high - model.u_low
+    for k in range(MAX_R_DOUBLINGS + 1):
+        factor = 2.0 ** k
+        res, _ = design(model, Q, R * factor, discrete=discrete, x_eq=x_eq, steps=m)
+        std = ctrl_noise_std(sampled_loop(model, res.K, steps=m, delay_steps=d, compensate=bool(loop.delay_compensation),
+                                          kalman=make(), x=x_eq), V)
+        if np.all(std <= f * span):
+            return {"R": R * factor, "factor": factor, "fraction": f, "predicted_std": std,
+                    "predicted_fraction": std / span}
+    raise AnalysisError(f"No R up to {2.0 ** MAX_R_DOUBLINGS:g} times the lab's keeps the ctrl noise from these "
+                        f"sensors below {f:g} of the ctrl range; allow more (--ctrl-noise) or use finer encoders.")

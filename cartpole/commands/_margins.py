@@ -20,6 +20,29 @@ def add_margins_argument(parser) -> None:
                         help="--margins, and measure them in MuJoCo on this rig beside the predictions: the delay "
                              "margin of each design (whole physics steps) and the gain band of those on the true "
                              "state (LQR, PID; bisected to 1 %%); JSON margins_mujoco")
+    parser.add_argument("--ctrl-noise", type=float, default=None, metavar="FRACTION",
+                        help="design for the sensors: raise R (doubling it) until the ctrl's standard deviation that "
+                             "the sensors' noise and quantisation cause through the LQG loop, predicted at upright, "
+                             "is below FRACTION of the ctrl range (needs an estimator and encoders); JSON ctrl_noise")
+
+
+def ctrl_noise_weights(args, model, loop, Q, R):
+    """``--ctrl-noise FRACTION``: ``(R, doc)`` with ``R`` raised until the ctrl noise the sensors cause stays below
+    the fraction of the ctrl range (:func:`cartpole.apps.margins.noise_limited_R`) and ``doc`` the JSON
+    ``ctrl_noise`` {``fraction``, ``factor``, ``R``, ``predicted_std``, ``predicted_fraction``}; ``(R, None)``
+    without the option. Prints one line unless ``--json``."""
+    fraction = getattr(args, "ctrl_noise", None)
+    if fraction is None:
+        return R, None
+    from cartpole.apps.margins import noise_limited_R
+
+    found = noise_limited_R(model, Q, R, loop, fraction, discrete=args.discrete)
+    doc = {"fraction": found["fraction"], "factor": found["factor"], "R": found["R"].tolist(),
+           "predicted_std": found["predicted_std"].tolist(), "predicted_fraction": found["predicted_fraction"].tolist()}
+    if not args.json:
+        print(f"--ctrl-noise {fraction:g}: R x {found['factor']:g}, predicted ctrl noise "
+              f"{', '.join(f'{100 * v:.2g} %' for v in found['predicted_fraction'])} of the ctrl range")
+    return found["R"], doc
 
 
 def _fmt(v, scale: float = 1.0, digits: str = ".3g") -> str:

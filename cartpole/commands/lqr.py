@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from cartpole.commands._rig import add_rig_arguments, friction_sentence, loop_from_args, rig_doc
-from cartpole.commands._margins import add_margins_argument, run_margins
+from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -130,6 +130,7 @@ def run(args) -> dict:
         from cartpole.apps.swingup import plan_model_from
 
         plan_model = plan_model_from(args.plan_mjcf, model)
+    R, ctrl_noise = ctrl_noise_weights(args, model, loop, Q, R)
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model)
     if args.view:
         result = _view(result)
@@ -215,6 +216,8 @@ def run(args) -> dict:
     }
     if args.compare_pid:
         doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
+    if ctrl_noise is not None:
+        doc["ctrl_noise"] = ctrl_noise
     if not args.json:
         _print_prose(result, doc, pid)
     return doc
