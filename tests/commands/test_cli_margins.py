@@ -26,3 +26,10 @@ def test_margins_of_a_nonlinear_estimator_are_refused_in_one_sentence(tmp_path, 
     err = capsys.readouterr().err.strip()
     assert code == 2 and "linear loop" in err and "--estimator kf" in err and "Traceback" not in err
     assert not (tmp_path / "figures").exists()
+
+
+def test_ctrl_noise_without_sensors_is_refused_before_the_lab_runs(tmp_path, capsys):
+    code = main(["lqr", "--ctrl-noise", "0.1", "--no-video", "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "needs sensors" in err and "--estimator kf" in err and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
