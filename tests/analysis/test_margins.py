@@ -164,3 +164,29 @@ def test_an_unstable_closed_loop_has_no_margins(lab):
         loop_margins(continuous_loop(lab, 0.01 * K))
     with pytest.raises(AnalysisError, match="shape"):
         continuous_loop(lab, K[:, :2])
+
+
+def test_a_tvlqr_frozen_at_a_time_is_the_continuous_loop_of_its_gain_there(lab):
+    from cartpole.analysis import frozen_tvlqr_loop
+    from cartpole.lqr.tvlqr import TVLQRGains
+
+    A, B = lab.without_friction().linearize()
+    K = lqr(A, B, *lab_weights(lab)).K
+    n = 4
+    gains = TVLQRGains(t=np.arange(n) * 0.01, K=np.repeat(K[None], n, axis=0),
+                       S=np.repeat(np.eye(lab.nx)[None], n + 1, axis=0), dt=0.01,
+                       x_ref=np.repeat(lab.x_eq[None], n + 1, axis=0), u_ref=np.repeat(lab.u_eq[None], n, axis=0))
+    frozen = loop_margins(frozen_tvlqr_loop(lab, gains, None, 0.02))
+    assert frozen.phase_margin_deg == pytest.approx(loop_margins(continuous_loop(lab, K)).phase_margin_deg, rel=1e-9)
+
+
+def test_each_input_channels_loop_closes_on_the_full_closed_loop():
+    from cartpole.analysis import channel_loop
+
+    rng = np.random.default_rng(0)
+    A, B, C = rng.normal(size=(5, 5)), rng.normal(size=(5, 2)), rng.normal(size=(2, 5))
+    full = np.sort_complex(np.linalg.eigvals(A + B @ C))  # every channel closed, v = u
+    for ch in (0, 1):
+        L = channel_loop(A, B, C, np.zeros((2, 2)), 0, ch)
+        closed = np.asarray(L.A) - np.asarray(L.B) @ np.asarray(L.C)  # 1 + L = 0 closes this channel too
+        assert np.allclose(np.sort_complex(np.linalg.eigvals(closed)), full)
