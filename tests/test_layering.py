@@ -8,6 +8,7 @@ Layers, lowest first; a module may import its own layer and the layers below it,
     lqr           cartpole.lqr             lqr / dlqr, TVLQR, the lab's weights
     control       cartpole.control         controllers u = c(t, x)
     estimation    cartpole.estimation      (reserved) sensors, KF, EKF, MHE: x_hat from y
+    analysis      cartpole.analysis        loops of the linear designs broken at the plant input, their margins
     sim           cartpole.sim             MuJoCo runs, exact replay, batch rollouts
     ocp           cartpole.ocp             trajectory-optimisation problems: transcription, guesses, objectives,
                                            trajectories, solve records
@@ -48,6 +49,7 @@ LAYERS = (
     ("lqr", ("cartpole.lqr",)),
     ("control", ("cartpole.control",)),
     ("estimation", ("cartpole.estimation",)),
+    ("analysis", ("cartpole.analysis",)),
     ("sim", ("cartpole.sim",)),
     ("ocp", ("cartpole.ocp",)),
     ("solvers", ("cartpole.solvers",)),

@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from cartpole.commands._rig import add_rig_arguments, friction_sentence, loop_from_args, rig_doc
+from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -54,6 +55,7 @@ def add_arguments(parser) -> None:
                              "times to MAX) at which the LQR through the estimator (default kf; with --compare-pid "
                              "also the PID on the measurements) still balances all five starts on this rig; prints "
                              "it and writes figures/noise_margin.png")
+    add_margins_argument(parser)
 
 
 #: Largest magnitude of a --Q or --R entry (and 1 / it the smallest nonzero one): far outside it SciPy's Riccati solver
@@ -115,6 +117,8 @@ def run(args) -> dict:
                                                                         else ""))
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
+    if args.margins or args.margins_mujoco:
+        return run_margins(args, model, loop, Q, R)
     for key in MARGINS:
         if getattr(args, key) is not None:
             return _margin(args, model, loop, key)
@@ -126,6 +130,7 @@ def run(args) -> dict:
         from cartpole.apps.swingup import plan_model_from
 
         plan_model = plan_model_from(args.plan_mjcf, model)
+    R, ctrl_noise = ctrl_noise_weights(args, model, loop, Q, R)
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model)
     if args.view:
         result = _view(result)
@@ -211,6 +216,8 @@ def run(args) -> dict:
     }
     if args.compare_pid:
         doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
+    if ctrl_noise is not None:
+        doc["ctrl_noise"] = ctrl_noise
     if not args.json:
         _print_prose(result, doc, pid)
     return doc

@@ -46,12 +46,13 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.models.discretize import hold_model
+from cartpole.models.discretize import hold_model, steps_per_period
 from cartpole.models.equilibrium import find_equilibrium
 from cartpole.models.friction import (DEFAULT_FRICTION_WIDTH, FrictionConstraint, check_width,
                                       constraint_friction_force, smooth_friction)
@@ -268,6 +269,63 @@ class CartPoleModel:
         u = self.u_eq if u is None else np.atleast_1d(u).astype(float)
         A, B = (self.ABd if discrete else self.AB)(x, u)
         return np.asarray(A), np.asarray(B)
+
+    def statespace(self, x=None, u=None, *, dt: float | None = None, C=None, outputs=None, name: str | None = None):
+        """The linearisation at ``(x, u)`` as a python-control ``StateSpace`` with the MJCF's signal names.
+
+        States are named after the joints, ``[<joint>..., <joint>_vel...]`` (MuJoCo's order), inputs after the
+        actuators, outputs after the states (the full state, ``C = I``) unless ``C`` and ``outputs`` are given.
+
+        Parameters
+        ----------
+        x : (nx,) array, optional
+            Operating state (m, rad, m/s, rad/s); default the upright equilibrium ``x_eq``.
+        u : (nu,) array, optional
+            Operating ctrl; default ``u_eq``.
+        dt : float, optional
+            None: the continuous ``(A, B)``. A control period in s (a whole number of physics steps, one step
+            included): the exact discrete model over that hold (:meth:`hold`), with ``dt`` the system's sample time.
+        C : (ny, nx) array, optional
+            Measured outputs ``y = C x`` (no feedthrough); default the identity.
+        outputs : sequence of str, optional
+            One name per row of ``C`` (default ``y0 ..``; with ``C`` unset, the state names).
+        name : str, optional
+            The system's name (default the MJCF file's stem).
+
+        Returns
+        -------
+        control.StateSpace
+            Continuous (``dt = 0``) or discrete (``dt`` the period in s); ``B`` per unit ctrl.
+
+        Raises
+        ------
+        PeriodError
+            ``dt`` not a positive whole number of the MJCF's physics steps.
+        MJCFError
+            ``C`` or ``outputs`` whose shapes do not match the model.
+        """
+        import control  # python-control takes seconds to import: only this method's callers pay for it
+
+        if dt is None:
+            A, B = self.linearize(x, u)
+        else:
+            A, B = self.hold(steps_per_period(dt, float(self.dt))).linearize(x, u)
+        joints = [j.name for j in self.params.joints]
+        states = joints + [f"{j}_vel" for j in joints]
+        inputs = [a.name for a in self.params.actuators]
+        if C is None:
+            C = np.eye(self.nx)
+            outputs = states if outputs is None else list(outputs)
+        C = np.atleast_2d(np.asarray(C, dtype=float))
+        if C.shape[1] != self.nx:
+            raise MJCFError(f"C has shape {C.shape}; it must have one column per state ({self.nx}: "
+                            f"{', '.join(states)}).")
+        outputs = [f"y{i}" for i in range(C.shape[0])] if outputs is None else [str(o) for o in outputs]
+        if len(outputs) != C.shape[0]:
+            raise MJCFError(f"outputs names {len(outputs)} signals but C has {C.shape[0]} rows; give one per row.")
+        D = np.zeros((C.shape[0], self.nu))
+        return control.ss(A, B, C, D, 0 if dt is None else float(dt), states=states, inputs=inputs,
+                          outputs=outputs, name=name or Path(self.params.mjcf).stem)
 
     def hold(self, steps: int):
         """The exact discrete model over ``steps`` physics steps with the ctrl held
