@@ -84,3 +84,61 @@ def friction_sentence(friction: dict) -> str:
            "to design on the smooth friction model instead)" if friction["compensation"] else
            "designed on the smooth friction model, nothing cancelled")
     return f"Friction (frictionloss {loss}): {how}."
+
+
+def add_budget_argument(parser) -> None:
+    """``--max-steps N``: the budget of MuJoCo steps a command runs before it refuses (:mod:`cartpole.sim.budget`)."""
+    from cartpole.sim.budget import DEFAULT_MAX_STEPS
+
+    parser.add_argument("--max-steps", type=float, default=None, metavar="N",
+                        help=f"most MuJoCo steps the command may run in all (default {DEFAULT_MAX_STEPS:.0e}); "
+                             "beyond it the command refuses before it starts, naming its estimate")
+
+
+def check_budget(args, model, parts) -> object:
+    """Estimate a command's work before it starts and refuse it beyond ``--max-steps``; refuse a numerically singular
+    model (:func:`cartpole.sim.budget.check_conditioning`); announce large work on the progress reporter.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Its ``max_steps`` (None: the default budget).
+    model : CartPoleModel
+    parts : iterable of (int, float, str)
+        Runs, seconds each, and what they are (:func:`cartpole.sim.budget.estimate_work`).
+
+    Returns
+    -------
+    Work
+    """
+    import math
+
+    from cartpole.errors import CartPoleError
+    from cartpole.progress import current
+    from cartpole.sim.budget import ANNOUNCE_STEPS, DEFAULT_MAX_STEPS, check_conditioning, check_work, estimate_work
+
+    top = getattr(args, "max_steps", None)
+    if top is not None and not (math.isfinite(top) and top >= 1):
+        raise CartPoleError(f"--max-steps {top:g} is not a number of steps >= 1; give e.g. --max-steps "
+                            f"{DEFAULT_MAX_STEPS:.0e}.")
+    check_conditioning(model)
+    work = check_work(estimate_work(parts, model.dt), max_steps=DEFAULT_MAX_STEPS if top is None else top,
+                      option="--max-steps")
+    rep = current()
+    if rep is not None and work.steps > ANNOUNCE_STEPS:
+        rep.write(f"{rep.prefix + ': ' if rep.prefix else ''}about {work.describe()}")
+    return work
+
+
+def smoothed_friction_sentence(entries: list, *, what: str = "The design") -> str | None:
+    """The prose line for a JSON ``smoothed_friction`` (:func:`cartpole.models.friction_treatment`), None when empty:
+    which joints' dry friction (MuJoCo sticks them) the design holds as the smooth model, leaves out or cancels."""
+    if not entries:
+        return None
+    words = {"smooth": "as the smooth {loss:g} tanh(qvel/{width:g}) (a damping of {damp:.3g} at rest)",
+             "omitted": "left out (linearised at rest without it)",
+             "cancelled": "left out and cancelled by a feedforward"}
+    parts = [f"{e['joint']} (frictionloss {e['frictionloss']:g}) "
+             + words[e["design"]].format(loss=e["frictionloss"], width=e["width"], damp=e.get("damping_at_rest", 0.0))
+             for e in entries]
+    return (f"{what} does not hold MuJoCo's dry friction, which sticks a joint at rest: " + "; ".join(parts) + ".")

@@ -1,0 +1,196 @@
+"""The work a MuJoCo command is about to do, estimated before it starts, and the budget it must stay within.
+
+A file can make a routine command huge: a 5e-5 s time step turns the lab's five 6 s runs into 600 000 MuJoCo steps
+(minutes of a Python controller in the loop), a long ``--duration`` at a fine step into hours, and a 1e-9 kg pole
+into a mass matrix so ill-conditioned that no design on it means anything. So every command that runs MuJoCo first
+adds up its physics steps (:func:`estimate_work`: duration / timestep x runs for each part of the work) and checks
+them against a stated budget (:data:`DEFAULT_MAX_STEPS`, raised by the caller's ``max_steps``:
+:func:`check_work`), and checks the model's conditioning at upright (:func:`check_conditioning`: the mass matrix's
+condition number, and the lightest body against the heaviest), before any of it runs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cartpole.errors import CartPoleError
+
+#: Physics steps a command may run in all before it refuses (its ``max_steps``; ``--max-steps`` on the command
+#: line). The lab's default run on the shipped 5 ms MJCF takes 6 000 of them plus a 2 000-step video clip.
+DEFAULT_MAX_STEPS = 10_000_000
+
+#: Work above this many physics steps is announced (one line on the progress reporter) before it starts.
+ANNOUNCE_STEPS = 1_000_000
+
+#: Largest condition number of the mass matrix at upright a model may have: beyond it the accelerations lose more
+#: than half of double precision's digits, and the linearisation, the LQR and the plans mean nothing (the shipped
+#: assets are below 1e3).
+MAX_CONDITION = 1e8
+
+
+class BudgetError(CartPoleError):
+    """The work a command would do exceeds its budget of physics steps."""
+
+
+class IllConditionedError(CartPoleError):
+    """The model is numerically singular (its mass matrix at upright is too ill-conditioned to design on)."""
+
+
+@dataclass(frozen=True)
+class Work:
+    """The physics steps of a command's parts, estimated before it runs.
+
+    Attributes
+    ----------
+    timestep : float, s
+        The MJCF's time step.
+    parts : tuple of (str, int)
+        What each part is (``"the lab's 5 runs of 6 s"``) and its MuJoCo steps.
+    """
+
+    timestep: float
+    parts: tuple
+
+    @property
+    def steps(self) -> int:
+        """All the parts' physics steps."""
+        return int(sum(n for _, n in self.parts))
+
+    def describe(self) -> str:
+        """``"6000 MuJoCo steps: the lab's 5 runs of 6 s 6000"``: the total and each part with steps."""
+        parts = "; ".join(f"{what} {n:.3g}" for what, n in self.parts if n)
+        return f"{self.steps:.3g} MuJoCo steps at the {self.timestep:g} s time step ({parts})"
+
+
+def physics_steps(duration: float, timestep: float, runs: int = 1) -> int:
+    """MuJoCo steps of ``runs`` runs of ``duration`` s each at ``timestep`` s (rounded up per run).
+
+    Parameters
+    ----------
+    duration : float, s
+    timestep : float, s
+    runs : int
+
+    Returns
+    -------
+    int
+    """
+    if duration <= 0 or runs <= 0:
+        return 0
+    return int(runs) * int(math.ceil(float(duration) / float(timestep) - 1e-9))
+
+
+def estimate_work(parts, timestep: float) -> Work:
+    """The :class:`Work` of ``parts``, each ``(runs, seconds each, what)``.
+
+    Parameters
+    ----------
+    parts : iterable of (int, float, str)
+        Runs, their simulated duration in s, and what they are (for the sentences).
+    timestep : float, s
+        The MJCF's time step.
+
+    Returns
+    -------
+    Work
+    """
+    return Work(timestep=float(timestep),
+                parts=tuple((str(what), physics_steps(seconds, timestep, runs)) for runs, seconds, what in parts))
+
+
+def check_work(work: Work, *, max_steps: float = DEFAULT_MAX_STEPS, option: str = "max_steps") -> Work:
+    """Refuse, before it starts, work beyond ``max_steps`` physics steps.
+
+    Parameters
+    ----------
+    work : Work
+        From :func:`estimate_work`.
+    max_steps : float
+        The budget (default :data:`DEFAULT_MAX_STEPS`).
+    option : str
+        The name that raises the budget, in the sentence (the argument ``max_steps``; a command passes its flag).
+
+    Returns
+    -------
+    Work
+        ``work``, when within the budget.
+
+    Raises
+    ------
+    BudgetError
+        One sentence: the steps, what they are, the budget and the option that raises it.
+    """
+    if work.steps > float(max_steps):
+        raise BudgetError(f"This would run {work.describe()}, beyond the budget of {float(max_steps):.3g} steps; "
+                          f"give {option} {work.steps:.3g} to run it anyway, or a larger time step in the MJCF or "
+                          "a shorter duration.")
+    return work
+
+
+def conditioning(model) -> dict:
+    """How well-conditioned a model is at upright: what :func:`check_conditioning` judges.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+
+    Returns
+    -------
+    dict
+        ``condition`` (the mass matrix's 2-norm condition number at ``x_eq``), ``fastest_mode_per_step`` (the largest
+        ``|eigenvalue|`` of the continuous ``A`` at upright times the time step: far above 1 the model is stiff),
+        ``lightest`` and ``heaviest`` (names of the moving bodies with the smallest and largest mass) and
+        ``mass_ratio`` (their masses' ratio).
+    """
+    x_eq = np.asarray(model.x_eq, dtype=float)
+    M = np.asarray(model.mass_matrix(x_eq), dtype=float)
+    cond = float(np.linalg.cond(M)) if np.all(np.isfinite(M)) else float("inf")
+    try:
+        A, _ = model.linearize(x_eq, model.u_eq)
+        fastest = float(np.abs(np.linalg.eigvals(np.asarray(A, dtype=float))).max()) * float(model.dt)
+    except (np.linalg.LinAlgError, ValueError):
+        fastest = float("inf")
+    bodies = [b for b in model.params.bodies if b.mass > 0] or list(model.params.bodies)
+    light = min(bodies, key=lambda b: b.mass)
+    heavy = max(bodies, key=lambda b: b.mass)
+    return {"condition": cond, "fastest_mode_per_step": fastest, "lightest": light.name, "heaviest": heavy.name,
+            "lightest_mass": float(light.mass), "heaviest_mass": float(heavy.mass),
+            "mass_ratio": float(light.mass) / float(heavy.mass) if heavy.mass > 0 else float("nan")}
+
+
+def check_conditioning(model, *, max_condition: float = MAX_CONDITION) -> dict:
+    """Refuse a model whose mass matrix at upright is numerically singular, naming the physics that makes it so.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+    max_condition : float
+        Largest condition number accepted (default :data:`MAX_CONDITION`).
+
+    Returns
+    -------
+    dict
+        :func:`conditioning`'s, when the model is accepted.
+
+    Raises
+    ------
+    IllConditionedError
+        One sentence: the lightest body's mass against the heaviest's (when that is the cause), the condition number
+        and how much faster than the time step the fastest mode is, and the edit that fixes it.
+    """
+    c = conditioning(model)
+    if c["condition"] <= float(max_condition):
+        return c
+    stiff = (f", and its fastest mode is {c['fastest_mode_per_step']:.2g} times faster than the {model.dt:g} s time "
+             "step" if c["fastest_mode_per_step"] > 1 else "")
+    cond = f"its mass matrix at upright has condition number {c['condition']:.2g}, beyond {float(max_condition):.0e}"
+    if c["mass_ratio"] < 1e-4:
+        raise IllConditionedError(
+            f"The mass of body '{c['lightest']}', {c['lightest_mass']:.3g} kg, is {c['mass_ratio']:.2g} of the "
+            f"{c['heaviest_mass']:.3g} kg of body '{c['heaviest']}': the model is numerically singular ({cond}{stiff}); "
+            f"give '{c['lightest']}' a mass of at least {1e-4 * c['heaviest_mass']:.3g} kg in the MJCF.")
+    raise IllConditionedError(
+        f"The model is numerically singular: {cond}{stiff}; give its bodies masses and inertias (or its joints an "
+        "armature) of comparable size in the MJCF.")
