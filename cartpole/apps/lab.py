@@ -483,9 +483,10 @@ class NotSettled:
     Attributes
     ----------
     reason : str
-        A key of :data:`NOT_SETTLED_REASONS`: ``ctrl_limit`` (the ctrl saturated and the LQR's own linear loop would
-        have settled, or the pole fell while it saturated), ``slow`` (the linear closed loop itself needs longer
-        than the run), ``cart_limit``, ``diverged`` or ``residual``.
+        A key of :data:`NOT_SETTLED_REASONS`: ``ctrl_limit`` (a pole fell or the cart hit its rail's end in a run
+        whose ctrl sat at its limit for more than 1 % of it, or the ctrl is still at its limit in the last second),
+        ``slow`` (else, when the LQR's linear closed loop itself needs longer than the run), ``cart_limit``,
+        ``diverged`` or ``residual`` (an error that does not decay: friction, a model error, the rig).
     final_angle_error : float, rad
         Largest wrapped ``|theta_i - theta_i*|`` over the poles at the end of the run (0 without poles).
     final_error : float
@@ -514,8 +515,18 @@ class NotSettled:
                 "saturation_fraction": self.saturation_fraction}
 
 
-def _classify(M, h: float, tau: float, x0s, x_eq, hinges, runs, mets, duration: float) -> tuple:
+#: Fraction of a run's steps with the ctrl at its limit above which a pole that fell is blamed on the ctrl limit (a
+#: few saturated steps at the start, as every lab start on the shipped cart has, are not).
+_SATURATED = 0.01
+
+#: The last seconds of a run in which a ctrl still at its limit makes the ctrl limit the reason it has not settled.
+_LATE = 1.0
+
+
+def _classify(M, h: float, tau: float, x0s, x_eq, hinges, runs, mets, duration: float, ctrl_range) -> tuple:
     """:class:`NotSettled` or None per run (see :func:`why_not_settled`)."""
+    from cartpole.validation.metrics import saturation_fraction
+
     x_eq = np.asarray(x_eq, dtype=float)
     hinges = tuple(hinges)
     horizon = min(max(2.0 * duration, 30.0 * tau if np.isfinite(tau) else 0.0), 1e5)
@@ -528,15 +539,16 @@ def _classify(M, h: float, tau: float, x0s, x_eq, hinges, runs, mets, duration: 
         angle = float(np.abs(e_end[list(hinges)]).max()) if hinges else 0.0
         k = int(np.argmax(np.abs(e_end)))
         t_lin = linear_settling_time(M, state_error(x0, x_eq, hinges), h, horizon)
-        saturated = m.saturation_fraction > 0
+        late = np.asarray(run.t[:-1]) >= float(run.t[-1]) - _LATE
+        still = saturation_fraction(np.asarray(run.ctrl)[late], ctrl_range) > 0
         fell = angle > UPRIGHT_TOL or m.hit_limit
         if m.diverged:
             reason = "diverged"
-        elif saturated and fell:
+        elif fell and m.saturation_fraction > _SATURATED:
             reason = "ctrl_limit"
         elif t_lin > duration:
             reason = "slow"
-        elif saturated:
+        elif still:
             reason = "ctrl_limit"
         elif m.hit_limit:
             reason = "cart_limit"
@@ -553,10 +565,10 @@ def why_not_settled(lab: "LabResult") -> tuple:
 
     The LQR's own prediction decides between the ctrl limit and a short run: the closed loop ``Ad - Bd K`` (one
     MJCF step, or the control period's hold) run from the start without any ctrl limit
-    (:func:`linear_settling_time`). A start it settles within the run, but MuJoCo's run with the ctrl saturated
-    does not, failed for the ctrl limit (as one whose pole fell or whose cart hit the rail while saturating); one
-    it does not settle within the run failed because the run is too short for the slowest closed-loop mode
-    (:attr:`LabResult.slowest_time_constant`): a longer run settles it.
+    (:func:`linear_settling_time`). A start whose pole fell (or whose cart hit the rail) while the ctrl saturated,
+    or whose ctrl is still at its limit in the run's last second, failed for the ctrl limit; otherwise one the
+    linear loop does not settle within the run failed because the run is too short for the slowest closed-loop
+    mode (:attr:`LabResult.slowest_time_constant`): a longer run settles it (see :class:`NotSettled`).
 
     Parameters
     ----------
@@ -569,7 +581,7 @@ def why_not_settled(lab: "LabResult") -> tuple:
     h = lab.period or lab.params.timestep
     M = np.asarray(lab.Ad, dtype=float) - np.asarray(lab.Bd, dtype=float) @ np.asarray(lab.K, dtype=float)
     return _classify(M, h, lab.slowest_time_constant, lab.x0s, lab.x_eq, lab.params.hinges, lab.rollouts,
-                     lab.metrics, lab.duration)
+                     lab.metrics, lab.duration, lab.params.ctrl_range)
 
 
 def lab_friction(model, compensated: bool) -> list:
@@ -661,7 +673,8 @@ def _search_scale(model, ctrl, res, mats, x_eq, progress=None):
         label = "lab runs" if scale == 1.0 else f"lab runs, starts x{scale:g}"
         with stage(label, size=_runs_label(model, LAB_DURATION), callback=progress) as tick:
             attempt = _five_runs(model, ctrl, x_eq, scale, LAB_DURATION, tick)
-        why = _classify(M, h, tau, attempt[0], x_eq, model.hinges, attempt[1], attempt[2], LAB_DURATION)
+        why = _classify(M, h, tau, attempt[0], x_eq, model.hinges, attempt[1], attempt[2], LAB_DURATION,
+                        model.params.ctrl_range)
         limited = [i for i, w in enumerate(why) if w is not None and w.reason == "ctrl_limit"]
         if first is None:
             first, first_why = attempt, why

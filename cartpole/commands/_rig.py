@@ -130,15 +130,37 @@ def check_budget(args, model, parts) -> object:
     return work
 
 
-def smoothed_friction_sentence(entries: list, *, what: str = "The design") -> str | None:
+def smoothed_friction_sentence(entries: list, *, what: str = "the design") -> str | None:
     """The prose line for a JSON ``smoothed_friction`` (:func:`cartpole.models.friction_treatment`), None when empty:
     which joints' dry friction (MuJoCo sticks them) the design holds as the smooth model, leaves out or cancels."""
     if not entries:
         return None
-    words = {"smooth": "as the smooth {loss:g} tanh(qvel/{width:g}) (a damping of {damp:.3g} at rest)",
-             "omitted": "left out (linearised at rest without it)",
-             "cancelled": "left out and cancelled by a feedforward"}
-    parts = [f"{e['joint']} (frictionloss {e['frictionloss']:g}) "
-             + words[e["design"]].format(loss=e["frictionloss"], width=e["width"], damp=e.get("damping_at_rest", 0.0))
-             for e in entries]
-    return (f"{what} does not hold MuJoCo's dry friction, which sticks a joint at rest: " + "; ".join(parts) + ".")
+    parts = []
+    for e in entries:
+        slide = e.get("kind") == "slide"
+        force, damp = ("N", "N s/m") if slide else ("N m", "N m s/rad")
+        how = {"smooth": f"as the smooth -{e['frictionloss']:g} tanh(qvel/{e['width']:g}), a damping of "
+                         f"{e.get('damping_at_rest', 0.0):.3g} {damp} at rest",
+               "omitted": "left out (linearised at rest without it)",
+               "cancelled": "left out and cancelled by a feedforward"}[e["design"]]
+        parts.append(f"{e['joint']} {e['frictionloss']:g} {force} {how}")
+    return f"Dry friction (MuJoCo's frictionloss, which sticks a joint at rest) in {what}: " + "; ".join(parts) + "."
+
+
+def design_friction(model, friction: dict | None) -> list:
+    """JSON ``smoothed_friction`` of a command that designs on the symbolic model with its smooth friction (a
+    swing-up's planner and controllers, :func:`cartpole.control.friction.friction_design`): every joint with
+    frictionloss held as the smooth model, except the driven ones a compensation cancels.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The model MuJoCo runs.
+    friction : dict or None
+        The run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`): its ``compensation``.
+    """
+    from cartpole.models import friction_treatment
+
+    p = model.params
+    cancelled = p.driven_joints if friction and friction.get("compensation") else ()
+    return friction_treatment(p, width=model.friction_width, cancelled=cancelled)

@@ -394,7 +394,7 @@ def _print_prose(result, doc, pid=None) -> None:
             print(_rig_sentence(result.rig))
         if doc["friction"] is not None:
             print(friction_sentence(doc["friction"]))
-        smoothed = smoothed_friction_sentence(doc.get("smoothed_friction") or [], what="The LQR design")
+        smoothed = smoothed_friction_sentence(doc.get("smoothed_friction") or [], what="the LQR design")
         if smoothed:
             print(smoothed)
         if result.start_scale != 1.0:

@@ -121,7 +121,8 @@ def friction_treatment(params, *, width: float, omitted=(), cancelled=()) -> lis
     Returns
     -------
     list of dict
-        Per joint with friction, in qpos order: ``joint`` (name), ``frictionloss``, ``width`` (the smooth model's,
+        Per joint with friction, in qpos order: ``joint`` (name), ``kind`` (``slide`` or ``hinge``),
+        ``frictionloss``, ``width`` (the smooth model's,
         m/s or rad/s), ``design``: ``"smooth"`` (held as the tanh; then ``damping_at_rest`` =
         ``frictionloss / width``, N s/m or N m s/rad), ``"omitted"`` or ``"cancelled"``. Empty without friction.
     """
@@ -131,7 +132,7 @@ def friction_treatment(params, *, width: float, omitted=(), cancelled=()) -> lis
         loss = float(j.frictionloss)
         if loss == 0:
             continue
-        entry = {"joint": j.name, "frictionloss": loss, "width": float(width)}
+        entry = {"joint": j.name, "kind": j.kind, "frictionloss": loss, "width": float(width)}
         if i in cancelled:
             entry["design"] = "cancelled"
         elif i in omitted:

@@ -18,8 +18,10 @@ import numpy as np
 from cartpole.errors import CartPoleError
 
 #: Physics steps a command may run in all before it refuses (its ``max_steps``; ``--max-steps`` on the command
-#: line). The lab's default run on the shipped 5 ms MJCF takes 6 000 of them plus a 2 000-step video clip.
-DEFAULT_MAX_STEPS = 10_000_000
+#: line): minutes of MuJoCo with a Python controller in the loop. The lab's default run on the shipped 5 ms MJCF takes
+#: 6 000 of them plus a 2 000-step video clip, the energy swing-up's catch basin 240 000; at a 5e-5 s step the lab
+#: takes 800 000 (4.4 million if its starts must be shrunk) and the swing-up's basin 24 million.
+DEFAULT_MAX_STEPS = 5_000_000
 
 #: Work above this many physics steps is announced (one line on the progress reporter) before it starts.
 ANNOUNCE_STEPS = 1_000_000
@@ -123,10 +125,19 @@ def check_work(work: Work, *, max_steps: float = DEFAULT_MAX_STEPS, option: str 
         One sentence: the steps, what they are, the budget and the option that raises it.
     """
     if work.steps > float(max_steps):
-        raise BudgetError(f"This would run {work.describe()}, beyond the budget of {float(max_steps):.3g} steps; "
-                          f"give {option} {work.steps:.3g} to run it anyway, or a larger time step in the MJCF or "
-                          "a shorter duration.")
+        parts = "; ".join(f"{what} {n:.2g}" for what, n in work.parts if n)
+        raise BudgetError(f"At the {work.timestep:g} s time step this runs {work.steps:.2g} MuJoCo steps, beyond the "
+                          f"budget of {float(max_steps):.2g}; give {option} {_round_up(work.steps)} to run it anyway, "
+                          f"or a larger time step or shorter duration ({parts}).")
     return work
+
+
+def _round_up(steps: float) -> str:
+    """``steps`` rounded up to two significant digits, as a command-line number (``6.2e+06``)."""
+    if steps <= 0:
+        return "1"
+    e = math.floor(math.log10(steps)) - 1
+    return f"{math.ceil(steps / 10 ** e - 1e-9) * 10 ** e:.2g}"
 
 
 def conditioning(model) -> dict:
@@ -183,14 +194,14 @@ def check_conditioning(model, *, max_condition: float = MAX_CONDITION) -> dict:
     c = conditioning(model)
     if c["condition"] <= float(max_condition):
         return c
-    stiff = (f", and its fastest mode is {c['fastest_mode_per_step']:.2g} times faster than the {model.dt:g} s time "
-             "step" if c["fastest_mode_per_step"] > 1 else "")
-    cond = f"its mass matrix at upright has condition number {c['condition']:.2g}, beyond {float(max_condition):.0e}"
+    cond = f"condition number {c['condition']:.2g} of its mass matrix at upright, beyond {float(max_condition):.0e}"
     if c["mass_ratio"] < 1e-4:
         raise IllConditionedError(
-            f"The mass of body '{c['lightest']}', {c['lightest_mass']:.3g} kg, is {c['mass_ratio']:.2g} of the "
-            f"{c['heaviest_mass']:.3g} kg of body '{c['heaviest']}': the model is numerically singular ({cond}{stiff}); "
-            f"give '{c['lightest']}' a mass of at least {1e-4 * c['heaviest_mass']:.3g} kg in the MJCF.")
+            f"The mass of body '{c['lightest']}', {c['lightest_mass']:.3g} kg, is {c['mass_ratio']:.2g} of body "
+            f"'{c['heaviest']}''s: the model is numerically singular ({cond}); give '{c['lightest']}' a mass of at "
+            f"least {1e-4 * c['heaviest_mass']:.3g} kg in the MJCF.")
+    stiff = (f"; its fastest mode is {c['fastest_mode_per_step']:.2g} times faster than the {model.dt:g} s step"
+             if c["fastest_mode_per_step"] > 1 else "")
     raise IllConditionedError(
-        f"The model is numerically singular: {cond}{stiff}; give its bodies masses and inertias (or its joints an "
+        f"The model is numerically singular ({cond}{stiff}); give its bodies masses and inertias (or its joints an "
         "armature) of comparable size in the MJCF.")
