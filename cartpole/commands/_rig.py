@@ -77,12 +77,13 @@ def rig_doc(rig, period: float) -> dict:
     return {"period": float(period), "rig": None if rig is None else rig.to_dict()}
 
 
-def friction_sentence(friction: dict) -> str:
-    """The prose line for a run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`)."""
+def friction_sentence(friction: dict, *, smooth: bool = True) -> str:
+    """The prose line for a run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`);
+    ``smooth=False`` for a design that leaves all friction out (the lab's LQR, linearised at rest)."""
     loss = ", ".join(f"{name} {v:g}" for name, v in friction["frictionloss"].items())
     how = ("designed without the driven joints' friction, which a feedforward cancels (--no-friction-compensation "
            "to design on the smooth friction model instead)" if friction["compensation"] else
-           "designed on the smooth friction model, nothing cancelled")
+           "designed on the smooth friction model, nothing cancelled" if smooth else "nothing cancelled")
     return f"Friction (frictionloss {loss}): {how}."
 
 

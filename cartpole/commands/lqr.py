@@ -123,9 +123,8 @@ def run(args) -> dict:
     # the work, before any: the runs kept, the start-scale search's (up to len(START_SCALES) sets of five at the
     # lab's 6 s), and the video clip; a model too ill-conditioned to simulate or design on is refused here too
     search = 5 * (len(START_SCALES) - (1 if duration == LAB_DURATION else 0)) * LAB_DURATION
-    check_budget(args, model, [(runs, duration, f"the lab's {runs} runs"),
-                               (1, search, "the start-size search (at most)"),
-                               (1, clip, "the video clip")])
+    check_budget(args, model, [(runs, duration, f"{runs} lab runs"), (1, search, "start search, at most,"),
+                               (1, clip, "video")])
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
     for key in MARGINS:
@@ -393,7 +392,7 @@ def _print_prose(result, doc, pid=None) -> None:
         if result.rig is not None:
             print(_rig_sentence(result.rig))
         if doc["friction"] is not None:
-            print(friction_sentence(doc["friction"]))
+            print(friction_sentence(doc["friction"], smooth=False))
         smoothed = smoothed_friction_sentence(doc.get("smoothed_friction") or [], what="the LQR design")
         if smoothed:
             print(smoothed)

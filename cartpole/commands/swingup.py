@@ -167,10 +167,9 @@ def _check_work(args, model, duration) -> None:
     from cartpole.validation.basin import DEFAULTS
 
     T = duration if duration is not None else (MPC_DURATION if args.method == "mpc" else ENERGY_DURATION)
-    parts = [(1, T, f"the {T:g} s swing-up run")]
-    if args.method != "mpc":
-        parts.append((DEFAULTS["n"], DEFAULTS["duration"], f"the catch basin's {DEFAULTS['n']} sampled runs of "
-                      f"{DEFAULTS['duration']:g} s (none when cached)"))
+    parts = [(1, T, f"the {T:g} s run")]
+    if args.method != "mpc":  # the catch basin's sampled runs
+        parts.append((DEFAULTS["n"], DEFAULTS["duration"], f"basin, {DEFAULTS['n']} runs unless cached,"))
     check_budget(args, model, parts)
 
 
