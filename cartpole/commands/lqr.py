@@ -451,7 +451,7 @@ def _not_settled_text(result, why) -> str:
             f"on {labels[why.final_error_state]}")
     if why.reason == "slow":
         t = why.linear_settling_time
-        need = f"needs {t:.3g} s" if np.isfinite(t) else "does not settle within 30 time constants"
+        need = f"needs {t:.3g} s" if np.isfinite(t) else "does not settle within 30 time constants either"
         return (f"NOT settled in {result.duration:g} s ({left}): the run is too short, the LQR's own linear loop "
                 f"{need} from this start")
     if why.reason == "ctrl_limit":
