@@ -86,7 +86,7 @@ def lab_figure(result):
     n = sum(counted)
     mean = (f"mean settling time {result.mean_settling_time_seed:.2f}s ± {result.std_settling_time_seed:.2f}s "
             f"({n} initial conditions{scale}, every |θ| ≤ 0.05 rad)" if n else
-            f"no settling time, every start{scale.replace(', starts', ' (')}{')' if scale else ''} inside the "
+            f"no settling time, every start{scale.replace(', starts ', ' (')}{')' if scale else ''} inside the "
             "0.05 rad band")
     fig.suptitle(f"LQR balance ({kind}, {len(hinges)} pole{'s' if many else ''}): {mean}")
     fig.tight_layout()
