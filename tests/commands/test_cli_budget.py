@@ -82,3 +82,10 @@ def test_a_max_steps_that_is_not_a_count_is_one_sentence(tmp_path, capsys, value
     line = _one_sentence(["lqr", "--json", "--no-video", "--max-steps", value, "--out", str(tmp_path / "out")],
                          capsys)
     assert "--max-steps" in line and "give e.g." in line
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "inf"])
+def test_an_lqr_duration_that_is_not_a_time_is_one_sentence(tmp_path, capsys, value):
+    line = _one_sentence(["lqr", "--json", "--no-video", "--duration", value, "--out", str(tmp_path / "out")], capsys)
+    assert "--duration" in line
+    assert not (tmp_path / "out").exists()
