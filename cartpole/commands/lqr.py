@@ -24,7 +24,8 @@ VIDEO_SECONDS = 10.0
 
 
 def add_arguments(parser) -> None:
-    """``--no-video``, ``--discrete``, ``--Q``, ``--R``, ``--compare-pid`` and ``--view``."""
+    """``--no-video``, ``--duration``, ``--max-steps``, ``--discrete``, ``--Q``, ``--R``, ``--compare-pid`` and
+    ``--view``."""
     parser.add_argument("--no-video", action="store_true", help="skip rendering the 10 s video")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="seconds each of the five MuJoCo runs lasts (default 6, the handout's): a model whose "
