@@ -105,8 +105,9 @@ def check_budget(args, model, parts) -> object:
     args : argparse.Namespace
         Its ``max_steps`` (None: the default budget).
     model : CartPoleModel
-    parts : iterable of (int, float, str)
-        Runs, seconds each, and what they are (:func:`cartpole.sim.budget.estimate_work`).
+    parts : iterable of tuples
+        Runs, seconds each, what they are, and optionally the weight of a step
+        (:func:`cartpole.sim.budget.estimate_work`).
 
     Returns
     -------
@@ -126,7 +127,7 @@ def check_budget(args, model, parts) -> object:
     work = check_work(estimate_work(parts, model.dt), max_steps=DEFAULT_MAX_STEPS if top is None else top,
                       option="--max-steps")
     rep = current()
-    if rep is not None and work.steps > ANNOUNCE_STEPS:
+    if rep is not None and work.cost > ANNOUNCE_STEPS:
         rep.write(f"{rep.prefix + ': ' if rep.prefix else ''}about {work.describe()}")
     return work
 

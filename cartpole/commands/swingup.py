@@ -164,12 +164,14 @@ def _check_work(args, model, duration) -> None:
     (``--duration``, else the method's default, 10 s for a plan's length unknown yet) and, for energy and trajopt,
     the catch basin's sampled runs (counted though a cached estimate costs none)."""
     from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+    from cartpole.sim.budget import BATCHED
     from cartpole.validation.basin import DEFAULTS
 
     T = duration if duration is not None else (MPC_DURATION if args.method == "mpc" else ENERGY_DURATION)
     parts = [(1, T, f"the {T:g} s run")]
     if args.method != "mpc":  # the catch basin's sampled runs
-        parts.append((DEFAULTS["n"], DEFAULTS["duration"], f"basin, {DEFAULTS['n']} runs unless cached,"))
+        parts.append((DEFAULTS["n"], DEFAULTS["duration"], "basin, unless cached,",
+                      BATCHED))
     check_budget(args, model, parts)
 
 

@@ -19,8 +19,9 @@ from cartpole.errors import CartPoleError
 
 #: Physics steps a command may run in all before it refuses (its ``max_steps``; ``--max-steps`` on the command
 #: line): minutes of MuJoCo with a Python controller in the loop. The lab's default run on the shipped 5 ms MJCF takes
-#: 6 000 of them plus a 2 000-step video clip, the energy swing-up's catch basin 240 000; at a 5e-5 s step the lab
-#: takes 800 000 (4.4 million if its starts must be shrunk) and the swing-up's basin 24 million.
+#: 6 000 of them plus a 2 000-step video clip, the energy swing-up's catch basin 240 000 batched ones (counted a
+#: tenth); at a 5e-5 s step the lab takes 800 000 (4.4 million if its starts must be shrunk) and the swing-up's basin
+#: 24 million batched (counted 2.4 million).
 DEFAULT_MAX_STEPS = 5_000_000
 
 #: Work above this many physics steps is announced (one line on the progress reporter) before it starts.
@@ -40,6 +41,12 @@ class IllConditionedError(CartPoleError):
     """The model is numerically singular (its mass matrix at upright is too ill-conditioned to design on)."""
 
 
+#: What a batched MuJoCo step (:func:`~cartpole.sim.batch.simulate_batch_linear`: MuJoCo's threaded rollout, the law
+#: in numpy for the whole batch, as a catch basin's samples run) counts against the budget, in steps of a Python loop
+#: (about ten times cheaper, :func:`~cartpole.validation.basin.catch_outcomes`).
+BATCHED = 0.1
+
+
 @dataclass(frozen=True)
 class Work:
     """The physics steps of a command's parts, estimated before it runs.
@@ -48,8 +55,9 @@ class Work:
     ----------
     timestep : float, s
         The MJCF's time step.
-    parts : tuple of (str, int)
-        What each part is (``"the lab's 5 runs of 6 s"``) and its MuJoCo steps.
+    parts : tuple of (str, int, float)
+        What each part is (``"5 lab runs"``), its MuJoCo steps and what one of them counts against the budget (1 for
+        a Python loop of ``mj_step``, :data:`BATCHED` for batched runs).
     """
 
     timestep: float
@@ -58,12 +66,17 @@ class Work:
     @property
     def steps(self) -> int:
         """All the parts' physics steps."""
-        return int(sum(n for _, n in self.parts))
+        return int(sum(p[1] for p in self.parts))
+
+    @property
+    def cost(self) -> float:
+        """The steps as counted against the budget: each part's steps times its weight."""
+        return float(sum(p[1] * p[2] for p in self.parts))
 
     def describe(self) -> str:
-        """``"6000 MuJoCo steps: the lab's 5 runs of 6 s 6000"``: the total and each part with steps."""
-        parts = "; ".join(f"{what} {n:.3g}" for what, n in self.parts if n)
-        return f"{self.steps:.3g} MuJoCo steps at the {self.timestep:g} s time step ({parts})"
+        """``"6e+03 MuJoCo steps at the 0.005 s time step (5 lab runs 6e+03)"``: the total and each part."""
+        parts = "; ".join(f"{p[0]} {p[1]:.2g}" for p in self.parts if p[1])
+        return f"{self.steps:.2g} MuJoCo steps at the {self.timestep:g} s time step ({parts})"
 
 
 def physics_steps(duration: float, timestep: float, runs: int = 1) -> int:
@@ -85,12 +98,13 @@ def physics_steps(duration: float, timestep: float, runs: int = 1) -> int:
 
 
 def estimate_work(parts, timestep: float) -> Work:
-    """The :class:`Work` of ``parts``, each ``(runs, seconds each, what)``.
+    """The :class:`Work` of ``parts``, each ``(runs, seconds each, what)`` or ``(runs, seconds each, what, weight)``.
 
     Parameters
     ----------
-    parts : iterable of (int, float, str)
-        Runs, their simulated duration in s, and what they are (for the sentences).
+    parts : iterable of tuples
+        Runs, their simulated duration in s, what they are (for the sentences) and optionally what one of their steps
+        counts against the budget (default 1; :data:`BATCHED` for batched runs).
     timestep : float, s
         The MJCF's time step.
 
@@ -98,12 +112,17 @@ def estimate_work(parts, timestep: float) -> Work:
     -------
     Work
     """
-    return Work(timestep=float(timestep),
-                parts=tuple((str(what), physics_steps(seconds, timestep, runs)) for runs, seconds, what in parts))
+    out = []
+    for part in parts:
+        runs, seconds, what = part[:3]
+        weight = float(part[3]) if len(part) > 3 else 1.0
+        out.append((str(what), physics_steps(seconds, timestep, runs), weight))
+    return Work(timestep=float(timestep), parts=tuple(out))
 
 
 def check_work(work: Work, *, max_steps: float = DEFAULT_MAX_STEPS, option: str = "max_steps") -> Work:
-    """Refuse, before it starts, work beyond ``max_steps`` physics steps.
+    """Refuse, before it starts, work beyond ``max_steps`` physics steps (:attr:`Work.cost`: batched steps count
+    :data:`BATCHED`).
 
     Parameters
     ----------
@@ -124,11 +143,12 @@ def check_work(work: Work, *, max_steps: float = DEFAULT_MAX_STEPS, option: str 
     BudgetError
         One sentence: the steps, what they are, the budget and the option that raises it.
     """
-    if work.steps > float(max_steps):
-        parts = "; ".join(f"{what} {n:.2g}" for what, n in work.parts if n)
-        raise BudgetError(f"At the {work.timestep:g} s time step this runs {work.steps:.2g} MuJoCo steps, beyond the "
-                          f"budget of {float(max_steps):.2g}; give {option} {_round_up(work.steps)} to run it anyway, "
-                          f"or a larger time step or shorter duration ({parts}).")
+    if work.cost > float(max_steps):
+        parts = "; ".join(f"{p[0]} {p[1]:.2g}" for p in work.parts if p[1])
+        batched = "" if work.cost == work.steps else f" (batched count a tenth: {work.cost:.2g})"
+        raise BudgetError(f"At the {work.timestep:g} s time step this runs {work.steps:.2g} MuJoCo steps{batched}, "
+                          f"beyond the budget of {float(max_steps):.2g}; give {option} {_round_up(work.cost)} to run "
+                          f"it anyway ({parts}).")
     return work
 
 

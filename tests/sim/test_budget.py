@@ -3,7 +3,7 @@ in one sentence naming the option, and a numerically singular model refused nami
 import pytest
 
 from cartpole.models import SHIPPED_MJCF, build_model
-from cartpole.sim.budget import (DEFAULT_MAX_STEPS, MAX_CONDITION, BudgetError, IllConditionedError, check_conditioning,
+from cartpole.sim.budget import (BATCHED, DEFAULT_MAX_STEPS, MAX_CONDITION, BudgetError, IllConditionedError, check_conditioning,
                                  check_work, conditioning, estimate_work, physics_steps)
 
 
@@ -12,8 +12,14 @@ def test_physics_steps_count_every_run_at_the_time_step():
     assert physics_steps(6.0, 5e-5, 5) == 600_000
     assert physics_steps(0.0, 0.005, 5) == 0 and physics_steps(1.0, 0.005, 0) == 0
     work = estimate_work([(5, 6.0, "lab runs"), (1, 10.0, "video"), (1, 0.0, "nothing")], 0.005)
-    assert work.steps == 8000 and [n for _, n in work.parts] == [6000, 2000, 0]
+    assert work.steps == work.cost == 8000 and [p[1] for p in work.parts] == [6000, 2000, 0]
     assert "8e+03 MuJoCo steps" in work.describe() and "nothing" not in work.describe()
+    # batched runs (a catch basin's samples) count a tenth against the budget, all of them in the steps
+    batched = estimate_work([(1, 10.0, "run"), (300, 4.0, "basin", BATCHED)], 0.005)
+    assert batched.steps == 2000 + 240_000 and batched.cost == pytest.approx(2000 + 24_000)
+    assert check_work(batched, max_steps=30_000) is batched
+    with pytest.raises(BudgetError, match="batched count a tenth"):
+        check_work(batched, max_steps=20_000)
 
 
 def test_work_beyond_the_budget_is_one_sentence_naming_the_option_and_a_figure_that_passes():
