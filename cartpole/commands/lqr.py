@@ -518,5 +518,8 @@ def _print_pid_table(lqr, pid) -> None:
         for j, (name, res) in enumerate((("LQR", lqr), ("PID", pid))):
             vals = np.asarray(getattr(res, key), dtype=float)
             cells = [fmt.format(v) if np.isfinite(v) else "never" for v in vals]
-            mean = fmt.format(vals.mean()) if np.all(np.isfinite(vals)) else "n/a"
+            if key == "settling_times_seed":  # starts inside the band from the outset are not in the mean
+                cells = [c if k else "in band" for c, k in zip(cells, res.counted)]
+                vals = vals[list(res.counted)]
+            mean = fmt.format(vals.mean()) if vals.size and np.all(np.isfinite(vals)) else "n/a"
             print(f"{label if j == 0 else '':28s} {name:4s}" + "".join(f"{c:>8s}" for c in cells + [mean]))
