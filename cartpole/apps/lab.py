@@ -11,11 +11,17 @@ starts, each logged every physics step so it replays exactly. The settling stati
 
 The starts (:func:`lab_initial_conditions`) are the handout's cart offsets on the slide and its angles on the
 *first* pole, every other joint at its upright equilibrium angle and everything at rest. When the model cannot
-catch them at full size (dm_control's triple pole on its cart from 8 degrees), all five are scaled down by one
-factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_SCALES`) from which the lab's own
-LQR (:func:`~cartpole.lqr.lab_weights`, continuous) settles every start in the lab's 6 s. It depends on the model
-only, not on the weights or duration a run asks for, so a sweep over Q or R runs the same starts throughout; it is
-1 on every shipped asset, and :func:`run_lab` reports it as ``start_scale``.
+catch them at full size for the ctrl limit (dm_control's triple pole on its cart from 8 degrees), all five are
+scaled down by one factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_SCALES`) at which
+the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.lqr.lab_weights`, continuous)
+in the lab's 6 s. Only the ctrl limit shrinks them: a start the closed loop is merely too slow to settle in the run
+stays full size and is reported unsettled with the reason (:func:`why_not_settled`: the final error, the slowest
+closed-loop time constant, the run its linear loop would need). The factor depends on the model only, not on the
+weights or duration a run asks for, so a sweep over Q or R runs the same starts throughout; it is 1 on every
+shipped asset, and :func:`run_lab` reports it as ``start_scale`` with ``start_scale_reason``.
+
+A start whose pole angles all begin inside the handout's 0.05 rad band has the handout's settling time 0 whatever
+the controller does: it is run and shown, but never counted in the mean (:attr:`LabResult.counted`).
 
 The classical baseline beside it (``cartpole lqr --compare-pid``): :func:`compare_pid` runs the cascaded PID of
 :mod:`cartpole.control.pid` (gains by :func:`~cartpole.control.pid.tune_pid`, reset before each start) from the lab's
@@ -34,7 +40,9 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, state_error, wrap_angle
+from cartpole.progress import stage
+from cartpole.validation.metrics import STRICT_TOLERANCE, UPRIGHT_TOL
 
 #: The handout's five starts as offsets ``[cart (m), first pole angle (rad)]``: 5, -5 and 8 degrees at the centre,
 #: 3 degrees with the cart at 0.2 m, -4 degrees with the cart at -0.3 m (velocities zero).
@@ -172,15 +180,31 @@ class _LabRuns:
         return np.array([m.settling_time_strict for m in self.metrics])
 
     @property
+    def in_band(self) -> tuple:
+        """Per start: every pole angle already within the handout's settling band (0.05 rad,
+        :data:`~cartpole.validation.metrics.UPRIGHT_TOL`) of upright at t = 0 (:func:`starts_in_band`)."""
+        return starts_in_band(self.x0s, self.x_eq, self.params.hinges)
+
+    @property
+    def counted(self) -> tuple:
+        """Per start: whether its handout settling time counts in the mean: not :attr:`in_band` (a start inside the
+        band has the settling time 0 by definition, which says nothing about the controller)."""
+        return tuple(not b for b in self.in_band)
+
+    @property
     def mean_settling_time_seed(self) -> float:
-        """Mean over the starts of the handout's settling time, s."""
-        return float(np.mean(self.settling_times_seed))
+        """Mean over the :attr:`counted` starts of the handout's settling time, s (NaN when no start counts, ``inf``
+        when a counted start never settled)."""
+        ts = self.settling_times_seed[list(self.counted)]
+        return float(np.mean(ts)) if ts.size else float("nan")
 
     @property
     def std_settling_time_seed(self) -> float:
-        """Population standard deviation (``np.std``, as the handout) of the handout's settling time, s (``inf``
-        when some start never settled)."""
-        ts = self.settling_times_seed
+        """Population standard deviation (``np.std``, as the handout) of the handout's settling time over the
+        :attr:`counted` starts, s (``inf`` when one of them never settled, NaN when none counts)."""
+        ts = self.settling_times_seed[list(self.counted)]
+        if not ts.size:
+            return float("nan")
         return float(np.std(ts)) if np.all(np.isfinite(ts)) else float("inf")
 
     @property
@@ -257,6 +281,9 @@ class LabResult(_LabRuns):
     friction_compensation : bool
         True when the MJCF's driven joints have frictionloss and the runs cancelled it
         (:func:`~cartpole.control.friction.friction_design`): A, B, K are then those of the model without it.
+    start_scale_reason : str or None
+        Why the starts were scaled (``start_scale < 1``): which full-size starts the ctrl limit kept from settling;
+        None at full size.
     """
 
     mjcf: str
@@ -281,6 +308,19 @@ class LabResult(_LabRuns):
     period: float = 0.0
     rig: object = None
     friction_compensation: bool = False
+    start_scale_reason: str | None = None
+
+    @property
+    def slowest_time_constant(self) -> float:
+        """s: the slowest closed-loop time constant, ``1 / min |Re s|`` over the eigenvalues ``E``
+        (:func:`slowest_time_constant`)."""
+        return slowest_time_constant(self.E, discrete=self.discrete, period=self.period or self.params.timestep)
+
+    @property
+    def not_settled(self) -> tuple:
+        """Per start: None when it settled (:attr:`settled`), else a :class:`NotSettled` saying why and by how much
+        (:func:`why_not_settled`)."""
+        return why_not_settled(self)
 
     @property
     def estimation(self) -> dict | None:
@@ -322,6 +362,254 @@ def design(model, Q, R, *, discrete: bool = False, x_eq=None, steps: int = 1):
     return res, (A, B, Ad, Bd)
 
 
+def starts_in_band(x0s, x_eq, hinges, *, band: float = UPRIGHT_TOL) -> tuple:
+    """Per start: every pole angle within ``band`` of upright already at t = 0.
+
+    Such a start's handout settling time is 0 by definition (no sample ever leaves the band), whatever the
+    controller does, so the lab never counts it in its mean (:attr:`LabResult.counted`).
+
+    Parameters
+    ----------
+    x0s : (k, 2 nq) array
+        Starts ``[qpos, qvel]``.
+    x_eq : (2 nq,) array
+        Upright equilibrium.
+    hinges : sequence of int
+        qpos indices of the pole angles (a model without hinges has no start in the band).
+    band : float, rad
+        The handout's band (default 0.05 rad).
+
+    Returns
+    -------
+    tuple of bool, one per start
+    """
+    x0s = np.atleast_2d(np.asarray(x0s, dtype=float))
+    idx = list(hinges)
+    if not idx:
+        return tuple(False for _ in x0s)
+    err = wrap_angle(x0s[:, idx] - np.asarray(x_eq, dtype=float)[idx])
+    return tuple(bool(np.all(np.abs(e) <= band)) for e in err)
+
+
+def slowest_time_constant(E, *, discrete: bool = False, period: float | None = None) -> float:
+    """The slowest time constant in s of a closed loop with eigenvalues ``E``.
+
+    Parameters
+    ----------
+    E : (nx,) complex array
+        Closed-loop eigenvalues: of ``A - B K`` (1/s), or with ``discrete`` of ``Ad - Bd K`` over ``period``.
+    discrete : bool
+        ``E`` are discrete-time eigenvalues ``z``; each is mapped to ``s = ln(z) / period``.
+    period : float, s
+        The discrete step (needed with ``discrete``).
+
+    Returns
+    -------
+    float, s
+        ``1 / min(-Re s)``: the e-folding time of the slowest mode (``inf`` for a mode on or beyond the stability
+        boundary).
+    """
+    E = np.asarray(E, dtype=complex).ravel()
+    if discrete:
+        mag = np.abs(E)
+        with np.errstate(divide="ignore"):
+            rates = -np.log(np.where(mag > 0, mag, np.finfo(float).tiny)) / float(period)
+    else:
+        rates = -E.real
+    slowest = float(np.min(rates)) if rates.size else float("inf")
+    return 1.0 / slowest if slowest > 0 else float("inf")
+
+
+def linear_settling_time(M, e0, h: float, horizon: float, *, tol: float = STRICT_TOLERANCE,
+                         samples: int = 4000) -> float:
+    """When the linear closed loop ``e[k+1] = M e[k]`` enters the strict settling box for good, in s.
+
+    The LQR's own prediction without the ctrl limit, the friction or the nonlinearity: the time the lab's strict
+    settling (:func:`~cartpole.validation.metrics.settling_time_strict`) would take if MuJoCo were the linear model.
+
+    Parameters
+    ----------
+    M : (nx, nx) array
+        Closed-loop transition over one step ``h``: ``Ad - Bd K``.
+    e0 : (nx,) array
+        Start error ``x0 - x*`` (angles wrapped).
+    h : float, s
+        The step of ``M``.
+    horizon : float, s
+        How far to look.
+    tol : float
+        Half-width of the box on every error entry (m, rad, m/s, rad/s).
+    samples : int
+        At most this many instants are tested (every ``ceil(horizon / h / samples)`` steps), so the answer is
+        rounded up to that stride.
+
+    Returns
+    -------
+    float, s
+        The first tested instant from which every later one is inside the box; ``inf`` when the last is not.
+    """
+    M = np.asarray(M, dtype=float)
+    n = max(1, int(np.ceil(float(horizon) / float(h))))
+    stride = max(1, int(np.ceil(n / samples)))
+    Ms = np.linalg.matrix_power(M, stride)
+    e = np.asarray(e0, dtype=float).copy()
+    inside = [bool(np.all(np.abs(e) <= tol))]
+    for _ in range(int(np.ceil(n / stride))):
+        e = Ms @ e
+        if not np.all(np.isfinite(e)):
+            return float("inf")
+        inside.append(bool(np.all(np.abs(e) <= tol)))
+    inside = np.array(inside)
+    if not inside[-1]:
+        return float("inf")
+    outside = np.flatnonzero(~inside)
+    return float((outside[-1] + 1) * stride * h) if outside.size else 0.0
+
+
+#: Why a lab start did not settle (:attr:`NotSettled.reason`): the words the prose uses for each.
+NOT_SETTLED_REASONS = {
+    "ctrl_limit": "the ctrl limit: the LQR asked for more than the ctrl range gives",
+    "slow": "the run is too short for the closed loop's slowest mode",
+    "cart_limit": "the cart reached the end of its rail",
+    "diverged": "MuJoCo's simulation blew up",
+    "residual": "an error that does not decay (friction, a model error, the rig's sensors or delay)",
+}
+
+
+@dataclass(frozen=True)
+class NotSettled:
+    """Why one lab start did not settle, and by how much.
+
+    Attributes
+    ----------
+    reason : str
+        A key of :data:`NOT_SETTLED_REASONS`: ``ctrl_limit`` (a pole fell or the cart hit its rail's end in a run
+        whose ctrl sat at its limit for more than 1 % of it, or the ctrl is still at its limit in the last second),
+        ``slow`` (else, when the LQR's linear closed loop itself needs longer than the run), ``cart_limit``,
+        ``diverged`` or ``residual`` (an error that does not decay: friction, a model error, the rig).
+    final_angle_error : float, rad
+        Largest wrapped ``|theta_i - theta_i*|`` over the poles at the end of the run (0 without poles).
+    final_error : float
+        Largest ``|x - x*|`` entry at the end (angles wrapped; m, rad, m/s or rad/s).
+    final_error_state : int
+        Index into the state of that entry.
+    linear_settling_time : float, s
+        :func:`linear_settling_time` of this start (``inf`` beyond the horizon looked at).
+    saturation_fraction : float
+        Fraction of the run's steps with some ctrl at its limit.
+    """
+
+    reason: str
+    final_angle_error: float
+    final_error: float
+    final_error_state: int
+    linear_settling_time: float
+    saturation_fraction: float
+
+    def to_dict(self) -> dict:
+        """The JSON object (``linear_settling_time`` null when infinite)."""
+        t = self.linear_settling_time
+        return {"reason": self.reason, "final_angle_error": self.final_angle_error, "final_error": self.final_error,
+                "final_error_state": self.final_error_state,
+                "linear_settling_time": t if np.isfinite(t) else None,
+                "saturation_fraction": self.saturation_fraction}
+
+
+#: Fraction of a run's steps with the ctrl at its limit above which a pole that fell is blamed on the ctrl limit (a
+#: few saturated steps at the start, as every lab start on the shipped cart has, are not).
+_SATURATED = 0.01
+
+#: The last seconds of a run in which a ctrl still at its limit makes the ctrl limit the reason it has not settled.
+_LATE = 1.0
+
+
+def _classify(M, h: float, tau: float, x0s, x_eq, hinges, runs, mets, duration: float, ctrl_range) -> tuple:
+    """:class:`NotSettled` or None per run (see :func:`why_not_settled`)."""
+    from cartpole.validation.metrics import saturation_fraction
+
+    x_eq = np.asarray(x_eq, dtype=float)
+    hinges = tuple(hinges)
+    horizon = min(max(2.0 * duration, 30.0 * tau if np.isfinite(tau) else 0.0), 1e5)
+    out = []
+    for x0, run, m in zip(x0s, runs, mets):
+        if m.settled:
+            out.append(None)
+            continue
+        e_end = state_error(run.x[-1], x_eq, hinges)
+        angle = float(np.abs(e_end[list(hinges)]).max()) if hinges else 0.0
+        k = int(np.argmax(np.abs(e_end)))
+        t_lin = linear_settling_time(M, state_error(x0, x_eq, hinges), h, horizon)
+        late = np.asarray(run.t[:-1]) >= float(run.t[-1]) - _LATE
+        still = saturation_fraction(np.asarray(run.ctrl)[late], ctrl_range) > 0
+        fell = angle > UPRIGHT_TOL or m.hit_limit
+        if m.diverged:
+            reason = "diverged"
+        elif fell and m.saturation_fraction > _SATURATED:
+            reason = "ctrl_limit"
+        elif t_lin > duration:
+            reason = "slow"
+        elif still:
+            reason = "ctrl_limit"
+        elif m.hit_limit:
+            reason = "cart_limit"
+        else:
+            reason = "residual"
+        out.append(NotSettled(reason=reason, final_angle_error=angle, final_error=float(np.abs(e_end[k])),
+                              final_error_state=k, linear_settling_time=t_lin,
+                              saturation_fraction=float(m.saturation_fraction)))
+    return tuple(out)
+
+
+def why_not_settled(lab: "LabResult") -> tuple:
+    """Per start of a lab run: None when it settled, else why not (:class:`NotSettled`).
+
+    The LQR's own prediction decides between the ctrl limit and a short run: the closed loop ``Ad - Bd K`` (one
+    MJCF step, or the control period's hold) run from the start without any ctrl limit
+    (:func:`linear_settling_time`). A start whose pole fell (or whose cart hit the rail) while the ctrl saturated,
+    or whose ctrl is still at its limit in the run's last second, failed for the ctrl limit; otherwise one the
+    linear loop does not settle within the run failed because the run is too short for the slowest closed-loop
+    mode (:attr:`LabResult.slowest_time_constant`): a longer run settles it (see :class:`NotSettled`).
+
+    Parameters
+    ----------
+    lab : LabResult
+
+    Returns
+    -------
+    tuple of NotSettled or None, one per start
+    """
+    h = lab.period or lab.params.timestep
+    M = np.asarray(lab.Ad, dtype=float) - np.asarray(lab.Bd, dtype=float) @ np.asarray(lab.K, dtype=float)
+    return _classify(M, h, lab.slowest_time_constant, lab.x0s, lab.x_eq, lab.params.hinges, lab.rollouts,
+                     lab.metrics, lab.duration, lab.params.ctrl_range)
+
+
+def lab_friction(model, compensated: bool) -> list:
+    """What the lab's LQR design did with the MJCF's dry friction (JSON ``smoothed_friction``).
+
+    :func:`design` linearises at rest without any ``frictionloss`` (there the smooth model's slope would be a viscous
+    damping the sticking joint does not have): every joint with friction is ``omitted``, the driven ones
+    ``cancelled`` when the runs compensate them (:func:`~cartpole.control.friction.friction_design`).
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The model MuJoCo runs.
+    compensated : bool
+        :attr:`LabResult.friction_compensation`.
+
+    Returns
+    -------
+    list of dict
+        :func:`~cartpole.models.friction_treatment`'s entries (empty without friction).
+    """
+    from cartpole.models import friction_treatment
+
+    p = model.params
+    cancelled = p.driven_joints if compensated else ()
+    return friction_treatment(p, width=model.friction_width, omitted=range(p.nq), cancelled=cancelled)
+
+
 def state_names(params) -> list[str]:
     """One name per state entry (2 nq), MuJoCo's order: each joint's name, then ``<joint>_vel`` for each rate (the
     names of the ``--log`` CSV columns and of the JSON ``estimation`` errors)."""
@@ -337,19 +625,21 @@ def _five_runs(model, ctrl, x_eq, scale: float, duration: float, progress=None, 
 def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, rig=None):
     """``ctrl`` run in MuJoCo from each row of ``x0s`` for ``duration`` s (``reset()`` called before each run), on
     ``rig`` (each run its own noise stream) when given: ``(rollouts, metrics)``, the metrics measured from
-    ``x_eq``."""
+    ``x_eq``. ``progress`` receives the fraction of all the runs' steps done, about 20 times a run."""
     from cartpole.sim import simulate
     from cartpole.validation.metrics import summarize
 
     runs, mets = [], []
+    n = len(x0s)
     for i, x0 in enumerate(x0s):
         if reset is not None:
             reset()
-        run = simulate(model.params, ctrl, x0, duration, rig=None if rig is None else rig.for_run(i))
+        tick = None if progress is None else (lambda f, i=i: progress((i + f) / n))
+        run = simulate(model.params, ctrl, x0, duration, rig=None if rig is None else rig.for_run(i), progress=tick)
         runs.append(run)
         mets.append(summarize(run, model, x_eq=x_eq))
         if progress is not None:
-            progress((i + 1) / len(x0s))
+            progress((i + 1) / n)
     return runs, mets
 
 
@@ -362,26 +652,51 @@ def _lab_controller(model, Q, R, *, discrete: bool = False, steps: int = 1):
     return LinearFeedback(res.K, x_eq, model.u_eq, S=res.S, hinges=model.hinges), res, mats, x_eq
 
 
-def _search_scale(model, ctrl, x_eq, progress=None):
-    """``(scale, runs)``: the first factor of :data:`START_SCALES` from which all five settle under ``ctrl`` in
-    :data:`LAB_DURATION` s (with its runs), else ``(1.0, full-size runs)``."""
-    first = attempt = _five_runs(model, ctrl, x_eq, START_SCALES[0], LAB_DURATION, progress)
+def _runs_label(model, duration: float, runs: int = 5) -> str:
+    """The size of a set of lab runs, for its progress stage: ``"5 runs of 6 s (6000 MuJoCo steps)"``."""
+    steps = runs * int(round(float(duration) / float(model.dt)))
+    return f"{runs} runs of {float(duration):g} s ({steps} MuJoCo steps)"
+
+
+def _search_scale(model, ctrl, res, mats, x_eq, progress=None):
+    """``(scale, (x0s, runs, metrics), reason)``: the first factor of :data:`START_SCALES` at which no start fails
+    for the ctrl limit under ``ctrl`` (the lab's own LQR, ``res``, with its linearisation ``mats``) in
+    :data:`LAB_DURATION` s, with its runs and, below 1, the sentence saying which full-size starts the ctrl limit
+    stopped; ``(1.0, full-size runs, None)`` when no factor clears the ctrl limit, or when the full-size starts fail
+    for another reason only (a slow closed loop is no reason to shrink them)."""
+    _, _, Ad, Bd = mats
+    h = float(model.dt)
+    M = np.asarray(Ad, dtype=float) - np.asarray(Bd, dtype=float) @ np.asarray(res.K, dtype=float)
+    tau = slowest_time_constant(res.E)
+    first = None
     for scale in START_SCALES:
-        if scale != START_SCALES[0]:
-            attempt = _five_runs(model, ctrl, x_eq, scale, LAB_DURATION, progress)
-        if all(m.settled for m in attempt[2]):
-            return scale, attempt
-    return 1.0, first
+        label = "lab runs" if scale == 1.0 else f"lab runs, starts x{scale:g}"
+        with stage(label, size=_runs_label(model, LAB_DURATION), callback=progress) as tick:
+            attempt = _five_runs(model, ctrl, x_eq, scale, LAB_DURATION, tick)
+        why = _classify(M, h, tau, attempt[0], x_eq, model.hinges, attempt[1], attempt[2], LAB_DURATION,
+                        model.params.ctrl_range)
+        limited = [i for i, w in enumerate(why) if w is not None and w.reason == "ctrl_limit"]
+        if first is None:
+            first, first_why = attempt, why
+        if not limited:
+            if scale == START_SCALES[0]:
+                return scale, attempt, None
+            full = [i for i, w in enumerate(first_why) if w is not None and w.reason == "ctrl_limit"]
+            sat = ", ".join(f"IC {i + 1} {100 * first_why[i].saturation_fraction:.0f} %" for i in full)
+            return scale, attempt, (f"at full size the ctrl limit kept {len(full)} of the 5 starts from settling, the "
+                                    f"ctrl at its limit for {sat} of the run")
+    return 1.0, first, None
 
 
 def lab_start_scale(mjcf=None) -> float:
     """The factor on the lab's five starts for this model: the largest of :data:`START_SCALES` (1, 1/2, ... 1/64)
-    from which the lab's own LQR settles all five in MuJoCo within :data:`LAB_DURATION` s.
+    at which the ctrl limit keeps no start from settling under the lab's own LQR in :data:`LAB_DURATION` s.
 
     The lab's own LQR is ``lqr(A, B, *lab_weights(model))`` at :func:`lab_equilibrium`, whatever weights a run asks
-    for, so the factor is a property of the model (its masses, lengths and ctrl range). "Settles" is
-    :attr:`~cartpole.validation.metrics.RunMetrics.settled`: the whole state within 0.01 of ``x*`` to the end, the
-    cart off its limits.
+    for, so the factor is a property of the model (its masses, lengths and ctrl range). A start that does not settle
+    fails for the ctrl limit when the ctrl saturated and the LQR's own linear closed loop would have settled it
+    (:func:`why_not_settled`); a start the closed loop is too slow to settle in the run is no reason to shrink the
+    starts (a longer run is).
 
     Parameters
     ----------
@@ -390,13 +705,20 @@ def lab_start_scale(mjcf=None) -> float:
     Returns
     -------
     float
-        1.0 on every shipped asset; 1.0 too when no factor works (the lab then reports its runs unsettled).
+        1.0 on every shipped asset; 1.0 too when no factor clears the ctrl limit (the lab then reports its runs
+        unsettled, saying why).
     """
+    return _start_scale(mjcf)[0]
+
+
+def _start_scale(mjcf=None) -> tuple:
+    """``(scale, reason)`` of :func:`lab_start_scale` (``reason`` None at full size)."""
     from cartpole.lqr import lab_weights
 
     model = _model(mjcf)
-    ctrl, _, _, x_eq = _lab_controller(model, *lab_weights(model))
-    return _search_scale(model, ctrl, x_eq)[0]
+    ctrl, res, mats, x_eq = _lab_controller(model, *lab_weights(model))
+    scale, _, reason = _search_scale(model, ctrl, res, mats, x_eq)
+    return scale, reason
 
 
 def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, Q=None, R=None,
@@ -419,9 +741,11 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     duration : float, s
         Length of each MuJoCo run (default 6 s, the handout's).
     start_scale : float, optional
-        Factor on the lab's starts; default :func:`lab_start_scale` of the model (1 on every shipped asset).
+        Factor on the lab's starts; default :func:`lab_start_scale` of the model (1 on every shipped asset; below 1
+        only when the ctrl limit keeps full-size starts from settling).
     progress : callable, optional
-        Called with the fraction of the current set of five runs done (0..1).
+        Called with the fraction of the current set of five runs done (0..1), about 20 times a run; the runs are
+        also a :func:`cartpole.progress.stage` of the current reporter.
     loop : LoopOptions, optional
         The rig the runs have (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
         estimator, noise seed; its duration, when given, replaces ``duration``). K is designed for the period
@@ -465,18 +789,20 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     R = R0 if R is None else R
     ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(friction.model, Q, R, discrete=discrete, steps=steps)
     ctrl = friction.wrap(ctrl)
+    reason = None
     if start_scale is None and own:  # the scale search's runs are this lab's runs
-        scale, (x0s, runs, mets) = _search_scale(model, ctrl, x_eq, progress)
+        scale, (x0s, runs, mets), reason = _search_scale(model, ctrl, res, (A, B, Ad, Bd), x_eq, progress)
     else:
-        scale = lab_start_scale(model) if start_scale is None else float(start_scale)
+        scale, reason = _start_scale(model) if start_scale is None else (float(start_scale), None)
         x_true = x_eq if plan_model is None else readonly(lab_equilibrium(model))
-        x0s, runs, mets = _five_runs(model, ctrl, x_true, scale, duration, progress, rig=rig)
+        with stage("lab runs", size=_runs_label(model, duration), callback=progress) as tick:
+            x0s, runs, mets = _five_runs(model, ctrl, x_true, scale, duration, tick, rig=rig)
     return LabResult(mjcf=params.mjcf, params=params, discrete=bool(discrete) or steps > 1, A=readonly(A), B=readonly(B),
                      Ad=readonly(Ad), Bd=readonly(Bd), Q=readonly(np.atleast_2d(Q)), R=readonly(np.atleast_2d(R)),
                      K=readonly(res.K), S=readonly(res.S), E=readonly(res.E, complex), x_eq=x_eq,
                      u_eq=readonly(model.u_eq), x0s=x0s, start_scale=float(scale), duration=float(duration),
                      rollouts=tuple(runs), metrics=tuple(mets), period=float(steps * model.dt), rig=rig,
-                     friction_compensation=friction.compensated)
+                     friction_compensation=friction.compensated, start_scale_reason=reason)
 
 
 def cart_excursion(run, x_eq, slide: int | None) -> float:

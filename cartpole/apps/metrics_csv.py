@@ -25,7 +25,9 @@ def metrics_row(result, *, date: str | None = None, commit: str | None = None) -
     """The lab's ``metrics.csv`` row for a :class:`~cartpole.apps.lab.LabResult`, one field per ``METRICS_HEADER`` column.
 
     ``steps`` is the number of physics steps of one run; ``value`` the mean of the handout's settling time (s);
-    ``notes`` is ``5_ICs``, with ``_<k>_poles`` for a chain and ``_scaled_<f>`` when the starts were scaled.
+    ``notes`` is ``5_ICs``, with ``_<k>_poles`` for a chain, ``_scaled_<f>`` when the starts were scaled and
+    ``_<n>_counted`` when only n starts began outside the settling band (the value is then their mean, ``nan`` for
+    none).
     """
     date = date or datetime.date.today().isoformat()
     commit = commit or git_short_sha()
@@ -34,6 +36,9 @@ def metrics_row(result, *, date: str | None = None, commit: str | None = None) -
         notes += f"_{len(result.params.hinges)}_poles"
     if result.start_scale != 1.0:
         notes += f"_scaled_{result.start_scale:g}"
+    counted = sum(getattr(result, "counted", (True,) * len(result.rollouts)))
+    if counted != len(result.rollouts):  # starts inside the settling band are not in the mean
+        notes += f"_{counted}_counted"
     return ["day5_cartpole_lqr", date, 5, "cartpole_lqr", commit, 0, "cartpole", "lqr", result.steps, 1,
             "settling_time_sec", f"{result.mean_settling_time_seed:.4f}", notes]
 

@@ -77,10 +77,92 @@ def rig_doc(rig, period: float) -> dict:
     return {"period": float(period), "rig": None if rig is None else rig.to_dict()}
 
 
-def friction_sentence(friction: dict) -> str:
-    """The prose line for a run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`)."""
+def friction_sentence(friction: dict, *, smooth: bool = True) -> str:
+    """The prose line for a run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`);
+    ``smooth=False`` for a design that leaves all friction out (the lab's LQR, linearised at rest)."""
     loss = ", ".join(f"{name} {v:g}" for name, v in friction["frictionloss"].items())
     how = ("designed without the driven joints' friction, which a feedforward cancels (--no-friction-compensation "
            "to design on the smooth friction model instead)" if friction["compensation"] else
-           "designed on the smooth friction model, nothing cancelled")
+           "designed on the smooth friction model, nothing cancelled" if smooth else "nothing cancelled")
     return f"Friction (frictionloss {loss}): {how}."
+
+
+def add_budget_argument(parser) -> None:
+    """``--max-steps N``: the budget of MuJoCo steps a command runs before it refuses (:mod:`cartpole.sim.budget`)."""
+    from cartpole.sim.budget import DEFAULT_MAX_STEPS
+
+    parser.add_argument("--max-steps", type=float, default=None, metavar="N",
+                        help=f"most MuJoCo steps the command may run in all (default {DEFAULT_MAX_STEPS:.0e}); "
+                             "beyond it the command refuses before it starts, naming its estimate")
+
+
+def check_budget(args, model, parts) -> object:
+    """Estimate a command's work before it starts and refuse it beyond ``--max-steps``; refuse a numerically singular
+    model (:func:`cartpole.sim.budget.check_conditioning`); announce large work on the progress reporter.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Its ``max_steps`` (None: the default budget).
+    model : CartPoleModel
+    parts : iterable of tuples
+        Runs, seconds each, what they are, and optionally the weight of a step
+        (:func:`cartpole.sim.budget.estimate_work`).
+
+    Returns
+    -------
+    Work
+    """
+    import math
+
+    from cartpole.errors import CartPoleError
+    from cartpole.progress import current
+    from cartpole.sim.budget import ANNOUNCE_STEPS, DEFAULT_MAX_STEPS, check_conditioning, check_work, estimate_work
+
+    top = getattr(args, "max_steps", None)
+    if top is not None and not (math.isfinite(top) and top >= 1):
+        raise CartPoleError(f"--max-steps {top:g} is not a number of steps >= 1; give e.g. --max-steps "
+                            f"{DEFAULT_MAX_STEPS:.0e}.")
+    check_conditioning(model)
+    work = check_work(estimate_work(parts, model.dt), max_steps=DEFAULT_MAX_STEPS if top is None else top,
+                      option="--max-steps")
+    rep = current()
+    if rep is not None and work.cost > ANNOUNCE_STEPS:
+        rep.write(f"{rep.prefix + ': ' if rep.prefix else ''}about {work.describe()}")
+    return work
+
+
+def smoothed_friction_sentence(entries: list, *, what: str = "the design") -> str | None:
+    """The prose line for a JSON ``smoothed_friction`` (:func:`cartpole.models.friction_treatment`), None when empty:
+    which joints' dry friction (MuJoCo sticks them) the design holds as the smooth model, leaves out or cancels."""
+    if not entries:
+        return None
+    parts = []
+    for e in entries:
+        slide = e.get("kind") == "slide"
+        force, damp = ("N", "N s/m") if slide else ("N m", "N m s/rad")
+        how = {"smooth": f"as the smooth -{e['frictionloss']:g} tanh(qvel/{e['width']:g}), a damping of "
+                         f"{e.get('damping_at_rest', 0.0):.3g} {damp} at rest",
+               "omitted": "left out (linearised at rest without it)",
+               "cancelled": "left out and cancelled by a feedforward"}[e["design"]]
+        parts.append(f"{e['joint']} {e['frictionloss']:g} {force} {how}")
+    return f"Dry friction (MuJoCo's frictionloss, which sticks a joint at rest) in {what}: " + "; ".join(parts) + "."
+
+
+def design_friction(model, friction: dict | None) -> list:
+    """JSON ``smoothed_friction`` of a command that designs on the symbolic model with its smooth friction (a
+    swing-up's planner and controllers, :func:`cartpole.control.friction.friction_design`): every joint with
+    frictionloss held as the smooth model, except the driven ones a compensation cancels.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The model MuJoCo runs.
+    friction : dict or None
+        The run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`): its ``compensation``.
+    """
+    from cartpole.models import friction_treatment
+
+    p = model.params
+    cancelled = p.driven_joints if friction and friction.get("compensation") else ()
+    return friction_treatment(p, width=model.friction_width, cancelled=cancelled)

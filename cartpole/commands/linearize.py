@@ -23,11 +23,14 @@ def run(args) -> dict:
 
     JSON: ``mjcf``, ``dt`` (s), ``integrator``, ``x_eq`` (2 nq,), ``u_eq`` (nu,), ``A`` (2 nq, 2 nq), ``B``
     (2 nq, nu), ``Ad``, ``Bd`` (one step of the MJCF's integrator, or with ``--period`` the held steps of the
-    period), ``period`` (s) and ``steps`` (MJCF steps per period).
+    period), ``period`` (s), ``steps`` (MJCF steps per period) and ``smoothed_friction`` (one entry per joint with
+    ``frictionloss``, which the symbolic model holds as the smooth ``-frictionloss tanh(qvel / width)``:
+    :func:`cartpole.models.friction_treatment`; empty without friction).
     """
     from cartpole.commands._state import state_sentence
     from cartpole.errors import CartPoleError
-    from cartpole.models import build_model, linearize, steps_per_period
+    from cartpole.commands._rig import smoothed_friction_sentence
+    from cartpole.models import build_model, friction_treatment, linearize, steps_per_period
 
     model = build_model(args.mjcf)
     steps = steps_per_period(getattr(args, "period", None), model.dt)
@@ -40,7 +43,8 @@ def run(args) -> dict:
                             "that is not finite (a damping, mass, gear, armature or time step); fix it.")
     doc = {"mjcf": model.params.mjcf, "dt": lin["dt"], "integrator": lin["integrator"], "x_eq": lin["x_eq"],
            "u_eq": lin["u_eq"], "A": lin["A"], "B": lin["B"], "Ad": lin["Ad"], "Bd": lin["Bd"],
-           "period": steps * lin["dt"], "steps": steps}
+           "period": steps * lin["dt"], "steps": steps,
+           "smoothed_friction": friction_treatment(model.params, width=model.friction_width)}
     if not args.json:
         with np.printoptions(precision=6, suppress=True, linewidth=100):
             print(f"MJCF: {doc['mjcf']}")
@@ -57,4 +61,7 @@ def run(args) -> dict:
                       "x[k+1] - x_eq = Ad (x[k] - x_eq) + Bd (u[k] - u_eq)")
             print("Ad =\n", lin["Ad"])
             print("Bd =\n", lin["Bd"])
+        smoothed = smoothed_friction_sentence(doc["smoothed_friction"], what="this linearisation")
+        if smoothed:
+            print(smoothed + " A, B, Ad, Bd are the smooth model's, not MuJoCo's sticking joint's.")
     return doc

@@ -7,8 +7,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from cartpole.commands._rig import add_rig_arguments, friction_sentence, loop_from_args, rig_doc
 from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
+from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, friction_sentence,
+                                    loop_from_args, rig_doc, smoothed_friction_sentence)
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -24,8 +25,13 @@ VIDEO_SECONDS = 10.0
 
 
 def add_arguments(parser) -> None:
-    """``--no-video``, ``--discrete``, ``--Q``, ``--R``, ``--compare-pid`` and ``--view``."""
+    """``--no-video``, ``--duration``, ``--max-steps``, ``--discrete``, ``--Q``, ``--R``, ``--compare-pid`` and
+    ``--view``."""
     parser.add_argument("--no-video", action="store_true", help="skip rendering the 10 s video")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="seconds each of the five MuJoCo runs lasts (default 6, the handout's): a model whose "
+                             "closed loop is slow needs longer to settle")
+    add_budget_argument(parser)
     parser.add_argument("--compare-pid", action="store_true",
                         help="also run the cascaded PID baseline (cartpole.control.pid) from the same five starts "
                              "in MuJoCo and print one table and one figure of both (one pole on a cart only; "
@@ -99,6 +105,7 @@ def run(args) -> dict:
     from cartpole.viz import VideoUnavailable, plot_lab, render_video
     from cartpole.control.friction import friction_summary
     from cartpole.errors import CartPoleError
+    from cartpole.apps.lab import lab_friction
 
     # Everything that can fail on bad input happens before the first file is written.
     model = build_model(args.mjcf)
@@ -106,15 +113,21 @@ def run(args) -> dict:
     Q = None if args.Q is None else weight_matrix(args.Q, model.nx, "--Q", "x = [" + ", ".join(names) + "]")
     R = None if args.R is None else weight_matrix(
         args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
-    loop = loop_from_args(args)
-    from cartpole.apps.lab import LAB_DURATION
-    from cartpole.commands.swingup import check_log_size
+    from cartpole.apps.lab import LAB_DURATION, START_SCALES
+    from cartpole.commands.swingup import check_duration, check_log_size
 
+    duration = LAB_DURATION if args.duration is None else check_duration(args.duration, model.params)
+    loop = loop_from_args(args, **({} if args.duration is None else {"duration": duration}))
     runs = 5 * (2 if args.compare_pid else 1)  # every start's rollout is kept (and the PID's beside)
     clip = 0.0 if args.no_video else VIDEO_SECONDS
-    check_log_size(runs * LAB_DURATION + clip, model.params,
-                   what=f"the lab's {runs} runs of {LAB_DURATION:g} s" + (f" and its {clip:g} s video clip" if clip
-                                                                        else ""))
+    check_log_size(runs * duration + clip, model.params,
+                   what=f"the lab's {runs} runs of {duration:g} s" + (f" and its {clip:g} s video clip" if clip
+                                                                    else ""))
+    # the work, before any: the runs kept, the start-scale search's (up to len(START_SCALES) sets of five at the
+    # lab's 6 s), and the video clip; a model too ill-conditioned to simulate or design on is refused here too
+    search = 5 * (len(START_SCALES) - (1 if duration == LAB_DURATION else 0)) * LAB_DURATION
+    check_budget(args, model, [(runs, duration, f"{runs} lab runs"), (1, search, "start search, at most,"),
+                               (1, clip, "video")])
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
     if args.margins or args.margins_mujoco:
@@ -131,7 +144,7 @@ def run(args) -> dict:
 
         plan_model = plan_model_from(args.plan_mjcf, model)
     R, ctrl_noise = ctrl_noise_weights(args, model, loop, Q, R)
-    result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model)
+    result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model, duration=duration)
     if args.view:
         result = _view(result)
     pid = skipped = None
@@ -197,6 +210,10 @@ def run(args) -> dict:
         "mean_settling_time_seed": result.mean_settling_time_seed,
         "std_settling_time_seed": result.std_settling_time_seed,
         "settled": list(result.settled),
+        "counted": list(result.counted),
+        "not_settled": [None if w is None else w.to_dict() for w in result.not_settled],
+        "slowest_time_constant_s": result.slowest_time_constant,
+        "start_scale_reason": result.start_scale_reason,
         "diverged": [m.diverged for m in result.metrics],
         "diverged_at": [m.diverged_at for m in result.metrics],
         "rollouts": [_rollout_dict(r) for r in result.rollouts],
@@ -211,6 +228,7 @@ def run(args) -> dict:
         "metrics": str(metrics),
         **rig_doc(result.rig, result.period),
         "friction": friction_summary(result.params, result.friction_compensation),
+        "smoothed_friction": lab_friction(model, result.friction_compensation),
         "estimation": result.estimation,
         "estimation_figure": est_figure,
     }
@@ -378,25 +396,34 @@ def _print_prose(result, doc, pid=None) -> None:
         print(f"LQR ({kind}), Q = diag({q}){off}, R = diag({r}), law u = u* - K (x - x*):")
         print("K =", result.K)
         print("Closed-loop eigenvalues:", result.E)
+        print(_time_constant_sentence(result))
         if result.rig is not None:
             print(_rig_sentence(result.rig))
         if doc["friction"] is not None:
-            print(friction_sentence(doc["friction"]))
+            print(friction_sentence(doc["friction"], smooth=False))
+        smoothed = smoothed_friction_sentence(doc.get("smoothed_friction") or [], what="the LQR design")
+        if smoothed:
+            print(smoothed)
         if result.start_scale != 1.0:
-            print(f"The lab's starts at full size are too large for this model: all five are scaled by "
-                  f"{result.start_scale:g}, the largest of 1, 1/2, 1/4, ... from which the lab's own LQR settles "
-                  "every one (cartpole.apps.lab.lab_start_scale).")
+            why = f" ({result.start_scale_reason})" if result.start_scale_reason else ""
+            print(f"The lab's starts are too large for this model's ctrl limit{why}: all five are scaled "
+                  f"by {result.start_scale:g}, the largest of 1, 1/2, 1/4, ... at which the ctrl limit keeps no start "
+                  "from settling under the lab's own LQR (cartpole.apps.lab.lab_start_scale).")
         what = ("offsets from x* on the first pole's angle and the cart, the other poles at x*, at rest"
                 if len(p.hinges) > 1 else "offsets from x* on the pole's angle and the cart, at rest")
         print(f"Settling from {len(result.x0s)} initial conditions ({what}), {result.duration:g} s each in MuJoCo "
               "(handout's definition: every |theta_i - theta_i*| stays <= 0.05 rad; strict: whole state within "
               "0.01 of x*):")
-        for i, (x0, ts, st, ok) in enumerate(zip(result.x0s, doc["settling_times_seed"], doc["settling_times"],
-                                                 doc["settled"]), 1):
-            print(f"  IC {i}: {_start_text(result, x0)}: settling time {ts:.2f} s, strict {st:.2f} s, "
-                  f"{'settled' if ok else 'NOT settled'}")
-    print(f"Mean settling time: {result.mean_settling_time_seed:.2f} s ± {result.std_settling_time_seed:.2f} s "
-          f"across {len(result.x0s)} initial conditions")
+        for i, (x0, ts, st, counted, why) in enumerate(zip(result.x0s, doc["settling_times_seed"],
+                                                          doc["settling_times"], result.counted,
+                                                          result.not_settled), 1):
+            seed = f"settling time {ts:.2f} s" if counted else "inside the 0.05 rad band from the start (not counted)"
+            print(f"  IC {i}: {_start_text(result, x0)}: {seed}, strict {st:.2f} s, "
+                  f"{'settled' if why is None else _not_settled_text(result, why)}")
+    print(_mean_sentence(result))
+    longer = _longer_run(result)
+    if longer is not None:
+        print(longer)
     if doc.get("estimation"):
         est = doc["estimation"]
         rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())
@@ -412,6 +439,65 @@ def _print_prose(result, doc, pid=None) -> None:
     if doc["video"]:
         print(f"Wrote {doc['video']} (rendered in {doc['video_render_s']:.1f} s)")
     print(f"Appended a row to {doc['metrics']}")
+
+
+def _time_constant_sentence(result) -> str:
+    """The slowest closed-loop time constant and the run's length in those units."""
+    tau = result.slowest_time_constant
+    if not np.isfinite(tau):
+        return "Slowest closed-loop time constant: none finite (a mode on the stability boundary)."
+    return (f"Slowest closed-loop time constant: {tau:.3g} s (1 / the smallest decay rate of the eigenvalues); each "
+            f"run lasts {result.duration:g} s, {result.duration / tau:.3g} of them.")
+
+
+def _not_settled_text(result, why) -> str:
+    """``NOT settled: ...``: the reason of one start (:class:`cartpole.apps.lab.NotSettled`) and by how much."""
+    from cartpole.commands._state import state_labels
+
+    labels = state_labels(result.params)
+    left = (f"|theta - theta*| {why.final_angle_error:.3g} rad at the end, the largest error {why.final_error:.3g} "
+            f"on {labels[why.final_error_state]}")
+    if why.reason == "slow":
+        t = why.linear_settling_time
+        need = f"needs {t:.3g} s" if np.isfinite(t) else "does not settle within 30 time constants either"
+        return (f"NOT settled in {result.duration:g} s ({left}): the run is too short, the LQR's own linear loop "
+                f"{need} from this start")
+    if why.reason == "ctrl_limit":
+        return (f"NOT settled ({left}): the ctrl limit, the ctrl at its limit {100 * why.saturation_fraction:.0f} % "
+                "of the run")
+    if why.reason == "cart_limit":
+        return f"NOT settled ({left}): the cart reached the end of its rail"
+    if why.reason == "diverged":
+        return "NOT settled: MuJoCo's simulation blew up"
+    return f"NOT settled ({left}): the error does not decay (friction, a model error, the rig's sensors or delay)"
+
+
+def _mean_sentence(result) -> str:
+    """``Mean settling time: ...`` over the counted starts only (none counted: said so, no number)."""
+    n = sum(result.counted)
+    skipped = len(result.x0s) - n
+    if n == 0:
+        return (f"Mean settling time: none: all {len(result.x0s)} starts begin inside the 0.05 rad band, where the "
+                "handout's settling time is 0 whatever the controller does, so none is counted.")
+    out = f" ({skipped} more inside the 0.05 rad band from the start, not counted)" if skipped else ""
+    return (f"Mean settling time: {result.mean_settling_time_seed:.2f} s ± {result.std_settling_time_seed:.2f} s "
+            f"across {n} initial conditions{out}")
+
+
+def _longer_run(result) -> str | None:
+    """The advice for starts the run was too short to settle: ``--duration`` with a length that would."""
+    slow = [w for w in result.not_settled if w is not None and w.reason == "slow"]
+    if not slow:
+        return None
+    tau = result.slowest_time_constant
+    need = max(w.linear_settling_time for w in slow)
+    if np.isfinite(need):
+        give = float(np.ceil(1.2 * need))
+        return (f"{len(slow)} start(s) did not settle because the closed loop's slowest time constant, {tau:.3g} s, "
+                f"is long for a {result.duration:g} s run; give a longer run: --duration {give:g}.")
+    return (f"{len(slow)} start(s) did not settle because the closed loop's slowest time constant, {tau:.3g} s, is "
+            f"long for a {result.duration:g} s run; give a longer run with --duration, or heavier --Q weights for "
+            "a faster loop.")
 
 
 #: Rows of the PID-beside-LQR table: attribute of LabResult / PIDLabResult, label, number format.
@@ -439,5 +525,8 @@ def _print_pid_table(lqr, pid) -> None:
         for j, (name, res) in enumerate((("LQR", lqr), ("PID", pid))):
             vals = np.asarray(getattr(res, key), dtype=float)
             cells = [fmt.format(v) if np.isfinite(v) else "never" for v in vals]
-            mean = fmt.format(vals.mean()) if np.all(np.isfinite(vals)) else "n/a"
+            if key == "settling_times_seed":  # starts inside the band from the outset are not in the mean
+                cells = [c if k else "in band" for c, k in zip(cells, res.counted)]
+                vals = vals[list(res.counted)]
+            mean = fmt.format(vals.mean()) if vals.size and np.all(np.isfinite(vals)) else "n/a"
             print(f"{label if j == 0 else '':28s} {name:4s}" + "".join(f"{c:>8s}" for c in cells + [mean]))

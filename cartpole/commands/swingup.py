@@ -5,7 +5,8 @@ import math
 import sys
 
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
-from cartpole.commands._rig import add_rig_arguments, rig_fields
+from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, design_friction, rig_fields,
+                                    smoothed_friction_sentence)
 from cartpole.commands._rollouts import live_viewer, rollout_doc
 
 HELP = ("swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, trajopt + TVLQR, or "
@@ -43,6 +44,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="simulated seconds (default 10 for energy, plan + 3 for trajopt); the log must fit "
                              f"in {MAX_LOG_BYTES // 2**20} MiB (duration / timestep x (1 + 2 nq + nu) x 8 bytes)")
+    add_budget_argument(parser)
     parser.add_argument("--push", action="append", default=None, metavar="T:F",
                         help="push the cart: a horizontal (world x) force of F newtons for 0.1 s from time T s, "
                              "through MuJoCo's xfrc_applied; repeatable; logged per physics step in the rollout's "
@@ -171,6 +173,22 @@ class _Stages:
             self.done.add(name)
 
 
+def _check_work(args, model, duration) -> None:
+    """The swing-up's MuJoCo steps before it starts (:func:`cartpole.commands._rig.check_budget`): the run
+    (``--duration``, else the method's default, 10 s for a plan's length unknown yet) and, for energy and trajopt,
+    the catch basin's sampled runs (counted though a cached estimate costs none)."""
+    from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+    from cartpole.sim.budget import BATCHED
+    from cartpole.validation.basin import DEFAULTS
+
+    T = duration if duration is not None else (MPC_DURATION if args.method == "mpc" else ENERGY_DURATION)
+    parts = [(1, T, f"the {T:g} s run")]
+    if args.method != "mpc":  # the catch basin's sampled runs
+        parts.append((DEFAULTS["n"], DEFAULTS["duration"], "basin, unless cached,",
+                      BATCHED))
+    check_budget(args, model, parts)
+
+
 def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
@@ -189,6 +207,7 @@ def run(args) -> dict:
     check_plan_size(model, args.method)
     x0 = check_start(start_on_range(model.x_hanging, params)[0] if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
+    _check_work(args, model, duration)
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)
     model_error = check_model_error(getattr(args, "model_error", None))
     plan_mjcf = getattr(args, "plan_mjcf", None)
@@ -295,6 +314,7 @@ def run(args) -> dict:
     doc["push"] = [list(p) for p in res.push]
     doc["rig"] = m.get("rig")
     doc["friction"] = m.get("friction")
+    doc["smoothed_friction"] = design_friction(model, doc["friction"])
     doc["estimation"] = m.get("estimation")
     doc["estimation_figure"] = est_fig
     if args.method != "mpc":
@@ -348,6 +368,8 @@ def run(args) -> dict:
             from cartpole.commands._rig import friction_sentence
 
             print(friction_sentence(doc["friction"]))
+        if doc["smoothed_friction"]:
+            print(smoothed_friction_sentence(doc["smoothed_friction"], what="the swing-up's design model"))
         if doc["estimation"]:
             est = doc["estimation"]
             rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())

@@ -4,6 +4,7 @@ from cartpole.models.params import (SHIPPED_MJCF, SUPPORTED_INTEGRATORS, CartPol
 from cartpole.models.urdf import AddedActuator, URDFError, URDFImport, import_urdf, is_urdf, urdf_session
 from cartpole.models.friction import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, FrictionConstraint,
                                       FrictionWidthError, check_width, constraint_friction_force,
+                                      friction_treatment,
                                       friction_constraint, smooth_friction)
 from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_kinematics_np, quat_to_mat
 from cartpole.models.discretize import MAX_PERIOD, HoldModel, PeriodError, hold_model, steps_per_period
@@ -19,6 +20,6 @@ __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError
            "Kinematics", "forward_kinematics", "forward_kinematics_np", "MAX_PERIOD", "HoldModel", "PeriodError",
            "hold_model", "steps_per_period", "DEFAULT_FRICTION_WIDTH", "FrictionWidthError", "check_width",
            "smooth_friction", "quat_to_mat", "MAX_CONSTRAINT_FRICTION_DOFS", "FrictionConstraint",
-           "constraint_friction_force", "friction_constraint"]
+           "constraint_friction_force", "friction_constraint", "friction_treatment"]
 __all__ += ["START_SNAP", "LimitsError", "PlanningLimits", "StartMove", "bounded_model", "chain_length", "default_cart_max",
             "default_u_max", "planning_limits", "start_on_range"]

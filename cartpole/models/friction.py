@@ -99,6 +99,51 @@ def smooth_friction(frictionloss, v, width: float = DEFAULT_FRICTION_WIDTH):
     return -np.asarray(frictionloss, float) * np.tanh(np.asarray(v, float) / w)
 
 
+def friction_treatment(params, *, width: float, omitted=(), cancelled=()) -> list:
+    """What a design on the symbolic model did with MuJoCo's dry friction: one entry per joint with ``frictionloss``.
+
+    MuJoCo sticks a joint whose generalized force stays below its ``frictionloss``; a design on the symbolic model
+    either holds that friction as the smooth ``-frictionloss tanh(qvel / width)`` (whose slope at rest,
+    ``frictionloss / width``, a linearisation sees as a viscous damping) or leaves it out. This is the list a
+    command reports (JSON ``smoothed_friction``) so that neither happens silently.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The model MuJoCo runs (its joints' ``frictionloss``, N on slides, N m on hinges).
+    width : float
+        The smooth friction's width, m/s or rad/s (``CartPoleModel.friction_width``).
+    omitted : sequence of int
+        qpos indices of the joints whose friction the design left out (e.g. a linearisation at rest without it).
+    cancelled : sequence of int
+        qpos indices of the joints whose friction a feedforward cancels (also left out of the design).
+
+    Returns
+    -------
+    list of dict
+        Per joint with friction, in qpos order: ``joint`` (name), ``kind`` (``slide`` or ``hinge``),
+        ``frictionloss``, ``width`` (the smooth model's,
+        m/s or rad/s), ``design``: ``"smooth"`` (held as the tanh; then ``damping_at_rest`` =
+        ``frictionloss / width``, N s/m or N m s/rad), ``"omitted"`` or ``"cancelled"``. Empty without friction.
+    """
+    omitted, cancelled = {int(i) for i in omitted}, {int(i) for i in cancelled}
+    out = []
+    for i, j in enumerate(params.joints):
+        loss = float(j.frictionloss)
+        if loss == 0:
+            continue
+        entry = {"joint": j.name, "kind": j.kind, "frictionloss": loss, "width": float(width)}
+        if i in cancelled:
+            entry["design"] = "cancelled"
+        elif i in omitted:
+            entry["design"] = "omitted"
+        else:
+            entry["design"] = "smooth"
+            entry["damping_at_rest"] = loss / float(width)
+        out.append(entry)
+    return out
+
+
 # ---- MuJoCo's friction-loss constraint, exactly -------------------------------------------------------------------
 #: MuJoCo's bounds on a constraint's impedance and its smallest regulariser (``mjMINIMP``, ``mjMAXIMP``, ``mjMINVAL``).
 _MIN_IMP, _MAX_IMP, _MIN_VAL = 0.0001, 0.9999, 1e-15

@@ -69,8 +69,9 @@ def lab_figure(result):
     p = result.params
     hinges, slide = p.hinges, p.slide
     fig, axes, ax_th, ax_s, ax_u, _ = pole_panels(p)
-    for run, x0, ts in zip(result.rollouts, result.x0s, result.settling_times_seed):
-        label = _label(result, x0, ts)
+    counted = getattr(result, "counted", (True,) * len(result.x0s))
+    for run, x0, ts, c in zip(result.rollouts, result.x0s, result.settling_times_seed, counted):
+        label = _label(result, x0, ts) if c else _start_label(result, x0, cart_unit="") + ", in band"
         for ax, h in zip(ax_th, hinges):
             ax.plot(*wrapped_angle_trace(run.t, run.qpos[:, h], result.x_eq[h]), label=label)
         if ax_s is not None:
@@ -82,9 +83,12 @@ def lab_figure(result):
     many = len(hinges) > 1
     kind = "discrete" if result.discrete else "continuous"
     scale = "" if getattr(result, "start_scale", 1.0) == 1.0 else f", starts x{result.start_scale:g}"
-    fig.suptitle(f"LQR balance ({kind}, {len(hinges)} pole{'s' if many else ''}): mean settling time "
-                 f"{result.mean_settling_time_seed:.2f}s ± {result.std_settling_time_seed:.2f}s "
-                 f"({len(result.rollouts)} initial conditions{scale}, every |θ| ≤ 0.05 rad)")
+    n = sum(counted)
+    mean = (f"mean settling time {result.mean_settling_time_seed:.2f}s ± {result.std_settling_time_seed:.2f}s "
+            f"({n} initial conditions{scale}, every |θ| ≤ 0.05 rad)" if n else
+            f"no settling time, every start{scale.replace(', starts ', ' (')}{')' if scale else ''} inside the "
+            "0.05 rad band")
+    fig.suptitle(f"LQR balance ({kind}, {len(hinges)} pole{'s' if many else ''}): {mean}")
     fig.tight_layout()
     return fig
 

@@ -1,13 +1,16 @@
 """The LQR balance lab: K is SciPy's, the five starts settle in MuJoCo on every model and replay exactly,
 starts are scaled into a model's joint ranges, and the sign facts docs/lab.md states hold; the PID baseline runs
 the same starts (reset for each) and balances them, and the live view logs the run it shows."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.linalg
 
 from cartpole import Q_LAB, R_LAB, build_model, read_params
 from cartpole.apps.lab import (LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, compare_pid,
-                          lab_initial_conditions, lab_start_scale, run_lab, run_pid_lab, view_first_run)
+                          lab_initial_conditions, lab_start_scale, linear_settling_time, run_lab, run_pid_lab,
+                          slowest_time_constant, starts_in_band, view_first_run)
 from cartpole.lqr import lab_weights
 from cartpole.models import SHIPPED_MJCF, wrap_angle
 from cartpole.sim import replays_exactly, simulate
@@ -364,3 +367,78 @@ def test_noise_tolerance_is_the_last_noise_that_balances_and_is_measured_through
     assert [r["sensor_noise"] for r in found["pid_runs"]] == [0.001, 0.1]
     assert found["lqr_runs"][0]["balances"] and found["lqr"] is not None
     assert NOISE_FRACTIONS[0] == 0.0 and NOISE_FRACTIONS[-1] == 1.0 and list(NOISE_FRACTIONS) == sorted(NOISE_FRACTIONS)
+
+
+# ---- an honest lab (issue 38): no vacuous settling time, unsettled starts say why, starts shrink for the ctrl only --
+
+HEAVY_CART = Path(__file__).resolve().parent.parent / "assets" / "heavy_cart.xml"
+HEAVY_SLOW_CART = Path(__file__).resolve().parent.parent / "assets" / "heavy_slow_cart.xml"
+
+
+@pytest.fixture(scope="module")
+def heavy_lab():
+    return run_lab(HEAVY_CART)
+
+
+@pytest.fixture(scope="module")
+def slow_lab():
+    return run_lab(HEAVY_SLOW_CART)
+
+
+def test_starts_inside_the_band_are_not_counted_in_the_mean():
+    """At half size the lab's 5, -5, 3 and -4 degree starts begin inside the 0.05 rad band; only 8 degrees counts."""
+    res = run_lab(start_scale=0.5, duration=2.0)
+    h = res.params.hinges[0]
+    inside = np.abs(res.x0s[:, h] - res.x_eq[h]) <= 0.05
+    assert res.in_band == tuple(inside) and res.counted == tuple(~inside) and 0 < sum(res.counted) < 5
+    assert res.mean_settling_time_seed == pytest.approx(np.mean(res.settling_times_seed[~inside]))
+    assert res.std_settling_time_seed == pytest.approx(np.std(res.settling_times_seed[~inside]))
+    assert starts_in_band(res.x0s, res.x_eq, []) == (False,) * 5  # no pole: nothing is inside a pole's band
+
+
+def test_heavy_cart_starts_shrunk_for_the_ctrl_limit_give_no_vacuous_mean(heavy_lab):
+    res = heavy_lab
+    assert res.start_scale < 1.0 and "ctrl limit" in res.start_scale_reason
+    assert all(res.settled) and all(replays_exactly(r, res.params) for r in res.rollouts)
+    # the 20 N cannot catch the 50 kg cart's pole outside the band: every start left is inside it, none counted
+    assert res.in_band == (True,) * 5 and not any(res.counted)
+    assert np.isnan(res.mean_settling_time_seed) and np.isnan(res.std_settling_time_seed)
+    # twice as large, the starts fail for the ctrl limit: the pole falls with the ctrl at its limit
+    bigger = run_lab(HEAVY_CART, start_scale=2 * res.start_scale)
+    why = [w for w in bigger.not_settled if w is not None]
+    assert why and all(w.reason == "ctrl_limit" for w in why)
+    assert all(w.final_angle_error > 0.05 and w.saturation_fraction > 0.01 for w in why)
+
+
+def test_a_slow_heavy_cart_is_not_shrunk_and_says_its_time_constant_and_the_run_it_needs(slow_lab):
+    res = slow_lab
+    tau = 1.0 / np.min(-res.E.real)
+    assert res.slowest_time_constant == pytest.approx(tau, rel=1e-12) and tau > 1.0
+    assert res.start_scale == 1.0 and res.start_scale_reason is None and all(res.counted)
+    assert not any(res.settled) and np.all(np.isfinite(res.settling_times_seed))
+    for w, m in zip(res.not_settled, res.metrics):
+        assert w.reason == "slow" and m.saturation_fraction == 0.0
+        assert w.final_angle_error < 0.05 < w.final_error  # the pole is up, the cart still on its way back
+        assert res.duration < w.linear_settling_time < np.inf
+    # the linear loop's prediction is MuJoCo's: a run that long settles the start
+    w0 = res.not_settled[0]
+    run = simulate(HEAVY_SLOW_CART, res.controller(), res.x0s[0], w0.linear_settling_time + 1.0)
+    assert _final_error(run, res.x_eq, res.params.hinges) < 0.01
+
+
+def test_linear_settling_time_is_the_first_instant_inside_the_box_for_good():
+    # e[k] = 0.5**k: inside 0.01 from k = 7 (0.0078), at 0.1 s a step
+    assert linear_settling_time(np.array([[0.5]]), [1.0], 0.1, 10.0) == pytest.approx(0.7)
+    assert linear_settling_time(np.array([[0.5]]), [0.001], 0.1, 10.0) == 0.0
+    assert linear_settling_time(np.array([[0.999]]), [1.0], 0.1, 1.0) == np.inf
+    assert slowest_time_constant([-2.0, -0.5 + 1j, -0.5 - 1j]) == pytest.approx(2.0)
+    assert slowest_time_constant(np.exp(np.array([-2.0, -0.25]) * 0.01), discrete=True, period=0.01) == \
+        pytest.approx(4.0)
+    assert slowest_time_constant([0.0, -1.0]) == np.inf
+
+
+def test_lab_runs_report_progress_within_each_run():
+    seen = []
+    run_lab(duration=0.5, start_scale=1.0, progress=seen.append)
+    assert len(seen) > 5 * 5 and seen[-1] == pytest.approx(1.0)  # about 20 fractions a run, not one per run
+    assert all(b >= a - 1e-12 for a, b in zip(seen, seen[1:]))

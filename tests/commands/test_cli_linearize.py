@@ -13,7 +13,9 @@ from cartpole.models import SHIPPED_MJCF, build_model
 def test_linearize_json_follows_the_contract(capsys):
     assert main(["linearize", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd", "period", "steps"}
+    assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd", "period", "steps",
+                        "smoothed_friction"}
+    assert doc["smoothed_friction"] == []
     assert doc["period"] == doc["dt"] and doc["steps"] == 1
     assert Path(doc["mjcf"]).is_absolute() and Path(doc["mjcf"]) == SHIPPED_MJCF
     assert doc["dt"] == 0.005 and doc["integrator"] == "Euler"
@@ -146,3 +148,27 @@ def test_linearize_period_gives_the_held_discrete_model_and_refuses_a_fraction_o
     assert main(["linearize", "--json", "--period", "0.012"]) == 2
     err = capsys.readouterr().err
     assert "whole number" in err and err.count("\n") == 1
+
+
+def test_linearize_says_which_joints_dry_friction_it_smoothed(tmp_path, capsys):
+    """frictionloss on the unactuated hinge: A holds the smooth model's slope at rest as a damping, and says so."""
+    from cartpole.models import DEFAULT_FRICTION_WIDTH
+
+    text = SHIPPED_MJCF.read_text()
+    old = 'type="hinge" axis="0 1 0" damping="0.01"'
+    assert old in text
+    mjcf = tmp_path / "hinge_friction.xml"
+    mjcf.write_text(text.replace(old, old + ' frictionloss="0.004"'))
+    assert main(["linearize", "--json", "--mjcf", str(mjcf)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    (entry,) = doc["smoothed_friction"]
+    assert entry["joint"] == "hinge" and entry["design"] == "smooth" and entry["frictionloss"] == 0.004
+    assert entry["width"] == DEFAULT_FRICTION_WIDTH
+    assert entry["damping_at_rest"] == 0.004 / DEFAULT_FRICTION_WIDTH
+    # the smoothing is in A: the pole's rate row differs from the frictionless model's
+    model = build_model(str(mjcf))
+    np.testing.assert_allclose(doc["A"], model.linearize()[0])
+    assert not np.allclose(doc["A"], model.without_friction().linearize()[0])
+    assert main(["linearize", "--mjcf", str(mjcf)]) == 0
+    out = capsys.readouterr().out
+    assert "in this linearisation: hinge 0.004 N m as the smooth -0.004 tanh(qvel/0.01)" in out

@@ -253,7 +253,11 @@ def test_starts_scaled_for_a_model_are_said_in_prose_and_json(chain_dir, tmp_pat
     assert main(["lqr", "--no-video", "--mjcf", str(path), "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert f"all five are scaled by {scale:g}" in out
-    assert list(csv.reader((tmp_path / "metrics" / "metrics.csv").open()))[-1][12] == f"5_ICs_3_poles_scaled_{scale:g}"
+    # starts the scaling put inside the 0.05 rad band are not in the mean: the row says how many are (issue 38)
+    n = sum(doc["counted"])
+    counted = "" if n == 5 else f"_{n}_counted"
+    row = list(csv.reader((tmp_path / "metrics" / "metrics.csv").open()))[-1]
+    assert row[12] == f"5_ICs_3_poles_scaled_{scale:g}{counted}"
 
 
 # ---- --compare-pid: the cascaded PID beside the LQR from the same five starts -----------------------------------
@@ -425,3 +429,53 @@ def test_bad_margin_searches_are_one_sentence_and_write_nothing(argv, says, tmp_
     err = capsys.readouterr().err.strip()
     assert says in err and len(err.splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+# ---- an honest lab (issue 38) -------------------------------------------------------------------------------------
+
+TEST_ASSETS = Path(__file__).resolve().parent.parent / "assets"
+
+
+def test_heavy_cart_prints_no_vacuous_mean_and_says_why_its_starts_were_shrunk(tmp_path, capsys):
+    mjcf = str(TEST_ASSETS / "heavy_cart.xml")
+    doc = _lqr_json(capsys, "--mjcf", mjcf, "--out", str(tmp_path / "json"))
+    assert CONTRACT <= set(doc) and doc["start_scale"] < 1 and "ctrl limit" in doc["start_scale_reason"]
+    assert doc["counted"] == [False] * 5 and doc["mean_settling_time_seed"] is None
+    tau = 1.0 / min(-np.array(doc["closed_loop_eigenvalues"]["real"]))
+    assert doc["slowest_time_constant_s"] == pytest.approx(tau)
+    assert main(["lqr", "--no-video", "--mjcf", mjcf, "--out", str(tmp_path / "prose")]) == 0
+    out = capsys.readouterr().out
+    assert "Mean settling time: 0.00 s" not in out and "settling time 0.00 s" not in out
+    assert "Mean settling time: none" in out and out.count("inside the 0.05 rad band from the start") == 5
+    assert f"Slowest closed-loop time constant: {tau:.3g} s" in out and "ctrl limit" in out
+
+
+def test_slow_heavy_cart_says_it_did_not_settle_by_how_much_and_the_duration_that_would(tmp_path, capsys):
+    mjcf = str(TEST_ASSETS / "heavy_slow_cart.xml")
+    doc = _lqr_json(capsys, "--mjcf", mjcf, "--out", str(tmp_path / "json"))
+    assert doc["start_scale"] == 1.0 and doc["start_scale_reason"] is None and doc["settled"] == [False] * 5
+    assert doc["counted"] == [True] * 5 and doc["mean_settling_time_seed"] == pytest.approx(
+        np.mean(doc["settling_times_seed"]))
+    for why in doc["not_settled"]:
+        assert why["reason"] == "slow" and why["final_angle_error"] < 0.05 < why["final_error"]
+        assert why["linear_settling_time"] > doc["duration"]
+    assert main(["lqr", "--no-video", "--mjcf", mjcf, "--out", str(tmp_path / "prose")]) == 0
+    out = capsys.readouterr().out
+    assert f"slowest time constant, {doc['slowest_time_constant_s']:.3g} s" in out
+    longer = float(re.search(r"--duration (\S+)\.", out).group(1))
+    assert longer > max(w["linear_settling_time"] for w in doc["not_settled"])
+    assert out.count("NOT settled in 6 s") == 5 and "the run is too short" in out
+
+
+def test_lqr_duration_sets_each_run_length(tmp_path, capsys):
+    doc = _lqr_json(capsys, "--duration", "2", "--out", str(tmp_path))
+    assert doc["duration"] == 2.0 and all(r["t"][-1] == pytest.approx(2.0) for r in doc["rollouts"])
+
+
+def test_lqr_says_which_joints_dry_friction_its_design_leaves_out(tmp_path, capsys):
+    mjcf = str(SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml")
+    on = _lqr_json(capsys, "--mjcf", mjcf, "--out", str(tmp_path / "on"))
+    by = {e["joint"]: e for e in on["smoothed_friction"]}
+    assert by["slider"]["design"] == "cancelled" and by["hinge"]["design"] == "omitted"
+    assert by["slider"]["frictionloss"] == 0.5 and by["hinge"]["frictionloss"] == 0.002
+    assert _lqr_json(capsys, "--out", str(tmp_path / "plain"))["smoothed_friction"] == []

@@ -269,3 +269,16 @@ def test_mpc_json_contract_adds_solve_times_period_and_horizon(tmp_path, capsys)
     qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"], ro["push"])
     assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
     assert doc["success"] is True
+
+
+def test_swingup_says_which_joints_dry_friction_its_design_model_smooths(tmp_path, capsys):
+    """Issue 38: the design model holds the undriven hinge's frictionloss as the smooth tanh, and says so."""
+    mjcf = str(SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml")
+    argv = ["swingup", "--no-video", "--duration", "0.5", "--mjcf", mjcf, "--out", str(tmp_path)]
+    assert main(argv + ["--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    by = {e["joint"]: e for e in doc["smoothed_friction"]}
+    assert by["slider"]["design"] == "cancelled" and by["hinge"]["design"] == "smooth"
+    assert by["hinge"]["damping_at_rest"] == pytest.approx(by["hinge"]["frictionloss"] / by["hinge"]["width"])
+    assert main(argv) == 0
+    assert "hinge 0.002 N m as the smooth -0.002 tanh(qvel/" in capsys.readouterr().out

@@ -262,3 +262,20 @@ def test_friction_function_is_symbolic_and_differentiable():
     J = ca.Function("J", [x], [ca.jacobian(model.friction(x), x)])
     Jv = np.asarray(J(np.zeros(model.nx)))[:, model.nq:]
     np.testing.assert_allclose(Jv, -np.diag(model.params.frictionloss) / model.friction_width, rtol=1e-15)
+
+
+def test_friction_treatment_lists_each_joint_with_friction_and_what_the_design_did_with_it():
+    from cartpole.models import friction_treatment
+
+    params = read_params(SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml")
+    smooth = friction_treatment(params, width=0.02)
+    assert [e["joint"] for e in smooth] == [j.name for j in params.joints if j.frictionloss]
+    for e in smooth:
+        assert e["design"] == "smooth" and e["width"] == 0.02
+        assert e["damping_at_rest"] == pytest.approx(e["frictionloss"] / 0.02)
+    slide = params.slide
+    mixed = friction_treatment(params, width=0.02, omitted=range(params.nq), cancelled=[slide])
+    assert [e["design"] for e in mixed] == ["cancelled" if i == slide else "omitted"
+                                            for i, j in enumerate(params.joints) if j.frictionloss]
+    assert all("damping_at_rest" not in e for e in mixed)
+    assert friction_treatment(read_params(SHIPPED_MJCF), width=0.01) == []
