@@ -91,3 +91,25 @@ def live_sentence(live: dict) -> str:
     end = (" (page closed)" if live["page_closed"] else " (Ctrl-C)" if live["interrupted"] else "")
     return (f"Live run at {live['url']}: {live['steps']} physics steps{end}, {pushes} push(es) and "
             f"{len(ev) - pushes} weight change(s) logged; the log replays exactly: {live['replays']}.")
+
+
+def live_view(command: str, args):
+    """The ``on_step`` hook for ``--view``: a :class:`~cartpole.viz.web.WebLive` (``web``; the page shows the run and
+    its plots, nothing to push or tune), a :class:`~cartpole.viz.viewer.LiveViewer` (``desktop``), or None (no
+    ``--view``, or no display for the desktop window: its one sentence on stderr)."""
+    mode = view_mode(args, command)
+    if mode == "web":
+        from cartpole.viz.web import WebLive
+
+        return WebLive(port=args.port, host=args.host, title=f"cartpole {command} live")
+    if mode == "desktop":
+        from cartpole.commands._rollouts import live_viewer
+
+        return live_viewer(command)
+    return None
+
+
+def web_summary(viewer) -> dict:
+    """The web page's part of a command's ``viewer`` JSON (``url``, ``page_closed``, ``interrupted``...), or {}."""
+    summary = getattr(viewer, "summary", None)
+    return {} if summary is None else {k: v for k, v in summary().items() if k not in ("frames", "wall_time")}

@@ -145,6 +145,7 @@ def _messages():
             lines: tuple = ()
             knobs: tuple = ()
             events: tuple = ()
+            pushable: bool = False
 
         _MSG = _namespace(PushEvent=PushEvent, KnobEvent=KnobEvent, StatusSnapshot=StatusSnapshot)
     return _MSG
@@ -235,14 +236,15 @@ def _make_plugins(live: "WebLive"):
                         ip.PlotLine(name, t, ys)
                     ip.EndPlot()
             im.Separator()
-            changed, self.force = im.SliderFloat("push force [N]", self.force, 1.0, MAX_PUSH, "%.1f")
-            if im.Button("push left"):
-                self.viewer.send_to_sim(M.PushEvent(force=-self.force))
-            self._rect("push left")
-            im.SameLine()
-            if im.Button("push right"):
-                self.viewer.send_to_sim(M.PushEvent(force=self.force))
-            self._rect("push right")
+            if s.pushable:
+                changed, self.force = im.SliderFloat("push force [N]", self.force, 1.0, MAX_PUSH, "%.1f")
+                if im.Button("push left"):
+                    self.viewer.send_to_sim(M.PushEvent(force=-self.force))
+                self._rect("push left")
+                im.SameLine()
+                if im.Button("push right"):
+                    self.viewer.send_to_sim(M.PushEvent(force=self.force))
+                self._rect("push right")
             if s.knobs:
                 im.Separator()
             for k in s.knobs:
@@ -337,6 +339,7 @@ class WebLive(LiveViewer):
         self._handle = None
         self._server = None
         self._state_msg = None
+        self.pushable = False  # the run takes push(t) (simulate calls it): the page offers push buttons
         self._pending_push: list[float] = []
         self._push_until = -1.0
         self._push_force = 0.0
@@ -497,7 +500,7 @@ class WebLive(LiveViewer):
         every = max(1, len(self._hist_t) // PLOT_POINTS)
         return M.StatusSnapshot(t=tuple(self._hist_t[::every]), series=tuple(tuple(r) for r in self._hist[::every]),
                                 names=self._names, ctrl_range=self._ctrl_range, lines=tuple(lines), knobs=knobs,
-                                events=ev)
+                                events=ev, pushable=self.pushable)
 
     def __call__(self, m, d) -> bool:
         """After one physics step: pace, maybe show and read the page. False when the run should stop."""
@@ -544,6 +547,7 @@ class WebLive(LiveViewer):
     def push(self, t: float) -> float:
         """``push(t) -> force [N]`` for :func:`~cartpole.sim.rollout.simulate`: the page's pushes, each a pulse of
         :data:`PUSH_SECONDS` starting at the first physics step after the button was pressed."""
+        self.pushable = True
         if self._pending_push:
             self._push_force = self._pending_push.pop(0)
             self._push_until = t + PUSH_SECONDS - 0.5 * self._h

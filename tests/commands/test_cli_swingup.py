@@ -137,7 +137,8 @@ def test_view_without_a_display_says_so_in_one_line_and_runs_as_usual(tmp_path, 
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.delenv("XDG_SESSION_TYPE", raising=False)
-    assert main(["swingup", "--view", "--json", "--no-video", "--duration", "0.5", "--out", str(tmp_path)]) == 0
+    assert main(["swingup", "--view", "desktop", "--json", "--no-video", "--duration", "0.5", "--out",
+                 str(tmp_path)]) == 0
     cap = capsys.readouterr()
     doc = json.loads(cap.out)
     assert doc["viewer"] is None and len(doc["rollout"]["ctrl"]) == 100

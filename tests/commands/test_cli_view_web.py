@@ -208,3 +208,46 @@ def _read(path: Path) -> dict:
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return {}
+
+
+def test_swingup_view_web_starts_with_the_page_and_closing_it_ends_the_run_with_the_steps_kept(tmp_path):
+    """The page's state stream (what a browser tab opens) starts the run; closing it ends the run early, the steps
+    done logged and replaying exactly; stdout stays the JSON document alone."""
+    from websockets.sync.client import connect
+
+    from cartpole.sim import Rollout, replays_exactly
+
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "swingup", "--view", "web", "--port", str(port),
+                             "--json", "--no-video", "--duration", "60", "--out", str(tmp_path / "out")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(tmp_path))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
+        assert any(f"http://localhost:{port}/" in line and "ssh -L 8080:localhost:" in line for line in err)
+        with connect(f"ws://127.0.0.1:{port}/state?sid=test", open_timeout=30) as ws:
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 2.0:
+                try:
+                    ws.recv(timeout=0.2)
+                except TimeoutError:
+                    pass
+        stdout = proc.stdout.read()
+        proc.wait(120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    reader.join(10)
+    assert proc.returncode == 0, "".join(err)[-2000:]
+    doc = json.loads(stdout)  # nothing but the document on stdout (Studio's banner went to stderr)
+    view = doc["viewer"]
+    assert view["url"] == f"http://localhost:{port}/" and view["host"] == "127.0.0.1"
+    assert view["page_closed"] is True and view["closed_early"] is True
+    ro = doc["rollout"]
+    assert 0 < len(ro["ctrl"]) < 60.0 / (ro["t"][1] - ro["t"][0])  # ended early, steps kept
+    assert view["steps_shown"] == len(ro["ctrl"])
+    run = Rollout(t=ro["t"], qpos=ro["qpos"], qvel=ro["qvel"], ctrl=ro["ctrl"])
+    assert replays_exactly(run, doc["mjcf"])
