@@ -113,3 +113,31 @@ def web_summary(viewer) -> dict:
     """The web page's part of a command's ``viewer`` JSON (``url``, ``page_closed``, ``interrupted``...), or {}."""
     summary = getattr(viewer, "summary", None)
     return {} if summary is None else {k: v for k, v in summary().items() if k not in ("frames", "wall_time")}
+
+
+def show_runs(params, rollouts, mode: str, args, *, command: str) -> None:
+    """Show logged runs one after the other, each replayed from its log in real time
+    (:func:`cartpole.commands._rollouts.show_logged`, which checks the run shown is the run logged): in MuJoCo's
+    window (``mode="desktop"``) or on one web page for all of them (``"web"``; closing it or Ctrl-C stops showing)."""
+    from cartpole.commands._rollouts import show_logged
+
+    if mode != "web":
+        for r in rollouts:
+            if show_logged(params, r, command=command) is None:
+                break  # no display: said once
+        return
+    from cartpole.sim import simulate
+    from cartpole.viz.web import WebLive
+
+    live = WebLive(port=args.port, host=args.host, title=f"cartpole {command} live")
+
+    def on_page(source, controller, x0, duration, push=None):
+        return simulate(source, controller, x0, duration, push=push, on_step=live)
+
+    try:
+        for r in rollouts:
+            show_logged(params, r, command=command, watcher=on_page)
+            if live.page_closed or live.interrupted:
+                break
+    finally:
+        live.close()

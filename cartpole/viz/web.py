@@ -480,6 +480,9 @@ class WebLive(LiveViewer):
 
     def _record(self, m, d) -> None:
         row = [float(v) for v in d.qpos] + [float(v) for v in d.ctrl]
+        if self._hist_t and float(d.time) < self._hist_t[-1]:  # a new run on the same page
+            self._hist_t.clear()
+            self._hist.clear()
         self._hist_t.append(float(d.time))
         self._hist.append(row)
         while self._hist_t and self._hist_t[0] < self._hist_t[-1] - PLOT_SECONDS:

@@ -251,3 +251,36 @@ def test_swingup_view_web_starts_with_the_page_and_closing_it_ends_the_run_with_
     assert view["steps_shown"] == len(ro["ctrl"])
     run = Rollout(t=ro["t"], qpos=ro["qpos"], qvel=ro["qvel"], ctrl=ro["ctrl"])
     assert replays_exactly(run, doc["mjcf"])
+
+
+def test_feedforward_view_web_replays_its_runs_on_the_page_until_it_is_closed(tmp_path):
+    """The logged runs replayed on one page (checked identical to the log); closing the page stops the showing and
+    the command ends as usual, its JSON on stdout."""
+    from websockets.sync.client import connect
+
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "feedforward", "--view", "web", "--port", str(port),
+                             "--json", "--no-video", "--out", str(tmp_path / "out")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(tmp_path))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any("waiting for a browser" in line for line in err), 400, "the live run to wait")
+        with connect(f"ws://127.0.0.1:{port}/state?sid=test", open_timeout=30) as ws:
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 1.5:
+                try:
+                    ws.recv(timeout=0.2)
+                except TimeoutError:
+                    pass
+        stdout = proc.stdout.read()
+        proc.wait(300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    reader.join(10)
+    assert proc.returncode == 0, "".join(err)[-2000:]
+    doc = json.loads(stdout)
+    assert doc["runs"] and not any("differs" in line for line in err)
