@@ -55,9 +55,13 @@ PUSH_SECONDS = 0.1
 #: Largest push force the page offers, in N.
 MAX_PUSH = 50.0
 #: Seconds of history the plots show.
-PLOT_SECONDS = 5.0
+PLOT_SECONDS = 10.0
 #: Most points a plot gets (the page's UI stream carries every vertex each frame).
 PLOT_POINTS = 150
+#: ImPlot's ImPlotFlags_NoLegend.
+PLOT_NO_LEGEND = 1 << 1
+#: Smallest height of a joint's plot, in m or rad.
+MIN_SPAN = 0.1
 #: Seconds to wait for Studio's viewer thread to bind its port and come up.
 START_TIMEOUT = 30.0
 #: Environment variable naming a JSON file where the panel writes its widgets' page rectangles (automation, tests).
@@ -100,7 +104,7 @@ def _studio():
         from mujoco.studio.implot import implot
     except Exception as exc:  # an older MuJoCo, a wheel without Studio
         raise WebUnavailable(f"MuJoCo Studio's web viewer is not available ({first_line(exc)}); install "
-                             "mujoco 4 with its studio package, or run without --view web.") from None
+                             "mujoco 4 with its studio package, or run without the web view.") from None
     return launch_thread, messages, plugin, viewer_protocol, web_viewer, dear_imgui, implot
 
 
@@ -209,7 +213,7 @@ def _make_plugins(live: "WebLive"):
         @_handles(messages, messages.BuildGuiEvent)
         def on_gui(self, _) -> None:
             im.SetNextWindowPos(im.Vec2(8, 8), 4)   # ImGuiCond_FirstUseEver
-            im.SetNextWindowSize(im.Vec2(400, 680), 4)
+            im.SetNextWindowSize(im.Vec2(420, 740), 4)
             im.Begin("cartpole live")
             s = self.status
             if s is None:
@@ -222,11 +226,15 @@ def _make_plugins(live: "WebLive"):
             t = list(s.t)
             for i, name in enumerate(s.names):
                 ys = [row[i] for row in s.series]
-                if ip.BeginPlot(f"##{name}", im.Vec2(-1, 110)):
+                if ip.BeginPlot(f"##{name}", im.Vec2(-1, 105), PLOT_NO_LEGEND):
+                    ctrl = name.startswith("ctrl")
                     ip.SetupAxes("t [s]", name, 0, 0)
+                    if ys and not ctrl:  # at least MIN_SPAN tall: rounding noise at rest stays flat
+                        mid, half = 0.5 * (max(ys) + min(ys)), 0.55 * max(max(ys) - min(ys), MIN_SPAN)
+                        ip.SetupAxisLimits(3, mid - half, mid + half, 1)
                     if t:
                         ip.SetupAxisLimits(0, t[0], max(t[-1], t[0] + 1e-3), 1)  # ImPlotCond_Always
-                    if name.startswith("ctrl") and s.ctrl_range:
+                    if ctrl and s.ctrl_range:
                         lo, hi = s.ctrl_range[0]
                         ip.SetupAxisLimits(3, lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), 1)
                         if t:
@@ -365,8 +373,8 @@ class WebLive(LiveViewer):
 
         launch_thread, messages, plugin, viewer_protocol, web_viewer, _, _ = _studio()
         if not port_free(self.host, self.port):
-            raise WebUnavailable(f"Port {self.port} on {self.host} is in use; pass another --port (0 picks the "
-                                 "first free one from 8080).")
+            raise WebUnavailable(f"Port {self.port} on {self.host} is in use; pass another port (0 picks the first "
+                                 "free one from 8080).")
         host = self.host
 
         class _BoundWebViewer(web_viewer.WebViewer):
@@ -406,7 +414,7 @@ class WebLive(LiveViewer):
                 with contextlib.suppress(BaseException):
                     handle.close()
                 raise WebUnavailable(f"MuJoCo Studio's web viewer did not start on {self.host}:{self.port} ({why}); "
-                                     "pass another --port, or run without --view web.")
+                                     "pass another port, or run without the web view.")
         except BaseException:
             self._restore_stdout()
             raise
@@ -615,7 +623,8 @@ def _plot_names(m) -> tuple:
 
     names = []
     for j in range(m.njnt):
-        names.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"qpos{j}")
+        unit = "m" if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE else "rad"
+        names.append(f"{mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f'qpos{j}'} [{unit}]")
     for a in range(m.nu):
         names.append("ctrl " + (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or str(a)))
     return tuple(names)

@@ -153,7 +153,7 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     reader.start()
     try:
         _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
-        with Chromium(binary, width=1000, height=700) as page:
+        with Chromium(binary, width=1100, height=800) as page:
             page.goto(f"http://localhost:{port}/")
             assert page.wait_console("Connected to Studio UI host", PAGE_TIMEOUT), page.console[-5:]
             assert page.wait_console("Model loaded", PAGE_TIMEOUT), page.console[-5:]
@@ -161,15 +161,15 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
                               "the panel's widgets")
             shot = _wait_for(lambda: _panel_drawn(page.screenshot(), rects), PAGE_TIMEOUT, "the panel drawn")
             (tmp_path / "live.png").write_bytes(shot)
-            if os.environ.get("CARTPOLE_DOCS_SCREENSHOT"):
-                DOCS_SHOT.parent.mkdir(parents=True, exist_ok=True)
-                DOCS_SHOT.write_bytes(shot)
             _assert_pole_on_cart(shot, _model_colours())
             page.click(*_center(rects["push right"]), hold=1.0)
             time.sleep(2.0)
             knob = "Q hinge"
             page.drag(*_center(rects[knob], 0.5), *_center(rects[knob], 0.85))
             time.sleep(3.0)
+            if os.environ.get("CARTPOLE_DOCS_SCREENSHOT"):  # the page after the push and the new weight
+                DOCS_SHOT.parent.mkdir(parents=True, exist_ok=True)
+                DOCS_SHOT.write_bytes(page.screenshot())
         stdout = proc.stdout.read()
         proc.wait(120)
     finally:
@@ -284,3 +284,39 @@ def test_feedforward_view_web_replays_its_runs_on_the_page_until_it_is_closed(tm
     assert proc.returncode == 0, "".join(err)[-2000:]
     doc = json.loads(stdout)
     assert doc["runs"] and not any("differs" in line for line in err)
+
+
+def test_ctrl_c_ends_the_live_run_cleanly_with_the_steps_kept(tmp_path):
+    """SIGINT while the page watches: no traceback, exit 0, the JSON says interrupted, the steps done replay."""
+    import signal
+
+    from websockets.sync.client import connect
+
+    from cartpole.sim import Rollout, replays_exactly
+
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "swingup", "--view", "web", "--port", str(port),
+                             "--json", "--no-video", "--duration", "60", "--out", str(tmp_path / "out")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(tmp_path))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
+        with connect(f"ws://127.0.0.1:{port}/state?sid=test", open_timeout=30) as ws:
+            time.sleep(1.5)
+            proc.send_signal(signal.SIGINT)
+            stdout = proc.stdout.read()
+            proc.wait(120)
+            del ws
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    reader.join(10)
+    assert proc.returncode == 0 and "Traceback" not in "".join(err), "".join(err)[-2000:]
+    doc = json.loads(stdout)
+    assert doc["viewer"]["interrupted"] is True and doc["viewer"]["page_closed"] is False
+    ro = doc["rollout"]
+    assert 0 < len(ro["ctrl"]) < 60.0 / (ro["t"][1] - ro["t"][0])
+    assert replays_exactly(Rollout(t=ro["t"], qpos=ro["qpos"], qvel=ro["qvel"], ctrl=ro["ctrl"]), doc["mjcf"])
