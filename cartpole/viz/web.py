@@ -64,7 +64,8 @@ PLOT_NO_LEGEND = 1 << 1
 MIN_SPAN = 0.1
 #: Seconds to wait for Studio's viewer thread to bind its port and come up.
 START_TIMEOUT = 30.0
-#: Environment variable naming a JSON file where the panel writes its widgets' page rectangles (automation, tests).
+#: Environment variable naming a JSON file where the panel writes its widgets' page rectangles ``[x0, y0, x1, y1]``
+#: in CSS pixels, by label, and the number of events it lists ("events shown") (automation, tests).
 WIDGETS_ENV = "CARTPOLE_WEB_WIDGETS"
 
 
@@ -275,6 +276,8 @@ def _make_plugins(live: "WebLive"):
                 im.Separator()
                 for line in s.events[-6:]:
                     im.Text(line)
+                self._rect("last event")
+            self.widgets["events shown"] = [float(len(s.events))] * 4
             im.End()
             if live.widgets_file:
                 with contextlib.suppress(OSError):

@@ -133,6 +133,16 @@ def _panel_drawn(png: bytes, rects) -> bytes | None:
     return png if band.size and band.mean() > 180 else None
 
 
+def _text_in(png: bytes, rect) -> bytes | None:
+    """``png`` when it shows dark text inside ``rect`` (the page draws the UI stream's frames with a lag)."""
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("L"), dtype=float)
+    x0, y0, x1, y1 = (int(v) for v in rect)
+    box = img[y0:y1 + 1, x0:x1 + 1]
+    return png if box.size and (box < 100).mean() > 0.02 else None
+
+
 def _center(rect, fx: float = 0.5):
     x0, y0, x1, y1 = rect
     return x0 + fx * (x1 - x0), 0.5 * (y0 + y1)
@@ -163,13 +173,15 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
             (tmp_path / "live.png").write_bytes(shot)
             _assert_pole_on_cart(shot, _model_colours())
             page.click(*_center(rects["push right"]), hold=1.0)
-            time.sleep(2.0)
+            _wait_for(lambda: _read(widgets).get("events shown", [0])[0] >= 1, PAGE_TIMEOUT, "the push listed")
             knob = "Q hinge"
             page.drag(*_center(rects[knob], 0.5), *_center(rects[knob], 0.85))
-            time.sleep(3.0)
-            if os.environ.get("CARTPOLE_DOCS_SCREENSHOT"):  # the page after the push and the new weight
+            _wait_for(lambda: _read(widgets).get("events shown", [0])[0] >= 2, PAGE_TIMEOUT, "the weight listed")
+            if os.environ.get("CARTPOLE_DOCS_SCREENSHOT"):  # the page once it draws the weight's event line
+                last = _read(widgets)["last event"]
+                shot = _wait_for(lambda: _text_in(page.screenshot(), last), PAGE_TIMEOUT, "the page to catch up")
                 DOCS_SHOT.parent.mkdir(parents=True, exist_ok=True)
-                DOCS_SHOT.write_bytes(page.screenshot())
+                DOCS_SHOT.write_bytes(shot)
         stdout = proc.stdout.read()
         proc.wait(120)
     finally:
