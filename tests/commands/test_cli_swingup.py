@@ -181,6 +181,7 @@ def test_view_on_a_screen_shows_exactly_the_logged_run(tmp_path):
     doc = json.loads(run.stdout)
     view = doc["viewer"]
     assert view is not None, run.stderr
+    assert "--view: a display is available, so the desktop window" in run.stderr and "url" not in view
     # the window showed the run itself, stepped in real time: what it showed is what was logged
     assert view["steps_shown"] == len(doc["rollout"]["ctrl"]) == 100 and view["frames"] >= 2
     assert view["closed_early"] is False and view["wall_time"] >= 0.45  # real time: 0.5 s simulated
