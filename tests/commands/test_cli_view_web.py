@@ -332,3 +332,16 @@ def test_ctrl_c_ends_the_live_run_cleanly_with_the_steps_kept(tmp_path):
     ro = doc["rollout"]
     assert 0 < len(ro["ctrl"]) < 60.0 / (ro["t"][1] - ro["t"][0])
     assert replays_exactly(Rollout(t=ro["t"], qpos=ro["qpos"], qvel=ro["qvel"], ctrl=ro["ctrl"]), doc["mjcf"])
+
+
+def test_another_host_than_localhost_is_warned_about_on_stderr(capsys):
+    import argparse
+
+    from cartpole.commands._view import view_mode
+
+    args = argparse.Namespace(view="web", port=0, host="0.0.0.0", live_seconds=30.0)
+    assert view_mode(args, "lqr") == "web"
+    err = capsys.readouterr().err
+    assert "warning: --host 0.0.0.0" in err and "no authentication" in err
+    args.host = "127.0.0.1"
+    assert view_mode(args, "lqr") == "web" and capsys.readouterr().err == ""
