@@ -148,6 +148,7 @@ def _center(rect, fx: float = 0.5):
     return x0 + fx * (x1 - x0), 0.5 * (y0 + y1)
 
 
+@pytest.mark.slow  # a browser rendering WebGL in software: 40 s to 3 min here, with the page's own start
 def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     binary = find_chromium()
     if binary is None:
@@ -265,6 +266,7 @@ def test_swingup_view_web_starts_with_the_page_and_closing_it_ends_the_run_with_
     assert replays_exactly(run, doc["mjcf"])
 
 
+@pytest.mark.slow  # the feedforward study plans first
 def test_feedforward_view_web_replays_its_runs_on_the_page_until_it_is_closed(tmp_path):
     """The logged runs replayed on one page (checked identical to the log); closing the page stops the showing and
     the command ends as usual, its JSON on stdout."""
