@@ -51,3 +51,14 @@ def test_the_status_names_the_law_and_the_rig(lab):
     assert lines[0].startswith("LQR (lqr on the continuous (A, B))")
     assert any("closed-loop eigenvalues" in line for line in lines)
     assert any("control period" in line for line in lines)
+
+
+def test_watch_returns_the_run_with_its_live_log_and_it_replays(capsys):
+    import cartpole as cp
+
+    run = cp.watch(duration=0.2, wait=False)  # nobody opens the page: the run goes on at real time
+    assert capsys.readouterr().out == ""
+    live = run.info["live"]
+    assert live["events"] == [] and live["url"].startswith("http://localhost:")
+    assert run.t[-1] == pytest.approx(0.2)
+    assert cp.sim.replays_exactly(run)
