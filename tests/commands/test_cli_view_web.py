@@ -63,6 +63,9 @@ def test_a_bad_live_length_is_one_sentence_and_exit_2(tmp_path):
     res = _run_cli(tmp_path, "--view", "web", "--live-seconds", "0")
     assert res.returncode == 2
     assert "--live-seconds" in res.stderr and "Traceback" not in res.stderr
+    res = _run_cli(tmp_path, "--view", "web", "--live-seconds", "1e9")  # too long a log to hold: refused, not run
+    assert res.returncode == 2 and res.stdout == ""
+    assert "the live run of 1e+09 s" in res.stderr and "Traceback" not in res.stderr
 
 
 def test_view_alone_without_a_display_chooses_the_page_and_says_so(tmp_path):
