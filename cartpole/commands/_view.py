@@ -73,9 +73,6 @@ def view_web(lab, args) -> dict | None:
     from cartpole.sim import replays_exactly
     from cartpole.viz.web import WebUnavailable
 
-    from cartpole.commands.swingup import check_log_size
-
-    check_log_size(args.live_seconds, lab.params, what=f"the live run of {args.live_seconds:g} s")
     try:
         run, live = watch_lab(lab, port=args.port, host=args.host, duration=args.live_seconds)
     except WebUnavailable as exc:

@@ -128,6 +128,8 @@ def run(args) -> dict:
 
         plan_model = plan_model_from(args.plan_mjcf, model)
     view = view_mode(args, "lqr")
+    if view == "web":
+        check_log_size(args.live_seconds, model.params, what=f"the live run of {args.live_seconds:g} s")
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model)
     live = None
     if view == "web":
