@@ -33,6 +33,7 @@ _EXPORTS = {
     "SHIPPED_MJCF": "cartpole.models", "CartPoleModel": "cartpole.models", "CartPoleParams": "cartpole.models",
     "MJCFError": "cartpole.models", "build_model": "cartpole.models", "read_params": "cartpole.models",
     "Rollout": "cartpole.sim", "replay": "cartpole.sim", "simulate": "cartpole.sim",
+    "watch": "cartpole.apps.live",
 }
 
 #: The exports that are subpackages themselves (every other export is a name inside its module).

@@ -269,3 +269,22 @@ except VideoUnavailable as err:
     print(err)
 print("the clip replays exactly with mj_step:", cp.sim.replays_exactly(clip))
 assert cp.sim.replays_exactly(clip)
+
+# %% [markdown]
+# ## Live in the browser: push it, tune it
+#
+# `cp.watch()` runs the same LQR live in MuJoCo Studio's web viewer and returns the rollout when the page is closed
+# (or the kernel interrupted): open the address it prints on stderr. The panel plots the pole's angle, the cart and
+# the ctrl against its range; the push buttons knock the cart (logged in the rollout's push column) and the Q and R
+# sliders re-design the gain from the exact model when released, the new closed-loop eigenvalues shown. On a remote
+# Jupyter server the page is bound to that machine's 127.0.0.1: tunnel it from your laptop with
+# `ssh -L 8080:localhost:PORT server` and open http://localhost:8080/ (see docs/live.md). The cell only runs by
+# hand (`LIVE = True`): it waits for you.
+
+# %%
+LIVE = False
+if LIVE:
+    run = cp.watch(duration=60.0)
+    print("events:", run.info["live"]["events"])
+    print("the live run replays exactly with mj_step:", cp.sim.replays_exactly(run))
+

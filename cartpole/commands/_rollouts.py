@@ -4,10 +4,12 @@ from __future__ import annotations
 import sys
 
 
-def show_logged(params, rollout, *, command: str):
+def show_logged(params, rollout, *, command: str, watcher=None):
     """Show ``rollout`` in MuJoCo's live viewer, in real time (:func:`cartpole.viz.viewer.watch`), by replaying its
     logged ctrl step for step from its first state; returns the rollout the viewer ran, or None without a display
     (its one sentence printed on stderr).
+
+    ``watcher`` replaces :func:`~cartpole.viz.viewer.watch` (the same call shape; e.g. a run on the web page).
 
     Raises
     ------
@@ -29,7 +31,8 @@ def show_logged(params, rollout, *, command: str):
     pushes = rollout.info.get("push") if isinstance(rollout.info, dict) else None
     push = None if pushes is None else (lambda t: float(pushes[min(last, int(round(t / h)))]))
     try:
-        shown = watch(params, logged_ctrl, rollout.x[0], float(rollout.t[-1]), push=push)
+        shown = (watch if watcher is None else watcher)(params, logged_ctrl, rollout.x[0], float(rollout.t[-1]),
+                                                        push=push)
     except ViewerUnavailable as exc:
         print(f"cartpole {command}: no live view: {first_line(exc)}.", file=sys.stderr)
         return None

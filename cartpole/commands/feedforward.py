@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from cartpole.commands._rollouts import rollout_doc, show_logged
+from cartpole.commands._rollouts import rollout_doc
 
 HELP = ("feedforward beside feedback: the trajopt swing-up's ctrl open loop vs feedforward + TVLQR, also planned "
         "with a wrong pole mass, in MuJoCo")
@@ -20,9 +20,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
                         help="plan the first swing-up (and its TVLQR) on this MJCF, e.g. one fitted by `cartpole "
                              "identify`, while MuJoCo runs --mjcf (the same joints, actuators and step)")
-    parser.add_argument("--view", action="store_true",
-                        help="show each run in MuJoCo's live viewer, in real time, one after the other (without a "
-                             "display: a note on stderr and the rest as usual)")
+    from cartpole.commands._view import add_view_arguments
+
+    add_view_arguments(parser, "show each run live, in real time, one after the other, replayed from its log (desktop "
+                               "without a display: a note on stderr and the rest as usual)")
     from cartpole.commands._limits import add_limit_arguments
     from cartpole.commands._rig import add_rig_arguments
 
@@ -59,13 +60,14 @@ def run(args) -> dict:
         from cartpole.models import build_model
 
         plan_model = bounded_model(plan_model_from(args.plan_mjcf, build_model(params)), limits)
+    from cartpole.commands._view import show_runs, view_mode
+
+    view = view_mode(args, "feedforward")
     study = run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
                             plan_model=plan_model)
     model = study.model
-    if args.view:
-        for r in study.runs.values():
-            if show_logged(params, r.rollout, command="feedforward") is None:
-                break  # no display: said once
+    if view:
+        show_runs(params, [r.rollout for r in study.runs.values()], view, args, command="feedforward")
     pct = f"{100 * mass_error:+g} %"
     true_label = (f"plan (MJCF's model), T = {study.plan.T:.2f} s" if plan_model is None else
                   f"plan ({Path(plan_model.params.mjcf).name}), T = {study.plan.T:.2f} s")

@@ -10,6 +10,7 @@ import numpy as np
 from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, friction_sentence,
                                     loop_from_args, rig_doc, smoothed_friction_sentence)
+from cartpole.commands._view import add_view_arguments, live_sentence, view_mode, view_web as _view_web
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -36,9 +37,9 @@ def add_arguments(parser) -> None:
                         help="also run the cascaded PID baseline (cartpole.control.pid) from the same five starts "
                              "in MuJoCo and print one table and one figure of both (one pole on a cart only; "
                              "elsewhere a note on stderr and the LQR lab as usual)")
-    parser.add_argument("--view", action="store_true",
-                        help="show the first start's LQR run live in MuJoCo's viewer (the run logged is the run "
-                             "shown); without a display a note on stderr and the rest as usual")
+    add_view_arguments(parser, "show the first start's LQR run live (desktop: the run logged is the run shown; web: a "
+                               "live run of its own, pushed and tuned from the page, in the JSON's live)",
+                       live_seconds=True)
     parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
                         help="design K on this MJCF (e.g. one fitted by `cartpole identify`) while MuJoCo runs "
                              "--mjcf (the same joints, actuators and step)")
@@ -144,8 +145,14 @@ def run(args) -> dict:
 
         plan_model = plan_model_from(args.plan_mjcf, model)
     R, ctrl_noise = ctrl_noise_weights(args, model, loop, Q, R)
+    view = view_mode(args, "lqr")
+    if view == "web":
+        check_log_size(args.live_seconds, model.params, what=f"the live run of {args.live_seconds:g} s")
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model, duration=duration)
-    if args.view:
+    live = None
+    if view == "web":
+        live = _view_web(result, args)
+    elif view:
         result = _view(result)
     pid = skipped = None
     if args.compare_pid:
@@ -236,8 +243,12 @@ def run(args) -> dict:
         doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
     if ctrl_noise is not None:
         doc["ctrl_noise"] = ctrl_noise
+    if live is not None:
+        doc["live"] = live
     if not args.json:
         _print_prose(result, doc, pid)
+        if live is not None:
+            print(live_sentence(live))
     return doc
 
 

@@ -7,7 +7,8 @@ import sys
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, design_friction, rig_fields,
                                     smoothed_friction_sentence)
-from cartpole.commands._rollouts import live_viewer, rollout_doc
+from cartpole.commands._rollouts import rollout_doc
+from cartpole.commands._view import add_view_arguments, live_view, web_summary
 
 HELP = ("swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, trajopt + TVLQR, or "
         "nonlinear MPC), optionally pushed and with a wrong planning model")
@@ -79,10 +80,8 @@ def add_arguments(parser) -> None:
                       "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
                       "designed for it")
     add_limit_arguments(parser)
-    parser.add_argument("--view", action="store_true",
-                        help="show the run in MuJoCo's live viewer, in real time: the logged ctrl replayed step "
-                             "for step, so the window shows exactly the run logged (checked); without a display "
-                             "a one-line note on stderr and the rest as usual")
+    add_view_arguments(parser, "show the run live, in real time, as it is logged (desktop without a display: a "
+                               "one-line note on stderr and the rest as usual)")
     parser.add_argument("--no-video", action="store_true", help="do not render videos/swingup_<method>.mp4")
 
 
@@ -276,7 +275,7 @@ def run(args) -> dict:
     default = {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(args.method)
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
         {"simulate": f"{default:g} s"} if default is not None else {})
-    viewer = live_viewer("swingup") if args.view else None
+    viewer = live_view("swingup", args)
     try:
         res = run_swingup(model, method=args.method, x0=None if args.x0 is None else x0, plan=plan, loop=loop,
                           mpc=mpc, progress=_Stages(sizes), on_step=viewer, plan_model=plan_model,
@@ -338,7 +337,7 @@ def run(args) -> dict:
     if args.view:
         doc["viewer"] = None if viewer is None else {
             "frames": viewer.frames, "closed_early": viewer.closed, "wall_time": viewer.wall_time,
-            "steps_shown": len(res.rollout.ctrl)}
+            "steps_shown": len(res.rollout.ctrl), **web_summary(viewer)}
     # the settings each stage ran with (PlanOptions, LoopOptions, MPCOptions .as_dict())
     doc["options"] = {name: opts.as_dict() for name, opts in res.options.items()}
     if not args.json:

@@ -82,7 +82,7 @@ def test_a_swingup_the_optimiser_cannot_plan_ends_with_its_one_sentence(tmp_path
 def test_view_without_a_display_says_so_once_and_runs_as_usual(tmp_path, monkeypatch, capsys):
     for var in ("DISPLAY", "WAYLAND_DISPLAY", "XDG_SESSION_TYPE"):
         monkeypatch.delenv(var, raising=False)
-    assert main(["feedforward", "--view", "--json", "--no-video", "--out", str(tmp_path)]) == 0
+    assert main(["feedforward", "--view", "desktop", "--json", "--no-video", "--out", str(tmp_path)]) == 0
     cap = capsys.readouterr()
     doc = json.loads(cap.out)
     assert set(doc["runs"]) == set(RUNS)

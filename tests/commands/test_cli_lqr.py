@@ -378,14 +378,15 @@ def test_compare_pid_on_a_two_pole_cart_is_a_note_and_the_lqr_lab_runs_as_usual(
     assert (tmp_path / "metrics" / "metrics.csv").is_file()
 
 
-# ---- --view without a display: the viewer's sentence on stderr, the rest as usual ------------------------------
+# ---- --view desktop without a display: the viewer's sentence on stderr, the rest as usual ----------------------
+# (--view alone there picks the web page: tests/commands/test_cli_view_web.py)
 
 def test_view_without_a_display_says_so_and_writes_every_output(tmp_path, capsys, monkeypatch):
     from cartpole.sim import Rollout, replays_exactly
 
     for var in ("DISPLAY", "WAYLAND_DISPLAY"):
         monkeypatch.delenv(var, raising=False)
-    assert main(["lqr", "--json", "--no-video", "--view", "--out", str(tmp_path)]) == 0
+    assert main(["lqr", "--json", "--no-video", "--view", "desktop", "--out", str(tmp_path)]) == 0
     cap = capsys.readouterr()
     doc = json.loads(cap.out)
     lines = cap.err.strip().splitlines()

@@ -137,7 +137,8 @@ def test_view_without_a_display_says_so_in_one_line_and_runs_as_usual(tmp_path, 
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.delenv("XDG_SESSION_TYPE", raising=False)
-    assert main(["swingup", "--view", "--json", "--no-video", "--duration", "0.5", "--out", str(tmp_path)]) == 0
+    assert main(["swingup", "--view", "desktop", "--json", "--no-video", "--duration", "0.5", "--out",
+                 str(tmp_path)]) == 0
     cap = capsys.readouterr()
     doc = json.loads(cap.out)
     assert doc["viewer"] is None and len(doc["rollout"]["ctrl"]) == 100
@@ -180,6 +181,7 @@ def test_view_on_a_screen_shows_exactly_the_logged_run(tmp_path):
     doc = json.loads(run.stdout)
     view = doc["viewer"]
     assert view is not None, run.stderr
+    assert "--view: a display is available, so the desktop window" in run.stderr and "url" not in view
     # the window showed the run itself, stepped in real time: what it showed is what was logged
     assert view["steps_shown"] == len(doc["rollout"]["ctrl"]) == 100 and view["frames"] >= 2
     assert view["closed_early"] is False and view["wall_time"] >= 0.45  # real time: 0.5 s simulated

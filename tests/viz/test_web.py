@@ -1,0 +1,77 @@
+"""cartpole.viz.web without a browser: Studio's web viewer serves the run on 127.0.0.1 only, keeps stdout clean, the
+page's pushes become pulses in the rollout's push column and the run replays exactly; a taken port is one sentence."""
+from __future__ import annotations
+
+import socket
+import urllib.request
+
+import numpy as np
+import pytest
+
+from cartpole.models import SHIPPED_MJCF
+from cartpole.sim import replays_exactly, simulate
+from cartpole.viz.web import PUSH_SECONDS, WebLive, WebUnavailable, port_free
+
+
+def _zero(t, x):
+    return np.zeros(1)
+
+
+def test_a_run_served_headless_logs_the_pages_push_and_replays(capsys):
+    live = WebLive(wait=False, realtime=False)
+    served = {}
+
+    def on_step(m, d):
+        going = live(m, d)
+        k = int(round(d.time / m.opt.timestep))
+        if k == 1:
+            served["page"] = urllib.request.urlopen(live.url, timeout=30).status
+            served["lan"] = _reachable_off_loopback(live.port)
+            live._push_from_page(7.5)  # what the panel's push button sends, received on the sim thread
+        return going
+
+    try:
+        run = simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.3, push=live.push, on_step=on_step)
+    finally:
+        live.close()
+    assert capsys.readouterr().out == ""  # Studio's banner went to stderr
+    assert served["page"] == 200 and served["lan"] is False
+    h = run.t[1] - run.t[0]
+    forces = run.info["push"]
+    assert np.count_nonzero(forces) == int(round(PUSH_SECONDS / h))
+    assert set(forces[forces != 0]) == {7.5}
+    assert [e["kind"] for e in live.events] == ["push"] and live.events[0]["force"] == 7.5
+    assert replays_exactly(run)
+    assert live.frames > 0
+
+
+def _reachable_off_loopback(port: int) -> bool:
+    """Can the port be reached on this machine's own non-loopback address (None when it has none)?"""
+    try:
+        addr = socket.gethostbyname(socket.gethostname())
+    except OSError:
+        return None
+    if addr.startswith("127."):
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.connect(("10.255.255.255", 1))
+                addr = s.getsockname()[0]
+            except OSError:
+                return None
+    if addr.startswith("127."):
+        return None
+    with socket.socket() as s:
+        s.settimeout(2)
+        return s.connect_ex((addr, port)) == 0
+
+
+def test_a_taken_port_is_one_sentence():
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        assert not port_free("127.0.0.1", port)
+        live = WebLive(port=port, wait=False)
+        with pytest.raises(WebUnavailable, match=f"Port {port} on 127.0.0.1 is in use"):
+            simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.01, on_step=live)
+        live.close()
