@@ -391,6 +391,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
     model = model if model is not None else build_model(params)
     check_upright_reachable(model)
+    model.contacts.check_swingup()  # geoms that touch on the way up (cartpole.models.contacts): refused, named
     check_plan_size(model, method)
     x0 = check_start(model.x_hanging if x0 is None else x0, params)
     check_push(loop.push, params)  # a push needs a cart

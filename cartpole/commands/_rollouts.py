@@ -41,10 +41,13 @@ def show_logged(params, rollout, *, command: str):
 
 def rollout_doc(rollout) -> dict:
     """The JSON contract's rollout: ``t``, ``qpos``, ``qvel`` (n+1 rows), ``ctrl`` (n rows) and ``push`` (n entries:
-    the world-x force in N on the cart during each step; zeros when nothing pushed)."""
+    the world-x force in N on the cart during each step; zeros when nothing pushed), and ``contact``: None, or the
+    first contact MuJoCo found (``t``, ``geom1``, ``geom2``, ``dist``, ``steps`` in contact) when the run touched."""
     doc = rollout.to_dict()
-    push = rollout.info.get("push") if isinstance(rollout.info, dict) else None
+    info = rollout.info if isinstance(rollout.info, dict) else {}
+    push = info.get("push")
     doc.setdefault("push", [0.0] * len(doc["ctrl"]) if push is None else [float(f) for f in push])
+    doc.setdefault("contact", info.get("contact"))
     return doc
 
 

@@ -164,14 +164,24 @@ class ContactReport:
 
     def summary(self) -> str:
         """One sentence for the prose output: how many pairs can collide and which can touch."""
-        if not self.enabled:
+        return ContactReport.sentence(self.to_dict())
+
+    @staticmethod
+    def sentence(doc: dict) -> str:
+        """:meth:`summary` of a report's :meth:`to_dict` (as the JSON holds it)."""
+        if not doc["enabled"]:
             return "Contacts: disabled in the MJCF."
-        if not self.pairs:
+        pairs = doc["pairs"]
+        if not pairs:
             return "Contacts: no geom pair can collide (contype/conaffinity)."
-        never = self.of_class("never")
-        parts = [f"{len(never)} of {len(self.pairs)} collidable geom pair(s) can never touch"]
-        for p in self.reachable:
-            parts.append(f"'{p.geom1}' and '{p.geom2}' touch {p.where}")
+        never = [p for p in pairs if p["classification"] == "never"]
+        parts = [f"{len(never)} of {len(pairs)} collidable geom pair(s) can never touch"
+                 f" (margin {doc['margin'] * 1e3:g} mm)"]
+        for p in pairs:
+            if p["classification"] != "never":
+                parts.append(f"'{p['geom1']}' and '{p['geom2']}' touch "
+                             + ("at upright" if p["classification"] == "at_equilibrium"
+                                else f"away from upright ({p['where']})"))
         return "Contacts: " + "; ".join(parts) + "."
 
     def check_swingup(self) -> None:
@@ -185,18 +195,16 @@ class ContactReport:
         for p in self.reachable:
             where = f"MJCF '{self.mjcf}'" if self.mjcf else "The MJCF"
             raise ContactError(
-                f"{where} lets geoms '{p.geom1}' and '{p.geom2}' touch on the way up (they meet {p.where}, "
-                f"{max(0.0, -p.min_clearance):.3g} m deep at worst; not at upright, so balancing with cartpole lqr "
-                f"works) and the swing-up's model has no contacts; {_fix(p, max(0.0, -p.min_clearance))}.")
+                f"{where}: geoms '{p.geom1}' and '{p.geom2}' touch on the way up ({p.where}), not at upright; "
+                f"{_fix(p, max(0.0, -p.min_clearance))}.")
 
 
 def _fix(p: ContactPair, depth: float) -> str:
     """The edit that separates the pair, as the end of a sentence."""
     clear = depth + p.threshold
     if p.explicit:
-        return f"remove the <pair> of '{p.geom1}' and '{p.geom2}' or move body '{p.body2}' {clear:.3g} m clear"
-    return (f"give geom '{p.geom1}' contype=\"0\" conaffinity=\"0\" (it then collides with nothing) or move body "
-            f"'{p.body2}' at least {clear:.3g} m clear of it{' (e.g. raise the rail)' if p.static1 else ''}")
+        return f"remove their <pair> or move body '{p.body2}' {clear:.3g} m clear"
+    return f"give '{p.geom1}' contype=\"0\" conaffinity=\"0\" or move body '{p.body2}' {clear:.3g} m clear"
 
 
 # ---- the compiled model and its collision candidates ---------------------------------------------------------------
@@ -503,20 +511,20 @@ def _describe(m, pair: _Pair, dist: _Distance, at: np.ndarray, q_eq, q_hang) -> 
     name = _jname(m, j)
     others = [f"'{_jname(m, jj)}' at {round(float(at[ii]), 4) + 0.0:.3g} {'m' if m.jnt_type[jj] == mujoco.mjtJoint.mjJNT_SLIDE else 'rad'}"
               for ii, jj in enumerate(pair.joints) if ii != i]
-    tail = f" (with {', '.join(others)})" if others else ""
+    tail = f", {', '.join(others)}" if others else ""
     if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-        return f"with the cart slide '{name}' between {left:.3g} and {right:.3g} m{tail}"
+        return f"slide '{name}' between {left:.3g} and {right:.3g} m{tail}"
     adr = int(pair.qadr[i])
     full = a == 0 and b == len(grid) - 1
     if full:
-        return f"at every angle of hinge '{name}'{tail}"
+        return f"hinge '{name}' at any angle{tail}"
     ref, ref_name = (float(q_hang[adr]), "hanging") if q_hang is not None else (float(q_eq[adr]), "upright")
     if turn:  # the same angle one turn on: offsets from the reference's copy nearest the witness
         ref += 2 * np.pi * round((at[i] - ref) / (2 * np.pi))
     lo_off, hi_off = left - ref, right - ref
     if lo_off <= 0 <= hi_off and abs(lo_off + hi_off) < 1e-3 * max(1.0, hi_off - lo_off):
-        return f"with hinge '{name}' within {hi_off:.2f} rad of {ref_name}{tail}"
-    return f"with hinge '{name}' between {lo_off:+.2f} and {hi_off:+.2f} rad from {ref_name}{tail}"
+        return f"hinge '{name}' within {hi_off:.2f} rad of {ref_name}{tail}"
+    return f"hinge '{name}' {lo_off:+.2f} to {hi_off:+.2f} rad from {ref_name}{tail}"
 
 
 def _ranges(m, q_eq, cart_range, cart_adr):
@@ -667,5 +675,5 @@ def check_equilibrium_contacts(params: CartPoleParams, x_eq) -> None:
             depth = max(0.0, -dist)
             how = (f"{depth:.3g} m deep" if depth > 1e-6
                    else f"{max(dist, 0.0):.2g} m apart, inside the {p.threshold:g} m margin")
-            raise ContactError(f"{where} has geoms '{p.geom1}' and '{p.geom2}' in contact at the upright equilibrium "
-                               f"({how}) and the toolkit's model has no contacts; {_fix(p, depth)}.")
+            raise ContactError(f"{where}: geoms '{p.geom1}' and '{p.geom2}' touch at the upright equilibrium ({how}) "
+                               f"and the model has no contacts; {_fix(p, depth)}.")

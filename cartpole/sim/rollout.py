@@ -285,7 +285,9 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         velocity, acceleration or ctrl; it then resets the state), else None, and ``info["diverged_warning"]`` names
         that warning (``"BADQACC"`` ...). The run stops there: that step (MuJoCo's reset state) is the last logged,
         so the log still replays exactly, and no success test may count the run
-        (:func:`cartpole.validation.metrics.diverged`).
+        (:func:`cartpole.validation.metrics.diverged`). The file's contacts stay on as written: ``info["contact"]`` is
+        None when MuJoCo found no contact in any step, else the first one (:func:`first_contact`: ``t``, ``geom1``,
+        ``geom2``, ``dist``) and ``steps``, the number of steps that ended in contact.
     """
     import mujoco
 
@@ -321,6 +323,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     forces = np.zeros(n) if push is not None else None
     watch = WarningWatch(d)
     diverged, warning = None, None
+    contact, touching = None, 0
     if on_step is not None and on_step(m, d) is False:  # the start state too (a viewer opens on it)
         n = last = 0
     for k in range(n):
@@ -345,6 +348,10 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         t[k + 1] = (k + 1) * h
         qpos[k + 1] = d.qpos
         qvel[k + 1] = d.qvel
+        if d.ncon:  # the file's contacts are kept as written: a run that touches says so
+            touching += 1
+            if contact is None:
+                contact = first_contact(m, d, (k + 1) * h)
         warning = watch.fired(d)
         if warning is not None:  # MuJoCo reset a blown-up state: the run ends here, diverged
             diverged, last = (k + 1) * h, k + 1
@@ -363,9 +370,20 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     info = {} if forces is None else {"push": forces[:last].copy()}
     info["diverged"] = diverged
     info["diverged_warning"] = warning
+    info["contact"] = None if contact is None else {**contact, "steps": touching}
     kw = {} if samples is None else samples.arrays(last * h)
     return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
                    mjcf=source_path(source), info=info, **kw)
+
+
+def first_contact(m, d, t: float) -> dict:
+    """The first of MuJoCo's active contacts in ``d`` as a JSON-ready dict: ``t`` (s), ``geom1``, ``geom2`` (names, or
+    ``"geom N"``) and ``dist`` (m, negative when penetrating)."""
+    import mujoco
+
+    c = d.contact[0]
+    name = lambda g: mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"geom {int(g)}"  # noqa: E731
+    return {"t": float(t), "geom1": name(c.geom1), "geom2": name(c.geom2), "dist": float(c.dist)}
 
 
 class _Samples:
@@ -430,6 +448,7 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None) -
     qpos[0], qvel[0] = d.qpos, d.qvel
     watch = WarningWatch(d)
     diverged, warning = None, None
+    contact, touching = None, 0
     for k in range(n):
         if forces is not None:
             d.xfrc_applied[cart, 0] = forces[k]
