@@ -287,10 +287,12 @@ def _contacts_line(doc) -> str:
 
 def _rollout_dict(run) -> dict:
     """A rollout in the swing-up's JSON contract: ``t``, ``qpos``, ``qvel``, ``ctrl`` and ``push`` (zeros: the lab
-    pushes nothing), so it replays with ``mj_step``."""
+    pushes nothing), so it replays with ``mj_step``; ``contact`` (MuJoCo's first contact) only when the run touched."""
     d = run.to_dict()
     d.setdefault("push", [0.0] * int(run.ctrl.shape[0]))
-    d.setdefault("contact", run.info.get("contact") if isinstance(run.info, dict) else None)
+    contact = run.info.get("contact") if isinstance(run.info, dict) else None
+    if contact is not None:  # only a run that touched has the key
+        d["contact"] = contact
     return d
 
 

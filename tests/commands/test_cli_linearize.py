@@ -13,7 +13,8 @@ from cartpole.models import SHIPPED_MJCF, build_model
 def test_linearize_json_follows_the_contract(capsys):
     assert main(["linearize", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd", "period", "steps"}
+    assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd", "period", "steps", "model"}
+    assert doc["model"]["contacts"]["enabled"] is False and doc["model"]["contacts"]["pairs"] == []
     assert doc["period"] == doc["dt"] and doc["steps"] == 1
     assert Path(doc["mjcf"]).is_absolute() and Path(doc["mjcf"]) == SHIPPED_MJCF
     assert doc["dt"] == 0.005 and doc["integrator"] == "Euler"
