@@ -193,6 +193,8 @@ class ContactReport:
             One sentence naming the first such pair, where it touches and the edit that keeps it clear.
         """
         for p in self.reachable:
+            if p.classification == "at_equilibrium":
+                raise _equilibrium_error(self.mjcf, p)
             where = f"MJCF '{self.mjcf}'" if self.mjcf else "The MJCF"
             raise ContactError(
                 f"{where}: geoms '{p.geom1}' and '{p.geom2}' touch on the way up ({p.where}), not at upright; "
@@ -210,11 +212,13 @@ def _fix(p: ContactPair, depth: float) -> str:
 # ---- the compiled model and its collision candidates ---------------------------------------------------------------
 @functools.lru_cache(maxsize=16)
 def _compiled(mjcf: str, xml: str):
+    """The compiled model of a file (its path, so includes and meshes resolve) keyed also by the text read, so a file
+    edited since is compiled again."""
     return load_model(mjcf or None, xml=None if mjcf else xml)[0]
 
 
 def _mj(params: CartPoleParams):
-    return _compiled(params.mjcf, params.xml if not params.mjcf else "")
+    return _compiled(params.mjcf, params.xml)
 
 
 def _gname(m, g: int) -> str:
@@ -571,7 +575,7 @@ def contact_report(params: CartPoleParams, x_eq, *, x_hanging=None, cart_range=N
     q_eq = tuple(float(v) for v in np.asarray(x_eq, float).ravel()[:params.nq])
     q_h = None if x_hanging is None else tuple(float(v) for v in np.asarray(x_hanging, float).ravel()[:params.nq])
     cr = None if cart_range is None else tuple(float(v) for v in cart_range)
-    return _report(params.mjcf, params.xml if not params.mjcf else "", q_eq, q_h, cr)
+    return _report(params.mjcf, params.xml, q_eq, q_h, cr)
 
 
 @functools.lru_cache(maxsize=32)
@@ -671,9 +675,14 @@ def check_equilibrium_contacts(params: CartPoleParams, x_eq) -> None:
                             clearance_bound=dist, upright_clearance=dist, qpos=tuple(q_eq), where=None, joints=(),
                             explicit=explicit, certified=True, threshold=margin + CONTACT_MARGIN,
                             static1=bool(m.body_weldid[m.geom_bodyid[g1]] == 0))
-            where = f"MJCF '{params.mjcf}'" if params.mjcf else "The MJCF"
-            depth = max(0.0, -dist)
-            how = (f"{depth:.3g} m deep" if depth > 1e-6
-                   else f"{max(dist, 0.0):.2g} m apart, inside the {p.threshold:g} m margin")
-            raise ContactError(f"{where}: geoms '{p.geom1}' and '{p.geom2}' touch at the upright equilibrium ({how}) "
-                               f"and the model has no contacts; {_fix(p, depth)}.")
+            raise _equilibrium_error(params.mjcf, p)
+
+
+def _equilibrium_error(mjcf: str, p: ContactPair) -> ContactError:
+    """The one sentence for a pair in contact at the upright equilibrium."""
+    where = f"MJCF '{mjcf}'" if mjcf else "The MJCF"
+    depth = max(0.0, -p.upright_clearance)
+    how = (f"{depth:.3g} m deep" if depth > 1e-6
+           else f"{max(p.upright_clearance, 0.0):.2g} m apart, inside the {p.threshold:g} m margin")
+    return ContactError(f"{where}: geoms '{p.geom1}' and '{p.geom2}' touch at the upright equilibrium ({how}) and the "
+                        f"model has no contacts; {_fix(p, depth)}.")
