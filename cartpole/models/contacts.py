@@ -18,7 +18,10 @@ to the other, with a Lipschitz bound per joint (a point of a geom moves at most 
 the length of the rigid chain from the hinge's axis to the geom's bounding sphere; 1 m per m of a slide). A box
 whose centre's distance minus ``sum_j L_j h_j`` (half-widths ``h_j``) stays at or above the margin cannot touch
 anywhere in it. So a pair reported ``never`` is at least ``CONTACT_MARGIN / 2`` apart everywhere in the set (to within
-MuJoCo's own distance accuracy), and a pair reported touching has a configuration closer than the margin. The
+MuJoCo's own distance accuracy), and a pair reported touching has a configuration closer than the margin. In a
+planar model (every hinge axis parallel, every slide across it) each geom's extent across the plane of motion is the
+same in every configuration, so a pair whose extents there are farther apart than the margin (a rail beside the cart,
+a stop beside the poles) is cleared by that gap alone, without a search. The
 margin, :data:`CONTACT_MARGIN` (1 mm) on top of the geoms' own ``margin``, makes numerically grazing pairs count.
 """
 from __future__ import annotations
@@ -37,7 +40,7 @@ from cartpole.models.params import CartPoleParams, MJCFError, load_model
 CONTACT_MARGIN = 1e-3
 
 #: Most distance evaluations the search spends on one pair before it stops (then ``certified`` is False).
-MAX_EVALUATIONS = 20000
+MAX_EVALUATIONS = 5000
 
 #: Distance evaluations spent, once a pair is found touching, on finding a deeper touch (best first).
 DEEPEN_EVALUATIONS = 200
@@ -593,11 +596,16 @@ def _report(mjcf: str, xml: str, q_eq: tuple, q_hang: tuple | None, cart_range: 
     d0.qpos[:] = q_eq
     mujoco.mj_kinematics(m, d0)
     dist = _Distance(m, q_eq)
+    normal = _motion_normal(m, d0)
     pairs = []
     for g1, g2, margin, explicit in candidate_pairs(m):
         pair = _Pair(m, d0, g1, g2, margin, explicit, q_eq, lows, highs)
         at_up = dist(pair, np.asarray(q_eq)[pair.qadr])
-        best, best_at, bound, done = _search(pair, dist)
+        gap = _plane_gap(m, d0, pair, normal)
+        if gap >= pair.threshold:  # apart across the plane of motion in every configuration: no search needed
+            best, best_at, bound, done = at_up, np.asarray(q_eq)[pair.qadr], gap, True
+        else:
+            best, best_at, bound, done = _search(pair, dist)
         if len(pair.joints):
             if q_hang is not None:  # hanging is where a floor is nearest: descend from there too
                 seed = np.clip(np.asarray(q_hang)[pair.qadr], pair.lo, pair.hi)
@@ -627,6 +635,68 @@ def _report(mjcf: str, xml: str, q_eq: tuple, q_hang: tuple | None, cart_range: 
             threshold=pair.threshold, static1=bool(m.body_weldid[m.geom_bodyid[pair.g1]] == 0)))
     return ContactReport(mjcf=mjcf, enabled=enabled, margin=CONTACT_MARGIN, cart_range=searched, pairs=tuple(pairs),
                          seconds=time.perf_counter() - t0, evaluations=dist.calls)
+
+
+def _motion_normal(m, d0):
+    """The unit normal of the plane every point moves in, when the model is planar (every hinge axis parallel to it,
+    every slide axis perpendicular), else None."""
+    import mujoco
+
+    hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    if not hinges:
+        return None
+    n = np.asarray(d0.xaxis[hinges[0]], float)
+    n = n / np.linalg.norm(n)
+    for j in range(m.njnt):
+        a = np.asarray(d0.xaxis[j], float)
+        a = a / np.linalg.norm(a)
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and abs(abs(a @ n) - 1.0) > 1e-9:
+            return None
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE and abs(a @ n) > 1e-9:
+            return None
+    return n
+
+
+def _extent(m, d0, g: int, n) -> tuple:
+    """The interval ``[lo, hi]`` (m) of ``x . n`` over geom ``g``'s points at the configuration of ``d0``; in a
+    planar model with normal ``n`` it is the same in every configuration (rotations about ``n``, slides across it).
+    ``(-inf, inf)`` for a plane not perpendicular to ``n`` and for types without a closed form (meshes, height
+    fields, SDFs use their bounding sphere)."""
+    import mujoco
+
+    G = mujoco.mjtGeom
+    c = np.asarray(d0.geom_xpos[g], float) @ n
+    R = np.asarray(d0.geom_xmat[g], float).reshape(3, 3)
+    size = np.asarray(m.geom_size[g], float)
+    local = R.T @ n  # n in the geom's frame
+    t = int(m.geom_type[g])
+    if t == G.mjGEOM_PLANE:
+        if abs(abs(local[2]) - 1.0) > 1e-12:
+            return -math.inf, math.inf
+        return (-math.inf, c) if local[2] > 0 else (c, math.inf)  # the solid side is below the plane
+    if t == G.mjGEOM_SPHERE:
+        r = size[0]
+    elif t == G.mjGEOM_CAPSULE:
+        r = size[0] + size[1] * abs(local[2])
+    elif t == G.mjGEOM_CYLINDER:
+        r = size[1] * abs(local[2]) + size[0] * math.sqrt(max(0.0, 1.0 - local[2] ** 2))
+    elif t == G.mjGEOM_BOX:
+        r = float(np.abs(local) @ size)
+    elif t == G.mjGEOM_ELLIPSOID:
+        r = float(np.linalg.norm(size * local))
+    else:
+        r = float(m.geom_rbound[g]) if m.geom_rbound[g] > 0 else math.inf
+    return c - r, c + r
+
+
+def _plane_gap(m, d0, pair: "_Pair", normal) -> float:
+    """m between the two geoms' extents across the plane of motion (``-inf`` when the model is not planar or they
+    overlap there): a lower bound of their distance in every configuration."""
+    if normal is None:
+        return -math.inf
+    lo1, hi1 = _extent(m, d0, pair.g1, normal)
+    lo2, hi2 = _extent(m, d0, pair.g2, normal)
+    return float(max(lo2 - hi1, lo1 - hi2))
 
 
 def _root_body(m, g: int) -> str:

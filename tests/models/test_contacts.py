@@ -198,3 +198,15 @@ def test_a_run_that_touches_says_so_and_is_no_swing_up_success(tmp_path):
     assert swingup_metrics(run, model)["contact"] == c and not swingup_metrics(run, model)["success"]
     clear = simulate(model.params, lambda t, x: np.zeros(model.nu), model.x_eq, 0.1)
     assert touched(clear) is None
+
+
+def test_a_rail_beside_the_plane_of_motion_is_cleared_by_its_offset_alone(tmp_path):
+    """dm_control's layout: rails along the track beside the cart, at y = +-0.1 (radius 0.02), the pole swinging in
+    the x-z plane at y = 0."""
+    rails = ''.join(f'<geom name="rail{i}" type="capsule" fromto="-2 {y} 0.8 2 {y} 0.8" size="0.02"/>'
+                    for i, y in ((1, 0.1), (2, -0.1)))
+    report = build_model(mjcf(tmp_path, extra=rails)).contacts
+    for name in ("rail1", "rail2"):
+        p = pair(report, name, "pole_geom")
+        assert p.classification == "never" and p.certified
+        assert p.clearance_bound == pytest.approx(0.1 - 0.02 - RADIUS, abs=1e-9)  # their gap across the plane
