@@ -402,6 +402,7 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     model = model if model is not None and model.params is params else build_model(params)
     plan_model = None if plan_model is None else bounded_model(plan_model, limits)
     check_upright_reachable(model)
+    model.contacts.check_swingup()  # geoms that touch on the way up (cartpole.models.contacts): refused, named
     check_plan_size(model, method)
     x0, moves = start_on_range(model.x_hanging, params) if x0 is None else (x0, ())
     x0 = check_start(x0, params)

@@ -23,9 +23,10 @@ def run(args) -> dict:
 
     JSON: ``mjcf``, ``dt`` (s), ``integrator``, ``x_eq`` (2 nq,), ``u_eq`` (nu,), ``A`` (2 nq, 2 nq), ``B``
     (2 nq, nu), ``Ad``, ``Bd`` (one step of the MJCF's integrator, or with ``--period`` the held steps of the
-    period), ``period`` (s), ``steps`` (MJCF steps per period) and ``smoothed_friction`` (one entry per joint with
+    period), ``period`` (s), ``steps`` (MJCF steps per period), ``smoothed_friction`` (one entry per joint with
     ``frictionloss``, which the symbolic model holds as the smooth ``-frictionloss tanh(qvel / width)``:
-    :func:`cartpole.models.friction_treatment`; empty without friction).
+    :func:`cartpole.models.friction_treatment`; empty without friction) and ``model`` {``contacts``: the file's geom
+    pairs by whether they can touch, :meth:`cartpole.models.ContactReport.to_dict`}.
     """
     from cartpole.commands._state import state_sentence
     from cartpole.errors import CartPoleError
@@ -44,11 +45,13 @@ def run(args) -> dict:
     doc = {"mjcf": model.params.mjcf, "dt": lin["dt"], "integrator": lin["integrator"], "x_eq": lin["x_eq"],
            "u_eq": lin["u_eq"], "A": lin["A"], "B": lin["B"], "Ad": lin["Ad"], "Bd": lin["Bd"],
            "period": steps * lin["dt"], "steps": steps,
-           "smoothed_friction": friction_treatment(model.params, width=model.friction_width)}
+           "smoothed_friction": friction_treatment(model.params, width=model.friction_width),
+           "model": {"contacts": model.contacts.to_dict()}}
     if not args.json:
         with np.printoptions(precision=6, suppress=True, linewidth=100):
             print(f"MJCF: {doc['mjcf']}")
             print(state_sentence(model.params))
+            print(model.contacts.summary())
             print("Upright equilibrium (computed): x_eq =", lin["x_eq"], " u_eq =", lin["u_eq"])
             print("Continuous, at upright rest: d(x - x_eq)/dt = A (x - x_eq) + B (u - u_eq)")
             print("A =\n", lin["A"])

@@ -238,6 +238,7 @@ def run(args) -> dict:
         "smoothed_friction": lab_friction(model, result.friction_compensation),
         "estimation": result.estimation,
         "estimation_figure": est_figure,
+        "model": {"contacts": model.contacts.to_dict()},
     }
     if args.compare_pid:
         doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
@@ -309,11 +310,25 @@ def _margin(args, model, loop, key: str) -> dict:
     return doc
 
 
+def _contacts_line(doc) -> str:
+    """The prose line about the file's contacts (its pairs by reachability) and any run that touched."""
+    from cartpole.models import ContactReport
+
+    line = ContactReport.sentence(doc["model"]["contacts"])
+    touched = [i for i, r in enumerate(doc["rollouts"], 1) if r.get("contact")]
+    if touched:
+        line += f" MuJoCo found contacts in the run(s) from IC {', '.join(map(str, touched))}."
+    return line
+
+
 def _rollout_dict(run) -> dict:
     """A rollout in the swing-up's JSON contract: ``t``, ``qpos``, ``qvel``, ``ctrl`` and ``push`` (zeros: the lab
-    pushes nothing), so it replays with ``mj_step``."""
+    pushes nothing), so it replays with ``mj_step``; ``contact`` (MuJoCo's first contact) only when the run touched."""
     d = run.to_dict()
     d.setdefault("push", [0.0] * int(run.ctrl.shape[0]))
+    contact = run.info.get("contact") if isinstance(run.info, dict) else None
+    if contact is not None:  # only a run that touched has the key
+        d["contact"] = contact
     return d
 
 
@@ -399,6 +414,7 @@ def _print_prose(result, doc, pid=None) -> None:
     with np.printoptions(precision=4, suppress=True, linewidth=100):
         print(f"MJCF: {result.mjcf}")
         print(state_sentence(p))
+        print(_contacts_line(doc))
         print("Upright equilibrium: x* =", result.x_eq, " u* =", result.u_eq)
         print("Linearized system at upright rest (exact, symbolic): d(x - x*)/dt = A (x - x*) + B (u - u*)")
         print("A =\n", result.A)

@@ -203,6 +203,7 @@ def run(args) -> dict:
     model = build_model(args.mjcf)
     params = model.params
     check_upright_reachable(model)
+    model.contacts.check_swingup()  # a pair that touches on the way up: refused, named, before anything runs
     check_plan_size(model, args.method)
     x0 = check_start(start_on_range(model.x_hanging, params)[0] if args.x0 is None else args.x0, params)
     duration = check_duration(args.duration, params)
@@ -310,6 +311,7 @@ def run(args) -> dict:
            "diverged": bool(m["diverged"]), "diverged_at": m["diverged_at"], "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
+    doc["model"] = {"contacts": model.contacts.to_dict()}
     doc["push"] = [list(p) for p in res.push]
     doc["rig"] = m.get("rig")
     doc["friction"] = m.get("friction")
@@ -349,7 +351,12 @@ def run(args) -> dict:
             f", designed on {plan_model.params.mjcf}" if plan_model is not None else "")
         print(f"Swing-up ({args.method}) from x0 = {list(map(float, x0))}{scenario}: "
               f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
-              "limits, ctrl in range)")
+              "limits, ctrl in range, no contact)")
+        print(model.contacts.summary())
+        if m.get("contact"):
+            c = m["contact"]
+            print(f"CONTACT: MuJoCo found geoms '{c['geom1']}' and '{c['geom2']}' touching at t = {c['t']:.3f} s "
+                  f"({c['steps']} step(s) in contact); the run is not a clean swing-up")
         if m["diverged"]:
             print(f"DIVERGED: MuJoCo warned that the simulation blew up ({m['diverged_warning']}) at "
                   f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")

@@ -8,6 +8,8 @@ from cartpole.models.friction import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRI
                                       friction_constraint, smooth_friction)
 from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_kinematics_np, quat_to_mat
 from cartpole.models.discretize import MAX_PERIOD, HoldModel, PeriodError, hold_model, steps_per_period
+from cartpole.models.contacts import (CONTACT_MARGIN, ContactError, ContactPair, ContactReport,
+                                      check_equilibrium_contacts, contact_report)
 from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equations, linearize, state_error,
                                       wrap_angle)
 from cartpole.models.limits import (START_SNAP, LimitsError, PlanningLimits, StartMove, bounded_model, chain_length,
@@ -20,6 +22,7 @@ __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError
            "Kinematics", "forward_kinematics", "forward_kinematics_np", "MAX_PERIOD", "HoldModel", "PeriodError",
            "hold_model", "steps_per_period", "DEFAULT_FRICTION_WIDTH", "FrictionWidthError", "check_width",
            "smooth_friction", "quat_to_mat", "MAX_CONSTRAINT_FRICTION_DOFS", "FrictionConstraint",
-           "constraint_friction_force", "friction_constraint", "friction_treatment"]
+           "constraint_friction_force", "friction_constraint", "friction_treatment", "CONTACT_MARGIN", "ContactError",
+           "ContactPair", "ContactReport", "check_equilibrium_contacts", "contact_report"]
 __all__ += ["START_SNAP", "LimitsError", "PlanningLimits", "StartMove", "bounded_model", "chain_length", "default_cart_max",
             "default_u_max", "planning_limits", "start_on_range"]

@@ -8,8 +8,16 @@ friction constraint) and the symbolic model carries a smooth version of it (:mod
 Actuators are MuJoCo's affine ones on joints, ``force = gain * ctrl + b0 + b1 * length + b2 * velocity`` with
 ``length = gear * qpos`` and ``velocity = gear * qvel`` (``<motor>``, ``<position>``, ``<velocity>``, ``<general>``
 with ``biastype="affine"``), plus MuJoCo's actuator ``damping`` and ``armature``. Anything else MuJoCo would add
-(contacts, fluid forces, gravity compensation, force clamping that can bite, tendons, equality constraints,
-activation states, state-dependent gains) is refused with one sentence naming it and the fix.
+(fluid forces, gravity compensation, force clamping that can bite, tendons, equality constraints, activation
+states, state-dependent gains) is refused with one sentence naming it and the fix.
+
+Contacts are judged by whether they can happen, not by the collision masks (:mod:`cartpole.models.contacts`): a
+file may keep its floor, rail and MuJoCo's default ``contype``/``conaffinity``, and explicit ``<pair>`` elements.
+MuJoCo's own ``mj_geomDistance`` decides, over the configurations a task visits, which pairs the collision filter
+lets collide can touch: a pair in contact at the upright equilibrium is refused (by
+:func:`cartpole.models.build_model`, naming the pair, its depth and the edit); a pair that touches only away from
+upright allows balancing and refuses a swing-up, naming where it touches; a pair that never touches is accepted and
+listed (``model.contacts`` in the JSON). Every MuJoCo run keeps the file's contacts as written.
 """
 from __future__ import annotations
 
@@ -685,16 +693,8 @@ def _check_supported(m, where: str) -> None:
     if dis & flags.mjDSBL_CLAMPCTRL:
         raise MJCFError(f"{where} disables ctrl clamping (<flag clampctrl=\"disable\"/>), so ctrlrange would "
                         "not hold in MuJoCo; remove that flag.")
-    contact_off = dis & (flags.mjDSBL_CONTACT | flags.mjDSBL_CONSTRAINT)
-    if not contact_off:
-        if m.npair:
-            raise MJCFError(f"{where} declares {m.npair} explicit contact pair(s); the smooth model has no "
-                            "contacts, so remove them or add <flag contact=\"disable\"/> under <option>.")
-        pair = _colliding_pair(m)
-        if pair:
-            raise MJCFError(f"{where} lets geoms '{pair[0]}' and '{pair[1]}' collide; the smooth model has no "
-                            "contacts, so add <flag contact=\"disable\"/> under <option> or give them "
-                            "contype=\"0\" conaffinity=\"0\".")
+    # Contacts are not refused here by their masks: cartpole.models.contacts decides with MuJoCo's geometry which
+    # pairs can touch, once the equilibrium is known (build_model refuses a pair in contact there).
     for field in _FINITE_FIELDS:
         if not field.startswith("opt.") and not hasattr(m, field):
             continue  # older MuJoCo has no actuator damping or armature
@@ -791,29 +791,6 @@ _FINITE_FIELDS = ("opt.gravity", "opt.timestep", "body_pos", "body_quat", "body_
 _INF_MEANS_NO_LIMIT = ("jnt_range", "actuator_ctrlrange", "actuator_forcerange")
 
 
-def _colliding_pair(m):
-    """Names of the first two geoms MuJoCo's collision filter would let touch, or None."""
-    import mujoco
-
-    filter_parent = not (int(m.opt.disableflags) & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
-    weld = m.body_weldid
-    excluded = {int(s) for s in m.exclude_signature} if m.nexclude else set()
-    for g1 in range(m.ngeom):
-        for g2 in range(g1 + 1, m.ngeom):
-            if not ((m.geom_contype[g1] & m.geom_conaffinity[g2]) or (m.geom_contype[g2] & m.geom_conaffinity[g1])):
-                continue
-            b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
-            w1, w2 = int(weld[b1]), int(weld[b2])
-            if w1 == w2:
-                continue  # same rigid body, or both fixed to the world
-            if filter_parent and w1 and w2 and (w1 == weld[m.body_parentid[w2]] or w2 == weld[m.body_parentid[w1]]):
-                continue
-            if ((min(b1, b2) << 16) + max(b1, b2)) in excluded:
-                continue
-            return (_name(m, mujoco.mjtObj.mjOBJ_GEOM, g1, "geom"), _name(m, mujoco.mjtObj.mjOBJ_GEOM, g2, "geom"))
-    return None
-
-
 def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
                 actuated_joints: Sequence[str] | None = None) -> CartPoleParams:
     """Read the parameters of a cart-pole MJCF from its compiled ``MjModel``.
@@ -828,7 +805,8 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
     springs and frictionloss may be disabled. Refused, with one sentence naming it and the fix: free and ball
     joints, tendons, equality constraints, actuators with an activation state (dyntype filter, filterexact,
     integrator, ...), state-dependent gains, non-affine biases, actuator delays, force clamps that can bite,
-    gravity compensation, fluid forces, geoms that can collide.
+    gravity compensation, fluid forces. Geoms that may collide are accepted here; :func:`cartpole.models.build_model`
+    refuses a pair in contact at the upright equilibrium (:mod:`cartpole.models.contacts`).
 
     Parameters
     ----------

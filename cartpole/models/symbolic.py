@@ -53,6 +53,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.models.discretize import hold_model, steps_per_period
+from cartpole.models.contacts import ContactReport, check_equilibrium_contacts, contact_report
 from cartpole.models.equilibrium import find_equilibrium
 from cartpole.models.friction import (DEFAULT_FRICTION_WIDTH, FrictionConstraint, check_width,
                                       constraint_friction_force, smooth_friction)
@@ -163,6 +164,16 @@ class CartPoleModel:
     def _hanging(self) -> tuple:
         x, u = find_equilibrium(self.params, self.rest_potential, self.actuation, upright=False)
         return readonly(x), readonly(u)
+
+    @functools.cached_property
+    def contacts(self) -> ContactReport:
+        """The file's geom pairs by whether they can touch (:func:`cartpole.models.contacts.contact_report`: cart over
+        its range, every hinge over its range or a full turn), angles in words from hanging."""
+        try:
+            hanging = self.x_hanging
+        except MJCFError:
+            hanging = None
+        return contact_report(self.params, self.x_eq, x_hanging=hanging)
 
     @property
     def x_hanging(self) -> np.ndarray:
@@ -457,6 +468,7 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     else:
         rest_potential = potential
     x_eq, u_eq = find_equilibrium(p, rest_potential, Bmat, upright=True)
+    check_equilibrium_contacts(p, x_eq)  # a pair touching at upright: nothing the model computes would hold there
     V0 = _potential_np(p, x_eq[:nq])
 
     E = T + V - V0

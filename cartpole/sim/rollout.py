@@ -290,7 +290,9 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         velocity, acceleration or ctrl; it then resets the state), else None, and ``info["diverged_warning"]`` names
         that warning (``"BADQACC"`` ...). The run stops there: that step (MuJoCo's reset state) is the last logged,
         so the log still replays exactly, and no success test may count the run
-        (:func:`cartpole.validation.metrics.diverged`).
+        (:func:`cartpole.validation.metrics.diverged`). The file's contacts stay on as written: ``info["contact"]`` is
+        None when MuJoCo found no contact in any step, else the first one (:func:`first_contact`: ``t``, ``geom1``,
+        ``geom2``, ``dist``) and ``steps``, the number of steps that ended in contact.
     """
     import mujoco
 
@@ -327,6 +329,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     qfrc = np.zeros((n, nv)) if disturbance is not None else None
     watch = WarningWatch(d)
     diverged, warning = None, None
+    contact, touching = None, 0
     if on_step is not None and on_step(m, d) is False:  # the start state too (a viewer opens on it)
         n = last = 0
     for k in range(n):
@@ -354,6 +357,10 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         t[k + 1] = (k + 1) * h
         qpos[k + 1] = d.qpos
         qvel[k + 1] = d.qvel
+        if d.ncon:  # the file's contacts are kept as written: a run that touches says so
+            touching += 1
+            if contact is None:
+                contact = first_contact(m, d, (k + 1) * h)
         warning = watch.fired(d)
         if warning is not None:  # MuJoCo reset a blown-up state: the run ends here, diverged
             diverged, last = (k + 1) * h, k + 1
@@ -374,6 +381,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
         info["qfrc_applied"] = qfrc[:last].copy()
     info["diverged"] = diverged
     info["diverged_warning"] = warning
+    info["contact"] = None if contact is None else {**contact, "steps": touching}
     kw = {} if samples is None else samples.arrays(last * h)
     return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
                    mjcf=source_path(source), info=info, **kw)
@@ -386,6 +394,16 @@ def _generalized_force(f, nv: int, t: float) -> np.ndarray:
         raise CartPoleError(f"The disturbance returned {f.tolist()} at t = {t:.3f} s; it must return {nv} finite "
                             "generalized forces (N on slides, N m on hinges).")
     return f
+
+
+def first_contact(m, d, t: float) -> dict:
+    """The first of MuJoCo's active contacts in ``d`` as a JSON-ready dict: ``t`` (s), ``geom1``, ``geom2`` (names, or
+    ``"geom N"``) and ``dist`` (m, negative when penetrating)."""
+    import mujoco
+
+    c = d.contact[0]
+    name = lambda g: mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"geom {int(g)}"  # noqa: E731
+    return {"t": float(t), "geom1": name(c.geom1), "geom2": name(c.geom2), "dist": float(c.dist)}
 
 
 class _Samples:
@@ -476,7 +494,8 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None, q
 
 def replays_exactly(rollout: Rollout, source: CartPoleParams | str | Path | None = None, *, atol: float = 0.0) -> bool:
     """True when replaying ``rollout.ctrl`` (n, nu) from its first state, with the logged pushes
-    (``rollout.info["push"]``, if any) and generalized forces (``rollout.info["qfrc_applied"]``, if any), reproduces every logged state within ``atol`` (default 0: bit for bit).
+    (``rollout.info["push"]``, if any) and generalized forces (``rollout.info["qfrc_applied"]``, if any), reproduces
+    every logged state within ``atol`` (default 0: bit for bit).
     ``source`` defaults to the rollout's own MJCF file (required for a rollout run on MJCF text)."""
     if source is None and not rollout.mjcf:
         raise CartPoleError("This rollout was run on MJCF text, not a file, so it cannot name its model; pass the "

@@ -339,6 +339,14 @@ def diverged(run) -> bool:
     return diverged_at(run) is not None
 
 
+def touched(run) -> dict | None:
+    """The first contact MuJoCo found in ``run`` (its ``info["contact"]``: ``t`` s, ``geom1``, ``geom2``, ``dist`` m,
+    ``steps`` in contact), or None for a run that never touched: the symbolic model has no contacts, so a run that
+    touched is not the controller's clean work."""
+    info = getattr(run, "info", None)
+    return info.get("contact") if isinstance(info, dict) else None
+
+
 def diverged_at(run) -> float | None:
     """The time in s at which MuJoCo warned that ``run`` (a :class:`~cartpole.sim.rollout.Rollout`) blew up and reset
     it (its ``info["diverged"]``), or None when it did not."""
@@ -383,7 +391,8 @@ def held_upright(rollout, *, hold: float = 1.0, x_eq=None, hinges=None, slide: i
 
 
 def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e-3) -> bool:
-    """The swing-up succeeded: held upright at rest for the last ``hold`` s, cart never at its limit, ctrl in range.
+    """The swing-up succeeded: held upright at rest for the last ``hold`` s, cart never at its limit, ctrl in range,
+    no contact on the way (:func:`touched`).
 
     Parameters
     ----------
@@ -401,7 +410,7 @@ def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e
     bool
     """
     params, x_eq = _layout(source)
-    return bool(not diverged(rollout) and held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
+    return bool(not diverged(rollout) and touched(rollout) is None and held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
                 and track_margin(rollout.qpos, params.cart_range, slide=params.slide) > limit_tol
                 and ctrl_within_range(rollout, params))
 
@@ -424,7 +433,8 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
         pole; None if not every pole is upright at the end, or the run diverged), ``peak_ctrl`` (ctrl units, max over
         actuators), ``cart_min``, ``cart_max``, ``cart_clearance`` (m, :func:`track_margin`), ``duration`` (s),
         ``diverged`` (bool: MuJoCo reset the run as blown up, :func:`diverged`), ``diverged_at`` (s or None) and
-        ``diverged_warning`` (MuJoCo's warning, e.g. ``"BADQACC"``, or None).
+        ``diverged_warning`` (MuJoCo's warning, e.g. ``"BADQACC"``, or None), ``contact`` (:func:`touched`: the first
+        contact, or None).
     """
     params, x_eq = _layout(source)
     lo, hi = cart_range_used(rollout, slide=params.slide)
@@ -437,7 +447,8 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
             "cart_clearance": track_margin(rollout.qpos, params.cart_range, slide=params.slide),
             "duration": float(rollout.t[-1] - rollout.t[0]),
             "diverged": t_div is not None, "diverged_at": t_div,
-            "diverged_warning": info.get("diverged_warning") if t_div is not None else None}
+            "diverged_warning": info.get("diverged_warning") if t_div is not None else None,
+            "contact": touched(rollout)}
 
 
 #: Seconds a pole must stay in the upright band after entering it for :func:`uptime_metrics` to count a swing-up.

@@ -14,8 +14,9 @@ def test_linearize_json_follows_the_contract(capsys):
     assert main(["linearize", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert set(doc) == {"mjcf", "dt", "integrator", "x_eq", "u_eq", "A", "B", "Ad", "Bd", "period", "steps",
-                        "smoothed_friction"}
+                        "smoothed_friction", "model"}
     assert doc["smoothed_friction"] == []
+    assert doc["model"]["contacts"]["enabled"] is False and doc["model"]["contacts"]["pairs"] == []
     assert doc["period"] == doc["dt"] and doc["steps"] == 1
     assert Path(doc["mjcf"]).is_absolute() and Path(doc["mjcf"]) == SHIPPED_MJCF
     assert doc["dt"] == 0.005 and doc["integrator"] == "Euler"
