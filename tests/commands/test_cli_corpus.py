@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
+import resource
 import subprocess
 import sys
 import time
@@ -40,7 +42,8 @@ from mj_replay import replay_with_mj_step  # noqa: E402
 
 @dataclass(frozen=True)
 class Run:
-    """What one command did on one file: exit status, stdout, stderr, wall seconds."""
+    """What one command did on one file: exit status, stdout, stderr, wall seconds and CPU seconds (the
+    subprocess's user + system time: the measure that holds on a shared machine)."""
 
     file: str
     command: str
@@ -48,21 +51,29 @@ class Run:
     out: str
     err: str
     seconds: float
+    cpu: float
 
 
-def run(file: str, command: str, out_dir: Path) -> Run:
-    """Run ``cartpole COMMAND --mjcf FILE --no-video --json --out OUT_DIR`` as a user would, in a subprocess."""
+def run(file: str, command: str, out_dir: Path, extra: tuple[str, ...] = ()) -> Run:
+    """Run ``cartpole COMMAND --mjcf FILE --no-video --json --out OUT_DIR [EXTRA...]`` as a user would, in a
+    subprocess (``file`` relative to the corpus, or absolute)."""
     argv = [sys.executable, "-m", "cartpole", command, "--mjcf", str(CORPUS / file), "--no-video", "--json",
-            "--out", str(out_dir)]
-    env = {**__import__("os").environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
-    t0 = time.perf_counter()
+            "--out", str(out_dir), *extra]
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl"}
+    t0, c0 = time.perf_counter(), _child_cpu()
     try:
         p = subprocess.run(argv, capture_output=True, text=True, timeout=TIMEOUT_S, env=env, cwd=out_dir)
         rc, out, err = p.returncode, p.stdout, p.stderr
     except subprocess.TimeoutExpired as exc:
         rc, out, err = None, exc.stdout or "", exc.stderr or ""
         out, err = (s.decode() if isinstance(s, bytes) else s for s in (out, err))
-    return Run(file, command, rc, out, err, time.perf_counter() - t0)
+    return Run(file, command, rc, out, err, time.perf_counter() - t0, _child_cpu() - c0)
+
+
+def _child_cpu() -> float:
+    """User + system seconds of this process's finished children."""
+    u = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return u.ru_utime + u.ru_stime
 
 
 # ---- independent checks -----------------------------------------------------------------------------------------
@@ -218,7 +229,9 @@ def judge_refusal(r: Run, spec: dict) -> list[str]:
     line = lines[0]
     if not line.startswith(f"cartpole {r.command}: ") or not line.endswith(".") or line.endswith("..."):
         problems.append("not one whole sentence 'cartpole CMD: ... .'")
-    low = line.lower()
+    # the words must be the sentence's, not the file name's (a quoted path, maybe shortened in the middle)
+    body = line.removeprefix(f"cartpole {r.command}: ").replace(str(CORPUS / r.file), "")
+    low = re.sub(r"'[^']*(?:/|\.xml|\.urdf|\.mjcf)[^']*'", "", body).lower()
     for word in spec.get("words", []):
         if not any(w.lower() in low for w in word.split("|")):
             problems.append(f"the sentence does not name {word!r}")
@@ -270,7 +283,7 @@ def test_the_corpus_has_every_habit_the_issue_names():
                   'integrator="RK4"', 'integrator="implicitfast"', "-3.14159 3.14159", 'gravity="0 -9.81 0"']:
         assert habit in every, habit
     assert any(f.endswith(".urdf") and "<transmission" not in t for f, t in text.items())
-    assert any("ctrlrange" not in t and "<motor" in t for t in text.values())
+    assert any("ctrlrange" not in m for t in text.values() for m in re.findall(r"<motor[^>]*>", t))
 
 
 @pytest.mark.parametrize("file, command", list(_cases()))
@@ -280,6 +293,57 @@ def test_default_command_ends_in_a_replayed_result_or_one_sentence(file, command
     kind, problems = judge(r, spec, tmp_path)
     assert not problems, (f"{file}: `cartpole {command}` was {kind} in {r.seconds:.1f} s, expected "
                           f"{spec['outcome']}: " + "; ".join(problems))
+
+
+# ---- the judge itself: it must be able to fail -------------------------------------------------------------------
+
+def _refusal(line: str, command: str = "lqr", file: str = "rails_inside_cart.xml") -> Run:
+    return Run(file, command, 2, "", line + "\n", 0.0, 0.0)
+
+
+def test_the_judge_reads_the_sentence_not_the_file_name():
+    line = (f"cartpole lqr: MJCF '{CORPUS / 'rails_inside_cart.xml'}' lets geoms 'floor' and 'cart' collide; "
+            "give them contype=\"0\".")
+    problems = judge_refusal(_refusal(line), {"words": ["rail", "cart"]})
+    assert problems == ["the sentence does not name 'rail'"]
+    assert not judge_refusal(_refusal(line.replace("'floor'", "'rail1'")), {"words": ["rail", "cart|nothing"]})
+
+
+def test_the_judge_refuses_cut_sentences_tracebacks_and_options_that_do_not_exist():
+    cut = judge_refusal(_refusal("cartpole lqr: The motor has no ctrlrange; give u_max explicitly on those joi..."), {})
+    assert "not one whole sentence 'cartpole CMD: ... .'" in cut
+    assert judge_refusal(_refusal("Traceback (most recent call last):\ncartpole lqr: x."), {})
+    phantom = judge_refusal(_refusal("cartpole lqr: The rail is unlimited; pass --no-such-option."), {})
+    assert phantom == ["it names options `cartpole lqr` does not have: ['--no-such-option']"]
+    assert judge_refusal(_refusal("cartpole swingup: Start inside the range.", "swingup"), {"names_option": True}) \
+        == ["it names no option"]
+    assert not judge_refusal(_refusal("cartpole swingup: Start inside the range with --x0.", "swingup"),
+                             {"names_option": True})
+
+
+def test_the_judge_replays_a_swingup_and_checks_upright_itself(tmp_path):
+    import mujoco
+
+    file = "floor_high_cart.xml"
+    m = mujoco.MjModel.from_xml_path(str(CORPUS / file))
+    d = mujoco.MjData(m)
+    d.qpos[1] = 0.02  # near upright, then falls with no ctrl
+    mujoco.mj_forward(m, d)
+    qpos, qvel, ctrl = [d.qpos.tolist()], [d.qvel.tolist()], []
+    for _ in range(int(2.0 / m.opt.timestep)):
+        ctrl.append([0.0])
+        mujoco.mj_step(m, d)
+        qpos.append(d.qpos.tolist())
+        qvel.append(d.qvel.tolist())
+    t = [k * m.opt.timestep for k in range(len(qpos))]
+    doc = {"mjcf": str(CORPUS / file), "method": "energy", "success": True,
+           "rollout": {"t": t, "qpos": qpos, "qvel": qvel, "ctrl": ctrl, "push": [0.0] * len(ctrl)}}
+    ok = Run(file, "swingup", 0, json.dumps(doc), "", 0.0, 0.0)
+    problems = judge_success(ok, {}, tmp_path)
+    assert len(problems) == 1 and "from upright" in problems[0], problems  # it replays, but the pole fell
+    doc["rollout"]["ctrl"][5] = [0.5]
+    problems = judge_success(Run(file, "swingup", 0, json.dumps(doc), "", 0.0, 0.0), {}, tmp_path)
+    assert any("does not replay exactly" in p for p in problems), problems
 
 
 # ---- the report ----------------------------------------------------------------------------------------------------
@@ -302,7 +366,7 @@ def report(path: Path, only: list[str] | None = None) -> int:
     """Run the corpus and write the Markdown report to ``path``; returns the number of runs off expectation."""
     import tempfile
 
-    rows, bad, total = [], 0, 0.0
+    rows, bad, total, cpu = [], 0, 0.0, 0.0
     for file, spec in EXPECTED.items():
         if only and file not in only:
             continue
@@ -311,16 +375,17 @@ def report(path: Path, only: list[str] | None = None) -> int:
                 r = run(file, command, Path(d))
                 kind, problems = judge(r, spec[command], Path(d))
             total += r.seconds
+            cpu += r.cpu
             bad += bool(problems)
             exp = spec[command]["outcome"] + (f" ({', '.join(spec[command].get('words', []))})"
                                               if spec[command].get("words") else "")
             verdict = "ok" if not problems else "**FAILS**: " + "; ".join(problems).replace("|", "\\|")
-            rows.append(f"| `{file}` | {command} | {exp} | {r.rc} | {r.seconds:.1f} | {_summary(r, kind)} | "
+            rows.append(f"| `{file}` | {command} | {exp} | {r.rc} | {r.seconds:.1f} / {r.cpu:.1f} | {_summary(r, kind)} | "
                         f"{verdict} |")
             print(rows[-1], flush=True)
-    head = ["| file | command | expected | exit | s | what happened | verdict |", "|---|---|---|---|---|---|---|"]
+    head = ["| file | command | expected | exit | s wall / CPU | what happened | verdict |", "|---|---|---|---|---|---|---|"]
     path.write_text("\n".join(head + rows) + f"\n\n{bad} of {len(rows)} runs off expectation; "
-                    f"{total:.0f} s in all.\n")
+                    f"{total:.0f} s wall, {cpu:.0f} s CPU in all.\n")
     return bad
 
 
