@@ -265,7 +265,7 @@ def judge(r: Run, spec: dict, out_dir: Path) -> tuple[str, list[str]]:
 def _cases():
     for file, spec in EXPECTED.items():
         for command in COMMANDS:
-            marks = [pytest.mark.slow] if spec.get("slow") else []
+            marks = [pytest.mark.slow] if spec[command].get("slow") else []
             yield pytest.param(file, command, id=f"{file}-{command}", marks=marks)
 
 
