@@ -377,13 +377,14 @@ def report(path: Path, only: list[str] | None = None) -> int:
             total += r.seconds
             cpu += r.cpu
             bad += bool(problems)
-            exp = spec[command]["outcome"] + (f" ({', '.join(spec[command].get('words', []))})"
-                                              if spec[command].get("words") else "")
+            words = spec[command].get("words")
+            exp = spec[command]["outcome"] + (f" ({', '.join(words)})".replace("|", " or ") if words else "")
             verdict = "ok" if not problems else "**FAILS**: " + "; ".join(problems).replace("|", "\\|")
-            rows.append(f"| `{file}` | {command} | {exp} | {r.rc} | {r.seconds:.1f} / {r.cpu:.1f} | {_summary(r, kind)} | "
-                        f"{verdict} |")
+            rows.append(f"| `{file}` | {command} | {exp} | {r.rc} | {r.seconds:.1f} / {r.cpu:.1f} | "
+                        f"{_summary(r, kind)} | {verdict} |")
             print(rows[-1], flush=True)
-    head = ["| file | command | expected | exit | s wall / CPU | what happened | verdict |", "|---|---|---|---|---|---|---|"]
+    head = ["| file | command | expected | exit | s wall / CPU | what happened | verdict |",
+            "|---|---|---|---|---|---|---|"]
     path.write_text("\n".join(head + rows) + f"\n\n{bad} of {len(rows)} runs off expectation; "
                     f"{total:.0f} s wall, {cpu:.0f} s CPU in all.\n")
     return bad
