@@ -235,6 +235,9 @@ def judge_refusal(r: Run, spec: dict) -> list[str]:
     for word in spec.get("words", []):
         if not any(w.lower() in low for w in word.split("|")):
             problems.append(f"the sentence does not name {word!r}")
+    for word in spec.get("not_words", []):
+        if word.lower() in low:
+            problems.append(f"the sentence says {word!r}, which the table rules out")
     named = set(re.findall(r"(?<![\w-])(--[A-Za-z][A-Za-z0-9-]*)", line))
     unknown = named - _options_of(r.command)
     if unknown:
