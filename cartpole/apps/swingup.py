@@ -51,7 +51,7 @@ from cartpole.validation.basin import BasinCache
 #: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
 #: sweep import them from here).
 __all__ = ["AUTO", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "METHODS", "MethodTry", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
-           "SwingupResult", "auto_methods", "check_model_error", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
+           "SwingupResult", "auto_methods", "check_model_error", "default_method", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
            "method_list", "parse_push", "plan_model_from", "plan_report",
            "planning_model", "push_force", "run_swingup"]
 
@@ -204,6 +204,15 @@ def method_list(method) -> tuple:
                                f"takes one of {', '.join(PLAN_SOLVERS)}.")
         out.append(replace(t, outcome="", reason="", seconds=0.0))
     return tuple(out)
+
+
+def default_method(model: CartPoleModel) -> str:
+    """The first method the default (:func:`auto_methods`) would run on ``model``: ``"energy"`` for one pole driven
+    by the cart, else ``"trajopt"`` (for a chain too long to plan too: :func:`check_plan_size` refuses it in one
+    sentence). A sweep's default, one method for every run with no fall-back (a sweep of runs that each try
+    several methods would cost several sweeps)."""
+    pending = [t.method for t in auto_methods(model) if not t.outcome]
+    return pending[0] if pending else "trajopt"
 
 
 def _without_advice(text: str) -> str:
@@ -618,8 +627,9 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
 def _run_in_turn(tries, run_one, budget: float, on_step) -> SwingupResult:
     """Run the pending entries of ``tries`` (:class:`MethodTry`) in turn until one succeeds; the result of the last
     run, with every entry (its outcome, reason and wall time) in ``methods_tried``. A planner that raised
-    (:class:`~cartpole.ocp.bounds.OCPError` other than bad settings) ends the planners; no method starts after
-    ``budget`` s; one run stopped by ``on_step`` ends the turn. Re-raises the last planner error when nothing ran."""
+    (:class:`~cartpole.ocp.bounds.OCPError` other than bad settings: no plan found, or none exists) ends the
+    planners after it; no method starts after ``budget`` s; a run stopped by ``on_step`` (the live view closed) ends
+    the turn. Re-raises the last planner error when nothing ran in MuJoCo."""
     from cartpole.ocp.bounds import OCPError
     from cartpole.planning.options import PlanOptionsError
 
@@ -627,17 +637,20 @@ def _run_in_turn(tries, run_one, budget: float, on_step) -> SwingupResult:
         raise SwingupError(f"The time budget {budget!r} s is not a positive number of seconds; give e.g. "
                            f"--time-budget {AUTO_TIME_BUDGET:g}.")
     start = time.perf_counter()
-    done, result, error, stop = [], None, None, None
+    done, result, error = [], None, None
+    stop = None  # why every later method is skipped
+    no_plan = None  # why every later planner is skipped
     for t in tries:
+        elapsed = time.perf_counter() - start
         if t.outcome:  # not applicable to this model
             done.append(t)
             continue
-        elapsed = time.perf_counter() - start
         if stop is None and result is not None and elapsed > budget:
-            stop = (f"the time budget of {budget:g} s was spent after {elapsed:.0f} s; raise it (--time-budget) or "
+            stop = (f"the time budget of {budget:g} s was spent after {elapsed:.1f} s; raise it (--time-budget) or "
                     f"run {t.command} alone")
-        if stop is not None:
-            done.append(replace(t, outcome="skipped", reason=stop))
+        why = stop or (no_plan if t.method == "trajopt" else None)
+        if why is not None:
+            done.append(replace(t, outcome="skipped", reason=why))
             continue
         t0 = time.perf_counter()
         try:
@@ -647,17 +660,14 @@ def _run_in_turn(tries, run_one, budget: float, on_step) -> SwingupResult:
                 raise
             error = exc
             done.append(replace(t, outcome="error", reason=first_line(exc), seconds=time.perf_counter() - t0))
-            stop = "the planner before it found no plan, and it starts from the same search"
+            no_plan = "the planner before it found no plan, and every planner starts from the same search"
             continue
         result = res
         done.append(_outcome(t, res, time.perf_counter() - t0))
         if res.success:
             stop = "an earlier method succeeded"
-            break
-        if getattr(on_step, "closed", False):
+        elif getattr(on_step, "closed", False):
             stop = "the live view was closed"
-    done.extend(replace(t, outcome="skipped" if not t.outcome else t.outcome,
-                        reason=t.reason or "an earlier method succeeded") for t in tries[len(done):])
     if result is None:
         raise error
     return replace(result, methods_tried=tuple(done))

@@ -88,9 +88,8 @@ def methods_sentence(tried) -> str:
     ran = [t.label for t in tried if t.outcome in ("success", "failed")]
     parts = []
     for t in tried:
-        took = f", {t.seconds:.0f} s" if t.seconds >= 0.5 else ""
-        parts.append(f"{t.label}: {t.outcome}" + (f" ({t.reason}{took})" if t.reason else f" ({took[2:]})" if took
-                                                   else ""))
+        took = f" after {t.seconds:.0f} s" if t.outcome in ("success", "failed", "error") else ""
+        parts.append(f"{t.label}: {t.outcome}{took}" + (f" ({t.reason})" if t.reason else ""))
     return f"Methods tried (--method auto): {'; '.join(parts)}." + (f" Shown: the {ran[-1]} run." if ran else "")
 
 
@@ -340,8 +339,13 @@ def run(args) -> dict:
                   f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")
         if len(res.methods_tried) > 1:
             print(methods_sentence(res.methods_tried))
-        print(f"Caught at: {fmt(res.caught_at, 's')} (the catch held); handed over to the catch at: "
-              f"{fmt(res.handover_at, 's')}; time to upright (every |theta_i| < 0.05 rad for good): "
+        if res.caught_at is not None:
+            catch = f"Caught at: {res.caught_at:.3f} s (handed over to the catch then; it held)"
+        elif res.handover_at is not None:
+            catch = f"Caught at: never (handed over to the catch at {res.handover_at:.3f} s; it did not hold)"
+        else:
+            catch = "Caught at: never (no hand-over to the catch)"
+        print(f"{catch}; time to upright (every |theta_i| < 0.05 rad for good): "
               f"{fmt(m['time_to_upright'], 's')}")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "
               f"(closest to a limit: {m['cart_clearance']:.3f} m)")
