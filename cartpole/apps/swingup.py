@@ -52,7 +52,7 @@ from cartpole.validation.basin import BasinCache
 #: sweep import them from here).
 __all__ = ["AUTO", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "METHODS", "MethodTry", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
            "SwingupResult", "auto_methods", "check_model_error", "default_method", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
-           "method_list", "parse_push", "plan_model_from", "plan_report",
+           "method_list", "own_duration", "parse_push", "plan_model_from", "plan_report",
            "planning_model", "push_force", "run_swingup"]
 
 METHODS = ("energy", "trajopt", "mpc")
@@ -621,15 +621,29 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
         t0 = time.perf_counter()
         res = run_one(tries[0])
         return replace(res, methods_tried=(_outcome(tries[0], res, time.perf_counter() - t0),))
-    return _run_in_turn(tries, run_one, AUTO_TIME_BUDGET if time_budget is None else time_budget, on_step)
+    return _run_in_turn(tries, run_one, AUTO_TIME_BUDGET if time_budget is None else time_budget, on_step,
+                        loop.duration)
 
 
-def _run_in_turn(tries, run_one, budget: float, on_step) -> SwingupResult:
+def own_duration(result: SwingupResult) -> float:
+    """s: the duration a run of ``result``'s method lasts when none is given: :data:`ENERGY_DURATION` (energy),
+    :data:`MPC_DURATION` (mpc), the plan's horizon + :data:`TRAJOPT_EXTRA` (trajopt), at least a dm_control task's
+    episode."""
+    objective = result.metrics.get("objective")
+    timestep = float(result.rollout.t[1] - result.rollout.t[0]) if len(result.rollout.t) > 1 else 0.0
+    episode = _episode_seconds(objective, timestep) if objective is not None and timestep > 0 else 0.0
+    if result.method == "trajopt" and result.plan is not None:
+        return max(float(result.plan.t[-1] - result.plan.t[0]) + TRAJOPT_EXTRA, episode)
+    return max(MPC_DURATION if result.method == "mpc" else ENERGY_DURATION, episode)
+
+
+def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None) -> SwingupResult:
     """Run the pending entries of ``tries`` (:class:`MethodTry`) in turn until one succeeds; the result of the last
     run, with every entry (its outcome, reason and wall time) in ``methods_tried``. A planner that raised
     (:class:`~cartpole.ocp.bounds.OCPError` other than bad settings: no plan found, or none exists) ends the
-    planners after it; no method starts after ``budget`` s; a run stopped by ``on_step`` (the live view closed) ends
-    the turn. Re-raises the last planner error when nothing ran in MuJoCo."""
+    planners after it; no method starts after ``budget`` s; a run stopped by ``on_step`` (the live view closed), or
+    cut short by a given ``duration`` (s) below its method's own (:func:`own_duration`: its failure says nothing of
+    the method) ends the turn. Re-raises the last planner error when nothing ran in MuJoCo."""
     from cartpole.ocp.bounds import OCPError
     from cartpole.planning.options import PlanOptionsError
 
@@ -664,10 +678,18 @@ def _run_in_turn(tries, run_one, budget: float, on_step) -> SwingupResult:
             continue
         result = res
         done.append(_outcome(t, res, time.perf_counter() - t0))
+        short = (not res.success and duration is not None and not res.metrics["diverged"]
+                 and duration < own_duration(res))
+        if short:
+            done[-1] = replace(done[-1], reason=f"{done[-1].reason}; the run of {duration:g} s was shorter than the "
+                                                f"method's own {own_duration(res):.3g} s")
         if res.success:
             stop = "an earlier method succeeded"
         elif getattr(on_step, "closed", False):
             stop = "the live view was closed"
+        elif short:
+            stop = (f"the run before it was cut short by the duration given ({duration:g} s); give a longer "
+                    "--duration, or none")
     if result is None:
         raise error
     return replace(result, methods_tried=tuple(done))
