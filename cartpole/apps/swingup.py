@@ -678,8 +678,7 @@ def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None)
             continue
         result = res
         done.append(_outcome(t, res, time.perf_counter() - t0))
-        short = (not res.success and duration is not None and not res.metrics["diverged"]
-                 and duration < own_duration(res))
+        short = not res.success and duration is not None and duration < own_duration(res)
         if short:
             done[-1] = replace(done[-1], reason=f"{done[-1].reason}; the run of {duration:g} s was shorter than the "
                                                 f"method's own {own_duration(res):.3g} s")
