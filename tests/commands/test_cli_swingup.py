@@ -239,7 +239,7 @@ def test_objective_errors_end_in_one_sentence_and_no_files(tmp_path, capsys, mon
              (["--objective", "fastest"], "not known"),
              ([], "use it with --method trajopt")]
     for extra, words in cases:
-        method = [] if not extra else ["--method", "trajopt"]
+        method = ["--method", "energy"] if not extra else ["--method", "trajopt"]  # no --method: the planner's
         line = _fails_with_one_sentence([*method, *(extra or ["--objective", "time"])], tmp_path, capsys)
         assert words in line, line
 
