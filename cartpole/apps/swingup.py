@@ -50,7 +50,7 @@ from cartpole.validation.basin import BasinCache
 
 #: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
 #: sweep import them from here).
-__all__ = ["AUTO", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "METHODS", "MethodTry", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
+__all__ = ["AUTO", "AUTO_NEXT_FACTOR", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "METHODS", "MethodTry", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
            "SwingupResult", "auto_methods", "check_model_error", "default_method", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
            "method_list", "own_duration", "parse_push", "plan_model_from", "plan_report",
            "planning_model", "push_force", "run_swingup"]
@@ -58,10 +58,14 @@ __all__ = ["AUTO", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "METHODS", "MethodTry"
 METHODS = ("energy", "trajopt", "mpc")
 #: The default method: the methods :func:`auto_methods` chooses for the model, tried in turn until one succeeds.
 AUTO = "auto"
-#: s of wall time after which the default method starts no further method (the one running finishes): the
-#: acrobot's collocation plan and its DDP re-plan take minutes on a busy machine; a default run should not take
-#: much longer than that.
+#: s of wall time within which the default method tries its methods: a further method starts only while the budget
+#: left is at least :data:`AUTO_NEXT_FACTOR` times what the run before it took (the one running is not interrupted).
+#: An acrobot's collocation plan takes minutes on a busy machine and its DDP re-plan (1500 steps at 10 ms) many
+#: more; a default run should not take much longer than the first plan.
 AUTO_TIME_BUDGET = 600.0
+#: A further method is expected to take at least this many times as long as the run before it (a DDP re-plan is
+#: slower than the collocation plan it follows): it starts only when that much of the budget is left.
+AUTO_NEXT_FACTOR = 2.0
 
 #: Default simulated time in s after the start (energy, mpc) or after the plan's end (trajopt).
 ENERGY_DURATION = 10.0
@@ -641,7 +645,8 @@ def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None)
     """Run the pending entries of ``tries`` (:class:`MethodTry`) in turn until one succeeds; the result of the last
     run, with every entry (its outcome, reason and wall time) in ``methods_tried``. A planner that raised
     (:class:`~cartpole.ocp.bounds.OCPError` other than bad settings: no plan found, or none exists) ends the
-    planners after it; no method starts after ``budget`` s; a run stopped by ``on_step`` (the live view closed), or
+    planners after it; no method starts with less than :data:`AUTO_NEXT_FACTOR` times the time of the run before
+    it left of ``budget`` s; a run stopped by ``on_step`` (the live view closed), or
     cut short by a given ``duration`` (s) below its method's own (:func:`own_duration`: its failure says nothing of
     the method) ends the turn. Re-raises the last planner error when nothing ran in MuJoCo."""
     from cartpole.ocp.bounds import OCPError
@@ -652,6 +657,7 @@ def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None)
                            f"--time-budget {AUTO_TIME_BUDGET:g}.")
     start = time.perf_counter()
     done, result, error = [], None, None
+    last = 0.0  # s the run before took
     stop = None  # why every later method is skipped
     no_plan = None  # why every later planner is skipped
     for t in tries:
@@ -659,9 +665,9 @@ def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None)
         if t.outcome:  # not applicable to this model
             done.append(t)
             continue
-        if stop is None and result is not None and elapsed > budget:
-            stop = (f"the time budget of {budget:g} s was spent after {elapsed:.1f} s; raise it (--time-budget) or "
-                    f"run {t.command} alone")
+        if stop is None and last > 0 and budget - elapsed < AUTO_NEXT_FACTOR * last:
+            stop = (f"{elapsed:.1f} s of the {budget:g} s time budget were spent and the run before took "
+                    f"{last:.1f} s; raise the budget (--time-budget) or run {t.command} alone")
         why = stop or (no_plan if t.method == "trajopt" else None)
         if why is not None:
             done.append(replace(t, outcome="skipped", reason=why))
@@ -673,11 +679,13 @@ def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None)
             if isinstance(exc, PlanOptionsError):
                 raise
             error = exc
-            done.append(replace(t, outcome="error", reason=first_line(exc), seconds=time.perf_counter() - t0))
+            last = time.perf_counter() - t0
+            done.append(replace(t, outcome="error", reason=first_line(exc), seconds=last))
             no_plan = "the planner before it found no plan, and every planner starts from the same search"
             continue
         result = res
-        done.append(_outcome(t, res, time.perf_counter() - t0))
+        last = time.perf_counter() - t0
+        done.append(_outcome(t, res, last))
         short = not res.success and duration is not None and duration < own_duration(res)
         if short:
             done[-1] = replace(done[-1], reason=f"{done[-1].reason}; the run of {duration:g} s was shorter than the "

@@ -26,8 +26,9 @@ def add_arguments(parser) -> None:
                              "energy shaping with an LQR catch, direct collocation + TVLQR (trajopt), or nonlinear "
                              "MPC re-planning every control period (mpc)")
     parser.add_argument("--time-budget", type=float, default=None, metavar="S",
-                        help="--method auto only: start no further method after S s of wall time (default "
-                             "600; the method running finishes)")
+                        help="--method auto only: wall time in s for the methods tried (default 600): a further "
+                             "method starts only while at least twice what the run before it took is left (the "
+                             "method running is not interrupted)")
     parser.add_argument("--objective", default=None, metavar="OBJ",
                         help="trajopt (and mpc with --mpc-solver ddp: the MPC's running cost, its seed plan the "
                              "same; the RTI NMPC tracks upright only) : what the plan optimises: effort (default; minimum integral of "
