@@ -1,4 +1,10 @@
-"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(mjcf, method="energy" | "trajopt")``.
+"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(mjcf, method="auto" | "energy" | "trajopt" |
+"mpc")``.
+
+* ``auto`` (the default): what works for the model, tried in turn until one succeeds in MuJoCo
+  (:func:`auto_methods`): energy shaping for one pole driven by the cart, the planner for chains and hinge-driven
+  models and after energy shaping failed, and the planner with DDP on the exact discrete step when a plan does not
+  hold; ``result.methods_tried`` says what was tried and how each ended (:class:`MethodTry`);
 
 * ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
   the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
