@@ -720,7 +720,7 @@ def _outcome(t: MethodTry, res: SwingupResult, seconds: float) -> MethodTry:
             f", caught at {res.caught_at:.2f} s" if res.caught_at is not None else "")
     else:
         reason = failure_reason(res.metrics) + (
-            f" (handed over to the catch at {res.handover_at:.2f} s; it did not hold)"
+            f"; handed over to the catch at {res.handover_at:.2f} s, it did not hold"
             if res.handover_at is not None else "")
     return replace(t, solver=solver, outcome="success" if res.success else "failed", reason=reason,
                    seconds=float(seconds))
