@@ -1,4 +1,10 @@
-"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(mjcf, method="energy" | "trajopt")``.
+"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(mjcf, method="auto" | "energy" | "trajopt" |
+"mpc")``.
+
+* ``auto`` (the default): what works for the model, tried in turn until one succeeds in MuJoCo
+  (:func:`auto_methods`): energy shaping for one pole driven by the cart, the planner for chains and hinge-driven
+  models and after energy shaping failed, and the planner with DDP on the exact discrete step when a plan does not
+  hold; ``result.methods_tried`` says what was tried and how each ended (:class:`MethodTry`);
 
 * ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
   the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
@@ -32,27 +38,41 @@ The start state is ``[qpos, qvel]`` in MuJoCo's order (``2 nq`` numbers; default
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+import re
+import time
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
 
 from cartpole.control.friction import friction_design, friction_summary
-from cartpole.errors import CartPoleError
+from cartpole.errors import CartPoleError, first_line
 from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, read_params,
                              start_on_range)
 from cartpole.sim import Rollout, simulate
 from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
                                   check_push_times, push_force)
+from cartpole.validation.basin import BasinCache
 
 #: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
 #: sweep import them from here).
-__all__ = ["ENERGY_DURATION", "METHODS", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
-           "SwingupResult", "check_model_error", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
-           "parse_push", "plan_model_from", "plan_report",
+__all__ = ["AUTO", "AUTO_NEXT_FACTOR", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "METHODS", "MethodTry", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
+           "SwingupResult", "auto_methods", "check_model_error", "default_method", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
+           "method_list", "own_duration", "parse_push", "plan_model_from", "plan_report",
            "planning_model", "push_force", "run_swingup"]
 
 METHODS = ("energy", "trajopt", "mpc")
+#: The default method: the methods :func:`auto_methods` chooses for the model, tried in turn until one succeeds.
+AUTO = "auto"
+#: s of wall time within which the default method tries its methods: a further method starts only while the budget
+#: left is at least :data:`AUTO_NEXT_FACTOR` times what the run before it took (the one running is not interrupted).
+#: An acrobot's collocation plan takes minutes on a busy machine and its DDP re-plan (1500 steps at 10 ms) many
+#: more; a default run should not take much longer than the first plan.
+AUTO_TIME_BUDGET = 600.0
+#: A further method is expected to take at least this many times as long as the run before it (a DDP re-plan is
+#: slower than the collocation plan it follows): it starts only when that much of the budget is left.
+AUTO_NEXT_FACTOR = 2.0
 
 #: Default simulated time in s after the start (energy, mpc) or after the plan's end (trajopt).
 ENERGY_DURATION = 10.0
@@ -79,8 +99,9 @@ class SwingupResult:
     success : bool
         :func:`~cartpole.validation.metrics.swingup_success` of the rollout.
     caught_at : float or None
-        s: when the LQR catch took over for good (energy: last switch into the basin; trajopt: the plan's
-        handover time), None if it never did or the run diverged (MuJoCo reset a blown-up state: never a catch).
+        s: when the LQR catch took over and held (``handover_at`` when the run ends upright and at rest from then on,
+        :func:`~cartpole.validation.metrics.catch_held`); None when it never took over, did not hold (the run ends
+        away from upright) or the run diverged (MuJoCo reset a blown-up state: never a catch).
     rollout : Rollout
         Every physics step MuJoCo took.
     plan : Trajectory or None
@@ -96,6 +117,13 @@ class SwingupResult:
         Scale of the planning model's pole masses and lengths (1: the MJCF's own).
     controller : object
         The controller MuJoCo ran (for mpc: its ``solve_ms``, ``period``, ``horizon``, ``failures``).
+    handover_at : float or None
+        s: when the controller handed over to the LQR catch, whether or not the catch then held (energy: the last
+        switch into the basin; trajopt: the end of the plan's tracking, once the run reached it); None without a
+        hand-over (mpc, or a run that ended first).
+    methods_tried : tuple of MethodTry
+        Every method considered, in order, with its outcome: one entry for an explicit method; for ``"auto"`` (or a
+        sequence) also the methods that did not apply, failed or were skipped.
     options : dict of str -> options object
         The settings of each stage the method ran, as run: ``"plan"``
         (:class:`~cartpole.planning.options.PlanOptions`; trajopt, and mpc's offline plan), ``"loop"``
@@ -114,6 +142,149 @@ class SwingupResult:
     model_error: float = 1.0
     controller: object = field(default=None, compare=False, repr=False)
     options: dict = field(default_factory=dict, compare=False)
+    handover_at: float | None = None
+    methods_tried: tuple = field(default=(), compare=False)
+
+
+@dataclass(frozen=True)
+class MethodTry:
+    """One swing-up method to try and, once tried, what came of it (:attr:`SwingupResult.methods_tried`).
+
+    Attributes
+    ----------
+    method : str
+        "energy", "trajopt" or "mpc".
+    solver : str or None
+        trajopt: the solver of the plan's last stage (:attr:`~cartpole.planning.options.PlanOptions.solver`; "ddp":
+        box-DDP on the exact discrete step); None: the plan options' own (trajopt), or none (energy, mpc).
+    outcome : str
+        "" (not tried yet), "success", "failed" (ran in MuJoCo and did not end upright at rest), "error" (the
+        planner found no plan), "not applicable" (the method does not take this model or these settings) or
+        "skipped" (not started: an earlier method succeeded, the time budget was spent, ...).
+    reason : str
+        Why, in a few words.
+    seconds : float
+        Wall time of the try in s (0 when it did not run).
+    """
+
+    method: str
+    solver: str | None = None
+    outcome: str = ""
+    reason: str = ""
+    seconds: float = 0.0
+
+    @property
+    def label(self) -> str:
+        """The method in words: ``"energy"``, ``"trajopt"``, ``"trajopt (ddp)"``."""
+        return self.method if self.solver in (None, "auto") else f"{self.method} ({self.solver})"
+
+    @property
+    def command(self) -> str:
+        """The command-line options that run this method alone: ``"--method trajopt --solver ddp"``."""
+        return f"--method {self.method}" + ("" if self.solver in (None, "auto") else f" --solver {self.solver}")
+
+    def as_dict(self) -> dict:
+        """JSON-ready: ``method``, ``solver`` (or None), ``outcome``, ``reason``, ``seconds``."""
+        return {"method": self.method, "solver": self.solver, "outcome": self.outcome, "reason": self.reason,
+                "seconds": float(self.seconds)}
+
+
+def method_list(method) -> tuple:
+    """The methods to try, in order, as :class:`MethodTry` entries: one method's name, or a sequence of names and
+    :class:`MethodTry` (a trajopt entry may name its plan's ``solver``). ``"auto"`` is :func:`auto_methods`'s.
+
+    Raises
+    ------
+    SwingupError
+        An unknown method, an empty sequence, a solver on a method without a plan or a solver the planner does
+        not have.
+    """
+    from cartpole.planning.options import PLAN_SOLVERS
+
+    names = ", ".join((AUTO,) + METHODS)
+    items = [method] if isinstance(method, (str, MethodTry)) else list(method) if method is not None else []
+    if not items:
+        raise SwingupError(f"No swing-up method given; choose one of {names}.")
+    out = []
+    for m in items:
+        t = m if isinstance(m, MethodTry) else MethodTry(str(m))
+        if t.method not in METHODS:
+            raise SwingupError(f"Unknown swing-up method '{t.method}'; choose one of {names}.")
+        if t.solver is not None and (t.method != "trajopt" or t.solver not in PLAN_SOLVERS):
+            raise SwingupError(f"Solver '{t.solver}' of method '{t.method}' is not a planner's; a trajopt entry "
+                               f"takes one of {', '.join(PLAN_SOLVERS)}.")
+        out.append(replace(t, outcome="", reason="", seconds=0.0))
+    return tuple(out)
+
+
+def default_method(model: CartPoleModel) -> str:
+    """The first method the default (:func:`auto_methods`) would run on ``model``: ``"energy"`` for one pole driven
+    by the cart, else ``"trajopt"`` (for a chain too long to plan too: :func:`check_plan_size` refuses it in one
+    sentence). A sweep's default, one method for every run with no fall-back (a sweep of runs that each try
+    several methods would cost several sweeps)."""
+    pending = [t.method for t in auto_methods(model) if not t.outcome]
+    return pending[0] if pending else "trajopt"
+
+
+def _without_advice(text: str) -> str:
+    """An energy-shaping refusal without its closing advice to use the planner (the default runs it next)."""
+    return re.sub(r"(;| or) use `--method trajopt` instead$", "", first_line(text))
+
+
+def auto_methods(model: CartPoleModel, *, plan=None, objective=None, energy_options=None) -> tuple:
+    """The methods the default (``method="auto"``) tries on ``model``, in order (:class:`MethodTry` entries, those
+    that do not apply already marked "not applicable" with the reason).
+
+    1. ``energy``: energy shaping with the LQR catch, for one pole driven by the cart
+       (:func:`~cartpole.control.energy.check_single_pole`, a ctrl range to scale its gains by) when no planner
+       setting was given;
+    2. ``trajopt``: the planner (trajectory optimisation + TVLQR) with ``plan``'s solver, for every model of at
+       most :data:`MAX_PLAN_POLES` poles: chains, hinge-driven models, and after energy shaping failed;
+    3. ``trajopt`` with ``solver="ddp"``: the plan's last stage by box-DDP on the exact discrete step, tracked as it
+       is, when the first plan did not hold in MuJoCo (unless the first was DDP already).
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The planning model.
+    plan : PlanOptions, optional
+        Planner settings given by the caller: they make the planner the first method.
+    objective : str, optional
+        An objective given by the caller (the planner's): as ``plan``.
+    energy_options : EnergyOptions or dict, optional
+        Energy shaping's settings (checked here: bad ones raise).
+
+    Returns
+    -------
+    tuple of MethodTry
+
+    Raises
+    ------
+    EnergyShapingError
+        Bad ``energy_options``.
+    """
+    from cartpole.control.energy import EnergyShapingError, check_single_pole, default_gains, energy_options as eo
+
+    opts = eo(energy_options)
+    if plan is not None or objective is not None:
+        energy = MethodTry("energy", outcome="not applicable",
+                           reason="planner settings (an objective or a solver) were given and energy shaping has "
+                                  "no plan")
+    else:
+        try:
+            check_single_pole(model)
+            default_gains(model, opts)
+            energy = MethodTry("energy")
+        except EnergyShapingError as exc:
+            energy = MethodTry("energy", outcome="not applicable", reason=_without_advice(str(exc)))
+    solver = None if plan is None else plan.solver
+    n = len(model.hinges)
+    if n > MAX_PLAN_POLES:
+        why = (f"plans for at most {MAX_PLAN_POLES} poles and this chain has {n} (its generated code grows steeply "
+               "with every pole)")
+        return (energy, MethodTry("trajopt", solver, "not applicable", why))
+    planners = (MethodTry("trajopt", solver),) + (() if solver == "ddp" else (MethodTry("trajopt", "ddp"),))
+    return (energy,) + planners
 
 
 def _state_order(params: CartPoleParams) -> str:
@@ -188,9 +359,14 @@ def check_plan_size(model: CartPoleModel, method: str) -> None:
     Raises
     ------
     SwingupError
-        ``method`` is trajopt or mpc and the model has more hinges than :data:`MAX_PLAN_POLES`.
+        ``method`` is trajopt, mpc or auto (:data:`AUTO`, whose other method, energy shaping, drives one pole) and
+        the model has more hinges than :data:`MAX_PLAN_POLES`.
     """
     n = len(model.hinges)
+    if method == AUTO and n > MAX_PLAN_POLES:  # energy shaping drives one pole only: nothing to run
+        raise SwingupError(f"This MJCF has a chain of {n} poles and the planner plans for at most {MAX_PLAN_POLES} "
+                           "(its generated code grows steeply with every pole and would not build in reasonable "
+                           f"time); use a chain of at most {MAX_PLAN_POLES} poles.")
     if method in ("trajopt", "mpc") and n > MAX_PLAN_POLES:
         raise SwingupError(f"This MJCF has a chain of {n} poles and --method {method} plans for at most "
                            f"{MAX_PLAN_POLES} (its generated code grows steeply with every pole and would not build "
@@ -303,25 +479,31 @@ LEGACY_KEYWORDS = {"duration": "loop", "push": "loop", "model_error": "loop", "o
                    "horizon": "mpc"}
 
 
-def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: LoopOptions | None = None,
+def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptions | None = None,
                 mpc=None, energy_options=None, catch_weights: tuple | None = None,
                 plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
                 basin_cache=None, on_step=None, u_max=None, cart_max: float | None = None,
-                **legacy) -> SwingupResult:
+                time_budget: float | None = None, **legacy) -> SwingupResult:
     """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
 
     Parameters
     ----------
     mjcf : path, CartPoleParams, CartPoleModel or None
         The model (None = shipped asset): one pole on a cart for ``energy``, any chain for ``trajopt``.
-    method : {"energy", "trajopt", "mpc"}
+    method : {"auto", "energy", "trajopt", "mpc"} or sequence of str or MethodTry
+        ``"auto"`` (default): the methods :func:`auto_methods` chooses for the model, tried in turn until one
+        succeeds in MuJoCo (energy shaping for one pole driven by the cart; the planner, then the planner with DDP
+        on the exact discrete step, for chains, hinge-driven models and after a method that failed). One name runs
+        that method alone. A sequence (of names or :class:`MethodTry`, a trajopt entry naming its ``solver``) is
+        tried in its order in the same way.
     x0 : (2 nq,) array, optional
         Start state ``[qpos, qvel]``; default the model's hanging rest ``x_hanging`` (``[0, pi, 0, 0]`` for the
         shipped cart).
     plan : PlanOptions, optional
         ``trajopt`` and ``mpc`` (its offline plan): the planner's settings
         (:class:`~cartpole.planning.options.PlanOptions`); default ``PlanOptions()`` (mpc:
-        ``PlanOptions(cart_margin=mpc.cart_margin)``).
+        ``PlanOptions(cart_margin=mpc.cart_margin)``). With ``"auto"``, planner settings make the planner the first
+        method (energy shaping has no plan).
     loop : LoopOptions, optional
         The closed loop (:class:`~cartpole.sim.options.LoopOptions`): ``duration`` (s; None: 10 s energy, 8 s mpc,
         the plan's horizon + 3 s trajopt, with a ``dmc_*`` task at least dm_control's episode (1000 control steps) so
@@ -348,50 +530,55 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
         ``$CARTPOLE_CACHE_DIR`` honoured), so a second run with the same model and catch does not estimate again.
     on_step : callable, optional
         ``on_step(m, d)`` during the MuJoCo run (e.g. :class:`cartpole.viz.viewer.LiveViewer`, to watch it live);
-        returning False ends the run (see :func:`cartpole.sim.rollout.simulate`).
+        returning False ends the run (see :func:`cartpole.sim.rollout.simulate`) and tries no further method.
     u_max : float or (nu,) array, optional
         ``|ctrl| <= u_max`` the swing-up plans and runs within; default each actuator's ctrlrange, or where the
         file has none a stated default (:func:`cartpole.models.planning_limits`; ``metrics["limits"]`` says which).
     cart_max : float, optional
         m: the cart keeps ``|s - centre| <= cart_max``; default the slide's range, or a stated default when the
         file's slide is unlimited.
+    time_budget : float, optional
+        s of wall time after which a sequence of methods (``"auto"``) starts no further method (the one running
+        finishes); default :data:`AUTO_TIME_BUDGET`.
     **legacy
         A compatibility layer for the keywords this function took before the options objects
         (:data:`LEGACY_KEYWORDS`): ``duration``, ``push``, ``model_error`` (fields of ``loop``), ``objective``
-        (``plan`` for trajopt; for mpc the MPC's own objective, ``mpc.objective``), ``period``, ``horizon`` (``mpc``; mpc only). Each replaces that field of the
-        stage's options (None leaves it as it is) and does nothing else.
+        (``plan`` for trajopt; for mpc the MPC's own objective, ``mpc.objective``), ``period``, ``horizon``
+        (``mpc``; mpc only). Each replaces that field of the stage's options (None leaves it as it is) and does
+        nothing else.
 
     Returns
     -------
     SwingupResult
-        ``result.options`` holds the options of each stage as run.
+        The run of the method that ran last (the first that succeeded, else the last one tried);
+        ``result.methods_tried`` lists every method considered, ``result.options`` the options of each stage of
+        the method that ran, as run.
 
     Raises
     ------
     SwingupError, MJCFError
         Bad method or start state; a stage's options given to a method without that stage (``plan`` to energy,
         ``mpc`` or a loop period to energy or trajopt, ``objective`` to energy); an unknown keyword; an
-        MJCF that is not a cart-pole; ``mpc`` without :mod:`cartpole.mpc.nmpc`.
+        MJCF that is not a cart-pole; ``mpc`` without :mod:`cartpole.mpc.nmpc`; ``"auto"`` on a model no method
+        takes (the sentence gives each method's reason).
     LoopError, PlanOptionsError, NMPCError
         Bad loop, planner or NMPC settings (a push, a model error, a duration...).
     EnergyShapingError
         ``energy`` on a model energy shaping does not drive (more than one pole, a motor on a hinge), raised
         before the basin estimate or any simulation.
+    OCPError
+        The planner found no swing-up (or proved none exists) and no method before it ran in MuJoCo.
     """
-    from cartpole.control.energy import EnergyShapingController
-    from cartpole.control.switching import SwitchingController, swingup_catch
-    from cartpole.sim.rig import build_rig
-    from cartpole.validation.basin import BasinCache
-    from cartpole.validation.metrics import swingup_metrics
+    from cartpole.control.energy import EnergyShapingController, energy_options as check_energy_options
 
-    if method not in METHODS:
-        raise SwingupError(f"Unknown swing-up method '{method}'; choose one of {', '.join(METHODS)}.")
     unknown = sorted(set(legacy) - set(LEGACY_KEYWORDS))
     if unknown:
         raise SwingupError(f"run_swingup has no keyword {', '.join(map(repr, unknown))}; give the stages' settings "
                            f"as plan=, loop=, mpc= options (or the keywords {', '.join(LEGACY_KEYWORDS)}).")
     given = {stage: {k: v for k, v in legacy.items() if LEGACY_KEYWORDS[k] == stage and v is not None}
              for stage in ("plan", "loop", "mpc")}
+    auto = isinstance(method, str) and method == AUTO
+    tries = None if auto else method_list(method)
     if isinstance(mjcf, CartPoleModel):
         model, params = mjcf, mjcf.params
     else:
@@ -403,151 +590,333 @@ def run_swingup(mjcf=None, *, method: str = "energy", x0=None, plan=None, loop: 
     plan_model = None if plan_model is None else bounded_model(plan_model, limits)
     check_upright_reachable(model)
     model.contacts.check_swingup()  # geoms that touch on the way up (cartpole.models.contacts): refused, named
-    check_plan_size(model, method)
+    for t in tries or ():
+        check_plan_size(model, t.method)
     x0, moves = start_on_range(model.x_hanging, params) if x0 is None else (x0, ())
     x0 = check_start(x0, params)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
+    if auto:
+        tries = auto_methods(pm, plan=plan, objective=given["plan"].get("objective"), energy_options=energy_options)
+    names = [t.method for t in tries if not t.outcome]
+    if not names:
+        raise SwingupError("No swing-up method takes this model: "
+                           + "; ".join(f"{t.label} {t.reason}" for t in tries) + ".")
     # designed without the friction a compensation cancels, run with it (cartpole.control.friction)
     friction = friction_design(pm, loop)
     plant, pm = pm, friction.model
-    force = loop.push_force(params.timestep)
     if loop.duration is not None:
         check_push_times(loop.push, loop.duration)
-    elif method != "trajopt":  # trajopt's length is known after the plan (checked there, before simulating)
-        check_push_times(loop.push, MPC_DURATION if method == "mpc" else ENERGY_DURATION)
-    if method != "mpc" and (mpc is not None or given["mpc"]):
+    elif names[0] != "trajopt":  # trajopt's length is known after the plan (checked there, before simulating)
+        check_push_times(loop.push, MPC_DURATION if names[0] == "mpc" else ENERGY_DURATION)
+    if "mpc" not in names and (mpc is not None or given["mpc"]):
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
                            "--method mpc.")
     # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
-    energy = EnergyShapingController(pm, energy_options) if method == "energy" else None
-    if method == "mpc" and "objective" in given["plan"]:  # the MPC's own objective (its seed plan follows it)
+    energy = None
+    if "energy" in names:
+        energy = EnergyShapingController(pm, check_energy_options(energy_options))
+    if "mpc" in names and "objective" in given["plan"]:  # the MPC's own objective (its seed plan follows it)
         from cartpole.mpc.options import MPCOptions
 
         mpc = (MPCOptions() if mpc is None else mpc).replace(objective=given["plan"].pop("objective"))
-    if given["plan"] and method != "trajopt":
+    if given["plan"] and "trajopt" not in names:
         raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
                            "trajopt or mpc.")
-    if plan is not None and method == "energy":
+    if plan is not None and not {"trajopt", "mpc"} & set(names):
         raise SwingupError("Plan options set the trajectory optimisation; use them with --method trajopt or mpc.")
-    basin_kw = dict(progress=_stage(progress, "basin"))
-
+    if "mpc" in names:
+        mpc = _check_mpc(mpc, given["mpc"], loop, params.timestep)
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
+    ctx = _Context(params=params, model=model, pm=pm, plant=plant, friction=friction, loop=loop, x0=x0,
+                   force=loop.push_force(params.timestep), progress=progress, on_step=on_step,
+                   basin_of=lambda catch: cache.get(params, catch, progress=_stage(progress, "basin")),
+                   limits=limits, moves=tuple(moves))
 
-    def basin_of(catch):
-        return cache.get(params, catch, **basin_kw)
+    def run_one(t: MethodTry) -> SwingupResult:
+        if t.method == "energy":
+            return _finish(ctx, "energy", _run_energy(ctx, energy, catch_weights))
+        if t.method == "mpc":
+            return _finish(ctx, "mpc", _run_mpc(ctx, mpc, plan))
+        p = _plan_options(plan, given["plan"])
+        return _finish(ctx, "trajopt", _run_trajopt(ctx, p if t.solver is None else p.replace(solver=t.solver)))
 
-    T = loop.duration
-    trajectory = None
-    if method == "mpc":
+    if len(tries) == 1:
+        t0 = time.perf_counter()
+        res = run_one(tries[0])
+        return replace(res, methods_tried=(_outcome(tries[0], res, time.perf_counter() - t0),))
+    return _run_in_turn(tries, run_one, AUTO_TIME_BUDGET if time_budget is None else time_budget, on_step,
+                        loop.duration)
+
+
+def own_duration(result: SwingupResult) -> float:
+    """s: the duration a run of ``result``'s method lasts when none is given: :data:`ENERGY_DURATION` (energy),
+    :data:`MPC_DURATION` (mpc), the plan's horizon + :data:`TRAJOPT_EXTRA` (trajopt), at least a dm_control task's
+    episode."""
+    objective = result.metrics.get("objective")
+    timestep = float(result.rollout.t[1] - result.rollout.t[0]) if len(result.rollout.t) > 1 else 0.0
+    episode = _episode_seconds(objective, timestep) if objective is not None and timestep > 0 else 0.0
+    if result.method == "trajopt" and result.plan is not None:
+        return max(float(result.plan.t[-1] - result.plan.t[0]) + TRAJOPT_EXTRA, episode)
+    return max(MPC_DURATION if result.method == "mpc" else ENERGY_DURATION, episode)
+
+
+def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None) -> SwingupResult:
+    """Run the pending entries of ``tries`` (:class:`MethodTry`) in turn until one succeeds; the result of the last
+    run, with every entry (its outcome, reason and wall time) in ``methods_tried``. A planner that raised
+    (:class:`~cartpole.ocp.bounds.OCPError` other than bad settings: no plan found, or none exists) ends the
+    planners after it; no method starts with less than :data:`AUTO_NEXT_FACTOR` times the time of the run before
+    it left of ``budget`` s; a run stopped by ``on_step`` (the live view closed), or
+    cut short by a given ``duration`` (s) below its method's own (:func:`own_duration`: its failure says nothing of
+    the method) ends the turn. Re-raises the last planner error when nothing ran in MuJoCo."""
+    from cartpole.ocp.bounds import OCPError
+    from cartpole.planning.options import PlanOptionsError
+
+    if not (math.isfinite(budget) and budget > 0):
+        raise SwingupError(f"The time budget {budget!r} s is not a positive number of seconds; give e.g. "
+                           f"--time-budget {AUTO_TIME_BUDGET:g}.")
+    start = time.perf_counter()
+    done, result, error = [], None, None
+    last = 0.0  # s the run before took
+    stop = None  # why every later method is skipped
+    no_plan = None  # why every later planner is skipped
+    for t in tries:
+        elapsed = time.perf_counter() - start
+        if t.outcome:  # not applicable to this model
+            done.append(t)
+            continue
+        if stop is None and last > 0 and budget - elapsed < AUTO_NEXT_FACTOR * last:
+            stop = (f"{elapsed:.1f} s of the {budget:g} s time budget were spent and the run before took "
+                    f"{last:.1f} s; raise the budget (--time-budget) or run {t.command} alone")
+        why = stop or (no_plan if t.method == "trajopt" else None)
+        if why is not None:
+            done.append(replace(t, outcome="skipped", reason=why))
+            continue
+        t0 = time.perf_counter()
         try:
-            from cartpole.mpc.nmpc import nmpc_swingup
-        except ModuleNotFoundError as exc:
-            if exc.name not in ("cartpole.mpc.nmpc",):
+            res = run_one(t)
+        except OCPError as exc:
+            if isinstance(exc, PlanOptionsError):
                 raise
-            raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
-                               "does not have yet; use --method trajopt or energy.") from None
-        from cartpole.mpc.options import MPCOptions, mpc_grid
-        from cartpole.planning.options import PlanOptions
+            error = exc
+            last = time.perf_counter() - t0
+            done.append(replace(t, outcome="error", reason=first_line(exc), seconds=last))
+            no_plan = "the planner before it found no plan, and every planner starts from the same search"
+            continue
+        result = res
+        last = time.perf_counter() - t0
+        done.append(_outcome(t, res, last))
+        short = not res.success and duration is not None and duration < own_duration(res)
+        if short:
+            done[-1] = replace(done[-1], reason=f"{done[-1].reason}; the run of {duration:g} s was shorter than the "
+                                                f"method's own {own_duration(res):.3g} s")
+        if res.success:
+            stop = "an earlier method succeeded"
+        elif getattr(on_step, "closed", False):
+            stop = "the live view was closed"
+        elif short:
+            stop = (f"the run before it was cut short by the duration given ({duration:g} s); give a longer "
+                    "--duration, or none")
+    if result is None:
+        raise error
+    return replace(result, methods_tried=tuple(done))
 
-        mpc = _mpc_period((MPCOptions() if mpc is None else mpc).replace(**given["mpc"]), loop, params.timestep)
-        mpc_grid(mpc, params.timestep)  # a horizon too long to solve, or a period it would round away: refused now
-        from cartpole.mpc.ddp_mpc import seed_plan_options
 
-        plan = PlanOptions(cart_margin=mpc.cart_margin) if plan is None else plan
-        if mpc.solver == "ddp":
-            plan = seed_plan_options(plan, mpc)
-        options = {"plan": plan, "loop": loop, "mpc": mpc}
-        if progress is not None:
-            progress("mpc", 0.0)
-        if mpc.solver == "ddp":
-            from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
+def _outcome(t: MethodTry, res: SwingupResult, seconds: float) -> MethodTry:
+    """``t`` with the outcome of its run ``res``: "success" or "failed", and why in a few words."""
+    from cartpole.validation.metrics import failure_reason
 
-            controller = ddp_mpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
-        else:
-            controller = nmpc_swingup(params, x0=x0, model=pm, options=mpc, plan=plan)
-        if progress is not None:
-            progress("mpc", 1.0)
-        basin = None
-        if T is None:
-            T = max(MPC_DURATION, _episode_seconds(mpc.objective, params.timestep))
-        rig = build_rig(plant, loop.replace(period=float(controller.period)), task="swingup")
-        controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
-        rollout = simulate(params, controller, x0, T, control_period=float(controller.period), push=force,
-                           progress=_stage(progress, "simulate"), on_step=on_step, rig=rig)
-        if progress is not None:
-            progress("simulate", 1.0)
-        caught_at = None
-        extra = {"switches": [], "period": float(controller.period), "horizon": float(controller.horizon),
-                 "failures": _count(getattr(controller, "failures", 0)),
-                 "objective": getattr(controller, "objective", "tracking")}
-        extra.update(_episode_return(rollout, model, extra["objective"]))
-    elif method == "energy":
-        options = {"energy": energy.options, "loop": loop}
-        catch = swingup_catch(pm, *(catch_weights or ()), period=loop.period)
-        basin = basin_of(catch)
-        controller = SwitchingController(energy, catch, basin.rho)
-        T = ENERGY_DURATION if T is None else T
-        rig = build_rig(plant, loop, task="swingup")
-        controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
-        rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
-                           on_step=on_step, control_period=loop.period, rig=rig)
-        if progress is not None:
-            progress("simulate", 1.0)
-        caught_at = controller.caught_at
-        extra = {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in controller.switches]}
+    solver = t.solver
+    if res.method == "trajopt" and solver is None:
+        solver = res.options["plan"].solver
+    if res.success:
+        reason = "upright and at rest over the last second" + (
+            f", caught at {res.caught_at:.2f} s" if res.caught_at is not None else "")
     else:
-        try:
-            from cartpole.planning.options import PlanOptions
-            from cartpole.planning.trajopt import trajopt_swingup
-        except ImportError:
-            raise SwingupError("The trajopt method needs cartpole.planning.trajopt, which this installation does not "
-                               "have; use --method energy.") from None
-        plan = (PlanOptions() if plan is None else plan).replace(**given["plan"])
-        options = {"plan": plan, "loop": loop}
-        if progress is not None:
-            progress("trajopt", 0.0)
-        sp = trajopt_swingup(params, x0=tuple(x0), model=pm, options=plan, period=loop.period)
-        if progress is not None:
-            progress("trajopt", 1.0)
-        trajectory = sp.trajectory
-        controller = sp.controller
-        catch = sp.catch  # the controller that takes over: its basin is the one reported
-        basin = basin_of(catch)
-        T_plan = float(trajectory.t[-1] - trajectory.t[0])
-        if T is None:
-            T = T_plan + TRAJOPT_EXTRA
-            T = max(T, _episode_seconds(sp.objective, params.timestep))
-            check_push_times(loop.push, T)
-        rig = build_rig(plant, loop, task="swingup")
-        controller = friction.wrap(controller)  # the controller that runs, friction compensation outermost
-        rollout = simulate(params, controller, x0, T, push=force, progress=_stage(progress, "simulate"),
-                           on_step=on_step, control_period=loop.period, rig=rig)
-        if progress is not None:
-            progress("simulate", 1.0)
-        handover = getattr(controller, "handover_time", T_plan)
-        caught_at = float(handover) if handover is not None and rollout.t[-1] >= handover else None
-        k = int(np.searchsorted(rollout.t, handover)) if caught_at is not None else None
-        extra = {"switches": [] if caught_at is None else [{"t": caught_at, "mode": "catch",
-                                                            "cost": catch.cost_to_go(rollout.x[k])}],
-                 "handover_cost": None if k is None else catch.cost_to_go(rollout.x[k]),
-                 "objective": sp.objective, "plan": plan_report(sp)}
-        extra.update(_episode_return(rollout, model, sp.objective))
-    metrics = {**swingup_metrics(rollout, model), **extra}
-    if metrics["diverged"]:  # MuJoCo reset a blown-up run: whatever came before, it is never caught
-        caught_at = None
+        reason = failure_reason(res.metrics) + (
+            f"; handed over to the catch at {res.handover_at:.2f} s, it did not hold"
+            if res.handover_at is not None else "")
+    return replace(t, solver=solver, outcome="success" if res.success else "failed", reason=reason,
+                   seconds=float(seconds))
+
+
+@dataclass(frozen=True)
+class _Context:
+    """What every method's run shares: the file's model and parameters, the planning model (``pm``, designed
+    without the friction a compensation cancels) and the plant it stands for, the closed loop and its push force,
+    the start state, the progress and step hooks, ``basin_of(catch)``, the bounds planned within
+    (:class:`~cartpole.models.PlanningLimits`) and the start's moves onto the joint ranges."""
+
+    params: CartPoleParams
+    model: CartPoleModel
+    pm: CartPoleModel
+    plant: CartPoleModel
+    friction: object
+    loop: LoopOptions
+    x0: np.ndarray
+    force: object
+    progress: object
+    on_step: object
+    basin_of: Callable
+    limits: object = None
+    moves: tuple = ()
+
+
+@dataclass(frozen=True)
+class _Ran:
+    """One method's MuJoCo run before the shared metrics: the rollout, the controller that ran, its rig, the catch
+    basin (or None), the plan (or None), the hand-over time to the catch (s or None), the method's own metrics and
+    the options of its stages as run."""
+
+    rollout: Rollout
+    controller: object
+    rig: object
+    basin: object
+    plan: object
+    handover_at: float | None
+    extra: dict
+    options: dict
+
+
+def _simulate(ctx: _Context, controller, T: float, *, period=None, loop=None) -> tuple:
+    """The closed loop every method shares: the rig for ``loop`` (default the context's) around the plant, the
+    friction compensation outermost, MuJoCo for ``T`` s; ``(controller as run, rig, rollout)``."""
+    from cartpole.sim.rig import build_rig
+
+    loop = ctx.loop if loop is None else loop
+    rig = build_rig(ctx.plant, loop, task="swingup")
+    controller = ctx.friction.wrap(controller)  # the controller that runs, friction compensation outermost
+    rollout = simulate(ctx.params, controller, ctx.x0, T, push=ctx.force, progress=_stage(ctx.progress, "simulate"),
+                       on_step=ctx.on_step, control_period=loop.period if period is None else period, rig=rig)
+    if ctx.progress is not None:
+        ctx.progress("simulate", 1.0)
+    return controller, rig, rollout
+
+
+def _run_energy(ctx: _Context, energy, catch_weights) -> _Ran:
+    """Energy shaping with the LQR catch in its MuJoCo-estimated basin, switching with hysteresis."""
+    from cartpole.control.switching import SwitchingController, swingup_catch
+
+    catch = swingup_catch(ctx.pm, *(catch_weights or ()), period=ctx.loop.period)
+    basin = ctx.basin_of(catch)
+    switching = SwitchingController(energy, catch, basin.rho)
+    T = ENERGY_DURATION if ctx.loop.duration is None else ctx.loop.duration
+    check_push_times(ctx.loop.push, T)
+    controller, rig, rollout = _simulate(ctx, switching, T)
+    handovers = [s.t for s in switching.switches if s.mode == "catch"]
+    return _Ran(rollout, controller, rig, basin, None, handovers[-1] if handovers else None,
+                {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in switching.switches]},
+                {"energy": energy.options, "loop": ctx.loop})
+
+
+def _plan_options(plan, given: dict):
+    """The planner's options: ``plan`` (default ``PlanOptions()``) with the legacy keywords ``given`` set."""
+    try:
+        from cartpole.planning.options import PlanOptions
+    except ImportError:
+        raise SwingupError("The trajopt method needs cartpole.planning.trajopt, which this installation does not "
+                           "have; use --method energy.") from None
+    return (PlanOptions() if plan is None else plan).replace(**given)
+
+
+def _run_trajopt(ctx: _Context, plan) -> _Ran:
+    """Direct collocation (or DDP, ``plan.solver``) + TVLQR handing over to the LQR hold after the plan."""
+    from cartpole.planning.trajopt import trajopt_swingup
+
+    if ctx.progress is not None:
+        ctx.progress("trajopt", 0.0)
+    sp = trajopt_swingup(ctx.params, x0=tuple(ctx.x0), model=ctx.pm, options=plan, period=ctx.loop.period)
+    if ctx.progress is not None:
+        ctx.progress("trajopt", 1.0)
+    trajectory = sp.trajectory
+    catch = sp.catch  # the controller that takes over: its basin is the one reported
+    basin = ctx.basin_of(catch)
+    T_plan = float(trajectory.t[-1] - trajectory.t[0])
+    T = ctx.loop.duration
+    if T is None:
+        T = max(T_plan + TRAJOPT_EXTRA, _episode_seconds(sp.objective, ctx.params.timestep))
+        check_push_times(ctx.loop.push, T)
+    tracker = sp.controller
+    controller, rig, rollout = _simulate(ctx, tracker, T)
+    handover = getattr(tracker, "handover_time", T_plan)
+    handover_at = float(handover) if handover is not None and rollout.t[-1] >= handover else None
+    k = int(np.searchsorted(rollout.t, handover_at)) if handover_at is not None else None
+    cost = None if k is None else catch.cost_to_go(rollout.x[k])
+    extra = {"switches": [] if k is None else [{"t": handover_at, "mode": "catch", "cost": cost}],
+             "handover_cost": cost, "objective": sp.objective, "plan": plan_report(sp)}
+    extra.update(_episode_return(rollout, ctx.model, sp.objective))
+    return _Ran(rollout, controller, rig, basin, trajectory, handover_at, extra, {"plan": plan, "loop": ctx.loop})
+
+
+def _check_mpc(mpc, given: dict, loop: LoopOptions, timestep: float):
+    """The NMPC's options (``mpc`` with the legacy keywords ``given``, its period the loop's), refused now when its
+    horizon is too long to solve or its period would round away; one sentence without :mod:`cartpole.mpc.nmpc`."""
+    import importlib.util
+
+    if importlib.util.find_spec("cartpole.mpc.nmpc") is None:
+        raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
+                           "does not have yet; use --method trajopt or energy.")
+    from cartpole.mpc.options import MPCOptions, mpc_grid
+
+    mpc = _mpc_period((MPCOptions() if mpc is None else mpc).replace(**given), loop, timestep)
+    mpc_grid(mpc, timestep)  # a horizon too long to solve, or a period it would round away: refused now
+    return mpc
+
+
+def _run_mpc(ctx: _Context, mpc, plan) -> _Ran:
+    """Nonlinear MPC (RTI or DDP) re-planning every control period, MuJoCo holding each ctrl; no catch, no basin."""
+    from cartpole.mpc.ddp_mpc import seed_plan_options
+    from cartpole.mpc.nmpc import nmpc_swingup
+    from cartpole.planning.options import PlanOptions
+
+    plan = PlanOptions(cart_margin=mpc.cart_margin) if plan is None else plan
+    if mpc.solver == "ddp":
+        plan = seed_plan_options(plan, mpc)
+    if ctx.progress is not None:
+        ctx.progress("mpc", 0.0)
+    if mpc.solver == "ddp":
+        from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
+
+        nmpc = ddp_mpc_swingup(ctx.params, x0=ctx.x0, model=ctx.pm, options=mpc, plan=plan)
+    else:
+        nmpc = nmpc_swingup(ctx.params, x0=ctx.x0, model=ctx.pm, options=mpc, plan=plan)
+    if ctx.progress is not None:
+        ctx.progress("mpc", 1.0)
+    T = ctx.loop.duration
+    if T is None:
+        T = max(MPC_DURATION, _episode_seconds(mpc.objective, ctx.params.timestep))
+    period = float(nmpc.period)
+    controller, rig, rollout = _simulate(ctx, nmpc, T, period=period, loop=ctx.loop.replace(period=period))
+    extra = {"switches": [], "period": period, "horizon": float(nmpc.horizon),
+             "failures": _count(getattr(nmpc, "failures", 0)), "objective": getattr(nmpc, "objective", "tracking")}
+    extra.update(_episode_return(rollout, ctx.model, extra["objective"]))
+    return _Ran(rollout, controller, rig, None, None, None, extra, {"plan": plan, "loop": ctx.loop, "mpc": mpc})
+
+
+def _finish(ctx: _Context, method: str, ran: _Ran) -> SwingupResult:
+    """The shared metrics of a run (:func:`~cartpole.validation.metrics.swingup_metrics`, the method's own, the
+    rig's, estimation and friction) and its result: ``caught_at`` is the hand-over only when the catch held
+    (:func:`~cartpole.validation.metrics.catch_held`)."""
+    from cartpole.validation.metrics import catch_held, swingup_metrics
+
+    rollout, rig, params = ran.rollout, ran.rig, ctx.params
+    metrics = {**swingup_metrics(rollout, ctx.model), **ran.extra}
+    handover_at = None if metrics["diverged"] else ran.handover_at  # MuJoCo reset a blown-up run: never caught
+    caught_at = handover_at if catch_held(rollout, ctx.model, handover_at) else None
+    metrics["handover_at"] = handover_at
     if rig is not None and rig.estimator != "none":
         from cartpole.apps.lab import state_names
         from cartpole.validation.estimation import estimation_summary
 
         metrics["estimation"] = estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))
     metrics["rig"] = None if rig is None else rig.to_dict()
-    metrics["friction"] = friction_summary(params, friction.compensated)
-    metrics["limits"] = limits.to_dict()
-    metrics["start_moved"] = [mv.to_dict() for mv in moves]
+    metrics["friction"] = friction_summary(params, ctx.friction.compensated)
+    metrics["limits"] = ctx.limits.to_dict()
+    metrics["start_moved"] = [mv.to_dict() for mv in ctx.moves]
     return SwingupResult(method=method, success=bool(metrics["success"]), caught_at=caught_at, rollout=rollout,
-                         plan=trajectory, basin=basin, metrics=metrics, push=loop.push, model_error=loop.model_error,
-                         controller=controller, options=options)
+                         plan=ran.plan, basin=ran.basin, metrics=metrics, push=ctx.loop.push,
+                         model_error=ctx.loop.model_error, controller=ran.controller, options=ran.options,
+                         handover_at=handover_at)
 
 
 def _episode_seconds(objective, timestep: float) -> float:

@@ -41,10 +41,12 @@ def add_arguments(parser) -> None:
     from cartpole.commands._limits import add_limit_arguments
 
     add_limit_arguments(parser)
-    parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc"), default=["energy"],
-                        metavar="M", help="swing-up of every run: energy (energy shaping + LQR catch, default), "
+    parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc"), default=None,
+                        metavar="M", help="swing-up of every run: energy (energy shaping + LQR catch), "
                                           "trajopt (collocation + TVLQR) or mpc (nonlinear MPC); two or more: the "
-                                          "same sweep for each, and their success maps side by side")
+                                          "same sweep for each, and their success maps side by side; default the "
+                                          "method `cartpole swingup` tries first on the model: energy for one pole "
+                                          "driven by the cart, else trajopt (no fall-back within a sweep)")
     parser.add_argument("--n", type=int, default=None, metavar="N",
                         help=f"number of runs without axis options (default {DEFAULT_N}), or of seeded draws per "
                              f"grid cell when an axis is sampled (LO HI); at most {MAX_RUNS} runs in all")
@@ -138,7 +140,13 @@ def _plan(args, params):
     from cartpole.commands.swingup import check_duration
     from cartpole.apps.sweep import SweepError, check_axes, check_settings
 
-    methods = list(dict.fromkeys(args.method if isinstance(args.method, list) else [args.method]))
+    chosen = args.method
+    if chosen is None:  # the default: what `cartpole swingup` tries first on this model
+        from cartpole.apps.swingup import default_method
+        from cartpole.models import build_model
+
+        chosen = [default_method(build_model(params))]
+    methods = list(dict.fromkeys(chosen if isinstance(chosen, list) else [chosen]))
     axes = sweep_axes(args)
     sampled = any(a.random for a in axes)
     if axes and not sampled and args.n is not None:

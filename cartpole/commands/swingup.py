@@ -22,9 +22,16 @@ MAX_LOG_BYTES = 256 * 2**20
 def add_arguments(parser) -> None:
     """``--method``, ``--objective``, ``--x0``, ``--duration``, ``--push``, ``--model-error``, ``--period``,
     ``--horizon``, ``--view``, ``--no-video``."""
-    parser.add_argument("--method", choices=("energy", "trajopt", "mpc"), default="energy",
-                        help="energy shaping with an LQR catch (default), direct collocation + TVLQR, or nonlinear "
+    parser.add_argument("--method", choices=("auto", "energy", "trajopt", "mpc"), default="auto",
+                        help="auto (default): what works for the model, tried in turn until one succeeds in MuJoCo "
+                             "(energy shaping for one pole driven by the cart, else or when it fails the planner, "
+                             "then the planner with --solver ddp when a plan does not hold; JSON methods_tried); "
+                             "energy shaping with an LQR catch, direct collocation + TVLQR (trajopt), or nonlinear "
                              "MPC re-planning every control period (mpc)")
+    parser.add_argument("--time-budget", type=float, default=None, metavar="S",
+                        help="--method auto only: wall time in s for the methods tried (default 600): a further "
+                             "method starts only while at least twice what the run before it took is left (the "
+                             "method running is not interrupted)")
     parser.add_argument("--objective", default=None, metavar="OBJ",
                         help="trajopt (and mpc with --mpc-solver ddp: the MPC's running cost, its seed plan the "
                              "same; the RTI NMPC tracks upright only) : what the plan optimises: effort (default; minimum integral of "
@@ -59,7 +66,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--horizon", type=float, default=None, metavar="S",
                         help="mpc only: prediction horizon in s (default the controller's, 1.2 s)")
     parser.add_argument("--solver", choices=("auto", "ipopt", "fatrop", "sqp", "ddp"), default=None,
-                        help="trajopt only: solver of the plan's last stage: auto (default: the collocation SQP for "
+                        help="trajopt (and auto's planner) only: solver of the plan's last stage: auto (default: the collocation SQP for "
                              "every objective and for the minimum-time refinement before it; the coarse multi-start "
                              "stays IPOPT's), ipopt (every stage), fatrop, sqp (as auto) or ddp (box-DDP on the exact "
                              "discrete step, every objective; time by a search over T); IPOPT takes over when it does "
@@ -89,6 +96,17 @@ def search_fields(args) -> dict:
     """``T_max`` and ``search_s`` of :class:`~cartpole.planning.options.PlanOptions` from ``--T-max`` and
     ``--search-s`` (only those given)."""
     return {k: getattr(args, k) for k in ("T_max", "search_s") if getattr(args, k, None) is not None}
+
+
+def methods_sentence(tried) -> str:
+    """The prose line saying which methods the default tried, how each ended and whose run is shown (the last that
+    ran): ``tried`` is :attr:`~cartpole.apps.swingup.SwingupResult.methods_tried`."""
+    ran = [t.label for t in tried if t.outcome in ("success", "failed")]
+    parts = []
+    for t in tried:
+        took = f" after {t.seconds:.0f} s" if t.outcome in ("success", "failed", "error") else ""
+        parts.append(f"{t.label}: {t.outcome}{took}" + (f" ({t.reason})" if t.reason else ""))
+    return f"Methods tried (--method auto): {'; '.join(parts)}." + (f" Shown: the {ran[-1]} run." if ran else "")
 
 
 def log_bytes(duration: float, params) -> float:
@@ -238,18 +256,25 @@ def run(args) -> dict:
     if objective is not None:
         from cartpole.ocp.objectives import make_objective
 
-        if args.method not in ("trajopt", "mpc"):
+        if args.method not in ("auto", "trajopt", "mpc"):
             raise SwingupError("--objective chooses what the trajectory optimisation (or the MPC) optimises; use "
                                "it with --method trajopt or mpc.")
         make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
-    if args.method == "trajopt":
+    solver = getattr(args, "solver", None)
+    if args.method == "trajopt" or (args.method == "auto" and (objective is not None or solver is not None)):
         from cartpole.planning.options import PlanOptions
 
-        plan = PlanOptions(objective=objective,
-                           **({} if getattr(args, "solver", None) is None else {"solver": args.solver}),
-                           **search_fields(args))
-    elif getattr(args, "solver", None) is not None:
+        plan = PlanOptions(objective=objective, **({} if solver is None else {"solver": solver}), **search_fields(args))
+    elif solver is not None:
         raise SwingupError("--solver picks the trajectory optimisation's solver; use it with --method trajopt.")
+    time_budget = getattr(args, "time_budget", None)
+    if time_budget is not None:
+        if args.method != "auto":
+            raise SwingupError("--time-budget bounds the tries of the default method; use it without --method (or "
+                               "with --method auto).")
+        if not (math.isfinite(time_budget) and time_budget > 0):
+            raise SwingupError(f"--time-budget {time_budget:g} s is not a positive number of seconds; give e.g. "
+                               "--time-budget 600.")
     if args.method == "mpc":
         from cartpole.mpc.options import MPCOptions
 
@@ -280,21 +305,22 @@ def run(args) -> dict:
     try:
         res = run_swingup(model, method=args.method, x0=None if args.x0 is None else x0, plan=plan, loop=loop,
                           mpc=mpc, progress=_Stages(sizes), on_step=viewer, plan_model=plan_model,
-                          **limit_keywords(args))
+                          time_budget=time_budget, **limit_keywords(args))
         if viewer is not None:
             viewer.finish()
     finally:
         if viewer is not None:
             viewer.close()
-    fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{args.method}.png", plan=res.plan,
-                       caught_at=res.caught_at, model=model,
-                       title=f"Swing-up ({args.method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
+    method = res.method  # the one that ran (--method auto: the first that succeeded, else the last tried)
+    fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{method}.png", plan=res.plan,
+                       caught_at=res.caught_at, handover_at=res.handover_at, model=model,
+                       title=f"Swing-up ({method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
     est_fig = None
     if res.metrics.get("estimation"):
         from cartpole.viz.estimation_plot import plot_estimation
 
-        est_fig = str(plot_estimation(res.rollout, params, out / "figures" / f"swingup_{args.method}_estimation.png",
-                                      title=f"Swing-up ({args.method}): {res.metrics['estimation']['estimator']} "
+        est_fig = str(plot_estimation(res.rollout, params, out / "figures" / f"swingup_{method}_estimation.png",
+                                      title=f"Swing-up ({method}): {res.metrics['estimation']['estimator']} "
                                             "estimate against MuJoCo").resolve())
     video = None
     if not args.no_video:
@@ -302,12 +328,13 @@ def run(args) -> dict:
         seconds = float(res.rollout.t[-1])
         try:
             with stage("video", size=f"{seconds:g} s at 30 fps") as tick:
-                video = render_video(params, res.rollout, out / "videos" / f"swingup_{args.method}.mp4",
+                video = render_video(params, res.rollout, out / "videos" / f"swingup_{method}.mp4",
                                      progress=tick, modes=swingup_modes(res), model=model)
         except VideoUnavailable as exc:
             print(f"cartpole swingup: no video ({exc})", file=sys.stderr)
     m = res.metrics
-    doc = {"mjcf": params.mjcf, "method": args.method, "success": res.success, "caught_at": res.caught_at,
+    doc = {"mjcf": params.mjcf, "method": method, "success": res.success, "caught_at": res.caught_at,
+           "handover_at": res.handover_at, "methods_tried": [t.as_dict() for t in res.methods_tried],
            "diverged": bool(m["diverged"]), "diverged_at": m["diverged_at"], "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
            "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
@@ -318,12 +345,12 @@ def run(args) -> dict:
     doc["smoothed_friction"] = design_friction(model, doc["friction"])
     doc["estimation"] = m.get("estimation")
     doc["estimation_figure"] = est_fig
-    if args.method != "mpc":
+    if method != "mpc":
         doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
     doc["limits"], doc["start_moved"] = m.get("limits"), m.get("start_moved", [])
     doc["plan_mjcf"] = None if plan_model is None else plan_model.params.mjcf
-    if args.method == "mpc":
+    if method == "mpc":
         ctrl = res.controller
         doc["solve_ms"] = [float(v) for v in getattr(ctrl, "solve_ms", [])]
         doc["period"], doc["horizon"] = float(ctrl.period), float(ctrl.horizon)
@@ -331,7 +358,7 @@ def run(args) -> dict:
         doc["objective"] = m.get("objective")
         if "return" in m:
             doc["return"], doc["return_steps"] = m["return"], m["return_steps"]
-    if args.method == "trajopt":
+    if method == "trajopt":
         doc["objective"] = m.get("objective")
         doc["plan"] = m.get("plan")
         if "return" in m:
@@ -349,7 +376,7 @@ def run(args) -> dict:
         scenario = "".join(f", pushed {F:+g} N at {T:g} s" for T, F in res.push) + (
             f", planning model's poles scaled by {res.model_error:g}" if res.model_error != 1.0 else "") + (
             f", designed on {plan_model.params.mjcf}" if plan_model is not None else "")
-        print(f"Swing-up ({args.method}) from x0 = {list(map(float, x0))}{scenario}: "
+        print(f"Swing-up ({method}) from x0 = {list(map(float, x0))}{scenario}: "
               f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
               "limits, ctrl in range, no contact)")
         print(model.contacts.summary())
@@ -362,7 +389,15 @@ def run(args) -> dict:
                   f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")
         for line in limit_lines(doc["limits"], doc["start_moved"]):
             print(line)
-        print(f"Caught at: {fmt(res.caught_at, 's')}; time to upright (every |theta_i| < 0.05 rad for good): "
+        if len(res.methods_tried) > 1:
+            print(methods_sentence(res.methods_tried))
+        if res.caught_at is not None:
+            catch = f"Caught at: {res.caught_at:.3f} s (handed over to the catch then; it held)"
+        elif res.handover_at is not None:
+            catch = f"Caught at: never (handed over to the catch at {res.handover_at:.3f} s; it did not hold)"
+        else:
+            catch = "Caught at: never (no hand-over to the catch)"
+        print(f"{catch}; time to upright (every |theta_i| < 0.05 rad for good): "
               f"{fmt(m['time_to_upright'], 's')}")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "
               f"(closest to a limit: {m['cart_clearance']:.3f} m)")
@@ -384,7 +419,7 @@ def run(args) -> dict:
         if res.basin is not None:
             print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
                   f"{res.basin.seed}, safety factor {res.basin.safety_factor})")
-        if args.method == "mpc" and doc["solve_ms"]:
+        if method == "mpc" and doc["solve_ms"]:
             import numpy as np
 
             print(f"NMPC: period {doc['period']:g} s, horizon {doc['horizon']:g} s; solve per control step median "

@@ -415,6 +415,52 @@ def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e
                 and ctrl_within_range(rollout, params))
 
 
+def catch_held(rollout, source, handover_at: float | None, *, hold: float = 1.0) -> bool:
+    """Whether the catch that took over at ``handover_at`` held: the run reached the hand-over, did not diverge, and
+    ends upright and at rest (:func:`held_upright`: every pole inside :data:`UPRIGHT_TOL` of upright and still over
+    the last ``hold`` s), the part of :func:`swingup_success` that is the catch's.
+
+    Parameters
+    ----------
+    rollout : Rollout
+    source : CartPoleModel or CartPoleParams
+        As :func:`swingup_success`.
+    handover_at : float or None
+        s: when the controller handed over to the catch (None: it never did, so nothing was caught).
+    hold : float
+        Seconds at the end that must be upright and at rest.
+
+    Returns
+    -------
+    bool
+        False without a hand-over, after a divergence, or when the run does not end upright at rest.
+    """
+    if handover_at is None or diverged(rollout) or rollout.t[-1] < handover_at:
+        return False
+    params, x_eq = _layout(source)
+    return held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
+
+
+def failure_reason(metrics: dict, *, limit_tol: float = 1e-3) -> str:
+    """Why a swing-up failed, in a few words, from its :func:`swingup_metrics` (or any dict with ``success``,
+    ``diverged`` and ``cart_clearance`` (m)); ``""`` for a success.
+
+    Returns
+    -------
+    str
+        ``"diverged"`` (MuJoCo blew up and reset the run), ``"cart reached its limit"`` (closer than ``limit_tol``
+        m to a cart limit) or ``"not upright at rest over the last second"``.
+    """
+    if metrics["success"]:
+        return ""
+    if metrics.get("diverged"):
+        return "diverged"
+    clearance = metrics.get("cart_clearance")
+    if clearance is not None and clearance <= limit_tol:
+        return "cart reached its limit"
+    return "not upright at rest over the last second"
+
+
 def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
     """All swing-up metrics of a :class:`~cartpole.sim.rollout.Rollout` in one JSON-ready dict.
 

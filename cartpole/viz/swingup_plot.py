@@ -25,16 +25,17 @@ def _energy(fun, x: np.ndarray) -> np.ndarray:
 
 
 def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = None, title: str | None = None,
-                 model=None) -> Path:
+                 model=None, handover_at: float | None = None) -> Path:
     """Draw a swing-up rollout (:func:`swingup_figure`) and save it as PNG (whole or not at all:
     :func:`~cartpole._files.atomic_write`); ``path`` is the output file (parent directories are created), the other
     arguments are :func:`swingup_figure`'s. Returns the path written."""
-    fig = swingup_figure(rollout, params, plan=plan, caught_at=caught_at, title=title, model=model)
+    fig = swingup_figure(rollout, params, plan=plan, caught_at=caught_at, title=title, model=model,
+                         handover_at=handover_at)
     return atomic_write(path, lambda fh: fig.savefig(fh, dpi=100, format="png"))
 
 
 def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None, title: str | None = None,
-                   model=None):
+                   model=None, handover_at: float | None = None):
     """A swing-up rollout as a matplotlib ``Figure`` on an Agg canvas (no pyplot); panels as the module says.
 
     Parameters
@@ -46,10 +47,13 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
     plan : Trajectory, optional
         Planned trajectory (``t`` (N+1,), ``x`` (N+1, nx), ``u`` (N or N+1, nu)) drawn dashed.
     caught_at : float, optional
-        s; marked with a vertical line on every panel.
+        s: when the catch took over and held; marked with a vertical line on every panel.
     title : str, optional
     model : CartPoleModel, optional
         For the equilibrium and the energy (default built from ``params``).
+    handover_at : float, optional
+        s: when the controller handed over to the catch; without ``caught_at`` (the catch did not hold) marked with
+        a dashed red line on every panel.
 
     Returns
     -------
@@ -97,6 +101,9 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
     if caught_at is not None:
         for a in ax:
             a.axvline(caught_at, color="g", lw=1.0, label=f"catch at {caught_at:.2f} s")
+    elif handover_at is not None:
+        for a in ax:
+            a.axvline(handover_at, color="r", ls="--", lw=1.0, label=f"hand-over at {handover_at:.2f} s (did not hold)")
     for a in ax:
         a.grid(True, alpha=0.3)
         a.legend(loc="upper right", fontsize=7)

@@ -9,7 +9,8 @@ import cartpole as cp
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF
 from cartpole.control.energy import EnergyOptions
-from cartpole.apps.swingup import SwingupError, check_start, run_swingup
+from cartpole.apps.swingup import (MethodTry, SwingupError, auto_methods, check_start, default_method, method_list,
+                                   run_swingup)
 from cartpole.mpc.options import MPCOptions
 from cartpole.planning.options import PlanOptions
 from cartpole.sim import replays_exactly
@@ -57,6 +58,98 @@ def test_energy_refuses_a_chain_before_anything_runs():
         run_swingup(TWO_POLE, method="energy", progress=lambda stage, f: stages.append(stage))
     assert "\n" not in str(err.value)
     assert stages == []  # no basin estimate, no simulation
+
+
+def _tried(res):
+    return [(t.method, t.solver, t.outcome) for t in res.methods_tried]
+
+
+def test_the_default_chooses_by_the_models_structure():
+    """Energy shaping first for one pole driven by the cart; the planner first for a chain or a hinge-driven model
+    (energy said not to apply, and why); the DDP planner after the planner; planner settings put the planner first."""
+    one = cp.build_model(None)
+    assert [(t.method, t.solver, t.outcome) for t in auto_methods(one)] == [
+        ("energy", None, ""), ("trajopt", None, ""), ("trajopt", "ddp", "")]
+    for path, why in ((TWO_POLE, "2 hinges"), (SHIPPED_MJCF.with_name("dmc_acrobot.xml"), "2 hinges"),
+                      (SHIPPED_MJCF.with_name("dmc_pendulum.xml"), "no slide")):
+        tries = auto_methods(cp.build_model(path))
+        assert tries[0].method == "energy" and tries[0].outcome == "not applicable" and why in tries[0].reason
+        assert "--method" not in tries[0].reason  # the default runs the planner next; no advice to do it
+        assert [(t.method, t.solver, t.outcome) for t in tries[1:]] == [("trajopt", None, ""), ("trajopt", "ddp", "")]
+        assert default_method(cp.build_model(path)) == "trajopt"
+    assert default_method(one) == "energy"
+    ddp_first = auto_methods(one, plan=PlanOptions(solver="ddp"))
+    assert [(t.method, t.solver, t.outcome) for t in ddp_first] == [("energy", None, "not applicable"),
+                                                                     ("trajopt", "ddp", "")]
+    assert auto_methods(one, objective="time")[0].outcome == "not applicable"
+
+
+@pytest.mark.parametrize("method, words", [("magic", "Unknown swing-up method 'magic'; choose one of auto"),
+                                           ([], "No swing-up method given"),
+                                           ([MethodTry("energy", "ddp")], "a trajopt entry takes one of"),
+                                           ([MethodTry("trajopt", "newton")], "a trajopt entry takes one of")])
+def test_a_bad_method_list_is_one_sentence(method, words):
+    with pytest.raises(SwingupError, match=words):
+        method_list(method)
+    with pytest.raises(SwingupError, match=words):
+        run_swingup(None, method=method)
+
+
+def test_the_default_falls_back_to_the_planner_when_energy_shaping_fails():
+    """A one-pole cart: energy shaping runs first; pumping too gently to get up (an energy gain of 0.5, not 15) it
+    fails in MuJoCo, the planner runs next and swings up, and the DDP planner is not needed."""
+    res = run_swingup(None, energy_options={"energy_gain": 0.5})
+    assert _tried(res) == [("energy", None, "failed"), ("trajopt", "auto", "success"), ("trajopt", "ddp", "skipped")]
+    assert res.methods_tried[0].reason == "not upright at rest over the last second"
+    assert all(t.seconds > 0 for t in res.methods_tried[:2]) and res.methods_tried[2].seconds == 0
+    assert res.method == "trajopt" and res.success and res.plan is not None
+    assert replays_exactly(res.rollout, cp.read_params())
+
+
+def test_a_planner_that_finds_no_plan_ends_the_planners_and_the_run_before_it_is_kept(monkeypatch):
+    """The planner raising (no plan found) is recorded as an error; the DDP planner, which starts from the same
+    search, is skipped; the energy run that failed before it is the result. With nothing run, the error is raised."""
+    from cartpole.ocp.collocation import OCPNotSolved
+    import cartpole.planning.trajopt as trajopt
+
+    def no_plan(*args, **kwargs):
+        raise OCPNotSolved("No swing-up found within T <= 1 s after 1 attempt; that proves nothing.")
+
+    monkeypatch.setattr(trajopt, "trajopt_swingup", no_plan)
+    res = run_swingup(None, energy_options={"energy_gain": 0.5})
+    assert _tried(res) == [("energy", None, "failed"), ("trajopt", None, "error"), ("trajopt", "ddp", "skipped")]
+    assert res.methods_tried[1].reason.startswith("No swing-up found") and res.method == "energy"
+    with pytest.raises(OCPNotSolved):
+        run_swingup(TWO_POLE)
+
+
+def test_no_method_starts_after_the_time_budget():
+    res = run_swingup(None, method=["energy", "trajopt"], energy_options={"energy_gain": 0.5}, time_budget=1e-3)
+    assert _tried(res) == [("energy", None, "failed"), ("trajopt", None, "skipped")]
+    assert "--time-budget" in res.methods_tried[1].reason and "--method trajopt" in res.methods_tried[1].reason
+    with pytest.raises(SwingupError, match="time budget"):
+        run_swingup(None, method=["energy", "trajopt"], duration=0.5, time_budget=-1.0)
+
+
+def test_a_run_cut_short_by_the_duration_given_ends_the_turn():
+    """A failure within a duration shorter than the method's own says nothing of the method: nothing else runs."""
+    res = run_swingup(None, duration=0.5)
+    assert _tried(res) == [("energy", None, "failed"), ("trajopt", None, "skipped"), ("trajopt", "ddp", "skipped")]
+    assert "the run of 0.5 s was shorter than the method's own 10 s" in res.methods_tried[0].reason
+    assert "--duration" in res.methods_tried[1].reason and res.method == "energy"
+
+
+def test_caught_at_only_when_the_catch_held_and_the_handover_has_its_own_name():
+    """Caught and held: caught_at is the hand-over. Knocked down by a push after the hand-over, with no time to
+    come back: the hand-over is still reported (handover_at), caught_at is None."""
+    held = run_swingup(None, method="energy")
+    assert held.success and held.caught_at is not None and held.caught_at == held.handover_at
+    assert _tried(held) == [("energy", None, "success")]
+    t = held.handover_at
+    knocked = run_swingup(None, method="energy", duration=t + 1.5, push=[(t + 0.5, 40.0)])
+    assert not knocked.success and knocked.metrics["time_to_upright"] is None
+    assert knocked.handover_at == pytest.approx(t) and knocked.caught_at is None
+    assert knocked.metrics["handover_at"] == knocked.handover_at
 
 
 def test_start_state_count_and_order_come_from_the_model():

@@ -246,7 +246,7 @@ def _variant(tmp_path, old, new):
     ('ctrlrange="-1 1"', 'ctrlrange="-1e300 1e300"', ["lqr", "--json", "--no-video"], ("ctrlrange", "limit")),
     ('<joint name="hinge" type="hinge"', '<joint name="hinge" type="hinge" limited="true" range="60 300"', SWINGUP,
      ("does not contain the upright angle",)),
-    ('gear="20"', 'gear="-20"', SWINGUP, ("positive gear",)),
+    ('gear="20"', 'gear="-20"', [*SWINGUP, "--method", "energy"], ("positive gear",)),
 ], ids=["ctrlrange-swingup", "ctrlrange-lqr", "hinge-range", "negative-gear"])
 def test_an_mjcf_no_swingup_can_use_as_given_is_one_sentence(tmp_path, capsys, old, new, argv, words):
     mjcf = _variant(tmp_path, old, new)

@@ -82,9 +82,20 @@ def test_bad_settings_are_one_sentence_exit_2_and_nothing_written(argv, words, t
 def test_energy_sweep_on_a_two_pole_cart_is_refused_before_any_run(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["sweep", "--json", "--mjcf", str(SHIPPED_MJCF.with_name("cartpole_two_pole.xml")),
-                 "--out", str(out)]) == 2
+                 "--method", "energy", "--out", str(out)]) == 2
     cap = capsys.readouterr()
     assert "Energy shaping is for one pole" in cap.err and len(cap.err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_the_default_sweep_on_a_two_pole_cart_is_the_planners(tmp_path, capsys):
+    """No --method: the method `cartpole swingup` tries first on the model, the planner on a chain (gain jitter,
+    energy shaping's, is refused naming --method energy, before any run)."""
+    out = tmp_path / "out"
+    assert main(["sweep", "--json", "--mjcf", str(SHIPPED_MJCF.with_name("cartpole_two_pole.xml")),
+                 "--jitter", "0.1", "--out", str(out)]) == 2
+    cap = capsys.readouterr()
+    assert "use --method energy" in cap.err and len(cap.err.strip().splitlines()) == 1
     assert not out.exists()
 
 

@@ -36,6 +36,10 @@ def test_energy_json_contract_and_exact_replay(tmp_path, capsys):
     doc = json.loads(out)  # stdout is exactly one JSON document
     _check_contract(doc, "energy", tmp_path)
     assert not (tmp_path / "videos").exists()
+    # no --method: the default chose energy shaping for one pole driven by the cart, and it held
+    assert [(t["method"], t["outcome"]) for t in doc["methods_tried"]] == [
+        ("energy", "success"), ("trajopt", "skipped"), ("trajopt", "skipped")]
+    assert doc["methods_tried"][2]["solver"] == "ddp" and doc["handover_at"] == doc["caught_at"]
     # the stages' settings, echoed
     assert doc["options"] == {"energy": EnergyOptions().as_dict(), "loop": LoopOptions().as_dict()}
 
@@ -69,6 +73,7 @@ def test_prose_summary(tmp_path, capsys):
                                   ["--period", "0.013"], ["--delay", "0.007"], ["--delay", "-0.01"],
                                   ["--estimator", "none", "--encoder-cpr", "2048"], ["--encoder-cpr", "0"],
                                   ["--sensor-noise", "nan"], ["--method", "trajopt", "--horizon", "1"],
+                                  ["--method", "energy", "--time-budget", "60"], ["--time-budget", "0"],
                                   ["--mjcf", "NOT_A_CARTPOLE"]])
 def test_bad_input_is_one_sentence_exit_2_and_no_files(argv, tmp_path, capsys):
     if argv[-1] == "NOT_A_CARTPOLE":
@@ -99,7 +104,7 @@ def _fails_with_one_sentence(argv, tmp_path, capsys):
 
 
 def test_energy_on_a_two_pole_cart_is_refused_with_the_controllers_sentence(tmp_path, capsys):
-    line = _fails_with_one_sentence(["--mjcf", str(TWO_POLE)], tmp_path, capsys)
+    line = _fails_with_one_sentence(["--mjcf", str(TWO_POLE), "--method", "energy"], tmp_path, capsys)
     assert "Energy shaping is for one pole" in line and "2 hinges" in line and "--method trajopt" in line
 
 
@@ -109,28 +114,61 @@ def test_x0_of_the_wrong_length_names_the_count_and_order(tmp_path, capsys):
     assert "give exactly 6: slider (m), hinge (rad), hinge2 (rad), then their rates" in line
 
 
-def test_trajopt_on_a_two_pole_cart_succeeds_or_fails_with_one_sentence(tmp_path, capsys):
+def _replays(doc, x0=None):
+    ro = doc["rollout"]
+    if x0 is not None:
+        np.testing.assert_array_equal(np.hstack([ro["qpos"][0], ro["qvel"][0]]), x0)
+    qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
+    return np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
+
+
+def test_the_default_on_a_two_pole_cart_runs_the_planner_and_swings_up(tmp_path, capsys):
+    """No --method on a chain: energy shaping does not apply (said, with why), the planner runs and holds both poles
+    up; the DDP planner is not needed. The log replays exactly."""
     from cartpole.models import build_model
 
     pytest.importorskip("cartpole.planning.trajopt")
     out = tmp_path / "out"
-    rc = main(["swingup", "--method", "trajopt", "--json", "--no-video", "--mjcf", str(TWO_POLE), "--out", str(out)])
-    cap = capsys.readouterr()
-    if rc == 2:  # refused: one sentence, nothing written
-        lines = cap.err.strip().splitlines()
-        assert cap.out == "" and len(lines) == 1 and lines[0].startswith("cartpole swingup: ")
-        assert not out.exists()
-        return
-    assert rc == 0
-    doc = json.loads(cap.out)
-    model = build_model(TWO_POLE)
+    assert main(["swingup", "--json", "--no-video", "--mjcf", str(TWO_POLE), "--out", str(out)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    tried = doc["methods_tried"]
+    assert [(t["method"], t["solver"], t["outcome"]) for t in tried] == [
+        ("energy", None, "not applicable"), ("trajopt", "auto", "success"), ("trajopt", "ddp", "skipped")]
+    assert "2 hinges" in tried[0]["reason"] and tried[1]["seconds"] > 0
+    assert doc["method"] == "trajopt" and doc["success"] is True and doc["plan"] is not None
+    assert doc["caught_at"] is not None and doc["caught_at"] == doc["handover_at"]
     ro = doc["rollout"]
     assert np.array(ro["qpos"]).shape[1] == np.array(ro["qvel"]).shape[1] == 3 and np.array(ro["ctrl"]).shape[1] == 1
-    np.testing.assert_array_equal(np.hstack([ro["qpos"][0], ro["qvel"][0]]), model.x_hanging)
-    qpos, qvel = replay_with_mj_step(doc["mjcf"], ro["qpos"][0], ro["qvel"][0], ro["ctrl"])
-    assert np.array_equal(qpos, np.array(ro["qpos"])) and np.array_equal(qvel, np.array(ro["qvel"]))
-    assert isinstance(doc["success"], bool)
+    assert _replays(doc, build_model(TWO_POLE).x_hanging)
     assert sorted(p.name for p in out.rglob("*") if p.is_file()) == ["swingup_trajopt.png"]
+
+
+def test_the_default_falls_back_to_the_planner_on_a_short_rail_and_says_so(tmp_path, capsys):
+    """The shipped cart on a rail of +-0.5 m: energy shaping's rail guard keeps the cart in but cannot pump the pole
+    up there (failed in MuJoCo), the planner plans within the rail and swings up; prose and JSON say so."""
+    pytest.importorskip("cartpole.planning.trajopt")
+    short = tmp_path / "short_rail.xml"
+    short.write_text(SHIPPED_MJCF.read_text().replace('range="-1.5 1.5"', 'range="-0.5 0.5"'))
+    assert main(["swingup", "--json", "--no-video", "--mjcf", str(short), "--out", str(tmp_path / "out")]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    tried = doc["methods_tried"]
+    assert [(t["method"], t["outcome"]) for t in tried] == [("energy", "failed"), ("trajopt", "success"),
+                                                          ("trajopt", "skipped")]
+    assert tried[0]["reason"] and tried[0]["seconds"] > 0 and tried[2]["reason"] == "an earlier method succeeded"
+    assert doc["method"] == "trajopt" and doc["success"] is True and _replays(doc)
+    assert doc["figure"].endswith("swingup_trajopt.png")
+
+
+def test_the_prose_says_which_methods_were_tried():
+    from cartpole.apps.swingup import MethodTry
+    from cartpole.commands.swingup import methods_sentence
+
+    line = methods_sentence([MethodTry("energy", None, "failed", "cart reached its limit", 4.2),
+                             MethodTry("trajopt", "auto", "failed", "not upright at rest over the last second", 30),
+                             MethodTry("trajopt", "ddp", "success", "upright", 61.0)])
+    assert line.startswith("Methods tried (--method auto): energy: failed after 4 s (cart reached its limit); "
+                           "trajopt: failed after 30 s")
+    assert "trajopt (ddp): success after 61 s (upright)" in line and line.endswith("Shown: the trajopt (ddp) run.")
 
 
 def test_view_without_a_display_says_so_in_one_line_and_runs_as_usual(tmp_path, monkeypatch, capsys):
@@ -203,7 +241,7 @@ def test_objective_errors_end_in_one_sentence_and_no_files(tmp_path, capsys, mon
              (["--objective", "fastest"], "not known"),
              ([], "use it with --method trajopt")]
     for extra, words in cases:
-        method = [] if not extra else ["--method", "trajopt"]
+        method = ["--method", "energy"] if not extra else ["--method", "trajopt"]  # no --method: the planner's
         line = _fails_with_one_sentence([*method, *(extra or ["--objective", "time"])], tmp_path, capsys)
         assert words in line, line
 

@@ -5,7 +5,7 @@ import pytest
 
 from cartpole.models import read_params
 from cartpole.sim import Rollout
-from cartpole.validation.metrics import (STRICT_TOLERANCE, held_upright, peak_ctrl, peak_ctrl_per_actuator,
+from cartpole.validation.metrics import (STRICT_TOLERANCE, catch_held, failure_reason, held_upright, peak_ctrl, peak_ctrl_per_actuator,
                                          saturation_fraction, settling_time_seed, settling_time_strict, summarize,
                                          swingup_metrics, swingup_success, track_margin)
 
@@ -137,6 +137,29 @@ def test_success_needs_hold_no_limit_contact_and_ctrl_in_range():
     assert not swingup_success(bad, params)
     m = swingup_metrics(up, params)
     assert m["success"] and m["time_to_upright"] == 0.0
+
+
+def test_a_catch_held_only_when_the_run_ends_upright_at_rest_after_the_handover():
+    params = read_params()
+    up = _rollout(np.concatenate([np.linspace(np.pi, 0.02, 100), np.full(201, 0.01)]))
+    assert catch_held(up, params, handover_at=0.9)
+    assert not catch_held(up, params, handover_at=None)  # no hand-over: nothing was caught
+    assert not catch_held(up, params, handover_at=up.t[-1] + 0.1)  # the run ended before the hand-over
+    fell = _rollout(np.concatenate([np.linspace(np.pi, 0.02, 100), np.full(150, 0.01), np.linspace(0.01, 2.0, 51)]))
+    assert not catch_held(fell, params, handover_at=0.9)  # handed over, then the pole fell: not caught
+    blown = Rollout(t=up.t, qpos=up.qpos, qvel=up.qvel, ctrl=up.ctrl, info={"diverged": 2.0})
+    assert not catch_held(blown, params, handover_at=0.9)  # MuJoCo reset the run: never a catch
+
+
+def test_failure_reason_names_what_failed():
+    params = read_params()
+    assert failure_reason(swingup_metrics(_rollout(np.full(201, 0.01)), params)) == ""
+    assert failure_reason(swingup_metrics(_rollout(np.full(201, 1.0)), params)) == \
+        "not upright at rest over the last second"
+    s = np.zeros(201)
+    s[10] = params.cart_range[1]
+    assert failure_reason(swingup_metrics(_rollout(np.full(201, 1.0), s), params)) == "cart reached its limit"
+    assert failure_reason({"success": False, "diverged": True, "cart_clearance": 1.0}) == "diverged"
 
 
 def _chain_run(seed, nq=4, n=300, dt=0.005):

@@ -24,6 +24,7 @@ from cartpole._arrays import readonly
 from cartpole._files import InputFileError, output_error, read_bounded, short
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, read_params
+from cartpole.validation.metrics import failure_reason
 from cartpole.apps.sweep.plan import Axis, SweepError, start_index
 
 
@@ -305,13 +306,9 @@ def failure(row: dict) -> str:
         return ""
     if row["error"]:
         return "raised"
-    if row.get("diverged"):
-        return "diverged"
-    if not row["replays"]:
+    if not row.get("diverged") and not row["replays"]:
         return "log does not replay"
-    if row["cart_clearance"] is not None and row["cart_clearance"] <= 1e-3:
-        return "cart reached its limit"
-    return "not upright at rest over the last second"
+    return failure_reason(row)
 
 
 def _cell(v):
