@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 
-def replay_with_mj_step(mjcf, qpos0, qvel0, ctrl, push=None) -> tuple[np.ndarray, np.ndarray]:
+def replay_with_mj_step(mjcf, qpos0, qvel0, ctrl, push=None, qfrc_applied=None) -> tuple[np.ndarray, np.ndarray]:
     """``(qpos (n+1, nq), qvel (n+1, nv))`` of ``ctrl`` (n, nu) applied step by step from ``(qpos0, qvel0)``, with
-    ``push`` (n,) the world-x force in N on the cart body (the first slide joint's) during each step, if given."""
+    ``push`` (n,) the world-x force in N on the cart body (the first slide joint's) during each step, if given, and
+    ``qfrc_applied`` (n, nv) the generalized forces on the joints during each step, if given."""
     import mujoco
 
     m = mujoco.MjModel.from_xml_path(str(mjcf))
@@ -20,6 +21,8 @@ def replay_with_mj_step(mjcf, qpos0, qvel0, ctrl, push=None) -> tuple[np.ndarray
     for k, u in enumerate(ctrl):
         if push is not None:
             d.xfrc_applied[cart, 0] = push[k]
+        if qfrc_applied is not None:
+            d.qfrc_applied[:] = qfrc_applied[k]
         d.ctrl[:] = u
         mujoco.mj_step(m, d)
         qpos.append(d.qpos.copy())

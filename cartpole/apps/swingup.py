@@ -62,7 +62,7 @@ __all__ = ["AUTO", "AUTO_NEXT_FACTOR", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "M
            "method_list", "own_duration", "parse_push", "plan_model_from", "plan_report",
            "planning_model", "push_force", "run_swingup"]
 
-METHODS = ("energy", "trajopt", "mpc")
+METHODS = ("energy", "trajopt", "mpc", "supervisor")
 #: The default method: the methods :func:`auto_methods` chooses for the model, tried in turn until one succeeds.
 AUTO = "auto"
 #: s of wall time within which the default method tries its methods: a further method starts only while the budget
@@ -78,6 +78,8 @@ AUTO_NEXT_FACTOR = 2.0
 ENERGY_DURATION = 10.0
 TRAJOPT_EXTRA = 3.0
 MPC_DURATION = 8.0
+#: s a supervisor run lasts when no duration is given: long enough for several knockdowns and swing-ups.
+SUPERVISOR_DURATION = 30.0
 
 
 class SwingupError(CartPoleError):
@@ -596,7 +598,9 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
     x0 = check_start(x0, params)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
-    if auto:
+    if auto and loop.disturbed:  # knocked down or thrown: the controller that swings up again, for the whole run
+        tries = (MethodTry("supervisor"),)
+    elif auto:
         tries = auto_methods(pm, plan=plan, objective=given["plan"].get("objective"), energy_options=energy_options)
     names = [t.method for t in tries if not t.outcome]
     if not names:
@@ -620,10 +624,10 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
         from cartpole.mpc.options import MPCOptions
 
         mpc = (MPCOptions() if mpc is None else mpc).replace(objective=given["plan"].pop("objective"))
-    if given["plan"] and "trajopt" not in names:
+    if given["plan"] and not {"trajopt", "supervisor"} & set(names):
         raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
                            "trajopt or mpc.")
-    if plan is not None and not {"trajopt", "mpc"} & set(names):
+    if plan is not None and not {"trajopt", "mpc", "supervisor"} & set(names):
         raise SwingupError("Plan options set the trajectory optimisation; use them with --method trajopt or mpc.")
     if "mpc" in names:
         mpc = _check_mpc(mpc, given["mpc"], loop, params.timestep)
@@ -638,6 +642,8 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
             return _finish(ctx, "energy", _run_energy(ctx, energy, catch_weights))
         if t.method == "mpc":
             return _finish(ctx, "mpc", _run_mpc(ctx, mpc, plan))
+        if t.method == "supervisor":
+            return _finish(ctx, "supervisor", _run_supervisor(ctx, _plan_options(plan, given["plan"])))
         p = _plan_options(plan, given["plan"])
         return _finish(ctx, "trajopt", _run_trajopt(ctx, p if t.solver is None else p.replace(solver=t.solver)))
 
@@ -786,11 +792,31 @@ def _simulate(ctx: _Context, controller, T: float, *, period=None, loop=None) ->
     loop = ctx.loop if loop is None else loop
     rig = build_rig(ctx.plant, loop, task="swingup")
     controller = ctx.friction.wrap(controller)  # the controller that runs, friction compensation outermost
+    disturbance = loop.disturbance(ctx.params, x_eq=ctx.model.x_eq, hinges=ctx.model.hinges)
     rollout = simulate(ctx.params, controller, ctx.x0, T, push=ctx.force, progress=_stage(ctx.progress, "simulate"),
-                       on_step=ctx.on_step, control_period=loop.period if period is None else period, rig=rig)
+                       on_step=ctx.on_step, control_period=loop.period if period is None else period, rig=rig,
+                       disturbance=disturbance)
+    if disturbance is not None:
+        rollout.info["disturbances"] = disturbance.events
     if ctx.progress is not None:
         ctx.progress("simulate", 1.0)
     return controller, rig, rollout
+
+
+def _run_supervisor(ctx: _Context, plan) -> _Ran:
+    """The supervisor (:class:`~cartpole.supervise.Supervisor`): the catch in its verified basin, the energy law on
+    one pole driven by the cart, else a passive brake and a plan from the state predicted over the planning
+    latency, TVLQR along it; again whenever the state is knocked out of the basin."""
+    from cartpole.supervise import supervisor_for
+
+    sup = supervisor_for(ctx.params, ctx.pm, period=ctx.loop.period, plan=plan, basin_of=ctx.basin_of)
+    T = SUPERVISOR_DURATION if ctx.loop.duration is None else ctx.loop.duration
+    check_push_times(ctx.loop.push, T)
+    controller, rig, rollout = _simulate(ctx, sup, T)
+    catches = [d.t for d in sup.decisions if d.kind == "catch"]
+    basin = ctx.basin_of(sup.catch)
+    return _Ran(rollout, controller, rig, basin, None, catches[-1] if catches else None,
+                {"supervisor": sup.summary()}, {"plan": plan, "loop": ctx.loop})
 
 
 def _run_energy(ctx: _Context, energy, catch_weights) -> _Ran:
@@ -897,13 +923,17 @@ def _finish(ctx: _Context, method: str, ran: _Ran) -> SwingupResult:
     """The shared metrics of a run (:func:`~cartpole.validation.metrics.swingup_metrics`, the method's own, the
     rig's, estimation and friction) and its result: ``caught_at`` is the hand-over only when the catch held
     (:func:`~cartpole.validation.metrics.catch_held`)."""
-    from cartpole.validation.metrics import catch_held, swingup_metrics
+    from cartpole.validation.metrics import catch_held, swingup_metrics, uptime_metrics
 
     rollout, rig, params = ran.rollout, ran.rig, ctx.params
     metrics = {**swingup_metrics(rollout, ctx.model), **ran.extra}
     handover_at = None if metrics["diverged"] else ran.handover_at  # MuJoCo reset a blown-up run: never caught
     caught_at = handover_at if catch_held(rollout, ctx.model, handover_at) else None
     metrics["handover_at"] = handover_at
+    events = rollout.info.get("disturbances") if isinstance(rollout.info, dict) else None
+    if events is not None:  # knocked or thrown: how much of the run was upright, how often it swung up again
+        requested = ctx.loop.duration if ctx.loop.duration is not None else float(rollout.t[-1])
+        metrics.update(uptime_metrics(rollout, ctx.model, events=events, duration=requested))
     if rig is not None and rig.estimator != "none":
         from cartpole.apps.lab import state_names
         from cartpole.validation.estimation import estimation_summary

@@ -44,14 +44,18 @@ def show_logged(params, rollout, *, command: str, watcher=None):
 
 def rollout_doc(rollout) -> dict:
     """The JSON contract's rollout: ``t``, ``qpos``, ``qvel`` (n+1 rows), ``ctrl`` (n rows) and ``push`` (n entries:
-    the world-x force in N on the cart during each step; zeros when nothing pushed), and, only for a run that touched,
-    ``contact``: the first contact MuJoCo found (``t``, ``geom1``, ``geom2``, ``dist``, ``steps`` in contact)."""
+    the world-x force in N on the cart during each step; zeros when nothing pushed), only for a run that touched,
+    ``contact``: the first contact MuJoCo found (``t``, ``geom1``, ``geom2``, ``dist``, ``steps`` in contact), and
+    only for a run knocked down or thrown, ``qfrc_applied`` (n rows of nv generalized forces, N or N m, applied
+    during each step)."""
     doc = rollout.to_dict()
     info = rollout.info if isinstance(rollout.info, dict) else {}
     push = info.get("push")
     doc.setdefault("push", [0.0] * len(doc["ctrl"]) if push is None else [float(f) for f in push])
     if info.get("contact") is not None:  # only a run that touched has the key (the contract's rows stay as they were)
         doc.setdefault("contact", info["contact"])
+    if info.get("qfrc_applied") is not None:  # knocked or thrown: the generalized forces, so the log replays
+        doc.setdefault("qfrc_applied", [[float(f) for f in row] for row in info["qfrc_applied"]])
     return doc
 
 

@@ -22,12 +22,13 @@ MAX_LOG_BYTES = 256 * 2**20
 def add_arguments(parser) -> None:
     """``--method``, ``--objective``, ``--x0``, ``--duration``, ``--push``, ``--model-error``, ``--period``,
     ``--horizon``, ``--view``, ``--no-video``."""
-    parser.add_argument("--method", choices=("auto", "energy", "trajopt", "mpc"), default="auto",
+    parser.add_argument("--method", choices=("auto", "energy", "trajopt", "mpc", "supervisor"), default="auto",
                         help="auto (default): what works for the model, tried in turn until one succeeds in MuJoCo "
                              "(energy shaping for one pole driven by the cart, else or when it fails the planner, "
                              "then the planner with --solver ddp when a plan does not hold; JSON methods_tried); "
                              "energy shaping with an LQR catch, direct collocation + TVLQR (trajopt), or nonlinear "
-                             "MPC re-planning every control period (mpc)")
+                             "MPC re-planning every control period (mpc); supervisor: catch, energy law or brake "
+                             "and re-plan, again after every knockdown (the default with --knockdown or --throw)")
     parser.add_argument("--time-budget", type=float, default=None, metavar="S",
                         help="--method auto only: wall time in s for the methods tried (default 600): a further "
                              "method starts only while at least twice what the run before it took is left (the "
@@ -57,6 +58,14 @@ def add_arguments(parser) -> None:
                         help="push the cart: a horizontal (world x) force of F newtons for 0.1 s from time T s, "
                              "through MuJoCo's xfrc_applied; repeatable; logged per physics step in the rollout's "
                              "'push', so the run replays exactly")
+    parser.add_argument("--knockdown", default=None, metavar="AFTER:LENGTH[:SEED]",
+                        help="knock the poles down each time they have been upright (every pole within 0.2 rad) "
+                             "for AFTER s: LENGTH s of random torques on the hinges, stronger than the motor, seeded; "
+                             "logged per physics step in the rollout's 'qfrc_applied', so the run replays exactly; "
+                             "the JSON adds uptime, knockdowns and swingups; runs the supervisor by default")
+    parser.add_argument("--throw", default=None, metavar="EVERY[:RATE[:SEED]]",
+                        help="throw the state at random times whatever it is doing: every EVERY s on average, a "
+                             "one-step impulse changing each hinge's rate by up to RATE rad/s (default 10), seeded")
     parser.add_argument("--model-error", type=float, default=None, metavar="S",
                         help="scale the planning model's pole masses and lengths by S (e.g. 1.2: 20 %% heavier and "
                              "longer); the controller is designed on that model, MuJoCo keeps the MJCF's")
@@ -90,6 +99,19 @@ def add_arguments(parser) -> None:
     add_view_arguments(parser, "show the run live, in real time, as it is logged (desktop without a display: a "
                                "one-line note on stderr and the rest as usual)")
     parser.add_argument("--no-video", action="store_true", help="do not render videos/swingup_<method>.mp4")
+
+
+def disturbance_fields(args) -> dict:
+    """``knockdown`` and ``throw`` of :class:`~cartpole.sim.options.LoopOptions` from ``--knockdown`` and ``--throw``
+    (only those given)."""
+    from cartpole.sim.disturbance import Knockdown, Throw
+
+    out = {}
+    if getattr(args, "knockdown", None) is not None:
+        out["knockdown"] = Knockdown.parse(args.knockdown)
+    if getattr(args, "throw", None) is not None:
+        out["throw"] = Throw.parse(args.throw)
+    return out
 
 
 def search_fields(args) -> dict:
@@ -244,7 +266,7 @@ def run(args) -> dict:
             raise SwingupError(f"{flag} {v:g} s is not a positive number of seconds; give e.g. {flag} 0.02.")
     # each stage's settings as one value: the loop always, the planner for trajopt, the NMPC for mpc
     loop = LoopOptions(**{**rig_fields(args), "duration": duration, "period": period, "push": push,
-                          "model_error": model_error})
+                          "model_error": model_error, **disturbance_fields(args)})
     plan = mpc = None
     if args.method == "mpc":
         import importlib.util
@@ -349,6 +371,12 @@ def run(args) -> dict:
         doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
     doc["limits"], doc["start_moved"] = m.get("limits"), m.get("start_moved", [])
+    if "uptime" in m:  # knocked down or thrown
+        for key in ("uptime", "upright_band", "knockdowns", "swingups", "swingup_times", "recoveries",
+                    "unrecovered_at"):
+            doc[key] = m[key]
+    if "supervisor" in m:
+        doc["supervisor"] = m["supervisor"]
     doc["plan_mjcf"] = None if plan_model is None else plan_model.params.mjcf
     if method == "mpc":
         ctrl = res.controller
@@ -399,6 +427,17 @@ def run(args) -> dict:
             catch = "Caught at: never (no hand-over to the catch)"
         print(f"{catch}; time to upright (every |theta_i| < 0.05 rad for good): "
               f"{fmt(m['time_to_upright'], 's')}")
+        if "uptime" in doc:
+            print(f"Uptime: {doc['uptime']:.1%} of the run with every pole within {doc['upright_band']:g} rad of "
+                  f"upright; {doc['knockdowns']} knockdown(s), {doc['swingups']} swing-up(s) held 1 s, "
+                  f"{doc['recoveries']} knockdown(s) followed by a swing-up"
+                  + ("" if not doc["unrecovered_at"] else
+                     f" (not after the one(s) at {', '.join(f'{t:.2f}' for t in doc['unrecovered_at'])} s)") + ".")
+        if "supervisor" in doc:
+            sv = doc["supervisor"]
+            print(f"Supervisor: {sv['plans']} plan(s), {sv['plan_failures']} failed"
+                  + (f", planning {min(sv['plan_s']):.2f}-{max(sv['plan_s']):.2f} s each" if sv["plan_s"] else "")
+                  + f"; {len(sv['decisions'])} decisions (catch, swing-up law, brake, plan, track) in the JSON.")
         print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "
               f"(closest to a limit: {m['cart_clearance']:.3f} m)")
         if doc["rig"] is not None:

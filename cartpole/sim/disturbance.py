@@ -218,6 +218,20 @@ class Throw:
         object.__setattr__(self, "max_rate", r)
         object.__setattr__(self, "seed", _seed(self.seed))
 
+    @classmethod
+    def parse(cls, text: str) -> "Throw":
+        """``"EVERY[:RATE[:SEED]]"`` (seconds, rad/s, whole number), as the command line writes it."""
+        parts = str(text).split(":")
+        try:
+            if not 1 <= len(parts) <= 3:
+                raise ValueError
+            every = float(parts[0])
+            rate = float(parts[1]) if len(parts) > 1 else 10.0
+        except ValueError:
+            raise DisturbanceError(f"A throw is EVERY[:RATE[:SEED]] (mean seconds between throws, the largest rate "
+                                   f"change in rad/s, a seed), e.g. 4:20:1; got {text!r}.") from None
+        return cls(every, rate, parts[2] if len(parts) == 3 else 0)
+
     def start(self, source: CartPoleParams, *, x_eq, hinges, timestep: float) -> "ThrowForce":
         """The stateful force ``f(t, x) -> (nv,)`` for one run on ``source`` at the physics step ``timestep`` (s)."""
         return ThrowForce(self, source, np.asarray(x_eq, dtype=float), tuple(int(h) for h in hinges), float(timestep))

@@ -296,7 +296,7 @@ class Supervisor:
 
 def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
-                   basin_cache: BasinCache | None = None) -> Supervisor:
+                   basin_cache: BasinCache | None = None, basin_of: Callable | None = None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
     applies (one pole driven by the cart), else the planner.
 
@@ -313,6 +313,8 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
     options : SupervisorOptions, optional
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
+    basin_of : callable, optional
+        ``basin_of(catch) -> BasinEstimate`` instead of ``basin_cache`` (a caller's own cache and progress).
 
     Returns
     -------
@@ -320,8 +322,11 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
     """
     model = build_model(params) if model is None else model
     catch = swingup_catch(model, period=period)
-    cache = BasinCache.on_disk() if basin_cache is None else basin_cache
-    rho = cache.get(params, catch).rho
+    if basin_of is None:
+        cache = BasinCache.on_disk() if basin_cache is None else basin_cache
+        rho = cache.get(params, catch).rho
+    else:
+        rho = basin_of(catch).rho
     opts = SupervisorOptions() if options is None else options
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
