@@ -15,6 +15,7 @@ import json
 import os
 import sys
 import warnings
+from pathlib import Path
 
 from cartpole.errors import CartPoleError, Terminated, first_line
 
@@ -166,6 +167,8 @@ def _run(args):
         if args.json:  # a stray print must not spoil the one JSON document
             stack.enter_context(_stdout_to_stderr())
         doc = args._run(args)
+        if args._writes:  # inside the output transaction: the MJCF each URDF ran as, so its logs replay
+            _write_urdf_mjcf(imports, Path(args.out), doc)
     _report_urdf(args.command, imports, doc)
     for note in dict.fromkeys(notes):  # each distinct warning once, after a run that succeeded
         print(f"cartpole {args.command}: MuJoCo warned: {note}", file=sys.stderr)
@@ -194,6 +197,23 @@ def _urdf_session(args):
         raise CartPoleError("--actuated-joint chooses the driven joints of a URDF, and no --mjcf was given (the "
                             "shipped MJCF has its own motor); give --mjcf with a URDF or drop --actuated-joint")
     return urdf_session(chosen, option="--actuated-joint NAME")
+
+
+def _write_urdf_mjcf(imports: list, out: Path, doc) -> None:
+    """Write the MJCF text each URDF ran as (its motors added) to ``out/model/<name>_mujoco.xml`` and name it in
+    the JSON document's ``model.mjcf_ran``: MuJoCo reads a URDF without its transmissions, so only this file replays
+    the logged ctrl."""
+    from cartpole._files import atomic_write
+
+    written = []
+    for rec in imports:
+        if not rec.mjcf:
+            continue
+        stem = Path(rec.path).stem if rec.path else "urdf"
+        path = atomic_write(out / "model" / f"{stem}_mujoco.xml", lambda fh, text=rec.mjcf: fh.write(text.encode()))
+        written.append(str(path.resolve()))
+    if written and isinstance(doc, dict) and isinstance(doc.setdefault("model", {}), dict):
+        doc["model"]["mjcf_ran"] = written[0] if len(written) == 1 else written
 
 
 def _report_urdf(command: str, imports: list, doc) -> None:

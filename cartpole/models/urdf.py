@@ -45,7 +45,7 @@ import os
 import re
 import xml.parsers.expat
 from contextvars import ContextVar
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator, Sequence
 from xml.etree import ElementTree as ET
@@ -164,11 +164,14 @@ class URDFImport:
     changes : tuple of str
         One sentence per other change made so that MuJoCo loads the file (meshes resolved or dropped, point
         masses, excluded adjacent contacts).
+    mjcf : str
+        The MJCF text MuJoCo runs: the URDF as MuJoCo reads it with the motors added (``MjSpec.to_xml``).
     """
 
     path: str
     actuators: tuple
     changes: tuple = ()
+    mjcf: str = field(default="", repr=False, compare=False)
 
     def sentences(self) -> list:
         """Every added motor and change, one sentence each, starting with the file."""
@@ -615,7 +618,7 @@ def import_urdf(text: str, path: str = "", *, actuated_joints: Sequence[str] | N
     except Exception as exc:
         raise URDFError(f"{where} does not compile in MuJoCo with its motors added: {first_line(exc)}; fix the URDF "
                         "and try again.") from None
-    record = URDFImport(path=path, actuators=tuple(added), changes=tuple(changes))
+    record = URDFImport(path=path, actuators=tuple(added), changes=tuple(changes), mjcf=xml_text)
     if session is not None and record.sentences() not in [r.sentences() for r in session.imports]:
         session.imports.append(record)
     return m, xml_text, record
