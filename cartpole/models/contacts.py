@@ -31,6 +31,7 @@ import heapq
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -216,8 +217,9 @@ def _fix(p: ContactPair, depth: float) -> str:
 @functools.lru_cache(maxsize=16)
 def _compiled(mjcf: str, xml: str):
     """The compiled model of a file (its path, so includes and meshes resolve) keyed also by the text read, so a file
-    edited since is compiled again."""
-    return load_model(mjcf or None, xml=None if mjcf else xml)[0]
+    edited since is compiled again; the text itself when the file has moved since."""
+    use_file = bool(mjcf) and (Path(mjcf).is_file() or not xml)
+    return load_model(mjcf if use_file else None, xml=None if use_file else xml)[0]
 
 
 def _mj(params: CartPoleParams):

@@ -486,8 +486,9 @@ def load_model(mjcf: str | Path | None = None, *, xml: str | None = None,
 
 
 def mujoco_model(params: "CartPoleParams"):
-    """Compile the MuJoCo model ``params`` were read from: the MJCF file, else the XML text (for a URDF: the MJCF
-    text with its added motors, never the URDF again, whose driven joints may have been chosen by the caller).
+    """Compile the MuJoCo model ``params`` were read from: the MJCF file where it is, else the XML text (for a URDF:
+    the MJCF text with its added motors, never the URDF again, whose driven joints may have been chosen by the
+    caller).
 
     Parameters
     ----------
@@ -497,9 +498,9 @@ def mujoco_model(params: "CartPoleParams"):
     -------
     mujoco.MjModel
     """
-    if params.mjcf and params.urdf is None:
+    if params.mjcf and params.urdf is None and (Path(params.mjcf).is_file() or not params.xml):
         return load_model(params.mjcf)[0]
-    return load_model(xml=params.xml)[0]
+    return load_model(xml=params.xml)[0]  # a URDF's, or parameters whose file has moved: the text they were read from
 
 
 def _urdf(text: str, path: str, actuated_joints):

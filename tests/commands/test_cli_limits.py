@@ -158,7 +158,7 @@ def test_an_exported_swingup_controller_of_a_file_without_limits_states_them(tmp
 
 
 def test_the_planners_search_options_belong_to_the_planner(tmp_path, capsys):
-    rc = main(["swingup", "--no-video", "--out", str(tmp_path / "o"), "--T-max", "20"])
+    rc = main(["swingup", "--method", "energy", "--no-video", "--out", str(tmp_path / "o"), "--T-max", "20"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "--T-max" in err and "--method trajopt" in err and err.endswith(".")
     from cartpole.commands.swingup import search_fields

@@ -35,9 +35,10 @@ def test_linearize_json_reports_the_motor_added(name, tmp_path, capsys):
     assert f"added motor '{added['actuator']}' on prismatic joint '{joint}'" in capsys.readouterr().err
 
 
-def test_an_mjcf_json_document_has_no_model_key(capsys):
+def test_an_mjcf_json_document_adds_no_urdf_keys(capsys):
     code, doc = run_json(["linearize", "--json"])
-    assert code == 0 and set(doc) == LINEARIZE_KEYS
+    assert code == 0 and set(doc) == LINEARIZE_KEYS | {"smoothed_friction", "model"}
+    assert set(doc["model"]) == {"contacts"}  # no actuators_added, urdf_changes or mjcf_ran for an MJCF
 
 
 def independent_replay(urdf, added, x0, ctrl):

@@ -43,7 +43,9 @@ def test_c_mhe_and_lqr_equal_the_python_ones_step_by_step(lqr_mhe, cart):
 def test_beyond_the_rail_the_c_mhe_and_lqr_equal_the_python_ones(lqr_mhe):
     # measurements 10-14 cm past the rail's end: the window's bounded QP, condition number ~1e13 (a 2048-count
     # encoder's position weighs ~1e13 per m^2 against 1 per noise entry). Both solutions meet the QP's KKT conditions
-    # (tests/estimation/test_mhe.py); their ctrl agree to 5e-9 (measured), the rounding of that conditioning
+    # (tests/estimation/test_mhe.py); their ctrl agree to 5e-9 on one machine and 2e-8 on another (measured: the
+    # rounding of that conditioning, which differs with the CPU's floating point between the C and NumPy), so the
+    # bound is 1e-7, not a figure of one machine; one implementation of the MHE (issue 39) will make them equal
     model, design, ctl = lqr_mhe
     mhe, fb = design.rig.make_estimator(), design.make_controller()
     steps, T = design.program.steps, design.program.period
@@ -56,7 +58,7 @@ def test_beyond_the_rail_the_c_mhe_and_lqr_equal_the_python_ones(lqr_mhe):
         u_py = np.clip(u_raw, -1, 1)
         code, u_c = ctl.step(k * T, y)
         assert code == 0
-        np.testing.assert_allclose(u_c, u_py, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(u_c, u_py, rtol=0, atol=1e-7)
         unclipped += int(np.all(np.abs(u_raw) < 1))
         u_prev = u_c
     lo, hi = model.params.joint_ranges[model.slide]

@@ -88,7 +88,7 @@ def test_a_ddp_that_does_not_converge_hands_the_stage_to_ipopt(monkeypatch):
 
 
 def test_the_solver_flag_is_for_trajopt_only(tmp_path, capsys):
-    rc = main(["swingup", "--json", "--no-video", "--solver", "ddp", "--out", str(tmp_path)])
+    rc = main(["swingup", "--method", "energy", "--json", "--no-video", "--solver", "ddp", "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "--method trajopt" in err[0] and list(tmp_path.iterdir()) == []
 
