@@ -718,8 +718,8 @@ def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None)
                                                 f"method's own {own_duration(res):.3g} s")
         if res.success:
             stop = "an earlier method succeeded"
-        elif getattr(on_step, "closed", False):
-            stop = "the live view was closed"
+        elif getattr(on_step, "closed", False) or getattr(on_step, "interrupted", False):
+            stop = "the live view was closed or interrupted"
         elif short:
             stop = (f"the run before it was cut short by the duration given ({duration:g} s); give a longer "
                     "--duration, or none")
