@@ -515,7 +515,12 @@ def refusal(params: CartPoleParams, model: CartPoleModel, x0, bounds, attempts, 
                f" times the file's half range at T = {best.T:.3g} s")
     else:
         how = "no pumping plan converged even with the ctrl bound relaxed"
-    return OCPNotSolved(f"No swing-up found within T <= {T_max:.3g} s after {k} attempts ({how}); that proves "
+    walls = [(params.joints[h].name, *params.joints[h].range) for h in params.hinges
+             if np.all(np.isfinite(params.joints[h].range)) and np.ptp(params.joints[h].range) < 2 * np.pi - 1e-9]
+    wall = "".join(f"; hinge '{name}' is limited to [{lo:.6g}, {hi:.6g}] rad, less than a full turn, so a pole "
+                   "cannot swing through the rest of it (widen that range, or limited=\"false\")"
+                   for name, lo, hi in walls)
+    return OCPNotSolved(f"No swing-up found within T <= {T_max:.3g} s after {k} attempts ({how}){wall}; that proves "
                         "nothing: give a longer T_max or search_s (--T-max, --search-s on the command line), or more actuator "
                         "force (a wider ctrlrange, or --u-max where the file has none).", attempts)
 

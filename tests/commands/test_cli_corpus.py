@@ -247,6 +247,17 @@ def judge_refusal(r: Run, spec: dict) -> list[str]:
     return problems
 
 
+def judge_named_failure(r: Run, spec: dict, out_dir: Path) -> list[str]:
+    """Problems with swing-up ``r`` as an honest failure (empty: it is one): exit 0, ``success`` false, its rollout
+    replays exactly, and the reasons of the methods tried name every word of ``failure_names``."""
+    doc = json.loads(r.out)
+    problems = [] if doc.get("success") is False else ["a failure must say success: false"]
+    problems += _replays(doc, doc["rollout"], out_dir)[0]
+    said = " ".join(str(t.get("reason", "")) for t in doc.get("methods_tried", [])).lower()
+    problems += [f"no method's reason names {w!r}" for w in spec["failure_names"] if w.lower() not in said]
+    return problems
+
+
 def judge(r: Run, spec: dict, out_dir: Path) -> tuple[str, list[str]]:
     """(what the run was: 'success', 'refused', 'timeout', 'other'; problems against ``spec``)."""
     if r.rc is None:
@@ -260,7 +271,10 @@ def judge(r: Run, spec: dict, out_dir: Path) -> tuple[str, list[str]]:
         return ("refused" if r.rc == 2 else ("success" if r.rc == 0 else "other")), p
     if r.rc == 2:
         return "refused", judge_refusal(r, spec)
-    return ("success" if r.rc == 0 else "other"), judge_success(r, spec, out_dir)
+    problems = judge_success(r, spec, out_dir)
+    if problems and r.rc == 0 and spec.get("failure_names"):  # a failed run, replayed, that names its obstacle
+        return "failed", judge_named_failure(r, spec, out_dir)
+    return ("success" if r.rc == 0 else "other"), problems
 
 
 # ---- the tests ---------------------------------------------------------------------------------------------------
