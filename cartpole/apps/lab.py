@@ -68,11 +68,6 @@ START_SCALES = tuple(0.5 ** k for k in range(7))
 #: Fraction of the room to a joint limit that a start may use (the rest is left for the transient).
 _ROOM = 0.5
 
-#: rad: the smallest angle offset a scaled start keeps (1.2 times the settling band
-#: :data:`~cartpole.validation.metrics.UPRIGHT_TOL`, or the handout's own offset where that is smaller), so that a start
-#: shrunk for the ctrl limit still begins outside the band; a motor that cannot catch it is then said, not hidden.
-START_ANGLE_FLOOR = 1.2 * UPRIGHT_TOL
-
 #: A state derivative below this (SI units) counts as rest when the cart is moved to the middle of its rail.
 _REST_TOL = 1e-9
 
@@ -141,8 +136,7 @@ def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
     rate at zero. When a cart offset uses more than half of the room to a slide limit, every cart offset is scaled
     by one factor so the largest uses exactly half; the same for the angles and the first hinge's range. So on the
     shipped MJCF (track +-1.5 m, free hinge) they are the handout's starts unchanged. A model with no cart gets
-    the angles only. ``scale`` shrinks the angles no further than :data:`START_ANGLE_FLOOR` (a start inside the
-    settling band would settle vacuously).
+    the angles only.
 
     Parameters
     ----------
@@ -165,12 +159,7 @@ def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
         lo, hi = (float(v) for v in model.params.joints[col].range)
         room = _ROOM * min(x_eq[col] - lo, hi - x_eq[col])
         need = np.abs(offsets).max()
-        placed = offsets * (room / need) if need > room else offsets
-        shifted = float(scale) * placed
-        if col != model.slide:  # a scaled angle never enters the settling band: a start there would be vacuous
-            floor = np.minimum(np.abs(placed), START_ANGLE_FLOOR)
-            shifted = np.sign(placed) * np.maximum(np.abs(shifted), floor)
-        x0s[:, col] += shifted
+        x0s[:, col] += float(scale) * (offsets * (room / need) if need > room else offsets)
     return readonly(x0s)
 
 
