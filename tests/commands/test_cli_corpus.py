@@ -194,8 +194,9 @@ def judge_success(r: Run, spec: dict, out_dir: Path) -> list[str]:
             p, m, qpos = _replays(doc, ro, out_dir)
             problems += [f"start {i}: {x}" for x in p]
             tilt = _hinge_tilts(m, qpos[[0, -1]])
-            if np.max(tilt[0]) <= BAND:
-                problems.append(f"start {i} begins inside the {BAND} rad settling band (a vacuous start)")
+            counted = doc.get("counted", [True] * len(rollouts))
+            if np.max(tilt[0]) <= BAND and counted[i] is not False:  # issue 38: such a start is never counted
+                problems.append(f"start {i} begins inside the {BAND} rad settling band and is counted (vacuous)")
             if i < len(settled) and settled[i] and np.max(tilt[-1]) > BAND:
                 problems.append(f"start {i} is claimed settled but ends {np.max(tilt[-1]):.3f} rad from upright")
     else:

@@ -17,8 +17,15 @@ def _zero(t, x):
     return np.zeros(1)
 
 
+def _free_port() -> int:
+    """A port the OS has just handed out (the default, the first free one from 8080, races another test worker)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def test_a_run_served_headless_logs_the_pages_push_and_replays(capsys):
-    live = WebLive(wait=False, realtime=False)
+    live = WebLive(wait=False, realtime=False, port=_free_port())
     served = {}
 
     def on_step(m, d):
