@@ -42,7 +42,7 @@ def _seconds(name: str, value, *, low: float = 0.0) -> float:
     except (TypeError, ValueError):
         v = float("nan")
     if not (np.isfinite(v) and low < v <= MAX_DISTURBANCE_SECONDS):
-        raise DisturbanceError(f"The knockdown's {name} must be a number of seconds in ({low:g}, "
+        raise DisturbanceError(f"The {name} must be a number of seconds in ({low:g}, "
                                f"{MAX_DISTURBANCE_SECONDS:g}]; got {value!r}.")
     return v
 
@@ -109,8 +109,8 @@ class Knockdown:
     strength: float = 1.0
 
     def __post_init__(self):
-        object.__setattr__(self, "after", _seconds("wait (AFTER)", self.after))
-        object.__setattr__(self, "length", _seconds("length (LENGTH)", self.length))
+        object.__setattr__(self, "after", _seconds("knockdown's wait (AFTER)", self.after))
+        object.__setattr__(self, "length", _seconds("knockdown's length (LENGTH)", self.length))
         object.__setattr__(self, "seed", _seed(self.seed))
         s = float(self.strength)
         if not (np.isfinite(s) and 0 < s <= 100):
@@ -211,7 +211,7 @@ class Throw:
     seed: int = 0
 
     def __post_init__(self):
-        object.__setattr__(self, "every", _seconds("mean interval", self.every))
+        object.__setattr__(self, "every", _seconds("throw's mean interval (EVERY)", self.every))
         r = float(self.max_rate)
         if not (np.isfinite(r) and 0 < r <= 1000):
             raise DisturbanceError(f"The throw's largest rate change must be in (0, 1000] rad/s; got {self.max_rate!r}.")
