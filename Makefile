@@ -24,16 +24,24 @@ demo: install
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/cartpole feedforward --out $(OUT)
 	@echo "Figures, videos and metrics are under $(OUT)/"
 
+# The notebooks the suite executes are kept for the documentation site (docs/conf.py renders them as they ran).
+NOTEBOOK_OUTPUTS ?= docs/_build/executed_notebooks
+
 test: install
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n 2
+	rm -rf $(NOTEBOOK_OUTPUTS)
+	CARTPOLE_NOTEBOOK_OUTPUTS=$(abspath $(NOTEBOOK_OUTPUTS)) MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n 2
 
 bench: install
 	$(BIN)/cartpole bench
 
-# The documentation site, warnings as errors (the API reference imports the package: headless GL as for the tests).
+# The documentation site, warnings as errors (the API reference imports the package: headless GL as for the tests),
+# then checked as a reader sees it (tests/docs/test_site.py). The notebook pages show the outputs `make test` kept;
+# a notebook without them is executed here (short runs, cached in docs/_build/.jupyter_cache).
 docs: install
 	rm -rf docs/api/generated
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/sphinx-build -W --keep-going -q -b html docs $(DOCS_OUT)
+	CARTPOLE_NOTEBOOK_OUTPUTS=$(abspath $(NOTEBOOK_OUTPUTS)) MUJOCO_GL=$${MUJOCO_GL:-egl} \
+	  $(BIN)/sphinx-build -W --keep-going -q -b html docs $(DOCS_OUT)
+	CARTPOLE_SITE=$(abspath $(DOCS_OUT)) MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q tests/docs/test_site.py
 	@echo "The site is at $(DOCS_OUT)/index.html"
 
 # Every number the README and the docs state, re-measured by its command (claims.toml); `CLAIMS_ARGS=--quick` for

@@ -2,12 +2,25 @@
 
 The pages are Markdown (MyST). The API reference is generated from the package's numpydoc docstrings
 (one page per public module, written at build time into ``docs/api/generated/`` by layer, autodoc reads
-it, numpydoc lays out its sections). The notebooks are
-rendered from the committed ``notebooks/*.ipynb`` (myst-nb, execution off: the test suite runs them), copied at
-build time into ``docs/notebooks/`` (git-ignored), because Sphinx reads sources only below this directory.
+it, numpydoc lays out its sections).
+
+The notebooks are shown with their outputs (figures, printed numbers). The test suite already executes every notebook
+(``tests/test_notebooks.py``, with ``CARTPOLE_QUICK=1``), and ``make test`` keeps what it executed in
+``docs/_build/executed_notebooks/`` (``CARTPOLE_NOTEBOOK_OUTPUTS``): a kept notebook whose cells are the committed
+ones is rendered as executed there, so CI runs each notebook once. A notebook with no kept run (``make docs`` alone,
+or a notebook changed since ``make test``) is executed here by myst-nb through jupyter-cache, with the same
+``CARTPOLE_QUICK=1``, in a scratch folder, and cached in ``docs/_build/.jupyter_cache`` until its code changes; a
+notebook that raises fails the build. Either way the copy goes to ``docs/notebooks/`` (git-ignored), because Sphinx
+reads sources only below this directory.
+
+The site needs no network: the theme (pydata-sphinx-theme, as NumPy's and SciPy's sites) ships its assets, and MathJax
+3 comes from the ``sphinx-mathjax-offline`` package, copied into ``_static/mathjax/`` (``tests/docs/test_site.py``
+checks that no page loads anything from another host).
 """
 from __future__ import annotations
 
+import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -25,6 +38,7 @@ extensions = [
     "sphinx.ext.autodoc",
     "numpydoc",
     "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",       # MathJax 3 shipped with the site (mathjax_path into _static/), no CDN
 ]
 
 # ---- sources -------------------------------------------------------------------------------------------------
@@ -32,7 +46,14 @@ exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**.ipynb_checkpoints", 
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 myst_enable_extensions = ["dollarmath", "colon_fence"]
 myst_heading_anchors = 3            # `[text](page.md#a-heading)` links resolve to headings
-nb_execution_mode = "off"           # rendered as committed; tests/test_notebooks.py executes them
+# Notebooks: the test suite's executed copies where they are current, else executed here once and cached (see above).
+EXECUTED = Path(os.environ.get("CARTPOLE_NOTEBOOK_OUTPUTS") or DOCS / "_build" / "executed_notebooks")
+os.environ["CARTPOLE_QUICK"] = "1"  # the kernels myst-nb starts inherit it: the test suite's short runs
+nb_execution_mode = "cache"
+nb_execution_cache_path = str(DOCS / "_build" / ".jupyter_cache")
+nb_execution_in_temp = True         # a notebook's output files go to a scratch folder, not into docs/
+nb_execution_timeout = 300          # s per cell, as tests/test_notebooks.py
+nb_execution_raise_on_error = True  # a notebook that fails fails the build
 
 # ---- API reference -------------------------------------------------------------------------------------------
 autodoc_default_options = {"members": True, "show-inheritance": True, "ignore-module-all": True}
@@ -42,18 +63,39 @@ numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_validation_checks: set = set()
 
-html_theme = "alabaster"
+html_theme = "pydata_sphinx_theme"  # the scientific Python family's (NumPy, SciPy, python-control)
 html_title = "cartpole"
 html_static_path: list = []
+html_theme_options = {
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "footer_start": ["copyright"],
+    "footer_end": ["sphinx-version"],
+}
+
+
+def _cells(notebook: dict) -> list[tuple[str, str]]:
+    """(cell type, source) of every cell of a notebook read as JSON: what executing it leaves unchanged."""
+    return [(c["cell_type"], "".join(c["source"]).strip()) for c in notebook["cells"]]
 
 
 def _copy_notebooks() -> None:
-    """Copy ``notebooks/*.ipynb`` (the committed, output-free pairs) into ``docs/notebooks/`` for myst-nb."""
+    """Put every notebook into ``docs/notebooks/`` for myst-nb: the test suite's executed copy when its cells are the
+    committed notebook's (rendered as it is, execution off for it), else the committed, output-free one (executed at
+    build through the cache)."""
     target = DOCS / "notebooks"
     target.mkdir(exist_ok=True)
     for old in target.glob("*.ipynb"):
         old.unlink()
     for nb in sorted((REPO / "notebooks").glob("*.ipynb")):
+        committed = json.loads(nb.read_text())
+        kept = EXECUTED / nb.name
+        if kept.is_file():
+            executed = json.loads(kept.read_text())
+            if _cells(executed) == _cells(committed):
+                executed["metadata"].setdefault("mystnb", {})["execution_mode"] = "off"
+                (target / nb.name).write_text(json.dumps(executed, indent=1))
+                continue
         shutil.copy2(nb, target / nb.name)
 
 

@@ -30,8 +30,10 @@
 #    input is piecewise linear (first-order hold). $T$ is 1.2 times the minimum time the bounds allow.
 # 2. **TVLQR** along the plan, on the exact discrete model at MuJoCo's 5 ms step: linearise $x_{k+1} \approx
 #    A_k \delta x_k + B_k \delta u_k$ around the plan and run the backward Riccati recursion
+#
 #    $$S_k = Q\,dt + A_k^\top S_{k+1} A_k - A_k^\top S_{k+1} B_k (R\,dt + B_k^\top S_{k+1} B_k)^{-1} B_k^\top S_{k+1} A_k,
 #    \qquad K_k = (R\,dt + B_k^\top S_{k+1} B_k)^{-1} B_k^\top S_{k+1} A_k,$$
+#
 #    from the LQR catch's cost-to-go at $T$; the law is $u = u_{\rm ff}(t) - K(t)\,(x - x_{\rm plan}(t))$.
 # 3. After $T$ the lab's LQR holds the pole upright.
 #

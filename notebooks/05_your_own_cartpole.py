@@ -45,7 +45,7 @@ QUICK = os.environ.get("CARTPOLE_QUICK") == "1"
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook05"))
 OUT.mkdir(parents=True, exist_ok=True)
 MJCF = files("cartpole") / "assets" / "examples" / "my_cartpole.xml"   # shipped with the package
-print(MJCF)
+print(MJCF.name)
 print(MJCF.read_text())
 
 # %% [markdown]

@@ -1,12 +1,15 @@
 """The notebooks: one percent-format ``.py`` per notebook is the source of truth, paired by jupytext with the
 committed ``.ipynb`` (no outputs). Every notebook runs top to bottom from its ``.py`` on a clean kernel, in a
 scratch directory (so it can only find shipped files through the package), with ``CARTPOLE_QUICK=1`` to shorten
-its long runs; its own asserts check its results, and it draws at least one figure."""
+its long runs; its own asserts check its results, and it draws at least one figure. With ``CARTPOLE_NOTEBOOK_OUTPUTS``
+set to a folder (``make test`` sets it), each executed notebook is also written there, so the documentation site shows
+the outputs of this run instead of executing the notebooks a second time (docs/conf.py)."""
 import os
 from pathlib import Path
 
 import jupytext
 import pytest
+import nbformat
 from nbclient import NotebookClient
 
 NOTEBOOK_DIR = Path(__file__).resolve().parent.parent / "notebooks"
@@ -54,3 +57,7 @@ def test_notebook_runs_its_checks_and_makes_a_figure(path, tmp_path, monkeypatch
     images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
               if "image/png" in o.get("data", {})]
     assert images, f"{path.name} produced no figure"
+    keep = os.environ.get("CARTPOLE_NOTEBOOK_OUTPUTS")
+    if keep:  # the documentation site renders these (docs/conf.py)
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        nbformat.write(nb, Path(keep) / path.with_suffix(".ipynb").name)

@@ -9,7 +9,7 @@ The toolkit solves the same problem on the same model, converted by MuJoCo's URD
 which is Crocoddyl's ``IntegratedActionModelEuler``), the same costs as CasADi Functions, the box-DDP of
 :mod:`cartpole.solvers.ddp`.
 
-Crocoddyl's cart-pole example (``notebooks/02_optimizing_a_cartpole_swingup.ipynb``, the action model a user writes
+Crocoddyl's cart-pole example (its notebook ``02_optimizing_a_cartpole_swingup.ipynb``, the action model a user writes
 in Python, the way that notebook teaches it): a 1 kg cart, a 0.1 kg point mass 0.5 m up the pole, the force on the
 cart unbounded, semi-implicit Euler at ``dt = 0.05`` s over ``N = 50`` nodes from ``x0 = (0, 0, 1, 0.5)`` (upright,
 moving), the per-node cost ``|w * (sin th, 1 - cos th, y, ydot, thdot, f)|^2 / 2`` with ``w = (1, 1, 0.1, 0.001,
