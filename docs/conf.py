@@ -69,6 +69,7 @@ html_static_path: list = []
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
+    "header_links_before_dropdown": 4,  # the guide's titles are long: the rest under "More"
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
 }

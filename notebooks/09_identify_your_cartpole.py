@@ -45,7 +45,7 @@ QUICK = os.environ.get("CARTPOLE_QUICK") == "1"
 RIG = SHIPPED_MJCF.parent / "examples" / "cartpole_rig_truth.xml"   # the hidden truth: only MuJoCo reads it
 NOMINAL = SHIPPED_MJCF                                              # the drawing
 out = Path(tempfile.mkdtemp(prefix="identify_"))
-print("nominal:", NOMINAL.name, " rig:", RIG.name, " outputs under", out)
+print("nominal:", NOMINAL.name, " rig:", RIG.name, " outputs in the scratch folder", out.name)
 
 # %% [markdown]
 # ## 1. Excite the rig

@@ -40,7 +40,7 @@ loop = LoopOptions(period=0.01, estimator="kf", encoder_cpr=2048)
 out = Path(os.environ.get("CARTPOLE_OUT") or tempfile.mkdtemp()) / "rig"
 doc = run_export(None, controller="lqr", loop=loop, out=out, verify=True, duration=3.0)
 exp = doc["export"]
-print(f"{len(exp['files'])} files, {exp['bytes']} bytes in {out}")
+print(f"{len(exp['files'])} files, {exp['bytes']} bytes in the folder {out.name}/")
 print(f"verified: {exp['verified']}; max |C - Python| ctrl {exp['max_ctrl_diff']:.2g} (double), "
       f"float32 balanced: {exp['float32']['success']}")
 assert exp["verified"] and exp["max_ctrl_diff"] <= 1e-9

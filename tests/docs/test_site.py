@@ -90,7 +90,7 @@ class Page(HTMLParser):
                 break
 
     def handle_data(self, data):
-        if self._inside(*HIDDEN):
+        if self.stack and self.stack[-1][0] in HIDDEN:
             return
         self.texts.append((data, tuple(self.stack)))
         if self._para is not None:
@@ -198,10 +198,10 @@ def outside_references(page: Page, site: Path, path: Path) -> list[str]:
         target = url.split("#")[0].split("?")[0]
         if not target:
             continue
-        resolved = (path.parent / target).resolve()
-        if site.resolve() not in resolved.parents and resolved != site.resolve():
+        resolved = os.path.normpath(os.path.join(path.parent, target))
+        if os.path.commonpath([resolved, os.path.abspath(site)]) != os.path.abspath(site):
             faults.append(f"link {url!r} leads out of the site")
-        elif not resolved.exists():
+        elif not os.path.exists(resolved):
             faults.append(f"link {url!r} leads to no file of the site")
     for literal in page.literals:
         for token in PATH_TOKEN.findall(literal):
@@ -245,13 +245,25 @@ def raw_latex(page: Page, site: Path, path: Path) -> list[str]:
     return faults
 
 
+ARTICLE = re.compile(r"<article\b.*?</article>", re.S)
+
+
+def reader_part(html: str) -> str:
+    """What a page adds to the site: its head (every script and stylesheet it loads) and its article. The theme's
+    navigation, repeated on every page, lists the pages' titles and links that Sphinx wrote; the article is read once
+    on its own page."""
+    head = html[: html.find("</head>") + len("</head>")] if "</head>" in html else ""
+    article = ARTICLE.search(html)
+    return head + (article.group(0) if article else html)
+
+
 def site_faults(site: Path) -> dict[str, list[str]]:
     """Every fault of every page of a built site, by page (pages without faults left out)."""
-    out = {}
+    out, site = {}, Path(os.path.abspath(site))
     for path in sorted(site.rglob("*.html")):
         if "_static" in path.relative_to(site).parts:
             continue
-        page = Page(path.read_text(encoding="utf-8"))
+        page = Page(reader_part(path.read_text(encoding="utf-8")))
         faults = (machine_paths(page) + broken_tables(page) + outside_references(page, site, path)
                   + network_loads(page) + raw_latex(page, site, path))
         if faults:
