@@ -118,7 +118,7 @@ def _machine_path_pattern() -> re.Pattern:
     roots = r"(?:work|tmp|home|root|Users|private|mnt|var/folders|scratch)"
     extra = {str(REPO), str(Path.home())} - {"/"}
     alternatives = [r"(?<![\w.~/-])/" + roots + r"(?:/[^\s\"'<>)\]]*)?", r"\b[A-Z]:\\(?:Users|home)\\"]
-    alternatives += [re.escape(p) for p in sorted(extra, key=len, reverse=True)]
+    alternatives += [r"(?<![\w.~/-])" + re.escape(p) + r"(?![\w-])" for p in sorted(extra, key=len, reverse=True)]
     return re.compile("|".join(alternatives))
 
 
@@ -226,8 +226,8 @@ TEX = re.compile(r"\\(?:frac|dfrac|tfrac|sqrt|theta|omega|alpha|beta|gamma|delta
 
 def network_loads(page: Page) -> list[str]:
     """What the page would fetch from another host (a CDN): nothing may be, the site works offline."""
-    return [f"<{tag}> loads {url!r} from another host" for tag, url in page.loads
-            if re.match(r"([a-z][a-z0-9+.-]*:)?//", url) and not url.startswith("file:")]
+    return list(dict.fromkeys(f"<{tag}> loads {url!r} from another host" for tag, url in page.loads
+                              if re.match(r"([a-z][a-z0-9+.-]*:)?//", url) and not url.startswith("file:")))
 
 
 def raw_latex(page: Page, site: Path, path: Path) -> list[str]:
