@@ -619,6 +619,9 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
         check_push_times(loop.push, loop.duration)
     elif names[0] != "trajopt":  # trajopt's length is known after the plan (checked there, before simulating)
         check_push_times(loop.push, MPC_DURATION if names[0] == "mpc" else ENERGY_DURATION)
+    if ctrl_noise is not None and not {"energy", "trajopt"} & set(names):
+        raise SwingupError("--ctrl-noise designs the catch of the energy and trajopt swing-ups; use it with --method "
+                           "energy or trajopt.")
     if "mpc" not in names and (mpc is not None or given["mpc"]):
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
                            "--method mpc.")
