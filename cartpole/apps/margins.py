@@ -432,7 +432,6 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
 
     from cartpole.apps.lab import design, lab_equilibrium
     from cartpole.lqr import lab_weights
-    from cartpole.sim.rig import delay_steps, estimator_factory
 
     f = float(fraction)
     if not (math.isfinite(f) and 0 < f < 1):
@@ -445,20 +444,115 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
     Q = Q0 if Q is None else np.asarray(Q, float)
     R = np.atleast_2d(np.asarray(R0 if R is None else R, float))
     R = R * np.eye(model.nu) if R.shape == (1, 1) and model.nu > 1 else R
-    h = float(model.dt)
-    m = steps_per_period(loop.period, h)
-    d = delay_steps(loop.delay, h)
-    spec, make = estimator_factory(model, loop, "kf", m)
-    V = spec.measurement_covariance()
+    m = steps_per_period(loop.period, float(model.dt))
     x_eq = lab_equilibrium(model)
-    span = model.u_high - model.u_low
-    for k in range(MAX_R_DOUBLINGS + 1):
-        factor = 2.0 ** k
-        res, _ = design(model, Q, R * factor, discrete=discrete, x_eq=x_eq, steps=m)
-        std = ctrl_noise_std(sampled_loop(model, res.K, steps=m, delay_steps=d, compensate=bool(loop.delay_compensation),
-                                          kalman=make(), x=x_eq), V)
-        if np.all(std <= f * span):
-            return {"R": R * factor, "factor": factor, "fraction": f, "predicted_std": std,
-                    "predicted_fraction": std / span}
+    found, _ = _noise_search(model, loop, f, lambda r: design(model, Q, r, discrete=discrete, x_eq=x_eq, steps=m)[0].K,
+                             R, (loop.process_noise,), MAX_R_DOUBLINGS, x_eq)
+    if found is not None:
+        return {k: found[k] for k in ("R", "factor", "fraction", "predicted_std", "predicted_fraction")}
     raise AnalysisError(f"No R up to {2.0 ** MAX_R_DOUBLINGS:g} times the lab's keeps the ctrl noise from these "
                         f"sensors below {f:g} of the ctrl range; allow more (--ctrl-noise) or use finer encoders.")
+
+
+#: The estimator's process noise (accel_std, m/s^2 and rad/s^2 on every joint) :func:`noise_limited_catch` tries,
+#: in turn below the estimator's own default, when the rig does not set it (``LoopOptions.process_noise``).
+PROCESS_NOISE_LADDER = (1.0, 0.3, 0.1, 0.03, 0.01)
+#: Largest factor (2^12) :func:`noise_limited_catch` multiplies the catch's ``R`` by.
+MAX_CATCH_R_DOUBLINGS = 12
+
+
+def noise_limited_catch(model, loop, fraction: float, gain, R, *, required: bool = True) -> dict:
+    """A swing-up catch that respects its sensors: the estimator's process noise and the catch's ``R`` chosen so that
+    the ctrl noise the rig's sensors cause through the catch's loop, predicted at upright, stays below ``fraction``
+    of the ctrl range's width.
+
+    The estimator's default process noise (:data:`cartpole.estimation.kalman.DEFAULT_HINGE_ACCEL_STD`, 3 rad/s^2)
+    stands for unmodelled accelerations far larger than a model of the MJCF's own integrator leaves; with it the
+    filter follows every encoder count and its rate estimates carry the quantisation (one count in one period) into
+    the catch's gain. So, starting from ``R`` and doubling it, the estimator's process noise is lowered along
+    :data:`PROCESS_NOISE_LADDER` (only when ``loop.process_noise`` is None: a value given is kept) until the
+    prediction (:func:`~cartpole.analysis.ctrl_noise_std` on :func:`~cartpole.analysis.sampled_loop` with the
+    rig's Kalman filter, the linear stand-in for an EKF or MHE at upright, with the period, the delay and its
+    prediction) holds. The largest process noise that holds at the smallest ``R`` is taken.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The design model (its ``dt`` the MJCF's physics step).
+    loop : LoopOptions
+        The rig: period, delay, sensors and estimator (a swing-up's).
+    fraction : float
+        Largest ctrl standard deviation from noise, as a fraction of the ctrl range's width, in (0, 1).
+    gain : callable
+        ``gain(R) -> K`` (nu, nx): the catch designed with input weight ``R`` (nu, nu) over the rig's period.
+    R : (nu, nu) array or float
+        The catch's input weight to start from (MuJoCo ctrl units).
+    required : bool
+        True: no design that holds is an error. False: the quietest design tried is returned, ``met`` False.
+
+    Returns
+    -------
+    dict
+        ``fraction`` (asked), ``met`` (bool), ``R`` (nu, nu) and ``factor`` (on the starting ``R``),
+        ``process_noise`` (accel_std given to the estimator, or None for its default), ``predicted_std`` (nu,)
+        and ``predicted_fraction`` (nu,) at that design (ctrl units, and of the range).
+
+    Raises
+    ------
+    AnalysisError
+        A fraction outside (0, 1), a rig without sensors or estimator, or (``required``) no design that holds.
+    """
+    import math
+
+    f = float(fraction)
+    if not (math.isfinite(f) and 0 < f < 1):
+        raise AnalysisError(f"The ctrl noise fraction {fraction!r} is not between 0 and 1; give e.g. --ctrl-noise "
+                            "0.1 (a tenth of the ctrl range).")
+    if loop is None or not loop.sensed or loop.estimator_for("swingup") == "none":
+        raise AnalysisError("A ctrl noise limit needs sensors: with MuJoCo's exact state no noise reaches the ctrl; "
+                            "give an estimator and encoders (e.g. --estimator ekf --encoder-cpr 2048).")
+    R = np.atleast_2d(np.asarray(R, float))
+    R = R * np.eye(model.nu) if R.shape == (1, 1) and model.nu > 1 else R
+    ladder = (loop.process_noise,) if loop.process_noise is not None else (None,) + PROCESS_NOISE_LADDER
+    found, best = _noise_search(model, loop, f, gain, R, ladder, MAX_CATCH_R_DOUBLINGS, model.x_eq)
+    if found is not None:
+        return found
+    if not required:
+        return best
+    lowest = min((a for a in ladder if a is not None), default=None)
+    raise AnalysisError(f"No catch with R up to {2.0 ** MAX_CATCH_R_DOUBLINGS:g} times its own and the estimator's "
+                        f"process noise down to {'its default' if lowest is None else f'{lowest:g}'} "
+                        f"keeps the ctrl noise from these sensors below {f:g} of the ctrl range (at best "
+                        f"{np.max(best['predicted_fraction']):.3g}); allow more (--ctrl-noise) or use finer encoders.")
+
+
+def _noise_search(model, loop, f: float, gain, R, ladder, doublings: int, x_eq):
+    """``(found, best)``: the first design, ``R`` doubled up to ``2^doublings`` times and for each the estimator's
+    process noise along ``ladder`` (None: its default), whose ctrl noise predicted at ``x_eq`` (the loop of
+    ``gain(R) -> K`` with the rig's Kalman filter, :func:`~cartpole.analysis.ctrl_noise_std`) is below ``f`` of the
+    ctrl range's width (None when none is), and the quietest design tried; each a dict as
+    :func:`noise_limited_catch` returns."""
+    from cartpole.sim.rig import delay_steps, estimator_factory
+
+    h = float(model.dt)
+    m, d = steps_per_period(loop.period, h), delay_steps(loop.delay, h)
+    filters = {}
+    for a in ladder:
+        spec, make = estimator_factory(model, loop.replace(process_noise=a), "kf", m)
+        filters[a] = (make(), spec.measurement_covariance())
+    span = model.u_high - model.u_low
+    best = None
+    for k in range(doublings + 1):
+        factor = 2.0 ** k
+        K = np.asarray(gain(R * factor), float)
+        for a in ladder:
+            kf, V = filters[a]
+            std = ctrl_noise_std(sampled_loop(model, K, steps=m, delay_steps=d,
+                                              compensate=bool(loop.delay_compensation), kalman=kf, x=x_eq), V)
+            found = {"fraction": f, "met": bool(np.all(std <= f * span)), "R": R * factor, "factor": factor,
+                     "process_noise": a, "predicted_std": std, "predicted_fraction": std / span}
+            if found["met"]:
+                return found, found
+            if best is None or np.max(std / span) < np.max(best["predicted_fraction"]):
+                best = found
+    return None, best

@@ -95,6 +95,12 @@ def add_arguments(parser) -> None:
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step; "
                       "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
                       "designed for it")
+    parser.add_argument("--ctrl-noise", type=float, default=None, metavar="FRACTION",
+                        help="energy and trajopt: design the catch (its R) and the estimator (its process noise) so "
+                             "that the ctrl's standard deviation the sensors' noise and quantisation cause in the "
+                             "hold, predicted from the loop at upright, stays below FRACTION of the ctrl range (needs "
+                             "sensors and an estimator); default with sensors 0.02, the quietest design when none "
+                             "holds; JSON ctrl_noise with the measured figure beside the predicted one")
     add_limit_arguments(parser)
     add_view_arguments(parser, "show the run live, in real time, as it is logged (desktop without a display: a "
                                "one-line note on stderr and the rest as usual)")
@@ -327,7 +333,7 @@ def run(args) -> dict:
     try:
         res = run_swingup(model, method=args.method, x0=None if args.x0 is None else x0, plan=plan, loop=loop,
                           mpc=mpc, progress=_Stages(sizes), on_step=viewer, plan_model=plan_model,
-                          time_budget=time_budget, **limit_keywords(args))
+                          time_budget=time_budget, ctrl_noise=args.ctrl_noise, **limit_keywords(args))
         if viewer is not None:
             viewer.finish()
     finally:
@@ -371,6 +377,8 @@ def run(args) -> dict:
         doc["period"] = params.timestep if loop.period is None else loop.period
     doc["model_error"] = res.model_error
     doc["limits"], doc["start_moved"] = m.get("limits"), m.get("start_moved", [])
+    if "ctrl_noise" in m:
+        doc["ctrl_noise"] = m["ctrl_noise"]
     if "uptime" in m:  # knocked down or thrown
         for key in ("uptime", "upright_band", "knockdowns", "swingups", "swingup_times", "recoveries",
                     "unrecovered_at"):
@@ -455,6 +463,16 @@ def run(args) -> dict:
             rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())
             print(f"Estimation error ({est['estimator']}, RMS over {est['samples']} control instants): {rms}; "
                   f"{est['estimate_ms']['median']:.3f} ms a step (median)")
+        if doc.get("ctrl_noise"):
+            cn = doc["ctrl_noise"]
+            pn = "its default" if cn["process_noise"] is None else f"{cn['process_noise']:g}"
+            measured = ("no hold to measure" if cn["measured_fraction"] is None else
+                        f"measured {', '.join(f'{100 * v:.2g} %' for v in cn['measured_fraction'])} over the last "
+                        f"{cn['measured_window_s']:.3g} s")
+            print(f"Catch designed for the sensors (ctrl noise below {100 * cn['fraction']:g} % of the range"
+                  f"{'' if cn['met'] else ': not reached, the quietest design'}): R x {cn['factor']:g}, estimator "
+                  f"process noise {pn}; ctrl noise predicted "
+                  f"{', '.join(f'{100 * v:.2g} %' for v in cn['predicted_fraction'])}, {measured}")
         if res.basin is not None:
             print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
                   f"{res.basin.seed}, safety factor {res.basin.safety_factor})")

@@ -600,7 +600,7 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
 
 def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
                     model: CartPoleModel | None = None, options: PlanOptions | None = None,
-                    period: float | None = None, **settings) -> SwingupPlan:
+                    period: float | None = None, catch_R=None, **settings) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -624,6 +624,10 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         TVLQR and the catch are designed on the exact discrete model over the hold, and the plan is tracked as
         collocated (its re-solve on the exact discrete step, ``exact_discrete``, is for a controller that acts
         every physics step).
+    catch_R : (nu, nu) array or float, optional
+        Input weight (MuJoCo ctrl) of the hand-over catch alone (:func:`handover_catch`), e.g. one that respects
+        the rig's sensors (:func:`cartpole.apps.margins.noise_limited_catch_R`); default the plan's ``R``. The
+        plan and its TVLQR keep ``options.R``.
     **settings
         A compatibility layer for the keywords this function took before :class:`PlanOptions`: any of its field
         names, e.g. ``trajopt_swingup(params, N=40, exact_discrete=False)``. They only build the options
@@ -654,11 +658,11 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
     opts = (PlanOptions() if options is None else options).replace(**settings)
-    return _plan(source, x0, plan_model=model, options=opts, period=period)
+    return _plan(source, x0, plan_model=model, options=opts, period=period, catch_R=catch_R)
 
 
 def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
-          period: float | None = None) -> SwingupPlan:
+          period: float | None = None, catch_R=None) -> SwingupPlan:
     """:func:`trajopt_swingup` with its options made."""
     T, N, solver, objective, starts = options.T, options.N, options.solver, options.objective, options.starts
     Qf, exact_discrete = options.Qf, options.exact_discrete
@@ -779,7 +783,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     if steps > 1:
         exact_discrete = False
     u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
-    catch = handover_catch(params, plan_model, Q, R, steps=steps)
+    catch = handover_catch(params, plan_model, Q, R if catch_R is None else catch_R, steps=steps)
     gains = None
     if exact_discrete == "auto":
         gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)

@@ -74,6 +74,9 @@ def test_prose_summary(tmp_path, capsys):
                                   ["--estimator", "none", "--encoder-cpr", "2048"], ["--encoder-cpr", "0"],
                                   ["--sensor-noise", "nan"], ["--method", "trajopt", "--horizon", "1"],
                                   ["--method", "energy", "--time-budget", "60"], ["--time-budget", "0"],
+                                  ["--method", "trajopt", "--ctrl-noise", "0.1"],
+                                  ["--method", "energy", "--ctrl-noise", "1.5", "--encoder-cpr", "2048"],
+                                  ["--method", "mpc", "--ctrl-noise", "0.1", "--encoder-cpr", "2048"],
                                   ["--mjcf", "NOT_A_CARTPOLE"]])
 def test_bad_input_is_one_sentence_exit_2_and_no_files(argv, tmp_path, capsys):
     if argv[-1] == "NOT_A_CARTPOLE":
