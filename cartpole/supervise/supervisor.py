@@ -10,7 +10,8 @@
 * **brake**: with any hinge faster than ``calm_rate``, a passive PD on the actuated joints
   (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint) removes energy until the state is one the planner
   handles; passive, so it cannot add energy whatever the state.
-* **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``) from the state predicted ``latency``
+* **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
+  its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
   planner runs in the caller's thread and its wall time ``W`` is honest latency: the plan is used only from
   ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted is tracked from where its
@@ -37,6 +38,7 @@ from cartpole.control.switching import swingup_catch
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.options import OptionsError, StageOptions
+from cartpole.planning.library import PlanLibrary
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
@@ -172,6 +174,12 @@ class Supervisor:
         ``(t, x) -> ctrl``, a law that swings up from any state on its own (the energy law on one pole); when given
         it runs outside the basin instead of braking and planning.
     options : SupervisorOptions, optional
+    basin : BasinEstimate, optional
+        The estimate ``rho`` came from, kept for the run's report.
+    library : PlanLibrary, optional
+        Warm starts for the planner (:mod:`cartpole.planning.library`): each plan is asked for with the stored plan
+        nearest the predicted start by the catch's cost-to-go metric ``S`` (``planner(x0, guess=...)``), and every
+        plan the supervisor makes is added to it, a warm start for the next knockdown.
 
     Attributes
     ----------
@@ -184,7 +192,7 @@ class Supervisor:
 
     def __init__(self, model: CartPoleModel, catch: LinearFeedback, rho: float, brake: Callable, *,
                  planner: Callable | None = None, swingup: Callable | None = None,
-                 options: SupervisorOptions | None = None):
+                 options: SupervisorOptions | None = None, basin=None, library=None):
         if catch.S is None:
             raise SupervisorError("The supervisor's catch needs its cost-to-go S to test the basin; build it with "
                                   "LinearFeedback.for_model.")
@@ -192,6 +200,8 @@ class Supervisor:
         self.planner, self.swingup = planner, swingup
         self.options = SupervisorOptions() if options is None else options
         self.hinges = tuple(model.hinges)
+        self.basin = basin
+        self.library = library
         self.reset()
 
     def reset(self) -> None:
@@ -205,6 +215,7 @@ class Supervisor:
         self.retry_at = -np.inf
         self.plans = 0
         self.failures = 0
+        self.warm_plans = 0
 
     @property
     def latency(self) -> float:
@@ -241,7 +252,11 @@ class Supervisor:
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
-            plan = self.planner(x_pred)
+            guess, dist = None, None
+            if self.library is not None and len(self.library):
+                guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
+                dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
+            plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
@@ -255,7 +270,12 @@ class Supervisor:
             self.mode = "brake"
             return
         self.plan, self.plan_t0, self.ready_at = plan, t + steps * self.model.dt, t + wall
-        self._decide(t, "plan", wall_s=wall, predicted_latency_s=lat, T=float(plan.trajectory.duration))
+        warm = _warm(plan)
+        self.warm_plans += int(warm)
+        if self.library is not None:
+            self.library = self.library.with_plan(x_pred, plan.trajectory, wall)
+        self._decide(t, "plan", wall_s=wall, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
+                     **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
 
     def __call__(self, t: float, x) -> np.ndarray:
@@ -289,14 +309,24 @@ class Supervisor:
         return self.brake(t, x)
 
     def summary(self) -> dict:
-        """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``."""
+        """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``,
+        ``warm_plans`` (plans made from a library's warm start) and ``library_plans`` (plans in the library at the
+        end, or None without one)."""
         return {"decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
-                "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho}
+                "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho,
+                "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library)}
+
+
+def _warm(plan) -> bool:
+    """Whether ``plan`` (a SwingupPlan) came from its warm start (its chosen solve is a ``warm effort`` stage)."""
+    attempts = getattr(getattr(plan, "solve_info", None), "attempts", ()) or ()
+    return any(a.chosen and a.stage.startswith("warm effort") for a in attempts)
 
 
 def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
-                   basin_cache: BasinCache | None = None, basin_of: Callable | None = None) -> Supervisor:
+                   basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
+                   library: PlanLibrary | None = None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
     applies (one pole driven by the cart), else the planner.
 
@@ -315,6 +345,9 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
         ``basin_of(catch) -> BasinEstimate`` instead of ``basin_cache`` (a caller's own cache and progress).
+    library : PlanLibrary, optional
+        The planner's warm starts (:class:`~cartpole.planning.library.PlanLibrary`; default the one stored in the
+        user cache for ``model``, empty when none was built); the supervisor's own plans join it in memory.
 
     Returns
     -------
@@ -324,9 +357,10 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
     catch = swingup_catch(model, period=period)
     if basin_of is None:
         cache = BasinCache.on_disk() if basin_cache is None else basin_cache
-        rho = cache.get(params, catch).rho
+        basin = cache.get(params, catch)
     else:
-        rho = basin_of(catch).rho
+        basin = basin_of(catch)
+    rho = basin.rho
     opts = SupervisorOptions() if options is None else options
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
@@ -336,7 +370,8 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
         plan_opts = PlanOptions() if plan is None else plan
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
 
-        def planner(x0):
-            return trajopt_swingup(params, x0=tuple(x0), model=model, options=plan_opts, period=period)
-        return Supervisor(model, catch, rho, brake, planner=planner, options=opts)
-    return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts)
+        def planner(x0, guess=None):
+            return trajopt_swingup(params, x0=tuple(x0), model=model, options=plan_opts, period=period, guess=guess)
+        lib = PlanLibrary.load(model) if library is None else library
+        return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
+    return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)

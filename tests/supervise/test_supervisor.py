@@ -107,3 +107,26 @@ def test_one_pole_knocked_down_swings_up_again_every_time_and_replays(tmp_path):
     assert stats["knockdowns"] >= 3 and stats["recoveries"] >= stats["knockdowns"] - 1
     kinds = [d.kind for d in sup.decisions]
     assert kinds.count("catch") >= stats["knockdowns"] and sup.plans == 0  # the energy law needs no planner
+
+
+def test_each_plan_is_warm_started_from_the_library_and_joins_it(double):
+    from cartpole.planning.library import PlanLibrary
+
+    params, model, catch, brake = double
+    guesses = []
+
+    def planner(x0, guess=None):
+        guesses.append(guess)
+        return _stub_plan(model, 0.5, model.x_eq)
+    lib = PlanLibrary.empty(model)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner, library=lib,
+                     options=SupervisorOptions(latency=0.01, funnel=10.0))
+    x = np.asarray(model.x_hanging, float)
+    k = 0
+    while len(guesses) < 2 and k < 2000:
+        sup(k * 0.005, x)
+        k += 1
+    assert guesses[0] is None and guesses[1] is not None  # the first from nothing, the second from the first
+    assert len(sup.library) == 2 and len(lib) == 0  # the given library is left as it was
+    assert sup.summary()["library_plans"] == 2
+    assert sup.decisions[[d.kind for d in sup.decisions].index("plan")].detail["warm"] is False
