@@ -7,16 +7,17 @@
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
   decisions logged).
-* **brake**: with any hinge faster than ``calm_rate``, a passive PD on the actuated joints
+* **brake**: with any hinge faster than ``calm_rate`` (for at most ``calm_budget`` s), a passive PD on the actuated joints
   (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint) removes energy until the state is one the planner
   handles; passive, so it cannot add energy whatever the state.
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
   planner runs in the caller's thread and its wall time ``W`` is honest latency: the plan is used only from
-  ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted is tracked from where its
-  clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is logged and retried after
-  ``retry_after`` s of braking.
+  ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted starts from its beginning
+  when the state is still at its start (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from
+  where its clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes
+  more than ``plan_budget`` s, is logged and retried after ``retry_after`` s of braking.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again.
 
@@ -45,6 +46,12 @@ from cartpole.sim.disturbance import joint_inertia_and_authority
 from cartpole.validation import BasinCache
 
 
+#: rad/s: a plan that comes later than predicted starts from its beginning when every hinge rate is still within this
+#: of the plan's start (and every angle within half the funnel): the brake holds a calm state while the plan is made,
+#: so a late plan is usually still right; else it is tracked from where its clock has got to.
+RESTART_RATE = 1.0
+
+
 class SupervisorError(OptionsError):
     """Bad supervisor settings (a budget, rate, funnel or factor that is not a positive number)."""
 
@@ -69,7 +76,13 @@ class SupervisorOptions(StageOptions):
         s of braking after a failed plan before the next try.
     brake_time : float
         s, the brake's time constant: ``kd = M_jj / brake_time``, ``kp = M_jj / brake_time^2`` per driven joint
-        (``M_jj`` its joint-space inertia at upright), in ctrl units through the actuator's moment arm.
+        (``M_jj`` its joint-space inertia at upright), in ctrl units through the actuator's moment arm. The default
+        0.15 s calms the shipped chains fastest of 0.05, 0.15 and 0.5 s (docs/recovery.md, measured from random
+        states with rates up to 20 rad/s).
+    calm_budget : float
+        s: a state the brake has not calmed (some hinge still faster than ``calm_rate``) after this long is planned
+        from as it is (the planner's own budget bounds the try), a ``calm_timeout`` decision saying so; braking
+        starts again after a failed plan.
     """
 
     plan_budget: float = 30.0
@@ -78,15 +91,16 @@ class SupervisorOptions(StageOptions):
     funnel: float = 0.6
     release_factor: float = 20.0
     retry_after: float = 0.5
-    brake_time: float = 0.5
+    brake_time: float = 0.15
+    calm_budget: float = 10.0
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
-                                "brake_time")
+                                "brake_time", "calm_budget")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
-                           ("retry_after", "s"), ("brake_time", "s")):
+                           ("retry_after", "s"), ("brake_time", "s"), ("calm_budget", "s")):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
 
@@ -101,7 +115,8 @@ class Decision:
         s, simulated time of the decision.
     kind : str
         ``"catch"``, ``"swingup"`` (the swing-up law took over), ``"brake"``, ``"plan"`` (a plan requested),
-        ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel).
+        ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
+        ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -216,6 +231,7 @@ class Supervisor:
         self.plans = 0
         self.failures = 0
         self.warm_plans = 0
+        self.fast_since = None
 
     @property
     def latency(self) -> float:
@@ -240,6 +256,16 @@ class Supervisor:
         ref = self.plan.trajectory.state(tau)
         err = wrap_angle(np.asarray(x, dtype=float)[list(self.hinges)] - np.asarray(ref)[list(self.hinges)])
         return bool(np.max(np.abs(err)) > self.options.funnel)
+
+    def _at_start(self, x) -> bool:
+        """Whether ``x`` is still at the plan's start: every hinge within ``funnel / 2`` rad and
+        :data:`RESTART_RATE` rad/s of it (a plan later than predicted then starts from its beginning)."""
+        x = np.asarray(x, dtype=float)
+        ref = np.asarray(self.plan.trajectory.state(float(self.plan.trajectory.t[0])), dtype=float)
+        h = list(self.hinges)
+        hv = [self.model.nq + i for i in h]
+        return bool(np.max(np.abs(wrap_angle(x[h] - ref[h]))) <= 0.5 * self.options.funnel
+                    and np.max(np.abs(x[hv] - ref[hv])) <= RESTART_RATE)
 
     def _request_plan(self, t: float, x) -> None:
         """Plan from the state predicted ``latency`` s ahead under the brake; the plan is used from ``t + W``."""
@@ -290,7 +316,11 @@ class Supervisor:
             self._set(t, "swingup", cost=cost)
             return self.swingup(t, x)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
-            self._set(t, "track", late_s=max(0.0, t - self.plan_t0))
+            late = max(0.0, t - self.plan_t0)
+            restart = late > 0.5 * self.model.dt and self._at_start(x)
+            if restart:  # still where the plan starts (the brake holds a calm state): the plan from its start
+                self.plan_t0 = t
+            self._set(t, "track", late_s=late, restarted=restart)
         if self.mode == "track":
             over = t - self.plan_t0 >= self.plan.trajectory.duration
             if over and cost < self.options.release_factor * self.rho:  # the plan's end: the catch takes it
@@ -302,9 +332,19 @@ class Supervisor:
             self.mode = "brake"
         if self.mode == "wait":
             return self.brake(t, x)
-        if self.planner is None or self._fast(x) or t < self.retry_at:
+        fast = self._fast(x)
+        if not fast:
+            self.fast_since = None
+        elif self.fast_since is None:
+            self.fast_since = t
+        timed_out = fast and self.planner is not None and t - self.fast_since >= self.options.calm_budget
+        if self.planner is None or (fast and not timed_out) or t < self.retry_at:
             self._set(t, "brake", cost=cost)
             return self.brake(t, x)
+        if timed_out:  # the brake has not calmed it: plan from the fast state, within the planner's budget
+            rates = np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]]
+            self._decide(t, "calm_timeout", braked_s=t - self.fast_since, rates=[float(r) for r in rates])
+            self.fast_since = None
         self._request_plan(t, x)
         return self.brake(t, x)
 

@@ -130,3 +130,48 @@ def test_each_plan_is_warm_started_from_the_library_and_joins_it(double):
     assert len(sup.library) == 2 and len(lib) == 0  # the given library is left as it was
     assert sup.summary()["library_plans"] == 2
     assert sup.decisions[[d.kind for d in sup.decisions].index("plan")].detail["warm"] is False
+
+
+def test_a_late_plan_starts_from_its_beginning_while_the_state_is_still_at_its_start(double, monkeypatch):
+    params, model, catch, brake = double
+    clock = iter([0.0, 3.0] + [3.0] * 100)  # the plan takes 3 s, far over the 0.3 s predicted
+    monkeypatch.setattr("cartpole.supervise.supervisor.time.perf_counter", lambda: next(clock))
+    x = np.asarray(model.x_hanging, float)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 2.0, x),
+                     options=SupervisorOptions(latency=0.3))
+    sup(0.0, x)
+    sup(3.0, x)  # at rest where the plan starts: it starts now, not 2.7 s into its 2 s
+    assert sup.mode == "track" and sup.plan_t0 == 3.0 and sup.decisions[-1].detail["restarted"] is True
+    moved = x.copy()
+    moved[model.nq + model.hinges[0]] = 3.0  # swinging away from the plan's start: its clock is kept
+    sup2 = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 2.0, x),
+                      options=SupervisorOptions(latency=0.3))
+    clock2 = iter([0.0, 3.0] + [3.0] * 100)
+    monkeypatch.setattr("cartpole.supervise.supervisor.time.perf_counter", lambda: next(clock2))
+    sup2(0.0, x)
+    sup2(3.0, moved)
+    track = next(d for d in sup2.decisions if d.kind == "track")
+    assert track.detail["restarted"] is False
+
+
+def test_a_state_the_brake_does_not_calm_is_planned_from_after_the_calm_budget(double):
+    params, model, catch, brake = double
+    asked = []
+
+    def planner(x0):
+        asked.append(x0)
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                     options=SupervisorOptions(calm_budget=0.2, retry_after=0.1))
+    x = np.asarray(model.x_hanging, float).copy()
+    x[model.nq + model.hinges[-1]] = 30.0  # spinning, held so (the brake never calms it here)
+    for k in range(30):  # 0.145 s: under the budget, only braking
+        sup(k * 0.005, x)
+    assert not asked and sup.mode == "brake"
+    for k in range(30, 120):
+        sup(k * 0.005, x)
+    kinds = [d.kind for d in sup.decisions]
+    assert "calm_timeout" in kinds and kinds[kinds.index("calm_timeout") + 1] == "plan_failed"
+    assert sup.decisions[kinds.index("calm_timeout")].t >= 0.2 and len(asked) >= 1
+    with pytest.raises(SupervisorError, match="calm_budget"):
+        SupervisorOptions(calm_budget=0.0)
