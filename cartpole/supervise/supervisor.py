@@ -79,6 +79,11 @@ class SupervisorOptions(StageOptions):
         (``M_jj`` its joint-space inertia at upright), in ctrl units through the actuator's moment arm. The default
         0.15 s calms the shipped chains fastest of 0.05, 0.15 and 0.5 s (docs/recovery.md, measured from random
         states with rates up to 20 rad/s).
+    charged_latency : float or None
+        s of simulated time every plan is charged instead of its measured wall time (and assumed as the latency it
+        is predicted over): a run reproducible on any machine, standing for one whose planner answers within that
+        time (each plan's wall time is still logged beside it, and a plan over ``plan_budget`` still fails). None
+        (default): the wall time, honest on the machine that runs it.
     calm_budget : float
         s: a state the brake has not calmed (some hinge still faster than ``calm_rate``) after this long is planned
         from as it is (the planner's own budget bounds the try), a ``calm_timeout`` decision saying so; braking
@@ -93,16 +98,18 @@ class SupervisorOptions(StageOptions):
     retry_after: float = 0.5
     brake_time: float = 0.15
     calm_budget: float = 10.0
+    charged_latency: float | None = None
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
-                                "brake_time", "calm_budget")
+                                "brake_time", "calm_budget", "charged_latency")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
                            ("retry_after", "s"), ("brake_time", "s"), ("calm_budget", "s")):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
+        self.number("charged_latency", low=0.0, unit="s", optional=True)
 
 
 @dataclass(frozen=True)
@@ -236,7 +243,10 @@ class Supervisor:
     @property
     def latency(self) -> float:
         """s, the planning latency the next plan is predicted with: 1.25 times the median measured so far (a plan
-        that comes late is tracked from where its clock has got to, so erring long is cheaper), else the option."""
+        that comes late is tracked from where its clock has got to, so erring long is cheaper), else the option;
+        ``charged_latency`` when set."""
+        if self.options.charged_latency is not None:
+            return float(self.options.charged_latency)
         return 1.25 * float(np.median(self.plan_seconds)) if self.plan_seconds else self.options.latency
 
     def _decide(self, t: float, kind: str, **detail) -> None:
@@ -287,20 +297,23 @@ class Supervisor:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
         self.plan_seconds.append(wall)
+        charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
         if plan is not None and wall > self.options.plan_budget:
             plan, why = None, f"the plan took {wall:.1f} s, over the budget of {self.options.plan_budget:g} s"
         if plan is None:
             self.failures += 1
-            self.retry_at = t + wall + self.options.retry_after
-            self._decide(t, "plan_failed", wall_s=wall, reason=why)
+            self.retry_at = t + charged + self.options.retry_after
+            self._decide(t, "plan_failed", wall_s=wall, charged_s=charged, reason=why)
             self.mode = "brake"
             return
-        self.plan, self.plan_t0, self.ready_at = plan, t + steps * self.model.dt, t + wall
+        # used from the later of its arrival and the time it was planned to start from (an early plan waits)
+        self.plan, self.plan_t0 = plan, t + steps * self.model.dt
+        self.ready_at = max(t + charged, self.plan_t0)
         warm = _warm(plan)
         self.warm_plans += int(warm)
         if self.library is not None:
             self.library = self.library.with_plan(x_pred, plan.trajectory, wall)
-        self._decide(t, "plan", wall_s=wall, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
+        self._decide(t, "plan", wall_s=wall, charged_s=charged, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
                      **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
 
