@@ -175,3 +175,17 @@ def test_a_state_the_brake_does_not_calm_is_planned_from_after_the_calm_budget(d
     assert sup.decisions[kinds.index("calm_timeout")].t >= 0.2 and len(asked) >= 1
     with pytest.raises(SupervisorError, match="calm_budget"):
         SupervisorOptions(calm_budget=0.0)
+
+
+def test_a_plan_that_comes_early_waits_for_the_state_it_was_planned_from(double, monkeypatch):
+    params, model, catch, brake = double
+    clock = iter([0.0, 0.1] + [0.1] * 100)  # ready after 0.1 s; planned from the state 0.3 s ahead
+    monkeypatch.setattr("cartpole.supervise.supervisor.time.perf_counter", lambda: next(clock))
+    x = np.asarray(model.x_hanging, float)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 2.0, x),
+                     options=SupervisorOptions(latency=0.3, funnel=10.0))
+    sup(0.0, x)
+    sup(0.2, x)
+    assert sup.mode == "wait"  # arrived, but its start is 0.3 s
+    sup(0.3, x)
+    assert sup.mode == "track" and sup.decisions[-1].detail["late_s"] == 0.0
