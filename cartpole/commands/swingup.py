@@ -345,9 +345,14 @@ def run(args) -> dict:
         if viewer is not None:
             viewer.close()
     method = res.method  # the one that ran (--method auto: the first that succeeded, else the last tried)
+    marks = _marks(res)
+    title = f"Swing-up ({method}) in MuJoCo: {'success' if res.success else 'FAILED'}"
+    if marks is not None:  # knocked or thrown: how often, and how much of the run was upright
+        m = res.metrics
+        title = (f"{method} in MuJoCo: knocked {m['knockdowns']} times, {m['swingups']} swing-ups, uptime "
+                 f"{m['uptime']:.2f}")
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{method}.png", plan=res.plan,
-                       caught_at=res.caught_at, handover_at=res.handover_at, model=model, marks=_marks(res),
-                       title=f"Swing-up ({method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
+                       caught_at=res.caught_at, handover_at=res.handover_at, model=model, marks=marks, title=title)
     est_fig = None
     if res.metrics.get("estimation"):
         from cartpole.viz.estimation_plot import plot_estimation
