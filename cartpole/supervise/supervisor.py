@@ -303,7 +303,8 @@ class Supervisor:
         if plan is None:
             self.failures += 1
             self.retry_at = t + charged + self.options.retry_after
-            self._decide(t, "plan_failed", wall_s=wall, charged_s=charged, reason=why)
+            self._decide(t, "plan_failed", wall_s=wall, charged_s=charged, reason=why,
+                         x0=[float(v) for v in np.asarray(x_pred, dtype=float)])
             self.mode = "brake"
             return
         # used from the later of its arrival and the time it was planned to start from (an early plan waits)
@@ -364,8 +365,11 @@ class Supervisor:
     def summary(self) -> dict:
         """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``,
         ``warm_plans`` (plans made from a library's warm start) and ``library_plans`` (plans in the library at the
-        end, or None without one)."""
-        return {"decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
+        end, or None without one), ``unreachable`` (each state no swing-up was found from within the budget: ``t``,
+        ``x0``, the planner's ``reason``)."""
+        unreachable = [{"t": d.t, "x0": d.detail.get("x0"), "reason": d.detail.get("reason")}
+                       for d in self.decisions if d.kind == "plan_failed"]
+        return {"unreachable": unreachable, "decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
                 "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho,
                 "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library)}
 

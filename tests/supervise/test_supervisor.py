@@ -78,6 +78,8 @@ def test_a_failed_plan_is_logged_and_retried_after_braking(double):
         sup(k * 0.005, x)
     assert sup.failures == len(calls) >= 2 and sup.decisions[0].kind == "plan_failed"
     assert "No swing-up found" in sup.decisions[0].detail["reason"]
+    unreachable = sup.summary()["unreachable"]  # reported, never hidden: each state the planner found nothing from
+    assert len(unreachable) == sup.failures and np.allclose(unreachable[0]["x0"], calls[0])
     gaps = np.diff([d.t for d in sup.decisions if d.kind == "plan_failed"])
     assert np.all(gaps >= 0.5 - 1e-9)
 
