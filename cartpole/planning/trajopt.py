@@ -64,7 +64,8 @@ class SwingupPlan:
     model : CartPoleModel
         The model used for planning and TVLQR (may differ from the MJCF MuJoCo runs).
     T_min : float or None
-        Minimum swing-up time in s found for the bounds (None when T was given).
+        Minimum swing-up time in s found for the bounds (None when T was given, or the plan came from a warm start,
+        which skips the minimum-time search).
     objective : str
         Name of the objective the plan optimised (``effort``, ``time``, ``tracking``, ``dmc_swingup`` or the user
         function's name).
