@@ -824,8 +824,7 @@ def _run_supervisor(ctx: _Context, plan) -> _Ran:
     check_push_times(ctx.loop.push, T)
     controller, rig, rollout = _simulate(ctx, sup, T)
     catches = [d.t for d in sup.decisions if d.kind == "catch"]
-    basin = ctx.basin_of(sup.catch)
-    return _Ran(rollout, controller, rig, basin, None, catches[-1] if catches else None,
+    return _Ran(rollout, controller, rig, sup.basin, None, catches[-1] if catches else None,
                 {"supervisor": sup.summary()}, {"plan": plan, "loop": ctx.loop})
 
 

@@ -41,6 +41,10 @@ def add_arguments(parser) -> None:
                         help="skip the planner's stages (from its minimum-time plan: effort, tracking, time, "
                              "dm_control's cart-pole rewards) on the shipped 1-, 2- and 3-pole carts, or the --mjcf "
                              "given, against the naive script (--quick: one pole, effort and time)")
+    parser.add_argument("--no-library", action="store_true",
+                        help="skip the plan library's rows: plans warm-started from the nearest stored plan against "
+                             "cold ones from the same starts (the shipped 1- and 2-pole carts, or the --mjcf given; "
+                             "--quick: one pole, one start)")
     parser.add_argument("--no-identify", action="store_true",
                         help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 
@@ -113,6 +117,14 @@ def run(args) -> dict:
             models = shipped_plan_models()[:1] if args.quick else shipped_plan_models()
         doc["plan"] = plan_benchmark(models, repeats=1 if args.quick else 3, command=not args.quick,
                                      progress=steps, **limit_keywords(args))
+    doc["plan_library"] = None
+    if not args.no_library:
+        from cartpole.apps.bench.plan_library import plan_library_benchmark
+
+        lib_models = [(Path(args.mjcf).stem, args.mjcf)] if args.mjcf is not None else (
+            [("1 pole", shipped_plan_models()[0][1])] if args.quick else None)
+        doc["plan_library"] = plan_library_benchmark(lib_models, angles=1 if args.quick else 3,
+                                                     probes=1 if args.quick else 3, progress=steps)
     doc["mpc"] = None if args.no_mpc else mpc_benchmark(args.mjcf, quick=args.quick, progress=steps,
                                                         **limit_keywords(args))
     from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
@@ -143,6 +155,10 @@ def run(args) -> dict:
             print_planner_stage_table(doc["trajopt"]["planner_stage"])
         if doc["plan"]:
             print_plan_table(doc["plan"])
+        if doc["plan_library"]:
+            from cartpole.apps.bench.plan_library import print_plan_library_table
+
+            print_plan_library_table(doc["plan_library"])
         if doc["mpc"]:
             print_mpc_table(doc["mpc"])
         from cartpole.commands._limits import limit_lines

@@ -41,12 +41,19 @@ def add_arguments(parser) -> None:
     from cartpole.commands._limits import add_limit_arguments
 
     add_limit_arguments(parser)
-    parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc"), default=None,
+    parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc", "supervisor"), default=None,
                         metavar="M", help="swing-up of every run: energy (energy shaping + LQR catch), "
-                                          "trajopt (collocation + TVLQR) or mpc (nonlinear MPC); two or more: the "
-                                          "same sweep for each, and their success maps side by side; default the "
-                                          "method `cartpole swingup` tries first on the model: energy for one pole "
-                                          "driven by the cart, else trajopt (no fall-back within a sweep)")
+                                          "trajopt (collocation + TVLQR), mpc (nonlinear MPC) or supervisor (catch, "
+                                          "energy law or brake and re-plan, again after every knockdown); two or "
+                                          "more: the same sweep for each, and their success maps side by side; "
+                                          "default the supervisor with --knockdown or --throw, else the method "
+                                          "`cartpole swingup` tries first on the model: energy for one pole driven by "
+                                          "the cart, else trajopt (no fall-back within a sweep)")
+    parser.add_argument("--knockdown", default=None, metavar="AFTER:LENGTH[:SEED]",
+                        help="every run knocked down each time its poles have been upright for AFTER s (as "
+                             "`cartpole swingup --knockdown`); the table adds uptime, knockdowns and swingups")
+    parser.add_argument("--throw", default=None, metavar="EVERY[:RATE[:SEED]]",
+                        help="every run thrown at random times (as `cartpole swingup --throw`)")
     parser.add_argument("--n", type=int, default=None, metavar="N",
                         help=f"number of runs without axis options (default {DEFAULT_N}), or of seeded draws per "
                              f"grid cell when an axis is sampled (LO HI); at most {MAX_RUNS} runs in all")
@@ -141,6 +148,8 @@ def _plan(args, params):
     from cartpole.apps.sweep import SweepError, check_axes, check_settings
 
     chosen = args.method
+    if chosen is None and (getattr(args, "knockdown", None) is not None or getattr(args, "throw", None) is not None):
+        chosen = ["supervisor"]  # knocked down: the controller that swings up again
     if chosen is None:  # the default: what `cartpole swingup` tries first on this model
         from cartpole.apps.swingup import default_method
         from cartpole.models import build_model
@@ -230,7 +239,9 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
     from cartpole.apps.sweep import SweepInterrupted, recorded_sweep, summary_line
     from cartpole.commands._rig import loop_from_args
 
-    loop = loop_from_args(args)
+    from cartpole.commands.swingup import disturbance_fields
+
+    loop = loop_from_args(args).replace(**disturbance_fields(args))
     out = Path(args.out)
     try:
         rec = recorded_sweep(params, method=method, n=n, seed=args.seed, workers=args.workers, duration=duration,
@@ -256,6 +267,9 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
            "loop": loop.as_dict()}
     if not args.json:
         print(summary_line(doc))
+        if doc.get("uptime_mean") is not None:
+            print(f"Knocked down {doc['knockdowns_total']} times in all, swung up {doc['swingups_total']} times; mean "
+                  f"uptime {doc['uptime_mean']:.3f}")
         if doc.get("mean_return") is not None:
             print(f"{doc['objective']}: mean dm_control return {doc['mean_return']:.1f} over {doc['return_runs']} "
                   f"episodes of {doc['n']}")
@@ -266,8 +280,10 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
                 f", model error {r['model_error']:g}" if r["model_error"] != 1.0 else "") + "".join(
                 f", {k} {v:g}" for k, v in r["settings"].items())
             why = f" ({r['error']})" if r["error"] else (f" ({r['failure']})" if r["failure"] else "")
+            knocked = ("" if r.get("uptime") is None else
+                       f", uptime {r['uptime']:.3f}, {r['knockdowns']} knockdown(s), {r['swingups']} swing-up(s)")
             print(f"  run {r['run']:3d}: start [{start}]{scenario}: {'success' if r['success'] else 'FAILED'}, "
-                  f"time to upright {t}{why}")
+                  f"time to upright {t}{knocked}{why}")
         if rec.resumed:
             print(f"Resumed: {rec.resumed} of {result.n} runs were already in the results file.")
         print(f"Results: {doc['results']}")

@@ -107,6 +107,17 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-video", action="store_true", help="do not render videos/swingup_<method>.mp4")
 
 
+def _marks(res) -> dict | None:
+    """A knocked or thrown run's knockdowns, swing-ups and the supervisor's catches for the figure, else None."""
+    m = res.metrics
+    if "uptime" not in m:
+        return None
+    info = res.rollout.info if isinstance(res.rollout.info, dict) else {}
+    decisions = (m.get("supervisor") or {}).get("decisions") or []
+    return {"knockdowns": info.get("disturbances") or [], "swingups": m.get("swingup_times") or [],
+            "catches": [d["t"] for d in decisions if d.get("kind") == "catch"]}
+
+
 def disturbance_fields(args) -> dict:
     """``knockdown`` and ``throw`` of :class:`~cartpole.sim.options.LoopOptions` from ``--knockdown`` and ``--throw``
     (only those given)."""
@@ -340,9 +351,14 @@ def run(args) -> dict:
         if viewer is not None:
             viewer.close()
     method = res.method  # the one that ran (--method auto: the first that succeeded, else the last tried)
+    marks = _marks(res)
+    title = f"Swing-up ({method}) in MuJoCo: {'success' if res.success else 'FAILED'}"
+    if marks is not None:  # knocked or thrown: how often, and how much of the run was upright
+        m = res.metrics
+        title = (f"{method} in MuJoCo: knocked {m['knockdowns']} times, {m['swingups']} swing-ups, uptime "
+                 f"{m['uptime']:.2f}")
     fig = plot_swingup(res.rollout, params, out / "figures" / f"swingup_{method}.png", plan=res.plan,
-                       caught_at=res.caught_at, handover_at=res.handover_at, model=model,
-                       title=f"Swing-up ({method}) in MuJoCo: {'success' if res.success else 'FAILED'}")
+                       caught_at=res.caught_at, handover_at=res.handover_at, model=model, marks=marks, title=title)
     est_fig = None
     if res.metrics.get("estimation"):
         from cartpole.viz.estimation_plot import plot_estimation

@@ -64,7 +64,8 @@ class SwingupPlan:
     model : CartPoleModel
         The model used for planning and TVLQR (may differ from the MJCF MuJoCo runs).
     T_min : float or None
-        Minimum swing-up time in s found for the bounds (None when T was given).
+        Minimum swing-up time in s found for the bounds (None when T was given, or the plan came from a warm start,
+        which skips the minimum-time search).
     objective : str
         Name of the objective the plan optimised (``effort``, ``time``, ``tracking``, ``dmc_swingup`` or the user
         function's name).
@@ -600,7 +601,8 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
 
 def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
                     model: CartPoleModel | None = None, options: PlanOptions | None = None,
-                    period: float | None = None, catch_R=None, **settings) -> SwingupPlan:
+                    period: float | None = None, catch_R=None, guess: Trajectory | None = None,
+                    **settings) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -628,6 +630,12 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Input weight (MuJoCo ctrl) of the hand-over catch alone (:func:`handover_catch`), e.g. one that respects
         the rig's sensors (:func:`cartpole.apps.margins.noise_limited_catch_R`); default the plan's ``R``. The
         plan and its TVLQR keep ``options.R``.
+    guess : Trajectory, optional
+        A warm start: a swing-up plan from a start near ``x0`` (e.g. :meth:`cartpole.planning.library.PlanLibrary.
+        guess_for`), ending upright. With the ``effort`` objective and no ``T`` given, the effort problem at the
+        guess's duration is solved from it first (:func:`warm_stage`, attempt stage ``"warm effort T=..."``),
+        skipping the minimum-time search; when it does not converge the planner goes on cold. Ignored by the other
+        objectives, a given ``T`` and ``solver="ddp"``.
     **settings
         A compatibility layer for the keywords this function took before :class:`PlanOptions`: any of its field
         names, e.g. ``trajopt_swingup(params, N=40, exact_discrete=False)``. They only build the options
@@ -658,11 +666,32 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
     opts = (PlanOptions() if options is None else options).replace(**settings)
-    return _plan(source, x0, plan_model=model, options=opts, period=period, catch_R=catch_R)
+    return _plan(source, x0, plan_model=model, options=opts, period=period, catch_R=catch_R, guess=guess)
+
+
+def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, solver: str = "ipopt",
+               solver_options=None, sqp: bool = False) -> tuple[Trajectory | None, SolveInfo | None, tuple]:
+    """The effort problem at ``guess``'s duration from ``x0`` (nx,), started from ``guess`` (a plan from a nearby
+    start): ``(plan, info, attempts)``, plan and info None when it did not converge. ``sqp``: by
+    :class:`~cartpole.solvers.sqp.CollocationSQP` first, IPOPT when it does not converge; ``N`` intervals."""
+    T = float(guess.duration)
+    stage = f"warm effort T={T:.3g}"
+    name = "library plan"
+    ocp = DirectCollocation(model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
+    tried: list = []
+    if sqp:
+        found = _sqp_attempt(ocp, x0, None, guess, name, stage, tried)
+        if found is not None:
+            return found[0], replace(found[1], attempts=tuple(tried)), tuple(tried)
+    traj, info = ocp.solve_once(x0, guess=guess)
+    tried.append(Attempt.of(info, stage, name, ocp.N, chosen=info.success))
+    if not info.success:
+        return None, None, tuple(tried)
+    return traj, replace(info, guess=name, attempts=tuple(tried)), tuple(tried)
 
 
 def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
-          period: float | None = None, catch_R=None) -> SwingupPlan:
+          period: float | None = None, catch_R=None, guess: Trajectory | None = None) -> SwingupPlan:
     """:func:`trajopt_swingup` with its options made."""
     T, N, solver, objective, starts = options.T, options.N, options.solver, options.objective, options.starts
     Qf, exact_discrete = options.Qf, options.exact_discrete
@@ -700,7 +729,15 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
                 return replace(st, margin=margin)
         return None
 
-    if obj.kind == "time":
+    warm, warm_tried = None, ()
+    if guess is not None and obj.kind == "effort" and T is None and not use_ddp:
+        warm_traj, warm_info, warm_tried = warm_stage(plan_model, x0, guess, N=N or 100, bounds=bounds,
+                                                      solver=solver, solver_options=solver_options, sqp=use_sqp)
+        if warm_traj is not None:
+            warm = (warm_traj, warm_info)
+    if warm is not None:
+        traj, info = warm
+    elif obj.kind == "time":
         T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
                                                T_max=options.T_max, search_s=options.search_s,
                                                restarts=options.pump_restarts, seed=options.pump_seed, sqp=use_sqp)
@@ -762,6 +799,8 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
                 traj = first
                 info = replace(tinfo, status=f"{obj.name} not converged from any guess: the time plan kept",
                                attempts=tuple(tinfo.attempts) + tuple(exc.attempts))
+    if warm is None and warm_tried:  # the warm start did not converge: its try first, then the cold plan's
+        info = replace(info, attempts=tuple(warm_tried) + tuple(info.attempts))
     exact = None
     if by_ddp is not None:  # the plan is DDP's, exact on the discrete step: TVLQR tracks it as it is
         traj = by_ddp.trajectory

@@ -233,8 +233,9 @@ class Throw:
         return cls(every, rate, parts[2] if len(parts) == 3 else 0)
 
     def start(self, source: CartPoleParams, *, x_eq, hinges, timestep: float) -> "ThrowForce":
-        """The stateful force ``f(t, x) -> (nv,)`` for one run on ``source`` at the physics step ``timestep`` (s)."""
-        return ThrowForce(self, source, np.asarray(x_eq, dtype=float), tuple(int(h) for h in hinges), float(timestep))
+        """The stateful force ``f(t, x) -> (nv,)`` for one run on ``source`` at the physics step ``timestep`` (s);
+        ``x_eq`` is taken for the same call as :meth:`Knockdown.start` (a throw does not depend on upright)."""
+        return ThrowForce(self, source, tuple(int(h) for h in hinges), float(timestep))
 
 
 class ThrowForce:
@@ -245,15 +246,13 @@ class ThrowForce:
     throw : Throw
     source : CartPoleParams or MJCF path
         The model MuJoCo runs.
-    x_eq : (nx,) array
-        The upright equilibrium ``[qpos, qvel]`` (m, rad, m/s, rad/s); unused by the throws themselves.
     hinges : tuple of int
         qpos indices of the pole angles.
     timestep : float
         The physics step, s: each throw is an impulse over one step.
     """
 
-    def __init__(self, throw: Throw, source, x_eq: np.ndarray, hinges: tuple, timestep: float):
+    def __init__(self, throw: Throw, source, hinges: tuple, timestep: float):
         import mujoco
 
         self.throw, self.hinges, self.h = throw, hinges, timestep

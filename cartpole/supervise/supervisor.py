@@ -7,15 +7,17 @@
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
   decisions logged).
-* **brake**: with any hinge faster than ``calm_rate``, a passive PD on the actuated joints
+* **brake**: with any hinge faster than ``calm_rate`` (for at most ``calm_budget`` s), a passive PD on the actuated joints
   (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint) removes energy until the state is one the planner
   handles; passive, so it cannot add energy whatever the state.
-* **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``) from the state predicted ``latency``
+* **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
+  its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
   planner runs in the caller's thread and its wall time ``W`` is honest latency: the plan is used only from
-  ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted is tracked from where its
-  clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is logged and retried after
-  ``retry_after`` s of braking.
+  ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted starts from its beginning
+  when the state is still at its start (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from
+  where its clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes
+  more than ``plan_budget`` s, is logged and retried after ``retry_after`` s of braking.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again.
 
@@ -37,10 +39,17 @@ from cartpole.control.switching import swingup_catch
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.options import OptionsError, StageOptions
+from cartpole.planning.library import PlanLibrary
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
 from cartpole.validation import BasinCache
+
+
+#: rad/s: a plan that comes later than predicted starts from its beginning when every hinge rate is still within this
+#: of the plan's start (and every angle within half the funnel): the brake holds a calm state while the plan is made,
+#: so a late plan is usually still right; else it is tracked from where its clock has got to.
+RESTART_RATE = 1.0
 
 
 class SupervisorError(OptionsError):
@@ -67,7 +76,18 @@ class SupervisorOptions(StageOptions):
         s of braking after a failed plan before the next try.
     brake_time : float
         s, the brake's time constant: ``kd = M_jj / brake_time``, ``kp = M_jj / brake_time^2`` per driven joint
-        (``M_jj`` its joint-space inertia at upright), in ctrl units through the actuator's moment arm.
+        (``M_jj`` its joint-space inertia at upright), in ctrl units through the actuator's moment arm. The default
+        0.15 s calms the shipped chains fastest of 0.05, 0.15 and 0.5 s (docs/recovery.md, measured from random
+        states with rates up to 20 rad/s).
+    charged_latency : float or None
+        s of simulated time every plan is charged instead of its measured wall time (and assumed as the latency it
+        is predicted over): a run reproducible on any machine, standing for one whose planner answers within that
+        time (each plan's wall time is still logged beside it, and a plan over ``plan_budget`` still fails). None
+        (default): the wall time, honest on the machine that runs it.
+    calm_budget : float
+        s: a state the brake has not calmed (some hinge still faster than ``calm_rate``) after this long is planned
+        from as it is (the planner's own budget bounds the try), a ``calm_timeout`` decision saying so; braking
+        starts again after a failed plan.
     """
 
     plan_budget: float = 30.0
@@ -76,17 +96,20 @@ class SupervisorOptions(StageOptions):
     funnel: float = 0.6
     release_factor: float = 20.0
     retry_after: float = 0.5
-    brake_time: float = 0.5
+    brake_time: float = 0.15
+    calm_budget: float = 10.0
+    charged_latency: float | None = None
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
-                                "brake_time")
+                                "brake_time", "calm_budget", "charged_latency")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
-                           ("retry_after", "s"), ("brake_time", "s")):
+                           ("retry_after", "s"), ("brake_time", "s"), ("calm_budget", "s")):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
+        self.number("charged_latency", low=0.0, unit="s", optional=True)
 
 
 @dataclass(frozen=True)
@@ -99,7 +122,8 @@ class Decision:
         s, simulated time of the decision.
     kind : str
         ``"catch"``, ``"swingup"`` (the swing-up law took over), ``"brake"``, ``"plan"`` (a plan requested),
-        ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel).
+        ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
+        ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -172,6 +196,12 @@ class Supervisor:
         ``(t, x) -> ctrl``, a law that swings up from any state on its own (the energy law on one pole); when given
         it runs outside the basin instead of braking and planning.
     options : SupervisorOptions, optional
+    basin : BasinEstimate, optional
+        The estimate ``rho`` came from, kept for the run's report.
+    library : PlanLibrary, optional
+        Warm starts for the planner (:mod:`cartpole.planning.library`): each plan is asked for with the stored plan
+        nearest the predicted start by the catch's cost-to-go metric ``S`` (``planner(x0, guess=...)``), and every
+        plan the supervisor makes is added to it, a warm start for the next knockdown.
 
     Attributes
     ----------
@@ -184,7 +214,7 @@ class Supervisor:
 
     def __init__(self, model: CartPoleModel, catch: LinearFeedback, rho: float, brake: Callable, *,
                  planner: Callable | None = None, swingup: Callable | None = None,
-                 options: SupervisorOptions | None = None):
+                 options: SupervisorOptions | None = None, basin=None, library=None):
         if catch.S is None:
             raise SupervisorError("The supervisor's catch needs its cost-to-go S to test the basin; build it with "
                                   "LinearFeedback.for_model.")
@@ -192,6 +222,8 @@ class Supervisor:
         self.planner, self.swingup = planner, swingup
         self.options = SupervisorOptions() if options is None else options
         self.hinges = tuple(model.hinges)
+        self.basin = basin
+        self.library = library
         self.reset()
 
     def reset(self) -> None:
@@ -205,11 +237,16 @@ class Supervisor:
         self.retry_at = -np.inf
         self.plans = 0
         self.failures = 0
+        self.warm_plans = 0
+        self.fast_since = None
 
     @property
     def latency(self) -> float:
         """s, the planning latency the next plan is predicted with: 1.25 times the median measured so far (a plan
-        that comes late is tracked from where its clock has got to, so erring long is cheaper), else the option."""
+        that comes late is tracked from where its clock has got to, so erring long is cheaper), else the option;
+        ``charged_latency`` when set."""
+        if self.options.charged_latency is not None:
+            return float(self.options.charged_latency)
         return 1.25 * float(np.median(self.plan_seconds)) if self.plan_seconds else self.options.latency
 
     def _decide(self, t: float, kind: str, **detail) -> None:
@@ -230,6 +267,16 @@ class Supervisor:
         err = wrap_angle(np.asarray(x, dtype=float)[list(self.hinges)] - np.asarray(ref)[list(self.hinges)])
         return bool(np.max(np.abs(err)) > self.options.funnel)
 
+    def _at_start(self, x) -> bool:
+        """Whether ``x`` is still at the plan's start: every hinge within ``funnel / 2`` rad and
+        :data:`RESTART_RATE` rad/s of it (a plan later than predicted then starts from its beginning)."""
+        x = np.asarray(x, dtype=float)
+        ref = np.asarray(self.plan.trajectory.state(float(self.plan.trajectory.t[0])), dtype=float)
+        h = list(self.hinges)
+        hv = [self.model.nq + i for i in h]
+        return bool(np.max(np.abs(wrap_angle(x[h] - ref[h]))) <= 0.5 * self.options.funnel
+                    and np.max(np.abs(x[hv] - ref[hv])) <= RESTART_RATE)
+
     def _request_plan(self, t: float, x) -> None:
         """Plan from the state predicted ``latency`` s ahead under the brake; the plan is used from ``t + W``."""
         lat = self.latency
@@ -241,21 +288,34 @@ class Supervisor:
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
-            plan = self.planner(x_pred)
+            guess, dist = None, None
+            if self.library is not None and len(self.library):
+                guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
+                dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
+            plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
         self.plan_seconds.append(wall)
+        charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
         if plan is not None and wall > self.options.plan_budget:
             plan, why = None, f"the plan took {wall:.1f} s, over the budget of {self.options.plan_budget:g} s"
         if plan is None:
             self.failures += 1
-            self.retry_at = t + wall + self.options.retry_after
-            self._decide(t, "plan_failed", wall_s=wall, reason=why)
+            self.retry_at = t + charged + self.options.retry_after
+            self._decide(t, "plan_failed", wall_s=wall, charged_s=charged, reason=why,
+                         x0=[float(v) for v in np.asarray(x_pred, dtype=float)])
             self.mode = "brake"
             return
-        self.plan, self.plan_t0, self.ready_at = plan, t + steps * self.model.dt, t + wall
-        self._decide(t, "plan", wall_s=wall, predicted_latency_s=lat, T=float(plan.trajectory.duration))
+        # used from the later of its arrival and the time it was planned to start from (an early plan waits)
+        self.plan, self.plan_t0 = plan, t + steps * self.model.dt
+        self.ready_at = max(t + charged, self.plan_t0)
+        warm = _warm(plan)
+        self.warm_plans += int(warm)
+        if self.library is not None:
+            self.library = self.library.with_plan(x_pred, plan.trajectory, wall)
+        self._decide(t, "plan", wall_s=wall, charged_s=charged, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
+                     **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
 
     def __call__(self, t: float, x) -> np.ndarray:
@@ -270,7 +330,11 @@ class Supervisor:
             self._set(t, "swingup", cost=cost)
             return self.swingup(t, x)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
-            self._set(t, "track", late_s=max(0.0, t - self.plan_t0))
+            late = max(0.0, t - self.plan_t0)
+            restart = late > 0.5 * self.model.dt and self._at_start(x)
+            if restart:  # still where the plan starts (the brake holds a calm state): the plan from its start
+                self.plan_t0 = t
+            self._set(t, "track", late_s=late, restarted=restart)
         if self.mode == "track":
             over = t - self.plan_t0 >= self.plan.trajectory.duration
             if over and cost < self.options.release_factor * self.rho:  # the plan's end: the catch takes it
@@ -282,21 +346,44 @@ class Supervisor:
             self.mode = "brake"
         if self.mode == "wait":
             return self.brake(t, x)
-        if self.planner is None or self._fast(x) or t < self.retry_at:
+        fast = self._fast(x)
+        if not fast:
+            self.fast_since = None
+        elif self.fast_since is None:
+            self.fast_since = t
+        timed_out = fast and self.planner is not None and t - self.fast_since >= self.options.calm_budget
+        if self.planner is None or (fast and not timed_out) or t < self.retry_at:
             self._set(t, "brake", cost=cost)
             return self.brake(t, x)
+        if timed_out:  # the brake has not calmed it: plan from the fast state, within the planner's budget
+            rates = np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]]
+            self._decide(t, "calm_timeout", braked_s=t - self.fast_since, rates=[float(r) for r in rates])
+            self.fast_since = None
         self._request_plan(t, x)
         return self.brake(t, x)
 
     def summary(self) -> dict:
-        """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``."""
-        return {"decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
-                "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho}
+        """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``,
+        ``warm_plans`` (plans made from a library's warm start) and ``library_plans`` (plans in the library at the
+        end, or None without one), ``unreachable`` (each state no swing-up was found from within the budget: ``t``,
+        ``x0``, the planner's ``reason``)."""
+        unreachable = [{"t": d.t, "x0": d.detail.get("x0"), "reason": d.detail.get("reason")}
+                       for d in self.decisions if d.kind == "plan_failed"]
+        return {"unreachable": unreachable, "decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
+                "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho,
+                "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library)}
+
+
+def _warm(plan) -> bool:
+    """Whether ``plan`` (a SwingupPlan) came from its warm start (its chosen solve is a ``warm effort`` stage)."""
+    attempts = getattr(getattr(plan, "solve_info", None), "attempts", ()) or ()
+    return any(a.chosen and a.stage.startswith("warm effort") for a in attempts)
 
 
 def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
-                   basin_cache: BasinCache | None = None, basin_of: Callable | None = None) -> Supervisor:
+                   basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
+                   library: PlanLibrary | None = None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
     applies (one pole driven by the cart), else the planner.
 
@@ -315,6 +402,9 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
         ``basin_of(catch) -> BasinEstimate`` instead of ``basin_cache`` (a caller's own cache and progress).
+    library : PlanLibrary, optional
+        The planner's warm starts (:class:`~cartpole.planning.library.PlanLibrary`; default the one stored in the
+        user cache for ``model``, empty when none was built); the supervisor's own plans join it in memory.
 
     Returns
     -------
@@ -324,9 +414,10 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
     catch = swingup_catch(model, period=period)
     if basin_of is None:
         cache = BasinCache.on_disk() if basin_cache is None else basin_cache
-        rho = cache.get(params, catch).rho
+        basin = cache.get(params, catch)
     else:
-        rho = basin_of(catch).rho
+        basin = basin_of(catch)
+    rho = basin.rho
     opts = SupervisorOptions() if options is None else options
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
@@ -336,7 +427,8 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
         plan_opts = PlanOptions() if plan is None else plan
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
 
-        def planner(x0):
-            return trajopt_swingup(params, x0=tuple(x0), model=model, options=plan_opts, period=period)
-        return Supervisor(model, catch, rho, brake, planner=planner, options=opts)
-    return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts)
+        def planner(x0, guess=None):
+            return trajopt_swingup(params, x0=tuple(x0), model=model, options=plan_opts, period=period, guess=guess)
+        lib = PlanLibrary.load(model) if library is None else library
+        return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
+    return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)

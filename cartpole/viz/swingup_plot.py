@@ -24,18 +24,34 @@ def _energy(fun, x: np.ndarray) -> np.ndarray:
     return np.asarray(fun.map(len(x))(np.asarray(x, dtype=float).T)).ravel()
 
 
+def _mark_events(ax, marks: dict) -> None:
+    """Knockdowns (red spans), swing-ups (green lines) and catches (blue dotted lines) on every panel of ``ax``, each
+    kind labelled once with its count."""
+    knocks = [tuple(map(float, k)) for k in marks.get("knockdowns") or ()]
+    ups = [float(v) for v in marks.get("swingups") or ()]
+    catches = [float(v) for v in marks.get("catches") or ()]
+    for a in ax:
+        for i, (s, e) in enumerate(knocks):
+            a.axvspan(s, max(e, s + 0.02), color="r", alpha=0.25, lw=0,
+                      label=f"knockdown ({len(knocks)})" if i == 0 else None)
+        for i, v in enumerate(ups):
+            a.axvline(v, color="g", lw=0.9, label=f"swing-up ({len(ups)})" if i == 0 else None)
+        for i, v in enumerate(catches):
+            a.axvline(v, color="b", ls=":", lw=0.9, label=f"catch ({len(catches)})" if i == 0 else None)
+
+
 def plot_swingup(rollout, params, path, *, plan=None, caught_at: float | None = None, title: str | None = None,
-                 model=None, handover_at: float | None = None) -> Path:
+                 model=None, handover_at: float | None = None, marks: dict | None = None) -> Path:
     """Draw a swing-up rollout (:func:`swingup_figure`) and save it as PNG (whole or not at all:
     :func:`~cartpole._files.atomic_write`); ``path`` is the output file (parent directories are created), the other
     arguments are :func:`swingup_figure`'s. Returns the path written."""
     fig = swingup_figure(rollout, params, plan=plan, caught_at=caught_at, title=title, model=model,
-                         handover_at=handover_at)
+                         handover_at=handover_at, marks=marks)
     return atomic_write(path, lambda fh: fig.savefig(fh, dpi=100, format="png"))
 
 
 def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None, title: str | None = None,
-                   model=None, handover_at: float | None = None):
+                   model=None, handover_at: float | None = None, marks: dict | None = None):
     """A swing-up rollout as a matplotlib ``Figure`` on an Agg canvas (no pyplot); panels as the module says.
 
     Parameters
@@ -54,6 +70,10 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
     handover_at : float, optional
         s: when the controller handed over to the catch; without ``caught_at`` (the catch did not hold) marked with
         a dashed red line on every panel.
+    marks : dict, optional
+        A knocked or thrown run's events, each drawn on every panel: ``"knockdowns"`` (sequence of ``(start, end)``
+        in s, shaded red), ``"swingups"`` (s, each swing-up's entry into the upright band, solid green) and
+        ``"catches"`` (s, each time the catch took over, dotted blue).
 
     Returns
     -------
@@ -104,6 +124,7 @@ def swingup_figure(rollout, params, *, plan=None, caught_at: float | None = None
     elif handover_at is not None:
         for a in ax:
             a.axvline(handover_at, color="r", ls="--", lw=1.0, label=f"hand-over at {handover_at:.2f} s (did not hold)")
+    _mark_events(ax, marks or {})
     for a in ax:
         a.grid(True, alpha=0.3)
         a.legend(loc="upper right", fontsize=7)

@@ -78,6 +78,8 @@ def test_a_failed_plan_is_logged_and_retried_after_braking(double):
         sup(k * 0.005, x)
     assert sup.failures == len(calls) >= 2 and sup.decisions[0].kind == "plan_failed"
     assert "No swing-up found" in sup.decisions[0].detail["reason"]
+    unreachable = sup.summary()["unreachable"]  # reported, never hidden: each state the planner found nothing from
+    assert len(unreachable) == sup.failures and np.allclose(unreachable[0]["x0"], calls[0])
     gaps = np.diff([d.t for d in sup.decisions if d.kind == "plan_failed"])
     assert np.all(gaps >= 0.5 - 1e-9)
 
@@ -107,3 +109,85 @@ def test_one_pole_knocked_down_swings_up_again_every_time_and_replays(tmp_path):
     assert stats["knockdowns"] >= 3 and stats["recoveries"] >= stats["knockdowns"] - 1
     kinds = [d.kind for d in sup.decisions]
     assert kinds.count("catch") >= stats["knockdowns"] and sup.plans == 0  # the energy law needs no planner
+
+
+def test_each_plan_is_warm_started_from_the_library_and_joins_it(double):
+    from cartpole.planning.library import PlanLibrary
+
+    params, model, catch, brake = double
+    guesses = []
+
+    def planner(x0, guess=None):
+        guesses.append(guess)
+        return _stub_plan(model, 0.5, model.x_eq)
+    lib = PlanLibrary.empty(model)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner, library=lib,
+                     options=SupervisorOptions(latency=0.01, funnel=10.0))
+    x = np.asarray(model.x_hanging, float)
+    k = 0
+    while len(guesses) < 2 and k < 2000:
+        sup(k * 0.005, x)
+        k += 1
+    assert guesses[0] is None and guesses[1] is not None  # the first from nothing, the second from the first
+    assert len(sup.library) == 2 and len(lib) == 0  # the given library is left as it was
+    assert sup.summary()["library_plans"] == 2
+    assert sup.decisions[[d.kind for d in sup.decisions].index("plan")].detail["warm"] is False
+
+
+def test_a_late_plan_starts_from_its_beginning_while_the_state_is_still_at_its_start(double, monkeypatch):
+    params, model, catch, brake = double
+    clock = iter([0.0, 3.0] + [3.0] * 100)  # the plan takes 3 s, far over the 0.3 s predicted
+    monkeypatch.setattr("cartpole.supervise.supervisor.time.perf_counter", lambda: next(clock))
+    x = np.asarray(model.x_hanging, float)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 2.0, x),
+                     options=SupervisorOptions(latency=0.3))
+    sup(0.0, x)
+    sup(3.0, x)  # at rest where the plan starts: it starts now, not 2.7 s into its 2 s
+    assert sup.mode == "track" and sup.plan_t0 == 3.0 and sup.decisions[-1].detail["restarted"] is True
+    moved = x.copy()
+    moved[model.nq + model.hinges[0]] = 3.0  # swinging away from the plan's start: its clock is kept
+    sup2 = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 2.0, x),
+                      options=SupervisorOptions(latency=0.3))
+    clock2 = iter([0.0, 3.0] + [3.0] * 100)
+    monkeypatch.setattr("cartpole.supervise.supervisor.time.perf_counter", lambda: next(clock2))
+    sup2(0.0, x)
+    sup2(3.0, moved)
+    track = next(d for d in sup2.decisions if d.kind == "track")
+    assert track.detail["restarted"] is False
+
+
+def test_a_state_the_brake_does_not_calm_is_planned_from_after_the_calm_budget(double):
+    params, model, catch, brake = double
+    asked = []
+
+    def planner(x0):
+        asked.append(x0)
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                     options=SupervisorOptions(calm_budget=0.2, retry_after=0.1))
+    x = np.asarray(model.x_hanging, float).copy()
+    x[model.nq + model.hinges[-1]] = 30.0  # spinning, held so (the brake never calms it here)
+    for k in range(30):  # 0.145 s: under the budget, only braking
+        sup(k * 0.005, x)
+    assert not asked and sup.mode == "brake"
+    for k in range(30, 120):
+        sup(k * 0.005, x)
+    kinds = [d.kind for d in sup.decisions]
+    assert "calm_timeout" in kinds and kinds[kinds.index("calm_timeout") + 1] == "plan_failed"
+    assert sup.decisions[kinds.index("calm_timeout")].t >= 0.2 and len(asked) >= 1
+    with pytest.raises(SupervisorError, match="calm_budget"):
+        SupervisorOptions(calm_budget=0.0)
+
+
+def test_a_plan_that_comes_early_waits_for_the_state_it_was_planned_from(double, monkeypatch):
+    params, model, catch, brake = double
+    clock = iter([0.0, 0.1] + [0.1] * 100)  # ready after 0.1 s; planned from the state 0.3 s ahead
+    monkeypatch.setattr("cartpole.supervise.supervisor.time.perf_counter", lambda: next(clock))
+    x = np.asarray(model.x_hanging, float)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 2.0, x),
+                     options=SupervisorOptions(latency=0.3, funnel=10.0))
+    sup(0.0, x)
+    sup(0.2, x)
+    assert sup.mode == "wait"  # arrived, but its start is 0.3 s
+    sup(0.3, x)
+    assert sup.mode == "track" and sup.decisions[-1].detail["late_s"] == 0.0

@@ -60,6 +60,20 @@ def test_swingup_figure_of_one_pole_draws_the_pole_energy():
                                [float(model.pole_energy(x)) for x in run.x], rtol=1e-9, atol=1e-12)
 
 
+def test_a_knocked_runs_figure_marks_each_knockdown_swingup_and_catch_on_every_panel():
+    model = build_model()
+    run = replay(None, model.x_hanging, np.full(200, 0.5))
+    marks = {"knockdowns": [(0.2, 0.3), (0.6, 0.7)], "swingups": [0.1, 0.5, 0.8], "catches": [0.12, 0.52]}
+    fig = swingup_figure(run, model.params, model=model, marks=marks)
+    for ax in fig.axes:
+        labels = ax.get_legend_handles_labels()[1]
+        assert {"knockdown (2)", "swing-up (3)", "catch (2)"} <= set(labels)
+        spans = [p for p in ax.patches if p.get_label() == "knockdown (2)" or p.get_facecolor()[0] == 1.0]
+        assert len(spans) >= 2
+        xs = sorted(ln.get_xdata()[0] for ln in ax.get_lines() if ln.get_color() in ("g", "b"))
+        assert xs == sorted(marks["swingups"] + marks["catches"])
+
+
 def test_sweep_plot_preload_imports_what_the_success_map_needs_in_a_fresh_process():
     import subprocess
     import sys

@@ -164,7 +164,7 @@ class Runner:
             return {"success": False, "replays": False, "diverged": False, "diverged_at": math.nan,
                     "time_to_upright": math.nan, "caught_at": math.nan,
                     "cart_clearance": math.nan, "peak_ctrl": math.nan, "rho": math.nan,
-                    "error": first_line(exc) + ".", **self._no_return()}
+                    "error": first_line(exc) + ".", **self._no_return(), **self._knocked()}
         m = res.metrics
         replays = bool(replays_exactly(res.rollout, self.params))
         ok = bool(res.success and replays and not m["diverged"])
@@ -176,7 +176,19 @@ class Runner:
                 "cart_clearance": float(m["cart_clearance"]), "peak_ctrl": float(m["peak_ctrl"]),
                 "rho": float(res.basin.rho) if res.basin is not None else math.nan, "error": None,
                 **({"return": float(m["return"]), "return_steps": int(m["return_steps"])} if "return" in m
-                   else self._no_return())}
+                   else self._no_return()),
+                **self._knocked(m)}
+
+    def _knocked(self, metrics: dict | None = None) -> dict:
+        """A knocked or thrown sweep's row keys (:func:`~cartpole.validation.metrics.uptime_metrics`): ``uptime``
+        (the fraction of the run upright; 0 for a run that raised: never counted upright), ``knockdowns`` and
+        ``swingups`` (NaN for a run that raised); none without a disturbance."""
+        if not self.loop.disturbed:
+            return {}
+        if metrics is None or "uptime" not in metrics:
+            return {"uptime": 0.0, "knockdowns": math.nan, "swingups": math.nan}
+        return {"uptime": float(metrics["uptime"]), "knockdowns": int(metrics["knockdowns"]),
+                "swingups": int(metrics["swingups"])}
 
     def _no_return(self) -> dict:
         """A dm_control task's row keys for a run without an episode (NaN), else none."""

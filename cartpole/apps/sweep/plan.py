@@ -30,7 +30,7 @@ HINGE_HALF_WIDTHS = (0.3, 1.0)
 #: Dimensionless energy-shaping settings that ``gain_jitter`` perturbs.
 JITTERED = ("energy_gain", "overshoot", "energy_accel", "centring_frequency", "centring_damping",
             "damping_softening", "centring_band")
-METHODS = ("energy", "trajopt", "mpc")
+METHODS = ("energy", "trajopt", "mpc", "supervisor")
 #: The options value each method's swept settings are fields of (energy: a dict of its dimensionless scalings).
 OPTIONS = {"trajopt": PlanOptions, "mpc": MPCOptions}
 #: Controller settings an axis may sweep, per method: the energy shaping's dimensionless scalings, the planner's and

@@ -116,6 +116,9 @@ class SweepResult:
     diverged_at: np.ndarray | None = None
     objective: str | None = None
     returns: np.ndarray | None = None
+    uptime: np.ndarray | None = None
+    knockdowns: np.ndarray | None = None
+    swingups: np.ndarray | None = None
     return_steps: np.ndarray | None = None
     mpc: dict = field(default_factory=dict)
 
@@ -187,6 +190,10 @@ class SweepResult:
                  {"return": _num(self.returns[i]),
                   "return_steps": None if self.return_steps is None or not np.isfinite(self.return_steps[i])
                   else int(self.return_steps[i])} for i in range(self.n)]
+        if self.uptime is not None:
+            for i in range(self.n):
+                extra[i].update({"uptime": _num(self.uptime[i]), "knockdowns": _count(self.knockdowns[i]),
+                                 "swingups": _count(self.swingups[i])})
         return [{**extra[i], "run": i, "start": self.starts[i].tolist(), "push": [list(p) for p in self.pushes[i]],
                  "model_error": float(self.model_errors[i]), "settings": dict(self.settings[i]),
                  "success": bool(self.success[i]),
@@ -213,7 +220,16 @@ class SweepResult:
                 "failed": self.starts[~self.success].tolist(), "seed": self.seed, "duration": self.duration,
                 "half_widths": self.half_widths.tolist(), "gain_jitter": self.gain_jitter, "rho": _num(self.rho),
                 "workers": self.workers, "address": self.address, "axes": [a.describe() for a in self.axes],
-                "objective": self.objective, "mpc": dict(self.mpc), **self._return_summary()}
+                "objective": self.objective, "mpc": dict(self.mpc), **self._return_summary(),
+                **self._uptime_summary()}
+
+    def _uptime_summary(self) -> dict:
+        """A knocked sweep's ``uptime_mean`` (over every run: a run that raised counts 0), ``knockdowns_total`` and
+        ``swingups_total``; empty otherwise."""
+        if self.uptime is None:
+            return {}
+        return {"uptime_mean": _num(float(np.mean(self.uptime)) if self.n else np.nan),
+                "knockdowns_total": int(np.nansum(self.knockdowns)), "swingups_total": int(np.nansum(self.swingups))}
 
     def _return_summary(self) -> dict:
         if self.returns is None:
@@ -222,6 +238,11 @@ class SweepResult:
         ok = np.isfinite(r)
         return {"mean_return": _num(float(np.mean(r[ok])) if ok.any() else np.nan),
                 "returns": [_num(v) for v in r], "return_runs": int(ok.sum())}
+
+
+def _count(v):
+    """``v`` as an int, None for NaN."""
+    return None if v is None or not np.isfinite(v) else int(v)
 
 
 def _num(v):
@@ -288,16 +309,18 @@ def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration
     return hashlib.sha256(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:12]
 
 
-def header(params: CartPoleParams, settings=(), *, returns: bool = False) -> list[str]:
+def header(params: CartPoleParams, settings=(), *, returns: bool = False, knocked: bool = False) -> list[str]:
     """The CSV header: ``sweep``, ``run``, the start (columns named by the MJCF's joints), the push
     (``push_time_s``, empty without a push, and ``push_force_N``), ``model_error``, one ``setting_<name>`` per
     swept controller setting, the outcome; with ``returns`` (a dm_control task's sweep) ``return`` and
-    ``return_steps`` last."""
+    ``return_steps``; with ``knocked`` (a sweep with knockdowns or throws) ``uptime``, ``knockdowns`` and ``swingups``
+    last."""
     names = [j.name for j in params.joints]
     return (["sweep", "run"] + [f"x0_{n}" for n in names] + [f"x0_{n}_rate" for n in names]
             + ["push_time_s", "push_force_N", "model_error"] + [f"setting_{k}" for k in settings]
             + ["success", "replays", "diverged", "diverged_at_s", "time_to_upright_s", "caught_at_s", "cart_clearance_m", "peak_ctrl", "failure",
-               "error"] + (["return", "return_steps"] if returns else []))
+               "error"] + (["return", "return_steps"] if returns else [])
+            + (["uptime", "knockdowns", "swingups"] if knocked else []))
 
 
 def failure(row: dict) -> str:
@@ -315,10 +338,10 @@ def _cell(v):
     return "" if v is None else v
 
 
-def csv_row(sid: str, i: int, start, row: dict, settings=(), *, returns: bool = False) -> list:
+def csv_row(sid: str, i: int, start, row: dict, settings=(), *, returns: bool = False, knocked: bool = False) -> list:
     """The CSV fields (:func:`header`'s columns) of run ``i`` of sweep ``sid``: its ``start`` ((2 nq,)), and
     ``row`` (a runner's row or one of :meth:`SweepResult.rows`, with ``push``, ``model_error`` and ``settings``);
-    ``returns`` as for :func:`header`."""
+    ``returns`` and ``knocked`` as for :func:`header`."""
     num = {k: (None if row.get(k) is None or not math.isfinite(row[k]) else float(row[k]))
            for k in ("diverged_at", "time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")}
     r = {**row, **num}
@@ -331,7 +354,8 @@ def csv_row(sid: str, i: int, start, row: dict, settings=(), *, returns: bool = 
             num["diverged_at"] is not None, _cell(num["diverged_at"]),
             *[_cell(num[k]) for k in ("time_to_upright", "caught_at", "cart_clearance", "peak_ctrl")],
             failure(r), _cell(r["error"])] + ([_cell(_finite(row.get("return"))), _cell(_finite(row.get("return_steps")))]
-                                              if returns else [])
+                                              if returns else []) + (
+        [_cell(_finite(row.get(k))) for k in ("uptime", "knockdowns", "swingups")] if knocked else [])
 
 
 def _finite(v):
@@ -378,6 +402,11 @@ def parse_row(line: dict) -> dict | None:
     if "return" in line:
         try:
             extra = {"return": f(line["return"]), "return_steps": f(line["return_steps"])}
+        except (KeyError, ValueError):
+            return None
+    if "uptime" in line:
+        try:
+            extra.update({k: f(line[k]) for k in ("uptime", "knockdowns", "swingups")})
         except (KeyError, ValueError):
             return None
     return {**flags, **extra, "diverged_at": diverged_at, "time_to_upright": nums["time_to_upright_s"],

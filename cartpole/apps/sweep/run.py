@@ -14,7 +14,7 @@ from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams, build_model, read_params
 from cartpole.ocp.dmc import episode_starts, is_task
 from cartpole.progress import stage
-from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size
+from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, SUPERVISOR_DURATION, check_plan_size
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import start_server
 from cartpole.apps.sweep.executors import Runner, check_address, mpc_fields, run_dask, run_here, run_pool
@@ -126,7 +126,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     mpc = dict(mpc or {})
     dmc_task = _check_objective(model, method, objective, axes, center, half_widths, mpc)
     axes = check_axes(axes, params, method, duration=duration if duration is not None else
-                      {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method))
+                      {"energy": ENERGY_DURATION, "mpc": MPC_DURATION, "supervisor": SUPERVISOR_DURATION}.get(method))
     center = model.x_hanging if center is None else np.asarray(center, float)
     half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
     if center.shape != (nx,) or half_widths.shape != (nx,):
@@ -203,7 +203,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                        cart_clearance=np.array([r["cart_clearance"] for r in out], float),
                        peak_ctrl=np.array([r["peak_ctrl"] for r in out], float), options=runs.options, rho=rho,
                        seed=int(seed), duration=float(duration) if duration is not None else (
-                           {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method)),
+                           {"energy": ENERGY_DURATION, "mpc": MPC_DURATION, "supervisor": SUPERVISOR_DURATION}.get(method)),
                        half_widths=half_widths, gain_jitter=float(gain_jitter), base_options=base, method=method,
                        replays=np.array([r["replays"] for r in out], bool),
                        diverged_at=np.array([r.get("diverged_at", math.nan) for r in out], float),
@@ -211,7 +211,15 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                        address=address or None, pushes=runs.pushes, model_errors=runs.model_errors,
                        settings=runs.settings, axes=axes, objective=objective, mpc=mpc,
                        returns=np.array([r["return"] for r in out], float) if dmc_task else None,
-                       return_steps=np.array([r["return_steps"] for r in out], float) if dmc_task else None)
+                       return_steps=np.array([r["return_steps"] for r in out], float) if dmc_task else None,
+                       **_knocked_arrays(out))
+
+
+def _knocked_arrays(out: list) -> dict:
+    """``uptime``, ``knockdowns``, ``swingups`` arrays of a knocked sweep's rows (each row has them), else none."""
+    if not out or "uptime" not in out[0]:
+        return {}
+    return {k: np.array([r.get(k, np.nan) for r in out], float) for k in ("uptime", "knockdowns", "swingups")}
 
 
 def _check_objective(model, method: str, objective, axes, center, half_widths, mpc: dict | None = None) -> bool:
@@ -337,7 +345,8 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
                    loop=loop, objective=objective, mpc=mpc)
     settings = tuple(a.name[len("setting:"):] for a in axes if a.name.startswith("setting:"))
     returns = is_task(objective)
-    head = header(params, settings, returns=returns)
+    knocked = loop is not None and loop.disturbed
+    head = header(params, settings, returns=returns, knocked=knocked)
     total = total_runs(axes, n)
     done = read_done(results, head, sid, total) if resume else {}
     opened = []  # opened on the first finished run, so a sweep refused before any run writes nothing
@@ -346,7 +355,7 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
     def on_row(i, start, row):
         if not opened:
             opened.append(ResultsFile(results, head, fresh=not resume))
-        opened[0].write(csv_row(sid, i, start, row, settings, returns=returns))
+        opened[0].write(csv_row(sid, i, start, row, settings, returns=returns, knocked=knocked))
         count[0] += 1
         if stop_after is not None and count[0] >= stop_after and len(done) + count[0] < total:
             raise KeyboardInterrupt
@@ -361,7 +370,8 @@ def _recorded_sweep(params, *, method, n, seed, results, figure, workers, durati
         rows = result.rows()
         for r in rows:
             r["failure"] = failure(r)
-        write_csv(results, head, [csv_row(sid, r["run"], r["start"], r, settings, returns=returns) for r in rows])  # in run order
+        write_csv(results, head, [csv_row(sid, r["run"], r["start"], r, settings, returns=returns,
+                                                    knocked=knocked) for r in rows])  # in run order
     except KeyboardInterrupt as stop:
         for f in opened:
             f.close()

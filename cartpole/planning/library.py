@@ -1,0 +1,297 @@
+"""A library of swing-up plans: plans made once from a grid of starts, kept in the user cache under the model's hash,
+and handed to the planner as warm starts (:func:`cartpole.planning.trajopt.trajopt_swingup`'s ``guess``).
+
+A cold plan searches: a multi-start of named guesses for the minimum time on a coarse mesh, its refinement, then the
+effort problem at ``(1 + time_margin) T_min``. From a start near one a plan was made from, that last problem alone,
+started from the stored plan (its hinge angles shifted by whole turns onto the new start's), usually converges at
+once: the stored plan's duration is kept and the search is skipped. When it does not converge the planner goes on
+cold, so a warm start can only cost the one failed solve.
+
+* :class:`PlanLibrary`: the stored plans (:class:`StoredPlan`: the start and the collocation trajectory), the nearest
+  to a state by a quadratic metric on the wrapped difference (the catch's cost-to-go matrix ``S``, or the lab's
+  weights), :meth:`~PlanLibrary.guess_for` (the nearest plan shifted onto the start), :meth:`~PlanLibrary.with_plan`
+  (a new library with one more plan: a supervisor keeps its own plans as warm starts for the next knockdown);
+* :func:`library_starts`: the grid (the chain at rest, its first hinge at evenly spaced angles);
+* :func:`build_plan_library`: cold plans from every start of the grid (the starts no plan was found from are kept
+  in ``failed``, with the planner's sentence);
+* :func:`library_path`, :meth:`PlanLibrary.save`, :meth:`PlanLibrary.load`: the file
+  ``<cache>/plans/<model hash>.npz`` (:func:`cartpole.codegen.cache_dir`; written with its SHA-256 beside it,
+  read only when it matches), never inside the package.
+"""
+from __future__ import annotations
+
+import io
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cartpole._arrays import readonly
+from cartpole.codegen import LIB_VERSION, cache_dir, model_key, private_dir, read_verified, write_verified
+from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
+from cartpole.ocp.trajectory import Trajectory
+
+#: Part of the library file's key: bump when what a stored plan means changes.
+LIBRARY_VERSION = "plans-v1"
+#: Most plans a library keeps (a supervisor adding its own plans drops the oldest it added beyond this).
+MAX_PLANS = 200
+
+
+class PlanLibraryError(CartPoleError):
+    """A plan library that does not fit the model (other state or input sizes), or a grid that cannot be made."""
+
+
+@dataclass(frozen=True)
+class StoredPlan:
+    """One plan of the library.
+
+    Attributes
+    ----------
+    x0 : (nx,) array
+        The start the plan was made from ``[qpos, qvel]`` (m, rad, m/s, rad/s).
+    trajectory : Trajectory
+        The collocation plan (time from 0, duration ``T`` s), ending upright.
+    plan_s : float
+        s, wall time of the plan that made it (nan when unknown).
+    """
+
+    x0: np.ndarray
+    trajectory: Trajectory
+    plan_s: float = float("nan")
+
+    def __post_init__(self):
+        object.__setattr__(self, "x0", readonly(np.asarray(self.x0, dtype=float).ravel()))
+
+
+def shifted_onto(model: CartPoleModel, traj: Trajectory, x0) -> Trajectory:
+    """``traj`` with every hinge angle shifted by the whole turns that bring its first state nearest ``x0`` (nx,)
+    (a hinge angle and the same angle a turn on are the same pose; the plan's end moves with it, still upright)."""
+    x0 = np.asarray(x0, dtype=float).ravel()
+    shift = np.zeros(traj.nx)
+    for h in model.hinges:
+        shift[h] = 2.0 * np.pi * np.round((x0[h] - traj.x[0, h]) / (2.0 * np.pi))
+    if not np.any(shift):
+        return traj
+    return Trajectory(t=traj.t, x=traj.x + shift, u=traj.u, xdot=traj.xdot,
+                      x_mid=None if traj.x_mid is None else traj.x_mid + shift, u_mid=traj.u_mid)
+
+
+@dataclass(frozen=True)
+class PlanLibrary:
+    """Stored swing-up plans of one model, the nearest handed out as a warm start.
+
+    Attributes
+    ----------
+    key : str
+        The model's hash (:func:`cartpole.codegen.model_key`) the plans belong to.
+    nx, nu : int
+        State and input sizes.
+    hinges : tuple of int
+        qpos indices of the hinge angles (wrapped when comparing states).
+    plans : tuple of StoredPlan
+    failed : tuple of (x0 (nx,) array, str)
+        Starts of the grid no plan was found from, with the planner's sentence.
+    """
+
+    key: str
+    nx: int
+    nu: int
+    hinges: tuple
+    plans: tuple = ()
+    failed: tuple = field(default=(), compare=False)
+
+    @classmethod
+    def empty(cls, model: CartPoleModel) -> "PlanLibrary":
+        """A library of ``model`` with no plans."""
+        return cls(key=model_key(model), nx=int(model.nx), nu=int(model.nu), hinges=tuple(int(h) for h in model.hinges))
+
+    def __len__(self) -> int:
+        return len(self.plans)
+
+    def check(self, model: CartPoleModel) -> None:
+        """Raise :class:`PlanLibraryError` unless the library is ``model``'s (same hash)."""
+        if self.key != model_key(model):
+            raise PlanLibraryError("The plan library was made for another model (its hash differs); build one for "
+                                   "this model with build_plan_library.")
+
+    def distances(self, x, metric=None) -> np.ndarray:
+        """``sqrt(d' W d)`` from ``x`` (nx,) to every plan's start, ``d`` the difference with hinge angles wrapped to
+        (-pi, pi]; ``metric`` ``W`` (nx, nx) default diag(1 per slide, 10 per hinge, 0.1 per rate), the lab's
+        weights. Shape (len,)."""
+        x = np.asarray(x, dtype=float).ravel()
+        if x.size != self.nx:
+            raise PlanLibraryError(f"The state has {x.size} numbers but the plan library's model has {self.nx}.")
+        if not self.plans:
+            return np.zeros(0)
+        W = self._default_metric() if metric is None else np.asarray(metric, dtype=float)
+        d = x[None, :] - np.array([p.x0 for p in self.plans])
+        hinges = list(self.hinges)
+        d[:, hinges] = wrap_angle(d[:, hinges])
+        return np.sqrt(np.maximum(np.einsum("ki,ij,kj->k", d, W, d), 0.0))
+
+    def _default_metric(self) -> np.ndarray:
+        nq = self.nx // 2
+        w = np.ones(self.nx)
+        w[list(self.hinges)] = 10.0
+        w[nq:] = 0.1
+        return np.diag(w)
+
+    def nearest(self, x, metric=None) -> tuple[StoredPlan, float] | None:
+        """The plan whose start is nearest ``x`` (nx,) by :meth:`distances` and that distance, or None when empty."""
+        dist = self.distances(x, metric)
+        if dist.size == 0:
+            return None
+        k = int(np.argmin(dist))
+        return self.plans[k], float(dist[k])
+
+    def guess_for(self, model: CartPoleModel, x, metric=None) -> Trajectory | None:
+        """The nearest plan, its hinge angles shifted by whole turns onto ``x`` (:func:`shifted_onto`): the warm
+        start for a plan from ``x``; None when the library is empty."""
+        found = self.nearest(x, metric)
+        return None if found is None else shifted_onto(model, found[0].trajectory, x)
+
+    def with_plan(self, x0, trajectory: Trajectory, plan_s: float = float("nan")) -> "PlanLibrary":
+        """A new library with the plan ``trajectory`` from ``x0`` added (the oldest dropped beyond
+        :data:`MAX_PLANS`)."""
+        if trajectory.nx != self.nx or trajectory.nu != self.nu:
+            raise PlanLibraryError(f"The plan has {trajectory.nx} states and {trajectory.nu} inputs but the library's "
+                                   f"model has {self.nx} and {self.nu}.")
+        t0 = float(trajectory.t[0])
+        traj = trajectory if t0 == 0.0 else Trajectory(t=trajectory.t - t0, x=trajectory.x, u=trajectory.u,
+                                                         xdot=trajectory.xdot, x_mid=trajectory.x_mid,
+                                                         u_mid=trajectory.u_mid)
+        plans = (self.plans + (StoredPlan(x0, traj, float(plan_s)),))[-MAX_PLANS:]
+        return PlanLibrary(self.key, self.nx, self.nu, self.hinges, plans, self.failed)
+
+    # ---- the file ---------------------------------------------------------------------------------------------
+    def to_bytes(self) -> bytes:
+        """The library as an ``.npz`` file's bytes (arrays only, no pickle)."""
+        arrays = {"key": np.array(self.key), "version": np.array(LIBRARY_VERSION),
+                  "sizes": np.array([self.nx, self.nu]), "hinges": np.array(self.hinges, dtype=int),
+                  "count": np.array(len(self.plans))}
+        for k, p in enumerate(self.plans):
+            tr = p.trajectory
+            arrays.update({f"x0_{k}": p.x0, f"t_{k}": tr.t, f"x_{k}": tr.x, f"u_{k}": tr.u, f"xdot_{k}": tr.xdot,
+                           f"plan_s_{k}": np.array(p.plan_s)})
+            if tr.x_mid is not None and tr.u_mid is not None:
+                arrays.update({f"xmid_{k}": tr.x_mid, f"umid_{k}": tr.u_mid})
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        return buf.getvalue()
+
+    @classmethod
+    def from_bytes(cls, data: bytes) -> "PlanLibrary":
+        """The library :meth:`to_bytes` wrote."""
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            if str(z["version"]) != LIBRARY_VERSION:
+                raise PlanLibraryError(f"The plan library file is of version {z['version']}, not {LIBRARY_VERSION}; "
+                                       "build it again with build_plan_library.")
+            nx, nu = (int(v) for v in z["sizes"])
+            plans = []
+            for k in range(int(z["count"])):
+                mid = (z[f"xmid_{k}"], z[f"umid_{k}"]) if f"xmid_{k}" in z.files else (None, None)
+                tr = Trajectory(t=z[f"t_{k}"], x=z[f"x_{k}"], u=z[f"u_{k}"], xdot=z[f"xdot_{k}"], x_mid=mid[0],
+                                u_mid=mid[1])
+                plans.append(StoredPlan(z[f"x0_{k}"], tr, float(z[f"plan_s_{k}"])))
+            return cls(str(z["key"]), nx, nu, tuple(int(h) for h in z["hinges"]), tuple(plans))
+
+    def save(self, path: str | Path | None = None) -> Path:
+        """Write the library to ``path`` (default :func:`library_path` of its key, in the user cache), with its
+        SHA-256 beside it; returns the path."""
+        path = library_path(self.key) if path is None else Path(path)
+        private_dir(path.parent)
+        return write_verified(path, self.to_bytes())
+
+    @classmethod
+    def load(cls, model: CartPoleModel, path: str | Path | None = None) -> "PlanLibrary":
+        """``model``'s library from ``path`` (default the user cache's file of its hash); an empty library when
+        there is none, or the file is not the one written (its SHA-256 differs) or of another version or model."""
+        key = model_key(model)
+        path = library_path(key) if path is None else Path(path)
+        data = read_verified(path)
+        if data is not None:
+            try:
+                lib = cls.from_bytes(data)
+                if lib.key == key and lib.nx == model.nx and lib.nu == model.nu:
+                    return lib
+            except (PlanLibraryError, KeyError, ValueError, OSError):
+                pass
+        return cls.empty(model)
+
+
+def library_path(key: str) -> Path:
+    """``<cache>/plans/<key>-<version>.npz``: where the library of the model of hash ``key`` is kept
+    (:func:`cartpole.codegen.cache_dir`, the user's cache; never inside the package)."""
+    return cache_dir() / "plans" / f"{key[:32]}-{LIBRARY_VERSION}-{LIB_VERSION}.npz"
+
+
+def library_starts(model: CartPoleModel, angles: int = 7) -> np.ndarray:
+    """The grid a library is built from: the chain at rest (cart at ``x_eq``'s position, every rate 0), straight
+    (every hinge but the first at its upright value), its first hinge at ``angles`` evenly spaced offsets from
+    hanging, ``pi (2 (k + 1) / (angles + 1) - 1)`` rad for ``k < angles`` (hanging itself when ``angles`` is odd;
+    upright never). Shape (angles, nx)."""
+    if int(angles) < 1:
+        raise PlanLibraryError(f"A plan library needs at least 1 start angle; got {angles}.")
+    if not model.hinges:
+        raise PlanLibraryError("The model has no hinge to swing up; a plan library needs one.")
+    h0 = int(model.hinges[0])
+    hang = float(model.x_hanging[h0])
+    up = float(model.x_eq[h0])
+    span = wrap_angle(hang - up)
+    out = []
+    for k in range(int(angles)):
+        x = np.array(model.x_eq, dtype=float)
+        x[model.nq:] = 0.0
+        x[h0] = up + span + np.pi * (2.0 * (k + 1) / (int(angles) + 1) - 1.0)
+        out.append(x)
+    return np.array(out)
+
+
+def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = None, starts=None, *, options=None,
+                       period: float | None = None, library: PlanLibrary | None = None, progress=None
+                       ) -> PlanLibrary:
+    """Cold plans (:func:`~cartpole.planning.trajopt.trajopt_swingup`) from every start, kept as a library.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The cart-pole (its bounds bound the plans).
+    model : CartPoleModel, optional
+        The planning model (default the MJCF's own); the library is keyed by its hash.
+    starts : (k, nx) array, optional
+        The starts; default :func:`library_starts`.
+    options : PlanOptions, optional
+        The planner's settings.
+    period : float, optional
+        Control period in s (as the planner's).
+    library : PlanLibrary, optional
+        A library to add to (default an empty one).
+    progress : callable, optional
+        ``progress(done, total)`` after each start.
+
+    Returns
+    -------
+    PlanLibrary
+        ``failed`` lists the starts no plan was found from, with the planner's sentence. Not saved: call
+        :meth:`PlanLibrary.save`.
+    """
+    from cartpole.planning.trajopt import trajopt_swingup
+
+    model = build_model(params) if model is None else model
+    lib = PlanLibrary.empty(model) if library is None else library
+    lib.check(model)
+    starts = library_starts(model) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
+    failed = list(lib.failed)
+    for i, x0 in enumerate(starts):
+        tic = time.perf_counter()
+        try:
+            plan = trajopt_swingup(params, x0=tuple(x0), model=model, options=options, period=period)
+        except CartPoleError as exc:
+            failed.append((readonly(np.array(x0)), str(exc)))
+        else:
+            lib = lib.with_plan(x0, plan.trajectory, time.perf_counter() - tic)
+        if progress is not None:
+            progress(i + 1, len(starts))
+    return PlanLibrary(lib.key, lib.nx, lib.nu, lib.hinges, lib.plans, tuple(failed))

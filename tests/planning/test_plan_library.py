@@ -1,0 +1,85 @@
+"""The library of plans: stored under the model's hash in the user cache, the nearest plan (hinge angles modulo whole
+turns) handed to the planner as a warm start, which skips the search or, when it does not converge, costs one solve
+before the cold plan."""
+import numpy as np
+import pytest
+
+from cartpole.models import build_model, read_params
+from cartpole.ocp.trajectory import Trajectory
+from cartpole.planning.library import PlanLibrary, PlanLibraryError, build_plan_library, library_path, library_starts
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.sim import replays_exactly, simulate
+from cartpole.validation.metrics import swingup_success
+
+
+@pytest.fixture(scope="module")
+def single():
+    params = read_params("cartpole/assets/cartpole.xml")
+    model = build_model(params)
+    x0 = np.asarray(model.x_hanging, float)
+    lib = build_plan_library(params, model, starts=[x0])
+    return params, model, lib
+
+
+def test_the_grid_has_the_chain_at_rest_and_never_upright(single):
+    params, model, _ = single
+    starts = library_starts(model, angles=5)
+    h = model.hinges[0]
+    assert starts.shape == (5, model.nx)
+    assert np.all(starts[:, model.nq:] == 0.0)
+    up = np.abs(np.angle(np.exp(1j * (starts[:, h] - model.x_eq[h]))))
+    assert up.min() > 0.5 and np.isclose(up.max(), np.pi)  # hanging is among them (5 is odd), upright is not
+    with pytest.raises(PlanLibraryError, match="at least 1 start angle"):
+        library_starts(model, angles=0)
+
+
+def test_the_nearest_plan_is_found_modulo_whole_turns_and_shifted_onto_the_start(single):
+    params, model, lib = single
+    h = model.hinges[0]
+    x = np.asarray(lib.plans[0].x0, float).copy()
+    x[h] += 4 * np.pi + 0.01
+    plan, dist = lib.nearest(x)
+    assert dist < 0.1
+    guess = lib.guess_for(model, x)
+    assert abs(guess.x[0, h] - x[h]) < 0.02  # the guess starts where the state is, two turns on
+    assert np.isclose(guess.x[-1, h] - plan.trajectory.x[-1, h], 4 * np.pi)
+
+
+def test_a_library_saved_in_the_cache_loads_for_its_model_only(single, tmp_path, monkeypatch):
+    params, model, lib = single
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    path = lib.save()
+    assert path == library_path(lib.key) and str(path).startswith(str(tmp_path))
+    back = PlanLibrary.load(model)
+    assert len(back) == 1 and np.array_equal(back.plans[0].trajectory.x, lib.plans[0].trajectory.x)
+    other = build_model(read_params("cartpole/assets/cartpole_two_pole.xml"))
+    assert len(PlanLibrary.load(other)) == 0  # another model's hash: another file
+    path.write_bytes(path.read_bytes()[:-10])  # a truncated file is not the one written
+    assert len(PlanLibrary.load(model)) == 0
+
+
+def test_a_warm_start_skips_the_search_and_its_plan_swings_up_in_mujoco(single):
+    params, model, lib = single
+    h = model.hinges[0]
+    x1 = np.asarray(model.x_hanging, float).copy()
+    x1[h] += 0.3
+    x1[model.nq + h] += 1.0
+    plan = trajopt_swingup(params, x0=tuple(x1), model=model, guess=lib.guess_for(model, x1))
+    chosen = [a for a in plan.solve_info.attempts if a.chosen]
+    assert chosen and all(a.stage.startswith("warm effort") for a in chosen)
+    assert not any(a.stage.startswith("time") for a in plan.solve_info.attempts)  # no minimum-time search
+    roll = simulate(params, plan.controller, x1, plan.T + 2.0)
+    assert swingup_success(roll, model) and replays_exactly(roll, params)
+
+
+def test_a_warm_start_that_does_not_converge_goes_on_cold(single):
+    params, model, lib = single
+    x0 = np.asarray(model.x_hanging, float)
+    t = np.linspace(0.0, 0.2, 11)  # a swing-up in 0.2 s: no actuator does that
+    x = np.linspace(x0, model.x_eq, 11)
+    bad = Trajectory(t=t, x=x, u=np.zeros((11, model.nu)), xdot=np.zeros_like(x))
+    plan = trajopt_swingup(params, x0=tuple(x0), model=model, guess=bad)
+    stages = [a.stage for a in plan.solve_info.attempts]
+    assert stages[0].startswith("warm effort") and not plan.solve_info.attempts[0].chosen
+    assert any(s.startswith("time") for s in stages)  # the cold search ran after it
+    assert plan.T > 0.5
