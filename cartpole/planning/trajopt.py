@@ -628,7 +628,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         every physics step).
     catch_R : (nu, nu) array or float, optional
         Input weight (MuJoCo ctrl) of the hand-over catch alone (:func:`handover_catch`), e.g. one that respects
-        the rig's sensors (:func:`cartpole.apps.margins.noise_limited_catch_R`); default the plan's ``R``. The
+        the rig's sensors (:func:`cartpole.apps.margins.noise_limited_catch`); default the plan's ``R``. The
         plan and its TVLQR keep ``options.R``.
     guess : Trajectory, optional
         A warm start: a swing-up plan from a start near ``x0`` (e.g. :meth:`cartpole.planning.library.PlanLibrary.
