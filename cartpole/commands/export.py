@@ -50,7 +50,7 @@ def run(args) -> dict:
                      out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu,
                      **limit_keywords(args))
     if not args.json:
-        for line in limit_lines(doc.get("limits")):
+        for line in limit_lines(doc.get("limits"), doc.get("start_moved")):
             print(line)
         exp = doc["export"]
         print(f"Exported {doc['controller']} (estimator {doc['estimator']}, {doc['real']}, period {doc['period']:g} s, "

@@ -11,12 +11,15 @@ HELP = ("feedforward beside feedback: the trajopt swing-up's ctrl open loop vs f
 
 
 def add_arguments(parser) -> None:
-    """``--mass-error``, ``--no-video``."""
+    """``--mass-error``, ``--no-video``, ``--x0``, ``--plan-mjcf``, the view's, the limits' and the rig's options."""
     parser.add_argument("--mass-error", type=str, default="0.1", metavar="F",
                         help="relative error of the wrong planning model's pole mass (default 0.1: 10 %% heavier; "
                              "a finite number from -0.9 to 9)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render videos/feedforward_<run>.mp4")
+    parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
+                        help="start state [qpos..., qvel...] in MuJoCo's joint order, both plans' and every run's "
+                             "(default the hanging rest, moved onto a joint range's edge it lies just outside)")
     parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
                         help="plan the first swing-up (and its TVLQR) on this MJCF, e.g. one fitted by `cartpole "
                              "identify`, while MuJoCo runs --mjcf (the same joints, actuators and step)")
@@ -64,7 +67,7 @@ def run(args) -> dict:
 
     view = view_mode(args, "feedforward")
     study = run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
-                            plan_model=plan_model)
+                            plan_model=plan_model, x0=args.x0)
     model = study.model
     if view:
         show_runs(params, [r.rollout for r in study.runs.values()], view, args, command="feedforward")
@@ -115,11 +118,12 @@ def run(args) -> dict:
                     for n, r in study.runs.items()},
            "friction": friction_summary(params, study.friction_compensation),
            "figure": str(fig.resolve()), "videos": videos,
-           "options": {"plan": study.options.as_dict()}, "limits": limits.to_dict()}
+           "options": {"plan": study.options.as_dict()}, "limits": limits.to_dict(),
+           "start_moved": [mv.to_dict() for mv in study.start_moves]}
     if not args.json:
         joints = [params.joints[h].name for h in model.hinges]
         print(f"MJCF: {params.mjcf}")
-        for line in limit_lines(doc["limits"]):
+        for line in limit_lines(doc["limits"], doc["start_moved"]):
             print(line)
         print(f"Plans (Hermite-Simpson, minimum time + 20 %): the MJCF's own model T = {study.plan.T:.3f} s; "
               f"pole mass {pct} T = {study.wrong_plan.T:.3f} s. Each run starts hanging at rest and lasts its "

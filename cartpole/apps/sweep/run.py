@@ -14,7 +14,7 @@ from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams, build_model, read_params
 from cartpole.ocp.dmc import episode_starts, is_task
 from cartpole.progress import stage
-from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size
+from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, check_plan_size, start_state
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import start_server
 from cartpole.apps.sweep.executors import Runner, check_address, mpc_fields, run_dask, run_here, run_pool
@@ -127,7 +127,11 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     dmc_task = _check_objective(model, method, objective, axes, center, half_widths, mpc)
     axes = check_axes(axes, params, method, duration=duration if duration is not None else
                       {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(method))
-    center = model.x_hanging if center is None else np.asarray(center, float)
+    try:  # the hanging rest, on a range's edge where it lies just outside (as every command starts a run)
+        hanging, _ = start_state(None, params, default=model.x_hanging)
+    except CartPoleError as exc:
+        raise SweepError(first_line(exc) + ".") from None
+    center = hanging if center is None else np.asarray(center, float)
     half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
     if center.shape != (nx,) or half_widths.shape != (nx,):
         raise SweepError(f"The start box needs {nx} centre values and {nx} half-widths for this model (got "
@@ -135,9 +139,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     if x0 is not None and not axes:
         raise SweepError("A fixed start x0 is for a sweep over axes; without axes the starts fill the start box.")
     if x0 is not None:
-        from cartpole.apps.swingup import check_start
         try:
-            x0 = check_start(x0, params)
+            x0, _ = start_state(x0, params, default=hanging)
         except CartPoleError as exc:
             raise SweepError(first_line(exc) + ".") from None
     base = dict(energy_options or {})
@@ -152,7 +155,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                         EnergyShapingController(model, **{**base, key: v})
                     except CartPoleError as exc:
                         raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
-    runs = plan_runs(params, model.x_hanging if x0 is None else x0, axes, n, seed, center=center,
+    runs = plan_runs(params, hanging if x0 is None else x0, axes, n, seed, center=center,
                      half_widths=half_widths, gain_jitter=gain_jitter, base_options=base)
     if dmc_task:  # dm_control's own episodes: its initialize_episode from RandomState(seed)
         runs = replace(runs, starts=episode_starts(model, objective, n, seed))
