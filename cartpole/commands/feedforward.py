@@ -30,8 +30,11 @@ def add_arguments(parser) -> None:
     from cartpole.commands._limits import add_limit_arguments
     from cartpole.commands._rig import add_rig_arguments
 
+    from cartpole.commands._rig import add_budget_argument
+
     add_limit_arguments(parser)
     add_rig_arguments(parser)
+    add_budget_argument(parser)
 
 
 def _fmt(v, spec: str, unit: str = "") -> str:
@@ -54,7 +57,15 @@ def run(args) -> dict:
     params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # defaults where unlimited
     out = Path(args.out)
 
-    from cartpole.commands._rig import loop_from_args, rig_doc
+    from cartpole.apps.feedforward import EXTRA, plan_options
+    from cartpole.commands._rig import check_budget, loop_from_args, rig_doc
+    from cartpole.models import build_model
+
+    # the work before any (two plans, four runs of at most the longest plan + EXTRA s; the plan's length is known
+    # only after it); a numerically singular model is refused here too
+    n_plans = 1 if mass_error == 0.0 else 2
+    longest = plan_options().T_max + EXTRA
+    check_budget(args, build_model(params), [(4, longest, f"4 runs of at most {longest:g} s")], plans=n_plans)
 
     loop = loop_from_args(args)
     plan_model = None

@@ -35,9 +35,10 @@ def add_arguments(parser) -> None:
 
     from cartpole.apps.sweep import MAX_RUNS, MAX_WORKERS
 
-    from cartpole.commands._rig import add_rig_arguments
+    from cartpole.commands._rig import add_budget_argument, add_rig_arguments
 
     add_rig_arguments(parser)
+    add_budget_argument(parser)
     from cartpole.commands._limits import add_limit_arguments
 
     add_limit_arguments(parser)
@@ -177,9 +178,32 @@ def _plan(args, params):
         raise SweepError(f"--stop-after needs at least 1 run (got {args.stop_after}).")
     x0 = None
     if args.x0 is not None:
-        from cartpole.apps.swingup import check_start
-        x0 = check_start(args.x0, params)
+        from cartpole.apps.swingup import start_state
+        x0, _ = start_state(args.x0, params, default=None)
+    _check_work(args, params, methods, axes, n, duration)
     return methods, axes, n, duration, x0
+
+
+def _check_work(args, params, methods, axes, n: int, duration) -> None:
+    """Every method's runs before any starts (:func:`cartpole.commands._rig.check_budget`): the runs times their
+    length (``--duration``, else the method's default; 10 s for a plan's length unknown yet, as ``cartpole swingup``
+    counts it), the catch basin of energy and trajopt, and a plan per trajopt run."""
+    from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+    from cartpole.apps.sweep.plan import total_runs
+    from cartpole.commands._rig import check_budget
+    from cartpole.models import build_model
+    from cartpole.sim.budget import BATCHED
+    from cartpole.validation.basin import DEFAULTS
+
+    runs = total_runs(axes, n) if axes else n
+    parts, plans = [], 0
+    for m in methods:
+        T = duration if duration is not None else (MPC_DURATION if m == "mpc" else ENERGY_DURATION)
+        parts.append((runs, T, f"{runs} {m} runs of {T:g} s"))
+        if m != "mpc":
+            parts.append((DEFAULTS["n"], DEFAULTS["duration"], f"{m}'s basin, unless cached,", BATCHED))
+        plans += runs if m == "trajopt" else (1 if m == "mpc" else 0)
+    check_budget(args, build_model(params), parts, plans=plans)
 
 
 def run(args) -> dict:

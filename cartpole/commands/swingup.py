@@ -225,7 +225,7 @@ def _check_work(args, model, duration) -> None:
     if args.method != "mpc":  # the catch basin's sampled runs
         parts.append((DEFAULTS["n"], DEFAULTS["duration"], "basin, unless cached,",
                       BATCHED))
-    check_budget(args, model, parts)
+    check_budget(args, model, parts, plans=0 if args.method == "energy" else 1)  # auto may plan after energy
 
 
 def run(args) -> dict:
