@@ -337,11 +337,14 @@ def test_the_default_method_falls_back_to_ddp_where_the_plan_does_not_hold(tmp_p
     """Issue 38 item 4's case: MuJoCo MPC's acrobot run at a 40 ms control period (ctrl held over four of its 10 ms
     steps). The default planner's collocation plan, tracked by TVLQR at that period, is handed over to the catch and
     does not hold; the default method then plans again with DDP on the exact step of the period's hold, and that
-    swing-up holds: a real MuJoCo result, replayed exactly and judged upright here, and said in ``methods_tried``."""
-    r = run("mjpc_acrobot/task.xml", "swingup", tmp_path, ("--period", "0.04"))
+    swing-up holds: a real MuJoCo result, replayed exactly and judged upright here, and said in ``methods_tried``.
+    The time budget is raised: the default's (600 s of wall time, a further method only while twice the last one's
+    time is left) is a wall clock a loaded CI machine can spend on the first plan alone, and the claim is the fallback's.
+    """
+    r = run("mjpc_acrobot/task.xml", "swingup", tmp_path, ("--period", "0.04", "--time-budget", "7200"))
+    doc = json.loads(r.out) if r.rc == 0 else {}
     problems = judge_success(r, {}, tmp_path)
-    assert not problems, problems
-    doc = json.loads(r.out)
+    assert not problems, (problems, [{k: v for k, v in t.items()} for t in doc.get("methods_tried", [])])
     tried = [(t["method"], t["solver"], t["outcome"]) for t in doc["methods_tried"]]
     assert tried == [("energy", None, "not applicable"), ("trajopt", "auto", "failed"), ("trajopt", "ddp", "success")]
     assert "did not hold" in doc["methods_tried"][1]["reason"]
