@@ -204,3 +204,4 @@ def test_export_and_sweep_start_a_hair_outside_a_hinge_range_on_its_edge_and_say
                        "--out", str(tmp_path / "s")], capsys)
     angles = [r["start"][1] for r in doc["rows"]]  # [cart, hinge, rates]
     assert len(angles) == 3 and all(abs(a) <= 3.14159 for a in angles)  # the start box is cut by the range
+    assert [m["after"] for m in doc["start_moved"]] == [move["after"]]  # and its centre's move said
