@@ -162,7 +162,8 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
     float32 : bool
         Write the float build (``cp_real`` float) instead of double.
     x0 : (nx,) array, optional
-        The verification's start (default :func:`default_start`).
+        The verification's start (default :func:`default_start`), checked against the joint ranges
+        (:func:`cartpole.apps.swingup.start_state`).
     out : path
         The export folder: new, empty, or an earlier export.
     verify : bool
@@ -183,7 +184,8 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
     -------
     dict
         ``limits`` (the bounds a swing-up plans within, :meth:`cartpole.models.PlanningLimits.to_dict`; None for a
-        balance without ``u_max``/``cart_max``), ``mjcf``, ``controller``, ``estimator``, ``period``, ``delay``, ``real``, ``folder``, ``rig`` and
+        balance without ``u_max``/``cart_max``), ``start_moved`` (the default start's positions moved onto a range's
+        edge, :func:`cartpole.apps.swingup.start_state`), ``mjcf``, ``controller``, ``estimator``, ``period``, ``delay``, ``real``, ``folder``, ``rig`` and
         ``export`` {``files``, ``bytes``, ``verified``, ``max_ctrl_diff``, ``step_us`` {``median``, ``max``},
         ``float32`` {``success``, ``max_ctrl_diff``}, ``double`` {``success``, ``replays``}, ``codes``, with
         ``mcu`` the Cortex-M4F build's ``flash``, ``ram``, ``stack`` (bytes) and the commands that measured them}.
@@ -216,6 +218,11 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
         if x0.shape != (model.nx,) or not np.all(np.isfinite(x0)):
             raise CartPoleError(f"--x0 must be {model.nx} finite numbers [qpos, qvel] in MuJoCo's joint order; got "
                                 f"{x0.tolist()}.")
+    moves = ()
+    if x0 is not None or CONTROLLERS.get(controller) == "swingup":  # a swing-up's hanging start on a range's edge
+        from cartpole.apps.swingup import start_state
+
+        x0, moves = start_state(x0, model.params, default=model.x_hanging)
     rho = catch_level(model, loop) if controller == "energy" else None
     design = design_export(model, controller, loop, real=real, x0=x0, rho=rho)
     start = default_start(design) if x0 is None else x0
@@ -234,7 +241,7 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
            "period": design.program.period, "delay": design.program.delay, "real": real,
            "folder": str(Path(written.folder).resolve()),
            "rig": None if design.rig is None else design.rig.to_dict(), "x0": start.tolist(),
-           "limits": None if limits is None else limits.to_dict()}
+           "limits": None if limits is None else limits.to_dict(), "start_moved": [mv.to_dict() for mv in moves]}
     exp = {"files": list(written.files), "bytes": written.bytes, "verified": False, "max_ctrl_diff": None,
            "step_us": None}
     if verify:

@@ -40,6 +40,7 @@ from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits,
                              read_params)
+from cartpole.apps.swingup import start_state
 from cartpole.progress import stage
 from cartpole.sim import Rollout, replays_exactly, simulate
 
@@ -207,6 +208,8 @@ class FeedforwardStudy:
         The planner settings both plans were made with.
     friction_compensation : bool
         The runs cancelled the driven joints' dry friction (:func:`~cartpole.control.friction.friction_design`).
+    start_moves : tuple of StartMove
+        The hanging start's positions moved onto a range's edge (:func:`cartpole.apps.swingup.start_state`).
     """
 
     params: CartPoleParams
@@ -217,6 +220,7 @@ class FeedforwardStudy:
     runs: dict
     options: object = None
     friction_compensation: bool = False
+    start_moves: tuple = ()
 
     @property
     def mjcf(self) -> str:
@@ -264,7 +268,7 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
 def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
                     plan=None, options=None, progress: Callable[[str, float], None] | None = None,
                     loop=None, plan_model: CartPoleModel | None = None, u_max=None,
-                    cart_max: float | None = None) -> FeedforwardStudy:
+                    cart_max: float | None = None, x0=None) -> FeedforwardStudy:
     """Plan the swing-up, then run feedforward alone and feedforward + TVLQR in MuJoCo, on a true and a wrong model.
 
     Parameters
@@ -294,6 +298,9 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     u_max, cart_max : optional
         The ``|ctrl|`` bound and the cart's travel in m the plans keep to; default the file's, or a stated default
         where it has none (:func:`cartpole.models.planning_limits`).
+    x0 : (2 nq,) array, optional
+        ``[qpos, qvel]`` (m, rad, m/s, rad/s) both plans and every run start from; default the hanging rest
+        ``x_hanging``, moved onto a joint range's edge it lies just outside (:func:`cartpole.apps.swingup.start_state`).
 
     Returns
     -------
@@ -326,6 +333,9 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
     model = friction.model
     period = None if loop is None else loop.period
     rig = build_rig(plant, loop, task="swingup")  # a bad period, delay or sensor ends here, before any solve
+    # the runs' start, the hanging rest, on a range's edge where it lies just outside (said), else refused naming --x0
+    x0, moves = start_state(x0, params, default=model.x_hanging)
+    start = None if np.array_equal(x0, model.x_hanging) else tuple(float(v) for v in x0)  # None: the planner's own
 
     def forward(name):
         return None if progress is None else (lambda frac: progress(name, frac))
@@ -336,14 +346,13 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
                callback=forward("plan")) as tick:
         if plan is None:
             design = model if plan_model is None else plan_model
-            plan = trajopt_swingup(design.params, model=design, options=options, period=period)
+            plan = trajopt_swingup(design.params, start, model=design, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
         wrong = plan if f == 0.0 else trajopt_swingup(
-            params, model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model, options=options,
+            params, start, model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model, options=options,
             period=period)
         tick(1.0)
 
-    x0 = model.x_hanging
     controllers = {
         "feedforward": (PlanFeedforward.of_plan(plan, params), plan),
         "feedforward_tvlqr": (plan.controller, plan),
@@ -363,4 +372,4 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
                                handover_time=getattr(ctrl, "handover_time", None))
             tick((i + 1) / len(controllers))
     return FeedforwardStudy(params=params, model=model, plan=plan, wrong_plan=wrong, mass_error=f, runs=runs,
-                            options=options, friction_compensation=friction.compensated)
+                            options=options, friction_compensation=friction.compensated, start_moves=moves)

@@ -350,6 +350,36 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
     return x
 
 
+def start_state(x0, params: CartPoleParams, *, default) -> tuple[np.ndarray, tuple]:
+    """The state a run starts from, the same way for every command that starts one (swingup, sweep, export,
+    feedforward): ``x0`` as given, or else ``default`` with each joint position that lies outside its range by at most
+    :data:`cartpole.models.limits.START_SNAP` moved onto the range's edge (a hinge limited to +-3.14159 hanging at
+    pi; :func:`cartpole.models.start_on_range`, said in each :class:`~cartpole.models.limits.StartMove`); either way
+    checked by :func:`check_start` (farther outside a range: a sentence naming ``x0``, ``--x0``).
+
+    Parameters
+    ----------
+    x0 : (2 nq,) array-like or None
+        ``[qpos, qvel]`` given by the user (m, rad, m/s, rad/s), None for ``default``. A given start is never moved.
+    params : CartPoleParams
+    default : (2 nq,) array-like
+        The command's own start (the hanging rest ``x_hanging`` for a swing-up).
+
+    Returns
+    -------
+    x : (2 nq,) float array
+    moves : tuple of StartMove
+        The default's positions moved onto a range's edge (empty for a given start).
+
+    Raises
+    ------
+    SwingupError
+        As :func:`check_start`.
+    """
+    x, moves = start_on_range(default, params) if x0 is None else (x0, ())
+    return check_start(x, params), moves
+
+
 #: Most poles a trajectory optimisation (trajopt, and the NMPC's plan) is built for: its generated C grows steeply with
 #: every pole (see :data:`cartpole.codegen.LARGE_SOURCE`); a longer chain is refused before anything is built.
 MAX_PLAN_POLES = 3
@@ -600,8 +630,7 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
     model.contacts.check_swingup()  # geoms that touch on the way up (cartpole.models.contacts): refused, named
     for t in tries or ():
         check_plan_size(model, t.method)
-    x0, moves = start_on_range(model.x_hanging, params) if x0 is None else (x0, ())
-    x0 = check_start(x0, params)
+    x0, moves = start_state(x0, params, default=model.x_hanging)
     check_push(loop.push, params)  # a push needs a cart
     pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
     if auto and loop.disturbed:  # knocked down or thrown: the controller that swings up again, for the whole run

@@ -96,7 +96,7 @@ def add_budget_argument(parser) -> None:
                              "beyond it the command refuses before it starts, naming its estimate")
 
 
-def check_budget(args, model, parts) -> object:
+def check_budget(args, model, parts, *, plans: int = 0, intervals: int | None = None) -> object:
     """Estimate a command's work before it starts and refuse it beyond ``--max-steps``; refuse a numerically singular
     model (:func:`cartpole.sim.budget.check_conditioning`); announce large work on the progress reporter.
 
@@ -108,6 +108,11 @@ def check_budget(args, model, parts) -> object:
     parts : iterable of tuples
         Runs, seconds each, what they are, and optionally the weight of a step
         (:func:`cartpole.sim.budget.estimate_work`).
+    plans : int
+        Swing-up plans the command solves (at most), said with their size in the estimate
+        (:func:`cartpole.sim.budget.plan_size`).
+    intervals : int, optional
+        Their collocation intervals (default the planner's, :func:`plan_intervals`).
 
     Returns
     -------
@@ -117,19 +122,31 @@ def check_budget(args, model, parts) -> object:
 
     from cartpole.errors import CartPoleError
     from cartpole.progress import current
-    from cartpole.sim.budget import ANNOUNCE_STEPS, DEFAULT_MAX_STEPS, check_conditioning, check_work, estimate_work
+    from cartpole.sim.budget import (ANNOUNCE_STEPS, DEFAULT_MAX_STEPS, check_conditioning, check_work, estimate_work,
+                                     plan_size)
 
     top = getattr(args, "max_steps", None)
     if top is not None and not (math.isfinite(top) and top >= 1):
         raise CartPoleError(f"--max-steps {top:g} is not a number of steps >= 1; give e.g. --max-steps "
                             f"{DEFAULT_MAX_STEPS:.0e}.")
     check_conditioning(model)
-    work = check_work(estimate_work(parts, model.dt), max_steps=DEFAULT_MAX_STEPS if top is None else top,
+    plan = plan_size(plans=plans, intervals=plan_intervals() if intervals is None else intervals, nx=model.nx,
+                     nu=model.nu, poles=len(model.hinges))
+    work = check_work(estimate_work(parts, model.dt, plan=plan), max_steps=DEFAULT_MAX_STEPS if top is None else top,
                       option="--max-steps")
     rep = current()
     if rep is not None and work.cost > ANNOUNCE_STEPS:
         rep.write(f"{rep.prefix + ': ' if rep.prefix else ''}about {work.describe()}")
     return work
+
+
+def plan_intervals() -> int:
+    """Collocation intervals of a default swing-up plan (:class:`cartpole.planning.options.PlanOptions` ``N``, its
+    default when unset)."""
+    from cartpole.planning.options import DEFAULT_N, PlanOptions
+
+    n = PlanOptions().N
+    return int(DEFAULT_N if n is None else n)
 
 
 def smoothed_friction_sentence(entries: list, *, what: str = "the design") -> str | None:

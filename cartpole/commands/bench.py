@@ -32,6 +32,9 @@ def add_arguments(parser) -> None:
     from cartpole.commands._limits import add_limit_arguments
 
     add_limit_arguments(parser)  # the swing-up plans on --mjcf (the standard problem keeps its own fixed bounds)
+    from cartpole.commands._rig import add_budget_argument
+
+    add_budget_argument(parser)
     parser.add_argument("--no-crocoddyl", action="store_true",
                         help="skip Crocoddyl's double-pendulum example (our DDP, and Crocoddyl's FDDP when installed)")
     parser.add_argument("--no-objectives", action="store_true",
@@ -69,6 +72,31 @@ class _Steps:
             self.current = None
 
 
+def _check_work(args, repeats: int) -> None:
+    """The benchmark's MuJoCo steps on ``--mjcf`` before it starts (:func:`cartpole.commands._rig.check_budget`): the
+    batched replay (its rollouts of 2 s each repeat), the NMPC runs (4 s each, three without ``--quick``), the
+    swing-up plans' runs (each at most 10 s, as ``cartpole swingup`` counts a plan's run before its length is known)
+    and their plans. The other parts (the standard problem's solves, Crocoddyl, identification, the export) run the
+    shipped carts, whatever the file."""
+    from cartpole.apps.swingup import ENERGY_DURATION
+    from cartpole.commands._rig import check_budget
+    from cartpole.models import build_model
+    from cartpole.sim.budget import BATCHED
+
+    model = build_model(args.mjcf)
+    parts = []
+    if not args.no_replay:
+        rollouts, reps = (16, 1) if args.quick else (256, repeats)
+        parts.append((rollouts * reps, 2.0, f"replay of {rollouts} x {reps} rollouts", BATCHED))
+    if not args.no_mpc and len(model.hinges) == 1:
+        parts.append((1 if args.quick else 3, 4.0, "NMPC runs"))
+    plans = 0
+    if not args.no_plan and args.mjcf is not None:
+        plans = 1 if args.quick else 3
+        parts.append((plans, ENERGY_DURATION, "swing-up runs, at most,"))
+    check_budget(args, model, parts, plans=plans)
+
+
 def run(args) -> dict:
     """Run :func:`cartpole.apps.bench.trajopt.run` on ``args.mjcf``; print a table unless ``--json``."""
     from cartpole.apps.bench.trajopt import print_table
@@ -86,6 +114,7 @@ def run(args) -> dict:
     if not (math.isfinite(T) and 0.1 <= T <= 60.0):
         raise CartPoleError(f"--duration {args.duration} is not a duration from 0.1 to 60 s; give one (2 is the "
                             "standard problem's).")
+    _check_work(args, repeats)
     steps = _Steps()
     doc = bench_run(args.mjcf, T=T, repeats=repeats, replay=not args.no_replay,
                     replay_repeats=1 if args.quick else repeats, replay_rollouts=16 if args.quick else 256,

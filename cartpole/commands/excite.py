@@ -7,7 +7,8 @@ HELP = ("run an open-loop multisine from hanging rest around the pendulum's natu
 
 
 def add_arguments(parser) -> None:
-    """``--duration``, ``--sample``, ``--amplitude``, ``--dry-run``, ``--csv``, the encoder and noise options."""
+    """``--duration``, ``--sample``, ``--amplitude``, ``--dry-run``, ``--csv``, the encoder and noise options,
+    ``--max-steps``."""
     parser.add_argument("--mode", choices=("hanging", "balance"), default="hanging",
                         help="hanging: open loop from hanging rest (default); balance: the LQR holds the pole "
                              "upright with the multisine added to its ctrl")
@@ -27,6 +28,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--sensor-noise", type=float, default=None, metavar="STD",
                         help="standard deviation of every sensor's noise in its units; default the MJCF's, else 0")
     parser.add_argument("--noise-seed", type=int, default=0, metavar="N", help="seed of the sensor noise")
+    from cartpole.commands._rig import add_budget_argument
+
+    add_budget_argument(parser)
 
 
 def run(args) -> dict:
@@ -34,8 +38,14 @@ def run(args) -> dict:
     ``frequencies``, ``natural_frequencies``, ``dry_run``}."""
     from pathlib import Path
 
-    from cartpole.apps.excite import run_excite
+    import math
 
+    from cartpole.apps.excite import run_excite
+    from cartpole.commands._rig import check_budget
+    from cartpole.models import build_model
+
+    if not args.dry_run and math.isfinite(args.duration) and args.duration > 0:  # else run_excite's own sentence
+        check_budget(args, build_model(args.mjcf), [(1, args.duration, "the experiment")])
     res = run_excite(args.mjcf, args.out, duration=args.duration, sample_time=args.sample,
                      amplitude=args.amplitude, dry_run=args.dry_run, encoder_cpr=args.encoder_cpr,
                      encoder_resolution=args.encoder_resolution, sensor_noise=args.sensor_noise,

@@ -9,7 +9,8 @@ HELP = ("write a controller (and its estimator) as standalone C99 for a rig or a
 
 
 def add_arguments(parser) -> None:
-    """``--controller``, ``--float32``, ``--x0``, ``--verify``, ``--duration``, ``--mcu`` and the rig's options."""
+    """``--controller``, ``--float32``, ``--x0``, ``--verify``, ``--duration``, ``--mcu``, ``--max-steps`` and the
+    rig's options."""
     from cartpole.export import CONTROLLERS
 
     parser.add_argument("--controller", choices=tuple(CONTROLLERS), default="lqr",
@@ -35,9 +36,39 @@ def add_arguments(parser) -> None:
                              "and worst stack (-fstack-usage, -fcallgraph-info)")
     from cartpole.commands._limits import add_limit_arguments
 
+    from cartpole.commands._rig import add_budget_argument
+
     add_limit_arguments(parser)
+    add_budget_argument(parser)
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step): "
                       "CP_PERIOD, the period cp_step must be called at; the controller is designed for it")
+
+
+def _check_work(args) -> None:
+    """The export's MuJoCo steps before it starts (:func:`cartpole.commands._rig.check_budget`): with ``--verify`` two
+    runs (double and float builds) of ``--duration`` s, else of the Python path's length (a plan's known only after
+    it: at most the planner's longest plus the catch's hold); energy's catch basin; the swing-up's plan."""
+    import math
+
+    from cartpole.apps.export import VERIFY_DURATION
+    from cartpole.apps.swingup import MPC_DURATION, TRAJOPT_EXTRA
+    from cartpole.commands._rig import check_budget
+    from cartpole.export.design import CONTROLLERS
+    from cartpole.models import build_model
+    from cartpole.planning.options import PlanOptions
+    from cartpole.sim.budget import BATCHED
+    from cartpole.validation.basin import DEFAULTS
+
+    parts = []
+    if args.verify:
+        T = {"nmpc": MPC_DURATION, "tvlqr": PlanOptions().T_max + TRAJOPT_EXTRA}.get(
+            args.controller, VERIFY_DURATION[CONTROLLERS.get(args.controller, "balance")])
+        if args.duration is not None and math.isfinite(args.duration) and args.duration > 0:
+            T = args.duration
+        parts.append((2, T, f"2 verification runs of {'at most ' if args.duration is None else ''}{T:g} s"))
+    if args.controller == "energy":
+        parts.append((DEFAULTS["n"], DEFAULTS["duration"], "basin, unless cached,", BATCHED))
+    check_budget(args, build_model(args.mjcf), parts, plans=int(args.controller in ("tvlqr", "nmpc")))
 
 
 def run(args) -> dict:
@@ -46,11 +77,12 @@ def run(args) -> dict:
     from cartpole.commands._limits import limit_keywords, limit_lines
 
     loop = loop_from_args(args)
+    _check_work(args)
     doc = run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
                      out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu,
                      **limit_keywords(args))
     if not args.json:
-        for line in limit_lines(doc.get("limits")):
+        for line in limit_lines(doc.get("limits"), doc.get("start_moved")):
             print(line)
         exp = doc["export"]
         print(f"Exported {doc['controller']} (estimator {doc['estimator']}, {doc['real']}, period {doc['period']:g} s, "

@@ -11,12 +11,15 @@ HELP = ("feedforward beside feedback: the trajopt swing-up's ctrl open loop vs f
 
 
 def add_arguments(parser) -> None:
-    """``--mass-error``, ``--no-video``."""
+    """``--mass-error``, ``--no-video``, ``--x0``, ``--plan-mjcf``, the view's, the limits' and the rig's options."""
     parser.add_argument("--mass-error", type=str, default="0.1", metavar="F",
                         help="relative error of the wrong planning model's pole mass (default 0.1: 10 %% heavier; "
                              "a finite number from -0.9 to 9)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render videos/feedforward_<run>.mp4")
+    parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
+                        help="start state [qpos..., qvel...] in MuJoCo's joint order, both plans' and every run's "
+                             "(default the hanging rest, moved onto a joint range's edge it lies just outside)")
     parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
                         help="plan the first swing-up (and its TVLQR) on this MJCF, e.g. one fitted by `cartpole "
                              "identify`, while MuJoCo runs --mjcf (the same joints, actuators and step)")
@@ -27,8 +30,11 @@ def add_arguments(parser) -> None:
     from cartpole.commands._limits import add_limit_arguments
     from cartpole.commands._rig import add_rig_arguments
 
+    from cartpole.commands._rig import add_budget_argument
+
     add_limit_arguments(parser)
     add_rig_arguments(parser)
+    add_budget_argument(parser)
 
 
 def _fmt(v, spec: str, unit: str = "") -> str:
@@ -51,7 +57,15 @@ def run(args) -> dict:
     params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # defaults where unlimited
     out = Path(args.out)
 
-    from cartpole.commands._rig import loop_from_args, rig_doc
+    from cartpole.apps.feedforward import EXTRA, plan_options
+    from cartpole.commands._rig import check_budget, loop_from_args, rig_doc
+    from cartpole.models import build_model
+
+    # the work before any (two plans, four runs of at most the longest plan + EXTRA s; the plan's length is known
+    # only after it); a numerically singular model is refused here too
+    n_plans = 1 if mass_error == 0.0 else 2
+    longest = plan_options().T_max + EXTRA
+    check_budget(args, build_model(params), [(4, longest, f"4 runs of at most {longest:g} s")], plans=n_plans)
 
     loop = loop_from_args(args)
     plan_model = None
@@ -64,7 +78,7 @@ def run(args) -> dict:
 
     view = view_mode(args, "feedforward")
     study = run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
-                            plan_model=plan_model)
+                            plan_model=plan_model, x0=args.x0)
     model = study.model
     if view:
         show_runs(params, [r.rollout for r in study.runs.values()], view, args, command="feedforward")
@@ -115,11 +129,12 @@ def run(args) -> dict:
                     for n, r in study.runs.items()},
            "friction": friction_summary(params, study.friction_compensation),
            "figure": str(fig.resolve()), "videos": videos,
-           "options": {"plan": study.options.as_dict()}, "limits": limits.to_dict()}
+           "options": {"plan": study.options.as_dict()}, "limits": limits.to_dict(),
+           "start_moved": [mv.to_dict() for mv in study.start_moves]}
     if not args.json:
         joints = [params.joints[h].name for h in model.hinges]
         print(f"MJCF: {params.mjcf}")
-        for line in limit_lines(doc["limits"]):
+        for line in limit_lines(doc["limits"], doc["start_moved"]):
             print(line)
         print(f"Plans (Hermite-Simpson, minimum time + 20 %): the MJCF's own model T = {study.plan.T:.3f} s; "
               f"pole mass {pct} T = {study.wrong_plan.T:.3f} s. Each run starts hanging at rest and lasts its "

@@ -35,9 +35,10 @@ def add_arguments(parser) -> None:
 
     from cartpole.apps.sweep import MAX_RUNS, MAX_WORKERS
 
-    from cartpole.commands._rig import add_rig_arguments
+    from cartpole.commands._rig import add_budget_argument, add_rig_arguments
 
     add_rig_arguments(parser)
+    add_budget_argument(parser)
     from cartpole.commands._limits import add_limit_arguments
 
     add_limit_arguments(parser)
@@ -184,11 +185,36 @@ def _plan(args, params):
         check_axes(axes, params, m, duration=ends)
     if args.stop_after is not None and args.stop_after < 1:
         raise SweepError(f"--stop-after needs at least 1 run (got {args.stop_after}).")
-    x0 = None
-    if args.x0 is not None:
-        from cartpole.apps.swingup import check_start
-        x0 = check_start(args.x0, params)
-    return methods, axes, n, duration, x0
+    from cartpole.apps.swingup import start_state
+    from cartpole.models import build_model
+
+    model = build_model(params)
+    # --x0 checked, else the hanging rest moved onto a range's edge it lies just outside (said), as every run starts
+    x0, moves = start_state(args.x0, params, default=model.x_hanging)
+    x0 = None if args.x0 is None else x0
+    _check_work(args, model, methods, axes, n, duration)
+    return methods, axes, n, duration, x0, moves
+
+
+def _check_work(args, model, methods, axes, n: int, duration) -> None:
+    """Every method's runs before any starts (:func:`cartpole.commands._rig.check_budget`): the runs times their
+    length (``--duration``, else the method's default; 10 s for a plan's length unknown yet, as ``cartpole swingup``
+    counts it), the catch basin of energy and trajopt, and a plan per trajopt run."""
+    from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
+    from cartpole.apps.sweep.plan import total_runs
+    from cartpole.commands._rig import check_budget
+    from cartpole.sim.budget import BATCHED
+    from cartpole.validation.basin import DEFAULTS
+
+    runs = total_runs(axes, n) if axes else n
+    parts, plans = [], 0
+    for m in methods:
+        T = duration if duration is not None else (MPC_DURATION if m == "mpc" else ENERGY_DURATION)
+        parts.append((runs, T, f"{runs} {m} runs of {T:g} s"))
+        if m != "mpc":
+            parts.append((DEFAULTS["n"], DEFAULTS["duration"], f"{m}'s basin, unless cached,", BATCHED))
+        plans += runs if m == "trajopt" else (1 if m == "mpc" else 0)
+    check_budget(args, model, parts, plans=plans)
 
 
 def run(args) -> dict:
@@ -199,14 +225,15 @@ def run(args) -> dict:
     from cartpole.models import planning_limits, read_params
 
     params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # every run plans within them
-    methods, axes, n, duration, x0 = _plan(args, params)
+    methods, axes, n, duration, x0, moves = _plan(args, params)
+    moved = [mv.to_dict() for mv in moves]
     if not args.json:
-        for line in limit_lines(limits.to_dict()):
+        for line in limit_lines(limits.to_dict(), moved):
             print(line)
     docs, results = [], []
     for m in methods:
         doc, result = run_method(args, params, m, axes=axes, n=n, duration=duration, x0=x0)
-        doc["limits"] = limits.to_dict()
+        doc["limits"], doc["start_moved"] = limits.to_dict(), moved
         docs.append(doc)
         results.append(result)
     if len(methods) == 1:
@@ -217,7 +244,7 @@ def run(args) -> dict:
     if not args.json:
         print(f"Success maps side by side: {Path(figure).resolve()}")
     return {"mjcf": params.mjcf, "methods": methods, "sweeps": docs, "figure": str(Path(figure).resolve()),
-            "limits": limits.to_dict()}
+            "limits": limits.to_dict(), "start_moved": moved}
 
 
 def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, duration=None, x0=None):

@@ -242,17 +242,17 @@ def _check_work(args, model, duration) -> None:
     if args.method != "mpc":  # the catch basin's sampled runs
         parts.append((DEFAULTS["n"], DEFAULTS["duration"], "basin, unless cached,",
                       BATCHED))
-    check_budget(args, model, parts)
+    check_budget(args, model, parts, plans=0 if args.method == "energy" else 1)  # auto may plan after energy
 
 
 def run(args) -> dict:
     """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
     from pathlib import Path
 
-    from cartpole.models import build_model, start_on_range
+    from cartpole.models import build_model
     from cartpole.progress import stage
-    from cartpole.apps.swingup import (SwingupError, check_model_error, check_plan_size, check_push, check_start,
-                                       check_upright_reachable, parse_push, run_swingup)
+    from cartpole.apps.swingup import (SwingupError, check_model_error, check_plan_size, check_push,
+                                       check_upright_reachable, parse_push, run_swingup, start_state)
     from cartpole.sim.options import LoopOptions
     from cartpole.viz import plot_swingup
 
@@ -262,7 +262,7 @@ def run(args) -> dict:
     check_upright_reachable(model)
     model.contacts.check_swingup()  # a pair that touches on the way up: refused, named, before anything runs
     check_plan_size(model, args.method)
-    x0 = check_start(start_on_range(model.x_hanging, params)[0] if args.x0 is None else args.x0, params)
+    x0 = start_state(args.x0, params, default=model.x_hanging)[0]
     duration = check_duration(args.duration, params)
     _check_work(args, model, duration)
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)

@@ -14,6 +14,8 @@ from cartpole.options import StageOptions
 U_MARGIN = 0.05
 #: Longest plan accepted, s (a swing-up plan is seconds long; far longer ones only make huge problems).
 MAX_PLAN_T = 60.0
+#: Collocation intervals of a plan whose ``N`` is not given (except ``dmc_*`` rewards: one per MJCF step).
+DEFAULT_N = 100
 #: Most collocation intervals a plan may have (its NLP grows with them; the default is about 100).
 MAX_PLAN_N = 2000
 #: Most starts (initial guesses) a plan may try.

@@ -39,7 +39,7 @@ from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.dmc import is_task
 from cartpole.ocp.dmc import task as dmc_task
 from cartpole.ocp.objectives import make_objective
-from cartpole.planning.options import U_MARGIN, PlanOptions
+from cartpole.planning.options import DEFAULT_N, U_MARGIN, PlanOptions
 from cartpole.solvers.sqp import CollocationSQP, SQPError
 from cartpole.ocp.trajectory import Trajectory
 
@@ -731,15 +731,15 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
 
     warm, warm_tried = None, ()
     if guess is not None and obj.kind == "effort" and T is None and not use_ddp:
-        warm_traj, warm_info, warm_tried = warm_stage(plan_model, x0, guess, N=N or 100, bounds=bounds,
+        warm_traj, warm_info, warm_tried = warm_stage(plan_model, x0, guess, N=N or DEFAULT_N, bounds=bounds,
                                                       solver=solver, solver_options=solver_options, sqp=use_sqp)
         if warm_traj is not None:
             warm = (warm_traj, warm_info)
     if warm is not None:
         traj, info = warm
     elif obj.kind == "time":
-        T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or 100, starts=starts, bounds=bounds,
-                                               T_max=options.T_max, search_s=options.search_s,
+        T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or DEFAULT_N, starts=starts,
+                                               bounds=bounds, T_max=options.T_max, search_s=options.search_s,
                                                restarts=options.pump_restarts, seed=options.pump_seed, sqp=use_sqp)
         if use_ddp:
             from cartpole.planning.ddp_plan import ddp_time_search
@@ -752,12 +752,12 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
         if use_ddp:  # no earlier stage to start from: DDP from rest (zero ctrl clipped into the box)
             by_ddp, attempts_before = ddp_last_stage(None, T, "rest"), ()
         if by_ddp is None:
-            ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
+            ocp = DirectCollocation(plan_model, N=N or DEFAULT_N, T=T, solver=solver, solver_options=solver_options,
                                     bounds=bounds)
             traj, info = ocp.solve(x0)
     else:
         T_min, fast, tinfo, pump = _swingup_time_plan(plan_model, params, x0,
-                                                N=60 if obj.kind == "running" else min(N or 100, 60),
+                                                N=60 if obj.kind == "running" else min(N or DEFAULT_N, 60),
                                                 starts=starts, bounds=bounds, T_max=options.T_max,
                                                 search_s=options.search_s, restarts=options.pump_restarts,
                                                 seed=options.pump_seed, sqp=use_sqp)
@@ -768,14 +768,14 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
                 by_ddp = ddp_last_stage(fast, fast.duration, f"pumping plan ({tinfo.guess})")
         elif obj.kind == "effort":
             T = (1.0 + options.time_margin) * T_min
-            ocp = DirectCollocation(plan_model, N=N or 100, T=T, solver=solver, solver_options=solver_options,
+            ocp = DirectCollocation(plan_model, N=N or DEFAULT_N, T=T, solver=solver, solver_options=solver_options,
                                     bounds=bounds)
             first = fast  # the minimum-time plan, stretched onto T
         else:
             if T is None:
                 T = (fast.duration if T_min is None else T_min) + RUNNING_HOLD
             if N is None:
-                N = max(2, int(round(T / params.timestep))) if is_task(obj.name) else 100
+                N = max(2, int(round(T / params.timestep))) if is_task(obj.name) else DEFAULT_N
             ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
                                     solver_options=solver_options, bounds=bounds)
             first = padded(fast, T) if T > fast.duration else fast  # then rest at upright
@@ -784,7 +784,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
         if by_ddp is not None:
             pass
         elif obj.kind == "effort" and pump is not None:  # a pumping plan: the margin shrunk if need be, else itself
-            traj, info = _pumped_effort(plan_model, x0, fast, tinfo, pump, N=N or 100, bounds=bounds,
+            traj, info = _pumped_effort(plan_model, x0, fast, tinfo, pump, N=N or DEFAULT_N, bounds=bounds,
                                         margin=options.time_margin, solver=solver, solver_options=solver_options)
         elif not (obj.kind == "effort" and T_min is None):
             try:

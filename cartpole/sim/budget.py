@@ -58,10 +58,15 @@ class Work:
     parts : tuple of (str, int, float)
         What each part is (``"5 lab runs"``), its MuJoCo steps and what one of them counts against the budget (1 for
         a Python loop of ``mj_step``, :data:`BATCHED` for batched runs).
+    plan : str
+        The size of the plans the command solves besides (collocation intervals, variables, poles:
+        :func:`plan_size`), empty when it plans nothing. Plans are bounded by their own limits (the planner's most
+        intervals and poles), not by the budget of steps; the estimate says them so a long wait is explained.
     """
 
     timestep: float
     parts: tuple
+    plan: str = ""
 
     @property
     def steps(self) -> int:
@@ -76,7 +81,40 @@ class Work:
     def describe(self) -> str:
         """``"6e+03 MuJoCo steps at the 0.005 s time step (5 lab runs 6e+03)"``: the total and each part."""
         parts = "; ".join(f"{p[0]} {p[1]:.2g}" for p in self.parts if p[1])
-        return f"{self.steps:.2g} MuJoCo steps at the {self.timestep:g} s time step ({parts})"
+        plan = f", and {self.plan}" if self.plan else ""
+        return f"{self.steps:.2g} MuJoCo steps at the {self.timestep:g} s time step ({parts}){plan}"
+
+    def to_dict(self) -> dict:
+        """JSON form: ``steps``, ``cost`` (as counted against the budget), ``timestep`` (s), ``parts`` (``what``,
+        ``steps``, ``weight`` each) and ``plan``."""
+        return {"steps": self.steps, "cost": self.cost, "timestep": self.timestep,
+                "parts": [{"what": p[0], "steps": p[1], "weight": p[2]} for p in self.parts], "plan": self.plan}
+
+
+def plan_size(*, plans: int, intervals: int, nx: int, nu: int, poles: int) -> str:
+    """The sentence part that states a command's plans' size: ``"2 plans of 100 collocation intervals (about 1.5e+03
+    variables each) for 1 pole"``; empty for no plans.
+
+    Parameters
+    ----------
+    plans : int
+        How many plans the command solves (at most).
+    intervals : int
+        Collocation intervals ``N`` of each (Hermite-Simpson: a knot and a midpoint state per interval).
+    nx, nu : int
+        State and input sizes.
+    poles : int
+        Hinges of the chain.
+
+    Returns
+    -------
+    str
+    """
+    if plans <= 0:
+        return ""
+    variables = (2 * int(intervals) + 1) * (int(nx) + int(nu)) + 1
+    return (f"{plans} plan{'s' if plans != 1 else ''} of {int(intervals)} collocation intervals (about "
+            f"{variables:.2g} variables each) for {poles} pole{'s' if poles != 1 else ''}")
 
 
 def physics_steps(duration: float, timestep: float, runs: int = 1) -> int:
@@ -97,7 +135,7 @@ def physics_steps(duration: float, timestep: float, runs: int = 1) -> int:
     return int(runs) * int(math.ceil(float(duration) / float(timestep) - 1e-9))
 
 
-def estimate_work(parts, timestep: float) -> Work:
+def estimate_work(parts, timestep: float, *, plan: str = "") -> Work:
     """The :class:`Work` of ``parts``, each ``(runs, seconds each, what)`` or ``(runs, seconds each, what, weight)``.
 
     Parameters
@@ -107,6 +145,8 @@ def estimate_work(parts, timestep: float) -> Work:
         counts against the budget (default 1; :data:`BATCHED` for batched runs).
     timestep : float, s
         The MJCF's time step.
+    plan : str
+        The plans' size (:func:`plan_size`), said beside the steps.
 
     Returns
     -------
@@ -117,7 +157,7 @@ def estimate_work(parts, timestep: float) -> Work:
         runs, seconds, what = part[:3]
         weight = float(part[3]) if len(part) > 3 else 1.0
         out.append((str(what), physics_steps(seconds, timestep, runs), weight))
-    return Work(timestep=float(timestep), parts=tuple(out))
+    return Work(timestep=float(timestep), parts=tuple(out), plan=str(plan))
 
 
 def check_work(work: Work, *, max_steps: float = DEFAULT_MAX_STEPS, option: str = "max_steps") -> Work:
@@ -144,7 +184,7 @@ def check_work(work: Work, *, max_steps: float = DEFAULT_MAX_STEPS, option: str 
         One sentence: the steps, what they are, the budget and the option that raises it.
     """
     if work.cost > float(max_steps):
-        parts = "; ".join(f"{p[0]} {p[1]:.2g}" for p in work.parts if p[1])
+        parts = "; ".join([f"{p[0]} {p[1]:.2g}" for p in work.parts if p[1]] + ([work.plan] if work.plan else []))
         batched = "" if work.cost == work.steps else f" (batched count a tenth: {work.cost:.2g})"
         raise BudgetError(f"At the {work.timestep:g} s time step this runs {work.steps:.2g} MuJoCo steps{batched}, "
                           f"beyond the budget of {float(max_steps):.2g}; give {option} {_round_up(work.cost)} to run "

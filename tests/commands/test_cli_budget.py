@@ -89,3 +89,39 @@ def test_an_lqr_duration_that_is_not_a_time_is_one_sentence(tmp_path, capsys, va
     line = _one_sentence(["lqr", "--json", "--no-video", "--duration", value, "--out", str(tmp_path / "out")], capsys)
     assert "--duration" in line
     assert not (tmp_path / "out").exists()
+
+
+#: Every other command that runs MuJoCo, as typed at a 1e-5 s step (a run of each would take tens of minutes), with
+#: the function its real work starts in (replaced by the sentinel) and what its estimate must say.
+OTHERS = {
+    "feedforward": (["--no-video"], "cartpole.apps.feedforward", "run_feedforward", "2 plans of 100 collocation"),
+    "sweep": (["--n", "40"], "cartpole.apps.sweep", "recorded_sweep", "40 energy runs"),
+    "export": (["--controller", "tvlqr", "--verify"], "cartpole.apps.export", "run_export",
+               "1 plan of 100 collocation"),
+    "bench": (["--no-plan", "--no-mpc"], "cartpole.apps.bench.trajopt", "run", "replay of 256 x 7"),
+    "excite": (["--duration", "60"], "cartpole.apps.excite", "run_excite", "the experiment"),
+}
+
+
+@pytest.mark.parametrize("command", list(OTHERS))
+def test_every_command_that_runs_mujoco_estimates_its_work_and_refuses_beyond_max_steps(
+        tmp_path, capsys, monkeypatch, command):
+    import importlib
+
+    extra, module, name, said = OTHERS[command]
+    monkeypatch.setattr(importlib.import_module(module), name,
+                        lambda *a, **k: (_ for _ in ()).throw(Reached("Reached the runs.")))
+    mjcf = _variant(tmp_path, "finest", 'timestep="0.005"', 'timestep="1e-05"')
+    argv = [command, "--json", *extra, "--mjcf", mjcf, "--out", str(tmp_path / "out")]
+    if command == "bench":
+        argv.remove("--out"), argv.remove(str(tmp_path / "out"))
+    line = _one_sentence(argv, capsys)
+    assert "1e-05 s time step" in line and "--max-steps" in line and said in line, line
+    assert not (tmp_path / "out").exists()
+    raised = line.split("--max-steps ")[1].split()[0]
+    assert float(raised) > DEFAULT_MAX_STEPS
+    assert _one_sentence(argv + ["--max-steps", raised], capsys) == f"cartpole {command}: Reached the runs."
+    # and a numerically singular model is refused by each, naming its mass
+    tiny = _variant(tmp_path, "tiny", 'mass="0.1"', 'mass="1e-9"')
+    line = _one_sentence([a if a != mjcf else tiny for a in argv], capsys)
+    assert "numerically singular" in line and "1e-09 kg" in line

@@ -91,12 +91,17 @@ def test_a_u_max_beyond_the_files_ctrlrange_is_one_sentence(tmp_path, capsys):
 
 
 def test_the_default_start_a_hair_outside_a_hinge_range_is_moved_and_said(tmp_path, capsys):
+    # energy shaping for 1.5 s: the start is the claim here (the default method's whole run on such a file, a failed
+    # search against the range's wall, is the corpus's hinge_range_pi.xml, tests/commands/test_cli_corpus.py)
     mjcf = write(tmp_path, "hinge_314159.xml", hinge_range(3.14159))
-    doc, _ = run_json(["swingup", "--json", "--no-video", "--mjcf", str(mjcf), "--out", str(tmp_path / "o")], capsys)
+    argv = ["swingup", "--method", "energy", "--duration", "1.5", "--no-video", "--mjcf", str(mjcf)]
+    doc, _ = run_json([*argv, "--json", "--out", str(tmp_path / "o")], capsys)
     (move,) = doc["start_moved"]
     assert move["joint"] == "hinge" and move["before"] == np.pi and move["after"] == pytest.approx(3.14159)
     assert doc["rollout"]["qpos"][0][1] == pytest.approx(3.14159) and "--x0" in move["note"]
     assert replays(doc["mjcf"], doc["rollout"])
+    assert main([*argv, "--out", str(tmp_path / "p")]) == 0
+    assert move["note"] in capsys.readouterr().out  # said in prose too
 
 
 def test_a_default_start_far_outside_a_range_is_refused_naming_x0(tmp_path, capsys):
@@ -167,3 +172,36 @@ def test_the_planners_search_options_belong_to_the_planner(tmp_path, capsys):
         T_max, search_s = 20.0, None
 
     assert search_fields(Args()) == {"T_max": 20.0}  # what PlanOptions(T_max=...) receives with --method trajopt
+
+
+@pytest.mark.parametrize("command", [["swingup"], ["feedforward"], ["export", "--controller", "energy"],
+                                     ["export", "--controller", "tvlqr"], ["sweep", "--n", "1"]])
+def test_every_command_that_starts_a_run_refuses_a_default_start_far_outside_a_range_naming_its_x0(
+        tmp_path, capsys, command):
+    from cartpole.cli import build_parser
+    import argparse
+
+    mjcf = write(tmp_path, "hinge_304.xml", hinge_range(3.04))
+    argv = [*command, "--no-video", "--mjcf", str(mjcf), "--out", str(tmp_path / "o")]
+    argv = [a for a in argv if not (a == "--no-video" and command[0] in ("export", "sweep"))]
+    rc = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "outside its joint range" in err and "--x0" in err, err
+    (sub,) = [a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)]
+    assert "--x0" in sub.choices[command[0]]._option_string_actions  # the option it names exists there
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def test_export_and_sweep_start_a_hair_outside_a_hinge_range_on_its_edge_and_say_so(tmp_path, capsys):
+    mjcf = write(tmp_path, "hinge_314159.xml", hinge_range(3.14159))
+    doc, _ = run_json(["export", "--controller", "energy", "--json", "--mjcf", str(mjcf),
+                       "--out", str(tmp_path / "c")], capsys)
+    (move,) = doc["start_moved"]
+    assert move["before"] == np.pi and doc["x0"][1] == move["after"] == pytest.approx(3.14159)
+    assert main(["export", "--controller", "energy", "--mjcf", str(mjcf), "--out", str(tmp_path / "d")]) == 0
+    assert move["note"] in capsys.readouterr().out  # said in prose too
+    doc, _ = run_json(["sweep", "--json", "--n", "3", "--duration", "0.5", "--workers", "1", "--mjcf", str(mjcf),
+                       "--out", str(tmp_path / "s")], capsys)
+    angles = [r["start"][1] for r in doc["rows"]]  # [cart, hinge, rates]
+    assert len(angles) == 3 and all(abs(a) <= 3.14159 for a in angles)  # the start box is cut by the range
+    assert [m["after"] for m in doc["start_moved"]] == [move["after"]]  # and its centre's move said

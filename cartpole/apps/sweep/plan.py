@@ -376,7 +376,8 @@ def plan_runs(params: CartPoleParams, x0, axes: tuple, n: int, seed: int, *, cen
 
     Without axes: ``n`` starts ``center + U(-half_widths, half_widths)`` ((2 nq,) each, [m, rad, m/s, rad/s]).
     With axes: the grid axes' product (first axis slowest), times ``n`` when any axis is sampled; starts default
-    to ``x0`` ((2 nq,)). Cart positions are kept 1 mm inside the rail.
+    to ``x0`` ((2 nq,)). Cart positions are kept 1 mm inside the rail, hinge angles inside their finite ranges (a
+    start box centred on a range's edge, hanging on a hinge limited to +-3.14159, is cut by the range).
 
     Raises
     ------
@@ -413,6 +414,9 @@ def plan_runs(params: CartPoleParams, x0, axes: tuple, n: int, seed: int, *, cen
     if params.slide is not None:
         lo, hi = params.cart_range
         starts[:, params.slide] = np.clip(starts[:, params.slide], lo + 1e-3, hi - 1e-3)
+    for i, j in enumerate(params.joints):  # a hinge start MuJoCo's limit would push back at once: on the range
+        if j.kind == "hinge":
+            starts[:, i] = np.clip(starts[:, i], *(float(v) for v in j.range))
     opts, settings = [], []
     for i in range(total):
         o = dict(base)

@@ -14,7 +14,8 @@ from cartpole.errors import CartPoleError, first_line
 from cartpole.models import CartPoleParams, build_model, read_params
 from cartpole.ocp.dmc import episode_starts, is_task
 from cartpole.progress import stage
-from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, SUPERVISOR_DURATION, check_plan_size
+from cartpole.apps.swingup import (ENERGY_DURATION, MPC_DURATION, SUPERVISOR_DURATION, check_plan_size,
+                                   start_state)
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import start_server
 from cartpole.apps.sweep.executors import Runner, check_address, mpc_fields, run_dask, run_here, run_pool
@@ -127,19 +128,19 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     dmc_task = _check_objective(model, method, objective, axes, center, half_widths, mpc)
     axes = check_axes(axes, params, method, duration=duration if duration is not None else
                       {"energy": ENERGY_DURATION, "mpc": MPC_DURATION, "supervisor": SUPERVISOR_DURATION}.get(method))
-    center = model.x_hanging if center is None else np.asarray(center, float)
+    if x0 is not None and not axes:
+        raise SweepError("A fixed start x0 is for a sweep over axes; without axes the starts fill the start box.")
+    fixed = None  # the runs' start where no axis sets one, and the start box's default centre
+    if x0 is not None or axes or center is None:  # x0 checked, else the hanging rest on a range's edge (said)
+        try:
+            fixed, _ = start_state(x0, params, default=model.x_hanging)
+        except CartPoleError as exc:
+            raise SweepError(first_line(exc) + ".") from None
+    center = fixed if center is None else np.asarray(center, float)
     half_widths = default_half_widths(params) if half_widths is None else np.asarray(half_widths, float)
     if center.shape != (nx,) or half_widths.shape != (nx,):
         raise SweepError(f"The start box needs {nx} centre values and {nx} half-widths for this model (got "
                          f"{center.size} and {half_widths.size}).")
-    if x0 is not None and not axes:
-        raise SweepError("A fixed start x0 is for a sweep over axes; without axes the starts fill the start box.")
-    if x0 is not None:
-        from cartpole.apps.swingup import check_start
-        try:
-            x0 = check_start(x0, params)
-        except CartPoleError as exc:
-            raise SweepError(first_line(exc) + ".") from None
     base = dict(energy_options or {})
     if method == "energy":  # refuse a model energy shaping cannot drive before anything runs
         from cartpole.control.energy import DEFAULT_SCALING, EnergyShapingController
@@ -152,7 +153,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
                         EnergyShapingController(model, **{**base, key: v})
                     except CartPoleError as exc:
                         raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
-    runs = plan_runs(params, model.x_hanging if x0 is None else x0, axes, n, seed, center=center,
+    runs = plan_runs(params, center if fixed is None else fixed, axes, n, seed, center=center,
                      half_widths=half_widths, gain_jitter=gain_jitter, base_options=base)
     if dmc_task:  # dm_control's own episodes: its initialize_episode from RandomState(seed)
         runs = replace(runs, starts=episode_starts(model, objective, n, seed))
