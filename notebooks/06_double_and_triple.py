@@ -36,7 +36,7 @@ import matplotlib.pyplot as plt
 from IPython.display import display
 import cartpole as cp
 from cartpole.control import LinearFeedback
-from cartpole.lqr import is_controllable, lab_weights, lqr
+from cartpole.riccati import is_controllable, lab_weights, lqr
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.jacobians import check_jacobians, random_states
 from cartpole.validation.metrics import summarize

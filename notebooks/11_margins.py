@@ -43,7 +43,7 @@ from cartpole.apps.lab import design
 from cartpole.apps.margins import mujoco_stable
 from cartpole.estimation import measurement_function, sensor_spec
 from cartpole.estimation.kalman import KalmanFilter, process_noise
-from cartpole.lqr import lab_weights, lqr
+from cartpole.riccati import lab_weights, lqr
 from cartpole.models import build_model
 from cartpole.viz.loop_plot import loop_figure
 

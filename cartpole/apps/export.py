@@ -86,7 +86,8 @@ def catch_level(model, loop) -> float:
     """The catch level ``rho`` of the energy swing-up's LQR catch at the loop's period: the verified basin
     :func:`cartpole.apps.swingup.run_swingup` uses (:class:`cartpole.validation.basin.BasinCache`, on disk)."""
     from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError
-    from cartpole.control.switching import swingup_catch
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.switching import SWINGUP_CATCH_R
     from cartpole.export import ExportError
     from cartpole.validation.basin import BasinCache
 
@@ -96,7 +97,7 @@ def catch_level(model, loop) -> float:
         raise ExportError(f"Energy shaping drives one pole on a cart and this model has {len(model.hinges)} "
                           "hinges; export --controller tvlqr (or lqr) instead.") from None
     period = None if loop is None else loop.period
-    return float(BasinCache.on_disk().get(model.params, swingup_catch(model, period=period)).rho)
+    return float(BasinCache.on_disk().get(model.params, LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)).rho)
 
 
 def task_success(design, rollout) -> bool:

@@ -3,7 +3,7 @@
 ``run_lab()`` reproduces the lab handout's experiment on any MJCF the toolkit reads and the LQR stabilises: a
 cart with one pole (the lab's), a chain of two or three, a pendulum with no cart, more than one motor. The exact
 linearisation at upright rest (continuous ``A, B`` from the symbolic model, or ``Ad, Bd`` of one step of the
-MJCF's integrator with ``discrete=True``), LQR with the lab's weight pattern (:func:`~cartpole.lqr.lab_weights`:
+MJCF's integrator with ``discrete=True``), LQR with the lab's weight pattern (:func:`~cartpole.riccati.lab_weights`:
 for one pole the handout's ``Q = diag(1, 10, 0.1, 0.1)``, ``R = 0.1``), and five 6 s MuJoCo runs of
 ``u = u* - K (x - x*)`` (hinge errors wrapped, ctrl clipped to ``ctrlrange`` by MuJoCo) from the lab's five
 starts, each logged every physics step so it replays exactly. The settling statistics are those of
@@ -13,7 +13,7 @@ The starts (:func:`lab_initial_conditions`) are the handout's cart offsets on th
 *first* pole, every other joint at its upright equilibrium angle and everything at rest. When the model cannot
 catch them at full size for the ctrl limit (dm_control's triple pole on its cart from 8 degrees), all five are
 scaled down by one factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_SCALES`) at which
-the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.lqr.lab_weights`, continuous)
+the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.riccati.lab_weights`, continuous)
 in the lab's 6 s. Only the ctrl limit shrinks them: a start the closed loop is merely too slow to settle in the run
 stays full size and is reported unsettled with the reason (:func:`why_not_settled`: the final error, the slowest
 closed-loop time constant, the run its linear loop would need). The factor depends on the model only, not on the
@@ -40,7 +40,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, state_error, wrap_angle
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, linearize, read_params, state_error, wrap_angle
 from cartpole.progress import stage
 from cartpole.validation.metrics import STRICT_TOLERANCE, UPRIGHT_TOL
 
@@ -339,29 +339,6 @@ class LabResult(_LabRuns):
         return LinearFeedback(self.K, self.x_eq, self.u_eq, S=self.S, hinges=self.params.hinges)
 
 
-def design(model, Q, R, *, discrete: bool = False, x_eq=None, steps: int = 1):
-    """LQR at upright rest of a :class:`~cartpole.models.CartPoleModel`.
-
-    Linearises at ``(x_eq, model.u_eq)`` (default ``model.x_eq``) and returns ``(LQRResult, (A, B, Ad, Bd))``;
-    ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``. With a control period of ``steps > 1`` physics steps,
-    ``Ad``, ``Bd`` are the exact discrete model over that hold (:meth:`~cartpole.models.CartPoleModel.hold`) and the
-    gain is ``dlqr(Ad, Bd, Q T, R T)`` (``T`` the period in s), whatever ``discrete`` says. A model with dry friction
-    is linearised without it (:meth:`~cartpole.models.CartPoleModel.without_friction`).
-    """
-    from cartpole.lqr import dlqr, lqr
-
-    x_eq = model.x_eq if x_eq is None else x_eq
-    model = model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
-    A, B = model.linearize(x_eq, model.u_eq)
-    if steps > 1:
-        T = steps * model.dt
-        Ad, Bd = model.hold(steps).linearize(x_eq, model.u_eq)
-        return dlqr(Ad, Bd, np.asarray(Q, float) * T, np.asarray(R, float) * T), (A, B, Ad, Bd)
-    Ad, Bd = model.linearize(x_eq, model.u_eq, discrete=True)
-    res = dlqr(Ad, Bd, Q, R) if discrete else lqr(A, B, Q, R)
-    return res, (A, B, Ad, Bd)
-
-
 def starts_in_band(x0s, x_eq, hinges, *, band: float = UPRIGHT_TOL) -> tuple:
     """Per start: every pole angle within ``band`` of upright already at t = 0.
 
@@ -587,7 +564,7 @@ def why_not_settled(lab: "LabResult") -> tuple:
 def lab_friction(model, compensated: bool) -> list:
     """What the lab's LQR design did with the MJCF's dry friction (JSON ``smoothed_friction``).
 
-    :func:`design` linearises at rest without any ``frictionloss`` (there the smooth model's slope would be a viscous
+    :meth:`~cartpole.control.linear.LinearFeedback.for_model` linearises at rest without any ``frictionloss`` (there the smooth model's slope would be a viscous
     damping the sticking joint does not have): every joint with friction is ``omitted``, the driven ones
     ``cancelled`` when the runs compensate them (:func:`~cartpole.control.friction.friction_design`).
 
@@ -644,12 +621,19 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, ri
 
 
 def _lab_controller(model, Q, R, *, discrete: bool = False, steps: int = 1):
-    """``(LinearFeedback, LQRResult, (A, B, Ad, Bd), x_eq)`` of the lab's design about :func:`lab_equilibrium`."""
+    """``(LinearFeedback, (A, B, Ad, Bd), x_eq)`` of the lab's design about :func:`lab_equilibrium`
+    (:meth:`~cartpole.control.linear.LinearFeedback.for_model`: the law carries ``K``, ``S``, ``E``), with the
+    linearisation it was designed on: ``Ad``, ``Bd`` over the control period of
+    ``steps`` physics steps, the model without dry friction (it has no slope at rest)."""
     from cartpole.control.linear import LinearFeedback
 
     x_eq = lab_equilibrium(model)
-    res, mats = design(model, Q, R, discrete=discrete, x_eq=x_eq, steps=steps)
-    return LinearFeedback(res.K, x_eq, model.u_eq, S=res.S, hinges=model.hinges), res, mats, x_eq
+    period = None if steps == 1 else steps * model.dt
+    ctrl = LinearFeedback.for_model(model, Q, R, discrete=discrete, period=period, x_eq=x_eq, u_limits=None)
+    smooth = model.without_friction()
+    A, B = linearize(smooth, x_eq, smooth.u_eq)
+    Ad, Bd = linearize(smooth, x_eq, smooth.u_eq, period=steps * model.dt)
+    return ctrl, (A, B, Ad, Bd), x_eq
 
 
 def _runs_label(model, duration: float, runs: int = 5) -> str:
@@ -713,11 +697,11 @@ def lab_start_scale(mjcf=None) -> float:
 
 def _start_scale(mjcf=None) -> tuple:
     """``(scale, reason)`` of :func:`lab_start_scale` (``reason`` None at full size)."""
-    from cartpole.lqr import lab_weights
+    from cartpole.riccati import lab_weights
 
     model = _model(mjcf)
-    ctrl, res, mats, x_eq = _lab_controller(model, *lab_weights(model))
-    scale, _, reason = _search_scale(model, ctrl, res, mats, x_eq)
+    ctrl, mats, x_eq = _lab_controller(model, *lab_weights(model))
+    scale, _, reason = _search_scale(model, ctrl, ctrl, mats, x_eq)
     return scale, reason
 
 
@@ -732,10 +716,10 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     mjcf : path, CartPoleParams or CartPoleModel, optional
         Model to balance (default the shipped single-pole asset).
     Q : (nx, nx) array, optional
-        State weights (default :func:`~cartpole.lqr.lab_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
-        for one pole the lab's ``diag(1, 10, 0.1, 0.1)``, :data:`~cartpole.lqr.Q_LAB`).
+        State weights (default :func:`~cartpole.riccati.lab_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
+        for one pole the lab's ``diag(1, 10, 0.1, 0.1)``, :data:`~cartpole.riccati.Q_LAB`).
     R : (nu, nu) array or float, optional
-        ctrl weights (default 0.1 per input; the lab's :data:`~cartpole.lqr.R_LAB` for one).
+        ctrl weights (default 0.1 per input; the lab's :data:`~cartpole.riccati.R_LAB` for one).
     discrete : bool
         Design on the exact discrete model ``(Ad, Bd)`` at the MJCF's time step (``dlqr``) instead of ``(A, B)``.
     duration : float, s
@@ -749,7 +733,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     loop : LoopOptions, optional
         The rig the runs have (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
         estimator, noise seed; its duration, when given, replaces ``duration``). K is designed for the period
-        (:func:`design`); the starts are still :func:`lab_start_scale`'s, found on the perfect loop.
+        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`); the starts are still :func:`lab_start_scale`'s, found on the perfect loop.
     plan_model : CartPoleModel, optional
         Design K (and its equilibrium) on this model while MuJoCo runs ``mjcf`` (``--plan-mjcf``: e.g. a fitted
         MJCF); the settling metrics are measured from ``mjcf``'s own upright. Default: design on ``mjcf``.
@@ -763,7 +747,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     MJCFError, LQRError, LabError
         Bad MJCF, weights, or a model the lab cannot balance.
     """
-    from cartpole.lqr import lab_weights
+    from cartpole.riccati import lab_weights
 
     from cartpole.models import steps_per_period
     from cartpole.sim.rig import build_rig
@@ -787,7 +771,8 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
            and plan_model is None and not friction.compensated)
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
-    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(friction.model, Q, R, discrete=discrete, steps=steps)
+    ctrl, (A, B, Ad, Bd), x_eq = _lab_controller(friction.model, Q, R, discrete=discrete, steps=steps)
+    res = ctrl  # K, S, E of the design
     ctrl = friction.wrap(ctrl)
     reason = None
     if start_scale is None and own:  # the scale search's runs are this lab's runs

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.lqr import dlqr, lqr
+from cartpole.riccati import dlqr, lqr
 from cartpole.models import state_error
 from cartpole.sim import Rollout, simulate
 from cartpole.viz.web import LOCALHOST, Knob, WebLive
@@ -139,13 +139,12 @@ class LQRTuner:
 
     def design(self, Q, R):
         """The LQR for weights ``Q``, ``R`` on the lab's exact linearisation, as the lab designs it
-        (:func:`cartpole.apps.lab.design`): ``dlqr(Ad, Bd, Q T, R T)`` over a control period of several steps,
-        ``dlqr(Ad, Bd, Q, R)`` when the lab is discrete, else ``lqr(A, B, Q, R)``."""
+        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`, on the lab's stored linearisation so that a
+        slider does not rebuild the model): ``dlqr(Ad, Bd, Q T, R T)`` when the lab is discrete (``T`` its control
+        period: the package's one cost scaling, :mod:`cartpole.riccati.algebraic`), else ``lqr(A, B, Q, R)``."""
         lab = self.lab
-        if self.steps > 1:
+        if self.steps > 1 or lab.discrete:
             return dlqr(lab.Ad, lab.Bd, Q * lab.period, R * lab.period)
-        if lab.discrete:
-            return dlqr(lab.Ad, lab.Bd, Q, R)
         return lqr(lab.A, lab.B, Q, R)
 
 

@@ -9,7 +9,7 @@
 * ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
   the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
   estimate_basin`), then an LQR catch (the lab's Q with R = 1,
-  :func:`~cartpole.control.switching.swingup_catch`, whose verified basin is about five times the lab LQR's), with
+  :meth:`~cartpole.control.linear.LinearFeedback.for_model` with ``R =`` :data:`~cartpole.control.switching.SWINGUP_CATCH_R`, whose verified basin is about five times the lab LQR's), with
   hysteresis (:class:`~cartpole.control.switching.SwitchingController`). One pole on a cart driven by the cart
   only: any other model is refused with the controller's one sentence, before anything runs;
 * ``trajopt``: direct collocation + TVLQR (:func:`cartpole.planning.trajopt.trajopt_swingup`) for the chosen
@@ -519,7 +519,7 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
         of its field names); default its defaults.
     catch_weights : (Q, R), optional
         LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
-        (:func:`~cartpole.control.switching.swingup_catch`; the lab's ``R = 0.1`` gives a much smaller basin).
+        (:data:`~cartpole.control.switching.SWINGUP_CATCH_R`; the lab's ``R = 0.1`` gives a much smaller basin).
         Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR. Energy method only: the trajopt hand-over is
         :func:`cartpole.planning.trajopt.handover_catch`.
     plan_model : CartPoleModel, optional
@@ -821,9 +821,10 @@ def _run_supervisor(ctx: _Context, plan) -> _Ran:
 
 def _run_energy(ctx: _Context, energy, catch_weights) -> _Ran:
     """Energy shaping with the LQR catch in its MuJoCo-estimated basin, switching with hysteresis."""
-    from cartpole.control.switching import SwitchingController, swingup_catch
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
 
-    catch = swingup_catch(ctx.pm, *(catch_weights or ()), period=ctx.loop.period)
+    catch = LinearFeedback.for_model(ctx.pm, *(catch_weights or (None, SWINGUP_CATCH_R)), period=ctx.loop.period)
     basin = ctx.basin_of(catch)
     switching = SwitchingController(energy, catch, basin.rho)
     T = ENERGY_DURATION if ctx.loop.duration is None else ctx.loop.duration

@@ -35,12 +35,12 @@ import casadi as ca
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
-from cartpole.lqr import dlqr, lab_weights
+from cartpole.riccati import dlqr, lab_weights
 from cartpole.models import CartPoleModel, CartPoleParams, build_model
 from cartpole.mpc.nmpc import SAFE_LQR_ANGLE, NMPCError
 from cartpole.mpc.options import MPCOptions, mpc_grid
 from cartpole.ocp.bounds import bounds_from_params
-from cartpole.lqr.riccati import LQRError
+from cartpole.riccati.algebraic import LQRError
 from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.objectives import make_objective, tracking_cost
 from cartpole.ocp.trajectory import Trajectory
@@ -238,7 +238,7 @@ def objective_cost_to_go(model: CartPoleModel, Ad, Bd, running, period: float, S
     (S, source)
         ``source`` ``"objective"`` or ``"lqr scaled"``.
     """
-    from cartpole.lqr import dlqr
+    from cartpole.riccati import dlqr
 
     nx, nu = model.nx, model.nu
     z = ca.SX.sym("z", nx + nu)

@@ -20,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.control.energy import EnergyShapingController, energy_rollout
-from cartpole.control.switching import SwitchingController, lab_catch
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import SwitchingController
 from cartpole.models import CartPoleModel, build_model
 from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model
 from cartpole.ocp.trajectory import Trajectory
@@ -297,7 +298,7 @@ def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controlle
     if controller is None:
         controller = EnergyShapingController(model)
         if catch:
-            c = lab_catch(model)
+            c = LinearFeedback.for_model(model)
             # Without a MuJoCo basin estimate use a small, safe level: 10 % of the cost of a 0.2 rad tilt.
             tilt = np.zeros(model.nx)
             tilt[model.hinges[0]] = 0.2

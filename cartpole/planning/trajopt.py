@@ -29,8 +29,8 @@ import numpy as np
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
-from cartpole.lqr.tvlqr import reference as _on_step_grid
+from cartpole.riccati import TVLQRGains, dlqr, lab_weights, tvlqr
+from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, steps_per_period
 from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
 from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
@@ -228,7 +228,7 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
              u_low + m <= u_k <= u_high - m  (m = u_margin * half each ctrl range),  joint bounds on every x_k,
 
     on the plan's step grid (``n = round(T / dt)`` steps), started from the plan itself (its zero-order-hold
-    inputs, :func:`cartpole.lqr.tvlqr.reference`), so the result is as near the plan as the exact discrete
+    inputs, :func:`cartpole.riccati.tvlqr.reference`), so the result is as near the plan as the exact discrete
     dynamics allow and leaves feedback a ctrl margin.
 
     Parameters
@@ -577,7 +577,7 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
     """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
     (``dt = params.timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps * params.timestep``, a
     control period), of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
-    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`. Designed without
+    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.riccati.lab_weights`. Designed without
     the model's dry friction (:meth:`~cartpole.models.CartPoleModel.without_friction`).
 
     The catch basin ``cartpole swingup --method trajopt`` reports is this controller's.

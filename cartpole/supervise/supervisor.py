@@ -33,7 +33,7 @@ import numpy as np
 from cartpole.control import LinearFeedback
 from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError, check_single_pole
 from cartpole.control.model_rollout import model_rollout
-from cartpole.control.switching import swingup_catch
+from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.options import OptionsError, StageOptions
@@ -321,7 +321,7 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
     Supervisor
     """
     model = build_model(params) if model is None else model
-    catch = swingup_catch(model, period=period)
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
     if basin_of is None:
         cache = BasinCache.on_disk() if basin_cache is None else basin_cache
         rho = cache.get(params, catch).rho

@@ -43,7 +43,6 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
-from cartpole.control.switching import lab_catch
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, build_model, read_params, state_error
 from cartpole.progress import stage
@@ -240,7 +239,7 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
         The model, any number of poles and actuators (None = shipped asset).
     catch : LinearFeedback, optional
         Catch with ``S``; default the lab LQR about the model's ``x_eq`` on the exact linearisation
-        (:func:`~cartpole.control.switching.lab_catch`).
+        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`).
     n : int
         Number of samples.
     seed : int
@@ -262,7 +261,7 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
     """
     params = source if isinstance(source, CartPoleParams) else read_params(source)
     if catch is None:
-        catch = lab_catch(build_model(params))
+        catch = LinearFeedback.for_model(params)
     if catch.S is None:
         raise BasinError("The catch has no cost-to-go matrix S; build it with LinearFeedback(K, S=S).")
     if int(n) < 1 or not (duration > 0) or not (0 < safety_factor <= 1) or not (level > 0):
@@ -435,7 +434,7 @@ class BasinCache:
         machine)."""
         params = source if isinstance(source, CartPoleParams) else read_params(source)
         if catch is None:
-            catch = lab_catch(build_model(params))
+            catch = LinearFeedback.for_model(params)
         if catch.S is None:
             raise BasinError("The catch has no cost-to-go matrix S; build it with LinearFeedback(K, S=S).")
         key = basin_key(params, catch, **kwargs)

@@ -8,7 +8,7 @@ import pytest
 from cartpole.apps.lab import run_lab
 from cartpole.apps.live import LQRTuner
 from cartpole.errors import CartPoleError
-from cartpole.lqr import lqr
+from cartpole.riccati import lqr
 
 
 @pytest.fixture(scope="module")

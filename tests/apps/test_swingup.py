@@ -201,7 +201,7 @@ def test_dmc_swingup_objective_earns_more_return_than_the_minimum_time_plan(tmp_
 def test_trajopt_reports_the_basin_of_the_hand_over_controller():
     """The basin run_swingup reports for trajopt is the hand-over LQR's (the controller that takes over), the same
     as one estimated directly for that controller; and it is not the energy method's catch (R = 1)."""
-    from cartpole.control.switching import swingup_catch
+    from cartpole.control import SWINGUP_CATCH_R, LinearFeedback
     from cartpole.planning.trajopt import handover_catch
     from cartpole.validation.basin import estimate_basin
 
@@ -211,7 +211,7 @@ def test_trajopt_reports_the_basin_of_the_hand_over_controller():
     direct = estimate_basin(params, catch)
     assert np.array_equal(res.basin.K, catch.K) and np.array_equal(res.basin.S, catch.S)
     assert res.basin.rho == pytest.approx(direct.rho, rel=1e-12)
-    assert not np.allclose(res.basin.K, swingup_catch(cp.build_model(params)).K)
+    assert not np.allclose(res.basin.K, LinearFeedback.for_model(cp.build_model(params), R=SWINGUP_CATCH_R).K)
     # the hand-over cost is measured with that controller's S, and the run enters its basin
     assert res.metrics["handover_cost"] < res.basin.rho
     print(f"\nhand-over LQR basin rho = {res.basin.rho:.4f}, hand-over cost {res.metrics['handover_cost']:.2e}")
@@ -235,13 +235,13 @@ def test_a_push_acts_for_a_tenth_of_a_second_is_logged_per_step_and_replays():
 
 
 def test_model_error_designs_energy_shaping_and_catch_on_the_scaled_model_while_mujoco_keeps_the_file():
-    from cartpole.control.switching import swingup_catch
+    from cartpole.control import SWINGUP_CATCH_R, LinearFeedback
 
     params = cp.read_params()
     res = run_swingup(params, method="energy", model_error=1.2, duration=6.0)
     wrong = cp.build_model(params.scaled_pole(1.2, 1.2))
-    np.testing.assert_array_equal(res.basin.K, swingup_catch(wrong).K)
-    assert not np.allclose(res.basin.K, swingup_catch(cp.build_model(params)).K)
+    np.testing.assert_array_equal(res.basin.K, LinearFeedback.for_model(wrong, R=SWINGUP_CATCH_R).K)
+    assert not np.allclose(res.basin.K, LinearFeedback.for_model(cp.build_model(params), R=SWINGUP_CATCH_R).K)
     assert res.model_error == 1.2 and res.rollout.mjcf == params.mjcf and replays_exactly(res.rollout, params)
 
 

@@ -5,7 +5,7 @@ import pytest
 
 import cartpole as cp
 from cartpole.control import FeedbackError, LinearFeedback
-from cartpole.lqr import LQRError, dlqr, lab_weights, lqr
+from cartpole.riccati import LQRError, dlqr, lab_weights, lqr
 from cartpole.models import state_error
 from cartpole.sim import replays_exactly, simulate
 

@@ -30,12 +30,12 @@ import time
 import casadi as ca
 import numpy as np
 
-from cartpole.lqr import lab_weights, tvlqr
+from cartpole.riccati import lab_weights, tvlqr
 from cartpole.models import build_model, mujoco_model, planning_limits, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
-from cartpole.lqr.tvlqr import reference as _on_step_grid
+from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.solvers.ddp import ddp_for_model
 from cartpole.solvers.sqp import CollocationSQP
 from cartpole.apps.bench.replay import replay_benchmark

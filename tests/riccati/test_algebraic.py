@@ -5,7 +5,7 @@ import pytest
 import scipy.linalg
 
 from cartpole import Q_LAB, R_LAB, build_model
-from cartpole.lqr import LQRError, dlqr, lqr
+from cartpole.riccati import LQRError, dlqr, lqr
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +137,7 @@ def _chain_model(name, chain_dir):
 
 @pytest.mark.parametrize("name", ["two_pole", "three_pole", "two_motors"])
 def test_chains_of_poles_and_two_motors_give_a_stable_loop_and_a_small_residual(name, chain_dir):
-    from cartpole.lqr import is_controllable, lab_weights
+    from cartpole.riccati import is_controllable, lab_weights
 
     model = _chain_model(name, chain_dir)
     nx, nu = model.nx, model.nu
@@ -162,7 +162,7 @@ def test_chains_of_poles_and_two_motors_give_a_stable_loop_and_a_small_residual(
 
 
 def test_uncontrollable_modes_are_named_and_a_scalar_R_means_r_identity():
-    from cartpole.lqr import is_controllable, uncontrollable_modes
+    from cartpole.riccati import is_controllable, uncontrollable_modes
 
     A = np.array([[-1.0, 0.0], [0.0, 1.0]])
     B = np.array([[0.0], [1.0]])
