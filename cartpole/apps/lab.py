@@ -33,14 +33,13 @@ an actuated cart, so on a chain it raises :class:`~cartpole.control.pid.PIDError
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, linearize, read_params, state_error, wrap_angle
+from cartpole.models import CartPoleModel, CartPoleParams, linearize, Plant, plant_model, state_error, wrap_angle
 from cartpole.progress import stage
 from cartpole.validation.metrics import STRICT_TOLERANCE, UPRIGHT_TOL
 
@@ -76,18 +75,12 @@ class LabError(CartPoleError):
     """The lab cannot be run on this model (e.g. its joint ranges exclude upright rest)."""
 
 
-def _model(source) -> CartPoleModel:
-    if isinstance(source, CartPoleModel):
-        return source
-    return build_model(source if isinstance(source, CartPoleParams) else read_params(source))
-
-
-def lab_equilibrium(source) -> np.ndarray:
+def lab_equilibrium(plant) -> np.ndarray:
     """The lab's upright rest ``x*`` (2 nq,): the model's computed equilibrium with the cart in the middle of its rail.
 
     Parameters
     ----------
-    source : CartPoleModel, CartPoleParams or MJCF path
+    plant : path, CartPoleParams, CartPoleModel or None
         The model (its ``x_eq``: every pole's centre of mass above its hinge, at rest).
 
     Returns
@@ -102,7 +95,7 @@ def lab_equilibrium(source) -> np.ndarray:
     LabError
         When a hinge's range excludes its upright angle.
     """
-    model = _model(source)
+    model = plant_model(plant)
     p = model.params
     x_eq = np.array(model.x_eq, dtype=float)
     for h in model.hinges:
@@ -128,7 +121,7 @@ def lab_equilibrium(source) -> np.ndarray:
     return readonly(x_eq)
 
 
-def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
+def lab_initial_conditions(plant, *, scale: float = 1.0) -> np.ndarray:
     """The lab's five starts (5, 2 nq), placed at the model's equilibrium and scaled into its joint ranges.
 
     The handout's offsets (:data:`LAB_OFFSETS`) go on the cart's slide and on the *first* pole's hinge
@@ -140,7 +133,7 @@ def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
 
     Parameters
     ----------
-    source : CartPoleModel, CartPoleParams or MJCF path
+    plant : path, CartPoleParams, CartPoleModel or None
     scale : float
         Factor on both offsets after the range scaling (:func:`run_lab`'s ``start_scale``; 1 = the handout's).
 
@@ -149,7 +142,7 @@ def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
     (5, 2 nq) read-only array
         One state ``[qpos, qvel]`` per row; for one pole ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]``.
     """
-    model = _model(source)
+    model = plant_model(plant)
     x_eq = lab_equilibrium(model)
     x0s = np.tile(x_eq, (len(LAB_OFFSETS), 1))
     joints = ((model.slide, LAB_OFFSETS[:, 0]), (model.hinges[0] if model.hinges else None, LAB_OFFSETS[:, 1]))
@@ -672,7 +665,7 @@ def _search_scale(model, ctrl, res, mats, x_eq, progress=None):
     return 1.0, first, None
 
 
-def lab_start_scale(mjcf=None) -> float:
+def lab_start_scale(plant=None) -> float:
     """The factor on the lab's five starts for this model: the largest of :data:`START_SCALES` (1, 1/2, ... 1/64)
     at which the ctrl limit keeps no start from settling under the lab's own LQR in :data:`LAB_DURATION` s.
 
@@ -684,7 +677,7 @@ def lab_start_scale(mjcf=None) -> float:
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
 
     Returns
     -------
@@ -692,20 +685,20 @@ def lab_start_scale(mjcf=None) -> float:
         1.0 on every shipped asset; 1.0 too when no factor clears the ctrl limit (the lab then reports its runs
         unsettled, saying why).
     """
-    return _start_scale(mjcf)[0]
+    return _start_scale(plant)[0]
 
 
 def _start_scale(mjcf=None) -> tuple:
     """``(scale, reason)`` of :func:`lab_start_scale` (``reason`` None at full size)."""
     from cartpole.riccati import lab_weights
 
-    model = _model(mjcf)
+    model = plant_model(mjcf)
     ctrl, mats, x_eq = _lab_controller(model, *lab_weights(model))
     scale, _, reason = _search_scale(model, ctrl, ctrl, mats, x_eq)
     return scale, reason
 
 
-def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, Q=None, R=None,
+def run_lab(plant: Plant = None, *, Q=None, R=None,
             discrete: bool = False, duration: float = LAB_DURATION, start_scale: float | None = None,
             progress: Callable[[float], None] | None = None, loop=None,
             plan_model: CartPoleModel | None = None) -> LabResult:
@@ -713,7 +706,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         Model to balance (default the shipped single-pole asset).
     Q : (nx, nx) array, optional
         State weights (default :func:`~cartpole.riccati.lab_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
@@ -754,7 +747,7 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
 
     from cartpole.control.friction import friction_design
 
-    plant = _model(mjcf)
+    plant = plant_model(plant)
     params = plant.params
     if loop is not None and loop.duration is not None:
         duration = loop.duration
@@ -848,7 +841,7 @@ class PIDLabResult(_LabRuns):
     metrics: tuple
 
 
-def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, x0s=None,
+def run_pid_lab(plant: Plant = None, *, x0s=None,
                 duration: float = LAB_DURATION, start_scale: float | None = None,
                 progress: Callable[[float], None] | None = None, rig=None, **tuning) -> PIDLabResult:
     """The lab's experiment with the cascaded PID instead of the LQR: one MuJoCo run per start.
@@ -861,7 +854,7 @@ def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None,
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         One pole on a cart driven by one motor on the slide (default the shipped asset).
     x0s : (k, 4) array, optional
         Starts ``[s, theta, s_dot, theta_dot]`` (default :func:`lab_initial_conditions` at ``start_scale``).
@@ -887,7 +880,7 @@ def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None,
     """
     from cartpole.control.pid import CascadedPID, tune_pid
 
-    model = _model(mjcf)
+    model = plant_model(plant)
     if rig is not None:  # designed for the rig's period (the PID reads the rig's estimate, as the LQR does)
         tuning = {"period": rig.period, **tuning}
     gains = tune_pid(model, **tuning)
@@ -964,7 +957,7 @@ def balances(result) -> bool:
     return all(np.isfinite(m.settling_time_seed) and not m.hit_limit and not m.diverged for m in result.metrics)
 
 
-def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = False, progress=None) -> dict:
+def delay_margin(plant=None, *, loop=None, max_delay: float = 0.1, pid: bool = False, progress=None) -> dict:
     """The largest delay (whole physics steps) at which the lab's controller still balances all five starts.
 
     The delays ``0, h, 2h, ...`` up to ``max_delay`` are tried in turn on the rig ``loop`` (its ``delay`` replaced)
@@ -972,7 +965,7 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     loop : LoopOptions, optional
         The rig (period, sensors, estimator, delay compensation); default the perfect loop.
     max_delay : float
@@ -987,7 +980,7 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     dict
         :func:`rig_margin`'s, with the setting ``delay`` (s).
     """
-    model = _model(mjcf)  # built once, for the step and for every run of the search
+    model = plant_model(plant)  # built once, for the step and for every run of the search
     h = float(model.dt)
     delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
     return rig_margin(model, loop=loop, setting="delay", values=delays, pid=pid, progress=progress)
@@ -997,14 +990,14 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
 NOISE_FRACTIONS = (0.0,) + tuple(2.0 ** -k for k in range(9, -1, -1))
 
 
-def noise_margin(mjcf=None, *, loop=None, max_noise: float = 0.05, pid: bool = False, progress=None) -> dict:
+def noise_margin(plant=None, *, loop=None, max_noise: float = 0.05, pid: bool = False, progress=None) -> dict:
     """The largest sensor noise (standard deviation, each sensor's units) at which the lab's controller still
     balances all five starts on the rig ``loop``: 0 and ``max_noise`` halved nine times to ``max_noise`` in turn
     (:data:`NOISE_FRACTIONS`), until one fails (:func:`rig_margin`, setting ``sensor_noise``).
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     loop : LoopOptions, optional
         The rig; it needs an estimator (default ``kf`` once a sensor option is given) and usually encoders.
     max_noise : float
@@ -1019,10 +1012,10 @@ def noise_margin(mjcf=None, *, loop=None, max_noise: float = 0.05, pid: bool = F
         :func:`rig_margin`'s, with the setting ``sensor_noise``.
     """
     values = [float(max_noise) * f for f in NOISE_FRACTIONS]
-    return rig_margin(mjcf, loop=loop, setting="sensor_noise", values=values, pid=pid, progress=progress)
+    return rig_margin(plant, loop=loop, setting="sensor_noise", values=values, pid=pid, progress=progress)
 
 
-def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False, progress=None) -> dict:
+def rig_margin(plant=None, *, loop=None, setting: str, values, pid: bool = False, progress=None) -> dict:
     """The largest value of one rig setting at which the lab's controller still balances all five starts.
 
     The ``values`` are tried in increasing order on the rig ``loop`` (``setting`` replaced by each) until one fails
@@ -1030,7 +1023,7 @@ def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False,
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     loop : LoopOptions, optional
         The rig; default the perfect loop.
     setting : str
@@ -1053,7 +1046,7 @@ def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False,
     """
     from cartpole.sim.options import LoopOptions
 
-    model = _model(mjcf)
+    model = plant_model(plant)
     loop = LoopOptions() if loop is None else loop
     values = [float(v) for v in values]
     out, tried = {"setting": setting}, set()

@@ -203,7 +203,7 @@ def watch_lab(lab, *, port: int = 0, host: str = LOCALHOST, duration: float | No
     return run, doc
 
 
-def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 30.0, port: int = 0,
+def watch(plant: str | Path | None = None, *, Q=None, R=None, duration: float = 30.0, port: int = 0,
           host: str = LOCALHOST, x0=None, wait: bool = True) -> Rollout:
     """Balance a cart-pole with the lab's LQR live in the browser (MuJoCo Studio's web viewer) and return the run.
 
@@ -214,7 +214,7 @@ def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 3
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (default the shipped one).
     Q, R : arrays, optional
         Starting weights (default the lab's).
@@ -237,7 +237,7 @@ def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 3
     """
     from cartpole.apps.lab import run_lab
 
-    lab = run_lab(mjcf, Q=Q, R=R)
+    lab = run_lab(plant, Q=Q, R=R)
     run, doc = watch_lab(lab, port=port, host=host, duration=duration, x0=x0, wait=wait)
     run.info["live"] = doc
     return run

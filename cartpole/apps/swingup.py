@@ -50,6 +50,7 @@ from cartpole.control.friction import friction_design, friction_summary
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, read_params,
                              start_on_range)
+from cartpole.models import plant_params
 from cartpole.sim import Rollout, simulate
 from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
                                   check_push_times, push_force)
@@ -481,7 +482,7 @@ LEGACY_KEYWORDS = {"duration": "loop", "push": "loop", "model_error": "loop", "o
                    "horizon": "mpc"}
 
 
-def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptions | None = None,
+def run_swingup(plant=None, *, method="auto", x0=None, plan=None, loop: LoopOptions | None = None,
                 mpc=None, energy_options=None, catch_weights: tuple | None = None,
                 plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
                 basin_cache=None, on_step=None, u_max=None, cart_max: float | None = None,
@@ -490,7 +491,7 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams, CartPoleModel or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The model (None = shipped asset): one pole on a cart for ``energy``, any chain for ``trajopt``.
     method : {"auto", "energy", "trajopt", "mpc"} or sequence of str or MethodTry
         ``"auto"`` (default): the methods :func:`auto_methods` chooses for the model, tried in turn until one
@@ -581,10 +582,10 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
              for stage in ("plan", "loop", "mpc")}
     auto = isinstance(method, str) and method == AUTO
     tries = None if auto else method_list(method)
-    if isinstance(mjcf, CartPoleModel):
-        model, params = mjcf, mjcf.params
+    if isinstance(plant, CartPoleModel):
+        model, params = plant, plant.params
     else:
-        params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+        params = plant_params(plant)
         model = None
     loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
     params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited

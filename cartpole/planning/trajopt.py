@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -31,7 +30,8 @@ from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.riccati import TVLQRGains, dlqr, lab_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, steps_per_period
+from cartpole.models import (CartPoleModel, CartPoleParams, Plant, build_model, plant_model, plant_params,
+                             steps_per_period)
 from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
 from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
@@ -598,14 +598,14 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
                           u_limits=np.asarray(params.ctrl_range, float), S=cat.S)
 
 
-def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
+def trajopt_swingup(plant: Plant = None, x0=None, *,
                     model: CartPoleModel | None = None, options: PlanOptions | None = None,
                     period: float | None = None, **settings) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (default the shipped asset), any number of poles and motors; its ctrlranges and joint
         ranges bound the plan, its timestep is the TVLQR step.
     x0 : (nx,) array, optional
@@ -654,7 +654,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
     opts = (PlanOptions() if options is None else options).replace(**settings)
-    return _plan(source, x0, plan_model=model, options=opts, period=period)
+    return _plan(plant, x0, plan_model=model, options=opts, period=period)
 
 
 def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
@@ -667,8 +667,8 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     use_sqp = solver == "sqp" or (solver == "auto" and solver_options is None)
     use_ddp = solver == "ddp"
     solver = "ipopt" if solver in ("auto", "sqp", "ddp") else solver
-    params = source if isinstance(source, CartPoleParams) else read_params(source)
-    plan_model = plan_model if plan_model is not None else build_model(params)
+    params = plant_params(source)
+    plan_model = plan_model if plan_model is not None else plant_model(source)
     Q0, R0 = lab_weights(plan_model)
     Q = Q0 if options.Q is None else np.asarray(options.Q, float)
     R = R0 if options.R is None else np.atleast_2d(np.asarray(options.R, float))
