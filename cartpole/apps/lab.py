@@ -239,7 +239,9 @@ class LabResult(_LabRuns):
         Absolute path of the MJCF run.
     params : CartPoleParams
     discrete : bool
-        True when K came from ``dlqr(Ad, Bd)`` at the MJCF's time step, else ``lqr(A, B)``.
+        True when K came from ``dlqr(Ad, Bd, Q T, R T)`` over the control period ``T`` (the package's one cost
+        scaling, :mod:`cartpole.riccati.algebraic`: ``S`` is then the continuous design's to first order in ``T``),
+        else ``lqr(A, B, Q, R)``.
     A, B : (nx, nx), (nx, nu) arrays
         Continuous linearisation at upright rest (1/s; state derivative per unit ctrl).
     Ad, Bd : (nx, nx), (nx, nu) arrays

@@ -256,8 +256,8 @@ def _plant_lqr(plant, Q, R, *, x, u) -> LQRResult:
     radius = float(np.abs(np.linalg.eigvals(Ad - Bd @ res.K)).max())
     if not radius < 1:
         raise LQRError(f"The continuous LQR gain is unstable when applied every {model.dt:g} s physics step "
-                       f"(closed-loop spectral radius {radius:.4g}); design it with dlqr (the exact discrete "
-                       "model) or raise R.")
+                       f"(closed-loop spectral radius {radius:.4g}); design it on the exact discrete model "
+                       "(dlqr, or discrete=True) or raise R.")
     return res
 
 
