@@ -142,9 +142,9 @@ class LinearFeedback:
         model = plant_model(plant)
         x_eq = model.x_eq if x_eq is None else np.asarray(x_eq, dtype=float)
         if discrete or steps_per_period(period, model.dt) > 1:
-            res = dlqr(model, Q, R, period=period, x=x_eq)
+            res = dlqr(model, Q=Q, R=R, period=period, x=x_eq)
         else:
-            res = lqr(model, Q, R, x=x_eq)
+            res = lqr(model, Q=Q, R=R, x=x_eq)
         lim = model.params.ctrl_range if isinstance(u_limits, str) and u_limits == "ctrlrange" else u_limits
         return cls(res.K, x_eq, model.u_eq, u_limits=lim, S=res.S, E=res.E, hinges=model.hinges)
 

@@ -228,7 +228,8 @@ def dlqr(A, B=None, Q=None, R=None, *, period: float | None = None, x=None, u=No
 
 def _plant_weights(B, Q, R) -> tuple:
     """``(Q, R)`` of a call on a plant, whether they came positionally (in the slots of ``B`` and ``Q``) or by
-    keyword."""
+    keyword: ``lqr(plant, Q, R)``, ``lqr(plant, Q, R=R)``, ``lqr(plant, Q=Q, R=R)``, ``lqr(plant, Q=Q)`` and
+    ``lqr(plant, R=R)`` all mean what they say (a lone weight in ``Q``'s slot is ``Q``)."""
     if B is not None and Q is not None and R is not None:
         raise LQRError("A design on a plant takes two weights, Q and R; call lqr(plant, Q, R) (or lqr(A, B, Q, R) "
                        "on matrices).")
