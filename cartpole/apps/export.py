@@ -197,7 +197,7 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
     """
     from cartpole.export import check_target, design_export, find_compiler, write_export
     from cartpole.export.design import CONTROLLERS
-    from cartpole.models import CartPoleModel, build_model, planning_limits, plant_model
+    from cartpole.models import build_model, planning_limits, plant_model
 
     check_target(out)
     find_compiler()
@@ -206,7 +206,7 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
 
         if mcu_tools() is None:
             cross_build({})  # its one sentence: install the ARM toolchain
-    model = plant if isinstance(plant, CartPoleModel) else plant_model(plant)
+    model = plant_model(plant)
     limits = None
     if CONTROLLERS.get(controller) == "swingup" or u_max is not None or cart_max is not None:
         params, limits = planning_limits(model.params, u_max=u_max, cart_max=cart_max)  # defaults where unlimited
