@@ -31,7 +31,7 @@ def test_energy_swingup_brings_the_pole_up_and_holds_it(any_mjcf):
     # the switch into the catch is at a MuJoCo state inside the estimated basin
     k = int(round(res.caught_at / r.dt))
     e = r.x[k].copy()
-    e[1] = cp.models.wrap_angle(e[1])
+    e[1] = cp.wrap_angle(e[1])
     assert e @ res.basin.S @ e < res.basin.rho
     assert len(res.metrics["switches"]) == 1
     print(f"\n{getattr(any_mjcf, 'name', any_mjcf)}: time to upright {res.metrics['time_to_upright']:.3f} s, "
@@ -180,7 +180,7 @@ def test_dmc_swingup_objective_earns_more_return_than_the_minimum_time_plan(tmp_
     path = tmp_path / "dmc_cartpole.xml"
     path.write_text(dmc_cartpole(1))
     model = cp.build_model(str(path))
-    cache = cp.validation.BasinCache()
+    cache = cp.BasinCache()
     for x0 in ([0.0, np.pi, 0.0, 0.0], [0.01, np.pi - 0.01, -0.01, 0.01]):
         got = {}
         for objective in ("dmc_swingup", "time"):
