@@ -28,7 +28,7 @@ import numpy as np
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.riccati import TVLQRGains, dlqr, lab_weights, tvlqr
+from cartpole.riccati import TVLQRGains, lab_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.models import (CartPoleModel, CartPoleParams, Plant, build_model, plant_model, plant_params,
                              steps_per_period)
@@ -580,22 +580,14 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
     clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.riccati.lab_weights`. Designed without
     the model's dry friction (:meth:`~cartpole.models.CartPoleModel.without_friction`).
 
-    The catch basin ``cartpole swingup --method trajopt`` reports is this controller's.
+    The catch basin ``cartpole swingup --method trajopt`` reports is this controller's. Designed by the one
+    constructor of the upright LQR, :meth:`~cartpole.control.linear.LinearFeedback.for_model` (``discrete=True``
+    over the period, on the planning model at the MJCF's step, clipped to the MJCF's ctrl ranges).
     """
     model = build_model(params) if model is None else model
-    Q0, R0 = lab_weights(model)
-    Q = Q0 if Q is None else np.asarray(Q, float)
-    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
     tv_model = model if abs(model.dt - params.timestep) < 1e-15 else model.rebuilt(dt=params.timestep)
-    tv_model = tv_model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
-    if steps > 1:
-        Ad, Bd = tv_model.hold(steps).linearize()
-    else:
-        Ad, Bd = tv_model.linearize(discrete=True)
-    dt = params.timestep * steps
-    cat = dlqr(Ad, Bd, Q * dt, R * dt)
-    return LinearFeedback(cat.K, tv_model.x_eq, tv_model.u_eq, hinges=tv_model.hinges,
-                          u_limits=np.asarray(params.ctrl_range, float), S=cat.S)
+    return LinearFeedback.for_model(tv_model, Q, R, discrete=True, period=params.timestep * steps,
+                                    u_limits=np.asarray(params.ctrl_range, float))
 
 
 def trajopt_swingup(plant: Plant = None, x0=None, *,
