@@ -97,7 +97,7 @@ mt = res.metrics
 print(f"success {res.success}; catch at {res.caught_at:.3f} s (cost e'Se = {mt['switches'][-1]['cost']:.4f} "
       f"< rho = {basin.rho:.4f}); upright from {mt['time_to_upright']:.3f} s; switches {len(mt['switches'])}")
 print(f"cart used [{mt['cart_min']:.2f}, {mt['cart_max']:.2f}] m of {params.cart_range.tolist()}; "
-      f"peak |ctrl| {mt['peak_ctrl']:.2f}; replays exactly: {replays_exactly(r)}")
+      f"peak |ctrl| {mt['peak_ctrl']:.2f}; replays exactly: {cp.replays_exactly(r)}")
 assert cp.replays_exactly(r), "the logged ctrl must replay the run exactly"
 assert res.success and cp.swingup_success(r, params), "the energy swing-up must end upright and at rest"
 assert res.caught_at is not None and mt["switches"][-1]["cost"] < basin.rho
@@ -237,9 +237,9 @@ deficit = -E_t[late].max()
 closest = np.rad2deg(np.abs(cp.wrap_angle(r_timid.qpos[late, 1])).min())
 print(f"timid k_E = 5: energy deficit over the last 5 s {1e3 * deficit:.2f} mJ "
       f"({100 * deficit / (2 * sc['mgl']):.2f} % of 2mgl); closest approach to upright {closest:.1f} deg; "
-      f"replays exactly: {replays_exactly(r_timid)}")
+      f"replays exactly: {cp.replays_exactly(r_timid)}")
 print(f"default law: max E {1e3 * E_d.max():.2f} mJ, first |theta| < 0.05 rad at "
-      f"{r_dflt.t[np.argmax(np.abs(wrap_angle(r_dflt.qpos[:, 1])) < 0.05)]:.2f} s")
+      f"{r_dflt.t[np.argmax(np.abs(cp.wrap_angle(r_dflt.qpos[:, 1])) < 0.05)]:.2f} s")
 assert cp.replays_exactly(r_timid) and cp.replays_exactly(r_dflt)
 assert deficit > 0 and closest > 1.0, "the timid law was expected to stall below the top"
 assert E_d.max() > 0 and np.any(np.abs(cp.wrap_angle(r_dflt.qpos[:, 1])) < 0.05), "the default law reaches the top"

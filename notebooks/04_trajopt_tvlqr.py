@@ -191,20 +191,20 @@ cases = {}
 factors = (0.9, 1.0, 1.1) if QUICK else (0.8, 0.9, 1.0, 1.1, 1.2)
 for f in factors:
     plan_params = params.scaled_pole(f, f)
-    spf = sp if f == 1.0 else cp.trajopt_swingup(params, x0, model=cp.build_model(plan_params))
+    spf = sp if f == 1.0 else cp.trajopt_swingup(params, x0, plan_model=cp.build_model(plan_params))
     rf = cp.simulate(params, spf.controller, x0, spf.T + cp.TRAJOPT_EXTRA)
     cases[f] = (spf, rf)
     mf = cp.swingup_metrics(rf, params)
     print(f"planned on pole x{f:.1f} (mass {plan_params.pole_mass:.3f} kg, COM {plan_params.pole_com_distance:.3f} m): "
-          f"T = {spf.T:.3f} s, success {swingup_success(rf, params)}, upright from "
+          f"T = {spf.T:.3f} s, success {cp.swingup_success(rf, params)}, upright from "
           f"{mf['time_to_upright'] if mf['time_to_upright'] is None else round(mf['time_to_upright'], 3)} s, "
           f"peak |ctrl| {mf['peak_ctrl']:.2f}, cart [{mf['cart_min']:.2f}, {mf['cart_max']:.2f}] m")
     if not cp.swingup_success(rf, params):
         last = rf.t >= rf.t[-1] - 1.0
-        print(f"    why not: held upright at rest over the last 1 s: {held_upright(rf)} (max |theta| "
-              f"{np.rad2deg(np.abs(wrap_angle(rf.qpos[last, 1])).max()):.2f} deg, max |s_dot| "
+        print(f"    why not: held upright at rest over the last 1 s: {cp.held_upright(rf)} (max |theta| "
+              f"{np.rad2deg(np.abs(cp.wrap_angle(rf.qpos[last, 1])).max()):.2f} deg, max |s_dot| "
               f"{np.abs(rf.qvel[last, 0]).max():.3f} m/s, max |theta_dot| {np.abs(rf.qvel[last, 1]).max():.3f} rad/s); "
-              f"cart clearance {track_margin(rf.qpos, params.cart_range):.2f} m")
+              f"cart clearance {cp.track_margin(rf.qpos, params.cart_range):.2f} m")
     if abs(f - 1.0) <= 0.1 + 1e-9:   # the claim below: a 10 % error in the pole is still swung up and held
         assert cp.swingup_success(rf, params) and cp.replays_exactly(rf), f"plan on pole x{f:.1f} failed in MuJoCo"
 
@@ -239,6 +239,6 @@ plt.show()
 # %%
 for name, r in [("nominal TVLQR", run), ("open loop", run_ol)] + [(f"planned on pole x{f:.1f}", rf) for f, (_, rf) in cases.items()]:
     again = cp.replay(params, r.x[0], r.ctrl)
-    print(f"{name:24s} {r.ctrl.shape[0]:5d} steps  replays_exactly: {replays_exactly(r)}  "
+    print(f"{name:24s} {r.ctrl.shape[0]:5d} steps  replays_exactly: {cp.replays_exactly(r)}  "
           f"max |replayed - logged| = {np.abs(again.x - r.x).max():.1e}")
     assert cp.replays_exactly(r) and np.array_equal(again.x, r.x)

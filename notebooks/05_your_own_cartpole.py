@@ -128,7 +128,7 @@ for method in ("energy", "trajopt"):
     results[method] = res
     mt = res.metrics
     print(f"{method:8s} success={res.success}  caught at {res.caught_at:.3f} s  "
-          f"time to upright {mt['time_to_upright']:.3f} s  replays exactly: {replays_exactly(res.rollout)}")
+          f"time to upright {mt['time_to_upright']:.3f} s  replays exactly: {cp.replays_exactly(res.rollout)}")
     assert res.success and cp.swingup_success(res.rollout, params) and cp.replays_exactly(res.rollout), method
     display(Image(str(cp.plot_swingup(res.rollout, params, OUT / f"swingup_{method}.png", plan=res.plan,
                                    caught_at=res.caught_at, model=model))))

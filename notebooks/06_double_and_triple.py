@@ -126,7 +126,7 @@ for n, model in models.items():
     runs[n] = (run, m)
     print(f"{n} poles: settled {m.settled} (strict settling {m.settling_time_strict:.2f} s), peak |ctrl| "
           f"{m.peak_ctrl:.2f}, time at the ctrl limit {100 * m.saturation_fraction:.1f} %, cart clearance "
-          f"{m.track_margin:.2f} m; replays exactly: {replays_exactly(run)}")
+          f"{m.track_margin:.2f} m; replays exactly: {cp.replays_exactly(run)}")
     assert m.settled and cp.replays_exactly(run), f"the {n}-pole cart did not balance from a 2 deg tilt"
     assert np.abs(model.state_error(run.x[-1])).max() < 0.01
 
@@ -178,7 +178,7 @@ import time
 plans = {}
 for n, model in models.items():
     tic = time.perf_counter()
-    plans[n] = cp.trajopt_swingup(model.params, model=model)
+    plans[n] = cp.trajopt_swingup(model.params, plan_model=model)
     sp = plans[n]
     info = sp.solve_info
     print(f"{n} poles: planned in {time.perf_counter() - tic:.1f} s: T_min = {sp.T_min:.3f} s, plan T = {sp.T:.3f} s, "
@@ -241,7 +241,7 @@ for n, sp in plans.items():
     print(f"{n} poles: success {met['success']}, upright at {met['time_to_upright']} s, peak |ctrl| "
           f"{np.abs(run.ctrl).max():.3f}, cart in [{run.qpos[:, model.slide].min():.2f}, "
           f"{run.qpos[:, model.slide].max():.2f}] m, final max |error| {err.max():.1e}; replays exactly: "
-          f"{replays_exactly(run)}")
+          f"{cp.replays_exactly(run)}")
     assert met["success"] and cp.replays_exactly(run)
     hold = run.t >= sp.T                            # the 3 s after the hand-over: within 0.05 rad of upright
     assert np.abs(model.state_error(run.x[hold])[:, model.hinges]).max() < 0.05

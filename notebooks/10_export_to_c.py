@@ -75,7 +75,7 @@ for real in ("double", "float"):
     runs[real] = cp.run_lockstep(design, ctl, x0, 3.0)
     shutil.rmtree(folder, ignore_errors=True)
     print(f"{real}: max |C - Python| = {runs[real].max_ctrl_diff:.3g}, replays exactly: "
-          f"{replays_exactly(runs[real].rollout)}")
+          f"{cp.replays_exactly(runs[real].rollout)}")
 assert runs["double"].max_ctrl_diff <= 1e-9 and cp.replays_exactly(runs["float"].rollout)
 
 fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)

@@ -853,7 +853,7 @@ def _run_trajopt(ctx: _Context, plan) -> _Ran:
 
     if ctx.progress is not None:
         ctx.progress("trajopt", 0.0)
-    sp = trajopt_swingup(ctx.params, x0=tuple(ctx.x0), model=ctx.pm, options=plan, period=ctx.loop.period)
+    sp = trajopt_swingup(ctx.params, x0=tuple(ctx.x0), plan_model=ctx.pm, options=plan, period=ctx.loop.period)
     if ctx.progress is not None:
         ctx.progress("trajopt", 1.0)
     trajectory = sp.trajectory

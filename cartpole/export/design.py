@@ -162,7 +162,7 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
 
         start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
         kw = {} if plan is None else {"options": plan}
-        sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), model=model,
+        sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), plan_model=model,
                              period=None if steps == 1 else period, **kw)
         tv = sp.controller
         plan_end = float(sp.trajectory.t[-1] - sp.trajectory.t[0])

@@ -299,5 +299,5 @@ def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | N
     plan = seed_plan_options(PlanOptions(cart_margin=options.cart_margin) if plan is None else plan, options)
     model = build_model(params) if model is None else model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-    guess = trajopt_swingup(params, x0=x0, model=model, options=plan).trajectory if options.seed_plan else None
+    guess = trajopt_swingup(params, x0=x0, plan_model=model, options=plan).trajectory if options.seed_plan else None
     return DDPMPCController(model, params, options=options, guess=guess, x0=x0)

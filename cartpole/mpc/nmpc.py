@@ -637,5 +637,5 @@ def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None
     plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
     model = build_model(params) if model is None else model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-    sp = trajopt_swingup(params, x0=x0, model=model, options=plan)
+    sp = trajopt_swingup(params, x0=x0, plan_model=model, options=plan)
     return NMPCController(model, params, options=options, guess=sp.trajectory, x0=x0)

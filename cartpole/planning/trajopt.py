@@ -591,7 +591,7 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
 
 
 def trajopt_swingup(plant: Plant = None, x0=None, *,
-                    model: CartPoleModel | None = None, options: PlanOptions | None = None,
+                    plan_model: CartPoleModel | None = None, options: PlanOptions | None = None,
                     period: float | None = None, **settings) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
@@ -604,7 +604,7 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
         Start state ``[qpos, qvel]`` (default hanging at rest, the planning model's ``x_hanging``). The plan
         ends at the planning model's upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
         nearest).
-    model : CartPoleModel, optional
+    plan_model : CartPoleModel, optional
         Model used for planning and TVLQR; default the MJCF's own. Give a deliberately wrong one (e.g.
         ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
     options : PlanOptions, optional
@@ -646,7 +646,7 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
     opts = (PlanOptions() if options is None else options).replace(**settings)
-    return _plan(plant, x0, plan_model=model, options=opts, period=period)
+    return _plan(plant, x0, plan_model=plan_model, options=opts, period=period)
 
 
 def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,

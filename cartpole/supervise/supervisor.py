@@ -337,6 +337,6 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
 
         def planner(x0):
-            return trajopt_swingup(params, x0=tuple(x0), model=model, options=plan_opts, period=period)
+            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period)
         return Supervisor(model, catch, rho, brake, planner=planner, options=opts)
     return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts)

@@ -251,7 +251,7 @@ def test_trajopt_with_model_error_plans_and_tracks_on_the_scaled_model():
     params = cp.read_params()
     wrong = cp.build_model(params.scaled_pole(0.8, 0.8))
     res = run_swingup(params, method="trajopt", model_error=0.8, push=[(0.3, 5.0)])
-    direct = trajopt_swingup(params, model=wrong)
+    direct = trajopt_swingup(params, plan_model=wrong)
     np.testing.assert_allclose(res.plan.x, direct.trajectory.x, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(res.basin.K, handover_catch(params, wrong).K)
     assert replays_exactly(res.rollout, params)

@@ -43,7 +43,7 @@ def swingup(params, model):
 
 @pytest.fixture(scope="module")
 def tvlqr_plan(params, model):
-    return trajopt_swingup(params, x0=model.x_hanging, model=model)
+    return trajopt_swingup(params, x0=model.x_hanging, plan_model=model)
 
 
 @pytest.fixture(scope="module")

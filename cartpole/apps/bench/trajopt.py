@@ -490,7 +490,7 @@ def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progre
         for _ in range(max(1, int(repeats))):
             tic = time.perf_counter()
             params, limits = planning_limits(read_params(path), u_max=u_max, cart_max=cart_max)
-            sp = trajopt_swingup(params, model=build_model(params))
+            sp = trajopt_swingup(params, plan_model=build_model(params))
             toc = time.perf_counter()
             run = simulate(params, sp.controller, sp.model.x_hanging, sp.T + 3.0)
             ok = replays_exactly(run, params)
