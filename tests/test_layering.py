@@ -25,8 +25,8 @@ Layers, lowest first; a module may import its own layer and the layers below it,
 
 Besides: no import cycles between modules; only ``cartpole/__init__.py`` imports the package top ``cartpole``
 (nothing below it takes defaults from there); only apps and commands import ``cartpole.viz`` (the package
-top names its figures only lazily, by module name: PEP 562, no import statement); outside ``cartpole.models`` model things come from the package ``cartpole.models``, never from its
-modules, so models/ can be reorganised inside; no private name (``_name``) crosses a module boundary: neither
+top names its figures only lazily, by module name: PEP 562, no import statement); outside ``cartpole.models``
+model things come from the package ``cartpole.models``, never from its modules, so models/ can be reorganised inside; no private name (``_name``) crosses a module boundary: neither
 ``from x import _name`` nor ``x._name`` on an imported module, in the package (tests may).
 
 How an import names its target: ``import a.b`` names ``a.b``; ``from a.b import c`` names ``a.b.c`` when that is a

@@ -1,6 +1,7 @@
 """The package top is the API: its names import on first use (so the command line starts without NumPy, SciPy,
 CasADi or MuJoCo), resolve to what they always were, no module shares a name with them (the LQR subpackage is
-``cartpole.riccati``, so the function ``lqr`` needs no module-class patch), and the README's quick start runs; ``cartpole sweep --workers 2`` starts its fork server before the heavy imports."""
+``cartpole.riccati``, so the function ``lqr`` needs no module-class patch), and the README's quick start runs;
+``cartpole sweep --workers 2`` starts its fork server before the heavy imports."""
 import json
 import subprocess
 import sys

@@ -97,7 +97,8 @@ def catch_level(model, loop) -> float:
         raise ExportError(f"Energy shaping drives one pole on a cart and this model has {len(model.hinges)} "
                           "hinges; export --controller tvlqr (or lqr) instead.") from None
     period = None if loop is None else loop.period
-    return float(BasinCache.on_disk().get(model.params, LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)).rho)
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
+    return float(BasinCache.on_disk().get(model.params, catch).rho)
 
 
 def task_success(design, rollout) -> bool:

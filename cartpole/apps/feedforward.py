@@ -339,7 +339,8 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
             plan = trajopt_swingup(design.params, plan_model=design, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
         wrong = plan if f == 0.0 else trajopt_swingup(
-            params, plan_model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model, options=options,
+            params, plan_model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model,
+            options=options,
             period=period)
         tick(1.0)
 

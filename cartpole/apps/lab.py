@@ -559,8 +559,8 @@ def why_not_settled(lab: "LabResult") -> tuple:
 def lab_friction(model, compensated: bool) -> list:
     """What the lab's LQR design did with the MJCF's dry friction (JSON ``smoothed_friction``).
 
-    :meth:`~cartpole.control.linear.LinearFeedback.for_model` linearises at rest without any ``frictionloss`` (there the smooth model's slope would be a viscous
-    damping the sticking joint does not have): every joint with friction is ``omitted``, the driven ones
+    :meth:`~cartpole.control.linear.LinearFeedback.for_model` linearises at rest without any ``frictionloss``
+    (there the smooth model's slope would be a viscous damping the sticking joint does not have): every joint with friction is ``omitted``, the driven ones
     ``cancelled`` when the runs compensate them (:func:`~cartpole.control.friction.friction_design`).
 
     Parameters
@@ -728,7 +728,8 @@ def run_lab(plant: Plant = None, *, Q=None, R=None,
     loop : LoopOptions, optional
         The rig the runs have (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
         estimator, noise seed; its duration, when given, replaces ``duration``). K is designed for the period
-        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`); the starts are still :func:`lab_start_scale`'s, found on the perfect loop.
+        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`); the starts are still :func:`lab_start_scale`'s,
+        found on the perfect loop.
     plan_model : CartPoleModel, optional
         Design K (and its equilibrium) on this model while MuJoCo runs ``mjcf`` (``--plan-mjcf``: e.g. a fitted
         MJCF); the settling metrics are measured from ``mjcf``'s own upright. Default: design on ``mjcf``.

@@ -9,7 +9,8 @@
 * ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
   the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
   estimate_basin`), then an LQR catch (the lab's Q with R = 1,
-  :meth:`~cartpole.control.linear.LinearFeedback.for_model` with ``R =`` :data:`~cartpole.control.switching.SWINGUP_CATCH_R`, whose verified basin is about five times the lab LQR's), with
+  :meth:`~cartpole.control.linear.LinearFeedback.for_model` with ``R =``
+  :data:`~cartpole.control.switching.SWINGUP_CATCH_R`, whose verified basin is about five times the lab LQR's), with
   hysteresis (:class:`~cartpole.control.switching.SwitchingController`). One pole on a cart driven by the cart
   only: any other model is refused with the controller's one sentence, before anything runs;
 * ``trajopt``: direct collocation + TVLQR (:func:`cartpole.planning.trajopt.trajopt_swingup`) for the chosen

@@ -20,11 +20,11 @@ class SwitchingError(CartPoleError):
     """Bad switching level (rho not positive, release factor not above 1, catch without S)."""
 
 
-#: Input weight of the swing-up's catch on MuJoCo ctrl: ``LinearFeedback.for_model(plant, R=SWINGUP_CATCH_R)``. The lab's
-#: R = 0.1 asks for more ctrl than the motor has as soon as the pole is a few degrees off, so the catch saturates and
-#: its MuJoCo-verified basin is small (rho ~ 0.13 on the shipped asset); R = 1 keeps the catch inside the ctrl range
-#: over a much larger set, and the same sampled estimate certifies rho ~ 0.64 (every model of the test suite: 0.41
-#: to 0.65).
+#: Input weight of the swing-up's catch on MuJoCo ctrl: ``LinearFeedback.for_model(plant, R=SWINGUP_CATCH_R)``.
+#: The lab's R = 0.1 asks for more ctrl than the motor has as soon as the pole is a few degrees off, so the catch
+#: saturates and its MuJoCo-verified basin is small (rho ~ 0.13 on the shipped asset); R = 1 keeps the catch inside
+#: the ctrl range over a much larger set, and the same sampled estimate certifies rho ~ 0.64 (every model of the test
+#: suite: 0.41 to 0.65).
 SWINGUP_CATCH_R = 1.0
 
 

@@ -121,4 +121,5 @@ def test_basin_of_a_pole_built_off_vertical_is_sampled_around_its_x_eq(chain_dir
     assert abs(np.mean(b.samples[:, 1]) - model.x_eq[1]) < 0.2
     assert b.rho > 0 and np.all(b.success[b.costs < b.rho])
     from cartpole.validation.basin import catch_succeeds
-    assert catch_succeeds(path, LinearFeedback.for_model(model), [model.x_eq], 2.0).tolist() == [True]  # x_eq itself is a rest
+    # x_eq itself is a rest
+    assert catch_succeeds(path, LinearFeedback.for_model(model), [model.x_eq], 2.0).tolist() == [True]

@@ -64,8 +64,8 @@ def swingup_sweep(plant=None, *, method: str = "energy", n: int = 20, seed: int 
     duration : float, optional
         Simulated seconds per run (default that of :func:`~cartpole.apps.swingup.run_swingup`).
     catch_weights : (Q, R), optional
-        LQR weights of the catch (default the lab's ``Q`` and :data:`~cartpole.control.switching.SWINGUP_CATCH_R`), passed to
-        :func:`~cartpole.apps.swingup.run_swingup`.
+        LQR weights of the catch (default the lab's ``Q`` and :data:`~cartpole.control.switching.SWINGUP_CATCH_R`),
+        passed to :func:`~cartpole.apps.swingup.run_swingup`.
     basin_cache : BasinCache, optional
         Reuse basin estimates across sweeps.
     progress : callable, optional
