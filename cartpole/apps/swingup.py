@@ -906,9 +906,9 @@ def _run_mpc(ctx: _Context, mpc, plan) -> _Ran:
     if mpc.solver == "ddp":
         from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
 
-        nmpc = ddp_mpc_swingup(ctx.params, x0=ctx.x0, model=ctx.pm, options=mpc, plan=plan)
+        nmpc = ddp_mpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
     else:
-        nmpc = nmpc_swingup(ctx.params, x0=ctx.x0, model=ctx.pm, options=mpc, plan=plan)
+        nmpc = nmpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
     if ctx.progress is not None:
         ctx.progress("mpc", 1.0)
     T = ctx.loop.duration

@@ -57,7 +57,7 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
 from cartpole.riccati import dlqr, lab_weights
-from cartpole.models import CartPoleModel, CartPoleParams, build_model
+from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.codegen import Buffered
 from cartpole.mpc.stage_functions import StageFunctions, stage_functions
@@ -595,7 +595,7 @@ def _stdout_to_stderr():
         os.close(saved)
 
 
-def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
+def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | None = None,
                  options: MPCOptions | None = None, plan=None, **settings) -> NMPCController:
     """A controller set up to swing up from ``x0`` and balance at ``model.x_eq``.
 
@@ -608,11 +608,11 @@ def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None
 
     Parameters
     ----------
-    params : CartPoleParams
+    plant : path, CartPoleParams, CartPoleModel or None
         The MJCF MuJoCo runs (bounds, ctrlranges, timestep).
     x0 : (nx,) array, optional
         Start state (default the planning model's hanging rest ``x_hanging``).
-    model : CartPoleModel, optional
+    plan_model : CartPoleModel, optional
         The planning model (default the MJCF's own); may be wrong on purpose (``build_model(params.scaled_pole(1.2))``).
     options : MPCOptions, optional
         The controller's settings (:class:`~cartpole.mpc.options.MPCOptions`); default ``MPCOptions()``.
@@ -631,11 +631,10 @@ def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None
     from cartpole.planning.options import PlanOptions
     from cartpole.planning.trajopt import trajopt_swingup
 
-    if not isinstance(params, CartPoleParams):
-        raise NMPCError("nmpc_swingup needs the CartPoleParams MuJoCo runs (cartpole.models.read_params(path)).")
+    params = plant_params(plant)
     options = (MPCOptions() if options is None else options).replace(**settings)
     plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
-    model = build_model(params) if model is None else model
+    model = plant_model(plant) if plan_model is None else plan_model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
     sp = trajopt_swingup(params, x0=x0, plan_model=model, options=plan)
     return NMPCController(model, params, options=options, guess=sp.trajectory, x0=x0)

@@ -30,7 +30,7 @@ from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.riccati import TVLQRGains, lab_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
-from cartpole.models import (CartPoleModel, CartPoleParams, Plant, build_model, plant_model, plant_params,
+from cartpole.models import (CartPoleModel, CartPoleParams, Plant, plant_model, plant_params,
                              steps_per_period)
 from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
 from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
@@ -572,11 +572,11 @@ def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, sta
     return traj, replace(info, start=info.start + 1, attempts=tried + (first,) + info.attempts)
 
 
-def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None, *,
+def handover_catch(plant: Plant = None, plan_model: CartPoleModel | None = None, Q=None, R=None, *,
                    steps: int = 1) -> LinearFeedback:
     """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
-    (``dt = params.timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps * params.timestep``, a
-    control period), of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
+    (``dt`` the plant's MJCF ``timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps *
+    timestep``, a control period), of ``plan_model`` (default the plant's own model) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
     clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.riccati.lab_weights`. Designed without
     the model's dry friction (:meth:`~cartpole.models.CartPoleModel.without_friction`).
 
@@ -584,7 +584,8 @@ def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q
     constructor of the upright LQR, :meth:`~cartpole.control.linear.LinearFeedback.for_model` (``discrete=True``
     over the period, on the planning model at the MJCF's step, clipped to the MJCF's ctrl ranges).
     """
-    model = build_model(params) if model is None else model
+    params = plant_params(plant)
+    model = plant_model(plant) if plan_model is None else plan_model
     tv_model = model if abs(model.dt - params.timestep) < 1e-15 else model.rebuilt(dt=params.timestep)
     return LinearFeedback.for_model(tv_model, Q, R, discrete=True, period=params.timestep * steps,
                                     u_limits=np.asarray(params.ctrl_range, float))

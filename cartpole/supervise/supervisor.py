@@ -35,7 +35,7 @@ from cartpole.control.energy import EnergyShapingController, EnergyShapingModelE
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
+from cartpole.models import CartPoleModel, Plant, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
@@ -294,7 +294,7 @@ class Supervisor:
                 "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho}
 
 
-def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *, period: float | None = None,
+def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
@@ -302,9 +302,9 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
 
     Parameters
     ----------
-    params : CartPoleParams
+    plant : path, CartPoleParams, CartPoleModel or None
         The MJCF MuJoCo runs (its ctrl ranges clip every law).
-    model : CartPoleModel, optional
+    plan_model : CartPoleModel, optional
         The planning model (default the MJCF's own).
     period : float, optional
         Control period in s (default every physics step); the catch and the plans' TVLQR are designed over it.
@@ -320,7 +320,8 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
     -------
     Supervisor
     """
-    model = build_model(params) if model is None else model
+    params = plant_params(plant)
+    model = plant_model(plant) if plan_model is None else plan_model
     catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
     if basin_of is None:
         cache = BasinCache.on_disk() if basin_cache is None else basin_cache
