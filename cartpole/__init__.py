@@ -4,17 +4,40 @@ Quick start::
 
     import cartpole as cp
     model = cp.build_model()                 # shipped MJCF -> symbolic CasADi model
-    A, B = model.linearize()                 # exact, at upright rest
+    A, B = cp.linearize(model)               # exact, at upright rest
     K, S, E = cp.lqr(A, B, cp.Q_LAB, cp.R_LAB)
+    K, S, E = cp.lqr(model)                  # the same design, on the plant (python-control's lqr(sys, Q, R))
+    catch = cp.LinearFeedback.for_model(model)
+    run = cp.simulate(model, catch, model.x_eq + [0, 0.1, 0, 0], 3.0)
 
-The names below are imported on first use (PEP 562), so that ``import cartpole`` (and the command line, which lives
+Every function that needs the cart-pole takes it as ``plant``: an MJCF or URDF path (None: the shipped asset), the
+:class:`CartPoleParams` of :func:`read_params`, or the :class:`CartPoleModel` of :func:`build_model`, alike.
+
+This package top is the API: a notebook imports from ``cartpole`` only (``import cartpole as cp``), for each
+workflow:
+
+- the model: :func:`build_model`, :func:`read_params`, :func:`linearize`, :func:`plant_model`, :func:`plant_params`;
+- LQR: :func:`lqr`, :func:`dlqr`, :func:`tvlqr`, :class:`LinearFeedback` (``LinearFeedback.for_model``, the one
+  constructor of the upright LQR);
+- the lab: :func:`run_lab`, :func:`run_pid_lab`, :func:`balances`, :func:`plot_lab`, :func:`watch`;
+- swing-up, plan and track: :func:`run_swingup`, :func:`trajopt_swingup`, :class:`EnergyShapingController`,
+  :class:`SwitchingController`, :class:`TVLQRController`, :func:`run_feedforward`;
+- simulate and replay: :func:`simulate`, :func:`replay`, :func:`replays_exactly`, :class:`Rollout`,
+  :class:`LoopOptions`;
+- the rig and estimation: :func:`sensor_spec`, :class:`KalmanFilter`; margins: :func:`sampled_loop`,
+  :func:`loop_margins`; identification: :func:`run_excite`, :func:`run_identify`;
+- export to C: :func:`run_export`, :func:`design_export`, :func:`load_design`, :func:`run_lockstep`;
+- proof and figures: :func:`swingup_success`, :func:`summarize`, :func:`check_jacobians`, :func:`plot_swingup`,
+  :func:`swingup_figure`, :func:`render_video`.
+
+The names are imported on first use (PEP 562), so that ``import cartpole`` (and the command line, which lives
 inside the package) costs almost nothing before a command knows what it needs: ``cartpole sweep --workers 2`` starts
-its workers' fork server while this process is still importing NumPy, SciPy, CasADi and MuJoCo.
+its workers' fork server while this process is still importing NumPy, SciPy, CasADi and MuJoCo. The LQR subpackage
+is :mod:`cartpole.riccati` (named for the equations it solves), so nothing shadows the function ``cartpole.lqr``.
 """
 import importlib
 import os
 import sys
-import types
 
 # Offscreen rendering needs MUJOCO_GL set before mujoco is first imported; default to headless EGL (works
 # with and without a display) unless the user chose a backend or already imported mujoco.
@@ -23,23 +46,44 @@ if "mujoco" not in sys.modules:
 
 __version__ = "0.1.0"
 
-#: Public name -> the module it comes from (a subpackage is its own module).
-_EXPORTS = {
-    "control": "cartpole.control", "models": "cartpole.models", "sim": "cartpole.sim",
-    "validation": "cartpole.validation",
-    "CartPoleError": "cartpole.errors",
-    "Q_LAB": "cartpole.lqr", "R_LAB": "cartpole.lqr", "LQRError": "cartpole.lqr", "dlqr": "cartpole.lqr",
-    "lqr": "cartpole.lqr",
-    "SHIPPED_MJCF": "cartpole.models", "CartPoleModel": "cartpole.models", "CartPoleParams": "cartpole.models",
-    "MJCFError": "cartpole.models", "build_model": "cartpole.models", "read_params": "cartpole.models",
-    "Rollout": "cartpole.sim", "replay": "cartpole.sim", "simulate": "cartpole.sim",
-    "watch": "cartpole.apps.live",
+#: The module each public name comes from, by workflow (a name is looked up there on first use).
+_SOURCES = {
+    "cartpole.errors": ("CartPoleError",),
+    "cartpole.models": ("SHIPPED_MJCF", "CartPoleModel", "CartPoleParams", "MJCFError", "Plant", "PlantError",
+                        "build_model", "linearize", "plant_model", "plant_params", "read_params", "wrap_angle"),
+    "cartpole.riccati": ("LQRError", "LQRResult", "Q_LAB", "R_LAB", "TVLQRGains", "dlqr", "is_controllable",
+                         "lab_weights", "lqr", "tvlqr"),
+    "cartpole.control": ("CascadedPID", "EnergyShapingController", "LinearFeedback", "SWINGUP_CATCH_R",
+                         "SwitchingController", "TVLQRController"),
+    "cartpole.control.energy": ("model_scales",),
+    "cartpole.estimation": ("KalmanFilter", "measurement_function", "sensor_spec"),
+    "cartpole.estimation.kalman": ("process_noise",),
+    "cartpole.analysis": ("continuous_loop", "loop_margins", "sampled_loop"),
+    "cartpole.sim": ("LoopOptions", "Rollout", "make_mujoco", "replay", "replays_exactly", "simulate"),
+    "cartpole.planning.trajopt": ("trajopt_swingup",),
+    "cartpole.export": ("design_export", "load_design", "run_lockstep"),
+    "cartpole.validation": ("BasinCache", "estimate_basin", "swingup_metrics", "swingup_success"),
+    "cartpole.validation.jacobians": ("check_jacobians", "mujoco_fd_jacobians", "random_states"),
+    "cartpole.validation.metrics": ("UPRIGHT_TOL", "held_upright", "summarize", "track_margin"),
+    "cartpole.viz": ("VideoUnavailable", "plot_lab", "plot_swingup", "render_frame", "render_video"),
+    "cartpole.viz.estimation_plot": ("estimation_figure",),
+    "cartpole.viz.feedforward_plot": ("plot_feedforward",),
+    "cartpole.viz.loop_plot": ("loop_figure",),
+    "cartpole.viz.swingup_plot": ("swingup_figure",),
+    "cartpole.apps.lab": ("balances", "run_lab", "run_pid_lab"),
+    "cartpole.apps.swingup": ("TRAJOPT_EXTRA", "run_swingup"),
+    "cartpole.apps.feedforward": ("PlanFeedforward", "run_feedforward"),
+    "cartpole.apps.margins": ("mujoco_stable",),
+    "cartpole.apps.excite": ("run_excite",),
+    "cartpole.apps.identify": ("run_identify",),
+    "cartpole.apps.export": ("run_export",),
+    "cartpole.apps.live": ("watch",),
 }
 
-#: The exports that are subpackages themselves (every other export is a name inside its module).
-_SUBPACKAGES = ("control", "models", "sim", "validation")
+#: Public name -> the module it comes from.
+_EXPORTS = {name: module for module, names in _SOURCES.items() for name in names}
 
-__all__ = list(_EXPORTS)
+__all__ = sorted(_EXPORTS)
 
 
 def __getattr__(name: str):
@@ -47,24 +91,10 @@ def __getattr__(name: str):
     target = _EXPORTS.get(name)
     if target is None:
         raise AttributeError(f"module 'cartpole' has no attribute {name!r}")
-    module = importlib.import_module(target)
-    value = module if name in _SUBPACKAGES else getattr(module, name)
+    value = getattr(importlib.import_module(target), name)
     globals()[name] = value
     return value
 
 
 def __dir__():
     return sorted(set(globals()) | set(__all__))
-
-
-class _Package(types.ModuleType):
-    """The package's module type: importing the subpackage ``cartpole.lqr`` does not hide the function ``lqr`` (the
-    import system binds a submodule on its parent; the public name stays the function, as it always was)."""
-
-    def __setattr__(self, name, value):
-        if name in _EXPORTS and name not in _SUBPACKAGES and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

@@ -137,8 +137,7 @@ shapes, what is returned, what is raised), grouped by layer, lowest first, in th
 
 def _write_api_pages() -> None:
     """``docs/api/index.rst`` and one page per public module under ``docs/api/generated/``, by layer. ``automodule``
-    imports each by its module path, so a subpackage that the package above shadows with a function of the same name
-    (``cartpole.lqr``) is still documented."""
+    imports each by its module path."""
     api = DOCS / "api"
     out = api / "generated"
     shutil.rmtree(out, ignore_errors=True)

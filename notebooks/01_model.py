@@ -29,7 +29,6 @@ import numpy as np
 import matplotlib.pyplot as plt
 import casadi as ca
 import cartpole as cp
-from cartpole.validation.jacobians import check_jacobians, mujoco_fd_jacobians, random_states
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the sweeps
 params = cp.read_params()          # the shipped asset: the lab's MJCF with the rail raised
@@ -85,18 +84,18 @@ assert abs(A[3, 1] - 25.67) < 5e-3 and np.allclose(B.ravel(), [0, 0, 19.48, -47.
 # A table at a few states (relative error = max entry error / max entry), then the error over many states.
 
 # %%
-states, inputs = random_states(params, 6, seed=0)
+states, inputs = cp.random_states(params, 6, seed=0)
 states[0], inputs[0] = 0.0, 0.0
-check = check_jacobians(model, states, inputs)
+check = cp.check_jacobians(model, states, inputs)
 print(f"{'s':>6} {'theta':>7} {'s_dot':>7} {'th_dot':>7} {'u':>6} | {'err A':>9} {'err B':>9}")
 for xk, uk, ea, eb in zip(check.states, check.inputs, check.err_A, check.err_B):
     print(f"{xk[0]:6.2f} {xk[1]:7.2f} {xk[2]:7.2f} {xk[3]:7.2f} {uk[0]:6.2f} | {ea:9.1e} {eb:9.1e}")
 
 # %%
 n = 40 if QUICK else 300
-states, inputs = random_states(params, n, seed=1)
-cont = check_jacobians(model, states, inputs)
-disc = check_jacobians(model, states, inputs, discrete=True)
+states, inputs = cp.random_states(params, n, seed=1)
+cont = cp.check_jacobians(model, states, inputs)
+disc = cp.check_jacobians(model, states, inputs, discrete=True)
 
 fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
 bins = np.logspace(-14, -5, 40)
@@ -111,7 +110,7 @@ axes[0].set_title(f"{n} random states, eps = 1e-6")
 x0, u0 = states[3], inputs[3]
 A_exact, _ = model.linearize(x0, u0)
 eps_grid = np.logspace(-10, -1, 19)
-errs = [np.abs(mujoco_fd_jacobians(params, x0, u0, eps=e)[0] - A_exact).max() / np.abs(A_exact).max()
+errs = [np.abs(cp.mujoco_fd_jacobians(params, x0, u0, eps=e)[0] - A_exact).max() / np.abs(A_exact).max()
         for e in eps_grid]
 axes[1].loglog(eps_grid, errs, "o-")
 axes[1].set_xlabel("finite-difference step eps"); axes[1].set_ylabel("relative error of FD A (-)")
@@ -129,14 +128,13 @@ assert min(errs) < 1e-6   # at its best step, finite differencing lands on the e
 
 # %%
 import mujoco
-from cartpole.sim import make_mujoco
 
 for integ in ("Euler", "RK4", "implicit", "implicitfast"):
     p = params.replace(xml=params.xml.replace('<option timestep="0.005"', f'<option integrator="{integ}" timestep="0.005"'), mjcf="")
-    m, d = make_mujoco(p)
+    m, d = cp.make_mujoco(p)
     mdl = cp.build_model(cp.read_params(xml=p.xml))
     worst = 0.0
-    for xk, uk in zip(*random_states(params, 50, seed=2)):
+    for xk, uk in zip(*cp.random_states(params, 50, seed=2)):
         mujoco.mj_resetData(m, d)
         d.qpos[:], d.qvel[:], d.ctrl[:] = xk[:mdl.nq], xk[mdl.nq:], uk
         mujoco.mj_step(m, d)

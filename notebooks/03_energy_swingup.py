@@ -51,7 +51,7 @@
 #
 # **The catch.** An LQR $u = -Ke$ (wrapped angle error $e$) takes over when $e^\top S e < \rho$, $S$ its
 # Riccati cost-to-go, and hands back only above $20\rho$ (hysteresis). It uses the lab's $Q$ but $R = 1$ instead of
-# the lab's 0.1 (`swingup_catch`): the lab gain asks for more than the motor's 20 N a few degrees off upright, so its
+# the lab's 0.1 (`cp.SWINGUP_CATCH_R`): the lab gain asks for more than the motor's 20 N a few degrees off upright, so its
 # verified basin is tiny ($\rho \approx 0.13$) and the pole often passes the top without being caught; with $R = 1$
 # the verified $\rho$ is about 0.64 on this asset and the catch takes over on the first pass.
 
@@ -62,13 +62,6 @@ import numpy as np
 import matplotlib.pyplot as plt
 from IPython.display import Image, display
 import cartpole as cp
-from cartpole.control.energy import EnergyShapingController, model_scales
-from cartpole.control.switching import swingup_catch
-from cartpole.models import wrap_angle
-from cartpole.apps.swingup import run_swingup
-from cartpole.sim import LoopOptions, replays_exactly, simulate
-from cartpole.validation import BasinCache, swingup_success
-from cartpole.viz import plot_swingup
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the simulations
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook03"))
@@ -78,8 +71,8 @@ params = cp.read_params()
 model = cp.build_model(params)
 energy = lambda x: np.asarray(model.pole_energy.map(len(x))(np.asarray(x).T)).ravel()   # J, per row of x
 
-law = EnergyShapingController(model)          # the default gains run_swingup uses
-sc = model_scales(model)
+law = cp.EnergyShapingController(model)          # the default gains run_swingup uses
+sc = cp.model_scales(model)
 g = law.gains
 print(f"2 m g l = {2 * sc['mgl']:.4f} J to gain; omega0 = {sc['omega0']:.2f} rad/s; a_max = {sc['a_max']:.2f} m/s^2")
 print(f"k_E = {g.k_energy:.2f} (m/s^2)/(J rad/s), E_ref = {g.energy_target * 1e3:.2f} mJ, |a_E| <= {g.a_energy_max:.2f} m/s^2, "
@@ -95,20 +88,20 @@ print(f"k_E = {g.k_energy:.2f} (m/s^2)/(J rad/s), E_ref = {g.energy_target * 1e3
 # inside the verified basin, and the logged ctrl replaying the run exactly with `mj_step`.
 
 # %%
-cache = BasinCache()
+cache = cp.BasinCache()
 T_run = 6.0 if QUICK else 10.0
-res = run_swingup(params, method="energy", loop=LoopOptions(duration=T_run), basin_cache=cache)
+res = cp.run_swingup(params, method="energy", loop=cp.LoopOptions(duration=T_run), basin_cache=cache)
 r = res.rollout
-basin = cache.get(params, swingup_catch(model))  # same key as inside run_swingup: the estimate it used
+basin = cache.get(params, cp.LinearFeedback.for_model(model, R=cp.SWINGUP_CATCH_R))  # same key as inside run_swingup: the estimate it used
 mt = res.metrics
 print(f"success {res.success}; catch at {res.caught_at:.3f} s (cost e'Se = {mt['switches'][-1]['cost']:.4f} "
       f"< rho = {basin.rho:.4f}); upright from {mt['time_to_upright']:.3f} s; switches {len(mt['switches'])}")
 print(f"cart used [{mt['cart_min']:.2f}, {mt['cart_max']:.2f}] m of {params.cart_range.tolist()}; "
-      f"peak |ctrl| {mt['peak_ctrl']:.2f}; replays exactly: {replays_exactly(r)}")
-assert replays_exactly(r), "the logged ctrl must replay the run exactly"
-assert res.success and swingup_success(r, params), "the energy swing-up must end upright and at rest"
+      f"peak |ctrl| {mt['peak_ctrl']:.2f}; replays exactly: {cp.replays_exactly(r)}")
+assert cp.replays_exactly(r), "the logged ctrl must replay the run exactly"
+assert res.success and cp.swingup_success(r, params), "the energy swing-up must end upright and at rest"
 assert res.caught_at is not None and mt["switches"][-1]["cost"] < basin.rho
-display(Image(str(plot_swingup(r, params, OUT / "energy_swingup.png", caught_at=res.caught_at, model=model,
+display(Image(str(cp.plot_swingup(r, params, OUT / "energy_swingup.png", caught_at=res.caught_at, model=model,
                                 title="Energy shaping + LQR catch in MuJoCo"))))
 
 # %% [markdown]
@@ -149,7 +142,7 @@ plt.show()
 # to upright.
 
 # %%
-th = wrap_angle(r.qpos[:, 1])
+th = cp.wrap_angle(r.qpos[:, 1])
 thd = r.qvel[:, 1]
 def broken(a, b):                      # break the line where the wrapped angle jumps by 2 pi
     a, b = a.copy(), b.copy()
@@ -235,21 +228,21 @@ plt.show()
 
 # %%
 T_stall = 15.0
-timid = EnergyShapingController(model, k_energy=5.0, energy_target=0.0, damping_softening=np.inf, energy_accel=1.0)
-r_timid = simulate(params, timid, (0, np.pi, 0, 0), T_stall)
-r_dflt = simulate(params, EnergyShapingController(model), (0, np.pi, 0, 0), 5.0 if QUICK else T_stall)
+timid = cp.EnergyShapingController(model, k_energy=5.0, energy_target=0.0, damping_softening=np.inf, energy_accel=1.0)
+r_timid = cp.simulate(params, timid, (0, np.pi, 0, 0), T_stall)
+r_dflt = cp.simulate(params, cp.EnergyShapingController(model), (0, np.pi, 0, 0), 5.0 if QUICK else T_stall)
 E_t, E_d = energy(r_timid.x), energy(r_dflt.x)
 late = r_timid.t >= T_stall - 5.0
 deficit = -E_t[late].max()
-closest = np.rad2deg(np.abs(wrap_angle(r_timid.qpos[late, 1])).min())
+closest = np.rad2deg(np.abs(cp.wrap_angle(r_timid.qpos[late, 1])).min())
 print(f"timid k_E = 5: energy deficit over the last 5 s {1e3 * deficit:.2f} mJ "
       f"({100 * deficit / (2 * sc['mgl']):.2f} % of 2mgl); closest approach to upright {closest:.1f} deg; "
-      f"replays exactly: {replays_exactly(r_timid)}")
+      f"replays exactly: {cp.replays_exactly(r_timid)}")
 print(f"default law: max E {1e3 * E_d.max():.2f} mJ, first |theta| < 0.05 rad at "
-      f"{r_dflt.t[np.argmax(np.abs(wrap_angle(r_dflt.qpos[:, 1])) < 0.05)]:.2f} s")
-assert replays_exactly(r_timid) and replays_exactly(r_dflt)
+      f"{r_dflt.t[np.argmax(np.abs(cp.wrap_angle(r_dflt.qpos[:, 1])) < 0.05)]:.2f} s")
+assert cp.replays_exactly(r_timid) and cp.replays_exactly(r_dflt)
 assert deficit > 0 and closest > 1.0, "the timid law was expected to stall below the top"
-assert E_d.max() > 0 and np.any(np.abs(wrap_angle(r_dflt.qpos[:, 1])) < 0.05), "the default law reaches the top"
+assert E_d.max() > 0 and np.any(np.abs(cp.wrap_angle(r_dflt.qpos[:, 1])) < 0.05), "the default law reaches the top"
 
 fig, ax = plt.subplots(1, 2, figsize=(13, 4.5))
 ax[0].plot(r_timid.t, E_t, label=r"timid: $k_E$ = 5, $E_{\rm ref}$ = 0, no damping compensation")

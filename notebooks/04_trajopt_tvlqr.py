@@ -45,12 +45,6 @@ from pathlib import Path
 import numpy as np
 import matplotlib.pyplot as plt
 import cartpole as cp
-from cartpole.models import wrap_angle
-from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.apps.swingup import TRAJOPT_EXTRA          # s simulated after the plan (3 s, as `cartpole swingup`)
-from cartpole.validation.metrics import held_upright, track_margin
-from cartpole.sim import replays_exactly, simulate
-from cartpole.validation import swingup_metrics, swingup_success
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the simulations
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook04"))
@@ -58,7 +52,7 @@ OUT.mkdir(parents=True, exist_ok=True)
 
 params = cp.read_params()
 x0 = (0.0, np.pi, 0.0, 0.0)                         # hanging at rest
-sp = trajopt_swingup(params, x0)
+sp = cp.trajopt_swingup(params, x0)
 traj, info = sp.trajectory, sp.solve_info
 print(f"minimum time {sp.T_min:.3f} s -> plan T = {sp.T:.3f} s with N = {traj.N} intervals; "
       f"{info.solver}: {info.status}, {info.iterations} iterations, {1e3 * info.solve_time_s:.0f} ms, "
@@ -146,14 +140,14 @@ plt.show()
 # vs $Q_{ss} = 1$), which the catch removes afterwards. The real test of the feedback is a model that is wrong, below.
 
 # %%
-T_sim = sp.T + TRAJOPT_EXTRA
-run = simulate(params, sp.controller, x0, T_sim)
+T_sim = sp.T + cp.TRAJOPT_EXTRA
+run = cp.simulate(params, sp.controller, x0, T_sim)
 dt = params.timestep
 t_ol = np.arange(int(round(sp.T / dt))) * dt
 u_ol = traj.input(np.minimum(t_ol + dt / 2, sp.T))          # the same feed-forward the controller uses
 run_ol = cp.replay(params, x0, u_ol)
 
-m = swingup_metrics(run, params)
+m = cp.swingup_metrics(run, params)
 inplan = run.t <= sp.T
 err = sp.model.state_error(run.x[inplan], traj.state(run.t[inplan]))
 err_ol = sp.model.state_error(run_ol.x, traj.state(run_ol.t))
@@ -162,7 +156,7 @@ print(f"TVLQR: success {m['success']}, upright from {m['time_to_upright']:.3f} s
       f"theta {np.rad2deg(np.abs(err[:, 1]).max()):.3f} deg; hand-over cost e'Se = "
       f"{sp.catch.cost_to_go(run.x[np.searchsorted(run.t, sp.T)]):.2e}")
 print(f"open loop: angle error at T {np.rad2deg(abs(err_ol[-1, 1])):.1f} deg, cart error {abs(err_ol[-1, 0]):.3f} m")
-assert m["success"] and swingup_success(run, params) and replays_exactly(run), "TVLQR + catch must swing up in MuJoCo"
+assert m["success"] and cp.swingup_success(run, params) and cp.replays_exactly(run), "TVLQR + catch must swing up in MuJoCo"
 assert np.rad2deg(np.abs(err[:, 1]).max()) < 2.0   # the angle stays within about a degree of the plan
 
 fig, ax = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
@@ -199,27 +193,27 @@ cases = {}
 factors = (0.9, 1.0, 1.1) if QUICK else (0.8, 0.9, 1.0, 1.1, 1.2)
 for f in factors:
     plan_params = params.scaled_pole(f, f)
-    spf = sp if f == 1.0 else trajopt_swingup(params, x0, model=cp.build_model(plan_params))
-    rf = simulate(params, spf.controller, x0, spf.T + TRAJOPT_EXTRA)
+    spf = sp if f == 1.0 else cp.trajopt_swingup(params, x0, plan_model=cp.build_model(plan_params))
+    rf = cp.simulate(params, spf.controller, x0, spf.T + cp.TRAJOPT_EXTRA)
     cases[f] = (spf, rf)
-    mf = swingup_metrics(rf, params)
+    mf = cp.swingup_metrics(rf, params)
     print(f"planned on pole x{f:.1f} (mass {plan_params.pole_mass:.3f} kg, COM {plan_params.pole_com_distance:.3f} m): "
-          f"T = {spf.T:.3f} s, success {swingup_success(rf, params)}, upright from "
+          f"T = {spf.T:.3f} s, success {cp.swingup_success(rf, params)}, upright from "
           f"{mf['time_to_upright'] if mf['time_to_upright'] is None else round(mf['time_to_upright'], 3)} s, "
           f"peak |ctrl| {mf['peak_ctrl']:.2f}, cart [{mf['cart_min']:.2f}, {mf['cart_max']:.2f}] m")
-    if not swingup_success(rf, params):
+    if not cp.swingup_success(rf, params):
         last = rf.t >= rf.t[-1] - 1.0
-        print(f"    why not: held upright at rest over the last 1 s: {held_upright(rf)} (max |theta| "
-              f"{np.rad2deg(np.abs(wrap_angle(rf.qpos[last, 1])).max()):.2f} deg, max |s_dot| "
+        print(f"    why not: held upright at rest over the last 1 s: {cp.held_upright(rf)} (max |theta| "
+              f"{np.rad2deg(np.abs(cp.wrap_angle(rf.qpos[last, 1])).max()):.2f} deg, max |s_dot| "
               f"{np.abs(rf.qvel[last, 0]).max():.3f} m/s, max |theta_dot| {np.abs(rf.qvel[last, 1]).max():.3f} rad/s); "
-              f"cart clearance {track_margin(rf.qpos, params.cart_range):.2f} m")
+              f"cart clearance {cp.track_margin(rf.qpos, params.cart_range):.2f} m")
     if abs(f - 1.0) <= 0.1 + 1e-9:   # the claim below: a 10 % error in the pole is still swung up and held
-        assert swingup_success(rf, params) and replays_exactly(rf), f"plan on pole x{f:.1f} failed in MuJoCo"
+        assert cp.swingup_success(rf, params) and cp.replays_exactly(rf), f"plan on pole x{f:.1f} failed in MuJoCo"
 
 fig, ax = plt.subplots(1, 2, figsize=(13, 4.5))
 for i, (f, (spf, rf)) in enumerate(cases.items()):
     c = f"C{i}"
-    ok = swingup_success(rf, params)
+    ok = cp.swingup_success(rf, params)
     tp = np.linspace(0, spf.T, 500)
     ax[0].plot(tp, np.rad2deg(spf.trajectory.state(tp)[:, 1]), "--", color=c, lw=1)
     ax[0].plot(rf.t, np.rad2deg(rf.qpos[:, 1]), color=c, label=f"planned on pole x{f:.1f}: {'success' if ok else 'FAILED'}")
@@ -247,6 +241,6 @@ plt.show()
 # %%
 for name, r in [("nominal TVLQR", run), ("open loop", run_ol)] + [(f"planned on pole x{f:.1f}", rf) for f, (_, rf) in cases.items()]:
     again = cp.replay(params, r.x[0], r.ctrl)
-    print(f"{name:24s} {r.ctrl.shape[0]:5d} steps  replays_exactly: {replays_exactly(r)}  "
+    print(f"{name:24s} {r.ctrl.shape[0]:5d} steps  replays_exactly: {cp.replays_exactly(r)}  "
           f"max |replayed - logged| = {np.abs(again.x - r.x).max():.1e}")
-    assert replays_exactly(r) and np.array_equal(again.x, r.x)
+    assert cp.replays_exactly(r) and np.array_equal(again.x, r.x)

@@ -86,16 +86,15 @@ for what, bad in (("no actuator", text.replace(motor, "")),
 # `mj_step` does for this file.
 
 # %%
-from cartpole.validation.jacobians import check_jacobians, random_states
 
 model = cp.build_model(params)
 A, B = model.linearize()
 Ad, Bd = model.linearize(discrete=True)
 np.set_printoptions(precision=4, suppress=True)
 print("A =\n", A, "\nB =", B.ravel())
-states, inputs = random_states(params, 10 if QUICK else 100, seed=0)
+states, inputs = cp.random_states(params, 10 if QUICK else 100, seed=0)
 for discrete in (False, True):
-    chk = check_jacobians(model, states, inputs, discrete=discrete)
+    chk = cp.check_jacobians(model, states, inputs, discrete=discrete)
     print(f"{'Ad, Bd vs FD of mj_step' if discrete else 'A, B vs FD of mj_forward'}: worst relative error {chk.worst:.1e}")
     assert chk.worst < 1e-6
 
@@ -106,18 +105,14 @@ for discrete in (False, True):
 # joint ranges; every number from a MuJoCo run.
 
 # %%
-from cartpole.apps.lab import run_lab
-from cartpole.sim import replays_exactly
-from cartpole.validation import swingup_success
-from cartpole.viz import plot_lab
 
-lab = run_lab(MJCF, duration=3.0 if QUICK else 6.0)
+lab = cp.run_lab(MJCF, duration=3.0 if QUICK else 6.0)
 print("K =", lab.K.ravel())
 for x0, m in zip(lab.x0s, lab.metrics):
     print(f"start {np.round(x0, 3)}: settling (|theta| <= 0.05 rad) {m.settling_time_seed:.3f} s, "
           f"strict {m.settling_time_strict:.2f} s, peak |ctrl| {m.peak_ctrl:.2f}")
-assert all(lab.settled) and all(replays_exactly(run) for run in lab.rollouts), "every start must settle"
-display(Image(str(plot_lab(lab, OUT / "lab.png"))))
+assert all(lab.settled) and all(cp.replays_exactly(run) for run in lab.rollouts), "every start must settle"
+display(Image(str(cp.plot_lab(lab, OUT / "lab.png"))))
 
 # %% [markdown]
 # ## 4. Swing-up: energy shaping with the LQR catch, and collocation + TVLQR
@@ -126,18 +121,16 @@ display(Image(str(plot_lab(lab, OUT / "lab.png"))))
 # limit and the ctrl in range, and the logged ctrl replays exactly.
 
 # %%
-from cartpole.apps.swingup import run_swingup
-from cartpole.viz import plot_swingup
 
 results = {}
 for method in ("energy", "trajopt"):
-    res = run_swingup(MJCF, method=method)
+    res = cp.run_swingup(MJCF, method=method)
     results[method] = res
     mt = res.metrics
     print(f"{method:8s} success={res.success}  caught at {res.caught_at:.3f} s  "
-          f"time to upright {mt['time_to_upright']:.3f} s  replays exactly: {replays_exactly(res.rollout)}")
-    assert res.success and swingup_success(res.rollout, params) and replays_exactly(res.rollout), method
-    display(Image(str(plot_swingup(res.rollout, params, OUT / f"swingup_{method}.png", plan=res.plan,
+          f"time to upright {mt['time_to_upright']:.3f} s  replays exactly: {cp.replays_exactly(res.rollout)}")
+    assert res.success and cp.swingup_success(res.rollout, params) and cp.replays_exactly(res.rollout), method
+    display(Image(str(cp.plot_swingup(res.rollout, params, OUT / f"swingup_{method}.png", plan=res.plan,
                                    caught_at=res.caught_at, model=model))))
 
 # %% [markdown]
@@ -146,11 +139,10 @@ for method in ("energy", "trajopt"):
 # Rendered offscreen with `mujoco.Renderer` from the logged rollout on its own 30 fps clock (H.264 via imageio-ffmpeg).
 
 # %%
-from cartpole.viz import VideoUnavailable, render_video
 
 try:
-    path = render_video(params, results["trajopt"].rollout, OUT / "my_cartpole_trajopt.mp4", width=320, height=240,
+    path = cp.render_video(params, results["trajopt"].rollout, OUT / "my_cartpole_trajopt.mp4", width=320, height=240,
                         fps=10 if QUICK else 30)   # the test suite renders fewer frames
     display(Video(str(path), embed=True, width=480))
-except VideoUnavailable as err:
+except cp.VideoUnavailable as err:
     print(err)

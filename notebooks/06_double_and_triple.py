@@ -35,11 +35,6 @@ import numpy as np
 import matplotlib.pyplot as plt
 from IPython.display import display
 import cartpole as cp
-from cartpole.control import LinearFeedback
-from cartpole.lqr import is_controllable, lab_weights, lqr
-from cartpole.sim import replays_exactly, simulate
-from cartpole.validation.jacobians import check_jacobians, random_states
-from cartpole.validation.metrics import summarize
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this: fewer Jacobian states
 np.set_printoptions(precision=3, suppress=True, linewidth=120)
@@ -78,10 +73,10 @@ for n, model in models.items():
 n_states = 20 if QUICK else 200
 checks = {}
 for n, model in models.items():
-    states, inputs = random_states(model.params, n_states, seed=n)
+    states, inputs = cp.random_states(model.params, n_states, seed=n)
     states[0], inputs[0] = model.x_eq, model.u_eq
-    cont = check_jacobians(model, states, inputs)
-    disc = check_jacobians(model, states, inputs, discrete=True)
+    cont = cp.check_jacobians(model, states, inputs)
+    disc = cp.check_jacobians(model, states, inputs, discrete=True)
     checks[n] = (cont, disc)
     print(f"{n} poles, {n_states} states: worst relative error A, B {cont.worst:.1e}; Ad, Bd {disc.worst:.1e}")
     assert cont.worst < 1e-6 and disc.worst < 1e-6, "symbolic and finite-difference Jacobians disagree"
@@ -100,12 +95,12 @@ print("two poles, at upright:\nA =\n", A2, "\nB =", B2.ravel())
 designs = {}
 for n, model in models.items():
     A, B = model.linearize()
-    Q, R = lab_weights(model)
-    res = lqr(A, B, Q, R)
+    Q, R = cp.lab_weights(model)
+    res = cp.lqr(A, B, Q, R)
     designs[n] = res
     print(f"{n} poles: Q = diag({np.diag(Q).tolist()}), R = {R.ravel()}\n   K = {res.K.ravel()}\n"
           f"   eigenvalues of A - BK: {np.round(res.E, 2)}")
-    assert is_controllable(A, B)
+    assert cp.is_controllable(A, B)
     assert res.K.shape == (model.nu, model.nx)
     assert np.all(np.linalg.eigvals(A - B @ res.K).real < 0)
     residual = A.T @ res.S + res.S @ A - res.S @ B @ np.linalg.solve(R, B.T) @ res.S + Q
@@ -123,16 +118,16 @@ for n, model in models.items():
 TILT = np.deg2rad(2.0)
 runs = {}
 for n, model in models.items():
-    ctrl = LinearFeedback(designs[n].K, model.x_eq, model.u_eq, hinges=model.hinges, u_limits=model.params.ctrl_range)
+    ctrl = cp.LinearFeedback(designs[n].K, model.x_eq, model.u_eq, hinges=model.hinges, u_limits=model.params.ctrl_range)
     x0 = model.x_eq.copy()
     x0[model.hinges[0]] += TILT
-    run = simulate(model.params, ctrl, x0, 8.0)
-    m = summarize(run, model)
+    run = cp.simulate(model.params, ctrl, x0, 8.0)
+    m = cp.summarize(run, model)
     runs[n] = (run, m)
     print(f"{n} poles: settled {m.settled} (strict settling {m.settling_time_strict:.2f} s), peak |ctrl| "
           f"{m.peak_ctrl:.2f}, time at the ctrl limit {100 * m.saturation_fraction:.1f} %, cart clearance "
-          f"{m.track_margin:.2f} m; replays exactly: {replays_exactly(run)}")
-    assert m.settled and replays_exactly(run), f"the {n}-pole cart did not balance from a 2 deg tilt"
+          f"{m.track_margin:.2f} m; replays exactly: {cp.replays_exactly(run)}")
+    assert m.settled and cp.replays_exactly(run), f"the {n}-pole cart did not balance from a 2 deg tilt"
     assert np.abs(model.state_error(run.x[-1])).max() < 0.01
 
 # %% [markdown]
@@ -179,13 +174,11 @@ plt.show()
 
 # %%
 import time
-from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.validation.metrics import swingup_metrics
 
 plans = {}
 for n, model in models.items():
     tic = time.perf_counter()
-    plans[n] = trajopt_swingup(model.params, model=model)
+    plans[n] = cp.trajopt_swingup(model.params, plan_model=model)
     sp = plans[n]
     info = sp.solve_info
     print(f"{n} poles: planned in {time.perf_counter() - tic:.1f} s: T_min = {sp.T_min:.3f} s, plan T = {sp.T:.3f} s, "
@@ -237,23 +230,22 @@ plt.show()
 # one angle panel per pole (angles wrapped to upright for display only; the states never wrap).
 
 # %%
-from cartpole.viz.swingup_plot import swingup_figure
 
 swings = {}
 for n, sp in plans.items():
     model = models[n]
-    run = simulate(model.params, sp.controller, model.x_hanging, sp.T + 3.0)
-    met = swingup_metrics(run, model)
+    run = cp.simulate(model.params, sp.controller, model.x_hanging, sp.T + 3.0)
+    met = cp.swingup_metrics(run, model)
     swings[n] = run
     err = np.abs(model.state_error(run.x[-1]))
     print(f"{n} poles: success {met['success']}, upright at {met['time_to_upright']} s, peak |ctrl| "
           f"{np.abs(run.ctrl).max():.3f}, cart in [{run.qpos[:, model.slide].min():.2f}, "
           f"{run.qpos[:, model.slide].max():.2f}] m, final max |error| {err.max():.1e}; replays exactly: "
-          f"{replays_exactly(run)}")
-    assert met["success"] and replays_exactly(run)
+          f"{cp.replays_exactly(run)}")
+    assert met["success"] and cp.replays_exactly(run)
     hold = run.t >= sp.T                            # the 3 s after the hand-over: within 0.05 rad of upright
     assert np.abs(model.state_error(run.x[hold])[:, model.hinges]).max() < 0.05
-    display(swingup_figure(run, model.params, plan=sp.trajectory, caught_at=sp.T, model=model,
+    display(cp.swingup_figure(run, model.params, plan=sp.trajectory, caught_at=sp.T, model=model,
                            title=f"{n} poles: trajopt + TVLQR from hanging, then LQR"))
 
 # %% [markdown]
@@ -263,19 +255,18 @@ for n, sp in plans.items():
 # second through the swing.
 
 # %%
-from cartpole.viz import VideoUnavailable, render_frame
 
 run3, sp3 = swings[3], plans[3]
 times = np.linspace(0.0, sp3.T + 0.5, 6)
 try:
     fig, axes = plt.subplots(1, len(times), figsize=(16, 3.2))
     for ax, t in zip(axes, times):
-        ax.imshow(render_frame(models[3].params, run3, t, width=320, height=360, model=models[3]))
+        ax.imshow(cp.render_frame(models[3].params, run3, t, width=320, height=360, model=models[3]))
         ax.set_title(f"t = {t:.2f} s", fontsize=9); ax.axis("off")
     fig.suptitle("Triple pendulum on a cart: swing-up from hanging in MuJoCo")
     fig.tight_layout()
     plt.show()
-except VideoUnavailable as err:
+except cp.VideoUnavailable as err:
     print(err)
 
 # %% [markdown]

@@ -46,16 +46,13 @@ import numpy as np
 from IPython.display import Image, display
 from scipy.integrate import solve_ivp
 
-from cartpole.apps.feedforward import EXTRA, RUNS, PlanFeedforward, run_feedforward
-from cartpole.sim import replays_exactly
-from cartpole.validation.metrics import UPRIGHT_TOL, swingup_success
-from cartpole.viz.feedforward_plot import plot_feedforward
+import cartpole as cp
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to skip the mass-error sweep at the end
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook07"))
 OUT.mkdir(parents=True, exist_ok=True)
 
-study = run_feedforward(mass_error=0.1)
+study = cp.run_feedforward(mass_error=0.1)
 model, params, plan, wrong = study.model, study.params, study.plan, study.wrong_plan
 traj, T, dt = plan.trajectory, plan.T, params.timestep
 print(f"plan on the MJCF's model: T = {T:.3f} s ({traj.N} Hermite-Simpson intervals of {1e3 * T / traj.N:.1f} ms); "
@@ -73,20 +70,20 @@ print(f"{'run':<58}{'success':>8}{'upright at':>12}{'final angle':>13}{'max |dth
       f"{'peak |u|':>10}")
 for name, r in study.runs.items():
     up = "never" if r.time_to_upright is None else f"{r.time_to_upright:.3f} s"
-    print(f"{name + ': ' + RUNS[name]:<58}{str(r.success):>8}{up:>12}"
+    print(f"{name + ': ' + r.label:<58}{str(r.success):>8}{up:>12}"
           f"{np.rad2deg(np.abs(r.final_angle_error).max()):>11.2f} deg{np.rad2deg(r.max_angle_tracking_error):>10.2f}"
           f" deg{r.max_cart_tracking_error:>8.3f} m{r.peak_ctrl:>10.3f}")
 
-path = plot_feedforward({f"({'abcd'[i]}) {RUNS[n]}": r.rollout for i, (n, r) in enumerate(study.runs.items())},
+path = cp.plot_feedforward({f"({'abcd'[i]}) {r.label}": r.rollout for i, (n, r) in enumerate(study.runs.items())},
                         {f"plan (MJCF's model), T = {T:.2f} s": traj,
                          f"plan (pole mass {100 * study.mass_error:+.0f} %), T = {wrong.T:.2f} s": wrong.trajectory},
                         params, OUT / "feedforward.png", model=model)
 display(Image(filename=str(path)))
 
 ff, fb = study.runs["feedforward"], study.runs["feedforward_tvlqr"]
-assert not ff.success and not swingup_success(ff.rollout, model)           # (a) drifts off and falls
-assert fb.success and swingup_success(fb.rollout, model)                  # (b) swings up and holds
-assert replays_exactly(ff.rollout) and replays_exactly(fb.rollout)        # both are what MuJoCo did, bit for bit
+assert not ff.success and not cp.swingup_success(ff.rollout, model)           # (a) drifts off and falls
+assert fb.success and cp.swingup_success(fb.rollout, model)                  # (b) swings up and holds
+assert cp.replays_exactly(ff.rollout) and cp.replays_exactly(fb.rollout)        # both are what MuJoCo did, bit for bit
 assert all(r.replays_exactly for r in study.runs.values())
 
 # %% [markdown]
@@ -101,7 +98,7 @@ assert all(r.replays_exactly for r in study.runs.values())
 # fed to a high-accuracy ODE solver (DOP853) on $f$, and fed step by step to the MJCF's integrator.
 
 # %%
-ffc = PlanFeedforward.of_plan(plan, params)
+ffc = cp.PlanFeedforward.of_plan(plan, params)
 sol = solve_ivp(lambda t, x: model.dynamics(x, traj.input(min(t, T))), (0.0, T), model.x_hanging,
                 method="DOP853", rtol=1e-10, atol=1e-10)
 e_cont = model.state_error(sol.y[:, -1], traj.x[-1])
@@ -134,13 +131,13 @@ print(f"unstable eigenvalue at upright: {lam:.3f} 1/s (an error grows e-fold eve
 fig, ax = plt.subplots(figsize=(9, 4))
 for name, r in study.runs.items():
     th = np.abs(model.state_error(r.rollout.x, model.x_eq)[:, model.hinges[0]])
-    ax.semilogy(r.rollout.t, np.rad2deg(th) + 1e-6, lw=1, label=f"{name}: {RUNS[name]}")
+    ax.semilogy(r.rollout.t, np.rad2deg(th) + 1e-6, lw=1, label=f"{name}: {r.label}")
 kT = np.searchsorted(ff.rollout.t, T)
 tt = np.linspace(T, T + 1.0, 50)
 ax.semilogy(tt, np.rad2deg(np.abs(model.state_error(ff.rollout.x[kT], model.x_eq)[1])) * np.exp(lam * (tt - T)),
             "k:", lw=1.5, label=rf"$e^{{\lambda (t - T)}}$, $\lambda$ = {lam:.2f} 1/s")
 ax.axvline(T, color="g", lw=0.8, label=f"plan ends ({T:.2f} s)")
-ax.axhline(np.rad2deg(UPRIGHT_TOL), color="r", ls="--", lw=0.8, label="upright band (0.05 rad)")
+ax.axhline(np.rad2deg(cp.UPRIGHT_TOL), color="r", ls="--", lw=0.8, label="upright band (0.05 rad)")
 ax.set_ylim(1e-2, 300)
 ax.set_xlabel("time (s)"); ax.set_ylabel("|pole angle from upright| (deg, wrapped)")
 ax.grid(alpha=0.3, which="both"); ax.legend(fontsize=7, loc="lower left")
@@ -164,7 +161,7 @@ assert study.runs["wrong_mass_feedforward"].max_angle_tracking_error > ff.max_an
 for name in ("feedforward_tvlqr", "wrong_mass_tvlqr"):
     r = study.runs[name]
     sp = plan if name == "feedforward_tvlqr" else wrong
-    u_ff = np.array([PlanFeedforward.of_plan(sp, params)(t) for t in r.rollout.t[:-1]])
+    u_ff = np.array([cp.PlanFeedforward.of_plan(sp, params)(t) for t in r.rollout.t[:-1]])
     during = r.rollout.t[:-1] < sp.T
     corr = np.abs(r.rollout.ctrl[during] - u_ff[during]).max()
     print(f"{name}: success {r.success}, largest feedback correction |u - u_ff| during the plan {corr:.3f} ctrl "
@@ -185,7 +182,7 @@ print("planned on the wrong pole mass, feedforward + TVLQR:",
 # %%
 if not QUICK:
     for f in (-0.3, -0.2, 0.2, 0.3, 0.5):
-        s = run_feedforward(params, mass_error=f, plan=plan)
+        s = cp.run_feedforward(params, mass_error=f, plan=plan)
         rc, rd = s.runs["wrong_mass_tvlqr"], s.runs["wrong_mass_feedforward"]
         last = rc.rollout.t >= rc.rollout.t[-1] - 1.0
         up = "never" if rc.time_to_upright is None else f"{rc.time_to_upright:.2f} s"

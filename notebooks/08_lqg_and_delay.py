@@ -30,12 +30,9 @@
 import numpy as np
 import matplotlib.pyplot as plt
 
-from cartpole.apps.lab import balances, run_lab
-from cartpole.models import build_model
-from cartpole.sim import LoopOptions, replays_exactly
-from cartpole.viz.estimation_plot import estimation_figure
+import cartpole as cp
 
-model = build_model()
+model = cp.build_model()
 h = model.dt
 print(f"physics step {h} s; state {model.params.joint_names}, positions then rates")
 
@@ -48,9 +45,9 @@ print(f"physics step {h} s; state {model.params.joint_names}, positions then rat
 # %%
 Ad, Bd = model.hold(2).linearize()
 print("Ad over 10 ms =\n", np.round(Ad, 5))
-held = run_lab(loop=LoopOptions(period=0.01))
+held = cp.run_lab(loop=cp.LoopOptions(period=0.01))
 print("settling times (s):", np.round(held.settling_times_seed, 3))
-assert balances(held) and all(replays_exactly(r) for r in held.rollouts)
+assert cp.balances(held) and all(cp.replays_exactly(r) for r in held.rollouts)
 
 # %% [markdown]
 # ## 2. Encoders only: LQG
@@ -60,11 +57,11 @@ assert balances(held) and all(replays_exactly(r) for r in held.rollouts)
 
 # %%
 rig = dict(period=0.01, encoder_cpr=2048, encoder_resolution=0.001, estimator="kf")
-lqg = run_lab(loop=LoopOptions(delay=0.01, **rig))
+lqg = cp.run_lab(loop=cp.LoopOptions(delay=0.01, **rig))
 print("settling times (s):", np.round(lqg.settling_times_seed, 3))
 print("estimate RMS error:", {k: round(v, 5) for k, v in lqg.estimation["rms_error"].items()})
-assert balances(lqg) and all(replays_exactly(r) for r in lqg.rollouts)
-fig = estimation_figure(lqg.rollouts[0], model.params, title="LQG: the Kalman filter's estimate against MuJoCo")
+assert cp.balances(lqg) and all(cp.replays_exactly(r) for r in lqg.rollouts)
+fig = cp.estimation_figure(lqg.rollouts[0], model.params, title="LQG: the Kalman filter's estimate against MuJoCo")
 fig
 
 # %% [markdown]
@@ -74,8 +71,8 @@ fig
 # predicted across the delay through the model with the ctrl already sent.
 
 # %%
-stale = run_lab(loop=LoopOptions(delay=0.03, delay_compensation=False, **rig))
-predicted = run_lab(loop=LoopOptions(delay=0.03, **rig))
+stale = cp.run_lab(loop=cp.LoopOptions(delay=0.03, delay_compensation=False, **rig))
+predicted = cp.run_lab(loop=cp.LoopOptions(delay=0.03, **rig))
 print(f"mean settling time: stale {stale.mean_settling_time_seed:.3f} s, predicted "
       f"{predicted.mean_settling_time_seed:.3f} s")
 assert predicted.mean_settling_time_seed < stale.mean_settling_time_seed

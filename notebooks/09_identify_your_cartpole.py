@@ -37,13 +37,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from cartpole.apps.excite import run_excite
-from cartpole.apps.identify import run_identify
-from cartpole.models import SHIPPED_MJCF, read_params
+import cartpole as cp
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"
-RIG = SHIPPED_MJCF.parent / "examples" / "cartpole_rig_truth.xml"   # the hidden truth: only MuJoCo reads it
-NOMINAL = SHIPPED_MJCF                                              # the drawing
+RIG = cp.SHIPPED_MJCF.parent / "examples" / "cartpole_rig_truth.xml"   # the hidden truth: only MuJoCo reads it
+NOMINAL = cp.SHIPPED_MJCF                                              # the drawing
 out = Path(tempfile.mkdtemp(prefix="identify_"))
 print("nominal:", NOMINAL.name, " rig:", RIG.name, " outputs in the scratch folder", out.name)
 
@@ -56,8 +54,8 @@ print("nominal:", NOMINAL.name, " rig:", RIG.name, " outputs in the scratch fold
 
 # %%
 enc = dict(encoder_cpr=2048, encoder_resolution=1e-4)
-fit_run = run_excite(RIG, out, duration=10.0 if QUICK else 20.0, csv_name="run1.csv", **enc)
-check_run = run_excite(RIG, out, duration=6.0 if QUICK else 10.0, csv_name="run2.csv", seed=1, **enc)
+fit_run = cp.run_excite(RIG, out, duration=10.0 if QUICK else 20.0, csv_name="run1.csv", **enc)
+check_run = cp.run_excite(RIG, out, duration=6.0 if QUICK else 10.0, csv_name="run2.csv", seed=1, **enc)
 log = fit_run.log
 print(f"{log.n} samples every {log.sample_time * 1e3:g} ms; columns written to {fit_run.csv.name}")
 
@@ -80,7 +78,7 @@ plt.show()
 # parameters regularised toward the nominal; the standard errors come from the Gauss-Newton Hessian at the optimum.
 
 # %%
-res = run_identify(NOMINAL, [fit_run.csv], out, holdout=[check_run.csv])
+res = cp.run_identify(NOMINAL, [fit_run.csv], out, holdout=[check_run.csv])
 for name, v in res.fit.as_dict().items():
     print(f"{name:24s} nominal {v['nominal']:10.5g}   fitted {v['fitted']:10.5g} +- {v['std']:.2g}")
 for w in res.fit.warnings:
@@ -109,15 +107,12 @@ print("\n".join(line for line in diff if line.startswith(("+", "-")) and not lin
 # the rig (`--plan-mjcf` on the command line: `cartpole swingup --method trajopt --mjcf RIG --plan-mjcf fitted.xml`).
 
 # %%
-from cartpole.apps.swingup import run_swingup
-from cartpole.models import build_model
-from cartpole.sim import replays_exactly
 
-rig = read_params(RIG)
+rig = cp.read_params(RIG)
 runs = {}
 for label, design in (("designed on the drawing", NOMINAL), ("designed on the fitted MJCF", res.mjcf)):
-    r = run_swingup(rig, method="trajopt", plan_model=build_model(read_params(design)))
-    assert replays_exactly(r.rollout)
+    r = cp.run_swingup(rig, method="trajopt", plan_model=cp.build_model(cp.read_params(design)))
+    assert cp.replays_exactly(r.rollout)
     runs[label] = r
     print(f"{label}: success {r.success}, time to upright {r.metrics['time_to_upright']}")
 assert runs["designed on the fitted MJCF"].success

@@ -30,15 +30,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from cartpole.apps.export import run_export
-from cartpole.export import design_export, load_design, run_lockstep
-from cartpole.export.folder import discard
-from cartpole.models import build_model
-from cartpole.sim import LoopOptions, replays_exactly
+import cartpole as cp
 
-loop = LoopOptions(period=0.01, estimator="kf", encoder_cpr=2048)
+loop = cp.LoopOptions(period=0.01, estimator="kf", encoder_cpr=2048)
 out = Path(os.environ.get("CARTPOLE_OUT") or tempfile.mkdtemp()) / "rig"
-doc = run_export(None, controller="lqr", loop=loop, out=out, verify=True, duration=3.0)
+doc = cp.run_export(None, controller="lqr", loop=loop, out=out, verify=True, duration=3.0)
 exp = doc["export"]
 print(f"{len(exp['files'])} files, {exp['bytes']} bytes in the folder {out.name}/")
 print(f"verified: {exp['verified']}; max |C - Python| ctrl {exp['max_ctrl_diff']:.2g} (double), "
@@ -70,17 +66,17 @@ if shutil.which("make") and shutil.which("cc"):
 # ctrl history and its ctrl is recorded beside the C's.
 
 # %%
-model = build_model()
-design = design_export(model, "lqr", loop)
+model = cp.build_model()
+design = cp.design_export(model, "lqr", loop)
 x0 = np.array([0.0, 0.1, 0.0, 0.0])
 runs = {}
 for real in ("double", "float"):
-    ctl, folder = load_design(design, real)
-    runs[real] = run_lockstep(design, ctl, x0, 3.0)
-    discard(folder)
+    ctl, folder = cp.load_design(design, real)
+    runs[real] = cp.run_lockstep(design, ctl, x0, 3.0)
+    shutil.rmtree(folder, ignore_errors=True)
     print(f"{real}: max |C - Python| = {runs[real].max_ctrl_diff:.3g}, replays exactly: "
-          f"{replays_exactly(runs[real].rollout)}")
-assert runs["double"].max_ctrl_diff <= 1e-9 and replays_exactly(runs["float"].rollout)
+          f"{cp.replays_exactly(runs[real].rollout)}")
+assert runs["double"].max_ctrl_diff <= 1e-9 and cp.replays_exactly(runs["float"].rollout)
 
 fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
 d = runs["double"]

@@ -38,17 +38,10 @@ import control
 import matplotlib.pyplot as plt
 import numpy as np
 
-from cartpole.analysis import continuous_loop, loop_margins, sampled_loop
-from cartpole.apps.lab import design
-from cartpole.apps.margins import mujoco_stable
-from cartpole.estimation import measurement_function, sensor_spec
-from cartpole.estimation.kalman import KalmanFilter, process_noise
-from cartpole.lqr import lab_weights, lqr
-from cartpole.models import build_model
-from cartpole.viz.loop_plot import loop_figure
+import cartpole as cp
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"
-model = build_model()
+model = cp.build_model()
 sys = model.statespace()  # a python-control StateSpace, signals named from the MJCF
 print(sys.state_labels, sys.input_labels)
 
@@ -59,11 +52,11 @@ print(sys.state_labels, sys.input_labels)
 # python-control's on the same matrices.
 
 # %%
-Q, R = lab_weights(model)
-K = lqr(sys.A, sys.B, Q, R).K
+Q, R = cp.lab_weights(model)
+K = cp.lqr(sys.A, sys.B, Q, R).K
 assert np.allclose(K, control.lqr(sys, Q, R)[0], rtol=1e-8)
-lqr_loop = continuous_loop(model, K)
-m_lqr = loop_margins(lqr_loop)
+lqr_loop = cp.continuous_loop(model, K)
+m_lqr = cp.loop_margins(lqr_loop)
 print(m_lqr.to_dict())
 low, high = m_lqr.gain_margin
 assert m_lqr.phase_margin_deg >= 60 and low <= 0.5 and high == np.inf and m_lqr.ms <= 1 + 1e-9
@@ -89,13 +82,13 @@ for k in (0.9 * low, 1.1 * low, 1e3):
 # its limits) the band is where the sampled loop says.
 
 # %%
-m_s = loop_margins(sampled_loop(model, K))
+m_s = cp.loop_margins(cp.sampled_loop(model, K))
 print(m_s.to_dict())
 low_s, high_s = m_s.gain_margin
 checks = [(0.95 * low_s, False), (1.05 * low_s, True)] + ([] if QUICK else [(0.95 * high_s, True),
                                                                              (1.05 * high_s, False)])
 for k, expected in checks:
-    got = mujoco_stable(model, K, k)
+    got = cp.mujoco_stable(model, K, k)
     print(f"MuJoCo with the gain scaled by {k:.4g}: {'stable' if got else 'unstable'}")
     assert got == expected
 
@@ -108,23 +101,23 @@ for k, expected in checks:
 
 # %%
 steps, lag = 2, 1
-res, _ = design(model, Q, R, steps=steps)
+res = cp.LinearFeedback.for_model(model, Q, R, period=steps * model.dt)
 lin = model.without_friction()
-spec = sensor_spec(lin, encoder_cpr=2048, encoder_resolution=0.001)
-h = measurement_function(lin, spec)
+spec = cp.sensor_spec(lin, encoder_cpr=2048, encoder_resolution=0.001)
+h = cp.measurement_function(lin, spec)
 V = spec.measurement_covariance()
-W0 = process_noise(lin, steps * lin.dt)
+W0 = cp.process_noise(lin, steps * lin.dt)
 Bd = lin.hold(steps).linearize()[1]
 
 
 def lqg(q):
     """The LQG loop with process noise q^2 Bd Bd' added on the input channel (q = 0: the rig's filter)."""
-    kf = KalmanFilter(lin, steps, h, V, W=W0 + q ** 2 * Bd @ Bd.T)
-    return sampled_loop(model, res.K, steps=steps, delay_steps=lag, kalman=kf, name=f"lqg q={q:g}")
+    kf = cp.KalmanFilter(lin, steps, h, V, W=W0 + q ** 2 * Bd @ Bd.T)
+    return cp.sampled_loop(model, res.K, steps=steps, delay_steps=lag, kalman=kf, name=f"lqg q={q:g}")
 
 
-rig_lqr = sampled_loop(model, res.K, steps=steps, delay_steps=lag)
-m_rig, m_lqg = loop_margins(rig_lqr), loop_margins(lqg(0.0))
+rig_lqr = cp.sampled_loop(model, res.K, steps=steps, delay_steps=lag)
+m_rig, m_lqg = cp.loop_margins(rig_lqr), cp.loop_margins(lqg(0.0))
 for mg in (m_rig, m_lqg):
     print(f"{mg.name}: GM {mg.gain_margin}, PM {mg.phase_margin_deg:.1f} deg, Ms {mg.ms:.3f}")
 assert m_lqg.phase_margin_deg < m_rig.phase_margin_deg and m_lqg.ms > m_rig.ms
@@ -138,7 +131,7 @@ assert m_lqg.phase_margin_deg < m_rig.phase_margin_deg and m_lqg.ms > m_rig.ms
 
 # %%
 qs = [0.0, 10.0, 100.0, 1000.0] if QUICK else [0.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0]
-recovered = [loop_margins(lqg(q)) for q in qs]
+recovered = [cp.loop_margins(lqg(q)) for q in qs]
 fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.5))
 ax1.semilogx([max(q, 1.0) for q in qs], [m.phase_margin_deg for m in recovered], "o-", label="LQG")
 ax1.axhline(m_rig.phase_margin_deg, color="k", linestyle="--", label="LQR on the same rig")
@@ -160,7 +153,7 @@ assert abs(recovered[-1].phase_margin_deg - m_rig.phase_margin_deg) < 0.5 * abs(
 
 # %%
 pairs = [(lqr_loop, m_lqr), (rig_lqr, m_rig), (lqg(0.0), m_lqg), (lqg(qs[-1]), recovered[-1])]
-loop_figure(pairs, "nyquist")
+cp.loop_figure(pairs, "nyquist")
 
 # %%
-loop_figure(pairs, "sensitivity")
+cp.loop_figure(pairs, "sensitivity")

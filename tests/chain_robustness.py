@@ -52,7 +52,7 @@ def chain_robustness(poles: int, mass_factors=(), offsets=()) -> dict:
     model = build_model(params)
     out = {"mass": {}, "offset": {}}
     for f in mass_factors:
-        plan = trajopt_swingup(params, model=build_model(params.scaled_pole(f, 1.0)))
+        plan = trajopt_swingup(params, plan_model=build_model(params.scaled_pole(f, 1.0)))
         out["mass"][repr(float(f))] = held(params, plan, model.x_hanging)
     if offsets:
         plan = trajopt_swingup(params)  # planned from hanging rest; TVLQR absorbs the offset

@@ -192,10 +192,10 @@ def test_known_gaps_are_still_gaps(found_problems):
 def test_the_walk_sees_the_package():
     """The walk reaches every layer's modules, and reaches into them (a walk that found nothing would pass)."""
     mods = public_modules()
-    for expected in ("cartpole.models.symbolic", "cartpole.lqr.riccati", "cartpole.sim.rollout", "cartpole.cli"):
+    for expected in ("cartpole.models.symbolic", "cartpole.riccati.algebraic", "cartpole.sim.rollout", "cartpole.cli"):
         assert expected in mods
     assert "cartpole.__main__" not in mods and not any(m.split(".")[-1].startswith("_") for m in mods)
-    from cartpole.lqr import riccati
+    from cartpole.riccati import algebraic as riccati
 
     assert ("lqr", riccati.lqr) in public_objects(riccati)
     assert all(n != "np" for n, _ in public_objects(riccati))  # imported names are not the module's

@@ -5,7 +5,7 @@ Layers, lowest first; a module may import its own layer and the layers below it,
     base          cartpole.errors, _arrays, _files, progress, codegen, options   errors, read-only arrays, atomic
                   files, progress, generated C built and cached, the options values' shared shape
     models        cartpole.models          MJCF -> parameters -> symbolic model
-    lqr           cartpole.lqr             lqr / dlqr, TVLQR, the lab's weights
+    riccati       cartpole.riccati         lqr / dlqr, TVLQR, the default weights
     control       cartpole.control         controllers u = c(t, x)
     estimation    cartpole.estimation      (reserved) sensors, KF, EKF, MHE: x_hat from y
     analysis      cartpole.analysis        loops of the linear designs broken at the plant input, their margins
@@ -25,8 +25,8 @@ Layers, lowest first; a module may import its own layer and the layers below it,
 
 Besides: no import cycles between modules; only ``cartpole/__init__.py`` imports the package top ``cartpole``
 (nothing below it takes defaults from there); only apps and commands import ``cartpole.viz`` (the package
-top neither); outside ``cartpole.models`` model things come from the package ``cartpole.models``, never from its
-modules, so models/ can be reorganised inside; no private name (``_name``) crosses a module boundary: neither
+top names its figures only lazily, by module name: PEP 562, no import statement); outside ``cartpole.models``
+model things come from the package ``cartpole.models``, never from its modules, so models/ can be reorganised inside; no private name (``_name``) crosses a module boundary: neither
 ``from x import _name`` nor ``x._name`` on an imported module, in the package (tests may).
 
 How an import names its target: ``import a.b`` names ``a.b``; ``from a.b import c`` names ``a.b.c`` when that is a
@@ -46,7 +46,7 @@ LAYERS = (
     ("base", ("cartpole.errors", "cartpole._arrays", "cartpole._files", "cartpole.progress", "cartpole.codegen",
               "cartpole.options")),
     ("models", ("cartpole.models",)),
-    ("lqr", ("cartpole.lqr",)),
+    ("riccati", ("cartpole.riccati",)),
     ("control", ("cartpole.control",)),
     ("estimation", ("cartpole.estimation",)),
     ("analysis", ("cartpole.analysis",)),
@@ -283,7 +283,7 @@ def test_private_uses_are_read_as_documented(code, expected, tmp_path, monkeypat
     ("from cartpole.sim import simulate", {"cartpole.sim"}),
     ("from cartpole.sim import rollout", {"cartpole.sim.rollout"}),
     ("from cartpole.sim.rollout import Rollout", {"cartpole.sim.rollout"}),
-    ("def f():\n    from cartpole.lqr import lqr", {"cartpole.lqr"}),
+    ("def f():\n    from cartpole.riccati import lqr", {"cartpole.riccati"}),
     ("import numpy", set()),
 ])
 def test_imports_are_read_as_documented(code, expected, tmp_path, monkeypatch):

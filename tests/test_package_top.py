@@ -1,8 +1,11 @@
-"""The package top: its quick-start names import on first use (so the command line starts without NumPy, SciPy,
-CasADi or MuJoCo), resolve to what they always were, and the function ``lqr`` is not hidden by the subpackage
-``cartpole.lqr``; ``cartpole sweep --workers 2`` starts its fork server before the heavy imports."""
+"""The package top is the API: its names import on first use (so the command line starts without NumPy, SciPy,
+CasADi or MuJoCo), resolve to what they always were, no module shares a name with them (the LQR subpackage is
+``cartpole.riccati``, so the function ``lqr`` needs no module-class patch), and the README's quick start runs;
+``cartpole sweep --workers 2`` starts its fork server before the heavy imports."""
+import json
 import subprocess
 import sys
+from pathlib import Path
 
 
 def _run(code: str) -> str:
@@ -16,13 +19,42 @@ def test_importing_the_command_line_imports_none_of_the_heavy_libraries():
 
 
 def test_the_quick_start_names_resolve_and_lqr_stays_the_function():
-    out = _run("import cartpole as cp, cartpole.lqr\nfrom cartpole.lqr import riccati as r\n"
-               "from cartpole import build_model, Q_LAB, R_LAB, lqr, sim, models\n"
+    out = _run("import types, cartpole as cp, cartpole.riccati\nfrom cartpole.riccati import algebraic as r\n"
+               "from cartpole import build_model, Q_LAB, R_LAB, lqr, simulate, linearize\n"
+               "from cartpole import sim, models\n"
                "m = cp.build_model()\n"
                "K = cp.lqr(*m.linearize(), Q_LAB, R_LAB)[0]\n"
                "print(callable(cp.lqr), cp.lqr is lqr is r.lqr, cp.simulate is sim.simulate, "
-               "cp.build_model is models.build_model, K.shape, sorted(cp.__all__) == sorted(dir(cp)) or 'dir')")
-    assert out.startswith("True True True True (1, 4)")
+               "cp.build_model is models.build_model, K.shape, sorted(cp.__all__) == sorted(dir(cp)) or 'dir', "
+               "type(cp) is types.ModuleType)")
+    assert out.startswith("True True True True (1, 4)") and out.endswith("True")
+
+
+def test_every_public_name_resolves_and_none_is_shadowed_by_a_module():
+    """Each name of ``__all__`` imports; none is also a module directly under ``cartpole`` (the old ``cartpole.lqr``
+    subpackage hid the function ``lqr``), so importing any submodule cannot replace a public name."""
+    out = _run("import json, pkgutil, types, cartpole as cp\n"
+               "mods = {m.name for m in pkgutil.iter_modules(cp.__path__)}\n"
+               "vals = {n: getattr(cp, n) for n in cp.__all__}\n"
+               "print(json.dumps([sorted(set(cp.__all__) & mods), "
+               "[n for n, v in vals.items() if isinstance(v, types.ModuleType)], len(vals)]))")
+    clash, modules, n = json.loads(out)
+    assert clash == [] and modules == [] and n >= 60
+
+
+def test_importing_the_package_top_imports_no_figures():
+    out = _run("import sys, cartpole as cp; cp.build_model; print(sorted(m for m in ('matplotlib', 'cartpole.viz') "
+               "if m in sys.modules))")
+    assert out == "[]"
+
+
+def test_the_readme_quick_start_runs(tmp_path):
+    """The README's ``Quickstart in Python`` block, run as written in a clean interpreter."""
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    block = readme.split("## Quickstart in Python", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    assert "import cartpole as cp" in block and "cp.simulate(" in block
+    done = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
 
 
 def test_an_unknown_name_is_an_attribute_error():

@@ -162,7 +162,7 @@ def frozen_tvlqr_loop(model, gains, plan, t: float, *, channel: int = 0) -> Loop
     ----------
     model : CartPoleModel
     gains : TVLQRGains
-        ``K(t)`` (:meth:`~cartpole.lqr.tvlqr.TVLQRGains.gain`).
+        ``K(t)`` (:meth:`~cartpole.riccati.tvlqr.TVLQRGains.gain`).
     plan : Trajectory
         What the gains track: ``plan.state(t)`` and ``plan.input(t)`` (or the gains' own ``x_ref``, ``u_ref``).
     t : float

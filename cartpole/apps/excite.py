@@ -90,7 +90,7 @@ def _balance(model, exc: Excitation, ts: float, steps: int):
     return roll, dataclasses.replace(exc, ctrl=readonly(ctrl))
 
 
-def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: float | None = None,
+def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: float | None = None,
                amplitude: float | None = None, dry_run: bool = False, encoder_cpr=None, encoder_resolution=None,
                sensor_noise=None, seed: int = 0, csv_name: str = "excite.csv",
                mode: str = "hanging") -> ExciteResult:
@@ -98,7 +98,7 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
 
     Parameters
     ----------
-    mjcf : path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The model to run (the "rig"); default the shipped cart.
     out : path
         Directory for the CSV (and ``excite_rollout.json``).
@@ -126,7 +126,7 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
     import mujoco
 
     from cartpole.estimation import SensorSampler, sensor_spec
-    from cartpole.models import build_model
+    from cartpole.models import plant_model
     from cartpole.sim.rollout import make_mujoco, replay
 
     if mode not in MODES:
@@ -134,7 +134,7 @@ def run_excite(mjcf, out: str | Path, *, duration: float = 20.0, sample_time: fl
     if mode == "balance" and dry_run:
         raise CartPoleError("A balancing experiment's ctrl depends on the measured state, so it cannot be written "
                             "ahead; use --dry-run with --mode hanging.")
-    model = build_model(mjcf)
+    model = plant_model(plant)
     p = model.params
     ts = p.timestep if sample_time is None else float(sample_time)
     balance = mode == "balance"

@@ -86,7 +86,8 @@ def catch_level(model, loop) -> float:
     """The catch level ``rho`` of the energy swing-up's LQR catch at the loop's period: the verified basin
     :func:`cartpole.apps.swingup.run_swingup` uses (:class:`cartpole.validation.basin.BasinCache`, on disk)."""
     from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError
-    from cartpole.control.switching import swingup_catch
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.switching import SWINGUP_CATCH_R
     from cartpole.export import ExportError
     from cartpole.validation.basin import BasinCache
 
@@ -96,7 +97,8 @@ def catch_level(model, loop) -> float:
         raise ExportError(f"Energy shaping drives one pole on a cart and this model has {len(model.hinges)} "
                           "hinges; export --controller tvlqr (or lqr) instead.") from None
     period = None if loop is None else loop.period
-    return float(BasinCache.on_disk().get(model.params, swingup_catch(model, period=period)).rho)
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
+    return float(BasinCache.on_disk().get(model.params, catch).rho)
 
 
 def task_success(design, rollout) -> bool:
@@ -146,14 +148,14 @@ def check_build(design, real: str, x0, duration: float) -> BuildCheck:
                       codes={int(c): int(n) for c, n in zip(codes, counts)}, run=run)
 
 
-def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool = False, x0=None, out=".",
+def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool = False, x0=None, out=".",
                verify: bool = False, duration: float | None = None, mcu: bool = False, u_max=None,
                cart_max: float | None = None) -> dict:
     """Export a controller as standalone C to the folder ``out``, and with ``verify`` prove it in MuJoCo.
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (default the shipped asset).
     controller : str
         ``lqr``, ``pid``, ... (:data:`cartpole.export.CONTROLLERS`).
@@ -198,7 +200,7 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
     """
     from cartpole.export import check_target, design_export, find_compiler, write_export
     from cartpole.export.design import CONTROLLERS
-    from cartpole.models import CartPoleModel, build_model, planning_limits
+    from cartpole.models import build_model, planning_limits, plant_model
 
     check_target(out)
     find_compiler()
@@ -207,7 +209,7 @@ def run_export(mjcf=None, *, controller: str = "lqr", loop=None, float32: bool =
 
         if mcu_tools() is None:
             cross_build({})  # its one sentence: install the ARM toolchain
-    model = mjcf if isinstance(mjcf, CartPoleModel) else build_model(mjcf)
+    model = plant_model(plant)
     limits = None
     if CONTROLLERS.get(controller) == "swingup" or u_max is not None or cart_max is not None:
         params, limits = planning_limits(model.params, u_max=u_max, cart_max=cart_max)  # defaults where unlimited

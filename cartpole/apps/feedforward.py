@@ -39,7 +39,7 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits,
-                             read_params)
+                             plant_params)
 from cartpole.apps.swingup import start_state
 from cartpole.progress import stage
 from cartpole.sim import Rollout, replays_exactly, simulate
@@ -265,7 +265,7 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
         replays_exactly=replays_exactly(rollout, model.params), metrics=m)
 
 
-def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
+def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
                     plan=None, options=None, progress: Callable[[str, float], None] | None = None,
                     loop=None, plan_model: CartPoleModel | None = None, u_max=None,
                     cart_max: float | None = None, x0=None) -> FeedforwardStudy:
@@ -273,7 +273,7 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole MuJoCo runs (default the shipped asset); any model the trajectory optimiser takes.
     mass_error : float
         Relative error of the wrong planning model's pole mass (default 0.1: every pole link 10 % heavier;
@@ -324,7 +324,7 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
 
     from cartpole.control.friction import friction_design
 
-    params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+    params = plant_params(plant)
     params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
     plan_model = None if plan_model is None else bounded_model(plan_model, limits)
     # planned without the friction a compensation cancels, run with it (cartpole.control.friction)
@@ -346,10 +346,11 @@ def run_feedforward(mjcf=None, *, mass_error: float = MASS_ERROR, extra: float =
                callback=forward("plan")) as tick:
         if plan is None:
             design = model if plan_model is None else plan_model
-            plan = trajopt_swingup(design.params, start, model=design, options=options, period=period)
+            plan = trajopt_swingup(design.params, start, plan_model=design, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
         wrong = plan if f == 0.0 else trajopt_swingup(
-            params, start, model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model, options=options,
+            params, start, plan_model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model,
+            options=options,
             period=period)
         tick(1.0)
 

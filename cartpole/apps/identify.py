@@ -22,7 +22,7 @@ from cartpole.identify.fit import (
 from cartpole.identify.logs import read_log
 from cartpole.identify.mjcf import write_fitted_mjcf
 from cartpole.identify.parameters import parse_parameters
-from cartpole.models import read_params
+from cartpole.models import plant_params
 
 
 @dataclass(frozen=True)
@@ -77,14 +77,14 @@ def _rms(p, params, theta, logs) -> dict:
     return dict(zip(p.joint_names, np.sqrt(sq / n).tolist())), sims
 
 
-def run_identify(mjcf, logs, out: str | Path, *, fit_names=("all",), holdout=(), regularization: float =
+def run_identify(plant, logs, out: str | Path, *, fit_names=("all",), holdout=(), regularization: float =
                  DEFAULT_REGULARIZATION, segment_s: float = DEFAULT_SEGMENT_S, figure: bool = True,
                  name: str = "fitted") -> IdentifyResult:
     """Fit, check and write (module docstring).
 
     Parameters
     ----------
-    mjcf : path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The nominal MJCF.
     logs : sequence of path
         Runs to fit (CSV or rollout JSON).
@@ -107,7 +107,7 @@ def run_identify(mjcf, logs, out: str | Path, *, fit_names=("all",), holdout=(),
     -------
     IdentifyResult
     """
-    p = read_params(mjcf)
+    p = plant_params(plant)
     params = parse_parameters(p, list(fit_names))
     fit_logs = [read_log(f, p) for f in logs]
     hold_logs = [read_log(f, p) for f in holdout]

@@ -3,7 +3,7 @@
 ``run_lab()`` reproduces the lab handout's experiment on any MJCF the toolkit reads and the LQR stabilises: a
 cart with one pole (the lab's), a chain of two or three, a pendulum with no cart, more than one motor. The exact
 linearisation at upright rest (continuous ``A, B`` from the symbolic model, or ``Ad, Bd`` of one step of the
-MJCF's integrator with ``discrete=True``), LQR with the lab's weight pattern (:func:`~cartpole.lqr.lab_weights`:
+MJCF's integrator with ``discrete=True``), LQR with the lab's weight pattern (:func:`~cartpole.riccati.lab_weights`:
 for one pole the handout's ``Q = diag(1, 10, 0.1, 0.1)``, ``R = 0.1``), and five 6 s MuJoCo runs of
 ``u = u* - K (x - x*)`` (hinge errors wrapped, ctrl clipped to ``ctrlrange`` by MuJoCo) from the lab's five
 starts, each logged every physics step so it replays exactly. The settling statistics are those of
@@ -13,7 +13,7 @@ The starts (:func:`lab_initial_conditions`) are the handout's cart offsets on th
 *first* pole, every other joint at its upright equilibrium angle and everything at rest. When the model cannot
 catch them at full size for the ctrl limit (dm_control's triple pole on its cart from 8 degrees), all five are
 scaled down by one factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_SCALES`) at which
-the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.lqr.lab_weights`, continuous)
+the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.riccati.lab_weights`, continuous)
 in the lab's 6 s. Only the ctrl limit shrinks them: a start the closed loop is merely too slow to settle in the run
 stays full size and is reported unsettled with the reason (:func:`why_not_settled`: the final error, the slowest
 closed-loop time constant, the run its linear loop would need). The factor depends on the model only, not on the
@@ -33,14 +33,13 @@ an actuated cart, so on a chain it raises :class:`~cartpole.control.pid.PIDError
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, state_error, wrap_angle
+from cartpole.models import CartPoleModel, CartPoleParams, linearize, Plant, plant_model, state_error, wrap_angle
 from cartpole.progress import stage
 from cartpole.validation.metrics import STRICT_TOLERANCE, UPRIGHT_TOL
 
@@ -76,18 +75,12 @@ class LabError(CartPoleError):
     """The lab cannot be run on this model (e.g. its joint ranges exclude upright rest)."""
 
 
-def _model(source) -> CartPoleModel:
-    if isinstance(source, CartPoleModel):
-        return source
-    return build_model(source if isinstance(source, CartPoleParams) else read_params(source))
-
-
-def lab_equilibrium(source) -> np.ndarray:
+def lab_equilibrium(plant) -> np.ndarray:
     """The lab's upright rest ``x*`` (2 nq,): the model's computed equilibrium with the cart in the middle of its rail.
 
     Parameters
     ----------
-    source : CartPoleModel, CartPoleParams or MJCF path
+    plant : path, CartPoleParams, CartPoleModel or None
         The model (its ``x_eq``: every pole's centre of mass above its hinge, at rest).
 
     Returns
@@ -102,7 +95,7 @@ def lab_equilibrium(source) -> np.ndarray:
     LabError
         When a hinge's range excludes its upright angle.
     """
-    model = _model(source)
+    model = plant_model(plant)
     p = model.params
     x_eq = np.array(model.x_eq, dtype=float)
     for h in model.hinges:
@@ -128,7 +121,7 @@ def lab_equilibrium(source) -> np.ndarray:
     return readonly(x_eq)
 
 
-def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
+def lab_initial_conditions(plant, *, scale: float = 1.0) -> np.ndarray:
     """The lab's five starts (5, 2 nq), placed at the model's equilibrium and scaled into its joint ranges.
 
     The handout's offsets (:data:`LAB_OFFSETS`) go on the cart's slide and on the *first* pole's hinge
@@ -140,7 +133,7 @@ def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
 
     Parameters
     ----------
-    source : CartPoleModel, CartPoleParams or MJCF path
+    plant : path, CartPoleParams, CartPoleModel or None
     scale : float
         Factor on both offsets after the range scaling (:func:`run_lab`'s ``start_scale``; 1 = the handout's).
 
@@ -149,7 +142,7 @@ def lab_initial_conditions(source, *, scale: float = 1.0) -> np.ndarray:
     (5, 2 nq) read-only array
         One state ``[qpos, qvel]`` per row; for one pole ``[s (m), theta (rad), s_dot (m/s), theta_dot (rad/s)]``.
     """
-    model = _model(source)
+    model = plant_model(plant)
     x_eq = lab_equilibrium(model)
     x0s = np.tile(x_eq, (len(LAB_OFFSETS), 1))
     joints = ((model.slide, LAB_OFFSETS[:, 0]), (model.hinges[0] if model.hinges else None, LAB_OFFSETS[:, 1]))
@@ -246,7 +239,9 @@ class LabResult(_LabRuns):
         Absolute path of the MJCF run.
     params : CartPoleParams
     discrete : bool
-        True when K came from ``dlqr(Ad, Bd)`` at the MJCF's time step, else ``lqr(A, B)``.
+        True when K came from ``dlqr(Ad, Bd, Q T, R T)`` over the control period ``T`` (the package's one cost
+        scaling, :mod:`cartpole.riccati.algebraic`: ``S`` is then the continuous design's to first order in ``T``),
+        else ``lqr(A, B, Q, R)``.
     A, B : (nx, nx), (nx, nu) arrays
         Continuous linearisation at upright rest (1/s; state derivative per unit ctrl).
     Ad, Bd : (nx, nx), (nx, nu) arrays
@@ -337,29 +332,6 @@ class LabResult(_LabRuns):
         from cartpole.control.linear import LinearFeedback
 
         return LinearFeedback(self.K, self.x_eq, self.u_eq, S=self.S, hinges=self.params.hinges)
-
-
-def design(model, Q, R, *, discrete: bool = False, x_eq=None, steps: int = 1):
-    """LQR at upright rest of a :class:`~cartpole.models.CartPoleModel`.
-
-    Linearises at ``(x_eq, model.u_eq)`` (default ``model.x_eq``) and returns ``(LQRResult, (A, B, Ad, Bd))``;
-    ``discrete`` picks ``dlqr(Ad, Bd)`` over ``lqr(A, B)``. With a control period of ``steps > 1`` physics steps,
-    ``Ad``, ``Bd`` are the exact discrete model over that hold (:meth:`~cartpole.models.CartPoleModel.hold`) and the
-    gain is ``dlqr(Ad, Bd, Q T, R T)`` (``T`` the period in s), whatever ``discrete`` says. A model with dry friction
-    is linearised without it (:meth:`~cartpole.models.CartPoleModel.without_friction`).
-    """
-    from cartpole.lqr import dlqr, lqr
-
-    x_eq = model.x_eq if x_eq is None else x_eq
-    model = model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
-    A, B = model.linearize(x_eq, model.u_eq)
-    if steps > 1:
-        T = steps * model.dt
-        Ad, Bd = model.hold(steps).linearize(x_eq, model.u_eq)
-        return dlqr(Ad, Bd, np.asarray(Q, float) * T, np.asarray(R, float) * T), (A, B, Ad, Bd)
-    Ad, Bd = model.linearize(x_eq, model.u_eq, discrete=True)
-    res = dlqr(Ad, Bd, Q, R) if discrete else lqr(A, B, Q, R)
-    return res, (A, B, Ad, Bd)
 
 
 def starts_in_band(x0s, x_eq, hinges, *, band: float = UPRIGHT_TOL) -> tuple:
@@ -587,8 +559,8 @@ def why_not_settled(lab: "LabResult") -> tuple:
 def lab_friction(model, compensated: bool) -> list:
     """What the lab's LQR design did with the MJCF's dry friction (JSON ``smoothed_friction``).
 
-    :func:`design` linearises at rest without any ``frictionloss`` (there the smooth model's slope would be a viscous
-    damping the sticking joint does not have): every joint with friction is ``omitted``, the driven ones
+    :meth:`~cartpole.control.linear.LinearFeedback.for_model` linearises at rest without any ``frictionloss``
+    (there the smooth model's slope would be a viscous damping the sticking joint does not have): every joint with friction is ``omitted``, the driven ones
     ``cancelled`` when the runs compensate them (:func:`~cartpole.control.friction.friction_design`).
 
     Parameters
@@ -644,12 +616,19 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, ri
 
 
 def _lab_controller(model, Q, R, *, discrete: bool = False, steps: int = 1):
-    """``(LinearFeedback, LQRResult, (A, B, Ad, Bd), x_eq)`` of the lab's design about :func:`lab_equilibrium`."""
+    """``(LinearFeedback, (A, B, Ad, Bd), x_eq)`` of the lab's design about :func:`lab_equilibrium`
+    (:meth:`~cartpole.control.linear.LinearFeedback.for_model`: the law carries ``K``, ``S``, ``E``), with the
+    linearisation it was designed on: ``Ad``, ``Bd`` over the control period of
+    ``steps`` physics steps, the model without dry friction (it has no slope at rest)."""
     from cartpole.control.linear import LinearFeedback
 
     x_eq = lab_equilibrium(model)
-    res, mats = design(model, Q, R, discrete=discrete, x_eq=x_eq, steps=steps)
-    return LinearFeedback(res.K, x_eq, model.u_eq, S=res.S, hinges=model.hinges), res, mats, x_eq
+    period = None if steps == 1 else steps * model.dt
+    ctrl = LinearFeedback.for_model(model, Q, R, discrete=discrete, period=period, x_eq=x_eq, u_limits=None)
+    smooth = model.without_friction()
+    A, B = linearize(smooth, x_eq, smooth.u_eq)
+    Ad, Bd = linearize(smooth, x_eq, smooth.u_eq, period=steps * model.dt)
+    return ctrl, (A, B, Ad, Bd), x_eq
 
 
 def _runs_label(model, duration: float, runs: int = 5) -> str:
@@ -688,7 +667,7 @@ def _search_scale(model, ctrl, res, mats, x_eq, progress=None):
     return 1.0, first, None
 
 
-def lab_start_scale(mjcf=None) -> float:
+def lab_start_scale(plant=None) -> float:
     """The factor on the lab's five starts for this model: the largest of :data:`START_SCALES` (1, 1/2, ... 1/64)
     at which the ctrl limit keeps no start from settling under the lab's own LQR in :data:`LAB_DURATION` s.
 
@@ -700,7 +679,7 @@ def lab_start_scale(mjcf=None) -> float:
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
 
     Returns
     -------
@@ -708,20 +687,20 @@ def lab_start_scale(mjcf=None) -> float:
         1.0 on every shipped asset; 1.0 too when no factor clears the ctrl limit (the lab then reports its runs
         unsettled, saying why).
     """
-    return _start_scale(mjcf)[0]
+    return _start_scale(plant)[0]
 
 
 def _start_scale(mjcf=None) -> tuple:
     """``(scale, reason)`` of :func:`lab_start_scale` (``reason`` None at full size)."""
-    from cartpole.lqr import lab_weights
+    from cartpole.riccati import lab_weights
 
-    model = _model(mjcf)
-    ctrl, res, mats, x_eq = _lab_controller(model, *lab_weights(model))
-    scale, _, reason = _search_scale(model, ctrl, res, mats, x_eq)
+    model = plant_model(mjcf)
+    ctrl, mats, x_eq = _lab_controller(model, *lab_weights(model))
+    scale, _, reason = _search_scale(model, ctrl, ctrl, mats, x_eq)
     return scale, reason
 
 
-def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, Q=None, R=None,
+def run_lab(plant: Plant = None, *, Q=None, R=None,
             discrete: bool = False, duration: float = LAB_DURATION, start_scale: float | None = None,
             progress: Callable[[float], None] | None = None, loop=None,
             plan_model: CartPoleModel | None = None) -> LabResult:
@@ -729,13 +708,13 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         Model to balance (default the shipped single-pole asset).
     Q : (nx, nx) array, optional
-        State weights (default :func:`~cartpole.lqr.lab_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
-        for one pole the lab's ``diag(1, 10, 0.1, 0.1)``, :data:`~cartpole.lqr.Q_LAB`).
+        State weights (default :func:`~cartpole.riccati.lab_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
+        for one pole the lab's ``diag(1, 10, 0.1, 0.1)``, :data:`~cartpole.riccati.Q_LAB`).
     R : (nu, nu) array or float, optional
-        ctrl weights (default 0.1 per input; the lab's :data:`~cartpole.lqr.R_LAB` for one).
+        ctrl weights (default 0.1 per input; the lab's :data:`~cartpole.riccati.R_LAB` for one).
     discrete : bool
         Design on the exact discrete model ``(Ad, Bd)`` at the MJCF's time step (``dlqr``) instead of ``(A, B)``.
     duration : float, s
@@ -749,7 +728,8 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     loop : LoopOptions, optional
         The rig the runs have (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
         estimator, noise seed; its duration, when given, replaces ``duration``). K is designed for the period
-        (:func:`design`); the starts are still :func:`lab_start_scale`'s, found on the perfect loop.
+        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`); the starts are still :func:`lab_start_scale`'s,
+        found on the perfect loop.
     plan_model : CartPoleModel, optional
         Design K (and its equilibrium) on this model while MuJoCo runs ``mjcf`` (``--plan-mjcf``: e.g. a fitted
         MJCF); the settling metrics are measured from ``mjcf``'s own upright. Default: design on ``mjcf``.
@@ -763,14 +743,14 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
     MJCFError, LQRError, LabError
         Bad MJCF, weights, or a model the lab cannot balance.
     """
-    from cartpole.lqr import lab_weights
+    from cartpole.riccati import lab_weights
 
     from cartpole.models import steps_per_period
     from cartpole.sim.rig import build_rig
 
     from cartpole.control.friction import friction_design
 
-    plant = _model(mjcf)
+    plant = plant_model(plant)
     params = plant.params
     if loop is not None and loop.duration is not None:
         duration = loop.duration
@@ -787,7 +767,8 @@ def run_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, 
            and plan_model is None and not friction.compensated)
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
-    ctrl, res, (A, B, Ad, Bd), x_eq = _lab_controller(friction.model, Q, R, discrete=discrete, steps=steps)
+    ctrl, (A, B, Ad, Bd), x_eq = _lab_controller(friction.model, Q, R, discrete=discrete, steps=steps)
+    res = ctrl  # K, S, E of the design
     ctrl = friction.wrap(ctrl)
     reason = None
     if start_scale is None and own:  # the scale search's runs are this lab's runs
@@ -863,7 +844,7 @@ class PIDLabResult(_LabRuns):
     metrics: tuple
 
 
-def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None, *, x0s=None,
+def run_pid_lab(plant: Plant = None, *, x0s=None,
                 duration: float = LAB_DURATION, start_scale: float | None = None,
                 progress: Callable[[float], None] | None = None, rig=None, **tuning) -> PIDLabResult:
     """The lab's experiment with the cascaded PID instead of the LQR: one MuJoCo run per start.
@@ -876,7 +857,7 @@ def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None,
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         One pole on a cart driven by one motor on the slide (default the shipped asset).
     x0s : (k, 4) array, optional
         Starts ``[s, theta, s_dot, theta_dot]`` (default :func:`lab_initial_conditions` at ``start_scale``).
@@ -902,7 +883,7 @@ def run_pid_lab(mjcf: str | Path | CartPoleParams | CartPoleModel | None = None,
     """
     from cartpole.control.pid import CascadedPID, tune_pid
 
-    model = _model(mjcf)
+    model = plant_model(plant)
     if rig is not None:  # designed for the rig's period (the PID reads the rig's estimate, as the LQR does)
         tuning = {"period": rig.period, **tuning}
     gains = tune_pid(model, **tuning)
@@ -979,7 +960,7 @@ def balances(result) -> bool:
     return all(np.isfinite(m.settling_time_seed) and not m.hit_limit and not m.diverged for m in result.metrics)
 
 
-def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = False, progress=None) -> dict:
+def delay_margin(plant=None, *, loop=None, max_delay: float = 0.1, pid: bool = False, progress=None) -> dict:
     """The largest delay (whole physics steps) at which the lab's controller still balances all five starts.
 
     The delays ``0, h, 2h, ...`` up to ``max_delay`` are tried in turn on the rig ``loop`` (its ``delay`` replaced)
@@ -987,7 +968,7 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     loop : LoopOptions, optional
         The rig (period, sensors, estimator, delay compensation); default the perfect loop.
     max_delay : float
@@ -1002,7 +983,7 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
     dict
         :func:`rig_margin`'s, with the setting ``delay`` (s).
     """
-    model = _model(mjcf)  # built once, for the step and for every run of the search
+    model = plant_model(plant)  # built once, for the step and for every run of the search
     h = float(model.dt)
     delays = [k * h for k in range(int(np.floor(max_delay / h + 1e-9)) + 1)]
     return rig_margin(model, loop=loop, setting="delay", values=delays, pid=pid, progress=progress)
@@ -1012,14 +993,14 @@ def delay_margin(mjcf=None, *, loop=None, max_delay: float = 0.1, pid: bool = Fa
 NOISE_FRACTIONS = (0.0,) + tuple(2.0 ** -k for k in range(9, -1, -1))
 
 
-def noise_margin(mjcf=None, *, loop=None, max_noise: float = 0.05, pid: bool = False, progress=None) -> dict:
+def noise_margin(plant=None, *, loop=None, max_noise: float = 0.05, pid: bool = False, progress=None) -> dict:
     """The largest sensor noise (standard deviation, each sensor's units) at which the lab's controller still
     balances all five starts on the rig ``loop``: 0 and ``max_noise`` halved nine times to ``max_noise`` in turn
     (:data:`NOISE_FRACTIONS`), until one fails (:func:`rig_margin`, setting ``sensor_noise``).
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     loop : LoopOptions, optional
         The rig; it needs an estimator (default ``kf`` once a sensor option is given) and usually encoders.
     max_noise : float
@@ -1034,10 +1015,10 @@ def noise_margin(mjcf=None, *, loop=None, max_noise: float = 0.05, pid: bool = F
         :func:`rig_margin`'s, with the setting ``sensor_noise``.
     """
     values = [float(max_noise) * f for f in NOISE_FRACTIONS]
-    return rig_margin(mjcf, loop=loop, setting="sensor_noise", values=values, pid=pid, progress=progress)
+    return rig_margin(plant, loop=loop, setting="sensor_noise", values=values, pid=pid, progress=progress)
 
 
-def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False, progress=None) -> dict:
+def rig_margin(plant=None, *, loop=None, setting: str, values, pid: bool = False, progress=None) -> dict:
     """The largest value of one rig setting at which the lab's controller still balances all five starts.
 
     The ``values`` are tried in increasing order on the rig ``loop`` (``setting`` replaced by each) until one fails
@@ -1045,7 +1026,7 @@ def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False,
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams or CartPoleModel, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     loop : LoopOptions, optional
         The rig; default the perfect loop.
     setting : str
@@ -1068,7 +1049,7 @@ def rig_margin(mjcf=None, *, loop=None, setting: str, values, pid: bool = False,
     """
     from cartpole.sim.options import LoopOptions
 
-    model = _model(mjcf)
+    model = plant_model(plant)
     loop = LoopOptions() if loop is None else loop
     values = [float(v) for v in values]
     out, tried = {"setting": setting}, set()

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.lqr import dlqr, lqr
+from cartpole.riccati import dlqr, lqr
 from cartpole.models import state_error
 from cartpole.sim import Rollout, simulate
 from cartpole.viz.web import LOCALHOST, Knob, WebLive
@@ -139,13 +139,12 @@ class LQRTuner:
 
     def design(self, Q, R):
         """The LQR for weights ``Q``, ``R`` on the lab's exact linearisation, as the lab designs it
-        (:func:`cartpole.apps.lab.design`): ``dlqr(Ad, Bd, Q T, R T)`` over a control period of several steps,
-        ``dlqr(Ad, Bd, Q, R)`` when the lab is discrete, else ``lqr(A, B, Q, R)``."""
+        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`, on the lab's stored linearisation so that a
+        slider does not rebuild the model): ``dlqr(Ad, Bd, Q T, R T)`` when the lab is discrete (``T`` its control
+        period: the package's one cost scaling, :mod:`cartpole.riccati.algebraic`), else ``lqr(A, B, Q, R)``."""
         lab = self.lab
-        if self.steps > 1:
+        if self.steps > 1 or lab.discrete:
             return dlqr(lab.Ad, lab.Bd, Q * lab.period, R * lab.period)
-        if lab.discrete:
-            return dlqr(lab.Ad, lab.Bd, Q, R)
         return lqr(lab.A, lab.B, Q, R)
 
 
@@ -204,7 +203,7 @@ def watch_lab(lab, *, port: int = 0, host: str = LOCALHOST, duration: float | No
     return run, doc
 
 
-def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 30.0, port: int = 0,
+def watch(plant: str | Path | None = None, *, Q=None, R=None, duration: float = 30.0, port: int = 0,
           host: str = LOCALHOST, x0=None, wait: bool = True) -> Rollout:
     """Balance a cart-pole with the lab's LQR live in the browser (MuJoCo Studio's web viewer) and return the run.
 
@@ -215,7 +214,7 @@ def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 3
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (default the shipped one).
     Q, R : arrays, optional
         Starting weights (default the lab's).
@@ -238,7 +237,7 @@ def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 3
     """
     from cartpole.apps.lab import run_lab
 
-    lab = run_lab(mjcf, Q=Q, R=R)
+    lab = run_lab(plant, Q=Q, R=R)
     run, doc = watch_lab(lab, port=port, host=host, duration=duration, x0=x0, wait=wait)
     run.info["live"] = doc
     return run

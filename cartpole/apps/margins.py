@@ -88,7 +88,7 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     ----------
     model : CartPoleModel
     Q, R : arrays, optional
-        LQR weights (default :func:`~cartpole.lqr.lab_weights`).
+        LQR weights (default :func:`~cartpole.riccati.lab_weights`).
     discrete : bool
         Design with dlqr at the physics step (as ``cartpole lqr --discrete``).
     loop : LoopOptions, optional
@@ -105,8 +105,9 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     AnalysisError
         An estimator with no linear loop (``ekf``, ``mhe``).
     """
-    from cartpole.apps.lab import design, lab_equilibrium
-    from cartpole.lqr import lab_weights
+    from cartpole.apps.lab import lab_equilibrium
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.riccati import lab_weights
     from cartpole.sim.options import LoopOptions
     from cartpole.sim.rig import delay_steps, estimator_factory
 
@@ -118,8 +119,7 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
     x_eq = lab_equilibrium(model)
-    res, _ = design(model, Q, R, discrete=discrete, x_eq=x_eq, steps=m)
-    K = res.K
+    K = LinearFeedback.for_model(model, Q, R, discrete=discrete, period=m * h, x_eq=x_eq).K
     comp = bool(loop.delay_compensation)
     loops = {"lqr": sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, x=x_eq)}
     if m == 1 and not discrete:
@@ -406,7 +406,7 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
     ----------
     model : CartPoleModel
     Q : (nx, nx) array or None
-        State weights (default :func:`~cartpole.lqr.lab_weights`).
+        State weights (default :func:`~cartpole.riccati.lab_weights`).
     R : (nu, nu) array, float or None
         ctrl weights to start from (default the lab's).
     loop : LoopOptions
@@ -430,8 +430,9 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
     """
     import math
 
-    from cartpole.apps.lab import design, lab_equilibrium
-    from cartpole.lqr import lab_weights
+    from cartpole.apps.lab import lab_equilibrium
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.riccati import lab_weights
 
     f = float(fraction)
     if not (math.isfinite(f) and 0 < f < 1):
@@ -446,8 +447,9 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
     R = R * np.eye(model.nu) if R.shape == (1, 1) and model.nu > 1 else R
     m = steps_per_period(loop.period, float(model.dt))
     x_eq = lab_equilibrium(model)
-    found, _ = _noise_search(model, loop, f, lambda r: design(model, Q, r, discrete=discrete, x_eq=x_eq, steps=m)[0].K,
-                             R, (loop.process_noise,), MAX_R_DOUBLINGS, x_eq)
+    found, _ = _noise_search(model, loop, f, lambda r: LinearFeedback.for_model(
+        model, Q, r, discrete=discrete, period=m * float(model.dt), x_eq=x_eq).K, R, (loop.process_noise,),
+        MAX_R_DOUBLINGS, x_eq)
     if found is not None:
         return {k: found[k] for k in ("R", "factor", "fraction", "predicted_std", "predicted_fraction")}
     raise AnalysisError(f"No R up to {2.0 ** MAX_R_DOUBLINGS:g} times the lab's keeps the ctrl noise from these "

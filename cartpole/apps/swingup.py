@@ -9,7 +9,8 @@
 * ``energy``: energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters
   the LQR catch's basin ``e' S e < rho`` (``rho`` estimated in MuJoCo by :func:`~cartpole.validation.basin.
   estimate_basin`), then an LQR catch (the lab's Q with R = 1,
-  :func:`~cartpole.control.switching.swingup_catch`, whose verified basin is about five times the lab LQR's), with
+  :meth:`~cartpole.control.linear.LinearFeedback.for_model` with ``R =``
+  :data:`~cartpole.control.switching.SWINGUP_CATCH_R`, whose verified basin is about five times the lab LQR's), with
   hysteresis (:class:`~cartpole.control.switching.SwitchingController`). One pole on a cart driven by the cart
   only: any other model is refused with the controller's one sentence, before anything runs;
 * ``trajopt``: direct collocation + TVLQR (:func:`cartpole.planning.trajopt.trajopt_swingup`) for the chosen
@@ -50,6 +51,7 @@ from cartpole.control.friction import friction_design, friction_summary
 from cartpole.errors import CartPoleError, first_line
 from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, read_params,
                              start_on_range)
+from cartpole.models import plant_params
 from cartpole.sim import Rollout, simulate
 from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
                                   check_push_times, push_force)
@@ -511,7 +513,7 @@ LEGACY_KEYWORDS = {"duration": "loop", "push": "loop", "model_error": "loop", "o
                    "horizon": "mpc"}
 
 
-def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptions | None = None,
+def run_swingup(plant=None, *, method="auto", x0=None, plan=None, loop: LoopOptions | None = None,
                 mpc=None, energy_options=None, catch_weights: tuple | None = None,
                 plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
                 basin_cache=None, on_step=None, u_max=None, cart_max: float | None = None,
@@ -520,7 +522,7 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
 
     Parameters
     ----------
-    mjcf : path, CartPoleParams, CartPoleModel or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The model (None = shipped asset): one pole on a cart for ``energy``, any chain for ``trajopt``.
     method : {"auto", "energy", "trajopt", "mpc"} or sequence of str or MethodTry
         ``"auto"`` (default): the methods :func:`auto_methods` chooses for the model, tried in turn until one
@@ -549,7 +551,7 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
         of its field names); default its defaults.
     catch_weights : (Q, R), optional
         LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
-        (:func:`~cartpole.control.switching.swingup_catch`; the lab's ``R = 0.1`` gives a much smaller basin).
+        (:data:`~cartpole.control.switching.SWINGUP_CATCH_R`; the lab's ``R = 0.1`` gives a much smaller basin).
         Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR. Energy method only: the trajopt hand-over is
         :func:`cartpole.planning.trajopt.handover_catch`.
     plan_model : CartPoleModel, optional
@@ -617,10 +619,10 @@ def run_swingup(mjcf=None, *, method="auto", x0=None, plan=None, loop: LoopOptio
              for stage in ("plan", "loop", "mpc")}
     auto = isinstance(method, str) and method == AUTO
     tries = None if auto else method_list(method)
-    if isinstance(mjcf, CartPoleModel):
-        model, params = mjcf, mjcf.params
+    if isinstance(plant, CartPoleModel):
+        model, params = plant, plant.params
     else:
-        params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+        params = plant_params(plant)
         model = None
     loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
     params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
@@ -859,12 +861,14 @@ def _run_supervisor(ctx: _Context, plan) -> _Ran:
 
 def _run_energy(ctx: _Context, energy, catch_weights) -> _Ran:
     """Energy shaping with the LQR catch in its MuJoCo-estimated basin, switching with hysteresis."""
-    from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController, swingup_catch
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
 
     Q, R = catch_weights or (None, None)
     R0 = SWINGUP_CATCH_R * np.eye(ctx.pm.nu) if R is None else R
-    loop, R, noise = _sensor_design(ctx, lambda r: swingup_catch(ctx.pm, Q, r, period=ctx.loop.period).K, R0)
-    catch = swingup_catch(ctx.pm, Q, R, period=ctx.loop.period)
+    loop, R, noise = _sensor_design(
+        ctx, lambda r: LinearFeedback.for_model(ctx.pm, Q, r, period=ctx.loop.period).K, R0)
+    catch = LinearFeedback.for_model(ctx.pm, Q, R, period=ctx.loop.period)
     basin = ctx.basin_of(catch)
     switching = SwitchingController(energy, catch, basin.rho)
     T = ENERGY_DURATION if ctx.loop.duration is None else ctx.loop.duration
@@ -944,7 +948,7 @@ def _run_trajopt(ctx: _Context, plan) -> _Ran:
     R0 = lab_weights(ctx.pm)[1] if plan.R is None else plan.R
     steps = steps_per_period(ctx.loop.period, ctx.params.timestep)
     loop, R, noise = _sensor_design(ctx, lambda r: handover_catch(ctx.params, ctx.pm, plan.Q, r, steps=steps).K, R0)
-    sp = trajopt_swingup(ctx.params, x0=tuple(ctx.x0), model=ctx.pm, options=plan, period=ctx.loop.period,
+    sp = trajopt_swingup(ctx.params, x0=tuple(ctx.x0), plan_model=ctx.pm, options=plan, period=ctx.loop.period,
                          catch_R=None if noise is None else R)
     if ctx.progress is not None:
         ctx.progress("trajopt", 1.0)
@@ -999,9 +1003,9 @@ def _run_mpc(ctx: _Context, mpc, plan) -> _Ran:
     if mpc.solver == "ddp":
         from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
 
-        nmpc = ddp_mpc_swingup(ctx.params, x0=ctx.x0, model=ctx.pm, options=mpc, plan=plan)
+        nmpc = ddp_mpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
     else:
-        nmpc = nmpc_swingup(ctx.params, x0=ctx.x0, model=ctx.pm, options=mpc, plan=plan)
+        nmpc = nmpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
     if ctx.progress is not None:
         ctx.progress("mpc", 1.0)
     T = ctx.loop.duration

@@ -35,9 +35,9 @@ def run(args) -> dict:
 
     model = build_model(args.mjcf)
     steps = steps_per_period(getattr(args, "period", None), model.dt)
-    lin = linearize(model)
-    if steps > 1:
-        lin["Ad"], lin["Bd"] = model.hold(steps).linearize()
+    lin = {"x_eq": model.x_eq, "u_eq": model.u_eq, "dt": model.dt, "integrator": model.integrator}
+    lin["A"], lin["B"] = linearize(model)
+    lin["Ad"], lin["Bd"] = linearize(model, period=steps * model.dt)
     bad = [k for k in ("x_eq", "u_eq", "A", "B", "Ad", "Bd") if not np.all(np.isfinite(lin[k]))]
     if bad:
         raise CartPoleError(f"The linearisation has NaN or inf entries in {', '.join(bad)}: the MJCF holds a number "

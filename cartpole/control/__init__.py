@@ -10,10 +10,10 @@ from cartpole.control.tvlqr import TVLQRController  # noqa: E402
 __all__ += ["TVLQRController"]
 from cartpole.control.energy import (EnergyGains, EnergyShapingController, EnergyShapingModelError,  # noqa: E402
                                      energy_rollout)
-from cartpole.control.switching import Switch, SwitchingController, lab_catch, swingup_catch  # noqa: E402
+from cartpole.control.switching import SWINGUP_CATCH_R, Switch, SwitchingController  # noqa: E402
 
 __all__ += ["EnergyGains", "EnergyShapingController", "EnergyShapingModelError", "energy_rollout",
-            "Switch", "SwitchingController", "lab_catch", "swingup_catch"]
+            "SWINGUP_CATCH_R", "Switch", "SwitchingController"]
 from cartpole.control.pid import CascadedPID, PIDError, PIDGains, tune_pid  # noqa: E402
 
 __all__ += ["CascadedPID", "PIDError", "PIDGains", "tune_pid"]

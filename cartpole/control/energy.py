@@ -49,7 +49,7 @@ import numpy as np
 
 from cartpole.control.model_rollout import model_rollout
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, build_model
+from cartpole.models import CartPoleModel, plant_model
 from cartpole.options import StageOptions
 
 
@@ -411,7 +411,7 @@ class EnergyShapingController:
 
     Parameters
     ----------
-    model : CartPoleModel or CartPoleParams or path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The symbolic model the law inverts (None = shipped asset).
     options : EnergyOptions, optional
         The settings (dimensionless scalings of :func:`default_gains`, optional explicit SI gains ``k_energy``
@@ -438,9 +438,9 @@ class EnergyShapingController:
         For bad gains or settings.
     """
 
-    def __init__(self, model=None, options: EnergyOptions | None = None, *, gains: EnergyGains | None = None,
+    def __init__(self, plant=None, options: EnergyOptions | None = None, *, gains: EnergyGains | None = None,
                  **settings):
-        self.model = model if isinstance(model, CartPoleModel) else build_model(model)
+        self.model = plant_model(plant)
         check_single_pole(self.model)
         self.options = opts = energy_options(options).replace(**settings)
         g = gains if gains is not None else default_gains(self.model, opts)

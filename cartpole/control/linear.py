@@ -1,9 +1,9 @@
 """Linear state feedback about an equilibrium: ``u = u* - K (x - x*)``, hinge-angle errors wrapped, per-actuator clip.
 
 For any model with ``nq`` joints (``nx = 2 nq`` states) and ``nu`` actuators. :meth:`LinearFeedback.for_model`
-designs the usual one: LQR on the exact linearisation at the model's computed upright equilibrium
-``(x_eq, u_eq)``, the lab's weight pattern (:func:`~cartpole.lqr.weights.lab_weights`), the model's hinges
-wrapped and its ctrl ranges as limits.
+is the one constructor of the upright LQR: LQR on the exact linearisation at the model's computed upright
+equilibrium ``(x_eq, u_eq)``, the default weight pattern (:func:`~cartpole.riccati.weights.lab_weights`), the
+model's hinges wrapped and its ctrl ranges as limits.
 """
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import state_error
+from cartpole.models import plant_model, state_error, steps_per_period
+from cartpole.riccati import dlqr, lqr
 
 
 class FeedbackError(CartPoleError, ValueError):
@@ -51,6 +52,8 @@ class LinearFeedback:
         ctrlrange anyway).
     S : (nx, nx) array, optional
         LQR cost-to-go, kept so :meth:`cost_to_go` can test the catch basin ``e' S e < rho``.
+    E : (nx,) complex array, optional
+        Closed-loop eigenvalues of the design (1/s, or per sample for a discrete one), kept for reports.
     hinges : sequence of int, optional
         qpos indices of the hinge joints whose errors are wrapped; default every joint but the first (a cart at
         qpos 0 carrying a chain of poles, e.g. ``(1,)`` for one pole). :meth:`for_model` passes the model's own.
@@ -64,11 +67,12 @@ class LinearFeedback:
         ``[low, high]`` per actuator.
     u_low, u_high : (nu,) arrays
     S : (nx, nx) array or None
+    E : (nx,) complex array or None
     hinges : tuple of int
     nx, nu : int
     """
 
-    def __init__(self, K, x_eq=None, u_eq=None, *, u_limits=None, S=None, hinges=None):
+    def __init__(self, K, x_eq=None, u_eq=None, *, u_limits=None, S=None, E=None, hinges=None):
         K = np.asarray(K, dtype=float)
         K = K.reshape(1, -1) if K.ndim == 1 else K
         if K.ndim != 2 or K.shape[1] % 2:
@@ -86,40 +90,48 @@ class LinearFeedback:
         self.S = None if S is None else readonly(S)
         if self.S is not None and self.S.shape != (nx, nx):
             raise FeedbackError(f"S has shape {self.S.shape} but K {K.shape} needs ({nx}, {nx}).")
+        self.E = None if E is None else readonly(np.ravel(E), dtype=complex)
         self.hinges = tuple(range(1, nx // 2)) if hinges is None else tuple(int(h) for h in hinges)
         if any(not 0 <= h < nx // 2 for h in self.hinges):
             raise FeedbackError(f"hinges {list(self.hinges)} must be qpos indices in 0..{nx // 2 - 1}.")
 
     @classmethod
-    def for_model(cls, model, Q=None, R=None, *, discrete: bool = False, u_limits="ctrlrange",
-                  period: float | None = None) -> "LinearFeedback":
-        """LQR about the model's upright equilibrium ``(x_eq, u_eq)`` on its exact linearisation (without dry
-        friction, which has no slope at rest: :meth:`~cartpole.models.CartPoleModel.without_friction`).
+    def for_model(cls, plant, Q=None, R=None, *, discrete: bool = False, period: float | None = None,
+                  x_eq=None, u_limits="ctrlrange") -> "LinearFeedback":
+        """The upright LQR of ``plant``: the package's one constructor of it (the lab, the swing-up's catch, the
+        exports and the sweeps all call it).
+
+        Designs :func:`~cartpole.riccati.lqr` (continuous) or :func:`~cartpole.riccati.dlqr` (the exact discrete
+        model, weights per second: the package's one cost scaling, so ``S`` and every basin level ``e' S e`` mean
+        the same whichever design built the gain) on the plant's exact linearisation without dry friction.
 
         Parameters
         ----------
-        model : CartPoleModel or CartPoleParams or MJCF path
-            Any number of joints and actuators (params and paths are built with
-            :func:`~cartpole.models.build_model`).
+        plant : path, CartPoleParams or CartPoleModel
+            Any number of joints and actuators (:func:`~cartpole.models.plant_model`).
         Q : (nx, nx) array, optional
-            State weight; default :func:`~cartpole.lqr.weights.lab_weights` (1 per slide, 10 per hinge, 0.1 per rate).
+            State weight; default :func:`~cartpole.riccati.weights.lab_weights` (1 per slide, 10 per hinge, 0.1 per
+            rate).
         R : (nu, nu) array or float, optional
-            Input weight on MuJoCo ctrl; default 0.1 per input.
+            Input weight on MuJoCo ctrl; default 0.1 per input (the swing-up's catch passes
+            :data:`~cartpole.control.switching.SWINGUP_CATCH_R`).
         discrete : bool
-            False: ``lqr(A, B, Q, R)`` on the continuous Jacobians. True: ``dlqr(Ad, Bd, Q dt, R dt)`` on one step
-            of the MJCF's integrator at ``model.dt`` (the same cost per second, so ``S`` approximates the continuous
-            one; the gain does not depend on that scaling).
-        u_limits : "ctrlrange", None or array
-            Clip of the law; default the model's ctrl ranges, None for no clip.
+            False: ``lqr(plant, Q, R)`` on the continuous Jacobians (its loop sampled at the physics step checked).
+            True: ``dlqr(plant, Q, R)``: ``dlqr(Ad, Bd, Q dt, R dt)`` on one step of the MJCF's integrator.
         period : float, optional
             Control period in s, a whole number ``m`` of physics steps (the ctrl held in between). For ``m > 1`` the
-            gain is ``dlqr(Ad, Bd, Q T, R T)`` on the exact discrete model over the hold
-            (:meth:`~cartpole.models.CartPoleModel.hold`), whatever ``discrete`` says; ``m = 1`` is the default.
+            gain is ``dlqr(plant, Q, R, period=period)`` (``Q T, R T`` on the exact discrete model over the hold),
+            whatever ``discrete`` says; ``m = 1`` is the default.
+        x_eq : (nx,) array, optional
+            The equilibrium to hold and linearise at (m, rad, m/s, rad/s); default the plant's computed upright
+            ``x_eq`` (the lab moves the cart to the middle of its rail).
+        u_limits : "ctrlrange", None or array
+            Clip of the law; default the model's ctrl ranges, None for no clip.
 
         Returns
         -------
         LinearFeedback
-            With ``S`` attached and ``hinges = model.hinges``.
+            With ``S`` and ``E`` (the closed-loop eigenvalues of the design) attached and ``hinges = model.hinges``.
 
         Raises
         ------
@@ -127,38 +139,14 @@ class LinearFeedback:
             Bad weights, an unstabilisable linearisation, a Riccati solution that does not check out, or (continuous
             design) a gain whose loop sampled at the physics step ``model.dt`` is unstable.
         """
-        from cartpole.lqr import LQRError, dlqr, lab_weights, lqr
-        from cartpole.models import CartPoleModel, build_model
-
-        if not isinstance(model, CartPoleModel):
-            model = build_model(model)
-        model = model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
-        Q0, R0 = lab_weights(model)
-        Q = Q0 if Q is None else Q
-        R = R0 if R is None else R
-        from cartpole.models import steps_per_period
-
-        steps = steps_per_period(period, model.dt)
-        if steps > 1:
-            T = steps * model.dt
-            Ad, Bd = model.hold(steps).linearize(model.x_eq, model.u_eq)
-            res = dlqr(Ad, Bd, np.asarray(Q, float) * T, np.asarray(R, float) * T)
-            lim = model.params.ctrl_range if isinstance(u_limits, str) and u_limits == "ctrlrange" else u_limits
-            return cls(res.K, model.x_eq, model.u_eq, u_limits=lim, S=res.S, hinges=model.hinges)
-        Ad, Bd = model.linearize(discrete=True)
-        if discrete:
-            res = dlqr(Ad, Bd, np.asarray(Q, float) * model.dt, np.asarray(R, float) * model.dt)
+        model = plant_model(plant)
+        x_eq = model.x_eq if x_eq is None else np.asarray(x_eq, dtype=float)
+        if discrete or steps_per_period(period, model.dt) > 1:
+            res = dlqr(model, Q=Q, R=R, period=period, x=x_eq)
         else:
-            res = lqr(*model.linearize(), Q, R)
-            # MuJoCo applies the gain once per physics step: the sampled loop must be stable too (a fast
-            # closed-loop pole, e.g. a light motorised link, can be stable in continuous time and not at dt).
-            radius = float(np.abs(np.linalg.eigvals(Ad - Bd @ res.K)).max())
-            if not radius < 1:
-                raise LQRError(f"The continuous LQR gain is unstable when applied every {model.dt:g} s physics "
-                               f"step (closed-loop spectral radius {radius:.4g}); design it with discrete=True "
-                               "(dlqr on the exact discrete model) or raise R.")
+            res = lqr(model, Q=Q, R=R, x=x_eq)
         lim = model.params.ctrl_range if isinstance(u_limits, str) and u_limits == "ctrlrange" else u_limits
-        return cls(res.K, model.x_eq, model.u_eq, u_limits=lim, S=res.S, hinges=model.hinges)
+        return cls(res.K, x_eq, model.u_eq, u_limits=lim, S=res.S, E=res.E, hinges=model.hinges)
 
     @property
     def nx(self) -> int:

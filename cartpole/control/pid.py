@@ -33,7 +33,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, build_model
+from cartpole.models import CartPoleModel, plant_model
 
 #: Defaults of :func:`tune_pid` (dimensionless), chosen on the shipped cart and checked on the test variants.
 DEFAULT_TUNING = dict(bandwidth_factor=1.0, integral_factor=10.0, filter_factor=10.0, tilt_fraction=0.1)
@@ -105,10 +105,6 @@ class PIDGains:
         for k in ("poles", "closed_loop_poles"):
             d[k] = [[float(p.real), float(p.imag)] for p in getattr(self, k)]
         return d
-
-
-def _as_model(model) -> CartPoleModel:
-    return model if isinstance(model, CartPoleModel) else build_model(model)
 
 
 def check_cascade(model: CartPoleModel) -> tuple[int, int]:
@@ -215,7 +211,7 @@ def sampled_closed_loop_matrix(Ad, Bd, gains: PIDGains, period: float, slide: in
     return M
 
 
-def tune_pid(model, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_factor"],
+def tune_pid(plant, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_factor"],
              integral_factor: float = DEFAULT_TUNING["integral_factor"],
              filter_factor: float = DEFAULT_TUNING["filter_factor"],
              tilt_fraction: float = DEFAULT_TUNING["tilt_fraction"], period: float | None = None) -> PIDGains:
@@ -223,7 +219,7 @@ def tune_pid(model, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_facto
 
     Parameters
     ----------
-    model : CartPoleModel or CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         One pole on a cart driven by one actuator on the slide (None = the shipped asset).
     bandwidth_factor : float
         ``omega_c / lambda_u``: radius of the Butterworth pattern as a multiple of the pole's unstable
@@ -253,7 +249,7 @@ def tune_pid(model, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_facto
         When the model is not one pole on an actuated cart, a setting is out of range, the linearisation has no
         unstable pole to scale from or cannot be placed, or the loop with integrator and filter is not stable.
     """
-    model = _as_model(model)
+    model = plant_model(plant)
     slide, hinge = check_cascade(model)
     settings = dict(bandwidth_factor=bandwidth_factor, integral_factor=integral_factor,
                     filter_factor=filter_factor, tilt_fraction=tilt_fraction)
@@ -325,7 +321,7 @@ class CascadedPID:
     ----------
     gains : PIDGains
         From :func:`tune_pid`.
-    model : CartPoleModel or CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         Supplies ``x*``, ``u*``, the hinge to wrap and the ctrl limits.
     anti_windup : bool
         Conditional integration and the ``|ki z|`` clamp (default on; off only to show what windup does).
@@ -340,8 +336,8 @@ class CascadedPID:
         Last tilt setpoint from the cart loop, rad (relative to ``x*``).
     """
 
-    def __init__(self, gains: PIDGains, model=None, *, anti_windup: bool = True):
-        self.model = _as_model(model)
+    def __init__(self, gains: PIDGains, plant=None, *, anti_windup: bool = True):
+        self.model = plant_model(plant)
         self.slide, self.hinge = check_cascade(self.model)
         self.gains = gains
         self.anti_windup = bool(anti_windup)
@@ -353,9 +349,10 @@ class CascadedPID:
         self.reset()
 
     @classmethod
-    def for_model(cls, model=None, *, anti_windup: bool = True, **tuning) -> "CascadedPID":
-        """A cascaded PID tuned for ``model`` by :func:`tune_pid` (``tuning`` = its keyword settings)."""
-        model = _as_model(model)
+    def for_model(cls, plant=None, *, anti_windup: bool = True, **tuning) -> "CascadedPID":
+        """A cascaded PID tuned for ``plant`` (a path, parameters or model) by :func:`tune_pid` (``tuning`` = its
+        keyword settings)."""
+        model = plant_model(plant)
         return cls(tune_pid(model, **tuning), model, anti_windup=anti_windup)
 
     def reset(self) -> None:

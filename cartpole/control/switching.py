@@ -20,58 +20,12 @@ class SwitchingError(CartPoleError):
     """Bad switching level (rho not positive, release factor not above 1, catch without S)."""
 
 
-def lab_catch(model, Q=None, R=None, *, period: float | None = None) -> LinearFeedback:
-    """The LQR catch about the upright equilibrium: :meth:`LinearFeedback.for_model` (continuous ``lqr`` on the
-    exact ``A, B`` at ``model.x_eq``, ``model.u_eq``).
-
-    Parameters
-    ----------
-    model : CartPoleModel
-        Symbolic model, any number of joints and actuators.
-    Q : (nx, nx) array, optional
-        State weight (default :func:`~cartpole.lqr.weights.lab_weights`: the lab's ``diag(1, 10, 0.1, 0.1)`` for
-        one pole, 1 per slide, 10 per hinge and 0.1 per rate otherwise).
-    R : (nu, nu) array, optional
-        Input weight on MuJoCo ctrl (default the lab's 0.1 per input).
-    period : float, optional
-        Control period in s (whole physics steps); designed on the exact discrete model over the hold when more
-        than one step (:meth:`LinearFeedback.for_model`).
-
-    Returns
-    -------
-    LinearFeedback
-        ``u = u_eq - K e`` (``e`` the error from ``x_eq``, hinge angles wrapped) clipped to the model's ctrl
-        ranges, with the cost-to-go ``S`` attached.
-    """
-    return LinearFeedback.for_model(model, Q, R, period=period)
-
-
-#: Input weight of the swing-up's catch (:func:`swingup_catch`), on MuJoCo ctrl. The lab's R = 0.1 asks for more
-#: ctrl than the motor has as soon as the pole is a few degrees off, so the catch saturates and its MuJoCo-verified
-#: basin is small (rho ~ 0.13 on the shipped asset); R = 1 keeps the catch inside the ctrl range over a much larger
-#: set, and the same sampled estimate certifies rho ~ 0.64 (every model of the test suite: 0.41 to 0.65).
+#: Input weight of the swing-up's catch on MuJoCo ctrl: ``LinearFeedback.for_model(plant, R=SWINGUP_CATCH_R)``.
+#: The lab's R = 0.1 asks for more ctrl than the motor has as soon as the pole is a few degrees off, so the catch
+#: saturates and its MuJoCo-verified basin is small (rho ~ 0.13 on the shipped asset); R = 1 keeps the catch inside
+#: the ctrl range over a much larger set, and the same sampled estimate certifies rho ~ 0.64 (every model of the test
+#: suite: 0.41 to 0.65).
 SWINGUP_CATCH_R = 1.0
-
-
-def swingup_catch(model, Q=None, R=None, *, period: float | None = None) -> LinearFeedback:
-    """The LQR catch the energy swing-up hands over to: :func:`lab_catch` with the lab's ``Q`` and ``R = 1``.
-
-    Parameters
-    ----------
-    model : CartPoleModel
-    Q : (nx, nx) array, optional
-        State weight (default :func:`~cartpole.lqr.weights.lab_weights`).
-    R : (nu, nu) array, optional
-        Input weight on MuJoCo ctrl (default :data:`SWINGUP_CATCH_R` per input).
-    period : float, optional
-        Control period in s (whole physics steps): the catch designed for it (:func:`lab_catch`).
-
-    Returns
-    -------
-    LinearFeedback
-        With ``S`` attached (its basin is estimated by :func:`~cartpole.validation.basin.estimate_basin`).
-    """
-    return lab_catch(model, Q, SWINGUP_CATCH_R * np.eye(model.nu) if R is None else R, period=period)
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ class TVLQRController:
     traj : Trajectory
         The plan (cubic-Hermite states, first-order-hold inputs); time 0 of the controller is ``traj.t[0]``.
     gains : TVLQRGains
-        From :func:`cartpole.lqr.tvlqr.tvlqr` along ``traj``: ``K`` (n, nu, nx).
+        From :func:`cartpole.riccati.tvlqr.tvlqr` along ``traj``: ``K`` (n, nu, nx).
     catch : LinearFeedback
         Balancing controller that takes over at ``t >= traj.t[-1]``.
     u_limits : (2,) or (nu, 2) array, optional

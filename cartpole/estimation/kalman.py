@@ -23,7 +23,7 @@ measurement there is ``h`` at that copy plus ``C`` times the wrapped deviation, 
 ``2 pi + 0.01`` rad is compared with an estimate near ``2 pi``, not near 0.
 
 The gain is the dual of the discrete LQR (estimation of ``(A, C)`` with weights ``(W, V)`` is control of
-``(A', C')``): :func:`kalman_gain` solves it with :func:`cartpole.lqr.dlqr` on ``(A', C', W, V)``, after checks that
+``(A', C')``): :func:`kalman_gain` solves it with :func:`cartpole.riccati.dlqr` on ``(A', C', W, V)``, after checks that
 speak of estimation (which states the sensors cannot see, which covariance is wrong).
 
 Shared with :mod:`cartpole.estimation.ekf`: the measurement model's checks
@@ -45,7 +45,7 @@ from cartpole.estimation.measurement import (check_measurement_model, measuremen
                                           positions_initial_state)
 from cartpole.estimation.mhe_functions import positive_definite, symmetric_matrix
 from cartpole.estimation.noise import process_covariance
-from cartpole.lqr import LQRError, dlqr, uncontrollable_modes
+from cartpole.riccati import LQRError, dlqr, uncontrollable_modes
 from cartpole.models import state_error
 
 #: Default standard deviation of the unknown acceleration, per joint kind: m/s^2 on the cart's slide, rad/s^2 on
@@ -152,7 +152,7 @@ def _unobservable_states(A, C, names) -> tuple[list[str], complex] | None:
 def kalman_gain(Ad, C, W, V, *, state_names=None) -> KalmanGain:
     """The steady-state Kalman filter gain of ``x+ = Ad x + w``, ``y = C x + v`` (the estimator of LQG).
 
-    Solved as the dual discrete LQR, ``cartpole.lqr.dlqr(Ad', C', W, V)``: its cost-to-go is the a-priori
+    Solved as the dual discrete LQR, ``cartpole.riccati.dlqr(Ad', C', W, V)``: its cost-to-go is the a-priori
     covariance ``P`` (equally ``scipy.linalg.solve_discrete_are(Ad', C', W, V)``), from which
     ``L = P C' (C P C' + V)^-1``.
 

@@ -351,12 +351,12 @@ def _per_sensor(what: str, value, sensors: list, unit_hint: str) -> dict:
     return out
 
 
-def sensor_spec(source=None, *, encoder_cpr=None, encoder_resolution=None, noise_std=None, bias=None) -> SensorSpec:
+def sensor_spec(plant=None, *, encoder_cpr=None, encoder_resolution=None, noise_std=None, bias=None) -> SensorSpec:
     """The rig's sensors: the MJCF's ``<sensor>`` block, or without one an encoder on every joint.
 
     Parameters
     ----------
-    source : CartPoleModel, CartPoleParams or path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (its MJCF is compiled again to read the sensors); default the shipped asset.
     encoder_cpr : int, optional
         Counts per revolution of every hinge encoder (``jointpos`` on a hinge): resolution ``2 pi / N`` rad.
@@ -380,7 +380,7 @@ def sensor_spec(source=None, *, encoder_cpr=None, encoder_resolution=None, noise
     MJCFError
         An MJCF that does not compile.
     """
-    m, where = _compiled(source)
+    m, where = _compiled(plant)
     sensors = _mjcf_sensors(m, where) if m.nsensor else _default_encoders(m)
     res = {}
     if encoder_cpr is not None:

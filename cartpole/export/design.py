@@ -162,7 +162,7 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
 
         start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
         kw = {} if plan is None else {"options": plan}
-        sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), model=model,
+        sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), plan_model=model,
                              period=None if steps == 1 else period, **kw)
         tv = sp.controller
         plan_end = float(sp.trajectory.t[-1] - sp.trajectory.t[0])
@@ -175,13 +175,14 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
                  f"catch, at a {period:g} s period")
     elif method == "energy":
         from cartpole.control.energy import EnergyShapingController
-        from cartpole.control.switching import SwitchingController, swingup_catch
+        from cartpole.control.linear import LinearFeedback
+        from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
 
         if rho is None or not rho > 0:
             raise ExportError("The energy export needs the catch level rho of the LQR catch's verified basin; "
                               "give rho (cartpole export computes it).")
         energy = EnergyShapingController(model)
-        catch = swingup_catch(model, period=None if steps == 1 else period)
+        catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=None if steps == 1 else period)
 
         def make():
             return SwitchingController(energy, catch, float(rho))

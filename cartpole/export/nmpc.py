@@ -754,6 +754,6 @@ def nmpc_design(model, x0, period: float):
 
     options = MPCOptions(period=float(period))
     x0 = np.asarray(x0, dtype=float).ravel()
-    sp = trajopt_swingup(model.params, x0=x0, model=model, options=PlanOptions(cart_margin=options.cart_margin))
+    sp = trajopt_swingup(model.params, x0=x0, plan_model=model, options=PlanOptions(cart_margin=options.cart_margin))
     ctl = NMPCController(model, model.params, options=options, guess=sp.trajectory, x0=x0)
     return ctl, sp.trajectory

@@ -10,8 +10,9 @@ from cartpole.models.kinematics import Kinematics, forward_kinematics, forward_k
 from cartpole.models.discretize import MAX_PERIOD, HoldModel, PeriodError, hold_model, steps_per_period
 from cartpole.models.contacts import (CONTACT_MARGIN, ContactError, ContactPair, ContactReport,
                                       check_equilibrium_contacts, contact_report)
-from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equations, linearize, state_error,
+from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equations, state_error,
                                       wrap_angle)
+from cartpole.models.plant import Plant, PlantError, is_plant, linearize, plant_model, plant_params
 from cartpole.models.limits import (START_SNAP, LimitsError, PlanningLimits, StartMove, bounded_model, chain_length,
                                     default_cart_max, default_u_max, planning_limits, start_on_range)
 
@@ -26,3 +27,4 @@ __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError
            "ContactPair", "ContactReport", "check_equilibrium_contacts", "contact_report"]
 __all__ += ["START_SNAP", "LimitsError", "PlanningLimits", "StartMove", "bounded_model", "chain_length", "default_cart_max",
             "default_u_max", "planning_limits", "start_on_range"]
+__all__ += ["Plant", "PlantError", "is_plant", "plant_model", "plant_params"]

@@ -406,14 +406,15 @@ def _potential_np(p: CartPoleParams, q) -> float:
     return float(V + sum(0.5 * j.stiffness * (q[i] - j.springref) ** 2 for i, j in enumerate(p.joints)))
 
 
-def build_model(params: CartPoleParams | str | None = None, *, dt: float | None = None,
+def build_model(plant: CartPoleParams | str | None = None, *, dt: float | None = None,
                 integrator: str | None = None, friction_width: float = DEFAULT_FRICTION_WIDTH) -> CartPoleModel:
     """Derive the equations of motion in CasADi, compile their Functions and find the equilibria.
 
     Parameters
     ----------
-    params : CartPoleParams or path, optional
-        Parameters, or an MJCF path to read them from; default the shipped asset.
+    plant : CartPoleParams, CartPoleModel or path, optional
+        Parameters, a model (rebuilt from its parameters), or an MJCF or URDF path to read them from; default the
+        shipped asset.
     dt : float, optional
         Step in s of the discrete model; default the MJCF's ``timestep``.
     integrator : str, optional
@@ -434,6 +435,7 @@ def build_model(params: CartPoleParams | str | None = None, *, dt: float | None 
     FrictionWidthError
         For a friction width that is not a finite positive velocity.
     """
+    params = plant.params if isinstance(plant, CartPoleModel) else plant
     if not isinstance(params, CartPoleParams):
         params = read_params(params)
     p = params
@@ -679,16 +681,3 @@ def _actuator_bias(p: CartPoleParams, q, v):
         F[j] = F[j] + r * (b0 + b1 * r * q[j] + b2 * r * v[j])
         V = V - (r * b0 * q[j] + 0.5 * r * r * b1 * q[j] ** 2)
     return F, V
-
-
-def linearize(model: CartPoleModel, x=None, u=None) -> dict:
-    """Continuous and discrete linearisation at the state ``x`` (nx,) ``[qpos, qvel]`` and ctrl ``u`` (nu,)
-    (default the upright equilibrium).
-
-    Returns a dict with ``x_eq`` (nx,), ``u_eq`` (nu,), ``A`` (nx, nx), ``B`` (nx, nu), ``Ad`` (nx, nx),
-    ``Bd`` (nx, nu), ``dt`` (s) and ``integrator``.
-    """
-    A, B = model.linearize(x, u)
-    Ad, Bd = model.linearize(x, u, discrete=True)
-    return {"x_eq": model.x_eq, "u_eq": model.u_eq, "A": A, "B": B, "Ad": Ad, "Bd": Bd, "dt": model.dt,
-            "integrator": model.integrator}

@@ -35,12 +35,12 @@ import casadi as ca
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
-from cartpole.lqr import dlqr, lab_weights
-from cartpole.models import CartPoleModel, CartPoleParams, build_model
+from cartpole.riccati import dlqr, lab_weights
+from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
 from cartpole.mpc.nmpc import SAFE_LQR_ANGLE, NMPCError
 from cartpole.mpc.options import MPCOptions, mpc_grid
 from cartpole.ocp.bounds import bounds_from_params
-from cartpole.lqr.riccati import LQRError
+from cartpole.riccati.algebraic import LQRError
 from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.objectives import make_objective, tracking_cost
 from cartpole.ocp.trajectory import Trajectory
@@ -238,7 +238,7 @@ def objective_cost_to_go(model: CartPoleModel, Ad, Bd, running, period: float, S
     (S, source)
         ``source`` ``"objective"`` or ``"lqr scaled"``.
     """
-    from cartpole.lqr import dlqr
+    from cartpole.riccati import dlqr
 
     nx, nu = model.nx, model.nu
     z = ca.SX.sym("z", nx + nu)
@@ -269,7 +269,7 @@ def seed_plan_options(plan, options: MPCOptions):
     return plan
 
 
-def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
+def ddp_mpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | None = None,
                     options: MPCOptions | None = None, plan=None) -> DDPMPCController:
     """A DDP-MPC controller set up to swing up from ``x0`` and balance at ``model.x_eq``: the offline plan
     (:func:`cartpole.planning.trajopt.trajopt_swingup`) seeds it (unless ``options.seed_plan`` is False: no plan,
@@ -277,11 +277,11 @@ def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | N
 
     Parameters
     ----------
-    params : CartPoleParams
+    plant : path, CartPoleParams, CartPoleModel or None
         The MJCF MuJoCo runs.
     x0 : (nx,) array, optional
         Start (default the planning model's hanging rest).
-    model : CartPoleModel, optional
+    plan_model : CartPoleModel, optional
         The planning model (default the MJCF's own).
     options : MPCOptions, optional
     plan : PlanOptions, optional
@@ -297,7 +297,8 @@ def ddp_mpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | N
 
     options = MPCOptions() if options is None else options
     plan = seed_plan_options(PlanOptions(cart_margin=options.cart_margin) if plan is None else plan, options)
-    model = build_model(params) if model is None else model
+    params = plant_params(plant)
+    model = plant_model(plant) if plan_model is None else plan_model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-    guess = trajopt_swingup(params, x0=x0, model=model, options=plan).trajectory if options.seed_plan else None
+    guess = trajopt_swingup(params, x0=x0, plan_model=model, options=plan).trajectory if options.seed_plan else None
     return DDPMPCController(model, params, options=options, guess=guess, x0=x0)

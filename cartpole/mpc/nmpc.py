@@ -11,7 +11,7 @@ steps), over ``N`` stages of one period each (``horizon = N period``), from the 
 
 with ``e_k = s_k - x*`` (hinge entries of ``x*`` moved by whole turns to the upright nearest the last node
 ``s_N``: the wrapped angle error, taken once per horizon so the cost stays smooth along it), stage weights
-``Q_s = Q period``, ``R_s = R period`` (``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`) and the terminal
+``Q_s = Q period``, ``R_s = R period`` (``Q``, ``R`` default :func:`cartpole.riccati.lab_weights`) and the terminal
 weight ``P`` the cost-to-go ``S`` of the discrete LQR of the same stage at the upright equilibrium (``dlqr(Ad, Bd,
 Q period, R period)`` on one period of the exact model): the LQR's infinite-horizon cost beyond the horizon. The
 rail is soft with one exact-penalty slack ``sigma`` (m or rad) shared by every bound (``rho_1`` = ``rail_penalty``,
@@ -56,8 +56,8 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
-from cartpole.lqr import dlqr, lab_weights
-from cartpole.models import CartPoleModel, CartPoleParams, build_model
+from cartpole.riccati import dlqr, lab_weights
+from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.codegen import Buffered
 from cartpole.mpc.stage_functions import StageFunctions, stage_functions
@@ -595,7 +595,7 @@ def _stdout_to_stderr():
         os.close(saved)
 
 
-def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None = None,
+def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | None = None,
                  options: MPCOptions | None = None, plan=None, **settings) -> NMPCController:
     """A controller set up to swing up from ``x0`` and balance at ``model.x_eq``.
 
@@ -608,11 +608,11 @@ def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None
 
     Parameters
     ----------
-    params : CartPoleParams
+    plant : path, CartPoleParams, CartPoleModel or None
         The MJCF MuJoCo runs (bounds, ctrlranges, timestep).
     x0 : (nx,) array, optional
         Start state (default the planning model's hanging rest ``x_hanging``).
-    model : CartPoleModel, optional
+    plan_model : CartPoleModel, optional
         The planning model (default the MJCF's own); may be wrong on purpose (``build_model(params.scaled_pole(1.2))``).
     options : MPCOptions, optional
         The controller's settings (:class:`~cartpole.mpc.options.MPCOptions`); default ``MPCOptions()``.
@@ -631,11 +631,10 @@ def nmpc_swingup(params: CartPoleParams, x0=None, *, model: CartPoleModel | None
     from cartpole.planning.options import PlanOptions
     from cartpole.planning.trajopt import trajopt_swingup
 
-    if not isinstance(params, CartPoleParams):
-        raise NMPCError("nmpc_swingup needs the CartPoleParams MuJoCo runs (cartpole.models.read_params(path)).")
+    params = plant_params(plant)
     options = (MPCOptions() if options is None else options).replace(**settings)
     plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
-    model = build_model(params) if model is None else model
+    model = plant_model(plant) if plan_model is None else plan_model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-    sp = trajopt_swingup(params, x0=x0, model=model, options=plan)
+    sp = trajopt_swingup(params, x0=x0, plan_model=model, options=plan)
     return NMPCController(model, params, options=options, guess=sp.trajectory, x0=x0)

@@ -20,8 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.control.energy import EnergyShapingController, energy_rollout
-from cartpole.control.switching import SwitchingController, lab_catch
-from cartpole.models import CartPoleModel, build_model
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import SwitchingController
+from cartpole.models import CartPoleModel, plant_model
 from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model
 from cartpole.ocp.trajectory import Trajectory
 
@@ -260,7 +261,7 @@ def initial_guesses(model: CartPoleModel, x0, x_goal=None, T: float = 2.0, N: in
                                         count=count)]
 
 
-def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controller=None,
+def energy_guess(plant=None, x0=None, T: float = 4.0, N: int = 100, *, controller=None,
                  catch=True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A swing-up guess for trajectory optimisation: simulate the symbolic model under energy shaping.
 
@@ -270,7 +271,7 @@ def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controlle
 
     Parameters
     ----------
-    model : CartPoleModel or CartPoleParams or path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         One pole on a cart (see :func:`cartpole.control.energy.check_single_pole`) unless ``controller`` is given.
     x0 : (nx,) array, optional
         Start state; default the model's hanging rest ``model.x_hanging`` (``[0, pi, 0, 0]`` on the shipped cart).
@@ -289,7 +290,7 @@ def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controlle
     x : (N+1, nx) array
     u : (N, 1) array, ctrl applied from ``t[k]`` (zero-order sample of the simulated input)
     """
-    model = model if isinstance(model, CartPoleModel) else build_model(model)
+    model = plant_model(plant)
     if not (T > 0 and int(N) >= 1):
         raise OCPError(f"energy_guess needs T > 0 and N >= 1 (got T = {T}, N = {N}).")
     N = int(N)
@@ -297,7 +298,7 @@ def energy_guess(model=None, x0=None, T: float = 4.0, N: int = 100, *, controlle
     if controller is None:
         controller = EnergyShapingController(model)
         if catch:
-            c = lab_catch(model)
+            c = LinearFeedback.for_model(model)
             # Without a MuJoCo basin estimate use a small, safe level: 10 % of the cost of a 0.2 rad tilt.
             tilt = np.zeros(model.nx)
             tilt[model.hinges[0]] = 0.2

@@ -28,7 +28,7 @@ import numpy as np
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.control.linear import LinearFeedback
-from cartpole.lqr import dlqr, tvlqr
+from cartpole.riccati import dlqr, tvlqr
 from cartpole.models import CartPoleModel
 from cartpole.ocp.bounds import OCPBounds
 from cartpole.ocp.objectives import Objective
@@ -141,7 +141,7 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
     x_goal : (nx,) array, optional
         Terminal equality (hinge errors wrapped); default ``model.x_eq``.
     Q, R : arrays, optional
-        TVLQR weights of the initialisation (default :func:`cartpole.lqr.lab_weights`).
+        TVLQR weights of the initialisation (default :func:`cartpole.riccati.lab_weights`).
     guess_name : str
         Name of the guess in the attempt record.
     options : DDPOptions, optional
@@ -151,7 +151,7 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
     (DDPStage, [Attempt])
         The stage (``info.success`` says whether it converged) and its attempt record.
     """
-    from cartpole.lqr import lab_weights
+    from cartpole.riccati import lab_weights
 
     tic = time.perf_counter()
     Q0, R0 = lab_weights(model)

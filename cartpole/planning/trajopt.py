@@ -22,16 +22,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.lqr import TVLQRGains, dlqr, lab_weights, tvlqr
-from cartpole.lqr.tvlqr import reference as _on_step_grid
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, read_params, steps_per_period
+from cartpole.riccati import TVLQRGains, lab_weights, tvlqr
+from cartpole.riccati.tvlqr import reference as _on_step_grid
+from cartpole.models import (CartPoleModel, CartPoleParams, Plant, plant_model, plant_params,
+                             steps_per_period)
 from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
 from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
@@ -229,7 +229,7 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
              u_low + m <= u_k <= u_high - m  (m = u_margin * half each ctrl range),  joint bounds on every x_k,
 
     on the plan's step grid (``n = round(T / dt)`` steps), started from the plan itself (its zero-order-hold
-    inputs, :func:`cartpole.lqr.tvlqr.reference`), so the result is as near the plan as the exact discrete
+    inputs, :func:`cartpole.riccati.tvlqr.reference`), so the result is as near the plan as the exact discrete
     dynamics allow and leaves feedback a ctrl margin.
 
     Parameters
@@ -573,48 +573,41 @@ def _continue_from(ocp: DirectCollocation, x0, name: str, guess: Trajectory, sta
     return traj, replace(info, start=info.start + 1, attempts=tried + (first,) + info.attempts)
 
 
-def handover_catch(params: CartPoleParams, model: CartPoleModel | None = None, Q=None, R=None, *,
+def handover_catch(plant: Plant = None, plan_model: CartPoleModel | None = None, Q=None, R=None, *,
                    steps: int = 1) -> LinearFeedback:
     """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
-    (``dt = params.timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps * params.timestep``, a
-    control period), of ``model`` (default the MJCF's own) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
-    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.lqr.lab_weights`. Designed without
+    (``dt`` the plant's MJCF ``timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps *
+    timestep``, a control period), of ``plan_model`` (default the plant's own model) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
+    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.riccati.lab_weights`. Designed without
     the model's dry friction (:meth:`~cartpole.models.CartPoleModel.without_friction`).
 
-    The catch basin ``cartpole swingup --method trajopt`` reports is this controller's.
+    The catch basin ``cartpole swingup --method trajopt`` reports is this controller's. Designed by the one
+    constructor of the upright LQR, :meth:`~cartpole.control.linear.LinearFeedback.for_model` (``discrete=True``
+    over the period, on the planning model at the MJCF's step, clipped to the MJCF's ctrl ranges).
     """
-    model = build_model(params) if model is None else model
-    Q0, R0 = lab_weights(model)
-    Q = Q0 if Q is None else np.asarray(Q, float)
-    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
+    params = plant_params(plant)
+    model = plant_model(plant) if plan_model is None else plan_model
     tv_model = model if abs(model.dt - params.timestep) < 1e-15 else model.rebuilt(dt=params.timestep)
-    tv_model = tv_model.without_friction()  # dry friction has no slope at rest (CartPoleModel.without_friction)
-    if steps > 1:
-        Ad, Bd = tv_model.hold(steps).linearize()
-    else:
-        Ad, Bd = tv_model.linearize(discrete=True)
-    dt = params.timestep * steps
-    cat = dlqr(Ad, Bd, Q * dt, R * dt)
-    return LinearFeedback(cat.K, tv_model.x_eq, tv_model.u_eq, hinges=tv_model.hinges,
-                          u_limits=np.asarray(params.ctrl_range, float), S=cat.S)
+    return LinearFeedback.for_model(tv_model, Q, R, discrete=True, period=params.timestep * steps,
+                                    u_limits=np.asarray(params.ctrl_range, float))
 
 
-def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, *,
-                    model: CartPoleModel | None = None, options: PlanOptions | None = None,
+def trajopt_swingup(plant: Plant = None, x0=None, *,
+                    plan_model: CartPoleModel | None = None, options: PlanOptions | None = None,
                     period: float | None = None, catch_R=None, guess: Trajectory | None = None,
                     **settings) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (default the shipped asset), any number of poles and motors; its ctrlranges and joint
         ranges bound the plan, its timestep is the TVLQR step.
     x0 : (nx,) array, optional
         Start state ``[qpos, qvel]`` (default hanging at rest, the planning model's ``x_hanging``). The plan
         ends at the planning model's upright equilibrium ``x_eq`` (hinge angles shifted by whole turns to the
         nearest).
-    model : CartPoleModel, optional
+    plan_model : CartPoleModel, optional
         Model used for planning and TVLQR; default the MJCF's own. Give a deliberately wrong one (e.g.
         ``build_model(params.scaled_pole(1.1, 0.9))``) to test robustness while MuJoCo runs the MJCF.
     options : PlanOptions, optional
@@ -666,7 +659,7 @@ def trajopt_swingup(source: CartPoleParams | str | Path | None = None, x0=None, 
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
     opts = (PlanOptions() if options is None else options).replace(**settings)
-    return _plan(source, x0, plan_model=model, options=opts, period=period, catch_R=catch_R, guess=guess)
+    return _plan(plant, x0, plan_model=plan_model, options=opts, period=period, catch_R=catch_R, guess=guess)
 
 
 def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, solver: str = "ipopt",
@@ -700,8 +693,8 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     use_sqp = solver == "sqp" or (solver == "auto" and solver_options is None)
     use_ddp = solver == "ddp"
     solver = "ipopt" if solver in ("auto", "sqp", "ddp") else solver
-    params = source if isinstance(source, CartPoleParams) else read_params(source)
-    plan_model = plan_model if plan_model is not None else build_model(params)
+    params = plant_params(source)
+    plan_model = plan_model if plan_model is not None else plant_model(source)
     Q0, R0 = lab_weights(plan_model)
     Q = Q0 if options.Q is None else np.asarray(options.Q, float)
     R = R0 if options.R is None else np.atleast_2d(np.asarray(options.R, float))

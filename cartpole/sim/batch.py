@@ -83,14 +83,14 @@ def initial_states(m, X0: np.ndarray, t0: float = 0.0) -> np.ndarray:
     return S0
 
 
-def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=None, u_limits=None,
+def simulate_batch_linear(plant, K, X0, duration: float, *, x_eq=None, u_eq=None, u_limits=None,
                           hinges=None, nthread: int | None = None, progress=None) -> BatchRollouts:
     """Run ``u = u* - K (x - x*)`` (hinge-angle errors wrapped, ctrl clipped to ``ctrlrange``) from every row of
     ``X0``.
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The model (None = shipped asset).
     K : (nu, nx) array, (nx,) for one actuator, or LinearFeedback
         Gain in ctrl per state unit (m, rad, m/s, rad/s). A :class:`~cartpole.control.linear.LinearFeedback`
@@ -125,7 +125,7 @@ def simulate_batch_linear(source, K, X0, duration: float, *, x_eq=None, u_eq=Non
     import mujoco
     import mujoco.rollout
 
-    m, _ = make_mujoco(source)
+    m, _ = make_mujoco(plant)
     nq, nu = m.nq, m.nu
     nx = nq + m.nv
     if isinstance(K, LinearFeedback):

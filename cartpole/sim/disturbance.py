@@ -54,13 +54,13 @@ def _seed(value) -> int:
     return int(text)
 
 
-def joint_inertia_and_authority(source, x_eq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def joint_inertia_and_authority(plant, x_eq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's joint-space inertia diagonal (nv,) (kg, kg m^2) and the largest acceleration (nv,) (m/s^2, rad/s^2)
     the actuators can give each joint within their ctrl ranges (0 for unlimited ones), at the state ``x_eq`` (nx,)
     at rest, for the MJCF ``source`` (CartPoleParams or path)."""
     import mujoco
 
-    m, d = make_mujoco(source)
+    m, d = make_mujoco(plant)
     d.qpos[:] = x_eq[:m.nq]
     d.qvel[:] = 0.0
     mujoco.mj_forward(m, d)

@@ -18,7 +18,7 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError
-from cartpole.models import SHIPPED_MJCF, CartPoleParams, load_model, mujoco_model
+from cartpole.models import SHIPPED_MJCF, CartPoleModel, CartPoleParams, Plant, load_model, mujoco_model, plant_params
 
 #: The rig's per-control-instant log (None without a rig): times, measurements, estimates, estimator wall time.
 SAMPLE_FIELDS = ("t_sample", "y", "x_hat", "estimate_ms")
@@ -141,25 +141,25 @@ class Rollout:
                    **extra)
 
 
-def make_mujoco(source: CartPoleParams | str | Path | None = None):
-    """Compile a fresh ``(MjModel, MjData)`` for params (from their MJCF path, else their XML text) or an MJCF path
-    (None = shipped asset); any number of joints and actuators."""
+def make_mujoco(plant: Plant = None):
+    """Compile a fresh ``(MjModel, MjData)`` for a plant: params or a model (from their MJCF path, else their XML
+    text) or an MJCF path (None = shipped asset); any number of joints and actuators."""
     import mujoco
 
-    if isinstance(source, CartPoleParams):
-        m = mujoco_model(source)  # a URDF's params: their MJCF text, with the motors added
+    if isinstance(plant, (CartPoleParams, CartPoleModel)):
+        m = mujoco_model(plant_params(plant))  # a URDF's params: their MJCF text, with the motors added
     else:
-        m, _, _ = load_model(source)
+        m, _, _ = load_model(plant)
     return m, mujoco.MjData(m)
 
 
-def source_path(source: CartPoleParams | str | Path | None) -> str:
-    """Absolute path of the MJCF a source names ("" for parameters read from XML text)."""
-    if isinstance(source, CartPoleParams):
-        return source.mjcf
-    if source is None:
+def source_path(plant: Plant) -> str:
+    """Absolute path of the MJCF a plant names ("" for parameters read from XML text)."""
+    if isinstance(plant, (CartPoleParams, CartPoleModel)):
+        return plant_params(plant).mjcf
+    if plant is None:
         return str(SHIPPED_MJCF)
-    return str(Path(source).expanduser().resolve())
+    return str(Path(plant).expanduser().resolve())
 
 
 def _check_state(x0, m) -> np.ndarray:
@@ -236,7 +236,7 @@ class WarningWatch:
         self.base = self.counts(d)
 
 
-def simulate(source: CartPoleParams | str | Path | None, controller: Controller, x0, duration: float, *,
+def simulate(plant: Plant, controller: Controller, x0, duration: float, *,
              control_period: float | None = None, rig=None, progress: Callable[[float], None] | None = None,
              stop: Callable[[float, np.ndarray], bool] | None = None,
              push: Callable[[float], float] | None = None,
@@ -246,8 +246,8 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
-        The cart-pole MuJoCo runs (None = shipped asset).
+    plant : path, CartPoleParams, CartPoleModel or None
+        The cart-pole MuJoCo runs: an MJCF path (None = shipped asset), its parameters or its model.
     controller : callable
         ``controller(t [s], x (nx,)) -> ctrl`` (nu,) (a scalar for one actuator); MuJoCo clips it to
         ``ctrlrange``. Without a ``rig``, ``x`` is MuJoCo's exact state; with one, the rig's estimate.
@@ -296,7 +296,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     """
     import mujoco
 
-    m, d = make_mujoco(source)
+    m, d = make_mujoco(plant)
     x0 = _check_state(x0, m)
     nq, nv, nu = m.nq, m.nv, m.nu
     h = float(m.opt.timestep)
@@ -384,7 +384,7 @@ def simulate(source: CartPoleParams | str | Path | None, controller: Controller,
     info["contact"] = None if contact is None else {**contact, "steps": touching}
     kw = {} if samples is None else samples.arrays(last * h)
     return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
-                   mjcf=source_path(source), info=info, **kw)
+                   mjcf=source_path(plant), info=info, **kw)
 
 
 def _generalized_force(f, nv: int, t: float) -> np.ndarray:
@@ -426,12 +426,13 @@ class _Samples:
                 "estimate_ms": np.asarray([self.ms[i] for i in keep])}
 
 
-def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None, qfrc_applied=None) -> Rollout:
+def replay(plant: Plant, x0, ctrl, *, push=None, qfrc_applied=None) -> Rollout:
     """Re-run a logged ctrl sequence open loop with ``mj_step``.
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
+        The cart-pole: an MJCF path (None = shipped asset), its parameters or its model.
     x0 : (nx,) start state ``[qpos, qvel]``
     ctrl : (n, nu) ctrl applied during each step ((n,) accepted for one actuator)
     push : (n,) array, optional
@@ -449,7 +450,7 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None, q
     """
     import mujoco
 
-    m, d = make_mujoco(source)
+    m, d = make_mujoco(plant)
     x0 = _check_state(x0, m)
     nq, nv, nu = m.nq, m.nv, m.nu
     ctrl = np.asarray(ctrl, dtype=float)
@@ -489,7 +490,7 @@ def replay(source: CartPoleParams | str | Path | None, x0, ctrl, *, push=None, q
     if qfrc is not None:
         info["qfrc_applied"] = qfrc.copy()
     info.update(diverged=diverged, diverged_warning=warning)
-    return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl, mjcf=source_path(source), info=info)
+    return Rollout(t=np.arange(n + 1) * h, qpos=qpos, qvel=qvel, ctrl=ctrl, mjcf=source_path(plant), info=info)
 
 
 def replays_exactly(rollout: Rollout, source: CartPoleParams | str | Path | None = None, *, atol: float = 0.0) -> bool:

@@ -35,9 +35,9 @@ import numpy as np
 from cartpole.control import LinearFeedback
 from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError, check_single_pole
 from cartpole.control.model_rollout import model_rollout
-from cartpole.control.switching import swingup_catch
+from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
+from cartpole.models import CartPoleModel, Plant, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
 from cartpole.planning.library import PlanLibrary
 from cartpole.planning.options import PlanOptions
@@ -380,7 +380,7 @@ def _warm(plan) -> bool:
     return any(a.chosen and a.stage.startswith("warm effort") for a in attempts)
 
 
-def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *, period: float | None = None,
+def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
                    library: PlanLibrary | None = None) -> Supervisor:
@@ -389,9 +389,9 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
 
     Parameters
     ----------
-    params : CartPoleParams
+    plant : path, CartPoleParams, CartPoleModel or None
         The MJCF MuJoCo runs (its ctrl ranges clip every law).
-    model : CartPoleModel, optional
+    plan_model : CartPoleModel, optional
         The planning model (default the MJCF's own).
     period : float, optional
         Control period in s (default every physics step); the catch and the plans' TVLQR are designed over it.
@@ -410,8 +410,9 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
     -------
     Supervisor
     """
-    model = build_model(params) if model is None else model
-    catch = swingup_catch(model, period=period)
+    params = plant_params(plant)
+    model = plant_model(plant) if plan_model is None else plan_model
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
     if basin_of is None:
         cache = BasinCache.on_disk() if basin_cache is None else basin_cache
         basin = cache.get(params, catch)
@@ -428,7 +429,7 @@ def supervisor_for(params: CartPoleParams, model: CartPoleModel | None = None, *
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
 
         def planner(x0, guess=None):
-            return trajopt_swingup(params, x0=tuple(x0), model=model, options=plan_opts, period=period, guess=guess)
+            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period, guess=guess)
         lib = PlanLibrary.load(model) if library is None else library
         return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
     return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)

@@ -43,9 +43,8 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
-from cartpole.control.switching import lab_catch
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, build_model, read_params, state_error
+from cartpole.models import CartPoleParams, plant_params, state_error
 from cartpole.progress import stage
 from cartpole.sim import simulate_batch_linear
 from cartpole.validation.metrics import REST_RATE_TOL, REST_SPEED_TOL, UPRIGHT_TOL
@@ -151,14 +150,14 @@ class BasinEstimate:
                 "n_inside": self.n_inside}
 
 
-def catch_succeeds(source, catch: LinearFeedback, starts, duration: float, *, limit_margin: float = 0.01,
+def catch_succeeds(plant, catch: LinearFeedback, starts, duration: float, *, limit_margin: float = 0.01,
                    progress=None) -> np.ndarray:
     """Which runs of the catch from ``starts`` (n, nx) end upright and still: the first output of
     :func:`catch_outcomes` (same arguments: ``duration`` s, ``limit_margin`` m), (n,) bool."""
-    return catch_outcomes(source, catch, starts, duration, limit_margin=limit_margin, progress=progress)[0]
+    return catch_outcomes(plant, catch, starts, duration, limit_margin=limit_margin, progress=progress)[0]
 
 
-def catch_outcomes(source, catch: LinearFeedback, starts, duration: float, *, limit_margin: float = 0.01,
+def catch_outcomes(plant, catch: LinearFeedback, starts, duration: float, *, limit_margin: float = 0.01,
                    progress=None) -> tuple[np.ndarray, np.ndarray]:
     """Run the catch in MuJoCo from each start state and say which runs end upright and still, and which diverged.
 
@@ -168,7 +167,7 @@ def catch_outcomes(source, catch: LinearFeedback, starts, duration: float, *, li
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
     catch : LinearFeedback
         Its law ``u* - K (x - x*)`` (wrapped hinge errors, its ``u_limits``) every physics step; MuJoCo clips
         ctrl to ctrlrange.
@@ -190,7 +189,7 @@ def catch_outcomes(source, catch: LinearFeedback, starts, duration: float, *, li
     diverged : (n,) bool array
         MuJoCo warned that the run blew up and reset it (:class:`~cartpole.sim.batch.BatchRollouts`).
     """
-    params = source if isinstance(source, CartPoleParams) else read_params(source)
+    params = plant_params(plant)
     nq = params.nq
     starts = np.atleast_2d(np.asarray(starts, dtype=float))
     runs = simulate_batch_linear(params, catch.K, starts, duration, x_eq=catch.x_eq, u_eq=catch.u_eq,
@@ -229,18 +228,18 @@ def sample_errors(S, n: int, *, level: float, seed: int, s_max: float = np.inf, 
     return out[:n]
 
 
-def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int = 300, seed: int = 0,
+def estimate_basin(plant=None, catch: LinearFeedback | None = None, *, n: int = 300, seed: int = 0,
                    level: float = 1.0, duration: float = 4.0, safety_factor: float = 0.75,
                    limit_margin: float = 0.01, progress=None) -> BasinEstimate:
     """Sample start states around ``x_eq``, replay the catch in MuJoCo from each and return the safe level rho.
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The model, any number of poles and actuators (None = shipped asset).
     catch : LinearFeedback, optional
         Catch with ``S``; default the lab LQR about the model's ``x_eq`` on the exact linearisation
-        (:func:`~cartpole.control.switching.lab_catch`).
+        (:meth:`~cartpole.control.linear.LinearFeedback.for_model`).
     n : int
         Number of samples.
     seed : int
@@ -260,9 +259,9 @@ def estimate_basin(source=None, catch: LinearFeedback | None = None, *, n: int =
     -------
     BasinEstimate
     """
-    params = source if isinstance(source, CartPoleParams) else read_params(source)
+    params = plant_params(plant)
     if catch is None:
-        catch = lab_catch(build_model(params))
+        catch = LinearFeedback.for_model(params)
     if catch.S is None:
         raise BasinError("The catch has no cost-to-go matrix S; build it with LinearFeedback(K, S=S).")
     if int(n) < 1 or not (duration > 0) or not (0 < safety_factor <= 1) or not (level > 0):
@@ -430,12 +429,12 @@ class BasinCache:
         ``$CARTPOLE_CACHE_DIR``)."""
         return cls(directory=Path(directory) if directory is not None else _default_directory())
 
-    def get(self, source=None, catch: LinearFeedback | None = None, **kwargs) -> BasinEstimate:
+    def get(self, plant=None, catch: LinearFeedback | None = None, **kwargs) -> BasinEstimate:
         """:func:`estimate_basin` with the same arguments, computed once per distinct input (and, on disk, once per
         machine)."""
-        params = source if isinstance(source, CartPoleParams) else read_params(source)
+        params = plant_params(plant)
         if catch is None:
-            catch = lab_catch(build_model(params))
+            catch = LinearFeedback.for_model(params)
         if catch.S is None:
             raise BasinError("The catch has no cost-to-go matrix S; build it with LinearFeedback(K, S=S).")
         key = basin_key(params, catch, **kwargs)

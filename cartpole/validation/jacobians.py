@@ -6,17 +6,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.models import CartPoleModel, CartPoleParams
+from cartpole.models import CartPoleModel, CartPoleParams, Plant
 from cartpole.sim import make_mujoco
 
 
-def mujoco_fd_jacobians(source: CartPoleParams | str | None, x, u, *, eps: float = 1e-6,
+def mujoco_fd_jacobians(plant: Plant, x, u, *, eps: float = 1e-6,
                         discrete: bool = False, _md=None) -> tuple[np.ndarray, np.ndarray]:
     """Central-difference Jacobians of MuJoCo's dynamics at ``(x, u)``.
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
     x : (nx,) array
         State ``[qpos, qvel]`` (m, rad, m/s, rad/s).
     u : (nu,) array
@@ -33,7 +33,7 @@ def mujoco_fd_jacobians(source: CartPoleParams | str | None, x, u, *, eps: float
     """
     import mujoco
 
-    m, d = _md if _md is not None else make_mujoco(source)
+    m, d = _md if _md is not None else make_mujoco(plant)
     x = np.asarray(x, float)
     u = np.atleast_1d(np.asarray(u, float))
     nq = m.nq

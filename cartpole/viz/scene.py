@@ -82,7 +82,7 @@ def frame_indices(t, fps: float) -> np.ndarray:
 # the render-only model
 
 
-def upright_qpos(source, model, nq: int) -> np.ndarray | None:
+def upright_qpos(plant, model, nq: int) -> np.ndarray | None:
     """The upright qpos (nq,) (m, rad) the overlay measures angles from and the camera frames the full height at.
 
     ``model.x_eq`` when a model is given, else ``source.x_eq`` when the source has one, else the ``x_eq`` of the
@@ -91,12 +91,12 @@ def upright_qpos(source, model, nq: int) -> np.ndarray | None:
     """
     if model is not None:
         return np.asarray(model.x_eq, float)[:nq]
-    if hasattr(source, "x_eq"):
-        return np.asarray(source.x_eq, float)[:nq]
-    from cartpole.models import build_model
+    if hasattr(plant, "x_eq"):
+        return np.asarray(plant.x_eq, float)[:nq]
+    from cartpole.models import plant_model
 
     try:
-        return np.asarray(build_model(source).x_eq, float)[:nq]
+        return np.asarray(plant_model(plant).x_eq, float)[:nq]
     except CartPoleError:  # not a model the toolkit builds: angles from MuJoCo's qpos0
         return None
 
@@ -161,7 +161,7 @@ class Display:
     ctrl_names: list
 
 
-def build_display(source, *, width: int, height: int, floor_z: float | None = None) -> Display:
+def build_display(plant, *, width: int, height: int, floor_z: float | None = None) -> Display:
     """Compile the render-only copy of ``source`` (a model, parameters or an MJCF path): sky, grid floor, an
     offscreen buffer of at least ``width`` x ``height`` pixels, lighting, one colour per link.
 
@@ -170,7 +170,7 @@ def build_display(source, *, width: int, height: int, floor_z: float | None = No
     """
     import mujoco
 
-    spec = _spec(source)
+    spec = _spec(plant)
     spec.visual.global_.offwidth = max(int(width), int(spec.visual.global_.offwidth))
     spec.visual.global_.offheight = max(int(height), int(spec.visual.global_.offheight))
     spec.visual.global_.fovy = FOVY

@@ -236,7 +236,7 @@ class _Scene:
         self.close()
 
 
-def render_frame(source, rollout, t: float = 0.0, *, fps: float = 30, width: int = 960, height: int = 540,
+def render_frame(plant, rollout, t: float = 0.0, *, fps: float = 30, width: int = 960, height: int = 540,
                  camera: str | int | None = None, modes=None, model=None, overlay: bool = True) -> np.ndarray:
     """The video frame :func:`render_video` shows at time ``t`` (s): an (height, width, 3) uint8 RGB array.
 
@@ -245,7 +245,7 @@ def render_frame(source, rollout, t: float = 0.0, *, fps: float = 30, width: int
     process only (no OSMesa child): raises :class:`~cartpole.viz.scene.VideoUnavailable` when the GL backend cannot
     start.
     """
-    with _Scene(source, rollout, fps=fps, width=width, height=height, camera=camera, modes=modes, model=model,
+    with _Scene(plant, rollout, fps=fps, width=width, height=height, camera=camera, modes=modes, model=model,
                 overlay=overlay) as scene:
         i = int(np.clip(np.round((float(t) - scene.times[0]) * fps), 0, len(scene) - 1))
         return scene.frame(i)
@@ -354,7 +354,7 @@ def _render_in_child(source, rollout, path: Path, *, fps, width, height, camera,
     return int(out[0]), int(out[1])
 
 
-def render_video(source, rollout, path, *, fps: float = 30, width: int = 960, height: int = 540,
+def render_video(plant, rollout, path, *, fps: float = 30, width: int = 960, height: int = 540,
                  camera: str | int | None = None, progress: Callable[[float], None] | bool | None = None,
                  modes: Sequence | Callable[[float], str] | None = None, model=None, overlay: bool = True,
                  preview: bool | str | Path = True, preview_seconds: float = 4.0,
@@ -364,7 +364,7 @@ def render_video(source, rollout, path, *, fps: float = 30, width: int = 960, he
 
     Parameters
     ----------
-    source : CartPoleModel, CartPoleParams, MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The model to draw (None: the rollout's own ``mjcf``, else the shipped asset). Only read: the frames come
         from a render-only copy (:func:`~cartpole.viz.scene.build_display`).
     rollout : Rollout
@@ -430,12 +430,12 @@ def render_video(source, rollout, path, *, fps: float = 30, width: int = 960, he
             tmp = files.enter_context(atomic_path(path, suffix=path.suffix or ".mp4"))
             tmp_gif = files.enter_context(atomic_path(gif, suffix=".gif")) if gif is not None else None
             try:
-                frames, pv_frames = _render_frames(source, rollout, tmp, preview=tmp_gif, **opts)
+                frames, pv_frames = _render_frames(plant, rollout, tmp, preview=tmp_gif, **opts)
             except VideoUnavailable as first:
                 if backend != "egl" or not _osmesa_available() or "OpenGL" not in str(first):
                     raise
                 try:
-                    frames, pv_frames = _render_in_child(source, rollout, tmp, preview=tmp_gif, **opts)
+                    frames, pv_frames = _render_in_child(plant, rollout, tmp, preview=tmp_gif, **opts)
                     backend = "osmesa"
                 except VideoUnavailable:
                     raise first from None

@@ -49,7 +49,7 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
-from cartpole.models import CartPoleParams
+from cartpole.models import Plant
 from cartpole.sim import Rollout, simulate
 
 #: Most frames a second handed to the viewer (``viewer.sync()``); physics steps in between are not drawn.
@@ -366,7 +366,7 @@ def require_display() -> None:
         raise _unavailable(why)
 
 
-def watch(source: CartPoleParams | str | Path | None, controller: Callable, x0, duration: float, *,
+def watch(plant: Plant, controller: Callable, x0, duration: float, *,
           realtime: bool = True, push: Callable[[float], float] | None = None, screenshot: str | Path | None = None,
           control_period: float | None = None, stop: Callable[[float, np.ndarray], bool] | None = None,
           show_ui: bool = False, camera: str | None = None) -> Rollout:
@@ -379,7 +379,7 @@ def watch(source: CartPoleParams | str | Path | None, controller: Callable, x0, 
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole MuJoCo runs (None = shipped asset).
     controller : callable
         ``controller(t [s], x (nq+nv,)) -> ctrl (nu,)`` (a scalar when nu = 1).
@@ -427,7 +427,7 @@ def watch(source: CartPoleParams | str | Path | None, controller: Callable, x0, 
     view = LiveViewer(realtime=realtime, show_ui=show_ui, camera=camera)
     shot = window = None
     try:
-        run = simulate(source, controller, x0, duration, control_period=control_period, stop=stop, push=push,
+        run = simulate(plant, controller, x0, duration, control_period=control_period, stop=stop, push=push,
                        on_step=view)
         view.finish(settle=0.3 if screenshot is not None else 0.0)
         if screenshot is not None and view.is_running:

@@ -8,10 +8,10 @@ import pytest
 
 from cartpole.analysis import (AnalysisError, closed_loop_stable, continuous_loop, loop_margins, pid_loop,
                                sampled_loop)
-from cartpole.apps.lab import design
+from cartpole.control import LinearFeedback
 from cartpole.estimation import measurement_function, sensor_spec
 from cartpole.estimation.kalman import KalmanFilter, process_noise
-from cartpole.lqr import lab_weights, lqr
+from cartpole.riccati import lab_weights, lqr
 from cartpole.models import SHIPPED_MJCF, build_model
 
 ASSETS = ["cartpole.xml", "cartpole_two_pole.xml", "cartpole_three_pole.xml"]
@@ -102,7 +102,7 @@ def test_the_nyquist_curve_encircles_minus_one_once_per_unstable_open_loop_pole(
 
 def test_the_lqg_loop_closes_on_the_separation_principle_eigenvalues(lab):
     kf = _kalman(lab, steps=2)
-    res, _ = design(lab, *lab_weights(lab), steps=2)
+    res = LinearFeedback.for_model(lab, *lab_weights(lab), period=2 * lab.dt)
     loop = sampled_loop(lab, res.K, steps=2, kalman=kf)
     Ad, Bd = lab.without_friction().hold(2).linearize()
     expected = np.concatenate([np.linalg.eigvals(Ad - Bd @ res.K), kf.E])
@@ -144,7 +144,7 @@ def _kalman(model, *, steps, q=0.0):
 
 def test_lqg_from_encoders_with_delay_has_smaller_margins_and_recovery_restores_them(lab):
     steps, lag = 2, 1  # the lab's rig: 10 ms period, 5 ms delay predicted over
-    res, _ = design(lab, *lab_weights(lab), steps=steps)
+    res = LinearFeedback.for_model(lab, *lab_weights(lab), period=steps * lab.dt)
     lqr_m = loop_margins(sampled_loop(lab, res.K, steps=steps, delay_steps=lag))
     lqg_m = loop_margins(sampled_loop(lab, res.K, steps=steps, delay_steps=lag, kalman=_kalman(lab, steps=steps)))
     assert lqg_m.phase_margin_deg < lqr_m.phase_margin_deg - 5
@@ -168,7 +168,7 @@ def test_an_unstable_closed_loop_has_no_margins(lab):
 
 def test_a_tvlqr_frozen_at_a_time_is_the_continuous_loop_of_its_gain_there(lab):
     from cartpole.analysis import frozen_tvlqr_loop
-    from cartpole.lqr.tvlqr import TVLQRGains
+    from cartpole.riccati.tvlqr import TVLQRGains
 
     A, B = lab.without_friction().linearize()
     K = lqr(A, B, *lab_weights(lab)).K

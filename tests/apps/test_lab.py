@@ -11,7 +11,7 @@ from cartpole import Q_LAB, R_LAB, build_model, read_params
 from cartpole.apps.lab import (LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, compare_pid,
                           lab_initial_conditions, lab_start_scale, linear_settling_time, run_lab, run_pid_lab,
                           slowest_time_constant, starts_in_band, view_first_run)
-from cartpole.lqr import lab_weights
+from cartpole.riccati import lab_weights
 from cartpole.models import SHIPPED_MJCF, wrap_angle
 from cartpole.sim import replays_exactly, simulate
 

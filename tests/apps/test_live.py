@@ -8,7 +8,7 @@ import pytest
 from cartpole.apps.lab import run_lab
 from cartpole.apps.live import LQRTuner
 from cartpole.errors import CartPoleError
-from cartpole.lqr import lqr
+from cartpole.riccati import lqr
 
 
 @pytest.fixture(scope="module")
@@ -61,4 +61,4 @@ def test_watch_returns_the_run_with_its_live_log_and_it_replays(capsys):
     live = run.info["live"]
     assert live["events"] == [] and live["url"].startswith("http://localhost:")
     assert run.t[-1] == pytest.approx(0.2)
-    assert cp.sim.replays_exactly(run)
+    assert cp.replays_exactly(run)

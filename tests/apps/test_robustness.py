@@ -63,7 +63,7 @@ def test_pipeline_swings_up_every_variant(any_mjcf):
 def test_wrong_pole_mass_and_length_in_the_model(shipped, mass_factor, length_factor):
     wrong = build_model(shipped.scaled_pole(mass_factor, length_factor))
     assert wrong.params.pole_mass != shipped.pole_mass
-    plan = trajopt_swingup(shipped, model=wrong)
+    plan = trajopt_swingup(shipped, plan_model=wrong)
     assert plan.model is wrong
     _run(shipped, plan, HANGING)
 
@@ -77,7 +77,7 @@ def test_random_start_offsets_with_the_nominal_plan(shipped, seed):
 
 
 def test_wrong_model_and_offset_start_together(shipped):
-    plan = trajopt_swingup(shipped, model=build_model(shipped.scaled_pole(1.1, 1.1)))
+    plan = trajopt_swingup(shipped, plan_model=build_model(shipped.scaled_pole(1.1, 1.1)))
     _run(shipped, plan, HANGING + np.array([0.05, -0.1, 0.1, -0.2]))
 
 
@@ -139,7 +139,7 @@ def chain_params(request):
 def test_chain_swings_up_with_the_planning_models_pole_masses_off_by_5_percent(chain_params, mass_factor):
     name, params = chain_params
     wrong = build_model(params.scaled_pole(mass_factor, 1.0))
-    plan = trajopt_swingup(params, model=wrong)
+    plan = trajopt_swingup(params, plan_model=wrong)
     assert plan.model is wrong
     m = _chain_run(params, plan, build_model(params).x_hanging, f"{name}, pole masses x{mass_factor} in the plan")
     assert m["success"], m

@@ -31,7 +31,7 @@ def test_energy_swingup_brings_the_pole_up_and_holds_it(any_mjcf):
     # the switch into the catch is at a MuJoCo state inside the estimated basin
     k = int(round(res.caught_at / r.dt))
     e = r.x[k].copy()
-    e[1] = cp.models.wrap_angle(e[1])
+    e[1] = cp.wrap_angle(e[1])
     assert e @ res.basin.S @ e < res.basin.rho
     assert len(res.metrics["switches"]) == 1
     print(f"\n{getattr(any_mjcf, 'name', any_mjcf)}: time to upright {res.metrics['time_to_upright']:.3f} s, "
@@ -180,7 +180,7 @@ def test_dmc_swingup_objective_earns_more_return_than_the_minimum_time_plan(tmp_
     path = tmp_path / "dmc_cartpole.xml"
     path.write_text(dmc_cartpole(1))
     model = cp.build_model(str(path))
-    cache = cp.validation.BasinCache()
+    cache = cp.BasinCache()
     for x0 in ([0.0, np.pi, 0.0, 0.0], [0.01, np.pi - 0.01, -0.01, 0.01]):
         got = {}
         for objective in ("dmc_swingup", "time"):
@@ -201,7 +201,7 @@ def test_dmc_swingup_objective_earns_more_return_than_the_minimum_time_plan(tmp_
 def test_trajopt_reports_the_basin_of_the_hand_over_controller():
     """The basin run_swingup reports for trajopt is the hand-over LQR's (the controller that takes over), the same
     as one estimated directly for that controller; and it is not the energy method's catch (R = 1)."""
-    from cartpole.control.switching import swingup_catch
+    from cartpole.control import SWINGUP_CATCH_R, LinearFeedback
     from cartpole.planning.trajopt import handover_catch
     from cartpole.validation.basin import estimate_basin
 
@@ -211,7 +211,7 @@ def test_trajopt_reports_the_basin_of_the_hand_over_controller():
     direct = estimate_basin(params, catch)
     assert np.array_equal(res.basin.K, catch.K) and np.array_equal(res.basin.S, catch.S)
     assert res.basin.rho == pytest.approx(direct.rho, rel=1e-12)
-    assert not np.allclose(res.basin.K, swingup_catch(cp.build_model(params)).K)
+    assert not np.allclose(res.basin.K, LinearFeedback.for_model(cp.build_model(params), R=SWINGUP_CATCH_R).K)
     # the hand-over cost is measured with that controller's S, and the run enters its basin
     assert res.metrics["handover_cost"] < res.basin.rho
     print(f"\nhand-over LQR basin rho = {res.basin.rho:.4f}, hand-over cost {res.metrics['handover_cost']:.2e}")
@@ -235,13 +235,13 @@ def test_a_push_acts_for_a_tenth_of_a_second_is_logged_per_step_and_replays():
 
 
 def test_model_error_designs_energy_shaping_and_catch_on_the_scaled_model_while_mujoco_keeps_the_file():
-    from cartpole.control.switching import swingup_catch
+    from cartpole.control import SWINGUP_CATCH_R, LinearFeedback
 
     params = cp.read_params()
     res = run_swingup(params, method="energy", model_error=1.2, duration=6.0)
     wrong = cp.build_model(params.scaled_pole(1.2, 1.2))
-    np.testing.assert_array_equal(res.basin.K, swingup_catch(wrong).K)
-    assert not np.allclose(res.basin.K, swingup_catch(cp.build_model(params)).K)
+    np.testing.assert_array_equal(res.basin.K, LinearFeedback.for_model(wrong, R=SWINGUP_CATCH_R).K)
+    assert not np.allclose(res.basin.K, LinearFeedback.for_model(cp.build_model(params), R=SWINGUP_CATCH_R).K)
     assert res.model_error == 1.2 and res.rollout.mjcf == params.mjcf and replays_exactly(res.rollout, params)
 
 
@@ -251,7 +251,7 @@ def test_trajopt_with_model_error_plans_and_tracks_on_the_scaled_model():
     params = cp.read_params()
     wrong = cp.build_model(params.scaled_pole(0.8, 0.8))
     res = run_swingup(params, method="trajopt", model_error=0.8, push=[(0.3, 5.0)])
-    direct = trajopt_swingup(params, model=wrong)
+    direct = trajopt_swingup(params, plan_model=wrong)
     np.testing.assert_allclose(res.plan.x, direct.trajectory.x, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(res.basin.K, handover_catch(params, wrong).K)
     assert replays_exactly(res.rollout, params)

@@ -138,8 +138,8 @@ def test_linear_designs_ignore_dry_friction_and_beat_the_smooth_friction_lineari
     LQR on it expects a damping that neither the compensated plant (friction cancelled) nor MuJoCo's Coulomb friction
     has, so its gains are much higher and its runs settle later and swing the cart further than the design without
     friction, which is what LinearFeedback.for_model gives on a model with friction."""
-    from cartpole.lqr import lqr
-    from cartpole.lqr.weights import lab_weights
+    from cartpole.riccati import lqr
+    from cartpole.riccati.weights import lab_weights
 
     x0s = lab_initial_conditions(frictionless)
     x_eq = frictionless.x_eq

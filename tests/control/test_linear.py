@@ -5,7 +5,7 @@ import pytest
 
 import cartpole as cp
 from cartpole.control import FeedbackError, LinearFeedback
-from cartpole.lqr import LQRError, dlqr, lab_weights, lqr
+from cartpole.riccati import LQRError, dlqr, lab_weights, lqr
 from cartpole.models import state_error
 from cartpole.sim import replays_exactly, simulate
 
@@ -147,3 +147,20 @@ def test_lqr_designed_over_a_five_step_hold_balances_gymnasiums_double_pendulum_
     assert np.abs(model.state_error(held.x[-1])).max() < 1e-3
     assert replays_exactly(held)
     assert np.abs(model.state_error(naive.x)[:, list(model.hinges)]).max() > 1.0  # the poles fell
+
+
+def test_for_model_is_the_lqr_of_the_plant_about_the_given_equilibrium_with_its_eigenvalues():
+    model = cp.build_model()
+    res = lqr(model)
+    c = LinearFeedback.for_model(model)
+    np.testing.assert_array_equal(c.K, res.K)
+    np.testing.assert_array_equal(c.S, res.S)
+    np.testing.assert_array_equal(c.E, res.E)
+    moved = np.array(model.x_eq)
+    moved[model.slide] = 0.3
+    held = LinearFeedback.for_model(model.params, x_eq=moved, u_limits=None)
+    np.testing.assert_array_equal(held.x_eq, moved)
+    assert held(0.0, moved).tolist() == list(model.u_eq) and np.all(np.isinf(held.u_limits))
+    d = LinearFeedback.for_model(model, discrete=True)
+    np.testing.assert_allclose(d.S, dlqr(model).S)
+    assert np.all(np.abs(d.E) < 1)

@@ -5,7 +5,7 @@ import pytest
 import cartpole as cp
 from cartpole.control import LinearFeedback
 from cartpole.control.energy import EnergyShapingController
-from cartpole.control.switching import SwitchingController, SwitchingError, lab_catch
+from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController, SwitchingError
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.basin import estimate_basin
 from cartpole.validation.metrics import swingup_success
@@ -15,7 +15,7 @@ from cartpole.validation.metrics import swingup_success
 def shipped():
     params = cp.read_params()
     model = cp.build_model(params)
-    catch = lab_catch(model)
+    catch = LinearFeedback.for_model(model)
     return params, model, catch, estimate_basin(params, catch)
 
 
@@ -71,7 +71,7 @@ def test_start_one_turn_around_is_caught_at_once_not_swung_again(shipped):
 def test_catch_is_designed_and_tested_about_x_eq_of_any_model(chain_dir):
     """The catch of a pole built off vertical holds x_eq (u = u_eq there) and its basin test wraps the error."""
     model = cp.build_model(chain_dir / "gym_single_off_vertical.xml")
-    catch = lab_catch(model)
+    catch = LinearFeedback.for_model(model)
     np.testing.assert_array_equal(catch.x_eq, model.x_eq)
     assert catch.cost_to_go(model.x_eq) == 0.0
     turned = np.array(model.x_eq) + np.array([0.0, 2 * np.pi + 0.01, 0.0, 0.0])
@@ -85,13 +85,12 @@ def test_catch_is_designed_and_tested_about_x_eq_of_any_model(chain_dir):
 
 
 def test_two_pole_catch_uses_the_lab_weight_pattern_and_returns_one_ctrl_per_actuator():
-    from cartpole.control.switching import swingup_catch
-    from cartpole.lqr import lab_weights, lqr
+    from cartpole.riccati import lab_weights, lqr
 
     model = cp.build_model(cp.SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
     Q, R = lab_weights(model)
     np.testing.assert_array_equal(np.diag(Q), [1, 10, 10, 0.1, 0.1, 0.1])
     A, B = model.linearize()
-    np.testing.assert_array_equal(lab_catch(model).K, lqr(A, B, Q, R).K)
-    np.testing.assert_array_equal(swingup_catch(model).K, lqr(A, B, Q, np.eye(1)).K)
-    assert lab_catch(model)(0.0, model.x_eq).shape == (1,)
+    np.testing.assert_array_equal(LinearFeedback.for_model(model).K, lqr(A, B, Q, R).K)
+    np.testing.assert_array_equal(LinearFeedback.for_model(model, R=SWINGUP_CATCH_R).K, lqr(A, B, Q, np.eye(1)).K)
+    assert LinearFeedback.for_model(model)(0.0, model.x_eq).shape == (1,)

@@ -5,8 +5,8 @@ import pytest
 from cartpole import Q_LAB, R_LAB
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.lqr import dlqr, lqr
-from cartpole.lqr.tvlqr import tvlqr
+from cartpole.riccati import dlqr, lqr
+from cartpole.riccati.tvlqr import tvlqr
 from cartpole.models import build_model, wrap_angle
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate

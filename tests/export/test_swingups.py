@@ -75,11 +75,11 @@ def test_tvlqr_export_plans_from_the_given_start():
 
 
 def test_energy_export_swings_up_and_catches_like_python():
-    from cartpole.control.switching import swingup_catch
+    from cartpole.control import SWINGUP_CATCH_R, LinearFeedback
     from cartpole.validation.basin import BasinCache
 
     model = build_model(None)
-    rho = BasinCache.on_disk().get(model.params, swingup_catch(model)).rho
+    rho = BasinCache.on_disk().get(model.params, LinearFeedback.for_model(model, R=SWINGUP_CATCH_R)).rho
     design = design_export(model, "energy", None, rho=rho)
     d, f = _both(design, model.x_hanging, 10.0)
     assert d.max_ctrl_diff <= 1e-9

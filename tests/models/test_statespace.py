@@ -4,7 +4,7 @@ import control
 import numpy as np
 import pytest
 
-from cartpole.lqr import dlqr, lab_weights, lqr
+from cartpole.riccati import dlqr, lab_weights, lqr
 from cartpole.models import MJCFError, PeriodError, build_model
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cartpole.models import SHIPPED_MJCF, build_model, read_params, wrap_angle
-from cartpole.models.symbolic import linearize
+from cartpole.models import linearize
 from cartpole.validation.jacobians import random_states
 
 N_RANDOM = 100
@@ -195,14 +195,19 @@ def test_upright_puts_every_pole_centre_of_mass_above_its_hinge(family_mjcf):
         assert r @ up > 0 and np.linalg.norm(r - (r @ up) * up) < 1e-6 * np.linalg.norm(r)
 
 
-def test_linearize_returns_both_continuous_and_discrete_forms():
+def test_linearize_has_one_return_shape_whatever_the_plant_and_form():
     model = build_model()
-    lin = linearize(model)
-    assert lin["A"].shape == (4, 4) and lin["B"].shape == (4, 1)
-    assert lin["Ad"].shape == (4, 4) and lin["Bd"].shape == (4, 1)
-    assert lin["dt"] == model.params.timestep and lin["integrator"] == "Euler"
+    A, B = linearize(model)
+    Ad, Bd = linearize(model.params, discrete=True)
+    assert A.shape == (model.nx, model.nx) and B.shape == (model.nx, model.nu)
+    assert Ad.shape == A.shape and Bd.shape == B.shape
+    for mine, method in zip((A, B, Ad, Bd), (*model.linearize(), *model.linearize(discrete=True))):
+        np.testing.assert_array_equal(mine, method)
+    np.testing.assert_array_equal(linearize(model, period=model.dt)[0], Ad)
+    held, _ = linearize(model, period=3 * model.dt)
+    np.testing.assert_allclose(held, model.hold(3).linearize()[0])
     # small-dt consistency: Ad ~ I + A dt
-    np.testing.assert_allclose(lin["Ad"], np.eye(4) + lin["A"] * lin["dt"], atol=5 * lin["dt"] ** 2 * 30)
+    np.testing.assert_allclose(Ad, np.eye(4) + A * model.dt, atol=5 * model.dt ** 2 * 30)
 
 
 def test_model_rebuilt_at_a_control_period_equals_repeated_physics_steps_for_RK4():

@@ -65,7 +65,7 @@ def test_ddp_mpc_takes_the_effort_objective_and_the_legacy_keyword():
 def test_an_objectives_terminal_weight_is_its_own_lqr_cost_to_go():
     import casadi as ca
 
-    from cartpole.lqr import dlqr
+    from cartpole.riccati import dlqr
     from cartpole.models import build_model
     from cartpole.mpc.ddp_mpc import objective_cost_to_go
 

@@ -38,12 +38,12 @@ def model(params):
 
 @pytest.fixture(scope="module")
 def swingup(params, model):
-    return nmpc_swingup(params, model=model)
+    return nmpc_swingup(params, plan_model=model)
 
 
 @pytest.fixture(scope="module")
 def tvlqr_plan(params, model):
-    return trajopt_swingup(params, x0=model.x_hanging, model=model)
+    return trajopt_swingup(params, x0=model.x_hanging, plan_model=model)
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +86,7 @@ def test_nmpc_recovers_from_a_push_that_the_tvlqr_pipeline_does_not_survive(para
 @pytest.mark.parametrize("mass_factor", [0.8, 1.2])
 def test_nmpc_swings_up_when_the_planning_models_pole_mass_is_20_percent_off(params, mass_factor):
     wrong = build_model(params.scaled_pole(mass_factor))
-    ctrl = nmpc_swingup(params, model=wrong)
+    ctrl = nmpc_swingup(params, plan_model=wrong)
     ro = simulate(params, ctrl, wrong.x_hanging, 4.0)
     assert replays_exactly(ro)
     assert swingup_success(ro, params)
@@ -214,7 +214,7 @@ def test_nmpc_swings_the_two_pole_cart_up_from_hanging_rest():
     """Not required by the issue, reported: the double pole swung up and held by NMPC from its offline plan."""
     params2 = read_params(TWO_POLE)
     model2 = build_model(params2)
-    ctrl = nmpc_swingup(params2, model=model2, init_iterations=200)
+    ctrl = nmpc_swingup(params2, plan_model=model2, init_iterations=200)
     assert ctrl.init_info["converged"]
     ro = simulate(params2, ctrl, model2.x_hanging, 6.0)
     assert replays_exactly(ro)

@@ -16,7 +16,7 @@ def test_a_running_objective_that_converges_nowhere_keeps_the_time_plan(monkeypa
         raise OCPNotSolved("No swing-up found (refinement refused by the test)", attempts=())
 
     monkeypatch.setattr(trajopt, "_continue_from", refuse)
-    sp = trajopt.trajopt_swingup(model.params, model=model, options=PlanOptions(objective="tracking"))
+    sp = trajopt.trajopt_swingup(model.params, plan_model=model, options=PlanOptions(objective="tracking"))
     info = sp.solve_info
     assert info.success and "not converged from any guess: the time plan kept" in info.status
     assert sp.T_min is not None and sp.T == np.float64(sp.trajectory.t[-1] - sp.trajectory.t[0])

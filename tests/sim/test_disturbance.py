@@ -4,7 +4,7 @@ import pytest
 
 from cartpole.control import LinearFeedback
 from cartpole.control.energy import EnergyShapingController
-from cartpole.control.switching import SwitchingController, swingup_catch
+from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
 from cartpole.models import build_model, read_params
 from cartpole.sim import (UPRIGHT_BAND, DisturbanceError, Knockdown, Rollout, Throw, replay, replays_exactly,
                           simulate)
@@ -46,7 +46,7 @@ def test_knocks_are_seeded(cart):
 
 def test_a_knocked_down_energy_swingup_swings_up_again_and_the_log_replays(cart, tmp_path):
     params, model = cart
-    catch = swingup_catch(model)
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R)
     basin = BasinCache.on_disk(tmp_path / "basins").get(params, catch)
     controller = SwitchingController(EnergyShapingController(model), catch, basin.rho)
     force = Knockdown(1.0, 0.3, seed=1).start(params, x_eq=model.x_eq, hinges=model.hinges)

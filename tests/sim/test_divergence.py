@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cartpole.cli import main
-from cartpole.control.switching import lab_catch
+from cartpole.control import LinearFeedback
 from cartpole.models import SHIPPED_MJCF, build_model, mujoco_warnings, read_params
 from cartpole.sim import replay, replays_exactly, simulate, simulate_batch_linear
 from cartpole.validation.metrics import diverged, diverged_at, summarize, swingup_success
@@ -31,7 +31,7 @@ def _first_warning_step(x0, ctrl):
 
 @pytest.fixture(scope="module")
 def catch():
-    return lab_catch(build_model(read_params(None)))
+    return LinearFeedback.for_model(build_model(read_params(None)))
 
 
 @pytest.fixture(autouse=True)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cartpole.control.model_rollout import model_rollout
-from cartpole.control.switching import swingup_catch
+from cartpole.control import SWINGUP_CATCH_R, LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.models import build_model, read_params
 from cartpole.ocp.trajectory import Trajectory
@@ -19,7 +19,7 @@ from cartpole.validation import BasinCache, uptime_metrics
 def double(tmp_path_factory):
     params = read_params("cartpole/assets/cartpole_two_pole.xml")
     model = build_model(params)
-    catch = swingup_catch(model)
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq))
     brake = PassiveBrake(model, inertia, 0.5, catch.u_limits)
     return params, model, catch, brake

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import cartpole as cp
-from cartpole.control.switching import lab_catch
+from cartpole.control import LinearFeedback
 from cartpole.models import wrap_angle
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.basin import BasinCache, BasinError, BasinEstimate, estimate_basin
@@ -39,7 +39,7 @@ def test_rho_is_the_documented_level(basin):
 def test_samples_below_rho_succeed_when_rechecked_independently(basin):
     """Re-run a few samples below rho with the logging simulator (not the basin's own loop) and check them."""
     params = cp.read_params()
-    catch = lab_catch(cp.build_model(params))
+    catch = LinearFeedback.for_model(cp.build_model(params))
     inside = np.flatnonzero(basin.costs < basin.rho)
     pick = inside[np.argsort(basin.costs[inside])[-4:]]  # the hardest ones: nearest rho
     for i in pick:
@@ -52,7 +52,7 @@ def test_samples_below_rho_succeed_when_rechecked_independently(basin):
 def test_batched_verdicts_equal_single_runs_of_the_logging_simulator(basin):
     """Successes and failures alike: the batched catch runs give the verdict of one ``simulate`` per start."""
     params = cp.read_params()
-    catch = lab_catch(cp.build_model(params))
+    catch = LinearFeedback.for_model(cp.build_model(params))
     picks = np.r_[np.flatnonzero(basin.success)[:3], np.flatnonzero(~basin.success)[:3]]
     assert picks.size == 6
     lo, hi = params.cart_range[0] + basin.limit_margin, params.cart_range[1] - basin.limit_margin
@@ -92,7 +92,7 @@ def test_two_pole_basin_perturbs_every_state_and_its_verdicts_are_the_logging_si
     b = two_pole_basin
     params = cp.read_params(TWO_POLE)
     model = cp.build_model(params)
-    catch = lab_catch(model)
+    catch = LinearFeedback.for_model(model)
     np.testing.assert_array_equal(b.S, catch.S)
     assert b.samples.shape == (80, 6) and b.box.shape == (6,) and b.K.shape == (1, 6)
     np.testing.assert_array_equal(b.x_eq, model.x_eq)
@@ -121,4 +121,5 @@ def test_basin_of_a_pole_built_off_vertical_is_sampled_around_its_x_eq(chain_dir
     assert abs(np.mean(b.samples[:, 1]) - model.x_eq[1]) < 0.2
     assert b.rho > 0 and np.all(b.success[b.costs < b.rho])
     from cartpole.validation.basin import catch_succeeds
-    assert catch_succeeds(path, lab_catch(model), [model.x_eq], 2.0).tolist() == [True]  # x_eq itself is a rest
+    # x_eq itself is a rest
+    assert catch_succeeds(path, LinearFeedback.for_model(model), [model.x_eq], 2.0).tolist() == [True]

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from cartpole.control.linear import LinearFeedback
-from cartpole.control.switching import lab_catch
 from cartpole.models import SHIPPED_MJCF, build_model, mujoco_warnings, read_params
 from cartpole.validation.basin import catch_outcomes, estimate_basin
 
@@ -40,7 +39,7 @@ def quiet():
 
 
 def test_a_reset_lands_upright_at_rest_yet_is_a_failure(params):
-    catch = lab_catch(build_model(params))
+    catch = LinearFeedback.for_model(build_model(params))
     starts = np.array([[0.0, 0.05, 0.0, 0.0], [0.0, 0.05, 0.0, 1e12], [0.0, 0.3, 0.0, 1e5]])
     ok, dv = catch_outcomes(params, catch, starts, 1.0)
     assert dv.tolist() == [False, True, True] and ok.tolist() == [True, False, False]
@@ -49,7 +48,7 @@ def test_a_reset_lands_upright_at_rest_yet_is_a_failure(params):
 def test_diverged_samples_are_failures_and_the_basin_shrinks(params):
     # The lab catch, sampled in a metric that hardly weighs the hinge rate: many samples start with rates MuJoCo
     # cannot integrate; it resets them to qpos0 (upright, at rest), which used to look caught.
-    c = lab_catch(build_model(params))
+    c = LinearFeedback.for_model(build_model(params))
     S = np.array(c.S)
     S[3, :] = S[:, 3] = 0.0
     S[3, 3] = 1e-21

@@ -7,13 +7,13 @@ PERIOD = 0.01
 MHE_HORIZON = 0.1
 
 
-def estimation_benchmark(mjcf=None, *, quick: bool = False) -> dict:
+def estimation_benchmark(plant=None, *, quick: bool = False) -> dict:
     """``{"period", "mhe": {step_ms_median, step_ms_max, ...}, "ekf": {median_us, p90_us, updates}}`` on ``mjcf``
     (default the shipped cart), its encoders as sensors (positions only).
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     quick : bool
         Fewer updates (for the test suite).
 
@@ -26,9 +26,9 @@ def estimation_benchmark(mjcf=None, *, quick: bool = False) -> dict:
     from cartpole.estimation import measurement_function, sensor_spec
     from cartpole.estimation.ekf import bench_ekf
     from cartpole.estimation.mhe import bench_mhe
-    from cartpole.models import build_model, steps_per_period
+    from cartpole.models import plant_model, steps_per_period
 
-    model = build_model(mjcf)
+    model = plant_model(plant)
     steps = steps_per_period(PERIOD, model.dt)
     spec = sensor_spec(model, encoder_cpr=4096, encoder_resolution=0.0005, noise_std=0.001)
     n = 100 if quick else 2000

@@ -35,13 +35,13 @@ def _row(design, x0, duration: float, repeats: int) -> dict:
             "max_ctrl_diff": run.max_ctrl_diff, "replayed_same_ctrl": same}
 
 
-def export_benchmark(mjcf=None, *, quick: bool = False) -> dict:
+def export_benchmark(plant=None, *, quick: bool = False) -> dict:
     """``{"period", "lqr_kf": {...}, "tvlqr_ekf": {...}, "nmpc": {...}}`` (see the module doc; with ``quick`` only
     ``lqr_kf``, the others None).
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart (default the shipped one).
     quick : bool
         Shorter runs and fewer replays (for the test suite).
@@ -55,10 +55,10 @@ def export_benchmark(mjcf=None, *, quick: bool = False) -> dict:
     """
     from cartpole.apps.lab import lab_initial_conditions
     from cartpole.export import design_export
-    from cartpole.models import build_model
+    from cartpole.models import plant_model
     from cartpole.sim.options import LoopOptions
 
-    model = build_model(mjcf)
+    model = plant_model(plant)
     repeats = 2 if quick else 20
     lqr = design_export(model, "lqr", LoopOptions(period=PERIOD, estimator="kf", encoder_cpr=ENCODER_CPR))
     doc = {"period": PERIOD, "encoder_cpr": ENCODER_CPR,

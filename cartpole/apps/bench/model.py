@@ -30,12 +30,12 @@ def _median_per_call(fn, number: int, repeat: int) -> float:
     return float(np.median(timeit.repeat(fn, number=number, repeat=repeat)) / number)
 
 
-def model_benchmark(mjcf, *, repeat: int = 7, calls: int = 2000, builds: int = 3) -> dict:
+def model_benchmark(plant, *, repeat: int = 7, calls: int = 2000, builds: int = 3) -> dict:
     """Model readiness and linearisation figures of one cart (see the module notes).
 
     Parameters
     ----------
-    mjcf : str or Path
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole MJCF.
     repeat : int
         Timed runs per figure; the median is reported.
@@ -54,12 +54,12 @@ def model_benchmark(mjcf, *, repeat: int = 7, calls: int = 2000, builds: int = 3
     """
     import mujoco
 
-    from cartpole.models import build_model, read_params
+    from cartpole.models import build_model, plant_model, plant_params
 
     repeat, calls, builds = max(1, int(repeat)), max(1, int(calls)), max(1, int(builds))
     slow = max(1, calls // 4)
-    build_s = _median_per_call(lambda: build_model(read_params(mjcf)), number=builds, repeat=repeat)
-    model = build_model(mjcf)
+    build_s = _median_per_call(lambda: build_model(plant_params(plant)), number=builds, repeat=repeat)
+    model = plant_model(plant)
     rng = np.random.default_rng(0)
     x = model.x_eq + rng.uniform(-0.3, 0.3, model.nx)
     u = model.u_eq + 0.2
@@ -68,7 +68,7 @@ def model_benchmark(mjcf, *, repeat: int = 7, calls: int = 2000, builds: int = 3
     abd_s = _median_per_call(lambda: model.ABd(x, u), number=slow, repeat=repeat)
     lin_np_s = _median_per_call(lambda: model.linearize(x, u), number=calls, repeat=repeat)
 
-    m = mujoco.MjModel.from_xml_path(str(mjcf))
+    m = mujoco.MjModel.from_xml_path(str(plant_params(plant).mjcf))
     d = mujoco.MjData(m)
     A = np.zeros((model.nx, model.nx))
     B = np.zeros((model.nx, model.nu))

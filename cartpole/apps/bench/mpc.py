@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cartpole.models import build_model, planning_limits, read_params
+from cartpole.models import build_model, planning_limits, plant_params, read_params
 from cartpole.mpc.nmpc import NMPCController
 from cartpole.mpc.options import MPCOptions
 from cartpole.mpc.ipopt_baseline import IpoptMPC
@@ -31,7 +31,7 @@ def _runs(controller, params, x0, duration: float, repeats: int) -> tuple[list, 
     return times, ok
 
 
-def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, repeats: int = 3,
+def run_mpc_benchmark(plant=None, *, period: float = 0.02, horizon: float = 1.2, repeats: int = 3,
                       duration: float = 4.0, baseline_repeats: int = 1, qp_solver: str | None = None,
                       baseline: bool = True, ddp_two_pole: bool = True, u_max=None,
                       cart_max: float | None = None) -> dict:
@@ -39,7 +39,7 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (default the shipped single pole).
     period, horizon : float
         Control period and prediction horizon in s (rounded as :class:`~cartpole.mpc.nmpc.NMPCController` does).
@@ -70,10 +70,10 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
         iteration a period), each {``solve_ms_median``, ``solve_ms_max``, ``steps``, ``period``, ``success``,
         ``failures``}}.
     """
-    params, limits = planning_limits(read_params(mjcf), u_max=u_max, cart_max=cart_max)
+    params, limits = planning_limits(plant_params(plant), u_max=u_max, cart_max=cart_max)
     model = build_model(params)
     x0 = model.x_hanging
-    plan = trajopt_swingup(params, x0=x0, model=model)
+    plan = trajopt_swingup(params, x0=x0, plan_model=model)
     options = MPCOptions(period=period, horizon=horizon, qp_solver=qp_solver)
     rti = NMPCController(model, params, options=options, guess=plan.trajectory, x0=x0)
     t_rti, ok_rti = _runs(rti, params, x0, duration, max(1, int(repeats)))
@@ -92,7 +92,7 @@ def run_mpc_benchmark(mjcf=None, *, period: float = 0.02, horizon: float = 1.2, 
 
         p2 = read_params(SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
         m2 = build_model(p2)
-        plan2 = trajopt_swingup(p2, x0=m2.x_hanging, model=m2)
+        plan2 = trajopt_swingup(p2, x0=m2.x_hanging, plan_model=m2)
         # the double takes longer to swing up: 6 s so that its last second is the hold the success test needs
         ddp_doc["two_pole"] = _ddp_row(p2, m2, plan2, options.replace(qp_solver=None), m2.x_hanging,
                                        max(duration, 6.0), repeats)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.apps.bench.trajopt import NaiveOptiBaseline, default_planner_row, hand_typed_cartpole, median_ms
-from cartpole.models import build_model, read_params
+from cartpole.models import build_model, plant_params
 from cartpole.ocp.bounds import OCPError, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
@@ -26,13 +26,13 @@ from cartpole.ocp.objectives import make_objective
 OBJECTIVES = ("effort", "tracking", "dmc_cartpole_swingup", "time")
 
 
-def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: float = 2.0, repeats: int = 5,
+def objective_benchmark(plant=None, *, objectives=OBJECTIVES, N: int = 100, T: float = 2.0, repeats: int = 5,
                         progress=None) -> list[dict]:
     """Per objective (module docstring), ours against the naive script, medians of ``repeats`` solves each.
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         Cart MJCF (default the shipped one), any number of poles.
     objectives : sequence of str
         Objective names (default :data:`OBJECTIVES`).
@@ -54,7 +54,7 @@ def objective_benchmark(mjcf=None, *, objectives=OBJECTIVES, N: int = 100, T: fl
         cannot have (``dmc_cartpole_swingup`` without a cart) only ``objective`` and ``skipped``, the sentence why.
     """
     say = progress or (lambda msg: None)
-    params = read_params(mjcf)
+    params = plant_params(plant)
     model = build_model(params)
     x0 = np.array(model.x_hanging)
     bounds = bounds_from_model(model, u_max=1.0, cart_max=1.4, cart_margin=0.0)

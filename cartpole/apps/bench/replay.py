@@ -8,12 +8,12 @@ import time
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
-from cartpole.models import CartPoleParams, build_model, read_params
+from cartpole.models import build_model, plant_params
 from cartpole.sim.batch import default_threads, initial_states, random_starts, simulate_batch_linear
 from cartpole.sim.rollout import make_mujoco
 
 
-def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, repeats: int = 5,
+def replay_benchmark(plant=None, *, rollouts: int = 256, seconds: float = 2.0, repeats: int = 5,
                      python_loop: bool = False) -> dict:
     """Closed-loop batch replay throughput next to MuJoCo's open-loop ``mujoco.rollout.rollout``.
 
@@ -25,7 +25,7 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
 
     Parameters
     ----------
-    source : CartPoleParams or MJCF path or None
+    plant : path, CartPoleParams, CartPoleModel or None
     rollouts : int
         Batch size.
     seconds : float
@@ -45,7 +45,7 @@ def replay_benchmark(source=None, *, rollouts: int = 256, seconds: float = 2.0, 
     import mujoco
     import mujoco.rollout
 
-    params = source if isinstance(source, CartPoleParams) else read_params(source)
+    params = plant_params(plant)
     model = build_model(params)
     law = LinearFeedback.for_model(model)
     X0 = random_starts(rollouts, model=model)

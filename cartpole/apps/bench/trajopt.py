@@ -30,12 +30,12 @@ import time
 import casadi as ca
 import numpy as np
 
-from cartpole.lqr import lab_weights, tvlqr
-from cartpole.models import build_model, mujoco_model, planning_limits, read_params
+from cartpole.riccati import lab_weights, tvlqr
+from cartpole.models import build_model, mujoco_model, planning_limits, plant_params, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
-from cartpole.lqr.tvlqr import reference as _on_step_grid
+from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.solvers.ddp import ddp_for_model
 from cartpole.solvers.sqp import CollocationSQP
 from cartpole.apps.bench.replay import replay_benchmark
@@ -190,14 +190,14 @@ class NaiveOptiBaseline:
             return float(self.opti.debug.value(self.opti.f)), int(st.get("iter_count", -1)), False
 
 
-def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max: float = 1.4,
+def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max: float = 1.4,
         repeats: int = 5, replay: bool = True, replay_repeats: int | None = None, replay_rollouts: int = 256,
         progress=None) -> dict:
     """Measure the standard problem (module docstring); return the ``cartpole bench`` JSON document.
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
         Cart-pole MJCF (default the shipped asset), any number of poles and motors.
     N, T, u_max, cart_max : problem size (intervals, s, ctrl bound of every actuator, m).
     repeats : int
@@ -222,7 +222,7 @@ def run(mjcf=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max
     """
     say = progress or (lambda msg: None)
     repeats = max(1, int(repeats))
-    params = read_params(mjcf)
+    params = plant_params(plant)
     model = build_model(params)
     x0 = np.array(model.x_hanging)
     bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max, cart_margin=0.0)
@@ -490,7 +490,7 @@ def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progre
         for _ in range(max(1, int(repeats))):
             tic = time.perf_counter()
             params, limits = planning_limits(read_params(path), u_max=u_max, cart_max=cart_max)
-            sp = trajopt_swingup(params, model=build_model(params))
+            sp = trajopt_swingup(params, plan_model=build_model(params))
             toc = time.perf_counter()
             run = simulate(params, sp.controller, sp.model.x_hanging, sp.T + 3.0)
             ok = replays_exactly(run, params)
@@ -530,7 +530,7 @@ def print_plan_table(rows: list[dict], file=None) -> None:
           f"{up:>10s} {str(r['success'] and r['replays']):>8s}\n")
 
 
-def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None, u_max=None,
+def mpc_benchmark(plant=None, *, quick: bool = False, progress=None, u_max=None,
                   cart_max: float | None = None) -> dict | None:
     """The NMPC row (:func:`cartpole.apps.bench.mpc.run_mpc_benchmark`): per-control-step solve time over a
     single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess; None when this
@@ -538,7 +538,7 @@ def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None, u_max=None,
 
     Parameters
     ----------
-    mjcf : path, optional
+    plant : path, CartPoleParams, CartPoleModel or None
     quick : bool
         One run instead of three.
     progress : callable, optional
@@ -557,7 +557,7 @@ def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None, u_max=None,
     except ImportError:
         return None
     (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
-    return run_mpc_benchmark(mjcf, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max)
+    return run_mpc_benchmark(plant, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max)
 
 
 def print_mpc_table(doc: dict, file=None) -> None:

@@ -127,9 +127,10 @@ class Runner:
 
             steps = steps_per_period(self.loop.period, self.params.timestep)
             return self.cache.get(self.params, handover_catch(self.params, pm, steps=steps))
-        from cartpole.control.switching import swingup_catch
+        from cartpole.control.linear import LinearFeedback
+        from cartpole.control.switching import SWINGUP_CATCH_R
 
-        catch = swingup_catch(pm, *(self.catch_weights or ()), period=self.loop.period)
+        catch = LinearFeedback.for_model(pm, *(self.catch_weights or (None, SWINGUP_CATCH_R)), period=self.loop.period)
         return self.cache.get(self.params, catch)
 
     def run(self, x0, options: dict, push=(), model_error: float = 1.0, settings: dict | None = None) -> dict:

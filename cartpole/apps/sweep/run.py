@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole.errors import CartPoleError, first_line
-from cartpole.models import CartPoleParams, build_model, read_params
+from cartpole.models import CartPoleParams, build_model, plant_params
 from cartpole.ocp.dmc import episode_starts, is_task
 from cartpole.progress import stage
 from cartpole.apps.swingup import (ENERGY_DURATION, MPC_DURATION, SUPERVISOR_DURATION, check_plan_size,
@@ -25,7 +25,7 @@ from cartpole.apps.sweep.results import (ResultsFile, SweepResult, csv_row, fail
                                          results_lock, sweep_id)
 
 
-def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int = 0, center=None,
+def swingup_sweep(plant=None, *, method: str = "energy", n: int = 20, seed: int = 0, center=None,
                   half_widths=None, gain_jitter: float = 0.0, energy_options: dict | None = None,
                   duration: float | None = None, catch_weights: tuple | None = None, basin_cache=None,
                   progress=None, workers: int = 1, address: str | None = None, done: dict | None = None,
@@ -36,7 +36,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
 
     Parameters
     ----------
-    mjcf : path or CartPoleParams or None
+    plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole (None = shipped asset).
     method : {"energy", "trajopt", "mpc"}
         Swing-up of every run (:func:`~cartpole.apps.swingup.run_swingup`).
@@ -65,8 +65,8 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     duration : float, optional
         Simulated seconds per run (default that of :func:`~cartpole.apps.swingup.run_swingup`).
     catch_weights : (Q, R), optional
-        LQR weights of the catch (default :func:`~cartpole.control.switching.swingup_catch`'s), passed to
-        :func:`~cartpole.apps.swingup.run_swingup`.
+        LQR weights of the catch (default the lab's ``Q`` and :data:`~cartpole.control.switching.SWINGUP_CATCH_R`),
+        passed to :func:`~cartpole.apps.swingup.run_swingup`.
     basin_cache : BasinCache, optional
         Reuse basin estimates across sweeps.
     progress : callable, optional
@@ -117,7 +117,7 @@ def swingup_sweep(mjcf=None, *, method: str = "energy", n: int = 20, seed: int =
     # the pool's fork server imports the toolkit while this process reads the model, plans, finds the basins and
     # starts its own share of the runs
     context = start_server(method) if workers > 1 and not address else None
-    params = mjcf if isinstance(mjcf, CartPoleParams) else read_params(mjcf)
+    params = plant_params(plant)
     model = build_model(params)
     try:
         check_plan_size(model, method)

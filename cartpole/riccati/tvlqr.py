@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.lqr.riccati import LQRError, check_weights, dlqr, lqr
-from cartpole.lqr.weights import lab_weights
+from cartpole.riccati.algebraic import LQRError, check_weights, dlqr, lqr
+from cartpole.riccati.weights import lab_weights
 from cartpole.models import CartPoleModel
 
 METHODS = ("discrete", "continuous")
@@ -208,7 +208,7 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
         Reference (cubic-Hermite states, first-order-hold inputs): anything with ``t`` (knot times), ``x``
         (knots, nx), ``u`` (knots, nu), ``duration``, ``state(t)`` and ``input(t)``.
     Q : (nx, nx) array, optional
-        State weight (per s); default :func:`~cartpole.lqr.weights.lab_weights` of the model.
+        State weight (per s); default :func:`~cartpole.riccati.weights.lab_weights` of the model.
     R : (nu, nu) array or float, optional
         Input weight (per ctrl^2 per s); default the lab's 0.1 per input.
     Qf : (nx, nx) array, optional

@@ -3,6 +3,19 @@
 Convention (python-control's): ``K, S, E = lqr(A, B, Q, R)`` with the law ``u = -K x`` (or
 ``u = u* - K (x - x*)`` about an equilibrium), ``S`` the cost-to-go matrix (``x' S x``), ``E`` the
 closed-loop eigenvalues. The result is a named tuple, so it unpacks like python-control's tuple.
+
+Both also take the plant, as python-control's ``lqr(sys, Q, R)``: ``lqr(plant, Q, R)`` and ``dlqr(plant, Q, R)``
+with ``plant`` a path, :class:`~cartpole.models.CartPoleParams` or :class:`~cartpole.models.CartPoleModel`
+(:func:`~cartpole.models.plant_model`), designed on its exact linearisation at the upright equilibrium (dry
+friction left out: it has no slope at rest), ``Q`` and ``R`` defaulting to
+:func:`~cartpole.riccati.weights.lab_weights`.
+
+One cost scaling for discrete designs on a plant (**the** convention of the package): ``Q`` and ``R`` are weights
+per second, as in the continuous design, so over a control period ``T`` (one physics step unless ``period`` says
+more) the stage cost is ``(x'Qx + u'Ru) T``: ``dlqr(plant, Q, R)`` solves ``dlqr(Ad, Bd, Q T, R T)``. Its gain
+is the one of ``dlqr(Ad, Bd, Q, R)`` (a common factor on both weights does not move it), and its ``S`` is the
+continuous design's to first order in ``T``, so a basin level ``e' S e < rho`` means the same whichever design
+built the catch. ``dlqr`` on matrices is python-control's and MATLAB's (per-sample weights, no scaling).
 """
 from __future__ import annotations
 
@@ -12,6 +25,8 @@ import numpy as np
 import scipy.linalg
 
 from cartpole.errors import CartPoleError
+from cartpole.models import is_plant, plant_model, steps_per_period
+from cartpole.riccati.weights import lab_weights
 
 
 class LQRError(CartPoleError):
@@ -119,15 +134,27 @@ def _check_stabilizable(A, B, *, discrete: bool) -> None:
                        "moved by the input; check the actuator (gear, joint) or linearisation point.")
 
 
-def lqr(A, B, Q, R) -> LQRResult:
+def lqr(A, B=None, Q=None, R=None, *, x=None, u=None) -> LQRResult:
     """Continuous-time LQR: minimise ``integral(x'Qx + u'Ru) dt`` for ``x_dot = A x + B u``.
+
+    Called as ``lqr(A, B, Q, R)`` on matrices, or as ``lqr(plant, Q=None, R=None)`` on a plant (python-control's
+    two shapes; with a plant the second and third positional arguments are ``Q`` and ``R``).
 
     Parameters
     ----------
-    A : (n, n) array, 1/s
+    A : (n, n) array, 1/s, or a plant
+        State matrix, or the plant (an MJCF path, CartPoleParams or CartPoleModel), linearised exactly at
+        ``(x, u)`` without dry friction.
     B : (n, m) array, state-derivative units per unit input (per unit MuJoCo ctrl in this toolkit)
+        Input matrix (with a plant: ``Q`` given positionally).
     Q : (n, n) symmetric positive semidefinite array
+        State weight (with a plant: default :func:`~cartpole.riccati.weights.lab_weights`).
     R : (m, m) symmetric positive definite array (a scalar ``r`` means ``r I(m)``)
+        Input weight on MuJoCo ctrl (with a plant: default 0.1 per input).
+    x : (n,) array, optional
+        Plant only: the state to linearise at (m, rad, m/s, rad/s); default the upright equilibrium ``x_eq``.
+    u : (m,) array, optional
+        Plant only: the ctrl to linearise at; default ``u_eq``.
 
     Returns
     -------
@@ -138,8 +165,11 @@ def lqr(A, B, Q, R) -> LQRResult:
     ------
     LQRError
         Bad weights or shapes, an unstabilisable pair, or a Riccati solution that does not check out (closed
-        loop not stable, or residual of the Riccati equation above 1e-6 relative to ``S``).
+        loop not stable, or residual of the Riccati equation above 1e-6 relative to ``S``); with a plant also a
+        gain whose loop sampled at the physics step ``dt`` is unstable (design it with :func:`dlqr`).
     """
+    if is_plant(A):
+        return _plant_lqr(A, *_plant_weights(B, Q, R), x=x, u=u)
     A, B, Q, R, S = _riccati(A, B, Q, R, discrete=False)
     K = np.linalg.solve(R, B.T @ S)
     E = np.linalg.eigvals(A - B @ K)
@@ -148,17 +178,98 @@ def lqr(A, B, Q, R) -> LQRResult:
     return LQRResult(K, S, E)
 
 
-def dlqr(A, B, Q, R) -> LQRResult:
+def dlqr(A, B=None, Q=None, R=None, *, period: float | None = None, x=None, u=None) -> LQRResult:
     """Discrete-time LQR: minimise ``sum(x'Qx + u'Ru)`` for ``x[k+1] = A x[k] + B u[k]``.
 
-    Parameters and returns as :func:`lqr`; ``E`` are eigenvalues of ``A - B K`` (inside the unit circle).
+    Called as ``dlqr(Ad, Bd, Q, R)`` on matrices (per-sample weights, as python-control and MATLAB), or as
+    ``dlqr(plant, Q=None, R=None, period=None)`` on a plant: the exact discrete model of the MJCF's integrator over
+    the control period ``T`` (the ctrl held; one physics step by default) at ``(x, u)``, with the package's one
+    cost scaling: ``Q``, ``R`` are weights per second and the design is ``dlqr(Ad, Bd, Q T, R T)``, so ``K`` is
+    the per-sample design's and ``S`` matches :func:`lqr`'s on the same plant to first order in ``T``.
+
+    Parameters
+    ----------
+    A : (n, n) array, or a plant
+        Discrete state matrix, or the plant (an MJCF path, CartPoleParams or CartPoleModel).
+    B : (n, m) array
+        Discrete input matrix per unit ctrl (with a plant: ``Q`` given positionally).
+    Q : (n, n) symmetric positive semidefinite array
+        State weight (per sample on matrices, per second on a plant; default there
+        :func:`~cartpole.riccati.weights.lab_weights`).
+    R : (m, m) symmetric positive definite array (a scalar ``r`` means ``r I(m)``)
+        Input weight (per sample on matrices, per second on a plant; default there 0.1 per input).
+    period : float, optional
+        Plant only: control period in s, a whole number of physics steps; default one step.
+    x : (n,) array, optional
+        Plant only: the state to linearise at; default the upright equilibrium ``x_eq``.
+    u : (m,) array, optional
+        Plant only: the ctrl to linearise at; default ``u_eq``.
+
+    Returns
+    -------
+    LQRResult
+        ``K`` (m, n) for ``u = -K x``, ``S`` (n, n) the DARE solution, ``E`` (n,) eigenvalues of ``A - B K``
+        (inside the unit circle).
+
+    Raises
+    ------
+    LQRError
+        As :func:`lqr`.
     """
+    if is_plant(A):
+        return _plant_dlqr(A, *_plant_weights(B, Q, R), period=period, x=x, u=u)
     A, B, Q, R, S = _riccati(A, B, Q, R, discrete=True)
     K = np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A)
     E = np.linalg.eigvals(A - B @ K)
     resid = A.T @ S @ A - S - A.T @ S @ B @ K + Q
     _verify(np.abs(E).max() < 1, resid, S, "discrete")
     return LQRResult(K, S, E)
+
+
+def _plant_weights(B, Q, R) -> tuple:
+    """``(Q, R)`` of a call on a plant, whether they came positionally (in the slots of ``B`` and ``Q``) or by
+    keyword: ``lqr(plant, Q, R)``, ``lqr(plant, Q, R=R)``, ``lqr(plant, Q=Q, R=R)``, ``lqr(plant, Q=Q)`` and
+    ``lqr(plant, R=R)`` all mean what they say (a lone weight in ``Q``'s slot is ``Q``)."""
+    if B is not None and Q is not None and R is not None:
+        raise LQRError("A design on a plant takes two weights, Q and R; call lqr(plant, Q, R) (or lqr(A, B, Q, R) "
+                       "on matrices).")
+    if B is None:
+        return Q, R
+    return B, (Q if R is None else R)
+
+
+def _plant_point(plant, Q, R, x, u):
+    """The frictionless model of ``plant``, its operating point and the weights (the defaults filled in)."""
+    model = plant_model(plant).without_friction()  # dry friction has no slope at rest
+    Q0, R0 = lab_weights(model)
+    x = model.x_eq if x is None else np.asarray(x, dtype=float)
+    u = model.u_eq if u is None else np.atleast_1d(np.asarray(u, dtype=float))
+    return model, x, u, (Q0 if Q is None else Q), (R0 if R is None else R)
+
+
+def _plant_lqr(plant, Q, R, *, x, u) -> LQRResult:
+    """:func:`lqr` on the exact continuous linearisation of ``plant``; the loop sampled at its physics step must
+    be stable too (MuJoCo applies the gain once a step)."""
+    model, x, u, Q, R = _plant_point(plant, Q, R, x, u)
+    A, B = model.linearize(x, u)
+    res = lqr(A, B, Q, R)
+    Ad, Bd = model.linearize(x, u, discrete=True)
+    radius = float(np.abs(np.linalg.eigvals(Ad - Bd @ res.K)).max())
+    if not radius < 1:
+        raise LQRError(f"The continuous LQR gain is unstable when applied every {model.dt:g} s physics step "
+                       f"(closed-loop spectral radius {radius:.4g}); design it on the exact discrete model "
+                       "(dlqr, or discrete=True) or raise R.")
+    return res
+
+
+def _plant_dlqr(plant, Q, R, *, period, x, u) -> LQRResult:
+    """:func:`dlqr` on the exact discrete model of ``plant`` over ``period``, weights per second (``Q T, R T``)."""
+    model, x, u, Q, R = _plant_point(plant, Q, R, x, u)
+    steps = steps_per_period(period, model.dt)
+    Ad, Bd = (model.hold(steps).linearize(x, u) if steps > 1 else model.linearize(x, u, discrete=True))
+    T = steps * float(model.dt)
+    R = np.asarray(R, dtype=float)
+    return dlqr(Ad, Bd, np.asarray(Q, dtype=float) * T, R * T)
 
 
 def _riccati(A, B, Q, R, *, discrete: bool):

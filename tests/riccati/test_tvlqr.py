@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from cartpole import Q_LAB, R_LAB
-from cartpole.lqr import LQRError, dlqr, lqr
-from cartpole.lqr.tvlqr import TVLQRGains, reference, tvlqr
+from cartpole.riccati import LQRError, dlqr, lqr
+from cartpole.riccati.tvlqr import TVLQRGains, reference, tvlqr
 from cartpole.models import build_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.trajectory import Trajectory
@@ -116,7 +116,7 @@ class _Hold:
 def test_two_inputs_have_the_right_shapes_and_converge_to_dlqr_far_from_the_end(chain_dir):
     """LTI: the two-motor cart resting at its upright equilibrium; far from the horizon end the finite-horizon
     gain is the infinite-horizon dlqr gain, near it (zero terminal cost) it is not."""
-    from cartpole.lqr import lab_weights
+    from cartpole.riccati import lab_weights
 
     model = build_model(chain_dir / "two_motors.xml")
     Q, R = lab_weights(model)
@@ -137,7 +137,7 @@ def test_two_inputs_have_the_right_shapes_and_converge_to_dlqr_far_from_the_end(
 
 
 def test_riccati_backward_on_a_random_lti_system_with_two_inputs():
-    from cartpole.lqr import riccati_backward
+    from cartpole.riccati import riccati_backward
 
     rng = np.random.default_rng(4)
     A = np.eye(5) + 0.05 * rng.normal(size=(5, 5))

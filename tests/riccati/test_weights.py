@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import cartpole as cp
-from cartpole.lqr import Q_LAB, R_LAB, lab_weights
+from cartpole.riccati import Q_LAB, R_LAB, lab_weights
 
 
 def test_lab_weights_are_the_handouts_and_read_only():

@@ -5,7 +5,7 @@ import pytest
 import scipy.linalg
 
 from cartpole import Q_LAB, R_LAB, build_model
-from cartpole.lqr import LQRError, dlqr, lqr
+from cartpole.riccati import LQRError, dlqr, lqr
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +137,7 @@ def _chain_model(name, chain_dir):
 
 @pytest.mark.parametrize("name", ["two_pole", "three_pole", "two_motors"])
 def test_chains_of_poles_and_two_motors_give_a_stable_loop_and_a_small_residual(name, chain_dir):
-    from cartpole.lqr import is_controllable, lab_weights
+    from cartpole.riccati import is_controllable, lab_weights
 
     model = _chain_model(name, chain_dir)
     nx, nu = model.nx, model.nu
@@ -162,7 +162,7 @@ def test_chains_of_poles_and_two_motors_give_a_stable_loop_and_a_small_residual(
 
 
 def test_uncontrollable_modes_are_named_and_a_scalar_R_means_r_identity():
-    from cartpole.lqr import is_controllable, uncontrollable_modes
+    from cartpole.riccati import is_controllable, uncontrollable_modes
 
     A = np.array([[-1.0, 0.0], [0.0, 1.0]])
     B = np.array([[0.0], [1.0]])
@@ -171,3 +171,47 @@ def test_uncontrollable_modes_are_named_and_a_scalar_R_means_r_identity():
     assert not is_controllable(A, B) and is_controllable(A, np.ones((2, 1)))
     A, B, Q, R = _random_system(3, n=4, m=2)
     np.testing.assert_array_equal(lqr(A, B, Q, 0.7).K, lqr(A, B, Q, 0.7 * np.eye(2)).K)
+
+
+@pytest.fixture(scope="module")
+def shipped_model():
+    import cartpole as cp
+
+    return cp.build_model()
+
+
+def test_lqr_on_a_plant_is_lqr_on_its_exact_linearisation_whatever_form_the_plant_takes(shipped_model):
+    from cartpole.riccati import lab_weights
+
+    m = shipped_model
+    Q, R = lab_weights(m)
+    on_matrices = lqr(*m.linearize(), Q, R)
+    for plant in (m, m.params, m.params.mjcf):
+        res = lqr(plant)
+        np.testing.assert_allclose(res.K, on_matrices.K, rtol=1e-10)
+        np.testing.assert_allclose(res.S, on_matrices.S, rtol=1e-10)
+    # the python-control call shapes: positional, keyword, mixed, a lone R
+    R1 = 1.0
+    want = lqr(*m.linearize(), Q, R1).K
+    for res in (lqr(m, Q, R1), lqr(m, Q=Q, R=R1), lqr(m, Q, R=R1), lqr(m, R=R1)):
+        np.testing.assert_allclose(res.K, want, rtol=1e-10)
+    with pytest.raises(LQRError, match="two weights"):
+        lqr(m, Q, R1, R1)
+
+
+def test_dlqr_on_a_plant_weighs_per_second_so_S_matches_the_continuous_design(shipped_model):
+    m = shipped_model
+    cont = lqr(m)
+    disc = dlqr(m)
+    from cartpole.riccati import lab_weights
+
+    Q, R = lab_weights(m)
+    per_sample = dlqr(*m.linearize(discrete=True), Q, R)
+    np.testing.assert_allclose(disc.K, per_sample.K, rtol=1e-8)          # the scaling does not move the gain
+    np.testing.assert_allclose(disc.S, per_sample.S * m.dt, rtol=1e-8)   # it scales S by the step
+    assert np.abs(disc.S - cont.S).max() < 0.05 * np.abs(cont.S).max()  # S ~ the continuous one, O(dt)
+    assert np.abs(per_sample.S - cont.S).max() > 10 * np.abs(cont.S).max()
+    held = dlqr(m, period=4 * m.dt)
+    Ad, Bd = m.hold(4).linearize()
+    np.testing.assert_allclose(held.K, dlqr(Ad, Bd, Q, R).K, rtol=1e-8)
+    assert np.abs(held.S - cont.S).max() < 0.2 * np.abs(cont.S).max()
