@@ -939,7 +939,7 @@ def _plan_options(plan, given: dict):
 
 def _run_trajopt(ctx: _Context, plan) -> _Ran:
     """Direct collocation (or DDP, ``plan.solver``) + TVLQR handing over to the LQR hold after the plan."""
-    from cartpole.lqr import lab_weights
+    from cartpole.riccati import lab_weights
     from cartpole.models import steps_per_period
     from cartpole.planning.trajopt import handover_catch, trajopt_swingup
 

@@ -287,7 +287,7 @@ def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = Non
     for i, x0 in enumerate(starts):
         tic = time.perf_counter()
         try:
-            plan = trajopt_swingup(params, x0=tuple(x0), model=model, options=options, period=period)
+            plan = trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=options, period=period)
         except CartPoleError as exc:
             failed.append((readonly(np.array(x0)), str(exc)))
         else:

@@ -8,7 +8,7 @@ import pytest
 from cartpole.analysis import AnalysisError
 from cartpole.apps.margins import noise_limited_catch
 from cartpole.apps.swingup import DEFAULT_CTRL_NOISE, run_swingup
-from cartpole.lqr import lab_weights
+from cartpole.riccati import lab_weights
 from cartpole.models import SHIPPED_MJCF, build_model, read_params, steps_per_period
 from cartpole.planning.trajopt import handover_catch
 from cartpole.sim import LoopOptions, replays_exactly

@@ -64,7 +64,7 @@ def test_a_warm_start_skips_the_search_and_its_plan_swings_up_in_mujoco(single):
     x1 = np.asarray(model.x_hanging, float).copy()
     x1[h] += 0.3
     x1[model.nq + h] += 1.0
-    plan = trajopt_swingup(params, x0=tuple(x1), model=model, guess=lib.guess_for(model, x1))
+    plan = trajopt_swingup(params, x0=tuple(x1), plan_model=model, guess=lib.guess_for(model, x1))
     chosen = [a for a in plan.solve_info.attempts if a.chosen]
     assert chosen and all(a.stage.startswith("warm effort") for a in chosen)
     assert not any(a.stage.startswith("time") for a in plan.solve_info.attempts)  # no minimum-time search
@@ -78,7 +78,7 @@ def test_a_warm_start_that_does_not_converge_goes_on_cold(single):
     t = np.linspace(0.0, 0.2, 11)  # a swing-up in 0.2 s: no actuator does that
     x = np.linspace(x0, model.x_eq, 11)
     bad = Trajectory(t=t, x=x, u=np.zeros((11, model.nu)), xdot=np.zeros_like(x))
-    plan = trajopt_swingup(params, x0=tuple(x0), model=model, guess=bad)
+    plan = trajopt_swingup(params, x0=tuple(x0), plan_model=model, guess=bad)
     stages = [a.stage for a in plan.solve_info.attempts]
     assert stages[0].startswith("warm effort") and not plan.solve_info.attempts[0].chosen
     assert any(s.startswith("time") for s in stages)  # the cold search ran after it

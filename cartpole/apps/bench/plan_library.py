@@ -91,7 +91,7 @@ def plan_library_benchmark(models=None, *, angles: int = 3, probes: int = 3, see
                     guess = lib.guess_for(model, x) if way == "warm" else None
                     tic = time.perf_counter()
                     try:
-                        plan = trajopt_swingup(params, x0=tuple(x), model=model, guess=guess)
+                        plan = trajopt_swingup(params, x0=tuple(x), plan_model=model, guess=guess)
                     except CartPoleError:  # a failed plan is a row's None, not the bench's end
                         row[f"{way}_s"].append(None)
                         continue
