@@ -352,6 +352,12 @@ class CascadedPID:
         self._z_max = 0.5 * span / abs(gains.ki) if gains.ki and np.isfinite(span) else np.inf
         self.reset()
 
+    def set_gains(self, gains: PIDGains) -> None:
+        """Use ``gains`` from the next call on, keeping the integrator, the filter and the time (a live retune)."""
+        self.gains = gains
+        span = self._hi - self._lo
+        self._z_max = 0.5 * span / abs(gains.ki) if gains.ki and np.isfinite(span) else np.inf
+
     @classmethod
     def for_model(cls, model=None, *, anti_windup: bool = True, **tuning) -> "CascadedPID":
         """A cascaded PID tuned for ``model`` by :func:`tune_pid` (``tuning`` = its keyword settings)."""

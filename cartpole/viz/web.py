@@ -22,8 +22,13 @@ What Studio gives and what is built here (``mujoco`` 4.0.1, measured; see docs/l
   ``SimPlugin`` (:class:`_Inbox`) on the simulation thread; the simulation side sends a latest-wins ``Snapshot``
   (:class:`StatusSnapshot`: the recent history, the controller's lines, the knobs) to the panel.
 - A push from the page becomes ``push(t)``, the world-x force on the cart simulate logs in the rollout's ``push``
-  column; a knob released becomes ``tuner.set(name, value, t)`` (e.g. the LQR re-designed). Each is logged in
-  :attr:`WebLive.events` with its time (s of simulated time).
+  column: the push buttons (a pulse of :data:`PUSH_SECONDS`), the panel's "drag to push" slider (the force follows
+  the mouse while it is held, back to 0 on release) and a drag of the cart in the scene (Studio's Ctrl + right-drag
+  perturbation: its world-x force on the cart body; a drag of another body is not applied, the panel says so). A
+  knob released becomes ``tuner.set(name, value, t)`` (the LQR re-designed, the PID's gains, the control period or
+  the delay). Each is logged in :attr:`WebLive.events` with its time (s of simulated time).
+- :meth:`WebLive.attach` tells the page which controller runs (a swing-up's switching law, its TVLQR, the supervisor):
+  the panel shows it and its state (swing-up, tracking, catch, brake...) through ``describe``.
 - Closing the page (no browser for :data:`GONE_SECONDS`) or Ctrl-C (SIGINT) ends the run after the step being
   done: simulate then returns the steps done.
 """
@@ -44,6 +49,7 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError, first_line
+from cartpole.sim.rollout import cart_body
 from cartpole.viz.viewer import LiveViewer
 
 #: Host the web viewer binds unless told otherwise: this machine only (reach it from elsewhere by an SSH tunnel).
@@ -54,6 +60,8 @@ GONE_SECONDS = 2.0
 PUSH_SECONDS = 0.1
 #: Largest push force the page offers, in N.
 MAX_PUSH = 50.0
+#: Smallest change of the drag slider's force the panel sends (N); the release (back to 0) is always sent.
+DRAG_STEP = 0.5
 #: Seconds of history the plots show.
 PLOT_SECONDS = 10.0
 #: Most points a plot gets (the page's UI stream carries every vertex each frame).
@@ -135,6 +143,11 @@ def _messages():
             force: float = 0.0
 
         @dataclasses.dataclass(frozen=True)
+        class DragEvent(messages.Event):
+            """The panel's drag slider: the force in N held on the cart from now on (0 on release)."""
+            force: float = 0.0
+
+        @dataclasses.dataclass(frozen=True)
         class KnobEvent(messages.Event):
             """A slider released at ``value``."""
             name: str = ""
@@ -152,7 +165,8 @@ def _messages():
             events: tuple = ()
             pushable: bool = False
 
-        _MSG = _namespace(PushEvent=PushEvent, KnobEvent=KnobEvent, StatusSnapshot=StatusSnapshot)
+        _MSG = _namespace(PushEvent=PushEvent, DragEvent=DragEvent, KnobEvent=KnobEvent,
+                          StatusSnapshot=StatusSnapshot)
     return _MSG
 
 
@@ -187,6 +201,8 @@ def _make_plugins(live: "WebLive"):
         def __init__(self):
             self.status = None
             self.force = 10.0
+            self.drag = 0.0
+            self.drag_sent = 0.0
             self.values: dict[str, float] = {}
             self.widgets: dict[str, list[float]] = {}
 
@@ -254,6 +270,17 @@ def _make_plugins(live: "WebLive"):
                 if im.Button("push right"):
                     self.viewer.send_to_sim(M.PushEvent(force=self.force))
                 self._rect("push right")
+                changed, self.drag = im.SliderFloat("drag to push [N]", self.drag, -MAX_PUSH, MAX_PUSH, "%+.1f")
+                if im.IsItemActive():
+                    if abs(self.drag - self.drag_sent) >= DRAG_STEP:
+                        self.drag_sent = self.drag
+                        self.viewer.send_to_sim(M.DragEvent(force=self.drag))
+                else:
+                    if self.drag_sent != 0.0:
+                        self.viewer.send_to_sim(M.DragEvent(force=0.0))
+                    self.drag = self.drag_sent = 0.0
+                self._rect("drag to push [N]")
+                im.TextDisabled("or Ctrl + right-drag the cart in the scene")
             if s.knobs:
                 im.Separator()
             for k in s.knobs:
@@ -290,9 +317,18 @@ def _make_plugins(live: "WebLive"):
         def on_push(self, event) -> None:
             live._push_from_page(float(event.force))
 
+        @_handles(messages, M.DragEvent)
+        def on_drag(self, event) -> None:
+            live._drag_from_page(float(event.force), "panel")
+
         @_handles(messages, M.KnobEvent)
         def on_knob(self, event) -> None:
             live._knob_from_page(str(event.name), float(event.value))
+
+        @_handles(messages, messages.PerturbSnapshot)
+        def on_perturb(self, snap) -> bool:
+            live._perturb_from_page(np.asarray(snap.state, float), int(snap.state_sig))
+            return True  # the handle holds no model: nothing else is to apply it
 
     return _Panel(), _Inbox()
 
@@ -321,22 +357,25 @@ class WebLive(LiveViewer):
         Sleep so simulated time tracks wall time (default True).
     title : str
         The page's title.
-    names : sequence of str, optional
-        The plotted quantities' names; default the joints' and actuators' of the model.
+    describe : callable, optional
+        ``describe(controller, t, x) -> list of str``: the lines the panel shows about a controller given to
+        :meth:`attach` (its name and state: swing-up, tracking, catch, brake...).
 
     Attributes
     ----------
     url : str
         ``http://localhost:PORT/`` once started.
     events : list of dict
-        Every action from the page, in order, each with its time ``t`` (s, simulated) and ``kind`` (``push`` with
-        ``force`` N and ``seconds``; ``knob`` with ``name``, ``value`` and what the tuner changed).
+        Every action from the page, in order, each with its time ``t`` (s, simulated, the first physics step it acts
+        on) and ``kind``: ``push`` (``force`` N for ``seconds``), ``drag`` (``force`` N held from ``t`` until the next
+        drag event; ``source`` ``"panel"`` or ``"scene"``), ``knob`` (``name``, ``value`` and what the tuner
+        changed, or ``rejected``: why not).
     page_closed, interrupted : bool
         Why the run ended early, if it did.
     """
 
     def __init__(self, *, port: int = 0, host: str = LOCALHOST, tuner: Tuner | None = None, wait: bool = True,
-                 realtime: bool = True, title: str = "cartpole live"):
+                 realtime: bool = True, title: str = "cartpole live", describe=None):
         super().__init__(realtime=realtime)
         if not (0 <= int(port) <= 65535):
             raise WebUnavailable(f"Port {port} is not a TCP port; give one from 1 to 65535, or 0 for the first "
@@ -354,6 +393,14 @@ class WebLive(LiveViewer):
         self._pending_push: list[float] = []
         self._push_until = -1.0
         self._push_force = 0.0
+        self._pending_drag: tuple | None = None  # (force N, source) not yet applied
+        self._drag_force = 0.0
+        self._scene_force = 0.0
+        self._cart = -1
+        self._nbody = 0
+        self.controller = None
+        self.describe = describe
+        self.runs = 0
         self._h = 0.0
         self._t_now = 0.0
         self._x_now = None
@@ -428,6 +475,9 @@ class WebLive(LiveViewer):
         self._spec = mujoco.mjtState.mjSTATE_INTEGRATION
         self._state = np.empty(mujoco.mj_stateSize(m, self._spec))
         self._h = float(m.opt.timestep)
+        self._nbody = int(m.nbody)
+        with contextlib.suppress(CartPoleError):
+            self._cart = cart_body(m)
         self._names = _plot_names(m)
         self._ctrl_range = tuple((float(lo), float(hi)) for lo, hi in
                                  (m.actuator_ctrlrange if m.nu else np.zeros((0, 2))))
@@ -504,12 +554,16 @@ class WebLive(LiveViewer):
         M = _messages()
         lines = [f"t = {self._t_now:6.2f} s   {self.url}"]
         knobs: tuple = ()
+        if self.controller is not None and self.describe is not None:
+            lines += list(self.describe(self.controller, self._t_now, self._x_now))
         if self.tuner is not None:
             lines += list(self.tuner.status(self._t_now, self._x_now))
             knobs = tuple((k.name, float(k.value), float(k.low), float(k.high), bool(k.log))
                           for k in self.tuner.knobs())
         if self._t_now < self._push_until:
             lines.append(f"pushing {self._push_force:+.1f} N")
+        if self._drag_force:
+            lines.append(f"dragging {self._drag_force:+.1f} N")
         ev = tuple(_event_line(e) for e in self.events)
         every = max(1, len(self._hist_t) // PLOT_POINTS)
         return M.StatusSnapshot(t=tuple(self._hist_t[::every]), series=tuple(tuple(r) for r in self._hist[::every]),
@@ -549,6 +603,33 @@ class WebLive(LiveViewer):
         force = float(np.clip(force, -MAX_PUSH, MAX_PUSH))
         self._pending_push.append(force)
 
+    def _drag_from_page(self, force: float, source: str) -> None:
+        force = float(np.clip(force, -MAX_PUSH, MAX_PUSH)) if np.isfinite(force) else 0.0
+        self._pending_drag = (force, source)
+
+    def _perturb_from_page(self, state: np.ndarray, sig: int) -> None:
+        """Studio's drag in the scene (``xfrc_applied`` of every body): its world-x force on the cart, as a drag."""
+        if self._cart < 0 or state.size != 6 * self._nbody:
+            return
+        force = float(state.reshape(self._nbody, 6)[self._cart, 0])
+        if force != self._scene_force:  # Studio sends the perturbation every frame: only a change is a drag
+            self._scene_force = force
+            self._drag_from_page(force, "scene")
+
+    def attach(self, controller, push=None):
+        """Show ``controller`` (the law about to run) on the page, and return the ``push(t)`` to give the run: the
+        page's pushes added to ``push`` (a scheduled ``push(t) -> N``, or None), all logged in one push column."""
+        self.controller = controller
+        self.runs += 1
+        self._pending_push.clear()  # a new run on the page starts unpushed
+        self._pending_drag, self._drag_force, self._push_until = None, 0.0, -1.0
+        if push is None:
+            return self.push
+
+        def both(t: float) -> float:
+            return float(push(t)) + self.push(t)
+        return both
+
     def _knob_from_page(self, name: str, value: float) -> None:
         event = {"t": self._t_now, "kind": "knob", "name": name, "value": float(value)}
         if self.tuner is not None:
@@ -560,14 +641,21 @@ class WebLive(LiveViewer):
 
     def push(self, t: float) -> float:
         """``push(t) -> force [N]`` for :func:`~cartpole.sim.rollout.simulate`: the page's pushes, each a pulse of
-        :data:`PUSH_SECONDS` starting at the first physics step after the button was pressed."""
+        :data:`PUSH_SECONDS` starting at the first physics step after the button was pressed, plus the drag's force
+        in force (from the first physics step after it changed); each change logged in :attr:`events`."""
         self.pushable = True
+        if self._pending_drag is not None:
+            force, source = self._pending_drag
+            self._pending_drag = None
+            if force != self._drag_force:
+                self._drag_force = force
+                self.events.append({"t": float(t), "kind": "drag", "force": force, "source": source})
         if self._pending_push:
             self._push_force = self._pending_push.pop(0)
             self._push_until = t + PUSH_SECONDS - 0.5 * self._h
             self.events.append({"t": float(t), "kind": "push", "force": self._push_force,
                                 "seconds": PUSH_SECONDS})
-        return self._push_force if t < self._push_until else 0.0
+        return (self._push_force if t < self._push_until else 0.0) + self._drag_force
 
     # -- end ------------------------------------------------------------------------------------------------
     def finish(self, m=None, d=None, *, settle: float = 0.0) -> None:
@@ -608,6 +696,8 @@ class WebLive(LiveViewer):
 def _event_line(e: dict) -> str:
     if e["kind"] == "push":
         return f"{e['t']:6.2f} s  push {e['force']:+.1f} N for {e['seconds']:g} s"
+    if e["kind"] == "drag":
+        return f"{e['t']:6.2f} s  drag {e['force']:+.1f} N ({e['source']})"
     text = f"{e['t']:6.2f} s  {e['name']} = {e['value']:.3g}"
     if "rejected" in e:
         return text + f"  (rejected: {e['rejected']})"
