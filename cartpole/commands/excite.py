@@ -27,6 +27,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--sensor-noise", type=float, default=None, metavar="STD",
                         help="standard deviation of every sensor's noise in its units; default the MJCF's, else 0")
     parser.add_argument("--noise-seed", type=int, default=0, metavar="N", help="seed of the sensor noise")
+    from cartpole.commands._view import add_view_arguments
+
+    add_view_arguments(parser, "show the experiment live once logged, in real time, replayed from its log (desktop "
+                               "without a display: a note on stderr and the rest as usual)")
 
 
 def run(args) -> dict:
@@ -35,12 +39,18 @@ def run(args) -> dict:
     from pathlib import Path
 
     from cartpole.apps.excite import run_excite
+    from cartpole.commands._view import show_runs, view_mode
 
+    view = view_mode(args, "excite")
     res = run_excite(args.mjcf, args.out, duration=args.duration, sample_time=args.sample,
                      amplitude=args.amplitude, dry_run=args.dry_run, encoder_cpr=args.encoder_cpr,
                      encoder_resolution=args.encoder_resolution, sensor_noise=args.sensor_noise,
                      seed=args.noise_seed, csv_name=args.csv, mode=args.mode)
     e = res.excitation
+    if view and res.rollout is not None:
+        from cartpole.models import read_params
+
+        show_runs(read_params(args.mjcf), [res.rollout], view, args, command="excite")
     rollout = None if res.rollout is None else str(Path(args.out) / (Path(args.csv).stem + "_rollout.json"))
     doc = {"mjcf": str(Path(args.mjcf).resolve()) if args.mjcf else None,
            "excite": {"csv": str(res.csv), "rollout": rollout, "duration": float(e.t[-1]),

@@ -66,6 +66,8 @@ DRAG_STEP = 0.5
 PLOT_SECONDS = 10.0
 #: Most points a plot gets (the page's UI stream carries every vertex each frame).
 PLOT_POINTS = 150
+#: Height of each plot on the page, px.
+PLOT_HEIGHT = 85
 #: ImPlot's ImPlotFlags_NoLegend.
 PLOT_NO_LEGEND = 1 << 1
 #: Smallest height of a joint's plot, in m or rad.
@@ -230,7 +232,7 @@ def _make_plugins(live: "WebLive"):
         @_handles(messages, messages.BuildGuiEvent)
         def on_gui(self, _) -> None:
             im.SetNextWindowPos(im.Vec2(8, 8), 4)   # ImGuiCond_FirstUseEver
-            im.SetNextWindowSize(im.Vec2(420, 740), 4)
+            im.SetNextWindowSize(im.Vec2(440, 780), 4)
             im.Begin("cartpole live")
             s = self.status
             if s is None:
@@ -243,7 +245,7 @@ def _make_plugins(live: "WebLive"):
             t = list(s.t)
             for i, name in enumerate(s.names):
                 ys = [row[i] for row in s.series]
-                if ip.BeginPlot(f"##{name}", im.Vec2(-1, 105), PLOT_NO_LEGEND):
+                if ip.BeginPlot(f"##{name}", im.Vec2(-1, PLOT_HEIGHT), PLOT_NO_LEGEND):
                     ctrl = name.startswith("ctrl")
                     ip.SetupAxes("t [s]", name, 0, 0)
                     if ys and not ctrl:  # at least MIN_SPAN tall: rounding noise at rest stays flat

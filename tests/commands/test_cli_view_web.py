@@ -167,7 +167,7 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     reader.start()
     try:
         _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
-        with Chromium(binary, width=1100, height=800) as page:
+        with Chromium(binary, width=1100, height=900) as page:
             page.goto(f"http://localhost:{port}/")
             assert page.wait_console("Connected to Studio UI host", PAGE_TIMEOUT), page.console[-5:]
             assert page.wait_console("Model loaded", PAGE_TIMEOUT), page.console[-5:]
@@ -181,6 +181,12 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
             knob = "Q hinge"
             page.drag(*_center(rects[knob], 0.5), *_center(rects[knob], 0.85))
             _wait_for(lambda: _read(widgets).get("events shown", [0])[0] >= 2, PAGE_TIMEOUT, "the weight listed")
+            # the drag slider: held right of its middle (0 N) it pushes, released it springs back to 0
+            page.drag(*_center(rects["drag to push [N]"], 0.5), *_center(rects["drag to push [N]"], 0.8), hold=1.0)
+            _wait_for(lambda: _read(widgets).get("events shown", [0])[0] >= 4, PAGE_TIMEOUT, "the drag listed")
+            shown = _read(widgets)["events shown"][0]
+            page.drag(*_center(rects["delay [s]"], 0.0), *_center(rects["delay [s]"], 0.15))
+            _wait_for(lambda: _read(widgets).get("events shown", [0])[0] > shown, PAGE_TIMEOUT, "the delay listed")
             if os.environ.get("CARTPOLE_DOCS_SCREENSHOT"):  # the page once it draws the weight's event line
                 last = _read(widgets)["last event"]
                 shot = _wait_for(lambda: _text_in(page.screenshot(), last), PAGE_TIMEOUT, "the page to catch up")
@@ -200,7 +206,13 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     live = doc["live"]
     assert live["page_closed"] is True
     kinds = [e["kind"] for e in live["events"]]
-    assert "push" in kinds and "knob" in kinds, live["events"]
+    assert "push" in kinds and "knob" in kinds and "drag" in kinds, live["events"]
+    drags = [e for e in live["events"] if e["kind"] == "drag"]
+    assert drags[0]["force"] > 0 and drags[-1]["force"] == 0.0 and {e["source"] for e in drags} == {"panel"}
+    delay = next(e for e in live["events"] if e.get("name") == "delay [s]")
+    assert delay["delay"] > 0 and live["loop"]["delay"] == delay["delay"]
+    times = [e["t"] for e in live["events"]]
+    assert times == sorted(times)
     push = next(e for e in live["events"] if e["kind"] == "push")
     knob_ev = next(e for e in live["events"] if e["kind"] == "knob")
     assert push["force"] > 0
@@ -209,7 +221,11 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     forces = np.asarray(live["rollout"]["push"])
     h = live["rollout"]["t"][1] - live["rollout"]["t"][0]
     k = int(round(push["t"] / h))
-    assert forces[k] == push["force"] and np.count_nonzero(forces) == int(round(push["seconds"] / h))
+    assert forces[k] == push["force"]
+    pulse = np.count_nonzero(forces[:int(round(drags[0]["t"] / h))])
+    assert pulse == int(round(push["seconds"] / h))  # the button's pulse; the drag's force after it
+    k0, k1 = (int(round(e["t"] / h)) for e in (drags[0], drags[-1]))
+    assert np.all(forces[k0:k1] > 0) and not np.any(forces[k1:])
     assert live["replays"] is True
     from cartpole.sim import replay
 
@@ -350,3 +366,36 @@ def test_another_host_than_localhost_is_warned_about_on_stderr(capsys):
     assert "warning: --host 0.0.0.0" in err and "no authentication" in err
     args.host = "127.0.0.1"
     assert view_mode(args, "lqr") == "web" and capsys.readouterr().err == ""
+
+
+def test_excite_view_web_replays_the_logged_experiment_on_the_page(tmp_path):
+    """The experiment, once logged, replayed on the page (checked identical to the log) until the page closes; the
+    command then ends as usual with its JSON on stdout and its CSV written."""
+    from websockets.sync.client import connect
+
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "excite", "--view", "web", "--port", str(port),
+                             "--json", "--duration", "3", "--out", str(tmp_path / "out")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(tmp_path))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
+        with connect(f"ws://127.0.0.1:{port}/state?sid=test", open_timeout=30) as ws:
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 1.0:
+                try:
+                    ws.recv(timeout=0.2)
+                except TimeoutError:
+                    pass
+        stdout = proc.stdout.read()
+        proc.wait(120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    reader.join(10)
+    assert proc.returncode == 0, "".join(err)[-2000:]
+    doc = json.loads(stdout)
+    assert Path(doc["excite"]["csv"]).exists() and not any("differs" in line for line in err)
