@@ -314,8 +314,8 @@ class LoopTuner:
     def status(self, t: float, x) -> list[str]:
         """The period and delay in force."""
         h = self.loop.h
-        return [f"control period {self.loop.steps * h:g} s ({self.loop.steps} steps), delay "
-                f"{self.loop.delay_steps * h:g} s, not compensated (gain designed for {self.period0:g} s)"]
+        return [f"period {self.loop.steps * h:g} s, delay {self.loop.delay_steps * h:g} s (uncompensated; "
+                f"gain for {self.period0:g} s)"]
 
     def set(self, name: str, value: float, t: float) -> dict:
         """Set the period or the delay to ``value`` s, rounded to whole physics steps; returns ``period``, ``delay``
