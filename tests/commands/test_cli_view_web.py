@@ -399,3 +399,51 @@ def test_excite_view_web_replays_the_logged_experiment_on_the_page(tmp_path):
     assert proc.returncode == 0, "".join(err)[-2000:]
     doc = json.loads(stdout)
     assert Path(doc["excite"]["csv"]).exists() and not any("differs" in line for line in err)
+
+
+def test_compare_pid_view_web_runs_the_pid_live_after_the_lqr_and_both_replay(tmp_path):
+    """``lqr --compare-pid --view web``: the LQR's live run, then the PID's on the same page, each with its tuner's
+    final state and loop in the JSON, each replaying exactly."""
+    from websockets.sync.client import connect
+
+    from cartpole.sim import replay
+
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "lqr", "--no-video", "--json", "--compare-pid",
+                             "--out", str(tmp_path / "out"), "--view", "web", "--port", str(port),
+                             "--live-seconds", "0.5"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(tmp_path))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
+        with connect(f"ws://127.0.0.1:{port}/state?sid=test", open_timeout=30) as ws:
+            t0 = time.monotonic()
+            while proc.poll() is None and time.monotonic() - t0 < 120:
+                try:
+                    ws.recv(timeout=0.2)
+                except TimeoutError:
+                    pass
+                except Exception:  # the page was closed by the run's end
+                    break
+        stdout = proc.stdout.read()
+        proc.wait(120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    reader.join(10)
+    assert proc.returncode == 0, "".join(err)[-2000:]
+    doc = json.loads(stdout)
+    live = doc["live"]
+    assert live["page_closed"] is False and live["loop"] == {"period": pytest.approx(0.005), "delay": 0.0}
+    pid = live["pid"]
+    assert pid is not None and pid["replays"] is True and pid["events"] == []
+    assert pid["gains"]["kp"] == doc["pid"]["gains"]["kp"]
+    ro = pid["rollout"]
+    assert len(ro["ctrl"]) == int(round(0.5 / (ro["t"][1] - ro["t"][0])))
+    again = replay(doc["mjcf"], np.concatenate([ro["qpos"][0], ro["qvel"][0]]), np.asarray(ro["ctrl"]),
+                   push=np.asarray(ro["push"]))
+    assert np.array_equal(again.qpos, np.asarray(ro["qpos"]))
+    assert not np.array_equal(np.asarray(ro["ctrl"]), np.asarray(live["rollout"]["ctrl"]))  # another law ran
