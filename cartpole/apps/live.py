@@ -539,13 +539,13 @@ def _pid_run(live, lab, pid, start, T) -> dict:
 
 
 def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 30.0, port: int = 0,
-          host: str = LOCALHOST, x0=None, wait: bool = True) -> Rollout:
+          host: str = LOCALHOST, x0=None, wait: bool = True, pid: bool = False) -> Rollout:
     """Balance a cart-pole with the lab's LQR live in the browser (MuJoCo Studio's web viewer) and return the run.
 
     The address is printed on stderr (``http://localhost:PORT/``; from a remote Jupyter server tunnel it:
     ``ssh -L 8080:localhost:PORT HOST``). The page shows the run at real time, plots each pole's angle, the cart and
-    the ctrl against its range, and offers pushes and the LQR weights; closing it or interrupting the kernel ends the
-    run with the steps done.
+    the ctrl against its range, and offers pushes, drags, the LQR weights, the control period and the delay; closing it
+    or interrupting the kernel ends the run with the steps done.
 
     Parameters
     ----------
@@ -563,16 +563,20 @@ def watch(mjcf: str | Path | None = None, *, Q=None, R=None, duration: float = 3
         Start state (default the lab's first start).
     wait : bool
         Start when a browser opens the page (default True).
+    pid : bool
+        Then run the lab's cascaded PID live on the same page, its gains as sliders (default False).
 
     Returns
     -------
     Rollout
         Every physics step; ``info["push"]`` the pushes (N, one per step), ``info["live"]`` the page's events with
-        their times and the final gain; replays exactly (:func:`cartpole.sim.replays_exactly`).
+        their times, the final gain and loop, and with ``pid`` the PID's run (``info["live"]["pid"]["rollout"]``,
+        None when the page was closed first); each replays exactly (:func:`cartpole.sim.replays_exactly`).
     """
-    from cartpole.apps.lab import run_lab
+    from cartpole.apps.lab import compare_pid, run_lab
 
     lab = run_lab(mjcf, Q=Q, R=R)
-    run, doc = watch_lab(lab, port=port, host=host, duration=duration, x0=x0, wait=wait)
+    baseline = compare_pid(lab) if pid else None
+    run, doc = watch_lab(lab, port=port, host=host, duration=duration, x0=x0, wait=wait, pid=baseline)
     run.info["live"] = doc
     return run

@@ -169,3 +169,14 @@ def test_the_page_names_the_swingup_law_in_charge_and_its_state():
     assert controller_status(tracker, 0.5, None) == ["TVLQR along the plan: tracking"]
     tracker.handover_time = 2.5
     assert controller_status(tracker, 3.0, None) == ["TVLQR along the plan: catch (the LQR) since 2.50 s"]
+
+
+def test_watch_with_the_pid_runs_it_after_the_lqr_and_both_replay(capsys):
+    import cartpole as cp
+
+    run = cp.watch(duration=0.1, wait=False, pid=True)
+    live = run.info["live"]
+    pid_run = live["pid"]["rollout"]
+    assert live["loop"]["delay"] == 0.0 and live["pid"]["events"] == []
+    assert len(pid_run.ctrl) == len(run.ctrl) and not np.array_equal(pid_run.ctrl, run.ctrl)
+    assert cp.sim.replays_exactly(run) and cp.sim.replays_exactly(pid_run)
