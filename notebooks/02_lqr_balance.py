@@ -275,8 +275,10 @@ assert cp.sim.replays_exactly(clip)
 #
 # `cp.watch()` runs the same LQR live in MuJoCo Studio's web viewer and returns the rollout when the page is closed
 # (or the kernel interrupted): open the address it prints on stderr. The panel plots the pole's angle, the cart and
-# the ctrl against its range; the push buttons knock the cart (logged in the rollout's push column) and the Q and R
-# sliders re-design the gain from the exact model when released, the new closed-loop eigenvalues shown. On a remote
+# the ctrl against its range; the push buttons and the drag slider push the cart (logged in the rollout's push
+# column), the Q and R sliders re-design the gain from the exact model when released, the new closed-loop eigenvalues
+# shown, and the control period and delay sliders hold and delay the ctrl as a real rig would. With `pid=True` the
+# cascaded PID then runs on the same page, its gains as sliders. On a remote
 # Jupyter server the page is bound to that machine's 127.0.0.1: tunnel it from your laptop with
 # `ssh -L 8080:localhost:PORT server` and open http://localhost:8080/ (see docs/live.md). The cell only runs by
 # hand (`LIVE = True`): it waits for you.
@@ -284,7 +286,9 @@ assert cp.sim.replays_exactly(clip)
 # %%
 LIVE = False
 if LIVE:
-    run = cp.watch(duration=60.0)
+    run = cp.watch(duration=60.0, pid=True)
     print("events:", run.info["live"]["events"])
     print("the live run replays exactly with mj_step:", cp.sim.replays_exactly(run))
+    if run.info["live"]["pid"] is not None:
+        print("the PID's live run replays too:", cp.sim.replays_exactly(run.info["live"]["pid"]["rollout"]))
 

@@ -312,6 +312,29 @@ def _make_plugins(live: "WebLive"):
                 with contextlib.suppress(OSError):
                     atomic_write(live.widgets_file, lambda fh: fh.write(json.dumps(self.widgets).encode()))
 
+    class _SceneDrag(plugin.ViewerPlugin):
+        """Studio's picking (double-click a body) and perturbation (Ctrl + right-drag) in the page's scene, as
+        Studio's own app does it: the drag's forces go to the simulation side as a ``PerturbSnapshot``, where
+        :class:`_Inbox` turns the cart's world-x force into a logged drag (viewer thread)."""
+
+        def __init__(self):
+            self.ux_state = None
+
+        @_handles(messages, messages.UpdateEvent)
+        def on_update(self, _) -> None:
+            from mujoco.studio import ux, viewer_utils
+            from mujoco.studio.app import inputs
+
+            viewer = self.viewer
+            model, data = viewer.model, viewer.data
+            if model is None or data is None:
+                return
+            if self.ux_state is None:
+                self.ux_state = ux.UxState()
+            inputs.handle_mouse_events(model, data, viewer.camera, viewer.vis_options, viewer.perturb, self.ux_state,
+                                       move_camera=getattr(viewer, "client_camera", None) is None)
+            viewer_utils.apply_perturb(viewer, model, data, False)
+
     class _Inbox(plugin.SimPlugin):
         """The page's actions, received on the simulation thread (during the handle's ``sync``)."""
 
@@ -332,7 +355,7 @@ def _make_plugins(live: "WebLive"):
             live._perturb_from_page(np.asarray(snap.state, float), int(snap.state_sig))
             return True  # the handle holds no model: nothing else is to apply it
 
-    return _Panel(), _Inbox()
+    return _Panel(), _SceneDrag(), _Inbox()
 
 
 class WebLive(LiveViewer):
@@ -441,13 +464,13 @@ class WebLive(LiveViewer):
                 pass
 
         config = viewer_protocol.ViewerConfig(title=self.title, gfx="web", http_port=self.port)
-        panel, inbox = _make_plugins(self)
+        panel, scene, inbox = _make_plugins(self)
         started = threading.Event()
         box: dict = {}
 
         def target(endpoint):
             try:  # the model is served from the start: no page reload when it would arrive later
-                viewer = _BoundWebViewer(config, endpoint, model=m, plugins=[panel])
+                viewer = _BoundWebViewer(config, endpoint, model=m, plugins=[panel, scene])
             except BaseException as exc:  # the bind failed, Studio's assets missing...
                 box["error"] = exc
                 started.set()
