@@ -22,9 +22,9 @@ What Studio gives and what is built here (``mujoco`` 4.0.1, measured; see docs/l
   ``SimPlugin`` (:class:`_Inbox`) on the simulation thread; the simulation side sends a latest-wins ``Snapshot``
   (:class:`StatusSnapshot`: the recent history, the controller's lines, the knobs) to the panel.
 - A push from the page becomes ``push(t)``, the world-x force on the cart simulate logs in the rollout's ``push``
-  column: the push buttons (a pulse of :data:`PUSH_SECONDS`), the panel's "drag to push" slider (the force follows
-  the mouse while it is held, back to 0 on release) and a drag of the cart in the scene (Studio's Ctrl + right-drag
-  perturbation: its world-x force on the cart body; a drag of another body is not applied, the panel says so). A
+  column: the push buttons (a pulse of :data:`PUSH_SECONDS`) and the panel's "drag to push" slider (the force
+  follows the mouse while it is held, back to 0 on release). A drag in the 3-D scene is not wired: the page's
+  client moves the camera with the mouse itself and passes no pick or Ctrl-drag to the viewer side here. A
   knob released becomes ``tuner.set(name, value, t)`` (the LQR re-designed, the PID's gains, the control period or
   the delay). Each is logged in :attr:`WebLive.events` with its time (s of simulated time).
 - :meth:`WebLive.attach` tells the page which controller runs (a swing-up's switching law, its TVLQR, the supervisor):
@@ -49,7 +49,6 @@ import numpy as np
 
 from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError, first_line
-from cartpole.sim.rollout import cart_body
 from cartpole.viz.viewer import LiveViewer
 
 #: Host the web viewer binds unless told otherwise: this machine only (reach it from elsewhere by an SSH tunnel).
@@ -282,7 +281,6 @@ def _make_plugins(live: "WebLive"):
                         self.viewer.send_to_sim(M.DragEvent(force=0.0))
                     self.drag = self.drag_sent = 0.0
                 self._rect("drag to push [N]")
-                im.TextDisabled("or Ctrl + right-drag the cart in the scene")
             if s.knobs:
                 im.Separator()
             for k in s.knobs:
@@ -312,29 +310,6 @@ def _make_plugins(live: "WebLive"):
                 with contextlib.suppress(OSError):
                     atomic_write(live.widgets_file, lambda fh: fh.write(json.dumps(self.widgets).encode()))
 
-    class _SceneDrag(plugin.ViewerPlugin):
-        """Studio's picking (double-click a body) and perturbation (Ctrl + right-drag) in the page's scene, as
-        Studio's own app does it: the drag's forces go to the simulation side as a ``PerturbSnapshot``, where
-        :class:`_Inbox` turns the cart's world-x force into a logged drag (viewer thread)."""
-
-        def __init__(self):
-            self.ux_state = None
-
-        @_handles(messages, messages.UpdateEvent)
-        def on_update(self, _) -> None:
-            from mujoco.studio import ux, viewer_utils
-            from mujoco.studio.app import inputs
-
-            viewer = self.viewer
-            model, data = viewer.model, viewer.data
-            if model is None or data is None:
-                return
-            if self.ux_state is None:
-                self.ux_state = ux.UxState()
-            inputs.handle_mouse_events(model, data, viewer.camera, viewer.vis_options, viewer.perturb, self.ux_state,
-                                       move_camera=getattr(viewer, "client_camera", None) is None)
-            viewer_utils.apply_perturb(viewer, model, data, False)
-
     class _Inbox(plugin.SimPlugin):
         """The page's actions, received on the simulation thread (during the handle's ``sync``)."""
 
@@ -350,12 +325,7 @@ def _make_plugins(live: "WebLive"):
         def on_knob(self, event) -> None:
             live._knob_from_page(str(event.name), float(event.value))
 
-        @_handles(messages, messages.PerturbSnapshot)
-        def on_perturb(self, snap) -> bool:
-            live._perturb_from_page(np.asarray(snap.state, float), int(snap.state_sig))
-            return True  # the handle holds no model: nothing else is to apply it
-
-    return _Panel(), _SceneDrag(), _Inbox()
+    return _Panel(), _Inbox()
 
 
 class WebLive(LiveViewer):
@@ -393,7 +363,7 @@ class WebLive(LiveViewer):
     events : list of dict
         Every action from the page, in order, each with its time ``t`` (s, simulated, the first physics step it acts
         on) and ``kind``: ``push`` (``force`` N for ``seconds``), ``drag`` (``force`` N held from ``t`` until the next
-        drag event; ``source`` ``"panel"`` or ``"scene"``), ``knob`` (``name``, ``value`` and what the tuner
+        drag event; ``source`` ``"panel"``), ``knob`` (``name``, ``value`` and what the tuner
         changed, or ``rejected``: why not).
     page_closed, interrupted : bool
         Why the run ended early, if it did.
@@ -420,9 +390,6 @@ class WebLive(LiveViewer):
         self._push_force = 0.0
         self._pending_drag: tuple | None = None  # (force N, source) not yet applied
         self._drag_force = 0.0
-        self._scene_force = 0.0
-        self._cart = -1
-        self._nbody = 0
         self.controller = None
         self.describe = describe
         self.runs = 0
@@ -464,13 +431,13 @@ class WebLive(LiveViewer):
                 pass
 
         config = viewer_protocol.ViewerConfig(title=self.title, gfx="web", http_port=self.port)
-        panel, scene, inbox = _make_plugins(self)
+        panel, inbox = _make_plugins(self)
         started = threading.Event()
         box: dict = {}
 
         def target(endpoint):
             try:  # the model is served from the start: no page reload when it would arrive later
-                viewer = _BoundWebViewer(config, endpoint, model=m, plugins=[panel, scene])
+                viewer = _BoundWebViewer(config, endpoint, model=m, plugins=[panel])
             except BaseException as exc:  # the bind failed, Studio's assets missing...
                 box["error"] = exc
                 started.set()
@@ -500,9 +467,6 @@ class WebLive(LiveViewer):
         self._spec = mujoco.mjtState.mjSTATE_INTEGRATION
         self._state = np.empty(mujoco.mj_stateSize(m, self._spec))
         self._h = float(m.opt.timestep)
-        self._nbody = int(m.nbody)
-        with contextlib.suppress(CartPoleError):
-            self._cart = cart_body(m)
         self._names = _plot_names(m)
         self._ctrl_range = tuple((float(lo), float(hi)) for lo, hi in
                                  (m.actuator_ctrlrange if m.nu else np.zeros((0, 2))))
@@ -631,15 +595,6 @@ class WebLive(LiveViewer):
     def _drag_from_page(self, force: float, source: str) -> None:
         force = float(np.clip(force, -MAX_PUSH, MAX_PUSH)) if np.isfinite(force) else 0.0
         self._pending_drag = (force, source)
-
-    def _perturb_from_page(self, state: np.ndarray, sig: int) -> None:
-        """Studio's drag in the scene (``xfrc_applied`` of every body): its world-x force on the cart, as a drag."""
-        if self._cart < 0 or state.size != 6 * self._nbody:
-            return
-        force = float(state.reshape(self._nbody, 6)[self._cart, 0])
-        if force != self._scene_force:  # Studio sends the perturbation every frame: only a change is a drag
-            self._scene_force = force
-            self._drag_from_page(force, "scene")
 
     def attach(self, controller, push=None):
         """Show ``controller`` (the law about to run) on the page, and return the ``push(t)`` to give the run: the

@@ -113,40 +113,6 @@ class Chromium:
         self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left" if kind != "mouseMoved" or buttons
                   else "none", buttons=buttons, clickCount=1 if kind != "mouseMoved" else 0)
 
-    def double_click(self, x: float, y: float) -> None:
-        """Two left clicks at ``(x, y)`` the page reads as a double-click."""
-        self._mouse("mouseMoved", x, y, 0)
-        time.sleep(0.1)
-        for count in (1, 2):
-            self.call("Input.dispatchMouseEvent", type="mousePressed", x=x, y=y, button="left", buttons=1,
-                      clickCount=count)
-            self.call("Input.dispatchMouseEvent", type="mouseReleased", x=x, y=y, button="left", buttons=0,
-                      clickCount=count)
-
-    def ctrl_right_drag(self, x0: float, y0: float, x1: float, y1: float, steps: int = 8,
-                        hold: float = 1.0) -> None:
-        """Hold Ctrl and the right button at ``(x0, y0)``, move to ``(x1, y1)``, hold ``hold`` s, release."""
-        ctrl = 2  # CDP's modifier bit for Ctrl
-
-        def mouse(kind, x, y, buttons):
-            self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, modifiers=ctrl,
-                      button="right" if kind != "mouseMoved" or buttons else "none", buttons=buttons,
-                      clickCount=1 if kind != "mouseMoved" else 0)
-
-        self.call("Input.dispatchKeyEvent", type="rawKeyDown", key="Control", code="ControlLeft",
-                  windowsVirtualKeyCode=17, modifiers=ctrl)
-        mouse("mouseMoved", x0, y0, 0)
-        time.sleep(0.1)
-        mouse("mousePressed", x0, y0, 2)
-        time.sleep(0.1)
-        for i in range(1, steps + 1):
-            mouse("mouseMoved", x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps, 2)
-            time.sleep(0.05)
-        time.sleep(hold)
-        mouse("mouseReleased", x1, y1, 0)
-        self.call("Input.dispatchKeyEvent", type="keyUp", key="Control", code="ControlLeft",
-                  windowsVirtualKeyCode=17, modifiers=0)
-
     def click(self, x: float, y: float, hold: float = 0.15) -> None:
         """Move to ``(x, y)`` (CSS pixels), press the left button, hold, release."""
         self._mouse("mouseMoved", x, y, 0)

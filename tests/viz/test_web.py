@@ -110,36 +110,6 @@ def test_a_drag_from_the_page_holds_its_force_until_released_and_replays():
     assert replays_exactly(run)
 
 
-def test_a_drag_of_the_cart_in_the_scene_is_its_world_x_force_and_other_bodies_are_not_applied():
-    import mujoco
-
-    from cartpole.sim.rollout import cart_body
-
-    m = mujoco.MjModel.from_xml_path(str(SHIPPED_MJCF))
-    live = WebLive(wait=False, realtime=False, port=_free_port())
-    cart = cart_body(m)
-    xfrc = np.zeros((m.nbody, 6))
-    xfrc[cart, :3] = [-8.0, 0.0, 3.0]  # Studio's drag force on the cart (its z part is not a push)
-
-    def on_step(mm, d):
-        going = live(mm, d)
-        k = int(round(d.time / mm.opt.timestep))
-        if k == 5:
-            live._perturb_from_page(xfrc.ravel(), int(mujoco.mjtState.mjSTATE_XFRC_APPLIED))
-        elif k in (6, 7):  # Studio sends the same perturbation every frame: no new event
-            live._perturb_from_page(xfrc.ravel(), int(mujoco.mjtState.mjSTATE_XFRC_APPLIED))
-        elif k == 20:
-            live._perturb_from_page(np.zeros(m.nbody * 6), int(mujoco.mjtState.mjSTATE_XFRC_APPLIED))
-        return going
-
-    try:
-        run = simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.2, push=live.attach(None), on_step=on_step)
-    finally:
-        live.close()
-    assert [(e["force"], e["source"]) for e in live.events] == [(-8.0, "scene"), (0.0, "scene")]
-    assert np.count_nonzero(run.info["push"]) == 15 and replays_exactly(run)
-
-
 def test_attach_adds_the_pages_pushes_to_a_scheduled_push_and_shows_the_law():
     live = WebLive(wait=False, realtime=False, port=_free_port(),
                    describe=lambda c, t, x: [f"law {c.__name__}"])
