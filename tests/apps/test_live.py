@@ -180,3 +180,26 @@ def test_watch_with_the_pid_runs_it_after_the_lqr_and_both_replay(capsys):
     assert live["loop"]["delay"] == 0.0 and live["pid"]["events"] == []
     assert len(pid_run.ctrl) == len(run.ctrl) and not np.array_equal(pid_run.ctrl, run.ctrl)
     assert cp.sim.replays_exactly(run) and cp.sim.replays_exactly(pid_run)
+
+
+def test_the_loop_is_live_only_where_the_controller_sees_mujocos_state():
+    from types import SimpleNamespace
+
+    from cartpole.apps.live import LiveLoop, LoopTuner, live_loop
+
+    params = SimpleNamespace(timestep=0.005)
+
+    def rig(**kw):
+        base = dict(spec=None, steps=2, delay_steps=0, compensate=True)
+        base.update(kw)
+        return SimpleNamespace(for_run=lambda i: ("run", i), **base)
+
+    law = object()
+    ran, given, tuner = live_loop(SimpleNamespace(rig=None, period=0.005, params=params), law)
+    assert isinstance(ran, LiveLoop) and given is None and isinstance(tuner, LoopTuner) and ran.steps == 1
+    ran, given, tuner = live_loop(SimpleNamespace(rig=rig(delay_steps=3, compensate=False), period=0.01,
+                                                  params=params), law)
+    assert (ran.steps, ran.delay_steps) == (2, 3) and given is None
+    for fixed in (rig(spec="encoders"), rig(delay_steps=3, compensate=True)):  # an estimator; a predicted delay
+        ran, given, tuner = live_loop(SimpleNamespace(rig=fixed, period=0.01, params=params), law)
+        assert ran is law and given == ("run", 0) and tuner is None
