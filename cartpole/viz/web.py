@@ -362,7 +362,7 @@ class WebLive(LiveViewer):
         ``http://localhost:PORT/`` once started.
     events : list of dict
         Every action from the page, in order, each with its time ``t`` (s, simulated, the first physics step it acts
-        on) and ``kind``: ``push`` (``force`` N for ``seconds``), ``drag`` (``force`` N held from ``t`` until the next
+        on), ``run`` (which run on this page, from 1: one per :meth:`attach`) and ``kind``: ``push`` (``force`` N for ``seconds``), ``drag`` (``force`` N held from ``t`` until the next
         drag event; ``source`` ``"panel"``), ``knob`` (``name``, ``value`` and what the tuner
         changed, or ``rejected``: why not).
     page_closed, interrupted : bool
@@ -611,7 +611,7 @@ class WebLive(LiveViewer):
         return both
 
     def _knob_from_page(self, name: str, value: float) -> None:
-        event = {"t": self._t_now, "kind": "knob", "name": name, "value": float(value)}
+        event = {"t": self._t_now, "kind": "knob", "name": name, "value": float(value), "run": max(1, self.runs)}
         if self.tuner is not None:
             try:
                 event.update(self.tuner.set(name, float(value), self._t_now))
@@ -629,12 +629,13 @@ class WebLive(LiveViewer):
             self._pending_drag = None
             if force != self._drag_force:
                 self._drag_force = force
-                self.events.append({"t": float(t), "kind": "drag", "force": force, "source": source})
+                self.events.append({"t": float(t), "kind": "drag", "force": force, "source": source,
+                                    "run": max(1, self.runs)})
         if self._pending_push:
             self._push_force = self._pending_push.pop(0)
             self._push_until = t + PUSH_SECONDS - 0.5 * self._h
             self.events.append({"t": float(t), "kind": "push", "force": self._push_force,
-                                "seconds": PUSH_SECONDS})
+                                "seconds": PUSH_SECONDS, "run": max(1, self.runs)})
         return (self._push_force if t < self._push_until else 0.0) + self._drag_force
 
     # -- end ------------------------------------------------------------------------------------------------

@@ -107,6 +107,7 @@ def test_a_drag_from_the_page_holds_its_force_until_released_and_replays():
     on = np.flatnonzero(forces)
     assert set(forces[on]) == {12.0} and len(on) == 30  # from the step after k = 10 to the one after k = 40
     assert run.t[on[0]] == live.events[0]["t"]
+    assert {e["run"] for e in live.events} == {1}  # the first run on this page
     assert replays_exactly(run)
 
 
