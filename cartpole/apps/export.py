@@ -150,7 +150,7 @@ def check_build(design, real: str, x0, duration: float) -> BuildCheck:
 
 def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool = False, x0=None, out=".",
                verify: bool = False, duration: float | None = None, mcu: bool = False, u_max=None,
-               cart_max: float | None = None) -> dict:
+               cart_max: float | None = None, runs: list | None = None) -> dict:
     """Export a controller as standalone C to the folder ``out``, and with ``verify`` prove it in MuJoCo.
 
     Parameters
@@ -181,6 +181,10 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
         A balance controller (lqr, pid) needs none and takes it only when given.
     cart_max : float, optional
         m: likewise the cart's travel ``|s - centre| <= cart_max``.
+    runs : list, optional
+        With ``verify``, the verification's MuJoCo runs driven by the C are appended to it, the double build's then
+        the float's, each as ``(params, rollout)``: the CartPoleParams MuJoCo ran and its
+        :class:`~cartpole.sim.Rollout` (e.g. to show them live).
 
     Returns
     -------
@@ -233,6 +237,8 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
         T = verify_duration(design) if duration is None else float(duration)
         for r in ("double", "float"):
             checks[r] = check_build(design, r, start, T)
+            if runs is not None:
+                runs.append((design.model.params, checks[r].run.rollout))
     mcu_doc = None
     if mcu:
         from cartpole.export import export_files

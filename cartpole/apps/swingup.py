@@ -832,9 +832,13 @@ def _simulate(ctx: _Context, controller, T: float, *, period=None, loop=None) ->
 
     loop = ctx.loop if loop is None else loop
     rig = build_rig(ctx.plant, loop, task="swingup")
+    force = ctx.force
+    attach = getattr(ctx.on_step, "attach", None)
+    if attach is not None:  # the web page: it shows this law's state, its pushes join the logged push column
+        force = attach(controller, push=force)
     controller = ctx.friction.wrap(controller)  # the controller that runs, friction compensation outermost
     disturbance = loop.disturbance(ctx.params, x_eq=ctx.model.x_eq, hinges=ctx.model.hinges)
-    rollout = simulate(ctx.params, controller, ctx.x0, T, push=ctx.force, progress=_stage(ctx.progress, "simulate"),
+    rollout = simulate(ctx.params, controller, ctx.x0, T, push=force, progress=_stage(ctx.progress, "simulate"),
                        on_step=ctx.on_step, control_period=loop.period if period is None else period, rig=rig,
                        disturbance=disturbance)
     if disturbance is not None:

@@ -61,12 +61,14 @@ def view_mode(args, command: str) -> str | None:
     return view
 
 
-def view_web(lab, args) -> dict | None:
+def view_web(lab, args, pid=None) -> dict | None:
     """``--view web`` for a lab: its LQR run live in the browser (:func:`cartpole.apps.live.watch_lab`), returned as
-    the JSON's ``live``: the page's address, ``events`` (pushes, weight changes, with their times), the final ``K``
-    and ``eigenvalues``, the ``rollout`` (every physics step, pushes in its ``push`` column) and ``replays`` (the log
-    replayed with ``mj_step`` gives every state again, bit for bit). None, with one sentence on stderr, when the
-    viewer cannot start."""
+    the JSON's ``live``: the page's address, ``events`` (pushes, drags, weight, period and delay changes, with their
+    times), the final ``K``, ``eigenvalues`` and ``loop``, the ``rollout`` (every physics step, pushes in its
+    ``push`` column) and ``replays`` (the log replayed with ``mj_step`` gives every state again, bit for bit); with
+    ``pid`` (``--compare-pid``) the PID run live after it on the same page, as ``pid`` (the same keys, ``gains``
+    instead of ``K``; null when the page was closed first). None, with one sentence on stderr, when the viewer
+    cannot start."""
     from cartpole.apps.live import watch_lab
     from cartpole.commands._rollouts import rollout_doc
     from cartpole.errors import first_line
@@ -74,34 +76,46 @@ def view_web(lab, args) -> dict | None:
     from cartpole.viz.web import WebUnavailable
 
     try:
-        run, live = watch_lab(lab, port=args.port, host=args.host, duration=args.live_seconds)
+        run, live = watch_lab(lab, port=args.port, host=args.host, duration=args.live_seconds, pid=pid)
     except WebUnavailable as exc:
         print(f"cartpole {args.command}: no live view: {first_line(exc)}", file=sys.stderr)
         return None
     live["rollout"] = rollout_doc(run)
     live["replays"] = bool(replays_exactly(run))
     live["steps"] = int(len(run.ctrl))
+    if live.get("pid") is not None:
+        prun = live["pid"]["rollout"]
+        live["pid"].update(rollout=rollout_doc(prun), replays=bool(replays_exactly(prun)), steps=int(len(prun.ctrl)))
     return live
 
 
 def live_sentence(live: dict) -> str:
     """One line of prose about a live web run: how long, how it ended, how many pushes and changes, replayed."""
-    ev = live["events"]
-    pushes = sum(e["kind"] == "push" for e in ev)
+    def counts(ev):
+        pushes = sum(e["kind"] in ("push", "drag") for e in ev)
+        return f"{pushes} push(es) or drag change(s) and {len(ev) - pushes} setting change(s)"
+
     end = (" (page closed)" if live["page_closed"] else " (Ctrl-C)" if live["interrupted"] else "")
-    return (f"Live run at {live['url']}: {live['steps']} physics steps{end}, {pushes} push(es) and "
-            f"{len(ev) - pushes} weight change(s) logged; the log replays exactly: {live['replays']}.")
+    text = (f"Live run at {live['url']}: {live['steps']} physics steps{end}, {counts(live['events'])} logged; the "
+            f"log replays exactly: {live['replays']}.")
+    pid = live.get("pid")
+    if pid is not None:
+        text += (f" Then the PID: {pid['steps']} physics steps, {counts(pid['events'])}; replays exactly: "
+                 f"{pid['replays']}.")
+    return text
 
 
 def live_view(command: str, args):
-    """The ``on_step`` hook for ``--view``: a :class:`~cartpole.viz.web.WebLive` (``web``; the page shows the run and
-    its plots, nothing to push or tune), a :class:`~cartpole.viz.viewer.LiveViewer` (``desktop``), or None (no
+    """The ``on_step`` hook for ``--view``: a :class:`~cartpole.viz.web.WebLive` (``web``; the page shows the run,
+    its plots and, when the run :meth:`~cartpole.viz.web.WebLive.attach`-es its controller, which law is in charge;
+    its pushes and drags join the run's logged push column), a :class:`~cartpole.viz.viewer.LiveViewer` (``desktop``), or None (no
     ``--view``, or no display for the desktop window: its one sentence on stderr)."""
     mode = view_mode(args, command)
     if mode == "web":
+        from cartpole.apps.live import controller_status
         from cartpole.viz.web import WebLive
 
-        return WebLive(port=args.port, host=args.host, title=f"cartpole {command} live")
+        return WebLive(port=args.port, host=args.host, title=f"cartpole {command} live", describe=controller_status)
     if mode == "desktop":
         from cartpole.commands._rollouts import live_viewer
 

@@ -32,6 +32,11 @@ def add_arguments(parser) -> None:
 
     add_budget_argument(parser)
 
+    from cartpole.commands._view import add_view_arguments
+
+    add_view_arguments(parser, "show the experiment live once logged, in real time, replayed from its log (desktop "
+                               "without a display: a note on stderr and the rest as usual)")
+
 
 def run(args) -> dict:
     """Design, run and log. JSON ``excite`` {``csv``, ``rollout``, ``duration``, ``sample_time``, ``amplitude``,
@@ -42,15 +47,22 @@ def run(args) -> dict:
 
     from cartpole.apps.excite import run_excite
     from cartpole.commands._rig import check_budget
+    from cartpole.commands._view import show_runs, view_mode
     from cartpole.models import build_model
 
     if not args.dry_run and math.isfinite(args.duration) and args.duration > 0:  # else run_excite's own sentence
         check_budget(args, build_model(args.mjcf), [(1, args.duration, "the experiment")])
+
+    view = view_mode(args, "excite")
     res = run_excite(args.mjcf, args.out, duration=args.duration, sample_time=args.sample,
                      amplitude=args.amplitude, dry_run=args.dry_run, encoder_cpr=args.encoder_cpr,
                      encoder_resolution=args.encoder_resolution, sensor_noise=args.sensor_noise,
                      seed=args.noise_seed, csv_name=args.csv, mode=args.mode)
     e = res.excitation
+    if view and res.rollout is not None:
+        from cartpole.models import read_params
+
+        show_runs(read_params(args.mjcf), [res.rollout], view, args, command="excite")
     rollout = None if res.rollout is None else str(Path(args.out) / (Path(args.csv).stem + "_rollout.json"))
     doc = {"mjcf": str(Path(args.mjcf).resolve()) if args.mjcf else None,
            "excite": {"csv": str(res.csv), "rollout": rollout, "duration": float(e.t[-1]),

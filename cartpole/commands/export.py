@@ -40,6 +40,12 @@ def add_arguments(parser) -> None:
 
     add_limit_arguments(parser)
     add_budget_argument(parser)
+
+    from cartpole.commands._view import add_view_arguments
+
+    add_view_arguments(parser, "with --verify: show the C build's MuJoCo runs live (double, then float32), in real "
+                               "time, replayed from their logs (desktop without a display: a note on stderr and the "
+                               "rest as usual)")
     add_rig_arguments(parser, period_help="control period in s, a whole number of MJCF steps (default one step): "
                       "CP_PERIOD, the period cp_step must be called at; the controller is designed for it")
 
@@ -76,11 +82,21 @@ def run(args) -> dict:
     from cartpole.apps.export import run_export
     from cartpole.commands._limits import limit_keywords, limit_lines
 
+    from cartpole.commands._view import show_runs, view_mode
+    from cartpole.errors import CartPoleError
+
+    if getattr(args, "view", None) and not args.verify:
+        raise CartPoleError("--view shows the C build's MuJoCo runs, which only --verify runs; add --verify, or drop "
+                            "--view.")
+    view = view_mode(args, "export")
     loop = loop_from_args(args)
     _check_work(args)
+    runs: list = []
     doc = run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
                      out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu,
-                     **limit_keywords(args))
+                     **limit_keywords(args), runs=runs)
+    if view and runs:
+        show_runs(runs[0][0], [r for _, r in runs], view, args, command="export")
     if not args.json:
         for line in limit_lines(doc.get("limits"), doc.get("start_moved")):
             print(line)

@@ -150,9 +150,7 @@ def run(args) -> dict:
         check_log_size(args.live_seconds, model.params, what=f"the live run of {args.live_seconds:g} s")
     result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model, duration=duration)
     live = None
-    if view == "web":
-        live = _view_web(result, args)
-    elif view:
+    if view == "desktop":
         result = _view(result)
     pid = skipped = None
     if args.compare_pid:
@@ -164,6 +162,8 @@ def run(args) -> dict:
         except PIDError as exc:
             skipped = str(exc)
             print(f"cartpole lqr: --compare-pid skipped: {skipped}", file=sys.stderr)
+    if view == "web":  # after the PID's lab, which then runs live after the LQR
+        live = _view_web(result, args, pid=pid)
     out = Path(args.out)
     figure = plot_lab(result, out / FIGURE).resolve()
     est_figure = None

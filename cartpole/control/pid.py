@@ -348,6 +348,12 @@ class CascadedPID:
         self._z_max = 0.5 * span / abs(gains.ki) if gains.ki and np.isfinite(span) else np.inf
         self.reset()
 
+    def set_gains(self, gains: PIDGains) -> None:
+        """Use ``gains`` from the next call on, keeping the integrator, the filter and the time (a live retune)."""
+        self.gains = gains
+        span = self._hi - self._lo
+        self._z_max = 0.5 * span / abs(gains.ki) if gains.ki and np.isfinite(span) else np.inf
+
     @classmethod
     def for_model(cls, plant=None, *, anti_windup: bool = True, **tuning) -> "CascadedPID":
         """A cascaded PID tuned for ``plant`` (a path, parameters or model) by :func:`tune_pid` (``tuning`` = its

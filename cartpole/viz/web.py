@@ -22,8 +22,13 @@ What Studio gives and what is built here (``mujoco`` 4.0.1, measured; see docs/l
   ``SimPlugin`` (:class:`_Inbox`) on the simulation thread; the simulation side sends a latest-wins ``Snapshot``
   (:class:`StatusSnapshot`: the recent history, the controller's lines, the knobs) to the panel.
 - A push from the page becomes ``push(t)``, the world-x force on the cart simulate logs in the rollout's ``push``
-  column; a knob released becomes ``tuner.set(name, value, t)`` (e.g. the LQR re-designed). Each is logged in
-  :attr:`WebLive.events` with its time (s of simulated time).
+  column: the push buttons (a pulse of :data:`PUSH_SECONDS`) and the panel's "drag to push" slider (the force
+  follows the mouse while it is held, back to 0 on release). A drag in the 3-D scene is not wired: the page's
+  client moves the camera with the mouse itself and passes no pick or Ctrl-drag to the viewer side here. A
+  knob released becomes ``tuner.set(name, value, t)`` (the LQR re-designed, the PID's gains, the control period or
+  the delay). Each is logged in :attr:`WebLive.events` with its time (s of simulated time).
+- :meth:`WebLive.attach` tells the page which controller runs (a swing-up's switching law, its TVLQR, the supervisor):
+  the panel shows it and its state (swing-up, tracking, catch, brake...) through ``describe``.
 - Closing the page (no browser for :data:`GONE_SECONDS`) or Ctrl-C (SIGINT) ends the run after the step being
   done: simulate then returns the steps done.
 """
@@ -54,10 +59,14 @@ GONE_SECONDS = 2.0
 PUSH_SECONDS = 0.1
 #: Largest push force the page offers, in N.
 MAX_PUSH = 50.0
+#: Smallest change of the drag slider's force the panel sends (N); the release (back to 0) is always sent.
+DRAG_STEP = 0.5
 #: Seconds of history the plots show.
 PLOT_SECONDS = 10.0
 #: Most points a plot gets (the page's UI stream carries every vertex each frame).
 PLOT_POINTS = 150
+#: Height of each plot on the page, px.
+PLOT_HEIGHT = 85
 #: ImPlot's ImPlotFlags_NoLegend.
 PLOT_NO_LEGEND = 1 << 1
 #: Smallest height of a joint's plot, in m or rad.
@@ -135,6 +144,11 @@ def _messages():
             force: float = 0.0
 
         @dataclasses.dataclass(frozen=True)
+        class DragEvent(messages.Event):
+            """The panel's drag slider: the force in N held on the cart from now on (0 on release)."""
+            force: float = 0.0
+
+        @dataclasses.dataclass(frozen=True)
         class KnobEvent(messages.Event):
             """A slider released at ``value``."""
             name: str = ""
@@ -152,7 +166,8 @@ def _messages():
             events: tuple = ()
             pushable: bool = False
 
-        _MSG = _namespace(PushEvent=PushEvent, KnobEvent=KnobEvent, StatusSnapshot=StatusSnapshot)
+        _MSG = _namespace(PushEvent=PushEvent, DragEvent=DragEvent, KnobEvent=KnobEvent,
+                          StatusSnapshot=StatusSnapshot)
     return _MSG
 
 
@@ -187,6 +202,8 @@ def _make_plugins(live: "WebLive"):
         def __init__(self):
             self.status = None
             self.force = 10.0
+            self.drag = 0.0
+            self.drag_sent = 0.0
             self.values: dict[str, float] = {}
             self.widgets: dict[str, list[float]] = {}
 
@@ -214,7 +231,7 @@ def _make_plugins(live: "WebLive"):
         @_handles(messages, messages.BuildGuiEvent)
         def on_gui(self, _) -> None:
             im.SetNextWindowPos(im.Vec2(8, 8), 4)   # ImGuiCond_FirstUseEver
-            im.SetNextWindowSize(im.Vec2(420, 740), 4)
+            im.SetNextWindowSize(im.Vec2(440, 780), 4)
             im.Begin("cartpole live")
             s = self.status
             if s is None:
@@ -227,7 +244,7 @@ def _make_plugins(live: "WebLive"):
             t = list(s.t)
             for i, name in enumerate(s.names):
                 ys = [row[i] for row in s.series]
-                if ip.BeginPlot(f"##{name}", im.Vec2(-1, 105), PLOT_NO_LEGEND):
+                if ip.BeginPlot(f"##{name}", im.Vec2(-1, PLOT_HEIGHT), PLOT_NO_LEGEND):
                     ctrl = name.startswith("ctrl")
                     ip.SetupAxes("t [s]", name, 0, 0)
                     if ys and not ctrl:  # at least MIN_SPAN tall: rounding noise at rest stays flat
@@ -254,6 +271,16 @@ def _make_plugins(live: "WebLive"):
                 if im.Button("push right"):
                     self.viewer.send_to_sim(M.PushEvent(force=self.force))
                 self._rect("push right")
+                changed, self.drag = im.SliderFloat("drag to push [N]", self.drag, -MAX_PUSH, MAX_PUSH, "%+.1f")
+                if im.IsItemActive():
+                    if abs(self.drag - self.drag_sent) >= DRAG_STEP:
+                        self.drag_sent = self.drag
+                        self.viewer.send_to_sim(M.DragEvent(force=self.drag))
+                else:
+                    if self.drag_sent != 0.0:
+                        self.viewer.send_to_sim(M.DragEvent(force=0.0))
+                    self.drag = self.drag_sent = 0.0
+                self._rect("drag to push [N]")
             if s.knobs:
                 im.Separator()
             for k in s.knobs:
@@ -290,6 +317,10 @@ def _make_plugins(live: "WebLive"):
         def on_push(self, event) -> None:
             live._push_from_page(float(event.force))
 
+        @_handles(messages, M.DragEvent)
+        def on_drag(self, event) -> None:
+            live._drag_from_page(float(event.force), "panel")
+
         @_handles(messages, M.KnobEvent)
         def on_knob(self, event) -> None:
             live._knob_from_page(str(event.name), float(event.value))
@@ -321,22 +352,25 @@ class WebLive(LiveViewer):
         Sleep so simulated time tracks wall time (default True).
     title : str
         The page's title.
-    names : sequence of str, optional
-        The plotted quantities' names; default the joints' and actuators' of the model.
+    describe : callable, optional
+        ``describe(controller, t, x) -> list of str``: the lines the panel shows about a controller given to
+        :meth:`attach` (its name and state: swing-up, tracking, catch, brake...).
 
     Attributes
     ----------
     url : str
         ``http://localhost:PORT/`` once started.
     events : list of dict
-        Every action from the page, in order, each with its time ``t`` (s, simulated) and ``kind`` (``push`` with
-        ``force`` N and ``seconds``; ``knob`` with ``name``, ``value`` and what the tuner changed).
+        Every action from the page, in order, each with its time ``t`` (s, simulated, the first physics step it acts
+        on), ``run`` (which run on this page, from 1: one per :meth:`attach`) and ``kind``: ``push`` (``force`` N for ``seconds``), ``drag`` (``force`` N held from ``t`` until the next
+        drag event; ``source`` ``"panel"``), ``knob`` (``name``, ``value`` and what the tuner
+        changed, or ``rejected``: why not).
     page_closed, interrupted : bool
         Why the run ended early, if it did.
     """
 
     def __init__(self, *, port: int = 0, host: str = LOCALHOST, tuner: Tuner | None = None, wait: bool = True,
-                 realtime: bool = True, title: str = "cartpole live"):
+                 realtime: bool = True, title: str = "cartpole live", describe=None):
         super().__init__(realtime=realtime)
         if not (0 <= int(port) <= 65535):
             raise WebUnavailable(f"Port {port} is not a TCP port; give one from 1 to 65535, or 0 for the first "
@@ -354,6 +388,11 @@ class WebLive(LiveViewer):
         self._pending_push: list[float] = []
         self._push_until = -1.0
         self._push_force = 0.0
+        self._pending_drag: tuple | None = None  # (force N, source) not yet applied
+        self._drag_force = 0.0
+        self.controller = None
+        self.describe = describe
+        self.runs = 0
         self._h = 0.0
         self._t_now = 0.0
         self._x_now = None
@@ -504,12 +543,16 @@ class WebLive(LiveViewer):
         M = _messages()
         lines = [f"t = {self._t_now:6.2f} s   {self.url}"]
         knobs: tuple = ()
+        if self.controller is not None and self.describe is not None:
+            lines += list(self.describe(self.controller, self._t_now, self._x_now))
         if self.tuner is not None:
             lines += list(self.tuner.status(self._t_now, self._x_now))
             knobs = tuple((k.name, float(k.value), float(k.low), float(k.high), bool(k.log))
                           for k in self.tuner.knobs())
         if self._t_now < self._push_until:
             lines.append(f"pushing {self._push_force:+.1f} N")
+        if self._drag_force:
+            lines.append(f"dragging {self._drag_force:+.1f} N")
         ev = tuple(_event_line(e) for e in self.events)
         every = max(1, len(self._hist_t) // PLOT_POINTS)
         return M.StatusSnapshot(t=tuple(self._hist_t[::every]), series=tuple(tuple(r) for r in self._hist[::every]),
@@ -549,8 +592,26 @@ class WebLive(LiveViewer):
         force = float(np.clip(force, -MAX_PUSH, MAX_PUSH))
         self._pending_push.append(force)
 
+    def _drag_from_page(self, force: float, source: str) -> None:
+        force = float(np.clip(force, -MAX_PUSH, MAX_PUSH)) if np.isfinite(force) else 0.0
+        self._pending_drag = (force, source)
+
+    def attach(self, controller, push=None):
+        """Show ``controller`` (the law about to run) on the page, and return the ``push(t)`` to give the run: the
+        page's pushes added to ``push`` (a scheduled ``push(t) -> N``, or None), all logged in one push column."""
+        self.controller = controller
+        self.runs += 1
+        self._pending_push.clear()  # a new run on the page starts unpushed
+        self._pending_drag, self._drag_force, self._push_until = None, 0.0, -1.0
+        if push is None:
+            return self.push
+
+        def both(t: float) -> float:
+            return float(push(t)) + self.push(t)
+        return both
+
     def _knob_from_page(self, name: str, value: float) -> None:
-        event = {"t": self._t_now, "kind": "knob", "name": name, "value": float(value)}
+        event = {"t": self._t_now, "kind": "knob", "name": name, "value": float(value), "run": max(1, self.runs)}
         if self.tuner is not None:
             try:
                 event.update(self.tuner.set(name, float(value), self._t_now))
@@ -560,14 +621,22 @@ class WebLive(LiveViewer):
 
     def push(self, t: float) -> float:
         """``push(t) -> force [N]`` for :func:`~cartpole.sim.rollout.simulate`: the page's pushes, each a pulse of
-        :data:`PUSH_SECONDS` starting at the first physics step after the button was pressed."""
+        :data:`PUSH_SECONDS` starting at the first physics step after the button was pressed, plus the drag's force
+        in force (from the first physics step after it changed); each change logged in :attr:`events`."""
         self.pushable = True
+        if self._pending_drag is not None:
+            force, source = self._pending_drag
+            self._pending_drag = None
+            if force != self._drag_force:
+                self._drag_force = force
+                self.events.append({"t": float(t), "kind": "drag", "force": force, "source": source,
+                                    "run": max(1, self.runs)})
         if self._pending_push:
             self._push_force = self._pending_push.pop(0)
             self._push_until = t + PUSH_SECONDS - 0.5 * self._h
             self.events.append({"t": float(t), "kind": "push", "force": self._push_force,
-                                "seconds": PUSH_SECONDS})
-        return self._push_force if t < self._push_until else 0.0
+                                "seconds": PUSH_SECONDS, "run": max(1, self.runs)})
+        return (self._push_force if t < self._push_until else 0.0) + self._drag_force
 
     # -- end ------------------------------------------------------------------------------------------------
     def finish(self, m=None, d=None, *, settle: float = 0.0) -> None:
@@ -608,6 +677,8 @@ class WebLive(LiveViewer):
 def _event_line(e: dict) -> str:
     if e["kind"] == "push":
         return f"{e['t']:6.2f} s  push {e['force']:+.1f} N for {e['seconds']:g} s"
+    if e["kind"] == "drag":
+        return f"{e['t']:6.2f} s  drag {e['force']:+.1f} N ({e['source']})"
     text = f"{e['t']:6.2f} s  {e['name']} = {e['value']:.3g}"
     if "rejected" in e:
         return text + f"  (rejected: {e['rejected']})"

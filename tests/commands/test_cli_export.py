@@ -88,3 +88,20 @@ def test_no_c_compiler_is_refused_before_anything_is_written(tmp_path):
                           capture_output=True, text=True, check=False)
     assert done.returncode == 2 and "No C compiler" in done.stderr and done.stderr.count("\n") == 1
     _nothing_written(tmp_path, [])
+
+
+def test_view_without_verify_is_one_sentence_exit_2(tmp_path, capsys):
+    code, stdout, err = _run(["--out", str(tmp_path / "c"), "--view", "web"], capsys)
+    assert code == 2 and stdout == "" and err.count("\n") == 1
+    assert "--verify" in err and "Traceback" not in err
+    _nothing_written(tmp_path, [])
+
+
+def test_view_without_a_display_says_so_once_and_verifies_as_usual(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    code, stdout, err = _run(["--json", "--out", str(tmp_path / "c"), "--verify", "--duration", "1", "--view",
+                              "desktop"], capsys)
+    assert code == 0 and json.loads(stdout)["export"]["verified"]
+    (line,) = [ln for ln in err.strip().splitlines() if "live view" in ln]
+    assert line.startswith("cartpole export: no live view: No display for the live viewer")

@@ -480,3 +480,43 @@ def test_lqr_says_which_joints_dry_friction_its_design_leaves_out(tmp_path, caps
     assert by["slider"]["design"] == "cancelled" and by["hinge"]["design"] == "omitted"
     assert by["slider"]["frictionloss"] == 0.5 and by["hinge"]["frictionloss"] == 0.002
     assert _lqr_json(capsys, "--out", str(tmp_path / "plain"))["smoothed_friction"] == []
+
+
+def test_view_on_a_screen_shows_the_first_start_in_the_desktop_window(tmp_path):
+    """Under Xvfb, ``--view`` alone picks MuJoCo's window and says so; the lab runs as usual (the web page's options
+    are not involved), the first start's logged run being the one shown."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    if sys.platform != "linux" or shutil.which("Xvfb") is None:
+        pytest.skip("needs Xvfb (apt-get install xvfb; .ci/run installs it)")
+    r, w = os.pipe()
+    xvfb = subprocess.Popen(["Xvfb", "-displayfd", str(w), "-screen", "0", "800x600x24", "-nolisten", "tcp"],
+                            pass_fds=(w,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(w)
+    try:
+        number = b""
+        while not number.endswith(b"\n"):  # Xvfb writes the display number once it accepts connections
+            chunk = os.read(r, 16)
+            if not chunk:
+                break
+            number += chunk
+        os.close(r)
+        number = number.decode().strip()
+        assert number, "Xvfb did not start"
+        env = {**os.environ, "DISPLAY": f":{number}", "MUJOCO_GL": "egl"}
+        env.pop("XDG_SESSION_TYPE", None)
+        run = subprocess.run([sys.executable, "-m", "cartpole", "lqr", "--view", "--json", "--no-video",
+                              "--duration", "1", "--out", str(tmp_path)], env=env, capture_output=True, text=True,
+                             timeout=300)
+    finally:
+        xvfb.terminate()
+        xvfb.wait(10)
+    assert run.returncode == 0, run.stderr
+    assert "--view: a display is available, so the desktop window" in run.stderr
+    assert "No display" not in run.stderr and "differs" not in run.stderr
+    doc = json.loads(run.stdout)
+    assert "live" not in doc or doc["live"] is None
+    assert len(doc["settling_times"]) == 5

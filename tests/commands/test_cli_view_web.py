@@ -167,7 +167,7 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     reader.start()
     try:
         _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
-        with Chromium(binary, width=1100, height=800) as page:
+        with Chromium(binary, width=1100, height=900) as page:
             page.goto(f"http://localhost:{port}/")
             assert page.wait_console("Connected to Studio UI host", PAGE_TIMEOUT), page.console[-5:]
             assert page.wait_console("Model loaded", PAGE_TIMEOUT), page.console[-5:]
@@ -186,6 +186,14 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
                 shot = _wait_for(lambda: _text_in(page.screenshot(), last), PAGE_TIMEOUT, "the page to catch up")
                 DOCS_SHOT.parent.mkdir(parents=True, exist_ok=True)
                 DOCS_SHOT.write_bytes(shot)
+            # the drag slider: held a little right of its middle (0 N) it pushes (a few N: the LQR holds the pole; a
+            # mouse move through CDP takes seconds of the real-time run here), released it springs back to 0
+            drag = rects["drag to push [N]"]
+            page.drag(*_center(drag, 0.5), *_center(drag, 0.56), steps=2, hold=0.3)
+            _wait_for(lambda: _read(widgets).get("events shown", [0])[0] >= 4, PAGE_TIMEOUT, "the drag listed")
+            shown = _read(widgets)["events shown"][0]
+            page.drag(*_center(rects["delay [s]"], 0.0), *_center(rects["delay [s]"], 0.15))
+            _wait_for(lambda: _read(widgets).get("events shown", [0])[0] > shown, PAGE_TIMEOUT, "the delay listed")
         stdout = proc.stdout.read()
         proc.wait(120)
     finally:
@@ -200,7 +208,13 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     live = doc["live"]
     assert live["page_closed"] is True
     kinds = [e["kind"] for e in live["events"]]
-    assert "push" in kinds and "knob" in kinds, live["events"]
+    assert "push" in kinds and "knob" in kinds and "drag" in kinds, live["events"]
+    drags = [e for e in live["events"] if e["kind"] == "drag"]
+    assert drags[0]["force"] > 0 and drags[-1]["force"] == 0.0 and {e["source"] for e in drags} == {"panel"}
+    delay = next(e for e in live["events"] if e.get("name") == "delay [s]")
+    assert delay["delay"] > 0 and live["loop"]["delay"] == delay["delay"]
+    times = [e["t"] for e in live["events"]]
+    assert times == sorted(times)
     push = next(e for e in live["events"] if e["kind"] == "push")
     knob_ev = next(e for e in live["events"] if e["kind"] == "knob")
     assert push["force"] > 0
@@ -209,7 +223,11 @@ def test_lqr_view_web_in_chromium_shows_pushes_tunes_and_replays(tmp_path):
     forces = np.asarray(live["rollout"]["push"])
     h = live["rollout"]["t"][1] - live["rollout"]["t"][0]
     k = int(round(push["t"] / h))
-    assert forces[k] == push["force"] and np.count_nonzero(forces) == int(round(push["seconds"] / h))
+    assert forces[k] == push["force"]
+    pulse = np.count_nonzero(forces[:int(round(drags[0]["t"] / h))])
+    assert pulse == int(round(push["seconds"] / h))  # the button's pulse; the drag's force after it
+    k0, k1 = (int(round(e["t"] / h)) for e in (drags[0], drags[-1]))
+    assert np.all(forces[k0:k1] > 0) and not np.any(forces[k1:])
     assert live["replays"] is True
     from cartpole.sim import replay
 
@@ -350,3 +368,84 @@ def test_another_host_than_localhost_is_warned_about_on_stderr(capsys):
     assert "warning: --host 0.0.0.0" in err and "no authentication" in err
     args.host = "127.0.0.1"
     assert view_mode(args, "lqr") == "web" and capsys.readouterr().err == ""
+
+
+def test_excite_view_web_replays_the_logged_experiment_on_the_page(tmp_path):
+    """The experiment, once logged, replayed on the page (checked identical to the log) until the page closes; the
+    command then ends as usual with its JSON on stdout and its CSV written."""
+    from websockets.sync.client import connect
+
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "excite", "--view", "web", "--port", str(port),
+                             "--json", "--duration", "3", "--out", str(tmp_path / "out")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(tmp_path))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
+        with connect(f"ws://127.0.0.1:{port}/state?sid=test", open_timeout=30) as ws:
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 1.0:
+                try:
+                    ws.recv(timeout=0.2)
+                except TimeoutError:
+                    pass
+        stdout = proc.stdout.read()
+        proc.wait(120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    reader.join(10)
+    assert proc.returncode == 0, "".join(err)[-2000:]
+    doc = json.loads(stdout)
+    assert Path(doc["excite"]["csv"]).exists() and not any("differs" in line for line in err)
+
+
+def test_compare_pid_view_web_runs_the_pid_live_after_the_lqr_and_both_replay(tmp_path):
+    """``lqr --compare-pid --view web``: the LQR's live run, then the PID's on the same page, each with its tuner's
+    final state and loop in the JSON, each replaying exactly."""
+    from websockets.sync.client import connect
+
+    from cartpole.sim import replay
+
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "lqr", "--no-video", "--json", "--compare-pid",
+                             "--out", str(tmp_path / "out"), "--view", "web", "--port", str(port),
+                             "--live-seconds", "0.5"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(tmp_path))
+    err: list[str] = []
+    reader = threading.Thread(target=lambda: err.extend(iter(proc.stderr.readline, "")), daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any("waiting for a browser" in line for line in err), 240, "the live run to wait")
+        with connect(f"ws://127.0.0.1:{port}/state?sid=test", open_timeout=30) as ws:
+            t0 = time.monotonic()
+            while proc.poll() is None and time.monotonic() - t0 < 120:
+                try:
+                    ws.recv(timeout=0.2)
+                except TimeoutError:
+                    pass
+                except Exception:  # the page was closed by the run's end
+                    break
+        stdout = proc.stdout.read()
+        proc.wait(120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(30)
+    reader.join(10)
+    assert proc.returncode == 0, "".join(err)[-2000:]
+    doc = json.loads(stdout)
+    live = doc["live"]
+    assert live["page_closed"] is False and live["loop"] == {"period": pytest.approx(0.005), "delay": 0.0}
+    pid = live["pid"]
+    assert pid is not None and pid["replays"] is True and pid["events"] == []
+    assert pid["gains"]["kp"] == doc["pid"]["gains"]["kp"]
+    ro = pid["rollout"]
+    assert len(ro["ctrl"]) == int(round(0.5 / (ro["t"][1] - ro["t"][0])))
+    again = replay(doc["mjcf"], np.concatenate([ro["qpos"][0], ro["qvel"][0]]), np.asarray(ro["ctrl"]),
+                   push=np.asarray(ro["push"]))
+    assert np.array_equal(again.qpos, np.asarray(ro["qpos"]))
+    assert not np.array_equal(np.asarray(ro["ctrl"]), np.asarray(live["rollout"]["ctrl"]))  # another law ran

@@ -107,7 +107,7 @@ class Chromium:
 
     def screenshot(self) -> bytes:
         """A PNG of the page as it is drawn now."""
-        return base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
+        return base64.b64decode(self.call("Page.captureScreenshot", timeout=120.0, format="png")["data"])
 
     def _mouse(self, kind: str, x: float, y: float, buttons: int) -> None:
         self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left" if kind != "mouseMoved" or buttons
@@ -121,8 +121,8 @@ class Chromium:
         time.sleep(hold)
         self._mouse("mouseReleased", x, y, 0)
 
-    def drag(self, x0: float, y0: float, x1: float, y1: float, steps: int = 8) -> None:
-        """Press at ``(x0, y0)``, move in ``steps`` to ``(x1, y1)``, release there."""
+    def drag(self, x0: float, y0: float, x1: float, y1: float, steps: int = 8, hold: float = 0.1) -> None:
+        """Press at ``(x0, y0)``, move in ``steps`` to ``(x1, y1)``, hold ``hold`` s, release there."""
         self._mouse("mouseMoved", x0, y0, 0)
         time.sleep(0.1)
         self._mouse("mousePressed", x0, y0, 1)
@@ -130,7 +130,7 @@ class Chromium:
         for i in range(1, steps + 1):
             self._mouse("mouseMoved", x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps, 1)
             time.sleep(0.05)
-        time.sleep(0.1)
+        time.sleep(hold)
         self._mouse("mouseReleased", x1, y1, 0)
 
     def close(self) -> None:

@@ -82,3 +82,42 @@ def test_a_taken_port_is_one_sentence():
         with pytest.raises(WebUnavailable, match=f"Port {port} on 127.0.0.1 is in use"):
             simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.01, on_step=live)
         live.close()
+
+
+def test_a_drag_from_the_page_holds_its_force_until_released_and_replays():
+    live = WebLive(wait=False, realtime=False, port=_free_port())
+    schedule = {"drag": 12.0}
+
+    def on_step(m, d):
+        going = live(m, d)
+        k = int(round(d.time / m.opt.timestep))
+        if k == 10:
+            live._drag_from_page(schedule["drag"], "panel")  # the slider held at +12 N
+        elif k == 40:
+            live._drag_from_page(0.0, "panel")  # released
+        return going
+
+    try:
+        run = simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.3, push=live.attach(None), on_step=on_step)
+    finally:
+        live.close()
+    forces = run.info["push"]
+    assert [(e["kind"], e["force"], e["source"]) for e in live.events] == [("drag", 12.0, "panel"),
+                                                                          ("drag", 0.0, "panel")]
+    on = np.flatnonzero(forces)
+    assert set(forces[on]) == {12.0} and len(on) == 30  # from the step after k = 10 to the one after k = 40
+    assert run.t[on[0]] == live.events[0]["t"]
+    assert {e["run"] for e in live.events} == {1}  # the first run on this page
+    assert replays_exactly(run)
+
+
+def test_attach_adds_the_pages_pushes_to_a_scheduled_push_and_shows_the_law():
+    live = WebLive(wait=False, realtime=False, port=_free_port(),
+                   describe=lambda c, t, x: [f"law {c.__name__}"])
+    push = live.attach(_zero, push=lambda t: 3.0 if t < 0.05 else 0.0)
+    live._push_from_page(-5.0)
+    forces = [push(k * 0.002) for k in range(100)]
+    assert forces[0] == -2.0 and forces[30] == -5.0 and forces[99] == 0.0  # 0.1 s of page push, 0.05 s scheduled
+    live._t_now, live._x_now = 0.0, np.zeros(4)
+    assert "law _zero" in live._status().lines
+    live.close()
