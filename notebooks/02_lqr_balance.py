@@ -37,15 +37,13 @@ import numpy as np
 import matplotlib.pyplot as plt
 from IPython.display import Image, Video, display
 import cartpole as cp
-from cartpole.apps.lab import run_lab
-from cartpole.viz import plot_lab
 
 QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to shorten the sweep and the video
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook02"))
 OUT.mkdir(parents=True, exist_ok=True)
 np.set_printoptions(precision=4, suppress=True)
 
-lab = run_lab()                     # shipped asset = the handout's dynamics; Q_LAB, R_LAB; continuous LQR
+lab = cp.run_lab()                     # shipped asset = the handout's dynamics; Q_LAB, R_LAB; continuous LQR
 params = lab.params
 print("A =\n", lab.A, "\nB =", lab.B.ravel(), "\nK =", lab.K.ravel())
 print("closed-loop eigenvalues of A - B K:", np.round(lab.E, 3))
@@ -113,11 +111,11 @@ print("LQR on the handout's own A, B:", np.round(K_h_lqr.ravel(), 2), " vs the h
 x0 = lab.x0s[0]
 T_cmp = 1.0
 run_true = cp.simulate(params, lab.controller(), x0, T_cmp)
-K_handout = cp.control.LinearFeedback(np.array([HANDOUT["K"]]), lab.x_eq, lab.u_eq, hinges=params.hinges,
+K_handout = cp.LinearFeedback(np.array([HANDOUT["K"]]), lab.x_eq, lab.u_eq, hinges=params.hinges,
                                       u_limits=params.ctrl_range)
 run_hand = cp.simulate(params, K_handout, x0, T_cmp)
 assert np.abs(run_hand.qpos[:, 1]).max() > np.pi / 2, "the handout's gain was expected to drop the pole"
-assert np.abs(run_true.qpos[-1, 1]) < 0.05 and cp.sim.replays_exactly(run_true) and cp.sim.replays_exactly(run_hand)
+assert np.abs(run_true.qpos[-1, 1]) < 0.05 and cp.replays_exactly(run_true) and cp.replays_exactly(run_hand)
 
 fig, ax = plt.subplots(1, 2, figsize=(11, 3.6), sharex=True)
 for run, lbl in ((run_true, f"computed K = {np.round(lab.K.ravel(), 2).tolist()}"),
@@ -150,7 +148,7 @@ plt.show()
 # rest and is set by the slow complex pair that brings the cart back.
 
 # %%
-display(Image(str(plot_lab(lab, OUT / "lab.png"))))
+display(Image(str(cp.plot_lab(lab, OUT / "lab.png"))))
 print(f"{'start [s, theta(deg)]':24s} {'-K x0 (ctrl)':>13s} {'handout ts':>11s} {'strict ts':>10s} "
       f"{'peak |ctrl|':>11s} {'saturated':>10s}")
 for x0_, m in zip(lab.x0s, lab.metrics):
@@ -160,7 +158,7 @@ for x0_, m in zip(lab.x0s, lab.metrics):
 print(f"mean (handout's definition) {lab.mean_settling_time_seed:.3f} s +- {lab.std_settling_time_seed:.3f} s "
       f"(population std, as the handout); the handout expected {HANDOUT['settling_mean']} s")
 assert lab.start_scale == 1 and all(lab.settled), "every one of the handout's five starts must settle"
-assert all(cp.sim.replays_exactly(run) for run in lab.rollouts)
+assert all(cp.replays_exactly(run) for run in lab.rollouts)
 assert all(np.abs(lab.K @ (x0_ - lab.x_eq)).max() > 1 for x0_ in lab.x0s)   # the clip claimed below
 
 # %% [markdown]
@@ -191,11 +189,11 @@ def summary(res):
             "settled": all(res.settled), "E": res.E, "K": res.K.ravel()}
 
 SWEEP_T = 12.0   # s per run: long enough for the slowest setting to settle by the strict definition
-sweep_R = [summary(run_lab(params, R=r, duration=SWEEP_T)) for r in R_values]
+sweep_R = [summary(cp.run_lab(params, R=r, duration=SWEEP_T)) for r in R_values]
 sweep_Q = []
 for c in q_scales:
     Q = Q0.copy(); Q[1, 1] *= c
-    sweep_Q.append(summary(run_lab(params, Q=Q, duration=SWEEP_T)))
+    sweep_Q.append(summary(cp.run_lab(params, Q=Q, duration=SWEEP_T)))
 
 print(f"{'setting':22s} {'K':>38s} {'strict ts':>9s} {'seed ts':>8s} {'peak':>5s} {'sat ms':>6s} settled")
 for name, vals, sw in (("R", R_values, sweep_R), ("Q[1,1]", [10 * c for c in q_scales], sweep_Q)):
@@ -258,17 +256,16 @@ plt.show()
 # pole leans toward $+x$ in the first frame and the cart drives under it.
 
 # %%
-from cartpole.viz import VideoUnavailable, render_video
 
 clip = cp.simulate(params, lab.controller(), lab.x0s[0], 3.0 if QUICK else 10.0)
 try:
-    path = render_video(params, clip, OUT / "day5_cartpole.mp4", width=320 if QUICK else 640,
+    path = cp.render_video(params, clip, OUT / "day5_cartpole.mp4", width=320 if QUICK else 640,
                         height=240 if QUICK else 480)
     display(Video(str(path), embed=True, width=480))
-except VideoUnavailable as err:
+except cp.VideoUnavailable as err:
     print(err)
-print("the clip replays exactly with mj_step:", cp.sim.replays_exactly(clip))
-assert cp.sim.replays_exactly(clip)
+print("the clip replays exactly with mj_step:", cp.replays_exactly(clip))
+assert cp.replays_exactly(clip)
 
 # %% [markdown]
 # ## Live in the browser: push it, tune it
@@ -288,7 +285,7 @@ LIVE = False
 if LIVE:
     run = cp.watch(duration=60.0, pid=True)
     print("events:", run.info["live"]["events"])
-    print("the live run replays exactly with mj_step:", cp.sim.replays_exactly(run))
+    print("the live run replays exactly with mj_step:", cp.replays_exactly(run))
     if run.info["live"]["pid"] is not None:
-        print("the PID's live run replays too:", cp.sim.replays_exactly(run.info["live"]["pid"]["rollout"]))
+        print("the PID's live run replays too:", cp.replays_exactly(run.info["live"]["pid"]["rollout"]))
 
