@@ -415,6 +415,54 @@ def build_c_library(src: str, stem: str, include_dirs=(), *, cflags: tuple | Non
     return str(lib)
 
 
+def build_sources(files: dict, stem: str, *, cflags: tuple) -> str:
+    """A folder of C files (relative path -> text, e.g. an export's ``include/`` and ``src/``) compiled into one
+    cached shared library ``<stem>_<key>.so`` with exactly ``cflags`` (plus ``-fPIC -shared``, ``-I`` of every
+    folder that holds a header; ``$CARTPOLE_CFLAGS`` is not applied: the flags are part of what is compared);
+    returns its path. The key is :func:`library_key` of every file's path and text, the compiler and the flags,
+    so an edited file builds a new library and the same files find the one already built.
+
+    Parameters
+    ----------
+    files : dict
+        Relative path -> C text; every ``*.c`` is compiled, the ``*.h`` are found through ``-I``.
+    stem : str
+        File-name prefix of the library.
+    cflags : tuple of str
+        Compiler flags (``-march=native`` dropped and retried once if the compiler refuses it).
+
+    Raises
+    ------
+    RuntimeError
+        No C compiler, or it failed (its first error quoted).
+    """
+    flags = (*cflags, "-fPIC", "-shared")
+    joined = "".join(f"\0{rel}\0{files[rel]}" for rel in sorted(files))
+    lib = private_cache_dir() / f"{stem}_{library_key(joined, flags, compiler())}.so"
+    if is_verified(lib):
+        return str(lib)
+    cc = compiler()
+    if cc is None:
+        raise RuntimeError("no C compiler (gcc or cc) on PATH")
+    with tempfile.TemporaryDirectory(prefix="cartpole-cc-") as tmp:
+        root = Path(tmp)
+        for rel, text in files.items():
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            (root / rel).write_text(text)
+        incs = sorted({f"-I{(root / rel).parent}" for rel in files if rel.endswith(".h")})
+        srcs = [str(root / rel) for rel in sorted(files) if rel.endswith(".c")]
+        out = root / lib.name
+        cmd = [cc, *flags, *incs, *srcs, "-o", str(out), "-lm"]
+        proc = run_compiler(cmd)
+        if proc.returncode != 0 and "-march=native" in flags:
+            proc = run_compiler([c for c in cmd if c != "-march=native"])
+        if proc.returncode != 0:
+            lines = [ln for ln in proc.stderr.splitlines() if "error" in ln] or proc.stderr.splitlines() or ["?"]
+            raise RuntimeError(f"{Path(cc).name} failed: {lines[0].strip()[:200]}")
+        write_verified(lib, out.read_bytes())
+    return str(lib)
+
+
 def render(template: str, **values) -> str:
     """The Jinja2 template ``template`` (a file name under :data:`CSRC`, e.g. ``"cp_data.h.jinja"``) rendered with
     ``values``: the one place model-specific constants and tables are written into the package's C. Undefined
