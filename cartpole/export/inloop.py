@@ -93,19 +93,12 @@ def compile_program(design, real: str = "double") -> InLoopController:
     ExportError
         No C compiler, or the C does not compile.
     """
-    from cartpole.codegen import build_sources
-    from cartpole.export.build import find_compiler
-    from cartpole.export.make import export_files
+    from dataclasses import replace
 
-    find_compiler()
-    files = {rel: text for rel, text in export_files(design, real).items()
-             if rel.startswith(("src/", "include/")) and rel.endswith((".c", ".h"))}
-    try:
-        lib = build_sources(files, "cp_program", cflags=(*STRICT_CFLAGS, *OPT_CFLAGS))
-    except RuntimeError as exc:
-        raise ExportError(f"The exported C does not compile ({exc}); report this as a bug.") from None
-    prog = design.program
-    return InLoopController(lib, prog.ny, prog.nu, prog.nx, real)
+    from cartpole.export.make import c_sources
+
+    prog = design.program if real == design.program.real else replace(design.program, real=real)
+    return load_program(c_sources(prog), prog, real)
 
 
 class _CRun:
@@ -189,3 +182,127 @@ def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = 
         ctl.reset()
         return simulate(params, lambda t, x: ctl.step(t, x)[1], x0, duration, push=push)
     return simulate(params, lambda t, u: u, x0, duration, rig=CompiledRig(design.rig, ctl), push=push)
+
+
+def controller_part(controller):
+    """The C part (:mod:`cartpole.export.controllers`) of a Python controller of the loop, or None when the
+    controller has no C implementation here (a wrapper, a supervisor, the NMPC: they stay Python in the loop).
+
+    Parameters
+    ----------
+    controller : callable
+        ``u = controller(t, x)``.
+
+    Returns
+    -------
+    CPart or None
+    """
+    from cartpole.control.energy import EnergyShapingController
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.pid import CascadedPID
+    from cartpole.control.switching import SwitchingController
+    from cartpole.control.tvlqr import TVLQRController
+    from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
+
+    kind = type(controller)
+    if kind is LinearFeedback:
+        return linear_part(controller)
+    if kind is CascadedPID:
+        return pid_part(controller)
+    if kind is TVLQRController and type(controller.catch) is LinearFeedback:
+        return tvlqr_part(controller)
+    if (kind is SwitchingController and type(controller.swingup) is EnergyShapingController
+            and type(controller.catch) is LinearFeedback):
+        return energy_part(controller)
+    return None
+
+
+class _Stepper:
+    """The compiled program as ``u = c(t, x)`` for a loop without a rig (MuJoCo's exact state every physics step):
+    reset at ``t = 0``, the start of every run."""
+
+    def __init__(self, ctl: InLoopController):
+        self.ctl = ctl
+
+    def __call__(self, t, x):
+        if t == 0.0:
+            self.ctl.reset()
+        return self.ctl.step(t, x)[1]
+
+
+#: Compiled programs by the Python objects they reproduce (kept alive beside them): (controller, estimator
+#: factory, steps, lag, compensation, run MJCF) -> InLoopController.
+_PROGRAMS: dict = {}
+
+
+def in_loop(model, controller, rig=None):
+    """``(controller, rig)`` for :func:`cartpole.sim.rollout.simulate` running ``controller`` on ``rig`` as the one
+    compiled implementation: the export's C (the controller's part, the rig's estimator, delay prediction and
+    clip) built once through :mod:`cartpole.codegen` and called every period, when a C compiler exists and the
+    controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none, KF, EKF). Otherwise, or
+    with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The model whose MJCF MuJoCo runs (its ctrlrange clips the ctrl).
+    controller : callable
+        ``u = controller(t, x)``, reset by the caller between runs as usual (the compiled program resets itself at
+        the start of each run).
+    rig : Rig, optional
+        The rig (its sensors and noise stream stay Python: MuJoCo's sensors sampled, then ``cp_step``).
+
+    Returns
+    -------
+    (callable, object)
+        The loop's controller and rig.
+    """
+    import os
+
+    from cartpole.codegen import compiler
+
+    if os.environ.get("CARTPOLE_NO_COMPILE") or compiler() is None:
+        return controller, rig
+    if rig is not None and rig.estimator not in ("none", "kf", "ekf"):
+        return controller, rig
+    key = (id(controller), None if rig is None else id(rig.make_estimator), None if rig is None else rig.steps,
+           None if rig is None else rig.delay_steps, None if rig is None else rig.compensate, id(model.params))
+    entry = _PROGRAMS.get(key)
+    if entry is None:
+        part = controller_part(controller)
+        if part is None:
+            return controller, rig
+        from cartpole.export.design import build_program
+        from cartpole.export.make import c_sources
+
+        design_model = model if rig is None else rig.model
+        prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
+        try:
+            ctl = load_program(c_sources(prog), prog)
+        except ExportError:
+            return controller, rig
+        entry = _PROGRAMS[key] = (controller, rig, model.params, ctl)
+    ctl = entry[3]
+    if rig is None:
+        return _Stepper(ctl), None
+    return (lambda t, u: u), CompiledRig(rig, ctl)
+
+
+def load_program(files: dict, prog, real: str = "double") -> InLoopController:
+    """The C files ``files`` (relative path -> text) of the program ``prog`` compiled through
+    :func:`cartpole.codegen.build_sources` with the export's flags and loaded.
+
+    Raises
+    ------
+    ExportError
+        No C compiler, or the C does not compile.
+    """
+    from cartpole.codegen import build_sources
+    from cartpole.export.build import find_compiler
+
+    find_compiler()
+    try:
+        lib = build_sources(files, "cp_program", cflags=(*STRICT_CFLAGS, *OPT_CFLAGS))
+    except RuntimeError as exc:
+        raise ExportError(f"The exported C does not compile ({exc}); report this as a bug.") from None
+    return InLoopController(lib, prog.ny, prog.nu, prog.nx, real)
