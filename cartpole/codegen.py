@@ -3,10 +3,16 @@ cache directory, and loaded back; and :class:`Buffered`, a Function evaluated on
 conversions. Everyone in the package who compiles goes through here (the collocation NLP's interval functions,
 the SQP's QP assembly, the NMPC's stage functions).
 
-A library's file name is a hash of what it was built from (the model's parameters, :func:`model_key`; the source
-or a recipe; the compiler flags; the CasADi version; the CPU, :func:`cpu_key`), so two models or two machines
-never share one, and it is compiled once per machine and model, never into the package. Writes are atomic: a
-concurrent process sees a whole library or none.
+A library's file name is a hash of what it was built from (:func:`library_key`): the C source it compiles (CasADi's
+generated code, or hand-written C), the C files that source includes from the package (:func:`included_sources`),
+the compiler (its path and ``--version``, :func:`compiler_key`), the flags and the CPU (:func:`cpu_key`). Nothing
+in the key is a version string bumped by hand, so a changed function builder, an edited ``.c`` file under
+``cartpole/csrc/`` or another compiler always builds a new library, and the same inputs always find the one already
+built. It is compiled once per machine and source, never into the package. Writes are atomic: a concurrent process
+sees a whole library or none.
+
+Hand-written C lives as real files under ``cartpole/csrc/`` (:data:`CSRC`); model-specific constants are rendered
+into them from Jinja2 templates (``*.jinja``) by :func:`render`.
 
 The cache directory (:func:`private_cache_dir`) is created ``0700`` and refused when another user owns it or others
 may write to it; every library is found by its content, not its name: its SHA-256 is written beside it when it is
@@ -19,6 +25,7 @@ import dataclasses
 import functools
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -44,8 +51,8 @@ PORTABLE_CFLAGS = ("-O2", "-fPIC", "-shared")
 LARGE_SOURCE = 400_000
 #: Flags for large generated sources (see :data:`LARGE_SOURCE`).
 LARGE_CFLAGS = ("-O0", "-fPIC", "-shared")
-#: Part of every library's key: bump when the meaning of generated functions changes for the same source.
-LIB_VERSION = "hs-interval-v7"
+#: The package's hand-written C sources and their Jinja2 templates (package data).
+CSRC = Path(__file__).resolve().parent / "csrc"
 
 
 def cache_dir() -> Path:
@@ -262,26 +269,77 @@ def model_key(model) -> str:
     return h.hexdigest()
 
 
+@functools.lru_cache(maxsize=None)
+def compiler_key(cc: str) -> str:
+    """Hex digest of the compiler ``cc``: its resolved path and the output of ``cc --version`` (another compiler, or
+    the same name upgraded, builds new libraries). Read once per process and compiler."""
+    h = hashlib.sha256(os.path.realpath(cc).encode())
+    try:
+        proc = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30, check=False)
+        h.update(proc.stdout.encode() + proc.stderr.encode())
+    except (OSError, subprocess.SubprocessError) as exc:
+        h.update(f"no --version: {type(exc).__name__}".encode())
+    return h.hexdigest()[:16]
+
+
+_INCLUDE = re.compile(r'^\s*#\s*include\s*"([^"]+)"', re.MULTILINE)
+
+
+def included_sources(src: str, include_dirs=()) -> list[tuple[str, bytes]]:
+    """The files ``src`` includes with ``#include "name"`` that are found in ``include_dirs`` (searched in order),
+    followed recursively (each once): a list of (name, content) in the order met. Headers not found there (the
+    system's, or generated beside the source) are not part of it."""
+    found, seen = [], set()
+    todo = list(_INCLUDE.findall(src))
+    while todo:
+        name = todo.pop(0)
+        if name in seen:
+            continue
+        seen.add(name)
+        for d in include_dirs:
+            path = Path(d) / name
+            if path.is_file():
+                data = path.read_bytes()
+                found.append((name, data))
+                todo.extend(_INCLUDE.findall(data.decode(errors="replace")))
+                break
+    return found
+
+
+def library_key(src: str, flags, cc: str | None, include_dirs=(), extra: str = "") -> str:
+    """The cache key of a library: a hash of the C source ``src``, the sources it includes from ``include_dirs``
+    (:func:`included_sources`), the compiler ``cc`` (:func:`compiler_key`), the ``flags``, the CasADi version, the
+    CPU (:func:`cpu_key`) and ``extra`` (e.g. the model's digest); 20 hex digits."""
+    h = hashlib.sha256()
+    for part in (src, " ".join(flags), compiler_key(cc) if cc else "no-compiler", ca.__version__, cpu_key(), extra):
+        h.update(part.encode())
+        h.update(b"\0")
+    for name, data in included_sources(src, include_dirs):
+        h.update(name.encode() + b"\0" + hashlib.sha256(data).digest())
+    return h.hexdigest()[:20]
+
+
+#: Libraries found or built in this process: (model digest, recipe, flags, CFLAGS env) -> path. The recipe only
+#: saves generating the same source twice in one process; across processes the key is always the source's.
+_BUILT: dict = {}
+
+
 def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
                    cflags: tuple | None = None) -> tuple[str, bool]:
     """C source of ``funcs`` (CasADi Functions) compiled to a cached shared library; returns (path, compiled_now).
 
-    ``funcs`` is a list of Functions or a callable returning it. Without ``recipe`` the library's name is a hash
-    of ``model_digest`` (:func:`model_key`), the source, the flags (:func:`choose_cflags`) and the CasADi version; with
-    ``recipe`` (a digest of what the functions are generated from, e.g.
-    :func:`cartpole.ocp.compiled_nlp.recipe_key`) a hash of ``model_digest`` and ``recipe``, looked up before any source is
-    generated (generating the three-pole cart's source takes about half a second); both with :func:`cpu_key`.
-    ``cflags``: the compiler flags (``-fPIC -shared`` added) instead of :func:`choose_cflags`'s choice, unless
-    ``$CARTPOLE_CFLAGS`` is set. Flags with ``-march=native`` that the compiler refuses are retried as
-    :data:`PORTABLE_CFLAGS`.
+    ``funcs`` is a list of Functions or a callable returning it. The library's name is :func:`library_key` of the
+    generated source, the compiler, the flags (:func:`choose_cflags`) and ``model_digest`` (:func:`model_key`):
+    what the Functions compute, never a hand-bumped version. ``recipe`` (a digest of what the functions are
+    generated from) only lets a second call in the same process skip generating the source again (generating the
+    three-pole cart's source takes about half a second). ``cflags``: the compiler flags (``-fPIC -shared`` added)
+    instead of :func:`choose_cflags`'s choice, unless ``$CARTPOLE_CFLAGS`` is set. Flags with ``-march=native``
+    that the compiler refuses are retried as :data:`PORTABLE_CFLAGS`.
     """
     target = private_cache_dir()
-    cpu = cpu_key()
-    if recipe is not None:
-        key = "r" + hashlib.sha256((model_digest + recipe + cpu).encode()).hexdigest()[:20]
-        lib = target / f"hs_interval_{key}.so"
-        if is_verified(lib):  # by content, not by name: a corrupted or planted file is built again
-            return str(lib), False
+    memo = (str(target), model_digest, recipe, cflags, os.environ.get("CARTPOLE_CFLAGS"))
+    if recipe is not None and is_verified(_BUILT.get(memo, "")):
+        return _BUILT[memo], False
     gen = ca.CodeGenerator("hs_interval.c", {"with_header": False, "casadi_real": "double"})
     for fn in (funcs() if callable(funcs) else funcs):
         gen.add(fn)
@@ -290,29 +348,30 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
         flags = (*cflags, "-fPIC", "-shared")
     else:
         flags = choose_cflags(src)
-    if recipe is None:
-        key = hashlib.sha256((LIB_VERSION + model_digest + " ".join(flags) + ca.__version__ + cpu + src).encode()
-                             ).hexdigest()[:20]
-        lib = target / f"hs_interval_{key}.so"
-        if is_verified(lib):
-            return str(lib), False
-    _compile(src, lib, flags)
-    return str(lib), True
+    lib = target / f"hs_interval_{library_key(src, flags, compiler(), extra=model_digest)}.so"
+    now = not is_verified(lib)  # by content, not by name: a corrupted or planted file is built again
+    if now:
+        _compile(src, lib, flags)
+    if recipe is not None:
+        _BUILT[memo] = str(lib)
+    return str(lib), now
 
 
-def _compile(src: str, lib: Path, flags: tuple) -> None:
-    """Compile the C text ``src`` with ``flags`` into the verified library ``lib`` (atomic; its hash beside it).
-    Flags with ``-march=native`` that the compiler refuses are retried as :data:`PORTABLE_CFLAGS`."""
+def _compile(src: str, lib: Path, flags: tuple, include_dirs=(), portable=PORTABLE_CFLAGS) -> None:
+    """Compile the C text ``src`` with ``flags`` (and ``-I`` each of ``include_dirs``) into the verified library
+    ``lib`` (atomic; its hash beside it). Flags with ``-march=native`` that the compiler refuses are retried as
+    ``portable`` (:data:`PORTABLE_CFLAGS`)."""
     cc = compiler()
     if cc is None:
         raise RuntimeError("no C compiler (gcc or cc) on PATH")
+    incs = [f"-I{d}" for d in include_dirs]
     with tempfile.TemporaryDirectory(prefix="cartpole-cc-") as tmp:
         c_file = Path(tmp) / (lib.stem + ".c")
         c_file.write_text(src)
         out = Path(tmp) / lib.name
-        proc = run_compiler([cc, *flags, str(c_file), "-o", str(out), "-lm"])
+        proc = run_compiler([cc, *flags, *incs, str(c_file), "-o", str(out), "-lm"])
         if proc.returncode != 0 and "-march=native" in flags:
-            proc = run_compiler([cc, *PORTABLE_CFLAGS, str(c_file), "-o", str(out), "-lm"])
+            proc = run_compiler([cc, *portable, *incs, str(c_file), "-o", str(out), "-lm"])
         if proc.returncode != 0:
             last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
             raise RuntimeError(f"{Path(cc).name} failed: {last}")
@@ -320,22 +379,140 @@ def _compile(src: str, lib: Path, flags: tuple) -> None:
         write_verified(lib, out.read_bytes())
 
 
-def build_c_library(src: str, stem: str) -> str:
-    """Hand-written C ``src`` (not generated by CasADi) compiled with :data:`CFLAGS` to a cached shared library
-    ``<stem>_<hash>.so`` (the hash of the source, the flags and :func:`cpu_key`); returns its path. Built once per
-    machine and source, verified by content like every library here; load it with ``ctypes``.
+def build_c_library(src: str, stem: str, include_dirs=(), *, cflags: tuple | None = None) -> str:
+    """Hand-written C ``src`` (not generated by CasADi) compiled to a cached shared library ``<stem>_<key>.so``;
+    returns its path. The key is :func:`library_key`: the source, the files it includes from ``include_dirs``
+    (e.g. :data:`CSRC`; passed to the compiler as ``-I``), the compiler, the flags and :func:`cpu_key`. Built once
+    per machine and source, verified by content like every library here; load it with ``ctypes``.
+
+    Parameters
+    ----------
+    src : str
+        One C translation unit (it may ``#include`` files from ``include_dirs``).
+    stem : str
+        File-name prefix of the library.
+    include_dirs : sequence of path
+        Directories searched for ``#include "..."`` (hashed into the key).
+    cflags : tuple of str, optional
+        Compiler flags instead of :data:`CFLAGS` (``-fPIC -shared`` added; ``$CARTPOLE_CFLAGS`` wins when set).
 
     Raises
     ------
     RuntimeError
         No C compiler, or it failed.
     """
-    flags = choose_cflags(src) if os.environ.get("CARTPOLE_CFLAGS") else CFLAGS
-    key = hashlib.sha256((" ".join(flags) + cpu_key() + src).encode()).hexdigest()[:20]
-    lib = private_cache_dir() / f"{stem}_{key}.so"
+    if os.environ.get("CARTPOLE_CFLAGS"):
+        flags = choose_cflags(src)
+    elif cflags is not None:
+        flags = (*cflags, "-fPIC", "-shared")
+    else:
+        flags = CFLAGS
+    include_dirs = tuple(str(d) for d in include_dirs)
+    lib = private_cache_dir() / f"{stem}_{library_key(src, flags, compiler(), include_dirs)}.so"
     if not is_verified(lib):
-        _compile(src, lib, flags)
+        portable = tuple(f for f in flags if f != "-march=native")
+        _compile(src, lib, flags, include_dirs, portable)
     return str(lib)
+
+
+def build_sources(files: dict, stem: str, *, cflags: tuple) -> str:
+    """A folder of C files (relative path -> text, e.g. an export's ``include/`` and ``src/``) compiled into one
+    cached shared library ``<stem>_<key>.so`` with exactly ``cflags`` (plus ``-fPIC -shared``, ``-I`` of every
+    folder that holds a header; ``$CARTPOLE_CFLAGS`` is not applied: the flags are part of what is compared);
+    returns its path. The key is :func:`library_key` of every file's path and text, the compiler and the flags,
+    so an edited file builds a new library and the same files find the one already built.
+
+    Parameters
+    ----------
+    files : dict
+        Relative path -> C text; every ``*.c`` is compiled, the ``*.h`` are found through ``-I``.
+    stem : str
+        File-name prefix of the library.
+    cflags : tuple of str
+        Compiler flags (``-march=native`` dropped and retried once if the compiler refuses it).
+
+    Raises
+    ------
+    RuntimeError
+        No C compiler, or it failed (its first error quoted).
+    """
+    flags = (*cflags, "-fPIC", "-shared")
+    joined = "".join(f"\0{rel}\0{files[rel]}" for rel in sorted(files))
+    lib = private_cache_dir() / f"{stem}_{library_key(joined, flags, compiler())}.so"
+    if is_verified(lib):
+        return str(lib)
+    cc = compiler()
+    if cc is None:
+        raise RuntimeError("no C compiler (gcc or cc) on PATH")
+    with tempfile.TemporaryDirectory(prefix="cartpole-cc-") as tmp:
+        root = Path(tmp)
+        for rel, text in files.items():
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            (root / rel).write_text(text)
+        incs = sorted({f"-I{(root / rel).parent}" for rel in files if rel.endswith(".h")})
+        srcs = [str(root / rel) for rel in sorted(files) if rel.endswith(".c")]
+        out = root / lib.name
+        cmd = [cc, *flags, *incs, *srcs, "-o", str(out), "-lm"]
+        proc = run_compiler(cmd)
+        if proc.returncode != 0 and "-march=native" in flags:
+            proc = run_compiler([c for c in cmd if c != "-march=native"])
+        if proc.returncode != 0:
+            lines = [ln for ln in proc.stderr.splitlines() if "error" in ln] or proc.stderr.splitlines() or ["?"]
+            raise RuntimeError(f"{Path(cc).name} failed: {lines[0].strip()[:200]}")
+        write_verified(lib, out.read_bytes())
+    return str(lib)
+
+
+def render(template: str, **values) -> str:
+    """The Jinja2 template ``template`` (a file name under :data:`CSRC`, e.g. ``"cp_data.h.jinja"``) rendered with
+    ``values``: the one place model-specific constants and tables are written into the package's C. Undefined
+    names are errors (``StrictUndefined``); the filters ``c_real`` (a float as an exact C literal, ``INFINITY`` for
+    infinities) and ``c_list`` (an array flattened in C order as a comma-separated list of literals) are defined.
+
+    Parameters
+    ----------
+    template : str
+        Template file name, relative to :data:`CSRC`.
+    **values
+        The template's variables.
+
+    Returns
+    -------
+    str
+        The rendered text.
+    """
+    return _jinja_env().get_template(template).render(**values)
+
+
+def c_real(value) -> str:
+    """A float as an exact C literal (``repr`` round-trips a double; ``INFINITY``/``-INFINITY`` from C99
+    ``<math.h>``). Raises ValueError for NaN."""
+    import math
+
+    v = float(value)
+    if math.isnan(v):
+        raise ValueError("NaN has no place in a C table")
+    if math.isinf(v):
+        return "INFINITY" if v > 0 else "-INFINITY"
+    text = repr(v)
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+def _c_list(values, ctype: str = "real", per_line: int = 6) -> str:
+    flat = np.asarray(values).ravel(order="C")
+    items = [str(int(v)) for v in flat] if ctype == "int" else [c_real(v) for v in flat]
+    return ",\n    ".join(", ".join(items[i:i + per_line]) for i in range(0, len(items), per_line))
+
+
+@functools.lru_cache(maxsize=1)
+def _jinja_env():
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(CSRC)), undefined=jinja2.StrictUndefined,
+                             keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True, autoescape=False)
+    env.filters["c_real"] = c_real
+    env.filters["c_list"] = _c_list
+    return env
 
 
 def compiled_or_none(build, what: str, fallback: str = "using CasADi's virtual machine (same results, slower)"):

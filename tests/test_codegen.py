@@ -201,3 +201,68 @@ def test_an_interrupt_during_a_compile_kills_the_compilers_whole_process_group(t
     while _alive(child) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not _alive(child), "the compiler's child outlived the interrupt"
+
+
+# ---- cache keys that cannot go stale (issue 39) ---------------------------------------------------------------
+
+def test_a_changed_function_builder_is_rebuilt_and_the_same_builder_is_a_cache_hit(tmp_path, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    x = ca.SX.sym("x", 2)
+    first = ca.Function("cg_builder", [x], [x * x])
+    changed = ca.Function("cg_builder", [x], [x * x * x])  # same name, same digest and recipe: another builder
+    lib, now = codegen.build_library([first], "same-digest")
+    hit, now_hit = codegen.build_library([first], "same-digest")
+    other, now_other = codegen.build_library([changed], "same-digest")
+    assert now and not now_hit and hit == lib
+    assert now_other and other != lib
+    loaded = codegen.load_library(other, ["cg_builder"])["cg_builder"]
+    np.testing.assert_array_equal(np.asarray(loaded([2.0, -1.0])).ravel(), [8.0, -1.0])
+
+
+def test_a_recipe_never_hides_a_changed_source_across_processes(tmp_path, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    x = ca.SX.sym("x")
+    lib, _ = codegen.build_library([ca.Function("cg_recipe", [x], [2 * x])], "d", recipe="same-recipe")
+    codegen._BUILT.clear()  # a new process: the recipe memo is per process
+    other, now = codegen.build_library([ca.Function("cg_recipe", [x], [3 * x])], "d", recipe="same-recipe")
+    assert now and other != lib
+
+
+def test_an_included_c_file_a_flag_or_the_compiler_changes_the_key(tmp_path, monkeypatch):
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    inc = tmp_path / "inc"
+    inc.mkdir()
+    (inc / "cg_value.h").write_text("#define CG_VALUE 1\n")
+    src = '#include "cg_value.h"\nint cg_value(void) { return CG_VALUE; }\n'
+    lib = codegen.build_c_library(src, "cg_inc", [inc])
+    assert codegen.build_c_library(src, "cg_inc", [inc]) == lib  # the same inputs: a cache hit
+    (inc / "cg_value.h").write_text("#define CG_VALUE 2\n")
+    changed = codegen.build_c_library(src, "cg_inc", [inc])
+    assert changed != lib
+    import ctypes
+
+    assert ctypes.CDLL(changed).cg_value() == 2
+    assert codegen.build_c_library(src, "cg_inc", [inc], cflags=("-O1",)) != changed
+    key = codegen.library_key(src, codegen.CFLAGS, codegen.compiler(), [inc])
+    assert codegen.library_key(src, codegen.CFLAGS, "/bin/sh", [inc]) != key  # another compiler
+
+
+def test_render_fills_a_template_and_refuses_an_undefined_name(tmp_path, monkeypatch):
+    import jinja2
+    import pytest
+
+    monkeypatch.setattr(codegen, "CSRC", tmp_path)
+    codegen._jinja_env.cache_clear()
+    try:
+        (tmp_path / "t.h.jinja").write_text("static const double K[{{ k|length }}] = { {{ k|c_list }} };\n"
+                                            "#define HI {{ hi|c_real }}\n")
+        text = codegen.render("t.h.jinja", k=np.array([1.0, 0.1, -2.5]), hi=np.inf)
+        assert text == "static const double K[3] = { 1.0, 0.1, -2.5 };\n#define HI INFINITY\n"
+        with pytest.raises(jinja2.UndefinedError):
+            codegen.render("t.h.jinja", k=[1.0])
+    finally:
+        codegen._jinja_env.cache_clear()

@@ -598,6 +598,7 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, ri
     """``ctrl`` run in MuJoCo from each row of ``x0s`` for ``duration`` s (``reset()`` called before each run), on
     ``rig`` (each run its own noise stream) when given: ``(rollouts, metrics)``, the metrics measured from
     ``x_eq``. ``progress`` receives the fraction of all the runs' steps done, about 20 times a run."""
+    from cartpole.export.inloop import in_loop
     from cartpole.sim import simulate
     from cartpole.validation.metrics import summarize
 
@@ -607,7 +608,9 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, ri
         if reset is not None:
             reset()
         tick = None if progress is None else (lambda f, i=i: progress((i + f) / n))
-        run = simulate(model.params, ctrl, x0, duration, rig=None if rig is None else rig.for_run(i), progress=tick)
+        # the one implementation: the compiled C of the export when there is a compiler (cartpole.export.inloop)
+        loop_ctrl, loop_rig = in_loop(model, ctrl, None if rig is None else rig.for_run(i))
+        run = simulate(model.params, loop_ctrl, x0, duration, rig=loop_rig, progress=tick)
         runs.append(run)
         mets.append(summarize(run, model, x_eq=x_eq))
         if progress is not None:

@@ -201,26 +201,60 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         title = (f"nonlinear MPC by real-time iteration ({mpc.N} stages of {mpc.period:g} s, dual active-set QP in "
                  "C), swing-up from the planned start")
     spec = None if rig is None else rig.spec
-    if estimator == "none":
-        est_part = state_part()
-    elif estimator == "kf":
-        est_part = kalman_part(rig.make_estimator(), model, spec)
-    elif estimator == "ekf":
-        est_part = ekf_part(rig.make_estimator(), model, spec)
-    else:
-        from cartpole.export.mhe import mhe_part
-
-        est_part = mhe_part(rig.make_estimator(), model, spec)
-    ny = model.nx if spec is None else int(spec.ny)
-    compensate = rig is not None and rig.compensate and lag > 0
-    from cartpole.sim.rollout import ctrl_bounds, make_mujoco
-
-    m, _ = make_mujoco(model.params)
-    lo, hi = ctrl_bounds(m)
-    program = CProgram(nx=model.nx, nq=model.nq, nu=model.nu, ny=ny, steps=steps, lag=lag, dt=float(model.dt),
-                       real=real, u_low=np.asarray(lo, float), u_high=np.asarray(hi, float),
-                       hinges=tuple(model.hinges), estimator=est_part, controller=ctrl_part,
-                       predict=_predictor(model, lag) if compensate else None,
-                       title=f"{title}, estimator {estimator}, delay {lag * float(model.dt):g} s, {real}")
+    program = build_program(model, rig, ctrl_part, real=real, title=title)
     return ExportDesign(method=method, estimator=estimator, model=model, program=program, make_controller=make,
                         rig=rig, spec=spec, task=task, plan_end=plan_end)
+
+
+def estimator_part(rig, model):
+    """The estimator part of ``rig`` (None: MuJoCo's state) for the design model ``model``: ``cp_state.c``,
+    ``cp_kf.c``, ``cp_ekf.c`` or the MHE's, from a fresh estimator of the rig."""
+    spec = None if rig is None else rig.spec
+    name = "none" if rig is None else rig.estimator
+    if name == "none":
+        return state_part()
+    if name == "kf":
+        return kalman_part(rig.make_estimator(), model, spec)
+    if name == "ekf":
+        return ekf_part(rig.make_estimator(), model, spec)
+    from cartpole.export.mhe import mhe_part
+
+    return mhe_part(rig.make_estimator(), model, spec)
+
+
+def build_program(model, rig, ctrl_part, *, real: str = "double", title: str = "", params=None) -> CProgram:
+    """The :class:`CProgram` of the controller part ``ctrl_part`` on ``rig`` (None: MuJoCo's exact state every
+    physics step): the rig's estimator part (:func:`estimator_part`), its delay prediction when it compensates,
+    the MuJoCo ctrlrange of ``model``'s MJCF.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        The design model (its ``params`` the MJCF MuJoCo runs).
+    rig : Rig or None
+    ctrl_part : CPart
+    real : {"double", "float"}
+    title : str
+        The export's one-line description (its estimator, delay and real type are appended).
+    params : CartPoleParams, optional
+        The MJCF MuJoCo runs, whose ctrlrange the ctrl is clipped to (default ``model.params``).
+
+    Returns
+    -------
+    CProgram
+    """
+    from cartpole.sim.rollout import ctrl_bounds, make_mujoco
+
+    estimator = "none" if rig is None else rig.estimator
+    steps = 1 if rig is None else int(rig.steps)
+    lag = 0 if rig is None else int(rig.delay_steps)
+    spec = None if rig is None else rig.spec
+    ny = model.nx if spec is None else int(spec.ny)
+    compensate = rig is not None and rig.compensate and lag > 0
+    m, _ = make_mujoco(model.params if params is None else params)
+    lo, hi = ctrl_bounds(m)
+    return CProgram(nx=model.nx, nq=model.nq, nu=model.nu, ny=ny, steps=steps, lag=lag, dt=float(model.dt),
+                    real=real, u_low=np.asarray(lo, float), u_high=np.asarray(hi, float),
+                    hinges=tuple(model.hinges), estimator=estimator_part(rig, model), controller=ctrl_part,
+                    predict=_predictor(model, lag) if compensate else None,
+                    title=f"{title}, estimator {estimator}, delay {lag * float(model.dt):g} s, {real}")

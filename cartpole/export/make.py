@@ -85,6 +85,12 @@ def manifest(design, real: str) -> dict:
     }
 
 
+def c_sources(prog) -> dict:
+    """Relative path -> text of the C files (``include/``, ``src/``) of the program ``prog``: what
+    :func:`export_files` writes and the MuJoCo loop compiles (:mod:`cartpole.export.inloop`)."""
+    return sources(prog, toolkit_version())
+
+
 def export_files(design, real: str = "double") -> dict:
     """Relative path -> text of every file of the export of ``design`` with ``cp_real`` ``real``."""
     prog = replace(design.program, real=real) if real != design.program.real else design.program

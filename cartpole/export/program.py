@@ -1,19 +1,15 @@
-"""An exported controller as C text: the rig's loop (estimate, delay prediction, ctrl history, saturation) around
-one estimator part and one controller part, assembled into ``src/cartpole_controller.c`` and
-``include/cartpole_controller.h``.
+"""An exported controller as C files: the rig step (``cartpole/csrc/cp_rig.c``: estimate, delay prediction, ctrl
+history, saturation) around one estimator part and one controller part, each a C file of ``cartpole/csrc/``
+copied as it is, with the export's sizes, constants and tables rendered from Jinja2 templates
+(``cp_config.h.jinja``, ``cp_data.c.jinja``) and its model maths CasADi-generated (``src/cp_generated.c``).
 
 The step ``cp_step(t, y, u)`` does what :class:`cartpole.sim.rig.RigRun` and :func:`cartpole.sim.rollout.simulate`
-do around a Python controller, in the same order and with the same arithmetic:
+do around a Python controller, in the same order and with the same arithmetic (see ``cp_rig.c``).
 
-1. the first call starts the estimate from ``y`` (``est_reset``), later ones update it with the ctrl MuJoCo applied
-   during each physics step since the last call (``est_update``);
-2. with a delay of ``LAG`` physics steps (and compensation on) the estimate is predicted over the delay through the
-   exact discrete model with the ctrl already sent (CasADi-generated ``cp_predict``);
-3. the controller part gives ``u`` at ``t + CP_DELAY`` (the instant it takes effect); ``u`` is clipped to the
-   MJCF's ``ctrlrange`` and remembered: it acts on the ``CP_STEPS`` physics steps from ``LAG`` steps on.
-
-A part is a :class:`CPart`: its ``static const`` tables, the fields it adds to the one static state struct ``S``,
-its C functions, its reset statements and the CasADi Functions it calls.
+A part is a :class:`CPart`: the C files it is made of (``sources``), its tables and constants, and the CasADi
+Functions it calls. Parts the NMPC and MHE modules still write as C text (``code``, ``tables``, ``fields``,
+``reset``) are rendered into ``src/cp_legacy.c`` (``cp_legacy.c.jinja``) and bound to the same part interface
+(``cp_parts.h``).
 """
 from __future__ import annotations
 
@@ -22,7 +18,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from cartpole.export.csource import call, generate, table, work_sizes
+from cartpole.codegen import CSRC, render
+from cartpole.export.csource import float_maths, generate, work_sizes
 
 #: ``cp_step``'s return codes, as the header and the manifest document them.
 RETURN_CODES = {
@@ -41,23 +38,36 @@ class CPart:
 
     Attributes
     ----------
-    tables : str
-        ``static const`` arrays.
-    fields : tuple of str
-        Members of the state struct ``S`` (``"cp_real z;"``).
-    code : str
-        Static C functions.
-    reset : str
-        Statements run by ``cp_reset`` after ``S`` is zeroed.
+    sources : tuple of str
+        Files of ``cartpole/csrc/`` the part is made of (copied into ``src/`` as they are).
+    data : tuple
+        Its tables: ``(name, ctype, values)`` with ``ctype`` ``"cp_real"``, ``"double"`` or ``"int"`` (declared in
+        ``cp_config.h``, defined in ``cp_data.c``; values flattened in C order).
+    constants : tuple
+        Its scalars: ``(name, ctype, value)``, each ``#define NAME ((ctype)value)`` in ``cp_config.h``.
+    defines : tuple
+        Integer switches and sizes: ``(name, int)``, each ``#define NAME value``.
     functions : tuple of casadi.Function
         CasADi Functions the code calls (generated into ``src/cp_generated.c``).
+    tables, fields, code, reset : str, tuple of str, str, str
+        A part written as C text (``static const`` tables, members of the struct ``S``, static functions
+        ``est_reset``/``est_update`` or ``ctrl_eval``, statements run on reset): rendered into ``src/cp_legacy.c``.
     """
 
+    sources: tuple = ()
+    data: tuple = ()
+    constants: tuple = ()
+    defines: tuple = ()
+    functions: tuple = field(default=())
     tables: str = ""
     fields: tuple = ()
     code: str = ""
     reset: str = ""
-    functions: tuple = field(default=())
+
+    @property
+    def legacy(self) -> bool:
+        """Whether the part is C text (rendered into ``src/cp_legacy.c``) rather than files of ``cartpole/csrc``."""
+        return bool(self.code)
 
 
 @dataclass(frozen=True)
@@ -123,169 +133,82 @@ class CProgram:
         return tuple(self.estimator.functions) + tuple(self.controller.functions) + extra
 
 
+#: The names of :data:`RETURN_CODES` in C.
+CODE_NAMES = {0: "CP_OK", 1: "CP_BAD_MEASUREMENT", 2: "CP_BAD_STATE", 3: "CP_FALLBACK"}
+#: Files of ``cartpole/csrc`` every export carries (relative path in the export -> file): the rig step, the shared
+#: helpers and the part interface.
+COMMON_FILES = {"src/cartpole_controller.c": "cp_rig.c", "src/cp_common.c": "cp_common.c",
+                "src/cp_common.h": "cp_common.h", "src/cp_parts.h": "cp_parts.h", "src/cp_linalg.c": "cp_linalg.c",
+                "src/cp_linalg.h": "cp_linalg.h"}
+
+
 def header(prog: CProgram, version: str) -> str:
-    """The public header ``include/cartpole_controller.h`` of ``prog``."""
-    codes = "\n".join(f" *   {k}  {v}" for k, v in RETURN_CODES.items())
-    names = {0: "CP_OK", 1: "CP_BAD_MEASUREMENT", 2: "CP_BAD_STATE", 3: "CP_FALLBACK"}
-    defs = "\n".join(f"#define {names[k]} {k}" for k in RETURN_CODES)
-    return f"""/* cartpole_controller.h: {prog.title}
- * Exported by cartpole {version}. C99, static memory, no malloc; link with libm.
- *
- * Call cp_reset() once before a run, then cp_step() once every CP_PERIOD seconds with the measurements y
- * (CP_NY entries, in the order manifest.json lists, sensor units); it writes the ctrl u (CP_NU entries,
- * MuJoCo ctrl units, clipped to the MJCF's ctrlrange) and returns one of:
-{codes}
- * t is the sample time in s since the start of the run (used by time-varying laws).
- */
-#ifndef CARTPOLE_CONTROLLER_H
-#define CARTPOLE_CONTROLLER_H
-
-#ifdef __cplusplus
-extern "C" {{
-#endif
-
-typedef {prog.real} cp_real;
-
-#define CP_NY {prog.ny}
-#define CP_NU {prog.nu}
-#define CP_PERIOD {prog.period!r}
-#define CP_DELAY {prog.delay!r}
-#define CP_REAL_IS_FLOAT {1 if prog.real == "float" else 0}
-{defs}
-
-void cp_reset(void);
-int cp_step(double t, const cp_real y[CP_NY], cp_real u[CP_NU]);
-
-#ifdef __cplusplus
-}}
-#endif
-
-#endif /* CARTPOLE_CONTROLLER_H */
-"""
+    """The public header ``include/cartpole_controller.h`` of ``prog`` (``cartpole_controller.h.jinja``)."""
+    return render("cartpole_controller.h.jinja", title=prog.title, version=version, real=prog.real, ny=prog.ny,
+                  nu=prog.nu, period=repr(prog.period), delay=repr(prog.delay),
+                  return_codes=list(RETURN_CODES.items()), code_names=list(CODE_NAMES.items()))
 
 
-_HELPERS = """
-static cp_real cp_clip(cp_real v, cp_real lo, cp_real hi)
-{
-    return v < lo ? lo : (v > hi ? hi : v);
-}
-
-/* (-pi, pi], as numpy: mod(a + pi, 2 pi) - pi with -pi mapped to pi */
-static cp_real cp_wrap(cp_real a)
-{
-    cp_real w = fmod(a + CP_PI_, 2 * CP_PI_);
-    if (w != 0 && w < 0) {
-        w += 2 * CP_PI_;
-    }
-    w -= CP_PI_;
-    return w == -CP_PI_ ? CP_PI_ : w;
-}
-
-/* e = x - ref with the hinge entries wrapped */
-static void cp_error(const cp_real* x, const cp_real* ref, cp_real* e)
-{
-    int i;
-    for (i = 0; i < NX; ++i) {
-        e[i] = x[i] - ref[i];
-        if (WRAP[i]) {
-            e[i] = cp_wrap(e[i]);
-        }
-    }
-}
-"""
-
-
-def _struct(prog: CProgram) -> str:
-    w, iw = work_sizes(prog.functions)
-    fields = ["int started;", "cp_real x_hat[NX];", "cp_real planned[(CP_STEPS + LAG) * CP_NU];",
-              "cp_real last[CP_NU];", *prog.estimator.fields, *prog.controller.fields]
-    if prog.functions:
-        fields += [f"cp_real w[{w}];", f"casadi_int iw[{iw}];"]
-    body = "\n".join(f"    {f}" for f in fields)
-    return f"static struct cp_state {{\n{body}\n}} S;\n"
-
-
-def source(prog: CProgram, version: str) -> str:
-    """``src/cartpole_controller.c`` of ``prog`` (see the module doc)."""
-    nu = prog.nu
+def _tables(prog: CProgram) -> list:
     wrap = [1 if i < prog.nq and i in prog.hinges else 0 for i in range(prog.nx)]
-    includes = '#include <math.h>\n#include <string.h>\n\n#include "cartpole_controller.h"\n'
-    if prog.functions:
-        includes += '#include "cp_generated.h"\n'
-    defines = (f"#define NX {prog.nx}\n#define NQ {prog.nq}\n#define CP_STEPS {prog.steps}\n#define LAG {prog.lag}\n"
-               "#define CP_PI_ ((cp_real)3.14159265358979323846)\n")
-    tables = (table("U_LOW", prog.u_low) + table("U_HIGH", prog.u_high) + table("WRAP", wrap, "int")
-              + prog.estimator.tables + prog.controller.tables)
-    if prog.predict is not None:
-        predict = ("    " + call(prog.predict, ["S.x_hat", "S.planned + CP_STEPS * CP_NU"], ["xu"]) + "\n")
-    else:
-        predict = "    for (i = 0; i < NX; ++i) {\n        xu[i] = S.x_hat[i];\n    }\n"
-    keep = prog.lag * nu
-    step = f"""
-void cp_reset(void)
-{{
-    int i;
-    memset(&S, 0, sizeof S);
-    for (i = 0; i < (CP_STEPS + LAG) * CP_NU; ++i) {{
-        S.planned[i] = cp_clip(0, U_LOW[i % CP_NU], U_HIGH[i % CP_NU]);
-    }}
-    for (i = 0; i < CP_NU; ++i) {{
-        S.last[i] = S.planned[i];
-    }}
-{prog.estimator.reset}{prog.controller.reset}}}
+    rows = [("U_LOW", "cp_real", prog.u_low), ("U_HIGH", "cp_real", prog.u_high), ("WRAP", "int", wrap)]
+    out, seen = [], set()
+    for part in (prog.estimator, prog.controller):
+        rows += list(part.data)
+    for name, ctype, values in rows:
+        if name in seen:
+            raise ValueError(f"two tables named {name} in one export")
+        seen.add(name)
+        flat = np.asarray(values).ravel(order="C")
+        if flat.size == 0:
+            raise ValueError(f"table {name} would be empty (C99 forbids zero-length arrays)")
+        out.append({"name": name, "ctype": ctype, "size": int(flat.size), "data": flat,
+                    "kind": "int" if ctype == "int" else "real"})
+    return out
 
-int cp_step(double t, const cp_real y[CP_NY], cp_real u[CP_NU])
-{{
-    int i, code;
-    cp_real xu[NX];
-    for (i = 0; i < CP_NY; ++i) {{
-        if (!isfinite(y[i])) {{
-            for (i = 0; i < CP_NU; ++i) {{
-                u[i] = S.last[i];
-            }}
-            return CP_BAD_MEASUREMENT;
-        }}
-    }}
-    if (!S.started) {{
-        est_reset(y, S.x_hat);
-        S.started = 1;
-    }} else {{
-        est_update(y, S.planned, S.x_hat);
-    }}
-{predict}    code = ctrl_eval(t + CP_DELAY, xu, u);
-    for (i = 0; i < CP_NU; ++i) {{
-        if (!isfinite(u[i])) {{
-            code = CP_BAD_STATE;
-        }}
-    }}
-    for (i = 0; i < CP_NU; ++i) {{
-        u[i] = code == CP_BAD_STATE ? cp_clip(0, U_LOW[i], U_HIGH[i]) : cp_clip(u[i], U_LOW[i], U_HIGH[i]);
-        S.last[i] = u[i];
-    }}
-    /* the window of planned ctrl: steps [k - CP_STEPS, k + LAG) becomes [k, k + CP_STEPS + LAG) */
-    for (i = 0; i < {keep}; ++i) {{
-        S.planned[i] = S.planned[i + CP_STEPS * CP_NU];
-    }}
-    for (i = {keep}; i < (CP_STEPS + LAG) * CP_NU; ++i) {{
-        S.planned[i] = u[i % CP_NU];
-    }}
-    return code;
-}}
-"""
-    return (f"/* cartpole_controller.c: {prog.title}\n * Exported by cartpole {version}; do not edit (re-export "
-            "instead). */\n" + includes + "\n" + defines + "\n" + tables + "\n" + _struct(prog) + _HELPERS
-            + prog.estimator.code + prog.controller.code + step)
+
+def config(prog: CProgram) -> tuple[str, str]:
+    """``(src/cp_config.h, src/cp_data.c)`` of ``prog``: sizes, switches, constants and the extern tables, and the
+    tables' definitions, rendered from ``cp_config.h.jinja`` and ``cp_data.c.jinja``."""
+    tables = _tables(prog)
+    defines, constants = [], []
+    for part in (prog.estimator, prog.controller):
+        defines += [(n, int(v)) for n, v in part.defines]
+        constants += [(n, c, float(v)) for n, c, v in part.constants]
+    values = {"title": prog.title, "nx": prog.nx, "nq": prog.nq, "steps": prog.steps, "lag": prog.lag,
+              "predict": prog.predict is not None, "defines": defines, "constants": constants, "tables": tables}
+    return render("cp_config.h.jinja", **values), render("cp_data.c.jinja", **values)
+
+
+def legacy_source(prog: CProgram) -> str | None:
+    """``src/cp_legacy.c``: the parts of ``prog`` written as C text (:attr:`CPart.legacy`), or None."""
+    est = prog.estimator if prog.estimator.legacy else None
+    ctl = prog.controller if prog.controller.legacy else None
+    if est is None and ctl is None:
+        return None
+    parts = [p for p in (est, ctl) if p is not None]
+    funcs = [f for p in parts for f in p.functions]
+    w, iw = work_sizes(funcs)
+    return render("cp_legacy.c.jinja", title=prog.title, generated=bool(funcs), work=w, iwork=iw,
+                  tables="".join(p.tables for p in parts), fields=[f for p in parts for f in p.fields],
+                  code="".join(p.code for p in parts), estimator=est, controller=ctl)
 
 
 def sources(prog: CProgram, version: str) -> dict:
-    """Relative path -> text of every C file of ``prog``: the header, ``src/cartpole_controller.c`` and, when the
-    program calls CasADi Functions, ``src/cp_generated.c`` and ``src/cp_generated.h``."""
-    from cartpole.export.csource import float_maths
-
-    main = source(prog, version)
-    if prog.real == "float":
-        main = float_maths(main)
-    out = {"include/cartpole_controller.h": header(prog, version), "src/cartpole_controller.c": main}
+    """Relative path -> text of every C file of ``prog``: the header, the rig step and the parts' files of
+    ``cartpole/csrc`` as they are, the rendered ``src/cp_config.h`` and ``src/cp_data.c``, ``src/cp_legacy.c``
+    for parts written as C text, and, when the program calls CasADi Functions, ``src/cp_generated.c`` and
+    ``src/cp_generated.h``."""
+    out = {"include/cartpole_controller.h": header(prog, version)}
+    for rel, name in COMMON_FILES.items():
+        out[rel] = (CSRC / name).read_text()
+    for part in (prog.estimator, prog.controller):
+        for name in part.sources:
+            out[f"src/{name}"] = (CSRC / name).read_text()
+    out["src/cp_config.h"], out["src/cp_data.c"] = config(prog)
+    legacy = legacy_source(prog)
+    if legacy is not None:
+        out["src/cp_legacy.c"] = float_maths(legacy) if prog.real == "float" else legacy
     if prog.functions:
         gen_c, gen_h = generate(prog.functions, prog.real)
         out["src/cp_generated.c"] = gen_c

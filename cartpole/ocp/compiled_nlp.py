@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import LIB_VERSION, build_library, compiled_or_none, digest, load_library, model_key
+from cartpole.codegen import build_library, compiled_or_none, digest, load_library, model_key
 from cartpole.models import CartPoleModel
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 
@@ -225,10 +225,11 @@ def knot_maps(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su, *,
 
 def recipe_key(f: ca.Function, sx, su, running: ca.Function | None = None) -> str:
     """Hex digest of everything the interval functions are generated from: ``f``'s serialised expression graph,
-    the scales ``sx``, ``su``, the running cost's graph (if any), :data:`cartpole.codegen.LIB_VERSION`, the CasADi version and
-    ``$CARTPOLE_CFLAGS``. A library found under it is used without generating its C source again."""
+    the scales ``sx``, ``su``, the running cost's graph (if any), the CasADi version and ``$CARTPOLE_CFLAGS``. Within one
+    process a library found under it is used without generating its C source again (the library's own cache key is
+    its generated source: :func:`cartpole.codegen.library_key`)."""
     h = hashlib.sha256()
-    h.update((LIB_VERSION + ca.__version__ + os.environ.get("CARTPOLE_CFLAGS", "")).encode())
+    h.update((ca.__version__ + os.environ.get("CARTPOLE_CFLAGS", "")).encode())
     h.update(f.serialize().encode())
     digest(np.asarray(sx, float), h)
     digest(np.asarray(su, float).ravel(), h)

@@ -22,7 +22,14 @@ def test_export_writes_the_contract_files_and_manifest(tmp_path, design):
     out = tmp_path / "ctl"
     w = write_export(design, out)
     assert set(w.files) == {"include/cartpole_controller.h", "src/cartpole_controller.c", "src/cp_generated.c",
-                            "src/cp_generated.h", "example/main.c", "Makefile", "manifest.json", "README.md"}
+                            "src/cp_generated.h", "src/cp_common.c", "src/cp_common.h", "src/cp_parts.h",
+                            "src/cp_linalg.c", "src/cp_linalg.h", "src/cp_kf.c", "src/cp_lqr.c", "src/cp_config.h",
+                            "src/cp_data.c",
+                            "example/main.c", "Makefile", "manifest.json", "README.md"}
+    from cartpole.codegen import CSRC
+
+    for rel, name in {"src/cartpole_controller.c": "cp_rig.c", "src/cp_kf.c": "cp_kf.c"}.items():
+        assert (out / rel).read_text() == (CSRC / name).read_text()  # the package's C, copied as it is
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == sorted(w.files)
     assert w.bytes == sum((out / f).stat().st_size for f in w.files)
     man = json.loads((out / "manifest.json").read_text())
