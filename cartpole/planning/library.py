@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.codegen import LIB_VERSION, cache_dir, model_key, private_dir, read_verified, write_verified
+from cartpole.codegen import cache_dir, model_key, private_dir, read_verified, write_verified
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.ocp.trajectory import Trajectory
@@ -224,7 +224,7 @@ class PlanLibrary:
 def library_path(key: str) -> Path:
     """``<cache>/plans/<key>-<version>.npz``: where the library of the model of hash ``key`` is kept
     (:func:`cartpole.codegen.cache_dir`, the user's cache; never inside the package)."""
-    return cache_dir() / "plans" / f"{key[:32]}-{LIBRARY_VERSION}-{LIB_VERSION}.npz"
+    return cache_dir() / "plans" / f"{key[:32]}-{LIBRARY_VERSION}.npz"
 
 
 def library_starts(model: CartPoleModel, angles: int = 7) -> np.ndarray:
