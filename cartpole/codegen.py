@@ -5,7 +5,7 @@ the SQP's QP assembly, the NMPC's stage functions).
 
 A library's file name is a hash of what it was built from (:func:`library_key`): the C source it compiles (CasADi's
 generated code, or hand-written C), the C files that source includes from the package (:func:`included_sources`),
-the compiler (its path and ``--version``, :func:`compiler_key`), the flags and the CPU (:func:`cpu_key`). Nothing
+the compiler (its path and version banner, :func:`compiler_key`), the flags and the CPU (:func:`cpu_key`). Nothing
 in the key is a version string bumped by hand, so a changed function builder, an edited ``.c`` file under
 ``cartpole/csrc/`` or another compiler always builds a new library, and the same inputs always find the one already
 built. It is compiled once per machine and source, never into the package. Writes are atomic: a concurrent process
@@ -271,14 +271,14 @@ def model_key(model) -> str:
 
 @functools.lru_cache(maxsize=None)
 def compiler_key(cc: str) -> str:
-    """Hex digest of the compiler ``cc``: its resolved path and the output of ``cc --version`` (another compiler, or
+    """Hex digest of the compiler ``cc``: its resolved path and its version banner (another compiler, or
     the same name upgraded, builds new libraries). Read once per process and compiler."""
     h = hashlib.sha256(os.path.realpath(cc).encode())
     try:
         proc = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30, check=False)
         h.update(proc.stdout.encode() + proc.stderr.encode())
     except (OSError, subprocess.SubprocessError) as exc:
-        h.update(f"no --version: {type(exc).__name__}".encode())
+        h.update(f"no version banner: {type(exc).__name__}".encode())
     return h.hexdigest()[:16]
 
 
