@@ -302,6 +302,10 @@ class NMPCController:
         |du|), ``method`` (``"gauss-newton"``, or ``"ipopt"`` with ``ipopt_iterations``).
     """
 
+    #: Whether the compiled C step may replace this class's instant solve (a subclass that solves each instant
+    #: otherwise, e.g. :class:`~cartpole.mpc.ipopt_baseline.IpoptMPC`, sets False).
+    c_step_capable = True
+
     def __init__(self, model: CartPoleModel, params: CartPoleParams, *, options: MPCOptions | None = None,
                  x_goal=None, u_goal=None, guess=None, x0=None, **settings):
         options = (MPCOptions() if options is None else options).replace(**settings)
@@ -350,7 +354,7 @@ class NMPCController:
         self._c = None
         self.reset()
         c_step = options.c_step if options.c_step is not None else (options.compiled and options.qp_solver is None)
-        if c_step:  # the C step from the same first iterate; None without a compiler (the Python step then)
+        if c_step and self.c_step_capable:  # the C step from the same first iterate; None without a compiler
             self._c = compiled_nmpc(self, self._plan)
         self.step_implementation = "c" if self._c is not None else "python"
 

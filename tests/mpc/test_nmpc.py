@@ -285,3 +285,15 @@ def test_without_a_compiler_the_controller_runs_the_python_step(params, model, m
     ctl = NMPCController(model, params, horizon=0.6)
     assert ctl.step_implementation == "python"
     assert np.all(np.isfinite(ctl(0.0, _tilted(model, 0.1))))
+
+
+def test_the_c_step_is_built_once_per_model_and_settings_and_each_controller_keeps_its_own_state(params, model):
+    xa, xb = _tilted(model, 0.1), _tilted(model, -0.2)
+    a = NMPCController(model, params, horizon=0.6, x0=xa)
+    b = NMPCController(model, params, horizon=0.6, x0=xb)
+    assert a._c.library == b._c.library  # the first iterate is run-time data, not compiled in
+    u_a = a(0.0, xa)
+    u_b = b(0.0, xb)
+    a.reset()
+    np.testing.assert_array_equal(a(0.0, xa), u_a)  # b's run did not touch a's static state
+    assert not np.allclose(u_a, u_b)
