@@ -292,7 +292,8 @@ class NMPCController:
     failures : list of dict
         ``{"t", "reason", "action"}`` for each instant where the QP failed and the safe action was applied.
     qp_solver : str
-        ``"daqp"`` or ``"qpoases"``.
+        ``"daqp"`` or ``"qpoases"`` (the Python step's), ``"c"`` with the C step (its dual active-set solver,
+        ``cartpole/csrc/qp_dual.c``).
     library : str or None
         The compiled stage library, None on the fallback.
     lqr : LinearFeedback
@@ -357,6 +358,8 @@ class NMPCController:
         if c_step and self.c_step_capable:  # the C step from the same first iterate; None without a compiler
             self._c = compiled_nmpc(self, self._plan)
         self.step_implementation = "c" if self._c is not None else "python"
+        if self._c is not None:
+            self.qp_solver = "c"  # the dual active-set solver of cartpole/csrc/qp_dual.c
 
     # ---- state of a run -------------------------------------------------------------------------------------
     def reset(self) -> None:
