@@ -24,22 +24,29 @@ from cartpole.validation.metrics import swingup_success
 
 
 def _runs(controller, params, x0, duration: float, repeats: int, calls: list | None = None) -> tuple[list, list]:
-    """Solve times (ms, pooled) and successes of ``repeats`` runs; with ``calls`` also the wall time (ms) of each
-    whole ``controller(t, x)`` call that solved (Python's overhead around the step included) appended to it."""
+    """Solve times (ms, pooled) and successes of ``repeats`` runs; with ``calls`` also, for each instant that
+    solved, the pair (wall time of the whole ``controller(t, x)`` call, the C step's own time or NaN), ms, appended
+    to it."""
     times, ok = [], []
     for _ in range(repeats):
         controller.reset()
         if calls is None:
             ro = simulate(params, controller, x0, duration)
         else:
+            run_calls = []
+
             def timed(t, x):
                 n, t0 = len(controller.solve_ms), time.perf_counter()
                 u = controller(t, x)
                 if len(controller.solve_ms) > n:
-                    calls.append(1e3 * (time.perf_counter() - t0))
+                    run_calls.append(1e3 * (time.perf_counter() - t0))
                 return u
             ro = simulate(params, timed, x0, duration)
         times.extend(controller.solve_ms)
+        if calls is not None:
+            c_ms = list(getattr(controller, "step_c_ms", None) or [])
+            c_ms += [float("nan")] * (len(run_calls) - len(c_ms))
+            calls.extend(zip(run_calls, c_ms))
         ok.append(swingup_success(ro, params))
     return times, ok
 
@@ -49,14 +56,14 @@ def _stats(times) -> dict:
             "solve_ms_p99": float(np.percentile(times, 99)), "steps": len(times)}
 
 
-def _overhead(rti, calls: list) -> dict:
+def _overhead(rti, calls: list) -> dict | None:
     """Python's share of a control step: the whole call's wall time minus the compiled step's own (timed inside
-    the C, ``rti.step_c_ms``), medians in microseconds; None on the Python step."""
-    c_ms = getattr(rti, "step_c_ms", None) or []
-    if rti.step_implementation != "c" or not c_ms:
+    the C, ``rti.step_c_ms``), instant by instant, medians in microseconds; None on the Python step."""
+    if rti.step_implementation != "c" or not calls:
         return None
-    return {"call_us_median": 1e3 * float(np.median(calls)), "c_us_median": 1e3 * float(np.median(c_ms)),
-            "python_us_median": 1e3 * (float(np.median(calls)) - float(np.median(c_ms)))}
+    call, c = (np.array(v, dtype=float) for v in zip(*calls))
+    return {"call_us_median": 1e3 * float(np.median(call)), "c_us_median": 1e3 * float(np.median(c)),
+            "python_us_median": 1e3 * float(np.median(call - c))}
 
 
 def _rti_vs_ipopt(params, model, plan, options, x0, duration: float, repeats: int, baseline_repeats: int) -> dict:

@@ -540,7 +540,7 @@ def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None, u_max=None,
     ----------
     mjcf : path, optional
     quick : bool
-        One run instead of three.
+        One run instead of three, and not the two-pole RTI against IPOPT.
     progress : callable, optional
         ``progress(message)``.
     u_max : float or (nu,) array, optional
@@ -557,7 +557,7 @@ def mpc_benchmark(mjcf=None, *, quick: bool = False, progress=None, u_max=None,
     except ImportError:
         return None
     (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
-    return run_mpc_benchmark(mjcf, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max)
+    return run_mpc_benchmark(mjcf, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max, two_pole=not quick)
 
 
 def print_mpc_table(doc: dict, file=None) -> None:
