@@ -20,6 +20,8 @@ class IpoptMPC(NMPCController):
     "print_time": False, "ipopt.sb": "yes", "expand": True}``). ``iterations`` is ignored (IPOPT runs to its own
     tolerance); the first iterate is converged by one IPOPT solve when ``x0`` is given."""
 
+    c_step_capable = False  # each instant is IPOPT's, never the compiled RTI step
+
     def __init__(self, *args, ipopt_options: dict | None = None, **kwargs):
         self._ipopt_options = dict(ipopt_options or {})
         self.last_stats: dict = {}

@@ -34,6 +34,14 @@ CasADi, ``casadi.conic("qpoases")``); both give the same solution. DAQP is the d
 hot-started with no working-set change, re-factorises each new dense matrix, and HPIPM through ``sqpmethod`` costs
 more again (DESIGN.md); :func:`cartpole.apps.bench.mpc.run_mpc_benchmark` measures the step against IPOPT.
 
+One implementation: by default each control instant runs the compiled C of ``cartpole/csrc/nmpc.c.jinja``
+(shift, the stages' linearisations through the CasADi-generated stage, the condensing, the dual active-set QP of
+``cartpole/csrc/qp_dual.c``, the safe action), built once per model and settings and called through ctypes
+(:mod:`cartpole.mpc.nmpc_c`): the C that ``cartpole export --controller nmpc`` ships, so the loop's ctrl and the
+exported folder's are equal. The Python step described here (DAQP or qpOASES) is the path without a C compiler
+(``c_step=False``, or a ``qp_solver`` given) and the tests' reference: from the same iterate both take the same
+Gauss-Newton step to rounding.
+
 Safe action: a QP that fails, or a step that returns anything non-finite, never raises inside the loop. The
 controller applies the upright discrete LQR of the period (clipped to the ctrlranges) when every pole is within
 :data:`SAFE_LQR_ANGLE` of upright; otherwise (mid swing-up) the previous plan's input for this instant (that plan
@@ -61,6 +69,7 @@ from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, p
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.codegen import Buffered
 from cartpole.mpc.stage_functions import StageFunctions, stage_functions
+from cartpole.mpc.nmpc_c import ACTIONS, QP_ITER_LIMIT, compiled_nmpc  # noqa: F401 - QP_ITER_LIMIT: public here
 from cartpole.mpc.ipopt_nlp import IpoptNLP
 from cartpole.mpc.ipopt_nlp import StepFailed as _StepFailed
 # QP_SOLVERS and RAIL_PENALTY are re-exported: they were defined here before the options module
@@ -69,9 +78,6 @@ from cartpole.mpc.options import (DEFAULT_PERIOD, QP_SOLVERS, RAIL_PENALTY, MPCO
 from cartpole.ocp.trajectory import Trajectory
 
 _BIG = 1e30  # DAQP's "no bound"
-#: Active-set iterations a QP may take (DAQP's ``iter_limit``, qpOASES' ``nWSR``); beyond, the instant counts as a
-#: failure and takes the safe action. Typical: 2-5 per instant, about 40 for a cold start (single pole, N = 60).
-QP_ITER_LIMIT = 1000
 #: rad: within this of upright (every pole, wrapped) the safe action is the upright LQR, not the previous plan.
 SAFE_LQR_ANGLE = 0.5
 #: Growth ``exp(lambda_max horizon)`` of the fastest upright mode above which the QP is pre-stabilised by default:
@@ -277,10 +283,17 @@ class NMPCController:
         Stages; physics steps per stage.
     solve_ms : list of float
         Wall-clock ms of each control instant's solve (linearisation, condensing, QP, update), one per instant.
+    step_c_ms : list of float
+        With the C step: ms of each instant's step timed inside the C (``solve_ms`` adds the ctypes call).
+    step_implementation : str
+        ``"c"``: each instant runs the compiled C of ``cartpole/csrc/nmpc.c.jinja`` (:mod:`cartpole.mpc.nmpc_c`,
+        the C ``cartpole export`` ships); ``"python"``: the Python step below (``options.c_step`` False, a
+        ``qp_solver`` given, or no C compiler).
     failures : list of dict
         ``{"t", "reason", "action"}`` for each instant where the QP failed and the safe action was applied.
     qp_solver : str
-        ``"daqp"`` or ``"qpoases"``.
+        ``"daqp"`` or ``"qpoases"`` (the Python step's), ``"c"`` with the C step (its dual active-set solver,
+        ``cartpole/csrc/qp_dual.c``).
     library : str or None
         The compiled stage library, None on the fallback.
     lqr : LinearFeedback
@@ -289,6 +302,10 @@ class NMPCController:
         The offline convergence: ``iterations`` (Gauss-Newton steps), ``converged`` (bool), ``step`` (last max
         |du|), ``method`` (``"gauss-newton"``, or ``"ipopt"`` with ``ipopt_iterations``).
     """
+
+    #: Whether the compiled C step may replace this class's instant solve (a subclass that solves each instant
+    #: otherwise, e.g. :class:`~cartpole.mpc.ipopt_baseline.IpoptMPC`, sets False).
+    c_step_capable = True
 
     def __init__(self, model: CartPoleModel, params: CartPoleParams, *, options: MPCOptions | None = None,
                  x_goal=None, u_goal=None, guess=None, x0=None, **settings):
@@ -335,7 +352,14 @@ class NMPCController:
         if x0 is not None and init_iterations > 0:
             S, U = self._converge(x0, S, U, int(init_iterations))
         self._S0, self._U0 = S, U
+        self._c = None
         self.reset()
+        c_step = options.c_step if options.c_step is not None else (options.compiled and options.qp_solver is None)
+        if c_step and self.c_step_capable:  # the C step from the same first iterate; None without a compiler
+            self._c = compiled_nmpc(self, self._plan)
+        self.step_implementation = "c" if self._c is not None else "python"
+        if self._c is not None:
+            self.qp_solver = "c"  # the dual active-set solver of cartpole/csrc/qp_dual.c
 
     # ---- state of a run -------------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -349,8 +373,11 @@ class NMPCController:
         self._u_hold = None
         self._age = 0  # instants since the stored plan was last solved
         self.solve_ms: list[float] = []
+        self.step_c_ms: list[float] = []
         self.failures: list[dict] = []
         self._qp_warm = False
+        if self._c is not None:
+            self._c.reset()
 
     # ---- the QP ----------------------------------------------------------------------------------------------
     def _setup_solver(self) -> None:
@@ -542,6 +569,8 @@ class NMPCController:
         x = np.asarray(x, dtype=float).ravel()
         if x.shape != (self.problem.nx,):
             raise NMPCError(f"The state has {x.size} entries; the controller needs {self.problem.nx} [qpos, qvel].")
+        if self._c is not None:
+            return self._c_call(t, k, x)
         t0 = time.perf_counter()
         if k > self._k_plan:
             self._shift((k - self._k_plan) // self.steps)
@@ -572,9 +601,26 @@ class NMPCController:
         self._u_hold = np.array(u, dtype=float)
         return self._u_hold.copy()
 
+    def _c_call(self, t: float, k: int, x) -> np.ndarray:
+        """One control instant by the compiled step (:mod:`cartpole.mpc.nmpc_c`): the same shift, Gauss-Newton
+        step and safe action as the Python path, in the C the export ships."""
+        t0 = time.perf_counter()
+        code, u, action = self._c.step(t, x)
+        self.solve_ms.append(1e3 * (time.perf_counter() - t0))
+        self.step_c_ms.append(1e3 * self._c.last_seconds())
+        if code != 0:
+            reason = ("the measured state is not finite" if not np.all(np.isfinite(x)) else
+                      "the QP solver (C dual active set) failed or the step was not finite")
+            self.failures.append({"t": float(t), "reason": reason, "action": ACTIONS.get(action, "upright LQR")})
+        self._k_last = k
+        self._u_hold = u
+        return u.copy()
+
     @property
     def plan(self) -> tuple[np.ndarray, np.ndarray]:
         """The current iterate: shooting nodes (N+1, nx) and inputs (N, nu), copies."""
+        if self._c is not None:
+            return self._c.plan()
         return self._S.copy(), self._U.copy()
 
 

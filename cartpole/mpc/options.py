@@ -94,6 +94,12 @@ class MPCOptions(StageOptions):
         fastest upright mode grows by more than :data:`~cartpole.mpc.nmpc.GROWTH_LIMIT` over the horizon.
     compiled : bool
         False evaluates the stage functions in CasADi's virtual machine (the fallback, same numbers).
+    c_step : bool or None
+        True: each control instant runs the compiled C of ``cartpole/csrc/nmpc.c.jinja`` (shift, linearisation,
+        condensing, the dual active-set QP, the safe action: the C ``cartpole export`` ships,
+        :mod:`cartpole.mpc.nmpc_c`); False: the Python step (CasADi stage functions, ``qp_solver``); None (default):
+        the C step when ``compiled`` and no ``qp_solver`` is given. Without a C compiler the Python step runs (a
+        note on stderr).
     solver : {'rti', 'ddp'}
         ``rti``: :class:`~cartpole.mpc.nmpc.NMPCController` (Gauss-Newton SQP steps on the condensed QP); ``ddp``:
         :class:`~cartpole.mpc.ddp_mpc.DDPMPCController` (``iterations`` warm-started box-DDP iterations a period;
@@ -130,6 +136,7 @@ class MPCOptions(StageOptions):
     qp_solver: str | None = None
     prestabilize: bool | None = None
     compiled: bool = True
+    c_step: bool | None = None
     solver: str = "rti"
     objective: object = None
     seed_plan: bool = True
@@ -175,5 +182,7 @@ class MPCOptions(StageOptions):
         if self.compiled not in (True, False):
             raise NMPCError(f"compiled = {self.compiled!r} must be True or False.")
         self.set_field("compiled", bool(self.compiled))
+        if self.c_step not in (None, True, False):
+            raise NMPCError(f"c_step = {self.c_step!r} must be True, False or None.")
         for name in ("Q", "R"):
             self.freeze_array(name)

@@ -34,24 +34,23 @@ def test_nmpc_export_swings_up_step_for_step_like_python():
     design = design_export(model, "nmpc", None)
     assert design.program.period == 0.02 and design.program.steps == 4  # the NMPC's own period
     d, f = _double_and_float(design, model.x_hanging, 8.0)
-    assert d.max_ctrl_diff <= 1e-9 and np.all(d.codes == 0)
+    # the in-loop controller runs the same C (cartpole/csrc/nmpc.c.jinja) with the same floating-point semantics
+    assert design.make_controller().step_implementation == "c"
+    assert d.max_ctrl_diff <= 1e-14 and np.all(d.codes == 0)
     for run in (d, f):
         assert swingup_success(run.rollout, model.params) and _replays(run.rollout)
         assert run.rollout.info["diverged"] is None
 
 
 def test_two_pole_nmpc_export_is_prestabilised_and_swings_up_in_float32_too():
-    # plain condensing's Hessian had a condition number ~1e6 here: the C and Python agreed to 7.4e-6 only and the
-    # float32 build's QPs failed; pre-stabilised (~5) each step agrees to rounding and float32 swings up. In the
-    # first half-second the real-time iteration's carried iterate amplifies rounding differences in its tail
-    # (measured: about 2.5x a period, 1e-13 to 1e-6 in 20 periods; the ctrl at worst 2.5e-7), then contracts
+    # plain condensing's Hessian had a condition number ~1e6 here and the float32 build's QPs failed; pre-stabilised
+    # (~5) float32 swings up. The in-loop controller runs the export's C, so double agrees to the last bit (the
+    # Python step with DAQP agreed to 2.5e-7 only: the real-time iteration's carried iterate amplifies rounding)
     model = build_model(TWO_POLE)
     design = design_export(model, "nmpc", None)
     assert design.make_controller().prestabilize
     d, f = _double_and_float(design, model.x_hanging, 8.0)
-    assert d.max_ctrl_diff <= 1e-6 and np.all(d.codes == 0)
-    late = d.t >= 1.0
-    assert np.abs(d.c_ctrl[late] - d.py_ctrl[late]).max() <= 1e-9
+    assert d.max_ctrl_diff <= 1e-14 and np.all(d.codes == 0)
     for run in (d, f):
         assert swingup_success(run.rollout, model.params) and _replays(run.rollout)
         assert run.rollout.info["diverged"] is None
@@ -123,7 +122,10 @@ def _c_steps_equal_pythons(monkeypatch, tmp_path, design, x0, duration):
 
 def test_two_pole_c_gauss_newton_step_equals_pythons_from_the_same_iterate(monkeypatch, tmp_path):
     # the white-box half of the lockstep: each C step, from the Python controller's own iterate, is its step to
-    # 1e-9, also in the first half-second where the carried iterates drift apart (the test above)
+    # 1e-9 (the Python step, the no-compiler path, is the reference: the controller here runs it)
+    import cartpole.mpc.nmpc as nmpc
+
+    monkeypatch.setattr(nmpc, "compiled_nmpc", lambda ctl, plan: None)
     model = build_model(TWO_POLE)
     design = design_export(model, "nmpc", None)
     assert _c_steps_equal_pythons(monkeypatch, tmp_path, design, model.x_hanging, 0.6) >= 25  # every period
@@ -139,6 +141,7 @@ def test_two_motor_c_gauss_newton_step_equals_pythons_in_both_condensings(monkey
     model = build_model(read_params(chain_dir / "two_motors.xml"))
     assert model.nu == 2
     monkeypatch.setattr(nmpc, "GROWTH_LIMIT", 1.0 if prestabilize else np.inf)
+    monkeypatch.setattr(nmpc, "compiled_nmpc", lambda ctl, plan: None)  # the Python step, the reference
     x0 = np.array(model.x_eq, float)
     x0[list(model.hinges)] += 0.1
     design = design_export(model, "nmpc", None, x0=x0)

@@ -51,6 +51,19 @@ def balance(params, model):
     return NMPCController(model, params)
 
 
+@pytest.fixture(scope="module")
+def balance_py(params, model):
+    """The Python step (the no-compiler path and the C step's reference), where a test injects QP failures."""
+    return NMPCController(model, params, c_step=False)
+
+
+@pytest.fixture(scope="module")
+def swingup_py(params, model, swingup):
+    """``swingup``'s controller on the Python step, from the same offline plan."""
+    return NMPCController(model, params, options=swingup.options.replace(c_step=False), guess=swingup._plan,
+                          x0=model.x_hanging)
+
+
 def test_nmpc_swings_the_pole_up_from_hanging_rest_and_holds_it(params, model, swingup):
     swingup.reset()
     ro = simulate(params, swingup, model.x_hanging, 3.5)
@@ -125,8 +138,10 @@ def test_prestabilised_and_plain_condensing_solve_the_same_qp(params, model):
         np.testing.assert_allclose(a, b, atol=1e-6)
 
 
-def test_a_qp_that_always_fails_near_upright_falls_back_to_the_upright_lqr_and_never_raises(params, model, balance,
-                                                                                            monkeypatch):
+def test_a_qp_that_always_fails_near_upright_falls_back_to_the_upright_lqr_and_never_raises(params, model,
+                                                                                            balance_py, monkeypatch):
+    balance = balance_py
+    assert balance.step_implementation == "python"
     monkeypatch.setattr(balance, "_solve_qp", lambda *args: None)  # every QP "fails"
     balance.reset()
     ro = simulate(params, balance, _tilted(model, 0.05), 2.5, push=_push(0.5, 5.0))
@@ -141,8 +156,9 @@ def test_a_qp_that_always_fails_near_upright_falls_back_to_the_upright_lqr_and_n
     np.testing.assert_array_equal(ro.ctrl[k], u_lqr)
 
 
-def test_a_qp_failing_mid_swing_up_follows_the_previous_plan_and_the_swing_up_still_succeeds(params, model, swingup,
-                                                                                             monkeypatch):
+def test_a_qp_failing_mid_swing_up_follows_the_previous_plan_and_the_swing_up_still_succeeds(params, model,
+                                                                                             swingup_py, monkeypatch):
+    swingup = swingup_py
     real = swingup._solve_qp
     calls = {"n": 0}
 
@@ -184,8 +200,10 @@ def test_compiled_and_virtual_machine_functions_and_both_qp_solvers_give_the_sam
     x = _tilted(model, 0.2)
     ref = NMPCController(model, params, horizon=0.6, qp_solver="daqp")
     others = [NMPCController(model, params, horizon=0.6, qp_solver="daqp", compiled=False),
-              NMPCController(model, params, horizon=0.6, qp_solver="qpoases")]
+              NMPCController(model, params, horizon=0.6, qp_solver="qpoases"),
+              NMPCController(model, params, horizon=0.6)]  # the C step (cartpole/csrc/nmpc.c.jinja)
     assert ref.library is not None and others[0].library is None
+    assert ref.step_implementation == "python" and others[2].step_implementation == "c"
     u = ref(0.0, x)
     for other in others:
         np.testing.assert_allclose(other(0.0, x), u, atol=1e-7)
@@ -234,3 +252,48 @@ def test_two_motors_plain_and_prestabilised_agree_and_balance(chain_dir):
         ro = simulate(params2, ctrl, x, 3.0)
         assert replays_exactly(ro)
         assert swingup_success(ro, params2)
+
+
+@pytest.mark.parametrize("prestabilize", [False, True])
+def test_the_c_step_and_the_python_step_agree_instant_by_instant_through_a_push(params, model, prestabilize):
+    # the same first iterate, then each controller its own MuJoCo-free sequence of states (the C's ctrl applied
+    # through the exact discrete model): the QP solvers differ (DAQP, the C's dual active set), the QP does not
+    opts = dict(horizon=0.6, prestabilize=prestabilize)
+    c, py = NMPCController(model, params, **opts), NMPCController(model, params, c_step=False, **opts)
+    assert (c.step_implementation, py.step_implementation) == ("c", "python")
+    x = _tilted(model, 0.3)
+    for k in range(25):
+        t = k * c.period
+        u_c, u_py = c(t, x), py(t, x)
+        np.testing.assert_allclose(u_c, u_py, atol=1e-8)
+        for a, b in zip(c.plan, py.plan):
+            np.testing.assert_allclose(a, b, atol=1e-7)
+        x = np.asarray(c.functions.stage(x, u_c + (0.3 if k == 5 else 0.0))[0]).ravel()
+    assert c.failures == py.failures == [] and len(c.solve_ms) == 25
+
+
+def test_the_c_step_takes_the_same_safe_action_as_the_python_step_on_a_state_that_is_not_finite(params, model):
+    c, py = NMPCController(model, params, horizon=0.6), NMPCController(model, params, horizon=0.6, c_step=False)
+    x = _tilted(model, 0.1)
+    x[0] = np.nan
+    np.testing.assert_array_equal(c(0.0, x), py(0.0, x))
+    assert [f["action"] for f in c.failures] == [f["action"] for f in py.failures] == ["previous plan"]
+
+
+def test_without_a_compiler_the_controller_runs_the_python_step(params, model, monkeypatch):
+    monkeypatch.setenv("CARTPOLE_NO_COMPILE", "1")
+    ctl = NMPCController(model, params, horizon=0.6)
+    assert ctl.step_implementation == "python"
+    assert np.all(np.isfinite(ctl(0.0, _tilted(model, 0.1))))
+
+
+def test_the_c_step_is_built_once_per_model_and_settings_and_each_controller_keeps_its_own_state(params, model):
+    xa, xb = _tilted(model, 0.1), _tilted(model, -0.2)
+    a = NMPCController(model, params, horizon=0.6, x0=xa)
+    b = NMPCController(model, params, horizon=0.6, x0=xb)
+    assert a._c.library == b._c.library  # the first iterate is run-time data, not compiled in
+    u_a = a(0.0, xa)
+    u_b = b(0.0, xb)
+    a.reset()
+    np.testing.assert_array_equal(a(0.0, xa), u_a)  # b's run did not touch a's static state
+    assert not np.allclose(u_a, u_b)

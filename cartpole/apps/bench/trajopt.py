@@ -540,7 +540,7 @@ def mpc_benchmark(plant=None, *, quick: bool = False, progress=None, u_max=None,
     ----------
     plant : path, CartPoleParams, CartPoleModel or None
     quick : bool
-        One run instead of three.
+        One run instead of three, and not the two-pole RTI against IPOPT.
     progress : callable, optional
         ``progress(message)``.
     u_max : float or (nu,) array, optional
@@ -557,7 +557,7 @@ def mpc_benchmark(plant=None, *, quick: bool = False, progress=None, u_max=None,
     except ImportError:
         return None
     (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
-    return run_mpc_benchmark(plant, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max)
+    return run_mpc_benchmark(plant, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max, two_pole=not quick)
 
 
 def print_mpc_table(doc: dict, file=None) -> None:
@@ -569,6 +569,15 @@ def print_mpc_table(doc: dict, file=None) -> None:
       f"max {doc.get('solve_ms_max', float('nan')):.3f} ms over {doc.get('steps')} steps; IPOPT re-solving from the "
       f"shifted guess: median {base.get('solve_ms_median', float('nan')):.2f} ms, max "
       f"{base.get('solve_ms_max', float('nan')):.2f} ms; speed-up {doc.get('speedup_median', float('nan')):.1f}x\n")
+    over = doc.get("overhead")
+    if over:
+        w(f"  the step is the compiled C of cartpole/csrc/nmpc.c.jinja: {over['c_us_median']:.1f} us inside the C, "
+          f"{over['call_us_median']:.1f} us the whole controller call: Python's overhead {over['python_us_median']:.1f} "
+          "us a step (medians)\n")
+    two = doc.get("two_pole")
+    if two:
+        w(f"  two poles: median {two['solve_ms_median']:.3f} ms, p99 {two['solve_ms_p99']:.3f} ms; IPOPT median "
+          f"{two['baseline']['solve_ms_median']:.2f} ms; speed-up {two['speedup_median']:.1f}x\n")
     for name, row in (doc.get("ddp") or {}).items():
         w(f"MPC by DDP ({name.replace('_', ' ')}, one warm-started iteration a period): median "
           f"{row['solve_ms_median']:.3f} ms, max {row['solve_ms_max']:.3f} ms over {row['steps']} steps, "

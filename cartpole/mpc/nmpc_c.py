@@ -1,0 +1,317 @@
+"""The NMPC's real-time iteration as C: one source (``cartpole/csrc/nmpc.c.jinja`` with the dual active-set QP of
+``cartpole/csrc/qp_dual.c``) rendered for one controller, which :class:`CompiledNMPC` builds into a shared library
+for the MuJoCo loop (``cartpole/csrc/nmpc_loop.c.jinja``, called through ctypes by
+:class:`cartpole.mpc.nmpc.NMPCController`) and :mod:`cartpole.export.nmpc` copies into the exported folder. The two
+are the same C compiled with the same floating-point semantics (``-std=c99``: no contraction into fused
+multiply-adds), so the loop's ctrl and the export's are equal.
+
+The model's maths are CasADi-generated: one stage (``cp_nmpc_lin``: the period's physics steps chained, its value
+and exact Jacobians ``A_k``, ``B_k``) and the reseed rollout (``cp_nmpc_rollout``).
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from cartpole.codegen import build_c_library, compiled_or_none, private_cache_dir, render
+from cartpole.mpc.stage_functions import stage_expression, stage_rollout
+
+#: Active-set changes a QP may take before it counts as a failure (DAQP's ``iter_limit``, qpOASES' ``nWSR``, the C
+#: solver's ``QP_ITER_LIMIT``); beyond, the instant counts as a failure and takes the safe action. Typical: 2-5 per
+#: instant, about 40 for a cold start (single pole, N = 60).
+QP_ITER_LIMIT = 1000
+#: Flags of the loop's library: the export's floating-point semantics (ISO C99: no contraction), optimised for
+#: this machine like the export's verification build.
+LOOP_CFLAGS = ("-std=c99", "-O3", "-march=native")
+#: ``cp_nmpc_eval``'s action codes.
+ACTIONS = {1: "previous plan", 2: "upright LQR"}
+
+
+def qp_fields(nz: int, nr: int, prefix: str = "qp") -> tuple:
+    """State-struct members of the QP solver's work arrays for at most ``nz`` variables and ``nr`` general rows.
+
+    Parameters
+    ----------
+    nz, nr : int
+        Variables and general rows.
+    prefix : str
+        The solver's name prefix (as given to :func:`qp_source`).
+
+    Returns
+    -------
+    tuple of str
+    """
+    return tuple(f.replace("qp_", prefix + "_") for f in (
+        f"cp_real qp_J[{nz * nz}];", f"cp_real qp_R[{nz * nz}];", f"cp_real qp_d[{nz}];", f"cp_real qp_zd[{nz}];",
+        f"cp_real qp_r[{nz}];", f"cp_real qp_u[{nz + 1}];", f"int qp_act[{nz + 1}];",
+        f"unsigned char qp_isact[{2 * nz + 2 * max(nr, 1)}];", "int qp_nz;", "int qp_nr;"))
+
+
+def qp_source(nz: int, nr: int, row_len=None, *, prefix: str = "qp", sized: bool = False) -> str:
+    """C text of the dual active-set solver ``<prefix>_solve`` (``cartpole/csrc/qp_dual.c``) for ``nz`` variables
+    and ``nr`` general rows.
+
+    Parameters
+    ----------
+    nz, nr : int
+        Variables and general rows.
+    row_len : sequence of int, optional
+        Row ``r`` of ``A`` is zero from column ``row_len[r]`` on except its last (causal condensed rows); default
+        dense rows.
+    prefix : str
+        Names of its function, fields and macros (two solvers in one program).
+    sized : bool
+        The sizes are the run-time ``S.<prefix>_nz``, ``S.<prefix>_nr`` (at most ``nz``, ``nr``; dense rows).
+
+    Returns
+    -------
+    str
+    """
+    lens = [nz - 1] * max(1, nr) if row_len is None else [int(v) for v in row_len]
+    return render("qp_dual.c.jinja", nz=nz, nr=nr, row_len=lens, sized=sized, prefix=prefix,
+                  iter_limit=QP_ITER_LIMIT)
+
+
+def row_len(N: int, nu: int, nb: int, pre: bool) -> list:
+    """Causal length of each general row of the condensed QP: the pre-stabilised ctrl rows of stage ``k``, then
+    the rail rows (upper, then lower) of stage ``k``, reach the first ``(k + 1) nu`` unknowns.
+
+    Parameters
+    ----------
+    N, nu, nb : int
+        Stages, inputs per stage, bounded joints.
+    pre : bool
+        Pre-stabilised condensing (the ctrl bounds are rows).
+
+    Returns
+    -------
+    list of int
+    """
+    return ([(k + 1) * nu for k in range(N) for _i in range(nu)] if pre else []) + [
+        (k + 1) * nu for _ in range(2) for k in range(N) for _b in range(nb)]
+
+
+@dataclass(frozen=True)
+class NMPCSource:
+    """One controller's NMPC as C (see the module doc).
+
+    Attributes
+    ----------
+    code : str
+        Tables, the QP solver and the NMPC's static functions (``ctrl_eval``, ``mp_constants``, ``mp_reset``...).
+    fields : tuple of str
+        Members of the state struct ``S``.
+    reset : str
+        Statements a reset runs on the zeroed ``S``.
+    functions : tuple of casadi.Function
+        The CasADi Functions it calls (``cp_nmpc_lin``, ``cp_nmpc_rollout``).
+    """
+
+    code: str
+    fields: tuple
+    reset: str
+    functions: tuple
+
+
+def _flat(a) -> list:
+    return np.asarray(a, dtype=float).ravel(order="C").tolist()
+
+
+def nmpc_source(ctl, plan, *, runtime_data: bool = False) -> NMPCSource:
+    """The C of :class:`~cartpole.mpc.nmpc.NMPCController` ``ctl`` (just reset) whose offline plan is ``plan``.
+
+    Parameters
+    ----------
+    ctl : NMPCController
+        Plain or pre-stabilised condensing (``ctl.prestabilize``).
+    plan : Trajectory or None
+        The offline plan whose inputs extend the shifted tail.
+    runtime_data : bool
+        The first iterate and the plan are pointers set at run time (the loop's library, one per model and
+        settings) instead of tables (the export).
+
+    Returns
+    -------
+    NMPCSource
+    """
+    pre = bool(ctl.prestabilize)
+    p = ctl.problem
+    N, steps, nx, nu = int(ctl.N), int(ctl.steps), p.nx, p.nu
+    nzu = N * nu
+    nz = nzu + 1
+    nb = len(p.bounded)
+    nuc = nzu if pre else 0  # pre-stabilised: the ctrl bounds are the first nuc rows
+    nr = nuc + 2 * N * nb
+    lin = stage_expression(ctl.model, steps, "cp_nmpc_lin")  # (x_next, A, B); A, B dense, column-major
+    roll = stage_rollout(ctl.model, steps, N, "cp_nmpc_rollout")
+    S0, U0 = ctl.plan
+    fb = ctl.lqr
+    has_plan = plan is not None
+    code = qp_source(nz, nr, row_len(N, nu, nb, pre)) + render(
+        "nmpc.c.jinja", pre=pre, nb=nb, nu=nu, N=N, steps=steps, nzu=nzu, nuc=nuc, nh=len(p.hinges),
+        iters=int(ctl.iterations), has_plan=has_plan, runtime_data=runtime_data,
+        plan_n=int(plan.N) if has_plan else 0, plan_t=_flat(plan.t) if has_plan else [],
+        plan_u=_flat(plan.u) if has_plan else [], S0=_flat(S0), U0=_flat(U0), Qs=_flat(p.Qs), Rs=_flat(p.Rs),
+        P=_flat(p.P), x_goal=_flat(p.x_goal), u_goal=_flat(p.u_goal), u_low=_flat(p.u_low), u_high=_flat(p.u_high),
+        hinges=list(p.hinges) or [-1], bounded=list(p.bounded), q_low=_flat(p.q_low), q_high=_flat(p.q_high),
+        dt=float(p.dt), tol=float(ctl.tol), rho1=float(p.rho1), rho2=float(p.rho2), lqr_K=_flat(fb.K),
+        lqr_xeq=_flat(fb.x_eq), lqr_ueq=_flat(fb.u_eq), lqr_lo=_flat(fb.u_low), lqr_hi=_flat(fb.u_high),
+        lin=lin.name(), lin_arg=max(1, lin.sz_arg()), lin_res=max(1, lin.sz_res()), roll=roll.name(),
+        roll_arg=max(1, roll.sz_arg()), roll_res=max(1, roll.sz_res()))
+    fields = (f"cp_real mp_S[{(N + 1) * nx}];", f"cp_real mp_U[{nzu}];", f"cp_real mp_Sa[{(N + 1) * nx}];",
+              f"cp_real mp_Sn[{(N + 1) * nx}];", f"cp_real mp_Un[{nzu}];", f"cp_real mp_St[{(N + 1) * nx}];",
+              f"cp_real mp_Ut[{nzu}];", "long mp_k_plan;", "long mp_k_last;", "int mp_has_last;", "int mp_age;",
+              "int mp_action;",
+              f"cp_real mp_hold[{nu}];", f"cp_real mp_H[{nz * nz}];", f"cp_real mp_h[{nz}];",
+              f"cp_real mp_A[{max(1, nr) * nz}];", f"cp_real mp_lba[{max(1, nr)}];", f"cp_real mp_uba[{max(1, nr)}];",
+              f"cp_real mp_lbx[{nz}];", f"cp_real mp_ubx[{nz}];", f"cp_real mp_z[{nz}];",
+              f"cp_real mp_g[{nx * (N + 1)}];", f"cp_real mp_e[{nx * (N + 1)}];", f"cp_real mp_c[{nx * N}];",
+              f"cp_real mp_Ak[{N * nx * nx}];", f"cp_real mp_Bk[{N * nx * nu}];", f"cp_real mp_Lam[{N * nx * nx}];",
+              f"cp_real mp_lam[{N * nx}];", f"cp_real mp_BtL[{N * nu * nx}];", f"cp_real mp_X[{nx * nu}];",
+              f"cp_real mp_T[{nx * nx}];", f"cp_real mp_T2[{nx * nx}];", f"cp_real mp_ds[{nx}];",
+              f"cp_real mp_ds2[{nx}];", f"cp_real mp_r[{nzu}];", f"cp_real mp_RK[{nu * nx}];",
+              f"cp_real mp_goal[{nx}];", f"cp_real mp_tmp[{nx * N}];",
+              *((f"cp_real mp_K[{N * nu * nx}];", f"cp_real mp_fu[{nzu}];", f"cp_real mp_Pn[{nx * nx}];",
+                 f"cp_real mp_BtP[{nu * nx}];", f"cp_real mp_M[{nu * nu}];", f"cp_real mp_KG[{nu * nu}];")
+                if pre else ()),
+              *qp_fields(nz, nr))
+    return NMPCSource(code=code, fields=fields, reset="    mp_constants();\n    mp_reset();\n",
+                      functions=(lin, roll))
+
+
+def generated_code(functions, real: str = "double") -> str:
+    """The C of CasADi ``functions`` as the export generates it (same options: the same arithmetic), without a
+    header, for one translation unit.
+
+    Parameters
+    ----------
+    functions : sequence of casadi.Function
+    real : {"double", "float"}
+
+    Returns
+    -------
+    str
+    """
+    gen = ca.CodeGenerator("cp_generated.c", {"with_header": False, "casadi_real": real, "with_export": False,
+                                              "main": False, "casadi_int": "long int"})
+    for fn in functions:
+        gen.add(fn)
+    return gen.dump()
+
+
+def loop_source(ctl, plan) -> str:
+    """The translation unit of the loop's library (``cartpole/csrc/nmpc_loop.c.jinja``) for ``ctl`` and ``plan``.
+
+    Parameters
+    ----------
+    ctl : NMPCController
+    plan : Trajectory or None
+
+    Returns
+    -------
+    str
+    """
+    src = nmpc_source(ctl, plan, runtime_data=True)
+    p = ctl.problem
+    wrap = [1 if i < ctl.model.nq and i in p.hinges else 0 for i in range(p.nx)]
+    return render("nmpc_loop.c.jinja", nx=p.nx, nu=p.nu, wrap=wrap, fields=src.fields,
+                  sz_w=max([1] + [int(f.sz_w()) for f in src.functions]),
+                  sz_iw=max([1] + [int(f.sz_iw()) for f in src.functions]),
+                  generated=generated_code(src.functions), controller=src.code, has_plan=plan is not None)
+
+
+_DP = ctypes.POINTER(ctypes.c_double)
+
+
+class CompiledNMPC:
+    """The loop's NMPC step: the library of :func:`loop_source`, loaded privately (its own copy of the static state,
+    so two controllers never share one), with this run's first iterate and plan.
+
+    Parameters
+    ----------
+    ctl : NMPCController
+        The controller (just reset: its ``plan`` is the first iterate).
+    plan : Trajectory or None
+        Its offline plan.
+    """
+
+    def __init__(self, ctl, plan):
+        self.library = build_c_library(loop_source(ctl, plan), "nmpc_step", cflags=LOOP_CFLAGS)
+        fd, tmp = tempfile.mkstemp(prefix="nmpc_step_", suffix=".so", dir=private_cache_dir())
+        os.close(fd)
+        try:
+            shutil.copyfile(self.library, tmp)
+            lib = ctypes.CDLL(tmp, mode=ctypes.RTLD_LOCAL)
+        finally:
+            os.unlink(tmp)  # mapped: the copy lives as long as the process holds it
+        lib.cp_nmpc_set_data.argtypes = [_DP, _DP, _DP, _DP, ctypes.c_long]
+        lib.cp_nmpc_set_data.restype = None
+        lib.cp_nmpc_reset.argtypes = []
+        lib.cp_nmpc_reset.restype = None
+        lib.cp_nmpc_eval.argtypes = [ctypes.c_double, _DP, _DP, ctypes.POINTER(ctypes.c_int)]
+        lib.cp_nmpc_eval.restype = ctypes.c_int
+        lib.cp_nmpc_plan.argtypes = [_DP, _DP]
+        lib.cp_nmpc_plan.restype = None
+        lib.cp_nmpc_last_seconds.argtypes = []
+        lib.cp_nmpc_last_seconds.restype = ctypes.c_double
+        self._lib = lib
+        S0, U0 = ctl.plan
+        p = ctl.problem
+        self._data = [np.ascontiguousarray(S0, dtype=float), np.ascontiguousarray(U0, dtype=float)]
+        if plan is not None:
+            self._data += [np.ascontiguousarray(plan.t, dtype=float), np.ascontiguousarray(plan.u, dtype=float)]
+            n = int(plan.N)
+        else:
+            self._data += [np.zeros(1), np.zeros(1)]
+            n = 0
+        lib.cp_nmpc_set_data(*(d.ctypes.data_as(_DP) for d in self._data), n)
+        self._x = np.zeros(p.nx)
+        self._u = np.zeros(p.nu)
+        self._action = ctypes.c_int(0)
+        self._xp, self._up = self._x.ctypes.data_as(_DP), self._u.ctypes.data_as(_DP)
+        self._shape = (ctl.N + 1, p.nx), (ctl.N, p.nu)
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new run (back to the first iterate)."""
+        self._lib.cp_nmpc_reset()
+
+    def step(self, t: float, x) -> tuple[int, np.ndarray, int]:
+        """``(code, u, action)`` of ``ctrl_eval`` at ``t`` (s) for the state ``x`` (nx,): code 0 solved, 3 the safe
+        action (``action`` 1 the previous plan's input, 2 the upright LQR); ``u`` (nu,) is a new array."""
+        self._x[:] = x
+        code = self._lib.cp_nmpc_eval(float(t), self._xp, self._up, ctypes.byref(self._action))
+        return int(code), self._u.copy(), int(self._action.value)
+
+    def last_seconds(self) -> float:
+        """Wall time (s) of the last :meth:`step`'s C, timed inside the library (``clock_gettime``)."""
+        return float(self._lib.cp_nmpc_last_seconds())
+
+    def plan(self) -> tuple[np.ndarray, np.ndarray]:
+        """The current iterate: nodes (N+1, nx) and inputs (N, nu), new arrays."""
+        S, U = np.zeros(self._shape[0]), np.zeros(self._shape[1])
+        self._lib.cp_nmpc_plan(S.ctypes.data_as(_DP), U.ctypes.data_as(_DP))
+        return S, U
+
+
+def compiled_nmpc(ctl, plan) -> CompiledNMPC | None:
+    """:class:`CompiledNMPC` of ``ctl`` and ``plan``, or None where there is no C compiler (or
+    ``CARTPOLE_NO_COMPILE`` is set): then the controller runs its Python step (a note on stderr).
+
+    Parameters
+    ----------
+    ctl : NMPCController
+    plan : Trajectory or None
+
+    Returns
+    -------
+    CompiledNMPC or None
+    """
+    return compiled_or_none(lambda: CompiledNMPC(ctl, plan), "NMPC step",
+                            "the NMPC runs its Python step (same QP, slower)")
