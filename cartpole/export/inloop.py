@@ -240,7 +240,8 @@ def in_loop(model, controller, rig=None):
     compiled implementation: the export's C (the controller's part, the rig's estimator, delay prediction and
     clip) built once through :mod:`cartpole.codegen` and called every period, when a C compiler exists and the
     controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none, KF, EKF). Otherwise, or
-    with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes.
+    with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes. C that does not compile
+    raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never hidden behind a Python run.
 
     Parameters
     ----------
@@ -277,10 +278,7 @@ def in_loop(model, controller, rig=None):
 
         design_model = model if rig is None else rig.model
         prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
-        try:
-            ctl = load_program(c_sources(prog), prog)
-        except ExportError:
-            return controller, rig
+        ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
         entry = _PROGRAMS[key] = (controller, rig, model.params, ctl)
     ctl = entry[3]
     if rig is None:
