@@ -1,5 +1,7 @@
 """The exported NMPC (real-time iteration, the condensed QP solved in C) in the MuJoCo swing-up: the Python
 controller's ctrl at every control step in double, swung up and held in float32, both runs replaying bit for bit."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from mj_replay import replay_with_mj_step
@@ -58,7 +60,7 @@ def test_two_pole_nmpc_export_is_prestabilised_and_swings_up_in_float32_too():
 
 _GN_HARNESS = r"""
 #include <stdio.h>
-#include "cartpole_controller.c"
+#include "cp_legacy.c" /* the NMPC part, its state S and mp_gn_step; the rest linked */
 int main(void)
 {
     static cp_real x[NX], Sx[(MP_N + 1) * NX], Ux[MP_NZU];
@@ -101,8 +103,9 @@ def _c_steps_equal_pythons(monkeypatch, tmp_path, design, x0, duration):
         run_lockstep(design, ctl, x0, duration)
         (tmp_path / "gn.c").write_text(_GN_HARNESS)
         exe = tmp_path / "gn"
+        others = sorted(str(c) for c in Path(folder, "src").glob("*.c") if c.name != "cp_legacy.c")
         subprocess.run([find_compiler(), "-O2", f"-I{folder}/include", f"-I{folder}/src", "-o", str(exe),
-                        str(tmp_path / "gn.c"), f"{folder}/src/cp_generated.c", "-lm"], check=True)
+                        str(tmp_path / "gn.c"), *others, "-lm"], check=True)
     finally:
         discard(folder)
     text = "\n".join(" ".join(repr(float(v)) for v in np.concatenate([x.ravel(), S.ravel(), U.ravel()]))
