@@ -73,6 +73,21 @@ PLOT_NO_LEGEND = 1 << 1
 MIN_SPAN = 0.1
 #: Seconds to wait for Studio's viewer thread to bind its port and come up.
 START_TIMEOUT = 30.0
+
+
+def _accepts(host: str, port: int, timeout: float) -> bool:
+    """Does a TCP connection to ``host:port`` (loopback for a wildcard bind) succeed within ``timeout`` s? Studio's
+    server starts listening on its own thread a little after the viewer object exists."""
+    target = "127.0.0.1" if host in ("0.0.0.0", "", "::") else host
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection((target, port), timeout=1.0):
+                return True
+        except OSError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.05)
 #: Environment variable naming a JSON file where the panel writes its widgets' page rectangles ``[x0, y0, x1, y1]``
 #: in CSS pixels, by label, and the number of events it lists ("events shown") (automation, tests).
 WIDGETS_ENV = "CARTPOLE_WEB_WIDGETS"
@@ -464,6 +479,12 @@ class WebLive(LiveViewer):
         self._server = box["viewer"]
         self.port = int(self._server.port)
         self.url = f"http://localhost:{self.port}/"
+        if not _accepts(self.host, self.port, START_TIMEOUT):  # the address is printed only once it answers
+            self._restore_stdout()
+            with contextlib.suppress(BaseException):
+                handle.close()
+            raise WebUnavailable(f"MuJoCo Studio's web viewer did not accept connections on {self.host}:{self.port} "
+                                 f"within {START_TIMEOUT:.0f} s; pass another port, or run without the web view.")
         self._spec = mujoco.mjtState.mjSTATE_INTEGRATION
         self._state = np.empty(mujoco.mj_stateSize(m, self._spec))
         self._h = float(m.opt.timestep)
