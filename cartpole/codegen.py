@@ -51,7 +51,10 @@ PORTABLE_CFLAGS = ("-O2", "-fPIC", "-shared")
 LARGE_SOURCE = 400_000
 #: Flags for large generated sources (see :data:`LARGE_SOURCE`).
 LARGE_CFLAGS = ("-O0", "-fPIC", "-shared")
-#: The package's hand-written C sources and their Jinja2 templates (package data).
+#: The package's hand-written C sources and their Jinja2 templates (package data: ``cartpole/csrc`` of the
+#: installed package).
+#:
+#: :meta hide-value:
 CSRC = Path(__file__).resolve().parent / "csrc"
 
 
