@@ -5,11 +5,12 @@ Everything here returns strings; nothing is compiled or written (see :mod:`cartp
 """
 from __future__ import annotations
 
-import math
 import re
 
 import casadi as ca
 import numpy as np
+
+from cartpole.codegen import c_real
 
 #: The real types an export can use (``cp_real``), by the name ``--float32`` chooses.
 REALS = ("double", "float")
@@ -25,15 +26,9 @@ _DEF = re.compile(r"^((?:static\s+)?(?:const\s+)?[A-Za-z_][\w \*]*?[\s\*])([A-Za
 
 
 def literal(value: float) -> str:
-    """A finite or infinite float as an exact C literal (``repr`` round-trips a double; ``INFINITY`` from C99
-    ``<math.h>``)."""
-    v = float(value)
-    if math.isnan(v):
-        raise ValueError("NaN has no place in an exported table")
-    if math.isinf(v):
-        return "INFINITY" if v > 0 else "-INFINITY"
-    text = repr(v)
-    return text if any(c in text for c in ".en") else text + ".0"
+    """A finite or infinite float as an exact C literal: :func:`cartpole.codegen.c_real`, the one formatting the
+    Jinja2 templates use too (``repr`` round-trips a double; ``INFINITY`` from C99 ``<math.h>``; NaN refused)."""
+    return c_real(value)
 
 
 def table(name: str, values, ctype: str = "cp_real", *, per_line: int = 6) -> str:
