@@ -260,17 +260,19 @@ def _mjcf_path(tmp: Path, kind: str, text: str) -> Path:
     return path
 
 
-_TEMPLATE: list = []  # a cache directory holding the shipped cart's basin estimate, made once per session
+#: a cache directory holding the shipped cart's basin estimate, made once per session (a TemporaryDirectory, so
+#: that it is removed when the session's interpreter exits: hypothesis' tests take no pytest fixtures)
+_TEMPLATE: list = []
 
 
 def _template_cache() -> Path:
     if not _TEMPLATE:
         from cartpole.validation.basin import BasinCache
 
-        d = Path(tempfile.mkdtemp(prefix="cartpole-cache-template-"))
-        BasinCache.on_disk(d / "basins").get(None)
+        d = tempfile.TemporaryDirectory(prefix="cartpole-cache-template-")
+        BasinCache.on_disk(Path(d.name) / "basins").get(None)
         _TEMPLATE.append(d)
-    return _TEMPLATE[0]
+    return Path(_TEMPLATE[0].name)
 
 
 def _tamper(cache: Path, how: str) -> None:
