@@ -66,6 +66,10 @@ numpydoc_validation_checks: set = set()
 html_theme = "pydata_sphinx_theme"  # the scientific Python family's (NumPy, SciPy, python-control)
 html_title = "cartpole"
 html_static_path: list = []
+# The guide is flat: a top-level page has no sub-pages for the left sidebar to list, and the theme would show it empty;
+# the notebooks' and the API's pages keep it (their siblings). Exact names, not a `**` pattern, which would clash with
+# those sections' own patterns.
+html_sidebars = {page.stem: [] for page in DOCS.glob("*.md") if page.stem != "notebooks"}
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
