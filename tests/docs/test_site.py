@@ -245,6 +245,18 @@ def raw_latex(page: Page, site: Path, path: Path) -> list[str]:
     return faults
 
 
+PRIMARY_SIDEBAR = re.compile(r'<div[^>]*\bid="pst-primary-sidebar"[^>]*\bclass="([^"]*)"')
+
+
+def empty_sidebar(html: str) -> list[str]:
+    """A left sidebar shown on a wide screen with no navigation in it (the theme keeps the column for a page with no
+    sub-pages unless ``html_sidebars`` removes it)."""
+    m = PRIMARY_SIDEBAR.search(html)
+    if m is None or "hide-on-wide" in m.group(1).split() or "bd-docs-nav" in html:
+        return []
+    return ["an empty left sidebar (give the page no sidebar in docs/conf.py's html_sidebars)"]
+
+
 ARTICLE = re.compile(r"<article\b.*?</article>", re.S)
 
 
@@ -263,8 +275,9 @@ def site_faults(site: Path) -> dict[str, list[str]]:
     for path in sorted(site.rglob("*.html")):
         if "_static" in path.relative_to(site).parts:
             continue
-        page = Page(reader_part(path.read_text(encoding="utf-8")))
-        faults = (machine_paths(page) + broken_tables(page) + outside_references(page, site, path)
+        html = path.read_text(encoding="utf-8")
+        page = Page(reader_part(html))
+        faults = (empty_sidebar(html) + machine_paths(page) + broken_tables(page) + outside_references(page, site, path)
                   + network_loads(page) + raw_latex(page, site, path))
         if faults:
             out[str(path.relative_to(site))] = faults
@@ -308,6 +321,13 @@ def test_links_out_of_the_site_and_files_outside_the_repository_are_found(tmp_pa
     assert "'../b.html' leads out" in faults and "'c.html' leads to no file" in faults
     assert "shared/seed/lab.txt" in faults and "no_such_module" in faults
     assert "a.html" not in faults and "__init__" not in faults and "figures" not in faults
+
+
+def test_an_empty_left_sidebar_is_found_and_a_hidden_or_filled_one_is_not():
+    shown = '<div id="pst-primary-sidebar" class="bd-sidebar-primary bd-sidebar"><div class="sidebar-primary-items"></div>'
+    assert empty_sidebar(shown)
+    assert not empty_sidebar(shown.replace("bd-sidebar\"", "bd-sidebar hide-on-wide\""))
+    assert not empty_sidebar(shown + '<nav class="bd-docs-nav bd-links"><a href="x.html">x</a></nav>')
 
 
 def test_a_cdn_script_and_raw_latex_are_found_and_shipped_mathjax_is_not(tmp_path):
