@@ -123,3 +123,19 @@ def test_a_ctrl_noise_limit_needs_sensors_and_a_fraction_of_the_range(two_pole, 
     fraction = 0.1 if words == "needs sensors" else 1.5
     with pytest.raises(AnalysisError, match=words):
         noise_limited_catch(model, loop, fraction, _catch_gain(params, model, loop), 0.1)
+
+
+def test_the_supervisor_catch_is_designed_for_its_sensors_when_asked():
+    """The supervisor's catch takes ``--ctrl-noise`` as the energy and trajopt catches do: on the one-pole cart from
+    2048-count encoders through the EKF it swings up, holds, and its ctrl noise in the hold is the design's, the
+    prediction beside the measured figure."""
+    res = run_swingup(SHIPPED_MJCF, method="supervisor", ctrl_noise=DEFAULT_CTRL_NOISE,
+                      loop=LoopOptions(duration=8.0, **RIG))
+    assert replays_exactly(res.rollout)
+    assert res.success, res.metrics
+    cn = res.metrics["ctrl_noise"]
+    assert not cn["default"] and cn["met"] and cn["measured_window_s"] == pytest.approx(4.0)
+    assert np.all(np.asarray(cn["predicted_fraction"]) <= DEFAULT_CTRL_NOISE)
+    assert np.all(np.asarray(cn["measured_fraction"]) < 0.1)
+    ratio = np.asarray(cn["measured_fraction"]) / cn["predicted_fraction"]
+    assert np.all((0.5 < ratio) & (ratio < 2.0))
