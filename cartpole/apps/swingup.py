@@ -923,22 +923,24 @@ def _sensor_design(ctx: _Context, gain, R0):
     doc = {"fraction": found["fraction"], "default": not asked, "met": found["met"], "factor": found["factor"],
            "R": np.asarray(found["R"]).tolist(), "process_noise": found["process_noise"],
            "predicted_std": found["predicted_std"].tolist(),
-           "predicted_fraction": found["predicted_fraction"].tolist()}
+           "predicted_fraction": found["predicted_fraction"].tolist(),
+           "predicted_state_std": found["predicted_state_std"].tolist()}
     return loop, found["R"], doc
 
 
 def _noise_measured(doc: dict, rollout, handover_at: float | None, span) -> dict:
     """``doc`` with the ctrl noise MuJoCo measured: ``measured_std`` and ``measured_fraction`` (per input, ctrl units
-    and of the ctrl range's width) over the last ``measured_window_s`` s of the hold (:data:`CTRL_NOISE_WINDOW`, less
-    when the hold after ``handover_at`` is shorter); None without a hand-over. ``span`` (nu,): the ctrl ranges'
-    widths."""
+    and of the ctrl range's width) and ``measured_state_std`` (nx, the true state's, beside ``predicted_state_std``)
+    over the last ``measured_window_s`` s of the hold (:data:`CTRL_NOISE_WINDOW`, less when the hold after
+    ``handover_at`` is shorter); None without a hand-over. ``span`` (nu,): the ctrl ranges' widths."""
     t, u = rollout.t, rollout.ctrl
     window = 0.0 if handover_at is None else min(CTRL_NOISE_WINDOW, float(t[-1]) - float(handover_at))
     if window <= 0:
-        return {**doc, "measured_std": None, "measured_fraction": None, "measured_window_s": None}
+        return {**doc, "measured_std": None, "measured_fraction": None, "measured_state_std": None,
+                "measured_window_s": None}
     std = u[t[1:] > t[-1] - window].std(axis=0)
     return {**doc, "measured_std": std.tolist(), "measured_fraction": (std / span).tolist(),
-            "measured_window_s": window}
+            "measured_state_std": rollout.x[t > t[-1] - window].std(axis=0).tolist(), "measured_window_s": window}
 
 
 def _plan_options(plan, given: dict):
