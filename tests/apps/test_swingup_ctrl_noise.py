@@ -107,12 +107,20 @@ def _rest_floor(model, params, cpr, R_factors=(1.0, 16.0, 256.0)):
 def test_the_three_pole_rest_noise_from_2048_counts_is_the_encoders_floor_not_the_designs():
     """Over the catch's R (x1 to x256) and every process noise the design tries, the sensor-driven standard deviation
     of the three-pole cart's rates in the hold stays at or above half the rest tolerance from 2048-count encoders (so
-    a second's peak, 2-3 standard deviations, passes 0.1); it scales with the count (q^2/12 is the only noise), and
-    16 times finer encoders put it far below."""
+    a second's peak, 2-3 standard deviations, passes 0.1), and so it does for the minimum-variance LQG; it scales
+    with the count (q^2/12 is the only noise), and 16 times finer encoders put it far below."""
     params = read_params(THREE)
     model = build_model(params)
     coarse = _rest_floor(model, params, 2048)
     assert coarse >= 0.5 * REST_RATE_TOL
+    # the minimum-variance choice: an LQG weighting only the rates, its filter told of almost no process noise
+    loop = LoopOptions(**{**RIG, "process_noise": 0.001})
+    rates = [model.nq + j for j in range(model.nq)]
+    Q = np.diag([1e-3] * model.nq + [1.0] * model.nq)
+    steps = steps_per_period(loop.period, params.timestep)
+    quiet = noise_limited_catch(model, loop, 0.99, lambda R: handover_catch(params, model, Q, R, steps=steps).K,
+                                0.01 * np.eye(model.nu))
+    assert np.max(quiet["predicted_state_std"][rates]) >= 0.5 * REST_RATE_TOL
     assert _rest_floor(model, params, 32768, R_factors=(16.0,)) < 0.1 * coarse
 
 
