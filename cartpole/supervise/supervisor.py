@@ -432,8 +432,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
 
         def planner(x0, guess=None):
-            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period, guess=guess,
-                                   catch_R=catch_R)
+            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
+                                   guess=guess, catch_R=catch_R)
         lib = PlanLibrary.load(model) if library is None else library
         return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
     return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)
