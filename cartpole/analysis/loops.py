@@ -58,6 +58,9 @@ class Loop:
     noise : control.StateSpace or None
         The closed loop (every channel closed) from the sensors' noise ``n`` (``y = C x + n``, sensor units) to
         the ctrl: the control sensitivity of a design that reads sensors (LQG); None for one on the true state.
+        Its first ``nx`` states are the plant's at the samples (:func:`state_noise_std`).
+    nx : int
+        The plant's state dimension (0 when unknown).
     """
 
     name: str
@@ -67,6 +70,7 @@ class Loop:
     delay: float
     description: str
     noise: object = None
+    nx: int = 0
 
     @property
     def continuous(self) -> bool:
@@ -327,7 +331,7 @@ def sampled_loop(model, K, *, steps: int = 1, delay_steps: int = 0, compensate: 
     rig = f"period {T * 1e3:g} ms, delay {d * float(model.dt) * 1e3:g} ms" + (
         " predicted over" if compensate and d else "")
     return Loop(name or ("lqr" if kalman is None else "lqg"), L, model.params.actuators[channel].name, T,
-                d * float(model.dt), f"{label}; {rig}", noise)
+                d * float(model.dt), f"{label}; {rig}", noise, nx)
 
 
 def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, compensate: bool = True,
@@ -402,6 +406,17 @@ def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, co
     return Loop(name, L, act, T, dly * float(model.dt), f"cascaded PID on the state; {rig}")
 
 
+def _noise_covariance(loop: Loop, V):
+    """``(P, A, B, C, D, V)``: the stationary state covariance ``P = A P A' + B V B'`` of the closed loop from the
+    sensors' white noise of covariance ``V`` (:attr:`Loop.noise`), with its matrices."""
+    if loop.noise is None:
+        raise AnalysisError(f"The loop '{loop.name}' reads the true state, so sensor noise does not reach its ctrl; "
+                            "build it with a Kalman filter (kalman=...).")
+    A, B, C, D = (np.asarray(M, float) for M in (loop.noise.A, loop.noise.B, loop.noise.C, loop.noise.D))
+    V = np.atleast_2d(np.asarray(V, float))
+    return scipy.linalg.solve_discrete_lyapunov(A, B @ V @ B.T), A, B, C, D, V
+
+
 def ctrl_noise_std(loop: Loop, V) -> np.ndarray:
     """The steady standard deviation of each ctrl that white sensor noise of covariance ``V`` causes through the
     closed loop (:attr:`Loop.noise`): ``sqrt(diag(C P C' + D V D'))`` with ``P`` the stationary state covariance,
@@ -425,10 +440,32 @@ def ctrl_noise_std(loop: Loop, V) -> np.ndarray:
     AnalysisError
         A loop without sensors.
     """
-    if loop.noise is None:
-        raise AnalysisError(f"The loop '{loop.name}' reads the true state, so sensor noise does not reach its ctrl; "
-                            "build it with a Kalman filter (kalman=...).")
-    A, B, C, D = (np.asarray(M, float) for M in (loop.noise.A, loop.noise.B, loop.noise.C, loop.noise.D))
-    V = np.atleast_2d(np.asarray(V, float))
-    P = scipy.linalg.solve_discrete_lyapunov(A, B @ V @ B.T)
+    P, _, _, C, D, V = _noise_covariance(loop, V)
     return np.sqrt(np.diag(C @ P @ C.T + D @ V @ D.T))
+
+
+def state_noise_std(loop: Loop, V) -> np.ndarray:
+    """The steady standard deviation of each of the plant's states (MuJoCo's true state, at the samples) that white
+    sensor noise of covariance ``V`` causes through the closed loop (:attr:`Loop.noise`): the floor the sensors set
+    under a hold's motion, whatever its transient did (``sqrt(diag(P))`` of the plant's block of the stationary
+    covariance of :func:`ctrl_noise_std`).
+
+    Parameters
+    ----------
+    loop : Loop
+        A sampled loop that reads sensors (``sampled_loop(..., kalman=...)``).
+    V : (ny, ny) array
+        The noise covariance per sample, sensor units squared.
+
+    Returns
+    -------
+    (nx,) array
+        m, rad, m/s, rad/s, in the state's order.
+
+    Raises
+    ------
+    AnalysisError
+        A loop without sensors.
+    """
+    P = _noise_covariance(loop, V)[0]
+    return np.sqrt(np.diag(P)[:loop.nx])

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cartpole.analysis import (AnalysisError, Loop, Margins, closed_loop_stable, continuous_loop, ctrl_noise_std,
-                               loop_margins, pid_loop, sampled_loop)
+                               loop_margins, pid_loop, sampled_loop, state_noise_std)
 from cartpole.models import steps_per_period
 
 #: Designs with no linear loop to break, and why (for the refusal's sentence).
@@ -497,7 +497,9 @@ def noise_limited_catch(model, loop, fraction: float, gain, R, *, required: bool
     dict
         ``fraction`` (asked), ``met`` (bool), ``R`` (nu, nu) and ``factor`` (on the starting ``R``),
         ``process_noise`` (accel_std given to the estimator, or None for its default), ``predicted_std`` (nu,)
-        and ``predicted_fraction`` (nu,) at that design (ctrl units, and of the range).
+        and ``predicted_fraction`` (nu,) at that design (ctrl units, and of the range), and
+        ``predicted_state_std`` (nx,): the standard deviation the sensors leave in MuJoCo's true state in the hold
+        (:func:`~cartpole.analysis.state_noise_std`; m, rad, m/s, rad/s), the floor under its rest.
 
     Raises
     ------
@@ -549,12 +551,13 @@ def _noise_search(model, loop, f: float, gain, R, ladder, doublings: int, x_eq):
         K = np.asarray(gain(R * factor), float)
         for a in ladder:
             kf, V = filters[a]
-            std = ctrl_noise_std(sampled_loop(model, K, steps=m, delay_steps=d,
-                                              compensate=bool(loop.delay_compensation), kalman=kf, x=x_eq), V)
+            closed = sampled_loop(model, K, steps=m, delay_steps=d, compensate=bool(loop.delay_compensation),
+                                  kalman=kf, x=x_eq)
+            std = ctrl_noise_std(closed, V)
             found = {"fraction": f, "met": bool(np.all(std <= f * span)), "R": R * factor, "factor": factor,
                      "process_noise": a, "predicted_std": std, "predicted_fraction": std / span}
             if found["met"]:
-                return found, found
+                return {**found, "predicted_state_std": state_noise_std(closed, V)}, found
             if best is None or np.max(std / span) < np.max(best["predicted_fraction"]):
-                best = found
+                best = {**found, "predicted_state_std": state_noise_std(closed, V)}
     return None, best

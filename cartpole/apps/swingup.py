@@ -650,9 +650,9 @@ def run_swingup(plant=None, *, method="auto", x0=None, plan=None, loop: LoopOpti
         check_push_times(loop.push, loop.duration)
     elif names[0] != "trajopt":  # trajopt's length is known after the plan (checked there, before simulating)
         check_push_times(loop.push, MPC_DURATION if names[0] == "mpc" else ENERGY_DURATION)
-    if ctrl_noise is not None and not {"energy", "trajopt"} & set(names):
-        raise SwingupError("--ctrl-noise designs the catch of the energy and trajopt swing-ups; use it with --method "
-                           "energy or trajopt.")
+    if ctrl_noise is not None and not {"energy", "trajopt", "supervisor"} & set(names):
+        raise SwingupError("--ctrl-noise designs the catch of the energy, trajopt and supervisor swing-ups; use it "
+                           "with --method energy, trajopt or supervisor.")
     if "mpc" not in names and (mpc is not None or given["mpc"]):
         raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
                            "--method mpc.")
@@ -852,15 +852,25 @@ def _run_supervisor(ctx: _Context, plan) -> _Ran:
     """The supervisor (:class:`~cartpole.supervise.Supervisor`): the catch in its verified basin, the energy law on
     one pole driven by the cart, else a passive brake and a plan from the state predicted over the planning
     latency, TVLQR along it; again whenever the state is knocked out of the basin."""
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.switching import SWINGUP_CATCH_R
     from cartpole.supervise import supervisor_for
 
-    sup = supervisor_for(ctx.params, ctx.pm, period=ctx.loop.period, plan=plan, basin_of=ctx.basin_of)
+    loop, R, noise = _sensor_design(  # the catch (and the estimator) designed for the rig's sensors, as energy's
+        ctx, lambda r: LinearFeedback.for_model(ctx.pm, R=r, period=ctx.loop.period).K,
+        SWINGUP_CATCH_R * np.eye(ctx.pm.nu))
+    sup = supervisor_for(ctx.params, ctx.pm, period=ctx.loop.period, plan=plan, basin_of=ctx.basin_of,
+                         catch_R=None if noise is None else R)
     T = SUPERVISOR_DURATION if ctx.loop.duration is None else ctx.loop.duration
     check_push_times(ctx.loop.push, T)
-    controller, rig, rollout = _simulate(ctx, sup, T)
+    controller, rig, rollout = _simulate(ctx, sup, T, loop=loop)
     catches = [d.t for d in sup.decisions if d.kind == "catch"]
-    return _Ran(rollout, controller, rig, sup.basin, None, catches[-1] if catches else None,
-                {"supervisor": sup.summary()}, {"plan": plan, "loop": ctx.loop})
+    extra = {"supervisor": sup.summary()}
+    if noise is not None:
+        extra["ctrl_noise"] = _noise_measured(noise, rollout, catches[-1] if catches else None,
+                                             ctx.pm.u_high - ctx.pm.u_low)
+    return _Ran(rollout, controller, rig, sup.basin, None, catches[-1] if catches else None, extra,
+                {"plan": plan, "loop": loop})
 
 
 def _run_energy(ctx: _Context, energy, catch_weights) -> _Ran:
@@ -913,22 +923,24 @@ def _sensor_design(ctx: _Context, gain, R0):
     doc = {"fraction": found["fraction"], "default": not asked, "met": found["met"], "factor": found["factor"],
            "R": np.asarray(found["R"]).tolist(), "process_noise": found["process_noise"],
            "predicted_std": found["predicted_std"].tolist(),
-           "predicted_fraction": found["predicted_fraction"].tolist()}
+           "predicted_fraction": found["predicted_fraction"].tolist(),
+           "predicted_state_std": found["predicted_state_std"].tolist()}
     return loop, found["R"], doc
 
 
 def _noise_measured(doc: dict, rollout, handover_at: float | None, span) -> dict:
     """``doc`` with the ctrl noise MuJoCo measured: ``measured_std`` and ``measured_fraction`` (per input, ctrl units
-    and of the ctrl range's width) over the last ``measured_window_s`` s of the hold (:data:`CTRL_NOISE_WINDOW`, less
-    when the hold after ``handover_at`` is shorter); None without a hand-over. ``span`` (nu,): the ctrl ranges'
-    widths."""
+    and of the ctrl range's width) and ``measured_state_std`` (nx, the true state's, beside ``predicted_state_std``)
+    over the last ``measured_window_s`` s of the hold (:data:`CTRL_NOISE_WINDOW`, less when the hold after
+    ``handover_at`` is shorter); None without a hand-over. ``span`` (nu,): the ctrl ranges' widths."""
     t, u = rollout.t, rollout.ctrl
     window = 0.0 if handover_at is None else min(CTRL_NOISE_WINDOW, float(t[-1]) - float(handover_at))
     if window <= 0:
-        return {**doc, "measured_std": None, "measured_fraction": None, "measured_window_s": None}
+        return {**doc, "measured_std": None, "measured_fraction": None, "measured_state_std": None,
+                "measured_window_s": None}
     std = u[t[1:] > t[-1] - window].std(axis=0)
     return {**doc, "measured_std": std.tolist(), "measured_fraction": (std / span).tolist(),
-            "measured_window_s": window}
+            "measured_state_std": rollout.x[t > t[-1] - window].std(axis=0).tolist(), "measured_window_s": window}
 
 
 def _plan_options(plan, given: dict):

@@ -96,8 +96,8 @@ def add_arguments(parser) -> None:
                       "mpc: the controller's, 0.02 s): the ctrl is held in between, the catch, TVLQR and NMPC are "
                       "designed for it")
     parser.add_argument("--ctrl-noise", type=float, default=None, metavar="FRACTION",
-                        help="energy and trajopt: design the catch (its R) and the estimator (its process noise) so "
-                             "that the ctrl's standard deviation the sensors' noise and quantisation cause in the "
+                        help="energy, trajopt and supervisor: design the catch (its R) and the estimator (its "
+                             "process noise) so that the ctrl's standard deviation the sensors' noise and quantisation cause in the "
                              "hold, predicted from the loop at upright, stays below FRACTION of the ctrl range (needs "
                              "sensors and an estimator); default with sensors 0.02, the quietest design when none "
                              "holds; JSON ctrl_noise with the measured figure beside the predicted one")

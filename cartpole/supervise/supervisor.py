@@ -383,7 +383,7 @@ def _warm(plan) -> bool:
 def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
-                   library: PlanLibrary | None = None) -> Supervisor:
+                   library: PlanLibrary | None = None, catch_R=None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
     applies (one pole driven by the cart), else the planner.
 
@@ -405,6 +405,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     library : PlanLibrary, optional
         The planner's warm starts (:class:`~cartpole.planning.library.PlanLibrary`; default the one stored in the
         user cache for ``model``, empty when none was built); the supervisor's own plans join it in memory.
+    catch_R : (nu, nu) array or float, optional
+        The catch's input weight (default :data:`~cartpole.control.switching.SWINGUP_CATCH_R`), e.g. one designed for
+        the rig's sensors (:func:`cartpole.apps.margins.noise_limited_catch`); the plans' own catches take it too.
 
     Returns
     -------
@@ -412,7 +415,7 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     """
     params = plant_params(plant)
     model = plant_model(plant) if plan_model is None else plan_model
-    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R if catch_R is None else catch_R, period=period)
     if basin_of is None:
         cache = BasinCache.on_disk() if basin_cache is None else basin_cache
         basin = cache.get(params, catch)
@@ -429,7 +432,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
 
         def planner(x0, guess=None):
-            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period, guess=guess)
+            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
+                                   guess=guess, catch_R=catch_R)
         lib = PlanLibrary.load(model) if library is None else library
         return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
     return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)

@@ -6,8 +6,8 @@ import control
 import numpy as np
 import pytest
 
-from cartpole.analysis import (AnalysisError, closed_loop_stable, continuous_loop, loop_margins, pid_loop,
-                               sampled_loop)
+from cartpole.analysis import (AnalysisError, closed_loop_stable, continuous_loop, ctrl_noise_std, loop_margins,
+                               pid_loop, sampled_loop, state_noise_std)
 from cartpole.control import LinearFeedback
 from cartpole.estimation import measurement_function, sensor_spec
 from cartpole.estimation.kalman import KalmanFilter, process_noise
@@ -190,3 +190,28 @@ def test_each_input_channels_loop_closes_on_the_full_closed_loop():
         L = channel_loop(A, B, C, np.zeros((2, 2)), 0, ch)
         closed = np.asarray(L.A) - np.asarray(L.B) @ np.asarray(L.C)  # 1 + L = 0 closes this channel too
         assert np.allclose(np.sort_complex(np.linalg.eigvals(closed)), full)
+
+
+def test_the_sensor_noise_floor_of_the_state_and_the_ctrl_is_what_the_closed_loop_does_to_white_noise(lab):
+    """``state_noise_std`` and ``ctrl_noise_std`` against the closed loop driven by sampled white noise of the
+    sensors' covariance: 40000 samples of a loop whose correlation time is tens of samples leave the sample standard
+    deviation a few per cent uncertain."""
+    steps = 2
+    kf = _kalman(lab, steps=steps)
+    res = LinearFeedback.for_model(lab, *lab_weights(lab), period=steps * lab.dt)
+    loop = sampled_loop(lab, res.K, steps=steps, delay_steps=1, kalman=kf)
+    V = sensor_spec(lab, encoder_cpr=2048, encoder_resolution=0.001).measurement_covariance()
+    A, B, C, D = (np.asarray(M, float) for M in (loop.noise.A, loop.noise.B, loop.noise.C, loop.noise.D))
+    n = np.random.default_rng(0).multivariate_normal(np.zeros(len(V)), V, size=40000)
+    z = np.zeros(A.shape[0])
+    xs, us = [], []
+    for nk in n:
+        us.append(C @ z + D @ nk)
+        xs.append(z[:lab.nx].copy())
+        z = A @ z + B @ nk
+    xs, us = np.array(xs[1000:]), np.array(us[1000:])
+    assert loop.nx == lab.nx
+    assert xs.std(axis=0) == pytest.approx(state_noise_std(loop, V), rel=0.1)
+    assert us.std(axis=0) == pytest.approx(ctrl_noise_std(loop, V), rel=0.1)
+    with pytest.raises(AnalysisError, match="true state"):
+        state_noise_std(sampled_loop(lab, res.K, steps=steps), V)
