@@ -21,18 +21,19 @@ from cartpole.solvers.sqp import QP_SOLVERS, CollocationSQP, SQPError
 @contextmanager
 def _recording(problems: list):
     """While open, every SQP problem the planner solves is appended to ``problems`` as ``(stage, ocp, x0, x_goal,
-    guess)`` (the planner's own ``_sqp_attempt`` still solves it)."""
-    original = _trajopt._sqp_attempt
+    guess)`` (the planner's SQP still solves it): the planner's ``CollocationSQP`` is this recording subclass."""
+    class Recording(CollocationSQP):
+        def solve_once(self, x0, x_goal=None, *, guess=None, T=None, start=0):
+            stage = f"{self.ocp.objective_spec.kind} N={self.ocp.N}"
+            problems.append((stage, self.ocp, x0, x_goal, guess))
+            return super().solve_once(x0, x_goal, guess=guess, T=T, start=start)
 
-    def record(ocp, x0, x_goal, guess, name, stage, attempts):
-        problems.append((stage, ocp, x0, x_goal, guess))
-        return original(ocp, x0, x_goal, guess, name, stage, attempts)
-
-    _trajopt._sqp_attempt = record
+    original = _trajopt.CollocationSQP
+    _trajopt.CollocationSQP = Recording
     try:
         yield problems
     finally:
-        _trajopt._sqp_attempt = original
+        _trajopt.CollocationSQP = original
 
 
 def planner_sqp_problems(mjcf, *, objective: str = "effort") -> list[tuple]:
