@@ -71,7 +71,8 @@ def qp_dual_unit(out) -> Path:
 
     nz, nr = QP_SIZES
     fields = "\n".join(f"    {f}" for f in qp_fields(nz, nr))
-    text = (f"#include <math.h>\ntypedef double cp_real;\n#define CP_REAL_IS_FLOAT 0\nstatic struct {{\n{fields}\n}} S;\n"
+    text = (f"#include <math.h>\ntypedef double cp_real;\n#define CP_REAL_IS_FLOAT 0\n"
+            f"static struct {{\n{fields}\n}} S;\n"
             f"{qp_source(nz, nr)}\n"
             "int qp_sample(cp_real* H, const cp_real* h, const cp_real* A, const cp_real* lba, const cp_real* uba,\n"
             "              const cp_real* lbx, const cp_real* ubx, cp_real* z);\n"

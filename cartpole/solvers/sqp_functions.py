@@ -1,12 +1,12 @@
 """The SQP's QP, built in compiled C: stage form, convexification and condensing of one iteration in two calls.
 
 :class:`cartpole.solvers.sqp.CollocationSQP` evaluates the interval functions (defects, Jacobians, gradient, exact
-Hessian blocks) and then needs, per iteration, the QP in stage form (docs/architecture.md, SQP). Built in numpy that cost as much as
-everything else in the iteration: many small batched products, a Python-side Riccati pass and an O(N^3) dense
-condensed Hessian. Here the same arithmetic is
-three CasADi Functions generated from one stage's SX and mapped over the stages (``map``/``mapaccum``: the C holds
-each stage's arithmetic once, compact for any N), compiled to C once per size and cached like the interval
-functions (:func:`cartpole.codegen.build_library`), CasADi's virtual machine as the fallback:
+Hessian blocks) and then needs, per iteration, the QP in stage form (docs/architecture.md, SQP). Built in numpy that
+cost as much as everything else in the iteration: many small batched products, a Python-side Riccati pass and an
+O(N^3) dense condensed Hessian. Here the same arithmetic is three CasADi Functions generated from one stage's SX and
+mapped over the stages (``map``/``mapaccum``: the C holds each stage's arithmetic once, compact for any N), compiled
+to C once per size and cached like the interval functions (:func:`cartpole.codegen.build_library`), CasADi's virtual
+machine as the fallback:
 
 ``sqp_stages (J (nv, nx N), H (nv, nv N), G (nv, N), D (nx, N), lm) -> (T (ny, nz N), ct (nx, N), Hy (ny, ny N),
 gy (ny, N), M (nx, nx N))``
