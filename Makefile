@@ -6,7 +6,7 @@ OUT ?= out
 
 DOCS_OUT ?= docs/_build/html
 
-.PHONY: install demo test bench docs claims clean
+.PHONY: install demo test bench docs claims clean csrc-lint
 
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,11 @@ test: install
 
 bench: install
 	$(BIN)/cartpole bench
+
+# Each C file of cartpole/csrc compiled alone with the export's strict flags against sample configurations the
+# exporter renders (build/csrc-sample/<design>/{include,src}; tools/csrc_sample.py prints every command).
+csrc-lint: install
+	$(BIN)/python tools/csrc_sample.py build/csrc-sample
 
 # The documentation site, warnings as errors (the API reference imports the package: headless GL as for the tests),
 # then checked as a reader sees it (tests/docs/test_site.py). The notebook pages show the outputs `make test` kept;

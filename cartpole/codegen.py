@@ -501,7 +501,24 @@ def c_real(value) -> str:
     return text if any(c in text for c in ".en") else text + ".0"
 
 
-def _c_list(values, ctype: str = "real", per_line: int = 6) -> str:
+def c_list(values, ctype: str = "real", per_line: int = 6) -> str:
+    """``values`` flattened in C (row-major) order as a comma-separated list of C literals, ``per_line`` to a line
+    (lines joined by a newline and four spaces): :func:`c_real` each, or whole numbers with ``ctype`` ``"int"``.
+    The templates' ``c_list`` filter and :func:`cartpole.export.csource.table`'s body.
+
+    Parameters
+    ----------
+    values : array_like
+        Any shape.
+    ctype : str
+        ``"int"`` for whole numbers (indices, counts); anything else (``"real"``, ``"cp_real"``) for reals.
+    per_line : int
+        Literals per source line.
+
+    Returns
+    -------
+    str
+    """
     flat = np.asarray(values).ravel(order="C")
     items = [str(int(v)) for v in flat] if ctype == "int" else [c_real(v) for v in flat]
     return ",\n    ".join(", ".join(items[i:i + per_line]) for i in range(0, len(items), per_line))
@@ -514,7 +531,7 @@ def _jinja_env():
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(CSRC)), undefined=jinja2.StrictUndefined,
                              keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True, autoescape=False)
     env.filters["c_real"] = c_real
-    env.filters["c_list"] = _c_list
+    env.filters["c_list"] = c_list
     return env
 
 

@@ -10,7 +10,7 @@ import re
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import c_real
+from cartpole.codegen import c_list, c_real
 
 #: The real types an export can use (``cp_real``), by the name ``--float32`` chooses.
 REALS = ("double", "float")
@@ -52,12 +52,7 @@ def table(name: str, values, ctype: str = "cp_real", *, per_line: int = 6) -> st
     flat = np.asarray(values).ravel(order="C")
     if flat.size == 0:
         raise ValueError(f"table {name} would be empty (C99 forbids zero-length arrays)")
-    if ctype == "int":
-        items = [str(int(v)) for v in flat]
-    else:
-        items = [literal(v) for v in flat]
-    rows = [", ".join(items[i:i + per_line]) for i in range(0, len(items), per_line)]
-    body = ",\n    ".join(rows)
+    body = c_list(flat, ctype, per_line)
     return f"static const {ctype} {name}[{flat.size}] = {{\n    {body}\n}};\n"
 
 

@@ -37,8 +37,6 @@ from cartpole._arrays import readonly
 from cartpole.codegen import Buffered, build_library, compiled_or_none, load_library
 from cartpole.errors import CartPoleError
 
-_LIB_VERSION = "ddp-1"
-
 
 class DDPError(CartPoleError, ValueError):
     """A DDP problem that cannot be set up: shapes that disagree, bounds the start violates, bad options."""
@@ -268,7 +266,7 @@ class DDP:
         funs = [stages, costs, rollout, terminal, backward, forward]
         self.library = None
         def build():
-            lib, _ = build_library(funs, _LIB_VERSION + f"/{N}")
+            lib, _ = build_library(funs)  # keyed by the generated source (N included)
             return lib, load_library(lib, tuple(f.name() for f in funs))
 
         built = compiled_or_none(build, "DDP functions") if compiled else None

@@ -1,103 +1,22 @@
-"""The offline Hermite-Simpson swing-up solved by SQP on its stage-structured QP (exact Hessian, filter line search).
+"""SQP for the compressed Hermite-Simpson collocation NLP of :class:`~cartpole.ocp.collocation.DirectCollocation`
+(effort, a running cost, or minimum time through the time scale ``tau = T / T_0``, one more state free at the first
+knot): the same scaled variables, defects, bounds and objective as its IPOPT path, so the same optimum.
 
-The NLP is :class:`~cartpole.ocp.collocation.DirectCollocation`'s compressed Hermite-Simpson problem, variable for
-variable: scaled knots ``z_k = (x_k / s_x, u_k / s_u)`` (nz = nx + nu), k = 0..N, the defects
-``d_k(z_k, z_k+1) = 0`` (nx each, divided by ``s_x``), box bounds on the knots (ctrl, cart rail, limited joints),
-``x_0`` and ``x_N`` pinned, objective the effort ``integral u'u dt`` divided by ``sum(s_u^2) T``. Its pieces are
-the interval functions compiled to C (:mod:`cartpole.ocp.compiled_nlp`: ``hs_dj`` defect and Jacobian, ``hs_eg`` cost
-and gradient, the exact Hessian block of the interval's Lagrangian), here in their knot-shared form
-(:func:`cartpole.ocp.compiled_nlp.knot_functions`: each knot's dynamics and curvature once), mapped over the knots and
-intervals.
-
-Each SQP step solves the QP of the exact Lagrangian Hessian and the linearised defects. That QP is an optimal
-control problem once the defects are read as dynamics: the linearised defect
-``d + J^a dz_k + J^b_x dx_k+1 + J^b_u du_k+1 = 0`` is explicit in ``dx_k+1`` after one small solve with ``J^b_x``
-(nx x nx, the identity plus O(h)), so with the stage state ``s_k = dz_k`` and the stage control ``w_k = du_k+1``::
-
-    s_k+1 = [dx_k+1; du_k+1] = [-(J^b_x)^-1 (d + J^a s_k + J^b_u w_k); w_k]
-
-and interval k's Hessian block (which couples ``z_k`` and ``z_k+1``) becomes a stage cost in ``(s_k, w_k)`` by the
-same substitution: an OCP QP in stage form (HPIPM's layout, ``casadi.conic``), stages of ``nz`` states and ``nu``
-controls, the pinned ``x_0`` dropped from the first stage. The multipliers of the original defects follow from those
-of the stage dynamics (the substitution adds interval k's gradient in ``z_k+1`` to them, then
-``lambda_k = -(J^b_x)^-T mu_k``).
-
-QP solver: ``riccati`` (default; :mod:`cartpole.solvers.riccati_qp`: the stage QP itself by Riccati recursions in C,
-inputs held at their bounds removed from the recursion, held state bounds through their responses, a primal-dual
-active set hot-started from the last QP's; O(N) a set), ``daqp`` (the stage QP condensed onto the knot controls
-``v = (du_0 .. du_N)``, (N+1) nu unknowns, ``dx_k = g_k + G_k v`` by the stage dynamics, and solved by DAQP, PyPI
-``daqp``, the dense dual active-set solver the NMPC uses, hot-started from the last QP's multipliers; see
-:meth:`CollocationSQP._daqp_step`; it also takes every QP the Riccati active set cannot settle, infeasible
-linearisations among them), ``qrqp`` (CasADi's sparse active-set solver, which factorises the banded KKT system of the
-stage QP by sparse QR, hot-started from the previous iteration's active set) or ``hpipm`` (CasADi's interface to the
-Riccati-recursion interior point). Every QP answer is checked (finite, inside the bounds, on the stage dynamics); a
-failed check is solved again cold, then by HPIPM. The QP of each iteration is built in compiled C
-(:mod:`cartpole.solvers.sqp_functions`: the stage form and its convexification in one call, the condensing (for DAQP)
-in another, without any ``G' Q G`` product, and the defects' multipliers from the QP's in a third). Why not HPIPM:
-CasADi's HPIPM interface allocates HPIPM's workspace on every call, HPIPM needs ``balance`` or ``robust`` mode and
-finite stand-ins for free bounds (:data:`QP_INF`), and its less accurate answers cost many more SQP iterations; DAQP
-takes the same iterations to the same optimum as qrqp, most of its time its own set-up of the dense condensed QP
-(Cholesky and the inverse factor), which the Riccati solver does not need. What each part costs today is measured by
-``cartpole bench`` (the docs' benchmarks page), not written here.
-
-Hessian: the exact Lagrangian blocks with Levenberg-Marquardt damping ``delta I`` on every stage block (``delta``
-starts at ``lm_init``, divided by 4 after a full step, multiplied by 4 after a shortened one, so it vanishes as the
-iterates converge: quadratic convergence at the end), then made positive definite on the stage dynamics' null space
-where it is not: a backward Riccati recursion over the stages raises any stage's reduced Hessian ``R + B' P B`` below
-``reg_min`` (``sqp_stages`` in :mod:`cartpole.solvers.sqp_functions`), so every QP is convex. A running cost (tracking,
-a reward) is not convex in the inputs: where an input saturates the free problem's reduced Hessian is indefinite at
-the solution itself, and that stage-wise raise changes the QP there (measured: it converges only linearly); the
-effort's Lagrangian is indefinite too where the dynamics' curvature weighs (on the triple the raise left the SQP at a
-stationarity of 0.04 for 100 iterations). With the Riccati QP solver each QP is therefore first solved on the exact
-Hessian (``sqp_stages`` without the raise) with IPOPT's inertia correction: no shift first, and where a reduced
-Hessian of the active set is not positive definite ``delta I`` added to every stage block, from a third of the last
-shift used (1e-4 the first time; no floor after, as IPOPT's ``delta_w_min`` is 1e-20) up by 8 until it is; the
-convexified QP only when that fails. The shift must be free to decay: on the triple's minimum time the problem is
-nearly singular where inputs leave their bounds (reduced-Hessian eigenvalues of 1e-6), and a floor of 1e-4 made every
-step a proximal one that crept along that direction (200 iterations without converging; 14 without the floor). The Riccati solver adds
-``rho/2`` times the squared residual of each held state row (the pinned ``x_N`` among them) to the recursion, which
-changes neither the QP's solution nor its multipliers but lends the recursion the curvature the rows give the
-constrained problem: without it the reduced Hessians near a pinned end were indefinite where the constrained QP is
-convex, and the shift never returned to zero (tracking on a 30-interval mesh stalled). Near the solution the shift is zero: Newton
-steps. Globalisation: a filter
-line search on (``||d||_1``, cost) (Fletcher and Leyffer) with a second-order correction against the Maratos effect,
-steps longer than ``max_step`` (scaled units) shortened. Converged when the largest defect and the largest entry of the
-Lagrangian's gradient are below ``tol`` (scaled units, the collocation's IPOPT ``tol``); after a full step that test
-is first made with the last QP's multipliers (the step was full, so that QP's active bounds hold at the new point),
-so no QP is solved only to confirm convergence.
-
-Minimum time (objective ``time``, ``T`` free): solved as a fixed-duration problem on the reference clock of
-``T_0`` (the guess's duration, or ``T`` given to :meth:`CollocationSQP.solve_once`) with the time scale
-``tau = T / T_0`` one more state (``_time_scaled``): dynamics ``(tau f(x, u), 0)``, running cost ``tau (1 + w
-u'u)`` (``w`` the problem's ``time_effort_weight``), whose Simpson integral is ``T + w integral u'u dt``;
-Hermite-Simpson with step ``h_0`` on these is Hermite-Simpson with step ``tau h_0`` on ``f``, the collocation's
-free-time NLP, so the optimum is IPOPT's. ``tau`` is free at knot 0 (bounded by the problem's ``T_range``), the
-Riccati QP solver's ``n_free`` state, and each step of it is held within :data:`TAU_STEP` of its value (a trust
-region: the first linearisations of a far guess ask for durations the plan cannot reach). A QP the Riccati active set
-does not settle goes to DAQP with ``d tau`` one more unknown of the condensed QP
-(:func:`cartpole.solvers.sqp_functions.free_state_column`); qrqp and HPIPM, behind DAQP, keep ``tau`` for that step,
-so convergence is then only declared on the Lagrangian's gradient, ``tau``'s entry included.
-
-Infeasible linearisations: with ``qrqp`` and ``hpipm`` a linearisation whose QP is infeasible ends the solve
-(``QP_Failed``): the two-pole standard problem from the benchmark's guess does so at the first iteration. With
-``daqp`` (the default) the state-bound rows (rail, limited joints, the pinned ``x_N``) are made soft when the hard QP
-is infeasible (DAQP's soft constraints): the step leaves the bounds, is projected back into them, the defects it
-leaves are the filter's to judge, and that QP's multipliers are not taken (they price the penalty). Far from
-feasibility (largest scaled defect above ``exact_hessian_below``) the Hessian is the cost's curvature only (the
-defect multipliers dropped from it): the exact Hessian there, with multipliers from nearly infeasible QPs, is so
-indefinite that its convexification blows up. On the two-pole problem from the bench's guess the SQP reaches
-IPOPT's optimum, in far fewer iterations, with ``exact_hessian_below`` 0.1 (and with smaller thresholds, in more
-iterations), while larger ones, the exact Hessian from the start among them, end in ``QP_Failed`` within a few
-iterations (``tests/solvers/test_sqp.py`` holds this case). On the single pole the first defects are below 0.1, so
-the default leaves its solve unchanged. An l1 or l2 elastic qrqp QP (slacks on every linearised defect) was tried
-before the soft DAQP rows and is not kept: each QP was slow and the SQP did not converge. When the SQP does not converge, :meth:`CollocationSQP.solve` with
-``fallback=True`` solves with IPOPT; IPOPT stays the default everywhere else.
+Each iteration builds, in compiled C (:mod:`cartpole.solvers.sqp_functions`), the QP of the exact Lagrangian Hessian
+and the linearised defects in stage form (the defects read as dynamics ``s_k+1 = T_k (s_k, w_k) + t_k`` with the
+stage state ``s_k = dz_k`` and control ``w_k = du_k+1``) and solves it by Riccati recursions with a primal-dual
+active set in C (:mod:`cartpole.solvers.riccati_qp`), with IPOPT's inertia correction where the Hessian is not
+convex on the active set. A QP that active set does not settle, an infeasible linearisation (then with soft state
+rows) and every QP without a C compiler go to DAQP on the QP condensed onto the knot controls. Steps are globalised
+by a filter line search on (``||d||_1``, cost) with a second-order correction. Why these two QP solvers and no
+other, with the measurements: the benchmarks page ("The collocation SQP's QP solvers").
 """
 from __future__ import annotations
 
 import time
 
 import casadi as ca
+import daqp
 import numpy as np
 
 from cartpole.codegen import Buffered
@@ -114,19 +33,13 @@ class SQPError(OCPError):
 
 
 #: QP solvers: ``riccati`` (the stage QP by Riccati recursions and a primal-dual active set, in C:
-#: :mod:`cartpole.solvers.riccati_qp`; a QP it cannot settle goes to ``daqp``), ``daqp`` (the stage QP condensed
-#: onto the knot controls, DAQP's dense dual active set; qrqp then HPIPM when it fails), ``qrqp`` (CasADi's sparse
-#: active-set solver: the banded KKT system by sparse QR, hot-started from the previous SQP iteration's active set;
-#: when its answer fails the check of feasibility, HPIPM solves that QP) and ``hpipm`` alone (Riccati-recursion
-#: interior point, through CasADi's interface).
-QP_SOLVERS = ("riccati", "daqp", "qrqp", "hpipm")
+#: :mod:`cartpole.solvers.riccati_qp`; a QP it cannot settle goes to ``daqp``) and ``daqp`` (the stage QP condensed
+#: onto the knot controls, DAQP's dense dual active set, with soft state rows when the hard QP is infeasible).
+QP_SOLVERS = ("riccati", "daqp")
 _BIG = 1e30  # DAQP's "no bound"
 _GAMMA = 1e-5  # the filter's margin
 #: Largest relative change of a minimum-time problem's duration in one SQP step.
 TAU_STEP = 0.5
-#: Bound magnitude that stands for "no bound" in the QP (scaled units; HPIPM treats every variable as boxed and
-#: converges badly with CasADi's default 1e8; steps of the scaled NLP are of order one).
-QP_INF = 1e3
 
 
 def _positive_definite(H: np.ndarray) -> np.ndarray:
@@ -151,7 +64,7 @@ def _positive_definite(H: np.ndarray) -> np.ndarray:
 
 
 def _time_scaled(f: ca.Function, effort_weight: float) -> tuple[ca.Function, ca.Function]:
-    """The minimum-time problem as a fixed-duration one (module docstring): the dynamics of ``(x, tau)`` on the
+    """The minimum-time problem as a fixed-duration one (docs/architecture.md, SQP): the dynamics of ``(x, tau)`` on the
     reference clock, ``(tau f(x, u), 0)``, and the running cost ``tau (1 + effort_weight u'u)``, whose integral over
     the reference duration ``T_0`` is ``T + effort_weight integral u'u dt`` (``T = tau T_0``). Hermite-Simpson with
     step ``h_0`` on these is Hermite-Simpson with step ``tau h_0`` on ``f``: the collocation's free-time NLP."""
@@ -173,8 +86,8 @@ class CollocationSQP:
     ----------
     ocp : DirectCollocation
         The problem: model, N, T, bounds, objective ``effort``, a running cost (``tracking``, the ``dmc_*`` rewards,
-        ``MODULE:FUNCTION``) or ``time`` (T free: by its time scale, module docstring; the Riccati QP solver only).
-        Each QP on the exact Hessian first, with IPOPT's inertia correction (module docstring).
+        ``MODULE:FUNCTION``) or ``time`` (T free: by its time scale; the Riccati QP solver only).
+        Each QP on the exact Hessian first, with IPOPT's inertia correction (docs/architecture.md, SQP).
     tol : float
         Converged when the largest defect and the largest entry of the Lagrangian's gradient (bound multipliers
         included, scaled units) are below ``tol`` (default 1e-8, the collocation's IPOPT ``tol``).
@@ -185,11 +98,9 @@ class CollocationSQP:
     lm_init : float
         First Levenberg-Marquardt damping of the stage Hessian blocks (default 1e-2; the scaled effort Hessian's
         diagonal is about 1e-2 at N = 100).
-    qp_solver : {'riccati', 'daqp', 'qrqp', 'hpipm'}
-        The QP solver (module docstring); DAQP backs up the Riccati solver (which needs a C compiler: without one,
-        or with ``ocp.compiled`` False, DAQP is used), HPIPM also backs up qrqp, qrqp and HPIPM back up DAQP.
-    qp_options : dict, optional
-        Merged into the options of ``casadi.conic`` for ``qp_solver`` (for HPIPM, ``{"hpipm": {...}}`` for its own).
+    qp_solver : {'riccati', 'daqp'}
+        The QP solver (:data:`QP_SOLVERS`); DAQP backs up the Riccati solver, which needs a C compiler (without one,
+        or with ``ocp.compiled`` False, DAQP is used).
     warm_qp : bool
         Hot-start each QP from the previous one's multipliers (active set).
     soc : bool
@@ -198,7 +109,7 @@ class CollocationSQP:
         Longest step (max over the scaled variables) taken; longer QP steps are shortened.
     exact_hessian_below : float
         Largest scaled defect at which the Hessian includes the defects' curvature (the exact Lagrangian); above
-        it, the cost's only (default 0.1; why, in the module docstring).
+        it, the cost's only (default 0.1; why: docs/architecture.md, SQP).
     max_unsettled : int or None
         With ``qp_solver="riccati"``: feasible QPs the Riccati active set may hand to DAQP (infeasible linearisations,
         which DAQP solves with soft rows, are not counted) before the solve stops with status ``QP_Unsettled`` (None,
@@ -218,7 +129,7 @@ class CollocationSQP:
         ``step`` (max scaled step), ``damping`` (the Levenberg-Marquardt ``delta`` used), ``alpha`` (line-search
         step), ``soc`` (the second-order correction was taken).
     qp_counts : dict
-        QP solves of the last solve per solver (``qrqp``, ``hpipm``, ``daqp``: DAQP calls, row screening included;
+        QP solves of the last solve per solver (``daqp``: DAQP calls, row screening included;
         ``riccati``: the Riccati active set's convexified QPs, ``riccati_exact`` its QPs on the exact Hessian,
         ``riccati_unsettled`` those it handed to DAQP).
     qp_soft : int
@@ -226,7 +137,7 @@ class CollocationSQP:
     """
 
     def __init__(self, ocp: DirectCollocation, *, tol: float = 1e-8, max_iter: int = 200, reg_min: float = 1e-4,
-                 lm_init: float = 1e-2, qp_solver: str = "riccati", qp_options: dict | None = None,
+                 lm_init: float = 1e-2, qp_solver: str = "riccati",
                  warm_qp: bool = True, soc: bool = True, max_step: float = 1.0, exact_hessian_below: float = 1e-1,
                  max_unsettled: int | None = None):
         if not isinstance(ocp, DirectCollocation):
@@ -240,7 +151,7 @@ class CollocationSQP:
                            f"solve it with IPOPT (DirectCollocation.solve).")
         if qp_solver not in QP_SOLVERS:
             raise SQPError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
-        # minimum time: the time scale tau = T / T_0 is one more state, free at knot 0 (module docstring); only the
+        # minimum time: the time scale tau = T / T_0 is one more state, free at knot 0 (docs/architecture.md); only the
         # Riccati solver has a free state at knot 0
         self._np = 1 if kind == "time" else 0
         if self._np and not (qp_solver == "riccati" and ocp.compiled
@@ -249,13 +160,6 @@ class CollocationSQP:
                            "needs a C compiler); solve them with IPOPT (DirectCollocation.solve).")
         if qp_solver == "riccati" and not (ocp.compiled and riccati_qp.available(ocp.nx, ocp.nu)):
             qp_solver = "daqp"  # no C compiler: the condensed route (same answers)
-        if qp_solver in ("riccati", "daqp"):
-            import importlib.util
-
-            if importlib.util.find_spec("daqp") is None:
-                raise SQPError(f"qp_solver '{qp_solver}' needs the daqp package (pip install daqp); use 'qrqp'.")
-        elif not ca.has_conic(qp_solver):
-            raise SQPError(f"This CasADi build has no '{qp_solver}' QP plugin; use IPOPT (DirectCollocation.solve).")
         self.qp_solver, self.warm_qp, self.soc = qp_solver, bool(warm_qp), bool(soc)
         self.lm_init, self.max_step = float(lm_init), float(max_step)
         self.exact_hessian_below = float(exact_hessian_below)
@@ -281,7 +185,7 @@ class CollocationSQP:
         self._kf, self._mid1, self._mid2, self._kh = (Buffered(maps[n]) for n in compiled_nlp.KNOT_FUNCTIONS)
         funcs, self.qp_library = sqp_functions.compiled_qp_functions(nx, nu, N, self.reg_min, compiled=ocp.compiled,
                                                                      n_free=self._np)
-        # each QP is first solved on the exact Hessian with IPOPT's inertia correction (module docstring), the
+        # each QP is first solved on the exact Hessian with IPOPT's inertia correction (docs/architecture.md, SQP), the
         # convexified QP only where that fails
         self._stages_raw = None
         if qp_solver == "riccati":
@@ -289,82 +193,8 @@ class CollocationSQP:
             self._stages_raw = Buffered(raw[0])
         self._rqp = riccati_qp.StageQP(N, nx, nu, n_free=self._np) if qp_solver == "riccati" else None
         self._stages, self._condense, self._mult, self._stat = (Buffered(f) for f in funcs)
-        self._setup_qp(qp_options or {})
+        self.qp_counts: dict[str, int] = {}
         self.history: list[dict] = []
-
-    # ---- the QP's layout ------------------------------------------------------------------------------------
-    def _setup_qp(self, qp_options: dict) -> None:
-        """Sparsity of HPIPM's OCP QP: stages ``s_0 = du_0`` (nu), ``s_k = dz_k`` (nz) for k = 1..N, controls
-        ``w_k = du_k+1`` (nu) for k < N; variables ``[s_0, w_0, s_1, w_1, ..., s_N]``; rows: the stage dynamics
-        ``s_k+1 = T_k (s_k, w_k) + t_k`` (nz each)."""
-        N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
-        ns = [nu] + [nz] * N
-        nw = self.nw
-        off_s, o = [], 0
-        for k in range(N + 1):
-            off_s.append(o)
-            o += ns[k] + (nw if k < N else 0)
-        n = o
-        self._n = n
-        # knot entries each stage variable steps: s_0 -> z_0[nx:], s_k -> z_k
-        z_flat = np.arange((N + 1) * nz).reshape(N + 1, nz)
-        self._zi = np.concatenate([z_flat[0, nx:]] + [z_flat[k] for k in range(1, N + 1)])
-        self._qi = np.concatenate([off_s[0] + np.arange(nu)] + [off_s[k] + np.arange(nz) for k in range(1, N + 1)])
-        self._wi = np.concatenate([off_s[k] + ns[k] + np.arange(nw) for k in range(N)])  # controls w_k
-        rows, cols = [], []
-        for k in range(N):
-            ny = ns[k] + nw
-            r, c = np.meshgrid(np.arange(nz), np.arange(ny), indexing="ij")
-            rows.append(nz * k + r.ravel())
-            cols.append(off_s[k] + c.ravel())  # y_k = (s_k, w_k) contiguous
-        self._a_count = sum(r.size for r in rows)
-        rows.append(np.arange(nz * N))
-        cols.append(np.concatenate([off_s[k + 1] + np.arange(nz) for k in range(N)]))
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
-        self._a_order = np.lexsort((rows, cols))  # CasADi's compressed-column order
-        self._sp_a = ca.Sparsity.triplet(nz * N, n, rows[self._a_order].tolist(), cols[self._a_order].tolist())
-        self._a_vals = np.empty(rows.size)
-        self._a_vals[self._a_count:] = -1.0
-        hr, hc = [], []
-        for k in range(N + 1):
-            ny = ns[k] + (nw if k < N else 0)
-            r, c = np.meshgrid(np.arange(ny), np.arange(ny), indexing="ij")
-            hr.append(off_s[k] + r.ravel())
-            hc.append(off_s[k] + c.ravel())
-        hr, hc = np.concatenate(hr), np.concatenate(hc)
-        self._h_order = np.lexsort((hr, hc))
-        self._sp_h = ca.Sparsity.triplet(n, n, hr[self._h_order].tolist(), hc[self._h_order].tolist())
-        hp = {"mode": "robust", "iter_max": 200}
-        hp_opts = {"N": N, "nx": ns, "nu": [nw] * N + [0], "ng": [0] * (N + 1), "inf": QP_INF,
-                   "error_on_fail": False, "print_time": False}
-        qr_opts = {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False,
-                   "print_time": False, "max_iter": 1000}
-        user = dict(qp_options)
-        if self.qp_solver == "hpipm":
-            hp.update(user.pop("hpipm", {}))
-            hp_opts.update(user)
-        else:
-            qr_opts.update(user)
-        hp_opts["hpipm"] = hp
-        # called on numpy buffers (CasADi's DM conversions cost about as much as the QP): nonzeros in, solution out
-        hn, gn, an = ca.MX.sym("h", self._sp_h.nnz()), ca.MX.sym("g", n), ca.MX.sym("a", self._sp_a.nnz())
-        bn, lx, ux = ca.MX.sym("b", nz * N), ca.MX.sym("lbx", n), ca.MX.sym("ubx", n)
-        x0, lx0, la0 = ca.MX.sym("x0", n), ca.MX.sym("lam_x0", n), ca.MX.sym("lam_a0", nz * N)
-        self._qps = {}
-        for name, opts in (("hpipm", hp_opts), ("qrqp", qr_opts)):
-            if name == "qrqp" and self.qp_solver == "hpipm":
-                continue
-            qp = ca.conic(f"hs_sqp_{name}", name, {"h": self._sp_h, "a": self._sp_a}, opts)
-            sol = qp(h=ca.MX(self._sp_h, hn), g=gn, a=ca.MX(self._sp_a, an), lba=bn, uba=bn, lbx=lx, ubx=ux, x0=x0,
-                     lam_x0=lx0, lam_a0=la0)
-            self._qps[name] = Buffered(ca.Function(f"hs_sqp_{name}_nz", [hn, gn, an, bn, lx, ux, x0, lx0, la0],
-                                                    [sol["x"], sol["lam_a"], sol["lam_x"]]))
-        self.qp_counts = {name: 0 for name in self._qps}
-        self._y = np.zeros(n)
-        self._lam_y = np.zeros(n)
-        self._lam_a = np.zeros(nz * N)
-        self._lbx = np.full(n, -np.inf)
-        self._ubx = np.full(n, np.inf)
 
     # ---- evaluations ----------------------------------------------------------------------------------------
     def _first_order(self, Z: np.ndarray):
@@ -384,7 +214,7 @@ class CollocationSQP:
 
     def _hessian(self, Z: np.ndarray, D: np.ndarray, lam: np.ndarray, F: np.ndarray, JF: np.ndarray) -> np.ndarray:
         """The Lagrangian's Hessian blocks (N, 2 nz, 2 nz) at knots ``Z`` with defects ``D``, defect multipliers
-        ``lam`` (N, nx) and the knots' ``F``, ``JF`` of :meth:`_first_order`; far from feasible (module docstring)
+        ``lam`` (N, nx) and the knots' ``F``, ``JF`` of :meth:`_first_order`; far from feasible (docs/architecture.md)
         the cost's alone. Each knot's own curvature (weighted by both intervals touching it) is added to the block
         of the interval it starts (the last knot's to the last interval): the blocks sum to the NLP's Hessian."""
         N, nx, nz = self.N, self.nx, self.nz
@@ -423,7 +253,7 @@ class CollocationSQP:
         success)``."""
         N, nx, nz = self.N, self.nx, self.nz
         ny = nz + self.nw
-        if self._stages_raw is not None:  # the exact Hessian's QP first (module docstring)
+        if self._stages_raw is not None:  # the exact Hessian's QP first (docs/architecture.md, SQP)
             T, ct, Hy, gy, M = self._stages_raw(J, H, G, D, float(lm))
             T, ct = T.reshape(N, nz, ny), ct.reshape(N, nx)
             Hy, gy, M = Hy.reshape(N, ny, ny), gy.reshape(N, ny), M.reshape(N, nx, nx)
@@ -470,46 +300,13 @@ class CollocationSQP:
                 return self._riccati_step(Hy, gy, T, H, G, M)
             self.qp_counts["riccati_unsettled"] += 1
             rq.reset()  # this QP goes to DAQP (a minimum time's with d tau one more unknown); the next starts afresh
-        if self.qp_solver in ("riccati", "daqp"):
-            out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
-            if out is not None:
-                if self._rqp is not None and not self._soft_step:
-                    self._unsettled_feasible += 1  # a feasible QP the Riccati active set could not settle
-                return out
-            self._warm_ready = False  # DAQP failed: qrqp (cold), then HPIPM
-            if self._rqp is not None:
-                self._unsettled_feasible += 1
-        self._tau_kept = bool(self._np)  # qrqp and HPIPM take the time scale as given for this step
-        hvals = np.concatenate([Hy[0, nx:, nx:].ravel(), Hy[1:].ravel(), np.zeros(nz * nz)])[self._h_order]
-        gvec = np.concatenate([gy[0, nx:], gy[1:].ravel(), np.zeros(nz)])
-        self._a_vals[:self._a_count] = np.concatenate([T[0][:, nx:].ravel(), T[1:].ravel()])
-        avals = self._a_vals[self._a_order]
-        lbx, ubx = self._lbx, self._ubx
-        lbx[self._qi] = (lbz - Z).ravel()[self._zi]
-        ubx[self._qi] = (ubz - Z).ravel()[self._zi]
-        rhs = np.zeros((N, nz))
-        rhs[:, :nx] = -ct
-        rhs = rhs.ravel()
-        tries = [("qrqp", self.warm_qp), ("qrqp", False)] if self.qp_solver != "hpipm" else []
-        ok = False
-        for name, warm in tries + [("hpipm", False)]:
-            if warm and not self._warm_ready:
-                continue
-            y, mu, nub, ok = self._solve_qp(name, T, hvals, gvec, avals, rhs, lbx, ubx, warm=warm)
-            self.qp_counts[name] += 1
-            if ok:
-                break
-        if self.warm_qp and ok and not self._soft_step:  # the next QP starts from this one's active set
-            self._lam_y, self._lam_a, self._warm_ready = nub, mu, True
-        dZ = np.zeros((N + 1, nz))
-        dZ.ravel()[self._zi] = y[self._qi]
-        Nb = np.zeros((N + 1, nz))
-        Nb.ravel()[self._zi] = nub[self._qi]
-        # multipliers of the defects from those of the stage dynamics (module docstring)
-        dV = np.hstack([dZ[:-1], dZ[1:]])
-        mu_orig = mu.reshape(N, nz) + (H @ dV[:, :, None])[:, nz:, 0] + G[:, nz:]
-        lam = -(M.transpose(0, 2, 1) @ mu_orig[:, :nx, None])[:, :, 0]
-        return dZ, lam, Nb, ok
+        out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
+        if out is not None:
+            if self._rqp is not None and not self._soft_step:
+                self._unsettled_feasible += 1  # a feasible QP the Riccati active set could not settle
+            return out
+        self._warm_ready = False  # DAQP failed: the solve ends (QP_Failed)
+        return np.zeros((N + 1, nz)), np.zeros((N, nx)), np.zeros((N + 1, nz)), False
 
     def _step_bounds(self, Z, lbz, ubz) -> tuple[np.ndarray, np.ndarray]:
         """The QP's bounds on the step from ``Z``: the knots' bounds, and for a minimum-time problem a trust region
@@ -578,7 +375,7 @@ class CollocationSQP:
                 sel = np.flatnonzero(inset)
                 sense = np.concatenate((sense_all[:nv], sense_all[nv:][sel]))
                 dual = None if lam_prev is None else np.concatenate((lam_prev[:nv], lam_prev[nv:][sel]))
-                v, _, flag, info = self._daqp(Hc, fc, A_all[sel], np.concatenate((vb_hi, hi_c[sel])),
+                v, _, flag, info = daqp.solve(Hc, fc, A_all[sel], np.concatenate((vb_hi, hi_c[sel])),
                                               np.concatenate((vb_lo, lo_c[sel])), sense, dual_start=dual,
                                               iter_limit=2000)
                 self.qp_counts["daqp"] += 1
@@ -637,24 +434,6 @@ class CollocationSQP:
         self._daqp_lam = None
         if "daqp" not in self.qp_counts:
             self.qp_counts["daqp"] = 0
-
-    def _solve_qp(self, name, T, hvals, gvec, avals, rhs, lbx, ubx, *, warm: bool):
-        """One QP solve; ``(y, lam_a, lam_x, ok)`` with ok: finite, inside the bounds and on the stage dynamics
-        (checked here: the buffered call has no solver statistics)."""
-        N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
-        zero_a = np.zeros(nz * N)
-        lam_y = self._lam_y if warm else self._y
-        lam_a = self._lam_a if warm else zero_a
-        y, mu, nub = (a.copy() for a in self._qps[name](hvals, gvec, avals, rhs, lbx, ubx, self._y, lam_y, lam_a))
-        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(mu)) and np.all(np.isfinite(nub))):
-            return y, mu, nub, False
-        viol = max(float(np.max(lbx - y)), float(np.max(y - ubx)), 0.0)
-        dZ = np.zeros((N + 1, nz))
-        dZ.ravel()[self._zi] = y[self._qi]
-        W = y[self._wi].reshape(N, self.nw)
-        Yk = np.hstack([np.vstack([np.zeros(nx), dZ[1:N, :nx]]), np.vstack([y[:nu], dZ[1:N, nx:]]), W])
-        gap = float(np.abs((T @ Yk[:, :, None])[:, :, 0] - rhs.reshape(N, nz) - dZ[1:]).max())
-        return y, mu, nub, viol <= 1e-6 and gap <= 1e-6
 
     @staticmethod
     def _acceptable(ft, ct, f, c, filt, theta_max) -> bool:
@@ -727,14 +506,10 @@ class CollocationSQP:
         self.history = []
         self._warm_ready = False
         lm = self.lm_init
-        self.qp_counts = {name: 0 for name in self._qps}
+        self.qp_counts = {}
         self.qp_soft = 0
         self._soft_step = False
-        if self.qp_solver in ("riccati", "daqp"):
-            import daqp
-
-            self._daqp = daqp.solve
-            self._condensing_setup(lbz, ubz)
+        self._condensing_setup(lbz, ubz)
         if self._rqp is not None:
             self._rqp.reset()
             self.qp_counts.update(riccati=0, riccati_unsettled=0, riccati_exact=0)
@@ -755,9 +530,9 @@ class CollocationSQP:
                                              "soc": False})
                         status, success = "Solve_Succeeded", True
                         break
-                self._soft_step = self._tau_kept = False
+                self._soft_step = False
                 dZ, lam_qp, Nb, ok = self._qp_step(Z, D, J, G, H, lbz, ubz, lm)
-                soft_step, tau_kept = self._soft_step, self._tau_kept
+                soft_step = self._soft_step
                 infeas = float(np.abs(D).max())
                 kkt = self._stationarity(J, G, lam_qp, Nb)
                 step = float(np.abs(dZ).max())
@@ -770,9 +545,7 @@ class CollocationSQP:
                 if self.max_unsettled is not None and self._unsettled_feasible > self.max_unsettled:
                     status = "QP_Unsettled"
                     break
-                # (a zero step counts for a minimum time only from a QP with the time scale free: qrqp and HPIPM,
-                # behind DAQP, keep it, and their zero step at a fixed-time optimum is no minimum)
-                if infeas <= self.tol and (kkt <= self.tol or (step <= self.tol and not tau_kept)):
+                if infeas <= self.tol and (kkt <= self.tol or step <= self.tol):
                     status, success = "Solve_Succeeded", True
                     break
                 # filter line search on (theta = ||d||_1, f) (Fletcher and Leyffer), second-order correction

@@ -1,12 +1,12 @@
 """The SQP's QP, built in compiled C: stage form, convexification and condensing of one iteration in two calls.
 
 :class:`cartpole.solvers.sqp.CollocationSQP` evaluates the interval functions (defects, Jacobians, gradient, exact
-Hessian blocks) and then needs, per iteration, the QP of its module docstring. Built in numpy that cost as much as
-everything else in the iteration: many small batched products, a Python-side Riccati pass and an O(N^3) dense
-condensed Hessian. Here the same arithmetic is
-three CasADi Functions generated from one stage's SX and mapped over the stages (``map``/``mapaccum``: the C holds
-each stage's arithmetic once, compact for any N), compiled to C once per size and cached like the interval
-functions (:func:`cartpole.codegen.build_library`), CasADi's virtual machine as the fallback:
+Hessian blocks) and then needs, per iteration, the QP in stage form (docs/architecture.md, SQP). Built in numpy that
+cost as much as everything else in the iteration: many small batched products, a Python-side Riccati pass and an
+O(N^3) dense condensed Hessian. Here the same arithmetic is three CasADi Functions generated from one stage's SX and
+mapped over the stages (``map``/``mapaccum``: the C holds each stage's arithmetic once, compact for any N), compiled
+to C once per size and cached like the interval functions (:func:`cartpole.codegen.build_library`), CasADi's virtual
+machine as the fallback:
 
 ``sqp_stages (J (nv, nx N), H (nv, nv N), G (nv, N), D (nx, N), lm) -> (T (ny, nz N), ct (nx, N), Hy (ny, ny N),
 gy (ny, N), M (nx, nx N))``
@@ -46,8 +46,6 @@ import numpy as np
 
 from cartpole.ocp.bounds import OCPError
 from cartpole.codegen import build_library, compiled_or_none, load_library
-
-_LIB_VERSION = "sqp-qp-v3"  # bump when the generated functions change meaning
 
 
 def _acc(steps: int) -> dict:
@@ -311,7 +309,7 @@ def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled:
     if N < 2:
         raise OCPError(f"The SQP's QP functions need N >= 2 intervals, not {N}; use N >= 2 (100 is typical).")
     def build():
-        recipe = f"{_LIB_VERSION}/{nx}x{nu}x{N}/{n_free}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
+        recipe = f"sqp-qp/{nx}x{nu}x{N}/{n_free}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
         lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min, n_free), "", recipe=recipe, cflags=CFLAGS)
         names = ("sqp_stages", "sqp_condense", "sqp_multipliers", "sqp_stationarity")
         ext = load_library(lib, names)

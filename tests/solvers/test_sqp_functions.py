@@ -294,3 +294,35 @@ def test_a_free_state_at_knot_0_condenses_as_one_more_unknown(nx, nu, N):
         Gs.append(Gk)
     assert _rel(H1, Hr) < 1e-10 and _rel(f1, fr) < 1e-10
     assert _rel(G1, np.array(Gs)) < 1e-10
+
+
+def test_the_compiled_librarys_key_is_its_generated_source_not_a_version_string(tmp_path, monkeypatch):
+    """The library is found by a hash of the C CasADi generates (cartpole.codegen.build_library): the same builder
+    is a cache hit, a changed builder a new library (no hand-bumped version string to forget); within a process
+    the recipe memo also names the builder's file by its digest."""
+    import casadi as ca
+
+    from cartpole import codegen
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("CARTPOLE_NO_COMPILE", raising=False)
+    monkeypatch.setattr(codegen, "_BUILT", {})
+    _, lib = sqp_functions.compiled_qp_functions(2, 1, 3, REG)
+    monkeypatch.setattr(codegen, "_BUILT", {})  # a new process
+    _, again = sqp_functions.compiled_qp_functions(2, 1, 3, REG)
+    assert lib is not None and again == lib
+    original = sqp_functions.qp_functions
+
+    def changed(*args):
+        funcs = original(*args)
+        last = funcs[-1]
+        ins = [ca.MX.sym(last.name_in(i), last.sparsity_in(i)) for i in range(last.n_in())]
+        funcs[-1] = ca.Function(last.name(), ins, [2 * o for o in last.call(ins)], last.name_in(), last.name_out())
+        return funcs
+
+    monkeypatch.setattr(sqp_functions, "qp_functions", changed)
+    monkeypatch.setattr(codegen, "_BUILT", {})  # a new process, the builder edited
+    _, other = sqp_functions.compiled_qp_functions(2, 1, 3, REG)
+    assert other is not None and other != lib

@@ -300,20 +300,18 @@ def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_ma
                   "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations,
                   "fatrop_speedup_vs_reference": ref_ms / f_ms if finfo.success else None}
 
-    sqp = {}
-    if ca.has_conic("qrqp") and ca.has_conic("hpipm"):
-        say(f"ours (SQP on the stage-structured QP): {repeats} solves ...")
-        sqp_solver = CollocationSQP(ocp)  # the same problem object: same NLP, same scaling
-        sqp_solver.solve_once(x0, guess=guess)  # builds the QP solvers (not timed)
-        s_ms, (_, s_info) = median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
-        sqp = {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
-               "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
-               # ratios only for a converged solve (a failed one is not a faster way to the plan)
-               "sqp_speedup": base_ms / s_ms if s_info.success else None,
-               "sqp_speedup_vs_expand": exp_ms / s_ms if s_info.success else None,
-               "sqp_vs_ipopt": ours_ms / s_ms if s_info.success else None,
-               "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective),
-               "sqp_speedup_vs_reference": ref_ms / s_ms if s_info.success else None}
+    say(f"ours (SQP on the stage-structured QP): {repeats} solves ...")
+    sqp_solver = CollocationSQP(ocp)  # the same problem object: same NLP, same scaling
+    sqp_solver.solve_once(x0, guess=guess)  # builds the QP solvers (not timed)
+    s_ms, (_, s_info) = median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
+    sqp = {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
+           "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
+           # ratios only for a converged solve (a failed one is not a faster way to the plan)
+           "sqp_speedup": base_ms / s_ms if s_info.success else None,
+           "sqp_speedup_vs_expand": exp_ms / s_ms if s_info.success else None,
+           "sqp_vs_ipopt": ours_ms / s_ms if s_info.success else None,
+           "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective),
+           "sqp_speedup_vs_reference": ref_ms / s_ms if s_info.success else None}
 
     say(f"the default planner (solver 'auto': the SQP, IPOPT behind it): {repeats} solves ...")
     default = default_planner_row(ocp, x0, guess, repeats, ref_ms)
