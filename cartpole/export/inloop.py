@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -45,6 +46,8 @@ class InLoopController(CController):
         super().__init__(lib, ny, nu, real)
         self.nx = int(nx)
         ctype = ctypes.c_float if real == "float" else ctypes.c_double
+        self._ctype = ctype
+        self._accessors = SimpleNamespace()
         self._x = np.zeros(self.nx, dtype=self.dtype)
         self._est = self._lib.cp_estimate
         self._est.argtypes = [ctypes.POINTER(ctype)]
@@ -73,6 +76,45 @@ class InLoopController(CController):
         """The rig's current estimate ``x_hat`` (nx,) as float64 (before the delay prediction)."""
         self._est(self._xp)
         return self._x.astype(float)
+
+    def switch_state(self) -> tuple[bool, float, float]:
+        """The energy part's ``cp_switch_state``: ``(caught, t, cost)``, whether the catch is in charge, and the
+        time (s) and the catch's ``e' S e`` of the last evaluation.
+
+        Raises
+        ------
+        ExportError
+            The program's controller is not the energy law with its catch.
+        """
+        fn = self._accessor("cp_switch_state", [ctypes.POINTER(ctypes.c_double), ctypes.POINTER(self._ctype)])
+        t, cost = ctypes.c_double(), self._ctype()
+        caught = fn(ctypes.byref(t), ctypes.byref(cost))
+        return bool(caught), float(t.value), float(cost.value)
+
+    def handover_state(self) -> float | None:
+        """The TVLQR part's ``cp_handover_state``: the time (s) of the first evaluation that used the catch since the
+        reset, or None.
+
+        Raises
+        ------
+        ExportError
+            The program's controller is not the TVLQR with its catch.
+        """
+        fn = self._accessor("cp_handover_state", [ctypes.POINTER(ctypes.c_double)])
+        t = ctypes.c_double()
+        return float(t.value) if fn(ctypes.byref(t)) else None
+
+    def _accessor(self, name: str, argtypes):
+        fn = getattr(self._accessors, name, None)
+        if fn is None:
+            try:
+                fn = getattr(self._lib, name)
+            except AttributeError:
+                raise ExportError(f"This compiled program has no {name}() (its controller part does not keep that "
+                                  "state); ask the part that defines it.") from None
+            fn.argtypes, fn.restype = argtypes, ctypes.c_int
+            setattr(self._accessors, name, fn)
+        return fn
 
 
 def compile_program(design, real: str = "double") -> InLoopController:
@@ -217,31 +259,118 @@ def controller_part(controller):
     return None
 
 
-class _Stepper:
-    """The compiled program as ``u = c(t, x)`` for a loop without a rig (MuJoCo's exact state every physics step):
-    reset at ``t = 0``, the start of every run."""
+class CompiledLaw:
+    """The loop's controller ``u = c(t, x)`` when the compiled program runs: without a rig it calls ``cp_step`` on
+    MuJoCo's exact state every physics step (``cp_reset`` at ``t = 0``, the start of every run); with a rig
+    (:class:`CompiledRig`) the sample already called it and ``x`` is that ctrl, returned as it is.
 
-    def __init__(self, ctl: InLoopController):
-        self.ctl = ctl
+    Parameters
+    ----------
+    program : InLoopController
+    rig : bool
+        Whether a :class:`CompiledRig` calls ``cp_step`` (then ``c(t, u)`` returns ``u``).
 
-    def __call__(self, t, x):
-        if t == 0.0:
-            self.ctl.reset()
-        return self.ctl.step(t, x)[1]
+    Attributes
+    ----------
+    program : InLoopController
+        The compiled program (its state is the run's).
+    """
+
+    def __init__(self, program: InLoopController, rig: bool = False):
+        self.program = program
+        self._rig = bool(rig)
+        self._last_t = -np.inf
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,) at time ``t`` (s): ``cp_step``'s on ``x`` (nx,), or ``x`` itself (the ctrl) with a rig."""
+        t = float(t)
+        if t < self._last_t or (t == 0.0 and not self._rig):  # a new run
+            if not self._rig:
+                self.program.reset()
+            self._restart()
+        self._last_t = t
+        u = np.asarray(x, dtype=float) if self._rig else self.program.step(t, x)[1]
+        self._observe(t)
+        return u
+
+    def _restart(self) -> None:
+        """Forget the state read from the program (a new run started)."""
+
+    def _observe(self, t: float) -> None:
+        """Read the program's state after its ``cp_step`` of time ``t``."""
 
 
-#: Compiled programs by the Python objects they reproduce (kept alive beside them): (controller, estimator
-#: factory, steps, lag, compensation, run MJCF) -> InLoopController.
-_PROGRAMS: dict = {}
+class CompiledSwitching(CompiledLaw):
+    """:class:`CompiledLaw` of the energy law with its LQR catch (``cp_energy.c``), exposing what
+    :class:`~cartpole.control.switching.SwitchingController` does, read from the C after every ``cp_step``
+    (``cp_switch_state``): the time and the cost ``e' S e`` of each switch are the C's.
+
+    Attributes
+    ----------
+    mode : str
+        "swingup" or "catch", the law in charge after the last ``cp_step``.
+    switches : list of Switch
+        Every mode change of this run.
+    """
+
+    def __init__(self, program: InLoopController, rig: bool = False):
+        super().__init__(program, rig)
+        self._restart()
+
+    def _restart(self) -> None:
+        self.mode = "swingup"
+        self.switches = []
+
+    def _observe(self, t: float) -> None:
+        from cartpole.control.switching import Switch
+
+        caught, t_c, cost = self.program.switch_state()
+        mode = "catch" if caught else "swingup"
+        if mode != self.mode:
+            self.mode = mode
+            self.switches.append(Switch(t_c, mode, cost))
+
+    @property
+    def caught_at(self) -> float | None:
+        """Time (s) of the last switch to the catch if the catch is still in charge, else None."""
+        if self.mode == "catch" and self.switches:
+            return self.switches[-1].t
+        return None
+
+
+class CompiledTracker(CompiledLaw):
+    """:class:`CompiledLaw` of the TVLQR along a plan with its LQR catch (``cp_tvlqr.c``), exposing what
+    :class:`~cartpole.control.tvlqr.TVLQRController` does: ``handover_time``, read from the C
+    (``cp_handover_state``)."""
+
+    @property
+    def handover_time(self) -> float | None:
+        """Time (s) of the first evaluation that used the catch in this run, or None."""
+        return self.program.handover_state()
+
+
+def _law(part, ctl: InLoopController, rig: bool) -> CompiledLaw:
+    """The :class:`CompiledLaw` of the controller part ``part`` that keeps the state its Python class exposes."""
+    if "cp_energy.c" in part.sources:
+        return CompiledSwitching(ctl, rig)
+    if "cp_tvlqr.c" in part.sources:
+        return CompiledTracker(ctl, rig)
+    return CompiledLaw(ctl, rig)
 
 
 def in_loop(model, controller, rig=None):
     """``(controller, rig)`` for :func:`cartpole.sim.rollout.simulate` running ``controller`` on ``rig`` as the one
     compiled implementation: the export's C (the controller's part, the rig's estimator, delay prediction and
-    clip) built once through :mod:`cartpole.codegen` and called every period, when a C compiler exists and the
-    controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none, KF, EKF). Otherwise, or
-    with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes. C that does not compile
-    raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never hidden behind a Python run.
+    clip) built through :mod:`cartpole.codegen` (cached on disk by its content) and called every period, when a C
+    compiler exists and the controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none,
+    KF, EKF). Otherwise, or with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes.
+    C that does not compile raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never hidden
+    behind a Python run.
+
+    The compiled controller is a :class:`CompiledLaw`; for the energy law with its catch a
+    :class:`CompiledSwitching` (``mode``, ``switches``, ``caught_at``), for the TVLQR a :class:`CompiledTracker`
+    (``handover_time``): the state the Python classes expose, read from the C. Nothing is kept between calls
+    here: each call generates the program's files (the library is found by their content) and loads it.
 
     Parameters
     ----------
@@ -266,24 +395,18 @@ def in_loop(model, controller, rig=None):
         return controller, rig
     if rig is not None and rig.estimator not in ("none", "kf", "ekf"):
         return controller, rig
-    key = (id(controller), None if rig is None else id(rig.make_estimator), None if rig is None else rig.steps,
-           None if rig is None else rig.delay_steps, None if rig is None else rig.compensate, id(model.params))
-    entry = _PROGRAMS.get(key)
-    if entry is None:
-        part = controller_part(controller)
-        if part is None:
-            return controller, rig
-        from cartpole.export.design import build_program
-        from cartpole.export.make import c_sources
+    part = controller_part(controller)
+    if part is None:
+        return controller, rig
+    from cartpole.export.design import build_program
+    from cartpole.export.make import c_sources
 
-        design_model = model if rig is None else rig.model
-        prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
-        ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
-        entry = _PROGRAMS[key] = (controller, rig, model.params, ctl)
-    ctl = entry[3]
+    design_model = model if rig is None else rig.model
+    prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
+    ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
     if rig is None:
-        return _Stepper(ctl), None
-    return (lambda t, u: u), CompiledRig(rig, ctl)
+        return _law(part, ctl, False), None
+    return _law(part, ctl, True), CompiledRig(rig, ctl)
 
 
 def load_program(files: dict, prog, real: str = "double") -> InLoopController:
