@@ -1,28 +1,42 @@
 """The exported program as the MuJoCo loop's controller: one implementation, the C the rig runs.
 
 :func:`compile_program` builds the C files of an export (``cartpole/csrc`` plus the rendered and CasADi-generated
-parts: :func:`~cartpole.export.make.export_files`) once per model and design into a cached shared library through
-:func:`cartpole.codegen.build_sources`, with the flags the export is verified under (:data:`STRICT_CFLAGS` and
-:data:`OPT_CFLAGS`), and loads it through ``ctypes``. :func:`run_compiled` runs it in MuJoCo: at every control
-instant the rig's sensors are sampled in Python (the same :class:`~cartpole.estimation.SensorSampler` and noise
-stream as the Python rig) and the whole rig step (estimate, delay prediction, law, clip) is one call of the
-compiled ``cp_step``; the rollout logs the measurements and the C's own estimate. The Python classes
-(:mod:`cartpole.control`, :mod:`cartpole.estimation`, :class:`cartpole.sim.rig.RigRun`) remain the path without a
-C compiler and the tests' reference (:func:`cartpole.export.loop.run_lockstep` compares them step by step).
+parts: :func:`~cartpole.export.make.export_files`) into a shared library cached by their content
+(:func:`~cartpole.export.build.program_library`, the one compile path the verification's folder shares, with the
+flags the export is verified under) and loads it through ``ctypes``. :func:`run_compiled` runs it in MuJoCo: at
+every control instant the rig's sensors are sampled in Python (the same
+:class:`~cartpole.estimation.SensorSampler` and noise stream as the Python rig) and the whole rig step (estimate,
+delay prediction, law, clip) is one call of the compiled ``cp_step``; the rollout logs the measurements and the
+C's own estimate. The Python classes (:mod:`cartpole.control`, :mod:`cartpole.estimation`,
+:class:`cartpole.sim.rig.RigRun`) remain the path without a C compiler and the tests' reference
+(:func:`cartpole.export.loop.run_lockstep` compares them step by step).
 
 A compiled program keeps its state in the library's static memory: one run at a time per design in a process
-(:class:`InLoopController` refuses a step after another controller of the same library was reset).
+(:class:`InLoopController` refuses a step after another controller of the same library was reset). The loop's
+controller (:class:`CompiledLaw`) exposes the state the Python class does (the switch log of the energy law and its
+catch, the TVLQR's hand-over time), read from the C.
 """
 from __future__ import annotations
 
 import ctypes
+import os
 import time
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 
-from cartpole.export.build import OPT_CFLAGS, STRICT_CFLAGS, CController
+from cartpole.codegen import compiler
+from cartpole.control.energy import EnergyShapingController
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.pid import CascadedPID
+from cartpole.control.switching import Switch, SwitchingController
+from cartpole.control.tvlqr import TVLQRController
+from cartpole.export.build import CController, program_library
+from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
+from cartpole.export.design import build_program
 from cartpole.export.estimators import ExportError
+from cartpole.export.make import c_sources
 
 #: Which :class:`InLoopController` last reset each library (path -> id): its static state is that run's.
 _OWNER: dict = {}
@@ -135,10 +149,6 @@ def compile_program(design, real: str = "double") -> InLoopController:
     ExportError
         No C compiler, or the C does not compile.
     """
-    from dataclasses import replace
-
-    from cartpole.export.make import c_sources
-
     prog = design.program if real == design.program.real else replace(design.program, real=real)
     return load_program(c_sources(prog), prog, real)
 
@@ -239,13 +249,6 @@ def controller_part(controller):
     -------
     CPart or None
     """
-    from cartpole.control.energy import EnergyShapingController
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.pid import CascadedPID
-    from cartpole.control.switching import SwitchingController
-    from cartpole.control.tvlqr import TVLQRController
-    from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
-
     kind = type(controller)
     if kind is LinearFeedback:
         return linear_part(controller)
@@ -322,8 +325,6 @@ class CompiledSwitching(CompiledLaw):
         self.switches = []
 
     def _observe(self, t: float) -> None:
-        from cartpole.control.switching import Switch
-
         caught, t_c, cost = self.program.switch_state()
         mode = "catch" if caught else "swingup"
         if mode != self.mode:
@@ -387,10 +388,6 @@ def in_loop(model, controller, rig=None):
     (callable, object)
         The loop's controller and rig.
     """
-    import os
-
-    from cartpole.codegen import compiler
-
     if os.environ.get("CARTPOLE_NO_COMPILE") or compiler() is None:
         return controller, rig
     if rig is not None and rig.estimator not in ("none", "kf", "ekf"):
@@ -398,9 +395,6 @@ def in_loop(model, controller, rig=None):
     part = controller_part(controller)
     if part is None:
         return controller, rig
-    from cartpole.export.design import build_program
-    from cartpole.export.make import c_sources
-
     design_model = model if rig is None else rig.model
     prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
     ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
@@ -410,20 +404,12 @@ def in_loop(model, controller, rig=None):
 
 
 def load_program(files: dict, prog, real: str = "double") -> InLoopController:
-    """The C files ``files`` (relative path -> text) of the program ``prog`` compiled through
-    :func:`cartpole.codegen.build_sources` with the export's flags and loaded.
+    """The C files ``files`` (relative path -> text) of the program ``prog`` compiled with the export's flags
+    (:func:`~cartpole.export.build.program_library`, cached by their content) and loaded.
 
     Raises
     ------
     ExportError
         No C compiler, or the C does not compile.
     """
-    from cartpole.codegen import build_sources
-    from cartpole.export.build import find_compiler
-
-    find_compiler()
-    try:
-        lib = build_sources(files, "cp_program", cflags=(*STRICT_CFLAGS, *OPT_CFLAGS))
-    except RuntimeError as exc:
-        raise ExportError(f"The exported C does not compile ({exc}); report this as a bug.") from None
-    return InLoopController(lib, prog.ny, prog.nu, prog.nx, real)
+    return InLoopController(program_library(files), prog.ny, prog.nu, prog.nx, real)
