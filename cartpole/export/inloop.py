@@ -186,7 +186,8 @@ class _CRun:
 
 class CompiledRig:
     """A :class:`~cartpole.sim.rig.Rig` whose control instants are one call of the compiled ``cp_step`` (for
-    :func:`cartpole.sim.rollout.simulate`'s ``rig=``; its controller returns the ctrl the sample computed).
+    :func:`cartpole.sim.rollout.simulate`'s ``rig=``; its controller returns the ctrl the sample computed). Any
+    other attribute is the rig's (``estimator``, ``spec``, ``to_dict()``...).
 
     Parameters
     ----------
@@ -202,6 +203,13 @@ class CompiledRig:
         """A run on ``m``: the compiled program reset, the sensors' noise stream started from the rig's seed."""
         self.ctl.reset()
         return _CRun(self.rig, self.ctl, m)
+
+    def __getattr__(self, name: str):
+        # Only reached for names this class does not define: the rig's own (estimator, spec, to_dict(), ...).
+        rig = self.__dict__.get("rig")
+        if rig is None or name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(rig, name)
 
 
 def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = None, push=None):
@@ -224,16 +232,24 @@ def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = 
     -------
     Rollout
         With a rig, ``y`` (what ``cp_step`` received), ``x_hat`` (the C's estimate) and ``estimate_ms`` (the wall
-        time of each ``cp_step`` call through ``ctypes``).
+        time of each ``cp_step`` call through ``ctypes``). The controller's state read from the C: for the energy
+        law with its catch ``info["switches"]`` (list of :class:`~cartpole.control.switching.Switch`), for the TVLQR
+        ``info["handover_time"]`` (s or None).
     """
     from cartpole.sim.rollout import simulate
 
     ctl = compile_program(design) if ctl is None else ctl
     params = design.model.params
+    law = _law(design.program.controller, ctl, design.rig is not None)
     if design.rig is None:
-        ctl.reset()
-        return simulate(params, lambda t, x: ctl.step(t, x)[1], x0, duration, push=push)
-    return simulate(params, lambda t, u: u, x0, duration, rig=CompiledRig(design.rig, ctl), push=push)
+        rollout = simulate(params, law, x0, duration, push=push)
+    else:
+        rollout = simulate(params, law, x0, duration, rig=CompiledRig(design.rig, ctl), push=push)
+    if isinstance(law, CompiledSwitching):
+        rollout.info["switches"] = list(law.switches)
+    elif isinstance(law, CompiledTracker):
+        rollout.info["handover_time"] = law.handover_time
+    return rollout
 
 
 def controller_part(controller):
