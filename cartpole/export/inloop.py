@@ -18,8 +18,12 @@ catch, the TVLQR's hand-over time), read from the C.
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
 import os
+import shutil
+import tempfile
+import threading
 import time
 from dataclasses import replace
 from types import SimpleNamespace
@@ -421,11 +425,52 @@ def in_loop(model, controller, rig=None):
 
 def load_program(files: dict, prog, real: str = "double") -> InLoopController:
     """The C files ``files`` (relative path -> text) of the program ``prog`` compiled with the export's flags
-    (:func:`~cartpole.export.build.program_library`, cached by their content) and loaded.
+    (:func:`~cartpole.export.build.program_library`, cached by their content) and loaded: in the main thread from
+    the library itself, in any other thread from that thread's own copy of it (:func:`thread_copy`), so runs in
+    concurrent threads (a threaded Dask worker, a live view) never share a program's static memory.
 
     Raises
     ------
     ExportError
         No C compiler, or the C does not compile.
     """
-    return InLoopController(program_library(files), prog.ny, prog.nu, prog.nx, real)
+    lib = program_library(files)
+    if threading.current_thread() is not threading.main_thread():
+        lib = thread_copy(lib)
+    return InLoopController(lib, prog.ny, prog.nu, prog.nx, real)
+
+
+#: This process's copies of compiled programs for threads other than the main one: (library, thread id) -> path,
+#: in one temporary folder removed at exit (a copy stays while the process may have it loaded: a file removed
+#: earlier could see its inode reused by another copy, which the loader would then take for the one it holds).
+_THREAD_COPIES: dict = {}
+
+
+def thread_copy(lib) -> str:
+    """The calling thread's own copy of the library ``lib`` (made once per thread and library): loaded, it has
+    static memory of its own.
+
+    Parameters
+    ----------
+    lib : path
+
+    Returns
+    -------
+    str
+        The copy's path.
+    """
+    key = (str(lib), threading.get_ident())
+    with _COPY_LOCK:
+        path = _THREAD_COPIES.get(key)
+        if path is None:
+            if "dir" not in _COPY_DIR:
+                _COPY_DIR["dir"] = tempfile.mkdtemp(prefix="cartpole-thread-programs-")
+                atexit.register(shutil.rmtree, _COPY_DIR["dir"], True)
+            path = os.path.join(_COPY_DIR["dir"], f"{len(_THREAD_COPIES)}_{os.path.basename(str(lib))}")
+            shutil.copyfile(lib, path)
+            _THREAD_COPIES[key] = path
+    return path
+
+
+_COPY_LOCK = threading.Lock()
+_COPY_DIR: dict = {}

@@ -216,3 +216,28 @@ def test_the_float32_program_balances_in_the_loop():
     rollout = run_compiled(design, _start(model, "lqr", 1), 3.0, ctl=ctl)
     e = model.state_error(rollout.x[-1])
     assert np.all(np.abs(e[list(model.hinges)]) < 0.05) and rollout.info["diverged"] is None
+
+
+def test_runs_in_concurrent_threads_each_load_a_program_of_their_own():
+    import threading
+
+    model = _model(1)
+    design = _design(1, "energy", "none")
+    x0 = _start(model, "energy", 1)
+    ref = run_compiled(design, x0, DURATION)  # the main thread: the library itself
+    out, paths = {}, {}
+
+    def run(i):
+        ctl = compile_program(design)
+        paths[i] = ctl.lib_path
+        out[i] = run_compiled(design, x0, DURATION, ctl=ctl)
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert len({paths[0], paths[1], compile_program(design).lib_path}) == 3  # a copy each: static memory apart
+    for i in range(2):  # interleaved steps of the two runs did not touch each other's state
+        np.testing.assert_array_equal(out[i].ctrl, ref.ctrl)
+        assert [s.t for s in out[i].info["switches"]] == [s.t for s in ref.info["switches"]]
