@@ -11,8 +11,9 @@ C's own estimate. The Python classes (:mod:`cartpole.control`, :mod:`cartpole.es
 :class:`cartpole.sim.rig.RigRun`) remain the path without a C compiler and the tests' reference
 (:func:`cartpole.export.loop.run_lockstep` compares them step by step).
 
-A compiled program keeps its state in the library's static memory: one run at a time per design in a process
-(:class:`InLoopController` refuses a step after another controller of the same library was reset). The loop's
+A compiled program keeps its state in the library's static memory: one run at a time per design and thread (a
+thread other than the main one loads its own copy, :func:`thread_copy`; :class:`InLoopController` refuses a step
+after another controller of the same library was reset). The loop's
 controller (:class:`CompiledLaw`) exposes the state the Python class does (the switch log of the energy law and its
 catch, the TVLQR's hand-over time), read from the C.
 """
@@ -128,8 +129,8 @@ class InLoopController(CController):
             try:
                 fn = getattr(self._lib, name)
             except AttributeError:
-                raise ExportError(f"This compiled program has no {name}() (its controller part does not keep that "
-                                  "state); ask the part that defines it.") from None
+                raise ExportError(f"This compiled program has no {name}(): its controller does not keep that state "
+                                  "(cp_switch_state is the energy law's, cp_handover_state the TVLQR's).") from None
             fn.argtypes, fn.restype = argtypes, ctypes.c_int
             setattr(self._accessors, name, fn)
         return fn
