@@ -828,15 +828,18 @@ class _Ran:
 def _simulate(ctx: _Context, controller, T: float, *, period=None, loop=None) -> tuple:
     """The closed loop every method shares: the rig for ``loop`` (default the context's) around the plant, the
     friction compensation outermost, MuJoCo for ``T`` s; ``(controller as run, rig, rollout)``."""
+    from cartpole.export.inloop import in_loop
     from cartpole.sim.rig import build_rig
 
     loop = ctx.loop if loop is None else loop
     rig = build_rig(ctx.plant, loop, task="swingup")
+    # the controller that runs, friction compensation outermost; the one implementation: the export's compiled C
+    # (law, estimator, delay prediction, clip) when there is a compiler, its state read from the C
+    controller, rig = in_loop(ctx.model, ctx.friction.wrap(controller), rig)
     force = ctx.force
     attach = getattr(ctx.on_step, "attach", None)
     if attach is not None:  # the web page: it shows this law's state, its pushes join the logged push column
         force = attach(controller, push=force)
-    controller = ctx.friction.wrap(controller)  # the controller that runs, friction compensation outermost
     disturbance = loop.disturbance(ctx.params, x_eq=ctx.model.x_eq, hinges=ctx.model.hinges)
     rollout = simulate(ctx.params, controller, ctx.x0, T, push=force, progress=_stage(ctx.progress, "simulate"),
                        on_step=ctx.on_step, control_period=loop.period if period is None else period, rig=rig,
@@ -887,9 +890,9 @@ def _run_energy(ctx: _Context, energy, catch_weights) -> _Ran:
     switching = SwitchingController(energy, catch, basin.rho)
     T = ENERGY_DURATION if ctx.loop.duration is None else ctx.loop.duration
     check_push_times(ctx.loop.push, T)
-    controller, rig, rollout = _simulate(ctx, switching, T, loop=loop)
-    handovers = [s.t for s in switching.switches if s.mode == "catch"]
-    extra = {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in switching.switches]}
+    controller, rig, rollout = _simulate(ctx, switching, T, loop=loop)  # its switches: the C's when it ran
+    handovers = [s.t for s in controller.switches if s.mode == "catch"]
+    extra = {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in controller.switches]}
     if noise is not None:
         extra["ctrl_noise"] = _noise_measured(noise, rollout, handovers[-1] if handovers else None,
                                              ctx.pm.u_high - ctx.pm.u_low)
@@ -978,7 +981,7 @@ def _run_trajopt(ctx: _Context, plan) -> _Ran:
         check_push_times(ctx.loop.push, T)
     tracker = sp.controller
     controller, rig, rollout = _simulate(ctx, tracker, T, loop=loop)
-    handover = getattr(tracker, "handover_time", T_plan)
+    handover = getattr(controller, "handover_time", T_plan)  # the C's when it ran
     handover_at = float(handover) if handover is not None and rollout.t[-1] >= handover else None
     k = int(np.searchsorted(rollout.t, handover_at)) if handover_at is not None else None
     cost = None if k is None else catch.cost_to_go(rollout.x[k])

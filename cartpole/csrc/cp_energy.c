@@ -5,6 +5,9 @@
  *   the catch takes over when cost < SW_RHO (the verified basin's level) and lets go above SW_RELEASE
  *   (release_factor * rho); while caught  u = cp_linear_eval(CATCH_*) (clip(u* - K e)),
  *   otherwise u = the energy-shaping law, its expression graph CasADi-generated (cp_energy(x, ENERGY_PRM)).
+ *
+ * cp_switch_state() gives the mode (1: caught), the time and the cost of the last evaluation: the MuJoCo loop reads
+ * the switch log of the swing-up from it (cartpole.export.inloop).
  */
 #include "cp_common.h"
 #include "cp_generated.h"
@@ -12,6 +15,8 @@
 
 static struct {
     int caught;
+    double t;     /* the time of the last evaluation, s */
+    cp_real cost; /* e' S e at the last evaluation */
     cp_real w[CP_ENERGY_SZ_W];
     casadi_int iw[CP_ENERGY_SZ_IW];
 } E;
@@ -19,6 +24,15 @@ static struct {
 void cp_ctrl_clear(void)
 {
     E.caught = 0;
+    E.t = 0;
+    E.cost = 0;
+}
+
+int cp_switch_state(double* t, cp_real* cost)
+{
+    *t = E.t;
+    *cost = E.cost;
+    return E.caught;
 }
 
 /* e' S e of the catch */
@@ -42,7 +56,8 @@ static cp_real sw_cost(const cp_real* x)
 int cp_ctrl_eval(double t, const cp_real* x, cp_real* u)
 {
     cp_real cost = sw_cost(x);
-    (void)t;
+    E.t = t;
+    E.cost = cost;
     if (!E.caught && cost < SW_RHO) {
         E.caught = 1;
     } else if (E.caught && cost > SW_RELEASE) {

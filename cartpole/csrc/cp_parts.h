@@ -25,4 +25,10 @@ int cp_ctrl_eval(double t, const cp_real* x, cp_real* u);
  * part of the exported interface). */
 void cp_estimate(cp_real* x);
 
+/* The controller's state, for the MuJoCo loop's log (not part of the exported interface; defined only by the part
+ * that has it). cp_energy.c: the mode (1: the catch, 0: the swing-up law), and the time t (s) and cost e' S e of
+ * the last evaluation. cp_tvlqr.c: 1 once the catch has run since the reset, and the time t (s) of its first call. */
+int cp_switch_state(double* t, cp_real* cost);
+int cp_handover_state(double* t);
+
 #endif /* CP_PARTS_H */

@@ -9,14 +9,29 @@
  *     x0 = h00 x_k + h10 h xd_k + h01 x_{k+1} + h11 h xd_{k+1},  s = (t - t_k) / h,
  *     h00 = 2s^3 - 3s^2 + 1, h10 = s^3 - 2s^2 + s, h01 = -2s^3 + 3s^2, h11 = s^3 - s^2,
  * u0 the first-order hold of TV_U at t + TV_SHIFT (half a step for discrete gains, held per step), and K(t) held
- * per step (TV_DISCRETE) or interpolated linearly in time between the gain times G_T (as numpy.interp). */
+ * per step (TV_DISCRETE) or interpolated linearly in time between the gain times G_T (as numpy.interp).
+ * cp_handover_state() gives the time of the first call that used the catch (the MuJoCo loop's hand-over time). */
 #include <math.h>
 
 #include "cp_common.h"
 #include "cp_parts.h"
 
+/* the hand-over: whether the catch ran since the reset, and the time of its first call, s */
+static struct {
+    int done;
+    double t;
+} H;
+
 void cp_ctrl_clear(void)
 {
+    H.done = 0;
+    H.t = 0;
+}
+
+int cp_handover_state(double* t)
+{
+    *t = H.t;
+    return H.done;
 }
 
 /* the gain step holding t: floor((t - G_T0) / G_DT), clamped to [0, G_N - 1] */
@@ -26,9 +41,13 @@ static int gain_index(double t)
     return f < 0 ? 0 : (f > G_N - 1 ? G_N - 1 : (int)f);
 }
 
-static int catch_law(const cp_real* x, cp_real* u)
+static int catch_law(double t, const cp_real* x, cp_real* u)
 {
     int i;
+    if (!H.done) {
+        H.done = 1;
+        H.t = t;
+    }
     cp_linear_eval(CATCH_K, CATCH_XEQ, CATCH_UEQ, CATCH_LO, CATCH_HI, x, u);
     for (i = 0; i < CP_NU; ++i) {
         u[i] = cp_clip(u[i], TV_LO[i], TV_HI[i]);
@@ -43,7 +62,7 @@ int cp_ctrl_eval(double t, const cp_real* x, cp_real* u)
     cp_real e[NX], acc;
     int i, j, k;
     if (t >= TV_T_END - 1e-12) {
-        return catch_law(x, u);
+        return catch_law(t, x, u);
     }
     k = gain_index(t);
     cp_error(x, TV_XREF + k * NX, e);
@@ -112,7 +131,7 @@ int cp_ctrl_eval(double t, const cp_real* x, cp_real* u)
     int gk;
 #endif
     if (t >= TV_T_END - 1e-12) {
-        return catch_law(x, u);
+        return catch_law(t, x, u);
     }
     k = plan_locate(t, &h, &s);
     h00 = 2 * pow(s, 3) - 3 * pow(s, 2) + 1;

@@ -74,6 +74,41 @@ def compile_shared(folder: str | Path, *, cc: str | None = None, extra=()) -> Pa
     return lib
 
 
+def program_library(files: dict, *, extra=()) -> str:
+    """The C files of an export's program (relative path -> text; the ``include/`` and ``src/`` entries are used)
+    compiled once into a shared library cached by their content, the compiler and the flags
+    (:func:`cartpole.codegen.build_sources` with :data:`STRICT_CFLAGS`, :data:`OPT_CFLAGS` and ``extra``): the one
+    compile path of the MuJoCo loop (:mod:`cartpole.export.inloop`) and of the verification's loaded folder
+    (:func:`cartpole.export.make.load_design`). Load a copy of it for state of its own (a library loaded twice
+    from one file shares its static memory).
+
+    Parameters
+    ----------
+    files : dict
+        Relative path -> text (e.g. :func:`cartpole.export.make.export_files`).
+    extra : sequence of str
+        More flags.
+
+    Returns
+    -------
+    str
+        The library's path.
+
+    Raises
+    ------
+    ExportError
+        No C compiler, or the C does not compile.
+    """
+    from cartpole.codegen import build_sources
+
+    find_compiler()
+    c_files = {rel: text for rel, text in files.items() if rel.startswith(("include/", "src/"))}
+    try:
+        return build_sources(c_files, "cp_program", cflags=(*STRICT_CFLAGS, *OPT_CFLAGS, *extra))
+    except RuntimeError as exc:
+        raise ExportError(f"The exported C does not compile ({exc}); report this as a bug.") from None
+
+
 class CController:
     """An exported controller loaded from its shared library: ``reset()``, ``step(t, y) -> (code, u)``.
 

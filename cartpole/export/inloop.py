@@ -1,27 +1,47 @@
 """The exported program as the MuJoCo loop's controller: one implementation, the C the rig runs.
 
 :func:`compile_program` builds the C files of an export (``cartpole/csrc`` plus the rendered and CasADi-generated
-parts: :func:`~cartpole.export.make.export_files`) once per model and design into a cached shared library through
-:func:`cartpole.codegen.build_sources`, with the flags the export is verified under (:data:`STRICT_CFLAGS` and
-:data:`OPT_CFLAGS`), and loads it through ``ctypes``. :func:`run_compiled` runs it in MuJoCo: at every control
-instant the rig's sensors are sampled in Python (the same :class:`~cartpole.estimation.SensorSampler` and noise
-stream as the Python rig) and the whole rig step (estimate, delay prediction, law, clip) is one call of the
-compiled ``cp_step``; the rollout logs the measurements and the C's own estimate. The Python classes
-(:mod:`cartpole.control`, :mod:`cartpole.estimation`, :class:`cartpole.sim.rig.RigRun`) remain the path without a
-C compiler and the tests' reference (:func:`cartpole.export.loop.run_lockstep` compares them step by step).
+parts: :func:`~cartpole.export.make.export_files`) into a shared library cached by their content
+(:func:`~cartpole.export.build.program_library`, the one compile path the verification's folder shares, with the
+flags the export is verified under) and loads it through ``ctypes``. :func:`run_compiled` runs it in MuJoCo: at
+every control instant the rig's sensors are sampled in Python (the same
+:class:`~cartpole.estimation.SensorSampler` and noise stream as the Python rig) and the whole rig step (estimate,
+delay prediction, law, clip) is one call of the compiled ``cp_step``; the rollout logs the measurements and the
+C's own estimate. The Python classes (:mod:`cartpole.control`, :mod:`cartpole.estimation`,
+:class:`cartpole.sim.rig.RigRun`) remain the path without a C compiler and the tests' reference
+(:func:`cartpole.export.loop.run_lockstep` compares them step by step).
 
-A compiled program keeps its state in the library's static memory: one run at a time per design in a process
-(:class:`InLoopController` refuses a step after another controller of the same library was reset).
+A compiled program keeps its state in the library's static memory: one run at a time per design and thread (a
+thread other than the main one loads its own copy, :func:`thread_copy`; :class:`InLoopController` refuses a step
+after another controller of the same library was reset). The loop's
+controller (:class:`CompiledLaw`) exposes the state the Python class does (the switch log of the energy law and its
+catch, the TVLQR's hand-over time), read from the C.
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
+import os
+import shutil
+import tempfile
+import threading
 import time
+from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 
-from cartpole.export.build import OPT_CFLAGS, STRICT_CFLAGS, CController
+from cartpole.codegen import compiler
+from cartpole.control.energy import EnergyShapingController
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.pid import CascadedPID
+from cartpole.control.switching import Switch, SwitchingController
+from cartpole.control.tvlqr import TVLQRController
+from cartpole.export.build import CController, program_library
+from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
+from cartpole.export.design import build_program
 from cartpole.export.estimators import ExportError
+from cartpole.export.make import c_sources
 
 #: Which :class:`InLoopController` last reset each library (path -> id): its static state is that run's.
 _OWNER: dict = {}
@@ -45,6 +65,8 @@ class InLoopController(CController):
         super().__init__(lib, ny, nu, real)
         self.nx = int(nx)
         ctype = ctypes.c_float if real == "float" else ctypes.c_double
+        self._ctype = ctype
+        self._accessors = SimpleNamespace()
         self._x = np.zeros(self.nx, dtype=self.dtype)
         self._est = self._lib.cp_estimate
         self._est.argtypes = [ctypes.POINTER(ctype)]
@@ -74,6 +96,45 @@ class InLoopController(CController):
         self._est(self._xp)
         return self._x.astype(float)
 
+    def switch_state(self) -> tuple[bool, float, float]:
+        """The energy part's ``cp_switch_state``: ``(caught, t, cost)``, whether the catch is in charge, and the
+        time (s) and the catch's ``e' S e`` of the last evaluation.
+
+        Raises
+        ------
+        ExportError
+            The program's controller is not the energy law with its catch.
+        """
+        fn = self._accessor("cp_switch_state", [ctypes.POINTER(ctypes.c_double), ctypes.POINTER(self._ctype)])
+        t, cost = ctypes.c_double(), self._ctype()
+        caught = fn(ctypes.byref(t), ctypes.byref(cost))
+        return bool(caught), float(t.value), float(cost.value)
+
+    def handover_state(self) -> float | None:
+        """The TVLQR part's ``cp_handover_state``: the time (s) of the first evaluation that used the catch since the
+        reset, or None.
+
+        Raises
+        ------
+        ExportError
+            The program's controller is not the TVLQR with its catch.
+        """
+        fn = self._accessor("cp_handover_state", [ctypes.POINTER(ctypes.c_double)])
+        t = ctypes.c_double()
+        return float(t.value) if fn(ctypes.byref(t)) else None
+
+    def _accessor(self, name: str, argtypes):
+        fn = getattr(self._accessors, name, None)
+        if fn is None:
+            try:
+                fn = getattr(self._lib, name)
+            except AttributeError:
+                raise ExportError(f"This compiled program has no {name}(): its controller does not keep that state "
+                                  "(cp_switch_state is the energy law's, cp_handover_state the TVLQR's).") from None
+            fn.argtypes, fn.restype = argtypes, ctypes.c_int
+            setattr(self._accessors, name, fn)
+        return fn
+
 
 def compile_program(design, real: str = "double") -> InLoopController:
     """The C files of ``design``'s export compiled once (cached by their content, the compiler and the flags) and
@@ -93,10 +154,6 @@ def compile_program(design, real: str = "double") -> InLoopController:
     ExportError
         No C compiler, or the C does not compile.
     """
-    from dataclasses import replace
-
-    from cartpole.export.make import c_sources
-
     prog = design.program if real == design.program.real else replace(design.program, real=real)
     return load_program(c_sources(prog), prog, real)
 
@@ -134,7 +191,8 @@ class _CRun:
 
 class CompiledRig:
     """A :class:`~cartpole.sim.rig.Rig` whose control instants are one call of the compiled ``cp_step`` (for
-    :func:`cartpole.sim.rollout.simulate`'s ``rig=``; its controller returns the ctrl the sample computed).
+    :func:`cartpole.sim.rollout.simulate`'s ``rig=``; its controller returns the ctrl the sample computed). Any
+    other attribute is the rig's (``estimator``, ``spec``, ``to_dict()``...).
 
     Parameters
     ----------
@@ -150,6 +208,13 @@ class CompiledRig:
         """A run on ``m``: the compiled program reset, the sensors' noise stream started from the rig's seed."""
         self.ctl.reset()
         return _CRun(self.rig, self.ctl, m)
+
+    def __getattr__(self, name: str):
+        # Only reached for names this class does not define: the rig's own (estimator, spec, to_dict(), ...).
+        rig = self.__dict__.get("rig")
+        if rig is None or name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(rig, name)
 
 
 def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = None, push=None):
@@ -172,16 +237,24 @@ def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = 
     -------
     Rollout
         With a rig, ``y`` (what ``cp_step`` received), ``x_hat`` (the C's estimate) and ``estimate_ms`` (the wall
-        time of each ``cp_step`` call through ``ctypes``).
+        time of each ``cp_step`` call through ``ctypes``). The controller's state read from the C: for the energy
+        law with its catch ``info["switches"]`` (list of :class:`~cartpole.control.switching.Switch`), for the TVLQR
+        ``info["handover_time"]`` (s or None).
     """
     from cartpole.sim.rollout import simulate
 
     ctl = compile_program(design) if ctl is None else ctl
     params = design.model.params
+    law = _law(design.program.controller, ctl, design.rig is not None)
     if design.rig is None:
-        ctl.reset()
-        return simulate(params, lambda t, x: ctl.step(t, x)[1], x0, duration, push=push)
-    return simulate(params, lambda t, u: u, x0, duration, rig=CompiledRig(design.rig, ctl), push=push)
+        rollout = simulate(params, law, x0, duration, push=push)
+    else:
+        rollout = simulate(params, law, x0, duration, rig=CompiledRig(design.rig, ctl), push=push)
+    if isinstance(law, CompiledSwitching):
+        rollout.info["switches"] = list(law.switches)
+    elif isinstance(law, CompiledTracker):
+        rollout.info["handover_time"] = law.handover_time
+    return rollout
 
 
 def controller_part(controller):
@@ -197,13 +270,6 @@ def controller_part(controller):
     -------
     CPart or None
     """
-    from cartpole.control.energy import EnergyShapingController
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.pid import CascadedPID
-    from cartpole.control.switching import SwitchingController
-    from cartpole.control.tvlqr import TVLQRController
-    from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
-
     kind = type(controller)
     if kind is LinearFeedback:
         return linear_part(controller)
@@ -217,31 +283,116 @@ def controller_part(controller):
     return None
 
 
-class _Stepper:
-    """The compiled program as ``u = c(t, x)`` for a loop without a rig (MuJoCo's exact state every physics step):
-    reset at ``t = 0``, the start of every run."""
+class CompiledLaw:
+    """The loop's controller ``u = c(t, x)`` when the compiled program runs: without a rig it calls ``cp_step`` on
+    MuJoCo's exact state every physics step (``cp_reset`` at ``t = 0``, the start of every run); with a rig
+    (:class:`CompiledRig`) the sample already called it and ``x`` is that ctrl, returned as it is.
 
-    def __init__(self, ctl: InLoopController):
-        self.ctl = ctl
+    Parameters
+    ----------
+    program : InLoopController
+    rig : bool
+        Whether a :class:`CompiledRig` calls ``cp_step`` (then ``c(t, u)`` returns ``u``).
 
-    def __call__(self, t, x):
-        if t == 0.0:
-            self.ctl.reset()
-        return self.ctl.step(t, x)[1]
+    Attributes
+    ----------
+    program : InLoopController
+        The compiled program (its state is the run's).
+    """
+
+    def __init__(self, program: InLoopController, rig: bool = False):
+        self.program = program
+        self._rig = bool(rig)
+        self._last_t = -np.inf
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,) at time ``t`` (s): ``cp_step``'s on ``x`` (nx,), or ``x`` itself (the ctrl) with a rig."""
+        t = float(t)
+        if t < self._last_t or (t == 0.0 and not self._rig):  # a new run
+            if not self._rig:
+                self.program.reset()
+            self._restart()
+        self._last_t = t
+        u = np.asarray(x, dtype=float) if self._rig else self.program.step(t, x)[1]
+        self._observe(t)
+        return u
+
+    def _restart(self) -> None:
+        """Forget the state read from the program (a new run started)."""
+
+    def _observe(self, t: float) -> None:
+        """Read the program's state after its ``cp_step`` of time ``t``."""
 
 
-#: Compiled programs by the Python objects they reproduce (kept alive beside them): (controller, estimator
-#: factory, steps, lag, compensation, run MJCF) -> InLoopController.
-_PROGRAMS: dict = {}
+class CompiledSwitching(CompiledLaw):
+    """:class:`CompiledLaw` of the energy law with its LQR catch (``cp_energy.c``), exposing what
+    :class:`~cartpole.control.switching.SwitchingController` does, read from the C after every ``cp_step``
+    (``cp_switch_state``): the time and the cost ``e' S e`` of each switch are the C's.
+
+    Attributes
+    ----------
+    mode : str
+        "swingup" or "catch", the law in charge after the last ``cp_step``.
+    switches : list of Switch
+        Every mode change of this run.
+    """
+
+    def __init__(self, program: InLoopController, rig: bool = False):
+        super().__init__(program, rig)
+        self._restart()
+
+    def _restart(self) -> None:
+        self.mode = "swingup"
+        self.switches = []
+
+    def _observe(self, t: float) -> None:
+        caught, t_c, cost = self.program.switch_state()
+        mode = "catch" if caught else "swingup"
+        if mode != self.mode:
+            self.mode = mode
+            self.switches.append(Switch(t_c, mode, cost))
+
+    @property
+    def caught_at(self) -> float | None:
+        """Time (s) of the last switch to the catch if the catch is still in charge, else None."""
+        if self.mode == "catch" and self.switches:
+            return self.switches[-1].t
+        return None
+
+
+class CompiledTracker(CompiledLaw):
+    """:class:`CompiledLaw` of the TVLQR along a plan with its LQR catch (``cp_tvlqr.c``), exposing what
+    :class:`~cartpole.control.tvlqr.TVLQRController` does: ``handover_time``, read from the C
+    (``cp_handover_state``)."""
+
+    @property
+    def handover_time(self) -> float | None:
+        """Time (s) of the first evaluation that used the catch in this run, or None."""
+        return self.program.handover_state()
+
+
+def _law(part, ctl: InLoopController, rig: bool) -> CompiledLaw:
+    """The :class:`CompiledLaw` of the controller part ``part`` that keeps the state its Python class exposes."""
+    if "cp_energy.c" in part.sources:
+        return CompiledSwitching(ctl, rig)
+    if "cp_tvlqr.c" in part.sources:
+        return CompiledTracker(ctl, rig)
+    return CompiledLaw(ctl, rig)
 
 
 def in_loop(model, controller, rig=None):
     """``(controller, rig)`` for :func:`cartpole.sim.rollout.simulate` running ``controller`` on ``rig`` as the one
     compiled implementation: the export's C (the controller's part, the rig's estimator, delay prediction and
-    clip) built once through :mod:`cartpole.codegen` and called every period, when a C compiler exists and the
-    controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none, KF, EKF). Otherwise, or
-    with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes. C that does not compile
-    raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never hidden behind a Python run.
+    clip) built through :mod:`cartpole.codegen` (cached on disk by its content) and called every period, when a C
+    compiler exists and the controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none,
+    KF, EKF). Otherwise, or with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes.
+    C that does not compile raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never hidden
+    behind a Python run.
+
+    The compiled controller is a :class:`CompiledLaw`; for the energy law with its catch a
+    :class:`CompiledSwitching` (``mode``, ``switches``, ``caught_at``), for the TVLQR a :class:`CompiledTracker`
+    (``handover_time``): the state the Python classes expose, read from the C. Nothing is kept between calls
+    here: each call generates the program's files (the library is found by their content) and loads it.
 
     Parameters
     ----------
@@ -258,49 +409,69 @@ def in_loop(model, controller, rig=None):
     (callable, object)
         The loop's controller and rig.
     """
-    import os
-
-    from cartpole.codegen import compiler
-
     if os.environ.get("CARTPOLE_NO_COMPILE") or compiler() is None:
         return controller, rig
     if rig is not None and rig.estimator not in ("none", "kf", "ekf"):
         return controller, rig
-    key = (id(controller), None if rig is None else id(rig.make_estimator), None if rig is None else rig.steps,
-           None if rig is None else rig.delay_steps, None if rig is None else rig.compensate, id(model.params))
-    entry = _PROGRAMS.get(key)
-    if entry is None:
-        part = controller_part(controller)
-        if part is None:
-            return controller, rig
-        from cartpole.export.design import build_program
-        from cartpole.export.make import c_sources
-
-        design_model = model if rig is None else rig.model
-        prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
-        ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
-        entry = _PROGRAMS[key] = (controller, rig, model.params, ctl)
-    ctl = entry[3]
+    part = controller_part(controller)
+    if part is None:
+        return controller, rig
+    design_model = model if rig is None else rig.model
+    prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
+    ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
     if rig is None:
-        return _Stepper(ctl), None
-    return (lambda t, u: u), CompiledRig(rig, ctl)
+        return _law(part, ctl, False), None
+    return _law(part, ctl, True), CompiledRig(rig, ctl)
 
 
 def load_program(files: dict, prog, real: str = "double") -> InLoopController:
-    """The C files ``files`` (relative path -> text) of the program ``prog`` compiled through
-    :func:`cartpole.codegen.build_sources` with the export's flags and loaded.
+    """The C files ``files`` (relative path -> text) of the program ``prog`` compiled with the export's flags
+    (:func:`~cartpole.export.build.program_library`, cached by their content) and loaded: in the main thread from
+    the library itself, in any other thread from that thread's own copy of it (:func:`thread_copy`), so runs in
+    concurrent threads (a threaded Dask worker, a live view) never share a program's static memory.
 
     Raises
     ------
     ExportError
         No C compiler, or the C does not compile.
     """
-    from cartpole.codegen import build_sources
-    from cartpole.export.build import find_compiler
-
-    find_compiler()
-    try:
-        lib = build_sources(files, "cp_program", cflags=(*STRICT_CFLAGS, *OPT_CFLAGS))
-    except RuntimeError as exc:
-        raise ExportError(f"The exported C does not compile ({exc}); report this as a bug.") from None
+    lib = program_library(files)
+    if threading.current_thread() is not threading.main_thread():
+        lib = thread_copy(lib)
     return InLoopController(lib, prog.ny, prog.nu, prog.nx, real)
+
+
+#: This process's copies of compiled programs for threads other than the main one: (library, thread id) -> path,
+#: in one temporary folder removed at exit (a copy stays while the process may have it loaded: a file removed
+#: earlier could see its inode reused by another copy, which the loader would then take for the one it holds).
+_THREAD_COPIES: dict = {}
+
+
+def thread_copy(lib) -> str:
+    """The calling thread's own copy of the library ``lib`` (made once per thread and library): loaded, it has
+    static memory of its own.
+
+    Parameters
+    ----------
+    lib : path
+
+    Returns
+    -------
+    str
+        The copy's path.
+    """
+    key = (str(lib), threading.get_ident())
+    with _COPY_LOCK:
+        path = _THREAD_COPIES.get(key)
+        if path is None:
+            if "dir" not in _COPY_DIR:
+                _COPY_DIR["dir"] = tempfile.mkdtemp(prefix="cartpole-thread-programs-")
+                atexit.register(shutil.rmtree, _COPY_DIR["dir"], True)
+            path = os.path.join(_COPY_DIR["dir"], f"{len(_THREAD_COPIES)}_{os.path.basename(str(lib))}")
+            shutil.copyfile(lib, path)
+            _THREAD_COPIES[key] = path
+    return path
+
+
+_COPY_LOCK = threading.Lock()
+_COPY_DIR: dict = {}

@@ -5,6 +5,7 @@ verification (:func:`load_design`).
 from __future__ import annotations
 
 import hashlib
+import shutil
 import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -14,6 +15,7 @@ from cartpole.export.build import (
     CController,
     compile_shared,
     find_compiler,
+    program_library,
 )
 from cartpole.export.folder import (
     MANIFEST_FORMAT,
@@ -152,19 +154,19 @@ def write_export(design, out, *, real: str = "double") -> WrittenExport:
 
 
 def load_design(design, real: str = "double", *, extra_cflags=()) -> tuple[CController, Path]:
-    """The export of ``design`` compiled in a temporary folder and loaded: ``(controller, folder)``; remove the
-    folder with :func:`cartpole.export.folder.discard` when done.
+    """The export of ``design`` compiled (:func:`~cartpole.export.build.program_library`, cached by content) and
+    loaded from a copy in a temporary folder holding its files: ``(controller, folder)``; remove the folder with
+    :func:`cartpole.export.folder.discard` when done.
 
     Raises
     ------
     ExportError
         No compiler, or the C does not compile.
     """
-    cc = find_compiler()
     files = export_files(design, real)
     staged = stage_folder(files, tempfile.gettempdir())
-    try:
-        lib = compile_shared(staged, cc=cc, extra=extra_cflags)
+    try:  # compiled once per content (the loop's path); a copy loaded, so its static memory is its own
+        lib = shutil.copyfile(program_library(files, extra=extra_cflags), staged / SHARED_NAME)
         ctl = CController(lib, design.program.ny, design.program.nu, real)
     except BaseException:
         discard(staged)
