@@ -80,7 +80,6 @@ IMPORTS_TO_FIX = {
     "cartpole/apps/lab.py": 18,
     "cartpole/apps/live.py": 5,
     "cartpole/apps/margins.py": 25,
-    "cartpole/apps/metrics_csv.py": 1,
     "cartpole/apps/sweep/executors.py": 17,
     "cartpole/apps/sweep/plan.py": 5,
     "cartpole/apps/sweep/results.py": 2,

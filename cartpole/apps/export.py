@@ -103,7 +103,7 @@ def catch_level(model, loop) -> float:
 
 def task_success(design, rollout) -> bool:
     """The Python path's own success test of the task on ``rollout``: balanced as the lab's delay margin counts it
-    (:func:`cartpole.apps.lab.balances`: the handout's settling time finite, the cart never at its limit) or swung
+    (:func:`cartpole.apps.lab.balances`: the lab's settling time finite, the cart never at its limit) or swung
     up and held (:func:`cartpole.validation.metrics.swingup_success`); never for a run MuJoCo reset."""
     from cartpole.validation.metrics import diverged, summarize, swingup_success
 

@@ -3,8 +3,8 @@
 ``run_lab()`` reproduces the lab handout's experiment on any MJCF the toolkit reads and the LQR stabilises: a
 cart with one pole (the lab's), a chain of two or three, a pendulum with no cart, more than one motor. The exact
 linearisation at upright rest (continuous ``A, B`` from the symbolic model, or ``Ad, Bd`` of one step of the
-MJCF's integrator with ``discrete=True``), LQR with the lab's weight pattern (:func:`~cartpole.riccati.lab_weights`:
-for one pole the handout's ``Q = diag(1, 10, 0.1, 0.1)``, ``R = 0.1``), and five 6 s MuJoCo runs of
+MJCF's integrator with ``discrete=True``), LQR with the default weights (:func:`~cartpole.riccati.default_weights`:
+for one pole the handout's ``Q = diag(1, 10, 0.1, 0.1)``, ``R = 0.1``, :data:`Q_LAB`, :data:`R_LAB`), and five 6 s MuJoCo runs of
 ``u = u* - K (x - x*)`` (hinge errors wrapped, ctrl clipped to ``ctrlrange`` by MuJoCo) from the lab's five
 starts, each logged every physics step so it replays exactly. The settling statistics are those of
 :mod:`cartpole.validation.metrics` (the handout's definition over every pole angle, and a strict one).
@@ -13,7 +13,7 @@ The starts (:func:`lab_initial_conditions`) are the handout's cart offsets on th
 *first* pole, every other joint at its upright equilibrium angle and everything at rest. When the model cannot
 catch them at full size for the ctrl limit (dm_control's triple pole on its cart from 8 degrees), all five are
 scaled down by one factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_SCALES`) at which
-the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.riccati.lab_weights`, continuous)
+the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.riccati.default_weights`, continuous)
 in the lab's 6 s. Only the ctrl limit shrinks them: a start the closed loop is merely too slow to settle in the run
 stays full size and is reported unsettled with the reason (:func:`why_not_settled`: the final error, the slowest
 closed-loop time constant, the run its linear loop would need). The factor depends on the model only, not on the
@@ -33,6 +33,7 @@ an actuated cart, so on a chain it raises :class:`~cartpole.control.pid.PIDError
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -41,7 +42,25 @@ from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, linearize, Plant, plant_model, state_error, wrap_angle
 from cartpole.progress import stage
+from cartpole.riccati import ONE_POLE, default_weights
 from cartpole.validation.metrics import STRICT_TOLERANCE, UPRIGHT_TOL
+
+#: The handout's state weight ``diag(1, 10, 0.1, 0.1)`` on ``[s, theta, s_dot, theta_dot]`` (read-only): the
+#: default weights of one pole (:func:`~cartpole.riccati.default_weights`).
+Q_LAB = readonly(default_weights(ONE_POLE)[0])
+#: The handout's input weight ``[[0.1]]`` on MuJoCo ctrl (read-only).
+R_LAB = readonly(default_weights(ONE_POLE)[1])
+
+#: The lab's deliverables, relative to the output folder (the course's file names, which the command line keeps:
+#: ``cartpole lqr`` writes them under ``--out``): the figure of the five runs, the PID comparison, the estimator's
+#: figure, the 10 s video and the metrics table with the row's run id and course day.
+FIGURE = Path("figures") / "day5_cartpole_lqr.png"
+PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
+ESTIMATION_FIGURE = Path("figures") / "day5_cartpole_estimation.png"
+VIDEO = Path("videos") / "day5_cartpole.mp4"
+METRICS = Path("metrics") / "metrics.csv"
+METRICS_RUN_ID = "day5_cartpole_lqr"
+METRICS_DAY = 5
 
 #: The handout's five starts as offsets ``[cart (m), first pole angle (rad)]``: 5, -5 and 8 degrees at the centre,
 #: 3 degrees with the cart at 0.2 m, -4 degrees with the cart at -0.3 m (velocities zero).

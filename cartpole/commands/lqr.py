@@ -1,4 +1,5 @@
-"""``cartpole lqr``: the day-5 LQR balance lab with its true numbers, figure, video and metrics row."""
+"""``cartpole lqr``: the LQR balance lab with its true numbers, figure, video and metrics row (the file names are
+the lab's, :mod:`cartpole.apps.lab`)."""
 from __future__ import annotations
 
 import sys
@@ -7,6 +8,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from cartpole.apps.lab import ESTIMATION_FIGURE, FIGURE, METRICS, PID_FIGURE, VIDEO
 from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, friction_sentence,
                                     loop_from_args, rig_doc, smoothed_friction_sentence)
@@ -15,13 +17,8 @@ from cartpole.commands._view import add_view_arguments, live_sentence, view_mode
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
 
-FIGURE = Path("figures") / "day5_cartpole_lqr.png"
-PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
-ESTIMATION_FIGURE = Path("figures") / "day5_cartpole_estimation.png"
 DELAY_MARGIN_FIGURE = Path("figures") / "delay_margin.png"
 NOISE_MARGIN_FIGURE = Path("figures") / "noise_margin.png"
-VIDEO = Path("videos") / "day5_cartpole.mp4"
-METRICS = Path("metrics") / "metrics.csv"
 VIDEO_SECONDS = 10.0
 
 
