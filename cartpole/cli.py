@@ -17,6 +17,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from cartpole.commands._flags import in_flags
 from cartpole.errors import CartPoleError, Terminated, first_line
 
 #: Subcommand modules, in the order ``cartpole --help`` lists them (one per line: add a command with one line).
@@ -309,8 +310,8 @@ def main(argv=None) -> int:
     try:
         with signals_as_interrupts():
             doc = _run(args)
-    except CartPoleError as exc:
-        print(f"cartpole {args.command}: {sentence(exc)}", file=sys.stderr)
+    except CartPoleError as exc:  # the library names Python arguments; the command line prints their options
+        print(f"cartpole {args.command}: {in_flags(sentence(exc))}", file=sys.stderr)
         return 2
     except MemoryError:
         print(f"cartpole {args.command}: ran out of memory; give a shorter --duration or fewer runs.",

@@ -204,9 +204,6 @@ PARAMS_TO_FIX = {
 
 #: file -> raised error texts naming a command-line flag.
 FLAGS_TO_FIX = {
-    "cartpole/_files.py": 7,
-    "cartpole/apps/excite.py": 4,
-    "cartpole/apps/export.py": 2,
     "cartpole/apps/margins.py": 11,
     "cartpole/apps/sweep/executors.py": 3,
     "cartpole/apps/sweep/plan.py": 6,
@@ -214,23 +211,8 @@ FLAGS_TO_FIX = {
     "cartpole/apps/sweep/run.py": 8,
     "cartpole/apps/swingup.py": 17,
     "cartpole/control/energy.py": 5,
-    "cartpole/estimation/noise.py": 1,
-    "cartpole/estimation/sensors.py": 4,
     "cartpole/export/design.py": 1,
-    "cartpole/export/folder.py": 2,
-    "cartpole/export/mcu.py": 1,
-    "cartpole/identify/excite.py": 1,
-    "cartpole/identify/fit.py": 4,
-    "cartpole/identify/logs.py": 1,
-    "cartpole/identify/parameters.py": 1,
-    "cartpole/models/discretize.py": 2,
-    "cartpole/models/limits.py": 4,
-    "cartpole/models/params.py": 3,
     "cartpole/mpc/options.py": 9,
-    "cartpole/ocp/bounds.py": 2,
-    "cartpole/sim/options.py": 3,
-    "cartpole/sim/rig.py": 2,
-    "cartpole/viz/scene.py": 1,
 }
 
 

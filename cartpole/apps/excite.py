@@ -85,7 +85,7 @@ def _balance(model, exc: Excitation, ts: float, steps: int):
     err = state_error(roll.x, model.x_eq, model.hinges)[:, list(model.hinges)]
     if diverged(roll) or np.max(np.abs(err)) > BALANCE_LIMIT or len(roll.ctrl) != steps * (len(exc.t) - 1):
         raise CartPoleError("The balancing experiment lost the pole (its angle left upright by more than "
-                            f"{BALANCE_LIMIT} rad); give a smaller --amplitude.")
+                            f"{BALANCE_LIMIT} rad); give a smaller `amplitude`.")
     ctrl = np.vstack([roll.ctrl[::steps], roll.ctrl[-1:]])
     return roll, dataclasses.replace(exc, ctrl=readonly(ctrl))
 
@@ -133,7 +133,7 @@ def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: f
         raise CartPoleError(f"Unknown excitation mode '{mode}'; choose one of {', '.join(MODES)}.")
     if mode == "balance" and dry_run:
         raise CartPoleError("A balancing experiment's ctrl depends on the measured state, so it cannot be written "
-                            "ahead; use --dry-run with --mode hanging.")
+                            "ahead; use `dry_run` with `mode='hanging'`.")
     model = plant_model(plant)
     p = model.params
     ts = p.timestep if sample_time is None else float(sample_time)
@@ -159,7 +159,7 @@ def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: f
     rail = p.cart_range
     if model.slide is not None and np.any(np.abs(roll.qpos[:, model.slide] - rail.mean()) >= 0.98 * 0.5 * np.ptp(rail)):
         raise CartPoleError("The excitation drove the cart to the end of its rail on this MJCF; give a smaller "
-                            "--amplitude.")
+                            "`amplitude`.")
     m, d = make_mujoco(p.mjcf or p)
     sampler = SensorSampler(spec, m, seed=seed)
     y = np.empty((len(exc.t), p.nq))

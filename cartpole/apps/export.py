@@ -95,7 +95,7 @@ def catch_level(model, loop) -> float:
         EnergyShapingController(model)
     except EnergyShapingModelError:
         raise ExportError(f"Energy shaping drives one pole on a cart and this model has {len(model.hinges)} "
-                          "hinges; export --controller tvlqr (or lqr) instead.") from None
+                          "hinges; export `controller='tvlqr'` (or `controller='lqr'`) instead.") from None
     period = None if loop is None else loop.period
     catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
     return float(BasinCache.on_disk().get(model.params, catch).rho)
@@ -222,7 +222,7 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
     if x0 is not None:
         x0 = np.asarray(x0, dtype=float).ravel()
         if x0.shape != (model.nx,) or not np.all(np.isfinite(x0)):
-            raise CartPoleError(f"--x0 must be {model.nx} finite numbers [qpos, qvel] in MuJoCo's joint order; got "
+            raise CartPoleError(f"`x0` must be {model.nx} finite numbers [qpos, qvel] in MuJoCo's joint order; got "
                                 f"{x0.tolist()}.")
     moves = ()
     if x0 is not None or CONTROLLERS.get(controller) == "swingup":  # a swing-up's hanging start on a range's edge

@@ -284,7 +284,7 @@ def _mjcf_sensors(m, where: str) -> list:
                               f"model exactly from the state and ctrl; {_SUPPORTED}.")
         if m.sensor_delay[i] != 0 or np.any(m.sensor_interval[i] != 0):
             raise SensorError(f"{where} gives sensor '{name}' a delay or interval, which changes what MuJoCo "
-                              "reports; remove it and set the rig's --delay and --period instead.")
+                              "reports; remove it and set the rig's `delay` and `period` instead.")
         objtype, objid = int(m.sensor_objtype[i]), int(m.sensor_objid[i])
         reftype, refid = int(m.sensor_reftype[i]), int(m.sensor_refid[i])
         frame = ref = None
@@ -387,7 +387,7 @@ def sensor_spec(plant=None, *, encoder_cpr=None, encoder_resolution=None, noise_
         ok = not isinstance(encoder_cpr, bool) and isinstance(encoder_cpr, (int, float, np.integer, np.floating))
         if not (ok and math.isfinite(encoder_cpr) and encoder_cpr >= 1 and float(encoder_cpr).is_integer()):
             raise SensorError(f"The encoder counts per revolution {encoder_cpr!r} is not a positive whole number; "
-                              "give e.g. --encoder-cpr 2048.")
+                              "give e.g. `encoder_cpr` 2048.")
         res["rad"] = 2 * math.pi / float(encoder_cpr)
     if encoder_resolution is not None:
         try:
@@ -396,7 +396,7 @@ def sensor_spec(plant=None, *, encoder_cpr=None, encoder_resolution=None, noise_
             r = math.nan
         if isinstance(encoder_resolution, bool) or not (math.isfinite(r) and r > 0):
             raise SensorError(f"The encoder resolution {encoder_resolution!r} m is not a positive finite number of "
-                              "metres per count; give e.g. --encoder-resolution 1e-4.")
+                              "metres per count; give e.g. `encoder_resolution` 1e-4.")
         res["m"] = r
     noise = _per_sensor("noise", noise_std, sensors, "a finite standard deviation >= 0 in its units") \
         if noise_std is not None else {}

@@ -439,9 +439,9 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     t0 = time.perf_counter()
     params = tuple(params)
     if not logs:
-        raise FitError("No run to fit; give at least one --log.")
+        raise FitError("No run to fit; give at least one log in `logs`.")
     if not params:
-        raise FitError("No parameter to fit; give --fit with names like mass:pole or all.")
+        raise FitError("No parameter to fit; give `params` (parse_parameters of names like mass:pole, or all).")
     if not (np.isfinite(regularization) and regularization >= 0):
         raise FitError(f"The regularisation weight {regularization:g} is not a non-negative number; give e.g. 1.")
     nq, np_ = p.nq, len(params)
@@ -468,7 +468,7 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
         iters += it
         if not ok:
             raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations; fit fewer "
-                           "parameters, raise --regularization, or give a more exciting run.")
+                           "parameters, raise `regularization`, or give a more exciting run.")
         theta = np.array([q.nominal + q.scale * d for q, d in zip(params, delta)])
         res = _residual_std(runs, theta, w, np_)
         floor = 1e-3 / w  # a spread below a thousandth of the prior's is rounding, not noise
@@ -488,7 +488,7 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     _, _, lu = _solve_kkt(H, g, C, c)
     if lu is None:
         raise FitError("The fit's information matrix is singular at the optimum; fit fewer parameters or raise "
-                       "--regularization.")
+                       "`regularization`.")
     E = np.zeros((H.shape[0] + C.shape[0], np_))
     E[:np_, :np_] = np.eye(np_)
     cov_rel = s2 * lu.solve(E)[:np_, :np_]

@@ -161,7 +161,7 @@ def parse_parameters(p: CartPoleParams, names) -> tuple:
     """
     names = [n.strip() for n in names if n.strip()]
     if not names:
-        raise ParameterError("No parameter to fit; give --fit with names like mass:pole, damping:hinge or all.")
+        raise ParameterError("No parameter to fit; give `names` like mass:pole, damping:hinge or all.")
     bodies = [b.name for b in p.bodies]
     joints = list(p.joint_names)
     acts = [a.name for a in p.actuators]

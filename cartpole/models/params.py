@@ -533,19 +533,19 @@ def _load(mjcf=None, *, xml=None, actuated_joints=None):
 
     try:  # by kind, before opening: a FIFO would block, /dev/zero never ends, a symbolic-link loop raises
         path = check_input_file(Path(mjcf) if mjcf is not None else SHIPPED_MJCF, what="MJCF file",
-                                flag="--mjcf")
+                                flag="`plant`")
     except InputFileError as exc:
         raise MJCFError(str(exc).replace("the path of a readable file", "the path of a cart-pole MJCF")) from None
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
-        raise MJCFError(f"MJCF file '{short(path)}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
+        raise MJCFError(f"MJCF file '{short(path)}' cannot be read as text ({type(exc).__name__}); pass `plant` with the "
                         "path of a cart-pole MJCF.") from None
     if is_urdf(text):
         m, mjcf_text, record = _urdf(text, str(path), actuated_joints)
         return m, str(path), mjcf_text, record
     if actuated_joints:
-        raise MJCFError(f"MJCF file '{short(path)}' declares its own actuators; actuated_joints (--actuated-joint) "
+        raise MJCFError(f"MJCF file '{short(path)}' declares its own actuators; `actuated_joints` "
                         "chooses the driven joints of a URDF only, so drop it.")
     check_referenced_files(path, text)  # an <include> or asset naming a FIFO would block MuJoCo's reader forever
     try:
@@ -754,7 +754,7 @@ def _check_actuator(m, i: int, where: str) -> None:
     delay = float(m.actuator_delay[i]) if hasattr(m, "actuator_delay") else 0.0
     if delay:
         raise MJCFError(f"{where} delays actuator '{name}' by {delay:g} s inside MuJoCo; the toolkit's model acts "
-                        "at once, so remove the actuator's delay (the rig's --delay models one).")
+                        "at once, so remove the actuator's delay (the rig's `delay` models one).")
     if m.actuator_forcelimited[i]:
         # MuJoCo clamps the actuator force gain * ctrl + bias, before the transmission multiplies it by gear.
         lo, hi = m.actuator_forcerange[i]

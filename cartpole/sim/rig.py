@@ -57,7 +57,7 @@ def delay_steps(delay: float, timestep: float) -> int:
         return 0
     if np.isfinite(d) and d > MAX_DELAY:
         raise RigError(f"The delay {d:g} s is longer than the {MAX_DELAY:g} s limit (the loop holds every sample of "
-                       "it in memory); give a shorter --delay.")
+                       "it in memory); give a shorter `delay`.")
     k = round(d / timestep)
     if not np.isfinite(d) or d < 0 or abs(k * timestep - d) > 1e-6 * d:
         near = sorted({max(0, int(np.floor(d / timestep))) * timestep, int(np.ceil(d / timestep)) * timestep})
@@ -228,8 +228,8 @@ def build_rig(model, loop: LoopOptions | None, *, task: str = "balance") -> Rig 
     lag = delay_steps(loop.delay, h)
     name = loop.estimator_for(task)
     if name == "none" and loop.sensed:
-        raise RigError("--estimator none gives the controller MuJoCo's exact state, so sensor options (encoders, "
-                       "noise) would not be used; pick --estimator kf, ekf or mhe, or drop the sensor options.")
+        raise RigError("`estimator='none'` gives the controller MuJoCo's exact state, so sensor options (encoders, "
+                       "noise) would not be used; pick an `estimator` (kf, ekf or mhe), or drop the sensor options.")
     if steps == 1 and lag == 0 and name == "none":
         return None
     spec = make = None

@@ -207,7 +207,7 @@ def build_display(plant, *, width: int, height: int, floor_z: float | None = Non
         m = spec.compile()
     except Exception as exc:
         raise VideoUnavailable(f"The render-only copy of the MJCF does not compile ({first_line(exc, FOREIGN_WIDTH)}); "
-                               "skip the video (--no-video).") from None
+                               "skip the video (`video=False`).") from None
     d = mujoco.MjData(m)
     hinges, link_geoms = [], []
     slide = None
