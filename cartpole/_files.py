@@ -20,6 +20,7 @@ import csv
 import errno
 import io
 import os
+import stat
 import tempfile
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -188,8 +189,6 @@ def check_replaceable(path: str | Path) -> None:
     OutputError
         ``path`` is read-only (one sentence: make it writable, move it away or choose another ``--out``).
     """
-    import stat
-
     try:
         st = os.stat(path)
     except OSError:
@@ -334,8 +333,6 @@ def check_input_file(path: str | Path, *, what: str = "File", flag: str = "", ma
     InputFileError
         Missing, a loop of symbolic links, not a regular file, not readable, or larger than ``max_bytes``.
     """
-    import stat
-
     text = os.path.expanduser(str(path))
     give = f"pass {flag} with the path of a readable file" if flag else "give the path of a readable file"
 

@@ -8,9 +8,9 @@ Bounds, for every function and method under ``cartpole/`` (nested functions too,
   leaving out ``self`` and ``cls``. More belong in an options object (a frozen dataclass, as
   :class:`cartpole.sim.LoopOptions`).
 * **Imports at the top of the module**: no ``import`` inside a function, except of the optional dependencies in
-  ``OPTIONAL_IMPORTS`` (not installed with the package, or only for one feature; importing them at the top would make
-  the package need them) and of the modules in ``COSTLY_IMPORTS`` inside the layers named there (heavy at import and
-  needed by one path only). An import that breaks an import cycle is not allowed: the cycle's cause is fixed instead.
+  ``OPTIONAL_IMPORTS`` (not installed with the package, or only for one feature, or only on POSIX; importing them at
+  the top would make the package need them) and of the modules in ``COSTLY_IMPORTS`` inside the layers named there
+  (heavy at import and needed by one path only). An import that breaks an import cycle is not allowed: the cycle's cause is fixed instead.
 * **Library errors speak Python**: the text of an exception raised under ``cartpole/`` outside the command layer
   (``cartpole/commands``, ``cartpole/cli.py``) never names a command-line flag (``--name``). A library error names
   the Python argument and the physics; the command layer maps arguments to flags where it needs to.
@@ -35,14 +35,18 @@ MAX_PARAMS = 10
 
 #: Optional dependencies (importable only inside the functions that need them, anywhere in the package): the cluster
 #: (dask, distributed, ray), the Crocoddyl comparison (crocoddyl, pinocchio, example_robot_data), the learned agents'
-#: suites (dm_control, gymnasium), the browser (playwright, websockets).
+#: suites (dm_control, gymnasium), the browser (playwright, websockets); and the POSIX-only modules (fcntl, termios,
+#: resource), so that the package still imports where they do not exist.
 OPTIONAL_IMPORTS = frozenset({"dask", "distributed", "ray", "crocoddyl", "pinocchio", "pin", "example_robot_data",
-                              "dm_control", "gymnasium", "playwright", "websockets"})
+                              "dm_control", "gymnasium", "playwright", "websockets", "fcntl", "termios", "resource"})
 
-#: Modules heavy at import (matplotlib alone costs about 0.5 s) or tied to a display (MuJoCo's desktop viewer needs
-#: a GL window system), imported by the one path that needs them, and only inside these layers (top-level package).
+#: Modules heavy at import or tied to a display, imported by the one path that needs them, and only inside these
+#: layers: matplotlib (about 0.5 s) in the figures; python-control (seconds: it imports matplotlib and SciPy's signal
+#: tools) wherever a design is handed to it, so that the model and the command line do not pay for it; MuJoCo's
+#: desktop viewer (it needs a GL window system) in the figures.
 COSTLY_IMPORTS = {
     "matplotlib": ("cartpole.viz",),
+    "control": ("cartpole",),
     "mujoco.viewer": ("cartpole.viz",),
 }
 
@@ -57,9 +61,7 @@ FLAG = re.compile(r"(?<![\w-])--[a-zA-Z][\w-]*")
 
 #: file -> imports inside functions not allowed above.
 IMPORTS_TO_FIX = {
-    "cartpole/_files.py": 3,
-    "cartpole/analysis/loops.py": 4,
-    "cartpole/analysis/margins.py": 1,
+    "cartpole/analysis/loops.py": 1,
     "cartpole/apps/bench/crocoddyl.py": 4,
     "cartpole/apps/bench/estimation.py": 4,
     "cartpole/apps/bench/export.py": 7,
@@ -101,47 +103,24 @@ IMPORTS_TO_FIX = {
     "cartpole/commands/sweep.py": 27,
     "cartpole/commands/swingup.py": 24,
     "cartpole/control/pid.py": 2,
-    "cartpole/estimation/measurement.py": 1,
     "cartpole/estimation/mhe.py": 1,
     "cartpole/estimation/mhe_functions.py": 1,
-    "cartpole/estimation/sensors.py": 3,
-    "cartpole/export/build.py": 1,
     "cartpole/export/design.py": 12,
-    "cartpole/export/estimators.py": 3,
     "cartpole/export/inloop.py": 17,
-    "cartpole/export/loop.py": 1,
     "cartpole/export/make.py": 1,
     "cartpole/export/mhe.py": 2,
     "cartpole/export/nmpc.py": 4,
-    "cartpole/identify/fit.py": 6,
-    "cartpole/identify/mjcf.py": 3,
-    "cartpole/identify/parameters.py": 1,
-    "cartpole/models/contacts.py": 15,
-    "cartpole/models/friction.py": 2,
-    "cartpole/models/limits.py": 1,
-    "cartpole/models/params.py": 11,
-    "cartpole/models/symbolic.py": 1,
-    "cartpole/models/urdf.py": 3,
     "cartpole/mpc/ddp_mpc.py": 3,
     "cartpole/mpc/nmpc.py": 3,
-    "cartpole/ocp/collocation.py": 1,
     "cartpole/ocp/dmc.py": 3,
-    "cartpole/ocp/objectives.py": 1,
     "cartpole/planning/ddp_plan.py": 2,
     "cartpole/planning/energy_ceiling.py": 3,
     "cartpole/planning/library.py": 1,
     "cartpole/planning/pumping.py": 1,
     "cartpole/planning/trajopt.py": 8,
-    "cartpole/progress.py": 2,
-    "cartpole/riccati/tvlqr.py": 1,
-    "cartpole/sim/batch.py": 3,
-    "cartpole/sim/disturbance.py": 2,
-    "cartpole/sim/rig.py": 7,
-    "cartpole/sim/rollout.py": 7,
     "cartpole/solvers/ddp.py": 2,
     "cartpole/solvers/sqp.py": 3,
     "cartpole/validation/basin.py": 9,
-    "cartpole/validation/jacobians.py": 1,
     "cartpole/viz/identify_plot.py": 1,
     "cartpole/viz/overlay.py": 4,
     "cartpole/viz/scene.py": 6,

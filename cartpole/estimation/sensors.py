@@ -29,6 +29,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from cartpole._arrays import readonly
@@ -241,8 +242,6 @@ def _compiled(source):
 
 
 def _frame(m, d, objtype: int, objid: int, moving: dict) -> SensorFrame:
-    import mujoco
-
     ob = mujoco.mjtObj
     if objtype == ob.mjOBJ_SITE:
         kind, body, pos, quat = "site", m.site_bodyid[objid], m.site_pos[objid], m.site_quat[objid]
@@ -264,8 +263,6 @@ def _frame(m, d, objtype: int, objid: int, moving: dict) -> SensorFrame:
 
 def _mjcf_sensors(m, where: str) -> list:
     """The MJCF's sensors as :class:`Sensor` objects, refusing what cannot be modelled exactly."""
-    import mujoco
-
     ob, jt = mujoco.mjtObj, mujoco.mjtJoint
     if int(m.opt.disableflags) & mujoco.mjtDisableBit.mjDSBL_SENSOR:
         raise SensorError(f"{where} disables sensors (<flag sensor=\"disable\"/>), so MuJoCo reports none; "
@@ -317,8 +314,6 @@ def _mjcf_sensors(m, where: str) -> list:
 
 
 def _default_encoders(m) -> list:
-    import mujoco
-
     out = []
     for j in range(m.njnt):
         slide = m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE

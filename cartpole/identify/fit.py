@@ -16,13 +16,19 @@ in one sentence (:func:`identifiability_warnings`).
 """
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import time
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
+import cartpole.codegen as codegen
 from cartpole._arrays import readonly
+from cartpole.codegen import compiled_or_none
 from cartpole.errors import CartPoleError
 from cartpole.identify.parameters import sample_step
 from cartpole.models import DEFAULT_FRICTION_WIDTH, CartPoleParams
@@ -185,11 +191,6 @@ def compiled_segment(p: CartPoleParams, params, sample_time: float, length: int,
     (casadi.Function, casadi.Function)
         The segment (as :func:`segment_function`) and its ``(X, x_end)``.
     """
-    import dataclasses
-    import hashlib
-
-    import cartpole.codegen as codegen
-
     h = hashlib.sha256(SEGMENT_RECIPE.encode())
     codegen.digest([dataclasses.replace(p, mjcf=""), list(params), float(sample_time), int(length),
                     float(friction_width), bool(exact_friction)], h)
@@ -215,8 +216,6 @@ def _prepare(p, params, logs, segment_s, friction_width, exact, compiled=False) 
             L, S = log.n - 1, 1
         key = (round(Ts, 12), L)
         if key not in funcs and compiled:  # the toolkit's one rule: C when it builds, else the virtual machine
-            from cartpole.codegen import compiled_or_none
-
             funcs[key] = compiled_or_none(lambda: compiled_segment(p, params, Ts, L, friction_width=friction_width,
                                                                    exact_friction=exact), "fit segments")
         if funcs.get(key) is None:
@@ -312,8 +311,6 @@ def _kkt(runs, evals, W, np_, scale, *, fixed=None):
 def _kkt_matrix(H, C):
     """The sparse KKT matrix ``[[H, C'], [C, 0]]`` (block-banded: segments couple only to their neighbours and to
     the parameters)."""
-    import scipy.sparse as sp
-
     Hs, Cs = sp.csc_matrix(H), sp.csc_matrix(C)
     return sp.bmat([[Hs, Cs.T], [Cs, None]], format="csc")
 
@@ -321,8 +318,6 @@ def _kkt_matrix(H, C):
 def _solve_kkt(H, g, C, c):
     """GN step ``dz`` and multipliers from the KKT system, by a sparse LU (a dense solve of the same matrix is about
     a hundred times slower at 20 s of 5 ms data)."""
-    import scipy.sparse.linalg as spla
-
     nz = H.shape[0]
     K = _kkt_matrix(H, C)
     rhs = -np.concatenate([g, c])

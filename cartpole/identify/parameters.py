@@ -30,8 +30,8 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, CartPoleParams,
-                             FrictionConstraint, equations, friction_constraint, mujoco_model)
+from cartpole.models import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, CartPoleParams, FrictionConstraint,
+                             equations, friction_constraint, mujoco_model, quat_to_mat)
 
 KINDS = ("mass", "com", "inertia", "damping", "frictionloss", "armature", "gear")
 _AXES = "xyz"
@@ -92,8 +92,6 @@ def _hinge_axes(p: CartPoleParams, b: int) -> list:
 def hinge_moment(p: CartPoleParams, b: int) -> float:
     """The principal-inertia moment of body ``b`` about its first hinge axis (or its largest moment without a
     hinge), kg m^2: what ``inertia:BODY`` fits."""
-    from cartpole.models import quat_to_mat
-
     body = p.bodies[b]
     axes = _hinge_axes(p, b)
     if not axes:

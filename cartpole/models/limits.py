@@ -40,6 +40,7 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 from cartpole.models.params import CartPoleParams
+from cartpole.models.symbolic import build_model
 
 #: Standard gravity g0 in m/s^2: the unit of the default force.
 STANDARD_GRAVITY = 9.80665
@@ -317,8 +318,6 @@ def bounded_model(model, limits: PlanningLimits):
     -------
     CartPoleModel
     """
-    from cartpole.models.symbolic import build_model
-
     p = model.params
     rng = np.column_stack([limits.u_low, limits.u_high])
     same_u = p.nu == rng.shape[0] and np.array_equal(np.asarray(p.ctrl_range, float).reshape(p.nu, 2), rng)

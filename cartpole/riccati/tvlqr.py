@@ -21,11 +21,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import solve_ivp
 
 from cartpole._arrays import readonly
+from cartpole.models import CartPoleModel
 from cartpole.riccati.algebraic import LQRError, check_weights, dlqr, lqr
 from cartpole.riccati.weights import default_weights
-from cartpole.models import CartPoleModel
 
 METHODS = ("discrete", "continuous")
 
@@ -290,8 +291,6 @@ def held_steps(dt: float, step: float) -> int:
 
 
 def _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol) -> TVLQRGains:
-    from scipy.integrate import solve_ivp
-
     nx, nu = model.nx, model.nu
     t0, T = float(traj.t[0]), float(traj.t[-1])
     n = max(1, int(round((T - t0) / dt)))

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import os
 
+import mujoco
+import mujoco.rollout
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback, ctrl_limits
@@ -69,8 +71,6 @@ def default_threads() -> int:
 
 def initial_states(m, X0: np.ndarray, t0: float = 0.0) -> np.ndarray:
     """Full physics states (B, nstate) at time ``t0`` (s) for starts X0 (B, nq + nv)."""
-    import mujoco
-
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     d = mujoco.MjData(m)
     S0 = np.empty((X0.shape[0], mujoco.mj_stateSize(m, spec)))
@@ -122,9 +122,6 @@ def simulate_batch_linear(plant, K, X0, duration: float, *, x_eq=None, u_eq=None
         in which MuJoCo reset a blown-up run (NaN: it did not), after which that run's rows are NaN (see the
         module notes).
     """
-    import mujoco
-    import mujoco.rollout
-
     m, _ = make_mujoco(plant)
     nq, nu = m.nq, m.nu
     nx = nq + m.nv
