@@ -16,7 +16,21 @@ from pathlib import Path
 
 import numpy as np
 
+from cartpole.apps.lab import lab_initial_conditions
+from cartpole.apps.swingup import MPC_DURATION, TRAJOPT_EXTRA, start_state
+from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
+from cartpole.export import (ExportError, check_target, design_export, export_files, find_compiler, load_design,
+                             run_lockstep, write_export)
+from cartpole.export.design import CONTROLLERS
+from cartpole.export.folder import discard
+from cartpole.export.mcu import cross_build, mcu_tools
+from cartpole.models import build_model, planning_limits, plant_model
+from cartpole.sim.rollout import replays_exactly
+from cartpole.validation.basin import BasinCache
+from cartpole.validation.metrics import diverged, summarize, swingup_success
 
 #: Largest |C ctrl - Python ctrl| a verified double export may show at any control step.
 CTRL_TOLERANCE = 1e-9
@@ -29,12 +43,8 @@ def verify_duration(design) -> float:
     """Seconds of the verification runs of ``design``: what the Python path runs (the lab's balance 5 s of its 6,
     the energy swing-up 10 s, a TVLQR swing-up its plan + ``TRAJOPT_EXTRA``)."""
     if design.method == "nmpc":
-        from cartpole.apps.swingup import MPC_DURATION
-
         return float(MPC_DURATION)
     if design.plan_end is not None:
-        from cartpole.apps.swingup import TRAJOPT_EXTRA
-
         return float(design.plan_end) + float(TRAJOPT_EXTRA)
     return VERIFY_DURATION[design.task]
 
@@ -76,8 +86,6 @@ def default_start(design) -> np.ndarray:
     """The verification's start: the lab's first initial condition for a balance, the hanging rest for a
     swing-up."""
     if design.task == "balance":
-        from cartpole.apps.lab import lab_initial_conditions
-
         return np.array(lab_initial_conditions(design.model)[0], dtype=float)
     return np.array(design.model.x_hanging, dtype=float)
 
@@ -85,12 +93,6 @@ def default_start(design) -> np.ndarray:
 def catch_level(model, loop) -> float:
     """The catch level ``rho`` of the energy swing-up's LQR catch at the loop's period: the verified basin
     :func:`cartpole.apps.swingup.run_swingup` uses (:class:`cartpole.validation.basin.BasinCache`, on disk)."""
-    from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.switching import SWINGUP_CATCH_R
-    from cartpole.export import ExportError
-    from cartpole.validation.basin import BasinCache
-
     try:
         EnergyShapingController(model)
     except EnergyShapingModelError:
@@ -105,8 +107,6 @@ def task_success(design, rollout) -> bool:
     """The Python path's own success test of the task on ``rollout``: balanced as the lab's delay margin counts it
     (:func:`cartpole.apps.lab.balances`: the lab's settling time finite, the cart never at its limit) or swung
     up and held (:func:`cartpole.validation.metrics.swingup_success`); never for a run MuJoCo reset."""
-    from cartpole.validation.metrics import diverged, summarize, swingup_success
-
     if diverged(rollout):
         return False
     if design.task == "balance":
@@ -131,11 +131,6 @@ def check_build(design, real: str, x0, duration: float) -> BuildCheck:
     -------
     BuildCheck
     """
-    from cartpole.export import load_design, run_lockstep
-    from cartpole.export.folder import discard
-    from cartpole.sim.rollout import replays_exactly
-    from cartpole.validation.metrics import diverged
-
     ctl, folder = load_design(design, real)
     try:
         run = run_lockstep(design, ctl, x0, duration)
@@ -202,15 +197,9 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
         One sentence: a folder that is not an earlier export, no C compiler, a controller or estimator the export
         does not reproduce, a Python design that fails.
     """
-    from cartpole.export import check_target, design_export, find_compiler, write_export
-    from cartpole.export.design import CONTROLLERS
-    from cartpole.models import build_model, planning_limits, plant_model
-
     check_target(out)
     find_compiler()
     if mcu:
-        from cartpole.export.mcu import cross_build, mcu_tools
-
         if mcu_tools() is None:
             cross_build({})  # its one sentence: install the ARM toolchain
     model = plant_model(plant)
@@ -226,8 +215,6 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
                                 f"{x0.tolist()}.")
     moves = ()
     if x0 is not None or CONTROLLERS.get(controller) == "swingup":  # a swing-up's hanging start on a range's edge
-        from cartpole.apps.swingup import start_state
-
         x0, moves = start_state(x0, model.params, default=model.x_hanging)
     rho = catch_level(model, loop) if controller == "energy" else None
     design = design_export(model, controller, loop, real=real, x0=x0, rho=rho)
@@ -241,8 +228,6 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
                 runs.append((design.model.params, checks[r].run.rollout))
     mcu_doc = None
     if mcu:
-        from cartpole.export import export_files
-
         mcu_doc = cross_build(export_files(design, "float"))
     written = write_export(design, out, real=real)
     doc = {"mjcf": model.params.mjcf, "controller": controller, "estimator": design.estimator,

@@ -37,12 +37,16 @@ from typing import Callable
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.errors import CartPoleError
-from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits,
-                             plant_params)
 from cartpole.apps.swingup import start_state
+from cartpole.control.friction import friction_design
+from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, plant_params
+from cartpole.planning.options import PlanOptions
+import cartpole.planning.trajopt as trajopt
 from cartpole.progress import stage
 from cartpole.sim import Rollout, replays_exactly, simulate
+from cartpole.sim.rig import build_rig
+from cartpole.validation.metrics import pole_angle_errors, swingup_metrics
 
 #: Seconds simulated after each plan's end (the LQR catch must hold for the success test's last 1 s).
 EXTRA = 2.0
@@ -62,8 +66,6 @@ RUNS = {
 def plan_options():
     """The study's default planner settings: ``PlanOptions(exact_discrete=False)``, the collocation plan's own
     feedforward inside TVLQR (not the exact-discrete re-solve)."""
-    from cartpole.planning.options import PlanOptions
-
     return PlanOptions(exact_discrete=False)
 
 
@@ -249,8 +251,6 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
     -------
     FeedforwardRun
     """
-    from cartpole.validation.metrics import pole_angle_errors, swingup_metrics
-
     m = swingup_metrics(rollout, model)
     span = rollout.t <= plan.t[-1] + 1e-12
     err = model.state_error(rollout.x[span], plan.state(rollout.t[span]))
@@ -313,16 +313,11 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
     MJCFError, OCPError
         An MJCF that is not a cart-pole; a swing-up the optimiser cannot plan (its one sentence).
     """
-    from cartpole.planning.trajopt import trajopt_swingup
-
     options = plan_options() if options is None else options
     f = check_mass_error(mass_error)
     if not (math.isfinite(extra) and extra >= 1.0):
         raise FeedforwardError(f"The time after the plan, {extra} s, must be at least 1 s (the success test "
                                "looks at the last 1 s); give e.g. 2.")
-    from cartpole.sim.rig import build_rig
-
-    from cartpole.control.friction import friction_design
 
     params = plant_params(plant)
     params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
@@ -346,9 +341,9 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
                callback=forward("plan")) as tick:
         if plan is None:
             design = model if plan_model is None else plan_model
-            plan = trajopt_swingup(design.params, start, plan_model=design, options=options, period=period)
+            plan = trajopt.trajopt_swingup(design.params, start, plan_model=design, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
-        wrong = plan if f == 0.0 else trajopt_swingup(
+        wrong = plan if f == 0.0 else trajopt.trajopt_swingup(
             params, start, plan_model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model,
             options=options,
             period=period)

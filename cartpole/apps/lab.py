@@ -32,18 +32,28 @@ an actuated cart, so on a chain it raises :class:`~cartpole.control.pid.PIDError
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole.control.friction import friction_design
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.pid import CascadedPID, tune_pid
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, linearize, Plant, plant_model, state_error, wrap_angle
+from cartpole.export.inloop import in_loop
+from cartpole.models import (CartPoleModel, CartPoleParams, Plant, friction_treatment, linearize, plant_model,
+                             state_error, steps_per_period, wrap_angle)
 from cartpole.progress import stage
-from cartpole.riccati import ONE_POLE, default_weights
-from cartpole.validation.metrics import STRICT_TOLERANCE, UPRIGHT_TOL
+from cartpole.riccati import ONE_POLE, default_weights, lab_weights
+from cartpole.sim import simulate
+from cartpole.sim.options import LoopOptions
+from cartpole.sim.rig import build_rig
+from cartpole.validation.estimation import estimation_summary
+from cartpole.validation.metrics import (STRICT_TOLERANCE, UPRIGHT_TOL, cart_range_used, residual_error,
+                                         saturation_fraction, summarize)
 
 #: The handout's state weight ``diag(1, 10, 0.1, 0.1)`` on ``[s, theta, s_dot, theta_dot]`` (read-only): the
 #: default weights of one pole (:func:`~cartpole.riccati.default_weights`).
@@ -238,8 +248,6 @@ class _LabRuns:
     def residual_error(self) -> np.ndarray:
         """(5, nx) each run's largest ``|x - x*|`` per state over its last second
         (:func:`~cartpole.validation.metrics.residual_error`): the limit cycle or offset left (m, rad, m/s, rad/s)."""
-        from cartpole.validation.metrics import residual_error
-
         return np.array([residual_error(r.t, r.x, self.x_eq, hinges=self.params.hinges) for r in self.rollouts])
 
     @property
@@ -342,14 +350,11 @@ class LabResult(_LabRuns):
         None without an estimator."""
         if self.rig is None or self.rig.estimator == "none":
             return None
-        from cartpole.validation.estimation import estimation_summary
 
         return estimation_summary(self.rollouts, self.rig.estimator, self.params.hinges, state_names(self.params))
 
     def controller(self):
         """The lab's feedback law as a :class:`~cartpole.control.linear.LinearFeedback` (hinge errors wrapped)."""
-        from cartpole.control.linear import LinearFeedback
-
         return LinearFeedback(self.K, self.x_eq, self.u_eq, S=self.S, hinges=self.params.hinges)
 
 
@@ -516,8 +521,6 @@ _LATE = 1.0
 
 def _classify(M, h: float, tau: float, x0s, x_eq, hinges, runs, mets, duration: float, ctrl_range) -> tuple:
     """:class:`NotSettled` or None per run (see :func:`why_not_settled`)."""
-    from cartpole.validation.metrics import saturation_fraction
-
     x_eq = np.asarray(x_eq, dtype=float)
     hinges = tuple(hinges)
     horizon = min(max(2.0 * duration, 30.0 * tau if np.isfinite(tau) else 0.0), 1e5)
@@ -594,8 +597,6 @@ def lab_friction(model, compensated: bool) -> list:
     list of dict
         :func:`~cartpole.models.friction_treatment`'s entries (empty without friction).
     """
-    from cartpole.models import friction_treatment
-
     p = model.params
     cancelled = p.driven_joints if compensated else ()
     return friction_treatment(p, width=model.friction_width, omitted=range(p.nq), cancelled=cancelled)
@@ -617,10 +618,6 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, ri
     """``ctrl`` run in MuJoCo from each row of ``x0s`` for ``duration`` s (``reset()`` called before each run), on
     ``rig`` (each run its own noise stream) when given: ``(rollouts, metrics)``, the metrics measured from
     ``x_eq``. ``progress`` receives the fraction of all the runs' steps done, about 20 times a run."""
-    from cartpole.export.inloop import in_loop
-    from cartpole.sim import simulate
-    from cartpole.validation.metrics import summarize
-
     runs, mets = [], []
     n = len(x0s)
     for i, x0 in enumerate(x0s):
@@ -642,8 +639,6 @@ def _lab_controller(model, Q, R, *, discrete: bool = False, steps: int = 1):
     (:meth:`~cartpole.control.linear.LinearFeedback.for_model`: the law carries ``K``, ``S``, ``E``), with the
     linearisation it was designed on: ``Ad``, ``Bd`` over the control period of
     ``steps`` physics steps, the model without dry friction (it has no slope at rest)."""
-    from cartpole.control.linear import LinearFeedback
-
     x_eq = lab_equilibrium(model)
     period = None if steps == 1 else steps * model.dt
     ctrl = LinearFeedback.for_model(model, Q, R, discrete=discrete, period=period, x_eq=x_eq, u_limits=None)
@@ -714,8 +709,6 @@ def lab_start_scale(plant=None) -> float:
 
 def _start_scale(mjcf=None) -> tuple:
     """``(scale, reason)`` of :func:`lab_start_scale` (``reason`` None at full size)."""
-    from cartpole.riccati import lab_weights
-
     model = plant_model(mjcf)
     ctrl, mats, x_eq = _lab_controller(model, *lab_weights(model))
     scale, _, reason = _search_scale(model, ctrl, ctrl, mats, x_eq)
@@ -765,13 +758,6 @@ def run_lab(plant: Plant = None, *, Q=None, R=None,
     MJCFError, LQRError, LabError
         Bad MJCF, weights, or a model the lab cannot balance.
     """
-    from cartpole.riccati import lab_weights
-
-    from cartpole.models import steps_per_period
-    from cartpole.sim.rig import build_rig
-
-    from cartpole.control.friction import friction_design
-
     plant = plant_model(plant)
     params = plant.params
     if loop is not None and loop.duration is not None:
@@ -820,8 +806,6 @@ def cart_excursion(run, x_eq, slide: int | None) -> float:
     slide : int or None
         qpos index of the cart's slide; None (no cart) gives NaN.
     """
-    from cartpole.validation.metrics import cart_range_used
-
     if slide is None:
         return float("nan")
     lo, hi = cart_range_used(run, slide=slide)
@@ -903,8 +887,6 @@ def run_pid_lab(plant: Plant = None, *, x0s=None,
         A model where a cascade does not apply (not exactly one pole on an actuated cart: one sentence, before
         anything runs), bad tuning settings, or a tuned loop that is not stable.
     """
-    from cartpole.control.pid import CascadedPID, tune_pid
-
     model = plant_model(plant)
     if rig is not None:  # designed for the rig's period (the PID reads the rig's estimate, as the LQR does)
         tuning = {"period": rig.period, **tuning}
@@ -962,8 +944,6 @@ def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object
     LabError
         The shown run differs from the logged one (it cannot, unless MuJoCo is not deterministic here).
     """
-    from dataclasses import replace
-
     logged = lab.rollouts[0]
     shown = watcher(lab.params, lab.controller(), lab.x0s[0], lab.duration)
     n = shown.ctrl.shape[0]
@@ -1069,8 +1049,6 @@ def rig_margin(plant=None, *, loop=None, setting: str, values, pid: bool = False
         largest pole error over any run's last second)), with ``pid`` the same for the PID; ``setting`` and
         ``tried`` (the values tried).
     """
-    from cartpole.sim.options import LoopOptions
-
     model = plant_model(plant)
     loop = LoopOptions() if loop is None else loop
     values = [float(v) for v in values]

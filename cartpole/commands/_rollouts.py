@@ -3,6 +3,11 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
+from cartpole.errors import CartPoleError, first_line
+from cartpole.viz.viewer import LiveViewer, ViewerUnavailable, require_display, watch
+
 
 def show_logged(params, rollout, *, command: str, watcher=None):
     """Show ``rollout`` in MuJoCo's live viewer, in real time (:func:`cartpole.viz.viewer.watch`), by replaying its
@@ -16,11 +21,6 @@ def show_logged(params, rollout, *, command: str, watcher=None):
     CartPoleError
         The viewer's run differs from the log (it would not be the run logged).
     """
-    import numpy as np
-
-    from cartpole.errors import CartPoleError, first_line
-    from cartpole.viz.viewer import ViewerUnavailable, watch
-
     ctrl = np.asarray(rollout.ctrl)
     h = float(params.timestep)
     last = len(ctrl) - 1
@@ -62,9 +62,6 @@ def rollout_doc(rollout) -> dict:
 def live_viewer(command: str):
     """A :class:`~cartpole.viz.viewer.LiveViewer` to pass as a run's ``on_step``, or None without a display (its one
     sentence printed on stderr, so the command goes on without the viewer)."""
-    from cartpole.errors import first_line
-    from cartpole.viz.viewer import LiveViewer, ViewerUnavailable, require_display
-
     try:
         require_display()
     except ViewerUnavailable as exc:

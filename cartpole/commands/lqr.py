@@ -2,17 +2,36 @@
 the lab's, :mod:`cartpole.apps.lab`)."""
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from cartpole.apps.lab import ESTIMATION_FIGURE, FIGURE, METRICS, PID_FIGURE, VIDEO
+import cartpole.apps.lab as lab
+from cartpole._files import check_replaceable
+from cartpole.apps.lab import (ESTIMATION_FIGURE, FIGURE, LAB_DURATION, METRICS, PID_FIGURE, START_SCALES, VIDEO,
+                               compare_pid, lab_friction, view_first_run)
+from cartpole.apps.metrics_csv import append_metrics, metrics_row
+from cartpole.apps.swingup import plan_model_from
 from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, friction_sentence,
                                     loop_from_args, rig_doc, smoothed_friction_sentence)
+from cartpole.commands._state import state_labels, state_sentence
 from cartpole.commands._view import add_view_arguments, live_sentence, view_mode, view_web as _view_web
+from cartpole.commands.swingup import check_duration, check_log_size
+from cartpole.control.friction import friction_summary
+from cartpole.control.pid import PIDError
+from cartpole.errors import CartPoleError
+from cartpole.models import ContactReport, build_model
+from cartpole.progress import stage
+from cartpole.sim import simulate
+from cartpole.viz import VideoUnavailable, plot_lab, render_video
+from cartpole.viz.estimation_plot import plot_estimation
+from cartpole.viz.lab_plot import plot_pid_vs_lqr
+from cartpole.viz.margin_plot import plot_margin
+from cartpole.viz.viewer import ViewerUnavailable, watch
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
@@ -76,8 +95,6 @@ def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
         Any other count, naming the two counts accepted and the order of the entries; an entry beyond
         :data:`MAX_WEIGHT` in magnitude, or a nonzero one below its inverse.
     """
-    from cartpole.errors import CartPoleError
-
     v = np.asarray(values, dtype=float)
     if v.size not in (n, n * n):
         raise CartPoleError(f"{flag} has {v.size} number(s); give {n} (the diagonal, for {order}) or {n * n} "
@@ -96,23 +113,12 @@ def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
 
 def run(args) -> dict:
     """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
-    from cartpole.commands._state import state_labels
-    from cartpole.apps.lab import run_lab
-    from cartpole.models import build_model
-    from cartpole.sim import simulate
-    from cartpole.viz import VideoUnavailable, plot_lab, render_video
-    from cartpole.control.friction import friction_summary
-    from cartpole.errors import CartPoleError
-    from cartpole.apps.lab import lab_friction
-
     # Everything that can fail on bad input happens before the first file is written.
     model = build_model(args.mjcf)
     names = state_labels(model.params)
     Q = None if args.Q is None else weight_matrix(args.Q, model.nx, "--Q", "x = [" + ", ".join(names) + "]")
     R = None if args.R is None else weight_matrix(
         args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
-    from cartpole.apps.lab import LAB_DURATION, START_SCALES
-    from cartpole.commands.swingup import check_duration, check_log_size
 
     duration = LAB_DURATION if args.duration is None else check_duration(args.duration, model.params)
     loop = loop_from_args(args, **({} if args.duration is None else {"duration": duration}))
@@ -133,27 +139,21 @@ def run(args) -> dict:
     for key in MARGINS:
         if getattr(args, key) is not None:
             return _margin(args, model, loop, key)
-    from cartpole._files import check_replaceable
 
     check_replaceable(Path(args.out) / METRICS)  # a read-only metrics.csv is refused before the lab runs
     plan_model = None
     if getattr(args, "plan_mjcf", None) is not None:
-        from cartpole.apps.swingup import plan_model_from
-
         plan_model = plan_model_from(args.plan_mjcf, model)
     R, ctrl_noise = ctrl_noise_weights(args, model, loop, Q, R)
     view = view_mode(args, "lqr")
     if view == "web":
         check_log_size(args.live_seconds, model.params, what=f"the live run of {args.live_seconds:g} s")
-    result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model, duration=duration)
+    result = lab.run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model, duration=duration)
     live = None
     if view == "desktop":
         result = _view(result)
     pid = skipped = None
     if args.compare_pid:
-        from cartpole.control.pid import PIDError
-        from cartpole.apps.lab import compare_pid
-
         try:
             pid = compare_pid(result, model)
         except PIDError as exc:
@@ -165,19 +165,13 @@ def run(args) -> dict:
     figure = plot_lab(result, out / FIGURE).resolve()
     est_figure = None
     if result.estimation is not None:
-        from cartpole.viz.estimation_plot import plot_estimation
-
         est_figure = str(plot_estimation(result.rollouts[0], result.params, out / ESTIMATION_FIGURE,
                                          title=f"IC 1: {result.rig.estimator} estimate against MuJoCo").resolve())
     pid_figure = None
     if pid is not None:
-        from cartpole.viz.lab_plot import plot_pid_vs_lqr
-
         pid_figure = plot_pid_vs_lqr(result, pid, out / PID_FIGURE).resolve()
     video = video_render_s = None
     if not args.no_video:
-        from cartpole.progress import stage
-
         clip = simulate(result.params, result.controller(), result.x0s[0], VIDEO_SECONDS,
                         rig=None if result.rig is None else result.rig.for_run(0))
         try:
@@ -187,7 +181,6 @@ def run(args) -> dict:
             video, video_render_s = info.resolve(), float(info.render_s)
         except VideoUnavailable as exc:
             print(f"cartpole lqr: no video: {exc}", file=sys.stderr)
-    from cartpole.apps.metrics_csv import append_metrics, metrics_row
 
     metrics = append_metrics(out / METRICS, metrics_row(result)).resolve()
 
@@ -272,13 +265,6 @@ def _margin(args, model, loop, key: str) -> dict:
     """``--delay-margin MAX`` or ``--noise-margin MAX``: JSON ``mjcf``, ``period`` (s), ``rig`` (the rest of the
     rig), ``delay_margin`` or ``noise_margin`` (:func:`cartpole.apps.lab.rig_margin`: ``lqr``,
     ``lqr_first_failure``, ``lqr_runs`` and the ``pid`` ones with ``--compare-pid``), ``figure``."""
-    import math
-
-    import cartpole.apps.lab as lab
-    from cartpole.errors import CartPoleError
-    from cartpole.progress import stage
-    from cartpole.viz.margin_plot import plot_margin
-
     spec = MARGINS[key]
     setting, path, what, unit = spec.setting, spec.figure, spec.what, spec.unit
     flag = "--" + key.replace("_", "-")
@@ -309,8 +295,6 @@ def _margin(args, model, loop, key: str) -> dict:
 
 def _contacts_line(doc) -> str:
     """The prose line about the file's contacts (its pairs by reachability) and any run that touched."""
-    from cartpole.models import ContactReport
-
     line = ContactReport.sentence(doc["model"]["contacts"])
     touched = [i for i, r in enumerate(doc["rollouts"], 1) if r.get("contact")]
     if touched:
@@ -355,9 +339,6 @@ def _view(result):
     """``--view``: the first start's LQR run shown live (:func:`cartpole.viz.viewer.watch`) and logged as shown
     (:func:`cartpole.apps.lab.view_first_run`); without a display, the viewer's sentence on stderr and ``result``
     unchanged."""
-    from cartpole.apps.lab import view_first_run
-    from cartpole.viz.viewer import ViewerUnavailable, watch
-
     try:
         result, shown = view_first_run(result, watch)
     except ViewerUnavailable as exc:
@@ -398,8 +379,6 @@ def _rig_sentence(rig) -> str:
 
 
 def _print_prose(result, doc, pid=None) -> None:
-    from cartpole.commands._state import state_sentence
-
     q = ", ".join(f"{v:g}" for v in np.diag(result.Q))
     r = ", ".join(f"{v:g}" for v in np.diag(result.R))
     steps = int(round(result.period / result.params.timestep)) if result.period else 1
@@ -476,8 +455,6 @@ def _time_constant_sentence(result) -> str:
 
 def _not_settled_text(result, why) -> str:
     """``NOT settled: ...``: the reason of one start (:class:`cartpole.apps.lab.NotSettled`) and by how much."""
-    from cartpole.commands._state import state_labels
-
     labels = state_labels(result.params)
     left = (f"|theta - theta*| {why.final_angle_error:.3g} rad at the end, the largest error {why.final_error:.3g} "
             f"on {labels[why.final_error_state]}")
