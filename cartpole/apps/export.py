@@ -238,19 +238,25 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
     exp = {"files": list(written.files), "bytes": written.bytes, "verified": False, "max_ctrl_diff": None,
            "step_us": None}
     if verify:
-        d, f = checks["double"], checks["float"]
-        exp.update({
-            "verified": bool(d.max_ctrl_diff <= CTRL_TOLERANCE and d.success and f.success and d.replays
-                             and f.replays and not d.diverged and not f.diverged),
-            "max_ctrl_diff": d.max_ctrl_diff,
-            "step_us": {"median": float(np.median(d.step_us)), "max": float(np.max(d.step_us))},
-            "double": {"success": d.success, "replays": d.replays, "diverged": d.diverged, "codes": d.codes},
-            "float32": {"success": f.success, "replays": f.replays, "diverged": f.diverged,
-                        "max_ctrl_diff": f.max_ctrl_diff, "codes": f.codes,
-                        "step_us": {"median": float(np.median(f.step_us)), "max": float(np.max(f.step_us))}},
-            "duration": float(d.run.rollout.t[-1]),
-        })
+        exp.update(_verification_doc(checks["double"], checks["float"]))
     if mcu:
         exp["mcu"] = mcu_doc
     doc["export"] = exp
     return doc
+
+
+def _verification_doc(d, f) -> dict:
+    """The ``export`` JSON's verification keys from the double (``d``) and float (``f``) builds' checks
+    (:func:`check_build`): ``verified``, ``max_ctrl_diff``, ``step_us`` (median and max, us), ``double``, ``float32``
+    and ``duration`` (s)."""
+    return {
+        "verified": bool(d.max_ctrl_diff <= CTRL_TOLERANCE and d.success and f.success and d.replays
+                         and f.replays and not d.diverged and not f.diverged),
+        "max_ctrl_diff": d.max_ctrl_diff,
+        "step_us": {"median": float(np.median(d.step_us)), "max": float(np.max(d.step_us))},
+        "double": {"success": d.success, "replays": d.replays, "diverged": d.diverged, "codes": d.codes},
+        "float32": {"success": f.success, "replays": f.replays, "diverged": f.diverged,
+                    "max_ctrl_diff": f.max_ctrl_diff, "codes": f.codes,
+                    "step_us": {"median": float(np.median(f.step_us)), "max": float(np.max(f.step_us))}},
+        "duration": float(d.run.rollout.t[-1]),
+    }

@@ -111,9 +111,18 @@ def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
     return np.diag(v) if v.size == n else v.reshape(n, n)
 
 
-def run(args) -> dict:
-    """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
-    # Everything that can fail on bad input happens before the first file is written.
+class _Inputs(NamedTuple):
+    """What ``cartpole lqr`` checked before any work: the model, the weights, the run length and the rig."""
+    model: object
+    Q: object
+    R: object
+    duration: float
+    loop: object
+
+
+def _checked_inputs(args) -> _Inputs:
+    """The model, weights, duration and rig of ``args``, and the work they ask for checked against the budget (one
+    sentence on bad input, before anything runs)."""
     model = build_model(args.mjcf)
     names = state_labels(model.params)
     Q = None if args.Q is None else weight_matrix(args.Q, model.nx, "--Q", "x = [" + ", ".join(names) + "]")
@@ -134,6 +143,13 @@ def run(args) -> dict:
                                (1, clip, "video")])
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
+    return _Inputs(model, Q, R, duration, loop)
+
+
+def run(args) -> dict:
+    """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
+    # Everything that can fail on bad input happens before the first file is written.
+    model, Q, R, duration, loop = _checked_inputs(args)
     if args.margins or args.margins_mujoco:
         return run_margins(args, model, loop, Q, R)
     for key in MARGINS:
@@ -161,6 +177,26 @@ def run(args) -> dict:
             print(f"cartpole lqr: --compare-pid skipped: {skipped}", file=sys.stderr)
     if view == "web":  # after the PID's lab, which then runs live after the LQR
         live = _view_web(result, args, pid=pid)
+    files = _write_outputs(args, result, model, pid)
+    doc = _lab_doc(result, model, plan_model, files)
+    if args.compare_pid:
+        doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, files["pid_figure"])
+    if ctrl_noise is not None:
+        doc["ctrl_noise"] = ctrl_noise
+    if live is not None:
+        doc["live"] = live
+    if not args.json:
+        _print_prose(result, doc, pid)
+        if live is not None:
+            print(live_sentence(live))
+    return doc
+
+
+def _write_outputs(args, result, model, pid) -> dict:
+    """The lab's files under ``args.out``: the figure, the estimator's and the PID's figures when there are
+    those, the video (unless ``--no-video``; a missing GL backend is a note on stderr) and the metrics row.
+    Returns their paths (``figure``, ``estimation_figure``, ``pid_figure``, ``video``, ``metrics``) and
+    ``video_render_s``."""
     out = Path(args.out)
     figure = plot_lab(result, out / FIGURE).resolve()
     est_figure = None
@@ -183,9 +219,13 @@ def run(args) -> dict:
             print(f"cartpole lqr: no video: {exc}", file=sys.stderr)
 
     metrics = append_metrics(out / METRICS, metrics_row(result)).resolve()
+    return {"figure": figure, "estimation_figure": est_figure, "pid_figure": pid_figure, "video": video,
+            "video_render_s": video_render_s, "metrics": metrics}
 
-    ts_seed = result.settling_times_seed
-    doc = {
+
+def _lab_doc(result, model, plan_model, files: dict) -> dict:
+    """The JSON document of a lab run (without its ``pid``, ``ctrl_noise`` and ``live`` parts)."""
+    return {
         "mjcf": result.mjcf,
         "plan_mjcf": None if plan_model is None else plan_model.params.mjcf,
         "discrete": result.discrete,
@@ -198,7 +238,7 @@ def run(args) -> dict:
         "initial_conditions": result.x0s,
         "start_scale": result.start_scale,
         "duration": result.duration,
-        "settling_times_seed": ts_seed,
+        "settling_times_seed": result.settling_times_seed,
         "settling_times": result.settling_times,
         "settling_definition": ("settling_times_seed: t of the sample after the last with some |theta_i - theta_i*| "
                                 "> 0.05 rad (every hinge, wrapped); settling_times: first t after which every "
@@ -219,28 +259,17 @@ def run(args) -> dict:
         "residual_error": result.residual_error,
         "saturation_fraction": [m.saturation_fraction for m in result.metrics],
         "track_margin": [m.track_margin for m in result.metrics],
-        "figure": str(figure),
-        "video": None if video is None else str(video),
-        "video_render_s": video_render_s,
-        "metrics": str(metrics),
+        "figure": str(files["figure"]),
+        "video": None if files["video"] is None else str(files["video"]),
+        "video_render_s": files["video_render_s"],
+        "metrics": str(files["metrics"]),
         **rig_doc(result.rig, result.period),
         "friction": friction_summary(result.params, result.friction_compensation),
         "smoothed_friction": lab_friction(model, result.friction_compensation),
         "estimation": result.estimation,
-        "estimation_figure": est_figure,
+        "estimation_figure": files["estimation_figure"],
         "model": {"contacts": model.contacts.to_dict()},
     }
-    if args.compare_pid:
-        doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
-    if ctrl_noise is not None:
-        doc["ctrl_noise"] = ctrl_noise
-    if live is not None:
-        doc["live"] = live
-    if not args.json:
-        _print_prose(result, doc, pid)
-        if live is not None:
-            print(live_sentence(live))
-    return doc
 
 
 class _Margin(NamedTuple):

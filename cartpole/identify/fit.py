@@ -473,6 +473,18 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
             break
         w = w_new
     theta = np.array([q.nominal + q.scale * d for q, d in zip(params, delta)])
+    std, corr, warn = _uncertainty(runs, params, theta, w, regularization)
+    res = _residual_std(runs, theta, w, np_)
+    return FitResult(parameters=params, fitted=readonly(theta), std=readonly(std), correlation=readonly(corr),
+                     warnings=tuple(warn), fit_rms=readonly(res[:nq]), iterations=iters,
+                     solve_s=time.perf_counter() - t0, residual_std=readonly(res[:nq]))
+
+
+def _uncertainty(runs, params, theta, w, regularization: float) -> tuple:
+    """``(std, correlation, warnings)`` of the fitted ``theta``: the standard deviations in the parameters' units
+    from the KKT system at the optimum (the residuals' variance per degree of freedom, at least 1), their
+    correlation matrix, and the identifiability and bound warnings."""
+    np_ = len(params)
     evals = _evaluate(runs, theta, w, np_)
     scale = np.array([q.scale for q in params])
     H, g, C, c = _kkt(runs, evals, regularization, np_, scale)
@@ -494,10 +506,7 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     info_data = np.linalg.inv(cov_rel / s2) - regularization * np.eye(np_)
     warn = identifiability_warnings(params, 0.5 * (info_data + info_data.T) / s2, corr)
     warn += _bound_warnings(params, theta)
-    res = _residual_std(runs, theta, w, np_)
-    return FitResult(parameters=params, fitted=readonly(theta), std=readonly(std), correlation=readonly(corr),
-                     warnings=tuple(warn), fit_rms=readonly(res[:nq]), iterations=iters,
-                     solve_s=time.perf_counter() - t0, residual_std=readonly(res[:nq]))
+    return std, corr, warn
 
 
 def _residual_std(runs, theta, w, np_) -> np.ndarray:

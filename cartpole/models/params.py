@@ -861,6 +861,19 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
             range=readonly(m.jnt_range[j] if m.jnt_limited[j] else [-np.inf, np.inf]),
             frictionloss=0.0 if no_friction else float(m.dof_frictionloss[dof])))
 
+    actuators = _actuators(m, no_damper)
+    raw_g = np.array(m.opt.gravity, dtype=float)
+    up = -raw_g / np.linalg.norm(raw_g) if np.linalg.norm(raw_g) > 0 else np.array([0.0, 0.0, 1.0])
+    gravity = np.zeros(3) if dis & flags.mjDSBL_GRAVITY else raw_g
+    return CartPoleParams(
+        mjcf=path, xml=text, timestep=float(m.opt.timestep), integrator=_INTEGRATOR_NAMES[int(m.opt.integrator)],
+        euler_damping_implicit=not bool(dis & flags.mjDSBL_EULERDAMP), gravity=readonly(gravity), up=readonly(up),
+        joints=tuple(joints), bodies=tuple(bodies), actuators=tuple(actuators), urdf=urdf)
+
+
+def _actuators(m, no_damper: bool) -> list:
+    """The :class:`ActuatorParams` of every actuator of the compiled ``m`` (actuator damping left out when the
+    MJCF disables dampers)."""
     actuators = []
     for i in range(m.nu):
         lim = bool(m.actuator_ctrllimited[i])
@@ -874,14 +887,7 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
             transmission=float(m.actuator_gear[i, 0]), gain=float(m.actuator_gainprm[i, 0]),
             bias=readonly(m.actuator_biasprm[i, :3] if affine else np.zeros(3)),
             damping=act_damping, armature=act_armature))
-
-    raw_g = np.array(m.opt.gravity, dtype=float)
-    up = -raw_g / np.linalg.norm(raw_g) if np.linalg.norm(raw_g) > 0 else np.array([0.0, 0.0, 1.0])
-    gravity = np.zeros(3) if dis & flags.mjDSBL_GRAVITY else raw_g
-    return CartPoleParams(
-        mjcf=path, xml=text, timestep=float(m.opt.timestep), integrator=_INTEGRATOR_NAMES[int(m.opt.integrator)],
-        euler_damping_implicit=not bool(dis & flags.mjDSBL_EULERDAMP), gravity=readonly(gravity), up=readonly(up),
-        joints=tuple(joints), bodies=tuple(bodies), actuators=tuple(actuators), urdf=urdf)
+    return actuators
 
 
 def _world_frame_of_static(m, d, parent: int, b: int):
