@@ -116,7 +116,6 @@ LONG_TO_FIX = {
     "cartpole/planning/box_entry.py": ["box_entry_plan"],
     "cartpole/planning/energy_ceiling.py": ["energy_ceiling"],
     "cartpole/planning/trajopt.py": ["_plan"],
-    "cartpole/sim/batch.py": ["simulate_batch_linear"],
     "cartpole/sim/rollout.py": ["simulate"],
     "cartpole/solvers/ddp.py": ["DDP.solve"],
     "cartpole/solvers/sqp.py": ["CollocationSQP.solve_once"],
