@@ -107,7 +107,6 @@ IMPORTS_TO_FIX = {
 #: file -> qualified names of the functions longer than MAX_LINES.
 LONG_TO_FIX = {
     "cartpole/apps/bench/trajopt.py": ["run"],
-    "cartpole/apps/feedforward.py": ["run_feedforward"],
     "cartpole/apps/sweep/run.py": ["swingup_sweep"],
     "cartpole/apps/swingup.py": ["run_swingup"],
     "cartpole/commands/swingup.py": ["run"],

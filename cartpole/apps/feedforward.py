@@ -265,6 +265,32 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
         replays_exactly=replays_exactly(rollout, model.params), metrics=m)
 
 
+def _run_all(params, model, plans, x0, extra: float, friction, rig, period, callback) -> dict:
+    """The four MuJoCo runs of the study, judged: open-loop feedforward and TVLQR along the right plan, and both
+    along the plan for the wrong mass (``plans`` = (right, wrong)), each ``extra`` s past its plan's end, from
+    ``x0``, with the friction compensation and rig of the study. Returns name -> :func:`judge`'s record."""
+    plan, wrong = plans
+    controllers = {
+        "feedforward": (PlanFeedforward.of_plan(plan, params), plan),
+        "feedforward_tvlqr": (plan.controller, plan),
+        "wrong_mass_tvlqr": (wrong.controller, wrong),
+        "wrong_mass_feedforward": (PlanFeedforward.of_plan(wrong, params), wrong),
+    }
+    runs = {}
+    seconds = max(plan.T, wrong.T) + extra
+    with stage("MuJoCo rollouts", size=f"{len(controllers)} x {seconds:.1f} s", callback=callback) as tick:
+        for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
+            if hasattr(ctrl, "reset"):
+                ctrl.reset()
+            rollout = simulate(params, friction.wrap(ctrl), x0, sp.T + extra, control_period=period,
+                               rig=None if rig is None else rig.for_run(i),
+                               progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
+            runs[name] = judge(name, rollout, sp.trajectory, model,
+                               handover_time=getattr(ctrl, "handover_time", None))
+            tick((i + 1) / len(controllers))
+    return runs
+
+
 def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
                     plan=None, options=None, progress: Callable[[str, float], None] | None = None,
                     loop=None, plan_model: CartPoleModel | None = None, u_max=None,
@@ -328,7 +354,7 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
     model = friction.model
     period = None if loop is None else loop.period
     rig = build_rig(plant, loop, task="swingup")  # a bad period, delay or sensor ends here, before any solve
-    # the runs' start, the hanging rest, on a range's edge where it lies just outside (said), else refused naming --x0
+    # the runs' start, the hanging rest, on a range's edge where it lies just outside (said), else refused naming x0
     x0, moves = start_state(x0, params, default=model.x_hanging)
     start = None if np.array_equal(x0, model.x_hanging) else tuple(float(v) for v in x0)  # None: the planner's own
 
@@ -349,23 +375,6 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
             period=period)
         tick(1.0)
 
-    controllers = {
-        "feedforward": (PlanFeedforward.of_plan(plan, params), plan),
-        "feedforward_tvlqr": (plan.controller, plan),
-        "wrong_mass_tvlqr": (wrong.controller, wrong),
-        "wrong_mass_feedforward": (PlanFeedforward.of_plan(wrong, params), wrong),
-    }
-    runs = {}
-    seconds = max(plan.T, wrong.T) + extra
-    with stage("MuJoCo rollouts", size=f"{len(controllers)} x {seconds:.1f} s", callback=forward("simulate")) as tick:
-        for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
-            if hasattr(ctrl, "reset"):
-                ctrl.reset()
-            rollout = simulate(params, friction.wrap(ctrl), x0, sp.T + extra, control_period=period,
-                               rig=None if rig is None else rig.for_run(i),
-                               progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
-            runs[name] = judge(name, rollout, sp.trajectory, model,
-                               handover_time=getattr(ctrl, "handover_time", None))
-            tick((i + 1) / len(controllers))
+    runs = _run_all(params, model, (plan, wrong), x0, extra, friction, rig, period, forward("simulate"))
     return FeedforwardStudy(params=params, model=model, plan=plan, wrong_plan=wrong, mass_error=f, runs=runs,
                             options=options, friction_compensation=friction.compensated, start_moves=moves)

@@ -11,6 +11,7 @@ import cartpole.apps.feedforward as feedforward_app
 from cartpole.apps.feedforward import EXTRA, check_mass_error, plan_options
 from cartpole.apps.lab import state_names
 from cartpole.apps.swingup import plan_model_from
+from cartpole.commands._flags import in_flags
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args, rig_doc
 from cartpole.commands._rollouts import rollout_doc
@@ -102,7 +103,7 @@ def run(args) -> dict:
                                         progress=lambda f, i=i: tick((i + f) / len(study.runs)))
                 except VideoUnavailable as exc:
                     tick.close(ok=False)   # the stage failed: its line is not printed, the sentence below is
-                    print(f"cartpole feedforward: no videos ({exc})", file=sys.stderr)
+                    print(f"cartpole feedforward: no videos ({in_flags(str(exc))})", file=sys.stderr)
                     videos = None
                     break
                 videos[name] = str(path.resolve())
