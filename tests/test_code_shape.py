@@ -143,7 +143,6 @@ PARAMS_TO_FIX = {
     "cartpole/sim/rollout.py": ["simulate"],
     "cartpole/solvers/ddp.py": ["DDP.__init__"],
     "cartpole/solvers/sqp.py": ["CollocationSQP.__init__", "CollocationSQP._daqp_step"],
-    "cartpole/viz/scene.py": ["camera_path"],
     "cartpole/viz/video.py": ["_render_frames", "_render_in_child", "render_video"],
     "cartpole/viz/viewer.py": ["watch"],
 }

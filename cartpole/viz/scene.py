@@ -289,7 +289,7 @@ class CameraPath:
     follows: bool
 
 
-def camera_path(ext: np.ndarray, upright: np.ndarray, *, aspect: float, h_axis, up, depth_point, fps: float,
+def camera_path(ext: np.ndarray, upright: np.ndarray, *, aspect: float, axes, depth_point, fps: float,
                 fovy: float = FOVY, elevation: float = ELEVATION, cart=None, reserve=(0.0, 0.0)) -> CameraPath:
     """Frame a run: per-frame extents ``ext`` (n, 4) ``[h_min, h_max, v_min, v_max]`` of the moving geoms, plus the
     vertical extent ``upright`` (2,) of the chain at ``x_eq`` (its full height, always in the frame).
@@ -299,8 +299,10 @@ def camera_path(ext: np.ndarray, upright: np.ndarray, *, aspect: float, h_axis, 
     wider, the camera backing off) the camera stands still, centred on the run; otherwise it follows ``cart`` (n,)
     (h coordinate, m) smoothed over :data:`FOLLOW_SMOOTHING` s, clamped so each frame's system stays inside.
     ``reserve`` = (top, bottom): fractions of the frame's height kept free of the system (the overlay's bands).
+    ``axes`` = (h_axis, up): the world directions (3,) of the frame's horizontal and vertical (a :class:`Display`'s
+    ``h_axis`` and ``up``); ``depth_point`` (3,) sets the camera's distance along the third.
     """
-    h_axis, up = np.asarray(h_axis, float), np.asarray(up, float)
+    h_axis, up = (np.asarray(a, float) for a in axes)
     n = len(ext)
     v_lo = min(ext[:, 2].min(), upright[0])
     v_hi = max(ext[:, 3].max(), upright[1])

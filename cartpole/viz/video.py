@@ -176,8 +176,9 @@ class _Scene:
             d.qpos[:] = qpos[0]
             mujoco.mj_kinematics(m, d)
             depth_point = d.xpos[1] if m.nbody > 1 else np.zeros(3)
-            self.camera_path = camera_path(ext, ext_up[2:], aspect=self.width / self.height, h_axis=disp.h_axis,
-                                           up=disp.up, depth_point=depth_point, fps=fps, cart=cart, reserve=reserve)
+            self.camera_path = camera_path(ext, ext_up[2:], aspect=self.width / self.height,
+                                           axes=(disp.h_axis, disp.up), depth_point=depth_point, fps=fps,
+                                           cart=cart, reserve=reserve)
             thicken_poles(disp, self.camera_path.view_height)
             self.cam = mujoco.MjvCamera()
             self.cam.type = mujoco.mjtCamera.mjCAMERA_FREE
