@@ -112,7 +112,6 @@ LONG_TO_FIX = {
     "cartpole/commands/swingup.py": ["run"],
     "cartpole/export/design.py": ["design_export"],
     "cartpole/ocp/collocation.py": ["DirectCollocation._build"],
-    "cartpole/planning/box_entry.py": ["box_entry_plan"],
     "cartpole/planning/energy_ceiling.py": ["energy_ceiling"],
     "cartpole/planning/trajopt.py": ["_plan"],
     "cartpole/sim/rollout.py": ["simulate"],
