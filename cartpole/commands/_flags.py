@@ -1,6 +1,8 @@
 """The command line's words for the library's: an error raised below the command layer names the Python argument
 (in backquotes, ```u_max```, ```video=False```); the command line prints the option that sets it (``--u-max``,
 ``--no-video``). Only the backquoted spans listed in :data:`FLAGS` change; any other text is printed as raised.
+The table is one for every command, so a backquoted argument name means the same option wherever the library
+raises it (a new error naming an argument the command line sets adds its line here).
 """
 from __future__ import annotations
 
