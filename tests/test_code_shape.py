@@ -125,7 +125,6 @@ LONG_TO_FIX = {
 PARAMS_TO_FIX = {
     "cartpole/apps/bench/mpc.py": ["run_mpc_benchmark"],
     "cartpole/apps/bench/objectives.py": ["against_naive"],
-    "cartpole/apps/bench/planner_stage.py": ["_stage_row"],
     "cartpole/apps/bench/trajopt.py": ["NaiveOptiBaseline.__init__"],
     "cartpole/apps/excite.py": ["run_excite"],
     "cartpole/apps/export.py": ["run_export"],
