@@ -5,7 +5,8 @@ Quick start::
     import cartpole as cp
     model = cp.build_model()                 # shipped MJCF -> symbolic CasADi model
     A, B = cp.linearize(model)               # exact, at upright rest
-    K, S, E = cp.lqr(A, B, cp.Q_LAB, cp.R_LAB)
+    Q, R = cp.default_weights(model)         # 1 per slide, 10 per hinge, 0.1 per rate and per input
+    K, S, E = cp.lqr(A, B, Q, R)
     K, S, E = cp.lqr(model)                  # the same design, on the plant (python-control's lqr(sys, Q, R))
     catch = cp.LinearFeedback.for_model(model)
     run = cp.simulate(model, catch, model.x_eq + [0, 0.1, 0, 0], 3.0)
@@ -17,9 +18,10 @@ This package top is the API: a notebook imports from ``cartpole`` only (``import
 workflow:
 
 - the model: :func:`build_model`, :func:`read_params`, :func:`linearize`, :func:`plant_model`, :func:`plant_params`;
-- LQR: :func:`lqr`, :func:`dlqr`, :func:`tvlqr`, :class:`LinearFeedback` (``LinearFeedback.for_model``, the one
-  constructor of the upright LQR);
-- the lab: :func:`run_lab`, :func:`run_pid_lab`, :func:`balances`, :func:`plot_lab`, :func:`watch`;
+- LQR: :func:`lqr`, :func:`dlqr`, :func:`tvlqr`, :func:`default_weights`, :class:`LinearFeedback`
+  (``LinearFeedback.for_model``, the one constructor of the upright LQR);
+- the lab: :func:`run_lab`, :func:`run_pid_lab`, :func:`balances`, :func:`plot_lab`, :func:`watch`, its weights
+  :data:`Q_LAB`, :data:`R_LAB`;
 - swing-up, plan and track: :func:`run_swingup`, :func:`trajopt_swingup`, :class:`EnergyShapingController`,
   :class:`SwitchingController`, :class:`TVLQRController`, :func:`run_feedforward`;
 - simulate and replay: :func:`simulate`, :func:`replay`, :func:`replays_exactly`, :class:`Rollout`,
@@ -51,8 +53,8 @@ _SOURCES = {
     "cartpole.errors": ("CartPoleError",),
     "cartpole.models": ("SHIPPED_MJCF", "CartPoleModel", "CartPoleParams", "MJCFError", "Plant", "PlantError",
                         "build_model", "linearize", "plant_model", "plant_params", "read_params", "wrap_angle"),
-    "cartpole.riccati": ("LQRError", "LQRResult", "Q_LAB", "R_LAB", "TVLQRGains", "dlqr", "is_controllable",
-                         "lab_weights", "lqr", "tvlqr"),
+    "cartpole.riccati": ("LQRError", "LQRResult", "TVLQRGains", "default_weights", "dlqr", "is_controllable",
+                         "lqr", "tvlqr"),
     "cartpole.control": ("CascadedPID", "EnergyShapingController", "LinearFeedback", "SWINGUP_CATCH_R",
                          "SwitchingController", "TVLQRController"),
     "cartpole.control.energy": ("model_scales",),
@@ -70,7 +72,7 @@ _SOURCES = {
     "cartpole.viz.feedforward_plot": ("plot_feedforward",),
     "cartpole.viz.loop_plot": ("loop_figure",),
     "cartpole.viz.swingup_plot": ("swingup_figure",),
-    "cartpole.apps.lab": ("balances", "run_lab", "run_pid_lab"),
+    "cartpole.apps.lab": ("Q_LAB", "R_LAB", "balances", "run_lab", "run_pid_lab"),
     "cartpole.apps.swingup": ("TRAJOPT_EXTRA", "run_swingup"),
     "cartpole.apps.feedforward": ("PlanFeedforward", "run_feedforward"),
     "cartpole.apps.margins": ("mujoco_stable",),

@@ -20,6 +20,7 @@ import csv
 import errno
 import io
 import os
+import stat
 import tempfile
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -188,15 +189,13 @@ def check_replaceable(path: str | Path) -> None:
     OutputError
         ``path`` is read-only (one sentence: make it writable, move it away or choose another ``--out``).
     """
-    import stat
-
     try:
         st = os.stat(path)
     except OSError:
         return
     if stat.S_ISREG(st.st_mode) and (not os.access(path, os.W_OK) or not st.st_mode & stat.S_IWUSR):
         raise OutputError(f"Cannot write {short(path)}: the file is read-only; make it writable (chmod u+w), move it "
-                          "away or choose another --out.")
+                          "away or choose another `out`.")
 
 
 def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> Path:
@@ -286,13 +285,13 @@ def check_out_dir(out: str | Path) -> Path:
         a read-only file system); the name is too long.
     """
     if str(out).strip() == "":
-        raise OutputError("--out is empty; give a directory (e.g. --out . for the current one).")
+        raise OutputError("`out` is empty; give a directory (e.g. '.' for the current one).")
     out = Path(out)
     if os.path.islink(out) and not os.path.exists(out):
-        raise OutputError(f"--out {short(out)} is a symbolic link to nothing (a missing target or a loop of links); "
+        raise OutputError(f"`out` {short(out)} is a symbolic link to nothing (a missing target or a loop of links); "
                           "give a directory.")
     if os.path.lexists(out) and not out.is_dir():
-        raise OutputError(f"--out {short(out)} is a file, not a directory; give a directory (it is created if "
+        raise OutputError(f"`out` {short(out)} is a file, not a directory; give a directory (it is created if "
                           "missing).")
     probe = out
     while not os.path.lexists(probe):
@@ -300,21 +299,21 @@ def check_out_dir(out: str | Path) -> Path:
             break
         probe = probe.parent
     if not probe.is_dir():
-        raise OutputError(f"--out {short(out)} cannot be created: {short(probe)} is a file, not a directory; give "
-                          "another --out.")
+        raise OutputError(f"`out` {short(out)} cannot be created: {short(probe)} is a file, not a directory; give "
+                          "another `out`.")
     if not os.access(probe, os.W_OK | os.X_OK):
         try:
             readonly = bool(os.statvfs(probe).f_flag & os.ST_RDONLY)
         except (OSError, AttributeError):
             readonly = False
         why = "is on a read-only file system" if readonly else "is not writable"
-        raise OutputError(f"--out {short(out)} cannot be written: {short(probe)} {why}; choose a writable --out.")
+        raise OutputError(f"`out` {short(out)} cannot be written: {short(probe)} {why}; choose a writable `out`.")
     try:
         max_name = os.pathconf(probe, "PC_NAME_MAX")
     except (OSError, ValueError, AttributeError):
         max_name = 255
     if any(len(part.encode()) > max_name for part in out.parts):
-        raise OutputError(f"--out {short(out)} has a name longer than {max_name} bytes; choose a shorter --out.")
+        raise OutputError(f"`out` {short(out)} has a name longer than {max_name} bytes; choose a shorter `out`.")
     return out
 
 
@@ -324,7 +323,8 @@ def check_input_file(path: str | Path, *, what: str = "File", flag: str = "", ma
     """Check, before reading it, that ``path`` names a regular file that can be read (and, with ``max_bytes``, is
     at most that large); return its absolute path (symbolic links resolved).
 
-    ``what`` names the file in the sentence (``"MJCF file"``), ``flag`` the option that gave it (``"--mjcf"``).
+    ``what`` names the file in the sentence (``"MJCF file"``), ``flag`` the Python argument that gave it, between
+    backquotes (``"`plant`"``; the command line prints its option, :mod:`cartpole.commands._flags`).
     Nothing is opened: a FIFO (which would block), a device such as ``/dev/zero`` (which never ends), a directory,
     a socket or a symbolic-link loop is refused by its kind.
 
@@ -333,8 +333,6 @@ def check_input_file(path: str | Path, *, what: str = "File", flag: str = "", ma
     InputFileError
         Missing, a loop of symbolic links, not a regular file, not readable, or larger than ``max_bytes``.
     """
-    import stat
-
     text = os.path.expanduser(str(path))
     give = f"pass {flag} with the path of a readable file" if flag else "give the path of a readable file"
 

@@ -10,14 +10,21 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import ctypes
 import importlib
 import json
 import os
+import signal
 import sys
+import threading
 import warnings
 from pathlib import Path
 
+from cartpole._files import atomic_write, check_out_dir, output_transaction
+from cartpole.apps import forkserver
+from cartpole.commands._flags import in_flags
 from cartpole.errors import CartPoleError, Terminated, first_line
+from cartpole.progress import reporting
 
 #: Subcommand modules, in the order ``cartpole --help`` lists them (one per line: add a command with one line).
 COMMANDS = (
@@ -41,14 +48,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _load_commands():
-    mods = {}
-    for name in COMMANDS:
-        try:
-            mods[name] = importlib.import_module(f"cartpole.commands.{name}")
-        except ModuleNotFoundError as exc:  # a subcommand not built in this checkout
-            if exc.name != f"cartpole.commands.{name}":
-                raise
-    return mods
+    return {name: importlib.import_module(f"cartpole.commands.{name}") for name in COMMANDS}
 
 
 def sentence(exc: BaseException) -> str:
@@ -89,7 +89,6 @@ def build_parser() -> argparse.ArgumentParser:
 def to_jsonable(obj):
     """Convert numpy arrays/scalars and paths inside ``obj`` to plain JSON types."""
     import numpy as np
-    from pathlib import Path
 
     if isinstance(obj, dict):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
@@ -114,8 +113,6 @@ def to_jsonable(obj):
 def _stdout_to_stderr():
     """Send everything written to stdout inside the block to stderr: Python's ``print`` and, at the file-descriptor
     level, what C libraries print (LAPACK's XERBLA, a solver's banner), so the one JSON document stays alone."""
-    import ctypes
-
     if sys.stdout is not None:
         sys.stdout.flush()
     try:
@@ -139,11 +136,8 @@ def _stdout_to_stderr():
 
 def _run(args):
     """Run the command inside its progress reporter (and, when it writes files, its output transaction)."""
-    from cartpole._files import check_out_dir, output_transaction
+    from cartpole.codegen import private_cache_dir  # heavy (NumPy, CasADi): imported once a command runs
     from cartpole.models import mujoco_warnings
-    from cartpole.progress import reporting
-
-    from cartpole.codegen import private_cache_dir
 
     try:  # a cache another user owns or may write to is refused before any work (CacheError, one sentence)
         private_cache_dir()
@@ -180,8 +174,6 @@ def _run(args):
 def _urdf_session(args):
     """The URDF choices of ``--actuated-joint`` for every model the command reads (refused for an MJCF), collecting
     what each URDF read added (:func:`cartpole.models.urdf_session`)."""
-    from pathlib import Path
-
     from cartpole.models import is_urdf, urdf_session
 
     chosen = getattr(args, "actuated_joint", None)
@@ -203,8 +195,6 @@ def _write_urdf_mjcf(imports: list, out: Path, doc) -> None:
     """Write the MJCF text each URDF ran as (its motors added) to ``out/model/<name>_mujoco.xml`` and name it in
     the JSON document's ``model.mjcf_ran``: MuJoCo reads a URDF without its transmissions, so only this file replays
     the logged ctrl."""
-    from cartpole._files import atomic_write
-
     written = []
     for rec in imports:
         if not rec.mjcf:
@@ -235,9 +225,6 @@ def _report_urdf(command: str, imports: list, doc) -> None:
 def signals_as_interrupts():
     """Inside the block (in the main thread), SIGTERM and SIGHUP raise :class:`Terminated`; the handlers before are
     put back afterwards. A signal that was ignored stays ignored."""
-    import signal
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -263,7 +250,6 @@ def _start_sweep_workers_early(argv: list) -> None:
     (another command, a bad number) is left to the real parser."""
     if not argv or argv[0] != "sweep":
         return
-    import argparse
 
     peek = argparse.ArgumentParser(add_help=False)
     peek.add_argument("--workers", type=int, default=1)
@@ -274,9 +260,7 @@ def _start_sweep_workers_early(argv: list) -> None:
     except (SystemExit, ValueError):
         return
     if known.workers > 1 and not known.address:
-        from cartpole.apps.forkserver import start_server
-
-        start_server((known.method or ["energy"])[0])
+        forkserver.start_server((known.method or ["energy"])[0])
 
 
 def main(argv=None) -> int:
@@ -309,8 +293,8 @@ def main(argv=None) -> int:
     try:
         with signals_as_interrupts():
             doc = _run(args)
-    except CartPoleError as exc:
-        print(f"cartpole {args.command}: {sentence(exc)}", file=sys.stderr)
+    except CartPoleError as exc:  # the library names Python arguments; the command line prints their options
+        print(f"cartpole {args.command}: {in_flags(sentence(exc))}", file=sys.stderr)
         return 2
     except MemoryError:
         print(f"cartpole {args.command}: ran out of memory; give a shorter --duration or fewer runs.",
@@ -324,8 +308,6 @@ def main(argv=None) -> int:
     except KeyboardInterrupt as exc:  # a command may say what it kept and how to go on (sweep: --resume)
         said = exc.args[0] if exc.args and isinstance(exc.args[0], str) else "interrupted."
         if isinstance(exc, Terminated) and not (exc.args and isinstance(exc.args[0], str)):
-            import signal
-
             said = f"stopped by {signal.Signals(exc.signum).name} before it finished; no partial output is left."
         print(f"cartpole {args.command}: {said}", file=sys.stderr)
         return 128 + exc.signum if isinstance(exc, Terminated) else 130

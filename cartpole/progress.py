@@ -30,6 +30,8 @@ import time
 from contextvars import ContextVar
 from typing import Callable, TextIO
 
+from tqdm import tqdm
+
 _CURRENT: ContextVar["Reporter | None"] = ContextVar("cartpole_progress_reporter", default=None)
 
 #: Live bars redraw at most this often (s).
@@ -160,7 +162,6 @@ class Reporter:
         self._open.append(st)
         if not self._is_live():
             return None
-        from tqdm import tqdm
 
         head = st.line().rsplit(" in ", 1)[0]
         return tqdm(total=1.0, file=self.stream, leave=False, mininterval=MIN_INTERVAL, dynamic_ncols=True,
@@ -181,7 +182,6 @@ class Reporter:
             return
         bars = [s._bar for s in self._open if s._bar is not None]
         if bars:
-            from tqdm import tqdm
             tqdm.write(message, file=self.stream)
         else:
             print(message, file=self.stream, flush=True)

@@ -110,7 +110,7 @@ assert np.abs(traj.state(traj.t_mid) - traj.x_mid).max() < 1e-9
 G = sp.gains
 K_catch = sp.catch.K.ravel()
 labels = [r"$K_s$ (ctrl/m)", r"$K_\theta$ (ctrl/rad)", r"$K_{\dot s}$ (ctrl/(m/s))", r"$K_{\dot\theta}$ (ctrl/(rad/s))"]
-K_lqr = cp.lqr(*sp.model.linearize(), cp.Q_LAB, cp.R_LAB).K.ravel()
+K_lqr = cp.lqr(*sp.model.linearize(), *cp.default_weights(sp.model)).K.ravel()
 fig, ax = plt.subplots(2, 2, figsize=(12, 6), sharex=True)
 for i, a in enumerate(ax.ravel()):
     a.step(G.t, G.K[:, 0, i], where="post", label="TVLQR K(t)")

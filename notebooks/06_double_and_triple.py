@@ -87,7 +87,7 @@ print("two poles, at upright:\nA =\n", A2, "\nB =", B2.ravel())
 # %% [markdown]
 # ## LQR with the lab's weight pattern
 #
-# `lab_weights(model)` extends the lab's $Q = \mathrm{diag}(1, 10, 0.1, 0.1)$, $R = 0.1$: 1 for the cart, 10 for
+# `default_weights(model)` extends the lab's $Q = \mathrm{diag}(1, 10, 0.1, 0.1)$, $R = 0.1$: 1 for the cart, 10 for
 # each angle, 0.1 for each rate and 0.1 for the input. One motor on the cart controls the whole chain (the pair is
 # controllable); the closed loop $A - BK$ has every eigenvalue in the left half-plane.
 
@@ -95,7 +95,7 @@ print("two poles, at upright:\nA =\n", A2, "\nB =", B2.ravel())
 designs = {}
 for n, model in models.items():
     A, B = model.linearize()
-    Q, R = cp.lab_weights(model)
+    Q, R = cp.default_weights(model)
     res = cp.lqr(A, B, Q, R)
     designs[n] = res
     print(f"{n} poles: Q = diag({np.diag(Q).tolist()}), R = {R.ravel()}\n   K = {res.K.ravel()}\n"

@@ -52,7 +52,7 @@ print(sys.state_labels, sys.input_labels)
 # python-control's on the same matrices.
 
 # %%
-Q, R = cp.lab_weights(model)
+Q, R = cp.default_weights(model)
 K = cp.lqr(sys.A, sys.B, Q, R).K
 assert np.allclose(K, control.lqr(sys, Q, R)[0], rtol=1e-8)
 lqr_loop = cp.continuous_loop(model, K)

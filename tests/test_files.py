@@ -163,10 +163,10 @@ def test_an_input_file_of_the_wrong_kind_is_refused_by_its_kind_without_opening_
     elif kind == "directory":
         path.mkdir()
     with pytest.raises(files.InputFileError) as info:
-        files.check_input_file(path, what="MJCF file", flag="--mjcf")
+        files.check_input_file(path, what="MJCF file", flag="`plant`")
     words = {"loop": "loop of symbolic links", "fifo": "FIFO", "device": "a device", "directory": "a directory",
              "missing": "does not exist"}[kind]
-    assert words in str(info.value) and "--mjcf" in str(info.value)
+    assert words in str(info.value) and "`plant`" in str(info.value)
     assert str(info.value).count(".") >= 1 and "\n" not in str(info.value)
 
 
@@ -179,7 +179,7 @@ def test_a_file_read_with_a_bound_refuses_a_larger_one_and_returns_a_smaller_who
 
 
 def test_an_empty_out_is_refused_not_taken_as_the_current_directory():
-    with pytest.raises(files.OutputError, match="--out is empty"):
+    with pytest.raises(files.OutputError, match="`out` is empty"):
         files.check_out_dir("")
 
 

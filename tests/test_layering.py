@@ -29,6 +29,9 @@ top names its figures only lazily, by module name: PEP 562, no import statement)
 model things come from the package ``cartpole.models``, never from its modules, so models/ can be reorganised inside; no private name (``_name``) crosses a module boundary: neither
 ``from x import _name`` nor ``x._name`` on an imported module, in the package (tests may).
 
+The shape of the code inside the layers (function length and parameters, imports at the top of modules, library
+errors without command-line flags) is checked by the sibling ``tests/test_code_shape.py``.
+
 How an import names its target: ``import a.b`` names ``a.b``; ``from a.b import c`` names ``a.b.c`` when that is a
 module, else ``a.b``. The parent packages Python imports on the way (``a`` for ``a.b``) are not counted: every
 module would otherwise form a cycle with its own package's ``__init__``.

@@ -10,15 +10,23 @@ empty), to play the same signal on a real rig.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
+from cartpole._arrays import readonly
 from cartpole._files import write_csv
+from cartpole.control.linear import LinearFeedback
 from cartpole.errors import CartPoleError
+from cartpole.estimation import SensorSampler, sensor_spec
 from cartpole.identify.excite import Excitation, multisine
 from cartpole.identify.logs import RunLog
+from cartpole.models import plant_model, state_error
+from cartpole.sim.rollout import make_mujoco, replay, simulate
+from cartpole.validation.metrics import diverged
 
 #: Modes of the experiment.
 MODES = ("hanging", "balance")
@@ -65,14 +73,6 @@ def _position_rows(spec, params) -> list:
 def _balance(model, exc: Excitation, ts: float, steps: int):
     """MuJoCo run of the LQR plus the excitation from upright, the ctrl held over each sample: ``(rollout,
     excitation with the ctrl MuJoCo applied)``."""
-    import dataclasses
-
-    from cartpole._arrays import readonly
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.models import state_error
-    from cartpole.sim.rollout import simulate
-    from cartpole.validation.metrics import diverged
-
     p = model.params
     lqr = LinearFeedback.for_model(model, period=ts if steps > 1 else None)
     extra = exc.ctrl - exc.ctrl[0]  # the multisine about its middle
@@ -85,7 +85,7 @@ def _balance(model, exc: Excitation, ts: float, steps: int):
     err = state_error(roll.x, model.x_eq, model.hinges)[:, list(model.hinges)]
     if diverged(roll) or np.max(np.abs(err)) > BALANCE_LIMIT or len(roll.ctrl) != steps * (len(exc.t) - 1):
         raise CartPoleError("The balancing experiment lost the pole (its angle left upright by more than "
-                            f"{BALANCE_LIMIT} rad); give a smaller --amplitude.")
+                            f"{BALANCE_LIMIT} rad); give a smaller `amplitude`.")
     ctrl = np.vstack([roll.ctrl[::steps], roll.ctrl[-1:]])
     return roll, dataclasses.replace(exc, ctrl=readonly(ctrl))
 
@@ -123,17 +123,11 @@ def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: f
     -------
     ExciteResult
     """
-    import mujoco
-
-    from cartpole.estimation import SensorSampler, sensor_spec
-    from cartpole.models import plant_model
-    from cartpole.sim.rollout import make_mujoco, replay
-
     if mode not in MODES:
         raise CartPoleError(f"Unknown excitation mode '{mode}'; choose one of {', '.join(MODES)}.")
     if mode == "balance" and dry_run:
         raise CartPoleError("A balancing experiment's ctrl depends on the measured state, so it cannot be written "
-                            "ahead; use --dry-run with --mode hanging.")
+                            "ahead; use `dry_run` with `mode='hanging'`.")
     model = plant_model(plant)
     p = model.params
     ts = p.timestep if sample_time is None else float(sample_time)
@@ -159,7 +153,7 @@ def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: f
     rail = p.cart_range
     if model.slide is not None and np.any(np.abs(roll.qpos[:, model.slide] - rail.mean()) >= 0.98 * 0.5 * np.ptp(rail)):
         raise CartPoleError("The excitation drove the cart to the end of its rail on this MJCF; give a smaller "
-                            "--amplitude.")
+                            "`amplitude`.")
     m, d = make_mujoco(p.mjcf or p)
     sampler = SensorSampler(spec, m, seed=seed)
     y = np.empty((len(exc.t), p.nq))

@@ -16,7 +16,21 @@ from pathlib import Path
 
 import numpy as np
 
+from cartpole.apps.lab import lab_initial_conditions
+from cartpole.apps.swingup import MPC_DURATION, TRAJOPT_EXTRA, start_state
+from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
+from cartpole.export import (ExportError, check_target, design_export, export_files, find_compiler, load_design,
+                             run_lockstep, write_export)
+from cartpole.export.design import CONTROLLERS
+from cartpole.export.folder import discard
+from cartpole.export.mcu import cross_build, mcu_tools
+from cartpole.models import build_model, planning_limits, plant_model
+from cartpole.sim.rollout import replays_exactly
+from cartpole.validation.basin import BasinCache
+from cartpole.validation.metrics import diverged, summarize, swingup_success
 
 #: Largest |C ctrl - Python ctrl| a verified double export may show at any control step.
 CTRL_TOLERANCE = 1e-9
@@ -29,12 +43,8 @@ def verify_duration(design) -> float:
     """Seconds of the verification runs of ``design``: what the Python path runs (the lab's balance 5 s of its 6,
     the energy swing-up 10 s, a TVLQR swing-up its plan + ``TRAJOPT_EXTRA``)."""
     if design.method == "nmpc":
-        from cartpole.apps.swingup import MPC_DURATION
-
         return float(MPC_DURATION)
     if design.plan_end is not None:
-        from cartpole.apps.swingup import TRAJOPT_EXTRA
-
         return float(design.plan_end) + float(TRAJOPT_EXTRA)
     return VERIFY_DURATION[design.task]
 
@@ -76,8 +86,6 @@ def default_start(design) -> np.ndarray:
     """The verification's start: the lab's first initial condition for a balance, the hanging rest for a
     swing-up."""
     if design.task == "balance":
-        from cartpole.apps.lab import lab_initial_conditions
-
         return np.array(lab_initial_conditions(design.model)[0], dtype=float)
     return np.array(design.model.x_hanging, dtype=float)
 
@@ -85,17 +93,11 @@ def default_start(design) -> np.ndarray:
 def catch_level(model, loop) -> float:
     """The catch level ``rho`` of the energy swing-up's LQR catch at the loop's period: the verified basin
     :func:`cartpole.apps.swingup.run_swingup` uses (:class:`cartpole.validation.basin.BasinCache`, on disk)."""
-    from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.switching import SWINGUP_CATCH_R
-    from cartpole.export import ExportError
-    from cartpole.validation.basin import BasinCache
-
     try:
         EnergyShapingController(model)
     except EnergyShapingModelError:
         raise ExportError(f"Energy shaping drives one pole on a cart and this model has {len(model.hinges)} "
-                          "hinges; export --controller tvlqr (or lqr) instead.") from None
+                          "hinges; export `controller='tvlqr'` (or `controller='lqr'`) instead.") from None
     period = None if loop is None else loop.period
     catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=period)
     return float(BasinCache.on_disk().get(model.params, catch).rho)
@@ -103,10 +105,8 @@ def catch_level(model, loop) -> float:
 
 def task_success(design, rollout) -> bool:
     """The Python path's own success test of the task on ``rollout``: balanced as the lab's delay margin counts it
-    (:func:`cartpole.apps.lab.balances`: the handout's settling time finite, the cart never at its limit) or swung
+    (:func:`cartpole.apps.lab.balances`: the lab's settling time finite, the cart never at its limit) or swung
     up and held (:func:`cartpole.validation.metrics.swingup_success`); never for a run MuJoCo reset."""
-    from cartpole.validation.metrics import diverged, summarize, swingup_success
-
     if diverged(rollout):
         return False
     if design.task == "balance":
@@ -131,11 +131,6 @@ def check_build(design, real: str, x0, duration: float) -> BuildCheck:
     -------
     BuildCheck
     """
-    from cartpole.export import load_design, run_lockstep
-    from cartpole.export.folder import discard
-    from cartpole.sim.rollout import replays_exactly
-    from cartpole.validation.metrics import diverged
-
     ctl, folder = load_design(design, real)
     try:
         run = run_lockstep(design, ctl, x0, duration)
@@ -202,15 +197,9 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
         One sentence: a folder that is not an earlier export, no C compiler, a controller or estimator the export
         does not reproduce, a Python design that fails.
     """
-    from cartpole.export import check_target, design_export, find_compiler, write_export
-    from cartpole.export.design import CONTROLLERS
-    from cartpole.models import build_model, planning_limits, plant_model
-
     check_target(out)
     find_compiler()
     if mcu:
-        from cartpole.export.mcu import cross_build, mcu_tools
-
         if mcu_tools() is None:
             cross_build({})  # its one sentence: install the ARM toolchain
     model = plant_model(plant)
@@ -222,12 +211,10 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
     if x0 is not None:
         x0 = np.asarray(x0, dtype=float).ravel()
         if x0.shape != (model.nx,) or not np.all(np.isfinite(x0)):
-            raise CartPoleError(f"--x0 must be {model.nx} finite numbers [qpos, qvel] in MuJoCo's joint order; got "
+            raise CartPoleError(f"`x0` must be {model.nx} finite numbers [qpos, qvel] in MuJoCo's joint order; got "
                                 f"{x0.tolist()}.")
     moves = ()
     if x0 is not None or CONTROLLERS.get(controller) == "swingup":  # a swing-up's hanging start on a range's edge
-        from cartpole.apps.swingup import start_state
-
         x0, moves = start_state(x0, model.params, default=model.x_hanging)
     rho = catch_level(model, loop) if controller == "energy" else None
     design = design_export(model, controller, loop, real=real, x0=x0, rho=rho)
@@ -241,8 +228,6 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
                 runs.append((design.model.params, checks[r].run.rollout))
     mcu_doc = None
     if mcu:
-        from cartpole.export import export_files
-
         mcu_doc = cross_build(export_files(design, "float"))
     written = write_export(design, out, real=real)
     doc = {"mjcf": model.params.mjcf, "controller": controller, "estimator": design.estimator,
@@ -253,19 +238,25 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
     exp = {"files": list(written.files), "bytes": written.bytes, "verified": False, "max_ctrl_diff": None,
            "step_us": None}
     if verify:
-        d, f = checks["double"], checks["float"]
-        exp.update({
-            "verified": bool(d.max_ctrl_diff <= CTRL_TOLERANCE and d.success and f.success and d.replays
-                             and f.replays and not d.diverged and not f.diverged),
-            "max_ctrl_diff": d.max_ctrl_diff,
-            "step_us": {"median": float(np.median(d.step_us)), "max": float(np.max(d.step_us))},
-            "double": {"success": d.success, "replays": d.replays, "diverged": d.diverged, "codes": d.codes},
-            "float32": {"success": f.success, "replays": f.replays, "diverged": f.diverged,
-                        "max_ctrl_diff": f.max_ctrl_diff, "codes": f.codes,
-                        "step_us": {"median": float(np.median(f.step_us)), "max": float(np.max(f.step_us))}},
-            "duration": float(d.run.rollout.t[-1]),
-        })
+        exp.update(_verification_doc(checks["double"], checks["float"]))
     if mcu:
         exp["mcu"] = mcu_doc
     doc["export"] = exp
     return doc
+
+
+def _verification_doc(d, f) -> dict:
+    """The ``export`` JSON's verification keys from the double (``d``) and float (``f``) builds' checks
+    (:func:`check_build`): ``verified``, ``max_ctrl_diff``, ``step_us`` (median and max, us), ``double``, ``float32``
+    and ``duration`` (s)."""
+    return {
+        "verified": bool(d.max_ctrl_diff <= CTRL_TOLERANCE and d.success and f.success and d.replays
+                         and f.replays and not d.diverged and not f.diverged),
+        "max_ctrl_diff": d.max_ctrl_diff,
+        "step_us": {"median": float(np.median(d.step_us)), "max": float(np.max(d.step_us))},
+        "double": {"success": d.success, "replays": d.replays, "diverged": d.diverged, "codes": d.codes},
+        "float32": {"success": f.success, "replays": f.replays, "diverged": f.diverged,
+                    "max_ctrl_diff": f.max_ctrl_diff, "codes": f.codes,
+                    "step_us": {"median": float(np.median(f.step_us)), "max": float(np.max(f.step_us))}},
+        "duration": float(d.run.rollout.t[-1]),
+    }

@@ -37,12 +37,16 @@ from typing import Callable
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole.errors import CartPoleError
-from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits,
-                             plant_params)
 from cartpole.apps.swingup import start_state
+from cartpole.control.friction import friction_design
+from cartpole.errors import CartPoleError
+from cartpole.models import CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, plant_params
+from cartpole.planning.options import PlanOptions
+import cartpole.planning.trajopt as trajopt
 from cartpole.progress import stage
 from cartpole.sim import Rollout, replays_exactly, simulate
+from cartpole.sim.rig import build_rig
+from cartpole.validation.metrics import pole_angle_errors, swingup_metrics
 
 #: Seconds simulated after each plan's end (the LQR catch must hold for the success test's last 1 s).
 EXTRA = 2.0
@@ -62,8 +66,6 @@ RUNS = {
 def plan_options():
     """The study's default planner settings: ``PlanOptions(exact_discrete=False)``, the collocation plan's own
     feedforward inside TVLQR (not the exact-discrete re-solve)."""
-    from cartpole.planning.options import PlanOptions
-
     return PlanOptions(exact_discrete=False)
 
 
@@ -249,8 +251,6 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
     -------
     FeedforwardRun
     """
-    from cartpole.validation.metrics import pole_angle_errors, swingup_metrics
-
     m = swingup_metrics(rollout, model)
     span = rollout.t <= plan.t[-1] + 1e-12
     err = model.state_error(rollout.x[span], plan.state(rollout.t[span]))
@@ -263,6 +263,32 @@ def judge(name: str, rollout: Rollout, plan, model: CartPoleModel, *, handover_t
         max_cart_tracking_error=None if model.slide is None else float(np.abs(err[:, model.slide]).max()),
         peak_ctrl=float(m["peak_ctrl"]), handover_time=handover_time,
         replays_exactly=replays_exactly(rollout, model.params), metrics=m)
+
+
+def _run_all(params, model, plans, x0, extra: float, friction, rig, period, callback) -> dict:
+    """The four MuJoCo runs of the study, judged: open-loop feedforward and TVLQR along the right plan, and both
+    along the plan for the wrong mass (``plans`` = (right, wrong)), each ``extra`` s past its plan's end, from
+    ``x0``, with the friction compensation and rig of the study. Returns name -> :func:`judge`'s record."""
+    plan, wrong = plans
+    controllers = {
+        "feedforward": (PlanFeedforward.of_plan(plan, params), plan),
+        "feedforward_tvlqr": (plan.controller, plan),
+        "wrong_mass_tvlqr": (wrong.controller, wrong),
+        "wrong_mass_feedforward": (PlanFeedforward.of_plan(wrong, params), wrong),
+    }
+    runs = {}
+    seconds = max(plan.T, wrong.T) + extra
+    with stage("MuJoCo rollouts", size=f"{len(controllers)} x {seconds:.1f} s", callback=callback) as tick:
+        for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
+            if hasattr(ctrl, "reset"):
+                ctrl.reset()
+            rollout = simulate(params, friction.wrap(ctrl), x0, sp.T + extra, control_period=period,
+                               rig=None if rig is None else rig.for_run(i),
+                               progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
+            runs[name] = judge(name, rollout, sp.trajectory, model,
+                               handover_time=getattr(ctrl, "handover_time", None))
+            tick((i + 1) / len(controllers))
+    return runs
 
 
 def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
@@ -313,16 +339,11 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
     MJCFError, OCPError
         An MJCF that is not a cart-pole; a swing-up the optimiser cannot plan (its one sentence).
     """
-    from cartpole.planning.trajopt import trajopt_swingup
-
     options = plan_options() if options is None else options
     f = check_mass_error(mass_error)
     if not (math.isfinite(extra) and extra >= 1.0):
         raise FeedforwardError(f"The time after the plan, {extra} s, must be at least 1 s (the success test "
                                "looks at the last 1 s); give e.g. 2.")
-    from cartpole.sim.rig import build_rig
-
-    from cartpole.control.friction import friction_design
 
     params = plant_params(plant)
     params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
@@ -333,7 +354,7 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
     model = friction.model
     period = None if loop is None else loop.period
     rig = build_rig(plant, loop, task="swingup")  # a bad period, delay or sensor ends here, before any solve
-    # the runs' start, the hanging rest, on a range's edge where it lies just outside (said), else refused naming --x0
+    # the runs' start, the hanging rest, on a range's edge where it lies just outside (said), else refused naming x0
     x0, moves = start_state(x0, params, default=model.x_hanging)
     start = None if np.array_equal(x0, model.x_hanging) else tuple(float(v) for v in x0)  # None: the planner's own
 
@@ -346,31 +367,14 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
                callback=forward("plan")) as tick:
         if plan is None:
             design = model if plan_model is None else plan_model
-            plan = trajopt_swingup(design.params, start, plan_model=design, options=options, period=period)
+            plan = trajopt.trajopt_swingup(design.params, start, plan_model=design, options=options, period=period)
             tick(1.0 / max(n_plans, 1))
-        wrong = plan if f == 0.0 else trajopt_swingup(
+        wrong = plan if f == 0.0 else trajopt.trajopt_swingup(
             params, start, plan_model=friction_design(build_model(params.scaled_pole(1.0 + f, 1.0)), loop).model,
             options=options,
             period=period)
         tick(1.0)
 
-    controllers = {
-        "feedforward": (PlanFeedforward.of_plan(plan, params), plan),
-        "feedforward_tvlqr": (plan.controller, plan),
-        "wrong_mass_tvlqr": (wrong.controller, wrong),
-        "wrong_mass_feedforward": (PlanFeedforward.of_plan(wrong, params), wrong),
-    }
-    runs = {}
-    seconds = max(plan.T, wrong.T) + extra
-    with stage("MuJoCo rollouts", size=f"{len(controllers)} x {seconds:.1f} s", callback=forward("simulate")) as tick:
-        for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
-            if hasattr(ctrl, "reset"):
-                ctrl.reset()
-            rollout = simulate(params, friction.wrap(ctrl), x0, sp.T + extra, control_period=period,
-                               rig=None if rig is None else rig.for_run(i),
-                               progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
-            runs[name] = judge(name, rollout, sp.trajectory, model,
-                               handover_time=getattr(ctrl, "handover_time", None))
-            tick((i + 1) / len(controllers))
+    runs = _run_all(params, model, (plan, wrong), x0, extra, friction, rig, period, forward("simulate"))
     return FeedforwardStudy(params=params, model=model, plan=plan, wrong_plan=wrong, mass_error=f, runs=runs,
                             options=options, friction_compensation=friction.compensated, start_moves=moves)

@@ -2,8 +2,13 @@
 forks any worker), and the environment and signals they start with."""
 from __future__ import annotations
 
+import multiprocessing
 import os
+import signal
+import sys
+import threading
 from contextlib import contextmanager
+from multiprocessing import forkserver
 
 #: Modules the pool's fork server imports before it forks any worker, per method: what a worker and its runs
 #: import (the executors module brings the swing-up, the model and CasADi; MuJoCo and the method's own modules are imported
@@ -33,11 +38,8 @@ def start_server(method: str):
     worker) starts with its stderr on ``/dev/null``: a worker reports through its results (a run that raises is a row
     with its sentence, a worker that dies is the parent's one sentence), and a worker still starting when the sweep
     is interrupted must not print multiprocessing's traceback after the sweep's sentence."""
-    import multiprocessing
-
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
-    from multiprocessing import forkserver
 
     ctx = multiprocessing.get_context("forkserver")
     with sigint_ignored(), worker_env(), _quiet_stderr():
@@ -49,8 +51,6 @@ def start_server(method: str):
 @contextmanager
 def _quiet_stderr():
     """File descriptor 2 on ``/dev/null`` inside the block (processes started there inherit it); restored after."""
-    import sys
-
     try:
         sys.stderr.flush()
         saved = os.dup(2)
@@ -82,8 +82,6 @@ def worker_env():
 
 def main_thread() -> bool:
     """Whether the caller runs in the main thread (signal handlers can be set only there)."""
-    import threading
-
     return threading.current_thread() is threading.main_thread()
 
 
@@ -92,8 +90,6 @@ def sigint_ignored():
     """Ignore Ctrl-C (SIGINT) inside the block, in the main thread (elsewhere: no change). Processes started inside
     inherit the ignored signal, so a Ctrl-C that reaches the whole process group cannot kill a worker while it is
     still importing (a traceback on stderr); the parent alone handles it and keeps the finished rows."""
-    import signal
-
     if not main_thread():
         yield
         return

@@ -12,17 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole.identify.fit import (
-    DEFAULT_REGULARIZATION,
-    DEFAULT_SEGMENT_S,
-    FitResult,
-    fit,
-    simulate_log,
-)
+from cartpole.identify.fit import DEFAULT_REGULARIZATION, DEFAULT_SEGMENT_S, FitResult, fit, simulate_log
 from cartpole.identify.logs import read_log
 from cartpole.identify.mjcf import write_fitted_mjcf
 from cartpole.identify.parameters import parse_parameters
 from cartpole.models import plant_params
+from cartpole.viz.identify_plot import plot_identify
 
 
 @dataclass(frozen=True)
@@ -129,8 +124,6 @@ def run_identify(plant, logs, out: str | Path, *, fit_names=("all",), holdout=()
                                                                                           shown)}
     fig_path = None
     if figure:
-        from cartpole.viz.identify_plot import plot_identify
-
         what = "Held-out" if hold_logs else "Fitted (no held-out run given)"
         fig_path = plot_identify(shown, sims, p, out / "figures" / "identify_holdout.png",
                                  title=f"{what} run {Path(shown.name).name}: measured vs nominal vs fitted model")

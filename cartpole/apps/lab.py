@@ -3,8 +3,8 @@
 ``run_lab()`` reproduces the lab handout's experiment on any MJCF the toolkit reads and the LQR stabilises: a
 cart with one pole (the lab's), a chain of two or three, a pendulum with no cart, more than one motor. The exact
 linearisation at upright rest (continuous ``A, B`` from the symbolic model, or ``Ad, Bd`` of one step of the
-MJCF's integrator with ``discrete=True``), LQR with the lab's weight pattern (:func:`~cartpole.riccati.lab_weights`:
-for one pole the handout's ``Q = diag(1, 10, 0.1, 0.1)``, ``R = 0.1``), and five 6 s MuJoCo runs of
+MJCF's integrator with ``discrete=True``), LQR with the default weights (:func:`~cartpole.riccati.default_weights`:
+for one pole the handout's ``Q = diag(1, 10, 0.1, 0.1)``, ``R = 0.1``, :data:`Q_LAB`, :data:`R_LAB`), and five 6 s MuJoCo runs of
 ``u = u* - K (x - x*)`` (hinge errors wrapped, ctrl clipped to ``ctrlrange`` by MuJoCo) from the lab's five
 starts, each logged every physics step so it replays exactly. The settling statistics are those of
 :mod:`cartpole.validation.metrics` (the handout's definition over every pole angle, and a strict one).
@@ -13,7 +13,7 @@ The starts (:func:`lab_initial_conditions`) are the handout's cart offsets on th
 *first* pole, every other joint at its upright equilibrium angle and everything at rest. When the model cannot
 catch them at full size for the ctrl limit (dm_control's triple pole on its cart from 8 degrees), all five are
 scaled down by one factor, :func:`lab_start_scale`: the largest of 1, 1/2, 1/4, ... (:data:`START_SCALES`) at which
-the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.riccati.lab_weights`, continuous)
+the ctrl limit keeps no start from settling under the lab's own LQR (:func:`~cartpole.riccati.default_weights`, continuous)
 in the lab's 6 s. Only the ctrl limit shrinks them: a start the closed loop is merely too slow to settle in the run
 stays full size and is reported unsettled with the reason (:func:`why_not_settled`: the final error, the slowest
 closed-loop time constant, the run its linear loop would need). The factor depends on the model only, not on the
@@ -32,16 +32,45 @@ an actuated cart, so on a chain it raises :class:`~cartpole.control.pid.PIDError
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole.control.friction import friction_design
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.pid import CascadedPID, tune_pid
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, CartPoleParams, linearize, Plant, plant_model, state_error, wrap_angle
+from cartpole.export.inloop import in_loop
+from cartpole.models import (CartPoleModel, CartPoleParams, Plant, friction_treatment, linearize, plant_model,
+                             state_error, steps_per_period, wrap_angle)
 from cartpole.progress import stage
-from cartpole.validation.metrics import STRICT_TOLERANCE, UPRIGHT_TOL
+from cartpole.riccati import ONE_POLE, default_weights, lab_weights
+from cartpole.sim import simulate
+from cartpole.sim.options import LoopOptions
+from cartpole.sim.rig import build_rig
+from cartpole.validation.estimation import estimation_summary
+from cartpole.validation.metrics import (STRICT_TOLERANCE, UPRIGHT_TOL, cart_range_used, residual_error,
+                                         saturation_fraction, summarize)
+
+#: The handout's state weight ``diag(1, 10, 0.1, 0.1)`` on ``[s, theta, s_dot, theta_dot]`` (read-only): the
+#: default weights of one pole (:func:`~cartpole.riccati.default_weights`).
+Q_LAB = readonly(default_weights(ONE_POLE)[0])
+#: The handout's input weight ``[[0.1]]`` on MuJoCo ctrl (read-only).
+R_LAB = readonly(default_weights(ONE_POLE)[1])
+
+#: The lab's deliverables, relative to the output folder (the course's file names, which the command line keeps:
+#: ``cartpole lqr`` writes them under ``--out``): the figure of the five runs, the PID comparison, the estimator's
+#: figure, the 10 s video and the metrics table with the row's run id and course day.
+FIGURE = Path("figures") / "day5_cartpole_lqr.png"
+PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
+ESTIMATION_FIGURE = Path("figures") / "day5_cartpole_estimation.png"
+VIDEO = Path("videos") / "day5_cartpole.mp4"
+METRICS = Path("metrics") / "metrics.csv"
+METRICS_RUN_ID = "day5_cartpole_lqr"
+METRICS_DAY = 5
 
 #: The handout's five starts as offsets ``[cart (m), first pole angle (rad)]``: 5, -5 and 8 degrees at the centre,
 #: 3 degrees with the cart at 0.2 m, -4 degrees with the cart at -0.3 m (velocities zero).
@@ -219,8 +248,6 @@ class _LabRuns:
     def residual_error(self) -> np.ndarray:
         """(5, nx) each run's largest ``|x - x*|`` per state over its last second
         (:func:`~cartpole.validation.metrics.residual_error`): the limit cycle or offset left (m, rad, m/s, rad/s)."""
-        from cartpole.validation.metrics import residual_error
-
         return np.array([residual_error(r.t, r.x, self.x_eq, hinges=self.params.hinges) for r in self.rollouts])
 
     @property
@@ -323,14 +350,11 @@ class LabResult(_LabRuns):
         None without an estimator."""
         if self.rig is None or self.rig.estimator == "none":
             return None
-        from cartpole.validation.estimation import estimation_summary
 
         return estimation_summary(self.rollouts, self.rig.estimator, self.params.hinges, state_names(self.params))
 
     def controller(self):
         """The lab's feedback law as a :class:`~cartpole.control.linear.LinearFeedback` (hinge errors wrapped)."""
-        from cartpole.control.linear import LinearFeedback
-
         return LinearFeedback(self.K, self.x_eq, self.u_eq, S=self.S, hinges=self.params.hinges)
 
 
@@ -497,8 +521,6 @@ _LATE = 1.0
 
 def _classify(M, h: float, tau: float, x0s, x_eq, hinges, runs, mets, duration: float, ctrl_range) -> tuple:
     """:class:`NotSettled` or None per run (see :func:`why_not_settled`)."""
-    from cartpole.validation.metrics import saturation_fraction
-
     x_eq = np.asarray(x_eq, dtype=float)
     hinges = tuple(hinges)
     horizon = min(max(2.0 * duration, 30.0 * tau if np.isfinite(tau) else 0.0), 1e5)
@@ -575,8 +597,6 @@ def lab_friction(model, compensated: bool) -> list:
     list of dict
         :func:`~cartpole.models.friction_treatment`'s entries (empty without friction).
     """
-    from cartpole.models import friction_treatment
-
     p = model.params
     cancelled = p.driven_joints if compensated else ()
     return friction_treatment(p, width=model.friction_width, omitted=range(p.nq), cancelled=cancelled)
@@ -598,10 +618,6 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, ri
     """``ctrl`` run in MuJoCo from each row of ``x0s`` for ``duration`` s (``reset()`` called before each run), on
     ``rig`` (each run its own noise stream) when given: ``(rollouts, metrics)``, the metrics measured from
     ``x_eq``. ``progress`` receives the fraction of all the runs' steps done, about 20 times a run."""
-    from cartpole.export.inloop import in_loop
-    from cartpole.sim import simulate
-    from cartpole.validation.metrics import summarize
-
     runs, mets = [], []
     n = len(x0s)
     for i, x0 in enumerate(x0s):
@@ -623,8 +639,6 @@ def _lab_controller(model, Q, R, *, discrete: bool = False, steps: int = 1):
     (:meth:`~cartpole.control.linear.LinearFeedback.for_model`: the law carries ``K``, ``S``, ``E``), with the
     linearisation it was designed on: ``Ad``, ``Bd`` over the control period of
     ``steps`` physics steps, the model without dry friction (it has no slope at rest)."""
-    from cartpole.control.linear import LinearFeedback
-
     x_eq = lab_equilibrium(model)
     period = None if steps == 1 else steps * model.dt
     ctrl = LinearFeedback.for_model(model, Q, R, discrete=discrete, period=period, x_eq=x_eq, u_limits=None)
@@ -695,8 +709,6 @@ def lab_start_scale(plant=None) -> float:
 
 def _start_scale(mjcf=None) -> tuple:
     """``(scale, reason)`` of :func:`lab_start_scale` (``reason`` None at full size)."""
-    from cartpole.riccati import lab_weights
-
     model = plant_model(mjcf)
     ctrl, mats, x_eq = _lab_controller(model, *lab_weights(model))
     scale, _, reason = _search_scale(model, ctrl, ctrl, mats, x_eq)
@@ -746,13 +758,6 @@ def run_lab(plant: Plant = None, *, Q=None, R=None,
     MJCFError, LQRError, LabError
         Bad MJCF, weights, or a model the lab cannot balance.
     """
-    from cartpole.riccati import lab_weights
-
-    from cartpole.models import steps_per_period
-    from cartpole.sim.rig import build_rig
-
-    from cartpole.control.friction import friction_design
-
     plant = plant_model(plant)
     params = plant.params
     if loop is not None and loop.duration is not None:
@@ -801,8 +806,6 @@ def cart_excursion(run, x_eq, slide: int | None) -> float:
     slide : int or None
         qpos index of the cart's slide; None (no cart) gives NaN.
     """
-    from cartpole.validation.metrics import cart_range_used
-
     if slide is None:
         return float("nan")
     lo, hi = cart_range_used(run, slide=slide)
@@ -884,8 +887,6 @@ def run_pid_lab(plant: Plant = None, *, x0s=None,
         A model where a cascade does not apply (not exactly one pole on an actuated cart: one sentence, before
         anything runs), bad tuning settings, or a tuned loop that is not stable.
     """
-    from cartpole.control.pid import CascadedPID, tune_pid
-
     model = plant_model(plant)
     if rig is not None:  # designed for the rig's period (the PID reads the rig's estimate, as the LQR does)
         tuning = {"period": rig.period, **tuning}
@@ -943,8 +944,6 @@ def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object
     LabError
         The shown run differs from the logged one (it cannot, unless MuJoCo is not deterministic here).
     """
-    from dataclasses import replace
-
     logged = lab.rollouts[0]
     shown = watcher(lab.params, lab.controller(), lab.x0s[0], lab.duration)
     n = shown.ctrl.shape[0]
@@ -1050,8 +1049,6 @@ def rig_margin(plant=None, *, loop=None, setting: str, values, pid: bool = False
         largest pole error over any run's last second)), with ``pid`` the same for the PID; ``setting`` and
         ``tried`` (the values tried).
     """
-    from cartpole.sim.options import LoopOptions
-
     model = plant_model(plant)
     loop = LoopOptions() if loop is None else loop
     values = [float(v) for v in values]

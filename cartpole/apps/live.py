@@ -12,15 +12,18 @@ says which law of a swing-up is in charge (swing-up, tracking, catch, the superv
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from cartpole.apps.lab import compare_pid, run_lab
+from cartpole.control.pid import CascadedPID, closed_loop_matrix
 from cartpole.errors import CartPoleError
-from cartpole.riccati import dlqr, lqr
-from cartpole.sim.rig import MAX_DELAY
 from cartpole.models import state_error
+from cartpole.riccati import dlqr, lqr
 from cartpole.sim import Rollout, simulate
+from cartpole.sim.rig import MAX_DELAY
 from cartpole.viz.web import LOCALHOST, Knob, WebLive
 
 #: A weight slider spans its starting value times 10**-SPAN to times 10**SPAN.
@@ -68,8 +71,6 @@ class LQRTuner:
     """
 
     def __init__(self, lab):
-        from dataclasses import replace
-
         self.lab = lab
         self.Q = np.array(lab.Q, float)
         self.R = np.array(lab.R, float)
@@ -177,8 +178,6 @@ class PIDTuner:
     """
 
     def __init__(self, pid, A, B):
-        from cartpole.control.pid import closed_loop_matrix
-
         self.pid = pid
         self.A, self.B = np.asarray(A, float), np.asarray(B, float)
         self._matrix = closed_loop_matrix
@@ -219,8 +218,6 @@ class PIDTuner:
         CartPoleError
             An unknown knob or a gain that is not finite (the gains in force stay).
         """
-        from dataclasses import replace
-
         gain = next((g for g, _ in PID_KNOBS if self._name(g) == name), None)
         if gain is None:
             raise CartPoleError(f"There is no PID gain named {name!r}; the page offers "
@@ -520,8 +517,6 @@ def _loop_doc(loop: LiveLoop) -> dict:
 
 def _pid_run(live, lab, pid, start, T) -> dict:
     """The PID of ``pid`` (a PIDLabResult) run live on ``live``'s page after the LQR, its gains and loop tunable."""
-    from cartpole.control.pid import CascadedPID
-
     law = CascadedPID(pid.gains, pid.params)
     shift = np.asarray(pid.x_eq, float) - np.asarray(law.model.x_eq, float)
 
@@ -572,8 +567,6 @@ def watch(plant: str | Path | None = None, *, Q=None, R=None, duration: float = 
         their times, the final gain and loop, and with ``pid`` the PID's run (``info["live"]["pid"]["rollout"]``,
         None when the page was closed first); each replays exactly (:func:`cartpole.sim.replays_exactly`).
     """
-    from cartpole.apps.lab import compare_pid, run_lab
-
     lab = run_lab(plant, Q=Q, R=R)
     baseline = compare_pid(lab) if pid else None
     run, doc = watch_lab(lab, port=port, host=host, duration=duration, x0=x0, wait=wait, pid=baseline)

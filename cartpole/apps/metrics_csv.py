@@ -1,10 +1,13 @@
-"""The lab's metrics row: one line per ``cartpole lqr`` run appended to ``metrics/metrics.csv`` (the handout's
+"""The lab's metrics row: one line per ``cartpole lqr`` run appended to ``metrics/metrics.csv`` (the lab's
 deliverable), with the date, the commit of this checkout and the mean settling time."""
 from __future__ import annotations
 
 import datetime
 import subprocess
 from pathlib import Path
+
+from cartpole._files import append_csv_row
+from cartpole.apps.lab import METRICS_DAY, METRICS_RUN_ID
 
 #: The columns of ``metrics.csv``, in order.
 METRICS_HEADER = "run_id,date,day,task,commit,seed,env,method,steps,runs,metric,value,notes"
@@ -24,7 +27,7 @@ def git_short_sha() -> str:
 def metrics_row(result, *, date: str | None = None, commit: str | None = None) -> list:
     """The lab's ``metrics.csv`` row for a :class:`~cartpole.apps.lab.LabResult`, one field per ``METRICS_HEADER`` column.
 
-    ``steps`` is the number of physics steps of one run; ``value`` the mean of the handout's settling time (s);
+    ``steps`` is the number of physics steps of one run; ``value`` the mean of the lab's settling time (s);
     ``notes`` is ``5_ICs``, with ``_<k>_poles`` for a chain, ``_scaled_<f>`` when the starts were scaled and
     ``_<n>_counted`` when only n starts began outside the settling band (the value is then their mean, ``nan`` for
     none).
@@ -39,13 +42,11 @@ def metrics_row(result, *, date: str | None = None, commit: str | None = None) -
     counted = sum(getattr(result, "counted", (True,) * len(result.rollouts)))
     if counted != len(result.rollouts):  # starts inside the settling band are not in the mean
         notes += f"_{counted}_counted"
-    return ["day5_cartpole_lqr", date, 5, "cartpole_lqr", commit, 0, "cartpole", "lqr", result.steps, 1,
+    return [METRICS_RUN_ID, date, METRICS_DAY, "cartpole_lqr", commit, 0, "cartpole", "lqr", result.steps, 1,
             "settling_time_sec", f"{result.mean_settling_time_seed:.4f}", notes]
 
 
 def append_metrics(path: Path, row: list) -> Path:
     """Append ``row`` to the CSV at ``path`` (header first when creating it), whole or not at all, through the csv
     module (:func:`~cartpole._files.append_csv_row`)."""
-    from cartpole._files import append_csv_row
-
     return append_csv_row(path, METRICS_HEADER.split(","), row)

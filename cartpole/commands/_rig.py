@@ -4,6 +4,16 @@
 they make."""
 from __future__ import annotations
 
+import math
+
+from cartpole.errors import CartPoleError
+from cartpole.models import friction_treatment
+from cartpole.planning.options import DEFAULT_N, PlanOptions
+from cartpole.progress import current
+from cartpole.sim.budget import (ANNOUNCE_STEPS, DEFAULT_MAX_STEPS, check_conditioning, check_work, estimate_work,
+                                 plan_size)
+from cartpole.sim.options import ESTIMATORS, LoopOptions
+
 #: argparse destination -> LoopOptions field, for the rig's options.
 RIG_FIELDS = {"period": "period", "delay": "delay", "estimator": "estimator", "encoder_cpr": "encoder_cpr",
               "encoder_resolution": "encoder_resolution", "sensor_noise": "sensor_noise",
@@ -12,8 +22,6 @@ RIG_FIELDS = {"period": "period", "delay": "delay", "estimator": "estimator", "e
 
 def add_rig_arguments(parser, *, period_help: str | None = None) -> None:
     """Add the rig's options to a subcommand's parser (``period_help`` replaces ``--period``'s help text)."""
-    from cartpole.sim.options import ESTIMATORS
-
     parser.add_argument("--period", type=float, default=None, metavar="S",
                         help=period_help or "control period in s, a whole number of MJCF steps (default one step): "
                              "the ctrl is held in between and the controller is designed on the exact discrete "
@@ -67,8 +75,6 @@ def rig_fields(args) -> dict:
 def loop_from_args(args, **fields):
     """``LoopOptions(**rig_fields(args), **fields)``; its one-sentence :class:`~cartpole.sim.options.LoopError` on
     bad values."""
-    from cartpole.sim.options import LoopOptions
-
     return LoopOptions(**{**rig_fields(args), **fields})
 
 
@@ -89,8 +95,6 @@ def friction_sentence(friction: dict, *, smooth: bool = True) -> str:
 
 def add_budget_argument(parser) -> None:
     """``--max-steps N``: the budget of MuJoCo steps a command runs before it refuses (:mod:`cartpole.sim.budget`)."""
-    from cartpole.sim.budget import DEFAULT_MAX_STEPS
-
     parser.add_argument("--max-steps", type=float, default=None, metavar="N",
                         help=f"most MuJoCo steps the command may run in all (default {DEFAULT_MAX_STEPS:.0e}); "
                              "beyond it the command refuses before it starts, naming its estimate")
@@ -118,13 +122,6 @@ def check_budget(args, model, parts, *, plans: int = 0, intervals: int | None = 
     -------
     Work
     """
-    import math
-
-    from cartpole.errors import CartPoleError
-    from cartpole.progress import current
-    from cartpole.sim.budget import (ANNOUNCE_STEPS, DEFAULT_MAX_STEPS, check_conditioning, check_work, estimate_work,
-                                     plan_size)
-
     top = getattr(args, "max_steps", None)
     if top is not None and not (math.isfinite(top) and top >= 1):
         raise CartPoleError(f"--max-steps {top:g} is not a number of steps >= 1; give e.g. --max-steps "
@@ -143,8 +140,6 @@ def check_budget(args, model, parts, *, plans: int = 0, intervals: int | None = 
 def plan_intervals() -> int:
     """Collocation intervals of a default swing-up plan (:class:`cartpole.planning.options.PlanOptions` ``N``, its
     default when unset)."""
-    from cartpole.planning.options import DEFAULT_N, PlanOptions
-
     n = PlanOptions().N
     return int(DEFAULT_N if n is None else n)
 
@@ -178,8 +173,6 @@ def design_friction(model, friction: dict | None) -> list:
     friction : dict or None
         The run's JSON ``friction`` (:func:`cartpole.control.friction.friction_summary`): its ``compensation``.
     """
-    from cartpole.models import friction_treatment
-
     p = model.params
     cancelled = p.driven_joints if friction and friction.get("compensation") else ()
     return friction_treatment(p, width=model.friction_width, cancelled=cancelled)

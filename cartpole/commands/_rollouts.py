@@ -3,6 +3,12 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
+from cartpole.commands._flags import in_flags
+from cartpole.errors import CartPoleError, first_line
+from cartpole.viz.viewer import LiveViewer, ViewerUnavailable, require_display, watch
+
 
 def show_logged(params, rollout, *, command: str, watcher=None):
     """Show ``rollout`` in MuJoCo's live viewer, in real time (:func:`cartpole.viz.viewer.watch`), by replaying its
@@ -16,11 +22,6 @@ def show_logged(params, rollout, *, command: str, watcher=None):
     CartPoleError
         The viewer's run differs from the log (it would not be the run logged).
     """
-    import numpy as np
-
-    from cartpole.errors import CartPoleError, first_line
-    from cartpole.viz.viewer import ViewerUnavailable, watch
-
     ctrl = np.asarray(rollout.ctrl)
     h = float(params.timestep)
     last = len(ctrl) - 1
@@ -34,7 +35,7 @@ def show_logged(params, rollout, *, command: str, watcher=None):
         shown = (watch if watcher is None else watcher)(params, logged_ctrl, rollout.x[0], float(rollout.t[-1]),
                                                         push=push)
     except ViewerUnavailable as exc:
-        print(f"cartpole {command}: no live view: {first_line(exc)}.", file=sys.stderr)
+        print(f"cartpole {command}: no live view: {in_flags(first_line(exc))}.", file=sys.stderr)
         return None
     k = len(shown.t)
     if not (np.array_equal(shown.qpos, rollout.qpos[:k]) and np.array_equal(shown.qvel, rollout.qvel[:k])):
@@ -62,12 +63,9 @@ def rollout_doc(rollout) -> dict:
 def live_viewer(command: str):
     """A :class:`~cartpole.viz.viewer.LiveViewer` to pass as a run's ``on_step``, or None without a display (its one
     sentence printed on stderr, so the command goes on without the viewer)."""
-    from cartpole.errors import first_line
-    from cartpole.viz.viewer import LiveViewer, ViewerUnavailable, require_display
-
     try:
         require_display()
     except ViewerUnavailable as exc:
-        print(f"cartpole {command}: no live view: {first_line(exc)}.", file=sys.stderr)
+        print(f"cartpole {command}: no live view: {in_flags(first_line(exc))}.", file=sys.stderr)
         return None
     return LiveViewer()

@@ -5,7 +5,13 @@ from __future__ import annotations
 
 import sys
 
-from cartpole.errors import CartPoleError
+from cartpole.apps.live import controller_status, watch_lab
+from cartpole.commands._flags import in_flags
+from cartpole.commands._rollouts import live_viewer, rollout_doc, show_logged
+from cartpole.errors import CartPoleError, first_line
+from cartpole.sim import replays_exactly, simulate
+from cartpole.viz.viewer import display_available
+from cartpole.viz.web import WebLive, WebUnavailable, port_free
 
 VIEWS = ("auto", "desktop", "web")
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -37,15 +43,11 @@ def view_mode(args, command: str) -> str | None:
     if not view:
         return None
     if view == "auto":
-        from cartpole.viz.viewer import display_available
-
         view = "desktop" if display_available() else "web"
         why = "a display is available" if view == "desktop" else "no display here"
         print(f"cartpole {command}: --view: {why}, so the {'desktop window' if view == 'desktop' else 'web page'} "
               f"(--view {'web' if view == 'desktop' else 'desktop'} for the other).", file=sys.stderr)
     if view == "web":
-        from cartpole.viz.web import port_free
-
         if not (0 <= args.port <= 65535):
             raise CartPoleError(f"--port {args.port} is not a TCP port; give one from 1 to 65535, or 0 for the "
                                 "first free one from 8080.")
@@ -69,16 +71,10 @@ def view_web(lab, args, pid=None) -> dict | None:
     ``pid`` (``--compare-pid``) the PID run live after it on the same page, as ``pid`` (the same keys, ``gains``
     instead of ``K``; null when the page was closed first). None, with one sentence on stderr, when the viewer
     cannot start."""
-    from cartpole.apps.live import watch_lab
-    from cartpole.commands._rollouts import rollout_doc
-    from cartpole.errors import first_line
-    from cartpole.sim import replays_exactly
-    from cartpole.viz.web import WebUnavailable
-
     try:
         run, live = watch_lab(lab, port=args.port, host=args.host, duration=args.live_seconds, pid=pid)
     except WebUnavailable as exc:
-        print(f"cartpole {args.command}: no live view: {first_line(exc)}", file=sys.stderr)
+        print(f"cartpole {args.command}: no live view: {in_flags(first_line(exc))}", file=sys.stderr)
         return None
     live["rollout"] = rollout_doc(run)
     live["replays"] = bool(replays_exactly(run))
@@ -112,13 +108,8 @@ def live_view(command: str, args):
     ``--view``, or no display for the desktop window: its one sentence on stderr)."""
     mode = view_mode(args, command)
     if mode == "web":
-        from cartpole.apps.live import controller_status
-        from cartpole.viz.web import WebLive
-
         return WebLive(port=args.port, host=args.host, title=f"cartpole {command} live", describe=controller_status)
     if mode == "desktop":
-        from cartpole.commands._rollouts import live_viewer
-
         return live_viewer(command)
     return None
 
@@ -133,15 +124,11 @@ def show_runs(params, rollouts, mode: str, args, *, command: str) -> None:
     """Show logged runs one after the other, each replayed from its log in real time
     (:func:`cartpole.commands._rollouts.show_logged`, which checks the run shown is the run logged): in MuJoCo's
     window (``mode="desktop"``) or on one web page for all of them (``"web"``; closing it or Ctrl-C stops showing)."""
-    from cartpole.commands._rollouts import show_logged
-
     if mode != "web":
         for r in rollouts:
             if show_logged(params, r, command=command) is None:
                 break  # no display: said once
         return
-    from cartpole.sim import simulate
-    from cartpole.viz.web import WebLive
 
     live = WebLive(port=args.port, host=args.host, title=f"cartpole {command} live")
 

@@ -4,6 +4,24 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import cartpole.apps.bench.trajopt as bench_trajopt
+from cartpole.apps.bench.crocoddyl import crocoddyl_benchmark, print_crocoddyl
+from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
+from cartpole.apps.bench.export import export_benchmark, print_export_table
+from cartpole.apps.bench.identify import identify_benchmark, print_identify_table
+from cartpole.apps.bench.objectives import OBJECTIVES, objective_benchmark, print_objective_table
+from cartpole.apps.bench.plan_library import plan_library_benchmark, print_plan_library_table
+from cartpole.apps.bench.planner_stage import STAGE_OBJECTIVES, planner_stage_benchmark, print_planner_stage_table
+from cartpole.apps.bench.trajopt import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table, print_table,
+                                         shipped_plan_models)
+from cartpole.apps.swingup import ENERGY_DURATION
+from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._rig import add_budget_argument, check_budget
+from cartpole.errors import CartPoleError
+from cartpole.models import build_model
+from cartpole.progress import stage
+from cartpole.sim.budget import BATCHED
+
 HELP = ("time the swing-up collocation solve (ours vs naive casadi.Opti baselines), TVLQR synthesis, batched "
         "MuJoCo replay, the swing-up plan on 1, 2 and 3 poles and NMPC in the loop")
 
@@ -29,10 +47,8 @@ def add_arguments(parser) -> None:
                         help="skip the swing-up plan times (default: the shipped 1-, 2- and 3-pole carts, or the "
                              "--mjcf given; --quick: one pole, one plan)")
     parser.add_argument("--no-mpc", action="store_true", help="skip the NMPC-in-the-loop benchmark")
-    from cartpole.commands._limits import add_limit_arguments
 
     add_limit_arguments(parser)  # the swing-up plans on --mjcf (the standard problem keeps its own fixed bounds)
-    from cartpole.commands._rig import add_budget_argument
 
     add_budget_argument(parser)
     parser.add_argument("--no-crocoddyl", action="store_true",
@@ -60,8 +76,6 @@ class _Steps:
         self.current = None
 
     def __call__(self, message: str) -> None:
-        from cartpole.progress import stage
-
         self.close()
         self.current = stage(message.rstrip(" .").rstrip())
         self.current(0.0)
@@ -78,11 +92,6 @@ def _check_work(args, repeats: int) -> None:
     swing-up plans' runs (each at most 10 s, as ``cartpole swingup`` counts a plan's run before its length is known)
     and their plans. The other parts (the standard problem's solves, Crocoddyl, identification, the export) run the
     shipped carts, whatever the file."""
-    from cartpole.apps.swingup import ENERGY_DURATION
-    from cartpole.commands._rig import check_budget
-    from cartpole.models import build_model
-    from cartpole.sim.budget import BATCHED
-
     model = build_model(args.mjcf)
     parts = []
     if not args.no_replay:
@@ -99,11 +108,6 @@ def _check_work(args, repeats: int) -> None:
 
 def run(args) -> dict:
     """Run :func:`cartpole.apps.bench.trajopt.run` on ``args.mjcf``; print a table unless ``--json``."""
-    from cartpole.apps.bench.trajopt import print_table
-    from cartpole.apps.bench.trajopt import run as bench_run
-    from cartpole.commands._limits import limit_keywords
-    from cartpole.errors import CartPoleError
-
     repeats = args.repeats if args.repeats is not None else (2 if args.quick else 7)
     if repeats < 1:
         raise CartPoleError(f"--repeats {repeats} is not positive; give at least 1 (5 or more to publish).")
@@ -116,23 +120,17 @@ def run(args) -> dict:
                             "standard problem's).")
     _check_work(args, repeats)
     steps = _Steps()
-    doc = bench_run(args.mjcf, T=T, repeats=repeats, replay=not args.no_replay,
+    doc = bench_trajopt.run(args.mjcf, T=T, repeats=repeats, replay=not args.no_replay,
                     replay_repeats=1 if args.quick else repeats, replay_rollouts=16 if args.quick else 256,
                     progress=steps)
-    from cartpole.apps.bench.trajopt import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table,
-                                    shipped_plan_models)
 
     doc["trajopt"]["objectives"] = None
     if not args.no_objectives:
-        from cartpole.apps.bench.objectives import OBJECTIVES, objective_benchmark
-
         names = ("effort", "time") if args.quick else OBJECTIVES
         doc["trajopt"]["objectives"] = objective_benchmark(args.mjcf, objectives=names, T=T, repeats=repeats,
                                                            progress=steps)
     doc["trajopt"]["planner_stage"] = None
     if not args.no_planner_stage:
-        from cartpole.apps.bench.planner_stage import STAGE_OBJECTIVES, planner_stage_benchmark
-
         stage_models = [(Path(args.mjcf).stem, args.mjcf)] if args.mjcf is not None else (
             shipped_plan_models()[:1] if args.quick else None)
         stage_objectives = ("effort", "time") if args.quick else STAGE_OBJECTIVES
@@ -148,26 +146,19 @@ def run(args) -> dict:
                                      progress=steps, **limit_keywords(args))
     doc["plan_library"] = None
     if not args.no_library:
-        from cartpole.apps.bench.plan_library import plan_library_benchmark
-
         lib_models = [(Path(args.mjcf).stem, args.mjcf)] if args.mjcf is not None else (
             [("1 pole", shipped_plan_models()[0][1])] if args.quick else None)
         doc["plan_library"] = plan_library_benchmark(lib_models, angles=1 if args.quick else 3,
                                                      probes=1 if args.quick else 3, progress=steps)
     doc["mpc"] = None if args.no_mpc else mpc_benchmark(args.mjcf, quick=args.quick, progress=steps,
                                                         **limit_keywords(args))
-    from cartpole.apps.bench.estimation import estimation_benchmark, print_estimation_table
 
     doc["estimation"] = estimation_benchmark(args.mjcf, quick=args.quick)
-    from cartpole.apps.bench.crocoddyl import crocoddyl_benchmark, print_crocoddyl
 
     doc["crocoddyl"] = None if args.no_crocoddyl else crocoddyl_benchmark(repeats=1 if args.quick else repeats)
     doc["identify"] = None
     if not args.no_identify:
-        from cartpole.apps.bench.identify import identify_benchmark
-
         doc["identify"] = identify_benchmark(quick=args.quick)
-    from cartpole.apps.bench.export import export_benchmark, print_export_table
 
     doc["export"] = export_benchmark(args.mjcf, quick=args.quick)
     steps.close()
@@ -175,22 +166,15 @@ def run(args) -> dict:
     if not args.json:
         print_table(doc)
         if doc["trajopt"]["objectives"]:
-            from cartpole.apps.bench.objectives import print_objective_table
-
             print_objective_table(doc["trajopt"]["objectives"])
         if doc["trajopt"]["planner_stage"]:
-            from cartpole.apps.bench.planner_stage import print_planner_stage_table
-
             print_planner_stage_table(doc["trajopt"]["planner_stage"])
         if doc["plan"]:
             print_plan_table(doc["plan"])
         if doc["plan_library"]:
-            from cartpole.apps.bench.plan_library import print_plan_library_table
-
             print_plan_library_table(doc["plan_library"])
         if doc["mpc"]:
             print_mpc_table(doc["mpc"])
-        from cartpole.commands._limits import limit_lines
 
         said = [line for part in [*(doc["plan"] or []), doc["mpc"] or {}] for line in limit_lines(part.get("limits"))]
         for line in dict.fromkeys(said):  # the defaults the swing-up plans on --mjcf used, each once
@@ -199,8 +183,6 @@ def run(args) -> dict:
         if doc["crocoddyl"]:
             print_crocoddyl(doc["crocoddyl"])
         if doc["identify"]:
-            from cartpole.apps.bench.identify import print_identify_table
-
             print_identify_table(doc["identify"])
         print_export_table(doc["export"])
     return doc

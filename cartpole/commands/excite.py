@@ -1,6 +1,14 @@
 """``cartpole excite``: log an informative experiment (hanging, open-loop multisine) in the ``--log`` CSV format."""
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
+import cartpole.apps.excite as excite_app
+from cartpole.commands._rig import add_budget_argument, check_budget
+from cartpole.commands._view import add_view_arguments, show_runs, view_mode
+from cartpole.models import build_model, read_params
+
 HELP = ("run an open-loop multisine from hanging rest around the pendulum's natural frequencies (or add it to the "
         "LQR balancing the pole: --mode balance), inside the rail and ctrl limits, and log it as the CSV "
         "`cartpole identify --log` reads")
@@ -28,11 +36,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--sensor-noise", type=float, default=None, metavar="STD",
                         help="standard deviation of every sensor's noise in its units; default the MJCF's, else 0")
     parser.add_argument("--noise-seed", type=int, default=0, metavar="N", help="seed of the sensor noise")
-    from cartpole.commands._rig import add_budget_argument
 
     add_budget_argument(parser)
-
-    from cartpole.commands._view import add_view_arguments
 
     add_view_arguments(parser, "show the experiment live once logged, in real time, replayed from its log (desktop "
                                "without a display: a note on stderr and the rest as usual)")
@@ -41,27 +46,16 @@ def add_arguments(parser) -> None:
 def run(args) -> dict:
     """Design, run and log. JSON ``excite`` {``csv``, ``rollout``, ``duration``, ``sample_time``, ``amplitude``,
     ``frequencies``, ``natural_frequencies``, ``dry_run``}."""
-    from pathlib import Path
-
-    import math
-
-    from cartpole.apps.excite import run_excite
-    from cartpole.commands._rig import check_budget
-    from cartpole.commands._view import show_runs, view_mode
-    from cartpole.models import build_model
-
     if not args.dry_run and math.isfinite(args.duration) and args.duration > 0:  # else run_excite's own sentence
         check_budget(args, build_model(args.mjcf), [(1, args.duration, "the experiment")])
 
     view = view_mode(args, "excite")
-    res = run_excite(args.mjcf, args.out, duration=args.duration, sample_time=args.sample,
+    res = excite_app.run_excite(args.mjcf, args.out, duration=args.duration, sample_time=args.sample,
                      amplitude=args.amplitude, dry_run=args.dry_run, encoder_cpr=args.encoder_cpr,
                      encoder_resolution=args.encoder_resolution, sensor_noise=args.sensor_noise,
                      seed=args.noise_seed, csv_name=args.csv, mode=args.mode)
     e = res.excitation
     if view and res.rollout is not None:
-        from cartpole.models import read_params
-
         show_runs(read_params(args.mjcf), [res.rollout], view, args, command="excite")
     rollout = None if res.rollout is None else str(Path(args.out) / (Path(args.csv).stem + "_rollout.json"))
     doc = {"mjcf": str(Path(args.mjcf).resolve()) if args.mjcf else None,

@@ -2,7 +2,20 @@
 and with ``--verify`` its proof in the MuJoCo loop beside the Python controller."""
 from __future__ import annotations
 
-from cartpole.commands._rig import add_rig_arguments, loop_from_args
+import math
+
+import cartpole.apps.export as export_app
+from cartpole.apps.export import VERIFY_DURATION
+from cartpole.apps.swingup import MPC_DURATION, TRAJOPT_EXTRA
+from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args
+from cartpole.commands._view import add_view_arguments, show_runs, view_mode
+from cartpole.errors import CartPoleError
+from cartpole.export import CONTROLLERS
+from cartpole.models import build_model
+from cartpole.planning.options import PlanOptions
+from cartpole.sim.budget import BATCHED
+from cartpole.validation.basin import DEFAULTS
 
 HELP = ("write a controller (and its estimator) as standalone C99 for a rig or a microcontroller; --verify drives "
         "MuJoCo with it beside the Python controller")
@@ -11,8 +24,6 @@ HELP = ("write a controller (and its estimator) as standalone C99 for a rig or a
 def add_arguments(parser) -> None:
     """``--controller``, ``--float32``, ``--x0``, ``--verify``, ``--duration``, ``--mcu``, ``--max-steps`` and the
     rig's options."""
-    from cartpole.export import CONTROLLERS
-
     parser.add_argument("--controller", choices=tuple(CONTROLLERS), default="lqr",
                         help="the law to export: lqr (balance, default), pid (cascaded PID balance), tvlqr "
                              "(trajopt swing-up + TVLQR + LQR catch), energy (energy shaping + LQR catch), nmpc "
@@ -34,14 +45,9 @@ def add_arguments(parser) -> None:
                         help="also compile the float32 build for a Cortex-M4F (arm-none-eabi-gcc -mcpu=cortex-m4 "
                              "-mfpu=fpv4-sp-d16 -mfloat-abi=hard -Os) and report its flash, RAM (arm-none-eabi-size) "
                              "and worst stack (-fstack-usage, -fcallgraph-info)")
-    from cartpole.commands._limits import add_limit_arguments
-
-    from cartpole.commands._rig import add_budget_argument
 
     add_limit_arguments(parser)
     add_budget_argument(parser)
-
-    from cartpole.commands._view import add_view_arguments
 
     add_view_arguments(parser, "with --verify: show the C build's MuJoCo runs live (double, then float32), in real "
                                "time, replayed from their logs (desktop without a display: a note on stderr and the "
@@ -54,17 +60,6 @@ def _check_work(args) -> None:
     """The export's MuJoCo steps before it starts (:func:`cartpole.commands._rig.check_budget`): with ``--verify`` two
     runs (double and float builds) of ``--duration`` s, else of the Python path's length (a plan's known only after
     it: at most the planner's longest plus the catch's hold); energy's catch basin; the swing-up's plan."""
-    import math
-
-    from cartpole.apps.export import VERIFY_DURATION
-    from cartpole.apps.swingup import MPC_DURATION, TRAJOPT_EXTRA
-    from cartpole.commands._rig import check_budget
-    from cartpole.export.design import CONTROLLERS
-    from cartpole.models import build_model
-    from cartpole.planning.options import PlanOptions
-    from cartpole.sim.budget import BATCHED
-    from cartpole.validation.basin import DEFAULTS
-
     parts = []
     if args.verify:
         T = {"nmpc": MPC_DURATION, "tvlqr": PlanOptions().T_max + TRAJOPT_EXTRA}.get(
@@ -79,12 +74,6 @@ def _check_work(args) -> None:
 
 def run(args) -> dict:
     """Export (and verify); prose: the folder, its files and the verification's figures."""
-    from cartpole.apps.export import run_export
-    from cartpole.commands._limits import limit_keywords, limit_lines
-
-    from cartpole.commands._view import show_runs, view_mode
-    from cartpole.errors import CartPoleError
-
     if getattr(args, "view", None) and not args.verify:
         raise CartPoleError("--view shows the C build's MuJoCo runs, which only --verify runs; add --verify, or drop "
                             "--view.")
@@ -92,7 +81,7 @@ def run(args) -> dict:
     loop = loop_from_args(args)
     _check_work(args)
     runs: list = []
-    doc = run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
+    doc = export_app.run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
                      out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu,
                      **limit_keywords(args), runs=runs)
     if view and runs:

@@ -3,8 +3,26 @@ true model and on one whose pole mass is wrong, in MuJoCo; one table, one figure
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
+import numpy as np
+
+import cartpole.apps.feedforward as feedforward_app
+from cartpole.apps.feedforward import EXTRA, check_mass_error, plan_options
+from cartpole.apps.lab import state_names
+from cartpole.apps.swingup import plan_model_from
+from cartpole.commands._flags import in_flags
+from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args, rig_doc
 from cartpole.commands._rollouts import rollout_doc
+from cartpole.commands._view import add_view_arguments, show_runs, view_mode
+from cartpole.control.friction import friction_summary
+from cartpole.models import bounded_model, build_model, planning_limits, read_params
+from cartpole.progress import stage
+from cartpole.sim.rig import build_rig
+from cartpole.validation.estimation import estimation_summary
+from cartpole.viz import VideoUnavailable, render_video
+from cartpole.viz.feedforward_plot import plot_feedforward
 
 HELP = ("feedforward beside feedback: the trajopt swing-up's ctrl open loop vs feedforward + TVLQR, also planned "
         "with a wrong pole mass, in MuJoCo")
@@ -23,14 +41,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--plan-mjcf", default=None, metavar="PATH",
                         help="plan the first swing-up (and its TVLQR) on this MJCF, e.g. one fitted by `cartpole "
                              "identify`, while MuJoCo runs --mjcf (the same joints, actuators and step)")
-    from cartpole.commands._view import add_view_arguments
 
     add_view_arguments(parser, "show each run live, in real time, one after the other, replayed from its log (desktop "
                                "without a display: a note on stderr and the rest as usual)")
-    from cartpole.commands._limits import add_limit_arguments
-    from cartpole.commands._rig import add_rig_arguments
-
-    from cartpole.commands._rig import add_budget_argument
 
     add_limit_arguments(parser)
     add_rig_arguments(parser)
@@ -43,23 +56,10 @@ def _fmt(v, spec: str, unit: str = "") -> str:
 
 def run(args) -> dict:
     """Validate the input, plan, run the four controllers, write the figure (and videos), return the JSON document."""
-    from pathlib import Path
-
-    import numpy as np
-
-    from cartpole.apps.feedforward import check_mass_error, run_feedforward
-    from cartpole.commands._limits import limit_keywords, limit_lines
-    from cartpole.models import bounded_model, planning_limits, read_params
-    from cartpole.viz.feedforward_plot import plot_feedforward
-
     # everything is validated before anything is solved or written
     mass_error = check_mass_error(args.mass_error)
     params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # defaults where unlimited
     out = Path(args.out)
-
-    from cartpole.apps.feedforward import EXTRA, plan_options
-    from cartpole.commands._rig import check_budget, loop_from_args, rig_doc
-    from cartpole.models import build_model
 
     # the work before any (two plans, four runs of at most the longest plan + EXTRA s; the plan's length is known
     # only after it); a numerically singular model is refused here too
@@ -70,14 +70,10 @@ def run(args) -> dict:
     loop = loop_from_args(args)
     plan_model = None
     if getattr(args, "plan_mjcf", None) is not None:
-        from cartpole.apps.swingup import plan_model_from
-        from cartpole.models import build_model
-
         plan_model = bounded_model(plan_model_from(args.plan_mjcf, build_model(params)), limits)
-    from cartpole.commands._view import show_runs, view_mode
 
     view = view_mode(args, "feedforward")
-    study = run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
+    study = feedforward_app.run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
                             plan_model=plan_model, x0=args.x0)
     model = study.model
     if view:
@@ -98,9 +94,6 @@ def run(args) -> dict:
 
     videos = None
     if not args.no_video:
-        from cartpole.progress import stage
-        from cartpole.viz import VideoUnavailable, render_video
-
         videos = {}
         seconds = max(float(r.rollout.t[-1]) for r in study.runs.values())
         with stage("videos", size=f"{len(study.runs)} x {seconds:.1f} s at 30 fps") as tick:
@@ -110,13 +103,10 @@ def run(args) -> dict:
                                         progress=lambda f, i=i: tick((i + f) / len(study.runs)))
                 except VideoUnavailable as exc:
                     tick.close(ok=False)   # the stage failed: its line is not printed, the sentence below is
-                    print(f"cartpole feedforward: no videos ({exc})", file=sys.stderr)
+                    print(f"cartpole feedforward: no videos ({in_flags(str(exc))})", file=sys.stderr)
                     videos = None
                     break
                 videos[name] = str(path.resolve())
-
-    from cartpole.control.friction import friction_summary
-    from cartpole.sim.rig import build_rig
 
     rig = build_rig(study.model, loop, task="swingup")
     doc = {"mjcf": params.mjcf, "mass_error": mass_error,
@@ -165,8 +155,6 @@ def _estimation(rollout, rig):
     estimator."""
     if rig is None or rig.estimator == "none":
         return None
-    from cartpole.apps.lab import state_names
-    from cartpole.validation.estimation import estimation_summary
 
     params = rig.model.params
     return estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))

@@ -1,14 +1,16 @@
 """``cartpole identify``: fit MJCF parameters to logged runs and write the fitted MJCF."""
 from __future__ import annotations
 
+from cartpole.apps.identify import run_identify
+from cartpole.identify.fit import DEFAULT_REGULARIZATION, DEFAULT_SEGMENT_S
+from cartpole.progress import stage
+
 HELP = ("fit MJCF parameters (mass, com, inertia, damping, frictionloss, armature, gear) to logged runs by "
         "multiple-shooting least squares; standard errors, correlations, a held-out check and the fitted MJCF")
 
 
 def add_arguments(parser) -> None:
     """``--log``, ``--holdout``, ``--fit``, ``--regularization``, ``--segment``, ``--name``, ``--no-figure``."""
-    from cartpole.identify.fit import DEFAULT_REGULARIZATION, DEFAULT_SEGMENT_S
-
     parser.add_argument("--log", nargs="+", required=True, metavar="FILE",
                         help="runs to fit: CSV (t, one column per joint, optional <joint>_vel, one per actuator) "
                              "or rollout JSON")
@@ -30,9 +32,6 @@ def run(args) -> dict:
     """Fit and write. JSON ``mjcf`` (the nominal) and ``identify`` {``parameters`` (name -> ``nominal``,
     ``fitted``, ``std``), ``names``, ``correlation``, ``warnings``, ``fit_rms`` and ``holdout_rms`` ({``fitted``,
     ``nominal``} -> joint -> m or rad), ``mjcf`` (the fitted file), ``figure``, ``solve_s``, ``iterations``}."""
-    from cartpole.apps.identify import run_identify
-    from cartpole.progress import stage
-
     with stage("fit"):
         res = run_identify(args.mjcf, args.log, args.out, fit_names=args.fit, holdout=args.holdout,
                            regularization=args.regularization, segment_s=args.segment,

@@ -3,6 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from cartpole.commands._rig import smoothed_friction_sentence
+from cartpole.commands._state import state_sentence
+from cartpole.errors import CartPoleError
+from cartpole.models import build_model, friction_treatment, linearize, steps_per_period
+
 HELP = ("exact A, B (continuous) and Ad, Bd (one step of the MJCF's integrator) at the computed upright "
         "equilibrium x_eq, u_eq")
 
@@ -28,11 +33,6 @@ def run(args) -> dict:
     :func:`cartpole.models.friction_treatment`; empty without friction) and ``model`` {``contacts``: the file's geom
     pairs by whether they can touch, :meth:`cartpole.models.ContactReport.to_dict`}.
     """
-    from cartpole.commands._state import state_sentence
-    from cartpole.errors import CartPoleError
-    from cartpole.commands._rig import smoothed_friction_sentence
-    from cartpole.models import build_model, friction_treatment, linearize, steps_per_period
-
     model = build_model(args.mjcf)
     steps = steps_per_period(getattr(args, "period", None), model.dt)
     lin = {"x_eq": model.x_eq, "u_eq": model.u_eq, "dt": model.dt, "integrator": model.integrator}

@@ -1,27 +1,44 @@
-"""``cartpole lqr``: the day-5 LQR balance lab with its true numbers, figure, video and metrics row."""
+"""``cartpole lqr``: the LQR balance lab with its true numbers, figure, video and metrics row (the file names are
+the lab's, :mod:`cartpole.apps.lab`)."""
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
+import cartpole.apps.lab as lab
+from cartpole._files import check_replaceable
+from cartpole.apps.lab import (ESTIMATION_FIGURE, FIGURE, LAB_DURATION, METRICS, PID_FIGURE, START_SCALES, VIDEO,
+                               compare_pid, lab_friction, view_first_run)
+from cartpole.apps.metrics_csv import append_metrics, metrics_row
+from cartpole.apps.swingup import plan_model_from
+from cartpole.commands._flags import in_flags
 from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, friction_sentence,
                                     loop_from_args, rig_doc, smoothed_friction_sentence)
+from cartpole.commands._state import state_labels, state_sentence
 from cartpole.commands._view import add_view_arguments, live_sentence, view_mode, view_web as _view_web
+from cartpole.commands.swingup import check_duration, check_log_size
+from cartpole.control.friction import friction_summary
+from cartpole.control.pid import PIDError
+from cartpole.errors import CartPoleError
+from cartpole.models import ContactReport, build_model
+from cartpole.progress import stage
+from cartpole.sim import simulate
+from cartpole.viz import VideoUnavailable, plot_lab, render_video
+from cartpole.viz.estimation_plot import plot_estimation
+from cartpole.viz.lab_plot import plot_pid_vs_lqr
+from cartpole.viz.margin_plot import plot_margin
+from cartpole.viz.viewer import ViewerUnavailable, watch
 
 HELP = ("the LQR balance lab: K, settling times from 5 initial conditions in MuJoCo, figure, 10 s video "
         "and a metrics row")
 
-FIGURE = Path("figures") / "day5_cartpole_lqr.png"
-PID_FIGURE = Path("figures") / "day5_cartpole_pid_vs_lqr.png"
-ESTIMATION_FIGURE = Path("figures") / "day5_cartpole_estimation.png"
 DELAY_MARGIN_FIGURE = Path("figures") / "delay_margin.png"
 NOISE_MARGIN_FIGURE = Path("figures") / "noise_margin.png"
-VIDEO = Path("videos") / "day5_cartpole.mp4"
-METRICS = Path("metrics") / "metrics.csv"
 VIDEO_SECONDS = 10.0
 
 
@@ -79,8 +96,6 @@ def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
         Any other count, naming the two counts accepted and the order of the entries; an entry beyond
         :data:`MAX_WEIGHT` in magnitude, or a nonzero one below its inverse.
     """
-    from cartpole.errors import CartPoleError
-
     v = np.asarray(values, dtype=float)
     if v.size not in (n, n * n):
         raise CartPoleError(f"{flag} has {v.size} number(s); give {n} (the diagonal, for {order}) or {n * n} "
@@ -97,25 +112,23 @@ def weight_matrix(values, n: int, flag: str, order: str) -> np.ndarray:
     return np.diag(v) if v.size == n else v.reshape(n, n)
 
 
-def run(args) -> dict:
-    """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
-    from cartpole.commands._state import state_labels
-    from cartpole.apps.lab import run_lab
-    from cartpole.models import build_model
-    from cartpole.sim import simulate
-    from cartpole.viz import VideoUnavailable, plot_lab, render_video
-    from cartpole.control.friction import friction_summary
-    from cartpole.errors import CartPoleError
-    from cartpole.apps.lab import lab_friction
+class _Inputs(NamedTuple):
+    """What ``cartpole lqr`` checked before any work: the model, the weights, the run length and the rig."""
+    model: object
+    Q: object
+    R: object
+    duration: float
+    loop: object
 
-    # Everything that can fail on bad input happens before the first file is written.
+
+def _checked_inputs(args) -> _Inputs:
+    """The model, weights, duration and rig of ``args``, and the work they ask for checked against the budget (one
+    sentence on bad input, before anything runs)."""
     model = build_model(args.mjcf)
     names = state_labels(model.params)
     Q = None if args.Q is None else weight_matrix(args.Q, model.nx, "--Q", "x = [" + ", ".join(names) + "]")
     R = None if args.R is None else weight_matrix(
         args.R, model.nu, "--R", "u = [" + ", ".join(a.name for a in model.params.actuators) + "]")
-    from cartpole.apps.lab import LAB_DURATION, START_SCALES
-    from cartpole.commands.swingup import check_duration, check_log_size
 
     duration = LAB_DURATION if args.duration is None else check_duration(args.duration, model.params)
     loop = loop_from_args(args, **({} if args.duration is None else {"duration": duration}))
@@ -131,32 +144,33 @@ def run(args) -> dict:
                                (1, clip, "video")])
     if args.delay_margin is not None and args.noise_margin is not None:
         raise CartPoleError("--delay-margin and --noise-margin are two searches; give one at a time.")
+    return _Inputs(model, Q, R, duration, loop)
+
+
+def run(args) -> dict:
+    """Run the lab on ``args.mjcf``, write its outputs under ``args.out`` and return the JSON document."""
+    # Everything that can fail on bad input happens before the first file is written.
+    model, Q, R, duration, loop = _checked_inputs(args)
     if args.margins or args.margins_mujoco:
         return run_margins(args, model, loop, Q, R)
     for key in MARGINS:
         if getattr(args, key) is not None:
             return _margin(args, model, loop, key)
-    from cartpole._files import check_replaceable
 
     check_replaceable(Path(args.out) / METRICS)  # a read-only metrics.csv is refused before the lab runs
     plan_model = None
     if getattr(args, "plan_mjcf", None) is not None:
-        from cartpole.apps.swingup import plan_model_from
-
         plan_model = plan_model_from(args.plan_mjcf, model)
     R, ctrl_noise = ctrl_noise_weights(args, model, loop, Q, R)
     view = view_mode(args, "lqr")
     if view == "web":
         check_log_size(args.live_seconds, model.params, what=f"the live run of {args.live_seconds:g} s")
-    result = run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model, duration=duration)
+    result = lab.run_lab(model, Q=Q, R=R, discrete=args.discrete, loop=loop, plan_model=plan_model, duration=duration)
     live = None
     if view == "desktop":
         result = _view(result)
     pid = skipped = None
     if args.compare_pid:
-        from cartpole.control.pid import PIDError
-        from cartpole.apps.lab import compare_pid
-
         try:
             pid = compare_pid(result, model)
         except PIDError as exc:
@@ -164,23 +178,37 @@ def run(args) -> dict:
             print(f"cartpole lqr: --compare-pid skipped: {skipped}", file=sys.stderr)
     if view == "web":  # after the PID's lab, which then runs live after the LQR
         live = _view_web(result, args, pid=pid)
+    files = _write_outputs(args, result, model, pid)
+    doc = _lab_doc(result, model, plan_model, files)
+    if args.compare_pid:
+        doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, files["pid_figure"])
+    if ctrl_noise is not None:
+        doc["ctrl_noise"] = ctrl_noise
+    if live is not None:
+        doc["live"] = live
+    if not args.json:
+        _print_prose(result, doc, pid)
+        if live is not None:
+            print(live_sentence(live))
+    return doc
+
+
+def _write_outputs(args, result, model, pid) -> dict:
+    """The lab's files under ``args.out``: the figure, the estimator's and the PID's figures when there are
+    those, the video (unless ``--no-video``; a missing GL backend is a note on stderr) and the metrics row.
+    Returns their paths (``figure``, ``estimation_figure``, ``pid_figure``, ``video``, ``metrics``) and
+    ``video_render_s``."""
     out = Path(args.out)
     figure = plot_lab(result, out / FIGURE).resolve()
     est_figure = None
     if result.estimation is not None:
-        from cartpole.viz.estimation_plot import plot_estimation
-
         est_figure = str(plot_estimation(result.rollouts[0], result.params, out / ESTIMATION_FIGURE,
                                          title=f"IC 1: {result.rig.estimator} estimate against MuJoCo").resolve())
     pid_figure = None
     if pid is not None:
-        from cartpole.viz.lab_plot import plot_pid_vs_lqr
-
         pid_figure = plot_pid_vs_lqr(result, pid, out / PID_FIGURE).resolve()
     video = video_render_s = None
     if not args.no_video:
-        from cartpole.progress import stage
-
         clip = simulate(result.params, result.controller(), result.x0s[0], VIDEO_SECONDS,
                         rig=None if result.rig is None else result.rig.for_run(0))
         try:
@@ -189,13 +217,16 @@ def run(args) -> dict:
                                     model=model)
             video, video_render_s = info.resolve(), float(info.render_s)
         except VideoUnavailable as exc:
-            print(f"cartpole lqr: no video: {exc}", file=sys.stderr)
-    from cartpole.apps.metrics_csv import append_metrics, metrics_row
+            print(f"cartpole lqr: no video: {in_flags(str(exc))}", file=sys.stderr)
 
     metrics = append_metrics(out / METRICS, metrics_row(result)).resolve()
+    return {"figure": figure, "estimation_figure": est_figure, "pid_figure": pid_figure, "video": video,
+            "video_render_s": video_render_s, "metrics": metrics}
 
-    ts_seed = result.settling_times_seed
-    doc = {
+
+def _lab_doc(result, model, plan_model, files: dict) -> dict:
+    """The JSON document of a lab run (without its ``pid``, ``ctrl_noise`` and ``live`` parts)."""
+    return {
         "mjcf": result.mjcf,
         "plan_mjcf": None if plan_model is None else plan_model.params.mjcf,
         "discrete": result.discrete,
@@ -208,7 +239,7 @@ def run(args) -> dict:
         "initial_conditions": result.x0s,
         "start_scale": result.start_scale,
         "duration": result.duration,
-        "settling_times_seed": ts_seed,
+        "settling_times_seed": result.settling_times_seed,
         "settling_times": result.settling_times,
         "settling_definition": ("settling_times_seed: t of the sample after the last with some |theta_i - theta_i*| "
                                 "> 0.05 rad (every hinge, wrapped); settling_times: first t after which every "
@@ -229,28 +260,17 @@ def run(args) -> dict:
         "residual_error": result.residual_error,
         "saturation_fraction": [m.saturation_fraction for m in result.metrics],
         "track_margin": [m.track_margin for m in result.metrics],
-        "figure": str(figure),
-        "video": None if video is None else str(video),
-        "video_render_s": video_render_s,
-        "metrics": str(metrics),
+        "figure": str(files["figure"]),
+        "video": None if files["video"] is None else str(files["video"]),
+        "video_render_s": files["video_render_s"],
+        "metrics": str(files["metrics"]),
         **rig_doc(result.rig, result.period),
         "friction": friction_summary(result.params, result.friction_compensation),
         "smoothed_friction": lab_friction(model, result.friction_compensation),
         "estimation": result.estimation,
-        "estimation_figure": est_figure,
+        "estimation_figure": files["estimation_figure"],
         "model": {"contacts": model.contacts.to_dict()},
     }
-    if args.compare_pid:
-        doc["pid"] = {"skipped": skipped} if pid is None else _pid_doc(pid, pid_figure)
-    if ctrl_noise is not None:
-        doc["ctrl_noise"] = ctrl_noise
-    if live is not None:
-        doc["live"] = live
-    if not args.json:
-        _print_prose(result, doc, pid)
-        if live is not None:
-            print(live_sentence(live))
-    return doc
 
 
 class _Margin(NamedTuple):
@@ -275,13 +295,6 @@ def _margin(args, model, loop, key: str) -> dict:
     """``--delay-margin MAX`` or ``--noise-margin MAX``: JSON ``mjcf``, ``period`` (s), ``rig`` (the rest of the
     rig), ``delay_margin`` or ``noise_margin`` (:func:`cartpole.apps.lab.rig_margin`: ``lqr``,
     ``lqr_first_failure``, ``lqr_runs`` and the ``pid`` ones with ``--compare-pid``), ``figure``."""
-    import math
-
-    import cartpole.apps.lab as lab
-    from cartpole.errors import CartPoleError
-    from cartpole.progress import stage
-    from cartpole.viz.margin_plot import plot_margin
-
     spec = MARGINS[key]
     setting, path, what, unit = spec.setting, spec.figure, spec.what, spec.unit
     flag = "--" + key.replace("_", "-")
@@ -312,8 +325,6 @@ def _margin(args, model, loop, key: str) -> dict:
 
 def _contacts_line(doc) -> str:
     """The prose line about the file's contacts (its pairs by reachability) and any run that touched."""
-    from cartpole.models import ContactReport
-
     line = ContactReport.sentence(doc["model"]["contacts"])
     touched = [i for i, r in enumerate(doc["rollouts"], 1) if r.get("contact")]
     if touched:
@@ -358,13 +369,10 @@ def _view(result):
     """``--view``: the first start's LQR run shown live (:func:`cartpole.viz.viewer.watch`) and logged as shown
     (:func:`cartpole.apps.lab.view_first_run`); without a display, the viewer's sentence on stderr and ``result``
     unchanged."""
-    from cartpole.apps.lab import view_first_run
-    from cartpole.viz.viewer import ViewerUnavailable, watch
-
     try:
         result, shown = view_first_run(result, watch)
     except ViewerUnavailable as exc:
-        print(f"cartpole lqr: {exc}", file=sys.stderr)
+        print(f"cartpole lqr: {in_flags(str(exc))}", file=sys.stderr)
         return result
     if shown.info.get("closed_early"):
         print(f"cartpole lqr: the viewer was closed at t = {shown.t[-1]:.2f} s; the logged run of IC 1 is the "
@@ -401,8 +409,6 @@ def _rig_sentence(rig) -> str:
 
 
 def _print_prose(result, doc, pid=None) -> None:
-    from cartpole.commands._state import state_sentence
-
     q = ", ".join(f"{v:g}" for v in np.diag(result.Q))
     r = ", ".join(f"{v:g}" for v in np.diag(result.R))
     steps = int(round(result.period / result.params.timestep)) if result.period else 1
@@ -479,8 +485,6 @@ def _time_constant_sentence(result) -> str:
 
 def _not_settled_text(result, why) -> str:
     """``NOT settled: ...``: the reason of one start (:class:`cartpole.apps.lab.NotSettled`) and by how much."""
-    from cartpole.commands._state import state_labels
-
     labels = state_labels(result.params)
     left = (f"|theta - theta*| {why.final_angle_error:.3g} rad at the end, the largest error {why.final_error:.3g} "
             f"on {labels[why.final_error_state]}")

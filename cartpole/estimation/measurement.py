@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import casadi as ca
+import mujoco
 import numpy as np
 
 from cartpole.estimation.base import EstimationError
@@ -22,8 +23,6 @@ from cartpole.models import forward_kinematics
 
 def _rotation(quat) -> np.ndarray:
     """(3, 3) rotation of a quaternion ``(w, x, y, z)``, normalised first."""
-    import mujoco
-
     out = np.zeros(9)
     mujoco.mju_quat2Mat(out, np.asarray(quat, float) / np.linalg.norm(quat))
     return out.reshape(3, 3)

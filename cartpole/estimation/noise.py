@@ -45,7 +45,7 @@ def process_covariance(accel_std, period: float, nq: int | None = None) -> np.nd
     s = s.ravel()
     if not np.all(np.isfinite(s)) or np.any(s < 0):
         raise EstimationError(f"The process noise {s.tolist()} must be finite standard deviations >= 0 of the "
-                              "joints' accelerations (m/s^2, rad/s^2); give e.g. --process-noise 1.")
+                              "joints' accelerations (m/s^2, rad/s^2); give e.g. `accel_std` 1.")
     T = float(period)
     if not (np.isfinite(T) and T > 0):
         raise EstimationError(f"The period {T:g} s is not positive.")

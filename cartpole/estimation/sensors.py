@@ -29,6 +29,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from cartpole._arrays import readonly
@@ -241,8 +242,6 @@ def _compiled(source):
 
 
 def _frame(m, d, objtype: int, objid: int, moving: dict) -> SensorFrame:
-    import mujoco
-
     ob = mujoco.mjtObj
     if objtype == ob.mjOBJ_SITE:
         kind, body, pos, quat = "site", m.site_bodyid[objid], m.site_pos[objid], m.site_quat[objid]
@@ -264,8 +263,6 @@ def _frame(m, d, objtype: int, objid: int, moving: dict) -> SensorFrame:
 
 def _mjcf_sensors(m, where: str) -> list:
     """The MJCF's sensors as :class:`Sensor` objects, refusing what cannot be modelled exactly."""
-    import mujoco
-
     ob, jt = mujoco.mjtObj, mujoco.mjtJoint
     if int(m.opt.disableflags) & mujoco.mjtDisableBit.mjDSBL_SENSOR:
         raise SensorError(f"{where} disables sensors (<flag sensor=\"disable\"/>), so MuJoCo reports none; "
@@ -284,7 +281,7 @@ def _mjcf_sensors(m, where: str) -> list:
                               f"model exactly from the state and ctrl; {_SUPPORTED}.")
         if m.sensor_delay[i] != 0 or np.any(m.sensor_interval[i] != 0):
             raise SensorError(f"{where} gives sensor '{name}' a delay or interval, which changes what MuJoCo "
-                              "reports; remove it and set the rig's --delay and --period instead.")
+                              "reports; remove it and set the rig's `delay` and `period` instead.")
         objtype, objid = int(m.sensor_objtype[i]), int(m.sensor_objid[i])
         reftype, refid = int(m.sensor_reftype[i]), int(m.sensor_refid[i])
         frame = ref = None
@@ -317,8 +314,6 @@ def _mjcf_sensors(m, where: str) -> list:
 
 
 def _default_encoders(m) -> list:
-    import mujoco
-
     out = []
     for j in range(m.njnt):
         slide = m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE
@@ -387,7 +382,7 @@ def sensor_spec(plant=None, *, encoder_cpr=None, encoder_resolution=None, noise_
         ok = not isinstance(encoder_cpr, bool) and isinstance(encoder_cpr, (int, float, np.integer, np.floating))
         if not (ok and math.isfinite(encoder_cpr) and encoder_cpr >= 1 and float(encoder_cpr).is_integer()):
             raise SensorError(f"The encoder counts per revolution {encoder_cpr!r} is not a positive whole number; "
-                              "give e.g. --encoder-cpr 2048.")
+                              "give e.g. `encoder_cpr` 2048.")
         res["rad"] = 2 * math.pi / float(encoder_cpr)
     if encoder_resolution is not None:
         try:
@@ -396,7 +391,7 @@ def sensor_spec(plant=None, *, encoder_cpr=None, encoder_resolution=None, noise_
             r = math.nan
         if isinstance(encoder_resolution, bool) or not (math.isfinite(r) and r > 0):
             raise SensorError(f"The encoder resolution {encoder_resolution!r} m is not a positive finite number of "
-                              "metres per count; give e.g. --encoder-resolution 1e-4.")
+                              "metres per count; give e.g. `encoder_resolution` 1e-4.")
         res["m"] = r
     noise = _per_sensor("noise", noise_std, sensors, "a finite standard deviation >= 0 in its units") \
         if noise_std is not None else {}

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cartpole.codegen import compiler
 from cartpole.export.estimators import ExportError
 
 #: What every export must compile under (warnings are errors).
@@ -26,8 +27,6 @@ SHARED_NAME = "libcartpole_controller.so"
 
 def find_compiler() -> str:
     """The C compiler's path, or one :class:`ExportError` sentence when there is none."""
-    from cartpole.codegen import compiler
-
     cc = compiler()
     if cc is None:
         raise ExportError("No C compiler found ($CC, gcc or cc on PATH); install one (e.g. apt-get install gcc) or "

@@ -17,6 +17,8 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
+from cartpole.estimation import measurement_function
+from cartpole.estimation.sensors import KINDS
 from cartpole.export.csource import table
 from cartpole.export.program import CPart
 
@@ -50,8 +52,6 @@ def first_state_rows(model, spec) -> np.ndarray:
         A joint without an encoder that other position sensors (frame positions, axes) would solve for: that
         Gauss-Newton fit is not exported.
     """
-    from cartpole.estimation.sensors import KINDS
-
     nq = int(model.nq)
     rows = np.full(nq, -1, dtype=int)
     other = False
@@ -123,8 +123,6 @@ def kalman_part(kf, model, spec) -> CPart:
     -------
     CPart
     """
-    from cartpole.estimation import measurement_function
-
     x, u = ca.SX.sym("x", kf.nx), ca.SX.sym("u", kf.nu)
     h = ca.Function("cp_h", [x, u], [ca.densify(measurement_function(model, spec)(x, u))])
     data = first_state_data(model, spec, model.x_hanging) + tuple(
@@ -156,8 +154,6 @@ def ekf_part(ekf, model, spec) -> CPart:
     -------
     CPart
     """
-    from cartpole.estimation import measurement_function
-
     nx, nu, m = ekf.nx, ekf.nu, ekf.steps
     hold = model.hold(m)
     x, U = ca.SX.sym("x", nx), ca.SX.sym("U", nu, m)

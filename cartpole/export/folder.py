@@ -114,7 +114,7 @@ def check_target(out: str | Path) -> Path:
     if not os.path.lexists(out):
         return out
     if not out.is_dir():
-        raise ExportError(f"--out {short(out)} is a file; give a new folder or an earlier export's folder.")
+        raise ExportError(f"`out` {short(out)} is a file; give a new folder or an earlier export's folder.")
     if not any(out.iterdir()):
         return out
     try:
@@ -122,7 +122,7 @@ def check_target(out: str | Path) -> Path:
     except (OSError, ValueError, AttributeError):
         fmt = None
     if fmt != MANIFEST_FORMAT:
-        raise ExportError(f"--out {short(out)} exists and is not an earlier export (no cartpole manifest.json); give a new "
+        raise ExportError(f"`out` {short(out)} exists and is not an earlier export (no cartpole manifest.json); give a new "
                           "folder, an empty one or an earlier export's folder.")
     return out
 

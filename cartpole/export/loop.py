@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole.sim.rollout import ctrl_bounds, make_mujoco, simulate
 
 
 class Observation(NamedTuple):
@@ -121,8 +122,6 @@ def run_lockstep(design, cctl, x0, duration: float) -> LockstepRun:
     -------
     LockstepRun
     """
-    from cartpole.sim.rollout import ctrl_bounds, make_mujoco, simulate
-
     params = design.model.params
     m, _ = make_mujoco(params)
     lo, hi = ctrl_bounds(m)

@@ -108,7 +108,7 @@ def cross_build(files: dict) -> dict:
     tools = mcu_tools()
     if tools is None:
         raise ExportError("The Cortex-M4F build needs arm-none-eabi-gcc and arm-none-eabi-size; install Debian's "
-                          "gcc-arm-none-eabi and libnewlib-arm-none-eabi (or drop --mcu).")
+                          "gcc-arm-none-eabi and libnewlib-arm-none-eabi (or drop `mcu`).")
     cc, size = tools
     with tempfile.TemporaryDirectory(prefix="cartpole-mcu-") as tmp:
         root = Path(tmp)

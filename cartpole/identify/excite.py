@@ -103,7 +103,7 @@ def multisine(model, duration: float, sample_time: float, *, amplitude: float | 
         A duration under 3 s, a sample time that is not a whole number of steps, an amplitude outside (0, 1].
     """
     if not (np.isfinite(duration) and duration >= 3):
-        raise ExciteError(f"The excitation's duration {duration:g} s is too short; give --duration of at least 3 s.")
+        raise ExciteError(f"The excitation's duration {duration:g} s is too short; give a `duration` of at least 3 s.")
     steps = round(sample_time / model.dt)
     if steps < 1 or abs(steps * model.dt - sample_time) > 1e-9:
         raise ExciteError(f"The sample time {sample_time:g} s is not a whole number of MJCF steps ({model.dt:g} s); "

@@ -16,13 +16,19 @@ in one sentence (:func:`identifiability_warnings`).
 """
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import time
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
+import cartpole.codegen as codegen
 from cartpole._arrays import readonly
+from cartpole.codegen import compiled_or_none
 from cartpole.errors import CartPoleError
 from cartpole.identify.parameters import sample_step
 from cartpole.models import DEFAULT_FRICTION_WIDTH, CartPoleParams
@@ -185,11 +191,6 @@ def compiled_segment(p: CartPoleParams, params, sample_time: float, length: int,
     (casadi.Function, casadi.Function)
         The segment (as :func:`segment_function`) and its ``(X, x_end)``.
     """
-    import dataclasses
-    import hashlib
-
-    import cartpole.codegen as codegen
-
     h = hashlib.sha256(SEGMENT_RECIPE.encode())
     codegen.digest([dataclasses.replace(p, mjcf=""), list(params), float(sample_time), int(length),
                     float(friction_width), bool(exact_friction)], h)
@@ -215,8 +216,6 @@ def _prepare(p, params, logs, segment_s, friction_width, exact, compiled=False) 
             L, S = log.n - 1, 1
         key = (round(Ts, 12), L)
         if key not in funcs and compiled:  # the toolkit's one rule: C when it builds, else the virtual machine
-            from cartpole.codegen import compiled_or_none
-
             funcs[key] = compiled_or_none(lambda: compiled_segment(p, params, Ts, L, friction_width=friction_width,
                                                                    exact_friction=exact), "fit segments")
         if funcs.get(key) is None:
@@ -312,8 +311,6 @@ def _kkt(runs, evals, W, np_, scale, *, fixed=None):
 def _kkt_matrix(H, C):
     """The sparse KKT matrix ``[[H, C'], [C, 0]]`` (block-banded: segments couple only to their neighbours and to
     the parameters)."""
-    import scipy.sparse as sp
-
     Hs, Cs = sp.csc_matrix(H), sp.csc_matrix(C)
     return sp.bmat([[Hs, Cs.T], [Cs, None]], format="csc")
 
@@ -321,8 +318,6 @@ def _kkt_matrix(H, C):
 def _solve_kkt(H, g, C, c):
     """GN step ``dz`` and multipliers from the KKT system, by a sparse LU (a dense solve of the same matrix is about
     a hundred times slower at 20 s of 5 ms data)."""
-    import scipy.sparse.linalg as spla
-
     nz = H.shape[0]
     K = _kkt_matrix(H, C)
     rhs = -np.concatenate([g, c])
@@ -439,9 +434,9 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     t0 = time.perf_counter()
     params = tuple(params)
     if not logs:
-        raise FitError("No run to fit; give at least one --log.")
+        raise FitError("No run to fit; give at least one log in `logs`.")
     if not params:
-        raise FitError("No parameter to fit; give --fit with names like mass:pole or all.")
+        raise FitError("No parameter to fit; give `params` (parse_parameters of names like mass:pole, or all).")
     if not (np.isfinite(regularization) and regularization >= 0):
         raise FitError(f"The regularisation weight {regularization:g} is not a non-negative number; give e.g. 1.")
     nq, np_ = p.nq, len(params)
@@ -468,7 +463,7 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
         iters += it
         if not ok:
             raise FitError(f"The fit did not converge in {max_iter} Gauss-Newton iterations; fit fewer "
-                           "parameters, raise --regularization, or give a more exciting run.")
+                           "parameters, raise `regularization`, or give a more exciting run.")
         theta = np.array([q.nominal + q.scale * d for q, d in zip(params, delta)])
         res = _residual_std(runs, theta, w, np_)
         floor = 1e-3 / w  # a spread below a thousandth of the prior's is rounding, not noise
@@ -478,6 +473,18 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
             break
         w = w_new
     theta = np.array([q.nominal + q.scale * d for q, d in zip(params, delta)])
+    std, corr, warn = _uncertainty(runs, params, theta, w, regularization)
+    res = _residual_std(runs, theta, w, np_)
+    return FitResult(parameters=params, fitted=readonly(theta), std=readonly(std), correlation=readonly(corr),
+                     warnings=tuple(warn), fit_rms=readonly(res[:nq]), iterations=iters,
+                     solve_s=time.perf_counter() - t0, residual_std=readonly(res[:nq]))
+
+
+def _uncertainty(runs, params, theta, w, regularization: float) -> tuple:
+    """``(std, correlation, warnings)`` of the fitted ``theta``: the standard deviations in the parameters' units
+    from the KKT system at the optimum (the residuals' variance per degree of freedom, at least 1), their
+    correlation matrix, and the identifiability and bound warnings."""
+    np_ = len(params)
     evals = _evaluate(runs, theta, w, np_)
     scale = np.array([q.scale for q in params])
     H, g, C, c = _kkt(runs, evals, regularization, np_, scale)
@@ -488,7 +495,7 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     _, _, lu = _solve_kkt(H, g, C, c)
     if lu is None:
         raise FitError("The fit's information matrix is singular at the optimum; fit fewer parameters or raise "
-                       "--regularization.")
+                       "`regularization`.")
     E = np.zeros((H.shape[0] + C.shape[0], np_))
     E[:np_, :np_] = np.eye(np_)
     cov_rel = s2 * lu.solve(E)[:np_, :np_]
@@ -499,10 +506,7 @@ def fit(p: CartPoleParams, params, logs, *, regularization: float = DEFAULT_REGU
     info_data = np.linalg.inv(cov_rel / s2) - regularization * np.eye(np_)
     warn = identifiability_warnings(params, 0.5 * (info_data + info_data.T) / s2, corr)
     warn += _bound_warnings(params, theta)
-    res = _residual_std(runs, theta, w, np_)
-    return FitResult(parameters=params, fitted=readonly(theta), std=readonly(std), correlation=readonly(corr),
-                     warnings=tuple(warn), fit_rms=readonly(res[:nq]), iterations=iters,
-                     solve_s=time.perf_counter() - t0, residual_std=readonly(res[:nq]))
+    return std, corr, warn
 
 
 def _residual_std(runs, theta, w, np_) -> np.ndarray:

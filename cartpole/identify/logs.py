@@ -209,8 +209,8 @@ def read_json_log(path: str | Path, nq: int, nu: int) -> RunLog:
     if isinstance(doc, dict) and "rollout" in doc and isinstance(doc["rollout"], dict):
         doc = doc["rollout"]
     if not (isinstance(doc, dict) and all(k in doc for k in ("t", "qpos", "ctrl"))):
-        raise LogError(f"Log {name} is JSON without a rollout (t, qpos, ctrl); give `cartpole swingup --json` "
-                       "output, a saved rollout, or a CSV.")
+        raise LogError(f"Log {name} is JSON without a rollout (t, qpos, ctrl); give a swing-up's JSON "
+                       "document (its rollout), a saved rollout, or a CSV.")
     try:
         t = np.asarray(doc["t"], float).ravel()
         qpos = np.asarray(doc["qpos"], float).reshape(len(t), -1)

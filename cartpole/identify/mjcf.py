@@ -13,11 +13,13 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from cartpole._files import atomic_write, short
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, mujoco_model
+from cartpole.identify.parameters import hinge_moment
+from cartpole.models import CartPoleParams, mujoco_model, read_params
 
 _TAG = r"<({kinds})\b([^<>]*?)(/?)>"
 _ACTUATORS = "motor|general|position|velocity|intvelocity|damper|cylinder|muscle|adhesion|dcmotor"
@@ -106,8 +108,6 @@ def fitted_text(p: CartPoleParams, params, values) -> str:
 
 
 def _write_inertial(text: str, p: CartPoleParams, m_nom, b: int, vals: dict) -> str:
-    import mujoco
-
     name = p.bodies[b].name
     bid = mujoco.mj_name2id(m_nom, mujoco.mjtObj.mjOBJ_BODY, name)
     mass = float(m_nom.body_mass[bid])
@@ -158,9 +158,6 @@ def check_fitted(path: str | Path, params, values, *, rtol: float = 1e-9) -> Non
     FittedMJCFError
         The file does not compile, or a value differs.
     """
-    from cartpole.identify.parameters import hinge_moment
-    from cartpole.models import read_params
-
     try:
         fp = read_params(path)
     except CartPoleError as exc:

@@ -30,8 +30,8 @@ import casadi as ca
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, CartPoleParams,
-                             FrictionConstraint, equations, friction_constraint, mujoco_model)
+from cartpole.models import (DEFAULT_FRICTION_WIDTH, MAX_CONSTRAINT_FRICTION_DOFS, CartPoleParams, FrictionConstraint,
+                             equations, friction_constraint, mujoco_model, quat_to_mat)
 
 KINDS = ("mass", "com", "inertia", "damping", "frictionloss", "armature", "gear")
 _AXES = "xyz"
@@ -92,8 +92,6 @@ def _hinge_axes(p: CartPoleParams, b: int) -> list:
 def hinge_moment(p: CartPoleParams, b: int) -> float:
     """The principal-inertia moment of body ``b`` about its first hinge axis (or its largest moment without a
     hinge), kg m^2: what ``inertia:BODY`` fits."""
-    from cartpole.models import quat_to_mat
-
     body = p.bodies[b]
     axes = _hinge_axes(p, b)
     if not axes:
@@ -161,7 +159,7 @@ def parse_parameters(p: CartPoleParams, names) -> tuple:
     """
     names = [n.strip() for n in names if n.strip()]
     if not names:
-        raise ParameterError("No parameter to fit; give --fit with names like mass:pole, damping:hinge or all.")
+        raise ParameterError("No parameter to fit; give `names` like mass:pole, damping:hinge or all.")
     bodies = [b.name for b in p.bodies]
     joints = list(p.joint_names)
     acts = [a.name for a in p.actuators]

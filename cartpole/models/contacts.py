@@ -33,6 +33,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from cartpole.models.params import CartPoleParams, MJCFError, load_model
@@ -227,23 +228,19 @@ def _mj(params: CartPoleParams):
 
 
 def _gname(m, g: int) -> str:
-    import mujoco
     return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom {g}"
 
 
 def _bname(m, b: int) -> str:
-    import mujoco
     return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or ("world" if b == 0 else f"body {b}")
 
 
 def _jname(m, j: int) -> str:
-    import mujoco
     return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}"
 
 
 def contacts_enabled(m) -> bool:
     """True unless the compiled model ``m`` disables contacts (or every constraint)."""
-    import mujoco
     flags = mujoco.mjtDisableBit
     return not (int(m.opt.disableflags) & (flags.mjDSBL_CONTACT | flags.mjDSBL_CONSTRAINT))
 
@@ -259,8 +256,6 @@ def candidate_pairs(m) -> list:
         welded together (or both fixed to the world), a body and its parent (unless ``filterparent`` is
         disabled), ``<exclude>``.
     """
-    import mujoco
-
     if not contacts_enabled(m):
         return []
     out, seen = [], set()
@@ -303,8 +298,6 @@ class _Pair:
     bounds (m of geom motion per unit of joint) and the box to search."""
 
     def __init__(self, m, d0, g1: int, g2: int, margin: float, explicit: bool, q_eq, lows, highs):
-        import mujoco
-
         if m.body_weldid[m.geom_bodyid[g2]] == 0 and m.body_weldid[m.geom_bodyid[g1]] != 0:
             g1, g2 = g2, g1  # geom1 the static one, geom2 the moving one
         self.g1, self.g2, self.explicit = g1, g2, explicit
@@ -328,8 +321,6 @@ class _Pair:
     def _bound_slides(self, m, d0, q_eq) -> None:
         """Drop slides the pair's distance does not depend on (a world plane along the rail); make an unlimited
         slide's interval finite where the geometry bounds where contact can be."""
-        import mujoco
-
         keep = np.ones(len(self.joints), bool)
         for i, j in enumerate(self.joints):
             if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_SLIDE:
@@ -361,8 +352,6 @@ def _lipschitz(m, d0, g: int, chain: list, k: int) -> float:
     """m that a point of geom ``g`` moves at most per unit of joint ``chain[k]`` (rad or m), whatever the other
     joints of ``chain`` are: 1 for a slide; for a hinge the rigid lengths from its axis down the chain to the geom's
     bounding sphere (inf for a moving plane, which has none)."""
-    import mujoco
-
     j = chain[k]
     if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
         return 1.0
@@ -383,8 +372,6 @@ class _Distance:
     """``mj_geomDistance`` of one pair at configurations differing from ``q_eq`` in the pair's joints."""
 
     def __init__(self, m, q_eq):
-        import mujoco
-
         self.m, self.d = m, mujoco.MjData(m)
         self.q_eq = np.asarray(q_eq, float)
         self.calls = 0
@@ -478,8 +465,6 @@ def _describe(m, pair: _Pair, dist: _Distance, at: np.ndarray, q_eq, q_hang) -> 
     """Where the pair touches in words: the interval of one joint (the root-most hinge of the search, else the slide)
     around ``at`` in which the pair is closer than its threshold, the other joints held; found on a grid and refined
     by bisection."""
-    import mujoco
-
     if len(pair.joints) == 0:
         return "in every configuration"
     hinges = [i for i, j in enumerate(pair.joints) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
@@ -539,8 +524,6 @@ def _describe(m, pair: _Pair, dist: _Distance, at: np.ndarray, q_eq, q_hang) -> 
 def _ranges(m, q_eq, cart_range, cart_adr):
     """Per-qpos search interval: a limited joint's range, an unlimited hinge a full turn around upright, an
     unlimited slide ``+-inf`` (bounded per pair); the cart's slide ``cart_range`` when given."""
-    import mujoco
-
     lows, highs = np.empty(m.nq), np.empty(m.nq)
     for j in range(m.njnt):
         a = int(m.jnt_qposadr[j])
@@ -585,8 +568,6 @@ def contact_report(params: CartPoleParams, x_eq, *, x_hanging=None, cart_range=N
 
 @functools.lru_cache(maxsize=32)
 def _report(mjcf: str, xml: str, q_eq: tuple, q_hang: tuple | None, cart_range: tuple | None) -> ContactReport:
-    import mujoco
-
     t0 = time.perf_counter()
     m = _compiled(mjcf, xml)
     slides = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE]
@@ -642,8 +623,6 @@ def _report(mjcf: str, xml: str, q_eq: tuple, q_hang: tuple | None, cart_range: 
 def _motion_normal(m, d0):
     """The unit normal of the plane every point moves in, when the model is planar (every hinge axis parallel to it,
     every slide axis perpendicular), else None."""
-    import mujoco
-
     hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     if not hinges:
         return None
@@ -664,8 +643,6 @@ def _extent(m, d0, g: int, n) -> tuple:
     planar model with normal ``n`` it is the same in every configuration (rotations about ``n``, slides across it).
     ``(-inf, inf)`` for a plane not perpendicular to ``n`` and for types without a closed form (meshes, height
     fields, SDFs use their bounding sphere)."""
-    import mujoco
-
     G = mujoco.mjtGeom
     c = np.asarray(d0.geom_xpos[g], float) @ n
     R = np.asarray(d0.geom_xmat[g], float).reshape(3, 3)
@@ -727,8 +704,6 @@ def check_equilibrium_contacts(params: CartPoleParams, x_eq) -> None:
     ContactError
         One sentence naming the pair, how deep they are in each other and the edit that separates them.
     """
-    import mujoco
-
     m = _mj(params)
     pairs = candidate_pairs(m)
     if not pairs:

@@ -57,11 +57,11 @@ def steps_per_period(period: float | None, timestep: float) -> int:
     try:
         T = float(period)
     except (TypeError, ValueError):
-        raise PeriodError(f"The control period {period!r} is not a number of seconds; give e.g. --period "
+        raise PeriodError(f"The control period {period!r} is not a number of seconds; give e.g. `period` "
                           f"{5 * timestep:g}.") from None
     if not (math.isfinite(T) and T > 0):
         raise PeriodError(f"The control period {T:g} s is not a positive number of seconds; give a whole number of "
-                          f"the MJCF's {timestep:g} s steps, e.g. --period {5 * timestep:g}.")
+                          f"the MJCF's {timestep:g} s steps, e.g. `period` {5 * timestep:g}.")
     if T > MAX_PERIOD:
         raise PeriodError(f"The control period {T:g} s is longer than the {MAX_PERIOD:g} s limit (no cart-pole is "
                           f"balanced that slowly); give a whole number of the MJCF's {timestep:g} s steps below it.")

@@ -24,10 +24,12 @@ effective inertia), where an explicit step already chatters. Narrower widths cha
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import casadi as ca
+import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError
@@ -187,8 +189,6 @@ def friction_constraint(m) -> FrictionConstraint:
     -------
     FrictionConstraint
     """
-    import mujoco
-
     refsafe = not (m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_REFSAFE)
     b = np.zeros(m.nv)
     r = np.zeros(m.nv)
@@ -207,8 +207,6 @@ def friction_constraint(m) -> FrictionConstraint:
 def _box_qp(H, g, F):
     """The exact solution (n,) SX of ``min 0.5 f' H f + g' f``, ``-F <= f <= F`` (``H`` (n, n) positive definite)
     by enumerating the ``3**n`` active sets (each checked by its KKT conditions; the first that holds is taken)."""
-    import itertools
-
     n = g.shape[0]
     if n == 1:
         return ca.fmin(ca.fmax(-g / H, -F), F)

@@ -40,6 +40,7 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
 from cartpole.models.params import CartPoleParams
+from cartpole.models.symbolic import build_model
 
 #: Standard gravity g0 in m/s^2: the unit of the default force.
 STANDARD_GRAVITY = 9.80665
@@ -205,10 +206,10 @@ def default_cart_max(params: CartPoleParams) -> float:
     return _stated(DEFAULT_RAIL_LENGTHS * L) if L > 0 else 1.0
 
 
-def _positive(value, name: str, flag: str, unit: str) -> np.ndarray:
+def _positive(value, name: str, unit: str) -> np.ndarray:
     v = np.asarray(value, float)
     if not (v.size and np.all(np.isfinite(v)) and np.all(v > 0)):
-        raise LimitsError(f"{name} = {np.ravel(v).tolist()} {unit} is not a positive finite bound; give {flag} a "
+        raise LimitsError(f"{name} = {np.ravel(v).tolist()} {unit} is not a positive finite bound; give `{name}` a "
                           "positive number.")
     return v
 
@@ -246,16 +247,16 @@ def planning_limits(params: CartPoleParams, *, u_max=None, cart_max: float | Non
     rng = np.asarray(params.ctrl_range, float).reshape(params.nu, 2).copy()
     source = []
     if u_max is not None:
-        u = _positive(u_max, "u_max", "--u-max", "(ctrl)")
+        u = _positive(u_max, "u_max", "(ctrl)")
         if u.size not in (1, params.nu):
-            raise LimitsError(f"u_max has {u.size} values and the model has {params.nu} actuator(s); give --u-max one "
+            raise LimitsError(f"u_max has {u.size} values and the model has {params.nu} actuator(s); give `u_max` one "
                               f"number or one per actuator ({', '.join(names)}).")
         u = np.broadcast_to(u.ravel(), (params.nu,))
         for i in range(params.nu):
             if -u[i] < rng[i, 0] or u[i] > rng[i, 1]:
                 raise LimitsError(f"u_max = {u[i]:g} is wider than actuator '{names[i]}''s ctrlrange "
                                   f"[{rng[i, 0]:g}, {rng[i, 1]:g}] in the MJCF, where MuJoCo clamps the ctrl; give "
-                                  f"--u-max at most {min(-rng[i, 0], rng[i, 1]):g} or widen the ctrlrange.")
+                                  f"`u_max` at most {min(-rng[i, 0], rng[i, 1]):g} or widen the ctrlrange.")
             rng[i] = (-u[i], u[i])
         source = ["u_max"] * params.nu
     basis = [""] * params.nu
@@ -274,16 +275,16 @@ def planning_limits(params: CartPoleParams, *, u_max=None, cart_max: float | Non
     joints = list(params.joints)
     cart_range, cart_source = None, None
     if params.slide is None and cart_max is not None:
-        raise LimitsError("cart_max bounds the cart's travel and this model has no slide joint; drop --cart-max.")
+        raise LimitsError("`cart_max` bounds the cart's travel and this model has no slide joint; drop it.")
     if params.slide is not None:
         lo, hi = (float(v) for v in params.cart_range)
         limited = np.isfinite(lo) and np.isfinite(hi)
         centre = 0.5 * (lo + hi) if limited else 0.0
         if cart_max is not None:
-            c = float(_positive(cart_max, "cart_max", "--cart-max", "m").ravel()[0])
+            c = float(_positive(cart_max, "cart_max", "m").ravel()[0])
             if centre - c < lo or centre + c > hi:
                 raise LimitsError(f"cart_max = {c:g} m is wider than the cart's slide range [{lo:g}, {hi:g}] m in the "
-                                  f"MJCF, where MuJoCo stops the cart; give --cart-max at most {0.5 * (hi - lo):g} "
+                                  f"MJCF, where MuJoCo stops the cart; give `cart_max` at most {0.5 * (hi - lo):g} "
                                   "or widen the range.")
             cart_range, cart_source = np.array([centre - c, centre + c]), "cart_max"
         elif limited:
@@ -317,8 +318,6 @@ def bounded_model(model, limits: PlanningLimits):
     -------
     CartPoleModel
     """
-    from cartpole.models.symbolic import build_model
-
     p = model.params
     rng = np.column_stack([limits.u_low, limits.u_high])
     same_u = p.nu == rng.shape[0] and np.array_equal(np.asarray(p.ctrl_range, float).reshape(p.nu, 2), rng)

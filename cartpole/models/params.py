@@ -25,15 +25,18 @@ import contextlib
 import dataclasses
 import os
 import warnings
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
+import mujoco
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole._files import short
+from cartpole._files import InputFileError, check_input_file, short
 from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
+from cartpole.models.kinematics import forward_kinematics_np
 from cartpole.models.urdf import URDFError, URDFImport, import_urdf, is_urdf
 
 #: Integrators whose one-step map :mod:`cartpole.models.symbolic` reproduces exactly.
@@ -377,7 +380,6 @@ class CartPoleParams:
         Returns ``(mass kg, distance m of its centre of mass from the hinge axis, moment of inertia kg m^2
         about the axis without armature)``; zeros when it carries no mass.
         """
-        from cartpole.models.kinematics import forward_kinematics_np
         fk = forward_kinematics_np(self, np.array([j.qpos0 for j in self.joints]))
         n, anchor = fk.joint_axis[hinge], fk.joint_anchor[hinge]
         bodies = self.subtree(self.joints[hinge].body)
@@ -514,8 +516,6 @@ def _urdf(text: str, path: str, actuated_joints):
 
 def _load(mjcf=None, *, xml=None, actuated_joints=None):
     """:func:`load_model` plus the :class:`URDFImport` of a URDF (None for an MJCF)."""
-    import mujoco
-
     if xml is not None:
         if is_urdf(xml):
             m, text, record = _urdf(xml, "", actuated_joints)
@@ -529,23 +529,22 @@ def _load(mjcf=None, *, xml=None, actuated_joints=None):
         except Exception as exc:  # mujoco raises ValueError with a multi-line message
             raise MJCFError(f"The MJCF text does not compile: {first_line(exc, FOREIGN_WIDTH)}. "
                             "Fix the XML and try again.") from None
-    from cartpole._files import InputFileError, check_input_file
 
     try:  # by kind, before opening: a FIFO would block, /dev/zero never ends, a symbolic-link loop raises
         path = check_input_file(Path(mjcf) if mjcf is not None else SHIPPED_MJCF, what="MJCF file",
-                                flag="--mjcf")
+                                flag="`plant`")
     except InputFileError as exc:
         raise MJCFError(str(exc).replace("the path of a readable file", "the path of a cart-pole MJCF")) from None
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
-        raise MJCFError(f"MJCF file '{short(path)}' cannot be read as text ({type(exc).__name__}); pass --mjcf with the "
+        raise MJCFError(f"MJCF file '{short(path)}' cannot be read as text ({type(exc).__name__}); pass `plant` with the "
                         "path of a cart-pole MJCF.") from None
     if is_urdf(text):
         m, mjcf_text, record = _urdf(text, str(path), actuated_joints)
         return m, str(path), mjcf_text, record
     if actuated_joints:
-        raise MJCFError(f"MJCF file '{short(path)}' declares its own actuators; actuated_joints (--actuated-joint) "
+        raise MJCFError(f"MJCF file '{short(path)}' declares its own actuators; `actuated_joints` "
                         "chooses the driven joints of a URDF only, so drop it.")
     check_referenced_files(path, text)  # an <include> or asset naming a FIFO would block MuJoCo's reader forever
     try:
@@ -573,10 +572,6 @@ def check_referenced_files(path: Path, text: str) -> None:
         A referenced file is a FIFO, a device, a directory, a socket or a loop of symbolic links, or the includes
         pull in more than :data:`MAX_INCLUDES` files.
     """
-    import xml.etree.ElementTree as ET
-
-    from cartpole._files import InputFileError, check_input_file
-
     root_dir = Path(path).parent
     todo, seen = [(Path(path), text)], 0
     while todo:
@@ -623,8 +618,6 @@ def mujoco_warnings(handler: Callable[[str], None]):
     """Send MuJoCo's warnings to ``handler(message)`` (folded into one line) inside the block, instead of MuJoCo's
     default of a line on stderr and a MUJOCO_LOG.TXT file in the current directory; yields the handler that was
     installed before (None for MuJoCo's default) and puts it back afterwards."""
-    import mujoco
-
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(lambda msg: handler(" ".join(str(msg).split())))
     try:
@@ -648,14 +641,11 @@ def _compiler_warnings():
 
 
 def _name(m, objtype, i: int, fallback: str) -> str:
-    import mujoco
     return mujoco.mj_id2name(m, objtype, i) or f"{fallback} {i}"
 
 
 def _check_supported(m, where: str) -> None:
     """Refuse, with one sentence, everything MuJoCo would add that the smooth model does not model."""
-    import mujoco
-
     jt = mujoco.mjtJoint
     kinds = {int(jt.mjJNT_FREE): "free", int(jt.mjJNT_BALL): "ball", int(jt.mjJNT_SLIDE): "slide",
              int(jt.mjJNT_HINGE): "hinge"}
@@ -721,8 +711,6 @@ def _check_supported(m, where: str) -> None:
 
 def _check_actuator(m, i: int, where: str) -> None:
     """Refuse, with one sentence, an actuator whose force is not ``gain * ctrl + b0 + b1 length + b2 velocity``."""
-    import mujoco
-
     name = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i, "actuator")
     dyn, gain, bias = int(m.actuator_dyntype[i]), int(m.actuator_gaintype[i]), int(m.actuator_biastype[i])
     dcmotor = any(hasattr(t, n) and value == int(getattr(t, n)) for value, t, n in (
@@ -754,7 +742,7 @@ def _check_actuator(m, i: int, where: str) -> None:
     delay = float(m.actuator_delay[i]) if hasattr(m, "actuator_delay") else 0.0
     if delay:
         raise MJCFError(f"{where} delays actuator '{name}' by {delay:g} s inside MuJoCo; the toolkit's model acts "
-                        "at once, so remove the actuator's delay (the rig's --delay models one).")
+                        "at once, so remove the actuator's delay (the rig's `delay` models one).")
     if m.actuator_forcelimited[i]:
         # MuJoCo clamps the actuator force gain * ctrl + bias, before the transmission multiplies it by gear.
         lo, hi = m.actuator_forcerange[i]
@@ -829,8 +817,6 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
     MJCFError
         With one sentence naming what was found and what is supported.
     """
-    import mujoco
-
     m, path, text, urdf = _load(mjcf, xml=xml, actuated_joints=actuated_joints)
     where = (f"{'URDF' if urdf else 'MJCF'} '{short(path)}'" if path else f"The {'URDF' if urdf else 'MJCF'}")
     _check_supported(m, where)
@@ -875,6 +861,19 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
             range=readonly(m.jnt_range[j] if m.jnt_limited[j] else [-np.inf, np.inf]),
             frictionloss=0.0 if no_friction else float(m.dof_frictionloss[dof])))
 
+    actuators = _actuators(m, no_damper)
+    raw_g = np.array(m.opt.gravity, dtype=float)
+    up = -raw_g / np.linalg.norm(raw_g) if np.linalg.norm(raw_g) > 0 else np.array([0.0, 0.0, 1.0])
+    gravity = np.zeros(3) if dis & flags.mjDSBL_GRAVITY else raw_g
+    return CartPoleParams(
+        mjcf=path, xml=text, timestep=float(m.opt.timestep), integrator=_INTEGRATOR_NAMES[int(m.opt.integrator)],
+        euler_damping_implicit=not bool(dis & flags.mjDSBL_EULERDAMP), gravity=readonly(gravity), up=readonly(up),
+        joints=tuple(joints), bodies=tuple(bodies), actuators=tuple(actuators), urdf=urdf)
+
+
+def _actuators(m, no_damper: bool) -> list:
+    """The :class:`ActuatorParams` of every actuator of the compiled ``m`` (actuator damping left out when the
+    MJCF disables dampers)."""
     actuators = []
     for i in range(m.nu):
         lim = bool(m.actuator_ctrllimited[i])
@@ -888,20 +887,11 @@ def read_params(mjcf: str | Path | None = None, *, xml: str | None = None,
             transmission=float(m.actuator_gear[i, 0]), gain=float(m.actuator_gainprm[i, 0]),
             bias=readonly(m.actuator_biasprm[i, :3] if affine else np.zeros(3)),
             damping=act_damping, armature=act_armature))
-
-    raw_g = np.array(m.opt.gravity, dtype=float)
-    up = -raw_g / np.linalg.norm(raw_g) if np.linalg.norm(raw_g) > 0 else np.array([0.0, 0.0, 1.0])
-    gravity = np.zeros(3) if dis & flags.mjDSBL_GRAVITY else raw_g
-    return CartPoleParams(
-        mjcf=path, xml=text, timestep=float(m.opt.timestep), integrator=_INTEGRATOR_NAMES[int(m.opt.integrator)],
-        euler_damping_implicit=not bool(dis & flags.mjDSBL_EULERDAMP), gravity=readonly(gravity), up=readonly(up),
-        joints=tuple(joints), bodies=tuple(bodies), actuators=tuple(actuators), urdf=urdf)
+    return actuators
 
 
 def _world_frame_of_static(m, d, parent: int, b: int):
     """World position and orientation of body ``b``'s frame when its parent is fixed to the world."""
-    import mujoco
-
     quat = np.zeros(4)
     mujoco.mju_mulQuat(quat, d.xquat[parent], m.body_quat[b])
     pos = d.xpos[parent] + d.xmat[parent].reshape(3, 3) @ m.body_pos[b]

@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import Iterator, Sequence
 from xml.etree import ElementTree as ET
 
+import mujoco
 import numpy as np
 
 from cartpole._arrays import readonly
@@ -488,7 +489,6 @@ def _mujoco_text(text: str, path: str, where: str, changes: list) -> tuple:
 
 
 def _name_of(m, objtype, i: int) -> str:
-    import mujoco
     return mujoco.mj_id2name(m, objtype, i) or ""
 
 
@@ -511,8 +511,6 @@ def _name_geoms(spec) -> None:
 def _adjacent_excludes(m, joints: dict) -> list:
     """(parent body, child body, parent link, child link) of moving joints whose parent body is welded to the world
     and whose geoms MuJoCo's masks would let touch (a link fused into the world is body ``world``)."""
-    import mujoco
-
     def collides(b):
         return any(m.geom_bodyid[g] == b and (m.geom_contype[g] or m.geom_conaffinity[g]) for g in range(m.ngeom))
 
@@ -558,8 +556,6 @@ def import_urdf(text: str, path: str = "", *, actuated_joints: Sequence[str] | N
         One sentence: an ambiguous or unknown driven joint (naming the option that chooses), a missing collision
         mesh, an unsupported transmission, or MuJoCo's own refusal of the URDF.
     """
-    import mujoco
-
     session = _SESSION.get()
     option = session.option if session is not None else "actuated_joints=[...]"
     if actuated_joints is None and session is not None:

@@ -90,9 +90,9 @@ def bounds_from_params(params: CartPoleParams, *, u_max=None, cart_max: float | 
         rng = np.asarray(params.ctrl_range, float).reshape(params.nu, 2)
         free = [names[i] for i in range(params.nu) if not np.all(np.isfinite(rng[i]))]
         if free:
-            raise OCPError(f"The MJCF's actuator '{free[0]}' has no ctrlrange; give u_max (or plan on "
-                           "cartpole.models.planning_limits(params), which states a default; --u-max on the command "
-                           "line) for the trajectory optimisation.")
+            raise OCPError(f"The MJCF's actuator '{free[0]}' has no ctrlrange; give `u_max` (or plan on "
+                           "cartpole.models.planning_limits(params), which states a default) for the trajectory "
+                           "optimisation.")
         u_low, u_high = rng[:, 0].copy(), rng[:, 1].copy()
     else:
         u_high = np.broadcast_to(np.asarray(u_max, float), (params.nu,)).copy()
@@ -109,9 +109,9 @@ def bounds_from_params(params: CartPoleParams, *, u_max=None, cart_max: float | 
         center = 0.5 * (lo + hi) if limited else 0.0
         if cart_max is None:
             if not limited:
-                raise OCPError("The MJCF's slide joint is unlimited; give cart_max (or plan on "
-                               "cartpole.models.planning_limits(params), which states a default; --cart-max on the "
-                               "command line) for the trajectory optimisation.")
+                raise OCPError("The MJCF's slide joint is unlimited; give `cart_max` (or plan on "
+                               "cartpole.models.planning_limits(params), which states a default) for the "
+                               "trajectory optimisation.")
             cart_max = 0.5 * (hi - lo) - cart_margin
         if not cart_max > 0:
             raise OCPError(f"The OCP bound cart_max = {cart_max} m must be positive; use a longer track or a "

@@ -39,7 +39,7 @@ import numpy as np
 from cartpole.models import CartPoleModel
 from cartpole.ocp import compiled_nlp
 from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model, bounds_from_params, scales
-from cartpole.ocp.guess import linear_guess, stretched
+from cartpole.ocp.guess import linear_guess, named_guesses, stretched
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 from cartpole.ocp.objectives import NAMED, Objective, make_objective
 from cartpole.ocp.records import Attempt, SolveInfo
@@ -537,8 +537,6 @@ class DirectCollocation:
             No start converged (the message names the bound a relaxed solve from the first guess had to widen, a
             local figure: no proof that the problem is infeasible).
         """
-        from cartpole.ocp.guess import named_guesses
-
         x0 = self._check_state("start state", self.model.x_hanging if x0 is None else x0)
         x_goal = self._check_state("goal state", self.model.x_eq if x_goal is None else x_goal)
         T_use = T if T is not None else self.T

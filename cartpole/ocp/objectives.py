@@ -7,7 +7,7 @@ user's own sign (a reward's integral is reported as the reward's integral, posit
 * ``effort``: ``integral u'u dt`` over a fixed T (ctrl^2 s), Simpson's rule on the first-order-hold input (exact);
 * ``time``: the final time T (free) plus a small effort term that makes the bang-bang answer unique;
 * ``tracking``: ``integral (d' Q d + (u - u*)' R (u - u*)) dt`` toward the upright equilibrium ``x*``, ``u*``
-  with ``Q``, ``R`` diagonal (default the lab's weight pattern, :func:`cartpole.riccati.lab_weights`). The wrapped
+  with ``Q``, ``R`` diagonal (default :func:`cartpole.riccati.default_weights`). The wrapped
   hinge-angle error is not smooth at +-pi, so for each hinge ``d_i^2`` is ``2 (1 - cos e_i)`` (``e_i = theta_i -
   theta_i*``): equal to ``e_i^2`` up to ``O(e_i^4)`` near upright, smooth and 2 pi-periodic everywhere;
   the other entries are the plain errors;
@@ -35,6 +35,7 @@ import numpy as np
 from cartpole.errors import FOREIGN_WIDTH, first_line
 from cartpole.ocp import dmc
 from cartpole.ocp.bounds import OCPError
+from cartpole.riccati import default_weights
 
 #: The dm_control suite's tasks, by objective name, and the alias ``dmc_swingup``.
 DMC = tuple(dmc.TASKS) + tuple(dmc.ALIASES)
@@ -116,11 +117,10 @@ def dmc_swingup_function(model, *, clip_control: bool = False) -> ca.Function:
 def tracking_cost(model, x, u, Q=None, R=None):
     """The tracking running cost toward ``x*``, ``u*`` (see the module notes) as a CasADi expression.
 
-    ``Q`` (nx,) or diagonal (nx, nx), ``R`` (nu,) or diagonal (nu, nu); default :func:`cartpole.riccati.lab_weights`.
+    ``Q`` (nx,) or diagonal (nx, nx), ``R`` (nu,) or diagonal (nu, nu); default
+    :func:`cartpole.riccati.default_weights`.
     """
-    from cartpole.riccati import lab_weights
-
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     q = np.diag(Q0) if Q is None else (np.diag(Q) if np.ndim(Q) == 2 else np.asarray(Q, float))
     r = np.diag(np.atleast_2d(R0)) if R is None else (np.diag(R) if np.ndim(R) == 2 else np.atleast_1d(R))
     x_eq, u_eq = np.asarray(model.x_eq, float), np.asarray(model.u_eq, float)

@@ -36,6 +36,19 @@ MAX_STEPS = 30
 MAX_SECONDS = 60.0
 
 
+def _box_rows(Gx, lower, upper, on, margin: float):
+    """The box as constraints ``>= 0`` on every knot's box quantities ``Gx`` (m, n+1), ``margin`` inside its finite
+    bounds ``lower``, ``upper`` (m,), relaxed where ``on`` (1, n+1) is 0 by a bound no state reaches."""
+    big = 1e6
+    rows = []
+    for i in range(lower.size):  # only the bounds that can bind (sparse_box gives the others as infinite)
+        if np.isfinite(lower[i]):
+            rows.append(Gx[i, :] - (lower[i] + margin) + big * (1 - on))
+        if np.isfinite(upper[i]):
+            rows.append((upper[i] - margin) - Gx[i, :] + big * (1 - on))
+    return ca.vec(ca.horzcat(*rows))
+
+
 def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: float, max_steps: int = MAX_STEPS,
                    max_seconds: float = MAX_SECONDS, margin: float = BOX_MARGIN):
     """The plan of the module doc: the earliest box entry found, or None when it enters no earlier than ``x_ref``.
@@ -87,14 +100,7 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: fl
     K_par = ca.MX.sym("on", 1, n + 1)  # 1 where the box holds
     gap = ca.vec(model.step.map(n)(X[:, :-1], U) - X[:, 1:])
     Gx = g_fun.map(n + 1)(X)  # (m, n+1)
-    big = 1e6  # the box rows of steps before K relaxed by a bound no state reaches
-    rows = []
-    for i in range(lower.size):  # only the bounds that can bind (sparse_box gives the others as infinite)
-        if np.isfinite(lower[i]):
-            rows.append(Gx[i, :] - (lower[i] + margin) + big * (1 - K_par))
-        if np.isfinite(upper[i]):
-            rows.append((upper[i] - margin) - Gx[i, :] + big * (1 - K_par))
-    box_rows = ca.vec(ca.horzcat(*rows))
+    box_rows = _box_rows(Gx, lower, upper, K_par, margin)
     cost = ca.sumsqr(U - u_ref.T) * dt
     lw, hw = shooting_bounds(bounds, nx, n, x0, x_goal)
     solver = ca.nlpsol("box_entry", "ipopt", {"x": ca.veccat(X, U), "p": K_par, "f": cost,

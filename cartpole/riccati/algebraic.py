@@ -8,7 +8,7 @@ Both also take the plant, as python-control's ``lqr(sys, Q, R)``: ``lqr(plant, Q
 with ``plant`` a path, :class:`~cartpole.models.CartPoleParams` or :class:`~cartpole.models.CartPoleModel`
 (:func:`~cartpole.models.plant_model`), designed on its exact linearisation at the upright equilibrium (dry
 friction left out: it has no slope at rest), ``Q`` and ``R`` defaulting to
-:func:`~cartpole.riccati.weights.lab_weights`.
+:func:`~cartpole.riccati.weights.default_weights`.
 
 One cost scaling for discrete designs on a plant (**the** convention of the package): ``Q`` and ``R`` are weights
 per second, as in the continuous design, so over a control period ``T`` (one physics step unless ``period`` says
@@ -26,7 +26,7 @@ import scipy.linalg
 
 from cartpole.errors import CartPoleError
 from cartpole.models import is_plant, plant_model, steps_per_period
-from cartpole.riccati.weights import lab_weights
+from cartpole.riccati.weights import default_weights
 
 
 class LQRError(CartPoleError):
@@ -148,7 +148,7 @@ def lqr(A, B=None, Q=None, R=None, *, x=None, u=None) -> LQRResult:
     B : (n, m) array, state-derivative units per unit input (per unit MuJoCo ctrl in this toolkit)
         Input matrix (with a plant: ``Q`` given positionally).
     Q : (n, n) symmetric positive semidefinite array
-        State weight (with a plant: default :func:`~cartpole.riccati.weights.lab_weights`).
+        State weight (with a plant: default :func:`~cartpole.riccati.weights.default_weights`).
     R : (m, m) symmetric positive definite array (a scalar ``r`` means ``r I(m)``)
         Input weight on MuJoCo ctrl (with a plant: default 0.1 per input).
     x : (n,) array, optional
@@ -195,7 +195,7 @@ def dlqr(A, B=None, Q=None, R=None, *, period: float | None = None, x=None, u=No
         Discrete input matrix per unit ctrl (with a plant: ``Q`` given positionally).
     Q : (n, n) symmetric positive semidefinite array
         State weight (per sample on matrices, per second on a plant; default there
-        :func:`~cartpole.riccati.weights.lab_weights`).
+        :func:`~cartpole.riccati.weights.default_weights`).
     R : (m, m) symmetric positive definite array (a scalar ``r`` means ``r I(m)``)
         Input weight (per sample on matrices, per second on a plant; default there 0.1 per input).
     period : float, optional
@@ -241,7 +241,7 @@ def _plant_weights(B, Q, R) -> tuple:
 def _plant_point(plant, Q, R, x, u):
     """The frictionless model of ``plant``, its operating point and the weights (the defaults filled in)."""
     model = plant_model(plant).without_friction()  # dry friction has no slope at rest
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     x = model.x_eq if x is None else np.asarray(x, dtype=float)
     u = model.u_eq if u is None else np.atleast_1d(np.asarray(u, dtype=float))
     return model, x, u, (Q0 if Q is None else Q), (R0 if R is None else R)

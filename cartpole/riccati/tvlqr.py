@@ -21,11 +21,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import solve_ivp
 
 from cartpole._arrays import readonly
-from cartpole.riccati.algebraic import LQRError, check_weights, dlqr, lqr
-from cartpole.riccati.weights import lab_weights
 from cartpole.models import CartPoleModel
+from cartpole.riccati.algebraic import LQRError, check_weights, dlqr, lqr
+from cartpole.riccati.weights import default_weights
 
 METHODS = ("discrete", "continuous")
 
@@ -208,9 +209,9 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
         Reference (cubic-Hermite states, first-order-hold inputs): anything with ``t`` (knot times), ``x``
         (knots, nx), ``u`` (knots, nu), ``duration``, ``state(t)`` and ``input(t)``.
     Q : (nx, nx) array, optional
-        State weight (per s); default :func:`~cartpole.riccati.weights.lab_weights` of the model.
+        State weight (per s); default :func:`~cartpole.riccati.weights.default_weights` of the model.
     R : (nu, nu) array or float, optional
-        Input weight (per ctrl^2 per s); default the lab's 0.1 per input.
+        Input weight (per ctrl^2 per s); default 0.1 per input (:func:`~cartpole.riccati.weights.default_weights`).
     Qf : (nx, nx) array, optional
         Terminal cost; default the LQR catch's cost-to-go at the final state (``dlqr(Ad, Bd, Q dt, R dt).S``
         for ``discrete``, ``lqr(A, B, Q, R).S`` for ``continuous``).
@@ -239,7 +240,7 @@ def tvlqr(model: CartPoleModel, traj, Q=None, R=None, *, Qf=None, dt: float | No
     if not dt > 0:
         raise LQRError(f"TVLQR step dt = {dt} s is not positive; give dt > 0.")
     nx, nu = model.nx, model.nu
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
     _, _, Q, R = check_weights(np.zeros((nx, nx)), np.zeros((nx, nu)), Q, R)
@@ -290,8 +291,6 @@ def held_steps(dt: float, step: float) -> int:
 
 
 def _tvlqr_ode(model, traj, Q, R, Qf, dt, rtol) -> TVLQRGains:
-    from scipy.integrate import solve_ivp
-
     nx, nu = model.nx, model.nu
     t0, T = float(traj.t[0]), float(traj.t[-1])
     n = max(1, int(round((T - t0) / dt)))

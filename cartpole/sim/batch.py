@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import os
 
+import mujoco
+import mujoco.rollout
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback, ctrl_limits
@@ -69,8 +71,6 @@ def default_threads() -> int:
 
 def initial_states(m, X0: np.ndarray, t0: float = 0.0) -> np.ndarray:
     """Full physics states (B, nstate) at time ``t0`` (s) for starts X0 (B, nq + nv)."""
-    import mujoco
-
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     d = mujoco.MjData(m)
     S0 = np.empty((X0.shape[0], mujoco.mj_stateSize(m, spec)))
@@ -81,6 +81,34 @@ def initial_states(m, X0: np.ndarray, t0: float = 0.0) -> np.ndarray:
         d.time = t0
         mujoco.mj_getState(m, d, S0[i], spec)
     return S0
+
+
+def _checked_law(m, K, X0, x_eq, u_eq, u_limits, hinges) -> tuple:
+    """The law's arrays for MuJoCo model ``m`` (from a :class:`LinearFeedback` or given apart), checked: ``K``
+    (nu, nx), ``X0`` (B, nx), ``x_eq`` (nx,), ``u_eq`` (nu,), ``u_limits`` and the hinge indices."""
+    nu, nx = m.nu, m.nq + m.nv
+    if isinstance(K, LinearFeedback):
+        if not (x_eq is None and u_eq is None and u_limits is None and hinges is None):
+            raise CartPoleError("Give either a LinearFeedback or K with x_eq, u_eq, u_limits and hinges, not both.")
+        law = K
+        K, x_eq, u_eq, u_limits, hinges = law.K, law.x_eq, law.u_eq, law.u_limits, law.hinges
+    K = np.asarray(K, dtype=float)
+    K = K.reshape(1, -1) if K.ndim == 1 else K
+    X0 = np.atleast_2d(np.asarray(X0, dtype=float))
+    if K.shape != (nu, nx) or X0.ndim != 2 or X0.shape[1] != nx:
+        raise CartPoleError(f"Need K of shape ({nu}, {nx}) and X0 of shape (B, {nx}) for this model; got K "
+                            f"{K.shape} and X0 {X0.shape}.")
+    if not (np.all(np.isfinite(X0)) and np.all(np.isfinite(K))):
+        raise CartPoleError("K or X0 contains NaN or inf; give finite gains and start states.")
+    x_eq = np.zeros(nx) if x_eq is None else np.asarray(x_eq, dtype=float).ravel()
+    u_eq = np.zeros(nu) if u_eq is None else np.asarray(u_eq, dtype=float).ravel()
+    u_eq = np.full(nu, u_eq[0]) if u_eq.size == 1 else u_eq
+    if x_eq.shape != (nx,) or u_eq.shape != (nu,):
+        raise CartPoleError(f"Need x_eq with {nx} entries and u_eq with {nu} for this model; got {x_eq.size} and "
+                            f"{u_eq.size}.")
+    if hinges is None:
+        hinges = [int(m.jnt_qposadr[j]) for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    return K, X0, x_eq, u_eq, u_limits, [int(i) for i in hinges]
 
 
 def simulate_batch_linear(plant, K, X0, duration: float, *, x_eq=None, u_eq=None, u_limits=None,
@@ -122,34 +150,9 @@ def simulate_batch_linear(plant, K, X0, duration: float, *, x_eq=None, u_eq=None
         in which MuJoCo reset a blown-up run (NaN: it did not), after which that run's rows are NaN (see the
         module notes).
     """
-    import mujoco
-    import mujoco.rollout
-
     m, _ = make_mujoco(plant)
-    nq, nu = m.nq, m.nu
-    nx = nq + m.nv
-    if isinstance(K, LinearFeedback):
-        if not (x_eq is None and u_eq is None and u_limits is None and hinges is None):
-            raise CartPoleError("Give either a LinearFeedback or K with x_eq, u_eq, u_limits and hinges, not both.")
-        law = K
-        K, x_eq, u_eq, u_limits, hinges = law.K, law.x_eq, law.u_eq, law.u_limits, law.hinges
-    K = np.asarray(K, dtype=float)
-    K = K.reshape(1, -1) if K.ndim == 1 else K
-    X0 = np.atleast_2d(np.asarray(X0, dtype=float))
-    if K.shape != (nu, nx) or X0.ndim != 2 or X0.shape[1] != nx:
-        raise CartPoleError(f"Need K of shape ({nu}, {nx}) and X0 of shape (B, {nx}) for this model; got K "
-                            f"{K.shape} and X0 {X0.shape}.")
-    if not (np.all(np.isfinite(X0)) and np.all(np.isfinite(K))):
-        raise CartPoleError("K or X0 contains NaN or inf; give finite gains and start states.")
-    x_eq = np.zeros(nx) if x_eq is None else np.asarray(x_eq, dtype=float).ravel()
-    u_eq = np.zeros(nu) if u_eq is None else np.asarray(u_eq, dtype=float).ravel()
-    u_eq = np.full(nu, u_eq[0]) if u_eq.size == 1 else u_eq
-    if x_eq.shape != (nx,) or u_eq.shape != (nu,):
-        raise CartPoleError(f"Need x_eq with {nx} entries and u_eq with {nu} for this model; got {x_eq.size} and "
-                            f"{u_eq.size}.")
-    if hinges is None:
-        hinges = [int(m.jnt_qposadr[j]) for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
-    hinges = [int(i) for i in hinges]
+    nu, nx = m.nu, m.nq + m.nv
+    K, X0, x_eq, u_eq, u_limits, hinges = _checked_law(m, K, X0, x_eq, u_eq, u_limits, hinges)
     h = float(m.opt.timestep)
     n = int(round(duration / h))
     if n < 1:

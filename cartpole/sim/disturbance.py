@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError
@@ -58,8 +59,6 @@ def joint_inertia_and_authority(plant, x_eq: np.ndarray) -> tuple[np.ndarray, np
     """MuJoCo's joint-space inertia diagonal (nv,) (kg, kg m^2) and the largest acceleration (nv,) (m/s^2, rad/s^2)
     the actuators can give each joint within their ctrl ranges (0 for unlimited ones), at the state ``x_eq`` (nx,)
     at rest, for the MJCF ``source`` (CartPoleParams or path)."""
-    import mujoco
-
     m, d = make_mujoco(plant)
     d.qpos[:] = x_eq[:m.nq]
     d.qvel[:] = 0.0
@@ -253,8 +252,6 @@ class ThrowForce:
     """
 
     def __init__(self, throw: Throw, source, hinges: tuple, timestep: float):
-        import mujoco
-
         self.throw, self.hinges, self.h = throw, hinges, timestep
         self.m, self.d = make_mujoco(source)
         self.mujoco = mujoco

@@ -54,7 +54,7 @@ def check_push(push, params=None) -> tuple:
     for T, F in pairs:
         if not (np.isfinite(T) and np.isfinite(F) and 0 <= T <= MAX_PUSH_TIME and abs(F) <= MAX_PUSH_FORCE):
             raise LoopError(f"The push ({T:g} s, {F:g} N) needs a start time in [0, {MAX_PUSH_TIME:g}] s and a "
-                            f"finite force of at most {MAX_PUSH_FORCE:g} N in magnitude; give e.g. --push 1.5:20.")
+                            f"finite force of at most {MAX_PUSH_FORCE:g} N in magnitude; give e.g. `push=[(1.5, 20)]`.")
     if pairs and params is not None and params.slide is None:
         raise LoopError("This MJCF has no slide joint, so there is no cart to push; drop the push.")
     return tuple(sorted(pairs))
@@ -71,7 +71,7 @@ def check_push_times(push, duration: float) -> None:
     for T, F in check_push(push):
         if T >= float(duration):
             raise LoopError(f"The push at {T:g} s ({F:g} N) starts after the run ends at {float(duration):g} s, so it "
-                            "would never act; give a time before the end or a longer --duration.")
+                            "would never act; give a time before the end or a longer `duration`.")
 
 
 def check_model_error(model_error) -> float:
@@ -219,7 +219,7 @@ class LoopOptions(StageOptions):
         self.number("seed", low=0.0, high=2.0 ** 63 - 1, integer=True)
         if self.estimator is not None and self.estimator not in ESTIMATORS:
             raise LoopError(f"The estimator {self.estimator!r} is not one of {', '.join(ESTIMATORS)}; give e.g. "
-                            "--estimator kf.")
+                            "`estimator='kf'`.")
         self.set_field("delay_compensation", bool(self.delay_compensation))
         self.set_field("friction_compensation", bool(self.friction_compensation))
         if self.knockdown is not None and not isinstance(self.knockdown, Knockdown):

@@ -18,9 +18,12 @@ import time
 from dataclasses import dataclass, replace
 from typing import Callable
 
+import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError
+from cartpole.estimation import (ExtendedKalmanFilter, KalmanFilter, MovingHorizonEstimator, SensorSampler,
+                                 horizon_periods, initial_state, measurement_function, sensor_spec)
 from cartpole.models import steps_per_period
 from cartpole.sim.options import LoopError, LoopOptions
 
@@ -57,7 +60,7 @@ def delay_steps(delay: float, timestep: float) -> int:
         return 0
     if np.isfinite(d) and d > MAX_DELAY:
         raise RigError(f"The delay {d:g} s is longer than the {MAX_DELAY:g} s limit (the loop holds every sample of "
-                       "it in memory); give a shorter --delay.")
+                       "it in memory); give a shorter `delay`.")
     k = round(d / timestep)
     if not np.isfinite(d) or d < 0 or abs(k * timestep - d) > 1e-6 * d:
         near = sorted({max(0, int(np.floor(d / timestep))) * timestep, int(np.ceil(d / timestep)) * timestep})
@@ -144,8 +147,6 @@ class RigRun:
         self.estimator = None
         self.forward = False
         if rig.spec is not None:
-            from cartpole.estimation import SensorSampler
-
             self.sampler = SensorSampler(rig.spec, m, seed=rig.seed)
             self.forward = any(s.adr >= 0 for s in rig.spec.sensors)  # MJCF sensors: sensordata at this state
             self.estimator = rig.make_estimator()
@@ -174,8 +175,6 @@ class RigRun:
         (nx,) array
             The estimate, predicted over the delay when the rig compensates it.
         """
-        import mujoco
-
         t = k * float(m.opt.timestep)
         if self.sampler is None:
             y = x_hat = np.concatenate([d.qpos, d.qvel])
@@ -228,8 +227,8 @@ def build_rig(model, loop: LoopOptions | None, *, task: str = "balance") -> Rig 
     lag = delay_steps(loop.delay, h)
     name = loop.estimator_for(task)
     if name == "none" and loop.sensed:
-        raise RigError("--estimator none gives the controller MuJoCo's exact state, so sensor options (encoders, "
-                       "noise) would not be used; pick --estimator kf, ekf or mhe, or drop the sensor options.")
+        raise RigError("`estimator='none'` gives the controller MuJoCo's exact state, so sensor options (encoders, "
+                       "noise) would not be used; pick an `estimator` (kf, ekf or mhe), or drop the sensor options.")
     if steps == 1 and lag == 0 and name == "none":
         return None
     spec = make = None
@@ -248,8 +247,6 @@ def estimator_factory(model, loop: LoopOptions, name: str, steps: int):
     EstimationError
         Unknown sensors, an unobservable pair, a bad horizon.
     """
-    from cartpole.estimation import initial_state, measurement_function, sensor_spec
-
     spec = sensor_spec(model, encoder_cpr=loop.encoder_cpr, encoder_resolution=loop.encoder_resolution,
                        noise_std=loop.sensor_noise)
     h = measurement_function(model, spec)
@@ -259,15 +256,11 @@ def estimator_factory(model, loop: LoopOptions, name: str, steps: int):
     first = (lambda y: initial_state(model, spec, y))  # noqa: E731
     noise = {} if loop.process_noise is None else {"accel_std": float(loop.process_noise)}
     if name == "kf":
-        from cartpole.estimation.kalman import KalmanFilter as cls
-        extra = {}
+        cls, extra = KalmanFilter, {}
     elif name == "ekf":
-        from cartpole.estimation.ekf import ExtendedKalmanFilter as cls
-        extra = {}
+        cls, extra = ExtendedKalmanFilter, {}
     elif name == "mhe":
-        from cartpole.estimation import MovingHorizonEstimator as cls
-        from cartpole.estimation import horizon_periods
-
+        cls = MovingHorizonEstimator
         extra = {} if loop.mhe_horizon is None else {
             "horizon": horizon_periods(loop.mhe_horizon, steps * float(model.dt))}
     else:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import mujoco
 import numpy as np
 
 from cartpole._arrays import readonly
@@ -144,8 +145,6 @@ class Rollout:
 def make_mujoco(plant: Plant = None):
     """Compile a fresh ``(MjModel, MjData)`` for a plant: params or a model (from their MJCF path, else their XML
     text) or an MJCF path (None = shipped asset); any number of joints and actuators."""
-    import mujoco
-
     if isinstance(plant, (CartPoleParams, CartPoleModel)):
         m = mujoco_model(plant_params(plant))  # a URDF's params: their MJCF text, with the motors added
     else:
@@ -164,8 +163,6 @@ def source_path(plant: Plant) -> str:
 
 def _check_state(x0, m) -> np.ndarray:
     """The start state as a float (nq + nv,) array for MuJoCo model ``m``, or one sentence saying what is wrong."""
-    import mujoco
-
     nx = m.nq + m.nv
     x0 = np.asarray(x0, dtype=float).ravel()
     if x0.shape != (nx,):
@@ -186,8 +183,6 @@ def ctrl_bounds(m) -> tuple[np.ndarray, np.ndarray]:
 
 def cart_body(m) -> int:
     """Index of the cart's body in the MjModel ``m``: the body of the first slide joint."""
-    import mujoco
-
     for j in range(m.njnt):
         if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
             return int(m.jnt_bodyid[j])
@@ -213,8 +208,6 @@ class WarningWatch:
     """
 
     def __init__(self, d):
-        import mujoco
-
         self.indices = tuple(int(getattr(mujoco.mjtWarning, name)) for name in INSTABILITY_WARNINGS)
         self.names = tuple(name.removeprefix("mjWARN_") for name in INSTABILITY_WARNINGS)
         self.base = self.counts(d)
@@ -294,8 +287,6 @@ def simulate(plant: Plant, controller: Controller, x0, duration: float, *,
         None when MuJoCo found no contact in any step, else the first one (:func:`first_contact`: ``t``, ``geom1``,
         ``geom2``, ``dist``) and ``steps``, the number of steps that ended in contact.
     """
-    import mujoco
-
     m, d = make_mujoco(plant)
     x0 = _check_state(x0, m)
     nq, nv, nu = m.nq, m.nv, m.nu
@@ -399,8 +390,6 @@ def _generalized_force(f, nv: int, t: float) -> np.ndarray:
 def first_contact(m, d, t: float) -> dict:
     """The first of MuJoCo's active contacts in ``d`` as a JSON-ready dict: ``t`` (s), ``geom1``, ``geom2`` (names, or
     ``"geom N"``) and ``dist`` (m, negative when penetrating)."""
-    import mujoco
-
     c = d.contact[0]
     name = lambda g: mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"geom {int(g)}"  # noqa: E731
     return {"t": float(t), "geom1": name(c.geom1), "geom2": name(c.geom2), "dist": float(c.dist)}
@@ -448,8 +437,6 @@ def replay(plant: Plant, x0, ctrl, *, push=None, qfrc_applied=None) -> Rollout:
     (s) of the step in which MuJoCo first warned of an unstable simulation (:data:`INSTABILITY_WARNINGS`), else
     None: a replay does not stop there (a log that :func:`simulate` ended at its divergence ends at that step).
     """
-    import mujoco
-
     m, d = make_mujoco(plant)
     x0 = _check_state(x0, m)
     nq, nv, nu = m.nq, m.nv, m.nu

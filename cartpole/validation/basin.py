@@ -36,12 +36,18 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
+import cartpole.control.linear
+import cartpole.sim.batch
 from cartpole._arrays import readonly
+from cartpole._files import OutputError
+from cartpole.codegen import cache_dir, private_dir, read_verified, write_verified
 from cartpole.control.linear import LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, plant_params, state_error
@@ -303,8 +309,6 @@ def basin_key(params: CartPoleParams, catch: LinearFeedback, **settings) -> str:
     BasinError
         A setting :func:`estimate_basin` does not take.
     """
-    import mujoco
-
     unknown = set(settings) - set(DEFAULTS) - {"progress"}
     if unknown:
         raise BasinError(f"Unknown basin setting(s) {', '.join(sorted(unknown))}; use {', '.join(DEFAULTS)}.")
@@ -323,11 +327,6 @@ def basin_key(params: CartPoleParams, catch: LinearFeedback, **settings) -> str:
 def _code_digest() -> str:
     """SHA-256 of the source of the code an estimate runs (this module, the batch rollouts, the linear law), so an
     edit to it never finds a stale estimate on disk."""
-    import sys
-
-    import cartpole.control.linear
-    import cartpole.sim.batch
-
     h = hashlib.sha256()
     for mod in (__name__, cartpole.sim.batch.__name__, cartpole.control.linear.__name__):
         try:
@@ -338,8 +337,6 @@ def _code_digest() -> str:
 
 
 def _default_directory() -> Path:
-    from cartpole.codegen import cache_dir
-
     return cache_dir() / "basins"
 
 
@@ -350,9 +347,6 @@ _SCALARS = ("rho", "rho_sampled", "rho_cover", "n", "seed", "level", "duration",
 def _save(path: Path, est: BasinEstimate) -> None:
     """Write ``est`` as ``.npz`` with its content hash beside it (:func:`cartpole.codegen.write_verified`, each whole
     or not at all); an unwritable cache is skipped silently (it is a cache)."""
-    from cartpole._files import OutputError
-    from cartpole.codegen import private_dir, write_verified
-
     buf = io.BytesIO()
     arrays = {k: np.asarray(getattr(est, k)) for k in _ARRAYS if getattr(est, k) is not None}
     np.savez(buf, **arrays, scalars=np.array([float(getattr(est, k)) for k in _SCALARS]))
@@ -385,8 +379,6 @@ def plausible(est: BasinEstimate) -> bool:
 def _load(path: Path, mjcf: str) -> BasinEstimate | None:
     """The estimate stored at ``path``, or None when absent, unreadable, not the content recorded when it was saved
     (:func:`cartpole.codegen.read_verified`) or not :func:`plausible` (then it is estimated again)."""
-    from cartpole.codegen import read_verified
-
     data = read_verified(path)
     if data is None:
         return None
@@ -444,8 +436,6 @@ class BasinCache:
         est = None
         path = None if self.directory is None else Path(self.directory) / f"{key}.npz"
         if path is not None:
-            from cartpole.codegen import private_dir
-
             try:  # a basins directory others may write to is refused (CacheError), never read
                 private_dir(path.parent)
             except OSError:  # cannot be created: no disk cache this time

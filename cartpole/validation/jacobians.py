@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from cartpole.models import CartPoleModel, CartPoleParams, Plant
@@ -31,8 +32,6 @@ def mujoco_fd_jacobians(plant: Plant, x, u, *, eps: float = 1e-6,
     -------
     (A (nx, nx), B (nx, nu))
     """
-    import mujoco
-
     m, d = _md if _md is not None else make_mujoco(plant)
     x = np.asarray(x, float)
     u = np.atleast_1d(np.asarray(u, float))

@@ -12,13 +12,13 @@ Angle *errors* from ``x_eq`` are wrapped to (-pi, pi]; states are never wrapped.
 
 Two settling times, because they answer different questions:
 
-* :func:`settling_time_seed` is the lab handout's definition, computed exactly as its ``settling_time``
+* :func:`settling_time_seed` is the balance lab's definition, computed exactly as its ``settling_time``
   does, applied to every pole angle: find every sample where some ``|theta_i - theta_i*| > 0.05 rad``; none ->
-  ``0.0``; otherwise the time of the sample *after* the last exceedance. For one pole this is the handout's
+  ``0.0``; otherwise the time of the sample *after* the last exceedance. For one pole this is the lab's
   function. It looks at the pole angles only, so a cart still rolling back to the middle (or a pole still
   swinging inside the band) counts as settled. One deviation: when the very last sample still exceeds the
-  band the handout returns the final time stamp, which reads as "settled at the end"; we return ``inf`` (never
-  settled). The handout logged the state *before* each of its 1200 steps (t = 0 .. 5.995 s); a
+  band the lab's code returns the final time stamp, which reads as "settled at the end"; we return ``inf`` (never
+  settled). The lab's code logged the state *before* each of its 1200 steps (t = 0 .. 5.995 s); a
   :class:`Rollout` also holds the final state (t = 6.0 s), which changes nothing unless the run never settles.
 * :func:`settling_time_strict` asks for the whole state: the first time after which every entry of the state
   error ``x - x*`` (angle entries wrapped) stays within :data:`STRICT_TOLERANCE` (0.01 m, rad, m/s or rad/s)
@@ -45,7 +45,7 @@ from cartpole.models import CartPoleParams, state_error, wrap_angle
 from cartpole.ocp import dmc
 from cartpole.sim.disturbance import UPRIGHT_BAND
 
-#: Upright band on every wrapped |theta_i - theta_i*| in rad: the lab handout's settling band, the swing-up's
+#: Upright band on every wrapped |theta_i - theta_i*| in rad: the balance lab's settling band, the swing-up's
 #: upright test and the catch basin's final-state test.
 UPRIGHT_TOL = 0.05
 
@@ -103,7 +103,7 @@ def pole_angle_errors(x, *, x_eq=None, hinges=None) -> np.ndarray:
 
 
 def settling_time_seed(t, x, *, band: float = UPRIGHT_TOL, x_eq=None, hinges=None) -> float:
-    """The lab handout's settling time: the time after which every ``|theta_i - theta_i*|`` stays within ``band``.
+    """The balance lab's settling time: the time after which every ``|theta_i - theta_i*|`` stays within ``band``.
 
     Parameters
     ----------
@@ -111,16 +111,16 @@ def settling_time_seed(t, x, *, band: float = UPRIGHT_TOL, x_eq=None, hinges=Non
     x : (n+1, 2 nq) array
         States ``[qpos, qvel]``; only the pole angles (rad) are used.
     band : float, rad
-        The handout's threshold, :data:`UPRIGHT_TOL` (0.05 rad).
+        The lab's threshold, :data:`UPRIGHT_TOL` (0.05 rad).
     x_eq : (2 nq,) array, optional
         Upright equilibrium (default the origin); the wrapped errors ``theta_i - theta_i*`` are tested.
     hinges : sequence of int, optional
-        qpos indices of the pole angles (default ``1 .. nq-1``: one pole -> column 1, the handout's).
+        qpos indices of the pole angles (default ``1 .. nq-1``: one pole -> column 1, the lab's).
 
     Returns
     -------
     float, s
-        ``t[0]`` (the handout's ``0.0`` for a run from t = 0) if no angle error ever exceeds ``band``; otherwise
+        ``t[0]`` (the lab's ``0.0`` for a run from t = 0) if no angle error ever exceeds ``band``; otherwise
         ``t`` of the sample after the last sample where one does; ``inf`` when that last exceedance is the
         final sample. For a swing-up this is the time to upright.
     """

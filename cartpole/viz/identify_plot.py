@@ -5,6 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cartpole._files import atomic_path
+
 
 def identify_figure(log, simulations: dict, params, *, title: str | None = None):
     """Measured positions of ``log`` and each model's open-loop simulation, one panel per joint.
@@ -46,8 +48,6 @@ def identify_figure(log, simulations: dict, params, *, title: str | None = None)
 
 def plot_identify(log, simulations: dict, params, path, *, title: str | None = None, dpi: int = 120) -> Path:
     """Write :func:`identify_figure` to ``path`` (PNG) whole or not at all; returns the path."""
-    from cartpole._files import atomic_path
-
     fig = identify_figure(log, simulations, params, title=title)
     with atomic_path(path, suffix=".png") as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")

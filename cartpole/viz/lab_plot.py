@@ -2,9 +2,9 @@
 for each initial condition.
 
 Drawn with matplotlib's object API on an Agg canvas (no pyplot, no global backend switch), laid out as the
-handout's: stacked axes sharing time (one per pole angle, then the cart, then one per actuator), one line per
-start labelled ``θ₀=5°, x₀=0, ts=0.06s`` (first pole's start angle, start cart position, the handout's settling
-time), a legend, units, and the mean ± population std of the handout's settling time in the title. Angles are
+lab's: stacked axes sharing time (one per pole angle, then the cart, then one per actuator), one line per
+start labelled ``θ₀=5°, x₀=0, ts=0.06s`` (first pole's start angle, start cart position, the lab's settling
+time), a legend, units, and the mean ± population std of the lab's settling time in the title. Angles are
 drawn as wrapped errors from the equilibrium ``x*``, so a pole one turn away reads as upright. Written whole or not
 at all (:func:`~cartpole._files.atomic_write`).
 """
@@ -44,7 +44,7 @@ def plot_lab(result, path, *, dpi: int = 120) -> Path:
     path : str or Path
         Output PNG (parent directories are created).
     dpi : int
-        Resolution; the figure is 10 inches wide and 2 inches high per panel (at least 6, as the handout's).
+        Resolution; the figure is 10 inches wide and 2 inches high per panel (at least 6, as the lab's).
 
     Returns
     -------

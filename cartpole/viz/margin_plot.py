@@ -32,7 +32,7 @@ def margin_figure(found: dict, *, title: str | None = None):
     Returns
     -------
     matplotlib.figure.Figure
-        Two panels sharing the setting's axis: the worst start's handout settling time (s) and the largest pole
+        Two panels sharing the setting's axis: the worst start's settling time (s) and the largest pole
         error over the runs' last second (mrad); a failed value is a cross, the margin a dashed vertical line.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -59,7 +59,7 @@ def margin_figure(found: dict, *, title: str | None = None):
         if found.get(name) is not None:
             for ax in (ax_t, ax_e):
                 ax.axvline(scale * found[name], color=colour, linestyle="--", linewidth=1)
-    ax_t.set_ylabel("worst start's settling time (s)\n(handout: |theta| <= 0.05 rad)")
+    ax_t.set_ylabel("worst start's settling time (s)\n(|theta| <= 0.05 rad)")
     ax_e.set_ylabel("largest pole error\nover the last 1 s (mrad)")
     ax_e.set_xlabel(xlabel)
     values = sorted({scale * r[setting] for name in CONTROLLERS for r in found.get(f"{name}_runs") or ()} - {0.0})

@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
 from cartpole.viz.scene import LINK_COLOURS, VideoUnavailable
 
@@ -103,8 +104,6 @@ def mode_labels(modes, times) -> list | None:
 
 
 def _font(size: int, mono: bool = False):
-    from PIL import ImageFont
-
     try:
         import matplotlib
 
@@ -142,8 +141,6 @@ class Overlay:
     INK = (15, 15, 15)
 
     def __init__(self, width: int, height: int, n_poles: int, ctrl_names, ctrl_range, ctrl_scale, show_mode: bool):
-        from PIL import Image, ImageDraw
-
         self.w, self.h = width, height
         self.fs = max(9, int(round(height / 24)))
         self.font = _font(self.fs, mono=True)
@@ -180,8 +177,6 @@ class Overlay:
 
     def draw(self, frame: np.ndarray, t: float, angles_deg, ctrl, mode: str | None) -> np.ndarray:
         """The frame (h, w, 3) uint8 with the overlay: time ``t`` (s), ``angles_deg`` (n_poles,), ``ctrl`` (nu,)."""
-        from PIL import Image, ImageDraw
-
         p, L, fs = self.pad, self.line, self.fs
         n = len(angles_deg)
         top_w = min(self.w, self.t_w + min(n, self.per_row) * self.item_w + 2 * p)
@@ -259,8 +254,6 @@ def write_gif(frames, path: Path, fps: float) -> None:
     """Write ``frames`` (a list of ``PIL.Image``, RGB) to ``path`` as an animated GIF at ``fps`` frames per second:
     one palette for every frame (no flicker, small), looping, frame delays that average exactly ``1 / fps`` s.
     Nothing is written for an empty list."""
-    from PIL import Image
-
     if not frames:
         return
     sample = frames[:: max(1, len(frames) // 6)][:6]

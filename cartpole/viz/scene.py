@@ -28,11 +28,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
-from cartpole.models import CartPoleParams, is_urdf, load_model
-from cartpole.sim import ctrl_bounds, make_mujoco
+from cartpole.models import CartPoleParams, is_urdf, load_model, plant_model
+from cartpole.sim import ctrl_bounds, make_mujoco, source_path
 
 #: Display colours (RGB, 0..1) of the links, first pole first; more links than colours cycle.
 LINK_COLOURS = ((0.86, 0.15, 0.15), (0.97, 0.60, 0.05), (0.15, 0.62, 0.20), (0.55, 0.30, 0.78),
@@ -93,7 +94,6 @@ def upright_qpos(plant, model, nq: int) -> np.ndarray | None:
         return np.asarray(model.x_eq, float)[:nq]
     if hasattr(plant, "x_eq"):
         return np.asarray(plant.x_eq, float)[:nq]
-    from cartpole.models import plant_model
 
     try:
         return np.asarray(plant_model(plant).x_eq, float)[:nq]
@@ -103,15 +103,12 @@ def upright_qpos(plant, model, nq: int) -> np.ndarray | None:
 
 def _spec(source):
     """A fresh ``mujoco.MjSpec`` of the source (its MJCF file, else its XML text)."""
-    import mujoco
-
     params = source.params if hasattr(source, "params") and isinstance(source.params, CartPoleParams) else source
     make_mujoco(params)  # validates the source with the toolkit's one-sentence errors
     if isinstance(params, CartPoleParams):
         if params.mjcf and params.urdf is None:
             return mujoco.MjSpec.from_file(params.mjcf)
         return mujoco.MjSpec.from_string(params.xml)  # MJCF text, or a URDF's with its motors
-    from cartpole.sim import source_path
 
     path = source_path(params)
     _, _, text = load_model(path)
@@ -168,8 +165,6 @@ def build_display(plant, *, width: int, height: int, floor_z: float | None = Non
     ``floor_z`` (m): the height of the floor added when the MJCF has no plane of its own (None: none added). The
     physics model is only read. Raises :class:`VideoUnavailable` when the copy does not compile.
     """
-    import mujoco
-
     spec = _spec(plant)
     spec.visual.global_.offwidth = max(int(width), int(spec.visual.global_.offwidth))
     spec.visual.global_.offheight = max(int(height), int(spec.visual.global_.offheight))
@@ -207,7 +202,7 @@ def build_display(plant, *, width: int, height: int, floor_z: float | None = Non
         m = spec.compile()
     except Exception as exc:
         raise VideoUnavailable(f"The render-only copy of the MJCF does not compile ({first_line(exc, FOREIGN_WIDTH)}); "
-                               "skip the video (--no-video).") from None
+                               "skip the video (`video=False`).") from None
     d = mujoco.MjData(m)
     hinges, link_geoms = [], []
     slide = None
@@ -245,8 +240,6 @@ def build_display(plant, *, width: int, height: int, floor_z: float | None = Non
 def geom_extents(disp: Display, qpos) -> np.ndarray:
     """Extents of the moving geoms at each row of ``qpos`` (n, nq): (n, 4) ``[h_min, h_max, v_min, v_max]`` in m,
     along ``disp.h_axis`` and ``disp.up``, over every geom in ``disp.moving`` (``disp.d`` is left at the last row)."""
-    import mujoco
-
     m, d = disp.m, disp.d
     g = disp.moving
     types, size = m.geom_type[g], m.geom_size[g]
@@ -296,7 +289,7 @@ class CameraPath:
     follows: bool
 
 
-def camera_path(ext: np.ndarray, upright: np.ndarray, *, aspect: float, h_axis, up, depth_point, fps: float,
+def camera_path(ext: np.ndarray, upright: np.ndarray, *, aspect: float, axes, depth_point, fps: float,
                 fovy: float = FOVY, elevation: float = ELEVATION, cart=None, reserve=(0.0, 0.0)) -> CameraPath:
     """Frame a run: per-frame extents ``ext`` (n, 4) ``[h_min, h_max, v_min, v_max]`` of the moving geoms, plus the
     vertical extent ``upright`` (2,) of the chain at ``x_eq`` (its full height, always in the frame).
@@ -306,8 +299,10 @@ def camera_path(ext: np.ndarray, upright: np.ndarray, *, aspect: float, h_axis, 
     wider, the camera backing off) the camera stands still, centred on the run; otherwise it follows ``cart`` (n,)
     (h coordinate, m) smoothed over :data:`FOLLOW_SMOOTHING` s, clamped so each frame's system stays inside.
     ``reserve`` = (top, bottom): fractions of the frame's height kept free of the system (the overlay's bands).
+    ``axes`` = (h_axis, up): the world directions (3,) of the frame's horizontal and vertical (a :class:`Display`'s
+    ``h_axis`` and ``up``); ``depth_point`` (3,) sets the camera's distance along the third.
     """
-    h_axis, up = np.asarray(h_axis, float), np.asarray(up, float)
+    h_axis, up = (np.asarray(a, float) for a in axes)
     n = len(ext)
     v_lo = min(ext[:, 2].min(), upright[0])
     v_hi = max(ext[:, 3].max(), upright[1])
@@ -346,8 +341,6 @@ def thicken_poles(disp: Display, view_height: float) -> None:
     """Draw the pole capsules (and cylinders) of the render-only copy ``disp.m`` with radius :data:`RADIUS_FRACTION`
     times ``view_height`` (m, the height of the system's plane the frame spans), at most
     :data:`MAX_RADIUS_FRACTION` of the link's length and never thinner than the MJCF's (changes ``geom_size``)."""
-    import mujoco
-
     m = disp.m
     for gs in disp.link_geoms:
         for g in gs:

@@ -33,7 +33,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
+import imageio_ffmpeg
+import mujoco
 import numpy as np
+from PIL import Image
 
 from cartpole._files import atomic_path
 from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
@@ -41,15 +44,8 @@ from cartpole.models import CartPoleParams, wrap_angle
 from cartpole.progress import stage
 from cartpole.sim import Rollout
 from cartpole.viz.overlay import Overlay, mode_labels, preview_window, write_gif
-from cartpole.viz.scene import (
-    VideoUnavailable,
-    build_display,
-    camera_path,
-    frame_indices,
-    geom_extents,
-    thicken_poles,
-    upright_qpos,
-)
+from cartpole.viz.scene import (VideoUnavailable, build_display, camera_path, frame_indices, geom_extents,
+                                thicken_poles, upright_qpos)
 
 
 @dataclass(frozen=True)
@@ -113,8 +109,6 @@ class VideoInfo:
 
 def _gl_renderer(m, height, width):
     """``mujoco.Renderer``, or VideoUnavailable naming the backend and the reason it could not make a context."""
-    import mujoco
-
     # GL front ends (glfw) report through warnings as well as exceptions: keep them off stderr, use the first
     # as the reason since it usually names the cause (e.g. "The DISPLAY environment variable is missing").
     with warnings.catch_warnings(record=True) as caught:
@@ -138,8 +132,6 @@ class _Scene:
 
     def __init__(self, source, rollout, *, fps, width, height, camera=None, modes=None, model=None, x_eq=None,
                  overlay=True):
-        import mujoco
-
         self.width, self.height = int(width) // 2 * 2, int(height) // 2 * 2  # even sizes keep yuv420p happy
         if self.width < 2 or self.height < 2:
             raise VideoUnavailable(f"The frame size {self.width}x{self.height} is too small; give width and "
@@ -184,8 +176,9 @@ class _Scene:
             d.qpos[:] = qpos[0]
             mujoco.mj_kinematics(m, d)
             depth_point = d.xpos[1] if m.nbody > 1 else np.zeros(3)
-            self.camera_path = camera_path(ext, ext_up[2:], aspect=self.width / self.height, h_axis=disp.h_axis,
-                                           up=disp.up, depth_point=depth_point, fps=fps, cart=cart, reserve=reserve)
+            self.camera_path = camera_path(ext, ext_up[2:], aspect=self.width / self.height,
+                                           axes=(disp.h_axis, disp.up), depth_point=depth_point, fps=fps,
+                                           cart=cart, reserve=reserve)
             thicken_poles(disp, self.camera_path.view_height)
             self.cam = mujoco.MjvCamera()
             self.cam.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -203,8 +196,6 @@ class _Scene:
 
     def frame(self, i: int) -> np.ndarray:
         """Frame ``i`` (height, width, 3) uint8, overlay included."""
-        import mujoco
-
         m, d, k = self.disp.m, self.disp.d, int(self.idx[i])
         r = self.rollout
         d.qpos[:] = r.qpos[k]
@@ -257,9 +248,6 @@ def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, p
 
     Returns ``(frames, preview_frames)``.
     """
-    import imageio_ffmpeg
-    from PIL import Image
-
     scene = _Scene(source, rollout, fps=fps, width=width, height=height, camera=camera, modes=modes, model=model,
                    x_eq=x_eq, overlay=overlay)
     width, height = scene.width, scene.height

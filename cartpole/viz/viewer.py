@@ -45,7 +45,9 @@ import time
 from pathlib import Path
 from typing import Callable
 
+import mujoco
 import numpy as np
+from PIL import ImageGrab
 
 from cartpole._files import atomic_write
 from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
@@ -174,8 +176,6 @@ def grab_screen(box: tuple[int, int, int, int] | None = None):
     """A PIL image of what the X screen (``DISPLAY``) shows inside ``box = (x, y, width, height)``, e.g. a window
     :func:`find_window` found, or the whole screen (``box=None``). Raises ViewerUnavailable when the screen cannot be
     read."""
-    from PIL import ImageGrab
-
     display = os.environ.get("DISPLAY", "")
     try:
         screen = ImageGrab.grab(xdisplay=display or None)
@@ -245,7 +245,6 @@ class LiveViewer:
         why = _display_problem()
         if why is not None:
             raise _unavailable(why)
-        import mujoco
         try:
             import mujoco.viewer
         except Exception as exc:  # no glfw wheel, no libglfw handle
@@ -281,8 +280,6 @@ class LiveViewer:
         self._next_frame = self._anchor + 1.0 / MAX_FPS
 
     def _sync(self, m, d) -> None:
-        import mujoco
-
         mujoco.mj_getState(m, d, self._state, self._spec)
         self._viewer.sync()
         mujoco.mj_setState(m, d, self._state, self._spec)

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import inspect
 import json
 import os
 import signal
@@ -45,6 +46,7 @@ import threading
 import time
 from typing import Protocol
 
+import mujoco
 import numpy as np
 
 from cartpole._files import atomic_write
@@ -198,8 +200,6 @@ def _handles(messages, cls):
     """Studio's ``messages.handler`` for a method handling ``cls`` (its annotation set here: this module's
     annotations are strings, which Studio resolves in the module's globals, where Studio's classes are not)."""
     def deco(fn):
-        import inspect
-
         name = list(inspect.signature(fn).parameters)[1]
         fn.__annotations__ = {name: cls, "return": None}
         return messages.handler(fn)
@@ -229,7 +229,6 @@ def _make_plugins(live: "WebLive"):
         @_handles(messages, plugin.ViewerInitEvent)
         def on_init(self, event) -> None:
             from mujoco.studio import ux
-            import mujoco
 
             ux.setup_theme(ux.GuiTheme.LIGHT)
             model = event.viewer.model
@@ -426,8 +425,6 @@ class WebLive(LiveViewer):
     def open(self, m, d) -> None:
         """Start the web viewer on ``(m, d)`` (done by the first call); raises WebUnavailable (one sentence) when
         Studio is missing or the port is taken."""
-        import mujoco
-
         launch_thread, messages, plugin, viewer_protocol, web_viewer, _, _ = _studio()
         if not port_free(self.host, self.port):
             raise WebUnavailable(f"Port {self.port} on {self.host} is in use; pass another port (0 picks the first "
@@ -535,8 +532,6 @@ class WebLive(LiveViewer):
     def _show(self, m, d) -> None:
         """Hand the viewer a copy of the state now and trade messages with the page (the run's MjData is never
         given to Studio: the handle holds no model, so nothing from the page can reset or move the run)."""
-        import mujoco
-
         mujoco.mj_getState(m, d, self._state, self._spec)
         self._handle.send_to_viewer(self._state_msg(state=self._state.copy(), state_sig=int(self._spec)))
         self._t_now = float(d.time)
@@ -714,8 +709,6 @@ def _complex_text(c) -> str:
 
 
 def _plot_names(m) -> tuple:
-    import mujoco
-
     names = []
     for j in range(m.njnt):
         unit = "m" if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE else "rad"

@@ -266,10 +266,10 @@ def test_pid_regulates_to_the_labs_equilibrium_on_a_rail_off_the_origin(tmp_path
 
 
 def test_pid_on_a_two_pole_cart_is_refused_in_one_sentence_before_anything_runs(monkeypatch):
-    import cartpole.sim
+    import cartpole.apps.lab
     from cartpole.control.pid import PIDError
 
-    monkeypatch.setattr(cartpole.sim, "simulate", None)  # a run attempted would fail with a TypeError
+    monkeypatch.setattr(cartpole.apps.lab, "simulate", None)  # a run attempted would fail with a TypeError
     with pytest.raises(PIDError) as err:
         run_pid_lab(SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
     msg = str(err.value)

@@ -66,13 +66,13 @@ def test_u_max_and_cart_max_replace_the_bounds_inside_the_files():
 
 
 @pytest.mark.parametrize("kw, words", [
-    ({"u_max": 2.0}, ["wider than", "ctrlrange", "--u-max at most 1"]),
-    ({"cart_max": 2.0}, ["wider than", "slide range", "--cart-max at most 1.5"]),
-    ({"u_max": -1.0}, ["not a positive", "--u-max"]),
-    ({"cart_max": float("nan")}, ["not a positive", "--cart-max"]),
+    ({"u_max": 2.0}, ["wider than", "ctrlrange", "`u_max` at most 1"]),
+    ({"cart_max": 2.0}, ["wider than", "slide range", "`cart_max` at most 1.5"]),
+    ({"u_max": -1.0}, ["not a positive", "`u_max`"]),
+    ({"cart_max": float("nan")}, ["not a positive", "`cart_max`"]),
     ({"u_max": [1.0, 1.0]}, ["2 values", "1 actuator"]),
 ])
-def test_a_bound_mujoco_would_not_honour_is_refused_naming_the_option(kw, words):
+def test_a_bound_mujoco_would_not_honour_is_refused_naming_the_argument(kw, words):
     with pytest.raises(LimitsError) as info:
         planning_limits(read_params(), **kw)
     msg = str(info.value)
@@ -88,7 +88,7 @@ def test_a_hinge_driven_pendulum_without_ctrlrange_gets_the_horizontal_holding_t
     m, l, _ = p.carried_by(p.hinges[0])
     assert q.ctrl_range[0][1] == pytest.approx(m * 9.80665 * l / abs(p.actuators[0].gear), rel=1e-3)
     assert lim.cart_range is None and "horizontal" in lim.notes[0]
-    with pytest.raises(LimitsError, match="no slide joint; drop --cart-max"):
+    with pytest.raises(LimitsError, match="no slide joint; drop it"):
         planning_limits(p, cart_max=1.0)
 
 

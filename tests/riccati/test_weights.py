@@ -1,36 +1,47 @@
-"""The lab's default weights: Q_LAB, R_LAB as the handout's, and the same pattern for any chain of poles."""
+"""The default weights: 1 per slide, 10 per hinge, 0.1 per rate and per input, for any chain of poles; for one pole
+the lab's Q_LAB, R_LAB (the handout's)."""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import cartpole as cp
-from cartpole.riccati import Q_LAB, R_LAB, lab_weights
+from cartpole import riccati
+from cartpole.apps.lab import Q_LAB, R_LAB
+from cartpole.riccati import ONE_POLE, default_weights
 
 
-def test_lab_weights_are_the_handouts_and_read_only():
+def test_the_labs_weights_are_the_handouts_and_read_only():
     np.testing.assert_array_equal(Q_LAB, np.diag([1.0, 10.0, 0.1, 0.1]))
     np.testing.assert_array_equal(R_LAB, [[0.1]])
     assert not Q_LAB.flags.writeable and not R_LAB.flags.writeable
     assert cp.Q_LAB is Q_LAB and cp.R_LAB is R_LAB  # the package top re-exports them
+    assert cp.default_weights is default_weights
+
+
+def test_the_old_names_are_the_new_ones_until_removed():
+    """``lab_weights``, ``riccati.Q_LAB`` and ``riccati.R_LAB`` (CHANGELOG) give what the new names give."""
+    assert riccati.lab_weights is default_weights
+    np.testing.assert_array_equal(riccati.Q_LAB, Q_LAB)
+    np.testing.assert_array_equal(riccati.R_LAB, R_LAB)
 
 
 def test_one_pole_pattern_is_q_lab_r_lab():
-    Q, R = lab_weights(SimpleNamespace(nq=2, nu=1))
+    Q, R = default_weights(ONE_POLE)
     np.testing.assert_array_equal(Q, Q_LAB)
     np.testing.assert_array_equal(R, R_LAB)
     Q[0, 0] = 5.0  # fresh arrays: the caller may change them
     assert Q_LAB[0, 0] == 1.0
 
 
-def test_the_symbolic_model_gives_the_lab_weights():
-    Q, R = lab_weights(cp.build_model())  # has nx and nu
+def test_the_symbolic_model_gives_the_default_weights():
+    Q, R = default_weights(cp.build_model())  # has nx and nu
     np.testing.assert_array_equal(Q, Q_LAB)
     np.testing.assert_array_equal(R, R_LAB)
 
 
 def test_chain_of_poles_default_layout():
-    Q, R = lab_weights(SimpleNamespace(nq=3, nu=1))  # cart, two hinges
+    Q, R = default_weights(SimpleNamespace(nq=3, nu=1))  # cart, two hinges
     np.testing.assert_array_equal(np.diag(Q), [1.0, 10.0, 10.0, 0.1, 0.1, 0.1])
     assert Q.shape == (6, 6) and np.count_nonzero(Q - np.diag(np.diag(Q))) == 0
     np.testing.assert_array_equal(R, [[0.1]])
@@ -41,6 +52,6 @@ def test_chain_of_poles_default_layout():
     ((0,), (1, 2), 2, [1.0, 10.0, 10.0]),     # a motor on a hinge too
 ])
 def test_named_joint_indices_are_used(slides, hinges, nu, q):
-    Q, R = lab_weights(SimpleNamespace(nq=3, nu=nu, slides=slides, hinges=hinges))
+    Q, R = default_weights(SimpleNamespace(nq=3, nu=nu, slides=slides, hinges=hinges))
     np.testing.assert_array_equal(np.diag(Q), [*q, 0.1, 0.1, 0.1])
     np.testing.assert_array_equal(R, 0.1 * np.eye(nu))

@@ -78,7 +78,7 @@ def test_runs_on_mjcf_sensors_replay_exactly_and_see_only_the_sensors(tmp_path):
 
 
 @pytest.mark.parametrize("loop, words", [
-    (LoopOptions(estimator="none", encoder_cpr=2048), "--estimator none"),
+    (LoopOptions(estimator="none", encoder_cpr=2048), "`estimator='none'`"),
     (LoopOptions(delay=0.007), "whole number"),
     (LoopOptions(period=0.013), "whole number"),
 ])

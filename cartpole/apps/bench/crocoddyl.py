@@ -36,6 +36,10 @@ import time
 import casadi as ca
 import numpy as np
 
+from cartpole.control.linear import LinearFeedback
+from cartpole.models import SHIPPED_MJCF, build_model
+from cartpole.solvers.ddp import DDP, DDPOptions
+
 #: The example's settings.
 DT, N, X0 = 0.01, 100, (3.14, 0.0, 0.0, 0.0)
 U_WEIGHT, X_WEIGHT, TERMINAL_WEIGHT = 1e-4, 1e-5, 100.0
@@ -48,8 +52,6 @@ def _residual(x):
 
 def example_model(name: str, model=None):
     """``model`` when given, else the shipped example MJCF ``cartpole/assets/examples/NAME`` built."""
-    from cartpole.models import SHIPPED_MJCF, build_model
-
     return build_model(SHIPPED_MJCF.parent / "examples" / name) if model is None else model
 
 
@@ -66,8 +68,6 @@ def double_pendulum_ddp(model=None, *, compiled: bool = True):
     -------
     (DDP, x0 (4,) array)
     """
-    from cartpole.solvers.ddp import DDP, DDPOptions
-
     model = example_model("crocoddyl_double_pendulum.xml", model)
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     r = _residual(x)
@@ -106,8 +106,6 @@ def cartpole_ddp(model=None, *, compiled: bool = True):
     -------
     (DDP, x0 (4,) array)
     """
-    from cartpole.solvers.ddp import DDP, DDPOptions
-
     model = example_model("crocoddyl_cartpole.xml", model)
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     running = ca.Function("croc_cp_running", [x, u], [_cartpole_cost(x, u) / CP_DT])
@@ -269,8 +267,6 @@ def crocoddyl_benchmark(*, repeats: int = 3) -> dict:
 def cartpole_lqr_guess(model=None) -> np.ndarray:
     """(N, 1) ctrl of the upright LQR (:meth:`~cartpole.control.linear.LinearFeedback.for_model`, the lab's
     weights) run from the cart-pole example's start on its exact step: the ctrl guess of ours there."""
-    from cartpole.control.linear import LinearFeedback
-
     model = example_model("crocoddyl_cartpole.xml", model)
     ctl = LinearFeedback.for_model(model)
     x, U = np.array(CP_X0), []

@@ -2,6 +2,11 @@
 encoders at a 10 ms period (medians of many updates, wall time; construction and compiles not timed)."""
 from __future__ import annotations
 
+from cartpole.estimation import measurement_function, sensor_spec
+from cartpole.estimation.ekf import bench_ekf
+from cartpole.estimation.mhe import bench_mhe
+from cartpole.models import plant_model, steps_per_period
+
 #: Control period (s) and MHE window (s) the benchmark uses: 10 periods of 10 ms.
 PERIOD = 0.01
 MHE_HORIZON = 0.1
@@ -23,11 +28,6 @@ def estimation_benchmark(plant=None, *, quick: bool = False) -> dict:
         ``period`` (s); ``mhe`` from :func:`~cartpole.estimation.mhe.bench_mhe` (ms); ``ekf`` from
         :func:`~cartpole.estimation.ekf.bench_ekf` (microseconds).
     """
-    from cartpole.estimation import measurement_function, sensor_spec
-    from cartpole.estimation.ekf import bench_ekf
-    from cartpole.estimation.mhe import bench_mhe
-    from cartpole.models import plant_model, steps_per_period
-
     model = plant_model(plant)
     steps = steps_per_period(PERIOD, model.dt)
     spec = sensor_spec(model, encoder_cpr=4096, encoder_resolution=0.0005, noise_std=0.001)

@@ -10,16 +10,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from cartpole.apps.lab import lab_initial_conditions
+from cartpole.export import design_export, export_files, load_design, run_lockstep
+from cartpole.export.folder import discard
+from cartpole.export.timing import time_steps
+from cartpole.models import plant_model
+from cartpole.sim.options import LoopOptions
+
 #: The rig of the benchmark: a 10 ms period from 2048-count encoders.
 PERIOD = 0.01
 ENCODER_CPR = 2048
 
 
 def _row(design, x0, duration: float, repeats: int) -> dict:
-    from cartpole.export import export_files, load_design, run_lockstep
-    from cartpole.export.folder import discard
-    from cartpole.export.timing import time_steps
-
     ctl, folder = load_design(design, "double")
     try:
         run = run_lockstep(design, ctl, x0, duration)
@@ -53,11 +56,6 @@ def export_benchmark(plant=None, *, quick: bool = False) -> dict:
         ``python_step_us_median``, ``..._max``, ``speedup_median`` (Python / C), ``steps``, ``max_ctrl_diff``,
         ``replayed_same_ctrl``.
     """
-    from cartpole.apps.lab import lab_initial_conditions
-    from cartpole.export import design_export
-    from cartpole.models import plant_model
-    from cartpole.sim.options import LoopOptions
-
     model = plant_model(plant)
     repeats = 2 if quick else 20
     lqr = design_export(model, "lqr", LoopOptions(period=PERIOD, estimator="kf", encoder_cpr=ENCODER_CPR))

@@ -5,19 +5,24 @@ IPOPT through CasADi (exact Hessian) on the same multiple-shooting least squares
 functions built inside both)."""
 from __future__ import annotations
 
+import re
 import tempfile
 import time
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
+
+import cartpole.apps.excite as excite_app
+from cartpole.identify.fit import PRIOR_STD, fit
+from cartpole.identify.parameters import parse_parameters, sample_step
+from cartpole.models import SHIPPED_MJCF, read_params
 
 #: Logged seconds per fit (``quick``: 5).
 SECONDS = 20.0
 
 
 def _variant(src: Path, dst: Path) -> Path:
-    import re
-
     text = src.read_text()
     text = text.replace('gear="20"', 'gear="24"')
     text = re.sub(r'damping="([0-9.]+)"', lambda m: f'damping="{1.3 * float(m.group(1)):g}"', text)
@@ -44,11 +49,6 @@ def ipopt_fit(p, params, log, *, segment_s: float = 0.1, regularization: float =
     dict
         ``solve_s`` (s, build included), ``iterations``, ``status``, ``fitted`` (SI units).
     """
-    import casadi as ca
-
-    from cartpole.identify.fit import PRIOR_STD
-    from cartpole.identify.parameters import sample_step
-
     t0 = time.perf_counter()
     nq, nx, np_ = p.nq, 2 * p.nq, len(params)
     Ts = log.sample_time
@@ -111,18 +111,13 @@ def identify_benchmark(*, quick: bool = False, baseline: bool = True) -> dict:
         Times in s; ``max_rel_error`` the largest relative error of a fitted parameter against the variant's
         truth (those with a nonzero truth).
     """
-    from cartpole.apps.excite import run_excite
-    from cartpole.identify.fit import fit
-    from cartpole.identify.parameters import parse_parameters
-    from cartpole.models import SHIPPED_MJCF, read_params
-
     seconds = 5.0 if quick else SECONDS
     carts = [SHIPPED_MJCF] if quick else [SHIPPED_MJCF, SHIPPED_MJCF.parent / "cartpole_two_pole.xml"]
     rows = []
     with tempfile.TemporaryDirectory(prefix="cartpole-bench-identify-") as tmp:
         for src in carts:
             truth = _variant(src, Path(tmp) / f"truth_{src.stem}.xml")
-            log = run_excite(truth, tmp, duration=seconds, encoder_cpr=2048, encoder_resolution=1e-4,
+            log = excite_app.run_excite(truth, tmp, duration=seconds, encoder_cpr=2048, encoder_resolution=1e-4,
                              csv_name=f"{src.stem}.csv").log
             p = read_params(src)
             names = ["gear:motor"] + [f"damping:{j}" for j in p.joint_names]

@@ -22,7 +22,11 @@ from __future__ import annotations
 import sys
 import timeit
 
+import mujoco
 import numpy as np
+
+from cartpole.apps.bench.trajopt import shipped_plan_models
+from cartpole.models import build_model, plant_model, plant_params
 
 
 def _median_per_call(fn, number: int, repeat: int) -> float:
@@ -52,10 +56,6 @@ def model_benchmark(plant, *, repeat: int = 7, calls: int = 2000, builds: int = 
         ``mjd_transitionFD_us`` (NaN for RK4), ``mj_forward_central_diff_us`` (microseconds per evaluation),
         ``ABd_speedup_vs_transitionFD``, ``AB_speedup_vs_forward_fd`` (ratios of those times).
     """
-    import mujoco
-
-    from cartpole.models import build_model, plant_model, plant_params
-
     repeat, calls, builds = max(1, int(repeat)), max(1, int(calls)), max(1, int(builds))
     slow = max(1, calls // 4)
     build_s = _median_per_call(lambda: build_model(plant_params(plant)), number=builds, repeat=repeat)
@@ -116,8 +116,6 @@ def shipped_model_benchmarks(mjcfs=None, *, repeat: int = 7, calls: int = 2000, 
     (:func:`cartpole.apps.bench.trajopt.shipped_plan_models`: "1 pole", "2 poles", "3 poles"). The other
     parameters as :func:`model_benchmark`.
     """
-    from cartpole.apps.bench.trajopt import shipped_plan_models
-
     items = shipped_plan_models() if mjcfs is None else list(mjcfs)
     return {label: model_benchmark(path, repeat=repeat, calls=calls, builds=builds) for label, path in items}
 

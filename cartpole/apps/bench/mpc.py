@@ -14,10 +14,11 @@ import time
 
 import numpy as np
 
-from cartpole.models import build_model, planning_limits, plant_params, read_params
+from cartpole.models import SHIPPED_MJCF, build_model, planning_limits, plant_params, read_params
+from cartpole.mpc.ddp_mpc import DDPMPCController
+from cartpole.mpc.ipopt_baseline import IpoptMPC
 from cartpole.mpc.nmpc import NMPCController
 from cartpole.mpc.options import MPCOptions
-from cartpole.mpc.ipopt_baseline import IpoptMPC
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import simulate
 from cartpole.validation.metrics import swingup_success
@@ -148,8 +149,6 @@ def run_mpc_benchmark(plant=None, *, period: float = 0.02, horizon: float = 1.2,
                     "success": all(ok_base), "unconverged": len(base.unconverged), "solver": "ipopt"}
     two_doc = None
     if two_pole or (ddp and ddp_two_pole):
-        from cartpole.models import SHIPPED_MJCF
-
         p2 = read_params(SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
         m2 = build_model(p2)
         plan2 = trajopt_swingup(p2, x0=m2.x_hanging, plan_model=m2)
@@ -170,8 +169,6 @@ def run_mpc_benchmark(plant=None, *, period: float = 0.02, horizon: float = 1.2,
 
 
 def _ddp_row(params, model, plan, options, x0, duration: float, repeats: int) -> dict:
-    from cartpole.mpc.ddp_mpc import DDPMPCController
-
     ddp = DDPMPCController(model, params, options=options.replace(solver="ddp"), guess=plan.trajectory, x0=x0)
     times, ok = _runs(ddp, params, x0, duration, max(1, int(repeats)))
     return {"solve_ms_median": float(np.median(times)), "solve_ms_max": float(np.max(times)), "steps": len(times),

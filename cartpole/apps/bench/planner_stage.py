@@ -16,6 +16,8 @@ one pole, the model's ``f`` else) from the same guess. An objective the model ca
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from cartpole.apps.bench.objectives import against_naive
@@ -87,13 +89,27 @@ def planner_stage_benchmark(models=None, *, objectives=STAGE_OBJECTIVES, N: int 
             except OCPError as exc:  # a task this model cannot have: said, not run
                 rows.append({"model": label, "mjcf": params.mjcf, "objective": name, "skipped": str(exc)})
                 continue
-            rows.append(_stage_row(model, params, label, obj, name, fast, T_min, margin, x0, bounds, f_hand, N,
-                                   repeats, say))
+            case = _Case(label, params, model, x0, bounds, f_hand, T_min, fast)
+            rows.append(_stage_row(case, obj, name, margin, N, repeats, say))
     return rows
 
 
-def _stage_row(model, params, label, obj, name, fast, T_min, margin, x0, bounds, f_hand, N, repeats, say) -> dict:
-    """One objective's stage from the minimum-time plan ``fast`` (module docstring), both solvers, one row."""
+class _Case(NamedTuple):
+    """One model's shared part of its rows: its minimum-time plan ``fast`` of ``T_min`` s from ``x0`` in
+    ``bounds``, and the hand-typed dynamics ``f_hand`` of the naive script."""
+    label: str
+    params: object
+    model: object
+    x0: np.ndarray
+    bounds: object
+    f_hand: object
+    T_min: float
+    fast: object
+
+
+def _stage_row(case: _Case, obj, name: str, margin: float, N: int, repeats: int, say) -> dict:
+    """One objective's stage from the minimum-time plan ``case.fast`` (module docstring), both solvers, one row."""
+    label, params, model, x0, bounds, f_hand, T_min, fast = case
     if obj.kind == "effort":
         T, plan = (1.0 + margin) * T_min, fast
     elif obj.kind == "time":

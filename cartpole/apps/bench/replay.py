@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import time
 
+import mujoco
+import mujoco.rollout
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
@@ -42,9 +44,6 @@ def replay_benchmark(plant=None, *, rollouts: int = 256, seconds: float = 2.0, r
         ``rollouts``, ``seconds_each``, ``nthread``, ``physics_steps`` (per repetition) and, with
         ``python_loop``, ``python_loop_steps_per_s``.
     """
-    import mujoco
-    import mujoco.rollout
-
     params = plant_params(plant)
     model = build_model(params)
     law = LinearFeedback.for_model(model)
@@ -86,8 +85,6 @@ def replay_benchmark(plant=None, *, rollouts: int = 256, seconds: float = 2.0, r
 
 def _python_loop_rate(m, law: LinearFeedback, X0, n: int) -> float:
     """Steps/s of the naive baseline: for each run, a Python loop of feedback + ``mj_step`` on one MjData."""
-    import mujoco
-
     d = mujoco.MjData(m)
     t0 = time.perf_counter()
     for x0 in X0:

@@ -29,10 +29,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import socket
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
+
+from cartpole.apps.forkserver import start_server
+from cartpole.apps.sweep import swingup_sweep
 
 
 def _trivial(i):
@@ -42,11 +48,7 @@ def _trivial(i):
 def engine_overhead(runs: int = 2000) -> dict:
     """ms per trivial task (a function returning a dict) on a 2-process pool started as the sweep's are
     (:func:`cartpole.apps.forkserver.start_server`) and on a 2-worker Dask LocalCluster, after warm-up."""
-    from concurrent.futures import ProcessPoolExecutor
-
     from distributed import Client, LocalCluster
-
-    from cartpole.apps.forkserver import start_server
 
     out = {}
     with ProcessPoolExecutor(2, mp_context=start_server("energy")) as pool:
@@ -67,8 +69,6 @@ def engine_overhead(runs: int = 2000) -> dict:
 def start_dask_cluster(workers: int = 2, *, timeout: float = 60.0) -> tuple[list, str]:
     """A Dask scheduler and ``workers`` single-threaded worker processes on loopback, each in a process of its own
     (``dask scheduler``, ``dask worker``); returns ``(processes, address)`` once every worker has joined."""
-    import socket
-
     from distributed import Client
 
     with socket.socket() as sock:
@@ -105,8 +105,6 @@ def stop_dask_cluster(procs: list) -> None:
 def timed_sweep(kw: dict, where: str, address: str | None = None) -> tuple[float, float, list]:
     """``(seconds, runs per s first to last run, rows)`` of one :func:`~cartpole.apps.sweep.swingup_sweep` on
     ``where`` (``"1"``, ``"2"``: local workers; ``"dask"``: the cluster at ``address``)."""
-    from cartpole.apps.sweep import swingup_sweep
-
     stamps = []
     t0 = time.perf_counter()
     res = swingup_sweep(None, **kw, **({"address": address} if where == "dask" else {"workers": int(where)}),
@@ -142,8 +140,6 @@ def fresh_sweep(kw: dict, where: str) -> float:
 def command_sweep(kw: dict, where: str) -> float:
     """Wall seconds of the whole command ``cartpole sweep --method M --n N --seed S --workers W --json`` (into a
     scratch ``--out``), from launch to exit, as a user timing it sees: the interpreter, the imports, everything."""
-    import tempfile
-
     exe = os.path.join(os.path.dirname(sys.executable), "cartpole")
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [exe, "sweep", "--method", kw["method"], "--n", str(kw["n"]), "--seed", str(kw["seed"]),
@@ -179,8 +175,6 @@ def parallel_capacity(n: int = 2_000_000, rounds: int = 3) -> dict:
     """How much faster two processes finish two copies of :func:`_burn` than one process finishes one copy twice:
     ``ratio = 2 t_one / t_two`` (2 on two free cores, 1 on one), medians of ``rounds`` alternated timings, with
     ``t_one`` the task alone in one process and ``t_two`` the wall time of two processes running it at once."""
-    from concurrent.futures import ProcessPoolExecutor
-
     one, two = [], []
     with ProcessPoolExecutor(2) as pool:
         list(pool.map(_burn, [1000, 1000]))  # both started
@@ -211,8 +205,6 @@ def main(argv=None) -> int:
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     where = list(dict.fromkeys(["1", *a.where]))
-
-    from cartpole.apps.sweep import swingup_sweep
 
     kw = dict(method=a.method, n=a.n, seed=0)
     load_before = os.getloadavg()

@@ -23,6 +23,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from cartpole.apps.bench.trajopt import shipped_plan_models
+from cartpole.models import read_params
+
 #: What each fresh process runs (``python -c``, the MJCF path as its argument); it prints one JSON line.
 _CHILD = r"""
 import json, sys, time
@@ -52,9 +55,6 @@ print(json.dumps({"import_s": t1 - t0, "plan_s": t2 - t1, "rollout_s": t3 - t2, 
 def shipped_chain_carts() -> dict[int, str]:
     """Path of each shipped cart by its number of poles (1, 2, 3), read from the MJCFs
     (:func:`cartpole.apps.bench.trajopt.shipped_plan_models`)."""
-    from cartpole.apps.bench.trajopt import shipped_plan_models
-    from cartpole.models import read_params
-
     return {len(read_params(path).hinges): path for _, path in shipped_plan_models()}
 
 

@@ -24,21 +24,28 @@ reuses a solver that already exists (the first, building call is not timed). Tim
 from __future__ import annotations
 
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 
 import casadi as ca
+import mujoco
 import numpy as np
 
-from cartpole.riccati import lab_weights, tvlqr
-from cartpole.models import build_model, mujoco_model, planning_limits, plant_params, read_params
+from cartpole.apps.bench.mpc import run_mpc_benchmark
+from cartpole.apps.bench.replay import replay_benchmark
+from cartpole.models import SHIPPED_MJCF, build_model, mujoco_model, planning_limits, plant_params, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
+from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED, trajopt_swingup
+from cartpole.riccati import lab_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
+from cartpole.sim import replays_exactly, simulate
 from cartpole.solvers.ddp import ddp_for_model
-from cartpole.solvers.sqp import CollocationSQP
-from cartpole.apps.bench.replay import replay_benchmark
+from cartpole.solvers.sqp import CollocationSQP, SQPError
+from cartpole.validation.metrics import swingup_metrics
 
 
 def median_ms(fn, repeats: int, *, min_seconds: float = 0.0) -> tuple[float, object]:
@@ -76,8 +83,6 @@ def hand_typed_cartpole(params) -> ca.Function | None:
         ``f(x (4,), u (1,)) -> xdot (4,)`` as one SX Function, or None for any other shape (then the generic
         baseline is the only one).
     """
-    import mujoco
-
     if params.nq != 2 or params.nu != 1 or params.slide is None:
         return None
     mj = mujoco_model(params)
@@ -401,9 +406,6 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
         ``default_speedup_vs_reference`` (``ref_ms`` over it; None when no plan), and under ``"trajectory"`` the
         plan (not JSON: the caller pops it).
     """
-    from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED
-    from cartpole.solvers.sqp import SQPError
-
     try:
         solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED)
     except SQPError:  # a problem the SQP does not take here (time without a C compiler): IPOPT's, as the planner
@@ -432,8 +434,6 @@ PLAN_MODELS = (("1 pole", "cartpole.xml"), ("2 poles", "cartpole_two_pole.xml"),
 
 def shipped_plan_models() -> list[tuple[str, str]]:
     """(label, path) of each shipped cart in :data:`PLAN_MODELS`."""
-    from cartpole.models import SHIPPED_MJCF
-
     return [(label, str(SHIPPED_MJCF.parent / name)) for label, name in PLAN_MODELS]
 
 
@@ -470,13 +470,6 @@ def plan_benchmark(mjcfs=None, *, repeats: int = 3, command: bool = True, progre
         ``T_min`` (s), ``time_to_upright`` (s, of the MuJoCo run), ``success``, ``replays``, ``attempts`` (solves
         tried by the last plan), ``command_s`` (or None).
     """
-    import subprocess
-    import tempfile
-
-    from cartpole.planning.trajopt import trajopt_swingup
-    from cartpole.sim import replays_exactly, simulate
-    from cartpole.validation.metrics import swingup_metrics
-
     say = progress or (lambda msg: None)
     items = shipped_plan_models() if mjcfs is None else list(mjcfs)
     bound_flags = ([] if u_max is None else ["--u-max", *map(str, np.ravel(u_max))]) + (
@@ -529,10 +522,9 @@ def print_plan_table(rows: list[dict], file=None) -> None:
 
 
 def mpc_benchmark(plant=None, *, quick: bool = False, progress=None, u_max=None,
-                  cart_max: float | None = None) -> dict | None:
+                  cart_max: float | None = None) -> dict:
     """The NMPC row (:func:`cartpole.apps.bench.mpc.run_mpc_benchmark`): per-control-step solve time over a
-    single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess; None when this
-    installation has no NMPC.
+    single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess.
 
     Parameters
     ----------
@@ -548,12 +540,8 @@ def mpc_benchmark(plant=None, *, quick: bool = False, progress=None, u_max=None,
 
     Returns
     -------
-    dict or None
+    dict
     """
-    try:
-        from cartpole.apps.bench.mpc import run_mpc_benchmark
-    except ImportError:
-        return None
     (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
     return run_mpc_benchmark(plant, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max, two_pole=not quick)
 

@@ -1,0 +1,45 @@
+"""Library errors name Python arguments in backquotes; the command line prints the option that sets each
+(:mod:`cartpole.commands._flags`), and every option it prints exists."""
+import argparse
+
+import pytest
+
+from cartpole.cli import build_parser, main
+from cartpole.commands._flags import FLAGS, in_flags
+
+
+def _options() -> set:
+    found = set()
+
+    def collect(parser):
+        for action in parser._actions:
+            found.update(action.option_strings)
+            if isinstance(action, argparse._SubParsersAction):
+                for sub in action.choices.values():
+                    collect(sub)
+
+    collect(build_parser())
+    return found
+
+
+def test_every_mapped_option_is_an_option_of_the_command_line():
+    options = _options()
+    missing = sorted(v for v in FLAGS.values() if v.split()[0] not in options)
+    assert not missing, missing
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("give `u_max` at most 1.", "give --u-max at most 1."),
+    ("skip the video (`video=False`).", "skip the video (--no-video)."),
+    ("pick `estimator='none'` or `period` 0.01.", "pick --estimator none or --period 0.01."),
+    ("use `--method trajopt` or `unknown_name`.", "use `--method trajopt` or `unknown_name`."),  # left as raised
+    ("the control period 0.01 s", "the control period 0.01 s"),  # prose is never touched
+])
+def test_backquoted_arguments_become_options_and_nothing_else_changes(text, expected):
+    assert in_flags(text) == expected
+
+
+def test_the_command_line_prints_the_option_for_the_librarys_argument(capsys):
+    rc = main(["linearize", "--period", "-1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--period" in err and "`period`" not in err and len(err.splitlines()) == 1, err
