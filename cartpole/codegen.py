@@ -466,6 +466,48 @@ def build_sources(files: dict, stem: str, *, cflags: tuple) -> str:
     return str(lib)
 
 
+#: Flags of the libraries the MuJoCo loop calls (:func:`build_loop_library`): the exported controller's
+#: floating-point semantics (ISO C99: no contraction into fused multiply-adds), optimised for this machine like the
+#: export's verification build, so the loop and the export compute the same numbers.
+LOOP_CFLAGS = ("-std=c99", "-O3", "-march=native")
+
+
+def build_loop_library(unit: str, stem: str, *, nx: int, nq: int, nu: int, ny: int = 1, steps: int = 1,
+                       shared=("cp_common",)) -> str:
+    """A library the MuJoCo loop calls (the NMPC or MHE step in C): the translation unit ``unit`` (rendered from a
+    template of :data:`CSRC`) compiled with the package's shared C files ``shared`` (``cp_common``, ``cp_linalg``:
+    each ``.c`` with its ``.h``, as the export copies them) and a ``cp_config.h`` for these sizes
+    (``cp_loop_config.h.jinja``), with :data:`LOOP_CFLAGS`, through :func:`build_sources` (cached by content);
+    returns its path. ``unit`` defines ``const int WRAP[NX]``.
+
+    Parameters
+    ----------
+    unit : str
+        The library's own C translation unit.
+    stem : str
+        File-name prefix of the library.
+    nx, nq, nu, ny, steps : int
+        State, joint, input and measurement sizes, physics steps per control period.
+    shared : sequence of str
+        Stems of the shared files of :data:`CSRC` linked in.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    RuntimeError
+        No C compiler, or it failed.
+    """
+    files = {f"{stem}.c": unit, "cp_config.h": render("cp_loop_config.h.jinja", nx=int(nx), nq=int(nq), nu=int(nu),
+                                                      ny=int(ny), steps=int(steps))}
+    for name in shared:
+        for ext in (".c", ".h"):
+            files[name + ext] = (CSRC / (name + ext)).read_text()
+    return build_sources(files, stem, cflags=LOOP_CFLAGS)
+
+
 def render(template: str, **values) -> str:
     """The Jinja2 template ``template`` (a file name under :data:`CSRC`, e.g. ``"cp_data.h.jinja"``) rendered with
     ``values``: the one place model-specific constants and tables are written into the package's C. Undefined

@@ -28,8 +28,6 @@ from cartpole.codegen import build_library, compiled_or_none, load_library
 from cartpole.estimation.base import EstimationError
 from cartpole.estimation.measurement import measurement_jacobians
 
-_LIB_VERSION = "mhe-window-v1"  # bump when the generated functions change meaning
-
 
 @dataclass(frozen=True)
 class WindowFunctions:
@@ -120,7 +118,7 @@ def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: boo
     library = None
 
     def build():
-        lib, _ = build_library([window, stage, meas], _LIB_VERSION + f"/{steps}x{N}")
+        lib, _ = build_library([window, stage, meas], f"mhe/{steps}x{N}")
         return lib, load_library(lib, ("mhe_window", "mhe_stage", "mhe_meas"))
 
     built = compiled_or_none(build, "MHE functions") if compiled else None

@@ -19,16 +19,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import build_c_library, compiled_or_none, private_cache_dir, render
+from cartpole.codegen import build_loop_library, compiled_or_none, private_cache_dir, render
 from cartpole.mpc.stage_functions import stage_expression, stage_rollout
 
 #: Active-set changes a QP may take before it counts as a failure (DAQP's ``iter_limit``, qpOASES' ``nWSR``, the C
 #: solver's ``QP_ITER_LIMIT``); beyond, the instant counts as a failure and takes the safe action. Typical: 2-5 per
 #: instant, about 40 for a cold start (single pole, N = 60).
 QP_ITER_LIMIT = 1000
-#: Flags of the loop's library: the export's floating-point semantics (ISO C99: no contraction), optimised for
-#: this machine like the export's verification build.
-LOOP_CFLAGS = ("-std=c99", "-O3", "-march=native")
 #: ``cp_nmpc_eval``'s action codes.
 ACTIONS = {1: "previous plan", 2: "upright LQR"}
 
@@ -220,7 +217,7 @@ def loop_source(ctl, plan) -> str:
     src = nmpc_source(ctl, plan, runtime_data=True)
     p = ctl.problem
     wrap = [1 if i < ctl.model.nq and i in p.hinges else 0 for i in range(p.nx)]
-    return render("nmpc_loop.c.jinja", nx=p.nx, nu=p.nu, wrap=wrap, fields=src.fields,
+    return render("nmpc_loop.c.jinja", wrap=wrap, fields=src.fields,
                   sz_w=max([1] + [int(f.sz_w()) for f in src.functions]),
                   sz_iw=max([1] + [int(f.sz_iw()) for f in src.functions]),
                   generated=generated_code(src.functions), controller=src.code, has_plan=plan is not None)
@@ -242,7 +239,9 @@ class CompiledNMPC:
     """
 
     def __init__(self, ctl, plan):
-        self.library = build_c_library(loop_source(ctl, plan), "nmpc_step", cflags=LOOP_CFLAGS)
+        p = ctl.problem
+        self.library = build_loop_library(loop_source(ctl, plan), "nmpc_step", nx=p.nx, nq=ctl.model.nq, nu=p.nu,
+                                          steps=ctl.steps)
         fd, tmp = tempfile.mkstemp(prefix="nmpc_step_", suffix=".so", dir=private_cache_dir())
         os.close(fd)
         try:
@@ -262,7 +261,6 @@ class CompiledNMPC:
         lib.cp_nmpc_last_seconds.restype = ctypes.c_double
         self._lib = lib
         S0, U0 = ctl.plan
-        p = ctl.problem
         self._data = [np.ascontiguousarray(S0, dtype=float), np.ascontiguousarray(U0, dtype=float)]
         if plan is not None:
             self._data += [np.ascontiguousarray(plan.t, dtype=float), np.ascontiguousarray(plan.u, dtype=float)]
