@@ -185,8 +185,9 @@ def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = 
 
 
 def controller_part(controller):
-    """The C part (:mod:`cartpole.export.controllers`) of a Python controller of the loop, or None when the
-    controller has no C implementation here (a wrapper, a supervisor, the NMPC: they stay Python in the loop).
+    """The C part (:mod:`cartpole.export.controllers`, :mod:`cartpole.export.nmpc`) of a Python controller of the
+    loop, or None when the controller has no C implementation here (a wrapper, a supervisor: they stay Python in the
+    loop).
 
     Parameters
     ----------
@@ -203,8 +204,14 @@ def controller_part(controller):
     from cartpole.control.switching import SwitchingController
     from cartpole.control.tvlqr import TVLQRController
     from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
+    from cartpole.mpc.nmpc import NMPCController
 
     kind = type(controller)
+    if kind is NMPCController:  # its part from the first iterate: the program resets it every run
+        from cartpole.export.nmpc import nmpc_part
+
+        controller.reset()
+        return nmpc_part(controller, controller.offline_plan)
     if kind is LinearFeedback:
         return linear_part(controller)
     if kind is CascadedPID:
@@ -239,7 +246,7 @@ def in_loop(model, controller, rig=None):
     """``(controller, rig)`` for :func:`cartpole.sim.rollout.simulate` running ``controller`` on ``rig`` as the one
     compiled implementation: the export's C (the controller's part, the rig's estimator, delay prediction and
     clip) built once through :mod:`cartpole.codegen` and called every period, when a C compiler exists and the
-    controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none, KF, EKF). Otherwise, or
+    controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch, the NMPC; none, KF, EKF, MHE). Otherwise, or
     with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes. C that does not compile
     raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never hidden behind a Python run.
 
@@ -264,7 +271,7 @@ def in_loop(model, controller, rig=None):
 
     if os.environ.get("CARTPOLE_NO_COMPILE") or compiler() is None:
         return controller, rig
-    if rig is not None and rig.estimator not in ("none", "kf", "ekf"):
+    if rig is not None and rig.estimator not in ("none", "kf", "ekf", "mhe"):
         return controller, rig
     key = (id(controller), None if rig is None else id(rig.make_estimator), None if rig is None else rig.steps,
            None if rig is None else rig.delay_steps, None if rig is None else rig.compensate, id(model.params))
