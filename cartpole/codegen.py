@@ -466,6 +466,117 @@ def build_sources(files: dict, stem: str, *, cflags: tuple) -> str:
     return str(lib)
 
 
+#: Flags of the libraries the MuJoCo loop calls (:func:`build_loop_library`): the exported controller's
+#: floating-point semantics (ISO C99: no contraction into fused multiply-adds), optimised for this machine like the
+#: export's verification build, so the loop and the export compute the same numbers.
+LOOP_CFLAGS = ("-std=c99", "-O3", "-march=native")
+
+
+def build_loop_library(unit: str, stem: str, *, nx: int, nq: int, nu: int, ny: int = 1, steps: int = 1,
+                       shared=("cp_common",)) -> str:
+    """A library the MuJoCo loop calls (the NMPC or MHE step in C): the translation unit ``unit`` (rendered from a
+    template of :data:`CSRC`) compiled with the package's shared C files ``shared`` (``cp_common``, ``cp_linalg``:
+    each ``.c`` with its ``.h``, as the export copies them) and a ``cp_config.h`` for these sizes
+    (``cp_loop_config.h.jinja``), with :data:`LOOP_CFLAGS`, through :func:`build_sources` (cached by content);
+    returns its path. ``unit`` defines ``const int WRAP[NX]``.
+
+    Parameters
+    ----------
+    unit : str
+        The library's own C translation unit.
+    stem : str
+        File-name prefix of the library.
+    nx, nq, nu, ny, steps : int
+        State, joint, input and measurement sizes, physics steps per control period.
+    shared : sequence of str
+        Stems of the shared files of :data:`CSRC` linked in.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    RuntimeError
+        No C compiler, or it failed.
+    """
+    files = {f"{stem}.c": unit, "cp_config.h": render("cp_loop_config.h.jinja", nx=int(nx), nq=int(nq), nu=int(nu),
+                                                      ny=int(ny), steps=int(steps))}
+    for name in shared:
+        for ext in (".c", ".h"):
+            files[name + ext] = (CSRC / (name + ext)).read_text()
+    return build_sources(files, stem, cflags=LOOP_CFLAGS)
+
+
+#: Active-set changes a QP may take before it counts as a failure (DAQP's ``iter_limit``, qpOASES' ``nWSR``, the C
+#: solver's ``QP_ITER_LIMIT``); beyond, the instant counts as a failure and takes the safe action. Typical: 2-5 per
+#: instant, about 40 for a cold start (single pole, N = 60).
+QP_ITER_LIMIT = 1000
+def qp_fields(nz: int, nr: int, prefix: str = "qp") -> tuple:
+    """State-struct members of the QP solver's work arrays for at most ``nz`` variables and ``nr`` general rows.
+
+    Parameters
+    ----------
+    nz, nr : int
+        Variables and general rows.
+    prefix : str
+        The solver's name prefix (as given to :func:`qp_source`).
+
+    Returns
+    -------
+    tuple of str
+    """
+    return tuple(f.replace("qp_", prefix + "_") for f in (
+        f"cp_real qp_J[{nz * nz}];", f"cp_real qp_R[{nz * nz}];", f"cp_real qp_d[{nz}];", f"cp_real qp_zd[{nz}];",
+        f"cp_real qp_r[{nz}];", f"cp_real qp_u[{nz + 1}];", f"int qp_act[{nz + 1}];",
+        f"unsigned char qp_isact[{2 * nz + 2 * max(nr, 1)}];", "int qp_nz;", "int qp_nr;"))
+
+
+def qp_source(nz: int, nr: int, row_len=None, *, prefix: str = "qp", sized: bool = False) -> str:
+    """C text of the dual active-set solver ``<prefix>_solve`` (``cartpole/csrc/qp_dual.c``) for ``nz`` variables
+    and ``nr`` general rows.
+
+    Parameters
+    ----------
+    nz, nr : int
+        Variables and general rows.
+    row_len : sequence of int, optional
+        Row ``r`` of ``A`` is zero from column ``row_len[r]`` on except its last (causal condensed rows); default
+        dense rows.
+    prefix : str
+        Names of its function, fields and macros (two solvers in one program).
+    sized : bool
+        The sizes are the run-time ``S.<prefix>_nz``, ``S.<prefix>_nr`` (at most ``nz``, ``nr``; dense rows).
+
+    Returns
+    -------
+    str
+    """
+    lens = [nz - 1] * max(1, nr) if row_len is None else [int(v) for v in row_len]
+    return render("qp_dual.c.jinja", nz=nz, nr=nr, row_len=lens, sized=sized, prefix=prefix,
+                  iter_limit=QP_ITER_LIMIT)
+
+
+def generated_code(functions, real: str = "double") -> str:
+    """The C of CasADi ``functions`` as the export generates it (same options: the same arithmetic), without a
+    header, for one translation unit.
+
+    Parameters
+    ----------
+    functions : sequence of casadi.Function
+    real : {"double", "float"}
+
+    Returns
+    -------
+    str
+    """
+    gen = ca.CodeGenerator("cp_generated.c", {"with_header": False, "casadi_real": real, "with_export": False,
+                                              "main": False, "casadi_int": "long int"})
+    for fn in functions:
+        gen.add(fn)
+    return gen.dump()
+
+
 def render(template: str, **values) -> str:
     """The Jinja2 template ``template`` (a file name under :data:`CSRC`, e.g. ``"cp_data.h.jinja"``) rendered with
     ``values``: the one place model-specific constants and tables are written into the package's C. Undefined

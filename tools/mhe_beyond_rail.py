@@ -1,4 +1,4 @@
-"""The exported LQR + MHE against the Python one with measurements past the rail's end (docs/deploy.md, the MHE's
+"""The exported LQR + MHE against the Python one (the MHE's numpy reference step) with measurements past the rail's end (docs/deploy.md, the MHE's
 bounded window QP), as one JSON document: the shipped cart at a 10 ms period from 2048-count encoders, 40 control
 steps whose cart reading is 10-14 cm beyond the rail, the same inputs to both. Used by claims.toml; run
 ``python tools/mhe_beyond_rail.py``."""
@@ -18,6 +18,7 @@ def main() -> None:
     ctl, folder = load_design(design, "double")
     try:
         mhe, fb = design.rig.make_estimator(), design.make_controller()
+        mhe.c = None  # the numpy reference step (the estimator otherwise runs the export's own C)
         steps, T = design.program.steps, design.program.period
         lo, hi = model.params.ctrl_range[0]
         ctl.reset()

@@ -4,7 +4,7 @@
 #include "cp_common.h"
 #include "cp_linalg.h"
 
-void la_mul(const cp_real* A, const cp_real* B, cp_real* C, int n, int m, int p)
+void la_mul_strided(const cp_real* A, const cp_real* B, cp_real* C, int n, int m, int p, int bk, int bj)
 {
     int i, j, k;
     cp_real acc;
@@ -12,22 +12,7 @@ void la_mul(const cp_real* A, const cp_real* B, cp_real* C, int n, int m, int p)
         for (j = 0; j < p; ++j) {
             acc = 0;
             for (k = 0; k < m; ++k) {
-                acc += A[i * m + k] * B[k * p + j];
-            }
-            C[i * p + j] = acc;
-        }
-    }
-}
-
-void la_mul_t(const cp_real* A, const cp_real* B, cp_real* C, int n, int m, int p)
-{
-    int i, j, k;
-    cp_real acc;
-    for (i = 0; i < n; ++i) {
-        for (j = 0; j < p; ++j) {
-            acc = 0;
-            for (k = 0; k < m; ++k) {
-                acc += A[i * m + k] * B[j * m + k];
+                acc += A[i * m + k] * B[k * bk + j * bj];
             }
             C[i * p + j] = acc;
         }

@@ -16,12 +16,18 @@ is invertible and confines ``w`` to the range of ``W`` where it is not (the limi
 
 Real-time iteration (like :mod:`cartpole.mpc.nmpc`): each period the window is shifted by one (the new node
 predicted by ``F`` from the previous estimate, its noise zero) and ONE Gauss-Newton step is taken: the residuals are
-linearised at the iterate (one call of compiled C, :mod:`cartpole.estimation.mhe_functions`), the shooting
-constraints ``dx_j+1 = A_j dx_j + L de_j + (F_j + L e_j - x_j+1)`` are condensed onto ``(dx_0, de_0 .. de_n-1)``
-(``nx + n r`` unknowns, a dense Hessian), and the QP is solved: by one Cholesky solve when its unconstrained
-minimiser respects the bounds (then it is the QP's solution: the QP is convex), else by DAQP (dual active set, exact).
-The cost is a sum of squares, so Gauss-Newton drops only the model's second derivatives; on a linear model one step
-is the exact solution. Before the window is full (``k < N``) the window is the samples so far.
+linearised at the iterate (one call of compiled C, :mod:`cartpole.estimation.mhe_functions`) and the step's linear
+least squares in ``(dx_0, de_0 .. de_n-1)`` under the shooting constraints ``dx_j+1 = A_j dx_j + L de_j + (F_j +
+L e_j - x_j+1)`` is solved by a backward Riccati recursion over the nodes
+(:func:`~cartpole.estimation.mhe_functions.riccati_window_step`: O(n), a few microseconds in C for a 50-period
+window). When that step would put a bounded joint outside its range, the step is the QP condensed onto those
+unknowns (a dense Hessian) with the ranges as rows, solved by DAQP (dual active set, exact, polished). The cost is a
+sum of squares, so Gauss-Newton drops only the model's second derivatives; on a linear model one step is the exact
+solution. Before the window is full (``k < N``) the window is the samples so far.
+
+One implementation: by default each period runs the compiled C of ``cartpole/csrc/mhe.c.jinja``
+(:mod:`cartpole.estimation.mhe_c`), the C ``cartpole export --estimator mhe`` ships; the numpy step described here
+(``c_step=False``, or without a C compiler) is the reference the tests compare it with on the same inputs.
 
 Arrival cost (the filtering update of Rao, Rawlings and Lee 2003, as an EKF step): when the window slides, the
 measurement ``y_0`` and the interval from ``x_0`` leave it; ``(x_bar, P)`` take them in by one extended-Kalman-filter
@@ -46,12 +52,14 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered
 from cartpole.estimation.base import EstimationError, SampledEstimator
+from cartpole.estimation.mhe_c import compiled_mhe
 from cartpole.estimation.mhe_functions import (
     WindowFunctions,
     arrival_update,
     condensed_qp,
     inverse_factor,
     positive_definite,
+    riccati_window_step,
     solve_window_qp,
     symmetric_matrix,
     window_functions,
@@ -157,7 +165,11 @@ class MovingHorizonEstimator(SampledEstimator):
         ``y0 (ny,) -> x0 (nx,)``: the first estimate and the arrival cost's first centre. Default: each position
         that ``h`` measures one-to-one (``y_i = q_j``) from ``y0``, the others from ``model.x_hanging``, zero rates.
     compiled : bool
-        False evaluates the window in CasADi's virtual machine (same numbers, slower).
+        False evaluates the window in CasADi's virtual machine (same numbers, slower) and runs the Python step.
+    c_step : bool
+        True (default, with ``compiled``): each period runs the compiled C of ``cartpole/csrc/mhe.c.jinja``
+        (:mod:`cartpole.estimation.mhe_c`), the C ``cartpole export`` ships; False, or without a C compiler: the
+        Python step (the same Riccati recursion in numpy; the tests' reference).
     name : str
         The estimator's name (the CLI's ``--estimator``).
 
@@ -170,7 +182,9 @@ class MovingHorizonEstimator(SampledEstimator):
     V, W : arrays (ny, ny), (nx, nx)
         The covariances the stage weights invert.
     functions : WindowFunctions
-        The compiled evaluations.
+        The compiled evaluations (of the Python step).
+    c : CompiledMHE or None
+        The compiled C step in use, None on the Python step.
     failures : list of int
         Samples (update counts) whose Gauss-Newton step failed and kept the prediction.
 
@@ -185,7 +199,7 @@ class MovingHorizonEstimator(SampledEstimator):
 
     def __init__(self, model, steps: int, h: ca.Function, V, *, W=None, accel_std=None,
                  horizon: int = DEFAULT_HORIZON, P0=None, joint_ranges=None, initial_state=None,
-                 compiled: bool = True, name: str = "mhe"):
+                 compiled: bool = True, c_step: bool = True, name: str = "mhe"):
         self.name = str(name)
         nq, nx, nu = int(model.nq), int(model.nx), int(model.nu)
         self.nq, self.nx, self.nu = nq, nx, nu
@@ -248,6 +262,7 @@ class MovingHorizonEstimator(SampledEstimator):
         self._n = -1  # intervals in the window; -1 before reset
         self._k = 0
         self.failures: list[int] = []
+        self.c = compiled_mhe(self, model, h) if (c_step and compiled) else None
 
     # ---- the contract -----------------------------------------------------------------------------------------
     def _start(self, y0, x0) -> np.ndarray:
@@ -265,10 +280,18 @@ class MovingHorizonEstimator(SampledEstimator):
         self._P_inv = R.T @ R
         self._n, self._k = 0, 0
         self.failures = []
+        if self.c is not None:
+            return self.c.start(x0, y0)
         return x0.copy()
 
     def _correct(self, y, U) -> np.ndarray:
         """Shift the window, append the sample, take one Gauss-Newton step."""
+        if self.c is not None:
+            self._k += 1
+            x, failed = self.c.update(y, U)
+            if failed:
+                self.failures.append(self._k)
+            return x
         Uv = U.ravel(order="F")
         if self._n == self.N:
             self._slide()
@@ -291,11 +314,15 @@ class MovingHorizonEstimator(SampledEstimator):
     @property
     def window(self) -> np.ndarray:
         """The window's state estimates (n+1, nx), oldest first; the last row is the current estimate."""
+        if self.c is not None:
+            return self.c.window()
         return self._X[:self._n + 1].copy()
 
     @property
     def arrival(self) -> tuple[np.ndarray, np.ndarray]:
         """The arrival cost's centre ``x_bar`` (nx,) and covariance ``P`` (nx, nx) at the window's first node."""
+        if self.c is not None:
+            return self.c.arrival()
         return self._xbar.copy(), self._P.copy()
 
     @property
@@ -340,21 +367,34 @@ class MovingHorizonEstimator(SampledEstimator):
         C = Cv.reshape(N + 1, nx, ny)[:n + 1].transpose(0, 2, 1)
         X, E = self._X[:n + 1], self._E[:n]
         d = Fv.reshape(N, nx)[:n] + E @ self._L.T - X[1:]
-        H, g, S, c = condensed_qp(A, d, C, hv.reshape(N + 1, ny)[:n + 1] - self._Y[:n + 1], self._RV, self._L,
-                                  self._P_inv, X[0] - self._xbar, E)
+        r_meas = hv.reshape(N + 1, ny)[:n + 1] - self._Y[:n + 1]
         b = self._bidx
-        z = solve_window_qp(H, g, S, c, X[:, b], b, self._lo, self._hi)
-        if z is None or not math.isfinite(z.sum()):
+        try:
+            dX, dE = riccati_window_step(A, d, C, r_meas, self._RV, self._L, self._P_inv, X[0] - self._xbar, E)
+        except np.linalg.LinAlgError:
+            dX = None
+        if dX is not None and b.size:
+            qz = X[:, b] + dX[:, b]
+            if (qz > self._hi + 1e-12).any() or (qz < self._lo - 1e-12).any():
+                dX = None  # a range binds: the bounded QP below
+        if dX is None:
+            H, g, S, c = condensed_qp(A, d, C, r_meas, self._RV, self._L, self._P_inv, X[0] - self._xbar, E)
+            z = solve_window_qp(H, g, S, c, X[:, b], b, self._lo, self._hi)
+            if z is None:
+                dX = None
+            else:
+                dX, dE = c + S @ z, z[nx:].reshape(E.shape)
+        if dX is None or not math.isfinite(dX.sum() + dE.sum()):
             self.failures.append(self._k)
             return
-        X += c + S @ z
-        E += z[nx:].reshape(E.shape)
+        X += dX
+        E += dE
         if b.size:
             X[:, b] = np.clip(X[:, b], self._lo, self._hi)  # DAQP's tolerance, not more
 
-
 def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int = 500, dt: float | None = None,
-              accel_std: float = 1.0, seed: int = 0, compiled: bool = True) -> dict:
+              accel_std: float = 1.0, seed: int = 0, compiled: bool = True, repeats: int = 1, python: int = 0,
+              baseline: int = 0) -> dict:
     """Time the MHE's ``update`` on a swinging cart measured by its encoders (the benchmark's entry).
 
     The truth is the exact discrete model (:attr:`cartpole.models.HoldModel.step_inputs`) from hanging rest under a
@@ -371,7 +411,7 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
     period : float
         Control period in s (a whole number of physics steps).
     n : int
-        ``update`` calls timed.
+        ``update`` calls timed in each run.
     dt : float, optional
         Physics step in s to rebuild the model with (e.g. 0.002); default the model's own.
     accel_std : float
@@ -379,14 +419,26 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
     seed : int
         Seed of the measurement noise.
     compiled : bool
-        False: CasADi's virtual machine.
+        False: CasADi's virtual machine and the Python step.
+    repeats : int
+        Runs of the ``n`` updates (the estimator reset before each); the figures are the median of the runs'.
+    python : int
+        Also time this many updates of the Python step (``c_step=False``, the reference path), 0: not.
+    baseline : int
+        Also re-solve this many full windows (after the window filled) with IPOPT to convergence, warm-started from
+        the previous solution shifted (:mod:`cartpole.estimation.mhe_baseline`), 0: not.
 
     Returns
     -------
     dict
-        ``step_ms_median``, ``step_ms_max``, ``step_ms_p90`` (ms per ``update``), ``n``, ``N`` (periods in the
-        window), ``steps`` (physics steps per period), ``dt``, ``period``, ``horizon`` (s), ``compiled`` (bool),
-        ``rms_error`` (nx,) list: the estimate's RMS error per state after the first window (SI units).
+        ``step_ms_median``, ``step_ms_max``, ``step_ms_p90`` (ms per ``update``, the estimator as the loop runs it:
+        the compiled C step unless ``compiled`` is False or there is no compiler), ``step_ms_medians`` (one per
+        run), ``n``, ``repeats``, ``N`` (periods in the window), ``steps`` (physics steps per period), ``dt``,
+        ``period``, ``horizon`` (s), ``compiled`` (bool: the window's functions compiled), ``c_step`` (bool: the C
+        step ran), ``rms_error`` (nx,) list: the estimate's RMS error per state after the first window (SI
+        units); with ``python``: ``python`` {``step_ms_median``, ``n``, ``max_diff``: the largest difference from
+        the timed estimator's estimates}; with ``baseline``: ``ipopt`` (:func:`~cartpole.estimation.mhe_baseline.
+        time_ipopt_window`) and ``speedup`` (its median over ``step_ms_median``).
     """
     from cartpole.models import SHIPPED_MJCF, build_model, steps_per_period
 
@@ -422,15 +474,42 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
     X = np.array(X)
     Y = np.round((X[:, :nq] + noise * rng.standard_normal((len(X), nq))) / quantum) * quantum
     est = MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, horizon=N, compiled=compiled)
-    est.reset(Y[0])
-    times, Xh = [], []
-    for k in range(int(n)):
-        t0 = time.perf_counter()
-        Xh.append(est.update(Y[k + 1], Us[k]))
-        times.append(time.perf_counter() - t0)
-    ms = 1e3 * np.array(times)
+    medians, samples = [], []
+    for run in range(max(1, int(repeats))):
+        est.reset(Y[0])
+        times, Xh = [], []
+        for k in range(int(n)):
+            t0 = time.perf_counter()
+            Xh.append(est.update(Y[k + 1], Us[k]))
+            times.append(time.perf_counter() - t0)
+            if run == 0 and baseline and k + 1 >= N and len(samples) < int(baseline):
+                j0 = k + 1 - N
+                UH = np.array([Us[j - 1][:, -1] if j else np.zeros(nu) for j in range(j0, k + 2)])
+                UU = np.array([Us[j].ravel(order="F") for j in range(j0, k + 1)])
+                samples.append((Y[j0:k + 2], UU, UH, *est.arrival, Xh[-1]))
+        ms = 1e3 * np.array(times)
+        medians.append(float(np.median(ms)))
     err = (np.array(Xh) - X[1:])[N:]
-    return {"step_ms_median": float(np.median(ms)), "step_ms_max": float(ms.max()),
-            "step_ms_p90": float(np.percentile(ms, 90)), "n": int(n), "N": N, "steps": m, "dt": float(model.dt),
-            "period": float(period), "horizon": float(horizon), "compiled": est.library is not None,
-            "rms_error": np.sqrt(np.mean(err ** 2, axis=0)).tolist()}
+    out = {"step_ms_median": float(np.median(medians)), "step_ms_max": float(ms.max()),
+           "step_ms_p90": float(np.percentile(ms, 90)), "step_ms_medians": medians, "n": int(n),
+           "repeats": len(medians), "N": N, "steps": m, "dt": float(model.dt), "period": float(period),
+           "horizon": float(horizon), "compiled": est.library is not None, "c_step": est.c is not None,
+           "rms_error": np.sqrt(np.mean(err ** 2, axis=0)).tolist()}
+    if python:
+        ref = MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, horizon=N, compiled=compiled,
+                                     c_step=False)
+        ref.reset(Y[0])
+        k_py = min(int(python), int(n))
+        times = []
+        for k in range(k_py):
+            t0 = time.perf_counter()
+            xp = ref.update(Y[k + 1], Us[k])
+            times.append(time.perf_counter() - t0)
+        out["python"] = {"step_ms_median": float(np.median(1e3 * np.array(times))), "n": k_py,
+                         "max_diff": float(np.abs(xp - Xh[k_py - 1]).max())}
+    if samples:
+        from cartpole.estimation.mhe_baseline import time_ipopt_window
+
+        out["ipopt"] = time_ipopt_window(est, model, h, samples)
+        out["speedup"] = out["ipopt"]["step_ms_median"] / out["step_ms_median"]
+    return out

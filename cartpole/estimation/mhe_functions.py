@@ -28,8 +28,6 @@ from cartpole.codegen import build_library, compiled_or_none, load_library
 from cartpole.estimation.base import EstimationError
 from cartpole.estimation.measurement import measurement_jacobians
 
-_LIB_VERSION = "mhe-window-v1"  # bump when the generated functions change meaning
-
 
 @dataclass(frozen=True)
 class WindowFunctions:
@@ -120,7 +118,7 @@ def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: boo
     library = None
 
     def build():
-        lib, _ = build_library([window, stage, meas], _LIB_VERSION + f"/{steps}x{N}")
+        lib, _ = build_library([window, stage, meas], f"mhe/{steps}x{N}")
         return lib, load_library(lib, ("mhe_window", "mhe_stage", "mhe_meas"))
 
     built = compiled_or_none(build, "MHE functions") if compiled else None
@@ -134,6 +132,58 @@ def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: boo
 #: DAQP's "no bound", and the active-set iterations it may take.
 _BIG = 1e30
 QP_ITER_LIMIT = 1000
+
+
+def riccati_window_step(A, d, C, r_meas, RV, L, P_inv, arrival_gap, e):
+    """The window's unconstrained Gauss-Newton step by a backward Riccati recursion over its nodes (O(n), the
+    structure of the problem: a linear-quadratic smoother whose inputs are the noises), the same minimiser as the
+    condensed normal equations of :func:`condensed_qp`.
+
+    With ``M_j = (RV C_j)' (RV C_j)``, ``m_j = (RV C_j)' RV r_j`` and the cost-to-go from node ``j`` written
+    ``dx' P_j dx + 2 p_j' dx``: ``P_n = M_n``, ``p_n = m_n``; for ``j = n-1 .. 0``, with ``q = p_j+1 + P_j+1 d_j``,
+    ``G_j = I + L' P_j+1 L``, ``N_j = L' P_j+1 A_j``, ``K_j = G_j^-1 N_j``, ``k_j = G_j^-1 (L' q + e_j)``::
+
+        P_j = M_j + A_j' P_j+1 A_j - N_j' K_j,      p_j = m_j + A_j' q - N_j' k_j
+
+    then ``dx_0 = -(P_0 + P^-1)^-1 (p_0 + P^-1 (x_0 - x_bar))`` and forward ``de_j = -K_j dx_j - k_j``,
+    ``dx_j+1 = A_j dx_j + L de_j + d_j`` (``G_j`` and ``P_0 + P^-1`` by Cholesky). The C of
+    ``cartpole/csrc/mhe.c.jinja`` (``mh_riccati``) does these operations in this order.
+
+    Parameters
+    ----------
+    A, d, C, r_meas, RV, L, P_inv, arrival_gap, e
+        As :func:`condensed_qp`.
+
+    Returns
+    -------
+    dX : (n+1, nx) array
+        The nodes' steps (SI units).
+    dE : (n, r) array
+        The noises' steps.
+    """
+    n, nx, r = d.shape[0], P_inv.shape[0], L.shape[1]
+    RC = RV @ C  # (n+1, ny, nx)
+    Rr = r_meas @ RV.T  # (n+1, ny)
+    P = RC[n].T @ RC[n]
+    p = RC[n].T @ Rr[n]
+    K, k = np.zeros((n, r, nx)), np.zeros((n, r))
+    for j in range(n - 1, -1, -1):
+        q = p + P @ d[j]
+        PL = P @ L
+        G = np.eye(r) + L.T @ PL
+        Nj = PL.T @ A[j]
+        Gc = np.linalg.cholesky(G)
+        K[j] = np.linalg.solve(Gc.T, np.linalg.solve(Gc, Nj))
+        k[j] = np.linalg.solve(Gc.T, np.linalg.solve(Gc, L.T @ q + e[j]))
+        P = RC[j].T @ RC[j] + A[j].T @ P @ A[j] - Nj.T @ K[j]
+        p = RC[j].T @ Rr[j] + A[j].T @ q - Nj.T @ k[j]
+    Pc = np.linalg.cholesky(P + P_inv)
+    dX, dE = np.zeros((n + 1, nx)), np.zeros((n, r))
+    dX[0] = -np.linalg.solve(Pc.T, np.linalg.solve(Pc, p + P_inv @ arrival_gap))
+    for j in range(n):
+        dE[j] = -K[j] @ dX[j] - k[j]
+        dX[j + 1] = A[j] @ dX[j] + L @ dE[j] + d[j]
+    return dX, dE
 
 
 def condensed_qp(A, d, C, r_meas, RV, L, P_inv, arrival_gap, e):

@@ -42,6 +42,8 @@ from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlq
 from cartpole.export.design import build_program
 from cartpole.export.estimators import ExportError
 from cartpole.export.make import c_sources
+from cartpole.export.nmpc import nmpc_part
+from cartpole.mpc.nmpc import NMPCController
 
 #: Which :class:`InLoopController` last reset each library (path -> id): its static state is that run's.
 _OWNER: dict = {}
@@ -258,8 +260,9 @@ def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = 
 
 
 def controller_part(controller):
-    """The C part (:mod:`cartpole.export.controllers`) of a Python controller of the loop, or None when the
-    controller has no C implementation here (a wrapper, a supervisor, the NMPC: they stay Python in the loop).
+    """The C part (:mod:`cartpole.export.controllers`, :mod:`cartpole.export.nmpc`) of a Python controller of the
+    loop, or None when the controller has no C implementation here (a wrapper, a supervisor: they stay Python in the
+    loop).
 
     Parameters
     ----------
@@ -271,6 +274,9 @@ def controller_part(controller):
     CPart or None
     """
     kind = type(controller)
+    if kind is NMPCController:  # its part from the first iterate: the program resets it every run
+        controller.reset()
+        return nmpc_part(controller, controller.offline_plan)
     if kind is LinearFeedback:
         return linear_part(controller)
     if kind is CascadedPID:
@@ -384,10 +390,10 @@ def in_loop(model, controller, rig=None):
     """``(controller, rig)`` for :func:`cartpole.sim.rollout.simulate` running ``controller`` on ``rig`` as the one
     compiled implementation: the export's C (the controller's part, the rig's estimator, delay prediction and
     clip) built through :mod:`cartpole.codegen` (cached on disk by its content) and called every period, when a C
-    compiler exists and the controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch; none,
-    KF, EKF). Otherwise, or with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python classes.
-    C that does not compile raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never hidden
-    behind a Python run.
+    compiler exists and the controller and estimator have C parts (LQR, PID, TVLQR, energy with its catch, the NMPC;
+    none, KF, EKF, MHE). Otherwise, or with ``CARTPOLE_NO_COMPILE`` set, ``(controller, rig)`` unchanged: the Python
+    classes. C that does not compile raises (:class:`~cartpole.export.estimators.ExportError`): it is a bug, never
+    hidden behind a Python run.
 
     The compiled controller is a :class:`CompiledLaw`; for the energy law with its catch a
     :class:`CompiledSwitching` (``mode``, ``switches``, ``caught_at``), for the TVLQR a :class:`CompiledTracker`
@@ -411,7 +417,7 @@ def in_loop(model, controller, rig=None):
     """
     if os.environ.get("CARTPOLE_NO_COMPILE") or compiler() is None:
         return controller, rig
-    if rig is not None and rig.estimator not in ("none", "kf", "ekf"):
+    if rig is not None and rig.estimator not in ("none", "kf", "ekf", "mhe"):
         return controller, rig
     part = controller_part(controller)
     if part is None:

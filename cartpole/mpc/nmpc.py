@@ -617,6 +617,11 @@ class NMPCController:
         return u.copy()
 
     @property
+    def offline_plan(self) -> Trajectory | None:
+        """The offline plan (the ``guess`` Trajectory) whose inputs extend the shifted tail, or None."""
+        return self._plan
+
+    @property
     def plan(self) -> tuple[np.ndarray, np.ndarray]:
         """The current iterate: shooting nodes (N+1, nx) and inputs (N, nu), copies."""
         if self._c is not None:

@@ -16,66 +16,15 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
-from cartpole.codegen import build_c_library, compiled_or_none, private_cache_dir, render
+# QP_ITER_LIMIT, qp_fields, qp_source, generated_code: the names this module had before the MHE shared them
+from cartpole.codegen import (QP_ITER_LIMIT, build_loop_library, compiled_or_none, generated_code,  # noqa: F401
+                              private_cache_dir, qp_fields, qp_source, render)
 from cartpole.mpc.stage_functions import stage_expression, stage_rollout
 
-#: Active-set changes a QP may take before it counts as a failure (DAQP's ``iter_limit``, qpOASES' ``nWSR``, the C
-#: solver's ``QP_ITER_LIMIT``); beyond, the instant counts as a failure and takes the safe action. Typical: 2-5 per
-#: instant, about 40 for a cold start (single pole, N = 60).
-QP_ITER_LIMIT = 1000
-#: Flags of the loop's library: the export's floating-point semantics (ISO C99: no contraction), optimised for
-#: this machine like the export's verification build.
-LOOP_CFLAGS = ("-std=c99", "-O3", "-march=native")
 #: ``cp_nmpc_eval``'s action codes.
 ACTIONS = {1: "previous plan", 2: "upright LQR"}
-
-
-def qp_fields(nz: int, nr: int, prefix: str = "qp") -> tuple:
-    """State-struct members of the QP solver's work arrays for at most ``nz`` variables and ``nr`` general rows.
-
-    Parameters
-    ----------
-    nz, nr : int
-        Variables and general rows.
-    prefix : str
-        The solver's name prefix (as given to :func:`qp_source`).
-
-    Returns
-    -------
-    tuple of str
-    """
-    return tuple(f.replace("qp_", prefix + "_") for f in (
-        f"cp_real qp_J[{nz * nz}];", f"cp_real qp_R[{nz * nz}];", f"cp_real qp_d[{nz}];", f"cp_real qp_zd[{nz}];",
-        f"cp_real qp_r[{nz}];", f"cp_real qp_u[{nz + 1}];", f"int qp_act[{nz + 1}];",
-        f"unsigned char qp_isact[{2 * nz + 2 * max(nr, 1)}];", "int qp_nz;", "int qp_nr;"))
-
-
-def qp_source(nz: int, nr: int, row_len=None, *, prefix: str = "qp", sized: bool = False) -> str:
-    """C text of the dual active-set solver ``<prefix>_solve`` (``cartpole/csrc/qp_dual.c``) for ``nz`` variables
-    and ``nr`` general rows.
-
-    Parameters
-    ----------
-    nz, nr : int
-        Variables and general rows.
-    row_len : sequence of int, optional
-        Row ``r`` of ``A`` is zero from column ``row_len[r]`` on except its last (causal condensed rows); default
-        dense rows.
-    prefix : str
-        Names of its function, fields and macros (two solvers in one program).
-    sized : bool
-        The sizes are the run-time ``S.<prefix>_nz``, ``S.<prefix>_nr`` (at most ``nz``, ``nr``; dense rows).
-
-    Returns
-    -------
-    str
-    """
-    lens = [nz - 1] * max(1, nr) if row_len is None else [int(v) for v in row_len]
-    return render("qp_dual.c.jinja", nz=nz, nr=nr, row_len=lens, sized=sized, prefix=prefix,
-                  iter_limit=QP_ITER_LIMIT)
 
 
 def row_len(N: int, nu: int, nb: int, pre: bool) -> list:
@@ -185,26 +134,6 @@ def nmpc_source(ctl, plan, *, runtime_data: bool = False) -> NMPCSource:
                       functions=(lin, roll))
 
 
-def generated_code(functions, real: str = "double") -> str:
-    """The C of CasADi ``functions`` as the export generates it (same options: the same arithmetic), without a
-    header, for one translation unit.
-
-    Parameters
-    ----------
-    functions : sequence of casadi.Function
-    real : {"double", "float"}
-
-    Returns
-    -------
-    str
-    """
-    gen = ca.CodeGenerator("cp_generated.c", {"with_header": False, "casadi_real": real, "with_export": False,
-                                              "main": False, "casadi_int": "long int"})
-    for fn in functions:
-        gen.add(fn)
-    return gen.dump()
-
-
 def loop_source(ctl, plan) -> str:
     """The translation unit of the loop's library (``cartpole/csrc/nmpc_loop.c.jinja``) for ``ctl`` and ``plan``.
 
@@ -220,7 +149,7 @@ def loop_source(ctl, plan) -> str:
     src = nmpc_source(ctl, plan, runtime_data=True)
     p = ctl.problem
     wrap = [1 if i < ctl.model.nq and i in p.hinges else 0 for i in range(p.nx)]
-    return render("nmpc_loop.c.jinja", nx=p.nx, nu=p.nu, wrap=wrap, fields=src.fields,
+    return render("nmpc_loop.c.jinja", wrap=wrap, fields=src.fields,
                   sz_w=max([1] + [int(f.sz_w()) for f in src.functions]),
                   sz_iw=max([1] + [int(f.sz_iw()) for f in src.functions]),
                   generated=generated_code(src.functions), controller=src.code, has_plan=plan is not None)
@@ -242,7 +171,9 @@ class CompiledNMPC:
     """
 
     def __init__(self, ctl, plan):
-        self.library = build_c_library(loop_source(ctl, plan), "nmpc_step", cflags=LOOP_CFLAGS)
+        p = ctl.problem
+        self.library = build_loop_library(loop_source(ctl, plan), "nmpc_step", nx=p.nx, nq=ctl.model.nq, nu=p.nu,
+                                          steps=ctl.steps)
         fd, tmp = tempfile.mkstemp(prefix="nmpc_step_", suffix=".so", dir=private_cache_dir())
         os.close(fd)
         try:
@@ -262,7 +193,6 @@ class CompiledNMPC:
         lib.cp_nmpc_last_seconds.restype = ctypes.c_double
         self._lib = lib
         S0, U0 = ctl.plan
-        p = ctl.problem
         self._data = [np.ascontiguousarray(S0, dtype=float), np.ascontiguousarray(U0, dtype=float)]
         if plan is not None:
             self._data += [np.ascontiguousarray(plan.t, dtype=float), np.ascontiguousarray(plan.u, dtype=float)]

@@ -26,8 +26,6 @@ import numpy as np
 from cartpole.models import CartPoleModel
 from cartpole.codegen import build_library, compiled_or_none, load_library, model_key
 
-_LIB_VERSION = "nmpc-stages-v6"  # bump when the generated functions change meaning
-
 
 @dataclass(frozen=True)
 class StageFunctions:
@@ -319,8 +317,7 @@ def stage_functions(model: CartPoleModel, steps: int, N: int, *, compiled: bool 
     library = None
 
     def build():
-        lib, _ = build_library([stage, qp_data, rollout], _LIB_VERSION + model_key(model)
-                               + f"/{steps}x{N}/{int(prestabilized)}")
+        lib, _ = build_library([stage, qp_data, rollout], model_key(model) + f"/{steps}x{N}/{int(prestabilized)}")
         return lib, load_library(lib, ("nmpc_stage", "nmpc_qp_data", "nmpc_rollout"))
 
     built = compiled_or_none(build, "NMPC functions") if compiled else None

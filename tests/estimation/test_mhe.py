@@ -218,7 +218,8 @@ def test_beyond_the_rail_with_a_fine_encoder_the_window_qp_meets_its_kkt_conditi
     monkeypatch.setattr(mhe_module, "solve_window_qp", spy)
     lo, hi = model.params.joint_ranges[model.slide]
     m, N = 2, 10
-    est = MovingHorizonEstimator(model, m, _encoders(model), np.diag([1e-12 / 12, 1e-6]), accel_std=1.0, horizon=N)
+    est = MovingHorizonEstimator(model, m, _encoders(model), np.diag([1e-12 / 12, 1e-6]), accel_std=1.0, horizon=N,
+                                 c_step=False)  # the Python step's QP, spied on
     y = np.array(model.x_hanging[:model.nq])
     est.reset(y)
     for k in range(2 * N):
