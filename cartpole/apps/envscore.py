@@ -105,6 +105,8 @@ class EpisodeScore:
         Gymnasium ended the episode by its termination rule (the pole fell); always False for dm_control.
     ctrl : (steps, nu) array
         The ctrl held over each environment step.
+    x : (steps + 1, nx) array
+        The state after each environment step, the start first.
     replays : bool
         Every state the environment reached is reproduced bit for bit by replaying ``ctrl`` from ``x0`` in the
         toolkit's MuJoCo run of ``mjcf``.
@@ -114,6 +116,8 @@ class EpisodeScore:
         s of wall time spent building the controller for this start (the plan, the MPC's first solution).
     mjcf : str
         The file the controller was designed on and the replay ran.
+    rewards : (steps,) array
+        The reward the environment paid for each step.
     """
 
     env: str
@@ -123,6 +127,7 @@ class EpisodeScore:
     steps: int
     terminated: bool
     ctrl: np.ndarray
+    x: np.ndarray
     replays: bool
     warned: bool
     design_s: float
@@ -131,7 +136,7 @@ class EpisodeScore:
 
     def as_dict(self) -> dict:
         """JSON-ready: ``env``, ``seed``, ``x0``, ``return``, ``steps``, ``terminated``, ``replays``, ``warned``,
-        ``design_s``, ``mjcf`` (the ctrl and rewards left out)."""
+        ``design_s``, ``mjcf`` (the ctrl, states and rewards left out)."""
         return {"env": self.env, "seed": self.seed, "x0": [float(v) for v in self.x0],
                 "return": round(float(self.return_), 4), "steps": self.steps, "terminated": self.terminated,
                 "replays": self.replays, "warned": self.warned, "design_s": round(self.design_s, 3),
@@ -231,7 +236,7 @@ def design(env: Environment, mjcf: str, x0, hold: int):
                            options=PlanOptions(objective=env.objective)).controller
 
 
-def score_episode(name: str, seed: int = 0, *, controller=None) -> EpisodeScore:
+def score_episode(name: str, seed: int = 0, *, controller=None, max_steps: int | None = None) -> EpisodeScore:
     """Run one episode of the environment ``name`` from its own reset with ``seed``, with the toolkit's controller,
     and sum the rewards the environment pays.
 
@@ -244,6 +249,9 @@ def score_episode(name: str, seed: int = 0, *, controller=None) -> EpisodeScore:
         The environment's reset seed (>= 0).
     controller : callable, optional
         ``controller(env, mjcf, x0, hold) -> u = c(t, x)`` instead of :func:`design` (a test's own, say).
+    max_steps : int, optional
+        Stop after this many environment steps (>= 1; default the whole episode): a shortened episode, its return
+        the rewards paid so far.
 
     Returns
     -------
@@ -256,7 +264,12 @@ def score_episode(name: str, seed: int = 0, *, controller=None) -> EpisodeScore:
     """
     env = environment(name)
     seed = _check_seed(seed)
+    if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
+                                  or max_steps < 1):
+        raise EnvScoreError(f"max_steps = {max_steps!r} must be a whole number of environment steps >= 1.")
     run = _DMC(env, seed) if env.suite == "dmc" else _Gym(env, seed)
+    if max_steps is not None:
+        run.length = int(max_steps) if run.length is None else min(run.length, int(max_steps))
     _, x0 = run.state()
     tic = time.perf_counter()
     ctrl_of = (controller or design)(env, run.mjcf, x0, run.hold)
@@ -275,11 +288,13 @@ def score_episode(name: str, seed: int = 0, *, controller=None) -> EpisodeScore:
     again = replay(run.mjcf, x0, np.repeat(ctrl, run.hold, axis=0))
     replays = bool(np.array_equal(again.x[::run.hold], np.array(xs)))
     return EpisodeScore(env=name, seed=seed, x0=readonly(x0), return_=float(np.sum(rewards)), steps=len(us),
-                        terminated=bool(getattr(run, "terminated", False)), ctrl=readonly(ctrl), replays=replays,
+                        terminated=bool(getattr(run, "terminated", False)), ctrl=readonly(ctrl), x=readonly(np.array(xs)),
+                        replays=replays,
                         warned=warned, design_s=design_s, mjcf=run.mjcf, rewards=readonly(np.array(rewards)))
 
 
-def score(name: str, n: int = 10, seed: int = 0, *, controller=None, on_episode=None) -> dict:
+def score(name: str, n: int = 10, seed: int = 0, *, controller=None, on_episode=None,
+          max_steps: int | None = None) -> dict:
     """``n`` episodes of ``name`` from the environment's resets with seeds ``seed, seed + 1, ...``.
 
     Parameters
@@ -294,6 +309,8 @@ def score(name: str, n: int = 10, seed: int = 0, *, controller=None, on_episode=
         As :func:`score_episode`.
     on_episode : callable, optional
         Called with each :class:`EpisodeScore` as it is done (progress).
+    max_steps : int, optional
+        As :func:`score_episode`.
 
     Returns
     -------
@@ -308,7 +325,7 @@ def score(name: str, n: int = 10, seed: int = 0, *, controller=None, on_episode=
         raise EnvScoreError(f"n = {n!r} must be a whole number of episodes >= 1.")
     episodes = []
     for s in range(seed, seed + int(n)):
-        ep = score_episode(name, s, controller=controller)
+        ep = score_episode(name, s, controller=controller, max_steps=max_steps)
         episodes.append(ep)
         if on_episode is not None:
             on_episode(ep)
