@@ -7,7 +7,9 @@ and hands over to the LQR catch (the discrete LQR of the lab's weight pattern at
 duration, unless given, is the minimum time the bounds allow times ``1 + time_margin``: the faster the
 better, but a plan that saturates the actuator everywhere leaves TVLQR no authority to correct errors.
 
-No hand-holding: the stages and the mesh are the code's. (1) :func:`minimum_time`: a deterministic multi-start
+No hand-holding: the stages and the mesh are the code's. (0) On a chain driven at a hinge (the acrobot), a
+receding-horizon DDP rollout (:func:`~cartpole.planning.ddp_plan.receding_swingup`) to near upright, re-solved as the
+effort and then the free-time problem; the stages below only when it finds none. (1) :func:`minimum_time`: a deterministic multi-start
 of named guesses (:func:`cartpole.ocp.guess.named_guesses`: pumping and straight-line shapes towards the nearest
 upright angles, for one pole an energy-shaping rollout first; ``starts=4`` adds the routes in which every link
 loops once more) on a coarse mesh (N = 30), each capped at :data:`EXPLORE_MAX_ITER` iterations, the fastest converged one
@@ -417,7 +419,10 @@ def _sqp_attempt(ocp: DirectCollocation, x0, x_goal, guess: Trajectory, name: st
 def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, starts, bounds, T_max: float,
                        search_s: float | None = None, restarts: int = 2, seed: int = 0, sqp: bool = False
                        ) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
-    """The time stage of the planner: :func:`minimum_time`; when no guess of it converges, the refusal at once if
+    """The time stage of the planner: on a chain of two or more links driven at a hinge (no cart: the acrobot) first
+    a receding-horizon DDP swing-up (:func:`_receding_plan`, within ``search_s`` s of wall time), which found the
+    acrobot's swing-up from dm_control's random starts in seconds where the stages below found none; then (or on
+    any other model first) :func:`minimum_time`; when no guess of it converges, the refusal at once if
     :func:`infeasibility_proof` proves upright out of reach, else (a weak actuator that must pump)
     :func:`~cartpole.planning.pumping.pumping_search` (``restarts`` guesses per duration, random ones from ``seed``)
     up to ``T_max`` s within ``search_s`` s of wall time, whose
@@ -426,8 +431,8 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
     search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found")."""
     from cartpole.planning.pumping import pumping_search
 
-    if params.slide is None:  # a chain driven at a hinge (the acrobot): the receding-horizon DDP first (seconds,
-        # where the multi-start took minutes and found nothing from dm_control's random starts)
+    if params.slide is None and len(model.hinges) > 1:  # a chain driven at a hinge (the acrobot): the receding-
+        # horizon DDP first (seconds, where the multi-start took minutes and found nothing from dm_control's starts)
         found = _receding_plan(model, x0, N=N, bounds=bounds, T_max=T_max, search_s=search_s, tried=())
         if found[1] is not None:
             return found
