@@ -31,10 +31,11 @@ from cartpole.control.tvlqr import TVLQRController
 from cartpole.control.linear import LinearFeedback
 from cartpole.riccati import dlqr, lab_weights, tvlqr
 from cartpole.models import CartPoleModel
-from cartpole.ocp.bounds import OCPBounds
+from cartpole.ocp.bounds import OCPBounds, OCPError
 from cartpole.ocp.objectives import Objective, tracking_cost
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.planning.pumping import hanging_mode
 from cartpole.solvers.ddp import DDP, DDPError, DDPOptions
 
 #: Most bisection steps of :func:`ddp_time_search` (each a fixed-T DDP solve; 2^-7 of the bracket is about one
@@ -265,6 +266,42 @@ RECEDING_RATE = 0.1
 RECEDING_T_MAX = 12.0
 
 
+#: DDP iterations of :func:`receding_swingup`'s first solution (converged offline, as the DDP MPC's first).
+RECEDING_FIRST_ITERATIONS = 200
+
+
+def _first_solution(model: CartPoleModel, ddp: DDP, x0, N: int, h: float, u_lo, u_hi, lqr) -> tuple[np.ndarray, int]:
+    """The receding DDP's first (N, nu) ctrl from ``x0``: the best converged of three starts, the upright LQR's input
+    and a bang-bang push at the hanging mode's frequency either way (near hanging the tracking cost is all but flat
+    and the DDP from the LQR's input alone does not move); and the DDP iterations spent."""
+    t = h * np.arange(N)
+    omega = hanging_mode_frequency(model)
+    starts = [np.array([lqr(0.0, model.x_eq)] * N, float)]
+    if omega:
+        half, mid = 0.5 * (u_hi - u_lo), 0.5 * (u_hi + u_lo)
+        for sign in (1.0, -1.0):
+            starts.append(mid + sign * np.outer(np.sign(np.sin(omega * t)), half))
+    best, its = None, 0
+    for U0 in starts:
+        try:
+            r = ddp.solve(x0, U0, max_iterations=RECEDING_FIRST_ITERATIONS, max_outer=1)
+        except DDPError:
+            continue
+        its += int(r.iterations)
+        if np.all(np.isfinite(r.u)) and (best is None or r.cost < best.cost):
+            best = r
+    return (starts[0] if best is None else np.array(best.u)), its
+
+
+def hanging_mode_frequency(model: CartPoleModel) -> float | None:
+    """rad/s: the slowest oscillation of the linearisation at hanging rest (:func:`cartpole.planning.pumping.
+    hanging_mode`), None where hanging has no oscillating mode."""
+    try:
+        return float(hanging_mode(model)[0])
+    except OCPError:
+        return None
+
+
 @dataclass(frozen=True)
 class RecedingSwingup:
     """What :func:`receding_swingup` found.
@@ -336,8 +373,8 @@ def receding_swingup(model: CartPoleModel, x0, bounds: OCPBounds, *, horizon: fl
     hinges = list(model.hinges)
     rates = [model.nq + i for i in hinges]
     x = np.asarray(x0, float).ravel()
-    U = np.array([lqr(0.0, model.x_eq)] * N, float)
-    X, Uapplied, its, status = [x.copy()], [], 0, "T_max reached"
+    U, its = _first_solution(model, ddp, x, N, h, u_lo, u_hi, lqr)
+    X, Uapplied, status = [x.copy()], [], "T_max reached"
     for k in range(int(round(float(T_max) / h))):
         err = lqr.error(x)
         if np.all(np.abs(err[hinges]) <= RECEDING_ANGLE) and np.all(np.abs(x[rates]) <= RECEDING_RATE):
