@@ -37,6 +37,7 @@ COMMANDS = (
     "excite",
     "identify",
     "export",
+    "score",
 )
 
 

@@ -330,7 +330,7 @@ def run(args) -> dict:
     if args.method == "energy" and search_fields(args):
         raise SwingupError("--T-max and --search-s set the planner's pumping search; use them with --method trajopt "
                            "or mpc.")
-    elif not getattr(args, "seed_plan", True):
+    if args.method != "mpc" and not getattr(args, "seed_plan", True):
         raise SwingupError("--no-seed-plan runs the DDP MPC without an offline plan; use it with --method mpc "
                            "--mpc-solver ddp.")
     out = Path(args.out)

@@ -23,17 +23,19 @@ import math
 import time
 from dataclasses import dataclass, replace
 
+import casadi as ca
 import numpy as np
 
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.control.linear import LinearFeedback
-from cartpole.riccati import dlqr, tvlqr
+from cartpole.riccati import dlqr, lab_weights, tvlqr
 from cartpole.models import CartPoleModel
-from cartpole.ocp.bounds import OCPBounds
-from cartpole.ocp.objectives import Objective
+from cartpole.ocp.bounds import OCPBounds, OCPError
+from cartpole.ocp.objectives import Objective, tracking_cost
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.planning.pumping import hanging_mode
 from cartpole.solvers.ddp import DDP, DDPError, DDPOptions
 
 #: Most bisection steps of :func:`ddp_time_search` (each a fixed-T DDP solve; 2^-7 of the bracket is about one
@@ -251,3 +253,160 @@ def ddp_time_search(model: CartPoleModel, x0, guess: Trajectory, T_min: float, b
                      solve_time_s=sum(a.solve_time_s for a in attempts), solver="ddp", T=best.info.T,
                      guess=guess_name)
     return replace(best, info=info), attempts
+
+
+#: s: horizon of :func:`receding_swingup`'s DDP (the DDP MPC's on dm_control's acrobot, docs' NMPC page).
+RECEDING_HORIZON = 2.0
+#: rad, rad/s: :func:`receding_swingup` stops once every hinge is within this angle of upright (wrapped) and
+#: every rate within :data:`RECEDING_RATE`: the rollout then ends all but at ``x_eq``, so the collocation's effort
+#: problem onto ``x_eq`` at its duration starts next to a solution.
+RECEDING_ANGLE = 0.02
+RECEDING_RATE = 0.1
+#: s of model time :func:`receding_swingup` rolls out at most by default. Longer rollouts (the acrobot from hanging
+#: at rest: 11.5 s) made plans that TVLQR did not track in MuJoCo; the planner's other stages take those starts.
+RECEDING_T_MAX = 6.0
+
+
+#: DDP iterations of :func:`receding_swingup`'s first solution (converged offline, as the DDP MPC's first).
+RECEDING_FIRST_ITERATIONS = 200
+
+
+def _first_solution(model: CartPoleModel, ddp: DDP, x0, N: int, h: float, u_lo, u_hi, lqr) -> tuple[np.ndarray, int]:
+    """The receding DDP's first (N, nu) ctrl from ``x0``: the best converged of three starts, the upright LQR's input
+    and a bang-bang push at the hanging mode's frequency either way (near hanging the tracking cost is all but flat
+    and the DDP from the LQR's input alone does not move); and the DDP iterations spent."""
+    t = h * np.arange(N)
+    omega = hanging_mode_frequency(model)
+    starts = [np.array([lqr(0.0, model.x_eq)] * N, float)]
+    if omega:
+        half, mid = 0.5 * (u_hi - u_lo), 0.5 * (u_hi + u_lo)
+        for sign in (1.0, -1.0):
+            starts.append(mid + sign * np.outer(np.sign(np.sin(omega * t)), half))
+    best, its = None, 0
+    for U0 in starts:
+        try:
+            r = ddp.solve(x0, U0, max_iterations=RECEDING_FIRST_ITERATIONS, max_outer=1)
+        except DDPError:
+            continue
+        its += int(r.iterations)
+        if np.all(np.isfinite(r.u)) and (best is None or r.cost < best.cost):
+            best = r
+    return (starts[0] if best is None else np.array(best.u)), its
+
+
+def hanging_mode_frequency(model: CartPoleModel) -> float | None:
+    """rad/s: the slowest oscillation of the linearisation at hanging rest (:func:`cartpole.planning.pumping.
+    hanging_mode`), None where hanging has no oscillating mode."""
+    try:
+        return float(hanging_mode(model)[0])
+    except OCPError:
+        return None
+
+
+@dataclass(frozen=True)
+class RecedingSwingup:
+    """What :func:`receding_swingup` found.
+
+    Attributes
+    ----------
+    trajectory : Trajectory or None
+        Knots at every step ``t_k = k h`` (s) from the start to the first state near upright: the rollout's states,
+        its held ctrl (the last repeated) and ``model.f`` there; None when no state near upright was reached.
+    info : SolveInfo
+        ``success`` (upright reached), ``status``, ``iterations`` (DDP iterations in all), ``T`` (s of model time
+        rolled out), ``solve_time_s`` (wall time).
+    """
+
+    trajectory: Trajectory | None
+    info: SolveInfo
+
+
+def receding_swingup(model: CartPoleModel, x0, bounds: OCPBounds, *, horizon: float = RECEDING_HORIZON,
+                     T_max: float = RECEDING_T_MAX, deadline_s: float | None = None, Q=None, R=None,
+                     iterations: int = 1) -> RecedingSwingup:
+    """A swing-up found by receding-horizon DDP on the model's exact discrete step, as the DDP MPC finds one in the
+    loop: a guess for the planner where its multi-start finds none (the acrobot from dm_control's random starts).
+
+    Each step ``h = model.dt`` the box-DDP of the MPC (the tracking cost ``2 (1 - cos e)`` on hinges, quadratic
+    elsewhere, weights ``Q``, ``R``; the terminal cost the upright discrete LQR's ``S``; the rail and joint ranges as
+    penalties) takes ``iterations`` iterations from its previous solution shifted by one step (the tail extended by
+    that LQR's input), and its first input is applied to the exact discrete model. It stops at the first state with
+    every hinge within :data:`RECEDING_ANGLE` rad of upright and every rate within :data:`RECEDING_RATE` rad/s.
+
+    Parameters
+    ----------
+    model : CartPoleModel
+        Planning model; its ``step`` is the exact discrete step (one MJCF step).
+    x0 : (nx,) array
+        Start ``[qpos, qvel]`` (m, rad, m/s, rad/s).
+    bounds : OCPBounds
+        ctrl bounds, rail and joint ranges (the collocation's).
+    horizon : float
+        s, the DDP's horizon.
+    T_max : float
+        s of model time rolled out at most.
+    deadline_s : float, optional
+        s of wall time at most (the rollout stops unfinished after it).
+    Q, R : arrays, optional
+        Tracking weights (default :func:`cartpole.riccati.lab_weights`).
+    iterations : int
+        DDP iterations per step.
+
+    Returns
+    -------
+    RecedingSwingup
+    """
+    tic = time.perf_counter()
+    Q0, R0 = lab_weights(model)
+    Q = Q0 if Q is None else np.asarray(Q, float)
+    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
+    h = float(model.dt)
+    N = max(1, int(round(float(horizon) / h)))
+    Ad, Bd = model.linearize(discrete=True)
+    lq = dlqr(Ad, Bd, Q * h, R * h)
+    u_lo, u_hi = np.asarray(bounds.u_low, float), np.asarray(bounds.u_high, float)
+    lqr = LinearFeedback(lq.K, model.x_eq, model.u_eq, hinges=model.hinges, u_limits=np.c_[u_lo, u_hi])
+    xs, us = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
+    running = ca.Function("receding_tracking", [xs, us], [tracking_cost(model, xs, us, np.diag(Q), np.diag(R))])
+    ddp = DDP(model.step, h, N, running=running, u_low=u_lo, u_high=u_hi, q_low=bounds.q_low, q_high=bounds.q_high,
+              x_goal=model.x_eq, hinges=model.hinges, Qf=np.asarray(lq.S), goal_constraint=False,
+              options=DDPOptions(max_outer=1))
+    hinges = list(model.hinges)
+    rates = [model.nq + i for i in hinges]
+    x = np.asarray(x0, float).ravel()
+    U, its = _first_solution(model, ddp, x, N, h, u_lo, u_hi, lqr)
+    X, Uapplied, status = [x.copy()], [], "T_max reached"
+    for k in range(int(round(float(T_max) / h))):
+        err = lqr.error(x)
+        if np.all(np.abs(err[hinges]) <= RECEDING_ANGLE) and np.all(np.abs(x[rates]) <= RECEDING_RATE):
+            status = "upright reached"
+            break
+        if deadline_s is not None and time.perf_counter() - tic > deadline_s:
+            status = "deadline"
+            break
+        try:
+            r = ddp.solve(x, U, max_iterations=int(iterations), max_outer=1)
+        except DDPError:
+            status = "DDP failed"
+            break
+        if not (np.all(np.isfinite(r.u)) and np.all(np.isfinite(r.x))):
+            status = "DDP not finite"
+            break
+        its += int(r.iterations)
+        U = np.array(r.u)
+        u = np.clip(U[0], u_lo, u_hi)
+        x = np.asarray(model.step(x, u), float).ravel()
+        X.append(x.copy())
+        Uapplied.append(u)
+        U = np.vstack([U[1:], lqr(0.0, np.asarray(r.x)[-1])[None, :]])
+    success = status == "upright reached" and len(Uapplied) > 0
+    traj = None
+    if success:
+        Xa, Ua = np.array(X), np.array(Uapplied)
+        Uk = np.vstack([Ua, Ua[-1:]])
+        xdot = np.asarray(model.f.map(Xa.shape[0])(Xa.T, Uk.T)).T
+        traj = Trajectory(t=h * np.arange(Xa.shape[0]), x=Xa, u=Uk, xdot=xdot)
+    info = SolveInfo(status=status, success=success, iterations=its, objective=len(Uapplied) * h,
+                     solve_time_s=time.perf_counter() - tic, solver="ddp", T=len(Uapplied) * h,
+                     guess="receding-horizon DDP")
+    return RecedingSwingup(trajectory=traj, info=info)

@@ -7,7 +7,9 @@ and hands over to the LQR catch (the discrete LQR of the lab's weight pattern at
 duration, unless given, is the minimum time the bounds allow times ``1 + time_margin``: the faster the
 better, but a plan that saturates the actuator everywhere leaves TVLQR no authority to correct errors.
 
-No hand-holding: the stages and the mesh are the code's. (1) :func:`minimum_time`: a deterministic multi-start
+No hand-holding: the stages and the mesh are the code's. (0) On a chain driven at a hinge (the acrobot), a
+receding-horizon DDP rollout (:func:`~cartpole.planning.ddp_plan.receding_swingup`) to near upright, re-solved as the
+effort and then the free-time problem; the stages below only when it finds none. (1) :func:`minimum_time`: a deterministic multi-start
 of named guesses (:func:`cartpole.ocp.guess.named_guesses`: pumping and straight-line shapes towards the nearest
 upright angles, for one pole an energy-shaping rollout first; ``starts=4`` adds the routes in which every link
 loops once more) on a coarse mesh (N = 30), each capped at :data:`EXPLORE_MAX_ITER` iterations, the fastest converged one
@@ -20,6 +22,7 @@ status, objective, which were kept), and ``plan.plan_time_s`` is the wall time o
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
 
@@ -39,6 +42,7 @@ from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.dmc import is_task
 from cartpole.ocp.dmc import task as dmc_task
 from cartpole.ocp.objectives import make_objective
+from cartpole.planning.ddp_plan import RECEDING_T_MAX, receding_swingup
 from cartpole.planning.options import DEFAULT_N, U_MARGIN, PlanOptions
 from cartpole.solvers.sqp import CollocationSQP, SQPError
 from cartpole.ocp.trajectory import Trajectory
@@ -298,6 +302,8 @@ GUESS_T = 2.0
 #: s: the longest plan the minimum-time multi-start allows (:class:`~cartpole.ocp.collocation.DirectCollocation`'s
 #: default ``T_range``); beyond it the pumping search takes over, up to ``PlanOptions.T_max``.
 MINIMUM_TIME_T_MAX = 10.0
+#: s of plan per collocation interval when the planner re-solves a receding-horizon DDP swing-up (at least ``N``).
+RECEDING_KNOT_S = 0.04
 
 
 def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, solver: str = "ipopt",
@@ -413,7 +419,10 @@ def _sqp_attempt(ocp: DirectCollocation, x0, x_goal, guess: Trajectory, name: st
 def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, starts, bounds, T_max: float,
                        search_s: float | None = None, restarts: int = 2, seed: int = 0, sqp: bool = False
                        ) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
-    """The time stage of the planner: :func:`minimum_time`; when no guess of it converges, the refusal at once if
+    """The time stage of the planner: on a chain of two or more links driven at a hinge (no cart: the acrobot) first
+    a receding-horizon DDP swing-up (:func:`_receding_plan`, within ``search_s`` s of wall time), which found the
+    acrobot's swing-up from dm_control's random starts in seconds where the stages below found none; then (or on
+    any other model first) :func:`minimum_time`; when no guess of it converges, the refusal at once if
     :func:`infeasibility_proof` proves upright out of reach, else (a weak actuator that must pump)
     :func:`~cartpole.planning.pumping.pumping_search` (``restarts`` guesses per duration, random ones from ``seed``)
     up to ``T_max`` s within ``search_s`` s of wall time, whose
@@ -422,10 +431,19 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
     search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found")."""
     from cartpole.planning.pumping import pumping_search
 
+    if params.slide is None and len(model.hinges) > 1:  # a chain driven at a hinge (the acrobot): the receding-
+        # horizon DDP first (seconds, where the multi-start took minutes and found nothing from dm_control's starts)
+        found = _receding_plan(model, x0, N=N, bounds=bounds, T_max=T_max, search_s=search_s, tried=())
+        if found[1] is not None:
+            return found
+        first_attempts = found[2].attempts
+    else:
+        first_attempts = ()
     try:
         return (*minimum_time(model, x0, N=N, starts=starts, bounds=bounds, sqp=sqp), None)
     except OCPNotSolved as exc:
         first = exc
+    first = OCPNotSolved(str(first), tuple(first_attempts) + tuple(first.attempts))
     proof = infeasibility_proof(params, model, x0, bounds)
     if proof.proven:  # no need to search
         raise refusal(params, model, x0, bounds, first.attempts, T_max=T_max, proof=proof)
@@ -448,6 +466,36 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
     # the longest plan searched: the minimum-time stage's upper bound on T, or the pumping search's longest
     T_searched = max([MINIMUM_TIME_T_MAX] + [a.T for a in tried if a.stage.startswith("pump")])
     raise refusal(params, model, x0, bounds, attempts, T_max=T_searched, proof=proof)
+
+
+def _receding_plan(model: CartPoleModel, x0, *, N: int, bounds, T_max: float, search_s: float | None,
+                   tried: tuple) -> tuple:
+    """The time stage from a receding-horizon DDP swing-up (:func:`~cartpole.planning.ddp_plan.receding_swingup`,
+    within ``search_s`` s of wall time): its rollout, near upright at its end, solved as the effort problem at its
+    duration onto ``x_eq`` (:func:`warm_stage`), then the free-time problem from that plan (``T <= T_max``).
+    ``(T_min, time plan, info, (effort plan, its info))`` like :func:`_swingup_time_plan`, ``(None, effort plan,
+    info, None)`` when the free-time solve does not converge (the rollout itself when the effort problem does not
+    either), or ``(None, None, info, None)`` when no swing-up was found (``info.attempts`` then holds every try, after
+    ``tried``)."""
+    rec = receding_swingup(model, x0, bounds, T_max=min(T_max, RECEDING_T_MAX), deadline_s=search_s)
+    attempts = tuple(tried) + (Attempt.of(rec.info, "receding-horizon DDP", rec.info.guess,
+                                          int(round(rec.info.T / float(model.dt))), chosen=rec.info.success),)
+    if rec.trajectory is None:
+        return None, None, replace(rec.info, attempts=attempts), None
+    n = max(int(N), int(math.ceil(rec.info.T / RECEDING_KNOT_S)))
+    traj, info, warm = warm_stage(model, x0, rec.trajectory, N=n, bounds=bounds, name=rec.info.guess)
+    attempts = attempts + tuple(warm)
+    if traj is None:  # the rollout itself: exact on the model's step, ending all but at x_eq
+        return None, rec.trajectory, replace(rec.info, attempts=attempts), None
+    ocp = DirectCollocation(model, N=n, T=None, objective="time", T_range=(0.2, T_max), bounds=bounds,
+                            solver_options={"ipopt": {"max_iter": 500}})
+    fast, tinfo = ocp.solve_once(x0, model.x_eq, guess=traj)
+    attempts = attempts + (Attempt.of(tinfo, "time from the receding-horizon plan", info.guess, n,
+                                      chosen=tinfo.success),)
+    pump = (traj, replace(info, attempts=attempts))
+    if tinfo.success:
+        return tinfo.T, fast, replace(tinfo, guess=f"{info.guess} -> time", attempts=attempts), pump
+    return None, traj, replace(info, attempts=attempts), None
 
 
 def _pumped_effort(model, x0, fast: Trajectory, tinfo: SolveInfo, pump: tuple, *, N: int, bounds, margin: float,
@@ -663,13 +711,14 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
 
 
 def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, solver: str = "ipopt",
-               solver_options=None, sqp: bool = False) -> tuple[Trajectory | None, SolveInfo | None, tuple]:
+               solver_options=None, sqp: bool = False, name: str = "library plan"
+               ) -> tuple[Trajectory | None, SolveInfo | None, tuple]:
     """The effort problem at ``guess``'s duration from ``x0`` (nx,), started from ``guess`` (a plan from a nearby
     start): ``(plan, info, attempts)``, plan and info None when it did not converge. ``sqp``: by
-    :class:`~cartpole.solvers.sqp.CollocationSQP` first, IPOPT when it does not converge; ``N`` intervals."""
+    :class:`~cartpole.solvers.sqp.CollocationSQP` first, IPOPT when it does not converge; ``N`` intervals; ``name``
+    the guess's name in the attempt records."""
     T = float(guess.duration)
     stage = f"warm effort T={T:.3g}"
-    name = "library plan"
     ocp = DirectCollocation(model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
     tried: list = []
     if sqp:

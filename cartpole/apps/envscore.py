@@ -1,0 +1,338 @@
+"""Scored by the environments themselves: the dm_control suite's and Gymnasium's own episodes, run with the toolkit's
+controllers, each return summed from the rewards the environment's own code pays.
+
+``cartpole.ocp.dmc`` transcribes dm_control's rewards and starts so that the planner can optimise them; this module
+runs the real thing. For each seed the environment is made and reset by its own code (dm_control's
+``suite.load(domain, task, task_kwargs={"random": seed})``, Gymnasium's ``gymnasium.make(id).reset(seed=seed)``), the
+start is read from its MuJoCo data (``qpos``, ``qvel``), a controller of the toolkit is built for that start (the
+plan and its TVLQR and catch, the DDP MPC, or the LQR; :data:`ENVIRONMENTS` says which for each), and each of the
+environment's steps applies ``u = controller(t, x)`` to the state the environment reached. The return is the sum of
+the rewards ``env.step`` returned, over the episode the environment defines (dm_control's time limit, Gymnasium's
+``max_episode_steps`` or its termination). The ctrl each step held is logged and replayed from the start in the
+toolkit's own MuJoCo run of the same physics (:func:`cartpole.sim.replay` on the file named in :data:`ENVIRONMENTS`):
+``replays`` says whether every state the environment reached is reproduced bit for bit.
+
+dm_control and Gymnasium are optional dependencies (the ``envs`` extra); without them :class:`EnvScoreError` says what
+to install.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cartpole._arrays import readonly
+from cartpole.errors import CartPoleError
+from cartpole.models import SHIPPED_MJCF, build_model
+from cartpole.sim import replay
+
+#: The folder of the toolkit's copies of dm_control's files.
+ASSETS = SHIPPED_MJCF.parent
+
+
+class EnvScoreError(CartPoleError):
+    """An environment this module does not know, a bad seed or episode count, or dm_control/Gymnasium missing."""
+
+
+@dataclass(frozen=True)
+class Environment:
+    """One environment scored in its own code.
+
+    Attributes
+    ----------
+    name : str
+        ``<domain>-<task>`` for dm_control (TD-MPC2's names), the Gymnasium id for Gymnasium.
+    suite : str
+        ``"dmc"`` or ``"gym"``.
+    controller : str
+        ``"trajopt"`` (the plan for ``objective``, its TVLQR and the catch), ``"mpc"`` (the DDP MPC on
+        ``objective``'s planning surrogate, at the environment's control step, 2 s horizon, no offline plan) or
+        ``"lqr"`` (the upright LQR designed over the environment's action hold).
+    objective : str or None
+        The ``dmc_*`` objective planned for (:mod:`cartpole.ocp.dmc`).
+    asset : str or None
+        The toolkit's copy of the environment's file under ``cartpole/assets`` (dm_control); None: the
+        environment's own file (Gymnasium's ``fullpath``).
+    reference : float or None
+        The best published learned agent's return on the task (TD-MPC2's best evaluation), None where none is
+        quoted.
+    reference_source : str
+        Where ``reference`` comes from.
+    """
+
+    name: str
+    suite: str
+    controller: str
+    objective: str | None = None
+    asset: str | None = None
+    reference: float | None = None
+    reference_source: str = ""
+
+
+_TDMPC2 = "TD-MPC2's best evaluation (nicklashansen/tdmpc2, results/tdmpc2/<task>.csv)"
+
+#: Every environment :func:`score_episode` runs, by name.
+ENVIRONMENTS = {e.name: e for e in (
+    Environment("pendulum-swingup", "dmc", "trajopt", "dmc_pendulum_swingup", "dmc_pendulum.xml", 906.2, _TDMPC2),
+    Environment("acrobot-swingup", "dmc", "mpc", "dmc_acrobot_swingup", "dmc_acrobot.xml", 711.5, _TDMPC2),
+    Environment("cartpole-swingup", "dmc", "trajopt", "dmc_cartpole_swingup", "dmc_cartpole.xml", 883.0, _TDMPC2),
+    Environment("cartpole-swingup_sparse", "dmc", "trajopt", "dmc_cartpole_swingup_sparse", "dmc_cartpole.xml",
+                849.0, _TDMPC2),
+    Environment("InvertedPendulum-v5", "gym", "lqr"),
+    Environment("InvertedDoublePendulum-v5", "gym", "lqr"),
+)}
+
+
+@dataclass(frozen=True)
+class EpisodeScore:
+    """One episode of an environment, run by its own code with a toolkit controller.
+
+    Attributes
+    ----------
+    env : str
+        The environment's name (:data:`ENVIRONMENTS`).
+    seed : int
+        The seed the environment was reset with.
+    x0 : (nx,) array
+        The start the environment's reset drew, ``[qpos, qvel]`` (m, rad, m/s, rad/s).
+    return_ : float
+        The sum of the rewards the environment's ``step`` returned.
+    steps : int
+        Environment steps taken (fewer than the episode's length when Gymnasium terminated it).
+    terminated : bool
+        Gymnasium ended the episode by its termination rule (the pole fell); always False for dm_control.
+    ctrl : (steps, nu) array
+        The ctrl held over each environment step.
+    x : (steps + 1, nx) array
+        The state after each environment step, the start first.
+    replays : bool
+        Every state the environment reached is reproduced bit for bit by replaying ``ctrl`` from ``x0`` in the
+        toolkit's MuJoCo run of ``mjcf``.
+    warned : bool
+        MuJoCo warned of a blown-up state during the episode (such a run is diverged, whatever it earned).
+    design_s : float
+        s of wall time spent building the controller for this start (the plan, the MPC's first solution).
+    mjcf : str
+        The file the controller was designed on and the replay ran.
+    rewards : (steps,) array
+        The reward the environment paid for each step.
+    """
+
+    env: str
+    seed: int
+    x0: np.ndarray
+    return_: float
+    steps: int
+    terminated: bool
+    ctrl: np.ndarray
+    x: np.ndarray
+    replays: bool
+    warned: bool
+    design_s: float
+    mjcf: str
+    rewards: np.ndarray = field(default=None, repr=False)
+
+    def as_dict(self) -> dict:
+        """JSON-ready: ``env``, ``seed``, ``x0``, ``return``, ``steps``, ``terminated``, ``replays``, ``warned``,
+        ``design_s``, ``mjcf`` (the ctrl, states and rewards left out)."""
+        return {"env": self.env, "seed": self.seed, "x0": [float(v) for v in self.x0],
+                "return": round(float(self.return_), 4), "steps": self.steps, "terminated": self.terminated,
+                "replays": self.replays, "warned": self.warned, "design_s": round(self.design_s, 3),
+                "mjcf": self.mjcf}
+
+
+def environment(name: str) -> Environment:
+    """The :class:`Environment` called ``name``; :class:`EnvScoreError` naming the known ones otherwise."""
+    if name not in ENVIRONMENTS:
+        raise EnvScoreError(f"Unknown environment '{name}'; choose one of {', '.join(ENVIRONMENTS)}.")
+    return ENVIRONMENTS[name]
+
+
+def _check_seed(seed) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise EnvScoreError(f"seed = {seed!r} must be a whole number >= 0 (the environment's reset seed).")
+    return int(seed)
+
+
+class _DMC:
+    """A dm_control task behind one small interface: reset, state, step -> (reward, ended)."""
+
+    def __init__(self, env: Environment, seed: int):
+        try:
+            from dm_control import suite
+        except ImportError as exc:
+            raise EnvScoreError(f"Scoring {env.name} needs dm_control ({exc}); install the envs extra: "
+                                "pip install 'cartpole[envs]'.") from None
+        domain, task = env.name.split("-", 1)
+        self.env = suite.load(domain, task, task_kwargs={"random": seed})
+        self.env.reset()
+        self.physics = self.env.physics
+        self.hold = 1  # physics steps per environment step (every task here: n_sub_steps = 1)
+        self.length = None  # the episode ends when the task's TimeStep says it is the last
+        self.mjcf = str(ASSETS / env.asset)
+
+    def state(self) -> tuple[float, np.ndarray]:
+        d = self.physics.data
+        return float(d.time), np.concatenate([np.array(d.qpos, float), np.array(d.qvel, float)])
+
+    def warned(self) -> bool:
+        return bool(np.any(np.array(self.physics.data.warning.number) > 0))
+
+    def step(self, u) -> tuple[float, bool]:
+        ts = self.env.step(np.asarray(u, float))
+        return float(ts.reward), bool(ts.last())
+
+
+class _Gym:
+    """A Gymnasium MuJoCo environment behind the same interface."""
+
+    def __init__(self, env: Environment, seed: int):
+        try:
+            import gymnasium
+        except ImportError as exc:
+            raise EnvScoreError(f"Scoring {env.name} needs gymnasium with MuJoCo ({exc}); install the envs extra: "
+                                "pip install 'cartpole[envs]'.") from None
+        self.env = gymnasium.make(env.name)
+        self.env.reset(seed=seed)
+        self.raw = self.env.unwrapped
+        self.hold = int(self.raw.frame_skip)
+        self.length = int(self.env.spec.max_episode_steps)
+        self.mjcf = str(self.raw.fullpath)
+
+    def state(self) -> tuple[float, np.ndarray]:
+        d = self.raw.data
+        return float(d.time), np.concatenate([np.array(d.qpos, float), np.array(d.qvel, float)])
+
+    def warned(self) -> bool:
+        return bool(np.any(np.array(self.raw.data.warning.number) > 0))
+
+    def step(self, u) -> tuple[float, bool]:
+        _, reward, terminated, truncated, _ = self.env.step(np.asarray(u, float))
+        self.terminated = bool(terminated)
+        return float(reward), bool(terminated or truncated)
+
+
+def design(env: Environment, mjcf: str, x0, hold: int):
+    """The toolkit's controller for ``env`` from the start ``x0`` (nx,), on the file ``mjcf``, for an environment
+    that holds each action for ``hold`` physics steps: ``u = controller(t, x)`` (see :data:`ENVIRONMENTS`)."""
+    model = build_model(mjcf)
+    period = hold * float(model.dt)
+    if env.controller == "lqr":
+        from cartpole.control import LinearFeedback
+
+        return LinearFeedback.for_model(model, period=period if hold > 1 else None)
+    if env.controller == "mpc":
+        from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
+        from cartpole.mpc.options import MPCOptions
+
+        opts = MPCOptions(solver="ddp", objective=env.objective, seed_plan=False, period=period, horizon=2.0)
+        return ddp_mpc_swingup(model.params, x0=x0, plan_model=model, options=opts)
+    from cartpole.planning.options import PlanOptions
+    from cartpole.planning.trajopt import trajopt_swingup
+
+    return trajopt_swingup(model.params, x0=tuple(x0), plan_model=model,
+                           options=PlanOptions(objective=env.objective)).controller
+
+
+def score_episode(name: str, seed: int = 0, *, controller=None, max_steps: int | None = None) -> EpisodeScore:
+    """Run one episode of the environment ``name`` from its own reset with ``seed``, with the toolkit's controller,
+    and sum the rewards the environment pays.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`ENVIRONMENTS` (``pendulum-swingup``, ``acrobot-swingup``, ``cartpole-swingup``,
+        ``cartpole-swingup_sparse``, ``InvertedPendulum-v5``, ``InvertedDoublePendulum-v5``).
+    seed : int
+        The environment's reset seed (>= 0).
+    controller : callable, optional
+        ``controller(env, mjcf, x0, hold) -> u = c(t, x)`` instead of :func:`design` (a test's own, say).
+    max_steps : int, optional
+        Stop after this many environment steps (>= 1; default the whole episode): a shortened episode, its return
+        the rewards paid so far.
+
+    Returns
+    -------
+    EpisodeScore
+
+    Raises
+    ------
+    EnvScoreError
+        An unknown name, a bad seed, or dm_control/Gymnasium not installed.
+    """
+    env = environment(name)
+    seed = _check_seed(seed)
+    if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
+                                  or max_steps < 1):
+        raise EnvScoreError(f"max_steps = {max_steps!r} must be a whole number of environment steps >= 1.")
+    run = _DMC(env, seed) if env.suite == "dmc" else _Gym(env, seed)
+    if max_steps is not None:
+        run.length = int(max_steps) if run.length is None else min(run.length, int(max_steps))
+    _, x0 = run.state()
+    tic = time.perf_counter()
+    ctrl_of = (controller or design)(env, run.mjcf, x0, run.hold)
+    design_s = time.perf_counter() - tic
+    xs, us, rewards = [x0], [], []
+    ended, warned = False, False
+    while not ended and (run.length is None or len(us) < run.length):
+        t, x = run.state()
+        u = np.atleast_1d(np.asarray(ctrl_of(t, x), float))
+        reward, ended = run.step(u)
+        warned = warned or run.warned()
+        us.append(u)
+        rewards.append(reward)
+        xs.append(run.state()[1])
+    ctrl = np.array(us)
+    again = replay(run.mjcf, x0, np.repeat(ctrl, run.hold, axis=0))
+    replays = bool(np.array_equal(again.x[::run.hold], np.array(xs)))
+    return EpisodeScore(env=name, seed=seed, x0=readonly(x0), return_=float(np.sum(rewards)), steps=len(us),
+                        terminated=bool(getattr(run, "terminated", False)), ctrl=readonly(ctrl), x=readonly(np.array(xs)),
+                        replays=replays,
+                        warned=warned, design_s=design_s, mjcf=run.mjcf, rewards=readonly(np.array(rewards)))
+
+
+def score(name: str, n: int = 10, seed: int = 0, *, controller=None, on_episode=None,
+          max_steps: int | None = None) -> dict:
+    """``n`` episodes of ``name`` from the environment's resets with seeds ``seed, seed + 1, ...``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`ENVIRONMENTS`.
+    n : int
+        Episodes (>= 1).
+    seed : int
+        The first reset seed (>= 0).
+    controller : callable, optional
+        As :func:`score_episode`.
+    on_episode : callable, optional
+        Called with each :class:`EpisodeScore` as it is done (progress).
+    max_steps : int, optional
+        As :func:`score_episode`.
+
+    Returns
+    -------
+    dict
+        ``env``, ``seeds``, ``returns`` (one per seed), ``mean_return``, ``min_return``, ``reference`` and
+        ``reference_source`` (the best published learned agent's), ``above_reference`` (the mean above it; None
+        without one), ``all_replay``, ``any_warned``, ``episodes`` (:meth:`EpisodeScore.as_dict` each).
+    """
+    env = environment(name)
+    seed = _check_seed(seed)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise EnvScoreError(f"n = {n!r} must be a whole number of episodes >= 1.")
+    episodes = []
+    for s in range(seed, seed + int(n)):
+        ep = score_episode(name, s, controller=controller, max_steps=max_steps)
+        episodes.append(ep)
+        if on_episode is not None:
+            on_episode(ep)
+    returns = [round(float(e.return_), 4) for e in episodes]
+    mean = float(np.mean(returns))
+    return {"env": name, "seeds": list(range(seed, seed + int(n))), "returns": returns,
+            "mean_return": round(mean, 4), "min_return": min(returns), "reference": env.reference,
+            "reference_source": env.reference_source,
+            "above_reference": None if env.reference is None else bool(mean > env.reference),
+            "all_replay": all(e.replays for e in episodes), "any_warned": any(e.warned for e in episodes),
+            "episodes": [e.as_dict() for e in episodes]}

@@ -1,0 +1,70 @@
+"""The environments' own episodes (cartpole.apps.envscore): dm_control's and Gymnasium's resets, steps and rewards,
+run with the toolkit's controllers, against the toolkit's transcription of them and its own MuJoCo replay.
+
+The planned dm_control episodes (a plan of minutes on a loaded machine) are run through the toolkit's own MuJoCo loop
+in tests/apps/test_dmc_episodes.py; here the dm_control tasks are stepped by dm_control itself, with the upright LQR
+for a few steps (the scoring's bookkeeping: the start, the rewards, the replay) and, for the acrobot, with its own
+controller (the DDP MPC) through its swing-up."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cartpole.apps.envscore import ENVIRONMENTS, EnvScoreError, environment, score, score_episode
+from cartpole.control import LinearFeedback
+from cartpole.models import build_model
+from cartpole.ocp.dmc import episode_starts, rewards
+
+DMC = [name for name, env in ENVIRONMENTS.items() if env.suite == "dmc"]
+GYM = [name for name, env in ENVIRONMENTS.items() if env.suite == "gym"]
+
+
+def _upright_lqr(env, mjcf, x0, hold):
+    model = build_model(mjcf)
+    return LinearFeedback.for_model(model, period=hold * model.dt if hold > 1 else None)
+
+
+@pytest.mark.parametrize("name", DMC)
+def test_dm_control_starts_and_pays_as_the_toolkits_transcription_of_its_task(name):
+    """dm_control's reset with seed 0 is the first start cartpole.ocp.dmc draws for seed 0; what env.step paid for
+    each step is the transcribed reward of the state reached and the ctrl held; the states replay bit for bit."""
+    ep = score_episode(name, 0, controller=_upright_lqr, max_steps=120)
+    model = build_model(ep.mjcf)
+    objective = environment(name).objective
+    assert ep.steps == 120 and ep.x.shape == (121, model.nx) and ep.ctrl.shape == (120, model.nu)
+    np.testing.assert_array_equal(ep.x0, episode_starts(model, objective, 1, seed=0)[0])
+    ours = rewards(model, objective, ep.x[1:], ep.ctrl)
+    np.testing.assert_allclose(ep.rewards, ours, rtol=0, atol=1e-12)
+    assert ep.return_ == pytest.approx(float(np.sum(ours)), abs=1e-9)
+    assert ep.replays and not ep.warned
+
+
+@pytest.mark.parametrize("name", GYM)
+def test_gymnasium_pendulums_held_by_the_lqr_over_their_action_hold_for_the_whole_episode(name):
+    """Gymnasium's own reset, frame skip, termination and reward: the LQR designed over the hold keeps every pole
+    up for the episode's 1000 steps (never terminated), and the run replays bit for bit on Gymnasium's own file."""
+    result = score(name, 1, 0)
+    ep = result["episodes"][0]
+    assert ep["steps"] == 1000 and not ep["terminated"] and ep["replays"] and not ep["warned"]
+    assert result["returns"][0] > 0.9 * 1000 * (1 if name == "InvertedPendulum-v5" else 9.0)
+
+
+def test_acrobot_seed_0_swung_up_by_its_controller_in_dm_control():
+    """The DDP MPC from dm_control's own seed-0 start: within the first 4 s dm_control pays nearly the full reward
+    (the tip at the target) for the last half second, and the run replays exactly."""
+    ep = score_episode("acrobot-swingup", 0, max_steps=400)
+    assert ep.replays and not ep.warned
+    assert ep.rewards[-50:].min() > 0.9
+
+
+@pytest.mark.parametrize("kwargs, words", [({"name": "acrobot"}, "Unknown environment 'acrobot'"),
+                                           ({"name": "acrobot-swingup", "seed": -1}, "seed = -1"),
+                                           ({"name": "acrobot-swingup", "max_steps": 0}, "max_steps = 0")])
+def test_bad_environment_seed_or_length_is_one_sentence(kwargs, words):
+    with pytest.raises(EnvScoreError, match=words):
+        score_episode(**kwargs)
+
+
+def test_bad_episode_count_is_one_sentence():
+    with pytest.raises(EnvScoreError, match="n = 0"):
+        score("InvertedPendulum-v5", 0)
