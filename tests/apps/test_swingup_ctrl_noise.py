@@ -7,7 +7,7 @@ import pytest
 
 from cartpole.analysis import AnalysisError
 from cartpole.apps.margins import noise_limited_catch
-from cartpole.apps.swingup import DEFAULT_CTRL_NOISE, run_swingup
+from cartpole.apps.swingup import DEFAULT_CTRL_NOISE, SwingupOptions, run_swingup
 from cartpole.riccati import lab_weights
 from cartpole.models import SHIPPED_MJCF, build_model, read_params, steps_per_period
 from cartpole.planning.trajopt import handover_catch
@@ -38,7 +38,7 @@ DURATION = 7.0
 def _quiet_hold(mjcf):
     """The issue's run (period and delay one 10 ms step, 2048-count hinge encoders, the EKF): the result, the ctrl's
     standard deviation over the last 4 s and the model."""
-    res = run_swingup(mjcf, method="trajopt", loop=LoopOptions(duration=DURATION, **RIG))
+    res = run_swingup(mjcf, "trajopt", SwingupOptions(loop=LoopOptions(duration=DURATION, **RIG)))
     assert replays_exactly(res.rollout)
     cn = res.metrics["ctrl_noise"]
     assert cn["default"] and cn["met"] and cn["fraction"] == DEFAULT_CTRL_NOISE

@@ -33,26 +33,21 @@ from contextlib import contextmanager
 import numpy as np
 
 from cartpole.errors import CartPoleError, first_line
-from cartpole.models import CartPoleModel, CartPoleParams, build_model
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, steps_per_period
 from cartpole.sim import replays_exactly
-from cartpole.apps.swingup import planning_model, run_swingup
+from cartpole.apps.swingup import SwingupOptions, planning_model, run_swingup
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.mpc.options import MPCOptions
 from cartpole.ocp.dmc import is_task
 from cartpole.planning.options import PlanOptions
-from cartpole.sim.options import LoopOptions
+from cartpole.planning.trajopt import handover_catch
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import WORKER_ENV, main_thread, sigint_ignored, start_server, worker_env
 from cartpole.apps.sweep.plan import LOOP_SETTINGS, SweepError
 
 #: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
 CONNECT_TIMEOUT = 10.0
-def mpc_fields(objective, mpc: dict | None = None) -> dict:
-    """The :class:`~cartpole.mpc.options.MPCOptions` fields of a sweep's mpc runs: with an ``objective`` the DDP
-    MPC's (``solver='ddp'`` and that objective: the RTI NMPC tracks upright only), then the fixed settings ``mpc``
-    (field -> value) every run has."""
-    return {**({} if objective is None else {"solver": "ddp", "objective": objective}), **dict(mpc or {})}
-
-
 class Runner:
     """One process's share of a sweep: the model (built once), each planning model (built once, on first use), the
     basin cache, and the settings every run shares.
@@ -64,47 +59,35 @@ class Runner:
     ----------
     params : CartPoleParams
         The cart-pole MuJoCo runs on.
-    method : {"energy", "trajopt", "mpc"}
-    duration : float or None
-        Simulated seconds per run (None: :func:`~cartpole.apps.swingup.run_swingup`'s default).
-    catch_weights : (Q, R) or None
-        LQR weights of the catch.
+    method : {"energy", "trajopt", "mpc", "supervisor"}
+    options : SwingupOptions
+        The settings every run starts from (:func:`~cartpole.apps.swingup.run_swingup`'s): a run's swept loop
+        settings (:data:`~cartpole.apps.sweep.plan.LOOP_SETTINGS`) replace fields of its ``loop`` (the period and
+        delay rounded to whole physics steps), its push and model error the loop's, its other swept settings
+        fields of the method's stage options (``energy``, ``plan``, ``mpc``) by name. A dm_control task as the
+        objective adds each run's ``return`` and ``return_steps``.
     cache : BasinCache
         The basins the runs use (shipped to the workers with what it holds).
     model : CartPoleModel, optional
         The model of ``params`` when already built.
-    loop : LoopOptions, optional
-        The rig every run has (period, delay, sensors, estimator); a run's swept loop settings
-        (:data:`~cartpole.apps.sweep.plan.LOOP_SETTINGS`) replace its fields, the period and delay rounded to whole
-        physics steps.
-    objective : str, optional
-        trajopt: what every plan optimises (:class:`~cartpole.planning.options.PlanOptions` ``objective``); mpc: the
-        DDP MPC's running objective (:class:`~cartpole.mpc.options.MPCOptions` ``objective``, ``solver='ddp'``); a
-        dm_control task adds each run's ``return`` and ``return_steps``.
-    mpc : dict, optional
-        mpc: fields of :class:`~cartpole.mpc.options.MPCOptions` every run has (``horizon``, ``seed_plan``), by
-        name.
     """
 
-    def __init__(self, params: CartPoleParams, method: str, duration, catch_weights, cache: BasinCache,
-                 model: CartPoleModel | None = None, loop: LoopOptions | None = None, objective: str | None = None,
-                 mpc: dict | None = None):
+    def __init__(self, params: CartPoleParams, method: str, options: SwingupOptions, cache: BasinCache,
+                 model: CartPoleModel | None = None):
         self.params = params
         self.model = build_model(params) if model is None else model
         self.method = method
-        self.duration = duration
-        self.catch_weights = catch_weights
+        self.options = options
         self.cache = cache
         self.plans = {1.0: self.model}
-        self.loop = LoopOptions() if loop is None else loop
-        self.objective = objective
-        self.mpc = dict(mpc or {})
+        self.loop = options.loop
+        stage = {"trajopt": options.plan, "mpc": options.mpc}.get(method)
+        self.objective = None if stage is None else stage.objective
 
     def settings(self) -> tuple:
-        """``(params, method, duration, catch_weights, cache, None, loop, objective, mpc)``: what a worker needs
-        to build the same runner (the model, None, it builds itself)."""
-        return (self.params, self.method, self.duration, self.catch_weights, self.cache, None, self.loop,
-                self.objective, self.mpc)
+        """``(params, method, options, cache, None)``: what a worker needs to build the same runner (the model,
+        None, it builds itself)."""
+        return (self.params, self.method, self.options, self.cache, None)
 
     def plan_model(self, model_error: float) -> CartPoleModel:
         """The planning model of scale ``model_error`` (:func:`~cartpole.apps.swingup.planning_model`), built once."""
@@ -121,16 +104,10 @@ class Runner:
         if self.method == "mpc":
             return None
         if self.method == "trajopt":
-            from cartpole.planning.trajopt import handover_catch
-
-            from cartpole.models import steps_per_period
-
             steps = steps_per_period(self.loop.period, self.params.timestep)
             return self.cache.get(self.params, handover_catch(self.params, pm, steps=steps))
-        from cartpole.control.linear import LinearFeedback
-        from cartpole.control.switching import SWINGUP_CATCH_R
-
-        catch = LinearFeedback.for_model(pm, *(self.catch_weights or (None, SWINGUP_CATCH_R)), period=self.loop.period)
+        weights = self.options.catch_weights or (None, SWINGUP_CATCH_R)
+        catch = LinearFeedback.for_model(pm, *weights, period=self.loop.period)
         return self.cache.get(self.params, catch)
 
     def run(self, x0, options: dict, push=(), model_error: float = 1.0, settings: dict | None = None) -> dict:
@@ -148,19 +125,9 @@ class Runner:
                 looped[k] = max(least, round(float(looped[k]) / h)) * h
         if "encoder_cpr" in looped:
             looped["encoder_cpr"] = max(1, round(float(looped["encoder_cpr"])))
-        energy = {**options, **settings} if self.method == "energy" else None
         try:
-            # the swept settings are fields of the method's options value (or of the loop's), by name
-            plan = (PlanOptions(objective=self.objective).replace(**settings) if self.method == "trajopt"
-                    else None)
-            # an objective is the DDP MPC's (the RTI NMPC tracks upright only)
-            mpc = (MPCOptions(**mpc_fields(self.objective, self.mpc)).replace(**settings) if self.method == "mpc"
-                   else None)
-            loop = self.loop.replace(duration=self.duration, push=tuple(push or ()), model_error=model_error,
-                                     **looped)
-            res = run_swingup(self.model, method=self.method, x0=x0, plan=plan, loop=loop, mpc=mpc,
-                              basin_cache=self.cache, energy_options=energy, catch_weights=self.catch_weights,
-                              plan_model=self.plan_model(model_error))
+            res = run_swingup(self.model, self.method, self.run_options(options, push, model_error, settings, looped),
+                              x0=x0, basin_cache=self.cache, plan_model=self.plan_model(model_error))
         except CartPoleError as exc:
             return {"success": False, "replays": False, "diverged": False, "diverged_at": math.nan,
                     "time_to_upright": math.nan, "caught_at": math.nan,
@@ -179,6 +146,20 @@ class Runner:
                 **({"return": float(m["return"]), "return_steps": int(m["return_steps"])} if "return" in m
                    else self._no_return()),
                 **self._knocked(m)}
+
+    def run_options(self, energy: dict, push, model_error: float, settings: dict, looped: dict) -> SwingupOptions:
+        """One run's :class:`~cartpole.apps.swingup.SwingupOptions`: the sweep's, with the run's energy settings
+        ``energy`` (energy), push, model error, swept loop fields ``looped`` and the method's swept ``settings``
+        (fields of its stage's options, by name)."""
+        o = self.options
+        loop = o.loop.replace(push=tuple(push or ()), model_error=model_error, **looped)
+        if self.method == "energy":
+            return o.replace(loop=loop, energy={**energy, **settings})
+        if self.method == "trajopt":
+            return o.replace(loop=loop, plan=(o.plan or PlanOptions()).replace(**settings))
+        if self.method == "mpc":
+            return o.replace(loop=loop, mpc=(o.mpc or MPCOptions()).replace(**settings))
+        return o.replace(loop=loop)
 
     def _knocked(self, metrics: dict | None = None) -> dict:
         """A knocked or thrown sweep's row keys (:func:`~cartpole.validation.metrics.uptime_metrics`): ``uptime``
