@@ -25,11 +25,23 @@ SIGTERM is handled the same way. A worker whose parent is gone (killed with SIGK
 """
 from __future__ import annotations
 
+import ctypes
+import gc
 import math
+import multiprocessing
 import os
+import signal
+import socket
+import threading
+import uuid
 from collections import deque
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import wait as wait_futures
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from multiprocessing.connection import wait as wait_objects
 
+import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError, first_line
@@ -206,9 +218,6 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     SweepError
         A worker process died (out of memory, or killed).
     """
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-
     ctx = start_server(runner.method) if context is None else context
     env = dict(os.environ)
     for k, v in WORKER_ENV.items():
@@ -231,7 +240,7 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
             feed()
         with _sigterm_as_interrupt(), one_blas_thread_here():
             while running:
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                done, _ = wait_futures(running, return_when=FIRST_COMPLETED)
                 for fut in done:
                     ex, i = running.pop(fut)
                     room[ex] += 1
@@ -269,10 +278,6 @@ def _init_worker(settings: tuple, env: dict) -> None:
     MuJoCo's warnings are dropped here (the parent loaded the same MJCF first and reported them), so a worker
     neither prints them nor writes MUJOCO_LOG.TXT into the current directory. Ctrl-C is left to the parent (which
     keeps the finished rows and stops the pool), so a worker does not die of it mid-run."""
-    import signal
-
-    import mujoco
-
     global _WORKER
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _exit_with_parent()
@@ -293,16 +298,12 @@ def _exit_with_parent() -> None:
     """In a worker process: a daemon thread that ends the process as soon as its parent is gone. A pool worker
     waits for work on a pipe the parent's death does not close, so without this a killed sweep would leave it
     running."""
-    import multiprocessing
-    import threading
-    from multiprocessing.connection import wait
-
     parent = multiprocessing.parent_process()
     if parent is None or parent.sentinel is None:
         return
 
     def watch():
-        wait([parent.sentinel])
+        wait_objects([parent.sentinel])
         os._exit(1)
 
     threading.Thread(target=watch, name="cartpole-sweep-parent", daemon=True).start()
@@ -318,8 +319,6 @@ OPENBLAS_THREAD_FUNCTIONS = (("openblas_get_num_threads", "openblas_set_num_thre
 def _loaded_openblas() -> list:
     """``(get, set)`` thread-count functions of every OpenBLAS this process has loaded (found in
     ``/proc/self/maps``; none where there is no such file)."""
-    import ctypes
-
     try:
         with open("/proc/self/maps") as fh:
             paths = sorted({f[5].strip() for f in (line.split(maxsplit=5) for line in fh)
@@ -364,8 +363,6 @@ def one_blas_thread_here():
 def _sigterm_as_interrupt():
     """Inside the block (main thread, SIGTERM at its default): SIGTERM raises KeyboardInterrupt, as Ctrl-C does, so
     the pool is shut down and the finished rows kept instead of the process dying with its workers orphaned."""
-    import signal
-
     if not main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
         yield
         return
@@ -399,8 +396,6 @@ def _run_on_dask(token: str, settings: tuple, x0, options, push=(), model_error=
     sweep (MuJoCo's warnings dropped, as in a pool worker) and reused by every later one."""
     runner = _RUNNERS.get(token)
     if runner is None:
-        import mujoco
-
         mujoco.set_mju_user_warning(lambda msg: None)
         _RUNNERS.clear()  # one sweep's model per worker at a time
         runner = _RUNNERS[token] = Runner(*settings)
@@ -438,8 +433,6 @@ def _connect(Client, address: str):
     (refused, timed out, something that is not a Dask scheduler answering). A Client that failed inside its
     constructor is marked closed and its event loop stopped here, so its ``__del__`` neither waits 20 s to close it
     nor prints "Exception ignored in Client.__del__" after the sweep's sentence."""
-    import gc
-
     try:
         return Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False), None
     except Exception as exc:  # noqa: BLE001 - anything the connection attempt raises is "cannot reach"
@@ -470,8 +463,6 @@ def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
         be reached within :data:`CONNECT_TIMEOUT` s, or a run failed on the cluster outside :class:`CartPoleError`
         (a worker died, say).
     """
-    import uuid
-
     try:
         from distributed import Client, as_completed
     except ImportError:
@@ -480,8 +471,6 @@ def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
     host, port = check_address(address)
     advice = "start one (`dask scheduler`, then `dask worker ADDRESS`) or give its tcp://host:port"
     try:  # a plain TCP connection first: a closed port is one sentence at once, with no Client half-built
-        import socket
-
         socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
     except OSError as exc:
         raise SweepError(f"Cannot reach a Dask scheduler at {address} ({exc.strerror or type(exc).__name__}); "

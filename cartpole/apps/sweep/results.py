@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole._files import InputFileError, output_error, read_bounded, short
+from cartpole._files import InputFileError, exclusive_lock, output_error, read_bounded, short
+from cartpole.codegen import private_cache_dir
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, read_params
 from cartpole.validation.metrics import failure_reason
@@ -486,9 +487,6 @@ def results_lock(path: Path):
     refused in one sentence. The lock file is kept in the user cache directory (``locks/``, keyed by the file's
     absolute path), not beside the results, so ``--out`` holds only the sweep's outputs; sweeps of two users into
     one ``--out`` are therefore not serialised."""
-    from cartpole._files import exclusive_lock
-    from cartpole.codegen import private_cache_dir
-
     where = str(Path(path).expanduser().resolve())
     key = hashlib.sha256(where.encode()).hexdigest()[:24]
     return exclusive_lock(private_cache_dir() / "locks" / f"sweep-{key}.lock", f"The results file {short(where)}",
