@@ -29,10 +29,10 @@ Each method is a class (:class:`EnergySwingup`, :class:`TrajoptSwingup`, :class:
 A run's settings are one value, :class:`SwingupOptions` (what a sweep's runs take too), each stage's inside it:
 ``plan`` :class:`~cartpole.planning.options.PlanOptions` (trajopt, and mpc's offline plan), ``mpc``
 :class:`~cartpole.mpc.options.MPCOptions`, ``energy`` :class:`~cartpole.control.energy.EnergyOptions` and for every
-method ``loop`` :class:`~cartpole.sim.options.LoopOptions`, the closed loop's scenario: ``push=((T, F), ...)`` (a horizontal force
-of F N on the cart body for :data:`PUSH_SECONDS` from time T s, through MuJoCo's ``xfrc_applied``; logged per physics
-step in ``rollout.info["push"]``, so the run still replays exactly) and ``model_error=S`` (the *planning* model's pole
-masses and lengths scaled by S, :meth:`~cartpole.models.CartPoleParams.scaled_pole`; MuJoCo keeps the file's). With
+method ``loop`` :class:`~cartpole.sim.options.LoopOptions`, the closed loop's scenario: ``push=((T, F), ...)`` (a
+horizontal force of F N on the cart body for :data:`PUSH_SECONDS` from time T s, through MuJoCo's ``xfrc_applied``;
+logged per physics step in ``rollout.info["push"]``, so the run still replays exactly) and ``model_error=S`` (the
+*planning* model's pole masses and lengths scaled by S, :meth:`~cartpole.models.CartPoleParams.scaled_pole`; MuJoCo keeps the file's). With
 model error, energy shaping and its catch (energy), the plan and its TVLQR (trajopt) or the NMPC's model (mpc) are
 built on the scaled model; the catch basin is still measured in MuJoCo on the MJCF (the basin of the catch as built).
 

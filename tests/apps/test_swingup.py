@@ -222,7 +222,8 @@ def test_trajopt_reports_the_basin_of_the_hand_over_controller():
 def test_a_push_acts_for_a_tenth_of_a_second_is_logged_per_step_and_replays():
     params = cp.read_params()
     h = params.timestep
-    res = run_swingup(params, "energy", SwingupOptions(loop=LoopOptions(duration=3.0, push=[(1.0, 20.0), (2.0, -15.0)])))
+    res = run_swingup(params, "energy",
+                      SwingupOptions(loop=LoopOptions(duration=3.0, push=[(1.0, 20.0), (2.0, -15.0)])))
     push = np.asarray(res.rollout.info["push"])
     assert push.shape == (len(res.rollout.ctrl),)
     k1, k2, n = int(round(1.0 / h)), int(round(2.0 / h)), int(round(0.1 / h))
@@ -273,7 +274,8 @@ def _loop(**kw) -> dict:
     (lambda: _loop(duration=-1.0), LoopError, "positive number of seconds"),
     (lambda: _loop(period=0.013), PeriodError, "whole number of the MJCF"),
     (lambda: _loop(delay=0.007), RigError, "whole number of the MJCF"),
-    (lambda: {**_loop(), "plan": PlanOptions()}, SwingupError, "`plan` options .* `method='trajopt'` or `method='mpc'`"),
+    (lambda: {**_loop(), "plan": PlanOptions()}, SwingupError,
+     "`plan` options .* `method='trajopt'` or `method='mpc'`"),
     (lambda: {**_loop(), "mpc": MPCOptions()}, SwingupError, "`mpc` options .* `method='mpc'`"),
     (lambda: {**_loop(), "plan": "time"}, SwingupError, "SwingupOptions.plan must be a PlanOptions"),
     (lambda: {**_loop(), "horizon_s": 1.0}, TypeError, "horizon_s"),

@@ -44,7 +44,8 @@ DMC_CARTPOLE = SHIPPED_MJCF.with_name("dmc_cartpole.xml")
 
 
 def test_ddp_mpc_maximises_a_dm_control_reward_in_the_loop_and_scores_the_whole_episode():
-    res = run_swingup(DMC_CARTPOLE, "mpc", SwingupOptions(mpc=MPCOptions(solver="ddp", objective="dmc_cartpole_swingup")))
+    res = run_swingup(DMC_CARTPOLE, "mpc",
+                      SwingupOptions(mpc=MPCOptions(solver="ddp", objective="dmc_cartpole_swingup")))
     c, m = res.controller, res.metrics
     assert c.objective == "dmc_cartpole_swingup" and c.terminal == "objective"
     assert res.success and not m["diverged"] and not c.failures, m

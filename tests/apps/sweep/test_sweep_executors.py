@@ -43,7 +43,8 @@ def test_sampled_axes_are_seeded_and_give_the_same_rows_on_two_and_three_workers
     starts = np.asarray(one.starts)
     assert np.all((2.9 <= starts[:, 1]) & (starts[:, 1] <= 3.4)) and np.all(starts[:, [0, 3]] == 0)
     assert [row["settings"] for row in one.rows()] == [{"energy_gain": 12.0}] * 2 + [{"energy_gain": 18.0}] * 2
-    assert not np.allclose(swingup_sweep(None, "energy", lasting(2.0), runs=SweepRuns(axes=axes, n=2, seed=8)).starts, starts)
+    other = swingup_sweep(None, "energy", lasting(2.0), runs=SweepRuns(axes=axes, n=2, seed=8))
+    assert not np.allclose(other.starts, starts)
     for workers in (2, 3):
         seen = []
         many = swingup_sweep(None, "energy", lasting(2.0), runs=SweepRuns(axes=axes, n=2, seed=7), workers=workers,
@@ -64,7 +65,8 @@ def test_the_pool_runs_some_runs_here_and_the_rest_in_its_workers(monkeypatch):
         here.append(os.getpid())
         return real(self, *a, **k)
 
-    swingup_sweep(None, "energy", lasting(0.2), runs=SweepRuns(n=2), workers=2)  # the fork server up (its first start imports the toolkit)
+    # the fork server up (its first start imports the toolkit)
+    swingup_sweep(None, "energy", lasting(0.2), runs=SweepRuns(n=2), workers=2)
     monkeypatch.setattr(Runner, "run", spy)  # the worker has the module as the fork server imported it: not spied
     r = swingup_sweep(None, runs=SweepRuns(n=8, seed=1), workers=2)
     assert r.n == 8 and set(here) == {os.getpid()}

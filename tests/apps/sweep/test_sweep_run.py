@@ -73,7 +73,8 @@ def test_a_grid_sweep_is_the_product_of_its_axes_and_each_run_is_exactly_run_swi
         ([[1.0, -15.0]], 0.9), ([[1.0, -15.0]], 1.1), ([[1.0, 15.0]], 0.9), ([[1.0, 15.0]], 1.1)]
     assert all(row["start"] == list(build_model().x_hanging) for row in rows)  # no start axis: hanging rest
     np.testing.assert_array_equal(r.axis_values("push_force", read_params()), [-15, -15, 15, 15])
-    one = run_swingup(None, "energy", SwingupOptions(loop=LoopOptions(duration=4.0, push=[(1.0, 15.0)], model_error=0.9)))
+    one = run_swingup(None, "energy",
+                      SwingupOptions(loop=LoopOptions(duration=4.0, push=[(1.0, 15.0)], model_error=0.9)))
     assert rows[2]["success"] == one.success
     assert rows[2]["time_to_upright"] == (one.metrics["time_to_upright"] if one.success else None)
     assert rows[2]["peak_ctrl"] == one.metrics["peak_ctrl"] and rows[2]["cart_clearance"] == one.metrics["cart_clearance"]
@@ -96,7 +97,8 @@ def test_success_map_is_a_labelled_png(tmp_path):
     from cartpole.models import read_params
     from cartpole.viz.sweep_plot import plot_success_map, success_map_figure
 
-    r = swingup_sweep(None, "energy", lasting(1.0), runs=SweepRuns(n=3, seed=1))  # too short to hold: failures drawn as crosses
+    # too short to hold: failures drawn as crosses
+    r = swingup_sweep(None, "energy", lasting(1.0), runs=SweepRuns(n=3, seed=1))
     params = read_params(None)
     fig = success_map_figure(r, params)
     ax = fig.axes[0]
