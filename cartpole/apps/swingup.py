@@ -211,9 +211,10 @@ class MethodTry:
         return self.method if self.solver in (None, "auto") else f"{self.method} ({self.solver})"
 
     @property
-    def command(self) -> str:
-        """The command-line options that run this method alone: ``"--method trajopt --solver ddp"``."""
-        return f"--method {self.method}" + ("" if self.solver in (None, "auto") else f" --solver {self.solver}")
+    def arguments(self) -> str:
+        """The arguments that run this method alone, as a sentence names them: ```method='trajopt'``` and, with a
+        solver, ``(`solver='ddp'`)`` (the command line writes them as its options)."""
+        return f"`method='{self.method}'`" + ("" if self.solver in (None, "auto") else f" (`solver='{self.solver}'`)")
 
     def as_dict(self) -> dict:
         """JSON-ready: ``method``, ``solver`` (or None), ``outcome``, ``reason``, ``seconds``."""
@@ -1064,7 +1065,7 @@ def _run_in_turn(tries: tuple, methods: list, ctx: _Context, budget: float) -> S
             continue
         if stop is None and last > 0 and budget - elapsed < AUTO_NEXT_FACTOR * last:
             stop = (f"{elapsed:.1f} s of the {budget:g} s time budget were spent and the run before took "
-                    f"{last:.1f} s; raise the budget (--time-budget) or run {t.command} alone")
+                    f"{last:.1f} s; raise the `time_budget` or run {t.arguments} alone")
         why = stop or (no_plan if t.method == "trajopt" else None)
         if why is not None:
             done.append(replace(t, outcome="skipped", reason=why))
@@ -1103,7 +1104,7 @@ def _turn_ends(ctx: _Context, res: SwingupResult, done: list) -> str | None:
         return "the live view was closed or interrupted"
     if short:
         return (f"the run before it was cut short by the duration given ({duration:g} s); give a longer "
-                "--duration, or none")
+                "`duration`, or none")
     return None
 
 

@@ -17,7 +17,8 @@ from cartpole.errors import CartPoleError
 #: The option that sets each Python argument (or options field) a library error may name, for every command.
 FLAGS = {
     "method": "--method", "x0": "--x0", "ctrl_noise": "--ctrl-noise", "time_budget": "--time-budget",
-    "workers": "--workers", "seed": "--seed", "duration": "--duration", "push_force": "--push-force",
+    "workers": "--workers", "solver": "--solver", "seed": "--seed", "duration": "--duration",
+    "push_force": "--push-force",
     "mpc": "--horizon, --mpc-solver", "plan": "--objective, --solver", "path": "--plan-mjcf",
     "seed_plan=False": "--no-seed-plan", "MPCOptions(objective=...)": "--objective",
 }

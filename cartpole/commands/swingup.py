@@ -5,7 +5,7 @@ import math
 import statistics
 import sys
 
-from cartpole.commands._flags import flag_words
+from cartpole.commands._flags import as_flags, flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, design_friction, rig_fields,
                                     smoothed_friction_sentence)
@@ -147,7 +147,8 @@ def methods_sentence(tried) -> str:
     for t in tried:
         took = f" after {t.seconds:.0f} s" if t.outcome in ("success", "failed", "error") else ""
         parts.append(f"{t.label}: {t.outcome}{took}" + (f" ({t.reason})" if t.reason else ""))
-    return f"Methods tried (--method auto): {'; '.join(parts)}." + (f" Shown: the {ran[-1]} run." if ran else "")
+    text = f"Methods tried (--method auto): {'; '.join(parts)}." + (f" Shown: the {ran[-1]} run." if ran else "")
+    return as_flags(text)
 
 
 def log_bytes(duration: float, params) -> float:
@@ -428,7 +429,8 @@ def swingup_document(args, ran, model, options, plan_model, files: dict) -> dict
     params, m, method = model.params, res.metrics, res.method
     video = files["video"]
     doc = {"mjcf": params.mjcf, "method": method, "success": res.success, "caught_at": res.caught_at,
-           "handover_at": res.handover_at, "methods_tried": [t.as_dict() for t in res.methods_tried],
+           "handover_at": res.handover_at,
+           "methods_tried": [{**t.as_dict(), "reason": as_flags(t.reason)} for t in res.methods_tried],
            "diverged": bool(m["diverged"]), "diverged_at": m["diverged_at"], "rollout": rollout_doc(res.rollout),
            "time_to_upright": m["time_to_upright"], "figure": str(files["figure"].resolve()),
            "video": None if video is None else str(Path(video).resolve()),

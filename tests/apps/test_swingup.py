@@ -126,7 +126,7 @@ def test_a_planner_that_finds_no_plan_ends_the_planners_and_the_run_before_it_is
 def test_no_method_starts_after_the_time_budget():
     res = run_swingup(None, ["energy", "trajopt"], SwingupOptions(energy={"energy_gain": 0.5}, time_budget=1e-3))
     assert _tried(res) == [("energy", None, "failed"), ("trajopt", None, "skipped")]
-    assert "--time-budget" in res.methods_tried[1].reason and "--method trajopt" in res.methods_tried[1].reason
+    assert "`time_budget`" in res.methods_tried[1].reason and "`method='trajopt'`" in res.methods_tried[1].reason
     with pytest.raises(SwingupError, match="time budget"):
         SwingupOptions(time_budget=-1.0)
 
@@ -136,7 +136,7 @@ def test_a_run_cut_short_by_the_duration_given_ends_the_turn():
     res = run_swingup(None, options=SwingupOptions(loop=LoopOptions(duration=0.5)))
     assert _tried(res) == [("energy", None, "failed"), ("trajopt", None, "skipped"), ("trajopt", "ddp", "skipped")]
     assert "the run of 0.5 s was shorter than the method's own 10 s" in res.methods_tried[0].reason
-    assert "--duration" in res.methods_tried[1].reason and res.method == "energy"
+    assert "`duration`" in res.methods_tried[1].reason and res.method == "energy"
 
 
 def test_caught_at_only_when_the_catch_held_and_the_handover_has_its_own_name():

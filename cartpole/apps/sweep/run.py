@@ -111,8 +111,8 @@ def swingup_sweep(plant=None, method: str = "energy", options: SwingupOptions | 
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
     runner = Runner(params, method, options, cache, model=model)
     rho = _shared_rho(runner, planned)  # before the runs: the workers get the basins in the cache
-    out = _run_all(runner, planned, workers=workers, address=address, done=done, on_row=on_row, progress=progress,
-                   context=context)
+    out, workers = _run_all(runner, planned, workers=workers, address=address, done=done, on_row=on_row,
+                            progress=progress, context=context)
     return SweepResult(mjcf=params.mjcf, starts=planned.starts, success=_column(out, "success", bool),
                        time_to_upright=_column(out, "time_to_upright"), caught_at=_column(out, "caught_at"),
                        cart_clearance=_column(out, "cart_clearance"), peak_ctrl=_column(out, "peak_ctrl"),
@@ -121,7 +121,7 @@ def swingup_sweep(plant=None, method: str = "energy", options: SwingupOptions | 
                        gain_jitter=float(runs.gain_jitter), base_options=base, method=method,
                        replays=_column(out, "replays", bool),
                        diverged_at=np.array([r.get("diverged_at", math.nan) for r in out], float),
-                       errors=tuple(r["error"] for r in out), workers=1 if address else min(workers, len(out)),
+                       errors=tuple(r["error"] for r in out), workers=1 if address else workers,
                        address=address or None, pushes=planned.pushes, model_errors=planned.model_errors,
                        settings=planned.settings, axes=axes, objective=objective, mpc=mpc_changes(options.mpc),
                        returns=_column(out, "return") if dmc_task else None,
@@ -208,8 +208,9 @@ def _shared_rho(runner: Runner, planned) -> float:
     return rhos.get(1.0, rhos[scales[0]] if scales[0] in rhos else math.nan)
 
 
-def _run_all(runner: Runner, planned, *, workers: int, address, done, on_row, progress, context) -> list:
-    """Every run's row, in run order: those in ``done`` as given, the others run here, on a pool or on Dask."""
+def _run_all(runner: Runner, planned, *, workers: int, address, done, on_row, progress, context) -> tuple:
+    """``(rows, workers)``: every run's row, in run order (those in ``done`` as given, the others run here, on a
+    pool or on Dask), and the local processes used (no more than the runs to do)."""
     starts = planned.starts
     n = len(starts)
     jobs = [planned.job(i) for i in range(n)]
@@ -241,7 +242,7 @@ def _run_all(runner: Runner, planned, *, workers: int, address, done, on_row, pr
             run_here(runner, jobs, todo, finished)
         else:
             run_pool(runner, jobs, workers, todo, finished, context=context)
-    return out
+    return out, workers
 
 
 def _column(out: list, key: str, dtype=float) -> np.ndarray:
