@@ -970,8 +970,8 @@ def run_swingup(plant=None, method="auto", options: SwingupOptions | None = None
     if tries is None:  # knocked down or thrown: the controller that swings up again, for the whole run
         tries = (MethodTry("supervisor"),) if loop.disturbed else auto_methods(pm, plan=options.plan,
                                                                                 energy_options=options.energy)
-    methods = _methods(tries, options, pm, params.timestep)
     friction = friction_design(pm, loop)  # designed without the friction a compensation cancels, run with it
+    methods = _methods(tries, options, friction.model, params.timestep)
     cache = BasinCache.on_disk() if basin_cache is None else basin_cache
     ctx = _Context(params=params, model=model, pm=friction.model, plant=pm, friction=friction, loop=loop, x0=x0,
                    force=loop.push_force(params.timestep), progress=progress, on_step=on_step,
