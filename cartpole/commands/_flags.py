@@ -18,7 +18,8 @@ from cartpole.errors import CartPoleError
 FLAGS = {
     "method": "--method", "x0": "--x0", "ctrl_noise": "--ctrl-noise", "time_budget": "--time-budget",
     "workers": "--workers", "solver": "--solver", "seed": "--seed", "duration": "--duration",
-    "push_force": "--push-force",
+    "push_force": "--push-force", "address": "--address", "resume": "--resume", "n": "--n", "gain_jitter": "--jitter",
+    "results": "--out",
     "mpc": "--horizon, --mpc-solver", "plan": "--objective, --solver", "path": "--plan-mjcf",
     "seed_plan=False": "--no-seed-plan", "MPCOptions(objective=...)": "--objective",
 }

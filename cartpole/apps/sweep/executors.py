@@ -247,7 +247,7 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
                     finished(i, fut.result())
                 feed()
     except BrokenProcessPool:
-        raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer --workers than "
+        raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer `workers` than "
                          f"{workers}.") from None
     except BaseException:  # interrupted (Ctrl-C, SIGTERM) or failed: a run under way in a worker is not waited for
         _terminate_workers(pool)
@@ -423,7 +423,7 @@ def check_address(address: str) -> tuple[str, int]:
     host = host.strip("[]")
     ok = scheme in ADDRESS_SCHEMES and colon and host and port.isdigit() and 1 <= int(port) <= 65535
     if not ok:
-        raise SweepError(f"--address {text!r} is not a Dask scheduler address; give tcp://HOST:PORT (e.g. "
+        raise SweepError(f"The `address` {text!r} is not a Dask scheduler address; give tcp://HOST:PORT (e.g. "
                          "tcp://127.0.0.1:8786, what `dask scheduler` prints).")
     return host, int(port)
 
@@ -466,7 +466,7 @@ def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
     try:
         from distributed import Client, as_completed
     except ImportError:
-        raise SweepError("--address needs Dask distributed; install it with `pip install 'dask[distributed]'`.") \
+        raise SweepError("A Dask `address` needs Dask distributed; install it with `pip install 'dask[distributed]'`.") \
             from None
     host, port = check_address(address)
     advice = "start one (`dask scheduler`, then `dask worker ADDRESS`) or give its tcp://host:port"
