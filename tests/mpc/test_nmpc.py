@@ -222,8 +222,10 @@ def test_iterating_to_convergence_each_instant_matches_ipopt_resolving_the_same_
                                     {"R": -1.0}, {"qp_solver": "osqp"}, {"guess": (np.zeros((3, 4)), np.zeros(2))},
                                     {"x0": [0.0, np.nan, 0.0, 0.0]}, {"tol": -1.0}])
 def test_bad_construction_arguments_raise_one_sentence(params, model, kwargs):
+    kwargs = dict(kwargs)
+    own = {k: kwargs.pop(k) for k in list(kwargs) if k in ("guess", "x0")}  # the controller's own arguments
     with pytest.raises(NMPCError) as err:
-        NMPCController(model, params, **{"horizon": 0.6, **kwargs})
+        NMPCController(model, params, options=MPCOptions(horizon=0.6).replace(**kwargs), **own)
     assert isinstance(err.value, CartPoleError)
     msg = str(err.value)
     assert "\n" not in msg and msg.endswith(".")
