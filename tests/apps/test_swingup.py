@@ -376,3 +376,19 @@ def test_mpc_swings_up_pushed_and_replays():
     assert np.count_nonzero(res.rollout.info["push"]) == int(round(0.1 / params.timestep))
     assert replays_exactly(res.rollout, params)
     assert res.success, res.metrics
+
+
+def test_each_method_is_a_class_sharing_the_closed_loop():
+    from cartpole.apps.swingup import (DDPMPCSwingup, EnergySwingup, METHOD_CLASSES, NMPCSwingup, SupervisorSwingup,
+                                       SwingupMethod, TrajoptSwingup, method_class)
+
+    assert [method_class(m) for m in ("energy", "trajopt", "mpc", "supervisor")] == [
+        EnergySwingup, TrajoptSwingup, NMPCSwingup, SupervisorSwingup]
+    assert method_class("mpc", MPCOptions(solver="ddp")) is DDPMPCSwingup and issubclass(DDPMPCSwingup, NMPCSwingup)
+    assert all(issubclass(c, SwingupMethod) and c.run is SwingupMethod.run for c in METHOD_CLASSES.values())
+    assert DDPMPCSwingup.name == "mpc"  # the JSON method: the solver is the MPC's option
+    with pytest.raises(SwingupError, match="Unknown swing-up method 'ddp'"):
+        method_class("ddp")
+    # a trajopt entry's solver replaces the plan's
+    m = TrajoptSwingup(SwingupOptions(plan=PlanOptions(objective="time")), MethodTry("trajopt", "ddp"))
+    assert m.plan_options() == PlanOptions(objective="time", solver="ddp")

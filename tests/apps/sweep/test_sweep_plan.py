@@ -92,3 +92,20 @@ def test_the_jitter_is_drawn_after_the_starts_so_the_starts_do_not_depend_on_it(
     assert plain.options == ({},) * 4 and len({o["energy_gain"] for o in jittered.options}) == 4
     assert np.array_equal(jittered.job(2)[0], jittered.starts[2])
     assert jittered.job(2)[1:] == (jittered.options[2], (), 1.0, {})
+
+
+def test_sweep_runs_are_a_read_only_value_and_the_sweep_keeps_only_changed_settings():
+    from cartpole.apps.sweep.run import energy_changes, mpc_changes, sweep_objective
+    from cartpole.apps.swingup import SwingupOptions
+    from cartpole.mpc.options import MPCOptions
+    from cartpole.planning.options import PlanOptions
+
+    runs = SweepRuns(n=3, center=[0, 3.0, 0, 0], axes=[axis("push_force", 1.0)])
+    assert isinstance(runs.axes, tuple) and not runs.center.flags.writeable
+    with pytest.raises(SweepError, match="SweepRuns.x0 must be numbers"):
+        SweepRuns(x0="up")
+    assert energy_changes(None) == {} and energy_changes({"energy_gain": 20.0}) == {"energy_gain": 20.0}
+    ddp = MPCOptions(solver="ddp", objective="dmc_swingup", horizon=2.0)
+    assert mpc_changes(ddp) == {"horizon": 2.0} and mpc_changes(None) == {}
+    assert sweep_objective("mpc", SwingupOptions(mpc=ddp)) == "dmc_swingup"
+    assert sweep_objective("trajopt", SwingupOptions(plan=PlanOptions(objective="time"))) == "time"
