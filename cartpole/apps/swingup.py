@@ -212,8 +212,8 @@ class MethodTry:
 
     @property
     def arguments(self) -> str:
-        """The arguments that run this method alone, as a sentence names them: ```method='trajopt'``` and, with a
-        solver, ``(`solver='ddp'`)`` (the command line writes them as its options)."""
+        """The arguments that run this method alone, as a sentence names them (each in backticks):
+        ``method='trajopt'`` and, with a solver, ``solver='ddp'`` (the command line writes them as its options)."""
         return f"`method='{self.method}'`" + ("" if self.solver in (None, "auto") else f" (`solver='{self.solver}'`)")
 
     def as_dict(self) -> dict:

@@ -1,9 +1,9 @@
 """Library errors name Python arguments; the command line names its options: the one place that maps the first to
 the second.
 
-A library sentence names an argument in backticks: ```ctrl_noise``` or ```method='trajopt'``` (an argument and
-its value). :func:`as_flags` rewrites each one the command line sets as its option (``--ctrl-noise``, ``--method
-trajopt``) and leaves every other backticked word as it is; :func:`flag_words` does it to the
+A library sentence names an argument in single backticks: ``ctrl_noise`` or ``method='trajopt'`` (an argument and
+its value), each between two backtick characters. :func:`as_flags` rewrites each one the command line sets as its
+option (``--ctrl-noise``, ``--method trajopt``) and leaves every other backticked word as it is; :func:`flag_words` does it to the
 :class:`~cartpole.errors.CartPoleError` a command's work raises, so the person at the terminal reads the options they
 can type.
 """
@@ -24,13 +24,14 @@ FLAGS = {
     "seed_plan=False": "--no-seed-plan", "MPCOptions(objective=...)": "--objective",
 }
 
-#: A backticked argument, with its value: ```name``` or ```name='value'```.
+#: A backticked argument, alone (``name``) or with its value (``name='value'``).
 _NAMED = re.compile(r"`([^`=]+)(?:=([^`]*))?`")
 
 
 def as_flags(text: str, flags: dict | None = None) -> str:
     """``text`` with every backticked argument the command line sets (``flags``, default :data:`FLAGS`) written as
-    its option: ```method='trajopt'``` -> ``--method trajopt``, ```ctrl_noise``` -> ``--ctrl-noise``.
+    its option: ``method='trajopt'`` -> ``--method trajopt``, ``ctrl_noise`` -> ``--ctrl-noise`` (each in
+    backticks in ``text``).
 
     Parameters
     ----------
