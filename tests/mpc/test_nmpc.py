@@ -187,7 +187,7 @@ def test_a_start_one_turn_from_upright_balances_without_unwinding(params, model,
 def test_gauss_newton_iterated_to_convergence_reaches_the_ipopt_solution_of_the_same_nlp(params, model):
     x0 = _tilted(model, 0.4)
     gn = NMPCController(model, params, x0=x0, options=MPCOptions(horizon=0.6, init_iterations=100))
-    ip = IpoptMPC(model, params, horizon=0.6, x0=x0, ipopt_options={"ipopt.tol": 1e-10})
+    ip = IpoptMPC(model, params, options=MPCOptions(horizon=0.6), x0=x0, ipopt_options={"ipopt.tol": 1e-10})
     assert gn.init_info["converged"] and ip.init_info["converged"]
     S_gn, U_gn = gn.plan
     S_ip, U_ip = ip.plan
@@ -213,7 +213,7 @@ def test_compiled_and_virtual_machine_functions_and_both_qp_solvers_give_the_sam
 def test_iterating_to_convergence_each_instant_matches_ipopt_resolving_the_same_nlp(params, model):
     x0 = _tilted(model, 0.4)
     gn = NMPCController(model, params, options=MPCOptions(horizon=0.6, iterations=50, tol=1e-9))
-    ip = IpoptMPC(model, params, horizon=0.6, ipopt_options={"ipopt.tol": 1e-10})
+    ip = IpoptMPC(model, params, options=MPCOptions(horizon=0.6), ipopt_options={"ipopt.tol": 1e-10})
     np.testing.assert_allclose(gn(0.0, x0), ip(0.0, x0), atol=1e-5)
     np.testing.assert_allclose(gn.plan[1], ip.plan[1], atol=1e-5)
 
