@@ -73,7 +73,7 @@ _SOURCES = {
     "cartpole.viz.loop_plot": ("loop_figure",),
     "cartpole.viz.swingup_plot": ("swingup_figure",),
     "cartpole.apps.lab": ("Q_LAB", "R_LAB", "balances", "run_lab", "run_pid_lab"),
-    "cartpole.apps.swingup": ("TRAJOPT_EXTRA", "run_swingup"),
+    "cartpole.apps.swingup": ("TRAJOPT_EXTRA", "SwingupOptions", "run_swingup"),
     "cartpole.apps.feedforward": ("PlanFeedforward", "run_feedforward"),
     "cartpole.apps.margins": ("mujoco_stable",),
     "cartpole.apps.excite": ("run_excite",),

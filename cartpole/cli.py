@@ -22,7 +22,7 @@ from pathlib import Path
 
 from cartpole._files import atomic_write, check_out_dir, output_transaction
 from cartpole.apps import forkserver
-from cartpole.commands._flags import in_flags
+from cartpole.commands._flags import as_flags
 from cartpole.errors import CartPoleError, Terminated, first_line
 from cartpole.progress import reporting
 
@@ -295,7 +295,7 @@ def main(argv=None) -> int:
         with signals_as_interrupts():
             doc = _run(args)
     except CartPoleError as exc:  # the library names Python arguments; the command line prints their options
-        print(f"cartpole {args.command}: {in_flags(sentence(exc))}", file=sys.stderr)
+        print(f"cartpole {args.command}: {as_flags(sentence(exc))}", file=sys.stderr)
         return 2
     except MemoryError:
         print(f"cartpole {args.command}: ran out of memory; give a shorter --duration or fewer runs.",

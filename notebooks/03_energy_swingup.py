@@ -6,7 +6,7 @@
 #       extension: .py
 #       format_name: percent
 #       format_version: '1.3'
-#       jupytext_version: 1.19.6
+#       jupytext_version: 1.19.7
 #   kernelspec:
 #     display_name: Python 3
 #     language: python
@@ -82,15 +82,15 @@ print(f"k_E = {g.k_energy:.2f} (m/s^2)/(J rad/s), E_ref = {g.energy_target * 1e3
 # ## The run
 #
 # `run_swingup(method="energy")` estimates the catch basin in MuJoCo, then runs energy shaping + catch from hanging
-# at rest, every physics step logged; the closed loop's settings (duration, pushes, model error) travel as one
-# `LoopOptions` value, echoed in `res.options`. A `BasinCache` lets us look at the very estimate the run used afterwards. The cell checks
+# at rest, every physics step logged; its settings travel as one `SwingupOptions` value, the closed loop's (duration,
+# pushes, model error) a `LoopOptions` inside it, echoed in `res.options`. A `BasinCache` lets us look at the very estimate the run used afterwards. The cell checks
 # what it prints: success by the package's metric (`swingup_success`, recomputed here from the rollout), the catch
 # inside the verified basin, and the logged ctrl replaying the run exactly with `mj_step`.
 
 # %%
 cache = cp.BasinCache()
 T_run = 6.0 if QUICK else 10.0
-res = cp.run_swingup(params, method="energy", loop=cp.LoopOptions(duration=T_run), basin_cache=cache)
+res = cp.run_swingup(params, "energy", cp.SwingupOptions(loop=cp.LoopOptions(duration=T_run)), basin_cache=cache)
 r = res.rollout
 basin = cache.get(params, cp.LinearFeedback.for_model(model, R=cp.SWINGUP_CATCH_R))  # same key as inside run_swingup: the estimate it used
 mt = res.metrics
@@ -228,7 +228,8 @@ plt.show()
 
 # %%
 T_stall = 15.0
-timid = cp.EnergyShapingController(model, k_energy=5.0, energy_target=0.0, damping_softening=np.inf, energy_accel=1.0)
+timid = cp.EnergyShapingController(model, dict(k_energy=5.0, energy_target=0.0, damping_softening=np.inf,
+                                                energy_accel=1.0))
 r_timid = cp.simulate(params, timid, (0, np.pi, 0, 0), T_stall)
 r_dflt = cp.simulate(params, cp.EnergyShapingController(model), (0, np.pi, 0, 0), 5.0 if QUICK else T_stall)
 E_t, E_d = energy(r_timid.x), energy(r_dflt.x)

@@ -1,5 +1,5 @@
-"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(mjcf, method="auto" | "energy" | "trajopt" |
-"mpc")``.
+"""Swing the poles up and hold them, proven in MuJoCo: ``run_swingup(plant, method="auto" | "energy" | "trajopt" |
+"mpc" | "supervisor", SwingupOptions(...))``.
 
 * ``auto`` (the default): what works for the model, tried in turn until one succeeds in MuJoCo
   (:func:`auto_methods`): energy shaping for one pole driven by the cart, the planner for chains and hinge-driven
@@ -23,12 +23,16 @@
 * ``mpc``: nonlinear MPC re-planning every control period (:func:`cartpole.mpc.nmpc.nmpc_swingup`), MuJoCo holding
   each ctrl for the controller's ``period``; no catch, no basin.
 
-Each stage takes its settings as one value: ``plan=`` :class:`~cartpole.planning.options.PlanOptions` (trajopt, and
-mpc's offline plan), ``mpc=`` :class:`~cartpole.mpc.options.MPCOptions`, and for every method ``loop=``
-:class:`~cartpole.sim.options.LoopOptions`, the closed loop's scenario: ``push=((T, F), ...)`` (a horizontal force
-of F N on the cart body for :data:`PUSH_SECONDS` from time T s, through MuJoCo's ``xfrc_applied``; logged per physics
-step in ``rollout.info["push"]``, so the run still replays exactly) and ``model_error=S`` (the *planning* model's pole
-masses and lengths scaled by S, :meth:`~cartpole.models.CartPoleParams.scaled_pole`; MuJoCo keeps the file's). With
+Each method is a class (:class:`EnergySwingup`, :class:`TrajoptSwingup`, :class:`NMPCSwingup`, :class:`DDPMPCSwingup`,
+:class:`SupervisorSwingup`, all :class:`SwingupMethod`): it designs its controller, and the closed loop they share
+(the rig around the plant, friction compensation, MuJoCo, the metrics) is written once, in :meth:`SwingupMethod.run`.
+A run's settings are one value, :class:`SwingupOptions` (what a sweep's runs take too), each stage's inside it:
+``plan`` :class:`~cartpole.planning.options.PlanOptions` (trajopt, and mpc's offline plan), ``mpc``
+:class:`~cartpole.mpc.options.MPCOptions`, ``energy`` :class:`~cartpole.control.energy.EnergyOptions` and for every
+method ``loop`` :class:`~cartpole.sim.options.LoopOptions`, the closed loop's scenario: ``push=((T, F), ...)`` (a
+horizontal force of F N on the cart body for :data:`PUSH_SECONDS` from time T s, through MuJoCo's ``xfrc_applied``;
+logged per physics step in ``rollout.info["push"]``, so the run still replays exactly) and ``model_error=S`` (the
+*planning* model's pole masses and lengths scaled by S, :meth:`~cartpole.models.CartPoleParams.scaled_pole`; MuJoCo keeps the file's). With
 model error, energy shaping and its catch (energy), the plan and its TVLQR (trajopt) or the NMPC's model (mpc) are
 built on the scaled model; the catch basin is still measured in MuJoCo on the MJCF (the basin of the catch as built).
 
@@ -43,26 +47,51 @@ import math
 import re
 import time
 from dataclasses import dataclass, field, replace
-from typing import Callable
+from typing import Callable, ClassVar
 
 import numpy as np
 
+from cartpole._arrays import readonly
+from cartpole.apps.lab import state_names
+from cartpole.apps.margins import noise_limited_catch
+from cartpole.control.energy import (EnergyOptions, EnergyShapingController, EnergyShapingError, check_single_pole,
+                                     default_gains)
+from cartpole.control.energy import energy_options as as_energy_options
 from cartpole.control.friction import friction_design, friction_summary
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
+from cartpole.export.inloop import in_loop
 from cartpole.errors import CartPoleError, first_line
-from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, read_params,
-                             start_on_range)
-from cartpole.models import plant_params
+from cartpole.models import (CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, plant_params,
+                             read_params, start_on_range, steps_per_period)
+from cartpole.mpc.ddp_mpc import ddp_mpc_swingup, seed_plan_options
+from cartpole.mpc.nmpc import nmpc_swingup
+from cartpole.mpc.options import MPCOptions, mpc_grid
+from cartpole.ocp.bounds import OCPError
+from cartpole.ocp.dmc import is_task, task
+from cartpole.options import StageOptions
+from cartpole.planning import trajopt
+from cartpole.planning.options import PLAN_SOLVERS, PlanOptions, PlanOptionsError
+from cartpole.riccati import lab_weights
 from cartpole.sim import Rollout, simulate
 from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
                                   check_push_times, push_force)
+from cartpole.sim.rig import build_rig
+from cartpole.supervise import supervisor_for
 from cartpole.validation.basin import BasinCache
+from cartpole.validation.estimation import estimation_summary
+from cartpole.validation.metrics import (EPISODE, catch_held, dmc_rewards, failure_reason, swingup_metrics,
+                                         uptime_metrics)
 
 #: Re-exported from :mod:`cartpole.sim.options`, where the closed loop's settings live (the command line and the
 #: sweep import them from here).
-__all__ = ["AUTO", "AUTO_NEXT_FACTOR", "AUTO_TIME_BUDGET", "ENERGY_DURATION", "METHODS", "MethodTry", "MPC_DURATION", "PUSH_SECONDS", "TRAJOPT_EXTRA", "LoopError", "SwingupError",
-           "SwingupResult", "auto_methods", "check_model_error", "default_method", "check_push", "check_plan_size", "check_start", "check_upright_reachable",
-           "method_list", "own_duration", "parse_push", "plan_model_from", "plan_report",
-           "planning_model", "push_force", "run_swingup"]
+__all__ = ["AUTO", "AUTO_NEXT_FACTOR", "AUTO_TIME_BUDGET", "DDPMPCSwingup", "DEFAULT_OPTIONS", "ENERGY_DURATION",
+           "EnergySwingup", "METHODS", "METHOD_CLASSES", "MethodTry", "MPC_DURATION", "NMPCSwingup", "PUSH_SECONDS",
+           "SupervisorSwingup", "SwingupMethod", "SwingupOptions", "TRAJOPT_EXTRA", "TrajoptSwingup", "LoopError",
+           "SwingupError", "SwingupResult", "auto_methods", "check_model_error", "default_method", "check_push",
+           "check_plan_size", "check_start", "check_upright_reachable", "method_class", "method_list",
+           "own_duration", "parse_push", "plan_model_from", "plan_report", "planning_model", "push_force",
+           "run_swingup"]
 
 METHODS = ("energy", "trajopt", "mpc", "supervisor")
 #: The default method: the methods :func:`auto_methods` chooses for the model, tried in turn until one succeeds.
@@ -183,9 +212,10 @@ class MethodTry:
         return self.method if self.solver in (None, "auto") else f"{self.method} ({self.solver})"
 
     @property
-    def command(self) -> str:
-        """The command-line options that run this method alone: ``"--method trajopt --solver ddp"``."""
-        return f"--method {self.method}" + ("" if self.solver in (None, "auto") else f" --solver {self.solver}")
+    def arguments(self) -> str:
+        """The arguments that run this method alone, as a sentence names them (each in backticks):
+        ``method='trajopt'`` and, with a solver, ``solver='ddp'`` (the command line writes them as its options)."""
+        return f"`method='{self.method}'`" + ("" if self.solver in (None, "auto") else f" (`solver='{self.solver}'`)")
 
     def as_dict(self) -> dict:
         """JSON-ready: ``method``, ``solver`` (or None), ``outcome``, ``reason``, ``seconds``."""
@@ -203,8 +233,6 @@ def method_list(method) -> tuple:
         An unknown method, an empty sequence, a solver on a method without a plan or a solver the planner does
         not have.
     """
-    from cartpole.planning.options import PLAN_SOLVERS
-
     names = ", ".join((AUTO,) + METHODS)
     items = [method] if isinstance(method, (str, MethodTry)) else list(method) if method is not None else []
     if not items:
@@ -267,9 +295,7 @@ def auto_methods(model: CartPoleModel, *, plan=None, objective=None, energy_opti
     EnergyShapingError
         Bad ``energy_options``.
     """
-    from cartpole.control.energy import EnergyShapingError, check_single_pole, default_gains, energy_options as eo
-
-    opts = eo(energy_options)
+    opts = as_energy_options(energy_options)
     if plan is not None or objective is not None:
         energy = MethodTry("energy", outcome="not applicable",
                            reason="planner settings (an objective or a solver) were given and energy shaping has "
@@ -344,11 +370,10 @@ def check_start(x0, params: CartPoleParams) -> np.ndarray:
         lo, hi = (float(v) for v in j.range)
         if j.kind == "slide" and not lo < x[i] < hi:
             raise SwingupError(f"The start position {x[i]} m of slide '{j.name}' is outside its joint range "
-                               f"[{lo}, {hi}] m; give a start (x0, --x0 on the command line) with the cart "
-                               "strictly inside it.")
+                               f"[{lo}, {hi}] m; give a start `x0` with the cart strictly inside it.")
         if j.kind == "hinge" and not lo <= x[i] <= hi:
             raise SwingupError(f"The start angle {x[i]} rad of hinge '{j.name}' is outside its joint range "
-                               f"[{lo}, {hi}] rad; give a start (x0, --x0 on the command line) inside it.")
+                               f"[{lo}, {hi}] rad; give a start `x0` inside it.")
     return x
 
 
@@ -402,7 +427,7 @@ def check_plan_size(model: CartPoleModel, method: str) -> None:
                            "(its generated code grows steeply with every pole and would not build in reasonable "
                            f"time); use a chain of at most {MAX_PLAN_POLES} poles.")
     if method in ("trajopt", "mpc") and n > MAX_PLAN_POLES:
-        raise SwingupError(f"This MJCF has a chain of {n} poles and --method {method} plans for at most "
+        raise SwingupError(f"This MJCF has a chain of {n} poles and `method='{method}'` plans for at most "
                            f"{MAX_PLAN_POLES} (its generated code grows steeply with every pole and would not build "
                            f"in reasonable time); use a chain of at most {MAX_PLAN_POLES} poles.")
 
@@ -441,7 +466,7 @@ def parse_push(text: str) -> tuple[float, float]:
             raise ValueError
         pair = (float(parts[0]), float(parts[1]))
     except ValueError:
-        raise SwingupError(f"--push {text!r} is not T:F (a start time in s and a force in N); give e.g. --push "
+        raise SwingupError(f"The push {text!r} is not T:F (a start time in s and a force in N); give e.g. "
                            "1.5:20 for 20 N on the cart for 0.1 s from t = 1.5 s.") from None
     return check_push([pair])[0]  # a bad pair: LoopError
 
@@ -481,10 +506,10 @@ def plan_model_from(path, model: CartPoleModel) -> CartPoleModel:
     same = (a.joint_names == b.joint_names and [x.name for x in a.actuators] == [x.name for x in b.actuators]
             and a.timestep == b.timestep and a.integrator == b.integrator)
     if not same:
-        raise SwingupError(f"The planning MJCF {a.mjcf} is not the same machine as --mjcf {b.mjcf} (joints "
+        raise SwingupError(f"The planning MJCF {a.mjcf} is not the same machine as {b.mjcf} (joints "
                            f"{', '.join(a.joint_names)} vs {', '.join(b.joint_names)}, actuators, time step "
                            f"{a.timestep:g} vs {b.timestep:g} s or integrator {a.integrator} vs {b.integrator} "
-                           "differ); give a --plan-mjcf fitted to or edited from the --mjcf file.")
+                           "differ); give a planning MJCF (`path`) fitted to or edited from the plant's.")
     return pm
 
 
@@ -508,282 +533,91 @@ def plan_report(sp) -> dict:
             "discrete": None if getattr(sp, "discrete", None) is None else sp.discrete.as_dict()}
 
 
-#: The keywords ``run_swingup`` took before the options objects, and the stage each one sets (a compatibility layer).
-LEGACY_KEYWORDS = {"duration": "loop", "push": "loop", "model_error": "loop", "objective": "plan", "period": "mpc",
-                   "horizon": "mpc"}
+@dataclass(frozen=True, eq=False)
+class SwingupOptions(StageOptions):
+    """Every setting of a swing-up as one value: what :func:`run_swingup` takes for one run and
+    :func:`~cartpole.apps.sweep.swingup_sweep` for each of its runs (each stage's own options object inside).
 
-
-def run_swingup(plant=None, *, method="auto", x0=None, plan=None, loop: LoopOptions | None = None,
-                mpc=None, energy_options=None, catch_weights: tuple | None = None,
-                plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
-                basin_cache=None, on_step=None, u_max=None, cart_max: float | None = None,
-                time_budget: float | None = None, ctrl_noise: float | None = None, **legacy) -> SwingupResult:
-    """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
-
-    Parameters
+    Attributes
     ----------
-    plant : path, CartPoleParams, CartPoleModel or None
-        The model (None = shipped asset): one pole on a cart for ``energy``, any chain for ``trajopt``.
-    method : {"auto", "energy", "trajopt", "mpc"} or sequence of str or MethodTry
-        ``"auto"`` (default): the methods :func:`auto_methods` chooses for the model, tried in turn until one
-        succeeds in MuJoCo (energy shaping for one pole driven by the cart; the planner, then the planner with DDP
-        on the exact discrete step, for chains, hinge-driven models and after a method that failed). One name runs
-        that method alone. A sequence (of names or :class:`MethodTry`, a trajopt entry naming its ``solver``) is
-        tried in its order in the same way.
-    x0 : (2 nq,) array, optional
-        Start state ``[qpos, qvel]``; default the model's hanging rest ``x_hanging`` (``[0, pi, 0, 0]`` for the
-        shipped cart).
     plan : PlanOptions, optional
-        ``trajopt`` and ``mpc`` (its offline plan): the planner's settings
-        (:class:`~cartpole.planning.options.PlanOptions`); default ``PlanOptions()`` (mpc:
-        ``PlanOptions(cart_margin=mpc.cart_margin)``). With ``"auto"``, planner settings make the planner the first
-        method (energy shaping has no plan).
-    loop : LoopOptions, optional
-        The closed loop (:class:`~cartpole.sim.options.LoopOptions`): ``duration`` (s; None: 10 s energy, 8 s mpc,
-        the plan's horizon + 3 s trajopt, with a ``dmc_*`` task at least dm_control's episode (1000 control steps) so
-        the return counts all of them), ``period`` (s; ``mpc`` only: the NMPC re-plans at it), ``push`` and
-        ``model_error`` (the planning model is :func:`planning_model` of it; MuJoCo keeps the MJCF's).
+        trajopt, the supervisor's plans and mpc's offline plan: the planner's settings
+        (:class:`~cartpole.planning.options.PlanOptions`, its ``objective`` among them); default ``PlanOptions()``
+        (mpc: ``PlanOptions(cart_margin=mpc.cart_margin)``). With ``"auto"``, planner settings make the planner the
+        first method (energy shaping has no plan).
+    loop : LoopOptions
+        The closed loop (:class:`~cartpole.sim.options.LoopOptions`): ``duration`` (s; None: each method's own,
+        :attr:`SwingupMethod.duration`, the plan's horizon + :data:`TRAJOPT_EXTRA` for trajopt, with a ``dmc_*`` task
+        at least dm_control's episode), ``period`` (s; mpc: the NMPC re-plans at it), ``push``, ``model_error``
+        (the planning model is :func:`planning_model` of it; MuJoCo keeps the MJCF's), the rig and the
+        disturbances. Default ``LoopOptions()``.
     mpc : MPCOptions, optional
-        ``mpc`` only: the controller's settings (:class:`~cartpole.mpc.options.MPCOptions`); its period, when None,
-        is the loop's, else the controller's default.
-    energy_options : EnergyOptions or dict, optional
-        ``energy`` only: the energy shaping's settings (:class:`~cartpole.control.energy.EnergyOptions`, or a dict
-        of its field names); default its defaults.
+        mpc only: the controller's settings (:class:`~cartpole.mpc.options.MPCOptions`; ``solver="ddp"`` runs
+        :class:`DDPMPCSwingup`); its period, when None, is the loop's.
+    energy : EnergyOptions or dict, optional
+        energy (and the default's energy try): :class:`~cartpole.control.energy.EnergyOptions`, or a dict of its
+        field names; default its defaults.
     catch_weights : (Q, R), optional
-        LQR weights of the catch; default the lab's ``Q`` with ``R = 1``
-        (:data:`~cartpole.control.switching.SWINGUP_CATCH_R`; the lab's ``R = 0.1`` gives a much smaller basin).
-        Pass ``(cartpole.Q_LAB, cartpole.R_LAB)`` for the lab's LQR. Energy method only: the trajopt hand-over is
-        :func:`cartpole.planning.trajopt.handover_catch`.
-    plan_model : CartPoleModel, optional
-        The planning model itself, built once by a caller that runs many swing-ups (a sweep); default
-        :func:`planning_model` of ``loop.model_error``.
-    progress : callable, optional
-        ``progress(stage, fraction)`` with stage "basin", "trajopt", "mpc" or "simulate".
-    basin_cache : BasinCache, optional
-        Where basin estimates are looked up and kept; default ``BasinCache.on_disk()`` (the user cache directory,
-        ``$CARTPOLE_CACHE_DIR`` honoured), so a second run with the same model and catch does not estimate again.
-    on_step : callable, optional
-        ``on_step(m, d)`` during the MuJoCo run (e.g. :class:`cartpole.viz.viewer.LiveViewer`, to watch it live);
-        returning False ends the run (see :func:`cartpole.sim.rollout.simulate`) and tries no further method.
+        energy only: LQR weights of the catch; default the default ``Q`` with ``R =``
+        :data:`~cartpole.control.switching.SWINGUP_CATCH_R` (trajopt hands over to
+        :func:`cartpole.planning.trajopt.handover_catch`).
     u_max : float or (nu,) array, optional
-        ``|ctrl| <= u_max`` the swing-up plans and runs within; default each actuator's ctrlrange, or where the
-        file has none a stated default (:func:`cartpole.models.planning_limits`; ``metrics["limits"]`` says which).
+        ``|ctrl| <= u_max`` the swing-up plans and runs within; default each actuator's ctrlrange, or a stated
+        default where the file has none (:func:`cartpole.models.planning_limits`).
     cart_max : float, optional
-        m: the cart keeps ``|s - centre| <= cart_max``; default the slide's range, or a stated default when the
-        file's slide is unlimited.
+        m: the cart keeps ``|s - centre| <= cart_max``; default the slide's range, or a stated default.
     time_budget : float, optional
-        s of wall time after which a sequence of methods (``"auto"``) starts no further method (the one running
-        finishes); default :data:`AUTO_TIME_BUDGET`.
+        s of wall time after which a sequence of methods starts no further one; default :data:`AUTO_TIME_BUDGET`.
     ctrl_noise : float, optional
-        Energy and trajopt: design the catch (its ``R``) and the estimator (its process noise) for the rig's
-        sensors so that the ctrl noise they cause in the hold, predicted from the loop, stays below this fraction
-        of the ctrl range (:func:`cartpole.apps.margins.noise_limited_catch`; an error when no design does).
-        Default: with sensors and an estimator, :data:`DEFAULT_CTRL_NOISE` (the quietest design when none holds);
-        without, none. ``metrics["ctrl_noise"]`` gives the design, the prediction and the measured figure.
-    **legacy
-        A compatibility layer for the keywords this function took before the options objects
-        (:data:`LEGACY_KEYWORDS`): ``duration``, ``push``, ``model_error`` (fields of ``loop``), ``objective``
-        (``plan`` for trajopt; for mpc the MPC's own objective, ``mpc.objective``), ``period``, ``horizon``
-        (``mpc``; mpc only). Each replaces that field of the stage's options (None leaves it as it is) and does
-        nothing else.
-
-    Returns
-    -------
-    SwingupResult
-        The run of the method that ran last (the first that succeeded, else the last one tried);
-        ``result.methods_tried`` lists every method considered, ``result.options`` the options of each stage of
-        the method that ran, as run.
+        energy and trajopt: design the catch (its ``R``) and the estimator (its process noise) so that the ctrl
+        noise the sensors cause in the hold stays below this fraction of the ctrl range
+        (:func:`cartpole.apps.margins.noise_limited_catch`). Default: with sensors and an estimator,
+        :data:`DEFAULT_CTRL_NOISE`; without, none.
 
     Raises
     ------
-    SwingupError, MJCFError
-        Bad method or start state; a stage's options given to a method without that stage (``plan`` to energy,
-        ``mpc`` or a loop period to energy or trajopt, ``objective`` to energy); an unknown keyword; an
-        MJCF that is not a cart-pole; ``mpc`` without :mod:`cartpole.mpc.nmpc`; ``"auto"`` on a model no method
-        takes (the sentence gives each method's reason).
-    LoopError, PlanOptionsError, NMPCError
-        Bad loop, planner or NMPC settings (a push, a model error, a duration...).
-    EnergyShapingError
-        ``energy`` on a model energy shaping does not drive (more than one pole, a motor on a hinge), raised
-        before the basin estimate or any simulation.
-    OCPError
-        The planner found no swing-up (or proved none exists) and no method before it ran in MuJoCo.
+    SwingupError
+        A stage given an object of the wrong type, a time budget that is not a positive number of seconds.
     """
-    from cartpole.control.energy import EnergyShapingController, energy_options as check_energy_options
 
-    unknown = sorted(set(legacy) - set(LEGACY_KEYWORDS))
-    if unknown:
-        raise SwingupError(f"run_swingup has no keyword {', '.join(map(repr, unknown))}; give the stages' settings "
-                           f"as plan=, loop=, mpc= options (or the keywords {', '.join(LEGACY_KEYWORDS)}).")
-    given = {stage: {k: v for k, v in legacy.items() if LEGACY_KEYWORDS[k] == stage and v is not None}
-             for stage in ("plan", "loop", "mpc")}
-    auto = isinstance(method, str) and method == AUTO
-    tries = None if auto else method_list(method)
-    if isinstance(plant, CartPoleModel):
-        model, params = plant, plant.params
-    else:
-        params = plant_params(plant)
-        model = None
-    loop = (LoopOptions() if loop is None else loop).replace(**given["loop"])
-    params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
-    model = model if model is not None and model.params is params else build_model(params)
-    plan_model = None if plan_model is None else bounded_model(plan_model, limits)
-    check_upright_reachable(model)
-    model.contacts.check_swingup()  # geoms that touch on the way up (cartpole.models.contacts): refused, named
-    for t in tries or ():
-        check_plan_size(model, t.method)
-    x0, moves = start_state(x0, params, default=model.x_hanging)
-    check_push(loop.push, params)  # a push needs a cart
-    pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
-    if auto and loop.disturbed:  # knocked down or thrown: the controller that swings up again, for the whole run
-        tries = (MethodTry("supervisor"),)
-    elif auto:
-        tries = auto_methods(pm, plan=plan, objective=given["plan"].get("objective"), energy_options=energy_options)
-    names = [t.method for t in tries if not t.outcome]
-    if not names:
-        raise SwingupError("No swing-up method takes this model: "
-                           + "; ".join(f"{t.label} {t.reason}" for t in tries) + ".")
-    # designed without the friction a compensation cancels, run with it (cartpole.control.friction)
-    friction = friction_design(pm, loop)
-    plant, pm = pm, friction.model
-    if loop.duration is not None:
-        check_push_times(loop.push, loop.duration)
-    elif names[0] != "trajopt":  # trajopt's length is known after the plan (checked there, before simulating)
-        check_push_times(loop.push, MPC_DURATION if names[0] == "mpc" else ENERGY_DURATION)
-    if ctrl_noise is not None and not {"energy", "trajopt", "supervisor"} & set(names):
-        raise SwingupError("--ctrl-noise designs the catch of the energy, trajopt and supervisor swing-ups; use it "
-                           "with --method energy, trajopt or supervisor.")
-    if "mpc" not in names and (mpc is not None or given["mpc"]):
-        raise SwingupError("--period and --horizon set the NMPC's control period and horizon; use them with "
-                           "--method mpc.")
-    # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
-    energy = None
-    if "energy" in names:
-        energy = EnergyShapingController(pm, check_energy_options(energy_options))
-    if "mpc" in names and "objective" in given["plan"]:  # the MPC's own objective (its seed plan follows it)
-        from cartpole.mpc.options import MPCOptions
+    error: ClassVar[type] = SwingupError
 
-        mpc = (MPCOptions() if mpc is None else mpc).replace(objective=given["plan"].pop("objective"))
-    if given["plan"] and not {"trajopt", "supervisor"} & set(names):
-        raise SwingupError("--objective chooses what the trajectory optimisation minimises; use it with --method "
-                           "trajopt or mpc.")
-    if plan is not None and not {"trajopt", "mpc", "supervisor"} & set(names):
-        raise SwingupError("Plan options set the trajectory optimisation; use them with --method trajopt or mpc.")
-    if "mpc" in names:
-        mpc = _check_mpc(mpc, given["mpc"], loop, params.timestep)
-    cache = BasinCache.on_disk() if basin_cache is None else basin_cache
-    ctx = _Context(params=params, model=model, pm=pm, plant=plant, friction=friction, loop=loop, x0=x0,
-                   force=loop.push_force(params.timestep), progress=progress, on_step=on_step,
-                   basin_of=lambda catch: cache.get(params, catch, progress=_stage(progress, "basin")),
-                   limits=limits, moves=tuple(moves), ctrl_noise=ctrl_noise)
+    plan: PlanOptions | None = None
+    loop: LoopOptions | None = None
+    mpc: MPCOptions | None = None
+    energy: EnergyOptions | None = None
+    catch_weights: tuple | None = None
+    u_max: object = None
+    cart_max: float | None = None
+    time_budget: float | None = None
+    ctrl_noise: float | None = None
 
-    def run_one(t: MethodTry) -> SwingupResult:
-        if t.method == "energy":
-            return _finish(ctx, "energy", _run_energy(ctx, energy, catch_weights))
-        if t.method == "mpc":
-            return _finish(ctx, "mpc", _run_mpc(ctx, mpc, plan))
-        if t.method == "supervisor":
-            return _finish(ctx, "supervisor", _run_supervisor(ctx, _plan_options(plan, given["plan"])))
-        p = _plan_options(plan, given["plan"])
-        return _finish(ctx, "trajopt", _run_trajopt(ctx, p if t.solver is None else p.replace(solver=t.solver)))
+    def __post_init__(self):
+        self.set_field("loop", LoopOptions() if self.loop is None else self.loop)
+        for name, kind in (("plan", PlanOptions), ("loop", LoopOptions), ("mpc", MPCOptions)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise SwingupError(f"SwingupOptions.{name} must be a {kind.__name__}; got {value!r}.")
+        if self.energy is not None:
+            self.set_field("energy", as_energy_options(self.energy))
+        if self.catch_weights is not None:
+            Q, R = self.catch_weights
+            self.set_field("catch_weights", (None if Q is None else readonly(Q), None if R is None else readonly(R)))
+        budget = self.time_budget
+        if budget is not None and not (isinstance(budget, (int, float)) and math.isfinite(budget) and budget > 0):
+            raise SwingupError(f"The time budget {budget!r} s is not a positive number of seconds; give e.g. "
+                               f"`time_budget={AUTO_TIME_BUDGET:g}`.")
 
-    if len(tries) == 1:
-        t0 = time.perf_counter()
-        res = run_one(tries[0])
-        return replace(res, methods_tried=(_outcome(tries[0], res, time.perf_counter() - t0),))
-    return _run_in_turn(tries, run_one, AUTO_TIME_BUDGET if time_budget is None else time_budget, on_step,
-                        loop.duration)
+    def __eq__(self, other):
+        if type(other) is not type(self):
+            return NotImplemented
+        return self.as_dict() == other.as_dict()
+
+    __hash__ = StageOptions.__hash__
 
 
-def own_duration(result: SwingupResult) -> float:
-    """s: the duration a run of ``result``'s method lasts when none is given: :data:`ENERGY_DURATION` (energy),
-    :data:`MPC_DURATION` (mpc), the plan's horizon + :data:`TRAJOPT_EXTRA` (trajopt), at least a dm_control task's
-    episode."""
-    objective = result.metrics.get("objective")
-    timestep = float(result.rollout.t[1] - result.rollout.t[0]) if len(result.rollout.t) > 1 else 0.0
-    episode = _episode_seconds(objective, timestep) if objective is not None and timestep > 0 else 0.0
-    if result.method == "trajopt" and result.plan is not None:
-        return max(float(result.plan.t[-1] - result.plan.t[0]) + TRAJOPT_EXTRA, episode)
-    return max(MPC_DURATION if result.method == "mpc" else ENERGY_DURATION, episode)
-
-
-def _run_in_turn(tries, run_one, budget: float, on_step, duration: float | None) -> SwingupResult:
-    """Run the pending entries of ``tries`` (:class:`MethodTry`) in turn until one succeeds; the result of the last
-    run, with every entry (its outcome, reason and wall time) in ``methods_tried``. A planner that raised
-    (:class:`~cartpole.ocp.bounds.OCPError` other than bad settings: no plan found, or none exists) ends the
-    planners after it; no method starts with less than :data:`AUTO_NEXT_FACTOR` times the time of the run before
-    it left of ``budget`` s; a run stopped by ``on_step`` (the live view closed), or
-    cut short by a given ``duration`` (s) below its method's own (:func:`own_duration`: its failure says nothing of
-    the method) ends the turn. Re-raises the last planner error when nothing ran in MuJoCo."""
-    from cartpole.ocp.bounds import OCPError
-    from cartpole.planning.options import PlanOptionsError
-
-    if not (math.isfinite(budget) and budget > 0):
-        raise SwingupError(f"The time budget {budget!r} s is not a positive number of seconds; give e.g. "
-                           f"--time-budget {AUTO_TIME_BUDGET:g}.")
-    start = time.perf_counter()
-    done, result, error = [], None, None
-    last = 0.0  # s the run before took
-    stop = None  # why every later method is skipped
-    no_plan = None  # why every later planner is skipped
-    for t in tries:
-        elapsed = time.perf_counter() - start
-        if t.outcome:  # not applicable to this model
-            done.append(t)
-            continue
-        if stop is None and last > 0 and budget - elapsed < AUTO_NEXT_FACTOR * last:
-            stop = (f"{elapsed:.1f} s of the {budget:g} s time budget were spent and the run before took "
-                    f"{last:.1f} s; raise the budget (--time-budget) or run {t.command} alone")
-        why = stop or (no_plan if t.method == "trajopt" else None)
-        if why is not None:
-            done.append(replace(t, outcome="skipped", reason=why))
-            continue
-        t0 = time.perf_counter()
-        try:
-            res = run_one(t)
-        except OCPError as exc:
-            if isinstance(exc, PlanOptionsError):
-                raise
-            error = exc
-            last = time.perf_counter() - t0
-            done.append(replace(t, outcome="error", reason=first_line(exc), seconds=last))
-            no_plan = "the planner before it found no plan, and every planner starts from the same search"
-            continue
-        result = res
-        last = time.perf_counter() - t0
-        done.append(_outcome(t, res, last))
-        short = not res.success and duration is not None and duration < own_duration(res)
-        if short:
-            done[-1] = replace(done[-1], reason=f"{done[-1].reason}; the run of {duration:g} s was shorter than the "
-                                                f"method's own {own_duration(res):.3g} s")
-        if res.success:
-            stop = "an earlier method succeeded"
-        elif getattr(on_step, "closed", False) or getattr(on_step, "interrupted", False):
-            stop = "the live view was closed or interrupted"
-        elif short:
-            stop = (f"the run before it was cut short by the duration given ({duration:g} s); give a longer "
-                    "--duration, or none")
-    if result is None:
-        raise error
-    return replace(result, methods_tried=tuple(done))
-
-
-def _outcome(t: MethodTry, res: SwingupResult, seconds: float) -> MethodTry:
-    """``t`` with the outcome of its run ``res``: "success" or "failed", and why in a few words."""
-    from cartpole.validation.metrics import failure_reason
-
-    solver = t.solver
-    if res.method == "trajopt" and solver is None:
-        solver = res.options["plan"].solver
-    if res.success:
-        reason = "upright and at rest over the last second" + (
-            f", caught at {res.caught_at:.2f} s" if res.caught_at is not None else "")
-    else:
-        reason = failure_reason(res.metrics) + (
-            f"; handed over to the catch at {res.handover_at:.2f} s, it did not hold"
-            if res.handover_at is not None else "")
-    return replace(t, solver=solver, outcome="success" if res.success else "failed", reason=reason,
-                   seconds=float(seconds))
+#: Default of :func:`run_swingup`'s options.
+DEFAULT_OPTIONS = SwingupOptions()
 
 
 @dataclass(frozen=True)
@@ -808,6 +642,496 @@ class _Context:
     moves: tuple = ()
     ctrl_noise: float | None = None
 
+    def report(self, stage: str, fraction: float) -> None:
+        """``progress(stage, fraction)`` when a progress hook was given."""
+        if self.progress is not None:
+            self.progress(stage, fraction)
+
+    def duration(self, own: float) -> float:
+        """s the run lasts: the loop's duration, else ``own`` (the method's), its pushes checked against it."""
+        T = own if self.loop.duration is None else self.loop.duration
+        check_push_times(self.loop.push, T)
+        return T
+
+
+@dataclass(frozen=True)
+class _Design:
+    """What a method built for one run, before MuJoCo runs it: the controller, the simulated seconds, the loop it
+    runs in, the catch basin (or None), the plan (or None), the options of its stages as run and its ctrl-noise
+    design (or None)."""
+
+    controller: object
+    duration: float
+    loop: LoopOptions
+    basin: object = None
+    plan: object = None
+    options: dict = field(default_factory=dict)
+    noise: dict | None = None
+
+
+class SwingupMethod:
+    """One swing-up method: :meth:`design` builds its controller for a run, :meth:`run` (shared, written once)
+    runs it in the closed loop (the rig around the plant, friction compensation outermost, MuJoCo; :func:`_simulate`)
+    and measures it (:func:`~cartpole.validation.metrics.swingup_metrics`, the rig's, estimation, friction; then
+    :meth:`measure`, the method's own).
+
+    Subclasses set :attr:`name` (the JSON ``method``) and :attr:`duration` and implement :meth:`design`; they
+    override :meth:`measure` to add their own metrics and the hand-over to the catch.
+
+    Parameters
+    ----------
+    options : SwingupOptions
+        The swing-up's settings.
+    entry : MethodTry
+        The entry that chose this method (a trajopt entry may name its plan's solver).
+    """
+
+    #: The method's name, as :attr:`SwingupResult.method` and the JSON ``method``.
+    name: ClassVar[str] = ""
+    #: s simulated when the loop gives no duration (trajopt: after the plan's end, :data:`TRAJOPT_EXTRA`).
+    duration: ClassVar[float] = ENERGY_DURATION
+    #: Whether the method designs a catch for the rig's sensors (``ctrl_noise``).
+    designs_catch: ClassVar[bool] = False
+
+    def __init__(self, options: SwingupOptions, entry: MethodTry | None = None):
+        self.options = options
+        self.entry = MethodTry(self.name) if entry is None else entry
+
+    def check(self, pm: CartPoleModel, timestep: float) -> None:
+        """Refuse, before anything runs, settings this method cannot run on the planning model ``pm`` (the file
+        stepping ``timestep`` s); nothing by default."""
+
+    def design(self, ctx: _Context) -> _Design:
+        """The controller for this run and how long it runs (every subclass)."""
+        raise NotImplementedError
+
+    def measure(self, ctx: _Context, design: _Design, rollout: Rollout, ran) -> tuple:
+        """``(handover_at, extra)``: when the method handed over to its catch (s or None) and its own metrics;
+        ``ran`` is the controller as it ran (the compiled C's, when there was a compiler: its switches and hand-over
+        are read from the C)."""
+        return None, {"switches": []}
+
+    def run(self, ctx: _Context) -> SwingupResult:
+        """Design, run in the closed loop, measure: the :class:`SwingupResult` of one run."""
+        d = self.design(ctx)
+        controller, rig, rollout = _simulate(ctx, d.controller, d.duration, loop=d.loop)
+        handover_at, extra = self.measure(ctx, d, rollout, controller)
+        if d.noise is not None:
+            extra["ctrl_noise"] = _noise_measured(d.noise, rollout, handover_at, ctx.pm.u_high - ctx.pm.u_low)
+        return _finish(ctx, self.name, _Ran(rollout, controller, rig, d.basin, d.plan, handover_at, extra,
+                                            d.options))
+
+
+class EnergySwingup(SwingupMethod):
+    """Energy shaping (:class:`~cartpole.control.energy.EnergyShapingController`) until the state enters the LQR
+    catch's MuJoCo-estimated basin, then the catch, switching with hysteresis
+    (:class:`~cartpole.control.switching.SwitchingController`). One pole on a cart driven by the cart: any other
+    model is refused in the energy shaping's one sentence when the method is made."""
+
+    name = "energy"
+    duration = ENERGY_DURATION
+    designs_catch = True
+
+    def __init__(self, options: SwingupOptions, entry: MethodTry | None = None, *, pm: CartPoleModel):
+        super().__init__(options, entry)
+        self.energy = EnergyShapingController(pm, as_energy_options(options.energy))
+
+    def design(self, ctx: _Context) -> _Design:
+        """The switching controller, the catch's basin, the loop (its estimator designed for the sensors)."""
+        Q, R = self.options.catch_weights or (None, None)
+        R0 = SWINGUP_CATCH_R * np.eye(ctx.pm.nu) if R is None else R
+        loop, R, noise = _sensor_design(
+            ctx, lambda r: LinearFeedback.for_model(ctx.pm, Q, r, period=ctx.loop.period).K, R0)
+        catch = LinearFeedback.for_model(ctx.pm, Q, R, period=ctx.loop.period)
+        basin = ctx.basin_of(catch)
+        switching = SwitchingController(self.energy, catch, basin.rho)
+        return _Design(switching, ctx.duration(self.duration), loop, basin,
+                       options={"energy": self.energy.options, "loop": loop}, noise=noise)
+
+    def measure(self, ctx: _Context, design: _Design, rollout: Rollout, ran) -> tuple:
+        """The last switch into the catch, and every switch (``switches``)."""
+        switches = ran.switches  # the C's when it ran
+        handovers = [s.t for s in switches if s.mode == "catch"]
+        extra = {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in switches]}
+        return (handovers[-1] if handovers else None), extra
+
+
+class TrajoptSwingup(SwingupMethod):
+    """Direct collocation (or DDP, the plan's ``solver``) + TVLQR (:func:`cartpole.planning.trajopt.trajopt_swingup`)
+    handing over to the LQR hold after the plan; the basin reported is the hand-over catch's."""
+
+    name = "trajopt"
+    duration = TRAJOPT_EXTRA
+    designs_catch = True
+
+    def plan_options(self) -> PlanOptions:
+        """The planner's options: the swing-up's (default ``PlanOptions()``), with the entry's solver when it names
+        one."""
+        plan = self.options.plan or PlanOptions()
+        return plan if self.entry.solver is None else plan.replace(solver=self.entry.solver)
+
+    def design(self, ctx: _Context) -> _Design:
+        """The plan, its TVLQR and the hand-over catch; the run lasts the plan + :data:`TRAJOPT_EXTRA` (at least a
+        dm_control task's episode) unless the loop says."""
+        plan = self.plan_options()
+        ctx.report("trajopt", 0.0)
+        R0 = lab_weights(ctx.pm)[1] if plan.R is None else plan.R
+        steps = steps_per_period(ctx.loop.period, ctx.params.timestep)
+        loop, R, noise = _sensor_design(ctx, lambda r: trajopt.handover_catch(ctx.params, ctx.pm, plan.Q, r,
+                                                                              steps=steps).K, R0)
+        self.sp = sp = trajopt.trajopt_swingup(ctx.params, x0=tuple(ctx.x0), plan_model=ctx.pm, options=plan,
+                                               period=ctx.loop.period, catch_R=None if noise is None else R)
+        ctx.report("trajopt", 1.0)
+        self.T_plan = float(sp.trajectory.t[-1] - sp.trajectory.t[0])
+        own = max(self.T_plan + self.duration, _episode_seconds(sp.objective, ctx.params.timestep))
+        return _Design(sp.controller, ctx.duration(own), loop, ctx.basin_of(sp.catch), sp.trajectory,
+                       {"plan": plan, "loop": loop}, noise)
+
+    def measure(self, ctx: _Context, design: _Design, rollout: Rollout, ran) -> tuple:
+        """The end of the plan's tracking (once the run reached it), its cost-to-go, the plan's report, and a
+        dm_control task's return."""
+        sp = self.sp
+        handover = getattr(ran, "handover_time", self.T_plan)  # the C's when it ran
+        handover_at = float(handover) if handover is not None and rollout.t[-1] >= handover else None
+        k = int(np.searchsorted(rollout.t, handover_at)) if handover_at is not None else None
+        cost = None if k is None else sp.catch.cost_to_go(rollout.x[k])
+        extra = {"switches": [] if k is None else [{"t": handover_at, "mode": "catch", "cost": cost}],
+                 "handover_cost": cost, "objective": sp.objective, "plan": plan_report(sp)}
+        extra.update(_episode_return(rollout, ctx.model, sp.objective))
+        return handover_at, extra
+
+
+class NMPCSwingup(SwingupMethod):
+    """Nonlinear MPC by SQP-RTI (:func:`cartpole.mpc.nmpc.nmpc_swingup`) re-planning every control period, MuJoCo
+    holding each ctrl; no catch, no basin. ``mpc.solver="ddp"`` is :class:`DDPMPCSwingup`."""
+
+    name = "mpc"
+    duration = MPC_DURATION
+
+    def mpc_options(self, loop: LoopOptions, timestep: float) -> MPCOptions:
+        """The NMPC's options, its period the loop's when it gives none (one sentence when both are given and
+        differ); a horizon too long to solve or a period it would round away refused."""
+        mpc = _mpc_period(self.options.mpc or MPCOptions(), loop, timestep)
+        mpc_grid(mpc, timestep)
+        return mpc
+
+    def check(self, pm: CartPoleModel, timestep: float) -> None:
+        """The NMPC's options refused now (:meth:`mpc_options`)."""
+        self.mpc_options(self.options.loop, timestep)
+
+    def plan_options(self, mpc: MPCOptions) -> PlanOptions:
+        """The offline plan's options: the swing-up's, default ``PlanOptions(cart_margin=mpc.cart_margin)``."""
+        return PlanOptions(cart_margin=mpc.cart_margin) if self.options.plan is None else self.options.plan
+
+    def build(self, ctx: _Context, mpc: MPCOptions, plan: PlanOptions):
+        """The controller (:func:`~cartpole.mpc.nmpc.nmpc_swingup`)."""
+        return nmpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
+
+    def design(self, ctx: _Context) -> _Design:
+        """The NMPC, run at its own period; 8 s (at least a dm_control task's episode) unless the loop says."""
+        mpc = self.mpc_options(ctx.loop, ctx.params.timestep)
+        plan = self.plan_options(mpc)
+        ctx.report("mpc", 0.0)
+        nmpc = self.build(ctx, mpc, plan)
+        ctx.report("mpc", 1.0)
+        own = max(self.duration, _episode_seconds(mpc.objective, ctx.params.timestep))
+        T = own if ctx.loop.duration is None else ctx.loop.duration
+        return _Design(nmpc, T, ctx.loop.replace(period=float(nmpc.period)),
+                       options={"plan": plan, "loop": ctx.loop, "mpc": mpc})
+
+    def measure(self, ctx: _Context, design: _Design, rollout: Rollout, ran) -> tuple:
+        """``period``, ``horizon``, ``failures``, ``objective`` and a dm_control task's return."""
+        nmpc = design.controller
+        extra = {"switches": [], "period": float(nmpc.period), "horizon": float(nmpc.horizon),
+                 "failures": _count(getattr(nmpc, "failures", 0)), "objective": getattr(nmpc, "objective", "tracking")}
+        extra.update(_episode_return(rollout, ctx.model, extra["objective"]))
+        return None, extra
+
+
+class DDPMPCSwingup(NMPCSwingup):
+    """MPC by box-DDP on any running objective (:func:`cartpole.mpc.ddp_mpc.ddp_mpc_swingup`, ``mpc.solver="ddp"``),
+    its offline seed plan following the MPC's objective."""
+
+    def plan_options(self, mpc: MPCOptions) -> PlanOptions:
+        """The seed plan's options (:func:`~cartpole.mpc.ddp_mpc.seed_plan_options`)."""
+        return seed_plan_options(super().plan_options(mpc), mpc)
+
+    def build(self, ctx: _Context, mpc: MPCOptions, plan: PlanOptions):
+        """The controller (:func:`~cartpole.mpc.ddp_mpc.ddp_mpc_swingup`)."""
+        return ddp_mpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
+
+
+class SupervisorSwingup(SwingupMethod):
+    """The supervisor (:class:`~cartpole.supervise.Supervisor`): the catch in its verified basin, the energy law on
+    one pole driven by the cart, else a passive brake and a plan from the state predicted over the planning
+    latency, TVLQR along it; again whenever the state is knocked out of the basin."""
+
+    name = "supervisor"
+    duration = SUPERVISOR_DURATION
+    designs_catch = True
+
+    def design(self, ctx: _Context) -> _Design:
+        """The supervisor for the whole run."""
+        plan = self.options.plan or PlanOptions()
+        loop, R, noise = _sensor_design(  # the catch (and the estimator) designed for the rig's sensors, as energy's
+            ctx, lambda r: LinearFeedback.for_model(ctx.pm, R=r, period=ctx.loop.period).K,
+            SWINGUP_CATCH_R * np.eye(ctx.pm.nu))
+        sup = supervisor_for(ctx.params, ctx.pm, period=ctx.loop.period, plan=plan, basin_of=ctx.basin_of,
+                             catch_R=None if noise is None else R)
+        return _Design(sup, ctx.duration(self.duration), loop, sup.basin, options={"plan": plan, "loop": loop},
+                       noise=noise)
+
+    def measure(self, ctx: _Context, design: _Design, rollout: Rollout, ran) -> tuple:
+        """The last catch, and the supervisor's summary (``supervisor``)."""
+        sup = design.controller
+        catches = [d.t for d in sup.decisions if d.kind == "catch"]
+        return (catches[-1] if catches else None), {"supervisor": sup.summary()}
+
+
+#: The class of each method name (:func:`method_class`).
+METHOD_CLASSES = {"energy": EnergySwingup, "trajopt": TrajoptSwingup, "mpc": NMPCSwingup,
+                  "supervisor": SupervisorSwingup}
+
+
+def method_class(name: str, mpc: MPCOptions | None = None) -> type:
+    """The :class:`SwingupMethod` subclass that runs method ``name`` (one of :data:`METHODS`): mpc with
+    ``mpc.solver == "ddp"`` is :class:`DDPMPCSwingup`.
+
+    Raises
+    ------
+    SwingupError
+        An unknown method.
+    """
+    if name not in METHOD_CLASSES:
+        raise SwingupError(f"Unknown swing-up method '{name}'; choose one of {', '.join((AUTO,) + METHODS)}.")
+    if name == "mpc" and mpc is not None and mpc.solver == "ddp":
+        return DDPMPCSwingup
+    return METHOD_CLASSES[name]
+
+
+def run_swingup(plant=None, method="auto", options: SwingupOptions | None = None, *, x0=None,
+                plan_model: CartPoleModel | None = None, progress: Callable[[str, float], None] | None = None,
+                basin_cache=None, on_step=None) -> SwingupResult:
+    """Swing up from ``x0`` and hold upright, in MuJoCo on the MJCF.
+
+    Parameters
+    ----------
+    plant : path, CartPoleParams, CartPoleModel or None
+        The model (None = shipped asset): one pole on a cart for ``energy``, any chain for ``trajopt``.
+    method : {"auto", "energy", "trajopt", "mpc", "supervisor"} or sequence of str or MethodTry
+        ``"auto"`` (default): the methods :func:`auto_methods` chooses for the model, tried in turn until one
+        succeeds in MuJoCo (energy shaping for one pole driven by the cart; the planner, then the planner with DDP
+        on the exact discrete step, for chains, hinge-driven models and after a method that failed); with a loop
+        that knocks or throws the pole, the supervisor. One name runs that method alone (its class:
+        :func:`method_class`). A sequence (of names or :class:`MethodTry`, a trajopt entry naming its ``solver``) is
+        tried in its order in the same way.
+    options : SwingupOptions, optional
+        Every setting: each stage's options (``plan``, ``loop``, ``mpc``, ``energy``), the catch's weights, the
+        bounds planned within, the time budget, the ctrl-noise limit; default :data:`DEFAULT_OPTIONS`.
+    x0 : (2 nq,) array, optional
+        Start state ``[qpos, qvel]`` (m, rad, m/s, rad/s); default the model's hanging rest ``x_hanging``, a
+        position just outside its range moved onto the edge (:func:`start_state`).
+    plan_model : CartPoleModel, optional
+        The planning model itself (a fitted file's, or built once by a caller that runs many swing-ups); default
+        :func:`planning_model` of ``options.loop.model_error``.
+    progress : callable, optional
+        ``progress(stage, fraction)`` with stage "basin", "trajopt", "mpc" or "simulate".
+    basin_cache : BasinCache, optional
+        Where basin estimates are looked up and kept; default ``BasinCache.on_disk()`` (the user cache directory,
+        ``$CARTPOLE_CACHE_DIR`` honoured), so a second run with the same model and catch does not estimate again.
+    on_step : callable, optional
+        ``on_step(m, d)`` during the MuJoCo run (e.g. :class:`cartpole.viz.viewer.LiveViewer`, to watch it live);
+        returning False ends the run (see :func:`cartpole.sim.rollout.simulate`) and tries no further method.
+
+    Returns
+    -------
+    SwingupResult
+        The run of the method that ran last (the first that succeeded, else the last one tried);
+        ``result.methods_tried`` lists every method considered, ``result.options`` the options of each stage of
+        the method that ran, as run.
+
+    Raises
+    ------
+    SwingupError, MJCFError
+        Bad method or start state; a stage's options given to methods without that stage (``plan`` to energy,
+        ``mpc`` to anything but mpc, ``ctrl_noise`` to mpc or the supervisor); an MJCF that is not a cart-pole;
+        ``"auto"`` on a model no method takes (the sentence gives each method's reason).
+    LoopError, PlanOptionsError, NMPCError
+        Bad loop, planner or NMPC settings (a push, a model error, a duration...).
+    EnergyShapingError
+        ``energy`` on a model energy shaping does not drive (more than one pole, a motor on a hinge), raised
+        before the basin estimate or any simulation.
+    OCPError
+        The planner found no swing-up (or proved none exists) and no method before it ran in MuJoCo.
+    """
+    options = DEFAULT_OPTIONS if options is None else options
+    if not isinstance(options, SwingupOptions):
+        raise SwingupError(f"run_swingup takes its settings as options=SwingupOptions(...); got {options!r}.")
+    tries = None if isinstance(method, str) and method == AUTO else method_list(method)
+    model, params, limits = _planned_model(plant, options)
+    plan_model = None if plan_model is None else bounded_model(plan_model, limits)
+    for t in tries or ():
+        check_plan_size(model, t.method)
+    x0, moves = start_state(x0, params, default=model.x_hanging)
+    loop = options.loop
+    check_push(loop.push, params)  # a push needs a cart
+    pm = plan_model if plan_model is not None else planning_model(model, loop.model_error)
+    if tries is None:  # knocked down or thrown: the controller that swings up again, for the whole run
+        tries = (MethodTry("supervisor"),) if loop.disturbed else auto_methods(pm, plan=options.plan,
+                                                                                energy_options=options.energy)
+    friction = friction_design(pm, loop)  # designed without the friction a compensation cancels, run with it
+    methods = _methods(tries, options, friction.model, params.timestep)
+    cache = BasinCache.on_disk() if basin_cache is None else basin_cache
+    ctx = _Context(params=params, model=model, pm=friction.model, plant=pm, friction=friction, loop=loop, x0=x0,
+                   force=loop.push_force(params.timestep), progress=progress, on_step=on_step,
+                   basin_of=lambda catch: cache.get(params, catch, progress=_stage(progress, "basin")),
+                   limits=limits, moves=tuple(moves), ctrl_noise=options.ctrl_noise)
+    if len(tries) == 1:
+        t0 = time.perf_counter()
+        res = methods[0].run(ctx)
+        return replace(res, methods_tried=(_outcome(tries[0], res, time.perf_counter() - t0),))
+    budget = AUTO_TIME_BUDGET if options.time_budget is None else options.time_budget
+    return _run_in_turn(tries, methods, ctx, budget)
+
+
+def _planned_model(plant, options: SwingupOptions) -> tuple:
+    """``(model, params, limits)``: the plant's model within the bounds planned within
+    (:func:`~cartpole.models.planning_limits` of ``options.u_max``, ``options.cart_max``), refused when upright is out
+    of a hinge's range or geoms touch on the way up."""
+    if isinstance(plant, CartPoleModel):
+        model, params = plant, plant.params
+    else:
+        model, params = None, plant_params(plant)
+    params, limits = planning_limits(params, u_max=options.u_max, cart_max=options.cart_max)
+    model = model if model is not None and model.params is params else build_model(params)
+    check_upright_reachable(model)
+    model.contacts.check_swingup()  # geoms that touch on the way up (cartpole.models.contacts): refused, named
+    return model, params, limits
+
+
+def _methods(tries: tuple, options: SwingupOptions, pm: CartPoleModel, timestep: float) -> list:
+    """The :class:`SwingupMethod` of each pending entry of ``tries`` (None for the others), after refusing, before
+    anything runs, settings no pending method has a stage for, and each method's own refusals."""
+    names = [t.method for t in tries if not t.outcome]
+    if not names:
+        raise SwingupError("No swing-up method takes this model: "
+                           + "; ".join(f"{t.label} {t.reason}" for t in tries) + ".")
+    loop = options.loop
+    if loop.duration is not None:
+        check_push_times(loop.push, loop.duration)
+    elif names[0] != "trajopt":  # trajopt's length is known after the plan (checked there, before simulating)
+        check_push_times(loop.push, method_class(names[0], options.mpc).duration)
+    if options.ctrl_noise is not None and not any(method_class(n, options.mpc).designs_catch for n in names):
+        raise SwingupError("`ctrl_noise` designs the catch of the energy, trajopt and supervisor swing-ups; use it "
+                           "with `method='energy'`, `method='trajopt'` or `method='supervisor'`.")
+    if options.mpc is not None and "mpc" not in names:
+        raise SwingupError("`mpc` options set the NMPC; use them with `method='mpc'`.")
+    if options.plan is not None and not {"trajopt", "mpc", "supervisor"} & set(names):
+        raise SwingupError("`plan` options set the trajectory optimisation; use them with `method='trajopt'` or "
+                           "`method='mpc'`.")
+    out = []
+    for t in tries:
+        if t.outcome:
+            out.append(None)
+            continue
+        cls = method_class(t.method, options.mpc)
+        # energy shaping refuses a model it cannot drive with its own sentence, before any basin estimate runs
+        m = cls(options, t, pm=pm) if cls is EnergySwingup else cls(options, t)
+        m.check(pm, timestep)
+        out.append(m)
+    return out
+
+
+def own_duration(result: SwingupResult) -> float:
+    """s: the duration a run of ``result``'s method lasts when none is given: :data:`ENERGY_DURATION` (energy),
+    :data:`MPC_DURATION` (mpc), the plan's horizon + :data:`TRAJOPT_EXTRA` (trajopt), at least a dm_control task's
+    episode."""
+    objective = result.metrics.get("objective")
+    timestep = float(result.rollout.t[1] - result.rollout.t[0]) if len(result.rollout.t) > 1 else 0.0
+    episode = _episode_seconds(objective, timestep) if objective is not None and timestep > 0 else 0.0
+    if result.method == "trajopt" and result.plan is not None:
+        return max(float(result.plan.t[-1] - result.plan.t[0]) + TRAJOPT_EXTRA, episode)
+    return max(METHOD_CLASSES[result.method].duration, episode)
+
+
+def _run_in_turn(tries: tuple, methods: list, ctx: _Context, budget: float) -> SwingupResult:
+    """Run the pending entries of ``tries`` (:class:`MethodTry`, their ``methods``) in turn until one succeeds; the
+    result of the last run, with every entry (its outcome, reason and wall time) in ``methods_tried``. A planner that
+    raised (:class:`~cartpole.ocp.bounds.OCPError` other than bad settings: no plan found, or none exists) ends the
+    planners after it; no method starts with less than :data:`AUTO_NEXT_FACTOR` times the time of the run before
+    it left of ``budget`` s; a run stopped by ``ctx.on_step`` (the live view closed), or cut short by a given
+    duration below its method's own (:func:`own_duration`: its failure says nothing of the method) ends the turn.
+    Re-raises the last planner error when nothing ran in MuJoCo."""
+    start = time.perf_counter()
+    done, result, error = [], None, None
+    last = 0.0  # s the run before took
+    stop = None  # why every later method is skipped
+    no_plan = None  # why every later planner is skipped
+    for t, method in zip(tries, methods):
+        elapsed = time.perf_counter() - start
+        if t.outcome:  # not applicable to this model
+            done.append(t)
+            continue
+        if stop is None and last > 0 and budget - elapsed < AUTO_NEXT_FACTOR * last:
+            stop = (f"{elapsed:.1f} s of the {budget:g} s time budget were spent and the run before took "
+                    f"{last:.1f} s; raise the `time_budget` or run {t.arguments} alone")
+        why = stop or (no_plan if t.method == "trajopt" else None)
+        if why is not None:
+            done.append(replace(t, outcome="skipped", reason=why))
+            continue
+        t0 = time.perf_counter()
+        try:
+            res = method.run(ctx)
+        except OCPError as exc:
+            if isinstance(exc, PlanOptionsError):
+                raise
+            error = exc
+            last = time.perf_counter() - t0
+            done.append(replace(t, outcome="error", reason=first_line(exc), seconds=last))
+            no_plan = "the planner before it found no plan, and every planner starts from the same search"
+            continue
+        result = res
+        last = time.perf_counter() - t0
+        done.append(_outcome(t, res, last))
+        stop = stop or _turn_ends(ctx, res, done)
+    if result is None:
+        raise error
+    return replace(result, methods_tried=tuple(done))
+
+
+def _turn_ends(ctx: _Context, res: SwingupResult, done: list) -> str | None:
+    """Why no method runs after ``res`` (None: the turn goes on); a run cut short by the loop's duration says so
+    in its own entry, the last of ``done``."""
+    duration = ctx.loop.duration
+    short = not res.success and duration is not None and duration < own_duration(res)
+    if short:
+        done[-1] = replace(done[-1], reason=f"{done[-1].reason}; the run of {duration:g} s was shorter than the "
+                                            f"method's own {own_duration(res):.3g} s")
+    if res.success:
+        return "an earlier method succeeded"
+    if getattr(ctx.on_step, "closed", False) or getattr(ctx.on_step, "interrupted", False):
+        return "the live view was closed or interrupted"
+    if short:
+        return (f"the run before it was cut short by the duration given ({duration:g} s); give a longer "
+                "`duration`, or none")
+    return None
+
+
+def _outcome(t: MethodTry, res: SwingupResult, seconds: float) -> MethodTry:
+    """``t`` with the outcome of its run ``res``: "success" or "failed", and why in a few words."""
+    solver = t.solver
+    if res.method == "trajopt" and solver is None:
+        solver = res.options["plan"].solver
+    if res.success:
+        reason = "upright and at rest over the last second" + (
+            f", caught at {res.caught_at:.2f} s" if res.caught_at is not None else "")
+    else:
+        reason = failure_reason(res.metrics) + (
+            f"; handed over to the catch at {res.handover_at:.2f} s, it did not hold"
+            if res.handover_at is not None else "")
+    return replace(t, solver=solver, outcome="success" if res.success else "failed", reason=reason,
+                   seconds=float(seconds))
+
 
 @dataclass(frozen=True)
 class _Ran:
@@ -825,12 +1149,10 @@ class _Ran:
     options: dict
 
 
-def _simulate(ctx: _Context, controller, T: float, *, period=None, loop=None) -> tuple:
+def _simulate(ctx: _Context, controller, T: float, *, loop=None) -> tuple:
     """The closed loop every method shares: the rig for ``loop`` (default the context's) around the plant, the
-    friction compensation outermost, MuJoCo for ``T`` s; ``(controller as run, rig, rollout)``."""
-    from cartpole.export.inloop import in_loop
-    from cartpole.sim.rig import build_rig
-
+    friction compensation outermost, MuJoCo for ``T`` s at the loop's period; ``(controller as run, rig,
+    rollout)``."""
     loop = ctx.loop if loop is None else loop
     rig = build_rig(ctx.plant, loop, task="swingup")
     # the controller that runs, friction compensation outermost; the one implementation: the export's compiled C
@@ -842,62 +1164,11 @@ def _simulate(ctx: _Context, controller, T: float, *, period=None, loop=None) ->
         force = attach(controller, push=force)
     disturbance = loop.disturbance(ctx.params, x_eq=ctx.model.x_eq, hinges=ctx.model.hinges)
     rollout = simulate(ctx.params, controller, ctx.x0, T, push=force, progress=_stage(ctx.progress, "simulate"),
-                       on_step=ctx.on_step, control_period=loop.period if period is None else period, rig=rig,
-                       disturbance=disturbance)
+                       on_step=ctx.on_step, control_period=loop.period, rig=rig, disturbance=disturbance)
     if disturbance is not None:
         rollout.info["disturbances"] = disturbance.events
-    if ctx.progress is not None:
-        ctx.progress("simulate", 1.0)
+    ctx.report("simulate", 1.0)
     return controller, rig, rollout
-
-
-def _run_supervisor(ctx: _Context, plan) -> _Ran:
-    """The supervisor (:class:`~cartpole.supervise.Supervisor`): the catch in its verified basin, the energy law on
-    one pole driven by the cart, else a passive brake and a plan from the state predicted over the planning
-    latency, TVLQR along it; again whenever the state is knocked out of the basin."""
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.switching import SWINGUP_CATCH_R
-    from cartpole.supervise import supervisor_for
-
-    loop, R, noise = _sensor_design(  # the catch (and the estimator) designed for the rig's sensors, as energy's
-        ctx, lambda r: LinearFeedback.for_model(ctx.pm, R=r, period=ctx.loop.period).K,
-        SWINGUP_CATCH_R * np.eye(ctx.pm.nu))
-    sup = supervisor_for(ctx.params, ctx.pm, period=ctx.loop.period, plan=plan, basin_of=ctx.basin_of,
-                         catch_R=None if noise is None else R)
-    T = SUPERVISOR_DURATION if ctx.loop.duration is None else ctx.loop.duration
-    check_push_times(ctx.loop.push, T)
-    controller, rig, rollout = _simulate(ctx, sup, T, loop=loop)
-    catches = [d.t for d in sup.decisions if d.kind == "catch"]
-    extra = {"supervisor": sup.summary()}
-    if noise is not None:
-        extra["ctrl_noise"] = _noise_measured(noise, rollout, catches[-1] if catches else None,
-                                             ctx.pm.u_high - ctx.pm.u_low)
-    return _Ran(rollout, controller, rig, sup.basin, None, catches[-1] if catches else None, extra,
-                {"plan": plan, "loop": loop})
-
-
-def _run_energy(ctx: _Context, energy, catch_weights) -> _Ran:
-    """Energy shaping with the LQR catch in its MuJoCo-estimated basin, switching with hysteresis."""
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
-
-    Q, R = catch_weights or (None, None)
-    R0 = SWINGUP_CATCH_R * np.eye(ctx.pm.nu) if R is None else R
-    loop, R, noise = _sensor_design(
-        ctx, lambda r: LinearFeedback.for_model(ctx.pm, Q, r, period=ctx.loop.period).K, R0)
-    catch = LinearFeedback.for_model(ctx.pm, Q, R, period=ctx.loop.period)
-    basin = ctx.basin_of(catch)
-    switching = SwitchingController(energy, catch, basin.rho)
-    T = ENERGY_DURATION if ctx.loop.duration is None else ctx.loop.duration
-    check_push_times(ctx.loop.push, T)
-    controller, rig, rollout = _simulate(ctx, switching, T, loop=loop)  # its switches: the C's when it ran
-    handovers = [s.t for s in controller.switches if s.mode == "catch"]
-    extra = {"switches": [{"t": s.t, "mode": s.mode, "cost": s.cost} for s in controller.switches]}
-    if noise is not None:
-        extra["ctrl_noise"] = _noise_measured(noise, rollout, handovers[-1] if handovers else None,
-                                             ctx.pm.u_high - ctx.pm.u_low)
-    return _Ran(rollout, controller, rig, basin, None, handovers[-1] if handovers else None, extra,
-                {"energy": energy.options, "loop": loop})
 
 
 #: The ctrl noise (fraction of the ctrl range, standard deviation) a swing-up's catch is designed for by default on
@@ -917,8 +1188,6 @@ def _sensor_design(ctx: _Context, gain, R0):
     sensed = ctx.loop.sensed and ctx.loop.estimator_for("swingup") != "none"
     if ctx.ctrl_noise is None and not sensed:
         return ctx.loop, R0, None
-    from cartpole.apps.margins import noise_limited_catch
-
     asked = ctx.ctrl_noise is not None
     found = noise_limited_catch(ctx.pm, ctx.loop, ctx.ctrl_noise if asked else DEFAULT_CTRL_NOISE, gain, R0,
                                 required=asked)
@@ -946,104 +1215,10 @@ def _noise_measured(doc: dict, rollout, handover_at: float | None, span) -> dict
             "measured_state_std": rollout.x[t > t[-1] - window].std(axis=0).tolist(), "measured_window_s": window}
 
 
-def _plan_options(plan, given: dict):
-    """The planner's options: ``plan`` (default ``PlanOptions()``) with the legacy keywords ``given`` set."""
-    try:
-        from cartpole.planning.options import PlanOptions
-    except ImportError:
-        raise SwingupError("The trajopt method needs cartpole.planning.trajopt, which this installation does not "
-                           "have; use --method energy.") from None
-    return (PlanOptions() if plan is None else plan).replace(**given)
-
-
-def _run_trajopt(ctx: _Context, plan) -> _Ran:
-    """Direct collocation (or DDP, ``plan.solver``) + TVLQR handing over to the LQR hold after the plan."""
-    from cartpole.riccati import lab_weights
-    from cartpole.models import steps_per_period
-    from cartpole.planning.trajopt import handover_catch, trajopt_swingup
-
-    if ctx.progress is not None:
-        ctx.progress("trajopt", 0.0)
-    R0 = lab_weights(ctx.pm)[1] if plan.R is None else plan.R
-    steps = steps_per_period(ctx.loop.period, ctx.params.timestep)
-    loop, R, noise = _sensor_design(ctx, lambda r: handover_catch(ctx.params, ctx.pm, plan.Q, r, steps=steps).K, R0)
-    sp = trajopt_swingup(ctx.params, x0=tuple(ctx.x0), plan_model=ctx.pm, options=plan, period=ctx.loop.period,
-                         catch_R=None if noise is None else R)
-    if ctx.progress is not None:
-        ctx.progress("trajopt", 1.0)
-    trajectory = sp.trajectory
-    catch = sp.catch  # the controller that takes over: its basin is the one reported
-    basin = ctx.basin_of(catch)
-    T_plan = float(trajectory.t[-1] - trajectory.t[0])
-    T = ctx.loop.duration
-    if T is None:
-        T = max(T_plan + TRAJOPT_EXTRA, _episode_seconds(sp.objective, ctx.params.timestep))
-        check_push_times(ctx.loop.push, T)
-    tracker = sp.controller
-    controller, rig, rollout = _simulate(ctx, tracker, T, loop=loop)
-    handover = getattr(controller, "handover_time", T_plan)  # the C's when it ran
-    handover_at = float(handover) if handover is not None and rollout.t[-1] >= handover else None
-    k = int(np.searchsorted(rollout.t, handover_at)) if handover_at is not None else None
-    cost = None if k is None else catch.cost_to_go(rollout.x[k])
-    extra = {"switches": [] if k is None else [{"t": handover_at, "mode": "catch", "cost": cost}],
-             "handover_cost": cost, "objective": sp.objective, "plan": plan_report(sp)}
-    extra.update(_episode_return(rollout, ctx.model, sp.objective))
-    if noise is not None:
-        extra["ctrl_noise"] = _noise_measured(noise, rollout, handover_at, ctx.pm.u_high - ctx.pm.u_low)
-    return _Ran(rollout, controller, rig, basin, trajectory, handover_at, extra, {"plan": plan, "loop": loop})
-
-
-def _check_mpc(mpc, given: dict, loop: LoopOptions, timestep: float):
-    """The NMPC's options (``mpc`` with the legacy keywords ``given``, its period the loop's), refused now when its
-    horizon is too long to solve or its period would round away; one sentence without :mod:`cartpole.mpc.nmpc`."""
-    import importlib.util
-
-    if importlib.util.find_spec("cartpole.mpc.nmpc") is None:
-        raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
-                           "does not have yet; use --method trajopt or energy.")
-    from cartpole.mpc.options import MPCOptions, mpc_grid
-
-    mpc = _mpc_period((MPCOptions() if mpc is None else mpc).replace(**given), loop, timestep)
-    mpc_grid(mpc, timestep)  # a horizon too long to solve, or a period it would round away: refused now
-    return mpc
-
-
-def _run_mpc(ctx: _Context, mpc, plan) -> _Ran:
-    """Nonlinear MPC (RTI or DDP) re-planning every control period, MuJoCo holding each ctrl; no catch, no basin."""
-    from cartpole.mpc.ddp_mpc import seed_plan_options
-    from cartpole.mpc.nmpc import nmpc_swingup
-    from cartpole.planning.options import PlanOptions
-
-    plan = PlanOptions(cart_margin=mpc.cart_margin) if plan is None else plan
-    if mpc.solver == "ddp":
-        plan = seed_plan_options(plan, mpc)
-    if ctx.progress is not None:
-        ctx.progress("mpc", 0.0)
-    if mpc.solver == "ddp":
-        from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
-
-        nmpc = ddp_mpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
-    else:
-        nmpc = nmpc_swingup(ctx.params, x0=ctx.x0, plan_model=ctx.pm, options=mpc, plan=plan)
-    if ctx.progress is not None:
-        ctx.progress("mpc", 1.0)
-    T = ctx.loop.duration
-    if T is None:
-        T = max(MPC_DURATION, _episode_seconds(mpc.objective, ctx.params.timestep))
-    period = float(nmpc.period)
-    controller, rig, rollout = _simulate(ctx, nmpc, T, period=period, loop=ctx.loop.replace(period=period))
-    extra = {"switches": [], "period": period, "horizon": float(nmpc.horizon),
-             "failures": _count(getattr(nmpc, "failures", 0)), "objective": getattr(nmpc, "objective", "tracking")}
-    extra.update(_episode_return(rollout, ctx.model, extra["objective"]))
-    return _Ran(rollout, controller, rig, None, None, None, extra, {"plan": plan, "loop": ctx.loop, "mpc": mpc})
-
-
 def _finish(ctx: _Context, method: str, ran: _Ran) -> SwingupResult:
     """The shared metrics of a run (:func:`~cartpole.validation.metrics.swingup_metrics`, the method's own, the
     rig's, estimation and friction) and its result: ``caught_at`` is the hand-over only when the catch held
     (:func:`~cartpole.validation.metrics.catch_held`)."""
-    from cartpole.validation.metrics import catch_held, swingup_metrics, uptime_metrics
-
     rollout, rig, params = ran.rollout, ran.rig, ctx.params
     metrics = {**swingup_metrics(rollout, ctx.model), **ran.extra}
     handover_at = None if metrics["diverged"] else ran.handover_at  # MuJoCo reset a blown-up run: never caught
@@ -1054,9 +1229,6 @@ def _finish(ctx: _Context, method: str, ran: _Ran) -> SwingupResult:
         requested = ctx.loop.duration if ctx.loop.duration is not None else float(rollout.t[-1])
         metrics.update(uptime_metrics(rollout, ctx.model, events=events, duration=requested))
     if rig is not None and rig.estimator != "none":
-        from cartpole.apps.lab import state_names
-        from cartpole.validation.estimation import estimation_summary
-
         metrics["estimation"] = estimation_summary(rollout, rig.estimator, params.hinges, state_names(params))
     metrics["rig"] = None if rig is None else rig.to_dict()
     metrics["friction"] = friction_summary(params, ctx.friction.compensated)
@@ -1071,8 +1243,6 @@ def _finish(ctx: _Context, method: str, ran: _Ran) -> SwingupResult:
 def _episode_seconds(objective, timestep: float) -> float:
     """s of a dm_control task's episode (its control steps times its control step) on a file stepping ``timestep``
     s; 0 for any other objective."""
-    from cartpole.ocp.dmc import is_task, task
-
     if not is_task(objective):
         return 0.0
     t = task(objective)
@@ -1082,9 +1252,6 @@ def _episode_seconds(objective, timestep: float) -> float:
 def _episode_return(rollout, model, objective) -> dict:
     """``return`` and ``return_steps``: dm_control's exact reward summed over its episode of the logged run, for a
     dm_control task's objective; empty for any other."""
-    from cartpole.ocp.dmc import is_task
-    from cartpole.validation.metrics import EPISODE, dmc_rewards
-
     if not is_task(objective):
         return {}
     rewards = dmc_rewards(rollout, model, objective=objective, steps=EPISODE)

@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-from cartpole.commands._flags import in_flags
+from cartpole.commands._flags import as_flags
 from cartpole.errors import CartPoleError, first_line
 from cartpole.viz.viewer import LiveViewer, ViewerUnavailable, require_display, watch
 
@@ -35,7 +35,7 @@ def show_logged(params, rollout, *, command: str, watcher=None):
         shown = (watch if watcher is None else watcher)(params, logged_ctrl, rollout.x[0], float(rollout.t[-1]),
                                                         push=push)
     except ViewerUnavailable as exc:
-        print(f"cartpole {command}: no live view: {in_flags(first_line(exc))}.", file=sys.stderr)
+        print(f"cartpole {command}: no live view: {as_flags(first_line(exc))}.", file=sys.stderr)
         return None
     k = len(shown.t)
     if not (np.array_equal(shown.qpos, rollout.qpos[:k]) and np.array_equal(shown.qvel, rollout.qvel[:k])):
@@ -66,6 +66,6 @@ def live_viewer(command: str):
     try:
         require_display()
     except ViewerUnavailable as exc:
-        print(f"cartpole {command}: no live view: {in_flags(first_line(exc))}.", file=sys.stderr)
+        print(f"cartpole {command}: no live view: {as_flags(first_line(exc))}.", file=sys.stderr)
         return None
     return LiveViewer()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 
 from cartpole.apps.live import controller_status, watch_lab
-from cartpole.commands._flags import in_flags
+from cartpole.commands._flags import as_flags
 from cartpole.commands._rollouts import live_viewer, rollout_doc, show_logged
 from cartpole.errors import CartPoleError, first_line
 from cartpole.sim import replays_exactly, simulate
@@ -74,7 +74,7 @@ def view_web(lab, args, pid=None) -> dict | None:
     try:
         run, live = watch_lab(lab, port=args.port, host=args.host, duration=args.live_seconds, pid=pid)
     except WebUnavailable as exc:
-        print(f"cartpole {args.command}: no live view: {in_flags(first_line(exc))}", file=sys.stderr)
+        print(f"cartpole {args.command}: no live view: {as_flags(first_line(exc))}", file=sys.stderr)
         return None
     live["rollout"] = rollout_doc(run)
     live["replays"] = bool(replays_exactly(run))

@@ -11,7 +11,7 @@ import cartpole.apps.feedforward as feedforward_app
 from cartpole.apps.feedforward import EXTRA, check_mass_error, plan_options
 from cartpole.apps.lab import state_names
 from cartpole.apps.swingup import plan_model_from
-from cartpole.commands._flags import in_flags
+from cartpole.commands._flags import as_flags, flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args, rig_doc
 from cartpole.commands._rollouts import rollout_doc
@@ -55,99 +55,130 @@ def _fmt(v, spec: str, unit: str = "") -> str:
 
 
 def run(args) -> dict:
-    """Validate the input, plan, run the four controllers, write the figure (and videos), return the JSON document."""
-    # everything is validated before anything is solved or written
-    mass_error = check_mass_error(args.mass_error)
-    params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # defaults where unlimited
-    out = Path(args.out)
+    """Validate the input, plan, run the four controllers, write the figure (and videos), return the JSON document.
+    Library errors name this command's options (:func:`cartpole.commands._flags.flag_words`)."""
+    with flag_words():
+        return _run(args)
 
-    # the work before any (two plans, four runs of at most the longest plan + EXTRA s; the plan's length is known
-    # only after it); a numerically singular model is refused here too
-    n_plans = 1 if mass_error == 0.0 else 2
-    longest = plan_options().T_max + EXTRA
-    check_budget(args, build_model(params), [(4, longest, f"4 runs of at most {longest:g} s")], plans=n_plans)
 
-    loop = loop_from_args(args)
-    plan_model = None
-    if getattr(args, "plan_mjcf", None) is not None:
-        plan_model = bounded_model(plan_model_from(args.plan_mjcf, build_model(params)), limits)
-
+def _run(args) -> dict:
+    """:func:`run` without the flag words."""
+    params, limits, loop, plan_model, mass_error = _inputs(args)
     view = view_mode(args, "feedforward")
     study = feedforward_app.run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
                             plan_model=plan_model, x0=args.x0)
-    model = study.model
     if view:
         show_runs(params, [r.rollout for r in study.runs.values()], view, args, command="feedforward")
+    names = _run_names(mass_error)
+    fig = _figure(args, study, params, plan_model, names, mass_error)
+    videos = None if args.no_video else _videos(args, study, params)
+    doc = _document(study, params, loop, limits, plan_model, mass_error)
+    doc["figure"], doc["videos"] = str(fig.resolve()), videos
+    if not args.json:
+        _print(doc, study, params, names, mass_error, fig)
+    return doc
+
+
+def _inputs(args) -> tuple:
+    """``(params, limits, loop, plan_model, mass_error)``, everything validated before anything is solved or written
+    (the work too: two plans, four runs of at most the longest plan + :data:`~cartpole.apps.feedforward.EXTRA` s;
+    a numerically singular model is refused there)."""
+    mass_error = check_mass_error(args.mass_error)
+    params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # defaults where unlimited
+    n_plans = 1 if mass_error == 0.0 else 2
+    longest = plan_options().T_max + EXTRA
+    model = build_model(params)
+    check_budget(args, model, [(4, longest, f"4 runs of at most {longest:g} s")], plans=n_plans)
+    loop = loop_from_args(args)
+    plan_model = None
+    if getattr(args, "plan_mjcf", None) is not None:
+        plan_model = bounded_model(plan_model_from(args.plan_mjcf, model), limits)
+    return params, limits, loop, plan_model, mass_error
+
+
+def _run_names(mass_error: float) -> dict:
+    """Each run's name in words."""
+    pct = f"{100 * mass_error:+g} %"
+    return {"feedforward": "feedforward only", "feedforward_tvlqr": "feedforward + TVLQR",
+            "wrong_mass_tvlqr": f"feedforward + TVLQR, pole mass {pct}",
+            "wrong_mass_feedforward": f"feedforward only, pole mass {pct}"}
+
+
+def _figure(args, study, params, plan_model, names: dict, mass_error: float):
+    """The figure of the plans and the four runs (``figures/feedforward.png`` under ``--out``)."""
     pct = f"{100 * mass_error:+g} %"
     true_label = (f"plan (MJCF's model), T = {study.plan.T:.2f} s" if plan_model is None else
                   f"plan ({Path(plan_model.params.mjcf).name}), T = {study.plan.T:.2f} s")
-    wrong_label = f"plan (pole mass {pct}), T = {study.wrong_plan.T:.2f} s"
     plans = {true_label: study.plan.trajectory}
     if study.wrong_plan is not study.plan:
-        plans[wrong_label] = study.wrong_plan.trajectory
-    names = {"feedforward": "feedforward only", "feedforward_tvlqr": "feedforward + TVLQR",
-             "wrong_mass_tvlqr": f"feedforward + TVLQR, pole mass {pct}",
-             "wrong_mass_feedforward": f"feedforward only, pole mass {pct}"}
+        plans[f"plan (pole mass {pct}), T = {study.wrong_plan.T:.2f} s"] = study.wrong_plan.trajectory
     runs = {f"{names[n]}: {'success' if r.success else 'FAILED'}": r.rollout for n, r in study.runs.items()}
-    fig = plot_feedforward(runs, plans, params, out / "figures" / "feedforward.png", model=model,
-                           title=f"Feedforward beside feedback in MuJoCo ({Path(params.mjcf).name or 'MJCF text'})")
+    return plot_feedforward(runs, plans, params, Path(args.out) / "figures" / "feedforward.png", model=study.model,
+                            title=f"Feedforward beside feedback in MuJoCo ({Path(params.mjcf).name or 'MJCF text'})")
 
-    videos = None
-    if not args.no_video:
-        videos = {}
-        seconds = max(float(r.rollout.t[-1]) for r in study.runs.values())
-        with stage("videos", size=f"{len(study.runs)} x {seconds:.1f} s at 30 fps") as tick:
-            for i, (name, r) in enumerate(study.runs.items()):
-                try:
-                    path = render_video(params, r.rollout, out / "videos" / f"feedforward_{name}.mp4",
-                                        progress=lambda f, i=i: tick((i + f) / len(study.runs)))
-                except VideoUnavailable as exc:
-                    tick.close(ok=False)   # the stage failed: its line is not printed, the sentence below is
-                    print(f"cartpole feedforward: no videos ({in_flags(str(exc))})", file=sys.stderr)
-                    videos = None
-                    break
-                videos[name] = str(path.resolve())
 
+def _videos(args, study, params) -> dict | None:
+    """One video per run (``videos/feedforward_<run>.mp4``), their absolute paths; None when no video can be made
+    (a sentence on stderr)."""
+    videos = {}
+    seconds = max(float(r.rollout.t[-1]) for r in study.runs.values())
+    with stage("videos", size=f"{len(study.runs)} x {seconds:.1f} s at 30 fps") as tick:
+        for i, (name, r) in enumerate(study.runs.items()):
+            try:
+                path = render_video(params, r.rollout, Path(args.out) / "videos" / f"feedforward_{name}.mp4",
+                                    progress=lambda f, i=i: tick((i + f) / len(study.runs)))
+            except VideoUnavailable as exc:
+                tick.close(ok=False)   # the stage failed: its line is not printed, the sentence below is
+                print(f"cartpole feedforward: no videos ({as_flags(str(exc))})", file=sys.stderr)
+                return None
+            videos[name] = str(path.resolve())
+    return videos
+
+
+def _document(study, params, loop, limits, plan_model, mass_error: float) -> dict:
+    """The JSON document (without ``figure`` and ``videos``)."""
     rig = build_rig(study.model, loop, task="swingup")
-    doc = {"mjcf": params.mjcf, "mass_error": mass_error,
-           **rig_doc(rig, params.timestep if loop.period is None else loop.period),
-           "plan_mjcf": None if plan_model is None else plan_model.params.mjcf,
-           "plan": {"T": study.plan.T, "T_min": study.plan.T_min, "N": study.plan.trajectory.N},
-           "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
-                          "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},
-           "runs": {n: {**r.summary(), "rollout": rollout_doc(r.rollout), "estimation": _estimation(r.rollout, rig)}
-                    for n, r in study.runs.items()},
-           "friction": friction_summary(params, study.friction_compensation),
-           "figure": str(fig.resolve()), "videos": videos,
-           "options": {"plan": study.options.as_dict()}, "limits": limits.to_dict(),
-           "start_moved": [mv.to_dict() for mv in study.start_moves]}
-    if not args.json:
-        joints = [params.joints[h].name for h in model.hinges]
-        print(f"MJCF: {params.mjcf}")
-        for line in limit_lines(doc["limits"], doc["start_moved"]):
-            print(line)
-        print(f"Plans (Hermite-Simpson, minimum time + 20 %): the MJCF's own model T = {study.plan.T:.3f} s; "
-              f"pole mass {pct} T = {study.wrong_plan.T:.3f} s. Each run starts hanging at rest and lasts its "
-              f"plan + 2 s in MuJoCo on the true MJCF.")
-        print("Success: upright and at rest for the last 1 s, cart off its limits, ctrl in range. Tracking errors "
-              "over the plan's span; final angle error wrapped, from upright.")
-        head = (f"{'run':<44} {'success':>7} {'upright at':>10} {'final angle':>12} {'max |dtheta|':>12} "
-                f"{'max |ds|':>9} {'peak |u|':>8}")
-        print(head)
-        print("-" * len(head))
-        for n, r in study.runs.items():
-            fin = np.rad2deg(np.abs(r.final_angle_error)).max() if r.final_angle_error.size else 0.0
-            print(f"{names[n]:<44} {'yes' if r.success else 'NO':>7} "
-                  f"{_fmt(r.time_to_upright, '.3f', ' s'):>10} {fin:>10.2f} ° "
-                  f"{np.rad2deg(r.max_angle_tracking_error):>10.2f} ° "
-                  f"{_fmt(r.max_cart_tracking_error, '.3f', ' m'):>9} {r.peak_ctrl:>8.3f}")
-        if len(joints) > 1:
-            print(f"(angles: the largest over the poles {', '.join(joints)})")
-        print(f"Every rollout replays exactly from its logged ctrl: "
-              f"{all(r.replays_exactly for r in study.runs.values())}")
-        print(f"Figure: {fig}")
-        print("Videos: " + ("not written" if not videos else ", ".join(videos.values())))
-    return doc
+    return {"mjcf": params.mjcf, "mass_error": mass_error,
+            **rig_doc(rig, params.timestep if loop.period is None else loop.period),
+            "plan_mjcf": None if plan_model is None else plan_model.params.mjcf,
+            "plan": {"T": study.plan.T, "T_min": study.plan.T_min, "N": study.plan.trajectory.N},
+            "wrong_plan": {"T": study.wrong_plan.T, "T_min": study.wrong_plan.T_min,
+                           "N": study.wrong_plan.trajectory.N, "pole_mass_factor": 1.0 + mass_error},
+            "runs": {n: {**r.summary(), "rollout": rollout_doc(r.rollout), "estimation": _estimation(r.rollout, rig)}
+                     for n, r in study.runs.items()},
+            "friction": friction_summary(params, study.friction_compensation),
+            "options": {"plan": study.options.as_dict()}, "limits": limits.to_dict(),
+            "start_moved": [mv.to_dict() for mv in study.start_moves]}
+
+
+def _print(doc: dict, study, params, names: dict, mass_error: float, fig) -> None:
+    """The prose: the plans, the table of runs, the replay check and the files."""
+    joints = [params.joints[h].name for h in study.model.hinges]
+    print(f"MJCF: {params.mjcf}")
+    for line in limit_lines(doc["limits"], doc["start_moved"]):
+        print(line)
+    print(f"Plans (Hermite-Simpson, minimum time + 20 %): the MJCF's own model T = {study.plan.T:.3f} s; "
+          f"pole mass {100 * mass_error:+g} % T = {study.wrong_plan.T:.3f} s. Each run starts hanging at rest and "
+          "lasts its plan + 2 s in MuJoCo on the true MJCF.")
+    print("Success: upright and at rest for the last 1 s, cart off its limits, ctrl in range. Tracking errors "
+          "over the plan's span; final angle error wrapped, from upright.")
+    head = (f"{'run':<44} {'success':>7} {'upright at':>10} {'final angle':>12} {'max |dtheta|':>12} "
+            f"{'max |ds|':>9} {'peak |u|':>8}")
+    print(head)
+    print("-" * len(head))
+    for n, r in study.runs.items():
+        fin = np.rad2deg(np.abs(r.final_angle_error)).max() if r.final_angle_error.size else 0.0
+        print(f"{names[n]:<44} {'yes' if r.success else 'NO':>7} "
+              f"{_fmt(r.time_to_upright, '.3f', ' s'):>10} {fin:>10.2f} ° "
+              f"{np.rad2deg(r.max_angle_tracking_error):>10.2f} ° "
+              f"{_fmt(r.max_cart_tracking_error, '.3f', ' m'):>9} {r.peak_ctrl:>8.3f}")
+    if len(joints) > 1:
+        print(f"(angles: the largest over the poles {', '.join(joints)})")
+    print(f"Every rollout replays exactly from its logged ctrl: "
+          f"{all(r.replays_exactly for r in study.runs.values())}")
+    print(f"Figure: {fig}")
+    videos = doc["videos"]
+    print("Videos: " + ("not written" if not videos else ", ".join(videos.values())))
 
 
 def _estimation(rollout, rig):

@@ -15,7 +15,7 @@ from cartpole.apps.lab import (ESTIMATION_FIGURE, FIGURE, LAB_DURATION, METRICS,
                                compare_pid, lab_friction, view_first_run)
 from cartpole.apps.metrics_csv import append_metrics, metrics_row
 from cartpole.apps.swingup import plan_model_from
-from cartpole.commands._flags import in_flags
+from cartpole.commands._flags import as_flags
 from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, friction_sentence,
                                     loop_from_args, rig_doc, smoothed_friction_sentence)
@@ -217,7 +217,7 @@ def _write_outputs(args, result, model, pid) -> dict:
                                     model=model)
             video, video_render_s = info.resolve(), float(info.render_s)
         except VideoUnavailable as exc:
-            print(f"cartpole lqr: no video: {in_flags(str(exc))}", file=sys.stderr)
+            print(f"cartpole lqr: no video: {as_flags(str(exc))}", file=sys.stderr)
 
     metrics = append_metrics(out / METRICS, metrics_row(result)).resolve()
     return {"figure": figure, "estimation_figure": est_figure, "pid_figure": pid_figure, "video": video,
@@ -372,7 +372,7 @@ def _view(result):
     try:
         result, shown = view_first_run(result, watch)
     except ViewerUnavailable as exc:
-        print(f"cartpole lqr: {in_flags(str(exc))}", file=sys.stderr)
+        print(f"cartpole lqr: {as_flags(str(exc))}", file=sys.stderr)
         return result
     if shown.info.get("closed_early"):
         print(f"cartpole lqr: the viewer was closed at t = {shown.t[-1]:.2f} s; the logged run of IC 1 is the "

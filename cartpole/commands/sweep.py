@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from cartpole.commands._flags import flag_words
+
 HELP = ("robustness sweep of the swing-up over starts, pushes, model error and controller settings (grids or "
         "seeded samples), in MuJoCo, one row per run")
 DESCRIPTION = (HELP + ". Each run is `cartpole swingup` with its own start, push, model error and settings; a success "
@@ -143,6 +145,38 @@ def mpc_settings(args) -> dict:
     return fixed
 
 
+def sweep_options(args, method: str, duration, loop):
+    """The :class:`~cartpole.apps.swingup.SwingupOptions` every run of ``method``'s sweep starts from: the rig and
+    disturbances ``loop`` with ``duration`` (s or None), ``--objective`` as the plan's (trajopt) or the DDP MPC's
+    (mpc: the RTI NMPC tracks upright only), ``--horizon`` and ``--no-seed-plan`` as the MPC's.
+
+    Raises
+    ------
+    SweepError
+        ``--objective``, ``--horizon`` or ``--no-seed-plan`` with a method that has no such stage.
+    """
+    from cartpole.apps.sweep import SweepError
+    from cartpole.apps.swingup import SwingupOptions
+    from cartpole.mpc.options import MPCOptions
+    from cartpole.planning.options import PlanOptions
+
+    objective, fixed = getattr(args, "objective", None), mpc_settings(args)
+    if fixed and method != "mpc":
+        raise SweepError(f"--horizon and --no-seed-plan are the MPC's settings; use them with --method mpc (not "
+                         f"{method}).")
+    if objective is not None and method not in ("trajopt", "mpc"):
+        raise SweepError(f"--objective chooses what the trajectory optimisation (or the DDP MPC) optimises; sweep it "
+                         f"with --method trajopt or mpc (not {method}).")
+    if method == "mpc" and not fixed.get("seed_plan", True) and objective is None:
+        raise SweepError("--no-seed-plan runs the DDP MPC, which needs an objective to find the swing-up by itself; "
+                         "give --objective (e.g. dmc_acrobot_swingup).")
+    plan = PlanOptions(objective=objective) if method == "trajopt" and objective is not None else None
+    mpc = None
+    if method == "mpc" and (objective is not None or fixed):
+        mpc = MPCOptions(**({} if objective is None else {"solver": "ddp", "objective": objective}), **fixed)
+    return SwingupOptions(loop=loop.replace(duration=duration), plan=plan, mpc=mpc)
+
+
 def _plan(args, params):
     """Validate everything before any run: the methods, n, workers, duration, axes and x0 for every method."""
     from cartpole.commands.swingup import check_duration
@@ -220,7 +254,14 @@ def _check_work(args, model, methods, axes, n: int, duration) -> None:
 def run(args) -> dict:
     """Run the sweep (one per ``--method``) and return the JSON document: for one method that of
     :func:`run_method`; for several ``mjcf``, ``methods``, ``sweeps`` (each method's document) and ``figure`` (the
-    success maps side by side, :func:`cartpole.viz.sweep_plot.plot_comparison`)."""
+    success maps side by side, :func:`cartpole.viz.sweep_plot.plot_comparison`). Library errors name this command's
+    options (:func:`cartpole.commands._flags.flag_words`)."""
+    with flag_words():
+        return _run(args)
+
+
+def _run(args) -> dict:
+    """:func:`run` without the flag words."""
     from cartpole.commands._limits import limit_keywords, limit_lines
     from cartpole.models import planning_limits, read_params
 
@@ -263,20 +304,20 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
         Interrupted: its one sentence says how many runs the results file kept and how to go on.
     """
     from cartpole._files import short
-    from cartpole.apps.sweep import SweepInterrupted, recorded_sweep, summary_line
+    from cartpole.apps.sweep import SweepInterrupted, SweepRuns, recorded_sweep, summary_line
     from cartpole.commands._rig import loop_from_args
 
     from cartpole.commands.swingup import disturbance_fields
 
     loop = loop_from_args(args).replace(**disturbance_fields(args))
     out = Path(args.out)
+    options = sweep_options(args, method, duration, loop)
+    runs = SweepRuns(n=n, seed=args.seed, axes=axes, x0=x0, gain_jitter=args.jitter)
     try:
-        rec = recorded_sweep(params, method=method, n=n, seed=args.seed, workers=args.workers, duration=duration,
-                             gain_jitter=args.jitter, address=args.address, axes=axes, x0=x0,
+        rec = recorded_sweep(params, method, options, runs=runs, workers=args.workers, address=args.address,
                              results=out / str(RESULTS).format(method=method),
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
-                             stop_after=args.stop_after, loop=loop, objective=getattr(args, "objective", None),
-                             mpc=mpc_settings(args))
+                             stop_after=args.stop_after)
     except SweepInterrupted as stop:
         from cartpole.errors import Terminated
 

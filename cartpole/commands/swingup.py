@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import math
+import statistics
 import sys
 
+from cartpole.commands._flags import as_flags, flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, design_friction, rig_fields,
                                     smoothed_friction_sentence)
@@ -145,7 +147,8 @@ def methods_sentence(tried) -> str:
     for t in tried:
         took = f" after {t.seconds:.0f} s" if t.outcome in ("success", "failed", "error") else ""
         parts.append(f"{t.label}: {t.outcome}{took}" + (f" ({t.reason})" if t.reason else ""))
-    return f"Methods tried (--method auto): {'; '.join(parts)}." + (f" Shown: the {ran[-1]} run." if ran else "")
+    text = f"Methods tried (--method auto): {'; '.join(parts)}." + (f" Shown: the {ran[-1]} run." if ran else "")
+    return as_flags(text)
 
 
 def log_bytes(duration: float, params) -> float:
@@ -246,32 +249,55 @@ def _check_work(args, model, duration) -> None:
 
 
 def run(args) -> dict:
-    """Validate the input, run the swing-up, write the figure (and video) and return the JSON document."""
-    from pathlib import Path
+    """Validate the input, run the swing-up, write the figure (and video) and return the JSON document. Library
+    errors name this command's options (:func:`cartpole.commands._flags.flag_words`)."""
+    with flag_words():
+        return _run(args)
 
+
+def _run(args) -> dict:
+    """:func:`run` without the flag words: everything validated before anything is computed or written."""
+    from cartpole.apps.swingup import check_plan_size, check_upright_reachable, start_state
     from cartpole.models import build_model
-    from cartpole.progress import stage
-    from cartpole.apps.swingup import (SwingupError, check_model_error, check_plan_size, check_push,
-                                       check_upright_reachable, parse_push, run_swingup, start_state)
-    from cartpole.sim.options import LoopOptions
-    from cartpole.viz import plot_swingup
 
-    # Everything is validated before anything is computed or written.
     model = build_model(args.mjcf)
-    params = model.params
     check_upright_reachable(model)
     model.contacts.check_swingup()  # a pair that touches on the way up: refused, named, before anything runs
     check_plan_size(model, args.method)
-    x0 = start_state(args.x0, params, default=model.x_hanging)[0]
-    duration = check_duration(args.duration, params)
+    x0 = start_state(args.x0, model.params, default=model.x_hanging)[0]
+    duration = check_duration(args.duration, model.params)
     _check_work(args, model, duration)
+    options, plan_model = swingup_options(args, model, duration)
+    res = _swing_up(args, model, options, None if args.x0 is None else x0, plan_model)
+    files = _write_files(args, res, model)
+    doc = swingup_document(args, res, model, options, plan_model, files)
+    if not args.json:
+        _print_outcome(doc, res, model, x0, plan_model)
+        _print_details(doc, res, files)
+    return doc
+
+
+def swingup_options(args, model, duration) -> tuple:
+    """``(SwingupOptions, plan_model)`` from the command line: the loop (rig, ``--duration``, ``--period``,
+    pushes, model error, disturbances), the planner's options (trajopt, auto with ``--objective`` or ``--solver``,
+    the MPC's offline plan with ``--T-max``/``--search-s``), the MPC's, the bounds, the time budget and the
+    ctrl-noise limit; the planning model of ``--plan-mjcf`` (or None).
+
+    Raises
+    ------
+    SwingupError
+        An option given to a method that does not have it, or a bad number, in the command line's words.
+    """
+    from cartpole.apps.swingup import (SwingupError, SwingupOptions, check_model_error, check_push, parse_push,
+                                       plan_model_from)
+    from cartpole.sim.options import LoopOptions
+
+    params = model.params
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)
     model_error = check_model_error(getattr(args, "model_error", None))
     plan_mjcf = getattr(args, "plan_mjcf", None)
     plan_model = None
     if plan_mjcf is not None:
-        from cartpole.apps.swingup import plan_model_from
-
         if model_error != 1.0:
             raise SwingupError("--plan-mjcf and --model-error both choose the planning model; give one of them.")
         plan_model = plan_model_from(plan_mjcf, model)
@@ -281,31 +307,9 @@ def run(args) -> dict:
             raise SwingupError(f"{flag} sets the NMPC's prediction horizon; use it with --method mpc.")
         if v is not None and not (math.isfinite(v) and v > 0):
             raise SwingupError(f"{flag} {v:g} s is not a positive number of seconds; give e.g. {flag} 0.02.")
-    # each stage's settings as one value: the loop always, the planner for trajopt, the NMPC for mpc
     loop = LoopOptions(**{**rig_fields(args), "duration": duration, "period": period, "push": push,
                           "model_error": model_error, **disturbance_fields(args)})
-    plan = mpc = None
-    if args.method == "mpc":
-        import importlib.util
-
-        if importlib.util.find_spec("cartpole.mpc.nmpc") is None:
-            raise SwingupError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation "
-                               "does not have yet; use --method trajopt or energy.")
-    objective = getattr(args, "objective", None)
-    if objective is not None:
-        from cartpole.ocp.objectives import make_objective
-
-        if args.method not in ("auto", "trajopt", "mpc"):
-            raise SwingupError("--objective chooses what the trajectory optimisation (or the MPC) optimises; use "
-                               "it with --method trajopt or mpc.")
-        make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
-    solver = getattr(args, "solver", None)
-    if args.method == "trajopt" or (args.method == "auto" and (objective is not None or solver is not None)):
-        from cartpole.planning.options import PlanOptions
-
-        plan = PlanOptions(objective=objective, **({} if solver is None else {"solver": solver}), **search_fields(args))
-    elif solver is not None:
-        raise SwingupError("--solver picks the trajectory optimisation's solver; use it with --method trajopt.")
+    plan, mpc = _stage_options(args, model)
     time_budget = getattr(args, "time_budget", None)
     if time_budget is not None:
         if args.method != "auto":
@@ -314,16 +318,39 @@ def run(args) -> dict:
         if not (math.isfinite(time_budget) and time_budget > 0):
             raise SwingupError(f"--time-budget {time_budget:g} s is not a positive number of seconds; give e.g. "
                                "--time-budget 600.")
-    if args.method == "mpc":
-        from cartpole.mpc.options import MPCOptions
+    options = SwingupOptions(plan=plan, loop=loop, mpc=mpc, time_budget=time_budget, ctrl_noise=args.ctrl_noise,
+                             **limit_keywords(args))
+    return options, plan_model
 
+
+def _stage_options(args, model) -> tuple:
+    """``(plan, mpc)``: the planner's and the MPC's options of ``--objective``, ``--solver``, ``--T-max``,
+    ``--search-s``, ``--horizon``, ``--mpc-solver`` and ``--no-seed-plan``, each refused with a method that has no
+    such stage."""
+    from cartpole.apps.swingup import SwingupError
+    from cartpole.mpc.options import MPCOptions
+    from cartpole.ocp.objectives import make_objective
+    from cartpole.planning.options import PlanOptions
+
+    objective = getattr(args, "objective", None)
+    if objective is not None:
+        if args.method not in ("auto", "trajopt", "mpc"):
+            raise SwingupError("--objective chooses what the trajectory optimisation (or the MPC) optimises; use "
+                               "it with --method trajopt or mpc.")
+        make_objective(model, objective)  # a bad name or MODULE:FUNCTION ends here, before anything runs
+    solver = getattr(args, "solver", None)
+    plan = mpc = None
+    if args.method == "trajopt" or (args.method == "auto" and (objective is not None or solver is not None)):
+        plan = PlanOptions(objective=objective, **({} if solver is None else {"solver": solver}), **search_fields(args))
+    elif solver is not None:
+        raise SwingupError("--solver picks the trajectory optimisation's solver; use it with --method trajopt.")
+    horizon = getattr(args, "horizon", None)
+    if args.method == "mpc":
         mpc = MPCOptions(**({} if horizon is None else {"horizon": horizon}),
                          **({} if args.mpc_solver is None else {"solver": args.mpc_solver}),
                          **({} if objective is None else {"objective": objective}),
                          **({} if getattr(args, "seed_plan", True) else {"seed_plan": False}))
         if search_fields(args):  # the offline plan's search, at the MPC's own cart margin
-            from cartpole.planning.options import PlanOptions
-
             plan = PlanOptions(cart_margin=mpc.cart_margin, **search_fields(args))
     elif getattr(args, "mpc_solver", None) is not None:
         raise SwingupError("--mpc-solver picks the MPC's solver; use it with --method mpc.")
@@ -333,24 +360,39 @@ def run(args) -> dict:
     if args.method != "mpc" and not getattr(args, "seed_plan", True):
         raise SwingupError("--no-seed-plan runs the DDP MPC without an offline plan; use it with --method mpc "
                            "--mpc-solver ddp.")
-    out = Path(args.out)
+    return plan, mpc
 
-    from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
 
-    default = {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(args.method)
+def _swing_up(args, model, options, x0, plan_model):
+    """The swing-up (:func:`cartpole.apps.swingup.run_swingup`) with the command's progress stages and live view."""
+    from cartpole.apps.swingup import METHOD_CLASSES, run_swingup
+
+    duration = options.loop.duration
+    default = METHOD_CLASSES[args.method].duration if args.method in ("energy", "mpc") else None
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
         {"simulate": f"{default:g} s"} if default is not None else {})
     viewer = live_view("swingup", args)
     try:
-        res = run_swingup(model, method=args.method, x0=None if args.x0 is None else x0, plan=plan, loop=loop,
-                          mpc=mpc, progress=_Stages(sizes), on_step=viewer, plan_model=plan_model,
-                          time_budget=time_budget, ctrl_noise=args.ctrl_noise, **limit_keywords(args))
+        res = run_swingup(model, args.method, options, x0=x0, progress=_Stages(sizes), on_step=viewer,
+                          plan_model=plan_model)
         if viewer is not None:
             viewer.finish()
     finally:
         if viewer is not None:
             viewer.close()
-    method = res.method  # the one that ran (--method auto: the first that succeeded, else the last tried)
+    return res, viewer
+
+
+def _write_files(args, ran, model) -> dict:
+    """The swing-up figure, the estimation figure (with an estimator) and the video (unless ``--no-video``):
+    ``{"figure": Path, "estimation_figure": str or None, "video": video or None, "viewer": viewer}``."""
+    from pathlib import Path
+
+    from cartpole.progress import stage
+    from cartpole.viz import plot_swingup
+
+    res, viewer = ran
+    params, out, method = model.params, Path(args.out), res.method
     marks = _marks(res)
     title = f"Swing-up ({method}) in MuJoCo: {'success' if res.success else 'FAILED'}"
     if marks is not None:  # knocked or thrown: how often, and how much of the run was upright
@@ -376,11 +418,22 @@ def run(args) -> dict:
                                      progress=tick, modes=swingup_modes(res), model=model)
         except VideoUnavailable as exc:
             print(f"cartpole swingup: no video ({exc})", file=sys.stderr)
-    m = res.metrics
+    return {"figure": fig, "estimation_figure": est_fig, "video": video, "viewer": viewer, "result": res}
+
+
+def swingup_document(args, ran, model, options, plan_model, files: dict) -> dict:
+    """The JSON document of a swing-up (the fixed contract of ``cartpole swingup --json``, extended)."""
+    from pathlib import Path
+
+    res, viewer = ran
+    params, m, method = model.params, res.metrics, res.method
+    video = files["video"]
     doc = {"mjcf": params.mjcf, "method": method, "success": res.success, "caught_at": res.caught_at,
-           "handover_at": res.handover_at, "methods_tried": [t.as_dict() for t in res.methods_tried],
-           "diverged": bool(m["diverged"]), "diverged_at": m["diverged_at"], "rollout": rollout_doc(res.rollout), "time_to_upright": m["time_to_upright"],
-           "figure": str(fig.resolve()), "video": None if video is None else str(Path(video).resolve()),
+           "handover_at": res.handover_at,
+           "methods_tried": [{**t.as_dict(), "reason": as_flags(t.reason)} for t in res.methods_tried],
+           "diverged": bool(m["diverged"]), "diverged_at": m["diverged_at"], "rollout": rollout_doc(res.rollout),
+           "time_to_upright": m["time_to_upright"], "figure": str(files["figure"].resolve()),
+           "video": None if video is None else str(Path(video).resolve()),
            "metrics": {k: v for k, v in m.items()}, "basin": None if res.basin is None else res.basin.summary()}
     doc["model"] = {"contacts": model.contacts.to_dict()}
     doc["push"] = [list(p) for p in res.push]
@@ -388,31 +441,28 @@ def run(args) -> dict:
     doc["friction"] = m.get("friction")
     doc["smoothed_friction"] = design_friction(model, doc["friction"])
     doc["estimation"] = m.get("estimation")
-    doc["estimation_figure"] = est_fig
+    doc["estimation_figure"] = files["estimation_figure"]
     if method != "mpc":
-        doc["period"] = params.timestep if loop.period is None else loop.period
+        doc["period"] = params.timestep if options.loop.period is None else options.loop.period
     doc["model_error"] = res.model_error
     doc["limits"], doc["start_moved"] = m.get("limits"), m.get("start_moved", [])
-    if "ctrl_noise" in m:
-        doc["ctrl_noise"] = m["ctrl_noise"]
+    for key in ("ctrl_noise", "supervisor"):
+        if key in m:
+            doc[key] = m[key]
     if "uptime" in m:  # knocked down or thrown
         for key in ("uptime", "upright_band", "knockdowns", "swingups", "swingup_times", "recoveries",
                     "unrecovered_at"):
             doc[key] = m[key]
-    if "supervisor" in m:
-        doc["supervisor"] = m["supervisor"]
     doc["plan_mjcf"] = None if plan_model is None else plan_model.params.mjcf
     if method == "mpc":
         ctrl = res.controller
         doc["solve_ms"] = [float(v) for v in getattr(ctrl, "solve_ms", [])]
         doc["period"], doc["horizon"] = float(ctrl.period), float(ctrl.horizon)
         doc["failures"] = m.get("failures", 0)
+    if method in ("mpc", "trajopt"):
         doc["objective"] = m.get("objective")
-        if "return" in m:
-            doc["return"], doc["return_steps"] = m["return"], m["return_steps"]
-    if method == "trajopt":
-        doc["objective"] = m.get("objective")
-        doc["plan"] = m.get("plan")
+        if method == "trajopt":
+            doc["plan"] = m.get("plan")
         if "return" in m:
             doc["return"], doc["return_steps"] = m["return"], m["return_steps"]
     if args.view:
@@ -421,97 +471,108 @@ def run(args) -> dict:
             "steps_shown": len(res.rollout.ctrl), **web_summary(viewer)}
     # the settings each stage ran with (PlanOptions, LoopOptions, MPCOptions .as_dict())
     doc["options"] = {name: opts.as_dict() for name, opts in res.options.items()}
-    if not args.json:
-        def fmt(v, unit):
-            return "never" if v is None else f"{v:.3f} {unit}"
-        print(f"MJCF: {params.mjcf}")
-        scenario = "".join(f", pushed {F:+g} N at {T:g} s" for T, F in res.push) + (
-            f", planning model's poles scaled by {res.model_error:g}" if res.model_error != 1.0 else "") + (
-            f", designed on {plan_model.params.mjcf}" if plan_model is not None else "")
-        print(f"Swing-up ({method}) from x0 = {list(map(float, x0))}{scenario}: "
-              f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
-              "limits, ctrl in range, no contact)")
-        print(model.contacts.summary())
-        if m.get("contact"):
-            c = m["contact"]
-            print(f"CONTACT: MuJoCo found geoms '{c['geom1']}' and '{c['geom2']}' touching at t = {c['t']:.3f} s "
-                  f"({c['steps']} step(s) in contact); the run is not a clean swing-up")
-        if m["diverged"]:
-            print(f"DIVERGED: MuJoCo warned that the simulation blew up ({m['diverged_warning']}) at "
-                  f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")
-        for line in limit_lines(doc["limits"], doc["start_moved"]):
-            print(line)
-        if len(res.methods_tried) > 1:
-            print(methods_sentence(res.methods_tried))
-        if res.caught_at is not None:
-            catch = f"Caught at: {res.caught_at:.3f} s (handed over to the catch then; it held)"
-        elif res.handover_at is not None:
-            catch = f"Caught at: never (handed over to the catch at {res.handover_at:.3f} s; it did not hold)"
-        else:
-            catch = "Caught at: never (no hand-over to the catch)"
-        print(f"{catch}; time to upright (every |theta_i| < 0.05 rad for good): "
-              f"{fmt(m['time_to_upright'], 's')}")
-        if "uptime" in doc:
-            print(f"Uptime: {doc['uptime']:.1%} of the run with every pole within {doc['upright_band']:g} rad of "
-                  f"upright; {doc['knockdowns']} knockdown(s), {doc['swingups']} swing-up(s) held 1 s, "
-                  f"{doc['recoveries']} knockdown(s) followed by a swing-up"
-                  + ("" if not doc["unrecovered_at"] else
-                     f" (not after the one(s) at {', '.join(f'{t:.2f}' for t in doc['unrecovered_at'])} s)") + ".")
-        if "supervisor" in doc:
-            sv = doc["supervisor"]
-            print(f"Supervisor: {sv['plans']} plan(s), {sv['plan_failures']} failed"
-                  + (f", planning {min(sv['plan_s']):.2f}-{max(sv['plan_s']):.2f} s each" if sv["plan_s"] else "")
-                  + f"; {len(sv['decisions'])} decisions (catch, swing-up law, brake, plan, track) in the JSON.")
-        print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "
-              f"(closest to a limit: {m['cart_clearance']:.3f} m)")
-        if doc["rig"] is not None:
-            r = doc["rig"]
-            print(f"Rig: control period {r['period']:g} s, delay {r['delay']:g} s"
-                  f"{'' if r['delay_compensation'] else ' (not compensated)'}, estimator {r['estimator']}")
-        if doc["friction"] is not None:
-            from cartpole.commands._rig import friction_sentence
-
-            print(friction_sentence(doc["friction"]))
-        if doc["smoothed_friction"]:
-            print(smoothed_friction_sentence(doc["smoothed_friction"], what="the swing-up's design model"))
-        if doc["estimation"]:
-            est = doc["estimation"]
-            rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())
-            print(f"Estimation error ({est['estimator']}, RMS over {est['samples']} control instants): {rms}; "
-                  f"{est['estimate_ms']['median']:.3f} ms a step (median)")
-        if doc.get("ctrl_noise"):
-            cn = doc["ctrl_noise"]
-            pn = "its default" if cn["process_noise"] is None else f"{cn['process_noise']:g}"
-            measured = ("no hold to measure" if cn["measured_fraction"] is None else
-                        f"measured {', '.join(f'{100 * v:.2g} %' for v in cn['measured_fraction'])} over the last "
-                        f"{cn['measured_window_s']:.3g} s")
-            print(f"Catch designed for the sensors (ctrl noise below {100 * cn['fraction']:g} % of the range"
-                  f"{'' if cn['met'] else ': not reached, the quietest design'}): R x {cn['factor']:g}, estimator "
-                  f"process noise {pn}; ctrl noise predicted "
-                  f"{', '.join(f'{100 * v:.2g} %' for v in cn['predicted_fraction'])}, {measured}")
-        if res.basin is not None:
-            print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
-                  f"{res.basin.seed}, safety factor {res.basin.safety_factor})")
-        if method == "mpc" and doc["solve_ms"]:
-            import numpy as np
-
-            print(f"NMPC: period {doc['period']:g} s, horizon {doc['horizon']:g} s; solve per control step median "
-                  f"{np.median(doc['solve_ms']):.2f} ms, max {np.max(doc['solve_ms']):.2f} ms, "
-                  f"{doc['failures']} failure(s)")
-        if m.get("plan"):
-            pl = m["plan"]
-            tried = len(pl["attempts"])
-            print(f"Plan: T = {pl['T']:.3f} s (minimum time {pl['T_min']:.3f} s), {pl['solver']} {pl['status']}, "
-                  f"guess '{pl['guess']}' won; {tried} solver call(s), {pl['total_iterations']} iterations, "
-                  f"{pl['plan_time_s']:.2f} s" if pl["T_min"] is not None else
-                  f"Plan: T = {pl['T']:.3f} s, {pl['solver']} {pl['status']}, guess '{pl['guess']}' won; {tried} "
-                  f"solver call(s), {pl['total_iterations']} iterations, {pl['plan_time_s']:.2f} s")
-        if "return" in m:
-            print(f"dm_control return (smooth swing-up reward): {m['return']:.1f} over {m['return_steps']} "
-                  "control steps")
-        if viewer is not None:
-            print(f"Live view: the run stepped in MuJoCo's viewer in real time ({viewer.frames} frames in "
-                  f"{viewer.wall_time:.1f} s{', window closed early' if viewer.closed else ''}); it is the run logged")
-        print(f"Figure: {fig}")
-        print(f"Video: {video.summary() if video is not None else 'not written'}")
     return doc
+
+
+def _print_outcome(doc: dict, ran, model, x0, plan_model) -> None:
+    """The prose lines of the outcome: the scenario and success, contacts, divergence, limits, methods tried, the
+    catch, uptime and the supervisor."""
+    res, _ = ran
+    m, method = res.metrics, res.method
+    print(f"MJCF: {model.params.mjcf}")
+    scenario = "".join(f", pushed {F:+g} N at {T:g} s" for T, F in res.push) + (
+        f", planning model's poles scaled by {res.model_error:g}" if res.model_error != 1.0 else "") + (
+        f", designed on {plan_model.params.mjcf}" if plan_model is not None else "")
+    print(f"Swing-up ({method}) from x0 = {list(map(float, x0))}{scenario}: "
+          f"{'SUCCESS' if res.success else 'FAILED'} (upright and at rest for the last 1 s, cart off its "
+          "limits, ctrl in range, no contact)")
+    print(model.contacts.summary())
+    if m.get("contact"):
+        c = m["contact"]
+        print(f"CONTACT: MuJoCo found geoms '{c['geom1']}' and '{c['geom2']}' touching at t = {c['t']:.3f} s "
+              f"({c['steps']} step(s) in contact); the run is not a clean swing-up")
+    if m["diverged"]:
+        print(f"DIVERGED: MuJoCo warned that the simulation blew up ({m['diverged_warning']}) at "
+              f"t = {m['diverged_at']:.3f} s and reset the state; the run stopped there")
+    for line in limit_lines(doc["limits"], doc["start_moved"]):
+        print(line)
+    if len(res.methods_tried) > 1:
+        print(methods_sentence(res.methods_tried))
+    if res.caught_at is not None:
+        catch = f"Caught at: {res.caught_at:.3f} s (handed over to the catch then; it held)"
+    elif res.handover_at is not None:
+        catch = f"Caught at: never (handed over to the catch at {res.handover_at:.3f} s; it did not hold)"
+    else:
+        catch = "Caught at: never (no hand-over to the catch)"
+    upright = "never" if m["time_to_upright"] is None else f"{m['time_to_upright']:.3f} s"
+    print(f"{catch}; time to upright (every |theta_i| < 0.05 rad for good): {upright}")
+    if "uptime" in doc:
+        print(f"Uptime: {doc['uptime']:.1%} of the run with every pole within {doc['upright_band']:g} rad of "
+              f"upright; {doc['knockdowns']} knockdown(s), {doc['swingups']} swing-up(s) held 1 s, "
+              f"{doc['recoveries']} knockdown(s) followed by a swing-up"
+              + ("" if not doc["unrecovered_at"] else
+                 f" (not after the one(s) at {', '.join(f'{t:.2f}' for t in doc['unrecovered_at'])} s)") + ".")
+    if "supervisor" in doc:
+        sv = doc["supervisor"]
+        print(f"Supervisor: {sv['plans']} plan(s), {sv['plan_failures']} failed"
+              + (f", planning {min(sv['plan_s']):.2f}-{max(sv['plan_s']):.2f} s each" if sv["plan_s"] else "")
+              + f"; {len(sv['decisions'])} decisions (catch, swing-up law, brake, plan, track) in the JSON.")
+
+
+def _print_details(doc: dict, ran, files: dict) -> None:
+    """The prose lines of the details: ctrl and cart, the rig, friction, estimation, the ctrl-noise design, the
+    basin, the NMPC's solve times, the plan, a dm_control return, the live view and the files."""
+    from cartpole.commands._rig import friction_sentence
+
+    res, viewer = ran
+    m = res.metrics
+    print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "
+          f"(closest to a limit: {m['cart_clearance']:.3f} m)")
+    if doc["rig"] is not None:
+        r = doc["rig"]
+        print(f"Rig: control period {r['period']:g} s, delay {r['delay']:g} s"
+              f"{'' if r['delay_compensation'] else ' (not compensated)'}, estimator {r['estimator']}")
+    if doc["friction"] is not None:
+        print(friction_sentence(doc["friction"]))
+    if doc["smoothed_friction"]:
+        print(smoothed_friction_sentence(doc["smoothed_friction"], what="the swing-up's design model"))
+    if doc["estimation"]:
+        est = doc["estimation"]
+        rms = ", ".join(f"{k} {v:.3g}" for k, v in est["rms_error"].items())
+        print(f"Estimation error ({est['estimator']}, RMS over {est['samples']} control instants): {rms}; "
+              f"{est['estimate_ms']['median']:.3f} ms a step (median)")
+    if doc.get("ctrl_noise"):
+        print(_ctrl_noise_sentence(doc["ctrl_noise"]))
+    if res.basin is not None:
+        print(f"Catch basin: e' S e < rho = {res.basin.rho:.4f} ({res.basin.n} MuJoCo samples, seed "
+              f"{res.basin.seed}, safety factor {res.basin.safety_factor})")
+    if res.method == "mpc" and doc["solve_ms"]:
+        print(f"NMPC: period {doc['period']:g} s, horizon {doc['horizon']:g} s; solve per control step median "
+              f"{statistics.median(doc['solve_ms']):.2f} ms, max {max(doc['solve_ms']):.2f} ms, "
+              f"{doc['failures']} failure(s)")
+    if m.get("plan"):
+        pl = m["plan"]
+        least = "" if pl["T_min"] is None else f" (minimum time {pl['T_min']:.3f} s)"
+        print(f"Plan: T = {pl['T']:.3f} s{least}, {pl['solver']} {pl['status']}, guess '{pl['guess']}' won; "
+              f"{len(pl['attempts'])} solver call(s), {pl['total_iterations']} iterations, {pl['plan_time_s']:.2f} s")
+    if "return" in m:
+        print(f"dm_control return (smooth swing-up reward): {m['return']:.1f} over {m['return_steps']} "
+              "control steps")
+    if viewer is not None:
+        print(f"Live view: the run stepped in MuJoCo's viewer in real time ({viewer.frames} frames in "
+              f"{viewer.wall_time:.1f} s{', window closed early' if viewer.closed else ''}); it is the run logged")
+    video = files["video"]
+    print(f"Figure: {files['figure']}")
+    print(f"Video: {video.summary() if video is not None else 'not written'}")
+
+
+def _ctrl_noise_sentence(cn: dict) -> str:
+    """The prose line of the catch's ctrl-noise design (JSON ``ctrl_noise``)."""
+    pn = "its default" if cn["process_noise"] is None else f"{cn['process_noise']:g}"
+    measured = ("no hold to measure" if cn["measured_fraction"] is None else
+                f"measured {', '.join(f'{100 * v:.2g} %' for v in cn['measured_fraction'])} over the last "
+                f"{cn['measured_window_s']:.3g} s")
+    return (f"Catch designed for the sensors (ctrl noise below {100 * cn['fraction']:g} % of the range"
+            f"{'' if cn['met'] else ': not reached, the quietest design'}): R x {cn['factor']:g}, estimator "
+            f"process noise {pn}; ctrl noise predicted "
+            f"{', '.join(f'{100 * v:.2g} %' for v in cn['predicted_fraction'])}, {measured}")

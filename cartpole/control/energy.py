@@ -413,14 +413,12 @@ class EnergyShapingController:
     ----------
     plant : path, CartPoleParams, CartPoleModel or None
         The symbolic model the law inverts (None = shipped asset).
-    options : EnergyOptions, optional
+    options : EnergyOptions or dict, optional
         The settings (dimensionless scalings of :func:`default_gains`, optional explicit SI gains ``k_energy``
-        (m/s^2)/(J rad/s), ``k_x`` 1/s^2, ``k_v`` 1/s, ``a_energy_max`` m/s^2, ``energy_target`` J); default
-        :class:`EnergyOptions`' defaults.
+        (m/s^2)/(J rad/s), ``k_x`` 1/s^2, ``k_v`` 1/s, ``a_energy_max`` m/s^2, ``energy_target`` J), or a dict of
+        those fields applied to the defaults (:func:`energy_options`); default :class:`EnergyOptions`' defaults.
     gains : EnergyGains, optional
         Every gain at once (the SI fields of ``options`` still override its fields).
-    **settings
-        :class:`EnergyOptions` fields replacing those of ``options`` by name (``energy_gain=20``, ``k_x=0``...).
 
     Attributes
     ----------
@@ -438,11 +436,10 @@ class EnergyShapingController:
         For bad gains or settings.
     """
 
-    def __init__(self, plant=None, options: EnergyOptions | None = None, *, gains: EnergyGains | None = None,
-                 **settings):
+    def __init__(self, plant=None, options: EnergyOptions | dict | None = None, *, gains: EnergyGains | None = None):
         self.model = plant_model(plant)
         check_single_pole(self.model)
-        self.options = opts = energy_options(options).replace(**settings)
+        self.options = opts = energy_options(options)
         g = gains if gains is not None else default_gains(self.model, opts)
         g = replace(g, **opts.explicit)
         vals = np.array([getattr(g, k) for k in _PRM], dtype=float)

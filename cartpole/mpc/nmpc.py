@@ -259,11 +259,6 @@ class NMPCController:
         When given, the first iterate is converged for this start state before the loop, offline (that time is
         not in :attr:`solve_ms`): up to ``options.init_iterations`` full Gauss-Newton steps, and when they do not
         converge IPOPT on the same NLP from the same guess, then Gauss-Newton steps from its solution.
-    **settings
-        A compatibility layer for the keywords this class took before :class:`MPCOptions` (``period=``,
-        ``horizon=``, ``Q=``...): any of its field names. They only build the options
-        (``options.replace(**settings)``) and nothing else; an unknown name raises :class:`NMPCError` listing the
-        fields.
 
     With ``prestabilize`` the QP's unknowns are the input steps relative to the finite-horizon LQR's feedback (the
     Riccati gains ``K_k`` along the current iterate) on the predicted state corrections, ``du_k = -K_k ds_k +
@@ -308,8 +303,8 @@ class NMPCController:
     c_step_capable = True
 
     def __init__(self, model: CartPoleModel, params: CartPoleParams, *, options: MPCOptions | None = None,
-                 x_goal=None, u_goal=None, guess=None, x0=None, **settings):
-        options = (MPCOptions() if options is None else options).replace(**settings)
+                 x_goal=None, u_goal=None, guess=None, x0=None):
+        options = MPCOptions() if options is None else options
         self.options = options
         period, iterations, tol = options.period, options.iterations, options.tol
         init_iterations, qp_solver, prestabilize = options.init_iterations, options.qp_solver, options.prestabilize
@@ -647,7 +642,7 @@ def _stdout_to_stderr():
 
 
 def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | None = None,
-                 options: MPCOptions | None = None, plan=None, **settings) -> NMPCController:
+                 options: MPCOptions | None = None, plan=None) -> NMPCController:
     """A controller set up to swing up from ``x0`` and balance at ``model.x_eq``.
 
     The first iterate is an offline plan: :func:`cartpole.planning.trajopt.trajopt_swingup` from ``x0`` on the
@@ -670,9 +665,6 @@ def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | No
     plan : PlanOptions, optional
         The offline plan's settings (:class:`~cartpole.planning.options.PlanOptions`); default
         ``PlanOptions(cart_margin=options.cart_margin)``, the same rail as the controller's.
-    **settings
-        Compatibility layer: :class:`MPCOptions` field names (``period=``, ``horizon=``, ``iterations=``...) that
-        only build the options (``options.replace(**settings)``).
 
     Returns
     -------
@@ -683,7 +675,7 @@ def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | No
     from cartpole.planning.trajopt import trajopt_swingup
 
     params = plant_params(plant)
-    options = (MPCOptions() if options is None else options).replace(**settings)
+    options = MPCOptions() if options is None else options
     plan = PlanOptions(cart_margin=options.cart_margin) if plan is None else plan
     model = plant_model(plant) if plan_model is None else plan_model
     x0 = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()

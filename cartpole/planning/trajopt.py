@@ -642,8 +642,7 @@ def handover_catch(plant: Plant = None, plan_model: CartPoleModel | None = None,
 
 def trajopt_swingup(plant: Plant = None, x0=None, *,
                     plan_model: CartPoleModel | None = None, options: PlanOptions | None = None,
-                    period: float | None = None, catch_R=None, guess: Trajectory | None = None,
-                    **settings) -> SwingupPlan:
+                    period: float | None = None, catch_R=None, guess: Trajectory | None = None) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -677,11 +676,6 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
         guess's duration is solved from it first (:func:`warm_stage`, attempt stage ``"warm effort T=..."``),
         skipping the minimum-time search; when it does not converge the planner goes on cold. Ignored by the other
         objectives, a given ``T`` and ``solver="ddp"``.
-    **settings
-        A compatibility layer for the keywords this function took before :class:`PlanOptions`: any of its field
-        names, e.g. ``trajopt_swingup(params, N=40, exact_discrete=False)``. They only build the options
-        (``options.replace(**settings)``) and nothing else; an unknown name raises
-        :class:`~cartpole.planning.options.PlanOptionsError` listing the fields.
 
     With ``solver="ddp"`` the last stage (every objective; ``time`` by a search over T) is made by box-DDP on the
     exact discrete step held over ``period`` (:mod:`cartpole.planning.ddp_plan`) from the minimum-time plan; the
@@ -706,7 +700,7 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
     PlanOptionsError, OCPError
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
-    opts = (PlanOptions() if options is None else options).replace(**settings)
+    opts = PlanOptions() if options is None else options
     return _plan(plant, x0, plan_model=plan_model, options=opts, period=period, catch_R=catch_R, guess=guess)
 
 

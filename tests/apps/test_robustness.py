@@ -11,6 +11,7 @@ from cartpole.models import SHIPPED_MJCF, build_model, read_params
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.metrics import cart_range_used, ctrl_within_range, pole_angle_errors, swingup_metrics
+from cartpole.planning.options import PlanOptions
 
 from chain_robustness import offset_starts  # tests/ is on sys.path (conftest): the command the docs cite
 
@@ -93,7 +94,8 @@ def test_pipeline_tracks_a_tilted_two_pole_cart_and_hands_over_to_lqr():
     model = build_model(params)
     x0 = np.array(model.x_eq)
     x0[model.hinges[0]] += 0.3  # first pole tilted, the others straight, at rest
-    plan = trajopt_swingup(params, x0, N=40)  # minimum time, then 1.2 x that, then TVLQR at the MJCF step
+    # minimum time, then 1.2 x that, then TVLQR at the MJCF step
+    plan = trajopt_swingup(params, x0, options=PlanOptions(N=40))
     assert plan.solve_info.success and plan.T_min is not None and plan.T > plan.T_min
     assert plan.gains.K.shape[1:] == (model.nu, model.nx) and plan.catch.K.shape == (model.nu, model.nx)
     np.testing.assert_array_equal(plan.catch.x_eq, model.x_eq)

@@ -7,7 +7,7 @@ import pytest
 
 from cartpole.analysis import AnalysisError
 from cartpole.apps.margins import PROCESS_NOISE_LADDER, noise_limited_catch
-from cartpole.apps.swingup import DEFAULT_CTRL_NOISE, run_swingup
+from cartpole.apps.swingup import DEFAULT_CTRL_NOISE, SwingupOptions, run_swingup
 from cartpole.riccati import lab_weights
 from cartpole.models import SHIPPED_MJCF, build_model, read_params, steps_per_period
 from cartpole.planning.trajopt import handover_catch
@@ -39,7 +39,7 @@ DURATION = 7.0
 def _quiet_hold(mjcf):
     """The issue's run (period and delay one 10 ms step, 2048-count hinge encoders, the EKF): the result, the ctrl's
     standard deviation over the last 4 s and the model."""
-    res = run_swingup(mjcf, method="trajopt", loop=LoopOptions(duration=DURATION, **RIG))
+    res = run_swingup(mjcf, "trajopt", SwingupOptions(loop=LoopOptions(duration=DURATION, **RIG)))
     assert replays_exactly(res.rollout)
     cn = res.metrics["ctrl_noise"]
     assert cn["default"] and cn["met"] and cn["fraction"] == DEFAULT_CTRL_NOISE
@@ -172,8 +172,8 @@ def test_the_supervisor_catch_is_designed_for_its_sensors_when_asked():
     """The supervisor's catch takes ``--ctrl-noise`` as the energy and trajopt catches do: on the one-pole cart from
     2048-count encoders through the EKF it swings up, holds, and its ctrl noise in the hold is the design's, the
     prediction beside the measured figure."""
-    res = run_swingup(SHIPPED_MJCF, method="supervisor", ctrl_noise=DEFAULT_CTRL_NOISE,
-                      loop=LoopOptions(duration=8.0, **RIG))
+    res = run_swingup(SHIPPED_MJCF, "supervisor",
+                      SwingupOptions(ctrl_noise=DEFAULT_CTRL_NOISE, loop=LoopOptions(duration=8.0, **RIG)))
     assert replays_exactly(res.rollout)
     assert res.success, res.metrics
     cn = res.metrics["ctrl_noise"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.apps.live import controller_status
-from cartpole.apps.swingup import run_swingup
+from cartpole.apps.swingup import SwingupOptions, run_swingup
 from cartpole.sim import replays_exactly
 from cartpole.sim.options import LoopOptions
 
@@ -32,7 +32,8 @@ class _Page:
 
 def test_the_swingup_attaches_its_law_and_logs_the_pages_push_with_the_scheduled_one():
     page = _Page()
-    res = run_swingup(None, method="energy", loop=LoopOptions(duration=0.5, push=((0.3, -2.0),)), on_step=page)
+    res = run_swingup(None, "energy", SwingupOptions(loop=LoopOptions(duration=0.5, push=((0.3, -2.0),))),
+                      on_step=page)
     assert len(page.attached) == 1 and hasattr(page.attached[0], "switches")
     assert page.lines[0].startswith("energy shaping + LQR catch: swing-up")
     push = res.rollout.info["push"]

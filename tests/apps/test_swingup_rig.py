@@ -3,7 +3,7 @@ replay exactly from their logged ctrl."""
 import numpy as np
 import pytest
 
-from cartpole.apps.swingup import run_swingup
+from cartpole.apps.swingup import SwingupOptions, run_swingup
 from cartpole.models import SHIPPED_MJCF
 from cartpole.sim import LoopOptions, replays_exactly
 
@@ -16,7 +16,7 @@ def test_trajopt_tvlqr_swings_up_from_encoders_through_the_ekf_with_a_5_ms_delay
     # a smooth rate estimate: with the default process noise the quantised encoders leave the balanced poles
     # jittering at 0.1-0.6 rad/s, over the success test's rest tolerance (docs/rig.md)
     loop = LoopOptions(period=0.01, delay=0.005, estimator="ekf", process_noise=0.1, **ENCODERS)
-    res = run_swingup(mjcf, method="trajopt", loop=loop)
+    res = run_swingup(mjcf, "trajopt", SwingupOptions(loop=loop))
     assert res.success, res.metrics
     assert replays_exactly(res.rollout)
     est = res.metrics["estimation"]
@@ -27,7 +27,7 @@ def test_trajopt_tvlqr_swings_up_from_encoders_through_the_ekf_with_a_5_ms_delay
 
 def test_nmpc_with_mhe_swings_up_from_noisy_encoders():
     loop = LoopOptions(period=0.01, delay=0.005, estimator="mhe", sensor_noise=0.001, **ENCODERS)
-    res = run_swingup(None, method="mpc", loop=loop)
+    res = run_swingup(None, "mpc", SwingupOptions(loop=loop))
     assert res.success, res.metrics
     assert replays_exactly(res.rollout)
     assert res.metrics["estimation"]["estimator"] == "mhe"
@@ -35,7 +35,7 @@ def test_nmpc_with_mhe_swings_up_from_noisy_encoders():
 
 
 def test_energy_swingup_on_the_rig_catches_on_the_estimate():
-    res = run_swingup(None, method="energy", loop=LoopOptions(period=0.01, delay=0.01, **ENCODERS))
+    res = run_swingup(None, "energy", SwingupOptions(loop=LoopOptions(period=0.01, delay=0.01, **ENCODERS)))
     assert res.success and replays_exactly(res.rollout)
     assert res.metrics["rig"]["estimator"] == "ekf"  # the default with sensors for a swing-up
 
@@ -47,7 +47,8 @@ FRICTION_MJCF = SHIPPED_MJCF.parent / "examples" / "cartpole_friction.xml"
 def test_trajopt_tvlqr_swings_up_the_cart_with_dry_friction(compensation):
     """0.5 N on the slider and 0.002 N m on the hinge, MuJoCo's friction constraint: planned on the smooth model
     (without the slider's friction when a feedforward cancels it), the swing-up and its hold succeed either way."""
-    res = run_swingup(FRICTION_MJCF, method="trajopt", loop=LoopOptions(friction_compensation=compensation))
+    res = run_swingup(FRICTION_MJCF, "trajopt",
+                      SwingupOptions(loop=LoopOptions(friction_compensation=compensation)))
     assert res.success, res.metrics
     assert replays_exactly(res.rollout)
     assert res.metrics["friction"] == {"frictionloss": {"slider": 0.5, "hinge": 0.002}, "compensation": compensation}
@@ -59,7 +60,7 @@ def test_trajopt_tvlqr_through_the_ekf_on_the_cart_with_friction_and_its_compens
     compensated swing-up from encoders holds; an estimator on the compensated design model would see the
     compensation as a force the model lacks."""
     loop = LoopOptions(period=0.01, delay=0.005, estimator="ekf", process_noise=0.1, **ENCODERS)
-    res = run_swingup(FRICTION_MJCF, method="trajopt", loop=loop)
+    res = run_swingup(FRICTION_MJCF, "trajopt", SwingupOptions(loop=loop))
     assert res.success, res.metrics
     assert replays_exactly(res.rollout)
     assert res.metrics["friction"]["compensation"]

@@ -16,6 +16,7 @@ from cartpole.ocp.bounds import bounds_from_params
 from cartpole.planning.trajopt import exact_discrete_plan, trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.metrics import swingup_metrics
+from cartpole.planning.options import PlanOptions
 
 HOLD = 3.0
 
@@ -35,7 +36,7 @@ def _run(params, plan, x0):
 @pytest.fixture(scope="module")
 def single():
     params = _params("one_pole")
-    return params, trajopt_swingup(params, exact_discrete=False)
+    return params, trajopt_swingup(params, options=PlanOptions(exact_discrete=False))
 
 
 def test_the_exact_discrete_plan_is_a_solution_of_the_mjcf_step_with_a_ctrl_margin(single):
@@ -64,7 +65,7 @@ def test_the_exact_discrete_plan_is_a_solution_of_the_mjcf_step_with_a_ctrl_marg
 def test_tvlqr_on_the_exact_plan_keeps_mujoco_on_it_and_hands_over_at_its_end():
     params = _params("two_pole")
     model = build_model(params)
-    plan = trajopt_swingup(params, exact_discrete=True)
+    plan = trajopt_swingup(params, options=PlanOptions(exact_discrete=True))
     assert plan.discrete is not None and plan.gains.has_reference
     ro, m = _run(params, plan, model.x_hanging)
     assert m["success"], m

@@ -325,3 +325,12 @@ def test_swingup_says_which_joints_dry_friction_its_design_model_smooths(tmp_pat
     assert by["hinge"]["damping_at_rest"] == pytest.approx(by["hinge"]["frictionloss"] / by["hinge"]["width"])
     assert main(argv) == 0
     assert "hinge 0.002 N m as the smooth -0.002 tanh(qvel/" in capsys.readouterr().out
+
+
+def test_library_sentences_are_rewritten_in_the_command_lines_options():
+    from cartpole.commands._flags import as_flags
+
+    text = ("`ctrl_noise` designs the catch; use it with `method='energy'` or `method='trajopt'` (`solver='ddp'`), "
+            "raise the `time_budget`; `EnergyOptions` stays")
+    assert as_flags(text) == ("--ctrl-noise designs the catch; use it with --method energy or --method trajopt "
+                              "(--solver ddp), raise the --time-budget; `EnergyOptions` stays")

@@ -5,7 +5,7 @@ import argparse
 import pytest
 
 from cartpole.cli import build_parser, main
-from cartpole.commands._flags import FLAGS, in_flags
+from cartpole.commands._flags import FLAGS, as_flags
 
 
 def _options() -> set:
@@ -36,7 +36,7 @@ def test_every_mapped_option_is_an_option_of_the_command_line():
     ("the control period 0.01 s", "the control period 0.01 s"),  # prose is never touched
 ])
 def test_backquoted_arguments_become_options_and_nothing_else_changes(text, expected):
-    assert in_flags(text) == expected
+    assert as_flags(text) == expected
 
 
 def test_the_command_line_prints_the_option_for_the_librarys_argument(capsys):

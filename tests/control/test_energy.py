@@ -35,8 +35,8 @@ def test_energy_term_pumps_towards_the_target_for_either_hinge_sign(name, varian
     path = None if name == "shipped" else variant_dir / f"cartpole_{name}.xml"
     model = cp.build_model(path)
     p = model.params
-    c = EnergyShapingController(model, k_x=0.0, k_v=0.0, energy_target=0.0, damping_softening=np.inf,
-                                track_margin=-0.0, kick=0.0, energy_accel=1.0)
+    c = EnergyShapingController(model, dict(k_x=0.0, k_v=0.0, energy_target=0.0, damping_softening=np.inf,
+                                                  track_margin=-0.0, kick=0.0, energy_accel=1.0))
     arm = p.armature[1]
     energy = lambda x: float(model.pole_energy(x)) + 0.5 * arm * x[3] ** 2  # noqa: E731
     checked = 0
@@ -59,8 +59,8 @@ def test_timid_gain_stalls_short_of_the_top_and_default_gains_do_not():
     a MuJoCo rollout (energy shaping alone, no catch): the energy deficit over the last 5 s is positive."""
     params = cp.read_params()
     model = cp.build_model(params)
-    timid = EnergyShapingController(model, k_energy=5.0, energy_target=0.0, damping_softening=np.inf,
-                                    energy_accel=1.0)
+    timid = EnergyShapingController(model, dict(k_energy=5.0, energy_target=0.0, damping_softening=np.inf,
+                                                energy_accel=1.0))
     r = simulate(params, timid, (0, np.pi, 0, 0), 15.0)
     assert replays_exactly(r)
     E = np.asarray(model.pole_energy.map(len(r.x))(r.x.T)).ravel()
@@ -89,11 +89,11 @@ def test_default_gains_scale_with_the_model(variant_dir):
 
 def test_bad_gains_raise_one_sentence():
     with pytest.raises(EnergyShapingError):
-        EnergyShapingController(None, k_energy=-1.0)
+        EnergyShapingController(None, {"k_energy": -1.0})
     with pytest.raises(EnergyShapingError):
-        EnergyShapingController(None, energy_gain=0.0)
+        EnergyShapingController(None, {"energy_gain": 0.0})
     with pytest.raises(EnergyShapingError):
-        EnergyShapingController(None, no_such_gain=1.0)
+        EnergyShapingController(None, {"no_such_gain": 1.0})
 
 
 
@@ -162,10 +162,10 @@ def test_energy_options_are_one_validated_value_the_controller_and_the_sweep_var
     assert opts.replace(energy_gain=15.0) == EnergyOptions() and hash(opts.replace(energy_gain=15.0)) == hash(
         EnergyOptions())
     assert dict(DEFAULT_SCALING) == EnergyOptions().scaling
-    # the options value, its keywords and default_gains' keywords give the same gains
-    assert EnergyShapingController(model, opts).gains == EnergyShapingController(model, energy_gain=20.0).gains \
+    # the options value, a dict of its fields and default_gains' keywords give the same gains
+    assert EnergyShapingController(model, opts).gains == EnergyShapingController(model, {"energy_gain": 20.0}).gains \
         == default_gains(model, energy_gain=20.0)
-    c = EnergyShapingController(model, opts, k_x=0.0)
+    c = EnergyShapingController(model, opts.replace(k_x=0.0))
     assert c.gains.k_x == 0.0 and c.options.k_x == 0.0 and c.options.energy_gain == 20.0
     assert EnergyOptions.scalar_names() == tuple(DEFAULT_SCALING)
     with pytest.raises(EnergyShapingError, match="no field 'gain'"):

@@ -10,12 +10,13 @@ from cartpole.riccati.tvlqr import tvlqr
 from cartpole.models import build_model, wrap_angle
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
+from cartpole.planning.options import PlanOptions
 
 
 @pytest.fixture(scope="module")
 def plan():
     # the law along the collocation plan itself (the exact-discrete reference is tests/test_swingup_starts.py's)
-    return trajopt_swingup(exact_discrete=False)
+    return trajopt_swingup(options=PlanOptions(exact_discrete=False))
 
 
 def test_law_is_feedforward_minus_gain_times_wrapped_error(plan):

@@ -5,18 +5,18 @@ import json
 import numpy as np
 import pytest
 
-from cartpole.apps.swingup import run_swingup
+from cartpole.apps.swingup import SwingupOptions, run_swingup
 from cartpole.cli import main
 from cartpole.models import SHIPPED_MJCF
 from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.options import MPCOptions, NMPCError
-from cartpole.sim import replays_exactly
+from cartpole.sim import LoopOptions, replays_exactly
 
 
 @pytest.mark.parametrize("mjcf", [SHIPPED_MJCF, SHIPPED_MJCF.with_name("cartpole_two_pole.xml")],
                          ids=["one_pole", "two_pole"])
 def test_ddp_mpc_swings_up_and_holds_in_mujoco(mjcf):
-    res = run_swingup(mjcf, method="mpc", mpc=MPCOptions(solver="ddp"))
+    res = run_swingup(mjcf, "mpc", SwingupOptions(mpc=MPCOptions(solver="ddp")))
     c = res.controller
     assert isinstance(c, DDPMPCController)
     assert res.success, res.metrics
@@ -44,7 +44,8 @@ DMC_CARTPOLE = SHIPPED_MJCF.with_name("dmc_cartpole.xml")
 
 
 def test_ddp_mpc_maximises_a_dm_control_reward_in_the_loop_and_scores_the_whole_episode():
-    res = run_swingup(DMC_CARTPOLE, method="mpc", mpc=MPCOptions(solver="ddp", objective="dmc_cartpole_swingup"))
+    res = run_swingup(DMC_CARTPOLE, "mpc",
+                      SwingupOptions(mpc=MPCOptions(solver="ddp", objective="dmc_cartpole_swingup")))
     c, m = res.controller, res.metrics
     assert c.objective == "dmc_cartpole_swingup" and c.terminal == "objective"
     assert res.success and not m["diverged"] and not c.failures, m
@@ -55,7 +56,8 @@ def test_ddp_mpc_maximises_a_dm_control_reward_in_the_loop_and_scores_the_whole_
 
 
 def test_ddp_mpc_takes_the_effort_objective_and_the_legacy_keyword():
-    res = run_swingup(SHIPPED_MJCF, method="mpc", mpc=MPCOptions(solver="ddp"), objective="effort", duration=5.0)
+    res = run_swingup(SHIPPED_MJCF, "mpc", SwingupOptions(mpc=MPCOptions(solver="ddp", objective="effort"),
+                                                       loop=LoopOptions(duration=5.0)))
     c = res.controller
     assert c.objective == "effort" and c.terminal == "lqr scaled"
     assert res.success and replays_exactly(res.rollout) and not c.failures, res.metrics

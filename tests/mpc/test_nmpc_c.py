@@ -8,12 +8,13 @@ from cartpole.models import build_model, read_params
 from cartpole.mpc.nmpc import NMPCController
 from cartpole.mpc.nmpc_c import nmpc_source, qp_source
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.mpc.options import MPCOptions
 
 
 @pytest.fixture(scope="module")
 def ctl():
     params = read_params(None)
-    return NMPCController(build_model(params), params, horizon=0.2, c_step=False)
+    return NMPCController(build_model(params), params, options=MPCOptions(horizon=0.2, c_step=False))
 
 
 def _plan(model):

@@ -3,7 +3,7 @@ surrogate's plan, exact on the MJCF's step, in the box from then on, and paid ex
 import casadi as ca
 import numpy as np
 
-from cartpole.apps.swingup import run_swingup
+from cartpole.apps.swingup import SwingupOptions, run_swingup
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.dmc import sparse_box
@@ -17,7 +17,7 @@ SPARSE = "dmc_cartpole_swingup_sparse"
 
 def test_the_sparse_plan_enters_the_box_earlier_and_mujoco_pays_every_step_from_there():
     model = build_model(DMC_CARTPOLE)
-    res = run_swingup(model, method="trajopt", plan=PlanOptions(objective=SPARSE))
+    res = run_swingup(model, "trajopt", SwingupOptions(plan=PlanOptions(objective=SPARSE)))
     plan = res.metrics["plan"]["discrete"]
     box = plan["box_entry"]
     assert box["K"] < box["K_surrogate"], box

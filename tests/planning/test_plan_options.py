@@ -56,17 +56,14 @@ def params():
     return read_params(None)
 
 
-def test_trajopt_swingup_takes_options_and_the_old_keywords_build_the_same_options(params):
+def test_trajopt_swingup_takes_its_settings_as_one_options_value_and_no_loose_keywords(params):
     from cartpole.planning.trajopt import trajopt_swingup
 
     opts = PlanOptions(N=40, exact_discrete=False, time_margin=0.3)
-    new = trajopt_swingup(params, options=opts)
-    old = trajopt_swingup(params, N=40, exact_discrete=False, time_margin=0.3)
-    assert new.options == old.options == opts
-    np.testing.assert_array_equal(new.trajectory.x, old.trajectory.x)
-    np.testing.assert_array_equal(new.gains.K, old.gains.K)
-    assert new.trajectory.N == 40 and new.T == pytest.approx(1.3 * new.T_min)
-    # a keyword replaces its field of the options given
-    assert trajopt_swingup(params, options=opts, objective="time").options == opts.replace(objective="time")
+    plan = trajopt_swingup(params, options=opts)
+    assert plan.options == opts
+    assert plan.trajectory.N == 40 and plan.T == pytest.approx(1.3 * plan.T_min)
+    with pytest.raises(TypeError, match="N"):  # no keyword shim: the options value is the one way
+        trajopt_swingup(params, N=40)
     with pytest.raises(PlanOptionsError, match="no field 'mesh'"):
-        trajopt_swingup(params, mesh=40)
+        opts.replace(mesh=40)

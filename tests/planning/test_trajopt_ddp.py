@@ -10,6 +10,7 @@ from cartpole.planning import ddp_plan
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.metrics import swingup_metrics
+from cartpole.planning.options import PlanOptions
 
 
 def _runs(params, plan):
@@ -35,7 +36,7 @@ def _exact(plan):
 @pytest.mark.parametrize("name", ["cartpole.xml", "cartpole_two_pole.xml"])
 def test_ddp_swings_up_one_and_two_poles_in_mujoco_and_the_plan_is_exact_on_the_step(name):
     params = read_params(SHIPPED_MJCF.parent / name)
-    plan = trajopt_swingup(params, solver="ddp")
+    plan = trajopt_swingup(params, options=PlanOptions(solver="ddp"))
     d = _exact(plan)
     lo, hi = np.asarray(params.ctrl_range, float).T
     assert np.all(d.u >= lo - 1e-12) and np.all(d.u <= hi + 1e-12)
@@ -47,7 +48,7 @@ def test_ddp_swings_up_one_and_two_poles_in_mujoco_and_the_plan_is_exact_on_the_
 @pytest.mark.parametrize("objective", ["tracking", "dmc_swingup"])
 def test_ddp_takes_the_running_objectives_of_the_collocation(objective):
     params = read_params(SHIPPED_MJCF)
-    plan = trajopt_swingup(params, solver="ddp", objective=objective)
+    plan = trajopt_swingup(params, options=PlanOptions(solver="ddp", objective=objective))
     _exact(plan)
     assert plan.objective == objective
     assert [a for a in plan.solve_info.attempts if a.stage.startswith(f"{objective} (ddp)") and a.chosen]
@@ -58,7 +59,7 @@ def test_ddp_takes_the_running_objectives_of_the_collocation(objective):
 
 def test_the_minimum_time_by_ddp_is_a_search_over_T_near_the_collocations():
     params = read_params(SHIPPED_MJCF)
-    plan = trajopt_swingup(params, solver="ddp", objective="time")
+    plan = trajopt_swingup(params, options=PlanOptions(solver="ddp", objective="time"))
     d = _exact(plan)
     searched = [a for a in plan.solve_info.attempts if a.stage.startswith("time (ddp)")]
     assert len(searched) >= 2 and sum(a.chosen for a in searched) == 1
@@ -78,7 +79,7 @@ def test_a_ddp_that_does_not_converge_hands_the_stage_to_ipopt(monkeypatch):
         return real(*args, **kw)
 
     monkeypatch.setattr(ddp_plan, "ddp_stage", failing)
-    plan = trajopt_swingup(read_params(SHIPPED_MJCF), solver="ddp", exact_discrete=False)
+    plan = trajopt_swingup(read_params(SHIPPED_MJCF), options=PlanOptions(solver="ddp", exact_discrete=False))
     info = plan.solve_info
     assert info.solver == "ipopt" and info.success and plan.discrete is None
     ddp = [a for a in info.attempts if "(ddp)" in a.stage]
@@ -96,7 +97,7 @@ def test_the_solver_flag_is_for_trajopt_only(tmp_path, capsys):
 def test_ddp_at_a_given_T_starts_from_rest_and_holds_the_period():
     """A given T (no earlier stage): DDP from zero ctrl, held over a 20 ms control period on the exact hold."""
     params = read_params(SHIPPED_MJCF)
-    plan = trajopt_swingup(params, solver="ddp", T=2.0, period=0.02)
+    plan = trajopt_swingup(params, period=0.02, options=PlanOptions(solver="ddp", T=2.0))
     d = plan.discrete
     assert plan.solve_info.solver == "ddp" and d is not None and d.dt == pytest.approx(0.02)
     hold = build_model(params).hold(4)

@@ -5,6 +5,7 @@ import pytest
 from cartpole.models import SHIPPED_MJCF, read_params
 from cartpole.planning import trajopt as pipeline
 from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.planning.options import PlanOptions
 
 
 @pytest.fixture(scope="module")
@@ -14,7 +15,7 @@ def params():
 
 @pytest.fixture(scope="module")
 def ipopt_plan(params):
-    return trajopt_swingup(params, solver="ipopt", exact_discrete=False)
+    return trajopt_swingup(params, options=PlanOptions(solver="ipopt", exact_discrete=False))
 
 
 def _effort_attempts(plan):
@@ -22,7 +23,7 @@ def _effort_attempts(plan):
 
 
 def test_the_effort_stage_by_sqp_reaches_ipopts_plan(params, ipopt_plan):
-    plan = trajopt_swingup(params, solver="sqp", exact_discrete=False)
+    plan = trajopt_swingup(params, options=PlanOptions(solver="sqp", exact_discrete=False))
     info, ref = plan.solve_info, ipopt_plan.solve_info
     assert info.success and info.solver == "sqp"
     tried = _effort_attempts(plan)
@@ -39,7 +40,7 @@ def test_the_effort_stage_by_sqp_reaches_ipopts_plan(params, ipopt_plan):
 
 def test_an_sqp_that_does_not_converge_hands_the_effort_stage_to_ipopt(params, ipopt_plan, monkeypatch):
     monkeypatch.setattr(pipeline, "SQP_MAX_ITER", 1)
-    plan = trajopt_swingup(params, solver="sqp", exact_discrete=False)
+    plan = trajopt_swingup(params, options=PlanOptions(solver="sqp", exact_discrete=False))
     tried = _effort_attempts(plan)
     assert [a.stage for a in tried] == ["effort (sqp)", "effort"]
     assert not tried[0].success and not tried[0].chosen and tried[1].chosen
@@ -48,12 +49,12 @@ def test_an_sqp_that_does_not_converge_hands_the_effort_stage_to_ipopt(params, i
 
 
 def test_the_default_plans_the_effort_stage_by_sqp(params, ipopt_plan):
-    plan = trajopt_swingup(params, exact_discrete=False)
+    plan = trajopt_swingup(params, options=PlanOptions(exact_discrete=False))
     assert plan.options.solver == "auto"
     assert plan.solve_info.solver == "sqp" and [a.stage for a in _effort_attempts(plan)] == ["effort (sqp)"]
     assert plan.solve_info.objective == pytest.approx(ipopt_plan.solve_info.objective, rel=1e-6)
 
 
 def test_ipopt_options_given_keep_the_effort_stage_ipopts(params):
-    plan = trajopt_swingup(params, exact_discrete=False, solver_options={"ipopt": {"tol": 1e-8}})
+    plan = trajopt_swingup(params, options=PlanOptions(exact_discrete=False, solver_options={"ipopt": {"tol": 1e-8}}))
     assert plan.solve_info.solver == "ipopt" and [a.stage for a in _effort_attempts(plan)] == ["effort"]

@@ -38,7 +38,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 from cartpole.apps.forkserver import start_server
-from cartpole.apps.sweep import swingup_sweep
+from cartpole.apps.sweep import SweepRuns, swingup_sweep
 
 
 def _trivial(i):
@@ -107,7 +107,8 @@ def timed_sweep(kw: dict, where: str, address: str | None = None) -> tuple[float
     ``where`` (``"1"``, ``"2"``: local workers; ``"dask"``: the cluster at ``address``)."""
     stamps = []
     t0 = time.perf_counter()
-    res = swingup_sweep(None, **kw, **({"address": address} if where == "dask" else {"workers": int(where)}),
+    res = swingup_sweep(None, kw["method"], runs=SweepRuns(n=kw["n"], seed=kw["seed"]),
+                        **({"address": address} if where == "dask" else {"workers": int(where)}),
                         on_row=lambda i, x0, row: stamps.append(time.perf_counter()))
     seconds = time.perf_counter() - t0
     steady = (len(stamps) - 1) / (stamps[-1] - stamps[0]) if len(stamps) > 1 else float("nan")
@@ -125,11 +126,11 @@ def fresh_sweep(kw: dict, where: str) -> float:
             "if where != '1':\n"
             "    from cartpole.apps.forkserver import start_server\n"
             "    start_server(kw['method'])\n"
-            "from cartpole.apps.sweep.run import recorded_sweep\n"
+            "from cartpole.apps.sweep import SweepRuns, recorded_sweep\n"
             "from cartpole.models import read_params\n"
             "with tempfile.TemporaryDirectory() as tmp:\n"
             "    t0 = time.perf_counter()\n"
-            "    recorded_sweep(read_params(None), method=kw['method'], n=kw['n'], seed=kw['seed'],\n"
+            "    recorded_sweep(read_params(None), kw['method'], runs=SweepRuns(n=kw['n'], seed=kw['seed']),\n"
             "                   workers=int(where), results=Path(tmp) / 'r.csv', figure=Path(tmp) / 'f.png')\n"
             "    print(json.dumps(time.perf_counter() - t0))\n" % (kw, where))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
@@ -208,7 +209,7 @@ def main(argv=None) -> int:
 
     kw = dict(method=a.method, n=a.n, seed=0)
     load_before = os.getloadavg()
-    swingup_sweep(None, **{**kw, "n": 1})  # basin on disk, compiled functions built
+    swingup_sweep(None, a.method, runs=SweepRuns(n=1))  # basin on disk, compiled functions built
     times = {k: [] for k in where}
     steady = {k: [] for k in where}  # (n - 1) / (last row - first row): without pool start-up
     rows = {}
@@ -219,7 +220,7 @@ def main(argv=None) -> int:
         # would run in this process's event-loop thread and slow the local pool's runs in this process (measured:
         # 1.34x one worker beside it against 1.8x without it)
         cluster, addr = start_dask_cluster(2)
-        swingup_sweep(None, **{**kw, "n": 4}, address=addr)  # warm the Dask workers (imports)
+        swingup_sweep(None, a.method, runs=SweepRuns(n=4), address=addr)  # warm the Dask workers (imports)
     try:
         for r in range(a.rounds):
             for k in where:

@@ -42,7 +42,7 @@ Examples::
 from cartpole.apps.sweep.executors import Runner, runners_built
 from cartpole.apps.sweep.plan import (DEFAULT_PUSH_TIME, HALF_WIDTHS, HANGING, HINGE_HALF_WIDTHS, JITTERED,
                                       MAX_RUNS, MAX_SHARED_BASINS, MAX_WORKERS, METHODS, SETTINGS,
-                                      SLIDE_HALF_WIDTHS, Axis, PlannedRuns, SweepError, axis, check_axes,
+                                      SLIDE_HALF_WIDTHS, Axis, PlannedRuns, SweepError, SweepRuns, axis, check_axes,
                                       check_settings, default_half_widths, plan_runs, start_index, sweep_starts,
                                       total_runs)
 from cartpole.apps.sweep.results import (ResultsFile, SweepResult, csv_row, failure, header, read_done,
@@ -52,7 +52,7 @@ from cartpole.apps.sweep.run import RecordedSweep, SweepInterrupted, recorded_sw
 __all__ = [
     "Axis", "DEFAULT_PUSH_TIME", "HALF_WIDTHS", "HANGING", "HINGE_HALF_WIDTHS", "JITTERED", "MAX_RUNS",
     "MAX_SHARED_BASINS", "MAX_WORKERS", "METHODS", "PlannedRuns", "RecordedSweep", "ResultsFile", "Runner",
-    "SETTINGS", "SLIDE_HALF_WIDTHS", "SweepError", "SweepInterrupted", "SweepResult", "axis", "check_axes",
+    "SETTINGS", "SLIDE_HALF_WIDTHS", "SweepError", "SweepInterrupted", "SweepRuns", "SweepResult", "axis", "check_axes",
     "check_settings", "csv_row", "default_half_widths", "failure", "header", "plan_runs", "read_done",
     "recorded_sweep", "runners_built", "start_index", "summary_line", "sweep_id", "sweep_starts", "swingup_sweep",
     "total_runs",

@@ -25,34 +25,41 @@ SIGTERM is handled the same way. A worker whose parent is gone (killed with SIGK
 """
 from __future__ import annotations
 
+import ctypes
+import gc
 import math
+import multiprocessing
 import os
+import signal
+import socket
+import threading
+import uuid
 from collections import deque
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import wait as wait_futures
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
+from multiprocessing.connection import wait as wait_objects
 
+import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError, first_line
-from cartpole.models import CartPoleModel, CartPoleParams, build_model
+from cartpole.models import CartPoleModel, CartPoleParams, build_model, steps_per_period
 from cartpole.sim import replays_exactly
-from cartpole.apps.swingup import planning_model, run_swingup
+from cartpole.apps.swingup import SwingupOptions, planning_model, run_swingup
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.mpc.options import MPCOptions
 from cartpole.ocp.dmc import is_task
 from cartpole.planning.options import PlanOptions
-from cartpole.sim.options import LoopOptions
+from cartpole.planning.trajopt import handover_catch
 from cartpole.validation.basin import BasinCache
 from cartpole.apps.forkserver import WORKER_ENV, main_thread, sigint_ignored, start_server, worker_env
 from cartpole.apps.sweep.plan import LOOP_SETTINGS, SweepError
 
 #: Seconds to wait for a Dask scheduler given by ``address`` before giving up.
 CONNECT_TIMEOUT = 10.0
-def mpc_fields(objective, mpc: dict | None = None) -> dict:
-    """The :class:`~cartpole.mpc.options.MPCOptions` fields of a sweep's mpc runs: with an ``objective`` the DDP
-    MPC's (``solver='ddp'`` and that objective: the RTI NMPC tracks upright only), then the fixed settings ``mpc``
-    (field -> value) every run has."""
-    return {**({} if objective is None else {"solver": "ddp", "objective": objective}), **dict(mpc or {})}
-
-
 class Runner:
     """One process's share of a sweep: the model (built once), each planning model (built once, on first use), the
     basin cache, and the settings every run shares.
@@ -64,47 +71,35 @@ class Runner:
     ----------
     params : CartPoleParams
         The cart-pole MuJoCo runs on.
-    method : {"energy", "trajopt", "mpc"}
-    duration : float or None
-        Simulated seconds per run (None: :func:`~cartpole.apps.swingup.run_swingup`'s default).
-    catch_weights : (Q, R) or None
-        LQR weights of the catch.
+    method : {"energy", "trajopt", "mpc", "supervisor"}
+    options : SwingupOptions
+        The settings every run starts from (:func:`~cartpole.apps.swingup.run_swingup`'s): a run's swept loop
+        settings (:data:`~cartpole.apps.sweep.plan.LOOP_SETTINGS`) replace fields of its ``loop`` (the period and
+        delay rounded to whole physics steps), its push and model error the loop's, its other swept settings
+        fields of the method's stage options (``energy``, ``plan``, ``mpc``) by name. A dm_control task as the
+        objective adds each run's ``return`` and ``return_steps``.
     cache : BasinCache
         The basins the runs use (shipped to the workers with what it holds).
     model : CartPoleModel, optional
         The model of ``params`` when already built.
-    loop : LoopOptions, optional
-        The rig every run has (period, delay, sensors, estimator); a run's swept loop settings
-        (:data:`~cartpole.apps.sweep.plan.LOOP_SETTINGS`) replace its fields, the period and delay rounded to whole
-        physics steps.
-    objective : str, optional
-        trajopt: what every plan optimises (:class:`~cartpole.planning.options.PlanOptions` ``objective``); mpc: the
-        DDP MPC's running objective (:class:`~cartpole.mpc.options.MPCOptions` ``objective``, ``solver='ddp'``); a
-        dm_control task adds each run's ``return`` and ``return_steps``.
-    mpc : dict, optional
-        mpc: fields of :class:`~cartpole.mpc.options.MPCOptions` every run has (``horizon``, ``seed_plan``), by
-        name.
     """
 
-    def __init__(self, params: CartPoleParams, method: str, duration, catch_weights, cache: BasinCache,
-                 model: CartPoleModel | None = None, loop: LoopOptions | None = None, objective: str | None = None,
-                 mpc: dict | None = None):
+    def __init__(self, params: CartPoleParams, method: str, options: SwingupOptions, cache: BasinCache,
+                 model: CartPoleModel | None = None):
         self.params = params
         self.model = build_model(params) if model is None else model
         self.method = method
-        self.duration = duration
-        self.catch_weights = catch_weights
+        self.options = options
         self.cache = cache
         self.plans = {1.0: self.model}
-        self.loop = LoopOptions() if loop is None else loop
-        self.objective = objective
-        self.mpc = dict(mpc or {})
+        self.loop = options.loop
+        stage = {"trajopt": options.plan, "mpc": options.mpc}.get(method)
+        self.objective = None if stage is None else stage.objective
 
     def settings(self) -> tuple:
-        """``(params, method, duration, catch_weights, cache, None, loop, objective, mpc)``: what a worker needs
-        to build the same runner (the model, None, it builds itself)."""
-        return (self.params, self.method, self.duration, self.catch_weights, self.cache, None, self.loop,
-                self.objective, self.mpc)
+        """``(params, method, options, cache, None)``: what a worker needs to build the same runner (the model,
+        None, it builds itself)."""
+        return (self.params, self.method, self.options, self.cache, None)
 
     def plan_model(self, model_error: float) -> CartPoleModel:
         """The planning model of scale ``model_error`` (:func:`~cartpole.apps.swingup.planning_model`), built once."""
@@ -121,16 +116,10 @@ class Runner:
         if self.method == "mpc":
             return None
         if self.method == "trajopt":
-            from cartpole.planning.trajopt import handover_catch
-
-            from cartpole.models import steps_per_period
-
             steps = steps_per_period(self.loop.period, self.params.timestep)
             return self.cache.get(self.params, handover_catch(self.params, pm, steps=steps))
-        from cartpole.control.linear import LinearFeedback
-        from cartpole.control.switching import SWINGUP_CATCH_R
-
-        catch = LinearFeedback.for_model(pm, *(self.catch_weights or (None, SWINGUP_CATCH_R)), period=self.loop.period)
+        weights = self.options.catch_weights or (None, SWINGUP_CATCH_R)
+        catch = LinearFeedback.for_model(pm, *weights, period=self.loop.period)
         return self.cache.get(self.params, catch)
 
     def run(self, x0, options: dict, push=(), model_error: float = 1.0, settings: dict | None = None) -> dict:
@@ -148,19 +137,9 @@ class Runner:
                 looped[k] = max(least, round(float(looped[k]) / h)) * h
         if "encoder_cpr" in looped:
             looped["encoder_cpr"] = max(1, round(float(looped["encoder_cpr"])))
-        energy = {**options, **settings} if self.method == "energy" else None
         try:
-            # the swept settings are fields of the method's options value (or of the loop's), by name
-            plan = (PlanOptions(objective=self.objective).replace(**settings) if self.method == "trajopt"
-                    else None)
-            # an objective is the DDP MPC's (the RTI NMPC tracks upright only)
-            mpc = (MPCOptions(**mpc_fields(self.objective, self.mpc)).replace(**settings) if self.method == "mpc"
-                   else None)
-            loop = self.loop.replace(duration=self.duration, push=tuple(push or ()), model_error=model_error,
-                                     **looped)
-            res = run_swingup(self.model, method=self.method, x0=x0, plan=plan, loop=loop, mpc=mpc,
-                              basin_cache=self.cache, energy_options=energy, catch_weights=self.catch_weights,
-                              plan_model=self.plan_model(model_error))
+            res = run_swingup(self.model, self.method, self.run_options(options, push, model_error, settings, looped),
+                              x0=x0, basin_cache=self.cache, plan_model=self.plan_model(model_error))
         except CartPoleError as exc:
             return {"success": False, "replays": False, "diverged": False, "diverged_at": math.nan,
                     "time_to_upright": math.nan, "caught_at": math.nan,
@@ -179,6 +158,20 @@ class Runner:
                 **({"return": float(m["return"]), "return_steps": int(m["return_steps"])} if "return" in m
                    else self._no_return()),
                 **self._knocked(m)}
+
+    def run_options(self, energy: dict, push, model_error: float, settings: dict, looped: dict) -> SwingupOptions:
+        """One run's :class:`~cartpole.apps.swingup.SwingupOptions`: the sweep's, with the run's energy settings
+        ``energy`` (energy), push, model error, swept loop fields ``looped`` and the method's swept ``settings``
+        (fields of its stage's options, by name)."""
+        o = self.options
+        loop = o.loop.replace(push=tuple(push or ()), model_error=model_error, **looped)
+        if self.method == "energy":
+            return o.replace(loop=loop, energy={**energy, **settings})
+        if self.method == "trajopt":
+            return o.replace(loop=loop, plan=(o.plan or PlanOptions()).replace(**settings))
+        if self.method == "mpc":
+            return o.replace(loop=loop, mpc=(o.mpc or MPCOptions()).replace(**settings))
+        return o.replace(loop=loop)
 
     def _knocked(self, metrics: dict | None = None) -> dict:
         """A knocked or thrown sweep's row keys (:func:`~cartpole.validation.metrics.uptime_metrics`): ``uptime``
@@ -225,9 +218,6 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
     SweepError
         A worker process died (out of memory, or killed).
     """
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-
     ctx = start_server(runner.method) if context is None else context
     env = dict(os.environ)
     for k, v in WORKER_ENV.items():
@@ -250,14 +240,14 @@ def run_pool(runner: Runner, jobs, workers: int, todo, finished, *, context=None
             feed()
         with _sigterm_as_interrupt(), one_blas_thread_here():
             while running:
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                done, _ = wait_futures(running, return_when=FIRST_COMPLETED)
                 for fut in done:
                     ex, i = running.pop(fut)
                     room[ex] += 1
                     finished(i, fut.result())
                 feed()
     except BrokenProcessPool:
-        raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer --workers than "
+        raise SweepError(f"A sweep worker process died (out of memory, or killed); try fewer `workers` than "
                          f"{workers}.") from None
     except BaseException:  # interrupted (Ctrl-C, SIGTERM) or failed: a run under way in a worker is not waited for
         _terminate_workers(pool)
@@ -288,10 +278,6 @@ def _init_worker(settings: tuple, env: dict) -> None:
     MuJoCo's warnings are dropped here (the parent loaded the same MJCF first and reported them), so a worker
     neither prints them nor writes MUJOCO_LOG.TXT into the current directory. Ctrl-C is left to the parent (which
     keeps the finished rows and stops the pool), so a worker does not die of it mid-run."""
-    import signal
-
-    import mujoco
-
     global _WORKER
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _exit_with_parent()
@@ -312,16 +298,12 @@ def _exit_with_parent() -> None:
     """In a worker process: a daemon thread that ends the process as soon as its parent is gone. A pool worker
     waits for work on a pipe the parent's death does not close, so without this a killed sweep would leave it
     running."""
-    import multiprocessing
-    import threading
-    from multiprocessing.connection import wait
-
     parent = multiprocessing.parent_process()
     if parent is None or parent.sentinel is None:
         return
 
     def watch():
-        wait([parent.sentinel])
+        wait_objects([parent.sentinel])
         os._exit(1)
 
     threading.Thread(target=watch, name="cartpole-sweep-parent", daemon=True).start()
@@ -337,8 +319,6 @@ OPENBLAS_THREAD_FUNCTIONS = (("openblas_get_num_threads", "openblas_set_num_thre
 def _loaded_openblas() -> list:
     """``(get, set)`` thread-count functions of every OpenBLAS this process has loaded (found in
     ``/proc/self/maps``; none where there is no such file)."""
-    import ctypes
-
     try:
         with open("/proc/self/maps") as fh:
             paths = sorted({f[5].strip() for f in (line.split(maxsplit=5) for line in fh)
@@ -383,8 +363,6 @@ def one_blas_thread_here():
 def _sigterm_as_interrupt():
     """Inside the block (main thread, SIGTERM at its default): SIGTERM raises KeyboardInterrupt, as Ctrl-C does, so
     the pool is shut down and the finished rows kept instead of the process dying with its workers orphaned."""
-    import signal
-
     if not main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
         yield
         return
@@ -418,8 +396,6 @@ def _run_on_dask(token: str, settings: tuple, x0, options, push=(), model_error=
     sweep (MuJoCo's warnings dropped, as in a pool worker) and reused by every later one."""
     runner = _RUNNERS.get(token)
     if runner is None:
-        import mujoco
-
         mujoco.set_mju_user_warning(lambda msg: None)
         _RUNNERS.clear()  # one sweep's model per worker at a time
         runner = _RUNNERS[token] = Runner(*settings)
@@ -447,7 +423,7 @@ def check_address(address: str) -> tuple[str, int]:
     host = host.strip("[]")
     ok = scheme in ADDRESS_SCHEMES and colon and host and port.isdigit() and 1 <= int(port) <= 65535
     if not ok:
-        raise SweepError(f"--address {text!r} is not a Dask scheduler address; give tcp://HOST:PORT (e.g. "
+        raise SweepError(f"The `address` {text!r} is not a Dask scheduler address; give tcp://HOST:PORT (e.g. "
                          "tcp://127.0.0.1:8786, what `dask scheduler` prints).")
     return host, int(port)
 
@@ -457,8 +433,6 @@ def _connect(Client, address: str):
     (refused, timed out, something that is not a Dask scheduler answering). A Client that failed inside its
     constructor is marked closed and its event loop stopped here, so its ``__del__`` neither waits 20 s to close it
     nor prints "Exception ignored in Client.__del__" after the sweep's sentence."""
-    import gc
-
     try:
         return Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False), None
     except Exception as exc:  # noqa: BLE001 - anything the connection attempt raises is "cannot reach"
@@ -489,18 +463,14 @@ def run_dask(address: str, runner: Runner, jobs, todo, finished) -> None:
         be reached within :data:`CONNECT_TIMEOUT` s, or a run failed on the cluster outside :class:`CartPoleError`
         (a worker died, say).
     """
-    import uuid
-
     try:
         from distributed import Client, as_completed
     except ImportError:
-        raise SweepError("--address needs Dask distributed; install it with `pip install 'dask[distributed]'`.") \
+        raise SweepError("A Dask `address` needs Dask distributed; install it with `pip install 'dask[distributed]'`.") \
             from None
     host, port = check_address(address)
     advice = "start one (`dask scheduler`, then `dask worker ADDRESS`) or give its tcp://host:port"
     try:  # a plain TCP connection first: a closed port is one sentence at once, with no Client half-built
-        import socket
-
         socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
     except OSError as exc:
         raise SweepError(f"Cannot reach a Dask scheduler at {address} ({exc.strerror or type(exc).__name__}); "

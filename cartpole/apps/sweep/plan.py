@@ -14,12 +14,13 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.energy import DEFAULT_SCALING
-from cartpole.mpc.options import MPCOptions
+from cartpole.mpc.options import MPCOptions, mpc_grid
 from cartpole.planning.options import PlanOptions
 from cartpole.errors import CartPoleError, first_line
-from cartpole.models import CartPoleParams
+from cartpole.models import MAX_PERIOD, CartPoleParams
 from cartpole.apps.swingup import check_model_error, check_start
-from cartpole.sim.options import MAX_PUSH_FORCE, MAX_PUSH_TIME
+from cartpole.sim.options import MAX_PUSH_FORCE, MAX_PUSH_TIME, LoopOptions
+from cartpole.sim.rig import MAX_DELAY
 
 #: Default start box for one pole: centre (hanging at rest) and half-widths [m, rad, m/s, rad/s].
 HANGING = (0.0, np.pi, 0.0, 0.0)
@@ -52,6 +53,51 @@ MAX_WORKERS = 256
 
 class SweepError(CartPoleError):
     """Bad sweep settings (no runs, negative widths, jitter outside [0, 1), an unknown method, bad workers or axes)."""
+
+
+@dataclass(frozen=True)
+class SweepRuns:
+    """Which runs a sweep makes (its description; :func:`plan_runs` draws them): a classic start box of ``n`` seeded
+    starts, or the grid and samples of ``axes``.
+
+    Attributes
+    ----------
+    n : int
+        Runs without axes (1 to :data:`MAX_RUNS`); with axes, the draws per grid cell when any axis is sampled
+        (ignored for a pure grid, whose size is the product of the counts).
+    seed : int
+        Seed of ``numpy.random.default_rng`` for the starts, the sampled axes and the gain jitter.
+    axes : tuple of Axis
+        Grids and seeded samples over start components, the push, the model error and controller settings
+        (:class:`Axis`, :func:`axis`).
+    x0 : (2 nq,) array or None
+        With axes: the start of every run where no start axis sets a component (default the hanging rest).
+    center : (2 nq,) array or None
+        Centre of the start box [m, rad, m/s, rad/s], default the model's hanging rest ``x_hanging``.
+    half_widths : (2 nq,) array or None
+        Half-widths of the start box [m, rad, m/s, rad/s]; default :func:`default_half_widths`.
+    gain_jitter : float
+        In [0, 1): relative jitter of the settings in :data:`JITTERED`; energy only.
+    """
+
+    n: int = 20
+    seed: int = 0
+    axes: tuple = ()
+    x0: object = None
+    center: object = None
+    half_widths: object = None
+    gain_jitter: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "axes", tuple(self.axes or ()))
+        for name in ("x0", "center", "half_widths"):
+            value = getattr(self, name)
+            if value is not None:
+                try:
+                    object.__setattr__(self, name, readonly(np.asarray(value, float).ravel()))
+                except (TypeError, ValueError):
+                    raise SweepError(f"SweepRuns.{name} must be numbers [m, rad, m/s, rad/s]; got {value!r}.") \
+                        from None
 
 
 @dataclass(frozen=True)
@@ -162,24 +208,18 @@ def check_settings(method: str, n, workers, gain_jitter: float, half_widths=None
     """
     if method not in METHODS:
         raise SweepError(f"Unknown sweep method '{method}'; choose one of {', '.join(METHODS)}.")
-    if method == "mpc":
-        import importlib.util
-
-        if importlib.util.find_spec("cartpole.mpc.nmpc") is None:
-            raise SweepError("The mpc method needs cartpole.mpc.nmpc (nonlinear MPC), which this installation does "
-                             "not have yet; use --method trajopt or energy.")
     if not (isinstance(n, (int, np.integer)) and 1 <= n <= MAX_RUNS):
         raise SweepError(f"A sweep needs 1 to {MAX_RUNS} runs (got n = {n}).")
     if not (isinstance(workers, (int, np.integer)) and 1 <= workers <= MAX_WORKERS):
-        raise SweepError(f"--workers must be 1 to {MAX_WORKERS} processes on this machine (got {workers}).")
+        raise SweepError(f"`workers` must be 1 to {MAX_WORKERS} processes on this machine (got {workers}).")
     if not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2**63):
-        raise SweepError(f"--seed must be a whole number from 0 to 2**63 - 1 (got {seed}).")
+        raise SweepError(f"The `seed` must be a whole number from 0 to 2**63 - 1 (got {seed}).")
     if not (0 <= gain_jitter < 1):
         raise SweepError(f"A sweep needs 0 <= gain_jitter < 1 (got {gain_jitter}).")
     if half_widths is not None and not np.all(np.asarray(half_widths, float) >= 0):
         raise SweepError(f"A sweep needs half-widths >= 0 (got {half_widths}).")
     if method != "energy" and (gain_jitter > 0 or energy_options):
-        raise SweepError("Gain jitter and energy options perturb energy shaping; drop them or use --method energy.")
+        raise SweepError("Gain jitter and energy options perturb energy shaping; drop them or use `method='energy'`.")
 
 
 def _draw_starts(rng, n: int, center, half_widths) -> np.ndarray:
@@ -267,10 +307,6 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
                 have = ", ".join(SETTINGS[method]) or "none"
                 raise SweepError(f"The {method} method has no setting '{key}' to sweep (it has: {have}).")
             if key in LOOP_SETTINGS:
-                from cartpole.models import MAX_PERIOD
-                from cartpole.sim.options import LoopOptions
-                from cartpole.sim.rig import MAX_DELAY
-
                 h = float(params.timestep)
                 limits = {"period": (0.5 * h, MAX_PERIOD), "delay": (0.0, MAX_DELAY)}
                 if key in limits:  # rounded to whole steps: each end must round to what it says, within limits
@@ -290,7 +326,6 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
                     try:
                         opts = OPTIONS[method]().replace(**{key: v})
                         if method == "mpc":
-                            from cartpole.mpc.options import mpc_grid
                             mpc_grid(opts, params.timestep)
                     except CartPoleError as exc:
                         raise SweepError(f"The sweep axis {a.name} reaches {v:g}: {first_line(exc)}.") from None
@@ -307,7 +342,7 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
             if not (a.high < end or (duration is None and a.high <= end)):
                 raise SweepError(f"The push time reaches {a.high:g} s, "
                                  + (f"after the runs end at {end:g} s, so it would never act; give times before the "
-                                    "end or a longer --duration." if duration is not None else
+                                    "end or a longer duration." if duration is not None else
                                     f"beyond the {end:g} s limit; give earlier times."))
         elif a.name == "push_force":
             if max(abs(a.low), abs(a.high)) > MAX_PUSH_FORCE:
@@ -317,7 +352,7 @@ def check_axes(axes, params: CartPoleParams, method: str, duration: float | None
             raise SweepError(f"Unknown sweep axis '{a.name}'; sweep push_force, push_time, model_error, "
                              "start:<joint>[_rate] or setting:<name>.")
     if "push_time" in seen and "push_force" not in seen:
-        raise SweepError("A push time without a push force pushes nothing; add --push-force.")
+        raise SweepError("A push time without a push force pushes nothing; add a push_force axis.")
     if ("push_force" in seen or "push_time" in seen) and params.slide is None:
         raise SweepError("This MJCF has no slide joint, so there is no cart to push; drop the push axes.")
     return axes

@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from cartpole._arrays import readonly
-from cartpole._files import InputFileError, output_error, read_bounded, short
+from cartpole._files import InputFileError, exclusive_lock, output_error, read_bounded, short
+from cartpole.codegen import private_cache_dir
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, read_params
 from cartpole.validation.metrics import failure_reason
@@ -437,15 +438,15 @@ def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
     if not os.path.lexists(path):
         return {}
     try:  # by kind and with a bound: a FIFO, /dev/zero or a huge file is refused, not read whole
-        data = read_bounded(path, MAX_RESULTS_BYTES, what="Results file", flag="--resume")
+        data = read_bounded(path, MAX_RESULTS_BYTES, what="Results file", flag="`results`")
     except InputFileError as exc:
-        raise SweepError(f"Cannot resume from {short(path)}: it {exc.reason}; move it away or drop --resume.") \
+        raise SweepError(f"Cannot resume from {short(path)}: it {exc.reason}; move it away or drop `resume`.") \
             from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise SweepError(f"Cannot resume from {short(path)}: it is not a text CSV file (not UTF-8); move it away or "
-                         "drop --resume.") from None
+                         "drop `resume`.") from None
     lines = text.splitlines()
     if not lines:
         return {}
@@ -455,7 +456,7 @@ def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
     first = next(reader, [])
     if first != head:
         raise SweepError(f"Cannot resume from {short(path)}: its columns are not this sweep's; move it away or drop "
-                         "--resume.")
+                         "`resume`.")
     done = {}
     for fields in reader:
         if len(fields) != len(head):
@@ -463,8 +464,8 @@ def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
         line = dict(zip(head, fields))
         if line["sweep"] != sid:
             raise SweepError(f"Cannot resume from {short(path)}: it holds sweep {line['sweep']}, not this one "
-                             f"({sid}: other method, --n, --seed, --duration, --jitter or MJCF); give the same "
-                             "settings, another --out, or drop --resume.")
+                             f"({sid}: other `method`, `n`, `seed`, `duration`, `gain_jitter` or MJCF); give the "
+                             "same settings, another results file (`results`), or drop `resume`.")
         try:
             i = int(line["run"])
         except ValueError:
@@ -486,9 +487,6 @@ def results_lock(path: Path):
     refused in one sentence. The lock file is kept in the user cache directory (``locks/``, keyed by the file's
     absolute path), not beside the results, so ``--out`` holds only the sweep's outputs; sweeps of two users into
     one ``--out`` are therefore not serialised."""
-    from cartpole._files import exclusive_lock
-    from cartpole.codegen import private_cache_dir
-
     where = str(Path(path).expanduser().resolve())
     key = hashlib.sha256(where.encode()).hexdigest()[:24]
     return exclusive_lock(private_cache_dir() / "locks" / f"sweep-{key}.lock", f"The results file {short(where)}",

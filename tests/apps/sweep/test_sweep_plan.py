@@ -3,8 +3,8 @@ every run's inputs drawn before any run."""
 import numpy as np
 import pytest
 
-from cartpole.apps.sweep import (Axis, SweepError, axis, check_axes, check_settings, default_half_widths, plan_runs,
-                                 swingup_sweep, sweep_starts, total_runs)
+from cartpole.apps.sweep import (Axis, SweepError, SweepRuns, axis, check_axes, check_settings, default_half_widths,
+                                 plan_runs, swingup_sweep, sweep_starts, total_runs)
 from cartpole.models import build_model, read_params
 
 
@@ -21,8 +21,8 @@ def test_axis_reads_a_fixed_value_a_sample_or_a_grid():
 def test_check_settings_refuses_each_bad_setting_in_one_sentence():
     check_settings("energy", 3, 2, 0.1)  # fine: no error
     for args, words in [(("magic", 1, 1, 0.0), "Unknown sweep method"), (("energy", 0, 1, 0.0), "1 to"),
-                        (("energy", 1, 0, 0.0), "--workers"), (("energy", 1, 1, 1.5), "gain_jitter"),
-                        (("trajopt", 1, 1, 0.1), "use --method energy"), (("energy", 1.5, 1, 0.0), "1 to")]:
+                        (("energy", 1, 0, 0.0), "`workers` must be"), (("energy", 1, 1, 1.5), "gain_jitter"),
+                        (("trajopt", 1, 1, 0.1), "use `method='energy'`"), (("energy", 1.5, 1, 0.0), "1 to")]:
         with pytest.raises(SweepError, match=words):
             check_settings(*args)
     with pytest.raises(SweepError, match="half-widths"):
@@ -30,12 +30,13 @@ def test_check_settings_refuses_each_bad_setting_in_one_sentence():
 
 
 def test_bad_settings_raise_before_any_run():
-    for kw, words in [({"n": 0}, "1 to"), ({"n": 2, "gain_jitter": 1.5}, "gain_jitter"),
-                      ({"method": "magic", "n": 1}, "Unknown sweep method"),
-                      ({"method": "trajopt", "n": 1, "gain_jitter": 0.1}, "use --method energy"),
-                      ({"n": 1, "workers": 0}, "workers")]:
+    for method, runs, kw, words in [("energy", SweepRuns(n=0), {}, "1 to"),
+                                    ("energy", SweepRuns(n=2, gain_jitter=1.5), {}, "gain_jitter"),
+                                    ("magic", SweepRuns(n=1), {}, "Unknown sweep method"),
+                                    ("trajopt", SweepRuns(n=1, gain_jitter=0.1), {}, "use `method='energy'`"),
+                                    ("energy", SweepRuns(n=1), {"workers": 0}, "workers")]:
         with pytest.raises(SweepError, match=words):
-            swingup_sweep(None, on_row=lambda *a: pytest.fail("ran"), **kw)
+            swingup_sweep(None, method, runs=runs, on_row=lambda *a: pytest.fail("ran"), **kw)
 
 
 @pytest.mark.parametrize("axes, words", [
@@ -45,7 +46,8 @@ def test_bad_settings_raise_before_any_run():
 ])
 def test_bad_axes_are_refused_before_any_run(axes, words):
     with pytest.raises(SweepError, match=words):
-        swingup_sweep(None, axes=[axis(name, *v) for name, *v in axes], on_row=lambda *a: pytest.fail("ran"))
+        swingup_sweep(None, runs=SweepRuns(axes=[axis(name, *v) for name, *v in axes]),
+                      on_row=lambda *a: pytest.fail("ran"))
 
 
 def test_the_start_box_is_seeded_and_kept_inside_the_rail():
@@ -90,3 +92,20 @@ def test_the_jitter_is_drawn_after_the_starts_so_the_starts_do_not_depend_on_it(
     assert plain.options == ({},) * 4 and len({o["energy_gain"] for o in jittered.options}) == 4
     assert np.array_equal(jittered.job(2)[0], jittered.starts[2])
     assert jittered.job(2)[1:] == (jittered.options[2], (), 1.0, {})
+
+
+def test_sweep_runs_are_a_read_only_value_and_the_sweep_keeps_only_changed_settings():
+    from cartpole.apps.sweep.run import energy_changes, mpc_changes, sweep_objective
+    from cartpole.apps.swingup import SwingupOptions
+    from cartpole.mpc.options import MPCOptions
+    from cartpole.planning.options import PlanOptions
+
+    runs = SweepRuns(n=3, center=[0, 3.0, 0, 0], axes=[axis("push_force", 1.0)])
+    assert isinstance(runs.axes, tuple) and not runs.center.flags.writeable
+    with pytest.raises(SweepError, match="SweepRuns.x0 must be numbers"):
+        SweepRuns(x0="up")
+    assert energy_changes(None) == {} and energy_changes({"energy_gain": 20.0}) == {"energy_gain": 20.0}
+    ddp = MPCOptions(solver="ddp", objective="dmc_swingup", horizon=2.0)
+    assert mpc_changes(ddp) == {"horizon": 2.0} and mpc_changes(None) == {}
+    assert sweep_objective("mpc", SwingupOptions(mpc=ddp)) == "dmc_swingup"
+    assert sweep_objective("trajopt", SwingupOptions(plan=PlanOptions(objective="time"))) == "time"

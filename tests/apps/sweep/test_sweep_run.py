@@ -3,12 +3,19 @@ asset all swing up, every run from MuJoCo; resumed runs, grids, basins found on 
 import numpy as np
 import pytest
 
-from cartpole.apps.sweep import SweepResult, axis, sweep_starts, swingup_sweep
+from cartpole.apps.sweep import SweepResult, SweepRuns, axis, sweep_starts, swingup_sweep
+from cartpole.apps.swingup import SwingupOptions
+from cartpole.sim.options import LoopOptions
+
+
+def lasting(seconds: float) -> SwingupOptions:
+    """The options of runs of ``seconds`` s."""
+    return SwingupOptions(loop=LoopOptions(duration=seconds))
 
 
 def test_quick_sweep_succeeds_on_the_shipped_asset():
     seen = []
-    r = swingup_sweep(None, n=4, seed=0, progress=seen.append)
+    r = swingup_sweep(None, runs=SweepRuns(n=4, seed=0), progress=seen.append)
     assert isinstance(r, SweepResult)
     assert seen[-1] == pytest.approx(1.0) and len(seen) == 4  # progress after every run
     # starts are the documented seeded box around hanging at rest
@@ -25,19 +32,19 @@ def test_quick_sweep_succeeds_on_the_shipped_asset():
 
 
 def test_gain_jitter_is_seeded_and_bounded():
-    r = swingup_sweep(None, n=2, seed=5, gain_jitter=0.2, duration=2.0)
+    r = swingup_sweep(None, "energy", lasting(2.0), runs=SweepRuns(n=2, seed=5, gain_jitter=0.2))
     assert len(r.options) == 2 and r.options[0] != r.options[1]
     assert all(0.8 * 15.0 <= o["energy_gain"] <= 1.2 * 15.0 and o["energy_accel"] <= 1.0 for o in r.options)
 
 
 def test_done_runs_are_skipped_and_on_row_sees_each_finished_run():
-    full = swingup_sweep(None, n=3, seed=4, duration=2.0)
+    full = swingup_sweep(None, "energy", lasting(2.0), runs=SweepRuns(n=3, seed=4))
     seen = []
     row1 = {k: v for k, v in zip(("success", "replays", "time_to_upright", "caught_at", "cart_clearance",
                                   "peak_ctrl", "error"), (bool(full.success[1]), bool(full.replays[1]),
                                                           full.time_to_upright[1], full.caught_at[1],
                                                           full.cart_clearance[1], full.peak_ctrl[1], None))}
-    part = swingup_sweep(None, n=3, seed=4, duration=2.0, done={1: row1},
+    part = swingup_sweep(None, "energy", lasting(2.0), runs=SweepRuns(n=3, seed=4), done={1: row1},
                          on_row=lambda i, x0, row: seen.append((i, tuple(x0))))
     assert [i for i, _ in seen] == [0, 2]  # run 1 was not run again
     assert [x0 for _, x0 in seen] == [tuple(full.starts[0]), tuple(full.starts[2])]
@@ -50,7 +57,7 @@ def test_a_trajopt_sweep_reports_the_basin_of_the_hand_over_lqr():
     from cartpole.validation.basin import estimate_basin
 
     params = read_params()
-    res = swingup_sweep(params, method="trajopt", n=1, seed=0)
+    res = swingup_sweep(params, "trajopt", runs=SweepRuns(n=1, seed=0))
     direct = estimate_basin(params, handover_catch(params, build_model(params)))  # estimated anew, no cache
     assert res.rho == direct.rho
 
@@ -60,13 +67,14 @@ def test_a_grid_sweep_is_the_product_of_its_axes_and_each_run_is_exactly_run_swi
     from cartpole.apps.swingup import run_swingup
 
     axes = [axis("push_force", -15, 15, 2), axis("model_error", 0.9, 1.1, 2), axis("push_time", 1.0)]
-    r = swingup_sweep(None, axes=axes, duration=4.0)
+    r = swingup_sweep(None, "energy", lasting(4.0), runs=SweepRuns(axes=axes))
     rows = r.rows()
     assert [(row["push"], row["model_error"]) for row in rows] == [
         ([[1.0, -15.0]], 0.9), ([[1.0, -15.0]], 1.1), ([[1.0, 15.0]], 0.9), ([[1.0, 15.0]], 1.1)]
     assert all(row["start"] == list(build_model().x_hanging) for row in rows)  # no start axis: hanging rest
     np.testing.assert_array_equal(r.axis_values("push_force", read_params()), [-15, -15, 15, 15])
-    one = run_swingup(None, method="energy", duration=4.0, push=[(1.0, 15.0)], model_error=0.9)
+    one = run_swingup(None, "energy",
+                      SwingupOptions(loop=LoopOptions(duration=4.0, push=[(1.0, 15.0)], model_error=0.9)))
     assert rows[2]["success"] == one.success
     assert rows[2]["time_to_upright"] == (one.metrics["time_to_upright"] if one.success else None)
     assert rows[2]["peak_ctrl"] == one.metrics["peak_ctrl"] and rows[2]["cart_clearance"] == one.metrics["cart_clearance"]
@@ -78,10 +86,10 @@ def test_a_sweep_finds_its_basins_on_disk_the_second_time(tmp_path, monkeypatch)
 
     monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
     axes = [axis("model_error", 0.9, 1.1, 2)]
-    first = swingup_sweep(None, axes=axes, duration=0.5)
+    first = swingup_sweep(None, "energy", lasting(0.5), runs=SweepRuns(axes=axes))
     assert len(list((tmp_path / "basins").glob("*.npz"))) == 2  # one catch per planning model
     monkeypatch.setattr(basin_mod, "estimate_basin", lambda *a, **k: pytest.fail("estimated again"))
-    again = swingup_sweep(None, axes=axes, duration=0.5)
+    again = swingup_sweep(None, "energy", lasting(0.5), runs=SweepRuns(axes=axes))
     assert again.rows() == first.rows() and again.rho == first.rho
 
 
@@ -89,7 +97,8 @@ def test_success_map_is_a_labelled_png(tmp_path):
     from cartpole.models import read_params
     from cartpole.viz.sweep_plot import plot_success_map, success_map_figure
 
-    r = swingup_sweep(None, n=3, seed=1, duration=1.0)  # too short to hold: failures drawn as crosses
+    # too short to hold: failures drawn as crosses
+    r = swingup_sweep(None, "energy", lasting(1.0), runs=SweepRuns(n=3, seed=1))
     params = read_params(None)
     fig = success_map_figure(r, params)
     ax = fig.axes[0]
@@ -103,7 +112,7 @@ def test_comparison_figure_puts_two_methods_side_by_side(tmp_path):
     from cartpole.viz.sweep_plot import comparison_figure, plot_comparison
 
     axes = [axis("push_force", -10, 10, 2), axis("model_error", 0.9, 1.1, 2), axis("push_time", 0.5)]
-    res = [swingup_sweep(None, method=m, axes=axes, duration=3.0) for m in ("trajopt", "energy")]
+    res = [swingup_sweep(None, m, lasting(3.0), runs=SweepRuns(axes=axes)) for m in ("trajopt", "energy")]
     params = read_params()
     fig = comparison_figure(res, params)
     maps = [ax for ax in fig.axes if ax.get_xlabel()]
@@ -122,13 +131,14 @@ def test_success_maps_of_sampled_and_one_axis_sweeps_are_labelled_scatters():
     from cartpole.viz.sweep_plot import success_map_figure
 
     params = read_params()
-    two = swingup_sweep(None, axes=[axis("push_force", -10, 10), axis("push_time", 0.2, 0.6)], n=3, duration=1.0)
+    two = swingup_sweep(None, "energy", lasting(1.0),
+                        runs=SweepRuns(axes=[axis("push_force", -10, 10), axis("push_time", 0.2, 0.6)], n=3))
     fig = success_map_figure(two, params)
     ax = fig.axes[0]
     assert ax.get_xlabel() == "push force [N]" and ax.get_ylabel() == "push time [s]"
     assert "of 3 runs succeed" in ax.get_title()
     xs = np.concatenate([c.get_offsets()[:, 0] for c in ax.collections])
     np.testing.assert_allclose(np.sort(xs), np.sort(two.axis_values("push_force", params)))
-    one = swingup_sweep(None, axes=[axis("setting:energy_gain", 10, 20, 3)], duration=1.0)
+    one = swingup_sweep(None, "energy", lasting(1.0), runs=SweepRuns(axes=[axis("setting:energy_gain", 10, 20, 3)]))
     ax = success_map_figure(one, params).axes[0]
     assert ax.get_xlabel() == "energy_gain" and "of 3 runs" in ax.get_title()
