@@ -23,8 +23,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole.control import LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF, build_model
+from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
+from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replay
 
 #: The folder of the toolkit's copies of dm_control's files.
@@ -219,17 +224,10 @@ def design(env: Environment, mjcf: str, x0, hold: int):
     model = build_model(mjcf)
     period = hold * float(model.dt)
     if env.controller == "lqr":
-        from cartpole.control import LinearFeedback
-
         return LinearFeedback.for_model(model, period=period if hold > 1 else None)
     if env.controller == "mpc":
-        from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
-        from cartpole.mpc.options import MPCOptions
-
         opts = MPCOptions(solver="ddp", objective=env.objective, seed_plan=False, period=period, horizon=2.0)
         return ddp_mpc_swingup(model.params, x0=x0, plan_model=model, options=opts)
-    from cartpole.planning.options import PlanOptions
-    from cartpole.planning.trajopt import trajopt_swingup
 
     return trajopt_swingup(model.params, x0=tuple(x0), plan_model=model,
                            options=PlanOptions(objective=env.objective)).controller

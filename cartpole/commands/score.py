@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from cartpole.apps.envscore import ENVIRONMENTS, EnvScoreError, score
+
 HELP = ("run dm_control's and Gymnasium's own episodes (their resets, their rewards) with the toolkit's controllers "
         "and report the returns beside the best published learned agent's")
 
@@ -13,8 +15,6 @@ WRITES_FILES = False
 
 def add_arguments(parser) -> None:
     """``--env NAME`` (repeatable), ``--n N``, ``--seed S``, ``--max-steps K``."""
-    from cartpole.apps.envscore import ENVIRONMENTS
-
     parser.add_argument("--env", action="append", default=None, metavar="NAME", choices=list(ENVIRONMENTS),
                         help=f"environment to score, repeatable: {', '.join(ENVIRONMENTS)} (default: every one)")
     parser.add_argument("--n", type=int, default=10, metavar="N",
@@ -34,8 +34,6 @@ def run(args) -> dict:
     its logged ctrl), ``any_warned`` and ``episodes`` (per seed: ``seed``, ``x0``, ``return``, ``steps``,
     ``terminated``, ``replays``, ``warned``, ``design_s``, ``mjcf``).
     """
-    from cartpole.apps.envscore import ENVIRONMENTS, EnvScoreError, score
-
     if args.mjcf is not None:
         raise EnvScoreError("score runs each environment on its own file; leave out --mjcf (pick environments with "
                             "--env).")

@@ -5,9 +5,26 @@ processes or on a Dask distributed cluster, and a success map figure (with sever
 side)."""
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
+from cartpole._files import short
+from cartpole.apps.sweep import (
+    MAX_RUNS, MAX_WORKERS, SweepError, SweepInterrupted, SweepRuns, axis, check_axes, check_settings, recorded_sweep,
+    summary_line)
+from cartpole.apps.sweep.plan import total_runs
+from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, SwingupOptions, default_method, start_state
 from cartpole.commands._flags import flag_words
+from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args
+from cartpole.commands.swingup import check_duration, disturbance_fields
+from cartpole.errors import Terminated
+from cartpole.models import build_model, planning_limits, read_params
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
+from cartpole.sim.budget import BATCHED
+from cartpole.validation.basin import DEFAULTS
+from cartpole.viz.sweep_plot import plot_comparison
 
 HELP = ("robustness sweep of the swing-up over starts, pushes, model error and controller settings (grids or "
         "seeded samples), in MuJoCo, one row per run")
@@ -33,15 +50,8 @@ DEFAULT_N = 20
 def add_arguments(parser) -> None:
     """``--method``, ``--n``, ``--seed``, ``--workers``, ``--address``, ``--duration``, ``--jitter``, ``--resume``
     (and the hidden testing option ``--stop-after K``)."""
-    import argparse
-
-    from cartpole.apps.sweep import MAX_RUNS, MAX_WORKERS
-
-    from cartpole.commands._rig import add_budget_argument, add_rig_arguments
-
     add_rig_arguments(parser)
     add_budget_argument(parser)
-    from cartpole.commands._limits import add_limit_arguments
 
     add_limit_arguments(parser)
     parser.add_argument("--method", nargs="+", choices=("energy", "trajopt", "mpc", "supervisor"), default=None,
@@ -122,8 +132,6 @@ def sweep_axes(args) -> tuple:
     SweepError
         Bad numbers for an axis (:func:`cartpole.apps.sweep.axis`).
     """
-    from cartpole.apps.sweep import SweepError, axis
-
     axes = []
     for flag, name in (("push_force", "push_force"), ("model_error", "model_error"), ("push_time", "push_time")):
         values = getattr(args, flag, None)
@@ -155,11 +163,6 @@ def sweep_options(args, method: str, duration, loop):
     SweepError
         ``--objective``, ``--horizon`` or ``--no-seed-plan`` with a method that has no such stage.
     """
-    from cartpole.apps.sweep import SweepError
-    from cartpole.apps.swingup import SwingupOptions
-    from cartpole.mpc.options import MPCOptions
-    from cartpole.planning.options import PlanOptions
-
     objective, fixed = getattr(args, "objective", None), mpc_settings(args)
     if fixed and method != "mpc":
         raise SweepError(f"--horizon and --no-seed-plan are the MPC's settings; use them with --method mpc (not "
@@ -179,15 +182,10 @@ def sweep_options(args, method: str, duration, loop):
 
 def _plan(args, params):
     """Validate everything before any run: the methods, n, workers, duration, axes and x0 for every method."""
-    from cartpole.commands.swingup import check_duration
-    from cartpole.apps.sweep import SweepError, check_axes, check_settings
-
     chosen = args.method
     if chosen is None and (getattr(args, "knockdown", None) is not None or getattr(args, "throw", None) is not None):
         chosen = ["supervisor"]  # knocked down: the controller that swings up again
     if chosen is None:  # the default: what `cartpole swingup` tries first on this model
-        from cartpole.apps.swingup import default_method
-        from cartpole.models import build_model
 
         chosen = [default_method(build_model(params))]
     methods = list(dict.fromkeys(chosen if isinstance(chosen, list) else [chosen]))
@@ -203,24 +201,18 @@ def _plan(args, params):
         raise SweepError("--x0 fixes the start of a sweep over axis options; without them the starts fill the start "
                          "box (give e.g. --push-force -20 20 5).")
     n = DEFAULT_N if args.n is None else args.n
-    from cartpole.apps.sweep import MAX_RUNS
-    from cartpole.apps.sweep.plan import total_runs
 
     if axes and total_runs(axes, n) > MAX_RUNS:
         raise SweepError(f"This sweep description has {total_runs(axes, n)} runs, more than {MAX_RUNS}; use fewer "
                          "grid points or a smaller --n.")
     duration = check_duration(args.duration, params)
     for m in methods:
-        from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
-
         check_settings(m, n, args.workers, args.jitter, seed=args.seed)
         # a push time checked against the run's length where it is known before any run (trajopt's is the plan's)
         ends = duration if duration is not None else {"energy": ENERGY_DURATION, "mpc": MPC_DURATION}.get(m)
         check_axes(axes, params, m, duration=ends)
     if args.stop_after is not None and args.stop_after < 1:
         raise SweepError(f"--stop-after needs at least 1 run (got {args.stop_after}).")
-    from cartpole.apps.swingup import start_state
-    from cartpole.models import build_model
 
     model = build_model(params)
     # --x0 checked, else the hanging rest moved onto a range's edge it lies just outside (said), as every run starts
@@ -234,12 +226,6 @@ def _check_work(args, model, methods, axes, n: int, duration) -> None:
     """Every method's runs before any starts (:func:`cartpole.commands._rig.check_budget`): the runs times their
     length (``--duration``, else the method's default; 10 s for a plan's length unknown yet, as ``cartpole swingup``
     counts it), the catch basin of energy and trajopt, and a plan per trajopt run."""
-    from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
-    from cartpole.apps.sweep.plan import total_runs
-    from cartpole.commands._rig import check_budget
-    from cartpole.sim.budget import BATCHED
-    from cartpole.validation.basin import DEFAULTS
-
     runs = total_runs(axes, n) if axes else n
     parts, plans = [], 0
     for m in methods:
@@ -262,9 +248,6 @@ def run(args) -> dict:
 
 def _run(args) -> dict:
     """:func:`run` without the flag words."""
-    from cartpole.commands._limits import limit_keywords, limit_lines
-    from cartpole.models import planning_limits, read_params
-
     params, limits = planning_limits(read_params(args.mjcf), **limit_keywords(args))  # every run plans within them
     methods, axes, n, duration, x0, moves = _plan(args, params)
     moved = [mv.to_dict() for mv in moves]
@@ -279,7 +262,6 @@ def _run(args) -> dict:
         results.append(result)
     if len(methods) == 1:
         return docs[0]
-    from cartpole.viz.sweep_plot import plot_comparison
 
     figure = plot_comparison(results, params, Path(args.out) / COMPARE)
     if not args.json:
@@ -303,12 +285,6 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
     KeyboardInterrupt
         Interrupted: its one sentence says how many runs the results file kept and how to go on.
     """
-    from cartpole._files import short
-    from cartpole.apps.sweep import SweepInterrupted, SweepRuns, recorded_sweep, summary_line
-    from cartpole.commands._rig import loop_from_args
-
-    from cartpole.commands.swingup import disturbance_fields
-
     loop = loop_from_args(args).replace(**disturbance_fields(args))
     out = Path(args.out)
     options = sweep_options(args, method, duration, loop)
@@ -319,8 +295,6 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
                              stop_after=args.stop_after)
     except SweepInterrupted as stop:
-        from cartpole.errors import Terminated
-
         signum = stop.signum  # SIGTERM stays SIGTERM (exit status 143), Ctrl-C is KeyboardInterrupt (130)
         if stop.finished == 0 and not stop.path.exists():
             text = f"interrupted before any of the {stop.total} runs finished; nothing was written."

@@ -4,13 +4,29 @@ from __future__ import annotations
 import math
 import statistics
 import sys
+from pathlib import Path
 
+from cartpole.apps.swingup import (
+    ENERGY_DURATION, METHOD_CLASSES, MPC_DURATION, SwingupError, SwingupOptions, check_model_error, check_plan_size,
+    check_push, check_upright_reachable, parse_push, plan_model_from, run_swingup, start_state)
 from cartpole.commands._flags import as_flags, flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
-from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, design_friction, rig_fields,
-                                    smoothed_friction_sentence)
+from cartpole.commands._rig import (
+    add_budget_argument, add_rig_arguments, check_budget, design_friction, friction_sentence, rig_fields,
+    smoothed_friction_sentence)
 from cartpole.commands._rollouts import rollout_doc
 from cartpole.commands._view import add_view_arguments, live_view, web_summary
+from cartpole.models import build_model
+from cartpole.mpc.options import MPCOptions
+from cartpole.ocp.objectives import make_objective
+from cartpole.planning.options import PlanOptions
+from cartpole.progress import stage
+from cartpole.sim.budget import BATCHED
+from cartpole.sim.disturbance import Knockdown, Throw
+from cartpole.sim.options import LoopOptions
+from cartpole.validation.basin import DEFAULTS
+from cartpole.viz import VideoUnavailable, plot_swingup, render_video, swingup_modes
+from cartpole.viz.estimation_plot import plot_estimation
 
 HELP = ("swing the pole up and hold it upright in MuJoCo (energy shaping + LQR catch, trajopt + TVLQR, or "
         "nonlinear MPC), optionally pushed and with a wrong planning model")
@@ -123,8 +139,6 @@ def _marks(res) -> dict | None:
 def disturbance_fields(args) -> dict:
     """``knockdown`` and ``throw`` of :class:`~cartpole.sim.options.LoopOptions` from ``--knockdown`` and ``--throw``
     (only those given)."""
-    from cartpole.sim.disturbance import Knockdown, Throw
-
     out = {}
     if getattr(args, "knockdown", None) is not None:
         out["knockdown"] = Knockdown.parse(args.knockdown)
@@ -166,8 +180,6 @@ def check_duration(duration, params, *, flag: str = "--duration") -> float | Non
     SwingupError
         Not positive or not finite; or too long to hold (the sentence gives the largest duration accepted).
     """
-    from cartpole.apps.swingup import SwingupError
-
     if duration is None:
         return None
     if not (math.isfinite(duration) and duration > 0):
@@ -190,8 +202,6 @@ def check_log_size(seconds: float, params, *, what: str) -> None:
     SwingupError
         Too much log to hold (the sentence gives the time step that would fit).
     """
-    from cartpole.apps.swingup import SwingupError
-
     need = log_bytes(seconds, params)
     if need > MAX_LOG_BYTES:
         step = float(params.timestep) * need / MAX_LOG_BYTES
@@ -215,8 +225,6 @@ class _Stages:
         self.sizes = sizes or {}
 
     def __call__(self, name: str, fraction: float) -> None:
-        from cartpole.progress import stage
-
         if name not in self.LABELS:
             return
         st = self.open.get(name)
@@ -236,10 +244,6 @@ def _check_work(args, model, duration) -> None:
     """The swing-up's MuJoCo steps before it starts (:func:`cartpole.commands._rig.check_budget`): the run
     (``--duration``, else the method's default, 10 s for a plan's length unknown yet) and, for energy and trajopt,
     the catch basin's sampled runs (counted though a cached estimate costs none)."""
-    from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION
-    from cartpole.sim.budget import BATCHED
-    from cartpole.validation.basin import DEFAULTS
-
     T = duration if duration is not None else (MPC_DURATION if args.method == "mpc" else ENERGY_DURATION)
     parts = [(1, T, f"the {T:g} s run")]
     if args.method != "mpc":  # the catch basin's sampled runs
@@ -257,9 +261,6 @@ def run(args) -> dict:
 
 def _run(args) -> dict:
     """:func:`run` without the flag words: everything validated before anything is computed or written."""
-    from cartpole.apps.swingup import check_plan_size, check_upright_reachable, start_state
-    from cartpole.models import build_model
-
     model = build_model(args.mjcf)
     check_upright_reachable(model)
     model.contacts.check_swingup()  # a pair that touches on the way up: refused, named, before anything runs
@@ -288,10 +289,6 @@ def swingup_options(args, model, duration) -> tuple:
     SwingupError
         An option given to a method that does not have it, or a bad number, in the command line's words.
     """
-    from cartpole.apps.swingup import (SwingupError, SwingupOptions, check_model_error, check_push, parse_push,
-                                       plan_model_from)
-    from cartpole.sim.options import LoopOptions
-
     params = model.params
     push = check_push([parse_push(text) for text in (getattr(args, "push", None) or [])], params)
     model_error = check_model_error(getattr(args, "model_error", None))
@@ -327,11 +324,6 @@ def _stage_options(args, model) -> tuple:
     """``(plan, mpc)``: the planner's and the MPC's options of ``--objective``, ``--solver``, ``--T-max``,
     ``--search-s``, ``--horizon``, ``--mpc-solver`` and ``--no-seed-plan``, each refused with a method that has no
     such stage."""
-    from cartpole.apps.swingup import SwingupError
-    from cartpole.mpc.options import MPCOptions
-    from cartpole.ocp.objectives import make_objective
-    from cartpole.planning.options import PlanOptions
-
     objective = getattr(args, "objective", None)
     if objective is not None:
         if args.method not in ("auto", "trajopt", "mpc"):
@@ -365,8 +357,6 @@ def _stage_options(args, model) -> tuple:
 
 def _swing_up(args, model, options, x0, plan_model):
     """The swing-up (:func:`cartpole.apps.swingup.run_swingup`) with the command's progress stages and live view."""
-    from cartpole.apps.swingup import METHOD_CLASSES, run_swingup
-
     duration = options.loop.duration
     default = METHOD_CLASSES[args.method].duration if args.method in ("energy", "mpc") else None
     sizes = {"simulate": f"{duration:g} s"} if duration is not None else (
@@ -386,11 +376,6 @@ def _swing_up(args, model, options, x0, plan_model):
 def _write_files(args, ran, model) -> dict:
     """The swing-up figure, the estimation figure (with an estimator) and the video (unless ``--no-video``):
     ``{"figure": Path, "estimation_figure": str or None, "video": video or None, "viewer": viewer}``."""
-    from pathlib import Path
-
-    from cartpole.progress import stage
-    from cartpole.viz import plot_swingup
-
     res, viewer = ran
     params, out, method = model.params, Path(args.out), res.method
     marks = _marks(res)
@@ -403,14 +388,11 @@ def _write_files(args, ran, model) -> dict:
                        caught_at=res.caught_at, handover_at=res.handover_at, model=model, marks=marks, title=title)
     est_fig = None
     if res.metrics.get("estimation"):
-        from cartpole.viz.estimation_plot import plot_estimation
-
         est_fig = str(plot_estimation(res.rollout, params, out / "figures" / f"swingup_{method}_estimation.png",
                                       title=f"Swing-up ({method}): {res.metrics['estimation']['estimator']} "
                                             "estimate against MuJoCo").resolve())
     video = None
     if not args.no_video:
-        from cartpole.viz import VideoUnavailable, render_video, swingup_modes
         seconds = float(res.rollout.t[-1])
         try:
             with stage("video", size=f"{seconds:g} s at 30 fps") as tick:
@@ -423,8 +405,6 @@ def _write_files(args, ran, model) -> dict:
 
 def swingup_document(args, ran, model, options, plan_model, files: dict) -> dict:
     """The JSON document of a swing-up (the fixed contract of ``cartpole swingup --json``, extended)."""
-    from pathlib import Path
-
     res, viewer = ran
     params, m, method = model.params, res.metrics, res.method
     video = files["video"]
@@ -522,8 +502,6 @@ def _print_outcome(doc: dict, ran, model, x0, plan_model) -> None:
 def _print_details(doc: dict, ran, files: dict) -> None:
     """The prose lines of the details: ctrl and cart, the rig, friction, estimation, the ctrl-noise design, the
     basin, the NMPC's solve times, the plan, a dm_control return, the live view and the files."""
-    from cartpole.commands._rig import friction_sentence
-
     res, viewer = ran
     m = res.metrics
     print(f"Peak |ctrl|: {m['peak_ctrl']:.3f}; cart range used: [{m['cart_min']:.3f}, {m['cart_max']:.3f}] m "

@@ -65,7 +65,9 @@ from cartpole.estimation.mhe_functions import (
     window_functions,
 )
 from cartpole.estimation.measurement import positions_initial_state
+from cartpole.estimation.mhe_baseline import time_ipopt_window
 from cartpole.estimation.noise import process_covariance
+from cartpole.models import SHIPPED_MJCF, build_model, steps_per_period
 
 #: Periods in the window when none is given.
 DEFAULT_HORIZON = 10
@@ -392,9 +394,8 @@ class MovingHorizonEstimator(SampledEstimator):
         if b.size:
             X[:, b] = np.clip(X[:, b], self._lo, self._hi)  # DAQP's tolerance, not more
 
-def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int = 500, dt: float | None = None,
-              accel_std: float = 1.0, seed: int = 0, compiled: bool = True, repeats: int = 1, python: int = 0,
-              baseline: int = 0) -> dict:
+def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int = 500, accel_std: float = 1.0,
+              seed: int = 0, compiled: bool = True, repeats: int = 1, python: int = 0, baseline: int = 0) -> dict:
     """Time the MHE's ``update`` on a swinging cart measured by its encoders (the benchmark's entry).
 
     The truth is the exact discrete model (:attr:`cartpole.models.HoldModel.step_inputs`) from hanging rest under a
@@ -405,15 +406,13 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
     Parameters
     ----------
     model : CartPoleModel, optional
-        Default the shipped one-pole cart.
+        Default the shipped one-pole cart (another physics step: ``model.rebuilt(dt=...)``).
     horizon : float
         Window in s (a whole number of periods).
     period : float
         Control period in s (a whole number of physics steps).
     n : int
         ``update`` calls timed in each run.
-    dt : float, optional
-        Physics step in s to rebuild the model with (e.g. 0.002); default the model's own.
     accel_std : float
         The estimator's process noise, m/s^2 and rad/s^2.
     seed : int
@@ -440,39 +439,11 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
         the timed estimator's estimates}; with ``baseline``: ``ipopt`` (:func:`~cartpole.estimation.mhe_baseline.
         time_ipopt_window`) and ``speedup`` (its median over ``step_ms_median``).
     """
-    from cartpole.models import SHIPPED_MJCF, build_model, steps_per_period
-
     model = build_model(SHIPPED_MJCF) if model is None else model
-    if dt is not None:
-        model = model.rebuilt(dt=dt)
     m = steps_per_period(period, model.dt)
     N = horizon_periods(horizon, period)
-    nq, nx, nu = model.nq, model.nx, model.nu
-    xs = ca.SX.sym("x", nx)
-    h = ca.Function("encoders", [xs, ca.SX.sym("u", nu)], [xs[:nq]])
-    quantum = np.array([5e-4 if j in model.slides else 2 * np.pi / 4096 for j in range(nq)])
-    noise = np.array([1e-3] * nq)
-    V = np.diag(noise ** 2 + quantum ** 2 / 12)
-    rng = np.random.default_rng(seed)
-    hold = model.hold(m)
-    A, _ = model.AB(model.x_hanging, model.u_hanging)
-    w = float(np.abs(np.linalg.eigvals(np.asarray(A)).imag).max()) or 5.0
-    amp = 0.5 * np.asarray(model.params.ctrl_range)[:, 1].clip(max=1.0)
-    cart = model.slide
-    x = np.array(model.x_hanging, dtype=float)
-    X, Us = [x], []
-    for k in range(int(n)):
-        U = np.zeros((nu, m))
-        for i in range(m):
-            t = (k * m + i) * model.dt
-            U[:, i] = amp * np.sin(w * t)
-            if cart is not None:
-                U[:, i] -= 0.5 * x[cart] + 0.5 * x[nq + cart]
-        x = np.asarray(hold.step_inputs(x, U)).ravel()
-        X.append(x)
-        Us.append(U)
-    X = np.array(X)
-    Y = np.round((X[:, :nq] + noise * rng.standard_normal((len(X), nq))) / quantum) * quantum
+    nu = model.nu
+    X, Us, Y, h, V = _bench_truth(model, m, int(n), seed)
     est = MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, horizon=N, compiled=compiled)
     medians, samples = [], []
     for run in range(max(1, int(repeats))):
@@ -496,20 +467,56 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
            "horizon": float(horizon), "compiled": est.library is not None, "c_step": est.c is not None,
            "rms_error": np.sqrt(np.mean(err ** 2, axis=0)).tolist()}
     if python:
-        ref = MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, horizon=N, compiled=compiled,
-                                     c_step=False)
-        ref.reset(Y[0])
-        k_py = min(int(python), int(n))
-        times = []
-        for k in range(k_py):
-            t0 = time.perf_counter()
-            xp = ref.update(Y[k + 1], Us[k])
-            times.append(time.perf_counter() - t0)
-        out["python"] = {"step_ms_median": float(np.median(1e3 * np.array(times))), "n": k_py,
-                         "max_diff": float(np.abs(xp - Xh[k_py - 1]).max())}
+        out["python"] = _time_python_step(MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, horizon=N,
+                                                                 compiled=compiled, c_step=False),
+                                          Y, Us, Xh, min(int(python), int(n)))
     if samples:
-        from cartpole.estimation.mhe_baseline import time_ipopt_window
-
         out["ipopt"] = time_ipopt_window(est, model, h, samples)
         out["speedup"] = out["ipopt"]["step_ms_median"] / out["step_ms_median"]
     return out
+
+
+def _bench_truth(model, m: int, n: int, seed: int) -> tuple:
+    """``(X, Us, Y, h, V)`` of :func:`bench_mhe`: ``n + 1`` true states (the exact discrete model over periods of
+    ``m`` steps, from hanging rest under a sinusoid at the hanging pole's frequency, the cart weakly centred), the
+    ``n`` periods' inputs ``(nu, m)``, the encoders' readings, the measurement function and its covariance."""
+    nq, nx, nu = model.nq, model.nx, model.nu
+    xs = ca.SX.sym("x", nx)
+    h = ca.Function("encoders", [xs, ca.SX.sym("u", nu)], [xs[:nq]])
+    quantum = np.array([5e-4 if j in model.slides else 2 * np.pi / 4096 for j in range(nq)])
+    noise = np.array([1e-3] * nq)
+    V = np.diag(noise ** 2 + quantum ** 2 / 12)
+    rng = np.random.default_rng(seed)
+    hold = model.hold(m)
+    A, _ = model.AB(model.x_hanging, model.u_hanging)
+    w = float(np.abs(np.linalg.eigvals(np.asarray(A)).imag).max()) or 5.0
+    amp = 0.5 * np.asarray(model.params.ctrl_range)[:, 1].clip(max=1.0)
+    cart = model.slide
+    x = np.array(model.x_hanging, dtype=float)
+    X, Us = [x], []
+    for k in range(n):
+        U = np.zeros((nu, m))
+        for i in range(m):
+            t = (k * m + i) * model.dt
+            U[:, i] = amp * np.sin(w * t)
+            if cart is not None:
+                U[:, i] -= 0.5 * x[cart] + 0.5 * x[nq + cart]
+        x = np.asarray(hold.step_inputs(x, U)).ravel()
+        X.append(x)
+        Us.append(U)
+    X = np.array(X)
+    Y = np.round((X[:, :nq] + noise * rng.standard_normal((len(X), nq))) / quantum) * quantum
+    return X, Us, Y, h, V
+
+
+def _time_python_step(ref, Y, Us, Xh, count: int) -> dict:
+    """``{step_ms_median, n, max_diff}``: ``count`` updates of the reference estimator ``ref`` (the Python step)
+    timed, and its largest difference from the timed estimator's estimates ``Xh``."""
+    ref.reset(Y[0])
+    times = []
+    for k in range(count):
+        t0 = time.perf_counter()
+        xp = ref.update(Y[k + 1], Us[k])
+        times.append(time.perf_counter() - t0)
+    return {"step_ms_median": float(np.median(1e3 * np.array(times))), "n": count,
+            "max_diff": float(np.abs(xp - Xh[count - 1]).max())}

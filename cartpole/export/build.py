@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cartpole.codegen import compiler
+from cartpole.codegen import build_sources, compiler
 from cartpole.export.estimators import ExportError
 
 #: What every export must compile under (warnings are errors).
@@ -98,8 +98,6 @@ def program_library(files: dict, *, extra=()) -> str:
     ExportError
         No C compiler, or the C does not compile.
     """
-    from cartpole.codegen import build_sources
-
     find_compiler()
     c_files = {rel: text for rel, text in files.items() if rel.startswith(("include/", "src/"))}
     try:

@@ -24,7 +24,7 @@ def _options() -> set:
 
 def test_every_mapped_option_is_an_option_of_the_command_line():
     options = _options()
-    missing = sorted(v for v in FLAGS.values() if v.split()[0] not in options)
+    missing = sorted(o for v in FLAGS.values() for o in v.split(", ") if o.split()[0] not in options)
     assert not missing, missing
 
 
