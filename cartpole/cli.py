@@ -30,6 +30,7 @@ COMMANDS = (
     "excite",
     "identify",
     "export",
+    "library",
 )
 
 

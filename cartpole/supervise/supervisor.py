@@ -88,6 +88,11 @@ class SupervisorOptions(StageOptions):
         s: a state the brake has not calmed (some hinge still faster than ``calm_rate``) after this long is planned
         from as it is (the planner's own budget bounds the try), a ``calm_timeout`` decision saying so; braking
         starts again after a failed plan.
+    exact_plans : bool
+        Re-solve each plan on the exact discrete model when TVLQR's predicted tracking strays
+        (``PlanOptions.exact_discrete="auto"``). Default False: TVLQR tracks the collocation plan and absorbs the
+        difference; the re-solve took two thirds of each acrobot plan (minutes on a shared machine) without
+        converging.
     """
 
     plan_budget: float = 30.0
@@ -99,6 +104,7 @@ class SupervisorOptions(StageOptions):
     brake_time: float = 0.15
     calm_budget: float = 10.0
     charged_latency: float | None = None
+    exact_plans: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -110,6 +116,8 @@ class SupervisorOptions(StageOptions):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
         self.number("charged_latency", low=0.0, unit="s", optional=True)
+        if not isinstance(self.exact_plans, bool):
+            raise SupervisorError(f"exact_plans = {self.exact_plans!r} must be True or False.")
 
 
 @dataclass(frozen=True)
@@ -426,7 +434,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         check_single_pole(model)
     except EnergyShapingModelError:
         plan_opts = PlanOptions() if plan is None else plan
-        plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
+        plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget),  # bounded planning
+                                      exact_discrete="auto" if opts.exact_plans else False)
 
         def planner(x0, guess=None):
             return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period, guess=guess)

@@ -15,8 +15,8 @@ from the run's own plans (:mod:`cartpole.planning.library`). The acrobot is skip
 import numpy as np
 import pytest
 
-from cartpole.models import build_model, read_params
-from cartpole.sim import Knockdown, replays_exactly, simulate
+from cartpole.models import build_model, read_params, wrap_angle
+from cartpole.sim import UPRIGHT_BAND, Knockdown, Throw, replays_exactly, simulate
 from cartpole.supervise import SupervisorOptions, supervisor_for
 from cartpole.validation import uptime_metrics
 
@@ -53,6 +53,35 @@ def test_one_pole_recovers_from_every_knockdown_for_a_minute():
     params, model, sup, run, m = _knockdown_run("cartpole/assets/cartpole.xml")
     _assert_recovers_every_time(params, model, sup, run, m)
     assert sup.plans == 0  # the energy law swings up from anywhere: no plan needed
+
+
+def test_one_pole_thrown_at_random_times_even_mid_swingup_swings_up_again():
+    """The benchmark's form: the state thrown (every hinge rate changed by up to 15 rad/s at once) at random times,
+    whatever the controller is doing; some throws land while it is still swinging up."""
+    params = read_params("cartpole/assets/cartpole.xml")
+    model = build_model(params)
+    sup = supervisor_for(params, model, options=SupervisorOptions(charged_latency=LATENCY))
+    throw = Throw(2.0, max_rate=15.0, seed=3).start(params, x_eq=model.x_eq, hinges=model.hinges,
+                                                     timestep=params.timestep)
+    duration = 30.0
+    run = simulate(params, sup, np.asarray(model.x_hanging, float), duration, disturbance=throw)
+    m = uptime_metrics(run, model, events=throw.events, duration=duration)
+    assert replays_exactly(run, params) and not run.info.get("diverged", False)
+    up = _upright_at(run, model)
+    mid = [a for a, _ in throw.events if not up[np.searchsorted(run.t, a)]]
+    assert m["knockdowns"] >= 8 and len(mid) >= 1, (m, mid)  # thrown often, at least once while not upright
+    # a throw within one swing-up of the next may be overtaken by it; every other throw is followed by a swing-up
+    T1 = m["swingup_times"][0]
+    starts = [a for a, _ in throw.events] + [duration]
+    for late in m["unrecovered_at"]:
+        assert starts[starts.index(late) + 1] - late < 2 * T1 + 1.0, (late, m)
+    assert m["uptime"] > 0.0 and [d.kind for d in sup.decisions].count("catch") >= m["recoveries"]
+
+
+def _upright_at(run, model) -> np.ndarray:
+    """Whether every hinge is within the upright band at each logged step."""
+    q = np.asarray(run.qpos, float)[:, list(model.hinges)]
+    return np.all(np.abs(wrap_angle(q - np.asarray(model.x_eq)[list(model.hinges)])) < UPRIGHT_BAND, axis=1)
 
 
 #: Why the acrobot's minute is not run: measured on the shared 2-core machine, its cold plan from hanging took 280 s of
