@@ -84,16 +84,17 @@ def _upright_at(run, model) -> np.ndarray:
     return np.all(np.abs(wrap_angle(q - np.asarray(model.x_eq)[list(model.hinges)])) < UPRIGHT_BAND, axis=1)
 
 
-#: Why the acrobot's minute is not run: measured on the shared 2-core machine, its cold plan from hanging took 280 s of
-#: wall time and a plan warm-started from the library (the search skipped, the warm stage converged) still 293 s; every
-#: plan is over the supervisor's 30 s plan budget, so in 29 min of wall time (5.8 min of CPU) the run never swung up
-#: once (uptime 0, no knockdown). Profiled (cold, from hanging, 702 s under the profiler): the exact-discrete re-solve
-#: (``exact_discrete_plan``, tried with the ctrl margin and without) 482 s, both calls failing to converge, so TVLQR
-#: tracked the collocation plan anyway; the pumping search 168 s. Not a claim to shorten: that re-solve is what must
-#: get bounded (or skipped for the supervisor's plans) first.
-ACROBOT_NOT_YET = ("the acrobot's plans take about 5 min each on a shared machine (cold 280 s, warm 293 s; the "
-                   "exact-discrete re-solve, which does not converge, is 2/3 of it), over the supervisor's 30 s "
-                   "budget: no swing-up in 60 s yet")
+#: Why the acrobot's minute is not run. Measured on the shared 2-core machine (load 10-12): the supervisor's plans now
+#: skip the exact-discrete re-solve (``SupervisorOptions.exact_plans=False``), so a plan warm-started from the library
+#: takes 2-13 s of wall time instead of about 5 min (a cold plan from hanging, no re-solve: 277 s, 55 s of CPU). But
+#: TVLQR does not hold the acrobot on that plan: the plan is 15 s of pumping on a 100-interval mesh (0.15 s a
+#: interval) and, tracked in MuJoCo from hanging, leaves the 0.6 rad funnel after 5.9 s every time; in a 60 s
+#: knocked-down run (plans charged 2 s, the stored plan from hanging in the library) it re-planned 13 times, warm,
+#: and never swung up (uptime 0). A finer mesh (N=300) did not finish a warm plan in 15 min of wall time; DDP on the
+#: exact discrete step from the stored plan converged from hanging (194 s, 3517 iterations) but not from starts
+#: 0.2-0.3 rad away (line search, 30-160 s). What it needs: a plan TVLQR can hold on the acrobot, made in seconds.
+ACROBOT_NOT_YET = ("TVLQR does not hold the acrobot on its 15 s collocation plan (lost after 5.9 s in MuJoCo, every "
+                   "re-plan too); plans on the exact step (re-solve, DDP) take minutes: no swing-up in 60 s yet")
 
 
 @pytest.mark.slow
