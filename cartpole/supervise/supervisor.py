@@ -476,8 +476,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     plan : PlanOptions, optional
         The planner's settings (default :class:`~cartpole.planning.options.PlanOptions`).
     options : SupervisorOptions, optional
-        Default ``SupervisorOptions()``, re-planning every :data:`HINGE_REPLAN_EVERY` s while tracking on a model
-        driven at a hinge (the acrobot).
+        Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) re-planning every
+        :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``).
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -501,7 +501,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     rho = basin.rho
     opts = SupervisorOptions() if options is None else options
     if options is None and all(int(j) in model.hinges for j in model.params.actuated):
-        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY)  # driven at a hinge (the acrobot): re-plan as it goes
+        # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve
+        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
     try:
