@@ -38,6 +38,7 @@ COMMANDS = (
     "identify",
     "export",
     "score",
+    "library",
 )
 
 

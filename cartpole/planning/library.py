@@ -78,6 +78,16 @@ def shifted_onto(model: CartPoleModel, traj: Trajectory, x0) -> Trajectory:
                       x_mid=None if traj.x_mid is None else traj.x_mid + shift, u_mid=traj.u_mid)
 
 
+def trajectory_tail(traj: Trajectory, tau: float) -> Trajectory:
+    """The rest of ``traj`` from ``tau`` s after its start: its knots from the first at or after ``t[0] + tau`` (at
+    least the last two intervals kept), time from 0. A re-plan's warm start while the plan is tracked."""
+    k = int(np.searchsorted(traj.t, float(traj.t[0]) + float(tau) - 1e-12))
+    k = max(0, min(k, len(traj.t) - 3))
+    return Trajectory(t=traj.t[k:] - traj.t[k], x=traj.x[k:], u=traj.u[k:], xdot=traj.xdot[k:],
+                      x_mid=None if traj.x_mid is None else traj.x_mid[k:],
+                      u_mid=None if traj.u_mid is None else traj.u_mid[k:])
+
+
 @dataclass(frozen=True)
 class PlanLibrary:
     """Stored swing-up plans of one model, the nearest handed out as a warm start.

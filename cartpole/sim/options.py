@@ -163,8 +163,9 @@ class LoopOptions(StageOptions):
     knockdown : Knockdown or str or None
         Knock the poles down each time they have been upright for a while (:class:`cartpole.sim.disturbance.
         Knockdown`, or its ``"AFTER:LENGTH[:SEED]"`` text); None: never.
-    throw : Throw or None
-        Throw the state at random times whatever it is doing (:class:`cartpole.sim.disturbance.Throw`); None: never.
+    throw : Throw or str or None
+        Throw the state at random times whatever it is doing (:class:`cartpole.sim.disturbance.Throw`, or its
+        ``"EVERY[:RATE[:SEED]]"`` text); None: never.
 
     Raises
     ------
@@ -224,8 +225,11 @@ class LoopOptions(StageOptions):
         self.set_field("friction_compensation", bool(self.friction_compensation))
         if self.knockdown is not None and not isinstance(self.knockdown, Knockdown):
             self.set_field("knockdown", Knockdown.parse(self.knockdown))
+        if isinstance(self.throw, str):
+            self.set_field("throw", Throw.parse(self.throw))
         if self.throw is not None and not isinstance(self.throw, Throw):
-            raise LoopError(f"LoopOptions.throw must be a cartpole.sim.disturbance.Throw; got {self.throw!r}.")
+            raise LoopError(f"LoopOptions.throw must be a cartpole.sim.disturbance.Throw or its text "
+                            f"'EVERY[:RATE[:SEED]]'; got {self.throw!r}.")
 
     @property
     def sensed(self) -> bool:

@@ -19,7 +19,9 @@
   where its clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes
   more than ``plan_budget`` s, is logged and retried after ``retry_after`` s of braking.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
-  ``funnel`` rad from the plan means the plan is lost: plan again.
+  ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
+  from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
+  until the new one is ready (a receding horizon, for plans TVLQR alone does not hold to their end).
 
 Every decision is kept (:attr:`Supervisor.decisions`: time, kind, details) for the run's JSON.
 """
@@ -39,7 +41,7 @@ from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, Plant, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
-from cartpole.planning.library import PlanLibrary
+from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
@@ -50,6 +52,10 @@ from cartpole.validation import BasinCache
 #: of the plan's start (and every angle within half the funnel): the brake holds a calm state while the plan is made,
 #: so a late plan is usually still right; else it is tracked from where its clock has got to.
 RESTART_RATE = 1.0
+#: s: how often :func:`supervisor_for` has a model driven at a hinge (the acrobot) re-plan while tracking
+#: (``SupervisorOptions.replan_every``): TVLQR alone loses its long pumping plans part way, re-planned every 2 s from
+#: the rest of the plan it swings up.
+HINGE_REPLAN_EVERY = 2.0
 
 
 class SupervisorError(OptionsError):
@@ -88,6 +94,19 @@ class SupervisorOptions(StageOptions):
         s: a state the brake has not calmed (some hinge still faster than ``calm_rate``) after this long is planned
         from as it is (the planner's own budget bounds the try), a ``calm_timeout`` decision saying so; braking
         starts again after a failed plan.
+    exact_plans : bool
+        Re-solve a plan on the exact discrete model as the plan options say (True, default: their
+        ``exact_discrete``, "auto" unless given), or never (False: TVLQR tracks the collocation plan and absorbs the
+        difference). On the two-pole cart the re-solve is worth its time (60 s of knockdowns: uptime 0.32 with it,
+        0.27 without); on the acrobot it was two thirds of each plan (minutes) without converging, and without it
+        TVLQR does not hold the acrobot on its plan either.
+    replan_every : float or None
+        s: while a plan is tracked, every this long a new plan is made from the state predicted ``latency`` s ahead
+        under the plan's own TVLQR, warm-started from the rest of the plan being tracked (its remaining duration:
+        the horizon shrinks, the mesh grows finer), and the old plan is tracked until the new one is ready; a re-plan
+        that fails is logged (``replan_failed``) and the old plan kept. None (default): never, a plan is tracked to
+        its end (:func:`supervisor_for` sets 2 s for a model driven at a hinge, the acrobot: TVLQR alone does not
+        hold its long pumping plans).
     """
 
     plan_budget: float = 30.0
@@ -99,6 +118,8 @@ class SupervisorOptions(StageOptions):
     brake_time: float = 0.15
     calm_budget: float = 10.0
     charged_latency: float | None = None
+    exact_plans: bool = True
+    replan_every: float | None = None
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -110,6 +131,9 @@ class SupervisorOptions(StageOptions):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
         self.number("charged_latency", low=0.0, unit="s", optional=True)
+        self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
+        if not isinstance(self.exact_plans, bool):
+            raise SupervisorError(f"exact_plans = {self.exact_plans!r} must be True or False.")
 
 
 @dataclass(frozen=True)
@@ -239,6 +263,8 @@ class Supervisor:
         self.failures = 0
         self.warm_plans = 0
         self.fast_since = None
+        self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
+        self.replan_at = np.inf
 
     @property
     def latency(self) -> float:
@@ -280,6 +306,7 @@ class Supervisor:
     def _request_plan(self, t: float, x) -> None:
         """Plan from the state predicted ``latency`` s ahead under the brake; the plan is used from ``t + W``."""
         lat = self.latency
+        self.pending = None
         steps = max(1, int(round(lat / self.model.dt)))
         xs, _ = model_rollout(self.model, self.brake, x, steps, t0=t)
         x_pred = xs[-1]
@@ -318,6 +345,55 @@ class Supervisor:
                      **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
 
+    def _receding(self, t: float, x) -> None:
+        """While tracking: take the re-plan made earlier once it is ready, else make one when it is due
+        (``replan_every``) and the plan has more than that and the latency left."""
+        if self.pending is not None and t >= self.pending[2] - 1e-12:
+            self.plan, self.plan_t0 = self.pending[0], self.pending[1]
+            self.pending = None
+            self._decide(t, "track", replanned=True, late_s=max(0.0, t - self.plan_t0))
+            return
+        left = self.plan.trajectory.duration - (t - self.plan_t0)
+        if self.pending is None and t >= self.replan_at and left > self.options.replan_every + self.latency:
+            self._request_replan(t, x)
+
+    def _request_replan(self, t: float, x) -> None:
+        """A plan from the state predicted ``latency`` s ahead under the tracked plan's TVLQR, warm-started from the
+        rest of that plan (:func:`~cartpole.planning.library.trajectory_tail`); used from ``t + W``, the tracked plan
+        meanwhile."""
+        lat = self.latency
+        steps = max(1, int(round(lat / self.model.dt)))
+        plan, t_plan = self.plan, self.plan_t0
+        xs, _ = model_rollout(self.model, lambda tt, xx: plan.controller(tt - t_plan, xx), x, steps, t0=t,
+                              u_limits=self.catch.u_limits)
+        x_pred, t0 = xs[-1], t + steps * self.model.dt
+        self.replan_at = t + self.options.replan_every
+        self.plans += 1
+        start = time.perf_counter()
+        try:
+            if not np.all(np.isfinite(x_pred)):
+                raise CartPoleError("the prediction over the planning latency is not finite")
+            new = self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan))
+            why = None
+        except CartPoleError as exc:
+            new, why = None, str(exc)
+        wall = time.perf_counter() - start
+        self.plan_seconds.append(wall)
+        charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
+        if new is not None and wall > self.options.plan_budget:
+            new, why = None, f"the plan took {wall:.1f} s, over the budget of {self.options.plan_budget:g} s"
+        if new is None:
+            self.failures += 1
+            self._decide(t, "replan_failed", wall_s=wall, charged_s=charged, reason=why)
+            return
+        warm = _warm(new)
+        self.warm_plans += int(warm)
+        if self.library is not None:
+            self.library = self.library.with_plan(x_pred, new.trajectory, wall)
+        self.pending = (new, t0, max(t + charged, t0))
+        self._decide(t, "replan", wall_s=wall, charged_s=charged, predicted_latency_s=lat,
+                     T=float(new.trajectory.duration), warm=warm)
+
     def __call__(self, t: float, x) -> np.ndarray:
         """ctrl (nu,) at time ``t`` (s) for state ``x`` (nx,)."""
         t = float(t)
@@ -335,12 +411,14 @@ class Supervisor:
             if restart:  # still where the plan starts (the brake holds a calm state): the plan from its start
                 self.plan_t0 = t
             self._set(t, "track", late_s=late, restarted=restart)
+            self.replan_at = t + (np.inf if self.options.replan_every is None else self.options.replan_every)
         if self.mode == "track":
             over = t - self.plan_t0 >= self.plan.trajectory.duration
             if over and cost < self.options.release_factor * self.rho:  # the plan's end: the catch takes it
                 self._set(t, "catch", cost=cost)
                 return self.catch(t, x)
             if not over and not self._lost(t, x):
+                self._receding(t, x)
                 return self.plan.controller(t - self.plan_t0, x)
             self._decide(t, "lost", cost=cost)
             self.mode = "brake"
@@ -398,6 +476,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     plan : PlanOptions, optional
         The planner's settings (default :class:`~cartpole.planning.options.PlanOptions`).
     options : SupervisorOptions, optional
+        Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) re-planning every
+        :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``).
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -423,6 +503,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         basin = basin_of(catch)
     rho = basin.rho
     opts = SupervisorOptions() if options is None else options
+    if options is None and all(int(j) in model.hinges for j in model.params.actuated):
+        # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve
+        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
     try:
@@ -430,6 +513,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     except EnergyShapingModelError:
         plan_opts = PlanOptions() if plan is None else plan
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
+        if not opts.exact_plans:
+            plan_opts = plan_opts.replace(exact_discrete=False)
 
         def planner(x0, guess=None):
             return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,

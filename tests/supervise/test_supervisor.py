@@ -191,3 +191,59 @@ def test_a_plan_that_comes_early_waits_for_the_state_it_was_planned_from(double,
     assert sup.mode == "wait"  # arrived, but its start is 0.3 s
     sup(0.3, x)
     assert sup.mode == "track" and sup.decisions[-1].detail["late_s"] == 0.0
+
+
+@pytest.mark.parametrize("exact_plans, given, expected", [(False, "auto", False), (True, "auto", "auto"),
+                                                          (True, False, False)])
+def test_the_supervisors_plans_skip_the_exact_discrete_resolve_only_when_told(double, monkeypatch, exact_plans, given,
+                                                                               expected):
+    from cartpole.planning.options import PlanOptions
+
+    params, model, catch, brake = double
+    seen = []
+    monkeypatch.setattr("cartpole.supervise.supervisor.trajopt_swingup",
+                        lambda *a, options=None, **k: seen.append(options) or _stub_plan(model, 1.0, model.x_eq))
+    sup = supervisor_for(params, model, plan=PlanOptions(exact_discrete=given),
+                         options=SupervisorOptions(exact_plans=exact_plans),
+                         basin_of=lambda c: SimpleNamespace(rho=1e-9))
+    sup.planner(np.asarray(model.x_hanging, float))
+    assert seen[0].exact_discrete == expected and seen[0].search_s <= SupervisorOptions().plan_budget
+    with pytest.raises(SupervisorError, match="exact_plans"):
+        SupervisorOptions(exact_plans="no")
+
+
+def test_while_tracking_it_replans_from_the_rest_of_the_plan_and_keeps_the_old_one_until_the_new_is_ready(double):
+    params, model, catch, brake = double
+    x_up = np.asarray(model.x_eq, float)
+    guesses = []
+
+    def planner(x0, guess=None):
+        guesses.append(guess)
+        t = np.linspace(0.0, 10.0 if guess is None else guess.duration, 101)
+        x = np.tile(x_up, (t.size, 1))
+        traj = Trajectory(t=t, x=x, u=np.tile(np.asarray(model.u_eq, float), (t.size, 1)), xdot=np.zeros_like(x))
+        return SimpleNamespace(trajectory=traj, controller=lambda t, x: np.asarray(model.u_eq, float))
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                     options=SupervisorOptions(charged_latency=0.5, funnel=10.0, replan_every=2.0))
+    steps = int(round(6.0 / model.dt))
+    x_hang = np.asarray(model.x_hanging, float)  # far from the catch's basin, slow, inside the 10 rad funnel
+    for k in range(steps):
+        sup(k * model.dt, x_hang)
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds[:2] == ["plan", "track"] and kinds.count("replan") >= 2, kinds
+    first = next(d for d in sup.decisions if d.kind == "replan")
+    swap = next(d for d in sup.decisions if d.kind == "track" and d.detail.get("replanned"))
+    assert swap.t >= first.t + 0.5 - 1e-9  # the new plan only once its charged latency has passed
+    # each re-plan started from the rest of the plan tracked: a guess shorter by the time already tracked
+    assert guesses[0] is None and guesses[1].duration < 10.0 - 2.0 and guesses[2].duration < guesses[1].duration
+
+
+def test_trajectory_tail_is_the_rest_of_a_plan_from_zero():
+    from cartpole.planning.library import trajectory_tail
+
+    t = np.linspace(0.0, 2.0, 21)
+    x = np.column_stack([t, t ** 2])
+    traj = Trajectory(t=t, x=x, u=t[:, None], xdot=np.column_stack([np.ones_like(t), 2 * t]))
+    tail = trajectory_tail(traj, 0.5)
+    assert tail.t[0] == 0.0 and tail.duration == pytest.approx(1.5) and np.allclose(tail.x[0], [0.5, 0.25])
+    assert trajectory_tail(traj, 5.0).t.size == 3  # never less than the last two intervals
