@@ -52,7 +52,7 @@ model = cp.build_model(params)
 # (`rollout.info["qfrc_applied"]`), so the run replays exactly from its logged ctrl.
 
 # %%
-res = cp.run_swingup(params, method="supervisor", loop=cp.LoopOptions(duration=DURATION, knockdown="3:0.3:1"))
+res = cp.run_swingup(params, "supervisor", cp.SwingupOptions(loop=cp.LoopOptions(duration=DURATION, knockdown="3:0.3:1")))
 m = res.metrics
 print(f"uptime {m['uptime']:.3f} (band {m['upright_band']} rad), {m['knockdowns']} knockdowns, "
       f"{m['swingups']} swing-ups, {m['recoveries']} knockdowns followed by a swing-up")
@@ -88,7 +88,7 @@ print([(round(d["t"], 2), d["kind"]) for d in decisions[:8]])
 # state to swing up from.
 
 # %%
-thrown = cp.run_swingup(params, method="supervisor", loop=cp.LoopOptions(duration=DURATION, throw="2:15:3"))
+thrown = cp.run_swingup(params, "supervisor", cp.SwingupOptions(loop=cp.LoopOptions(duration=DURATION, throw="2:15:3")))
 mt = thrown.metrics
 up = np.abs(np.angle(np.exp(1j * (np.asarray(thrown.rollout.qpos)[:, model.hinges[0]]
                                   - model.x_eq[model.hinges[0]])))) < mt["upright_band"]
@@ -109,7 +109,7 @@ assert cp.replays_exactly(thrown.rollout, params) and mt["swingups"] >= 2
 # %%
 if not QUICK:
     two = cp.read_params(files("cartpole") / "assets" / "cartpole_two_pole.xml")
-    chain = cp.run_swingup(two, method="supervisor", loop=cp.LoopOptions(duration=60.0, knockdown="3:0.3:1"))
+    chain = cp.run_swingup(two, "supervisor", cp.SwingupOptions(loop=cp.LoopOptions(duration=60.0, knockdown="3:0.3:1")))
     mc = chain.metrics
     print(f"two poles: uptime {mc['uptime']:.3f}, {mc['knockdowns']} knockdowns, {mc['recoveries']} recovered, "
           f"{mc['supervisor']['plans']} plans ({mc['supervisor']['warm_plans']} warm)")

@@ -3,6 +3,14 @@ model's hash), or say what is stored; the supervisor's and the planner's warm st
 (:mod:`cartpole.planning.library`)."""
 from __future__ import annotations
 
+import time
+from pathlib import Path
+
+from cartpole.codegen import model_key
+from cartpole.models import build_model, read_params
+from cartpole.planning.library import PlanLibrary, PlanLibraryError, build_plan_library, library_path, library_starts
+from cartpole.planning.options import PlanOptions
+
 HELP = ("build a library of swing-up plans from a grid of starts, stored with the model's hash (the supervisor's "
         "warm starts), or list the one stored")
 
@@ -32,14 +40,6 @@ def run(args) -> dict:
     ``starts`` (one object per stored plan: ``x0``, ``T`` s, ``plan_s`` wall time of its cold plan), ``build_s``
     (wall time of the build, s).
     """
-    import time
-    from pathlib import Path
-
-    from cartpole.models import build_model, read_params
-    from cartpole.planning.library import (PlanLibrary, PlanLibraryError, build_plan_library, library_path,
-                                          library_starts)
-    from cartpole.planning.options import PlanOptions
-
     if args.build is not None and not 1 <= args.build <= 64:
         raise PlanLibraryError(f"--build {args.build} must be a whole number of starts from 1 to 64; give e.g. --build 3.")
     if args.search_s is not None and not args.search_s > 0:
@@ -77,6 +77,4 @@ def run(args) -> dict:
 
 
 def _key(model) -> str:
-    from cartpole.codegen import model_key
-
     return model_key(model)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import cartpole.export.inloop as inloop
-from cartpole.apps.swingup import run_swingup
+from cartpole.apps.swingup import SwingupOptions, run_swingup
 from cartpole.codegen import compiler
 from cartpole.control.switching import SwitchingController
 from cartpole.control.tvlqr import TVLQRController
@@ -39,7 +39,7 @@ def _same_switches(a, b):
 
 @pytest.mark.parametrize("loop", [LoopOptions(), RIG], ids=["exact_state", "ekf_rig"])
 def test_the_energy_swingup_runs_the_compiled_program_and_reports_the_switches_the_c_made(monkeypatch, loop):
-    res = run_swingup(None, method="energy", loop=loop)
+    res = run_swingup(None, "energy", SwingupOptions(loop=loop))
     assert isinstance(res.controller, CompiledSwitching)  # the C ran, and its switch log is what is reported
     assert [s["mode"] for s in res.metrics["switches"]] == ["catch"] and res.caught_at is not None
     assert res.handover_at == res.metrics["switches"][-1]["t"] == res.controller.switches[-1].t
