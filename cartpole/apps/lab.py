@@ -47,7 +47,7 @@ from cartpole.export.inloop import in_loop
 from cartpole.models import (CartPoleModel, CartPoleParams, Plant, friction_treatment, linearize, plant_model,
                              state_error, steps_per_period, wrap_angle)
 from cartpole.progress import stage
-from cartpole.riccati import ONE_POLE, default_weights, lab_weights
+from cartpole.riccati import ONE_POLE, default_weights
 from cartpole.sim import simulate
 from cartpole.sim.options import LoopOptions
 from cartpole.sim.rig import build_rig
@@ -688,7 +688,7 @@ def lab_start_scale(plant=None) -> float:
     """The factor on the lab's five starts for this model: the largest of :data:`START_SCALES` (1, 1/2, ... 1/64)
     at which the ctrl limit keeps no start from settling under the lab's own LQR in :data:`LAB_DURATION` s.
 
-    The lab's own LQR is ``lqr(A, B, *lab_weights(model))`` at :func:`lab_equilibrium`, whatever weights a run asks
+    The lab's own LQR is ``lqr(A, B, *default_weights(model))`` at :func:`lab_equilibrium`, whatever weights a run asks
     for, so the factor is a property of the model (its masses, lengths and ctrl range). A start that does not settle
     fails for the ctrl limit when the ctrl saturated and the LQR's own linear closed loop would have settled it
     (:func:`why_not_settled`); a start the closed loop is too slow to settle in the run is no reason to shrink the
@@ -710,7 +710,7 @@ def lab_start_scale(plant=None) -> float:
 def _start_scale(mjcf=None) -> tuple:
     """``(scale, reason)`` of :func:`lab_start_scale` (``reason`` None at full size)."""
     model = plant_model(mjcf)
-    ctrl, mats, x_eq = _lab_controller(model, *lab_weights(model))
+    ctrl, mats, x_eq = _lab_controller(model, *default_weights(model))
     scale, _, reason = _search_scale(model, ctrl, ctrl, mats, x_eq)
     return scale, reason
 
@@ -726,10 +726,10 @@ def run_lab(plant: Plant = None, *, Q=None, R=None,
     plant : path, CartPoleParams, CartPoleModel or None
         Model to balance (default the shipped single-pole asset).
     Q : (nx, nx) array, optional
-        State weights (default :func:`~cartpole.riccati.lab_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
-        for one pole the lab's ``diag(1, 10, 0.1, 0.1)``, :data:`~cartpole.riccati.Q_LAB`).
+        State weights (default :func:`~cartpole.riccati.default_weights`: 1 per slide, 10 per hinge angle, 0.1 per rate;
+        for one pole the lab's ``diag(1, 10, 0.1, 0.1)``, :data:`Q_LAB`).
     R : (nu, nu) array or float, optional
-        ctrl weights (default 0.1 per input; the lab's :data:`~cartpole.riccati.R_LAB` for one).
+        ctrl weights (default 0.1 per input; the lab's :data:`R_LAB` for one).
     discrete : bool
         Design on the exact discrete model ``(Ad, Bd)`` at the MJCF's time step (``dlqr``) instead of ``(A, B)``.
     duration : float, s
@@ -769,7 +769,7 @@ def run_lab(plant: Plant = None, *, Q=None, R=None,
     rig = build_rig(known, loop, task="balance")
     model = plant
     steps = steps_per_period(None if loop is None else loop.period, model.dt)
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     # the design and loop lab_start_scale uses
     own = (Q is None and R is None and not discrete and duration == LAB_DURATION and rig is None
            and plan_model is None and not friction.compensated)

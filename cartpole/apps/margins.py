@@ -88,7 +88,7 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     ----------
     model : CartPoleModel
     Q, R : arrays, optional
-        LQR weights (default :func:`~cartpole.riccati.lab_weights`).
+        LQR weights (default :func:`~cartpole.riccati.default_weights`).
     discrete : bool
         Design with dlqr at the physics step (as ``cartpole lqr --discrete``).
     loop : LoopOptions, optional
@@ -107,7 +107,7 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     """
     from cartpole.apps.lab import lab_equilibrium
     from cartpole.control.linear import LinearFeedback
-    from cartpole.riccati import lab_weights
+    from cartpole.riccati import default_weights
     from cartpole.sim.options import LoopOptions
     from cartpole.sim.rig import delay_steps, estimator_factory
 
@@ -115,7 +115,7 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     h = float(model.dt)
     m = steps_per_period(loop.period, h)
     d = delay_steps(loop.delay, h)
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else Q
     R = R0 if R is None else R
     x_eq = lab_equilibrium(model)
@@ -406,7 +406,7 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
     ----------
     model : CartPoleModel
     Q : (nx, nx) array or None
-        State weights (default :func:`~cartpole.riccati.lab_weights`).
+        State weights (default :func:`~cartpole.riccati.default_weights`).
     R : (nu, nu) array, float or None
         ctrl weights to start from (default the lab's).
     loop : LoopOptions
@@ -432,7 +432,7 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
 
     from cartpole.apps.lab import lab_equilibrium
     from cartpole.control.linear import LinearFeedback
-    from cartpole.riccati import lab_weights
+    from cartpole.riccati import default_weights
 
     f = float(fraction)
     if not (math.isfinite(f) and 0 < f < 1):
@@ -441,7 +441,7 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
     if loop is None or not loop.sensed or loop.estimator_for("balance") == "none":
         raise AnalysisError("A ctrl noise limit needs sensors: with MuJoCo's exact state no noise reaches the ctrl; "
                             "give an estimator and encoders (e.g. --estimator kf --encoder-cpr 2048).")
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else np.asarray(Q, float)
     R = np.atleast_2d(np.asarray(R0 if R is None else R, float))
     R = R * np.eye(model.nu) if R.shape == (1, 1) and model.nu > 1 else R

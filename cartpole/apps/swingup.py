@@ -72,7 +72,7 @@ from cartpole.ocp.dmc import is_task, task
 from cartpole.options import StageOptions
 from cartpole.planning import trajopt
 from cartpole.planning.options import PLAN_SOLVERS, PlanOptions, PlanOptionsError
-from cartpole.riccati import lab_weights
+from cartpole.riccati import default_weights
 from cartpole.sim import Rollout, simulate
 from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
                                   check_push_times, push_force)
@@ -778,7 +778,7 @@ class TrajoptSwingup(SwingupMethod):
         dm_control task's episode) unless the loop says."""
         plan = self.plan_options()
         ctx.report("trajopt", 0.0)
-        R0 = lab_weights(ctx.pm)[1] if plan.R is None else plan.R
+        R0 = default_weights(ctx.pm)[1] if plan.R is None else plan.R
         steps = steps_per_period(ctx.loop.period, ctx.params.timestep)
         loop, R, noise = _sensor_design(ctx, lambda r: trajopt.handover_catch(ctx.params, ctx.pm, plan.Q, r,
                                                                               steps=steps).K, R0)

@@ -2,7 +2,7 @@
 
 For any model with ``nq`` joints (``nx = 2 nq`` states) and ``nu`` actuators. :meth:`LinearFeedback.for_model`
 is the one constructor of the upright LQR: LQR on the exact linearisation at the model's computed upright
-equilibrium ``(x_eq, u_eq)``, the default weight pattern (:func:`~cartpole.riccati.weights.lab_weights`), the
+equilibrium ``(x_eq, u_eq)``, the default weight pattern (:func:`~cartpole.riccati.weights.default_weights`), the
 model's hinges wrapped and its ctrl ranges as limits.
 """
 from __future__ import annotations
@@ -110,7 +110,7 @@ class LinearFeedback:
         plant : path, CartPoleParams or CartPoleModel
             Any number of joints and actuators (:func:`~cartpole.models.plant_model`).
         Q : (nx, nx) array, optional
-            State weight; default :func:`~cartpole.riccati.weights.lab_weights` (1 per slide, 10 per hinge, 0.1 per
+            State weight; default :func:`~cartpole.riccati.weights.default_weights` (1 per slide, 10 per hinge, 0.1 per
             rate).
         R : (nu, nu) array or float, optional
             Input weight on MuJoCo ctrl; default 0.1 per input (the swing-up's catch passes

@@ -35,7 +35,7 @@ import casadi as ca
 import numpy as np
 
 from cartpole.control.linear import LinearFeedback
-from cartpole.riccati import dlqr, lab_weights
+from cartpole.riccati import dlqr, default_weights
 from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
 from cartpole.mpc.nmpc import SAFE_LQR_ANGLE, NMPCError
 from cartpole.mpc.options import MPCOptions, mpc_grid
@@ -100,7 +100,7 @@ class DDPMPCController:
         self.model, self.params, self.steps, self.N = model, params, steps, N
         self.period, self.horizon = steps * dt, N * steps * dt
         self.iterations = int(options.iterations)
-        Q0, R0 = lab_weights(model)
+        Q0, R0 = default_weights(model)
         Q = Q0 if options.Q is None else np.asarray(options.Q, float)
         R = R0 if options.R is None else np.atleast_2d(np.asarray(options.R, float))
         held = model.hold(steps)

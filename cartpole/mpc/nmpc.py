@@ -11,7 +11,7 @@ steps), over ``N`` stages of one period each (``horizon = N period``), from the 
 
 with ``e_k = s_k - x*`` (hinge entries of ``x*`` moved by whole turns to the upright nearest the last node
 ``s_N``: the wrapped angle error, taken once per horizon so the cost stays smooth along it), stage weights
-``Q_s = Q period``, ``R_s = R period`` (``Q``, ``R`` default :func:`cartpole.riccati.lab_weights`) and the terminal
+``Q_s = Q period``, ``R_s = R period`` (``Q``, ``R`` default :func:`cartpole.riccati.default_weights`) and the terminal
 weight ``P`` the cost-to-go ``S`` of the discrete LQR of the same stage at the upright equilibrium (``dlqr(Ad, Bd,
 Q period, R period)`` on one period of the exact model): the LQR's infinite-horizon cost beyond the horizon. The
 rail is soft with one exact-penalty slack ``sigma`` (m or rad) shared by every bound (``rho_1`` = ``rail_penalty``,
@@ -64,7 +64,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
-from cartpole.riccati import dlqr, lab_weights
+from cartpole.riccati import dlqr, default_weights
 from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.codegen import Buffered
@@ -182,7 +182,7 @@ def mpc_problem(model: CartPoleModel, params: CartPoleParams, stages: StageFunct
     of the exact model at ``x_eq``, ``u_eq``, clipped to the ctrlranges, with ``S = P``.
     """
     nx, nu = model.nx, model.nu
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else _matrix("Q", Q, nx)
     R = R0 if R is None else _matrix("R", R, nu)
     if np.linalg.eigvalsh(Q).min() < -1e-12 or np.linalg.eigvalsh(R).min() <= 0:

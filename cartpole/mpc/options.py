@@ -86,7 +86,7 @@ class MPCOptions(StageOptions):
         :data:`RAIL_PENALTY`).
     Q, R : arrays or None
         Running weights per second on the state error (nx, nx) and on ``u - u*`` (nu, nu) (diagonals or scalars
-        accepted; read-only); None: :func:`cartpole.riccati.lab_weights`. Shapes are checked against the model.
+        accepted; read-only); None: :func:`cartpole.riccati.default_weights`. Shapes are checked against the model.
     qp_solver : {'daqp', 'qpoases'} or None
         The condensed QP's solver; None: DAQP when installed, else qpOASES.
     prestabilize : bool or None

@@ -29,7 +29,7 @@ import numpy as np
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.control.linear import LinearFeedback
-from cartpole.riccati import dlqr, lab_weights, tvlqr
+from cartpole.riccati import dlqr, default_weights, tvlqr
 from cartpole.models import CartPoleModel
 from cartpole.ocp.bounds import OCPBounds, OCPError
 from cartpole.ocp.objectives import Objective, tracking_cost
@@ -143,7 +143,7 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
     x_goal : (nx,) array, optional
         Terminal equality (hinge errors wrapped); default ``model.x_eq``.
     Q, R : arrays, optional
-        TVLQR weights of the initialisation (default :func:`cartpole.riccati.lab_weights`).
+        TVLQR weights of the initialisation (default :func:`cartpole.riccati.default_weights`).
     guess_name : str
         Name of the guess in the attempt record.
     options : DDPOptions, optional
@@ -153,10 +153,10 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
     (DDPStage, [Attempt])
         The stage (``info.success`` says whether it converged) and its attempt record.
     """
-    from cartpole.riccati import lab_weights
+    from cartpole.riccati import default_weights
 
     tic = time.perf_counter()
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else np.asarray(Q, float)
     R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
     steps = int(steps)
@@ -348,7 +348,7 @@ def receding_swingup(model: CartPoleModel, x0, bounds: OCPBounds, *, horizon: fl
     deadline_s : float, optional
         s of wall time at most (the rollout stops unfinished after it).
     Q, R : arrays, optional
-        Tracking weights (default :func:`cartpole.riccati.lab_weights`).
+        Tracking weights (default :func:`cartpole.riccati.default_weights`).
     iterations : int
         DDP iterations per step.
 
@@ -357,7 +357,7 @@ def receding_swingup(model: CartPoleModel, x0, bounds: OCPBounds, *, horizon: fl
     RecedingSwingup
     """
     tic = time.perf_counter()
-    Q0, R0 = lab_weights(model)
+    Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else np.asarray(Q, float)
     R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
     h = float(model.dt)

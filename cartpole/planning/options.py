@@ -68,7 +68,7 @@ class PlanOptions(StageOptions):
         Re-solve the plan on the exact discrete model at the MJCF step and track that (True), never (False), or
         when TVLQR's predicted tracking strays more than :data:`~cartpole.planning.trajopt.TRACK_TOL` ("auto").
     Q, R : arrays or None
-        Tracking and catch weights (nx, nx) and (nu, nu), read-only; None: :func:`cartpole.riccati.lab_weights` of the
+        Tracking and catch weights (nx, nx) and (nu, nu), read-only; None: :func:`cartpole.riccati.default_weights` of the
         model (1 per slide, 10 per hinge angle, 0.1 per rate, 0.1 per input).
     Qf : (nx, nx) array or None
         TVLQR terminal cost; None: the catch's discrete cost-to-go (seamless hand-over).

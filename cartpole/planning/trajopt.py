@@ -31,7 +31,7 @@ import numpy as np
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.riccati import TVLQRGains, lab_weights, tvlqr
+from cartpole.riccati import TVLQRGains, default_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.models import (CartPoleModel, CartPoleParams, Plant, plant_model, plant_params,
                              steps_per_period)
@@ -626,7 +626,7 @@ def handover_catch(plant: Plant = None, plan_model: CartPoleModel | None = None,
     """The LQR that takes over when a trajopt plan ends: ``dlqr(Ad, Bd, Q dt, R dt)`` of one MJCF step
     (``dt`` the plant's MJCF ``timestep``), or of ``steps`` MJCF steps with the ctrl held (``dt = steps *
     timestep``, a control period), of ``plan_model`` (default the plant's own model) at its ``x_eq``, ``u_eq``; hinge errors wrapped, ctrl
-    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.riccati.lab_weights`. Designed without
+    clipped to the MJCF's ctrlranges; ``Q``, ``R`` default :func:`cartpole.riccati.default_weights`. Designed without
     the model's dry friction (:meth:`~cartpole.models.CartPoleModel.without_friction`).
 
     The catch basin ``cartpole swingup --method trajopt`` reports is this controller's. Designed by the one
@@ -738,7 +738,7 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     solver = "ipopt" if solver in ("auto", "sqp", "ddp") else solver
     params = plant_params(source)
     plan_model = plan_model if plan_model is not None else plant_model(source)
-    Q0, R0 = lab_weights(plan_model)
+    Q0, R0 = default_weights(plan_model)
     Q = Q0 if options.Q is None else np.asarray(options.Q, float)
     R = R0 if options.R is None else np.atleast_2d(np.asarray(options.R, float))
     x0 = plan_model.x_hanging if x0 is None else np.asarray(x0, dtype=float)

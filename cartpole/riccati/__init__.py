@@ -7,7 +7,7 @@ share its name with the function ``cartpole.lqr``."""
 from cartpole.riccati.algebraic import (LQRError, LQRResult, check_weights, dlqr, is_controllable, lqr,
                                         uncontrollable_modes)
 from cartpole.riccati.tvlqr import TVLQRGains, riccati_backward, tvlqr
-from cartpole.riccati.weights import ONE_POLE, Q_LAB, R_LAB, default_weights, lab_weights  # noqa: F401 (old names)
+from cartpole.riccati.weights import ONE_POLE, default_weights
 
 __all__ = ["LQRError", "LQRResult", "check_weights", "dlqr", "is_controllable", "lqr", "uncontrollable_modes",
            "TVLQRGains", "riccati_backward", "tvlqr", "ONE_POLE", "default_weights"]

@@ -10,7 +10,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from cartpole._arrays import readonly
 
 #: Weight of a slide (cart) position, m^-2.
 SLIDE_WEIGHT = 1.0
@@ -58,10 +57,3 @@ def default_weights(model) -> tuple[np.ndarray, np.ndarray]:
 #: A model's shape with one pole on a cart: ``nq = 2`` joints, ``nu = 1`` input (the argument of
 #: :func:`default_weights` for the single-pole weights).
 ONE_POLE = SimpleNamespace(nq=2, nu=1)
-
-# The names before this release (CHANGELOG.md, Unreleased; the lab's words, now in cartpole.apps.lab), kept only
-# until the branches written against them are merged: new code uses default_weights and cartpole.apps.lab's Q_LAB,
-# R_LAB.
-lab_weights = default_weights
-Q_LAB = readonly(default_weights(ONE_POLE)[0])
-R_LAB = readonly(default_weights(ONE_POLE)[1])

@@ -11,7 +11,7 @@ from cartpole.analysis import (AnalysisError, closed_loop_stable, continuous_loo
 from cartpole.control import LinearFeedback
 from cartpole.estimation import measurement_function, sensor_spec
 from cartpole.estimation.kalman import KalmanFilter, process_noise
-from cartpole.riccati import lab_weights, lqr
+from cartpole.riccati import default_weights, lqr
 from cartpole.models import SHIPPED_MJCF, build_model
 
 ASSETS = ["cartpole.xml", "cartpole_two_pole.xml", "cartpole_three_pole.xml"]
@@ -21,7 +21,7 @@ ASSETS = ["cartpole.xml", "cartpole_two_pole.xml", "cartpole_three_pole.xml"]
 def cart(request):
     m = build_model(str(SHIPPED_MJCF.parent / request.param))
     A, B = m.without_friction().linearize()
-    return m, lqr(A, B, *lab_weights(m)).K
+    return m, lqr(A, B, *default_weights(m)).K
 
 
 @pytest.fixture(scope="module")
@@ -79,7 +79,7 @@ def test_the_gain_band_is_where_the_closed_loop_eigenvalues_are_stable(cart):
 
 def test_the_delay_margin_is_where_a_pade_delayed_loop_loses_stability(lab):
     A, B = lab.without_friction().linearize()
-    loop = continuous_loop(lab, lqr(A, B, *lab_weights(lab)).K)
+    loop = continuous_loop(lab, lqr(A, B, *default_weights(lab)).K)
     tau = loop_margins(loop).delay_margin_s
 
     def stable(t):
@@ -102,7 +102,7 @@ def test_the_nyquist_curve_encircles_minus_one_once_per_unstable_open_loop_pole(
 
 def test_the_lqg_loop_closes_on_the_separation_principle_eigenvalues(lab):
     kf = _kalman(lab, steps=2)
-    res = LinearFeedback.for_model(lab, *lab_weights(lab), period=2 * lab.dt)
+    res = LinearFeedback.for_model(lab, *default_weights(lab), period=2 * lab.dt)
     loop = sampled_loop(lab, res.K, steps=2, kalman=kf)
     Ad, Bd = lab.without_friction().hold(2).linearize()
     expected = np.concatenate([np.linalg.eigvals(Ad - Bd @ res.K), kf.E])
@@ -144,7 +144,7 @@ def _kalman(model, *, steps, q=0.0):
 
 def test_lqg_from_encoders_with_delay_has_smaller_margins_and_recovery_restores_them(lab):
     steps, lag = 2, 1  # the lab's rig: 10 ms period, 5 ms delay predicted over
-    res = LinearFeedback.for_model(lab, *lab_weights(lab), period=steps * lab.dt)
+    res = LinearFeedback.for_model(lab, *default_weights(lab), period=steps * lab.dt)
     lqr_m = loop_margins(sampled_loop(lab, res.K, steps=steps, delay_steps=lag))
     lqg_m = loop_margins(sampled_loop(lab, res.K, steps=steps, delay_steps=lag, kalman=_kalman(lab, steps=steps)))
     assert lqg_m.phase_margin_deg < lqr_m.phase_margin_deg - 5
@@ -159,7 +159,7 @@ def test_lqg_from_encoders_with_delay_has_smaller_margins_and_recovery_restores_
 
 def test_an_unstable_closed_loop_has_no_margins(lab):
     A, B = lab.without_friction().linearize()
-    K = lqr(A, B, *lab_weights(lab)).K
+    K = lqr(A, B, *default_weights(lab)).K
     with pytest.raises(AnalysisError, match="not stable"):
         loop_margins(continuous_loop(lab, 0.01 * K))
     with pytest.raises(AnalysisError, match="shape"):
@@ -171,7 +171,7 @@ def test_a_tvlqr_frozen_at_a_time_is_the_continuous_loop_of_its_gain_there(lab):
     from cartpole.riccati.tvlqr import TVLQRGains
 
     A, B = lab.without_friction().linearize()
-    K = lqr(A, B, *lab_weights(lab)).K
+    K = lqr(A, B, *default_weights(lab)).K
     n = 4
     gains = TVLQRGains(t=np.arange(n) * 0.01, K=np.repeat(K[None], n, axis=0),
                        S=np.repeat(np.eye(lab.nx)[None], n + 1, axis=0), dt=0.01,
@@ -198,7 +198,7 @@ def test_the_sensor_noise_floor_of_the_state_and_the_ctrl_is_what_the_closed_loo
     deviation a few per cent uncertain."""
     steps = 2
     kf = _kalman(lab, steps=steps)
-    res = LinearFeedback.for_model(lab, *lab_weights(lab), period=steps * lab.dt)
+    res = LinearFeedback.for_model(lab, *default_weights(lab), period=steps * lab.dt)
     loop = sampled_loop(lab, res.K, steps=steps, delay_steps=1, kalman=kf)
     V = sensor_spec(lab, encoder_cpr=2048, encoder_resolution=0.001).measurement_covariance()
     A, B, C, D = (np.asarray(M, float) for M in (loop.noise.A, loop.noise.B, loop.noise.C, loop.noise.D))

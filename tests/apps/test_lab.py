@@ -11,7 +11,7 @@ from cartpole import Q_LAB, R_LAB, build_model, read_params
 from cartpole.apps.lab import (LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES, LabError, compare_pid,
                           lab_initial_conditions, lab_start_scale, linear_settling_time, run_lab, run_pid_lab,
                           slowest_time_constant, starts_in_band, view_first_run)
-from cartpole.riccati import lab_weights
+from cartpole.riccati import default_weights
 from cartpole.models import SHIPPED_MJCF, wrap_angle
 from cartpole.sim import replays_exactly, simulate
 
@@ -150,7 +150,7 @@ def test_shipped_asset_has_the_handout_files_dynamics(tmp_path):
 
 
 def test_lab_weights_for_one_pole_are_the_labs():
-    Q, R = lab_weights(build_model())
+    Q, R = default_weights(build_model())
     np.testing.assert_array_equal(Q, Q_LAB)
     np.testing.assert_array_equal(R, R_LAB)
     res = run_lab(duration=0.1)
@@ -173,7 +173,7 @@ def test_chain_balances_from_the_labs_five_starts_on_its_first_pole(asset):
     res = run_lab(path)
     nq, (h1, *rest) = model.nq, model.hinges
     assert res.K.shape == (1, 2 * nq) and res.x0s.shape == (5, 2 * nq) and res.start_scale == 1.0
-    np.testing.assert_array_equal(res.Q, lab_weights(model)[0])
+    np.testing.assert_array_equal(res.Q, default_weights(model)[0])
     assert np.all(res.E.real < 0)
     # the handout's offsets on the slide and the first hinge; every other joint at x*, everything at rest
     np.testing.assert_allclose(res.x0s[:, model.slide] - res.x_eq[model.slide], LAB_OFFSETS[:, 0], atol=1e-15)

@@ -8,7 +8,7 @@ import pytest
 from cartpole.analysis import AnalysisError
 from cartpole.apps.margins import PROCESS_NOISE_LADDER, noise_limited_catch
 from cartpole.apps.swingup import DEFAULT_CTRL_NOISE, SwingupOptions, run_swingup
-from cartpole.riccati import lab_weights
+from cartpole.riccati import default_weights
 from cartpole.models import SHIPPED_MJCF, build_model, read_params, steps_per_period
 from cartpole.planning.trajopt import handover_catch
 from cartpole.sim import LoopOptions, replays_exactly
@@ -94,7 +94,7 @@ def _rest_floor(model, params, cpr, R_factors=(1.0, 16.0, 256.0)):
     them) over the catch's R and the estimator's process noise that the design searches, from ``cpr``-count hinge
     encoders at the issue's rig."""
     loop = LoopOptions(**{**RIG, "encoder_cpr": cpr})
-    gain, R = _catch_gain(params, model, loop), lab_weights(model)[1]
+    gain, R = _catch_gain(params, model, loop), default_weights(model)[1]
     rates = [model.nq + j for j in range(model.nq)]
     floor = np.inf
     for factor in R_factors:
@@ -130,7 +130,7 @@ def test_the_default_process_noise_is_lowered_before_the_catch_is_weakened(two_p
     params, model = two_pole
     loop = LoopOptions(**RIG)
     gain = _catch_gain(params, model, loop)
-    R = lab_weights(model)[1]
+    R = default_weights(model)[1]
     loud = noise_limited_catch(model, loop, 0.99, gain, R)
     assert loud["process_noise"] is None and loud["factor"] == 1.0
     quiet = noise_limited_catch(model, loop, 0.02, gain, R)
@@ -141,15 +141,15 @@ def test_the_default_process_noise_is_lowered_before_the_catch_is_weakened(two_p
 def test_a_process_noise_given_is_kept_and_the_catch_R_raised_instead(two_pole):
     params, model = two_pole
     loop = LoopOptions(process_noise=3.0, **RIG)
-    found = noise_limited_catch(model, loop, 0.1, _catch_gain(params, model, loop), lab_weights(model)[1])
+    found = noise_limited_catch(model, loop, 0.1, _catch_gain(params, model, loop), default_weights(model)[1])
     assert found["process_noise"] == 3.0 and found["factor"] > 1 and found["met"]
-    assert np.all(found["R"] == found["factor"] * lab_weights(model)[1])
+    assert np.all(found["R"] == found["factor"] * default_weights(model)[1])
 
 
 def test_a_limit_no_design_reaches_is_an_error_when_asked_and_the_quietest_design_otherwise(two_pole):
     params, model = two_pole
     loop = LoopOptions(**RIG)
-    gain, R = _catch_gain(params, model, loop), lab_weights(model)[1]
+    gain, R = _catch_gain(params, model, loop), default_weights(model)[1]
     with pytest.raises(AnalysisError, match="--ctrl-noise"):
         noise_limited_catch(model, loop, 1e-6, gain, R)
     best = noise_limited_catch(model, loop, 1e-6, gain, R, required=False)

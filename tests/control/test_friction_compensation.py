@@ -139,13 +139,13 @@ def test_linear_designs_ignore_dry_friction_and_beat_the_smooth_friction_lineari
     has, so its gains are much higher and its runs settle later and swing the cart further than the design without
     friction, which is what LinearFeedback.for_model gives on a model with friction."""
     from cartpole.riccati import lqr
-    from cartpole.riccati.weights import lab_weights
+    from cartpole.riccati.weights import default_weights
 
     x0s = lab_initial_conditions(frictionless)
     x_eq = frictionless.x_eq
     designed = LinearFeedback.for_model(with_friction)
     np.testing.assert_array_equal(designed.K, LinearFeedback.for_model(frictionless).K)
-    smooth = lqr(*with_friction.linearize(), *lab_weights(with_friction))
+    smooth = lqr(*with_friction.linearize(), *default_weights(with_friction))
     assert abs(smooth.K[0, 1]) > 2 * abs(designed.K[0, 1])
     on_friction = LinearFeedback(smooth.K, x_eq, with_friction.u_eq, u_limits=with_friction.params.ctrl_range,
                                  S=smooth.S, hinges=with_friction.hinges)

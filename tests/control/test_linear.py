@@ -5,7 +5,7 @@ import pytest
 
 import cartpole as cp
 from cartpole.control import FeedbackError, LinearFeedback
-from cartpole.riccati import LQRError, dlqr, lab_weights, lqr
+from cartpole.riccati import LQRError, dlqr, default_weights, lqr
 from cartpole.models import state_error
 from cartpole.sim import replays_exactly, simulate
 
@@ -59,7 +59,7 @@ def test_shapes_that_disagree_are_one_sentence(kwargs, message):
 def test_for_model_is_the_lab_lqr_about_x_eq_with_the_models_hinges_and_ranges():
     model = cp.build_model(TWO_POLE)
     c = LinearFeedback.for_model(model)
-    Q, R = lab_weights(model)
+    Q, R = default_weights(model)
     ref = lqr(*model.linearize(), Q, R)
     np.testing.assert_array_equal(c.K, ref.K)
     np.testing.assert_array_equal(c.S, ref.S)

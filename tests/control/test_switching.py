@@ -85,10 +85,10 @@ def test_catch_is_designed_and_tested_about_x_eq_of_any_model(chain_dir):
 
 
 def test_two_pole_catch_uses_the_lab_weight_pattern_and_returns_one_ctrl_per_actuator():
-    from cartpole.riccati import lab_weights, lqr
+    from cartpole.riccati import default_weights, lqr
 
     model = cp.build_model(cp.SHIPPED_MJCF.with_name("cartpole_two_pole.xml"))
-    Q, R = lab_weights(model)
+    Q, R = default_weights(model)
     np.testing.assert_array_equal(np.diag(Q), [1, 10, 10, 0.1, 0.1, 0.1])
     A, B = model.linearize()
     np.testing.assert_array_equal(LinearFeedback.for_model(model).K, lqr(A, B, Q, R).K)

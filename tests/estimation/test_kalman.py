@@ -13,7 +13,7 @@ from cartpole.estimation import EstimationError
 from cartpole.estimation.kalman import KalmanFilter, kalman_gain, state_names
 from cartpole.estimation.measurement import measured_positions, positions_initial_state
 from cartpole.estimation.noise import process_covariance
-from cartpole.riccati import dlqr, lab_weights
+from cartpole.riccati import dlqr, default_weights
 from cartpole.models import SHIPPED_MJCF, build_model
 
 M = 2  # physics steps per period: 10 ms on the shipped 5 ms cart
@@ -130,7 +130,7 @@ def _lqg_run(model, est, x0, K, noise, seed, periods):
 
 
 def _lqr(model):
-    Q, R = lab_weights(model)
+    Q, R = default_weights(model)
     return dlqr(*model.hold(M).linearize(), Q, R).K
 
 

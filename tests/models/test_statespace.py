@@ -4,7 +4,7 @@ import control
 import numpy as np
 import pytest
 
-from cartpole.riccati import dlqr, lab_weights, lqr
+from cartpole.riccati import dlqr, default_weights, lqr
 from cartpole.models import MJCFError, PeriodError, build_model
 
 
@@ -48,7 +48,7 @@ def test_toolkit_lqr_and_dlqr_equal_python_controls_on_the_same_matrices(asset):
     from cartpole.models import SHIPPED_MJCF
 
     m = build_model(str(SHIPPED_MJCF.parent / asset))
-    Q, R = lab_weights(m)
+    Q, R = default_weights(m)
     sys = m.statespace()
     K, S, _ = control.lqr(sys, Q, R)
     assert np.allclose(lqr(sys.A, sys.B, Q, R).K, K, rtol=1e-8, atol=1e-10)

@@ -137,11 +137,11 @@ def _chain_model(name, chain_dir):
 
 @pytest.mark.parametrize("name", ["two_pole", "three_pole", "two_motors"])
 def test_chains_of_poles_and_two_motors_give_a_stable_loop_and_a_small_residual(name, chain_dir):
-    from cartpole.riccati import is_controllable, lab_weights
+    from cartpole.riccati import is_controllable, default_weights
 
     model = _chain_model(name, chain_dir)
     nx, nu = model.nx, model.nu
-    Q, R = lab_weights(model)
+    Q, R = default_weights(model)
     A, B = model.linearize()
     Ad, Bd = model.linearize(discrete=True)
     assert is_controllable(A, B) and is_controllable(Ad, Bd)
@@ -181,10 +181,10 @@ def shipped_model():
 
 
 def test_lqr_on_a_plant_is_lqr_on_its_exact_linearisation_whatever_form_the_plant_takes(shipped_model):
-    from cartpole.riccati import lab_weights
+    from cartpole.riccati import default_weights
 
     m = shipped_model
-    Q, R = lab_weights(m)
+    Q, R = default_weights(m)
     on_matrices = lqr(*m.linearize(), Q, R)
     for plant in (m, m.params, m.params.mjcf):
         res = lqr(plant)
@@ -203,9 +203,9 @@ def test_dlqr_on_a_plant_weighs_per_second_so_S_matches_the_continuous_design(sh
     m = shipped_model
     cont = lqr(m)
     disc = dlqr(m)
-    from cartpole.riccati import lab_weights
+    from cartpole.riccati import default_weights
 
-    Q, R = lab_weights(m)
+    Q, R = default_weights(m)
     per_sample = dlqr(*m.linearize(discrete=True), Q, R)
     np.testing.assert_allclose(disc.K, per_sample.K, rtol=1e-8)          # the scaling does not move the gain
     np.testing.assert_allclose(disc.S, per_sample.S * m.dt, rtol=1e-8)   # it scales S by the step

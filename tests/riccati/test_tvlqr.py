@@ -116,10 +116,10 @@ class _Hold:
 def test_two_inputs_have_the_right_shapes_and_converge_to_dlqr_far_from_the_end(chain_dir):
     """LTI: the two-motor cart resting at its upright equilibrium; far from the horizon end the finite-horizon
     gain is the infinite-horizon dlqr gain, near it (zero terminal cost) it is not."""
-    from cartpole.riccati import lab_weights
+    from cartpole.riccati import default_weights
 
     model = build_model(chain_dir / "two_motors.xml")
-    Q, R = lab_weights(model)
+    Q, R = default_weights(model)
     dt = model.dt
     g = tvlqr(model, _Hold(model.x_eq, model.u_eq, 10.0), Q, R, Qf=np.zeros((6, 6)))
     n = int(round(10.0 / dt))

@@ -40,7 +40,7 @@ from cartpole.ocp.bounds import OCPBounds, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses
 from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED, trajopt_swingup
-from cartpole.riccati import lab_weights, tvlqr
+from cartpole.riccati import default_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.sim import replays_exactly, simulate
 from cartpole.solvers.ddp import ddp_for_model
@@ -340,7 +340,7 @@ def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_ma
                     "ddp_rest_speedup_vs_reference": ref_ms / r_ms if r_res.converged else None})
 
     say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
-    Q, R = lab_weights(model)
+    Q, R = default_weights(model)
     tvlqr(model, traj, Q, R)  # builds the mapped ABd (not timed)
     tv_ms, gains = median_ms(lambda: tvlqr(model, traj, Q, R), max(repeats, 20))
 
