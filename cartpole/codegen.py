@@ -21,6 +21,7 @@ planted file is built again rather than loaded.
 """
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import functools
 import hashlib
@@ -112,6 +113,30 @@ def private_dir(path: str | Path) -> Path:
 def private_cache_dir() -> Path:
     """:func:`cache_dir`, checked and created private by :func:`private_dir`."""
     return private_dir(cache_dir())
+
+
+def load_private_copy(library: Path, prefix: str) -> ctypes.CDLL:
+    """Load a private copy of the shared library ``library``: its own static state, apart from any other load of
+    the same file in this process (the dynamic loader shares one mapping per path).
+
+    Parameters
+    ----------
+    library : Path
+        A library built here (e.g. by :func:`build_loop_library`).
+    prefix : str
+        Start of the copy's file name, in the private cache directory; the file is removed once mapped.
+
+    Returns
+    -------
+    ctypes.CDLL
+    """
+    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".so", dir=private_cache_dir())
+    os.close(fd)
+    try:
+        shutil.copyfile(library, tmp)
+        return ctypes.CDLL(tmp, mode=ctypes.RTLD_LOCAL)
+    finally:
+        os.unlink(tmp)  # mapped: the copy lives as long as the process holds it
 
 
 # ---- files verified by a content hash ----------------------------------------------------------------------

@@ -13,15 +13,12 @@ The model's maths are CasADi-generated: the window's stages and measurements wit
 from __future__ import annotations
 
 import ctypes
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from cartpole.codegen import (build_loop_library, compiled_or_none, generated_code, private_cache_dir, qp_fields,
+from cartpole.codegen import (build_loop_library, compiled_or_none, generated_code, load_private_copy, qp_fields,
                               qp_source, render)
 from cartpole.estimation.mhe_functions import window_functions
 
@@ -159,13 +156,7 @@ class CompiledMHE:
     def __init__(self, mhe, model, h: ca.Function):
         self.library = build_loop_library(loop_source(mhe, model, h), "mhe_step", nx=mhe.nx, nq=model.nq,
                                           nu=mhe.nu, ny=mhe.ny, steps=mhe.steps, shared=("cp_common", "cp_linalg"))
-        fd, tmp = tempfile.mkstemp(prefix="mhe_step_", suffix=".so", dir=private_cache_dir())
-        os.close(fd)
-        try:
-            shutil.copyfile(self.library, tmp)
-            lib = ctypes.CDLL(tmp, mode=ctypes.RTLD_LOCAL)
-        finally:
-            os.unlink(tmp)  # mapped: the copy lives as long as the process holds it
+        lib = load_private_copy(self.library, "mhe_step_")
         lib.mhe_loop_start.argtypes = [_DP, _DP, _DP]
         lib.mhe_loop_start.restype = None
         lib.mhe_loop_update.argtypes = [_DP, _DP, _DP]

@@ -11,16 +11,13 @@ and exact Jacobians ``A_k``, ``B_k``) and the reseed rollout (``cp_nmpc_rollout`
 from __future__ import annotations
 
 import ctypes
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
 
 # QP_ITER_LIMIT, qp_fields, qp_source, generated_code: the names this module had before the MHE shared them
 from cartpole.codegen import (QP_ITER_LIMIT, build_loop_library, compiled_or_none, generated_code,  # noqa: F401
-                              private_cache_dir, qp_fields, qp_source, render)
+                              load_private_copy, qp_fields, qp_source, render)
 from cartpole.mpc.stage_functions import stage_expression, stage_rollout
 
 #: ``cp_nmpc_eval``'s action codes.
@@ -174,13 +171,7 @@ class CompiledNMPC:
         p = ctl.problem
         self.library = build_loop_library(loop_source(ctl, plan), "nmpc_step", nx=p.nx, nq=ctl.model.nq, nu=p.nu,
                                           steps=ctl.steps)
-        fd, tmp = tempfile.mkstemp(prefix="nmpc_step_", suffix=".so", dir=private_cache_dir())
-        os.close(fd)
-        try:
-            shutil.copyfile(self.library, tmp)
-            lib = ctypes.CDLL(tmp, mode=ctypes.RTLD_LOCAL)
-        finally:
-            os.unlink(tmp)  # mapped: the copy lives as long as the process holds it
+        lib = load_private_copy(self.library, "nmpc_step_")
         lib.cp_nmpc_set_data.argtypes = [_DP, _DP, _DP, _DP, ctypes.c_long]
         lib.cp_nmpc_set_data.restype = None
         lib.cp_nmpc_reset.argtypes = []
