@@ -29,7 +29,7 @@ NOTEBOOK_OUTPUTS ?= docs/_build/executed_notebooks
 
 test: install
 	rm -rf $(NOTEBOOK_OUTPUTS)
-	CARTPOLE_NOTEBOOK_OUTPUTS=$(abspath $(NOTEBOOK_OUTPUTS)) MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n 2
+	CARTPOLE_NOTEBOOK_OUTPUTS=$(abspath $(NOTEBOOK_OUTPUTS)) MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n 2 --durations=30
 
 bench: install
 	$(BIN)/cartpole bench

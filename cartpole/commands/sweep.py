@@ -9,8 +9,9 @@ import argparse
 from pathlib import Path
 
 from cartpole._files import short
+import cartpole.apps.sweep as sweep_app
 from cartpole.apps.sweep import (
-    MAX_RUNS, MAX_WORKERS, SweepError, SweepInterrupted, SweepRuns, axis, check_axes, check_settings, recorded_sweep,
+    MAX_RUNS, MAX_WORKERS, SweepError, SweepInterrupted, SweepRuns, axis, check_axes, check_settings,
     summary_line)
 from cartpole.apps.sweep.plan import total_runs
 from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, SwingupOptions, default_method, start_state
@@ -290,7 +291,7 @@ def run_method(args, params, method: str, *, axes=(), n: int = DEFAULT_N, durati
     options = sweep_options(args, method, duration, loop)
     runs = SweepRuns(n=n, seed=args.seed, axes=axes, x0=x0, gain_jitter=args.jitter)
     try:
-        rec = recorded_sweep(params, method, options, runs=runs, workers=args.workers, address=args.address,
+        rec = sweep_app.recorded_sweep(params, method, options, runs=runs, workers=args.workers, address=args.address,
                              results=out / str(RESULTS).format(method=method),
                              figure=out / str(FIGURE).format(method=method), resume=args.resume,
                              stop_after=args.stop_after)

@@ -6,9 +6,10 @@ import statistics
 import sys
 from pathlib import Path
 
+import cartpole.apps.swingup as swingup_app
 from cartpole.apps.swingup import (
     ENERGY_DURATION, METHOD_CLASSES, MPC_DURATION, SwingupError, SwingupOptions, check_model_error, check_plan_size,
-    check_push, check_upright_reachable, parse_push, plan_model_from, run_swingup, start_state)
+    check_push, check_upright_reachable, parse_push, plan_model_from, start_state)
 from cartpole.commands._flags import as_flags, flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import (
@@ -363,7 +364,7 @@ def _swing_up(args, model, options, x0, plan_model):
         {"simulate": f"{default:g} s"} if default is not None else {})
     viewer = live_view("swingup", args)
     try:
-        res = run_swingup(model, args.method, options, x0=x0, progress=_Stages(sizes), on_step=viewer,
+        res = swingup_app.run_swingup(model, args.method, options, x0=x0, progress=_Stages(sizes), on_step=viewer,
                           plan_model=plan_model)
         if viewer is not None:
             viewer.finish()
