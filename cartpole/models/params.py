@@ -22,6 +22,7 @@ listed (``model.contacts`` in the JSON). Every MuJoCo run keeps the file's conta
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import dataclasses
 import os
 import warnings
@@ -635,7 +636,10 @@ def _compiler_warnings():
         yield
     for msg in dict.fromkeys(caught):
         if previous is not None:
-            previous(msg)
+            try:
+                previous(msg)
+            except ctypes.ArgumentError:  # a C callback (dm_control installs its own): it takes the text as bytes
+                previous(msg.encode())
         else:
             warnings.warn(f"MuJoCo: {msg}", RuntimeWarning, stacklevel=3)
 

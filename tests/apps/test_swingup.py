@@ -291,7 +291,7 @@ def test_bad_scenarios_raise_one_sentence(fields, error, words):
 
 
 def test_a_ctrl_noise_limit_for_a_method_without_a_catch_names_the_argument():
-    with pytest.raises(SwingupError, match="`ctrl_noise` designs the catch .* `method='energy'` or `method='trajopt'`"):
+    with pytest.raises(SwingupError, match="`ctrl_noise` designs the catch .* `method='energy'`, `method='trajopt'` or `method='supervisor'`"):
         run_swingup(None, "mpc", SwingupOptions(ctrl_noise=0.02, loop=LoopOptions(duration=0.1)))
 
 

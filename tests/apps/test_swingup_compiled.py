@@ -44,7 +44,7 @@ def test_the_energy_swingup_runs_the_compiled_program_and_reports_the_switches_t
     assert [s["mode"] for s in res.metrics["switches"]] == ["catch"] and res.caught_at is not None
     assert res.handover_at == res.metrics["switches"][-1]["t"] == res.controller.switches[-1].t
     assert replays_exactly(res.rollout)
-    ref = _python_run(monkeypatch, method="energy", loop=loop)
+    ref = _python_run(monkeypatch, method="energy", options=SwingupOptions(loop=loop))
     assert isinstance(ref.controller, SwitchingController)
     n = len(res.rollout.ctrl) if loop.estimator is None else np.searchsorted(res.rollout.t, res.handover_at + RIG_SPAN)
     np.testing.assert_allclose(res.rollout.ctrl[:n], ref.rollout.ctrl[:n], rtol=0, atol=RUN_TOL)

@@ -10,6 +10,7 @@ from cartpole.models import SHIPPED_MJCF, build_model, read_params
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.dmc import episode_starts
 from cartpole.planning.ddp_plan import RECEDING_ANGLE, RECEDING_RATE, receding_swingup
+from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.metrics import swingup_success
@@ -49,7 +50,7 @@ def test_acrobot_planned_from_dm_controls_seed_0_start_swings_up_in_mujoco(acrob
     """The planner's first stage on a chain driven at a hinge is the receding-horizon DDP: from dm_control's seed-0
     start it plans (within the budget the supervisor gives it) and TVLQR + catch swing up in MuJoCo."""
     params, model, x0 = acrobot
-    sp = trajopt_swingup(params, x0=tuple(x0), search_s=30.0)
+    sp = trajopt_swingup(params, x0=tuple(x0), options=PlanOptions(search_s=30.0))
     assert "receding-horizon DDP" in sp.solve_info.guess
     assert any(a.stage == "receding-horizon DDP" and a.success for a in sp.solve_info.attempts)
     run = simulate(params, sp.controller, x0, sp.trajectory.duration + 2.0)
