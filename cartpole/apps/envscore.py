@@ -32,7 +32,9 @@ from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replay
 
-#: The folder of the toolkit's copies of dm_control's files.
+#: The folder of the toolkit's copies of dm_control's files (``cartpole/assets`` of the installed package).
+#:
+#: :meta hide-value:
 ASSETS = SHIPPED_MJCF.parent
 
 
