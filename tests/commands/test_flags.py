@@ -4,26 +4,13 @@ import argparse
 
 import pytest
 
-from cartpole.cli import build_parser, main
+from cartpole.cli import main
 from cartpole.commands._flags import FLAGS, as_flags
-
-
-def _options() -> set:
-    found = set()
-
-    def collect(parser):
-        for action in parser._actions:
-            found.update(action.option_strings)
-            if isinstance(action, argparse._SubParsersAction):
-                for sub in action.choices.values():
-                    collect(sub)
-
-    collect(build_parser())
-    return found
+from test_cli_flags_named import cli_flags  # the parser's every option, read once for both tests
 
 
 def test_every_mapped_option_is_an_option_of_the_command_line():
-    options = _options()
+    options = cli_flags()
     missing = sorted(o for v in FLAGS.values() for o in v.split(", ") if o.split()[0] not in options)
     assert not missing, missing
 
