@@ -1,7 +1,5 @@
 """Library errors name Python arguments in backquotes; the command line prints the option that sets each
 (:mod:`cartpole.commands._flags`), and every option it prints exists."""
-import argparse
-
 import pytest
 
 from cartpole.cli import main
