@@ -25,7 +25,7 @@ from cartpole.estimation import SensorSampler, sensor_spec
 from cartpole.identify.excite import Excitation, multisine
 from cartpole.identify.logs import RunLog
 from cartpole.models import plant_model, state_error
-from cartpole.sim.rollout import make_mujoco, replay, simulate
+from cartpole.sim.rollout import SimOptions, make_mujoco, replay, simulate
 from cartpole.validation.metrics import diverged
 
 #: Modes of the experiment.
@@ -81,7 +81,8 @@ def _balance(model, exc: Excitation, ts: float, steps: int):
         k = min(round(t / ts), len(extra) - 1)
         return np.clip(lqr(t, x) + extra[k], model.u_low, model.u_high)
 
-    roll = simulate(p.mjcf or p, controller, model.x_eq, float(exc.t[-1]), control_period=ts if steps > 1 else None)
+    roll = simulate(p.mjcf or p, controller, model.x_eq, float(exc.t[-1]),
+                    options=SimOptions(control_period=ts if steps > 1 else None))
     err = state_error(roll.x, model.x_eq, model.hinges)[:, list(model.hinges)]
     if diverged(roll) or np.max(np.abs(err)) > BALANCE_LIMIT or len(roll.ctrl) != steps * (len(exc.t) - 1):
         raise CartPoleError("The balancing experiment lost the pole (its angle left upright by more than "

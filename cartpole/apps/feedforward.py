@@ -44,7 +44,7 @@ from cartpole.models import CartPoleModel, CartPoleParams, bounded_model, build_
 from cartpole.planning.options import PlanOptions
 import cartpole.planning.trajopt as trajopt
 from cartpole.progress import stage
-from cartpole.sim import Rollout, replays_exactly, simulate
+from cartpole.sim import Rollout, SimOptions, replays_exactly, simulate
 from cartpole.sim.rig import build_rig
 from cartpole.validation.metrics import pole_angle_errors, swingup_metrics
 
@@ -282,9 +282,9 @@ def _run_all(params, model, plans, x0, extra: float, friction, rig, period, call
         for i, (name, (ctrl, sp)) in enumerate(controllers.items()):
             if hasattr(ctrl, "reset"):
                 ctrl.reset()
-            rollout = simulate(params, friction.wrap(ctrl), x0, sp.T + extra, control_period=period,
-                               rig=None if rig is None else rig.for_run(i),
-                               progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
+            watch = SimOptions(control_period=period, progress=lambda fr, i=i: tick((i + fr) / len(controllers)))
+            rollout = simulate(params, friction.wrap(ctrl), x0, sp.T + extra,
+                               rig=None if rig is None else rig.for_run(i), options=watch)
             runs[name] = judge(name, rollout, sp.trajectory, model,
                                handover_time=getattr(ctrl, "handover_time", None))
             tick((i + 1) / len(controllers))

@@ -48,7 +48,7 @@ from cartpole.models import (CartPoleModel, CartPoleParams, Plant, friction_trea
                              state_error, steps_per_period, wrap_angle)
 from cartpole.progress import stage
 from cartpole.riccati import ONE_POLE, default_weights
-from cartpole.sim import simulate
+from cartpole.sim import SimOptions, simulate
 from cartpole.sim.options import LoopOptions
 from cartpole.sim.rig import build_rig
 from cartpole.validation.estimation import estimation_summary
@@ -626,7 +626,7 @@ def _runs(model, ctrl, x0s, x_eq, duration: float, progress=None, reset=None, ri
         tick = None if progress is None else (lambda f, i=i: progress((i + f) / n))
         # the one implementation: the compiled C of the export when there is a compiler (cartpole.export.inloop)
         loop_ctrl, loop_rig = in_loop(model, ctrl, None if rig is None else rig.for_run(i))
-        run = simulate(model.params, loop_ctrl, x0, duration, rig=loop_rig, progress=tick)
+        run = simulate(model.params, loop_ctrl, x0, duration, rig=loop_rig, options=SimOptions(progress=tick))
         runs.append(run)
         mets.append(summarize(run, model, x_eq=x_eq))
         if progress is not None:

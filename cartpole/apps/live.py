@@ -22,7 +22,7 @@ from cartpole.control.pid import CascadedPID, closed_loop_matrix
 from cartpole.errors import CartPoleError
 from cartpole.models import state_error
 from cartpole.riccati import dlqr, lqr
-from cartpole.sim import Rollout, simulate
+from cartpole.sim import Rollout, SimOptions, simulate
 from cartpole.sim.rig import MAX_DELAY
 from cartpole.viz.web import LOCALHOST, Knob, WebLive
 
@@ -447,7 +447,7 @@ def live_loop(lab, controller):
 def _live_run(live, params, controller, x0, duration, rig):
     """One run on the page ``live``: simulate with its push and step hooks; ``(rollout, the run's events)``."""
     first = len(live.events)
-    run = simulate(params, controller, x0, duration, rig=rig, push=live.attach(None), on_step=live)
+    run = simulate(params, controller, x0, duration, rig=rig, push=live.attach(None), options=SimOptions(on_step=live))
     return run, list(live.events[first:])
 
 

@@ -73,7 +73,7 @@ from cartpole.options import StageOptions
 from cartpole.planning import trajopt
 from cartpole.planning.options import PLAN_SOLVERS, PlanOptions, PlanOptionsError
 from cartpole.riccati import default_weights
-from cartpole.sim import Rollout, simulate
+from cartpole.sim import Rollout, SimOptions, simulate
 from cartpole.sim.options import (PUSH_SECONDS, LoopError, LoopOptions, check_model_error, check_push,
                                   check_push_times, push_force)
 from cartpole.sim.rig import build_rig
@@ -1172,8 +1172,8 @@ def _simulate(ctx: _Context, controller, T: float, *, loop=None, compiled: bool 
     if attach is not None:  # the web page: it shows this law's state, its pushes join the logged push column
         force = attach(controller, push=force)
     disturbance = loop.disturbance(ctx.params, x_eq=ctx.model.x_eq, hinges=ctx.model.hinges)
-    rollout = simulate(ctx.params, controller, ctx.x0, T, push=force, progress=_stage(ctx.progress, "simulate"),
-                       on_step=ctx.on_step, control_period=loop.period, rig=rig, disturbance=disturbance)
+    watch = SimOptions(control_period=loop.period, progress=_stage(ctx.progress, "simulate"), on_step=ctx.on_step)
+    rollout = simulate(ctx.params, controller, ctx.x0, T, push=force, rig=rig, disturbance=disturbance, options=watch)
     if disturbance is not None:
         rollout.info["disturbances"] = disturbance.events
     ctx.report("simulate", 1.0)

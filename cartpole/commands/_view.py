@@ -9,7 +9,7 @@ from cartpole.apps.live import controller_status, watch_lab
 from cartpole.commands._flags import as_flags
 from cartpole.commands._rollouts import live_viewer, rollout_doc, show_logged
 from cartpole.errors import CartPoleError, first_line
-from cartpole.sim import replays_exactly, simulate
+from cartpole.sim import SimOptions, replays_exactly, simulate
 from cartpole.viz.viewer import display_available
 from cartpole.viz.web import WebLive, WebUnavailable, port_free
 
@@ -133,7 +133,7 @@ def show_runs(params, rollouts, mode: str, args, *, command: str) -> None:
     live = WebLive(port=args.port, host=args.host, title=f"cartpole {command} live")
 
     def on_page(source, controller, x0, duration, push=None):
-        return simulate(source, controller, x0, duration, push=push, on_step=live)
+        return simulate(source, controller, x0, duration, push=push, options=SimOptions(on_step=live))
 
     try:
         for r in rollouts:

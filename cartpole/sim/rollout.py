@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, ClassVar
 
 import mujoco
 import numpy as np
@@ -20,6 +20,7 @@ from cartpole._arrays import readonly
 from cartpole._files import atomic_write
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF, CartPoleModel, CartPoleParams, Plant, load_model, mujoco_model, plant_params
+from cartpole.options import OptionsError, StageOptions
 
 #: The rig's per-control-instant log (None without a rig): times, measurements, estimates, estimator wall time.
 SAMPLE_FIELDS = ("t_sample", "y", "x_hat", "estimate_ms")
@@ -229,12 +230,50 @@ class WarningWatch:
         self.base = self.counts(d)
 
 
-def simulate(plant: Plant, controller: Controller, x0, duration: float, *,
-             control_period: float | None = None, rig=None, progress: Callable[[float], None] | None = None,
-             stop: Callable[[float, np.ndarray], bool] | None = None,
+@dataclass(frozen=True, eq=False)
+class SimOptions(StageOptions):
+    """How :func:`simulate` holds the ctrl and who watches the run: the control period and the hooks called as it
+    goes (each may end it early). Keyword-only; the defaults run every physics step unwatched.
+
+    Attributes
+    ----------
+    control_period : float or None
+        Hold each ctrl for this long, s (rounded to whole physics steps, at least one); None (default): every physics
+        step. Ignored when :func:`simulate` is given a ``rig`` (it has its own period).
+    progress : callable or None
+        ``progress(fraction)`` with the fraction done (0..1), about 20 times a run; None (default): silent.
+    stop : callable or None
+        ``stop(t [s], x (nx,)) -> bool`` after each logged step: True ends the run there (that state logged);
+        None (default): run to the end.
+    on_step : callable or None
+        ``on_step(m, d)`` (MuJoCo's model and data) on the start state and after each logged step, e.g.
+        :class:`cartpole.viz.viewer.LiveViewer`; returning False ends the run there. None (default): no hook.
+
+    Raises
+    ------
+    OptionsError
+        A control period that is not a positive number of seconds, or a hook that is not callable.
+    """
+
+    control_period: float | None = None
+    progress: Callable[[float], None] | None = None
+    stop: Callable[[float, np.ndarray], bool] | None = None
+    on_step: Callable[[object, object], bool | None] | None = None
+
+    error: ClassVar[type] = OptionsError
+    SCALARS: ClassVar[tuple] = ("control_period",)
+
+    def __post_init__(self):
+        self.number("control_period", low=0.0, low_open=True, optional=True, unit="s")
+        for name in ("progress", "stop", "on_step"):
+            if getattr(self, name) is not None and not callable(getattr(self, name)):
+                raise OptionsError(f"SimOptions.{name} must be a callable or None; got {getattr(self, name)!r}.")
+
+
+def simulate(plant: Plant, controller: Controller, x0, duration: float, *, rig=None,
              push: Callable[[float], float] | None = None,
              disturbance: Callable[[float, np.ndarray], np.ndarray] | None = None,
-             on_step: Callable[[object, object], bool | None] | None = None) -> Rollout:
+             options: SimOptions = SimOptions()) -> Rollout:
     """Run ``u = controller(t, x)`` in MuJoCo from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -248,9 +287,6 @@ def simulate(plant: Plant, controller: Controller, x0, duration: float, *,
         Start state ``[qpos, qvel]`` in MuJoCo's order (one pole: ``[s, theta, s_dot, theta_dot]``).
     duration : float
         Seconds to simulate; rounded to whole physics steps.
-    control_period : float, optional
-        Hold each ctrl for this long (rounded to whole physics steps); default every physics step. Ignored when a
-        ``rig`` is given (it has its own period).
     rig : Rig, optional
         What stands between MuJoCo and the controller on a real rig (:class:`cartpole.sim.rig.Rig`): the control
         period, the delay from sampling to the ctrl taking effect, the sensors and the estimator. Every period the
@@ -258,10 +294,6 @@ def simulate(plant: Plant, controller: Controller, x0, duration: float, *,
         predicts it over the delay (when the rig compensates it) and calls ``controller(t + delay, x)``; that ctrl
         acts from ``delay`` later for one period. Until the first ctrl arrives MuJoCo applies zero ctrl (clipped to
         ``ctrlrange``). The rollout then logs ``t_sample``, ``y`` and ``x_hat`` (one row per control instant).
-    progress : callable, optional
-        Called with the fraction done (0..1) about 20 times.
-    stop : callable, optional
-        ``stop(t, x) -> bool`` ends the run early (after logging that state).
     push : callable, optional
         ``push(t [s]) -> force [N]``: world-x force on the cart body during the step from ``t`` (MuJoCo's
         ``xfrc_applied``), logged as ``rollout.info["push"]`` (n,).
@@ -270,9 +302,9 @@ def simulate(plant: Plant, controller: Controller, x0, duration: float, *,
         during the step from ``t``, given MuJoCo's true state at the start of that step (MuJoCo's
         ``qfrc_applied``; e.g. :class:`cartpole.sim.disturbance.Knockdown`), logged as
         ``rollout.info["qfrc_applied"]`` (n, nv) so the run replays exactly.
-    on_step : callable, optional
-        ``on_step(m, d)`` on the start state and after each logged step (e.g. :class:`cartpole.viz.viewer.LiveViewer`);
-        returning False ends the run there.
+    options : SimOptions, optional
+        The control period without a rig and the hooks (``progress``, ``stop``, ``on_step``) watching the run;
+        default :class:`SimOptions` ``()``: every physics step, unwatched.
 
     Returns
     -------
@@ -287,95 +319,133 @@ def simulate(plant: Plant, controller: Controller, x0, duration: float, *,
         None when MuJoCo found no contact in any step, else the first one (:func:`first_contact`: ``t``, ``geom1``,
         ``geom2``, ``dist``) and ``steps``, the number of steps that ended in contact.
     """
+    if not isinstance(options, SimOptions):
+        raise OptionsError(f"simulate's options must be a SimOptions; got {options!r}.")
     m, d = make_mujoco(plant)
-    x0 = _check_state(x0, m)
-    nq, nv, nu = m.nq, m.nv, m.nu
-    h = float(m.opt.timestep)
-    n = int(round(duration / h))
-    if n < 1:
-        raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
-    if rig is not None:
-        hold, lag = int(rig.steps), int(rig.delay_steps)
-    else:
-        hold, lag = (1 if control_period is None else max(1, int(round(control_period / h)))), 0
-    lo, hi = ctrl_bounds(m)
-    d.qpos[:] = x0[:nq]
-    d.qvel[:] = x0[nq:]
-    d.time = 0.0
-    mujoco.mj_forward(m, d)
-    t = np.empty(n + 1)
-    qpos = np.empty((n + 1, nq))
-    qvel = np.empty((n + 1, nv))
-    ctrl = np.empty((n, nu))
-    t[0], qpos[0], qvel[0] = 0.0, d.qpos, d.qvel
-    # the ctrl each physics step will apply, filled as commands are issued (a command issued at step k acts on
-    # steps k + lag .. k + lag + hold - 1); zero, clipped, until the first one arrives
-    planned = np.tile(np.clip(np.zeros(nu), lo, hi), (n + lag + hold, 1))
-    run = rig.start(m) if rig is not None else None
-    samples = _Samples() if run is not None else None
-    every = max(1, n // 20)
-    last = n
-    cart = cart_body(m) if push is not None else -1
-    forces = np.zeros(n) if push is not None else None
-    qfrc = np.zeros((n, nv)) if disturbance is not None else None
-    watch = WarningWatch(d)
-    diverged, warning = None, None
-    contact, touching = None, 0
-    if on_step is not None and on_step(m, d) is False:  # the start state too (a viewer opens on it)
-        n = last = 0
-    for k in range(n):
-        if k % hold == 0:
-            x_true = np.concatenate([d.qpos, d.qvel])
-            if run is None:
-                x_used = x_true
-            else:
-                x_used = run.sample(m, d, k, planned[max(0, k - hold):k], planned[k:k + lag], samples)
-            u_raw = np.asarray(controller((k + lag) * h, x_used), dtype=float).ravel()
-            if u_raw.size != nu or not np.all(np.isfinite(u_raw)):
-                raise CartPoleError(f"The controller returned {u_raw.tolist()} at t = {(k + lag) * h:.3f} s; "
-                                    f"it must return {nu} finite ctrl value{'s' if nu != 1 else ''}.")
-            planned[k + lag:k + lag + hold] = np.clip(u_raw, lo, hi)
-        u = planned[k]
+    loop = _Loop(m, d, _check_state(x0, m), duration, rig, options)
+    if options.on_step is not None and options.on_step(m, d) is False:  # the start state too (a viewer opens on it)
+        loop.n = loop.last = 0
+    for k in range(loop.n):
+        loop.command(k, controller)
+        loop.apply_forces(k, push, disturbance)
+        if loop.step(k):
+            break
+    return loop.rollout(source_path(plant))
+
+
+class _Loop:
+    """One :func:`simulate` run in steps: MuJoCo's model ``m`` and data ``d`` set to ``x0``, the log, the ctrl plan
+    (a command issued at step ``k`` acts on steps ``k + lag .. k + lag + hold - 1``; zero, clipped, until the first
+    one arrives) and the run's end so far (``last``, in steps)."""
+
+    def __init__(self, m, d, x0: np.ndarray, duration: float, rig, options: SimOptions):
+        self.m, self.d, self.options = m, d, options
+        nq, nv, nu = m.nq, m.nv, m.nu
+        self.h = h = float(m.opt.timestep)
+        self.n = n = int(round(duration / h))
+        if n < 1:
+            raise CartPoleError(f"Duration {duration} s is shorter than one physics step ({h} s); give a longer one.")
+        if rig is not None:
+            self.hold, self.lag = int(rig.steps), int(rig.delay_steps)
+        else:
+            period = options.control_period
+            self.hold, self.lag = (1 if period is None else max(1, int(round(period / h)))), 0
+        self.lo, self.hi = ctrl_bounds(m)
+        d.qpos[:] = x0[:nq]
+        d.qvel[:] = x0[nq:]
+        d.time = 0.0
+        mujoco.mj_forward(m, d)
+        self.t, self.qpos, self.qvel = np.empty(n + 1), np.empty((n + 1, nq)), np.empty((n + 1, nv))
+        self.ctrl = np.empty((n, nu))
+        self.t[0], self.qpos[0], self.qvel[0] = 0.0, d.qpos, d.qvel
+        self.planned = np.tile(np.clip(np.zeros(nu), self.lo, self.hi), (n + self.lag + self.hold, 1))
+        self.run = rig.start(m) if rig is not None else None
+        self.samples = _Samples() if self.run is not None else None
+        self.every = max(1, n // 20)
+        self.last = n
+        self.cart = -1
+        self.forces = self.qfrc = None
+        self.watch = WarningWatch(d)
+        self.diverged, self.warning = None, None
+        self.contact, self.touching = None, 0
+
+    def state(self) -> np.ndarray:
+        """MuJoCo's exact state ``[qpos, qvel]`` now, (nx,)."""
+        return np.concatenate([self.d.qpos, self.d.qvel])
+
+    def command(self, k: int, controller: Controller) -> None:
+        """At a control instant (every ``hold`` steps) ask the controller, through the rig if any, and plan its
+        clipped ctrl from ``lag`` steps on for ``hold`` steps."""
+        hold, lag, h = self.hold, self.lag, self.h
+        if k % hold:
+            return
+        if self.run is None:
+            x_used = self.state()
+        else:
+            x_used = self.run.sample(self.m, self.d, k, self.planned[max(0, k - hold):k], self.planned[k:k + lag],
+                                     self.samples)
+        u_raw = np.asarray(controller((k + lag) * h, x_used), dtype=float).ravel()
+        nu = self.m.nu
+        if u_raw.size != nu or not np.all(np.isfinite(u_raw)):
+            raise CartPoleError(f"The controller returned {u_raw.tolist()} at t = {(k + lag) * h:.3f} s; "
+                                f"it must return {nu} finite ctrl value{'s' if nu != 1 else ''}.")
+        self.planned[k + lag:k + lag + hold] = np.clip(u_raw, self.lo, self.hi)
+
+    def apply_forces(self, k: int, push, disturbance) -> None:
+        """Set the push on the cart and the generalized-force disturbance for step ``k``, and log them."""
         if push is not None:
-            forces[k] = float(push(k * h))
-            d.xfrc_applied[cart, 0] = forces[k]
-        if qfrc is not None:
-            qfrc[k] = _generalized_force(disturbance(k * h, np.concatenate([d.qpos, d.qvel])), nv, k * h)
-            d.qfrc_applied[:] = qfrc[k]
+            if self.forces is None:
+                self.cart, self.forces = cart_body(self.m), np.zeros(self.n)
+            self.forces[k] = float(push(k * self.h))
+            self.d.xfrc_applied[self.cart, 0] = self.forces[k]
+        if disturbance is not None:
+            if self.qfrc is None:
+                self.qfrc = np.zeros((self.n, self.m.nv))
+            self.qfrc[k] = _generalized_force(disturbance(k * self.h, self.state()), self.m.nv, k * self.h)
+            self.d.qfrc_applied[:] = self.qfrc[k]
+
+    def step(self, k: int) -> bool:
+        """One ``mj_step`` with the planned ctrl, logged; True when the run ends here (MuJoCo warned of an unstable
+        simulation, or a hook ended it)."""
+        m, d, h, opts = self.m, self.d, self.h, self.options
+        u = self.planned[k]
         d.ctrl[:] = u
         mujoco.mj_step(m, d)
-        ctrl[k] = u
-        t[k + 1] = (k + 1) * h
-        qpos[k + 1] = d.qpos
-        qvel[k + 1] = d.qvel
+        self.ctrl[k] = u
+        self.t[k + 1] = (k + 1) * h
+        self.qpos[k + 1] = d.qpos
+        self.qvel[k + 1] = d.qvel
         if d.ncon:  # the file's contacts are kept as written: a run that touches says so
-            touching += 1
-            if contact is None:
-                contact = first_contact(m, d, (k + 1) * h)
-        warning = watch.fired(d)
-        if warning is not None:  # MuJoCo reset a blown-up state: the run ends here, diverged
-            diverged, last = (k + 1) * h, k + 1
-            break
+            self.touching += 1
+            if self.contact is None:
+                self.contact = first_contact(m, d, (k + 1) * h)
+        self.warning = self.watch.fired(d)
+        if self.warning is not None:  # MuJoCo reset a blown-up state: the run ends here, diverged
+            self.diverged, self.last = (k + 1) * h, k + 1
+            return True
         if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
             raise CartPoleError(f"MuJoCo's state became NaN/inf at t = {(k + 1) * h:.3f} s; "
                                 "the controller or the model is unstable, reduce gains or the time step.")
-        if progress is not None and (k + 1) % every == 0:
-            progress((k + 1) / n)
-        if on_step is not None and on_step(m, d) is False:
-            last = k + 1
-            break
-        if stop is not None and stop((k + 1) * h, np.concatenate([d.qpos, d.qvel])):
-            last = k + 1
-            break
-    info = {} if forces is None else {"push": forces[:last].copy()}
-    if qfrc is not None:
-        info["qfrc_applied"] = qfrc[:last].copy()
-    info["diverged"] = diverged
-    info["diverged_warning"] = warning
-    info["contact"] = None if contact is None else {**contact, "steps": touching}
-    kw = {} if samples is None else samples.arrays(last * h)
-    return Rollout(t=t[:last + 1], qpos=qpos[:last + 1], qvel=qvel[:last + 1], ctrl=ctrl[:last],
-                   mjcf=source_path(plant), info=info, **kw)
+        if opts.progress is not None and (k + 1) % self.every == 0:
+            opts.progress((k + 1) / self.n)
+        if (opts.on_step is not None and opts.on_step(m, d) is False) or (
+                opts.stop is not None and opts.stop((k + 1) * h, self.state())):
+            self.last = k + 1
+            return True
+        return False
+
+    def rollout(self, mjcf: str) -> Rollout:
+        """The log up to the run's end as a :class:`Rollout` (MJCF path ``mjcf``)."""
+        last = self.last
+        info = {} if self.forces is None else {"push": self.forces[:last].copy()}
+        if self.qfrc is not None:
+            info["qfrc_applied"] = self.qfrc[:last].copy()
+        info["diverged"] = self.diverged
+        info["diverged_warning"] = self.warning
+        info["contact"] = None if self.contact is None else {**self.contact, "steps": self.touching}
+        kw = {} if self.samples is None else self.samples.arrays(last * self.h)
+        return Rollout(t=self.t[:last + 1], qpos=self.qpos[:last + 1], qvel=self.qvel[:last + 1],
+                       ctrl=self.ctrl[:last], mjcf=mjcf, info=info, **kw)
 
 
 def _generalized_force(f, nv: int, t: float) -> np.ndarray:

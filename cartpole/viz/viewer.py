@@ -52,7 +52,7 @@ from PIL import ImageGrab
 from cartpole._files import atomic_write
 from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
 from cartpole.models import Plant
-from cartpole.sim import Rollout, simulate
+from cartpole.sim import Rollout, SimOptions, simulate
 
 #: Most frames a second handed to the viewer (``viewer.sync()``); physics steps in between are not drawn.
 MAX_FPS = 60.0
@@ -424,8 +424,8 @@ def watch(plant: Plant, controller: Callable, x0, duration: float, *,
     view = LiveViewer(realtime=realtime, show_ui=show_ui, camera=camera)
     shot = window = None
     try:
-        run = simulate(plant, controller, x0, duration, control_period=control_period, stop=stop, push=push,
-                       on_step=view)
+        run = simulate(plant, controller, x0, duration, push=push,
+                       options=SimOptions(control_period=control_period, stop=stop, on_step=view))
         view.finish(settle=0.3 if screenshot is not None else 0.0)
         if screenshot is not None and view.is_running:
             window = find_window("MuJoCo")

@@ -1,7 +1,7 @@
 """Watch, push and tune a run live in a browser, in MuJoCo Studio's own web viewer (``--view web``).
 
-:class:`WebLive` is a hook ``on_step(m, d) -> bool`` for :func:`~cartpole.sim.rollout.simulate` (the same shape as
-:class:`cartpole.viz.viewer.LiveViewer`, whose real-time pacing it shares): the physics and the log are simulate's,
+:class:`WebLive` is a hook ``on_step(m, d) -> bool`` for :func:`~cartpole.sim.rollout.simulate` (``SimOptions.on_step``,
+as :class:`cartpole.viz.viewer.LiveViewer`, whose real-time pacing it shares): the physics and the log are simulate's,
 every physics step logged, so the rollout replays exactly with ``mj_step`` and its logged pushes. What the browser
 shows is MuJoCo Studio's web viewer (``mujoco.studio``, in the ``mujoco`` 4 wheel): a WebAssembly client that renders
 the scene with Filament in WebGL and overlays a Dear ImGui panel built here, in Python, on a headless ImGui context

@@ -13,7 +13,7 @@ from cartpole.apps.lab import (LAB_INITIAL_CONDITIONS, LAB_OFFSETS, START_SCALES
                           slowest_time_constant, starts_in_band, view_first_run)
 from cartpole.riccati import default_weights
 from cartpole.models import SHIPPED_MJCF, wrap_angle
-from cartpole.sim import replays_exactly, simulate
+from cartpole.sim import SimOptions, replays_exactly, simulate
 
 
 def test_five_starts_settle_and_replay_exactly(any_mjcf):
@@ -293,7 +293,8 @@ def test_the_run_shown_replaces_the_logged_first_run_and_is_the_same(shipped_lab
 
 
 def test_a_window_closed_early_keeps_the_full_logged_run(shipped_lab):
-    lab, shown = view_first_run(shipped_lab, lambda *a, **k: simulate(*a, stop=lambda t, x: t >= 1.0, **k))
+    lab, shown = view_first_run(shipped_lab, lambda *a, **k: simulate(
+        *a, options=SimOptions(stop=lambda t, x: t >= 1.0), **k))
     assert shown.t[-1] == pytest.approx(1.0) and lab is shipped_lab
 
 

@@ -7,7 +7,7 @@ import cartpole as cp
 from cartpole.control import FeedbackError, LinearFeedback
 from cartpole.riccati import LQRError, dlqr, default_weights, lqr
 from cartpole.models import state_error
-from cartpole.sim import replays_exactly, simulate
+from cartpole.sim import SimOptions, replays_exactly, simulate
 
 TWO_POLE = cp.SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
 THREE_POLE = cp.SHIPPED_MJCF.with_name("cartpole_three_pole.xml")
@@ -134,7 +134,7 @@ def test_lqr_designed_over_a_five_step_hold_balances_gymnasiums_double_pendulum_
     from pathlib import Path
 
     from cartpole.models import build_model
-    from cartpole.sim import replays_exactly, simulate
+    from cartpole.sim import SimOptions, replays_exactly, simulate
 
     path = Path(__file__).resolve().parent.parent / "assets" / "gymnasium_inverted_double_pendulum.xml"
     model = build_model(path)
@@ -142,8 +142,9 @@ def test_lqr_designed_over_a_five_step_hold_balances_gymnasiums_double_pendulum_
     x0 = model.x_eq.copy()
     x0[model.hinges[0]] += 0.05
     x0[model.hinges[1]] -= 0.05
-    held = simulate(path, LinearFeedback.for_model(model, period=period), x0, 10.0, control_period=period)
-    naive = simulate(path, LinearFeedback.for_model(model), x0, 10.0, control_period=period)
+    held = simulate(path, LinearFeedback.for_model(model, period=period), x0, 10.0,
+                    options=SimOptions(control_period=period))
+    naive = simulate(path, LinearFeedback.for_model(model), x0, 10.0, options=SimOptions(control_period=period))
     assert np.abs(model.state_error(held.x[-1])).max() < 1e-3
     assert replays_exactly(held)
     assert np.abs(model.state_error(naive.x)[:, list(model.hinges)]).max() > 1.0  # the poles fell

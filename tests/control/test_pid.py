@@ -7,7 +7,7 @@ import pytest
 from cartpole.control.pid import CascadedPID, PIDError, PIDGains, tune_pid
 from cartpole.apps.lab import LAB_INITIAL_CONDITIONS
 from cartpole.models import SHIPPED_MJCF, build_model
-from cartpole.sim import replays_exactly, simulate
+from cartpole.sim import SimOptions, replays_exactly, simulate
 
 from variants import variant_xml
 
@@ -52,7 +52,8 @@ def test_pid_balances_the_shipped_cart_from_each_lab_start(shipped, i):
 def test_pid_balances_with_the_ctrl_held_over_several_physics_steps(shipped):
     """dt comes from successive t: holding each ctrl for 4 physics steps (20 ms) still balances."""
     model, gains = shipped
-    run, _ = _balances(SHIPPED_MJCF, model, gains, _starts(model)[2], control_period=4 * model.dt)
+    run, _ = _balances(SHIPPED_MJCF, model, gains, _starts(model)[2],
+                       options=SimOptions(control_period=4 * model.dt))
     assert np.all(run.ctrl[0:4] == run.ctrl[0])
 
 
@@ -256,7 +257,7 @@ def test_pid_designed_for_a_period_is_the_sampled_loop_mujoco_runs():
     M = sampled_closed_loop_matrix(Ad, Bd, g, period, model.slide, model.hinges[0])
     x0 = model.x_eq.copy()
     x0[model.hinges[0]] += 1e-4
-    ro = simulate(model.params, CascadedPID(g, model), x0, 1.0, control_period=period)
+    ro = simulate(model.params, CascadedPID(g, model), x0, 1.0, options=SimOptions(control_period=period))
     e0 = model.state_error(x0)
     c = np.zeros(model.nx)  # the first call starts the integrator at 0 (it does not integrate): z_{-1} = -T e_i
     c[model.hinges[0]], c[model.slide], c[model.nq + model.slide] = 1.0, g.kp_cart, g.kd_cart

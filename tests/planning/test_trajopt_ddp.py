@@ -8,7 +8,7 @@ from cartpole.cli import main
 from cartpole.models import SHIPPED_MJCF, build_model, read_params
 from cartpole.planning import ddp_plan
 from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.sim import replays_exactly, simulate
+from cartpole.sim import SimOptions, replays_exactly, simulate
 from cartpole.validation.metrics import swingup_metrics
 from cartpole.planning.options import PlanOptions
 
@@ -103,5 +103,6 @@ def test_ddp_at_a_given_T_starts_from_rest_and_holds_the_period():
     hold = build_model(params).hold(4)
     xn = np.asarray(hold.step.map(d.u.shape[0])(d.x[:-1].T, d.u.T)).T
     assert np.abs(xn - d.x[1:]).max() < 1e-9
-    run = simulate(params, plan.controller, plan.model.x_hanging, plan.T + 3.0, control_period=0.02)
+    run = simulate(params, plan.controller, plan.model.x_hanging, plan.T + 3.0,
+                   options=SimOptions(control_period=0.02))
     assert swingup_metrics(run, params)["success"] and replays_exactly(run, params)

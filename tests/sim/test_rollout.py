@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from cartpole.control.linear import LinearFeedback
-from cartpole.sim import Rollout, replay, replays_exactly, simulate
+from cartpole.sim import Rollout, SimOptions, replay, replays_exactly, simulate
 
 
 @pytest.fixture(scope="module")
@@ -67,3 +67,34 @@ def test_bad_starts_controllers_and_logs_are_one_sentence(chain_dir):
     with pytest.raises(CartPoleError, match="pass the CartPoleParams"):
         replays_exactly(r)
     assert replays_exactly(r, params)
+
+
+def test_sim_options_hold_the_ctrl_and_their_hooks_end_the_run():
+    seen, steps = [], []
+    held = simulate(None, lambda t, x: np.array([np.sin(50 * t)]), np.zeros(4), 0.2,
+                    options=SimOptions(control_period=0.02, progress=seen.append,
+                                       on_step=lambda m, d: steps.append(d.time)))
+    per = int(round(0.02 / held.dt))
+    assert per > 1 and np.all(held.ctrl[:per] == held.ctrl[0]) and held.ctrl[per] != held.ctrl[0]
+    assert seen and seen[-1] == pytest.approx(1.0) and len(steps) == held.t.size  # the start state too
+    short = simulate(None, lambda t, x: 0.0, np.zeros(4), 0.2, options=SimOptions(stop=lambda t, x: t >= 0.05))
+    assert short.t[-1] == pytest.approx(0.05) and replays_exactly(short)
+
+
+@pytest.mark.parametrize("bad, match", [
+    (dict(control_period=0.0), r"SimOptions.control_period = 0.0 must be a finite number > 0 s"),
+    (dict(control_period="fast"), "SimOptions.control_period must be a number"),
+    (dict(stop=True), "SimOptions.stop must be a callable or None"),
+])
+def test_bad_sim_options_are_one_sentence(bad, match):
+    from cartpole import CartPoleError
+
+    with pytest.raises(CartPoleError, match=match):
+        SimOptions(**bad)
+
+
+def test_simulate_refuses_options_that_are_not_sim_options():
+    from cartpole import CartPoleError
+
+    with pytest.raises(CartPoleError, match="simulate's options must be a SimOptions"):
+        simulate(None, lambda t, x: 0.0, np.zeros(4), 0.01, options={"control_period": 0.02})

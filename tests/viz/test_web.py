@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from cartpole.models import SHIPPED_MJCF
-from cartpole.sim import replays_exactly, simulate
+from cartpole.sim import SimOptions, replays_exactly, simulate
 from cartpole.viz.web import PUSH_SECONDS, WebLive, WebUnavailable, port_free
 
 
@@ -38,7 +38,7 @@ def test_a_run_served_headless_logs_the_pages_push_and_replays(capsys):
         return going
 
     try:
-        run = simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.3, push=live.push, on_step=on_step)
+        run = simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.3, push=live.push, options=SimOptions(on_step=on_step))
     finally:
         live.close()
     assert capsys.readouterr().out == ""  # Studio's banner went to stderr
@@ -80,7 +80,7 @@ def test_a_taken_port_is_one_sentence():
         assert not port_free("127.0.0.1", port)
         live = WebLive(port=port, wait=False)
         with pytest.raises(WebUnavailable, match=f"Port {port} on 127.0.0.1 is in use"):
-            simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.01, on_step=live)
+            simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.01, options=SimOptions(on_step=live))
         live.close()
 
 
@@ -98,7 +98,8 @@ def test_a_drag_from_the_page_holds_its_force_until_released_and_replays():
         return going
 
     try:
-        run = simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.3, push=live.attach(None), on_step=on_step)
+        run = simulate(SHIPPED_MJCF, _zero, np.zeros(4), 0.3, push=live.attach(None),
+                       options=SimOptions(on_step=on_step))
     finally:
         live.close()
     forces = run.info["push"]
