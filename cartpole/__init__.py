@@ -24,13 +24,13 @@ workflow:
   :data:`Q_LAB`, :data:`R_LAB`;
 - swing-up, plan and track: :func:`run_swingup`, :func:`trajopt_swingup`, :class:`EnergyShapingController`,
   :class:`SwitchingController`, :class:`TVLQRController`, :func:`run_feedforward`;
-- simulate and replay: :func:`simulate`, :func:`replay`, :func:`replays_exactly`, :class:`Rollout`,
-  :class:`LoopOptions`;
+- simulate and replay: :func:`simulate` (:class:`SimOptions`), :func:`replay`, :func:`replays_exactly`,
+  :class:`Rollout`, :class:`LoopOptions`;
 - the rig and estimation: :func:`sensor_spec`, :class:`KalmanFilter`; margins: :func:`sampled_loop`,
   :func:`loop_margins`; identification: :func:`run_excite`, :func:`run_identify`;
 - export to C: :func:`run_export`, :func:`design_export`, :func:`load_design`, :func:`run_lockstep`;
 - proof and figures: :func:`swingup_success`, :func:`summarize`, :func:`check_jacobians`, :func:`plot_swingup`,
-  :func:`swingup_figure`, :func:`render_video`.
+  :func:`swingup_figure`, :func:`render_video` (:class:`VideoOptions`).
 
 The names are imported on first use (PEP 562), so that ``import cartpole`` (and the command line, which lives
 inside the package) costs almost nothing before a command knows what it needs: ``cartpole sweep --workers 2`` starts
@@ -61,13 +61,13 @@ _SOURCES = {
     "cartpole.estimation": ("KalmanFilter", "measurement_function", "sensor_spec"),
     "cartpole.estimation.kalman": ("process_noise",),
     "cartpole.analysis": ("continuous_loop", "loop_margins", "sampled_loop"),
-    "cartpole.sim": ("LoopOptions", "Rollout", "make_mujoco", "replay", "replays_exactly", "simulate"),
+    "cartpole.sim": ("LoopOptions", "Rollout", "SimOptions", "make_mujoco", "replay", "replays_exactly", "simulate"),
     "cartpole.planning.trajopt": ("trajopt_swingup",),
     "cartpole.export": ("design_export", "load_design", "run_lockstep"),
     "cartpole.validation": ("BasinCache", "estimate_basin", "swingup_metrics", "swingup_success"),
     "cartpole.validation.jacobians": ("check_jacobians", "mujoco_fd_jacobians", "random_states"),
     "cartpole.validation.metrics": ("UPRIGHT_TOL", "held_upright", "summarize", "track_margin"),
-    "cartpole.viz": ("VideoUnavailable", "plot_lab", "plot_swingup", "render_frame", "render_video"),
+    "cartpole.viz": ("VideoOptions", "VideoUnavailable", "plot_lab", "plot_swingup", "render_frame", "render_video"),
     "cartpole.viz.estimation_plot": ("estimation_figure",),
     "cartpole.viz.feedforward_plot": ("plot_feedforward",),
     "cartpole.viz.loop_plot": ("loop_figure",),

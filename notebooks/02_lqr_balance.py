@@ -259,8 +259,8 @@ plt.show()
 
 clip = cp.simulate(params, lab.controller(), lab.x0s[0], 3.0 if QUICK else 10.0)
 try:
-    path = cp.render_video(params, clip, OUT / "day5_cartpole.mp4", width=320 if QUICK else 640,
-                        height=240 if QUICK else 480)
+    size = cp.VideoOptions(width=320, height=240) if QUICK else cp.VideoOptions(width=640, height=480)
+    path = cp.render_video(params, clip, OUT / "day5_cartpole.mp4", options=size)
     display(Video(str(path), embed=True, width=480))
 except cp.VideoUnavailable as err:
     print(err)

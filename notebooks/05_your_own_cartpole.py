@@ -141,8 +141,8 @@ for method in ("energy", "trajopt"):
 # %%
 
 try:
-    path = cp.render_video(params, results["trajopt"].rollout, OUT / "my_cartpole_trajopt.mp4", width=320, height=240,
-                        fps=10 if QUICK else 30)   # the test suite renders fewer frames
+    video = cp.VideoOptions(width=320, height=240, fps=10 if QUICK else 30)   # the test suite renders fewer frames
+    path = cp.render_video(params, results["trajopt"].rollout, OUT / "my_cartpole_trajopt.mp4", options=video)
     display(Video(str(path), embed=True, width=480))
 except cp.VideoUnavailable as err:
     print(err)

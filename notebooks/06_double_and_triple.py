@@ -261,7 +261,8 @@ times = np.linspace(0.0, sp3.T + 0.5, 6)
 try:
     fig, axes = plt.subplots(1, len(times), figsize=(16, 3.2))
     for ax, t in zip(axes, times):
-        ax.imshow(cp.render_frame(models[3].params, run3, t, width=320, height=360, model=models[3]))
+        ax.imshow(cp.render_frame(models[3].params, run3, t, options=cp.VideoOptions(width=320, height=360),
+                                  model=models[3]))
         ax.set_title(f"t = {t:.2f} s", fontsize=9); ax.axis("off")
     fig.suptitle("Triple pendulum on a cart: swing-up from hanging in MuJoCo")
     fig.tight_layout()

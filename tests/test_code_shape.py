@@ -128,8 +128,6 @@ PARAMS_TO_FIX = {
     "cartpole/planning/trajopt.py": ["_swingup_time_plan"],
     "cartpole/solvers/ddp.py": ["DDP.__init__"],
     "cartpole/solvers/sqp.py": ["CollocationSQP.__init__", "CollocationSQP._daqp_step"],
-    "cartpole/viz/video.py": ["_render_frames", "_render_in_child", "render_video"],
-    "cartpole/viz/viewer.py": ["watch"],
 }
 
 #: file -> raised error texts naming a command-line flag.

@@ -31,7 +31,7 @@ import warnings
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, ClassVar, Sequence
 
 import imageio_ffmpeg
 import mujoco
@@ -41,6 +41,7 @@ from PIL import Image
 from cartpole._files import atomic_path
 from cartpole.errors import FOREIGN_WIDTH, CartPoleError, first_line
 from cartpole.models import CartPoleParams, wrap_angle
+from cartpole.options import StageOptions
 from cartpole.progress import stage
 from cartpole.sim import Rollout
 from cartpole.viz.overlay import Overlay, mode_labels, preview_window, write_gif
@@ -106,6 +107,53 @@ class VideoInfo:
         return text + (f"; preview {self.preview}" if self.preview is not None else "")
 
 
+@dataclass(frozen=True, eq=False)
+class VideoOptions(StageOptions):
+    """How a run is drawn (:func:`render_video`, :func:`render_frame`): the frame clock, the frame size, the camera,
+    the overlay and the GIF preview's length and width. Keyword-only; every field has a default.
+
+    Attributes
+    ----------
+    fps : float
+        Frames per second of simulated time (default 30); frame ``i`` shows the logged state nearest
+        ``t[0] + i / fps`` s.
+    width, height : int, pixels
+        Frame size (default 960x540), rounded down to even numbers; the render-only copy's offscreen buffer is
+        made large enough, whatever the MJCF declares.
+    camera : str or int or None
+        None (default): the camera computed from the model and the rollout
+        (:func:`~cartpole.viz.scene.camera_path`). A name or id: that MJCF camera instead.
+    overlay : bool
+        Draw the time, angles, ctrl bars and mode (default True).
+    preview_seconds : float
+        Length of the GIF preview, s of simulated time (default 4; at 15 fps).
+    preview_width : int, pixels
+        Width of the preview (default 480; the height keeps the aspect).
+
+    Raises
+    ------
+    VideoUnavailable
+        A frame rate, size or preview length that is not a positive number.
+    """
+
+    fps: float = 30.0
+    width: int = 960
+    height: int = 540
+    camera: str | int | None = None
+    overlay: bool = True
+    preview_seconds: float = 4.0
+    preview_width: int = 480
+
+    error: ClassVar[type] = VideoUnavailable
+    SCALARS: ClassVar[tuple] = ("fps", "width", "height", "preview_seconds", "preview_width")
+
+    def __post_init__(self):
+        self.number("fps", low=0.0, low_open=True, unit="frames per second")
+        for name in ("width", "height", "preview_width"):
+            self.number(name, low=2.0, integer=True, unit="pixels")
+        self.number("preview_seconds", low=0.0, low_open=True, unit="s")
+        self.set_field("overlay", bool(self.overlay))
+
 
 def _gl_renderer(m, height, width):
     """``mujoco.Renderer``, or VideoUnavailable naming the backend and the reason it could not make a context."""
@@ -130,9 +178,9 @@ class _Scene:
     array. Close it (or use it as a context manager) to free the GL context.
     """
 
-    def __init__(self, source, rollout, *, fps, width, height, camera=None, modes=None, model=None, x_eq=None,
-                 overlay=True):
-        self.width, self.height = int(width) // 2 * 2, int(height) // 2 * 2  # even sizes keep yuv420p happy
+    def __init__(self, source, rollout, options: VideoOptions, *, modes=None, model=None, x_eq=None):
+        fps, camera = options.fps, options.camera
+        self.width, self.height = options.width // 2 * 2, options.height // 2 * 2  # even sizes keep yuv420p happy
         if self.width < 2 or self.height < 2:
             raise VideoUnavailable(f"The frame size {self.width}x{self.height} is too small; give width and "
                                    "height >= 2.")
@@ -160,7 +208,7 @@ class _Scene:
         ctrl_scale = float(np.abs(ctrl).max()) if ctrl.size else 1.0
         layout = Overlay(self.width, self.height, len(disp.hinges), disp.ctrl_names, disp.ctrl_range,
                           max(ctrl_scale, 1e-9), show_mode=self.modes_at is not None)
-        self.overlay = layout if overlay else None
+        self.overlay = layout if options.overlay else None
         # the system keeps out of the overlay's bands, drawn or not, so a run frames the same either way
         reserve = (layout.top / self.height, layout.bottom / self.height)
         if camera is None:
@@ -227,33 +275,48 @@ class _Scene:
         self.close()
 
 
-def render_frame(plant, rollout, t: float = 0.0, *, fps: float = 30, width: int = 960, height: int = 540,
-                 camera: str | int | None = None, modes=None, model=None, overlay: bool = True) -> np.ndarray:
+def render_frame(plant, rollout, t: float = 0.0, *, options: VideoOptions = VideoOptions(), modes=None,
+                 model=None) -> np.ndarray:
     """The video frame :func:`render_video` shows at time ``t`` (s): an (height, width, 3) uint8 RGB array.
 
     Same render-only copy, camera path (computed over the whole rollout) and overlay as the video; handy in a
-    notebook (``plt.imshow(render_frame(model, run, 2.0))``). Parameters as :func:`render_video`. Renders in this
-    process only (no OSMesa child): raises :class:`~cartpole.viz.scene.VideoUnavailable` when the GL backend cannot
-    start.
+    notebook (``plt.imshow(render_frame(model, run, 2.0))``). Parameters as :func:`render_video` (of ``options``,
+    the preview's fields are not used). Renders in this process only (no OSMesa child): raises
+    :class:`~cartpole.viz.scene.VideoUnavailable` when the GL backend cannot start.
     """
-    with _Scene(plant, rollout, fps=fps, width=width, height=height, camera=camera, modes=modes, model=model,
-                overlay=overlay) as scene:
-        i = int(np.clip(np.round((float(t) - scene.times[0]) * fps), 0, len(scene) - 1))
+    with _Scene(plant, rollout, _check_options(options), modes=modes, model=model) as scene:
+        i = int(np.clip(np.round((float(t) - scene.times[0]) * options.fps), 0, len(scene) - 1))
         return scene.frame(i)
 
 
-def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, progress, modes=None, x_eq=None,
-                   overlay=True, preview=None, preview_seconds=4.0, preview_width=480, model=None):
+def _check_options(options) -> VideoOptions:
+    """``options`` when it is a :class:`VideoOptions`, else one sentence."""
+    if not isinstance(options, VideoOptions):
+        raise VideoUnavailable(f"The video's options must be a VideoOptions; got {options!r}.")
+    return options
+
+
+def _encoder(path: Path, width: int, height: int, fps: float):
+    """The started ffmpeg writer (``imageio_ffmpeg.write_frames``: H.264, yuv420p, faststart) of ``path``."""
+    writer = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, codec="libx264", pix_fmt_in="rgb24",
+                                         pix_fmt_out="yuv420p", macro_block_size=2, quality=6,
+                                         output_params=["-movflags", "+faststart", "-preset", "veryfast"])
+    writer.send(None)  # start ffmpeg
+    return writer
+
+
+def _render_frames(source, rollout, path: Path, *, options: VideoOptions, progress, modes=None, x_eq=None,
+                   preview=None, model=None):
     """Render and encode in this process (raises VideoUnavailable on any GL or encoder failure).
 
     Returns ``(frames, preview_frames)``.
     """
-    scene = _Scene(source, rollout, fps=fps, width=width, height=height, camera=camera, modes=modes, model=model,
-                   x_eq=x_eq, overlay=overlay)
-    width, height = scene.width, scene.height
-    pv = preview_window(scene.times, rollout, scene.idx, scene.modes_at, preview_seconds) if preview else (0, 0)
+    scene = _Scene(source, rollout, options, modes=modes, model=model, x_eq=x_eq)
+    fps, width, height = options.fps, scene.width, scene.height
+    pv = preview_window(scene.times, rollout, scene.idx, scene.modes_at, options.preview_seconds) if preview else (0, 0)
     pv_step = max(1, int(round(fps / 15.0)))
-    pv_size = (int(preview_width) // 2 * 2, max(2, int(round(preview_width * height / width)) // 2 * 2))
+    pv_width = options.preview_width
+    pv_size = (pv_width // 2 * 2, max(2, int(round(pv_width * height / width)) // 2 * 2))
     pv_frames = []
     n = len(scene)
     every = max(1, n // 50)
@@ -262,11 +325,7 @@ def _render_frames(source, rollout, path: Path, *, fps, width, height, camera, p
                 callback=progress if callable(progress) else None) if progress is not False else None
     writer = None
     try:
-        writer = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, codec="libx264",
-                                             pix_fmt_in="rgb24", pix_fmt_out="yuv420p", macro_block_size=2,
-                                             quality=6, output_params=["-movflags", "+faststart", "-preset",
-                                                                       "veryfast"])
-        writer.send(None)  # start ffmpeg
+        writer = _encoder(path, width, height, fps)
         for i in range(len(scene)):
             frame = scene.frame(i)
             writer.send(np.ascontiguousarray(frame))
@@ -299,12 +358,12 @@ def _osmesa_available() -> bool:
     return ctypes.util.find_library("OSMesa") is not None
 
 
-def _render_in_child(source, rollout, path: Path, *, fps, width, height, camera, progress, modes=None, x_eq=None,
-                     overlay=True, preview=None, preview_seconds=4.0, preview_width=480, model=None,
-                     backend: str = "osmesa"):
+def _render_in_child(source, rollout, path: Path, *, options: VideoOptions, progress, modes=None, preview=None,
+                     model=None, backend: str = "osmesa"):
     """Render with ``MUJOCO_GL=backend`` in a fresh Python process (the only way to switch GL backends)."""
     src = source.params if hasattr(source, "params") and isinstance(source.params, CartPoleParams) else source
-    if x_eq is None and model is not None:
+    x_eq = None
+    if model is not None:
         x_eq = np.asarray(model.x_eq)[:rollout.qpos.shape[1]]
     if x_eq is None and hasattr(source, "x_eq"):
         x_eq = np.asarray(source.x_eq)[:rollout.qpos.shape[1]]
@@ -319,15 +378,15 @@ def _render_in_child(source, rollout, path: Path, *, fps, width, height, camera,
                 src = Path(tmp) / "model.xml"
         elif src is None:
             src = rollout.mjcf or None
+        fps = options.fps
         times = np.asarray(rollout.t)[0] + np.arange(len(frame_indices(rollout.t, fps))) / fps
         labels = mode_labels(modes, times)
-        job = {"source": str(src) if src else None, "rollout": str(log), "path": str(path), "fps": fps,
-               "width": width, "height": height, "camera": camera, "overlay": overlay,
+        job = {"source": str(src) if src else None, "rollout": str(log), "path": str(path),
+               "options": options.as_dict(),
                "modes": None if labels is None else [[float(t), lab] for t, lab in zip(times, labels)
                                                       if lab is not None],
                "x_eq": None if x_eq is None else np.asarray(x_eq, float).tolist(),
-               "preview": None if preview is None else str(preview), "preview_seconds": preview_seconds,
-               "preview_width": preview_width}
+               "preview": None if preview is None else str(preview)}
         env = {**os.environ, "MUJOCO_GL": backend}
         if backend in ("osmesa", "egl"):
             env["PYOPENGL_PLATFORM"] = backend
@@ -342,13 +401,11 @@ def _render_in_child(source, rollout, path: Path, *, fps, width, height, camera,
     return int(out[0]), int(out[1])
 
 
-def render_video(plant, rollout, path, *, fps: float = 30, width: int = 960, height: int = 540,
-                 camera: str | int | None = None, progress: Callable[[float], None] | bool | None = None,
-                 modes: Sequence | Callable[[float], str] | None = None, model=None, overlay: bool = True,
-                 preview: bool | str | Path = True, preview_seconds: float = 4.0,
-                 preview_width: int = 480) -> VideoInfo:
-    """Render ``rollout`` as an H.264 mp4 (yuv420p, faststart) at ``fps`` frames per second of simulated time, and a
-    GIF preview beside it.
+def render_video(plant, rollout, path, *, options: VideoOptions = VideoOptions(), preview: bool | str | Path = True,
+                 progress: Callable[[float], None] | bool | None = None,
+                 modes: Sequence | Callable[[float], str] | None = None, model=None) -> VideoInfo:
+    """Render ``rollout`` as an H.264 mp4 (yuv420p, faststart) at ``options.fps`` frames per second of simulated
+    time, and a GIF preview beside it.
 
     Parameters
     ----------
@@ -359,14 +416,11 @@ def render_video(plant, rollout, path, *, fps: float = 30, width: int = 960, hei
         Logged run; frame ``i`` shows the logged state nearest ``t = t[0] + i / fps`` s.
     path : str or Path
         Output ``.mp4``; parent directories are created. Written to a temporary file, then renamed.
-    fps : float
-        Frames per second (default 30).
-    width, height : int, pixels
-        Frame size (default 960x540), rounded down to even numbers; the render-only copy's offscreen buffer is
-        made large enough, whatever the MJCF declares.
-    camera : str or int, optional
-        None (default): the camera computed from the model and the rollout
-        (:func:`~cartpole.viz.scene.camera_path`). A name or id: that MJCF camera instead.
+    options : VideoOptions
+        Frame rate, frame size, camera, overlay and the preview's length and width (default
+        :class:`VideoOptions` ``()``: 30 fps, 960x540, the computed camera, the overlay, a 4 s preview 480 wide).
+    preview : bool or path
+        True (default): an animated GIF beside the mp4 (same stem, ``.gif``); a path: there; False: none.
     progress : callable, None or False
         The render is a :func:`cartpole.progress.stage` ("video"): shown by the current progress reporter if there
         is one (a tqdm bar on a terminal, one line otherwise, nothing with ``--json``), silent without one. A
@@ -379,14 +433,6 @@ def render_video(plant, rollout, path, *, fps: float = 30, width: int = 960, hei
     model : CartPoleModel, optional
         Its ``x_eq`` is upright for the overlay's angles; built from ``source`` when not given (and the MJCF's
         ``qpos0`` used if the toolkit cannot build one).
-    overlay : bool
-        Draw the time, angles, ctrl bars and mode (default True).
-    preview : bool or path
-        True (default): an animated GIF beside the mp4 (same stem, ``.gif``); a path: there; False: none.
-    preview_seconds : float
-        Length of the preview, s of simulated time (default 4; at 15 fps).
-    preview_width : int, pixels
-        Width of the preview (default 480; the height keeps the aspect).
 
     Returns
     -------
@@ -397,19 +443,18 @@ def render_video(plant, rollout, path, *, fps: float = 30, width: int = 960, hei
     ------
     VideoUnavailable
         No working OpenGL backend (EGL, then OSMesa in a child process, were tried), the encoder failed, an unknown
-        camera name, a rollout that does not match the MJCF, or bad ``modes``.
+        camera name, a rollout that does not match the MJCF, bad ``modes`` or ``options`` that are not a
+        :class:`VideoOptions`.
     """
     start = time.perf_counter()
+    options = _check_options(options)
     path = Path(path)
     gif = None if preview is False or preview is None else (path.with_suffix(".gif") if preview is True
                                                             else Path(preview))
     made = [p for p in (path.parent, *path.parent.parents) if not p.exists()]
     if gif is not None:
         made += [p for p in (gif.parent, *gif.parent.parents) if not p.exists() and p not in made]
-    opts = dict(fps=fps, width=width, height=height, camera=camera, progress=progress, modes=modes, model=model,
-                overlay=overlay, preview_seconds=preview_seconds, preview_width=preview_width)
-    if not (np.isfinite(fps) and fps > 0):
-        raise VideoUnavailable(f"The frame rate {fps} is not positive; give fps > 0.")
+    job = dict(options=options, progress=progress, modes=modes, model=model)
     ok = False
     backend = os.environ.get("MUJOCO_GL", "").lower() or "default"
     try:
@@ -418,12 +463,12 @@ def render_video(plant, rollout, path, *, fps: float = 30, width: int = 960, hei
             tmp = files.enter_context(atomic_path(path, suffix=path.suffix or ".mp4"))
             tmp_gif = files.enter_context(atomic_path(gif, suffix=".gif")) if gif is not None else None
             try:
-                frames, pv_frames = _render_frames(plant, rollout, tmp, preview=tmp_gif, **opts)
+                frames, pv_frames = _render_frames(plant, rollout, tmp, preview=tmp_gif, **job)
             except VideoUnavailable as first:
                 if backend != "egl" or not _osmesa_available() or "OpenGL" not in str(first):
                     raise
                 try:
-                    frames, pv_frames = _render_in_child(plant, rollout, tmp, preview=tmp_gif, **opts)
+                    frames, pv_frames = _render_in_child(plant, rollout, tmp, preview=tmp_gif, **job)
                     backend = "osmesa"
                 except VideoUnavailable:
                     raise first from None
@@ -435,8 +480,8 @@ def render_video(plant, rollout, path, *, fps: float = 30, width: int = 960, hei
                     d.rmdir()
                 except OSError:
                     pass
-    return VideoInfo(path=path, preview=gif, frames=frames, fps=float(fps), seconds=frames / float(fps),
-                     size=(int(width) // 2 * 2, int(height) // 2 * 2), render_s=time.perf_counter() - start,
+    return VideoInfo(path=path, preview=gif, frames=frames, fps=float(options.fps), seconds=frames / options.fps,
+                     size=(options.width // 2 * 2, options.height // 2 * 2), render_s=time.perf_counter() - start,
                      preview_frames=pv_frames, backend=backend)
 
 
@@ -444,11 +489,9 @@ def _child_main(argv) -> int:
     """Entry of the OSMesa fallback child: ``python -m cartpole.viz.video JOB_JSON``; prints ``frames preview``."""
     job = json.loads(argv[0])
     try:
-        n, k = _render_frames(job["source"], Rollout.load(job["rollout"]), Path(job["path"]), fps=job["fps"],
-                              width=job["width"], height=job["height"], camera=job["camera"], progress=False,
-                              modes=job.get("modes"), x_eq=job.get("x_eq"), overlay=job.get("overlay", True),
-                              preview=job.get("preview"), preview_seconds=job.get("preview_seconds", 4.0),
-                              preview_width=job.get("preview_width", 480))
+        n, k = _render_frames(job["source"], Rollout.load(job["rollout"]), Path(job["path"]),
+                              options=VideoOptions(**job["options"]), progress=False, modes=job.get("modes"),
+                              x_eq=job.get("x_eq"), preview=job.get("preview"))
     except CartPoleError as exc:
         print(str(exc), file=sys.stderr)
         return 2

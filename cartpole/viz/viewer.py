@@ -364,13 +364,13 @@ def require_display() -> None:
 
 
 def watch(plant: Plant, controller: Callable, x0, duration: float, *,
-          realtime: bool = True, push: Callable[[float], float] | None = None, screenshot: str | Path | None = None,
-          control_period: float | None = None, stop: Callable[[float, np.ndarray], bool] | None = None,
-          show_ui: bool = False, camera: str | None = None) -> Rollout:
+          push: Callable[[float], float] | None = None, options: SimOptions = SimOptions(), realtime: bool = True,
+          screenshot: str | Path | None = None, show_ui: bool = False, camera: str | None = None) -> Rollout:
     """Run ``u = controller(t, x)`` in MuJoCo from ``x0`` for ``duration`` s, live in MuJoCo's viewer.
 
     The physics and the log are :func:`~cartpole.sim.rollout.simulate`'s: same start (``qpos``, ``qvel``, ``time =
-    0``, ``mj_forward``), ctrl clipped to ``ctrlrange`` and held for ``control_period``, every physics step logged, so
+    0``, ``mj_forward``), ctrl clipped to ``ctrlrange`` and held for ``options.control_period``, every physics step
+    logged, so
     the rollout replays exactly with :func:`~cartpole.sim.rollout.replays_exactly` (unless ``push`` is given: replay
     does not apply pushes). Closing the window ends the run early; the rollout then holds the steps done.
 
@@ -384,19 +384,19 @@ def watch(plant: Plant, controller: Callable, x0, duration: float, *,
         Start state ``[qpos, qvel]`` in MuJoCo's order.
     duration : float, s
         Simulated time; rounded to whole physics steps.
-    realtime : bool
-        Sleep so simulated time tracks wall time (default True); False runs as fast as possible, still drawn.
     push : callable, optional
         ``push(t [s]) -> force [N]``: world-x force on the cart body during the step from ``t``; logged as
         ``rollout.info["push"]`` (n,).
+    options : SimOptions, optional
+        As :func:`~cartpole.sim.rollout.simulate`'s: the control period (held ctrl, whole physics steps; default
+        every physics step), ``stop(t, x) -> bool`` ending the run early (after logging that state), ``progress``,
+        and an ``on_step`` hook called after the viewer's own (either returning False ends the run).
+    realtime : bool
+        Sleep so simulated time tracks wall time (default True); False runs as fast as possible, still drawn.
     screenshot : str or Path, optional
         After the run, save a PNG of the viewer window as the X screen shows it (written whole or not at all); the
         path, or None when the window was closed first, is ``rollout.info["screenshot"]``, and the window's
         ``(x, y, width, height)`` on the screen ``rollout.info["window"]``.
-    control_period : float, s, optional
-        Hold each ctrl for this long (whole physics steps); default every physics step.
-    stop : callable, optional
-        ``stop(t, x) -> bool`` ends the run early (after logging that state).
     show_ui : bool
         Show MuJoCo's side panels (default hidden).
     camera : str, optional
@@ -424,8 +424,8 @@ def watch(plant: Plant, controller: Callable, x0, duration: float, *,
     view = LiveViewer(realtime=realtime, show_ui=show_ui, camera=camera)
     shot = window = None
     try:
-        run = simulate(plant, controller, x0, duration, push=push,
-                       options=SimOptions(control_period=control_period, stop=stop, on_step=view))
+        run = simulate(plant, controller, x0, duration, push=push, options=options.replace(
+            on_step=view if options.on_step is None else _both(view, options.on_step)))
         view.finish(settle=0.3 if screenshot is not None else 0.0)
         if screenshot is not None and view.is_running:
             window = find_window("MuJoCo")
@@ -437,3 +437,11 @@ def watch(plant: Plant, controller: Callable, x0, duration: float, *,
                      "wall_time": view.wall_time, "screenshot": None if shot is None else str(shot),
                      "window": window})
     return run
+
+
+def _both(first, then):
+    """An ``on_step(m, d)`` hook calling ``first`` and then ``then``; False (the run ends) when either says so."""
+    def on_step(m, d):
+        shown = first(m, d)
+        return not (then(m, d) is False or shown is False)
+    return on_step

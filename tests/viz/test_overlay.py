@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cartpole.viz import VideoUnavailable, modes_from_switches, render_frame, swingup_modes
+from cartpole.viz import VideoOptions, VideoUnavailable, modes_from_switches, render_frame, swingup_modes
 from cartpole.viz.overlay import MODE_COLOURS, Overlay, mode_labels, preview_window, write_gif
 from cartpole.viz.scene import LINK_COLOURS
 from video_helpers import POLES, H, W, hue_mask, lqr_run, or_skip
@@ -14,8 +14,9 @@ from video_helpers import POLES, H, W, hue_mask, lqr_run, or_skip
 def test_overlay_draws_time_angles_ctrl_bars_and_mode_in_bands_the_system_keeps_out_of():
     model, run = lqr_run(POLES[2], 0.2)
     assert np.abs(run.ctrl[0]).max() > 0.05  # a ctrl bar with something in it
-    plain = or_skip(render_frame, model, run, 0.0, width=W, height=H, overlay=False, modes=[(0, "LQR")])
-    drawn = render_frame(model, run, 0.0, width=W, height=H, modes=[(0, "LQR")])
+    plain = or_skip(render_frame, model, run, 0.0, options=VideoOptions(width=W, height=H, overlay=False),
+                    modes=[(0, "LQR")])
+    drawn = render_frame(model, run, 0.0, options=VideoOptions(width=W, height=H), modes=[(0, "LQR")])
     layout = Overlay(W, H, 2, ["motor"], np.array([[-1.0, 1.0]]), 1.0, show_mode=True)
     changed = np.any(drawn != plain, axis=2)
     assert changed.any()
@@ -32,7 +33,7 @@ def test_overlay_draws_time_angles_ctrl_bars_and_mode_in_bands_the_system_keeps_
     assert max(fill) > 20  # the ctrl bar's fill (blue, or red at the ctrl limit)
     tag = np.all(np.abs(top[:, W // 2:].astype(int) - MODE_COLOURS["lqr"]) < 8, axis=2)
     assert tag.sum() > 100  # the mode tag, top right
-    no_mode = render_frame(model, run, 0.0, width=W, height=H)
+    no_mode = render_frame(model, run, 0.0, options=VideoOptions(width=W, height=H))
     assert not np.all(np.abs(no_mode[:layout.top, W // 2:].astype(int) - MODE_COLOURS["lqr"]) < 8, axis=2).any()
 
 

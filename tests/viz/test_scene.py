@@ -7,7 +7,7 @@ import pytest
 from cartpole import replay
 from cartpole.models import build_model, read_params
 from cartpole.sim import Rollout, make_mujoco, replays_exactly
-from cartpole.viz import frame_indices, render_frame, render_video
+from cartpole.viz import VideoOptions, frame_indices, render_frame, render_video
 from cartpole.viz.scene import LINK_COLOURS
 from cartpole.viz.video import _Scene
 from video_helpers import POLES, H, W, hue_mask, lqr_run, or_skip
@@ -27,7 +27,7 @@ def test_upright_frame_shows_every_pole_thick_in_its_own_colour_and_the_chain_fi
     path = POLES[n_poles]
     model = build_model(path)
     run = replay(path, model.x_eq, np.zeros((20, model.nu)))  # 0.1 s at upright rest
-    frame = or_skip(render_frame, model, run, 0.0, width=W, height=H, overlay=False)
+    frame = or_skip(render_frame, model, run, 0.0, options=VideoOptions(width=W, height=H, overlay=False))
     assert frame.shape == (H, W, 3) and frame.dtype == np.uint8
     rows = np.zeros(H, bool)
     for i in range(n_poles):
@@ -49,13 +49,14 @@ def test_rendering_reads_the_logged_states_and_never_touches_the_physics_model(t
     text, xml = path.read_bytes(), params.xml
     m_before, _ = make_mujoco(params)
     model, run = lqr_run(path, 0.3)
-    or_skip(render_video, params, run, tmp_path / "v.mp4", width=W, height=H, preview=False, model=model)
+    or_skip(render_video, params, run, tmp_path / "v.mp4", options=VideoOptions(width=W, height=H), preview=False,
+            model=model)
     assert path.read_bytes() == text and params.xml == xml
     m_after, _ = make_mujoco(params)
     for name in ("geom_size", "geom_rgba", "body_mass", "body_inertia", "dof_damping", "actuator_gear"):
         np.testing.assert_array_equal(getattr(m_after, name), getattr(m_before, name))
     assert replays_exactly(run)  # the log still replays bit for bit with mj_step on the MJCF
-    with _Scene(params, run, fps=30, width=W, height=H, model=model) as scene:
+    with _Scene(params, run, VideoOptions(fps=30, width=W, height=H), model=model) as scene:
         shown = scene.disp.m
         np.testing.assert_array_equal(shown.body_mass, m_before.body_mass)  # the copy's physics is the MJCF's ...
         np.testing.assert_array_equal(shown.body_inertia, m_before.body_inertia)
@@ -70,7 +71,7 @@ def test_camera_follows_a_cart_that_travels_far_and_stands_still_when_the_run_fi
     qpos = np.zeros((801, 2))
     qpos[:, 0] = 1.4 * np.sin(2 * np.pi * t / 4.0)
     run = Rollout(t=t, qpos=qpos, qvel=np.gradient(qpos, t, axis=0), ctrl=np.zeros((800, 1)), mjcf=str(path))
-    with or_skip(_Scene, model, run, fps=30, width=W, height=H, model=model) as scene:
+    with or_skip(_Scene, model, run, VideoOptions(fps=30, width=W, height=H), model=model) as scene:
         cam = scene.camera_path
         assert cam.follows
         aim = cam.lookat[:, 0]
@@ -80,5 +81,5 @@ def test_camera_follows_a_cart_that_travels_far_and_stands_still_when_the_run_fi
             cols = np.flatnonzero(mask.any(0))
             assert mask.mean() > 0.005 and cols.min() > 0 and cols.max() < W - 1, f"frame {i}"
     model, still = lqr_run(path, 2.0)
-    with _Scene(model, still, fps=30, width=W, height=H, model=model) as scene:
+    with _Scene(model, still, VideoOptions(fps=30, width=W, height=H), model=model) as scene:
         assert not scene.camera_path.follows and np.ptp(scene.camera_path.lookat, axis=0).max() == 0

@@ -11,7 +11,7 @@ import pytest
 from cartpole import replay
 from cartpole.models import build_model
 from cartpole.sim import make_mujoco
-from cartpole.viz import VideoInfo, VideoUnavailable, render_frame, render_video
+from cartpole.viz import VideoInfo, VideoOptions, VideoUnavailable, render_frame, render_video
 from cartpole.viz.overlay import mode_labels
 from video_helpers import POLES, H, W, lqr_run, or_skip, read_video
 
@@ -21,7 +21,8 @@ def test_mp4_is_browser_ready_h264_yuv420p_at_30_fps_with_a_gif_preview_beside_i
     path = POLES[n_poles]
     model, run = lqr_run(path, 1.0)
     out = tmp_path / "videos" / "clip.mp4"
-    info = or_skip(render_video, path, run, out, width=W, height=H, preview_width=240, model=model)
+    info = or_skip(render_video, path, run, out, options=VideoOptions(width=W, height=H, preview_width=240),
+                   model=model)
     assert isinstance(info, VideoInfo) and os.fspath(info) == str(out) and info.resolve() == out.resolve()
     assert (info.frames, info.fps, info.seconds, info.size) == (30, 30.0, 1.0, (W, H))
     assert info.render_s > 0 and info.preview == out.with_suffix(".gif") and info.preview_frames >= 5
@@ -46,9 +47,10 @@ def test_mp4_is_browser_ready_h264_yuv420p_at_30_fps_with_a_gif_preview_beside_i
 def test_progress_is_a_silent_stage_without_a_reporter_and_feeds_a_callback(tmp_path, capfd):
     run = replay(None, [0.0, 0.1, 0.0, 0.0], np.zeros(100))  # 0.5 s
     seen = []
-    or_skip(render_video, None, run, tmp_path / "a.mp4", width=160, height=90, progress=seen.append)
-    render_video(None, run, tmp_path / "b.mp4", width=160, height=90)
-    render_video(None, run, tmp_path / "c.mp4", width=160, height=90, progress=False)
+    small = VideoOptions(width=160, height=90)
+    or_skip(render_video, None, run, tmp_path / "a.mp4", options=small, progress=seen.append)
+    render_video(None, run, tmp_path / "b.mp4", options=small)
+    render_video(None, run, tmp_path / "c.mp4", options=small, progress=False)
     assert seen and seen[-1] == 1.0 and seen == sorted(seen)
     captured = capfd.readouterr()
     assert captured.out == "" and captured.err == ""
@@ -57,7 +59,8 @@ def test_progress_is_a_silent_stage_without_a_reporter_and_feeds_a_callback(tmp_
 def test_requested_size_is_honoured_above_the_mjcfs_offscreen_buffer(variant_dir, tmp_path):
     path = variant_dir / "cartpole_heavy_pole.xml"  # declares offwidth 320, offheight 240
     run = replay(path, [0.0, 0.1, 0.0, 0.0], np.zeros(250))  # 1 s at 4 ms, falling pole
-    out = or_skip(render_video, path, run, tmp_path / "sub" / "clip.mp4", width=640, height=360, preview=False)
+    out = or_skip(render_video, path, run, tmp_path / "sub" / "clip.mp4", options=VideoOptions(width=640, height=360),
+                  preview=False)
     frames, meta, first = read_video(out)
     assert frames == 30 and tuple(meta["size"]) == (640, 360) and meta["fps"] == 30
     assert first.size == 640 * 360 * 3 and first.std() > 0  # not a blank frame
@@ -68,14 +71,14 @@ def test_requested_size_is_honoured_above_the_mjcfs_offscreen_buffer(variant_dir
 def test_unknown_camera_is_refused_without_a_file(tmp_path):
     run = replay(None, [0.0, 0.0, 0.0, 0.0], np.zeros(10))
     with pytest.raises(VideoUnavailable, match="no camera named 'nope'"):
-        render_video(None, run, tmp_path / "x.mp4", camera="nope")
+        render_video(None, run, tmp_path / "x.mp4", options=VideoOptions(camera="nope"))
     assert list(tmp_path.iterdir()) == []
 
 
 def test_an_mjcf_camera_is_used_when_named(tmp_path):
     run = replay(None, [0.0, 0.1, 0.0, 0.0], np.zeros(20))
-    ours = or_skip(render_frame, None, run, 0.0, width=160, height=90)
-    track = render_frame(None, run, 0.0, width=160, height=90, camera="track")
+    ours = or_skip(render_frame, None, run, 0.0, options=VideoOptions(width=160, height=90))
+    track = render_frame(None, run, 0.0, options=VideoOptions(width=160, height=90, camera="track"))
     assert np.abs(ours.astype(int) - track.astype(int)).max() > 50
 
 
@@ -100,7 +103,8 @@ def test_the_child_process_route_renders_the_same_video_and_preview(tmp_path):
     from cartpole.viz.video import _render_frames, _render_in_child
 
     run = replay(None, [0.0, 0.1, 0.0, 0.0], np.zeros(100))  # 0.5 s
-    opts = dict(fps=30, width=160, height=90, camera=None, progress=None, modes=[(0.0, "LQR")], preview_width=80)
+    opts = dict(options=VideoOptions(fps=30, width=160, height=90, preview_width=80), progress=None,
+                modes=[(0.0, "LQR")])
     here = or_skip(_render_frames, None, run, tmp_path / "here.mp4", preview=tmp_path / "here.gif", **opts)
     child = _render_in_child(None, run, tmp_path / "child.mp4", preview=tmp_path / "child.gif",
                              backend=os.environ.get("MUJOCO_GL", "egl"), **opts)
@@ -122,8 +126,8 @@ def test_video_draws_every_link_of_a_three_pole_chain(tmp_path):
     for x0 in (model.x_eq, bent):
         run = replay(path, x0, np.zeros((20, model.nu)))  # 0.1 s
         assert run.qpos.shape[1] == 4
-        out = or_skip(render_video, path, run, tmp_path / f"clip{len(clips)}.mp4", width=320, height=180,
-                       preview=False, model=model)
+        out = or_skip(render_video, path, run, tmp_path / f"clip{len(clips)}.mp4",
+                      options=VideoOptions(width=320, height=180), preview=False, model=model)
         clips.append(read_video(out))
     (n0, meta0, first0), (n1, _, first1) = clips
     assert n0 == n1 == 3 and tuple(meta0["size"]) == (320, 180)
@@ -136,3 +140,21 @@ def test_job_of_the_child_is_plain_json():
     labels = mode_labels(lambda t: "energy" if t < 0.05 else "LQR catch", times)
     job = {"modes": [[float(t), lab] for t, lab in zip(times, labels)]}
     assert mode_labels(json.loads(json.dumps(job))["modes"], times) == labels
+
+
+@pytest.mark.parametrize("bad, match", [
+    (dict(fps=0), r"VideoOptions.fps = 0 must be a finite number > 0 frames per second"),
+    (dict(width=1), r"VideoOptions.width = 1 must be a finite number >= 2 pixels"),
+    (dict(height=100.5), "VideoOptions.height must be a whole number"),
+    (dict(preview_seconds=-1.0), r"VideoOptions.preview_seconds = -1.0 must be a finite number > 0 s"),
+])
+def test_bad_video_options_are_one_sentence(bad, match):
+    with pytest.raises(VideoUnavailable, match=match):
+        VideoOptions(**bad)
+
+
+def test_render_video_refuses_options_that_are_not_video_options_without_a_file(tmp_path):
+    run = replay(None, [0.0, 0.0, 0.0, 0.0], np.zeros(10))
+    with pytest.raises(VideoUnavailable, match="options must be a VideoOptions"):
+        render_video(None, run, tmp_path / "x.mp4", options={"fps": 30})
+    assert list(tmp_path.iterdir()) == []
