@@ -206,6 +206,75 @@ def _handles(messages, cls):
     return deco
 
 
+def _draw_plots(im, ip, s) -> None:
+    """The panel's plots (ImGui ``im``, ImPlot ``ip``): one per series of the status ``s`` against its time, the
+    ctrl's with its range drawn."""
+    t = list(s.t)
+    for i, name in enumerate(s.names):
+        ys = [row[i] for row in s.series]
+        if ip.BeginPlot(f"##{name}", im.Vec2(-1, PLOT_HEIGHT), PLOT_NO_LEGEND):
+            ctrl = name.startswith("ctrl")
+            ip.SetupAxes("t [s]", name, 0, 0)
+            if ys and not ctrl:  # at least MIN_SPAN tall: rounding noise at rest stays flat
+                mid, half = 0.5 * (max(ys) + min(ys)), 0.55 * max(max(ys) - min(ys), MIN_SPAN)
+                ip.SetupAxisLimits(3, mid - half, mid + half, 1)
+            if t:
+                ip.SetupAxisLimits(0, t[0], max(t[-1], t[0] + 1e-3), 1)  # ImPlotCond_Always
+            if ctrl and s.ctrl_range:
+                lo, hi = s.ctrl_range[0]
+                ip.SetupAxisLimits(3, lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), 1)
+                if t:
+                    ip.PlotLine("low", [t[0], t[-1]], [lo, lo])
+                    ip.PlotLine("high", [t[0], t[-1]], [hi, hi])
+            if t:
+                ip.PlotLine(name, t, ys)
+            ip.EndPlot()
+
+
+def _draw_push(panel, im, M) -> None:
+    """The panel's push controls: a force slider with push-left and push-right buttons, and a drag slider that
+    pushes while held (messages ``M`` sent through ``panel.viewer``)."""
+    changed, panel.force = im.SliderFloat("push force [N]", panel.force, 1.0, MAX_PUSH, "%.1f")
+    if im.Button("push left"):
+        panel.viewer.send_to_sim(M.PushEvent(force=-panel.force))
+    panel._rect("push left")
+    im.SameLine()
+    if im.Button("push right"):
+        panel.viewer.send_to_sim(M.PushEvent(force=panel.force))
+    panel._rect("push right")
+    changed, panel.drag = im.SliderFloat("drag to push [N]", panel.drag, -MAX_PUSH, MAX_PUSH, "%+.1f")
+    if im.IsItemActive():
+        if abs(panel.drag - panel.drag_sent) >= DRAG_STEP:
+            panel.drag_sent = panel.drag
+            panel.viewer.send_to_sim(M.DragEvent(force=panel.drag))
+    else:
+        if panel.drag_sent != 0.0:
+            panel.viewer.send_to_sim(M.DragEvent(force=0.0))
+        panel.drag = panel.drag_sent = 0.0
+    panel._rect("drag to push [N]")
+
+
+def _draw_knobs(panel, im, s, M) -> None:
+    """The panel's knobs: one slider per knob of the status ``s`` (log-scaled where the knob says so), its value
+    sent to the run when the edit ends."""
+    for k in s.knobs:
+        name, value, low, high, log = k
+        shown = panel.values.get(name, value)
+        if log:
+            changed, v = im.SliderFloat(name, float(np.log10(shown)), float(np.log10(low)),
+                                        float(np.log10(high)), f"{shown:.3g}")
+            new = float(10.0 ** v)
+        else:
+            changed, new = im.SliderFloat(name, float(shown), float(low), float(high), "%.3g")
+        if changed:
+            panel.values[name] = new
+        if im.IsItemDeactivatedAfterEdit():
+            panel.viewer.send_to_sim(M.KnobEvent(name=name, value=panel.values.get(name, new)))
+        elif not im.IsItemActive():
+            panel.values[name] = value
+        panel._rect(name)
+
+
 def _make_plugins(live: "WebLive"):
     """The viewer-side panel and the sim-side inbox, as Studio plugin instances."""
     _, messages, plugin, _, _, im, ip = _studio()
@@ -255,64 +324,13 @@ def _make_plugins(live: "WebLive"):
             for line in s.lines:
                 im.Text(line)
             im.Separator()
-            t = list(s.t)
-            for i, name in enumerate(s.names):
-                ys = [row[i] for row in s.series]
-                if ip.BeginPlot(f"##{name}", im.Vec2(-1, PLOT_HEIGHT), PLOT_NO_LEGEND):
-                    ctrl = name.startswith("ctrl")
-                    ip.SetupAxes("t [s]", name, 0, 0)
-                    if ys and not ctrl:  # at least MIN_SPAN tall: rounding noise at rest stays flat
-                        mid, half = 0.5 * (max(ys) + min(ys)), 0.55 * max(max(ys) - min(ys), MIN_SPAN)
-                        ip.SetupAxisLimits(3, mid - half, mid + half, 1)
-                    if t:
-                        ip.SetupAxisLimits(0, t[0], max(t[-1], t[0] + 1e-3), 1)  # ImPlotCond_Always
-                    if ctrl and s.ctrl_range:
-                        lo, hi = s.ctrl_range[0]
-                        ip.SetupAxisLimits(3, lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), 1)
-                        if t:
-                            ip.PlotLine("low", [t[0], t[-1]], [lo, lo])
-                            ip.PlotLine("high", [t[0], t[-1]], [hi, hi])
-                    if t:
-                        ip.PlotLine(name, t, ys)
-                    ip.EndPlot()
+            _draw_plots(im, ip, s)
             im.Separator()
             if s.pushable:
-                changed, self.force = im.SliderFloat("push force [N]", self.force, 1.0, MAX_PUSH, "%.1f")
-                if im.Button("push left"):
-                    self.viewer.send_to_sim(M.PushEvent(force=-self.force))
-                self._rect("push left")
-                im.SameLine()
-                if im.Button("push right"):
-                    self.viewer.send_to_sim(M.PushEvent(force=self.force))
-                self._rect("push right")
-                changed, self.drag = im.SliderFloat("drag to push [N]", self.drag, -MAX_PUSH, MAX_PUSH, "%+.1f")
-                if im.IsItemActive():
-                    if abs(self.drag - self.drag_sent) >= DRAG_STEP:
-                        self.drag_sent = self.drag
-                        self.viewer.send_to_sim(M.DragEvent(force=self.drag))
-                else:
-                    if self.drag_sent != 0.0:
-                        self.viewer.send_to_sim(M.DragEvent(force=0.0))
-                    self.drag = self.drag_sent = 0.0
-                self._rect("drag to push [N]")
+                _draw_push(self, im, M)
             if s.knobs:
                 im.Separator()
-            for k in s.knobs:
-                name, value, low, high, log = k
-                shown = self.values.get(name, value)
-                if log:
-                    changed, v = im.SliderFloat(name, float(np.log10(shown)), float(np.log10(low)),
-                                                float(np.log10(high)), f"{shown:.3g}")
-                    new = float(10.0 ** v)
-                else:
-                    changed, new = im.SliderFloat(name, float(shown), float(low), float(high), "%.3g")
-                if changed:
-                    self.values[name] = new
-                if im.IsItemDeactivatedAfterEdit():
-                    self.viewer.send_to_sim(M.KnobEvent(name=name, value=self.values.get(name, new)))
-                elif not im.IsItemActive():
-                    self.values[name] = value
-                self._rect(name)
+            _draw_knobs(self, im, s, M)
             if s.events:
                 im.Separator()
                 for line in s.events[-6:]:
