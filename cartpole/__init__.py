@@ -27,7 +27,8 @@ workflow:
 - simulate and replay: :func:`simulate` (:class:`SimOptions`), :func:`replay`, :func:`replays_exactly`,
   :class:`Rollout`, :class:`LoopOptions`;
 - the rig and estimation: :func:`sensor_spec`, :class:`KalmanFilter`; margins: :func:`sampled_loop`,
-  :func:`loop_margins`; identification: :func:`run_excite`, :func:`run_identify`;
+  :func:`loop_margins`; identification: :func:`run_excite` (:class:`ExciteOptions`),
+  :func:`run_identify`;
 - export to C: :func:`run_export`, :func:`design_export`, :func:`load_design`, :func:`run_lockstep`;
 - proof and figures: :func:`swingup_success`, :func:`summarize`, :func:`check_jacobians`, :func:`plot_swingup`,
   :func:`swingup_figure`, :func:`render_video` (:class:`VideoOptions`).
@@ -76,7 +77,7 @@ _SOURCES = {
     "cartpole.apps.swingup": ("TRAJOPT_EXTRA", "SwingupOptions", "run_swingup"),
     "cartpole.apps.feedforward": ("PlanFeedforward", "run_feedforward"),
     "cartpole.apps.margins": ("mujoco_stable",),
-    "cartpole.apps.excite": ("run_excite",),
+    "cartpole.apps.excite": ("ExciteOptions", "run_excite"),
     "cartpole.apps.identify": ("run_identify",),
     "cartpole.apps.export": ("run_export",),
     "cartpole.apps.live": ("watch",),

@@ -54,8 +54,9 @@ print("nominal:", NOMINAL.name, " rig:", RIG.name, " outputs in the scratch fold
 
 # %%
 enc = dict(encoder_cpr=2048, encoder_resolution=1e-4)
-fit_run = cp.run_excite(RIG, out, duration=10.0 if QUICK else 20.0, csv_name="run1.csv", **enc)
-check_run = cp.run_excite(RIG, out, duration=6.0 if QUICK else 10.0, csv_name="run2.csv", seed=1, **enc)
+fit_run = cp.run_excite(RIG, out, cp.ExciteOptions(duration=10.0 if QUICK else 20.0, **enc), csv_name="run1.csv")
+check_run = cp.run_excite(RIG, out, cp.ExciteOptions(duration=6.0 if QUICK else 10.0, seed=1, **enc),
+                          csv_name="run2.csv")
 log = fit_run.log
 print(f"{log.n} samples every {log.sample_time * 1e3:g} ms; columns written to {fit_run.csv.name}")
 

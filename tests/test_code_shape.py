@@ -108,7 +108,6 @@ LONG_TO_FIX = {
     "cartpole/solvers/ddp.py": ["DDP.solve"],
     "cartpole/solvers/sqp.py": ["CollocationSQP.solve_once"],
     "cartpole/solvers/sqp_functions.py": ["qp_functions"],
-    "cartpole/viz/web.py": ["_make_plugins"],
 }
 
 #: file -> qualified names of the functions with more than MAX_PARAMS parameters.
@@ -116,7 +115,6 @@ PARAMS_TO_FIX = {
     "cartpole/apps/bench/mpc.py": ["run_mpc_benchmark"],
     "cartpole/apps/bench/objectives.py": ["against_naive"],
     "cartpole/apps/bench/trajopt.py": ["NaiveOptiBaseline.__init__"],
-    "cartpole/apps/excite.py": ["run_excite"],
     "cartpole/apps/export.py": ["run_export"],
     "cartpole/apps/feedforward.py": ["run_feedforward"],
     "cartpole/apps/sweep/results.py": ["sweep_id"],

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import mujoco
 import numpy as np
@@ -22,9 +23,10 @@ from cartpole._files import write_csv
 from cartpole.control.linear import LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.estimation import SensorSampler, sensor_spec
-from cartpole.identify.excite import Excitation, multisine
+from cartpole.identify.excite import Excitation, ExciteError, multisine
 from cartpole.identify.logs import RunLog
 from cartpole.models import plant_model, state_error
+from cartpole.options import StageOptions
 from cartpole.sim.rollout import SimOptions, make_mujoco, replay, simulate
 from cartpole.validation.metrics import diverged
 
@@ -34,6 +36,55 @@ MODES = ("hanging", "balance")
 BALANCE_AMPLITUDE = 0.15
 #: Largest pole-angle error from upright (rad) a balancing run may reach and still count as balanced.
 BALANCE_LIMIT = 0.6
+
+
+@dataclass(frozen=True, eq=False)
+class ExciteOptions(StageOptions):
+    """The experiment :func:`run_excite` designs and runs: its length, sample time, amplitude and mode, and the rig's
+    sensors that read it. Keyword-only; every field has a default.
+
+    Attributes
+    ----------
+    duration : float
+        Length of the experiment, s (default 20).
+    sample_time : float or None
+        Log and ctrl-hold step, s, a whole number of physics steps; None (default): the MJCF's step.
+    amplitude : float or None
+        Envelope of the multisine as a fraction of the ctrl half-range; None (default): the largest that keeps the
+        cart within its rail when hanging, :data:`BALANCE_AMPLITUDE` when balancing.
+    mode : str
+        ``"hanging"`` (default: open loop from hanging rest) or ``"balance"`` (the LQR plus the multisine, from
+        upright).
+    seed : int
+        Seed of the sensor noise and of the frequencies' small shift (default 0).
+    encoder_cpr, encoder_resolution, sensor_noise : optional
+        The rig's sensors (:func:`cartpole.estimation.sensor_spec`): counts per revolution of every hinge's encoder,
+        metres per count of every slide's, the noise's standard deviation in each sensor's units; None (default):
+        not quantised, the MJCF's own noise.
+
+    Raises
+    ------
+    ExciteError
+        An unknown mode (the others are checked where the experiment is designed,
+        :func:`cartpole.identify.excite.multisine`, and the sensors built, :func:`cartpole.estimation.sensor_spec`).
+    """
+
+    duration: float = 20.0
+    sample_time: float | None = None
+    amplitude: float | None = None
+    mode: str = "hanging"
+    seed: int = 0
+    encoder_cpr: int | None = None
+    encoder_resolution: float | None = None
+    sensor_noise: float | None = None
+
+    error: ClassVar[type] = ExciteError
+    SCALARS: ClassVar[tuple] = ("duration", "sample_time", "amplitude", "seed", "encoder_cpr", "encoder_resolution",
+                                "sensor_noise")
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ExciteError(f"Unknown excitation mode '{self.mode}'; choose one of {', '.join(MODES)}.")
 
 
 @dataclass(frozen=True)
@@ -91,10 +142,8 @@ def _balance(model, exc: Excitation, ts: float, steps: int):
     return roll, dataclasses.replace(exc, ctrl=readonly(ctrl))
 
 
-def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: float | None = None,
-               amplitude: float | None = None, dry_run: bool = False, encoder_cpr=None, encoder_resolution=None,
-               sensor_noise=None, seed: int = 0, csv_name: str = "excite.csv",
-               mode: str = "hanging") -> ExciteResult:
+def run_excite(plant, out: str | Path, options: ExciteOptions = ExciteOptions(), *, dry_run: bool = False,
+               csv_name: str = "excite.csv") -> ExciteResult:
     """Design the excitation and (unless ``dry_run``) run and log it.
 
     Parameters
@@ -103,37 +152,36 @@ def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: f
         The model to run (the "rig"); default the shipped cart.
     out : path
         Directory for the CSV (and ``excite_rollout.json``).
-    duration : float
-        s.
-    sample_time : float, optional
-        Log and ctrl-hold step, s; default the MJCF's step.
-    amplitude : float, optional
-        Fraction of the ctrl half-range (default sized to the rail).
+    options : ExciteOptions
+        The experiment (length, sample time, amplitude, mode, seed) and the rig's sensors; default
+        :class:`ExciteOptions` ``()``: 20 s hanging at the MJCF's step, amplitude sized to the rail, exact sensors.
     dry_run : bool
-        Write only the ctrl.
-    encoder_cpr, encoder_resolution, sensor_noise : optional
-        The rig's sensors (:func:`cartpole.estimation.sensor_spec`).
-    seed : int
-        Seed of the sensor noise and of the frequencies' small shift.
+        Write only the ctrl (hanging mode only).
     csv_name : str
         File name of the CSV under ``out``.
-    mode : str
-        ``"hanging"`` (open loop from hanging rest) or ``"balance"`` (LQR plus the multisine, from upright).
 
     Returns
     -------
     ExciteResult
+
+    Raises
+    ------
+    CartPoleError
+        ``options`` that are not an :class:`ExciteOptions`, a balancing dry run, a bad excitation or sensor, a
+        balancing run that lost the pole, or a cart driven to the end of its rail.
     """
-    if mode not in MODES:
-        raise CartPoleError(f"Unknown excitation mode '{mode}'; choose one of {', '.join(MODES)}.")
+    if not isinstance(options, ExciteOptions):
+        raise ExciteError(f"run_excite's options must be an ExciteOptions; got {options!r}.")
+    o = options
+    mode, seed = o.mode, o.seed
     if mode == "balance" and dry_run:
         raise CartPoleError("A balancing experiment's ctrl depends on the measured state, so it cannot be written "
                             "ahead; use `dry_run` with `mode='hanging'`.")
     model = plant_model(plant)
     p = model.params
-    ts = p.timestep if sample_time is None else float(sample_time)
+    ts = p.timestep if o.sample_time is None else float(o.sample_time)
     balance = mode == "balance"
-    exc = multisine(model, duration, ts, amplitude=(amplitude or BALANCE_AMPLITUDE) if balance else amplitude,
+    exc = multisine(model, o.duration, ts, amplitude=(o.amplitude or BALANCE_AMPLITUDE) if balance else o.amplitude,
                     seed=seed)
     out = Path(out)
     act = [a.name for a in p.actuators]
@@ -142,8 +190,8 @@ def run_excite(plant, out: str | Path, *, duration: float = 20.0, sample_time: f
         write_csv(path, ["t", *p.joint_names, *act],
                   [[t, *([""] * p.nq), *u] for t, u in zip(exc.t, exc.ctrl)])
         return ExciteResult(excitation=exc, log=None, rollout=None, csv=path)
-    spec = sensor_spec(p.mjcf or None, encoder_cpr=encoder_cpr, encoder_resolution=encoder_resolution,
-                       noise_std=sensor_noise)
+    spec = sensor_spec(p.mjcf or None, encoder_cpr=o.encoder_cpr, encoder_resolution=o.encoder_resolution,
+                       noise_std=o.sensor_noise)
     rows = _position_rows(spec, p)
     steps = round(ts / p.timestep)
     if balance:

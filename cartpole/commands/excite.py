@@ -50,10 +50,10 @@ def run(args) -> dict:
         check_budget(args, build_model(args.mjcf), [(1, args.duration, "the experiment")])
 
     view = view_mode(args, "excite")
-    res = excite_app.run_excite(args.mjcf, args.out, duration=args.duration, sample_time=args.sample,
-                     amplitude=args.amplitude, dry_run=args.dry_run, encoder_cpr=args.encoder_cpr,
-                     encoder_resolution=args.encoder_resolution, sensor_noise=args.sensor_noise,
-                     seed=args.noise_seed, csv_name=args.csv, mode=args.mode)
+    experiment = excite_app.ExciteOptions(duration=args.duration, sample_time=args.sample, amplitude=args.amplitude,
+                                          mode=args.mode, seed=args.noise_seed, encoder_cpr=args.encoder_cpr,
+                                          encoder_resolution=args.encoder_resolution, sensor_noise=args.sensor_noise)
+    res = excite_app.run_excite(args.mjcf, args.out, experiment, dry_run=args.dry_run, csv_name=args.csv)
     e = res.excitation
     if view and res.rollout is not None:
         show_runs(read_params(args.mjcf), [res.rollout], view, args, command="excite")

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from cartpole.apps.excite import run_excite
+from cartpole.apps.excite import ExciteOptions, run_excite
 from cartpole.apps.identify import run_identify
 from cartpole.cli import main
 from cartpole.models import SHIPPED_MJCF
@@ -18,8 +18,9 @@ RIG = SHIPPED_MJCF.parent / "examples" / "cartpole_rig_truth.xml"
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("identify_app")
-    a = run_excite(RIG, tmp, duration=10, encoder_cpr=2048, encoder_resolution=1e-4, csv_name="a.csv")
-    b = run_excite(RIG, tmp, duration=6, encoder_cpr=2048, encoder_resolution=1e-4, csv_name="b.csv", seed=1)
+    a = run_excite(RIG, tmp, ExciteOptions(duration=10, encoder_cpr=2048, encoder_resolution=1e-4), csv_name="a.csv")
+    b = run_excite(RIG, tmp, ExciteOptions(duration=6, encoder_cpr=2048, encoder_resolution=1e-4, seed=1),
+                   csv_name="b.csv")
     res = run_identify(None, [a.csv], tmp, holdout=[b.csv])
     return tmp, res
 

@@ -3,7 +3,7 @@ rig's encoders in the --log format, replaying exactly."""
 import numpy as np
 import pytest
 
-from cartpole.apps.excite import run_excite
+from cartpole.apps.excite import ExciteOptions, run_excite
 from cartpole.identify.excite import ExciteError, multisine, natural_frequencies
 from cartpole.identify.logs import read_log
 from cartpole.models import SHIPPED_MJCF, build_model, read_params
@@ -20,7 +20,7 @@ def test_natural_frequency_is_the_small_oscillation_pendulums():
 
 
 def test_excite_stays_inside_rail_and_ctrl_and_its_log_reads_back(tmp_path):
-    res = run_excite(None, tmp_path, duration=6, encoder_cpr=1024, encoder_resolution=1e-3, seed=2)
+    res = run_excite(None, tmp_path, ExciteOptions(duration=6, encoder_cpr=1024, encoder_resolution=1e-3, seed=2))
     p = read_params(SHIPPED_MJCF)
     assert np.all(np.abs(res.rollout.qpos[:, 0]) < 0.9 * 1.5)
     assert np.all(np.abs(res.excitation.ctrl) <= 1)
@@ -33,7 +33,7 @@ def test_excite_stays_inside_rail_and_ctrl_and_its_log_reads_back(tmp_path):
 
 
 def test_dry_run_writes_the_ctrl_only(tmp_path):
-    res = run_excite(None, tmp_path, duration=4, dry_run=True, sample_time=0.01)
+    res = run_excite(None, tmp_path, ExciteOptions(duration=4, sample_time=0.01), dry_run=True)
     lines = res.csv.read_text().splitlines()
     assert lines[0] == "t,slider,hinge,motor" and len(lines) == 402
     assert lines[5].split(",")[1:3] == ["", ""] and res.rollout is None
@@ -54,7 +54,8 @@ def test_balance_mode_holds_the_pole_logs_the_applied_ctrl_and_identifies(tmp_pa
 
     truth = tmp_path / "truth.xml"
     truth.write_text(SHIPPED_MJCF.read_text().replace('gear="20"', 'gear="23"'))
-    res = run_excite(truth, tmp_path, duration=8, mode="balance", encoder_cpr=2048, encoder_resolution=1e-4)
+    res = run_excite(truth, tmp_path, ExciteOptions(duration=8, mode="balance", encoder_cpr=2048,
+                                                   encoder_resolution=1e-4))
     assert replays_exactly(res.rollout)
     assert np.max(np.abs(res.rollout.qpos[:, 1])) < 0.6
     np.testing.assert_array_equal(res.log.ctrl[:-1, 0], res.rollout.ctrl[:, 0])
@@ -67,4 +68,12 @@ def test_balance_dry_run_is_refused(tmp_path):
     from cartpole.errors import CartPoleError
 
     with pytest.raises(CartPoleError, match="cannot be written ahead"):
-        run_excite(None, tmp_path, duration=4, dry_run=True, mode="balance")
+        run_excite(None, tmp_path, ExciteOptions(duration=4, mode="balance"), dry_run=True)
+
+
+def test_an_unknown_mode_and_options_of_another_kind_are_one_sentence(tmp_path):
+    with pytest.raises(ExciteError, match="Unknown excitation mode 'spin'; choose one of hanging, balance"):
+        ExciteOptions(mode="spin")
+    with pytest.raises(ExciteError, match="run_excite's options must be an ExciteOptions"):
+        run_excite(None, tmp_path, {"duration": 4})
+    assert list(tmp_path.iterdir()) == []

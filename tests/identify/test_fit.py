@@ -5,7 +5,7 @@ of the fitted model far below the nominal's."""
 import numpy as np
 import pytest
 
-from cartpole.apps.excite import run_excite
+from cartpole.apps.excite import ExciteOptions, run_excite
 from cartpole.identify.fit import FitError, fit, simulate_log
 from cartpole.identify.parameters import parse_parameters
 from cartpole.models import SHIPPED_MJCF, read_params
@@ -31,8 +31,8 @@ def one_pole(tmp_path_factory):
     truth = _variant(tmp, SHIPPED_MJCF, [('gear="20"', 'gear="24"'), ('0 0 0 0 0 0.6"', '0 0 0 0 0 0.72"'),
                                          ('damping="0.1"', 'damping="0.08"'), ('damping="0.01"', 'damping="0.012"')],
                      "truth")
-    fit_run = run_excite(truth, tmp, duration=12, csv_name="a.csv", seed=0, **ENCODERS)
-    held = run_excite(truth, tmp, duration=8, csv_name="b.csv", seed=1, **ENCODERS)
+    fit_run = run_excite(truth, tmp, ExciteOptions(duration=12, seed=0, **ENCODERS), csv_name="a.csv")
+    held = run_excite(truth, tmp, ExciteOptions(duration=8, seed=1, **ENCODERS), csv_name="b.csv")
     return truth, fit_run.log, held.log
 
 
@@ -68,7 +68,7 @@ def test_held_out_error_of_the_fitted_model_is_5x_below_the_nominal(one_pole):
 
 def test_cart_mass_and_gear_fitted_together_are_flagged(tmp_path):
     truth = _variant(tmp_path, SHIPPED_MJCF, [('gear="20"', 'gear="24"'), ('mass="0.1"', 'mass="0.13"')], "mg")
-    log = run_excite(truth, tmp_path, duration=10, **ENCODERS).log
+    log = run_excite(truth, tmp_path, ExciteOptions(duration=10, **ENCODERS)).log
     p = read_params(SHIPPED_MJCF)
     names = ["mass:cart", "mass:pole", "inertia:pole", "gear:motor"]
     res = fit(p, parse_parameters(p, names), [log])
@@ -82,7 +82,7 @@ def test_two_pole_fit_recovers_the_truth(tmp_path):
     truth = _variant(tmp_path, TWO_POLE, [('gear="20"', 'gear="17"'), ('damping="0.01"', 'damping="0.013"'),
                                           ('0 0 0 0 0 0.6" size="0.02" rgba="0.9',
                                            '0 0 0 0 0 0.5" size="0.02" rgba="0.9')], "two")
-    log = run_excite(truth, tmp_path, duration=8, **ENCODERS).log
+    log = run_excite(truth, tmp_path, ExciteOptions(duration=8, **ENCODERS)).log
     p = read_params(TWO_POLE)
     names = ["gear:motor", "com:pole2", "inertia:pole2", "damping:hinge"]
     res = fit(p, parse_parameters(p, names), [log], segment_s=0.05)
@@ -116,7 +116,7 @@ def test_slide_and_hinge_frictionloss_are_fitted_within_3_std_and_5_percent(tmp_
                                           ('damping="0.1" frictionloss="0.5"', 'damping="0.08" frictionloss="0.62"'),
                                           ('damping="0.01" frictionloss="0.002"',
                                            'damping="0.012" frictionloss="0.0025"')], "fr")
-    log = run_excite(truth, tmp_path, duration=12, **ENCODERS).log
+    log = run_excite(truth, tmp_path, ExciteOptions(duration=12, **ENCODERS)).log
     p = read_params(FRICTION)
     names = ["gear:motor", "com:pole:z", "inertia:pole", "damping:slider", "damping:hinge", "frictionloss:slider",
              "frictionloss:hinge"]
@@ -129,7 +129,7 @@ def test_two_pole_slide_frictionloss_is_fitted_within_3_std_and_5_percent(tmp_pa
     truth = _variant(tmp_path, TWO_POLE, [('gear="20"', 'gear="17"'),
                                           ('damping="0.1"', 'damping="0.075" frictionloss="0.4"'),
                                           ('damping="0.01"', 'damping="0.013"')], "truth")
-    log = run_excite(truth, tmp_path, duration=8, **ENCODERS).log
+    log = run_excite(truth, tmp_path, ExciteOptions(duration=8, **ENCODERS)).log
     p = read_params(nominal)
     names = ["gear:motor", "damping:slider", "damping:hinge", "frictionloss:slider"]
     res = fit(p, parse_parameters(p, names), [log], segment_s=0.05)
@@ -139,7 +139,7 @@ def test_two_pole_slide_frictionloss_is_fitted_within_3_std_and_5_percent(tmp_pa
 def test_a_log_at_another_sample_time_fits_the_same(one_pole, tmp_path):
     """A 10 ms log (the ctrl held 10 ms, the model stepping twice per sample): the same truth."""
     truth, _, _ = one_pole
-    log = run_excite(truth, tmp_path, duration=12, sample_time=0.01, **ENCODERS).log
+    log = run_excite(truth, tmp_path, ExciteOptions(duration=12, sample_time=0.01, **ENCODERS)).log
     assert log.sample_time == pytest.approx(0.01)
     p = read_params(SHIPPED_MJCF)
     names = ["gear:motor", "com:pole", "inertia:pole", "damping:slider", "damping:hinge"]

@@ -117,8 +117,8 @@ def identify_benchmark(*, quick: bool = False, baseline: bool = True) -> dict:
     with tempfile.TemporaryDirectory(prefix="cartpole-bench-identify-") as tmp:
         for src in carts:
             truth = _variant(src, Path(tmp) / f"truth_{src.stem}.xml")
-            log = excite_app.run_excite(truth, tmp, duration=seconds, encoder_cpr=2048, encoder_resolution=1e-4,
-                             csv_name=f"{src.stem}.csv").log
+            experiment = excite_app.ExciteOptions(duration=seconds, encoder_cpr=2048, encoder_resolution=1e-4)
+            log = excite_app.run_excite(truth, tmp, experiment, csv_name=f"{src.stem}.csv").log
             p = read_params(src)
             names = ["gear:motor"] + [f"damping:{j}" for j in p.joint_names]
             params = parse_parameters(p, names)
