@@ -29,7 +29,8 @@ workflow:
 - the rig and estimation: :func:`sensor_spec`, :class:`KalmanFilter`; margins: :func:`sampled_loop`,
   :func:`loop_margins`; identification: :func:`run_excite` (:class:`ExciteOptions`),
   :func:`run_identify`;
-- export to C: :func:`run_export`, :func:`design_export`, :func:`load_design`, :func:`run_lockstep`;
+- export to C: :func:`run_export` (:class:`ExportOptions`), :func:`design_export`, :func:`load_design`,
+  :func:`run_lockstep`;
 - proof and figures: :func:`swingup_success`, :func:`summarize`, :func:`check_jacobians`, :func:`plot_swingup`,
   :func:`swingup_figure`, :func:`render_video` (:class:`VideoOptions`).
 
@@ -79,7 +80,7 @@ _SOURCES = {
     "cartpole.apps.margins": ("mujoco_stable",),
     "cartpole.apps.excite": ("ExciteOptions", "run_excite"),
     "cartpole.apps.identify": ("run_identify",),
-    "cartpole.apps.export": ("run_export",),
+    "cartpole.apps.export": ("ExportOptions", "run_export"),
     "cartpole.apps.live": ("watch",),
 }
 

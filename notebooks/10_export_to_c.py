@@ -34,7 +34,7 @@ import cartpole as cp
 
 loop = cp.LoopOptions(period=0.01, estimator="kf", encoder_cpr=2048)
 out = Path(os.environ.get("CARTPOLE_OUT") or tempfile.mkdtemp()) / "rig"
-doc = cp.run_export(None, controller="lqr", loop=loop, out=out, verify=True, duration=3.0)
+doc = cp.run_export(None, "lqr", cp.ExportOptions(verify=True, duration=3.0), loop=loop, out=out)
 exp = doc["export"]
 print(f"{len(exp['files'])} files, {exp['bytes']} bytes in the folder {out.name}/")
 print(f"verified: {exp['verified']}; max |C - Python| ctrl {exp['max_ctrl_diff']:.2g} (double), "

@@ -11,8 +11,10 @@ not diverge.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -28,6 +30,7 @@ from cartpole.export.design import CONTROLLERS
 from cartpole.export.folder import discard
 from cartpole.export.mcu import cross_build, mcu_tools
 from cartpole.models import build_model, planning_limits, plant_model
+from cartpole.options import StageOptions
 from cartpole.sim.rollout import replays_exactly
 from cartpole.validation.basin import BasinCache
 from cartpole.validation.metrics import diverged, summarize, swingup_success
@@ -37,6 +40,63 @@ CTRL_TOLERANCE = 1e-9
 #: Seconds each verification run lasts, by task (a TVLQR swing-up: its plan and then as long as
 #: :func:`cartpole.apps.swingup.run_swingup` holds the catch, ``TRAJOPT_EXTRA``).
 VERIFY_DURATION = {"balance": 5.0, "swingup": 10.0}
+
+
+@dataclass(frozen=True, eq=False)
+class ExportOptions(StageOptions):
+    """How :func:`run_export` builds and proves an export: the C's number type, the checks (MuJoCo verification, the
+    Cortex-M4F build) and a swing-up's limits. Keyword-only; every field has a default.
+
+    Attributes
+    ----------
+    float32 : bool
+        Write the float build (``cp_real`` float) instead of double (default False).
+    verify : bool
+        Run the double and the float build in MuJoCo beside the Python controller (default False).
+    duration : float or None
+        Seconds of each verification run; None (default): :func:`verify_duration`.
+    mcu : bool
+        Also build the float export for a Cortex-M4F (:func:`cartpole.export.mcu.cross_build`) and report its
+        flash, RAM and worst stack (default False).
+    u_max : float or tuple of float or None
+        A swing-up controller's (tvlqr, energy, nmpc) ``|ctrl|`` bound, one for all actuators or one each; None
+        (default): each actuator's ctrlrange, or a stated default where the file has none
+        (:func:`cartpole.models.planning_limits`; ``limits`` says which). A balance controller (lqr, pid) needs none
+        and takes it only when given.
+    cart_max : float or None
+        m: likewise the cart's travel ``|s - centre| <= cart_max``; None (default): the MJCF's range.
+
+    Raises
+    ------
+    ExportError
+        A verification duration that is not a positive number of seconds (the limits are checked by
+        :func:`cartpole.models.planning_limits`).
+    """
+
+    float32: bool = False
+    verify: bool = False
+    duration: float | None = None
+    mcu: bool = False
+    u_max: float | tuple | None = None
+    cart_max: float | None = None
+
+    error: ClassVar[type] = ExportError
+    SCALARS: ClassVar[tuple] = ("duration", "cart_max")
+
+    def __post_init__(self):
+        for name in ("float32", "verify", "mcu"):
+            self.set_field(name, bool(getattr(self, name)))
+        if self.duration is not None:
+            try:
+                ok = math.isfinite(float(self.duration)) and float(self.duration) > 0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ExportError(f"The verification's `duration` {self.duration!r} is not a positive number of "
+                                  "seconds; give e.g. 5, or None for the Python path's length.")
+            self.set_field("duration", float(self.duration))
+        if isinstance(self.u_max, (list, np.ndarray)):  # one per actuator: kept as a tuple (read-only)
+            self.set_field("u_max", tuple(np.ravel(self.u_max).tolist()))
 
 
 def verify_duration(design) -> float:
@@ -143,9 +203,8 @@ def check_build(design, real: str, x0, duration: float) -> BuildCheck:
                       codes={int(c): int(n) for c, n in zip(codes, counts)}, run=run)
 
 
-def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool = False, x0=None, out=".",
-               verify: bool = False, duration: float | None = None, mcu: bool = False, u_max=None,
-               cart_max: float | None = None, runs: list | None = None) -> dict:
+def run_export(plant=None, controller: str = "lqr", options: ExportOptions = ExportOptions(), *, loop=None, x0=None,
+               out=".", runs: list | None = None) -> dict:
     """Export a controller as standalone C to the folder ``out``, and with ``verify`` prove it in MuJoCo.
 
     Parameters
@@ -154,28 +213,16 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
         The cart-pole (default the shipped asset).
     controller : str
         ``lqr``, ``pid``, ... (:data:`cartpole.export.CONTROLLERS`).
+    options : ExportOptions
+        The C's number type, the checks (``verify``, its ``duration``, ``mcu``) and a swing-up's limits (``u_max``,
+        ``cart_max``); default :class:`ExportOptions` ``()``: a double build, unverified, the file's limits.
     loop : LoopOptions, optional
         Period, delay, sensors, estimator.
-    float32 : bool
-        Write the float build (``cp_real`` float) instead of double.
     x0 : (nx,) array, optional
         The verification's start (default :func:`default_start`), checked against the joint ranges
         (:func:`cartpole.apps.swingup.start_state`).
     out : path
         The export folder: new, empty, or an earlier export.
-    verify : bool
-        Run the double and the float build in MuJoCo beside the Python controller.
-    duration : float, optional
-        Seconds of each verification run (default :func:`verify_duration`).
-    mcu : bool
-        Also build the float export for a Cortex-M4F (:func:`cartpole.export.mcu.cross_build`) and report its
-        flash, RAM and worst stack.
-    u_max : float or (nu,) array, optional
-        A swing-up controller's (tvlqr, energy, nmpc) ``|ctrl|`` bound; default each actuator's ctrlrange, or a
-        stated default where the file has none (:func:`cartpole.models.planning_limits`; ``limits`` says which).
-        A balance controller (lqr, pid) needs none and takes it only when given.
-    cart_max : float, optional
-        m: likewise the cart's travel ``|s - centre| <= cart_max``.
     runs : list, optional
         With ``verify``, the verification's MuJoCo runs driven by the C are appended to it, the double build's then
         the float's, each as ``(params, rollout)``: the CartPoleParams MuJoCo ran and its
@@ -194,9 +241,13 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
     Raises
     ------
     ExportError, CartPoleError
-        One sentence: a folder that is not an earlier export, no C compiler, a controller or estimator the export
-        does not reproduce, a Python design that fails.
+        One sentence: ``options`` that are not an :class:`ExportOptions`, a folder that is not an earlier export, no
+        C compiler, a controller or estimator the export does not reproduce, a Python design that fails.
     """
+    if not isinstance(options, ExportOptions):
+        raise ExportError(f"run_export's options must be an ExportOptions; got {options!r}.")
+    mcu, verify, duration = options.mcu, options.verify, options.duration
+    u_max, cart_max = options.u_max, options.cart_max
     check_target(out)
     find_compiler()
     if mcu:
@@ -207,7 +258,7 @@ def run_export(plant=None, *, controller: str = "lqr", loop=None, float32: bool 
     if CONTROLLERS.get(controller) == "swingup" or u_max is not None or cart_max is not None:
         params, limits = planning_limits(model.params, u_max=u_max, cart_max=cart_max)  # defaults where unlimited
         model = model if params is model.params else build_model(params)
-    real = "float" if float32 else "double"
+    real = "float" if options.float32 else "double"
     if x0 is not None:
         x0 = np.asarray(x0, dtype=float).ravel()
         if x0.shape != (model.nx,) or not np.all(np.isfinite(x0)):

@@ -81,9 +81,9 @@ def run(args) -> dict:
     loop = loop_from_args(args)
     _check_work(args)
     runs: list = []
-    doc = export_app.run_export(args.mjcf, controller=args.controller, loop=loop, float32=args.float32, x0=args.x0,
-                     out=args.out, verify=args.verify, duration=args.duration, mcu=args.mcu,
-                     **limit_keywords(args), runs=runs)
+    options = export_app.ExportOptions(float32=args.float32, verify=args.verify, duration=args.duration, mcu=args.mcu,
+                                       **limit_keywords(args))
+    doc = export_app.run_export(args.mjcf, args.controller, options, loop=loop, x0=args.x0, out=args.out, runs=runs)
     if view and runs:
         show_runs(runs[0][0], [r for _, r in runs], view, args, command="export")
     if not args.json:
