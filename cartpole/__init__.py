@@ -23,7 +23,7 @@ workflow:
 - the lab: :func:`run_lab`, :func:`run_pid_lab`, :func:`balances`, :func:`plot_lab`, :func:`watch`, its weights
   :data:`Q_LAB`, :data:`R_LAB`;
 - swing-up, plan and track: :func:`run_swingup`, :func:`trajopt_swingup`, :class:`EnergyShapingController`,
-  :class:`SwitchingController`, :class:`TVLQRController`, :func:`run_feedforward`;
+  :class:`SwitchingController`, :class:`TVLQRController`, :func:`run_feedforward` (:class:`FeedforwardOptions`);
 - simulate and replay: :func:`simulate` (:class:`SimOptions`), :func:`replay`, :func:`replays_exactly`,
   :class:`Rollout`, :class:`LoopOptions`;
 - the rig and estimation: :func:`sensor_spec`, :class:`KalmanFilter`; margins: :func:`sampled_loop`,
@@ -76,7 +76,7 @@ _SOURCES = {
     "cartpole.viz.swingup_plot": ("swingup_figure",),
     "cartpole.apps.lab": ("Q_LAB", "R_LAB", "balances", "run_lab", "run_pid_lab"),
     "cartpole.apps.swingup": ("TRAJOPT_EXTRA", "SwingupOptions", "run_swingup"),
-    "cartpole.apps.feedforward": ("PlanFeedforward", "run_feedforward"),
+    "cartpole.apps.feedforward": ("FeedforwardOptions", "PlanFeedforward", "run_feedforward"),
     "cartpole.apps.margins": ("mujoco_stable",),
     "cartpole.apps.excite": ("ExciteOptions", "run_excite"),
     "cartpole.apps.identify": ("run_identify",),

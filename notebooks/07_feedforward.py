@@ -52,7 +52,7 @@ QUICK = os.environ.get("CARTPOLE_QUICK") == "1"   # the test suite sets this to 
 OUT = Path(os.environ.get("CARTPOLE_OUT", "out/notebook07"))
 OUT.mkdir(parents=True, exist_ok=True)
 
-study = cp.run_feedforward(mass_error=0.1)
+study = cp.run_feedforward(options=cp.FeedforwardOptions(mass_error=0.1))
 model, params, plan, wrong = study.model, study.params, study.plan, study.wrong_plan
 traj, T, dt = plan.trajectory, plan.T, params.timestep
 print(f"plan on the MJCF's model: T = {T:.3f} s ({traj.N} Hermite-Simpson intervals of {1e3 * T / traj.N:.1f} ms); "
@@ -182,7 +182,7 @@ print("planned on the wrong pole mass, feedforward + TVLQR:",
 # %%
 if not QUICK:
     for f in (-0.3, -0.2, 0.2, 0.3, 0.5):
-        s = cp.run_feedforward(params, mass_error=f, plan=plan)
+        s = cp.run_feedforward(params, cp.FeedforwardOptions(mass_error=f), plan=plan)
         rc, rd = s.runs["wrong_mass_tvlqr"], s.runs["wrong_mass_feedforward"]
         last = rc.rollout.t >= rc.rollout.t[-1] - 1.0
         up = "never" if rc.time_to_upright is None else f"{rc.time_to_upright:.2f} s"

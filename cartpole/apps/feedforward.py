@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, ClassVar
 
 import numpy as np
 
@@ -41,6 +41,7 @@ from cartpole.apps.swingup import start_state
 from cartpole.control.friction import friction_design
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, bounded_model, build_model, planning_limits, plant_params
+from cartpole.options import StageOptions
 from cartpole.planning.options import PlanOptions
 import cartpole.planning.trajopt as trajopt
 from cartpole.progress import stage
@@ -89,6 +90,65 @@ def check_mass_error(mass_error) -> float:
                                "model's pole weighs 1 + error times the MJCF's, as a model error of 0.1 to 10); give "
                                "e.g. 0.1 or -0.1.")
     return f
+
+
+@dataclass(frozen=True, eq=False)
+class FeedforwardOptions(StageOptions):
+    """The feedforward study's settings (:func:`run_feedforward`): how wrong the second plan's model is, how long
+    each run goes on after its plan, the planner's and the loop's options, and the limits both plans keep to; the
+    same field names as :class:`~cartpole.apps.swingup.SwingupOptions`. Keyword-only; every field has a default.
+
+    Attributes
+    ----------
+    mass_error : float
+        Relative error of the wrong planning model's pole mass (default :data:`MASS_ERROR`, 0.1: every pole link 10 %
+        heavier; lengths unchanged), from -0.9 to 9 (:func:`check_mass_error`).
+    extra : float
+        Seconds simulated after each plan's end (default :data:`EXTRA`, 2 s), at least 1 s (the success test looks
+        at the last 1 s).
+    plan : PlanOptions or None
+        The planner's settings for both plans (:class:`~cartpole.planning.options.PlanOptions`); None (default):
+        :func:`plan_options`, the collocation plan tracked as it is (``exact_discrete=False``: this study is about
+        that plan's own feedforward, not a re-solve on the exact discrete step).
+    loop : LoopOptions or None
+        The rig every run has (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
+        estimator); the TVLQR is designed for its period. None (default): MuJoCo's exact state every physics step.
+    u_max : float or tuple of float or None
+        The ``|ctrl|`` bound the plans keep to; None (default): the file's, or a stated default where it has none
+        (:func:`cartpole.models.planning_limits`).
+    cart_max : float or None
+        m: the cart's travel the plans keep to; None (default): likewise.
+
+    Raises
+    ------
+    FeedforwardError
+        A mass error or an ``extra`` time out of range (checked before anything is solved).
+    """
+
+    mass_error: float = MASS_ERROR
+    extra: float = EXTRA
+    plan: PlanOptions | None = None
+    loop: object = None
+    u_max: object = None
+    cart_max: float | None = None
+
+    error: ClassVar[type] = FeedforwardError
+    SCALARS: ClassVar[tuple] = ("mass_error", "extra", "cart_max")
+
+    def __post_init__(self):
+        self.set_field("mass_error", check_mass_error(self.mass_error))
+        try:
+            ok = math.isfinite(float(self.extra)) and float(self.extra) >= 1.0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise FeedforwardError(f"The time after the plan, {self.extra} s, must be at least 1 s (the success "
+                                   "test looks at the last 1 s); give e.g. 2.")
+        self.set_field("extra", float(self.extra))
+        if self.plan is None:
+            self.set_field("plan", plan_options())
+        if isinstance(self.u_max, (list, np.ndarray)):  # one per actuator: kept as a tuple (read-only)
+            self.set_field("u_max", tuple(np.ravel(self.u_max).tolist()))
 
 
 class PlanFeedforward:
@@ -291,42 +351,30 @@ def _run_all(params, model, plans, x0, extra: float, friction, rig, period, call
     return runs
 
 
-def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float = EXTRA,
-                    plan=None, options=None, progress: Callable[[str, float], None] | None = None,
-                    loop=None, plan_model: CartPoleModel | None = None, u_max=None,
-                    cart_max: float | None = None, x0=None) -> FeedforwardStudy:
+def run_feedforward(plant=None, options: FeedforwardOptions | None = None, *, plan=None, x0=None,
+                    plan_model: CartPoleModel | None = None,
+                    progress: Callable[[str, float], None] | None = None) -> FeedforwardStudy:
     """Plan the swing-up, then run feedforward alone and feedforward + TVLQR in MuJoCo, on a true and a wrong model.
 
     Parameters
     ----------
     plant : path, CartPoleParams, CartPoleModel or None
         The cart-pole MuJoCo runs (default the shipped asset); any model the trajectory optimiser takes.
-    mass_error : float
-        Relative error of the wrong planning model's pole mass (default 0.1: every pole link 10 % heavier;
-        lengths unchanged). Must be finite and above -1.
-    extra : float
-        Seconds simulated after each plan's end (default :data:`EXTRA`, 2 s).
+    options : FeedforwardOptions, optional
+        The study's settings: the wrong model's ``mass_error``, the ``extra`` seconds after each plan, the planner's
+        (``plan``) and the loop's (``loop``) options, the limits (``u_max``, ``cart_max``); default
+        :class:`FeedforwardOptions` ``()``.
     plan : SwingupPlan, optional
         A plan already made on the MJCF's own model (skips that solve); it must be for this MJCF.
-    options : PlanOptions, optional
-        The planner's settings for both plans (:class:`~cartpole.planning.options.PlanOptions`); default
-        :func:`plan_options`, the collocation plan tracked as it is (``exact_discrete=False``: this study is about
-        that plan's own feedforward, not a re-solve on the exact discrete step).
-    progress : callable, optional
-        ``progress(stage, fraction)`` with stage ``"plan"`` (both trajectory optimisations) or ``"simulate"`` (the four
-        MuJoCo runs). Either is also a :func:`cartpole.progress.stage`, shown by the caller's reporter if any.
-    loop : LoopOptions, optional
-        The rig every run has (:class:`~cartpole.sim.options.LoopOptions`: control period, delay, sensors,
-        estimator); the TVLQR is designed for its period. Default MuJoCo's exact state every physics step.
-    plan_model : CartPoleModel, optional
-        Plan (and design the TVLQR of) the first plan on this model instead of the MJCF's own (``--plan-mjcf``: e.g.
-        a fitted MJCF); MuJoCo still runs ``mjcf``. The wrong-mass plan stays relative to ``mjcf``.
-    u_max, cart_max : optional
-        The ``|ctrl|`` bound and the cart's travel in m the plans keep to; default the file's, or a stated default
-        where it has none (:func:`cartpole.models.planning_limits`).
     x0 : (2 nq,) array, optional
         ``[qpos, qvel]`` (m, rad, m/s, rad/s) both plans and every run start from; default the hanging rest
         ``x_hanging``, moved onto a joint range's edge it lies just outside (:func:`cartpole.apps.swingup.start_state`).
+    plan_model : CartPoleModel, optional
+        Plan (and design the TVLQR of) the first plan on this model instead of the MJCF's own (e.g. a fitted MJCF);
+        MuJoCo still runs ``plant``. The wrong-mass plan stays relative to ``plant``.
+    progress : callable, optional
+        ``progress(stage, fraction)`` with stage ``"plan"`` (both trajectory optimisations) or ``"simulate"`` (the four
+        MuJoCo runs). Either is also a :func:`cartpole.progress.stage`, shown by the caller's reporter if any.
 
     Returns
     -------
@@ -335,18 +383,17 @@ def run_feedforward(plant=None, *, mass_error: float = MASS_ERROR, extra: float 
     Raises
     ------
     FeedforwardError
-        A bad ``mass_error`` or ``extra`` (checked before anything is solved).
+        ``options`` that are not a :class:`FeedforwardOptions` (a bad ``mass_error`` or ``extra`` is refused when the
+        options are made, before anything is solved).
     MJCFError, OCPError
         An MJCF that is not a cart-pole; a swing-up the optimiser cannot plan (its one sentence).
     """
-    options = plan_options() if options is None else options
-    f = check_mass_error(mass_error)
-    if not (math.isfinite(extra) and extra >= 1.0):
-        raise FeedforwardError(f"The time after the plan, {extra} s, must be at least 1 s (the success test "
-                               "looks at the last 1 s); give e.g. 2.")
-
+    study = FeedforwardOptions() if options is None else options
+    if not isinstance(study, FeedforwardOptions):
+        raise FeedforwardError(f"run_feedforward's options must be a FeedforwardOptions; got {study!r}.")
+    f, extra, loop, options = study.mass_error, study.extra, study.loop, study.plan
     params = plant_params(plant)
-    params, limits = planning_limits(params, u_max=u_max, cart_max=cart_max)  # stated defaults where unlimited
+    params, limits = planning_limits(params, u_max=study.u_max, cart_max=study.cart_max)  # stated defaults if unlimited
     plan_model = None if plan_model is None else bounded_model(plan_model, limits)
     # planned without the friction a compensation cancels, run with it (cartpole.control.friction)
     plant = build_model(params)

@@ -65,8 +65,9 @@ def _run(args) -> dict:
     """:func:`run` without the flag words."""
     params, limits, loop, plan_model, mass_error = _inputs(args)
     view = view_mode(args, "feedforward")
-    study = feedforward_app.run_feedforward(params, mass_error=mass_error, loop=loop,   # its stages report through cartpole.progress
-                            plan_model=plan_model, x0=args.x0)
+    options = feedforward_app.FeedforwardOptions(mass_error=mass_error, loop=loop)
+    study = feedforward_app.run_feedforward(params, options, plan_model=plan_model,  # reports through cartpole.progress
+                                            x0=args.x0)
     if view:
         show_runs(params, [r.rollout for r in study.runs.values()], view, args, command="feedforward")
     names = _run_names(mass_error)

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from cartpole.apps.feedforward import (EXTRA, RUNS, FeedforwardError, PlanFeedforward, check_mass_error,
-                                  run_feedforward)
+from cartpole.apps.feedforward import (EXTRA, RUNS, FeedforwardError, FeedforwardOptions, PlanFeedforward,
+                                  check_mass_error, run_feedforward)
 from cartpole.models import SHIPPED_MJCF, read_params
 from cartpole.sim import replays_exactly
 from cartpole.validation.metrics import UPRIGHT_TOL, swingup_success
@@ -103,13 +103,15 @@ def test_a_bad_mass_error_is_refused_before_anything_is_solved(monkeypatch):
 
     monkeypatch.setattr(pipeline, "trajopt_swingup", no_solve)
     with pytest.raises(FeedforwardError):
-        run_feedforward(mass_error=math.nan)
+        FeedforwardOptions(mass_error=math.nan)
     with pytest.raises(FeedforwardError):
-        run_feedforward(extra=0.5)
+        FeedforwardOptions(extra=0.5)
+    with pytest.raises(FeedforwardError, match="options must be a FeedforwardOptions"):
+        run_feedforward(None, {"mass_error": 0.1})
 
 
 def test_a_zero_mass_error_reuses_the_plan_and_repeats_the_true_runs(study):
-    again = run_feedforward(read_params(), mass_error=0.0, plan=study.plan)
+    again = run_feedforward(read_params(), FeedforwardOptions(mass_error=0.0), plan=study.plan)
     assert again.wrong_plan is study.plan
     for a, b in (("wrong_mass_tvlqr", "feedforward_tvlqr"), ("wrong_mass_feedforward", "feedforward")):
         assert np.array_equal(again.runs[a].rollout.x, study.runs[b].rollout.x)
