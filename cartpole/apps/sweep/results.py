@@ -26,7 +26,7 @@ from cartpole.codegen import private_cache_dir
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleParams, read_params
 from cartpole.validation.metrics import failure_reason
-from cartpole.apps.sweep.plan import Axis, SweepError, start_index
+from cartpole.apps.sweep.plan import Axis, SweepError, SweepRuns, start_index
 
 
 @dataclass(frozen=True)
@@ -282,12 +282,36 @@ def _bounds_not_the_files(params: CartPoleParams) -> dict:
     return out
 
 
-def sweep_id(params: CartPoleParams, *, method: str, n: int, seed: int, duration, jitter: float, axes=(),
-             x0=None, loop=None, objective: str | None = None, mpc: dict | None = None) -> str:
-    """12 hex digits naming the sweep description (MJCF path and content, method, ``n``, seed, ``duration`` s,
-    jitter, axes, the fixed start ``x0`` (nx,) ``[qpos, qvel]``): the ``sweep`` column of every row, which a resumed sweep must match. (A description
-    without axes keeps the id it had before axes existed; likewise one without a rig, ``loop``: the
-    :class:`~cartpole.sim.options.LoopOptions` every run has, when it is not the perfect loop.)"""
+def sweep_id(params: CartPoleParams, *, method: str, runs: SweepRuns, loop=None, objective: str | None = None,
+             mpc: dict | None = None) -> str:
+    """12 hex digits naming the sweep description: the ``sweep`` column of every row, which a resumed sweep must
+    match.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The MJCF (its path and content are in the description).
+    method : str
+        The swing-up method.
+    runs : SweepRuns
+        Which runs: ``n``, ``seed``, ``gain_jitter``, ``axes`` and the fixed start ``x0`` (nx,) ``[qpos, qvel]``.
+    loop : LoopOptions, optional
+        The loop every run has: its ``duration`` (s, None: the method's own) and, when it is not the perfect loop,
+        the rest of it (a description without a rig keeps the id it had before rigs existed).
+    objective : str, optional
+        The plan's or the MPC's objective by name (a sweep without one keeps its id).
+    mpc : dict, optional
+        The MPC's settings that differ from the defaults (likewise).
+
+    Returns
+    -------
+    str
+        The first 12 hex digits of the SHA-256 of the description. (A description without axes keeps the id it had
+        before axes existed.)
+    """
+    duration = None if loop is None else loop.duration
+    loop = None if loop is None else loop.replace(duration=None)
+    n, seed, jitter, axes, x0 = runs.n, runs.seed, runs.gain_jitter, runs.axes, runs.x0
     try:
         digest = hashlib.sha256(Path(params.mjcf).read_bytes()).hexdigest()
     except OSError:

@@ -376,9 +376,8 @@ def _recorded_sweep(params, method: str, options: SwingupOptions, runs: SweepRun
 
     results = record.results
     objective = sweep_objective(method, options)
-    sid = sweep_id(params, method=method, n=runs.n, seed=runs.seed, duration=options.loop.duration,
-                   jitter=runs.gain_jitter, axes=runs.axes, x0=runs.x0, loop=options.loop.replace(duration=None),
-                   objective=objective, mpc=mpc_changes(options.mpc))
+    sid = sweep_id(params, method=method, runs=runs, loop=options.loop, objective=objective,
+                   mpc=mpc_changes(options.mpc))
     settings = tuple(a.name[len("setting:"):] for a in runs.axes if a.name.startswith("setting:"))
     returns = is_task(objective)
     knocked = options.loop.disturbed

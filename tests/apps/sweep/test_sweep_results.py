@@ -1,13 +1,16 @@
 """The sweep's results (cartpole.apps.sweep.results): the CSV line of a run and back, the id, the results file
 appended line by line and read back to resume."""
 import csv
+import dataclasses
 import math
 
 import pytest
 
-from cartpole.apps.sweep import (ResultsFile, SweepError, axis, csv_row, failure, header, read_done, sweep_id)
+from cartpole.apps.sweep import (ResultsFile, SweepError, SweepRuns, axis, csv_row, failure, header, read_done,
+                                 sweep_id)
 from cartpole.apps.sweep.results import parse_row
 from cartpole.models import read_params
+from cartpole.sim import LoopOptions
 
 ROW = {"success": True, "replays": True, "time_to_upright": 2.8101234567890123, "caught_at": 2.5,
        "cart_clearance": 0.61, "peak_ctrl": 1.0, "rho": 3.0, "error": None, "push": ((0.5, -20.0),),
@@ -40,12 +43,15 @@ def test_a_csv_line_reads_back_as_the_same_row():
 
 def test_the_id_changes_with_each_part_of_the_description():
     params = read_params()
-    base = dict(method="energy", n=4, seed=0, duration=None, jitter=0.0)
-    sid = sweep_id(params, **base)
-    assert len(sid) == 12 and int(sid, 16) >= 0 and sweep_id(params, **base) == sid
-    others = [sweep_id(params, **{**base, k: v}) for k, v in
-              [("method", "trajopt"), ("n", 5), ("seed", 1), ("duration", 4.0), ("jitter", 0.1)]]
-    others += [sweep_id(params, **base, axes=(axis("push_force", 1.0),)), sweep_id(params, **base, x0=[0, 3, 0, 0])]
+    runs = SweepRuns(n=4, seed=0)
+    sid = sweep_id(params, method="energy", runs=runs, loop=LoopOptions())
+    assert len(sid) == 12 and int(sid, 16) >= 0 and sweep_id(params, method="energy", runs=runs) == sid
+    others = [sweep_id(params, method="trajopt", runs=runs),
+              sweep_id(params, method="energy", runs=runs, loop=LoopOptions(duration=4.0)),
+              sweep_id(params, method="energy", runs=runs, loop=LoopOptions(period=0.02))]
+    others += [sweep_id(params, method="energy", runs=dataclasses.replace(runs, **{k: v})) for k, v in
+               [("n", 5), ("seed", 1), ("gain_jitter", 0.1), ("axes", (axis("push_force", 1.0),)),
+                ("x0", [0, 3, 0, 0])]]
     assert len({sid, *others}) == len(others) + 1
 
 
