@@ -115,7 +115,6 @@ PARAMS_TO_FIX = {
     "cartpole/apps/bench/mpc.py": ["run_mpc_benchmark"],
     "cartpole/apps/bench/objectives.py": ["against_naive"],
     "cartpole/apps/bench/trajopt.py": ["NaiveOptiBaseline.__init__"],
-    "cartpole/estimation/mhe.py": ["MovingHorizonEstimator.__init__"],
     "cartpole/ocp/collocation.py": ["DirectCollocation.__init__"],
     "cartpole/planning/box_entry.py": ["box_entry_plan"],
     "cartpole/planning/ddp_plan.py": ["ddp_stage", "ddp_time_search"],

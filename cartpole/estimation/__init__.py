@@ -9,7 +9,7 @@ from cartpole.estimation.kalman import (
     state_names,
 )
 from cartpole.estimation.measurement import initial_state, measurement_function
-from cartpole.estimation.mhe import MovingHorizonEstimator, bench_mhe, horizon_periods
+from cartpole.estimation.mhe import MHEOptions, MovingHorizonEstimator, bench_mhe, horizon_periods
 from cartpole.estimation.sensors import (
     KINDS,
     Sensor,
@@ -27,6 +27,7 @@ __all__ = [
     "ExtendedKalmanFilter",
     "KalmanFilter",
     "KalmanGain",
+    "MHEOptions",
     "MovingHorizonEstimator",
     "Sensor",
     "SensorError",

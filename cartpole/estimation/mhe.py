@@ -45,6 +45,8 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -68,6 +70,7 @@ from cartpole.estimation.measurement import positions_initial_state
 from cartpole.estimation.mhe_baseline import time_ipopt_window
 from cartpole.estimation.noise import process_covariance
 from cartpole.models import SHIPPED_MJCF, build_model, steps_per_period
+from cartpole.options import StageOptions
 
 #: Periods in the window when none is given.
 DEFAULT_HORIZON = 10
@@ -130,6 +133,67 @@ def horizon_periods(horizon_s: float, period_s: float) -> int:
     return int(N)
 
 
+@dataclass(frozen=True, eq=False)
+class MHEOptions(StageOptions):
+    """The moving-horizon estimator's own settings (:class:`MovingHorizonEstimator`): its window, its arrival cost's
+    first covariance, the joints' bounds and how each period is computed. Keyword-only; every field has a default.
+
+    Attributes
+    ----------
+    horizon : int
+        Intervals ``N`` (control periods) in the window, >= 1 (default :data:`DEFAULT_HORIZON`; from seconds:
+        :func:`horizon_periods`).
+    P0 : (nx, nx) array, (nx,) array, float or None
+        The arrival cost's covariance at the first sample (SI units squared), positive definite; None (default):
+        diagonal with :data:`ARRIVAL_POSITION_STD` and :data:`ARRIVAL_RATE_STD`.
+    joint_ranges : (nq, 2) array or None
+        Hard bounds on the estimated positions (m, rad; ``+-inf`` where unlimited); None (default):
+        ``model.params.joint_ranges``.
+    compiled : bool
+        False evaluates the window in CasADi's virtual machine (same numbers, slower) and runs the Python step
+        (default True).
+    c_step : bool
+        True (default, with ``compiled``): each period runs the compiled C of ``cartpole/csrc/mhe.c.jinja``
+        (:mod:`cartpole.estimation.mhe_c`), the C ``cartpole export`` ships; False, or without a C compiler: the
+        Python step (the same Riccati recursion in numpy; the tests' reference).
+
+    Raises
+    ------
+    EstimationError
+        A horizon that is not a whole number >= 1 of periods, or a ``P0`` or ``joint_ranges`` that is not numbers
+        (their shapes and definiteness are checked against the model by :class:`MovingHorizonEstimator`).
+    """
+
+    horizon: int = DEFAULT_HORIZON
+    P0: object = None
+    joint_ranges: object = None
+    compiled: bool = True
+    c_step: bool = True
+
+    error: ClassVar[type] = EstimationError
+    SCALARS: ClassVar[tuple] = ("horizon",)
+
+    def __post_init__(self):
+        horizon = self.horizon
+        try:
+            whole = not isinstance(horizon, bool) and float(horizon).is_integer() and horizon >= 1
+        except (TypeError, ValueError):
+            whole = False
+        if not whole:
+            raise EstimationError(f"The MHE horizon {horizon!r} is not a whole number >= 1 of control periods; give "
+                                  "e.g. horizon=10 (horizon_periods converts seconds).")
+        self.set_field("horizon", int(horizon))
+        for name in ("P0", "joint_ranges"):
+            value = getattr(self, name)
+            if value is not None:
+                try:
+                    self.set_field(name, readonly(value))
+                except (TypeError, ValueError):
+                    raise EstimationError(f"MHEOptions.{name} must be numbers (SI units); got {value!r}.") from None
+        self.set_field("compiled", bool(self.compiled))
+        self.set_field("c_step", bool(self.c_step))
+
+
 class MovingHorizonEstimator(SampledEstimator):
     """Moving-horizon estimation of ``x = [qpos, qvel]`` from ``y = h(x, u) + v`` (see the module doc), one
     Gauss-Newton step per control period; the :class:`~cartpole.estimation.base.Estimator` contract:
@@ -155,23 +219,12 @@ class MovingHorizonEstimator(SampledEstimator):
     accel_std : float or (nq,) array, optional
         Standard deviation of the unknown acceleration (m/s^2 on slides, rad/s^2 on hinges):
         ``W = process_covariance(accel_std, period)``. Default :data:`DEFAULT_ACCEL_STD` when ``W`` is not given.
-    horizon : int
-        Intervals ``N`` (control periods) in the window, >= 1 (from seconds: :func:`horizon_periods`).
-    P0 : (nx, nx) array, (nx,) array or float, optional
-        The arrival cost's covariance at the first sample (SI units squared), positive definite; default
-        diagonal with :data:`ARRIVAL_POSITION_STD` and :data:`ARRIVAL_RATE_STD`.
-    joint_ranges : (nq, 2) array, optional
-        Hard bounds on the estimated positions (m, rad; ``+-inf`` where unlimited), default
-        ``model.params.joint_ranges``.
     initial_state : callable, optional
         ``y0 (ny,) -> x0 (nx,)``: the first estimate and the arrival cost's first centre. Default: each position
         that ``h`` measures one-to-one (``y_i = q_j``) from ``y0``, the others from ``model.x_hanging``, zero rates.
-    compiled : bool
-        False evaluates the window in CasADi's virtual machine (same numbers, slower) and runs the Python step.
-    c_step : bool
-        True (default, with ``compiled``): each period runs the compiled C of ``cartpole/csrc/mhe.c.jinja``
-        (:mod:`cartpole.estimation.mhe_c`), the C ``cartpole export`` ships; False, or without a C compiler: the
-        Python step (the same Riccati recursion in numpy; the tests' reference).
+    options : MHEOptions, optional
+        The window (``horizon``), the arrival cost's first covariance (``P0``), the bounds (``joint_ranges``) and
+        the evaluation (``compiled``, ``c_step``); default :class:`MHEOptions` ``()``.
     name : str
         The estimator's name (the CLI's ``--estimator``).
 
@@ -199,22 +252,17 @@ class MovingHorizonEstimator(SampledEstimator):
 
     title = "MHE"
 
-    def __init__(self, model, steps: int, h: ca.Function, V, *, W=None, accel_std=None,
-                 horizon: int = DEFAULT_HORIZON, P0=None, joint_ranges=None, initial_state=None,
-                 compiled: bool = True, c_step: bool = True, name: str = "mhe"):
+    def __init__(self, model, steps: int, h: ca.Function, V, *, W=None, accel_std=None, initial_state=None,
+                 options: MHEOptions = MHEOptions(), name: str = "mhe"):
         self.name = str(name)
         nq, nx, nu = int(model.nq), int(model.nx), int(model.nu)
         self.nq, self.nx, self.nu = nq, nx, nu
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
             raise EstimationError(f"The physics steps per period {steps!r} must be a whole number >= 1.")
-        try:
-            whole = not isinstance(horizon, bool) and float(horizon).is_integer() and horizon >= 1
-        except (TypeError, ValueError):
-            whole = False
-        if not whole:
-            raise EstimationError(f"The MHE horizon {horizon!r} is not a whole number >= 1 of control periods; give "
-                                  "e.g. horizon=10 (horizon_periods converts seconds).")
-        self.steps, self.N = int(steps), int(horizon)
+        if not isinstance(options, MHEOptions):
+            raise EstimationError(f"The MHE's options must be an MHEOptions; got {options!r}.")
+        P0, joint_ranges, compiled = options.P0, options.joint_ranges, options.compiled
+        self.steps, self.N = int(steps), options.horizon
         self.period = self.steps * float(model.dt)
         if not isinstance(h, ca.Function) or h.n_in() != 2 or h.n_out() < 1:
             raise EstimationError("The measurement model h must be a CasADi Function h(x, u) -> y.")
@@ -264,7 +312,7 @@ class MovingHorizonEstimator(SampledEstimator):
         self._n = -1  # intervals in the window; -1 before reset
         self._k = 0
         self.failures: list[int] = []
-        self.c = compiled_mhe(self, model, h) if (c_step and compiled) else None
+        self.c = compiled_mhe(self, model, h) if (options.c_step and compiled) else None
 
     # ---- the contract -----------------------------------------------------------------------------------------
     def _start(self, y0, x0) -> np.ndarray:
@@ -444,7 +492,7 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
     N = horizon_periods(horizon, period)
     nu = model.nu
     X, Us, Y, h, V = _bench_truth(model, m, int(n), seed)
-    est = MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, horizon=N, compiled=compiled)
+    est = MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, options=MHEOptions(horizon=N, compiled=compiled))
     medians, samples = [], []
     for run in range(max(1, int(repeats))):
         est.reset(Y[0])
@@ -467,8 +515,9 @@ def bench_mhe(model=None, *, horizon: float = 0.1, period: float = 0.01, n: int 
            "horizon": float(horizon), "compiled": est.library is not None, "c_step": est.c is not None,
            "rms_error": np.sqrt(np.mean(err ** 2, axis=0)).tolist()}
     if python:
-        out["python"] = _time_python_step(MovingHorizonEstimator(model, m, h, V, accel_std=accel_std, horizon=N,
-                                                                 compiled=compiled, c_step=False),
+        python_step = MHEOptions(horizon=N, compiled=compiled, c_step=False)
+        out["python"] = _time_python_step(MovingHorizonEstimator(model, m, h, V, accel_std=accel_std,
+                                                                 options=python_step),
                                           Y, Us, Xh, min(int(python), int(n)))
     if samples:
         out["ipopt"] = time_ipopt_window(est, model, h, samples)

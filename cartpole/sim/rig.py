@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.estimation import (ExtendedKalmanFilter, KalmanFilter, MovingHorizonEstimator, SensorSampler,
+from cartpole.estimation import (ExtendedKalmanFilter, KalmanFilter, MHEOptions, MovingHorizonEstimator, SensorSampler,
                                  horizon_periods, initial_state, measurement_function, sensor_spec)
 from cartpole.models import steps_per_period
 from cartpole.sim.options import LoopError, LoopOptions
@@ -262,7 +262,7 @@ def estimator_factory(model, loop: LoopOptions, name: str, steps: int):
     elif name == "mhe":
         cls = MovingHorizonEstimator
         extra = {} if loop.mhe_horizon is None else {
-            "horizon": horizon_periods(loop.mhe_horizon, steps * float(model.dt))}
+            "options": MHEOptions(horizon=horizon_periods(loop.mhe_horizon, steps * float(model.dt)))}
     else:
         raise CartPoleError(f"No estimator named {name!r}.")
 

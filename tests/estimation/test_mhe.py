@@ -10,7 +10,7 @@ from scipy.optimize import lsq_linear
 
 from cartpole.errors import CartPoleError
 from cartpole.estimation import EstimationError
-from cartpole.estimation.mhe import MovingHorizonEstimator, bench_mhe, horizon_periods
+from cartpole.estimation.mhe import MHEOptions, MovingHorizonEstimator, bench_mhe, horizon_periods
 from cartpole.estimation.noise import process_covariance
 from cartpole.models import SHIPPED_MJCF, build_model
 
@@ -121,7 +121,7 @@ def test_mhe_tracks_a_swinging_cart_from_quantised_encoders_rates_included(model
     quantum, sd = np.array([1e-3, 2 * np.pi / 2048]), np.array([2e-3, 2e-3])
     Y = np.round((X[:, :nq] + sd * rng.standard_normal((K + 1, nq))) / quantum) * quantum
     est = MovingHorizonEstimator(model, m, _encoders(model), np.diag(sd ** 2 + quantum ** 2 / 12), accel_std=0.5,
-                                 horizon=N)
+                                 options=MHEOptions(horizon=N))
     est.reset(Y[0])
     Xh = np.array([est.update(Y[k + 1], Us[k]) for k in range(K)])
     err = (Xh - X[1:])[N:]
@@ -144,9 +144,9 @@ def test_unconstrained_mhe_on_a_linear_plant_is_the_batch_least_squares(model, c
     P0 = np.diag([1e-2, 1e-2, 1.0, 1.0])
     _, Us, uh, Y = _linear_data(plant, m, K, LIN_C, LIN_D, W, V, seed=3)
     xbar = np.r_[Y[0] - LIN_D @ uh[0], 0.2, -0.1]
-    est = MovingHorizonEstimator(plant, m, _linear_h(plant, LIN_C, LIN_D), V, W=W, horizon=K + 5, P0=P0,
-                                 joint_ranges=np.full((plant.nq, 2), [-np.inf, np.inf]),
-                                 initial_state=lambda y0: xbar, compiled=compiled)
+    est = MovingHorizonEstimator(plant, m, _linear_h(plant, LIN_C, LIN_D), V, W=W, initial_state=lambda y0: xbar,
+                                 options=MHEOptions(horizon=K + 5, P0=P0, compiled=compiled,
+                                                    joint_ranges=np.full((plant.nq, 2), [-np.inf, np.inf])))
     assert (est.library is not None) == compiled
     est.reset(Y[0])
     for k in range(K):
@@ -165,9 +165,9 @@ def test_sliding_mhe_on_a_linear_plant_is_the_kalman_filter_with_a_singular_proc
     P0 = np.diag([1e-2, 1e-2, 1.0, 1.0])
     _, Us, uh, Y = _linear_data(plant, m, K, LIN_C, LIN_D, W, V, seed=5)
     xbar = np.zeros(plant.nx)
-    est = MovingHorizonEstimator(plant, m, _linear_h(plant, LIN_C, LIN_D), V, W=W, horizon=N, P0=P0,
-                                 joint_ranges=np.full((plant.nq, 2), [-np.inf, np.inf]),
-                                 initial_state=lambda y0: xbar)
+    est = MovingHorizonEstimator(plant, m, _linear_h(plant, LIN_C, LIN_D), V, W=W, initial_state=lambda y0: xbar,
+                                 options=MHEOptions(horizon=N, P0=P0,
+                                                    joint_ranges=np.full((plant.nq, 2), [-np.inf, np.inf])))
     est.reset(Y[0])
     mhe = [est.update(Y[k + 1], Us[k]) for k in range(K)]
     Ad, G = plant.period(m)
@@ -189,7 +189,8 @@ def test_a_measurement_beyond_the_rail_gives_an_estimate_on_it(model):
     lo, hi = model.params.joint_ranges[model.slide]
     assert np.isfinite(hi)
     m, N = 2, 10
-    est = MovingHorizonEstimator(model, m, _encoders(model), np.diag([1e-6, 1e-6]), accel_std=1.0, horizon=N)
+    est = MovingHorizonEstimator(model, m, _encoders(model), np.diag([1e-6, 1e-6]), accel_std=1.0,
+                                 options=MHEOptions(horizon=N))
     y = np.array(model.x_hanging[:model.nq])
     y[model.slide] = hi + 0.3
     x0 = est.reset(y)
@@ -218,8 +219,8 @@ def test_beyond_the_rail_with_a_fine_encoder_the_window_qp_meets_its_kkt_conditi
     monkeypatch.setattr(mhe_module, "solve_window_qp", spy)
     lo, hi = model.params.joint_ranges[model.slide]
     m, N = 2, 10
-    est = MovingHorizonEstimator(model, m, _encoders(model), np.diag([1e-12 / 12, 1e-6]), accel_std=1.0, horizon=N,
-                                 c_step=False)  # the Python step's QP, spied on
+    est = MovingHorizonEstimator(model, m, _encoders(model), np.diag([1e-12 / 12, 1e-6]), accel_std=1.0,
+                                 options=MHEOptions(horizon=N, c_step=False))  # the Python step's QP, spied on
     y = np.array(model.x_hanging[:model.nq])
     est.reset(y)
     for k in range(2 * N):
@@ -251,8 +252,8 @@ def test_bounded_mhe_on_a_linear_plant_is_scipys_bounded_least_squares(model):
     Y[6:, 0] += 0.2  # the cart's reading jumps beyond its range
     bounds = np.array([[-0.05, 0.05], [-np.inf, np.inf]])
     xbar = np.zeros(plant.nx)
-    est = MovingHorizonEstimator(plant, m, _linear_h(plant, LIN_C, LIN_D), V, W=W, horizon=K, P0=P0,
-                                 joint_ranges=bounds, initial_state=lambda y0: xbar)
+    est = MovingHorizonEstimator(plant, m, _linear_h(plant, LIN_C, LIN_D), V, W=W, initial_state=lambda y0: xbar,
+                                 options=MHEOptions(horizon=K, P0=P0, joint_ranges=bounds))
     est.reset(Y[0])
     for k in range(K):
         est.update(Y[k + 1], Us[k])
@@ -262,7 +263,7 @@ def test_bounded_mhe_on_a_linear_plant_is_scipys_bounded_least_squares(model):
 
 
 def test_the_default_first_estimate_takes_measured_positions_and_hangs_the_rest(model):
-    est = MovingHorizonEstimator(model, 2, _encoders(model, [model.slide]), [1e-6], horizon=3)
+    est = MovingHorizonEstimator(model, 2, _encoders(model, [model.slide]), [1e-6], options=MHEOptions(horizon=3))
     x0 = est.reset([0.3])
     expected = np.array(model.x_hanging, dtype=float)
     expected[model.slide] = 0.3
@@ -287,8 +288,10 @@ def _one_sentence(err):
                                     {"P0": np.zeros((4, 4))}, {"steps": 0}, {"joint_ranges": [[1.0, -1.0]] * 2}])
 def test_bad_settings_are_one_sentence(model, kwargs):
     args = {"steps": 2, "V": np.diag([1e-6, 1e-6]), **kwargs}
+    window = {k: args.pop(k) for k in ("horizon", "P0", "joint_ranges") if k in args}
     with pytest.raises(EstimationError) as err:
-        MovingHorizonEstimator(model, args.pop("steps"), _encoders(model), args.pop("V"), **args)
+        MovingHorizonEstimator(model, args.pop("steps"), _encoders(model), args.pop("V"), **args,
+                               options=MHEOptions(**window))
     _one_sentence(err)
 
 
@@ -300,7 +303,7 @@ def test_a_horizon_that_is_not_whole_periods_is_one_sentence(horizon, period):
 
 
 def test_bad_measurements_and_ctrl_are_one_sentence(model):
-    est = MovingHorizonEstimator(model, 2, _encoders(model), np.diag([1e-6, 1e-6]), horizon=3)
+    est = MovingHorizonEstimator(model, 2, _encoders(model), np.diag([1e-6, 1e-6]), options=MHEOptions(horizon=3))
     with pytest.raises(EstimationError) as err:
         est.update([0.0, np.pi], np.zeros((1, 2)))  # before reset
     _one_sentence(err)
@@ -316,3 +319,12 @@ def test_bench_reports_the_step_time_and_small_errors():
     assert out["N"] == 5 and out["n"] == 60
     assert 0 < out["step_ms_median"] <= out["step_ms_max"]
     assert len(out["rms_error"]) == 4 and max(out["rms_error"]) < 0.1
+
+
+def test_options_of_another_kind_are_one_sentence(model):
+    with pytest.raises(EstimationError, match="The MHE's options must be an MHEOptions") as err:
+        MovingHorizonEstimator(model, 2, _encoders(model), np.diag([1e-6, 1e-6]), options={"horizon": 3})
+    _one_sentence(err)
+    with pytest.raises(EstimationError, match="MHEOptions.P0 must be numbers") as err:
+        MHEOptions(P0="wide")
+    _one_sentence(err)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cartpole.codegen import compiler
-from cartpole.estimation.mhe import MovingHorizonEstimator
+from cartpole.estimation.mhe import MHEOptions, MovingHorizonEstimator
 from cartpole.estimation.mhe_functions import condensed_qp, riccati_window_step
 from cartpole.models import SHIPPED_MJCF, build_model
 
@@ -25,8 +25,8 @@ def _encoders(model):
 
 def _pair(model, **kw):
     args = (model, 2, _encoders(model), np.diag([1e-6, 1e-6]))
-    c = MovingHorizonEstimator(*args, accel_std=1.0, **kw)
-    py = MovingHorizonEstimator(*args, accel_std=1.0, c_step=False, **kw)
+    c = MovingHorizonEstimator(*args, accel_std=1.0, options=MHEOptions(**kw))
+    py = MovingHorizonEstimator(*args, accel_std=1.0, options=MHEOptions(c_step=False, **kw))
     assert c.c is not None and py.c is None
     return c, py
 
@@ -85,7 +85,7 @@ def test_the_riccati_step_is_the_condensed_normal_equations_solution():
 
 def test_without_a_compiler_the_estimator_runs_its_python_step(model, monkeypatch):
     monkeypatch.setenv("CARTPOLE_NO_COMPILE", "1")
-    est = MovingHorizonEstimator(model, 2, _encoders(model), np.diag([1e-6, 1e-6]), horizon=4)
+    est = MovingHorizonEstimator(model, 2, _encoders(model), np.diag([1e-6, 1e-6]), options=MHEOptions(horizon=4))
     assert est.c is None and est.library is None
     x0 = est.reset(np.zeros(model.nq))
     assert np.all(np.isfinite(est.update(np.zeros(model.nq), np.zeros((model.nu, 2))))) and x0.shape == (model.nx,)
