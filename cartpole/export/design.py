@@ -117,93 +117,127 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
     LQRError, PIDError, RigError, PeriodError, EstimationError
         The Python design itself fails (its own sentence).
     """
-    from cartpole.sim.rig import build_rig
-
     if method not in CONTROLLERS:
         raise ExportError(f"There is no controller {method!r} to export; choose one of {', '.join(CONTROLLERS)}.")
     task = CONTROLLERS[method]
+    rig = _export_rig(model, method, loop)
+    estimator = "none" if rig is None else rig.estimator
+    steps = 1 if rig is None else int(rig.steps)
+    period = steps * float(model.dt)
+    design = _CONTROLLER_DESIGNS[method](model, steps, period, x0=x0, rho=rho, plan=plan)
+    spec = None if rig is None else rig.spec
+    program = build_program(model, rig, design.part, real=real, title=design.title)
+    return ExportDesign(method=method, estimator=estimator, model=model, program=program, make_controller=design.make,
+                        rig=rig, spec=spec, task=task, plan_end=design.plan_end)
+
+
+def _export_rig(model, method: str, loop):
+    """The rig of ``method``'s export on ``loop`` (:func:`cartpole.sim.rig.build_rig`; None: MuJoCo's exact state
+    every physics step), the NMPC's at its own period unless the loop gives one; or one sentence when the export
+    does not reproduce its estimator."""
+    from cartpole.sim.rig import build_rig
+
     if method == "nmpc":  # the NMPC runs at its own period (0.02 s) unless the loop gives one
         from cartpole.mpc.options import DEFAULT_PERIOD
         from cartpole.sim.options import LoopOptions
 
         loop = LoopOptions() if loop is None else loop
         loop = loop.replace(period=DEFAULT_PERIOD if loop.period is None else loop.period)
-    rig = build_rig(model, loop, task=task)
+    rig = build_rig(model, loop, task=CONTROLLERS[method])
     estimator = "none" if rig is None else rig.estimator
     allowed = SUPPORTED_ESTIMATORS[method]
     if estimator not in allowed:
         have = f"supported: --estimator {' or '.join(allowed)}" if allowed else "it is not exported yet"
         raise ExportError(f"The {method} export with --estimator {estimator} is not available ({have}); pick "
                           "another estimator or controller.")
-    steps = 1 if rig is None else int(rig.steps)
-    lag = 0 if rig is None else int(rig.delay_steps)
-    period = steps * float(model.dt)
-    plan_end = None
-    if method == "lqr":
-        from cartpole.control.linear import LinearFeedback
+    return rig
 
-        fb = LinearFeedback.for_model(model, period=period)
 
-        def make():
-            return fb
-        ctrl_part = linear_part(fb)
-        title = f"LQR balance at a {period:g} s period"
-    elif method == "pid":
-        from cartpole.control.pid import CascadedPID, tune_pid
+@dataclass(frozen=True)
+class _ControllerDesign:
+    """One controller's side of an export: ``make()`` a fresh Python controller (reset), its C ``part``, the
+    export's one-line ``title`` and, for a planned swing-up, the plan's length ``plan_end`` (s)."""
 
-        gains = tune_pid(model, period=period)
+    make: Callable
+    part: object
+    title: str
+    plan_end: float | None = None
 
-        def make():
-            return CascadedPID(gains, model)
-        ctrl_part = pid_part(make())
-        title = f"cascaded PID balance at a {period:g} s period"
-    elif method == "tvlqr":
-        from cartpole.planning.trajopt import trajopt_swingup
 
-        start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-        kw = {} if plan is None else {"options": plan}
-        sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), plan_model=model,
-                             period=None if steps == 1 else period, **kw)
-        tv = sp.controller
-        plan_end = float(sp.trajectory.t[-1] - sp.trajectory.t[0])
+def _lqr_design(model, steps: int, period: float, **_) -> _ControllerDesign:
+    """The upright LQR at the period (:meth:`~cartpole.control.linear.LinearFeedback.for_model`)."""
+    from cartpole.control.linear import LinearFeedback
 
-        def make():
-            tv.reset()
-            return tv
-        ctrl_part = tvlqr_part(tv)
-        title = (f"trajopt swing-up tracked by TVLQR ({sp.trajectory.N} intervals, {tv.T:.3g} s), then the LQR "
-                 f"catch, at a {period:g} s period")
-    elif method == "energy":
-        from cartpole.control.energy import EnergyShapingController
-        from cartpole.control.linear import LinearFeedback
-        from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
+    fb = LinearFeedback.for_model(model, period=period)
+    return _ControllerDesign(make=lambda: fb, part=linear_part(fb), title=f"LQR balance at a {period:g} s period")
 
-        if rho is None or not rho > 0:
-            raise ExportError("The energy export needs the catch level rho of the LQR catch's verified basin; "
-                              "give rho (cartpole export computes it).")
-        energy = EnergyShapingController(model)
-        catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=None if steps == 1 else period)
 
-        def make():
-            return SwitchingController(energy, catch, float(rho))
-        ctrl_part = energy_part(make())
-        title = f"energy-shaping swing-up with the LQR catch below rho = {float(rho):.4g}, at a {period:g} s period"
-    else:
-        from cartpole.export.nmpc import nmpc_design, nmpc_part
+def _pid_design(model, steps: int, period: float, **_) -> _ControllerDesign:
+    """The cascaded PID tuned for the period (:func:`~cartpole.control.pid.tune_pid`)."""
+    from cartpole.control.pid import CascadedPID, tune_pid
 
-        start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
-        mpc, plan_traj = nmpc_design(model, start, period)
+    gains = tune_pid(model, period=period)
 
-        def make():
-            mpc.reset()
-            return mpc
-        ctrl_part = nmpc_part(mpc, plan_traj)
-        title = (f"nonlinear MPC by real-time iteration ({mpc.N} stages of {mpc.period:g} s, dual active-set QP in "
-                 "C), swing-up from the planned start")
-    spec = None if rig is None else rig.spec
-    program = build_program(model, rig, ctrl_part, real=real, title=title)
-    return ExportDesign(method=method, estimator=estimator, model=model, program=program, make_controller=make,
-                        rig=rig, spec=spec, task=task, plan_end=plan_end)
+    def make():
+        return CascadedPID(gains, model)
+    return _ControllerDesign(make=make, part=pid_part(make()), title=f"cascaded PID balance at a {period:g} s period")
+
+
+def _tvlqr_design(model, steps: int, period: float, *, x0=None, plan=None, **_) -> _ControllerDesign:
+    """The trajopt swing-up from ``x0`` (default hanging) planned with ``plan`` (PlanOptions), tracked by TVLQR."""
+    from cartpole.planning.trajopt import trajopt_swingup
+
+    start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
+    kw = {} if plan is None else {"options": plan}
+    sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), plan_model=model,
+                         period=None if steps == 1 else period, **kw)
+    tv = sp.controller
+
+    def make():
+        tv.reset()
+        return tv
+    title = (f"trajopt swing-up tracked by TVLQR ({sp.trajectory.N} intervals, {tv.T:.3g} s), then the LQR "
+             f"catch, at a {period:g} s period")
+    return _ControllerDesign(make=make, part=tvlqr_part(tv), title=title,
+                             plan_end=float(sp.trajectory.t[-1] - sp.trajectory.t[0]))
+
+
+def _energy_design(model, steps: int, period: float, *, rho=None, **_) -> _ControllerDesign:
+    """Energy shaping with the LQR catch below the verified basin's level ``rho`` (required)."""
+    from cartpole.control.energy import EnergyShapingController
+    from cartpole.control.linear import LinearFeedback
+    from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
+
+    if rho is None or not rho > 0:
+        raise ExportError("The energy export needs the catch level rho of the LQR catch's verified basin; "
+                          "give rho (cartpole export computes it).")
+    energy = EnergyShapingController(model)
+    catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R, period=None if steps == 1 else period)
+
+    def make():
+        return SwitchingController(energy, catch, float(rho))
+    title = f"energy-shaping swing-up with the LQR catch below rho = {float(rho):.4g}, at a {period:g} s period"
+    return _ControllerDesign(make=make, part=energy_part(make()), title=title)
+
+
+def _nmpc_design(model, steps: int, period: float, *, x0=None, **_) -> _ControllerDesign:
+    """The NMPC by real-time iteration from ``x0`` (default hanging), its QP solved in C."""
+    from cartpole.export.nmpc import nmpc_design, nmpc_part
+
+    start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
+    mpc, plan_traj = nmpc_design(model, start, period)
+
+    def make():
+        mpc.reset()
+        return mpc
+    title = (f"nonlinear MPC by real-time iteration ({mpc.N} stages of {mpc.period:g} s, dual active-set QP in "
+             "C), swing-up from the planned start")
+    return _ControllerDesign(make=make, part=nmpc_part(mpc, plan_traj), title=title)
+
+
+#: Each exportable controller's design, by :data:`CONTROLLERS` key.
+_CONTROLLER_DESIGNS = {"lqr": _lqr_design, "pid": _pid_design, "tvlqr": _tvlqr_design, "energy": _energy_design,
+                       "nmpc": _nmpc_design}
 
 
 def estimator_part(rig, model):
