@@ -322,12 +322,12 @@ def simulate(plant: Plant, controller: Controller, x0, duration: float, *, rig=N
     if not isinstance(options, SimOptions):
         raise OptionsError(f"simulate's options must be a SimOptions; got {options!r}.")
     m, d = make_mujoco(plant)
-    loop = _Loop(m, d, _check_state(x0, m), duration, rig, options)
+    loop = _Loop(m, d, _check_state(x0, m), duration, rig, options, push=push, disturbance=disturbance)
     if options.on_step is not None and options.on_step(m, d) is False:  # the start state too (a viewer opens on it)
         loop.n = loop.last = 0
     for k in range(loop.n):
         loop.command(k, controller)
-        loop.apply_forces(k, push, disturbance)
+        loop.apply_forces(k)
         if loop.step(k):
             break
     return loop.rollout(source_path(plant))
@@ -336,9 +336,9 @@ def simulate(plant: Plant, controller: Controller, x0, duration: float, *, rig=N
 class _Loop:
     """One :func:`simulate` run in steps: MuJoCo's model ``m`` and data ``d`` set to ``x0``, the log, the ctrl plan
     (a command issued at step ``k`` acts on steps ``k + lag .. k + lag + hold - 1``; zero, clipped, until the first
-    one arrives) and the run's end so far (``last``, in steps)."""
+    one arrives), the push and disturbance with their logs, and the run's end so far (``last``, in steps)."""
 
-    def __init__(self, m, d, x0: np.ndarray, duration: float, rig, options: SimOptions):
+    def __init__(self, m, d, x0: np.ndarray, duration: float, rig, options: SimOptions, *, push, disturbance):
         self.m, self.d, self.options = m, d, options
         nq, nv, nu = m.nq, m.nv, m.nu
         self.h = h = float(m.opt.timestep)
@@ -363,8 +363,10 @@ class _Loop:
         self.samples = _Samples() if self.run is not None else None
         self.every = max(1, n // 20)
         self.last = n
-        self.cart = -1
-        self.forces = self.qfrc = None
+        self.push, self.disturbance = push, disturbance
+        self.cart = cart_body(m) if push is not None else -1
+        self.forces = np.zeros(n) if push is not None else None
+        self.qfrc = np.zeros((n, nv)) if disturbance is not None else None
         self.watch = WarningWatch(d)
         self.diverged, self.warning = None, None
         self.contact, self.touching = None, 0
@@ -391,17 +393,13 @@ class _Loop:
                                 f"it must return {nu} finite ctrl value{'s' if nu != 1 else ''}.")
         self.planned[k + lag:k + lag + hold] = np.clip(u_raw, self.lo, self.hi)
 
-    def apply_forces(self, k: int, push, disturbance) -> None:
+    def apply_forces(self, k: int) -> None:
         """Set the push on the cart and the generalized-force disturbance for step ``k``, and log them."""
-        if push is not None:
-            if self.forces is None:
-                self.cart, self.forces = cart_body(self.m), np.zeros(self.n)
-            self.forces[k] = float(push(k * self.h))
+        if self.push is not None:
+            self.forces[k] = float(self.push(k * self.h))
             self.d.xfrc_applied[self.cart, 0] = self.forces[k]
-        if disturbance is not None:
-            if self.qfrc is None:
-                self.qfrc = np.zeros((self.n, self.m.nv))
-            self.qfrc[k] = _generalized_force(disturbance(k * self.h, self.state()), self.m.nv, k * self.h)
+        if self.disturbance is not None:
+            self.qfrc[k] = _generalized_force(self.disturbance(k * self.h, self.state()), self.m.nv, k * self.h)
             self.d.qfrc_applied[:] = self.qfrc[k]
 
     def step(self, k: int) -> bool:
