@@ -122,3 +122,67 @@ def test_attach_adds_the_pages_pushes_to_a_scheduled_push_and_shows_the_law():
     live._t_now, live._x_now = 0.0, np.zeros(4)
     assert "law _zero" in live._status().lines
     live.close()
+
+
+class _FakeImGui:
+    """ImGui and ImPlot as the panel's drawing steps call them: every button clicked, every slider at the value
+    ``slide`` gives (or unchanged), the item active while ``active``; the plots drawn are recorded."""
+
+    def __init__(self, slide=None, active=False, released=False):
+        self.slide, self.active, self.released, self.lines = slide or {}, active, released, []
+
+    def SliderFloat(self, name, value, *a):
+        return name in self.slide, self.slide.get(name, value)
+
+    def Button(self, name):
+        return True
+
+    def IsItemActive(self):
+        return self.active
+
+    def IsItemDeactivatedAfterEdit(self):
+        return self.released
+
+    def BeginPlot(self, *a):
+        return True
+
+    def PlotLine(self, name, t, ys):
+        self.lines.append((name, list(ys)))
+
+    def __getattr__(self, name):  # SameLine, SetupAxes, SetupAxisLimits, EndPlot ...
+        return lambda *a, **k: None
+
+
+def _panel():
+    from types import SimpleNamespace
+
+    sent = []
+    panel = SimpleNamespace(force=10.0, drag=0.0, drag_sent=0.0, values={}, widgets={},
+                            viewer=SimpleNamespace(send_to_sim=sent.append))
+    panel._rect = lambda name: panel.widgets.__setitem__(name, True)
+    messages = SimpleNamespace(PushEvent=lambda force: ("push", force), DragEvent=lambda force: ("drag", force),
+                               KnobEvent=lambda name, value: ("knob", name, value))
+    return panel, messages, sent
+
+
+def test_the_panels_drawing_steps_send_pushes_drags_and_knob_values_and_plot_each_series():
+    from types import SimpleNamespace
+
+    from cartpole.viz.web import _draw_knobs, _draw_plots, _draw_push
+
+    panel, M, sent = _panel()
+    _draw_push(panel, _FakeImGui(slide={"push force [N]": 12.0}), M)
+    assert sent == [("push", -12.0), ("push", 12.0)] and {"push left", "push right"} <= set(panel.widgets)
+    sent.clear()
+    _draw_push(panel, _FakeImGui(slide={"drag to push [N]": 30.0}, active=True), M)  # held: its force sent once
+    _draw_push(panel, _FakeImGui(), M)  # released: back to zero
+    assert [s for s in sent if s[0] == "drag"] == [("drag", 30.0), ("drag", 0.0)] and panel.drag == 0.0
+    status = SimpleNamespace(t=[0.0, 0.1], names=["hinge", "ctrl motor"], series=[[1.0, 0.5], [2.0, -0.5]],
+                             ctrl_range=[(-1.0, 1.0)], knobs=[("Q hinge", 10.0, 0.1, 1000.0, True)])
+    sent.clear()
+    _draw_knobs(panel, _FakeImGui(slide={"Q hinge": 2.0}, released=True), status, M)  # log slider: 10 ** 2
+    assert sent == [("knob", "Q hinge", 100.0)]
+    im = _FakeImGui()
+    _draw_plots(im, im, status)
+    assert ("hinge", [1.0, 2.0]) in im.lines and ("ctrl motor", [0.5, -0.5]) in im.lines  # series: one row a time
+    assert ("low", [-1.0, -1.0]) in im.lines and ("high", [1.0, 1.0]) in im.lines  # the ctrl's range drawn
