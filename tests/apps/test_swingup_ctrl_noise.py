@@ -111,7 +111,8 @@ def _three_pole_catch_hold(tmp_path, gear_factor):
     upper = loop_margins(lqg).gain_margin[1]
     text = THREE.read_text()
     plant = tmp_path / f"three_pole_gear_{gear_factor:g}.xml"
-    plant.write_text(re.sub(r'gear="([0-9.eE+-]+)"', lambda m: f'gear="{float(m.group(1)) * float(gear_factor):.12g}"', text))
+    stronger = lambda m: f'gear="{float(m.group(1)) * float(gear_factor):.12g}"'  # noqa: E731
+    plant.write_text(re.sub(r'gear="([0-9.eE+-]+)"', stronger, text))
     x0 = np.array(model.x_eq, float)
     x0[list(model.hinges)] += 0.005
     rig = build_rig(model, loop, task="swingup")
@@ -121,7 +122,8 @@ def _three_pole_catch_hold(tmp_path, gear_factor):
 def test_the_sensed_rest_still_fails_the_same_catch_limit_cycling_past_its_gain_margin(tmp_path):
     """The counter-example: the same catch on the same rig, its motor 2 % stronger than the upper gain margin the
     loop predicts (LQG's, through the Kalman filter), grows into an oscillation. Its fastest rate passes the sensors'
-    bound twice over, so the rest test fails, while the nominal motor's hold, whose motion is the quantisation's, passes it."""
+    bound twice over, so the rest test fails, while the nominal motor's hold, whose motion is the quantisation's,
+    passes it."""
     nominal, rig, model, upper = _three_pole_catch_hold(tmp_path, 1.0)
     assert 1.0 < upper < 2.0
     layout = dict(x_eq=model.x_eq, hinges=model.hinges, slide=model.slide)
