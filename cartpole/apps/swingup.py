@@ -1229,9 +1229,9 @@ def _finish(ctx: _Context, method: str, ran: _Ran) -> SwingupResult:
     rig's, estimation and friction) and its result: ``caught_at`` is the hand-over only when the catch held
     (:func:`~cartpole.validation.metrics.catch_held`)."""
     rollout, rig, params = ran.rollout, ran.rig, ctx.params
-    metrics = {**swingup_metrics(rollout, ctx.model), **ran.extra}
+    metrics = {**swingup_metrics(rollout, ctx.model, rig=rig), **ran.extra}  # at rest to the rig's sensors
     handover_at = None if metrics["diverged"] else ran.handover_at  # MuJoCo reset a blown-up run: never caught
-    caught_at = handover_at if catch_held(rollout, ctx.model, handover_at) else None
+    caught_at = handover_at if catch_held(rollout, ctx.model, handover_at, rig=rig) else None
     metrics["handover_at"] = handover_at
     events = rollout.info.get("disturbances") if isinstance(rollout.info, dict) else None
     if events is not None:  # knocked or thrown: how much of the run was upright, how often it swung up again

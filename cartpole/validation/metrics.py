@@ -28,12 +28,34 @@ The swing-up's metrics use the same functions (all on the logged physics steps):
 
 * *upright*: every wrapped ``|theta_i - theta_i*| < UPRIGHT_TOL`` (0.05 rad, the lab's settling band);
 * *at rest*: additionally every ``|theta_i_dot| < REST_RATE_TOL`` (0.1 rad/s) and ``|s_dot| < REST_SPEED_TOL``
-  (0.1 m/s);
+  (0.1 m/s) when the controller read MuJoCo's exact state; when it read quantised sensors (a rig's encoders),
+  each bound is widened by the rate those sensors cannot resolve within one control period
+  (:func:`rest_tolerance`, below);
 * *time to upright*: :func:`settling_time_seed` of the run, the first logged time after which every pole stays
   within the band until the end of the log (``None`` in :func:`swingup_metrics` when it never does);
 * *cart clearance*: :func:`track_margin`, the smallest distance to a cart joint limit over the run;
 * *success*: upright and at rest over the last ``hold`` seconds, the cart never within ``limit_tol`` of its joint
   limit (where MuJoCo's limit constraint would push it), and every ctrl inside its actuator's ctrl range.
+
+At rest from quantised sensors. A controller that reads an encoder of resolution ``q`` once every period ``T``
+cannot tell a rate below ``q / T`` from standing still within one period: a joint turning that slowly moves less than
+one count between two readings. A loop closed through such sensors cannot converge to the equilibrium (no
+quantised feedback of an unstable plant can); it holds the state in a neighbourhood whose size scales with ``q``,
+moving as the counts change. So for a run on a rig, :func:`rest_tolerance` gives each velocity its exact-state bound
+plus the sensors' rate resolution, computed from the rig's sensors and period and the model, never from a run:
+
+* a joint measured by a quantised ``jointpos`` sensor (an encoder) adds ``q / T``; by a quantised ``jointvel``
+  sensor, its quantum; by several, the finest; unmeasured joints and unquantised (only noisy) sensors add nothing;
+* a slide (the cart) adds, besides its own encoder's, the speed at which the chain's centre of mass moves relative
+  to the cart when every hinge turns at its unresolved rate: ``sum_i (m_i / M) d_i rho_i`` over the hinges, with
+  ``m_i`` the mass hinge ``i`` carries, ``d_i`` the distance of its centre of mass from the axis
+  (:meth:`~cartpole.models.CartPoleParams.carried_by`), ``M`` the mass the first hinge carries and ``rho_i`` the
+  hinge's rate resolution. Balancing keeps the cart under that centre of mass, so the cart moves as fast as the
+  centre of mass does unseen.
+
+The angle band is not widened, a run with exact state keeps the bounds above, and a loop that oscillates (past a
+gain or delay margin) or drifts still fails: its rates and its angles grow far past what the counts hide
+(``tests/validation/test_metrics_rest.py``, ``tests/apps/test_swingup_ctrl_noise.py``; docs/margins.md).
 """
 from __future__ import annotations
 
@@ -371,11 +393,60 @@ def ctrl_within_range(rollout, params: CartPoleParams) -> bool:
     return bool(np.all((u >= rng[:, 0]) & (u <= rng[:, 1])))
 
 
-def held_upright(rollout, *, hold: float = 1.0, x_eq=None, hinges=None, slide: int | None = 0) -> bool:
+def _rate_resolution(params: CartPoleParams, spec, period: float) -> np.ndarray:
+    """(nq,) rate in m/s or rad/s that the quantised joint sensors of ``spec`` cannot resolve within ``period`` s, per
+    joint (0 for a joint no quantised joint sensor measures); see the module docstring."""
+    nq = len(params.joints)
+    rho = np.full(nq, np.inf)
+    for s in getattr(spec, "sensors", ()):
+        if s.resolution > 0 and s.kind in ("jointpos", "jointvel") and 0 <= s.target < nq:
+            rate = s.resolution / period if s.kind == "jointpos" else s.resolution
+            rho[s.target] = min(rho[s.target], rate)
+    return np.where(np.isfinite(rho), rho, 0.0)
+
+
+def rest_tolerance(source, rig=None) -> np.ndarray:
+    """The "at rest" bound on each velocity, (nq,) in qvel order (m/s on slides, rad/s on hinges).
+
+    Parameters
+    ----------
+    source : CartPoleModel or CartPoleParams
+        The cart-pole (its joints, and the masses and geometry the cart's bound uses).
+    rig : Rig, optional
+        The run's rig (anything with ``spec``, a :class:`~cartpole.estimation.sensors.SensorSpec` or None, and
+        ``period`` in s): None, or a rig whose controller reads MuJoCo's exact state (``spec`` None), gives
+        :data:`REST_RATE_TOL` on every hinge and :data:`REST_SPEED_TOL` on every slide.
+
+    Returns
+    -------
+    (nq,) array
+        Those bounds, each widened by the rate the rig's quantised sensors cannot resolve within one period (the
+        module docstring: ``q / T`` per encoder; on the cart also the chain's centre of mass moving that unseen).
+    """
+    params, _ = _layout(source)
+    nq = len(params.joints)
+    tol = np.full(nq, REST_RATE_TOL)
+    tol[list(params.slides)] = REST_SPEED_TOL
+    spec = getattr(rig, "spec", None)
+    if spec is None:
+        return tol
+    rho = _rate_resolution(params, spec, float(rig.period))
+    if params.hinges and params.slides:
+        carried = params.pole_mass
+        lever = [params.carried_by(h)[0] * params.carried_by(h)[1] / carried if carried > 0 else 0.0
+                 for h in params.hinges]
+        chain = float(np.dot(lever, rho[list(params.hinges)]))
+        rho[list(params.slides)] += chain
+    return tol + rho
+
+
+def held_upright(rollout, *, hold: float = 1.0, x_eq=None, hinges=None, slide: int | None = 0,
+                 tolerance=None) -> bool:
     """Whether the last ``hold`` seconds (and at least the final state) of ``rollout`` are upright and at rest.
 
     Every wrapped pole-angle error from ``x_eq`` must stay below :data:`UPRIGHT_TOL`, every hinge rate below
-    :data:`REST_RATE_TOL` and the cart speed (qvel ``slide``; skipped when None) below :data:`REST_SPEED_TOL`.
+    :data:`REST_RATE_TOL` and the cart speed (qvel ``slide``; skipped when None) below :data:`REST_SPEED_TOL`, or
+    below ``tolerance`` (nq,) per qvel (m/s, rad/s; :func:`rest_tolerance` of a run on a rig) when given.
     ``hinges`` defaults to ``1 .. nq-1``, ``x_eq`` (nx,) to the origin.
     """
     if rollout.t[-1] - rollout.t[0] < hold:
@@ -384,13 +455,18 @@ def held_upright(rollout, *, hold: float = 1.0, x_eq=None, hinges=None, slide: i
     x = rollout.x[last]
     nq = x.shape[1] // 2
     idx = list(_hinges(hinges, nq))
+    if tolerance is None:
+        tolerance = np.full(nq, REST_RATE_TOL)
+        if slide is not None:
+            tolerance[slide] = REST_SPEED_TOL
+    tolerance = np.asarray(tolerance, dtype=float)
     up = np.all(np.abs(pole_angle_errors(x, x_eq=x_eq, hinges=idx)) < UPRIGHT_TOL)
-    still = np.all(np.abs(x[:, [nq + h for h in idx]]) < REST_RATE_TOL)
-    cart = slide is None or np.all(np.abs(x[:, nq + slide]) < REST_SPEED_TOL)
+    still = np.all(np.abs(x[:, [nq + h for h in idx]]) < tolerance[idx])
+    cart = slide is None or np.all(np.abs(x[:, nq + slide]) < tolerance[slide])
     return bool(up and still and cart)
 
 
-def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e-3) -> bool:
+def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e-3, rig=None) -> bool:
     """The swing-up succeeded: held upright at rest for the last ``hold`` s, cart never at its limit, ctrl in range,
     no contact on the way (:func:`touched`).
 
@@ -404,18 +480,23 @@ def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e
         Seconds at the end that must be upright and at rest.
     limit_tol : float
         m: coming closer than this to a cart limit (:func:`track_margin`) counts as hitting it.
+    rig : Rig, optional
+        The rig the run had (:class:`~cartpole.sim.rig.Rig`): with quantised sensors "at rest" is
+        :func:`rest_tolerance`'s; None (or a rig reading the exact state) keeps the exact-state bounds.
 
     Returns
     -------
     bool
     """
     params, x_eq = _layout(source)
-    return bool(not diverged(rollout) and touched(rollout) is None and held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
+    return bool(not diverged(rollout) and touched(rollout) is None
+                and held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide,
+                                 tolerance=rest_tolerance(params, rig))
                 and track_margin(rollout.qpos, params.cart_range, slide=params.slide) > limit_tol
                 and ctrl_within_range(rollout, params))
 
 
-def catch_held(rollout, source, handover_at: float | None, *, hold: float = 1.0) -> bool:
+def catch_held(rollout, source, handover_at: float | None, *, hold: float = 1.0, rig=None) -> bool:
     """Whether the catch that took over at ``handover_at`` held: the run reached the hand-over, did not diverge, and
     ends upright and at rest (:func:`held_upright`: every pole inside :data:`UPRIGHT_TOL` of upright and still over
     the last ``hold`` s), the part of :func:`swingup_success` that is the catch's.
@@ -429,6 +510,8 @@ def catch_held(rollout, source, handover_at: float | None, *, hold: float = 1.0)
         s: when the controller handed over to the catch (None: it never did, so nothing was caught).
     hold : float
         Seconds at the end that must be upright and at rest.
+    rig : Rig, optional
+        As :func:`swingup_success`.
 
     Returns
     -------
@@ -438,7 +521,8 @@ def catch_held(rollout, source, handover_at: float | None, *, hold: float = 1.0)
     if handover_at is None or diverged(rollout) or rollout.t[-1] < handover_at:
         return False
     params, x_eq = _layout(source)
-    return held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide)
+    return held_upright(rollout, hold=hold, x_eq=x_eq, hinges=params.hinges, slide=params.slide,
+                        tolerance=rest_tolerance(params, rig))
 
 
 def failure_reason(metrics: dict, *, limit_tol: float = 1e-3) -> str:
@@ -461,7 +545,7 @@ def failure_reason(metrics: dict, *, limit_tol: float = 1e-3) -> str:
     return "not upright at rest over the last second"
 
 
-def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
+def swingup_metrics(rollout, source, *, hold: float = 1.0, rig=None) -> dict:
     """All swing-up metrics of a :class:`~cartpole.sim.rollout.Rollout` in one JSON-ready dict.
 
     Parameters
@@ -471,11 +555,14 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
         As :func:`swingup_success`.
     hold : float
         Seconds at the end that must be upright and at rest.
+    rig : Rig, optional
+        As :func:`swingup_success`.
 
     Returns
     -------
     dict
-        ``success`` (bool, :func:`swingup_success`), ``time_to_upright`` (s, :func:`settling_time_seed` over every
+        ``success`` (bool, :func:`swingup_success`), ``rest_tolerance`` (the bound on each velocity, qvel order,
+        m/s and rad/s, :func:`rest_tolerance`), ``time_to_upright`` (s, :func:`settling_time_seed` over every
         pole; None if not every pole is upright at the end, or the run diverged), ``peak_ctrl`` (ctrl units, max over
         actuators), ``cart_min``, ``cart_max``, ``cart_clearance`` (m, :func:`track_margin`), ``duration`` (s),
         ``diverged`` (bool: MuJoCo reset the run as blown up, :func:`diverged`), ``diverged_at`` (s or None) and
@@ -487,7 +574,8 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0) -> dict:
     t_up = settling_time_seed(rollout.t, rollout.x, x_eq=x_eq, hinges=params.hinges)
     t_div = diverged_at(rollout)
     info = rollout.info if isinstance(getattr(rollout, "info", None), dict) else {}
-    return {"success": swingup_success(rollout, source, hold=hold),
+    return {"success": swingup_success(rollout, source, hold=hold, rig=rig),
+            "rest_tolerance": rest_tolerance(params, rig).tolist(),
             "time_to_upright": t_up if (np.isfinite(t_up) and t_div is None) else None,
             "peak_ctrl": peak_ctrl(rollout.ctrl), "cart_min": lo, "cart_max": hi,
             "cart_clearance": track_margin(rollout.qpos, params.cart_range, slide=params.slide),

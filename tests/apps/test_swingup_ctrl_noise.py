@@ -2,18 +2,21 @@
 catch and the estimator are designed so that the ctrl noise the quantisation causes in the hold stays below a
 fraction of the ctrl range (:func:`cartpole.apps.margins.noise_limited_catch`), predicted from the loop and measured
 in MuJoCo; the runs replay exactly from their logged ctrl."""
+import re
+
 import numpy as np
 import pytest
 
-from cartpole.analysis import AnalysisError
+from cartpole.analysis import AnalysisError, loop_margins, sampled_loop
 from cartpole.apps.margins import PROCESS_NOISE_LADDER, noise_limited_catch
 from cartpole.apps.swingup import DEFAULT_CTRL_NOISE, SwingupOptions, run_swingup
 from cartpole.riccati import default_weights
 from cartpole.models import SHIPPED_MJCF, build_model, read_params, steps_per_period
 from cartpole.planning.trajopt import handover_catch
-from cartpole.sim import LoopOptions, replays_exactly
-from cartpole.validation.metrics import (REST_RATE_TOL, REST_SPEED_TOL, UPRIGHT_TOL, failure_reason,
-                                         pole_angle_errors)
+from cartpole.sim import LoopOptions, replays_exactly, simulate
+from cartpole.sim.rig import build_rig, delay_steps, estimator_factory
+from cartpole.validation.metrics import (REST_RATE_TOL, REST_SPEED_TOL, held_upright, pole_angle_errors,
+                                         rest_tolerance, swingup_success)
 
 RIG = dict(period=0.01, delay=0.01, estimator="ekf", encoder_cpr=2048)
 TWO = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
@@ -65,28 +68,73 @@ def test_ekf_swingup_of_the_two_pole_cart_from_encoders_holds_at_rest_with_a_qui
                        res.metrics["ctrl_noise"]["predicted_fraction"], rtol=0.5)
 
 
-def test_ekf_swingup_of_the_three_pole_cart_from_encoders_holds_upright_with_a_quiet_ctrl_at_the_sensors_floor():
-    """The three-pole cart: the catch holds every pole upright with the ctrl's standard deviation over the last 4 s
-    well below a tenth of the range (it was half of it), within a factor of two of the prediction. Not at rest by
-    the success test's 0.1 rad/s and 0.1 m/s: the motion left in the hold is what the encoders' quantisation drives
-    through the loop, the predicted state noise (about 0.07 rad/s and m/s, standard deviation) beside MuJoCo's, whose
-    peaks over a second are 2-3 times that (docs/margins.md; the floor is the sensors', next test)."""
+def test_ekf_swingup_of_the_three_pole_cart_from_encoders_holds_at_rest_to_its_sensors_with_a_quiet_ctrl_as_predicted():
+    """The issue's test on the three-pole cart: success, the ctrl's standard deviation over the last 4 s below a
+    tenth of the range (it was half of it), the prediction beside it and within a factor of two. At rest means at
+    rest to the rig's sensors (:func:`cartpole.validation.metrics.rest_tolerance`): the motion left in the hold is what
+    the encoders' quantisation drives through the loop, the predicted state noise beside MuJoCo's, and it is not at
+    rest by the exact-state bounds of 0.1 rad/s and 0.1 m/s, which no catch reaches from 2048 counts (next tests)."""
     res, measured, model = _quiet_hold(THREE)
     span = model.u_high - model.u_low
+    assert res.success, res.metrics
     assert np.all(measured < 0.1 * span)
-    assert res.handover_at is not None and not res.metrics["diverged"]
-    x, t = res.rollout.x, res.rollout.t
-    errors = pole_angle_errors(x[t >= t[-1] - 4.0], x_eq=model.x_eq, hinges=list(model.hinges))
-    assert np.all(np.abs(errors) < UPRIGHT_TOL)
     cn = res.metrics["ctrl_noise"]
     ratio = np.asarray(cn["measured_fraction"]) / cn["predicted_fraction"]
     assert np.all((0.5 < ratio) & (ratio < 2.0))
     rates = [model.nq + j for j in range(model.nq)]  # cart speed and hinge rates
     predicted = np.asarray(cn["predicted_state_std"])[rates]
     measured_rates = np.asarray(cn["measured_state_std"])[rates]
-    assert np.all((0.7 < measured_rates / predicted) & (measured_rates / predicted < 2.0))
-    assert not res.success and failure_reason(res.metrics) == "not upright at rest over the last second"
+    assert np.all((0.7 < measured_rates / predicted) & (measured_rates / predicted < 2.5))
+    rig = build_rig(model, LoopOptions(**RIG), task="swingup")
+    assert res.metrics["rest_tolerance"] == pytest.approx(rest_tolerance(model, rig).tolist())
+    assert swingup_success(res.rollout, model, rig=rig) and not swingup_success(res.rollout, model)
+    x, t = res.rollout.x, res.rollout.t
     assert np.abs(x[t >= t[-1] - 1.0][:, rates]).max() > max(REST_RATE_TOL, REST_SPEED_TOL)
+
+
+def _three_pole_catch_hold(tmp_path, gear_factor):
+    """The three-pole swing-up's catch as it is designed for the issue's rig (R and process noise from
+    :func:`noise_limited_catch`), holding from a 5 mrad tilt for 10 s on MuJoCo with the motor's gear scaled by
+    ``gear_factor`` (the estimator and the catch still believe the MJCF's): ``(run, rig, model, upper gain margin
+    predicted for the loop with the rig's Kalman filter)``."""
+    params = read_params(THREE)
+    model = build_model(params)
+    loop = LoopOptions(**RIG)
+    steps = steps_per_period(loop.period, params.timestep)
+    found = noise_limited_catch(model, loop, DEFAULT_CTRL_NOISE, _catch_gain(params, model, loop),
+                                default_weights(model)[1])
+    loop = loop.replace(process_noise=found["process_noise"])
+    catch = handover_catch(params, model, None, found["R"], steps=steps)
+    kf = estimator_factory(model, loop, "kf", steps)[1]()
+    lqg = sampled_loop(model, catch.K, steps=steps, delay_steps=delay_steps(loop.delay, model.dt), compensate=True,
+                       kalman=kf, x=model.x_eq)
+    upper = loop_margins(lqg).gain_margin[1]
+    text = THREE.read_text()
+    plant = tmp_path / f"three_pole_gear_{gear_factor:g}.xml"
+    stronger = lambda m: f'gear="{float(m.group(1)) * float(gear_factor):.12g}"'  # noqa: E731
+    plant.write_text(re.sub(r'gear="([0-9.eE+-]+)"', stronger, text))
+    x0 = np.array(model.x_eq, float)
+    x0[list(model.hinges)] += 0.005
+    rig = build_rig(model, loop, task="swingup")
+    return simulate(plant, catch, x0, 10.0, rig=rig), rig, model, upper
+
+
+def test_the_sensed_rest_still_fails_the_same_catch_limit_cycling_past_its_gain_margin(tmp_path):
+    """The counter-example: the same catch on the same rig, its motor 2 % stronger than the upper gain margin the
+    loop predicts (LQG's, through the Kalman filter), grows into an oscillation. Its fastest rate passes the sensors'
+    bound twice over, so the rest test fails, while the nominal motor's hold, whose motion is the quantisation's,
+    passes it."""
+    nominal, rig, model, upper = _three_pole_catch_hold(tmp_path, 1.0)
+    assert 1.0 < upper < 2.0
+    layout = dict(x_eq=model.x_eq, hinges=model.hinges, slide=model.slide)
+    tol = rest_tolerance(model, rig)
+    assert held_upright(nominal, tolerance=tol, **layout) and not held_upright(nominal, **layout)
+    cycling, _, _, _ = _three_pole_catch_hold(tmp_path, 1.02 * upper)
+    assert not cycling.info.get("diverged")
+    assert not held_upright(cycling, tolerance=tol, **layout)
+    last = cycling.t >= cycling.t[-1] - 1.0
+    assert np.max(np.abs(cycling.qvel[last][:, list(model.hinges)]).max(axis=0) / tol[list(model.hinges)]) > 2.0
+    assert np.abs(pole_angle_errors(cycling.x[last], x_eq=model.x_eq, hinges=model.hinges)).max() < 0.5  # not fallen
 
 
 def _rest_floor(model, params, cpr, R_factors=(1.0, 16.0, 256.0)):
