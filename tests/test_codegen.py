@@ -266,3 +266,59 @@ def test_render_fills_a_template_and_refuses_an_undefined_name(tmp_path, monkeyp
             codegen.render("t.h.jinja", k=[1.0])
     finally:
         codegen._jinja_env.cache_clear()
+
+
+def _objects(cache):
+    return sorted(p.name for p in (cache / codegen.OBJECT_DIR).glob("*.o"))
+
+
+def test_a_second_folder_sharing_a_file_and_its_headers_compiles_only_the_files_that_differ(tmp_path, monkeypatch):
+    import ctypes
+
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(cache))
+    model = {"src/cg_model.h": "double cg_model(double x);\n",
+             "src/cg_model.c": '#include "cg_model.h"\ndouble cg_model(double x) { return 3.0 * x; }\n'}
+
+    def folder(gain):
+        return {**model, "src/cg_plan.c": f'#include "cg_model.h"\ndouble cg_plan(double x) {{ return {gain} * '
+                                          'cg_model(x); }\n'}
+
+    first = codegen.build_sources(folder(2.0), "cg_prog", cflags=("-O2",))
+    after_first = _objects(cache)
+    second = codegen.build_sources(folder(5.0), "cg_prog", cflags=("-O2",))
+    new = sorted(set(_objects(cache)) - set(after_first))
+    assert second != first
+    assert [n.split("_")[1] for n in after_first] == ["model", "plan"]
+    assert [n.split("_")[1] for n in new] == ["plan"]  # the model's object taken from the cache, not compiled again
+    fn = ctypes.CDLL(second).cg_plan
+    fn.restype, fn.argtypes = ctypes.c_double, [ctypes.c_double]
+    assert fn(1.0) == 15.0
+    # a header the shared file includes is part of its object's key: edited, the model's object is compiled again
+    edited = {**folder(5.0), "src/cg_model.h": "/* edited */\ndouble cg_model(double x);\n"}
+    before = set(_objects(cache))
+    codegen.build_sources(edited, "cg_prog", cflags=("-O2",))
+    assert sorted(n.split("_")[1] for n in set(_objects(cache)) - before) == ["model", "plan"]
+
+
+def test_a_corrupted_cached_object_is_compiled_again(tmp_path, monkeypatch):
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(cache))
+    files = {"src/cg_one.c": "int cg_one(void) { return 1; }\n"}
+    codegen.build_sources(files, "cg_obj", cflags=("-O1",))
+    (obj,) = (cache / codegen.OBJECT_DIR).glob("*.o")
+    obj.write_bytes(b"planted")
+    lib = codegen.build_sources({**files, "src/cg_two.c": "int cg_two(void) { return 2; }\n"}, "cg_obj",
+                                cflags=("-O1",))
+    assert codegen.is_verified(obj) and obj.read_bytes() != b"planted"
+    import ctypes
+
+    assert ctypes.CDLL(lib).cg_one() == 1
