@@ -22,7 +22,7 @@ pytestmark = pytest.mark.skipif(codegen.compiler() is None, reason="no C compile
 EKF = LoopOptions(period=0.01, delay=0.01, estimator="ekf", encoder_cpr=2048)
 
 
-def _plan_program(model, rig, angle, knots=10):
+def _plan_program(model, rig, angle, knots):
     """A TVLQR program along a short plan: the catch's own motion from ``angle`` off upright (the same C and
     tables as a collocation plan's)."""
     catch = LinearFeedback.for_model(model, period=int(rig.steps) * model.dt)
@@ -51,9 +51,10 @@ def test_a_second_plan_on_the_same_model_reuses_the_models_compiled_code(tmp_pat
     monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(cache))
     model = build_model(None)
     rig = build_rig(model, EKF, task="swingup")
-    first_files = c_sources(_plan_program(model, rig, 0.05))
-    second_files = c_sources(_plan_program(model, rig, 0.08))
-    assert first_files["src/cp_data.c"] != second_files["src/cp_data.c"]  # two plans: other tables
+    first_files = c_sources(_plan_program(model, rig, 0.05, 10))
+    second_files = c_sources(_plan_program(model, rig, 0.08, 12))
+    assert first_files["src/cp_plan.h"] != second_files["src/cp_plan.h"]  # two plans: other tables, other lengths
+    assert first_files["src/cp_generated.c"] == second_files["src/cp_generated.c"]  # one model
     first = program_library(first_files)
     after_first = _objects(cache)
     assert _stems(after_first) == sorted(rel.split("/")[-1][:-2] for rel in first_files if rel.endswith(".c"))
@@ -62,4 +63,4 @@ def test_a_second_plan_on_the_same_model_reuses_the_models_compiled_code(tmp_pat
     assert second != first
     assert [n for n in _objects(cache) if n.startswith("cp_generated_")] == [
         n for n in after_first if n.startswith("cp_generated_")]  # one object of the model's generated code
-    assert _stems(new) == ["cp_data"]  # plans of one length: only their tables are compiled
+    assert _stems(new) == ["cp_data", "cp_tvlqr"]  # the plan's tables and the one file that reads them
