@@ -21,6 +21,7 @@ planted file is built again rather than loaded.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import dataclasses
 import functools
@@ -535,17 +536,41 @@ def compile_object(root: Path, rel: str, flags: tuple, include_dirs: tuple, cc: 
     cached = private_dir(private_cache_dir() / OBJECT_DIR) / f"{Path(rel).stem}_{key}.o"
     obj = rel + ".o"
     data = read_verified(cached)
-    if data is not None:
-        (root / obj).write_bytes(data)
-        return obj
-    cmd = [cc, *flags, *(f"-I{d}" for d in include_dirs), "-c", rel, "-o", obj]
+    if data is None:
+        with _waiting_lock(Path(str(cached) + ".lock")):  # a concurrent build of this object: wait, then take it
+            data = read_verified(cached)
+            if data is None:
+                data = _compile_object(root, rel, obj, (cc, *flags, *(f"-I{d}" for d in include_dirs)))
+                write_verified(cached, data)
+    (root / obj).write_bytes(data)
+    return obj
+
+
+def _compile_object(root: Path, rel: str, obj: str, compile_cmd: tuple) -> bytes:
+    cmd = [*compile_cmd, "-c", rel, "-o", obj]
     proc = run_compiler(cmd, cwd=root)
-    if proc.returncode != 0 and "-march=native" in flags:
+    if proc.returncode != 0 and "-march=native" in cmd:
         proc = run_compiler([c for c in cmd if c != "-march=native"], cwd=root)
     if proc.returncode != 0:
-        raise RuntimeError(f"{Path(cc).name} failed: {_first_error(proc.stderr)}")
-    write_verified(cached, (root / obj).read_bytes())
-    return obj
+        raise RuntimeError(f"{Path(cmd[0]).name} failed: {_first_error(proc.stderr)}")
+    return (root / obj).read_bytes()
+
+
+@contextlib.contextmanager
+def _waiting_lock(path: Path):
+    """An exclusive ``flock`` on ``path`` (created ``0600``) held inside the block, waiting for another holder (a
+    second process compiling the same object then finds it built); no lock where ``fcntl`` does not exist."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: two processes may compile one object twice (atomic writes keep it whole)
+        yield
+        return
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def _first_error(stderr: str) -> str:

@@ -322,3 +322,37 @@ def test_a_corrupted_cached_object_is_compiled_again(tmp_path, monkeypatch):
     import ctypes
 
     assert ctypes.CDLL(lib).cg_one() == 1
+
+
+def test_two_builds_of_one_object_at_once_compile_it_once(tmp_path, monkeypatch):
+    import threading
+    import time
+
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    real, compiled = codegen.run_compiler, []
+
+    def slow(cmd, timeout=None, cwd=None):
+        if "-c" in cmd:
+            compiled.append(cmd[cmd.index("-c") + 1])
+            time.sleep(0.5)  # both builds are inside the compile at once without the lock
+        return real(cmd, timeout, cwd)
+
+    monkeypatch.setattr(codegen, "run_compiler", slow)
+    shared = {"src/cg_shared.c": "int cg_shared(void) { return 7; }\n"}
+    libs = {}
+
+    def build(i):
+        libs[i] = codegen.build_sources({**shared, f"src/cg_own{i}.c": f"int cg_own{i}(void) {{ return {i}; }}\n"},
+                                        "cg_lock", cflags=("-O1",))
+
+    threads = [threading.Thread(target=build, args=(i,)) for i in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert len(libs) == 2 and libs[0] != libs[1]
+    assert sorted(compiled) == ["src/cg_own0.c", "src/cg_own1.c", "src/cg_shared.c"]  # the shared file once
