@@ -9,7 +9,9 @@ the compiler (its path and version banner, :func:`compiler_key`), the flags and 
 in the key is a version string bumped by hand, so a changed function builder, an edited ``.c`` file under
 ``cartpole/csrc/`` or another compiler always builds a new library, and the same inputs always find the one already
 built. It is compiled once per machine and source, never into the package. Writes are atomic: a concurrent process
-sees a whole library or none.
+sees a whole library or none. A program of several C files (:func:`build_sources`) is linked from one cached object
+per file (:func:`compile_object`), keyed the same way by the file's text and the headers it includes: a new plan on
+a model compiles the files its tables reach, never the model's generated code again.
 
 Hand-written C lives as real files under ``cartpole/csrc/`` (:data:`CSRC`); model-specific constants are rendered
 into them from Jinja2 templates (``*.jinja``) by :func:`render`.
