@@ -9,7 +9,9 @@ the compiler (its path and version banner, :func:`compiler_key`), the flags and 
 in the key is a version string bumped by hand, so a changed function builder, an edited ``.c`` file under
 ``cartpole/csrc/`` or another compiler always builds a new library, and the same inputs always find the one already
 built. It is compiled once per machine and source, never into the package. Writes are atomic: a concurrent process
-sees a whole library or none.
+sees a whole library or none. A program of several C files (:func:`build_sources`) is linked from one cached object
+per file (:func:`compile_object`), keyed the same way by the file's text and the headers it includes: a new plan on
+a model compiles the files its tables reach, never the model's generated code again.
 
 Hand-written C lives as real files under ``cartpole/csrc/`` (:data:`CSRC`); model-specific constants are rendered
 into them from Jinja2 templates (``*.jinja``) by :func:`render`.
@@ -21,19 +23,25 @@ planted file is built again rather than loaded.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import dataclasses
 import functools
 import hashlib
+import math
 import os
+import platform
 import re
 import shutil
+import signal
+import stat
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import casadi as ca
+import jinja2
 import numpy as np
 
 from cartpole._files import OutputError, atomic_write, short
@@ -86,8 +94,6 @@ def private_dir(path: str | Path) -> Path:
     OutputError
         The directory cannot be created (then there is no cache; the callers build without one or fall back).
     """
-    import stat
-
     path = Path(path)
     fix = "set CARTPOLE_CACHE_DIR to a directory of your own"
     try:
@@ -168,8 +174,6 @@ def is_verified(path: str | Path) -> bool:
     """Whether ``path`` is a regular file whose content has the SHA-256 its sidecar recorded when it was built
     (:func:`write_verified`); False when either is missing, unreadable, or they differ (a corrupted, truncated or
     planted file: build it again)."""
-    import stat
-
     path = Path(path)
     try:
         if not stat.S_ISREG(os.lstat(path).st_mode):
@@ -183,8 +187,6 @@ def is_verified(path: str | Path) -> bool:
 
 def read_verified(path: str | Path) -> bytes | None:
     """The content of ``path`` when it matches its recorded SHA-256 (:func:`is_verified`), else None."""
-    import stat
-
     path = Path(path)
     try:
         if not stat.S_ISREG(os.lstat(path).st_mode):
@@ -201,8 +203,6 @@ def read_verified(path: str | Path) -> bytes | None:
 def cpu_key() -> str:
     """The machine's architecture, CPU model and feature flags (Linux ``/proc/cpuinfo``, its first processor),
     hashed: what code compiled with ``-march=native`` depends on. Read once per process."""
-    import platform
-
     h = hashlib.sha256(platform.machine().encode())
     try:
         seen = set()
@@ -237,17 +237,16 @@ def compiler() -> str | None:
 COMPILE_TIMEOUT = 120.0
 
 
-def run_compiler(cmd, timeout: float | None = None) -> subprocess.CompletedProcess:
-    """Run the compiler command ``cmd`` (a list) in a session of its own and return its completed process (text
-    stdout and stderr).
+def run_compiler(cmd, timeout: float | None = None, cwd=None) -> subprocess.CompletedProcess:
+    """Run the compiler command ``cmd`` (a list) in a session of its own (in the folder ``cwd``, default the
+    current one) and return its completed process (text stdout and stderr).
 
     On a timeout (``timeout`` s, default :data:`COMPILE_TIMEOUT`), an interrupt or any other exception, the
     compiler's whole process group is killed (``os.killpg``), so no ``cc1`` outlives the driver; a timeout then
     raises :class:`subprocess.TimeoutExpired`.
     """
-    import signal
-
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            cwd=cwd)
     try:
         out, err = proc.communicate(timeout=COMPILE_TIMEOUT if timeout is None else timeout)
     except BaseException:
@@ -450,6 +449,13 @@ def build_sources(files: dict, stem: str, *, cflags: tuple) -> str:
     returns its path. The key is :func:`library_key` of every file's path and text, the compiler and the flags,
     so an edited file builds a new library and the same files find the one already built.
 
+    Each ``*.c`` is compiled on its own into an object cached by its own content (:func:`compile_object`: its
+    text, the headers of ``files`` it includes, the compiler and the flags) and the library is linked from the
+    objects: a second program that shares a file and its headers with one built before (the CasADi-generated
+    model code of an export, whose header changes with the model only) compiles only the files that differ (its
+    tables). The objects are what one compiler run of all the files would build (each ``.c`` is its own
+    translation unit either way), so the library computes what a folder's Makefile build computes.
+
     Parameters
     ----------
     files : dict
@@ -477,18 +483,101 @@ def build_sources(files: dict, stem: str, *, cflags: tuple) -> str:
         for rel, text in files.items():
             (root / rel).parent.mkdir(parents=True, exist_ok=True)
             (root / rel).write_text(text)
-        incs = sorted({f"-I{(root / rel).parent}" for rel in files if rel.endswith(".h")})
-        srcs = [str(root / rel) for rel in sorted(files) if rel.endswith(".c")]
+        incs = tuple(sorted({Path(rel).parent.as_posix() for rel in files if rel.endswith(".h")}))
+        objects = [compile_object(root, rel, (*cflags, "-fPIC"), incs, cc) for rel in sorted(files)
+                   if rel.endswith(".c")]
         out = root / lib.name
-        cmd = [cc, *flags, *incs, *srcs, "-o", str(out), "-lm"]
-        proc = run_compiler(cmd)
+        cmd = [cc, *flags, *objects, "-o", lib.name, "-lm"]
+        proc = run_compiler(cmd, cwd=root)
         if proc.returncode != 0 and "-march=native" in flags:
-            proc = run_compiler([c for c in cmd if c != "-march=native"])
+            proc = run_compiler([c for c in cmd if c != "-march=native"], cwd=root)
         if proc.returncode != 0:
-            lines = [ln for ln in proc.stderr.splitlines() if "error" in ln] or proc.stderr.splitlines() or ["?"]
-            raise RuntimeError(f"{Path(cc).name} failed: {lines[0].strip()[:200]}")
+            raise RuntimeError(f"{Path(cc).name} failed: {_first_error(proc.stderr)}")
         write_verified(lib, out.read_bytes())
     return str(lib)
+
+
+#: Folder of the private cache directory holding the compiled translation units of :func:`build_sources`.
+OBJECT_DIR = "objects"
+
+
+def compile_object(root: Path, rel: str, flags: tuple, include_dirs: tuple, cc: str) -> str:
+    """The C file ``root/rel`` compiled (``-c``, in ``root``, with ``flags`` and ``-I`` each of ``include_dirs``,
+    relative to ``root``) into ``root/rel.o``, taken from the cache when it holds that object: returns ``rel.o``.
+
+    The cached object is ``<cache>/objects/<name>_<key>.o``, ``key`` being :func:`library_key` of the file's
+    text, the headers it includes from its own folder and ``include_dirs`` (:func:`included_sources`, followed
+    recursively), the compiler, ``flags``, the CPU and ``rel``; verified by content like every library here.
+
+    Parameters
+    ----------
+    root : Path
+        The folder the files are written in.
+    rel : str
+        The ``.c`` file, relative to ``root``.
+    flags : tuple of str
+        Compiler flags (``-c`` added; ``-march=native`` retried without once if the compiler refuses it).
+    include_dirs : tuple of str
+        Folders searched for ``#include "..."``, relative to ``root``.
+    cc : str
+        The compiler.
+
+    Returns
+    -------
+    str
+        The object's path relative to ``root``.
+
+    Raises
+    ------
+    RuntimeError
+        The compiler failed (its first error quoted).
+    """
+    text = (root / rel).read_text()
+    dirs = (str((root / rel).parent), *(str(root / d) for d in include_dirs))
+    key = library_key(text, flags, cc, dirs, rel)
+    cached = private_dir(private_cache_dir() / OBJECT_DIR) / f"{Path(rel).stem}_{key}.o"
+    obj = rel + ".o"
+    data = read_verified(cached)
+    if data is None:
+        with _waiting_lock(Path(str(cached) + ".lock")):  # a concurrent build of this object: wait, then take it
+            data = read_verified(cached)
+            if data is None:
+                data = _compile_object(root, rel, obj, (cc, *flags, *(f"-I{d}" for d in include_dirs)))
+                write_verified(cached, data)
+    (root / obj).write_bytes(data)
+    return obj
+
+
+def _compile_object(root: Path, rel: str, obj: str, compile_cmd: tuple) -> bytes:
+    cmd = [*compile_cmd, "-c", rel, "-o", obj]
+    proc = run_compiler(cmd, cwd=root)
+    if proc.returncode != 0 and "-march=native" in cmd:
+        proc = run_compiler([c for c in cmd if c != "-march=native"], cwd=root)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{Path(cmd[0]).name} failed: {_first_error(proc.stderr)}")
+    return (root / obj).read_bytes()
+
+
+@contextlib.contextmanager
+def _waiting_lock(path: Path):
+    """An exclusive ``flock`` on ``path`` (created ``0600``) held inside the block, waiting for another holder (a
+    second process compiling the same object then finds it built); no lock where ``fcntl`` does not exist."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: two processes may compile one object twice (atomic writes keep it whole)
+        yield
+        return
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _first_error(stderr: str) -> str:
+    lines = [ln for ln in stderr.splitlines() if "error" in ln] or stderr.splitlines() or ["?"]
+    return lines[0].strip()[:200]
 
 
 #: Flags of the libraries the MuJoCo loop calls (:func:`build_loop_library`): the exported controller's
@@ -626,8 +715,6 @@ def render(template: str, **values) -> str:
 def c_real(value) -> str:
     """A float as an exact C literal (``repr`` round-trips a double; ``INFINITY``/``-INFINITY`` from C99
     ``<math.h>``). Raises ValueError for NaN."""
-    import math
-
     v = float(value)
     if math.isnan(v):
         raise ValueError("NaN has no place in a C table")
@@ -662,8 +749,6 @@ def c_list(values, ctype: str = "real", per_line: int = 6) -> str:
 
 @functools.lru_cache(maxsize=1)
 def _jinja_env():
-    import jinja2
-
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(CSRC)), undefined=jinja2.StrictUndefined,
                              keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True, autoescape=False)
     env.filters["c_real"] = c_real

@@ -266,3 +266,93 @@ def test_render_fills_a_template_and_refuses_an_undefined_name(tmp_path, monkeyp
             codegen.render("t.h.jinja", k=[1.0])
     finally:
         codegen._jinja_env.cache_clear()
+
+
+def _objects(cache):
+    return sorted(p.name for p in (cache / codegen.OBJECT_DIR).glob("*.o"))
+
+
+def test_a_second_folder_sharing_a_file_and_its_headers_compiles_only_the_files_that_differ(tmp_path, monkeypatch):
+    import ctypes
+
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(cache))
+    model = {"src/cg_model.h": "double cg_model(double x);\n",
+             "src/cg_model.c": '#include "cg_model.h"\ndouble cg_model(double x) { return 3.0 * x; }\n'}
+
+    def folder(gain):
+        return {**model, "src/cg_plan.c": f'#include "cg_model.h"\ndouble cg_plan(double x) {{ return {gain} * '
+                                          'cg_model(x); }\n'}
+
+    first = codegen.build_sources(folder(2.0), "cg_prog", cflags=("-O2",))
+    after_first = _objects(cache)
+    second = codegen.build_sources(folder(5.0), "cg_prog", cflags=("-O2",))
+    new = sorted(set(_objects(cache)) - set(after_first))
+    assert second != first
+    assert [n.split("_")[1] for n in after_first] == ["model", "plan"]
+    assert [n.split("_")[1] for n in new] == ["plan"]  # the model's object taken from the cache, not compiled again
+    fn = ctypes.CDLL(second).cg_plan
+    fn.restype, fn.argtypes = ctypes.c_double, [ctypes.c_double]
+    assert fn(1.0) == 15.0
+    # a header the shared file includes is part of its object's key: edited, the model's object is compiled again
+    edited = {**folder(5.0), "src/cg_model.h": "/* edited */\ndouble cg_model(double x);\n"}
+    before = set(_objects(cache))
+    codegen.build_sources(edited, "cg_prog", cflags=("-O2",))
+    assert sorted(n.split("_")[1] for n in set(_objects(cache)) - before) == ["model", "plan"]
+
+
+def test_a_corrupted_cached_object_is_compiled_again(tmp_path, monkeypatch):
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(cache))
+    files = {"src/cg_one.c": "int cg_one(void) { return 1; }\n"}
+    codegen.build_sources(files, "cg_obj", cflags=("-O1",))
+    (obj,) = (cache / codegen.OBJECT_DIR).glob("*.o")
+    obj.write_bytes(b"planted")
+    lib = codegen.build_sources({**files, "src/cg_two.c": "int cg_two(void) { return 2; }\n"}, "cg_obj",
+                                cflags=("-O1",))
+    assert codegen.is_verified(obj) and obj.read_bytes() != b"planted"
+    import ctypes
+
+    assert ctypes.CDLL(lib).cg_one() == 1
+
+
+def test_two_builds_of_one_object_at_once_compile_it_once(tmp_path, monkeypatch):
+    import threading
+    import time
+
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path / "cache"))
+    real, compiled = codegen.run_compiler, []
+
+    def slow(cmd, timeout=None, cwd=None):
+        if "-c" in cmd:
+            compiled.append(cmd[cmd.index("-c") + 1])
+            time.sleep(0.5)  # both builds are inside the compile at once without the lock
+        return real(cmd, timeout, cwd)
+
+    monkeypatch.setattr(codegen, "run_compiler", slow)
+    shared = {"src/cg_shared.c": "int cg_shared(void) { return 7; }\n"}
+    libs = {}
+
+    def build(i):
+        libs[i] = codegen.build_sources({**shared, f"src/cg_own{i}.c": f"int cg_own{i}(void) {{ return {i}; }}\n"},
+                                        "cg_lock", cflags=("-O1",))
+
+    threads = [threading.Thread(target=build, args=(i,)) for i in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert len(libs) == 2 and libs[0] != libs[1]
+    assert sorted(compiled) == ["src/cg_own0.c", "src/cg_own1.c", "src/cg_shared.c"]  # the shared file once

@@ -1,12 +1,12 @@
 """Sample configurations for the hand-written C of ``cartpole/csrc``, and each ``.c`` file compiled alone against one.
 
 A file of ``cartpole/csrc`` is copied as it is into every export that uses it; what it includes from the export
-(``cartpole_controller.h``, ``cp_config.h``, ``cp_generated.h``) is rendered per model and design. To read, compile or
-lint one file on its own, this writes sample folders rendered by the exporter itself from designs on the shipped
-one-pole cart (so they never go stale), one per set of parts (:data:`SAMPLES`), and compiles every ``.c`` file of
-``cartpole/csrc`` alone (``-c``, one translation unit) with the export's strict flags
-(:data:`cartpole.export.build.STRICT_CFLAGS`: ``-std=c99 -Wall -Wextra -Werror -pedantic``) against the sample of a
-design that carries it (the others against the first sample). ``qp_dual.c`` is not a translation unit but the body
+(``cartpole_controller.h``, ``cp_config.h``, ``cp_plan.h`` for a swing-up's plan, ``cp_generated.h``) is rendered per
+model and design. To read, compile or lint one file on its own, this writes sample folders rendered by the exporter
+itself from designs on the shipped one-pole cart (so they never go stale), one per set of parts (:data:`SAMPLES`),
+and compiles every ``.c`` file of ``cartpole/csrc`` alone (``-c``, one translation unit) with the export's strict
+flags (:data:`cartpole.export.build.STRICT_CFLAGS`: ``-std=c99 -Wall -Wextra -Werror -pedantic``) against the sample
+of a design that carries it (the others against the first sample). ``qp_dual.c`` is not a translation unit but the body
 that ``qp_dual.c.jinja`` includes after its sizes: it is compiled in the unit ``cartpole.mpc.nmpc_c.qp_source``
 renders, with its state fields and a caller.
 

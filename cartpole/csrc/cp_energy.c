@@ -12,6 +12,7 @@
 #include "cp_common.h"
 #include "cp_generated.h"
 #include "cp_parts.h"
+#include "cp_plan.h" /* the plan's switches, constants and tables */
 
 static struct {
     int caught;

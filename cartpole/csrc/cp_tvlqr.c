@@ -15,6 +15,7 @@
 
 #include "cp_common.h"
 #include "cp_parts.h"
+#include "cp_plan.h" /* the plan's switches, constants and tables */
 
 /* the hand-over: whether the catch ran since the reset, and the time of its first call, s */
 static struct {

@@ -121,7 +121,7 @@ def tvlqr_part(ctl) -> CPart:
         if not discrete:
             data += (("G_T", "double", g.t),)
     defines = (("TV_EXACT", int(exact)), ("TV_DISCRETE", int(discrete)), ("G_N", n), ("TV_N", int(traj.N)))
-    return CPart(sources=("cp_tvlqr.c",), data=data, constants=tuple(constants), defines=defines)
+    return CPart(sources=("cp_tvlqr.c",), data=data, constants=tuple(constants), defines=defines, plan=True)
 
 
 def energy_part(sw) -> CPart:
@@ -142,4 +142,4 @@ def energy_part(sw) -> CPart:
     law = ca.Function("cp_energy", [x, p], [fun(x, p)[0]], ["x", "prm"], ["u"])
     data = (("ENERGY_PRM", "cp_real", prm),) + linear_data(sw.catch, "catch") + (("SW_S", "cp_real", sw.catch.S),)
     constants = (("SW_RHO", "cp_real", sw.rho), ("SW_RELEASE", "cp_real", sw.release_factor * sw.rho))
-    return CPart(sources=("cp_energy.c",), data=data, constants=constants, functions=(law,))
+    return CPart(sources=("cp_energy.c",), data=data, constants=constants, functions=(law,), plan=True)

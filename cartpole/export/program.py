@@ -49,6 +49,12 @@ class CPart:
         Integer switches and sizes: ``(name, int)``, each ``#define NAME value``.
     functions : tuple of casadi.Function
         CasADi Functions the code calls (generated into ``src/cp_generated.c``).
+    plan : bool
+        Its defines, constants and table declarations go to ``src/cp_plan.h`` (``cp_plan.h.jinja``), which its
+        sources include, rather than to ``cp_config.h``, which every file includes: a new plan (other tables,
+        another length) then changes ``cp_data.c``, ``cp_plan.h`` and the part's own file, and the cached objects
+        of the rest (the model's CasADi-generated code above all) serve it as they are
+        (:func:`cartpole.codegen.build_sources`).
     tables, fields, code, reset : str, tuple of str, str, str
         A part written as C text (``static const`` tables, members of the struct ``S``, static functions
         ``est_reset``/``est_update`` or ``ctrl_eval``, statements run on reset): rendered into ``src/cp_legacy.c``.
@@ -59,6 +65,7 @@ class CPart:
     constants: tuple = ()
     defines: tuple = ()
     functions: tuple = field(default=())
+    plan: bool = False
     tables: str = ""
     fields: tuple = ()
     code: str = ""
@@ -151,11 +158,12 @@ def header(prog: CProgram, version: str) -> str:
 
 def _tables(prog: CProgram) -> list:
     wrap = [1 if i < prog.nq and i in prog.hinges else 0 for i in range(prog.nx)]
-    rows = [("U_LOW", "cp_real", prog.u_low), ("U_HIGH", "cp_real", prog.u_high), ("WRAP", "int", wrap)]
+    rows = [("U_LOW", "cp_real", prog.u_low, False), ("U_HIGH", "cp_real", prog.u_high, False),
+            ("WRAP", "int", wrap, False)]
     out, seen = [], set()
     for part in (prog.estimator, prog.controller):
-        rows += list(part.data)
-    for name, ctype, values in rows:
+        rows += [(*row, part.plan) for row in part.data]
+    for name, ctype, values, plan in rows:
         if name in seen:
             raise ValueError(f"two tables named {name} in one export")
         seen.add(name)
@@ -163,21 +171,29 @@ def _tables(prog: CProgram) -> list:
         if flat.size == 0:
             raise ValueError(f"table {name} would be empty (C99 forbids zero-length arrays)")
         out.append({"name": name, "ctype": ctype, "size": int(flat.size), "data": flat,
-                    "kind": "int" if ctype == "int" else "real"})
+                    "kind": "int" if ctype == "int" else "real", "plan": plan})
     return out
 
 
-def config(prog: CProgram) -> tuple[str, str]:
-    """``(src/cp_config.h, src/cp_data.c)`` of ``prog``: sizes, switches, constants and the extern tables, and the
-    tables' definitions, rendered from ``cp_config.h.jinja`` and ``cp_data.c.jinja``."""
+def config(prog: CProgram) -> tuple[str, str, str | None]:
+    """``(src/cp_config.h, src/cp_data.c, src/cp_plan.h)`` of ``prog``: sizes, switches, constants and the extern
+    tables, the tables' definitions, and the same for the parts with :attr:`CPart.plan` (None without one),
+    rendered from ``cp_config.h.jinja``, ``cp_data.c.jinja`` and ``cp_plan.h.jinja``."""
     tables = _tables(prog)
-    defines, constants = [], []
+    defines, constants = {False: [], True: []}, {False: [], True: []}
     for part in (prog.estimator, prog.controller):
-        defines += [(n, int(v)) for n, v in part.defines]
-        constants += [(n, c, float(v)) for n, c, v in part.constants]
+        defines[part.plan] += [(n, int(v)) for n, v in part.defines]
+        constants[part.plan] += [(n, c, float(v)) for n, c, v in part.constants]
+    plan = any(t["plan"] for t in tables) or bool(defines[True] or constants[True])
     values = {"title": prog.title, "nx": prog.nx, "nq": prog.nq, "steps": prog.steps, "lag": prog.lag,
-              "predict": prog.predict is not None, "defines": defines, "constants": constants, "tables": tables}
-    return render("cp_config.h.jinja", **values), render("cp_data.c.jinja", **values)
+              "predict": prog.predict is not None, "plan": plan}
+    plan_h = None
+    if plan:
+        plan_h = render("cp_plan.h.jinja", **values, defines=defines[True], constants=constants[True],
+                        tables=[t for t in tables if t["plan"]])
+    return (render("cp_config.h.jinja", **values, defines=defines[False], constants=constants[False],
+                   tables=[t for t in tables if not t["plan"]]),
+            render("cp_data.c.jinja", **values, tables=tables), plan_h)
 
 
 def legacy_source(prog: CProgram) -> str | None:
@@ -196,7 +212,8 @@ def legacy_source(prog: CProgram) -> str | None:
 
 def sources(prog: CProgram, version: str) -> dict:
     """Relative path -> text of every C file of ``prog``: the header, the rig step and the parts' files of
-    ``cartpole/csrc`` as they are, the rendered ``src/cp_config.h`` and ``src/cp_data.c``, ``src/cp_legacy.c``
+    ``cartpole/csrc`` as they are, the rendered ``src/cp_config.h`` and ``src/cp_data.c`` (and ``src/cp_plan.h``
+    for a part with :attr:`CPart.plan`), ``src/cp_legacy.c``
     for parts written as C text, and, when the program calls CasADi Functions, ``src/cp_generated.c`` and
     ``src/cp_generated.h``."""
     out = {"include/cartpole_controller.h": header(prog, version)}
@@ -205,7 +222,9 @@ def sources(prog: CProgram, version: str) -> dict:
     for part in (prog.estimator, prog.controller):
         for name in part.sources:
             out[f"src/{name}"] = (CSRC / name).read_text()
-    out["src/cp_config.h"], out["src/cp_data.c"] = config(prog)
+    out["src/cp_config.h"], out["src/cp_data.c"], plan_h = config(prog)
+    if plan_h is not None:
+        out["src/cp_plan.h"] = plan_h
     legacy = legacy_source(prog)
     if legacy is not None:
         out["src/cp_legacy.c"] = float_maths(legacy) if prog.real == "float" else legacy
