@@ -76,7 +76,6 @@ FLAG = re.compile(r"(?<![\w-])--[a-zA-Z][\w-]*")
 IMPORTS_TO_FIX = {
     "cartpole/apps/margins.py": 25,
     "cartpole/commands/_margins.py": 4,
-    "cartpole/estimation/mhe_functions.py": 1,
     "cartpole/export/design.py": 12,
     "cartpole/export/inloop.py": 3,
     "cartpole/export/make.py": 1,
