@@ -82,7 +82,6 @@ IMPORTS_TO_FIX = {
     "cartpole/export/mhe.py": 1,
     "cartpole/export/nmpc.py": 4,
     "cartpole/mpc/ddp_mpc.py": 3,
-    "cartpole/mpc/nmpc.py": 3,
     "cartpole/ocp/dmc.py": 3,
     "cartpole/planning/ddp_plan.py": 2,
     "cartpole/planning/energy_ceiling.py": 3,
