@@ -81,7 +81,6 @@ IMPORTS_TO_FIX = {
     "cartpole/export/make.py": 1,
     "cartpole/export/mhe.py": 1,
     "cartpole/export/nmpc.py": 4,
-    "cartpole/mpc/ddp_mpc.py": 3,
     "cartpole/ocp/dmc.py": 3,
     "cartpole/planning/ddp_plan.py": 2,
     "cartpole/planning/energy_ceiling.py": 3,
