@@ -79,7 +79,6 @@ IMPORTS_TO_FIX = {
     "cartpole/export/design.py": 12,
     "cartpole/export/inloop.py": 3,
     "cartpole/export/make.py": 1,
-    "cartpole/export/mhe.py": 1,
     "cartpole/ocp/dmc.py": 3,
     "cartpole/planning/ddp_plan.py": 2,
     "cartpole/planning/energy_ceiling.py": 3,
