@@ -77,7 +77,6 @@ IMPORTS_TO_FIX = {
     "cartpole/apps/margins.py": 25,
     "cartpole/commands/_margins.py": 4,
     "cartpole/export/design.py": 12,
-    "cartpole/export/make.py": 1,
     "cartpole/ocp/dmc.py": 3,
     "cartpole/planning/ddp_plan.py": 2,
     "cartpole/planning/energy_ceiling.py": 3,
