@@ -74,8 +74,6 @@ FLAG = re.compile(r"(?<![\w-])--[a-zA-Z][\w-]*")
 
 #: file -> imports inside functions not allowed above.
 IMPORTS_TO_FIX = {
-    "cartpole/apps/margins.py": 25,
-    "cartpole/commands/_margins.py": 4,
     "cartpole/export/design.py": 12,
     "cartpole/ocp/dmc.py": 3,
     "cartpole/planning/ddp_plan.py": 2,
@@ -125,7 +123,6 @@ PARAMS_TO_FIX = {
 
 #: file -> raised error texts naming a command-line flag.
 FLAGS_TO_FIX = {
-    "cartpole/apps/margins.py": 11,
     "cartpole/apps/sweep/results.py": 1,
     "cartpole/control/energy.py": 5,
     "cartpole/export/design.py": 1,
