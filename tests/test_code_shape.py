@@ -123,7 +123,6 @@ PARAMS_TO_FIX = {
 
 #: file -> raised error texts naming a command-line flag.
 FLAGS_TO_FIX = {
-    "cartpole/export/design.py": 1,
 }
 
 

@@ -132,8 +132,8 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
     estimator = "none" if rig is None else rig.estimator
     allowed = SUPPORTED_ESTIMATORS[method]
     if estimator not in allowed:
-        have = f"supported: --estimator {' or '.join(allowed)}" if allowed else "it is not exported yet"
-        raise ExportError(f"The {method} export with --estimator {estimator} is not available ({have}); pick "
+        have = f"supported: `estimator` {' or '.join(allowed)}" if allowed else "it is not exported yet"
+        raise ExportError(f"The {method} export with `estimator='{estimator}'` is not available ({have}); pick "
                           "another estimator or controller.")
     steps = 1 if rig is None else int(rig.steps)
     lag = 0 if rig is None else int(rig.delay_steps)
