@@ -76,7 +76,6 @@ FLAG = re.compile(r"(?<![\w-])--[a-zA-Z][\w-]*")
 IMPORTS_TO_FIX = {
     "cartpole/export/design.py": 12,
     "cartpole/ocp/dmc.py": 3,
-    "cartpole/solvers/ddp.py": 2,
     "cartpole/solvers/sqp.py": 1,
 }
 
