@@ -76,7 +76,6 @@ FLAG = re.compile(r"(?<![\w-])--[a-zA-Z][\w-]*")
 IMPORTS_TO_FIX = {
     "cartpole/export/design.py": 12,
     "cartpole/ocp/dmc.py": 3,
-    "cartpole/solvers/sqp.py": 1,
 }
 
 #: file -> qualified names of the functions longer than MAX_LINES.
