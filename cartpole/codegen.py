@@ -25,20 +25,15 @@ import ctypes
 import dataclasses
 import functools
 import hashlib
-import math
 import os
-import platform
 import re
 import shutil
-import signal
-import stat
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import casadi as ca
-import jinja2
 import numpy as np
 
 from cartpole._files import OutputError, atomic_write, short
@@ -91,6 +86,8 @@ def private_dir(path: str | Path) -> Path:
     OutputError
         The directory cannot be created (then there is no cache; the callers build without one or fall back).
     """
+    import stat
+
     path = Path(path)
     fix = "set CARTPOLE_CACHE_DIR to a directory of your own"
     try:
@@ -171,6 +168,8 @@ def is_verified(path: str | Path) -> bool:
     """Whether ``path`` is a regular file whose content has the SHA-256 its sidecar recorded when it was built
     (:func:`write_verified`); False when either is missing, unreadable, or they differ (a corrupted, truncated or
     planted file: build it again)."""
+    import stat
+
     path = Path(path)
     try:
         if not stat.S_ISREG(os.lstat(path).st_mode):
@@ -184,6 +183,8 @@ def is_verified(path: str | Path) -> bool:
 
 def read_verified(path: str | Path) -> bytes | None:
     """The content of ``path`` when it matches its recorded SHA-256 (:func:`is_verified`), else None."""
+    import stat
+
     path = Path(path)
     try:
         if not stat.S_ISREG(os.lstat(path).st_mode):
@@ -200,6 +201,8 @@ def read_verified(path: str | Path) -> bytes | None:
 def cpu_key() -> str:
     """The machine's architecture, CPU model and feature flags (Linux ``/proc/cpuinfo``, its first processor),
     hashed: what code compiled with ``-march=native`` depends on. Read once per process."""
+    import platform
+
     h = hashlib.sha256(platform.machine().encode())
     try:
         seen = set()
@@ -242,6 +245,8 @@ def run_compiler(cmd, timeout: float | None = None) -> subprocess.CompletedProce
     compiler's whole process group is killed (``os.killpg``), so no ``cc1`` outlives the driver; a timeout then
     raises :class:`subprocess.TimeoutExpired`.
     """
+    import signal
+
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         out, err = proc.communicate(timeout=COMPILE_TIMEOUT if timeout is None else timeout)
@@ -621,6 +626,8 @@ def render(template: str, **values) -> str:
 def c_real(value) -> str:
     """A float as an exact C literal (``repr`` round-trips a double; ``INFINITY``/``-INFINITY`` from C99
     ``<math.h>``). Raises ValueError for NaN."""
+    import math
+
     v = float(value)
     if math.isnan(v):
         raise ValueError("NaN has no place in a C table")
@@ -655,6 +662,8 @@ def c_list(values, ctype: str = "real", per_line: int = 6) -> str:
 
 @functools.lru_cache(maxsize=1)
 def _jinja_env():
+    import jinja2
+
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(CSRC)), undefined=jinja2.StrictUndefined,
                              keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True, autoescape=False)
     env.filters["c_real"] = c_real

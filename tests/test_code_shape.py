@@ -74,6 +74,13 @@ FLAG = re.compile(r"(?<![\w-])--[a-zA-Z][\w-]*")
 
 #: file -> imports inside functions not allowed above.
 IMPORTS_TO_FIX = {
+    "cartpole/codegen.py": 7,
+    "cartpole/export/inloop.py": 3,
+    "cartpole/export/make.py": 1,
+    "cartpole/export/nmpc.py": 4,
+    "cartpole/mpc/ddp_mpc.py": 3,
+    "cartpole/mpc/nmpc.py": 3,
+    "cartpole/planning/energy_ceiling.py": 3,
 }
 
 #: file -> qualified names of the functions longer than MAX_LINES.

@@ -29,7 +29,6 @@ import time
 from dataclasses import replace
 from types import SimpleNamespace
 
-import mujoco
 import numpy as np
 
 from cartpole.codegen import compiler
@@ -38,7 +37,6 @@ from cartpole.control.linear import LinearFeedback
 from cartpole.control.pid import CascadedPID
 from cartpole.control.switching import Switch, SwitchingController
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.estimation import SensorSampler
 from cartpole.export.build import CController, program_library
 from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
 from cartpole.export.design import build_program
@@ -46,7 +44,6 @@ from cartpole.export.estimators import ExportError
 from cartpole.export.make import c_sources
 from cartpole.export.nmpc import nmpc_part
 from cartpole.mpc.nmpc import NMPCController
-from cartpole.sim.rollout import simulate
 
 #: Which :class:`InLoopController` last reset each library (path -> id): its static state is that run's.
 _OWNER: dict = {}
@@ -171,11 +168,15 @@ class _CRun:
         self.ctl, self.h = ctl, float(m.opt.timestep)
         self.sampler, self.forward = None, False
         if rig.spec is not None:
+            from cartpole.estimation import SensorSampler
+
             self.sampler = SensorSampler(rig.spec, m, seed=rig.seed)
             self.forward = any(s.adr >= 0 for s in rig.spec.sensors)
         self.u = None
 
     def sample(self, m, d, k, since, ahead, log):
+        import mujoco
+
         t = k * self.h
         if self.sampler is None:
             y = np.concatenate([d.qpos, d.qvel])
@@ -242,6 +243,8 @@ def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = 
         law with its catch ``info["switches"]`` (list of :class:`~cartpole.control.switching.Switch`), for the TVLQR
         ``info["handover_time"]`` (s or None).
     """
+    from cartpole.sim.rollout import simulate
+
     ctl = compile_program(design) if ctl is None else ctl
     params = design.model.params
     law = _law(design.program.controller, ctl, design.rig is not None)

@@ -8,7 +8,6 @@ import hashlib
 import shutil
 import tempfile
 from dataclasses import dataclass, replace
-from importlib.metadata import version
 from pathlib import Path
 
 from cartpole.export.build import (
@@ -32,6 +31,8 @@ from cartpole.export.program import RETURN_CODES, sources
 def toolkit_version() -> str:
     """The installed cartpole's version."""
     try:
+        from importlib.metadata import version
+
         return version("cartpole")
     except Exception:  # noqa: BLE001 - an uninstalled checkout
         return "unknown"

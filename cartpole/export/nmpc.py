@@ -10,11 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.export.program import CPart
-from cartpole.mpc.nmpc import NMPCController
 from cartpole.mpc.nmpc_c import nmpc_source
-from cartpole.mpc.options import MPCOptions
-from cartpole.planning.options import PlanOptions
-from cartpole.planning.trajopt import trajopt_swingup
 
 
 def nmpc_part(ctl, plan) -> CPart:
@@ -52,6 +48,11 @@ def nmpc_design(model, x0, period: float):
     -------
     (NMPCController, Trajectory)
     """
+    from cartpole.mpc.nmpc import NMPCController
+    from cartpole.mpc.options import MPCOptions
+    from cartpole.planning.options import PlanOptions
+    from cartpole.planning.trajopt import trajopt_swingup
+
     options = MPCOptions(period=float(period))
     x0 = np.asarray(x0, dtype=float).ravel()
     sp = trajopt_swingup(model.params, x0=x0, plan_model=model, options=PlanOptions(cart_margin=options.cart_margin))

@@ -60,7 +60,6 @@ import time
 from dataclasses import dataclass
 
 import casadi as ca
-import daqp
 import numpy as np
 
 from cartpole._arrays import readonly
@@ -77,8 +76,6 @@ from cartpole.mpc.ipopt_nlp import StepFailed as _StepFailed
 from cartpole.mpc.options import (DEFAULT_PERIOD, QP_SOLVERS, RAIL_PENALTY, MPCOptions, NMPCError,  # noqa: F401
                                   mpc_grid)
 from cartpole.ocp.trajectory import Trajectory
-from cartpole.planning.options import PlanOptions
-from cartpole.planning.trajopt import trajopt_swingup
 
 _BIG = 1e30  # DAQP's "no bound"
 #: rad: within this of upright (every pole, wrapped) the safe action is the upright LQR, not the previous plan.
@@ -409,6 +406,8 @@ class NMPCController:
                 self._qpoases = ca.conic("nmpc_qp", "qpoases", {"h": ca.Sparsity.dense(nz, nz),
                                                                 "a": ca.Sparsity.dense(nc, nz)}, opts)
         else:
+            import daqp
+
             self._daqp = daqp.solve
             self._sense = np.zeros(nz + nc, dtype=np.int32)
 
@@ -672,6 +671,8 @@ def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | No
     NMPCController
     """
     # planning sits below mpc: no cycle, imported lazily for start-up time
+    from cartpole.planning.options import PlanOptions
+    from cartpole.planning.trajopt import trajopt_swingup
 
     params = plant_params(plant)
     options = MPCOptions() if options is None else options

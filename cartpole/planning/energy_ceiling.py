@@ -32,10 +32,9 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
-from cartpole.models import CartPoleParams, build_model
+from cartpole.models import CartPoleParams
 from cartpole.sim.rollout import make_mujoco
 
 #: Grid points over one turn of the hinge.
@@ -177,6 +176,8 @@ def reachable_energy(V, a, beta, inertia, *, start: int = 0, max_sweeps: int = 1
 
 def _tables(m, d, x0, slide, hinge, n):
     """Potential, mass-matrix entries over one turn of the hinge from the start's angle, the cart where it starts."""
+    import mujoco
+
     th = float(x0[hinge]) + 2 * np.pi * np.arange(n) / n
     V = np.empty(n)
     Mss, Msh, Mhh = np.empty(n), np.empty(n), np.empty(n)
@@ -216,6 +217,8 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
     EnergyCeiling
         ``proven`` when upright lies above the bound with a margin (:data:`CLAIM_BELOW`).
     """
+    import mujoco
+
     m, d = make_mujoco(params)
     m.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
@@ -237,6 +240,8 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
     if np.any(np.asarray(m.jnt_stiffness) != 0.0) or m.jnt_limited[hinges[0]]:
         return _no("a joint spring or a hinge limit can store energy the bound does not count")
     if x0 is None:
+        from cartpole.models import build_model
+
         x0 = build_model(params).x_hanging
     x0 = np.asarray(x0, float).ravel()
     if x0.size != m.nq + m.nv or np.any(x0[m.nq:] != 0.0):
