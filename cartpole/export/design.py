@@ -13,20 +13,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from cartpole.control.energy import EnergyShapingController
-from cartpole.control.linear import LinearFeedback
-from cartpole.control.pid import CascadedPID, tune_pid
-from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
 from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
 from cartpole.export.estimators import ExportError, ekf_part, kalman_part, state_part
-from cartpole.export.mhe import mhe_part
-from cartpole.export.nmpc import nmpc_design, nmpc_part
 from cartpole.export.program import CProgram
-from cartpole.mpc.options import DEFAULT_PERIOD
-from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.sim.options import LoopOptions
-from cartpole.sim.rig import build_rig
-from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 #: The controllers ``cartpole export --controller`` names, and the task each runs (its success test).
 CONTROLLERS = {"lqr": "balance", "pid": "balance", "tvlqr": "swingup", "energy": "swingup", "nmpc": "swingup"}
@@ -128,10 +117,15 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
     LQRError, PIDError, RigError, PeriodError, EstimationError
         The Python design itself fails (its own sentence).
     """
+    from cartpole.sim.rig import build_rig
+
     if method not in CONTROLLERS:
         raise ExportError(f"There is no controller {method!r} to export; choose one of {', '.join(CONTROLLERS)}.")
     task = CONTROLLERS[method]
     if method == "nmpc":  # the NMPC runs at its own period (0.02 s) unless the loop gives one
+        from cartpole.mpc.options import DEFAULT_PERIOD
+        from cartpole.sim.options import LoopOptions
+
         loop = LoopOptions() if loop is None else loop
         loop = loop.replace(period=DEFAULT_PERIOD if loop.period is None else loop.period)
     rig = build_rig(model, loop, task=task)
@@ -146,6 +140,8 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
     period = steps * float(model.dt)
     plan_end = None
     if method == "lqr":
+        from cartpole.control.linear import LinearFeedback
+
         fb = LinearFeedback.for_model(model, period=period)
 
         def make():
@@ -153,6 +149,8 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         ctrl_part = linear_part(fb)
         title = f"LQR balance at a {period:g} s period"
     elif method == "pid":
+        from cartpole.control.pid import CascadedPID, tune_pid
+
         gains = tune_pid(model, period=period)
 
         def make():
@@ -160,6 +158,8 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         ctrl_part = pid_part(make())
         title = f"cascaded PID balance at a {period:g} s period"
     elif method == "tvlqr":
+        from cartpole.planning.trajopt import trajopt_swingup
+
         start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
         kw = {} if plan is None else {"options": plan}
         sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), plan_model=model,
@@ -174,6 +174,10 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         title = (f"trajopt swing-up tracked by TVLQR ({sp.trajectory.N} intervals, {tv.T:.3g} s), then the LQR "
                  f"catch, at a {period:g} s period")
     elif method == "energy":
+        from cartpole.control.energy import EnergyShapingController
+        from cartpole.control.linear import LinearFeedback
+        from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
+
         if rho is None or not rho > 0:
             raise ExportError("The energy export needs the catch level rho of the LQR catch's verified basin; "
                               "give rho (cartpole export computes it).")
@@ -185,6 +189,8 @@ def design_export(model, method: str, loop=None, *, real: str = "double", x0=Non
         ctrl_part = energy_part(make())
         title = f"energy-shaping swing-up with the LQR catch below rho = {float(rho):.4g}, at a {period:g} s period"
     else:
+        from cartpole.export.nmpc import nmpc_design, nmpc_part
+
         start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
         mpc, plan_traj = nmpc_design(model, start, period)
 
@@ -211,6 +217,7 @@ def estimator_part(rig, model):
         return kalman_part(rig.make_estimator(), model, spec)
     if name == "ekf":
         return ekf_part(rig.make_estimator(), model, spec)
+    from cartpole.export.mhe import mhe_part
 
     return mhe_part(rig.make_estimator(), model, spec)
 
@@ -236,6 +243,8 @@ def build_program(model, rig, ctrl_part, *, real: str = "double", title: str = "
     -------
     CProgram
     """
+    from cartpole.sim.rollout import ctrl_bounds, make_mujoco
+
     estimator = "none" if rig is None else rig.estimator
     steps = 1 if rig is None else int(rig.steps)
     lag = 0 if rig is None else int(rig.delay_steps)
