@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from cartpole.control.pid import check_cascade
 from cartpole.errors import CartPoleError
 
 
@@ -361,8 +362,6 @@ def pid_loop(model, gains, *, steps: int | None = None, delay_steps: int = 0, co
     Loop
     """
     import control  # python-control takes seconds to import: only loop users pay for it
-
-    from cartpole.control.pid import check_cascade
 
     slide, hinge = check_cascade(model)
     A, B, A1, B1 = _plant_matrices(model)

@@ -12,13 +12,21 @@ Designs, keyed as the JSON ``margins`` object keys them:
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from cartpole.analysis import (AnalysisError, Loop, Margins, closed_loop_stable, continuous_loop, ctrl_noise_std,
                                loop_margins, pid_loop, sampled_loop, state_noise_std)
+from cartpole.apps.lab import lab_equilibrium
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.pid import CascadedPID
 from cartpole.models import steps_per_period
+from cartpole.riccati import default_weights
+from cartpole.sim import simulate
+from cartpole.sim.options import LoopOptions
+from cartpole.sim.rig import build_rig, delay_steps, estimator_factory
 
 #: Designs with no linear loop to break, and why (for the refusal's sentence).
 NONLINEAR = {"energy": "energy shaping is a nonlinear law (its ctrl follows the pole's energy, not a linear map of "
@@ -37,8 +45,8 @@ def refuse_nonlinear(design: str) -> None:
         A key of :data:`NONLINEAR` (``energy``, ``mpc``, ``ekf``, ``mhe``).
     """
     why = NONLINEAR.get(design, f"'{design}' is not a linear design")
-    raise AnalysisError(f"Margins are read on a linear loop and {why}; ask for the margins of the LQR (cartpole lqr "
-                    "--margins, with --estimator kf for LQG) or of the PID (--compare-pid).")
+    raise AnalysisError(f"Margins are read on a linear loop and {why}; ask for the margins of the LQR "
+                        "(`lab_margins`, with `estimator='kf'` for LQG) or of the PID (`pid=True`).")
 
 
 @dataclass(frozen=True)
@@ -105,12 +113,6 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
     AnalysisError
         An estimator with no linear loop (``ekf``, ``mhe``).
     """
-    from cartpole.apps.lab import lab_equilibrium
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.riccati import default_weights
-    from cartpole.sim.options import LoopOptions
-    from cartpole.sim.rig import delay_steps, estimator_factory
-
     loop = LoopOptions() if loop is None else loop
     h = float(model.dt)
     m = steps_per_period(loop.period, h)
@@ -133,8 +135,6 @@ def lab_margins(model, *, Q=None, R=None, discrete: bool = False, loop=None, pid
         loops["lqg"] = sampled_loop(model, K, steps=m, delay_steps=d, compensate=comp, kalman=make(), x=x_eq)
         noise["lqg"] = ctrl_noise_std(loops["lqg"], spec.measurement_covariance())
     if pid:
-        from cartpole.control.pid import CascadedPID
-
         loops["pid"] = pid_loop(model, CascadedPID.for_model(model).gains, steps=m, delay_steps=d,
                                 compensate=comp)
     return LabMargins(loops, {k: loop_margins(v) for k, v in loops.items()}, K, m, d, noise,
@@ -215,11 +215,6 @@ def mujoco_stable(model, K=None, k: float = 1.0, *, controller=None, loop=None, 
     -------
     bool
     """
-    from cartpole.apps.lab import lab_equilibrium
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.sim import simulate
-    from cartpole.sim.rig import build_rig
-
     x_eq = lab_equilibrium(model) if x_eq is None else np.asarray(x_eq, float)
     x0 = np.array(x_eq, dtype=float)
     x0[list(model.hinges)] += tilt
@@ -254,8 +249,6 @@ def _bisect(stable, good: float, bad: float, rel: float) -> float:
 
 def _true_state_rig(loop):
     """The rig ``loop`` with the controller reading MuJoCo's state (period, delay and its compensation kept)."""
-    from cartpole.sim.options import LoopOptions
-
     return LoopOptions(period=loop.period, delay=loop.delay, delay_compensation=loop.delay_compensation)
 
 
@@ -294,12 +287,6 @@ def mujoco_margins(model, found: LabMargins, *, loop=None, rel: float = 0.01, ma
         measured and ``gain_margin_predicted`` (null where unbounded), for a design that reads sensors
         ``ctrl_noise_std`` (:func:`mujoco_ctrl_noise`) and ``ctrl_noise_std_predicted`` (ctrl units); ``rel``.
     """
-    from cartpole.apps.lab import lab_equilibrium
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.pid import CascadedPID
-    from cartpole.sim.options import LoopOptions
-    from cartpole.sim.rig import estimator_factory
-
     loop = LoopOptions() if loop is None else loop
     h, K, m, d0 = float(model.dt), found.K, found.steps, found.delay_steps
     x_eq = lab_equilibrium(model)
@@ -379,10 +366,6 @@ def mujoco_ctrl_noise(model, controller, loop, *, x_eq=None, tilt: float = 0.01,
     (nu,) array
         ctrl units.
     """
-    from cartpole.apps.lab import lab_equilibrium
-    from cartpole.sim import simulate
-    from cartpole.sim.rig import build_rig
-
     x_eq = lab_equilibrium(model) if x_eq is None else np.asarray(x_eq, float)
     x0 = np.array(x_eq, dtype=float)
     x0[list(model.hinges)] += tilt
@@ -428,19 +411,13 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
         A fraction outside (0, 1), a rig without sensors (no noise reaches the ctrl), or no ``R`` up to
         2^:data:`MAX_R_DOUBLINGS` times the start that is quiet enough.
     """
-    import math
-
-    from cartpole.apps.lab import lab_equilibrium
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.riccati import default_weights
-
     f = float(fraction)
     if not (math.isfinite(f) and 0 < f < 1):
-        raise AnalysisError(f"The ctrl noise fraction {fraction!r} is not between 0 and 1; give e.g. --ctrl-noise "
-                            "0.1 (a tenth of the ctrl range).")
+        raise AnalysisError(f"The ctrl noise fraction {fraction!r} is not between 0 and 1; give e.g. "
+                            "`ctrl_noise=0.1` (a tenth of the ctrl range).")
     if loop is None or not loop.sensed or loop.estimator_for("balance") == "none":
         raise AnalysisError("A ctrl noise limit needs sensors: with MuJoCo's exact state no noise reaches the ctrl; "
-                            "give an estimator and encoders (e.g. --estimator kf --encoder-cpr 2048).")
+                            "give an estimator and encoders (e.g. `estimator='kf'` `encoder_cpr=2048`).")
     Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else np.asarray(Q, float)
     R = np.atleast_2d(np.asarray(R0 if R is None else R, float))
@@ -453,7 +430,7 @@ def noise_limited_R(model, Q, R, loop, fraction: float, *, discrete: bool = Fals
     if found is not None:
         return {k: found[k] for k in ("R", "factor", "fraction", "predicted_std", "predicted_fraction")}
     raise AnalysisError(f"No R up to {2.0 ** MAX_R_DOUBLINGS:g} times the lab's keeps the ctrl noise from these "
-                        f"sensors below {f:g} of the ctrl range; allow more (--ctrl-noise) or use finer encoders.")
+                        f"sensors below {f:g} of the ctrl range; allow more (`ctrl_noise`) or use finer encoders.")
 
 
 #: The estimator's process noise (accel_std, m/s^2 and rad/s^2 on every joint) :func:`noise_limited_catch` tries,
@@ -506,15 +483,13 @@ def noise_limited_catch(model, loop, fraction: float, gain, R, *, required: bool
     AnalysisError
         A fraction outside (0, 1), a rig without sensors or estimator, or (``required``) no design that holds.
     """
-    import math
-
     f = float(fraction)
     if not (math.isfinite(f) and 0 < f < 1):
-        raise AnalysisError(f"The ctrl noise fraction {fraction!r} is not between 0 and 1; give e.g. --ctrl-noise "
-                            "0.1 (a tenth of the ctrl range).")
+        raise AnalysisError(f"The ctrl noise fraction {fraction!r} is not between 0 and 1; give e.g. "
+                            "`ctrl_noise=0.1` (a tenth of the ctrl range).")
     if loop is None or not loop.sensed or loop.estimator_for("swingup") == "none":
         raise AnalysisError("A ctrl noise limit needs sensors: with MuJoCo's exact state no noise reaches the ctrl; "
-                            "give an estimator and encoders (e.g. --estimator ekf --encoder-cpr 2048).")
+                            "give an estimator and encoders (e.g. `estimator='ekf'` `encoder_cpr=2048`).")
     R = np.atleast_2d(np.asarray(R, float))
     R = R * np.eye(model.nu) if R.shape == (1, 1) and model.nu > 1 else R
     ladder = (loop.process_noise,) if loop.process_noise is not None else (None,) + PROCESS_NOISE_LADDER
@@ -527,7 +502,7 @@ def noise_limited_catch(model, loop, fraction: float, gain, R, *, required: bool
     raise AnalysisError(f"No catch with R up to {2.0 ** MAX_CATCH_R_DOUBLINGS:g} times its own and the estimator's "
                         f"process noise down to {'its default' if lowest is None else f'{lowest:g}'} "
                         f"keeps the ctrl noise from these sensors below {f:g} of the ctrl range (at best "
-                        f"{np.max(best['predicted_fraction']):.3g}); allow more (--ctrl-noise) or use finer encoders.")
+                        f"{np.max(best['predicted_fraction']):.3g}); allow more (`ctrl_noise`) or use finer encoders.")
 
 
 def _noise_search(model, loop, f: float, gain, R, ladder, doublings: int, x_eq):
@@ -536,8 +511,6 @@ def _noise_search(model, loop, f: float, gain, R, ladder, doublings: int, x_eq):
     ``gain(R) -> K`` with the rig's Kalman filter, :func:`~cartpole.analysis.ctrl_noise_std`) is below ``f`` of the
     ctrl range's width (None when none is), and the quietest design tried; each a dict as
     :func:`noise_limited_catch` returns."""
-    from cartpole.sim.rig import delay_steps, estimator_factory
-
     h = float(model.dt)
     m, d = steps_per_period(loop.period, h), delay_steps(loop.delay, h)
     filters = {}

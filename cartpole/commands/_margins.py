@@ -5,6 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from cartpole.apps.margins import lab_margins, loops_and_margins, mujoco_margins, noise_limited_R
+from cartpole.progress import stage
+from cartpole.viz.loop_plot import plot_loops
+
 #: Where the figures go under --out.
 FIGURES = Path("figures")
 
@@ -34,7 +38,6 @@ def ctrl_noise_weights(args, model, loop, Q, R):
     fraction = getattr(args, "ctrl_noise", None)
     if fraction is None:
         return R, None
-    from cartpole.apps.margins import noise_limited_R
 
     found = noise_limited_R(model, Q, R, loop, fraction, discrete=args.discrete)
     doc = {"fraction": found["fraction"], "factor": found["factor"], "R": found["R"].tolist(),
@@ -53,10 +56,6 @@ def run_margins(args, model, loop, Q, R) -> dict:
     """The ``--margins`` document: ``mjcf``, ``period`` (s), ``rig``, ``margins`` (design key -> its margins:
     ``gain_margin`` [low, high] ratio with null where unbounded, ``phase_margin_deg``, ``delay_margin_s``, ``ms``,
     ``mt``, crossovers in rad/s), ``figures`` (kind -> path); prints a table unless ``--json``."""
-    from cartpole.apps.margins import lab_margins, loops_and_margins, mujoco_margins
-    from cartpole.progress import stage
-    from cartpole.viz.loop_plot import plot_loops
-
     check = getattr(args, "margins_mujoco", False)
     found = lab_margins(model, Q=Q, R=R, discrete=args.discrete, loop=loop, pid=args.compare_pid)
     figures = plot_loops(loops_and_margins(found), Path(args.out) / FIGURES)

@@ -68,7 +68,7 @@ def check_single_pole(model: CartPoleModel) -> tuple[int, int]:
     Raises
     ------
     EnergyShapingModelError
-        With one sentence naming what the model has instead and pointing to ``--method trajopt``.
+        With one sentence naming what the model has instead and pointing to ``method='trajopt'``.
     """
     p = model.params
     if len(p.hinges) != 1:
@@ -82,15 +82,15 @@ def check_single_pole(model: CartPoleModel) -> tuple[int, int]:
     elif not p.gear > 0:
         raise EnergyShapingModelError(f"Energy shaping needs the motor to push the cart along +x as ctrl grows, and "
                                       f"this model's gear is {p.gear:g}; give the actuator a positive gear (flip "
-                                      "its sign) or use `--method trajopt` instead.")
+                                      "its sign) or use `method='trajopt'` instead.")
     elif not p.g > 0 or not p.pole_com_distance > 0:
         raise EnergyShapingModelError("Energy shaping pumps the pole's energy against gravity and this model has "
                                       + ("no gravity" if not p.g > 0 else "its pole's centre of mass on the hinge axis")
-                                      + "; use `--method trajopt` instead.")
+                                      + "; use `method='trajopt'` instead.")
     else:
         return p.slide, p.hinges[0]
     raise EnergyShapingModelError(f"Energy shaping is for one pole driven by the cart and {what}; "
-                                  "use `--method trajopt` instead.")
+                                  "use `method='trajopt'` instead.")
 
 
 @dataclass(frozen=True)
@@ -339,8 +339,8 @@ def default_gains(model: CartPoleModel, options: EnergyOptions | None = None, **
     sc = model_scales(model)
     if not np.isfinite(sc["a_max"]):
         raise EnergyShapingError("The MJCF's actuator has no ctrlrange, so default energy gains cannot be scaled; "
-                                 "design on cartpole.models.planning_limits(params) (a stated default bound; "
-                                 "--u-max on the command line), set ctrlrange on the motor, or pass every gain.")
+                                 "design on cartpole.models.planning_limits(params) (a stated default bound, or one "
+                                 "given as its `u_max`), set ctrlrange on the motor, or pass every gain.")
     wx = c["centring_frequency"] * sc["omega0"]
     return EnergyGains(k_energy=c["energy_gain"] * sc["a_max"] / (2 * sc["mgl"] * sc["omega0"]),
                        k_x=wx**2, k_v=2 * c["centring_damping"] * wx,
@@ -431,7 +431,7 @@ class EnergyShapingController:
     Raises
     ------
     EnergyShapingModelError
-        For a model that is not one pole on a cart driven by the cart's slide (use ``--method trajopt``).
+        For a model that is not one pole on a cart driven by the cart's slide (use ``method='trajopt'``).
     EnergyShapingError
         For bad gains or settings.
     """
@@ -504,6 +504,6 @@ def energy_rollout(model: CartPoleModel, controller, x0, steps: int, *, u_limits
     """
     if model.nu != 1:
         raise EnergyShapingModelError(f"Energy shaping is for one pole driven by the cart and this model has "
-                                      f"{model.nu} actuators; use `--method trajopt` instead.")
+                                      f"{model.nu} actuators; use `method='trajopt'` instead.")
     x, u = model_rollout(model, controller, x0, steps, u_limits=np.asarray(u_limits, dtype=float).reshape(1, 2))
     return x, u[:, 0]

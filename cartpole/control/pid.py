@@ -33,7 +33,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, plant_model
+from cartpole.models import CartPoleModel, plant_model, steps_per_period
 
 #: Defaults of :func:`tune_pid` (dimensionless), chosen on the shipped cart and checked on the test variants.
 DEFAULT_TUNING = dict(bandwidth_factor=1.0, integral_factor=10.0, filter_factor=10.0, tilt_fraction=0.1)
@@ -265,9 +265,7 @@ def tune_pid(plant, *, bandwidth_factor: float = DEFAULT_TUNING["bandwidth_facto
                        "there is no bandwidth to scale the PID from; check that the MJCF's upright is inverted.")
     omega = float(bandwidth_factor) * lam
     poles = butterworth_poles(omega)
-    import scipy.signal
-
-    from cartpole.models import steps_per_period
+    import scipy.signal  # seconds at import (it loads scipy.stats): only the PID tuning pays for it
 
     steps = steps_per_period(period, model.dt)
     T = steps * model.dt

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import casadi as ca
+import daqp
 import numpy as np
 
 from cartpole.codegen import build_library, compiled_or_none, load_library
@@ -290,7 +291,6 @@ def solve_window_qp(H, g, S, c, q, joints, low, high):
     qz = v + Sb @ z
     if not ((qz > high + 1e-12).any() or (qz < low - 1e-12).any()):
         return z
-    import daqp
 
     nz = H.shape[0]
     rows = np.ascontiguousarray(Sb.reshape(-1, nz))

@@ -147,8 +147,8 @@ def _export_rig(model, method: str, loop):
     estimator = "none" if rig is None else rig.estimator
     allowed = SUPPORTED_ESTIMATORS[method]
     if estimator not in allowed:
-        have = f"supported: --estimator {' or '.join(allowed)}" if allowed else "it is not exported yet"
-        raise ExportError(f"The {method} export with --estimator {estimator} is not available ({have}); pick "
+        have = f"supported: `estimator` {' or '.join(allowed)}" if allowed else "it is not exported yet"
+        raise ExportError(f"The {method} export with `estimator='{estimator}'` is not available ({have}); pick "
                           "another estimator or controller.")
     return rig
 

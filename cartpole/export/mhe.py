@@ -9,6 +9,7 @@ of ``cartpole/csrc/qp_dual.c``; the window's slide with its arrival-cost update)
 """
 from __future__ import annotations
 
+from cartpole.estimation import measurement_function
 from cartpole.estimation.mhe_c import mhe_source
 from cartpole.export.estimators import reset_code
 from cartpole.export.program import CPart
@@ -27,8 +28,6 @@ def mhe_part(mhe, model, spec) -> CPart:
     -------
     CPart
     """
-    from cartpole.estimation import measurement_function
-
     src = mhe_source(mhe, model, measurement_function(model, spec))
     rtab, rcode = reset_code(model, spec, model.x_hanging)
     return CPart(tables=rtab, code=rcode + src.code, fields=src.fields, reset="    mh_reset();\n",

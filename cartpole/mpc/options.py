@@ -44,16 +44,16 @@ def mpc_grid(options: MPCOptions, timestep: float) -> tuple[int, int]:
     period = DEFAULT_PERIOD if options.period is None else float(options.period)
     if period < 0.5 * dt:
         raise NMPCError(f"The NMPC's period {period:g} s is shorter than the MJCF's {dt:g} s physics step; give a "
-                        f"whole number of steps (e.g. --period {dt:g}).")
+                        f"whole number of steps (e.g. `period={dt:g}`).")
     steps = max(1, int(round(period / dt)))
     if options.horizon < 0.5 * steps * dt:
         raise NMPCError(f"The NMPC's horizon {options.horizon:g} s is shorter than its {steps * dt:g} s control "
-                        "period; give a horizon of at least one period (e.g. --horizon 1.2).")
+                        "period; give a horizon of at least one period (e.g. `horizon=1.2`).")
     N = options.horizon / (steps * dt)
     if N > MAX_STAGES + 0.5:
         raise NMPCError(f"The NMPC's horizon {options.horizon:g} s at a {steps * dt:g} s period is {N:.3g} stages, "
                         f"more than the {MAX_STAGES} limit (each control step solves a QP over all of them); give "
-                        f"at most --horizon {MAX_STAGES * steps * dt:g} or a longer --period.")
+                        f"at most `horizon={MAX_STAGES * steps * dt:g}` or a longer `period`.")
     return steps, max(1, int(round(N)))
 
 
@@ -155,24 +155,24 @@ class MPCOptions(StageOptions):
         self.number("rail_penalty", low=0.0, low_open=True)
         if self.solver not in MPC_SOLVERS:
             raise NMPCError(f"The MPC solver '{self.solver}' is not one of {', '.join(MPC_SOLVERS)}; give e.g. "
-                            "--mpc-solver ddp.")
+                            "`MPCOptions(solver='ddp')`.")
         if self.objective is not None:
             if not (isinstance(self.objective, str) or callable(self.objective)):
                 raise NMPCError(f"The MPC objective {self.objective!r} is neither a name nor a function (x, u) -> "
-                                "cost; give e.g. --objective dmc_cartpole_swingup.")
+                                "cost; give e.g. `objective='dmc_cartpole_swingup'`.")
             if self.objective == "time":
                 raise NMPCError("The MPC cannot minimise time: it is not a running cost over a receding horizon; "
                                 "give a running objective (tracking, effort, a dmc_* reward or MODULE:FUNCTION).")
             if self.solver == "rti" and self.objective != "tracking":
                 raise NMPCError(f"The RTI NMPC's Gauss-Newton QP tracks upright (objective tracking, weights Q, R), "
                                 f"not '{getattr(self.objective, '__name__', self.objective)}'; run it with "
-                                "--mpc-solver ddp, which takes any running objective.")
+                                "`MPCOptions(solver='ddp')`, which takes any running objective.")
         if self.seed_plan not in (True, False):
             raise NMPCError(f"seed_plan = {self.seed_plan!r} must be True or False.")
         self.set_field("seed_plan", bool(self.seed_plan))
         if not self.seed_plan and self.solver != "ddp":
-            raise NMPCError("The RTI NMPC tracks an offline plan and cannot run without one; give --mpc-solver ddp "
-                            "with --no-seed-plan, or drop --no-seed-plan.")
+            raise NMPCError("The RTI NMPC tracks an offline plan and cannot run without one; give "
+                            "`MPCOptions(solver='ddp')` with `seed_plan=False`, or drop `seed_plan=False`.")
         if self.qp_solver is not None and self.qp_solver not in QP_SOLVERS:
             raise NMPCError(f"qp_solver '{self.qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
         if self.prestabilize is not None:

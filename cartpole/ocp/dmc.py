@@ -46,8 +46,10 @@ import weakref
 from dataclasses import dataclass
 
 import casadi as ca
+import mujoco
 import numpy as np
 
+from cartpole.models import forward_kinematics, load_model
 from cartpole.ocp.bounds import OCPError
 
 #: dm_control's ``_DEFAULT_VALUE_AT_MARGIN`` of ``rewards.tolerance``.
@@ -245,10 +247,6 @@ def _site(params, name: str):
 @functools.lru_cache(maxsize=32)
 def _sites(mjcf: str, xml: str, bodies: tuple) -> dict:
     """Every named site of the MJCF (compiled once per file and text) as :func:`_site` describes it."""
-    import mujoco
-
-    from cartpole.models import load_model
-
     m, _, _ = load_model(mjcf or None, xml=None if mjcf else xml)
     d = mujoco.MjData(m)
     mujoco.mj_kinematics(m, d)  # a site on the world or on a body welded to it: its world position at qpos0
@@ -268,8 +266,6 @@ def _sites(mjcf: str, xml: str, bodies: tuple) -> dict:
 
 def _site_world(params, site, q):
     """World position (3, 1) of a site from :func:`_site` at the configuration ``q`` (SX (nq,))."""
-    from cartpole.models import forward_kinematics
-
     body, pos, _ = site
     if body < 0:
         return ca.DM(pos.reshape(3, 1))

@@ -32,7 +32,7 @@ from cartpole.control.linear import LinearFeedback
 from cartpole.riccati import dlqr, default_weights, tvlqr
 from cartpole.models import CartPoleModel
 from cartpole.ocp.bounds import OCPBounds, OCPError
-from cartpole.ocp.objectives import Objective, tracking_cost
+from cartpole.ocp.objectives import Objective, make_objective, tracking_cost
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.pumping import hanging_mode
@@ -153,8 +153,6 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
     (DDPStage, [Attempt])
         The stage (``info.success`` says whether it converged) and its attempt record.
     """
-    from cartpole.riccati import default_weights
-
     tic = time.perf_counter()
     Q0, R0 = default_weights(model)
     Q = Q0 if Q is None else np.asarray(Q, float)
@@ -212,8 +210,6 @@ def ddp_time_search(model: CartPoleModel, x0, guess: Trajectory, T_min: float, b
         The converged stage of the shortest duration (its ``info.objective`` is that T in s), or None when no
         duration converged; every solve's attempt (stage ``"time (ddp) T=..."``).
     """
-    from cartpole.ocp.objectives import make_objective
-
     effort = make_objective(model, "effort")
     h = float(model.dt) * int(steps)
     attempts: list = []

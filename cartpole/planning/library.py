@@ -32,6 +32,7 @@ from cartpole.codegen import cache_dir, model_key, private_dir, read_verified, w
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.planning.trajopt import trajopt_swingup
 
 #: Part of the library file's key: bump when what a stored plan means changes.
 LIBRARY_VERSION = "plans-v1"
@@ -287,8 +288,6 @@ def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = Non
         ``failed`` lists the starts no plan was found from, with the planner's sentence. Not saved: call
         :meth:`PlanLibrary.save`.
     """
-    from cartpole.planning.trajopt import trajopt_swingup
-
     model = build_model(params) if model is None else model
     lib = PlanLibrary.empty(model) if library is None else library
     lib.check(model)

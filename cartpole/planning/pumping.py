@@ -28,6 +28,7 @@ import math
 import time
 from dataclasses import replace
 
+import casadi as ca
 import numpy as np
 
 from cartpole.models import CartPoleModel, wrap_angle
@@ -96,8 +97,6 @@ def pump_energy(model: CartPoleModel, x: np.ndarray) -> np.ndarray:
 
 def _energy_function(model: CartPoleModel):
     """:func:`pump_energy` of one state as a CasADi Function ``x -> E`` (SX)."""
-    import casadi as ca
-
     x = ca.SX.sym("x", model.nx)
     E = model.energy(x)
     if model.slide is not None:

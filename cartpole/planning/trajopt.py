@@ -26,8 +26,10 @@ import math
 import time
 from dataclasses import dataclass, field, replace
 
+import casadi as ca
 import numpy as np
 
+from cartpole._arrays import readonly
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.tvlqr import TVLQRController
@@ -36,14 +38,18 @@ from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.models import (CartPoleModel, CartPoleParams, Plant, plant_model, plant_params,
                              steps_per_period)
 from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
-from cartpole.ocp.collocation import DirectCollocation, OCPNotSolved
+from cartpole.ocp.collocation import DirectCollocation, OCPInfeasible, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.dmc import is_task
 from cartpole.ocp.dmc import task as dmc_task
 from cartpole.ocp.objectives import make_objective
+from cartpole.planning import ddp_plan
+from cartpole.planning.box_entry import box_entry_plan
 from cartpole.planning.ddp_plan import RECEDING_T_MAX, receding_swingup
+from cartpole.planning.energy_ceiling import energy_ceiling
 from cartpole.planning.options import DEFAULT_N, U_MARGIN, PlanOptions
+from cartpole.planning.pumping import pumping_search
 from cartpole.solvers.sqp import CollocationSQP, SQPError
 from cartpole.ocp.trajectory import Trajectory
 
@@ -146,8 +152,6 @@ class DiscretePlan:
     box_entry: dict | None = None
 
     def __post_init__(self):
-        from cartpole._arrays import readonly
-
         for name in ("t", "x", "u"):
             object.__setattr__(self, name, readonly(np.asarray(getattr(self, name), float)))
 
@@ -170,8 +174,6 @@ def _sparse_entry(model: CartPoleModel, name: str, x0, traj: Trajectory, exact, 
     """The sparse task's earliest-entry plan (:func:`cartpole.planning.box_entry.box_entry_plan`) from the exact
     plan (else the collocation plan on the step grid), as a :class:`DiscretePlan`, or None when it found none
     earlier."""
-    from cartpole.planning.box_entry import box_entry_plan
-
     dmodel = model if abs(model.dt - dt) < 1e-15 else model.rebuilt(dt=dt)
     if exact is not None:
         t, xr, ur = np.asarray(exact.t), np.asarray(exact.x), np.asarray(exact.u)
@@ -259,8 +261,6 @@ def exact_discrete_plan(model: CartPoleModel, traj: Trajectory, x0, bounds, *, d
     -------
     DiscretePlan, or None when IPOPT did not converge (the caller keeps the collocation plan).
     """
-    import casadi as ca
-
     tic = time.perf_counter()
     dt = float(model.dt if dt is None else dt)
     if not 0.0 <= u_margin < 1.0:
@@ -429,8 +429,6 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
     fixed-time effort plan then seeds the free-time problem (same mesh, ``T <= T_max``): ``(T_min, time plan, info,
     (pump plan, its info))``, or ``(None, pump plan, info, None)`` when that refinement does not converge; when the
     search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found")."""
-    from cartpole.planning.pumping import pumping_search
-
     if params.slide is None and len(model.hinges) > 1:  # a chain driven at a hinge (the acrobot): the receding-
         # horizon DDP first (seconds, where the multi-start took minutes and found nothing from dm_control's starts)
         found = _receding_plan(model, x0, N=N, bounds=bounds, T_max=T_max, search_s=search_s, tried=())
@@ -520,8 +518,6 @@ def infeasibility_proof(params: CartPoleParams, model: CartPoleModel, x0, bounds
     """:func:`~cartpole.planning.energy_ceiling.energy_ceiling` of the start ``x0`` (nx,) with the cart inside the
     bounds' slide range (the plan's, the file's rail shrunk by the margin): an
     :class:`~cartpole.planning.energy_ceiling.EnergyCeiling` whose ``proven`` says upright is out of reach."""
-    from cartpole.planning.energy_ceiling import energy_ceiling
-
     cart = None
     if model.slide is not None:
         cart = (float(bounds.q_low[model.slide]), float(bounds.q_high[model.slide]))
@@ -551,8 +547,6 @@ def refusal(params: CartPoleParams, model: CartPoleModel, x0, bounds, attempts, 
     proof : EnergyCeiling, optional
         :func:`infeasibility_proof` already made (made here when not given).
     """
-    from cartpole.ocp.collocation import OCPInfeasible
-
     ec = infeasibility_proof(params, model, x0, bounds) if proof is None else proof
     if ec.proven:
         return OCPInfeasible(f"The swing-up is infeasible: {ec.sentence()}.")
@@ -755,11 +749,9 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
 
     def ddp_last_stage(guess, T_use, gname):
         """The last stage by DDP (with the ctrl margin, then without); the converged DDPStage or None."""
-        from cartpole.planning.ddp_plan import ddp_stage
-
         for margin in dict.fromkeys((float(options.u_margin), 0.0)):
-            st, tried = ddp_stage(tv_model, x0, guess, T_use, obj, bounds, steps=steps, u_margin=margin, Q=Q, R=R,
-                                  guess_name=gname)
+            st, tried = ddp_plan.ddp_stage(tv_model, x0, guess, T_use, obj, bounds, steps=steps, u_margin=margin,
+                                           Q=Q, R=R, guess_name=gname)
             ddp_tried.extend(replace(a, stage=f"{a.stage} u_margin={margin:g}") for a in tried)
             if st.info.success:
                 return replace(st, margin=margin)
@@ -778,10 +770,9 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
                                                bounds=bounds, T_max=options.T_max, search_s=options.search_s,
                                                restarts=options.pump_restarts, seed=options.pump_seed, sqp=use_sqp)
         if use_ddp:
-            from cartpole.planning.ddp_plan import ddp_time_search
-
-            by_ddp, tried = ddp_time_search(tv_model, x0, traj, T_min if T_min is not None else traj.duration,
-                                            bounds, steps=steps, Q=Q, R=R, guess_name=f"time plan ({info.guess})")
+            by_ddp, tried = ddp_plan.ddp_time_search(tv_model, x0, traj,
+                                                     T_min if T_min is not None else traj.duration, bounds,
+                                                     steps=steps, Q=Q, R=R, guess_name=f"time plan ({info.guess})")
             ddp_tried.extend(tried)
             attempts_before = info.attempts
     elif obj.kind == "effort" and T is not None:

@@ -36,6 +36,8 @@ import numpy as np
 from cartpole._arrays import readonly
 from cartpole.codegen import Buffered, build_library, compiled_or_none, load_library
 from cartpole.errors import CartPoleError
+from cartpole.ocp.bounds import bounds_from_model
+from cartpole.ocp.objectives import make_objective
 
 
 class DDPError(CartPoleError, ValueError):
@@ -512,9 +514,6 @@ def ddp_for_model(model, T: float, *, steps: int = 1, objective=None, x_goal=Non
     -------
     DDP
     """
-    from cartpole.ocp.bounds import bounds_from_model
-    from cartpole.ocp.objectives import make_objective
-
     bounds = bounds_from_model(model) if bounds is None else bounds
     obj = make_objective(model, objective)
     if obj.kind == "time":

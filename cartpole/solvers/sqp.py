@@ -14,6 +14,7 @@ other, with the measurements: the benchmarks page ("The collocation SQP's QP sol
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import casadi as ca
 import daqp
@@ -621,8 +622,6 @@ class CollocationSQP:
         SQPError
             The SQP did not converge (and ``fallback`` is False, or IPOPT did not converge either).
         """
-        from dataclasses import replace
-
         ocp = self.ocp
         x0 = ocp.model.x_hanging if x0 is None else x0
         traj, info = self.solve_once(x0, x_goal, guess=guess, T=T)

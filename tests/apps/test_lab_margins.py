@@ -14,7 +14,7 @@ def test_a_design_without_a_linear_loop_is_refused_in_one_sentence_naming_why(de
         refuse_nonlinear(design)
     text = str(err.value)
     assert isinstance(err.value, CartPoleError) and text.endswith(".") and text.count(". ") == 0
-    assert "linear loop" in text and "cartpole lqr --margins" in text
+    assert "linear loop" in text and "`lab_margins`" in text and "`pid=True`" in text and "--" not in text
 
 
 def test_the_rig_decides_which_loops_are_read():

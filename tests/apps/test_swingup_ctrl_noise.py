@@ -198,7 +198,7 @@ def test_a_limit_no_design_reaches_is_an_error_when_asked_and_the_quietest_desig
     params, model = two_pole
     loop = LoopOptions(**RIG)
     gain, R = _catch_gain(params, model, loop), default_weights(model)[1]
-    with pytest.raises(AnalysisError, match="--ctrl-noise"):
+    with pytest.raises(AnalysisError, match="`ctrl_noise`"):
         noise_limited_catch(model, loop, 1e-6, gain, R)
     best = noise_limited_catch(model, loop, 1e-6, gain, R, required=False)
     assert not best["met"] and np.max(best["predicted_fraction"]) < np.max(

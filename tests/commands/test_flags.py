@@ -19,6 +19,10 @@ def test_every_mapped_option_is_an_option_of_the_command_line():
     ("pick `estimator='none'` or `period` 0.01.", "pick --estimator none or --period 0.01."),
     ("use `--method trajopt` or `unknown_name`.", "use `--method trajopt` or `unknown_name`."),  # left as raised
     ("the control period 0.01 s", "the control period 0.01 s"),  # prose is never touched
+    ("give `MPCOptions(solver='ddp')` with `seed_plan=False`.", "give --mpc-solver ddp with --no-seed-plan."),
+    ("at most `horizon=2.4` or a longer `period`.", "at most --horizon 2.4 or a longer --period."),
+    ("the LQR (`lab_margins`, with `estimator='kf'`) or the PID (`pid=True`).",
+     "the LQR (--margins, with --estimator kf) or the PID (--compare-pid)."),
 ])
 def test_backquoted_arguments_become_options_and_nothing_else_changes(text, expected):
     assert as_flags(text) == expected

@@ -113,10 +113,10 @@ def test_anything_but_one_pole_driven_by_the_cart_is_refused_with_one_sentence(n
     with pytest.raises(EnergyShapingModelError) as err:
         EnergyShapingController(model)
     msg = str(err.value)
-    assert msg == (f"Energy shaping is for one pole driven by the cart and {what}; use `--method trajopt` "
+    assert msg == (f"Energy shaping is for one pole driven by the cart and {what}; use `method='trajopt'` "
                    "instead.")
     assert isinstance(err.value, cp.CartPoleError) and msg.count(". ") == 0 and "\n" not in msg
-    with pytest.raises(EnergyShapingModelError, match="use `--method trajopt` instead"):
+    with pytest.raises(EnergyShapingModelError, match="use `method='trajopt'` instead"):
         model_scales(model)
 
 
@@ -128,7 +128,7 @@ def test_a_motor_on_the_hinge_of_a_cart_is_refused(tmp_path):
     path = tmp_path / "hinge_motor.xml"
     path.write_text(xml)
     with pytest.raises(EnergyShapingModelError, match=r"its actuator drives joint 'hinge', not the cart's slide; "
-                                                      r"use `--method trajopt` instead\.$"):
+                                                      r"use `method='trajopt'` instead\.$"):
         EnergyShapingController(cp.build_model(path))
 
 

@@ -12,6 +12,8 @@ where they apply (:func:`~cartpole.apps.bench.trajopt.hand_typed_cartpole`), els
 """
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from cartpole.apps.bench.trajopt import NaiveOptiBaseline, default_planner_row, hand_typed_cartpole, median_ms
@@ -119,8 +121,6 @@ def plan_effort(traj) -> float:
 
 def print_objective_table(rows: list[dict], file=None) -> None:
     """Prose table of :func:`objective_benchmark` rows."""
-    import sys
-
     w = (sys.stdout if file is None else file).write
     w(f"\n{'objective (standard problem)':28s} {'ours':>8s} {'ms':>8s} {'naive Opti ms':>14s} {'speed-up':>9s} "
       f"{'cost rel. diff':>15s}\n")

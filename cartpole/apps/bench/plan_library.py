@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import build_model, read_params
+from cartpole.models import SHIPPED_MJCF, build_model, read_params
 from cartpole.planning.library import build_plan_library, library_starts
 from cartpole.planning.trajopt import trajopt_swingup
 
@@ -68,8 +68,6 @@ def plan_library_benchmark(models=None, *, angles: int = 3, probes: int = 3, see
         ``fraction_median`` (median of ``warm / cold`` over the probes both planned), ``warm_hits`` (warm starts
         that converged).
     """
-    from cartpole.models import SHIPPED_MJCF
-
     if models is None:
         models = [(label, str(SHIPPED_MJCF.parent / name)) for label, name in LIBRARY_MODELS]
     rows = []

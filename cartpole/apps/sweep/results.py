@@ -496,7 +496,7 @@ def read_done(path: Path, head: list[str], sid: str, n: int = MAX_READ) -> dict:
             i = None
         if i is None or not 0 <= i < n:
             raise SweepError(f"Cannot resume from {short(path)}: it holds a row for run {short(line['run'], 20)!r}, "
-                             f"and this sweep has runs 0 to {n - 1}; move the file away or drop --resume.")
+                             f"and this sweep has runs 0 to {n - 1}; move the file away or drop `resume`.")
         row = parse_row(line)
         if row is not None:  # a row with a field a finished run never writes: not finished, run again
             done[i] = row

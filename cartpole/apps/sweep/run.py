@@ -21,6 +21,7 @@ from cartpole.ocp.objectives import make_objective
 from cartpole.progress import stage
 from cartpole.apps.swingup import METHOD_CLASSES, SwingupOptions, check_plan_size, start_state
 from cartpole.validation.basin import BasinCache
+from cartpole.viz.sweep_plot import plot_success_map, preload
 from cartpole.apps.forkserver import start_server
 from cartpole.apps.sweep.executors import Runner, check_address, run_dask, run_here, run_pool
 from cartpole.apps.sweep.plan import (MAX_SHARED_BASINS, SweepError, SweepRuns, check_axes, check_settings,
@@ -372,8 +373,6 @@ class _Record:
 def _recorded_sweep(params, method: str, options: SwingupOptions, runs: SweepRuns, record: _Record, *, workers,
                     address) -> RecordedSweep:
     """:func:`recorded_sweep` inside its lock."""
-    from cartpole.viz.sweep_plot import plot_success_map
-
     results = record.results
     objective = sweep_objective(method, options)
     sid = sweep_id(params, method=method, runs=runs, loop=options.loop, objective=objective,
@@ -430,8 +429,6 @@ def _preload_figure():
     on the GIL for a moment less than the plot's imports would cost after the last run. Only for sweeps with workers
     elsewhere: with one worker nothing runs beside it. A failure there is left to the real import, which raises it
     where the figure is drawn."""
-    from cartpole.viz.sweep_plot import preload
-
     def run():
         try:
             preload()
