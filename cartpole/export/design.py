@@ -13,9 +13,20 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from cartpole.control.energy import EnergyShapingController
+from cartpole.control.linear import LinearFeedback
+from cartpole.control.pid import CascadedPID, tune_pid
+from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
 from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
 from cartpole.export.estimators import ExportError, ekf_part, kalman_part, state_part
+from cartpole.export.mhe import mhe_part
+from cartpole.export.nmpc import nmpc_design, nmpc_part
 from cartpole.export.program import CProgram
+from cartpole.mpc.options import DEFAULT_PERIOD
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.sim.options import LoopOptions
+from cartpole.sim.rig import build_rig
+from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 #: The controllers ``cartpole export --controller`` names, and the task each runs (its success test).
 CONTROLLERS = {"lqr": "balance", "pid": "balance", "tvlqr": "swingup", "energy": "swingup", "nmpc": "swingup"}
@@ -135,11 +146,7 @@ def _export_rig(model, method: str, loop):
     """The rig of ``method``'s export on ``loop`` (:func:`cartpole.sim.rig.build_rig`; None: MuJoCo's exact state
     every physics step), the NMPC's at its own period unless the loop gives one; or one sentence when the export
     does not reproduce its estimator."""
-    from cartpole.sim.rig import build_rig
-
     if method == "nmpc":  # the NMPC runs at its own period (0.02 s) unless the loop gives one
-        from cartpole.mpc.options import DEFAULT_PERIOD
-        from cartpole.sim.options import LoopOptions
 
         loop = LoopOptions() if loop is None else loop
         loop = loop.replace(period=DEFAULT_PERIOD if loop.period is None else loop.period)
@@ -166,16 +173,12 @@ class _ControllerDesign:
 
 def _lqr_design(model, steps: int, period: float, **_) -> _ControllerDesign:
     """The upright LQR at the period (:meth:`~cartpole.control.linear.LinearFeedback.for_model`)."""
-    from cartpole.control.linear import LinearFeedback
-
     fb = LinearFeedback.for_model(model, period=period)
     return _ControllerDesign(make=lambda: fb, part=linear_part(fb), title=f"LQR balance at a {period:g} s period")
 
 
 def _pid_design(model, steps: int, period: float, **_) -> _ControllerDesign:
     """The cascaded PID tuned for the period (:func:`~cartpole.control.pid.tune_pid`)."""
-    from cartpole.control.pid import CascadedPID, tune_pid
-
     gains = tune_pid(model, period=period)
 
     def make():
@@ -185,8 +188,6 @@ def _pid_design(model, steps: int, period: float, **_) -> _ControllerDesign:
 
 def _tvlqr_design(model, steps: int, period: float, *, x0=None, plan=None, **_) -> _ControllerDesign:
     """The trajopt swing-up from ``x0`` (default hanging) planned with ``plan`` (PlanOptions), tracked by TVLQR."""
-    from cartpole.planning.trajopt import trajopt_swingup
-
     start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
     kw = {} if plan is None else {"options": plan}
     sp = trajopt_swingup(model.params, x0=tuple(float(v) for v in start), plan_model=model,
@@ -204,10 +205,6 @@ def _tvlqr_design(model, steps: int, period: float, *, x0=None, plan=None, **_) 
 
 def _energy_design(model, steps: int, period: float, *, rho=None, **_) -> _ControllerDesign:
     """Energy shaping with the LQR catch below the verified basin's level ``rho`` (required)."""
-    from cartpole.control.energy import EnergyShapingController
-    from cartpole.control.linear import LinearFeedback
-    from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
-
     if rho is None or not rho > 0:
         raise ExportError("The energy export needs the catch level rho of the LQR catch's verified basin; "
                           "give rho (cartpole export computes it).")
@@ -222,8 +219,6 @@ def _energy_design(model, steps: int, period: float, *, rho=None, **_) -> _Contr
 
 def _nmpc_design(model, steps: int, period: float, *, x0=None, **_) -> _ControllerDesign:
     """The NMPC by real-time iteration from ``x0`` (default hanging), its QP solved in C."""
-    from cartpole.export.nmpc import nmpc_design, nmpc_part
-
     start = model.x_hanging if x0 is None else np.asarray(x0, dtype=float).ravel()
     mpc, plan_traj = nmpc_design(model, start, period)
 
@@ -251,7 +246,6 @@ def estimator_part(rig, model):
         return kalman_part(rig.make_estimator(), model, spec)
     if name == "ekf":
         return ekf_part(rig.make_estimator(), model, spec)
-    from cartpole.export.mhe import mhe_part
 
     return mhe_part(rig.make_estimator(), model, spec)
 
@@ -277,8 +271,6 @@ def build_program(model, rig, ctrl_part, *, real: str = "double", title: str = "
     -------
     CProgram
     """
-    from cartpole.sim.rollout import ctrl_bounds, make_mujoco
-
     estimator = "none" if rig is None else rig.estimator
     steps = 1 if rig is None else int(rig.steps)
     lag = 0 if rig is None else int(rig.delay_steps)
