@@ -10,10 +10,10 @@
  * active.
  *
  * qp_solve(H, h, A, lba, uba, lbx, ubx, z) returns 0 (optimal), 1 (H not positive definite), 2 (infeasible) or 3
- * (more than QP_ITER_LIMIT active-set changes). Expected before it (cartpole/export/qp.py writes them): cp_real,
+ * (more than QP_ITER_LIMIT active-set changes). Expected before it (qp_dual.c.jinja writes them, rendered by cartpole.codegen.qp_source): cp_real,
  * CP_REAL_IS_FLOAT, the sizes QP_NZ and QP_NR, QP_ROWLEN(r) (row r of A is zero from that column on except its
  * last), QP_ITER_LIMIT, and the state struct S with the qp_* work arrays. A second solver in the same program
- * renames qp_/QP_ (cartpole.export.qp.qp_code's prefix). Maths from <math.h>: sqrt, fabs.
+ * renames qp_/QP_ (cartpole.codegen.qp_source's prefix). Maths from <math.h>: sqrt, fabs.
  */
 #define QP_NC (2 * QP_NZ + 2 * QP_NR)
 #define QP_BIG 1e20

@@ -44,6 +44,7 @@ from cartpole.export.estimators import ExportError
 from cartpole.export.make import c_sources
 from cartpole.export.nmpc import nmpc_part
 from cartpole.mpc.nmpc import NMPCController
+from cartpole.mpc.nmpc_c import NMPC_STATE_ARGTYPES, SolveRecord, read_state
 
 #: Which :class:`InLoopController` last reset each library (path -> id): its static state is that run's.
 _OWNER: dict = {}
@@ -125,6 +126,21 @@ class InLoopController(CController):
         t = ctypes.c_double()
         return float(t.value) if fn(ctypes.byref(t)) else None
 
+    def nmpc_state(self) -> SolveRecord:
+        """The NMPC part's ``cp_nmpc_state``: its last solve (count since the reset, time, wall time timed in the C,
+        status, safe action).
+
+        Raises
+        ------
+        ExportError
+            The program's controller is not the NMPC.
+        """
+        return read_state(self._accessor("cp_nmpc_state", NMPC_STATE_ARGTYPES))
+
+    def has(self, name: str) -> bool:
+        """Whether the program defines the C function ``name`` (a part's state accessor, ``cp_nmpc_state``...)."""
+        return hasattr(self._lib, name)
+
     def _accessor(self, name: str, argtypes):
         fn = getattr(self._accessors, name, None)
         if fn is None:
@@ -132,7 +148,8 @@ class InLoopController(CController):
                 fn = getattr(self._lib, name)
             except AttributeError:
                 raise ExportError(f"This compiled program has no {name}(): its controller does not keep that state "
-                                  "(cp_switch_state is the energy law's, cp_handover_state the TVLQR's).") from None
+                                  "(cp_switch_state is the energy law's, cp_handover_state the TVLQR's, "
+                                  "cp_nmpc_state the NMPC's).") from None
             fn.argtypes, fn.restype = argtypes, ctypes.c_int
             setattr(self._accessors, name, fn)
         return fn
@@ -311,6 +328,12 @@ class CompiledLaw:
         self._rig = bool(rig)
         self._last_t = -np.inf
 
+    def reset(self) -> None:
+        """Start a new run now (as a call at ``t = 0`` does): ``cp_reset`` and the state read from it forgotten."""
+        self.program.reset()
+        self._restart()
+        self._last_t = -np.inf
+
     def __call__(self, t: float, x) -> np.ndarray:
         """ctrl (nu,) at time ``t`` (s): ``cp_step``'s on ``x`` (nx,), or ``x`` itself (the ctrl) with a rig."""
         t = float(t)
@@ -377,8 +400,68 @@ class CompiledTracker(CompiledLaw):
         return self.program.handover_state()
 
 
-def _law(part, ctl: InLoopController, rig: bool) -> CompiledLaw:
-    """The :class:`CompiledLaw` of the controller part ``part`` that keeps the state its Python class exposes."""
+class CompiledNMPCLaw(CompiledLaw):
+    """:class:`CompiledLaw` of the NMPC (``nmpc.c.jinja``), exposing what :class:`~cartpole.mpc.nmpc.NMPCController`
+    records, read from the C after every ``cp_step`` (``cp_nmpc_state``): one entry per solve (a held ctrl is not
+    one), its time measured inside the C around the step (``cp_clock.c``).
+
+    Parameters
+    ----------
+    program : InLoopController
+    rig : bool
+    nmpc : NMPCController, optional
+        The controller the program was made from (its ``period``, ``horizon``, ``N`` and ``objective``; None
+        when only the program is at hand: those read None).
+
+    Attributes
+    ----------
+    solve_ms : list of float
+        ms of each solve, timed inside the C (``cp_clock_seconds``; without the ``ctypes`` call around it).
+    failures : list of dict
+        ``{"t", "reason", "action"}`` of each solve that took the safe action, as the Python class's.
+    period, horizon : float or None
+        s.
+    """
+
+    #: Where each solve runs (as :attr:`NMPCController.step_implementation`).
+    step_implementation = "c"
+    #: The QP solver (as :attr:`NMPCController.qp_solver`): the C dual active set of ``qp_dual.c``.
+    qp_solver = "c"
+
+    def __init__(self, program: InLoopController, rig: bool = False, nmpc=None):
+        super().__init__(program, rig)
+        self.period = None if nmpc is None else float(nmpc.period)
+        self.horizon = None if nmpc is None else float(nmpc.horizon)
+        self.N = None if nmpc is None else int(nmpc.N)
+        self.objective = "tracking" if nmpc is None else getattr(nmpc, "objective", "tracking")
+        self._restart()
+
+    def _restart(self) -> None:
+        self.solve_ms: list[float] = []
+        self.failures: list[dict] = []
+        self._solves = 0
+
+    def _observe(self, t: float) -> None:
+        solve = self.program.nmpc_state()
+        if solve.solves == self._solves:
+            return
+        self._solves = solve.solves
+        self.solve_ms.append(1e3 * solve.seconds)
+        failure = solve.failure()
+        if failure is not None:
+            self.failures.append(failure)
+
+    @property
+    def step_c_ms(self) -> list:
+        """ms of each solve timed inside the C: :attr:`solve_ms` (the loop pays the ``ctypes`` call on top)."""
+        return self.solve_ms
+
+
+def _law(part, ctl: InLoopController, rig: bool, controller=None) -> CompiledLaw:
+    """The :class:`CompiledLaw` of the controller part ``part`` (made from the Python ``controller``, when given)
+    that keeps the state its Python class exposes."""
+    if isinstance(controller, NMPCController) or ctl.has("cp_nmpc_state"):
+        return CompiledNMPCLaw(ctl, rig, controller if isinstance(controller, NMPCController) else None)
     if "cp_energy.c" in part.sources:
         return CompiledSwitching(ctl, rig)
     if "cp_tvlqr.c" in part.sources:
@@ -426,8 +509,8 @@ def in_loop(model, controller, rig=None):
     prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
     ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
     if rig is None:
-        return _law(part, ctl, False), None
-    return _law(part, ctl, True), CompiledRig(rig, ctl)
+        return _law(part, ctl, False, controller), None
+    return _law(part, ctl, True, controller), CompiledRig(rig, ctl)
 
 
 def load_program(files: dict, prog, real: str = "double") -> InLoopController:

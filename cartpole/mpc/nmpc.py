@@ -67,9 +67,9 @@ from cartpole.control.linear import LinearFeedback
 from cartpole.riccati import dlqr, default_weights
 from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
 from cartpole.ocp.bounds import bounds_from_params
-from cartpole.codegen import Buffered
+from cartpole.codegen import QP_ITER_LIMIT, Buffered
 from cartpole.mpc.stage_functions import StageFunctions, stage_functions
-from cartpole.mpc.nmpc_c import ACTIONS, QP_ITER_LIMIT, compiled_nmpc  # noqa: F401 - QP_ITER_LIMIT: public here
+from cartpole.mpc.nmpc_c import compiled_nmpc
 from cartpole.mpc.ipopt_nlp import IpoptNLP
 from cartpole.mpc.ipopt_nlp import StepFailed as _StepFailed
 # QP_SOLVERS and RAIL_PENALTY are re-exported: they were defined here before the options module
@@ -600,13 +600,13 @@ class NMPCController:
         """One control instant by the compiled step (:mod:`cartpole.mpc.nmpc_c`): the same shift, Gauss-Newton
         step and safe action as the Python path, in the C the export ships."""
         t0 = time.perf_counter()
-        code, u, action = self._c.step(t, x)
+        _code, u, _action = self._c.step(t, x)
         self.solve_ms.append(1e3 * (time.perf_counter() - t0))
-        self.step_c_ms.append(1e3 * self._c.last_seconds())
-        if code != 0:
-            reason = ("the measured state is not finite" if not np.all(np.isfinite(x)) else
-                      "the QP solver (C dual active set) failed or the step was not finite")
-            self.failures.append({"t": float(t), "reason": reason, "action": ACTIONS.get(action, "upright LQR")})
+        solve = self._c.last_solve()
+        self.step_c_ms.append(1e3 * solve.seconds)
+        failure = solve.failure()
+        if failure is not None:
+            self.failures.append(failure)
         self._k_last = k
         self._u_hold = u
         return u.copy()
