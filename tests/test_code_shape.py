@@ -82,12 +82,9 @@ IMPORTS_TO_FIX = {
     "cartpole/control/pid.py": 2,
     "cartpole/estimation/mhe_functions.py": 1,
     "cartpole/export/design.py": 12,
-    "cartpole/export/inloop.py": 3,
     "cartpole/export/make.py": 1,
     "cartpole/export/mhe.py": 1,
-    "cartpole/export/nmpc.py": 4,
-    "cartpole/mpc/ddp_mpc.py": 3,
-    "cartpole/mpc/nmpc.py": 3,
+    "cartpole/mpc/nmpc.py": 1,
     "cartpole/ocp/dmc.py": 3,
     "cartpole/planning/ddp_plan.py": 2,
     "cartpole/planning/energy_ceiling.py": 3,
@@ -114,7 +111,6 @@ LONG_TO_FIX = {
 
 #: file -> qualified names of the functions with more than MAX_PARAMS parameters.
 PARAMS_TO_FIX = {
-    "cartpole/apps/bench/mpc.py": ["run_mpc_benchmark"],
     "cartpole/apps/bench/objectives.py": ["against_naive"],
     "cartpole/apps/bench/trajopt.py": ["NaiveOptiBaseline.__init__"],
     "cartpole/apps/excite.py": ["run_excite"],

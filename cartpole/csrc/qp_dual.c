@@ -125,6 +125,9 @@ static void qp_add(int q)
     int k;
     cp_real c, s, r;
     for (k = QP_NZ - 1; k > q; --k) {
+        if (S.qp_d[k] == 0) { /* nothing to rotate away (the identity rotation, skipped) */
+            continue;
+        }
         qp_givens(S.qp_d[k - 1], S.qp_d[k], &c, &s, &r);
         S.qp_d[k - 1] = r;
         S.qp_d[k] = 0;
@@ -167,12 +170,25 @@ static void qp_drop(int q, int l)
     }
 }
 
-/* H is overwritten by its Cholesky factor */
+/* a failed solve (code): the next starts cold; it iterations taken */
+static int qp_cold(int it, int code)
+{
+    int i;
+    for (i = 0; i < QP_NC; ++i) {
+        S.qp_prev[i] = 0;
+    }
+    S.qp_iters = it;
+    return code;
+}
+
+/* H is overwritten by its Cholesky factor. Warm-started: the constraints active at the last solve's optimum are
+ * added first while violated (S.qp_prev, cleared by a zeroed state or a failure); S.qp_iters the active-set changes
+ * taken. */
 static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_real* lba, const cp_real* uba,
                     const cp_real* lbx, const cp_real* ubx, cp_real* z)
 {
-    int i, j, k, q = 0, p, l, it = 0;
-    cp_real acc, t1, t2, t, smin, sp, zn, unew, zmax, dmax;
+    int i, j, k, q = 0, p, pw, l, it = 0;
+    cp_real acc, t1, t2, t, smin, sw, sp, zn, unew, zmax, dmax;
     /* H = L L' (lower, in place) */
     for (j = 0; j < QP_NZ; ++j) {
         acc = H[j * QP_NZ + j];
@@ -180,7 +196,7 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
             acc -= H[j * QP_NZ + k] * H[j * QP_NZ + k];
         }
         if (!(acc > 0)) {
-            return 1;
+            return qp_cold(0, 1);
         }
         H[j * QP_NZ + j] = sqrt(acc);
         for (i = j + 1; i < QP_NZ; ++i) {
@@ -230,8 +246,13 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
         }
     }
     for (;;) {
+        /* the constraint to add: the most violated of those active at the last solve's optimum (the warm start),
+         * else the most violated of all; any violated constraint keeps the method's finite termination and its
+         * unique optimum, the previous active set saves the additions that would be dropped again */
         p = -1;
         smin = 0;
+        pw = -1;
+        sw = 0;
         for (i = 0; i < QP_NC; ++i) {
             cp_real si;
             if (S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {
@@ -242,14 +263,26 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
                 smin = si;
                 p = i;
             }
+            if (S.qp_prev[i] && si < -QP_TOL && (pw < 0 || si < sw)) {
+                sw = si;
+                pw = i;
+            }
+        }
+        if (pw >= 0) {
+            p = pw;
+            smin = sw;
         }
         if (p < 0 || !(smin < -QP_TOL)) {
+            for (i = 0; i < QP_NC; ++i) { /* the warm start of the next solve */
+                S.qp_prev[i] = S.qp_isact[i];
+            }
+            S.qp_iters = it;
             return 0;
         }
         unew = 0;
         for (;;) {
             if (++it > QP_ITER_LIMIT) {
-                return 3;
+                return qp_cold(it, 3);
             }
             qp_jtn(p, A, S.qp_d);
             zmax = 0;
@@ -292,7 +325,7 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
                 t2 = -1;
                 t = t1;
             } else {
-                return 2;
+                return qp_cold(it, 2);
             }
             if (t2 >= 0) {
                 for (i = 0; i < QP_NZ; ++i) {

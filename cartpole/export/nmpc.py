@@ -11,7 +11,11 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.export.program import CPart
+from cartpole.mpc.nmpc import NMPCController
 from cartpole.mpc.nmpc_c import nmpc_source
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
+from cartpole.planning.trajopt import trajopt_swingup
 
 
 #: Files of ``cartpole/csrc`` the NMPC part carries beside its rendered C: the clock that times each solve.
@@ -53,10 +57,6 @@ def nmpc_design(model, x0, period: float):
     -------
     (NMPCController, Trajectory)
     """
-    from cartpole.mpc.nmpc import NMPCController
-    from cartpole.mpc.options import MPCOptions
-    from cartpole.planning.options import PlanOptions
-    from cartpole.planning.trajopt import trajopt_swingup
 
     options = MPCOptions(period=float(period))
     x0 = np.asarray(x0, dtype=float).ravel()

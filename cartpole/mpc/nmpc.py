@@ -67,6 +67,8 @@ from cartpole.control.linear import LinearFeedback
 from cartpole.riccati import dlqr, default_weights
 from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
 from cartpole.ocp.bounds import bounds_from_params
+from cartpole.planning.options import PlanOptions
+from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.codegen import QP_ITER_LIMIT, Buffered
 from cartpole.mpc.stage_functions import StageFunctions, stage_functions
 from cartpole.mpc.nmpc_c import compiled_nmpc
@@ -670,9 +672,6 @@ def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | No
     -------
     NMPCController
     """
-    # planning sits below mpc: no cycle, imported lazily for start-up time
-    from cartpole.planning.options import PlanOptions
-    from cartpole.planning.trajopt import trajopt_swingup
 
     params = plant_params(plant)
     options = MPCOptions() if options is None else options

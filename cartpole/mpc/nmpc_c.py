@@ -29,9 +29,10 @@ STATUS_REASONS = {1: "the QP solver (C dual active set) found the Hessian not po
                   5: "the measured state is not finite"}
 
 
-#: ``cp_nmpc_state(long* solves, double* t, double* seconds, int* status)``'s argument types (it returns the action).
+#: ``cp_nmpc_state(long* solves, double* t, double* seconds, int* status, int* qp_iterations)``'s argument types (it
+#: returns the action).
 NMPC_STATE_ARGTYPES = [ctypes.POINTER(ctypes.c_long), ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
-                       ctypes.POINTER(ctypes.c_int)]
+                       ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int)]
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,9 @@ class SolveRecord:
         0 solved, else a key of :data:`STATUS_REASONS`.
     action : int
         0 solved, else the safe action taken (a key of :data:`ACTIONS`).
+    qp_iterations : int
+        Active-set changes the QP took (summed over the solve's Gauss-Newton iterations; warm-started from the last
+        solve's active set, ``qp_dual.c``).
     """
 
     solves: int
@@ -57,6 +61,7 @@ class SolveRecord:
     seconds: float
     status: int
     action: int
+    qp_iterations: int = 0
 
     def failure(self) -> dict | None:
         """``{"t", "reason", "action"}`` (as :attr:`cartpole.mpc.nmpc.NMPCController.failures`) when the solve
@@ -95,9 +100,12 @@ def read_state(fn) -> SolveRecord:
     -------
     SolveRecord
     """
-    solves, t, seconds, status = ctypes.c_long(), ctypes.c_double(), ctypes.c_double(), ctypes.c_int()
-    action = fn(ctypes.byref(solves), ctypes.byref(t), ctypes.byref(seconds), ctypes.byref(status))
-    return SolveRecord(int(solves.value), float(t.value), float(seconds.value), int(status.value), int(action))
+    solves, t, seconds, status, iters = (ctypes.c_long(), ctypes.c_double(), ctypes.c_double(), ctypes.c_int(),
+                                         ctypes.c_int())
+    action = fn(ctypes.byref(solves), ctypes.byref(t), ctypes.byref(seconds), ctypes.byref(status),
+                 ctypes.byref(iters))
+    return SolveRecord(int(solves.value), float(t.value), float(seconds.value), int(status.value), int(action),
+                       int(iters.value))
 
 
 def row_len(N: int, nu: int, nb: int, pre: bool) -> list:
@@ -189,7 +197,7 @@ def nmpc_source(ctl, plan, *, runtime_data: bool = False) -> NMPCSource:
     fields = (f"cp_real mp_S[{(N + 1) * nx}];", f"cp_real mp_U[{nzu}];", f"cp_real mp_Sa[{(N + 1) * nx}];",
               f"cp_real mp_Sn[{(N + 1) * nx}];", f"cp_real mp_Un[{nzu}];", f"cp_real mp_St[{(N + 1) * nx}];",
               f"cp_real mp_Ut[{nzu}];", "long mp_k_plan;", "long mp_k_last;", "int mp_has_last;", "int mp_age;",
-              "int mp_action;", "int mp_status;", "long mp_solves;", "double mp_t;", "double mp_seconds;",
+              "int mp_action;", "int mp_status;", "int mp_qp_iters;", "long mp_solves;", "double mp_t;", "double mp_seconds;",
               f"cp_real mp_hold[{nu}];", f"cp_real mp_H[{nz * nz}];", f"cp_real mp_h[{nz}];",
               f"cp_real mp_A[{max(1, nr) * nz}];", f"cp_real mp_lba[{max(1, nr)}];", f"cp_real mp_uba[{max(1, nr)}];",
               f"cp_real mp_lbx[{nz}];", f"cp_real mp_ubx[{nz}];", f"cp_real mp_z[{nz}];",
