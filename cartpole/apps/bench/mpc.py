@@ -78,10 +78,12 @@ class MPCBenchOptions:
         return replace(self, **changes)
 
 
-def _runs(controller, params, x0, duration: float, repeats: int, calls: list | None = None) -> tuple[list, list]:
+def _runs(controller, params, x0, duration: float, repeats: int, calls: list | None = None,
+          iterations: list | None = None, per_run: list | None = None) -> tuple[list, list]:
     """Solve times (ms, pooled) and successes of ``repeats`` runs; with ``calls`` also, for each instant that
     solved, the pair (wall time of the whole ``controller(t, x)`` call, the C step's own time or NaN), ms, appended
-    to it."""
+    to it; with ``iterations`` the QP's active-set changes of each solve, where the controller records them; with
+    ``per_run`` each run's solve times (a list per run)."""
     times, ok = [], []
     for _ in range(repeats):
         controller.reset()
@@ -98,6 +100,10 @@ def _runs(controller, params, x0, duration: float, repeats: int, calls: list | N
                 return u
             ro = simulate(params, timed, x0, duration)
         times.extend(controller.solve_ms)
+        if per_run is not None:
+            per_run.append(list(controller.solve_ms))
+        if iterations is not None:
+            iterations.extend(getattr(controller, "qp_iterations", ()))
         if calls is not None:
             c_ms = list(getattr(controller, "step_c_ms", None) or [])
             c_ms += [float("nan")] * (len(run_calls) - len(c_ms))
@@ -109,6 +115,17 @@ def _runs(controller, params, x0, duration: float, repeats: int, calls: list | N
 def _stats(times) -> dict:
     return {"solve_ms_median": float(np.median(times)), "solve_ms_max": float(np.max(times)),
             "solve_ms_p99": float(np.percentile(times, 99)), "steps": len(times)}
+
+
+def _best_of(per_run: list) -> dict:
+    """``solve_ms_best_median``, ``solve_ms_best_p99``: over the control steps, each step's fastest time among the
+    repeated runs (the runs are the same: the same states, the same QPs), which leaves out a shared machine's
+    preemptions; None with one run or runs of different lengths."""
+    n = {len(r) for r in per_run}
+    if len(per_run) < 2 or len(n) != 1:
+        return {"solve_ms_best_median": None, "solve_ms_best_p99": None}
+    best = np.min(np.array(per_run, dtype=float), axis=0)
+    return {"solve_ms_best_median": float(np.median(best)), "solve_ms_best_p99": float(np.percentile(best, 99))}
 
 
 def _overhead(rti, calls: list) -> dict | None:
@@ -127,9 +144,12 @@ def _rti_vs_ipopt(model, plan, options: MPCOptions, duration: float, bench: MPCB
     params, x0 = model.params, model.x_hanging
     rti = NMPCController(model, params, options=options, guess=plan.trajectory, x0=x0)
     loop = rti if options.qp_solver is not None else in_loop(model, rti)[0]
-    calls: list = []
-    t_rti, ok_rti = _runs(loop, params, x0, duration, max(1, int(bench.repeats)), calls)
-    doc = {**_stats(t_rti), "success": all(ok_rti), "failures": len(loop.failures), "N": rti.N,
+    calls, iters, per_run = [], [], []
+    t_rti, ok_rti = _runs(loop, params, x0, duration, max(1, int(bench.repeats)), calls, iters, per_run)
+    doc = {**_stats(t_rti), **_best_of(per_run), "success": all(ok_rti), "failures": len(loop.failures), "N": rti.N,
+           "qp_iterations_median": float(np.median(iters)) if iters else None,
+           "qp_iterations_p99": float(np.percentile(iters, 99)) if iters else None,
+           "qp_iterations_max": int(max(iters)) if iters else None,
            "period": rti.period, "horizon": rti.horizon, "qp_solver": loop.qp_solver,
            "implementation": getattr(loop, "step_implementation", "python"),
            "in_loop_program": loop is not rti, "overhead": _overhead(loop, calls), "baseline": None,
@@ -159,17 +179,22 @@ def run_mpc_benchmark(plant=None, options: MPCBenchOptions | None = None) -> dic
     -------
     dict
         ``solve_ms_median``, ``solve_ms_p99``, ``solve_ms_max`` (ms per control step, pooled; the compiled step's
-        time measured inside the C), ``steps`` (control steps timed), ``baseline`` {``solve_ms_median``,
+        time measured inside the C), ``solve_ms_best_median``, ``solve_ms_best_p99`` (the same over each step's
+        fastest time among the repeated runs, which are the same runs: the step's own tail without a shared
+        machine's preemptions; None with one run), ``steps`` (control steps timed), ``baseline`` {``solve_ms_median``,
         ``solve_ms_max``, ``solve_ms_p99``, ``steps``, ``success``, ``unconverged`` (instants IPOPT did not
         converge), ``solver``}, ``speedup_median`` (baseline median / NMPC median), ``period``, ``horizon`` (s),
-        ``N``, ``qp_solver`` (``"c"``: ``qp_dual.c``), ``compiled`` (bool), ``in_loop_program`` (the step timed is
+        ``N``, ``qp_solver`` (``"c"``: ``qp_dual.c``), ``qp_iterations_median``, ``qp_iterations_p99``,
+        ``qp_iterations_max`` (the compiled QP's active-set changes per step, warm-started; None on the Python
+        step), ``compiled`` (bool), ``in_loop_program`` (the step timed is
         the exported program's ``cp_step`` as the MuJoCo loop calls it), ``implementation`` (``"c"`` or
         ``"python"``), ``success`` (every NMPC run swung up and held, :func:`swingup_success`), ``failures`` (NMPC
         instants that took the safe action), ``repeats``, ``duration``, ``overhead`` (with the C step:
         ``call_us_median`` the whole ``controller(t, x)`` call from Python, ``c_us_median`` the step timed inside
         the C, ``python_us_median`` their difference: Python's overhead per step), ``two_pole`` (the same keys on
         the two-pole cart, 6 s runs), ``targets`` (:data:`TARGETS`) and ``met`` (each target held, or None when
-        not measured), ``load_average`` (the 1-minute load average before and after the runs), ``limits``;
+        not measured; ``p99_best_ms`` the target on ``solve_ms_best_p99``), ``load_average`` (the 1-minute load
+        average before and after the runs), ``limits``;
         ``ddp`` {``one_pole``, ``two_pole``: the same swing-up under :class:`~cartpole.mpc.ddp_mpc.DDPMPCController`
         (one warm-started DDP iteration a period), each {``solve_ms_median``, ``solve_ms_max``, ``steps``,
         ``period``, ``success``, ``failures``}}.
@@ -203,6 +228,7 @@ def _met(one: dict, two: dict | None) -> dict:
     r1, r2 = ratio(one), ratio(two)
     return {"speedup_median": None if r1 is None else r1 >= TARGETS["speedup_median"],
             "p99_ms": one["solve_ms_p99"] < TARGETS["p99_ms"],
+            "p99_best_ms": None if one["solve_ms_best_p99"] is None else one["solve_ms_best_p99"] < TARGETS["p99_ms"],
             "two_pole_speedup_median": None if r2 is None else r2 >= TARGETS["two_pole_speedup_median"]}
 
 
@@ -264,13 +290,19 @@ def mpc_lines(doc: dict) -> list:
     base = doc.get("baseline") or {}
     where = ("the exported program's cp_step as the loop calls it, timed inside the C" if doc.get("in_loop_program")
              else f"the {doc.get('implementation')} step")
+    best = ("" if doc.get("solve_ms_best_p99") is None else
+            f"; each step's fastest of the repeated runs: median {doc['solve_ms_best_median']:.3f} ms, p99 "
+            f"{doc['solve_ms_best_p99']:.3f} ms")
     lines = [f"NMPC in the MuJoCo loop ({doc.get('N')} stages, horizon {doc.get('horizon')} s, period "
              f"{doc.get('period')} s; {where}): median {doc.get('solve_ms_median', nan):.3f} ms, p99 "
              f"{doc.get('solve_ms_p99', nan):.3f} ms, max {doc.get('solve_ms_max', nan):.3f} ms over "
              f"{doc.get('steps')} steps; IPOPT re-solving from the shifted guess: median "
              f"{base.get('solve_ms_median', nan):.2f} ms, p99 {base.get('solve_ms_p99', nan):.2f} ms; speed-up "
              f"{doc.get('speedup_median') or nan:.1f}x (targets: >= {TARGETS['speedup_median']:g}x, p99 < "
-             f"{TARGETS['p99_ms']:g} ms)"]
+             f"{TARGETS['p99_ms']:g} ms){best}"]
+    if doc.get("qp_iterations_max") is not None:
+        lines.append(f"  the QP (warm-started dual active set): {doc['qp_iterations_median']:g} active-set changes a "
+                     f"step at the median, p99 {doc['qp_iterations_p99']:.0f}, max {doc['qp_iterations_max']}")
     over = doc.get("overhead")
     if over:
         lines.append(f"  {over['c_us_median']:.1f} us inside the C, {over['call_us_median']:.1f} us the whole call "
