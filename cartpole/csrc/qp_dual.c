@@ -4,14 +4,17 @@
  *     min 1/2 z' H z + h' z    s.t.  lbx <= z <= ubx,   lba <= A z <= uba
  *
  * with H positive definite (the condensed Gauss-Newton Hessian of the NMPC, the MHE window's). From the
- * unconstrained minimum z = -H^-1 h it adds the most violated constraint, takes full or partial steps, and drops
+ * unconstrained minimum z = -H^-1 h it adds a violated constraint, takes full or partial steps, and drops
  * constraints whose multiplier would change sign, keeping J = L^-T Q and the triangular R of the active normals up
  * to date by Givens rotations (O(n^2) per change). A bound or a row whose limit is beyond +-QP_BIG is never
- * active.
+ * active. Warm start: the constraint added is the most violated of those active at the last solve's optimum
+ * (S.qp_prev), else the most violated of all; any violated choice keeps the method's finite termination and the
+ * unique optimum, and a sequence of similar QPs (the NMPC's periods) spares the additions a cold start drops again.
+ * A zeroed state (a reset) or a failed solve starts cold.
  *
  * qp_solve(H, h, A, lba, uba, lbx, ubx, z) returns 0 (optimal), 1 (H not positive definite), 2 (infeasible) or 3
- * (more than QP_ITER_LIMIT active-set changes). Expected before it (qp_dual.c.jinja writes them, rendered by cartpole.codegen.qp_source): cp_real,
- * CP_REAL_IS_FLOAT, the sizes QP_NZ and QP_NR, QP_ROWLEN(r) (row r of A is zero from that column on except its
+ * (more than QP_ITER_LIMIT active-set changes); S.qp_iters holds the active-set changes it took. Expected before it
+ * (qp_dual.c.jinja writes them, rendered by cartpole.codegen.qp_source): cp_real, CP_REAL_IS_FLOAT, the sizes QP_NZ and QP_NR, QP_ROWLEN(r) (row r of A is zero from that column on except its
  * last), QP_ITER_LIMIT, and the state struct S with the qp_* work arrays. A second solver in the same program
  * renames qp_/QP_ (cartpole.codegen.qp_source's prefix). Maths from <math.h>: sqrt, fabs.
  */
