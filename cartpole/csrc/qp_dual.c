@@ -14,9 +14,10 @@
  *
  * qp_solve(H, h, A, lba, uba, lbx, ubx, z) returns 0 (optimal), 1 (H not positive definite), 2 (infeasible) or 3
  * (more than QP_ITER_LIMIT active-set changes); S.qp_iters holds the active-set changes it took. Expected before it
- * (qp_dual.c.jinja writes them, rendered by cartpole.codegen.qp_source): cp_real, CP_REAL_IS_FLOAT, the sizes QP_NZ and QP_NR, QP_ROWLEN(r) (row r of A is zero from that column on except its
- * last), QP_ITER_LIMIT, and the state struct S with the qp_* work arrays. A second solver in the same program
- * renames qp_/QP_ (cartpole.codegen.qp_source's prefix). Maths from <math.h>: sqrt, fabs.
+ * (qp_dual.c.jinja writes them, rendered by cartpole.codegen.qp_source): cp_real, CP_REAL_IS_FLOAT, the sizes
+ * QP_NZ and QP_NR, QP_ROWLEN(r) (row r of A is zero from that column on except its last), QP_ITER_LIMIT, and the
+ * state struct S with the qp_* work arrays. A second solver in the same program renames qp_/QP_
+ * (cartpole.codegen.qp_source's prefix). Maths from <math.h>: sqrt, fabs.
  */
 #define QP_NC (2 * QP_NZ + 2 * QP_NR)
 #define QP_BIG 1e20
@@ -254,24 +255,31 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
          * unique optimum, the previous active set saves the additions that would be dropped again */
         p = -1;
         smin = 0;
-        pw = -1;
-        sw = 0;
-        for (i = 0; i < QP_NC; ++i) {
+        for (i = 0; i < QP_NC; ++i) { /* the last optimum's constraints: only they are scanned while one is violated */
             cp_real si;
-            if (S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {
+            if (!S.qp_prev[i] || S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {
                 continue;
             }
             si = qp_slack(i, z, A, lba, uba, lbx, ubx);
-            if (p < 0 || si < smin) {
+            if (si < -QP_TOL && (p < 0 || si < smin)) {
                 smin = si;
                 p = i;
             }
-            if (S.qp_prev[i] && si < -QP_TOL && (pw < 0 || si < sw)) {
-                sw = si;
-                pw = i;
-            }
         }
-        if (pw >= 0) {
+        if (p < 0) { /* none violated: the most violated of all */
+            pw = -1;
+            sw = 0;
+            for (i = 0; i < QP_NC; ++i) {
+                cp_real si;
+                if (S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {
+                    continue;
+                }
+                si = qp_slack(i, z, A, lba, uba, lbx, ubx);
+                if (pw < 0 || si < sw) {
+                    sw = si;
+                    pw = i;
+                }
+            }
             p = pw;
             smin = sw;
         }
