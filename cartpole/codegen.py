@@ -643,7 +643,8 @@ def qp_fields(nz: int, nr: int, prefix: str = "qp") -> tuple:
     return tuple(f.replace("qp_", prefix + "_") for f in (
         f"cp_real qp_J[{nz * nz}];", f"cp_real qp_R[{nz * nz}];", f"cp_real qp_d[{nz}];", f"cp_real qp_zd[{nz}];",
         f"cp_real qp_r[{nz}];", f"cp_real qp_u[{nz + 1}];", f"int qp_act[{nz + 1}];",
-        f"unsigned char qp_isact[{2 * nz + 2 * max(nr, 1)}];", "int qp_nz;", "int qp_nr;"))
+        f"unsigned char qp_isact[{2 * nz + 2 * max(nr, 1)}];", f"unsigned char qp_prev[{2 * nz + 2 * max(nr, 1)}];",
+        "int qp_iters;", "int qp_nz;", "int qp_nr;"))
 
 
 def qp_source(nz: int, nr: int, row_len=None, *, prefix: str = "qp", sized: bool = False) -> str:

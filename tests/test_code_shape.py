@@ -74,10 +74,6 @@ FLAG = re.compile(r"(?<![\w-])--[a-zA-Z][\w-]*")
 
 #: file -> imports inside functions not allowed above.
 IMPORTS_TO_FIX = {
-    "cartpole/export/inloop.py": 3,
-    "cartpole/export/nmpc.py": 4,
-    "cartpole/mpc/ddp_mpc.py": 3,
-    "cartpole/mpc/nmpc.py": 3,
     "cartpole/planning/energy_ceiling.py": 3,
 }
 
@@ -94,7 +90,6 @@ LONG_TO_FIX = {
 
 #: file -> qualified names of the functions with more than MAX_PARAMS parameters.
 PARAMS_TO_FIX = {
-    "cartpole/apps/bench/mpc.py": ["run_mpc_benchmark"],
     "cartpole/apps/bench/objectives.py": ["against_naive"],
     "cartpole/apps/bench/trajopt.py": ["NaiveOptiBaseline.__init__"],
     "cartpole/ocp/collocation.py": ["DirectCollocation.__init__"],

@@ -7,7 +7,7 @@ itself from designs on the shipped one-pole cart (so they never go stale), one p
 and compiles every ``.c`` file of ``cartpole/csrc`` alone (``-c``, one translation unit) with the export's strict
 flags (:data:`cartpole.export.build.STRICT_CFLAGS`: ``-std=c99 -Wall -Wextra -Werror -pedantic``) against the sample
 of a design that carries it (the others against the first sample). ``qp_dual.c`` is not a translation unit but the body
-that ``qp_dual.c.jinja`` includes after its sizes: it is compiled in the unit ``cartpole.mpc.nmpc_c.qp_source``
+that ``qp_dual.c.jinja`` includes after its sizes: it is compiled in the unit ``cartpole.codegen.qp_source``
 renders, with its state fields and a caller.
 
 Run: ``python tools/csrc_sample.py [DIR]`` (``make csrc-lint``): writes ``DIR/<sample>/{include,src}`` (default
@@ -67,7 +67,7 @@ def write_samples(out) -> dict[str, Path]:
 def qp_dual_unit(out) -> Path:
     """The translation unit ``qp_dual.c`` is compiled in: ``cp_real``, the state struct with the solver's fields,
     the solver rendered for :data:`QP_SIZES` and a function that calls it; written to ``out/qp_dual_unit.c``."""
-    from cartpole.mpc.nmpc_c import qp_fields, qp_source
+    from cartpole.codegen import qp_fields, qp_source
 
     nz, nr = QP_SIZES
     fields = "\n".join(f"    {f}" for f in qp_fields(nz, nr))

@@ -692,9 +692,6 @@ class SwingupMethod:
     duration: ClassVar[float] = ENERGY_DURATION
     #: Whether the method designs a catch for the rig's sensors (``ctrl_noise``).
     designs_catch: ClassVar[bool] = False
-    #: Whether the loop runs the export's compiled program (:func:`cartpole.export.inloop.in_loop`) in place of the
-    #: Python classes when there is a C compiler.
-    compiled_loop: ClassVar[bool] = True
 
     def __init__(self, options: SwingupOptions, entry: MethodTry | None = None):
         self.options = options
@@ -717,7 +714,7 @@ class SwingupMethod:
     def run(self, ctx: _Context) -> SwingupResult:
         """Design, run in the closed loop, measure: the :class:`SwingupResult` of one run."""
         d = self.design(ctx)
-        controller, rig, rollout = _simulate(ctx, d.controller, d.duration, loop=d.loop, compiled=self.compiled_loop)
+        controller, rig, rollout = _simulate(ctx, d.controller, d.duration, loop=d.loop)
         handover_at, extra = self.measure(ctx, d, rollout, controller)
         if d.noise is not None:
             extra["ctrl_noise"] = _noise_measured(d.noise, rollout, handover_at, ctx.pm.u_high - ctx.pm.u_low)
@@ -810,11 +807,6 @@ class NMPCSwingup(SwingupMethod):
 
     name = "mpc"
     duration = MPC_DURATION
-    #: The NMPC reports its solve time and failures every step (JSON ``solve_ms``, ``failures``), which the compiled
-    #: program does not record: the loop calls the controller, whose step is the same compiled C
-    #: (:mod:`cartpole.mpc.nmpc_c`), the rig's estimator the Python one.
-    compiled_loop = False
-
     def mpc_options(self, loop: LoopOptions, timestep: float) -> MPCOptions:
         """The NMPC's options, its period the loop's when it gives none (one sentence when both are given and
         differ); a horizon too long to solve or a period it would round away refused."""
@@ -847,10 +839,11 @@ class NMPCSwingup(SwingupMethod):
                        options={"plan": plan, "loop": ctx.loop, "mpc": mpc})
 
     def measure(self, ctx: _Context, design: _Design, rollout: Rollout, ran) -> tuple:
-        """``period``, ``horizon``, ``failures``, ``objective`` and a dm_control task's return."""
+        """``period``, ``horizon``, ``failures`` (the C's, read after each ``cp_step``, when the compiled program
+        ran: :class:`~cartpole.export.inloop.CompiledNMPCLaw`), ``objective`` and a dm_control task's return."""
         nmpc = design.controller
         extra = {"switches": [], "period": float(nmpc.period), "horizon": float(nmpc.horizon),
-                 "failures": _count(getattr(nmpc, "failures", 0)), "objective": getattr(nmpc, "objective", "tracking")}
+                 "failures": _count(getattr(ran if hasattr(ran, "failures") else nmpc, "failures", 0)), "objective": getattr(nmpc, "objective", "tracking")}
         extra.update(_episode_return(rollout, ctx.model, extra["objective"]))
         return None, extra
 
@@ -1156,7 +1149,7 @@ class _Ran:
     options: dict
 
 
-def _simulate(ctx: _Context, controller, T: float, *, loop=None, compiled: bool = True) -> tuple:
+def _simulate(ctx: _Context, controller, T: float, *, loop=None) -> tuple:
     """The closed loop every method shares: the rig for ``loop`` (default the context's) around the plant, the
     friction compensation outermost, MuJoCo for ``T`` s at the loop's period; ``(controller as run, rig,
     rollout)``."""
@@ -1165,8 +1158,7 @@ def _simulate(ctx: _Context, controller, T: float, *, loop=None, compiled: bool 
     # the controller that runs, friction compensation outermost; the one implementation: the export's compiled C
     # (law, estimator, delay prediction, clip) when there is a compiler, its state read from the C
     controller = ctx.friction.wrap(controller)
-    if compiled:
-        controller, rig = in_loop(ctx.model, controller, rig)
+    controller, rig = in_loop(ctx.model, controller, rig)
     force = ctx.force
     attach = getattr(ctx.on_step, "attach", None)
     if attach is not None:  # the web page: it shows this law's state, its pushes join the logged push column

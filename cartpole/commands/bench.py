@@ -12,8 +12,8 @@ from cartpole.apps.bench.identify import identify_benchmark, print_identify_tabl
 from cartpole.apps.bench.objectives import OBJECTIVES, objective_benchmark, print_objective_table
 from cartpole.apps.bench.plan_library import plan_library_benchmark, print_plan_library_table
 from cartpole.apps.bench.planner_stage import STAGE_OBJECTIVES, planner_stage_benchmark, print_planner_stage_table
-from cartpole.apps.bench.trajopt import (mpc_benchmark, plan_benchmark, print_mpc_table, print_plan_table, print_table,
-                                         shipped_plan_models)
+from cartpole.apps.bench.mpc import mpc_benchmark, print_mpc_table
+from cartpole.apps.bench.trajopt import plan_benchmark, print_plan_table, print_table, shipped_plan_models
 from cartpole.apps.swingup import ENERGY_DURATION
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
 from cartpole.commands._rig import add_budget_argument, check_budget

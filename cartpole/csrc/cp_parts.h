@@ -30,5 +30,9 @@ void cp_estimate(cp_real* x);
  * the last evaluation. cp_tvlqr.c: 1 once the catch has run since the reset, and the time t (s) of its first call. */
 int cp_switch_state(double* t, cp_real* cost);
 int cp_handover_state(double* t);
+/* The NMPC (nmpc.c.jinja): the solves since the reset, and the time t (s), wall time (s, cp_clock.c), status
+ * (0 solved, 1-3 the QP's failure, 4 not finite, 5 a state not finite) and QP active-set changes of the last;
+ * returns its safe action (0 none, 1 the previous plan's input, 2 the upright LQR). */
+int cp_nmpc_state(long* solves, double* t, double* seconds, int* status, int* qp_iterations);
 
 #endif /* CP_PARTS_H */

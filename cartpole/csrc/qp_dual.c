@@ -4,16 +4,20 @@
  *     min 1/2 z' H z + h' z    s.t.  lbx <= z <= ubx,   lba <= A z <= uba
  *
  * with H positive definite (the condensed Gauss-Newton Hessian of the NMPC, the MHE window's). From the
- * unconstrained minimum z = -H^-1 h it adds the most violated constraint, takes full or partial steps, and drops
+ * unconstrained minimum z = -H^-1 h it adds a violated constraint, takes full or partial steps, and drops
  * constraints whose multiplier would change sign, keeping J = L^-T Q and the triangular R of the active normals up
  * to date by Givens rotations (O(n^2) per change). A bound or a row whose limit is beyond +-QP_BIG is never
- * active.
+ * active. Warm start: the constraint added is the most violated of those active at the last solve's optimum
+ * (S.qp_prev), else the most violated of all; any violated choice keeps the method's finite termination and the
+ * unique optimum, and a sequence of similar QPs (the NMPC's periods) spares the additions a cold start drops again.
+ * A zeroed state (a reset) or a failed solve starts cold.
  *
  * qp_solve(H, h, A, lba, uba, lbx, ubx, z) returns 0 (optimal), 1 (H not positive definite), 2 (infeasible) or 3
- * (more than QP_ITER_LIMIT active-set changes). Expected before it (cartpole/export/qp.py writes them): cp_real,
- * CP_REAL_IS_FLOAT, the sizes QP_NZ and QP_NR, QP_ROWLEN(r) (row r of A is zero from that column on except its
- * last), QP_ITER_LIMIT, and the state struct S with the qp_* work arrays. A second solver in the same program
- * renames qp_/QP_ (cartpole.export.qp.qp_code's prefix). Maths from <math.h>: sqrt, fabs.
+ * (more than QP_ITER_LIMIT active-set changes); S.qp_iters holds the active-set changes it took. Expected before it
+ * (qp_dual.c.jinja writes them, rendered by cartpole.codegen.qp_source): cp_real, CP_REAL_IS_FLOAT, the sizes
+ * QP_NZ and QP_NR, QP_ROWLEN(r) (row r of A is zero from that column on except its last), QP_ITER_LIMIT, and the
+ * state struct S with the qp_* work arrays. A second solver in the same program renames qp_/QP_
+ * (cartpole.codegen.qp_source's prefix). Maths from <math.h>: sqrt, fabs.
  */
 #define QP_NC (2 * QP_NZ + 2 * QP_NR)
 #define QP_BIG 1e20
@@ -125,6 +129,9 @@ static void qp_add(int q)
     int k;
     cp_real c, s, r;
     for (k = QP_NZ - 1; k > q; --k) {
+        if (S.qp_d[k] == 0) { /* nothing to rotate away (the identity rotation, skipped) */
+            continue;
+        }
         qp_givens(S.qp_d[k - 1], S.qp_d[k], &c, &s, &r);
         S.qp_d[k - 1] = r;
         S.qp_d[k] = 0;
@@ -167,12 +174,25 @@ static void qp_drop(int q, int l)
     }
 }
 
-/* H is overwritten by its Cholesky factor */
+/* a failed solve (code): the next starts cold; it iterations taken */
+static int qp_cold(int it, int code)
+{
+    int i;
+    for (i = 0; i < QP_NC; ++i) {
+        S.qp_prev[i] = 0;
+    }
+    S.qp_iters = it;
+    return code;
+}
+
+/* H is overwritten by its Cholesky factor. Warm-started: the constraints active at the last solve's optimum are
+ * added first while violated (S.qp_prev, cleared by a zeroed state or a failure); S.qp_iters the active-set changes
+ * taken. */
 static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_real* lba, const cp_real* uba,
                     const cp_real* lbx, const cp_real* ubx, cp_real* z)
 {
-    int i, j, k, q = 0, p, l, it = 0;
-    cp_real acc, t1, t2, t, smin, sp, zn, unew, zmax, dmax;
+    int i, j, k, q = 0, p, pw, l, it = 0;
+    cp_real acc, t1, t2, t, smin, sw, sp, zn, unew, zmax, dmax;
     /* H = L L' (lower, in place) */
     for (j = 0; j < QP_NZ; ++j) {
         acc = H[j * QP_NZ + j];
@@ -180,7 +200,7 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
             acc -= H[j * QP_NZ + k] * H[j * QP_NZ + k];
         }
         if (!(acc > 0)) {
-            return 1;
+            return qp_cold(0, 1);
         }
         H[j * QP_NZ + j] = sqrt(acc);
         for (i = j + 1; i < QP_NZ; ++i) {
@@ -230,26 +250,50 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
         }
     }
     for (;;) {
+        /* the constraint to add: the most violated of those active at the last solve's optimum (the warm start),
+         * else the most violated of all; any violated constraint keeps the method's finite termination and its
+         * unique optimum, the previous active set saves the additions that would be dropped again */
         p = -1;
         smin = 0;
-        for (i = 0; i < QP_NC; ++i) {
+        for (i = 0; i < QP_NC; ++i) { /* the last optimum's constraints: only they are scanned while one is violated */
             cp_real si;
-            if (S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {
+            if (!S.qp_prev[i] || S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {
                 continue;
             }
             si = qp_slack(i, z, A, lba, uba, lbx, ubx);
-            if (p < 0 || si < smin) {
+            if (si < -QP_TOL && (p < 0 || si < smin)) {
                 smin = si;
                 p = i;
             }
         }
+        if (p < 0) { /* none violated: the most violated of all */
+            pw = -1;
+            sw = 0;
+            for (i = 0; i < QP_NC; ++i) {
+                cp_real si;
+                if (S.qp_isact[i] || qp_inactive(i, lba, uba, lbx, ubx)) {
+                    continue;
+                }
+                si = qp_slack(i, z, A, lba, uba, lbx, ubx);
+                if (pw < 0 || si < sw) {
+                    sw = si;
+                    pw = i;
+                }
+            }
+            p = pw;
+            smin = sw;
+        }
         if (p < 0 || !(smin < -QP_TOL)) {
+            for (i = 0; i < QP_NC; ++i) { /* the warm start of the next solve */
+                S.qp_prev[i] = S.qp_isact[i];
+            }
+            S.qp_iters = it;
             return 0;
         }
         unew = 0;
         for (;;) {
             if (++it > QP_ITER_LIMIT) {
-                return 3;
+                return qp_cold(it, 3);
             }
             qp_jtn(p, A, S.qp_d);
             zmax = 0;
@@ -292,7 +336,7 @@ static int qp_solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_rea
                 t2 = -1;
                 t = t1;
             } else {
-                return 2;
+                return qp_cold(it, 2);
             }
             if (t2 >= 0) {
                 for (i = 0; i < QP_NZ; ++i) {

@@ -25,7 +25,7 @@ import casadi as ca
 import daqp
 import numpy as np
 
-from cartpole.codegen import build_library, compiled_or_none, load_library
+from cartpole.codegen import QP_ITER_LIMIT, build_library, compiled_or_none, load_library
 from cartpole.estimation.base import EstimationError
 from cartpole.estimation.measurement import measurement_jacobians
 
@@ -130,9 +130,8 @@ def window_functions(model, steps: int, h: ca.Function, N: int, *, compiled: boo
                            N=int(N), ny=int(ny))
 
 
-#: DAQP's "no bound", and the active-set iterations it may take.
+#: DAQP's "no bound" (the active-set iterations it may take: :data:`cartpole.codegen.QP_ITER_LIMIT`).
 _BIG = 1e30
-QP_ITER_LIMIT = 1000
 
 
 def riccati_window_step(A, d, C, r_meas, RV, L, P_inv, arrival_gap, e):

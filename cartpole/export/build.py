@@ -111,8 +111,9 @@ class CController:
 
     Parameters
     ----------
-    lib : path
-        ``libcartpole_controller.so`` of an export.
+    lib : path or ctypes.CDLL
+        ``libcartpole_controller.so`` of an export, or such a library already loaded (e.g. a private copy:
+        :func:`cartpole.codegen.load_private_copy`).
     ny, nu : int
         ``CP_NY``, ``CP_NU`` (from the manifest).
     real : {"double", "float"}
@@ -120,8 +121,9 @@ class CController:
     """
 
     def __init__(self, lib, ny: int, nu: int, real: str = "double"):
-        self.lib_path = str(lib)
-        self._lib = ctypes.CDLL(self.lib_path)
+        loaded = isinstance(lib, ctypes.CDLL)
+        self.lib_path = str(lib._name if loaded else lib)
+        self._lib = lib if loaded else ctypes.CDLL(self.lib_path)
         self.ny, self.nu = int(ny), int(nu)
         ctype = ctypes.c_float if real == "float" else ctypes.c_double
         self.dtype = np.float32 if real == "float" else np.float64

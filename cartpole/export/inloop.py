@@ -11,32 +11,31 @@ C's own estimate. The Python classes (:mod:`cartpole.control`, :mod:`cartpole.es
 :class:`cartpole.sim.rig.RigRun`) remain the path without a C compiler and the tests' reference
 (:func:`cartpole.export.loop.run_lockstep` compares them step by step).
 
-A compiled program keeps its state in the library's static memory: one run at a time per design and thread (a
-thread other than the main one loads its own copy, :func:`thread_copy`; :class:`InLoopController` refuses a step
-after another controller of the same library was reset). The loop's
+A compiled program keeps its state in the library's static memory: each :class:`InLoopController` loads its own
+private copy of the cached library (:func:`cartpole.codegen.load_private_copy`, the one way a compiled library is
+loaded with state of its own), so two controllers of one design, in one thread or in several, never share a run's
+state. The loop's
 controller (:class:`CompiledLaw`) exposes the state the Python class does (the switch log of the energy law and its
 catch, the TVLQR's hand-over time), read from the C.
 """
 from __future__ import annotations
 
-import atexit
 import ctypes
 import os
-import shutil
-import tempfile
-import threading
 import time
 from dataclasses import replace
 from types import SimpleNamespace
 
+import mujoco
 import numpy as np
 
-from cartpole.codegen import compiler
+from cartpole.codegen import compiler, load_private_copy
 from cartpole.control.energy import EnergyShapingController
 from cartpole.control.linear import LinearFeedback
 from cartpole.control.pid import CascadedPID
 from cartpole.control.switching import Switch, SwitchingController
 from cartpole.control.tvlqr import TVLQRController
+from cartpole.estimation import SensorSampler
 from cartpole.export.build import CController, program_library
 from cartpole.export.controllers import energy_part, linear_part, pid_part, tvlqr_part
 from cartpole.export.design import build_program
@@ -44,10 +43,8 @@ from cartpole.export.estimators import ExportError
 from cartpole.export.make import c_sources
 from cartpole.export.nmpc import nmpc_part
 from cartpole.mpc.nmpc import NMPCController
-
-#: Which :class:`InLoopController` last reset each library (path -> id): its static state is that run's.
-_OWNER: dict = {}
-
+from cartpole.mpc.nmpc_c import NMPC_STATE_ARGTYPES, SolveRecord, read_state
+from cartpole.sim.rollout import simulate
 
 class InLoopController(CController):
     """The compiled program of an export, for the MuJoCo loop: :class:`~cartpole.export.build.CController`'s
@@ -56,15 +53,22 @@ class InLoopController(CController):
     Parameters
     ----------
     lib : path
-        The shared library (:func:`compile_program`).
+        The shared library (:func:`compile_program`), built once and cached; this controller loads a private copy
+        of it (its own static state).
     ny, nu, nx : int
         Sizes of ``y``, ``u`` and the state.
     real : {"double", "float"}
         ``cp_real``.
+
+    Attributes
+    ----------
+    library : str
+        The cached library (``lib``); ``lib_path`` is this controller's copy.
     """
 
     def __init__(self, lib, ny: int, nu: int, nx: int, real: str = "double"):
-        super().__init__(lib, ny, nu, real)
+        super().__init__(load_private_copy(lib, "cp_program_"), ny, nu, real)
+        self.library = str(lib)
         self.nx = int(nx)
         ctype = ctypes.c_float if real == "float" else ctypes.c_double
         self._ctype = ctype
@@ -74,24 +78,6 @@ class InLoopController(CController):
         self._est.argtypes = [ctypes.POINTER(ctype)]
         self._est.restype = None
         self._xp = self._x.ctypes.data_as(ctypes.POINTER(ctype))
-
-    def reset(self) -> None:
-        """``cp_reset()``; this controller now owns the library's static state."""
-        _OWNER[self.lib_path] = id(self)
-        super().reset()
-
-    def step(self, t: float, y) -> tuple[int, np.ndarray]:
-        """``cp_step(t, y, u)``: the return code and ``u`` (nu,) as float64.
-
-        Raises
-        ------
-        ExportError
-            Another controller of the same library was reset since this one (their runs would share state).
-        """
-        if _OWNER.get(self.lib_path) != id(self):
-            raise ExportError("Another run reset this compiled controller since this run started (a compiled "
-                              "program holds one run's state); call reset() before stepping it again.")
-        return super().step(t, y)
 
     def estimate(self) -> np.ndarray:
         """The rig's current estimate ``x_hat`` (nx,) as float64 (before the delay prediction)."""
@@ -125,6 +111,21 @@ class InLoopController(CController):
         t = ctypes.c_double()
         return float(t.value) if fn(ctypes.byref(t)) else None
 
+    def nmpc_state(self) -> SolveRecord:
+        """The NMPC part's ``cp_nmpc_state``: its last solve (count since the reset, time, wall time timed in the C,
+        status, safe action).
+
+        Raises
+        ------
+        ExportError
+            The program's controller is not the NMPC.
+        """
+        return read_state(self._accessor("cp_nmpc_state", NMPC_STATE_ARGTYPES))
+
+    def has(self, name: str) -> bool:
+        """Whether the program defines the C function ``name`` (a part's state accessor, ``cp_nmpc_state``...)."""
+        return hasattr(self._lib, name)
+
     def _accessor(self, name: str, argtypes):
         fn = getattr(self._accessors, name, None)
         if fn is None:
@@ -132,7 +133,8 @@ class InLoopController(CController):
                 fn = getattr(self._lib, name)
             except AttributeError:
                 raise ExportError(f"This compiled program has no {name}(): its controller does not keep that state "
-                                  "(cp_switch_state is the energy law's, cp_handover_state the TVLQR's).") from None
+                                  "(cp_switch_state is the energy law's, cp_handover_state the TVLQR's, "
+                                  "cp_nmpc_state the NMPC's).") from None
             fn.argtypes, fn.restype = argtypes, ctypes.c_int
             setattr(self._accessors, name, fn)
         return fn
@@ -168,15 +170,11 @@ class _CRun:
         self.ctl, self.h = ctl, float(m.opt.timestep)
         self.sampler, self.forward = None, False
         if rig.spec is not None:
-            from cartpole.estimation import SensorSampler
-
             self.sampler = SensorSampler(rig.spec, m, seed=rig.seed)
             self.forward = any(s.adr >= 0 for s in rig.spec.sensors)
         self.u = None
 
     def sample(self, m, d, k, since, ahead, log):
-        import mujoco
-
         t = k * self.h
         if self.sampler is None:
             y = np.concatenate([d.qpos, d.qvel])
@@ -243,8 +241,6 @@ def run_compiled(design, x0, duration: float, *, ctl: InLoopController | None = 
         law with its catch ``info["switches"]`` (list of :class:`~cartpole.control.switching.Switch`), for the TVLQR
         ``info["handover_time"]`` (s or None).
     """
-    from cartpole.sim.rollout import simulate
-
     ctl = compile_program(design) if ctl is None else ctl
     params = design.model.params
     law = _law(design.program.controller, ctl, design.rig is not None)
@@ -309,6 +305,12 @@ class CompiledLaw:
     def __init__(self, program: InLoopController, rig: bool = False):
         self.program = program
         self._rig = bool(rig)
+        self._last_t = -np.inf
+
+    def reset(self) -> None:
+        """Start a new run now (as a call at ``t = 0`` does): ``cp_reset`` and the state read from it forgotten."""
+        self.program.reset()
+        self._restart()
         self._last_t = -np.inf
 
     def __call__(self, t: float, x) -> np.ndarray:
@@ -377,8 +379,72 @@ class CompiledTracker(CompiledLaw):
         return self.program.handover_state()
 
 
-def _law(part, ctl: InLoopController, rig: bool) -> CompiledLaw:
-    """The :class:`CompiledLaw` of the controller part ``part`` that keeps the state its Python class exposes."""
+class CompiledNMPCLaw(CompiledLaw):
+    """:class:`CompiledLaw` of the NMPC (``nmpc.c.jinja``), exposing what :class:`~cartpole.mpc.nmpc.NMPCController`
+    records, read from the C after every ``cp_step`` (``cp_nmpc_state``): one entry per solve (a held ctrl is not
+    one), its time measured inside the C around the step (``cp_clock.c``).
+
+    Parameters
+    ----------
+    program : InLoopController
+    rig : bool
+    nmpc : NMPCController, optional
+        The controller the program was made from (its ``period``, ``horizon``, ``N`` and ``objective``; None
+        when only the program is at hand: those read None).
+
+    Attributes
+    ----------
+    solve_ms : list of float
+        ms of each solve, timed inside the C (``cp_clock_seconds``; without the ``ctypes`` call around it).
+    failures : list of dict
+        ``{"t", "reason", "action"}`` of each solve that took the safe action, as the Python class's.
+    qp_iterations : list of int
+        The QP's active-set changes in each solve.
+    period, horizon : float or None
+        s.
+    """
+
+    #: Where each solve runs (as :attr:`NMPCController.step_implementation`).
+    step_implementation = "c"
+    #: The QP solver (as :attr:`NMPCController.qp_solver`): the C dual active set of ``qp_dual.c``.
+    qp_solver = "c"
+
+    def __init__(self, program: InLoopController, rig: bool = False, nmpc=None):
+        super().__init__(program, rig)
+        self.period = None if nmpc is None else float(nmpc.period)
+        self.horizon = None if nmpc is None else float(nmpc.horizon)
+        self.N = None if nmpc is None else int(nmpc.N)
+        self.objective = "tracking" if nmpc is None else getattr(nmpc, "objective", "tracking")
+        self._restart()
+
+    def _restart(self) -> None:
+        self.solve_ms: list[float] = []
+        self.failures: list[dict] = []
+        self.qp_iterations: list[int] = []
+        self._solves = 0
+
+    def _observe(self, t: float) -> None:
+        solve = self.program.nmpc_state()
+        if solve.solves == self._solves:
+            return
+        self._solves = solve.solves
+        self.solve_ms.append(1e3 * solve.seconds)
+        self.qp_iterations.append(solve.qp_iterations)
+        failure = solve.failure()
+        if failure is not None:
+            self.failures.append(failure)
+
+    @property
+    def step_c_ms(self) -> list:
+        """ms of each solve timed inside the C: :attr:`solve_ms` (the loop pays the ``ctypes`` call on top)."""
+        return self.solve_ms
+
+
+def _law(part, ctl: InLoopController, rig: bool, controller=None) -> CompiledLaw:
+    """The :class:`CompiledLaw` of the controller part ``part`` (made from the Python ``controller``, when given)
+    that keeps the state its Python class exposes."""
+    if isinstance(controller, NMPCController) or ctl.has("cp_nmpc_state"):
+        return CompiledNMPCLaw(ctl, rig, controller if isinstance(controller, NMPCController) else None)
     if "cp_energy.c" in part.sources:
         return CompiledSwitching(ctl, rig)
     if "cp_tvlqr.c" in part.sources:
@@ -426,58 +492,31 @@ def in_loop(model, controller, rig=None):
     prog = build_program(design_model, rig, part, params=model.params, title="in-loop program")
     ctl = load_program(c_sources(prog), prog)  # a compile error is a bug, said (never a silent Python run)
     if rig is None:
-        return _law(part, ctl, False), None
-    return _law(part, ctl, True), CompiledRig(rig, ctl)
+        return _law(part, ctl, False, controller), None
+    return _law(part, ctl, True, controller), CompiledRig(rig, ctl)
 
 
 def load_program(files: dict, prog, real: str = "double") -> InLoopController:
     """The C files ``files`` (relative path -> text) of the program ``prog`` compiled with the export's flags
-    (:func:`~cartpole.export.build.program_library`, cached by their content) and loaded: in the main thread from
-    the library itself, in any other thread from that thread's own copy of it (:func:`thread_copy`), so runs in
-    concurrent threads (a threaded Dask worker, a live view) never share a program's static memory.
+    (:func:`~cartpole.export.build.program_library`, cached by their content) and loaded: a private copy of the
+    library, so runs in concurrent threads (a threaded Dask worker, a live view) or one after another never share a
+    program's static memory.
+
+    Parameters
+    ----------
+    files : dict
+        Relative path -> C text (:func:`~cartpole.export.make.c_sources`).
+    prog : CProgram
+        Its sizes.
+    real : {"double", "float"}
+
+    Returns
+    -------
+    InLoopController
 
     Raises
     ------
     ExportError
         No C compiler, or the C does not compile.
     """
-    lib = program_library(files)
-    if threading.current_thread() is not threading.main_thread():
-        lib = thread_copy(lib)
-    return InLoopController(lib, prog.ny, prog.nu, prog.nx, real)
-
-
-#: This process's copies of compiled programs for threads other than the main one: (library, thread id) -> path,
-#: in one temporary folder removed at exit (a copy stays while the process may have it loaded: a file removed
-#: earlier could see its inode reused by another copy, which the loader would then take for the one it holds).
-_THREAD_COPIES: dict = {}
-
-
-def thread_copy(lib) -> str:
-    """The calling thread's own copy of the library ``lib`` (made once per thread and library): loaded, it has
-    static memory of its own.
-
-    Parameters
-    ----------
-    lib : path
-
-    Returns
-    -------
-    str
-        The copy's path.
-    """
-    key = (str(lib), threading.get_ident())
-    with _COPY_LOCK:
-        path = _THREAD_COPIES.get(key)
-        if path is None:
-            if "dir" not in _COPY_DIR:
-                _COPY_DIR["dir"] = tempfile.mkdtemp(prefix="cartpole-thread-programs-")
-                atexit.register(shutil.rmtree, _COPY_DIR["dir"], True)
-            path = os.path.join(_COPY_DIR["dir"], f"{len(_THREAD_COPIES)}_{os.path.basename(str(lib))}")
-            shutil.copyfile(lib, path)
-            _THREAD_COPIES[key] = path
-    return path
-
-
-_COPY_LOCK = threading.Lock()
-_COPY_DIR: dict = {}
+    return InLoopController(program_library(files), prog.ny, prog.nu, prog.nx, real)

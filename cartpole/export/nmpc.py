@@ -3,14 +3,23 @@
 :func:`cartpole.mpc.nmpc_c.nmpc_source` with this controller's tables (its first iterate and offline plan as
 ``static const`` tables here; the loop's library takes them at run time). See that template for the equations:
 shift, the stages' exact linearisations through the CasADi-generated ``cp_nmpc_lin``, the condensing (plain or
-pre-stabilised), the QP, the safe action (``CP_FALLBACK``).
+pre-stabilised), the QP, the safe action (``CP_FALLBACK``); each solve counted and timed (``cp_clock.c``) and read
+back by ``cp_nmpc_state`` (:class:`cartpole.export.inloop.CompiledNMPCLaw`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from cartpole.export.program import CPart
+from cartpole.mpc.nmpc import NMPCController
 from cartpole.mpc.nmpc_c import nmpc_source
+from cartpole.mpc.options import MPCOptions
+from cartpole.planning.options import PlanOptions
+from cartpole.planning.trajopt import trajopt_swingup
+
+
+#: Files of ``cartpole/csrc`` the NMPC part carries beside its rendered C: the clock that times each solve.
+NMPC_FILES = ("cp_clock.c", "cp_clock.h")
 
 
 def nmpc_part(ctl, plan) -> CPart:
@@ -29,7 +38,7 @@ def nmpc_part(ctl, plan) -> CPart:
     CPart
     """
     src = nmpc_source(ctl, plan)
-    return CPart(code=src.code, fields=src.fields, reset=src.reset, functions=src.functions)
+    return CPart(sources=NMPC_FILES, code=src.code, fields=src.fields, reset=src.reset, functions=src.functions)
 
 
 def nmpc_design(model, x0, period: float):
@@ -48,10 +57,6 @@ def nmpc_design(model, x0, period: float):
     -------
     (NMPCController, Trajectory)
     """
-    from cartpole.mpc.nmpc import NMPCController
-    from cartpole.mpc.options import MPCOptions
-    from cartpole.planning.options import PlanOptions
-    from cartpole.planning.trajopt import trajopt_swingup
 
     options = MPCOptions(period=float(period))
     x0 = np.asarray(x0, dtype=float).ravel()

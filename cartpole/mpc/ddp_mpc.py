@@ -44,6 +44,8 @@ from cartpole.riccati.algebraic import LQRError
 from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.objectives import make_objective, tracking_cost
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.planning.options import PlanOptions
+from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.solvers.ddp import DDP, DDPOptions
 
 
@@ -238,7 +240,6 @@ def objective_cost_to_go(model: CartPoleModel, Ad, Bd, running, period: float, S
     (S, source)
         ``source`` ``"objective"`` or ``"lqr scaled"``.
     """
-    from cartpole.riccati import dlqr
 
     nx, nu = model.nx, model.nu
     z = ca.SX.sym("z", nx + nu)
@@ -292,8 +293,6 @@ def ddp_mpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel |
     -------
     DDPMPCController
     """
-    from cartpole.planning.options import PlanOptions
-    from cartpole.planning.trajopt import trajopt_swingup
 
     options = MPCOptions() if options is None else options
     plan = seed_plan_options(PlanOptions(cart_margin=options.cart_margin) if plan is None else plan, options)

@@ -60,22 +60,22 @@ import time
 from dataclasses import dataclass
 
 import casadi as ca
+import daqp
 import numpy as np
 
 from cartpole._arrays import readonly
+from cartpole.codegen import QP_ITER_LIMIT, Buffered
 from cartpole.control.linear import LinearFeedback
-from cartpole.riccati import dlqr, default_weights
 from cartpole.models import CartPoleModel, CartPoleParams, Plant, plant_model, plant_params
-from cartpole.ocp.bounds import bounds_from_params
-from cartpole.codegen import Buffered
+from cartpole.mpc.ipopt_nlp import IpoptNLP, StepFailed as _StepFailed
+from cartpole.mpc.nmpc_c import compiled_nmpc
+from cartpole.mpc.options import DEFAULT_PERIOD, RAIL_PENALTY, MPCOptions, NMPCError, mpc_grid
 from cartpole.mpc.stage_functions import StageFunctions, stage_functions
-from cartpole.mpc.nmpc_c import ACTIONS, QP_ITER_LIMIT, compiled_nmpc  # noqa: F401 - QP_ITER_LIMIT: public here
-from cartpole.mpc.ipopt_nlp import IpoptNLP
-from cartpole.mpc.ipopt_nlp import StepFailed as _StepFailed
-# QP_SOLVERS and RAIL_PENALTY are re-exported: they were defined here before the options module
-from cartpole.mpc.options import (DEFAULT_PERIOD, QP_SOLVERS, RAIL_PENALTY, MPCOptions, NMPCError,  # noqa: F401
-                                  mpc_grid)
+from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.planning.options import PlanOptions
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.riccati import default_weights, dlqr
 
 _BIG = 1e30  # DAQP's "no bound"
 #: rad: within this of upright (every pole, wrapped) the safe action is the upright LQR, not the previous plan.
@@ -406,8 +406,6 @@ class NMPCController:
                 self._qpoases = ca.conic("nmpc_qp", "qpoases", {"h": ca.Sparsity.dense(nz, nz),
                                                                 "a": ca.Sparsity.dense(nc, nz)}, opts)
         else:
-            import daqp
-
             self._daqp = daqp.solve
             self._sense = np.zeros(nz + nc, dtype=np.int32)
 
@@ -600,13 +598,13 @@ class NMPCController:
         """One control instant by the compiled step (:mod:`cartpole.mpc.nmpc_c`): the same shift, Gauss-Newton
         step and safe action as the Python path, in the C the export ships."""
         t0 = time.perf_counter()
-        code, u, action = self._c.step(t, x)
+        _code, u, _action = self._c.step(t, x)
         self.solve_ms.append(1e3 * (time.perf_counter() - t0))
-        self.step_c_ms.append(1e3 * self._c.last_seconds())
-        if code != 0:
-            reason = ("the measured state is not finite" if not np.all(np.isfinite(x)) else
-                      "the QP solver (C dual active set) failed or the step was not finite")
-            self.failures.append({"t": float(t), "reason": reason, "action": ACTIONS.get(action, "upright LQR")})
+        solve = self._c.last_solve()
+        self.step_c_ms.append(1e3 * solve.seconds)
+        failure = solve.failure()
+        if failure is not None:
+            self.failures.append(failure)
         self._k_last = k
         self._u_hold = u
         return u.copy()
@@ -670,9 +668,6 @@ def nmpc_swingup(plant: Plant = None, x0=None, *, plan_model: CartPoleModel | No
     -------
     NMPCController
     """
-    # planning sits below mpc: no cycle, imported lazily for start-up time
-    from cartpole.planning.options import PlanOptions
-    from cartpole.planning.trajopt import trajopt_swingup
 
     params = plant_params(plant)
     options = MPCOptions() if options is None else options

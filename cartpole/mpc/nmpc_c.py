@@ -15,13 +15,97 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# QP_ITER_LIMIT, qp_fields, qp_source, generated_code: the names this module had before the MHE shared them
-from cartpole.codegen import (QP_ITER_LIMIT, build_loop_library, compiled_or_none, generated_code,  # noqa: F401
-                              load_private_copy, qp_fields, qp_source, render)
+from cartpole.codegen import (build_loop_library, compiled_or_none, generated_code, load_private_copy, qp_fields,
+                              qp_source, render)
 from cartpole.mpc.stage_functions import stage_expression, stage_rollout
 
-#: ``cp_nmpc_eval``'s action codes.
+#: The safe action of a failed solve (``cp_nmpc_state``'s return, ``cp_nmpc_eval``'s ``action``).
 ACTIONS = {1: "previous plan", 2: "upright LQR"}
+#: Why a solve failed (``cp_nmpc_state``'s ``status``, ``nmpc.c.jinja``'s ``mp_status``).
+STATUS_REASONS = {1: "the QP solver (C dual active set) found the Hessian not positive definite",
+                  2: "the QP solver (C dual active set) found the QP infeasible",
+                  3: "the QP solver (C dual active set) reached its iteration limit",
+                  4: "the QP's solution or the predicted states were not finite",
+                  5: "the measured state is not finite"}
+
+
+#: ``cp_nmpc_state(long* solves, double* t, double* seconds, int* status, int* qp_iterations)``'s argument types (it
+#: returns the action).
+NMPC_STATE_ARGTYPES = [ctypes.POINTER(ctypes.c_long), ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+                       ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int)]
+
+
+@dataclass(frozen=True)
+class SolveRecord:
+    """The last solve of the compiled NMPC step, read from the C (``cp_nmpc_state``).
+
+    Attributes
+    ----------
+    solves : int
+        Solves since the reset (a held ctrl is not one).
+    t : float
+        Time (s) of the last solve.
+    seconds : float
+        Its wall time timed inside the C (``cp_clock_seconds``), s.
+    status : int
+        0 solved, else a key of :data:`STATUS_REASONS`.
+    action : int
+        0 solved, else the safe action taken (a key of :data:`ACTIONS`).
+    qp_iterations : int
+        Active-set changes the QP took (summed over the solve's Gauss-Newton iterations; warm-started from the last
+        solve's active set, ``qp_dual.c``).
+    """
+
+    solves: int
+    t: float
+    seconds: float
+    status: int
+    action: int
+    qp_iterations: int = 0
+
+    def failure(self) -> dict | None:
+        """``{"t", "reason", "action"}`` (as :attr:`cartpole.mpc.nmpc.NMPCController.failures`) when the solve
+        took the safe action, else None."""
+        if self.status == 0 and self.action == 0:
+            return None
+        return {"t": self.t, "reason": STATUS_REASONS.get(self.status, f"status {self.status}"),
+                "action": ACTIONS.get(self.action, "upright LQR")}
+
+
+def state_function(lib) -> ctypes._CFuncPtr:
+    """``cp_nmpc_state`` of the loaded library ``lib`` (the loop's or an exported program's), typed.
+
+    Parameters
+    ----------
+    lib : ctypes.CDLL
+
+    Returns
+    -------
+    ctypes function
+        Call it through :func:`read_state`.
+    """
+    fn = lib.cp_nmpc_state
+    fn.argtypes, fn.restype = NMPC_STATE_ARGTYPES, ctypes.c_int
+    return fn
+
+
+def read_state(fn) -> SolveRecord:
+    """The :class:`SolveRecord` of the last solve from ``fn`` (:func:`state_function`).
+
+    Parameters
+    ----------
+    fn : ctypes function
+
+    Returns
+    -------
+    SolveRecord
+    """
+    solves, t, seconds, status, iters = (ctypes.c_long(), ctypes.c_double(), ctypes.c_double(), ctypes.c_int(),
+                                         ctypes.c_int())
+    action = fn(ctypes.byref(solves), ctypes.byref(t), ctypes.byref(seconds), ctypes.byref(status),
+                 ctypes.byref(iters))
+    return SolveRecord(int(solves.value), float(t.value), float(seconds.value), int(status.value), int(action),
+                       int(iters.value))
 
 
 def row_len(N: int, nu: int, nb: int, pre: bool) -> list:
@@ -113,7 +197,8 @@ def nmpc_source(ctl, plan, *, runtime_data: bool = False) -> NMPCSource:
     fields = (f"cp_real mp_S[{(N + 1) * nx}];", f"cp_real mp_U[{nzu}];", f"cp_real mp_Sa[{(N + 1) * nx}];",
               f"cp_real mp_Sn[{(N + 1) * nx}];", f"cp_real mp_Un[{nzu}];", f"cp_real mp_St[{(N + 1) * nx}];",
               f"cp_real mp_Ut[{nzu}];", "long mp_k_plan;", "long mp_k_last;", "int mp_has_last;", "int mp_age;",
-              "int mp_action;",
+              "int mp_action;", "int mp_status;", "int mp_qp_iters;", "long mp_solves;", "double mp_t;",
+              "double mp_seconds;",
               f"cp_real mp_hold[{nu}];", f"cp_real mp_H[{nz * nz}];", f"cp_real mp_h[{nz}];",
               f"cp_real mp_A[{max(1, nr) * nz}];", f"cp_real mp_lba[{max(1, nr)}];", f"cp_real mp_uba[{max(1, nr)}];",
               f"cp_real mp_lbx[{nz}];", f"cp_real mp_ubx[{nz}];", f"cp_real mp_z[{nz}];",
@@ -153,6 +238,8 @@ def loop_source(ctl, plan) -> str:
 
 
 _DP = ctypes.POINTER(ctypes.c_double)
+#: The package's C files the loop's library links beside its unit (:func:`~cartpole.codegen.build_loop_library`).
+CLOCK_SHARED = ("cp_common", "cp_clock")
 
 
 class CompiledNMPC:
@@ -170,7 +257,7 @@ class CompiledNMPC:
     def __init__(self, ctl, plan):
         p = ctl.problem
         self.library = build_loop_library(loop_source(ctl, plan), "nmpc_step", nx=p.nx, nq=ctl.model.nq, nu=p.nu,
-                                          steps=ctl.steps)
+                                          steps=ctl.steps, shared=CLOCK_SHARED)
         lib = load_private_copy(self.library, "nmpc_step_")
         lib.cp_nmpc_set_data.argtypes = [_DP, _DP, _DP, _DP, ctypes.c_long]
         lib.cp_nmpc_set_data.restype = None
@@ -180,8 +267,7 @@ class CompiledNMPC:
         lib.cp_nmpc_eval.restype = ctypes.c_int
         lib.cp_nmpc_plan.argtypes = [_DP, _DP]
         lib.cp_nmpc_plan.restype = None
-        lib.cp_nmpc_last_seconds.argtypes = []
-        lib.cp_nmpc_last_seconds.restype = ctypes.c_double
+        self._state = state_function(lib)
         self._lib = lib
         S0, U0 = ctl.plan
         self._data = [np.ascontiguousarray(S0, dtype=float), np.ascontiguousarray(U0, dtype=float)]
@@ -210,9 +296,9 @@ class CompiledNMPC:
         code = self._lib.cp_nmpc_eval(float(t), self._xp, self._up, ctypes.byref(self._action))
         return int(code), self._u.copy(), int(self._action.value)
 
-    def last_seconds(self) -> float:
-        """Wall time (s) of the last :meth:`step`'s C, timed inside the library (``clock_gettime``)."""
-        return float(self._lib.cp_nmpc_last_seconds())
+    def last_solve(self) -> SolveRecord:
+        """The last solve as the C recorded it (its wall time timed inside the library, ``cp_clock_seconds``)."""
+        return read_state(self._state)
 
     def plan(self) -> tuple[np.ndarray, np.ndarray]:
         """The current iterate: nodes (N+1, nx) and inputs (N, nu), new arrays."""

@@ -10,7 +10,8 @@ from cartpole.apps.swingup import SwingupOptions, run_swingup
 from cartpole.codegen import compiler
 from cartpole.control.switching import SwitchingController
 from cartpole.control.tvlqr import TVLQRController
-from cartpole.export.inloop import CompiledSwitching, CompiledTracker
+from cartpole.export.inloop import CompiledNMPCLaw, CompiledSwitching, CompiledTracker
+from cartpole.mpc.nmpc import NMPCController
 from cartpole.sim import LoopOptions, replays_exactly
 
 pytestmark = pytest.mark.skipif(compiler() is None, reason="no C compiler")
@@ -64,3 +65,18 @@ def test_the_trajopt_swingup_runs_the_compiled_tvlqr_and_reports_the_hand_over_t
     np.testing.assert_allclose(res.rollout.ctrl, ref.rollout.ctrl, rtol=0, atol=RUN_TOL)
     assert res.handover_at == pytest.approx(ref.handover_at, abs=1e-12)
     _same_switches(res.metrics["switches"], ref.metrics["switches"])
+
+
+def test_the_nmpc_swingup_runs_the_compiled_program_and_reports_each_solve_the_c_timed(monkeypatch):
+    loop = LoopOptions(duration=1.0)  # the swing-up's first second: the hardest QPs, short to run
+    res = run_swingup(None, "mpc", SwingupOptions(loop=loop))
+    ran = res.controller
+    assert isinstance(ran, CompiledNMPCLaw)  # the exported program ran, its log read from the C
+    steps = int(round(res.rollout.t[-1] / ran.period)) + 1
+    assert abs(len(ran.solve_ms) - steps) <= 1 and min(ran.solve_ms) > 0
+    assert res.metrics["failures"] == len(ran.failures) and (ran.period, ran.horizon) == pytest.approx((0.02, 1.2))
+    assert replays_exactly(res.rollout)
+    ref = _python_run(monkeypatch, method="mpc", options=SwingupOptions(loop=loop))
+    assert isinstance(ref.controller, NMPCController)  # its own compiled step, the Python loop around it
+    np.testing.assert_allclose(res.rollout.ctrl, ref.rollout.ctrl, rtol=0, atol=RUN_TOL)
+    assert res.metrics["failures"] == ref.metrics["failures"]

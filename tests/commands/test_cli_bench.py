@@ -116,9 +116,11 @@ def test_bench_json_has_an_mpc_row_beside_its_ipopt_baseline(capsys):
     assert mpc["solve_ms_median"] > 0 and mpc["solve_ms_max"] >= mpc["solve_ms_median"]
     assert mpc["baseline"]["solve_ms_median"] > 0
     assert mpc["speedup_median"] == pytest.approx(mpc["baseline"]["solve_ms_median"] / mpc["solve_ms_median"])
-    if mpc["implementation"] == "c":  # the step in C: its own time and Python's overhead around it
+    if mpc["implementation"] == "c":  # the exported program's step as the loop calls it: its own time, Python's around
         over = mpc["overhead"]
+        assert mpc["in_loop_program"] and 0 < mpc["qp_iterations_median"] <= mpc["qp_iterations_max"]
         assert 0 < over["c_us_median"] <= over["call_us_median"] and over["python_us_median"] > 0
+    assert mpc["met"]["p99_ms"] == (mpc["solve_ms_p99"] < mpc["targets"]["p99_ms"]) and len(mpc["load_average"]) == 2
     for row in mpc["ddp"].values():  # MPC by DDP on one and two poles, in the same loop
         assert row["success"] and 0 < row["solve_ms_median"] <= row["solve_ms_max"] and row["steps"] > 0
     assert set(mpc["ddp"]) == {"one_pole", "two_pole"}

@@ -168,18 +168,20 @@ def test_the_loops_compiled_program_is_the_exported_folders_cp_step_bit_for_bit(
             assert handover == pytest.approx(python.handover_time, abs=1e-12) and handover >= design.plan_end - 1e-12
 
 
-def test_a_compiled_program_is_built_once_per_design_and_shared_state_is_refused():
-    from cartpole.export import ExportError
-
+def test_a_compiled_program_is_built_once_per_design_and_each_load_keeps_a_run_of_its_own():
     model = _model(1)
-    design = design_export(model, "lqr", None)
+    design = _design(1, "pid", "none")  # the PID's integrator: state a shared load would mix
     first, second = compile_program(design), compile_program(design)
-    assert first.lib_path == second.lib_path  # the cache: one library for one design's files
-    first.reset()
-    first.step(0.0, model.x_eq)
-    second.reset()  # the same static memory
-    with pytest.raises(ExportError, match="reset"):
-        first.step(0.01, model.x_eq)
+    assert first.library == second.library  # the cache: one library for one design's files...
+    assert first.lib_path != second.lib_path  # ...each controller loading its own copy
+    alone = compile_program(design)
+    x, other = _tilted(model), _tilted(model, -0.1)
+    for ctl in (first, second, alone):
+        ctl.reset()
+    for k in range(20):  # interleaved with a run on other states, the first run is the run alone
+        t = k * model.dt
+        second.step(t, other)
+        np.testing.assert_array_equal(first.step(t, x)[1], alone.step(t, x)[1])
 
 
 def test_the_exported_folder_loads_its_own_copy_of_the_one_compiled_library():
@@ -191,12 +193,11 @@ def test_the_exported_folder_loads_its_own_copy_of_the_one_compiled_library():
     folder_ctl, folder = load_design(design)
     try:  # the same bytes (compiled once), loaded from the folder: static memory of its own
         assert Path(folder_ctl.lib_path).parent == folder
-        assert Path(folder_ctl.lib_path).read_bytes() == Path(inloop.lib_path).read_bytes()
+        assert Path(folder_ctl.lib_path).read_bytes() == Path(inloop.library).read_bytes()
         inloop.reset()
         folder_ctl.reset()
         x = _tilted(model)
         np.testing.assert_array_equal(inloop.step(0.0, x)[1], folder_ctl.step(0.0, x)[1])
-        inloop.step(0.001, x)  # no refusal: the folder's copy did not reset the loop's state
     finally:
         discard(folder)
 

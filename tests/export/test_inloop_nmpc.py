@@ -10,10 +10,11 @@ from cartpole.codegen import compiler
 from cartpole.export import load_design, run_lockstep
 from cartpole.export.design import ExportDesign, build_program
 from cartpole.export.folder import discard
-from cartpole.export.inloop import in_loop
+from cartpole.export.inloop import CompiledNMPCLaw, in_loop
 from cartpole.export.nmpc import nmpc_part
 from cartpole.models import build_model
 from cartpole.mpc.nmpc import NMPCController
+from cartpole.mpc.nmpc_c import STATUS_REASONS, SolveRecord
 from cartpole.mpc.options import MPCOptions
 from cartpole.sim.options import LoopOptions
 from cartpole.sim.rig import build_rig
@@ -70,6 +71,9 @@ def test_the_loops_nmpc_with_its_estimator_is_the_exported_folders_cp_step_bit_f
     assert loop_rig is not design.rig  # the compiled program, not the Python rig
     rollout = simulate(model.params, loop_ctrl, x0, DURATION, rig=loop_rig)
     assert np.all(np.isfinite(rollout.ctrl)) and np.all(np.isfinite(rollout.x_hat))
+    # what the Python NMPC records, read from the C: one solve a period, timed inside the C, and no failure
+    assert isinstance(loop_ctrl, CompiledNMPCLaw) and loop_ctrl.period == ctl.period
+    assert len(loop_ctrl.solve_ms) == len(rollout.y) and min(loop_ctrl.solve_ms) > 0 and loop_ctrl.failures == []
     # the exported folder, compiled with the strict flags, in the same MuJoCo loop (the Python path beside it)
     folder_ctl, folder = load_design(design)
     try:
@@ -82,3 +86,32 @@ def test_the_loops_nmpc_with_its_estimator_is_the_exported_folders_cp_step_bit_f
     np.testing.assert_array_equal(applied, run.c_ctrl[:len(applied)])  # ...and the same ctrl
     np.testing.assert_array_equal(rollout.ctrl, run.rollout.ctrl)
     assert run.max_ctrl_diff <= PYTHON_TOL
+
+
+class _ScriptedProgram:
+    """A compiled program's ``reset``, ``step`` and ``cp_nmpc_state``, its solves scripted (one record a step)."""
+
+    def __init__(self, records):
+        self.records, self.last = iter(records), None
+
+    def reset(self):
+        pass
+
+    def step(self, t, x):
+        self.last = next(self.records)
+        return 0, np.zeros(1)
+
+    def nmpc_state(self):
+        return self.last
+
+
+def test_the_loops_nmpc_logs_each_solve_once_and_each_safe_action_the_c_took():
+    failed = SolveRecord(solves=2, t=0.02, seconds=4e-4, status=3, action=2)
+    law = CompiledNMPCLaw(_ScriptedProgram([SolveRecord(1, 0.0, 1e-4, 0, 0), SolveRecord(1, 0.0, 1e-4, 0, 0), failed,
+                                            SolveRecord(3, 0.04, 2e-4, 0, 0)]))
+    for t in (0.0, 0.01, 0.02, 0.04):  # the second step held the ctrl: no solve
+        law(t, np.zeros(4))
+    np.testing.assert_allclose(law.solve_ms, [0.1, 0.4, 0.2])
+    assert law.failures == [{"t": 0.02, "reason": STATUS_REASONS[3], "action": "upright LQR"}]
+    law.reset()  # a new run forgets the last one's log
+    assert law.solve_ms == [] and law.failures == []

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cartpole.export.build import STRICT_CFLAGS, find_compiler
-from cartpole.export.qp import qp_code, qp_fields
+from cartpole.codegen import qp_fields, qp_source
 
 NZ, NR = 12, 8
 
@@ -22,7 +22,7 @@ typedef double cp_real;
 static struct {{
 {fields}
 }} S;
-{qp_code(NZ, NR)}
+{qp_source(NZ, NR)}
 int solve(cp_real* H, const cp_real* h, const cp_real* A, const cp_real* lba, const cp_real* uba,
           const cp_real* lbx, const cp_real* ubx, cp_real* z)
 {{

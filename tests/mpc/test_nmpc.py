@@ -284,6 +284,8 @@ def test_the_c_step_takes_the_same_safe_action_as_the_python_step_on_a_state_tha
     x[0] = np.nan
     np.testing.assert_array_equal(c(0.0, x), py(0.0, x))
     assert [f["action"] for f in c.failures] == [f["action"] for f in py.failures] == ["previous plan"]
+    assert c.failures[0]["reason"] == py.failures[0]["reason"]  # the C's status says why, as Python does
+    assert len(c.step_c_ms) == 1 and c.step_c_ms[0] > 0  # the step timed inside the C
 
 
 def test_without_a_compiler_the_controller_runs_the_python_step(params, model, monkeypatch):

@@ -3,10 +3,10 @@ copied as it is."""
 import numpy as np
 import pytest
 
-from cartpole.codegen import CSRC
+from cartpole.codegen import CSRC, qp_source
 from cartpole.models import build_model, read_params
 from cartpole.mpc.nmpc import NMPCController
-from cartpole.mpc.nmpc_c import nmpc_source, qp_source
+from cartpole.mpc.nmpc_c import nmpc_source
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.mpc.options import MPCOptions
 

@@ -33,7 +33,6 @@ import casadi as ca
 import mujoco
 import numpy as np
 
-from cartpole.apps.bench.mpc import run_mpc_benchmark
 from cartpole.apps.bench.replay import replay_benchmark
 from cartpole.models import SHIPPED_MJCF, build_model, mujoco_model, planning_limits, plant_params, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
@@ -519,55 +518,6 @@ def print_plan_table(rows: list[dict], file=None) -> None:
         up = "-" if r["time_to_upright"] is None else f"{r['time_to_upright']:.2f}"
         w(f"{r['model']:40s} {r['plan_s_median']:8.2f} {r['total_s_median']:10.2f} {cmd:>10s} {r['T']:9.2f} "
           f"{up:>10s} {str(r['success'] and r['replays']):>8s}\n")
-
-
-def mpc_benchmark(plant=None, *, quick: bool = False, progress=None, u_max=None,
-                  cart_max: float | None = None) -> dict:
-    """The NMPC row (:func:`cartpole.apps.bench.mpc.run_mpc_benchmark`): per-control-step solve time over a
-    single-pole swing-up in MuJoCo against IPOPT re-solving the same NLP from the shifted guess.
-
-    Parameters
-    ----------
-    plant : path, CartPoleParams, CartPoleModel or None
-    quick : bool
-        One run instead of three, and not the two-pole RTI against IPOPT.
-    progress : callable, optional
-        ``progress(message)``.
-    u_max : float or (nu,) array, optional
-        ``|ctrl|`` bound (MuJoCo ctrl) the plan keeps to (default the file's, else a stated default).
-    cart_max : float, optional
-        m the cart may travel either side of its range's centre (default the file's, else a stated default).
-
-    Returns
-    -------
-    dict
-    """
-    (progress or (lambda msg: None))("NMPC in the MuJoCo loop vs IPOPT re-solves ...")
-    return run_mpc_benchmark(plant, repeats=1 if quick else 3, u_max=u_max, cart_max=cart_max, two_pole=not quick)
-
-
-def print_mpc_table(doc: dict, file=None) -> None:
-    """Prose lines of an :func:`mpc_benchmark` document (keys of :func:`cartpole.apps.bench.mpc.run_mpc_benchmark`)."""
-    w = (sys.stdout if file is None else file).write
-    base = doc.get("baseline") or {}
-    w(f"\nNMPC in the MuJoCo loop ({doc.get('N')} stages, horizon {doc.get('horizon')} s, period {doc.get('period')} s, "
-      f"QP: {doc.get('qp_solver')}): solve per control step median {doc.get('solve_ms_median', float('nan')):.3f} ms, "
-      f"max {doc.get('solve_ms_max', float('nan')):.3f} ms over {doc.get('steps')} steps; IPOPT re-solving from the "
-      f"shifted guess: median {base.get('solve_ms_median', float('nan')):.2f} ms, max "
-      f"{base.get('solve_ms_max', float('nan')):.2f} ms; speed-up {doc.get('speedup_median', float('nan')):.1f}x\n")
-    over = doc.get("overhead")
-    if over:
-        w(f"  the step is the compiled C of cartpole/csrc/nmpc.c.jinja: {over['c_us_median']:.1f} us inside the C, "
-          f"{over['call_us_median']:.1f} us the whole controller call: Python's overhead {over['python_us_median']:.1f} "
-          "us a step (medians)\n")
-    two = doc.get("two_pole")
-    if two:
-        w(f"  two poles: median {two['solve_ms_median']:.3f} ms, p99 {two['solve_ms_p99']:.3f} ms; IPOPT median "
-          f"{two['baseline']['solve_ms_median']:.2f} ms; speed-up {two['speedup_median']:.1f}x\n")
-    for name, row in (doc.get("ddp") or {}).items():
-        w(f"MPC by DDP ({name.replace('_', ' ')}, one warm-started iteration a period): median "
-          f"{row['solve_ms_median']:.3f} ms, max {row['solve_ms_max']:.3f} ms over {row['steps']} steps, "
-          f"{'swings up and holds' if row['success'] else 'FAILED'}\n")
 
 
 def print_table(doc: dict, file=None) -> None:
