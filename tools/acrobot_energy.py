@@ -1,5 +1,5 @@
-"""How soon dm_control's acrobot can be up at all, measured: the most energy its motor can put in within T seconds
-(docs/dmc.md, "The acrobot's bound"; claims.toml).
+"""How soon dm_control's acrobot can be up from hanging, measured: the most energy box-DDP finds its motor can put in
+within T seconds (docs/dmc.md, "Why the acrobot stays below 711.5 here"; claims.toml).
 
 From a start (default hanging at rest), for each ``--T``, a box-DDP on the MJCF's exact step (|ctrl| <= 1, the 2 N m
 of the elbow's motor) maximises the energy gained over ``T``, ``E(x_N) - E(x_0)`` (the running cost ``-(E(step(x, u))
@@ -7,15 +7,13 @@ of the elbow's motor) maximises the energy gained over ``T``, ``E(x_N) - E(x_0)`
 the hanging mode's frequency (seeded). ``E`` is the acrobot's energy, zero at upright rest (hanging: -39.2 J).
 dm_control pays its full reward only with the tip within the target's radius (0.2 m), which needs at least the
 potential energy ``E_target`` (the least over the configurations with the tip there, on a 721 x 721 grid of the two
-hinges). While the most energy reachable is below ``E_target`` no controller can have the tip at the target; each
-row's ``reward_max`` is the most dm_control's reward pays in any configuration of at most ``E_max`` of potential
-energy (on the same grid). ``return_bound`` sums, over the episode's 1000 steps, ``reward_max`` of the first row at or
-after each step's time (1 after the last row): the most an episode from that start earns if the most energy reachable
-grows with time (it nearly must: the motor can hold what it put in, less the hinges' damping). A local method from
-several guesses measures the most energy, it does not prove it (``at_best`` says how many guesses reached the best).
-Prints one JSON document.
+hinges). ``E_max`` is energy some input sequence reaches within ``T`` (an exact rollout): the motor can put in at
+least that much, so once ``E_max >= E_target`` the energy does not forbid the tip at the target by ``T``. A local
+method from a few guesses finds the most energy only approximately (``at_best`` says how many guesses reached the
+best): it does not bound it from above, and so bounds no return. ``reward_max`` is the most dm_control's reward pays
+in any configuration of potential energy at most ``E_max`` (on the same grid). Prints one JSON document.
 
-    python tools/acrobot_energy_bound.py [--T 1 2 3 3.5 4] [--guesses 4] [--x0 3.14159265 0 0 0]
+    python tools/acrobot_energy.py [--T 1 2 3 3.5 4] [--guesses 4] [--x0 3.14159265 0 0 0]
 """
 import argparse
 import json
@@ -67,11 +65,8 @@ def main() -> None:
         best = max(ends)
         rows.append({"T": T, "E_max": round(best, 2), "at_best": int(sum(e >= best - 0.01 for e in ends)),
                      "guesses": len(ends), "reward_max": round(float(np.max(paid[V <= best], initial=0.0)), 4)})
-    t = dt * np.arange(1, 1001)  # the time of the state each of the episode's steps pays for
-    bound = sum(next((r["reward_max"] for r in sorted(rows, key=lambda r: r["T"]) if r["T"] >= tk), 1.0) for tk in t)
     print(json.dumps({"x0": [float(v) for v in x0], "E_start": round(float(pump_energy(model, x0[None])[0]), 2),
-                      "E_target": round(float(np.min(V[paid >= 1.0])), 2), "rows": rows,
-                      "return_bound": round(float(bound), 1)}))
+                      "E_target": round(float(np.min(V[paid >= 1.0])), 2), "rows": rows}))
 
 
 if __name__ == "__main__":
