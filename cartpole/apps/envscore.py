@@ -28,9 +28,10 @@ from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
 from cartpole.mpc.options import MPCOptions
+from cartpole.ocp.dmc import rewards, task
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.sim import replay
+from cartpole.sim import replay, simulate
 
 #: The folder of the toolkit's copies of dm_control's files (``cartpole/assets`` of the installed package).
 #:
@@ -54,8 +55,8 @@ class Environment:
         ``"dmc"`` or ``"gym"``.
     controller : str
         ``"trajopt"`` (the plan for ``objective``, its TVLQR and the catch), ``"mpc"`` (the DDP MPC on
-        ``objective``'s planning surrogate, at the environment's control step, 2 s horizon, no offline plan) or
-        ``"lqr"`` (the upright LQR designed over the environment's action hold).
+        ``objective``'s planning surrogate, at the environment's control step, no offline plan; its horizon chosen
+        among ``horizons``) or ``"lqr"`` (the upright LQR designed over the environment's action hold).
     objective : str or None
         The ``dmc_*`` objective planned for (:mod:`cartpole.ocp.dmc`).
     asset : str or None
@@ -66,6 +67,11 @@ class Environment:
         quoted.
     reference_source : str
         Where ``reference`` comes from.
+    horizons : tuple of float
+        The DDP MPC's horizons in s (``"mpc"``). With more than one, each is run from the episode's start in the
+        toolkit's own MuJoCo run of ``asset`` for the whole episode and scored with the task's exact reward
+        (:func:`cartpole.ocp.dmc.rewards`); the one that earns most is the controller (:func:`best_mpc`). The
+        environment's physics is that file's to the bit (``replays``), so its episode earns what was predicted.
     """
 
     name: str
@@ -75,14 +81,21 @@ class Environment:
     asset: str | None = None
     reference: float | None = None
     reference_source: str = ""
+    horizons: tuple = (2.0,)
 
+
+#: The acrobot's DDP MPC horizons (s) tried from each start (:func:`best_mpc`): 2 s is the best single horizon
+#: over dm_control's first ten episodes (docs/dmc.md); the longer ones swing up sooner from some starts near hanging,
+#: where 2 s pumps for long.
+ACROBOT_HORIZONS = (2.0, 2.5, 3.0, 4.0)
 
 _TDMPC2 = "TD-MPC2's best evaluation (nicklashansen/tdmpc2, results/tdmpc2/<task>.csv)"
 
 #: Every environment :func:`score_episode` runs, by name.
 ENVIRONMENTS = {e.name: e for e in (
     Environment("pendulum-swingup", "dmc", "trajopt", "dmc_pendulum_swingup", "dmc_pendulum.xml", 906.2, _TDMPC2),
-    Environment("acrobot-swingup", "dmc", "mpc", "dmc_acrobot_swingup", "dmc_acrobot.xml", 711.5, _TDMPC2),
+    Environment("acrobot-swingup", "dmc", "mpc", "dmc_acrobot_swingup", "dmc_acrobot.xml", 711.5, _TDMPC2,
+                horizons=ACROBOT_HORIZONS),
     Environment("cartpole-swingup", "dmc", "trajopt", "dmc_cartpole_swingup", "dmc_cartpole.xml", 883.0, _TDMPC2),
     Environment("cartpole-swingup_sparse", "dmc", "trajopt", "dmc_cartpole_swingup_sparse", "dmc_cartpole.xml",
                 849.0, _TDMPC2),
@@ -124,6 +137,9 @@ class EpisodeScore:
         The file the controller was designed on and the replay ran.
     rewards : (steps,) array
         The reward the environment paid for each step.
+    design : dict or None
+        How the controller was chosen (:meth:`Chosen.as_dict`: the horizon, each candidate's predicted return),
+        None for a controller made without a choice.
     """
 
     env: str
@@ -139,14 +155,15 @@ class EpisodeScore:
     design_s: float
     mjcf: str
     rewards: np.ndarray = field(default=None, repr=False)
+    design: dict | None = None
 
     def as_dict(self) -> dict:
         """JSON-ready: ``env``, ``seed``, ``x0``, ``return``, ``steps``, ``terminated``, ``replays``, ``warned``,
-        ``design_s``, ``mjcf`` (the ctrl, states and rewards left out)."""
+        ``design_s``, ``mjcf``, ``design`` (the ctrl, states and rewards left out)."""
         return {"env": self.env, "seed": self.seed, "x0": [float(v) for v in self.x0],
                 "return": round(float(self.return_), 4), "steps": self.steps, "terminated": self.terminated,
                 "replays": self.replays, "warned": self.warned, "design_s": round(self.design_s, 3),
-                "mjcf": self.mjcf}
+                "mjcf": self.mjcf, "design": self.design}
 
 
 def environment(name: str) -> Environment:
@@ -220,6 +237,75 @@ class _Gym:
         return float(reward), bool(terminated or truncated)
 
 
+@dataclass(frozen=True)
+class Chosen:
+    """A controller picked among candidates by the return each earns in the toolkit's own MuJoCo run of the episode
+    (:func:`choose`).
+
+    Attributes
+    ----------
+    controller : callable
+        ``u = controller(t, x)``, the chosen candidate (called as itself).
+    choice : str
+        Its label (the DDP MPC's horizon in s, for :func:`best_mpc`).
+    predicted : dict
+        Each candidate's label -> the return predicted for it (:func:`episode_return`).
+    """
+
+    controller: object
+    choice: str
+    predicted: dict
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,) of the chosen controller at ``t`` (s) for the state ``x`` (nx,)."""
+        return self.controller(t, x)
+
+    def as_dict(self) -> dict:
+        """JSON-ready: ``choice``, ``predicted`` (label -> predicted return) and ``predicted_return`` (the chosen
+        one's)."""
+        return {"choice": self.choice, "predicted": {k: round(r, 4) for k, r in self.predicted.items()},
+                "predicted_return": round(self.predicted[self.choice], 4)}
+
+
+def episode_return(model, mjcf: str, objective: str, controller, x0) -> float:
+    """The return ``controller`` earns over one dm_control episode of the task ``objective`` from ``x0`` (nx,), in
+    the toolkit's own MuJoCo run of ``mjcf`` (one ctrl per physics step, the task's time limit): dm_control's exact
+    reward (:func:`cartpole.ocp.dmc.rewards`) of each state reached and ctrl held, summed. A run that diverges earns
+    what it earned until then."""
+    dt = float(model.dt)
+    roll = simulate(mjcf, controller, x0, task(objective).steps(dt) * dt)
+    x = np.column_stack([roll.qpos, roll.qvel])
+    u = np.asarray(roll.ctrl, float).reshape(x.shape[0] - 1, model.nu)
+    return float(np.sum(rewards(model, objective, x[1:], u)))
+
+
+def choose(candidates: dict, model, mjcf: str, objective: str, x0) -> Chosen:
+    """The candidate (label -> ``u = c(t, x)``, each restarting when called from ``t = 0``) that earns most over the
+    episode of ``objective`` from ``x0`` (nx,) in the toolkit's MuJoCo run of ``mjcf`` (:func:`episode_return`; the
+    first of equals, in the given order). dm_control's physics is that file's to the bit, so the environment's
+    episode from ``x0`` earns the predicted return."""
+    predicted = {str(k): episode_return(model, mjcf, objective, c, x0) for k, c in candidates.items()}
+    best = max(predicted, key=lambda k: predicted[k])
+    chosen = dict(zip(predicted, candidates.values()))[best]
+    if hasattr(chosen, "reset"):
+        chosen.reset()
+    return Chosen(chosen, best, predicted)
+
+
+def best_mpc(env: Environment, model, mjcf: str, x0, period: float):
+    """The DDP MPC on ``env.objective`` (no offline plan, control period ``period`` s) from ``x0`` (nx,), its
+    horizon the one of ``env.horizons`` that earns most over the episode (:func:`choose`); the controller itself
+    when there is one horizon, else a :class:`Chosen` labelled by the horizon in s."""
+    made = {}
+    for horizon in env.horizons:
+        opts = MPCOptions(solver="ddp", objective=env.objective, seed_plan=False, period=period,
+                          horizon=float(horizon))
+        made[f"{float(horizon):g}"] = ddp_mpc_swingup(model.params, x0=x0, plan_model=model, options=opts)
+    if len(made) == 1:
+        return next(iter(made.values()))
+    return choose(made, model, mjcf, env.objective, x0)
+
+
 def design(env: Environment, mjcf: str, x0, hold: int):
     """The toolkit's controller for ``env`` from the start ``x0`` (nx,), on the file ``mjcf``, for an environment
     that holds each action for ``hold`` physics steps: ``u = controller(t, x)`` (see :data:`ENVIRONMENTS`)."""
@@ -228,8 +314,7 @@ def design(env: Environment, mjcf: str, x0, hold: int):
     if env.controller == "lqr":
         return LinearFeedback.for_model(model, period=period if hold > 1 else None)
     if env.controller == "mpc":
-        opts = MPCOptions(solver="ddp", objective=env.objective, seed_plan=False, period=period, horizon=2.0)
-        return ddp_mpc_swingup(model.params, x0=x0, plan_model=model, options=opts)
+        return best_mpc(env, model, mjcf, x0, period)
 
     return trajopt_swingup(model.params, x0=tuple(x0), plan_model=model,
                            options=PlanOptions(objective=env.objective)).controller
@@ -288,8 +373,9 @@ def score_episode(name: str, seed: int = 0, *, controller=None, max_steps: int |
     replays = bool(np.array_equal(again.x[::run.hold], np.array(xs)))
     return EpisodeScore(env=name, seed=seed, x0=readonly(x0), return_=float(np.sum(rewards)), steps=len(us),
                         terminated=bool(getattr(run, "terminated", False)), ctrl=readonly(ctrl), x=readonly(np.array(xs)),
-                        replays=replays,
-                        warned=warned, design_s=design_s, mjcf=run.mjcf, rewards=readonly(np.array(rewards)))
+                        replays=replays, warned=warned, design_s=design_s, mjcf=run.mjcf,
+                        rewards=readonly(np.array(rewards)),
+                        design=ctrl_of.as_dict() if isinstance(ctrl_of, Chosen) else None)
 
 
 def score(name: str, n: int = 10, seed: int = 0, *, controller=None, on_episode=None,

@@ -10,7 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cartpole.apps.envscore import ENVIRONMENTS, EnvScoreError, environment, score, score_episode
+from dataclasses import replace
+
+from cartpole.apps.envscore import (ENVIRONMENTS, EnvScoreError, choose, design, environment, episode_return, score,
+                                    score_episode)
 from cartpole.control import LinearFeedback
 from cartpole.models import build_model
 from cartpole.ocp.dmc import episode_starts, rewards
@@ -52,9 +55,30 @@ def test_gymnasium_pendulums_held_by_the_lqr_over_their_action_hold_for_the_whol
 def test_acrobot_seed_0_swung_up_by_its_controller_in_dm_control():
     """The DDP MPC from dm_control's own seed-0 start: within the first 4 s dm_control pays nearly the full reward
     (the tip at the target) for the last half second, and the run replays exactly."""
-    ep = score_episode("acrobot-swingup", 0, max_steps=400)
-    assert ep.replays and not ep.warned
+    def one_horizon(env, mjcf, x0, hold):  # the first of the horizons the scoring chooses among (no choice here)
+        return design(replace(env, horizons=env.horizons[:1]), mjcf, x0, hold)
+
+    ep = score_episode("acrobot-swingup", 0, controller=one_horizon, max_steps=400)
+    assert ep.replays and not ep.warned and ep.design is None
     assert ep.rewards[-50:].min() > 0.9
+
+
+def test_chosen_controller_earns_in_dm_control_what_the_toolkits_own_run_predicted():
+    """Among candidates the one that earns most in the toolkit's MuJoCo run of the episode is chosen, and
+    dm_control's own episode from the same start pays exactly that return (its physics is the file's to the bit)."""
+    def candidates(env, mjcf, x0, hold):
+        model = build_model(mjcf)
+        pushes = {"rest": lambda t, x: np.zeros(model.nu), "pump": lambda t, x: np.sign(x[model.nq + 1:]) + 0.0}
+        return choose(pushes, model, mjcf, env.objective, x0)
+
+    ep = score_episode("acrobot-swingup", 0, controller=candidates)
+    predicted = ep.design["predicted"]
+    assert set(predicted) == {"rest", "pump"} and predicted["rest"] != predicted["pump"]
+    assert ep.design["choice"] == max(predicted, key=predicted.get)
+    assert round(ep.return_, 4) == ep.design["predicted_return"] and ep.replays  # the JSON rounds to 4 places
+    model = build_model(ep.mjcf)
+    assert episode_return(model, ep.mjcf, "dmc_acrobot_swingup", lambda t, x: np.zeros(model.nu), ep.x0) == \
+        pytest.approx(predicted["rest"], abs=1e-4)
 
 
 @pytest.mark.parametrize("kwargs, words", [({"name": "acrobot"}, "Unknown environment 'acrobot'"),

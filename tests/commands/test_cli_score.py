@@ -17,6 +17,7 @@ def test_score_json_is_one_document_with_each_environments_returns(capsys):
     assert env["env"] == "InvertedPendulum-v5" and env["seeds"] == [3, 4]
     assert [e["steps"] for e in env["episodes"]] == [50, 50] and env["returns"] == [50.0, 50.0]
     assert env["all_replay"] and not env["any_warned"] and env["reference"] is None
+    assert all(e["design"] is None for e in env["episodes"])  # the LQR is not chosen among candidates
     assert out.err.count("InvertedPendulum-v5 seed") == 2  # progress on stderr, never on stdout
 
 
