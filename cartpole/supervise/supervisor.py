@@ -56,6 +56,21 @@ RESTART_RATE = 1.0
 #: (``SupervisorOptions.replan_every``): TVLQR alone loses its long pumping plans part way, re-planned every 2 s from
 #: the rest of the plan it swings up.
 HINGE_REPLAN_EVERY = 2.0
+#: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
+#: (``SupervisorOptions.calm_energy``): knocked down, dm_control's acrobot holds 140-1100 J (its swing-up needs 39 J,
+#: seeds 0-11 of ``Knockdown(3, 0.3)``), which its 2 N m elbow motor cannot take out faster than the joints' damping
+#: (``tests/supervise/test_brake.py``); a plan from above that level has to wait for the damping as the brake does,
+#: and the planner does not find one (minutes of cold tries).
+HINGE_CALM_ENERGY = 0.0
+#: s: the brake's time constant :func:`supervisor_for` gives a model driven at a hinge (``brake_time``): on the acrobot
+#: the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy leaves only by
+#: the shoulder's damping; a soft brake lets the elbow swing and damps it too. Knocked by ``Knockdown(3, 0.3)``
+#: (seeds 2, 3), the energy reaches the upright's 8-12 s sooner with 1.5 s than with 0.15 s (measured, in MuJoCo).
+HINGE_BRAKE_TIME = 1.5
+#: s: how long :func:`supervisor_for` lets the brake calm a model driven at a hinge (``calm_budget``): the acrobot's
+#: damping takes its energy's excess over hanging down by half in about 19 s (time constant 27 s, measured), so
+#: 1100 J above upright take about 90 s to reach it.
+HINGE_CALM_BUDGET = 120.0
 
 
 class SupervisorError(OptionsError):
@@ -107,6 +122,16 @@ class SupervisorOptions(StageOptions):
         that fails is logged (``replan_failed``) and the old plan kept. None (default): never, a plan is tracked to
         its end (:func:`supervisor_for` sets 2 s for a model driven at a hinge, the acrobot: TVLQR alone does not
         hold its long pumping plans).
+    calm_energy : float or None
+        J of total mechanical energy (:attr:`CartPoleModel.energy`, zero at upright rest) above which the state
+        counts as fast as well (the brake acts, no plan is asked for), or None (default): rates alone. A chain driven
+        at a hinge (the acrobot) knocked hard holds several times its swing-up's energy, which only its joints'
+        damping removes; a plan from above the upright's energy fails after minutes (:func:`supervisor_for` sets
+        :data:`HINGE_CALM_ENERGY`).
+    warm_tails : bool
+        Warm-start each plan from the tail of a stored plan from its knot nearest the predicted start (mirror images
+        too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guess`) instead of the stored plan from the nearest
+        start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near its start.
     """
 
     plan_budget: float = 30.0
@@ -120,6 +145,8 @@ class SupervisorOptions(StageOptions):
     charged_latency: float | None = None
     exact_plans: bool = True
     replan_every: float | None = None
+    calm_energy: float | None = None
+    warm_tails: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -132,8 +159,10 @@ class SupervisorOptions(StageOptions):
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
         self.number("charged_latency", low=0.0, unit="s", optional=True)
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
-        if not isinstance(self.exact_plans, bool):
-            raise SupervisorError(f"exact_plans = {self.exact_plans!r} must be True or False.")
+        self.number("calm_energy", unit="J", optional=True)
+        for name in ("exact_plans", "warm_tails"):
+            if not isinstance(getattr(self, name), bool):
+                raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
 
 
 @dataclass(frozen=True)
@@ -284,8 +313,15 @@ class Supervisor:
             self._decide(t, mode, **detail)
 
     def _fast(self, x) -> bool:
+        """Any hinge faster than ``calm_rate``, or the energy above ``calm_energy`` when set."""
         rates = np.abs(np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]])
-        return bool(np.any(rates > self.options.calm_rate))
+        if np.any(rates > self.options.calm_rate):
+            return True
+        return self.options.calm_energy is not None and self._energy(x) > self.options.calm_energy
+
+    def _energy(self, x) -> float:
+        """J, the model's total mechanical energy at ``x`` (zero at upright rest)."""
+        return float(self.model.energy(np.asarray(x, dtype=float)))
 
     def _lost(self, t: float, x) -> bool:
         tau = min(t - self.plan_t0, self.plan.trajectory.duration)
@@ -316,7 +352,9 @@ class Supervisor:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
             guess, dist = None, None
-            if self.library is not None and len(self.library):
+            if self.library is not None and len(self.library) and self.options.warm_tails:
+                guess, dist = self.library.knot_guess(self.model, x_pred)
+            elif self.library is not None and len(self.library):
                 guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
                 dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
             plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
@@ -431,7 +469,7 @@ class Supervisor:
             self.fast_since = t
         timed_out = fast and self.planner is not None and t - self.fast_since >= self.options.calm_budget
         if self.planner is None or (fast and not timed_out) or t < self.retry_at:
-            self._set(t, "brake", cost=cost)
+            self._set(t, "brake", cost=cost, energy=self._energy(x))
             return self.brake(t, x)
         if timed_out:  # the brake has not calmed it: plan from the fast state, within the planner's budget
             rates = np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]]
@@ -458,6 +496,12 @@ def _warm(plan) -> bool:
     return any(a.chosen and a.stage.startswith("warm effort") for a in attempts)
 
 
+def hinge_driven(model: CartPoleModel) -> bool:
+    """Whether every actuator of ``model`` drives a hinge (the acrobot), so that :func:`supervisor_for` re-plans as
+    it goes, waits for the damping to calm it and warm-starts from knots (its ``HINGE_*`` settings)."""
+    return all(int(j) in model.hinges for j in model.params.actuated)
+
+
 def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
@@ -477,7 +521,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         The planner's settings (default :class:`~cartpole.planning.options.PlanOptions`).
     options : SupervisorOptions, optional
         Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) re-planning every
-        :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``).
+        :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``),
+        planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, braking up to
+        :data:`HINGE_CALM_BUDGET` s with the soft brake of :data:`HINGE_BRAKE_TIME`) and warm-started from the nearest
+        knot of a stored plan (``warm_tails``).
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -503,9 +550,11 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         basin = basin_of(catch)
     rho = basin.rho
     opts = SupervisorOptions() if options is None else options
-    if options is None and all(int(j) in model.hinges for j in model.params.actuated):
-        # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve
-        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False)
+    if options is None and hinge_driven(model):
+        # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve; plan
+        # only once the damping has brought the energy to the upright's, warm-started from the nearest knot
+        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
+                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, brake_time=HINGE_BRAKE_TIME)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
     try:

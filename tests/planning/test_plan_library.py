@@ -83,3 +83,53 @@ def test_a_warm_start_that_does_not_converge_goes_on_cold(single):
     assert stages[0].startswith("warm effort") and not plan.solve_info.attempts[0].chosen
     assert any(s.startswith("time") for s in stages)  # the cold search ran after it
     assert plan.T > 0.5
+
+
+def test_a_state_near_a_knot_gets_the_rest_of_that_plan_and_a_mirrored_state_its_mirror_image(single):
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    k = len(tr.t) // 2
+    x = np.asarray(tr.x[k], float)
+    guess, dist = lib.knot_guess(model, x, mirror=False)
+    assert dist == pytest.approx(0.0, abs=1e-12) and np.allclose(guess.x[0], x)
+    assert guess.duration == pytest.approx(tr.duration - (tr.t[k] - tr.t[0]))
+    assert np.allclose(guess.x[-1], tr.x[-1])  # still ends upright
+    x_m = 2 * np.asarray(model.x_eq, float) - x  # the mirror image through upright
+    assert lib.knot_guess(model, x_m, mirror=False)[1] > 0.1
+    guess_m, dist_m = lib.knot_guess(model, x_m)  # the cart-pole is symmetric: mirror images searched
+    assert dist_m == pytest.approx(0.0, abs=1e-9) and np.allclose(guess_m.x[0], x_m)
+
+
+def test_a_mirrored_plan_obeys_the_dynamics_when_the_model_is_symmetric(single):
+    from types import SimpleNamespace
+
+    from cartpole.planning.library import mirror_symmetric, mirrored
+
+    params, model, lib = single
+    assert mirror_symmetric(model)
+    m = mirrored(model, lib.plans[0].trajectory)
+    f = np.array([model.dynamics(x, u) for x, u in zip(m.x, m.u)])
+    assert np.allclose(m.xdot, f, atol=1e-6 * np.abs(f).max())
+    lopsided = SimpleNamespace(x_eq=model.x_eq, u_eq=np.zeros(1), u_low=np.array([-1.0]), u_high=np.array([2.0]))
+    assert not mirror_symmetric(lopsided)  # a ctrl range not centred on u*: the mirror image is not a plan
+
+
+def test_a_cached_library_is_built_once_and_only_for_the_starts_it_lacks(single, tmp_path, monkeypatch):
+    from cartpole.planning import library as library_module
+
+    params, model, lib = single
+    path = tmp_path / "plans.npz"
+    lib.save(path)
+    asked = []
+
+    def build(params_, model_, starts, **kw):
+        asked.append(np.array(starts))
+        return kw["library"].with_plan(starts[0], lib.plans[0].trajectory)
+    monkeypatch.setattr(library_module, "build_plan_library", build)
+    again = library_module.cached_library(params, model, [lib.plans[0].x0], path=path)
+    assert not asked and len(again) == 1
+    other = np.asarray(lib.plans[0].x0, float).copy()
+    other[model.hinges[0]] += 0.5
+    more = library_module.cached_library(params, model, [lib.plans[0].x0, other], path=path)
+    assert len(asked) == 1 and np.allclose(asked[0], [other]) and len(more) == 2
+    assert len(PlanLibrary.load(model, path)) == 2  # saved

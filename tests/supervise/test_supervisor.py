@@ -247,3 +247,61 @@ def test_trajectory_tail_is_the_rest_of_a_plan_from_zero():
     tail = trajectory_tail(traj, 0.5)
     assert tail.t[0] == 0.0 and tail.duration == pytest.approx(1.5) and np.allclose(tail.x[0], [0.5, 0.25])
     assert trajectory_tail(traj, 5.0).t.size == 3  # never less than the last two intervals
+
+
+def test_a_slow_state_above_the_calm_energy_is_braked_and_one_below_it_is_planned_from(double):
+    params, model, catch, brake = double
+    asked = []
+
+    def planner(x0, guess=None):
+        asked.append(np.array(x0))
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                     options=SupervisorOptions(calm_energy=0.0, calm_budget=100.0, latency=0.01))
+    slow_high = np.asarray(model.x_eq, float).copy()
+    slow_high[model.nq + model.hinges[0]] = 2.0  # slow, but above the upright's energy
+    assert float(model.energy(slow_high)) > 0.0
+    for k in range(20):
+        sup(k * 0.005, slow_high)
+    assert not asked and sup.mode == "brake"
+    assert sup.decisions[-1].detail["energy"] == pytest.approx(float(model.energy(slow_high)))
+    sup(0.2, np.asarray(model.x_hanging, float))  # at rest hanging: below it, planned from
+    assert len(asked) == 1
+    with pytest.raises(SupervisorError, match="calm_energy"):
+        SupervisorOptions(calm_energy=float("nan"))
+    with pytest.raises(SupervisorError, match="warm_tails"):
+        SupervisorOptions(warm_tails="yes")
+
+
+def test_with_warm_tails_each_plan_starts_from_the_rest_of_the_stored_plan_nearest_by_knot(double):
+    from cartpole.planning.library import PlanLibrary
+
+    params, model, catch, brake = double
+    guesses = []
+
+    def planner(x0, guess=None):
+        guesses.append((np.array(x0), guess))
+        return _stub_plan(model, 0.5, model.x_eq)
+    stored = _stub_plan(model, 2.0, model.x_hanging).trajectory
+    lib = PlanLibrary.empty(model).with_plan(stored.x[0], stored)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner, library=lib,
+                     options=SupervisorOptions(latency=0.01, funnel=10.0, warm_tails=True))
+    sup(0.0, np.asarray(model.x_hanging, float))
+    (x0, guess), = guesses
+    assert guess is not None and guess.duration <= stored.duration
+    assert sup.decisions[-1].kind == "plan" and "library_distance" in sup.decisions[-1].detail
+
+
+def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
+    from cartpole.planning.library import PlanLibrary
+    from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
+                                               HINGE_REPLAN_EVERY, hinge_driven)
+
+    params = read_params("cartpole/assets/dmc_acrobot.xml")
+    model = build_model(params)
+    assert hinge_driven(model) and not hinge_driven(build_model(read_params("cartpole/assets/cartpole.xml")))
+    sup = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
+                         library=PlanLibrary.empty(model))
+    o = sup.options
+    assert (o.replan_every, o.calm_energy, o.calm_budget, o.brake_time, o.warm_tails, o.exact_plans) == (
+        HINGE_REPLAN_EVERY, HINGE_CALM_ENERGY, HINGE_CALM_BUDGET, HINGE_BRAKE_TIME, True, False)
