@@ -176,11 +176,18 @@ class PlanLibrary:
         low is near one of its knots, not near its start). With ``mirror`` (default: when
         :func:`mirror_symmetric` finds ``model`` symmetric) each plan's mirror image through upright
         (:func:`mirrored`) is searched too."""
+        found = self.knot_guesses(model, x, count=1, metric=metric, mirror=mirror)
+        return found[0] if found else None
+
+    def knot_guesses(self, model: CartPoleModel, x, count: int = 3, metric=None, mirror: bool | None = None
+                     ) -> list[tuple[Trajectory, float]]:
+        """Up to ``count`` warm starts for a plan from ``x`` (nx,), nearest first: of each stored plan (and each
+        mirror image) the tail from its knot nearest ``x``, as :meth:`knot_guess`; with their distances."""
         x = np.asarray(x, dtype=float).ravel()
         if x.size != self.nx:
             raise PlanLibraryError(f"The state has {x.size} numbers but the plan library's model has {self.nx}.")
         if not self.plans:
-            return None
+            return []
         self.check(model)
         trajs = [p.trajectory for p in self.plans]
         if mirror is None:
@@ -189,16 +196,15 @@ class PlanLibrary:
             trajs = trajs + [mirrored(model, tr) for tr in trajs]
         W = self._default_metric() if metric is None else np.asarray(metric, dtype=float)
         hinges = list(self.hinges)
-        best = (np.inf, None, 0.0)
+        best = []
         for tr in trajs:
             d = x[None, :] - np.asarray(tr.x[:max(1, len(tr.t) - 2)], dtype=float)  # a tail keeps two intervals
             d[:, hinges] = wrap_angle(d[:, hinges])
             dist = np.sqrt(np.maximum(np.einsum("ki,ij,kj->k", d, W, d), 0.0))
             k = int(np.argmin(dist))
-            if dist[k] < best[0]:
-                best = (float(dist[k]), tr, float(tr.t[k] - tr.t[0]))
-        tail = trajectory_tail(best[1], best[2])
-        return shifted_onto(model, tail, x), best[0]
+            best.append((float(dist[k]), tr, float(tr.t[k] - tr.t[0])))
+        best.sort(key=lambda b: b[0])
+        return [(shifted_onto(model, trajectory_tail(tr, tau), x), dist) for dist, tr, tau in best[:int(count)]]
 
     def with_plan(self, x0, trajectory: Trajectory, plan_s: float = float("nan")) -> "PlanLibrary":
         """A new library with the plan ``trajectory`` from ``x0`` added (the oldest dropped beyond

@@ -56,6 +56,9 @@ RESTART_RATE = 1.0
 #: (``SupervisorOptions.replan_every``): TVLQR alone loses its long pumping plans part way, re-planned every 2 s from
 #: the rest of the plan it swings up.
 HINGE_REPLAN_EVERY = 2.0
+#: Warm starts (the nearest knots' tails, one per stored plan or mirror image) a plan with ``warm_tails`` tries before
+#: it fails, never cold: each try is one solve (seconds), a cold plan from such a state minutes.
+WARM_TRIES = 3
 #: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
 #: (``SupervisorOptions.calm_energy``): knocked down, dm_control's acrobot holds 140-1100 J (its swing-up needs 39 J,
 #: seeds 0-11 of ``Knockdown(3, 0.3)``), which its 2 N m elbow motor cannot take out faster than the joints' damping
@@ -130,8 +133,10 @@ class SupervisorOptions(StageOptions):
         :data:`HINGE_CALM_ENERGY`).
     warm_tails : bool
         Warm-start each plan from the tail of a stored plan from its knot nearest the predicted start (mirror images
-        too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guess`) instead of the stored plan from the nearest
-        start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near its start.
+        too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`), the :data:`WARM_TRIES` nearest in turn and
+        never cold (the planner is called ``planner(x0, guess=..., cold=False)``; a plan that fails is retried from
+        the next predicted state), instead of the stored plan from the nearest start (False, default). A calmed
+        acrobot swings low, near a knot of the plan from hanging, not near its start.
     """
 
     plan_budget: float = 30.0
@@ -353,11 +358,14 @@ class Supervisor:
                 raise CartPoleError("the prediction over the planning latency is not finite")
             guess, dist = None, None
             if self.library is not None and len(self.library) and self.options.warm_tails:
-                guess, dist = self.library.knot_guess(self.model, x_pred)
-            elif self.library is not None and len(self.library):
-                guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
-                dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
-            plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
+                guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES)
+                dist = guesses[0][1]
+                plan = self._plan_warm(x_pred, guesses)
+            else:
+                if self.library is not None and len(self.library):
+                    guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
+                    dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
+                plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
@@ -369,7 +377,8 @@ class Supervisor:
             self.failures += 1
             self.retry_at = t + charged + self.options.retry_after
             self._decide(t, "plan_failed", wall_s=wall, charged_s=charged, reason=why,
-                         x0=[float(v) for v in np.asarray(x_pred, dtype=float)])
+                         x0=[float(v) for v in np.asarray(x_pred, dtype=float)],
+                         **({} if dist is None else {"library_distance": dist}))
             self.mode = "brake"
             return
         # used from the later of its arrival and the time it was planned to start from (an early plan waits)
@@ -382,6 +391,20 @@ class Supervisor:
         self._decide(t, "plan", wall_s=wall, charged_s=charged, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
                      **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
+
+    def _plan_warm(self, x0, guesses):
+        """The planner from ``x0`` warm-started from each of ``guesses`` (``(Trajectory, distance)``, the nearest
+        knots' tails: :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`) in turn, never cold
+        (``planner(x0, guess=..., cold=False)``): the first plan that converges. Raises the last failure's
+        :class:`~cartpole.errors.CartPoleError` when none does (the supervisor brakes and tries again from the next
+        predicted state)."""
+        failure = None
+        for guess, _ in guesses:
+            try:
+                return self.planner(x0, guess=guess, cold=False)
+            except CartPoleError as exc:
+                failure = exc
+        raise failure
 
     def _receding(self, t: float, x) -> None:
         """While tracking: take the re-plan made earlier once it is ready, else make one when it is due
@@ -565,9 +588,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         if not opts.exact_plans:
             plan_opts = plan_opts.replace(exact_discrete=False)
 
-        def planner(x0, guess=None):
+        def planner(x0, guess=None, cold=True):
             return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
-                                   guess=guess, catch_R=catch_R)
+                                   guess=guess, catch_R=catch_R, cold=cold)
         lib = PlanLibrary.load(model) if library is None else library
         return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
     return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)

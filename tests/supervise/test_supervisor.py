@@ -273,23 +273,42 @@ def test_a_slow_state_above_the_calm_energy_is_braked_and_one_below_it_is_planne
         SupervisorOptions(warm_tails="yes")
 
 
-def test_with_warm_tails_each_plan_starts_from_the_rest_of_the_stored_plan_nearest_by_knot(double):
+def test_with_warm_tails_each_plan_starts_from_the_rest_of_a_stored_plan_nearest_by_knot_and_never_cold(double):
     from cartpole.planning.library import PlanLibrary
+    from cartpole.supervise.supervisor import WARM_TRIES
 
     params, model, catch, brake = double
-    guesses = []
+    calls = []
 
-    def planner(x0, guess=None):
-        guesses.append((np.array(x0), guess))
-        return _stub_plan(model, 0.5, model.x_eq)
-    stored = _stub_plan(model, 2.0, model.x_hanging).trajectory
+    def planner(x0, guess=None, cold=True):
+        calls.append((np.array(x0), guess, cold))
+        if len(calls) > 1:
+            return _stub_plan(model, 0.5, model.x_eq)
+        raise CartPoleError("The warm start did not converge.")
+    t = np.linspace(0.0, 2.0, 5)
+    x = np.array([np.asarray(model.x_hanging, float) * (1 - s) + np.asarray(model.x_eq, float) * s
+                  for s in t / 2.0])
+    stored = Trajectory(t=t, x=x, u=np.zeros((5, model.nu)), xdot=np.zeros_like(x))
     lib = PlanLibrary.empty(model).with_plan(stored.x[0], stored)
     sup = Supervisor(model, catch, 1e-9, brake, planner=planner, library=lib,
                      options=SupervisorOptions(latency=0.01, funnel=10.0, warm_tails=True))
     sup(0.0, np.asarray(model.x_hanging, float))
-    (x0, guess), = guesses
-    assert guess is not None and guess.duration <= stored.duration
+    assert len(calls) == 2 <= WARM_TRIES  # the nearest knot's tail failed: the next warm start, not a cold plan
+    assert all(g is not None and c is False for _, g, c in calls)
+    assert calls[0][1].duration <= stored.duration
     assert sup.decisions[-1].kind == "plan" and "library_distance" in sup.decisions[-1].detail
+
+    tries = []
+
+    def never(x0, guess=None, cold=True):
+        tries.append(cold)
+        raise CartPoleError("The warm start did not converge.")
+    sup2 = Supervisor(model, catch, 1e-9, brake, planner=never, library=lib,
+                      options=SupervisorOptions(latency=0.01, warm_tails=True))
+    sup2(0.0, np.asarray(model.x_hanging, float))
+    d = sup2.decisions[-1]
+    assert d.kind == "plan_failed" and "did not converge" in d.detail["reason"] and "library_distance" in d.detail
+    assert tries == [False, False]  # the plan and its mirror image, each warm, none cold
 
 
 def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
