@@ -135,8 +135,9 @@ class SupervisorOptions(StageOptions):
         Warm-start each plan from the tail of a stored plan from its knot nearest the predicted start (mirror images
         too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`), the :data:`WARM_TRIES` nearest in turn and
         never cold (the planner is called ``planner(x0, guess=..., cold=False)``; a plan that fails is retried from
-        the next predicted state), instead of the stored plan from the nearest start (False, default). A calmed
-        acrobot swings low, near a knot of the plan from hanging, not near its start.
+        the next predicted state; a re-plan while tracking is warm only too), instead of the stored plan from the
+        nearest start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near
+        its start.
     """
 
     plan_budget: float = 30.0
@@ -434,7 +435,8 @@ class Supervisor:
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
-            new = self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan))
+            warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
+            new = self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan), **warm_only)
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)
