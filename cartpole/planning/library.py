@@ -179,10 +179,15 @@ class PlanLibrary:
         found = self.knot_guesses(model, x, count=1, metric=metric, mirror=mirror)
         return found[0] if found else None
 
-    def knot_guesses(self, model: CartPoleModel, x, count: int = 3, metric=None, mirror: bool | None = None
-                     ) -> list[tuple[Trajectory, float]]:
+    def knot_guesses(self, model: CartPoleModel, x, count: int = 3, metric=None, mirror: bool | None = None,
+                     energy_weight: float = 0.0) -> list[tuple[Trajectory, float]]:
         """Up to ``count`` warm starts for a plan from ``x`` (nx,), nearest first: of each stored plan (and each
-        mirror image) the tail from its knot nearest ``x``, as :meth:`knot_guess`; with their distances."""
+        mirror image) the tail from its knot nearest ``x``, as :meth:`knot_guess`; with their distances.
+
+        ``energy_weight`` (dimensionless, default 0) adds ``energy_weight * |E_knot - E(x)| / E_up`` to the distance
+        in quadrature, ``E`` the model's total energy and ``E_up`` the swing-up's (upright rest over hanging rest,
+        J): a knot of the energy ``x`` has is where the rest of the plan fits it (a pumping plan passes near the
+        same pose at every energy)."""
         x = np.asarray(x, dtype=float).ravel()
         if x.size != self.nx:
             raise PlanLibraryError(f"The state has {x.size} numbers but the plan library's model has {self.nx}.")
@@ -196,11 +201,20 @@ class PlanLibrary:
             trajs = trajs + [mirrored(model, tr) for tr in trajs]
         W = self._default_metric() if metric is None else np.asarray(metric, dtype=float)
         hinges = list(self.hinges)
+        if energy_weight:
+            e_x = float(model.energy(x))
+            scale = float(energy_weight) / max(abs(float(model.energy(model.x_eq)) - float(model.energy(
+                model.x_hanging))), 1e-12)
         best = []
         for tr in trajs:
-            d = x[None, :] - np.asarray(tr.x[:max(1, len(tr.t) - 2)], dtype=float)  # a tail keeps two intervals
+            knots = np.asarray(tr.x[:max(1, len(tr.t) - 2)], dtype=float)  # a tail keeps two intervals
+            d = x[None, :] - knots
             d[:, hinges] = wrap_angle(d[:, hinges])
-            dist = np.sqrt(np.maximum(np.einsum("ki,ij,kj->k", d, W, d), 0.0))
+            d2 = np.einsum("ki,ij,kj->k", d, W, d)
+            if energy_weight:
+                e = np.asarray(model.energy.map(len(knots))(knots.T), dtype=float).ravel()
+                d2 = d2 + (scale * (e - e_x)) ** 2
+            dist = np.sqrt(np.maximum(d2, 0.0))
             k = int(np.argmin(dist))
             best.append((float(dist[k]), tr, float(tr.t[k] - tr.t[0])))
         best.sort(key=lambda b: b[0])

@@ -59,6 +59,10 @@ HINGE_REPLAN_EVERY = 2.0
 #: Warm starts (the nearest knots' tails, one per stored plan or mirror image) a plan with ``warm_tails`` tries before
 #: it fails, never cold: each try is one solve (seconds), a cold plan from such a state minutes.
 WARM_TRIES = 3
+#: The weight of an energy mismatch in the choice of knot (``PlanLibrary.knot_guesses``' ``energy_weight``): a tenth
+#: of the swing-up's energy counts as much as 1 rad of hinge angle (at the lab's weight, 10 per rad^2). A calmed
+#: acrobot has about the upright's energy: knots of the last pumps, short tails, not the plan from its first swing.
+KNOT_ENERGY_WEIGHT = 31.6
 #: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
 #: (``SupervisorOptions.calm_energy``): knocked down, dm_control's acrobot holds 140-1100 J (its swing-up needs 39 J,
 #: seeds 0-11 of ``Knockdown(3, 0.3)``), which its 2 N m elbow motor cannot take out faster than the joints' damping
@@ -359,7 +363,8 @@ class Supervisor:
                 raise CartPoleError("the prediction over the planning latency is not finite")
             guess, dist = None, None
             if self.library is not None and len(self.library) and self.options.warm_tails:
-                guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES)
+                guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
+                                                    energy_weight=KNOT_ENERGY_WEIGHT)
                 dist = guesses[0][1]
                 plan = self._plan_warm(x_pred, guesses)
             else:

@@ -133,3 +133,17 @@ def test_a_cached_library_is_built_once_and_only_for_the_starts_it_lacks(single,
     more = library_module.cached_library(params, model, [lib.plans[0].x0, other], path=path)
     assert len(asked) == 1 and np.allclose(asked[0], [other]) and len(more) == 2
     assert len(PlanLibrary.load(model, path)) == 2  # saved
+
+
+def test_an_energy_weight_picks_the_knot_of_the_states_energy(single):
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    x = np.asarray(tr.x[2], float).copy()
+    x[model.nq + model.hinges[0]] += 3.0  # the pose of an early knot, with more energy than it has
+    e_x = float(model.energy(x))
+    knots = np.asarray(tr.x[:-2], float)
+    gap = np.abs(np.array([float(model.energy(k)) for k in knots]) - e_x)
+    plain, _ = lib.knot_guess(model, x, mirror=False)
+    (by_energy, _), = lib.knot_guesses(model, x, count=1, mirror=False, energy_weight=1e6)
+    assert abs(float(model.energy(by_energy.x[0])) - e_x) == pytest.approx(gap.min())
+    assert abs(float(model.energy(plain.x[0])) - e_x) > gap.min()  # by pose alone, another knot
