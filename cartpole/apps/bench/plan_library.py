@@ -24,7 +24,7 @@ from cartpole.models import build_model, read_params
 from cartpole.planning.library import build_plan_library, library_starts, mirrored
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.supervise.supervisor import hinge_driven
+from cartpole.supervise.supervisor import KNOT_ENERGY_WEIGHT, hinge_driven
 
 #: Default models: the shipped one- and two-pole carts and dm_control's acrobot (its cold plans take minutes on a
 #: shared machine: its row is the bench's longest).
@@ -72,9 +72,10 @@ def plan_library_benchmark(models=None, *, angles: int = 3, probes: int = 3, see
                            ) -> list[dict]:
     """One row per model: cold and warm-started plans from the same starts near the library's.
 
-    On a model driven at a hinge (:func:`~cartpole.supervise.supervisor.hinge_driven`: the acrobot) as its supervisor plans: the library is the one
-    plan from hanging, the probes are near its knots (:func:`knot_probes`), the warm start is the nearest knot's tail
-    (:meth:`~cartpole.planning.library.PlanLibrary.knot_guess`) and no plan is re-solved on the exact discrete step.
+    On a model driven at a hinge (:func:`~cartpole.supervise.supervisor.hinge_driven`: the acrobot) as its
+    supervisor plans: the library is the one plan from hanging, the probes are near its knots (:func:`knot_probes`),
+    the warm start is the nearest knot's tail (:meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`, by pose
+    and energy as the supervisor chooses) and no plan is re-solved on the exact discrete step.
 
     Parameters
     ----------
@@ -126,7 +127,8 @@ def plan_library_benchmark(models=None, *, angles: int = 3, probes: int = 3, see
                 for way in ("cold", "warm"):
                     guess = None
                     if way == "warm":
-                        guess = lib.knot_guess(model, x)[0] if knots else lib.guess_for(model, x)
+                        guess = (lib.knot_guesses(model, x, count=1, energy_weight=KNOT_ENERGY_WEIGHT)[0][0]
+                                 if knots else lib.guess_for(model, x))
                     tic = time.perf_counter()
                     try:
                         plan = trajopt_swingup(params, x0=tuple(x), plan_model=model, guess=guess, options=opts)
