@@ -180,14 +180,15 @@ class PlanLibrary:
         return found[0] if found else None
 
     def knot_guesses(self, model: CartPoleModel, x, count: int = 3, metric=None, mirror: bool | None = None,
-                     energy_weight: float = 0.0) -> list[tuple[Trajectory, float]]:
+                     energy_weight: float = 0.0, min_tail: float = 0.0) -> list[tuple[Trajectory, float]]:
         """Up to ``count`` warm starts for a plan from ``x`` (nx,), nearest first: of each stored plan (and each
         mirror image) the tail from its knot nearest ``x``, as :meth:`knot_guess`; with their distances.
 
         ``energy_weight`` (dimensionless, default 0) adds ``energy_weight * |E_knot - E(x)| / E_up`` to the distance
         in quadrature, ``E`` the model's total energy and ``E_up`` the swing-up's (upright rest over hanging rest,
         J): a knot of the energy ``x`` has is where the rest of the plan fits it (a pumping plan passes near the
-        same pose at every energy)."""
+        same pose at every energy). ``min_tail`` (s, default 0): only knots at least that long before the plan's end
+        (a swing-up from a state that does not match the knot exactly needs some time)."""
         x = np.asarray(x, dtype=float).ravel()
         if x.size != self.nx:
             raise PlanLibraryError(f"The state has {x.size} numbers but the plan library's model has {self.nx}.")
@@ -207,7 +208,8 @@ class PlanLibrary:
                 model.x_hanging))), 1e-12)
         best = []
         for tr in trajs:
-            knots = np.asarray(tr.x[:max(1, len(tr.t) - 2)], dtype=float)  # a tail keeps two intervals
+            last = int(np.searchsorted(tr.t, float(tr.t[-1]) - float(min_tail), side="right"))
+            knots = np.asarray(tr.x[:max(1, min(last, len(tr.t) - 2))], dtype=float)  # a tail keeps two intervals
             d = x[None, :] - knots
             d[:, hinges] = wrap_angle(d[:, hinges])
             d2 = np.einsum("ki,ij,kj->k", d, W, d)

@@ -63,6 +63,9 @@ WARM_TRIES = 3
 #: of the swing-up's energy counts as much as 1 rad of hinge angle (at the lab's weight, 10 per rad^2). A calmed
 #: acrobot has about the upright's energy: knots of the last pumps, short tails, not the plan from its first swing.
 KNOT_ENERGY_WEIGHT = 31.6
+#: s: the shortest tail of a stored plan a warm start is taken from (``knot_guesses``' ``min_tail``): matched by
+#: energy alone a calmed acrobot's knot can be the plan's last, a quarter-second plan from a pose it does not have.
+KNOT_MIN_TAIL = 2.0
 #: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
 #: (``SupervisorOptions.calm_energy``): knocked down, dm_control's acrobot holds 140-1100 J (its swing-up needs 39 J,
 #: seeds 0-11 of ``Knockdown(3, 0.3)``), which its 2 N m elbow motor cannot take out faster than the joints' damping
@@ -364,7 +367,7 @@ class Supervisor:
             guess, dist = None, None
             if self.library is not None and len(self.library) and self.options.warm_tails:
                 guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
-                                                    energy_weight=KNOT_ENERGY_WEIGHT)
+                                                    energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
                 dist = guesses[0][1]
                 plan = self._plan_warm(x_pred, guesses)
             else:

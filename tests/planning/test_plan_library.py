@@ -147,3 +147,12 @@ def test_an_energy_weight_picks_the_knot_of_the_states_energy(single):
     (by_energy, _), = lib.knot_guesses(model, x, count=1, mirror=False, energy_weight=1e6)
     assert abs(float(model.energy(by_energy.x[0])) - e_x) == pytest.approx(gap.min())
     assert abs(float(model.energy(plain.x[0])) - e_x) > gap.min()  # by pose alone, another knot
+
+
+def test_a_minimum_tail_keeps_the_plans_last_knots_out(single):
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    x = np.asarray(tr.x[-3], float)  # at a knot near the end
+    assert lib.knot_guess(model, x, mirror=False)[0].duration < 0.25 * tr.duration
+    (guess, dist), = lib.knot_guesses(model, x, count=1, mirror=False, min_tail=0.5 * tr.duration)
+    assert guess.duration >= 0.5 * tr.duration - 1e-9 and dist > 0
