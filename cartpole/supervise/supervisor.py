@@ -7,9 +7,11 @@
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
   decisions logged).
-* **brake**: with any hinge faster than ``calm_rate`` (for at most ``calm_budget`` s), a passive PD on the actuated joints
-  (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint) removes energy until the state is one the planner
-  handles; passive, so it cannot add energy whatever the state.
+* **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
+  ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
+  removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
+  On a model driven at a hinge (the acrobot) :func:`supervisor_for` waits for the energy to reach the upright's: a
+  knock leaves it more than its motor can take out, the joints' damping removes it, and no plan is found before.
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
