@@ -10,7 +10,9 @@ same on a loaded CI machine as on a quiet one; each plan's measured wall time is
 
 CPU (2-core machine shared by 8 sessions, so 5-10x a quiet one's): one pole about 6 s (energy law, no plans); two poles
 about 14 s, marked slow: the first plan is cold (2-8 s of wall time here, from hanging), the later ones warm-started
-from the run's own plans (:mod:`cartpole.planning.library`). The acrobot: see its test.
+from the run's own plans (:mod:`cartpole.planning.library`). The acrobot: two minutes, not one (a knock leaves it
+more energy than its damping removes in a minute, whatever drives its motor), with a floor that counts the damping's
+measured waits; see its tests.
 """
 import numpy as np
 import pytest
@@ -133,13 +135,13 @@ def _calm_at(run, model, sup, after: float) -> float:
 def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_calmed_it():
     """Knocked, the acrobot holds several times its swing-up's energy, which only its joints' damping takes out (its
     2 N m motor cannot do much better: ``test_brake.py``). Each knock is followed by a wait ``W_k`` for the damping to
-    bring the energy to the upright's (measured on the run: the supervisor plans only from there; the physics', not
-    the controller's: the energy never grows while the supervisor brakes), then a swing-up and catch within twice
-    ``T1``, the planned swing-up from hanging (the library's plan); a last knock with less run left than that may go
-    unrecovered. The floor: each recovered knock costs its ``LENGTH``, its wait and one swing-up ``T1``, an
-    unrecovered last one the rest of the run: ``uptime >= 1 - (sum_k (LENGTH + W_k + T1) + rest) / duration``. Wall time: 4-5 min on the shared 2-core machine under a load of
-    15-20 (plans of up to a minute each), the library's cold plan from hanging (70 s quiet, 360 s loaded) once per
-    model, kept on disk."""
+    bring the energy to the upright's (measured on the run: the supervisor only brakes until then, and plans from
+    there), then a swing-up and catch within twice ``T1``, the planned swing-up from hanging (the library's plan); a
+    last knock with less run left than that may go unrecovered. The floor: each recovered knock costs its ``LENGTH``,
+    its wait and one swing-up ``T1``, an unrecovered last one the rest of the run:
+    ``uptime >= 1 - (sum_k (LENGTH + W_k + T1) + rest) / duration``. Wall time: 4-5 min on the shared 2-core machine
+    under a load of 15-20 (plans of up to a minute each), the library's cold plan from hanging (70 s quiet, 360 s
+    loaded) once per model, kept on disk."""
     library = _acrobot_library()
     params = read_params(ACROBOT)
     model = build_model(params)
@@ -152,12 +154,10 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     T1 = library.plans[0].trajectory.duration
     waits = [_calm_at(run, model, sup, end) - end for _, end in force.events]
     assert m["knockdowns"] >= 1 and m["recoveries"] >= 1, m
-    t = np.asarray(run.t, float)
-    energy = np.array([float(model.energy(s)) for s in np.hstack([run.qpos, run.qvel])])
+    asked = [d.t for d in sup.decisions if d.kind in ("plan", "plan_failed", "calm_timeout")]
     for (start, end), wait in zip(force.events, waits):
-        if np.isfinite(wait):  # braking from the knock's end to calm: passive, the damping's time
-            k0, k1 = np.searchsorted(t, [end, end + wait])
-            assert np.all(np.diff(energy[k0:k1 + 1]) <= 1e-6 * energy[k0]), start
+        # from the knock's end until the state is calm the supervisor only brakes: the wait is the damping's
+        assert not [a for a in asked if end + 1e-9 < a < end + wait - 1e-9], (start, wait, asked)
         if start in m["unrecovered_at"]:  # only a last knock with too little run left for its wait and a swing-up
             assert start == force.events[-1][0] and ACROBOT_DURATION - end < wait + 2 * T1, (start, wait, m)
         else:  # swung up and caught within twice the swing-up from the moment it was calm
