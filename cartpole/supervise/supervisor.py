@@ -74,10 +74,12 @@ KNOT_MIN_TAIL = 2.0
 #: (``tests/supervise/test_brake.py``); a plan from above that level has to wait for the damping as the brake does,
 #: and the planner does not find one (minutes of cold tries).
 HINGE_CALM_ENERGY = 0.0
-#: s: the brake's time constant :func:`supervisor_for` gives a model driven at a hinge (``brake_time``): on the acrobot
-#: the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy leaves only by
-#: the shoulder's damping; a soft brake lets the elbow swing and damps it too. Knocked by ``Knockdown(3, 0.3)``
-#: (seeds 2, 3), the energy reaches the upright's 8-12 s sooner with 1.5 s than with 0.15 s (measured, in MuJoCo).
+#: s: the calming brake's time constant :func:`supervisor_for` gives a model driven at a hinge (``calm_brake_time``):
+#: on the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
+#: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too. Knocked by
+#: ``Knockdown(3, 0.3)`` (seeds 2, 3), the energy reaches the upright's 8-12 s sooner with 1.5 s than with 0.15 s
+#: (measured, in MuJoCo). While a plan is on its way the stiff brake holds the chain straight, near the plans' poses
+#: (with the soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
 HINGE_BRAKE_TIME = 1.5
 #: s: how long :func:`supervisor_for` lets the brake calm a model driven at a hinge (``calm_budget``): the acrobot's
 #: damping takes its energy's excess over hanging down by half in about 19 s (time constant 27 s, measured), so
@@ -134,6 +136,10 @@ class SupervisorOptions(StageOptions):
         that fails is logged (``replan_failed``) and the old plan kept. None (default): never, a plan is tracked to
         its end (:func:`supervisor_for` sets 2 s for a model driven at a hinge, the acrobot: TVLQR alone does not
         hold its long pumping plans).
+    calm_brake_time : float or None
+        s, the time constant of the brake that acts while the state is fast (calming it), or None (default): that of
+        ``brake_time``, which acts otherwise (while a plan is on its way). :func:`supervisor_for` sets
+        :data:`HINGE_BRAKE_TIME` for a model driven at a hinge.
     calm_energy : float or None
         J of total mechanical energy (:attr:`CartPoleModel.energy`, zero at upright rest) above which the state
         counts as fast as well (the brake acts, no plan is asked for), or None (default): rates alone. A chain driven
@@ -160,6 +166,7 @@ class SupervisorOptions(StageOptions):
     charged_latency: float | None = None
     exact_plans: bool = True
     replan_every: float | None = None
+    calm_brake_time: float | None = None
     calm_energy: float | None = None
     warm_tails: bool = False
 
@@ -175,6 +182,7 @@ class SupervisorOptions(StageOptions):
         self.number("charged_latency", low=0.0, unit="s", optional=True)
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
+        self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
         for name in ("exact_plans", "warm_tails"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
@@ -270,6 +278,9 @@ class Supervisor:
         Warm starts for the planner (:mod:`cartpole.planning.library`): each plan is asked for with the stored plan
         nearest the predicted start by the catch's cost-to-go metric ``S`` (``planner(x0, guess=...)``), and every
         plan the supervisor makes is added to it, a warm start for the next knockdown.
+    calm_brake : callable, optional
+        ``(t, x) -> ctrl``, the brake while the state is fast (default ``brake``, which acts while a plan is on its
+        way and after a failed one).
 
     Attributes
     ----------
@@ -282,11 +293,13 @@ class Supervisor:
 
     def __init__(self, model: CartPoleModel, catch: LinearFeedback, rho: float, brake: Callable, *,
                  planner: Callable | None = None, swingup: Callable | None = None,
-                 options: SupervisorOptions | None = None, basin=None, library=None):
+                 options: SupervisorOptions | None = None, basin=None, library=None,
+                 calm_brake: Callable | None = None):
         if catch.S is None:
             raise SupervisorError("The supervisor's catch needs its cost-to-go S to test the basin; build it with "
                                   "LinearFeedback.for_model.")
         self.model, self.catch, self.rho, self.brake = model, catch, float(rho), brake
+        self.calm_brake = brake if calm_brake is None else calm_brake
         self.planner, self.swingup = planner, swingup
         self.options = SupervisorOptions() if options is None else options
         self.hinges = tuple(model.hinges)
@@ -505,7 +518,7 @@ class Supervisor:
         timed_out = fast and self.planner is not None and t - self.fast_since >= self.options.calm_budget
         if self.planner is None or (fast and not timed_out) or t < self.retry_at:
             self._set(t, "brake", cost=cost, energy=self._energy(x))
-            return self.brake(t, x)
+            return self.calm_brake(t, x) if fast else self.brake(t, x)
         if timed_out:  # the brake has not calmed it: plan from the fast state, within the planner's budget
             rates = np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]]
             self._decide(t, "calm_timeout", braked_s=t - self.fast_since, rates=[float(r) for r in rates])
@@ -558,8 +571,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) re-planning every
         :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``),
         planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, braking up to
-        :data:`HINGE_CALM_BUDGET` s with the soft brake of :data:`HINGE_BRAKE_TIME`) and warm-started from the nearest
-        knot of a stored plan (``warm_tails``).
+        :data:`HINGE_CALM_BUDGET` s with the soft calming brake of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``)
+        and warm-started from the nearest knots of the stored plans (``warm_tails``).
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -589,9 +602,11 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve; plan
         # only once the damping has brought the energy to the upright's, warm-started from the nearest knot
         opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
-                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, brake_time=HINGE_BRAKE_TIME)
+                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
+    calm_brake = (None if opts.calm_brake_time is None else
+                  PassiveBrake(model, inertia, opts.calm_brake_time, catch.u_limits))
     try:
         check_single_pole(model)
     except EnergyShapingModelError:
@@ -604,5 +619,6 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
             return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
                                    guess=guess, catch_R=catch_R, cold=cold)
         lib = PlanLibrary.load(model) if library is None else library
-        return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
+        return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
+                          calm_brake=calm_brake)
     return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)

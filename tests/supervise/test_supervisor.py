@@ -322,5 +322,19 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     sup = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
                          library=PlanLibrary.empty(model))
     o = sup.options
-    assert (o.replan_every, o.calm_energy, o.calm_budget, o.brake_time, o.warm_tails, o.exact_plans) == (
+    assert (o.replan_every, o.calm_energy, o.calm_budget, o.calm_brake_time, o.warm_tails, o.exact_plans) == (
         HINGE_REPLAN_EVERY, HINGE_CALM_ENERGY, HINGE_CALM_BUDGET, HINGE_BRAKE_TIME, True, False)
+
+
+def test_the_calming_brake_acts_on_fast_states_and_the_brake_while_a_plan_is_on_its_way(double):
+    params, model, catch, brake = double
+    calm = (lambda t, x: np.full(model.nu, 0.25))
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 1.0, model.x_eq),
+                     options=SupervisorOptions(latency=0.5, funnel=10.0), calm_brake=calm)
+    fast = np.asarray(model.x_hanging, float).copy()
+    fast[model.nq + model.hinges[0]] = 20.0
+    assert np.allclose(sup(0.0, fast), 0.25) and sup.mode == "brake"
+    x = np.asarray(model.x_hanging, float)
+    assert np.allclose(sup(0.1, x), brake(0.1, x)) and sup.mode == "wait"  # calm: planned, the brake meanwhile
+    with pytest.raises(SupervisorError, match="calm_brake_time"):
+        SupervisorOptions(calm_brake_time=0.0)
