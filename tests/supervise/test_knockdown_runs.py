@@ -139,7 +139,9 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     there), then a swing-up and catch within twice ``T1``, the planned swing-up from hanging (the library's plan); a
     last knock with less run left than that may go unrecovered. The floor: each recovered knock costs its ``LENGTH``,
     its wait and one swing-up ``T1``, an unrecovered last one the rest of the run:
-    ``uptime >= 1 - (sum_k (LENGTH + W_k + T1) + rest) / duration``. Wall time: 4-5 min on the shared 2-core machine
+    ``uptime >= 1 - (sum_k (LENGTH + W_k + T1) + rest) / duration``. That floor is near zero here (measured -0.05 to
+    0.07): the knock comes after ``AFTER`` s upright, a few seconds against a wait of most of a minute, so the
+    per-knock bounds (braking only until calm, caught within ``2 T1`` of it) are what this test holds it to. Wall time: 4-5 min on the shared 2-core machine
     under a load of 15-20 (plans of up to a minute each), the library's cold plan from hanging (70 s quiet, 360 s
     loaded) once per model, kept on disk."""
     library = _acrobot_library()
@@ -166,7 +168,7 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     rest = sum(ACROBOT_DURATION - start for start in m["unrecovered_at"])
     down = sum(LENGTH + w + T1 for (start, _), w in zip(force.events, waits) if start not in m["unrecovered_at"])
     floor = 1.0 - (down + rest) / ACROBOT_DURATION
-    assert 0.0 < floor <= m["uptime"], (m, waits, floor)
+    assert m["uptime"] >= floor, (m, waits, floor)
     kinds = [d.kind for d in sup.decisions]
     assert kinds.count("catch") >= m["recoveries"] + 1, kinds  # held from the start, then after each recovery
     assert len(sup.summary()["unreachable"]) == kinds.count("plan_failed")  # each failed plan reported
