@@ -141,9 +141,9 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     its wait and one swing-up ``T1``, an unrecovered last one the rest of the run:
     ``uptime >= 1 - (sum_k (LENGTH + W_k + T1) + rest) / duration``. That floor is near zero here (measured -0.05 to
     0.07): the knock comes after ``AFTER`` s upright, a few seconds against a wait of most of a minute, so the
-    per-knock bounds (braking only until calm, caught within ``2 T1`` of it) are what this test holds it to. Wall time: 4-5 min on the shared 2-core machine
-    under a load of 15-20 (plans of up to a minute each), the library's cold plan from hanging (70 s quiet, 360 s
-    loaded) once per model, kept on disk."""
+    per-knock bounds (braking only until calm, caught within ``2 T1`` of it) are what this test holds it to. Wall time: 16 s on the shared 2-core machine
+    when quiet, 4-5 min under a load of 15-20 (plans of up to a minute each); the library's cold plan from hanging
+    (70 s quiet, 360 s loaded) once per model, kept on disk."""
     library = _acrobot_library()
     params = read_params(ACROBOT)
     model = build_model(params)
@@ -180,7 +180,8 @@ def test_most_knocks_leave_the_acrobot_more_energy_than_its_damping_removes_in_a
     model gets (``Knockdown(3, 0.3)``), under the supervisor's brake its energy is still above the upright's at 60 s
     for most seeds, so no swing-up could even start in the minute; a plan from there is not found (minutes of cold
     tries, the supervisor waits instead). Seeds 0, 1, 4 here; 0, 1, 4-7, 9, 10 of 0-11 measured. Slow: three minutes
-    of MuJoCo with the supervisor in the loop, 107 s of wall time on the shared machine under a load of 15-20."""
+    of MuJoCo with the supervisor in the loop, 8 s of wall time on the shared machine when quiet, 107 s under a load
+    of 15-20."""
     params = read_params(ACROBOT)
     model = build_model(params)
     sup = supervisor_for(params, model, options=_acrobot_options(), library=PlanLibrary.empty(model))
@@ -213,8 +214,8 @@ def _acrobot_library():
 def test_the_acrobot_swings_up_from_hanging_by_replanning_as_it_goes():
     """dm_control's acrobot, driven at its elbow: TVLQR alone loses its 15 s pumping plan part way (in MuJoCo, 5.9 s
     in); re-planned every 2 s from the rest of the plan (each warm, charged ``LATENCY`` s), it swings up and is
-    caught. Slow: the whole test took 26 s on the 2-core machine when it was quiet; the library's cold plan from hanging
-    alone took 277 s of wall time when it was loaded (55 s of CPU)."""
+    caught. Slow: 46 s on the 2-core machine under load; the library's cold plan from hanging (made once per model and
+    kept on disk) took 277 s of wall time when it was loaded (55 s of CPU), 70 s when quieter."""
     params = read_params(ACROBOT)
     model = build_model(params)
     sup = supervisor_for(params, model, options=_acrobot_options(), library=_acrobot_library())
