@@ -99,15 +99,13 @@ def test_a_chain_recovers_from_every_knockdown_for_a_minute():
     assert sup.plans >= m["recoveries"] and sup.warm_plans >= 1  # later plans warm-started from the run's own
 
 
-#: The acrobot's run starts upright, as a rig shown to visitors is when they poke it (its swing-up from hanging is
-#: tested below), and lasts two minutes: what a knock leaves takes its damping most of a minute to calm (40-55 s after
-#: a knock at 3 s, for the seeds that calm within the first minute at all), and the plan from there 8-10 s more, so
-#: a minute holds no recovery (seeds 3, 8 and 11 tried for 60 s: each calmed at 45-51 s and was still swinging up
-#: when the minute ended). Seeds of ``Knockdown(3, 0.3)`` measured for the damping alone: the energy reaches the
-#: upright's within 60 s for 2, 3, 8 and 11, not for 0, 1, 4-7, 9, 10
-#: (``test_most_knocks_leave_the_acrobot_more_energy_than_its_damping_removes_in_a_minute``).
+#: The acrobot's runs start upright, as a rig shown to visitors is when they poke it (its swing-up from hanging, about
+#: 20 s, is tested below, and what a knock leaves takes its damping 40-55 s to calm). Seeds of ``Knockdown(3, 0.3)``
+#: tried for the minute from upright: 11 is knocked at 3 s, calm at 45.6 s, caught at 50.5 s, knocked again at
+#: 53.5 s with too little minute left; 2, 3 and 8 calm at 49-57 s and were still swinging up when the minute ended.
+#: Measured for the damping alone, the energy reaches the upright's within 60 s for 2, 3, 8 and 11 only, not for 0,
+#: 1, 4-7, 9, 10 (``test_most_knocks_leave_the_acrobot_more_energy_than_its_damping_removes_in_a_minute``).
 ACROBOT_SEED = 11
-ACROBOT_DURATION = 120.0
 
 
 def _acrobot_options():
@@ -132,16 +130,19 @@ def _calm_at(run, model, sup, after: float) -> float:
 
 
 @pytest.mark.slow
-def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_calmed_it():
+@pytest.mark.parametrize("duration", [DURATION, 2 * DURATION])
+def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_calmed_it(duration):
     """Knocked, the acrobot holds several times its swing-up's energy, which only its joints' damping takes out (its
     2 N m motor cannot do much better: ``test_brake.py``). Each knock is followed by a wait ``W_k`` for the damping to
     bring the energy to the upright's (measured on the run: the supervisor only brakes until then, and plans from
     there), then a swing-up and catch within twice ``T1``, the planned swing-up from hanging (the library's plan); a
     last knock with less run left than that may go unrecovered. The floor: each recovered knock costs its ``LENGTH``,
     its wait and one swing-up ``T1``, an unrecovered last one the rest of the run:
-    ``uptime >= 1 - (sum_k (LENGTH + W_k + T1) + rest) / duration``. That floor is near zero here (measured -0.05 to
-    0.07): the knock comes after ``AFTER`` s upright, a few seconds against a wait of most of a minute, so the
-    per-knock bounds (braking only until calm, caught within ``2 T1`` of it) are what this test holds it to. Wall time: 16 s on the shared 2-core machine
+    ``uptime >= 1 - (sum_k (LENGTH + W_k + T1) + rest) / duration``. That floor is below zero here (-0.03 for the
+    minute, -0.05 for two, measured): each knock comes after ``AFTER`` s upright, against a wait of most of a minute
+    and a ``T1`` from hanging longer than the swing-ups from calm (about 4.5 s), so the floor asserts nothing and the
+    per-knock bounds (braking only until calm, caught within ``2 T1`` of it) are what this test holds it to. The
+    minute, then two (a second recovery). Wall time: 16 s on the shared 2-core machine
     when quiet, 4-5 min under a load of 15-20 (plans of up to a minute each); the library's cold plan from hanging
     (70 s quiet, 360 s loaded) once per model, kept on disk."""
     library = _acrobot_library()
@@ -149,8 +150,8 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     model = build_model(params)
     sup = supervisor_for(params, model, options=_acrobot_options(), library=library)
     force = Knockdown(AFTER, LENGTH, seed=ACROBOT_SEED).start(params, x_eq=model.x_eq, hinges=model.hinges)
-    run = simulate(params, sup, np.asarray(model.x_eq, float), ACROBOT_DURATION, disturbance=force)
-    m = uptime_metrics(run, model, events=force.events, duration=ACROBOT_DURATION)
+    run = simulate(params, sup, np.asarray(model.x_eq, float), duration, disturbance=force)
+    m = uptime_metrics(run, model, events=force.events, duration=duration)
     assert run.info.get("qfrc_applied") is not None and replays_exactly(run, params)
     assert not run.info.get("diverged", False)
     T1 = library.plans[0].trajectory.duration
@@ -161,13 +162,13 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
         # from the knock's end until the state is calm the supervisor only brakes: the wait is the damping's
         assert not [a for a in asked if end + 1e-9 < a < end + wait - 1e-9], (start, wait, asked)
         if start in m["unrecovered_at"]:  # only a last knock with too little run left for its wait and a swing-up
-            assert start == force.events[-1][0] and ACROBOT_DURATION - end < wait + 2 * T1, (start, wait, m)
+            assert start == force.events[-1][0] and duration - end < wait + 2 * T1, (start, wait, m)
         else:  # swung up and caught within twice the swing-up from the moment it was calm
             up = min(s for s in m["swingup_times"] if s > start)
             assert up - (end + wait) <= 2 * T1, (start, wait, up)
-    rest = sum(ACROBOT_DURATION - start for start in m["unrecovered_at"])
+    rest = sum(duration - start for start in m["unrecovered_at"])
     down = sum(LENGTH + w + T1 for (start, _), w in zip(force.events, waits) if start not in m["unrecovered_at"])
-    floor = 1.0 - (down + rest) / ACROBOT_DURATION
+    floor = 1.0 - (down + rest) / duration
     assert m["uptime"] >= floor, (m, waits, floor)
     kinds = [d.kind for d in sup.decisions]
     assert kinds.count("catch") >= m["recoveries"] + 1, kinds  # held from the start, then after each recovery
