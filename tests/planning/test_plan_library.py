@@ -156,3 +156,14 @@ def test_a_minimum_tail_keeps_the_plans_last_knots_out(single):
     assert lib.knot_guess(model, x, mirror=False)[0].duration < 0.25 * tr.duration
     (guess, dist), = lib.knot_guesses(model, x, count=1, mirror=False, min_tail=0.5 * tr.duration)
     assert guess.duration >= 0.5 * tr.duration - 1e-9 and dist > 0
+
+
+def test_a_warm_start_that_does_not_converge_raises_at_once_when_told_not_to_plan_cold(single):
+    from cartpole.ocp.bounds import OCPError
+    from cartpole.planning.library import trajectory_tail
+
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    short = trajectory_tail(tr, tr.duration)  # the plan's last two intervals: far too short from hanging
+    with pytest.raises(OCPError, match="cold=False"):
+        trajopt_swingup(params, x0=tuple(model.x_hanging), plan_model=model, guess=short, cold=False)
