@@ -24,7 +24,7 @@ from cartpole.models import build_model, read_params
 from cartpole.planning.library import build_plan_library, library_starts, mirrored
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.supervise.supervisor import KNOT_ENERGY_WEIGHT, hinge_driven
+from cartpole.supervise.supervisor import KNOT_ENERGY_WEIGHT, KNOT_MIN_TAIL, hinge_driven
 
 #: Default models: the shipped one- and two-pole carts and dm_control's acrobot (its cold plans take minutes on a
 #: shared machine: its row is the bench's longest).
@@ -127,8 +127,8 @@ def plan_library_benchmark(models=None, *, angles: int = 3, probes: int = 3, see
                 for way in ("cold", "warm"):
                     guess = None
                     if way == "warm":
-                        guess = (lib.knot_guesses(model, x, count=1, energy_weight=KNOT_ENERGY_WEIGHT)[0][0]
-                                 if knots else lib.guess_for(model, x))
+                        guess = (lib.knot_guesses(model, x, count=1, energy_weight=KNOT_ENERGY_WEIGHT,
+                                                  min_tail=KNOT_MIN_TAIL)[0][0] if knots else lib.guess_for(model, x))
                     tic = time.perf_counter()
                     try:
                         plan = trajopt_swingup(params, x0=tuple(x), plan_model=model, guess=guess, options=opts)
