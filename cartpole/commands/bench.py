@@ -62,8 +62,8 @@ def add_arguments(parser) -> None:
                              "given, against the naive script (--quick: one pole, effort and time)")
     parser.add_argument("--no-library", action="store_true",
                         help="skip the plan library's rows: plans warm-started from the nearest stored plan against "
-                             "cold ones from the same starts (the shipped 1- and 2-pole carts, or the --mjcf given; "
-                             "--quick: one pole, one start)")
+                             "cold ones from the same starts (the shipped 1- and 2-pole carts and the acrobot, or the "
+                             "--mjcf given; --quick: one pole, one start)")
     parser.add_argument("--no-identify", action="store_true",
                         help="skip the system-identification fit times (one- and two-pole carts, IPOPT beside)")
 

@@ -14,6 +14,10 @@ cold, so a warm start can only cost the one failed solve.
 * :func:`library_starts`: the grid (the chain at rest, its first hinge at evenly spaced angles);
 * :func:`build_plan_library`: cold plans from every start of the grid (the starts no plan was found from are kept
   in ``failed``, with the planner's sentence);
+* :meth:`PlanLibrary.knot_guess`: the rest of a stored plan from its knot nearest a state (mirror images through
+  upright too, for a model :func:`mirror_symmetric` finds symmetric: :func:`mirrored`): a plan pumping from hanging
+  holds warm starts for every energy it passes through (a knocked, calmed acrobot swings low near one of its knots);
+* :func:`cached_library`: the library of given starts, built once and kept on disk;
 * :func:`library_path`, :meth:`PlanLibrary.save`, :meth:`PlanLibrary.load`: the file
   ``<cache>/plans/<model hash>.npz`` (:func:`cartpole.codegen.cache_dir`; written with its SHA-256 beside it,
   read only when it matches), never inside the package.
@@ -163,6 +167,62 @@ class PlanLibrary:
         found = self.nearest(x, metric)
         return None if found is None else shifted_onto(model, found[0].trajectory, x)
 
+    def knot_guess(self, model: CartPoleModel, x, metric=None, mirror: bool | None = None
+                   ) -> tuple[Trajectory, float] | None:
+        """The rest of a stored plan from its knot nearest ``x`` (nx,), shifted by whole turns onto ``x``, and that
+        distance (:meth:`distances`' metric, default the lab's weights); None when the library is empty.
+
+        Every knot of every plan is a start the plan's tail (:func:`trajectory_tail`) swings up from, so a plan that
+        pumps from hanging holds warm starts for every energy it passes through (a knocked and calmed chain swinging
+        low is near one of its knots, not near its start). With ``mirror`` (default: when
+        :func:`mirror_symmetric` finds ``model`` symmetric) each plan's mirror image through upright
+        (:func:`mirrored`) is searched too."""
+        found = self.knot_guesses(model, x, count=1, metric=metric, mirror=mirror)
+        return found[0] if found else None
+
+    def knot_guesses(self, model: CartPoleModel, x, count: int = 3, metric=None, mirror: bool | None = None,
+                     energy_weight: float = 0.0, min_tail: float = 0.0) -> list[tuple[Trajectory, float]]:
+        """Up to ``count`` warm starts for a plan from ``x`` (nx,), nearest first: of each stored plan (and each
+        mirror image) the tail from its knot nearest ``x``, as :meth:`knot_guess`; with their distances.
+
+        ``energy_weight`` (dimensionless, default 0) adds ``energy_weight * |E_knot - E(x)| / E_up`` to the distance
+        in quadrature, ``E`` the model's total energy and ``E_up`` the swing-up's (upright rest over hanging rest,
+        J): a knot of the energy ``x`` has is where the rest of the plan fits it (a pumping plan passes near the
+        same pose at every energy). ``min_tail`` (s, default 0): only knots at least that long before the plan's end
+        (a swing-up from a state that does not match the knot exactly needs some time)."""
+        x = np.asarray(x, dtype=float).ravel()
+        if x.size != self.nx:
+            raise PlanLibraryError(f"The state has {x.size} numbers but the plan library's model has {self.nx}.")
+        if not self.plans:
+            return []
+        self.check(model)
+        trajs = [p.trajectory for p in self.plans]
+        if mirror is None:
+            mirror = mirror_symmetric(model)
+        if mirror:
+            trajs = trajs + [mirrored(model, tr) for tr in trajs]
+        W = self._default_metric() if metric is None else np.asarray(metric, dtype=float)
+        hinges = list(self.hinges)
+        if energy_weight:
+            e_x = float(model.energy(x))
+            scale = float(energy_weight) / max(abs(float(model.energy(model.x_eq)) - float(model.energy(
+                model.x_hanging))), 1e-12)
+        best = []
+        for tr in trajs:
+            last = int(np.searchsorted(tr.t, float(tr.t[-1]) - float(min_tail), side="right"))
+            knots = np.asarray(tr.x[:max(1, min(last, len(tr.t) - 2))], dtype=float)  # a tail keeps two intervals
+            d = x[None, :] - knots
+            d[:, hinges] = wrap_angle(d[:, hinges])
+            d2 = np.einsum("ki,ij,kj->k", d, W, d)
+            if energy_weight:
+                e = np.asarray(model.energy.map(len(knots))(knots.T), dtype=float).ravel()
+                d2 = d2 + (scale * (e - e_x)) ** 2
+            dist = np.sqrt(np.maximum(d2, 0.0))
+            k = int(np.argmin(dist))
+            best.append((float(dist[k]), tr, float(tr.t[k] - tr.t[0])))
+        best.sort(key=lambda b: b[0])
+        return [(shifted_onto(model, trajectory_tail(tr, tau), x), dist) for dist, tr, tau in best[:int(count)]]
+
     def with_plan(self, x0, trajectory: Trajectory, plan_s: float = float("nan")) -> "PlanLibrary":
         """A new library with the plan ``trajectory`` from ``x0`` added (the oldest dropped beyond
         :data:`MAX_PLANS`)."""
@@ -230,6 +290,68 @@ class PlanLibrary:
             except (PlanLibraryError, KeyError, ValueError, OSError):
                 pass
         return cls.empty(model)
+
+
+def mirror_symmetric(model: CartPoleModel, samples: int = 6, seed: int = 0) -> bool:
+    """Whether ``model`` is symmetric through upright: ``f(2 x* - x, 2 u* - u) = -f(x, u)`` at ``samples`` seeded
+    random states and inputs (hinges within a turn, rates within 5 rad/s, slides within 0.5 m of ``x*``) and the ctrl
+    ranges centred on ``u*``; then a plan's mirror image (:func:`mirrored`) is a plan too (the acrobot, a cart-pole
+    on a level rail)."""
+    x_eq, u_eq = np.asarray(model.x_eq, dtype=float), np.asarray(model.u_eq, dtype=float).ravel()
+    lo, hi = np.asarray(model.u_low, dtype=float), np.asarray(model.u_high, dtype=float)
+    if not np.allclose(lo + hi, 2.0 * u_eq, atol=1e-12):
+        return False
+    rng = np.random.default_rng(seed)
+    scale = np.full(model.nx, 5.0)
+    scale[: model.nq] = 0.5
+    scale[list(model.hinges)] = np.pi
+    for _ in range(int(samples)):
+        x = x_eq + rng.uniform(-1.0, 1.0, model.nx) * scale
+        u = rng.uniform(lo, hi)
+        a, b = model.dynamics(x, u), model.dynamics(2.0 * x_eq - x, 2.0 * u_eq - u)
+        if not np.allclose(b, -a, rtol=1e-9, atol=1e-9 * (1.0 + np.max(np.abs(a)))):
+            return False
+    return True
+
+
+def mirrored(model: CartPoleModel, traj: Trajectory) -> Trajectory:
+    """``traj``'s mirror image through upright: states ``2 x* - x``, inputs ``2 u* - u`` (a plan of a
+    :func:`mirror_symmetric` model, ending upright as ``traj`` does)."""
+    x_eq, u_eq = np.asarray(model.x_eq, dtype=float), np.asarray(model.u_eq, dtype=float).ravel()
+    return Trajectory(t=traj.t, x=2.0 * x_eq - traj.x, u=2.0 * u_eq - traj.u, xdot=-np.asarray(traj.xdot),
+                      x_mid=None if traj.x_mid is None else 2.0 * x_eq - traj.x_mid,
+                      u_mid=None if traj.u_mid is None else 2.0 * u_eq - traj.u_mid)
+
+
+def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, starts=None, *, options=None,
+                   period: float | None = None, path: str | Path | None = None) -> PlanLibrary:
+    """The library of plans from ``starts`` kept at ``path``: read when it holds a plan from every start, else the
+    missing ones planned cold (:func:`build_plan_library`), added and saved. A library built once per model (keyed
+    by its hash) and reused, e.g. by a long test or a demonstration.
+
+    Parameters
+    ----------
+    params, model, starts, options, period
+        As :func:`build_plan_library` (``starts`` (k, nx), default :func:`library_starts`).
+    path : str or Path, optional
+        The file (default :func:`library_path` of the model's hash).
+
+    Returns
+    -------
+    PlanLibrary
+        Its ``failed`` lists the starts no plan was found from (not saved: they are tried again next time).
+    """
+    model = build_model(params) if model is None else model
+    starts = library_starts(model) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
+    lib = PlanLibrary.load(model, path)
+    missing = [x for x in starts if not len(lib) or lib.nearest(x)[1] > 1e-12]
+    if not missing:
+        return lib
+    lib = build_plan_library(params, model, np.array(missing), options=options, period=period, library=lib)
+    if len(lib):
+        saved = PlanLibrary(lib.key, lib.nx, lib.nu, lib.hinges, lib.plans)
+        saved.save(library_path(lib.key) if path is None else path)
+    return lib
 
 
 def library_path(key: str) -> Path:

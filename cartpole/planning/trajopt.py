@@ -636,7 +636,8 @@ def handover_catch(plant: Plant = None, plan_model: CartPoleModel | None = None,
 
 def trajopt_swingup(plant: Plant = None, x0=None, *,
                     plan_model: CartPoleModel | None = None, options: PlanOptions | None = None,
-                    period: float | None = None, catch_R=None, guess: Trajectory | None = None) -> SwingupPlan:
+                    period: float | None = None, catch_R=None, guess: Trajectory | None = None,
+                    cold: bool = True) -> SwingupPlan:
     """Plan a swing-up by direct collocation and build its TVLQR tracking controller.
 
     Parameters
@@ -670,6 +671,9 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
         guess's duration is solved from it first (:func:`warm_stage`, attempt stage ``"warm effort T=..."``),
         skipping the minimum-time search; when it does not converge the planner goes on cold. Ignored by the other
         objectives, a given ``T`` and ``solver="ddp"``.
+    cold : bool
+        With a ``guess`` whose warm start does not converge: plan cold (True, default), or raise
+        :class:`~cartpole.ocp.bounds.OCPError` at once (False: a caller with other warm starts to try, or a deadline).
 
     With ``solver="ddp"`` the last stage (every objective; ``time`` by a search over T) is made by box-DDP on the
     exact discrete step held over ``period`` (:mod:`cartpole.planning.ddp_plan`) from the minimum-time plan; the
@@ -695,7 +699,8 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
         Bad settings; a swing-up the optimiser cannot plan (its one sentence).
     """
     opts = PlanOptions() if options is None else options
-    return _plan(plant, x0, plan_model=plan_model, options=opts, period=period, catch_R=catch_R, guess=guess)
+    return _plan(plant, x0, plan_model=plan_model, options=opts, period=period, catch_R=catch_R, guess=guess,
+                 cold=cold)
 
 
 def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, solver: str = "ipopt",
@@ -721,7 +726,8 @@ def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, s
 
 
 def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
-          period: float | None = None, catch_R=None, guess: Trajectory | None = None) -> SwingupPlan:
+          period: float | None = None, catch_R=None, guess: Trajectory | None = None, cold: bool = True
+          ) -> SwingupPlan:
     """:func:`trajopt_swingup` with its options made."""
     T, N, solver, objective, starts = options.T, options.N, options.solver, options.objective, options.starts
     Qf, exact_discrete = options.Qf, options.exact_discrete
@@ -763,6 +769,9 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
                                                       solver=solver, solver_options=solver_options, sqp=use_sqp)
         if warm_traj is not None:
             warm = (warm_traj, warm_info)
+        elif not cold:
+            raise OCPError(f"The warm start (T = {guess.duration:.3g} s) did not converge from x0 and cold=False "
+                           "asks for no cold plan.")
     if warm is not None:
         traj, info = warm
     elif obj.kind == "time":

@@ -7,9 +7,11 @@
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
   decisions logged).
-* **brake**: with any hinge faster than ``calm_rate`` (for at most ``calm_budget`` s), a passive PD on the actuated joints
-  (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint) removes energy until the state is one the planner
-  handles; passive, so it cannot add energy whatever the state.
+* **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
+  ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
+  removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
+  On a model driven at a hinge (the acrobot) :func:`supervisor_for` waits for the energy to reach the upright's: a
+  knock leaves it more than its motor can take out, the joints' damping removes it, and no plan is found before.
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
@@ -56,6 +58,33 @@ RESTART_RATE = 1.0
 #: (``SupervisorOptions.replan_every``): TVLQR alone loses its long pumping plans part way, re-planned every 2 s from
 #: the rest of the plan it swings up.
 HINGE_REPLAN_EVERY = 2.0
+#: Warm starts (the nearest knots' tails, one per stored plan or mirror image) a plan with ``warm_tails`` tries before
+#: it fails, never cold: each try is one solve (seconds), a cold plan from such a state minutes.
+WARM_TRIES = 3
+#: The weight of an energy mismatch in the choice of knot (``PlanLibrary.knot_guesses``' ``energy_weight``): a tenth
+#: of the swing-up's energy counts as much as 1 rad of hinge angle (at the lab's weight, 10 per rad^2). A calmed
+#: acrobot has about the upright's energy: knots of the last pumps, short tails, not the plan from its first swing.
+KNOT_ENERGY_WEIGHT = 31.6
+#: s: the shortest tail of a stored plan a warm start is taken from (``knot_guesses``' ``min_tail``): matched by
+#: energy alone a calmed acrobot's knot can be the plan's last, a quarter-second plan from a pose it does not have.
+KNOT_MIN_TAIL = 2.0
+#: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
+#: (``SupervisorOptions.calm_energy``): knocked down, dm_control's acrobot holds 140-1100 J (its swing-up needs 39 J,
+#: seeds 0-11 of ``Knockdown(3, 0.3)``), which its 2 N m elbow motor cannot take out faster than the joints' damping
+#: (``tests/supervise/test_brake.py``); a plan from above that level has to wait for the damping as the brake does,
+#: and the planner does not find one (minutes of cold tries).
+HINGE_CALM_ENERGY = 0.0
+#: s: the calming brake's time constant :func:`supervisor_for` gives a model driven at a hinge (``calm_brake_time``):
+#: on the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
+#: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too. Knocked by
+#: ``Knockdown(3, 0.3)`` (seeds 2, 3), the energy reaches the upright's 8-12 s sooner with 1.5 s than with 0.15 s
+#: (measured, in MuJoCo). While a plan is on its way the stiff brake holds the chain straight, near the plans' poses
+#: (with the soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
+HINGE_BRAKE_TIME = 1.5
+#: s: how long :func:`supervisor_for` lets the brake calm a model driven at a hinge (``calm_budget``): the acrobot's
+#: damping takes its energy's excess over hanging down by half in about 19 s (time constant 27 s, measured), so
+#: 1100 J above upright take about 90 s to reach it.
+HINGE_CALM_BUDGET = 120.0
 
 
 class SupervisorError(OptionsError):
@@ -107,6 +136,23 @@ class SupervisorOptions(StageOptions):
         that fails is logged (``replan_failed``) and the old plan kept. None (default): never, a plan is tracked to
         its end (:func:`supervisor_for` sets 2 s for a model driven at a hinge, the acrobot: TVLQR alone does not
         hold its long pumping plans).
+    calm_brake_time : float or None
+        s, the time constant of the brake that acts while the state is fast (calming it), or None (default): that of
+        ``brake_time``, which acts otherwise (while a plan is on its way). :func:`supervisor_for` sets
+        :data:`HINGE_BRAKE_TIME` for a model driven at a hinge.
+    calm_energy : float or None
+        J of total mechanical energy (:attr:`CartPoleModel.energy`, zero at upright rest) above which the state
+        counts as fast as well (the brake acts, no plan is asked for), or None (default): rates alone. A chain driven
+        at a hinge (the acrobot) knocked hard holds several times its swing-up's energy, which only its joints'
+        damping removes; a plan from above the upright's energy fails after minutes (:func:`supervisor_for` sets
+        :data:`HINGE_CALM_ENERGY`).
+    warm_tails : bool
+        Warm-start each plan from the tail of a stored plan from its knot nearest the predicted start (mirror images
+        too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`), the :data:`WARM_TRIES` nearest in turn and
+        never cold (the planner is called ``planner(x0, guess=..., cold=False)``; a plan that fails is retried from
+        the next predicted state; a re-plan while tracking is warm only too), instead of the stored plan from the
+        nearest start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near
+        its start.
     """
 
     plan_budget: float = 30.0
@@ -120,6 +166,9 @@ class SupervisorOptions(StageOptions):
     charged_latency: float | None = None
     exact_plans: bool = True
     replan_every: float | None = None
+    calm_brake_time: float | None = None
+    calm_energy: float | None = None
+    warm_tails: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -132,8 +181,11 @@ class SupervisorOptions(StageOptions):
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
         self.number("charged_latency", low=0.0, unit="s", optional=True)
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
-        if not isinstance(self.exact_plans, bool):
-            raise SupervisorError(f"exact_plans = {self.exact_plans!r} must be True or False.")
+        self.number("calm_energy", unit="J", optional=True)
+        self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
+        for name in ("exact_plans", "warm_tails"):
+            if not isinstance(getattr(self, name), bool):
+                raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
 
 
 @dataclass(frozen=True)
@@ -226,6 +278,9 @@ class Supervisor:
         Warm starts for the planner (:mod:`cartpole.planning.library`): each plan is asked for with the stored plan
         nearest the predicted start by the catch's cost-to-go metric ``S`` (``planner(x0, guess=...)``), and every
         plan the supervisor makes is added to it, a warm start for the next knockdown.
+    calm_brake : callable, optional
+        ``(t, x) -> ctrl``, the brake while the state is fast (default ``brake``, which acts while a plan is on its
+        way and after a failed one).
 
     Attributes
     ----------
@@ -238,11 +293,13 @@ class Supervisor:
 
     def __init__(self, model: CartPoleModel, catch: LinearFeedback, rho: float, brake: Callable, *,
                  planner: Callable | None = None, swingup: Callable | None = None,
-                 options: SupervisorOptions | None = None, basin=None, library=None):
+                 options: SupervisorOptions | None = None, basin=None, library=None,
+                 calm_brake: Callable | None = None):
         if catch.S is None:
             raise SupervisorError("The supervisor's catch needs its cost-to-go S to test the basin; build it with "
                                   "LinearFeedback.for_model.")
         self.model, self.catch, self.rho, self.brake = model, catch, float(rho), brake
+        self.calm_brake = brake if calm_brake is None else calm_brake
         self.planner, self.swingup = planner, swingup
         self.options = SupervisorOptions() if options is None else options
         self.hinges = tuple(model.hinges)
@@ -284,8 +341,15 @@ class Supervisor:
             self._decide(t, mode, **detail)
 
     def _fast(self, x) -> bool:
+        """Any hinge faster than ``calm_rate``, or the energy above ``calm_energy`` when set."""
         rates = np.abs(np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]])
-        return bool(np.any(rates > self.options.calm_rate))
+        if np.any(rates > self.options.calm_rate):
+            return True
+        return self.options.calm_energy is not None and self._energy(x) > self.options.calm_energy
+
+    def _energy(self, x) -> float:
+        """J, the model's total mechanical energy at ``x`` (zero at upright rest)."""
+        return float(self.model.energy(np.asarray(x, dtype=float)))
 
     def _lost(self, t: float, x) -> bool:
         tau = min(t - self.plan_t0, self.plan.trajectory.duration)
@@ -316,10 +380,16 @@ class Supervisor:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
             guess, dist = None, None
-            if self.library is not None and len(self.library):
-                guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
-                dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
-            plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
+            if self.library is not None and len(self.library) and self.options.warm_tails:
+                guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
+                                                    energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
+                dist = guesses[0][1]
+                plan = self._plan_warm(x_pred, guesses)
+            else:
+                if self.library is not None and len(self.library):
+                    guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
+                    dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
+                plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
@@ -331,7 +401,8 @@ class Supervisor:
             self.failures += 1
             self.retry_at = t + charged + self.options.retry_after
             self._decide(t, "plan_failed", wall_s=wall, charged_s=charged, reason=why,
-                         x0=[float(v) for v in np.asarray(x_pred, dtype=float)])
+                         x0=[float(v) for v in np.asarray(x_pred, dtype=float)],
+                         **({} if dist is None else {"library_distance": dist}))
             self.mode = "brake"
             return
         # used from the later of its arrival and the time it was planned to start from (an early plan waits)
@@ -344,6 +415,20 @@ class Supervisor:
         self._decide(t, "plan", wall_s=wall, charged_s=charged, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
                      **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
+
+    def _plan_warm(self, x0, guesses):
+        """The planner from ``x0`` warm-started from each of ``guesses`` (``(Trajectory, distance)``, the nearest
+        knots' tails: :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`) in turn, never cold
+        (``planner(x0, guess=..., cold=False)``): the first plan that converges. Raises the last failure's
+        :class:`~cartpole.errors.CartPoleError` when none does (the supervisor brakes and tries again from the next
+        predicted state)."""
+        failure = None
+        for guess, _ in guesses:
+            try:
+                return self.planner(x0, guess=guess, cold=False)
+            except CartPoleError as exc:
+                failure = exc
+        raise failure
 
     def _receding(self, t: float, x) -> None:
         """While tracking: take the re-plan made earlier once it is ready, else make one when it is due
@@ -373,7 +458,8 @@ class Supervisor:
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
-            new = self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan))
+            warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
+            new = self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan), **warm_only)
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)
@@ -431,8 +517,8 @@ class Supervisor:
             self.fast_since = t
         timed_out = fast and self.planner is not None and t - self.fast_since >= self.options.calm_budget
         if self.planner is None or (fast and not timed_out) or t < self.retry_at:
-            self._set(t, "brake", cost=cost)
-            return self.brake(t, x)
+            self._set(t, "brake", cost=cost, energy=self._energy(x))
+            return self.calm_brake(t, x) if fast else self.brake(t, x)
         if timed_out:  # the brake has not calmed it: plan from the fast state, within the planner's budget
             rates = np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]]
             self._decide(t, "calm_timeout", braked_s=t - self.fast_since, rates=[float(r) for r in rates])
@@ -458,6 +544,12 @@ def _warm(plan) -> bool:
     return any(a.chosen and a.stage.startswith("warm effort") for a in attempts)
 
 
+def hinge_driven(model: CartPoleModel) -> bool:
+    """Whether every actuator of ``model`` drives a hinge (the acrobot), so that :func:`supervisor_for` re-plans as
+    it goes, waits for the damping to calm it and warm-starts from knots (its ``HINGE_*`` settings)."""
+    return all(int(j) in model.hinges for j in model.params.actuated)
+
+
 def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
@@ -477,7 +569,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         The planner's settings (default :class:`~cartpole.planning.options.PlanOptions`).
     options : SupervisorOptions, optional
         Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) re-planning every
-        :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``).
+        :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``),
+        planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, braking up to
+        :data:`HINGE_CALM_BUDGET` s with the soft calming brake of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``)
+        and warm-started from the nearest knots of the stored plans (``warm_tails``).
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -503,11 +598,15 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         basin = basin_of(catch)
     rho = basin.rho
     opts = SupervisorOptions() if options is None else options
-    if options is None and all(int(j) in model.hinges for j in model.params.actuated):
-        # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve
-        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False)
+    if options is None and hinge_driven(model):
+        # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve; plan
+        # only once the damping has brought the energy to the upright's, warm-started from the nearest knot
+        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
+                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
+    calm_brake = (None if opts.calm_brake_time is None else
+                  PassiveBrake(model, inertia, opts.calm_brake_time, catch.u_limits))
     try:
         check_single_pole(model)
     except EnergyShapingModelError:
@@ -516,9 +615,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         if not opts.exact_plans:
             plan_opts = plan_opts.replace(exact_discrete=False)
 
-        def planner(x0, guess=None):
+        def planner(x0, guess=None, cold=True):
             return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
-                                   guess=guess, catch_R=catch_R)
+                                   guess=guess, catch_R=catch_R, cold=cold)
         lib = PlanLibrary.load(model) if library is None else library
-        return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib)
+        return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
+                          calm_brake=calm_brake)
     return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)

@@ -24,3 +24,23 @@ def test_the_probes_are_near_the_stored_starts_and_seeded():
     assert np.array_equal(a, b)
     moved = np.abs(a[:, model.hinges[0]] - stored[0][model.hinges[0]])
     assert np.all((moved >= 0.15) & (moved <= 0.35))
+
+
+def test_the_acrobots_probes_are_near_its_plans_knots_every_second_one_mirrored():
+    from cartpole.apps.bench.plan_library import knot_probes
+    from cartpole.ocp.trajectory import Trajectory
+    from cartpole.planning.library import mirrored
+    from cartpole.supervise.supervisor import hinge_driven
+
+    model = build_model(read_params("cartpole/assets/dmc_acrobot.xml"))
+    assert hinge_driven(model)
+    t = np.linspace(0.0, 4.0, 9)
+    s = (t / 4.0)[:, None]
+    x = np.asarray(model.x_hanging, float) * (1 - s) + np.asarray(model.x_eq, float) * s
+    x[:, model.nq:] = 0.7
+    tr = Trajectory(t=t, x=x, u=np.zeros((9, model.nu)), xdot=np.zeros_like(x))
+    a, b = knot_probes(model, [tr], 2, seed=4), knot_probes(model, [tr], 2, seed=4)
+    assert np.array_equal(a, b)
+    for i, ref in enumerate([tr.state(4.0 / 3), mirrored(model, tr).state(8.0 / 3)]):
+        d = a[i] - ref
+        assert np.all(np.abs(d[:model.nq]) <= 0.1) and np.all(np.abs(d[model.nq:]) <= 0.5), (i, d)

@@ -83,3 +83,87 @@ def test_a_warm_start_that_does_not_converge_goes_on_cold(single):
     assert stages[0].startswith("warm effort") and not plan.solve_info.attempts[0].chosen
     assert any(s.startswith("time") for s in stages)  # the cold search ran after it
     assert plan.T > 0.5
+
+
+def test_a_state_near_a_knot_gets_the_rest_of_that_plan_and_a_mirrored_state_its_mirror_image(single):
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    k = len(tr.t) // 2
+    x = np.asarray(tr.x[k], float)
+    guess, dist = lib.knot_guess(model, x, mirror=False)
+    assert dist == pytest.approx(0.0, abs=1e-12) and np.allclose(guess.x[0], x)
+    assert guess.duration == pytest.approx(tr.duration - (tr.t[k] - tr.t[0]))
+    assert np.allclose(guess.x[-1], tr.x[-1])  # still ends upright
+    x_m = 2 * np.asarray(model.x_eq, float) - x  # the mirror image through upright
+    assert lib.knot_guess(model, x_m, mirror=False)[1] > 0.1
+    guess_m, dist_m = lib.knot_guess(model, x_m)  # the cart-pole is symmetric: mirror images searched
+    assert dist_m == pytest.approx(0.0, abs=1e-9) and np.allclose(guess_m.x[0], x_m)
+
+
+def test_a_mirrored_plan_obeys_the_dynamics_when_the_model_is_symmetric(single):
+    from types import SimpleNamespace
+
+    from cartpole.planning.library import mirror_symmetric, mirrored
+
+    params, model, lib = single
+    assert mirror_symmetric(model)
+    m = mirrored(model, lib.plans[0].trajectory)
+    f = np.array([model.dynamics(x, u) for x, u in zip(m.x, m.u)])
+    assert np.allclose(m.xdot, f, atol=1e-6 * np.abs(f).max())
+    lopsided = SimpleNamespace(x_eq=model.x_eq, u_eq=np.zeros(1), u_low=np.array([-1.0]), u_high=np.array([2.0]))
+    assert not mirror_symmetric(lopsided)  # a ctrl range not centred on u*: the mirror image is not a plan
+
+
+def test_a_cached_library_is_built_once_and_only_for_the_starts_it_lacks(single, tmp_path, monkeypatch):
+    from cartpole.planning import library as library_module
+
+    params, model, lib = single
+    path = tmp_path / "plans.npz"
+    lib.save(path)
+    asked = []
+
+    def build(params_, model_, starts, **kw):
+        asked.append(np.array(starts))
+        return kw["library"].with_plan(starts[0], lib.plans[0].trajectory)
+    monkeypatch.setattr(library_module, "build_plan_library", build)
+    again = library_module.cached_library(params, model, [lib.plans[0].x0], path=path)
+    assert not asked and len(again) == 1
+    other = np.asarray(lib.plans[0].x0, float).copy()
+    other[model.hinges[0]] += 0.5
+    more = library_module.cached_library(params, model, [lib.plans[0].x0, other], path=path)
+    assert len(asked) == 1 and np.allclose(asked[0], [other]) and len(more) == 2
+    assert len(PlanLibrary.load(model, path)) == 2  # saved
+
+
+def test_an_energy_weight_picks_the_knot_of_the_states_energy(single):
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    x = np.asarray(tr.x[2], float).copy()
+    x[model.nq + model.hinges[0]] += 3.0  # the pose of an early knot, with more energy than it has
+    e_x = float(model.energy(x))
+    knots = np.asarray(tr.x[:-2], float)
+    gap = np.abs(np.array([float(model.energy(k)) for k in knots]) - e_x)
+    plain, _ = lib.knot_guess(model, x, mirror=False)
+    (by_energy, _), = lib.knot_guesses(model, x, count=1, mirror=False, energy_weight=1e6)
+    assert abs(float(model.energy(by_energy.x[0])) - e_x) == pytest.approx(gap.min())
+    assert abs(float(model.energy(plain.x[0])) - e_x) > gap.min()  # by pose alone, another knot
+
+
+def test_a_minimum_tail_keeps_the_plans_last_knots_out(single):
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    x = np.asarray(tr.x[-3], float)  # at a knot near the end
+    assert lib.knot_guess(model, x, mirror=False)[0].duration < 0.25 * tr.duration
+    (guess, dist), = lib.knot_guesses(model, x, count=1, mirror=False, min_tail=0.5 * tr.duration)
+    assert guess.duration >= 0.5 * tr.duration - 1e-9 and dist > 0
+
+
+def test_a_warm_start_that_does_not_converge_raises_at_once_when_told_not_to_plan_cold(single):
+    from cartpole.ocp.bounds import OCPError
+    from cartpole.planning.library import trajectory_tail
+
+    params, model, lib = single
+    tr = lib.plans[0].trajectory
+    short = trajectory_tail(tr, tr.duration)  # the plan's last two intervals: far too short from hanging
+    with pytest.raises(OCPError, match="cold=False"):
+        trajopt_swingup(params, x0=tuple(model.x_hanging), plan_model=model, guess=short, cold=False)

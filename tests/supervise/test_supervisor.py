@@ -247,3 +247,94 @@ def test_trajectory_tail_is_the_rest_of_a_plan_from_zero():
     tail = trajectory_tail(traj, 0.5)
     assert tail.t[0] == 0.0 and tail.duration == pytest.approx(1.5) and np.allclose(tail.x[0], [0.5, 0.25])
     assert trajectory_tail(traj, 5.0).t.size == 3  # never less than the last two intervals
+
+
+def test_a_slow_state_above_the_calm_energy_is_braked_and_one_below_it_is_planned_from(double):
+    params, model, catch, brake = double
+    asked = []
+
+    def planner(x0, guess=None):
+        asked.append(np.array(x0))
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                     options=SupervisorOptions(calm_energy=0.0, calm_budget=100.0, latency=0.01))
+    slow_high = np.asarray(model.x_eq, float).copy()
+    slow_high[model.nq + model.hinges[0]] = 2.0  # slow, but above the upright's energy
+    assert float(model.energy(slow_high)) > 0.0
+    for k in range(20):
+        sup(k * 0.005, slow_high)
+    assert not asked and sup.mode == "brake"
+    assert sup.decisions[-1].detail["energy"] == pytest.approx(float(model.energy(slow_high)))
+    sup(0.2, np.asarray(model.x_hanging, float))  # at rest hanging: below it, planned from
+    assert len(asked) == 1
+    with pytest.raises(SupervisorError, match="calm_energy"):
+        SupervisorOptions(calm_energy=float("nan"))
+    with pytest.raises(SupervisorError, match="warm_tails"):
+        SupervisorOptions(warm_tails="yes")
+
+
+def test_with_warm_tails_each_plan_starts_from_the_rest_of_a_stored_plan_nearest_by_knot_and_never_cold(double):
+    from cartpole.planning.library import PlanLibrary
+    from cartpole.supervise.supervisor import WARM_TRIES
+
+    params, model, catch, brake = double
+    calls = []
+
+    def planner(x0, guess=None, cold=True):
+        calls.append((np.array(x0), guess, cold))
+        if len(calls) > 1:
+            return _stub_plan(model, 0.5, model.x_eq)
+        raise CartPoleError("The warm start did not converge.")
+    t = np.linspace(0.0, 2.0, 5)
+    x = np.array([np.asarray(model.x_hanging, float) * (1 - s) + np.asarray(model.x_eq, float) * s
+                  for s in t / 2.0])
+    stored = Trajectory(t=t, x=x, u=np.zeros((5, model.nu)), xdot=np.zeros_like(x))
+    lib = PlanLibrary.empty(model).with_plan(stored.x[0], stored)
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner, library=lib,
+                     options=SupervisorOptions(latency=0.01, funnel=10.0, warm_tails=True))
+    sup(0.0, np.asarray(model.x_hanging, float))
+    assert len(calls) == 2 <= WARM_TRIES  # the nearest knot's tail failed: the next warm start, not a cold plan
+    assert all(g is not None and c is False for _, g, c in calls)
+    assert calls[0][1].duration <= stored.duration
+    assert sup.decisions[-1].kind == "plan" and "library_distance" in sup.decisions[-1].detail
+
+    tries = []
+
+    def never(x0, guess=None, cold=True):
+        tries.append(cold)
+        raise CartPoleError("The warm start did not converge.")
+    sup2 = Supervisor(model, catch, 1e-9, brake, planner=never, library=lib,
+                      options=SupervisorOptions(latency=0.01, warm_tails=True))
+    sup2(0.0, np.asarray(model.x_hanging, float))
+    d = sup2.decisions[-1]
+    assert d.kind == "plan_failed" and "did not converge" in d.detail["reason"] and "library_distance" in d.detail
+    assert tries == [False, False]  # the plan and its mirror image, each warm, none cold
+
+
+def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
+    from cartpole.planning.library import PlanLibrary
+    from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
+                                               HINGE_REPLAN_EVERY, hinge_driven)
+
+    params = read_params("cartpole/assets/dmc_acrobot.xml")
+    model = build_model(params)
+    assert hinge_driven(model) and not hinge_driven(build_model(read_params("cartpole/assets/cartpole.xml")))
+    sup = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
+                         library=PlanLibrary.empty(model))
+    o = sup.options
+    assert (o.replan_every, o.calm_energy, o.calm_budget, o.calm_brake_time, o.warm_tails, o.exact_plans) == (
+        HINGE_REPLAN_EVERY, HINGE_CALM_ENERGY, HINGE_CALM_BUDGET, HINGE_BRAKE_TIME, True, False)
+
+
+def test_the_calming_brake_acts_on_fast_states_and_the_brake_while_a_plan_is_on_its_way(double):
+    params, model, catch, brake = double
+    calm = (lambda t, x: np.full(model.nu, 0.25))
+    sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 1.0, model.x_eq),
+                     options=SupervisorOptions(latency=0.5, funnel=10.0), calm_brake=calm)
+    fast = np.asarray(model.x_hanging, float).copy()
+    fast[model.nq + model.hinges[0]] = 20.0
+    assert np.allclose(sup(0.0, fast), 0.25) and sup.mode == "brake"
+    x = np.asarray(model.x_hanging, float)
+    assert np.allclose(sup(0.1, x), brake(0.1, x)) and sup.mode == "wait"  # calm: planned, the brake meanwhile
+    with pytest.raises(SupervisorError, match="calm_brake_time"):
+        SupervisorOptions(calm_brake_time=0.0)
