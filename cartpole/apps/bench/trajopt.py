@@ -37,14 +37,14 @@ from cartpole.apps.bench.mpc import run_mpc_benchmark
 from cartpole.apps.bench.replay import replay_benchmark
 from cartpole.models import SHIPPED_MJCF, build_model, mujoco_model, planning_limits, plant_params, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
-from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.collocation import CollocationOptions, DirectCollocation
 from cartpole.ocp.guess import initial_guesses
 from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED, trajopt_swingup
 from cartpole.riccati import default_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.sim import replays_exactly, simulate
 from cartpole.solvers.ddp import ddp_for_model
-from cartpole.solvers.sqp import CollocationSQP, SQPError
+from cartpole.solvers.sqp import CollocationSQP, SQPError, SQPOptions
 from cartpole.validation.metrics import swingup_metrics
 
 
@@ -255,7 +255,7 @@ def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_ma
     warm_ms, (_, warm_info) = median_ms(warm_solve, repeats)
 
     say(f"ours without the compiled interval functions (SX virtual machine): {repeats} solves ...")
-    sx_ocp = DirectCollocation(model, N=N, T=T, bounds=bounds, compiled=False)
+    sx_ocp = DirectCollocation(model, N=N, T=T, bounds=bounds, options=CollocationOptions(compiled=False))
     sx_ocp.solve_once(x0, guess=guess)
     sx_ms, (_, sx_info) = median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
 
@@ -298,7 +298,7 @@ def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_ma
     fatrop = {}
     if ca.has_nlpsol("fatrop"):
         say(f"ours (fatrop): {repeats} solves ...")
-        focp = DirectCollocation(model, N=N, T=T, bounds=bounds, solver="fatrop")
+        focp = DirectCollocation(model, N=N, T=T, bounds=bounds, options=CollocationOptions(solver="fatrop"))
         focp.solve_once(x0, guess=guess)
         f_ms, (_, finfo) = median_ms(lambda: focp.solve_once(x0, guess=guess), repeats)
         fatrop = {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
@@ -407,7 +407,7 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
         plan (not JSON: the caller pops it).
     """
     try:
-        solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED)
+        solver = CollocationSQP(ocp, options=SQPOptions(max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED))
     except SQPError:  # a problem the SQP does not take here (time without a C compiler): IPOPT's, as the planner
         solver = None
 
