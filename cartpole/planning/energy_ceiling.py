@@ -32,9 +32,10 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, replace
 
+import mujoco
 import numpy as np
 
-from cartpole.models import CartPoleParams
+from cartpole.models import CartPoleParams, build_model
 from cartpole.sim.rollout import make_mujoco
 
 #: Grid points over one turn of the hinge.
@@ -176,8 +177,6 @@ def reachable_energy(V, a, beta, inertia, *, start: int = 0, max_sweeps: int = 1
 
 def _tables(m, d, x0, slide, hinge, n):
     """Potential, mass-matrix entries over one turn of the hinge from the start's angle, the cart where it starts."""
-    import mujoco
-
     th = float(x0[hinge]) + 2 * np.pi * np.arange(n) / n
     V = np.empty(n)
     Mss, Msh, Mhh = np.empty(n), np.empty(n), np.empty(n)
@@ -217,8 +216,6 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
     EnergyCeiling
         ``proven`` when upright lies above the bound with a margin (:data:`CLAIM_BELOW`).
     """
-    import mujoco
-
     m, d = make_mujoco(params)
     m.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
     found = _one_hinge_and_motor(m)
@@ -226,8 +223,6 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
         return _no(found)
     hinge, slide = found
     if x0 is None:
-        from cartpole.models import build_model
-
         x0 = build_model(params).x_hanging
     x0 = np.asarray(x0, float).ravel()
     if x0.size != m.nq + m.nv or np.any(x0[m.nq:] != 0.0):
@@ -265,8 +260,6 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
 def _one_hinge_and_motor(m):
     """``(hinge dof, slide dof or None)`` of a MuJoCo model the bound covers, else the reason it does not (a
     sentence's part)."""
-    import mujoco
-
     hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     slides = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE]
     if len(hinges) != 1 or len(slides) > 1 or m.njnt != len(hinges) + len(slides):
