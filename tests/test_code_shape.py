@@ -100,7 +100,6 @@ IMPORTS_TO_FIX = {
 #: file -> qualified names of the functions longer than MAX_LINES.
 LONG_TO_FIX = {
     "cartpole/export/design.py": ["design_export"],
-    "cartpole/planning/trajopt.py": ["_plan"],
     "cartpole/sim/rollout.py": ["simulate"],
     "cartpole/viz/web.py": ["_make_plugins"],
 }
@@ -113,8 +112,6 @@ PARAMS_TO_FIX = {
     "cartpole/apps/feedforward.py": ["run_feedforward"],
     "cartpole/apps/sweep/results.py": ["sweep_id"],
     "cartpole/estimation/mhe.py": ["MovingHorizonEstimator.__init__"],
-    "cartpole/planning/ddp_plan.py": ["ddp_stage", "ddp_time_search"],
-    "cartpole/planning/trajopt.py": ["_swingup_time_plan"],
     "cartpole/sim/rollout.py": ["simulate"],
     "cartpole/viz/video.py": ["_render_frames", "_render_in_child", "render_video"],
     "cartpole/viz/viewer.py": ["watch"],
