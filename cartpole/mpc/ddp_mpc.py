@@ -46,7 +46,7 @@ from cartpole.ocp.objectives import make_objective, tracking_cost
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
-from cartpole.solvers.ddp import DDP, DDPOptions
+from cartpole.solvers.ddp import DDP, DDPOptions, DDPProblem
 
 
 class DDPMPCController:
@@ -125,10 +125,10 @@ class DDPMPCController:
         self.S = S
         b = bounds_from_params(params, cart_margin=options.cart_margin)
         self.u_low, self.u_high = np.array(b.u_low, float), np.array(b.u_high, float)
-        self.ddp = DDP(held.step, self.period, N, running=running, u_low=self.u_low, u_high=self.u_high,
-                       q_low=b.q_low, q_high=b.q_high, x_goal=model.x_eq, hinges=model.hinges, Qf=S,
-                       goal_constraint=False, compiled=options.compiled,
-                       options=DDPOptions(penalty=10 * options.rail_penalty, max_outer=1))
+        problem = DDPProblem(u_low=self.u_low, u_high=self.u_high, running=running, q_low=b.q_low, q_high=b.q_high,
+                             x_goal=model.x_eq, hinges=model.hinges, Qf=S, goal_constraint=False)
+        self.ddp = DDP(held.step, self.period, N, problem,
+                       options=DDPOptions(penalty=10 * options.rail_penalty, max_outer=1, compiled=options.compiled))
         self._plan = guess if isinstance(guess, Trajectory) else None
         U = np.array([self._tail_input(k * steps, None) for k in range(N)])
         self.init_info = {"iterations": 0, "status": "not converged offline", "cost": float("nan")}

@@ -4,10 +4,11 @@
 returns and the records of each solve (:mod:`~cartpole.ocp.records`). Solvers beyond IPOPT and fatrop are in
 :mod:`cartpole.solvers`; the swing-up planner that uses both in :mod:`cartpole.planning`."""
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model, bounds_from_params
-from cartpole.ocp.collocation import DirectCollocation, OCPError, OCPInfeasible, OCPNotSolved
+from cartpole.ocp.collocation import CollocationOptions, DirectCollocation, OCPError, OCPInfeasible, OCPNotSolved
 from cartpole.ocp.objectives import Objective, Reward, make_objective, reward
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory, TrajectoryError
 
 __all__ = ["OCPBounds", "bounds_from_model", "bounds_from_params", "DirectCollocation", "OCPError", "OCPInfeasible",
-           "OCPNotSolved", "Attempt", "SolveInfo", "Trajectory", "TrajectoryError", "Objective", "Reward", "make_objective", "reward"]
+           "OCPNotSolved", "CollocationOptions", "Attempt", "SolveInfo", "Trajectory", "TrajectoryError", "Objective",
+           "Reward", "make_objective", "reward"]

@@ -30,13 +30,16 @@ Multi-start: :meth:`DirectCollocation.solve` tries named, deterministic guesses
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
 
 from cartpole.models import CartPoleModel
+from cartpole.options import StageOptions
 from cartpole.ocp import compiled_nlp
 from cartpole.ocp.bounds import OCPBounds, OCPError, bounds_from_model, bounds_from_params, scales
 from cartpole.ocp.guess import linear_guess, named_guesses, stretched
@@ -49,8 +52,8 @@ OBJECTIVES = NAMED  # plus any function (x, u) -> scalar (see cartpole.ocp.objec
 SOLVERS = ("ipopt", "fatrop")
 
 
-__all__ = ["Attempt", "DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasible", "OCPNotSolved", "SolveInfo",
-           "bounds_from_model", "bounds_from_params"]
+__all__ = ["Attempt", "CollocationOptions", "DirectCollocation", "OCPBounds", "OCPError", "OCPInfeasible",
+           "OCPNotSolved", "SolveInfo", "bounds_from_model", "bounds_from_params"]
 
 
 class OCPInfeasible(OCPError):
@@ -67,6 +70,55 @@ class OCPNotSolved(OCPError):
         self.attempts = tuple(attempts)
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class CollocationOptions(StageOptions):
+    """Solver settings of a :class:`DirectCollocation` (the problem itself, model, grid, objective and bounds, is
+    given to its constructor), validated on creation.
+
+    Attributes
+    ----------
+    solver : {'ipopt', 'fatrop'}
+        NLP solver (default ``ipopt``); fatrop needs the casadi fatrop plugin and a fixed final time.
+    solver_options : mapping or None
+        Passed straight to ``casadi.nlpsol`` (e.g. ``{"ipopt": {"tol": 1e-10}}``), merged over the defaults
+        (stored read-only).
+    time_effort_weight : float
+        Weight (>= 0) of the effort term in the minimum-time objective, per ctrl^2 s (default 1e-3).
+    separated : bool
+        IPOPT only: make the midpoint states decision variables (separated Hermite-Simpson) instead of
+        eliminating them (compressed, default False). Same solution; a cheaper Hessian but a larger KKT system.
+    compiled : bool
+        IPOPT, compressed, any objective (fixed T or free): evaluate the NLP and its derivatives with the
+        Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled_nlp`; the shared library is
+        cached in ``~/.cache/cartpole`` under a key of the model, its scaling and running cost, compiled once per
+        model, the larger sources unoptimised; one library serves every T, N and both fixed and free time). Same
+        NLP, iterates and solution as the SX formulation, and faster a solve. Without a C compiler the SX formulation
+        is used (a note on stderr). Default True.
+
+    Raises
+    ------
+    OCPError
+        An unknown solver, a negative weight or a ``solver_options`` that is not a mapping.
+    """
+
+    solver: str = "ipopt"
+    solver_options: object = None
+    time_effort_weight: float = 1e-3
+    separated: bool = False
+    compiled: bool = True
+
+    error: ClassVar[type] = OCPError
+    SCALARS: ClassVar[tuple] = ("time_effort_weight",)
+
+    def __post_init__(self):
+        if self.solver not in SOLVERS:
+            raise OCPError(f"Solver '{self.solver}' is not supported; choose one of {', '.join(SOLVERS)}.")
+        self.number("time_effort_weight", low=0.0, unit="per ctrl^2 s")
+        self.freeze_mapping("solver_options")
+        self.set_field("separated", bool(self.separated))
+        self.set_field("compiled", bool(self.compiled))
+
+
 @dataclass
 class _Built:
     solver: ca.Function
@@ -78,6 +130,25 @@ class _Built:
     relaxed: bool
     warm: bool
     idx: np.ndarray  # entries of the standard (ipopt) variable vector each solver variable holds
+
+
+@dataclass
+class _Transcription:
+    """One transcription's symbols (MX): the variables ``w``, parameters ``p``, duration ``T`` and step ``h``, the
+    physical knot states ``X`` (nx, N+1), inputs ``U`` (nu, N+1) and midpoint states ``Xc`` (nx, N), the slacks (or
+    None), the constraint blocks and their bounds, and ``idx`` (see ``_Built``)."""
+    w: ca.MX
+    p: ca.MX
+    T: ca.MX
+    h: ca.MX
+    X: ca.MX
+    U: ca.MX
+    Xc: ca.MX
+    slack: ca.MX | None
+    g: list
+    lbg: list
+    ubg: list
+    idx: np.ndarray
 
 
 class DirectCollocation:
@@ -96,7 +167,7 @@ class DirectCollocation:
         is a parameter of the NLP: :meth:`solve` accepts another ``T`` without rebuilding.
     objective : {'effort', 'time', 'tracking', 'dmc_swingup'}, callable or Objective, optional
         ``effort`` minimises ``integral u'u dt`` (Simpson quadrature, ctrl^2 s); ``time`` minimises T
-        (free final time) plus ``time_effort_weight * integral u'u dt`` to make the bang-bang answer unique;
+        (free final time) plus ``options.time_effort_weight * integral u'u dt`` to make the bang-bang answer unique;
         ``tracking`` a quadratic cost toward ``x*`` (``2 (1 - cos e)`` per hinge error), ``dmc_swingup``
         maximises dm_control's smooth swing-up reward; a function ``(x, u) -> scalar`` of CasADi SX symbols is
         a running cost (minimised), or a running reward (maximised) when wrapped with
@@ -112,42 +183,32 @@ class DirectCollocation:
         All bounds at once (e.g. those of another MJCF, :func:`cartpole.ocp.bounds.bounds_from_params`);
         overrides ``u_max``, ``cart_max`` and ``cart_margin``.
     T_range : (float, float)
-        Bounds on the free final time in s.
-    solver : {'ipopt', 'fatrop'}
-        NLP solver; fatrop needs the casadi fatrop plugin.
-    solver_options : dict, optional
-        Passed straight to ``casadi.nlpsol`` (e.g. ``{"ipopt": {"tol": 1e-10}}``), merged over the defaults.
-    time_effort_weight : float
-        Weight of the effort term in the minimum-time objective (1 per ctrl^2 s).
-    separated : bool
-        IPOPT only: make the midpoint states decision variables (separated Hermite-Simpson) instead of
-        eliminating them (compressed, default). Same solution; a cheaper Hessian but a larger KKT system.
-    compiled : bool
-        IPOPT, compressed, any objective (fixed T or free): evaluate the NLP and its derivatives with the
-        Hermite-Simpson interval functions compiled to C (:mod:`cartpole.ocp.compiled_nlp`; the shared library is
-        cached in ``~/.cache/cartpole`` under a key of the model, its scaling and running cost, compiled once per
-        model, the larger sources unoptimised; one library serves every T, N and both fixed and free time). Same
-        NLP, iterates and solution as the SX formulation, and faster a solve. Without a C compiler the SX formulation
-        is used (a note on stderr). Default True.
+        Bounds on the free final time in s (default (0.2, 10)).
+    options : CollocationOptions, optional
+        Solver settings: the NLP solver, options passed straight to ``casadi.nlpsol``, the minimum-time
+        objective's effort weight, the separated or compressed transcription, compiled interval functions
+        (default ``CollocationOptions()``: IPOPT, compressed, compiled).
     """
 
     def __init__(self, model: CartPoleModel, N: int = 100, T: float | None = 2.0, *, objective: str | None = None,
                  u_max: float | None = None, cart_max: float | None = None, cart_margin: float = 0.1,
-                 T_range: tuple[float, float] = (0.2, 10.0), solver: str = "ipopt",
-                 solver_options: dict | None = None, time_effort_weight: float = 1e-3,
-                 separated: bool = False, compiled: bool = True, bounds: OCPBounds | None = None):
+                 T_range: tuple[float, float] = (0.2, 10.0), bounds: OCPBounds | None = None,
+                 options: CollocationOptions | None = None):
+        options = CollocationOptions() if options is None else options
+        if not isinstance(options, CollocationOptions):
+            raise OCPError(f"options must be a CollocationOptions; got {type(options).__name__}.")
+        solver = options.solver
         obj = make_objective(model, objective, free_time=T is None)
         objective = obj.name
         if obj.free_time and T is not None:
             raise OCPError("A minimum-time objective needs a free final time; pass T=None.")
         if obj.kind == "running" and T is None:
             raise OCPError(f"The objective '{obj.name}' needs a fixed duration; give T (s).")
-        if solver not in SOLVERS:
-            raise OCPError(f"Solver '{solver}' is not supported; choose one of {', '.join(SOLVERS)}.")
         if solver == "fatrop" and T is None:
-            raise OCPError("The fatrop formulation needs a fixed final time; give T or use solver='ipopt'.")
+            raise OCPError("The fatrop formulation needs a fixed final time; give T or use "
+                           "CollocationOptions(solver='ipopt').")
         if not ca.has_nlpsol(solver):
-            raise OCPError(f"This CasADi build has no '{solver}' plugin; use solver='ipopt'.")
+            raise OCPError(f"This CasADi build has no '{solver}' plugin; use CollocationOptions(solver='ipopt').")
         if int(N) < 2:
             raise OCPError(f"N = {N} intervals is too few; use N >= 2 (100 is typical).")
         if T is not None and not T > 0:
@@ -166,11 +227,12 @@ class DirectCollocation:
                            f"model has {self.nu} and {model.nq}; build them from this model's MJCF.")
         self.bounds = bounds
         self.T_range = (float(T_range[0]), float(T_range[1]))
+        self.options = options
         self.solver_name = solver
-        self.solver_options = dict(solver_options or {})
-        self.time_effort_weight = float(time_effort_weight)
-        self.separated = bool(separated)
-        self.compiled = bool(compiled)
+        self.solver_options = dict(options.solver_options or {})
+        self.time_effort_weight = options.time_effort_weight
+        self.separated = options.separated
+        self.compiled = options.compiled
         self.compiled_library: str | None = None  # the shared library in use, once built
         self.scale = scales(model, self.bounds)  # (nx + nu,): states then inputs
         self._interval = hs_interval_function(model.f)
@@ -212,86 +274,125 @@ class DirectCollocation:
         key = (relaxed, warm)
         if key in self._built:
             return self._built[key]
-        N, sc, nx, nu = self.N, self.scale, self.nx, self.nu
-        nz = nx + nu  # one knot: state and input
-        sx, su = sc[:nx], sc[nx:]
         solver_name = "ipopt" if relaxed else self.solver_name
-        slacks = self._slack_names() if relaxed else []
-        n_slk = len(slacks)
-        n_extra = int(self.free_time) + n_slk
-
-        def knots(Z, ex):
-            """T (s, a variable when free, else the parameter p), p, the slacks, and the unscaled knot states,
-            inputs and their derivatives, from the scaled knots Z and the extra variables ex [(T), (slacks)]."""
-            p = ca.MX.sym("p", 0 if self.free_time else 1)
-            T = ex[0] if self.free_time else p[0]
-            slack = ex[n_extra - n_slk:] if relaxed else None
-            X, U = Z[:nx, :] * ca.DM(sx), Z[nx:, :] * ca.DM(su)
-            return T, p, slack, X, U, self._f_knots(X, U)
-
-        # "standard" vector (what guesses and bounds are packed into, scaled):
-        #   [vec(Z) (nz (N+1): x_k, u_k per knot), vec(Xc) (nx N: midpoint states), (T), (slacks)]
+        n_slk = len(self._slack_names()) if relaxed else 0
         if solver_name == "fatrop":
-            # Fatrop needs explicit stage dynamics z_k+1 = F(z_k, w_k). Hermite-Simpson is implicit, so the
-            # stage state is z_k = (x_k, u_k), the stage control w_k = (x_k+1, u_k+1) a copy of the next
-            # knot, the dynamics are the copy z_k+1 = w_k, and the (compressed) defect is a path equality.
-            w = ca.MX.sym("w", 2 * nz * N + nz)  # [z_0, w_0, z_1, w_1, ..., z_N]
-            stages = ca.reshape(w[:2 * nz * N], 2 * nz, N)
-            Z = ca.horzcat(stages[:nz, :], w[2 * nz * N:])
-            Wn = stages[nz:, :]
-            X = Z[:nx, :] * ca.DM(sx)
-            U = Z[nx:, :] * ca.DM(su)
-            F = self._f_knots(X, U)
-            Xn, Un = Wn[:nx, :] * ca.DM(sx), Wn[nx:, :] * ca.DM(su)
-            Fn = self.model.f.map(N)(Xn, Un)
-            # Boundary states as equality constraints of the first/last stage (fatrop handles a pinned
-            # variable, lb = ub, poorly), from parameters p = [T, x0 (nx), x_goal (nx)] (scaled).
-            p = ca.MX.sym("p", 1 + 2 * nx)
-            T = p[0]
-            h = T / N
-            D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], Xn, Un, F[:, :-1], Fn, h)
-            blocks = [Z[:nx, 0] - p[1:1 + nx]]
-            blocks += [ca.vertcat(Z[:, k + 1] - Wn[:, k], D[:, k] / ca.DM(sx)) for k in range(N)]
-            blocks.append(Z[:nx, N] - p[1 + nx:])
-            g = [ca.vertcat(*blocks)]
-            lbg = [np.zeros((nz + nx) * N + 2 * nx)]
-            ubg = [np.zeros((nz + nx) * N + 2 * nx)]
-            # entries of the standard vector each fatrop entry holds: z_k, then z_k+1 (the copy)
-            idx = np.concatenate([np.r_[nz * k:nz * k + 2 * nz] for k in range(N)] + [np.r_[nz * N:nz * N + nz]])
+            tr = self._transcribe_fatrop()
         elif not self.separated:
-            w = ca.MX.sym("w", nz * (N + 1) + n_extra)  # [x_0, u_0, x_1, u_1, ..., x_N, u_N, extra]
-            Z = ca.reshape(w[:nz * (N + 1)], nz, N + 1)
-            T, p, slk, X, U, F = knots(Z, w[nz * (N + 1):])
-            h = T / N
-            D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], X[:, 1:], U[:, 1:], F[:, :-1], F[:, 1:], h)
-            # Defects scaled by the state scales (dimensionless), one block per interval, stage-ordered.
-            g = [ca.vec(D / ca.DM(sx))]
-            lbg = [np.zeros(nx * N)]
-            ubg = [np.zeros(nx * N)]
-            n_std = (nz + nx) * N + nz  # knots and midpoints of the standard vector
-            idx = np.r_[np.arange(nz * (N + 1)), np.arange(n_std, n_std + n_extra)]
+            tr = self._transcribe_compressed(n_slk)
         else:
-            # Separated Hermite-Simpson: midpoint states are variables, so every f call depends on one
-            # knot (or midpoint) only and the Hessian of the Lagrangian is block-diagonal and cheaper to
-            # evaluate; the KKT system is larger, though (measured: slower overall at N = 100).
-            ns = nz + nx  # one stage: knot and midpoint
-            w = ca.MX.sym("w", ns * N + nz + n_extra)  # [x_0, u_0, xc_0, x_1, u_1, xc_1, ..., x_N, u_N, extra]
-            stages = ca.reshape(w[:ns * N], ns, N)
-            Z = ca.horzcat(stages[:nz, :], w[ns * N:ns * N + nz])
-            Xc = stages[nz:, :] * ca.DM(sx)
-            T, p, slk, X, U, F = knots(Z, w[ns * N + nz:])
-            h = T / N
-            Uc_ = 0.5 * (U[:, :-1] + U[:, 1:])
-            Fc = self.model.f.map(N)(Xc, Uc_)
-            mid = Xc - (0.5 * (X[:, :-1] + X[:, 1:]) + h / 8 * (F[:, :-1] - F[:, 1:]))
-            D = X[:, 1:] - X[:, :-1] - h / 6 * (F[:, :-1] + 4 * Fc + F[:, 1:])
-            # both residuals scaled by the state scales (dimensionless), stage-ordered
-            g = [ca.vec(ca.vertcat(mid, D) / ca.DM(np.r_[sx, sx]))]
-            lbg = [np.zeros(2 * nx * N)]
-            ubg = [np.zeros(2 * nx * N)]
-            zc0 = nz * (N + 1)
-            idx = np.concatenate([np.r_[nz * k:nz * k + nz, zc0 + nx * k:zc0 + nx * k + nx] for k in range(N)]
-                                 + [np.r_[nz * N:nz * N + nz], np.arange(ns * N + nz, ns * N + nz + n_extra)])
+            tr = self._transcribe_separated(n_slk)
+        J, effort, running, eff_scale = self._objective(tr, relaxed)
+        nlp = {"x": tr.w, "f": J, "g": ca.vertcat(*tr.g), "p": tr.p}
+        opts = self._options(warm, solver_name)
+        lbg_all, ubg_all = np.concatenate(tr.lbg), np.concatenate(tr.ubg)
+        if solver_name == "fatrop":
+            opts.setdefault("equality", [bool(a == b) for a, b in zip(lbg_all, ubg_all)])
+        if self.compiled and solver_name == "ipopt" and not relaxed and not self.separated:
+            nlp = self._compiled_nlp(nlp, opts, eff_scale)
+        solver = ca.nlpsol(f"hs_swingup_{'relaxed' if relaxed else 'nlp'}", solver_name, nlp, opts)
+        unpack = ca.Function("unpack", [tr.w, tr.p], [tr.X, tr.U, tr.T, tr.Xc, effort, running])
+        b = _Built(solver=solver, nw=tr.w.numel(), ng=int(sum(a.size for a in tr.lbg)), lbg=np.concatenate(tr.lbg),
+                   ubg=np.concatenate(tr.ubg), unpack=unpack, relaxed=relaxed, warm=warm, idx=tr.idx)
+        self._built[key] = b
+        return b
+
+    # The "standard" vector (what guesses and bounds are packed into, scaled):
+    #   [vec(Z) (nz (N+1): x_k, u_k per knot), vec(Xc) (nx N: midpoint states), (T), (slacks)]
+    # Each transcription says which entry of it each of its own variables holds (``idx``).
+
+    def _knots(self, Z, ex, n_slk: int):
+        """T (s, a variable when free, else the parameter p), p, the slacks, and the unscaled knot states, inputs
+        and their derivatives, from the scaled knots Z and the extra variables ex [(T), (slacks)]."""
+        nx, sc = self.nx, self.scale
+        n_extra = int(self.free_time) + n_slk
+        p = ca.MX.sym("p", 0 if self.free_time else 1)
+        T = ex[0] if self.free_time else p[0]
+        slack = ex[n_extra - n_slk:] if n_slk else None
+        X, U = Z[:nx, :] * ca.DM(sc[:nx]), Z[nx:, :] * ca.DM(sc[nx:])
+        return T, p, slack, X, U, self._f_knots(X, U)
+
+    def _transcribe_fatrop(self) -> _Transcription:
+        """Fatrop needs explicit stage dynamics z_k+1 = F(z_k, w_k). Hermite-Simpson is implicit, so the stage state
+        is z_k = (x_k, u_k), the stage control w_k = (x_k+1, u_k+1) a copy of the next knot, the dynamics are the
+        copy z_k+1 = w_k, and the (compressed) defect is a path equality."""
+        N, sc, nx = self.N, self.scale, self.nx
+        nz = nx + self.nu
+        sx, su = sc[:nx], sc[nx:]
+        w = ca.MX.sym("w", 2 * nz * N + nz)  # [z_0, w_0, z_1, w_1, ..., z_N]
+        stages = ca.reshape(w[:2 * nz * N], 2 * nz, N)
+        Z = ca.horzcat(stages[:nz, :], w[2 * nz * N:])
+        Wn = stages[nz:, :]
+        X = Z[:nx, :] * ca.DM(sx)
+        U = Z[nx:, :] * ca.DM(su)
+        F = self._f_knots(X, U)
+        Xn, Un = Wn[:nx, :] * ca.DM(sx), Wn[nx:, :] * ca.DM(su)
+        Fn = self.model.f.map(N)(Xn, Un)
+        # Boundary states as equality constraints of the first/last stage (fatrop handles a pinned
+        # variable, lb = ub, poorly), from parameters p = [T, x0 (nx), x_goal (nx)] (scaled).
+        p = ca.MX.sym("p", 1 + 2 * nx)
+        T = p[0]
+        h = T / N
+        D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], Xn, Un, F[:, :-1], Fn, h)
+        blocks = [Z[:nx, 0] - p[1:1 + nx]]
+        blocks += [ca.vertcat(Z[:, k + 1] - Wn[:, k], D[:, k] / ca.DM(sx)) for k in range(N)]
+        blocks.append(Z[:nx, N] - p[1 + nx:])
+        n_g = (nz + nx) * N + 2 * nx
+        # entries of the standard vector each fatrop entry holds: z_k, then z_k+1 (the copy)
+        idx = np.concatenate([np.r_[nz * k:nz * k + 2 * nz] for k in range(N)] + [np.r_[nz * N:nz * N + nz]])
+        return _Transcription(w=w, p=p, T=T, h=h, X=X, U=U, Xc=Xc, slack=None, g=[ca.vertcat(*blocks)],
+                              lbg=[np.zeros(n_g)], ubg=[np.zeros(n_g)], idx=idx)
+
+    def _transcribe_compressed(self, n_slk: int) -> _Transcription:
+        """Compressed Hermite-Simpson: the knots are the variables, the midpoint states eliminated."""
+        N, nx = self.N, self.nx
+        nz = nx + self.nu
+        n_extra = int(self.free_time) + n_slk
+        w = ca.MX.sym("w", nz * (N + 1) + n_extra)  # [x_0, u_0, x_1, u_1, ..., x_N, u_N, extra]
+        Z = ca.reshape(w[:nz * (N + 1)], nz, N + 1)
+        T, p, slk, X, U, F = self._knots(Z, w[nz * (N + 1):], n_slk)
+        h = T / N
+        D, Xc = self._interval.map(N)(X[:, :-1], U[:, :-1], X[:, 1:], U[:, 1:], F[:, :-1], F[:, 1:], h)
+        # Defects scaled by the state scales (dimensionless), one block per interval, stage-ordered.
+        g = [ca.vec(D / ca.DM(self.scale[:nx]))]
+        n_std = (nz + nx) * N + nz  # knots and midpoints of the standard vector
+        idx = np.r_[np.arange(nz * (N + 1)), np.arange(n_std, n_std + n_extra)]
+        return _Transcription(w=w, p=p, T=T, h=h, X=X, U=U, Xc=Xc, slack=slk, g=g, lbg=[np.zeros(nx * N)],
+                              ubg=[np.zeros(nx * N)], idx=idx)
+
+    def _transcribe_separated(self, n_slk: int) -> _Transcription:
+        """Separated Hermite-Simpson: midpoint states are variables, so every f call depends on one knot (or
+        midpoint) only and the Hessian of the Lagrangian is block-diagonal and cheaper to evaluate; the KKT system is
+        larger, though (measured: slower overall at N = 100)."""
+        N, nx = self.N, self.nx
+        nz = nx + self.nu
+        sx = self.scale[:nx]
+        n_extra = int(self.free_time) + n_slk
+        ns = nz + nx  # one stage: knot and midpoint
+        w = ca.MX.sym("w", ns * N + nz + n_extra)  # [x_0, u_0, xc_0, x_1, u_1, xc_1, ..., x_N, u_N, extra]
+        stages = ca.reshape(w[:ns * N], ns, N)
+        Z = ca.horzcat(stages[:nz, :], w[ns * N:ns * N + nz])
+        Xc = stages[nz:, :] * ca.DM(sx)
+        T, p, slk, X, U, F = self._knots(Z, w[ns * N + nz:], n_slk)
+        h = T / N
+        Uc_ = 0.5 * (U[:, :-1] + U[:, 1:])
+        Fc = self.model.f.map(N)(Xc, Uc_)
+        mid = Xc - (0.5 * (X[:, :-1] + X[:, 1:]) + h / 8 * (F[:, :-1] - F[:, 1:]))
+        D = X[:, 1:] - X[:, :-1] - h / 6 * (F[:, :-1] + 4 * Fc + F[:, 1:])
+        # both residuals scaled by the state scales (dimensionless), stage-ordered
+        g = [ca.vec(ca.vertcat(mid, D) / ca.DM(np.r_[sx, sx]))]
+        zc0 = nz * (N + 1)
+        idx = np.concatenate([np.r_[nz * k:nz * k + nz, zc0 + nx * k:zc0 + nx * k + nx] for k in range(N)]
+                             + [np.r_[nz * N:nz * N + nz], np.arange(ns * N + nz, ns * N + nz + n_extra)])
+        return _Transcription(w=w, p=p, T=T, h=h, X=X, U=U, Xc=Xc, slack=slk, g=g, lbg=[np.zeros(2 * nx * N)],
+                              ubg=[np.zeros(2 * nx * N)], idx=idx)
+
+    def _objective(self, tr: _Transcription, relaxed: bool):
+        """``(J, effort, running, eff_scale)``: the scaled objective of the transcription ``tr`` (with the relaxed
+        problem's slack rows appended to ``tr.g``), the effort and running integrals (physical) and the effort's
+        scale."""
+        N, X, U, Xc, h = self.N, tr.X, tr.U, tr.Xc, tr.h
+        su = self.scale[self.nx:]
         effort = h / 6 * ca.sum2(ca.sum1(simpson_effort_terms(U[:, :-1], U[:, 1:])))
         run = self.objective_spec.running
         if run is not None:  # Simpson on each interval: knots and the Hermite / first-order-hold midpoints
@@ -302,52 +403,49 @@ class DirectCollocation:
             running = ca.MX(0)
         eff_scale = float(np.sum(su**2)) * (self.T or 1.0)
         if relaxed:
-            # Slack on each bounded joint and each ctrl (dimensionless, relative to the bound's half-width):
-            # |q_k - centre| <= half (1 + slack_joint), |u_k - centre| <= half (1 + slack_ctrl).
-            bd = self.bounds
-            rows = [(X[i, :], bd.q_low[i], bd.q_high[i]) for i in bd.bounded_joints]
-            rows += [(U[j, :], bd.u_low[j], bd.u_high[j]) for j in range(nu)]
-            for k, (row, lo, hi) in enumerate(rows):
-                c, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-                rel = (row - c) / half if c != 0 else row / half
-                g += [ca.vec(rel - 1 - slk[k]), ca.vec(-rel - 1 - slk[k])]
-            n_rel = 2 * len(rows) * (N + 1)
-            lbg.append(-np.inf * np.ones(n_rel))
-            ubg.append(np.zeros(n_rel))
-            J = 1e3 * ca.sum1(slk) + 1e-3 * effort / eff_scale
+            self._slack_rows(tr)
+            J = 1e3 * ca.sum1(tr.slack) + 1e-3 * effort / eff_scale
         elif self.objective_spec.kind == "effort":
             J = effort / eff_scale
         elif self.objective_spec.kind == "running":
             J = running / (self.T or 1.0)  # the mean running cost: order one for the named objectives
         else:
-            J = T + self.time_effort_weight * effort
-        nlp = {"x": w, "f": J, "g": ca.vertcat(*g), "p": p}
-        opts = self._options(warm, solver_name)
-        lbg_all, ubg_all = np.concatenate(lbg), np.concatenate(ubg)
-        if solver_name == "fatrop":
-            opts.setdefault("equality", [bool(a == b) for a, b in zip(lbg_all, ubg_all)])
-        if self.compiled and solver_name == "ipopt" and not relaxed and not self.separated:
-            # Same NLP on interval functions compiled to C (see cartpole.ocp.compiled_nlp); None (the SX path
-            # is kept) when there is no C compiler or the build fails.
-            kind = self.objective_spec.kind
-            if kind == "effort":
-                comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, eff_scale)
-            elif kind == "running":
-                comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, self.T or 1.0, running=run)
-            else:  # time: T + time_effort_weight * effort, T the last variable
-                comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, 1.0 / self.time_effort_weight,
+            J = tr.T + self.time_effort_weight * effort
+        return J, effort, running, eff_scale
+
+    def _slack_rows(self, tr: _Transcription) -> None:
+        """Append to ``tr``'s constraints the slack on each bounded joint and each ctrl (dimensionless, relative to
+        the bound's half-width): |q_k - centre| <= half (1 + slack_joint), |u_k - centre| <= half (1 + slack_ctrl)."""
+        bd, N, slk = self.bounds, self.N, tr.slack
+        rows = [(tr.X[i, :], bd.q_low[i], bd.q_high[i]) for i in bd.bounded_joints]
+        rows += [(tr.U[j, :], bd.u_low[j], bd.u_high[j]) for j in range(self.nu)]
+        for k, (row, lo, hi) in enumerate(rows):
+            c, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            rel = (row - c) / half if c != 0 else row / half
+            tr.g += [ca.vec(rel - 1 - slk[k]), ca.vec(-rel - 1 - slk[k])]
+        n_rel = 2 * len(rows) * (N + 1)
+        tr.lbg.append(-np.inf * np.ones(n_rel))
+        tr.ubg.append(np.zeros(n_rel))
+
+    def _compiled_nlp(self, nlp: dict, opts: dict, eff_scale: float) -> dict:
+        """Same NLP on interval functions compiled to C (see cartpole.ocp.compiled_nlp), its solver options merged
+        into ``opts``; ``nlp`` itself (the SX path is kept) when there is no C compiler or the build fails."""
+        N, sc, nx = self.N, self.scale, self.nx
+        sx, su = sc[:nx], sc[nx:]
+        kind = self.objective_spec.kind
+        if kind == "effort":
+            comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, eff_scale)
+        elif kind == "running":
+            comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, self.T or 1.0, running=self.objective_spec.running)
+        else:  # time: T + time_effort_weight * effort, T the last variable
+            comp = compiled_nlp.compiled_nlp(self.model, N, sx, su, 1.0 / self.time_effort_weight,
                                              free_time=True, time_weight=1.0)
-            if comp is not None:
-                nlp = comp.nlp
-                opts.update(comp.options)
-                opts["expand"] = False  # the compiled functions are called, not expanded
-                self.compiled_library = comp.library
-        solver = ca.nlpsol(f"hs_swingup_{'relaxed' if relaxed else 'nlp'}", solver_name, nlp, opts)
-        unpack = ca.Function("unpack", [w, p], [X, U, T, Xc, effort, running])
-        b = _Built(solver=solver, nw=w.numel(), ng=int(sum(a.size for a in lbg)), lbg=np.concatenate(lbg),
-                   ubg=np.concatenate(ubg), unpack=unpack, relaxed=relaxed, warm=warm, idx=idx)
-        self._built[key] = b
-        return b
+        if comp is None:
+            return nlp
+        opts.update(comp.options)
+        opts["expand"] = False  # the compiled functions are called, not expanded
+        self.compiled_library = comp.library
+        return comp.nlp
 
     # ---- numbers in and out ----------------------------------------------------------------------
     def _slack_names(self) -> list[tuple[str, int]]:

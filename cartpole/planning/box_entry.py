@@ -49,14 +49,14 @@ def _box_rows(Gx, lower, upper, on, margin: float):
     return ca.vec(ca.horzcat(*rows))
 
 
-def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: float, max_steps: int = MAX_STEPS,
+def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, max_steps: int = MAX_STEPS,
                    max_seconds: float = MAX_SECONDS, margin: float = BOX_MARGIN):
     """The plan of the module doc: the earliest box entry found, or None when it enters no earlier than ``x_ref``.
 
     Parameters
     ----------
     model : CartPoleModel
-        The planning model; its ``step`` (one MJCF step, ``dt`` s) is the dynamics.
+        The planning model; its ``step`` (one step of ``model.dt`` s) is the dynamics, on the plan's grid.
     name : str
         A sparse dm_control task (:func:`cartpole.ocp.dmc.sparse_box`).
     x0, x_goal : (nx,) arrays
@@ -65,8 +65,6 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: fl
         The surrogate's plan on the step grid (a guess: it need not satisfy the step exactly).
     bounds : OCPBounds
         ctrl and joint bounds.
-    dt : float
-        s, the step of ``model.step``.
     max_steps : int
         Most IPOPT solves.
     max_seconds : float
@@ -82,7 +80,7 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, dt: fl
         the box, or no earlier entry was found.
     """
     tic = time.perf_counter()
-    nx, nu = model.nx, model.nu
+    nx, nu, dt = model.nx, model.nu, float(model.dt)
     xs = ca.SX.sym("x", nx)
     g_expr, lower, upper = sparse_box(model, name, xs)
     g_fun = ca.Function("box", [xs], [g_expr])

@@ -19,9 +19,11 @@ iterations, objective, T, wall time); the caller falls back to IPOPT when none c
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -35,8 +37,9 @@ from cartpole.ocp.bounds import OCPBounds, OCPError
 from cartpole.ocp.objectives import Objective, make_objective, tracking_cost
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.options import StageOptions
 from cartpole.planning.pumping import hanging_mode
-from cartpole.solvers.ddp import DDP, DDPError, DDPOptions
+from cartpole.solvers.ddp import DDP, DDPError, DDPOptions, DDPProblem
 
 #: Most bisection steps of :func:`ddp_time_search` (each a fixed-T DDP solve; 2^-7 of the bracket is about one
 #: MJCF step on the shipped carts' minimum-time brackets).
@@ -44,6 +47,46 @@ TIME_SEARCH_STEPS = 7
 #: Fraction of the collocation's minimum time where the search's lower bracket starts (a discrete plan is not
 #: much faster than the continuous one; DDP is not asked to prove anything below it).
 TIME_SEARCH_LOW = 0.9
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DDPStageOptions(StageOptions):
+    """Settings of :func:`ddp_stage` and :func:`ddp_time_search`, validated on creation.
+
+    Attributes
+    ----------
+    steps : int
+        MJCF steps per DDP step (>= 1: the control period's hold); default 1.
+    u_margin : float
+        Fraction in [0, 1) of each half ctrl range left free for feedback; default 0.
+    Q, R : arrays or None
+        TVLQR weights (nx, nx) and (nu, nu) of the initialisation, read-only; None: :func:`cartpole.riccati.
+        default_weights` of the model.
+    ddp : DDPOptions or None
+        The DDP solver's settings (None: ``DDPOptions()``).
+
+    Raises
+    ------
+    DDPError
+        A value outside the ranges above.
+    """
+
+    steps: int = 1
+    u_margin: float = 0.0
+    Q: object = None
+    R: object = None
+    ddp: DDPOptions | None = None
+
+    error: ClassVar[type] = DDPError
+    SCALARS: ClassVar[tuple] = ("steps", "u_margin")
+
+    def __post_init__(self):
+        self.number("steps", low=1, integer=True)
+        self.number("u_margin", low=0.0)
+        if not self.u_margin < 1.0:
+            raise DDPError(f"u_margin = {self.u_margin} must be a fraction in [0, 1) of each half ctrl range.")
+        for name in ("Q", "R"):
+            self.freeze_array(name)
 
 
 @dataclass(frozen=True)
@@ -117,8 +160,8 @@ def _initial_ctrl(model: CartPoleModel, dmodel, guess: Trajectory, steps: int, N
 
 
 def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, objective: Objective,
-              bounds: OCPBounds, *, steps: int = 1, u_margin: float = 0.0, x_goal=None, Q=None, R=None,
-              guess_name: str = "given", options: DDPOptions | None = None) -> tuple[DDPStage, list]:
+              bounds: OCPBounds, *, x_goal=None, guess_name: str = "given",
+              options: DDPStageOptions | None = None) -> tuple[DDPStage, list]:
     """The objective at duration ``T`` by DDP on ``model``'s exact discrete step (held ``steps`` MJCF steps).
 
     Parameters
@@ -136,17 +179,13 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
         (:func:`ddp_time_search`).
     bounds : OCPBounds
         ctrl, rail and joint bounds (the collocation's).
-    steps : int
-        MJCF steps per DDP step (the control period's hold).
-    u_margin : float
-        Fraction in [0, 1) of each half ctrl range left free for feedback.
     x_goal : (nx,) array, optional
         Terminal equality (hinge errors wrapped); default ``model.x_eq``.
-    Q, R : arrays, optional
-        TVLQR weights of the initialisation (default :func:`cartpole.riccati.default_weights`).
     guess_name : str
         Name of the guess in the attempt record.
-    options : DDPOptions, optional
+    options : DDPStageOptions, optional
+        The hold (``steps``), the ctrl margin, the initialisation's TVLQR weights and the DDP's settings (default
+        ``DDPStageOptions()``: every MJCF step, no margin, the default weights).
 
     Returns
     -------
@@ -154,10 +193,11 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
         The stage (``info.success`` says whether it converged) and its attempt record.
     """
     tic = time.perf_counter()
+    options = DDPStageOptions() if options is None else options
+    steps, u_margin = options.steps, options.u_margin
     Q0, R0 = default_weights(model)
-    Q = Q0 if Q is None else np.asarray(Q, float)
-    R = R0 if R is None else np.atleast_2d(np.asarray(R, float))
-    steps = int(steps)
+    Q = Q0 if options.Q is None else np.asarray(options.Q, float)
+    R = R0 if options.R is None else np.atleast_2d(np.asarray(options.R, float))
     h = float(model.dt) * steps
     N = max(1, int(round(float(T) / h)))
     dmodel = model if steps == 1 else model.hold(steps)
@@ -166,8 +206,9 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
     name = f"{objective.name} (ddp)"
     if objective.kind == "time":
         raise DDPError("DDP solves a fixed horizon: the minimum time is ddp_time_search's.")
-    ddp = DDP(dmodel.step, h, N, running=objective.running, u_low=u_lo, u_high=u_hi, q_low=bounds.q_low,
-              q_high=bounds.q_high, x_goal=goal, hinges=model.hinges, options=options)
+    problem = DDPProblem(u_low=u_lo, u_high=u_hi, running=objective.running, q_low=bounds.q_low,
+                         q_high=bounds.q_high, x_goal=goal, hinges=model.hinges)
+    ddp = DDP(dmodel.step, h, N, problem, options=options.ddp)
     x0 = np.asarray(x0, float).ravel()
     defect = 0.0
     if guess is None:
@@ -192,12 +233,13 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
 
 
 def ddp_time_search(model: CartPoleModel, x0, guess: Trajectory, T_min: float, bounds: OCPBounds, *,
-                    steps: int = 1, u_margin: float = 0.0, Q=None, R=None, guess_name: str = "given",
-                    options: DDPOptions | None = None) -> tuple[DDPStage | None, list]:
+                    guess_name: str = "given", options: DDPStageOptions | None = None
+                    ) -> tuple[DDPStage | None, list]:
     """The shortest duration at which an effort DDP (:func:`ddp_stage`) converges, by bisection on whole steps.
 
-    ``x0`` (nx,) is the start ``[qpos, qvel]`` (m, rad, m/s, rad/s); ``model``, ``bounds``, ``steps``, ``u_margin``,
-    ``Q``, ``R``, ``guess_name`` and ``options`` are :func:`ddp_stage`'s.
+    ``x0`` (nx,) is the start ``[qpos, qvel]`` (m, rad, m/s, rad/s); ``model``, ``bounds``, ``guess_name`` and
+    ``options`` (:class:`DDPStageOptions`: the hold ``steps``, ctrl margin, TVLQR weights, DDP settings) are
+    :func:`ddp_stage`'s.
 
     The upper bracket starts at the collocation's minimum time ``T_min`` (s) rounded up to whole DDP steps and
     grows by 10 % (at most 5 times) until a DDP converges; the lower one at :data:`TIME_SEARCH_LOW` of it; then at
@@ -211,13 +253,13 @@ def ddp_time_search(model: CartPoleModel, x0, guess: Trajectory, T_min: float, b
         duration converged; every solve's attempt (stage ``"time (ddp) T=..."``).
     """
     effort = make_objective(model, "effort")
-    h = float(model.dt) * int(steps)
+    options = DDPStageOptions() if options is None else options
+    h = float(model.dt) * options.steps
     attempts: list = []
     best: DDPStage | None = None
 
     def solve(n: int) -> DDPStage:
-        st, tried = ddp_stage(model, x0, guess, n * h, effort, bounds, steps=steps, u_margin=u_margin, Q=Q, R=R,
-                              guess_name=guess_name, options=options)
+        st, tried = ddp_stage(model, x0, guess, n * h, effort, bounds, guess_name=guess_name, options=options)
         a = tried[0]
         attempts.append(Attempt(stage=f"time (ddp) T={n * h:.4g}", guess=a.guess, N=a.N, status=a.status,
                                 success=a.success, iterations=a.iterations, objective=a.T, T=a.T,
@@ -364,9 +406,9 @@ def receding_swingup(model: CartPoleModel, x0, bounds: OCPBounds, *, horizon: fl
     lqr = LinearFeedback(lq.K, model.x_eq, model.u_eq, hinges=model.hinges, u_limits=np.c_[u_lo, u_hi])
     xs, us = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     running = ca.Function("receding_tracking", [xs, us], [tracking_cost(model, xs, us, np.diag(Q), np.diag(R))])
-    ddp = DDP(model.step, h, N, running=running, u_low=u_lo, u_high=u_hi, q_low=bounds.q_low, q_high=bounds.q_high,
-              x_goal=model.x_eq, hinges=model.hinges, Qf=np.asarray(lq.S), goal_constraint=False,
-              options=DDPOptions(max_outer=1))
+    problem = DDPProblem(u_low=u_lo, u_high=u_hi, running=running, q_low=bounds.q_low, q_high=bounds.q_high,
+                         x_goal=model.x_eq, hinges=model.hinges, Qf=np.asarray(lq.S), goal_constraint=False)
+    ddp = DDP(model.step, h, N, problem, options=DDPOptions(max_outer=1))
     hinges = list(model.hinges)
     rates = [model.nq + i for i in hinges]
     x = np.asarray(x0, float).ravel()

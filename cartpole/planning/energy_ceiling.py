@@ -30,11 +30,12 @@ together and every larger ``V_p`` shown inconsistent (see :func:`energy_ceiling`
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+import mujoco
 import numpy as np
 
-from cartpole.models import CartPoleParams
+from cartpole.models import CartPoleParams, build_model
 from cartpole.sim.rollout import make_mujoco
 
 #: Grid points over one turn of the hinge.
@@ -176,8 +177,6 @@ def reachable_energy(V, a, beta, inertia, *, start: int = 0, max_sweeps: int = 1
 
 def _tables(m, d, x0, slide, hinge, n):
     """Potential, mass-matrix entries over one turn of the hinge from the start's angle, the cart where it starts."""
-    import mujoco
-
     th = float(x0[hinge]) + 2 * np.pi * np.arange(n) / n
     V = np.empty(n)
     Mss, Msh, Mhh = np.empty(n), np.empty(n), np.empty(n)
@@ -217,40 +216,18 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
     EnergyCeiling
         ``proven`` when upright lies above the bound with a margin (:data:`CLAIM_BELOW`).
     """
-    import mujoco
-
     m, d = make_mujoco(params)
     m.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
-    slides = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE]
-    if len(hinges) != 1 or len(slides) > 1 or m.njnt != len(hinges) + len(slides):
-        return _no("the energy bound covers one hinge, alone or on one cart")
-    if m.nu != 1:
-        return _no("the energy bound covers one actuator")
-    hinge = int(m.jnt_dofadr[hinges[0]])
-    slide = int(m.jnt_dofadr[slides[0]]) if slides else None
-    driven = int(m.actuator_trnid[0, 0])
-    if m.actuator_trntype[0] != mujoco.mjtTrn.mjTRN_JOINT or driven != (slides[0] if slides else hinges[0]):
-        return _no("the energy bound needs the actuator on the cart's slide, or on the hinge without a cart")
-    if (m.actuator_dyntype[0] != mujoco.mjtDyn.mjDYN_NONE or m.actuator_biastype[0] != mujoco.mjtBias.mjBIAS_NONE
-            or m.actuator_gaintype[0] != mujoco.mjtGain.mjGAIN_FIXED):
-        return _no("the energy bound needs a plain motor (no bias, gain or activation dynamics)")
-    if not m.actuator_ctrllimited[0]:
-        return _no("the actuator has no ctrlrange, so its force is unbounded")
-    if np.any(np.asarray(m.jnt_stiffness) != 0.0) or m.jnt_limited[hinges[0]]:
-        return _no("a joint spring or a hinge limit can store energy the bound does not count")
+    found = _one_hinge_and_motor(m)
+    if isinstance(found, str):
+        return _no(found)
+    hinge, slide = found
     if x0 is None:
-        from cartpole.models import build_model
-
         x0 = build_model(params).x_hanging
     x0 = np.asarray(x0, float).ravel()
     if x0.size != m.nq + m.nv or np.any(x0[m.nq:] != 0.0):
         return _no("the energy bound starts at rest")
-    u = float(np.max(np.abs(m.actuator_ctrlrange[0])))
-    force = abs(float(m.actuator_gainprm[0, 0])) * u
-    if m.actuator_forcelimited[0]:
-        force = min(force, float(np.max(np.abs(m.actuator_forcerange[0]))))
-    force *= abs(float(m.actuator_gear[0, 0]))
+    force = _actuator_force(m)
     b = float(m.dof_damping[hinge])
     th, V, Mss, Msh, Mhh = _tables(m, d, x0, slide, hinge, int(grid))
     if slide is not None:
@@ -263,29 +240,68 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
     Vh, Vu = float(V.min()), float(V.max())
     if not Vu - Vh > 0:
         return _no("gravity does not lift the pole")
-
-    def norm(E):
-        return 2.0 * (E - Vh) / (Vu - Vh) - 1.0
-
-    iu = int(np.argmax(V))
-    start = 0
     if slide is None:
         a, beta, inertia = np.full(th.size, force), np.full(th.size, b), Mhh
-        up = reachable_energy(V, a, beta, inertia, start=start)
-        return _verdict(up, V, iu, norm, kind="hinge", force=force, force_bound=force, b=b, bs=0.0)
+        up = reachable_energy(V, a, beta, inertia, start=0)
+        return _verdict(up, V, EnergyCeiling(proven=False, ceiling=None, kind="hinge", force=float(force),
+                                              force_bound=float(force), hinge_damping=b, slide_damping=0.0))
     bs = float(m.dof_damping[slide])
     fs = float(m.dof_frictionloss[slide])
     if np.ptp(Mss) > 1e-9 * Mss.max():
         return _no("the cart's inertia changes with the angle")
     M = float(Mss.mean())
-    r = Msh / M
-    inertia = Mhh - Msh**2 / M
-    beta = b + bs * r**2
     lo, hi = (tuple(float(v) for v in params.cart_range) if cart_range is None else
               (float(cart_range[0]), float(cart_range[1])))
+    cart = EnergyCeiling(proven=False, ceiling=None, kind="cart", force=float(force), force_bound=float(force + fs),
+                         hinge_damping=b, slide_damping=bs, cart_range=(lo, hi))
+    return _cart_ceiling(V, Msh / M, Mhh - Msh**2 / M, M, cart)
+
+
+def _one_hinge_and_motor(m):
+    """``(hinge dof, slide dof or None)`` of a MuJoCo model the bound covers, else the reason it does not (a
+    sentence's part)."""
+    hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    slides = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE]
+    if len(hinges) != 1 or len(slides) > 1 or m.njnt != len(hinges) + len(slides):
+        return "the energy bound covers one hinge, alone or on one cart"
+    if m.nu != 1:
+        return "the energy bound covers one actuator"
+    hinge = int(m.jnt_dofadr[hinges[0]])
+    slide = int(m.jnt_dofadr[slides[0]]) if slides else None
+    driven = int(m.actuator_trnid[0, 0])
+    if m.actuator_trntype[0] != mujoco.mjtTrn.mjTRN_JOINT or driven != (slides[0] if slides else hinges[0]):
+        return "the energy bound needs the actuator on the cart's slide, or on the hinge without a cart"
+    if (m.actuator_dyntype[0] != mujoco.mjtDyn.mjDYN_NONE or m.actuator_biastype[0] != mujoco.mjtBias.mjBIAS_NONE
+            or m.actuator_gaintype[0] != mujoco.mjtGain.mjGAIN_FIXED):
+        return "the energy bound needs a plain motor (no bias, gain or activation dynamics)"
+    if not m.actuator_ctrllimited[0]:
+        return "the actuator has no ctrlrange, so its force is unbounded"
+    if np.any(np.asarray(m.jnt_stiffness) != 0.0) or m.jnt_limited[hinges[0]]:
+        return "a joint spring or a hinge limit can store energy the bound does not count"
+    return hinge, slide
+
+
+def _actuator_force(m) -> float:
+    """The actuator's largest force (N) or torque (N m): ``|gear| * min(|gain| max|ctrl|, forcerange)``."""
+    u = float(np.max(np.abs(m.actuator_ctrlrange[0])))
+    force = abs(float(m.actuator_gainprm[0, 0])) * u
+    if m.actuator_forcelimited[0]:
+        force = min(force, float(np.max(np.abs(m.actuator_forcerange[0]))))
+    return force * abs(float(m.actuator_gear[0, 0]))
+
+
+def _cart_ceiling(V, r, inertia, M: float, cart: EnergyCeiling) -> EnergyCeiling:
+    """The verdict for a hinge on a cart (module doc): potential ``V``, ``r = M_sh / M_ss`` and the reduced inertia
+    over the grid, the cart's mass ``M`` (kg), and ``cart`` the bound's force, damping and cart range (its
+    ``force_bound`` the force with the slide's friction, without the damper's push)."""
+    b, bs = cart.hinge_damping, cart.slide_damping
+    F0 = cart.force_bound  # the force with the slide's friction
+    lo, hi = cart.cart_range
+    beta = b + bs * r**2
+    Vh, Vu = float(V.min()), float(V.max())
 
     def bound(F_eff):
-        up = reachable_energy(V, F_eff * np.abs(r), beta, inertia, start=start)
+        up = reachable_energy(V, F_eff * np.abs(r), beta, inertia, start=0)
         best = up.max(axis=0)
         seen = best >= V
         Imin = max(float(inertia.min()), 1e-15)
@@ -293,12 +309,11 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
         return up, omega
 
     if bs == 0.0:
-        up, _ = bound(force + fs)
-        return _verdict(up, V, iu, norm, kind="cart", force=force, force_bound=force + fs, b=b, bs=bs,
-                        cart_range=(lo, hi))
+        up, _ = bound(F0)
+        return _verdict(up, V, cart)
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return _no("a damped slide without a finite range lets the damper push without bound")
-    h = 2 * np.pi / th.size
+    h = 2 * np.pi / V.size
     R = np.cumsum(r) * h
     width = (hi - lo) + float(np.ptp(R)) + 2 * h * float(np.abs(r).max())
     r_max = float(np.abs(r).max())
@@ -306,7 +321,7 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
     def speed(omega):
         """The V_p that V_p^2 = width (F + f + bs (V_p + r_max omega)) / M solves (the largest root)."""
         k = width * bs / M
-        c = width * (force + fs + bs * r_max * omega) / M
+        c = width * (F0 + bs * r_max * omega) / M
         return 0.5 * (k + np.sqrt(k * k + 4 * c))
 
     # Far out, a crude |theta_dot| bound (E grows only while |theta_dot| < a / beta, so E <= max(V) + 1/2 I_max
@@ -318,14 +333,13 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
         return _no("an undamped hinge leaves the slide damper's push unbounded")
     om0 = float(np.sqrt(2.0 * (Vu - Vh) / Imin))
     kap = float(np.sqrt(Imax / Imin)) * rb
-    F0 = force + fs
     B = width / M * (bs + bs * r_max * kap * bs)
     C = width / M * (F0 + bs * r_max * (om0 + kap * F0))
     v_far = 0.5 * (B + np.sqrt(B * B + 4 * C))
     # the least consistent (V_p, omega) by iteration from zero
     vp = 0.0
     for _ in range(30):
-        _, omega = bound(force + fs + bs * vp)
+        _, omega = bound(F0 + bs * vp)
         nxt = speed(omega)
         if nxt <= vp * (1 + 1e-4) + 1e-9:
             break
@@ -335,20 +349,19 @@ def energy_ceiling(params: CartPoleParams, x0=None, *, cart_range=None, grid: in
     for v1, v2 in itertools.pairwise(grid_v):
         if v1 >= v2:
             break
-        _, om2 = bound(force + fs + bs * v2)
-        if not v1 * v1 - width * (force + fs + bs * v2 + bs * r_max * om2) / M > 0.0:
+        _, om2 = bound(F0 + bs * v2)
+        if not v1 * v1 - width * (F0 + bs * v2 + bs * r_max * om2) / M > 0.0:
             return _no("the slide damper's push could not be bounded")
-    up, _ = bound(force + fs + bs * vp_claim)
-    return _verdict(up, V, iu, norm, kind="cart", force=force, force_bound=force + fs + bs * vp_claim, b=b, bs=bs,
-                    speed_bound=vp_claim, cart_range=(lo, hi))
+    up, _ = bound(F0 + bs * vp_claim)
+    return _verdict(up, V, replace(cart, force_bound=float(F0 + bs * vp_claim), speed_bound=vp_claim))
 
 
-def _verdict(up, V, iu, norm, *, kind, force, force_bound, b, bs, speed_bound=None, cart_range=None):
+def _verdict(up, V, bound: EnergyCeiling) -> EnergyCeiling:
+    """``bound`` (its force, damping and ranges) with the ceiling of the reachable energy ``up`` (2, n) over the
+    potential ``V`` (n,), normalised (hanging -1, upright 1), and whether it proves upright out of reach."""
+    Vh, Vu = float(V.min()), float(V.max())
     best = up.max(axis=0)
     seen = best >= V
-    ceiling = float(norm(np.max(best[seen])))
-    proven = bool(not seen[iu] and ceiling < CLAIM_BELOW)
-    return EnergyCeiling(proven=proven, ceiling=ceiling, kind=kind, force=float(force),
-                         force_bound=float(force_bound), hinge_damping=float(b), slide_damping=float(bs),
-                         speed_bound=speed_bound, cart_range=cart_range,
-                         reason=None if proven else "the bound reaches upright")
+    ceiling = float(2.0 * (np.max(best[seen]) - Vh) / (Vu - Vh) - 1.0)
+    proven = bool(not seen[int(np.argmax(V))] and ceiling < CLAIM_BELOW)
+    return replace(bound, proven=proven, ceiling=ceiling, reason=None if proven else "the bound reaches upright")

@@ -33,7 +33,7 @@ import numpy as np
 
 from cartpole.models import CartPoleModel, wrap_angle
 from cartpole.ocp.bounds import OCPBounds, OCPError
-from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.collocation import CollocationOptions, DirectCollocation
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
 
@@ -277,7 +277,8 @@ def pumping_search(model: CartPoleModel, x0, x_goal, bounds: OCPBounds, *, T_max
             guess = bent_guess(model, x, u, x_goal, T, N, relaxed(bounds, RELAX[0]))
             traj, info = None, None
             if N not in built:  # one NLP per mesh, scaled for the widest bound; the continuation moves its bounds
-                built[N] = DirectCollocation(model, N=N, T=T, bounds=relaxed(bounds, RELAX[0]), solver_options=opts)
+                built[N] = DirectCollocation(model, N=N, T=T, bounds=relaxed(bounds, RELAX[0]),
+                                              options=CollocationOptions(solver_options=opts))
             ocp = built[N]
             for c in RELAX:
                 ocp.set_bounds(relaxed(bounds, c))

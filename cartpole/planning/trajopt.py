@@ -38,7 +38,7 @@ from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.models import (CartPoleModel, CartPoleParams, Plant, plant_model, plant_params,
                              steps_per_period)
 from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
-from cartpole.ocp.collocation import DirectCollocation, OCPInfeasible, OCPNotSolved
+from cartpole.ocp.collocation import CollocationOptions, DirectCollocation, OCPInfeasible, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
 from cartpole.ocp.dmc import is_task
@@ -50,7 +50,7 @@ from cartpole.planning.ddp_plan import RECEDING_T_MAX, receding_swingup
 from cartpole.planning.energy_ceiling import energy_ceiling
 from cartpole.planning.options import DEFAULT_N, U_MARGIN, PlanOptions
 from cartpole.planning.pumping import pumping_search
-from cartpole.solvers.sqp import CollocationSQP, SQPError
+from cartpole.solvers.sqp import CollocationSQP, SQPError, SQPOptions
 from cartpole.ocp.trajectory import Trajectory
 
 
@@ -179,7 +179,7 @@ def _sparse_entry(model: CartPoleModel, name: str, x0, traj: Trajectory, exact, 
         t, xr, ur = np.asarray(exact.t), np.asarray(exact.x), np.asarray(exact.u)
     else:
         t, xr, ur = _on_step_grid(traj, dt)
-    found = box_entry_plan(dmodel, name, x0, xr, ur, xr[-1] if exact is not None else traj.x[-1], bounds, dt=dt)
+    found = box_entry_plan(dmodel, name, x0, xr, ur, xr[-1] if exact is not None else traj.x[-1], bounds)
     if found is None:
         return None
     x, u, K, K_ref, info = found
@@ -359,8 +359,8 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
     """
     N = int(N)
     Nc = max(2, N // 2) if coarse_N is None else int(coarse_N)
-    capped = {"ipopt": {"max_iter": EXPLORE_MAX_ITER}}
-    ocp = DirectCollocation(model, N=N, T=None, objective="time", solver=solver, solver_options=capped, **bounds)
+    explore_options = CollocationOptions(solver=solver, solver_options={"ipopt": {"max_iter": EXPLORE_MAX_ITER}})
+    ocp = DirectCollocation(model, N=N, T=None, objective="time", options=explore_options, **bounds)
     x0 = ocp._check_state("start state", model.x_hanging if x0 is None else x0)
     x_goal = ocp._check_state("goal state", model.x_eq if x_goal is None else x_goal)
 
@@ -373,7 +373,7 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
         named = named_guesses(model, x0, x_goal, GUESS_T, n, bounds=target.bounds, count=starts or 10,
                               second_goal=starts is not None)
         if near:
-            eff = DirectCollocation(model, N=n, T=GUESS_T, solver=solver, solver_options=capped, **bounds)
+            eff = DirectCollocation(model, N=n, T=GUESS_T, options=explore_options, **bounds)
             feasible, tried = eff.multistart(x0, x_goal, named, stage=f"effort T={GUESS_T:g} N={n}")
             attempts.extend(tried)
             named = [(f"{info.guess} via effort", traj) for traj, info in sorted(feasible, key=lambda s: s[1].start)]
@@ -382,8 +382,7 @@ def minimum_time(model: CartPoleModel, x0=None, x_goal=None, *, N: int = 60, sol
         return sols
 
     if Nc < N:
-        coarse = DirectCollocation(model, N=Nc, T=None, objective="time", solver=solver, solver_options=capped,
-                                   **bounds)
+        coarse = DirectCollocation(model, N=Nc, T=None, objective="time", options=explore_options, **bounds)
         # refine the coarse solutions, fastest first: a coarse mesh can admit a motion the fine one does not
         for traj, info in explore(coarse):
             if sqp:
@@ -407,8 +406,8 @@ def _sqp_attempt(ocp: DirectCollocation, x0, x_goal, guess: Trajectory, name: st
     iterations); the try appended to ``attempts`` (stage ``"<stage> (sqp)"``); the plan if it converged, else None
     (also when the SQP does not take the problem)."""
     try:
-        traj, info = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED
-                                    ).solve_once(x0, x_goal, guess=guess)
+        sqp = CollocationSQP(ocp, options=SQPOptions(max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED))
+        traj, info = sqp.solve_once(x0, x_goal, guess=guess)
     except SQPError:
         return None
     info = replace(info, guess=name)
@@ -416,9 +415,8 @@ def _sqp_attempt(ocp: DirectCollocation, x0, x_goal, guess: Trajectory, name: st
     return (traj, info) if info.success else None
 
 
-def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, starts, bounds, T_max: float,
-                       search_s: float | None = None, restarts: int = 2, seed: int = 0, sqp: bool = False
-                       ) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
+def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: int, bounds, options: PlanOptions,
+                       sqp: bool = False) -> tuple[float | None, Trajectory, SolveInfo, tuple | None]:
     """The time stage of the planner: on a chain of two or more links driven at a hinge (no cart: the acrobot) first
     a receding-horizon DDP swing-up (:func:`_receding_plan`, within ``search_s`` s of wall time), which found the
     acrobot's swing-up from dm_control's random starts in seconds where the stages below found none; then (or on
@@ -428,7 +426,11 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
     up to ``T_max`` s within ``search_s`` s of wall time, whose
     fixed-time effort plan then seeds the free-time problem (same mesh, ``T <= T_max``): ``(T_min, time plan, info,
     (pump plan, its info))``, or ``(None, pump plan, info, None)`` when that refinement does not converge; when the
-    search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found")."""
+    search finds nothing either, the refusal (:func:`refusal`: no proof, so "no swing-up found"). From ``options``
+    (:class:`~cartpole.planning.options.PlanOptions`): ``starts``, ``T_max``, ``search_s`` and the pumping search's
+    ``pump_restarts`` (``restarts``) and ``pump_seed`` (``seed``)."""
+    starts, T_max, search_s = options.starts, options.T_max, options.search_s
+
     if params.slide is None and len(model.hinges) > 1:  # a chain driven at a hinge (the acrobot): the receding-
         # horizon DDP first (seconds, where the multi-start took minutes and found nothing from dm_control's starts)
         found = _receding_plan(model, x0, N=N, bounds=bounds, T_max=T_max, search_s=search_s, tried=())
@@ -447,13 +449,13 @@ def _swingup_time_plan(model: CartPoleModel, params: CartPoleParams, x0, *, N: i
         raise refusal(params, model, x0, bounds, first.attempts, T_max=T_max, proof=proof)
     try:
         traj, info, tried = pumping_search(model, x0, model.x_eq, bounds, T_max=T_max, deadline_s=search_s,
-                                           seeds=restarts, seed=seed)
+                                           seeds=options.pump_restarts, seed=options.pump_seed)
     except OCPError:  # nothing to pump (no oscillating hanging mode)
         traj, info, tried = None, None, []
     attempts = tuple(first.attempts) + tuple(tried)
     if traj is not None:
         ocp = DirectCollocation(model, N=traj.N, T=None, objective="time", T_range=(0.2, T_max), bounds=bounds,
-                                solver_options={"ipopt": {"max_iter": 500}})
+                                options=CollocationOptions(solver_options={"ipopt": {"max_iter": 500}}))
         fast, tinfo = ocp.solve_once(x0, model.x_eq, guess=traj)
         kept = Attempt.of(tinfo, "time from the pumping plan", info.guess, traj.N, chosen=tinfo.success)
         attempts = attempts + (kept,)
@@ -486,7 +488,7 @@ def _receding_plan(model: CartPoleModel, x0, *, N: int, bounds, T_max: float, se
     if traj is None:  # the rollout itself: exact on the model's step, ending all but at x_eq
         return None, rec.trajectory, replace(rec.info, attempts=attempts), None
     ocp = DirectCollocation(model, N=n, T=None, objective="time", T_range=(0.2, T_max), bounds=bounds,
-                            solver_options={"ipopt": {"max_iter": 500}})
+                            options=CollocationOptions(solver_options={"ipopt": {"max_iter": 500}}))
     fast, tinfo = ocp.solve_once(x0, model.x_eq, guess=traj)
     attempts = attempts + (Attempt.of(tinfo, "time from the receding-horizon plan", info.guess, n,
                                       chosen=tinfo.success),)
@@ -504,7 +506,8 @@ def _pumped_effort(model, x0, fast: Trajectory, tinfo: SolveInfo, pump: tuple, *
     attempts = tuple(tinfo.attempts)
     for m in (margin, 0.5 * margin, 0.25 * margin):
         T = (1.0 + m) * tinfo.T
-        ocp = DirectCollocation(model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
+        ocp = DirectCollocation(model, N=N, T=T, bounds=bounds,
+                                options=CollocationOptions(solver=solver, solver_options=solver_options))
         traj, info = ocp.solve_once(x0, model.x_eq, guess=fast, T=T)
         attempts = attempts + (Attempt.of(info, f"effort T={T:.3g}", f"time plan ({tinfo.guess})", N,
                                           chosen=info.success),)
@@ -712,7 +715,8 @@ def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, s
     the guess's name in the attempt records."""
     T = float(guess.duration)
     stage = f"warm effort T={T:.3g}"
-    ocp = DirectCollocation(model, N=N, T=T, solver=solver, solver_options=solver_options, bounds=bounds)
+    ocp = DirectCollocation(model, N=N, T=T, bounds=bounds,
+                            options=CollocationOptions(solver=solver, solver_options=solver_options))
     tried: list = []
     if sqp:
         found = _sqp_attempt(ocp, x0, None, guess, name, stage, tried)
@@ -725,14 +729,80 @@ def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, s
     return traj, replace(info, guess=name, attempts=tuple(tried)), tuple(tried)
 
 
+@dataclass(frozen=True)
+class _Planning:
+    """One planner call's fixed inputs, made once from its options (:func:`_planning`): the settings, the MJCF's
+    parameters, the planning model and that model at the MJCF's step (TVLQR's and DDP's), the start (nx,), the
+    MJCF's bounds, the objective, the tracking weights, the MJCF steps per control period, and the solvers chosen."""
+    options: PlanOptions
+    params: CartPoleParams
+    model: CartPoleModel
+    tv_model: CartPoleModel
+    x0: np.ndarray
+    bounds: object
+    obj: object
+    Q: np.ndarray
+    R: np.ndarray
+    steps: int
+    solver: str  # the collocation's NLP solver
+    solver_options: dict | None
+    use_sqp: bool
+    use_ddp: bool
+
+    @property
+    def dt(self) -> float:
+        """The control period in s: ``steps`` MJCF steps."""
+        return self.params.timestep * self.steps
+
+    @property
+    def collocation(self) -> CollocationOptions:
+        """The collocation's solver settings."""
+        return CollocationOptions(solver=self.solver, solver_options=self.solver_options)
+
+
+@dataclass
+class _Stages:
+    """What the planner's stages made (:func:`_last_stage`): the plan and its info (None while DDP's stands), the
+    minimum time (s, None when not solved or a pumping plan), DDP's converged stage (or None), the attempts made
+    before DDP's and DDP's own."""
+    traj: Trajectory | None = None
+    info: SolveInfo | None = None
+    T_min: float | None = None
+    by_ddp: object = None
+    attempts_before: tuple = ()
+    ddp_tried: list = field(default_factory=list)
+
+
 def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
           period: float | None = None, catch_R=None, guess: Trajectory | None = None, cold: bool = True
           ) -> SwingupPlan:
     """:func:`trajopt_swingup` with its options made."""
-    T, N, solver, objective, starts = options.T, options.N, options.solver, options.objective, options.starts
-    Qf, exact_discrete = options.Qf, options.exact_discrete
-    solver_options = None if options.solver_options is None else dict(options.solver_options)
     tic = time.perf_counter()
+    p = _planning(source, x0, plan_model, options, period)
+    st = _last_stage(p, guess, cold)
+    traj, info = st.traj, st.info
+    exact, exact_discrete = None, options.exact_discrete
+    by_ddp = st.by_ddp
+    if by_ddp is not None:  # the plan is DDP's, exact on the discrete step: TVLQR tracks it as it is
+        traj = by_ddp.trajectory
+        info = replace(by_ddp.info, attempts=tuple(st.attempts_before) + tuple(st.ddp_tried))
+        dstep = p.tv_model.hold(p.steps) if p.steps > 1 else p.tv_model
+        exact = DiscretePlan(t=by_ddp.dt * np.arange(by_ddp.u.shape[0]), x=by_ddp.x, u=by_ddp.u, dt=by_ddp.dt,
+                             u_margin=by_ddp.margin, status=by_ddp.info.status, iterations=by_ddp.info.iterations,
+                             solve_time_s=by_ddp.info.solve_time_s, defect_before=by_ddp.defect_before,
+                             defect_after=_defects(dstep, by_ddp.x, by_ddp.u))
+        exact_discrete = False
+    elif st.ddp_tried:  # DDP did not converge: IPOPT's plan, every attempt in the order made
+        done = tuple(info.attempts)
+        k = len(st.attempts_before) if done[:len(st.attempts_before)] == tuple(st.attempts_before) else 0
+        info = replace(info, attempts=done[:k] + tuple(st.ddp_tried) + done[k:])
+    return _tracked(p, traj, info, exact, exact_discrete, T_min=st.T_min, catch_R=catch_R, tic=tic)
+
+
+def _planning(source, x0, plan_model: CartPoleModel | None, options: PlanOptions, period: float | None) -> _Planning:
+    """The planner's fixed inputs (:class:`_Planning`) from its arguments."""
+    solver = options.solver
+    solver_options = None if options.solver_options is None else dict(options.solver_options)
     use_sqp = solver == "sqp" or (solver == "auto" and solver_options is None)
     use_ddp = solver == "ddp"
     solver = "ipopt" if solver in ("auto", "sqp", "ddp") else solver
@@ -744,134 +814,148 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
     x0 = plan_model.x_hanging if x0 is None else np.asarray(x0, dtype=float)
     # Bounds are the MJCF's (the real actuators and track), whatever model plans.
     bounds = bounds_from_params(params, cart_margin=options.cart_margin)
-    obj = make_objective(plan_model, "effort" if objective is None else objective, Q=Q, R=R)
-    T_min = None
+    obj = make_objective(plan_model, "effort" if options.objective is None else options.objective, Q=Q, R=R)
     # TVLQR (and DDP) at the MJCF's step, on the planning model's exact discrete step, held over the period.
     tv_model = plan_model if abs(plan_model.dt - params.timestep) < 1e-15 else plan_model.rebuilt(dt=params.timestep)
-    steps = steps_per_period(period, params.timestep)
-    dt = params.timestep * steps
-    ddp_tried: list = []
-    by_ddp = None
+    return _Planning(options=options, params=params, model=plan_model, tv_model=tv_model, x0=x0, bounds=bounds,
+                     obj=obj, Q=Q, R=R, steps=steps_per_period(period, params.timestep), solver=solver,
+                     solver_options=solver_options, use_sqp=use_sqp, use_ddp=use_ddp)
 
-    def ddp_last_stage(guess, T_use, gname):
-        """The last stage by DDP (with the ctrl margin, then without); the converged DDPStage or None."""
-        for margin in dict.fromkeys((float(options.u_margin), 0.0)):
-            st, tried = ddp_plan.ddp_stage(tv_model, x0, guess, T_use, obj, bounds, steps=steps, u_margin=margin,
-                                           Q=Q, R=R, guess_name=gname)
-            ddp_tried.extend(replace(a, stage=f"{a.stage} u_margin={margin:g}") for a in tried)
-            if st.info.success:
-                return replace(st, margin=margin)
-        return None
 
+def _last_stage(p: _Planning, guess: Trajectory | None, cold: bool = True) -> _Stages:
+    """The planner's stages up to its last (module docstring): from ``guess`` (a nearby start's plan, effort at the
+    default T only), else by the objective: minimum time itself, effort at a given T, or the objective at its T from
+    the minimum-time plan."""
+    st = _Stages()
     warm, warm_tried = None, ()
-    if guess is not None and obj.kind == "effort" and T is None and not use_ddp:
-        warm_traj, warm_info, warm_tried = warm_stage(plan_model, x0, guess, N=N or DEFAULT_N, bounds=bounds,
-                                                      solver=solver, solver_options=solver_options, sqp=use_sqp)
+    if guess is not None and p.obj.kind == "effort" and p.options.T is None and not p.use_ddp:
+        warm_traj, warm_info, warm_tried = warm_stage(p.model, p.x0, guess, N=p.options.N or DEFAULT_N,
+                                                      bounds=p.bounds, solver=p.solver,
+                                                      solver_options=p.solver_options, sqp=p.use_sqp)
         if warm_traj is not None:
             warm = (warm_traj, warm_info)
         elif not cold:
             raise OCPError(f"The warm start (T = {guess.duration:.3g} s) did not converge from x0 and cold=False "
                            "asks for no cold plan.")
     if warm is not None:
-        traj, info = warm
-    elif obj.kind == "time":
-        T_min, traj, info, _ = _swingup_time_plan(plan_model, params, x0, N=N or DEFAULT_N, starts=starts,
-                                               bounds=bounds, T_max=options.T_max, search_s=options.search_s,
-                                               restarts=options.pump_restarts, seed=options.pump_seed, sqp=use_sqp)
-        if use_ddp:
-            by_ddp, tried = ddp_plan.ddp_time_search(tv_model, x0, traj,
-                                                     T_min if T_min is not None else traj.duration, bounds,
-                                                     steps=steps, Q=Q, R=R, guess_name=f"time plan ({info.guess})")
-            ddp_tried.extend(tried)
-            attempts_before = info.attempts
-    elif obj.kind == "effort" and T is not None:
-        if use_ddp:  # no earlier stage to start from: DDP from rest (zero ctrl clipped into the box)
-            by_ddp, attempts_before = ddp_last_stage(None, T, "rest"), ()
-        if by_ddp is None:
-            ocp = DirectCollocation(plan_model, N=N or DEFAULT_N, T=T, solver=solver, solver_options=solver_options,
-                                    bounds=bounds)
-            traj, info = ocp.solve(x0)
+        st.traj, st.info = warm
+    elif p.obj.kind == "time":
+        _time_stage(p, st)
+    elif p.obj.kind == "effort" and p.options.T is not None:
+        if p.use_ddp:  # no earlier stage to start from: DDP from rest (zero ctrl clipped into the box)
+            st.by_ddp, st.attempts_before = _ddp_last_stage(p, st, None, p.options.T, "rest"), ()
+        if st.by_ddp is None:
+            ocp = DirectCollocation(p.model, N=p.options.N or DEFAULT_N, T=p.options.T, bounds=p.bounds,
+                                    options=p.collocation)
+            st.traj, st.info = ocp.solve(p.x0)
     else:
-        T_min, fast, tinfo, pump = _swingup_time_plan(plan_model, params, x0,
-                                                N=60 if obj.kind == "running" else min(N or DEFAULT_N, 60),
-                                                starts=starts, bounds=bounds, T_max=options.T_max,
-                                                search_s=options.search_s, restarts=options.pump_restarts,
-                                                seed=options.pump_seed, sqp=use_sqp)
-        attempts_before = tinfo.attempts
-        if obj.kind == "effort" and T_min is None:  # a pumping plan: already the effort plan at its T
-            traj, info = fast, tinfo
-            if use_ddp:
-                by_ddp = ddp_last_stage(fast, fast.duration, f"pumping plan ({tinfo.guess})")
-        elif obj.kind == "effort":
-            T = (1.0 + options.time_margin) * T_min
-            ocp = DirectCollocation(plan_model, N=N or DEFAULT_N, T=T, solver=solver, solver_options=solver_options,
-                                    bounds=bounds)
-            first = fast  # the minimum-time plan, stretched onto T
-        else:
-            if T is None:
-                T = (fast.duration if T_min is None else T_min) + RUNNING_HOLD
-            if N is None:
-                N = max(2, int(round(T / params.timestep))) if is_task(obj.name) else DEFAULT_N
-            ocp = DirectCollocation(plan_model, N=N, T=T, objective=obj, solver=solver,
-                                    solver_options=solver_options, bounds=bounds)
-            first = padded(fast, T) if T > fast.duration else fast  # then rest at upright
-        if use_ddp and not (obj.kind == "effort" and T_min is None):
-            by_ddp = ddp_last_stage(first, T, f"time plan ({tinfo.guess})")
-        if by_ddp is not None:
-            pass
-        elif obj.kind == "effort" and pump is not None:  # a pumping plan: the margin shrunk if need be, else itself
-            traj, info = _pumped_effort(plan_model, x0, fast, tinfo, pump, N=N or DEFAULT_N, bounds=bounds,
-                                        margin=options.time_margin, solver=solver, solver_options=solver_options)
-        elif not (obj.kind == "effort" and T_min is None):
-            try:
-                traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
-                                            sqp=use_sqp and obj.kind in ("effort", "running"))
-                info = replace(info, attempts=tinfo.attempts + info.attempts)
-            except OCPNotSolved as exc:
-                if obj.kind != "running":
-                    raise
-                # a swing-up exists (the time stage's plan) though the running objective converged from no guess:
-                # that plan, resting at upright until T, every attempt kept and the status saying what it is
-                traj = first
-                info = replace(tinfo, status=f"{obj.name} not converged from any guess: the time plan kept",
-                               attempts=tuple(tinfo.attempts) + tuple(exc.attempts))
+        _stage_from_time_plan(p, st)
     if warm is None and warm_tried:  # the warm start did not converge: its try first, then the cold plan's
-        info = replace(info, attempts=tuple(warm_tried) + tuple(info.attempts))
-    exact = None
-    if by_ddp is not None:  # the plan is DDP's, exact on the discrete step: TVLQR tracks it as it is
-        traj = by_ddp.trajectory
-        info = replace(by_ddp.info, attempts=tuple(attempts_before) + tuple(ddp_tried))
-        dstep = tv_model.hold(steps) if steps > 1 else tv_model
-        exact = DiscretePlan(t=by_ddp.dt * np.arange(by_ddp.u.shape[0]), x=by_ddp.x, u=by_ddp.u, dt=by_ddp.dt,
-                             u_margin=by_ddp.margin, status=by_ddp.info.status, iterations=by_ddp.info.iterations,
-                             solve_time_s=by_ddp.info.solve_time_s, defect_before=by_ddp.defect_before,
-                             defect_after=_defects(dstep, by_ddp.x, by_ddp.u))
-        exact_discrete = False
-    elif ddp_tried:  # DDP did not converge: IPOPT's plan, every attempt in the order made
-        done = tuple(info.attempts)
-        k = len(attempts_before) if done[:len(attempts_before)] == tuple(attempts_before) else 0
-        info = replace(info, attempts=done[:k] + tuple(ddp_tried) + done[k:])
+        st.info = replace(st.info, attempts=tuple(warm_tried) + tuple(st.info.attempts))
+    return st
+
+
+def _ddp_last_stage(p: _Planning, st: _Stages, guess, T_use: float, gname: str):
+    """The last stage by DDP (with the ctrl margin, then without), its attempts added to ``st.ddp_tried``; the
+    converged DDPStage or None."""
+    for margin in dict.fromkeys((float(p.options.u_margin), 0.0)):
+        settings = ddp_plan.DDPStageOptions(steps=p.steps, u_margin=margin, Q=p.Q, R=p.R)
+        stage, tried = ddp_plan.ddp_stage(p.tv_model, p.x0, guess, T_use, p.obj, p.bounds, guess_name=gname,
+                                          options=settings)
+        st.ddp_tried.extend(replace(a, stage=f"{a.stage} u_margin={margin:g}") for a in tried)
+        if stage.info.success:
+            return replace(stage, margin=margin)
+    return None
+
+
+def _time_stage(p: _Planning, st: _Stages) -> None:
+    """The minimum-time objective: the time stage's plan, or DDP's search over T from it."""
+    T_min, traj, info, _ = _swingup_time_plan(p.model, p.params, p.x0, N=p.options.N or DEFAULT_N, bounds=p.bounds,
+                                              options=p.options, sqp=p.use_sqp)
+    st.T_min, st.traj, st.info = T_min, traj, info
+    if p.use_ddp:
+        st.by_ddp, tried = ddp_plan.ddp_time_search(p.tv_model, p.x0, traj,
+                                                    T_min if T_min is not None else traj.duration,
+                                                    p.bounds, guess_name=f"time plan ({info.guess})",
+                                                    options=ddp_plan.DDPStageOptions(steps=p.steps, Q=p.Q, R=p.R))
+        st.ddp_tried.extend(tried)
+        st.attempts_before = info.attempts
+
+
+def _stage_from_time_plan(p: _Planning, st: _Stages) -> None:
+    """Effort at ``(1 + time_margin) T_min`` or a running objective at its T, from the minimum-time plan stretched
+    (or padded with rest at upright), by DDP or the collocation; a pumping plan is the effort plan at its own T."""
+    options, obj, x0 = p.options, p.obj, p.x0
+    T, N = options.T, options.N
+    T_min, fast, tinfo, pump = _swingup_time_plan(p.model, p.params, x0,
+                                                  N=60 if obj.kind == "running" else min(N or DEFAULT_N, 60),
+                                                  bounds=p.bounds, options=options, sqp=p.use_sqp)
+    st.T_min, st.attempts_before = T_min, tinfo.attempts
+    ocp = first = None
+    if obj.kind == "effort" and T_min is None:  # a pumping plan: already the effort plan at its T
+        st.traj, st.info = fast, tinfo
+        if p.use_ddp:
+            st.by_ddp = _ddp_last_stage(p, st, fast, fast.duration, f"pumping plan ({tinfo.guess})")
+    elif obj.kind == "effort":
+        T = (1.0 + options.time_margin) * T_min
+        ocp = DirectCollocation(p.model, N=N or DEFAULT_N, T=T, bounds=p.bounds, options=p.collocation)
+        first = fast  # the minimum-time plan, stretched onto T
+    else:
+        if T is None:
+            T = (fast.duration if T_min is None else T_min) + RUNNING_HOLD
+        if N is None:
+            N = max(2, int(round(T / p.params.timestep))) if is_task(obj.name) else DEFAULT_N
+        ocp = DirectCollocation(p.model, N=N, T=T, objective=obj, bounds=p.bounds, options=p.collocation)
+        first = padded(fast, T) if T > fast.duration else fast  # then rest at upright
+    if p.use_ddp and not (obj.kind == "effort" and T_min is None):
+        st.by_ddp = _ddp_last_stage(p, st, first, T, f"time plan ({tinfo.guess})")
+    if st.by_ddp is not None:
+        return
+    if obj.kind == "effort" and pump is not None:  # a pumping plan: the margin shrunk if need be, else itself
+        st.traj, st.info = _pumped_effort(p.model, x0, fast, tinfo, pump, N=N or DEFAULT_N, bounds=p.bounds,
+                                          margin=options.time_margin, solver=p.solver,
+                                          solver_options=p.solver_options)
+    elif not (obj.kind == "effort" and T_min is None):
+        try:
+            traj, info = _continue_from(ocp, x0, f"time plan ({tinfo.guess})", first, obj.name,
+                                        sqp=p.use_sqp and obj.kind in ("effort", "running"))
+            st.traj, st.info = traj, replace(info, attempts=tinfo.attempts + info.attempts)
+        except OCPNotSolved as exc:
+            if obj.kind != "running":
+                raise
+            # a swing-up exists (the time stage's plan) though the running objective converged from no guess:
+            # that plan, resting at upright until T, every attempt kept and the status saying what it is
+            st.traj = first
+            st.info = replace(tinfo, status=f"{obj.name} not converged from any guess: the time plan kept",
+                              attempts=tuple(tinfo.attempts) + tuple(exc.attempts))
+
+
+def _tracked(p: _Planning, traj: Trajectory, info: SolveInfo, exact, exact_discrete, *, T_min, catch_R,
+             tic: float) -> SwingupPlan:
+    """The plan ``traj`` tracked: the catch, the exact discrete plan when asked (or needed: ``"auto"``) or given
+    (``exact``, DDP's), the sparse task's box-entry plan, TVLQR along it; the :class:`SwingupPlan`."""
     # The catch is the discrete LQR of that same step and weights (dlqr(Ad, Bd, Q dt, R dt)) at the model's
     # upright equilibrium: TVLQR's default terminal cost is its S, so at the hand-over both the cost-to-go and
     # the gain continue without a jump (the continuous lab gain is ~15 % larger at 5 ms for one pole because
     # the fastest closed-loop pole is -51 1/s).
+    tv_model, steps, dt, Q, R, Qf = p.tv_model, p.steps, p.dt, p.Q, p.R, p.options.Qf
     if steps > 1:
         exact_discrete = False
-    u_limits = np.asarray(params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
-    catch = handover_catch(params, plan_model, Q, R if catch_R is None else catch_R, steps=steps)
+    u_limits = np.asarray(p.params.ctrl_range, float)  # (nu, 2): the MJCF's actuators
+    catch = handover_catch(p.params, p.model, Q, R if catch_R is None else catch_R, steps=steps)
     gains = None
     if exact_discrete == "auto":
         gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt)
-        err = predicted_tracking_error(tv_model, TVLQRController(traj, gains, catch, u_limits=u_limits), traj, x0)
+        err = predicted_tracking_error(tv_model, TVLQRController(traj, gains, catch, u_limits=u_limits), traj, p.x0)
         exact_discrete = not err <= TRACK_TOL
     if exact_discrete:
-        for margin in dict.fromkeys((float(options.u_margin), 0.0)):
-            exact = exact_discrete_plan(tv_model, traj, x0, bounds, dt=dt, u_margin=margin)
+        for margin in dict.fromkeys((float(p.options.u_margin), 0.0)):
+            exact = exact_discrete_plan(tv_model, traj, p.x0, p.bounds, dt=dt, u_margin=margin)
             if exact is not None:
                 break
-    if is_task(obj.name) and dmc_task(obj.name).sparse and steps == 1:
+    if is_task(p.obj.name) and dmc_task(p.obj.name).sparse and steps == 1:
         # the indicator's own plan: into its box as early as the exact step allows (cartpole.planning.box_entry)
-        boxed = _sparse_entry(tv_model, obj.name, x0, traj, exact, bounds, dt)
+        boxed = _sparse_entry(tv_model, p.obj.name, p.x0, traj, exact, p.bounds, dt)
         if boxed is not None:
             exact = boxed
     if exact is None:
@@ -880,5 +964,5 @@ def _plan(source, x0, *, plan_model: CartPoleModel | None, options: PlanOptions,
         gains = tvlqr(tv_model, traj, Q, R, Qf=Qf, dt=dt, reference=(exact.x, exact.u))
     controller = TVLQRController(traj, gains, catch, u_limits=u_limits)
     return SwingupPlan(trajectory=traj, gains=gains, controller=controller, solve_info=info, catch=catch,
-                       model=plan_model, T_min=T_min, objective=obj.name, plan_time_s=time.perf_counter() - tic,
-                       discrete=exact, options=options)
+                       model=p.model, T_min=T_min, objective=p.obj.name, plan_time_s=time.perf_counter() - tic,
+                       discrete=exact, options=p.options)

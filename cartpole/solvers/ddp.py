@@ -66,6 +66,8 @@ class DDPOptions:
         First, smallest and largest Levenberg-Marquardt regularisation on ``Quu``.
     line_search : tuple of float
         Step lengths ``alpha`` tried, in order.
+    compiled : bool
+        Compile the stage derivatives and the passes to C (unless ``CARTPOLE_NO_COMPILE`` is set); default True.
     """
 
     max_iterations: int = 300
@@ -78,6 +80,61 @@ class DDPOptions:
     mu_min: float = 1e-9
     mu_max: float = 1e10
     line_search: tuple = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.015625, 0.0078125, 0.001)
+    compiled: bool = True
+
+
+@dataclass(frozen=True)
+class DDPProblem:
+    """What :class:`DDP` minimises on its discrete model, besides the dynamics: the costs, the ctrl box, the position
+    bounds and the goal. Shapes are checked against the model when the :class:`DDP` is built.
+
+    Attributes
+    ----------
+    u_low, u_high : (nu,) arrays
+        ctrl bounds (MuJoCo ctrl units), finite, ``u_low < u_high``.
+    running : casadi.Function or None
+        ``(x, u) -> cost`` per second; None for ``effort`` (``u'u``).
+    q_low, q_high : (nq,) arrays or None
+        Position bounds per joint (m or rad; ``-inf``/``inf`` where free), held at every node by augmented
+        Lagrangian; None: no bound.
+    x_goal : (nx,) array or None
+        Terminal equality ``x_N = x_goal`` (hinge errors wrapped); None: no goal.
+    hinges : tuple of int
+        qpos indices of the hinges (their errors are wrapped).
+    Qf : (nx, nx) array or None
+        Terminal quadratic weight on ``x_N - x_goal`` (needs ``x_goal``).
+    goal_constraint : bool
+        Hold ``x_N = x_goal`` as a constraint (True, default) or only weigh it by ``Qf`` (False: a receding horizon's
+        terminal cost).
+    terminal : casadi.Function or None
+        ``x (nx,) -> cost``, a terminal cost of any form, added to ``Phi`` (e.g. a soft goal).
+    """
+
+    u_low: object
+    u_high: object
+    running: ca.Function | None = None
+    q_low: object = None
+    q_high: object = None
+    x_goal: object = None
+    hinges: tuple = ()
+    Qf: object = None
+    goal_constraint: bool = True
+    terminal: ca.Function | None = None
+
+
+@dataclass
+class _Iterate:
+    """The state of one :meth:`DDP.solve`: the rollout, the last gains, the augmented Lagrangian's multipliers and
+    penalty, the regularisation, the accepted costs and the iterations so far."""
+    X: np.ndarray
+    U: np.ndarray
+    K: np.ndarray
+    lam: np.ndarray
+    mu_c: np.ndarray
+    rho: float
+    mu: float
+    history: list = field(default_factory=list)
+    iterations: int = 0
 
 
 @dataclass(frozen=True)
@@ -140,33 +197,19 @@ class DDP:
         Its step in s.
     N : int
         Steps in the horizon.
-    running : casadi.Function or None
-        ``(x, u) -> cost`` per second; None for ``effort`` (``u'u``).
-    u_low, u_high : (nu,) arrays
-        ctrl bounds.
-    q_low, q_high : (nq,) arrays, optional
-        Position bounds per joint (``-inf``/``inf`` where free), held at every node by augmented Lagrangian.
-    x_goal : (nx,) array, optional
-        Terminal equality ``x_N = x_goal`` (hinge errors wrapped).
-    hinges : sequence of int
-        qpos indices of the hinges (their errors are wrapped).
-    Qf : (nx, nx) array, optional
-        Terminal quadratic weight on ``x_N - x_goal`` (needs ``x_goal``).
-    goal_constraint : bool
-        Hold ``x_N = x_goal`` as a constraint (True) or only weigh it by ``Qf`` (False: a receding horizon's
-        terminal cost).
-    terminal : casadi.Function, optional
-        ``x (nx,) -> cost``, a terminal cost of any form, added to ``Phi`` (e.g. a soft goal).
+    problem : DDPProblem
+        The costs, the ctrl box, the position bounds and the goal.
     options : DDPOptions, optional
-    compiled : bool
-        Compile the stage derivatives to C (unless ``CARTPOLE_NO_COMPILE`` is set).
+        The solver's settings (default ``DDPOptions()``).
     """
 
-    def __init__(self, step: ca.Function, dt: float, N: int, *, running: ca.Function | None = None,
-                 u_low, u_high, q_low=None, q_high=None, x_goal=None, hinges=(), Qf=None,
-                 goal_constraint: bool = True, terminal: ca.Function | None = None,
-                 options: DDPOptions | None = None, compiled: bool = True):
+    def __init__(self, step: ca.Function, dt: float, N: int, problem: DDPProblem, *,
+                 options: DDPOptions | None = None):
         self.options = DDPOptions() if options is None else options
+        if not isinstance(problem, DDPProblem):
+            raise DDPError(f"problem must be a DDPProblem; got {type(problem).__name__}.")
+        self.problem = problem
+        p = problem
         self.nx, self.nu = int(step.numel_in(0)), int(step.numel_in(1))
         nx, nu = self.nx, self.nu
         self.nq = nx // 2
@@ -175,28 +218,29 @@ class DDP:
         if not (math.isfinite(dt) and dt > 0):
             raise DDPError(f"The step must be a positive number of seconds; got {dt}.")
         self.N, self.dt = int(N), float(dt)
-        self.u_low = np.broadcast_to(np.asarray(u_low, float), (nu,)).copy()
-        self.u_high = np.broadcast_to(np.asarray(u_high, float), (nu,)).copy()
+        self.u_low = np.broadcast_to(np.asarray(p.u_low, float), (nu,)).copy()
+        self.u_high = np.broadcast_to(np.asarray(p.u_high, float), (nu,)).copy()
         if not (np.all(np.isfinite(self.u_low)) and np.all(np.isfinite(self.u_high))
                 and np.all(self.u_low < self.u_high)):
             raise DDPError("The ctrl bounds must be finite with low < high for every input.")
-        ql = np.full(self.nq, -np.inf) if q_low is None else np.asarray(q_low, float)
-        qh = np.full(self.nq, np.inf) if q_high is None else np.asarray(q_high, float)
+        ql = np.full(self.nq, -np.inf) if p.q_low is None else np.asarray(p.q_low, float)
+        qh = np.full(self.nq, np.inf) if p.q_high is None else np.asarray(p.q_high, float)
         self.bounded = [j for j in range(self.nq) if np.isfinite(ql[j]) or np.isfinite(qh[j])]
         self.q_low, self.q_high = ql, qh
-        self.hinges = tuple(int(h) for h in hinges)
-        self.x_goal = None if x_goal is None else np.asarray(x_goal, float).ravel()
+        self.hinges = tuple(int(h) for h in p.hinges)
+        self.x_goal = None if p.x_goal is None else np.asarray(p.x_goal, float).ravel()
         if self.x_goal is not None and self.x_goal.shape != (nx,):
             raise DDPError(f"The goal must be {nx} numbers [qpos, qvel].")
-        self.Qf = None if Qf is None else np.asarray(Qf, float)
+        self.Qf = None if p.Qf is None else np.asarray(p.Qf, float)
         if self.Qf is not None and (self.x_goal is None or self.Qf.shape != (nx, nx)):
             raise DDPError(f"The terminal weight Qf must be ({nx}, {nx}) and needs a goal x_goal.")
-        self.goal_constraint = bool(goal_constraint) and self.x_goal is not None
+        self.goal_constraint = bool(p.goal_constraint) and self.x_goal is not None
+        terminal = p.terminal
         if terminal is not None and (not isinstance(terminal, ca.Function) or terminal.n_in() != 1
                                      or terminal.numel_in(0) != nx or terminal.numel_out(0) != 1):
             raise DDPError(f"The terminal cost must be a CasADi Function x ({nx},) -> scalar.")
         self.terminal_cost = terminal
-        self._build(step, running, compiled)
+        self._build(step, p.running, self.options.compiled)
 
     # ---- the compiled pieces ----------------------------------------------------------------------------------
     def _constraints(self, x):
@@ -395,7 +439,7 @@ class DDP:
         if max_iterations is not None or max_outer is not None:
             o = replace(o, **{k: int(v) for k, v in (("max_iterations", max_iterations), ("max_outer", max_outer))
                               if v is not None})
-        N, nx, nu, ng = self.N, self.nx, self.nu, self.ng
+        N, nx, nu = self.N, self.nx, self.nu
         x0 = np.asarray(x0, float).ravel()
         if x0.shape != (nx,) or not np.all(np.isfinite(x0)):
             raise DDPError(f"The start must be {nx} finite numbers [qpos, qvel].")
@@ -404,91 +448,108 @@ class DDP:
         X = self._roll(x0, U)
         if not np.all(np.isfinite(X)):
             raise DDPError("The first rollout blew up; give a gentler initial ctrl sequence.")
-        lam = np.zeros((N + 1, ng))
-        mu_c = np.zeros(self.nc)
-        rho = o.penalty
-        mu = o.mu0
-        history = []
-        iterations = 0
-        status = "max_iterations"
-        prev_viol = np.inf
-        outer = 0
-        K = np.zeros((N, nu, nx))
+        it = _Iterate(X=X, U=U, K=np.zeros((N, nu, nx)), lam=np.zeros((N + 1, self.ng)), mu_c=np.zeros(self.nc),
+                      rho=o.penalty, mu=o.mu0)
+        status, prev_viol, outer, inner_ok = "max_iterations", np.inf, 0, False
         for outer in range(1, o.max_outer + 1):
-            J, _, _ = self._total(X, U, lam, mu_c, rho)
-            inner_ok = False
-            for _ in range(o.max_iterations):
-                iterations += 1
-                D = self._stages(X[:N].ravel(), U.ravel(), lam[:N].ravel(), np.array([rho]))
-                D = [np.array(d) for d in D]
-                _, VxN, VxxN, _, _, _ = (np.array(v) for v in self._terminal(X[N], lam[N], mu_c, np.array([rho])))
-                VxxN = VxxN.reshape(nx, nx).T
-                accepted = stationary = False
-                while mu <= o.mu_max:
-                    back = self._backward(D, VxN, VxxN, U, mu)
-                    if back is None:
-                        mu = max(mu * 10, 1e-6)
-                        continue
-                    kff, Kb, (d1, d2) = back
-                    if -(d1 + d2) <= o.tolerance * max(1.0, abs(J)):  # no decrease to search for: stationary
-                        stationary = True
-                        break
-                    for alpha in o.line_search:
-                        Xn, Un = self._forward(X, U, kff, Kb, alpha)
-                        if Xn is None:
-                            continue
-                        Jn, _, _ = self._total(Xn, Un, lam, mu_c, rho)
-                        expected = -(alpha * d1 + alpha ** 2 * d2)
-                        if Jn < J and (expected <= 0 or (J - Jn) >= 1e-4 * expected or J - Jn > 1e-12 * abs(J)):
-                            accepted = True
-                            break
-                    if accepted:
-                        break
-                    mu = max(mu * 10, 1e-6)
-                if stationary:
-                    K, inner_ok = Kb, True
-                    break
-                if not accepted:
-                    status = "line_search"
-                    break
-                K = Kb
-                dJ = J - Jn
-                X, U, J = Xn, Un, Jn
-                history.append(J)
-                mu = max(mu / 10, o.mu_min)
-                if dJ <= o.tolerance * max(1.0, abs(J)):
-                    inner_ok = True
-                    break
-            _, cost, viol = self._total(X, U, lam, mu_c, rho)
+            inner_ok, failed = self._round(it, o)
+            if failed:
+                status = "line_search"
+            _, cost, viol = self._total(it.X, it.U, it.lam, it.mu_c, it.rho)
             if viol <= o.constraint_tolerance and (inner_ok or status == "line_search"):
                 status = "converged" if inner_ok else status
                 break
-            # multiplier updates (ALTRO): lam <- max(0, lam + rho g), mu_c <- mu_c + rho c
-            if ng:
-                _, _, g = self._costs(X[:N].ravel(), U.ravel(), lam[:N].ravel(), np.array([rho]))
-                g = np.array(g).reshape(N, ng)
-                lam[:N] = np.maximum(0.0, lam[:N] + rho * g)
-                gN = np.array(self._terminal(X[N], lam[N], mu_c, np.array([rho]))[4])
-                lam[N] = np.maximum(0.0, lam[N] + rho * gN)
-            if self.nc:
-                c = np.array(self._terminal(X[N], lam[N], mu_c, np.array([rho]))[3])
-                mu_c = mu_c + rho * c
+            self._update_multipliers(it)
             if viol > 0.25 * prev_viol:
-                rho *= o.penalty_growth
+                it.rho *= o.penalty_growth
             prev_viol = viol
-            status = "max_iterations" if status != "line_search" else status
-            mu = o.mu0
-        _, cost, viol = self._total(X, U, lam, mu_c, rho)
+            it.mu = o.mu0
+        _, cost, viol = self._total(it.X, it.U, it.lam, it.mu_c, it.rho)
         if status == "max_iterations" and inner_ok:  # the last round converged; its constraints still do not hold
             status = "constraints violated"
         converged = status == "converged" and viol <= o.constraint_tolerance
         t = self.dt * np.arange(N + 1)
-        return DDPResult(t=t, x=X, u=U, K=K, cost=cost, violation=viol, converged=bool(converged),
-                         iterations=iterations, outer=outer, status=status, history=tuple(history))
+        return DDPResult(t=t, x=it.X, u=it.U, K=it.K, cost=cost, violation=viol, converged=bool(converged),
+                         iterations=it.iterations, outer=outer, status=status, history=tuple(it.history))
+
+    def _round(self, it: _Iterate, o: DDPOptions) -> tuple[bool, bool]:
+        """One augmented-Lagrangian round: the inner DDP on the penalised cost at fixed multipliers, from and into
+        ``it``. Returns ``(converged, line search failed)``."""
+        J, _, _ = self._total(it.X, it.U, it.lam, it.mu_c, it.rho)
+        for _ in range(o.max_iterations):
+            it.iterations += 1
+            kind, Kb, found = self._iteration(it, J, o)
+            if kind == "stationary":
+                it.K = Kb
+                return True, False
+            if kind == "failed":
+                return False, True
+            Xn, Un, Jn = found
+            it.K = Kb
+            dJ = J - Jn
+            it.X, it.U, J = Xn, Un, Jn
+            it.history.append(J)
+            it.mu = max(it.mu / 10, o.mu_min)
+            if dJ <= o.tolerance * max(1.0, abs(J)):
+                return True, False
+        return False, False
+
+    def _iteration(self, it: _Iterate, J: float, o: DDPOptions):
+        """One DDP iteration from ``it`` (penalised cost ``J``): backward passes at a growing regularisation ``mu``
+        until one is positive definite and its line search finds a decrease. Returns ``("stationary", K, None)`` (no
+        decrease to search for), ``("accepted", K, (X, U, J))`` or ``("failed", None, None)`` (``mu`` above its
+        largest)."""
+        N, nx = self.N, self.nx
+        rho = np.array([it.rho])
+        D = self._stages(it.X[:N].ravel(), it.U.ravel(), it.lam[:N].ravel(), rho)
+        D = [np.array(d) for d in D]
+        _, VxN, VxxN, _, _, _ = (np.array(v) for v in self._terminal(it.X[N], it.lam[N], it.mu_c, rho))
+        VxxN = VxxN.reshape(nx, nx).T
+        while it.mu <= o.mu_max:
+            back = self._backward(D, VxN, VxxN, it.U, it.mu)
+            if back is None:
+                it.mu = max(it.mu * 10, 1e-6)
+                continue
+            kff, Kb, dV = back
+            if -(dV[0] + dV[1]) <= o.tolerance * max(1.0, abs(J)):  # no decrease to search for: stationary
+                return "stationary", Kb, None
+            found = self._line_search(it, kff, Kb, dV, J, o)
+            if found is not None:
+                return "accepted", Kb, found
+            it.mu = max(it.mu * 10, 1e-6)
+        return "failed", None, None
+
+    def _line_search(self, it: _Iterate, kff, K, dV, J: float, o: DDPOptions):
+        """The first step length of ``o.line_search`` whose rollout (feedforward ``kff``, feedback ``K``) decreases
+        the penalised cost ``J`` enough for the expected decrease ``dV`` = (dV1, dV2): ``(X, U, J)``, or None."""
+        d1, d2 = dV
+        for alpha in o.line_search:
+            Xn, Un = self._forward(it.X, it.U, kff, K, alpha)
+            if Xn is None:
+                continue
+            Jn, _, _ = self._total(Xn, Un, it.lam, it.mu_c, it.rho)
+            expected = -(alpha * d1 + alpha ** 2 * d2)
+            if Jn < J and (expected <= 0 or (J - Jn) >= 1e-4 * expected or J - Jn > 1e-12 * abs(J)):
+                return Xn, Un, Jn
+        return None
+
+    def _update_multipliers(self, it: _Iterate) -> None:
+        """The augmented Lagrangian's multiplier updates (ALTRO): ``lam <- max(0, lam + rho g)``, ``mu_c <- mu_c +
+        rho c``."""
+        N, ng, rho = self.N, self.ng, it.rho
+        if ng:
+            _, _, g = self._costs(it.X[:N].ravel(), it.U.ravel(), it.lam[:N].ravel(), np.array([rho]))
+            g = np.array(g).reshape(N, ng)
+            it.lam[:N] = np.maximum(0.0, it.lam[:N] + rho * g)
+            gN = np.array(self._terminal(it.X[N], it.lam[N], it.mu_c, np.array([rho]))[4])
+            it.lam[N] = np.maximum(0.0, it.lam[N] + rho * gN)
+        if self.nc:
+            c = np.array(self._terminal(it.X[N], it.lam[N], it.mu_c, np.array([rho]))[3])
+            it.mu_c = it.mu_c + rho * c
 
 
 def ddp_for_model(model, T: float, *, steps: int = 1, objective=None, x_goal=None, bounds=None,
-                  Qf=None, options: DDPOptions | None = None, compiled: bool = True) -> DDP:
+                  Qf=None, options: DDPOptions | None = None) -> DDP:
     """A :class:`DDP` on a :class:`~cartpole.models.CartPoleModel`'s exact discrete model over ``T`` s.
 
     Parameters
@@ -508,7 +569,7 @@ def ddp_for_model(model, T: float, *, steps: int = 1, objective=None, x_goal=Non
     Qf : (nx, nx) array, optional
         Terminal weight on ``x_N - x_goal``.
     options : DDPOptions, optional
-    compiled : bool
+        The solver's settings (default ``DDPOptions()``).
 
     Returns
     -------
@@ -525,6 +586,7 @@ def ddp_for_model(model, T: float, *, steps: int = 1, objective=None, x_goal=Non
     N = max(1, int(round(float(T) / h)))
     goal = model.x_eq if x_goal is None else (None if x_goal is False else x_goal)
     # the OCP's position bounds already hold the cart inside its rail less the margin (bounds_from_params)
-    return DDP(step, h, N, running=running, u_low=bounds.u_low, u_high=bounds.u_high, q_low=bounds.q_low,
-               q_high=bounds.q_high, x_goal=goal, hinges=model.hinges, Qf=Qf, options=options, compiled=compiled)
+    problem = DDPProblem(u_low=bounds.u_low, u_high=bounds.u_high, running=running, q_low=bounds.q_low,
+                         q_high=bounds.q_high, x_goal=goal, hinges=model.hinges, Qf=Qf)
+    return DDP(step, h, N, problem, options=options)
 

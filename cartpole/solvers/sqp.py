@@ -13,8 +13,10 @@ other, with the measurements: the benchmarks page ("The collocation SQP's QP sol
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import replace
+from typing import ClassVar, NamedTuple
 
 import casadi as ca
 import daqp
@@ -27,6 +29,7 @@ from cartpole.ocp.bounds import OCPError
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.options import StageOptions
 
 
 class SQPError(OCPError):
@@ -41,6 +44,87 @@ _BIG = 1e30  # DAQP's "no bound"
 _GAMMA = 1e-5  # the filter's margin
 #: Largest relative change of a minimum-time problem's duration in one SQP step.
 TAU_STEP = 0.5
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SQPOptions(StageOptions):
+    """Settings of :class:`CollocationSQP`, validated on creation.
+
+    Attributes
+    ----------
+    tol : float
+        Converged when the largest defect and the largest entry of the Lagrangian's gradient (bound multipliers
+        included, scaled units) are below ``tol`` (> 0; default 1e-8, the collocation's IPOPT ``tol``).
+    max_iter : int
+        SQP iterations (>= 0) before the solve counts as failed (default 200).
+    reg_min : float
+        Smallest eigenvalue (>= 0) a stage's reduced Hessian keeps (default 1e-4, scaled units).
+    lm_init : float
+        First Levenberg-Marquardt damping (>= 0) of the stage Hessian blocks (default 1e-2; the scaled effort Hessian's
+        diagonal is about 1e-2 at N = 100).
+    qp_solver : {'riccati', 'daqp'}
+        The QP solver (:data:`QP_SOLVERS`); DAQP backs up the Riccati solver, which needs a C compiler (without one,
+        or with the problem's ``compiled`` False, DAQP is used).
+    warm_qp : bool
+        Hot-start each QP from the previous one's multipliers (active set); default True.
+    soc : bool
+        Try a second-order correction before shortening a rejected full step; default True.
+    max_step : float
+        Longest step (> 0, max over the scaled variables) taken; longer QP steps are shortened (default 1).
+    exact_hessian_below : float
+        Largest scaled defect (>= 0) at which the Hessian includes the defects' curvature (the exact Lagrangian);
+        above it, the cost's only (default 0.1; why: docs/architecture.md, SQP).
+    max_unsettled : int or None
+        With ``qp_solver="riccati"``: feasible QPs the Riccati active set may hand to DAQP (infeasible linearisations,
+        which DAQP solves with soft rows, are not counted) before the solve stops with status ``QP_Unsettled`` (None,
+        the default: no limit). A feasible linearisation it cannot settle again and again makes each iteration cost a
+        dense condensed QP, where IPOPT on the sparse problem is the better solver; the planner stops early
+        (:data:`cartpole.planning.trajopt.SQP_MAX_UNSETTLED`) and lets IPOPT take over.
+
+    Raises
+    ------
+    SQPError
+        An unknown ``qp_solver`` or a number outside the ranges above.
+    """
+
+    tol: float = 1e-8
+    max_iter: int = 200
+    reg_min: float = 1e-4
+    lm_init: float = 1e-2
+    qp_solver: str = "riccati"
+    warm_qp: bool = True
+    soc: bool = True
+    max_step: float = 1.0
+    exact_hessian_below: float = 1e-1
+    max_unsettled: int | None = None
+
+    error: ClassVar[type] = SQPError
+    SCALARS: ClassVar[tuple] = ("tol", "max_iter", "reg_min", "lm_init", "max_step", "exact_hessian_below",
+                                "max_unsettled")
+
+    def __post_init__(self):
+        if self.qp_solver not in QP_SOLVERS:
+            raise SQPError(f"qp_solver '{self.qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
+        self.number("tol", low=0.0, low_open=True)
+        self.number("max_iter", low=0, integer=True)
+        self.number("reg_min", low=0.0)
+        self.number("lm_init", low=0.0)
+        self.number("max_step", low=0.0, low_open=True)
+        self.number("exact_hessian_below", low=0.0)
+        self.number("max_unsettled", low=0, integer=True, optional=True)
+        self.set_field("warm_qp", bool(self.warm_qp))
+        self.set_field("soc", bool(self.soc))
+
+
+class _StageQP(NamedTuple):
+    """One SQP step's QP in stage form (CasADi's compiled ``sqp_stages`` outputs, reshaped): the stage dynamics
+    ``T`` (N, nz, nz + nw) and offsets ``ct`` (N, nx), the stage Hessians ``Hy`` (N, ny, ny) and gradients ``gy``
+    (N, ny), and the defects' maps ``M`` (N, nx, nx)."""
+    T: np.ndarray
+    ct: np.ndarray
+    Hy: np.ndarray
+    gy: np.ndarray
+    M: np.ndarray
 
 
 def _positive_definite(H: np.ndarray) -> np.ndarray:
@@ -89,34 +173,9 @@ class CollocationSQP:
         The problem: model, N, T, bounds, objective ``effort``, a running cost (``tracking``, the ``dmc_*`` rewards,
         ``MODULE:FUNCTION``) or ``time`` (T free: by its time scale; the Riccati QP solver only).
         Each QP on the exact Hessian first, with IPOPT's inertia correction (docs/architecture.md, SQP).
-    tol : float
-        Converged when the largest defect and the largest entry of the Lagrangian's gradient (bound multipliers
-        included, scaled units) are below ``tol`` (default 1e-8, the collocation's IPOPT ``tol``).
-    max_iter : int
-        SQP iterations before the solve counts as failed (default 200).
-    reg_min : float
-        Smallest eigenvalue a stage's reduced Hessian keeps (default 1e-4, scaled units).
-    lm_init : float
-        First Levenberg-Marquardt damping of the stage Hessian blocks (default 1e-2; the scaled effort Hessian's
-        diagonal is about 1e-2 at N = 100).
-    qp_solver : {'riccati', 'daqp'}
-        The QP solver (:data:`QP_SOLVERS`); DAQP backs up the Riccati solver, which needs a C compiler (without one,
-        or with ``ocp.compiled`` False, DAQP is used).
-    warm_qp : bool
-        Hot-start each QP from the previous one's multipliers (active set).
-    soc : bool
-        Try a second-order correction before shortening a rejected full step.
-    max_step : float
-        Longest step (max over the scaled variables) taken; longer QP steps are shortened.
-    exact_hessian_below : float
-        Largest scaled defect at which the Hessian includes the defects' curvature (the exact Lagrangian); above
-        it, the cost's only (default 0.1; why: docs/architecture.md, SQP).
-    max_unsettled : int or None
-        With ``qp_solver="riccati"``: feasible QPs the Riccati active set may hand to DAQP (infeasible linearisations,
-        which DAQP solves with soft rows, are not counted) before the solve stops with status ``QP_Unsettled`` (None,
-        the default: no limit). A feasible linearisation it cannot settle again and again makes each iteration cost a
-        dense condensed QP, where IPOPT on the sparse problem is the better solver; the planner stops early
-        (:data:`cartpole.planning.trajopt.SQP_MAX_UNSETTLED`) and lets IPOPT take over.
+    options : SQPOptions, optional
+        The solver's settings: tolerance, iterations, regularisation, QP solver, globalisation (default
+        ``SQPOptions()``).
 
     Attributes
     ----------
@@ -137,21 +196,20 @@ class CollocationSQP:
         QPs of the last solve solved with soft state rows (``daqp`` only: the hard QP was infeasible).
     """
 
-    def __init__(self, ocp: DirectCollocation, *, tol: float = 1e-8, max_iter: int = 200, reg_min: float = 1e-4,
-                 lm_init: float = 1e-2, qp_solver: str = "riccati",
-                 warm_qp: bool = True, soc: bool = True, max_step: float = 1.0, exact_hessian_below: float = 1e-1,
-                 max_unsettled: int | None = None):
+    def __init__(self, ocp: DirectCollocation, *, options: SQPOptions | None = None):
+        options = SQPOptions() if options is None else options
+        if not isinstance(options, SQPOptions):
+            raise SQPError(f"options must be an SQPOptions; got {type(options).__name__}.")
         if not isinstance(ocp, DirectCollocation):
             raise SQPError("CollocationSQP needs a DirectCollocation problem (cartpole.ocp.collocation).")
         if ocp.separated:
             raise SQPError("The SQP solver works on the compressed transcription; build the problem with "
-                           "separated=False.")
+                           "CollocationOptions(separated=False).")
         kind = ocp.objective_spec.kind
         if kind not in ("effort", "running", "time"):
             raise SQPError(f"The SQP solver handles effort, time and the running costs, not '{ocp.objective}'; "
                            f"solve it with IPOPT (DirectCollocation.solve).")
-        if qp_solver not in QP_SOLVERS:
-            raise SQPError(f"qp_solver '{qp_solver}' is not one of {', '.join(QP_SOLVERS)}.")
+        qp_solver = options.qp_solver
         # minimum time: the time scale tau = T / T_0 is one more state, free at knot 0 (docs/architecture.md); only the
         # Riccati solver has a free state at knot 0
         self._np = 1 if kind == "time" else 0
@@ -161,12 +219,13 @@ class CollocationSQP:
                            "needs a C compiler); solve them with IPOPT (DirectCollocation.solve).")
         if qp_solver == "riccati" and not (ocp.compiled and riccati_qp.available(ocp.nx, ocp.nu)):
             qp_solver = "daqp"  # no C compiler: the condensed route (same answers)
-        self.qp_solver, self.warm_qp, self.soc = qp_solver, bool(warm_qp), bool(soc)
-        self.lm_init, self.max_step = float(lm_init), float(max_step)
-        self.exact_hessian_below = float(exact_hessian_below)
-        self.max_unsettled = None if max_unsettled is None else int(max_unsettled)
+        self.options = options
+        self.qp_solver, self.warm_qp, self.soc = qp_solver, options.warm_qp, options.soc
+        self.lm_init, self.max_step = float(options.lm_init), float(options.max_step)
+        self.exact_hessian_below = float(options.exact_hessian_below)
+        self.max_unsettled = options.max_unsettled
         self.ocp = ocp
-        self.tol, self.max_iter, self.reg_min = float(tol), int(max_iter), float(reg_min)
+        self.tol, self.max_iter, self.reg_min = float(options.tol), int(options.max_iter), float(options.reg_min)
         N, nu = ocp.N, ocp.nu
         nx = ocp.nx + self._np  # the solver's states: the model's, then tau
         self.N, self.nx, self.nu, self.nz = N, nx, nu, nx + nu
@@ -282,7 +341,7 @@ class CollocationSQP:
             if st in (2, 3):  # convex where the active set stopped, but not settled: the same QP condensed for DAQP
                 self.qp_counts["riccati_unsettled"] += 1
                 self._delta = delta if delta > 0 else self._delta
-                out = self._daqp_step(Z, T, ct, Hs, gy, H, G, M, lbz, ubz, exact=True)
+                out = self._daqp_step(Z, _StageQP(T, ct, Hs, gy, M), H, G, lbz, ubz, exact=True)
                 if out is not None:
                     if not self._soft_step:
                         self._unsettled_feasible += 1
@@ -301,7 +360,7 @@ class CollocationSQP:
                 return self._riccati_step(Hy, gy, T, H, G, M)
             self.qp_counts["riccati_unsettled"] += 1
             rq.reset()  # this QP goes to DAQP (a minimum time's with d tau one more unknown); the next starts afresh
-        out = self._daqp_step(Z, T, ct, Hy, gy, H, G, M, lbz, ubz)
+        out = self._daqp_step(Z, _StageQP(T, ct, Hy, gy, M), H, G, lbz, ubz)
         if out is not None:
             if self._rqp is not None and not self._soft_step:
                 self._unsettled_feasible += 1  # a feasible QP the Riccati active set could not settle
@@ -327,7 +386,7 @@ class CollocationSQP:
         (lam,) = self._mult(dZ, Nb[:, :self.nx], Hy, gy, T, H, G, M)
         return dZ, lam.reshape(self.N, self.nx).copy(), Nb, True
 
-    def _daqp_step(self, Z, T, ct, Hy, gy, H, G, M, lbz, ubz, *, exact: bool = False):
+    def _daqp_step(self, Z, stage: _StageQP, H, G, lbz, ubz, *, exact: bool = False):
         """The stage QP condensed onto the knot controls ``v = (du_0 .. du_N)`` ((N+1) nu, the states
         ``dx_k = g_k + G_k v`` by the stage dynamics, ``dx_0 = 0``) and solved by DAQP, hot-started from the previous
         QP's multipliers. The ctrl bounds are bounds on ``v``; the finite state bounds (rail, limited joints, the
@@ -339,8 +398,9 @@ class CollocationSQP:
         solved again with those rows soft: the step then leaves the bounds, is projected back into them, and the
         filter judges the defects that leaves. ``exact``: ``Hy`` are exact (inertia-corrected) stage blocks, whose
         condensed Hessian may be indefinite where the Riccati solver's test saw only its active set's reduced
-        Hessians (shifted then, :func:`_positive_definite`). Returns what :meth:`_qp_step` does, or None when DAQP
-        failed."""
+        Hessians (shifted then, :func:`_positive_definite`). ``stage`` is the QP in stage form (:class:`_StageQP`).
+        Returns what :meth:`_qp_step` does, or None when DAQP failed."""
+        T, ct, Hy, gy, M = stage
         N, nx, nu, nz = self.N, self.nx, self.nu, self.nz
         nc = (N + 1) * nu
         # condensed in one compiled call (sqp_functions): the stages' parts of the Hessian and gradient, and
@@ -477,7 +537,7 @@ class CollocationSQP:
             ``info.objective`` as :class:`SolveInfo` (physical units).
         """
         ocp = self.ocp
-        N, nx, nz = self.N, self.nx, self.nz
+        nx = self.nx
         x0 = ocp._check_state("start state", x0)
         x_goal = ocp._check_state("goal state", ocp.model.x_eq if x_goal is None else x_goal)
         x_goal = ocp._goal(x0, x_goal, guess)
@@ -488,6 +548,31 @@ class CollocationSQP:
         if not (np.isfinite(T) and T > 0):
             raise SQPError(f"Duration T = {T} s is not positive; give T > 0.")
         tic = time.perf_counter()
+        Z, lbz, ubz = self._first_knots(x0, x_goal, guess, T)
+        self._reset(lbz, ubz)
+        Z, status, success, it = self._iterate(Z, lbz, ubz)
+        elapsed = time.perf_counter() - tic
+        if not np.all(np.isfinite(Z)):
+            Z = np.clip(np.nan_to_num(Z), lbz, ubz)
+            success = False
+        if self._np:  # the plan's duration from its time scale, the knots without it
+            T = float(T * Z[0, nx - 1])
+            Z = np.delete(Z, np.s_[nx - self._np:nx], axis=1)
+        traj, objective = self._trajectory(Z, T)
+        if self._np:
+            objective = T  # as DirectCollocation reports a minimum-time solve
+        elif self._running:  # the running integral (a reward's, negated back), as DirectCollocation reports it
+            objective = self._first_order(Z)[2] * self._cost_div
+            objective = -objective if ocp.objective_spec.is_reward else objective
+        info = SolveInfo(status=status, success=success, iterations=it, objective=float(objective),
+                         solve_time_s=elapsed, solver="sqp", T=T, start=start)
+        return traj, info
+
+    def _first_knots(self, x0, x_goal, guess: Trajectory | None, T: float):
+        """The first iterate ``Z`` (N+1, nz) (the guess packed as the problem packs it, scaled, clipped into the
+        bounds) and the knots' bounds ``lbz``, ``ubz`` (N+1, nz); a minimum-time problem's time scale ``tau = T / T_0``
+        is one more state, 1 at first, bounded at knot 0 by the problem's ``T_range``, free elsewhere."""
+        ocp, N, nx, nz = self.ocp, self.N, self.nx, self.nz
         self._h = T / N
         n_z = (nz - self._np) * (N + 1)
         lbv, ubv = ocp._var_bounds(x0, x_goal, False)
@@ -500,13 +585,13 @@ class CollocationSQP:
             lo_tau[0], hi_tau[0] = ocp.T_range[0] / T, ocp.T_range[1] / T
             lbz, ubz = np.insert(lbz, col, lo_tau, axis=1), np.insert(ubz, col, hi_tau, axis=1)
             Z = np.insert(Z, col, 1.0, axis=1)
-        Z = np.clip(Z, lbz, ubz)
-        lam = np.zeros((N, nx))
-        filt: list[tuple[float, float]] = []
-        status, success, it = "Maximum_Iterations_Exceeded", False, 0
+        return np.clip(Z, lbz, ubz), lbz, ubz
+
+    def _reset(self, lbz, ubz) -> None:
+        """The per-solve state (history, QP counts, warm starts, damping) as a new solve within ``lbz``, ``ubz``
+        starts it."""
         self.history = []
         self._warm_ready = False
-        lm = self.lm_init
         self.qp_counts = {}
         self.qp_soft = 0
         self._soft_step = False
@@ -516,6 +601,14 @@ class CollocationSQP:
             self.qp_counts.update(riccati=0, riccati_unsettled=0, riccati_exact=0)
         self._unsettled_feasible = 0
         self._delta = 0.0
+
+    def _iterate(self, Z, lbz, ubz):
+        """The SQP iterations from knots ``Z`` within ``lbz``, ``ubz``: ``(Z, status, success, iterations)``."""
+        N, nx = self.N, self.nx
+        lam = np.zeros((N, nx))
+        filt: list[tuple[float, float]] = []
+        status, success, it = "Maximum_Iterations_Exceeded", False, 0
+        lm = self.lm_init
         try:
             D, J, f, G, H = self._eval(Z, lam)
             theta_max = 1e4 * max(1.0, float(np.abs(D).sum()))
@@ -549,35 +642,8 @@ class CollocationSQP:
                 if infeas <= self.tol and (kkt <= self.tol or step <= self.tol):
                     status, success = "Solve_Succeeded", True
                     break
-                # filter line search on (theta = ||d||_1, f) (Fletcher and Leyffer), second-order correction
                 c1 = float(np.abs(D).sum())
-                if step > self.max_step:  # a Newton step far outside where the linearisation holds: shortened
-                    dZ = dZ * (self.max_step / step)
-                Z_new, alpha = None, 1.0
-                Z_try = Z + dZ
-                ft, ct, D_try = self._merit_parts(Z_try)
-                if self._acceptable(ft, ct, f, c1, filt, theta_max):
-                    Z_new = Z_try
-                elif self.soc:
-                    # second-order correction (Maratos): the same QP with the defects at the trial point
-                    dV = np.hstack([dZ[:-1], dZ[1:]])
-                    D_soc = D_try - (J @ dV[:, :, None])[:, :, 0]
-                    dZ_c, _, _, ok_c = self._qp_step(Z, D_soc, J, G, H, lbz, ubz, lm)
-                    if ok_c:
-                        Z_try = Z + dZ_c
-                        ft, ct, _ = self._merit_parts(Z_try)
-                        if self._acceptable(ft, ct, f, c1, filt, theta_max):
-                            Z_new = Z_try
-                            rec["soc"] = True
-                while Z_new is None:
-                    alpha *= 0.5
-                    if alpha < 1e-8:
-                        break
-                    Z_try = Z + alpha * dZ
-                    ft, ct, _ = self._merit_parts(Z_try)
-                    if self._acceptable(ft, ct, f, c1, filt, theta_max):
-                        Z_new = Z_try
-                rec["alpha"] = alpha
+                Z_new, alpha, ft = self._line_search(Z, dZ, (D, J, f, G, H), (lbz, ubz), lm, filt, theta_max, rec)
                 lm = lm / 4 if alpha == 1.0 else min(4 * lm, 1e3)  # less damping after a full step, more after less
                 if Z_new is None:
                     status = "Line_Search_Failed"
@@ -592,22 +658,44 @@ class CollocationSQP:
                 H = self._hessian(Z, D, lam, F, JF)
         except (RuntimeError, np.linalg.LinAlgError) as exc:  # a singular defect Jacobian, a NaN in CasADi
             status = f"Error: {(str(exc).strip().splitlines() or [type(exc).__name__])[-1]}"
-        elapsed = time.perf_counter() - tic
-        if not np.all(np.isfinite(Z)):
-            Z = np.clip(np.nan_to_num(Z), lbz, ubz)
-            success = False
-        if self._np:  # the plan's duration from its time scale, the knots without it
-            T = float(T * Z[0, nx - 1])
-            Z = np.delete(Z, np.s_[nx - self._np:nx], axis=1)
-        traj, objective = self._trajectory(Z, T)
-        if self._np:
-            objective = T  # as DirectCollocation reports a minimum-time solve
-        elif self._running:  # the running integral (a reward's, negated back), as DirectCollocation reports it
-            objective = self._first_order(Z)[2] * self._cost_div
-            objective = -objective if ocp.objective_spec.is_reward else objective
-        info = SolveInfo(status=status, success=success, iterations=it, objective=float(objective),
-                         solve_time_s=elapsed, solver="sqp", T=T, start=start)
-        return traj, info
+        return Z, status, success, it
+
+    def _line_search(self, Z, dZ, lin, bounds, lm: float, filt, theta_max: float, rec: dict):
+        """Filter line search on (theta = ||d||_1, f) (Fletcher and Leyffer) along the QP step ``dZ`` from ``Z``, with
+        a second-order correction: ``(Z_new or None, alpha, cost at the last point tried)``. ``lin`` is
+        ``(D, J, f, G, H)`` at ``Z``, ``bounds`` ``(lbz, ubz)``; ``rec`` (this iteration's history entry) gets
+        ``alpha`` and ``soc``."""
+        D, J, f, G, H = lin
+        c1 = float(np.abs(D).sum())
+        step = float(np.abs(dZ).max())
+        if step > self.max_step:  # a Newton step far outside where the linearisation holds: shortened
+            dZ = dZ * (self.max_step / step)
+        Z_new, alpha = None, 1.0
+        Z_try = Z + dZ
+        ft, ct, D_try = self._merit_parts(Z_try)
+        if self._acceptable(ft, ct, f, c1, filt, theta_max):
+            Z_new = Z_try
+        elif self.soc:
+            # second-order correction (Maratos): the same QP with the defects at the trial point
+            dV = np.hstack([dZ[:-1], dZ[1:]])
+            D_soc = D_try - (J @ dV[:, :, None])[:, :, 0]
+            dZ_c, _, _, ok_c = self._qp_step(Z, D_soc, J, G, H, *bounds, lm)
+            if ok_c:
+                Z_try = Z + dZ_c
+                ft, ct, _ = self._merit_parts(Z_try)
+                if self._acceptable(ft, ct, f, c1, filt, theta_max):
+                    Z_new = Z_try
+                    rec["soc"] = True
+        while Z_new is None:
+            alpha *= 0.5
+            if alpha < 1e-8:
+                break
+            Z_try = Z + alpha * dZ
+            ft, ct, _ = self._merit_parts(Z_try)
+            if self._acceptable(ft, ct, f, c1, filt, theta_max):
+                Z_new = Z_try
+        rec["alpha"] = alpha
+        return Z_new, alpha, ft
 
     def solve(self, x0=None, x_goal=None, *, guess: Trajectory | None = None, T: float | None = None,
               fallback: bool = False) -> tuple[Trajectory, SolveInfo]:

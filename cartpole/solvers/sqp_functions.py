@@ -145,9 +145,14 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float, n_free: int = 0) -> l
     """``[sqp_stages, sqp_condense, sqp_multipliers, sqp_stationarity]`` (module docstring) for ``nx`` states,
     ``nu`` inputs and ``N >= 2`` intervals, in CasADi's virtual machine (:func:`compiled_qp_functions` compiles
     them); the last ``n_free`` states are parameters free at the boundary knots (the stationarity counts them)."""
+    return [_stages_function(nx, nu, N, reg_min), _condense_function(nx, nu, N), _multipliers_function(nx, nu, N),
+            _stationarity_function(nx, nu, N, n_free)]
+
+
+def _stages_function(nx: int, nu: int, N: int, reg_min: float) -> ca.Function:
+    """``sqp_stages`` (module docstring): the stage form, then the Riccati pass that convexifies it."""
     nz = nx + nu
     nv, ny = 2 * nz, nz + nu
-    nc = (N + 1) * nu  # condensed unknowns
     Jt, H = ca.MX.sym("J", nv, nx * N), ca.MX.sym("H", nv, nv * N)
     G, D, lm = ca.MX.sym("G", nv, N), ca.MX.sym("D", nx, N), ca.MX.sym("lm")
     Tt, ct, Hy, gy, Mt = _stage_function(nx, nu).map(N)(Jt, H, G, D, lm)
@@ -161,15 +166,26 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float, n_free: int = 0) -> l
     lift = ca.Function("sqp_lift", [Hs_, ds_], [Hs_ + ds_ * wblock]).map(N - 1)
     Hy0 = _first_stage(nx, nu, reg_min)(Pl, Tt[:, :nz], Hy[:, :ny])
     Hy_reg = ca.horzcat(Hy0, lift(Hy[:, ny:], d))
-    stages = ca.Function("sqp_stages", [Jt, H, G, D, lm], [Tt, ct, Hy_reg, gy, Mt],
-                         ["J", "H", "G", "D", "lm"], ["T", "ct", "Hy", "gy", "M"])
+    return ca.Function("sqp_stages", [Jt, H, G, D, lm], [Tt, ct, Hy_reg, gy, Mt],
+                       ["J", "H", "G", "D", "lm"], ["T", "ct", "Hy", "gy", "M"])
 
-    # ---- condensing -------------------------------------------------------------------------------------------
+
+def _stage_symbols(nx: int, nu: int, N: int):
+    """The stage form's inputs as MX symbols, ``(T, ct, Hy, gy)`` (``sqp_stages``' outputs), and ``A_k'`` side by
+    side (nx, nx N): ``T``'s block k is ``T_k'`` (ny, nz), its first nx rows and columns ``A_k'``."""
+    nz, ny = nx + nu, nx + 2 * nu
     Ti, cti = ca.MX.sym("T", ny, nz * N), ca.MX.sym("ct", nx, N)
     Hyi, gyi = ca.MX.sym("Hy", ny, ny * N), ca.MX.sym("gy", ny, N)
+    return Ti, cti, Hyi, gyi, Ti[:nx, _block_cols(nz, nx, N)]
+
+
+def _condense_function(nx: int, nu: int, N: int) -> ca.Function:
+    """``sqp_condense`` (module docstring): the QP condensed onto the knot controls."""
+    ny = nx + 2 * nu
+    nc = (N + 1) * nu  # condensed unknowns
+    Ti, cti, Hyi, gyi, ATs = _stage_symbols(nx, nu, N)
     # Ti's block k is T_k' (ny, nz): its first nx rows and columns A_k', the rows below them Bw_k' (2nu, nx)
-    a_cols = _block_cols(nz, nx, N)
-    ATs, BWs = Ti[:nx, a_cols], Ti[nx:, a_cols]  # (nx, nx N), (2nu, nx N)
+    BWs = Ti[nx:, _block_cols(nx + nu, nx, N)]  # (2nu, nx N)
     Qs = Hyi[:nx, _block_cols(ny, nx, N)]  # (nx, nx N)
     # backward: P_k = Q_k + A_k' P_k+1 A_k, k = N-1 .. 1 (P_N = 0)
     P_, Q_, AT_ = ca.SX.sym("P", nx, nx), ca.SX.sym("Q", nx, nx), ca.SX.sym("AT", nx, nx)
@@ -183,7 +199,8 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float, n_free: int = 0) -> l
     # (nx, 2nu), so Hc = sum_k (Y_k E_k + E_k' Y_k') + sum_k E_k' (R_k + Bw_k' P_k+1 Bw_k) E_k with Y_k = G_k' W_k;
     # the gradient's G_k' (Q_k g_k + q_k) in the same product
     GT_, BT_ = ca.SX.sym("GT", nc + 1, nx), ca.SX.sym("BT", nc + 1, nx)
-    Pk1, Tk, Hk, gk = ca.SX.sym("P", nx, nx), ca.SX.sym("Tt", ny, nz), ca.SX.sym("Hy", ny, ny), ca.SX.sym("gy", ny)
+    Pk1, Tk = ca.SX.sym("P", nx, nx), ca.SX.sym("Tt", ny, nx + nu)
+    Hk, gk = ca.SX.sym("Hy", ny, ny), ca.SX.sym("gy", ny)
     Ak, Bw = Tk[:nx, :nx].T, Tk[nx:, :nx].T  # (nx, nx), (nx, 2nu)
     Qk, Sk, Rk = Hk[:nx, :nx], Hk[nx:, :nx], Hk[nx:, nx:]
     gm = GT_[nc, :].T  # g_k (nx,)
@@ -205,10 +222,16 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float, n_free: int = 0) -> l
         blocks.append(ca.vertcat(*parts))
     BT = ca.horzcat(*blocks)
     GTs, Yt, B_, F_, E_ = fwd(ca.MX.zeros(nc + 1, nx), ca.densify(BT), Pnext, Ti, Hyi, gyi)
-    condense = ca.Function("sqp_condense", [Ti, cti, Hyi, gyi], [Yt, B_, ca.sum2(F_), E_, GTs],
-                           ["T", "ct", "Hy", "gy"], ["Y", "band", "f", "e", "GT"])
+    return ca.Function("sqp_condense", [Ti, cti, Hyi, gyi], [Yt, B_, ca.sum2(F_), E_, GTs],
+                       ["T", "ct", "Hy", "gy"], ["Y", "band", "f", "e", "GT"])
 
-    # ---- multipliers ------------------------------------------------------------------------------------------
+
+def _multipliers_function(nx: int, nu: int, N: int) -> ca.Function:
+    """``sqp_multipliers`` (module docstring): the defects' multipliers of a QP step."""
+    nz = nx + nu
+    nv, ny = 2 * nz, nz + nu
+    Ti, _, Hyi, gyi, ATs = _stage_symbols(nx, nu, N)
+    Hk, gk, AT_ = ca.SX.sym("Hy", ny, ny), ca.SX.sym("gy", ny), ca.SX.sym("AT", nx, nx)
     dZ, nbx = ca.MX.sym("dZ", nz, N + 1), ca.MX.sym("nbx", nx, N + 1)
     Hm, Gm_, Mm = ca.MX.sym("H", nv, nv * N), ca.MX.sym("G", nv, N), ca.MX.sym("M", nx, nx * N)
     zk, zk1, nb = ca.SX.sym("zk", nz), ca.SX.sym("zk1", nz), ca.SX.sym("nb", nx)
@@ -221,16 +244,20 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float, n_free: int = 0) -> l
     m_, r_ = ca.SX.sym("m", nx), ca.SX.sym("r", nx)
     adj = ca.Function("sqp_adj", [m_, AT_, r_], [ca.mtimes(AT_, m_) + r_]
                       ).mapaccum("sqp_adj_acc", N - 1, [0], [0], _acc(N - 1))
-    # m_k-1 = A_k' m_k + r_k, k = N-1 .. 1, from m_N-1 = nbx_N; ATs (the condensing's) holds A_k' side by side
+    # m_k-1 = A_k' m_k + r_k, k = N-1 .. 1, from m_N-1 = nbx_N; ATs holds A_k' side by side
     mrev = adj(nbx[:, N], _reverse_blocks(ATs[:, nx:], nx, N - 1), _reverse_blocks(r[:, 1:], 1, N - 1))
     mx = ca.horzcat(_reverse_blocks(mrev, 1, N - 1), nbx[:, N])  # m_0 .. m_N-1
     mu_, c_, Mk = ca.SX.sym("mu", nx), ca.SX.sym("c", nx), ca.SX.sym("Mt", nx, nx)
     lamf = ca.Function("sqp_lam", [mu_, c_, Mk], [-ca.mtimes(Mk, mu_ + c_)]).map(N)  # Mk as passed is M_k'
     lam = lamf(mx, cc, Mm)
-    mult = ca.Function("sqp_multipliers", [dZ, nbx, Hyi, gyi, Ti, Hm, Gm_, Mm], [lam],
+    return ca.Function("sqp_multipliers", [dZ, nbx, Hyi, gyi, Ti, Hm, Gm_, Mm], [lam],
                        ["dZ", "nbx", "Hy", "gy", "T", "H", "G", "M"], ["lam"])
 
-    # ---- stationarity -----------------------------------------------------------------------------------------
+
+def _stationarity_function(nx: int, nu: int, N: int, n_free: int) -> ca.Function:
+    """``sqp_stationarity`` (module docstring): the largest entry of the Lagrangian's gradient in the knots."""
+    nz = nx + nu
+    nv = 2 * nz
     Js, Gs_, lams, nbs = (ca.MX.sym("J", nv, nx * N), ca.MX.sym("G", nv, N), ca.MX.sym("lam", nx, N),
                           ca.MX.sym("nb", nz, N + 1))
     Jt_k, g_k, l_k = ca.SX.sym("Jt", nv, nx), ca.SX.sym("g", nv), ca.SX.sym("l", nx)
@@ -239,9 +266,8 @@ def qp_functions(nx: int, nu: int, N: int, reg_min: float, n_free: int = 0) -> l
     gr = nbs + ca.horzcat(a_, ca.MX.zeros(nz, 1)) + ca.horzcat(ca.MX.zeros(nz, 1), b_)
     free = np.ones((nz, N + 1))
     free[:nx - n_free, 0] = free[:nx - n_free, N] = 0.0  # x_0 and x_N pinned (but parameters): multipliers free
-    stat = ca.Function("sqp_stationarity", [Js, Gs_, lams, nbs], [ca.mmax(ca.fabs(gr * ca.DM(free)))],
+    return ca.Function("sqp_stationarity", [Js, Gs_, lams, nbs], [ca.mmax(ca.fabs(gr * ca.DM(free)))],
                        ["J", "G", "lam", "nb"], ["kkt"])
-    return [stages, condense, mult, stat]
 
 
 #: This module's source: a library built from another version of these functions is never reused.

@@ -7,7 +7,7 @@ from scipy.integrate import solve_ivp
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.ocp import OCPNotSolved
 from cartpole.ocp.bounds import bounds_from_model
-from cartpole.ocp.collocation import DirectCollocation, OCPError, OCPInfeasible
+from cartpole.ocp.collocation import CollocationOptions, DirectCollocation, OCPError, OCPInfeasible
 from cartpole.planning.trajopt import minimum_time
 
 HANGING = np.array([0.0, np.pi, 0.0, 0.0])
@@ -85,7 +85,7 @@ def test_solver_is_built_once_and_reused(shipped):
 @pytest.mark.skipif(not ca.has_nlpsol("fatrop"), reason="this CasADi has no fatrop plugin")
 def test_ipopt_and_fatrop_agree(shipped):
     model, _, traj, info = shipped
-    ftraj, finfo = DirectCollocation(model, N=100, T=2.0, solver="fatrop").solve(HANGING)
+    ftraj, finfo = DirectCollocation(model, N=100, T=2.0, options=CollocationOptions(solver="fatrop")).solve(HANGING)
     assert finfo.success and finfo.solver == "fatrop"
     assert finfo.objective == pytest.approx(info.objective, rel=1e-4)
     # fatrop stops at tol 1e-6 on a flat optimum: same cost, states within a few centimetres/centiradians

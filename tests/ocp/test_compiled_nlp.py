@@ -6,7 +6,7 @@ import pytest
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole import codegen
 from cartpole.ocp import compiled_nlp
-from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.collocation import CollocationOptions, DirectCollocation
 
 HANGING = np.array([0.0, np.pi, 0.0, 0.0])
 TWO_POLE = SHIPPED_MJCF.with_name("cartpole_two_pole.xml")
@@ -43,9 +43,9 @@ def _tilted(model, angle=0.3):
 
 
 def _same_plan(model, x0, N):
-    ocp_c = DirectCollocation(model, N=N, T=2.0, compiled=True)
+    ocp_c = DirectCollocation(model, N=N, T=2.0, options=CollocationOptions(compiled=True))
     traj_c, info_c = ocp_c.solve_once(x0)
-    ocp_s = DirectCollocation(model, N=N, T=2.0, compiled=False)
+    ocp_s = DirectCollocation(model, N=N, T=2.0, options=CollocationOptions(compiled=False))
     traj_s, info_s = ocp_s.solve_once(x0)
     assert ocp_c.compiled_library is not None and ocp_s.compiled_library is None
     assert info_c.success and info_s.success
@@ -150,8 +150,8 @@ def test_free_time_and_running_cost_nlps_compiled_take_the_sx_iterates(model, tw
     # the free final time couples every interval (a dense column in the Jacobian and the Hessian); a running cost
     # is integrated inside the compiled interval: both give the SX formulation's iterates and solution
     for m, x0, N in ((model, HANGING, 30), (two_pole, two_pole.x_hanging, 20)):
-        ocp_c = DirectCollocation(m, N=N, T=T, objective=objective, compiled=True)
-        ocp_s = DirectCollocation(m, N=N, T=T, objective=objective, compiled=False)
+        ocp_c = DirectCollocation(m, N=N, T=T, objective=objective, options=CollocationOptions(compiled=True))
+        ocp_s = DirectCollocation(m, N=N, T=T, objective=objective, options=CollocationOptions(compiled=False))
         traj_c, info_c = ocp_c.solve_once(x0)
         traj_s, info_s = ocp_s.solve_once(x0)
         assert ocp_c.compiled_library is not None and ocp_s.compiled_library is None

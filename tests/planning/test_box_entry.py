@@ -33,6 +33,6 @@ def test_no_box_plan_when_the_reference_does_not_end_in_the_box():
     x_ref = np.tile(model.x_hanging, (n + 1, 1))  # hanging all along: never in the box
     u_ref = np.zeros((n, model.nu))
     b = bounds_from_params(model.params)
-    assert box_entry_plan(model, SPARSE, model.x_hanging, x_ref, u_ref, model.x_hanging, b, dt=model.dt) is None
+    assert box_entry_plan(model, SPARSE, model.x_hanging, x_ref, u_ref, model.x_hanging, b) is None
     g, lower, upper = sparse_box(model, SPARSE, ca.SX.sym("x", model.nx))
     assert np.all(np.isinf(upper[1:])) and np.all(np.isfinite(lower))  # a cosine's 1 never binds

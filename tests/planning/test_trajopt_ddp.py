@@ -75,7 +75,7 @@ def test_a_ddp_that_does_not_converge_hands_the_stage_to_ipopt(monkeypatch):
     real = ddp_plan.ddp_stage
 
     def failing(*args, **kw):
-        kw["options"] = ddp_plan.DDPOptions(max_iterations=1, max_outer=1)
+        kw["options"] = kw["options"].replace(ddp=ddp_plan.DDPOptions(max_iterations=1, max_outer=1))
         return real(*args, **kw)
 
     monkeypatch.setattr(ddp_plan, "ddp_stage", failing)

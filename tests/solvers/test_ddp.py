@@ -8,7 +8,7 @@ import pytest
 from cartpole.models import build_model
 from cartpole.ocp.bounds import bounds_from_model
 from cartpole.sim import replay
-from cartpole.solvers.ddp import DDP, DDPError, DDPOptions, ddp_for_model
+from cartpole.solvers.ddp import DDP, DDPError, DDPOptions, DDPProblem, ddp_for_model
 
 STEPS = 4  # the ctrl held for 4 MJCF steps (20 ms): the held model is exact, so the plan replays in MuJoCo
 
@@ -103,11 +103,11 @@ def test_bad_problems_are_one_sentence(model, kwargs, says):
     args = dict(dt=model.dt, N=10, u_low=[-1.0], u_high=[1.0])
     args.update(kwargs)
     with pytest.raises(DDPError, match=says):
-        DDP(model.step, args.pop("dt"), args.pop("N"), compiled=False, **args)
+        DDP(model.step, args.pop("dt"), args.pop("N"), DDPProblem(**args), options=DDPOptions(compiled=False))
 
 
 def test_minimum_time_is_refused_and_a_bad_start_is_one_sentence(model, swingup):
     with pytest.raises(DDPError, match="search over T"):
-        ddp_for_model(model, 1.0, objective="time", compiled=False)
+        ddp_for_model(model, 1.0, objective="time", options=DDPOptions(compiled=False))
     with pytest.raises(DDPError, match="4 finite numbers"):
         swingup[0].solve([0.0, np.nan, 0.0, 0.0])

@@ -6,7 +6,7 @@ from cartpole.models import SHIPPED_MJCF, build_model, read_params
 from cartpole.ocp.bounds import OCPError, bounds_from_model
 from cartpole.ocp.collocation import DirectCollocation
 from cartpole.ocp.guess import initial_guesses, stretched
-from cartpole.solvers.sqp import CollocationSQP, SQPError
+from cartpole.solvers.sqp import CollocationSQP, SQPError, SQPOptions
 from cartpole.ocp.trajectory import Trajectory
 
 N, T = 100, 2.0
@@ -51,7 +51,7 @@ def _assert_ipopts_optimum(traj, info, traj_ip, info_ip, ocp: DirectCollocation,
 def test_sqp_reaches_ipopts_optimum_on_the_standard_problem_from_the_same_guess(single, qp_solver):
     ocp, x0, guess, (traj_ip, info_ip) = single
     assert info_ip.success
-    sqp = CollocationSQP(ocp, qp_solver=qp_solver)
+    sqp = CollocationSQP(ocp, options=SQPOptions(qp_solver=qp_solver))
     traj, info = sqp.solve_once(x0, guess=guess)
     # every QP by the chosen solver, no fallback (the last iteration may only confirm convergence)
     mine = ("riccati", "riccati_exact") if qp_solver == "riccati" else (qp_solver,)
@@ -84,7 +84,7 @@ def test_sqp_converges_fast_near_the_optimum_of_the_two_pole_problem_to_ipopts_o
 
 def test_an_infeasible_linearisation_still_gives_a_step_with_daqps_soft_rows(two_pole):
     ocp, x0, guess, _ = two_pole
-    sqp = CollocationSQP(ocp, qp_solver="daqp", max_iter=1)
+    sqp = CollocationSQP(ocp, options=SQPOptions(qp_solver="daqp", max_iter=1))
     sqp.solve_once(x0, guess=guess)
     (first,) = sqp.history
     # the hard QP of the bench guess is infeasible: the soft one gives a step the filter takes
@@ -104,7 +104,7 @@ def test_sqp_reaches_ipopts_optimum_on_the_two_pole_problem_from_the_bench_guess
 
 def test_sqp_failure_is_one_sentence_and_the_fallback_is_ipopts_optimum(two_pole):
     ocp, x0, guess, (_, info_ip) = two_pole
-    sqp = CollocationSQP(ocp, max_iter=3)  # far too few iterations from this guess
+    sqp = CollocationSQP(ocp, options=SQPOptions(max_iter=3))  # far too few iterations from this guess
     _, info = sqp.solve_once(x0, guess=guess)
     assert not info.success
     assert info.status in ("QP_Failed", "Line_Search_Failed", "Maximum_Iterations_Exceeded")
@@ -121,10 +121,10 @@ def test_sqp_failure_is_one_sentence_and_the_fallback_is_ipopts_optimum(two_pole
 def test_sqp_refuses_problems_it_does_not_handle_in_one_sentence():
     model = build_model(read_params(SHIPPED_MJCF))
     with pytest.raises(SQPError, match="Riccati QP solver only"):
-        CollocationSQP(DirectCollocation(model, N=20, T=None), qp_solver="daqp")  # minimum time
+        CollocationSQP(DirectCollocation(model, N=20, T=None), options=SQPOptions(qp_solver="daqp"))  # minimum time
     for gone in ("nope", "qrqp", "hpipm"):  # CasADi's qrqp and HPIPM are no back-ends (docs/benchmarks.md)
         with pytest.raises(SQPError, match="qp_solver"):
-            CollocationSQP(DirectCollocation(model, N=20, T=2.0), qp_solver=gone)
+            CollocationSQP(DirectCollocation(model, N=20, T=2.0), options=SQPOptions(qp_solver=gone))
 
 
 def test_two_motors_run_through_the_sqp_and_end_at_ipopts_optimum(chain_dir):
@@ -141,7 +141,7 @@ def test_two_motors_run_through_the_sqp_and_end_at_ipopts_optimum(chain_dir):
     ocp = DirectCollocation(model, N=n, T=T, bounds=bounds)
     traj_ip, info_ip = ocp.solve_once(x0, guess=guess)
     assert info_ip.success
-    sqp = CollocationSQP(ocp, max_iter=40)
+    sqp = CollocationSQP(ocp, options=SQPOptions(max_iter=40))
     traj, info = sqp.solve(x0, guess=guess, fallback=True)
     assert sqp.history and all(np.isfinite(h["objective"]) for h in sqp.history)
     assert info.success
@@ -153,7 +153,7 @@ def test_infeasible_linearisations_do_not_count_against_max_unsettled(two_pole):
     """From the bench's guess the two-pole problem's first linearisations are infeasible (DAQP's soft rows solve
     them, the Riccati active set cannot): the SQP with max_unsettled=0 still reaches IPOPT's optimum."""
     ocp, x0, guess, (traj_ip, info_ip) = two_pole
-    sqp = CollocationSQP(ocp, max_unsettled=0)
+    sqp = CollocationSQP(ocp, options=SQPOptions(max_unsettled=0))
     traj, info = sqp.solve_once(x0, guess=guess)
     assert sqp.qp_soft > 0 and sqp.qp_counts["riccati_unsettled"] >= sqp.qp_soft
     assert info.success
@@ -165,7 +165,7 @@ def test_feasible_qps_the_riccati_active_set_cannot_settle_stop_the_solve(single
 
     ocp, x0, guess, _ = single
     monkeypatch.setattr(riccati_qp.StageQP, "solve", lambda self, *a, **k: 3)  # never settles
-    sqp = CollocationSQP(ocp, max_unsettled=2)
+    sqp = CollocationSQP(ocp, options=SQPOptions(max_unsettled=2))
     _, info = sqp.solve_once(x0, guess=guess)
     assert not info.success and info.status == "QP_Unsettled" and info.iterations == 3
     assert sqp.qp_counts["riccati_unsettled"] == 3 and sqp.qp_counts["daqp"] >= 3 and sqp.qp_soft == 0

@@ -38,7 +38,7 @@ import numpy as np
 
 from cartpole.control.linear import LinearFeedback
 from cartpole.models import SHIPPED_MJCF, build_model
-from cartpole.solvers.ddp import DDP, DDPOptions
+from cartpole.solvers.ddp import DDP, DDPOptions, DDPProblem
 
 #: The example's settings.
 DT, N, X0 = 0.01, 100, (3.14, 0.0, 0.0, 0.0)
@@ -75,8 +75,8 @@ def double_pendulum_ddp(model=None, *, compiled: bool = True):
     running = ca.Function("croc_running", [x, u], [U_WEIGHT / DT * 0.5 * ca.dot(u, u) + X_WEIGHT / DT * goal])
     terminal = ca.Function("croc_terminal", [x], [TERMINAL_WEIGHT * goal])
     lo, hi = np.asarray(model.params.ctrl_range, float).T
-    ddp = DDP(model.step, DT, N, running=running, terminal=terminal, u_low=lo, u_high=hi, hinges=model.hinges,
-              options=DDPOptions(tolerance=1e-9), compiled=compiled)
+    problem = DDPProblem(u_low=lo, u_high=hi, running=running, terminal=terminal, hinges=model.hinges)
+    ddp = DDP(model.step, DT, N, problem, options=DDPOptions(tolerance=1e-9, compiled=compiled))
     return ddp, np.array(X0)
 
 
@@ -110,8 +110,9 @@ def cartpole_ddp(model=None, *, compiled: bool = True):
     x, u = ca.SX.sym("x", model.nx), ca.SX.sym("u", model.nu)
     running = ca.Function("croc_cp_running", [x, u], [_cartpole_cost(x, u) / CP_DT])
     terminal = ca.Function("croc_cp_terminal", [x], [_cartpole_cost(x, 0)])
-    ddp = DDP(model.step, CP_DT, CP_N, running=running, terminal=terminal, u_low=-CP_FORCE_BOUND,
-              u_high=CP_FORCE_BOUND, hinges=model.hinges, options=DDPOptions(tolerance=1e-9), compiled=compiled)
+    problem = DDPProblem(u_low=-CP_FORCE_BOUND, u_high=CP_FORCE_BOUND, running=running, terminal=terminal,
+                         hinges=model.hinges)
+    ddp = DDP(model.step, CP_DT, CP_N, problem, options=DDPOptions(tolerance=1e-9, compiled=compiled))
     return ddp, np.array(CP_X0)
 
 

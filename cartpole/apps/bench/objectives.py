@@ -69,15 +69,15 @@ def objective_benchmark(plant=None, *, objectives=OBJECTIVES, N: int = 100, T: f
         except OCPError as exc:  # a task this model cannot have (a cart-pole reward on a pendulum): said, not run
             rows.append({"objective": name, "skipped": str(exc)})
             continue
-        rows.append({"objective": name, **against_naive(model, obj, guess, bounds, x0, N=N, T=T, f_hand=f_hand,
-                                                         repeats=repeats, say=say, label=f"objective {name}")})
+        rows.append({"objective": name, **against_naive(model, obj, guess, bounds, x0, f_hand=f_hand, repeats=repeats,
+                                                         say=say, label=f"objective {name}")})
     return rows
 
 
-def against_naive(model, obj, guess, bounds, x0, *, N: int, T: float, f_hand=None, repeats: int = 5,
-                  say=None, label: str = "") -> dict:
-    """One objective ``obj`` (:class:`~cartpole.ocp.objectives.Objective`) on ``N`` intervals over ``T`` s (for
-    ``time`` the guess of T) from ``guess`` (a Trajectory on those knots), by the naive script with it
+def against_naive(model, obj, guess, bounds, x0, *, f_hand=None, repeats: int = 5, say=None, label: str = "") -> dict:
+    """One objective ``obj`` (:class:`~cartpole.ocp.objectives.Objective`) on ``guess``'s knots (``guess.N``
+    intervals over its duration ``T`` s; for ``time`` the guess of T) from ``guess`` (a Trajectory), by the naive
+    script with it
     (:class:`~cartpole.apps.bench.trajopt.NaiveOptiBaseline`; ``f_hand`` its dynamics where given, else the model's)
     and by the default planner's solver (:func:`~cartpole.apps.bench.trajopt.default_planner_row`), ``repeats``
     timed solves each; ``x0`` (nx,) the start, ``bounds`` the problem's.
@@ -91,6 +91,7 @@ def against_naive(model, obj, guess, bounds, x0, *, N: int, T: float, f_hand=Non
         ``baseline_success``, ``speedup`` and ``cost_rel_diff`` (None unless both converged).
     """
     say = say or (lambda msg: None)
+    N, T = guess.N, guess.duration
     say(f"{label}: the naive Opti script, {repeats} solves ...")
     base = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand, objective=obj)
     base.solve(guess)  # builds IPOPT (not timed)

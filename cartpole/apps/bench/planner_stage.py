@@ -121,7 +121,7 @@ def _stage_row(case: _Case, obj, name: str, margin: float, N: int, repeats: int,
     x, u = stretched(plan, T, t, model.nq)
     guess = Trajectory(t=t, x=x, u=u, xdot=np.zeros_like(x))
     return {"model": label, "mjcf": params.mjcf, "objective": name, "T_min": T_min, "T": T, "N": N,
-            **against_naive(model, obj, guess, bounds, x0, N=N, T=T, f_hand=f_hand, repeats=repeats, say=say,
+            **against_naive(model, obj, guess, bounds, x0, f_hand=f_hand, repeats=repeats, say=say,
                             label=f"planner stages, {label}, {name}")}
 
 

@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from cartpole.apps.bench.trajopt import median_ms, shipped_plan_models
 from cartpole.planning import trajopt as _trajopt
 from cartpole.planning.options import PlanOptions
-from cartpole.solvers.sqp import QP_SOLVERS, CollocationSQP, SQPError
+from cartpole.solvers.sqp import QP_SOLVERS, CollocationSQP, SQPError, SQPOptions
 
 
 @contextmanager
@@ -62,8 +62,8 @@ def planner_sqp_problems(mjcf, *, objective: str = "effort") -> list[tuple]:
 def _solve_row(ocp, x0, x_goal, guess, backend: str, repeats: int) -> dict:
     """One problem by one back-end: built and solved once untimed, then ``repeats`` timed solves."""
     try:
-        solver = CollocationSQP(ocp, qp_solver=backend, max_iter=_trajopt.SQP_MAX_ITER,
-                                max_unsettled=_trajopt.SQP_MAX_UNSETTLED)
+        solver = CollocationSQP(ocp, options=SQPOptions(qp_solver=backend, max_iter=_trajopt.SQP_MAX_ITER,
+                                                        max_unsettled=_trajopt.SQP_MAX_UNSETTLED))
     except SQPError as exc:
         return {"backend": backend, "refused": str(exc)}
     solver.solve_once(x0, x_goal, guess=guess)  # builds the QP solvers (not timed)

@@ -28,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 
 import casadi as ca
 import mujoco
@@ -36,14 +37,14 @@ import numpy as np
 from cartpole.apps.bench.replay import replay_benchmark
 from cartpole.models import SHIPPED_MJCF, build_model, mujoco_model, planning_limits, plant_params, read_params
 from cartpole.ocp.bounds import OCPBounds, bounds_from_model
-from cartpole.ocp.collocation import DirectCollocation
+from cartpole.ocp.collocation import CollocationOptions, DirectCollocation
 from cartpole.ocp.guess import initial_guesses
 from cartpole.planning.trajopt import SQP_MAX_ITER, SQP_MAX_UNSETTLED, trajopt_swingup
 from cartpole.riccati import default_weights, tvlqr
 from cartpole.riccati.tvlqr import reference as _on_step_grid
 from cartpole.sim import replays_exactly, simulate
 from cartpole.solvers.ddp import ddp_for_model
-from cartpole.solvers.sqp import CollocationSQP, SQPError
+from cartpole.solvers.sqp import CollocationSQP, SQPError, SQPOptions
 from cartpole.validation.metrics import swingup_metrics
 
 
@@ -125,12 +126,13 @@ class NaiveOptiBaseline:
     ``f`` replaces the model's dynamics Function (``(x, u) -> xdot``, e.g. :func:`hand_typed_cartpole`).
     ``objective`` (an :class:`~cartpole.ocp.objectives.Objective`, default effort): a running cost is integrated by
     Simpson's rule on the same knots and midpoints (its SX Function called per knot and midpoint), ``time`` makes
-    ``T`` a variable (``T`` its initial value, ``h = T / N``) and minimises ``T + time_effort_weight * effort``, as
+    ``T`` a variable (``T`` its initial value, ``h = T / N``) and minimises ``T + w effort``, ``w`` the collocation's
+    default :attr:`~cartpole.ocp.collocation.CollocationOptions.time_effort_weight`, as
     :class:`~cartpole.ocp.collocation.DirectCollocation` does.
     """
 
     def __init__(self, model, N: int, T: float, bounds: OCPBounds, x0, x_goal=None, *, expand: bool = False,
-                 warm: bool = False, f: ca.Function | None = None, objective=None, time_effort_weight: float = 1e-3):
+                 warm: bool = False, f: ca.Function | None = None, objective=None):
         f = model.f if f is None else f
         kind = "effort" if objective is None else objective.kind
         opti = ca.Opti()
@@ -155,7 +157,7 @@ class NaiveOptiBaseline:
         if kind == "time":
             opti.subject_to(opti.bounded(0.1 * T, Tv, 10.0 * T))
             opti.set_initial(Tv, T)
-            J = Tv + time_effort_weight * J
+            J = Tv + CollocationOptions.time_effort_weight * J
         for j in range(model.nu):
             opti.subject_to(opti.bounded(bounds.u_low[j], U[j, :], bounds.u_high[j]))
         for i in bounds.bounded_joints:
@@ -192,6 +194,23 @@ class NaiveOptiBaseline:
         except RuntimeError:
             st = self.opti.stats()
             return float(self.opti.debug.value(self.opti.f)), int(st.get("iter_count", -1)), False
+
+
+@dataclass(frozen=True)
+class _Standard:
+    """One run's standard problem (module docstring): the MJCF's parameters and model, ``N`` intervals over ``T`` s,
+    the bounds, the start ``x0`` and the moved start of the warm-start rows (nx,), the shared guess, the timed solves
+    per method and the progress callback."""
+    params: object
+    model: object
+    N: int
+    T: float
+    bounds: OCPBounds
+    x0: np.ndarray
+    x0_moved: np.ndarray
+    guess: object
+    repeats: int
+    say: object
 
 
 def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_max: float = 1.4,
@@ -231,112 +250,24 @@ def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_ma
     x0 = np.array(model.x_hanging)
     bounds = bounds_from_model(model, u_max=u_max, cart_max=cart_max, cart_margin=0.0)
     guess = initial_guesses(model, x0, model.x_eq, T, N, bounds=bounds, count=1)[0]
-
-    say(f"building our collocation NLP (N = {N}, T = {T} s) ...")
-    ocp = DirectCollocation(model, N=N, T=T, bounds=bounds)
-    traj, info = ocp.solve_once(x0, guess=guess)  # builds the solver (not timed)
-    say(f"ours (ipopt, from the guess): {repeats} solves ...")
-    ours_ms, (traj, info) = median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
-    # Warm start, honestly: a NEW problem (start moved by 2 cm and 0.05 rad, as in re-planning) started from
-    # the primal-dual solution of the nominal one; the nominal solution is restored before every timed solve.
-    nominal = ocp._last
+    # the warm-start rows re-plan from a start moved by 2 cm and 0.05 rad
     x0_moved = x0.copy()
     if model.slide is not None:
         x0_moved[model.slide] += 0.02
     x0_moved[model.hinges[0]] += 0.05
+    p = _Standard(params=params, model=model, N=N, T=T, bounds=bounds, x0=x0, x0_moved=x0_moved, guess=guess,
+                  repeats=repeats, say=say)
 
-    def warm_solve():
-        ocp._last = nominal
-        return ocp.solve_once(x0_moved, warm=True)
-
-    say(f"ours (ipopt, warm-started from the nominal solution, moved start): {repeats} solves ...")
-    warm_solve()  # builds the warm-start solver (not timed)
-    warm_ms, (_, warm_info) = median_ms(warm_solve, repeats)
-
-    say(f"ours without the compiled interval functions (SX virtual machine): {repeats} solves ...")
-    sx_ocp = DirectCollocation(model, N=N, T=T, bounds=bounds, compiled=False)
-    sx_ocp.solve_once(x0, guess=guess)
-    sx_ms, (_, sx_info) = median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
-
-    say("building the naive casadi.Opti baseline ...")
-    base = NaiveOptiBaseline(model, N, T, bounds, x0)
-    base.solve(guess)  # builds IPOPT (not timed)
-    say(f"baseline (Opti, no expand): {repeats} solves ...")
-    base_ms, (base_obj, base_it, base_ok) = median_ms(lambda: base.solve(guess), repeats)
-    exp = NaiveOptiBaseline(model, N, T, bounds, x0, expand=True)
-    exp.solve(guess)
-    say(f"baseline (Opti, expand=True): {repeats} solves ...")
-    exp_ms, (exp_obj, exp_it, exp_ok) = median_ms(lambda: exp.solve(guess), repeats)
-    # Warm against warm: the expand=True script re-planning from the same moved start, from its own nominal
-    # primal-dual solution, with IPOPT's warm start set as ours is.
-    wexp = NaiveOptiBaseline(model, N, T, bounds, x0, expand=True, warm=True)
-    wexp.solve(guess)
-    nom_x, nom_u, nom_lam = exp.solution if exp.solution is not None else (guess.x, guess.u, None)
-    nominal_guess = type(guess)(t=guess.t, x=nom_x, u=nom_u, xdot=guess.xdot)
-
-    def warm_base():
-        return wexp.solve(nominal_guess, x0_moved, duals=nom_lam)
-
-    warm_base()
-    say(f"baseline (Opti, expand=True, warm-started the same way): {repeats} solves ...")
-    wexp_ms, (wexp_obj, wexp_it, wexp_ok) = median_ms(warm_base, repeats)
-
-    hand = {}
-    f_hand = hand_typed_cartpole(params)
-    if f_hand is not None:
-        say("building the hand-typed naive casadi.Opti baseline (one pole's 2x2 equations as one SX Function) ...")
-        hb = NaiveOptiBaseline(model, N, T, bounds, x0, f=f_hand)
-        hb.solve(guess)  # builds IPOPT (not timed)
-        say(f"baseline (Opti, hand-typed equations, IPOPT defaults): {repeats} solves ...")
-        h_ms, (h_obj, h_it, h_ok) = median_ms(lambda: hb.solve(guess), repeats)
-        hand = {"hand_baseline_solve_ms_median": h_ms, "hand_baseline_objective": h_obj,
-                "hand_baseline_iterations": h_it, "hand_baseline_success": h_ok}
+    ocp, traj, ours = _ours(p)
+    naive = _naive(p)
     # the baseline the ratios are taken against: the hand-typed script for one pole, else the generic one
-    ref_ms = hand.get("hand_baseline_solve_ms_median", base_ms)
-
-    fatrop = {}
-    if ca.has_nlpsol("fatrop"):
-        say(f"ours (fatrop): {repeats} solves ...")
-        focp = DirectCollocation(model, N=N, T=T, bounds=bounds, solver="fatrop")
-        focp.solve_once(x0, guess=guess)
-        f_ms, (_, finfo) = median_ms(lambda: focp.solve_once(x0, guess=guess), repeats)
-        fatrop = {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
-                  "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations,
-                  "fatrop_speedup_vs_reference": ref_ms / f_ms if finfo.success else None}
-
-    say(f"ours (SQP on the stage-structured QP): {repeats} solves ...")
-    sqp_solver = CollocationSQP(ocp)  # the same problem object: same NLP, same scaling
-    sqp_solver.solve_once(x0, guess=guess)  # builds the QP solvers (not timed)
-    s_ms, (_, s_info) = median_ms(lambda: sqp_solver.solve_once(x0, guess=guess), repeats)
-    sqp = {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
-           "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
-           # ratios only for a converged solve (a failed one is not a faster way to the plan)
-           "sqp_speedup": base_ms / s_ms if s_info.success else None,
-           "sqp_speedup_vs_expand": exp_ms / s_ms if s_info.success else None,
-           "sqp_vs_ipopt": ours_ms / s_ms if s_info.success else None,
-           "sqp_objective_rel_diff": abs(s_info.objective - info.objective) / abs(info.objective),
-           "sqp_speedup_vs_reference": ref_ms / s_ms if s_info.success else None}
-
+    ref_ms = naive.get("hand_baseline_solve_ms_median", naive["baseline_solve_ms_median"])
+    fatrop = _fatrop(p, ref_ms)
+    sqp = _sqp(p, ocp, ours, naive, ref_ms)
     say(f"the default planner (solver 'auto': the SQP, IPOPT behind it): {repeats} solves ...")
     default = default_planner_row(ocp, x0, guess, repeats, ref_ms)
     default.pop("trajectory")
-
-    say(f"ours (box-DDP on the exact discrete step, from the guess's ctrl): {repeats} solves ...")
-    ddp = ddp_for_model(model, T, bounds=bounds)
-    _, _, u_guess = _on_step_grid(guess, ddp.dt)
-    ddp.solve(x0, u_guess)  # loads (or compiles) its library (not timed)
-    d_ms, d_res = median_ms(lambda: ddp.solve(x0, u_guess), repeats)
-    ddp_doc = {"ddp_solve_ms_median": d_ms, "ddp_iterations": d_res.iterations, "ddp_objective": d_res.cost,
-               "ddp_success": d_res.converged, "ddp_status": d_res.status, "ddp_steps": ddp.N, "ddp_dt": ddp.dt,
-               # DDP solves the exact discrete problem, not the collocation's: its optimum differs slightly, and from
-               # the guess's ctrl run open loop it can land in another local minimum (this says which)
-               "ddp_objective_rel_diff": abs(d_res.cost - info.objective) / abs(info.objective),
-               "ddp_speedup_vs_reference": ref_ms / d_ms if d_res.converged else None}
-    say(f"ours (box-DDP on the exact discrete step, from rest: zero ctrl): {repeats} solves ...")
-    r_ms, r_res = median_ms(lambda: ddp.solve(x0, None), repeats)
-    ddp_doc.update({"ddp_rest_solve_ms_median": r_ms, "ddp_rest_iterations": r_res.iterations,
-                    "ddp_rest_objective": r_res.cost, "ddp_rest_success": r_res.converged,
-                    "ddp_rest_speedup_vs_reference": ref_ms / r_ms if r_res.converged else None})
+    ddp_doc = _ddp(p, ours["objective"], ref_ms)
 
     say(f"TVLQR synthesis along the plan at dt = {model.dt} s: {max(repeats, 20)} runs ...")
     Q, R = default_weights(model)
@@ -348,32 +279,173 @@ def run(plant=None, *, N: int = 100, T: float = 2.0, u_max: float = 1.0, cart_ma
         say(f"batched replay: {replay_rollouts} rollouts x 2 s ...")
         replay_doc = replay_benchmark(params, rollouts=replay_rollouts, seconds=2.0,
                                       repeats=replay_repeats or repeats)
-
+    trajopt = _trajopt_row(ours, naive)
+    trajopt.update({"repeats": repeats, "u_max": u_max, "cart_max": cart_max})
+    trajopt.update(_reference_row(ours, naive, ref_ms))
     return {
         "mjcf": params.mjcf,
-        "trajopt": {
-            "solve_ms_median": ours_ms, "objective": info.objective, "N": N, "T": T, "solver": "ipopt",
-            "iterations": info.iterations, "success": info.success,
-            "baseline_solve_ms_median": base_ms, "baseline_objective": base_obj, "baseline_iterations": base_it,
-            "baseline_success": base_ok, "speedup": base_ms / ours_ms,
-            "expand_baseline_solve_ms_median": exp_ms, "expand_baseline_objective": exp_obj,
-            "expand_baseline_iterations": exp_it, "expand_baseline_success": exp_ok,
-            "speedup_vs_expand": exp_ms / ours_ms,
-            "objective_rel_diff": abs(info.objective - base_obj) / abs(base_obj),
-            "warm_start_solve_ms_median": warm_ms, "warm_start_iterations": warm_info.iterations,
-            "warm_start_objective": warm_info.objective, "warm_start_success": warm_info.success,
-            "warm_start_speedup": wexp_ms / warm_ms, "compiled": ocp.compiled_library is not None,
-            "warm_baseline_solve_ms_median": wexp_ms, "warm_baseline_iterations": wexp_it,
-            "warm_baseline_objective": wexp_obj, "warm_baseline_success": wexp_ok,
-            "sx_solve_ms_median": sx_ms, "sx_iterations": sx_info.iterations, "sx_objective": sx_info.objective,
-            "sx_speedup": base_ms / sx_ms, "repeats": repeats, "u_max": u_max, "cart_max": cart_max,
-            **hand, "reference_baseline": "hand" if hand else "generic", "reference_solve_ms_median": ref_ms,
-            "speedup_vs_reference": ref_ms / ours_ms if info.success else None,
-            **fatrop, **sqp, **ddp_doc, **default,
-        },
+        "trajopt": {**trajopt, **fatrop, **sqp, **ddp_doc, **default},
         "tvlqr": {"ms_median": tv_ms, "steps": int(gains.t.size), "dt": gains.dt},
         "replay": replay_doc,
     }
+
+
+def _ours(p: _Standard) -> tuple[DirectCollocation, object, dict]:
+    """Our collocation by IPOPT from the guess, warm-started from the nominal solution at the moved start, and
+    without the compiled interval functions: ``(the problem, its plan, the rows' numbers)``."""
+    say, repeats, x0, guess = p.say, p.repeats, p.x0, p.guess
+    say(f"building our collocation NLP (N = {p.N}, T = {p.T} s) ...")
+    ocp = DirectCollocation(p.model, N=p.N, T=p.T, bounds=p.bounds)
+    traj, info = ocp.solve_once(x0, guess=guess)  # builds the solver (not timed)
+    say(f"ours (ipopt, from the guess): {repeats} solves ...")
+    ours_ms, (traj, info) = median_ms(lambda: ocp.solve_once(x0, guess=guess), repeats)
+    # Warm start, honestly: a NEW problem (start moved by 2 cm and 0.05 rad, as in re-planning) started from
+    # the primal-dual solution of the nominal one; the nominal solution is restored before every timed solve.
+    nominal = ocp._last
+
+    def warm_solve():
+        ocp._last = nominal
+        return ocp.solve_once(p.x0_moved, warm=True)
+
+    say(f"ours (ipopt, warm-started from the nominal solution, moved start): {repeats} solves ...")
+    warm_solve()  # builds the warm-start solver (not timed)
+    warm_ms, (_, warm_info) = median_ms(warm_solve, repeats)
+
+    say(f"ours without the compiled interval functions (SX virtual machine): {repeats} solves ...")
+    sx_ocp = DirectCollocation(p.model, N=p.N, T=p.T, bounds=p.bounds, options=CollocationOptions(compiled=False))
+    sx_ocp.solve_once(x0, guess=guess)
+    sx_ms, (_, sx_info) = median_ms(lambda: sx_ocp.solve_once(x0, guess=guess), repeats)
+    return ocp, traj, {"solve_ms_median": ours_ms, "objective": info.objective, "N": p.N, "T": p.T,
+                       "iterations": info.iterations, "success": info.success, "warm_start_solve_ms_median": warm_ms,
+                       "warm_start_iterations": warm_info.iterations, "warm_start_objective": warm_info.objective,
+                       "warm_start_success": warm_info.success, "compiled": ocp.compiled_library is not None,
+                       "sx_solve_ms_median": sx_ms, "sx_iterations": sx_info.iterations,
+                       "sx_objective": sx_info.objective}
+
+
+def _naive(p: _Standard) -> dict:
+    """The naive Opti script: as written, with ``expand=True``, that one warm-started at the moved start from its own
+    nominal solution, and (one pole) on the hand-typed equations; the rows' numbers."""
+    say, repeats, guess = p.say, p.repeats, p.guess
+    say("building the naive casadi.Opti baseline ...")
+    base = NaiveOptiBaseline(p.model, p.N, p.T, p.bounds, p.x0)
+    base.solve(guess)  # builds IPOPT (not timed)
+    say(f"baseline (Opti, no expand): {repeats} solves ...")
+    base_ms, (base_obj, base_it, base_ok) = median_ms(lambda: base.solve(guess), repeats)
+    exp = NaiveOptiBaseline(p.model, p.N, p.T, p.bounds, p.x0, expand=True)
+    exp.solve(guess)
+    say(f"baseline (Opti, expand=True): {repeats} solves ...")
+    exp_ms, (exp_obj, exp_it, exp_ok) = median_ms(lambda: exp.solve(guess), repeats)
+    # Warm against warm: the expand=True script re-planning from the same moved start, from its own nominal
+    # primal-dual solution, with IPOPT's warm start set as ours is.
+    wexp = NaiveOptiBaseline(p.model, p.N, p.T, p.bounds, p.x0, expand=True, warm=True)
+    wexp.solve(guess)
+    nom_x, nom_u, nom_lam = exp.solution if exp.solution is not None else (guess.x, guess.u, None)
+    nominal_guess = type(guess)(t=guess.t, x=nom_x, u=nom_u, xdot=guess.xdot)
+
+    def warm_base():
+        return wexp.solve(nominal_guess, p.x0_moved, duals=nom_lam)
+
+    warm_base()
+    say(f"baseline (Opti, expand=True, warm-started the same way): {repeats} solves ...")
+    wexp_ms, (wexp_obj, wexp_it, wexp_ok) = median_ms(warm_base, repeats)
+    doc = {"baseline_solve_ms_median": base_ms, "baseline_objective": base_obj, "baseline_iterations": base_it,
+           "baseline_success": base_ok, "expand_baseline_solve_ms_median": exp_ms,
+           "expand_baseline_objective": exp_obj, "expand_baseline_iterations": exp_it,
+           "expand_baseline_success": exp_ok, "warm_baseline_solve_ms_median": wexp_ms,
+           "warm_baseline_iterations": wexp_it, "warm_baseline_objective": wexp_obj,
+           "warm_baseline_success": wexp_ok}
+    f_hand = hand_typed_cartpole(p.params)
+    if f_hand is not None:
+        say("building the hand-typed naive casadi.Opti baseline (one pole's 2x2 equations as one SX Function) ...")
+        hb = NaiveOptiBaseline(p.model, p.N, p.T, p.bounds, p.x0, f=f_hand)
+        hb.solve(guess)  # builds IPOPT (not timed)
+        say(f"baseline (Opti, hand-typed equations, IPOPT defaults): {repeats} solves ...")
+        h_ms, (h_obj, h_it, h_ok) = median_ms(lambda: hb.solve(guess), repeats)
+        doc.update({"hand_baseline_solve_ms_median": h_ms, "hand_baseline_objective": h_obj,
+                    "hand_baseline_iterations": h_it, "hand_baseline_success": h_ok})
+    return doc
+
+
+def _fatrop(p: _Standard, ref_ms: float) -> dict:
+    """Our collocation by fatrop, where CasADi has the plugin (else no rows)."""
+    if not ca.has_nlpsol("fatrop"):
+        return {}
+    p.say(f"ours (fatrop): {p.repeats} solves ...")
+    focp = DirectCollocation(p.model, N=p.N, T=p.T, bounds=p.bounds, options=CollocationOptions(solver="fatrop"))
+    focp.solve_once(p.x0, guess=p.guess)
+    f_ms, (_, finfo) = median_ms(lambda: focp.solve_once(p.x0, guess=p.guess), p.repeats)
+    return {"fatrop_solve_ms_median": f_ms, "fatrop_objective": finfo.objective,
+            "fatrop_success": finfo.success, "fatrop_iterations": finfo.iterations,
+            "fatrop_speedup_vs_reference": ref_ms / f_ms if finfo.success else None}
+
+
+def _sqp(p: _Standard, ocp: DirectCollocation, ours: dict, naive: dict, ref_ms: float) -> dict:
+    """The SQP on the same problem object (same NLP, same scaling) from the guess."""
+    p.say(f"ours (SQP on the stage-structured QP): {p.repeats} solves ...")
+    sqp_solver = CollocationSQP(ocp)
+    sqp_solver.solve_once(p.x0, guess=p.guess)  # builds the QP solvers (not timed)
+    s_ms, (_, s_info) = median_ms(lambda: sqp_solver.solve_once(p.x0, guess=p.guess), p.repeats)
+    ok = s_info.success  # ratios only for a converged solve (a failed one is not a faster way to the plan)
+    return {"sqp_solve_ms_median": s_ms, "sqp_iterations": s_info.iterations, "sqp_objective": s_info.objective,
+            "sqp_success": s_info.success, "sqp_status": s_info.status, "sqp_qp_solver": sqp_solver.qp_solver,
+            "sqp_speedup": naive["baseline_solve_ms_median"] / s_ms if ok else None,
+            "sqp_speedup_vs_expand": naive["expand_baseline_solve_ms_median"] / s_ms if ok else None,
+            "sqp_vs_ipopt": ours["solve_ms_median"] / s_ms if ok else None,
+            "sqp_objective_rel_diff": abs(s_info.objective - ours["objective"]) / abs(ours["objective"]),
+            "sqp_speedup_vs_reference": ref_ms / s_ms if ok else None}
+
+
+def _ddp(p: _Standard, objective: float, ref_ms: float) -> dict:
+    """Box-DDP on the exact discrete step, from the guess's ctrl and from rest (our IPOPT's ``objective`` beside)."""
+    p.say(f"ours (box-DDP on the exact discrete step, from the guess's ctrl): {p.repeats} solves ...")
+    ddp = ddp_for_model(p.model, p.T, bounds=p.bounds)
+    _, _, u_guess = _on_step_grid(p.guess, ddp.dt)
+    ddp.solve(p.x0, u_guess)  # loads (or compiles) its library (not timed)
+    d_ms, d_res = median_ms(lambda: ddp.solve(p.x0, u_guess), p.repeats)
+    doc = {"ddp_solve_ms_median": d_ms, "ddp_iterations": d_res.iterations, "ddp_objective": d_res.cost,
+           "ddp_success": d_res.converged, "ddp_status": d_res.status, "ddp_steps": ddp.N, "ddp_dt": ddp.dt,
+           # DDP solves the exact discrete problem, not the collocation's: its optimum differs slightly, and from
+           # the guess's ctrl run open loop it can land in another local minimum (this says which)
+           "ddp_objective_rel_diff": abs(d_res.cost - objective) / abs(objective),
+           "ddp_speedup_vs_reference": ref_ms / d_ms if d_res.converged else None}
+    p.say(f"ours (box-DDP on the exact discrete step, from rest: zero ctrl): {p.repeats} solves ...")
+    r_ms, r_res = median_ms(lambda: ddp.solve(p.x0, None), p.repeats)
+    doc.update({"ddp_rest_solve_ms_median": r_ms, "ddp_rest_iterations": r_res.iterations,
+                "ddp_rest_objective": r_res.cost, "ddp_rest_success": r_res.converged,
+                "ddp_rest_speedup_vs_reference": ref_ms / r_ms if r_res.converged else None})
+    return doc
+
+
+def _trajopt_row(ours: dict, naive: dict) -> dict:
+    """The ``trajopt`` document's rows of our IPOPT beside the naive script's, in the document's order."""
+    o, n = ours, naive
+    return {
+        "solve_ms_median": o["solve_ms_median"], "objective": o["objective"], "N": o["N"], "T": o["T"],
+        "solver": "ipopt", "iterations": o["iterations"], "success": o["success"],
+        "baseline_solve_ms_median": n["baseline_solve_ms_median"], "baseline_objective": n["baseline_objective"],
+        "baseline_iterations": n["baseline_iterations"], "baseline_success": n["baseline_success"],
+        "speedup": n["baseline_solve_ms_median"] / o["solve_ms_median"],
+        **{k: n[k] for k in ("expand_baseline_solve_ms_median", "expand_baseline_objective",
+                             "expand_baseline_iterations", "expand_baseline_success")},
+        "speedup_vs_expand": n["expand_baseline_solve_ms_median"] / o["solve_ms_median"],
+        "objective_rel_diff": abs(o["objective"] - n["baseline_objective"]) / abs(n["baseline_objective"]),
+        **{k: o[k] for k in ("warm_start_solve_ms_median", "warm_start_iterations", "warm_start_objective",
+                             "warm_start_success")},
+        "warm_start_speedup": n["warm_baseline_solve_ms_median"] / o["warm_start_solve_ms_median"],
+        "compiled": o["compiled"],
+        **{k: n[k] for k in ("warm_baseline_solve_ms_median", "warm_baseline_iterations", "warm_baseline_objective",
+                             "warm_baseline_success")},
+        **{k: o[k] for k in ("sx_solve_ms_median", "sx_iterations", "sx_objective")},
+        "sx_speedup": n["baseline_solve_ms_median"] / o["sx_solve_ms_median"],
+    }
+
+
+def _reference_row(ours: dict, naive: dict, ref_ms: float) -> dict:
+    """The hand-typed baseline's rows (one pole) and which baseline the ratios are taken against."""
+    hand = {k: v for k, v in naive.items() if k.startswith("hand_baseline_")}
+    return {**hand, "reference_baseline": "hand" if hand else "generic", "reference_solve_ms_median": ref_ms,
+            "speedup_vs_reference": ref_ms / ours["solve_ms_median"] if ours["success"] else None}
 
 
 def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms: float) -> dict:
@@ -406,7 +478,7 @@ def default_planner_row(ocp: DirectCollocation, x0, guess, repeats: int, ref_ms:
         plan (not JSON: the caller pops it).
     """
     try:
-        solver = CollocationSQP(ocp, max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED)
+        solver = CollocationSQP(ocp, options=SQPOptions(max_iter=SQP_MAX_ITER, max_unsettled=SQP_MAX_UNSETTLED))
     except SQPError:  # a problem the SQP does not take here (time without a C compiler): IPOPT's, as the planner
         solver = None
 
