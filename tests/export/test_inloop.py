@@ -34,7 +34,8 @@ pytestmark = pytest.mark.skipif(compiler() is None, reason="no C compiler")
 MJCF = {1: None, 2: "cartpole/assets/cartpole_two_pole.xml", 3: "cartpole/assets/cartpole_three_pole.xml"}
 LOOPS = {"none": None,
          "kf": LoopOptions(period=0.01, delay=0.01, estimator="kf", encoder_cpr=2048, sensor_noise=1e-3),
-         "ekf": LoopOptions(period=0.01, delay=0.01, estimator="ekf", encoder_cpr=2048)}
+         "ekf": LoopOptions(period=0.01, delay=0.01, estimator="ekf", encoder_cpr=2048),
+         "mhe": LoopOptions(period=0.01, delay=0.01, estimator="mhe", encoder_cpr=2048)}
 ESTIMATORS = tuple(LOOPS)
 #: The Python reference against the C on the same inputs (the same algorithm in numpy's and C's arithmetic).
 PYTHON_TOL = 1e-9
