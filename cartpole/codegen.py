@@ -487,12 +487,7 @@ def build_sources(files: dict, stem: str, *, cflags: tuple) -> str:
         objects = [compile_object(root, rel, (*cflags, "-fPIC"), incs, cc) for rel in sorted(files)
                    if rel.endswith(".c")]
         out = root / lib.name
-        cmd = [cc, *flags, *objects, "-o", lib.name, "-lm"]
-        proc = run_compiler(cmd, cwd=root)
-        if proc.returncode != 0 and "-march=native" in flags:
-            proc = run_compiler([c for c in cmd if c != "-march=native"], cwd=root)
-        if proc.returncode != 0:
-            raise RuntimeError(f"{Path(cc).name} failed: {_first_error(proc.stderr)}")
+        _run_or_portable([cc, *flags, *objects, "-o", lib.name, "-lm"], root)
         write_verified(lib, out.read_bytes())
     return str(lib)
 
@@ -549,13 +544,18 @@ def compile_object(root: Path, rel: str, flags: tuple, include_dirs: tuple, cc: 
 
 
 def _compile_object(root: Path, rel: str, obj: str, compile_cmd: tuple) -> bytes:
-    cmd = [*compile_cmd, "-c", rel, "-o", obj]
-    proc = run_compiler(cmd, cwd=root)
+    _run_or_portable([*compile_cmd, "-c", rel, "-o", obj], root)
+    return (root / obj).read_bytes()
+
+
+def _run_or_portable(cmd: list, cwd: Path) -> None:
+    """Run the compiler command ``cmd`` in ``cwd``; a refused ``-march=native`` is retried once without it; a
+    failure raises RuntimeError quoting the compiler's first error."""
+    proc = run_compiler(cmd, cwd=cwd)
     if proc.returncode != 0 and "-march=native" in cmd:
-        proc = run_compiler([c for c in cmd if c != "-march=native"], cwd=root)
+        proc = run_compiler([c for c in cmd if c != "-march=native"], cwd=cwd)
     if proc.returncode != 0:
         raise RuntimeError(f"{Path(cmd[0]).name} failed: {_first_error(proc.stderr)}")
-    return (root / obj).read_bytes()
 
 
 @contextlib.contextmanager

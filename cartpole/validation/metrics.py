@@ -433,8 +433,10 @@ def rest_tolerance(source, rig=None) -> np.ndarray:
     rho = _rate_resolution(params, spec, float(rig.period))
     if params.hinges and params.slides:
         carried = params.pole_mass
-        lever = [params.carried_by(h)[0] * params.carried_by(h)[1] / carried if carried > 0 else 0.0
-                 for h in params.hinges]
+        lever = []
+        for h in params.hinges:
+            m, d, _ = params.carried_by(h)
+            lever.append(m * d / carried if carried > 0 else 0.0)
         chain = float(np.dot(lever, rho[list(params.hinges)]))
         rho[list(params.slides)] += chain
     return tol + rho
