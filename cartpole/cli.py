@@ -136,8 +136,9 @@ def _stdout_to_stderr():
             os.close(saved)
 
 
-def _run(args):
-    """Run the command inside its progress reporter (and, when it writes files, its output transaction)."""
+def _run(args, received: SignalsReceived | None = None):
+    """Run the command inside its progress reporter (and, when it writes files, its output transaction); a signal
+    in ``received`` whose exception a library swallowed stops it at the end, inside the transaction."""
     from cartpole.codegen import private_cache_dir  # heavy (NumPy, CasADi): imported once a command runs
     from cartpole.models import mujoco_warnings
 
@@ -165,6 +166,8 @@ def _run(args):
         doc = args._run(args)
         if args._writes:  # inside the output transaction: the MJCF each URDF ran as, so its logs replay
             _write_urdf_mjcf(imports, Path(args.out), doc)
+        if received is not None:  # its files are removed as for any failure
+            received.raise_if_any()
     _report_urdf(args.command, imports, doc)
     for note in dict.fromkeys(notes):  # each distinct warning once, after a run that succeeded
         print(f"cartpole {args.command}: MuJoCo warned: {note}", file=sys.stderr)
@@ -223,23 +226,58 @@ def _report_urdf(command: str, imports: list, doc) -> None:
             model["urdf_changes"] = [line for rec in imports for line in rec.sentences()[len(rec.actuators):]]
 
 
+class SignalsReceived:
+    """The signals received inside :func:`signals_as_interrupts`, in order (``signums``).
+
+    Once one has come, whatever exception ends the command is that signal's: the handler's own exception may reach
+    the top as another type, e.g. a TypeError where pybind11 was converting a call's arguments when the signal came,
+    or be swallowed by a library's ``except Exception`` (the command then stops when it returns,
+    :meth:`raise_if_any`).
+    """
+
+    def __init__(self):
+        self.signums: list[int] = []
+
+    @property
+    def signum(self) -> int | None:
+        """The first signal received (its number), None if none was."""
+        return self.signums[0] if self.signums else None
+
+    def exception(self) -> KeyboardInterrupt:
+        """What the first signal raises: :class:`Terminated` for SIGTERM and SIGHUP, KeyboardInterrupt for SIGINT."""
+        return KeyboardInterrupt() if self.signum == signal.SIGINT else Terminated(self.signum)
+
+    def raise_if_any(self) -> None:
+        """Raise :meth:`exception` if a signal was received (one whose exception a library swallowed)."""
+        if self.signums:
+            raise self.exception()
+
+
 @contextlib.contextmanager
-def signals_as_interrupts():
-    """Inside the block (in the main thread), SIGTERM and SIGHUP raise :class:`Terminated`; the handlers before are
-    put back afterwards. A signal that was ignored stays ignored."""
+def signals_as_interrupts(received: SignalsReceived | None = None):
+    """Inside the block (in the main thread), SIGTERM and SIGHUP raise :class:`Terminated`, and SIGINT (where its
+    handler is Python's own) KeyboardInterrupt; each signal is recorded in ``received`` (a new
+    :class:`SignalsReceived` if None, yielded). Only the first raises: a second one while the command unwinds is
+    only recorded, so its clean-up (the half-written files removed, the encoder and the workers stopped) finishes.
+    The handlers before are put back afterwards; a signal that was ignored stays ignored."""
+    received = SignalsReceived() if received is None else received
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield received
         return
 
-    def terminate(signum, frame):
-        raise Terminated(signum)
+    def interrupt(signum, frame):
+        received.signums.append(signum)
+        if len(received.signums) == 1:
+            raise received.exception()
 
     saved = {}
     for sig in (signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(sig) is not signal.SIG_IGN:
-            saved[sig] = signal.signal(sig, terminate)
+            saved[sig] = signal.signal(sig, interrupt)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        saved[signal.SIGINT] = signal.signal(signal.SIGINT, interrupt)
     try:
-        yield
+        yield received
     finally:
         for sig, handler in saved.items():
             signal.signal(sig, handler)
@@ -292,30 +330,54 @@ def main(argv=None) -> int:
         print(f"cartpole {args.command}: MuJoCo failed to load with MUJOCO_GL={os.environ.get('MUJOCO_GL')} "
               f"({type(exc).__name__}); set MUJOCO_GL=egl (or unset it) and try again.", file=sys.stderr)
         return 2
+    received = SignalsReceived()
     try:
-        with signals_as_interrupts():
-            doc = _run(args)
-    except CartPoleError as exc:  # the library names Python arguments; the command line prints their options
-        print(f"cartpole {args.command}: {as_flags(sentence(exc))}", file=sys.stderr)
-        return 2
-    except MemoryError:
-        print(f"cartpole {args.command}: ran out of memory; give a shorter --duration or fewer runs.",
-              file=sys.stderr)
-        return 2
-    except OSError as exc:  # a file-system failure outside cartpole._files (its own are OutputError)
-        where = f" {exc.filename}" if getattr(exc, "filename", None) else ""
-        print(f"cartpole {args.command}: cannot read or write{where} ({exc.strerror or sentence(exc)[:-1]}); "
-              "check the path or choose another --out.", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt as exc:  # a command may say what it kept and how to go on (sweep: --resume)
-        said = exc.args[0] if exc.args and isinstance(exc.args[0], str) else "interrupted."
-        if isinstance(exc, Terminated) and not (exc.args and isinstance(exc.args[0], str)):
-            said = f"stopped by {signal.Signals(exc.signum).name} before it finished; no partial output is left."
-        print(f"cartpole {args.command}: {said}", file=sys.stderr)
-        return 128 + exc.signum if isinstance(exc, Terminated) else 130
+        with signals_as_interrupts(received):
+            doc = _run(args, received)
+    except BaseException as exc:
+        status = _failure(args.command, exc, received.signum)
+        if status is None:
+            raise
+        return status
     if args.json:
         return _print_document(args.command, doc)
     return 0
+
+
+def _failure(command: str, exc: BaseException, signum: int | None) -> int | None:
+    """Print the one sentence for the exception that ended ``command`` on stderr and return the exit status (None:
+    not one of ours, let it be raised). After signal ``signum`` (None: no signal came) any exception is that
+    signal's: the handler's own may have surfaced as another type (pybind11 turns it into a TypeError when the
+    signal comes while it converts arguments); the output transaction has removed the command's files already."""
+    if signum is not None or isinstance(exc, KeyboardInterrupt):
+        return _interrupted(command, exc, signum)
+    if isinstance(exc, CartPoleError):  # the library names Python arguments; the command line prints their options
+        print(f"cartpole {command}: {as_flags(sentence(exc))}", file=sys.stderr)
+    elif isinstance(exc, MemoryError):
+        print(f"cartpole {command}: ran out of memory; give a shorter --duration or fewer runs.", file=sys.stderr)
+    elif isinstance(exc, OSError):  # a file-system failure outside cartpole._files (its own are OutputError)
+        where = f" {exc.filename}" if getattr(exc, "filename", None) else ""
+        print(f"cartpole {command}: cannot read or write{where} ({exc.strerror or sentence(exc)[:-1]}); "
+              "check the path or choose another --out.", file=sys.stderr)
+    else:
+        return None
+    return 2
+
+
+def _interrupted(command: str, exc: BaseException, signum: int | None) -> int:
+    """Ctrl-C or a signal: the command's own sentence when it gave one (a sweep says what it kept and how to go
+    on), else a stock one; exit status 130 for Ctrl-C, 128 + the signal's number for SIGTERM and SIGHUP."""
+    if isinstance(exc, Terminated):
+        signum = exc.signum
+    elif signum is None:  # a KeyboardInterrupt that no handler of ours raised
+        signum = signal.SIGINT
+    said = exc.args[0] if isinstance(exc, KeyboardInterrupt) and exc.args and isinstance(exc.args[0], str) else None
+    if signum == signal.SIGINT:
+        print(f"cartpole {command}: {said or 'interrupted.'}", file=sys.stderr)
+        return 130
+    said = said or f"stopped by {signal.Signals(signum).name} before it finished; no partial output is left."
+    print(f"cartpole {command}: {said}", file=sys.stderr)
+    return 128 + signum
 
 
 def _print_document(command: str, doc) -> int:

@@ -119,3 +119,69 @@ def test_a_listener_that_is_not_a_dask_scheduler_is_one_sentence_and_nothing_aft
         server.close()
     lines = err.strip().splitlines()
     assert proc.returncode == 2 and out == "" and len(lines) == 1 and "Cannot reach a Dask scheduler" in lines[0], err
+
+
+def _signal_inside(sig, then):
+    """A stand-in for a call the command makes: ``sig`` arrives while it runs, and what the handler raised becomes
+    ``then()`` (an exception to raise, as pybind11 turns it into a TypeError when the signal comes while it converts
+    a call's arguments) or, with ``then`` None, is swallowed (as a library's ``except Exception`` around that call
+    would) and the call returns normally."""
+    try:
+        os.kill(os.getpid(), sig)  # os.kill runs the handler before it returns when the signal is its own process's
+        for _ in range(1000):
+            pass
+    except BaseException:
+        if then is not None:
+            raise then() from None
+    else:
+        raise AssertionError("the command line's handler raised nothing")
+
+
+@pytest.mark.parametrize("then", [lambda: TypeError("incompatible function arguments"), None],
+                         ids=["converted-to-TypeError", "swallowed"])
+def test_sigterm_whose_exception_a_library_converts_or_swallows_still_stops_the_command_cleanly(tmp_path, capsys,
+                                                                                                 monkeypatch, then):
+    """The CI race: SIGTERM while a C extension runs. Whatever becomes of the handler's exception, the command ends
+    as SIGTERM does: status 143, one sentence, no traceback, none of the files it had written (the figure was)."""
+    import cartpole.commands.lqr as lqr_command
+    from cartpole.apps.lab import FIGURE
+    from cartpole.cli import main
+
+    out = tmp_path / "out"
+    seen = {}
+    real = lqr_command.append_metrics
+
+    def append_metrics(*args, **kwargs):  # the last file the lab writes, after its figure
+        seen["figure"] = (out / FIGURE).exists()
+        _signal_inside(signal.SIGTERM, then)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(lqr_command, "append_metrics", append_metrics)
+    before = signal.getsignal(signal.SIGTERM)
+    status = main(["lqr", "--no-video", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert seen == {"figure": True}
+    assert status == 128 + signal.SIGTERM, err
+    assert err.strip().splitlines()[-1] == ("cartpole lqr: stopped by SIGTERM before it finished; no partial output "
+                                            "is left.") and "Traceback" not in err
+    assert _files(out) == [], "a file was left"
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_a_second_signal_while_the_command_unwinds_is_recorded_not_raised():
+    """Only the first signal raises: a second one (a service manager repeating SIGTERM) while the clean-up runs
+    must not cut that clean-up short and leave half-written files or a live encoder."""
+    from cartpole.cli import signals_as_interrupts
+    from cartpole.errors import Terminated
+
+    cleaned = False
+    with signals_as_interrupts() as received:
+        try:
+            _signal_inside(signal.SIGTERM, lambda: TypeError("incompatible function arguments"))
+        except TypeError:
+            os.kill(os.getpid(), signal.SIGHUP)  # would raise here, inside the clean-up, if it were the first
+            for _ in range(1000):
+                pass
+            cleaned = True
+    assert cleaned and received.signums == [signal.SIGTERM, signal.SIGHUP]
+    assert isinstance(received.exception(), Terminated) and received.exception().signum == signal.SIGTERM
