@@ -144,25 +144,50 @@ class StageOptions:
         self.set_field(name, types.MappingProxyType(dict(value)))
 
     def number(self, name: str, *, low: float = -math.inf, high: float = math.inf, low_open: bool = False,
-               unit: str = "", optional: bool = False, integer: bool = False) -> None:
+               unit: str = "", optional: bool = False, integer: bool = False, hint: str = "") -> None:
         """Field ``name`` as a float (or int) in ``[low, high]`` (``(low, high]`` with ``low_open``), else one
-        sentence; None passes when ``optional``."""
+        sentence; None passes when ``optional``.
+
+        Parameters
+        ----------
+        name : str
+            The field.
+        low, high : float
+            Its bounds, in ``unit``; ``low`` excluded when ``low_open``.
+        low_open : bool
+            Whether ``low`` itself is refused.
+        unit : str
+            The unit the sentence states after the bounds (e.g. ``"s"``).
+        optional : bool
+            Whether None is allowed (kept as None).
+        integer : bool
+            Whether the value must be a whole number (stored as an int).
+        hint : str
+            What to do, ending the sentence after a semicolon (e.g. ``"give e.g. `duration=5`, or None for ..."``;
+            an argument in backquotes is what the command line names by its option); default: none.
+
+        Raises
+        ------
+        the class's :attr:`error`
+            The value is not a (whole) number, not finite or out of its bounds.
+        """
         value = getattr(self, name)
         if value is None and optional:
             return
         what = f"{type(self).__name__}.{name}"
+        then = f"; {hint}." if hint else "."
         try:
             v = float(value)
             if integer and v != int(v):
                 raise ValueError
         except (TypeError, ValueError, OverflowError):
             kind = "a whole number" if integer else "a number"
-            raise self.error(f"{what} must be {kind}; got {value!r}.") from None
+            raise self.error(f"{what} must be {kind}; got {value!r}{then}") from None
         ok = math.isfinite(v) and (v > low if low_open else v >= low) and v <= high
         if not ok:
             if math.isinf(high):
                 cond = f"{'>' if low_open else '>='} {low:g}"
             else:
                 cond = f"in {'(' if low_open else '['}{low:g}, {high:g}]"
-            raise self.error(f"{what} = {value!r} must be a finite number {cond}{' ' + unit if unit else ''}.")
+            raise self.error(f"{what} = {value!r} must be a finite number {cond}{' ' + unit if unit else ''}{then}")
         self.set_field(name, int(v) if integer else v)

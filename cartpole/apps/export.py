@@ -11,7 +11,6 @@ not diverge.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -86,15 +85,8 @@ class ExportOptions(StageOptions):
     def __post_init__(self):
         for name in ("float32", "verify", "mcu"):
             self.set_field(name, bool(getattr(self, name)))
-        if self.duration is not None:
-            try:
-                ok = math.isfinite(float(self.duration)) and float(self.duration) > 0
-            except (TypeError, ValueError):
-                ok = False
-            if not ok:
-                raise ExportError(f"The verification's `duration` {self.duration!r} is not a positive number of "
-                                  "seconds; give e.g. 5, or None for the Python path's length.")
-            self.set_field("duration", float(self.duration))
+        self.number("duration", low=0.0, low_open=True, optional=True, unit="s",
+                    hint="give the verification e.g. `duration=5`, or None for the Python path's length")
         if isinstance(self.u_max, (list, np.ndarray)):  # one per actuator: kept as a tuple (read-only)
             self.set_field("u_max", tuple(np.ravel(self.u_max).tolist()))
 

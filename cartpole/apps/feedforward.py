@@ -30,7 +30,6 @@ first step. The feedback measures the error and corrects it while it is small.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Callable, ClassVar
 
@@ -76,20 +75,11 @@ class FeedforwardError(CartPoleError):
 
 def check_mass_error(mass_error) -> float:
     """``mass_error`` as a float, or one sentence: it must be a finite number from -0.9 to 9 (the pole keeps a
-    mass; the scale ``1 + mass_error`` lies in the model error's [0.1, 10]).
+    mass; the scale ``1 + mass_error`` lies in the model error's [0.1, 10]); :class:`FeedforwardOptions` checks it.
 
     The wrong planning model's pole links weigh ``1 + mass_error`` times the MJCF's (0.1 = 10 % heavier).
     """
-    try:
-        f = float(mass_error)
-    except (TypeError, ValueError):
-        raise FeedforwardError(f"The mass error {mass_error!r} is not a number; give a relative error such as "
-                               "0.1 (the planning model's pole 10 % heavier).") from None
-    if not (math.isfinite(f) and -0.9 <= f <= 9.0):
-        raise FeedforwardError(f"The mass error {mass_error!r} must be a finite number from -0.9 to 9 (the planning "
-                               "model's pole weighs 1 + error times the MJCF's, as a model error of 0.1 to 10); give "
-                               "e.g. 0.1 or -0.1.")
-    return f
+    return FeedforwardOptions(mass_error=mass_error).mass_error
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,15 +126,11 @@ class FeedforwardOptions(StageOptions):
     SCALARS: ClassVar[tuple] = ("mass_error", "extra", "cart_max")
 
     def __post_init__(self):
-        self.set_field("mass_error", check_mass_error(self.mass_error))
-        try:
-            ok = math.isfinite(float(self.extra)) and float(self.extra) >= 1.0
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise FeedforwardError(f"The time after the plan, {self.extra} s, must be at least 1 s (the success "
-                                   "test looks at the last 1 s); give e.g. 2.")
-        self.set_field("extra", float(self.extra))
+        self.number("mass_error", low=-0.9, high=9.0,
+                    hint="give a relative mass error such as `mass_error=0.1` (the planning model's pole weighs "
+                         "1 + mass_error times the MJCF's, a model error of 0.1 to 10)")
+        self.number("extra", low=1.0, unit="s",
+                    hint="give the time after the plan e.g. `extra=2` (the success test looks at its last 1 s)")
         if self.plan is None:
             self.set_field("plan", plan_options())
         if isinstance(self.u_max, (list, np.ndarray)):  # one per actuator: kept as a tuple (read-only)

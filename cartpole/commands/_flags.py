@@ -34,6 +34,7 @@ FLAGS = {
     "horizon": "--horizon",
     "lab_margins": "--margins",
     "logs": "--log",
+    "mass_error": "--mass-error",
     "mcu": "--mcu",
     "method": "--method",
     "mode='hanging'": "--mode hanging",

@@ -5,7 +5,6 @@ scenario, and later its sensors and delay); the shape every stage's options shar
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import ClassVar
 
 import numpy as np
@@ -196,19 +195,8 @@ class LoopOptions(StageOptions):
                                 "sensor_noise", "process_noise", "mhe_horizon", "seed")
 
     def __post_init__(self):
-        for name in ("duration", "period"):
-            v = getattr(self, name)
-            if v is None:
-                continue
-            try:
-                ok = math.isfinite(float(v)) and float(v) > 0
-            except (TypeError, ValueError):
-                ok = False
-            if not ok:
-                flag = f"--{name}"
-                raise LoopError(f"{name.capitalize()} {v} s is not a positive number of seconds; give e.g. {flag} "
-                                f"{8 if name == 'duration' else 0.02}.")
-            self.set_field(name, float(v))
+        for name, example in (("duration", 8), ("period", 0.02)):
+            self.number(name, low=0.0, low_open=True, optional=True, unit="s", hint=f"give e.g. `{name}={example}`")
         self.set_field("push", check_push(self.push))
         self.set_field("model_error", check_model_error(self.model_error))
         self.number("delay", low=0.0, unit="s")

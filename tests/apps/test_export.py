@@ -7,7 +7,8 @@ from cartpole.export import ExportError
 
 @pytest.mark.parametrize("duration", [0, -1.0, float("inf"), "long"])
 def test_a_verification_duration_that_is_not_a_time_is_one_sentence_naming_the_argument(duration):
-    with pytest.raises(ExportError, match=r"The verification's `duration` .* is not a positive number of seconds"):
+    with pytest.raises(ExportError, match=r"ExportOptions.duration (= .* )?must be a (finite )?number.*; give the "
+                                          r"verification e.g. `duration=5`, or None for the Python path's length\.$"):
         ExportOptions(verify=True, duration=duration)
 
 

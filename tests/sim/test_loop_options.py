@@ -23,8 +23,9 @@ def test_loop_options_normalise_pushes_and_scales_and_echo_as_json():
 
 
 @pytest.mark.parametrize("changes, words", [
-    (dict(duration=0.0), "Duration 0.0 s is not a positive number"), (dict(period=-0.02), "Period -0.02 s"),
-    (dict(duration="long"), "not a positive number"), (dict(push=[(1.0, np.nan)]), "finite force"),
+    (dict(duration=0.0), "LoopOptions.duration = 0.0 must be a finite number > 0 s; give e.g. `duration=8`"),
+    (dict(period=-0.02), "period = -0.02 must be a finite number > 0 s"),
+    (dict(duration="long"), "LoopOptions.duration must be a number; got 'long'"), (dict(push=[(1.0, np.nan)]), "finite force"),
     (dict(push=[(1.0,)]), "pair"), (dict(model_error=11.0), "scale in \\[0.1, 10\\]"),
     (dict(durations=1.0), "LoopOptions has no field 'durations'; the fields are duration, period, push, model_error"),
     (dict(delay=-0.01), "delay = -0.01 must be a finite number >= 0"), (dict(encoder_cpr=0.5), "whole number"),
