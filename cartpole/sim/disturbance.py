@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, build_model, wrap_angle
+from cartpole.models import CartPoleParams, MJCFError, build_model, wrap_angle
 from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 #: Upright band, rad: every pole's wrapped angle error from upright below this counts as upright for a knockdown's
@@ -105,9 +105,39 @@ def joint_inertia_and_authority(plant, x_eq: np.ndarray) -> tuple[np.ndarray, np
 
 def swingup_energy(plant) -> float:
     """The model's swing-up energy ``E(x_eq) - E(x_hanging)`` in J (upright rest minus hanging rest, from
-    :attr:`cartpole.models.CartPoleModel.energy`), the scale of a knock's size; ``plant`` params, a model or a path."""
+    :attr:`cartpole.models.CartPoleModel.energy`), the scale of a knock's size; ``plant`` params, a model or a path.
+    A model with no hanging rest (gravity pushing an undriven joint there) gets the most its poles' weight can do
+    instead, ``2 |g| sum_b m_b |c_b - a|`` over the bodies the first hinge carries (centres of mass ``c_b`` at upright,
+    ``a`` that hinge's anchor): the same number for a straight chain."""
     model = build_model(plant)
-    return float(model.energy(model.x_eq)) - float(model.energy(model.x_hanging))
+    try:
+        hanging = model.x_hanging
+    except MJCFError:
+        return reach_energy(plant, model.x_eq, model.hinges[0])
+    return float(model.energy(model.x_eq)) - float(model.energy(hanging))
+
+
+def reach_energy(plant, x_eq, hinge: int) -> float:
+    """J: ``2 |g| sum_b m_b |c_b - a|`` at the state ``x_eq`` (nx,): the largest drop of potential energy the bodies
+    carried by joint ``hinge`` (a qpos index) can have, each centre of mass ``c_b`` at most ``2 |c_b - a|`` from its
+    mirror image through the hinge's anchor ``a``."""
+    m, d = make_mujoco(plant)
+    d.qpos[:] = np.asarray(x_eq, float)[:m.nq]
+    mujoco.mj_kinematics(m, d)
+    jnt = int(np.nonzero(m.jnt_qposadr == hinge)[0][0])
+    root = int(m.jnt_bodyid[jnt])
+    carried = [b for b in range(m.nbody) if _carried_by(m, b, root)]
+    anchor = d.xanchor[jnt]
+    g = float(np.linalg.norm(m.opt.gravity))
+    return float(2.0 * g * sum(m.body_mass[b] * np.linalg.norm(d.xipos[b] - anchor) for b in carried))
+
+
+def _carried_by(m, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(m.body_parentid[body])
+    return False
 
 
 @dataclass(frozen=True)

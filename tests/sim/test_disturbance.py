@@ -9,6 +9,7 @@ from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
 from cartpole.models import build_model, read_params, wrap_angle
 from cartpole.sim import (KNOCK_ENERGY, UPRIGHT_BAND, DisturbanceError, Knockdown, Rollout, Throw, replay,
                           replays_exactly, simulate, swingup_energy)
+from cartpole.sim.disturbance import reach_energy
 from cartpole.validation import BasinCache, uptime_metrics
 
 
@@ -61,6 +62,8 @@ def test_a_knock_brings_the_poles_down_against_the_catch_with_a_bounded_share_of
     e_swing = float(model.energy(model.x_eq)) - float(model.energy(model.x_hanging))
     force = Knockdown(0.2, 0.3, seed=5).start(params, x_eq=model.x_eq, hinges=model.hinges)
     assert force.swingup_energy == pytest.approx(e_swing) and swingup_energy(params) == pytest.approx(e_swing)
+    # what a model without a hanging rest gets instead: the same on a straight chain
+    assert reach_energy(params, model.x_eq, model.hinges[0]) == pytest.approx(e_swing)
     run = simulate(params, LinearFeedback.for_model(model), model.x_eq, 1.5, disturbance=force)
     assert replays_exactly(run) and run.info["diverged"] is None
     knock = force.knocks[0]
