@@ -2,8 +2,8 @@
 
 A lab that shows its cart-pole to visitors gets poked: :class:`Knockdown` waits until every pole has been upright
 (within :data:`UPRIGHT_BAND` of the upright equilibrium, angle errors wrapped) for ``after`` seconds, then pushes each
-hinge with a random torque for ``length`` seconds, strong enough to beat the controller, and waits for the next
-time it is upright; :class:`Throw` throws the state at random times whatever the controller is doing (as RealAIGym's
+hinge with a random torque, strong enough to beat the controller, for at most ``length`` seconds and until it has done
+its share of the model's swing-up energy in work, and waits for the next time it is upright; :class:`Throw` throws the state at random times whatever the controller is doing (as RealAIGym's
 robustness benchmark does), as a one-step impulse giving each hinge a random change of rate. Both are callables
 ``f(t, x) -> (nv,)`` that :func:`cartpole.sim.rollout.simulate` applies through MuJoCo's ``qfrc_applied`` and logs
 every physics step, so the run replays exactly with ``mj_step``.
