@@ -25,8 +25,9 @@
 #   remove energy), then a **plan** from the state it will be in when the plan is ready, **TVLQR** along it, and the
 #   catch at its end; a state that leaves the tracking funnel is planned from again.
 #
-# The **knockdown** (`LoopOptions(knockdown="AFTER:LENGTH:SEED")`) pushes every joint with random generalized forces
-# for LENGTH s each time the poles have been upright for AFTER s; the **throw** (`throw="EVERY:RATE:SEED"`) changes
+# The **knockdown** (`LoopOptions(knockdown="AFTER:LENGTH:SEED")`) pushes every hinge with random torques each time
+# the poles have been upright for AFTER s, for at most LENGTH s and only until they have done half a swing-up's energy
+# to one in work (`E(upright) - E(hanging)`, the model's own; an optional fourth field scales it); the **throw** (`throw="EVERY:RATE:SEED"`) changes
 # every hinge rate by up to RATE rad/s at random times, whatever the controller is doing, also mid swing-up. The
 # score is the **uptime**: the fraction of the run with every pole within the upright band.
 

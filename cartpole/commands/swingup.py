@@ -77,9 +77,11 @@ def add_arguments(parser) -> None:
                         help="push the cart: a horizontal (world x) force of F newtons for 0.1 s from time T s, "
                              "through MuJoCo's xfrc_applied; repeatable; logged per physics step in the rollout's "
                              "'push', so the run replays exactly")
-    parser.add_argument("--knockdown", default=None, metavar="AFTER:LENGTH[:SEED]",
+    parser.add_argument("--knockdown", default=None, metavar="AFTER:LENGTH[:SEED[:ENERGY]]",
                         help="knock the poles down each time they have been upright (every pole within 0.2 rad) "
-                             "for AFTER s: LENGTH s of random torques on the hinges, stronger than the motor, seeded; "
+                             "for AFTER s: random torques on the hinges, stronger than the motor, seeded, for at most "
+                             "LENGTH s and at most ENERGY (default 1) times a random 0.5-1 of the model's swing-up "
+                             "energy of work; "
                              "logged per physics step in the rollout's 'qfrc_applied', so the run replays exactly; "
                              "the JSON adds uptime, knockdowns and swingups; runs the supervisor by default")
     parser.add_argument("--throw", default=None, metavar="EVERY[:RATE[:SEED]]",

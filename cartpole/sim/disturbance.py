@@ -2,17 +2,29 @@
 
 A lab that shows its cart-pole to visitors gets poked: :class:`Knockdown` waits until every pole has been upright
 (within :data:`UPRIGHT_BAND` of the upright equilibrium, angle errors wrapped) for ``after`` seconds, then pushes each
-hinge with a random torque for ``length`` seconds, strong enough to beat the controller, and waits for the next
-time it is upright; :class:`Throw` throws the state at random times whatever the controller is doing (as RealAIGym's
+hinge with a random torque, strong enough to beat the controller, for at most ``length`` seconds and until it has done
+its share of the model's swing-up energy in work, and waits for the next time it is upright; :class:`Throw` throws the state at random times whatever the controller is doing (as RealAIGym's
 robustness benchmark does), as a one-step impulse giving each hinge a random change of rate. Both are callables
 ``f(t, x) -> (nv,)`` that :func:`cartpole.sim.rollout.simulate` applies through MuJoCo's ``qfrc_applied`` and logs
 every physics step, so the run replays exactly with ``mj_step``.
 
-Strength of a knock, per hinge ``i`` (N m): ``M_ii (4 / length^2 + 2 a_i) * r_i``, with ``M_ii`` the joint-space
-inertia at upright, ``4 / length^2`` the angular acceleration that turns a free pole by 2 rad in ``length`` seconds,
-``a_i = |(M^-1 B)_i| u_max`` the largest angular acceleration the actuators can give that hinge at upright (so the
-knock beats the controller's authority twice over), and ``r_i`` drawn uniformly from [0.5, 1] with a random sign,
-held for the knock's length. Slides are not pushed (the cart is what the controller moves).
+Size of a knock, stated in energy: each knock may do at most ``W = energy * r_E * E_swing`` of work on the hinges,
+``E_swing = E(upright) - E(hanging)`` the model's own swing-up energy (:func:`swingup_energy`, J: 0.59 on the lab's
+cart, 39 on dm_control's acrobot), ``energy`` the knock's size in those units (:data:`KNOCK_ENERGY` by default) and
+``r_E`` uniform in [0.5, 1], seeded. The work counted is ``sum_i max(tau_i dq_i, 0)`` over the physics steps (each
+hinge's positive work only, so no hinge's loss pays for another's gain: the net work is at most that), and the push
+stops, early, the moment it reaches ``W`` (its last step scaled down to land on it). So a knock leaves the chain a
+bounded fraction of its swing-up energy above upright on every model, light or heavy, instead of a torque held for
+``length`` s whatever it did.
+
+Torque of a knock, per hinge ``i`` (N m), while the budget lasts and for at most ``length`` s:
+``strength * M_ii (4 / length^2 + 2 a_i) * r_i``, with ``M_ii`` the joint-space inertia at upright, ``4 / length^2``
+the angular acceleration that turns a free pole by 2 rad in ``length`` seconds, ``a_i = |(M^-1 B)_i| u_max`` the
+largest angular acceleration the actuators can give that hinge at upright (so the knock beats the controller's
+authority twice over: the catch cannot hold the poles in the band against it), and ``r_i`` drawn uniformly from
+[0.5, 1] with a random sign, held for the knock. Slides are not pushed (the cart is what the controller moves).
+Each knock's record (:class:`KnockRecord`: its times, budget, work and whether the poles then left the upright band)
+is in :attr:`KnockdownForce.knocks`.
 """
 from __future__ import annotations
 
@@ -22,7 +34,7 @@ import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, wrap_angle
+from cartpole.models import CartPoleParams, MJCFError, build_model, wrap_angle
 from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 #: Upright band, rad: every pole's wrapped angle error from upright below this counts as upright for a knockdown's
@@ -31,6 +43,16 @@ UPRIGHT_BAND = 0.2
 
 #: Longest knock or wait accepted, s.
 MAX_DISTURBANCE_SECONDS = 3600.0
+
+#: A knock's default size, in units of the model's swing-up energy ``E(upright) - E(hanging)``: each knock's work
+#: budget is this times a seeded factor uniform in [0.5, 1], so half a swing-up to one. Enough to bring the poles out
+#: of the upright band against the LQR catch on every shipped model, and past the supervisor's catch on the lab's cart
+#: (with half this, the smallest knocks, under 0.3 of a swing-up there, were caught back inside the band's
+#: neighbourhood); a small fraction of what the acrobot's damping had to take out after the torque rule alone.
+KNOCK_ENERGY = 1.0
+
+#: Largest knock size accepted, in swing-up energies.
+MAX_KNOCK_ENERGY = 100.0
 
 
 class DisturbanceError(CartPoleError):
@@ -81,6 +103,66 @@ def joint_inertia_and_authority(plant, x_eq: np.ndarray) -> tuple[np.ndarray, np
     return np.diag(M).copy(), authority
 
 
+def swingup_energy(plant) -> float:
+    """The model's swing-up energy ``E(x_eq) - E(x_hanging)`` in J (upright rest minus hanging rest, from
+    :attr:`cartpole.models.CartPoleModel.energy`), the scale of a knock's size; ``plant`` params, a model or a path.
+    A model with no hanging rest (gravity pushing an undriven joint there) gets the most its poles' weight can do
+    instead, ``2 |g| sum_b m_b |c_b - a|`` over the bodies the first hinge carries (centres of mass ``c_b`` at upright,
+    ``a`` that hinge's anchor): the same number for a straight chain."""
+    model = build_model(plant)
+    try:
+        hanging = model.x_hanging
+    except MJCFError:
+        return reach_energy(plant, model.x_eq, model.hinges[0])
+    return float(model.energy(model.x_eq)) - float(model.energy(hanging))
+
+
+def reach_energy(plant, x_eq, hinge: int) -> float:
+    """J: ``2 |g| sum_b m_b |c_b - a|`` at the state ``x_eq`` (nx,): the largest drop of potential energy the bodies
+    carried by joint ``hinge`` (a qpos index) can have, each centre of mass ``c_b`` at most ``2 |c_b - a|`` from its
+    mirror image through the hinge's anchor ``a``."""
+    m, d = make_mujoco(plant)
+    d.qpos[:] = np.asarray(x_eq, float)[:m.nq]
+    mujoco.mj_kinematics(m, d)
+    jnt = int(np.nonzero(m.jnt_qposadr == hinge)[0][0])
+    root = int(m.jnt_bodyid[jnt])
+    carried = [b for b in range(m.nbody) if _carried_by(m, b, root)]
+    anchor = d.xanchor[jnt]
+    g = float(np.linalg.norm(m.opt.gravity))
+    return float(2.0 * g * sum(m.body_mass[b] * np.linalg.norm(d.xipos[b] - anchor) for b in carried))
+
+
+def _carried_by(m, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(m.body_parentid[body])
+    return False
+
+
+@dataclass(frozen=True)
+class KnockRecord:
+    """One knock as it happened (:attr:`KnockdownForce.knocks`).
+
+    Attributes
+    ----------
+    start, end : float
+        s: the push's first step and the time it stopped (budget spent or ``length`` over).
+    budget : float
+        J: the work it was allowed.
+    work : float
+        J: the positive work it did on the hinges, ``sum_i max(tau_i dq_i, 0)`` over its steps.
+    downed : bool
+        True once the poles left the upright band after it began (before the next knock).
+    """
+
+    start: float
+    end: float
+    budget: float
+    work: float
+    downed: bool
+
+
 @dataclass(frozen=True)
 class Knockdown:
     """Knock the poles down each time they have been upright for ``after`` seconds.
@@ -95,17 +177,21 @@ class Knockdown:
         Seed of the knocks' random torques (the same seed, the same knocks on the same run).
     strength : float
         Scale of the torques (1: the module's rule, which beats the actuators twice over).
+    energy : float
+        Size of each knock in units of the model's swing-up energy (:func:`swingup_energy`): its work budget is this
+        times a seeded factor in [0.5, 1]; default :data:`KNOCK_ENERGY`.
 
     Raises
     ------
     DisturbanceError
-        Times not in (0, 3600] s, a negative seed or a strength not in (0, 100].
+        Times not in (0, 3600] s, a negative seed, a strength not in (0, 100] or an energy not in (0, 100].
     """
 
     after: float
     length: float
     seed: int = 0
     strength: float = 1.0
+    energy: float = KNOCK_ENERGY
 
     def __post_init__(self):
         object.__setattr__(self, "after", _seconds("knockdown's wait (AFTER)", self.after))
@@ -115,20 +201,31 @@ class Knockdown:
         if not (np.isfinite(s) and 0 < s <= 100):
             raise DisturbanceError(f"The knockdown's strength must be in (0, 100]; got {self.strength!r}.")
         object.__setattr__(self, "strength", s)
+        try:
+            e = float(self.energy)
+        except (TypeError, ValueError):
+            e = float("nan")
+        if not (np.isfinite(e) and 0 < e <= MAX_KNOCK_ENERGY):
+            raise DisturbanceError(f"The knockdown's energy (ENERGY) must be a number of swing-up energies in (0, "
+                                   f"{MAX_KNOCK_ENERGY:g}]; got {self.energy!r}.")
+        object.__setattr__(self, "energy", e)
 
     @classmethod
     def parse(cls, text: str) -> "Knockdown":
-        """``"AFTER:LENGTH[:SEED]"`` (seconds, seconds, whole number), as the command line writes it."""
+        """``"AFTER:LENGTH[:SEED[:ENERGY]]"`` (seconds, seconds, whole number, swing-up energies), as the command line
+        writes it; ENERGY defaults to :data:`KNOCK_ENERGY`."""
         parts = str(text).split(":")
-        if len(parts) not in (2, 3):
-            raise DisturbanceError(f"A knockdown is AFTER:LENGTH[:SEED] (seconds upright before each knock, seconds "
-                                   f"it lasts, a seed), e.g. 3:0.3:1; got {text!r}.")
+        if len(parts) not in (2, 3, 4):
+            raise DisturbanceError(f"A knockdown is AFTER:LENGTH[:SEED[:ENERGY]] (seconds upright before each knock, "
+                                   f"seconds it lasts at most, a seed, its size in swing-up energies), e.g. 3:0.3:1; "
+                                   f"got {text!r}.")
         try:
             after, length = float(parts[0]), float(parts[1])
         except ValueError:
-            raise DisturbanceError(f"A knockdown is AFTER:LENGTH[:SEED] with AFTER and LENGTH in seconds, e.g. "
-                                   f"3:0.3:1; got {text!r}.") from None
-        return cls(after, length, parts[2] if len(parts) == 3 else 0)
+            raise DisturbanceError(f"A knockdown is AFTER:LENGTH[:SEED[:ENERGY]] with AFTER and LENGTH in seconds, "
+                                   f"e.g. 3:0.3:1; got {text!r}.") from None
+        energy = parts[3] if len(parts) == 4 else KNOCK_ENERGY
+        return cls(after, length, parts[2] if len(parts) >= 3 else 0, energy=energy)
 
     def start(self, source: CartPoleParams, *, x_eq, hinges) -> "KnockdownForce":
         """The stateful force ``f(t, x) -> (nv,)`` for one run on ``source`` (upright at ``x_eq`` (nx,), pole angles
@@ -138,7 +235,8 @@ class Knockdown:
 
 class KnockdownForce:
     """One run's knockdowns (:meth:`Knockdown.start`): call it as ``f(t, x) -> (nv,)`` once per physics step in time
-    order. :attr:`events` lists each knock's ``(start, end)`` times in s.
+    order. :attr:`events` lists each knock's ``(start, end)`` times in s (end: when its push stopped), :attr:`knocks`
+    each knock's :class:`KnockRecord`.
 
     Parameters
     ----------
@@ -156,13 +254,35 @@ class KnockdownForce:
         self.x_eq = x_eq
         self.hinges = hinges
         self.nq = x_eq.size // 2
-        inertia, authority = joint_inertia_and_authority(source, x_eq)
-        self.scale = knock.strength * inertia * (4.0 / knock.length ** 2 + 2.0 * authority)
+        self.inertia, authority = joint_inertia_and_authority(source, x_eq)
+        self.scale = knock.strength * self.inertia * (4.0 / knock.length ** 2 + 2.0 * authority)
+        self.swingup_energy = swingup_energy(source)
+        self._m, self._d = make_mujoco(source)
+        self.h = float(self._m.opt.timestep)
         self.rng = np.random.default_rng(knock.seed)
         self.upright_since: float | None = None
         self.knock_until: float | None = None
         self.torque = np.zeros(x_eq.size - self.nq)
         self.events: list[tuple[float, float]] = []
+        self._knocks: list[dict] = []
+        self._q_last: np.ndarray | None = None
+        self._applied = np.zeros_like(self.torque)
+        self._spent = False
+
+    def _accel(self, x: np.ndarray) -> np.ndarray:
+        """(nv,) the joints' acceleration from the knock's torque alone at state ``x``: ``M(q)^-1 tau``."""
+        self._d.qpos[:] = x[:self._m.nq]
+        mujoco.mj_kinematics(self._m, self._d)
+        mujoco.mj_comPos(self._m, self._d)
+        mujoco.mj_crb(self._m, self._d)
+        M = np.zeros((self._m.nv, self._m.nv))
+        mujoco.mj_fullM(self._m, self._d, M)
+        return np.linalg.solve(M, self.torque)
+
+    @property
+    def knocks(self) -> tuple[KnockRecord, ...]:
+        """Every knock so far, in time order."""
+        return tuple(KnockRecord(**k) for k in self._knocks)
 
     def upright(self, x) -> bool:
         """Every pole within :data:`UPRIGHT_BAND` of upright (angle errors wrapped)."""
@@ -170,23 +290,59 @@ class KnockdownForce:
         return bool(np.all(np.abs(err) < UPRIGHT_BAND))
 
     def __call__(self, t: float, x) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        up = self.upright(x)
+        if self._knocks and not up:
+            self._knocks[-1]["downed"] = True
         if self.knock_until is not None:
-            if t < self.knock_until - 1e-12:
-                return self.torque.copy()
-            self.knock_until, self.upright_since = None, None
-        if not self.upright(x):
+            torque = self._pushing(t, x)
+            if torque is not None:
+                return torque
+        if not up:
             self.upright_since = None
             return np.zeros_like(self.torque)
         if self.upright_since is None:
             self.upright_since = t
         if t - self.upright_since < self.knock.after - 1e-12:
             return np.zeros_like(self.torque)
+        return self._begin(t, x)
+
+    def _begin(self, t: float, x: np.ndarray) -> np.ndarray:
+        """A new knock from time ``t`` (s): its torques, held while it lasts, and its work budget (J)."""
         self.torque = np.zeros_like(self.torque)
         for h in self.hinges:
             self.torque[h] = self.scale[h] * self.rng.uniform(0.5, 1.0) * self.rng.choice((-1.0, 1.0))
+        budget = self.knock.energy * self.rng.uniform(0.5, 1.0) * self.swingup_energy
         self.knock_until = t + self.knock.length
         self.events.append((float(t), float(t + self.knock.length)))
-        return self.torque.copy()
+        self._knocks.append({"start": float(t), "end": float(t + self.knock.length), "budget": float(budget),
+                             "work": 0.0, "downed": False})
+        self._q_last, self._spent = None, False
+        return self._pushing(t, x)
+
+    def _pushing(self, t: float, x: np.ndarray):
+        """The knock's torque (nv,) for the step from ``t`` (s), scaled down on the step that would overrun its
+        budget; None once it is over (length elapsed or budget spent), its end then recorded."""
+        rec = self._knocks[-1]
+        q = x[:self.nq]
+        if self._q_last is not None:  # the work of the torque applied over the last step: exact, tau constant on it
+            rec["work"] += float(np.sum(np.maximum(self._applied * (q - self._q_last)[:self.torque.size], 0.0)))
+        left = rec["budget"] - rec["work"]
+        if t >= self.knock_until - 1e-12 or self._spent or left <= 1e-12 * max(rec["budget"], 1.0):
+            self.knock_until, self.upright_since, self._q_last = None, None, None
+            rec["end"] = float(t)
+            self.events[-1] = (rec["start"], float(t))
+            return None
+        v = x[self.nq:self.nq + self.torque.size]
+        # the step's work predicted from the rates and the acceleration the torque gives (M(q)^-1 tau), each part's
+        # positive side only, so that scaling the torque by s < 1 scales the prediction by s or less
+        accel = self._accel(x)
+        predicted = float(np.sum(np.maximum(self.torque * v * self.h, 0.0))
+                          + np.sum(np.maximum(self.torque * accel * self.h ** 2, 0.0)))
+        self._spent = predicted > left  # this step lands on the budget: the knock's last
+        applied = self.torque * (left / predicted) if self._spent else self.torque.copy()
+        self._q_last, self._applied = q.copy(), applied
+        return applied.copy()
 
 
 @dataclass(frozen=True)

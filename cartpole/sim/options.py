@@ -161,7 +161,7 @@ class LoopOptions(StageOptions):
         design on the smooth friction model and add nothing (False). Changes nothing on a model without it.
     knockdown : Knockdown or str or None
         Knock the poles down each time they have been upright for a while (:class:`cartpole.sim.disturbance.
-        Knockdown`, or its ``"AFTER:LENGTH[:SEED]"`` text); None: never.
+        Knockdown`, or its ``"AFTER:LENGTH[:SEED[:ENERGY]]"`` text); None: never.
     throw : Throw or str or None
         Throw the state at random times whatever it is doing (:class:`cartpole.sim.disturbance.Throw`, or its
         ``"EVERY[:RATE[:SEED]]"`` text); None: never.

@@ -1,13 +1,15 @@
-"""Knockdowns and throws: generalized forces on the joints, seeded, logged every physics step, replayed exactly."""
+"""Knockdowns and throws: generalized forces on the joints, seeded, logged every physics step, replayed exactly; a
+knock's size stated in the model's own swing-up energy, and enough to bring the poles down against the catch."""
 import numpy as np
 import pytest
 
 from cartpole.control import LinearFeedback
 from cartpole.control.energy import EnergyShapingController
 from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
-from cartpole.models import build_model, read_params
-from cartpole.sim import (UPRIGHT_BAND, DisturbanceError, Knockdown, Rollout, Throw, replay, replays_exactly,
-                          simulate)
+from cartpole.models import build_model, read_params, wrap_angle
+from cartpole.sim import (KNOCK_ENERGY, UPRIGHT_BAND, DisturbanceError, Knockdown, Rollout, Throw, replay,
+                          replays_exactly, simulate, swingup_energy)
+from cartpole.sim.disturbance import reach_energy
 from cartpole.validation import BasinCache, uptime_metrics
 
 
@@ -26,12 +28,68 @@ def test_knock_waits_until_upright_for_after_seconds_then_pushes_only_the_hinges
     assert all(not force(k * h, up).any() for k in range(n_wait))
     f = force(n_wait * h, up)
     assert f[list(model.hinges)].all() and not np.delete(f, list(model.hinges)).any()
+    assert len(force.events) == 1 and force.events[0][0] == pytest.approx(n_wait * h)
+    assert np.array_equal(force(n_wait * h + 0.1, up), f)  # held while it does no work and its length lasts
+    assert not force(n_wait * h + 0.2, up).any()  # over: wait again
     assert len(force.events) == 1 and force.events[0][1] - force.events[0][0] == pytest.approx(0.2)
-    down = up.copy()
-    down[model.hinges[0]] += np.pi
-    assert np.array_equal(force(n_wait * h + 0.1, down), f)  # the knock is held for its length, wherever it goes
-    assert not force(n_wait * h + 0.3, up).any()  # over: wait again
-    assert len(force.events) == 1
+    assert force.knocks[0].work == 0.0 and not force.knocks[0].downed
+
+
+def test_a_knock_stops_pushing_once_its_work_reaches_its_budget(cart):
+    params, model = cart
+    force = Knockdown(0.01, 0.3, seed=3).start(params, x_eq=model.x_eq, hinges=model.hinges)
+    up = np.asarray(model.x_eq, dtype=float)
+    h = params.timestep
+    t = next(k * h for k in range(100) if force(k * h, up).any())
+    moved = up.copy()
+    hinge = model.hinges[0]
+    # moved along the push by more than the swing-up energy's worth of work: more than any budget
+    moved[hinge] += 2.0 * force.swingup_energy / force.torque[hinge]
+    assert not force(t + h, moved).any()
+    knock = force.knocks[0]
+    assert knock.work > knock.budget and knock.end == pytest.approx(t + h) and force.events[0] == (knock.start, knock.end)
+    assert knock.downed  # the state it was called with is out of the band
+
+
+@pytest.mark.parametrize("mjcf", ["cartpole/assets/cartpole.xml", "cartpole/assets/cartpole_three_pole.xml",
+                                  "cartpole/assets/dmc_acrobot.xml"])
+def test_a_knock_brings_the_poles_down_against_the_catch_with_a_bounded_share_of_the_swingup_energy(mjcf):
+    """The work a knock does on the hinges, read from the logged ``qfrc_applied`` and the hinges' moves, is at most its
+    budget, at most ``energy`` swing-up energies; yet the LQR catch, fighting it, cannot keep the poles upright: they
+    fall past horizontal. The run replays exactly."""
+    params = read_params(mjcf)
+    model = build_model(params)
+    e_swing = float(model.energy(model.x_eq)) - float(model.energy(model.x_hanging))
+    force = Knockdown(0.2, 0.3, seed=5).start(params, x_eq=model.x_eq, hinges=model.hinges)
+    assert force.swingup_energy == pytest.approx(e_swing) and swingup_energy(params) == pytest.approx(e_swing)
+    # what a model without a hanging rest gets instead: the same on a straight chain
+    assert reach_energy(params, model.x_eq, model.hinges[0]) == pytest.approx(e_swing)
+    run = simulate(params, LinearFeedback.for_model(model), model.x_eq, 1.5, disturbance=force)
+    assert replays_exactly(run) and run.info["diverged"] is None
+    knock = force.knocks[0]
+    t = np.asarray(run.t)
+    k0, k1 = np.searchsorted(t, knock.start - 1e-9), np.searchsorted(t, knock.end - 1e-9)
+    qfrc = np.asarray(run.info["qfrc_applied"])
+    dq = np.diff(np.asarray(run.qpos), axis=0)
+    work = float(np.sum(np.maximum(qfrc[k0:k1] * dq[k0:k1], 0.0)))
+    assert work == pytest.approx(knock.work) and 0.0 < work <= knock.budget * (1 + 1e-9)
+    assert 0.5 * KNOCK_ENERGY * e_swing <= knock.budget <= KNOCK_ENERGY * e_swing
+    assert not qfrc[k1:].any()  # spent before its length was up (or not) and nothing pushed after it
+    hinges = list(model.hinges)
+    err = np.abs(wrap_angle(np.asarray(run.qpos)[k0:, hinges] - np.asarray(model.x_eq)[hinges]))
+    assert knock.downed and err.max() > np.pi / 2
+
+
+def test_a_knocks_budget_scales_with_its_energy_and_the_same_seed_draws_the_same_knock(cart):
+    params, model = cart
+    up = np.asarray(model.x_eq, dtype=float)
+
+    def knock(energy):
+        f = Knockdown(0.01, 0.1, seed=4, energy=energy).start(params, x_eq=model.x_eq, hinges=model.hinges)
+        torque = next(v for k in range(100) if (v := f(k * params.timestep, up)).any())
+        return torque, f.knocks[0].budget
+    (t1, b1), (t2, b2) = knock(1.0), knock(0.25)
+    assert np.array_equal(t1, t2) and b2 == pytest.approx(0.25 * b1)
 
 
 def test_knocks_are_seeded(cart):
@@ -56,6 +114,12 @@ def test_a_knocked_down_energy_swingup_swings_up_again_and_the_log_replays(cart,
     assert replays_exactly(run)
     stats = uptime_metrics(run, model, events=force.events)
     assert stats["knockdowns"] >= 2
+    # every knock brings the pole down past horizontal against the catch, before the next knock
+    starts = [k.start for k in force.knocks] + [run.t[-1]]
+    hinge = model.hinges[0]
+    for a, b in zip(starts[:-1], starts[1:]):
+        seg = (run.t >= a) & (run.t < b)
+        assert np.abs(wrap_angle(run.qpos[seg, hinge] - model.x_eq[hinge])).max() > np.pi / 2, (a, b)
     # every knock is followed by a swing-up, but the last may have had too little run left
     assert stats["recoveries"] >= stats["knockdowns"] - 1
     assert all(t > run.t[-1] - 4.0 for t in stats["unrecovered_at"])
@@ -95,10 +159,16 @@ def test_uptime_counts_a_run_held_upright_as_up_without_swingups(cart):
 
 
 @pytest.mark.parametrize("text, fix", [("3", "AFTER:LENGTH"), ("a:b", "seconds"), ("3:0.3:-1", "seed"),
-                                       ("0:0.3", "wait"), ("3:1e9", "length")])
+                                       ("0:0.3", "wait"), ("3:1e9", "length"), ("3:0.3:1:0", "ENERGY"),
+                                       ("3:0.3:1:x", "swing-up energies"), ("3:0.3:1:1:1", "AFTER:LENGTH")])
 def test_bad_knockdowns_are_refused_in_one_sentence(text, fix):
     with pytest.raises(DisturbanceError, match=fix):
         Knockdown.parse(text)
+
+
+def test_a_knockdowns_text_takes_an_optional_size_in_swingup_energies():
+    assert Knockdown.parse("3:0.3:7") == Knockdown(3.0, 0.3, 7, energy=KNOCK_ENERGY)
+    assert Knockdown.parse("3:0.3:7:0.25") == Knockdown(3.0, 0.3, 7, energy=0.25)
 
 
 def test_loop_options_take_a_knockdown_as_text_and_build_the_runs_disturbance(cart):
