@@ -6,7 +6,7 @@
   ``release_factor * rho`` (hysteresis, as :class:`~cartpole.control.switching.SwitchingController`).
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
-  decisions logged).
+  decisions logged); likewise one pole driven at its hinge (a pendulum) with :class:`~cartpole.supervise.pump.HingePump`.
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
@@ -47,6 +47,7 @@ from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
+from cartpole.supervise.pump import HingePump, pendulum_driven_at_hinge
 from cartpole.validation import BasinCache
 
 
@@ -592,7 +593,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
                    library: PlanLibrary | None = None, catch_R=None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
-    applies (one pole driven by the cart), else the planner.
+    applies (one pole driven by the cart; a pendulum driven at its hinge: :class:`~cartpole.supervise.pump.HingePump`),
+    else the planner.
 
     Parameters
     ----------
@@ -647,6 +649,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     try:
         check_single_pole(model)
     except EnergyShapingModelError:
+        if pendulum_driven_at_hinge(model):  # one pole on a driven hinge: its pump swings up from anywhere, no plan
+            return Supervisor(model, catch, rho, brake, swingup=HingePump(model, catch.u_limits), options=opts,
+                              basin=basin)
         plan_opts = PlanOptions() if plan is None else plan
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
         if not opts.exact_plans:
