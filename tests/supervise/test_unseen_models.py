@@ -170,6 +170,22 @@ def test_a_pole_knocked_onto_its_range_limit_is_reported_stalled_never_counted_u
     assert len(unreachable) == 1 and "range limit" in unreachable[0]["reason"] and "hinge" in unreachable[0]["reason"]
 
 
+def test_a_pole_whose_range_ends_at_hanging_knocked_down_counts_no_recovery():
+    """The corpus's hinge limited to +-pi (dm_control's numbers, 2.7e-6 rad short of hanging): knocked from upright,
+    the pole swings onto the range's wall at hanging, where the energy law's swings through hanging end (it pumps
+    against the wall and never gets up; a plan, which could swing up on one side, is not what one pole driven by the
+    cart gets). The run counts no recovery and no uptime after the knock."""
+    duration = 12.0
+    params, model, sup, force, run, m = _knockdown_run(CORPUS / "hinge_range_pi.xml", duration, start="upright")
+    assert replays_exactly(run, params) and not run.info.get("diverged", False)
+    assert m["knockdowns"] == 1 and m["recoveries"] == 0 and m["swingups"] == 0, m
+    assert m["uptime"] <= (force.events[0][0] + LENGTH) / duration, m
+    h = model.hinges[0]
+    lo, hi = params.joints[h].range
+    q = np.asarray(run.qpos)[:, h]
+    assert min(np.min(np.abs(q - lo)), np.min(np.abs(q - hi))) < 0.05  # it does swing onto the wall
+
+
 def test_a_motor_too_weak_to_pump_never_counts_a_recovery():
     """A 2 N motor under a damped 1 kg pole (tests/assets/unseen/weak_motor_cartpole.xml) balances but cannot swing
     the pole up again: knocked from upright, the run counts no recovery and no uptime after the knock, and the energy
