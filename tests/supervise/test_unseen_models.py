@@ -247,3 +247,19 @@ def test_cli_knockdown_on_gymnasiums_pendulum_says_why_it_stays_down(tmp_path):
     assert len(lines) == 1 and "--x0" in lines[0] and "range" in lines[0] and lines[0].endswith("."), lines
     assert not any((tmp_path / "refused").iterdir())  # no half-written file
 
+
+
+def test_cli_throw_on_a_torque_limited_pendulum_swings_up_again_and_replays_with_mj_step(tmp_path):
+    """``cartpole swingup --throw 3:10:1`` on the corpus's torque-limited pendulum (no cart; its motor below m g l,
+    so each swing-up pumps): exit 0, the supervisor's hinge pump (no plan), a throw followed by a swing-up, and the
+    rollout with its ``qfrc_applied`` replays with plain ``mj_step``."""
+    path = CORPUS / "pendulum_torque_limited.xml"
+    p = _cli(path, "--throw", "3:10:1", "--duration", "12", out=tmp_path)
+    assert p.returncode == 0, p.stderr
+    j = json.loads(p.stdout)
+    assert j["method"] == "supervisor" and j["supervisor"]["plans"] == 0, j["supervisor"]
+    assert j["knockdowns"] >= 2 and j["recoveries"] >= 1, j
+    r = j["rollout"]
+    assert not np.any(r["push"])  # no cart to push
+    qpos, qvel = replay_with_mj_step(path, r["qpos"][0], r["qvel"][0], r["ctrl"], qfrc_applied=r["qfrc_applied"])
+    assert np.array_equal(qpos, np.asarray(r["qpos"])) and np.array_equal(qvel, np.asarray(r["qvel"]))
