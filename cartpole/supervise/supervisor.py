@@ -6,7 +6,7 @@
   ``release_factor * rho`` (hysteresis, as :class:`~cartpole.control.switching.SwitchingController`).
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
-  decisions logged).
+  decisions logged); likewise one pole driven at its hinge (a pendulum) with :class:`~cartpole.supervise.pump.HingePump`.
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
@@ -47,6 +47,7 @@ from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
+from cartpole.supervise.pump import HingePump, pendulum_driven_at_hinge
 from cartpole.validation import BasinCache
 
 
@@ -85,6 +86,16 @@ HINGE_BRAKE_TIME = 1.5
 #: damping takes its energy's excess over hanging down by half in about 19 s (time constant 27 s, measured), so
 #: 1100 J above upright take about 90 s to reach it.
 HINGE_CALM_BUDGET = 120.0
+#: s: the swing-up law (one pole driven by the cart) that has held every hinge at rest (below :data:`STALL_RATE`)
+#: outside the catch's basin this long has stalled: a deterministic law gives a state at rest the same ctrl each step.
+#: Gymnasium's and Brax's inverted pendulums (hinge limited to +-90 degrees) knocked down rest on their hinge's limit,
+#: horizontal, where pushing the cart has no lever on the pole; a ``stalled`` decision says so once per fall and the
+#: run's ``unreachable`` lists it (tests/supervise/test_unseen_models.py).
+STALL_SECONDS = 2.0
+#: rad/s: a hinge slower than this counts as at rest for :data:`STALL_SECONDS`.
+STALL_RATE = 1e-2
+#: rad: a hinge this close to (or beyond) an end of its range rests on that limit, which a stall's reason names.
+STALL_LIMIT_TOL = 0.05
 
 
 class SupervisorError(OptionsError):
@@ -199,7 +210,8 @@ class Decision:
     kind : str
         ``"catch"``, ``"swingup"`` (the swing-up law took over), ``"brake"``, ``"plan"`` (a plan requested),
         ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
-        ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is).
+        ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
+        ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -322,6 +334,7 @@ class Supervisor:
         self.fast_since = None
         self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
         self.replan_at = np.inf
+        self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
 
     @property
     def latency(self) -> float:
@@ -366,6 +379,29 @@ class Supervisor:
         hv = [self.model.nq + i for i in h]
         return bool(np.max(np.abs(wrap_angle(x[h] - ref[h]))) <= 0.5 * self.options.funnel
                     and np.max(np.abs(x[hv] - ref[hv])) <= RESTART_RATE)
+
+    def _watch_stall(self, t: float, x) -> None:
+        """Log a ``stalled`` decision once per fall when the swing-up law has held every hinge at rest for
+        :data:`STALL_SECONDS`, naming a hinge that rests on its range limit."""
+        rates = np.abs(x[[self.model.nq + h for h in self.hinges]])
+        if self.stalled or np.any(rates > STALL_RATE):
+            self.still_since = None
+            return
+        self.still_since = t if self.still_since is None else self.still_since
+        if t - self.still_since < STALL_SECONDS - 1e-9:
+            return
+        self.stalled = True
+        why = (f"the swing-up law has held every pole at rest outside the catch's basin for {STALL_SECONDS:g} s, so it "
+               f"will not swing up from here")
+        for h in self.hinges:
+            joint = self.model.params.joints[h]
+            lo, hi = (float(v) for v in joint.range)
+            if min(x[h] - lo, hi - x[h]) < STALL_LIMIT_TOL:
+                off = float(np.degrees(wrap_angle(x[h] - float(np.asarray(self.model.x_eq)[h]))))
+                why = (f"hinge '{joint.name}' rests on its range limit [{lo:.4g}, {hi:.4g}] rad, {off:.1f} deg from "
+                       f"upright, where the swing-up law cannot lift it (a range that keeps the pole from hanging "
+                       f"down: widen it, or limited=\"false\", for a pole that can swing through)")
+        self._decide(t, "stalled", x0=[float(v) for v in x], reason=why)
 
     def _request_plan(self, t: float, x) -> None:
         """Plan from the state predicted ``latency`` s ahead under the brake; the plan is used from ``t + W``."""
@@ -487,9 +523,11 @@ class Supervisor:
         cost = float(self.catch.cost_to_go(x))
         if cost < self.rho or (self.mode == "catch" and cost < self.options.release_factor * self.rho):
             self._set(t, "catch", cost=cost)
+            self.still_since, self.stalled = None, False
             return self.catch(t, x)
         if self.swingup is not None:
             self._set(t, "swingup", cost=cost)
+            self._watch_stall(t, x)
             return self.swingup(t, x)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
             late = max(0.0, t - self.plan_t0)
@@ -530,9 +568,9 @@ class Supervisor:
         """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``,
         ``warm_plans`` (plans made from a library's warm start) and ``library_plans`` (plans in the library at the
         end, or None without one), ``unreachable`` (each state no swing-up was found from within the budget: ``t``,
-        ``x0``, the planner's ``reason``)."""
+        ``x0``, the planner's ``reason``; and each stall of the swing-up law, its ``reason``)."""
         unreachable = [{"t": d.t, "x0": d.detail.get("x0"), "reason": d.detail.get("reason")}
-                       for d in self.decisions if d.kind == "plan_failed"]
+                       for d in self.decisions if d.kind in ("plan_failed", "stalled")]
         return {"unreachable": unreachable, "decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
                 "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho,
                 "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library)}
@@ -555,7 +593,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
                    library: PlanLibrary | None = None, catch_R=None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
-    applies (one pole driven by the cart), else the planner.
+    applies (one pole driven by the cart; a pendulum driven at its hinge: :class:`~cartpole.supervise.pump.HingePump`),
+    else the planner.
 
     Parameters
     ----------
@@ -610,6 +649,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     try:
         check_single_pole(model)
     except EnergyShapingModelError:
+        if pendulum_driven_at_hinge(model):  # one pole on a driven hinge: its pump swings up from anywhere, no plan
+            return Supervisor(model, catch, rho, brake, swingup=HingePump(model, catch.u_limits), options=opts,
+                              basin=basin)
         plan_opts = PlanOptions() if plan is None else plan
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
         if not opts.exact_plans:
