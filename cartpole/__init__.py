@@ -22,8 +22,12 @@ workflow:
   (``LinearFeedback.for_model``, the one constructor of the upright LQR);
 - the lab: :func:`run_lab`, :func:`run_pid_lab`, :func:`balances`, :func:`plot_lab`, :func:`watch`, its weights
   :data:`Q_LAB`, :data:`R_LAB`;
-- swing-up, plan and track: :func:`run_swingup`, :func:`trajopt_swingup`, :class:`EnergyShapingController`,
-  :class:`SwitchingController`, :class:`TVLQRController`, :func:`run_feedforward` (:class:`FeedforwardOptions`);
+- swing-up, plan and track: :func:`run_swingup` (:class:`SwingupOptions`, each stage's options inside:
+  :class:`PlanOptions`, :class:`MPCOptions`, :class:`EnergyOptions`, :class:`LoopOptions`), :func:`swingup_sweep`,
+  :func:`trajopt_swingup`, :class:`EnergyShapingController`, :class:`SwitchingController`, :class:`TVLQRController`,
+  :func:`run_feedforward` (:class:`FeedforwardOptions`);
+- knocked down, it swings up again: :func:`supervisor_for` (:class:`Supervisor`, :class:`SupervisorOptions`),
+  :class:`Knockdown`, :class:`Throw` (``LoopOptions(knockdown=..., throw=...)``), :func:`uptime_metrics`;
 - simulate and replay: :func:`simulate` (:class:`SimOptions`), :func:`replay`, :func:`replays_exactly`,
   :class:`Rollout`, :class:`LoopOptions`;
 - the rig and estimation: :func:`sensor_spec`, :class:`KalmanFilter`; margins: :func:`sampled_loop`,
@@ -59,14 +63,19 @@ _SOURCES = {
                          "lqr", "tvlqr"),
     "cartpole.control": ("CascadedPID", "EnergyShapingController", "LinearFeedback", "SWINGUP_CATCH_R",
                          "SwitchingController", "TVLQRController"),
-    "cartpole.control.energy": ("model_scales",),
     "cartpole.estimation": ("KalmanFilter", "measurement_function", "sensor_spec"),
     "cartpole.estimation.kalman": ("process_noise",),
     "cartpole.analysis": ("continuous_loop", "loop_margins", "sampled_loop"),
-    "cartpole.sim": ("LoopOptions", "Rollout", "SimOptions", "make_mujoco", "replay", "replays_exactly", "simulate"),
+    "cartpole.sim": ("Knockdown", "LoopOptions", "Rollout", "SimOptions", "Throw", "make_mujoco", "replay",
+                     "replays_exactly", "simulate"),
+    "cartpole.planning.options": ("PlanOptions",),
     "cartpole.planning.trajopt": ("trajopt_swingup",),
+    "cartpole.control.energy": ("EnergyOptions", "model_scales"),
+    "cartpole.mpc.options": ("MPCOptions",),
+    "cartpole.supervise": ("Supervisor", "SupervisorOptions", "supervisor_for"),
     "cartpole.export": ("design_export", "load_design", "run_lockstep"),
-    "cartpole.validation": ("BasinCache", "estimate_basin", "swingup_metrics", "swingup_success"),
+    "cartpole.validation": ("BasinCache", "estimate_basin", "swingup_metrics", "swingup_success",
+                             "uptime_metrics"),
     "cartpole.validation.jacobians": ("check_jacobians", "mujoco_fd_jacobians", "random_states"),
     "cartpole.validation.metrics": ("UPRIGHT_TOL", "held_upright", "summarize", "track_margin"),
     "cartpole.viz": ("VideoOptions", "VideoUnavailable", "plot_lab", "plot_swingup", "render_frame", "render_video"),
@@ -76,6 +85,7 @@ _SOURCES = {
     "cartpole.viz.swingup_plot": ("swingup_figure",),
     "cartpole.apps.lab": ("Q_LAB", "R_LAB", "balances", "run_lab", "run_pid_lab"),
     "cartpole.apps.swingup": ("TRAJOPT_EXTRA", "SwingupOptions", "run_swingup"),
+    "cartpole.apps.sweep": ("swingup_sweep",),
     "cartpole.apps.feedforward": ("FeedforwardOptions", "PlanFeedforward", "run_feedforward"),
     "cartpole.apps.margins": ("mujoco_stable",),
     "cartpole.apps.excite": ("ExciteOptions", "run_excite"),
