@@ -36,7 +36,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from cartpole.control import LinearFeedback
+from cartpole.control import EnergyDrain, LinearFeedback
 from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError, check_single_pole
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.switching import SWINGUP_CATCH_R
@@ -153,6 +153,11 @@ class SupervisorOptions(StageOptions):
         the next predicted state; a re-plan while tracking is warm only too), instead of the stored plan from the
         nearest start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near
         its start.
+    calm_drain : bool
+        Calm with :class:`~cartpole.control.drain.EnergyDrain` (the motor bends its joint against the swing, the
+        reverse of Spong's pumping) down to ``calm_energy`` (0 J, the upright's, when that is None), the calming
+        brake below it (True; :func:`supervisor_for` sets it for a model driven at a hinge), or with the calming brake
+        alone (False, default): a passive damper on a driven joint the chain hardly moves takes little out.
     """
 
     plan_budget: float = 30.0
@@ -169,6 +174,7 @@ class SupervisorOptions(StageOptions):
     calm_brake_time: float | None = None
     calm_energy: float | None = None
     warm_tails: bool = False
+    calm_drain: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -183,7 +189,7 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails"):
+        for name in ("exact_plans", "warm_tails", "calm_drain"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
 
@@ -602,11 +608,15 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve; plan
         # only once the damping has brought the energy to the upright's, warm-started from the nearest knot
         opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
-                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME)
+                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME,
+                            calm_drain=True)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
     calm_brake = (None if opts.calm_brake_time is None else
                   PassiveBrake(model, inertia, opts.calm_brake_time, catch.u_limits))
+    if opts.calm_drain:  # the drain down to the calm energy, the calming brake below it
+        calm_brake = EnergyDrain(model, target=0.0 if opts.calm_energy is None else opts.calm_energy,
+                                 below=brake if calm_brake is None else calm_brake, u_limits=catch.u_limits)
     try:
         check_single_pole(model)
     except EnergyShapingModelError:
