@@ -10,8 +10,10 @@
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
-  On a model driven at a hinge (the acrobot) :func:`supervisor_for` waits for the energy to reach the upright's: a
-  knock leaves it more than its motor can take out, the joints' damping removes it, and no plan is found before.
+  On a model driven at a hinge (the acrobot) :func:`supervisor_for` waits for the energy to reach the upright's (no
+  plan is found from above it) and calms with :class:`~cartpole.control.drain.EnergyDrain` (``calm_drain``): its
+  motor drives the elbow with its motion while it is slow and brakes it once fast, down to the upright's energy,
+  where a damper on the elbow of a chain swinging as one body takes almost nothing out.
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
