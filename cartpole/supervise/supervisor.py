@@ -71,21 +71,24 @@ KNOT_ENERGY_WEIGHT = 31.6
 #: energy alone a calmed acrobot's knot can be the plan's last, a quarter-second plan from a pose it does not have.
 KNOT_MIN_TAIL = 2.0
 #: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
-#: (``SupervisorOptions.calm_energy``): knocked down, dm_control's acrobot holds 140-1100 J (its swing-up needs 39 J,
-#: seeds 0-11 of ``Knockdown(3, 0.3)``), which its 2 N m elbow motor cannot take out faster than the joints' damping
-#: (``tests/supervise/test_brake.py``); a plan from above that level has to wait for the damping as the brake does,
-#: and the planner does not find one (minutes of cold tries).
+#: (``SupervisorOptions.calm_energy``), and its energy drain (``calm_drain``) stops there: knocked down, dm_control's
+#: acrobot holds 135-1440 J (its swing-up needs 39 J; seeds 0-11 of ``Knockdown(3, 0.3)`` at the knock's end), a plan
+#: from above the upright's energy is not found (minutes of cold tries), and from there the drain and the joints'
+#: damping take 31-64 s (median 52 s) to reach it, where the damping alone takes 42-78 s (median 65 s; in MuJoCo,
+#: ``tests/control/test_drain.py`` and ``docs/recovery.md``). Above about 100 J the 2 N m elbow motor can hardly
+#: help: centrifugal torques hold the elbow straight (``tests/supervise/test_brake.py``).
 HINGE_CALM_ENERGY = 0.0
-#: s: the calming brake's time constant :func:`supervisor_for` gives a model driven at a hinge (``calm_brake_time``):
-#: on the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
-#: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too. Knocked by
-#: ``Knockdown(3, 0.3)`` (seeds 2, 3), the energy reaches the upright's 8-12 s sooner with 1.5 s than with 0.15 s
-#: (measured, in MuJoCo). While a plan is on its way the stiff brake holds the chain straight, near the plans' poses
-#: (with the soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
+#: s: the time constant of the brake :func:`supervisor_for` gives a model driven at a hinge below the drain's target
+#: (``calm_brake_time``: at or below the upright's energy, while some hinge is still faster than ``calm_rate``): on
+#: the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
+#: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too (with the brake alone,
+#: knocked by ``Knockdown(3, 0.3)``, seeds 2, 3, the energy reached the upright's 8-12 s sooner with 1.5 s than with
+#: 0.15 s). While a plan is on its way the stiff brake holds the chain straight, near the plans' poses (with the
+#: soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
 HINGE_BRAKE_TIME = 1.5
-#: s: how long :func:`supervisor_for` lets the brake calm a model driven at a hinge (``calm_budget``): the acrobot's
-#: damping takes its energy's excess over hanging down by half in about 19 s (time constant 27 s, measured), so
-#: 1100 J above upright take about 90 s to reach it.
+#: s: how long :func:`supervisor_for` lets the drain and brake calm a model driven at a hinge (``calm_budget``):
+#: knocked, the acrobot reaches the upright's energy 31-64 s after the knock (above); from the highest energies a
+#: throw could leave (the damping halves the energy's excess over hanging in about 19 s) 120 s leaves room.
 HINGE_CALM_BUDGET = 120.0
 
 
