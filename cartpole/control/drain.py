@@ -16,11 +16,12 @@ and takes more out over the swing; once the total energy is at or below ``target
 ``below`` (a passive law), so it never adds energy above the target.
 
 Measured on dm_control's acrobot (``cartpole/assets/dmc_acrobot.xml``, 2 N m at the elbow; ``tests/control/
-test_drain.py``): from 50 J (above the upright's 0 J) it reaches the upright's energy about twice as fast as the
-joints' damping alone, where the reverse of Spong's swing-up pumping (partial feedback linearisation of the elbow to
-``-alpha atan(q_dot_shoulder)``) gained a quarter and a passive damper on the elbow nothing. Above about 100 J no
-law does much better than the damping: centrifugal torques of tens of N m hold the elbow straight against its
-2 N m (a 3 s open-loop optimum of the ctrl removed 10-20 % more than the damping alone from 100-300 J).
+test_drain.py``): from 50 J (above the upright's 0 J) it reaches the upright's energy in about 0.6 of the time the
+joints' damping alone takes, where the reverse of Spong's swing-up pumping (partial feedback linearisation of the
+elbow onto ``-alpha atan(q_dot_shoulder)``) took 0.75 of it and a passive damper on the elbow about as long (soft) or
+longer (stiff). Above about 100 J no law does much better than the damping: centrifugal torques of tens of N m hold
+the elbow straight against its 2 N m (a local open-loop optimum of the ctrl over 3 s, L-BFGS from two guesses, took
+out 10-20 % more than the damping alone from 100-300 J, about three times as much from 30 J).
 """
 from __future__ import annotations
 
@@ -32,8 +33,9 @@ from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel
 
 #: rad/s (m/s on a slide): the driven joint's rate below which the drain drives it with its motion, above which
-#: against it. On dm_control's acrobot 6 rad/s drained from 50 J fastest of 1, 2, 4, 6 and 8 (to the upright's
-#: energy in 15 s at the median of 12 knocked states, 16-17 s with 4 or 8, 28 s with the damping alone).
+#: against it. On dm_control's acrobot 6 rad/s drained from 50 J fastest of 1, 2, 4, 6 and 8 rad/s (to the upright's
+#: energy in 15 s at the median of the states ``Knockdown(3, 0.3)`` leaves, seeds 0-11, once the damping has taken
+#: them down to 50 J; 16-17 s with 4 or 8 rad/s, 28 s with the damping alone; in MuJoCo).
 DRAIN_RATE = 6.0
 #: The switch's width as a fraction of ``rate`` (the law is saturated linear across ``rate +- width``).
 DRAIN_WIDTH = 0.2 / 6.0
