@@ -100,12 +100,13 @@ def test_a_chain_recovers_from_every_knockdown_for_a_minute():
 
 
 #: The acrobot's runs start upright, as a rig shown to visitors is when they poke it (its swing-up from hanging, about
-#: 20 s, is tested below). What a knock leaves, the supervisor's calming law (:class:`~cartpole.control.drain.EnergyDrain`,
-#: down to the upright's energy) calms in 31-64 s (median 52 s; the damping alone 42-78 s, median 65 s; seeds 0-11 of
-#: ``Knockdown(3, 0.3)``, from the state at the knock's end, in MuJoCo). Seed 11, the quickest: knocked at 3 s, calm
-#: at 33.1 s, caught at 46.2 s (its first plan lost, the second caught), knocked again at 49.3 s with too little minute
-#: left. With the drain the energy reaches the upright's within the minute for seeds 0-3, 6-9 and 11, not for 4, 5
-#: and 10 (``test_some_knocks_leave_the_acrobot_more_energy_than_its_motor_and_damping_remove_in_a_minute``).
+#: 20 s, is tested below). What a knock leaves, the supervisor's calming law (the energy drain,
+#: :class:`~cartpole.control.drain.EnergyDrain`, down to the upright's energy) calms in 31-64 s (median 52 s; the
+#: damping alone 42-78 s, median 65 s; seeds 0-11 of ``Knockdown(3, 0.3)``, from the state at the knock's end, in
+#: MuJoCo: ``tools/acrobot_drain.py``). Seed 11, the quickest: knocked at 3 s, calm at 33.1 s, caught at 46.2 s (its
+#: first plan lost, the second caught), knocked again at 49.3 s with too little minute left. With the drain the
+#: energy reaches the upright's within the minute for seeds 0-3, 6-9 and 11, not for 4, 5 and 10
+#: (``test_some_knocks_leave_the_acrobot_more_energy_than_its_motor_and_damping_remove_in_a_minute``).
 ACROBOT_SEED = 11
 
 
@@ -144,9 +145,9 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     duration``, so a recovery that needed more than twice its plan on the whole fails it (seed 11's first recovery
     took 13.1 s from calm with plans of 6.8 and 5.8 s, the first lost). (With ``T1`` for ``T_k`` the floor is below
     zero: each knock comes after ``AFTER`` s upright, against a wait of most of a minute, and the swing-ups from calm
-    are much shorter than the one from hanging.) The minute, then two (a second recovery). Wall time: 16 s on the shared 2-core machine
-    when quiet, 4-5 min under a load of 15-20 (plans of up to a minute each); the library's cold plan from hanging
-    (70 s quiet, 360 s loaded) once per model, kept on disk."""
+    are much shorter than the one from hanging.) The minute, then two (a second recovery). Wall time: 16 s on the
+    shared 2-core machine when quiet, 4-5 min under a load of 15-20 (plans of up to a minute each); the library's cold
+    plan from hanging (70 s quiet, 360 s loaded) once per model, kept on disk."""
     library = _acrobot_library()
     params = read_params(ACROBOT)
     model = build_model(params)
