@@ -148,9 +148,9 @@ class SupervisorOptions(StageOptions):
     calm_energy : float or None
         J of total mechanical energy (:attr:`CartPoleModel.energy`, zero at upright rest) above which the state
         counts as fast as well (the brake acts, no plan is asked for), or None (default): rates alone. A chain driven
-        at a hinge (the acrobot) knocked hard holds several times its swing-up's energy, which its motor (``calm_drain``)
-        and its joints' damping take most of a minute to remove; a plan from above the upright's energy fails after
-        minutes (:func:`supervisor_for` sets :data:`HINGE_CALM_ENERGY`).
+        at a hinge (the acrobot) knocked hard holds several times its swing-up's energy, which its motor
+        (``calm_drain``) and its joints' damping take most of a minute to remove; a plan from above the upright's
+        energy fails after minutes (:func:`supervisor_for` sets :data:`HINGE_CALM_ENERGY`).
     warm_tails : bool
         Warm-start each plan from the tail of a stored plan from its knot nearest the predicted start (mirror images
         too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`), the :data:`WARM_TRIES` nearest in turn and
@@ -583,7 +583,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``),
         planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, calming up to
         :data:`HINGE_CALM_BUDGET` s with the energy drain, ``calm_drain``, and below its target the soft calming brake
-        of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``) and warm-started from the nearest knots of the stored plans (``warm_tails``).
+        of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``) and warm-started from the nearest knots of the stored plans
+        (``warm_tails``).
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
