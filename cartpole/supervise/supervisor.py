@@ -72,10 +72,10 @@ KNOT_ENERGY_WEIGHT = 31.6
 KNOT_MIN_TAIL = 2.0
 #: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
 #: (``SupervisorOptions.calm_energy``), and its energy drain (``calm_drain``) stops there: knocked down, dm_control's
-#: acrobot holds 135-1440 J (its swing-up needs 39 J; seeds 0-11 of ``Knockdown(3, 0.3)`` at the knock's end), a plan
+#: acrobot holds 140-1450 J (its swing-up needs 39 J; seeds 0-11 of ``Knockdown(3, 0.3)`` at the knock's end), a plan
 #: from above the upright's energy is not found (minutes of cold tries), and from there the drain and the joints'
-#: damping take 31-64 s (median 52 s) to reach it, where the damping alone takes 42-78 s (median 65 s; in MuJoCo,
-#: ``tests/control/test_drain.py`` and ``docs/recovery.md``). Above about 100 J the 2 N m elbow motor can hardly
+#: damping take 30-65 s (median 52 s) to reach it, where the damping alone takes 27-78 s (median 65 s; in MuJoCo,
+#: ``tools/acrobot_drain.py``, ``docs/recovery.md``). Above about 100 J the 2 N m elbow motor can hardly
 #: help: centrifugal torques hold the elbow straight (``tests/supervise/test_brake.py``).
 HINGE_CALM_ENERGY = 0.0
 #: s: the time constant of the brake :func:`supervisor_for` gives a model driven at a hinge below the drain's target
@@ -87,7 +87,7 @@ HINGE_CALM_ENERGY = 0.0
 #: soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
 HINGE_BRAKE_TIME = 1.5
 #: s: how long :func:`supervisor_for` lets the drain and brake calm a model driven at a hinge (``calm_budget``):
-#: knocked, the acrobot reaches the upright's energy 31-64 s after the knock (above); from the highest energies a
+#: knocked, the acrobot reaches the upright's energy 30-65 s after the knock (above); from the highest energies a
 #: throw could leave (the damping halves the energy's excess over hanging in about 19 s) 120 s leaves room.
 HINGE_CALM_BUDGET = 120.0
 
