@@ -313,8 +313,8 @@ def test_with_warm_tails_each_plan_starts_from_the_rest_of_a_stored_plan_nearest
 
 def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     from cartpole.planning.library import PlanLibrary
-    from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
-                                               HINGE_REPLAN_EVERY, hinge_driven)
+    from cartpole.supervise.supervisor import (DRAIN_MARGIN, HINGE_BRAKE_TIME, HINGE_CALM_BUDGET,
+                                               HINGE_CALM_ENERGY, HINGE_REPLAN_EVERY, hinge_driven)
 
     params = read_params("cartpole/assets/dmc_acrobot.xml")
     model = build_model(params)
@@ -326,7 +326,7 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
             o.calm_drain) == (HINGE_REPLAN_EVERY, HINGE_CALM_ENERGY, HINGE_CALM_BUDGET, HINGE_BRAKE_TIME, True, False,
                               True)
     # calmed by the energy drain down to the calm energy, the soft brake below it
-    assert isinstance(sup.calm_brake, EnergyDrain) and sup.calm_brake.target == HINGE_CALM_ENERGY
+    assert isinstance(sup.calm_brake, EnergyDrain) and sup.calm_brake.target == HINGE_CALM_ENERGY + DRAIN_MARGIN
     assert isinstance(sup.calm_brake.below, PassiveBrake) and sup.calm_brake.below is not sup.brake
     with pytest.raises(SupervisorError, match="calm_drain"):
         SupervisorOptions(calm_drain="yes")
