@@ -79,7 +79,7 @@ KNOT_MIN_TAIL = 2.0
 #: help: centrifugal torques hold the elbow straight (``tests/supervise/test_brake.py``).
 HINGE_CALM_ENERGY = 0.0
 #: s: the time constant of the brake :func:`supervisor_for` gives a model driven at a hinge below the drain's target
-#: (``calm_brake_time``: at or below the upright's energy, while some hinge is still faster than ``calm_rate``): on
+#: (``calm_brake_time``: within :data:`DRAIN_MARGIN` of the upright's energy or below, while the state is fast): on
 #: the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
 #: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too (with the brake alone,
 #: knocked by ``Knockdown(3, 0.3)``, seeds 2, 3, the energy reached the upright's 8-12 s sooner with 1.5 s than with
