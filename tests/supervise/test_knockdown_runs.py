@@ -161,27 +161,31 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     assert not run.info.get("diverged", False)
     T1 = library.plans[0].trajectory.duration
     waits = [_calm_at(run, model, sup, end) - end for _, end in force.events]
-    assert m["knockdowns"] >= 1 and m["recoveries"] >= 1, m
+    assert m["knockdowns"] >= 1, m
     asked = [d.t for d in sup.decisions if d.kind in ("plan", "plan_failed", "calm_timeout")]
+    # a knock never calmed is not recovered, whatever the metric says: it counts an entry into the band at the run's
+    # last step as a swing-up (``hold``), and a spinning chain passes through the band
+    unrecovered = set(m["unrecovered_at"]) | {s for (s, _), w in zip(force.events, waits) if not np.isfinite(w)}
     for (start, end), wait in zip(force.events, waits):
         # from the knock's end until the state is calm the supervisor only calms (no plan asked for)
         assert not [a for a in asked if end + 1e-9 < a < end + wait - 1e-9], (start, wait, asked)
-        if start in m["unrecovered_at"]:  # only a last knock with too little run left for its wait and a swing-up
+        if start in unrecovered:  # only a last knock with too little run left for its wait and a swing-up
             assert start == force.events[-1][0] and duration - end < wait + 2 * T1, (start, wait, m)
         else:  # swung up and caught within twice the swing-up from the moment it was calm
             up = min(s for s in m["swingup_times"] if s > start)
             assert up - (end + wait) <= 2 * T1, (start, wait, up)
-    rest = sum(duration - start for start in m["unrecovered_at"])
+    rest = sum(duration - start for start in unrecovered)
     plans = [d for d in sup.decisions if d.kind == "plan"]
     down = 0.0
     for (start, end), wait in zip(force.events, waits):
-        if start not in m["unrecovered_at"]:
+        if start not in unrecovered:
             planned = next(d for d in plans if d.t >= end + wait - 1e-9)  # the plan made once calm
             down += LENGTH + wait + LATENCY + planned.detail["T"]
     floor = 1.0 - (down + rest) / duration
     assert 0.0 < floor <= m["uptime"], (m, waits, floor)
     kinds = [d.kind for d in sup.decisions]
-    assert kinds.count("catch") >= m["recoveries"] + 1, kinds  # held from the start, then after each recovery
+    recovered = len(force.events) - len(unrecovered)
+    assert recovered >= 1 and kinds.count("catch") >= recovered + 1, kinds  # held from the start, after each recovery
     assert len(sup.summary()["unreachable"]) == kinds.count("plan_failed")  # each failed plan reported
 
 
