@@ -74,7 +74,7 @@ KNOT_MIN_TAIL = 2.0
 #: (``SupervisorOptions.calm_energy``), and its energy drain (``calm_drain``) stops there: knocked down, dm_control's
 #: acrobot holds 140-1450 J (its swing-up needs 39 J; seeds 0-11 of ``Knockdown(3, 0.3)`` at the knock's end), a plan
 #: from above the upright's energy is not found (minutes of cold tries), and from there the drain and the joints'
-#: damping take 30-65 s (median 52 s) to reach it, where the damping alone takes 27-78 s (median 65 s; in MuJoCo,
+#: damping take 31-64 s (median 52 s) to reach it, where the damping alone takes 42-78 s (median 66 s; in MuJoCo,
 #: ``tools/acrobot_drain.py``, ``docs/recovery.md``). Above about 100 J the 2 N m elbow motor can hardly
 #: help: centrifugal torques hold the elbow straight (``tests/supervise/test_brake.py``).
 HINGE_CALM_ENERGY = 0.0
@@ -87,15 +87,15 @@ HINGE_CALM_ENERGY = 0.0
 #: soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
 HINGE_BRAKE_TIME = 1.5
 #: s: how long :func:`supervisor_for` lets the drain and brake calm a model driven at a hinge (``calm_budget``):
-#: knocked, the acrobot reaches the upright's energy 30-65 s after the knock (above); from the highest energies a
+#: knocked, the acrobot reaches the upright's energy 31-64 s after the knock (above); from the highest energies a
 #: throw could leave (the damping halves the energy's excess over hanging in about 19 s) 120 s leaves room.
 HINGE_CALM_BUDGET = 120.0
 #: J: with ``calm_drain`` the energy drain stops this far above ``calm_energy`` and the calming brake takes the rest:
 #: drained right down to the upright's energy the acrobot's elbow still swings hard (the drain throws it about), far
 #: from the poses of the stored plans' knots, and knocked by ``Knockdown(3, 0.3, seed=11)`` its plans from there were
 #: lost and made again (swung up 13 s and 27 s after calm); handed to the soft brake 5 J above, it was as soon calm
-#: (median over seeds 0-11 of the time to calm 51.6 s against 51.8 s) and each plan from there swung up at once (12 s
-#: and 10 s after calm; in MuJoCo, 120 s of knockdowns).
+#: (median over seeds 0-11 of the time to calm 51.6 s against 51.7 s, from the same knocked states) and each plan
+#: from there swung up at once (12 s and 10 s after calm; in MuJoCo, 120 s of knockdowns).
 DRAIN_MARGIN = 5.0
 
 
