@@ -20,3 +20,6 @@ __all__ += ["CascadedPID", "PIDError", "PIDGains", "tune_pid"]
 from cartpole.control.friction import FrictionCompensation  # noqa: E402
 
 __all__ += ["FrictionCompensation"]
+from cartpole.control.drain import EnergyDrain, EnergyDrainError  # noqa: E402
+
+__all__ += ["EnergyDrain", "EnergyDrainError"]

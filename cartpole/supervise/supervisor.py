@@ -10,8 +10,10 @@
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
-  On a model driven at a hinge (the acrobot) :func:`supervisor_for` waits for the energy to reach the upright's: a
-  knock leaves it more than its motor can take out, the joints' damping removes it, and no plan is found before.
+  On a model driven at a hinge (the acrobot) :func:`supervisor_for` waits for the energy to reach the upright's (no
+  plan is found from above it) and calms with :class:`~cartpole.control.drain.EnergyDrain` (``calm_drain``): its
+  motor drives the elbow with its motion while it is slow and brakes it once fast, down to the upright's energy,
+  where a damper on the elbow of a chain swinging as one body takes almost nothing out.
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
@@ -36,7 +38,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from cartpole.control import LinearFeedback
+from cartpole.control import EnergyDrain, LinearFeedback
 from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError, check_single_pole
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.switching import SWINGUP_CATCH_R
@@ -70,21 +72,24 @@ KNOT_ENERGY_WEIGHT = 31.6
 #: energy alone a calmed acrobot's knot can be the plan's last, a quarter-second plan from a pose it does not have.
 KNOT_MIN_TAIL = 2.0
 #: J: :func:`supervisor_for` has a model driven at a hinge plan only at or below the upright's energy
-#: (``SupervisorOptions.calm_energy``): knocked down, dm_control's acrobot holds 140-1100 J (its swing-up needs 39 J,
-#: seeds 0-11 of ``Knockdown(3, 0.3)``), which its 2 N m elbow motor cannot take out faster than the joints' damping
-#: (``tests/supervise/test_brake.py``); a plan from above that level has to wait for the damping as the brake does,
-#: and the planner does not find one (minutes of cold tries).
+#: (``SupervisorOptions.calm_energy``), and its energy drain (``calm_drain``) stops there: knocked down, dm_control's
+#: acrobot holds 140-1450 J (its swing-up needs 39 J; seeds 0-11 of ``Knockdown(3, 0.3)`` at the knock's end), a plan
+#: from above the upright's energy is not found (minutes of cold tries), and from there the drain and the joints'
+#: damping take 31-64 s (median 52 s) to reach it, where the damping alone takes 42-78 s (median 66 s; in MuJoCo,
+#: ``tools/acrobot_drain.py``, ``docs/recovery.md``). Above about 100 J the 2 N m elbow motor can hardly
+#: help: centrifugal torques hold the elbow straight (``tests/supervise/test_brake.py``).
 HINGE_CALM_ENERGY = 0.0
-#: s: the calming brake's time constant :func:`supervisor_for` gives a model driven at a hinge (``calm_brake_time``):
-#: on the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
-#: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too. Knocked by
-#: ``Knockdown(3, 0.3)`` (seeds 2, 3), the energy reaches the upright's 8-12 s sooner with 1.5 s than with 0.15 s
-#: (measured, in MuJoCo). While a plan is on its way the stiff brake holds the chain straight, near the plans' poses
-#: (with the soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
+#: s: the time constant of the brake :func:`supervisor_for` gives a model driven at a hinge below the drain's target
+#: (``calm_brake_time``: within :data:`DRAIN_MARGIN` of the upright's energy or below, while the state is fast): on
+#: the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
+#: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too (with the brake alone,
+#: knocked by ``Knockdown(3, 0.3)``, seeds 2, 3, the energy reached the upright's 8-12 s sooner with 1.5 s than with
+#: 0.15 s). While a plan is on its way the stiff brake holds the chain straight, near the plans' poses (with the
+#: soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
 HINGE_BRAKE_TIME = 1.5
-#: s: how long :func:`supervisor_for` lets the brake calm a model driven at a hinge (``calm_budget``): the acrobot's
-#: damping takes its energy's excess over hanging down by half in about 19 s (time constant 27 s, measured), so
-#: 1100 J above upright take about 90 s to reach it.
+#: s: how long :func:`supervisor_for` lets the drain and brake calm a model driven at a hinge (``calm_budget``):
+#: knocked, the acrobot reaches the upright's energy 31-64 s after the knock (above); from the highest energies a
+#: throw could leave (the damping halves the energy's excess over hanging in about 19 s) 120 s leaves room.
 HINGE_CALM_BUDGET = 120.0
 #: s: the swing-up law (one pole driven by the cart) that has held every hinge at rest (below :data:`STALL_RATE`)
 #: outside the catch's basin this long has stalled: a deterministic law gives a state at rest the same ctrl each step.
@@ -96,6 +101,13 @@ STALL_SECONDS = 2.0
 STALL_RATE = 1e-2
 #: rad: a hinge this close to (or beyond) an end of its range rests on that limit, which a stall's reason names.
 STALL_LIMIT_TOL = 0.05
+#: J: with ``calm_drain`` the energy drain stops this far above ``calm_energy`` and the calming brake takes the rest:
+#: drained right down to the upright's energy the acrobot's elbow still swings hard (the drain throws it about), far
+#: from the poses of the stored plans' knots, and knocked by ``Knockdown(3, 0.3, seed=11)`` its plans from there were
+#: lost and made again (swung up 13 s and 27 s after calm); handed to the soft brake 5 J above, it was as soon calm
+#: (median over seeds 0-11 of the time to calm 51.6 s against 51.7 s, from the same knocked states) and each plan
+#: from there swung up at once (12 s and 10 s after calm; in MuJoCo, 120 s of knockdowns).
+DRAIN_MARGIN = 5.0
 
 
 class SupervisorError(OptionsError):
@@ -154,9 +166,9 @@ class SupervisorOptions(StageOptions):
     calm_energy : float or None
         J of total mechanical energy (:attr:`CartPoleModel.energy`, zero at upright rest) above which the state
         counts as fast as well (the brake acts, no plan is asked for), or None (default): rates alone. A chain driven
-        at a hinge (the acrobot) knocked hard holds several times its swing-up's energy, which only its joints'
-        damping removes; a plan from above the upright's energy fails after minutes (:func:`supervisor_for` sets
-        :data:`HINGE_CALM_ENERGY`).
+        at a hinge (the acrobot) knocked hard holds several times its swing-up's energy, which its motor
+        (``calm_drain``) and its joints' damping take most of a minute to remove; a plan from above the upright's
+        energy fails after minutes (:func:`supervisor_for` sets :data:`HINGE_CALM_ENERGY`).
     warm_tails : bool
         Warm-start each plan from the tail of a stored plan from its knot nearest the predicted start (mirror images
         too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`), the :data:`WARM_TRIES` nearest in turn and
@@ -164,6 +176,12 @@ class SupervisorOptions(StageOptions):
         the next predicted state; a re-plan while tracking is warm only too), instead of the stored plan from the
         nearest start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near
         its start.
+    calm_drain : bool
+        Calm with :class:`~cartpole.control.drain.EnergyDrain` (full ctrl with the driven joint while it is slow,
+        against it once fast) down to :data:`DRAIN_MARGIN` J above ``calm_energy`` (0 J, the upright's, when that is
+        None), the calming brake below it (True; :func:`supervisor_for` sets it for a model driven at a hinge), or
+        with the calming brake alone (False, default): a passive damper on a driven joint the chain hardly moves takes
+        little out.
     """
 
     plan_budget: float = 30.0
@@ -180,6 +198,7 @@ class SupervisorOptions(StageOptions):
     calm_brake_time: float | None = None
     calm_energy: float | None = None
     warm_tails: bool = False
+    calm_drain: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -194,7 +213,7 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails"):
+        for name in ("exact_plans", "warm_tails", "calm_drain"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
 
@@ -584,7 +603,7 @@ def _warm(plan) -> bool:
 
 def hinge_driven(model: CartPoleModel) -> bool:
     """Whether every actuator of ``model`` drives a hinge (the acrobot), so that :func:`supervisor_for` re-plans as
-    it goes, waits for the damping to calm it and warm-starts from knots (its ``HINGE_*`` settings)."""
+    it goes, calms it with the energy drain and warm-starts from knots (its ``HINGE_*`` settings)."""
     return all(int(j) in model.hinges for j in model.params.actuated)
 
 
@@ -609,9 +628,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     options : SupervisorOptions, optional
         Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) re-planning every
         :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``),
-        planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, braking up to
-        :data:`HINGE_CALM_BUDGET` s with the soft calming brake of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``)
-        and warm-started from the nearest knots of the stored plans (``warm_tails``).
+        planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, calming up to
+        :data:`HINGE_CALM_BUDGET` s with the energy drain, ``calm_drain``, and below its target the soft calming brake
+        of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``) and warm-started from the nearest knots of the stored plans
+        (``warm_tails``).
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -639,13 +659,18 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     opts = SupervisorOptions() if options is None else options
     if options is None and hinge_driven(model):
         # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve; plan
-        # only once the damping has brought the energy to the upright's, warm-started from the nearest knot
+        # only once the drain and the damping have brought the energy to the upright's, warm-started from the
+        # nearest knot
         opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
-                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME)
+                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME,
+                            calm_drain=True)
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
     calm_brake = (None if opts.calm_brake_time is None else
                   PassiveBrake(model, inertia, opts.calm_brake_time, catch.u_limits))
+    if opts.calm_drain:  # the drain down to the calm energy, the calming brake below it
+        calm_brake = EnergyDrain(model, target=DRAIN_MARGIN + (0.0 if opts.calm_energy is None else opts.calm_energy),
+                                 below=brake if calm_brake is None else calm_brake, u_limits=catch.u_limits)
     try:
         check_single_pole(model)
     except EnergyShapingModelError:

@@ -10,9 +10,9 @@ same on a loaded CI machine as on a quiet one; each plan's measured wall time is
 
 CPU (2-core machine shared by 8 sessions, so 5-10x a quiet one's): one pole about 6 s (energy law, no plans); two poles
 about 14 s, marked slow: the first plan is cold (2-8 s of wall time here, from hanging), the later ones warm-started
-from the run's own plans (:mod:`cartpole.planning.library`). The acrobot: two minutes, not one (a knock leaves it
-more energy than its damping removes in a minute, whatever drives its motor), with a floor that counts the damping's
-measured waits; see its tests.
+from the run's own plans (:mod:`cartpole.planning.library`). The acrobot: one minute and two (a knock leaves it
+several times its swing-up's energy, which its 2 N m motor and its damping take 30-65 s to remove), with a floor
+that counts the measured waits for that; see its tests.
 """
 import numpy as np
 import pytest
@@ -100,11 +100,17 @@ def test_a_chain_recovers_from_every_knockdown_for_a_minute():
 
 
 #: The acrobot's runs start upright, as a rig shown to visitors is when they poke it (its swing-up from hanging, about
-#: 20 s, is tested below, and what a knock leaves takes its damping 40-55 s to calm). Seeds of ``Knockdown(3, 0.3)``
-#: tried for the minute from upright: 11 is knocked at 3 s, calm at 45.6 s, caught at 50.5 s, knocked again at
-#: 53.5 s with too little minute left; 2, 3 and 8 calm at 49-57 s and were still swinging up when the minute ended.
-#: Measured for the damping alone, the energy reaches the upright's within 60 s for 2, 3, 8 and 11 only, not for 0,
-#: 1, 4-7, 9, 10 (``test_most_knocks_leave_the_acrobot_more_energy_than_its_damping_removes_in_a_minute``).
+#: 20 s, is tested below). What a knock leaves, the supervisor's calming law (the energy drain,
+#: :class:`~cartpole.control.drain.EnergyDrain`, down to the upright's energy) calms in 31-64 s (median 52 s; the
+#: damping alone 42-78 s, median 66 s; seeds 0-11 of ``Knockdown(3, 0.3)``, from the state at the knock's end, in
+#: MuJoCo: ``tools/acrobot_drain.py``). Seed 11, the quickest: knocked at 3 s, calm at 34.3 s, caught at 46.5 s,
+#: knocked again at 49.6 s with too little minute left (in two minutes: calm again at 81.9 s, caught at 91.8 s).
+#: With the drain the energy reaches the upright's within the minute for seeds 0-3, 5-9 and 11 (5 and 9 in its last
+#: second), not for 4 and 10
+#: (``test_some_knocks_leave_the_acrobot_more_energy_than_its_motor_and_damping_remove_in_a_minute``). The minute
+#: from upright run for the seeds calm soonest (latency charged 2 s): 11, 8 (calm at 40.7 s, caught at 47.3 s), 2
+#: (47.3 s, 53.5 s) and 6 (51.0 s, 57.1 s) are swung up and caught again; 3, calm at 39.4 s, is not (its warm starts
+#: fail, its plans are lost until the minute ends). Under the soft brake alone only 11 was.
 ACROBOT_SEED = 11
 
 
@@ -113,7 +119,7 @@ def _acrobot_options():
     its wall time allowed 300 s (a plan over it fails)."""
     return SupervisorOptions(charged_latency=LATENCY, replan_every=HINGE_REPLAN_EVERY, exact_plans=False,
                              plan_budget=300.0, calm_energy=HINGE_CALM_ENERGY, calm_budget=HINGE_CALM_BUDGET,
-                             warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME)
+                             warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME, calm_drain=True)
 
 
 def _calm_at(run, model, sup, after: float) -> float:
@@ -132,19 +138,21 @@ def _calm_at(run, model, sup, after: float) -> float:
 @pytest.mark.slow
 @pytest.mark.parametrize("duration", [DURATION, 2 * DURATION])
 def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_calmed_it(duration):
-    """Knocked, the acrobot holds several times its swing-up's energy, which only its joints' damping takes out (its
-    2 N m motor cannot do much better: ``test_brake.py``). Each knock is followed by a wait ``W_k`` for the damping to
-    bring the energy to the upright's (measured on the run: the supervisor only brakes until then, and plans from
-    there), then a swing-up and catch within twice ``T1``, the planned swing-up from hanging (the library's plan); a
-    last knock with less run left than that may go unrecovered. The floor: each recovered knock costs its ``LENGTH``,
-    its wait and one swing-up, the one the supervisor planned once calm (``LATENCY`` and its duration ``T_k``), an
-    unrecovered last one the rest of the run: ``uptime >= 1 - (sum_k (LENGTH + W_k + LATENCY + T_k) + rest) /
-    duration``, so a recovery that needed more than its plan (lost, planned again) on the whole fails it. (With ``T1``
-    for ``T_k`` the floor is below zero: each knock comes after ``AFTER`` s upright, against a wait of most of a
-    minute, and the swing-ups from calm are much shorter than the one from hanging.) The minute, then two (a second
-    recovery). Wall time: 16 s on the shared 2-core machine
-    when quiet, 4-5 min under a load of 15-20 (plans of up to a minute each); the library's cold plan from hanging
-    (70 s quiet, 360 s loaded) once per model, kept on disk."""
+    """Knocked, the acrobot holds several times its swing-up's energy, which its 2 N m elbow motor (the supervisor's
+    :class:`~cartpole.control.drain.EnergyDrain`) and its joints' damping take out. Each knock is followed by a wait
+    ``W_k`` for the energy to reach the upright's (measured on the run: the supervisor only calms until then, and
+    plans from there), then a swing-up and catch within twice ``T1``, the planned swing-up from hanging (the
+    library's plan); a last knock with less run left than that may go unrecovered. The floor: each recovered knock
+    costs its ``LENGTH``, its wait and one swing-up, the one the supervisor planned once calm (``LATENCY`` and its
+    duration ``T_k``), an unrecovered last one the rest of the run: ``uptime >= 1 - (sum_k (LENGTH + W_k + LATENCY +
+    T_k) + rest) / duration``, so a recovery that needed more than its plan (lost, planned again) on the whole fails
+    it (measured: calm at 34.3 s, a plan of 10.8 s, caught at 46.5 s; calm at 81.9 s, a plan of 8.3 s, caught at
+    91.8 s; drained to the upright's energy itself, the elbow still swinging hard, its plans were lost and made
+    again, hence :data:`~cartpole.supervise.supervisor.DRAIN_MARGIN`). (With ``T1`` for ``T_k`` the floor is below
+    zero: each knock comes after ``AFTER`` s upright, against a wait of most of a minute.) The minute, then two (a
+    second recovery). Wall time: 16 s on the
+    shared 2-core machine when quiet, 4-5 min under a load of 15-20 (plans of up to a minute each); the library's cold
+    plan from hanging (70 s quiet, 360 s loaded) once per model, kept on disk."""
     library = _acrobot_library()
     params = read_params(ACROBOT)
     model = build_model(params)
@@ -156,42 +164,46 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_
     assert not run.info.get("diverged", False)
     T1 = library.plans[0].trajectory.duration
     waits = [_calm_at(run, model, sup, end) - end for _, end in force.events]
-    assert m["knockdowns"] >= 1 and m["recoveries"] >= 1, m
+    assert m["knockdowns"] >= 1, m
     asked = [d.t for d in sup.decisions if d.kind in ("plan", "plan_failed", "calm_timeout")]
+    # a knock never calmed is not recovered, whatever the metric says: it counts an entry into the band at the run's
+    # last step as a swing-up (``hold``), and a spinning chain passes through the band
+    unrecovered = set(m["unrecovered_at"]) | {s for (s, _), w in zip(force.events, waits) if not np.isfinite(w)}
     for (start, end), wait in zip(force.events, waits):
-        # from the knock's end until the state is calm the supervisor only brakes: the wait is the damping's
+        # from the knock's end until the state is calm the supervisor only calms (no plan asked for)
         assert not [a for a in asked if end + 1e-9 < a < end + wait - 1e-9], (start, wait, asked)
-        if start in m["unrecovered_at"]:  # only a last knock with too little run left for its wait and a swing-up
+        if start in unrecovered:  # only a last knock with too little run left for its wait and a swing-up
             assert start == force.events[-1][0] and duration - end < wait + 2 * T1, (start, wait, m)
         else:  # swung up and caught within twice the swing-up from the moment it was calm
             up = min(s for s in m["swingup_times"] if s > start)
             assert up - (end + wait) <= 2 * T1, (start, wait, up)
-    rest = sum(duration - start for start in m["unrecovered_at"])
+    rest = sum(duration - start for start in unrecovered)
     plans = [d for d in sup.decisions if d.kind == "plan"]
     down = 0.0
     for (start, end), wait in zip(force.events, waits):
-        if start not in m["unrecovered_at"]:
+        if start not in unrecovered:
             planned = next(d for d in plans if d.t >= end + wait - 1e-9)  # the plan made once calm
             down += LENGTH + wait + LATENCY + planned.detail["T"]
     floor = 1.0 - (down + rest) / duration
     assert 0.0 < floor <= m["uptime"], (m, waits, floor)
     kinds = [d.kind for d in sup.decisions]
-    assert kinds.count("catch") >= m["recoveries"] + 1, kinds  # held from the start, then after each recovery
+    recovered = len(force.events) - len(unrecovered)
+    assert recovered >= 1 and kinds.count("catch") >= recovered + 1, kinds  # held from the start, after each recovery
     assert len(sup.summary()["unreachable"]) == kinds.count("plan_failed")  # each failed plan reported
 
 
 @pytest.mark.slow
-def test_most_knocks_leave_the_acrobot_more_energy_than_its_damping_removes_in_a_minute():
+def test_some_knocks_leave_the_acrobot_more_energy_than_its_motor_and_damping_remove_in_a_minute():
     """Why the acrobot's minute starts upright and uses seed ``ACROBOT_SEED``: knocked at 3 s by the knock every
-    model gets (``Knockdown(3, 0.3)``), under the supervisor's brake its energy is still above the upright's at 60 s
-    for most seeds, so no swing-up could even start in the minute; a plan from there is not found (minutes of cold
-    tries, the supervisor waits instead). Seeds 0, 1, 4 here; 0, 1, 4-7, 9, 10 of 0-11 measured. Slow: three minutes
-    of MuJoCo with the supervisor in the loop, 8 s of wall time on the shared machine when quiet, 107 s under a load
-    of 15-20."""
+    model gets (``Knockdown(3, 0.3)``), under the supervisor's calming law (the energy drain, then the brake) its
+    energy is still above the upright's at 60 s for some seeds, so no swing-up could even start in the minute; a plan
+    from there is not found (minutes of cold tries, the supervisor waits instead). Seeds 4 and 10, the only two of
+    0-11 (``tools/acrobot_drain.py``; with the damping alone 0-2, 4-7, 9 and 10). Slow: two minutes of MuJoCo with
+    the supervisor in the loop, 131 s of wall time on the shared machine under a load of 11."""
     params = read_params(ACROBOT)
     model = build_model(params)
     sup = supervisor_for(params, model, options=_acrobot_options(), library=PlanLibrary.empty(model))
-    for seed in (0, 1, 4):
+    for seed in (4, 10):
         sup.reset()
         force = Knockdown(AFTER, LENGTH, seed=seed).start(params, x_eq=model.x_eq, hinges=model.hinges)
         run = simulate(params, sup, np.asarray(model.x_eq, float), DURATION, disturbance=force)

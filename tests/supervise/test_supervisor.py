@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cartpole.control.model_rollout import model_rollout
-from cartpole.control import SWINGUP_CATCH_R, LinearFeedback
+from cartpole.control import SWINGUP_CATCH_R, EnergyDrain, LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.models import build_model, read_params
 from cartpole.ocp.trajectory import Trajectory
@@ -313,8 +313,8 @@ def test_with_warm_tails_each_plan_starts_from_the_rest_of_a_stored_plan_nearest
 
 def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     from cartpole.planning.library import PlanLibrary
-    from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
-                                               HINGE_REPLAN_EVERY, hinge_driven)
+    from cartpole.supervise.supervisor import (DRAIN_MARGIN, HINGE_BRAKE_TIME, HINGE_CALM_BUDGET,
+                                               HINGE_CALM_ENERGY, HINGE_REPLAN_EVERY, hinge_driven)
 
     params = read_params("cartpole/assets/dmc_acrobot.xml")
     model = build_model(params)
@@ -322,8 +322,14 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     sup = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
                          library=PlanLibrary.empty(model))
     o = sup.options
-    assert (o.replan_every, o.calm_energy, o.calm_budget, o.calm_brake_time, o.warm_tails, o.exact_plans) == (
-        HINGE_REPLAN_EVERY, HINGE_CALM_ENERGY, HINGE_CALM_BUDGET, HINGE_BRAKE_TIME, True, False)
+    assert (o.replan_every, o.calm_energy, o.calm_budget, o.calm_brake_time, o.warm_tails, o.exact_plans,
+            o.calm_drain) == (HINGE_REPLAN_EVERY, HINGE_CALM_ENERGY, HINGE_CALM_BUDGET, HINGE_BRAKE_TIME, True, False,
+                              True)
+    # calmed by the energy drain down to the calm energy, the soft brake below it
+    assert isinstance(sup.calm_brake, EnergyDrain) and sup.calm_brake.target == HINGE_CALM_ENERGY + DRAIN_MARGIN
+    assert isinstance(sup.calm_brake.below, PassiveBrake) and sup.calm_brake.below is not sup.brake
+    with pytest.raises(SupervisorError, match="calm_drain"):
+        SupervisorOptions(calm_drain="yes")
 
 
 def test_the_calming_brake_acts_on_fast_states_and_the_brake_while_a_plan_is_on_its_way(double):
