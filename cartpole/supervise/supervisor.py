@@ -47,6 +47,7 @@ from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
+from cartpole.supervise.worker import run_planner
 from cartpole.validation import BasinCache
 
 
@@ -153,6 +154,12 @@ class SupervisorOptions(StageOptions):
         the next predicted state; a re-plan while tracking is warm only too), instead of the stored plan from the
         nearest start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near
         its start.
+    plan_in_worker : bool
+        Make each plan in a child process (:func:`cartpole.supervise.worker.run_planner`, forked) that is killed
+        once it has run ``plan_budget`` s of wall time: planning from any state is then bounded by the budget (a
+        ``plan_timeout`` decision, then ``plan_failed``), where in the caller's thread (False, default) the budget is
+        checked only after the planner returns. The run waits for the child, and its wall time is charged as in the
+        caller's thread.
     """
 
     plan_budget: float = 30.0
@@ -169,6 +176,7 @@ class SupervisorOptions(StageOptions):
     calm_brake_time: float | None = None
     calm_energy: float | None = None
     warm_tails: bool = False
+    plan_in_worker: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -183,7 +191,7 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails"):
+        for name in ("exact_plans", "warm_tails", "plan_in_worker"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
 
@@ -199,7 +207,8 @@ class Decision:
     kind : str
         ``"catch"``, ``"swingup"`` (the swing-up law took over), ``"brake"``, ``"plan"`` (a plan requested),
         ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
-        ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is).
+        ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
+        ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -384,12 +393,13 @@ class Supervisor:
                 guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
                                                     energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
                 dist = guesses[0][1]
-                plan = self._plan_warm(x_pred, guesses)
+                plan = self._call_planner(t, lambda: self._plan_warm(x_pred, guesses))
             else:
                 if self.library is not None and len(self.library):
                     guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
                     dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
-                plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
+                plan = self._call_planner(t, lambda: self.planner(x_pred) if guess is None
+                                          else self.planner(x_pred, guess=guess))
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
@@ -415,6 +425,15 @@ class Supervisor:
         self._decide(t, "plan", wall_s=wall, charged_s=charged, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
                      **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
+
+    def _call_planner(self, t: float, call: Callable):
+        """``call()`` (a plan) in the caller's thread, or with ``plan_in_worker`` in a child process killed at
+        ``plan_budget`` (a ``plan_timeout`` decision, then :class:`~cartpole.supervise.worker.PlanTimeout`)."""
+        if not self.options.plan_in_worker:
+            return call()
+        budget = self.options.plan_budget
+        return run_planner(call, budget, on_timeout=lambda wall: self._decide(t, "plan_timeout", wall_s=wall,
+                                                                              budget_s=budget))
 
     def _plan_warm(self, x0, guesses):
         """The planner from ``x0`` warm-started from each of ``guesses`` (``(Trajectory, distance)``, the nearest
@@ -459,7 +478,8 @@ class Supervisor:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
             warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
-            new = self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan), **warm_only)
+            new = self._call_planner(t, lambda: self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan),
+                                                             **warm_only))
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)

@@ -1,0 +1,115 @@
+"""Planning in a worker process: bounded by the plan budget (killed at it, nothing left running), the same plan as in
+the caller's thread, and a supervised run through it that replays exactly."""
+import multiprocessing
+import os
+import time
+
+import numpy as np
+import pytest
+
+from cartpole.errors import CartPoleError
+from cartpole.models import build_model, read_params
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.sim import Knockdown, replays_exactly, simulate
+from cartpole.supervise import Supervisor, SupervisorError, SupervisorOptions, supervisor_for
+from cartpole.supervise.worker import PlanTimeout, PlanWorker, run_planner
+
+#: s: what killing and reaping the child may add to the budget on a loaded machine.
+KILL_SLACK = 3.0
+
+
+def _no_child_left():
+    """No child process of this one, running or a zombie (``waitpid`` finds none to wait for)."""
+    assert multiprocessing.active_children() == []
+    with pytest.raises(ChildProcessError):
+        os.waitpid(-1, os.WNOHANG)
+
+
+@pytest.fixture(scope="module")
+def lab():
+    """The lab's cart-pole with a supervisor that plans (no energy law): its catch, basin and brake."""
+    params = read_params("cartpole/assets/cartpole.xml")
+    model = build_model(params)
+    base = supervisor_for(params, model)
+
+    def planner(x0, guess=None, cold=True):
+        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, guess=guess, cold=cold)
+    return params, model, base, planner
+
+
+def _planning(lab, **options):
+    params, model, base, planner = lab
+    return Supervisor(model, base.catch, base.rho, base.brake, planner=planner, options=SupervisorOptions(**options))
+
+
+def test_a_plan_over_the_budget_is_killed_at_the_budget_and_the_run_goes_on(lab):
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5))
+    x = np.asarray(model.x_hanging, float)
+    start = time.perf_counter()
+    u = sup(0.0, x)
+    took = time.perf_counter() - start
+    assert 0.5 <= took < 0.5 + KILL_SLACK
+    assert [d.kind for d in sup.decisions] == ["plan_timeout", "plan_failed"]
+    timeout, failed = sup.decisions
+    assert timeout.detail["wall_s"] >= 0.5 and timeout.detail["budget_s"] == 0.5
+    assert "budget" in failed.detail["reason"] and failed.detail["wall_s"] >= 0.5
+    _no_child_left()
+    assert np.allclose(u, base.brake(0.0, x)) and np.allclose(sup(0.01, x), base.brake(0.01, x))  # braking, retry later
+    assert sup.summary()["unreachable"][0]["reason"] == failed.detail["reason"]
+
+
+def test_a_failed_plan_in_the_worker_keeps_its_sentence_and_a_crash_is_raised():
+    def no_plan():
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    with pytest.raises(CartPoleError, match="No swing-up found"):
+        run_planner(no_plan, 10.0)
+    with pytest.raises(RuntimeError, match="ZeroDivisionError"):
+        run_planner(lambda: 1 / 0, 10.0)
+    with pytest.raises(PlanTimeout, match="plan_budget"):
+        run_planner(lambda: time.sleep(60.0), 0.2)
+    _no_child_left()
+
+
+def test_the_worker_is_polled_without_blocking_and_killed_on_demand():
+    worker = PlanWorker(lambda: time.sleep(60.0))
+    start = time.perf_counter()
+    assert worker.poll() is False and time.perf_counter() - start < 0.5
+    os.kill(worker.pid, 0)  # running
+    worker.kill()
+    _no_child_left()
+    with pytest.raises(CartPoleError, match="died without an answer"):
+        worker.result()
+
+
+def test_plan_in_worker_must_be_a_bool():
+    with pytest.raises(SupervisorError, match="plan_in_worker"):
+        SupervisorOptions(plan_in_worker="yes")
+
+
+def test_a_plan_through_the_worker_is_the_plan_made_in_the_callers_thread(lab):
+    params, model, base, planner = lab
+    x0 = np.asarray(model.x_hanging, float)
+    here = planner(x0)
+    there = run_planner(lambda: planner(x0), 120.0)
+    _no_child_left()
+    for a, b in ((here.trajectory.t, there.trajectory.t), (here.trajectory.x, there.trajectory.x),
+                 (here.trajectory.u, there.trajectory.u), (here.gains.K, there.gains.K)):
+        assert np.array_equal(a, b)
+    x = x0 + 0.01
+    assert np.array_equal(here.controller(0.3, x), there.controller(0.3, x))
+
+
+def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_run_planning_in_thread(lab):
+    params, model, _, _ = lab
+    runs = []
+    for in_worker in (False, True):
+        sup = _planning(lab, charged_latency=0.5, plan_in_worker=in_worker, plan_budget=120.0)
+        force = Knockdown(1.5, 0.3, seed=4).start(params, x_eq=model.x_eq, hinges=model.hinges)
+        runs.append((sup, simulate(params, sup, np.asarray(model.x_hanging, float), 6.0, disturbance=force)))
+    (sup_here, here), (sup_there, there) = runs
+    assert sup_there.plans >= 2 and replays_exactly(there, params)
+    assert np.array_equal(here.ctrl, there.ctrl)
+    assert [d.kind for d in sup_here.decisions] == [d.kind for d in sup_there.decisions]
+    _no_child_left()
