@@ -32,7 +32,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Callable, ClassVar
+from typing import Callable, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -47,7 +47,7 @@ from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
-from cartpole.supervise.worker import run_planner
+from cartpole.supervise.worker import PlanWorker, fork_available, run_planner, timeout_sentence
 from cartpole.validation import BasinCache
 
 
@@ -86,6 +86,17 @@ HINGE_BRAKE_TIME = 1.5
 #: damping takes its energy's excess over hanging down by half in about 19 s (time constant 27 s, measured), so
 #: 1100 J above upright take about 90 s to reach it.
 HINGE_CALM_BUDGET = 120.0
+
+
+class _Ask(NamedTuple):
+    """What a plan was asked for with: the time ``t`` (s), the predicted start ``x_pred`` (nx,), the ``steps`` it
+    was predicted over, the predicted latency ``lat`` (s), the library's distance ``dist`` to its warm start."""
+
+    t: float
+    x_pred: np.ndarray
+    steps: int
+    lat: float
+    dist: float | None
 
 
 class SupervisorError(OptionsError):
@@ -160,6 +171,13 @@ class SupervisorOptions(StageOptions):
         ``plan_timeout`` decision, then ``plan_failed``), where in the caller's thread (False, default) the budget is
         checked only after the planner returns. The run waits for the child, and its wall time is charged as in the
         caller's thread.
+    plan_while_running : bool
+        With ``plan_in_worker``: the run goes on while the worker plans (the brake acting), polled at each call, the
+        plan used from the simulated time it comes in (charged that time since it was asked for, at least
+        ``charged_latency``), killed once over ``plan_budget``; re-plans while tracking still wait. For a run paced in
+        real time (a live view), where simulated time is wall time; a run stepped as fast as possible then charges
+        whatever time it stepped meanwhile, and is not reproducible. Call :meth:`Supervisor.close` when the run
+        ends. False (default): the run waits for the worker.
     """
 
     plan_budget: float = 30.0
@@ -177,6 +195,7 @@ class SupervisorOptions(StageOptions):
     calm_energy: float | None = None
     warm_tails: bool = False
     plan_in_worker: bool = False
+    plan_while_running: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -191,9 +210,14 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails", "plan_in_worker"):
+        for name in ("exact_plans", "warm_tails", "plan_in_worker", "plan_while_running"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
+        if self.plan_in_worker and not fork_available():
+            raise SupervisorError("plan_in_worker needs a platform that can fork (Linux, macOS); leave it False here.")
+        if self.plan_while_running and not self.plan_in_worker:
+            raise SupervisorError("plan_while_running needs plan_in_worker=True: only a plan made in a worker "
+                                  "process lets the run go on meanwhile.")
 
 
 @dataclass(frozen=True)
@@ -208,7 +232,8 @@ class Decision:
         ``"catch"``, ``"swingup"`` (the swing-up law took over), ``"brake"``, ``"plan"`` (a plan requested),
         ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
         ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
-        ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows).
+        ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows),
+        ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -331,6 +356,9 @@ class Supervisor:
         self.fast_since = None
         self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
         self.replan_at = np.inf
+        if getattr(self, "worker", None) is not None:
+            self.close()
+        self.worker = self.asked = None  # a plan on its way in a worker (plan_while_running), what it was asked
 
     @property
     def latency(self) -> float:
@@ -385,26 +413,40 @@ class Supervisor:
         x_pred = xs[-1]
         self.plans += 1
         start = time.perf_counter()
+        ask = _Ask(t, x_pred, steps, lat, None)
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
-            guess, dist = None, None
-            if self.library is not None and len(self.library) and self.options.warm_tails:
-                guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
-                                                    energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
-                dist = guesses[0][1]
-                plan = self._call_planner(t, lambda: self._plan_warm(x_pred, guesses))
-            else:
-                if self.library is not None and len(self.library):
-                    guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
-                    dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
-                plan = self._call_planner(t, lambda: self.planner(x_pred) if guess is None
-                                          else self.planner(x_pred, guess=guess))
+            call, dist = self._plan_call(x_pred)
+            ask = ask._replace(dist=dist)
+            if self.options.plan_while_running:  # the run goes on; __call__ polls the worker
+                self.worker, self.asked, self.mode, self.ready_at = PlanWorker(call), ask, "wait", np.inf
+                return
+            plan = self._call_planner(t, call)
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
-        self.plan_seconds.append(wall)
         charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
+        self._take_plan(ask, plan, wall, charged, None if plan is not None else why)
+
+    def _plan_call(self, x_pred):
+        """``(call, distance)``: the planning call from ``x_pred`` (warm-started from the library as the options say)
+        and the library's distance to its warm start (None without one)."""
+        if self.library is not None and len(self.library) and self.options.warm_tails:
+            guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
+                                                energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
+            return (lambda: self._plan_warm(x_pred, guesses)), guesses[0][1]
+        if self.library is not None and len(self.library):
+            guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
+            dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
+            return (lambda: self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)), dist
+        return (lambda: self.planner(x_pred)), None
+
+    def _take_plan(self, ask, plan, wall: float, charged: float, why: str | None) -> None:
+        """Use ``plan`` asked for by ``ask`` (:class:`_Ask`) that took ``wall`` s and is charged ``charged`` s of
+        simulated time, or log its failure (``plan`` None, ``why``) and brake until a retry."""
+        t, x_pred, steps, lat, dist = ask
+        self.plan_seconds.append(wall)
         if plan is not None and wall > self.options.plan_budget:
             plan, why = None, f"the plan took {wall:.1f} s, over the budget of {self.options.plan_budget:g} s"
         if plan is None:
@@ -425,6 +467,37 @@ class Supervisor:
         self._decide(t, "plan", wall_s=wall, charged_s=charged, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
                      **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
+
+    def _poll_worker(self, t: float) -> None:
+        """With ``plan_while_running``: take the worker's plan once it is in (charged the simulated time since it was
+        asked for), kill it once over ``plan_budget`` (a failed plan), or drop it when the state no longer waits for
+        it (the catch took over meanwhile)."""
+        worker, ask = self.worker, self.asked
+        if self.mode != "wait":
+            self.close()
+            self._decide(t, "plan_dropped", wall_s=worker.elapsed, asked_at=ask.t)
+            return
+        budget = self.options.plan_budget
+        if worker.poll():
+            try:
+                plan, why = worker.result(), None
+            except CartPoleError as exc:
+                plan, why = None, str(exc)
+        elif worker.elapsed > budget:
+            worker.kill()
+            plan, why = None, timeout_sentence(worker.elapsed, budget)
+            self._decide(ask.t, "plan_timeout", wall_s=worker.elapsed, budget_s=budget)
+        else:
+            return
+        self.worker = self.asked = None
+        charged = max(t - ask.t, self.options.charged_latency or 0.0)
+        self._take_plan(ask, plan, worker.elapsed, charged, why)
+
+    def close(self) -> None:
+        """Stop a plan still on its way in a worker process (``plan_while_running``): call it when the run ends."""
+        if self.worker is not None:
+            self.worker.kill()
+        self.worker = self.asked = None
 
     def _call_planner(self, t: float, call: Callable):
         """``call()`` (a plan) in the caller's thread, or with ``plan_in_worker`` in a child process killed at
@@ -478,8 +551,8 @@ class Supervisor:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
             warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
-            new = self._call_planner(t, lambda: self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan),
-                                                             **warm_only))
+            tail = trajectory_tail(plan.trajectory, t0 - t_plan)
+            new = self._call_planner(t, lambda: self.planner(x_pred, guess=tail, **warm_only))
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)
@@ -511,6 +584,8 @@ class Supervisor:
         if self.swingup is not None:
             self._set(t, "swingup", cost=cost)
             return self.swingup(t, x)
+        if self.worker is not None:
+            self._poll_worker(t)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
             late = max(0.0, t - self.plan_t0)
             restart = late > 0.5 * self.model.dt and self._at_start(x)

@@ -178,13 +178,17 @@ def run_planner(call: Callable, budget: float, *, on_timeout: Callable | None = 
                 wall = worker.elapsed
                 if on_timeout is not None:
                     on_timeout(wall)
-                raise PlanTimeout(f"The plan was stopped after {wall:.1f} s of wall time, over the budget of "
-                                  f"{budget:g} s (plan_budget).")
+                raise PlanTimeout(timeout_sentence(wall, budget))
             time.sleep(POLL_INTERVAL)
     except BaseException:
         worker.kill()  # Ctrl-C or a timeout: nothing left running
         raise
     return worker.result()
+
+
+def timeout_sentence(wall: float, budget: float) -> str:
+    """The sentence of a plan stopped after ``wall`` s of wall time, over its ``budget`` s."""
+    return f"The plan was stopped after {wall:.1f} s of wall time, over the budget of {budget:g} s (plan_budget)."
 
 
 def fork_available() -> bool:

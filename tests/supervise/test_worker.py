@@ -3,12 +3,14 @@ the caller's thread, and a supervised run through it that replays exactly."""
 import multiprocessing
 import os
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 from cartpole.errors import CartPoleError
 from cartpole.models import build_model, read_params
+from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.supervise import Supervisor, SupervisorError, SupervisorOptions, supervisor_for
@@ -83,9 +85,76 @@ def test_the_worker_is_polled_without_blocking_and_killed_on_demand():
         worker.result()
 
 
-def test_plan_in_worker_must_be_a_bool():
+def test_plan_in_worker_must_be_a_bool_and_planning_while_running_needs_it():
     with pytest.raises(SupervisorError, match="plan_in_worker"):
         SupervisorOptions(plan_in_worker="yes")
+    with pytest.raises(SupervisorError, match="plan_while_running needs plan_in_worker=True"):
+        SupervisorOptions(plan_while_running=True)
+
+
+@dataclass
+class _HoldPlan:
+    """A plan that pickles (a worker sends it back): hold ``x_end`` with ``u`` for ``duration`` s."""
+
+    trajectory: Trajectory
+    u: np.ndarray
+
+    @classmethod
+    def at(cls, model, duration: float):
+        x = np.tile(np.asarray(model.x_eq, float), (2, 1))
+        u = np.asarray(model.u_eq, float)
+        return cls(Trajectory(t=np.array([0.0, duration]), x=x, u=np.tile(u, (2, 1)), xdot=np.zeros_like(x)), u)
+
+    def controller(self, t, x):
+        return self.u
+
+
+def _paced(sup, x, until, dt=0.01, limit=20.0):
+    """Call ``sup`` every ``dt`` s of simulated and (at least) wall time, as a run paced in real time does, until
+    ``until(sup)`` or ``limit`` s; returns each call's ``(t, wall s, ctrl)``."""
+    calls, t = [], 0.0
+    while not until(sup) and t < limit:
+        start = time.perf_counter()
+        u = sup(t, x)
+        calls.append((t, time.perf_counter() - start, u))
+        time.sleep(dt)
+        t += dt
+    return calls
+
+
+def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_time_it_came_in(lab):
+    params, model, base, _ = lab
+
+    def planner(x0):
+        time.sleep(1.0)
+        return _HoldPlan.at(model, 2.0)
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, latency=0.05,
+                                               funnel=10.0))
+    x = np.asarray(model.x_hanging, float)
+    calls = _paced(sup, x, lambda s: s.mode == "track")
+    plan = next(d for d in sup.decisions if d.kind == "plan")
+    came = next(d for d in sup.decisions if d.kind == "track")
+    assert plan.detail["wall_s"] >= 1.0 and plan.t == 0.0
+    assert came.t == pytest.approx(plan.detail["charged_s"])  # tracked from the simulated time it came in
+    waiting = [c for c in calls if c[0] < came.t]
+    assert len(waiting) >= 10 and max(w for _, w, _ in waiting[1:]) < 0.5  # the run went on meanwhile
+    assert all(np.allclose(u, base.brake(t, x)) for t, _, u in waiting)
+    sup.close()
+    _no_child_left()
+
+
+def test_planning_while_running_a_plan_over_the_budget_is_killed_and_fails(lab):
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, plan_budget=0.5))
+    x = np.asarray(model.x_hanging, float)
+    start = time.perf_counter()
+    _paced(sup, x, lambda s: s.failures > 0)
+    assert time.perf_counter() - start < 0.5 + KILL_SLACK
+    assert [d.kind for d in sup.decisions][:2] == ["plan_timeout", "plan_failed"]
+    assert sup.decisions[1].detail["wall_s"] >= 0.5
+    _no_child_left()
 
 
 def test_a_plan_through_the_worker_is_the_plan_made_in_the_callers_thread(lab):
