@@ -47,7 +47,7 @@ from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
-from cartpole.supervise.worker import PlanWorker, fork_available, run_planner, timeout_sentence
+from cartpole.supervise.worker import PlanWorker, fork_available, timeout_sentence
 from cartpole.validation import BasinCache
 
 
@@ -166,18 +166,18 @@ class SupervisorOptions(StageOptions):
         nearest start (False, default). A calmed acrobot swings low, near a knot of the plan from hanging, not near
         its start.
     plan_in_worker : bool
-        Make each plan in a child process (:func:`cartpole.supervise.worker.run_planner`, forked) that is killed
-        once it has run ``plan_budget`` s of wall time: planning from any state is then bounded by the budget (a
-        ``plan_timeout`` decision, then ``plan_failed``), where in the caller's thread (False, default) the budget is
-        checked only after the planner returns. The run waits for the child, and its wall time is charged as in the
-        caller's thread.
+        Make each plan in a child process (:class:`cartpole.supervise.worker.PlanWorker`: forked at the first plan
+        and kept between plans, so that the solvers one plan builds serve the next) that is killed once a plan has
+        run ``plan_budget`` s of wall time (the next plan forks a new one): planning from any state is then bounded
+        by the budget (a ``plan_timeout`` decision, then ``plan_failed``), where in the caller's thread (False,
+        default) the budget is checked only after the planner returns. The run waits for the child, and its wall time
+        is charged as in the caller's thread. Call :meth:`Supervisor.close` when the run ends.
     plan_while_running : bool
         With ``plan_in_worker``: the run goes on while the worker plans (the brake acting), polled at each call, the
         plan used from the simulated time it comes in (charged that time since it was asked for, at least
         ``charged_latency``), killed once over ``plan_budget``; re-plans while tracking still wait. For a run paced in
         real time (a live view), where simulated time is wall time; a run stepped as fast as possible then charges
-        whatever time it stepped meanwhile, and is not reproducible. Call :meth:`Supervisor.close` when the run
-        ends. False (default): the run waits for the worker.
+        whatever time it stepped meanwhile, and is not reproducible. False (default): the run waits for the worker.
     """
 
     plan_budget: float = 30.0
@@ -356,9 +356,9 @@ class Supervisor:
         self.fast_since = None
         self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
         self.replan_at = np.inf
-        if getattr(self, "worker", None) is not None:
+        if getattr(self, "server", None) is not None:
             self.close()
-        self.worker = self.asked = None  # a plan on its way in a worker (plan_while_running), what it was asked
+        self.server = self.asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
 
     @property
     def latency(self) -> float:
@@ -417,30 +417,45 @@ class Supervisor:
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
-            call, dist = self._plan_call(x_pred)
+            request, dist = self._plan_request(x_pred)
             ask = ask._replace(dist=dist)
             if self.options.plan_while_running:  # the run goes on; __call__ polls the worker
-                self.worker, self.asked, self.mode, self.ready_at = PlanWorker(call), ask, "wait", np.inf
+                self._worker().submit(request)
+                self.asked, self.mode, self.ready_at = ask, "wait", np.inf
                 return
-            plan = self._call_planner(t, call)
+            plan = self._call_planner(t, request)
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
         charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
         self._take_plan(ask, plan, wall, charged, None if plan is not None else why)
 
-    def _plan_call(self, x_pred):
-        """``(call, distance)``: the planning call from ``x_pred`` (warm-started from the library as the options say)
-        and the library's distance to its warm start (None without one)."""
+    def _plan_request(self, x_pred):
+        """``(request, distance)``: the planning call from ``x_pred`` (warm-started from the library as the options
+        say) as a picklable request for :meth:`_serve`, and the library's distance to its warm start (None without
+        one)."""
         if self.library is not None and len(self.library) and self.options.warm_tails:
             guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
                                                 energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
-            return (lambda: self._plan_warm(x_pred, guesses)), guesses[0][1]
+            return ("_plan_warm", (x_pred, guesses), {}), guesses[0][1]
         if self.library is not None and len(self.library):
             guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
             dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
-            return (lambda: self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)), dist
-        return (lambda: self.planner(x_pred)), None
+            return ("planner", (x_pred,), {} if guess is None else {"guess": guess}), dist
+        return ("planner", (x_pred,), {}), None
+
+    def _serve(self, request):
+        """A plan for ``request``, ``(name, args, kwargs)``: ``self.planner`` or :meth:`_plan_warm` called with them
+        (in the caller's thread, or in the worker process's copy of this supervisor)."""
+        name, args, kwargs = request
+        return (self.planner if name == "planner" else self._plan_warm)(*args, **kwargs)
+
+    def _worker(self) -> PlanWorker:
+        """The planning worker process (:class:`~cartpole.supervise.worker.PlanWorker`), made at first use: kept
+        between plans, so what one plan built in it (its solvers) serves the next."""
+        if self.server is None:
+            self.server = PlanWorker(self._serve)
+        return self.server
 
     def _take_plan(self, ask, plan, wall: float, charged: float, why: str | None) -> None:
         """Use ``plan`` asked for by ``ask`` (:class:`_Ask`) that took ``wall`` s and is charged ``charged`` s of
@@ -472,41 +487,43 @@ class Supervisor:
         """With ``plan_while_running``: take the worker's plan once it is in (charged the simulated time since it was
         asked for), kill it once over ``plan_budget`` (a failed plan), or drop it when the state no longer waits for
         it (the catch took over meanwhile)."""
-        worker, ask = self.worker, self.asked
+        worker, ask = self.server, self.asked
         if self.mode != "wait":
             self.close()
             self._decide(t, "plan_dropped", wall_s=worker.elapsed, asked_at=ask.t)
             return
-        budget = self.options.plan_budget
+        budget, wall = self.options.plan_budget, worker.elapsed
         if worker.poll():
             try:
                 plan, why = worker.result(), None
             except CartPoleError as exc:
                 plan, why = None, str(exc)
-        elif worker.elapsed > budget:
+        elif wall > budget:
             worker.kill()
-            plan, why = None, timeout_sentence(worker.elapsed, budget)
-            self._decide(ask.t, "plan_timeout", wall_s=worker.elapsed, budget_s=budget)
+            plan, why = None, timeout_sentence(wall, budget)
+            self._decide(ask.t, "plan_timeout", wall_s=wall, budget_s=budget)
         else:
             return
-        self.worker = self.asked = None
+        self.asked = None
         charged = max(t - ask.t, self.options.charged_latency or 0.0)
-        self._take_plan(ask, plan, worker.elapsed, charged, why)
+        self._take_plan(ask, plan, wall, charged, why)
 
     def close(self) -> None:
-        """Stop a plan still on its way in a worker process (``plan_while_running``): call it when the run ends."""
-        if self.worker is not None:
-            self.worker.kill()
-        self.worker = self.asked = None
+        """End the planning worker process (``plan_in_worker``), a plan still on its way in it dropped: call it when
+        the run ends (an idle worker otherwise waits for the next plan until this process exits)."""
+        if self.server is not None:
+            self.server.close()
+        self.server = self.asked = None
 
-    def _call_planner(self, t: float, call: Callable):
-        """``call()`` (a plan) in the caller's thread, or with ``plan_in_worker`` in a child process killed at
-        ``plan_budget`` (a ``plan_timeout`` decision, then :class:`~cartpole.supervise.worker.PlanTimeout`)."""
+    def _call_planner(self, t: float, request):
+        """The plan for ``request`` (:meth:`_serve`) in the caller's thread, or with ``plan_in_worker`` in the worker
+        process, killed at ``plan_budget`` (a ``plan_timeout`` decision, then
+        :class:`~cartpole.supervise.worker.PlanTimeout`)."""
         if not self.options.plan_in_worker:
-            return call()
+            return self._serve(request)
         budget = self.options.plan_budget
-        return run_planner(call, budget, on_timeout=lambda wall: self._decide(t, "plan_timeout", wall_s=wall,
-                                                                              budget_s=budget))
+        return self._worker().wait(request, budget, on_timeout=lambda wall: self._decide(t, "plan_timeout",
+                                                                                         wall_s=wall, budget_s=budget))
 
     def _plan_warm(self, x0, guesses):
         """The planner from ``x0`` warm-started from each of ``guesses`` (``(Trajectory, distance)``, the nearest
@@ -552,7 +569,7 @@ class Supervisor:
                 raise CartPoleError("the prediction over the planning latency is not finite")
             warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
             tail = trajectory_tail(plan.trajectory, t0 - t_plan)
-            new = self._call_planner(t, lambda: self.planner(x_pred, guess=tail, **warm_only))
+            new = self._call_planner(t, ("planner", (x_pred,), {"guess": tail, **warm_only}))
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)
@@ -584,7 +601,7 @@ class Supervisor:
         if self.swingup is not None:
             self._set(t, "swingup", cost=cost)
             return self.swingup(t, x)
-        if self.worker is not None:
+        if self.asked is not None:
             self._poll_worker(t)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
             late = max(0.0, t - self.plan_t0)

@@ -75,14 +75,30 @@ def test_a_failed_plan_in_the_worker_keeps_its_sentence_and_a_crash_is_raised():
 
 
 def test_the_worker_is_polled_without_blocking_and_killed_on_demand():
-    worker = PlanWorker(lambda: time.sleep(60.0))
+    worker = PlanWorker(lambda seconds: time.sleep(seconds))
     start = time.perf_counter()
+    worker.submit(60.0)
     assert worker.poll() is False and time.perf_counter() - start < 0.5
     os.kill(worker.pid, 0)  # running
     worker.kill()
     _no_child_left()
     with pytest.raises(CartPoleError, match="died without an answer"):
         worker.result()
+
+
+def test_the_worker_keeps_its_memory_between_requests_and_a_kill_starts_a_new_one():
+    seen = []
+
+    def handler(request):
+        seen.append(request)
+        return list(seen)
+    worker = PlanWorker(handler)
+    assert worker.wait("a", 30.0) == ["a"] and worker.wait("b", 30.0) == ["a", "b"]  # one child, kept
+    assert seen == [] and worker.forks == 1  # the parent's list untouched
+    worker.kill()
+    assert worker.wait("c", 30.0) == ["c"] and worker.forks == 2  # a new child, forked from the parent as it is
+    worker.close()
+    _no_child_left()
 
 
 def test_plan_in_worker_must_be_a_bool_and_planning_while_running_needs_it():
@@ -178,7 +194,8 @@ def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_r
         force = Knockdown(1.5, 0.3, seed=4).start(params, x_eq=model.x_eq, hinges=model.hinges)
         runs.append((sup, simulate(params, sup, np.asarray(model.x_hanging, float), 6.0, disturbance=force)))
     (sup_here, here), (sup_there, there) = runs
-    assert sup_there.plans >= 2 and replays_exactly(there, params)
+    assert sup_there.plans >= 2 and sup_there.server.forks == 1 and replays_exactly(there, params)
+    sup_there.close()
     assert np.array_equal(here.ctrl, there.ctrl)
     assert [d.kind for d in sup_here.decisions] == [d.kind for d in sup_there.decisions]
     _no_child_left()
