@@ -15,7 +15,8 @@
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
-  planner runs in the caller's thread and its wall time ``W`` is honest latency: the plan is used only from
+  planner runs in the caller's thread (or, with ``plan_in_worker``, in a worker process killed at ``plan_budget``:
+  :mod:`cartpole.supervise.worker`) and its wall time ``W`` is honest latency: the plan is used only from
   ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted starts from its beginning
   when the state is still at its start (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from
   where its clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes
