@@ -199,3 +199,22 @@ def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_r
     assert np.array_equal(here.ctrl, there.ctrl)
     assert [d.kind for d in sup_here.decisions] == [d.kind for d in sup_there.decisions]
     _no_child_left()
+
+
+def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_worker_ended(lab):
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True))
+    hanging, upright = np.asarray(model.x_hanging, float), np.asarray(model.x_eq, float)
+    sup(0.0, hanging)
+    assert sup.mode == "wait" and sup.server.busy
+    first = sup.server.pid
+    assert np.allclose(sup(0.01, upright), base.catch(0.01, upright))  # caught meanwhile
+    sup(0.02, hanging)
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds == ["catch", "plan_dropped"]
+    with pytest.raises(ProcessLookupError):  # the old plan dropped with its child, reaped
+        os.kill(first, 0)
+    assert sup.mode == "wait" and sup.server.busy and sup.server.pid != first  # a new plan asked for
+    sup.close()
+    _no_child_left()
