@@ -41,10 +41,12 @@ class PlanWorkerError(CartPoleError):
     """The planning child died without an answer (killed from outside, out of memory), or was asked out of turn."""
 
 
-def _serve(handler: Callable, conn) -> None:
+def _serve(handler: Callable, conn, parent_end) -> None:
     """In the child: for each request from ``conn``, ``handler(request)``'s outcome back through it:
     ``("ok", value)``, ``("fail", sentence)`` for a :class:`CartPoleError` (a plan not found) or ``("crash",
-    traceback text)`` for any other exception; ends when the parent closes its end."""
+    traceback text)`` for any other exception; ends when the parent closes its end (``parent_end``, whose copy the
+    fork gave the child is closed first, else the child would never see the pipe close)."""
+    parent_end.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent, which kills the child
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
@@ -100,7 +102,7 @@ class PlanWorker:
     def _fork(self) -> None:
         ctx = multiprocessing.get_context("fork")
         self._conn, child_end = ctx.Pipe()
-        self._process = ctx.Process(target=_serve, args=(self._handler, child_end), daemon=True,
+        self._process = ctx.Process(target=_serve, args=(self._handler, child_end, self._conn), daemon=True,
                                     name="cartpole-plan")
         self._process.start()
         child_end.close()  # the child holds its end: its exit reads as EOF here

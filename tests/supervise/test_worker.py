@@ -14,7 +14,7 @@ from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.supervise import Supervisor, SupervisorError, SupervisorOptions, supervisor_for
-from cartpole.supervise.worker import PlanTimeout, PlanWorker, run_planner
+from cartpole.supervise.worker import REAP_TIMEOUT, PlanTimeout, PlanWorker, run_planner
 
 #: s: what killing and reaping the child may add to the budget on a loaded machine.
 KILL_SLACK = 3.0
@@ -97,7 +97,9 @@ def test_the_worker_keeps_its_memory_between_requests_and_a_kill_starts_a_new_on
     assert seen == [] and worker.forks == 1  # the parent's list untouched
     worker.kill()
     assert worker.wait("c", 30.0) == ["c"] and worker.forks == 2  # a new child, forked from the parent as it is
+    start = time.perf_counter()
     worker.close()
+    assert time.perf_counter() - start < REAP_TIMEOUT / 2  # the idle child saw its pipe close and ended
     _no_child_left()
 
 
