@@ -17,7 +17,8 @@
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
-  planner runs in the caller's thread and its wall time ``W`` is honest latency: the plan is used only from
+  planner runs in the caller's thread (or, with ``plan_in_worker``, in a worker process killed at ``plan_budget``:
+  :mod:`cartpole.supervise.worker`) and its wall time ``W`` is honest latency: the plan is used only from
   ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted starts from its beginning
   when the state is still at its start (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from
   where its clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes
@@ -34,7 +35,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Callable, ClassVar
+from typing import Callable, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -50,6 +51,7 @@ from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
 from cartpole.supervise.pump import HingePump, pendulum_driven_at_hinge
+from cartpole.supervise.worker import PlanWorker, fork_available, timeout_sentence
 from cartpole.validation import BasinCache
 
 
@@ -108,6 +110,17 @@ STALL_LIMIT_TOL = 0.05
 #: (median over seeds 0-11 of the time to calm 51.6 s against 51.7 s, from the same knocked states) and each plan
 #: from there swung up at once (12 s and 10 s after calm; in MuJoCo, 120 s of knockdowns).
 DRAIN_MARGIN = 5.0
+
+
+class _Ask(NamedTuple):
+    """What a plan was asked for with: the time ``t`` (s), the predicted start ``x_pred`` (nx,), the ``steps`` it
+    was predicted over, the predicted latency ``lat`` (s), the library's distance ``dist`` to its warm start."""
+
+    t: float
+    x_pred: np.ndarray
+    steps: int
+    lat: float
+    dist: float | None
 
 
 class SupervisorError(OptionsError):
@@ -182,6 +195,19 @@ class SupervisorOptions(StageOptions):
         None), the calming brake below it (True; :func:`supervisor_for` sets it for a model driven at a hinge), or
         with the calming brake alone (False, default): a passive damper on a driven joint the chain hardly moves takes
         little out.
+    plan_in_worker : bool
+        Make each plan in a child process (:class:`cartpole.supervise.worker.PlanWorker`: forked at the first plan
+        and kept between plans, so that the solvers one plan builds serve the next) that is killed once a plan has
+        run ``plan_budget`` s of wall time (the next plan forks a new one): planning from any state is then bounded
+        by the budget (a ``plan_timeout`` decision, then ``plan_failed``), where in the caller's thread (False,
+        default) the budget is checked only after the planner returns. The run waits for the child, and its wall time
+        is charged as in the caller's thread. Call :meth:`Supervisor.close` when the run ends.
+    plan_while_running : bool
+        With ``plan_in_worker``: the run goes on while the worker plans (the brake acting), polled at each call, the
+        plan used from the simulated time it comes in (charged that time since it was asked for, at least
+        ``charged_latency``), killed once over ``plan_budget``; re-plans while tracking still wait. For a run paced in
+        real time (a live view), where simulated time is wall time; a run stepped as fast as possible then charges
+        whatever time it stepped meanwhile, and is not reproducible. False (default): the run waits for the worker.
     """
 
     plan_budget: float = 30.0
@@ -199,6 +225,8 @@ class SupervisorOptions(StageOptions):
     calm_energy: float | None = None
     warm_tails: bool = False
     calm_drain: bool = False
+    plan_in_worker: bool = False
+    plan_while_running: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -213,9 +241,14 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails", "calm_drain"):
+        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_in_worker", "plan_while_running"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
+        if self.plan_in_worker and not fork_available():
+            raise SupervisorError("plan_in_worker needs a platform that can fork (Linux, macOS); leave it False here.")
+        if self.plan_while_running and not self.plan_in_worker:
+            raise SupervisorError("plan_while_running needs plan_in_worker=True: only a plan made in a worker "
+                                  "process lets the run go on meanwhile.")
 
 
 @dataclass(frozen=True)
@@ -230,7 +263,9 @@ class Decision:
         ``"catch"``, ``"swingup"`` (the swing-up law took over), ``"brake"``, ``"plan"`` (a plan requested),
         ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
         ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
-        ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`).
+        ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`),
+        ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows),
+        ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -354,6 +389,9 @@ class Supervisor:
         self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
         self.replan_at = np.inf
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
+        if getattr(self, "server", None) is not None:
+            self.close()
+        self.server = self.asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
 
     @property
     def latency(self) -> float:
@@ -431,25 +469,55 @@ class Supervisor:
         x_pred = xs[-1]
         self.plans += 1
         start = time.perf_counter()
+        ask = _Ask(t, x_pred, steps, lat, None)
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
-            guess, dist = None, None
-            if self.library is not None and len(self.library) and self.options.warm_tails:
-                guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
-                                                    energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
-                dist = guesses[0][1]
-                plan = self._plan_warm(x_pred, guesses)
-            else:
-                if self.library is not None and len(self.library):
-                    guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
-                    dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
-                plan = self.planner(x_pred) if guess is None else self.planner(x_pred, guess=guess)
+            request, dist = self._plan_request(x_pred)
+            ask = ask._replace(dist=dist)
+            if self.options.plan_while_running:  # the run goes on; __call__ polls the worker
+                self._worker().submit(request)
+                self.asked, self.mode, self.ready_at = ask, "wait", np.inf
+                return
+            plan = self._call_planner(t, request)
         except CartPoleError as exc:
             plan, why = None, str(exc)
         wall = time.perf_counter() - start
-        self.plan_seconds.append(wall)
         charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
+        self._take_plan(ask, plan, wall, charged, None if plan is not None else why)
+
+    def _plan_request(self, x_pred):
+        """``(request, distance)``: the planning call from ``x_pred`` (warm-started from the library as the options
+        say) as a picklable request for :meth:`_serve`, and the library's distance to its warm start (None without
+        one)."""
+        if self.library is not None and len(self.library) and self.options.warm_tails:
+            guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
+                                                energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
+            return ("_plan_warm", (x_pred, guesses), {}), guesses[0][1]
+        if self.library is not None and len(self.library):
+            guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
+            dist = self.library.nearest(x_pred, metric=self.catch.S)[1]
+            return ("planner", (x_pred,), {} if guess is None else {"guess": guess}), dist
+        return ("planner", (x_pred,), {}), None
+
+    def _serve(self, request):
+        """A plan for ``request``, ``(name, args, kwargs)``: ``self.planner`` or :meth:`_plan_warm` called with them
+        (in the caller's thread, or in the worker process's copy of this supervisor)."""
+        name, args, kwargs = request
+        return (self.planner if name == "planner" else self._plan_warm)(*args, **kwargs)
+
+    def _worker(self) -> PlanWorker:
+        """The planning worker process (:class:`~cartpole.supervise.worker.PlanWorker`), made at first use: kept
+        between plans, so what one plan built in it (its solvers) serves the next."""
+        if self.server is None:
+            self.server = PlanWorker(self._serve)
+        return self.server
+
+    def _take_plan(self, ask, plan, wall: float, charged: float, why: str | None) -> None:
+        """Use ``plan`` asked for by ``ask`` (:class:`_Ask`) that took ``wall`` s and is charged ``charged`` s of
+        simulated time, or log its failure (``plan`` None, ``why``) and brake until a retry."""
+        t, x_pred, steps, lat, dist = ask
+        self.plan_seconds.append(wall)
         if plan is not None and wall > self.options.plan_budget:
             plan, why = None, f"the plan took {wall:.1f} s, over the budget of {self.options.plan_budget:g} s"
         if plan is None:
@@ -470,6 +538,48 @@ class Supervisor:
         self._decide(t, "plan", wall_s=wall, charged_s=charged, predicted_latency_s=lat, T=float(plan.trajectory.duration), warm=warm,
                      **({} if dist is None else {"library_distance": dist}))
         self.mode = "wait"
+
+    def _poll_worker(self, t: float) -> None:
+        """With ``plan_while_running``: take the worker's plan once it is in (charged the simulated time since it was
+        asked for), kill it once over ``plan_budget`` (a failed plan), or drop it when the state no longer waits for
+        it (the catch took over meanwhile)."""
+        worker, ask = self.server, self.asked
+        if self.mode != "wait":
+            self.close()
+            self._decide(t, "plan_dropped", wall_s=worker.elapsed, asked_at=ask.t)
+            return
+        budget, wall = self.options.plan_budget, worker.elapsed
+        if worker.poll():
+            try:
+                plan, why = worker.result(), None
+            except CartPoleError as exc:
+                plan, why = None, str(exc)
+        elif wall > budget:
+            worker.kill()
+            plan, why = None, timeout_sentence(wall, budget)
+            self._decide(ask.t, "plan_timeout", wall_s=wall, budget_s=budget)
+        else:
+            return
+        self.asked = None
+        charged = max(t - ask.t, self.options.charged_latency or 0.0)
+        self._take_plan(ask, plan, wall, charged, why)
+
+    def close(self) -> None:
+        """End the planning worker process (``plan_in_worker``), a plan still on its way in it dropped: call it when
+        the run ends (an idle worker otherwise waits for the next plan until this process exits)."""
+        if self.server is not None:
+            self.server.close()
+        self.server = self.asked = None
+
+    def _call_planner(self, t: float, request):
+        """The plan for ``request`` (:meth:`_serve`) in the caller's thread, or with ``plan_in_worker`` in the worker
+        process, killed at ``plan_budget`` (a ``plan_timeout`` decision, then
+        :class:`~cartpole.supervise.worker.PlanTimeout`)."""
+        if not self.options.plan_in_worker:
+            return self._serve(request)
+        budget = self.options.plan_budget
+        return self._worker().wait(request, budget, on_timeout=lambda wall: self._decide(t, "plan_timeout",
+                                                                                         wall_s=wall, budget_s=budget))
 
     def _plan_warm(self, x0, guesses):
         """The planner from ``x0`` warm-started from each of ``guesses`` (``(Trajectory, distance)``, the nearest
@@ -514,7 +624,8 @@ class Supervisor:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
             warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
-            new = self.planner(x_pred, guess=trajectory_tail(plan.trajectory, t0 - t_plan), **warm_only)
+            tail = trajectory_tail(plan.trajectory, t0 - t_plan)
+            new = self._call_planner(t, ("planner", (x_pred,), {"guess": tail, **warm_only}))
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)
@@ -548,6 +659,8 @@ class Supervisor:
             self._set(t, "swingup", cost=cost)
             self._watch_stall(t, x)
             return self.swingup(t, x)
+        if self.asked is not None:
+            self._poll_worker(t)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
             late = max(0.0, t - self.plan_t0)
             restart = late > 0.5 * self.model.dt and self._at_start(x)

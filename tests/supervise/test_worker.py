@@ -1,0 +1,222 @@
+"""Planning in a worker process: bounded by the plan budget (killed at it, nothing left running), the same plan as in
+the caller's thread, and a supervised run through it that replays exactly."""
+import multiprocessing
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from cartpole.errors import CartPoleError
+from cartpole.models import build_model, read_params
+from cartpole.ocp.trajectory import Trajectory
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.sim import Knockdown, replays_exactly, simulate
+from cartpole.supervise import Supervisor, SupervisorError, SupervisorOptions, supervisor_for
+from cartpole.supervise.worker import REAP_TIMEOUT, PlanTimeout, PlanWorker, run_planner
+
+#: s: what killing and reaping the child may add to the budget on a loaded machine.
+KILL_SLACK = 3.0
+
+
+def _no_child_left():
+    """No child process of this one, running or a zombie (``waitpid`` finds none to wait for)."""
+    assert multiprocessing.active_children() == []
+    with pytest.raises(ChildProcessError):
+        os.waitpid(-1, os.WNOHANG)
+
+
+@pytest.fixture(scope="module")
+def lab():
+    """The lab's cart-pole with a supervisor that plans (no energy law): its catch, basin and brake."""
+    params = read_params("cartpole/assets/cartpole.xml")
+    model = build_model(params)
+    base = supervisor_for(params, model)
+
+    def planner(x0, guess=None, cold=True):
+        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, guess=guess, cold=cold)
+    return params, model, base, planner
+
+
+def _planning(lab, **options):
+    params, model, base, planner = lab
+    return Supervisor(model, base.catch, base.rho, base.brake, planner=planner, options=SupervisorOptions(**options))
+
+
+def test_a_plan_over_the_budget_is_killed_at_the_budget_and_the_run_goes_on(lab):
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5))
+    x = np.asarray(model.x_hanging, float)
+    start = time.perf_counter()
+    u = sup(0.0, x)
+    took = time.perf_counter() - start
+    assert 0.5 <= took < 0.5 + KILL_SLACK
+    assert [d.kind for d in sup.decisions] == ["plan_timeout", "plan_failed"]
+    timeout, failed = sup.decisions
+    assert timeout.detail["wall_s"] >= 0.5 and timeout.detail["budget_s"] == 0.5
+    assert "budget" in failed.detail["reason"] and failed.detail["wall_s"] >= 0.5
+    _no_child_left()
+    assert np.allclose(u, base.brake(0.0, x)) and np.allclose(sup(0.01, x), base.brake(0.01, x))  # braking, retry later
+    assert sup.summary()["unreachable"][0]["reason"] == failed.detail["reason"]
+
+
+def test_a_failed_plan_in_the_worker_keeps_its_sentence_and_a_crash_is_raised():
+    def no_plan():
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    with pytest.raises(CartPoleError, match="No swing-up found"):
+        run_planner(no_plan, 10.0)
+    with pytest.raises(RuntimeError, match="ZeroDivisionError"):
+        run_planner(lambda: 1 / 0, 10.0)
+    with pytest.raises(PlanTimeout, match="plan_budget"):
+        run_planner(lambda: time.sleep(60.0), 0.2)
+    _no_child_left()
+
+
+def test_the_worker_is_polled_without_blocking_and_killed_on_demand():
+    worker = PlanWorker(lambda seconds: time.sleep(seconds))
+    start = time.perf_counter()
+    worker.submit(60.0)
+    assert worker.poll() is False and time.perf_counter() - start < 0.5
+    os.kill(worker.pid, 0)  # running
+    worker.kill()
+    _no_child_left()
+    with pytest.raises(CartPoleError, match="died without an answer"):
+        worker.result()
+
+
+def test_the_worker_keeps_its_memory_between_requests_and_a_kill_starts_a_new_one():
+    seen = []
+
+    def handler(request):
+        seen.append(request)
+        return list(seen)
+    worker = PlanWorker(handler)
+    assert worker.wait("a", 30.0) == ["a"] and worker.wait("b", 30.0) == ["a", "b"]  # one child, kept
+    assert seen == [] and worker.forks == 1  # the parent's list untouched
+    worker.kill()
+    assert worker.wait("c", 30.0) == ["c"] and worker.forks == 2  # a new child, forked from the parent as it is
+    start = time.perf_counter()
+    worker.close()
+    assert time.perf_counter() - start < REAP_TIMEOUT / 2  # the idle child saw its pipe close and ended
+    _no_child_left()
+
+
+def test_plan_in_worker_must_be_a_bool_and_planning_while_running_needs_it():
+    with pytest.raises(SupervisorError, match="plan_in_worker"):
+        SupervisorOptions(plan_in_worker="yes")
+    with pytest.raises(SupervisorError, match="plan_while_running needs plan_in_worker=True"):
+        SupervisorOptions(plan_while_running=True)
+
+
+@dataclass
+class _HoldPlan:
+    """A plan that pickles (a worker sends it back): hold ``x_end`` with ``u`` for ``duration`` s."""
+
+    trajectory: Trajectory
+    u: np.ndarray
+
+    @classmethod
+    def at(cls, model, duration: float):
+        x = np.tile(np.asarray(model.x_eq, float), (2, 1))
+        u = np.asarray(model.u_eq, float)
+        return cls(Trajectory(t=np.array([0.0, duration]), x=x, u=np.tile(u, (2, 1)), xdot=np.zeros_like(x)), u)
+
+    def controller(self, t, x):
+        return self.u
+
+
+def _paced(sup, x, until, dt=0.01, limit=20.0):
+    """Call ``sup`` every ``dt`` s of simulated and (at least) wall time, as a run paced in real time does, until
+    ``until(sup)`` or ``limit`` s; returns each call's ``(t, wall s, ctrl)``."""
+    calls, t = [], 0.0
+    while not until(sup) and t < limit:
+        start = time.perf_counter()
+        u = sup(t, x)
+        calls.append((t, time.perf_counter() - start, u))
+        time.sleep(dt)
+        t += dt
+    return calls
+
+
+def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_time_it_came_in(lab):
+    params, model, base, _ = lab
+
+    def planner(x0):
+        time.sleep(1.0)
+        return _HoldPlan.at(model, 2.0)
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, latency=0.05,
+                                               funnel=10.0))
+    x = np.asarray(model.x_hanging, float)
+    calls = _paced(sup, x, lambda s: s.mode == "track")
+    plan = next(d for d in sup.decisions if d.kind == "plan")
+    came = next(d for d in sup.decisions if d.kind == "track")
+    assert plan.detail["wall_s"] >= 1.0 and plan.t == 0.0
+    assert came.t == pytest.approx(plan.detail["charged_s"])  # tracked from the simulated time it came in
+    waiting = [c for c in calls if c[0] < came.t]
+    assert len(waiting) >= 10 and max(w for _, w, _ in waiting[1:]) < 0.5  # the run went on meanwhile
+    assert all(np.allclose(u, base.brake(t, x)) for t, _, u in waiting)
+    sup.close()
+    _no_child_left()
+
+
+def test_planning_while_running_a_plan_over_the_budget_is_killed_and_fails(lab):
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, plan_budget=0.5))
+    x = np.asarray(model.x_hanging, float)
+    start = time.perf_counter()
+    _paced(sup, x, lambda s: s.failures > 0)
+    assert time.perf_counter() - start < 0.5 + KILL_SLACK
+    assert [d.kind for d in sup.decisions][:2] == ["plan_timeout", "plan_failed"]
+    assert sup.decisions[1].detail["wall_s"] >= 0.5
+    _no_child_left()
+
+
+def test_a_plan_through_the_worker_is_the_plan_made_in_the_callers_thread(lab):
+    params, model, base, planner = lab
+    x0 = np.asarray(model.x_hanging, float)
+    here = planner(x0)
+    there = run_planner(lambda: planner(x0), 120.0)
+    _no_child_left()
+    for a, b in ((here.trajectory.t, there.trajectory.t), (here.trajectory.x, there.trajectory.x),
+                 (here.trajectory.u, there.trajectory.u), (here.gains.K, there.gains.K)):
+        assert np.array_equal(a, b)
+    x = x0 + 0.01
+    assert np.array_equal(here.controller(0.3, x), there.controller(0.3, x))
+
+
+def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_run_planning_in_thread(lab):
+    params, model, _, _ = lab
+    runs = []
+    for in_worker in (False, True):
+        sup = _planning(lab, charged_latency=0.5, plan_in_worker=in_worker, plan_budget=120.0)
+        force = Knockdown(1.5, 0.3, seed=4).start(params, x_eq=model.x_eq, hinges=model.hinges)
+        runs.append((sup, simulate(params, sup, np.asarray(model.x_hanging, float), 6.0, disturbance=force)))
+    (sup_here, here), (sup_there, there) = runs
+    assert sup_there.plans >= 2 and sup_there.server.forks == 1 and replays_exactly(there, params)
+    sup_there.close()
+    assert np.array_equal(here.ctrl, there.ctrl)
+    assert [d.kind for d in sup_here.decisions] == [d.kind for d in sup_there.decisions]
+    _no_child_left()
+
+
+def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_worker_ended(lab):
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True))
+    hanging, upright = np.asarray(model.x_hanging, float), np.asarray(model.x_eq, float)
+    sup(0.0, hanging)
+    assert sup.mode == "wait" and sup.server.busy
+    first = sup.server.pid
+    assert np.allclose(sup(0.01, upright), base.catch(0.01, upright))  # caught meanwhile
+    sup(0.02, hanging)
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds == ["catch", "plan_dropped"]
+    with pytest.raises(ProcessLookupError):  # the old plan dropped with its child, reaped
+        os.kill(first, 0)
+    assert sup.mode == "wait" and sup.server.busy and sup.server.pid != first  # a new plan asked for
+    sup.close()
+    _no_child_left()
