@@ -100,7 +100,7 @@ ACROBOT_HORIZONS = (2.0, 2.5, 3.0, 4.0)
 #: DDP iterations a control step of the acrobot's further candidates (each with every horizon of
 #: :data:`ACROBOT_HORIZONS`), searched from the starts where no one-iteration horizon predicts
 #: :data:`ACROBOT_SEARCH_BELOW` (:func:`best_mpc`): each is a different swing-up of the chaotic chain.
-ACROBOT_ITERATIONS = (3, 2)
+ACROBOT_ITERATIONS = (3, 2, 4)
 #: The predicted return below which the acrobot's further candidates are searched: the starts near hanging, which
 #: swing up late (docs/dmc.md); the others earn more and are left as they are (each candidate is a closed-loop
 #: episode, tens of seconds).
