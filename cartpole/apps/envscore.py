@@ -32,6 +32,7 @@ from cartpole.ocp.dmc import rewards, task
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replay, simulate
+from cartpole.supervise import supervisor_for
 
 #: The folder of the toolkit's copies of dm_control's files (``cartpole/assets`` of the installed package).
 #:
@@ -72,6 +73,12 @@ class Environment:
         toolkit's own MuJoCo run of ``asset`` for the whole episode and scored with the task's exact reward
         (:func:`cartpole.ocp.dmc.rewards`); the one that earns most is the controller (:func:`best_mpc`). The
         environment's physics is that file's to the bit (``replays``), so its episode earns what was predicted.
+    iterations : tuple of int
+        DDP iterations a control step (``MPCOptions.iterations``) of further candidates, each with every horizon
+        (``"mpc"``): run only from a start where the one-iteration MPC of every horizon predicts less than
+        ``search_below`` (:func:`best_mpc`). Empty: none.
+    search_below : float
+        The predicted return below which the ``iterations`` candidates are searched too.
     """
 
     name: str
@@ -82,12 +89,22 @@ class Environment:
     reference: float | None = None
     reference_source: str = ""
     horizons: tuple = (2.0,)
+    iterations: tuple = ()
+    search_below: float = 0.0
 
 
 #: The acrobot's DDP MPC horizons (s) tried from each start (:func:`best_mpc`): 2 s is the best single horizon
 #: over dm_control's first ten episodes (docs/dmc.md); the longer ones swing up sooner from some starts near hanging,
 #: where 2 s pumps for long.
 ACROBOT_HORIZONS = (2.0, 2.5, 3.0, 4.0)
+#: DDP iterations a control step of the acrobot's further candidates (each with every horizon of
+#: :data:`ACROBOT_HORIZONS`), searched from the starts where no one-iteration horizon predicts
+#: :data:`ACROBOT_SEARCH_BELOW` (:func:`best_mpc`): each is a different swing-up of the chaotic chain.
+ACROBOT_ITERATIONS = (3, 2, 4)
+#: The predicted return below which the acrobot's further candidates are searched: the starts near hanging, which
+#: swing up late (docs/dmc.md); the others earn more and are left as they are (each candidate is a closed-loop
+#: episode, tens of seconds).
+ACROBOT_SEARCH_BELOW = 700.0
 
 _TDMPC2 = "TD-MPC2's best evaluation (nicklashansen/tdmpc2, results/tdmpc2/<task>.csv)"
 
@@ -95,7 +112,7 @@ _TDMPC2 = "TD-MPC2's best evaluation (nicklashansen/tdmpc2, results/tdmpc2/<task
 ENVIRONMENTS = {e.name: e for e in (
     Environment("pendulum-swingup", "dmc", "trajopt", "dmc_pendulum_swingup", "dmc_pendulum.xml", 906.2, _TDMPC2),
     Environment("acrobot-swingup", "dmc", "mpc", "dmc_acrobot_swingup", "dmc_acrobot.xml", 711.5, _TDMPC2,
-                horizons=ACROBOT_HORIZONS),
+                horizons=ACROBOT_HORIZONS, iterations=ACROBOT_ITERATIONS, search_below=ACROBOT_SEARCH_BELOW),
     Environment("cartpole-swingup", "dmc", "trajopt", "dmc_cartpole_swingup", "dmc_cartpole.xml", 883.0, _TDMPC2),
     Environment("cartpole-swingup_sparse", "dmc", "trajopt", "dmc_cartpole_swingup_sparse", "dmc_cartpole.xml",
                 849.0, _TDMPC2),
@@ -138,8 +155,9 @@ class EpisodeScore:
     rewards : (steps,) array
         The reward the environment paid for each step.
     design : dict or None
-        How the controller was chosen (:meth:`Chosen.as_dict`: the horizon, each candidate's predicted return),
-        None for a controller made without a choice.
+        How the controller was chosen (:meth:`Chosen.as_dict`: the horizon, each candidate's predicted return), or
+        the supervisor's summary (:meth:`cartpole.supervise.Supervisor.summary`), None for a controller made
+        without a choice.
     """
 
     env: str
@@ -292,18 +310,41 @@ def choose(candidates: dict, model, mjcf: str, objective: str, x0) -> Chosen:
     return Chosen(chosen, best, predicted)
 
 
+def mpc_label(horizon: float, iterations: int = 1) -> str:
+    """The label of the DDP MPC candidate with ``horizon`` (s) and ``iterations`` DDP iterations a control step:
+    the horizon (``"2.5"``) for one iteration, ``"<horizon>x<iterations>"`` (``"2.5x3"``) for more."""
+    return f"{float(horizon):g}" if int(iterations) == 1 else f"{float(horizon):g}x{int(iterations)}"
+
+
+def _ddp_mpc(env: Environment, model, x0, period: float, horizon: float, iterations: int = 1):
+    """The DDP MPC on ``env.objective`` from ``x0`` (no offline plan) with ``horizon`` s and ``iterations``."""
+    opts = MPCOptions(solver="ddp", objective=env.objective, seed_plan=False, period=period, horizon=float(horizon),
+                      iterations=int(iterations))
+    return ddp_mpc_swingup(model.params, x0=x0, plan_model=model, options=opts)
+
+
 def best_mpc(env: Environment, model, mjcf: str, x0, period: float):
-    """The DDP MPC on ``env.objective`` (no offline plan, control period ``period`` s) from ``x0`` (nx,), its
-    horizon the one of ``env.horizons`` that earns most over the episode (:func:`choose`); the controller itself
-    when there is one horizon, else a :class:`Chosen` labelled by the horizon in s."""
-    made = {}
-    for horizon in env.horizons:
-        opts = MPCOptions(solver="ddp", objective=env.objective, seed_plan=False, period=period,
-                          horizon=float(horizon))
-        made[f"{float(horizon):g}"] = ddp_mpc_swingup(model.params, x0=x0, plan_model=model, options=opts)
-    if len(made) == 1:
+    """The DDP MPC on ``env.objective`` (no offline plan, control period ``period`` s) from ``x0`` (nx,) that earns
+    most over the episode (:func:`choose`): the controller itself when there is one horizon and no further
+    iterations, else a :class:`Chosen` labelled by :func:`mpc_label`.
+
+    The candidates are first the one-iteration MPC of each of ``env.horizons``; when none of them predicts
+    ``env.search_below`` or more (a start from which they swing up late: near hanging), each horizon again with each
+    of ``env.iterations`` DDP iterations a step. The chaotic chain makes every candidate a different swing-up, and
+    the best of more of them is the better plan; the choice is among all of them, the first of equals in that
+    order."""
+    made = {mpc_label(h): _ddp_mpc(env, model, x0, period, h) for h in env.horizons}
+    if len(made) == 1 and not env.iterations:
         return next(iter(made.values()))
-    return choose(made, model, mjcf, env.objective, x0)
+    first = choose(made, model, mjcf, env.objective, x0)
+    if not env.iterations or max(first.predicted.values()) >= env.search_below:
+        return first
+    more = {mpc_label(h, it): _ddp_mpc(env, model, x0, period, h, it) for it in env.iterations for h in env.horizons}
+    second = choose(more, model, mjcf, env.objective, x0)
+    winner = first if first.predicted[first.choice] >= second.predicted[second.choice] else second
+    if winner is first and hasattr(first.controller, "reset"):
+        first.controller.reset()
+    return Chosen(winner.controller, winner.choice, {**first.predicted, **second.predicted})
 
 
 def design(env: Environment, mjcf: str, x0, hold: int):
@@ -318,6 +359,22 @@ def design(env: Environment, mjcf: str, x0, hold: int):
 
     return trajopt_swingup(model.params, x0=tuple(x0), plan_model=model,
                            options=PlanOptions(objective=env.objective)).controller
+
+
+def supervised(env: Environment, mjcf: str, x0, hold: int):
+    """The toolkit's supervisor (:func:`cartpole.supervise.supervisor_for`: catch, swing-up law or plan, track,
+    brake, chosen at run time) on the file ``mjcf``, its control period the environment's action hold of ``hold``
+    physics steps: ``u = supervisor(t, x)``. Nothing is planned from ``x0`` before the episode (unlike
+    :func:`design`): the supervisor plans in the loop, its planning wall time counted as latency in the episode's
+    own time. The signature is :func:`design`'s (``controller`` of :func:`score_episode`)."""
+    model = build_model(mjcf)
+    return supervisor_for(mjcf, model, period=hold * float(model.dt) if hold > 1 else None)
+
+
+#: The controllers :func:`score` can run, by name (``cartpole score --controller``): ``toolkit`` the one
+#: :data:`ENVIRONMENTS` names for each environment, designed from the start (:func:`design`), ``supervisor`` the
+#: supervisor, which decides in the loop (:func:`supervised`).
+CONTROLLERS = {"toolkit": design, "supervisor": supervised}
 
 
 def score_episode(name: str, seed: int = 0, *, controller=None, max_steps: int | None = None) -> EpisodeScore:
@@ -375,7 +432,16 @@ def score_episode(name: str, seed: int = 0, *, controller=None, max_steps: int |
                         terminated=bool(getattr(run, "terminated", False)), ctrl=readonly(ctrl), x=readonly(np.array(xs)),
                         replays=replays, warned=warned, design_s=design_s, mjcf=run.mjcf,
                         rewards=readonly(np.array(rewards)),
-                        design=ctrl_of.as_dict() if isinstance(ctrl_of, Chosen) else None)
+                        design=_design_record(ctrl_of))
+
+
+def _design_record(controller) -> dict | None:
+    """What the episode's JSON keeps of how ``controller`` was made or decided: a :class:`Chosen`'s choice, a
+    supervisor's summary (its decisions, plans and their wall times), else None."""
+    if isinstance(controller, Chosen):
+        return controller.as_dict()
+    summary = getattr(controller, "summary", None)
+    return summary() if callable(summary) else None
 
 
 def score(name: str, n: int = 10, seed: int = 0, *, controller=None, on_episode=None,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from cartpole.apps.envscore import ENVIRONMENTS, EnvScoreError, score
+from cartpole.apps.envscore import CONTROLLERS, ENVIRONMENTS, EnvScoreError, score
 
 HELP = ("run dm_control's and Gymnasium's own episodes (their resets, their rewards) with the toolkit's controllers "
         "and report the returns beside the best published learned agent's")
@@ -14,7 +14,7 @@ WRITES_FILES = False
 
 
 def add_arguments(parser) -> None:
-    """``--env NAME`` (repeatable), ``--n N``, ``--seed S``, ``--max-steps K``."""
+    """``--env NAME`` (repeatable), ``--n N``, ``--seed S``, ``--max-steps K``, ``--controller NAME``."""
     parser.add_argument("--env", action="append", default=None, metavar="NAME", choices=list(ENVIRONMENTS),
                         help=f"environment to score, repeatable: {', '.join(ENVIRONMENTS)} (default: every one)")
     parser.add_argument("--n", type=int, default=10, metavar="N",
@@ -22,6 +22,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="first reset seed (default 0)")
     parser.add_argument("--max-steps", type=int, default=None, metavar="K", dest="max_steps",
                         help="stop each episode after K environment steps (default: the environment's own episode)")
+    parser.add_argument("--controller", default="toolkit", choices=list(CONTROLLERS),
+                        help="toolkit: each environment's controller designed from its start (default); supervisor: "
+                             "the supervisor that decides in the loop (catch, swing-up law or plan, track, brake)")
 
 
 def run(args) -> dict:
@@ -32,7 +35,8 @@ def run(args) -> dict:
     ``min_return``, ``reference`` (the best published learned agent's return, or null), ``reference_source``,
     ``above_reference``, ``all_replay`` (every episode's states reproduced bit for bit by the toolkit's MuJoCo run of
     its logged ctrl), ``any_warned`` and ``episodes`` (per seed: ``seed``, ``x0``, ``return``, ``steps``,
-    ``terminated``, ``replays``, ``warned``, ``design_s``, ``mjcf``).
+    ``terminated``, ``replays``, ``warned``, ``design_s``, ``mjcf``, ``design``) and ``controller`` (the
+    ``--controller`` that ran).
     """
     if args.mjcf is not None:
         raise EnvScoreError("score runs each environment on its own file; leave out --mjcf (pick environments with "
@@ -51,11 +55,12 @@ def run(args) -> dict:
               f"{', MuJoCo warned' if ep.warned else ''}; controller designed in {ep.design_s:.1f} s",
               file=sys.stderr if args.json else sys.stdout, flush=True)
 
-    results = [score(name, args.n, args.seed, on_episode=report, max_steps=args.max_steps) for name in names]
+    results = [{**score(name, args.n, args.seed, controller=CONTROLLERS[args.controller], on_episode=report,
+                        max_steps=args.max_steps), "controller": args.controller} for name in names]
     if not args.json:
         for r in results:
             ref = "" if r["reference"] is None else (f"; best published learned agent {r['reference']:g} "
                                                      f"({'below' if r['above_reference'] else 'NOT below'} ours)")
-            print(f"{r['env']}: mean return {r['mean_return']:.1f} over seeds {r['seeds'][0]}-{r['seeds'][-1]} "
+            print(f"{r['env']} ({r['controller']}): mean return {r['mean_return']:.1f} over seeds {r['seeds'][0]}-{r['seeds'][-1]} "
                   f"(least {r['min_return']:.1f}){ref}")
     return {"environments": results}

@@ -12,6 +12,7 @@ import pytest
 
 from dataclasses import replace
 
+from cartpole.apps import envscore
 from cartpole.apps.envscore import (ENVIRONMENTS, EnvScoreError, choose, design, environment, episode_return, score,
                                     score_episode)
 from cartpole.control import LinearFeedback
@@ -55,8 +56,8 @@ def test_gymnasium_pendulums_held_by_the_lqr_over_their_action_hold_for_the_whol
 def test_acrobot_seed_0_swung_up_by_its_controller_in_dm_control():
     """The DDP MPC from dm_control's own seed-0 start: within the first 4 s dm_control pays nearly the full reward
     (the tip at the target) for the last half second, and the run replays exactly."""
-    def one_horizon(env, mjcf, x0, hold):  # the first of the horizons the scoring chooses among (no choice here)
-        return design(replace(env, horizons=env.horizons[:1]), mjcf, x0, hold)
+    def one_horizon(env, mjcf, x0, hold):  # the first of the candidates the scoring chooses among (no choice here)
+        return design(replace(env, horizons=env.horizons[:1], iterations=()), mjcf, x0, hold)
 
     ep = score_episode("acrobot-swingup", 0, controller=one_horizon, max_steps=400)
     assert ep.replays and not ep.warned and ep.design is None
@@ -92,3 +93,26 @@ def test_bad_environment_seed_or_length_is_one_sentence(kwargs, words):
 def test_bad_episode_count_is_one_sentence():
     with pytest.raises(EnvScoreError, match="n = 0"):
         score("InvertedPendulum-v5", 0)
+
+
+def _fake_mpc(env, model, x0, period, horizon, iterations=1):
+    """A cheap stand-in for the DDP MPC candidate (horizon, iterations): a constant push that differs by both."""
+    u = np.full(model.nu, np.clip(0.1 * horizon * (-1) ** iterations, -1, 1))
+    return lambda t, x: u.copy()
+
+
+@pytest.mark.parametrize("search_below", [-np.inf, np.inf])
+def test_more_iterations_are_searched_only_below_the_return_the_horizons_reach(monkeypatch, search_below):
+    """best_mpc: the one-iteration candidate of each horizon first; the candidates with more DDP iterations a step
+    only when none of those predicts search_below; the choice is the one predicting most among all that ran."""
+    monkeypatch.setattr(envscore, "_ddp_mpc", _fake_mpc)
+    env = replace(environment("acrobot-swingup"), horizons=(2.0, 3.0), iterations=(3,), search_below=search_below)
+    model = build_model(str(envscore.ASSETS / env.asset))
+    x0 = episode_starts(model, env.objective, 1, seed=0)[0]
+    chosen = envscore.best_mpc(env, model, str(envscore.ASSETS / env.asset), x0, float(model.dt))
+    expected = {"2", "3"} | ({"2x3", "3x3"} if search_below == np.inf else set())
+    assert set(chosen.predicted) == expected
+    assert chosen.choice == max(chosen.predicted, key=chosen.predicted.get)
+    assert chosen.as_dict()["predicted_return"] == pytest.approx(max(chosen.predicted.values()), abs=1e-4)
+    assert envscore.episode_return(model, str(envscore.ASSETS / env.asset), env.objective, chosen, x0) == \
+        pytest.approx(chosen.predicted[chosen.choice], abs=1e-9)

@@ -27,8 +27,20 @@ def test_score_json_is_one_document_with_each_environments_returns(capsys):
     (["--seed", "-1"], "--seed -1"),
     (["--max-steps", "0"], "--max-steps 0"),
     (["--env", "acrobot"], "invalid choice"),
+    (["--controller", "lqr"], "invalid choice"),
 ])
 def test_bad_score_input_is_one_sentence_and_exit_2(capsys, args, words):
     assert main(["score", *args]) == 2
     err = capsys.readouterr()
     assert err.out == "" and words in err.err and err.err.count("\n") == 1 and "Traceback" not in err.err
+
+
+def test_score_runs_the_supervisor_and_says_so(capsys):
+    """--controller supervisor drives the environment's own episode with the supervisor: the JSON names the
+    controller and each episode keeps the supervisor's decisions; the run replays exactly."""
+    assert main(["score", "--env", "InvertedPendulum-v5", "--n", "1", "--max-steps", "30", "--controller",
+                 "supervisor", "--json"]) == 0
+    (env,) = json.loads(capsys.readouterr().out)["environments"]
+    assert env["controller"] == "supervisor" and env["all_replay"] and not env["any_warned"]
+    (ep,) = env["episodes"]
+    assert ep["steps"] == 30 and [d["kind"] for d in ep["design"]["decisions"]][:1] == ["catch"]
