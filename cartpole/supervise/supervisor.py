@@ -781,15 +781,17 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
     calm_brake = (None if opts.calm_brake_time is None else
                   PassiveBrake(model, inertia, opts.calm_brake_time, catch.u_limits))
-    if opts.calm_drain:  # the drain down to the calm energy, the calming brake below it
-        calm_brake = EnergyDrain(model, target=DRAIN_MARGIN + (0.0 if opts.calm_energy is None else opts.calm_energy),
-                                 below=brake if calm_brake is None else calm_brake, u_limits=catch.u_limits)
     try:
         check_single_pole(model)
     except EnergyShapingModelError:
         if pendulum_driven_at_hinge(model):  # one pole on a driven hinge: its pump swings up from anywhere, no plan
             return Supervisor(model, catch, rho, brake, swingup=HingePump(model, catch.u_limits), options=opts,
                               basin=basin)
+        if opts.calm_drain:  # the drain down to the calm energy, the calming brake below it (a chain: a joint the
+            # motor does not drive; a pendulum on its driven hinge pumps, above)
+            calm_brake = EnergyDrain(model, target=DRAIN_MARGIN + (0.0 if opts.calm_energy is None else
+                                                                   opts.calm_energy),
+                                     below=brake if calm_brake is None else calm_brake, u_limits=catch.u_limits)
         plan_opts = PlanOptions() if plan is None else plan
         plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
         if not opts.exact_plans:

@@ -271,7 +271,7 @@ def _loop(**kw) -> dict:
     (lambda: _loop(push=[(1.0,)]), LoopError, "pair"), (lambda: _loop(model_error=0.0), LoopError, "scale in"),
     (lambda: _loop(model_error=np.inf), LoopError, "scale in"),
     (lambda: _loop(model_error="heavy"), LoopError, "not a number"),
-    (lambda: _loop(duration=-1.0), LoopError, "positive number of seconds"),
+    (lambda: _loop(duration=-1.0), LoopError, "must be a finite number > 0 s"),
     (lambda: _loop(period=0.013), PeriodError, "whole number of the MJCF"),
     (lambda: _loop(delay=0.007), RigError, "whole number of the MJCF"),
     (lambda: {**_loop(), "plan": PlanOptions()}, SwingupError,
