@@ -626,8 +626,9 @@ def uptime_metrics(rollout, source, *, band: float = UPRIGHT_BAND, hold: float =
     band : float
         rad: every pole's wrapped angle error below this counts as upright.
     hold : float
-        s: an entry into the band counts as a swing-up when it stays upright at least this long (or to the end of
-        the run); a run that starts upright has not swung up at its start.
+        s: an entry into the band counts as a swing-up only when it stays upright at least this long, also at the
+        run's end (an entry with less than ``hold`` s of run left is not counted: a chain spinning through the band
+        at the run's last steps has not swung up); a run that starts upright has not swung up at its start.
     events : sequence of (float, float)
         The disturbances' ``(start, end)`` times in s (e.g. :attr:`cartpole.sim.disturbance.KnockdownForce.events`).
     duration : float, optional
@@ -647,7 +648,7 @@ def uptime_metrics(rollout, source, *, band: float = UPRIGHT_BAND, hold: float =
     total = float(t[-1] - t[0]) if duration is None else float(duration)
     segments = upright_segments(rollout, source, band=band)
     up_time = float(np.sum(np.diff(t)[_upright_mask(rollout, source, band)[:-1]]))  # each step upright at its start
-    counted = [a for a, b in segments if a > t[0] and (b - a >= hold - 1e-9 or b >= t[-1])]
+    counted = [a for a, b in segments if a > t[0] and b - a >= hold - 1e-9]
     events = [(float(a), float(b)) for a, b in events]
     ends = [a for a, _ in events[1:]] + [np.inf]
     missed = [a for (a, _), nxt in zip(events, ends) if not any(a < s < nxt for s in counted)]

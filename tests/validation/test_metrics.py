@@ -7,7 +7,7 @@ from cartpole.models import read_params
 from cartpole.sim import Rollout
 from cartpole.validation.metrics import (STRICT_TOLERANCE, catch_held, failure_reason, held_upright, peak_ctrl, peak_ctrl_per_actuator,
                                          saturation_fraction, settling_time_seed, settling_time_strict, summarize,
-                                         swingup_metrics, swingup_success, track_margin)
+                                         swingup_metrics, swingup_success, track_margin, uptime_metrics)
 
 
 def handout_settling_time(t, history, threshold=0.05):
@@ -122,6 +122,23 @@ def test_time_to_upright_is_the_first_time_it_stays_upright():
     never = _rollout(np.full(10, 1.0))
     assert settling_time_seed(never.t, never.x) == np.inf
     assert swingup_metrics(never, read_params())["time_to_upright"] is None
+
+
+def test_an_entry_into_the_upright_band_counts_as_a_swingup_only_when_held_even_at_the_runs_end():
+    """A pole spinning through upright at the run's last steps has not swung up; one caught and held ``hold`` s
+    before the end has, and the knock before it is recovered."""
+    params = read_params()
+    dt = 0.01
+    spin = np.pi + 2.0 * np.arange(301) * dt * np.pi  # hanging, turning at 2 pi rad/s: upright at the last step
+    spin = spin + (2 * np.pi - spin[-1])
+    run = _rollout(spin, dt=dt)
+    assert abs(run.qpos[-1, 1] - 2 * np.pi) < 1e-12 and abs(run.qpos[-2, 1] - 2 * np.pi) > 0.02
+    m = uptime_metrics(run, params, hold=1.0, events=[(0.5, 0.8)])
+    assert m["swingups"] == 0 and m["unrecovered_at"] == [0.5] and m["recoveries"] == 0
+    caught = _rollout(np.concatenate([np.linspace(np.pi, 0.5, 150), np.full(151, 0.01)]), dt=dt)  # up at 1.5 s
+    held = uptime_metrics(caught, params, hold=1.0, events=[(0.5, 0.8)])
+    assert held["swingups"] == 1 and held["swingup_times"] == [pytest.approx(1.5)] and held["recoveries"] == 1
+    assert uptime_metrics(caught, params, hold=2.0)["swingups"] == 0  # up 1.5 s before the end: not held 2 s
 
 
 def test_success_needs_hold_no_limit_contact_and_ctrl_in_range():
