@@ -44,7 +44,7 @@ from cartpole.control.energy import EnergyShapingController, EnergyShapingModelE
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, Plant, plant_model, plant_params, wrap_angle
+from cartpole.models import CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
 from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
@@ -720,6 +720,14 @@ def hinge_driven(model: CartPoleModel) -> bool:
     return all(int(j) in model.hinges for j in model.params.actuated)
 
 
+def _bounded_plan_model(plant: Plant) -> CartPoleModel:
+    """The plant's model within :func:`~cartpole.models.planning_limits`' bounds (the plant's own model when its file
+    bounds every motor and the rail)."""
+    model = plant_model(plant)
+    bounded, _ = planning_limits(model.params)
+    return model if bounded is model.params else build_model(bounded)
+
+
 def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
@@ -733,7 +741,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     plant : path, CartPoleParams, CartPoleModel or None
         The MJCF MuJoCo runs (its ctrl ranges clip every law).
     plan_model : CartPoleModel, optional
-        The planning model (default the MJCF's own).
+        The planning model (default the MJCF's own within :func:`cartpole.models.planning_limits`' bounds, as the
+        command line plans: a stated default ``|ctrl|`` bound on a motor without ctrlrange, and on an unlimited rail;
+        a model given here is used as it is).
     period : float, optional
         Control period in s (default every physics step); the catch and the plans' TVLQR are designed over it.
     plan : PlanOptions, optional
@@ -761,7 +771,7 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     Supervisor
     """
     params = plant_params(plant)
-    model = plant_model(plant) if plan_model is None else plan_model
+    model = _bounded_plan_model(plant) if plan_model is None else plan_model
     catch = LinearFeedback.for_model(model, R=SWINGUP_CATCH_R if catch_R is None else catch_R, period=period)
     if basin_of is None:
         cache = BasinCache.on_disk() if basin_cache is None else basin_cache

@@ -7,7 +7,7 @@ import pytest
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control import SWINGUP_CATCH_R, EnergyDrain, LinearFeedback
 from cartpole.errors import CartPoleError
-from cartpole.models import build_model, read_params
+from cartpole.models import build_model, planning_limits, read_params
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.sim.disturbance import joint_inertia_and_authority
@@ -344,3 +344,18 @@ def test_the_calming_brake_acts_on_fast_states_and_the_brake_while_a_plan_is_on_
     assert np.allclose(sup(0.1, x), brake(0.1, x)) and sup.mode == "wait"  # calm: planned, the brake meanwhile
     with pytest.raises(SupervisorError, match="calm_brake_time"):
         SupervisorOptions(calm_brake_time=0.0)
+
+
+def test_supervisor_for_plans_within_the_default_bounds_the_command_line_uses_when_the_motor_has_no_ctrlrange():
+    """A motor without ctrlrange: ``supervisor_for(path)`` designs on the bounded model the command line plans with
+    (:func:`cartpole.models.planning_limits`' stated default ``|ctrl|`` bound), not on the unlimited one; MuJoCo runs
+    the file itself."""
+    path = "tests/assets/corpus/no_ctrlrange.xml"
+    params = read_params(path)
+    assert not np.all(np.isfinite(params.ctrl_range))  # the premise: unlimited in the file
+    bounded, limits = planning_limits(params)
+    sup = supervisor_for(path)
+    assert np.all(np.isfinite(sup.catch.u_limits))
+    assert np.allclose(sup.catch.u_limits, np.asarray(bounded.ctrl_range, float).reshape(sup.catch.u_limits.shape))
+    same = supervisor_for(params, build_model(bounded))  # as the command line calls it
+    assert np.allclose(sup.catch.K, same.catch.K) and sup.rho == pytest.approx(same.rho)
