@@ -11,7 +11,7 @@ from cartpole.sim.disturbance import joint_inertia_and_authority
 from cartpole.supervise import PassiveBrake
 
 ACROBOT = "cartpole/assets/dmc_acrobot.xml"
-START_ENERGY = 50.0  # J above the upright's: a chain swinging over the top, as a knock leaves it once damped a while
+START_ENERGY = 50.0  # J above the upright's: a chain swinging over the top, more than a knock leaves (13-32 J, docs)
 
 
 @pytest.fixture(scope="module")
