@@ -10,9 +10,9 @@ same on a loaded CI machine as on a quiet one; each plan's measured wall time is
 
 CPU (2-core machine shared by 8 sessions, so 5-10x a quiet one's): one pole about 6 s (energy law, no plans); two poles
 about 14 s, marked slow: the first plan is cold (2-8 s of wall time here, from hanging), the later ones warm-started
-from the run's own plans (:mod:`cartpole.planning.library`). The acrobot: one minute and two (a knock leaves it
-several times its swing-up's energy, which its 2 N m motor and its damping take 30-65 s to remove), with a floor
-that counts the measured waits for that; see its tests.
+from the run's own plans (:mod:`cartpole.planning.library`). The acrobot: one minute from upright (a knock leaves it
+less than its swing-up's energy above the upright's, which the supervisor calms in seconds before it plans), with a
+floor that counts the measured waits and plans; see its tests.
 """
 import numpy as np
 import pytest
@@ -20,7 +20,7 @@ import pytest
 from cartpole.models import build_model, read_params, wrap_angle
 from cartpole.sim import UPRIGHT_BAND, Knockdown, Throw, replays_exactly, simulate
 from cartpole.codegen import model_key
-from cartpole.planning.library import PlanLibrary, cached_library, library_path, library_starts
+from cartpole.planning.library import cached_library, library_path, library_starts
 from cartpole.planning.options import PlanOptions
 from cartpole.supervise import SupervisorOptions, supervisor_for
 from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
@@ -100,17 +100,16 @@ def test_a_chain_recovers_from_every_knockdown_for_a_minute():
 
 
 #: The acrobot's runs start upright, as a rig shown to visitors is when they poke it (its swing-up from hanging, about
-#: 20 s, is tested below). What a knock leaves, the supervisor's calming law (the energy drain,
-#: :class:`~cartpole.control.drain.EnergyDrain`, down to the upright's energy) calms in 31-64 s (median 52 s; the
-#: damping alone 42-78 s, median 66 s; seeds 0-11 of ``Knockdown(3, 0.3)``, from the state at the knock's end, in
-#: MuJoCo: ``tools/acrobot_drain.py``). Seed 11, the quickest: knocked at 3 s, calm at 34.3 s, caught at 46.5 s,
-#: knocked again at 49.6 s with too little minute left (in two minutes: calm again at 81.9 s, caught at 91.8 s).
-#: With the drain the energy reaches the upright's within the minute for seeds 0-3, 5-9 and 11 (5 and 9 in its last
-#: second), not for 4 and 10
-#: (``test_some_knocks_leave_the_acrobot_more_energy_than_its_motor_and_damping_remove_in_a_minute``). The minute
-#: from upright run for the seeds calm soonest (latency charged 2 s): 11, 8 (calm at 40.7 s, caught at 47.3 s), 2
-#: (47.3 s, 53.5 s) and 6 (51.0 s, 57.1 s) are swung up and caught again; 3, calm at 39.4 s, is not (its warm starts
-#: fail, its plans are lost until the minute ends). Under the soft brake alone only 11 was.
+#: 20 s, is tested below). A knock (``Knockdown(3, 0.3)``, its work bounded by the swing-up's energy) leaves it 13-32 J
+#: above the upright's energy, which the supervisor's calming law (the energy drain,
+#: :class:`~cartpole.control.drain.EnergyDrain`, then the soft brake) takes out in 0.7-6.3 s (median 1.3 s; seeds
+#: 0-11, from the state at the knock's end, in MuJoCo: ``tools/acrobot_drain.py``); then it plans. Measured over the
+#: minute from upright, latency charged ``LATENCY`` s (knockdowns, recovered, uptime): seed 0: 3, 2, 0.152; 1: 1, 0,
+#: 0.051; 2: 5, 4, 0.263; 4: 3, 2, 0.169; 6: 3, 2, 0.156; 11: 5, 4, 0.254 (the other seeds in the report of the branch
+#: that measured them). Seeds 2 and 11 recover from every knock but a last one 2.4 s and 4.7 s before the minute's
+#: end; in 0, 4 and 6 the last knock (17-20 s before the end) is not recovered, its plans lost and made again until
+#: the minute ends; in 1 the first knock is never recovered (its plans fail or are lost all minute). Seed 11's every
+#: plan swung up at once (no plan lost); one of seed 2's was lost and made again.
 ACROBOT_SEED = 11
 
 
@@ -136,82 +135,54 @@ def _calm_at(run, model, sup, after: float) -> float:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("duration", [DURATION, 2 * DURATION])
-def test_the_acrobot_swings_up_again_after_every_knockdown_once_its_damping_has_calmed_it(duration):
-    """Knocked, the acrobot holds several times its swing-up's energy, which its 2 N m elbow motor (the supervisor's
-    :class:`~cartpole.control.drain.EnergyDrain`) and its joints' damping take out. Each knock is followed by a wait
-    ``W_k`` for the energy to reach the upright's (measured on the run: the supervisor only calms until then, and
-    plans from there), then a swing-up and catch within twice ``T1``, the planned swing-up from hanging (the
-    library's plan); a last knock with less run left than that may go unrecovered. The floor: each recovered knock
-    costs its ``LENGTH``, its wait and one swing-up, the one the supervisor planned once calm (``LATENCY`` and its
-    duration ``T_k``), an unrecovered last one the rest of the run: ``uptime >= 1 - (sum_k (LENGTH + W_k + LATENCY +
-    T_k) + rest) / duration``, so a recovery that needed more than its plan (lost, planned again) on the whole fails
-    it (measured: calm at 34.3 s, a plan of 10.8 s, caught at 46.5 s; calm at 81.9 s, a plan of 8.3 s, caught at
-    91.8 s; drained to the upright's energy itself, the elbow still swinging hard, its plans were lost and made
-    again, hence :data:`~cartpole.supervise.supervisor.DRAIN_MARGIN`). (With ``T1`` for ``T_k`` the floor is below
-    zero: each knock comes after ``AFTER`` s upright, against a wait of most of a minute.) The minute, then two (a
-    second recovery). Wall time: 16 s on the
-    shared 2-core machine when quiet, 4-5 min under a load of 15-20 (plans of up to a minute each); the library's cold
-    plan from hanging (70 s quiet, 360 s loaded) once per model, kept on disk."""
+def test_the_acrobot_swings_up_again_after_every_knockdown_for_a_minute():
+    """Knocked, the acrobot holds 13-32 J above the upright's energy, which the supervisor calms first (a plan from
+    above the upright's energy is not found); each knock is followed by a wait ``W_k`` for the energy to reach the
+    upright's (measured on the run: the supervisor only calms until then), then a plan (charged ``LATENCY`` s) of
+    ``T_k`` s, tracked, and a catch. Every knock but a last one with less run left than its wait and one swing-up from
+    hanging (``LATENCY + T1``, ``T1`` the library's plan from hanging, 12.4 s) is followed by a swing-up and catch,
+    each within ``LENGTH + W_k + 2 (LATENCY + T_k)`` of the knock (twice the swing-up planned once calm: a plan lost
+    and made again, as a cart's recovery is allowed twice its swing-up). The floor: each recovered knock costs its
+    ``LENGTH``, its wait and the plan made once calm, an unrecovered last knock the rest of the run: ``uptime >= 1 -
+    (sum_k (LENGTH + W_k + LATENCY + T_k) + rest) / duration``, so a recovery that needed more than its plan (lost,
+    made again) on the whole fails it (measured on ``ACROBOT_SEED``: 5 knocks, 4 recovered in 7.4-13.7 s, the last
+    4.7 s before the end; uptime 0.254 against a floor of 0.180; seed 2's lost plan leaves it 0.263 against 0.287).
+    The acrobot is upright only the ``AFTER`` s before each knock, so its uptime is mostly set by how many knocks the
+    minute holds. Wall time: 76 s on the shared 2-core machine under a load of 7; the library's cold plan from
+    hanging (70 s quiet, 360 s loaded) once per model, kept on disk."""
     library = _acrobot_library()
     params = read_params(ACROBOT)
     model = build_model(params)
     sup = supervisor_for(params, model, options=_acrobot_options(), library=library)
     force = Knockdown(AFTER, LENGTH, seed=ACROBOT_SEED).start(params, x_eq=model.x_eq, hinges=model.hinges)
-    run = simulate(params, sup, np.asarray(model.x_eq, float), duration, disturbance=force)
-    m = uptime_metrics(run, model, events=force.events, duration=duration)
+    run = simulate(params, sup, np.asarray(model.x_eq, float), DURATION, disturbance=force)
+    m = uptime_metrics(run, model, events=force.events, duration=DURATION)
     assert run.info.get("qfrc_applied") is not None and replays_exactly(run, params)
     assert not run.info.get("diverged", False)
     T1 = library.plans[0].trajectory.duration
     waits = [_calm_at(run, model, sup, end) - end for _, end in force.events]
-    assert m["knockdowns"] >= 1, m
+    assert m["knockdowns"] >= 3, m
     asked = [d.t for d in sup.decisions if d.kind in ("plan", "plan_failed", "calm_timeout")]
-    # a knock never calmed is not recovered, whatever the metric says: it counts an entry into the band at the run's
-    # last step as a swing-up (``hold``), and a spinning chain passes through the band
-    unrecovered = set(m["unrecovered_at"]) | {s for (s, _), w in zip(force.events, waits) if not np.isfinite(w)}
+    plans = [d for d in sup.decisions if d.kind == "plan"]
+    unrecovered = set(m["unrecovered_at"])
+    down = 0.0
     for (start, end), wait in zip(force.events, waits):
         # from the knock's end until the state is calm the supervisor only calms (no plan asked for)
         assert not [a for a in asked if end + 1e-9 < a < end + wait - 1e-9], (start, wait, asked)
         if start in unrecovered:  # only a last knock with too little run left for its wait and a swing-up
-            assert start == force.events[-1][0] and duration - end < wait + 2 * T1, (start, wait, m)
-        else:  # swung up and caught within twice the swing-up from the moment it was calm
-            up = min(s for s in m["swingup_times"] if s > start)
-            assert up - (end + wait) <= 2 * T1, (start, wait, up)
-    rest = sum(duration - start for start in unrecovered)
-    plans = [d for d in sup.decisions if d.kind == "plan"]
-    down = 0.0
-    for (start, end), wait in zip(force.events, waits):
-        if start not in unrecovered:
-            planned = next(d for d in plans if d.t >= end + wait - 1e-9)  # the plan made once calm
-            down += LENGTH + wait + LATENCY + planned.detail["T"]
-    floor = 1.0 - (down + rest) / duration
+            assert start == force.events[-1][0] and DURATION - end < wait + LATENCY + T1, (start, wait, m)
+            continue
+        planned = next(d for d in plans if d.t >= end + wait - 1e-9)  # the plan made once calm
+        up = min(s for s in m["swingup_times"] if s > start)
+        assert up - start <= LENGTH + wait + 2 * (LATENCY + planned.detail["T"]), (start, wait, up, planned)
+        down += LENGTH + wait + LATENCY + planned.detail["T"]
+    rest = sum(DURATION - start for start in unrecovered)
+    floor = 1.0 - (down + rest) / DURATION
     assert 0.0 < floor <= m["uptime"], (m, waits, floor)
     kinds = [d.kind for d in sup.decisions]
     recovered = len(force.events) - len(unrecovered)
-    assert recovered >= 1 and kinds.count("catch") >= recovered + 1, kinds  # held from the start, after each recovery
+    assert recovered >= 3 and kinds.count("catch") >= recovered + 1, kinds  # held from the start, after each recovery
     assert len(sup.summary()["unreachable"]) == kinds.count("plan_failed")  # each failed plan reported
-
-
-@pytest.mark.slow
-def test_some_knocks_leave_the_acrobot_more_energy_than_its_motor_and_damping_remove_in_a_minute():
-    """Why the acrobot's minute starts upright and uses seed ``ACROBOT_SEED``: knocked at 3 s by the knock every
-    model gets (``Knockdown(3, 0.3)``), under the supervisor's calming law (the energy drain, then the brake) its
-    energy is still above the upright's at 60 s for some seeds, so no swing-up could even start in the minute; a plan
-    from there is not found (minutes of cold tries, the supervisor waits instead). Seeds 4 and 10, the only two of
-    0-11 (``tools/acrobot_drain.py``; with the damping alone 0-2, 4-7, 9 and 10). Slow: two minutes of MuJoCo with
-    the supervisor in the loop, 131 s of wall time on the shared machine under a load of 11."""
-    params = read_params(ACROBOT)
-    model = build_model(params)
-    sup = supervisor_for(params, model, options=_acrobot_options(), library=PlanLibrary.empty(model))
-    for seed in (4, 10):
-        sup.reset()
-        force = Knockdown(AFTER, LENGTH, seed=seed).start(params, x_eq=model.x_eq, hinges=model.hinges)
-        run = simulate(params, sup, np.asarray(model.x_eq, float), DURATION, disturbance=force)
-        energy = [float(model.energy(np.concatenate([q, v]))) for q, v in zip(run.qpos, run.qvel)]
-        assert len(force.events) == 1 and energy[-1] > sup.options.calm_energy, (seed, energy[-1])
-        assert max(energy) > 3 * -float(model.energy(model.x_hanging))  # several swing-ups' worth
-        assert sup.plans == 0 and {d.kind for d in sup.decisions} <= {"catch", "brake"}
-        assert replays_exactly(run, params)
 
 
 def _acrobot_library():
