@@ -180,9 +180,10 @@ class SupervisorOptions(StageOptions):
     calm_energy : float or None
         J of total mechanical energy (:attr:`CartPoleModel.energy`, zero at upright rest) above which the state
         counts as fast as well (the brake acts, no plan is asked for), or None (default): rates alone. A chain driven
-        at a hinge (the acrobot) knocked hard holds several times its swing-up's energy, which its motor
-        (``calm_drain``) and its joints' damping take most of a minute to remove; a plan from above the upright's
-        energy fails after minutes (:func:`supervisor_for` sets :data:`HINGE_CALM_ENERGY`).
+        at a hinge (the acrobot) knocked or thrown holds more than the upright's energy, which its motor
+        (``calm_drain``) and its joints' damping remove (seconds after a knock, most of a minute from hundreds of J);
+        a plan from above the upright's energy fails after minutes (:func:`supervisor_for` sets
+        :data:`HINGE_CALM_ENERGY`).
     warm_tails : bool
         Warm-start each plan from the tail of a stored plan from its knot nearest the predicted start (mirror images
         too; :meth:`~cartpole.planning.library.PlanLibrary.knot_guesses`), the :data:`WARM_TRIES` nearest in turn and
