@@ -86,8 +86,9 @@ HINGE_CALM_ENERGY = 0.0
 #: the acrobot the default's stiff spring holds the elbow straight, so the chain swings as one body and its energy
 #: leaves only by the shoulder's damping; a soft brake lets the elbow swing and damps it too (with the brake alone,
 #: knocked by ``Knockdown(3, 0.3)``, seeds 2, 3, the energy reached the upright's 11-12 s sooner with 1.5 s than with
-#: 0.15 s; median over seeds 0-11 1.4 s against 2.1 s: ``tools/acrobot_drain.py``). While a plan is on its way the stiff brake holds the chain straight, near the plans' poses (with the
-#: soft one there, warm starts from the swing-up's knots failed where they converged with the stiff one).
+#: 0.15 s; median over seeds 0-11 1.4 s against 2.1 s: ``tools/acrobot_drain.py``). While a plan is on its way the
+#: stiff brake holds the chain straight, near the plans' poses (with the soft one there, warm starts from the
+#: swing-up's knots failed where they converged with the stiff one).
 HINGE_BRAKE_TIME = 1.5
 #: s: how long :func:`supervisor_for` lets the drain and brake calm a model driven at a hinge (``calm_budget``):
 #: knocked, the acrobot reaches the upright's energy 0.7-6.3 s after the knock (above); from the highest energies a
