@@ -106,12 +106,11 @@ def test_a_chain_recovers_from_every_knockdown_for_a_minute():
 #: 0-11, from the state at the knock's end, in MuJoCo: ``tools/acrobot_drain.py``); then it plans. Measured over the
 #: minute from upright, latency charged ``LATENCY`` s (seed: knockdowns, recovered, uptime): 0: 3, 2, 0.152; 1: 1, 0,
 #: 0.051; 2: 5, 4, 0.263; 3: 2, 1, 0.104; 4: 3, 2, 0.169; 5: 4, 3, 0.205; 6: 3, 2, 0.156; 7: 3, 2, 0.157; 8: 3, 2,
-#: 0.153; 9: 1, 0, 0.051; 10: 3, 2, 0.153; 11: 5, 4, 0.254 (24 of 36 knocks recovered). In 2, 5, 8, 10 and 11
-#: every knock but a last one 2.3-9.4 s before the minute's end is recovered; in 0, 3, 4, 6 and 7 a knock with 17-22 s of the minute
-#: left is not, and in 1 and 9 the first knock is never recovered: their plans fail or are lost part way and are made
-#: again, until the minute ends. Seed 11 is the one whose every plan swung up at once; 2 and 5 lost a plan once
-#: (a recovery 1.3 and 1.7 times the plan made once calm: below this test's floor), 8 and 10 took 3.1 and 2.0
-#: times it.
+#: 0.153; 9: 1, 0, 0.051; 10: 3, 2, 0.153; 11: 5, 4, 0.254 (24 of 36 knocks recovered). In 2, 5, 8, 10 and 11 every
+#: knock but a last one 2.3-9.4 s before the minute's end is recovered; in 0, 3, 4, 6 and 7 a knock with 17-22 s of the
+#: minute left is not, and in 1 and 9 the first knock is never recovered: their plans fail or are lost part way and are
+#: made again, until the minute ends. Seed 11 is the one whose every plan swung up at once; 2 and 5 lost a plan once (a
+#: recovery 1.3 and 1.7 times the plan made once calm: below this test's floor), 8 and 10 took 3.1 and 2.0 times it.
 ACROBOT_SEED = 11
 
 
