@@ -19,7 +19,7 @@ def test_loop_options_normalise_pushes_and_scales_and_echo_as_json():
                    "delay_compensation": True, "friction_compensation": True, "knockdown": None, "throw": None}
     assert json.loads(json.dumps(doc)) == doc
     knocked = LoopOptions(knockdown="3:0.2:7").as_dict()["knockdown"]
-    assert knocked == {"after": 3.0, "length": 0.2, "seed": 7, "strength": 1.0}
+    assert knocked == {"after": 3.0, "length": 0.2, "seed": 7, "strength": 1.0, "energy": 1.0}
 
 
 @pytest.mark.parametrize("changes, words", [
