@@ -32,7 +32,8 @@ def knocked_state(params, model, seed: int) -> np.ndarray:
     """(nx,) the state at the end of ``Knockdown(AFTER, LENGTH, seed)`` from upright under the supervisor."""
     sup = supervisor_for(params, model)
     sup.planner = None  # only the catch and the calming law act before the knock's end
-    force = Knockdown(AFTER, LENGTH, seed=seed).start(params, x_eq=model.x_eq, hinges=model.hinges)
+    force = Knockdown(AFTER, LENGTH, seed=seed).start(params, x_eq=model.x_eq, hinges=model.hinges,
+                                                      model=model)
     run = simulate(params, sup, np.asarray(model.x_eq, float), AFTER + LENGTH + 0.3, disturbance=force)
     (_, end), = force.events
     k = int(np.searchsorted(run.t, end - 1e-9)) + 1

@@ -28,7 +28,8 @@ MODELS = ("cartpole.xml", "cartpole_two_pole.xml", "cartpole_three_pole.xml", "d
 
 def one_knock(params, model, seed: int, length: float, energy: float) -> dict:
     """One knock against the catch from upright rest: its budget, work, energies, push time, fall and peak rate."""
-    force = Knockdown(0.5, length, seed=seed, energy=energy).start(params, x_eq=model.x_eq, hinges=model.hinges)
+    force = Knockdown(0.5, length, seed=seed, energy=energy).start(params, x_eq=model.x_eq, hinges=model.hinges,
+                                                                   model=model)
     run = simulate(params, LinearFeedback.for_model(model), np.asarray(model.x_eq, float), 0.5 + length + 2.0,
                    disturbance=force)
     knock = force.knocks[0]

@@ -1163,7 +1163,7 @@ def _simulate(ctx: _Context, controller, T: float, *, loop=None) -> tuple:
     attach = getattr(ctx.on_step, "attach", None)
     if attach is not None:  # the web page: it shows this law's state, its pushes join the logged push column
         force = attach(controller, push=force)
-    disturbance = loop.disturbance(ctx.params, x_eq=ctx.model.x_eq, hinges=ctx.model.hinges)
+    disturbance = loop.disturbance(ctx.params, x_eq=ctx.model.x_eq, hinges=ctx.model.hinges, model=ctx.model)
     watch = SimOptions(control_period=loop.period, progress=_stage(ctx.progress, "simulate"), on_step=ctx.on_step)
     rollout = simulate(ctx.params, controller, ctx.x0, T, push=force, rig=rig, disturbance=disturbance, options=watch)
     if disturbance is not None:

@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleParams, MJCFError, build_model, wrap_angle
+from cartpole.models import CartPoleModel, CartPoleParams, MJCFError, plant_model, wrap_angle
 from cartpole.sim.rollout import ctrl_bounds, make_mujoco
 
 #: Upright band, rad: every pole's wrapped angle error from upright below this counts as upright for a knockdown's
@@ -77,16 +77,42 @@ def _seed(value) -> int:
     return int(text)
 
 
+def joint_space_inertia(m, d, qpos) -> np.ndarray:
+    """MuJoCo's joint-space inertia matrix ``M(q)`` (armature included) at the joint positions ``qpos``.
+
+    Parameters
+    ----------
+    m : mujoco.MjModel
+    d : mujoco.MjData
+        Of ``m``: its ``qpos`` is set to ``qpos``, its kinematics and inertia recomputed (nothing else).
+    qpos : (nq,) array or longer
+        Joint positions (m, rad); a state ``[qpos, qvel]`` (nx,) is cut to its first ``nq`` entries.
+
+    Returns
+    -------
+    (nv, nv) array
+        kg on slides, kg m^2 on hinges, kg m between them.
+    """
+    d.qpos[:] = np.asarray(qpos, dtype=float)[:m.nq]
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    mujoco.mj_makeM(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    return M
+
+
 def joint_inertia_and_authority(plant, x_eq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's joint-space inertia diagonal (nv,) (kg, kg m^2) and the largest acceleration (nv,) (m/s^2, rad/s^2)
     the actuators can give each joint within their ctrl ranges (0 for unlimited ones), at the state ``x_eq`` (nx,)
     at rest, for the MJCF ``source`` (CartPoleParams or path)."""
-    m, d = make_mujoco(plant)
-    d.qpos[:] = x_eq[:m.nq]
+    return _inertia_and_authority(*make_mujoco(plant), x_eq)
+
+
+def _inertia_and_authority(m, d, x_eq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`joint_inertia_and_authority` computed in ``(m, d)`` (its state left at ``x_eq`` at rest, ctrl 0)."""
+    M = joint_space_inertia(m, d, x_eq)
     d.qvel[:] = 0.0
-    mujoco.mj_forward(m, d)
-    M = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, M)
     lo, hi = ctrl_bounds(m)
     u_max = np.where(np.isfinite(lo) & np.isfinite(hi), np.maximum(np.abs(lo), np.abs(hi)), 0.0)
     # the actuators' moment arms: qfrc per unit ctrl (gain * gear for MuJoCo's joint motors)
@@ -105,39 +131,19 @@ def joint_inertia_and_authority(plant, x_eq: np.ndarray) -> tuple[np.ndarray, np
 
 def swingup_energy(plant) -> float:
     """The model's swing-up energy ``E(x_eq) - E(x_hanging)`` in J (upright rest minus hanging rest, from
-    :attr:`cartpole.models.CartPoleModel.energy`), the scale of a knock's size; ``plant`` params, a model or a path.
-    A model with no hanging rest (gravity pushing an undriven joint there) gets the most its poles' weight can do
-    instead, ``2 |g| sum_b m_b |c_b - a|`` over the bodies the first hinge carries (centres of mass ``c_b`` at upright,
-    ``a`` that hinge's anchor): the same number for a straight chain."""
-    model = build_model(plant)
+    :attr:`cartpole.models.CartPoleModel.energy`), the scale of a knock's size; ``plant`` params, a model (used as it
+    is) or a path. A model with no hanging rest (gravity pushing an undriven joint there) gets the most its poles'
+    weight can do instead, ``2 |g| m d`` with ``m``, ``d`` the mass the first hinge carries and its centre of mass's
+    distance from the hinge's axis (:meth:`cartpole.models.CartPoleParams.carried_by`): the same number for a chain
+    straight at ``qpos0``."""
+    model = plant_model(plant)
     try:
         hanging = model.x_hanging
     except MJCFError:
-        return reach_energy(plant, model.x_eq, model.hinges[0])
+        params = model.params
+        mass, distance, _ = params.carried_by(model.hinges[0])
+        return float(2.0 * params.g * mass * distance)
     return float(model.energy(model.x_eq)) - float(model.energy(hanging))
-
-
-def reach_energy(plant, x_eq, hinge: int) -> float:
-    """J: ``2 |g| sum_b m_b |c_b - a|`` at the state ``x_eq`` (nx,): the largest drop of potential energy the bodies
-    carried by joint ``hinge`` (a qpos index) can have, each centre of mass ``c_b`` at most ``2 |c_b - a|`` from its
-    mirror image through the hinge's anchor ``a``."""
-    m, d = make_mujoco(plant)
-    d.qpos[:] = np.asarray(x_eq, float)[:m.nq]
-    mujoco.mj_kinematics(m, d)
-    jnt = int(np.nonzero(m.jnt_qposadr == hinge)[0][0])
-    root = int(m.jnt_bodyid[jnt])
-    carried = [b for b in range(m.nbody) if _carried_by(m, b, root)]
-    anchor = d.xanchor[jnt]
-    g = float(np.linalg.norm(m.opt.gravity))
-    return float(2.0 * g * sum(m.body_mass[b] * np.linalg.norm(d.xipos[b] - anchor) for b in carried))
-
-
-def _carried_by(m, body: int, root: int) -> bool:
-    while body > 0:
-        if body == root:
-            return True
-        body = int(m.body_parentid[body])
-    return False
 
 
 @dataclass(frozen=True)
@@ -227,10 +233,12 @@ class Knockdown:
         energy = parts[3] if len(parts) == 4 else KNOCK_ENERGY
         return cls(after, length, parts[2] if len(parts) >= 3 else 0, energy=energy)
 
-    def start(self, source: CartPoleParams, *, x_eq, hinges) -> "KnockdownForce":
+    def start(self, source: CartPoleParams, *, x_eq, hinges, model: CartPoleModel | None = None) -> "KnockdownForce":
         """The stateful force ``f(t, x) -> (nv,)`` for one run on ``source`` (upright at ``x_eq`` (nx,), pole angles
-        at qpos indices ``hinges``)."""
-        return KnockdownForce(self, source, np.asarray(x_eq, dtype=float), tuple(int(h) for h in hinges))
+        at qpos indices ``hinges``); ``model``, the symbolic model of ``source`` the caller already has, gives the
+        swing-up energy (:func:`swingup_energy`) without building another (default: built from ``source``)."""
+        return KnockdownForce(self, source, np.asarray(x_eq, dtype=float), tuple(int(h) for h in hinges),
+                              model=model)
 
 
 class KnockdownForce:
@@ -247,17 +255,21 @@ class KnockdownForce:
         The upright equilibrium ``[qpos, qvel]`` (m, rad, m/s, rad/s).
     hinges : tuple of int
         qpos indices of the pole angles.
+    model : CartPoleModel, optional
+        The symbolic model of ``source``, whose swing-up energy (:func:`swingup_energy`) sizes the knocks; default
+        built from ``source``.
     """
 
-    def __init__(self, knock: Knockdown, source, x_eq: np.ndarray, hinges: tuple):
+    def __init__(self, knock: Knockdown, source, x_eq: np.ndarray, hinges: tuple, *,
+                 model: CartPoleModel | None = None):
         self.knock = knock
         self.x_eq = x_eq
         self.hinges = hinges
         self.nq = x_eq.size // 2
-        self.inertia, authority = joint_inertia_and_authority(source, x_eq)
-        self.scale = knock.strength * self.inertia * (4.0 / knock.length ** 2 + 2.0 * authority)
-        self.swingup_energy = swingup_energy(source)
         self._m, self._d = make_mujoco(source)
+        self.inertia, authority = _inertia_and_authority(self._m, self._d, x_eq)
+        self.scale = knock.strength * self.inertia * (4.0 / knock.length ** 2 + 2.0 * authority)
+        self.swingup_energy = swingup_energy(source if model is None else model)
         self.h = float(self._m.opt.timestep)
         self.rng = np.random.default_rng(knock.seed)
         self.upright_since: float | None = None
@@ -271,13 +283,7 @@ class KnockdownForce:
 
     def _accel(self, x: np.ndarray) -> np.ndarray:
         """(nv,) the joints' acceleration from the knock's torque alone at state ``x``: ``M(q)^-1 tau``."""
-        self._d.qpos[:] = x[:self._m.nq]
-        mujoco.mj_kinematics(self._m, self._d)
-        mujoco.mj_comPos(self._m, self._d)
-        mujoco.mj_crb(self._m, self._d)
-        M = np.zeros((self._m.nv, self._m.nv))
-        mujoco.mj_fullM(self._m, self._d, M)
-        return np.linalg.solve(M, self.torque)
+        return np.linalg.solve(joint_space_inertia(self._m, self._d, x), self.torque)
 
     @property
     def knocks(self) -> tuple[KnockRecord, ...]:
@@ -410,7 +416,6 @@ class ThrowForce:
     def __init__(self, throw: Throw, source, hinges: tuple, timestep: float):
         self.throw, self.hinges, self.h = throw, hinges, timestep
         self.m, self.d = make_mujoco(source)
-        self.mujoco = mujoco
         self.rng = np.random.default_rng(throw.seed)
         self.next_at = self._gap()
         self.events: list[tuple[float, float]] = []
@@ -426,12 +431,7 @@ class ThrowForce:
         dv = np.zeros(nv)
         for h in self.hinges:
             dv[h] = self.rng.uniform(-self.throw.max_rate, self.throw.max_rate)
-        x = np.asarray(x, dtype=float)
-        self.d.qpos[:] = x[:self.m.nq]
-        self.d.qvel[:] = x[self.m.nq:]
-        self.mujoco.mj_forward(self.m, self.d)
-        M = np.zeros((nv, nv))
-        self.mujoco.mj_fullM(self.m, self.d, M)
+        M = joint_space_inertia(self.m, self.d, x)
         self.events.append((float(t), float(t + self.h)))
         return M @ dv / self.h
 

@@ -238,12 +238,13 @@ class LoopOptions(StageOptions):
         """True when the loop knocks or throws the poles (:meth:`disturbance` is not None)."""
         return self.knockdown is not None or self.throw is not None
 
-    def disturbance(self, source, *, x_eq, hinges):
+    def disturbance(self, source, *, x_eq, hinges, model=None):
         """The generalized-force disturbance ``f(t, x) -> (nv,)`` of one run on ``source`` (CartPoleParams; upright at
-        ``x_eq`` (nx,), pole angles at qpos ``hinges``), or None: the knockdowns and throws added."""
+        ``x_eq`` (nx,), pole angles at qpos ``hinges``), or None: the knockdowns and throws added; ``model``, the
+        symbolic model of ``source`` if the caller has it, sizes the knocks without building another."""
         parts = []
         if self.knockdown is not None:
-            parts.append(self.knockdown.start(source, x_eq=x_eq, hinges=hinges))
+            parts.append(self.knockdown.start(source, x_eq=x_eq, hinges=hinges, model=model))
         if self.throw is not None:
             parts.append(self.throw.start(source, x_eq=x_eq, hinges=hinges, timestep=source.timestep))
         return None if not parts else Disturbances(tuple(parts))

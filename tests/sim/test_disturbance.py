@@ -1,15 +1,18 @@
 """Knockdowns and throws: generalized forces on the joints, seeded, logged every physics step, replayed exactly; a
 knock's size stated in the model's own swing-up energy, and enough to bring the poles down against the catch."""
+import mujoco
 import numpy as np
 import pytest
 
 from cartpole.control import LinearFeedback
 from cartpole.control.energy import EnergyShapingController
 from cartpole.control.switching import SWINGUP_CATCH_R, SwitchingController
-from cartpole.models import build_model, read_params, wrap_angle
+import cartpole.models.plant
+from cartpole.models import CartPoleModel, MJCFError, build_model, read_params, wrap_angle
 from cartpole.sim import (KNOCK_ENERGY, UPRIGHT_BAND, DisturbanceError, Knockdown, Rollout, Throw, replay,
                           replays_exactly, simulate, swingup_energy)
-from cartpole.sim.disturbance import reach_energy
+from cartpole.sim.disturbance import joint_space_inertia
+from cartpole.sim.rollout import make_mujoco
 from cartpole.validation import BasinCache, uptime_metrics
 
 
@@ -62,8 +65,6 @@ def test_a_knock_brings_the_poles_down_against_the_catch_with_a_bounded_share_of
     e_swing = float(model.energy(model.x_eq)) - float(model.energy(model.x_hanging))
     force = Knockdown(0.2, 0.3, seed=5).start(params, x_eq=model.x_eq, hinges=model.hinges)
     assert force.swingup_energy == pytest.approx(e_swing) and swingup_energy(params) == pytest.approx(e_swing)
-    # what a model without a hanging rest gets instead: the same on a straight chain
-    assert reach_energy(params, model.x_eq, model.hinges[0]) == pytest.approx(e_swing)
     run = simulate(params, LinearFeedback.for_model(model), model.x_eq, 1.5, disturbance=force)
     assert replays_exactly(run) and run.info["diverged"] is None
     knock = force.knocks[0]
@@ -78,6 +79,53 @@ def test_a_knock_brings_the_poles_down_against_the_catch_with_a_bounded_share_of
     hinges = list(model.hinges)
     err = np.abs(wrap_angle(np.asarray(run.qpos)[k0:, hinges] - np.asarray(model.x_eq)[hinges]))
     assert knock.downed and err.max() > np.pi / 2
+
+
+@pytest.mark.parametrize("mjcf", ["cartpole/assets/cartpole.xml", "cartpole/assets/cartpole_three_pole.xml",
+                                  "cartpole/assets/dmc_acrobot.xml"])
+def test_a_model_without_a_hanging_rest_gets_its_poles_reach_as_its_swingup_energy(mjcf, monkeypatch):
+    """``2 |g| m d`` of what the first hinge carries: on these chains, straight at qpos0, the swing-up energy itself."""
+    model = build_model(read_params(mjcf))
+    e_swing = swingup_energy(model)
+
+    def no_hanging_rest(self):
+        raise MJCFError("no hanging rest")
+    monkeypatch.setattr(CartPoleModel, "x_hanging", property(no_hanging_rest))
+    assert swingup_energy(model) == pytest.approx(e_swing, rel=1e-12)
+
+
+def test_a_knock_started_with_the_callers_model_builds_none_and_knocks_the_same(cart, monkeypatch):
+    params, model = cart
+    up = np.asarray(model.x_eq, dtype=float)
+
+    def first_knock(**model_kw):
+        f = Knockdown(0.01, 0.1, seed=4).start(params, x_eq=model.x_eq, hinges=model.hinges, **model_kw)
+        torque = next(v for k in range(100) if (v := f(k * params.timestep, up)).any())
+        return torque, f.knocks[0].budget, f.swingup_energy
+    built = first_knock()
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a second symbolic model was built")
+    monkeypatch.setattr(cartpole.models.plant, "build_model", refuse)
+    given = first_knock(model=model)
+    assert np.array_equal(given[0], built[0]) and given[1:] == built[1:]
+
+
+def test_the_joint_space_inertia_is_mujocos_mass_matrix_at_any_state(cart):
+    """The one helper every disturbance takes ``M(q)`` from agrees with MuJoCo's full forward pass, rates aside."""
+    params, model = cart
+    m, d = make_mujoco(params)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        x = rng.normal(size=2 * m.nq)
+        M = joint_space_inertia(m, d, x)
+        d2 = mujoco.MjData(m)
+        d2.qpos[:], d2.qvel[:] = x[:m.nq], x[m.nq:]
+        mujoco.mj_forward(m, d2)
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d2, full)
+        assert M.shape == (m.nv, m.nv) and np.array_equal(M, full)
+    assert not np.array_equal(joint_space_inertia(m, d, np.ones(m.nq)), joint_space_inertia(m, d, np.zeros(m.nq)))
 
 
 def test_a_knocks_budget_scales_with_its_energy_and_the_same_seed_draws_the_same_knock(cart):
