@@ -30,7 +30,7 @@ from typing import Callable
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel
+from cartpole.models import CartPoleModel, motor_drive
 
 #: rad/s (m/s on a slide): the driven joint's rate below which the drain drives it with its motion, above which
 #: against it. On dm_control's acrobot 6 rad/s drained from 50 J fastest of 1, 2, 4, 6 and 8 rad/s (to the upright's
@@ -76,7 +76,6 @@ class EnergyDrain:
                  rate: float = DRAIN_RATE, u_limits=None):
         if model.nu != 1:
             raise EnergyDrainError(f"The energy drain needs a model with one actuator; this one has {model.nu}.")
-        self.joint = int(np.ravel(model.params.actuated)[0])
         if model.nq < 2:
             raise EnergyDrainError("The energy drain needs a joint the motor does not drive; the model has none.")
         if not (isinstance(rate, (int, float)) and np.isfinite(rate) and rate > 0):
@@ -84,10 +83,9 @@ class EnergyDrain:
                                    f"got {rate!r}.")
         self.model, self.target, self.below = model, float(target), below
         self.rate, self.width = float(rate), DRAIN_WIDTH * float(rate)
-        lims = np.column_stack([model.u_low, model.u_high]) if u_limits is None else u_limits
-        self.u_limits = np.asarray(lims, dtype=float).reshape(1, 2)
-        # the ctrl that pushes the joint forward (its gear's sign)
-        self.sign = float(np.sign(np.ravel(model.params.gears)[0]) or 1.0)
+        drive = motor_drive(model.params, u_limits)  # the joint, the ctrl sign that pushes it forward, the range
+        self.joint, self.sign = drive.joint, drive.sign
+        self.u_limits = np.array([[drive.low, drive.high]])
 
     def __call__(self, t: float, x) -> np.ndarray:
         """ctrl (1,) at time ``t`` (s) for state ``x`` (nx,), clipped to ``u_limits``."""

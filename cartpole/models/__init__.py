@@ -13,6 +13,7 @@ from cartpole.models.contacts import (CONTACT_MARGIN, ContactError, ContactPair,
 from cartpole.models.symbolic import (CartPoleModel, Equations, build_model, equations, state_error,
                                       wrap_angle)
 from cartpole.models.plant import Plant, PlantError, is_plant, linearize, plant_model, plant_params
+from cartpole.models.limits import MotorDrive, motor_drive
 from cartpole.models.limits import (START_SNAP, LimitsError, PlanningLimits, StartMove, bounded_model, chain_length,
                                     default_cart_max, default_u_max, planning_limits, start_on_range)
 
@@ -28,3 +29,4 @@ __all__ = ["SHIPPED_MJCF", "SUPPORTED_INTEGRATORS", "CartPoleParams", "MJCFError
 __all__ += ["START_SNAP", "LimitsError", "PlanningLimits", "StartMove", "bounded_model", "chain_length", "default_cart_max",
             "default_u_max", "planning_limits", "start_on_range"]
 __all__ += ["Plant", "PlantError", "is_plant", "plant_model", "plant_params"]
+__all__ += ["MotorDrive", "motor_drive"]

@@ -333,6 +333,74 @@ def bounded_model(model, limits: PlanningLimits):
 
 
 @dataclass(frozen=True)
+class MotorDrive:
+    """One actuator as a law that pushes its joint one way or the other sees it (:func:`motor_drive`).
+
+    Attributes
+    ----------
+    joint : int
+        qpos index of the joint it drives.
+    sign : float
+        +1 or -1: the sign of the ctrl that pushes that joint forward (its gear's; +1 for a zero gear).
+    low, high : float
+        Its ctrl range (MuJoCo ctrl; ``-inf``, ``inf`` when unlimited).
+    """
+
+    joint: int
+    sign: float
+    low: float
+    high: float
+
+    @property
+    def mid(self) -> float:
+        """The ctrl range's middle, ``(low + high) / 2``."""
+        return 0.5 * (self.low + self.high)
+
+    @property
+    def half(self) -> float:
+        """The ctrl range's half-width, ``(high - low) / 2``."""
+        return 0.5 * (self.high - self.low)
+
+    @property
+    def limited(self) -> bool:
+        """True when both ends of the ctrl range are finite."""
+        return bool(np.isfinite(self.low) and np.isfinite(self.high))
+
+
+def motor_drive(params: CartPoleParams, u_limits=None, *, actuator: int = 0) -> MotorDrive:
+    """The joint actuator ``actuator`` drives, the ctrl sign that pushes it forward and the ctrl range to push within.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+    u_limits : (nu, 2) array, optional
+        ``[low, high]`` ctrl per actuator a law clips to (e.g. a catch's ``u_limits``, or :func:`planning_limits`');
+        default the file's ``ctrl_range``.
+    actuator : int
+        Which actuator (ctrl index); default the first.
+
+    Returns
+    -------
+    MotorDrive
+
+    Raises
+    ------
+    LimitsError
+        ``actuator`` not one of the model's, or ``u_limits`` not one ``[low, high]`` pair per actuator.
+    """
+    if not (isinstance(actuator, (int, np.integer)) and 0 <= actuator < params.nu):
+        raise LimitsError(f"actuator = {actuator!r} is not one of this model's {params.nu} actuator(s); give "
+                          f"`actuator` a ctrl index from 0 to {params.nu - 1}.")
+    lims = np.asarray(params.ctrl_range if u_limits is None else u_limits, dtype=float)
+    if lims.size != 2 * params.nu:
+        raise LimitsError(f"u_limits has {lims.size} values and the model has {params.nu} actuator(s); give "
+                          "`u_limits` one [low, high] pair of ctrl per actuator.")
+    low, high = (float(v) for v in lims.reshape(params.nu, 2)[actuator])
+    gear = float(params.actuators[actuator].gear)
+    return MotorDrive(joint=int(params.actuated[actuator]), sign=float(np.sign(gear) or 1.0), low=low, high=high)
+
+
+@dataclass(frozen=True)
 class StartMove:
     """A default start moved onto a joint range's edge: ``joint`` (name), ``index`` (qpos), ``before`` and
     ``after`` (rad or m), ``unit``."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel
+from cartpole.models import CartPoleModel, motor_drive
 
 #: The fraction of the energy a swing-up must gain (``|E|`` at hanging rest) below which the pump pushes less than its
 #: whole range (at the hanging mode's frequency): 0.005 reaches the top on the corpus's pendulums and dm_control's,
@@ -51,14 +51,13 @@ class HingePump:
         if not pendulum_driven_at_hinge(model):
             raise HingePumpError("The hinge pump swings up one pole driven at its hinge; this model has "
                                  f"{model.nq} joints and drives {list(model.params.actuated)}.")
-        lo, hi = (float(v) for v in np.asarray(u_limits, dtype=float).reshape(2))
-        if not (np.isfinite(lo) and np.isfinite(hi)):
+        drive = motor_drive(model.params, u_limits)
+        if not drive.limited:
             raise HingePumpError("The pendulum's motor has no ctrlrange, so the pump has no range to push with; design "
                                  "on cartpole.models.planning_limits(params) or set ctrlrange on the motor.")
         self.model = model
         self.rate = model.nq + int(model.hinges[0])
-        self.mid, self.half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        self.sign = float(np.sign(np.asarray(model.params.gears, dtype=float).ravel()[0]) or 1.0)
+        self.mid, self.half, self.sign = drive.mid, drive.half, drive.sign
         self.deficit = abs(float(model.energy(np.asarray(model.x_hanging, dtype=float))))
         A, _ = model.linearize(model.x_hanging, model.u_hanging)
         self.omega = max(float(np.max(np.abs(np.linalg.eigvals(np.asarray(A, dtype=float)).imag))), 1e-6)

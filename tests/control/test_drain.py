@@ -75,6 +75,18 @@ def test_at_or_below_the_target_the_drain_hands_over(acrobot):
     assert np.allclose(EnergyDrain(model)(0.0, fast), 1.0)
 
 
+def test_a_flipped_gear_or_an_uneven_range_flips_or_scales_the_drains_ctrl(acrobot):
+    """The ctrl that pushes the elbow forward is the gear's sign; each side of the range is used as it is."""
+    params, model = acrobot
+    fast = _swinging(model, START_ENERGY)
+    fast[model.nq + 1] = 1.0  # slow: full ctrl with the elbow's motion
+    flipped = build_model(read_params(xml=params.xml.replace('gear="2"', 'gear="-2"')))
+    assert np.allclose(EnergyDrain(flipped)(0.0, fast), -1.0)
+    uneven = [[-0.25, 0.5]]
+    assert np.allclose(EnergyDrain(model, u_limits=uneven)(0.0, fast), 0.5)
+    assert np.allclose(EnergyDrain(flipped, u_limits=uneven)(0.0, fast), -0.25)
+
+
 def test_the_drain_says_what_is_wrong_with_its_model_or_rate(acrobot):
     _, model = acrobot
     with pytest.raises(EnergyDrainError, match="rate must be a positive number"):

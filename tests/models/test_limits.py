@@ -4,7 +4,7 @@ onto its edge."""
 import numpy as np
 import pytest
 
-from cartpole.models import (SHIPPED_MJCF, LimitsError, START_SNAP, default_cart_max, default_u_max,
+from cartpole.models import (SHIPPED_MJCF, LimitsError, START_SNAP, default_cart_max, default_u_max, motor_drive,
                              planning_limits, read_params, start_on_range)
 
 LAB = SHIPPED_MJCF.read_text()
@@ -102,3 +102,21 @@ def test_a_default_start_a_hair_outside_a_hinge_range_is_moved_onto_its_edge():
     inside, kept = start_on_range([0, 1.0, 0, 0], p)
     assert inside[1] == 1.0 and kept == ()
     assert START_SNAP == 1e-3
+
+
+def test_a_motor_drive_is_the_driven_joint_the_gears_sign_and_the_ctrl_range():
+    p = read_params()
+    drive = motor_drive(p)
+    assert drive.joint == p.actuated[0] == p.slide and drive.sign == 1.0 and drive.limited
+    assert (drive.low, drive.high) == tuple(p.ctrl_range[0]) and (drive.mid, drive.half) == (0.0, 1.0)
+    flipped = motor_drive(read_params(xml=LAB.replace('gear="20"', 'gear="-20"')), [[-0.4, 1.2]])
+    assert flipped.sign == -1.0 and (flipped.low, flipped.high) == (-0.4, 1.2)
+    assert flipped.mid == pytest.approx(0.4) and flipped.half == pytest.approx(0.8)
+    unlimited = motor_drive(lab(ctrlrange=False))
+    assert not unlimited.limited and np.isinf(unlimited.half)
+
+
+@pytest.mark.parametrize("kw, words", [({"actuator": 1}, "`actuator`"), ({"u_limits": [-1.0, 0.0, 1.0]}, "`u_limits`")])
+def test_a_motor_drive_of_an_actuator_or_range_the_model_lacks_is_refused_naming_the_argument(kw, words):
+    with pytest.raises(LimitsError, match=words):
+        motor_drive(read_params(), **kw)
