@@ -68,7 +68,7 @@ def _planning(lab, **options):
 def test_a_plan_over_the_budget_is_killed_at_the_budget_and_the_run_goes_on(lab):
     params, model, base, _ = lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
-                     options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5))
+                     options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5, warm_worker=False))
     x = np.asarray(model.x_hanging, float)
     start = time.perf_counter()
     u = sup(0.0, x)
@@ -128,7 +128,10 @@ def test_plan_in_worker_must_be_a_bool_and_planning_while_running_needs_it():
     with pytest.raises(SupervisorError, match="plan_in_worker"):
         SupervisorOptions(plan_in_worker="yes")
     with pytest.raises(SupervisorError, match="plan_while_running needs plan_in_worker=True"):
-        SupervisorOptions(plan_while_running=True)
+        SupervisorOptions(plan_in_worker=False, plan_while_running=True)
+    with pytest.raises(SupervisorError, match="warm_worker"):
+        SupervisorOptions(warm_worker=1)
+    assert SupervisorOptions(plan_while_running=True).in_worker and not SupervisorOptions().in_worker
 
 
 @dataclass
@@ -169,7 +172,7 @@ def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_tim
         return _HoldPlan.at(model, 2.0)
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
                      options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, latency=0.05,
-                                               funnel=10.0))
+                                               funnel=10.0, warm_worker=False))
     x = np.asarray(model.x_hanging, float)
     calls = _paced(sup, x, lambda s: s.mode == "track")
     plan = next(d for d in sup.decisions if d.kind == "plan")
@@ -186,7 +189,8 @@ def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_tim
 def test_planning_while_running_a_plan_over_the_budget_is_killed_and_fails(lab):
     params, model, base, _ = lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
-                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, plan_budget=0.5))
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, plan_budget=0.5,
+                                               warm_worker=False))
     x = np.asarray(model.x_hanging, float)
     start = time.perf_counter()
     _paced(sup, x, lambda s: s.failures > 0)
@@ -218,6 +222,7 @@ def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_r
         runs.append((sup, simulate(params, sup, np.asarray(model.x_hanging, float), 6.0, disturbance=force)))
     (sup_here, here), (sup_there, there) = runs
     assert sup_there.plans >= 2 and sup_there.server.forks == 1 and replays_exactly(there, params)
+    assert sup_there.prepare_s is not None and sup_here.prepare_s is None  # warmed here before the fork
     sup_there.close()
     assert np.array_equal(here.ctrl, there.ctrl)
     assert [d.kind for d in sup_here.decisions] == [d.kind for d in sup_there.decisions]
@@ -227,7 +232,7 @@ def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_r
 def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_worker_ended(lab):
     params, model, base, _ = lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
-                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True))
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, warm_worker=False))
     hanging, upright = np.asarray(model.x_hanging, float), np.asarray(model.x_eq, float)
     sup(0.0, hanging)
     assert sup.mode == "wait" and sup.server.busy
