@@ -18,7 +18,7 @@ No child outlives its use: :meth:`PlanWorker.close` ends it (the supervisor's ``
 whose :class:`PlanWorker` is garbage-collected is ended then; at the parent's exit (a SIGTERM the command line turns
 into an exception, an exception in the loop) multiprocessing ends it; and on Linux a child is killed by the kernel
 as soon as its parent dies, however (``PR_SET_PDEATHSIG``), so even a parent killed by SIGKILL leaves no planner
-running.
+running (strictly, when the parent's thread that forked it ends: use a supervisor from one thread).
 
 Fork copies only the calling thread: a handler must not wait on a lock another thread of the parent holds (the
 toolkit's planners take none). The child sees the parent as it was when it was forked: send what changes since (a

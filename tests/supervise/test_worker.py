@@ -246,3 +246,169 @@ def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_wor
     assert sup.mode == "wait" and sup.server.busy and sup.server.pid != first  # a new plan asked for
     sup.close()
     _no_child_left()
+
+
+def test_a_child_forked_after_the_parent_prepared_and_after_a_kill_builds_no_compiled_code(lab):
+    from cartpole import codegen
+
+    params, model, base, planner = lab
+    sup = _planning(lab, plan_in_worker=True, plan_budget=120.0)
+    assert sup.prepare(again=True) > 0 and sup.prepare() == 0.0  # once per model and process
+    x0 = np.asarray(model.x_hanging, float) + 0.02
+
+    def plan_and_count(_):
+        before = (set(codegen._BUILT), codegen._load.cache_info().currsize)
+        plan = planner(x0)
+        return before, (set(codegen._BUILT), codegen._load.cache_info().currsize), plan.trajectory.duration
+    worker = PlanWorker(plan_and_count)
+    try:
+        for _ in range(2):  # the first child, then one forked after a kill: both as warm as the parent
+            before, after, T = worker.wait(None, 120.0)
+            assert after == before and T > 0  # no C generated, compiled or loaded anew in the child
+            worker.kill()
+        assert worker.forks == 2
+    finally:
+        worker.close()
+    _no_child_left()
+
+
+def test_the_supervisor_prepares_its_planner_here_before_its_first_fork_and_only_then(lab, monkeypatch):
+    params, model, base, _ = lab
+    monkeypatch.setattr("cartpole.supervise.supervisor._PREPARED", set())  # no supervisor of this model prepared yet
+    seen = []
+
+    def planner(x0):
+        seen.append(os.getpid())
+        return _HoldPlan.at(model, 2.0)
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                     options=SupervisorOptions(plan_in_worker=True, latency=0.05, funnel=10.0))
+    with sup:
+        sup(0.0, np.asarray(model.x_hanging, float))
+        assert seen == [os.getpid()] and sup.prepare_s is not None  # the warm-up here; the plan in the child
+        assert sup.mode == "wait" and sup.server.forks == 1 and sup.server.pid != os.getpid()
+    assert sup.server is None
+    _no_child_left()
+    again = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                       options=SupervisorOptions(plan_in_worker=True, latency=0.05, funnel=10.0))
+    with again:
+        again(0.0, np.asarray(model.x_hanging, float))
+        assert seen == [os.getpid()] and again.prepare_s == 0.0  # prepared in this process already
+    _no_child_left()
+
+
+def _busy(lab):
+    """A supervisor planning while running whose plan (a minute's sleep) is on its way in its worker."""
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_while_running=True, warm_worker=False))
+    sup(0.0, np.asarray(model.x_hanging, float))
+    assert sup.server.busy
+    return sup
+
+
+def test_no_child_is_left_after_an_exception_in_the_loop_or_a_supervisor_dropped_unclosed(lab):
+    import gc
+
+    from cartpole.sim import SimOptions
+
+    params, model, base, _ = lab
+
+    def raise_once_planning(m, d):
+        if sup.server is not None and sup.server.busy:
+            raise RuntimeError("the loop broke")
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_while_running=True, warm_worker=False))
+    with pytest.raises(RuntimeError, match="the loop broke"):
+        with sup:
+            simulate(params, sup, np.asarray(model.x_hanging, float), 1.0,
+                     options=SimOptions(on_step=raise_once_planning))
+    _no_child_left()
+    sup = _busy(lab)
+    del sup
+    gc.collect()
+    _no_child_left()
+
+
+_ORPHAN = """
+import sys, time
+from cartpole.supervise.worker import PlanWorker
+worker = PlanWorker(lambda seconds: time.sleep(seconds))
+worker.submit(600.0)
+print(worker.pid, flush=True)
+time.sleep(600.0)
+"""
+
+
+def test_a_planning_child_dies_with_its_parent_even_killed_outright(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-c", _ORPHAN], stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": os.getcwd()})
+    try:
+        child = int(proc.stdout.readline())
+        os.kill(child, 0)  # planning
+        proc.send_signal(signal.SIGKILL)  # no exception, no atexit: only the kernel can end the child
+        proc.wait(30)
+        deadline = time.monotonic() + REAP_TIMEOUT
+        while time.monotonic() < deadline and _alive(child):
+            time.sleep(0.05)
+        assert not _alive(child)
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, or no process, is not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _session_alive(sid: int) -> list[int]:
+    """Live (not zombie) processes of session ``sid``."""
+    out = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            out.append(int(pid))
+    return out
+
+
+@pytest.mark.slow
+def test_sigterm_of_the_cli_while_its_worker_plans_leaves_no_process(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    mjcf = os.path.abspath("cartpole/assets/cartpole_two_pole.xml")
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "swingup", "--mjcf", mjcf, "--knockdown", "1:0.3",
+                             "--duration", "4", "--no-video", "--json", "--out", str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env={**os.environ, "MUJOCO_GL": "egl", "PYTHONPATH": os.getcwd()}, cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + 600
+        while proc.poll() is None and time.monotonic() < deadline and len(_session_alive(proc.pid)) < 2:
+            time.sleep(0.1)  # until the supervisor's worker is forked (after the warm-up here)
+        workers = [p for p in _session_alive(proc.pid) if p != proc.pid]
+        assert proc.poll() is None and workers, "the command ended before its supervisor forked a planning worker"
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 128 + signal.SIGTERM, err
+        assert "Traceback" not in err
+        deadline = time.monotonic() + REAP_TIMEOUT
+        while _session_alive(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert _session_alive(proc.pid) == []
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
