@@ -500,6 +500,8 @@ class Supervisor:
         steps = max(1, int(round(lat / self.model.dt)))
         xs, _ = model_rollout(self.model, self.brake, x, steps, t0=t)
         x_pred = xs[-1]
+        if self.options.in_worker:
+            self._worker()  # made (the planner warmed here first: prepare_s) before the plan's clock starts
         self.plans += 1
         start = time.perf_counter()
         ask = _Ask(t, x_pred, steps, lat, None)

@@ -412,3 +412,20 @@ def test_sigterm_of_the_cli_while_its_worker_plans_leaves_no_process(tmp_path):
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+
+
+def test_the_warm_up_is_not_charged_to_the_first_plan_nor_counted_against_its_budget(lab, monkeypatch):
+    params, model, base, _ = lab
+    monkeypatch.setattr("cartpole.supervise.supervisor._PREPARED", set())
+
+    def planner(x0):
+        if os.getpid() == parent:
+            time.sleep(1.0)  # the warm-up here: slower than the budget
+        return _HoldPlan.at(model, 2.0)
+    parent = os.getpid()
+    with Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                    options=SupervisorOptions(plan_in_worker=True, plan_budget=0.9, funnel=10.0)) as sup:
+        sup(0.0, np.asarray(model.x_hanging, float))
+        plan = sup.decisions[-1]
+        assert plan.kind == "plan" and sup.prepare_s >= 1.0 and plan.detail["wall_s"] < sup.prepare_s
+    _no_child_left()
