@@ -19,10 +19,11 @@
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
   planner runs in a worker process killed at ``plan_budget`` (``plan_in_worker``, the default of
   :func:`supervisor_for` where the platform can fork: :mod:`cartpole.supervise.worker`; else in the caller's thread)
-  and its wall time ``W`` is honest latency: the plan is used only from ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted starts from its beginning
-  when the state is still at its start (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from
-  where its clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes
-  more than ``plan_budget`` s, is logged and retried after ``retry_after`` s of braking.
+  and its wall time ``W`` is honest latency: the plan is used only from ``t + W`` of simulated time, the brake
+  acting meanwhile; a plan later than predicted starts from its beginning when the state is still at its start
+  (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from where its clock has got to. The
+  planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is
+  logged and retried after ``retry_after`` s of braking.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
   from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
