@@ -218,8 +218,8 @@ class SupervisorOptions(StageOptions):
     plan_while_running : bool
         With a worker (``plan_in_worker`` not False): the run goes on while the worker plans (the brake acting),
         polled at each call, the plan used from the simulated time it comes in (charged that time since it was
-        asked for, at least ``charged_latency``), killed once over ``plan_budget``; re-plans while tracking still
-        wait. For a run paced in real time (a live view: :func:`cartpole.apps.live.paced_supervisor` turns it on),
+        asked for, at least ``charged_latency``), killed once over ``plan_budget``; so are re-plans while tracking
+        (``replan_every``), the old plan tracked meanwhile. For a run paced in real time (a live view: :func:`cartpole.apps.live.paced_supervisor` turns it on),
         where simulated time is wall time; a run stepped as fast as possible would charge whatever simulated time it
         stepped meanwhile, which depends on the machine's speed: not reproducible. False (default): the run waits for
         the plan and charges its measured wall time (or ``charged_latency``: reproducible on any machine).
@@ -298,7 +298,8 @@ class Decision:
         ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
         ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`),
         ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows),
-        ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for).
+        ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for;
+        with ``replan``, a re-plan still on its way when the plan it was for was over).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -425,7 +426,7 @@ class Supervisor:
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
         if getattr(self, "server", None) is not None:
             self.close()
-        self.server = self.asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
+        self.server = self.asked = self.replan_asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
 
     @property
     def latency(self) -> float:
@@ -496,6 +497,7 @@ class Supervisor:
 
     def _request_plan(self, t: float, x) -> None:
         """Plan from the state predicted ``latency`` s ahead under the brake; the plan is used from ``t + W``."""
+        self._drop_replan(t)
         lat = self.latency
         self.pending = None
         steps = max(1, int(round(lat / self.model.dt)))
@@ -652,7 +654,7 @@ class Supervisor:
         the run ends (an idle worker otherwise waits for the next plan until this process exits)."""
         if self.server is not None:
             self.server.close()
-        self.server = self.asked = None
+        self.server = self.asked = self.replan_asked = None
 
     def _call_planner(self, t: float, request):
         """The plan for ``request`` (:meth:`_serve`) in the caller's thread, or with ``plan_in_worker`` in the worker
@@ -687,8 +689,36 @@ class Supervisor:
             self._decide(t, "track", replanned=True, late_s=max(0.0, t - self.plan_t0))
             return
         left = self.plan.trajectory.duration - (t - self.plan_t0)
-        if self.pending is None and t >= self.replan_at and left > self.options.replan_every + self.latency:
+        if self.replan_asked is not None:
+            self._poll_replan(t)
+        elif self.pending is None and t >= self.replan_at and left > self.options.replan_every + self.latency:
             self._request_replan(t, x)
+
+    def _poll_replan(self, t: float) -> None:
+        """With ``plan_while_running``, while tracking: take the worker's re-plan once it is in (charged the simulated
+        time since it was asked for), or kill it once over ``plan_budget`` (``replan_failed``)."""
+        worker, ask = self.server, self.replan_asked
+        budget, wall = self.options.plan_budget, worker.elapsed
+        if worker.poll():
+            try:
+                new, why = worker.result(), None
+            except CartPoleError as exc:
+                new, why = None, str(exc)
+        elif wall > budget:
+            worker.kill()
+            new, why = None, timeout_sentence(wall, budget)
+        else:
+            return
+        self.replan_asked = None
+        self._take_replan(ask, new, wall, max(t - ask.t, self.options.charged_latency or 0.0), why)
+
+    def _drop_replan(self, t: float) -> None:
+        """A re-plan still on its way when the plan it was for is over (lost, caught, knocked): its worker killed
+        (``plan_dropped``, ``replan``), the next plan forks a new one."""
+        if self.replan_asked is not None:
+            self._decide(t, "plan_dropped", wall_s=self.server.elapsed, asked_at=self.replan_asked.t, replan=True)
+            self.server.kill()
+            self.replan_asked = None
 
     def _request_replan(self, t: float, x) -> None:
         """A plan from the state predicted ``latency`` s ahead under the tracked plan's TVLQR, warm-started from the
@@ -703,18 +733,32 @@ class Supervisor:
         self.replan_at = t + self.options.replan_every
         self.plans += 1
         start = time.perf_counter()
+        ask = _Ask(t, x_pred, steps, lat, None)
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
             warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
             tail = trajectory_tail(plan.trajectory, t0 - t_plan)
-            new = self._call_planner(t, ("planner", (x_pred,), {"guess": tail, **warm_only}))
+            request = ("planner", (x_pred,), {"guess": tail, **warm_only})
+            if self.options.plan_while_running:  # the run goes on, the old plan tracked; _receding polls
+                self._worker().submit(request)
+                self.replan_asked = ask
+                return
+            new = self._call_planner(t, request)
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)
         wall = time.perf_counter() - start
-        self.plan_seconds.append(wall)
         charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
+        self._take_replan(ask, new, wall, charged, why)
+
+    def _take_replan(self, ask, new, wall: float, charged: float, why: str | None) -> None:
+        """Keep the re-plan ``new`` asked for by ``ask`` (:class:`_Ask`), which took ``wall`` s and is charged
+        ``charged`` s, to be tracked from when it is ready (``pending``), or log its failure (``new`` None, ``why``)
+        and keep the plan being tracked."""
+        t, x_pred, steps, lat, _ = ask
+        t0 = t + steps * self.model.dt
+        self.plan_seconds.append(wall)
         if new is not None and wall > self.options.plan_budget:
             new, why = None, f"the plan took {wall:.1f} s, over the budget of {self.options.plan_budget:g} s"
         if new is None:

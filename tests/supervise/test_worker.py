@@ -151,11 +151,11 @@ class _HoldPlan:
         return self.u
 
 
-def _paced(sup, x, until, dt=0.01, limit=20.0):
-    """Call ``sup`` every ``dt`` s of simulated and (at least) wall time, as a run paced in real time does, until
-    ``until(sup)`` or ``limit`` s; returns each call's ``(t, wall s, ctrl)``."""
-    calls, t = [], 0.0
-    while not until(sup) and t < limit:
+def _paced(sup, x, until, dt=0.01, limit=20.0, t0=0.0):
+    """Call ``sup`` every ``dt`` s of simulated and (at least) wall time from ``t0`` s, as a run paced in real time
+    does, until ``until(sup)`` or ``limit`` s; returns each call's ``(t, wall s, ctrl)``."""
+    calls, t = [], t0
+    while not until(sup) and t < t0 + limit:
         start = time.perf_counter()
         u = sup(t, x)
         calls.append((t, time.perf_counter() - start, u))
@@ -428,4 +428,31 @@ def test_the_warm_up_is_not_charged_to_the_first_plan_nor_counted_against_its_bu
         sup(0.0, np.asarray(model.x_hanging, float))
         plan = sup.decisions[-1]
         assert plan.kind == "plan" and sup.prepare_s >= 1.0 and plan.detail["wall_s"] < sup.prepare_s
+    _no_child_left()
+
+
+def test_planning_while_running_a_replan_is_made_while_the_old_plan_is_tracked_and_dropped_when_lost(lab):
+    params, model, base, _ = lab
+
+    def planner(x0, guess=None):
+        time.sleep(0.5)
+        return _HoldPlan.at(model, 20.0)
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                     options=SupervisorOptions(plan_while_running=True, warm_worker=False, latency=0.05,
+                                               funnel=10.0, replan_every=0.5))
+    x = np.asarray(model.x_hanging, float)
+    with sup:
+        calls = _paced(sup, x, lambda s: any(d.kind == "replan" for d in s.decisions))
+        replan = next(d for d in sup.decisions if d.kind == "replan")
+        came = calls[-1][0]
+        in_flight = [c for c in calls if replan.t < c[0] < came]
+        assert replan.detail["wall_s"] >= 0.5 and replan.detail["charged_s"] == pytest.approx(came - replan.t)
+        assert len(in_flight) >= 10 and max(w for _, w, _ in in_flight) < 0.25  # tracked on meanwhile
+        assert all(np.allclose(u, model.u_eq) for _, _, u in in_flight) and sup.mode == "track"
+        more = _paced(sup, x, lambda s: s.replan_asked is not None, t0=came + 0.01)  # the next re-plan on its way
+        sup.options = sup.options.replace(funnel=0.1)  # the plan is lost: its re-plan dropped, a plan asked
+        sup(more[-1][0] + 0.01, x)
+        kinds = [d.kind for d in sup.decisions]
+        assert kinds[-2:] == ["lost", "plan_dropped"] and sup.decisions[-1].detail["replan"]
+        assert sup.mode == "wait" and sup.server.busy and sup.replan_asked is None
     _no_child_left()
