@@ -9,6 +9,8 @@ designed it) when a slider is released, the new closed-loop eigenvalues shown an
 :class:`LoopTuner` for the rig's control period and delay (:class:`LiveLoop` holds and delays the ctrl as
 :class:`cartpole.sim.rig.Rig` does, with a period and a delay the page may change), and :func:`controller_status`
 says which law of a swing-up is in charge (swing-up, tracking, catch, the supervisor's fallbacks).
+:func:`paced_supervisor` makes the supervisor fit for a run paced in real time: its plans are made in a worker process
+while the loop steps on (the brake acting), so the page's frame rate never waits for a plan.
 """
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ from cartpole.models import state_error
 from cartpole.riccati import dlqr, lqr
 from cartpole.sim import Rollout, SimOptions, simulate
 from cartpole.sim.rig import MAX_DELAY
+from cartpole.supervise.worker import fork_available
 from cartpole.viz.web import LOCALHOST, Knob, WebLive
 
 #: A weight slider spans its starting value times 10**-SPAN to times 10**SPAN.
@@ -380,6 +383,32 @@ SUPERVISOR_MODES = {
 }
 
 
+def paced_supervisor(supervisor):
+    """The supervisor (:class:`cartpole.supervise.Supervisor`) set for a run paced in real time (a live view, where
+    simulated time is wall time): each plan made in its worker process while the loop steps on, the brake acting
+    (``plan_while_running``; charged the time it took to come in, killed at ``plan_budget``), and the planner warmed
+    in this process first (:meth:`~cartpole.supervise.Supervisor.prepare`: a plan made and discarded before the run,
+    so that neither the first plan nor one after a kill waits for its solvers to be built). Where the platform cannot
+    fork, or the supervisor plans in the caller's thread by request (``plan_in_worker=False``), or never plans (the
+    energy law, the hinge pump), it is returned as it is: the loop then waits for each plan, as in a simulated run.
+
+    Parameters
+    ----------
+    supervisor : Supervisor
+
+    Returns
+    -------
+    Supervisor
+        The same object, its options replaced.
+    """
+    options = supervisor.options
+    if supervisor.planner is None or not fork_available() or options.plan_in_worker is False:
+        return supervisor
+    supervisor.options = options.replace(plan_in_worker=True, plan_while_running=True)
+    supervisor.prepare()
+    return supervisor
+
+
 def controller_status(controller, t: float, x) -> list[str]:
     """Lines naming the law in charge of a run and its state, for the page (:meth:`WebLive.attach`'s ``describe``).
 
@@ -402,6 +431,9 @@ def controller_status(controller, t: float, x) -> list[str]:
     mode = getattr(controller, "mode", None)
     if hasattr(controller, "decisions"):
         lines = [f"supervisor: {SUPERVISOR_MODES.get(mode, mode)}"]
+        server = getattr(controller, "server", None)
+        if mode == "wait" and getattr(controller, "asked", None) is not None and server is not None:
+            lines[0] += f" (in a worker process, {server.elapsed:.1f} s so far; the run goes on)"
         last = controller.decisions[-1] if controller.decisions else None
         if last is not None:
             lines.append(f"last decision: {last.kind} at {last.t:.2f} s; plans {getattr(controller, 'plans', 0)}, "

@@ -53,6 +53,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.apps.lab import state_names
+from cartpole.apps.live import paced_supervisor
 from cartpole.apps.margins import noise_limited_catch
 from cartpole.control.energy import (EnergyOptions, EnergyShapingController, EnergyShapingError, check_single_pole,
                                      default_gains)
@@ -714,12 +715,18 @@ class SwingupMethod:
     def run(self, ctx: _Context) -> SwingupResult:
         """Design, run in the closed loop, measure: the :class:`SwingupResult` of one run."""
         d = self.design(ctx)
-        controller, rig, rollout = _simulate(ctx, d.controller, d.duration, loop=d.loop)
+        try:
+            controller, rig, rollout = _simulate(ctx, d.controller, d.duration, loop=d.loop)
+        finally:
+            self.release(d)
         handover_at, extra = self.measure(ctx, d, rollout, controller)
         if d.noise is not None:
             extra["ctrl_noise"] = _noise_measured(d.noise, rollout, handover_at, ctx.pm.u_high - ctx.pm.u_low)
         return _finish(ctx, self.name, _Ran(rollout, controller, rig, d.basin, d.plan, handover_at, extra,
                                             d.options))
+
+    def release(self, design: _Design) -> None:
+        """After the MuJoCo run, or an exception in it: end what the design holds (nothing here)."""
 
 
 class EnergySwingup(SwingupMethod):
@@ -878,8 +885,14 @@ class SupervisorSwingup(SwingupMethod):
             SWINGUP_CATCH_R * np.eye(ctx.pm.nu))
         sup = supervisor_for(ctx.params, ctx.pm, period=ctx.loop.period, plan=plan, basin_of=ctx.basin_of,
                              catch_R=None if noise is None else R)
+        if getattr(ctx.on_step, "realtime", False):  # a live view paced in real time: plans made while it runs
+            sup = paced_supervisor(sup)
         return _Design(sup, ctx.duration(self.duration), loop, sup.basin, options={"plan": plan, "loop": loop},
                        noise=noise)
+
+    def release(self, design: _Design) -> None:
+        """End the supervisor's planning worker (no child process left, whatever ended the run)."""
+        design.controller.close()
 
     def measure(self, ctx: _Context, design: _Design, rollout: Rollout, ran) -> tuple:
         """The last catch, and the supervisor's summary (``supervisor``)."""

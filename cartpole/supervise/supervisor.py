@@ -17,12 +17,13 @@
 * **plan**: otherwise it plans a swing-up (``planner(x0) -> SwingupPlan``, warm-started from the nearest plan of
   its :class:`~cartpole.planning.library.PlanLibrary` when it has one) from the state predicted ``latency``
   seconds ahead through the model under the brake (the latency is the median planning time measured so far). The
-  planner runs in the caller's thread (or, with ``plan_in_worker``, in a worker process killed at ``plan_budget``:
-  :mod:`cartpole.supervise.worker`) and its wall time ``W`` is honest latency: the plan is used only from
-  ``t + W`` of simulated time, the brake acting meanwhile; a plan later than predicted starts from its beginning
-  when the state is still at its start (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from
-  where its clock has got to. The planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes
-  more than ``plan_budget`` s, is logged and retried after ``retry_after`` s of braking.
+  planner runs in a worker process killed at ``plan_budget`` (``plan_in_worker``, the default of
+  :func:`supervisor_for` where the platform can fork: :mod:`cartpole.supervise.worker`; else in the caller's thread)
+  and its wall time ``W`` is honest latency: the plan is used only from ``t + W`` of simulated time, the brake
+  acting meanwhile; a plan later than predicted starts from its beginning when the state is still at its start
+  (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from where its clock has got to. The
+  planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is
+  logged and retried after ``retry_after`` s of braking.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
   from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
@@ -39,6 +40,7 @@ from typing import Callable, ClassVar, NamedTuple
 
 import numpy as np
 
+from cartpole.codegen import model_key
 from cartpole.control import EnergyDrain, LinearFeedback
 from cartpole.control.energy import EnergyShapingController, EnergyShapingModelError, check_single_pole
 from cartpole.control.model_rollout import model_rollout
@@ -112,6 +114,10 @@ STALL_LIMIT_TOL = 0.05
 #: to the soft brake 5 J above, as soon calm, and each plan from there swung up at once, 12 s and 10 s after calm).
 #: The knock now leaves 13-32 J, so the drain acts on only its first 8-27 J (not re-measured without the margin).
 DRAIN_MARGIN = 5.0
+
+
+#: What :meth:`Supervisor.prepare` has warmed in this process: ``(model_key, exact_plans, warm_tails)`` of each.
+_PREPARED: set = set()
 
 
 class _Ask(NamedTuple):
@@ -198,19 +204,32 @@ class SupervisorOptions(StageOptions):
         None), the calming brake below it (True; :func:`supervisor_for` sets it for a model driven at a hinge), or
         with the calming brake alone (False, default): a passive damper on a driven joint the chain hardly moves takes
         little out.
-    plan_in_worker : bool
+    plan_in_worker : bool or None
         Make each plan in a child process (:class:`cartpole.supervise.worker.PlanWorker`: forked at the first plan
-        and kept between plans, so that the solvers one plan builds serve the next) that is killed once a plan has
-        run ``plan_budget`` s of wall time (the next plan forks a new one): planning from any state is then bounded
-        by the budget (a ``plan_timeout`` decision, then ``plan_failed``), where in the caller's thread (False,
-        default) the budget is checked only after the planner returns. The run waits for the child, and its wall time
-        is charged as in the caller's thread. Call :meth:`Supervisor.close` when the run ends.
+        and kept between plans) that is killed once a plan has run ``plan_budget`` s of wall time (the next plan
+        forks a new one): planning from any state is then bounded by the budget (a ``plan_timeout`` decision, then
+        ``plan_failed``), where in the caller's thread (False) the budget is checked only after the planner returns.
+        The run waits for the child (unless ``plan_while_running``), and its wall time is charged as in the caller's
+        thread; the same plans, the same run. None (default): True in the supervisor :func:`supervisor_for` makes
+        (what every command runs) where the platform can fork (Linux, macOS), else False (Windows); False for a
+        :class:`Supervisor` built with a planner of your own (its plans need not pickle, its side effects stay in
+        this process) unless ``plan_while_running``. Call :meth:`Supervisor.close` (or use it in a ``with`` block)
+        when the run ends.
     plan_while_running : bool
-        With ``plan_in_worker``: the run goes on while the worker plans (the brake acting), polled at each call, the
-        plan used from the simulated time it comes in (charged that time since it was asked for, at least
-        ``charged_latency``), killed once over ``plan_budget``; re-plans while tracking still wait. For a run paced in
-        real time (a live view), where simulated time is wall time; a run stepped as fast as possible then charges
-        whatever time it stepped meanwhile, and is not reproducible. False (default): the run waits for the worker.
+        With a worker (``plan_in_worker`` not False): the run goes on while the worker plans (the brake acting),
+        polled at each call, the plan used from the simulated time it comes in (charged that time since it was
+        asked for, at least ``charged_latency``), killed once over ``plan_budget``; so are re-plans while tracking
+        (``replan_every``), the old plan tracked meanwhile. For a run paced in real time (a live view: :func:`cartpole.apps.live.paced_supervisor` turns it on),
+        where simulated time is wall time; a run stepped as fast as possible would charge whatever simulated time it
+        stepped meanwhile, which depends on the machine's speed: not reproducible. False (default): the run waits for
+        the plan and charges its measured wall time (or ``charged_latency``: reproducible on any machine).
+    warm_worker : bool
+        With a worker: before the first fork, make one plan in this process (:meth:`Supervisor.prepare`, from the
+        model's hanging state, the plan discarded), so that what the planner builds (CasADi solvers and functions,
+        the compiled C of :mod:`cartpole.codegen` loaded) is in every child from its start, copy-on-write: a child
+        forked after a kill starts warm, and a model whose first (cold) plan takes longer than ``plan_budget`` still
+        plans (True, default; ``docs/recovery.md`` gives the cold and warm times); its wall time is
+        :attr:`Supervisor.prepare_s`. False: every child starts as cold as this process.
     """
 
     plan_budget: float = 30.0
@@ -228,8 +247,9 @@ class SupervisorOptions(StageOptions):
     calm_energy: float | None = None
     warm_tails: bool = False
     calm_drain: bool = False
-    plan_in_worker: bool = False
+    plan_in_worker: bool | None = None
     plan_while_running: bool = False
+    warm_worker: bool = True
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -244,14 +264,24 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_in_worker", "plan_while_running"):
+        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_while_running", "warm_worker"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
-        if self.plan_in_worker and not fork_available():
-            raise SupervisorError("plan_in_worker needs a platform that can fork (Linux, macOS); leave it False here.")
-        if self.plan_while_running and not self.plan_in_worker:
+        if self.plan_in_worker is not None and not isinstance(self.plan_in_worker, bool):
+            raise SupervisorError(f"plan_in_worker = {self.plan_in_worker!r} must be True, False or None (a worker "
+                                  "where the platform can fork).")
+        if self.in_worker and not fork_available():
+            raise SupervisorError("plan_in_worker and plan_while_running need a platform that can fork (Linux, macOS); "
+                                  "leave them False here.")
+        if self.plan_while_running and self.plan_in_worker is False:
             raise SupervisorError("plan_while_running needs plan_in_worker=True: only a plan made in a worker "
                                   "process lets the run go on meanwhile.")
+
+    @property
+    def in_worker(self) -> bool:
+        """Whether plans are made in a worker process: ``plan_in_worker``, or when None ``plan_while_running``
+        (:func:`supervisor_for` resolves None to whether the platform can fork)."""
+        return bool(self.plan_in_worker) or (self.plan_in_worker is None and self.plan_while_running)
 
 
 @dataclass(frozen=True)
@@ -268,7 +298,8 @@ class Decision:
         ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
         ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`),
         ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows),
-        ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for).
+        ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for;
+        with ``replan``, a re-plan still on its way when the plan it was for was over).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -374,6 +405,7 @@ class Supervisor:
         self.hinges = tuple(model.hinges)
         self.basin = basin
         self.library = library
+        self.prepare_s = None  # s the planner's warm-up in this process took (prepare), None before it
         self.reset()
 
     def reset(self) -> None:
@@ -394,7 +426,7 @@ class Supervisor:
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
         if getattr(self, "server", None) is not None:
             self.close()
-        self.server = self.asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
+        self.server = self.asked = self.replan_asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
 
     @property
     def latency(self) -> float:
@@ -465,11 +497,14 @@ class Supervisor:
 
     def _request_plan(self, t: float, x) -> None:
         """Plan from the state predicted ``latency`` s ahead under the brake; the plan is used from ``t + W``."""
+        self._drop_replan(t)
         lat = self.latency
         self.pending = None
         steps = max(1, int(round(lat / self.model.dt)))
         xs, _ = model_rollout(self.model, self.brake, x, steps, t0=t)
         x_pred = xs[-1]
+        if self.options.in_worker:
+            self._worker()  # made (the planner warmed here first: prepare_s) before the plan's clock starts
         self.plans += 1
         start = time.perf_counter()
         ask = _Ask(t, x_pred, steps, lat, None)
@@ -513,8 +548,55 @@ class Supervisor:
         """The planning worker process (:class:`~cartpole.supervise.worker.PlanWorker`), made at first use: kept
         between plans, so what one plan built in it (its solvers) serves the next."""
         if self.server is None:
+            if self.options.warm_worker and self.prepare_s is None:
+                self.prepare()  # before the first fork: every child starts with what this plan built
             self.server = PlanWorker(self._serve)
         return self.server
+
+    def prepare(self, x0=None, *, again: bool = False) -> float:
+        """Make one plan in this process and discard it, so that what the planner builds (CasADi solvers and
+        functions, the compiled C of :mod:`cartpole.codegen` loaded, the model's derived functions) is here before
+        a worker is forked: every child then has it from its start (copy-on-write), a child forked after a kill too.
+        ``warm_worker`` does this before the first fork; a live run calls it before it starts, so that its loop never
+        waits for it. The plan is asked for as the supervisor asks (its library's warm start), from ``x0`` (nx,)
+        (default the model's hanging state); it is neither used nor added to the library, and one that fails (a
+        :class:`~cartpole.errors.CartPoleError`) has built its solvers all the same.
+
+        Parameters
+        ----------
+        x0 : (nx,) array, optional
+            The state planned from.
+        again : bool
+            Plan even when a supervisor of this model (and kind of plan) has prepared its planner in this process
+            already (default False: then nothing is done, its solvers are here).
+
+        Returns
+        -------
+        float
+            s of wall time it took (also :attr:`prepare_s`; 0 without a planner, or when done already).
+        """
+        start = time.perf_counter()
+        ready = self.planner is None or (self._prepare_key() in _PREPARED and not again)
+        if not ready:
+            x = np.asarray(self.model.x_hanging if x0 is None else x0, dtype=float)
+            try:
+                request, _ = self._plan_request(x)
+                self._serve(request)
+            except CartPoleError:
+                pass
+            _PREPARED.add(self._prepare_key())
+        self.prepare_s = 0.0 if ready else time.perf_counter() - start
+        return self.prepare_s
+
+    def _prepare_key(self) -> tuple:
+        """What :data:`_PREPARED` knows a prepared planner by: the model's hash and the kind of plan."""
+        return model_key(self.model), self.options.exact_plans, self.options.warm_tails
+
+    def __enter__(self) -> "Supervisor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     def _take_plan(self, ask, plan, wall: float, charged: float, why: str | None) -> None:
         """Use ``plan`` asked for by ``ask`` (:class:`_Ask`) that took ``wall`` s and is charged ``charged`` s of
@@ -572,13 +654,13 @@ class Supervisor:
         the run ends (an idle worker otherwise waits for the next plan until this process exits)."""
         if self.server is not None:
             self.server.close()
-        self.server = self.asked = None
+        self.server = self.asked = self.replan_asked = None
 
     def _call_planner(self, t: float, request):
         """The plan for ``request`` (:meth:`_serve`) in the caller's thread, or with ``plan_in_worker`` in the worker
         process, killed at ``plan_budget`` (a ``plan_timeout`` decision, then
         :class:`~cartpole.supervise.worker.PlanTimeout`)."""
-        if not self.options.plan_in_worker:
+        if not self.options.in_worker:
             return self._serve(request)
         budget = self.options.plan_budget
         return self._worker().wait(request, budget, on_timeout=lambda wall: self._decide(t, "plan_timeout",
@@ -607,8 +689,36 @@ class Supervisor:
             self._decide(t, "track", replanned=True, late_s=max(0.0, t - self.plan_t0))
             return
         left = self.plan.trajectory.duration - (t - self.plan_t0)
-        if self.pending is None and t >= self.replan_at and left > self.options.replan_every + self.latency:
+        if self.replan_asked is not None:
+            self._poll_replan(t)
+        elif self.pending is None and t >= self.replan_at and left > self.options.replan_every + self.latency:
             self._request_replan(t, x)
+
+    def _poll_replan(self, t: float) -> None:
+        """With ``plan_while_running``, while tracking: take the worker's re-plan once it is in (charged the simulated
+        time since it was asked for), or kill it once over ``plan_budget`` (``replan_failed``)."""
+        worker, ask = self.server, self.replan_asked
+        budget, wall = self.options.plan_budget, worker.elapsed
+        if worker.poll():
+            try:
+                new, why = worker.result(), None
+            except CartPoleError as exc:
+                new, why = None, str(exc)
+        elif wall > budget:
+            worker.kill()
+            new, why = None, timeout_sentence(wall, budget)
+        else:
+            return
+        self.replan_asked = None
+        self._take_replan(ask, new, wall, max(t - ask.t, self.options.charged_latency or 0.0), why)
+
+    def _drop_replan(self, t: float) -> None:
+        """A re-plan still on its way when the plan it was for is over (lost, caught, knocked): its worker killed
+        (``plan_dropped``, ``replan``), the next plan forks a new one."""
+        if self.replan_asked is not None:
+            self._decide(t, "plan_dropped", wall_s=self.server.elapsed, asked_at=self.replan_asked.t, replan=True)
+            self.server.kill()
+            self.replan_asked = None
 
     def _request_replan(self, t: float, x) -> None:
         """A plan from the state predicted ``latency`` s ahead under the tracked plan's TVLQR, warm-started from the
@@ -623,18 +733,32 @@ class Supervisor:
         self.replan_at = t + self.options.replan_every
         self.plans += 1
         start = time.perf_counter()
+        ask = _Ask(t, x_pred, steps, lat, None)
         try:
             if not np.all(np.isfinite(x_pred)):
                 raise CartPoleError("the prediction over the planning latency is not finite")
             warm_only = {"cold": False} if self.options.warm_tails else {}  # a failed re-plan keeps the old plan
             tail = trajectory_tail(plan.trajectory, t0 - t_plan)
-            new = self._call_planner(t, ("planner", (x_pred,), {"guess": tail, **warm_only}))
+            request = ("planner", (x_pred,), {"guess": tail, **warm_only})
+            if self.options.plan_while_running:  # the run goes on, the old plan tracked; _receding polls
+                self._worker().submit(request)
+                self.replan_asked = ask
+                return
+            new = self._call_planner(t, request)
             why = None
         except CartPoleError as exc:
             new, why = None, str(exc)
         wall = time.perf_counter() - start
-        self.plan_seconds.append(wall)
         charged = wall if self.options.charged_latency is None else float(self.options.charged_latency)
+        self._take_replan(ask, new, wall, charged, why)
+
+    def _take_replan(self, ask, new, wall: float, charged: float, why: str | None) -> None:
+        """Keep the re-plan ``new`` asked for by ``ask`` (:class:`_Ask`), which took ``wall`` s and is charged
+        ``charged`` s, to be tracked from when it is ready (``pending``), or log its failure (``new`` None, ``why``)
+        and keep the plan being tracked."""
+        t, x_pred, steps, lat, _ = ask
+        t0 = t + steps * self.model.dt
+        self.plan_seconds.append(wall)
         if new is not None and wall > self.options.plan_budget:
             new, why = None, f"the plan took {wall:.1f} s, over the budget of {self.options.plan_budget:g} s"
         if new is None:
@@ -702,13 +826,15 @@ class Supervisor:
     def summary(self) -> dict:
         """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``,
         ``warm_plans`` (plans made from a library's warm start) and ``library_plans`` (plans in the library at the
-        end, or None without one), ``unreachable`` (each state no swing-up was found from within the budget: ``t``,
-        ``x0``, the planner's ``reason``; and each stall of the swing-up law, its ``reason``)."""
+        end, or None without one), ``prepare_s`` (the planner's warm-up in this process before the first worker,
+        :meth:`prepare`, s; None when there was none), ``unreachable`` (each state no swing-up was found from within
+        the budget: ``t``, ``x0``, the planner's ``reason``; and each stall of the swing-up law, its ``reason``)."""
         unreachable = [{"t": d.t, "x0": d.detail.get("x0"), "reason": d.detail.get("reason")}
                        for d in self.decisions if d.kind in ("plan_failed", "stalled")]
         return {"unreachable": unreachable, "decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
                 "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho,
-                "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library)}
+                "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library),
+                "prepare_s": self.prepare_s}
 
 
 def _warm(plan) -> bool:
@@ -790,6 +916,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
                             calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME,
                             calm_drain=True)
+    if opts.plan_in_worker is None:  # its planner's plans pickle: in a worker wherever the platform can fork
+        opts = opts.replace(plan_in_worker=fork_available())
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
     brake = PassiveBrake(model, inertia, opts.brake_time, catch.u_limits)
     calm_brake = (None if opts.calm_brake_time is None else

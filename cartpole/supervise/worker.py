@@ -8,9 +8,17 @@ kept between requests, so what it builds in memory for one plan (solvers, loaded
 functions: a cold plan's first call builds them for tens of seconds, every later one reuses them) serves the next.
 The parent polls (:meth:`PlanWorker.poll`, never blocking), takes the result (:meth:`PlanWorker.result`), or kills
 the child (SIGKILL: a solver deep in C code does not stop for a Python signal handler) and reaps it, so that no
-process is left running and no zombie remains; the next request forks a new child (cold again).
+process is left running and no zombie remains; the next request forks a new child, as warm as the parent: what the
+parent built before the fork (the planner's solvers, the compiled C loaded, the model's functions: a plan made in
+the parent first, :meth:`cartpole.supervise.Supervisor.prepare`) every child has from its start, copy-on-write.
 :meth:`PlanWorker.wait` is the blocking form with a hard bound: a request over its budget raises
 :class:`PlanTimeout` at the budget, not when the planner would have returned.
+
+No child outlives its use: :meth:`PlanWorker.close` ends it (the supervisor's ``close``, or its ``with`` block); one
+whose :class:`PlanWorker` is garbage-collected is ended then; at the parent's exit (a SIGTERM the command line turns
+into an exception, an exception in the loop) multiprocessing ends it; and on Linux a child is killed by the kernel
+as soon as its parent dies, however (``PR_SET_PDEATHSIG``), so even a parent killed by SIGKILL leaves no planner
+running (strictly, when the parent's thread that forked it ends: use a supervisor from one thread).
 
 Fork copies only the calling thread: a handler must not wait on a lock another thread of the parent holds (the
 toolkit's planners take none). The child sees the parent as it was when it was forked: send what changes since (a
@@ -18,11 +26,15 @@ warm start from a library that has grown) in the request.
 """
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import multiprocessing
 import os
 import signal
+import sys
 import time
 import traceback
+import weakref
 from typing import Callable
 
 from cartpole.errors import CartPoleError
@@ -31,6 +43,8 @@ from cartpole.errors import CartPoleError
 POLL_INTERVAL = 0.005
 #: s the parent waits for a child to exit after it closed its pipe, before it kills it.
 REAP_TIMEOUT = 5.0
+#: Linux's ``prctl`` option that sends the child a signal when its parent dies.
+PR_SET_PDEATHSIG = 1
 
 
 class PlanTimeout(CartPoleError):
@@ -47,6 +61,7 @@ def _serve(handler: Callable, conn, parent_end) -> None:
     traceback text)`` for any other exception; ends when the parent closes its end (``parent_end``, whose copy the
     fork gave the child is closed first, else the child would never see the pipe close)."""
     parent_end.close()
+    _die_with_parent(os.getppid())
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent, which kills the child
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
@@ -68,6 +83,33 @@ def _serve(handler: Callable, conn, parent_end) -> None:
             conn.send(("fail", f"the planning worker's answer could not be sent back ({type(exc).__name__}: "
                                f"{exc})."))
     conn.close()
+
+
+def _die_with_parent(parent: int) -> None:
+    """In the child, on Linux: ask the kernel for SIGKILL when the parent dies (``PR_SET_PDEATHSIG``), and end now
+    if the parent ``parent`` died before the request was in place (the child was then re-parented). Elsewhere
+    nothing: the pipe's end (EOF) and the parent's exit end the child."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # no libc to ask: the pipe's EOF still ends an idle child
+        return
+    if os.getppid() != parent:
+        os._exit(0)
+
+
+def _end_child(process, conn) -> None:
+    """End ``process`` (a child of a :class:`PlanWorker` that was garbage-collected without ``close``): its pipe
+    closed, killed if it does not exit at once, reaped."""
+    try:
+        conn.close()
+        if process.is_alive():
+            process.kill()
+        process.join(REAP_TIMEOUT)
+    except (OSError, ValueError, AssertionError):  # already closed or reaped, or this is not its parent (a fork)
+        pass
 
 
 class PlanWorker:
@@ -98,6 +140,7 @@ class PlanWorker:
         self.forks = 0
         self._pid = None
         self._exitcode = None
+        self._finalizer = None
 
     def _fork(self) -> None:
         ctx = multiprocessing.get_context("fork")
@@ -108,6 +151,7 @@ class PlanWorker:
         child_end.close()  # the child holds its end: its exit reads as EOF here
         self._pid = self._process.pid
         self.forks += 1
+        self._finalizer = weakref.finalize(self, _end_child, self._process, self._conn)
 
     @property
     def elapsed(self) -> float:
@@ -182,6 +226,9 @@ class PlanWorker:
     def _reap(self) -> None:
         if self._busy:
             self._outcome, self._busy = ("died", None), False
+        if self._finalizer is not None:
+            self._finalizer.detach()
+            self._finalizer = None
         if self._conn is not None:
             self._conn.close()
             self._conn = None

@@ -1,13 +1,20 @@
 """cartpole.apps.swingup with a live page: the run tells the page which law is in charge (``attach``) and the page's
-pushes join the run's logged push column, so the run still replays exactly."""
+pushes join the run's logged push column, so the run still replays exactly; on a page paced in real time the
+supervisor plans in a worker while the loop steps on."""
 from __future__ import annotations
 
-import numpy as np
+import time
 
-from cartpole.apps.live import controller_status
+import numpy as np
+import pytest
+
+from cartpole.apps.live import controller_status, paced_supervisor
 from cartpole.apps.swingup import SwingupOptions, run_swingup
-from cartpole.sim import replays_exactly
+from cartpole.models import build_model, read_params
+from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.sim import Knockdown, SimOptions, replays_exactly, simulate
 from cartpole.sim.options import LoopOptions
+from cartpole.supervise import Supervisor, SupervisorOptions, supervisor_for
 
 
 class _Page:
@@ -42,3 +49,75 @@ def test_the_swingup_attaches_its_law_and_logs_the_pages_push_with_the_scheduled
     assert np.all(push[(t >= 0.1 - h / 2) & (t < 0.2 - h / 2)] == 4.0)
     assert np.all(push[(t >= 0.3 - h / 2) & (t < 0.4 - h / 2)] == -2.0)
     assert replays_exactly(res.rollout)
+
+
+class _Paced:
+    """What a live page is to the run's pacing (as :class:`cartpole.viz.web.WebLive`): each step waits for wall time
+    to catch up with simulated time (``realtime``), and its wall time is logged (s, ``time.perf_counter``)."""
+
+    realtime = True
+
+    def __init__(self):
+        self.start = None
+        self.steps = []  # (simulated t, wall time) of each step
+
+    def __call__(self, m, d):
+        now = time.perf_counter()
+        if self.start is None:
+            self.start = now - float(d.time)
+        ahead = float(d.time) - (now - self.start)
+        if ahead > 0:
+            time.sleep(ahead)
+        self.steps.append((float(d.time), time.perf_counter()))
+        return True
+
+
+@pytest.fixture(scope="module")
+def one_pole():
+    """The lab's cart with a supervisor that plans (its own would use the energy law and never plan)."""
+    params = read_params("cartpole/assets/cartpole.xml")
+    model = build_model(params)
+    base = supervisor_for(params, model)
+
+    def planner(x0, guess=None, cold=True):
+        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, guess=guess, cold=cold)
+    return params, model, Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                                     options=SupervisorOptions(plan_in_worker=True))
+
+
+def test_a_knock_in_the_live_loop_is_planned_for_in_a_worker_while_the_loop_steps_on(one_pole):
+    params, model, sup = one_pole
+    assert paced_supervisor(sup) is sup and sup.options.plan_while_running and sup.prepare_s is not None
+    page = _Paced()
+    knock = Knockdown(0.2, 0.3, seed=4).start(params, x_eq=model.x_eq, hinges=model.hinges)
+    with sup:
+        run = simulate(params, sup, np.asarray(model.x_eq, float), 20.0, disturbance=knock,
+                       options=SimOptions(on_step=page, stop=lambda t, x: sup.mode == "track"))
+    assert replays_exactly(run, params)
+    plan = next(d for d in sup.decisions if d.kind == "plan")
+    came = next(d for d in sup.decisions if d.kind == "track")
+    in_flight = [w for t, w in page.steps if plan.t < t <= came.t]
+    h = float(params.timestep)
+    # the loop stepped on while the worker planned: one step per physics step of the charged latency, none skipped
+    assert len(in_flight) >= 10 and len(in_flight) == pytest.approx(plan.detail["charged_s"] / h, abs=2)
+    # paced in real time, simulated time kept up with the plan's wall time (a loop that waited for the plan would
+    # have stepped once while it was made), and no step waited for it
+    assert plan.detail["charged_s"] >= 0.5 * plan.detail["wall_s"]
+    assert max(np.diff(in_flight)) < 0.75 * plan.detail["wall_s"]
+    assert sup.server is None
+
+
+def test_the_swingup_paces_its_supervisor_for_a_live_page_and_ends_its_worker(monkeypatch):
+    paced = []
+
+    def record(sup):
+        paced.append(sup)
+        return sup
+    monkeypatch.setattr("cartpole.apps.swingup.paced_supervisor", record)
+    page = _Page()
+    page.realtime = True
+    res = run_swingup(None, "supervisor", SwingupOptions(loop=LoopOptions(duration=0.3)), on_step=page)
+    assert len(paced) == 1 and paced[0].server is None and res.method == "supervisor"
+    paced.clear()
+    run_swingup(None, "supervisor", SwingupOptions(loop=LoopOptions(duration=0.3)), on_step=_Page())
+    assert paced == []  # a page that does not pace in real time: the supervisor as a simulated run has it

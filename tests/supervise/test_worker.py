@@ -68,7 +68,7 @@ def _planning(lab, **options):
 def test_a_plan_over_the_budget_is_killed_at_the_budget_and_the_run_goes_on(lab):
     params, model, base, _ = lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
-                     options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5))
+                     options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5, warm_worker=False))
     x = np.asarray(model.x_hanging, float)
     start = time.perf_counter()
     u = sup(0.0, x)
@@ -128,7 +128,10 @@ def test_plan_in_worker_must_be_a_bool_and_planning_while_running_needs_it():
     with pytest.raises(SupervisorError, match="plan_in_worker"):
         SupervisorOptions(plan_in_worker="yes")
     with pytest.raises(SupervisorError, match="plan_while_running needs plan_in_worker=True"):
-        SupervisorOptions(plan_while_running=True)
+        SupervisorOptions(plan_in_worker=False, plan_while_running=True)
+    with pytest.raises(SupervisorError, match="warm_worker"):
+        SupervisorOptions(warm_worker=1)
+    assert SupervisorOptions(plan_while_running=True).in_worker and not SupervisorOptions().in_worker
 
 
 @dataclass
@@ -148,11 +151,11 @@ class _HoldPlan:
         return self.u
 
 
-def _paced(sup, x, until, dt=0.01, limit=20.0):
-    """Call ``sup`` every ``dt`` s of simulated and (at least) wall time, as a run paced in real time does, until
-    ``until(sup)`` or ``limit`` s; returns each call's ``(t, wall s, ctrl)``."""
-    calls, t = [], 0.0
-    while not until(sup) and t < limit:
+def _paced(sup, x, until, dt=0.01, limit=20.0, t0=0.0):
+    """Call ``sup`` every ``dt`` s of simulated and (at least) wall time from ``t0`` s, as a run paced in real time
+    does, until ``until(sup)`` or ``limit`` s; returns each call's ``(t, wall s, ctrl)``."""
+    calls, t = [], t0
+    while not until(sup) and t < t0 + limit:
         start = time.perf_counter()
         u = sup(t, x)
         calls.append((t, time.perf_counter() - start, u))
@@ -169,7 +172,7 @@ def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_tim
         return _HoldPlan.at(model, 2.0)
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
                      options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, latency=0.05,
-                                               funnel=10.0))
+                                               funnel=10.0, warm_worker=False))
     x = np.asarray(model.x_hanging, float)
     calls = _paced(sup, x, lambda s: s.mode == "track")
     plan = next(d for d in sup.decisions if d.kind == "plan")
@@ -186,7 +189,8 @@ def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_tim
 def test_planning_while_running_a_plan_over_the_budget_is_killed_and_fails(lab):
     params, model, base, _ = lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
-                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, plan_budget=0.5))
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, plan_budget=0.5,
+                                               warm_worker=False))
     x = np.asarray(model.x_hanging, float)
     start = time.perf_counter()
     _paced(sup, x, lambda s: s.failures > 0)
@@ -218,6 +222,7 @@ def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_r
         runs.append((sup, simulate(params, sup, np.asarray(model.x_hanging, float), 6.0, disturbance=force)))
     (sup_here, here), (sup_there, there) = runs
     assert sup_there.plans >= 2 and sup_there.server.forks == 1 and replays_exactly(there, params)
+    assert sup_there.prepare_s is not None and sup_here.prepare_s is None  # warmed here before the fork
     sup_there.close()
     assert np.array_equal(here.ctrl, there.ctrl)
     assert [d.kind for d in sup_here.decisions] == [d.kind for d in sup_there.decisions]
@@ -227,7 +232,7 @@ def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_r
 def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_worker_ended(lab):
     params, model, base, _ = lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
-                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True))
+                     options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, warm_worker=False))
     hanging, upright = np.asarray(model.x_hanging, float), np.asarray(model.x_eq, float)
     sup(0.0, hanging)
     assert sup.mode == "wait" and sup.server.busy
@@ -240,4 +245,214 @@ def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_wor
         os.kill(first, 0)
     assert sup.mode == "wait" and sup.server.busy and sup.server.pid != first  # a new plan asked for
     sup.close()
+    _no_child_left()
+
+
+def test_a_child_forked_after_the_parent_prepared_and_after_a_kill_builds_no_compiled_code(lab):
+    from cartpole import codegen
+
+    params, model, base, planner = lab
+    sup = _planning(lab, plan_in_worker=True, plan_budget=120.0)
+    assert sup.prepare(again=True) > 0 and sup.prepare() == 0.0  # once per model and process
+    x0 = np.asarray(model.x_hanging, float) + 0.02
+
+    def plan_and_count(_):
+        before = (set(codegen._BUILT), codegen._load.cache_info().currsize)
+        plan = planner(x0)
+        return before, (set(codegen._BUILT), codegen._load.cache_info().currsize), plan.trajectory.duration
+    worker = PlanWorker(plan_and_count)
+    try:
+        for _ in range(2):  # the first child, then one forked after a kill: both as warm as the parent
+            before, after, T = worker.wait(None, 120.0)
+            assert after == before and T > 0  # no C generated, compiled or loaded anew in the child
+            worker.kill()
+        assert worker.forks == 2
+    finally:
+        worker.close()
+    _no_child_left()
+
+
+def test_the_supervisor_prepares_its_planner_here_before_its_first_fork_and_only_then(lab, monkeypatch):
+    params, model, base, _ = lab
+    monkeypatch.setattr("cartpole.supervise.supervisor._PREPARED", set())  # no supervisor of this model prepared yet
+    seen = []
+
+    def planner(x0):
+        seen.append(os.getpid())
+        return _HoldPlan.at(model, 2.0)
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                     options=SupervisorOptions(plan_in_worker=True, latency=0.05, funnel=10.0))
+    with sup:
+        sup(0.0, np.asarray(model.x_hanging, float))
+        assert seen == [os.getpid()] and sup.prepare_s is not None  # the warm-up here; the plan in the child
+        assert sup.mode == "wait" and sup.server.forks == 1 and sup.server.pid != os.getpid()
+    assert sup.server is None
+    _no_child_left()
+    again = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                       options=SupervisorOptions(plan_in_worker=True, latency=0.05, funnel=10.0))
+    with again:
+        again(0.0, np.asarray(model.x_hanging, float))
+        assert seen == [os.getpid()] and again.prepare_s == 0.0  # prepared in this process already
+    _no_child_left()
+
+
+def _busy(lab):
+    """A supervisor planning while running whose plan (a minute's sleep) is on its way in its worker."""
+    params, model, base, _ = lab
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_while_running=True, warm_worker=False))
+    sup(0.0, np.asarray(model.x_hanging, float))
+    assert sup.server.busy
+    return sup
+
+
+def test_no_child_is_left_after_an_exception_in_the_loop_or_a_supervisor_dropped_unclosed(lab):
+    import gc
+
+    from cartpole.sim import SimOptions
+
+    params, model, base, _ = lab
+
+    def raise_once_planning(m, d):
+        if sup.server is not None and sup.server.busy:
+            raise RuntimeError("the loop broke")
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_while_running=True, warm_worker=False))
+    with pytest.raises(RuntimeError, match="the loop broke"):
+        with sup:
+            simulate(params, sup, np.asarray(model.x_hanging, float), 1.0,
+                     options=SimOptions(on_step=raise_once_planning))
+    _no_child_left()
+    sup = _busy(lab)
+    del sup
+    gc.collect()
+    _no_child_left()
+
+
+_ORPHAN = """
+import sys, time
+from cartpole.supervise.worker import PlanWorker
+worker = PlanWorker(lambda seconds: time.sleep(seconds))
+worker.submit(600.0)
+print(worker.pid, flush=True)
+time.sleep(600.0)
+"""
+
+
+def test_a_planning_child_dies_with_its_parent_even_killed_outright(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-c", _ORPHAN], stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": os.getcwd()})
+    try:
+        child = int(proc.stdout.readline())
+        os.kill(child, 0)  # planning
+        proc.send_signal(signal.SIGKILL)  # no exception, no atexit: only the kernel can end the child
+        proc.wait(30)
+        deadline = time.monotonic() + REAP_TIMEOUT
+        while time.monotonic() < deadline and _alive(child):
+            time.sleep(0.05)
+        assert not _alive(child)
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, or no process, is not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _session_alive(sid: int) -> list[int]:
+    """Live (not zombie) processes of session ``sid``."""
+    out = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            out.append(int(pid))
+    return out
+
+
+@pytest.mark.slow
+def test_sigterm_of_the_cli_while_its_worker_plans_leaves_no_process(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    mjcf = os.path.abspath("cartpole/assets/cartpole_two_pole.xml")
+    proc = subprocess.Popen([sys.executable, "-m", "cartpole", "swingup", "--mjcf", mjcf, "--knockdown", "1:0.3",
+                             "--duration", "4", "--no-video", "--json", "--out", str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env={**os.environ, "MUJOCO_GL": "egl", "PYTHONPATH": os.getcwd()}, cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + 600
+        while proc.poll() is None and time.monotonic() < deadline and len(_session_alive(proc.pid)) < 2:
+            time.sleep(0.1)  # until the supervisor's worker is forked (after the warm-up here)
+        workers = [p for p in _session_alive(proc.pid) if p != proc.pid]
+        assert proc.poll() is None and workers, "the command ended before its supervisor forked a planning worker"
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 128 + signal.SIGTERM, err
+        assert "Traceback" not in err
+        deadline = time.monotonic() + REAP_TIMEOUT
+        while _session_alive(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert _session_alive(proc.pid) == []
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def test_the_warm_up_is_not_charged_to_the_first_plan_nor_counted_against_its_budget(lab, monkeypatch):
+    params, model, base, _ = lab
+    monkeypatch.setattr("cartpole.supervise.supervisor._PREPARED", set())
+
+    def planner(x0):
+        if os.getpid() == parent:
+            time.sleep(1.0)  # the warm-up here: slower than the budget
+        return _HoldPlan.at(model, 2.0)
+    parent = os.getpid()
+    with Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                    options=SupervisorOptions(plan_in_worker=True, plan_budget=0.9, funnel=10.0)) as sup:
+        sup(0.0, np.asarray(model.x_hanging, float))
+        plan = sup.decisions[-1]
+        assert plan.kind == "plan" and sup.prepare_s >= 1.0 and plan.detail["wall_s"] < sup.prepare_s
+    _no_child_left()
+
+
+def test_planning_while_running_a_replan_is_made_while_the_old_plan_is_tracked_and_dropped_when_lost(lab):
+    params, model, base, _ = lab
+
+    def planner(x0, guess=None):
+        time.sleep(0.5)
+        return _HoldPlan.at(model, 20.0)
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
+                     options=SupervisorOptions(plan_while_running=True, warm_worker=False, latency=0.05,
+                                               funnel=10.0, replan_every=0.5))
+    x = np.asarray(model.x_hanging, float)
+    with sup:
+        calls = _paced(sup, x, lambda s: any(d.kind == "replan" for d in s.decisions))
+        replan = next(d for d in sup.decisions if d.kind == "replan")
+        came = calls[-1][0]
+        in_flight = [c for c in calls if replan.t < c[0] < came]
+        assert replan.detail["wall_s"] >= 0.5 and replan.detail["charged_s"] == pytest.approx(came - replan.t)
+        assert len(in_flight) >= 10 and max(w for _, w, _ in in_flight) < 0.25  # tracked on meanwhile
+        assert all(np.allclose(u, model.u_eq) for _, _, u in in_flight) and sup.mode == "track"
+        more = _paced(sup, x, lambda s: s.replan_asked is not None, t0=came + 0.01)  # the next re-plan on its way
+        sup.options = sup.options.replace(funnel=0.1)  # the plan is lost: its re-plan dropped, a plan asked
+        sup(more[-1][0] + 0.01, x)
+        kinds = [d.kind for d in sup.decisions]
+        assert kinds[-2:] == ["lost", "plan_dropped"] and sup.decisions[-1].detail["replan"]
+        assert sup.mode == "wait" and sup.server.busy and sup.replan_asked is None
     _no_child_left()
