@@ -211,6 +211,12 @@ class SupervisorOptions(StageOptions):
         ``charged_latency``), killed once over ``plan_budget``; re-plans while tracking still wait. For a run paced in
         real time (a live view), where simulated time is wall time; a run stepped as fast as possible then charges
         whatever time it stepped meanwhile, and is not reproducible. False (default): the run waits for the worker.
+    cart_plans : bool
+        On one pole driven by the cart (where the energy law swings up on its own): plan each swing-up too, warm from
+        the library's plans, with the energy law acting while the plan is made (and predicting the state the plan
+        starts from), so the plan loses nothing of the pumping it replaces (True; :func:`supervisor_for` does so only
+        when its library holds a plan), or the energy law and the catch alone (False, default). The law pumps longer
+        than a planned swing-up (``docs/dmc.md``); a plan that fails leaves the law in charge.
     """
 
     plan_budget: float = 30.0
@@ -230,6 +236,7 @@ class SupervisorOptions(StageOptions):
     calm_drain: bool = False
     plan_in_worker: bool = False
     plan_while_running: bool = False
+    cart_plans: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -244,7 +251,7 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_in_worker", "plan_while_running"):
+        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_in_worker", "plan_while_running", "cart_plans"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
         if self.plan_in_worker and not fork_available():
@@ -712,9 +719,9 @@ class Supervisor:
 
 
 def _warm(plan) -> bool:
-    """Whether ``plan`` (a SwingupPlan) came from its warm start (its chosen solve is a ``warm effort`` stage)."""
+    """Whether ``plan`` (a SwingupPlan) came from its warm start (its chosen solve is a ``warm <objective>`` stage)."""
     attempts = getattr(getattr(plan, "solve_info", None), "attempts", ()) or ()
-    return any(a.chosen and a.stage.startswith("warm effort") for a in attempts)
+    return any(a.chosen and a.stage.startswith("warm ") for a in attempts)
 
 
 def hinge_driven(model: CartPoleModel) -> bool:
@@ -805,15 +812,32 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
             calm_brake = EnergyDrain(model, target=DRAIN_MARGIN + (0.0 if opts.calm_energy is None else
                                                                    opts.calm_energy),
                                      below=brake if calm_brake is None else calm_brake, u_limits=catch.u_limits)
-        plan_opts = PlanOptions() if plan is None else plan
-        plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
-        if not opts.exact_plans:
-            plan_opts = plan_opts.replace(exact_discrete=False)
-
-        def planner(x0, guess=None, cold=True):
-            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
-                                   guess=guess, catch_R=catch_R, cold=cold)
+        planner = _swingup_planner(params, model, plan, opts, period, catch_R)
         lib = PlanLibrary.load(model) if library is None else library
         return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
                           calm_brake=calm_brake)
-    return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)
+    law = EnergyShapingController(model)
+    lib = None
+    if opts.cart_plans:  # plans warm from the library's, the energy law meanwhile (SupervisorOptions.cart_plans)
+        lib = PlanLibrary.load(model, objective=None if plan is None else plan.objective) if library is None \
+            else library
+    if lib is not None and len(lib):
+        return Supervisor(model, catch, rho, law, planner=_swingup_planner(params, model, plan, opts, period, catch_R),
+                          options=opts, basin=basin, library=lib, calm_brake=law)
+    return Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin)
+
+
+def _swingup_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,
+                     period: float | None, catch_R) -> Callable:
+    """``planner(x0, guess=None, cold=True) -> SwingupPlan``: :func:`~cartpole.planning.trajopt.trajopt_swingup` on
+    ``model`` with ``plan``'s settings (default ``PlanOptions()``), its searches bounded by ``opts.plan_budget`` s,
+    without the exact-discrete re-solve unless ``opts.exact_plans``."""
+    plan_opts = PlanOptions() if plan is None else plan
+    plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
+    if not opts.exact_plans:
+        plan_opts = plan_opts.replace(exact_discrete=False)
+
+    def planner(x0, guess=None, cold=True):
+        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
+                               guess=guess, catch_R=catch_R, cold=cold)
+    return planner
