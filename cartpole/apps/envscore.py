@@ -24,6 +24,7 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control import LinearFeedback
+from cartpole.control.model_rollout import model_rollout
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
@@ -387,9 +388,10 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
     rest, planned cold once and kept in the user cache under the model's hash, never in the package), from the knot
     of the stored plan (or its mirror image) nearest the state predicted when the plan will be ready
     (``warm_tails``), the energy law pumping meanwhile; TVLQR tracks the collocation plan (``exact_plans=False``).
-    Before the episode two warm plans from the library's own start (hanging at rest, not ``x0``) build the solvers
-    and measure the latency predicted for the first plan (:data:`LATENCY_MARGIN` times the second's wall time; the
-    supervisor's own rule for later plans is 1.25 times the median of its measured ones).
+    Before the episode the first plan is rehearsed from the library's own start (hanging at rest, not ``x0``) to
+    build the solvers and measure the latency predicted for the first plan (:data:`LATENCY_MARGIN` times the
+    rehearsal's wall time: :func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25 times the
+    median of its measured ones).
     ``charged_latency`` (s): charge every plan that instead of its wall time (``SupervisorOptions.charged_latency``:
     a run that does not depend on the machine's speed, as a test needs); None (default) the measured wall time."""
     model = build_model(mjcf)
@@ -402,16 +404,28 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
     opts = SupervisorOptions(cart_plans=True, warm_tails=True, exact_plans=False, charged_latency=charged_latency)
     sup = supervisor_for(mjcf, model, period=period, plan=plan, options=opts, library=lib)
     if sup.planner is not None and charged_latency is None:
-        start = lib.plans[0].x0
-        guess, _ = lib.knot_guesses(model, start, count=1)[0]
-        for _ in range(2):  # the first builds the solvers in this process, the second is timed
-            tic = time.perf_counter()
-            try:
-                sup.planner(start, guess=guess, cold=False)
-            except CartPoleError:  # no measure: the option's default latency
-                return sup
-        sup.options = opts.replace(latency=LATENCY_MARGIN * (time.perf_counter() - tic))
+        latency = _rehearsed_latency(sup, model, lib.plans[0].x0)
+        if latency is not None:
+            sup.options = opts.replace(latency=latency)
     return sup
+
+
+def _rehearsed_latency(sup, model, start) -> float | None:
+    """s: :data:`LATENCY_MARGIN` times the wall time of the plan ``sup`` would make from ``start`` (nx,), rehearsed
+    twice: from ``start`` itself (building the solvers in this process), then from the state its meanwhile law
+    (``sup.brake``) reaches from there over the latency that first plan predicts; None when a plan fails."""
+    x, latency = np.asarray(start, dtype=float), None
+    for _ in range(2):
+        guess, _ = sup.library.knot_guesses(model, x, count=1)[0]
+        tic = time.perf_counter()
+        try:
+            sup.planner(x, guess=guess, cold=False)
+        except CartPoleError:
+            return None
+        latency = LATENCY_MARGIN * (time.perf_counter() - tic)
+        xs, _ = model_rollout(model, sup.brake, start, max(1, int(round(latency / model.dt))))
+        x = xs[-1]
+    return latency
 
 
 #: The controllers :func:`score` can run, by name (``cartpole score --controller``): ``toolkit`` the one
