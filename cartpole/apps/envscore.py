@@ -30,7 +30,7 @@ from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
 from cartpole.mpc.options import MPCOptions
 from cartpole.ocp.dmc import rewards, task
-from cartpole.planning.library import cached_library
+from cartpole.planning.library import PlanLibrary, cached_library
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replay, simulate
@@ -376,7 +376,8 @@ SUPERVISOR_OBJECTIVES = {"cartpole-swingup": "dmc_cartpole_swingup", "cartpole-s
 LATENCY_MARGIN = 1.25
 
 
-def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: float | None = None):
+def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: float | None = None,
+               library: PlanLibrary | None = None):
     """The toolkit's supervisor (:func:`cartpole.supervise.supervisor_for`: catch, swing-up law or plan, track,
     brake, chosen at run time) on the file ``mjcf``, its control period the environment's action hold of ``hold``
     physics steps: ``u = supervisor(t, x)``. Nothing is planned from ``x0`` before the episode (unlike
@@ -393,14 +394,16 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
     rehearsal's wall time: :func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25 times the
     median of its measured ones).
     ``charged_latency`` (s): charge every plan that instead of its wall time (``SupervisorOptions.charged_latency``:
-    a run that does not depend on the machine's speed, as a test needs); None (default) the measured wall time."""
+    a run that does not depend on the machine's speed, as a test needs); None (default) the measured wall time.
+    ``library``: these plans instead of the cached library (a test's own)."""
     model = build_model(mjcf)
     period = hold * float(model.dt) if hold > 1 else None
     objective = SUPERVISOR_OBJECTIVES.get(env.name)
     if objective is None:
         return supervisor_for(mjcf, model, period=period)
     plan = PlanOptions(objective=objective, solver="ipopt")
-    lib = cached_library(model.params, model, starts=[model.x_hanging], options=plan, period=period)
+    lib = (cached_library(model.params, model, starts=[model.x_hanging], options=plan, period=period)
+           if library is None else library)
     opts = SupervisorOptions(cart_plans=True, warm_tails=True, exact_plans=False, charged_latency=charged_latency)
     sup = supervisor_for(mjcf, model, period=period, plan=plan, options=opts, library=lib)
     if sup.planner is not None and charged_latency is None:
