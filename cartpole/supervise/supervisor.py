@@ -6,7 +6,7 @@
   ``release_factor * rho`` (hysteresis, as :class:`~cartpole.control.switching.SwitchingController`).
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
-  decisions logged); likewise one pole driven at its hinge (a pendulum) with :class:`~cartpole.supervise.pump.HingePump`.
+  decisions logged; with ``cart_plans`` and a library it plans too, the law pumping meanwhile); likewise one pole driven at its hinge (a pendulum) with :class:`~cartpole.supervise.pump.HingePump`.
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
@@ -764,14 +764,17 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, calming up to
         :data:`HINGE_CALM_BUDGET` s with the energy drain, ``calm_drain``, and below its target the soft calming brake
         of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``) and warm-started from the nearest knots of the stored plans
-        (``warm_tails``).
+        (``warm_tails``). With ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``, with
+        the energy law as the law meanwhile (and after a failed or lost plan), when the library holds a plan; else the
+        energy law alone.
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
         ``basin_of(catch) -> BasinEstimate`` instead of ``basin_cache`` (a caller's own cache and progress).
     library : PlanLibrary, optional
         The planner's warm starts (:class:`~cartpole.planning.library.PlanLibrary`; default the one stored in the
-        user cache for ``model``, empty when none was built); the supervisor's own plans join it in memory.
+        user cache for ``model``, empty when none was built; with ``cart_plans`` the one of ``plan.objective``:
+        :meth:`~cartpole.planning.library.PlanLibrary.load`); the supervisor's own plans join it in memory.
     catch_R : (nu, nu) array or float, optional
         The catch's input weight (default :data:`~cartpole.control.switching.SWINGUP_CATCH_R`), e.g. one designed for
         the rig's sensors (:func:`cartpole.apps.margins.noise_limited_catch`); the plans' own catches take it too.
