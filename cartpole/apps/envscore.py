@@ -24,15 +24,17 @@ import numpy as np
 
 from cartpole._arrays import readonly
 from cartpole.control import LinearFeedback
+from cartpole.control.model_rollout import model_rollout
 from cartpole.errors import CartPoleError
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.mpc.ddp_mpc import ddp_mpc_swingup
 from cartpole.mpc.options import MPCOptions
 from cartpole.ocp.dmc import rewards, task
+from cartpole.planning.library import PlanLibrary, cached_library
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replay, simulate
-from cartpole.supervise import supervisor_for
+from cartpole.supervise import SupervisorOptions, supervisor_for
 
 #: The folder of the toolkit's copies of dm_control's files (``cartpole/assets`` of the installed package).
 #:
@@ -361,14 +363,72 @@ def design(env: Environment, mjcf: str, x0, hold: int):
                            options=PlanOptions(objective=env.objective)).controller
 
 
-def supervised(env: Environment, mjcf: str, x0, hold: int):
+#: The objective the supervisor plans for in each dm_control cart-pole environment (:func:`supervised`): the smooth
+#: swing-up reward in both. On ``swingup_sparse`` the planner's own route (the surrogate, then the box-entry search:
+#: one IPOPT solve on the exact step per candidate entry, 30-40 s a plan on the shared machine) takes far longer than
+#: the swing-up it would shorten; the smooth reward's plan ends centred upright at rest too, inside the sparse box.
+SUPERVISOR_OBJECTIVES = {"cartpole-swingup": "dmc_cartpole_swingup", "cartpole-swingup_sparse": "dmc_cartpole_swingup"}
+#: The planning latency the supervisor predicts its first plan with (``SupervisorOptions.latency``), as a multiple of
+#: the wall time of a warm plan measured just before the episode (:func:`supervised`; the supervisor's own factor
+#: for its later plans, :attr:`cartpole.supervise.Supervisor.latency`): a plan that comes later than
+#: predicted starts behind the state the energy law has reached, one that comes early waits for the predicted state
+#: (the law pumping meanwhile), so erring long costs less.
+LATENCY_MARGIN = 1.25
+
+
+def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: float | None = None,
+               library: PlanLibrary | None = None):
     """The toolkit's supervisor (:func:`cartpole.supervise.supervisor_for`: catch, swing-up law or plan, track,
     brake, chosen at run time) on the file ``mjcf``, its control period the environment's action hold of ``hold``
     physics steps: ``u = supervisor(t, x)``. Nothing is planned from ``x0`` before the episode (unlike
     :func:`design`): the supervisor plans in the loop, its planning wall time counted as latency in the episode's
-    own time. The signature is :func:`design`'s (``controller`` of :func:`score_episode`)."""
+    own time. The signature is :func:`design`'s (``controller`` of :func:`score_episode`).
+
+    On dm_control's cart-poles (:data:`SUPERVISOR_OBJECTIVES`) it plans each swing-up (``cart_plans``), warm from the
+    library of that model and objective (:func:`cartpole.planning.library.cached_library`: the plan from hanging at
+    rest, planned cold once and kept in the user cache under the model's hash, never in the package), from the knot
+    of the stored plan (or its mirror image) nearest the state predicted when the plan will be ready
+    (``warm_tails``), the energy law pumping meanwhile; TVLQR tracks the collocation plan (``exact_plans=False``).
+    Before the episode the first plan is rehearsed from the library's own start (hanging at rest, not ``x0``) to
+    build the solvers and measure the latency predicted for the first plan (:data:`LATENCY_MARGIN` times the
+    rehearsal's wall time: :func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25 times the
+    median of its measured ones).
+    ``charged_latency`` (s): charge every plan that instead of its wall time (``SupervisorOptions.charged_latency``:
+    a run that does not depend on the machine's speed, as a test needs); None (default) the measured wall time.
+    ``library``: these plans instead of the cached library (a test's own)."""
     model = build_model(mjcf)
-    return supervisor_for(mjcf, model, period=hold * float(model.dt) if hold > 1 else None)
+    period = hold * float(model.dt) if hold > 1 else None
+    objective = SUPERVISOR_OBJECTIVES.get(env.name)
+    if objective is None:
+        return supervisor_for(mjcf, model, period=period)
+    plan = PlanOptions(objective=objective, solver="ipopt")
+    lib = (cached_library(model.params, model, starts=[model.x_hanging], options=plan, period=period)
+           if library is None else library)
+    opts = SupervisorOptions(cart_plans=True, warm_tails=True, exact_plans=False, charged_latency=charged_latency)
+    sup = supervisor_for(mjcf, model, period=period, plan=plan, options=opts, library=lib)
+    if sup.planner is not None and charged_latency is None:
+        latency = _rehearsed_latency(sup, model, lib.plans[0].x0)
+        if latency is not None:
+            sup.options = opts.replace(latency=latency)
+    return sup
+
+
+def _rehearsed_latency(sup, model, start) -> float | None:
+    """s: :data:`LATENCY_MARGIN` times the wall time of the plan ``sup`` would make from ``start`` (nx,), rehearsed
+    twice: from ``start`` itself (building the solvers in this process), then from the state its meanwhile law
+    (``sup.brake``) reaches from there over the latency that first plan predicts; None when a plan fails."""
+    x, latency = np.asarray(start, dtype=float), None
+    for _ in range(2):
+        guess, _ = sup.library.knot_guesses(model, x, count=1)[0]
+        tic = time.perf_counter()
+        try:
+            sup.planner(x, guess=guess, cold=False)
+        except CartPoleError:
+            return None
+        latency = LATENCY_MARGIN * (time.perf_counter() - tic)
+        xs, _ = model_rollout(model, sup.brake, start, max(1, int(round(latency / model.dt))))
+        x = xs[-1]
+    return latency
 
 
 #: The controllers :func:`score` can run, by name (``cartpole score --controller``): ``toolkit`` the one

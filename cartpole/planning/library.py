@@ -24,6 +24,7 @@ cold, so a warm start can only cost the one failed solve.
 """
 from __future__ import annotations
 
+import hashlib
 import io
 import time
 from dataclasses import dataclass, field
@@ -268,19 +269,21 @@ class PlanLibrary:
                 plans.append(StoredPlan(z[f"x0_{k}"], tr, float(z[f"plan_s_{k}"])))
             return cls(str(z["key"]), nx, nu, tuple(int(h) for h in z["hinges"]), tuple(plans))
 
-    def save(self, path: str | Path | None = None) -> Path:
-        """Write the library to ``path`` (default :func:`library_path` of its key, in the user cache), with its
-        SHA-256 beside it; returns the path."""
-        path = library_path(self.key) if path is None else Path(path)
+    def save(self, path: str | Path | None = None, *, objective: str | None = None) -> Path:
+        """Write the library to ``path`` (default :func:`library_path` of its key and ``objective``, in the user
+        cache), with its SHA-256 beside it; returns the path."""
+        path = library_path(self.key, objective) if path is None else Path(path)
         private_dir(path.parent)
         return write_verified(path, self.to_bytes())
 
     @classmethod
-    def load(cls, model: CartPoleModel, path: str | Path | None = None) -> "PlanLibrary":
-        """``model``'s library from ``path`` (default the user cache's file of its hash); an empty library when
-        there is none, or the file is not the one written (its SHA-256 differs) or of another version or model."""
+    def load(cls, model: CartPoleModel, path: str | Path | None = None, *, objective: str | None = None
+             ) -> "PlanLibrary":
+        """``model``'s library from ``path`` (default the user cache's file of its hash and ``objective``, the
+        planner's objective the plans optimised: :func:`library_path`); an empty library when there is none, or the
+        file is not the one written (its SHA-256 differs) or of another version or model."""
         key = model_key(model)
-        path = library_path(key) if path is None else Path(path)
+        path = library_path(key, objective) if path is None else Path(path)
         data = read_verified(path)
         if data is not None:
             try:
@@ -334,7 +337,8 @@ def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, s
     params, model, starts, options, period
         As :func:`build_plan_library` (``starts`` (k, nx), default :func:`library_starts`).
     path : str or Path, optional
-        The file (default :func:`library_path` of the model's hash).
+        The file (default :func:`library_path` of the model's hash and ``options.objective``: a library per
+        objective, e.g. ``dmc_cartpole_swingup``'s plans beside the effort plans).
 
     Returns
     -------
@@ -343,6 +347,8 @@ def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, s
     """
     model = build_model(params) if model is None else model
     starts = library_starts(model) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
+    objective = getattr(options, "objective", None)
+    path = library_path(model_key(model), objective) if path is None else path
     lib = PlanLibrary.load(model, path)
     missing = [x for x in starts if not len(lib) or lib.nearest(x)[1] > 1e-12]
     if not missing:
@@ -350,14 +356,19 @@ def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, s
     lib = build_plan_library(params, model, np.array(missing), options=options, period=period, library=lib)
     if len(lib):
         saved = PlanLibrary(lib.key, lib.nx, lib.nu, lib.hinges, lib.plans)
-        saved.save(library_path(lib.key) if path is None else path)
+        saved.save(path)
     return lib
 
 
-def library_path(key: str) -> Path:
+def library_path(key: str, objective: str | None = None) -> Path:
     """``<cache>/plans/<key>-<version>.npz``: where the library of the model of hash ``key`` is kept
-    (:func:`cartpole.codegen.cache_dir`, the user's cache; never inside the package)."""
-    return cache_dir() / "plans" / f"{key[:32]}-{LIBRARY_VERSION}.npz"
+    (:func:`cartpole.codegen.cache_dir`, the user's cache; never inside the package); with ``objective`` (a named
+    objective other than ``effort``, e.g. ``dmc_cartpole_swingup``) ``<key>-<objective>-<version>.npz``, that
+    objective's plans. An objective that is not a name (a callable) has no file of its own: the effort file."""
+    tag = f"-{objective}" if isinstance(objective, str) and objective not in ("", "effort") else ""
+    if tag and not all(c.isalnum() or c in "_.:-" for c in objective):
+        tag = "-" + hashlib.sha256(objective.encode()).hexdigest()[:16]
+    return cache_dir() / "plans" / f"{key[:32]}{tag}-{LIBRARY_VERSION}.npz"
 
 
 def library_starts(model: CartPoleModel, angles: int = 7) -> np.ndarray:

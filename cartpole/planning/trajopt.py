@@ -670,10 +670,11 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
         plan and its TVLQR keep ``options.R``.
     guess : Trajectory, optional
         A warm start: a swing-up plan from a start near ``x0`` (e.g. :meth:`cartpole.planning.library.PlanLibrary.
-        guess_for`), ending upright. With the ``effort`` objective and no ``T`` given, the effort problem at the
-        guess's duration is solved from it first (:func:`warm_stage`, attempt stage ``"warm effort T=..."``),
-        skipping the minimum-time search; when it does not converge the planner goes on cold. Ignored by the other
-        objectives, a given ``T`` and ``solver="ddp"``.
+        guess_for`), ending upright. With the ``effort`` objective or a running one (``tracking``, the ``dmc_*``
+        tasks: on their step grid, by IPOPT) and no ``T`` given, that objective at the guess's duration is solved from
+        it first (:func:`warm_stage`, attempt stage ``"warm effort T=..."``, ``"warm dmc_cartpole_swingup T=..."``),
+        skipping the minimum-time search; when it does not converge the planner goes on cold. Ignored by ``time``, a
+        given ``T`` and ``solver="ddp"``.
     cold : bool
         With a ``guess`` whose warm start does not converge: plan cold (True, default), or raise
         :class:`~cartpole.ocp.bounds.OCPError` at once (False: a caller with other warm starts to try, or a deadline).
@@ -707,15 +708,16 @@ def trajopt_swingup(plant: Plant = None, x0=None, *,
 
 
 def warm_stage(model: CartPoleModel, x0, guess: Trajectory, *, N: int, bounds, solver: str = "ipopt",
-               solver_options=None, sqp: bool = False, name: str = "library plan"
+               solver_options=None, sqp: bool = False, name: str = "library plan", objective=None
                ) -> tuple[Trajectory | None, SolveInfo | None, tuple]:
-    """The effort problem at ``guess``'s duration from ``x0`` (nx,), started from ``guess`` (a plan from a nearby
-    start): ``(plan, info, attempts)``, plan and info None when it did not converge. ``sqp``: by
-    :class:`~cartpole.solvers.sqp.CollocationSQP` first, IPOPT when it does not converge; ``N`` intervals; ``name``
-    the guess's name in the attempt records."""
+    """The effort problem (or ``objective``, a running one: :func:`cartpole.ocp.objectives.make_objective`'s) at
+    ``guess``'s duration from ``x0`` (nx,), started from ``guess`` (a plan from a nearby start): ``(plan, info,
+    attempts)``, plan and info None when it did not converge. ``sqp``: by :class:`~cartpole.solvers.sqp.CollocationSQP`
+    first, IPOPT when it does not converge; ``N`` intervals; ``name`` the guess's name in the attempt records (stage
+    ``"warm <objective> T=..."``)."""
     T = float(guess.duration)
-    stage = f"warm effort T={T:.3g}"
-    ocp = DirectCollocation(model, N=N, T=T, bounds=bounds,
+    stage = f"warm {'effort' if objective is None else getattr(objective, 'name', objective)} T={T:.3g}"
+    ocp = DirectCollocation(model, N=N, T=T, bounds=bounds, objective=objective,
                             options=CollocationOptions(solver=solver, solver_options=solver_options))
     tried: list = []
     if sqp:
@@ -828,10 +830,13 @@ def _last_stage(p: _Planning, guess: Trajectory | None, cold: bool = True) -> _S
     the minimum-time plan."""
     st = _Stages()
     warm, warm_tried = None, ()
-    if guess is not None and p.obj.kind == "effort" and p.options.T is None and not p.use_ddp:
-        warm_traj, warm_info, warm_tried = warm_stage(p.model, p.x0, guess, N=p.options.N or DEFAULT_N,
-                                                      bounds=p.bounds, solver=p.solver,
-                                                      solver_options=p.solver_options, sqp=p.use_sqp)
+    if guess is not None and p.obj.kind in ("effort", "running") and p.options.T is None and not p.use_ddp:
+        running = p.obj.kind == "running"  # at the guess's duration, on the task's step grid as the cold stage's
+        N = p.options.N or (max(2, int(round(guess.duration / p.params.timestep))) if running and is_task(p.obj.name)
+                            else DEFAULT_N)
+        warm_traj, warm_info, warm_tried = warm_stage(p.model, p.x0, guess, N=N, bounds=p.bounds, solver=p.solver,
+                                                      solver_options=p.solver_options, sqp=p.use_sqp and not running,
+                                                      objective=p.obj if running else None)
         if warm_traj is not None:
             warm = (warm_traj, warm_info)
         elif not cold:

@@ -6,7 +6,7 @@
   ``release_factor * rho`` (hysteresis, as :class:`~cartpole.control.switching.SwitchingController`).
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
-  decisions logged); likewise one pole driven at its hinge (a pendulum) with :class:`~cartpole.supervise.pump.HingePump`.
+  decisions logged; with ``cart_plans`` and a library it plans too, the law pumping meanwhile); likewise one pole driven at its hinge (a pendulum) with :class:`~cartpole.supervise.pump.HingePump`.
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
@@ -230,6 +230,12 @@ class SupervisorOptions(StageOptions):
         forked after a kill starts warm, and a model whose first (cold) plan takes longer than ``plan_budget`` still
         plans (True, default; ``docs/recovery.md`` gives the cold and warm times); its wall time is
         :attr:`Supervisor.prepare_s`. False: every child starts as cold as this process.
+    cart_plans : bool
+        On one pole driven by the cart (where the energy law swings up on its own): plan each swing-up too, warm from
+        the library's plans, with the energy law acting while the plan is made (and predicting the state the plan
+        starts from), so the plan loses nothing of the pumping it replaces (True; :func:`supervisor_for` does so only
+        when its library holds a plan), or the energy law and the catch alone (False, default). The law pumps longer
+        than a planned swing-up (``docs/dmc.md``); a plan that fails leaves the law in charge.
     """
 
     plan_budget: float = 30.0
@@ -250,6 +256,7 @@ class SupervisorOptions(StageOptions):
     plan_in_worker: bool | None = None
     plan_while_running: bool = False
     warm_worker: bool = True
+    cart_plans: bool = False
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
@@ -264,7 +271,8 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_while_running", "warm_worker"):
+        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_while_running", "warm_worker",
+                     "cart_plans"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
         if self.plan_in_worker is not None and not isinstance(self.plan_in_worker, bool):
@@ -838,9 +846,9 @@ class Supervisor:
 
 
 def _warm(plan) -> bool:
-    """Whether ``plan`` (a SwingupPlan) came from its warm start (its chosen solve is a ``warm effort`` stage)."""
+    """Whether ``plan`` (a SwingupPlan) came from its warm start (its chosen solve is a ``warm <objective>`` stage)."""
     attempts = getattr(getattr(plan, "solve_info", None), "attempts", ()) or ()
-    return any(a.chosen and a.stage.startswith("warm effort") for a in attempts)
+    return any(a.chosen and a.stage.startswith("warm ") for a in attempts)
 
 
 def hinge_driven(model: CartPoleModel) -> bool:
@@ -883,14 +891,17 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, calming up to
         :data:`HINGE_CALM_BUDGET` s with the energy drain, ``calm_drain``, and below its target the soft calming brake
         of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``) and warm-started from the nearest knots of the stored plans
-        (``warm_tails``).
+        (``warm_tails``). With ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``, with
+        the energy law as the law meanwhile (and after a failed or lost plan), when the library holds a plan; else the
+        energy law alone.
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
         ``basin_of(catch) -> BasinEstimate`` instead of ``basin_cache`` (a caller's own cache and progress).
     library : PlanLibrary, optional
         The planner's warm starts (:class:`~cartpole.planning.library.PlanLibrary`; default the one stored in the
-        user cache for ``model``, empty when none was built); the supervisor's own plans join it in memory.
+        user cache for ``model``, empty when none was built; with ``cart_plans`` the one of ``plan.objective``:
+        :meth:`~cartpole.planning.library.PlanLibrary.load`); the supervisor's own plans join it in memory.
     catch_R : (nu, nu) array or float, optional
         The catch's input weight (default :data:`~cartpole.control.switching.SWINGUP_CATCH_R`), e.g. one designed for
         the rig's sensors (:func:`cartpole.apps.margins.noise_limited_catch`); the plans' own catches take it too.
@@ -933,15 +944,32 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
             calm_brake = EnergyDrain(model, target=DRAIN_MARGIN + (0.0 if opts.calm_energy is None else
                                                                    opts.calm_energy),
                                      below=brake if calm_brake is None else calm_brake, u_limits=catch.u_limits)
-        plan_opts = PlanOptions() if plan is None else plan
-        plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
-        if not opts.exact_plans:
-            plan_opts = plan_opts.replace(exact_discrete=False)
-
-        def planner(x0, guess=None, cold=True):
-            return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
-                                   guess=guess, catch_R=catch_R, cold=cold)
+        planner = _swingup_planner(params, model, plan, opts, period, catch_R)
         lib = PlanLibrary.load(model) if library is None else library
         return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
                           calm_brake=calm_brake)
-    return Supervisor(model, catch, rho, brake, swingup=EnergyShapingController(model), options=opts, basin=basin)
+    law = EnergyShapingController(model)
+    lib = None
+    if opts.cart_plans:  # plans warm from the library's, the energy law meanwhile (SupervisorOptions.cart_plans)
+        lib = PlanLibrary.load(model, objective=None if plan is None else plan.objective) if library is None \
+            else library
+    if lib is not None and len(lib):
+        return Supervisor(model, catch, rho, law, planner=_swingup_planner(params, model, plan, opts, period, catch_R),
+                          options=opts, basin=basin, library=lib, calm_brake=law)
+    return Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin)
+
+
+def _swingup_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,
+                     period: float | None, catch_R) -> Callable:
+    """``planner(x0, guess=None, cold=True) -> SwingupPlan``: :func:`~cartpole.planning.trajopt.trajopt_swingup` on
+    ``model`` with ``plan``'s settings (default ``PlanOptions()``), its searches bounded by ``opts.plan_budget`` s,
+    without the exact-discrete re-solve unless ``opts.exact_plans``."""
+    plan_opts = PlanOptions() if plan is None else plan
+    plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
+    if not opts.exact_plans:
+        plan_opts = plan_opts.replace(exact_discrete=False)
+
+    def planner(x0, guess=None, cold=True):
+        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, options=plan_opts, period=period,
+                               guess=guess, catch_R=catch_R, cold=cold)
+    return planner

@@ -7,6 +7,7 @@ import pytest
 from cartpole.models import build_model, read_params
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.library import PlanLibrary, PlanLibraryError, build_plan_library, library_path, library_starts
+from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import replays_exactly, simulate
 from cartpole.validation.metrics import swingup_success
@@ -167,3 +168,34 @@ def test_a_warm_start_that_does_not_converge_raises_at_once_when_told_not_to_pla
     short = trajectory_tail(tr, tr.duration)  # the plan's last two intervals: far too short from hanging
     with pytest.raises(OCPError, match="cold=False"):
         trajopt_swingup(params, x0=tuple(model.x_hanging), plan_model=model, guess=short, cold=False)
+
+
+def test_each_objective_keeps_its_own_library_file(single, tmp_path, monkeypatch):
+    """Plans of a dm_control task are another library than the effort plans of the same model: saved under the
+    objective's name beside the model's hash, loaded only when that objective is asked for."""
+    params, model, lib = single
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    path = lib.save(objective="dmc_cartpole_swingup")
+    assert path == library_path(lib.key, "dmc_cartpole_swingup") != library_path(lib.key)
+    assert library_path(lib.key, "effort") == library_path(lib.key)
+    assert len(PlanLibrary.load(model, objective="dmc_cartpole_swingup")) == 1
+    assert len(PlanLibrary.load(model)) == 0 and len(PlanLibrary.load(model, objective="tracking")) == 0
+
+
+def test_a_running_objective_is_warm_started_at_the_guess_duration_on_the_task_step_grid():
+    """A dm_control task's plan warm-started from a stored plan of that task: its objective solved at the stored
+    plan's duration on the file's step grid, the minimum-time search skipped."""
+    params = read_params("cartpole/assets/dmc_cartpole.xml")
+    model = build_model(params)
+    options = PlanOptions(objective="dmc_cartpole_swingup", solver="ipopt")
+    lib = build_plan_library(params, model, starts=[model.x_hanging], options=options)
+    x1 = np.asarray(model.x_hanging, float).copy()
+    x1[model.hinges[0]] += 0.05
+    plan = trajopt_swingup(params, x0=tuple(x1), plan_model=model, options=options, guess=lib.guess_for(model, x1),
+                           cold=False)
+    chosen = [a for a in plan.solve_info.attempts if a.chosen]
+    assert chosen and all(a.stage.startswith("warm dmc_cartpole_swingup") for a in chosen)
+    assert not any(a.stage.startswith("time") for a in plan.solve_info.attempts)
+    stored = lib.plans[0].trajectory
+    assert plan.trajectory.duration == pytest.approx(stored.duration)
+    assert plan.trajectory.N == round(stored.duration / params.timestep)
