@@ -175,7 +175,7 @@ class HoldStep:
     plant : path, CartPoleParams or CartPoleModel
         The MJCF MuJoCo runs.
     hold : int
-        Physics steps per control period (>= 1).
+        Physics steps per control period (>= 1; each of the MJCF's timestep, s).
     """
 
     def __init__(self, plant: Plant, hold: int = 1):
@@ -229,11 +229,12 @@ class HingeValues:
     policy : (na, nr) int array
         Index into ``actions`` of the optimal first action at each node.
     horizon : int
+        Steps to go the value counts (control periods of ``period`` s each).
     discount : float
     period : float
         s: the control period each action is held.
     hold : int
-        Physics steps per period.
+        Physics steps per period (each of the MJCF's timestep, s).
     iterations : int
         Bellman backups computed (the rest of the horizon extrapolated by ``gain`` a step).
     gain : float
