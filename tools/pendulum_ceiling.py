@@ -10,7 +10,7 @@ episode's 1000 steps on ``cartpole/assets/dmc_pendulum.xml`` (dm_control's physi
   angle, at rest) and its mean;
 * ``returns``: what the grid's policy (:class:`~cartpole.planning.value_iteration.ValuePolicy`) earns from those
   starts in MuJoCo over the 1000 steps (achieved, so a lower bound on the optimum; the value converges to it as the
-  grid is refined) and its mean;
+  grid is refined) and its mean; ``max_gap`` the largest difference between the two over those starts;
 * ``expected_value`` and ``expected_return``: the same averaged over the start distribution (``--angles`` starts
   at evenly spaced angles over the turn, at rest: the integral over the uniform angle, midpoint rule);
 * ``p_mean10_above``: the chance that ten episodes from random starts, under the grid's policy, average more than
@@ -44,6 +44,7 @@ def _grid_row(model, reward, size: int, starts: np.ndarray, spread: np.ndarray, 
     return {"angles": size, "rates": size + 1, "solve_s": round(values.solve_s, 1), "iterations": values.iterations,
             "value": [round(float(v), 1) for v in value], "mean_value": round(float(np.mean(value)), 1),
             "returns": [float(r) for r in returns], "mean_return": round(float(np.mean(returns)), 1),
+            "max_gap": round(float(np.max(np.abs(value - returns))), 1),
             "expected_value": round(float(np.mean(values.value_at(spread))), 1),
             "expected_return": round(float(np.mean(over)), 1), "spread_returns": over,
             "seconds": round(time.perf_counter() - tic, 1)}
