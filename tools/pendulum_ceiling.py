@@ -74,8 +74,10 @@ def main() -> None:
     p10 = float(np.mean(means > args.reference))
     for r in rows:
         r.pop("spread_returns")
-    sets = {f"seeds_{a}_{a + args.n - 1}": {"value": round(float(np.mean(best["value"][i * args.n:(i + 1) * args.n])), 1),
-                                             "return": round(float(np.mean(best["returns"][i * args.n:(i + 1) * args.n])), 1)}
+    def mean(key, i):
+        return round(float(np.mean(best[key][i * args.n:(i + 1) * args.n])), 1)
+
+    sets = {f"seeds_{a}_{a + args.n - 1}": {"value": mean("value", i), "return": mean("returns", i)}
             for i, a in enumerate(args.seed)}
     print(json.dumps({"task": TASK, "seeds": seeds, "reference": args.reference, "grids": rows, "finest": best,
                       "sets": sets, "p_mean10_above": round(p10, 4),
