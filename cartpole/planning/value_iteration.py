@@ -549,6 +549,17 @@ class ValuePolicy:
         Q = np.asarray(self.reward(Xn, UA), float) + v.discount * later
         return np.where(bad, -np.inf, Q).reshape(nA, B)
 
+    def summary(self) -> dict:
+        """JSON-ready: ``controller`` (``"value_iteration"``), ``reward``, ``angles``, ``rates`` (node counts),
+        ``rate_max`` (rad/s), ``actions`` (the ctrl levels), ``period`` (s), ``horizon`` (steps), ``iterations`` (Bellman
+        backups computed), ``gain`` (the reward a step in the long run), ``solve_s`` (s; 0 when read from the cache),
+        ``depth``."""
+        v = self.values
+        return {"controller": "value_iteration", "reward": v.reward, "angles": len(v.angles), "rates": len(v.rates),
+                "rate_max": v.rate_max, "actions": [float(a) for a in np.asarray(v.actions).ravel()],
+                "period": v.period, "horizon": v.horizon, "iterations": v.iterations, "gain": v.gain,
+                "solve_s": round(v.solve_s, 3), "depth": self.depth}
+
     def __call__(self, t: float, x) -> np.ndarray:
         """ctrl (nu,) at state ``x`` (nx,) (``t`` in s, unused: the policy is stationary)."""
         x = np.asarray(x, float)

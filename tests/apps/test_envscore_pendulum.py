@@ -27,3 +27,4 @@ def test_pendulum_swingup_runs_the_value_policy_and_earns_what_it_predicts(monke
     policy = ValuePolicy(cached_hinge_values(model, reward, options=GRID), model, reward)
     assert ep.return_ == policy_returns(policy, ep.x0[None, :], ep.steps)[0]
     assert np.all(ep.rewards[-100:] == 1.0)  # up and held at the end
+    assert ep.design["controller"] == "value_iteration" and ep.design["angles"] == GRID.angles
