@@ -6,7 +6,7 @@ band" for the supervisor) need not be searched for locally, as a trajectory opti
 programming over a grid of the whole state space gives the optimal value and policy from every state at once.
 
 * **Grid** (:class:`ValueIterationOptions`): the hinge's angle error from the upright ``x*`` wrapped to
-  ``(-pi, pi]`` (``angles`` nodes, periodic) or, on a hinge whose range is limited to less than a turn, that range;
+  ``(-pi, pi]`` (``angles`` nodes, periodic) or, on a hinge with a limited range, that range (not wrapped);
   the rate within ``[-rate_max, rate_max]`` (``rates`` nodes), ``rate_max`` derived from the model's energy: the
   speed at hanging with the upright's energy (the most a swing-up needs there), times ``rate_margin``.
 * **Actions**: ``levels`` ctrl values evenly over the ctrl range (bang-bang included) and zero (``u*``'s side of the
@@ -85,7 +85,9 @@ class ValueIterationOptions(StageOptions):
     Attributes
     ----------
     angles : int
-        Angle nodes (>= 8): over a full turn (spacing ``2 pi / angles`` rad), or over a limited hinge's range.
+        Angle nodes (>= 8): over a full turn (spacing ``2 pi / angles`` rad), or over a limited hinge's range
+        (spacing ``range / (angles - 1)`` rad, shifted to put a node at upright: one node fewer, or the ends within a
+        spacing of the range's).
     rates : int
         Rate nodes (>= 5) over ``[-rate_max, rate_max]``; odd puts a node at rest.
     levels : int
@@ -217,11 +219,12 @@ class HingeValues:
     Attributes
     ----------
     angles : (na,) array
-        rad: the nodes' hinge angle error from upright ``x_eq`` (periodic: ``-pi + 2 pi i / na``).
+        rad: the nodes' hinge angle error from upright ``x_eq`` (periodic: ``-pi + 2 pi i / na``; else evenly spaced
+        over the hinge's range with a node at 0).
     rates : (nr,) array
         rad/s: the nodes' rates.
     periodic : bool
-        The angle wraps (an unlimited hinge); else the nodes span the hinge's range.
+        The angle wraps (an unlimited hinge); else the nodes span the hinge's limited range.
     actions : (na_u, nu) array
         The ctrl values, smallest effort first.
     value : (na, nr) array
@@ -376,11 +379,13 @@ def _grid(model: CartPoleModel, opts: ValueIterationOptions) -> tuple[np.ndarray
     h = int(model.hinges[0])
     lo, hi = (float(v) for v in model.params.joints[h].range)
     x_eq = float(model.x_eq[h])
-    periodic = not (np.isfinite(lo) and np.isfinite(hi) and hi - lo < 2 * np.pi)
+    periodic = not (np.isfinite(lo) and np.isfinite(hi))  # a limited hinge's angle never wraps, even over a turn
     if periodic:
         angles = -np.pi + 2 * np.pi * np.arange(opts.angles) / opts.angles
-    else:
-        angles = np.linspace(lo - x_eq, hi - x_eq, opts.angles)
+    else:  # evenly spaced with a node at upright itself (a fixed point the interpolation keeps), within the range
+        d = (hi - lo) / (opts.angles - 1)
+        k = np.arange(np.ceil((lo - x_eq) / d - 1e-9), np.floor((hi - x_eq) / d + 1e-9) + 1)
+        angles = k * d
     rmax = opts.rate_max if opts.rate_max is not None else energy_rate_bound(model, opts.rate_margin)
     return angles, np.linspace(-rmax, rmax, opts.rates), periodic
 
@@ -551,9 +556,9 @@ class ValuePolicy:
 
     def summary(self) -> dict:
         """JSON-ready: ``controller`` (``"value_iteration"``), ``reward``, ``angles``, ``rates`` (node counts),
-        ``rate_max`` (rad/s), ``actions`` (the ctrl levels), ``period`` (s), ``horizon`` (steps), ``iterations`` (Bellman
-        backups computed), ``gain`` (the reward a step in the long run), ``solve_s`` (s; 0 when read from the cache),
-        ``depth``."""
+        ``rate_max`` (rad/s), ``actions`` (the ctrl levels), ``period`` (s), ``horizon`` (steps), ``iterations``
+        (Bellman backups computed), ``gain`` (the reward a step in the long run), ``solve_s`` (s; 0 when read from the
+        cache), ``depth``."""
         v = self.values
         return {"controller": "value_iteration", "reward": v.reward, "angles": len(v.angles), "rates": len(v.rates),
                 "rate_max": v.rate_max, "actions": [float(a) for a in np.asarray(v.actions).ravel()],

@@ -109,3 +109,24 @@ def test_refusals_name_what_to_change(pendulum):
         ValuePolicy(values, pendulum, DMCReward(pendulum, TASK))
     with pytest.raises(ValueIterationError, match="another model"):
         ValuePolicy(values, ASSETS / "dmc_acrobot.xml", BandReward(pendulum))
+
+
+def test_a_hinge_limited_to_less_than_a_turn_gets_a_grid_over_its_range(tmp_path):
+    """The hinge limited to [-30, 320] degrees (hanging at 180 inside, upright at 0 inside, no full turn): the grid
+    spans the range, not the circle, and the policy swings up (the wall at 320, short of upright, in its way) and
+    holds, in MuJoCo with the limit."""
+    xml = (ASSETS / "dmc_pendulum.xml").read_text().replace('damping="0.1"/>',
+                                                           'damping="0.1" limited="true" range="-30 320"/>')
+    path = tmp_path / "limited_pendulum.xml"
+    path.write_text(xml)
+    model = build_model(path)
+    reward = BandReward(model)
+    values = hinge_values(model, reward, options=ValueIterationOptions(angles=80, rates=81))
+    lo, hi = np.deg2rad([-30.0, 320.0])
+    d = values.spacing[0]
+    assert not values.periodic and lo <= values.angles[0] < lo + d and hi - d < values.angles[-1] <= hi
+    assert np.min(np.abs(values.angles)) < 1e-12  # a node at upright
+    roll = simulate(path, ValuePolicy(values, model, reward), np.asarray(model.x_hanging, float), 20.0)
+    q = np.asarray(roll.qpos)[:, 0]
+    assert not roll.info.get("diverged") and q.min() > lo - 0.05 and q.max() < hi + 0.05
+    assert np.all(np.abs(q[-250:]) <= reward.band)  # up and held for the last 5 s
