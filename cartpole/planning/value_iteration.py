@@ -219,8 +219,8 @@ class HingeValues:
     Attributes
     ----------
     angles : (na,) array
-        rad: the nodes' hinge angle error from upright ``x_eq`` (periodic: ``-pi + 2 pi i / na``; else evenly spaced
-        over the hinge's range with a node at 0).
+        rad: the nodes' hinge angle error from upright ``x_eq`` (periodic: ``2 pi (i - na // 2) / na``, from ``-pi``
+        for an even ``na``; else evenly spaced over the hinge's range), a node at 0 either way.
     rates : (nr,) array
         rad/s: the nodes' rates.
     periodic : bool
@@ -381,7 +381,7 @@ def _grid(model: CartPoleModel, opts: ValueIterationOptions) -> tuple[np.ndarray
     x_eq = float(model.x_eq[h])
     periodic = not (np.isfinite(lo) and np.isfinite(hi))  # a limited hinge's angle never wraps, even over a turn
     if periodic:
-        angles = -np.pi + 2 * np.pi * np.arange(opts.angles) / opts.angles
+        angles = 2 * np.pi * (np.arange(opts.angles) - opts.angles // 2) / opts.angles  # a node at upright
     else:  # evenly spaced with a node at upright itself (a fixed point the interpolation keeps), within the range
         d = (hi - lo) / (opts.angles - 1)
         k = np.arange(np.ceil((lo - x_eq) / d - 1e-9), np.floor((hi - x_eq) / d + 1e-9) + 1)
