@@ -60,7 +60,7 @@ from cartpole.options import StageOptions
 from cartpole.sim import UPRIGHT_BAND
 
 #: Bump when the stored tables' layout or meaning changes (old cache files are then not read).
-VALUE_VERSION = 1
+VALUE_VERSION = 2
 #: States a single ``mujoco.rollout`` call steps (the transition table is made in chunks of this many).
 ROLLOUT_CHUNK = 65536
 #: Q values within this of the best count as equal; the first of them (the smallest effort) is taken.
