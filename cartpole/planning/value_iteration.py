@@ -53,7 +53,8 @@ import scipy.sparse as sp
 from cartpole._arrays import readonly
 from cartpole.codegen import cache_dir, model_key, private_dir, read_verified, write_verified
 from cartpole.errors import CartPoleError
-from cartpole.models import CartPoleModel, Plant, mujoco_model, plant_model, steps_per_period, wrap_angle
+from cartpole.models import (CartPoleModel, Plant, mujoco_model, plant_model, plant_params, steps_per_period,
+                             wrap_angle)
 from cartpole.ocp.dmc import rewards as dmc_rewards
 from cartpole.ocp.dmc import task as dmc_task
 from cartpole.options import StageOptions
@@ -181,8 +182,7 @@ class HoldStep:
     """
 
     def __init__(self, plant: Plant, hold: int = 1):
-        params = plant_model(plant).params if not isinstance(plant, CartPoleModel) else plant.params
-        self.m = mujoco_model(params)
+        self.m = mujoco_model(plant_params(plant))
         self.d = mujoco.MjData(self.m)
         self.hold = int(hold)
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
@@ -411,7 +411,7 @@ def _backups(P, R: np.ndarray, opts: ValueIterationOptions) -> tuple[np.ndarray,
     (nA N, N)), the tail extrapolated once the increment's span is below ``tol``: (V, policy, backups, gain)."""
     nA, N = R.shape
     V, gain, k = np.zeros(N), 0.0, 0
-    Q = R.copy()
+    Q = R
     while k < opts.horizon:
         Q = R + opts.discount * (P @ V).reshape(nA, N)
         V_new = Q.max(axis=0)
