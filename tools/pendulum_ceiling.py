@@ -18,7 +18,10 @@ episode's 1000 steps on ``cartpole/assets/dmc_pendulum.xml`` (dm_control's physi
   that at least one of ``--evaluations`` (120: its three seeds' 40 evaluations each) does (resampled from the
   returns at the evenly spaced angles, ``--draws`` times, seeded).
 
-    python tools/pendulum_ceiling.py [--grids 100 200 400] [--n 10] [--seed 0] [--angles 360]
+With ``--hold 2 --every-step`` the policies are those that hold each action for two of dm_control's steps and the
+return sums both steps' rewards: TD-MPC2's own setting (its environment wrapper repeats each action twice).
+
+    python tools/pendulum_ceiling.py [--grids 100 200 400] [--n 10] [--seed 0] [--angles 360] [--hold 2 --every-step]
 """
 import argparse
 import json
@@ -34,9 +37,11 @@ from cartpole.planning.value_iteration import (DMCReward, ValueIterationOptions,
 TASK = "dmc_pendulum_swingup"
 
 
-def _grid_row(model, reward, size: int, starts: np.ndarray, spread: np.ndarray, steps: int) -> dict:
+def _grid_row(model, reward, size: int, starts: np.ndarray, spread: np.ndarray, steps: int, period=None,
+              every_step: bool = False) -> dict:
     tic = time.perf_counter()
-    values = hinge_values(model, reward, options=ValueIterationOptions(angles=size, rates=size + 1, horizon=steps))
+    opts = ValueIterationOptions(angles=size, rates=size + 1, horizon=steps, every_step=every_step)
+    values = hinge_values(model, reward, period=period, options=opts)
     policy = ValuePolicy(values, model, reward)
     both = policy_returns(policy, np.vstack([starts, spread]), steps)
     returns, over = both[:len(starts)], both[len(starts):]
@@ -59,6 +64,9 @@ def main() -> None:
     ap.add_argument("--reference", type=float, default=906.2)
     ap.add_argument("--evaluations", type=int, default=120)
     ap.add_argument("--draws", type=int, default=20000)
+    ap.add_argument("--hold", type=int, default=1, help="dm_control steps each action is held (TD-MPC2: 2)")
+    ap.add_argument("--every-step", action="store_true",
+                    help="pay every dm_control step of a held action, summed (an action-repeat wrapper's return)")
     args = ap.parse_args()
     model = build_model(SHIPPED_MJCF.with_name("dmc_pendulum.xml"))
     reward = DMCReward(model, TASK)
@@ -67,7 +75,9 @@ def main() -> None:
     theta = -np.pi + (np.arange(args.angles) + 0.5) * 2 * np.pi / args.angles
     spread = np.tile(np.asarray(model.x_eq, float), (args.angles, 1))
     spread[:, model.hinges[0]] += theta
-    rows = [_grid_row(model, reward, g, starts, spread, 1000) for g in args.grids]
+    hold = max(1, args.hold)
+    period = hold * float(model.dt) if hold > 1 else None
+    rows = [_grid_row(model, reward, g, starts, spread, 1000 // hold, period, args.every_step) for g in args.grids]
     best = rows[-1]
     rng = np.random.default_rng(0)
     means = np.asarray(best["spread_returns"])[rng.integers(0, args.angles, (args.draws, 10))].mean(axis=1)
@@ -79,7 +89,8 @@ def main() -> None:
 
     sets = {f"seeds_{a}_{a + args.n - 1}": {"value": mean("value", i), "return": mean("returns", i)}
             for i, a in enumerate(args.seed)}
-    print(json.dumps({"task": TASK, "seeds": seeds, "reference": args.reference, "grids": rows, "finest": best,
+    print(json.dumps({"task": TASK, "seeds": seeds, "hold": hold, "every_step": args.every_step,
+                      "reference": args.reference, "grids": rows, "finest": best,
                       "sets": sets, "p_mean10_above": round(p10, 4),
                       "p_any_of_evaluations_above": round(1.0 - (1.0 - p10) ** args.evaluations, 4),
                       "evaluations": args.evaluations}))

@@ -103,6 +103,10 @@ class ValueIterationOptions(StageOptions):
         Per step, in (0, 1]; 1 sums the rewards as the episode does.
     tol : float
         The span of one backup's increment below which the rest of the horizon is extrapolated (> 0).
+    every_step : bool
+        Pay the reward after every physics step of a period, summed (an action-repeat wrapper's return, e.g.
+        TD-MPC2's over dm_control), instead of once for the state at the period's end (dm_control's own control step,
+        Gymnasium's frame skip).
     """
 
     angles: int = 200
@@ -113,6 +117,7 @@ class ValueIterationOptions(StageOptions):
     horizon: int = 1000
     discount: float = 1.0
     tol: float = 1e-9
+    every_step: bool = False
 
     error: ClassVar[type] = ValueIterationError
     SCALARS: ClassVar[tuple] = ("angles", "rates", "levels", "rate_margin", "rate_max", "horizon", "discount", "tol")
@@ -126,6 +131,8 @@ class ValueIterationOptions(StageOptions):
         self.number("horizon", low=1, integer=True, hint="give the episode's steps, e.g. `horizon=1000`")
         self.number("discount", low=0.0, high=1.0, low_open=True)
         self.number("tol", low=0.0, low_open=True)
+        if not isinstance(self.every_step, (bool, np.bool_)):
+            raise ValueIterationError(f"ValueIterationOptions.every_step must be True or False; got {self.every_step!r}.")
 
 
 class DMCReward:
@@ -195,9 +202,15 @@ class HoldStep:
     def __call__(self, X, U) -> tuple[np.ndarray, np.ndarray]:
         """The states (M, nx) one control period after ``X`` (M, nx) under ctrl ``U`` (M, nu), and (M,) bool: MuJoCo
         reset the run as blown up (its state is then not a successor)."""
+        states, bad = self.states(X, U)
+        return states[:, -1, :], bad
+
+    def states(self, X, U) -> tuple[np.ndarray, np.ndarray]:
+        """The state (M, hold, nx) after each physics step of the period from ``X`` (M, nx) under ctrl ``U`` (M, nu),
+        and (M,) bool: blown up (as :meth:`__call__`)."""
         X = np.atleast_2d(np.asarray(X, float))
         U = np.atleast_2d(np.asarray(U, float))
-        out, bad = np.empty_like(X), np.zeros(X.shape[0], bool)
+        out, bad = np.empty((X.shape[0], self.hold, X.shape[1])), np.zeros(X.shape[0], bool)
         q0, nq, nv = self.q0, self.nq, self.nv
         for a in range(0, X.shape[0], ROLLOUT_CHUNK):
             b = min(a + ROLLOUT_CHUNK, X.shape[0])
@@ -206,10 +219,20 @@ class HoldStep:
             S0[:, q0:q0 + nq], S0[:, q0 + nq:q0 + nq + nv] = X[a:b, :nq], X[a:b, nq:]
             ctrl = np.repeat(U[a:b, None, :], self.hold, axis=1)
             S, _ = mujoco.rollout.rollout(self.m, self.d, S0, ctrl, nstep=self.hold)
-            last = S[:, -1, :]
-            out[a:b, :nq], out[a:b, nq:] = last[:, q0:q0 + nq], last[:, q0 + nq:q0 + nq + nv]
-            bad[a:b] = np.abs(last[:, 0] - (1.0 + self.hold * self.m.opt.timestep)) > 1e-9
+            out[a:b, :, :nq], out[a:b, :, nq:] = S[:, :, q0:q0 + nq], S[:, :, q0 + nq:q0 + nq + nv]
+            bad[a:b] = np.abs(S[:, -1, 0] - (1.0 + self.hold * self.m.opt.timestep)) > 1e-9
         return out, bad
+
+    def pay(self, X, U, reward: Callable, every_step: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One period from ``X`` (M, nx) under ``U`` (M, nu): the states reached (M, nx), blown up (M,) bool, and the
+        reward paid (M,): ``reward`` of the state reached, or with ``every_step`` summed over each physics step's state
+        (an action-repeat wrapper's sum)."""
+        states, bad = self.states(X, U)
+        if not every_step:
+            return states[:, -1, :], bad, np.asarray(reward(states[:, -1, :], U), float)
+        M, h, nx = states.shape
+        paid = np.asarray(reward(states.reshape(M * h, nx), np.repeat(U, h, axis=0)), float).reshape(M, h).sum(axis=1)
+        return states[:, -1, :], bad, paid
 
 
 @dataclass(frozen=True)
@@ -253,6 +276,8 @@ class HingeValues:
         The upright the angles are measured from.
     solve_s : float
         s of wall time to build the tables (0 when read from the cache).
+    every_step : bool
+        The reward was paid after every physics step of a period, summed (:class:`ValueIterationOptions`).
     """
 
     angles: np.ndarray
@@ -272,6 +297,7 @@ class HingeValues:
     hinge: int
     x_eq: np.ndarray
     solve_s: float = 0.0
+    every_step: bool = False
 
     @property
     def rate_max(self) -> float:
@@ -330,7 +356,7 @@ class HingeValues:
     def to_bytes(self) -> bytes:
         """The tables as an ``.npz`` (no pickles)."""
         meta = {k: getattr(self, k) for k in ("periodic", "horizon", "discount", "period", "hold", "iterations",
-                                              "gain", "reward", "model", "hinge")}
+                                              "gain", "reward", "model", "hinge", "every_step")}
         buf = io.BytesIO()
         np.savez(buf, angles=self.angles, rates=self.rates, actions=self.actions, value=self.value,
                  policy=self.policy, x_eq=self.x_eq, meta=np.array(json.dumps(meta)))
@@ -468,13 +494,14 @@ def hinge_values(plant: Plant, reward: Callable, *, period: float | None = None,
     actions = action_set(lo, hi, opts.levels)
     shell = HingeValues(readonly(angles), readonly(rates), periodic, readonly(actions), None, None, opts.horizon,
                         opts.discount, hold * float(model.dt), hold, 0, 0.0, getattr(reward, "key", repr(reward)),
-                        model_key(model), int(model.hinges[0]), readonly(np.asarray(model.x_eq, float)))
+                        model_key(model), int(model.hinges[0]), readonly(np.asarray(model.x_eq, float)),
+                        every_step=bool(opts.every_step))
     X = shell.node_states()
     N, nA = X.shape[0], actions.shape[0]
     XA = np.tile(X, (nA, 1))
     UA = np.repeat(actions, N, axis=0)
-    Xn, bad = HoldStep(model, hold)(XA, UA)
-    R = np.asarray(reward(Xn, UA), float).reshape(nA, N)
+    Xn, bad, paid = HoldStep(model, hold).pay(XA, UA, reward, opts.every_step)
+    R = paid.reshape(nA, N)
     R[bad.reshape(nA, N)] = -np.inf  # a blown-up step is never chosen
     idx, w = shell.weights(np.where(bad[:, None], XA, Xn))
     P = sp.csr_matrix((w.ravel(), idx.ravel(), np.arange(0, 4 * nA * N + 1, 4)), shape=(nA * N, N))
@@ -549,9 +576,9 @@ class ValuePolicy:
         nA, B = v.actions.shape[0], X.shape[0]
         XA = np.tile(X, (nA, 1))
         UA = np.repeat(np.asarray(v.actions), B, axis=0)
-        Xn, bad = self.step(XA, UA)
+        Xn, bad, paid = self.step.pay(XA, UA, self.reward, v.every_step)
         later = v.value_at(Xn) if depth <= 1 else self._q(Xn, depth - 1).max(axis=0)
-        Q = np.asarray(self.reward(Xn, UA), float) + v.discount * later
+        Q = paid + v.discount * later
         return np.where(bad, -np.inf, Q).reshape(nA, B)
 
     def summary(self) -> dict:
@@ -575,18 +602,19 @@ class ValuePolicy:
 
 def policy_returns(policy: ValuePolicy, X0, steps: int, reward: Callable | None = None) -> np.ndarray:
     """The return (B,) ``policy`` earns from each start ``X0`` (B, nx) over ``steps`` control periods in MuJoCo (the
-    reward of each state reached and ctrl held, summed; default the policy's reward), all starts stepped together:
+    reward of each state reached and ctrl held, summed, after every physics step where the tables were made with
+    ``every_step``; default the policy's reward), all starts stepped together:
     each run is the one :func:`cartpole.sim.simulate` makes with ``policy`` (a stationary law of the state)."""
     X = np.atleast_2d(np.asarray(X0, float)).copy()
     reward = policy.reward if reward is None else reward
     total = np.zeros(X.shape[0])
     for _ in range(int(steps)):
         U = policy.actions(X)
-        X, bad = policy.step(X, U)
+        X, bad, paid = policy.step.pay(X, U, reward, policy.values.every_step)
         if np.any(bad):
             raise ValueIterationError("MuJoCo reset a run as blown up under the value policy; the model's step is "
                                       "unstable at these rates (a smaller timestep in the MJCF).")
-        total += np.asarray(reward(X, U), float)
+        total += paid
     return total
 
 

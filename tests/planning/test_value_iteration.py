@@ -8,7 +8,7 @@ import pytest
 
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.ocp.dmc import episode_starts, rewards
-from cartpole.planning.value_iteration import (BandReward, DMCReward, HingeValues, ValueIterationError,
+from cartpole.planning.value_iteration import (BandReward, DMCReward, HingeValues, HoldStep, ValueIterationError,
                                                ValueIterationOptions, ValuePolicy, action_set, cached_hinge_values,
                                                hinge_values, policy_returns)
 from cartpole.sim import simulate
@@ -130,3 +130,22 @@ def test_a_hinge_limited_to_less_than_a_turn_gets_a_grid_over_its_range(tmp_path
     q = np.asarray(roll.qpos)[:, 0]
     assert not roll.info.get("diverged") and q.min() > lo - 0.05 and q.max() < hi + 0.05
     assert np.all(np.abs(q[-250:]) <= reward.band)  # up and held for the last 5 s
+
+
+def test_every_step_pays_each_physics_step_of_a_held_action(pendulum):
+    """An action-repeat wrapper's return (TD-MPC2 holds each action for two of dm_control's steps and sums both
+    rewards): with ``every_step`` a period of two steps pays the reward of both states it passes; over one step it is
+    the same table as without."""
+    reward = DMCReward(pendulum, TASK)
+    X = episode_starts(pendulum, TASK, 6, seed=3)
+    U = np.linspace(-1.0, 1.0, len(X))[:, None]
+    one = HoldStep(pendulum, 1)
+    mid, _ = one(X, U)
+    end, _ = one(mid, U)
+    reached, bad, paid = HoldStep(pendulum, 2).pay(X, U, reward, every_step=True)
+    assert np.array_equal(reached, end) and not bad.any()
+    assert np.array_equal(paid, rewards(pendulum, TASK, mid, U) + rewards(pendulum, TASK, end, U))
+    opts = ValueIterationOptions(angles=16, rates=9, horizon=20)
+    a = hinge_values(pendulum, reward, options=opts)
+    b = hinge_values(pendulum, reward, options=opts.replace(every_step=True))
+    assert np.array_equal(a.value, b.value) and b.every_step and not a.every_step
