@@ -33,6 +33,7 @@ from cartpole.ocp.dmc import rewards, task
 from cartpole.planning.library import PlanLibrary, cached_library
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
+from cartpole.planning.value_iteration import DMCReward, ValueIterationOptions, ValuePolicy, cached_hinge_values
 from cartpole.sim import replay, simulate
 from cartpole.supervise import SupervisorOptions, supervisor_for
 
@@ -59,7 +60,9 @@ class Environment:
     controller : str
         ``"trajopt"`` (the plan for ``objective``, its TVLQR and the catch), ``"mpc"`` (the DDP MPC on
         ``objective``'s planning surrogate, at the environment's control step, no offline plan; its horizon chosen
-        among ``horizons``) or ``"lqr"`` (the upright LQR designed over the environment's action hold).
+        among ``horizons``), ``"lqr"`` (the upright LQR designed over the environment's action hold) or ``"value"``
+        (a pendulum driven at its hinge: the optimal policy of ``objective``'s exact reward by value iteration,
+        :data:`VALUE_GRID`, the same for every start).
     objective : str or None
         The ``dmc_*`` objective planned for (:mod:`cartpole.ocp.dmc`).
     asset : str or None
@@ -108,11 +111,17 @@ ACROBOT_ITERATIONS = (3, 2, 4)
 #: episode, tens of seconds).
 ACROBOT_SEARCH_BELOW = 700.0
 
+#: The value iteration's grid for a pendulum driven at its hinge (``"value"``): 400 x 401 nodes, where the returns
+#: from dm_control's starts have stopped moving by more than a few steps (docs/dmc.md); made once (about a minute on
+#: a loaded machine) and kept in the user cache under the model's hash (:func:`cartpole.planning.value_iteration.
+#: cached_hinge_values`).
+VALUE_GRID = ValueIterationOptions(angles=400, rates=401)
+
 _TDMPC2 = "TD-MPC2's best evaluation (nicklashansen/tdmpc2, results/tdmpc2/<task>.csv)"
 
 #: Every environment :func:`score_episode` runs, by name.
 ENVIRONMENTS = {e.name: e for e in (
-    Environment("pendulum-swingup", "dmc", "trajopt", "dmc_pendulum_swingup", "dmc_pendulum.xml", 906.2, _TDMPC2),
+    Environment("pendulum-swingup", "dmc", "value", "dmc_pendulum_swingup", "dmc_pendulum.xml", 906.2, _TDMPC2),
     Environment("acrobot-swingup", "dmc", "mpc", "dmc_acrobot_swingup", "dmc_acrobot.xml", 711.5, _TDMPC2,
                 horizons=ACROBOT_HORIZONS, iterations=ACROBOT_ITERATIONS, search_below=ACROBOT_SEARCH_BELOW),
     Environment("cartpole-swingup", "dmc", "trajopt", "dmc_cartpole_swingup", "dmc_cartpole.xml", 883.0, _TDMPC2),
@@ -358,6 +367,10 @@ def design(env: Environment, mjcf: str, x0, hold: int):
         return LinearFeedback.for_model(model, period=period if hold > 1 else None)
     if env.controller == "mpc":
         return best_mpc(env, model, mjcf, x0, period)
+    if env.controller == "value":
+        reward = DMCReward(model, env.objective)
+        values = cached_hinge_values(model, reward, period=period if hold > 1 else None, options=VALUE_GRID)
+        return ValuePolicy(values, model, reward)
 
     return trajopt_swingup(model.params, x0=tuple(x0), plan_model=model,
                            options=PlanOptions(objective=env.objective)).controller

@@ -6,7 +6,8 @@
   ``release_factor * rho`` (hysteresis, as :class:`~cartpole.control.switching.SwitchingController`).
 * **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
   the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
-  decisions logged; with ``cart_plans`` and a library it plans too, the law pumping meanwhile); likewise one pole driven at its hinge (a pendulum) with :class:`~cartpole.supervise.pump.HingePump`.
+  decisions logged; with ``cart_plans`` and a library it plans too, the law pumping meanwhile); likewise one pole
+  driven at its hinge (a pendulum) with :func:`~cartpole.supervise.pump.hinge_swingup`.
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
@@ -52,7 +53,7 @@ from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
-from cartpole.supervise.pump import HingePump, pendulum_driven_at_hinge
+from cartpole.supervise.pump import hinge_swingup, pendulum_driven_at_hinge
 from cartpole.supervise.worker import PlanWorker, fork_available, timeout_sentence
 from cartpole.validation import BasinCache
 
@@ -870,7 +871,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
                    library: PlanLibrary | None = None, catch_R=None) -> Supervisor:
     """The supervisor for a cart-pole: its swing-up catch and verified basin, the brake, the energy law where it
-    applies (one pole driven by the cart; a pendulum driven at its hinge: :class:`~cartpole.supervise.pump.HingePump`),
+    applies (one pole driven by the cart; a pendulum driven at its hinge:
+    :func:`~cartpole.supervise.pump.hinge_swingup`),
     else the planner.
 
     Parameters
@@ -936,9 +938,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     try:
         check_single_pole(model)
     except EnergyShapingModelError:
-        if pendulum_driven_at_hinge(model):  # one pole on a driven hinge: its pump swings up from anywhere, no plan
-            return Supervisor(model, catch, rho, brake, swingup=HingePump(model, catch.u_limits), options=opts,
-                              basin=basin)
+        if pendulum_driven_at_hinge(model):  # one pole on a driven hinge: its optimal swing-up from anywhere, no plan
+            swingup = hinge_swingup(model, catch.u_limits, period)
+            return Supervisor(model, catch, rho, brake, swingup=swingup, options=opts, basin=basin)
         if opts.calm_drain:  # the drain down to the calm energy, the calming brake below it (a chain: a joint the
             # motor does not drive; a pendulum on its driven hinge pumps, above)
             calm_brake = EnergyDrain(model, target=DRAIN_MARGIN + (0.0 if opts.calm_energy is None else

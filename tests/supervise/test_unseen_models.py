@@ -29,6 +29,7 @@ import numpy as np
 import pytest
 
 from cartpole.models import build_model, planning_limits, read_params
+from cartpole.planning.value_iteration import ValuePolicy
 from cartpole.sim import Knockdown, Throw, replays_exactly, simulate
 from cartpole.supervise import SupervisorOptions, supervisor_for
 from cartpole.supervise.pump import HingePump, HingePumpError
@@ -146,7 +147,7 @@ def test_the_hinge_pump_applies_to_one_driven_hinge_with_a_ctrl_range_only():
     """A pendulum driven at its hinge gets the pump (no planner); a cart-pole or a motor without a ctrl range is
     refused in one sentence saying what to do."""
     params, model, sup = _setup(CORPUS / "pendulum_built_hanging.xml")
-    assert isinstance(sup.swingup, HingePump) and sup.planner is None
+    assert isinstance(sup.swingup, ValuePolicy) and isinstance(sup.swingup.outside, HingePump) and sup.planner is None
     with pytest.raises(HingePumpError, match="no ctrlrange.*planning_limits"):
         HingePump(model, [[-np.inf, np.inf]])
     cart = build_model(read_params(str(UNSEEN / "course_cartpole.urdf")))
