@@ -61,8 +61,10 @@ def _acc(steps: int) -> dict:
 
 
 #: Compiler flags of this library, whatever its length (:func:`cartpole.codegen.choose_cflags` compiles long
-#: sources without optimisation): it is many small stage functions, which gcc optimises in about linear time, and
-#: the optimised build is several times faster a call than -O0.
+#: sources without optimisation): it is many small stage functions, each the same size for any N (the condensing's
+#: N-row products are loops, :func:`_condense_function`), which gcc optimises in about linear time, and the optimised
+#: build is several times faster a call than -O0. (N = 499: 1.2 MB of C, 0.5 MB of it index tables, -O3 in seconds;
+#: with the condensing's stage unrolled in SX, N = 315 was 1.9 MB and 93 s of -O3 on a loaded machine.)
 CFLAGS = ("-O3", "-march=native")
 
 
