@@ -348,15 +348,16 @@ def _build_peak_kb(N: int) -> int:
     interpreter whose address space is capped (a regression fails here instead of eating the machine)."""
     def cap():
         resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     proc = subprocess.run([sys.executable, "-c", _BUILD_PEAK, str(N)], capture_output=True, text=True, timeout=120,
-                          preexec_fn=cap, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+                          preexec_fn=cap, env=env)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return int(proc.stdout.split()[-1])
 
 
 def test_building_the_qp_functions_costs_memory_linear_in_the_intervals():
     # one unnested mapaccum over N stages (the condensing's accumulator has N+2 rows) took CasADi superlinear memory
-    # to build: 1.3 GB at N = 200, some 7 GB at the N = 315..499 of dm_control's swing-up (20 GB with the virtual
+    # to build: 1.7 GB at N = 200, some 7 GB at the N = 315..499 of dm_control's swing-up (20 GB with the virtual
     # machine's second build); nested folds and an N-free stage keep it a few MB per 100 intervals
     small, large = _build_peak_kb(100), _build_peak_kb(400)
     assert large < 400 * 1024  # kB: what one N = 400 build may add
