@@ -48,15 +48,23 @@ from cartpole.ocp.bounds import OCPError
 from cartpole.codegen import build_library, compiled_or_none, load_library
 
 
+#: ``mapaccum``'s nesting base: the N stages accumulate as nested folds of at most this many calls. One unnested fold
+#: of N calls costs CasADi superlinear time and memory to build (the condensing's, its accumulator (N+2, nx), took
+#: 1.3 GB at N = 200 and about 7 GB at N = 315 in ``mapaccum`` alone; nested: 0.2 GB, under a second); the copies
+#: the nesting adds cost about nothing a call next to the stages' arithmetic.
+ACC_BASE = 10
+
+
 def _acc(steps: int) -> dict:
-    """``mapaccum`` options for ``steps`` stages, unnested: its default nesting (base 10) copies the accumulator and
-    the outputs at every level."""
-    return {"base": max(int(steps), 1)}
+    """``mapaccum`` options for ``steps`` stages: nested folds of :data:`ACC_BASE` calls (bounded memory to build)."""
+    return {"base": max(2, min(int(steps), ACC_BASE))}
 
 
 #: Compiler flags of this library, whatever its length (:func:`cartpole.codegen.choose_cflags` compiles long
-#: sources without optimisation): it is many small stage functions, which gcc optimises in about linear time, and
-#: the optimised build is several times faster a call than -O0.
+#: sources without optimisation): it is many small stage functions, each the same size for any N (the condensing's
+#: N-row products are loops, :func:`_condense_function`), which gcc optimises in about linear time, and the optimised
+#: build is several times faster a call than -O0. (N = 499: 1.2 MB of C, 0.5 MB of it index tables, -O3 in seconds;
+#: with the condensing's stage unrolled in SX, N = 315 was 1.9 MB and 93 s of -O3 on a loaded machine.)
 CFLAGS = ("-O3", "-march=native")
 
 
@@ -179,6 +187,18 @@ def _stage_symbols(nx: int, nu: int, N: int):
     return Ti, cti, Hyi, gyi, Ti[:nx, _block_cols(nz, nx, N)]
 
 
+def _offset_pattern(nx: int, nu: int, N: int) -> ca.Sparsity:
+    """The sparsity of ``[Bf_0', .., Bf_N-1']`` ((nc + 1, nx N), nc = (N+1) nu): block k's column j holds the rows
+    ``k nu .. (k+2) nu - 1`` (``Bw_k'``) and the last (``ct_k'``), in that order, so its nonzeros are the columns of
+    ``[Bw'; ct']`` ((2nu + 1, nx N)) one after the other: one node, where a block per stage is O(N) C."""
+    nc = (N + 1) * nu
+    col_rows = np.r_[np.arange(2 * nu), nc]  # block 0's rows; block k's are shifted by k nu (the last excepted)
+    shift = np.r_[np.full(2 * nu, nu), 0]
+    rows = (col_rows[None, None, :] + np.arange(N)[:, None, None] * shift).repeat(nx, axis=1).ravel()
+    cols = np.repeat(np.arange(N * nx), 2 * nu + 1)
+    return ca.Sparsity.triplet(nc + 1, nx * N, rows.tolist(), cols.tolist())
+
+
 def _condense_function(nx: int, nu: int, N: int) -> ca.Function:
     """``sqp_condense`` (module docstring): the QP condensed onto the knot controls."""
     ny = nx + 2 * nu
@@ -198,29 +218,25 @@ def _condense_function(nx: int, nu: int, N: int) -> ca.Function:
     # with G_k+1' = G_k' A_k' + E_k' Bw_k', X_k = G_k' W_k + E_k' Bw_k' P_k+1 Bw_k, W_k = S_k' + A_k' P_k+1 Bw_k
     # (nx, 2nu), so Hc = sum_k (Y_k E_k + E_k' Y_k') + sum_k E_k' (R_k + Bw_k' P_k+1 Bw_k) E_k with Y_k = G_k' W_k;
     # the gradient's G_k' (Q_k g_k + q_k) in the same product
-    GT_, BT_ = ca.SX.sym("GT", nc + 1, nx), ca.SX.sym("BT", nc + 1, nx)
+    # the stage's arithmetic in nx and nu (SX), its two products with the (nc + 1)-row GT_k as MX (one loop each in
+    # the C, whatever N): an SX stage of N-row products holds O(N) operations, O(N^2) over the stages
     Pk1, Tk = ca.SX.sym("P", nx, nx), ca.SX.sym("Tt", ny, nx + nu)
-    Hk, gk = ca.SX.sym("Hy", ny, ny), ca.SX.sym("gy", ny)
+    Hk, gk, gm = ca.SX.sym("Hy", ny, ny), ca.SX.sym("gy", ny), ca.SX.sym("g", nx)  # gm: g_k (nx,)
     Ak, Bw = Tk[:nx, :nx].T, Tk[nx:, :nx].T  # (nx, nx), (nx, 2nu)
     Qk, Sk, Rk = Hk[:nx, :nx], Hk[nx:, :nx], Hk[nx:, nx:]
-    gm = GT_[nc, :].T  # g_k (nx,)
     PB = ca.mtimes(Pk1, Bw)
     W = ca.horzcat(Sk.T + ca.mtimes(Ak.T, PB), ca.mtimes(Qk, gm) + gk[:nx])  # (nx, 2nu + 1)
-    GW = ca.mtimes(GT_[:nc, :], W)  # (nc, 2nu + 1)
     band = Rk + ca.mtimes(Bw.T, PB)
     ek = ca.mtimes(Sk, gm) + gk[nx:]
-    fwd = ca.Function("sqp_cond_stage", [GT_, BT_, Pk1, Tk, Hk, gk],
-                      [ca.mtimes(GT_, Ak.T) + BT_, GW[:, :2 * nu], band, GW[:, 2 * nu], ek]
+    small = ca.Function("sqp_cond_small", [Pk1, Tk, Hk, gk, gm], [ca.densify(Ak.T), W, band, ek])
+    GT_, BT_ = ca.MX.sym("GT", nc + 1, nx), ca.MX.sym("BT", nc + 1, nx)
+    Pm, Tm, Hm, gym = ca.MX.sym("P", nx, nx), ca.MX.sym("Tt", ny, nx + nu), ca.MX.sym("Hy", ny, ny), ca.MX.sym("gy", ny)
+    ATk, Wk, band_k, e_k = small(Pm, Tm, Hm, gym, GT_[nc, :].T)
+    GW = ca.mtimes(GT_[:nc, :], Wk)  # (nc, 2nu + 1)
+    fwd = ca.Function("sqp_cond_stage", [GT_, BT_, Pm, Tm, Hm, gym],
+                      [ca.mtimes(GT_, ATk) + BT_, GW[:, :2 * nu], band_k, GW[:, 2 * nu], e_k]
                       ).mapaccum("sqp_cond_acc", N, [0], [0], _acc(N))
-    blocks = []
-    for k in range(N):  # Bf_k' (nc + 1, nx), structurally sparse
-        parts = [ca.MX(k * nu, nx)] if k else []
-        parts.append(BWs[:, k * nx:(k + 1) * nx])
-        if nc - (k + 2) * nu:
-            parts.append(ca.MX(nc - (k + 2) * nu, nx))
-        parts.append(cti[:, k].T)
-        blocks.append(ca.vertcat(*parts))
-    BT = ca.horzcat(*blocks)
+    BT = ca.MX(_offset_pattern(nx, nu, N), ca.vec(ca.vertcat(BWs, ca.reshape(cti, 1, nx * N))))
     GTs, Yt, B_, F_, E_ = fwd(ca.MX.zeros(nc + 1, nx), ca.densify(BT), Pnext, Ti, Hyi, gyi)
     return ca.Function("sqp_condense", [Ti, cti, Hyi, gyi], [Yt, B_, ca.sum2(F_), E_, GTs],
                        ["T", "ct", "Hy", "gy"], ["Y", "band", "f", "e", "GT"])

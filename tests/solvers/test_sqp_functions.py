@@ -4,6 +4,11 @@ Layouts: every input and output is numpy's C-order block array, which is CasADi'
 transposed (J (N, nx, nv) is CasADi's (nv, nx N) of J_k'); outputs are read back as (N, rows, cols) the way
 :meth:`cartpole.solvers.sqp.CollocationSQP._qp_step` and ``_daqp_step`` read them.
 """
+import os
+import resource
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -326,3 +331,34 @@ def test_the_compiled_librarys_key_is_its_generated_source_not_a_version_string(
     monkeypatch.setattr(codegen, "_BUILT", {})  # a new process, the builder edited
     _, other = sqp_functions.compiled_qp_functions(2, 1, 3, REG)
     assert other is not None and other != lib
+
+
+_BUILD_PEAK = """
+import resource, sys
+import casadi  # noqa: F401 - the interpreter and its libraries before the build
+from cartpole.solvers import sqp_functions
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+sqp_functions.qp_functions(4, 1, int(sys.argv[1]), 1e-4)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before)
+"""
+
+
+def _build_peak_kb(N: int) -> int:
+    """Peak resident memory (kB) that building the one-pole QP functions for ``N`` intervals adds, in a fresh
+    interpreter whose address space is capped (a regression fails here instead of eating the machine)."""
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([sys.executable, "-c", _BUILD_PEAK, str(N)], capture_output=True, text=True, timeout=120,
+                          preexec_fn=cap, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return int(proc.stdout.split()[-1])
+
+
+def test_building_the_qp_functions_costs_memory_linear_in_the_intervals():
+    # one unnested mapaccum over N stages (the condensing's accumulator has N+2 rows) took CasADi superlinear memory
+    # to build: 1.7 GB at N = 200, some 7 GB at the N = 315..499 of dm_control's swing-up (20 GB with the virtual
+    # machine's second build); nested folds and an N-free stage keep it a few MB per 100 intervals
+    small, large = _build_peak_kb(100), _build_peak_kb(400)
+    assert large < 400 * 1024  # kB: what one N = 400 build may add
+    assert large < 4 * max(small, 16 * 1024) * 2  # linear in N (4x the intervals), with slack for the allocator
