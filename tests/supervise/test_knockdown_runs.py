@@ -119,7 +119,8 @@ def _acrobot_options():
     its wall time allowed 300 s (a plan over it fails)."""
     return SupervisorOptions(charged_latency=LATENCY, replan_every=HINGE_REPLAN_EVERY, exact_plans=False,
                              plan_budget=300.0, calm_energy=HINGE_CALM_ENERGY, calm_budget=HINGE_CALM_BUDGET,
-                             warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME, calm_drain=True)
+                             warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME, calm_drain=True,
+                             swingup_mpc=True)
 
 
 def _calm_at(run, model, sup, after: float) -> float:
