@@ -24,7 +24,7 @@ from cartpole.planning.library import cached_library, library_path, library_star
 from cartpole.planning.options import PlanOptions
 from cartpole.supervise import SupervisorOptions, supervisor_for
 from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
-                                           HINGE_REPLAN_EVERY, KNOT_ENERGY_WEIGHT, KNOT_MIN_TAIL)
+                                           HINGE_REPLAN_EVERY)
 from cartpole.validation import uptime_metrics
 
 DURATION = 60.0
@@ -103,15 +103,23 @@ def test_a_chain_recovers_from_every_knockdown_for_a_minute():
 #: 20 s, is tested below). A knock (``Knockdown(3, 0.3)``, its work bounded by the swing-up's energy) leaves it 13-32 J
 #: above the upright's energy, which the supervisor's calming law (the energy drain,
 #: :class:`~cartpole.control.drain.EnergyDrain`, then the soft brake) takes out in 0.7-6.3 s (median 1.3 s; seeds
-#: 0-11, from the state at the knock's end, in MuJoCo: ``tools/acrobot_drain.py``); then it plans. Measured over the
-#: minute from upright, latency charged ``LATENCY`` s (seed: knockdowns, recovered, uptime): 0: 3, 2, 0.152; 1: 1, 0,
-#: 0.051; 2: 5, 4, 0.263; 3: 2, 1, 0.104; 4: 3, 2, 0.169; 5: 4, 3, 0.205; 6: 3, 2, 0.156; 7: 3, 2, 0.157; 8: 3, 2,
-#: 0.153; 9: 1, 0, 0.051; 10: 3, 2, 0.153; 11: 5, 4, 0.254 (24 of 36 knocks recovered). In 2, 5, 8, 10 and 11 every
-#: knock but a last one 2.3-9.4 s before the minute's end is recovered; in 0, 3, 4, 6 and 7 a knock with 17-22 s of the
-#: minute left is not, and in 1 and 9 the first knock is never recovered: their plans fail or are lost part way and are
-#: made again, until the minute ends. Seed 11 is the one whose every plan swung up at once; 2 and 5 lost a plan once (a
-#: recovery 1.3 and 1.7 times the plan made once calm: below this test's floor), 8 and 10 took 3.1 and 2.0 times it.
-ACROBOT_SEEDS = (11,)
+#: 0-11, from the state at the knock's end, in MuJoCo: ``tools/acrobot_drain.py``); then the swing-up MPC
+#: (``swingup_mpc``) takes the calm state over. Measured over the minute from upright, latency charged ``LATENCY`` s
+#: (``python tools/acrobot_minute.py``; seed: knockdowns, recovered, uptime): 0: 7, 7, 0.399; 1: 5, 5, 0.275; 2: 7,
+#: 6, 0.360; 3: 6, 5, 0.315; 4: 7, 6, 0.357; 5: 9, 8, 0.456; 6: 7, 6, 0.360; 7: 8, 7, 0.411; 8: 5, 4, 0.257; 9: 6,
+#: 5, 0.311; 10: 6, 6, 0.344; 11: 8, 7, 0.405 (72 of 81 knocks recovered). Every knock with 15 s or more of the minute
+#: left was recovered in 11 of the 12 seeds; the others unrecovered were a last knock 0.1-9.7 s before the end; seed 8
+#: missed one with 21 s left: calmed more than ``mpc_energy`` below the upright's energy, it was planned from, and the
+#: plans were lost or not found (so in 1 and 9 once each, recovered by a plan, and in 1 by the MPC after a lost plan).
+#: Before the MPC (every calm state planned from, ``--no-mpc``): 0: 3, 2, 0.152; 1: 1, 0, 0.051; 2: 5, 4, 0.263; 3:
+#: 2, 1, 0.104; 4: 3, 2, 0.169; 5: 4, 3, 0.205; 6: 3, 2, 0.156; 7: 3, 2, 0.157; 8: 3, 2, 0.153; 9: 1, 0, 0.051; 10: 3,
+#: 2, 0.153; 11: 5, 4, 0.254 (24 of 36): plans warm-started from the library's knots were lost part way under TVLQR
+#: (the funnel left 1-4 s in) or did not converge, and were made again (seeds 0, 1, 9 re-measured with the tool). The
+#: seeds run: 3 and 6, not the best case (0 and 10 recovered every knock): 3 has the lowest uptime of the seeds whose
+#: every recovery the MPC made, 6 the slowest single MPC swing-up (5.9 s from taking over to the catch); seeds 1, 8
+#: and 9 needed the planner and are not asserted here (the MPC's own recoveries are). Wall time 30 s and 20 s
+#: (``--durations``) on the shared 2-core machine, against 76 s for seed 11 before.
+ACROBOT_SEEDS = (3, 6)
 
 
 def _acrobot_options():
@@ -143,12 +151,12 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_for_a_minute(seed):
     above the upright's energy is not found); each knock is followed by a wait ``W_k`` for the energy to reach the
     upright's (measured on the run: the supervisor only calms until then), then the swing-up MPC takes the calm state
     over (``swingup_mpc``: no plan, no latency) and the catch takes it from the MPC. Every knock but a last one with
-    less run left than its wait and the MPC's budget is followed by a swing-up and catch, each within ``LENGTH + W_k +
-    LATENCY + T_k`` of the knock: what the plan the supervisor made before the MPC (from the same calm state,
-    warm-started from the library's nearest knot's tail, ``T_k`` s long, charged ``LATENCY`` s) takes at best, tracked
-    to its end without a loss. The floor: each recovered knock costs that, an unrecovered last knock the rest of the
-    run: ``uptime >= 1 - (sum_k (LENGTH + W_k + LATENCY + T_k) + rest) / duration``, so an MPC that was slower than
-    the plan it replaced, on the whole, fails it. The acrobot is upright only the ``AFTER`` s before each knock, so
+    less run left than its wait and the MPC's budget ``B`` (``mpc_budget``, 10 s: the supervisor plans after it) is
+    followed by a swing-up and catch, each by the MPC within ``LENGTH + W_k + B`` of the knock (never a plan first,
+    never the planner after the MPC gave up). The floor: each recovered knock costs its ``LENGTH``, its wait and half
+    the MPC's budget, an unrecovered last knock the rest of the run: ``uptime >= 1 - (sum_k (LENGTH + W_k + B / 2) +
+    rest) / duration``, so MPC swing-ups that took more than half their budget on the whole fail it (the plan from a
+    calm state, before the MPC, was 5.8-12.4 s long and charged 2 s). The acrobot is upright only the ``AFTER`` s before each knock, so
     its uptime is mostly set by how many knocks the minute holds. Wall time: see ``ACROBOT_SEEDS``."""
     library = _acrobot_library()
     params = read_params(ACROBOT)
@@ -163,22 +171,18 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_for_a_minute(seed):
     assert m["knockdowns"] >= 3, m
     asked = [d for d in sup.decisions if d.kind in ("plan", "plan_failed", "calm_timeout", "mpc")]
     unrecovered = set(m["unrecovered_at"])
-    down = 0.0
+    down, budget = 0.0, sup.options.mpc_budget
     for (start, end), wait in zip(force.events, waits):
         # from the knock's end until the state is calm the supervisor only calms (no plan, no MPC)
         assert not [d for d in asked if end + 1e-9 < d.t < end + wait - 1e-9], (start, wait, asked)
         if start in unrecovered:  # only a last knock with too little run left for its wait and the MPC's budget
-            assert start == force.events[-1][0] and DURATION - end < wait + sup.options.mpc_budget, (start, wait, m)
+            assert start == force.events[-1][0] and DURATION - end < wait + budget, (start, wait, m)
             continue
         first = next(d for d in asked if d.t >= end + wait - 1e-9)
         assert first.kind == "mpc", (start, first)  # once calm the MPC swings it up, no plan first
-        k = int(np.searchsorted(run.t, first.t - 1e-9))  # the state the MPC took over
-        x_calm = np.concatenate([run.qpos[k], run.qvel[k]])
-        T_k = sup.library.knot_guesses(model, x_calm, count=1, energy_weight=KNOT_ENERGY_WEIGHT,
-                                       min_tail=KNOT_MIN_TAIL)[0][0].duration  # the plan it replaced
         up = min(s for s in m["swingup_times"] if s > start)
-        assert up - start <= LENGTH + wait + LATENCY + T_k, (start, wait, up, T_k)
-        down += LENGTH + wait + LATENCY + T_k
+        assert up - start <= LENGTH + wait + budget, (start, wait, up)  # by the MPC, within its budget
+        down += LENGTH + wait + 0.5 * budget
     rest = sum(DURATION - start for start in unrecovered)
     floor = 1.0 - (down + rest) / DURATION
     assert 0.0 < floor <= m["uptime"], (m, waits, floor)
