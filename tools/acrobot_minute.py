@@ -8,11 +8,12 @@ its wall time allowed 300 s; the library's plan from hanging, built once per mod
 ``knockdowns``, ``recovered``, ``uptime``, ``unrecovered_at`` (s, each knock not followed by a swing-up) with
 ``left_s`` (s of the minute left after each), ``failures`` (decision kind -> count: ``plan_failed``, ``lost``,
 ``replan_failed``, ``calm_timeout``, ``plan_timeout``, ``mpc_failed``), ``mpcs`` (swing-ups the MPC took over),
-``mpc_ms`` (its wall time per control step: median, max), ``plans``, ``plan_s`` (median wall time of a plan, s),
+``mpc_swingup_s`` (s from each MPC take-over to the catch it handed to), ``mpc_ms`` (its wall time per control
+step: median, max), ``plans``, ``plan_s`` (median wall time of a plan, s),
 ``wall_s`` (the run's wall time) and ``decisions`` with ``--decisions`` (each ``t``, ``kind`` and its details but the state); then totals:
 ``knockdowns``, ``recovered``, ``uptime_median``, ``missed_with_time`` (knocks unrecovered with at least
 ``LATE`` s of the minute left, summed over seeds), ``seeds_all_recovered_with_time`` (seeds whose every knock with
-``LATE`` s left was recovered).
+``LATE`` s left was recovered), ``mpc_swingup_s`` (``min``, ``median``, ``max``, ``count`` over every seed).
 
 ``--no-mpc``: the supervisor without its swing-up MPC (``swingup_mpc=False``), as it was before it.
 
@@ -72,15 +73,25 @@ def one_run(params, model, library, seed: int, duration: float, decisions: bool,
     run = simulate(params, sup, np.asarray(model.x_eq, float), duration, disturbance=force)
     m = uptime_metrics(run, model, events=force.events, duration=duration)
     kinds = [d.kind for d in sup.decisions]
+    took = [(d.t, nxt) for d, nxt in zip(sup.decisions, sup.decisions[1:]) if d.kind == "mpc"]
     row = {"seed": seed, "knockdowns": m["knockdowns"], "recovered": m["recoveries"], "uptime": m["uptime"],
            "unrecovered_at": m["unrecovered_at"], "left_s": [duration - a for a in m["unrecovered_at"]],
            "failures": {k: kinds.count(k) for k in FAILURES}, "mpcs": kinds.count("mpc"),
+           "mpc_swingup_s": [nxt.t - t for t, nxt in took if nxt.kind == "catch"],
            "mpc_ms": sup.summary()["mpc_ms"], "plans": sup.plans,
            "plan_s": float(np.median(sup.plan_seconds)) if sup.plan_seconds else None,
            "diverged": bool(run.info.get("diverged", False)), "wall_s": time.perf_counter() - tic}
     if decisions:
         row["decisions"] = [{k: v for k, v in d.to_dict().items() if k != "x0"} for d in sup.decisions]
     return row
+
+
+def _spread(values) -> dict | None:
+    """``min``, ``median``, ``max`` and ``count`` of ``values``, or None when there are none."""
+    if not values:
+        return None
+    return {"min": float(np.min(values)), "median": float(np.median(values)), "max": float(np.max(values)),
+            "count": len(values)}
 
 
 def main() -> None:
@@ -100,6 +111,7 @@ def main() -> None:
                       "recovered": sum(r["recovered"] for r in rows),
                       "uptime_median": float(np.median([r["uptime"] for r in rows])),
                       "missed_with_time": sum(missed),
+                      "mpc_swingup_s": _spread([v for r in rows for v in r["mpc_swingup_s"]]),
                       "seeds_all_recovered_with_time": sum(1 for k in missed if not k)},
                      default=float))
 
