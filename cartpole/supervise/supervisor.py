@@ -815,8 +815,22 @@ def _bounded_plan_model(plant: Plant) -> CartPoleModel:
 
 def swingup_mpc(params, model: CartPoleModel, period: float | None = None) -> DDPMPCController:
     """The supervisor's swing-up MPC (``swingup_mpc``): the DDP MPC of the tracking objective, no offline plan, one
-    DDP iteration a control period ``period`` s (default the MJCF's step), :data:`MPC_HORIZON` s ahead, on
-    ``model`` (the planning model) with ``params``' (the MJCF's) bounds and step."""
+    DDP iteration a control period, :data:`MPC_HORIZON` s ahead.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The MJCF MuJoCo runs (its step, ctrl ranges and joint ranges bound the MPC).
+    model : CartPoleModel
+        The planning model.
+    period : float, optional
+        Control period in s, a whole number of MJCF steps (default one step).
+
+    Returns
+    -------
+    DDPMPCController
+        Called ``u = mpc(t, x)`` with ``t`` the time since it took over (s), ``x`` (nx,), ``u`` (nu,) ctrl.
+    """
     opts = MPCOptions(solver="ddp", seed_plan=False, horizon=MPC_HORIZON,
                       period=float(params.timestep) if period is None else float(period))
     return DDPMPCController(model, params, options=opts)

@@ -156,7 +156,7 @@ def test_the_acrobot_swings_up_again_after_every_knockdown_for_a_minute(seed):
     never the planner after the MPC gave up). The floor: each recovered knock costs its ``LENGTH``, its wait and half
     the MPC's budget, an unrecovered last knock the rest of the run: ``uptime >= 1 - (sum_k (LENGTH + W_k + B / 2) +
     rest) / duration``, so MPC swing-ups that took more than half their budget on the whole fail it (the plan from a
-    calm state, before the MPC, was 5.8-12.4 s long and charged 2 s). The acrobot is upright only the ``AFTER`` s before each knock, so
+    calm state, before the MPC, was 5-12 s long and charged 2 s). The acrobot is upright only the ``AFTER`` s before each knock, so
     its uptime is mostly set by how many knocks the minute holds. Wall time: see ``ACROBOT_SEEDS``."""
     library = _acrobot_library()
     params = read_params(ACROBOT)
