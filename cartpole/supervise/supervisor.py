@@ -434,6 +434,7 @@ class Supervisor:
         self.replan_at = np.inf
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
         self.mpc_t0, self.mpc_spent = None, False  # when the swing-up MPC took over; whether it failed since a catch
+        self.mpc_ms: list[float] = []  # the swing-up MPC's wall time per step (ms), its earlier take-overs
         if getattr(self, "server", None) is not None:
             self.close()
         self.server = self.asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
@@ -754,6 +755,7 @@ class Supervisor:
     def _start_mpc(self, t: float, x, cost: float) -> np.ndarray:
         """The swing-up MPC takes over from ``x`` at ``t`` (reset: its solution from the upright's inputs, warmed
         in the loop); its ctrl (nu,)."""
+        self.mpc_ms.extend(getattr(self.mpc, "solve_ms", None) or ())  # its reset forgets them
         self.mpc.reset()
         self.mpc_t0, self.pending = t, None
         self._set(t, "mpc", cost=cost, energy=self._energy(x))
@@ -786,8 +788,8 @@ class Supervisor:
                 "mpc_ms": self._mpc_ms()}
 
     def _mpc_ms(self) -> dict | None:
-        """The swing-up MPC's per-step wall time (``median``, ``max`` ms, ``steps``) since its last reset, or None."""
-        ms = getattr(self.mpc, "solve_ms", None)
+        """The swing-up MPC's per-step wall time (``median``, ``max`` ms, ``steps``) over the run, or None."""
+        ms = self.mpc_ms + list(getattr(self.mpc, "solve_ms", None) or ())
         if not ms:
             return None
         return {"median": float(np.median(ms)), "max": float(np.max(ms)), "steps": len(ms)}

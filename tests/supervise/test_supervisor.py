@@ -347,9 +347,11 @@ class _StubMPC:
 
     def reset(self):
         self.resets += 1
+        self.solve_ms = []
 
     def __call__(self, t, x):
         self.calls.append(t)
+        self.solve_ms = getattr(self, "solve_ms", []) + [1.0]
         return np.full(self.nu, 0.125)
 
 
@@ -376,6 +378,7 @@ def test_a_calm_state_near_the_upright_energy_is_swung_up_by_the_mpc_and_planned
     assert "no catch within 1 s" in sup.decisions[-2].detail["reason"]
     sup(3.6, near)  # not again until the next catch
     assert len(sup.mpc.calls) == 2 and len(asked) == 2
+    assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 2}  # each step's wall time, logged
     hanging = Supervisor(model, catch, 1e-9, brake, planner=planner,
                          options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band))
     hanging.mpc = _StubMPC(model.nu)
