@@ -10,7 +10,8 @@ its wall time allowed 300 s; the library's plan from hanging, built once per mod
 ``replan_failed``, ``calm_timeout``, ``plan_timeout``, ``mpc_failed``), ``mpcs`` (swing-ups the MPC took over),
 ``mpc_swingup_s`` (s from each MPC take-over to the catch it handed to), ``mpc_ms`` (its wall time per control
 step: median, max), ``plans``, ``plan_s`` (median wall time of a plan, s),
-``wall_s`` (the run's wall time) and ``decisions`` with ``--decisions`` (each ``t``, ``kind`` and its details but the state); then totals:
+``wall_s`` (the run's wall time) and ``decisions`` with ``--decisions`` (each ``t``, ``kind`` and its details but
+the state); then totals:
 ``knockdowns``, ``recovered``, ``uptime_median``, ``missed_with_time`` (knocks unrecovered with at least
 ``LATE`` s of the minute left, summed over seeds), ``seeds_all_recovered_with_time`` (seeds whose every knock with
 ``LATE`` s left was recovered), ``mpc_swingup_s`` (``min``, ``median``, ``max``, ``count`` over every seed).
