@@ -11,8 +11,8 @@ same on a loaded CI machine as on a quiet one; each plan's measured wall time is
 CPU (2-core machine shared by 8 sessions, so 5-10x a quiet one's): one pole about 6 s (energy law, no plans); two poles
 about 14 s, marked slow: the first plan is cold (2-8 s of wall time here, from hanging), the later ones warm-started
 from the run's own plans (:mod:`cartpole.planning.library`). The acrobot: one minute from upright (a knock leaves it
-less than its swing-up's energy above the upright's, which the supervisor calms in seconds before it plans), with a
-floor that counts the measured waits and plans; see its tests.
+less than its swing-up's energy above the upright's, which the supervisor calms in seconds before its swing-up MPC
+takes over), with a floor that counts the measured waits and the MPC's budget; see its tests.
 """
 import numpy as np
 import pytest
