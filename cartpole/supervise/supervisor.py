@@ -25,6 +25,13 @@
   (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from where its clock has got to. The
   planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is
   logged and retried after ``retry_after`` s of braking.
+* **swing-up MPC**: with ``swingup_mpc`` (:func:`supervisor_for` sets it for a model driven at a hinge, the acrobot), a
+  calm state within ``mpc_energy`` J of the upright's energy is swung up by the DDP MPC
+  (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
+  exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged) instead of a plan: no planning
+  latency, no funnel to leave (its swing-up takes energy out and puts it back: only the entry is in the band). When
+  the catch has not taken over within ``mpc_budget`` s, or the energy rises ``mpc_energy`` above the upright's, an
+  ``mpc_failed`` decision hands the state back to the brake and the planner (below) until the next catch.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
   from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
@@ -47,6 +54,8 @@ from cartpole.control.energy import EnergyShapingController, EnergyShapingModelE
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
+from cartpole.mpc.ddp_mpc import DDPMPCController
+from cartpole.mpc.options import MPCOptions
 from cartpole.models import CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
 from cartpole.planning.library import PlanLibrary, trajectory_tail
@@ -115,6 +124,18 @@ STALL_LIMIT_TOL = 0.05
 #: to the soft brake 5 J above, as soon calm, and each plan from there swung up at once, 12 s and 10 s after calm).
 #: The knock now leaves 13-32 J, so the drain acts on only its first 8-27 J (not re-measured without the margin).
 DRAIN_MARGIN = 5.0
+#: s: the horizon of the swing-up MPC (``swingup_mpc``): the DDP MPC's best single horizon on dm_control's acrobot
+#: (docs/dmc.md). From the states a knock leaves the acrobot in once calmed (within 7 J below the upright's energy,
+#: seeds 0, 1, 3, 9 of ``Knockdown(3, 0.3)``) it reached the catch's basin in 2.0-3.7 s, where the plans from the
+#: same states (charged 2 s, tracked 5-12 s) were often lost or not found (``tools/acrobot_minute.py``).
+MPC_HORIZON = 2.0
+#: J: how far below the upright's energy :func:`supervisor_for` lets a model driven at a hinge be swung up by the MPC
+#: (``mpc_energy``): all but the lowest 4 J of the acrobot's swing-up energy (39 J). Calmed after a knock it is 0-25 J
+#: below the upright's energy (the soft brake goes on while a hinge is still fast); with a band of 20 J the calm
+#: states below it were planned from, and of the three such knocks in seeds 0-11 one was never recovered and one
+#: only after its plans were lost twice (``tools/acrobot_minute.py``); with 35 J the MPC swung each up. From hanging
+#: at rest (39 J below) the library's pumping plan swings it up.
+HINGE_MPC_ENERGY = 35.0
 
 
 #: What :meth:`Supervisor.prepare` has warmed in this process: ``(model_key, exact_plans, warm_tails)`` of each.
@@ -205,6 +226,15 @@ class SupervisorOptions(StageOptions):
         None), the calming brake below it (True; :func:`supervisor_for` sets it for a model driven at a hinge), or
         with the calming brake alone (False, default): a passive damper on a driven joint the chain hardly moves takes
         little out.
+    swingup_mpc : bool
+        Swing a calm state within ``mpc_energy`` J of the upright's energy up with the DDP MPC (module docstring)
+        before any plan (True: :func:`supervisor_for` builds it, and sets it for a model driven at a hinge), or plan
+        (False, default).
+    mpc_energy : float
+        J: the band about the upright's energy within which the swing-up MPC takes a calm state over (it lets go
+        above the band: knocked again).
+    mpc_budget : float
+        s the swing-up MPC may run without the catch taking over; then the brake and the planner, until the next catch.
     plan_in_worker : bool or None
         Make each plan in a child process (:class:`cartpole.supervise.worker.PlanWorker`: forked at the first plan
         and kept between plans) that is killed once a plan has run ``plan_budget`` s of wall time (the next plan
@@ -254,6 +284,9 @@ class SupervisorOptions(StageOptions):
     calm_energy: float | None = None
     warm_tails: bool = False
     calm_drain: bool = False
+    swingup_mpc: bool = False
+    mpc_energy: float = HINGE_MPC_ENERGY
+    mpc_budget: float = 10.0
     plan_in_worker: bool | None = None
     plan_while_running: bool = False
     warm_worker: bool = True
@@ -261,18 +294,19 @@ class SupervisorOptions(StageOptions):
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
-                                "brake_time", "calm_budget", "charged_latency")
+                                "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
-                           ("retry_after", "s"), ("brake_time", "s"), ("calm_budget", "s")):
+                           ("retry_after", "s"), ("brake_time", "s"), ("calm_budget", "s"), ("mpc_energy", "J"),
+                           ("mpc_budget", "s")):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
         self.number("charged_latency", low=0.0, unit="s", optional=True)
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
-        for name in ("exact_plans", "warm_tails", "calm_drain", "plan_while_running", "warm_worker",
+        for name in ("exact_plans", "warm_tails", "calm_drain", "swingup_mpc", "plan_while_running", "warm_worker",
                      "cart_plans"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
@@ -308,7 +342,9 @@ class Decision:
         ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`),
         ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows),
         ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for;
-        with ``replan``, a re-plan still on its way when the plan it was for was over).
+        with ``replan``, a re-plan still on its way when the plan it was for was over);
+        ``"mpc"`` (the swing-up MPC took over), ``"mpc_failed"`` (it ran ``mpc_budget`` s without a catch, or the energy
+        rose above its band).
     detail : dict
         What the decision rests on (cost, rates, planning wall time, the failure's sentence...).
     """
@@ -393,9 +429,13 @@ class Supervisor:
 
     Attributes
     ----------
+    mpc : callable or None
+        ``(t, x) -> ctrl`` with ``reset()``, the swing-up MPC (``swingup_mpc``:
+        :class:`~cartpole.mpc.ddp_mpc.DDPMPCController`, set by :func:`supervisor_for`), called with the time since it
+        took over; None (the default): never.
     decisions : list of Decision
     mode : str
-        ``"catch"``, ``"swingup"``, ``"brake"``, ``"wait"`` (a plan on its way) or ``"track"``.
+        ``"catch"``, ``"swingup"``, ``"brake"``, ``"wait"`` (a plan on its way), ``"track"`` or ``"mpc"``.
     plan_seconds : list of float
         Wall time of every plan, s.
     """
@@ -415,6 +455,7 @@ class Supervisor:
         self.basin = basin
         self.library = library
         self.prepare_s = None  # s the planner's warm-up in this process took (prepare), None before it
+        self.mpc = None
         self.reset()
 
     def reset(self) -> None:
@@ -433,6 +474,8 @@ class Supervisor:
         self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
         self.replan_at = np.inf
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
+        self.mpc_t0, self.mpc_spent = None, False  # when the swing-up MPC took over; whether it failed since a catch
+        self.mpc_ms: list[float] = []  # the swing-up MPC's wall time per step (ms), its earlier take-overs
         if getattr(self, "server", None) is not None:
             self.close()
         self.server = self.asked = self.replan_asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
@@ -789,7 +832,7 @@ class Supervisor:
         cost = float(self.catch.cost_to_go(x))
         if cost < self.rho or (self.mode == "catch" and cost < self.options.release_factor * self.rho):
             self._set(t, "catch", cost=cost)
-            self.still_since, self.stalled = None, False
+            self.still_since, self.stalled, self.mpc_spent = None, False, False
             return self.catch(t, x)
         if self.swingup is not None:
             self._set(t, "swingup", cost=cost)
@@ -797,6 +840,8 @@ class Supervisor:
             return self.swingup(t, x)
         if self.asked is not None:
             self._poll_worker(t)
+        if self.mode == "mpc" and not self._mpc_done(t, x, cost):
+            return self.mpc(t - self.mpc_t0, x)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
             late = max(0.0, t - self.plan_t0)
             restart = late > 0.5 * self.model.dt and self._at_start(x)
@@ -829,21 +874,60 @@ class Supervisor:
             rates = np.asarray(x, dtype=float)[[self.model.nq + h for h in self.hinges]]
             self._decide(t, "calm_timeout", braked_s=t - self.fast_since, rates=[float(r) for r in rates])
             self.fast_since = None
+        elif self._mpc_reaches(x):
+            return self._start_mpc(t, x, cost)
         self._request_plan(t, x)
         return self.brake(t, x)
+
+    def _mpc_reaches(self, x) -> bool:
+        """Whether the swing-up MPC takes a calm ``x`` (nx,): there is one, it has not failed since the last catch,
+        and the energy is within ``mpc_energy`` of the upright's."""
+        return (self.mpc is not None and not self.mpc_spent
+                and abs(self._energy(x) - self._energy(self.model.x_eq)) <= self.options.mpc_energy)
+
+    def _start_mpc(self, t: float, x, cost: float) -> np.ndarray:
+        """The swing-up MPC takes over from ``x`` at ``t`` (reset: its solution from the upright's inputs, warmed
+        in the loop); its ctrl (nu,)."""
+        self.mpc_ms.extend(getattr(self.mpc, "solve_ms", None) or ())  # its reset forgets them
+        self.mpc.reset()
+        self.mpc_t0, self.pending = t, None
+        self._set(t, "mpc", cost=cost, energy=self._energy(x))
+        return self.mpc(0.0, x)
+
+    def _mpc_done(self, t: float, x, cost: float) -> bool:
+        """While the swing-up MPC acts: whether it has failed (``mpc_budget`` s without a catch, or the energy more than
+        ``mpc_energy`` above the upright's: knocked again): an ``mpc_failed`` decision, the brake and the planner until
+        the next catch."""
+        ran = t - self.mpc_t0
+        out = self._energy(x) - self._energy(self.model.x_eq) > self.options.mpc_energy  # knocked again
+        if ran < self.options.mpc_budget and not out:
+            return False
+        self.mpc_spent, self.mode = True, "brake"
+        why = "the energy rose above the MPC's band" if out else f"no catch within {self.options.mpc_budget:g} s"
+        self._decide(t, "mpc_failed", ran_s=ran, cost=cost, energy=self._energy(x), reason=why)
+        return True
 
     def summary(self) -> dict:
         """JSON-ready: ``decisions``, ``plans``, ``plan_failures``, ``plan_s`` (each plan's wall time), ``rho``,
         ``warm_plans`` (plans made from a library's warm start) and ``library_plans`` (plans in the library at the
         end, or None without one), ``prepare_s`` (the planner's warm-up in this process before the first worker,
         :meth:`prepare`, s; None when there was none), ``unreachable`` (each state no swing-up was found from within
-        the budget: ``t``, ``x0``, the planner's ``reason``; and each stall of the swing-up law, its ``reason``)."""
+        the budget: ``t``, ``x0``, the planner's ``reason``; and each stall of the swing-up law, its ``reason``),
+        ``mpc_ms`` (the swing-up MPC's wall time per control step: ``median`` and ``max`` ms, ``steps``; None
+        without one)."""
         unreachable = [{"t": d.t, "x0": d.detail.get("x0"), "reason": d.detail.get("reason")}
                        for d in self.decisions if d.kind in ("plan_failed", "stalled")]
         return {"unreachable": unreachable, "decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
                 "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho,
                 "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library),
-                "prepare_s": self.prepare_s}
+                "prepare_s": self.prepare_s, "mpc_ms": self._mpc_ms()}
+
+    def _mpc_ms(self) -> dict | None:
+        """The swing-up MPC's per-step wall time (``median``, ``max`` ms, ``steps``) over the run, or None."""
+        ms = self.mpc_ms + list(getattr(self.mpc, "solve_ms", None) or ())
+        if not ms:
+            return None
+        return {"median": float(np.median(ms)), "max": float(np.max(ms)), "steps": len(ms)}
 
 
 def _warm(plan) -> bool:
@@ -864,6 +948,29 @@ def _bounded_plan_model(plant: Plant) -> CartPoleModel:
     model = plant_model(plant)
     bounded, _ = planning_limits(model.params)
     return model if bounded is model.params else build_model(bounded)
+
+
+def swingup_mpc(params, model: CartPoleModel, period: float | None = None) -> DDPMPCController:
+    """The supervisor's swing-up MPC (``swingup_mpc``): the DDP MPC of the tracking objective, no offline plan, one
+    DDP iteration a control period, :data:`MPC_HORIZON` s ahead.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The MJCF MuJoCo runs (its step, ctrl ranges and joint ranges bound the MPC).
+    model : CartPoleModel
+        The planning model.
+    period : float, optional
+        Control period in s, a whole number of MJCF steps (default one step).
+
+    Returns
+    -------
+    DDPMPCController
+        Called ``u = mpc(t, x)`` with ``t`` the time since it took over (s), ``x`` (nx,), ``u`` (nu,) ctrl.
+    """
+    opts = MPCOptions(solver="ddp", seed_plan=False, horizon=MPC_HORIZON,
+                      period=float(params.timestep) if period is None else float(period))
+    return DDPMPCController(model, params, options=opts)
 
 
 def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
@@ -893,9 +1000,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, calming up to
         :data:`HINGE_CALM_BUDGET` s with the energy drain, ``calm_drain``, and below its target the soft calming brake
         of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``) and warm-started from the nearest knots of the stored plans
-        (``warm_tails``). With ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``, with
-        the energy law as the law meanwhile (and after a failed or lost plan), when the library holds a plan; else the
-        energy law alone.
+        (``warm_tails``); a calm state within :data:`HINGE_MPC_ENERGY` of the upright's energy swung up by the DDP MPC
+        first (``swingup_mpc``). With ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``,
+        with the energy law as the law meanwhile (and after a failed or lost plan), when the library holds a plan;
+        else the energy law alone.
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -928,7 +1036,7 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         # nearest knot
         opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
                             calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME,
-                            calm_drain=True)
+                            calm_drain=True, swingup_mpc=True)
     if opts.plan_in_worker is None:  # its planner's plans pickle: in a worker wherever the platform can fork
         opts = opts.replace(plan_in_worker=fork_available())
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
@@ -948,8 +1056,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
                                      below=brake if calm_brake is None else calm_brake, u_limits=catch.u_limits)
         planner = _swingup_planner(params, model, plan, opts, period, catch_R)
         lib = PlanLibrary.load(model) if library is None else library
-        return Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
-                          calm_brake=calm_brake)
+        sup = Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
+                         calm_brake=calm_brake)
+        sup.mpc = swingup_mpc(params, model, period) if opts.swingup_mpc else None
+        return sup
     law = EnergyShapingController(model)
     lib = None
     if opts.cart_plans:  # plans warm from the library's, the energy law meanwhile (SupervisorOptions.cart_plans)

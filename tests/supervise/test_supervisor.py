@@ -8,6 +8,7 @@ from cartpole.control.model_rollout import model_rollout
 from cartpole.control import SWINGUP_CATCH_R, EnergyDrain, LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.models import build_model, planning_limits, read_params
+from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.sim.disturbance import joint_inertia_and_authority
@@ -314,7 +315,7 @@ def test_with_warm_tails_each_plan_starts_from_the_rest_of_a_stored_plan_nearest
 def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     from cartpole.planning.library import PlanLibrary
     from cartpole.supervise.supervisor import (DRAIN_MARGIN, HINGE_BRAKE_TIME, HINGE_CALM_BUDGET,
-                                               HINGE_CALM_ENERGY, HINGE_REPLAN_EVERY, hinge_driven)
+                                               HINGE_CALM_ENERGY, HINGE_REPLAN_EVERY, MPC_HORIZON, hinge_driven)
 
     params = read_params("cartpole/assets/dmc_acrobot.xml")
     model = build_model(params)
@@ -328,8 +329,65 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     # calmed by the energy drain down to the calm energy, the soft brake below it
     assert isinstance(sup.calm_brake, EnergyDrain) and sup.calm_brake.target == HINGE_CALM_ENERGY + DRAIN_MARGIN
     assert isinstance(sup.calm_brake.below, PassiveBrake) and sup.calm_brake.below is not sup.brake
+    # a calm state near the upright's energy is swung up by the DDP MPC, at the MJCF's step
+    assert o.swingup_mpc and isinstance(sup.mpc, DDPMPCController) and sup.mpc.period == params.timestep
+    assert sup.mpc.horizon == pytest.approx(MPC_HORIZON)
     with pytest.raises(SupervisorError, match="calm_drain"):
         SupervisorOptions(calm_drain="yes")
+    cart = supervisor_for("cartpole/assets/cartpole_two_pole.xml", basin_of=lambda catch: SimpleNamespace(rho=1.0),
+                          library=PlanLibrary.empty(build_model(read_params("cartpole/assets/cartpole_two_pole.xml"))))
+    assert cart.mpc is None and not cart.options.swingup_mpc  # the carts plan, as before
+
+
+class _StubMPC:
+    """A swing-up MPC that records its calls (time since it took over) and resets."""
+
+    def __init__(self, nu):
+        self.calls, self.resets, self.nu = [], 0, nu
+
+    def reset(self):
+        self.resets += 1
+        self.solve_ms = []
+
+    def __call__(self, t, x):
+        self.calls.append(t)
+        self.solve_ms = getattr(self, "solve_ms", []) + [1.0]
+        return np.full(self.nu, 0.125)
+
+
+def test_a_calm_state_near_the_upright_energy_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(double):
+    params, model, catch, brake = double
+    asked = []
+
+    def planner(x0, guess=None):
+        asked.append(np.array(x0))
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    e_up = float(model.energy(model.x_eq))
+    band = 0.25 * (e_up - float(model.energy(model.x_hanging)))  # a quarter of the swing-up's energy
+    sup = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                     options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band, mpc_budget=1.0))
+    sup.mpc = _StubMPC(model.nu)
+    near = np.asarray(model.x_eq, float).copy()
+    near[model.hinges[0]] += 0.3  # at rest, a little below the upright's energy: in the MPC's band
+    assert -band < float(model.energy(near)) - e_up < 0.0
+    assert np.allclose(sup(2.0, near), 0.125) and sup.mode == "mpc" and sup.decisions[-1].kind == "mpc"
+    assert np.allclose(sup(2.5, near), 0.125) and sup.mpc.calls == [0.0, 0.5] and sup.mpc.resets == 1 and not asked
+    sup(3.0, near)  # its budget is over without a catch: failed, and planned from instead
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds[-2:] == ["mpc_failed", "plan_failed"] and len(asked) == 1
+    assert "no catch within 1 s" in sup.decisions[-2].detail["reason"]
+    sup(3.6, near)  # not again until the next catch
+    assert len(sup.mpc.calls) == 2 and len(asked) == 2
+    assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 2}  # each step's wall time, logged
+    hanging = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                         options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band))
+    hanging.mpc = _StubMPC(model.nu)
+    hanging(0.0, np.asarray(model.x_hanging, float))  # far below the band: planned from, as before
+    assert not hanging.mpc.calls and hanging.decisions[-1].kind == "plan_failed"
+    with pytest.raises(SupervisorError, match="mpc_budget"):
+        SupervisorOptions(mpc_budget=0.0)
+    with pytest.raises(SupervisorError, match="swingup_mpc"):
+        SupervisorOptions(swingup_mpc=1)
 
 
 def test_the_calming_brake_acts_on_fast_states_and_the_brake_while_a_plan_is_on_its_way(double):
