@@ -490,14 +490,19 @@ def score_episode(name: str, seed: int = 0, *, controller=None, max_steps: int |
     design_s = time.perf_counter() - tic
     xs, us, rewards = [x0], [], []
     ended, warned = False, False
-    while not ended and (run.length is None or len(us) < run.length):
-        t, x = run.state()
-        u = np.atleast_1d(np.asarray(ctrl_of(t, x), float))
-        reward, ended = run.step(u)
-        warned = warned or run.warned()
-        us.append(u)
-        rewards.append(reward)
-        xs.append(run.state()[1])
+    try:
+        while not ended and (run.length is None or len(us) < run.length):
+            t, x = run.state()
+            u = np.atleast_1d(np.asarray(ctrl_of(t, x), float))
+            reward, ended = run.step(u)
+            warned = warned or run.warned()
+            us.append(u)
+            rewards.append(reward)
+            xs.append(run.state()[1])
+    finally:  # a supervisor's planning worker ends with its episode, not when it is collected
+        close = getattr(ctrl_of, "close", None)
+        if callable(close):
+            close()
     ctrl = np.array(us)
     again = replay(run.mjcf, x0, np.repeat(ctrl, run.hold, axis=0))
     replays = bool(np.array_equal(again.x[::run.hold], np.array(xs)))
