@@ -685,21 +685,31 @@ class Supervisor:
             self.close()
             self._decide(t, "plan_dropped", wall_s=worker.elapsed, asked_at=ask.t)
             return
-        budget, wall = self.options.plan_budget, worker.elapsed
-        if worker.poll():
-            try:
-                plan, why = worker.result(), None
-            except CartPoleError as exc:
-                plan, why = None, str(exc)
-        elif wall > budget:
-            worker.kill()
-            plan, why = None, timeout_sentence(wall, budget)
-            self._decide(ask.t, "plan_timeout", wall_s=wall, budget_s=budget)
-        else:
+        answer = self._worker_answer()
+        if answer is None:
             return
+        plan, why, wall, timed_out = answer
+        if timed_out:
+            self._decide(ask.t, "plan_timeout", wall_s=wall, budget_s=self.options.plan_budget)
         self.asked = None
         charged = max(t - ask.t, self.options.charged_latency or 0.0)
         self._take_plan(ask, plan, wall, charged, why)
+
+    def _worker_answer(self):
+        """The planning worker's answer, polled: ``(plan, why, wall, timed_out)`` once the plan is in (``why`` the
+        failure's sentence, ``plan`` None on failure) or the worker was killed for running over ``plan_budget``
+        (``timed_out``; ``wall`` its wall time, s); None while it still plans within the budget."""
+        worker = self.server
+        budget, wall = self.options.plan_budget, worker.elapsed
+        if worker.poll():
+            try:
+                return worker.result(), None, wall, False
+            except CartPoleError as exc:
+                return None, str(exc), wall, False
+        if wall > budget:
+            worker.kill()
+            return None, timeout_sentence(wall, budget), wall, True
+        return None
 
     def close(self) -> None:
         """End the planning worker process (``plan_in_worker``), a plan still on its way in it dropped: call it when
@@ -749,18 +759,10 @@ class Supervisor:
     def _poll_replan(self, t: float) -> None:
         """With ``plan_while_running``, while tracking: take the worker's re-plan once it is in (charged the simulated
         time since it was asked for), or kill it once over ``plan_budget`` (``replan_failed``)."""
-        worker, ask = self.server, self.replan_asked
-        budget, wall = self.options.plan_budget, worker.elapsed
-        if worker.poll():
-            try:
-                new, why = worker.result(), None
-            except CartPoleError as exc:
-                new, why = None, str(exc)
-        elif wall > budget:
-            worker.kill()
-            new, why = None, timeout_sentence(wall, budget)
-        else:
+        ask, answer = self.replan_asked, self._worker_answer()
+        if answer is None:
             return
+        new, why, wall, _ = answer
         self.replan_asked = None
         self._take_replan(ask, new, wall, max(t - ask.t, self.options.charged_latency or 0.0), why)
 
