@@ -36,6 +36,7 @@ from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.planning.value_iteration import DMCReward, ValueIterationOptions, ValuePolicy, cached_hinge_values
 from cartpole.sim import replay, simulate
 from cartpole.supervise import SupervisorOptions, supervisor_for
+from cartpole.supervise.supervisor import hinge_options
 
 #: The folder of the toolkit's copies of dm_control's files (``cartpole/assets`` of the installed package).
 #:
@@ -406,12 +407,19 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
     build the solvers and measure the latency predicted for the first plan (:data:`LATENCY_MARGIN` times the
     rehearsal's wall time: :func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25 times the
     median of its measured ones).
+    On dm_control's acrobot (the environments whose toolkit controller is the DDP MPC) every calm state, the start
+    too, is swung up by the supervisor's swing-up MPC minimising the task's own objective (``env.objective``, as
+    :func:`design`'s MPC; :func:`cartpole.supervise.supervisor.hinge_options`), the catch taking over in its basin:
+    no plan unless the MPC fails.
     ``charged_latency`` (s): charge every plan that instead of its wall time (``SupervisorOptions.charged_latency``:
     a run that does not depend on the machine's speed, as a test needs); None (default) the measured wall time.
     ``library``: these plans instead of the cached library (a test's own)."""
     model = build_model(mjcf)
     period = hold * float(model.dt) if hold > 1 else None
     objective = SUPERVISOR_OBJECTIVES.get(env.name)
+    if objective is None and env.controller == "mpc":  # the acrobot: its swing-up MPC on the task's objective
+        return supervisor_for(mjcf, model, period=period, plan=PlanOptions(objective=env.objective),
+                              options=hinge_options(charged_latency=charged_latency))
     if objective is None:
         return supervisor_for(mjcf, model, period=period)
     plan = PlanOptions(objective=objective, solver="ipopt")

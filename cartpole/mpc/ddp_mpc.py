@@ -65,6 +65,13 @@ class DDPMPCController:
         A plan whose inputs seed the first solution and extend the shifted tail while it lasts.
     x0 : (nx,) array, optional
         When given, the first solution is converged for this start offline (not in :attr:`solve_ms`).
+    step_budget : float, optional
+        s of wall time an instant's DDP iterations may take before their answer is too late for it: a step over it
+        applies the previous solution's input shifted to this instant (what a real-time loop sends at its deadline)
+        and keeps the late solution as the next step's warm start, each such step recorded in
+        :attr:`over_budget`. The solve itself is not interrupted (the iterations run to their end); what is bounded
+        is that no ctrl waits for an answer later than the budget. None (default): every step applies its own
+        solution however long it took.
 
     Attributes
     ----------
@@ -76,6 +83,9 @@ class DDPMPCController:
         Wall-clock ms of each instant's DDP iterations.
     failures : list of dict
         ``{"t", "reason", "action"}`` per instant where the safe action ran.
+    over_budget : list of dict
+        ``{"t", "ms"}`` per instant whose solve took more than ``step_budget``: the previous solution's shifted input
+        was applied.
     lqr : LinearFeedback
         The upright discrete LQR of one period with ``Q``, ``R`` (the safe action).
     objective : str
@@ -90,9 +100,12 @@ class DDPMPCController:
     """
 
     def __init__(self, model: CartPoleModel, params: CartPoleParams, *, options: MPCOptions | None = None,
-                 guess=None, x0=None):
+                 guess=None, x0=None, step_budget: float | None = None):
         options = MPCOptions() if options is None else options
         self.options = options
+        if step_budget is not None and not (np.isfinite(step_budget) and step_budget > 0):
+            raise NMPCError(f"step_budget = {step_budget!r} must be a positive number of seconds or None.")
+        self.step_budget = None if step_budget is None else float(step_budget)
         if not isinstance(model, CartPoleModel) or not isinstance(params, CartPoleParams):
             raise NMPCError("DDPMPCController needs a CartPoleModel (planning) and the CartPoleParams MuJoCo runs.")
         dt = float(params.timestep)
@@ -152,6 +165,7 @@ class DDPMPCController:
         self._u_hold = None
         self.solve_ms: list[float] = []
         self.failures: list[dict] = []
+        self.over_budget: list[dict] = []
 
     def _tail_input(self, k_phys: int, x_last) -> np.ndarray:
         t = k_phys * float(self.params.timestep)
@@ -183,6 +197,7 @@ class DDPMPCController:
         t0 = time.perf_counter()
         if k > self._k_plan:
             self._shift((k - self._k_plan) // self.steps)
+        shifted = None if self._k_last is None else np.clip(self._U[0], self.u_low, self.u_high)
         try:
             if not np.all(np.isfinite(x)):
                 raise ValueError("the measured state is not finite")
@@ -199,7 +214,11 @@ class DDPMPCController:
             else:
                 u, action = (self.lqr(t, x) if finite else self.model.u_eq.copy()), "upright LQR"
             self.failures.append({"t": float(t), "reason": str(exc) or type(exc).__name__, "action": action})
-        self.solve_ms.append(1e3 * (time.perf_counter() - t0))
+        ms = 1e3 * (time.perf_counter() - t0)
+        self.solve_ms.append(ms)
+        if self.step_budget is not None and shifted is not None and ms > 1e3 * self.step_budget:
+            u = shifted  # the answer came after the step's deadline: the previous solution's input, shifted
+            self.over_budget.append({"t": float(t), "ms": ms})
         self._k_last = k
         self._u_hold = np.array(u, dtype=float)
         return self._u_hold.copy()

@@ -25,13 +25,14 @@
   (:data:`RESTART_RATE`; the brake holds a calm state), else it is tracked from where its clock has got to. The
   planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is
   logged and retried after ``retry_after`` s of braking.
-* **swing-up MPC**: with ``swingup_mpc`` (:func:`supervisor_for` sets it for a model driven at a hinge, the acrobot), a
-  calm state within ``mpc_energy`` J of the upright's energy is swung up by the DDP MPC
-  (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
-  exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged) instead of a plan: no planning
-  latency, no funnel to leave (its swing-up takes energy out and puts it back: only the entry is in the band). When
-  the catch has not taken over within ``mpc_budget`` s, or the energy rises ``mpc_energy`` above the upright's, an
-  ``mpc_failed`` decision hands the state back to the brake and the planner (below) until the next catch.
+* **swing-up MPC**: with ``swingup_mpc`` (:func:`supervisor_for` sets it for a model driven at a hinge, the acrobot),
+  every calm state (at most ``mpc_energy`` J above the upright's energy, hanging at rest too) is swung up by the DDP
+  MPC (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
+  exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged, bounded by ``mpc_step_budget``)
+  instead of a plan: no planning latency, no funnel to leave. When the energy rises ``mpc_energy`` above the
+  upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake, and the MPC takes it again once
+  calm; when the catch has not taken over within ``mpc_budget`` s, to the brake and the planner (below) until the
+  next catch.
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
   from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
@@ -129,12 +130,13 @@ DRAIN_MARGIN = 5.0
 #: seeds 0, 1, 3, 9 of ``Knockdown(3, 0.3)``) it reached the catch's basin in 2.0-3.7 s, where the plans from the
 #: same states (charged 2 s, tracked 5-12 s) were often lost or not found (``tools/acrobot_minute.py``).
 MPC_HORIZON = 2.0
-#: J: how far below the upright's energy :func:`supervisor_for` lets a model driven at a hinge be swung up by the MPC
-#: (``mpc_energy``): all but the lowest 4 J of the acrobot's swing-up energy (39 J). Calmed after a knock it is 0-25 J
-#: below the upright's energy (the soft brake goes on while a hinge is still fast); with a band of 20 J the calm
-#: states below it were planned from, and of the three such knocks in seeds 0-11 one was never recovered and one
-#: only after its plans were lost twice (``tools/acrobot_minute.py``); with 35 J the MPC swung each up. From hanging
-#: at rest (39 J below) the library's pumping plan swings it up.
+#: J: how far above the upright's energy the swing-up MPC takes a state over (``mpc_energy``), and lets go of it (an
+#: ``mpc_failed`` decision: knocked again) once the energy rises above it; below, any calm state, hanging at rest
+#: (39 J below the upright's) too. It was a band both ways before, the states more than 35 J below planned
+#: from (the library's 8-12 s pumping plans: dm_control's episodes from near hanging were lost to their latency); the
+#: MPC on the task's objective swings them up (``docs/dmc.md``). With :func:`supervisor_for`'s ``calm_energy`` of 0
+#: J (the MPC takes only calm states at or below the upright's energy), what matters of it is the let-go: 35 J is
+#: most of a swing-up's energy, more than the MPC's own swings put in.
 HINGE_MPC_ENERGY = 35.0
 
 
@@ -227,14 +229,21 @@ class SupervisorOptions(StageOptions):
         with the calming brake alone (False, default): a passive damper on a driven joint the chain hardly moves takes
         little out.
     swingup_mpc : bool
-        Swing a calm state within ``mpc_energy`` J of the upright's energy up with the DDP MPC (module docstring)
+        Swing a calm state up to ``mpc_energy`` J above the upright's energy up with the DDP MPC (module docstring)
         before any plan (True: :func:`supervisor_for` builds it, and sets it for a model driven at a hinge), or plan
         (False, default).
     mpc_energy : float
-        J: the band about the upright's energy within which the swing-up MPC takes a calm state over (it lets go
-        above the band: knocked again).
+        J above the upright's energy up to which the swing-up MPC takes a calm state over, however far below (hanging
+        at rest too); it lets go above it (knocked again) and takes the state again once calmed.
     mpc_budget : float
         s the swing-up MPC may run without the catch taking over; then the brake and the planner, until the next catch.
+    mpc_step_budget : float or None
+        s of wall time one control step of the swing-up MPC may take (its DDP iteration): a step over it applies the
+        previous solution's input shifted to this step instead of its own late answer (the ``step_budget`` of
+        :class:`~cartpole.mpc.ddp_mpc.DDPMPCController`; counted in :meth:`Supervisor.summary`'s ``mpc_ms``:
+        ``over_budget``). The solve runs to its end; what is bounded is that no ctrl waits for an answer later than
+        the budget. None (default): every step applies its own answer (a run that does not depend on the machine's
+        speed; a live run paced in real time would set the control period).
     plan_in_worker : bool or None
         Make each plan in a child process (:class:`cartpole.supervise.worker.PlanWorker`: forked at the first plan
         and kept between plans) that is killed once a plan has run ``plan_budget`` s of wall time (the next plan
@@ -287,6 +296,7 @@ class SupervisorOptions(StageOptions):
     swingup_mpc: bool = False
     mpc_energy: float = HINGE_MPC_ENERGY
     mpc_budget: float = 10.0
+    mpc_step_budget: float | None = None
     plan_in_worker: bool | None = None
     plan_while_running: bool = False
     warm_worker: bool = True
@@ -294,7 +304,8 @@ class SupervisorOptions(StageOptions):
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
-                                "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget")
+                                "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget",
+                                "mpc_step_budget")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
@@ -306,6 +317,7 @@ class SupervisorOptions(StageOptions):
         self.number("replan_every", low=0.0, low_open=True, unit="s", optional=True)
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
+        self.number("mpc_step_budget", low=0.0, low_open=True, unit="s", optional=True)
         for name in ("exact_plans", "warm_tails", "calm_drain", "swingup_mpc", "plan_while_running", "warm_worker",
                      "cart_plans"):
             if not isinstance(getattr(self, name), bool):
@@ -476,6 +488,7 @@ class Supervisor:
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
         self.mpc_t0, self.mpc_spent = None, False  # when the swing-up MPC took over; whether it failed since a catch
         self.mpc_ms: list[float] = []  # the swing-up MPC's wall time per step (ms), its earlier take-overs
+        self.mpc_over = 0  # steps of its earlier take-overs over mpc_step_budget
         if getattr(self, "server", None) is not None:
             self.close()
         self.server = self.asked = self.replan_asked = None  # the planning worker (plan_in_worker); what a plan on its way was asked
@@ -882,29 +895,30 @@ class Supervisor:
         return self.brake(t, x)
 
     def _mpc_reaches(self, x) -> bool:
-        """Whether the swing-up MPC takes a calm ``x`` (nx,): there is one, it has not failed since the last catch,
-        and the energy is within ``mpc_energy`` of the upright's."""
+        """Whether the swing-up MPC takes a calm ``x`` (nx,): there is one, it has not failed (run out of its budget)
+        since the last catch, and the energy is at most ``mpc_energy`` above the upright's (hanging too)."""
         return (self.mpc is not None and not self.mpc_spent
-                and abs(self._energy(x) - self._energy(self.model.x_eq)) <= self.options.mpc_energy)
+                and self._energy(x) - self._energy(self.model.x_eq) <= self.options.mpc_energy)
 
     def _start_mpc(self, t: float, x, cost: float) -> np.ndarray:
         """The swing-up MPC takes over from ``x`` at ``t`` (reset: its solution from the upright's inputs, warmed
         in the loop); its ctrl (nu,)."""
         self.mpc_ms.extend(getattr(self.mpc, "solve_ms", None) or ())  # its reset forgets them
+        self.mpc_over += len(getattr(self.mpc, "over_budget", None) or ())
         self.mpc.reset()
         self.mpc_t0, self.pending = t, None
         self._set(t, "mpc", cost=cost, energy=self._energy(x))
         return self.mpc(0.0, x)
 
     def _mpc_done(self, t: float, x, cost: float) -> bool:
-        """While the swing-up MPC acts: whether it has failed (``mpc_budget`` s without a catch, or the energy more than
-        ``mpc_energy`` above the upright's: knocked again): an ``mpc_failed`` decision, the brake and the planner until
-        the next catch."""
+        """While the swing-up MPC acts: whether it has failed (``mpc_budget`` s without a catch: the brake and the
+        planner until the next catch; or the energy more than ``mpc_energy`` above the upright's: knocked again, the
+        MPC takes it once calmed): an ``mpc_failed`` decision."""
         ran = t - self.mpc_t0
         out = self._energy(x) - self._energy(self.model.x_eq) > self.options.mpc_energy  # knocked again
         if ran < self.options.mpc_budget and not out:
             return False
-        self.mpc_spent, self.mode = True, "brake"
+        self.mpc_spent, self.mode = not out, "brake"  # knocked: calmed, then the MPC again
         why = "the energy rose above the MPC's band" if out else f"no catch within {self.options.mpc_budget:g} s"
         self._decide(t, "mpc_failed", ran_s=ran, cost=cost, energy=self._energy(x), reason=why)
         return True
@@ -915,8 +929,9 @@ class Supervisor:
         end, or None without one), ``prepare_s`` (the planner's warm-up in this process before the first worker,
         :meth:`prepare`, s; None when there was none), ``unreachable`` (each state no swing-up was found from within
         the budget: ``t``, ``x0``, the planner's ``reason``; and each stall of the swing-up law, its ``reason``),
-        ``mpc_ms`` (the swing-up MPC's wall time per control step: ``median`` and ``max`` ms, ``steps``; None
-        without one)."""
+        ``mpc_ms`` (the swing-up MPC's wall time per control step: ``median`` and ``max`` ms, ``steps``,
+        ``over_budget``: the steps over ``mpc_step_budget`` that applied the previous solution's shifted input, and
+        ``budget_ms``, None without a budget; None without an MPC step)."""
         unreachable = [{"t": d.t, "x0": d.detail.get("x0"), "reason": d.detail.get("reason")}
                        for d in self.decisions if d.kind in ("plan_failed", "stalled")]
         return {"unreachable": unreachable, "decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
@@ -925,11 +940,15 @@ class Supervisor:
                 "prepare_s": self.prepare_s, "mpc_ms": self._mpc_ms()}
 
     def _mpc_ms(self) -> dict | None:
-        """The swing-up MPC's per-step wall time (``median``, ``max`` ms, ``steps``) over the run, or None."""
+        """The swing-up MPC's per-step wall time (``median``, ``max`` ms, ``steps``) and its steps over
+        ``mpc_step_budget`` (``over_budget``, ``budget_ms``) over the run, or None."""
         ms = self.mpc_ms + list(getattr(self.mpc, "solve_ms", None) or ())
         if not ms:
             return None
-        return {"median": float(np.median(ms)), "max": float(np.max(ms)), "steps": len(ms)}
+        over = self.mpc_over + len(getattr(self.mpc, "over_budget", None) or ())
+        budget = self.options.mpc_step_budget
+        return {"median": float(np.median(ms)), "max": float(np.max(ms)), "steps": len(ms), "over_budget": over,
+                "budget_ms": None if budget is None else 1e3 * budget}
 
 
 def _warm(plan) -> bool:
@@ -952,9 +971,39 @@ def _bounded_plan_model(plant: Plant) -> CartPoleModel:
     return model if bounded is model.params else build_model(bounded)
 
 
-def swingup_mpc(params, model: CartPoleModel, period: float | None = None) -> DDPMPCController:
-    """The supervisor's swing-up MPC (``swingup_mpc``): the DDP MPC of the tracking objective, no offline plan, one
-    DDP iteration a control period, :data:`MPC_HORIZON` s ahead.
+def hinge_options(**changes) -> SupervisorOptions:
+    """The settings :func:`supervisor_for` gives a model driven at a hinge (the acrobot) when it is given none, with
+    ``changes`` (:class:`SupervisorOptions` fields, e.g. ``charged_latency``) on top: the swing-up MPC from any calm
+    state (``swingup_mpc``); calm means at or below the upright's energy, :data:`HINGE_CALM_ENERGY`
+    (``calm_energy``), reached by the energy drain (``calm_drain``, down to :data:`DRAIN_MARGIN` above it) and below it
+    the soft brake of :data:`HINGE_BRAKE_TIME` (``calm_brake_time``), for at most :data:`HINGE_CALM_BUDGET` s
+    (``calm_budget``); and for the planner, which acts only once the MPC has failed (``mpc_failed``: no catch within
+    ``mpc_budget``) until the next catch: warm starts from the nearest knots of the stored plans (``warm_tails``),
+    no exact-discrete re-solve (``exact_plans=False``), re-planned every :data:`HINGE_REPLAN_EVERY` s while tracked
+    (``replan_every``).
+
+    Returns
+    -------
+    SupervisorOptions
+    """
+    return SupervisorOptions(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
+                             calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME,
+                             calm_drain=True, swingup_mpc=True).replace(**changes)
+
+
+def _mpc_objective(plan: PlanOptions | None):
+    """The swing-up MPC's running objective: the plan's when it names a running one (a name other than ``time``, or
+    a callable), else None (the tracking of upright)."""
+    objective = None if plan is None else plan.objective
+    if objective is None or (isinstance(objective, str) and objective in ("time", "tracking")):
+        return None
+    return objective if isinstance(objective, str) or callable(objective) else None
+
+
+def swingup_mpc(params, model: CartPoleModel, period: float | None = None, *,
+                step_budget: float | None = None, objective=None) -> DDPMPCController:
+    """The supervisor's swing-up MPC (``swingup_mpc``): the DDP MPC of the tracking objective (or ``objective``), no
+    offline plan, one DDP iteration a control period, :data:`MPC_HORIZON` s ahead.
 
     Parameters
     ----------
@@ -964,15 +1013,21 @@ def swingup_mpc(params, model: CartPoleModel, period: float | None = None) -> DD
         The planning model.
     period : float, optional
         Control period in s, a whole number of MJCF steps (default one step).
+    step_budget : float, optional
+        s of wall time a step may take before the previous solution's shifted input is applied instead
+        (``SupervisorOptions.mpc_step_budget``); None: unbounded.
+    objective : str or callable, optional
+        The MPC's running objective (``MPCOptions.objective``: a ``dmc_*`` reward, ``effort``, ...); None (default)
+        the tracking of upright.
 
     Returns
     -------
     DDPMPCController
         Called ``u = mpc(t, x)`` with ``t`` the time since it took over (s), ``x`` (nx,), ``u`` (nu,) ctrl.
     """
-    opts = MPCOptions(solver="ddp", seed_plan=False, horizon=MPC_HORIZON,
+    opts = MPCOptions(solver="ddp", seed_plan=False, horizon=MPC_HORIZON, objective=objective,
                       period=float(params.timestep) if period is None else float(period))
-    return DDPMPCController(model, params, options=opts)
+    return DDPMPCController(model, params, options=opts, step_budget=step_budget)
 
 
 def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
@@ -995,17 +1050,17 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     period : float, optional
         Control period in s (default every physics step); the catch and the plans' TVLQR are designed over it.
     plan : PlanOptions, optional
-        The planner's settings (default :class:`~cartpole.planning.options.PlanOptions`).
+        The planner's settings (default :class:`~cartpole.planning.options.PlanOptions`); its running objective is the
+        swing-up MPC's too (e.g. ``dmc_acrobot_swingup``, as :func:`cartpole.apps.envscore.supervised` sets).
     options : SupervisorOptions, optional
-        Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) re-planning every
-        :data:`HINGE_REPLAN_EVERY` s while tracking, without the exact-discrete re-solve (``exact_plans=False``),
-        planning only at or below :data:`HINGE_CALM_ENERGY` (``calm_energy``, calming up to
-        :data:`HINGE_CALM_BUDGET` s with the energy drain, ``calm_drain``, and below its target the soft calming brake
-        of :data:`HINGE_BRAKE_TIME`, ``calm_brake_time``) and warm-started from the nearest knots of the stored plans
-        (``warm_tails``); a calm state within :data:`HINGE_MPC_ENERGY` of the upright's energy swung up by the DDP MPC
-        first (``swingup_mpc``). With ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``,
-        with the energy law as the law meanwhile (and after a failed or lost plan), when the library holds a plan;
-        else the energy law alone.
+        Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) :func:`hinge_options`: every calm
+        state (at or below the upright's energy, hanging at rest too) swung up by the DDP MPC (``swingup_mpc``,
+        :func:`swingup_mpc`, minimising ``plan``'s objective when it names a running one, else the tracking of
+        upright), the energy drain and the soft brake calming a faster one first, and the planner (warm from the
+        knots of ``library``'s plans, re-planned as it is tracked) only after the MPC has failed, until the next
+        catch. Options given here are used as they are (no hinge defaults: start from :func:`hinge_options`). With
+        ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``, with the energy law as the
+        law meanwhile (and after a failed or lost plan), when the library holds a plan; else the energy law alone.
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional
@@ -1032,13 +1087,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         basin = basin_of(catch)
     rho = basin.rho
     opts = SupervisorOptions() if options is None else options
-    if options is None and hinge_driven(model):
-        # driven at a hinge (the acrobot): re-plan as it goes, each plan without the exact-discrete re-solve; plan
-        # only once the drain and the damping have brought the energy to the upright's, warm-started from the
-        # nearest knot
-        opts = opts.replace(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
-                            calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME,
-                            calm_drain=True, swingup_mpc=True)
+    if options is None and hinge_driven(model):  # driven at a hinge (the acrobot): the MPC from any calm state
+        opts = hinge_options()
     if opts.plan_in_worker is None:  # its planner's plans pickle: in a worker wherever the platform can fork
         opts = opts.replace(plan_in_worker=fork_available())
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))
@@ -1060,7 +1110,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         lib = PlanLibrary.load(model) if library is None else library
         sup = Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
                          calm_brake=calm_brake)
-        sup.mpc = swingup_mpc(params, model, period) if opts.swingup_mpc else None
+        sup.mpc = (swingup_mpc(params, model, period, step_budget=opts.mpc_step_budget, objective=_mpc_objective(plan))
+                   if opts.swingup_mpc else None)
         return sup
     law = EnergyShapingController(model)
     lib = None

@@ -12,7 +12,9 @@ from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.sim.disturbance import joint_inertia_and_authority
+from cartpole.planning.options import PlanOptions
 from cartpole.supervise import PassiveBrake, Supervisor, SupervisorError, SupervisorOptions, supervisor_for
+from cartpole.supervise.supervisor import hinge_options
 from cartpole.validation import BasinCache, uptime_metrics
 
 
@@ -337,6 +339,38 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     cart = supervisor_for("cartpole/assets/cartpole_two_pole.xml", basin_of=lambda catch: SimpleNamespace(rho=1.0),
                           library=PlanLibrary.empty(build_model(read_params("cartpole/assets/cartpole_two_pole.xml"))))
     assert cart.mpc is None and not cart.options.swingup_mpc  # the carts plan, as before
+    assert o == hinge_options(plan_in_worker=o.plan_in_worker) and sup.mpc.objective == "tracking"  # without a plan's objective: upright tracked
+    task = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
+                          library=PlanLibrary.empty(model), plan=PlanOptions(objective="dmc_acrobot_swingup"),
+                          options=hinge_options(charged_latency=0.25))
+    assert task.mpc.objective == "dmc_acrobot_swingup" and task.options.charged_latency == 0.25
+    assert task.options.replace(charged_latency=None) == o
+
+
+def test_an_mpc_step_over_its_wall_time_budget_applies_the_previous_solution_shifted_and_is_counted():
+    from cartpole.planning.library import PlanLibrary
+
+    params = read_params("cartpole/assets/dmc_acrobot.xml")
+    model = build_model(params)
+    x = np.asarray(model.x_hanging, float)
+    free = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1e-9),
+                          library=PlanLibrary.empty(model), options=hinge_options())
+    tight = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1e-9),
+                           library=PlanLibrary.empty(model), options=hinge_options(mpc_step_budget=1e-9))
+    u0 = tight(0.0, x)  # the first step has no earlier solution: its own, however late
+    assert tight.mode == "mpc" and np.allclose(u0, free(0.0, x))
+    dt = float(params.timestep)
+    for k in range(1, 4):
+        _, before = tight.mpc.plan
+        u = tight(k * dt, x)
+        assert np.allclose(u, np.clip(before[1], tight.mpc.u_low, tight.mpc.u_high))  # the last solution, shifted
+    _, late = tight.mpc.plan
+    assert not np.allclose(late[0], before[1])  # the late answer is kept as the next step's warm start
+    ms = tight.summary()["mpc_ms"]
+    assert ms["steps"] == 4 and ms["over_budget"] == 3 == len(tight.mpc.over_budget) and ms["budget_ms"] == pytest.approx(1e-6)
+    assert free.summary()["mpc_ms"]["over_budget"] == 0 and free.summary()["mpc_ms"]["budget_ms"] is None
+    with pytest.raises(SupervisorError, match="mpc_step_budget"):
+        SupervisorOptions(mpc_step_budget=0.0)
 
 
 class _StubMPC:
@@ -355,7 +389,7 @@ class _StubMPC:
         return np.full(self.nu, 0.125)
 
 
-def test_a_calm_state_near_the_upright_energy_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(double):
+def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(double):
     params, model, catch, brake = double
     asked = []
 
@@ -378,12 +412,22 @@ def test_a_calm_state_near_the_upright_energy_is_swung_up_by_the_mpc_and_planned
     assert "no catch within 1 s" in sup.decisions[-2].detail["reason"]
     sup(3.6, near)  # not again until the next catch
     assert len(sup.mpc.calls) == 2 and len(asked) == 2
-    assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 2}  # each step's wall time, logged
+    assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 2, "over_budget": 0,
+                                       "budget_ms": None}  # each step's wall time, logged
     hanging = Supervisor(model, catch, 1e-9, brake, planner=planner,
                          options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band))
     hanging.mpc = _StubMPC(model.nu)
-    hanging(0.0, np.asarray(model.x_hanging, float))  # far below the band: planned from, as before
-    assert not hanging.mpc.calls and hanging.decisions[-1].kind == "plan_failed"
+    x_hanging = np.asarray(model.x_hanging, float)
+    assert float(model.energy(x_hanging)) - e_up < -band  # far below the band: the MPC all the same, no plan
+    assert np.allclose(hanging(0.0, x_hanging), 0.125) and hanging.mode == "mpc" and not asked[2:]
+    knocked = x_hanging.copy()
+    knocked[model.nq + model.hinges[0]] = 30.0  # knocked again while the MPC swings: far above the band
+    assert float(model.energy(knocked)) - e_up > band
+    hanging(0.1, knocked)
+    assert hanging.decisions[-1].kind == "mpc_failed" and hanging.mode == "brake"
+    assert "energy rose" in hanging.decisions[-1].detail["reason"]
+    hanging(0.2, x_hanging)  # calm again: the MPC takes it again (a knock does not spend it), still no plan
+    assert hanging.mode == "mpc" and len(hanging.mpc.calls) == 2 and not asked[2:]
     with pytest.raises(SupervisorError, match="mpc_budget"):
         SupervisorOptions(mpc_budget=0.0)
     with pytest.raises(SupervisorError, match="swingup_mpc"):
