@@ -419,7 +419,7 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
     objective = SUPERVISOR_OBJECTIVES.get(env.name)
     if objective is None and env.controller == "mpc":  # the acrobot: its swing-up MPC on the task's objective
         return supervisor_for(mjcf, model, period=period, plan=PlanOptions(objective=env.objective),
-                              options=hinge_options(charged_latency=charged_latency))
+                              options=hinge_options(charged_latency=charged_latency, mpc_floor=None))
     if objective is None:
         return supervisor_for(mjcf, model, period=period)
     plan = PlanOptions(objective=objective, solver="ipopt")

@@ -26,8 +26,8 @@
   planner's own searches are bounded by ``plan_budget``. A plan that fails, or takes more than ``plan_budget`` s, is
   logged and retried after ``retry_after`` s of braking.
 * **swing-up MPC**: with ``swingup_mpc`` (:func:`supervisor_for` sets it for a model driven at a hinge, the acrobot),
-  every calm state (at most ``mpc_energy`` J above the upright's energy, hanging at rest too) is swung up by the DDP
-  MPC (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
+  a calm state (at most ``mpc_energy`` J above the upright's energy and, with ``mpc_floor``, at most that far below
+  it; without, hanging at rest too: an MPC of a task's objective that pumps) is swung up by the DDP MPC (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
   exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged, bounded by ``mpc_step_budget``)
   instead of a plan: no planning latency, no funnel to leave. When the energy rises ``mpc_energy`` above the
   upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake, and the MPC takes it again once
@@ -131,13 +131,20 @@ DRAIN_MARGIN = 5.0
 #: same states (charged 2 s, tracked 5-12 s) were often lost or not found (``tools/acrobot_minute.py``).
 MPC_HORIZON = 2.0
 #: J: how far above the upright's energy the swing-up MPC takes a state over (``mpc_energy``), and lets go of it (an
-#: ``mpc_failed`` decision: knocked again) once the energy rises above it; below, any calm state, hanging at rest
-#: (39 J below the upright's) too. It was a band both ways before, the states more than 35 J below planned
-#: from (the library's 8-12 s pumping plans: dm_control's episodes from near hanging were lost to their latency); the
-#: MPC on the task's objective swings them up (``docs/dmc.md``). With :func:`supervisor_for`'s ``calm_energy`` of 0
-#: J (the MPC takes only calm states at or below the upright's energy), what matters of it is the let-go: 35 J is
-#: most of a swing-up's energy, more than the MPC's own swings put in.
+#: ``mpc_failed`` decision: knocked again) once the energy rises above it; how far below, :data:`HINGE_MPC_FLOOR`.
+#: With :func:`supervisor_for`'s ``calm_energy`` of 0 J (the MPC takes only calm states at or below the upright's
+#: energy), what matters of it is the let-go: 35 J is most of a swing-up's energy, more than the MPC's own swings put
+#: in.
 HINGE_MPC_ENERGY = 35.0
+#: J: how far below the upright's energy :func:`hinge_options` lets the swing-up MPC of the tracking objective take a
+#: calm state over (``mpc_floor``): all but the lowest 4 J of the acrobot's swing-up energy (39 J). Calmed after a
+#: knock it is 0-25 J below (the soft brake goes on while a hinge is still fast); with 20 J the calm states below it
+#: were planned from, and of the three such knocks in seeds 0-11 one was never recovered and one only after its plans
+#: were lost twice (``tools/acrobot_minute.py``); with 35 J the MPC swung each up. Near hanging the tracking MPC does
+#: not swing up (dm_control's seeds 4 and 8: no catch in their 10 s episodes): those states are planned from, unless
+#: the MPC minimises a task's objective (``supervisor_for``'s ``plan``), which pumps from hanging (``docs/dmc.md``):
+#: then no floor.
+HINGE_MPC_FLOOR = 35.0
 
 
 #: What :meth:`Supervisor.prepare` has warmed in this process: ``(model_key, exact_plans, warm_tails)`` of each.
@@ -233,8 +240,13 @@ class SupervisorOptions(StageOptions):
         before any plan (True: :func:`supervisor_for` builds it, and sets it for a model driven at a hinge), or plan
         (False, default).
     mpc_energy : float
-        J above the upright's energy up to which the swing-up MPC takes a calm state over, however far below (hanging
-        at rest too); it lets go above it (knocked again) and takes the state again once calmed.
+        J above the upright's energy up to which the swing-up MPC takes a calm state over; it lets go above it
+        (knocked again) and takes the state again once calmed.
+    mpc_floor : float or None
+        J below the upright's energy down to which the swing-up MPC takes a calm state over (further below: planned
+        from), or None (default): however far below, hanging at rest too. :func:`hinge_options` sets
+        :data:`HINGE_MPC_FLOOR` unless the MPC minimises a task's objective that pumps from hanging (``plan``'s
+        objective in :func:`supervisor_for`): the tracking of upright does not swing the acrobot up from there.
     mpc_budget : float
         s the swing-up MPC may run without the catch taking over; then the brake and the planner, until the next catch.
     mpc_step_budget : float or None
@@ -295,6 +307,7 @@ class SupervisorOptions(StageOptions):
     calm_drain: bool = False
     swingup_mpc: bool = False
     mpc_energy: float = HINGE_MPC_ENERGY
+    mpc_floor: float | None = None
     mpc_budget: float = 10.0
     mpc_step_budget: float | None = None
     plan_in_worker: bool | None = None
@@ -305,7 +318,7 @@ class SupervisorOptions(StageOptions):
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
                                 "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget",
-                                "mpc_step_budget")
+                                "mpc_step_budget", "mpc_floor")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
@@ -318,6 +331,7 @@ class SupervisorOptions(StageOptions):
         self.number("calm_energy", unit="J", optional=True)
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
         self.number("mpc_step_budget", low=0.0, low_open=True, unit="s", optional=True)
+        self.number("mpc_floor", low=0.0, unit="J", optional=True)
         for name in ("exact_plans", "warm_tails", "calm_drain", "swingup_mpc", "plan_while_running", "warm_worker",
                      "cart_plans"):
             if not isinstance(getattr(self, name), bool):
@@ -896,9 +910,12 @@ class Supervisor:
 
     def _mpc_reaches(self, x) -> bool:
         """Whether the swing-up MPC takes a calm ``x`` (nx,): there is one, it has not failed (run out of its budget)
-        since the last catch, and the energy is at most ``mpc_energy`` above the upright's (hanging too)."""
-        return (self.mpc is not None and not self.mpc_spent
-                and self._energy(x) - self._energy(self.model.x_eq) <= self.options.mpc_energy)
+        since the last catch, and the energy is at most ``mpc_energy`` above the upright's and (with ``mpc_floor``)
+        at most ``mpc_floor`` below it."""
+        gap = self._energy(x) - self._energy(self.model.x_eq)
+        floor = self.options.mpc_floor
+        return (self.mpc is not None and not self.mpc_spent and gap <= self.options.mpc_energy
+                and (floor is None or gap >= -floor))
 
     def _start_mpc(self, t: float, x, cost: float) -> np.ndarray:
         """The swing-up MPC takes over from ``x`` at ``t`` (reset: its solution from the upright's inputs, warmed
@@ -973,14 +990,15 @@ def _bounded_plan_model(plant: Plant) -> CartPoleModel:
 
 def hinge_options(**changes) -> SupervisorOptions:
     """The settings :func:`supervisor_for` gives a model driven at a hinge (the acrobot) when it is given none, with
-    ``changes`` (:class:`SupervisorOptions` fields, e.g. ``charged_latency``) on top: the swing-up MPC from any calm
-    state (``swingup_mpc``); calm means at or below the upright's energy, :data:`HINGE_CALM_ENERGY`
-    (``calm_energy``), reached by the energy drain (``calm_drain``, down to :data:`DRAIN_MARGIN` above it) and below it
-    the soft brake of :data:`HINGE_BRAKE_TIME` (``calm_brake_time``), for at most :data:`HINGE_CALM_BUDGET` s
-    (``calm_budget``); and for the planner, which acts only once the MPC has failed (``mpc_failed``: no catch within
-    ``mpc_budget``) until the next catch: warm starts from the nearest knots of the stored plans (``warm_tails``),
-    no exact-discrete re-solve (``exact_plans=False``), re-planned every :data:`HINGE_REPLAN_EVERY` s while tracked
-    (``replan_every``).
+    ``changes`` (:class:`SupervisorOptions` fields, e.g. ``charged_latency``, ``mpc_floor=None``) on top: the swing-up
+    MPC for every calm state down to :data:`HINGE_MPC_FLOOR` below the upright's energy (``swingup_mpc``,
+    ``mpc_floor``; with ``mpc_floor=None`` hanging at rest too, for an MPC of a task's objective, which pumps); calm
+    means at or below the upright's energy, :data:`HINGE_CALM_ENERGY` (``calm_energy``), reached by the energy drain
+    (``calm_drain``, down to :data:`DRAIN_MARGIN` above it) and below it the soft brake of :data:`HINGE_BRAKE_TIME`
+    (``calm_brake_time``), for at most :data:`HINGE_CALM_BUDGET` s (``calm_budget``); and for the planner, which acts
+    below the floor and once the MPC has failed (``mpc_failed``: no catch within ``mpc_budget``) until the next catch:
+    warm starts from the nearest knots of the stored plans (``warm_tails``), no exact-discrete re-solve
+    (``exact_plans=False``), re-planned every :data:`HINGE_REPLAN_EVERY` s while tracked (``replan_every``).
 
     Returns
     -------
@@ -988,7 +1006,7 @@ def hinge_options(**changes) -> SupervisorOptions:
     """
     return SupervisorOptions(replan_every=HINGE_REPLAN_EVERY, exact_plans=False, calm_energy=HINGE_CALM_ENERGY,
                              calm_budget=HINGE_CALM_BUDGET, warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME,
-                             calm_drain=True, swingup_mpc=True).replace(**changes)
+                             calm_drain=True, swingup_mpc=True, mpc_floor=HINGE_MPC_FLOOR).replace(**changes)
 
 
 def _mpc_objective(plan: PlanOptions | None):
@@ -1053,12 +1071,13 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         The planner's settings (default :class:`~cartpole.planning.options.PlanOptions`); its running objective is the
         swing-up MPC's too (e.g. ``dmc_acrobot_swingup``, as :func:`cartpole.apps.envscore.supervised` sets).
     options : SupervisorOptions, optional
-        Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) :func:`hinge_options`: every calm
-        state (at or below the upright's energy, hanging at rest too) swung up by the DDP MPC (``swingup_mpc``,
-        :func:`swingup_mpc`, minimising ``plan``'s objective when it names a running one, else the tracking of
-        upright), the energy drain and the soft brake calming a faster one first, and the planner (warm from the
-        knots of ``library``'s plans, re-planned as it is tracked) only after the MPC has failed, until the next
-        catch. Options given here are used as they are (no hinge defaults: start from :func:`hinge_options`). With
+        Default ``SupervisorOptions()``; on a model driven at a hinge (the acrobot) :func:`hinge_options`: a calm
+        state (at or below the upright's energy) swung up by the DDP MPC (``swingup_mpc``, :func:`swingup_mpc`):
+        minimising ``plan``'s objective when it names a running one, from every calm state, hanging at rest too
+        (``mpc_floor=None``); else the tracking of upright, down to :data:`HINGE_MPC_FLOOR` below the upright's
+        energy. The energy drain and the soft brake calm a faster state first; the planner (warm from the knots of
+        ``library``'s plans, re-planned as it is tracked) takes the states below the floor, and any after the MPC
+        has failed, until the next catch. Options given here are used as they are (no hinge defaults: start from :func:`hinge_options`). With
         ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``, with the energy law as the
         law meanwhile (and after a failed or lost plan), when the library holds a plan; else the energy law alone.
     basin_cache : BasinCache, optional
@@ -1087,8 +1106,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         basin = basin_of(catch)
     rho = basin.rho
     opts = SupervisorOptions() if options is None else options
-    if options is None and hinge_driven(model):  # driven at a hinge (the acrobot): the MPC from any calm state
-        opts = hinge_options()
+    if options is None and hinge_driven(model):  # driven at a hinge (the acrobot): the MPC from calm states
+        opts = hinge_options(mpc_floor=HINGE_MPC_FLOOR if _mpc_objective(plan) is None else None)
     if opts.plan_in_worker is None:  # its planner's plans pickle: in a worker wherever the platform can fork
         opts = opts.replace(plan_in_worker=fork_available())
     inertia, _ = joint_inertia_and_authority(params, np.asarray(model.x_eq, dtype=float))

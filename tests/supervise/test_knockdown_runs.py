@@ -23,8 +23,7 @@ from cartpole.codegen import model_key
 from cartpole.planning.library import cached_library, library_path, library_starts
 from cartpole.planning.options import PlanOptions
 from cartpole.supervise import SupervisorOptions, supervisor_for
-from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
-                                           HINGE_REPLAN_EVERY)
+from cartpole.supervise.supervisor import hinge_options
 from cartpole.validation import uptime_metrics
 
 DURATION = 60.0
@@ -123,12 +122,10 @@ ACROBOT_SEEDS = (3, 9)
 
 
 def _acrobot_options():
-    """What :func:`supervisor_for` gives a model driven at a hinge, the planner's latency charged (``LATENCY``) and
-    its wall time allowed 300 s (a plan over it fails)."""
-    return SupervisorOptions(charged_latency=LATENCY, replan_every=HINGE_REPLAN_EVERY, exact_plans=False,
-                             plan_budget=300.0, calm_energy=HINGE_CALM_ENERGY, calm_budget=HINGE_CALM_BUDGET,
-                             warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME, calm_drain=True,
-                             swingup_mpc=True)
+    """What :func:`supervisor_for` gives a model driven at a hinge (:func:`~cartpole.supervise.supervisor.
+    hinge_options`), the planner's latency charged (``LATENCY``) and its wall time allowed 300 s (a plan over it
+    fails)."""
+    return hinge_options(charged_latency=LATENCY, plan_budget=300.0)
 
 
 def _calm_at(run, model, sup, after: float) -> float:

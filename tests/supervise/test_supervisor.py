@@ -317,7 +317,8 @@ def test_with_warm_tails_each_plan_starts_from_the_rest_of_a_stored_plan_nearest
 def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     from cartpole.planning.library import PlanLibrary
     from cartpole.supervise.supervisor import (DRAIN_MARGIN, HINGE_BRAKE_TIME, HINGE_CALM_BUDGET,
-                                               HINGE_CALM_ENERGY, HINGE_REPLAN_EVERY, MPC_HORIZON, hinge_driven)
+                                               HINGE_CALM_ENERGY, HINGE_MPC_FLOOR, HINGE_REPLAN_EVERY, MPC_HORIZON,
+                                               hinge_driven)
 
     params = read_params("cartpole/assets/dmc_acrobot.xml")
     model = build_model(params)
@@ -345,6 +346,10 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
                           options=hinge_options(charged_latency=0.25))
     assert task.mpc.objective == "dmc_acrobot_swingup" and task.options.charged_latency == 0.25
     assert task.options.replace(charged_latency=None) == o
+    assert o.mpc_floor == HINGE_MPC_FLOOR  # the tracking MPC does not pump from hanging: planned from below the floor
+    pumped = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
+                            library=PlanLibrary.empty(model), plan=PlanOptions(objective="dmc_acrobot_swingup"))
+    assert pumped.options.mpc_floor is None and pumped.mpc.objective == "dmc_acrobot_swingup"  # the task's: any state
 
 
 def test_an_mpc_step_over_its_wall_time_budget_applies_the_previous_solution_shifted_and_is_counted():
@@ -354,9 +359,10 @@ def test_an_mpc_step_over_its_wall_time_budget_applies_the_previous_solution_shi
     model = build_model(params)
     x = np.asarray(model.x_hanging, float)
     free = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1e-9),
-                          library=PlanLibrary.empty(model), options=hinge_options())
+                          library=PlanLibrary.empty(model), options=hinge_options(mpc_floor=None))
     tight = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1e-9),
-                           library=PlanLibrary.empty(model), options=hinge_options(mpc_step_budget=1e-9))
+                           library=PlanLibrary.empty(model),
+                           options=hinge_options(mpc_floor=None, mpc_step_budget=1e-9))
     u0 = tight(0.0, x)  # the first step has no earlier solution: its own, however late
     assert tight.mode == "mpc" and np.allclose(u0, free(0.0, x))
     dt = float(params.timestep)
@@ -412,14 +418,19 @@ def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(do
     assert "no catch within 1 s" in sup.decisions[-2].detail["reason"]
     sup(3.6, near)  # not again until the next catch
     assert len(sup.mpc.calls) == 2 and len(asked) == 2
+    floored = Supervisor(model, catch, 1e-9, brake, planner=planner,
+                         options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band, mpc_floor=band))
+    floored.mpc = _StubMPC(model.nu)
+    floored(0.0, np.asarray(model.x_hanging, float))  # below its floor: planned from
+    assert not floored.mpc.calls and floored.decisions[-1].kind == "plan_failed" and len(asked) == 3
     assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 2, "over_budget": 0,
                                        "budget_ms": None}  # each step's wall time, logged
     hanging = Supervisor(model, catch, 1e-9, brake, planner=planner,
                          options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band))
     hanging.mpc = _StubMPC(model.nu)
     x_hanging = np.asarray(model.x_hanging, float)
-    assert float(model.energy(x_hanging)) - e_up < -band  # far below the band: the MPC all the same, no plan
-    assert np.allclose(hanging(0.0, x_hanging), 0.125) and hanging.mode == "mpc" and not asked[2:]
+    assert float(model.energy(x_hanging)) - e_up < -band  # far below: without a floor, the MPC all the same
+    assert np.allclose(hanging(0.0, x_hanging), 0.125) and hanging.mode == "mpc" and not asked[3:]
     knocked = x_hanging.copy()
     knocked[model.nq + model.hinges[0]] = 30.0  # knocked again while the MPC swings: far above the band
     assert float(model.energy(knocked)) - e_up > band
@@ -427,7 +438,7 @@ def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(do
     assert hanging.decisions[-1].kind == "mpc_failed" and hanging.mode == "brake"
     assert "energy rose" in hanging.decisions[-1].detail["reason"]
     hanging(0.2, x_hanging)  # calm again: the MPC takes it again (a knock does not spend it), still no plan
-    assert hanging.mode == "mpc" and len(hanging.mpc.calls) == 2 and not asked[2:]
+    assert hanging.mode == "mpc" and len(hanging.mpc.calls) == 2 and not asked[3:]
     with pytest.raises(SupervisorError, match="mpc_budget"):
         SupervisorOptions(mpc_budget=0.0)
     with pytest.raises(SupervisorError, match="swingup_mpc"):
