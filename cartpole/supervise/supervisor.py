@@ -27,7 +27,8 @@
   logged and retried after ``retry_after`` s of braking.
 * **swing-up MPC**: with ``swingup_mpc`` (:func:`supervisor_for` sets it for a model driven at a hinge, the acrobot),
   a calm state (at most ``mpc_energy`` J above the upright's energy and, with ``mpc_floor``, at most that far below
-  it; without, hanging at rest too: an MPC of a task's objective that pumps) is swung up by the DDP MPC (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
+  it; without, hanging at rest too: an MPC of a task's objective that pumps) is swung up by the DDP MPC
+  (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
   exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged, bounded by ``mpc_step_budget``)
   instead of a plan: no planning latency, no funnel to leave. When the energy rises ``mpc_energy`` above the
   upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake, and the MPC takes it again once
@@ -1077,9 +1078,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         (``mpc_floor=None``); else the tracking of upright, down to :data:`HINGE_MPC_FLOOR` below the upright's
         energy. The energy drain and the soft brake calm a faster state first; the planner (warm from the knots of
         ``library``'s plans, re-planned as it is tracked) takes the states below the floor, and any after the MPC
-        has failed, until the next catch. Options given here are used as they are (no hinge defaults: start from :func:`hinge_options`). With
-        ``cart_plans`` on one pole driven by the cart: the planner, warm from ``library``, with the energy law as the
-        law meanwhile (and after a failed or lost plan), when the library holds a plan; else the energy law alone.
+        has failed, until the next catch. Options given here are used as they are (no hinge defaults: start from
+        :func:`hinge_options`). With ``cart_plans`` on one pole driven by the cart: the planner, warm from
+        ``library``, with the energy law as the law meanwhile (and after a failed or lost plan), when the library
+        holds a plan; else the energy law alone.
     basin_cache : BasinCache, optional
         Where the catch's basin estimate is kept (default the on-disk cache).
     basin_of : callable, optional

@@ -340,7 +340,8 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     cart = supervisor_for("cartpole/assets/cartpole_two_pole.xml", basin_of=lambda catch: SimpleNamespace(rho=1.0),
                           library=PlanLibrary.empty(build_model(read_params("cartpole/assets/cartpole_two_pole.xml"))))
     assert cart.mpc is None and not cart.options.swingup_mpc  # the carts plan, as before
-    assert o == hinge_options(plan_in_worker=o.plan_in_worker) and sup.mpc.objective == "tracking"  # without a plan's objective: upright tracked
+    # without a plan's objective the MPC tracks upright
+    assert o == hinge_options(plan_in_worker=o.plan_in_worker) and sup.mpc.objective == "tracking"
     task = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
                           library=PlanLibrary.empty(model), plan=PlanOptions(objective="dmc_acrobot_swingup"),
                           options=hinge_options(charged_latency=0.25))
@@ -373,7 +374,8 @@ def test_an_mpc_step_over_its_wall_time_budget_applies_the_previous_solution_shi
     _, late = tight.mpc.plan
     assert not np.allclose(late[0], before[1])  # the late answer is kept as the next step's warm start
     ms = tight.summary()["mpc_ms"]
-    assert ms["steps"] == 4 and ms["over_budget"] == 3 == len(tight.mpc.over_budget) and ms["budget_ms"] == pytest.approx(1e-6)
+    assert ms["steps"] == 4 and ms["over_budget"] == 3 == len(tight.mpc.over_budget)
+    assert ms["budget_ms"] == pytest.approx(1e-6)
     assert free.summary()["mpc_ms"]["over_budget"] == 0 and free.summary()["mpc_ms"]["budget_ms"] is None
     with pytest.raises(SupervisorError, match="mpc_step_budget"):
         SupervisorOptions(mpc_step_budget=0.0)
