@@ -208,8 +208,8 @@ def _acrobot_library():
 def test_the_acrobot_swings_up_from_hanging_by_replanning_as_it_goes(mpc):
     """dm_control's acrobot, driven at its elbow: TVLQR alone loses its 15 s pumping plan part way (in MuJoCo, 5.9 s
     in); re-planned every 2 s from the rest of the plan (each warm, charged ``LATENCY`` s), it swung up and was
-    caught on one build, not on another (below). With the swing-up MPC (as shipped) hanging at rest is still planned from (39 J below the upright's energy,
-    beyond ``mpc_energy``); when a plan is lost within its band the MPC takes over and swings it up (measured: lost
+    caught on one build, not on another (below). With the swing-up MPC (as shipped, tracking upright) hanging at rest is still planned from (39 J below the
+    upright's energy, beyond ``mpc_floor``); when a plan is lost above the floor the MPC takes over and swings it up (measured: lost
     after one re-plan, then caught from the MPC). Slow: 20 s without the MPC and 8 s with it on the shared 2-core
     machine at a quiet moment (46 s without it under load); the library's cold plan from hanging (made once per model
     and kept on disk) took 277 s
@@ -235,3 +235,34 @@ def test_the_acrobot_swings_up_from_hanging_by_replanning_as_it_goes(mpc):
     assert m["swingups"] >= 1 and "catch" in kinds, (m, kinds)
     assert kinds.count("replan") >= 1 and kinds.index("lost") < kinds.index("mpc") < kinds.index("catch"), kinds
     assert _upright_at(run, model)[-1]
+
+
+#: dm_control's acrobot-swingup seed 4: a start near hanging (the shoulder within 0.8 rad of it, at rest), which the
+#: supervisor planned from before its MPC took every calm state (and lost the episode: return 0.0), and the episode's
+#: steps it is run for (7 s: its MPC caught it 6.5 s in, ``python -m cartpole score --env acrobot-swingup --controller
+#: supervisor --seed 4 --n 1``).
+NEAR_HANGING_SEED, NEAR_HANGING_STEPS = 4, 700
+
+
+def test_in_dm_controls_episode_a_near_hanging_acrobot_is_swung_up_by_the_mpc_without_a_plan():
+    """From dm_control's own near-hanging start, in its own episode, the supervisor of ``cartpole score --controller
+    supervisor`` (:func:`cartpole.apps.envscore.supervised`: its swing-up MPC on the task's objective takes every calm
+    state, ``mpc_floor=None``) swings the acrobot up and the catch holds it, with no plan asked for (a plan would be
+    charged a fixed latency, ``charged_latency``: the run does not depend on the machine's speed). About 15-30 s of
+    wall time on the shared machine (one DDP iteration a step)."""
+    pytest.importorskip("dm_control")
+    from cartpole.apps.envscore import score_episode, supervised
+
+    def charged(env, mjcf, x0, hold):
+        return supervised(env, mjcf, x0, hold, charged_latency=LATENCY)
+    ep = score_episode("acrobot-swingup", NEAR_HANGING_SEED, controller=charged, max_steps=NEAR_HANGING_STEPS)
+    model = build_model(ep.mjcf)
+    x0 = np.asarray(ep.x0, float)
+    down = abs(float(wrap_angle(x0[model.hinges[0]] - float(np.asarray(model.x_hanging)[model.hinges[0]]))))
+    assert down < 0.8 and np.allclose(x0[model.nq:], 0.0)  # near hanging, at rest
+    assert ep.replays and not ep.warned
+    kinds = [d["kind"] for d in ep.design["decisions"]]
+    assert kinds[0] == "mpc" and "catch" in kinds, kinds  # the MPC from the start, then the catch
+    assert not {"plan", "plan_failed", "mpc_failed", "calm_timeout"} & set(kinds), kinds  # no plan, no failure
+    assert kinds[-1] == "catch" and ep.rewards[-1] > 0.5  # held up at the end: the tip near the target
+    assert ep.design["mpc_ms"]["steps"] >= 1 and ep.design["plans"] == 0
