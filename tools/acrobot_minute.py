@@ -34,8 +34,7 @@ from cartpole.planning.library import cached_library, library_path, library_star
 from cartpole.planning.options import PlanOptions
 from cartpole.sim import Knockdown, simulate
 from cartpole.supervise import SupervisorOptions, supervisor_for
-from cartpole.supervise.supervisor import (HINGE_BRAKE_TIME, HINGE_CALM_BUDGET, HINGE_CALM_ENERGY,
-                                           HINGE_REPLAN_EVERY)
+from cartpole.supervise.supervisor import hinge_options
 from cartpole.validation import uptime_metrics
 
 ACROBOT = "cartpole/assets/dmc_acrobot.xml"
@@ -51,10 +50,7 @@ FAILURES = ("plan_failed", "lost", "replan_failed", "calm_timeout", "plan_timeou
 def acrobot_options(mpc: bool = True) -> SupervisorOptions:
     """The options the acrobot's knockdown test runs the supervisor with (``mpc`` False: without the swing-up MPC,
     every recovery planned, as before it)."""
-    return SupervisorOptions(charged_latency=LATENCY, replan_every=HINGE_REPLAN_EVERY, exact_plans=False,
-                             plan_budget=300.0, calm_energy=HINGE_CALM_ENERGY, calm_budget=HINGE_CALM_BUDGET,
-                             warm_tails=True, calm_brake_time=HINGE_BRAKE_TIME, calm_drain=True,
-                             swingup_mpc=mpc)
+    return hinge_options(charged_latency=LATENCY, plan_budget=300.0, swingup_mpc=mpc)
 
 
 def acrobot_library(params, model):

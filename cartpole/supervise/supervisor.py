@@ -245,9 +245,9 @@ class SupervisorOptions(StageOptions):
         (knocked again) and takes the state again once calmed.
     mpc_floor : float or None
         J below the upright's energy down to which the swing-up MPC takes a calm state over (further below: planned
-        from), or None (default): however far below, hanging at rest too. :func:`hinge_options` sets
-        :data:`HINGE_MPC_FLOOR` unless the MPC minimises a task's objective that pumps from hanging (``plan``'s
-        objective in :func:`supervisor_for`): the tracking of upright does not swing the acrobot up from there.
+        from; default :data:`HINGE_MPC_FLOOR`), or None: however far below, hanging at rest too. :func:`supervisor_for`
+        sets None when the MPC minimises a task's objective that pumps from hanging (``plan``'s objective): the
+        tracking of upright does not swing the acrobot up from there.
     mpc_budget : float
         s the swing-up MPC may run without the catch taking over; then the brake and the planner, until the next catch.
     mpc_step_budget : float or None
@@ -308,7 +308,7 @@ class SupervisorOptions(StageOptions):
     calm_drain: bool = False
     swingup_mpc: bool = False
     mpc_energy: float = HINGE_MPC_ENERGY
-    mpc_floor: float | None = None
+    mpc_floor: float | None = HINGE_MPC_FLOOR
     mpc_budget: float = 10.0
     mpc_step_budget: float | None = None
     plan_in_worker: bool | None = None

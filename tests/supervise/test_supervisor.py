@@ -428,7 +428,7 @@ def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(do
     assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 2, "over_budget": 0,
                                        "budget_ms": None}  # each step's wall time, logged
     hanging = Supervisor(model, catch, 1e-9, brake, planner=planner,
-                         options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band))
+                         options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band, mpc_floor=None))
     hanging.mpc = _StubMPC(model.nu)
     x_hanging = np.asarray(model.x_hanging, float)
     assert float(model.energy(x_hanging)) - e_up < -band  # far below: without a floor, the MPC all the same
