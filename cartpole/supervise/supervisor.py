@@ -976,8 +976,9 @@ def _warm(plan) -> bool:
 
 
 def hinge_driven(model: CartPoleModel) -> bool:
-    """Whether every actuator of ``model`` drives a hinge (the acrobot), so that :func:`supervisor_for` re-plans as
-    it goes, calms it with the energy drain and warm-starts from knots (its ``HINGE_*`` settings)."""
+    """Whether every actuator of ``model`` drives a hinge (the acrobot), so that :func:`supervisor_for` gives it
+    :func:`hinge_options`: calmed by the energy drain, swung up by the DDP MPC, planned (warm from knots, re-planned
+    as it goes) only below ``mpc_floor`` or after the MPC failed."""
     return all(int(j) in model.hinges for j in model.params.actuated)
 
 
