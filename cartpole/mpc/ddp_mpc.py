@@ -103,7 +103,8 @@ class DDPMPCController:
                  guess=None, x0=None, step_budget: float | None = None):
         options = MPCOptions() if options is None else options
         self.options = options
-        if step_budget is not None and not (np.isfinite(step_budget) and step_budget > 0):
+        if step_budget is not None and (isinstance(step_budget, bool) or not isinstance(step_budget, (int, float))
+                                        or not np.isfinite(step_budget) or step_budget <= 0):
             raise NMPCError(f"step_budget = {step_budget!r} must be a positive number of seconds or None.")
         self.step_budget = None if step_budget is None else float(step_budget)
         if not isinstance(model, CartPoleModel) or not isinstance(params, CartPoleParams):

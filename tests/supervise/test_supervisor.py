@@ -9,6 +9,7 @@ from cartpole.control import SWINGUP_CATCH_R, EnergyDrain, LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.models import build_model, planning_limits, read_params
 from cartpole.mpc.ddp_mpc import DDPMPCController
+from cartpole.mpc.nmpc import NMPCError
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.sim.disturbance import joint_inertia_and_authority
@@ -379,6 +380,10 @@ def test_an_mpc_step_over_its_wall_time_budget_applies_the_previous_solution_shi
     assert free.summary()["mpc_ms"]["over_budget"] == 0 and free.summary()["mpc_ms"]["budget_ms"] is None
     with pytest.raises(SupervisorError, match="mpc_step_budget"):
         SupervisorOptions(mpc_step_budget=0.0)
+    with pytest.raises(NMPCError, match="step_budget"):
+        DDPMPCController(model, params, step_budget=-1.0)
+    with pytest.raises(NMPCError, match="step_budget"):
+        DDPMPCController(model, params, step_budget="fast")
 
 
 class _StubMPC:
