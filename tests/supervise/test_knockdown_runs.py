@@ -109,7 +109,8 @@ def test_a_chain_recovers_from_every_knockdown_for_a_minute():
 #: 6, 0.340; 10: 6, 6, 0.344; 11: 8, 7, 0.405 (76 of 84 knocks recovered, every one by the MPC, no plan made). Each
 #: knock not recovered was a last one 0.1-9.7 s before the minute's end; the MPC took 1.8-9.4 s from taking a calm
 #: state over to the catch (median 3.0 s). With a band of 20 J (``mpc_energy``) seeds 1, 8 and 9 each had a knock
-#: calmed further below, planned from: seed 8 never recovered it (21 s left), hence 35 J.
+#: calmed further below, planned from: seed 8 never recovered it (21 s left), hence 35 J (``mpc_floor``). Re-measured
+#: once a knock during the MPC no longer spent it (the MPC takes the calmed state again): the same for all 12 seeds.
 #: Before the MPC (every calm state planned from, ``--no-mpc``): 0: 3, 2, 0.152; 1: 1, 0, 0.051; 2: 5, 4, 0.263; 3:
 #: 2, 1, 0.104; 4: 3, 2, 0.169; 5: 4, 3, 0.205; 6: 3, 2, 0.156; 7: 3, 2, 0.157; 8: 3, 2, 0.153; 9: 1, 0, 0.051; 10: 3,
 #: 2, 0.153; 11: 5, 4, 0.254 (24 of 36): plans warm-started from the library's knots were lost part way under TVLQR
