@@ -51,7 +51,9 @@ docs: install
 
 # Every number the README and the docs state, re-measured by its command (claims.toml); `CLAIMS_ARGS=--quick` for
 # the quick set, `CLAIMS_ARGS="--id ID"` for one. Exit 1 names each claim that moved.
+# The crocoddyl extra too: `cartpole bench`'s side-by-side claims (bench.crocoddyl_*) measure Crocoddyl's FDDP.
 claims: install
+	$(BIN)/pip install --quiet -e ".[dev,crocoddyl]"
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python tools/claims.py $(CLAIMS_ARGS)
 
 clean:
