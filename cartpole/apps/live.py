@@ -388,7 +388,9 @@ def paced_supervisor(supervisor):
     simulated time is wall time): each plan made in its worker process while the loop steps on, the brake acting
     (``plan_while_running``; charged the time it took to come in, killed at ``plan_budget``), and the planner warmed
     in this process first (:meth:`~cartpole.supervise.Supervisor.prepare`: a plan made and discarded before the run,
-    so that neither the first plan nor one after a kill waits for its solvers to be built). Where the platform cannot
+    so that neither the first plan nor one after a kill waits for its solvers to be built). A swing-up MPC (the
+    acrobot's) without a step budget gets its control period as one (``mpc_step_budget``: a step whose solve comes
+    later than the period applies the previous solution's shifted input). Where the platform cannot
     fork, or the supervisor plans in the caller's thread by request (``plan_in_worker=False``), or never plans (the
     energy law, the hinge pump), it is returned as it is: the loop then waits for each plan, as in a simulated run.
 
@@ -401,6 +403,11 @@ def paced_supervisor(supervisor):
     Supervisor
         The same object, its options replaced.
     """
+    mpc = getattr(supervisor, "mpc", None)
+    if mpc is not None and supervisor.options.mpc_step_budget is None:
+        # paced, an MPC step later than its period would stall the loop: its answer is then too late for that step
+        supervisor.options = supervisor.options.replace(mpc_step_budget=mpc.period)
+        mpc.step_budget = mpc.period
     options = supervisor.options
     if supervisor.planner is None or not fork_available() or options.plan_in_worker is False:
         return supervisor

@@ -2,13 +2,16 @@
 sentence, and keeps the gain in force when it does."""
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from cartpole.apps.lab import run_lab
-from cartpole.apps.live import LQRTuner
+from cartpole.apps.live import LQRTuner, paced_supervisor
 from cartpole.errors import CartPoleError
 from cartpole.riccati import lqr
+from cartpole.supervise import SupervisorOptions
 
 
 @pytest.fixture(scope="module")
@@ -203,3 +206,17 @@ def test_the_loop_is_live_only_where_the_controller_sees_mujocos_state():
     for fixed in (rig(spec="encoders"), rig(delay_steps=3, compensate=True)):  # an estimator; a predicted delay
         ran, given, tuner = live_loop(SimpleNamespace(rig=fixed, period=0.01, params=params), law)
         assert ran is law and given == ("run", 0) and tuner is None
+
+
+def test_a_paced_swingup_mpc_gets_its_period_as_step_budget():
+    """In a run paced in real time an MPC step later than its period would stall the loop: paced_supervisor bounds
+    the acrobot's swing-up MPC by its period (the late step then applies the previous solution shifted); a budget
+    the caller set is kept."""
+    mpc = SimpleNamespace(period=0.01, step_budget=None)
+    sup = SimpleNamespace(mpc=mpc, planner=None, options=SupervisorOptions(swingup_mpc=True))
+    assert paced_supervisor(sup) is sup
+    assert mpc.step_budget == pytest.approx(0.01) and sup.options.mpc_step_budget == pytest.approx(0.01)
+    mine = SimpleNamespace(period=0.01, step_budget=0.5)
+    sup = SimpleNamespace(mpc=mine, planner=None, options=SupervisorOptions(swingup_mpc=True, mpc_step_budget=0.5))
+    paced_supervisor(sup)
+    assert mine.step_budget == 0.5 and sup.options.mpc_step_budget == 0.5
