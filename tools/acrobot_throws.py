@@ -82,8 +82,9 @@ def height_uptime(run, params, model, fraction: float = HEIGHT) -> float:
 
 
 def one_run(params, model, library, seed: int, every: float, rate: float, duration: float,
-            set_rates: bool = False) -> dict:
-    """One thrown minute from hanging: its row (module docstring)."""
+            set_rates: bool = False, decisions: bool = False) -> dict:
+    """One thrown minute from hanging: its row (module docstring; with ``decisions`` each decision's ``t``, ``kind``
+    and details but the state)."""
     tic = time.perf_counter()
     sup = supervisor_for(params, model, options=acrobot_options(), library=library)
     throw = Throw(every, max_rate=rate, seed=seed, set_rates=set_rates).start(params, x_eq=model.x_eq, hinges=model.hinges,
@@ -108,7 +109,9 @@ def one_run(params, model, library, seed: int, every: float, rate: float, durati
             "left_s": left, "recover_s": took, "energy_after_J": after, "decisions": dict(Counter(d.kind for d in sup.decisions)),
             "mpcs": sum(1 for d in sup.decisions if d.kind == "mpc"), "plans": sup.plans,
             "peak_rate": float(np.max(np.abs(rates))), "replays": bool(replays_exactly(run, params)),
-            "diverged": bool(run.info.get("diverged", False)), "wall_s": time.perf_counter() - tic}
+            "diverged": bool(run.info.get("diverged", False)), "wall_s": time.perf_counter() - tic,
+            **({"decision_log": [{k: v for k, v in d.to_dict().items() if k != "x0"} for d in sup.decisions]}
+               if decisions else {})}
 
 
 def _spread(values) -> dict | None:
@@ -127,6 +130,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="s of MuJoCo per seed")
     ap.add_argument("--set-rates", action="store_true",
                     help="each throw sets the hinge rates (to at most RATE) instead of adding to them")
+    ap.add_argument("--decisions", action="store_true", help="each run's decisions too (decision_log)")
     ap.add_argument("--out", default=None, help="also write each row, as it comes, to this JSON-lines file")
     args = ap.parse_args()
     params = read_params(ACROBOT)
@@ -134,7 +138,8 @@ def main() -> None:
     library = acrobot_library(params, model)
     rows = []
     for s in tqdm(args.seeds, desc="acrobot thrown minutes", file=sys.stderr):
-        rows.append(one_run(params, model, library, s, args.every, args.rate, args.duration, args.set_rates))
+        rows.append(one_run(params, model, library, s, args.every, args.rate, args.duration, args.set_rates,
+                            args.decisions))
         if args.out:
             with open(args.out, "a") as f:
                 f.write(json.dumps(rows[-1], default=float) + "\n")

@@ -4,7 +4,8 @@ A lab that shows its cart-pole to visitors gets poked: :class:`Knockdown` waits 
 (within :data:`UPRIGHT_BAND` of the upright equilibrium, angle errors wrapped) for ``after`` seconds, then pushes each
 hinge with a random torque, strong enough to beat the controller, for at most ``length`` seconds and until it has done
 its share of the model's swing-up energy in work, and waits for the next time it is upright; :class:`Throw` throws the state at random times whatever the controller is doing (as RealAIGym's
-robustness benchmark does), as a one-step impulse giving each hinge a random change of rate. Both are callables
+robustness benchmark resets it), as a one-step impulse giving each hinge a random change of rate (or, ``set_rates``,
+a random rate). Both are callables
 ``f(t, x) -> (nv,)`` that :func:`cartpole.sim.rollout.simulate` applies through MuJoCo's ``qfrc_applied`` and logs
 every physics step, so the run replays exactly with ``mj_step``.
 
