@@ -104,3 +104,23 @@ def family_mjcf(request, variant_dir, chain_dir):
     if request.param in VARIANTS:
         return variant_dir / f"cartpole_{request.param}.xml"
     return chain_dir / f"{request.param}.xml"
+
+
+@pytest.fixture(scope="session")
+def planning_lab():
+    """The lab's cart-pole (``cartpole/assets/cartpole.xml``) for tests of a supervisor that plans (its own uses the
+    energy law and never plans): ``(params, model, base, planner)``, ``base`` the :func:`supervisor_for` supervisor
+    whose catch, basin level and brake a test's own :class:`Supervisor` takes, ``planner(x0, guess=None, cold=True)``
+    the direct-collocation swing-up from ``x0``. Shared by tests/supervise/test_worker.py and
+    tests/apps/test_swingup_live.py (built once a session)."""
+    from cartpole.models import build_model, read_params
+    from cartpole.planning.trajopt import trajopt_swingup
+    from cartpole.supervise import supervisor_for
+
+    params = read_params("cartpole/assets/cartpole.xml")
+    model = build_model(params)
+    base = supervisor_for(params, model)
+
+    def planner(x0, guess=None, cold=True):
+        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, guess=guess, cold=cold)
+    return params, model, base, planner

@@ -4,7 +4,8 @@ A lab that shows its cart-pole to visitors gets poked: :class:`Knockdown` waits 
 (within :data:`UPRIGHT_BAND` of the upright equilibrium, angle errors wrapped) for ``after`` seconds, then pushes each
 hinge with a random torque, strong enough to beat the controller, for at most ``length`` seconds and until it has done
 its share of the model's swing-up energy in work, and waits for the next time it is upright; :class:`Throw` throws the state at random times whatever the controller is doing (as RealAIGym's
-robustness benchmark does), as a one-step impulse giving each hinge a random change of rate. Both are callables
+robustness benchmark resets it), as a one-step impulse giving each hinge a random change of rate (or, ``set_rates``,
+a random rate). Both are callables
 ``f(t, x) -> (nv,)`` that :func:`cartpole.sim.rollout.simulate` applies through MuJoCo's ``qfrc_applied`` and logs
 every physics step, so the run replays exactly with ``mj_step``.
 
@@ -355,21 +356,28 @@ class KnockdownForce:
 class Throw:
     """Throw the state at random times, whatever it is doing: every ``every`` seconds on average (each gap uniform in
     [0.5, 1.5] ``every``), a one-step impulse changing each hinge's rate by a random amount in
-    [-``max_rate``, ``max_rate``] rad/s.
+    [-``max_rate``, ``max_rate``] rad/s, or with ``set_rates`` setting each hinge's rate to such a random value
+    (about: the impulse is sized from the state at the step's start, over one step).
 
     Parameters
     ----------
     every : float
         Mean seconds between throws.
     max_rate : float
-        Largest change of a hinge's rate, rad/s.
+        Largest change of a hinge's rate (with ``set_rates``: largest rate), rad/s.
     seed : int
         Seed of the throws.
+    set_rates : bool
+        False (default): each throw adds to the rates the chain has, so throws landing on a chain still spinning from
+        the last can leave it ever more energy. True: each throw sets the rates, whatever they were, so the energy a
+        throw leaves does not depend on the run before it (as RealAIGym's reset, which drives the chain towards a random
+        pose at rest, does not).
     """
 
     every: float
     max_rate: float = 10.0
     seed: int = 0
+    set_rates: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "every", _seconds("throw's mean interval (EVERY)", self.every))
@@ -378,6 +386,7 @@ class Throw:
             raise DisturbanceError(f"The throw's largest rate change must be in (0, 1000] rad/s; got {self.max_rate!r}.")
         object.__setattr__(self, "max_rate", r)
         object.__setattr__(self, "seed", _seed(self.seed))
+        object.__setattr__(self, "set_rates", bool(self.set_rates))
 
     @classmethod
     def parse(cls, text: str) -> "Throw":
@@ -417,6 +426,7 @@ class ThrowForce:
         self.throw, self.hinges, self.h = throw, hinges, timestep
         self.m, self.d = make_mujoco(source)
         self.rng = np.random.default_rng(throw.seed)
+        self.dof_of = {int(self.m.jnt_qposadr[j]): int(self.m.jnt_dofadr[j]) for j in range(self.m.njnt)}
         self.next_at = self._gap()
         self.events: list[tuple[float, float]] = []
 
@@ -430,7 +440,10 @@ class ThrowForce:
         self.next_at = t + self._gap()
         dv = np.zeros(nv)
         for h in self.hinges:
-            dv[h] = self.rng.uniform(-self.throw.max_rate, self.throw.max_rate)
+            dof = self.dof_of[h]
+            dv[dof] = self.rng.uniform(-self.throw.max_rate, self.throw.max_rate)
+            if self.throw.set_rates:
+                dv[dof] -= float(x[self.m.nq + dof])
         M = joint_space_inertia(self.m, self.d, x)
         self.events.append((float(t), float(t + self.h)))
         return M @ dv / self.h

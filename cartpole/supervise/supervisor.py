@@ -44,6 +44,7 @@ Every decision is kept (:attr:`Supervisor.decisions`: time, kind, details) for t
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 from dataclasses import dataclass
 from typing import Callable, ClassVar, NamedTuple
@@ -65,7 +66,7 @@ from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
 from cartpole.supervise.pump import hinge_swingup, pendulum_driven_at_hinge
-from cartpole.supervise.worker import PlanWorker, fork_available, timeout_sentence
+from cartpole.supervise.worker import PlanWorker, fork_available, run_within, timeout_sentence
 from cartpole.validation import BasinCache
 
 
@@ -150,6 +151,7 @@ HINGE_MPC_FLOOR = 35.0
 
 #: What :meth:`Supervisor.prepare` has warmed in this process: ``(model_key, exact_plans, warm_tails)`` of each.
 _PREPARED: set = set()
+_LOG = logging.getLogger(__name__)
 
 
 class _Ask(NamedTuple):
@@ -633,6 +635,9 @@ class Supervisor:
             self.server = PlanWorker(self._serve)
         return self.server
 
+    #: Whether the last :meth:`prepare` was stopped at ``plan_budget`` before its plan ended.
+    prepare_timed_out: bool = False
+
     def prepare(self, x0=None, *, again: bool = False) -> float:
         """Make one plan in this process and discard it, so that what the planner builds (CasADi solvers and
         functions, the compiled C of :mod:`cartpole.codegen` loaded, the model's derived functions) is here before
@@ -640,7 +645,11 @@ class Supervisor:
         ``warm_worker`` does this before the first fork; a live run calls it before it starts, so that its loop never
         waits for it. The plan is asked for as the supervisor asks (its library's warm start), from ``x0`` (nx,)
         (default the model's hanging state); it is neither used nor added to the library, and one that fails (a
-        :class:`~cartpole.errors.CartPoleError`) has built its solvers all the same.
+        :class:`~cartpole.errors.CartPoleError`) has built its solvers all the same. It is bounded by ``plan_budget``
+        (s of wall time, as a plan in a worker; :func:`~cartpole.supervise.worker.run_within`: stopped at its first
+        Python step past the budget, in the main thread): one stopped there sets :attr:`prepare_timed_out` and logs a
+        warning (what it built before is kept, and the model counts as prepared: the next supervisor of it does not
+        spend another budget); the workers then start as warm as it got.
 
         Parameters
         ----------
@@ -653,17 +662,25 @@ class Supervisor:
         Returns
         -------
         float
-            s of wall time it took (also :attr:`prepare_s`; 0 without a planner, or when done already).
+            s of wall time it took (also :attr:`prepare_s`; 0 without a planner, or when done already; about
+            ``plan_budget`` when it was stopped there: :attr:`prepare_timed_out`).
         """
         start = time.perf_counter()
         ready = self.planner is None or (self._prepare_key() in _PREPARED and not again)
         if not ready:
             x = np.asarray(self.model.x_hanging if x0 is None else x0, dtype=float)
-            try:
-                request, _ = self._plan_request(x)
-                self._serve(request)
-            except CartPoleError:
-                pass
+
+            def warm_up() -> None:
+                try:
+                    request, _ = self._plan_request(x)
+                    self._serve(request)
+                except CartPoleError:
+                    pass
+
+            self.prepare_timed_out = not run_within(warm_up, self.options.plan_budget)
+            if self.prepare_timed_out:
+                _LOG.warning("The planner's warm-up plan was stopped at the plan budget of %g s (plan_budget); "
+                             "the planning workers start from what it built by then.", self.options.plan_budget)
             _PREPARED.add(self._prepare_key())
         self.prepare_s = 0.0 if ready else time.perf_counter() - start
         return self.prepare_s

@@ -32,6 +32,7 @@ import multiprocessing
 import os
 import signal
 import sys
+import threading
 import time
 import traceback
 import weakref
@@ -312,6 +313,56 @@ def run_planner(call: Callable, budget: float, *, on_timeout: Callable | None = 
         return worker.wait(None, budget, on_timeout=on_timeout)
     finally:
         worker.close()
+
+
+class _OverBudget(BaseException):
+    """Raised by :func:`run_within`'s alarm into the call it bounds (a BaseException: a planner's ``except
+    Exception`` does not swallow it)."""
+
+
+def run_within(call: Callable, budget: float) -> bool:
+    """``call()`` in this process (what it builds stays here, unlike :func:`run_planner`), stopped once it has run
+    ``budget`` s of wall time: a SIGALRM timer raises into it at its first Python step after the budget (a solver deep
+    in C code returns first). Only the main thread of a POSIX process can take the alarm, and only when no other
+    ``ITIMER_REAL`` is running (pytest-timeout's, say: it is left untouched); elsewhere ``call()`` runs to its end
+    and the budget is checked after it.
+
+    Parameters
+    ----------
+    call : callable
+        ``call()``; its result is dropped, its exceptions are raised.
+    budget : float
+        s of wall time, > 0.
+
+    Returns
+    -------
+    bool
+        True when ``call()`` ended within ``budget``; False when it was stopped there (or, without the alarm, ran over).
+    """
+    start = time.perf_counter()
+    armed = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+    if armed and signal.getitimer(signal.ITIMER_REAL)[0] > 0:
+        armed = False  # someone else's timer: leave it be
+    done = [False]
+
+    def _stop(signum, frame):
+        if not done[0]:
+            raise _OverBudget
+
+    previous = signal.signal(signal.SIGALRM, _stop) if armed else None
+    try:
+        if armed:
+            signal.setitimer(signal.ITIMER_REAL, float(budget))
+        call()
+        done[0] = True
+    except _OverBudget:
+        return False
+    finally:
+        done[0] = True
+        if armed:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, previous)
+    return time.perf_counter() - start <= budget
 
 
 def timeout_sentence(wall: float, budget: float) -> str:

@@ -10,11 +10,9 @@ import pytest
 
 from cartpole.apps.live import controller_status, paced_supervisor
 from cartpole.apps.swingup import SwingupOptions, run_swingup
-from cartpole.models import build_model, read_params
-from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import Knockdown, SimOptions, replays_exactly, simulate
 from cartpole.sim.options import LoopOptions
-from cartpole.supervise import Supervisor, SupervisorOptions, supervisor_for
+from cartpole.supervise import Supervisor, SupervisorOptions
 
 
 class _Page:
@@ -72,15 +70,11 @@ class _Paced:
         return True
 
 
-@pytest.fixture(scope="module")
-def one_pole():
-    """The lab's cart with a supervisor that plans (its own would use the energy law and never plan)."""
-    params = read_params("cartpole/assets/cartpole.xml")
-    model = build_model(params)
-    base = supervisor_for(params, model)
-
-    def planner(x0, guess=None, cold=True):
-        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, guess=guess, cold=cold)
+@pytest.fixture
+def one_pole(planning_lab):
+    """The lab's cart with a supervisor that plans (its own would use the energy law and never plan): tests/conftest.py's
+    ``planning_lab``."""
+    params, model, base, planner = planning_lab
     return params, model, Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
                                      options=SupervisorOptions(plan_in_worker=True))
 

@@ -198,6 +198,22 @@ def test_throws_change_the_hinge_rates_at_random_times(cart):
     assert np.abs(jump[list(model.hinges)]).max() > 0.5
 
 
+def test_a_throw_that_sets_the_rates_leaves_them_within_its_bound_however_fast_the_pole_spun(cart):
+    params, model = cart
+    h = model.hinges[0]
+    spinning = np.asarray(model.x_eq, float).copy()
+    spinning[model.nq + h] = 30.0  # rad/s: far beyond the throw's bound
+    after = {}
+    for set_rates in (False, True):
+        force = Throw(0.3, max_rate=2.0, seed=1, set_rates=set_rates).start(
+            params, x_eq=model.x_eq, hinges=model.hinges, timestep=params.timestep)
+        run = simulate(params, lambda t, x: np.zeros(params.nu), spinning, 0.5, disturbance=force)
+        assert replays_exactly(run)
+        k = int(round(force.events[0][0] / params.timestep))
+        after[set_rates] = abs(run.qvel[k + 1][h])
+    assert after[True] <= 2.0 + 0.5 and after[False] > 20.0, after  # set: within the bound; added: still spinning
+
+
 def test_uptime_counts_a_run_held_upright_as_up_without_swingups(cart):
     params, model = cart
     run = simulate(params, LinearFeedback.for_model(model), model.x_eq, 1.0)

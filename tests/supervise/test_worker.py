@@ -2,6 +2,7 @@
 the caller's thread, and a supervised run through it that replays exactly."""
 import multiprocessing
 import os
+import signal
 import time
 from dataclasses import dataclass
 
@@ -9,12 +10,10 @@ import numpy as np
 import pytest
 
 from cartpole.errors import CartPoleError
-from cartpole.models import build_model, read_params
 from cartpole.ocp.trajectory import Trajectory
-from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim import Knockdown, replays_exactly, simulate
-from cartpole.supervise import Supervisor, SupervisorError, SupervisorOptions, supervisor_for
-from cartpole.supervise.worker import REAP_TIMEOUT, PlanTimeout, PlanWorker, run_planner
+from cartpole.supervise import Supervisor, SupervisorError, SupervisorOptions
+from cartpole.supervise.worker import REAP_TIMEOUT, PlanTimeout, PlanWorker, run_planner, run_within
 
 #: s: what killing and reaping the child may add to the budget on a loaded machine.
 KILL_SLACK = 3.0
@@ -50,25 +49,13 @@ def _no_child_left():
     assert _children() - _BEFORE["pids"] == set()
 
 
-@pytest.fixture(scope="module")
-def lab():
-    """The lab's cart-pole with a supervisor that plans (no energy law): its catch, basin and brake."""
-    params = read_params("cartpole/assets/cartpole.xml")
-    model = build_model(params)
-    base = supervisor_for(params, model)
-
-    def planner(x0, guess=None, cold=True):
-        return trajopt_swingup(params, x0=tuple(x0), plan_model=model, guess=guess, cold=cold)
-    return params, model, base, planner
-
-
-def _planning(lab, **options):
-    params, model, base, planner = lab
+def _planning(planning_lab, **options):
+    params, model, base, planner = planning_lab
     return Supervisor(model, base.catch, base.rho, base.brake, planner=planner, options=SupervisorOptions(**options))
 
 
-def test_a_plan_over_the_budget_is_killed_at_the_budget_and_the_run_goes_on(lab):
-    params, model, base, _ = lab
+def test_a_plan_over_the_budget_is_killed_at_the_budget_and_the_run_goes_on(planning_lab):
+    params, model, base, _ = planning_lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
                      options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5, warm_worker=False))
     x = np.asarray(model.x_hanging, float)
@@ -166,8 +153,8 @@ def _paced(sup, x, until, dt=0.01, limit=20.0, t0=0.0):
     return calls
 
 
-def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_time_it_came_in(lab):
-    params, model, base, _ = lab
+def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_time_it_came_in(planning_lab):
+    params, model, base, _ = planning_lab
 
     def planner(x0):
         time.sleep(1.0)
@@ -188,8 +175,8 @@ def test_planning_while_running_the_run_steps_on_and_the_plan_is_charged_the_tim
     _no_child_left()
 
 
-def test_planning_while_running_a_plan_over_the_budget_is_killed_and_fails(lab):
-    params, model, base, _ = lab
+def test_planning_while_running_a_plan_over_the_budget_is_killed_and_fails(planning_lab):
+    params, model, base, _ = planning_lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
                      options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, plan_budget=0.5,
                                                warm_worker=False))
@@ -202,8 +189,8 @@ def test_planning_while_running_a_plan_over_the_budget_is_killed_and_fails(lab):
     _no_child_left()
 
 
-def test_a_plan_through_the_worker_is_the_plan_made_in_the_callers_thread(lab):
-    params, model, base, planner = lab
+def test_a_plan_through_the_worker_is_the_plan_made_in_the_callers_thread(planning_lab):
+    params, model, base, planner = planning_lab
     x0 = np.asarray(model.x_hanging, float)
     here = planner(x0)
     there = run_planner(lambda: planner(x0), 120.0)
@@ -215,11 +202,11 @@ def test_a_plan_through_the_worker_is_the_plan_made_in_the_callers_thread(lab):
     assert np.array_equal(here.controller(0.3, x), there.controller(0.3, x))
 
 
-def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_run_planning_in_thread(lab):
-    params, model, _, _ = lab
+def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_run_planning_in_thread(planning_lab):
+    params, model, _, _ = planning_lab
     runs = []
     for in_worker in (False, True):
-        sup = _planning(lab, charged_latency=0.5, plan_in_worker=in_worker, plan_budget=120.0)
+        sup = _planning(planning_lab, charged_latency=0.5, plan_in_worker=in_worker, plan_budget=120.0)
         force = Knockdown(1.5, 0.3, seed=4).start(params, x_eq=model.x_eq, hinges=model.hinges)
         runs.append((sup, simulate(params, sup, np.asarray(model.x_hanging, float), 6.0, disturbance=force)))
     (sup_here, here), (sup_there, there) = runs
@@ -231,8 +218,8 @@ def test_a_knockdown_run_planning_in_the_worker_replays_exactly_and_equals_the_r
     _no_child_left()
 
 
-def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_worker_ended(lab):
-    params, model, base, _ = lab
+def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_worker_ended(planning_lab):
+    params, model, base, _ = planning_lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
                      options=SupervisorOptions(plan_in_worker=True, plan_while_running=True, warm_worker=False))
     hanging, upright = np.asarray(model.x_hanging, float), np.asarray(model.x_eq, float)
@@ -250,11 +237,11 @@ def test_planning_while_running_a_plan_the_catch_overtook_is_dropped_and_its_wor
     _no_child_left()
 
 
-def test_a_child_forked_after_the_parent_prepared_and_after_a_kill_builds_no_compiled_code(lab):
+def test_a_child_forked_after_the_parent_prepared_and_after_a_kill_builds_no_compiled_code(planning_lab):
     from cartpole import codegen
 
-    params, model, base, planner = lab
-    sup = _planning(lab, plan_in_worker=True, plan_budget=120.0)
+    params, model, base, planner = planning_lab
+    sup = _planning(planning_lab, plan_in_worker=True, plan_budget=120.0)
     assert sup.prepare(again=True) > 0 and sup.prepare() == 0.0  # once per model and process
     x0 = np.asarray(model.x_hanging, float) + 0.02
 
@@ -274,8 +261,8 @@ def test_a_child_forked_after_the_parent_prepared_and_after_a_kill_builds_no_com
     _no_child_left()
 
 
-def test_the_supervisor_prepares_its_planner_here_before_its_first_fork_and_only_then(lab, monkeypatch):
-    params, model, base, _ = lab
+def test_the_supervisor_prepares_its_planner_here_before_its_first_fork_and_only_then(planning_lab, monkeypatch):
+    params, model, base, _ = planning_lab
     monkeypatch.setattr("cartpole.supervise.supervisor._PREPARED", set())  # no supervisor of this model prepared yet
     seen = []
 
@@ -298,9 +285,9 @@ def test_the_supervisor_prepares_its_planner_here_before_its_first_fork_and_only
     _no_child_left()
 
 
-def _busy(lab):
+def _busy(planning_lab):
     """A supervisor planning while running whose plan (a minute's sleep) is on its way in its worker."""
-    params, model, base, _ = lab
+    params, model, base, _ = planning_lab
     sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
                      options=SupervisorOptions(plan_while_running=True, warm_worker=False))
     sup(0.0, np.asarray(model.x_hanging, float))
@@ -308,12 +295,12 @@ def _busy(lab):
     return sup
 
 
-def test_no_child_is_left_after_an_exception_in_the_loop_or_a_supervisor_dropped_unclosed(lab):
+def test_no_child_is_left_after_an_exception_in_the_loop_or_a_supervisor_dropped_unclosed(planning_lab):
     import gc
 
     from cartpole.sim import SimOptions
 
-    params, model, base, _ = lab
+    params, model, base, _ = planning_lab
 
     def raise_once_planning(m, d):
         if sup.server is not None and sup.server.busy:
@@ -325,7 +312,7 @@ def test_no_child_is_left_after_an_exception_in_the_loop_or_a_supervisor_dropped
             simulate(params, sup, np.asarray(model.x_hanging, float), 1.0,
                      options=SimOptions(on_step=raise_once_planning))
     _no_child_left()
-    sup = _busy(lab)
+    sup = _busy(planning_lab)
     del sup
     gc.collect()
     _no_child_left()
@@ -416,25 +403,25 @@ def test_sigterm_of_the_cli_while_its_worker_plans_leaves_no_process(tmp_path):
             proc.wait()
 
 
-def test_the_warm_up_is_not_charged_to_the_first_plan_nor_counted_against_its_budget(lab, monkeypatch):
-    params, model, base, _ = lab
+def test_the_warm_up_is_not_charged_to_the_first_plan_nor_counted_against_its_budget(planning_lab, monkeypatch):
+    params, model, base, _ = planning_lab
     monkeypatch.setattr("cartpole.supervise.supervisor._PREPARED", set())
 
     def planner(x0):
-        if os.getpid() == parent:
-            time.sleep(1.0)  # the warm-up here: slower than the budget
+        time.sleep(1.5 if os.getpid() == parent else 1.0)  # the warm-up here, then the plan: together over the budget
         return _HoldPlan.at(model, 2.0)
     parent = os.getpid()
     with Supervisor(model, base.catch, base.rho, base.brake, planner=planner,
-                    options=SupervisorOptions(plan_in_worker=True, plan_budget=0.9, funnel=10.0)) as sup:
+                    options=SupervisorOptions(plan_in_worker=True, plan_budget=2.0, funnel=10.0)) as sup:
         sup(0.0, np.asarray(model.x_hanging, float))
         plan = sup.decisions[-1]
-        assert plan.kind == "plan" and sup.prepare_s >= 1.0 and plan.detail["wall_s"] < sup.prepare_s
+        assert plan.kind == "plan" and sup.prepare_s >= 1.5 and not sup.prepare_timed_out
+        assert 1.0 <= plan.detail["wall_s"] < 2.0  # the plan's own time only
     _no_child_left()
 
 
-def test_planning_while_running_a_replan_is_made_while_the_old_plan_is_tracked_and_dropped_when_lost(lab):
-    params, model, base, _ = lab
+def test_planning_while_running_a_replan_is_made_while_the_old_plan_is_tracked_and_dropped_when_lost(planning_lab):
+    params, model, base, _ = planning_lab
 
     def planner(x0, guess=None):
         time.sleep(0.5)
@@ -458,3 +445,29 @@ def test_planning_while_running_a_replan_is_made_while_the_old_plan_is_tracked_a
         assert kinds[-2:] == ["lost", "plan_dropped"] and sup.decisions[-1].detail["replan"]
         assert sup.mode == "wait" and sup.server.busy and sup.replan_asked is None
     _no_child_left()
+
+
+def test_run_within_stops_a_call_at_its_budget_and_restores_the_alarm_handler():
+    before = signal.getsignal(signal.SIGALRM)
+    start = time.perf_counter()
+    assert run_within(lambda: time.sleep(30.0), 0.3) is False
+    assert 0.3 <= time.perf_counter() - start < 0.3 + KILL_SLACK
+    assert run_within(lambda: None, 5.0) is True
+    assert signal.getsignal(signal.SIGALRM) is before and signal.getitimer(signal.ITIMER_REAL)[0] == 0.0
+    with pytest.raises(ValueError, match="its own"):  # the call's own failure is the caller's to see
+        run_within(lambda: (_ for _ in ()).throw(ValueError("its own")), 5.0)
+
+
+def test_a_prepare_over_the_plan_budget_is_stopped_there_and_reported(planning_lab, monkeypatch, caplog):
+    params, model, base, _ = planning_lab
+    monkeypatch.setattr("cartpole.supervise.supervisor._PREPARED", set())
+    sup = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: time.sleep(60.0),
+                     options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5))
+    with caplog.at_level("WARNING", logger="cartpole.supervise.supervisor"):
+        took = sup.prepare()
+    assert 0.5 <= took < 0.5 + KILL_SLACK and sup.prepare_timed_out
+    assert any("plan_budget" in r.getMessage() for r in caplog.records)
+    assert sup.prepare() == 0.0  # what it built is kept: the model counts as prepared
+    quick = Supervisor(model, base.catch, base.rho, base.brake, planner=lambda x0: _HoldPlan.at(model, 2.0),
+                       options=SupervisorOptions(plan_in_worker=True, plan_budget=0.5))
+    assert quick.prepare(again=True) < 0.5 and not quick.prepare_timed_out

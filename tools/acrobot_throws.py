@@ -1,0 +1,161 @@
+"""The acrobot thrown at random times for a minute, per seed, in MuJoCo: RealAIGym's robustness setting with today's
+supervisor (docs/recovery.md, "Thrown at random (RealAIGym's setting)"; claims.toml).
+
+For each seed, dm_control's acrobot (``cartpole/assets/dmc_acrobot.xml``) starts hanging at rest, as RealAIGym's
+acrobot does, under the supervisor of the acrobot's knockdown test (``tools/acrobot_minute.py``'s options: each plan
+charged ``LATENCY`` s of simulated time, so the run is the same on any machine; the swing-up MPC; the library's plan
+from hanging) and is thrown by :class:`cartpole.sim.Throw` (``EVERY`` s apart on average, each gap uniform in
+[0.5, 1.5] ``EVERY``; each throw a one-step impulse changing every hinge's rate by up to ``RATE`` rad/s, or with
+``--set-rates`` setting it to at most that), whatever it is doing, also mid swing-up, for ``--duration`` s. Each run is checked to replay exactly from its logged ctrl and
+``qfrc_applied`` with ``mj_step`` (``replays``).
+
+Prints one JSON document: ``seeds``, ``every``, ``rate``, ``set_rates``, ``duration``, and per seed (``runs``, in seed order)
+``uptime`` (fraction of the run with every hinge within the toolkit's upright band, 0.2 rad, of upright),
+``uptime_height`` (RealAIGym's own measure: fraction with the tip above 0.9 of the chain's length over the shoulder),
+``throws``, ``throws_while_up`` (throws landing with every hinge in the band), ``swingups``, ``recovered`` (throws
+followed by a swing-up before the next throw or the end), ``recover_s`` (s from each of those throws to its swing-up),
+``energy_after_J`` (each throw's state's energy just after it, J above upright rest), ``missed_at`` (s, each other throw) with ``left_s`` (s to the next throw or the end after each), ``decisions`` (kind -> count), ``mpcs``, ``plans``, ``peak_rate`` (rad/s, the
+largest hinge rate logged), ``replays``, ``diverged``, ``wall_s``; then ``uptime_mean``, ``uptime_median``,
+``uptime_height_mean``, ``throws``, ``swingups``, ``recovered``, ``recover_s``, ``energy_after_J`` and
+``missed_gap_s`` (``min``, ``median``, ``max``, ``count`` over every seed: the recoveries' times, the energies the
+throws left, and the time each missed throw had before the next), ``swingup_energy_J`` (the model's own, J), ``all_replay``.
+
+    python tools/acrobot_throws.py [--seeds 0 1 ...] [--every 3.75] [--rate 45] [--set-rates] [--duration 60] [--out FILE]
+"""
+import argparse
+import json
+import sys
+import time
+from collections import Counter
+
+import mujoco
+import numpy as np
+from tqdm import tqdm
+
+from acrobot_minute import ACROBOT, acrobot_library, acrobot_options  # this directory: the knockdown test's supervisor
+from cartpole.models import build_model, read_params, wrap_angle
+from cartpole.sim import UPRIGHT_BAND, Throw, replays_exactly, simulate, swingup_energy
+from cartpole.sim.rollout import make_mujoco
+from cartpole.supervise import supervisor_for
+from cartpole.validation import uptime_metrics
+
+#: RealAIGym's acrobot benchmark: 15 throws in 60 s, at ``linspace(60/16, 60 - 60/16, 15)`` plus up to 1 s either
+#: way (double_pendulum's ``GlobalPolicyTestingControllerV2``): one every 3.75 s on average.
+EVERY = 60.0 / 16
+#: rad/s: the largest change of a hinge's rate (issue 42's statement of that benchmark).
+RATE = 45.0
+#: RealAIGym's upright: the tip higher over the shoulder than this fraction of the chain's length.
+HEIGHT = 0.9
+
+
+def height_uptime(run, params, model, fraction: float = HEIGHT) -> float:
+    """RealAIGym's uptime: the fraction of the run's steps (each counted at its start) whose tip (site ``tip``) is
+    above the shoulder (body ``upper_arm``) by more than ``fraction`` of the tip's height over it at upright.
+
+    Parameters
+    ----------
+    run : Rollout
+    params : CartPoleParams
+        The model MuJoCo ran (dm_control's acrobot: a site ``tip``, a body ``upper_arm``).
+    model : CartPoleModel
+        Its upright ``x_eq``.
+    fraction : float
+        Of the chain's length, as RealAIGym's ``height`` (0.9).
+
+    Returns
+    -------
+    float
+        Fraction of the logged time upright by that measure.
+    """
+    m, d = make_mujoco(params)
+    tip, shoulder = m.site("tip").id, m.body("upper_arm").id
+
+    def height(qpos) -> float:
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        return float(d.site_xpos[tip][2] - d.xpos[shoulder][2])
+
+    top = height(np.asarray(model.x_eq, float)[:m.nq])
+    qpos, t = np.asarray(run.qpos, float), np.asarray(run.t, float)
+    up = np.array([height(q) > fraction * top for q in qpos[:-1]])
+    return float(np.sum(np.diff(t)[up]) / (t[-1] - t[0]))
+
+
+def one_run(params, model, library, seed: int, every: float, rate: float, duration: float,
+            set_rates: bool = False, decisions: bool = False) -> dict:
+    """One thrown minute from hanging: its row (module docstring; with ``decisions`` each decision's ``t``, ``kind``
+    and details but the state)."""
+    tic = time.perf_counter()
+    sup = supervisor_for(params, model, options=acrobot_options(), library=library)
+    throw = Throw(every, max_rate=rate, seed=seed, set_rates=set_rates).start(params, x_eq=model.x_eq, hinges=model.hinges,
+                                                         timestep=params.timestep)
+    run = simulate(params, sup, np.asarray(model.x_hanging, float), duration, disturbance=throw)
+    m = uptime_metrics(run, model, events=throw.events, duration=duration)
+    hinges = list(model.hinges)
+    q = np.asarray(run.qpos, float)[:, hinges]
+    up = np.all(np.abs(wrap_angle(q - np.asarray(model.x_eq, float)[hinges])) < UPRIGHT_BAND, axis=1)
+    starts = [a for a, _ in throw.events]
+    nxt = starts[1:] + [duration]
+    left = [b - a for a, b in zip(starts, nxt) if a in m["unrecovered_at"]]
+    rates = np.asarray(run.qvel, float)[:, hinges]  # 1-DOF hinges: the same index in qvel as in qpos
+    x = np.hstack([np.asarray(run.qpos, float), np.asarray(run.qvel, float)])
+    after = [float(model.energy(x[min(np.searchsorted(run.t, b - 1e-9) + 1, len(x) - 1)])) for _, b in throw.events]
+    took = [min(s for s in m["swingup_times"] if a < s < b) - a for a, b in zip(starts, nxt)
+            if any(a < s < b for s in m["swingup_times"])]
+    return {"seed": seed, "uptime": m["uptime"], "uptime_height": height_uptime(run, params, model),
+            "throws": m["knockdowns"],
+            "throws_while_up": int(sum(up[np.searchsorted(run.t, a)] for a in starts)),
+            "swingups": m["swingups"], "recovered": m["recoveries"], "missed_at": m["unrecovered_at"],
+            "left_s": left, "recover_s": took, "energy_after_J": after, "decisions": dict(Counter(d.kind for d in sup.decisions)),
+            "mpcs": sum(1 for d in sup.decisions if d.kind == "mpc"), "plans": sup.plans,
+            "peak_rate": float(np.max(np.abs(rates))), "replays": bool(replays_exactly(run, params)),
+            "diverged": bool(run.info.get("diverged", False)), "wall_s": time.perf_counter() - tic,
+            **({"decision_log": [{k: v for k, v in d.to_dict().items() if k != "x0"} for d in sup.decisions]}
+               if decisions else {})}
+
+
+def _spread(values) -> dict | None:
+    """``min``, ``median``, ``max`` and ``count`` of ``values``, or None when there are none."""
+    if not values:
+        return None
+    return {"min": float(np.min(values)), "median": float(np.median(values)), "max": float(np.max(values)),
+            "count": len(values)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(range(12)))
+    ap.add_argument("--every", type=float, default=EVERY, help="mean s between throws")
+    ap.add_argument("--rate", type=float, default=RATE, help="largest change of a hinge's rate, rad/s")
+    ap.add_argument("--duration", type=float, default=60.0, help="s of MuJoCo per seed")
+    ap.add_argument("--set-rates", action="store_true",
+                    help="each throw sets the hinge rates (to at most RATE) instead of adding to them")
+    ap.add_argument("--decisions", action="store_true", help="each run's decisions too (decision_log)")
+    ap.add_argument("--out", default=None, help="also write each row, as it comes, to this JSON-lines file")
+    args = ap.parse_args()
+    params = read_params(ACROBOT)
+    model = build_model(params)
+    library = acrobot_library(params, model)
+    rows = []
+    for s in tqdm(args.seeds, desc="acrobot thrown minutes", file=sys.stderr):
+        rows.append(one_run(params, model, library, s, args.every, args.rate, args.duration, args.set_rates,
+                            args.decisions))
+        if args.out:
+            with open(args.out, "a") as f:
+                f.write(json.dumps(rows[-1], default=float) + "\n")
+    ups = [r["uptime"] for r in rows]
+    print(json.dumps({"seeds": args.seeds, "every": args.every, "rate": args.rate, "set_rates": args.set_rates,
+                      "duration": args.duration,
+                      "runs": rows, "uptime_mean": float(np.mean(ups)), "uptime_median": float(np.median(ups)),
+                      "uptime_height_mean": float(np.mean([r["uptime_height"] for r in rows])),
+                      "throws": sum(r["throws"] for r in rows), "swingups": sum(r["swingups"] for r in rows),
+                      "recovered": sum(r["recovered"] for r in rows),
+                      "recover_s": _spread([v for r in rows for v in r["recover_s"]]),
+                      "energy_after_J": _spread([v for r in rows for v in r["energy_after_J"]]),
+                      "swingup_energy_J": swingup_energy(model),
+                      "missed_gap_s": _spread([v for r in rows for v in r["left_s"]]),
+                      "all_replay": all(r["replays"] for r in rows)}, default=float))
+
+
+if __name__ == "__main__":
+    main()
