@@ -708,7 +708,7 @@ class Supervisor:
             self._decide(t, "plan_failed", wall_s=wall, charged_s=charged, reason=why,
                          x0=[float(v) for v in np.asarray(x_pred, dtype=float)],
                          **({} if dist is None else {"library_distance": dist}))
-            self.mode = "brake"
+            self.mode = None  # the fallback that acts next is logged as its own decision (brake, mpc, plan)
             return
         # used from the later of its arrival and the time it was planned to start from (an early plan waits)
         self.plan, self.plan_t0 = plan, t + steps * self.model.dt
@@ -905,7 +905,7 @@ class Supervisor:
                 self._receding(t, x)
                 return self.plan.controller(t - self.plan_t0, x)
             self._decide(t, "lost", cost=cost)
-            self.mode = "brake"
+            self.mode = None  # the fallback below is logged as its own decision
         if self.mode == "wait":
             return self.brake(t, x)
         fast = self._fast(x)
@@ -913,6 +913,7 @@ class Supervisor:
             self.fast_since = None
         elif self.fast_since is None:
             self.fast_since = t
+            self.mpc_spent = False  # knocked (thrown) since the MPC ran out: a new state, the MPC may try it again
         timed_out = fast and self.planner is not None and t - self.fast_since >= self.options.calm_budget
         if self.planner is None or (fast and not timed_out) or t < self.retry_at:
             self._set(t, "brake", cost=cost, energy=self._energy(x))
@@ -928,8 +929,8 @@ class Supervisor:
 
     def _mpc_reaches(self, x) -> bool:
         """Whether the swing-up MPC takes a calm ``x`` (nx,): there is one, it has not failed (run out of its budget)
-        since the last catch, and the energy is at most ``mpc_energy`` above the upright's and (with ``mpc_floor``)
-        at most ``mpc_floor`` below it."""
+        since the last catch or the last knock (a calm state turned fast), and the energy is at most ``mpc_energy``
+        above the upright's and (with ``mpc_floor``) at most ``mpc_floor`` below it."""
         gap = self._energy(x) - self._energy(self.model.x_eq)
         floor = self.options.mpc_floor
         return (self.mpc is not None and not self.mpc_spent and gap <= self.options.mpc_energy
@@ -953,7 +954,9 @@ class Supervisor:
         out = self._energy(x) - self._energy(self.model.x_eq) > self.options.mpc_energy  # knocked again
         if ran < self.options.mpc_budget and not out:
             return False
-        self.mpc_spent, self.mode = not out, "brake"  # knocked: calmed, then the MPC again
+        self.mpc_spent, self.mode = not out, None  # knocked: calmed, then the MPC again; the fallback logged next
+        if self.mpc_spent:  # only a later knock (calm, then fast) makes it a new state for the MPC
+            self.fast_since = t if self._fast(x) else None
         why = "the energy rose above the MPC's band" if out else f"no catch within {self.options.mpc_budget:g} s"
         self._decide(t, "mpc_failed", ran_s=ran, cost=cost, energy=self._energy(x), reason=why)
         return True

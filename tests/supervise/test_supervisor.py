@@ -423,14 +423,21 @@ def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(do
     kinds = [d.kind for d in sup.decisions]
     assert kinds[-2:] == ["mpc_failed", "plan_failed"] and len(asked) == 1
     assert "no catch within 1 s" in sup.decisions[-2].detail["reason"]
-    sup(3.6, near)  # not again until the next catch
+    sup(3.6, near)  # not again until the next catch or knock
     assert len(sup.mpc.calls) == 2 and len(asked) == 2
+    thrown = near.copy()
+    thrown[model.nq + model.hinges[0]] = 30.0  # knocked (thrown) after the MPC ran out: a new state
+    sup(4.0, thrown)
+    assert sup.mode == "brake" and len(sup.mpc.calls) == 2
+    assert [d.kind for d in sup.decisions][-2:] == ["plan_failed", "brake"]  # the fallback has its own entry
+    sup(4.5, near)  # calm again: the MPC tries this new state
+    assert sup.mode == "mpc" and len(sup.mpc.calls) == 3 and len(asked) == 2
     floored = Supervisor(model, catch, 1e-9, brake, planner=planner,
                          options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band, mpc_floor=band))
     floored.mpc = _StubMPC(model.nu)
     floored(0.0, np.asarray(model.x_hanging, float))  # below its floor: planned from
     assert not floored.mpc.calls and floored.decisions[-1].kind == "plan_failed" and len(asked) == 3
-    assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 2, "over_budget": 0,
+    assert sup.summary()["mpc_ms"] == {"median": 1.0, "max": 1.0, "steps": 3, "over_budget": 0,
                                        "budget_ms": None}  # each step's wall time, logged
     hanging = Supervisor(model, catch, 1e-9, brake, planner=planner,
                          options=SupervisorOptions(latency=0.01, swingup_mpc=True, mpc_energy=band, mpc_floor=None))
@@ -442,8 +449,8 @@ def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(do
     knocked[model.nq + model.hinges[0]] = 30.0  # knocked again while the MPC swings: far above the band
     assert float(model.energy(knocked)) - e_up > band
     hanging(0.1, knocked)
-    assert hanging.decisions[-1].kind == "mpc_failed" and hanging.mode == "brake"
-    assert "energy rose" in hanging.decisions[-1].detail["reason"]
+    assert [d.kind for d in hanging.decisions][-2:] == ["mpc_failed", "brake"] and hanging.mode == "brake"
+    assert "energy rose" in hanging.decisions[-2].detail["reason"]
     hanging(0.2, x_hanging)  # calm again: the MPC takes it again (a knock does not spend it), still no plan
     assert hanging.mode == "mpc" and len(hanging.mpc.calls) == 2 and not asked[3:]
     with pytest.raises(SupervisorError, match="mpc_budget"):
