@@ -58,10 +58,14 @@ from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.options import MPCOptions
 from cartpole.models import CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
+from cartpole.ocp.dmc import is_task
+from cartpole.ocp.dmc import task as dmc_task
+from cartpole.planning.box_tail import box_tail_planner
 from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
+from cartpole.supervise.lead_in import PlanLeadIn
 from cartpole.supervise.pump import hinge_swingup, pendulum_driven_at_hinge
 from cartpole.supervise.worker import PlanWorker, fork_available, timeout_sentence
 from cartpole.validation import BasinCache
@@ -581,8 +585,10 @@ class Supervisor:
         say) as a picklable request for :meth:`_serve`, and the library's distance to its warm start (None without
         one)."""
         if self.library is not None and len(self.library) and self.options.warm_tails:
+            cart = self.options.cart_plans  # the state itself: a cart's energy is mostly the cart's
             guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
-                                                energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
+                                                energy_weight=0.0 if cart else KNOT_ENERGY_WEIGHT,
+                                                min_tail=0.0 if cart else KNOT_MIN_TAIL)
             return ("_plan_warm", (x_pred, guesses), {}), guesses[0][1]
         if self.library is not None and len(self.library):
             guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
@@ -832,7 +838,8 @@ class Supervisor:
         t = float(t)
         x = np.asarray(x, dtype=float)
         cost = float(self.catch.cost_to_go(x))
-        if cost < self.rho or (self.mode == "catch" and cost < self.options.release_factor * self.rho):
+        if (cost < self.rho or (self.mode == "catch" and cost < self.options.release_factor * self.rho)) \
+                and not self._plan_holds(t, x):
             self._set(t, "catch", cost=cost)
             self.still_since, self.stalled, self.mpc_spent = None, False, False
             return self.catch(t, x)
@@ -880,6 +887,16 @@ class Supervisor:
             return self._start_mpc(t, x, cost)
         self._request_plan(t, x)
         return self.brake(t, x)
+
+    def _plan_holds(self, t: float, x) -> bool:
+        """With ``cart_plans``: whether a plan is tracked, not over and not lost, or a plan is on its way while the
+        law meanwhile follows a stored plan (:class:`~cartpole.supervise.lead_in.PlanLeadIn`), so that the catch
+        waits for the plan's end (its TVLQR hands over there, as the plan designed from the start does)."""
+        if not self.options.cart_plans:
+            return False
+        if self.mode == "wait":
+            return isinstance(self.brake, PlanLeadIn) and self.brake.leads(t, x)
+        return self.mode == "track" and t - self.plan_t0 < self.plan.trajectory.duration and not self._lost(t, x)
 
     def _mpc_reaches(self, x) -> bool:
         """Whether the swing-up MPC takes a calm ``x`` (nx,): there is one, it has not failed since the last catch,
@@ -1068,9 +1085,22 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         lib = PlanLibrary.load(model, objective=None if plan is None else plan.objective) if library is None \
             else library
     if lib is not None and len(lib):
-        return Supervisor(model, catch, rho, law, planner=_swingup_planner(params, model, plan, opts, period, catch_R),
-                          options=opts, basin=basin, library=lib, calm_brake=law)
+        # from a start near the stored plan's (an episode's, at t = 0) its inputs meanwhile, the energy law elsewhere
+        lead = PlanLeadIn(model, lib.nearest(model.x_hanging)[0].trajectory, law, catch,
+                          float(params.timestep) if period is None else float(period))
+        planner = (box_tail_planner(params, model, plan.objective, catch_R=catch_R, options=plan)
+                   if _sparse_task(plan, params, period) else _swingup_planner(params, model, plan, opts, period, catch_R))
+        return Supervisor(model, catch, rho, lead, planner=planner, options=opts, basin=basin, library=lib,
+                          calm_brake=law)
     return Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin)
+
+
+def _sparse_task(plan: PlanOptions | None, params, period: float | None) -> bool:
+    """Whether ``plan`` plans a sparse dm_control task at the MJCF's step (the cart's plans then keep the stored
+    entry plans' box entry: :func:`~cartpole.planning.box_tail.box_tail_planner`)."""
+    objective = None if plan is None else plan.objective
+    return (isinstance(objective, str) and is_task(objective) and dmc_task(objective).sparse
+            and (period is None or abs(float(period) - float(params.timestep)) < 1e-12))
 
 
 def _swingup_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,
