@@ -178,15 +178,16 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, max_st
     return x, u, K, K_ref, info
 
 
-def box_entry_at(model, name: str, x0, x_ref, u_ref, x_goal, bounds, K: int, *, margin: float = BOX_MARGIN,
+def box_entry_at(model, name: str, x0, x_ref, u_ref, bounds, K: int, *, margin: float = BOX_MARGIN,
                  fast: dict | None = None, elastic: float | None = None):
-    """One problem of the module doc: the plan from ``x0`` in the box from step ``K`` on, the ctrl nearest
-    ``u_ref``'s, started from ``(x_ref, u_ref)`` (a plan from a nearby start entering at ``K``: e.g. the rest of a
-    stored entry plan), by one IPOPT solve (:func:`entry_solver`, built once per model, task and length).
+    """One problem of the module doc: the plan from ``x0`` to ``x_ref``'s last state, in the box from step ``K`` on,
+    the ctrl nearest ``u_ref``'s, started from ``(x_ref, u_ref)`` (a plan from a nearby start entering at ``K``: e.g.
+    the rest of a stored entry plan), by one IPOPT solve (:func:`entry_solver`, built once per model, task and
+    length).
 
     Parameters
     ----------
-    model, name, x0, x_ref, u_ref, x_goal, bounds, margin
+    model, name, x0, x_ref, u_ref, bounds, margin
         As :func:`box_entry_plan` (``x_ref`` (n+1, nx), ``u_ref`` (n, nu)).
     K : int
         The first step in the box (0 <= K <= n).
@@ -203,7 +204,7 @@ def box_entry_at(model, name: str, x0, x_ref, u_ref, x_goal, bounds, K: int, *, 
     x_ref, u_ref = np.asarray(x_ref, float), np.asarray(u_ref, float).reshape(-1, nu)
     n = u_ref.shape[0]
     solver, lbg, ubg = entry_solver(model, name, n, margin, fast, elastic)
-    lw, hw = shooting_bounds(bounds, nx, n, x0, x_goal)
+    lw, hw = shooting_bounds(bounds, nx, n, x0, x_ref[-1])
     w = np.clip(np.r_[x_ref.ravel(), u_ref.ravel()], lw, hw)
     if elastic is not None:  # the slacks, from 0
         extra = lbg.size - nx * n

@@ -97,6 +97,24 @@ def box_tail_planner(params: CartPoleParams, model: CartPoleModel, objective: st
     catch = handover_catch(params, model, Q, R if catch_R is None else catch_R, steps=1)
     u_limits = np.asarray(params.ctrl_range, float)
 
+    def tracked(found, k: int, K_ref: int, tried: tuple, tic: float) -> SwingupPlan:
+        """The entry plan ``found`` (``(x, u, info)``, into the box at step ``k``) tracked by TVLQR on the exact step,
+        the catch at its end."""
+        x, u, info = found
+        traj = discrete_trajectory(dmodel, x, u, dt)
+        gains = tvlqr(dmodel, traj, Q, R, dt=dt, reference=(x, u))
+        exact = DiscretePlan(t=dt * np.arange(u.shape[0]), x=x, u=u, dt=dt, u_margin=0.0, status=info["status"],
+                             iterations=info["iterations"], solve_time_s=info["solve_time_s"],
+                             defect_before=float("nan"), defect_after=float("nan"),
+                             box_entry={"K": int(k), "K_surrogate": int(K_ref), "solves": len(tried),
+                                        "status": info["status"]})
+        solve = SolveInfo(status=info["status"], success=True, iterations=info["iterations"], objective=float("nan"),
+                          solve_time_s=info["solve_time_s"], solver="ipopt", T=traj.duration, guess="library plan",
+                          attempts=tried)
+        return SwingupPlan(trajectory=traj, gains=gains, solve_info=solve, catch=catch, model=dmodel,
+                           controller=TVLQRController(traj, gains, catch, u_limits=u_limits), objective=objective,
+                           plan_time_s=time.perf_counter() - tic, discrete=exact)
+
     def planner(x0, guess=None, cold=True):
         if guess is None:
             raise OCPError(f"The {objective} entry planner needs a stored plan's rest as its guess; it never plans "
@@ -109,8 +127,8 @@ def box_tail_planner(params: CartPoleParams, model: CartPoleModel, objective: st
         tried = []
         for slack in ENTRY_SLACK:
             k = min(K + slack, u_ref.shape[0])
-            found = box_entry_at(dmodel, objective, np.asarray(x0, float), x_ref, u_ref, x_ref[-1], bounds, k,
-                                 fast=FAST_IPOPT, elastic=ELASTIC)
+            found = box_entry_at(dmodel, objective, np.asarray(x0, float), x_ref, u_ref, bounds, k, fast=FAST_IPOPT,
+                                 elastic=ELASTIC)
             if found is not None:  # where it enters, elastic as it is
                 k = entry_step(dmodel, objective, found[0], margin=0.0)
             tried.append(Attempt(stage=f"warm box entry K={k}", guess="library plan", N=u_ref.shape[0],
@@ -119,27 +137,7 @@ def box_tail_planner(params: CartPoleParams, model: CartPoleModel, objective: st
                                  T=u_ref.shape[0] * dt, solve_time_s=found[2]["solve_time_s"] if found else 0.0,
                                  chosen=found is not None))
             if found is not None:
-                return _tracked(dmodel, params, found, k, K, tuple(tried), catch, u_limits, Q, R, tic, objective)
+                return tracked(found, k, K, tuple(tried), tic)
         raise OCPError(f"No {objective} plan enters the box within {ENTRY_SLACK[-1]} steps of the stored plan's "
                        f"entry (step {K}) from x0.")
     return planner
-
-
-def _tracked(model, params, found, k: int, K_ref: int, tried: tuple, catch, u_limits, Q, R, tic: float,
-             objective: str) -> SwingupPlan:
-    """The entry plan ``found`` (``(x, u, info)`` of :func:`box_entry_at`, into the box at step ``k``) tracked by
-    TVLQR on the exact step, the catch at its end."""
-    x, u, info = found
-    dt = float(params.timestep)
-    traj = discrete_trajectory(model, x, u, dt)
-    gains = tvlqr(model, traj, Q, R, dt=dt, reference=(x, u))
-    exact = DiscretePlan(t=dt * np.arange(u.shape[0]), x=x, u=u, dt=dt, u_margin=0.0, status=info["status"],
-                         iterations=info["iterations"], solve_time_s=info["solve_time_s"], defect_before=float("nan"),
-                         defect_after=float("nan"), box_entry={"K": int(k), "K_surrogate": int(K_ref),
-                                                               "solves": len(tried), "status": info["status"]})
-    solve = SolveInfo(status=info["status"], success=True, iterations=info["iterations"], objective=float("nan"),
-                      solve_time_s=info["solve_time_s"], solver="ipopt", T=traj.duration, guess="library plan",
-                      attempts=tried)
-    return SwingupPlan(trajectory=traj, gains=gains, controller=TVLQRController(traj, gains, catch, u_limits=u_limits),
-                       solve_info=solve, catch=catch, model=model, objective=objective,
-                       plan_time_s=time.perf_counter() - tic, discrete=exact)

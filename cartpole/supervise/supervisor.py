@@ -1084,15 +1084,28 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     if opts.cart_plans:  # plans warm from the library's, the energy law meanwhile (SupervisorOptions.cart_plans)
         lib = PlanLibrary.load(model, objective=None if plan is None else plan.objective) if library is None \
             else library
-    if lib is not None and len(lib):
-        # from a start near the stored plan's (an episode's, at t = 0) its inputs meanwhile, the energy law elsewhere
-        lead = PlanLeadIn(model, lib.nearest(model.x_hanging)[0].trajectory, law, catch,
-                          float(params.timestep) if period is None else float(period))
-        planner = (box_tail_planner(params, model, plan.objective, catch_R=catch_R, options=plan)
-                   if _sparse_task(plan, params, period) else _swingup_planner(params, model, plan, opts, period, catch_R))
-        return Supervisor(model, catch, rho, lead, planner=planner, options=opts, basin=basin, library=lib,
-                          calm_brake=law)
+    if lib is not None and len(lib):  # the library's plan followed meanwhile from a start near it, else the law
+        return Supervisor(model, catch, rho, _lead_in(params, model, lib, law, catch, period),
+                          planner=_cart_planner(params, model, plan, opts, period, catch_R), options=opts, basin=basin,
+                          library=lib, calm_brake=law)
     return Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin)
+
+
+def _lead_in(params, model: CartPoleModel, lib: PlanLibrary, law, catch: LinearFeedback,
+             period: float | None) -> PlanLeadIn:
+    """With ``cart_plans``: the law while a plan is made, :class:`~cartpole.supervise.lead_in.PlanLeadIn` along the
+    library's plan from hanging (from a start near it: an episode's, at t = 0), the energy ``law`` elsewhere."""
+    return PlanLeadIn(model, lib.nearest(model.x_hanging)[0].trajectory, law, catch,
+                      float(params.timestep) if period is None else float(period))
+
+
+def _cart_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,
+                  period: float | None, catch_R) -> Callable:
+    """With ``cart_plans``: the planner (a sparse task's by :func:`~cartpole.planning.box_tail.box_tail_planner`,
+    else :func:`_swingup_planner`)."""
+    if _sparse_task(plan, params, period):
+        return box_tail_planner(params, model, plan.objective, catch_R=catch_R, options=plan)
+    return _swingup_planner(params, model, plan, opts, period, catch_R)
 
 
 def _sparse_task(plan: PlanOptions | None, params, period: float | None) -> bool:
