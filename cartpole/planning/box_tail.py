@@ -42,6 +42,14 @@ FAST_IPOPT = {"expand": True, "ipopt.tol": 1e-8, "ipopt.constr_viol_tol": 1e-9, 
 #: misses the box by as little as it can for a step or two instead of a refused solve (a refusal costs IPOPT's
 #: restoration, as long as a solve).
 ELASTIC = 1e4
+#: Steps earlier than the stored plan's entry each plan asks for (elastic: it enters as early as it can near there):
+#: the stored plan keeps :data:`STORED_MARGIN` inside the box, which costs it a few steps of entry.
+ENTRY_EARLIER = 6
+#: How far inside the box a stored entry plan keeps (:func:`kept_inside`; cosine, m): the library's plan is followed
+#: by TVLQR from a start off its own while the first plan is made (:class:`cartpole.supervise.lead_in.PlanLeadIn`),
+#: and a plan on the box's edge (the search's 1e-6) is left by the first error; 2e-3 in the cosine is about 0.01 rad
+#: at the box's 0.1 rad.
+STORED_MARGIN = 2e-3
 
 
 def on_step_grid(traj: Trajectory, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -62,6 +70,21 @@ def discrete_trajectory(model: CartPoleModel, x, u, dt: float) -> Trajectory:
     u_full = np.vstack([u, u[-1:]])
     xdot = np.array([np.asarray(model.dynamics(xk, uk), dtype=float).ravel() for xk, uk in zip(x, u_full)])
     return Trajectory(t=float(dt) * np.arange(x.shape[0]), x=x, u=u_full, xdot=xdot)
+
+
+def kept_inside(model: CartPoleModel, name: str, x, u, bounds, margin: float = STORED_MARGIN):
+    """The entry plan ``x`` (n+1, nx), ``u`` (n, nu) on the exact step (a sparse task's, on the box's edge) re-solved
+    to keep ``margin`` inside the box from the first step it can (its own entry, then 2, 4, 8 and 16 steps later),
+    the ctrl nearest its own: ``(x, u)``; the plan as it is when none converges."""
+    x, u = np.asarray(x, float), np.asarray(u, float)
+    K = entry_step(model, name, x, margin=0.0)
+    for later in (0, 2, 4, 8, 16):
+        if K is None or K + later > u.shape[0]:
+            break
+        found = box_entry_at(model, name, x[0], x, u, bounds, K + later, margin=margin)
+        if found is not None:
+            return found[0], found[1]
+    return x, u
 
 
 def box_tail_planner(params: CartPoleParams, model: CartPoleModel, objective: str, *, catch_R=None,
@@ -126,7 +149,7 @@ def box_tail_planner(params: CartPoleParams, model: CartPoleModel, objective: st
             raise OCPError(f"The guess never stays in the {objective} box; give a stored entry plan's rest.")
         tried = []
         for slack in ENTRY_SLACK:
-            k = min(K + slack, u_ref.shape[0])
+            k = max(0, min(K - ENTRY_EARLIER + slack, u_ref.shape[0]))
             found = box_entry_at(dmodel, objective, np.asarray(x0, float), x_ref, u_ref, bounds, k, fast=FAST_IPOPT,
                                  elastic=ELASTIC)
             if found is not None:  # where it enters, elastic as it is

@@ -37,7 +37,10 @@ from cartpole.codegen import cache_dir, model_key, private_dir, read_verified, w
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.ocp.trajectory import Trajectory
-from cartpole.planning.box_tail import discrete_trajectory
+from cartpole.ocp.bounds import bounds_from_params
+from cartpole.ocp.dmc import is_task
+from cartpole.ocp.dmc import task as dmc_task
+from cartpole.planning.box_tail import discrete_trajectory, kept_inside
 from cartpole.planning.trajopt import trajopt_swingup
 
 #: Part of the library file's key: bump when what a stored plan means changes.
@@ -340,7 +343,7 @@ def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, s
     path : str or Path, optional
         The file (default :func:`library_path` of the model's hash and ``options.objective``: a library per
         objective, e.g. ``dmc_cartpole_swingup``'s plans beside the effort plans; with ``exact`` the objective's
-        name and ``-exact``, a file of its own).
+        name and ``-entry``, a file of its own).
 
     Returns
     -------
@@ -351,7 +354,7 @@ def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, s
     starts = library_starts(model) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
     objective = getattr(options, "objective", None)
     if exact and isinstance(objective, str):
-        objective = f"{objective}-exact"
+        objective = f"{objective}-entry"
     path = library_path(model_key(model), objective) if path is None else path
     lib = PlanLibrary.load(model, path)
     missing = [x for x in starts if not len(lib) or lib.nearest(x)[1] > 1e-12]
@@ -398,6 +401,23 @@ def library_starts(model: CartPoleModel, angles: int = 7) -> np.ndarray:
     return np.array(out)
 
 
+def _kept(params: CartPoleParams, model: CartPoleModel, plan, options) -> Trajectory:
+    """What ``build_plan_library(exact=True)`` keeps of ``plan``: its exact discrete plan as a trajectory on the step
+    grid (:func:`~cartpole.planning.box_tail.discrete_trajectory`; a sparse task's entry plan moved
+    :data:`~cartpole.planning.box_tail.STORED_MARGIN` inside its box: :func:`~cartpole.planning.box_tail.kept_inside`),
+    else its collocation plan."""
+    d = plan.discrete
+    if d is None:
+        return plan.trajectory
+    x, u = d.x, d.u
+    objective = getattr(options, "objective", None)
+    if d.box_entry is not None and isinstance(objective, str) and is_task(objective) and dmc_task(objective).sparse:
+        step = model if abs(float(model.dt) - float(d.dt)) < 1e-15 else model.rebuilt(dt=float(d.dt))
+        bounds = bounds_from_params(params, cart_margin=getattr(options, "cart_margin", 0.1))
+        x, u = kept_inside(step, objective, x, u, bounds)
+    return discrete_trajectory(model, x, u, d.dt)
+
+
 def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = None, starts=None, *, options=None,
                        period: float | None = None, library: PlanLibrary | None = None, progress=None,
                        exact: bool = False) -> PlanLibrary:
@@ -421,8 +441,8 @@ def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = Non
         ``progress(done, total)`` after each start.
     exact : bool
         Keep each plan's exact discrete plan where it has one (``SwingupPlan.discrete``: a sparse task's box-entry
-        plan, on the MJCF's step grid; :func:`cartpole.planning.box_tail.discrete_trajectory`), else its
-        collocation plan (False, default: the collocation plan always).
+        plan, on the MJCF's step grid, moved inside its box: :func:`_kept`), else its collocation plan (False,
+        default: the collocation plan always).
 
     Returns
     -------
@@ -442,9 +462,8 @@ def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = Non
         except CartPoleError as exc:
             failed.append((readonly(np.array(x0)), str(exc)))
         else:
-            d = plan.discrete if exact else None
-            traj = plan.trajectory if d is None else discrete_trajectory(model, d.x, d.u, d.dt)
-            lib = lib.with_plan(x0, traj, time.perf_counter() - tic)
+            lib = lib.with_plan(x0, _kept(params, model, plan, options) if exact else plan.trajectory,
+                                time.perf_counter() - tic)
         if progress is not None:
             progress(i + 1, len(starts))
     return PlanLibrary(lib.key, lib.nx, lib.nu, lib.hinges, lib.plans, tuple(failed))
