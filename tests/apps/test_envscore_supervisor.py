@@ -14,7 +14,8 @@ from cartpole.control import LinearFeedback
 from cartpole.errors import CartPoleError
 from cartpole.models import build_model
 from cartpole.planning.box_entry import entry_step
-from cartpole.planning.box_tail import box_tail_planner, on_step_grid
+from cartpole.ocp.bounds import bounds_from_params
+from cartpole.planning.box_tail import STORED_MARGIN, box_tail_planner, kept_inside, on_step_grid
 from cartpole.planning.library import PlanLibrary, build_plan_library
 from cartpole.planning.options import PlanOptions
 from cartpole.sim import simulate
@@ -126,4 +127,17 @@ def test_sparse_plan_from_a_stored_plans_knot_enters_the_box_no_later_and_stays_
     assert np.all(inside[K:]) and not inside[0]
     with pytest.raises(CartPoleError, match="guess"):
         planner(x)
+
+
+def test_a_stored_entry_plan_is_kept_inside_the_box_by_its_margin_on_the_exact_step(library):
+    """What the sparse task's library keeps (kept_inside): a plan on the exact step that, from its entry on, stays
+    STORED_MARGIN inside dm_control's box (the cosine and the cart), from the same start to the same end."""
+    model = build_model(str(ASSETS / "dmc_cartpole.xml"))
+    name = "dmc_cartpole_swingup_sparse"
+    x_ref, u_ref = on_step_grid(library.plans[0].trajectory, float(model.dt))
+    x, u = kept_inside(model, name, x_ref, u_ref, bounds_from_params(model.params, cart_margin=0.1))
+    assert entry_step(model, name, x, margin=0.99 * STORED_MARGIN) is not None
+    assert np.allclose(x[0], x_ref[0]) and np.allclose(x[-1], x_ref[-1])
+    nxt = np.asarray(model.step.map(u.shape[0])(x[:-1].T, u.T)).T
+    assert np.max(np.abs(nxt - x[1:])) < 1e-6
 
