@@ -889,12 +889,12 @@ class Supervisor:
         return self.brake(t, x)
 
     def _plan_holds(self, t: float, x) -> bool:
-        """With ``cart_plans``: whether a plan is tracked, not over and not lost, or a plan is on its way while the
-        law meanwhile follows a stored plan (:class:`~cartpole.supervise.lead_in.PlanLeadIn`), so that the catch
+        """With ``cart_plans``: whether a plan is tracked, not over and not lost, or (a plan on its way, or after a
+        failed one) the law follows a stored plan (:class:`~cartpole.supervise.lead_in.PlanLeadIn`), so that the catch
         waits for the plan's end (its TVLQR hands over there, as the plan designed from the start does)."""
         if not self.options.cart_plans:
             return False
-        if self.mode == "wait":
+        if self.mode in ("wait", "brake"):
             return isinstance(self.brake, PlanLeadIn) and self.brake.leads(t, x)
         return self.mode == "track" and t - self.plan_t0 < self.plan.trajectory.duration and not self._lost(t, x)
 
@@ -1085,9 +1085,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         lib = PlanLibrary.load(model, objective=None if plan is None else plan.objective) if library is None \
             else library
     if lib is not None and len(lib):  # the library's plan followed meanwhile from a start near it, else the law
-        return Supervisor(model, catch, rho, _lead_in(params, model, lib, law, catch, period),
-                          planner=_cart_planner(params, model, plan, opts, period, catch_R), options=opts, basin=basin,
-                          library=lib, calm_brake=law)
+        lead = _lead_in(params, model, lib, law, catch, period)
+        return Supervisor(model, catch, rho, lead, planner=_cart_planner(params, model, plan, opts, period, catch_R),
+                          options=opts, basin=basin, library=lib, calm_brake=lead)
     return Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin)
 
 
