@@ -141,3 +141,23 @@ def test_a_stored_entry_plan_is_kept_inside_the_box_by_its_margin_on_the_exact_s
     nxt = np.asarray(model.step.map(u.shape[0])(x[:-1].T, u.T)).T
     assert np.max(np.abs(nxt - x[1:])) < 1e-6
 
+
+def test_after_a_failed_plan_the_stored_plan_is_followed_to_its_end_and_caught(library):
+    """A first plan that fails (a planner that always refuses) leaves the lead-in following the stored plan, not the
+    energy law: the catch takes over at the stored plan's end, the pole upright, and the failure is reported."""
+    def failing(env, mjcf, x0, hold):
+        sup = supervised(env, mjcf, x0, hold, charged_latency=0.3, library=library)
+
+        def refuse(*args, **kwargs):
+            raise CartPoleError("refused by the test")
+        sup.planner = refuse
+        return sup
+
+    ep = score_episode(ENV, 0, controller=failing, max_steps=STEPS)
+    assert ep.replays and not ep.warned
+    decisions = ep.design["decisions"]
+    assert decisions[0]["kind"] == "plan_failed" and ep.design["unreachable"]
+    catch = _first(decisions, "catch")
+    assert catch is not None and catch["t"] >= library.plans[0].trajectory.duration - 0.011
+    assert np.cos(ep.x[-1][1]) > 0.99
+
