@@ -403,13 +403,14 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
 
     On dm_control's cart-poles (:data:`SUPERVISOR_OBJECTIVES`) it plans each swing-up (``cart_plans``), warm from the
     library of that model and objective (:func:`cartpole.planning.library.cached_library`: the plan from hanging at
-    rest, planned cold once and kept in the user cache under the model's hash, never in the package), from the knot
-    of the stored plan (or its mirror image) nearest the state predicted when the plan will be ready
-    (``warm_tails``), the energy law pumping meanwhile; TVLQR tracks the collocation plan (``exact_plans=False``).
-    Before the episode the first plan is rehearsed from the library's own start (hanging at rest, not ``x0``) to
-    build the solvers and measure the latency predicted for the first plan (:data:`LATENCY_MARGIN` times the
-    rehearsal's wall time: :func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25 times the
-    median of its measured ones).
+    rest, planned cold once and kept in the user cache under the model's hash, never in the package; the sparse
+    task's keeps its box-entry plan inside the box: ``exact``), from the knot of the stored plan (or its mirror image)
+    nearest the state predicted when the plan will be ready (``warm_tails``), following the stored plan meanwhile
+    (:class:`cartpole.supervise.lead_in.PlanLeadIn`, the energy law off it); TVLQR tracks the plan to its end, then the
+    catch (the sparse task's plans: :func:`cartpole.planning.box_tail.box_tail_planner`). Before the episode the first
+    plan is rehearsed from the library's own start (hanging at rest, not ``x0``) to build the solvers and measure the
+    latency predicted for the first plan (:func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25
+    times the median of its measured ones).
     ``charged_latency`` (s): charge every plan that instead of its wall time (``SupervisorOptions.charged_latency``:
     a run that does not depend on the machine's speed, as a test needs); None (default) the measured wall time.
     ``library``: these plans instead of the cached library (a test's own)."""
