@@ -267,10 +267,13 @@ class SupervisorOptions(StageOptions):
         :attr:`Supervisor.prepare_s`. False: every child starts as cold as this process.
     cart_plans : bool
         On one pole driven by the cart (where the energy law swings up on its own): plan each swing-up too, warm from
-        the library's plans, with the energy law acting while the plan is made (and predicting the state the plan
-        starts from), so the plan loses nothing of the pumping it replaces (True; :func:`supervisor_for` does so only
-        when its library holds a plan), or the energy law and the catch alone (False, default). The law pumps longer
-        than a planned swing-up (``docs/dmc.md``); a plan that fails leaves the law in charge.
+        the library's plans, following the library's plan from hanging while the plan is made from a start near it
+        (:class:`~cartpole.supervise.lead_in.PlanLeadIn`, which predicts the state the plan starts from), else the
+        energy law, and tracking each plan to its end before the catch takes over (True; :func:`supervisor_for` does
+        so only when its library holds a plan; a sparse dm_control task's plans by
+        :func:`~cartpole.planning.box_tail.box_tail_planner`), or the energy law and the catch alone (False,
+        default). The law pumps longer than a planned swing-up (``docs/dmc.md``); a plan that fails leaves the lead-in
+        or the law in charge.
     """
 
     plan_budget: float = 30.0
