@@ -377,17 +377,21 @@ def design(env: Environment, mjcf: str, x0, hold: int):
                            options=PlanOptions(objective=env.objective)).controller
 
 
-#: The objective the supervisor plans for in each dm_control cart-pole environment (:func:`supervised`): the smooth
-#: swing-up reward in both. On ``swingup_sparse`` the planner's own route (the surrogate, then the box-entry search:
-#: one IPOPT solve on the exact step per candidate entry, 30-40 s a plan on the shared machine) takes far longer than
-#: the swing-up it would shorten; the smooth reward's plan ends centred upright at rest too, inside the sparse box.
-SUPERVISOR_OBJECTIVES = {"cartpole-swingup": "dmc_cartpole_swingup", "cartpole-swingup_sparse": "dmc_cartpole_swingup"}
+#: The objective the supervisor plans for in each dm_control cart-pole environment (:func:`supervised`): the task's
+#: own. On ``swingup_sparse`` the library keeps the box-entry plan (``exact``) and each plan in the loop keeps its
+#: entry step (:func:`cartpole.planning.box_tail.box_tail_planner`: one IPOPT solve on the exact step), where the
+#: planner's own route (the surrogate, then the box-entry search) takes 10-40 s a plan on the shared machine; the
+#: smooth reward's plan enters the sparse box 0.3 s later than the entry plan (about 30 of the return).
+SUPERVISOR_OBJECTIVES = {"cartpole-swingup": "dmc_cartpole_swingup",
+                         "cartpole-swingup_sparse": "dmc_cartpole_swingup_sparse"}
 #: The planning latency the supervisor predicts its first plan with (``SupervisorOptions.latency``), as a multiple of
 #: the wall time of a warm plan measured just before the episode (:func:`supervised`; the supervisor's own factor
 #: for its later plans, :attr:`cartpole.supervise.Supervisor.latency`): a plan that comes later than
 #: predicted starts behind the state the energy law has reached, one that comes early waits for the predicted state
 #: (the law pumping meanwhile), so erring long costs less.
 LATENCY_MARGIN = 1.25
+#: How many times :func:`_rehearsed_latency` plans again from the state predicted over its latency so far.
+REHEARSALS = 2
 
 
 def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: float | None = None,
@@ -400,13 +404,14 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
 
     On dm_control's cart-poles (:data:`SUPERVISOR_OBJECTIVES`) it plans each swing-up (``cart_plans``), warm from the
     library of that model and objective (:func:`cartpole.planning.library.cached_library`: the plan from hanging at
-    rest, planned cold once and kept in the user cache under the model's hash, never in the package), from the knot
-    of the stored plan (or its mirror image) nearest the state predicted when the plan will be ready
-    (``warm_tails``), the energy law pumping meanwhile; TVLQR tracks the collocation plan (``exact_plans=False``).
-    Before the episode the first plan is rehearsed from the library's own start (hanging at rest, not ``x0``) to
-    build the solvers and measure the latency predicted for the first plan (:data:`LATENCY_MARGIN` times the
-    rehearsal's wall time: :func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25 times the
-    median of its measured ones).
+    rest, planned cold once and kept in the user cache under the model's hash, never in the package; the sparse
+    task's keeps its box-entry plan inside the box: ``exact``), from the knot of the stored plan (or its mirror image)
+    nearest the state predicted when the plan will be ready (``warm_tails``), following the stored plan meanwhile
+    (:class:`cartpole.supervise.lead_in.PlanLeadIn`, the energy law off it); TVLQR tracks the plan to its end, then the
+    catch (the sparse task's plans: :func:`cartpole.planning.box_tail.box_tail_planner`). Before the episode the first
+    plan is rehearsed from the library's own start (hanging at rest, not ``x0``) to build the solvers and measure the
+    latency predicted for the first plan (:func:`_rehearsed_latency`; the supervisor's own rule for later plans is 1.25
+    times the median of its measured ones).
     On dm_control's acrobot (the environments whose toolkit controller is the DDP MPC) every calm state, the start
     too, is swung up by the supervisor's swing-up MPC minimising the task's own objective (``env.objective``, as
     :func:`design`'s MPC; :func:`cartpole.supervise.supervisor.hinge_options`), the catch taking over in its basin:
@@ -423,8 +428,8 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
     if objective is None:
         return supervisor_for(mjcf, model, period=period)
     plan = PlanOptions(objective=objective, solver="ipopt")
-    lib = (cached_library(model.params, model, starts=[model.x_hanging], options=plan, period=period)
-           if library is None else library)
+    lib = (cached_library(model.params, model, starts=[model.x_hanging], options=plan, period=period,
+                          exact=task(objective).sparse) if library is None else library)
     opts = SupervisorOptions(cart_plans=True, warm_tails=True, exact_plans=False, charged_latency=charged_latency)
     sup = supervisor_for(mjcf, model, period=period, plan=plan, options=opts, library=lib)
     if sup.planner is not None and charged_latency is None:
@@ -435,18 +440,27 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
 
 
 def _rehearsed_latency(sup, model, start) -> float | None:
-    """s: :data:`LATENCY_MARGIN` times the wall time of the plan ``sup`` would make from ``start`` (nx,), rehearsed
-    twice: from ``start`` itself (building the solvers in this process), then from the state its meanwhile law
-    (``sup.brake``) reaches from there over the latency that first plan predicts; None when a plan fails."""
+    """s: the latency predicted for the first plan of ``sup``, rehearsed from ``start`` (nx,) (the library's own start,
+    never the episode's) as the supervisor asks for a plan (``Supervisor._plan_request``): first from ``start``, then
+    :data:`REHEARSALS` times from the state its meanwhile law (``sup.brake``) reaches from ``start`` over the latency
+    predicted so far, each new prediction the mean of the last and :data:`LATENCY_MARGIN` times the plan's wall time
+    (a plan from later on the stored plan is shorter and quicker: the mean settles between). Each plan is made twice and
+    the second timed (the first builds what a plan of its length needs: the sparse task's entry problem is built once
+    per length, seconds), and the last prediction's plan is built too, so that the episode's first plan finds its
+    solvers made. When a plan fails, the prediction so far (None when the first fails)."""
     x, latency = np.asarray(start, dtype=float), None
-    for _ in range(2):
-        guess, _ = sup.library.knot_guesses(model, x, count=1)[0]
-        tic = time.perf_counter()
+    for k in range(REHEARSALS + 2):
         try:
-            sup.planner(x, guess=guess, cold=False)
-        except CartPoleError:
-            return None
-        latency = LATENCY_MARGIN * (time.perf_counter() - tic)
+            request, _ = sup._plan_request(x)
+            sup._serve(request)
+            if k == REHEARSALS + 1:
+                return latency
+            tic = time.perf_counter()
+            sup._serve(request)
+        except CartPoleError:  # e.g. predicted past the stored plan's end on a loaded machine
+            return latency
+        wall = LATENCY_MARGIN * (time.perf_counter() - tic)
+        latency = wall if latency is None else 0.5 * (latency + wall)
         xs, _ = model_rollout(model, sup.brake, start, max(1, int(round(latency / model.dt))))
         x = xs[-1]
     return latency

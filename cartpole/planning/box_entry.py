@@ -26,6 +26,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from cartpole.codegen import model_key
 from cartpole.ocp.bounds import shooting_bounds
 from cartpole.ocp.dmc import sparse_box
 
@@ -47,6 +48,59 @@ def _box_rows(Gx, lower, upper, on, margin: float):
         if np.isfinite(upper[i]):
             rows.append((upper[i] - margin) - Gx[i, :] + big * (1 - on))
     return ca.vec(ca.horzcat(*rows))
+
+
+#: The entry problems built so far, by the model's hash, task, steps and margin (:func:`entry_solver`).
+_SOLVERS: dict = {}
+
+
+def entry_solver(model, name: str, n: int, margin: float = BOX_MARGIN, fast: dict | None = None,
+                 elastic: float | None = None):
+    """The entry problem of the module doc over ``n`` steps of ``model.step`` for the sparse task ``name``, built
+    once per model (hash), task, ``n``, ``margin`` and settings and kept: ``(solver, lbg, ubg)``, the IPOPT solver of
+    the variables ``[vec(X) (nx, n+1), vec(U) (nu, n)]`` (column-major; with ``elastic`` then one slack >= 0 per box
+    row) with the parameter ``[on (n+1,), vec(u_ref) (n nu,)]`` (``on`` 1 at the knots where the box holds; the cost
+    ``sum |u_k - u_ref,k|^2 dt``) and the bounds of its constraints (the step's defects, then the box rows).
+    ``fast``: IPOPT options over the search's own; ``elastic``: each box row may be missed by its slack at this cost
+    per unit (an exact penalty: the box is kept wherever it can be, and the solve never ends infeasible)."""
+    key = (model_key(model), str(name), int(n), float(margin), None if fast is None else tuple(sorted(fast.items())),
+           elastic)
+    if key not in _SOLVERS:
+        nx, nu, dt = model.nx, model.nu, float(model.dt)
+        xs = ca.SX.sym("x", nx)
+        g_expr, lower, upper = sparse_box(model, name, xs)
+        g_fun = ca.Function("box", [xs], [g_expr])
+        X, U = ca.MX.sym("X", nx, n + 1), ca.MX.sym("U", nu, n)
+        K_par = ca.MX.sym("on", 1, n + 1)  # 1 where the box holds
+        U_ref = ca.MX.sym("u_ref", nu, n)
+        gap = ca.vec(model.step.map(n)(X[:, :-1], U) - X[:, 1:])
+        box_rows = _box_rows(g_fun.map(n + 1)(X), lower, upper, K_par, margin)
+        w, f = ca.veccat(X, U), ca.sumsqr(U - U_ref) * dt
+        if elastic is not None:
+            S = ca.MX.sym("s", box_rows.numel())
+            w, f, box_rows = ca.veccat(w, S), f + float(elastic) * ca.sum1(S), box_rows + S
+        solver = ca.nlpsol("box_entry", "ipopt", {"x": w, "p": ca.veccat(K_par, U_ref), "f": f,
+                                                  "g": ca.vertcat(gap, box_rows)},
+                           {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.max_iter": 200,
+                            "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": 1e-10, **(fast or {})})
+        ng = nx * n
+        _SOLVERS[key] = (solver, np.r_[np.zeros(ng), np.zeros(box_rows.numel())],
+                         np.r_[np.zeros(ng), np.full(box_rows.numel(), np.inf)])
+    return _SOLVERS[key]
+
+
+def entry_step(model, name: str, x, margin: float = BOX_MARGIN) -> int | None:
+    """The first knot of the states ``x`` (n+1, nx) from which every one is inside the sparse task ``name``'s box
+    (``margin`` inside its bounds; :func:`cartpole.ocp.dmc.sparse_box`), or None when the last is outside."""
+    xs = ca.SX.sym("x", model.nx)
+    g_expr, lower, upper = sparse_box(model, name, xs)
+    x = np.asarray(x, float)
+    G = np.asarray(ca.Function("box", [xs], [g_expr]).map(x.shape[0])(x.T)).T  # (n+1, m)
+    inside = np.all((G >= lower + margin) & (G <= upper - margin), axis=1)
+    if not inside[-1]:
+        return None
+    out = np.flatnonzero(~inside)
+    return int(out[-1] + 1) if out.size else 0
 
 
 def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, max_steps: int = MAX_STEPS,
@@ -80,40 +134,20 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, max_st
         the box, or no earlier entry was found.
     """
     tic = time.perf_counter()
-    nx, nu, dt = model.nx, model.nu, float(model.dt)
-    xs = ca.SX.sym("x", nx)
-    g_expr, lower, upper = sparse_box(model, name, xs)
-    g_fun = ca.Function("box", [xs], [g_expr])
+    nx, nu = model.nx, model.nu
     x_ref, u_ref = np.asarray(x_ref, float), np.asarray(u_ref, float).reshape(-1, nu)
     n = u_ref.shape[0]
-    G = np.asarray(g_fun.map(n + 1)(x_ref.T)).T  # (n+1, m)
-    inside = np.all((G >= lower + margin) & (G <= upper - margin), axis=1)
-    if not inside[-1]:
+    K_ref = entry_step(model, name, x_ref, margin)
+    if not K_ref:
         return None
-    out = np.flatnonzero(~inside)
-    K_ref = int(out[-1] + 1) if out.size else 0
-    if K_ref == 0:
-        return None
-    X, U = ca.MX.sym("X", nx, n + 1), ca.MX.sym("U", nu, n)
-    K_par = ca.MX.sym("on", 1, n + 1)  # 1 where the box holds
-    gap = ca.vec(model.step.map(n)(X[:, :-1], U) - X[:, 1:])
-    Gx = g_fun.map(n + 1)(X)  # (m, n+1)
-    box_rows = _box_rows(Gx, lower, upper, K_par, margin)
-    cost = ca.sumsqr(U - u_ref.T) * dt
+    solver, lbg, ubg = entry_solver(model, name, n, margin)
     lw, hw = shooting_bounds(bounds, nx, n, x0, x_goal)
-    solver = ca.nlpsol("box_entry", "ipopt", {"x": ca.veccat(X, U), "p": K_par, "f": cost,
-                                              "g": ca.vertcat(gap, box_rows)},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.max_iter": 200,
-                        "ipopt.tol": 1e-10, "ipopt.constr_viol_tol": 1e-10})
-    ng = nx * n
-    lbg = np.r_[np.zeros(ng), np.zeros(box_rows.numel())]
-    ubg = np.r_[np.zeros(ng), np.full(box_rows.numel(), np.inf)]
     w = np.clip(np.r_[x_ref.ravel(), u_ref.ravel()], lw, hw)
     solves, iters, status = 0, 0, "not tried"
 
     def feasible(K: int):
         nonlocal solves, iters, status
-        on = (np.arange(n + 1) >= K).astype(float)[None, :]
+        on = np.r_[(np.arange(n + 1) >= K).astype(float), u_ref.ravel()]
         sol = solver(x0=w, p=on, lbx=lw, ubx=hw, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         solves += 1
@@ -142,3 +176,45 @@ def box_entry_plan(model, name: str, x0, x_ref, u_ref, x_goal, bounds, *, max_st
     x, u, K = w[:nx * (n + 1)].reshape(n + 1, nx), w[nx * (n + 1):].reshape(n, nu), good
     info = {"iterations": iters, "solves": solves, "solve_time_s": time.perf_counter() - tic, "status": status}
     return x, u, K, K_ref, info
+
+
+def box_entry_at(model, name: str, x0, x_ref, u_ref, bounds, K: int, *, margin: float = BOX_MARGIN,
+                 fast: dict | None = None, elastic: float | None = None):
+    """One problem of the module doc: the plan from ``x0`` to ``x_ref``'s last state, in the box from step ``K`` on,
+    the ctrl nearest ``u_ref``'s, started from ``(x_ref, u_ref)`` (a plan from a nearby start entering at ``K``: e.g.
+    the rest of a stored entry plan), by one IPOPT solve (:func:`entry_solver`, built once per model, task and
+    length).
+
+    Parameters
+    ----------
+    model, name, x0, x_ref, u_ref, bounds, margin
+        As :func:`box_entry_plan` (``x_ref`` (n+1, nx), ``u_ref`` (n, nu)).
+    K : int
+        The first step in the box (0 <= K <= n).
+    fast, elastic
+        As :func:`entry_solver` (with ``elastic`` the plan may leave the box where it cannot keep it).
+
+    Returns
+    -------
+    (x (n+1, nx), u (n, nu), info) or None
+        The plan and ``info`` {``iterations``, ``solve_time_s``, ``status``}; None when IPOPT did not converge.
+    """
+    tic = time.perf_counter()
+    nx, nu = model.nx, model.nu
+    x_ref, u_ref = np.asarray(x_ref, float), np.asarray(u_ref, float).reshape(-1, nu)
+    n = u_ref.shape[0]
+    solver, lbg, ubg = entry_solver(model, name, n, margin, fast, elastic)
+    lw, hw = shooting_bounds(bounds, nx, n, x0, x_ref[-1])
+    w = np.clip(np.r_[x_ref.ravel(), u_ref.ravel()], lw, hw)
+    if elastic is not None:  # the slacks, from 0
+        extra = lbg.size - nx * n
+        lw, hw, w = np.r_[lw, np.zeros(extra)], np.r_[hw, np.full(extra, np.inf)], np.r_[w, np.zeros(extra)]
+    on = np.r_[(np.arange(n + 1) >= int(K)).astype(float), u_ref.ravel()]
+    sol = solver(x0=w, p=on, lbx=lw, ubx=hw, lbg=lbg, ubg=ubg)
+    stats = solver.stats()
+    info = {"iterations": int(stats.get("iter_count", 0)), "solve_time_s": time.perf_counter() - tic,
+            "status": str(stats.get("return_status"))}
+    if not stats.get("success", False):
+        return None
+    w = np.asarray(sol["x"], float).ravel()
+    return w[:nx * (n + 1)].reshape(n + 1, nx), w[nx * (n + 1):nx * (n + 1) + nu * n].reshape(n, nu), info

@@ -37,6 +37,10 @@ from cartpole.codegen import cache_dir, model_key, private_dir, read_verified, w
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.ocp.trajectory import Trajectory
+from cartpole.ocp.bounds import bounds_from_params
+from cartpole.ocp.dmc import is_task
+from cartpole.ocp.dmc import task as dmc_task
+from cartpole.planning.box_tail import discrete_trajectory, kept_inside
 from cartpole.planning.trajopt import trajopt_swingup
 
 #: Part of the library file's key: bump when what a stored plan means changes.
@@ -327,18 +331,19 @@ def mirrored(model: CartPoleModel, traj: Trajectory) -> Trajectory:
 
 
 def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, starts=None, *, options=None,
-                   period: float | None = None, path: str | Path | None = None) -> PlanLibrary:
+                   period: float | None = None, path: str | Path | None = None, exact: bool = False) -> PlanLibrary:
     """The library of plans from ``starts`` kept at ``path``: read when it holds a plan from every start, else the
     missing ones planned cold (:func:`build_plan_library`), added and saved. A library built once per model (keyed
     by its hash) and reused, e.g. by a long test or a demonstration.
 
     Parameters
     ----------
-    params, model, starts, options, period
+    params, model, starts, options, period, exact
         As :func:`build_plan_library` (``starts`` (k, nx), default :func:`library_starts`).
     path : str or Path, optional
         The file (default :func:`library_path` of the model's hash and ``options.objective``: a library per
-        objective, e.g. ``dmc_cartpole_swingup``'s plans beside the effort plans).
+        objective, e.g. ``dmc_cartpole_swingup``'s plans beside the effort plans; with ``exact`` the objective's
+        name and ``-entry``, a file of its own).
 
     Returns
     -------
@@ -348,12 +353,15 @@ def cached_library(params: CartPoleParams, model: CartPoleModel | None = None, s
     model = build_model(params) if model is None else model
     starts = library_starts(model) if starts is None else np.atleast_2d(np.asarray(starts, dtype=float))
     objective = getattr(options, "objective", None)
+    if exact and isinstance(objective, str):
+        objective = f"{objective}-entry"
     path = library_path(model_key(model), objective) if path is None else path
     lib = PlanLibrary.load(model, path)
     missing = [x for x in starts if not len(lib) or lib.nearest(x)[1] > 1e-12]
     if not missing:
         return lib
-    lib = build_plan_library(params, model, np.array(missing), options=options, period=period, library=lib)
+    lib = build_plan_library(params, model, np.array(missing), options=options, period=period, library=lib,
+                             exact=exact)
     if len(lib):
         saved = PlanLibrary(lib.key, lib.nx, lib.nu, lib.hinges, lib.plans)
         saved.save(path)
@@ -393,9 +401,26 @@ def library_starts(model: CartPoleModel, angles: int = 7) -> np.ndarray:
     return np.array(out)
 
 
+def _kept(params: CartPoleParams, model: CartPoleModel, plan, options) -> Trajectory:
+    """What ``build_plan_library(exact=True)`` keeps of ``plan``: its exact discrete plan as a trajectory on the step
+    grid (:func:`~cartpole.planning.box_tail.discrete_trajectory`; a sparse task's entry plan moved
+    :data:`~cartpole.planning.box_tail.STORED_MARGIN` inside its box: :func:`~cartpole.planning.box_tail.kept_inside`),
+    else its collocation plan."""
+    d = plan.discrete
+    if d is None:
+        return plan.trajectory
+    x, u = d.x, d.u
+    objective = getattr(options, "objective", None)
+    if d.box_entry is not None and isinstance(objective, str) and is_task(objective) and dmc_task(objective).sparse:
+        step = model if abs(float(model.dt) - float(d.dt)) < 1e-15 else model.rebuilt(dt=float(d.dt))
+        bounds = bounds_from_params(params, cart_margin=getattr(options, "cart_margin", 0.1))
+        x, u = kept_inside(step, objective, x, u, bounds)
+    return discrete_trajectory(model, x, u, d.dt)
+
+
 def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = None, starts=None, *, options=None,
-                       period: float | None = None, library: PlanLibrary | None = None, progress=None
-                       ) -> PlanLibrary:
+                       period: float | None = None, library: PlanLibrary | None = None, progress=None,
+                       exact: bool = False) -> PlanLibrary:
     """Cold plans (:func:`~cartpole.planning.trajopt.trajopt_swingup`) from every start, kept as a library.
 
     Parameters
@@ -414,6 +439,10 @@ def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = Non
         A library to add to (default an empty one).
     progress : callable, optional
         ``progress(done, total)`` after each start.
+    exact : bool
+        Keep each plan's exact discrete plan where it has one (``SwingupPlan.discrete``: a sparse task's box-entry
+        plan, on the MJCF's step grid, moved inside its box: :func:`_kept`), else its collocation plan (False,
+        default: the collocation plan always).
 
     Returns
     -------
@@ -433,7 +462,8 @@ def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = Non
         except CartPoleError as exc:
             failed.append((readonly(np.array(x0)), str(exc)))
         else:
-            lib = lib.with_plan(x0, plan.trajectory, time.perf_counter() - tic)
+            lib = lib.with_plan(x0, _kept(params, model, plan, options) if exact else plan.trajectory,
+                                time.perf_counter() - tic)
         if progress is not None:
             progress(i + 1, len(starts))
     return PlanLibrary(lib.key, lib.nx, lib.nu, lib.hinges, lib.plans, tuple(failed))

@@ -61,10 +61,14 @@ from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.options import MPCOptions
 from cartpole.models import CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
+from cartpole.ocp.dmc import is_task
+from cartpole.ocp.dmc import task as dmc_task
+from cartpole.planning.box_tail import box_tail_planner
 from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import trajopt_swingup
 from cartpole.sim.disturbance import joint_inertia_and_authority
+from cartpole.supervise.lead_in import PlanLeadIn
 from cartpole.supervise.pump import hinge_swingup, pendulum_driven_at_hinge
 from cartpole.supervise.worker import PlanWorker, fork_available, run_within, timeout_sentence
 from cartpole.validation import BasinCache
@@ -287,10 +291,13 @@ class SupervisorOptions(StageOptions):
         :attr:`Supervisor.prepare_s`. False: every child starts as cold as this process.
     cart_plans : bool
         On one pole driven by the cart (where the energy law swings up on its own): plan each swing-up too, warm from
-        the library's plans, with the energy law acting while the plan is made (and predicting the state the plan
-        starts from), so the plan loses nothing of the pumping it replaces (True; :func:`supervisor_for` does so only
-        when its library holds a plan), or the energy law and the catch alone (False, default). The law pumps longer
-        than a planned swing-up (``docs/dmc.md``); a plan that fails leaves the law in charge.
+        the library's plans, following the library's plan from hanging while the plan is made from a start near it
+        (:class:`~cartpole.supervise.lead_in.PlanLeadIn`, which predicts the state the plan starts from), else the
+        energy law, and tracking each plan to its end before the catch takes over (True; :func:`supervisor_for` does
+        so only when its library holds a plan; a sparse dm_control task's plans by
+        :func:`~cartpole.planning.box_tail.box_tail_planner`), or the energy law and the catch alone (False,
+        default). The law pumps longer than a planned swing-up (``docs/dmc.md``); a plan that fails leaves the lead-in
+        or the law in charge.
     """
 
     plan_budget: float = 30.0
@@ -611,8 +618,10 @@ class Supervisor:
         say) as a picklable request for :meth:`_serve`, and the library's distance to its warm start (None without
         one)."""
         if self.library is not None and len(self.library) and self.options.warm_tails:
+            cart = self.options.cart_plans  # the state itself: a cart's energy is mostly the cart's
             guesses = self.library.knot_guesses(self.model, x_pred, count=WARM_TRIES,
-                                                energy_weight=KNOT_ENERGY_WEIGHT, min_tail=KNOT_MIN_TAIL)
+                                                energy_weight=0.0 if cart else KNOT_ENERGY_WEIGHT,
+                                                min_tail=0.0 if cart else KNOT_MIN_TAIL)
             return ("_plan_warm", (x_pred, guesses), {}), guesses[0][1]
         if self.library is not None and len(self.library):
             guess = self.library.guess_for(self.model, x_pred, metric=self.catch.S)
@@ -877,7 +886,8 @@ class Supervisor:
         t = float(t)
         x = np.asarray(x, dtype=float)
         cost = float(self.catch.cost_to_go(x))
-        if cost < self.rho or (self.mode == "catch" and cost < self.options.release_factor * self.rho):
+        if (cost < self.rho or (self.mode == "catch" and cost < self.options.release_factor * self.rho)) \
+                and not self._plan_holds(t, x):
             self._set(t, "catch", cost=cost)
             self.still_since, self.stalled, self.mpc_spent = None, False, False
             return self.catch(t, x)
@@ -926,6 +936,16 @@ class Supervisor:
             return self._start_mpc(t, x, cost)
         self._request_plan(t, x)
         return self.brake(t, x)
+
+    def _plan_holds(self, t: float, x) -> bool:
+        """With ``cart_plans``: whether a plan is tracked, not over and not lost, or (a plan on its way, or after a
+        failed one) the law follows a stored plan (:class:`~cartpole.supervise.lead_in.PlanLeadIn`), so that the catch
+        waits for the plan's end (its TVLQR hands over there, as the plan designed from the start does)."""
+        if not self.options.cart_plans:
+            return False
+        if self.mode in ("wait", "brake"):
+            return isinstance(self.brake, PlanLeadIn) and self.brake.leads(t, x)
+        return self.mode == "track" and t - self.plan_t0 < self.plan.trajectory.duration and not self._lost(t, x)
 
     def _mpc_reaches(self, x) -> bool:
         """Whether the swing-up MPC takes a calm ``x`` (nx,): there is one, it has not failed (run out of its budget)
@@ -1160,10 +1180,36 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     if opts.cart_plans:  # plans warm from the library's, the energy law meanwhile (SupervisorOptions.cart_plans)
         lib = PlanLibrary.load(model, objective=None if plan is None else plan.objective) if library is None \
             else library
-    if lib is not None and len(lib):
-        return Supervisor(model, catch, rho, law, planner=_swingup_planner(params, model, plan, opts, period, catch_R),
-                          options=opts, basin=basin, library=lib, calm_brake=law)
+    if lib is not None and len(lib):  # the library's plan followed meanwhile from a start near it, else the law
+        lead = _lead_in(params, model, lib, law, catch, period)
+        return Supervisor(model, catch, rho, lead, planner=_cart_planner(params, model, plan, opts, period, catch_R),
+                          options=opts, basin=basin, library=lib, calm_brake=lead)
     return Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin)
+
+
+def _lead_in(params, model: CartPoleModel, lib: PlanLibrary, law, catch: LinearFeedback,
+             period: float | None) -> PlanLeadIn:
+    """With ``cart_plans``: the law while a plan is made, :class:`~cartpole.supervise.lead_in.PlanLeadIn` along the
+    library's plan from hanging (from a start near it: an episode's, at t = 0), the energy ``law`` elsewhere."""
+    return PlanLeadIn(model, lib.nearest(model.x_hanging)[0].trajectory, law, catch,
+                      float(params.timestep) if period is None else float(period))
+
+
+def _cart_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,
+                  period: float | None, catch_R) -> Callable:
+    """With ``cart_plans``: the planner (a sparse task's by :func:`~cartpole.planning.box_tail.box_tail_planner`,
+    else :func:`_swingup_planner`)."""
+    if _sparse_task(plan, params, period):
+        return box_tail_planner(params, model, plan.objective, catch_R=catch_R, options=plan)
+    return _swingup_planner(params, model, plan, opts, period, catch_R)
+
+
+def _sparse_task(plan: PlanOptions | None, params, period: float | None) -> bool:
+    """Whether ``plan`` plans a sparse dm_control task at the MJCF's step (the cart's plans then keep the stored
+    entry plans' box entry: :func:`~cartpole.planning.box_tail.box_tail_planner`)."""
+    objective = None if plan is None else plan.objective
+    return (isinstance(objective, str) and is_task(objective) and dmc_task(objective).sparse
+            and (period is None or abs(float(period) - float(params.timestep)) < 1e-12))
 
 
 def _swingup_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,
