@@ -943,7 +943,7 @@ class Supervisor:
         waits for the plan's end (its TVLQR hands over there, as the plan designed from the start does)."""
         if not self.options.cart_plans:
             return False
-        if self.mode in ("wait", "brake"):
+        if self.mode in ("wait", "brake", None):  # None: a fallback about to be logged
             return isinstance(self.brake, PlanLeadIn) and self.brake.leads(t, x)
         return self.mode == "track" and t - self.plan_t0 < self.plan.trajectory.duration and not self._lost(t, x)
 
