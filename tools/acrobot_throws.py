@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from acrobot_minute import ACROBOT, acrobot_library, acrobot_options  # this directory: the knockdown test's supervisor
+from acrobot_minute import ACROBOT, _spread, acrobot_library, acrobot_options  # this directory: the knockdown test's supervisor
 from cartpole.models import build_model, read_params, wrap_angle
 from cartpole.sim import UPRIGHT_BAND, Throw, replays_exactly, simulate, swingup_energy
 from cartpole.sim.rollout import make_mujoco
@@ -112,14 +112,6 @@ def one_run(params, model, library, seed: int, every: float, rate: float, durati
             "diverged": bool(run.info.get("diverged", False)), "wall_s": time.perf_counter() - tic,
             **({"decision_log": [{k: v for k, v in d.to_dict().items() if k != "x0"} for d in sup.decisions]}
                if decisions else {})}
-
-
-def _spread(values) -> dict | None:
-    """``min``, ``median``, ``max`` and ``count`` of ``values``, or None when there are none."""
-    if not values:
-        return None
-    return {"min": float(np.min(values)), "median": float(np.median(values)), "max": float(np.max(values)),
-            "count": len(values)}
 
 
 def main() -> None:
