@@ -349,9 +349,9 @@ def library_key(src: str, flags, cc: str | None, include_dirs=(), extra: str = "
     return h.hexdigest()[:20]
 
 
-#: Digest of this module's source: part of a recipe-keyed library's key (:func:`build_library`), since the code
-#: generator's options set here shape the generated source too.
-_SELF_DIGEST = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+#: The C file name and options of CasADi's code generator in :func:`build_library`: part of a recipe-keyed library's
+#: key, since they shape the generated source too.
+_GENERATOR = ("hs_interval.c", {"with_header": False, "casadi_real": "double"})
 
 #: Libraries found or built in this process: (model digest, recipe, flags, CFLAGS env) -> path. The recipe only
 #: saves generating the same source twice in one process; across processes the key is the source's, unless the
@@ -373,7 +373,7 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
 
     ``recipe_is_key`` (needs ``recipe``): the caller's ``recipe`` names everything the generated source depends on
     (the sizes and options, the CasADi version, the digests of the generator modules' own source files), so the
-    library is keyed by :func:`library_key` of the recipe (with ``model_digest``, this module's source digest, the
+    library is keyed by :func:`library_key` of the recipe (with ``model_digest``, the code generator's options, the
     compiler, the flags or ``$CARTPOLE_CFLAGS`` and the CPU) instead of the generated source, and a cached library
     is found in a new process without building the Functions (the SQP's QP functions: about half a second to a
     second each, only to learn the key).
@@ -388,9 +388,10 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
     lib = src = flags = None
     if recipe_is_key:  # without fixed flags, choose_cflags's choice follows from the source, hence from the recipe
         key_flags = fixed or ("choose_cflags", os.environ.get("CARTPOLE_CFLAGS", ""))
-        lib = target / f"hs_recipe_{library_key(recipe, key_flags, compiler(), extra=model_digest + _SELF_DIGEST)}.so"
+        key = library_key(recipe, key_flags, compiler(), extra=model_digest + repr(_GENERATOR))
+        lib = target / f"hs_recipe_{key}.so"
     if lib is None or not is_verified(lib):
-        gen = ca.CodeGenerator("hs_interval.c", {"with_header": False, "casadi_real": "double"})
+        gen = ca.CodeGenerator(_GENERATOR[0], dict(_GENERATOR[1]))
         for fn in (funcs() if callable(funcs) else funcs):
             gen.add(fn)
         src = gen.dump()
