@@ -8,7 +8,10 @@ generated code, or hand-written C), the C files that source includes from the pa
 the compiler (its path and version banner, :func:`compiler_key`), the flags and the CPU (:func:`cpu_key`). Nothing
 in the key is a version string bumped by hand, so a changed function builder, an edited ``.c`` file under
 ``cartpole/csrc/`` or another compiler always builds a new library, and the same inputs always find the one already
-built. It is compiled once per machine and source, never into the package. Writes are atomic: a concurrent process
+built. Generated code whose caller names everything it is generated from (a recipe: sizes, options, the CasADi
+version and the generator modules' source digests; :func:`build_library`'s ``recipe_is_key``) is keyed by that
+recipe instead, so a cached library is found without building its Functions. It is compiled once per machine and
+source, never into the package. Writes are atomic: a concurrent process
 sees a whole library or none. A program of several C files (:func:`build_sources`) is linked from one cached object
 per file (:func:`compile_object`), keyed the same way by the file's text and the headers it includes: a new plan on
 a model compiles the files its tables reach, never the model's generated code again.
@@ -346,13 +349,18 @@ def library_key(src: str, flags, cc: str | None, include_dirs=(), extra: str = "
     return h.hexdigest()[:20]
 
 
+#: The C file name and options of CasADi's code generator in :func:`build_library`: part of a recipe-keyed library's
+#: key, since they shape the generated source too.
+_GENERATOR = ("hs_interval.c", {"with_header": False, "casadi_real": "double"})
+
 #: Libraries found or built in this process: (model digest, recipe, flags, CFLAGS env) -> path. The recipe only
-#: saves generating the same source twice in one process; across processes the key is always the source's.
+#: saves generating the same source twice in one process; across processes the key is the source's, unless the
+#: caller says its recipe is complete (``recipe_is_key``).
 _BUILT: dict = {}
 
 
 def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
-                   cflags: tuple | None = None) -> tuple[str, bool]:
+                   cflags: tuple | None = None, recipe_is_key: bool = False) -> tuple[str, bool]:
     """C source of ``funcs`` (CasADi Functions) compiled to a cached shared library; returns (path, compiled_now).
 
     ``funcs`` is a list of Functions or a callable returning it. The library's name is :func:`library_key` of the
@@ -362,20 +370,33 @@ def build_library(funcs, model_digest: str = "", recipe: str | None = None, *,
     three-pole cart's source takes about half a second). ``cflags``: the compiler flags (``-fPIC -shared`` added)
     instead of :func:`choose_cflags`'s choice, unless ``$CARTPOLE_CFLAGS`` is set. Flags with ``-march=native``
     that the compiler refuses are retried as :data:`PORTABLE_CFLAGS`.
+
+    ``recipe_is_key`` (needs ``recipe``): the caller's ``recipe`` names everything the generated source depends on
+    (the sizes and options, the CasADi version, the digests of the generator modules' own source files), so the
+    library is keyed by :func:`library_key` of the recipe (with ``model_digest``, the code generator's options, the
+    compiler, the flags or ``$CARTPOLE_CFLAGS`` and the CPU) instead of the generated source, and a cached library
+    is found in a new process without building the Functions (the SQP's QP functions: about half a second to a
+    second each, only to learn the key).
     """
     target = private_cache_dir()
     memo = (str(target), model_digest, recipe, cflags, os.environ.get("CARTPOLE_CFLAGS"))
     if recipe is not None and is_verified(_BUILT.get(memo, "")):
         return _BUILT[memo], False
-    gen = ca.CodeGenerator("hs_interval.c", {"with_header": False, "casadi_real": "double"})
-    for fn in (funcs() if callable(funcs) else funcs):
-        gen.add(fn)
-    src = gen.dump()
-    if cflags is not None and not os.environ.get("CARTPOLE_CFLAGS"):
-        flags = (*cflags, "-fPIC", "-shared")
-    else:
-        flags = choose_cflags(src)
-    lib = target / f"hs_interval_{library_key(src, flags, compiler(), extra=model_digest)}.so"
+    if recipe_is_key and recipe is None:
+        raise ValueError("recipe_is_key needs a recipe (the key is computed before any source is generated)")
+    fixed = (*cflags, "-fPIC", "-shared") if cflags is not None and not os.environ.get("CARTPOLE_CFLAGS") else None
+    lib = src = flags = None
+    if recipe_is_key:  # without fixed flags, choose_cflags's choice follows from the source, hence from the recipe
+        key_flags = fixed or ("choose_cflags", os.environ.get("CARTPOLE_CFLAGS", ""))
+        key = library_key(recipe, key_flags, compiler(), extra=model_digest + repr(_GENERATOR))
+        lib = target / f"hs_recipe_{key}.so"
+    if lib is None or not is_verified(lib):
+        gen = ca.CodeGenerator(_GENERATOR[0], dict(_GENERATOR[1]))
+        for fn in (funcs() if callable(funcs) else funcs):
+            gen.add(fn)
+        src = gen.dump()
+        flags = fixed or choose_cflags(src)
+        lib = lib or target / f"hs_interval_{library_key(src, flags, compiler(), extra=model_digest)}.so"
     now = not is_verified(lib)  # by content, not by name: a corrupted or planted file is built again
     if now:
         _compile(src, lib, flags)

@@ -228,6 +228,35 @@ def test_a_recipe_never_hides_a_changed_source_across_processes(tmp_path, monkey
     assert now and other != lib
 
 
+def test_a_complete_recipe_keys_the_library_without_generating_its_source(tmp_path, monkeypatch):
+    import pytest
+
+    if codegen.compiler() is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("CARTPOLE_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("CARTPOLE_CFLAGS", raising=False)
+    x = ca.SX.sym("x")
+    calls = []
+
+    def builder(k):
+        def funcs():
+            calls.append(k)
+            return [ca.Function("cg_keyed", [x], [k * x])]
+        return funcs
+
+    lib, now = codegen.build_library(builder(2), "d", recipe="r2", cflags=("-O0",), recipe_is_key=True)
+    codegen._BUILT.clear()  # a new process
+    hit, now_hit = codegen.build_library(builder(2), "d", recipe="r2", cflags=("-O0",), recipe_is_key=True)
+    other, now_other = codegen.build_library(builder(3), "d", recipe="r3", cflags=("-O0",), recipe_is_key=True)
+    assert now and not now_hit and hit == lib and calls == [2, 3]
+    assert now_other and other != lib
+    np.testing.assert_array_equal(np.asarray(codegen.load_library(other, ["cg_keyed"])["cg_keyed"](2.0)).ravel(), [6.0])
+    auto, now_auto = codegen.build_library(builder(2), "d", recipe="r2", recipe_is_key=True)  # choose_cflags's flags
+    assert now_auto and auto != lib
+    with pytest.raises(ValueError, match="recipe_is_key needs a recipe"):
+        codegen.build_library(builder(2), "d", recipe_is_key=True)
+
+
 def test_an_included_c_file_a_flag_or_the_compiler_changes_the_key(tmp_path, monkeypatch):
     import pytest
 

@@ -22,12 +22,14 @@ from __future__ import annotations
 import hashlib
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 from cartpole.codegen import build_library, compiled_or_none, digest, load_library, model_key
 from cartpole.models import CartPoleModel
+from cartpole.ocp import hermite_simpson
 from cartpole.ocp.hermite_simpson import hs_interval_function, simpson_effort_terms
 
 
@@ -214,7 +216,8 @@ def knot_maps(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su, *,
                 for name in KNOT_FUNCTIONS]
 
     def build():
-        lib, _ = build_library(mapped, model_key(model), recipe=f"knots/{N}/" + recipe_key(f, sx, su, running))
+        lib, _ = build_library(mapped, model_key(model), recipe=f"knots/{N}/" + recipe_key(f, sx, su, running),
+                               recipe_is_key=True)
         ext = load_library(lib, [f"{name}_map" for name in KNOT_FUNCTIONS])
         return {name: ext[f"{name}_map"] for name in KNOT_FUNCTIONS}, lib
 
@@ -223,13 +226,20 @@ def knot_maps(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su, *,
     return built if built is not None else (dict(zip(KNOT_FUNCTIONS, mapped())), None)
 
 
+#: The interval and knot functions' generators (this module and the Hermite-Simpson interval it builds on): part of
+#: their libraries' recipe (:func:`recipe_key`), so an edited generator builds new libraries.
+_SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + Path(hermite_simpson.__file__).read_bytes()
+                                ).hexdigest()[:16]
+
+
 def recipe_key(f: ca.Function, sx, su, running: ca.Function | None = None) -> str:
     """Hex digest of everything the interval functions are generated from: ``f``'s serialised expression graph,
-    the scales ``sx``, ``su``, the running cost's graph (if any), the CasADi version and ``$CARTPOLE_CFLAGS``. Within one
-    process a library found under it is used without generating its C source again (the library's own cache key is
-    its generated source: :func:`cartpole.codegen.library_key`)."""
+    the scales ``sx``, ``su``, the running cost's graph (if any), the CasADi version, ``$CARTPOLE_CFLAGS`` and the
+    source files of the generators (this module and :mod:`cartpole.ocp.hermite_simpson`, :data:`_SOURCE_DIGEST`).
+    The compiled libraries are keyed by it (:func:`cartpole.codegen.build_library`'s ``recipe_is_key``): a cached
+    library is found without generating its C source again."""
     h = hashlib.sha256()
-    h.update((ca.__version__ + os.environ.get("CARTPOLE_CFLAGS", "")).encode())
+    h.update((ca.__version__ + os.environ.get("CARTPOLE_CFLAGS", "") + _SOURCE_DIGEST).encode())
     h.update(f.serialize().encode())
     digest(np.asarray(sx, float), h)
     digest(np.asarray(su, float).ravel(), h)
@@ -370,7 +380,7 @@ def compiled_nlp(model: CartPoleModel | ca.Function, N: int, sx: np.ndarray, su,
 
     def build():
         lib, now = build_library(lambda: interval_functions(f, sx, su, 1.0, running=running), model_key(model),
-                                 recipe=recipe_key(f, sx, su, running))
+                                 recipe=recipe_key(f, sx, su, running), recipe_is_key=True)
         return lib, now, load_library(lib, INTERVAL_FUNCTIONS)
 
     built = compiled_or_none(build, "collocation functions", "using the slower SX formulation (same results)")

@@ -347,12 +347,15 @@ def compiled_qp_functions(nx: int, nu: int, N: int, reg_min: float, *, compiled:
                           ) -> tuple[list[ca.Function], str | None]:
     """:func:`qp_functions` compiled to C and cached (one library per size and ``reg_min``), with the path of the
     library (``n_free`` as :func:`qp_functions`); CasADi's virtual machine (same numbers, and None) with ``compiled`` False, ``CARTPOLE_NO_COMPILE`` set
-    or when the build fails (one line on stderr)."""
+    or when the build fails (one line on stderr). The library is keyed by its recipe (the sizes, ``reg_min``,
+    ``n_free``, the CasADi version and this module's source digest, :data:`_SOURCE_DIGEST`: everything
+    :func:`qp_functions` generates from), so a cached one loads without building the Functions again."""
     if N < 2:
         raise OCPError(f"The SQP's QP functions need N >= 2 intervals, not {N}; use N >= 2 (100 is typical).")
     def build():
         recipe = f"sqp-qp/{nx}x{nu}x{N}/{n_free}/{reg_min!r}/{ca.__version__}/{_SOURCE_DIGEST}"
-        lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min, n_free), "", recipe=recipe, cflags=CFLAGS)
+        lib, _ = build_library(lambda: qp_functions(nx, nu, N, reg_min, n_free), "", recipe=recipe, cflags=CFLAGS,
+                               recipe_is_key=True)
         names = ("sqp_stages", "sqp_condense", "sqp_multipliers", "sqp_stationarity")
         ext = load_library(lib, names)
         return [ext[name] for name in names], lib

@@ -301,10 +301,11 @@ def test_a_free_state_at_knot_0_condenses_as_one_more_unknown(nx, nu, N):
     assert _rel(G1, np.array(Gs)) < 1e-10
 
 
-def test_the_compiled_librarys_key_is_its_generated_source_not_a_version_string(tmp_path, monkeypatch):
-    """The library is found by a hash of the C CasADi generates (cartpole.codegen.build_library): the same builder
-    is a cache hit, a changed builder a new library (no hand-bumped version string to forget); within a process
-    the recipe memo also names the builder's file by its digest."""
+def test_the_compiled_librarys_key_is_its_recipe_with_the_builders_source_not_a_version_string(tmp_path, monkeypatch):
+    """The library is found by its recipe (sizes, reg_min, n_free, CasADi's version and the digest of this builder's
+    source file, cartpole.codegen.build_library's recipe_is_key): a new process finds it without building the
+    Functions at all, and an edited builder (its source digest changed) builds a new library (no hand-bumped
+    version string to forget)."""
     import casadi as ca
 
     from cartpole import codegen
@@ -315,10 +316,15 @@ def test_the_compiled_librarys_key_is_its_generated_source_not_a_version_string(
     monkeypatch.delenv("CARTPOLE_NO_COMPILE", raising=False)
     monkeypatch.setattr(codegen, "_BUILT", {})
     _, lib = sqp_functions.compiled_qp_functions(2, 1, 3, REG)
+    original = sqp_functions.qp_functions
+
+    def never(*args):
+        raise AssertionError("the cached library's key needed the Functions built")
+
+    monkeypatch.setattr(sqp_functions, "qp_functions", never)
     monkeypatch.setattr(codegen, "_BUILT", {})  # a new process
     _, again = sqp_functions.compiled_qp_functions(2, 1, 3, REG)
     assert lib is not None and again == lib
-    original = sqp_functions.qp_functions
 
     def changed(*args):
         funcs = original(*args)
@@ -328,6 +334,7 @@ def test_the_compiled_librarys_key_is_its_generated_source_not_a_version_string(
         return funcs
 
     monkeypatch.setattr(sqp_functions, "qp_functions", changed)
+    monkeypatch.setattr(sqp_functions, "_SOURCE_DIGEST", "edited-builder")  # what editing the file does
     monkeypatch.setattr(codegen, "_BUILT", {})  # a new process, the builder edited
     _, other = sqp_functions.compiled_qp_functions(2, 1, 3, REG)
     assert other is not None and other != lib

@@ -38,7 +38,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 from cartpole.apps.forkserver import start_server
-from cartpole.apps.sweep import SweepRuns, swingup_sweep
+from cartpole.apps.sweep import SweepError, SweepRuns, swingup_sweep
 
 
 def _trivial(i):
@@ -66,10 +66,26 @@ def engine_overhead(runs: int = 2000) -> dict:
     return out
 
 
+#: Dask settings of the benchmark's cluster and client (environment variables, so the ``dask scheduler`` and
+#: ``dask worker`` processes read them too): comm timeouts well above distributed's 30 s, since on a loaded machine a
+#: worker or scheduler starved of CPU for a while must not be declared dead (its scattered data then goes with it, and
+#: every run that needs it is cancelled, "already forgotten").
+DASK_ENV = {"DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "120s", "DASK_DISTRIBUTED__COMM__TIMEOUTS__TCP": "300s",
+            "DASK_DISTRIBUTED__SCHEDULER__WORKER_TTL": "15 minutes"}
+#: Times a Dask round's sweep is run again, on a fresh cluster, after a run failed on the cluster (counted in the
+#: JSON's ``dask_retries``): the benchmark measures throughput, not the cluster's survival of the machine's load.
+DASK_RETRIES = 2
+
+
 def start_dask_cluster(workers: int = 2, *, timeout: float = 60.0) -> tuple[list, str]:
     """A Dask scheduler and ``workers`` single-threaded worker processes on loopback, each in a process of its own
-    (``dask scheduler``, ``dask worker``); returns ``(processes, address)`` once every worker has joined."""
+    (``dask scheduler``, ``dask worker``, with :data:`DASK_ENV`); returns ``(processes, address)`` once every worker
+    has joined."""
+    import dask
     from distributed import Client
+
+    os.environ.update({k: os.environ.get(k, v) for k, v in DASK_ENV.items()})
+    dask.config.refresh()  # this process's client reads them too
 
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
@@ -221,10 +237,22 @@ def main(argv=None) -> int:
         # 1.34x one worker beside it against 1.8x without it)
         cluster, addr = start_dask_cluster(2)
         swingup_sweep(None, a.method, runs=SweepRuns(n=4), address=addr)  # warm the Dask workers (imports)
+    retries = 0
     try:
         for r in range(a.rounds):
             for k in where:
-                seconds, rate, rows_k = timed_sweep(kw, k, addr)
+                for attempt in range(DASK_RETRIES + 1 if k == "dask" else 1):
+                    try:
+                        seconds, rate, rows_k = timed_sweep(kw, k, addr)
+                        break
+                    except SweepError as exc:  # a run lost on the cluster: again on a fresh one, said on stderr
+                        if attempt == DASK_RETRIES or "on the Dask cluster" not in str(exc):
+                            raise
+                        print(f"round {r + 1} dask: {exc} Again on a fresh cluster.", file=sys.stderr, flush=True)
+                        retries += 1
+                        stop_dask_cluster(cluster)
+                        cluster, addr = start_dask_cluster(2)
+                        swingup_sweep(None, a.method, runs=SweepRuns(n=4), address=addr)
                 times[k].append(seconds)
                 steady[k].append(rate)
                 rows.setdefault(k, rows_k)
@@ -243,7 +271,8 @@ def main(argv=None) -> int:
     doc = {"method": a.method, "n": a.n, "rounds": a.rounds, "where": where, "seconds": times,
            "seconds_median": {k: statistics.median(v) for k, v in times.items()},
            "runs_per_s_median": med, "runs_per_s": {k: [a.n / t for t in v] for k, v in times.items()},
-           "same_rows": same, "steady_runs_per_s_median": steady_med, "steady_runs_per_s": steady}
+           "same_rows": same, "steady_runs_per_s_median": steady_med, "steady_runs_per_s": steady,
+           "dask_retries": retries}
     for k, name in (("2", "2_workers"), ("dask", "dask")):
         if k in times:  # whole-sweep ratios to one worker: of the medians, per round, and round 1 alone
             doc[f"speedup_{name}"] = med[k] / med["1"]
