@@ -33,7 +33,7 @@
   instead of a plan: no planning latency, no funnel to leave. When the energy rises ``mpc_energy`` above the
   upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake, and the MPC takes it again once
   calm; when the catch has not taken over within ``mpc_budget`` s, to the brake and the planner (below) until the
-  next catch.
+  next catch or knock (a calm state turned fast).
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
   from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
@@ -255,7 +255,8 @@ class SupervisorOptions(StageOptions):
         sets None when the MPC minimises a task's objective that pumps from hanging (``plan``'s objective): the
         tracking of upright does not swing the acrobot up from there.
     mpc_budget : float
-        s the swing-up MPC may run without the catch taking over; then the brake and the planner, until the next catch.
+        s the swing-up MPC may run without the catch taking over; then the brake and the planner, until the next catch
+        or knock (a calm state turned fast).
     mpc_step_budget : float or None
         s of wall time one control step of the swing-up MPC may take (its DDP iteration): a step over it applies the
         previous solution's input shifted to this step instead of its own late answer (the ``step_budget`` of
@@ -510,7 +511,7 @@ class Supervisor:
         self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
         self.replan_at = np.inf
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
-        self.mpc_t0, self.mpc_spent = None, False  # when the swing-up MPC took over; whether it failed since a catch
+        self.mpc_t0, self.mpc_spent = None, False  # when the MPC took over; whether it failed since a catch or knock
         self.mpc_ms: list[float] = []  # the swing-up MPC's wall time per step (ms), its earlier take-overs
         self.mpc_over = 0  # steps of its earlier take-overs over mpc_step_budget
         if getattr(self, "server", None) is not None:
@@ -968,8 +969,8 @@ class Supervisor:
 
     def _mpc_done(self, t: float, x, cost: float) -> bool:
         """While the swing-up MPC acts: whether it has failed (``mpc_budget`` s without a catch: the brake and the
-        planner until the next catch; or the energy more than ``mpc_energy`` above the upright's: knocked again, the
-        MPC takes it once calmed): an ``mpc_failed`` decision."""
+        planner until the next catch or knock; or the energy more than ``mpc_energy`` above the upright's: knocked
+        again, the MPC takes it once calmed): an ``mpc_failed`` decision."""
         ran = t - self.mpc_t0
         out = self._energy(x) - self._energy(self.model.x_eq) > self.options.mpc_energy  # knocked again
         if ran < self.options.mpc_budget and not out:
@@ -1038,7 +1039,8 @@ def hinge_options(**changes) -> SupervisorOptions:
     means at or below the upright's energy, :data:`HINGE_CALM_ENERGY` (``calm_energy``), reached by the energy drain
     (``calm_drain``, down to :data:`DRAIN_MARGIN` above it) and below it the soft brake of :data:`HINGE_BRAKE_TIME`
     (``calm_brake_time``), for at most :data:`HINGE_CALM_BUDGET` s (``calm_budget``); and for the planner, which acts
-    below the floor and once the MPC has failed (``mpc_failed``: no catch within ``mpc_budget``) until the next catch:
+    below the floor and once the MPC has failed (``mpc_failed``: no catch within ``mpc_budget``) until the next catch
+    or knock:
     warm starts from the nearest knots of the stored plans (``warm_tails``), no exact-discrete re-solve
     (``exact_plans=False``), re-planned every :data:`HINGE_REPLAN_EVERY` s while tracked (``replan_every``).
 
@@ -1119,8 +1121,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         (``mpc_floor=None``); else the tracking of upright, down to :data:`HINGE_MPC_FLOOR` below the upright's
         energy. The energy drain and the soft brake calm a faster state first; the planner (warm from the knots of
         ``library``'s plans, re-planned as it is tracked) takes the states below the floor, and any after the MPC
-        has failed, until the next catch. Options given here are used as they are (no hinge defaults: start from
-        :func:`hinge_options`). With ``cart_plans`` on one pole driven by the cart: the planner, warm from
+        has failed, until the next catch or knock. Options given here are used as they are (no hinge defaults: start
+        from :func:`hinge_options`). With ``cart_plans`` on one pole driven by the cart: the planner, warm from
         ``library``, with the energy law as the law meanwhile (and after a failed or lost plan), when the library
         holds a plan; else the energy law alone.
     basin_cache : BasinCache, optional
