@@ -161,6 +161,6 @@ def box_tail_planner(params: CartPoleParams, model: CartPoleModel, objective: st
                                  chosen=found is not None))
             if found is not None:
                 return tracked(found, k, K, tuple(tried), tic)
-        raise OCPError(f"No {objective} plan enters the box within {ENTRY_SLACK[-1]} steps of the stored plan's "
-                       f"entry (step {K}) from x0.")
+        raise OCPError(f"No {objective} plan entering the box within {ENTRY_SLACK[-1]} steps of the stored plan's "
+                       f"entry (step {K}) was found from x0 after {len(tried)} solves; that proves nothing.")
     return planner
