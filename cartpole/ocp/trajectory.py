@@ -209,3 +209,30 @@ class Trajectory:
         except (KeyError, ValueError, OSError) as exc:
             raise TrajectoryError(f"'{short(path)}' does not hold a trajectory ({exc}); give a file written by "
                                   "Trajectory.save.") from None
+
+
+def step_grid_trajectory(f, dt: float, x, u) -> Trajectory:
+    """A motion on a uniform step grid (a rollout, a DDP or exact-step plan) as a :class:`Trajectory`.
+
+    Parameters
+    ----------
+    f : casadi.Function
+        The continuous dynamics ``f(x (nx,), u (nu,)) -> xdot (nx,)`` (a model's ``f``).
+    dt : float
+        s between knots: the knots are at ``dt * k`` s, ``k = 0 .. n``.
+    x : (n+1, nx) array
+        The states at the knots ``[qpos, qvel]`` (m, rad, m/s, rad/s).
+    u : (n, nu) array
+        The input (ctrl) held over each step; a 1-D array (n,) is one input.
+
+    Returns
+    -------
+    Trajectory
+        Knot inputs ``u`` with the last one repeated at the end knot ((n+1, nu): step ``k``'s input at knot ``k``),
+        ``xdot = f(x_k, u_k)`` at every knot (units of ``x`` per s).
+    """
+    x = np.asarray(x, dtype=float)
+    u = np.asarray(u, dtype=float).reshape(x.shape[0] - 1, -1)
+    u_knots = np.vstack([u, u[-1:]])
+    xdot = np.asarray(f.map(x.shape[0])(x.T, u_knots.T), dtype=float).T
+    return Trajectory(t=float(dt) * np.arange(x.shape[0]), x=x, u=u_knots, xdot=xdot)

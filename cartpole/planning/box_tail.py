@@ -24,7 +24,7 @@ from cartpole.control.tvlqr import TVLQRController
 from cartpole.models import CartPoleModel, CartPoleParams
 from cartpole.ocp.bounds import OCPError, bounds_from_params
 from cartpole.ocp.records import Attempt, SolveInfo
-from cartpole.ocp.trajectory import Trajectory
+from cartpole.ocp.trajectory import Trajectory, step_grid_trajectory
 from cartpole.planning.box_entry import box_entry_at, entry_step
 from cartpole.planning.options import PlanOptions
 from cartpole.planning.trajopt import DiscretePlan, SwingupPlan, handover_catch
@@ -60,16 +60,6 @@ def on_step_grid(traj: Trajectory, dt: float) -> tuple[np.ndarray, np.ndarray]:
     x = np.asarray(traj.state(t), dtype=float)
     x[-1] = np.asarray(traj.x[-1], dtype=float)
     return x, np.asarray(traj.input(t[:-1]), dtype=float).reshape(n, -1)
-
-
-def discrete_trajectory(model: CartPoleModel, x, u, dt: float) -> Trajectory:
-    """A plan on the step grid as a :class:`Trajectory`: knots every ``dt`` s at the states ``x`` (n+1, nx), inputs
-    ``u`` (n, nu) (the last held at the end), derivatives ``model.dynamics`` at each knot."""
-    x = np.asarray(x, dtype=float)
-    u = np.asarray(u, dtype=float).reshape(x.shape[0] - 1, -1)
-    u_full = np.vstack([u, u[-1:]])
-    xdot = np.array([np.asarray(model.dynamics(xk, uk), dtype=float).ravel() for xk, uk in zip(x, u_full)])
-    return Trajectory(t=float(dt) * np.arange(x.shape[0]), x=x, u=u_full, xdot=xdot)
 
 
 def kept_inside(model: CartPoleModel, name: str, x, u, bounds, margin: float = STORED_MARGIN):
@@ -124,7 +114,7 @@ def box_tail_planner(params: CartPoleParams, model: CartPoleModel, objective: st
         """The entry plan ``found`` (``(x, u, info)``, into the box at step ``k``) tracked by TVLQR on the exact step,
         the catch at its end."""
         x, u, info = found
-        traj = discrete_trajectory(dmodel, x, u, dt)
+        traj = step_grid_trajectory(dmodel.f, dt, x, u)
         gains = tvlqr(dmodel, traj, Q, R, dt=dt, reference=(x, u))
         exact = DiscretePlan(t=dt * np.arange(u.shape[0]), x=x, u=u, dt=dt, u_margin=0.0, status=info["status"],
                              iterations=info["iterations"], solve_time_s=info["solve_time_s"],

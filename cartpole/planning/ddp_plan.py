@@ -36,7 +36,7 @@ from cartpole.models import CartPoleModel
 from cartpole.ocp.bounds import OCPBounds, OCPError
 from cartpole.ocp.objectives import Objective, make_objective, tracking_cost
 from cartpole.ocp.records import Attempt, SolveInfo
-from cartpole.ocp.trajectory import Trajectory
+from cartpole.ocp.trajectory import Trajectory, step_grid_trajectory
 from cartpole.options import StageOptions
 from cartpole.planning.pumping import hanging_mode
 from cartpole.solvers.ddp import DDP, DDPError, DDPOptions, DDPProblem
@@ -225,8 +225,7 @@ def ddp_stage(model: CartPoleModel, x0, guess: Trajectory | None, T: float, obje
                      solve_time_s=time.perf_counter() - tic, solver="ddp", T=N * h, guess=guess_name)
     traj = None
     if np.all(np.isfinite(r.x)):
-        xdot = np.asarray(model.f.map(N + 1)(r.x.T, np.vstack([r.u, r.u[-1:]]).T)).T
-        traj = Trajectory(t=h * np.arange(N + 1), x=r.x, u=np.vstack([r.u, r.u[-1:]]), xdot=xdot)
+        traj = step_grid_trajectory(model.f, h, r.x, r.u)
     att = Attempt.of(info, name, guess_name, N, chosen=info.success)
     return DDPStage(trajectory=traj, x=np.array(r.x), u=np.array(r.u), dt=h, info=info,
                     violation=float(r.violation), defect_before=defect, margin=float(u_margin)), [att]
@@ -440,10 +439,7 @@ def receding_swingup(model: CartPoleModel, x0, bounds: OCPBounds, *, horizon: fl
     success = status == "upright reached" and len(Uapplied) > 0
     traj = None
     if success:
-        Xa, Ua = np.array(X), np.array(Uapplied)
-        Uk = np.vstack([Ua, Ua[-1:]])
-        xdot = np.asarray(model.f.map(Xa.shape[0])(Xa.T, Uk.T)).T
-        traj = Trajectory(t=h * np.arange(Xa.shape[0]), x=Xa, u=Uk, xdot=xdot)
+        traj = step_grid_trajectory(model.f, h, np.array(X), np.array(Uapplied))
     info = SolveInfo(status=status, success=success, iterations=its, objective=len(Uapplied) * h,
                      solve_time_s=time.perf_counter() - tic, solver="ddp", T=len(Uapplied) * h,
                      guess="receding-horizon DDP")

@@ -36,11 +36,11 @@ from cartpole._arrays import readonly
 from cartpole.codegen import cache_dir, model_key, private_dir, read_verified, write_verified
 from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
-from cartpole.ocp.trajectory import Trajectory
+from cartpole.ocp.trajectory import Trajectory, step_grid_trajectory
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.dmc import is_task
 from cartpole.ocp.dmc import task as dmc_task
-from cartpole.planning.box_tail import discrete_trajectory, kept_inside
+from cartpole.planning.box_tail import kept_inside
 from cartpole.planning.trajopt import trajopt_swingup
 
 #: Part of the library file's key: bump when what a stored plan means changes.
@@ -403,7 +403,7 @@ def library_starts(model: CartPoleModel, angles: int = 7) -> np.ndarray:
 
 def _kept(params: CartPoleParams, model: CartPoleModel, plan, options) -> Trajectory:
     """What ``build_plan_library(exact=True)`` keeps of ``plan``: its exact discrete plan as a trajectory on the step
-    grid (:func:`~cartpole.planning.box_tail.discrete_trajectory`; a sparse task's entry plan moved
+    grid (:func:`~cartpole.ocp.trajectory.step_grid_trajectory`; a sparse task's entry plan moved
     :data:`~cartpole.planning.box_tail.STORED_MARGIN` inside its box: :func:`~cartpole.planning.box_tail.kept_inside`),
     else its collocation plan."""
     d = plan.discrete
@@ -415,7 +415,7 @@ def _kept(params: CartPoleParams, model: CartPoleModel, plan, options) -> Trajec
         step = model if abs(float(model.dt) - float(d.dt)) < 1e-15 else model.rebuilt(dt=float(d.dt))
         bounds = bounds_from_params(params, cart_margin=getattr(options, "cart_margin", 0.1))
         x, u = kept_inside(step, objective, x, u, bounds)
-    return discrete_trajectory(model, x, u, d.dt)
+    return step_grid_trajectory(model.f, d.dt, x, u)
 
 
 def build_plan_library(params: CartPoleParams, model: CartPoleModel | None = None, starts=None, *, options=None,

@@ -4,7 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from cartpole.ocp.trajectory import Trajectory, TrajectoryError
+from cartpole.models import SHIPPED_MJCF, build_model
+from cartpole.ocp.trajectory import Trajectory, TrajectoryError, step_grid_trajectory
 
 
 def _cubic_traj(n=7, seed=0):
@@ -124,3 +125,21 @@ def test_any_state_and_input_size_interpolates_cubic_hermite_and_first_order_hol
         Trajectory(t=traj.t, x=traj.x, u=traj.u, xdot=traj.xdot[:, :4])
     with pytest.raises(TrajectoryError, match="u_mid"):
         Trajectory(t=traj.t, x=traj.x, u=traj.u, xdot=traj.xdot, u_mid=np.zeros((traj.N, 1)))
+
+
+@pytest.mark.parametrize("mjcf", ["cartpole.xml", "cartpole_two_pole.xml"])
+def test_a_step_grid_trajectory_holds_each_input_over_its_step_with_f_at_every_knot(mjcf):
+    model = build_model(SHIPPED_MJCF.with_name(mjcf))
+    rng = np.random.default_rng(3)
+    n, dt = 9, 0.02
+    x = np.asarray(model.x_hanging, float) + 0.3 * rng.normal(size=(n + 1, model.nx))
+    u = rng.uniform(-1.0, 1.0, size=(n, model.nu))
+    traj = step_grid_trajectory(model.f, dt, x, u)
+    np.testing.assert_array_equal(traj.t, dt * np.arange(n + 1))
+    np.testing.assert_array_equal(traj.x, x)
+    np.testing.assert_array_equal(traj.u[:-1], u)  # step k's input at knot k
+    np.testing.assert_array_equal(traj.u[-1], u[-1])  # the last one held at the end
+    for k in range(n + 1):  # f at each knot, one call at a time (what the box-tail planner's copy computed)
+        np.testing.assert_array_equal(traj.xdot[k], model.dynamics(x[k], traj.u[k]))
+    if model.nu == 1:  # one input given as a 1-D array: the same trajectory
+        np.testing.assert_array_equal(step_grid_trajectory(model.f, dt, x, u[:, 0]).xdot, traj.xdot)
