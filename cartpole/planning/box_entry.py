@@ -50,8 +50,24 @@ def _box_rows(Gx, lower, upper, on, margin: float):
     return ca.vec(ca.horzcat(*rows))
 
 
-#: The entry problems built so far, by the model's hash, task, steps and margin (:func:`entry_solver`).
+#: The entry problems built so far, by the model's hash, task, steps and margin (:func:`entry_solver`), and the
+#: tasks' boxes, by ``"box"``, the model's hash and task (:func:`box_function`).
 _SOLVERS: dict = {}
+
+
+def box_function(model, name: str) -> tuple:
+    """The sparse task ``name``'s box on ``model`` (:func:`cartpole.ocp.dmc.sparse_box`), built once per model (hash)
+    and task and kept: ``(g, lower (m,), upper (m,))``, ``g`` the CasADi Function ``x (nx,) -> g(x) (m,)`` (its
+    ``map(n)`` takes ``n`` states as columns) and the box's bounds in ``g``'s units (m, cosine, m^2; read-only)."""
+    key = ("box", model_key(model), str(name))
+    if key not in _SOLVERS:
+        xs = ca.SX.sym("x", model.nx)
+        g_expr, lower, upper = sparse_box(model, name, xs)
+        lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
+        lower.setflags(write=False)
+        upper.setflags(write=False)
+        _SOLVERS[key] = (ca.Function("box", [xs], [g_expr]), lower, upper)
+    return _SOLVERS[key]
 
 
 def entry_solver(model, name: str, n: int, margin: float = BOX_MARGIN, fast: dict | None = None,
@@ -67,9 +83,7 @@ def entry_solver(model, name: str, n: int, margin: float = BOX_MARGIN, fast: dic
            elastic)
     if key not in _SOLVERS:
         nx, nu, dt = model.nx, model.nu, float(model.dt)
-        xs = ca.SX.sym("x", nx)
-        g_expr, lower, upper = sparse_box(model, name, xs)
-        g_fun = ca.Function("box", [xs], [g_expr])
+        g_fun, lower, upper = box_function(model, name)
         X, U = ca.MX.sym("X", nx, n + 1), ca.MX.sym("U", nu, n)
         K_par = ca.MX.sym("on", 1, n + 1)  # 1 where the box holds
         U_ref = ca.MX.sym("u_ref", nu, n)
@@ -91,11 +105,11 @@ def entry_solver(model, name: str, n: int, margin: float = BOX_MARGIN, fast: dic
 
 def entry_step(model, name: str, x, margin: float = BOX_MARGIN) -> int | None:
     """The first knot of the states ``x`` (n+1, nx) from which every one is inside the sparse task ``name``'s box
-    (``margin`` inside its bounds; :func:`cartpole.ocp.dmc.sparse_box`), or None when the last is outside."""
-    xs = ca.SX.sym("x", model.nx)
-    g_expr, lower, upper = sparse_box(model, name, xs)
+    (``margin`` inside its bounds; :func:`box_function`, built once per model and task), or None when the last is
+    outside."""
+    g_fun, lower, upper = box_function(model, name)
     x = np.asarray(x, float)
-    G = np.asarray(ca.Function("box", [xs], [g_expr]).map(x.shape[0])(x.T)).T  # (n+1, m)
+    G = np.asarray(g_fun.map(x.shape[0])(x.T)).T  # (n+1, m)
     inside = np.all((G >= lower + margin) & (G <= upper - margin), axis=1)
     if not inside[-1]:
         return None

@@ -7,7 +7,8 @@ from cartpole.apps.swingup import SwingupOptions, run_swingup
 from cartpole.models import SHIPPED_MJCF, build_model
 from cartpole.ocp.bounds import bounds_from_params
 from cartpole.ocp.dmc import sparse_box
-from cartpole.planning.box_entry import box_entry_plan
+from cartpole.planning import box_entry
+from cartpole.planning.box_entry import BOX_MARGIN, box_entry_plan, box_function, entry_step
 from cartpole.planning.options import PlanOptions
 from cartpole.sim import replays_exactly
 
@@ -36,3 +37,26 @@ def test_no_box_plan_when_the_reference_does_not_end_in_the_box():
     assert box_entry_plan(model, SPARSE, model.x_hanging, x_ref, u_ref, model.x_hanging, b) is None
     g, lower, upper = sparse_box(model, SPARSE, ca.SX.sym("x", model.nx))
     assert np.all(np.isinf(upper[1:])) and np.all(np.isfinite(lower))  # a cosine's 1 never binds
+
+
+def test_entry_step_builds_the_box_once_per_model_and_task_and_finds_the_first_step_staying_inside(monkeypatch):
+    model = build_model(DMC_CARTPOLE)
+    monkeypatch.setattr(box_entry, "_SOLVERS", {})
+    built = []
+
+    def counted(m, name, x):
+        built.append(name)
+        return sparse_box(m, name, x)
+    monkeypatch.setattr(box_entry, "sparse_box", counted)
+    s = np.linspace(0.0, 1.0, 41)[:, None]  # hanging to upright in a straight line of states
+    x = (1 - s) * np.asarray(model.x_hanging, float) + s * np.asarray(model.x_eq, float)
+    xs = ca.SX.sym("x", model.nx)
+    g, lower, upper = sparse_box(model, SPARSE, xs)
+    G = np.array([np.asarray(ca.Function("g", [xs], [g])(xk), float).ravel() for xk in x])
+    for margin in (0.0, BOX_MARGIN, 1e-3):
+        inside = np.all((G >= lower + margin) & (G <= upper - margin), axis=1)
+        first = next(k for k in range(x.shape[0]) if inside[k:].all())
+        assert 0 < first < x.shape[0] - 1 and entry_step(model, SPARSE, x, margin) == first
+    assert entry_step(model, SPARSE, x[::-1]) is None  # ends hanging, outside
+    assert built == [SPARSE]  # one box for every call
+    assert box_function(build_model(DMC_CARTPOLE), SPARSE)[0] is box_function(model, SPARSE)[0]  # by the model's hash
