@@ -164,6 +164,13 @@ def is_task(name) -> bool:
     return isinstance(name, str) and ALIASES.get(name, name) in TASKS
 
 
+def is_sparse_task(name) -> bool:
+    """True when ``name`` (any object: an objective's name, an objective, None) is the objective name or alias of a
+    dm_control task whose reward is sparse (an indicator, :attr:`Task.sparse`: it pays in the box of
+    :func:`sparse_box`, which the planners enter by :mod:`cartpole.planning.box_entry`); False for anything else."""
+    return is_task(name) and task(name).sparse
+
+
 # ---- dm_control/utils/rewards.py, transcribed to CasADi ----------------------------------------------------
 def _sigmoids(x, value_at_1: float, sigmoid: str):
     """``rewards._sigmoids``: 1 at ``x = 0``, ``value_at_1`` at ``x = 1``, in [0, 1] (``x`` a CasADi expression)."""

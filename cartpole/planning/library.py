@@ -38,8 +38,7 @@ from cartpole.errors import CartPoleError
 from cartpole.models import CartPoleModel, CartPoleParams, build_model, wrap_angle
 from cartpole.ocp.trajectory import Trajectory, step_grid_trajectory
 from cartpole.ocp.bounds import bounds_from_params
-from cartpole.ocp.dmc import is_task
-from cartpole.ocp.dmc import task as dmc_task
+from cartpole.ocp.dmc import is_sparse_task
 from cartpole.planning.box_tail import kept_inside
 from cartpole.planning.trajopt import trajopt_swingup
 
@@ -411,7 +410,7 @@ def _kept(params: CartPoleParams, model: CartPoleModel, plan, options) -> Trajec
         return plan.trajectory
     x, u = d.x, d.u
     objective = getattr(options, "objective", None)
-    if d.box_entry is not None and isinstance(objective, str) and is_task(objective) and dmc_task(objective).sparse:
+    if d.box_entry is not None and is_sparse_task(objective):
         step = model if abs(float(model.dt) - float(d.dt)) < 1e-15 else model.rebuilt(dt=float(d.dt))
         bounds = bounds_from_params(params, cart_margin=getattr(options, "cart_margin", 0.1))
         x, u = kept_inside(step, objective, x, u, bounds)

@@ -41,8 +41,7 @@ from cartpole.ocp.bounds import OCPError, bounds_from_params, shooting_bounds
 from cartpole.ocp.collocation import CollocationOptions, DirectCollocation, OCPInfeasible, OCPNotSolved
 from cartpole.ocp.records import Attempt, SolveInfo
 from cartpole.ocp.guess import named_guesses
-from cartpole.ocp.dmc import is_task
-from cartpole.ocp.dmc import task as dmc_task
+from cartpole.ocp.dmc import is_sparse_task, is_task
 from cartpole.ocp.objectives import make_objective
 from cartpole.planning import ddp_plan
 from cartpole.planning.box_entry import box_entry_plan
@@ -958,7 +957,7 @@ def _tracked(p: _Planning, traj: Trajectory, info: SolveInfo, exact, exact_discr
             exact = exact_discrete_plan(tv_model, traj, p.x0, p.bounds, dt=dt, u_margin=margin)
             if exact is not None:
                 break
-    if is_task(p.obj.name) and dmc_task(p.obj.name).sparse and steps == 1:
+    if is_sparse_task(p.obj.name) and steps == 1:
         # the indicator's own plan: into its box as early as the exact step allows (cartpole.planning.box_entry)
         boxed = _sparse_entry(tv_model, p.obj.name, p.x0, traj, exact, p.bounds, dt)
         if boxed is not None:

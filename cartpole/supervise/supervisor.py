@@ -61,8 +61,7 @@ from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.options import MPCOptions
 from cartpole.models import CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
-from cartpole.ocp.dmc import is_task
-from cartpole.ocp.dmc import task as dmc_task
+from cartpole.ocp.dmc import is_sparse_task
 from cartpole.planning.box_tail import box_tail_planner
 from cartpole.planning.library import PlanLibrary, trajectory_tail
 from cartpole.planning.options import PlanOptions
@@ -1199,19 +1198,13 @@ def _lead_in(params, model: CartPoleModel, lib: PlanLibrary, law, catch: LinearF
 
 def _cart_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,
                   period: float | None, catch_R) -> Callable:
-    """With ``cart_plans``: the planner (a sparse task's by :func:`~cartpole.planning.box_tail.box_tail_planner`,
-    else :func:`_swingup_planner`)."""
-    if _sparse_task(plan, params, period):
+    """With ``cart_plans``: the planner (a sparse task's at the MJCF's step by
+    :func:`~cartpole.planning.box_tail.box_tail_planner`, which keeps the stored entry plans' box entry, else
+    :func:`_swingup_planner`)."""
+    if is_sparse_task(None if plan is None else plan.objective) and (
+            period is None or abs(float(period) - float(params.timestep)) < 1e-12):
         return box_tail_planner(params, model, plan.objective, catch_R=catch_R, options=plan)
     return _swingup_planner(params, model, plan, opts, period, catch_R)
-
-
-def _sparse_task(plan: PlanOptions | None, params, period: float | None) -> bool:
-    """Whether ``plan`` plans a sparse dm_control task at the MJCF's step (the cart's plans then keep the stored
-    entry plans' box entry: :func:`~cartpole.planning.box_tail.box_tail_planner`)."""
-    objective = None if plan is None else plan.objective
-    return (isinstance(objective, str) and is_task(objective) and dmc_task(objective).sparse
-            and (period is None or abs(float(period) - float(params.timestep)) < 1e-12))
 
 
 def _swingup_planner(params, model: CartPoleModel, plan: PlanOptions | None, opts: SupervisorOptions,

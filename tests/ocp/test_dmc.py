@@ -260,6 +260,23 @@ def test_a_sparse_tasks_box_is_exactly_where_its_reward_pays(tmp_path, name, n_p
     assert np.array_equal(paid == 1.0, inside) and np.all((paid == 0.0) | (paid == 1.0))
 
 
+@pytest.mark.parametrize("name,n_poles", CASES)
+def test_is_sparse_task_holds_exactly_for_the_tasks_whose_reward_pays_only_zero_or_one(tmp_path, name, n_poles):
+    model = build_model(_mjcf(dmc.task(name).domain, tmp_path, n_poles))
+    rng = np.random.default_rng(4)
+    X = _states(model, rng, 300)
+    paid = dmc_reward(model, X, rng.uniform(-1, 1, (X.shape[0], model.nu)), name)
+    assert dmc.is_sparse_task(name) == bool(np.all((paid == 0.0) | (paid == 1.0)))
+
+
+def test_is_sparse_task_resolves_aliases_and_is_false_for_anything_but_a_tasks_name():
+    assert dmc.is_sparse_task("dmc_swingup") is False  # the smooth cartpole swingup's alias
+    sparse = "dmc_cartpole_swingup_sparse"
+    assert dmc.is_sparse_task(sparse) is True
+    for other in (None, "effort", sparse.upper(), sparse + "_x", dmc.task(sparse), 3):
+        assert dmc.is_sparse_task(other) is False
+
+
 def test_a_smooth_task_has_no_box(tmp_path):
     model = build_model(_mjcf("cartpole", tmp_path, 1))
     with pytest.raises(dmc.DMCError, match="no sparse box"):
