@@ -358,40 +358,39 @@ def _alive(pid: int) -> bool:
         return False
 
 
-def _session_alive(sid: int) -> list[int]:
-    """Live (not zombie) processes of session ``sid``."""
-    out = []
+def _live_processes():
+    """``(pid, stat fields after the command's name)`` of every live (not zombie) process: field 1 is its parent's pid,
+    field 3 its session's id."""
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:
             with open(f"/proc/{pid}/stat") as f:
                 fields = f.read().rsplit(")", 1)[1].split()
         except OSError:
             continue
-        if int(fields[3]) == sid and fields[0] != "Z":
-            out.append(int(pid))
-    return out
+        if fields[0] != "Z":
+            yield int(pid), fields
+
+
+def _session_alive(sid: int) -> list[int]:
+    """Live (not zombie) processes of session ``sid``."""
+    return [pid for pid, fields in _live_processes() if int(fields[3]) == sid]
+
+
+def _cmdline(pid: int) -> bytes | None:
+    """The command line of ``pid`` (None once it has ended)."""
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            return f.read()
+    except OSError:
+        return None
 
 
 def _forks_of(pid: int) -> list[int]:
     """Live (not zombie) children of ``pid`` that are forks of it (the same command line: a planning worker), not
     programs it ran (a compiler's command line is its own)."""
-    try:
-        with open(f"/proc/{pid}/cmdline", "rb") as f:
-            cmdline = f.read()
-    except OSError:
-        return []
-    out = []
-    for child in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            with open(f"/proc/{child}/stat") as f:
-                fields = f.read().rsplit(")", 1)[1].split()
-            with open(f"/proc/{child}/cmdline", "rb") as f:
-                same = f.read() == cmdline
-        except OSError:
-            continue
-        if int(fields[1]) == pid and fields[0] != "Z" and same:
-            out.append(int(child))
-    return out
+    cmdline = _cmdline(pid)
+    return [child for child, fields in _live_processes()
+            if int(fields[1]) == pid and cmdline is not None and _cmdline(child) == cmdline]
 
 
 @pytest.mark.slow
@@ -400,9 +399,9 @@ def test_sigterm_of_the_cli_while_its_worker_plans_leaves_no_process(tmp_path):
     import subprocess
     import sys
 
-    # From hanging, the supervisor asks for its first plan at t = 0: the warm-up plan here, then the worker forked
-    # for it and kept until the run ends. A minute of knockdowns runs far longer than that (seconds of wall time on
-    # any machine), so the worker is seen before the command ends; the SIGTERM ends the run long before its minute.
+    # From hanging the supervisor asks for its first plan at t = 0: the warm-up plan made here, then the worker
+    # forked for that plan and kept until the run ends. A minute of knockdowns, a plan after each, lasts many times
+    # the poll's 0.1 s on any machine, so the worker is seen before the command ends; the SIGTERM ends it long before.
     mjcf = os.path.abspath("cartpole/assets/cartpole_two_pole.xml")
     proc = subprocess.Popen([sys.executable, "-m", "cartpole", "swingup", "--mjcf", mjcf, "--knockdown", "1:0.3",
                              "--duration", "60", "--no-video", "--json", "--out", str(tmp_path)],
