@@ -471,8 +471,8 @@ class Reset:
     class's default: the leaderboard does not pass its own) while their simulator calls it every 0.002 s, so its
     derivative term is twice ``kd`` times the rate; kept as theirs. The shoulder of an acrobot has no actuator in
     MuJoCo, so the torques go on the hinges as ``qfrc_applied`` (logged by :func:`cartpole.sim.rollout.simulate`:
-    the run replays exactly with ``mj_step``). A reset lasts while its steps so far, times the physics step, are at
-    most ``length`` (theirs: until its timer, a sum of step lengths, exceeds it: the same or one step less).
+    the run replays exactly with ``mj_step``). A reset lasts ``length`` rounded to whole physics steps (theirs: until
+    its timer, a sum of step lengths, exceeds it: the same or one step more, by rounding).
 
     Random draws as theirs after ``np.random.seed(seed)``: ``RandomState(seed).uniform(0, 2 pi, (10 count + 1, 4))``
     (the poses, less pi; the i-th reset takes row i), then ``rand(count)`` (the jitters). Their angles turn the other
@@ -541,12 +541,13 @@ class Reset:
         times = np.linspace(gap, self.duration - gap, self.count) + self.jitter * 2.0 * (rng.rand(self.count) - 0.5)
         return states[:self.count], times
 
-    def start(self, source, *, x_hanging, hinges, timestep: float) -> "ResetForce":
+    def start(self, source, *, x_hanging, hinges, timestep: float, period: float | None = None) -> "ResetForce":
         """The stateful force ``f(t, x) -> (nv,)`` for one run on ``source`` (CartPoleParams or MJCF path) at the
-        physics step ``timestep`` (s), the poses taken about the hanging rest ``x_hanging`` (nx,) at qpos indices
-        ``hinges``; wrap the run's controller in its :meth:`ResetForce.gate`."""
+        physics step ``timestep`` (s) and the loop's control ``period`` (s, None: every physics step), the poses
+        taken about the hanging rest ``x_hanging`` (nx,) at qpos indices ``hinges``; wrap the run's controller in
+        its :meth:`ResetForce.gate`."""
         return ResetForce(self, source, np.asarray(x_hanging, dtype=float), tuple(int(h) for h in hinges),
-                          float(timestep))
+                          float(timestep), period)
 
 
 class ResetForce:
@@ -566,9 +567,14 @@ class ResetForce:
         qpos indices of the pole angles (1-DOF hinges: the same index in qvel).
     timestep : float
         The physics step, s.
+    period : float, optional
+        The loop's control period, s (None: every physics step): each reset starts at the first control instant at
+        or after its time and lasts whole periods (``length`` rounded up to them), so that the controller, asked
+        only at control instants, is off for exactly the reset's steps.
     """
 
-    def __init__(self, reset: Reset, source, x_hanging: np.ndarray, hinges: tuple, timestep: float):
+    def __init__(self, reset: Reset, source, x_hanging: np.ndarray, hinges: tuple, timestep: float,
+                 period: float | None = None):
         self.reset, self.hinges, self.h = reset, hinges, timestep
         self.m, self.d = make_mujoco(source)
         self.dofs = [int(self.m.jnt_dofadr[j]) for j in range(self.m.njnt) if int(self.m.jnt_qposadr[j]) in hinges]
@@ -577,8 +583,9 @@ class ResetForce:
             raise DisturbanceError(f"RealAIGym's reset draws at most {poses.shape[1]} angles a pose; the model has "
                                    f"{len(hinges)} hinges.")
         self.poses = x_hanging[list(hinges)] - poses[:, :len(hinges)]
-        steps = int(np.floor(reset.length / timestep + 1e-9)) + 1
-        first = np.ceil(np.asarray(times) / timestep - 1e-9).astype(int)
+        hold = 1 if period is None else max(1, int(round(period / timestep)))
+        steps = hold * int(np.ceil(round(reset.length / timestep) / hold))
+        first = hold * np.ceil(np.asarray(times) / (timestep * hold) - 1e-9).astype(int)
         self.windows = [(int(k), int(k) + steps) for k in first]
         self.events: list[tuple[float, float]] = []
         self.goals: list[np.ndarray] = []
@@ -596,9 +603,8 @@ class ResetForce:
 
     def gate(self, controller):
         """``controller`` switched off during the resets: ``f(t, x)`` returns zero ctrl (nu,) then, without asking
-        it (as theirs, which does not call the swing-up controller during a reset), else ``controller(t, x)``. For a
-        loop that asks the controller every physics step (:func:`cartpole.sim.rollout.simulate` without a control
-        period or rig)."""
+        it (as theirs, which does not call the swing-up controller during a reset), else ``controller(t, x)``. For
+        :func:`cartpole.sim.rollout.simulate` without a rig, at the control period this force was started with."""
         zero = np.zeros(self.m.nu)
 
         def gated(t, x):

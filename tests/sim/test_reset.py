@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from cartpole.models import SHIPPED_MJCF, build_model, read_params, wrap_angle
-from cartpole.sim import DisturbanceError, Reset, replays_exactly, simulate
+from cartpole.sim import DisturbanceError, Reset, SimOptions, replays_exactly, simulate
 
 ACROBOT = SHIPPED_MJCF.with_name("realaigym_acrobot.xml")
 
@@ -86,3 +86,17 @@ def test_the_pid_holds_the_chain_against_gravity_at_its_goal(acrobot):
 def test_bad_resets_are_refused_in_one_sentence(kw, fix):
     with pytest.raises(DisturbanceError, match=fix):
         Reset(**kw)
+
+
+def test_at_a_control_period_the_resets_start_on_control_instants_and_the_ctrl_is_zero_through_them(acrobot):
+    params, model = acrobot
+    period = 5 * params.timestep
+    force = Reset(count=3, duration=3.0, seed=2).start(params, x_hanging=model.x_hanging, hinges=model.hinges,
+                                                       timestep=params.timestep, period=period)
+    run = simulate(params, force.gate(lambda t, x: np.full(params.nu, 1.5)), np.asarray(model.x_hanging, float), 3.0,
+                   disturbance=force, options=SimOptions(control_period=period))
+    assert replays_exactly(run) and len(force.events) == 3
+    zero = np.all(run.ctrl == 0.0, axis=1)
+    pushed = np.any(run.info["qfrc_applied"] != 0.0, axis=1)
+    assert np.array_equal(zero, pushed)  # off exactly while the PID acts
+    assert all(a % 5 == 0 and (b - a) % 5 == 0 for a, b in force.windows)
