@@ -107,7 +107,8 @@ def band_options(params, model, band: float):
     lowest = min(float(np.linalg.eigvalsh(joint_space_inertia(m, d, np.array([0.0, a])))[0])
                  for a in np.linspace(-np.pi, np.pi, 73))
     top = float(np.sqrt(2.0 * (band + 1.0) * e_swing / lowest))
-    return acrobot_options().replace(calm_energy=band * e_swing, mpc_energy=band * e_swing, calm_rate=top)
+    opts = acrobot_options()
+    return opts.replace(calm_energy=band * e_swing, calm_rate=top, mpc_energy=max(opts.mpc_energy, (band + 1) * e_swing))
 
 
 def one_run(params, model, library, seed: int, every: float, rate: float, duration: float,
