@@ -9,7 +9,8 @@ from hanging) and is thrown by :class:`cartpole.sim.Throw` (``EVERY`` s apart on
 ``--set-rates`` setting it to at most that), whatever it is doing, also mid swing-up, for ``--duration`` s. Each run is checked to replay exactly from its logged ctrl and
 ``qfrc_applied`` with ``mj_step`` (``replays``).
 
-Prints one JSON document: ``seeds``, ``every``, ``rate``, ``set_rates``, ``duration``, and per seed (``runs``, in seed order)
+Prints one JSON document: ``seeds``, ``mjcf``, ``reset``, ``resets`` (None without ``--reset``), ``period``,
+``mpc_band``, ``every``, ``rate``, ``set_rates``, ``duration``, and per seed (``runs``, in seed order)
 ``uptime`` (fraction of the run with every hinge within the toolkit's upright band, 0.2 rad, of upright),
 ``uptime_height`` (RealAIGym's own measure: fraction with the tip above 0.9 of the chain's length over the shoulder),
 ``throws`` (with ``--reset``: resets), ``throws_while_up`` (throws landing with every hinge in the band), ``swingups``, ``recovered`` (throws
@@ -30,7 +31,8 @@ pose at rest, the supervisor switched off) instead of the throws; the seed is th
 supervisor's control period (s; default every physics step), its ctrl held over it (RealAIGym's acrobot steps at 2 ms,
 where the swing-up MPC's 2 s horizon would be 1000 stages, over its limit: 0.01 s makes it 200, as on dm_control's). ``--mpc-band F``:
 the supervisor's swing-up MPC takes every state up to ``F`` of the model's swing-up energies above the upright's,
-however fast, instead of only calm ones (at or below the upright's energy) after draining the rest
+however fast, instead of only calm ones (every hinge slower than 6 rad/s and the energy at or below the upright's),
+and keeps it while the energy stays within the larger of its 35 J and ``F + 1`` swing-up energies above it
 (:func:`band_options`).
 
     python tools/acrobot_throws.py [--seeds 0 1 ...] [--every 3.75] [--rate 45] [--set-rates] [--duration 60]
