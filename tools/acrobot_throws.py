@@ -9,10 +9,11 @@ from hanging) and is thrown by :class:`cartpole.sim.Throw` (``EVERY`` s apart on
 ``--set-rates`` setting it to at most that), whatever it is doing, also mid swing-up, for ``--duration`` s. Each run is checked to replay exactly from its logged ctrl and
 ``qfrc_applied`` with ``mj_step`` (``replays``).
 
-Prints one JSON document: ``seeds``, ``every``, ``rate``, ``set_rates``, ``duration``, and per seed (``runs``, in seed order)
+Prints one JSON document: ``seeds``, ``mjcf``, ``reset``, ``resets`` (None without ``--reset``), ``period``,
+``mpc_band``, ``every``, ``rate``, ``set_rates``, ``duration``, and per seed (``runs``, in seed order)
 ``uptime`` (fraction of the run with every hinge within the toolkit's upright band, 0.2 rad, of upright),
 ``uptime_height`` (RealAIGym's own measure: fraction with the tip above 0.9 of the chain's length over the shoulder),
-``throws``, ``throws_while_up`` (throws landing with every hinge in the band), ``swingups``, ``recovered`` (throws
+``throws`` (with ``--reset``: resets), ``throws_while_up`` (throws landing with every hinge in the band), ``swingups``, ``recovered`` (throws
 followed by a swing-up before the next throw or the end), ``recover_s`` (s from each of those throws to its swing-up),
 ``energy_after_J`` (each throw's state's energy just after it, J above upright rest), ``missed_at`` (s, each other throw) with ``left_s`` (s to the next throw or the end after each), ``decisions`` (kind -> count), ``mpcs``, ``plans``, ``peak_rate`` (rad/s, the
 largest hinge rate logged), ``replays``, ``diverged``, ``wall_s``; then ``uptime_mean``, ``uptime_median``,
@@ -20,7 +21,22 @@ largest hinge rate logged), ``replays``, ``diverged``, ``wall_s``; then ``uptime
 ``missed_gap_s`` (``min``, ``median``, ``max``, ``count`` over every seed: the recoveries' times, the energies the
 throws left, and the time each missed throw had before the next), ``swingup_energy_J`` (the model's own, J), ``all_replay``.
 
-    python tools/acrobot_throws.py [--seeds 0 1 ...] [--every 3.75] [--rate 45] [--set-rates] [--duration 60] [--out FILE]
+``--mjcf FILE``: another acrobot (a chain driven at the elbow with a site ``tip`` and a shoulder body ``upper_arm``),
+e.g. ``cartpole/assets/realaigym_acrobot.xml``, RealAIGym's own; its library of one plan from hanging is built as
+``acrobot_minute``'s (once per model, kept on disk). ``--reset``: RealAIGym's own reset (:class:`cartpole.sim.Reset`,
+double_pendulum's ``GlobalPolicyTestingControllerV2`` as leaderboard/acrobot/simulation_v3 builds it: ``--resets``
+resets spread over ``--duration`` at ``linspace(d, duration - d, resets)``, ``d = duration / (resets + 1)``, each
+moved by up to 1 s; each 0.2 s of a gravity-compensated PID on both hinges, at most 6 N m each, towards a random
+pose at rest, the supervisor switched off) instead of the throws; the seed is the reset's. ``--period``: the
+supervisor's control period (s; default every physics step), its ctrl held over it (RealAIGym's acrobot steps at 2 ms,
+where the swing-up MPC's 2 s horizon would be 1000 stages, over its limit: 0.01 s makes it 200, as on dm_control's). ``--mpc-band F``:
+the supervisor's swing-up MPC takes every state up to ``F`` of the model's swing-up energies above the upright's,
+however fast, instead of only calm ones (every hinge slower than 6 rad/s and the energy at or below the upright's),
+and keeps it while the energy stays within the larger of its 35 J and ``F + 1`` swing-up energies above it
+(:func:`band_options`).
+
+    python tools/acrobot_throws.py [--seeds 0 1 ...] [--every 3.75] [--rate 45] [--set-rates] [--duration 60]
+                                   [--mjcf FILE] [--reset] [--resets 15] [--period S] [--mpc-band F] [--out FILE]
 """
 import argparse
 import json
@@ -34,7 +50,8 @@ from tqdm import tqdm
 
 from acrobot_minute import ACROBOT, _spread, acrobot_library, acrobot_options  # this directory: the knockdown test's supervisor
 from cartpole.models import build_model, read_params, wrap_angle
-from cartpole.sim import UPRIGHT_BAND, Throw, replays_exactly, simulate, swingup_energy
+from cartpole.sim import UPRIGHT_BAND, Reset, SimOptions, Throw, replays_exactly, simulate, swingup_energy
+from cartpole.sim.disturbance import joint_space_inertia
 from cartpole.sim.rollout import make_mujoco
 from cartpole.supervise import supervisor_for
 from cartpole.validation import uptime_metrics
@@ -81,15 +98,40 @@ def height_uptime(run, params, model, fraction: float = HEIGHT) -> float:
     return float(np.sum(np.diff(t)[up]) / (t[-1] - t[0]))
 
 
+def band_options(params, model, band: float):
+    """``acrobot_options()`` with the swing-up MPC taking every state up to ``band`` swing-up energies
+    (:func:`cartpole.sim.swingup_energy`) above the upright's, however fast, and kept on up to there: ``calm_energy``
+    and ``mpc_energy`` that many J, and ``calm_rate`` the largest hinge rate a state so low can have (all of its
+    energy over the lowest pose's kinetic, in the slowest direction of the joint-space inertia over the elbow's
+    angles), so that the energy alone decides what is calm."""
+    e_swing = swingup_energy(model)
+    m, d = make_mujoco(params)
+    lowest = min(float(np.linalg.eigvalsh(joint_space_inertia(m, d, np.array([0.0, a])))[0])
+                 for a in np.linspace(-np.pi, np.pi, 73))
+    top = float(np.sqrt(2.0 * (band + 1.0) * e_swing / lowest))
+    opts = acrobot_options()
+    return opts.replace(calm_energy=band * e_swing, calm_rate=top, mpc_energy=max(opts.mpc_energy, (band + 1) * e_swing))
+
+
 def one_run(params, model, library, seed: int, every: float, rate: float, duration: float,
-            set_rates: bool = False, decisions: bool = False) -> dict:
+            set_rates: bool = False, decisions: bool = False, resets: int | None = None,
+            period: float | None = None, band: float | None = None) -> dict:
     """One thrown minute from hanging: its row (module docstring; with ``decisions`` each decision's ``t``, ``kind``
-    and details but the state)."""
+    and details but the state); with ``resets`` RealAIGym's reset that many times instead of the throws; ``period``
+    the supervisor's control period (s, None: every physics step)."""
     tic = time.perf_counter()
-    sup = supervisor_for(params, model, options=acrobot_options(), library=library)
-    throw = Throw(every, max_rate=rate, seed=seed, set_rates=set_rates).start(params, x_eq=model.x_eq, hinges=model.hinges,
-                                                         timestep=params.timestep)
-    run = simulate(params, sup, np.asarray(model.x_hanging, float), duration, disturbance=throw)
+    opts = acrobot_options() if band is None else band_options(params, model, band)
+    sup = supervisor_for(params, model, period=period, options=opts, library=library)
+    if resets is None:
+        throw = Throw(every, max_rate=rate, seed=seed, set_rates=set_rates).start(
+            params, x_eq=model.x_eq, hinges=model.hinges, timestep=params.timestep)
+        controller = sup
+    else:
+        throw = Reset(count=resets, duration=duration, seed=seed).start(
+            params, x_hanging=model.x_hanging, hinges=model.hinges, timestep=params.timestep, period=period)
+        controller = throw.gate(sup)
+    run = simulate(params, controller, np.asarray(model.x_hanging, float), duration, disturbance=throw,
+                   options=SimOptions(control_period=period))
     m = uptime_metrics(run, model, events=throw.events, duration=duration)
     hinges = list(model.hinges)
     q = np.asarray(run.qpos, float)[:, hinges]
@@ -123,20 +165,28 @@ def main() -> None:
     ap.add_argument("--set-rates", action="store_true",
                     help="each throw sets the hinge rates (to at most RATE) instead of adding to them")
     ap.add_argument("--decisions", action="store_true", help="each run's decisions too (decision_log)")
+    ap.add_argument("--mjcf", default=ACROBOT, help="the acrobot's MJCF (default dm_control's)")
+    ap.add_argument("--reset", action="store_true", help="RealAIGym's reset (PID to a random pose) instead of throws")
+    ap.add_argument("--period", type=float, default=None,
+                    help="the supervisor's control period, s (default every physics step)")
+    ap.add_argument("--mpc-band", type=float, default=None,
+                    help="the swing-up MPC takes any state up to this many swing-up energies above the upright's")
+    ap.add_argument("--resets", type=int, default=15, help="with --reset: resets in the run")
     ap.add_argument("--out", default=None, help="also write each row, as it comes, to this JSON-lines file")
     args = ap.parse_args()
-    params = read_params(ACROBOT)
+    params = read_params(args.mjcf)
     model = build_model(params)
     library = acrobot_library(params, model)
     rows = []
     for s in tqdm(args.seeds, desc="acrobot thrown minutes", file=sys.stderr):
         rows.append(one_run(params, model, library, s, args.every, args.rate, args.duration, args.set_rates,
-                            args.decisions))
+                            args.decisions, args.resets if args.reset else None, args.period, args.mpc_band))
         if args.out:
             with open(args.out, "a") as f:
                 f.write(json.dumps(rows[-1], default=float) + "\n")
     ups = [r["uptime"] for r in rows]
-    print(json.dumps({"seeds": args.seeds, "every": args.every, "rate": args.rate, "set_rates": args.set_rates,
+    print(json.dumps({"seeds": args.seeds, "mjcf": args.mjcf, "reset": args.reset,
+                      "resets": args.resets if args.reset else None, "period": args.period, "mpc_band": args.mpc_band, "every": args.every, "rate": args.rate, "set_rates": args.set_rates,
                       "duration": args.duration,
                       "runs": rows, "uptime_mean": float(np.mean(ups)), "uptime_median": float(np.median(ups)),
                       "uptime_height_mean": float(np.mean([r["uptime_height"] for r in rows])),

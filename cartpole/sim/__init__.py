@@ -8,9 +8,11 @@ from cartpole.sim.rig import Rig, RigError, RigRun, build_rig, delay_steps
 from cartpole.sim.rollout import (Rollout, SimOptions, cart_body, ctrl_bounds, make_mujoco, replay, replays_exactly,
                                   simulate, source_path)
 from cartpole.sim.disturbance import (KNOCK_ENERGY, UPRIGHT_BAND, DisturbanceError, Knockdown, KnockdownForce,
-                                      KnockRecord, Throw, ThrowForce, swingup_energy)
+                                      KnockRecord, Reset, ResetForce, Throw, ThrowForce,
+                                      swingup_energy)
 
 __all__ = ["LoopError", "LoopOptions", "Rollout", "SimOptions", "cart_body", "ctrl_bounds", "make_mujoco", "replay",
            "replays_exactly", "simulate", "source_path", "random_starts", "simulate_batch_linear",
            "Rig", "RigError", "RigRun", "build_rig", "delay_steps", "UPRIGHT_BAND", "DisturbanceError", "Knockdown",
-           "KnockdownForce", "Throw", "ThrowForce", "KNOCK_ENERGY", "KnockRecord", "swingup_energy"]
+           "KnockdownForce", "Throw", "ThrowForce", "KNOCK_ENERGY", "KnockRecord", "swingup_energy",
+           "Reset", "ResetForce"]

@@ -5,7 +5,8 @@ A lab that shows its cart-pole to visitors gets poked: :class:`Knockdown` waits 
 hinge with a random torque, strong enough to beat the controller, for at most ``length`` seconds and until it has done
 its share of the model's swing-up energy in work, and waits for the next time it is upright; :class:`Throw` throws the state at random times whatever the controller is doing (as RealAIGym's
 robustness benchmark resets it), as a one-step impulse giving each hinge a random change of rate (or, ``set_rates``,
-a random rate). Both are callables
+a random rate); :class:`Reset` is RealAIGym's own reset, a gravity-compensated PID on every hinge towards a random
+pose for 0.2 s with the controller switched off (:meth:`ResetForce.gate`). All are callables
 ``f(t, x) -> (nv,)`` that :func:`cartpole.sim.rollout.simulate` applies through MuJoCo's ``qfrc_applied`` and logs
 every physics step, so the run replays exactly with ``mj_step``.
 
@@ -447,6 +448,198 @@ class ThrowForce:
         M = joint_space_inertia(self.m, self.d, x)
         self.events.append((float(t), float(t + self.h)))
         return M @ dv / self.h
+
+
+@dataclass(frozen=True)
+class Reset:
+    """RealAIGym's reset (dfki-ric-underactuated-lab/double_pendulum,
+    src/python/double_pendulum/controller/global_policy_testing_controller.py, ``GlobalPolicyTestingControllerV2``, as
+    leaderboard/acrobot/simulation_v3/calculate_leaderboard_score.py builds it): ``count`` times in a run of
+    ``duration`` s, at ``linspace(d, duration - d, count)`` with ``d = duration / (count + 1)``, each moved by a
+    uniform amount in [-``jitter``, ``jitter``) s, the controller is switched off (its ctrl zero: :meth:`ResetForce.gate`)
+    and, for ``length`` s, a PID on EVERY hinge, gravity-compensated, drives the chain towards a random pose at rest:
+    each hinge's goal angle uniform in [-pi, pi) about the model's hanging rest, rate zero.
+
+    Each hinge's torque (N m) on a physics step from ``t``, ``e`` its goal angle minus its angle (rad, not wrapped,
+    as theirs, ``modulo_angles=False``), ``e_j`` the errors of every reset step so far in the run (theirs keeps one
+    list for the whole run) and ``dt = pid_dt``::
+
+        clip(kp e + ki dt sum_j e_j + kd (e - e_prev) / dt + g(q), -max_torque, max_torque)
+
+    the derivative term zero for the run's first two reset steps, ``g(q)`` the torque that holds the chain at rest
+    at ``q`` (MuJoCo's ``qfrc_bias`` at zero rate, theirs ``-B G(q)``). Their PID is given ``dt = 0.001`` s (the
+    class's default: the leaderboard does not pass its own) while their simulator calls it every 0.002 s, so its
+    derivative term is twice ``kd`` times the rate; kept as theirs. The shoulder of an acrobot has no actuator in
+    MuJoCo, so the torques go on the hinges as ``qfrc_applied`` (logged by :func:`cartpole.sim.rollout.simulate`:
+    the run replays exactly with ``mj_step``). A reset lasts ``length`` rounded to whole physics steps (theirs: until
+    its timer, a sum of step lengths, exceeds it: the same or one step more, by rounding).
+
+    Random draws as theirs after ``np.random.seed(seed)``: ``RandomState(seed).uniform(0, 2 pi, (10 count + 1, 4))``
+    (the poses, less pi; the i-th reset takes row i), then ``rand(count)`` (the jitters). Their angles turn the other
+    way about the hinges than MuJoCo's y axis in ``realaigym_acrobot.xml`` (its comment), so a pose's angles are
+    taken with a minus sign: the same poses for that file; for any other chain, still uniform ones.
+
+    Parameters
+    ----------
+    count : int
+        Resets in the run (theirs: 15).
+    duration : float
+        s, the run's length the times are spread over (theirs: 60).
+    length : float
+        s each reset lasts (theirs: 0.2).
+    seed : int
+        Seed of the poses and times.
+    jitter : float
+        s, largest move of a reset's time (theirs: 1).
+    kp, ki, kd : float
+        N m/rad, N m/(rad s), N m s/rad: the PID's gains (theirs: 10, 0.1, 1).
+    pid_dt : float
+        s, the PID's own step for its integral and difference (theirs: 0.001).
+    max_torque : float
+        N m, each hinge's torque limit (theirs: 6, ``mpar_nolim``).
+    """
+
+    count: int = 15
+    duration: float = 60.0
+    length: float = 0.2
+    seed: int = 0
+    jitter: float = 1.0
+    kp: float = 10.0
+    ki: float = 0.1
+    kd: float = 1.0
+    pid_dt: float = 0.001
+    max_torque: float = 6.0
+
+    def __post_init__(self):
+        try:
+            count = int(self.count)
+        except (TypeError, ValueError):
+            count = -1
+        if not (1 <= count <= 10000 and count == self.count):
+            raise DisturbanceError(f"The reset's count must be a whole number in [1, 10000]; got {self.count!r}.")
+        object.__setattr__(self, "count", count)
+        object.__setattr__(self, "duration", _seconds("reset run's duration", self.duration))
+        object.__setattr__(self, "length", _seconds("reset's length", self.length))
+        object.__setattr__(self, "seed", _seed(self.seed))
+        for name in ("jitter", "kp", "ki", "kd", "pid_dt", "max_torque"):
+            try:
+                v = float(getattr(self, name))
+            except (TypeError, ValueError):
+                v = float("nan")
+            if not (np.isfinite(v) and v >= 0 and (v > 0 or name in ("jitter", "ki", "kd"))):
+                raise DisturbanceError(f"The reset's {name} must be a finite number >= 0 (> 0 for kp, pid_dt and "
+                                       f"max_torque); got {getattr(self, name)!r}.")
+            object.__setattr__(self, name, v)
+
+    def draws(self) -> tuple[np.ndarray, np.ndarray]:
+        """The poses ``(count, 4)`` (rad about the hanging rest, uniform in [-pi, pi): theirs takes the first two
+        as the angles and zeroes the other two, its rates; a chain of up to four hinges takes its first as many) and
+        the times ``(count,)`` (s), as theirs draws them after ``np.random.seed(seed)``."""
+        rng = np.random.RandomState(self.seed)
+        states = rng.uniform(0.0, 2 * np.pi, (10 * self.count + 1, 4)) - np.pi
+        gap = self.duration / float(self.count + 1)
+        times = np.linspace(gap, self.duration - gap, self.count) + self.jitter * 2.0 * (rng.rand(self.count) - 0.5)
+        return states[:self.count], times
+
+    def start(self, source, *, x_hanging, hinges, timestep: float, period: float | None = None) -> "ResetForce":
+        """The stateful force ``f(t, x) -> (nv,)`` for one run on ``source`` (CartPoleParams or MJCF path) at the
+        physics step ``timestep`` (s) and the loop's control ``period`` (s, None: every physics step), the poses
+        taken about the hanging rest ``x_hanging`` (nx,) at qpos indices ``hinges``; wrap the run's controller in
+        its :meth:`ResetForce.gate`."""
+        return ResetForce(self, source, np.asarray(x_hanging, dtype=float), tuple(int(h) for h in hinges),
+                          float(timestep), period)
+
+
+class ResetForce:
+    """One run's resets (:meth:`Reset.start`): call it as ``f(t, x) -> (nv,)`` once per physics step in time order,
+    and run the controller through :meth:`gate`. :attr:`events` lists each reset's ``(start, end)`` times in s as it
+    happens, :attr:`goals` each one's goal angles (qpos of the hinges, rad), :attr:`windows` every reset's planned
+    physics steps ``(first, last + 1)``.
+
+    Parameters
+    ----------
+    reset : Reset
+    source : CartPoleParams or MJCF path
+        The model MuJoCo runs.
+    x_hanging : (nx,) array
+        The hanging rest the poses are drawn about.
+    hinges : tuple of int
+        qpos indices of the pole angles (1-DOF hinges: the same index in qvel).
+    timestep : float
+        The physics step, s.
+    period : float, optional
+        The loop's control period, s (None: every physics step): each reset starts at the first control instant at
+        or after its time and lasts whole periods (``length`` rounded up to them), so that the controller, asked
+        only at control instants, is off for exactly the reset's steps.
+    """
+
+    def __init__(self, reset: Reset, source, x_hanging: np.ndarray, hinges: tuple, timestep: float,
+                 period: float | None = None):
+        self.reset, self.hinges, self.h = reset, hinges, timestep
+        self.m, self.d = make_mujoco(source)
+        self.dofs = [int(self.m.jnt_dofadr[j]) for j in range(self.m.njnt) if int(self.m.jnt_qposadr[j]) in hinges]
+        poses, times = reset.draws()
+        if len(hinges) > poses.shape[1]:
+            raise DisturbanceError(f"RealAIGym's reset draws at most {poses.shape[1]} angles a pose; the model has "
+                                   f"{len(hinges)} hinges.")
+        self.poses = x_hanging[list(hinges)] - poses[:, :len(hinges)]
+        hold = 1 if period is None else max(1, int(round(period / timestep)))
+        steps = hold * int(np.ceil(round(reset.length / timestep) / hold))
+        first = hold * np.ceil(np.asarray(times) / (timestep * hold) - 1e-9).astype(int)
+        self.windows = [(int(k), int(k) + steps) for k in first]
+        self.events: list[tuple[float, float]] = []
+        self.goals: list[np.ndarray] = []
+        self._errors_sum = np.zeros(len(hinges))
+        self._errors_n = 0
+        self._last_error: np.ndarray | None = None
+
+    def active(self, t: float) -> int | None:
+        """The index of the reset under way at time ``t`` (s), or None."""
+        k = int(round(t / self.h))
+        for i, (a, b) in enumerate(self.windows):
+            if a <= k < b:
+                return i
+        return None
+
+    def gate(self, controller):
+        """``controller`` switched off during the resets: ``f(t, x)`` returns zero ctrl (nu,) then, without asking
+        it (as theirs, which does not call the swing-up controller during a reset), else ``controller(t, x)``. For
+        :func:`cartpole.sim.rollout.simulate` without a rig, at the control period this force was started with."""
+        zero = np.zeros(self.m.nu)
+
+        def gated(t, x):
+            return zero.copy() if self.active(t) is not None else controller(t, x)
+        return gated
+
+    def holding_torque(self, x) -> np.ndarray:
+        """(nv,) the generalized force that holds the chain at rest at ``x``'s joint positions: MuJoCo's
+        ``qfrc_bias`` at zero rate (N m on hinges, N on slides)."""
+        d = self.d
+        d.qpos[:] = np.asarray(x, dtype=float)[:self.m.nq]
+        d.qvel[:] = 0.0
+        mujoco.mj_forward(self.m, d)
+        return d.qfrc_bias.copy()
+
+    def __call__(self, t: float, x) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        i = self.active(t)
+        f = np.zeros(self.m.nv)
+        if i is None:
+            return f
+        if len(self.events) <= i:
+            self.events.append((float(t), float(self.windows[i][1] * self.h)))
+            self.goals.append(self.poses[i].copy())
+        r = self.reset
+        e = self.poses[i] - x[list(self.hinges)]
+        self._errors_sum += e
+        self._errors_n += 1
+        u = r.kp * e + r.ki * self._errors_sum * r.pid_dt
+        if self._errors_n > 2:
+            u += r.kd * (e - self._last_error) / r.pid_dt
+        self._last_error = e
+        u += self.holding_torque(x)[self.dofs]
+        f[self.dofs] = np.clip(u, -r.max_torque, r.max_torque)
+        return f
 
 
 class Disturbances:
