@@ -5,9 +5,9 @@ For each dm_control seed (its acrobot-swingup start: :func:`cartpole.ocp.dmc.epi
 ``task_kwargs={"random": seed}``) the per-start search of ``cartpole score`` (:func:`cartpole.apps.envscore.best_mpc`:
 the DDP MPC of each horizon, and near hanging each horizon with more DDP iterations, each run through the whole
 episode) picks its winning candidate, and the winner's closed-loop run from the start is stored (states and ctrl of
-every 10 ms step). Then from perturbed starts (the shoulder and the elbow each offset by ``delta`` rad, signs
-``directions``: ``++``, ``+-``, ``-+``, ``--``, at rest) four controllers each run one episode in the toolkit's own
-MuJoCo run of ``cartpole/assets/dmc_acrobot.xml`` and are scored with dm_control's exact reward
+every 10 ms step). Then from perturbed starts (the shoulder and the elbow each offset by ``delta`` rad, their
+signs ``directions``: ``pp`` both +, ``pm``, ``mp``, ``mm``; at rest) four controllers each run one episode in the
+toolkit's own MuJoCo run of ``cartpole/assets/dmc_acrobot.xml`` and are scored with dm_control's exact reward
 (:func:`cartpole.apps.envscore.episode_return`, as ``choose`` does; dm_control's episode earns the same to the bit):
 
 * ``default``: the supervisor in dm_control's episodes (:func:`cartpole.apps.envscore.supervised`: its swing-up MPC, the
@@ -24,7 +24,7 @@ from the seed's own start, ``b_tvlqr_nominal`` the tracker from the unperturbed 
 delta, direction, x0 and each controller's return and wall time) and ``summary`` (per delta, each controller's mean
 return and mean fraction of the winner's).
 
-    python tools/acrobot_transfer.py [--seeds 4 6] [--deltas 0.1 0.4] [--directions ++ +-] [--winner 4:2.5x3 ...]
+    python tools/acrobot_transfer.py [--seeds 4 6] [--deltas 0.1 0.4] [--directions pp pm] [--winner 4:2.5x3 ...]
 
 ``--winner SEED:LABEL`` skips the search for that seed and takes ``LABEL`` (``mpc_label``) as its winner (a choice an
 earlier run of this tool or of ``cartpole score`` printed); ``--out PATH`` also writes the document after every row.
@@ -49,7 +49,7 @@ from cartpole.riccati.tvlqr import tvlqr
 from cartpole.sim import simulate
 
 ENV = "acrobot-swingup"
-SIGNS = {"++": (1, 1), "+-": (1, -1), "-+": (-1, 1), "--": (-1, -1)}
+SIGNS = {"pp": (1, 1), "pm": (1, -1), "mp": (-1, 1), "mm": (-1, -1)}
 METHODS = ("default", "a_same", "b_tvlqr", "c_warm")
 
 
@@ -106,7 +106,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[4, 6])
     ap.add_argument("--deltas", type=float, nargs="+", default=[0.1, 0.4])
-    ap.add_argument("--directions", nargs="+", default=["++", "+-"], choices=list(SIGNS))
+    ap.add_argument("--directions", nargs="+", default=["pp", "pm"], choices=list(SIGNS))
     ap.add_argument("--winner", nargs="*", default=[], help="SEED:LABEL, the search's winner already known")
     ap.add_argument("--out", default=None, help="also write the document here after every row")
     args = ap.parse_args()
