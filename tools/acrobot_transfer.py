@@ -21,8 +21,8 @@ toolkit's own MuJoCo run of ``cartpole/assets/dmc_acrobot.xml`` and are scored w
 Prints one JSON document: ``mirror_symmetric`` (:func:`cartpole.planning.library.mirror_symmetric` on the model),
 ``seeds`` (per seed: ``x0``, ``choice``, ``predicted`` each candidate's return, ``winner_return``, ``default_return``
 from the seed's own start, ``b_tvlqr_nominal`` the tracker from the unperturbed start, ``search_s``), ``rows`` (seed,
-delta, direction, x0 and each controller's return and wall time) and ``summary`` (per delta, each controller's mean
-return and mean fraction of the winner's).
+delta, direction, x0, the seed's ``winner_return`` and each controller's return and wall time) and ``summary`` (per delta, each controller's mean
+return and mean fraction of the winner's) and ``library_estimate`` (:func:`library_estimate`).
 
     python tools/acrobot_transfer.py [--seeds 4 6] [--deltas 0.1 0.4] [--directions pp pm] [--winner 4:2.5x3 ...]
 
@@ -51,6 +51,23 @@ from cartpole.sim import simulate
 ENV = "acrobot-swingup"
 SIGNS = {"pp": (1, 1), "pm": (1, -1), "mp": (-1, 1), "mm": (-1, -1)}
 METHODS = ("default", "a_same", "b_tvlqr", "c_warm")
+#: rad: the starts near hanging (the shoulder within this of hanging, the elbow anywhere), the library's region.
+NEAR_HANGING = 0.8
+#: rad: the library grid's spacing in each angle of :func:`library_estimate`.
+GRID_SPACING = 0.1
+
+
+def library_estimate(search_s, mirror: bool, spacing: float = GRID_SPACING) -> dict | None:
+    """What a library of searched swing-ups over the starts near hanging would cost: ``area_rad2`` (the region,
+    halved when the model is mirror symmetric), ``starts`` on a grid of ``spacing`` rad, ``search_s`` (the mean
+    measured search per start, s) and ``hours`` offline; None when no search was timed (every winner given)."""
+    if not search_s:
+        return None
+    area = 2 * NEAR_HANGING * 2 * np.pi / (2 if mirror else 1)
+    starts = int(np.ceil(area / spacing ** 2))
+    mean_s = float(np.mean(search_s))
+    return {"spacing": spacing, "area_rad2": round(area, 2), "starts": starts, "search_s": round(mean_s, 1),
+            "hours": round(starts * mean_s / 3600, 1)}
 
 
 def parse_label(label: str) -> tuple[float, int]:
@@ -168,7 +185,8 @@ def main() -> None:
             for d in args.directions:
                 xp = np.array(x0, float)
                 xp[list(model.hinges)] += delta * np.array(SIGNS[d], float)
-                row = {"seed": seed, "delta": delta, "direction": d, "x0": [float(v) for v in xp]}
+                row = {"seed": seed, "delta": delta, "direction": d, "x0": [float(v) for v in xp],
+                       "winner_return": win_r}
                 h, it = parse_label(label)
                 makers = {"default": lambda: supervised(env, mjcf, xp, 1, charged_latency=0.0),
                           "a_same": lambda: _ddp_mpc(env, model, xp, period, h, it),
@@ -189,6 +207,8 @@ def main() -> None:
                                        [r[m] / doc["seeds"][str(r["seed"])]["winner_return"] for r in rows])), 3)}
                                for m in METHODS}
     doc["summary"] = summary
+    doc["library_estimate"] = library_estimate([doc["seeds"][str(s)]["search_s"] for s in args.seeds
+                                                if s not in given], doc["mirror_symmetric"])
     dump()
     print(json.dumps(doc))
 
