@@ -21,11 +21,13 @@ toolkit's own MuJoCo run of ``cartpole/assets/dmc_acrobot.xml`` and are scored w
 Prints one JSON document: ``mirror_symmetric`` (:func:`cartpole.planning.library.mirror_symmetric` on the model),
 ``seeds`` (per seed: ``x0``, ``choice``, ``predicted`` each candidate's return, ``winner_return``, ``default_return``
 from the seed's own start, ``b_tvlqr_nominal`` the tracker from the unperturbed start, ``search_s``), ``rows`` (seed,
-delta, direction, x0, the seed's ``winner_return`` and each controller's return and wall time) and ``summary`` (per delta, each controller's mean
-return and mean fraction of the winner's) and ``library_estimate`` (:func:`library_estimate`).
+delta, direction, x0, the seed's ``winner_return`` and each controller's return and wall time), ``summary`` (per
+delta, each controller's mean return and mean fraction of the winner's) and ``library_estimate``
+(:func:`library_estimate`).
 
     python tools/acrobot_transfer.py [--seeds 4 6] [--deltas 0.1 0.4] [--directions pp pm] [--winner 4:2.5x3 ...]
 
+``--methods`` runs only those of the four from the perturbed starts; ``--tvlqr-q`` scales ``b_tvlqr``'s state weight.
 ``--winner SEED:LABEL`` skips the search for that seed and takes ``LABEL`` (``mpc_label``) as its winner (a choice an
 earlier run of this tool or of ``cartpole score`` printed); ``--out PATH`` also writes the document after every row.
 """
@@ -45,6 +47,7 @@ from cartpole.mpc.options import MPCOptions
 from cartpole.ocp.dmc import episode_starts, task
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.planning.library import mirror_symmetric
+from cartpole.riccati import default_weights
 from cartpole.riccati.tvlqr import tvlqr
 from cartpole.sim import simulate
 
@@ -105,9 +108,11 @@ def stored_run(mjcf: str, model, controller, x0, duration: float) -> Trajectory:
     return Trajectory(t, X, np.vstack([U, U[-1:]]), np.zeros_like(X))
 
 
-def tracker_for(model, run: Trajectory, catch, rho: float) -> CaughtTracker:
-    """TVLQR along ``run`` (its knots an exact discrete reference), then the catch."""
-    gains = tvlqr(model, run, reference=(np.asarray(run.x), np.asarray(run.u)[:-1]))
+def tracker_for(model, run: Trajectory, catch, rho: float, q_scale: float = 1.0) -> CaughtTracker:
+    """TVLQR along ``run`` (its knots an exact discrete reference), then the catch; its state weight ``q_scale``
+    times the default (:func:`cartpole.riccati.default_weights`), the input weight the default."""
+    Q, _ = default_weights(model)
+    gains = tvlqr(model, run, Q=q_scale * np.asarray(Q), reference=(np.asarray(run.x), np.asarray(run.u)[:-1]))
     return CaughtTracker(TVLQRController(run, gains, catch), catch, rho)
 
 
@@ -125,6 +130,9 @@ def main() -> None:
     ap.add_argument("--deltas", type=float, nargs="+", default=[0.1, 0.4])
     ap.add_argument("--directions", nargs="+", default=["pp", "pm"], choices=list(SIGNS))
     ap.add_argument("--winner", nargs="*", default=[], help="SEED:LABEL, the search's winner already known")
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS),
+                    help="the controllers run from each perturbed start")
+    ap.add_argument("--tvlqr-q", type=float, default=1.0, help="b_tvlqr's state weight, times the default")
     ap.add_argument("--out", default=None, help="also write the document here after every row")
     args = ap.parse_args()
     given = {int(s): lab for s, _, lab in (w.partition(":") for w in args.winner)}
@@ -173,7 +181,7 @@ def main() -> None:
         win_r, _ = ret(winner, x0)
         bar.update()
         default_r, _ = ret(supervised(env, mjcf, x0, 1, charged_latency=0.0), x0)
-        nominal_b, _ = ret(tracker_for(model, run, catch, rho), x0)
+        nominal_b, _ = ret(tracker_for(model, run, catch, rho, args.tvlqr_q), x0)
         bar.update()
         doc["seeds"][str(seed)] = {"x0": [float(v) for v in x0], "choice": label,
                                    "predicted": None if predicted is None else {k: round(v, 4)
@@ -190,9 +198,9 @@ def main() -> None:
                 h, it = parse_label(label)
                 makers = {"default": lambda: supervised(env, mjcf, xp, 1, charged_latency=0.0),
                           "a_same": lambda: _ddp_mpc(env, model, xp, period, h, it),
-                          "b_tvlqr": lambda: tracker_for(model, run, catch, rho),
+                          "b_tvlqr": lambda: tracker_for(model, run, catch, rho, args.tvlqr_q),
                           "c_warm": lambda: warm_mpc(env, model, params, run, xp, label, period)}
-                for name in METHODS:
+                for name in args.methods:
                     r, wall = ret(makers[name](), xp)
                     row[name], row[name + "_s"] = r, wall
                 doc["rows"].append(row)
@@ -205,7 +213,7 @@ def main() -> None:
         summary[str(delta)] = {m: {"mean": round(float(np.mean([r[m] for r in rows])), 1),
                                    "fraction_of_winner": round(float(np.mean(
                                        [r[m] / doc["seeds"][str(r["seed"])]["winner_return"] for r in rows])), 3)}
-                               for m in METHODS}
+                               for m in args.methods}
     doc["summary"] = summary
     doc["library_estimate"] = library_estimate([doc["seeds"][str(s)]["search_s"] for s in args.seeds
                                                 if s not in given], doc["mirror_symmetric"])
