@@ -932,7 +932,8 @@ def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object
 
     ``watcher`` is :func:`cartpole.viz.viewer.watch` (or anything with :func:`~cartpole.sim.simulate`'s call shape
     ``watcher(source, controller, x0, duration) -> Rollout``); it runs the lab's LQR law from ``lab.x0s[0]`` for
-    ``lab.duration`` with simulate's physics, so its rollout must equal the logged ``lab.rollouts[0]`` step for step,
+    ``lab.duration`` with simulate's physics, as the logged run ran it (the compiled C of
+    :func:`~cartpole.export.inloop.in_loop` when there is a compiler), so its rollout must equal the logged ``lab.rollouts[0]`` step for step,
     and this is checked. The shown rollout then replaces the logged one (the same numbers, so every metric stands).
     When the window was closed early the shown run is the first part of the logged one (checked the same way) and
     the full logged run is kept.
@@ -945,7 +946,12 @@ def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object
         The shown run differs from the logged one (it cannot, unless MuJoCo is not deterministic here).
     """
     logged = lab.rollouts[0]
-    shown = watcher(lab.params, lab.controller(), lab.x0s[0], lab.duration)
+    law = lab.controller()
+    if lab.rig is None:
+        # the law the logged run ran: the one compiled implementation when there is a compiler (as in _runs); the
+        # Python class and the C agree only to round-off, which is not the same run on every CPU
+        law, _ = in_loop(plant_model(lab.params), law)
+    shown = watcher(lab.params, law, lab.x0s[0], lab.duration)
     n = shown.ctrl.shape[0]
     if n > logged.ctrl.shape[0] or not (np.array_equal(shown.x, logged.x[:n + 1])
                                         and np.array_equal(shown.ctrl, logged.ctrl[:n])):

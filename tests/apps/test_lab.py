@@ -301,8 +301,10 @@ def test_a_window_closed_early_keeps_the_full_logged_run(shipped_lab):
 def test_a_shown_run_that_differs_from_the_logged_one_is_refused(shipped_lab):
     from cartpole.control.linear import LinearFeedback
 
-    def other(source, ctrl, x0, duration):
-        return simulate(source, LinearFeedback(1.1 * ctrl.K, ctrl.x_eq, ctrl.u_eq, hinges=(1,)), x0, duration)
+    law = shipped_lab.controller()
+
+    def other(source, ctrl, x0, duration):  # another gain than the law it is given
+        return simulate(source, LinearFeedback(1.1 * law.K, law.x_eq, law.u_eq, hinges=(1,)), x0, duration)
 
     with pytest.raises(LabError, match="differs from the logged run"):
         view_first_run(shipped_lab, other)

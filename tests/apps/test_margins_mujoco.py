@@ -48,8 +48,9 @@ def test_the_ctrl_noise_the_encoders_cause_is_predicted_from_the_loop():
 def test_a_design_for_the_sensors_holds_the_three_pole_cart_with_a_quiet_ctrl():
     """The three-pole cart from 2048-count encoders (1 mm on the cart), 10 ms period and delay, LQG: the lab's R
     predicts a ctrl noise of half the range (it chatters at the limits); R raised for a tenth balances every lab
-    start in MuJoCo with the ctrl's standard deviation over the last 4 s within 25 % of the prediction (those
-    seconds still hold some of the start's transient)."""
+    start in MuJoCo with the ctrl's standard deviation after the start's transient (from 4 s of a 14 s run) within
+    25 % of the prediction (measured 1.10-1.20 times it; over the last 4 s of the lab's 6 s runs, which still hold
+    some of the transient, one start came to 1.255 times it on an AVX-512 machine)."""
     from cartpole.apps.lab import balances, run_lab
     from cartpole.apps.margins import noise_limited_R
 
@@ -58,10 +59,10 @@ def test_a_design_for_the_sensors_holds_the_three_pole_cart_with_a_quiet_ctrl():
     assert noise_limited_R(m, None, None, loop, 0.99)["predicted_fraction"][0] > 0.3
     found = noise_limited_R(m, None, None, loop, 0.1)
     assert found["factor"] > 1 and found["predicted_fraction"][0] <= 0.1
-    lab = run_lab(m, R=found["R"], loop=loop)
+    lab = run_lab(m, R=found["R"], loop=loop, duration=14.0)
     assert balances(lab)
     for run in lab.rollouts:
-        assert run.ctrl[run.t[1:] > run.t[-1] - 4.0].std() == pytest.approx(found["predicted_std"][0], rel=0.25)
+        assert run.ctrl[run.t[1:] > 4.0].std() == pytest.approx(found["predicted_std"][0], rel=0.25)
 
 
 def test_a_ctrl_noise_limit_needs_sensors_and_a_fraction_of_the_range():

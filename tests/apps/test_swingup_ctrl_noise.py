@@ -122,8 +122,10 @@ def _three_pole_catch_hold(tmp_path, gear_factor):
 def test_the_sensed_rest_still_fails_the_same_catch_limit_cycling_past_its_gain_margin(tmp_path):
     """The counter-example: the same catch on the same rig, its motor 2 % stronger than the upper gain margin the
     loop predicts (LQG's, through the Kalman filter), grows into an oscillation. Its fastest rate passes the sensors'
-    bound twice over, so the rest test fails, while the nominal motor's hold, whose motion is the quantisation's,
-    passes it."""
+    bound in the last second and is still growing, so the rest test fails, while the nominal motor's hold, whose
+    motion is the quantisation's, passes it. (How far past the bound the 10 s run gets turns on round-off, the
+    growth being slow 2 % past the margin: twice over on one machine, 1.65 times on an AVX-512 one, from 1.14 at
+    2-3 s.)"""
     nominal, rig, model, upper = _three_pole_catch_hold(tmp_path, 1.0)
     assert 1.0 < upper < 2.0
     layout = dict(x_eq=model.x_eq, hinges=model.hinges, slide=model.slide)
@@ -132,9 +134,15 @@ def test_the_sensed_rest_still_fails_the_same_catch_limit_cycling_past_its_gain_
     cycling, _, _, _ = _three_pole_catch_hold(tmp_path, 1.02 * upper)
     assert not cycling.info.get("diverged")
     assert not held_upright(cycling, tolerance=tol, **layout)
-    last = cycling.t >= cycling.t[-1] - 1.0
-    assert np.max(np.abs(cycling.qvel[last][:, list(model.hinges)]).max(axis=0) / tol[list(model.hinges)]) > 2.0
-    assert np.abs(pole_angle_errors(cycling.x[last], x_eq=model.x_eq, hinges=model.hinges)).max() < 0.5  # not fallen
+    hinges = list(model.hinges)
+
+    def fastest(run, start, end):  # the largest hinge rate over [start, end) s, in units of its bound
+        w = (run.t >= start) & (run.t < end)
+        return np.max(np.abs(run.qvel[w][:, hinges]).max(axis=0) / tol[hinges])
+    end = cycling.t[-1]
+    assert fastest(cycling, end - 1.0, end + 1.0) > 1.0 >= fastest(nominal, end - 1.0, end + 1.0)
+    assert fastest(cycling, end - 1.0, end + 1.0) > 1.2 * fastest(cycling, 2.0, 4.0)  # growing, not a noise burst
+    assert np.abs(pole_angle_errors(cycling.x[cycling.t >= end - 1.0], x_eq=model.x_eq, hinges=model.hinges)).max() < 0.5  # not fallen
 
 
 def _rest_floor(model, params, cpr, R_factors=(1.0, 16.0, 256.0)):
