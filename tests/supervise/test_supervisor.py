@@ -7,7 +7,7 @@ import pytest
 from cartpole.control.model_rollout import model_rollout
 from cartpole.control import SWINGUP_CATCH_R, EnergyDrain, LinearFeedback
 from cartpole.errors import CartPoleError
-from cartpole.models import build_model, planning_limits, read_params
+from cartpole.models import build_model, planning_limits, read_params, wrap_angle
 from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.nmpc import NMPCError
 from cartpole.ocp.trajectory import Trajectory
@@ -457,6 +457,44 @@ def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(do
         SupervisorOptions(mpc_budget=0.0)
     with pytest.raises(SupervisorError, match="swingup_mpc"):
         SupervisorOptions(swingup_mpc=1)
+
+
+def test_a_plan_lost_above_the_mpc_floor_is_handed_to_the_mpc_and_one_lost_below_it_is_planned_again(double):
+    """The rule the acrobot's run from hanging exercises (its outcome turns on round-off: tests/supervise/
+    test_knockdown_runs.py), on constructed states: a tracked plan left at rest within the MPC's band (at most
+    ``mpc_floor`` below the upright's energy) is handed to the swing-up MPC at once; left fast, it is calmed first
+    and then handed over; left below the floor, planned from again, no MPC."""
+    params, model, catch, brake = double
+    e_up = float(model.energy(model.x_eq))
+    band = 0.25 * (e_up - float(model.energy(model.x_hanging)))  # a quarter of the swing-up's energy
+    x_hang = np.asarray(model.x_hanging, float)
+    above = np.asarray(model.x_eq, float).copy()
+    above[model.hinges[0]] += 0.3  # at rest, a little below the upright's energy: in the MPC's band
+    below = x_hang.copy()
+    below[model.hinges[-1]] += 1.0  # at rest, the last pole bent 1 rad from hanging: below the floor
+    fast = above.copy()
+    fast[model.nq + model.hinges[0]] = 30.0  # the same pose, thrown: not calm
+    assert -band < float(model.energy(above)) - e_up < 0.0 and float(model.energy(below)) - e_up < -band
+    for x in (above, below):  # each off the plan (hanging) by more than the funnel: the plan is lost there
+        assert np.max(np.abs(wrap_angle(x[list(model.hinges)] - x_hang[list(model.hinges)]))) > 0.6
+    results = {}
+    for name, x in (("above", above), ("below", below), ("fast", fast)):
+        sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: _stub_plan(model, 5.0, x_hang),
+                         options=SupervisorOptions(charged_latency=0.01, funnel=0.6, swingup_mpc=True,
+                                                   mpc_energy=band, mpc_floor=band))
+        sup.mpc = _StubMPC(model.nu)
+        sup(0.0, x_hang)
+        sup(0.02, x_hang)
+        assert [d.kind for d in sup.decisions] == ["plan", "track"]  # the plan from hanging, tracked
+        sup(0.03, x)
+        results[name] = sup
+    tail = lambda sup, n: [(d.t, d.kind) for d in sup.decisions[-n:]]  # noqa: E731
+    assert tail(results["above"], 2) == [(0.03, "lost"), (0.03, "mpc")] and results["above"].mpc.calls == [0.0]
+    assert tail(results["below"], 2) == [(0.03, "lost"), (0.03, "plan")] and not results["below"].mpc.calls
+    thrown = results["fast"]
+    assert tail(thrown, 2) == [(0.03, "lost"), (0.03, "brake")] and not thrown.mpc.calls  # calmed first
+    thrown(0.5, above)  # calm again, in the band: the MPC takes it (not spent: it never ran)
+    assert tail(thrown, 1) == [(0.5, "mpc")] and thrown.mpc.calls == [0.0]
 
 
 def test_the_calming_brake_acts_on_fast_states_and_the_brake_while_a_plan_is_on_its_way(double):
