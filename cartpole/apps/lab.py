@@ -933,8 +933,9 @@ def view_first_run(lab: LabResult, watcher: Callable) -> tuple[LabResult, object
     ``watcher`` is :func:`cartpole.viz.viewer.watch` (or anything with :func:`~cartpole.sim.simulate`'s call shape
     ``watcher(source, controller, x0, duration) -> Rollout``); it runs the lab's LQR law from ``lab.x0s[0]`` for
     ``lab.duration`` with simulate's physics, as the logged run ran it (the compiled C of
-    :func:`~cartpole.export.inloop.in_loop` when there is a compiler), so its rollout must equal the logged ``lab.rollouts[0]`` step for step,
-    and this is checked. The shown rollout then replaces the logged one (the same numbers, so every metric stands).
+    :func:`~cartpole.export.inloop.in_loop` when there is a compiler), so its rollout must equal the logged
+    ``lab.rollouts[0]`` step for step, and this is checked. The shown rollout then replaces the logged one (the same
+    numbers, so every metric stands).
     When the window was closed early the shown run is the first part of the logged one (checked the same way) and
     the full logged run is kept.
 
