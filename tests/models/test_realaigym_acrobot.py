@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from cartpole.models import SHIPPED_MJCF, build_model, read_params
+from cartpole.sim import make_mujoco
 from cartpole.validation.jacobians import random_states
 
 ACROBOT = SHIPPED_MJCF.with_name("realaigym_acrobot.xml")
@@ -46,8 +47,7 @@ def _their_gravity(q1, q2):
 
 
 def _mujoco():
-    m = mujoco.MjModel.from_xml_path(str(ACROBOT))
-    return m, mujoco.MjData(m)
+    return make_mujoco(str(ACROBOT))
 
 
 def test_mass_matrix_and_gravity_are_their_plants_at_random_poses():
@@ -88,6 +88,6 @@ def test_symbolic_step_equals_one_mj_step():
     xs, us = random_states(params, 50, seed=5)
     for x, u in zip(xs, us):
         mujoco.mj_resetData(m, d)
-        d.qpos[:], d.qvel[:], d.ctrl[:] = x[:2], x[2:], u
+        d.qpos[:], d.qvel[:], d.ctrl[:] = x[:model.nq], x[model.nq:], u
         mujoco.mj_step(m, d)
         np.testing.assert_allclose(model.step_np(x, u), np.concatenate([d.qpos, d.qvel]), rtol=0, atol=1e-9)
