@@ -50,11 +50,12 @@ docs: install
 	@echo "The site is at $(DOCS_OUT)/index.html"
 
 # Every number the README and the docs state, re-measured by its command (claims.toml); `CLAIMS_ARGS=--quick` for
-# the quick set, `CLAIMS_ARGS="--id ID"` for one. Exit 1 names each claim that moved.
+# the quick set, `CLAIMS_ARGS="--id ID"` for one. Exit 1 names each claim that moved. Each measured claim is appended to
+# claims-ledger.jsonl (commit, CPU, date): `CLAIMS_ARGS="--pending-since YYYY-MM-DD"` resumes a campaign begun that day.
 # The crocoddyl extra too: `cartpole bench`'s side-by-side claims (bench.crocoddyl_*) measure Crocoddyl's FDDP.
 claims: install
 	$(BIN)/pip install --quiet -e ".[dev,crocoddyl]"
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python tools/claims.py $(CLAIMS_ARGS)
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python tools/claims.py --ledger claims-ledger.jsonl $(CLAIMS_ARGS)
 
 clean:
 	rm -rf $(VENV) $(OUT) *.egg-info docs/_build docs/api/generated docs/notebooks

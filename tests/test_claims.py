@@ -125,3 +125,60 @@ def test_a_malformed_claims_file_is_one_sentence_and_exit_2(tmp_path, capsys, bo
     assert claims_tool.main(["--file", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("claims: ") and "\n" not in err
+
+
+def _one_claim_file(tmp_path, printed: float, value: float = 0.13):
+    path = tmp_path / "claims.toml"
+    text = "Mean settling time: 0.13 s"  # on the lab page
+    path.write_text(f'[[claim]]\nid = "settling"\ntext = "{text}"\n'
+                    f'command = "python -c \\"print({printed})\\""\nkey = "doc"\nvalue = {value}\ntolerance = 0.005\n'
+                    f'[[claim]]\nid = "moving"\ntext = "{text}"\n'
+                    'command = "python -c \\"print(0.5)\\""\nkey = "doc"\nvalue = 0.13\ntolerance = 0.005\n')
+    return path
+
+
+def test_the_ledger_records_each_measured_claim_and_a_resumed_run_measures_only_what_has_not_held(tmp_path, capsys):
+    path, ledger = _one_claim_file(tmp_path, printed=0.131), tmp_path / "ledger.jsonl"
+    today = claims_tool.datetime.date.today().isoformat()
+    assert claims_tool.main(["--file", str(path), "--ledger", str(ledger), "--json"]) == 1
+    lines = [json.loads(line) for line in ledger.read_text().splitlines()]
+    assert [(e["id"], e["status"], e["measured"]) for e in lines] == [("settling", "held", 0.131),
+                                                                     ("moving", "moved", 0.5)]
+    assert all(e["machine"] == claims_tool.machine() and e["date"][:10] >= today for e in lines)
+    capsys.readouterr()
+    # resumed: the claim that held is done, the one that moved is measured again (and appended again)
+    assert claims_tool.main(["--file", str(path), "--ledger", str(ledger), "--pending-since", today, "--json"]) == 1
+    assert [c["id"] for c in json.loads(capsys.readouterr().out)["claims"]] == ["moving"]
+    assert len(ledger.read_text().splitlines()) == 3
+    # a claim whose stated value changed is not the claim that held: it is pending again
+    restated = _one_claim_file(tmp_path, printed=0.131, value=0.131)
+    assert claims_tool.main(["--file", str(restated), "--ledger", str(ledger), "--pending-since", today,
+                             "--json"]) == 1
+    assert [c["id"] for c in json.loads(capsys.readouterr().out)["claims"]] == ["settling", "moving"]
+
+
+def test_held_lines_of_another_cpu_or_before_the_campaign_do_not_count():
+    claim = _claim()
+    held = {"id": claim.id, "status": "held", "digest": claims_tool.claim_digest(claim), "machine": "cpu A",
+            "date": "2026-12-07T10:00:00+00:00"}
+    since = claims_tool.datetime.date(2026, 12, 7)
+    assert claims_tool.pending([claim], [held], since=since, cpu="cpu A") == []
+    assert claims_tool.pending([claim], [held], since=since, cpu="cpu B") == [claim]
+    assert claims_tool.pending([claim], [held], since=claims_tool.datetime.date(2026, 12, 8), cpu="cpu A") == [claim]
+    assert claims_tool.pending([claim], [{**held, "status": "moved"}], since=since, cpu="cpu A") == [claim]
+
+
+@pytest.mark.parametrize("args, ledger_text, match", [
+    (["--pending-since", "2026-12-07"], None, "give --ledger FILE too"),
+    (["--pending-since", "yesterday"], "", "not a date"),
+    (["--pending-since", "2026-12-07"], "{not json\n", "line 1 is not a ledger entry"),
+])
+def test_a_bad_ledger_argument_is_one_sentence_and_exit_2(tmp_path, capsys, args, ledger_text, match):
+    path = _one_claim_file(tmp_path, printed=0.13)
+    if ledger_text is not None:
+        ledger = tmp_path / "ledger.jsonl"
+        ledger.write_text(ledger_text)
+        args = args + ["--ledger", str(ledger)]
+    assert claims_tool.main(["--file", str(path), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("claims: ") and "\n" not in err and match in err

@@ -14,6 +14,14 @@ Usage::
     python tools/claims.py --id lab-K --id lab-mean-settling --json
     python tools/claims.py --no-run           # only the file's schema and the text-on-page rule
 
+A whole run takes many hours (the score sweeps and the benchmarks), longer than a working session, and its numbers
+depend on the machine (a chaotic acrobot lands elsewhere on a CPU that rounds differently). ``--ledger FILE`` appends
+one JSON line per measured claim as it comes (its id, status, value and measurement, the claim's digest, the commit
+and whether the checkout had changes, the CPU, the date and the command's seconds): the record of which number was
+last measured where. ``--pending-since DATE`` then selects only the claims without a ``held`` line in that ledger,
+for the same claim (digest: command, key, value and tolerance) on this CPU, dated on or after DATE, so an interrupted
+campaign resumes where it stopped. ``make claims`` keeps ``claims-ledger.jsonl`` at the repository root.
+
 Exit status: 0 every selected claim held, 1 some claim moved, failed to measure or is not on a page, 2 the claims
 file is malformed (one sentence on stderr).
 
@@ -38,6 +46,9 @@ from __future__ import annotations
 
 import argparse
 import ast
+import datetime
+import hashlib
+import platform
 import json
 import math
 import os
@@ -56,6 +67,7 @@ except ModuleNotFoundError:  # Python 3.10: the tomli backport (same API)
 
 REPO = Path(__file__).resolve().parent.parent
 CLAIMS_FILE = REPO / "claims.toml"
+LEDGER_FILE = REPO / "claims-ledger.jsonl"
 KINDS = ("result", "timing")
 _ID = re.compile(r"[a-z0-9][a-z0-9._-]*\Z")
 _FIELDS = {"id", "text", "command", "key", "value", "tolerance", "rel_tolerance", "kind", "quick", "timeout", "note"}
@@ -401,6 +413,74 @@ def run_claims(claims, *, pages: dict[str, str] | None = None, measure: bool = T
     return results
 
 
+# ---- the ledger -------------------------------------------------------------------------------------------------
+
+def claim_digest(claim: Claim) -> str:
+    """16 hex digits naming what a claim measures and states (its command, key, value and tolerances): a ledger line
+    counts for a claim only while these are unchanged."""
+    what = {"command": claim.command, "key": claim.key, "value": claim.value, "tolerance": claim.tolerance,
+            "rel_tolerance": claim.rel_tolerance}
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def machine() -> str:
+    """The CPU the claims run on (its model name from ``/proc/cpuinfo`` where there is one), and the architecture."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return f"{line.split(':', 1)[1].strip()} ({platform.machine()})"
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown"
+
+
+def revision(cwd: Path | str = REPO) -> str:
+    """The checkout's commit, with ``+changes`` when tracked files differ from it; ``unknown`` outside git."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, check=True)
+        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
+                                capture_output=True, text=True, check=True)
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head.stdout.strip() + ("+changes" if status.stdout.strip() else "")
+
+
+def ledger_entry(result: Result, *, commit: str, cpu: str, when: datetime.datetime) -> dict:
+    """The ledger's JSON line for one measured result (see the module docstring)."""
+    return {"id": result.claim.id, "status": result.status, "value": result.claim.value,
+            "measured": result.measured, "detail": result.detail, "digest": claim_digest(result.claim),
+            "commit": commit, "machine": cpu, "date": when.isoformat(timespec="seconds"),
+            "seconds": round(float(result.seconds), 3)}
+
+
+def read_ledger(path: Path | str) -> list[dict]:
+    """The ledger's lines (none when the file does not exist yet)."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    entries = []
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            entry = json.loads(line)
+        except json.JSONDecodeError:
+            entry = None
+        if not isinstance(entry, dict) or not {"id", "status", "digest", "machine", "date"} <= set(entry):
+            raise ClaimsFileError(f"{path} line {n} is not a ledger entry (one JSON object with id, status, digest, "
+                                  "machine and date); fix or remove that line")
+        entries.append(entry)
+    return entries
+
+
+def pending(claims, entries, *, since: datetime.date, cpu: str) -> list[Claim]:
+    """The ``claims`` with no ``held`` entry among ``entries`` for the same digest on ``cpu`` dated ``since`` or
+    later: what a campaign begun on ``since`` has still to measure."""
+    done = {(e["id"], e["digest"]) for e in entries
+            if e["status"] == "held" and e["machine"] == cpu and e["date"][:10] >= since.isoformat()}
+    return [c for c in claims if (c.id, claim_digest(c)) not in done]
+
+
 def _fmt(v) -> str:
     if isinstance(v, float):
         return f"{v:.6g}"
@@ -425,6 +505,22 @@ def describe(result: Result) -> str:
     return f"{result.status.upper():8} {c.id}: {result.detail}"
 
 
+def _recording(path, show):
+    """``on_result`` that appends each measured result to the ledger at ``path`` (as it comes, so an interrupted
+    run keeps what it measured), then calls ``show``."""
+    commit, cpu = revision(), machine()
+
+    def record(result: Result):
+        if result.status in ("held", "moved", "error"):
+            line = json.dumps(ledger_entry(result, commit=commit, cpu=cpu,
+                                           when=datetime.datetime.now(datetime.timezone.utc)))
+            with open(path, "a") as f:
+                f.write(line + "\n")
+        if show is not None:
+            show(result)
+    return record
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python tools/claims.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--file", default=str(CLAIMS_FILE), help="the claims file (default: claims.toml)")
@@ -433,9 +529,24 @@ def main(argv=None) -> int:
     ap.add_argument("--kind", choices=KINDS, help="only claims of this kind")
     ap.add_argument("--no-run", action="store_true", help="check the schema and the text rule only")
     ap.add_argument("--json", action="store_true", help="one JSON document on stdout")
+    ap.add_argument("--ledger", metavar="FILE", help="append one JSON line per measured claim to FILE")
+    ap.add_argument("--pending-since", metavar="YYYY-MM-DD",
+                    help="only claims not yet held in --ledger's file on this CPU since that date")
     args = ap.parse_args(argv)
+    since = None
+    if args.pending_since is not None:
+        if args.ledger is None:
+            print("claims: --pending-since reads the ledger: give --ledger FILE too.", file=sys.stderr)
+            return 2
+        try:
+            since = datetime.date.fromisoformat(args.pending_since)
+        except ValueError:
+            print(f"claims: --pending-since {args.pending_since!r} is not a date: give it as YYYY-MM-DD.",
+                  file=sys.stderr)
+            return 2
     try:
         claims = load_claims(args.file)
+        entries = read_ledger(args.ledger) if since is not None else []
     except ClaimsFileError as e:
         print(f"claims: {e}", file=sys.stderr)
         return 2
@@ -445,7 +556,11 @@ def main(argv=None) -> int:
         return 2
     chosen = [c for c in claims if (not args.quick or c.quick) and (not args.id or c.id in args.id)
               and (args.kind is None or c.kind == args.kind)]
+    if since is not None:
+        chosen = pending(chosen, entries, since=since, cpu=machine())
     show = None if args.json else (lambda r: print(describe(r), flush=True))
+    if args.ledger is not None and not args.no_run:
+        show = _recording(args.ledger, show)
     results = run_claims(chosen, measure=not args.no_run, on_result=show)
     bad = [r for r in results if r.status not in ("held", "on-page")]
     counts = {s: sum(r.status == s for r in results) for s in ("held", "moved", "error", "off-page", "on-page")}
