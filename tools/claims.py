@@ -424,22 +424,26 @@ def claim_digest(claim: Claim) -> str:
 
 
 def machine() -> str:
-    """The CPU the claims run on (its model name from ``/proc/cpuinfo`` where there is one), and the architecture."""
+    """The CPU the claims run on: its model name from ``/proc/cpuinfo`` where there is one, the architecture, and
+    whether it has AVX-512 (which changes the round-off of the compiled code, and so where a chaotic run lands)."""
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return f"{line.split(':', 1)[1].strip()} ({platform.machine()})"
+        info = Path("/proc/cpuinfo").read_text().splitlines()
     except OSError:
-        pass
+        info = []
+    names = [line.split(":", 1)[1].strip() for line in info if line.startswith("model name")]
+    flags = next((line.split(":", 1)[1].split() for line in info if line.startswith("flags")), [])
+    if names:
+        return f"{names[0]} ({platform.machine()}{', AVX-512' if 'avx512f' in flags else ''})"
     return platform.processor() or platform.machine() or "unknown"
 
 
 def revision(cwd: Path | str = REPO) -> str:
-    """The checkout's commit, with ``+changes`` when tracked files differ from it; ``unknown`` outside git."""
+    """The checkout's commit, with ``+changes`` when tracked files other than the ledger itself differ from it;
+    ``unknown`` outside git."""
     try:
         head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, check=True)
-        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
-                                capture_output=True, text=True, check=True)
+        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
+                                 f":(exclude){LEDGER_FILE.name}"], cwd=cwd, capture_output=True, text=True, check=True)
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head.stdout.strip() + ("+changes" if status.stdout.strip() else "")
