@@ -57,6 +57,7 @@ FLAGS = {
     "results": "--out",
     "resume": "--resume",
     "seed": "--seed",
+    "search_s=None": "--search-s inf",
     "seed_plan=False": "--no-seed-plan",
     "solver": "--solver",
     "time_budget": "--time-budget",

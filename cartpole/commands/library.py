@@ -3,6 +3,7 @@ model's hash), or say what is stored; the supervisor's and the planner's warm st
 (:mod:`cartpole.planning.library`)."""
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -27,7 +28,8 @@ def add_arguments(parser) -> None:
                         help="the library file (default: the user cache's file of the model's hash, where "
                              "`cartpole swingup --knockdown` looks)")
     parser.add_argument("--search-s", type=float, default=None, metavar="S", dest="search_s",
-                        help="wall-time budget of each start's pumping search, s (default the planner's, 180)")
+                        help="wall-time budget of each start's pumping search, s (default the planner's, 180; inf: "
+                             "none)")
     parser.add_argument("--period", type=float, default=None, metavar="S",
                         help="control period the plans' TVLQR is designed over (default every MJCF step)")
 
@@ -43,7 +45,8 @@ def run(args) -> dict:
     if args.build is not None and not 1 <= args.build <= 64:
         raise PlanLibraryError(f"--build {args.build} must be a whole number of starts from 1 to 64; give e.g. --build 3.")
     if args.search_s is not None and not args.search_s > 0:
-        raise PlanLibraryError(f"--search-s {args.search_s} must be a positive number of seconds; give e.g. --search-s 180.")
+        raise PlanLibraryError(f"--search-s {args.search_s} must be a positive number of seconds (inf: no budget); "
+                               "give e.g. --search-s 180.")
     params = read_params(args.mjcf)
     model = build_model(params)
     path = Path(args.file).expanduser().resolve() if args.file else library_path(_key(model))
@@ -53,7 +56,8 @@ def run(args) -> dict:
     before = len(lib)
     tic = time.perf_counter()
     if args.build is not None:
-        options = PlanOptions() if args.search_s is None else PlanOptions(search_s=args.search_s)
+        options = PlanOptions() if args.search_s is None else PlanOptions(
+            search_s=None if args.search_s == math.inf else args.search_s)  # inf: no wall-time budget
         progress = None if args.json else (lambda done, total: print(f"  planned {done}/{total}", flush=True))
         lib = build_plan_library(params, model, library_starts(model, args.build), options=options,
                                  period=args.period, library=lib, progress=progress)

@@ -106,7 +106,7 @@ def add_arguments(parser) -> None:
                              "when no direct swing-up is found (default 40)")
     parser.add_argument("--search-s", type=float, default=None, metavar="S", dest="search_s",
                         help="trajopt (and mpc's offline plan): wall-time budget in s of that pumping search "
-                             "(default 180)")
+                             "(default 180; inf: none, the same search on any machine at any load)")
     parser.add_argument("--mpc-solver", choices=("rti", "ddp"), default=None,
                         help="mpc only: real-time iteration on the condensed QP (rti, the default) or warm-started "
                              "box-DDP on the exact held model (ddp)")
@@ -152,8 +152,11 @@ def disturbance_fields(args) -> dict:
 
 def search_fields(args) -> dict:
     """``T_max`` and ``search_s`` of :class:`~cartpole.planning.options.PlanOptions` from ``--T-max`` and
-    ``--search-s`` (only those given)."""
-    return {k: getattr(args, k) for k in ("T_max", "search_s") if getattr(args, k, None) is not None}
+    ``--search-s`` (only those given; ``--search-s inf`` is ``search_s=None``, no wall-time budget)."""
+    fields = {k: getattr(args, k) for k in ("T_max", "search_s") if getattr(args, k, None) is not None}
+    if fields.get("search_s") == math.inf:
+        fields["search_s"] = None
+    return fields
 
 
 def methods_sentence(tried) -> str:

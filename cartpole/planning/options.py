@@ -75,9 +75,11 @@ class PlanOptions(StageOptions):
     T_max : float
         s (> 0): the longest swing-up the pumping search tries when the minimum-time multi-start finds none
         (:func:`~cartpole.planning.pumping.pumping_search`; default :data:`~cartpole.planning.pumping.T_MAX`).
-    search_s : float
+    search_s : float or None
         s (> 0): wall-time budget of that pumping search (default 180); when it is spent the planner reports the
-        longest T it tried.
+        longest T it tried. None: no wall-time budget, the search bounded by ``T_max`` and ``pump_restarts`` alone,
+        so that it tries the same guesses on any machine at any load (its outcome then depends only on the CPU's
+        round-off), at the cost of an unbounded wait.
     pump_restarts : int
         Guesses (>= 1) of the pumping search per duration (default 2: the first push either way; 3 adds one under a
         relaxed bound, more add seeded random ones).
@@ -104,7 +106,7 @@ class PlanOptions(StageOptions):
     R: object = None
     Qf: object = None
     T_max: float = 40.0
-    search_s: float = 180.0
+    search_s: float | None = 180.0
     pump_restarts: int = 2
     pump_seed: int = 0
 
@@ -115,7 +117,8 @@ class PlanOptions(StageOptions):
     def __post_init__(self):
         self.number("T", low=0.0, low_open=True, high=MAX_PLAN_T, unit="s", optional=True)
         self.number("T_max", low=0.0, low_open=True, high=MAX_PLAN_T, unit="s")
-        self.number("search_s", low=0.0, low_open=True, unit="s")
+        self.number("search_s", low=0.0, low_open=True, unit="s", optional=True,
+                    hint="give `search_s=None` for no wall-time budget")
         self.number("pump_restarts", low=1, integer=True)
         self.number("pump_seed", low=0, integer=True)
         self.number("N", low=2, high=MAX_PLAN_N, integer=True, optional=True)

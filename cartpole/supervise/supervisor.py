@@ -1213,7 +1213,8 @@ def _swingup_planner(params, model: CartPoleModel, plan: PlanOptions | None, opt
     ``model`` with ``plan``'s settings (default ``PlanOptions()``), its searches bounded by ``opts.plan_budget`` s,
     without the exact-discrete re-solve unless ``opts.exact_plans``."""
     plan_opts = PlanOptions() if plan is None else plan
-    plan_opts = plan_opts.replace(search_s=min(plan_opts.search_s, opts.plan_budget))  # bounded planning
+    budget = opts.plan_budget if plan_opts.search_s is None else min(plan_opts.search_s, opts.plan_budget)
+    plan_opts = plan_opts.replace(search_s=budget)  # bounded planning, whatever the plan options say
     if not opts.exact_plans:
         plan_opts = plan_opts.replace(exact_discrete=False)
 

@@ -46,3 +46,10 @@ def test_bad_library_input_is_one_sentence(tmp_path):
         assert proc.returncode == 2 and proc.stdout == "", args
         assert "\n" not in line and "Traceback" not in line and line.endswith(".") and args[0] in line
     assert not (tmp_path / "missing").exists()
+
+
+def test_a_search_budget_that_is_not_a_positive_number_says_that_inf_means_none():
+    proc = _library("--build", "1", "--search-s", "nan")
+    line = proc.stderr.strip()
+    assert proc.returncode == 2 and proc.stdout == "" and "\n" not in line
+    assert "--search-s nan" in line and "inf: no budget" in line

@@ -77,7 +77,7 @@ def test_prose_summary(tmp_path, capsys):
                                   ["--method", "trajopt", "--ctrl-noise", "0.1"],
                                   ["--method", "energy", "--ctrl-noise", "1.5", "--encoder-cpr", "2048"],
                                   ["--method", "mpc", "--ctrl-noise", "0.1", "--encoder-cpr", "2048"],
-                                  ["--mjcf", "NOT_A_CARTPOLE"]])
+                                  ["--method", "trajopt", "--search-s", "nan"], ["--mjcf", "NOT_A_CARTPOLE"]])
 def test_bad_input_is_one_sentence_exit_2_and_no_files(argv, tmp_path, capsys):
     if argv[-1] == "NOT_A_CARTPOLE":
         bad = tmp_path / "pendulum.xml"
@@ -334,3 +334,14 @@ def test_library_sentences_are_rewritten_in_the_command_lines_options():
             "raise the `time_budget`; `EnergyOptions` stays")
     assert as_flags(text) == ("--ctrl-noise designs the catch; use it with --method energy or --method trajopt "
                               "(--solver ddp), raise the --time-budget; `EnergyOptions` stays")
+
+
+def test_a_search_budget_of_inf_is_no_wall_time_budget_and_nan_is_refused_naming_inf(tmp_path, capsys):
+    import argparse
+
+    from cartpole.commands.swingup import search_fields
+
+    assert search_fields(argparse.Namespace(T_max=17.0, search_s=float("inf"))) == {"T_max": 17.0, "search_s": None}
+    assert search_fields(argparse.Namespace(T_max=None, search_s=30.0)) == {"search_s": 30.0}
+    line = _fails_with_one_sentence(["--method", "trajopt", "--search-s", "nan"], tmp_path, capsys)
+    assert "--search-s inf" in line and "search_s=None" not in line

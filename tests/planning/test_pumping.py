@@ -110,6 +110,45 @@ def test_the_pumping_rollout_is_deterministic_inside_its_bound_and_the_options_a
     for bad in ({"pump_restarts": 0}, {"pump_seed": -1}, {"T_max": 0.0}, {"search_s": -1.0}):
         with pytest.raises(PlanOptionsError):
             PlanOptions(**bad)
+    with pytest.raises(PlanOptionsError, match="give `search_s=None` for no wall-time budget"):
+        PlanOptions(search_s=float("inf"))
+
+
+def test_a_search_without_a_wall_time_budget_gives_no_deadline_to_either_stage(monkeypatch):
+    """``search_s=None``: the acrobot's receding-horizon DDP and the pumping search after it run without a deadline
+    (bounded by ``T_max`` and the restarts alone), so that the same guesses are tried on any machine at any load."""
+    from types import SimpleNamespace
+
+    from cartpole.ocp.bounds import bounds_from_params
+    from cartpole.planning import trajopt
+
+    class _Stop(Exception):
+        pass
+
+    deadlines = {}
+
+    def receding(model, x0, *, search_s, **kw):  # found nothing: the planner goes on to its other stages
+        deadlines["receding"] = search_s
+        return None, None, SimpleNamespace(attempts=()), None
+
+    def not_solved(*a, **k):
+        raise OCPNotSolved("no guess converged", ())
+
+    def pumping(*a, deadline_s, **k):
+        deadlines["pumping"] = deadline_s
+        raise _Stop
+
+    monkeypatch.setattr(trajopt, "_receding_plan", receding)
+    monkeypatch.setattr(trajopt, "minimum_time", not_solved)
+    monkeypatch.setattr(trajopt, "infeasibility_proof", lambda *a, **k: SimpleNamespace(proven=False))
+    monkeypatch.setattr(trajopt, "pumping_search", pumping)
+    params = read_params(ASSETS / "dmc_acrobot.xml")
+    model = build_model(params)
+    for search_s in (None, 7.0):
+        with pytest.raises(_Stop):
+            trajopt._swingup_time_plan(model, params, model.x_hanging, N=50, bounds=bounds_from_params(params),
+                                       options=PlanOptions(search_s=search_s))
+        assert deadlines == {"receding": search_s, "pumping": search_s}
 
 
 def test_the_whole_range_law_reaches_upright_energy_where_the_gentle_one_stalls():

@@ -524,3 +524,18 @@ def test_supervisor_for_plans_within_the_default_bounds_the_command_line_uses_wh
     assert np.allclose(sup.catch.u_limits, np.asarray(bounded.ctrl_range, float).reshape(sup.catch.u_limits.shape))
     same = supervisor_for(params, build_model(bounded))  # as the command line calls it
     assert np.allclose(sup.catch.K, same.catch.K) and sup.rho == pytest.approx(same.rho)
+
+
+@pytest.mark.parametrize("search_s", [None, 1e6])
+def test_the_supervisors_plans_are_bounded_by_its_plan_budget_when_the_plan_options_set_none(double, monkeypatch,
+                                                                                              search_s):
+    from cartpole.planning.options import PlanOptions
+
+    params, model, catch, brake = double
+    seen = []
+    monkeypatch.setattr("cartpole.supervise.supervisor.trajopt_swingup",
+                        lambda *a, options=None, **k: seen.append(options) or _stub_plan(model, 1.0, model.x_eq))
+    sup = supervisor_for(params, model, plan=PlanOptions(search_s=search_s),
+                         basin_of=lambda c: SimpleNamespace(rho=1e-9))
+    sup.planner(np.asarray(model.x_hanging, float))
+    assert seen[0].search_s == SupervisorOptions().plan_budget
