@@ -21,7 +21,7 @@ episode_return`) under each of:
 Prints one JSON document: ``seeds``, ``returns`` (variant -> one return per seed), ``mean`` (variant -> mean),
 ``catch_t`` (variant -> the time of each episode's first catch, null when none), ``kinds`` (variant -> each
 episode's decision kinds, in order; the supervisors only) and ``converge`` (``L`` -> each episode's take-over solve:
-``iterations``).
+``iterations``) and ``start_iterations`` (the DDP iterations of ``mpc_from_start``'s offline solve, one per seed).
 
     python tools/acrobot_supervisor_gap.py [--n 10] [--seed 0] [--latency 0.1 0.3]
 """
@@ -52,7 +52,7 @@ def main(argv=None) -> int:
     model = build_model(mjcf)
     dt = float(model.dt)
     seeds = list(range(args.seed, args.seed + args.n))
-    returns, catch_t, kinds, converge = {}, {}, {}, {}
+    returns, catch_t, kinds, converge, start_iterations = {}, {}, {}, {}, []
 
     def record(name, controller, x0, sup=None):
         returns.setdefault(name, []).append(round(envscore.episode_return(model, mjcf, ENV.objective, controller,
@@ -67,7 +67,9 @@ def main(argv=None) -> int:
         sup = envscore.supervised(ENV, mjcf, x0, 1)
         record("supervisor", sup, x0, sup)
         record("supervisor_mpc", swingup_mpc(model.params, model, None, objective=ENV.objective), x0)
-        record("mpc_from_start", envscore._ddp_mpc(ENV, model, x0, dt, 2.0), x0)
+        from_start = envscore._ddp_mpc(ENV, model, x0, dt, 2.0)
+        start_iterations.append(int(from_start.init_info["iterations"]))
+        record("mpc_from_start", from_start, x0)
         sup = envscore.supervised(ENV, mjcf, x0, 1)
         sup.mpc = envscore._ddp_mpc(ENV, model, x0, dt, 2.0)
         record("supervisor_mpc_from_start", sup, x0, sup)
@@ -80,7 +82,7 @@ def main(argv=None) -> int:
                 [d.detail.get("iterations") for d in sup.decisions if d.kind == "mpc"])
     mean = {k: round(float(np.mean(v)), 4) for k, v in returns.items()}
     print(json.dumps({"seeds": seeds, "returns": returns, "mean": mean, "catch_t": catch_t, "kinds": kinds,
-                      "converge": converge}))
+                      "converge": converge, "start_iterations": start_iterations}))
     return 0
 
 
