@@ -30,10 +30,11 @@
   it; without, hanging at rest too: an MPC of a task's objective that pumps) is swung up by the DDP MPC
   (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
   exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged, bounded by ``mpc_step_budget``)
-  instead of a plan: no planning latency, no funnel to leave. When the energy rises ``mpc_energy`` above the
-  upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake, and the MPC takes it again once
-  calm; when the catch has not taken over within ``mpc_budget`` s, to the brake and the planner (below) until the
-  next catch or knock (a calm state turned fast).
+  instead of a plan: no planning latency, no funnel to leave (with ``mpc_converge`` its solution is first converged
+  from the state predicted ``mpc_latency`` s ahead, the brake acting while that solve is charged). When the energy
+  rises ``mpc_energy`` above the upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake,
+  and the MPC takes it again once calm; when the catch has not taken over within ``mpc_budget`` s, to the brake and
+  the planner (below) until the next catch or knock (a calm state turned fast).
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
   from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
@@ -154,7 +155,8 @@ HINGE_MPC_FLOOR = 35.0
 #: ``SupervisorOptions.mpc_latency``): from dm_control's acrobot starts (seeds 0-9) the 2 s MPC of
 #: ``dmc_acrobot_swingup`` converged in 6-282 DDP iterations, 4-296 ms of CPU time; on a loaded machine its wall time
 #: is several times that, charged as it is. Off by default: on dm_control's acrobot, converged at the take-over and
-#: charged this long, it earned no more than the MPC acting at once (docs/dmc.md, ``tools/acrobot_supervisor_gap.py``).
+#: charged this long, it earned about what the MPC acting at once earns on seeds 0-9, more on seeds 10-19 and less on
+#: seeds 20-32: chance, the chaotic chain's (docs/dmc.md, ``tools/acrobot_supervisor_gap.py``).
 MPC_CONVERGE_LATENCY = 0.3
 
 
