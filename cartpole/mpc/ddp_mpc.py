@@ -147,14 +147,30 @@ class DDPMPCController:
         U = np.array([self._tail_input(k * steps, None) for k in range(N)])
         self.init_info = {"iterations": 0, "status": "not converged offline", "cost": float("nan")}
         if x0 is not None:
-            x0 = np.asarray(x0, dtype=float).ravel()
-            if x0.shape != (model.nx,) or not np.all(np.isfinite(x0)):
-                raise NMPCError(f"x0 must be {model.nx} finite numbers [qpos, qvel].")
-            r = self.ddp.solve(x0, U, max_iterations=max(1, int(options.init_iterations)) * 20)
-            U = np.array(r.u)
-            self.init_info = {"iterations": r.iterations, "status": r.status, "cost": r.cost}
+            U, self.init_info = self._converged(x0, U)
         self._U0 = U
         self.reset()
+
+    def _converged(self, x0, U) -> tuple[np.ndarray, dict]:
+        """The solution (N, nu) converged from ``x0`` (nx,) starting from the inputs ``U`` (N, nu): at most
+        ``init_iterations * 20`` DDP iterations; and ``{"iterations", "status", "cost"}``."""
+        x0 = np.asarray(x0, dtype=float).ravel()
+        if x0.shape != (self.model.nx,) or not np.all(np.isfinite(x0)):
+            raise NMPCError(f"x0 must be {self.model.nx} finite numbers [qpos, qvel].")
+        r = self.ddp.solve(x0, U, max_iterations=max(1, int(self.options.init_iterations)) * 20)
+        return np.array(r.u), {"iterations": r.iterations, "status": r.status, "cost": r.cost}
+
+    def converge(self, x0) -> dict:
+        """Start a new run (:meth:`reset`) from ``x0`` (nx,) with its solution converged from there, as the
+        constructor's ``x0`` does offline (from the first solution, at most ``init_iterations * 20`` DDP iterations;
+        not in :attr:`solve_ms`: the caller times it), the first solution itself kept for later resets. A run that
+        takes over at ``x0`` then starts from a solution for it instead of one iterate a period away from the upright's
+        inputs. Returns ``{"iterations", "status", "cost"}``; :class:`~cartpole.mpc.nmpc.NMPCError` for an ``x0`` that
+        is not ``nx`` finite numbers."""
+        U, info = self._converged(x0, self._U0.copy())
+        self.reset()
+        self._U = U
+        return info
 
     def reset(self) -> None:
         """Start a new run: back to the first solution, empty :attr:`solve_ms` and :attr:`failures` (done

@@ -30,10 +30,11 @@
   it; without, hanging at rest too: an MPC of a task's objective that pumps) is swung up by the DDP MPC
   (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
   exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged, bounded by ``mpc_step_budget``)
-  instead of a plan: no planning latency, no funnel to leave. When the energy rises ``mpc_energy`` above the
-  upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake, and the MPC takes it again once
-  calm; when the catch has not taken over within ``mpc_budget`` s, to the brake and the planner (below) until the
-  next catch or knock (a calm state turned fast).
+  instead of a plan: no planning latency, no funnel to leave (with ``mpc_converge`` its solution is first converged
+  from the state predicted ``mpc_latency`` s ahead, the brake acting while that solve is charged). When the energy
+  rises ``mpc_energy`` above the upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake,
+  and the MPC takes it again once calm; when the catch has not taken over within ``mpc_budget`` s, to the brake and
+  the planner (below) until the next catch or knock (a calm state turned fast).
 * **track**: TVLQR along the plan, handing over to the plan's catch at its end; a hinge that strays more than
   ``funnel`` rad from the plan means the plan is lost: plan again. With ``replan_every`` it re-plans as it goes:
   from the state predicted under the plan's TVLQR, warm-started from the rest of the plan, the old plan tracked
@@ -150,6 +151,13 @@ HINGE_MPC_ENERGY = 35.0
 #: the MPC minimises a task's objective (``supervisor_for``'s ``plan``), which pumps from hanging (``docs/dmc.md``):
 #: then no floor.
 HINGE_MPC_FLOOR = 35.0
+#: s: the wall time predicted for converging the swing-up MPC's solution at a take-over (``mpc_converge``,
+#: ``SupervisorOptions.mpc_latency``): from dm_control's acrobot starts (seeds 0-9) the 2 s MPC of
+#: ``dmc_acrobot_swingup`` converged in 6-282 DDP iterations, 4-296 ms of CPU time; on a loaded machine its wall time
+#: is several times that, charged as it is. Off by default: on dm_control's acrobot, converged at the take-over and
+#: charged this long, it earned about what the MPC acting at once earns on seeds 0-9, more on seeds 10-19 and less on
+#: seeds 20-32: chance, the chaotic chain's (docs/dmc.md, ``tools/acrobot_supervisor_gap.py``).
+MPC_CONVERGE_LATENCY = 0.3
 
 
 #: What :meth:`Supervisor.prepare` has warmed in this process: ``(model_key, exact_plans, warm_tails)`` of each.
@@ -263,6 +271,18 @@ class SupervisorOptions(StageOptions):
         ``over_budget``). The solve runs to its end; what is bounded is that no ctrl waits for an answer later than
         the budget. None (default): every step applies its own answer (a run that does not depend on the machine's
         speed; a live run paced in real time would set the control period).
+    mpc_converge : bool
+        At each take-over, first converge the swing-up MPC's solution
+        (:meth:`~cartpole.mpc.ddp_mpc.DDPMPCController.converge`, as the MPC designed from a start converges its first
+        solution offline) from the state predicted ``mpc_latency`` s ahead under the brake, its wall time charged as
+        latency: the brake acts meanwhile (as while a plan is made) and the MPC from the later of the predicted time and
+        the solve's end (``charged_latency`` instead of both, when set); the ``mpc`` decision keeps the solve's wall
+        time, what was charged and its iterations (True). False (default): the MPC acts at once, its solution the
+        upright's inputs improved one iteration a period in the loop.
+    mpc_latency : float
+        s of wall time predicted for that solve (``mpc_converge``): the state it starts from is predicted this far
+        ahead, and the MPC never acts before it (a solve that takes longer is charged its wall time; default
+        :data:`MPC_CONVERGE_LATENCY`).
     plan_in_worker : bool or None
         Make each plan in a child process (:class:`cartpole.supervise.worker.PlanWorker`: forked at the first plan
         and kept between plans) that is killed once a plan has run ``plan_budget`` s of wall time (the next plan
@@ -320,6 +340,8 @@ class SupervisorOptions(StageOptions):
     mpc_floor: float | None = HINGE_MPC_FLOOR
     mpc_budget: float = 10.0
     mpc_step_budget: float | None = None
+    mpc_converge: bool = False
+    mpc_latency: float = MPC_CONVERGE_LATENCY
     plan_in_worker: bool | None = None
     plan_while_running: bool = False
     warm_worker: bool = True
@@ -328,12 +350,12 @@ class SupervisorOptions(StageOptions):
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
                                 "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget",
-                                "mpc_step_budget", "mpc_floor")
+                                "mpc_step_budget", "mpc_floor", "mpc_latency")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
                            ("retry_after", "s"), ("brake_time", "s"), ("calm_budget", "s"), ("mpc_energy", "J"),
-                           ("mpc_budget", "s")):
+                           ("mpc_budget", "s"), ("mpc_latency", "s")):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
         self.number("charged_latency", low=0.0, unit="s", optional=True)
@@ -343,7 +365,7 @@ class SupervisorOptions(StageOptions):
         self.number("mpc_step_budget", low=0.0, low_open=True, unit="s", optional=True)
         self.number("mpc_floor", low=0.0, unit="J", optional=True)
         for name in ("exact_plans", "warm_tails", "calm_drain", "swingup_mpc", "plan_while_running", "warm_worker",
-                     "cart_plans"):
+                     "cart_plans", "mpc_converge"):
             if not isinstance(getattr(self, name), bool):
                 raise SupervisorError(f"{name} = {getattr(self, name)!r} must be True or False.")
         if self.plan_in_worker is not None and not isinstance(self.plan_in_worker, bool):
@@ -511,6 +533,8 @@ class Supervisor:
         self.replan_at = np.inf
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
         self.mpc_t0, self.mpc_spent = None, False  # when the MPC took over; whether it failed since a catch or knock
+        self.mpc_ready = -np.inf  # when the MPC acts (mpc_converge: the brake until its solve is charged)
+        self.mpc_converge_s: list[float] = []  # wall time of each take-over's solve (mpc_converge), s
         self.mpc_ms: list[float] = []  # the swing-up MPC's wall time per step (ms), its earlier take-overs
         self.mpc_over = 0  # steps of its earlier take-overs over mpc_step_budget
         if getattr(self, "server", None) is not None:
@@ -898,7 +922,7 @@ class Supervisor:
         if self.asked is not None:
             self._poll_worker(t)
         if self.mode == "mpc" and not self._mpc_done(t, x, cost):
-            return self.mpc(t - self.mpc_t0, x)
+            return self._mpc_or_brake(t, x)
         if self.mode == "wait" and t >= self.ready_at - 1e-12:
             late = max(0.0, t - self.plan_t0)
             restart = late > 0.5 * self.model.dt and self._at_start(x)
@@ -962,9 +986,40 @@ class Supervisor:
         self.mpc_ms.extend(getattr(self.mpc, "solve_ms", None) or ())  # its reset forgets them
         self.mpc_over += len(getattr(self.mpc, "over_budget", None) or ())
         self.mpc.reset()
-        self.mpc_t0, self.pending = t, None
-        self._set(t, "mpc", cost=cost, energy=self._energy(x))
-        return self.mpc(0.0, x)
+        self.mpc_t0, self.mpc_ready, self.pending = t, t, None
+        detail = self._converge_mpc(t, x) if self.options.mpc_converge else {}
+        self._set(t, "mpc", cost=cost, energy=self._energy(x), **detail)
+        return self._mpc_or_brake(t, x)
+
+    def _mpc_or_brake(self, t: float, x) -> np.ndarray:
+        """ctrl (nu,): the swing-up MPC's (called with the time since :attr:`mpc_t0`), or the brake while its
+        take-over's solve is still charged (``mpc_converge``)."""
+        if t < self.mpc_ready - 1e-12:
+            return self.brake(t, x)
+        return self.mpc(t - self.mpc_t0, x)
+
+    def _converge_mpc(self, t: float, x) -> dict:
+        """With ``mpc_converge``: converge the MPC's solution from the state predicted ``mpc_latency`` s (or
+        ``charged_latency``) ahead of ``x`` (nx,) under the brake, and charge its wall time: the MPC's clock starts at
+        the predicted state's time, and it acts from the later of that and ``t`` plus the charge. Returns the ``mpc``
+        decision's details (``converge_s``, ``charged_s``, ``predicted_latency_s``, ``iterations``, ``status``)."""
+        charged_latency = self.options.charged_latency
+        lat = float(self.options.mpc_latency if charged_latency is None else charged_latency)
+        steps = max(1, int(round(lat / self.model.dt)))
+        xs, _ = model_rollout(self.model, self.brake, x, steps, t0=t)
+        start = time.perf_counter()
+        try:
+            info = self.mpc.converge(xs[-1])
+        except CartPoleError as exc:  # a prediction that is not finite: the MPC from the upright's inputs
+            self.mpc.reset()
+            info = {"iterations": 0, "status": str(exc)}
+        wall = time.perf_counter() - start
+        charged = wall if charged_latency is None else float(charged_latency)
+        self.mpc_converge_s.append(wall)
+        self.mpc_t0 = t + steps * self.model.dt
+        self.mpc_ready = max(t + charged, self.mpc_t0)
+        return {"converge_s": wall, "charged_s": charged, "predicted_latency_s": lat,
+                "iterations": int(info["iterations"]), "status": str(info["status"])}
 
     def _mpc_done(self, t: float, x, cost: float) -> bool:
         """While the swing-up MPC acts: whether it has failed (``mpc_budget`` s without a catch: the brake and the
@@ -989,13 +1044,14 @@ class Supervisor:
         the budget: ``t``, ``x0``, the planner's ``reason``; and each stall of the swing-up law, its ``reason``),
         ``mpc_ms`` (the swing-up MPC's wall time per control step: ``median`` and ``max`` ms, ``steps``,
         ``over_budget``: the steps over ``mpc_step_budget`` that applied the previous solution's shifted input, and
-        ``budget_ms``, None without a budget; None without an MPC step)."""
+        ``budget_ms``, None without a budget; None without an MPC step), ``mpc_converge_s`` (the wall time of each
+        take-over's solve with ``mpc_converge``, s)."""
         unreachable = [{"t": d.t, "x0": d.detail.get("x0"), "reason": d.detail.get("reason")}
                        for d in self.decisions if d.kind in ("plan_failed", "stalled")]
         return {"unreachable": unreachable, "decisions": [d.to_dict() for d in self.decisions], "plans": self.plans,
                 "plan_failures": self.failures, "plan_s": list(self.plan_seconds), "rho": self.rho,
                 "warm_plans": self.warm_plans, "library_plans": None if self.library is None else len(self.library),
-                "prepare_s": self.prepare_s, "mpc_ms": self._mpc_ms()}
+                "prepare_s": self.prepare_s, "mpc_ms": self._mpc_ms(), "mpc_converge_s": list(self.mpc_converge_s)}
 
     def _mpc_ms(self) -> dict | None:
         """The swing-up MPC's per-step wall time (``median``, ``max`` ms, ``steps``) and its steps over

@@ -10,6 +10,7 @@ from cartpole.errors import CartPoleError
 from cartpole.models import build_model, planning_limits, read_params, wrap_angle
 from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.nmpc import NMPCError
+from cartpole.mpc.options import MPCOptions
 from cartpole.ocp.trajectory import Trajectory
 from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.sim.disturbance import joint_inertia_and_authority
@@ -400,6 +401,67 @@ class _StubMPC:
         self.calls.append(t)
         self.solve_ms = getattr(self, "solve_ms", []) + [1.0]
         return np.full(self.nu, 0.125)
+
+
+class _ConvergingMPC(_StubMPC):
+    """A stub swing-up MPC that also records the states its solution is converged from."""
+
+    def __init__(self, nu):
+        super().__init__(nu)
+        self.converged = []
+
+    def converge(self, x0):
+        self.reset()
+        self.converged.append(np.array(x0))
+        return {"iterations": 7, "status": "converged", "cost": 0.0}
+
+
+def test_a_converged_mpc_take_over_brakes_until_its_charged_solve_then_acts_from_the_predicted_state(double):
+    """With mpc_converge the MPC's solution is converged from the state predicted charged_latency s ahead under the
+    brake; the brake acts until then, and the MPC's clock starts at that predicted state's time."""
+    params, model, catch, brake = double
+    e_up = float(model.energy(model.x_eq))
+    band = 0.25 * (e_up - float(model.energy(model.x_hanging)))
+    lat = 5 * model.dt
+    sup = Supervisor(model, catch, 1e-9, brake, options=SupervisorOptions(
+        swingup_mpc=True, mpc_energy=band, mpc_converge=True, charged_latency=lat), planner=lambda x0: None)
+    sup.mpc = _ConvergingMPC(model.nu)
+    near = np.asarray(model.x_eq, float).copy()
+    near[model.hinges[0]] += 0.3
+    assert np.allclose(sup(2.0, near), brake(2.0, near)) and sup.mode == "mpc" and not sup.mpc.calls
+    xs, _ = model_rollout(model, brake, near, 5, t0=2.0)
+    assert len(sup.mpc.converged) == 1 and np.allclose(sup.mpc.converged[0], xs[-1])
+    d = sup.decisions[-1]
+    assert d.kind == "mpc" and d.detail["charged_s"] == lat and d.detail["iterations"] == 7
+    assert np.allclose(sup(2.0 + 2 * model.dt, near), brake(2.0, near)) and not sup.mpc.calls  # still charged
+    assert np.allclose(sup(2.0 + 5 * model.dt, near), 0.125) and sup.mpc.calls == [pytest.approx(0.0)]
+    assert sup.summary()["mpc_converge_s"] == [d.detail["converge_s"]]
+    at_once = Supervisor(model, catch, 1e-9, brake, options=SupervisorOptions(swingup_mpc=True, mpc_energy=band),
+                         planner=lambda x0: None)
+    at_once.mpc = _ConvergingMPC(model.nu)
+    assert np.allclose(at_once(2.0, near), 0.125) and not at_once.mpc.converged  # the default: at once, as before
+    with pytest.raises(SupervisorError, match="mpc_latency"):
+        SupervisorOptions(mpc_latency=0.0)
+
+
+def test_the_ddp_mpc_converged_at_a_take_over_is_the_one_converged_offline_from_that_start():
+    """DDPMPCController.converge(x0) starts a run from the solution its constructor converges offline for x0, and a
+    later reset goes back to its own first solution."""
+    params = read_params("cartpole/assets/dmc_acrobot.xml")
+    model = build_model(params)
+    opts = MPCOptions(solver="ddp", seed_plan=False, horizon=0.5, objective="dmc_acrobot_swingup",
+                      period=params.timestep)
+    x0 = np.asarray(model.x_hanging, float) + np.array([0.4, -0.3, 0.0, 0.0])
+    offline = DDPMPCController(model, params, options=opts, x0=x0)
+    later = DDPMPCController(model, params, options=opts)
+    first = later.plan[1]
+    info = later.converge(x0)
+    assert info["iterations"] == offline.init_info["iterations"] > 0
+    assert np.array_equal(later.plan[1], offline.plan[1]) and np.array_equal(later(0.0, x0), offline(0.0, x0))
+    later.reset()
+    assert np.array_equal(later.plan[1], first)
+    with pytest.raises(NMPCError, match="finite"):
+        later.converge(np.full(model.nx, np.nan))
 
 
 def test_any_calm_state_is_swung_up_by_the_mpc_and_planned_from_once_it_fails(double):
