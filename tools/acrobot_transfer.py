@@ -14,7 +14,8 @@ toolkit's own MuJoCo run of ``cartpole/assets/dmc_acrobot.xml`` and are scored w
   2 s DDP MPC with one iteration, and the catch), each plan charged nothing (it plans none here);
 * ``a_same``: the winning candidate itself (the same horizon and iterations) from the perturbed start;
 * ``b_tvlqr``: TVLQR (default weights, :func:`cartpole.riccati.tvlqr.tvlqr` on the stored run as its exact discrete
-  reference) along the stored run, the supervisor's catch taking over inside its verified basin;
+  reference) along the stored run, the supervisor's catch taking over inside its verified basin and holding from
+  then on (:class:`cartpole.control.switching.SwitchingController` with ``release_factor=inf``);
 * ``c_warm``: the winner's DDP MPC seeded with the stored run's ctrl (``DDPMPCController(guess=...)``: its first
   solution converged from them, each shifted horizon extended by them while the run lasts).
 
