@@ -14,7 +14,8 @@ toolkit's own MuJoCo run of ``cartpole/assets/dmc_acrobot.xml`` and are scored w
   2 s DDP MPC with one iteration, and the catch), each plan charged nothing (it plans none here);
 * ``a_same``: the winning candidate itself (the same horizon and iterations) from the perturbed start;
 * ``b_tvlqr``: TVLQR (default weights, :func:`cartpole.riccati.tvlqr.tvlqr` on the stored run as its exact discrete
-  reference) along the stored run, the supervisor's catch taking over inside its verified basin;
+  reference) along the stored run, the supervisor's catch taking over inside its verified basin and holding from
+  then on (:class:`cartpole.control.switching.SwitchingController` with ``release_factor=inf``);
 * ``c_warm``: the winner's DDP MPC seeded with the stored run's ctrl (``DDPMPCController(guess=...)``: its first
   solution converged from them, each shifted horizon extended by them while the run lasts).
 
@@ -40,12 +41,13 @@ import numpy as np
 from tqdm import tqdm
 
 from cartpole.apps.envscore import (_ddp_mpc, best_mpc, environment, episode_return, supervised)
+from cartpole.control.switching import SwitchingController
 from cartpole.control.tvlqr import TVLQRController
 from cartpole.models import build_model, read_params
 from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.options import MPCOptions
 from cartpole.ocp.dmc import episode_starts, task
-from cartpole.ocp.trajectory import Trajectory
+from cartpole.ocp.trajectory import Trajectory, step_grid_trajectory
 from cartpole.planning.library import mirror_symmetric
 from cartpole.riccati import default_weights
 from cartpole.riccati.tvlqr import tvlqr
@@ -79,41 +81,22 @@ def parse_label(label: str) -> tuple[float, int]:
     return float(h), int(it) if it else 1
 
 
-class CaughtTracker:
-    """TVLQR along a stored run, the catch taking over once inside its basin (``catch.cost_to_go(x) < rho``) and
-    holding from then on: ``u = c(t, x)``."""
-
-    def __init__(self, tracker: TVLQRController, catch, rho: float):
-        self.tracker, self.catch, self.rho = tracker, catch, float(rho)
-        self.caught, self._last = False, -np.inf
-
-    def __call__(self, t: float, x) -> np.ndarray:
-        if t < self._last:
-            self.caught = False
-            self.tracker.reset()
-        self._last = t
-        if self.caught or float(self.catch.cost_to_go(x)) < self.rho:
-            self.caught = True
-            return self.catch(t, x)
-        return self.tracker(t, x)
-
-
 def stored_run(mjcf: str, model, controller, x0, duration: float) -> Trajectory:
-    """The closed-loop run of ``controller`` from ``x0`` as a Trajectory on the physics step (knot inputs: the ctrl
-    held over each step, the last repeated)."""
+    """The closed-loop run of ``controller`` from ``x0`` as a Trajectory on the physics step
+    (:func:`cartpole.ocp.trajectory.step_grid_trajectory`: knot inputs the ctrl held over each step, the last
+    repeated; knot derivatives ``model.f`` there)."""
     roll = simulate(mjcf, controller, x0, duration)
-    X = np.column_stack([roll.qpos, roll.qvel])
-    U = np.asarray(roll.ctrl, float).reshape(X.shape[0] - 1, model.nu)
-    t = np.arange(X.shape[0]) * float(model.dt)
-    return Trajectory(t, X, np.vstack([U, U[-1:]]), np.zeros_like(X))
+    return step_grid_trajectory(model.f, model.dt, np.column_stack([roll.qpos, roll.qvel]), roll.ctrl)
 
 
-def tracker_for(model, run: Trajectory, catch, rho: float, q_scale: float = 1.0) -> CaughtTracker:
-    """TVLQR along ``run`` (its knots an exact discrete reference), then the catch; its state weight ``q_scale``
-    times the default (:func:`cartpole.riccati.default_weights`), the input weight the default."""
+def tracker_for(model, run: Trajectory, catch, rho: float, q_scale: float = 1.0) -> SwitchingController:
+    """TVLQR along ``run`` (its knots an exact discrete reference) until ``catch.cost_to_go(x) < rho``, then the
+    catch, held from then on (:class:`~cartpole.control.switching.SwitchingController` with
+    ``release_factor=inf``); its state weight ``q_scale`` times the default (:func:`cartpole.riccati.default_weights`),
+    the input weight the default."""
     Q, _ = default_weights(model)
     gains = tvlqr(model, run, Q=q_scale * np.asarray(Q), reference=(np.asarray(run.x), np.asarray(run.u)[:-1]))
-    return CaughtTracker(TVLQRController(run, gains, catch), catch, rho)
+    return SwitchingController(TVLQRController(run, gains, catch), catch, rho, release_factor=float("inf"))
 
 
 def warm_mpc(env, model, params, run: Trajectory, x0, label: str, period: float) -> DDPMPCController:

@@ -4,7 +4,8 @@ Drake's acrobot swing-up does the same: the swing-up runs until the quadratic co
 evaluated on the *wrapped* error from the upright equilibrium ``x_eq``, drops below a level ``rho`` that a basin
 estimate (:func:`cartpole.validation.basin.estimate_basin`) found safe; the catch then holds the pole. The controller
 goes back to the swing-up only when the cost exceeds ``release_factor * rho``, a much larger level, so noise
-or the transient right after the catch cannot make it chatter between the two laws.
+or the transient right after the catch cannot make it chatter between the two laws; ``release_factor = inf`` never
+hands back (the catch holds once reached).
 """
 from __future__ import annotations
 
@@ -53,6 +54,7 @@ class SwitchingController:
         Catch level (dimensionless cost units of ``S``), e.g. ``BasinEstimate.rho``.
     release_factor : float
         Hysteresis: hand back to the swing-up only when ``e' S e > release_factor * rho`` (> 1; default 20).
+        ``inf``: hold the catch once reached (never hand back).
 
     Attributes
     ----------
@@ -64,7 +66,9 @@ class SwitchingController:
     Notes
     -----
     The controller has state (its mode). It resets itself when called with a time earlier than the previous
-    call (a new run), or explicitly with :meth:`reset`.
+    call (a new run), or explicitly with :meth:`reset`; either also resets the swing-up law when it has a
+    ``reset()`` method (e.g. :class:`~cartpole.control.tvlqr.TVLQRController`), so a reused controller starts
+    each run afresh.
     """
 
     def __init__(self, swingup, catch: LinearFeedback, rho: float, *, release_factor: float = 20.0):
@@ -74,20 +78,28 @@ class SwitchingController:
         if not (np.isfinite(rho) and rho > 0):
             raise SwitchingError(f"The catch level rho = {rho} is not a positive number; estimate it with "
                                  "estimate_basin().")
-        if not (np.isfinite(release_factor) and release_factor > 1):
-            raise SwitchingError(f"release_factor = {release_factor} must be a finite number above 1 so the "
-                                 "release level is above the catch level.")
+        if isinstance(release_factor, bool) or not isinstance(release_factor, (int, float, np.integer, np.floating)) \
+                or not release_factor > 1:  # NaN fails the comparison; inf passes (never hand back)
+            raise SwitchingError(f"release_factor = {release_factor!r} must be a number above 1 (inf: hold the "
+                                 "catch once reached) so the release level is above the catch level.")
         self.swingup = swingup
         self.catch = catch
         self.rho = float(rho)
         self.release_factor = float(release_factor)
-        self.reset()
+        self._clear()
 
-    def reset(self) -> None:
-        """Forget the mode and the switch log (start in swing-up mode)."""
+    def _clear(self) -> None:
         self.mode = "swingup"
         self.switches: list[Switch] = []
         self._last_t = -np.inf
+
+    def reset(self) -> None:
+        """Forget the mode and the switch log (start in swing-up mode), and reset the swing-up law when it has a
+        ``reset()``."""
+        self._clear()
+        reset = getattr(self.swingup, "reset", None)
+        if callable(reset):
+            reset()
 
     @property
     def caught_at(self) -> float | None:

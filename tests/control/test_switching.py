@@ -44,6 +44,44 @@ def test_bad_levels_raise():
         SwitchingController(lambda t, x: 0.0, LinearFeedback(np.zeros((1, 4))), rho=1.0)
 
 
+def test_infinite_release_factor_holds_the_catch_once_reached():
+    sw = SwitchingController(lambda t, x: 0.5, _unit_catch(), rho=1.0, release_factor=float("inf"))
+    assert sw(0.0, [2, 0, 0, 0]) == 0.5 and sw.mode == "swingup"       # cost 4 > rho
+    assert sw(0.1, [0.5, 0, 0, 0]) == 0.0 and sw.mode == "catch"       # cost 0.25 < rho: caught
+    assert sw(0.2, [1e6, 0, 0, 0]) == 0.0 and sw.mode == "catch"       # cost 1e12, far outside: still held
+    assert [(s.t, s.mode) for s in sw.switches] == [(0.1, "catch")] and sw.caught_at == 0.1
+    assert sw(0.0, [2, 0, 0, 0]) == 0.5 and sw.mode == "swingup"       # time going back = new run
+
+
+def test_new_run_resets_the_swingup_law_too():
+    class Law:
+        resets = 0
+
+        def reset(self):
+            self.resets += 1
+
+        def __call__(self, t, x):
+            return 0.5
+
+    law = Law()
+    sw = SwitchingController(law, _unit_catch(), rho=1.0, release_factor=float("inf"))
+    assert law.resets == 0  # building the switch leaves the law alone
+    sw(0.0, [2, 0, 0, 0])
+    sw(0.1, [0.5, 0, 0, 0])
+    assert law.resets == 0
+    sw(0.0, [2, 0, 0, 0])  # time going back: a new run
+    assert law.resets == 1 and sw.mode == "swingup"
+    sw.reset()
+    assert law.resets == 2
+
+
+@pytest.mark.parametrize("factor", [float("nan"), 0.5, 1.0, "20", None, True])
+def test_release_factor_not_a_number_above_one_is_refused_in_one_sentence(factor):
+    with pytest.raises(SwitchingError, match=r"^release_factor = .* must be a number above 1 \(inf: hold the catch "
+                                             r"once reached\) so the release level is above the catch level\.$"):
+        SwitchingController(lambda t, x: 0.0, _unit_catch(), rho=1.0, release_factor=factor)
+
+
 def test_shipped_swingup_switches_once_no_chattering(shipped):
     params, model, catch, basin = shipped
     sw = SwitchingController(EnergyShapingController(model), catch, basin.rho)
