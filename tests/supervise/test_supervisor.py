@@ -198,21 +198,26 @@ def test_a_plan_that_comes_early_waits_for_the_state_it_was_planned_from(double,
     assert sup.mode == "track" and sup.decisions[-1].detail["late_s"] == 0.0
 
 
+def _plan_options_seen(double, monkeypatch, plan, options):
+    """The PlanOptions the supervisor's planner hands the trajectory optimiser (stubbed) for ``plan`` and ``options``."""
+    params, model, catch, brake = double
+    seen = []
+    monkeypatch.setattr("cartpole.supervise.supervisor.trajopt_swingup",
+                        lambda *a, options=None, **k: seen.append(options) or _stub_plan(model, 1.0, model.x_eq))
+    sup = supervisor_for(params, model, plan=plan, options=options, basin_of=lambda c: SimpleNamespace(rho=1e-9))
+    sup.planner(np.asarray(model.x_hanging, float))
+    return seen[0]
+
+
 @pytest.mark.parametrize("exact_plans, given, expected", [(False, "auto", False), (True, "auto", "auto"),
                                                           (True, False, False)])
 def test_the_supervisors_plans_skip_the_exact_discrete_resolve_only_when_told(double, monkeypatch, exact_plans, given,
                                                                                expected):
     from cartpole.planning.options import PlanOptions
 
-    params, model, catch, brake = double
-    seen = []
-    monkeypatch.setattr("cartpole.supervise.supervisor.trajopt_swingup",
-                        lambda *a, options=None, **k: seen.append(options) or _stub_plan(model, 1.0, model.x_eq))
-    sup = supervisor_for(params, model, plan=PlanOptions(exact_discrete=given),
-                         options=SupervisorOptions(exact_plans=exact_plans),
-                         basin_of=lambda c: SimpleNamespace(rho=1e-9))
-    sup.planner(np.asarray(model.x_hanging, float))
-    assert seen[0].exact_discrete == expected and seen[0].search_s <= SupervisorOptions().plan_budget
+    seen = _plan_options_seen(double, monkeypatch, PlanOptions(exact_discrete=given),
+                              SupervisorOptions(exact_plans=exact_plans))
+    assert seen.exact_discrete == expected and seen.search_s <= SupervisorOptions().plan_budget
     with pytest.raises(SupervisorError, match="exact_plans"):
         SupervisorOptions(exact_plans="no")
 
@@ -593,11 +598,5 @@ def test_the_supervisors_plans_are_bounded_by_its_plan_budget_when_the_plan_opti
                                                                                               search_s):
     from cartpole.planning.options import PlanOptions
 
-    params, model, catch, brake = double
-    seen = []
-    monkeypatch.setattr("cartpole.supervise.supervisor.trajopt_swingup",
-                        lambda *a, options=None, **k: seen.append(options) or _stub_plan(model, 1.0, model.x_eq))
-    sup = supervisor_for(params, model, plan=PlanOptions(search_s=search_s),
-                         basin_of=lambda c: SimpleNamespace(rho=1e-9))
-    sup.planner(np.asarray(model.x_hanging, float))
-    assert seen[0].search_s == SupervisorOptions().plan_budget
+    seen = _plan_options_seen(double, monkeypatch, PlanOptions(search_s=search_s), SupervisorOptions())
+    assert seen.search_s == SupervisorOptions().plan_budget
