@@ -3,11 +3,11 @@ model's hash), or say what is stored; the supervisor's and the planner's warm st
 (:mod:`cartpole.planning.library`)."""
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 
 from cartpole.codegen import model_key
+from cartpole.commands.swingup import search_fields
 from cartpole.models import build_model, read_params
 from cartpole.planning.library import PlanLibrary, PlanLibraryError, build_plan_library, library_path, library_starts
 from cartpole.planning.options import PlanOptions
@@ -56,8 +56,7 @@ def run(args) -> dict:
     before = len(lib)
     tic = time.perf_counter()
     if args.build is not None:
-        options = PlanOptions() if args.search_s is None else PlanOptions(
-            search_s=None if args.search_s == math.inf else args.search_s)  # inf: no wall-time budget
+        options = PlanOptions(**search_fields(args))  # --search-s inf: no wall-time budget
         progress = None if args.json else (lambda done, total: print(f"  planned {done}/{total}", flush=True))
         lib = build_plan_library(params, model, library_starts(model, args.build), options=options,
                                  period=args.period, library=lib, progress=progress)
