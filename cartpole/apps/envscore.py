@@ -17,6 +17,7 @@ to install.
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -290,6 +291,17 @@ class Chosen:
         """ctrl (nu,) of the chosen controller at ``t`` (s) for the state ``x`` (nx,)."""
         return self.controller(t, x)
 
+    def reset(self) -> None:
+        """Restart the chosen controller (when it restarts: :func:`choose`'s candidates restart when called from
+        ``t = 0`` too)."""
+        if callable(getattr(self.controller, "reset", None)):
+            self.controller.reset()
+
+    @property
+    def solve_ms(self) -> list:
+        """The chosen controller's wall time per step (ms), when it keeps one (the DDP MPC); else empty."""
+        return list(getattr(self.controller, "solve_ms", None) or ())
+
     def as_dict(self) -> dict:
         """JSON-ready: ``choice``, ``predicted`` (label -> predicted return) and ``predicted_return`` (the chosen
         one's)."""
@@ -395,7 +407,7 @@ REHEARSALS = 2
 
 
 def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: float | None = None,
-               library: PlanLibrary | None = None):
+               library: PlanLibrary | None = None, stepped: bool = False):
     """The toolkit's supervisor (:func:`cartpole.supervise.supervisor_for`: catch, swing-up law or plan, track,
     brake, chosen at run time) on the file ``mjcf``, its control period the environment's action hold of ``hold``
     physics steps: ``u = supervisor(t, x)``. Nothing is planned from ``x0`` before the episode (unlike
@@ -418,13 +430,25 @@ def supervised(env: Environment, mjcf: str, x0, hold: int, *, charged_latency: f
     no plan unless the MPC fails.
     ``charged_latency`` (s): charge every plan that instead of its wall time (``SupervisorOptions.charged_latency``:
     a run that does not depend on the machine's speed, as a test needs); None (default) the measured wall time.
-    ``library``: these plans instead of the cached library (a test's own)."""
+    ``library``: these plans instead of the cached library (a test's own).
+    ``stepped``: the environment waits for each of the supervisor's actions, as dm_control's and Gymnasium's episodes
+    do for any agent (a learned one's planning at each step is not timed either): every plan and design is charged no
+    simulated time (``charged_latency=0``), and on the acrobot each take-over of the swing-up MPC designs it afresh
+    from the state it takes over (:attr:`cartpole.supervise.Supervisor.mpc_design`: :func:`best_mpc`'s closed-loop
+    choice among the environment's horizons and iterations, minutes of wall time, logged in the ``mpc`` decision's
+    ``design_s``). False (default): planning is charged its wall time, as in a run in real time."""
+    if stepped and charged_latency is not None:
+        raise EnvScoreError("a stepped supervisor charges its planning no time; leave out charged_latency or stepped.")
+    charged_latency = 0.0 if stepped else charged_latency
     model = build_model(mjcf)
     period = hold * float(model.dt) if hold > 1 else None
     objective = SUPERVISOR_OBJECTIVES.get(env.name)
     if objective is None and env.controller == "mpc":  # the acrobot: its swing-up MPC on the task's objective
-        return supervisor_for(mjcf, model, period=period, plan=PlanOptions(objective=env.objective),
-                              options=hinge_options(charged_latency=charged_latency, mpc_floor=None))
+        sup = supervisor_for(mjcf, model, period=period, plan=PlanOptions(objective=env.objective),
+                             options=hinge_options(charged_latency=charged_latency, mpc_floor=None))
+        if stepped:
+            sup.mpc_design = functools.partial(best_mpc, env, model, mjcf, period=hold * float(model.dt))
+        return sup
     if objective is None:
         return supervisor_for(mjcf, model, period=period)
     plan = PlanOptions(objective=objective, solver="ipopt")
@@ -468,8 +492,10 @@ def _rehearsed_latency(sup, model, start) -> float | None:
 
 #: The controllers :func:`score` can run, by name (``cartpole score --controller``): ``toolkit`` the one
 #: :data:`ENVIRONMENTS` names for each environment, designed from the start (:func:`design`), ``supervisor`` the
-#: supervisor, which decides in the loop (:func:`supervised`).
-CONTROLLERS = {"toolkit": design, "supervisor": supervised}
+#: supervisor, which decides in the loop, its planning charged its wall time (:func:`supervised`),
+#: ``supervisor-stepped`` the same supervisor in an environment that waits for each action (``stepped=True``).
+CONTROLLERS = {"toolkit": design, "supervisor": supervised,
+               "supervisor-stepped": functools.partial(supervised, stepped=True)}
 
 
 def score_episode(name: str, seed: int = 0, *, controller=None, max_steps: int | None = None) -> EpisodeScore:

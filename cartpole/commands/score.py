@@ -24,7 +24,10 @@ def add_arguments(parser) -> None:
                         help="stop each episode after K environment steps (default: the environment's own episode)")
     parser.add_argument("--controller", default="toolkit", choices=list(CONTROLLERS),
                         help="toolkit: each environment's controller designed from its start (default); supervisor: "
-                             "the supervisor that decides in the loop (catch, swing-up law or plan, track, brake)")
+                             "the supervisor that decides in the loop (catch, swing-up law or plan, track, brake), its "
+                             "planning charged its wall time; supervisor-stepped: the same supervisor with the "
+                             "environment waiting for each action, as for any agent (planning charged no time; the "
+                             "acrobot's swing-up MPC designed afresh at each take-over)")
 
 
 def run(args) -> dict:

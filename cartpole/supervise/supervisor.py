@@ -31,7 +31,8 @@
   (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
   exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged, bounded by ``mpc_step_budget``)
   instead of a plan: no planning latency, no funnel to leave (with ``mpc_converge`` its solution is first converged
-  from the state predicted ``mpc_latency`` s ahead, the brake acting while that solve is charged). When the energy
+  from the state predicted ``mpc_latency`` s ahead, the brake acting while that solve is charged; with
+  :attr:`Supervisor.mpc_design` a new MPC is designed from that state at each take-over, charged alike). When the energy
   rises ``mpc_energy`` above the upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake,
   and the MPC takes it again once calm; when the catch has not taken over within ``mpc_budget`` s, to the brake and
   the planner (below) until the next catch or knock (a calm state turned fast).
@@ -488,9 +489,18 @@ class Supervisor:
     Attributes
     ----------
     mpc : callable or None
-        ``(t, x) -> ctrl`` with ``reset()``, the swing-up MPC (``swingup_mpc``:
-        :class:`~cartpole.mpc.ddp_mpc.DDPMPCController`, set by :func:`supervisor_for`), called with the time since it
-        took over; None (the default): never.
+        ``(t, x) -> ctrl``, the swing-up MPC (``swingup_mpc``: :class:`~cartpole.mpc.ddp_mpc.DDPMPCController`, set by
+        :func:`supervisor_for`), called with the time since it took over (reset at each take-over when it has
+        ``reset()``); None (the default): never.
+    mpc_design : callable or None
+        ``mpc_design(x (nx,)) -> (t, x) -> ctrl``: designs the swing-up MPC afresh from the state it takes over (e.g.
+        :func:`cartpole.apps.envscore.best_mpc`'s closed-loop choice among horizons), replacing :attr:`mpc` at each
+        take-over. As with ``mpc_converge``, the design starts from the state predicted ``mpc_latency`` s (or
+        ``charged_latency``) ahead under the brake, its wall time is charged (the brake acting meanwhile) and the
+        ``mpc`` decision keeps it (``design_s``, ``charged_s``, and a chosen design's ``choice`` and
+        ``predicted_return``); with ``charged_latency=0`` (an environment that waits for each action, as dm_control's
+        episodes do) from the take-over state itself. A design that raises :class:`~cartpole.errors.CartPoleError`
+        leaves the previous MPC (its ``status`` in the decision). None (default): :attr:`mpc` as it is.
     decisions : list of Decision
     mode : str
         ``"catch"``, ``"swingup"``, ``"brake"``, ``"wait"`` (a plan on its way), ``"track"`` or ``"mpc"``.
@@ -514,6 +524,7 @@ class Supervisor:
         self.library = library
         self.prepare_s = None  # s the planner's warm-up in this process took (prepare), None before it
         self.mpc = None
+        self.mpc_design = None
         self.reset()
 
     def reset(self) -> None:
@@ -985,9 +996,10 @@ class Supervisor:
         in the loop); its ctrl (nu,)."""
         self.mpc_ms.extend(getattr(self.mpc, "solve_ms", None) or ())  # its reset forgets them
         self.mpc_over += len(getattr(self.mpc, "over_budget", None) or ())
-        self.mpc.reset()
+        if callable(getattr(self.mpc, "reset", None)):
+            self.mpc.reset()
         self.mpc_t0, self.mpc_ready, self.pending = t, t, None
-        detail = self._converge_mpc(t, x) if self.options.mpc_converge else {}
+        detail = self._prepare_mpc(t, x) if self.options.mpc_converge or self.mpc_design is not None else {}
         self._set(t, "mpc", cost=cost, energy=self._energy(x), **detail)
         return self._mpc_or_brake(t, x)
 
@@ -998,28 +1010,47 @@ class Supervisor:
             return self.brake(t, x)
         return self.mpc(t - self.mpc_t0, x)
 
-    def _converge_mpc(self, t: float, x) -> dict:
-        """With ``mpc_converge``: converge the MPC's solution from the state predicted ``mpc_latency`` s (or
-        ``charged_latency``) ahead of ``x`` (nx,) under the brake, and charge its wall time: the MPC's clock starts at
-        the predicted state's time, and it acts from the later of that and ``t`` plus the charge. Returns the ``mpc``
-        decision's details (``converge_s``, ``charged_s``, ``predicted_latency_s``, ``iterations``, ``status``)."""
+    def _prepare_mpc(self, t: float, x) -> dict:
+        """With ``mpc_converge`` or :attr:`mpc_design`: converge the MPC's solution from (or design a new MPC for) the
+        state predicted ``mpc_latency`` s (or ``charged_latency``) ahead of ``x`` (nx,) under the brake (``x`` itself
+        when that rounds to no step), and charge its wall time: the MPC's clock starts at the predicted state's time,
+        and it acts from the later of that and ``t`` plus the charge. Returns the ``mpc`` decision's details
+        (``charged_s``, ``predicted_latency_s``, ``status``; ``converge_s`` and ``iterations`` for a converged
+        solution; ``design_s``, and a chosen design's ``choice`` and ``predicted_return``, for a design)."""
         charged_latency = self.options.charged_latency
         lat = float(self.options.mpc_latency if charged_latency is None else charged_latency)
-        steps = max(1, int(round(lat / self.model.dt)))
-        xs, _ = model_rollout(self.model, self.brake, x, steps, t0=t)
+        steps = int(round(lat / self.model.dt))
+        x_from = np.asarray(x, dtype=float) if steps == 0 else model_rollout(self.model, self.brake, x, steps, t0=t)[0][-1]
         start = time.perf_counter()
+        detail = self._design_mpc(x_from) if self.mpc_design is not None else self._converge_from(x_from)
+        wall = time.perf_counter() - start
+        charged = wall if charged_latency is None else float(charged_latency)
+        self.mpc_t0 = t + steps * self.model.dt
+        self.mpc_ready = max(t + charged, self.mpc_t0)
+        if self.mpc_design is None:
+            self.mpc_converge_s.append(wall)
+            return {"converge_s": wall, "charged_s": charged, "predicted_latency_s": lat, **detail}
+        return {"design_s": wall, "charged_s": charged, "predicted_latency_s": lat, **detail}
+
+    def _converge_from(self, x) -> dict:
+        """Converge :attr:`mpc`'s solution from ``x`` (nx,): ``iterations`` and ``status``."""
         try:
-            info = self.mpc.converge(xs[-1])
+            info = self.mpc.converge(x)
         except CartPoleError as exc:  # a prediction that is not finite: the MPC from the upright's inputs
             self.mpc.reset()
             info = {"iterations": 0, "status": str(exc)}
-        wall = time.perf_counter() - start
-        charged = wall if charged_latency is None else float(charged_latency)
-        self.mpc_converge_s.append(wall)
-        self.mpc_t0 = t + steps * self.model.dt
-        self.mpc_ready = max(t + charged, self.mpc_t0)
-        return {"converge_s": wall, "charged_s": charged, "predicted_latency_s": lat,
-                "iterations": int(info["iterations"]), "status": str(info["status"])}
+        return {"iterations": int(info["iterations"]), "status": str(info["status"])}
+
+    def _design_mpc(self, x) -> dict:
+        """:attr:`mpc` designed afresh from ``x`` (nx,) by :attr:`mpc_design`: ``status``, and a chosen design's
+        ``choice`` and ``predicted_return`` (its ``as_dict()``)."""
+        try:
+            mpc = self.mpc_design(x)
+        except CartPoleError as exc:  # e.g. a prediction that is not finite: the previous MPC goes on
+            return {"status": f"design failed, the previous MPC kept: {exc}"}
+        self.mpc = mpc  # the previous one's step times were kept at the take-over (_start_mpc)
+        record = mpc.as_dict() if callable(getattr(mpc, "as_dict", None)) else {}
+        return {"status": "designed", **{k: record[k] for k in ("choice", "predicted_return") if k in record}}
 
     def _mpc_done(self, t: float, x, cost: float) -> bool:
         """While the swing-up MPC acts: whether it has failed (``mpc_budget`` s without a catch: the brake and the

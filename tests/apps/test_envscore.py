@@ -116,3 +116,30 @@ def test_more_iterations_are_searched_only_below_the_return_the_horizons_reach(m
     assert chosen.as_dict()["predicted_return"] == pytest.approx(max(chosen.predicted.values()), abs=1e-4)
     assert envscore.episode_return(model, str(envscore.ASSETS / env.asset), env.objective, chosen, x0) == \
         pytest.approx(chosen.predicted[chosen.choice], abs=1e-9)
+
+
+def test_a_stepped_supervisor_takes_the_acrobots_start_with_the_design_the_toolkit_makes_from_it():
+    """cartpole score's supervisor-stepped on dm_control's acrobot: at t = 0 its swing-up MPC is designed from the
+    start itself (charged no time: the environment waits), so over the swing-up's first second it applies exactly the
+    ctrl of the toolkit's controller designed from that start; the decision keeps the design's wall time."""
+    def one_horizon(env):
+        return replace(env, horizons=env.horizons[:1], iterations=())
+
+    def toolkit(env, mjcf, x0, hold):
+        return design(one_horizon(env), mjcf, x0, hold)
+
+    def stepped(env, mjcf, x0, hold):
+        return envscore.CONTROLLERS["supervisor-stepped"](one_horizon(env), mjcf, x0, hold)
+
+    ours = score_episode("acrobot-swingup", 0, controller=toolkit, max_steps=100)
+    sup = score_episode("acrobot-swingup", 0, controller=stepped, max_steps=100)
+    assert sup.replays and not sup.warned
+    first = sup.design["decisions"][0]
+    assert first["kind"] == "mpc" and first["t"] == 0.0 and first["charged_s"] == 0.0 and first["design_s"] > 0.0
+    assert np.array_equal(sup.ctrl, ours.ctrl)
+
+
+def test_a_stepped_supervisor_refuses_a_charged_latency_in_one_sentence():
+    env = environment("acrobot-swingup")
+    with pytest.raises(EnvScoreError, match="charges its planning no time"):
+        envscore.supervised(env, str(envscore.ASSETS / env.asset), None, 1, charged_latency=0.3, stepped=True)

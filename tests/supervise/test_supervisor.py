@@ -449,6 +449,63 @@ def test_a_converged_mpc_take_over_brakes_until_its_charged_solve_then_acts_from
         SupervisorOptions(mpc_latency=0.0)
 
 
+class _Designed(_StubMPC):
+    """A stub MPC designed from a state, its ctrl telling which design it is."""
+
+    def __init__(self, nu, x0, level):
+        super().__init__(nu)
+        self.x0, self.level = np.array(x0), level
+
+    def __call__(self, t, x):
+        super().__call__(t, x)
+        return np.full(self.nu, self.level)
+
+    def as_dict(self):
+        return {"choice": f"design {self.level}", "predicted_return": 10.0 * self.level}
+
+
+def test_an_mpc_designed_at_each_take_over_starts_from_the_take_over_state_when_nothing_is_charged(double):
+    """With mpc_design and charged_latency=0 (an environment that waits for each action) each take-over designs a new
+    MPC from the state itself and it acts at once; with a charge the design starts from the state predicted that far
+    ahead under the brake and the brake acts until then; a design that fails keeps the previous MPC, saying so."""
+    params, model, catch, brake = double
+    e_up = float(model.energy(model.x_eq))
+    band = 0.25 * (e_up - float(model.energy(model.x_hanging)))
+    near = np.asarray(model.x_eq, float).copy()
+    near[model.hinges[0]] += 0.3
+
+    def supervisor(charge):
+        sup = Supervisor(model, catch, 1e-9, brake, planner=lambda x0: None, options=SupervisorOptions(
+            swingup_mpc=True, mpc_energy=band, charged_latency=charge))
+        sup.mpc, designs = _StubMPC(model.nu), []
+
+        def design(x):
+            designs.append(_Designed(model.nu, x, 0.25 * (len(designs) + 1)))
+            return designs[-1]
+        sup.mpc_design = design
+        return sup, designs
+
+    waited, designs = supervisor(0.0)
+    assert np.allclose(waited(2.0, near), 0.25) and waited.mode == "mpc"
+    assert len(designs) == 1 and np.array_equal(designs[0].x0, near) and designs[0].calls == [pytest.approx(0.0)]
+    d = waited.decisions[-1]
+    assert d.kind == "mpc" and d.detail["charged_s"] == 0.0 and d.detail["choice"] == "design 0.25"
+    assert d.detail["predicted_return"] == 2.5 and d.detail["design_s"] >= 0.0 and d.detail["status"] == "designed"
+
+    lat = 5 * model.dt
+    charged, designs = supervisor(lat)
+    assert np.allclose(charged(2.0, near), brake(2.0, near)) and charged.mode == "mpc"
+    xs, _ = model_rollout(model, brake, near, 5, t0=2.0)
+    assert np.allclose(designs[0].x0, xs[-1]) and not designs[0].calls
+    assert np.allclose(charged(2.0 + 5 * model.dt, near), 0.25) and designs[0].calls == [pytest.approx(0.0)]
+
+    def failing(x):
+        raise SupervisorError("no design from here")
+    kept, _ = supervisor(0.0)
+    kept.mpc_design = failing
+    assert np.allclose(kept(2.0, near), 0.125) and "no design from here" in kept.decisions[-1].detail["status"]
+
+
 def test_the_ddp_mpc_converged_at_a_take_over_is_the_one_converged_offline_from_that_start():
     """DDPMPCController.converge(x0) starts a run from the solution its constructor converges offline for x0, and a
     later reset goes back to its own first solution."""
