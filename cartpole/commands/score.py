@@ -53,9 +53,11 @@ def run(args) -> dict:
     names = args.env or list(ENVIRONMENTS)
 
     def report(ep):
+        looped = sum(d.get("design_s", 0.0) for d in (ep.design or {}).get("decisions", ()))
         print(f"{ep.env} seed {ep.seed}: return {ep.return_:.1f} over {ep.steps} steps"
               f"{' (terminated)' if ep.terminated else ''}, replays {'exactly' if ep.replays else 'NOT exactly'}"
-              f"{', MuJoCo warned' if ep.warned else ''}; controller designed in {ep.design_s:.1f} s",
+              f"{', MuJoCo warned' if ep.warned else ''}; controller designed in {ep.design_s:.1f} s"
+              f"{f', its MPC designed in the loop in {looped:.1f} s' if looped else ''}",
               file=sys.stderr if args.json else sys.stdout, flush=True)
 
     results = [{**score(name, args.n, args.seed, controller=CONTROLLERS[args.controller], on_episode=report,
