@@ -16,8 +16,9 @@ Prints one JSON document: ``seeds``, ``mjcf``, ``reset``, ``resets`` (None witho
 ``uptime_height`` (RealAIGym's own measure: fraction with the tip above 0.9 of the chain's length over the shoulder),
 ``throws`` (with ``--reset``: resets), ``throws_while_up`` (throws landing with every hinge in the band), ``swingups``, ``recovered`` (throws
 followed by a swing-up before the next throw or the end), ``recover_s`` (s from each of those throws to its swing-up),
-``energy_after_J`` (each throw's state's energy just after it, J above upright rest), ``missed_at`` (s, each other throw) with ``left_s`` (s to the next throw or the end after each), ``decisions`` (kind -> count), ``mpcs``, ``plans``, ``mpc_ms``, ``peak_rate`` (rad/s, the
-largest hinge rate logged), ``replays``, ``diverged``, ``wall_s``; then ``uptime_mean``, ``uptime_median``,
+``energy_after_J`` (each throw's state's energy just after it, J above upright rest), ``missed_at`` (s, each other
+throw) with ``left_s`` (s to the next throw or the end after each), ``decisions`` (kind -> count), ``mpcs``, ``plans``,
+``mpc_ms``, ``peak_rate`` (rad/s, the largest hinge rate logged), ``replays``, ``diverged``, ``wall_s``; then ``uptime_mean``, ``uptime_median``,
 ``uptime_height_mean``, ``throws``, ``swingups``, ``recovered``, ``recover_s``, ``energy_after_J`` and
 ``missed_gap_s`` (``min``, ``median``, ``max``, ``count`` over every seed: the recoveries' times, the energies the
 throws left, and the time each missed throw had before the next), ``swingup_energy_J`` (the model's own, J), ``all_replay``.
@@ -263,7 +264,8 @@ def main() -> None:
     print(json.dumps({"seeds": args.seeds, "mjcf": args.mjcf, "reset": args.reset,
                       "resets": args.resets if args.reset else None, "period": args.period, "mpc_band": args.mpc_band,
                       "stepped": args.stepped, "mpc_horizon": args.mpc_horizon, "mpc_iterations": args.mpc_iterations,
-                      "mpc_objective": args.mpc_objective, "mpc_converge": args.mpc_converge, "every": args.every, "rate": args.rate, "set_rates": args.set_rates,
+                      "mpc_objective": args.mpc_objective, "mpc_converge": args.mpc_converge,
+                      "every": args.every, "rate": args.rate, "set_rates": args.set_rates,
                       "duration": args.duration,
                       "runs": rows, "uptime_mean": float(np.mean(ups)), "uptime_median": float(np.median(ups)),
                       "uptime_height_mean": float(np.mean([r["uptime_height"] for r in rows])),

@@ -29,7 +29,8 @@
   a calm state (at most ``mpc_energy`` J above the upright's energy and, with ``mpc_floor``, at most that far below
   it; without, hanging at rest too: an MPC of a task's objective that pumps) is swung up by the DDP MPC
   (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: ``mpc_iterations`` warm-started box-DDP iterations a control period
-  (default one) on the exact discrete step, ``mpc_horizon`` s ahead (default :data:`MPC_HORIZON`), every step's wall time logged, bounded by ``mpc_step_budget``)
+  (default one) on the exact discrete step, ``mpc_horizon`` s ahead (default :data:`MPC_HORIZON`), every step's wall
+  time logged, bounded by ``mpc_step_budget``)
   instead of a plan: no planning latency, no funnel to leave (with ``mpc_converge`` its solution is first converged
   from the state predicted ``mpc_latency`` s ahead, the brake acting while that solve is charged). When the energy
   rises ``mpc_energy`` above the upright's (knocked again) an ``mpc_failed`` decision hands the state to the brake,
