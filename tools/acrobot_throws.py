@@ -10,13 +10,15 @@ from hanging) and is thrown by :class:`cartpole.sim.Throw` (``EVERY`` s apart on
 ``qfrc_applied`` with ``mj_step`` (``replays``).
 
 Prints one JSON document: ``seeds``, ``mjcf``, ``reset``, ``resets`` (None without ``--reset``), ``period``,
-``mpc_band``, ``every``, ``rate``, ``set_rates``, ``duration``, and per seed (``runs``, in seed order)
+``mpc_band``, ``stepped``, ``mpc_horizon``, ``mpc_iterations``, ``mpc_objective``, ``mpc_converge``, ``every``,
+``rate``, ``set_rates``, ``duration``, and per seed (``runs``, in seed order)
 ``uptime`` (fraction of the run with every hinge within the toolkit's upright band, 0.2 rad, of upright),
 ``uptime_height`` (RealAIGym's own measure: fraction with the tip above 0.9 of the chain's length over the shoulder),
 ``throws`` (with ``--reset``: resets), ``throws_while_up`` (throws landing with every hinge in the band), ``swingups``, ``recovered`` (throws
 followed by a swing-up before the next throw or the end), ``recover_s`` (s from each of those throws to its swing-up),
-``energy_after_J`` (each throw's state's energy just after it, J above upright rest), ``missed_at`` (s, each other throw) with ``left_s`` (s to the next throw or the end after each), ``decisions`` (kind -> count), ``mpcs``, ``plans``, ``peak_rate`` (rad/s, the
-largest hinge rate logged), ``replays``, ``diverged``, ``wall_s``; then ``uptime_mean``, ``uptime_median``,
+``energy_after_J`` (each throw's state's energy just after it, J above upright rest), ``missed_at`` (s, each other
+throw) with ``left_s`` (s to the next throw or the end after each), ``decisions`` (kind -> count), ``mpcs``, ``plans``,
+``mpc_ms``, ``peak_rate`` (rad/s, the largest hinge rate logged), ``replays``, ``diverged``, ``wall_s``; then ``uptime_mean``, ``uptime_median``,
 ``uptime_height_mean``, ``throws``, ``swingups``, ``recovered``, ``recover_s``, ``energy_after_J`` and
 ``missed_gap_s`` (``min``, ``median``, ``max``, ``count`` over every seed: the recoveries' times, the energies the
 throws left, and the time each missed throw had before the next), ``swingup_energy_J`` (the model's own, J), ``all_replay``.
@@ -35,8 +37,21 @@ however fast, instead of only calm ones (every hinge slower than 6 rad/s and the
 and keeps it while the energy stays within the larger of its 35 J and ``F + 1`` swing-up energies above it
 (:func:`band_options`).
 
+The stepped setting, RealAIGym's leaderboard's (its simulator calls the controller each step and waits for it, so no
+controller's compute is charged simulated time): ``--stepped`` charges each plan 0 s of simulated time
+(``SupervisorOptions.charged_latency=0``) instead of ``acrobot_minute``'s 2 s; the swing-up MPC's wall time per step
+is never charged (``mpc_step_budget`` None), so it may do more a step: ``--mpc-iterations N`` DDP iterations a control
+period (``SupervisorOptions.mpc_iterations``, default 1), ``--mpc-horizon S`` s ahead (``mpc_horizon``, default 2),
+``--mpc-converge`` its solution converged from the state at each take-over (``mpc_converge``; the solve charged as a
+plan is: 0 s with ``--stepped``), ``--mpc-objective tip`` dm_control's acrobot swing-up reward on the tip's distance
+from its upright position (:func:`tip_objective`) instead of the tracking of upright (and from any calm state,
+``mpc_floor`` None). Each run's row then has ``mpc_ms`` too (the MPC's wall time per control step: ``median``,
+``max`` ms, ``steps``; on a shared machine, what it cost, not what was charged).
+
     python tools/acrobot_throws.py [--seeds 0 1 ...] [--every 3.75] [--rate 45] [--set-rates] [--duration 60]
-                                   [--mjcf FILE] [--reset] [--resets 15] [--period S] [--mpc-band F] [--out FILE]
+                                   [--mjcf FILE] [--reset] [--resets 15] [--period S] [--mpc-band F] [--stepped]
+                                   [--mpc-iterations N] [--mpc-horizon S] [--mpc-converge] [--mpc-objective tip]
+                                   [--out FILE]
 """
 import argparse
 import json
@@ -44,15 +59,20 @@ import sys
 import time
 from collections import Counter
 
+import casadi as ca
 import mujoco
 import numpy as np
 from tqdm import tqdm
 
 from acrobot_minute import ACROBOT, _spread, acrobot_library, acrobot_options  # this directory: the knockdown test's supervisor
+from cartpole.errors import CartPoleError
 from cartpole.models import build_model, read_params, wrap_angle
 from cartpole.sim import UPRIGHT_BAND, Reset, SimOptions, Throw, replays_exactly, simulate, swingup_energy
 from cartpole.sim.disturbance import joint_space_inertia
 from cartpole.sim.rollout import make_mujoco
+from cartpole.ocp import dmc
+from cartpole.ocp.objectives import reward
+from cartpole.planning.options import PlanOptions
 from cartpole.supervise import supervisor_for
 from cartpole.validation import uptime_metrics
 
@@ -63,6 +83,9 @@ EVERY = 60.0 / 16
 RATE = 45.0
 #: RealAIGym's upright: the tip higher over the shoulder than this fraction of the chain's length.
 HEIGHT = 0.9
+#: ``--mpc-objective tip``: dm_control's acrobot target radius (0.2 m) and reward margin (1 m) as fractions of its
+#: chain's length (2 m), for :func:`tip_objective`.
+TARGET_RADIUS, TARGET_MARGIN = 0.1, 0.5
 
 
 def height_uptime(run, params, model, fraction: float = HEIGHT) -> float:
@@ -98,6 +121,34 @@ def height_uptime(run, params, model, fraction: float = HEIGHT) -> float:
     return float(np.sum(np.diff(t)[up]) / (t[-1] - t[0]))
 
 
+def tip_objective(params, model):
+    """dm_control's acrobot swing-up reward (``dmc_acrobot_swingup``'s planning form, :func:`cartpole.ocp.dmc.
+    reward_expression`) on this chain, for a model without dm_control's ``target`` site: ``tolerance(d, (0, r),
+    margin, 'long_tail') - w u'u`` with ``d`` the distance (m) from the site ``tip`` to where it is at upright,
+    ``r`` and the margin the target's radius and the margin as fractions of the chain's length (``TARGET_RADIUS``,
+    ``TARGET_MARGIN``: dm_control's 0.2 m and 1 m of its 2 m chain) and ``w`` dm_control's
+    :data:`~cartpole.ocp.dmc.ACROBOT_INPUT_WEIGHT` per ctrl range squared (its ctrl range is 1). A
+    :func:`~cartpole.ocp.objectives.reward` of ``x`` (nx,) and ``u`` (nu,), maximised."""
+
+    site = dmc._site(params, "tip")
+    m, d = make_mujoco(params)
+    d.qpos[:] = np.asarray(model.x_eq, float)[:m.nq]
+    mujoco.mj_kinematics(m, d)
+    top = np.array(d.site_xpos[m.site("tip").id], float)
+    length = float(top[2] - d.xpos[m.body("upper_arm").id][2])
+    radius, margin = TARGET_RADIUS * length, TARGET_MARGIN * length
+    u_max = float(np.max(np.abs(m.actuator_ctrlrange)))
+    weight = dmc.ACROBOT_INPUT_WEIGHT / u_max**2
+
+    @reward
+    def tip_distance(x, u):
+        gap = ca.DM(top.reshape(3, 1)) - dmc._site_world(params, site, x[:model.nq])
+        dist = ca.sqrt(ca.sumsqr(gap) + dmc.DISTANCE_FLOOR)
+        return (dmc.tolerance(dist, (0.0, radius), margin=margin, sigmoid=dmc.SURROGATE_SIGMOID)
+                - weight * ca.sumsqr(u))
+    return tip_distance
+
+
 def band_options(params, model, band: float):
     """``acrobot_options()`` with the swing-up MPC taking every state up to ``band`` swing-up energies
     (:func:`cartpole.sim.swingup_energy`) above the upright's, however fast, and kept on up to there: ``calm_energy``
@@ -115,13 +166,21 @@ def band_options(params, model, band: float):
 
 def one_run(params, model, library, seed: int, every: float, rate: float, duration: float,
             set_rates: bool = False, decisions: bool = False, resets: int | None = None,
-            period: float | None = None, band: float | None = None) -> dict:
+            period: float | None = None, band: float | None = None, stepped: bool = False,
+            horizon: float | None = None, iterations: int = 1, objective: str | None = None,
+            converge: bool = False) -> dict:
     """One thrown minute from hanging: its row (module docstring; with ``decisions`` each decision's ``t``, ``kind``
     and details but the state); with ``resets`` RealAIGym's reset that many times instead of the throws; ``period``
-    the supervisor's control period (s, None: every physics step)."""
+    the supervisor's control period (s, None: every physics step); ``stepped``, ``horizon``, ``iterations``,
+    ``objective`` and ``converge`` as ``--stepped``, ``--mpc-horizon``, ``--mpc-iterations``, ``--mpc-objective`` and
+    ``--mpc-converge``."""
     tic = time.perf_counter()
     opts = acrobot_options() if band is None else band_options(params, model, band)
-    sup = supervisor_for(params, model, period=period, options=opts, library=library)
+    opts = opts.replace(mpc_horizon=horizon, mpc_iterations=iterations, mpc_converge=converge,
+                        **({"charged_latency": 0.0} if stepped else {}),
+                        **({"mpc_floor": None} if objective is not None else {}))
+    plan = None if objective is None else PlanOptions(exact_discrete=False, objective=tip_objective(params, model))
+    sup = supervisor_for(params, model, period=period, plan=plan, options=opts, library=library)
     if resets is None:
         throw = Throw(every, max_rate=rate, seed=seed, set_rates=set_rates).start(
             params, x_eq=model.x_eq, hinges=model.hinges, timestep=params.timestep)
@@ -150,6 +209,7 @@ def one_run(params, model, library, seed: int, every: float, rate: float, durati
             "swingups": m["swingups"], "recovered": m["recoveries"], "missed_at": m["unrecovered_at"],
             "left_s": left, "recover_s": took, "energy_after_J": after, "decisions": dict(Counter(d.kind for d in sup.decisions)),
             "mpcs": sum(1 for d in sup.decisions if d.kind == "mpc"), "plans": sup.plans,
+            "mpc_ms": sup.summary()["mpc_ms"],
             "peak_rate": float(np.max(np.abs(rates))), "replays": bool(replays_exactly(run, params)),
             "diverged": bool(run.info.get("diverged", False)), "wall_s": time.perf_counter() - tic,
             **({"decision_log": [{k: v for k, v in d.to_dict().items() if k != "x0"} for d in sup.decisions]}
@@ -171,22 +231,41 @@ def main() -> None:
                     help="the supervisor's control period, s (default every physics step)")
     ap.add_argument("--mpc-band", type=float, default=None,
                     help="the swing-up MPC takes any state up to this many swing-up energies above the upright's")
+    ap.add_argument("--stepped", action="store_true",
+                    help="RealAIGym's stepped simulation: each plan charged 0 s of simulated time (not 2 s)")
+    ap.add_argument("--mpc-horizon", type=float, default=None, help="the swing-up MPC's horizon, s (default 2)")
+    ap.add_argument("--mpc-iterations", type=int, default=1, help="the swing-up MPC's DDP iterations a control period")
+    ap.add_argument("--mpc-objective", choices=("tip",), default=None,
+                    help="the swing-up MPC's objective: tip, dm_control's acrobot reward on the tip's distance from "
+                         "upright (default: the tracking of upright)")
+    ap.add_argument("--mpc-converge", action="store_true",
+                    help="the swing-up MPC's solution converged at each take-over (its solve charged as a plan is)")
     ap.add_argument("--resets", type=int, default=15, help="with --reset: resets in the run")
     ap.add_argument("--out", default=None, help="also write each row, as it comes, to this JSON-lines file")
     args = ap.parse_args()
+    try:  # the supervisor's own checks, before any model is built
+        acrobot_options().replace(mpc_horizon=args.mpc_horizon, mpc_iterations=args.mpc_iterations)
+    except CartPoleError as exc:
+        print(exc, file=sys.stderr)
+        sys.exit(2)
     params = read_params(args.mjcf)
     model = build_model(params)
     library = acrobot_library(params, model)
     rows = []
     for s in tqdm(args.seeds, desc="acrobot thrown minutes", file=sys.stderr):
         rows.append(one_run(params, model, library, s, args.every, args.rate, args.duration, args.set_rates,
-                            args.decisions, args.resets if args.reset else None, args.period, args.mpc_band))
+                            args.decisions, args.resets if args.reset else None, args.period, args.mpc_band,
+                            args.stepped, args.mpc_horizon, args.mpc_iterations, args.mpc_objective,
+                            args.mpc_converge))
         if args.out:
             with open(args.out, "a") as f:
                 f.write(json.dumps(rows[-1], default=float) + "\n")
     ups = [r["uptime"] for r in rows]
     print(json.dumps({"seeds": args.seeds, "mjcf": args.mjcf, "reset": args.reset,
-                      "resets": args.resets if args.reset else None, "period": args.period, "mpc_band": args.mpc_band, "every": args.every, "rate": args.rate, "set_rates": args.set_rates,
+                      "resets": args.resets if args.reset else None, "period": args.period, "mpc_band": args.mpc_band,
+                      "stepped": args.stepped, "mpc_horizon": args.mpc_horizon, "mpc_iterations": args.mpc_iterations,
+                      "mpc_objective": args.mpc_objective, "mpc_converge": args.mpc_converge,
+                      "every": args.every, "rate": args.rate, "set_rates": args.set_rates,
                       "duration": args.duration,
                       "runs": rows, "uptime_mean": float(np.mean(ups)), "uptime_median": float(np.median(ups)),
                       "uptime_height_mean": float(np.mean([r["uptime_height"] for r in rows])),

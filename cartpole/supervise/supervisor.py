@@ -28,8 +28,9 @@
 * **swing-up MPC**: with ``swingup_mpc`` (:func:`supervisor_for` sets it for a model driven at a hinge, the acrobot),
   a calm state (at most ``mpc_energy`` J above the upright's energy and, with ``mpc_floor``, at most that far below
   it; without, hanging at rest too: an MPC of a task's objective that pumps) is swung up by the DDP MPC
-  (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: one warm-started box-DDP iteration a control period on the
-  exact discrete step, :data:`MPC_HORIZON` s ahead, every step's wall time logged, bounded by ``mpc_step_budget``)
+  (:class:`~cartpole.mpc.ddp_mpc.DDPMPCController`: ``mpc_iterations`` warm-started box-DDP iterations a control period
+  (default one) on the exact discrete step, ``mpc_horizon`` s ahead (default :data:`MPC_HORIZON`), every step's wall
+  time logged, bounded by ``mpc_step_budget``)
   instead of a plan: no planning latency, no funnel to leave (with ``mpc_converge`` its solution is first converged
   from the state predicted ``mpc_latency`` s ahead, the brake acting while that solve is charged; with
   :attr:`Supervisor.mpc_design` a new MPC is designed from that state at each take-over, charged alike). When the energy
@@ -60,7 +61,7 @@ from cartpole.control.model_rollout import model_rollout
 from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
 from cartpole.mpc.ddp_mpc import DDPMPCController
-from cartpole.mpc.options import MPCOptions
+from cartpole.mpc.options import MAX_ITERATIONS, MPCOptions
 from cartpole.models import CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params, wrap_angle
 from cartpole.options import OptionsError, StageOptions
 from cartpole.ocp.dmc import is_sparse_task
@@ -272,6 +273,12 @@ class SupervisorOptions(StageOptions):
         ``over_budget``). The solve runs to its end; what is bounded is that no ctrl waits for an answer later than
         the budget. None (default): every step applies its own answer (a run that does not depend on the machine's
         speed; a live run paced in real time would set the control period).
+    mpc_horizon : float or None
+        s the swing-up MPC looks ahead (``MPCOptions.horizon``, rounded to whole control periods), or None (default):
+        :data:`MPC_HORIZON`.
+    mpc_iterations : int
+        DDP iterations the swing-up MPC takes each control period (``MPCOptions.iterations``, 1 to
+        :data:`~cartpole.mpc.options.MAX_ITERATIONS`; default 1, the real-time iteration).
     mpc_converge : bool
         At each take-over, first converge the swing-up MPC's solution
         (:meth:`~cartpole.mpc.ddp_mpc.DDPMPCController.converge`, as the MPC designed from a start converges its first
@@ -341,6 +348,8 @@ class SupervisorOptions(StageOptions):
     mpc_floor: float | None = HINGE_MPC_FLOOR
     mpc_budget: float = 10.0
     mpc_step_budget: float | None = None
+    mpc_horizon: float | None = None
+    mpc_iterations: int = 1
     mpc_converge: bool = False
     mpc_latency: float = MPC_CONVERGE_LATENCY
     plan_in_worker: bool | None = None
@@ -351,7 +360,7 @@ class SupervisorOptions(StageOptions):
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
                                 "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget",
-                                "mpc_step_budget", "mpc_floor", "mpc_latency")
+                                "mpc_step_budget", "mpc_floor", "mpc_latency", "mpc_horizon", "mpc_iterations")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
@@ -365,6 +374,8 @@ class SupervisorOptions(StageOptions):
         self.number("calm_brake_time", low=0.0, low_open=True, unit="s", optional=True)
         self.number("mpc_step_budget", low=0.0, low_open=True, unit="s", optional=True)
         self.number("mpc_floor", low=0.0, unit="J", optional=True)
+        self.number("mpc_horizon", low=0.0, low_open=True, unit="s", optional=True)
+        self.number("mpc_iterations", low=1, high=MAX_ITERATIONS, integer=True)
         for name in ("exact_plans", "warm_tails", "calm_drain", "swingup_mpc", "plan_while_running", "warm_worker",
                      "cart_plans", "mpc_converge"):
             if not isinstance(getattr(self, name), bool):
@@ -1149,9 +1160,11 @@ def _mpc_objective(plan: PlanOptions | None):
 
 
 def swingup_mpc(params, model: CartPoleModel, period: float | None = None, *,
-                step_budget: float | None = None, objective=None) -> DDPMPCController:
+                step_budget: float | None = None, objective=None, horizon: float | None = None,
+                iterations: int = 1) -> DDPMPCController:
     """The supervisor's swing-up MPC (``swingup_mpc``): the DDP MPC of the tracking objective (or ``objective``), no
-    offline plan, one DDP iteration a control period, :data:`MPC_HORIZON` s ahead.
+    offline plan, ``iterations`` DDP iterations a control period (default one), ``horizon`` s ahead (default
+    :data:`MPC_HORIZON`).
 
     Parameters
     ----------
@@ -1167,13 +1180,18 @@ def swingup_mpc(params, model: CartPoleModel, period: float | None = None, *,
     objective : str or callable, optional
         The MPC's running objective (``MPCOptions.objective``: a ``dmc_*`` reward, ``effort``, ...); None (default)
         the tracking of upright.
+    horizon : float, optional
+        s the MPC looks ahead (``SupervisorOptions.mpc_horizon``); None: :data:`MPC_HORIZON`.
+    iterations : int
+        DDP iterations a control period (``SupervisorOptions.mpc_iterations``).
 
     Returns
     -------
     DDPMPCController
         Called ``u = mpc(t, x)`` with ``t`` the time since it took over (s), ``x`` (nx,), ``u`` (nu,) ctrl.
     """
-    opts = MPCOptions(solver="ddp", seed_plan=False, horizon=MPC_HORIZON, objective=objective,
+    opts = MPCOptions(solver="ddp", seed_plan=False, horizon=MPC_HORIZON if horizon is None else horizon,
+                      iterations=iterations, objective=objective,
                       period=float(params.timestep) if period is None else float(period))
     return DDPMPCController(model, params, options=opts, step_budget=step_budget)
 
@@ -1260,7 +1278,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         lib = PlanLibrary.load(model) if library is None else library
         sup = Supervisor(model, catch, rho, brake, planner=planner, options=opts, basin=basin, library=lib,
                          calm_brake=calm_brake)
-        sup.mpc = (swingup_mpc(params, model, period, step_budget=opts.mpc_step_budget, objective=_mpc_objective(plan))
+        sup.mpc = (swingup_mpc(params, model, period, step_budget=opts.mpc_step_budget, objective=_mpc_objective(plan),
+                               horizon=opts.mpc_horizon, iterations=opts.mpc_iterations)
                    if opts.swingup_mpc else None)
         return sup
     law = EnergyShapingController(model)

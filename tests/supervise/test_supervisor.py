@@ -16,7 +16,7 @@ from cartpole.sim import Knockdown, replays_exactly, simulate
 from cartpole.sim.disturbance import joint_inertia_and_authority
 from cartpole.planning.options import PlanOptions
 from cartpole.supervise import PassiveBrake, Supervisor, SupervisorError, SupervisorOptions, supervisor_for
-from cartpole.supervise.supervisor import hinge_options
+from cartpole.supervise.supervisor import MPC_HORIZON, hinge_options
 from cartpole.validation import BasinCache, uptime_metrics
 
 
@@ -358,6 +358,24 @@ def test_the_acrobot_gets_the_hinge_driven_settings(monkeypatch):
     pumped = supervisor_for(params, model, basin_of=lambda catch: SimpleNamespace(rho=1.0),
                             library=PlanLibrary.empty(model), plan=PlanOptions(objective="dmc_acrobot_swingup"))
     assert pumped.options.mpc_floor is None and pumped.mpc.objective == "dmc_acrobot_swingup"  # the task's: any state
+
+
+def test_the_swing_up_mpcs_horizon_and_iterations_reach_it_and_bad_ones_are_refused():
+    from cartpole.planning.library import PlanLibrary
+
+    params = read_params("cartpole/assets/dmc_acrobot.xml")
+    model = build_model(params)
+    period = 0.02
+    sup = supervisor_for(params, model, period=period, basin_of=lambda catch: SimpleNamespace(rho=1.0),
+                         library=PlanLibrary.empty(model), options=hinge_options(mpc_horizon=1.0, mpc_iterations=3))
+    assert sup.mpc.iterations == 3 and sup.mpc.horizon == pytest.approx(1.0)
+    assert sup.mpc.N == round(1.0 / sup.mpc.period)
+    default = supervisor_for(params, model, period=period, basin_of=lambda catch: SimpleNamespace(rho=1.0),
+                             library=PlanLibrary.empty(model), options=hinge_options())
+    assert default.mpc.iterations == 1 and default.mpc.horizon == pytest.approx(MPC_HORIZON)
+    for bad in ({"mpc_horizon": 0.0}, {"mpc_iterations": 0}, {"mpc_iterations": 1.5}):
+        with pytest.raises(SupervisorError, match=next(iter(bad))):
+            SupervisorOptions(**bad)
 
 
 def test_an_mpc_step_over_its_wall_time_budget_applies_the_previous_solution_shifted_and_is_counted():
