@@ -62,7 +62,8 @@ from cartpole.control.switching import SWINGUP_CATCH_R
 from cartpole.errors import CartPoleError
 from cartpole.mpc.ddp_mpc import DDPMPCController
 from cartpole.mpc.options import MAX_ITERATIONS, MPCOptions
-from cartpole.models import CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params, wrap_angle
+from cartpole.models import (CartPoleModel, Plant, build_model, planning_limits, plant_model, plant_params,
+                             steps_per_period, wrap_angle)
 from cartpole.options import OptionsError, StageOptions
 from cartpole.ocp.dmc import is_sparse_task
 from cartpole.planning.box_tail import box_tail_planner
@@ -273,6 +274,13 @@ class SupervisorOptions(StageOptions):
         ``over_budget``). The solve runs to its end; what is bounded is that no ctrl waits for an answer later than
         the budget. None (default): every step applies its own answer (a run that does not depend on the machine's
         speed; a live run paced in real time would set the control period).
+    catch_rollout : float or None
+        s of the catch run on the planning model's exact step (its ctrl held over the control period) that certify a
+        catch from a state outside its verified basin but within ``release_factor * rho``: when that run enters the
+        basin (``e' S e < rho``) within this time, every state finite and every joint inside its range, the catch
+        takes the state (a ``catch`` decision with ``certified_s``, the time the run took to the basin). For episodes
+        that end when a pole falls (Gymnasium's), where a state the catch holds must not be braked or planned from.
+        None (default): the verified basin alone.
     mpc_horizon : float or None
         s the swing-up MPC looks ahead (``MPCOptions.horizon``, rounded to whole control periods), or None (default):
         :data:`MPC_HORIZON`.
@@ -350,6 +358,7 @@ class SupervisorOptions(StageOptions):
     mpc_step_budget: float | None = None
     mpc_horizon: float | None = None
     mpc_iterations: int = 1
+    catch_rollout: float | None = None
     mpc_converge: bool = False
     mpc_latency: float = MPC_CONVERGE_LATENCY
     plan_in_worker: bool | None = None
@@ -360,7 +369,8 @@ class SupervisorOptions(StageOptions):
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
                                 "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget",
-                                "mpc_step_budget", "mpc_floor", "mpc_latency", "mpc_horizon", "mpc_iterations")
+                                "mpc_step_budget", "mpc_floor", "mpc_latency", "mpc_horizon", "mpc_iterations",
+                                "catch_rollout")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
@@ -375,6 +385,7 @@ class SupervisorOptions(StageOptions):
         self.number("mpc_step_budget", low=0.0, low_open=True, unit="s", optional=True)
         self.number("mpc_floor", low=0.0, unit="J", optional=True)
         self.number("mpc_horizon", low=0.0, low_open=True, unit="s", optional=True)
+        self.number("catch_rollout", low=0.0, low_open=True, unit="s", optional=True)
         self.number("mpc_iterations", low=1, high=MAX_ITERATIONS, integer=True)
         for name in ("exact_plans", "warm_tails", "calm_drain", "swingup_mpc", "plan_while_running", "warm_worker",
                      "cart_plans", "mpc_converge"):
@@ -503,6 +514,9 @@ class Supervisor:
         ``(t, x) -> ctrl``, the swing-up MPC (``swingup_mpc``: :class:`~cartpole.mpc.ddp_mpc.DDPMPCController`, set by
         :func:`supervisor_for`), called with the time since it took over (reset at each take-over when it has
         ``reset()``); None (the default): never.
+    period : float or None
+        s, the control period the supervisor is called at (its ctrl held over it), as :func:`supervisor_for` sets it;
+        None: every physics step. Used where the supervisor predicts its catch's run (``catch_rollout``).
     mpc_design : callable or None
         ``mpc_design(x (nx,)) -> (t, x) -> ctrl``: designs the swing-up MPC afresh from the state it takes over (e.g.
         :func:`cartpole.apps.envscore.best_mpc`'s closed-loop choice among horizons), replacing :attr:`mpc` at each
@@ -536,6 +550,7 @@ class Supervisor:
         self.prepare_s = None  # s the planner's warm-up in this process took (prepare), None before it
         self.mpc = None
         self.mpc_design = None
+        self.period = None
         self.reset()
 
     def reset(self) -> None:
@@ -586,6 +601,28 @@ class Supervisor:
         if np.any(rates > self.options.calm_rate):
             return True
         return self.options.calm_energy is not None and self._energy(x) > self.options.calm_energy
+
+    def _catch_certified(self, t: float, x) -> float | None:
+        """With ``catch_rollout``: s the catch, run from ``x`` (nx,) on the planning model's exact step with its ctrl
+        held over :attr:`period`, takes to bring the state into its verified basin, every state finite and every
+        joint inside its range; None when it does not within ``catch_rollout`` s (or without the option)."""
+        horizon = self.options.catch_rollout
+        if horizon is None:
+            return None
+        dt = float(self.model.dt)
+        hold = steps_per_period(self.period, dt)
+        ranges = np.array([j.range for j in self.model.params.joints], dtype=float)
+        x = np.asarray(x, dtype=float)
+        for k in range(int(np.ceil(horizon / (hold * dt) - 1e-9))):
+            u = self.catch(t + k * hold * dt, x)
+            for _ in range(hold):
+                x = self.model.step_np(x, u)
+            q = x[:self.model.nq]
+            if not np.all(np.isfinite(x)) or np.any(q < ranges[:, 0]) or np.any(q > ranges[:, 1]):
+                return None
+            if float(self.catch.cost_to_go(x)) < self.rho:
+                return (k + 1) * hold * dt
+        return None
 
     def _energy(self, x) -> float:
         """J, the model's total mechanical energy at ``x`` (zero at upright rest)."""
@@ -932,9 +969,13 @@ class Supervisor:
         t = float(t)
         x = np.asarray(x, dtype=float)
         cost = float(self.catch.cost_to_go(x))
-        if (cost < self.rho or (self.mode == "catch" and cost < self.options.release_factor * self.rho)) \
+        certified = None
+        if self.mode != "catch" and self.rho <= cost < self.options.release_factor * self.rho:
+            certified = self._catch_certified(t, x)
+        if (cost < self.rho or certified is not None
+                or (self.mode == "catch" and cost < self.options.release_factor * self.rho)) \
                 and not self._plan_holds(t, x):
-            self._set(t, "catch", cost=cost)
+            self._set(t, "catch", cost=cost, **({} if certified is None else {"certified_s": certified}))
             self.still_since, self.stalled, self.mpc_spent = None, False, False
             return self.catch(t, x)
         if self.swingup is not None:
@@ -1196,6 +1237,12 @@ def swingup_mpc(params, model: CartPoleModel, period: float | None = None, *,
     return DDPMPCController(model, params, options=opts, step_budget=step_budget)
 
 
+def _at_period(sup: Supervisor, period: float | None) -> Supervisor:
+    """``sup`` with its control :attr:`Supervisor.period` set."""
+    sup.period = period
+    return sup
+
+
 def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None, *, period: float | None = None,
                    plan: PlanOptions | None = None, options: SupervisorOptions | None = None,
                    basin_cache: BasinCache | None = None, basin_of: Callable | None = None,
@@ -1268,7 +1315,8 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
     except EnergyShapingModelError:
         if pendulum_driven_at_hinge(model):  # one pole on a driven hinge: its optimal swing-up from anywhere, no plan
             swingup = hinge_swingup(model, catch.u_limits, period)
-            return Supervisor(model, catch, rho, brake, swingup=swingup, options=opts, basin=basin)
+            sup = Supervisor(model, catch, rho, brake, swingup=swingup, options=opts, basin=basin)
+            return _at_period(sup, period)
         if opts.calm_drain:  # the drain down to the calm energy, the calming brake below it (a chain: a joint the
             # motor does not drive; a pendulum on its driven hinge pumps, above)
             calm_brake = EnergyDrain(model, target=DRAIN_MARGIN + (0.0 if opts.calm_energy is None else
@@ -1281,7 +1329,7 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         sup.mpc = (swingup_mpc(params, model, period, step_budget=opts.mpc_step_budget, objective=_mpc_objective(plan),
                                horizon=opts.mpc_horizon, iterations=opts.mpc_iterations)
                    if opts.swingup_mpc else None)
-        return sup
+        return _at_period(sup, period)
     law = EnergyShapingController(model)
     lib = None
     if opts.cart_plans:  # plans warm from the library's, the energy law meanwhile (SupervisorOptions.cart_plans)
@@ -1289,9 +1337,10 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
             else library
     if lib is not None and len(lib):  # the library's plan followed meanwhile from a start near it, else the law
         lead = _lead_in(params, model, lib, law, catch, period)
-        return Supervisor(model, catch, rho, lead, planner=_cart_planner(params, model, plan, opts, period, catch_R),
-                          options=opts, basin=basin, library=lib, calm_brake=lead)
-    return Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin)
+        sup = Supervisor(model, catch, rho, lead, planner=_cart_planner(params, model, plan, opts, period, catch_R),
+                         options=opts, basin=basin, library=lib, calm_brake=lead)
+        return _at_period(sup, period)
+    return _at_period(Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin), period)
 
 
 def _lead_in(params, model: CartPoleModel, lib: PlanLibrary, law, catch: LinearFeedback,

@@ -143,3 +143,16 @@ def test_a_stepped_supervisor_refuses_a_charged_latency_in_one_sentence():
     env = environment("acrobot-swingup")
     with pytest.raises(EnvScoreError, match="charges its planning no time"):
         envscore.supervised(env, str(envscore.ASSETS / env.asset), None, 1, charged_latency=0.3, stepped=True)
+
+
+def test_the_supervisor_catches_gymnasiums_double_pendulum_start_outside_its_verified_basin():
+    """InvertedDoublePendulum-v5's seed-0 start lies outside the catch's verified basin but within what the catch
+    holds: the supervisor catches it at once (certified by the catch's run on the model, GYM_CATCH_ROLLOUT) instead of
+    braking while it plans, which ended the episode; it earns what the toolkit's LQR earns over the same
+    steps."""
+    sup = score_episode("InvertedDoublePendulum-v5", 0, controller=envscore.supervised, max_steps=100)
+    lqr = score_episode("InvertedDoublePendulum-v5", 0, max_steps=100)
+    first = sup.design["decisions"][0]
+    assert first["kind"] == "catch" and 0.0 < first["certified_s"] <= envscore.GYM_CATCH_ROLLOUT
+    assert sup.steps == 100 and not sup.terminated and sup.replays
+    assert sup.return_ == pytest.approx(lqr.return_, rel=1e-3)

@@ -675,3 +675,35 @@ def test_the_supervisors_plans_are_bounded_by_its_plan_budget_when_the_plan_opti
 
     seen = _plan_options_seen(double, monkeypatch, PlanOptions(search_s=search_s), SupervisorOptions())
     assert seen.search_s == SupervisorOptions().plan_budget
+
+
+def test_a_state_outside_the_verified_basin_is_caught_when_the_catchs_run_on_the_model_reaches_the_basin(double):
+    """catch_rollout: just outside the basin's level (within release_factor rho) the catch takes a state whose
+    closed-loop run on the model enters the basin within the option's time (the decision says how soon); without the
+    option, or with too short a run, it does not."""
+    params, model, catch, brake = double
+    near = np.asarray(model.x_eq, float).copy()
+    near[model.hinges[0]] += 0.05
+    rho = 0.5 * float(catch.cost_to_go(near))
+
+    def no_plan(x0, **_):
+        raise SupervisorError("no plan in this test")
+
+    def supervisor(**options):
+        return Supervisor(model, catch, rho, brake, planner=no_plan, options=SupervisorOptions(
+            charged_latency=0.0, plan_in_worker=False, **options))
+
+    certified = supervisor(catch_rollout=2.0)
+    assert np.allclose(certified(0.0, near), catch(0.0, near)) and certified.mode == "catch"
+    took = certified.decisions[-1].detail["certified_s"]
+    assert 0.0 < took <= 2.0
+    xs, _ = model_rollout(model, catch, near, int(round(took / model.dt)))
+    assert catch.cost_to_go(xs[-1]) < rho <= catch.cost_to_go(xs[-2])  # the run's first step inside the basin
+    plain = supervisor()
+    plain(0.0, near)
+    assert plain.mode != "catch"
+    too_short = supervisor(catch_rollout=model.dt)
+    too_short(0.0, near)
+    assert too_short.mode != "catch"
+    with pytest.raises(SupervisorError, match="catch_rollout"):
+        SupervisorOptions(catch_rollout=0.0)
