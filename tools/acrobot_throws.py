@@ -130,7 +130,7 @@ def tip_objective(params, model):
     :data:`~cartpole.ocp.dmc.ACROBOT_INPUT_WEIGHT` per ctrl range squared (its ctrl range is 1). A
     :func:`~cartpole.ocp.objectives.reward` of ``x`` (nx,) and ``u`` (nu,), maximised."""
 
-    site = dmc._site(params, "tip")
+    site = dmc.site(params, "tip")
     m, d = make_mujoco(params)
     d.qpos[:] = np.asarray(model.x_eq, float)[:m.nq]
     mujoco.mj_kinematics(m, d)
@@ -142,7 +142,7 @@ def tip_objective(params, model):
 
     @reward
     def tip_distance(x, u):
-        gap = ca.DM(top.reshape(3, 1)) - dmc._site_world(params, site, x[:model.nq])
+        gap = ca.DM(top.reshape(3, 1)) - dmc.site_world(params, site, x[:model.nq])
         dist = ca.sqrt(ca.sumsqr(gap) + dmc.DISTANCE_FLOOR)
         return (dmc.tolerance(dist, (0.0, radius), margin=margin, sigmoid=dmc.SURROGATE_SIGMOID)
                 - weight * ca.sumsqr(u))

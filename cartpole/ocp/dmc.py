@@ -244,16 +244,29 @@ def _pole_cosines(model, x) -> list:
     return out
 
 
-def _site(params, name: str):
-    """``(body index or -1, position (3,) in that body's frame (in the world for -1), size (3,))`` of the MJCF's
-    site ``name``, or None when it has none."""
+def site(params, name: str):
+    """The MJCF's site ``name`` as the task's expressions use it.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+        The model read from the MJCF (or URDF) that has the site.
+    name : str
+        The site's name (e.g. ``"tip"``, ``"target"``).
+
+    Returns
+    -------
+    tuple or None
+        ``(body index or -1, position (3,) in m in that body's frame (in the world for -1), size (3,) in m)``, or None
+        when the file has no such site.
+    """
     mjcf = params.mjcf if params.urdf is None else ""  # a URDF's params: their MJCF text
     return _sites(mjcf, params.xml, tuple(b.name for b in params.bodies)).get(name)
 
 
 @functools.lru_cache(maxsize=32)
 def _sites(mjcf: str, xml: str, bodies: tuple) -> dict:
-    """Every named site of the MJCF (compiled once per file and text) as :func:`_site` describes it."""
+    """Every named site of the MJCF (compiled once per file and text) as :func:`site` describes it."""
     m, _, _ = load_model(mjcf or None, xml=None if mjcf else xml)
     d = mujoco.MjData(m)
     mujoco.mj_kinematics(m, d)  # a site on the world or on a body welded to it: its world position at qpos0
@@ -271,9 +284,23 @@ def _sites(mjcf: str, xml: str, bodies: tuple) -> dict:
     return out
 
 
-def _site_world(params, site, q):
-    """World position (3, 1) of a site from :func:`_site` at the configuration ``q`` (SX (nq,))."""
-    body, pos, _ = site
+def site_world(params, where, q):
+    """A site's world position as a CasADi expression of the configuration.
+
+    Parameters
+    ----------
+    params : CartPoleParams
+    where : tuple
+        The site, as :func:`site` returns it.
+    q : SX or DM (nq,)
+        The configuration (qpos).
+
+    Returns
+    -------
+    SX or DM (3, 1)
+        The site's world position in m.
+    """
+    body, pos, _ = where
     if body < 0:
         return ca.DM(pos.reshape(3, 1))
     k = forward_kinematics(params, q)
@@ -309,7 +336,7 @@ def check_model(model, name: str) -> Task:
         if model.slides or len(model.hinges) < 2:
             raise DMCError(f"{what} needs a chain of at least two hinges without a cart; the MJCF has "
                            f"{len(model.slides)} slide and {len(model.hinges)} hinge joints.")
-        missing = [s for s in ("tip", "target") if _site(p, s) is None]
+        missing = [s for s in ("tip", "target") if site(p, s) is None]
         if missing:
             raise DMCError(f"{what} measures the distance from the site 'tip' to the site 'target' (as dm_control's "
                            f"acrobot.xml); the MJCF has no site named {' or '.join(repr(s) for s in missing)}.")
@@ -377,9 +404,9 @@ def reward_expression(model, name: str, x, u, *, exact: bool = True):
         lower = float(np.cos(np.deg2rad(8)))
         return box(c, lower, 1.0, 1.0, 1 - lower)
     params = model.params
-    tip, target = _site(params, "tip"), _site(params, "target")
+    tip, target = site(params, "tip"), site(params, "target")
     q = x[:model.nq]
-    gap = _site_world(params, target, q) - _site_world(params, tip, q)
+    gap = site_world(params, target, q) - site_world(params, tip, q)
     d2 = ca.sumsqr(gap)
     radius = float(target[2][0])
     if exact:
@@ -420,9 +447,9 @@ def sparse_box(model, name: str, x) -> tuple:
         (c,) = _pole_cosines(model, x)
         return ca.vertcat(c), np.array([float(np.cos(np.deg2rad(8)))]), np.array([np.inf])
     params = model.params
-    tip, target = _site(params, "tip"), _site(params, "target")
+    tip, target = site(params, "tip"), site(params, "target")
     q = x[:model.nq]
-    gap = _site_world(params, target, q) - _site_world(params, tip, q)
+    gap = site_world(params, target, q) - site_world(params, tip, q)
     r = float(target[2][0])
     return ca.vertcat(ca.sumsqr(gap)), np.array([-np.inf]), np.array([r * r])
 
