@@ -611,7 +611,7 @@ class Supervisor:
             return None
         dt = float(self.model.dt)
         hold = steps_per_period(self.period, dt)
-        ranges = np.array([j.range for j in self.model.params.joints], dtype=float)
+        ranges = self.model.params.joint_ranges
         x = np.asarray(x, dtype=float)
         for k in range(int(np.ceil(horizon / (hold * dt) - 1e-9))):
             u = self.catch(t + k * hold * dt, x)
@@ -1072,7 +1072,8 @@ class Supervisor:
         charged_latency = self.options.charged_latency
         lat = float(self.options.mpc_latency if charged_latency is None else charged_latency)
         steps = int(round(lat / self.model.dt))
-        x_from = np.asarray(x, dtype=float) if steps == 0 else model_rollout(self.model, self.brake, x, steps, t0=t)[0][-1]
+        x_from = (np.asarray(x, dtype=float) if steps == 0
+                  else model_rollout(self.model, self.brake, x, steps, t0=t)[0][-1])
         start = time.perf_counter()
         detail = self._design_mpc(x_from) if self.mpc_design is not None else self._converge_from(x_from)
         wall = time.perf_counter() - start
