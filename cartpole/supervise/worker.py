@@ -56,13 +56,14 @@ class PlanWorkerError(CartPoleError):
     """The planning child died without an answer (killed from outside, out of memory), or was asked out of turn."""
 
 
-def _serve(handler: Callable, conn, parent_end) -> None:
+def _serve(handler: Callable, conn, parent_end, parent: int) -> None:
     """In the child: for each request from ``conn``, ``handler(request)``'s outcome back through it:
     ``("ok", value)``, ``("fail", sentence)`` for a :class:`CartPoleError` (a plan not found) or ``("crash",
     traceback text)`` for any other exception; ends when the parent closes its end (``parent_end``, whose copy the
-    fork gave the child is closed first, else the child would never see the pipe close)."""
+    fork gave the child is closed first, else the child would never see the pipe close); ``parent`` is the parent's pid
+    taken before the fork: read in the child, a parent already killed would give the pid of its new parent."""
     parent_end.close()
-    _die_with_parent(os.getppid())
+    _die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent, which kills the child
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
@@ -146,8 +147,8 @@ class PlanWorker:
     def _fork(self) -> None:
         ctx = multiprocessing.get_context("fork")
         self._conn, child_end = ctx.Pipe()
-        self._process = ctx.Process(target=_serve, args=(self._handler, child_end, self._conn), daemon=True,
-                                    name="cartpole-plan")
+        self._process = ctx.Process(target=_serve, args=(self._handler, child_end, self._conn, os.getpid()),
+                                    daemon=True, name="cartpole-plan")
         self._process.start()
         child_end.close()  # the child holds its end: its exit reads as EOF here
         self._pid = self._process.pid
