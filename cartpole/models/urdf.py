@@ -31,7 +31,11 @@ arrives without actuators, and a URDF cannot hold a ``<motor>``. This module rea
   URDF or on ``ROS_PACKAGE_PATH``); a missing *visual* mesh is dropped (visuals change no dynamics), a missing
   *collision* mesh refused naming the file; an ``<inertial>`` without ``<inertia>`` read as a point mass (as
   Bullet, Isaac Gym and Drake read it) and principal inertias below MuJoCo's minimum raised to
-  :data:`MIN_INERTIA` (``boundinertia``); contacts between a link welded to the world and its child are excluded,
+  :data:`MIN_INERTIA` (``boundinertia``); principal moments no body has (the largest above the sum of the other
+  two, as Drake's cart-pole gives its rod a moment only about the hinge), mended by raising the moments across the
+  link's hinge axis, which leaves a planar chain's motion exactly the file's (refused naming the link when no such
+  change mends them); an ``<inertia>`` without its products read with them 0; a joint hung from an undeclared link
+  ``world`` hung from the world (as Drake reads it); contacts between a link welded to the world and its child are excluded,
   as Bullet, Gazebo and Drake keep adjacent links of one robot apart (MuJoCo filters only a moving parent). Each
   change is said in one sentence (:attr:`URDFImport.changes`).
 
@@ -443,8 +447,77 @@ def _fix_meshes(robot, compiler, base: Path, where: str, changes: list) -> None:
         compiler.attrib.pop("meshdir", None)
 
 
+def _rpy(el) -> np.ndarray:
+    """The rotation of a URDF ``<origin rpy>`` (fixed axes: R = Rz(yaw) Ry(pitch) Rx(roll)), identity when absent."""
+    origin = _child(el, "origin") if el is not None else None
+    r, p, y = (float(v) for v in ((origin.get("rpy") if origin is not None else None) or "0 0 0").split())
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _rotation_axes(robot) -> dict:
+    """Each link's hinge axes: link name -> unit axes (in the link's frame) of every revolute or continuous joint
+    between it and the root, the directions its angular velocity can take."""
+    by_child = {}
+    for el in _children(robot, "joint"):
+        child = _child(el, "child")
+        if child is not None and child.get("link"):
+            by_child[child.get("link")] = el
+    out = {}
+    for link in _children(robot, "link"):
+        name, axes, rot, seen = link.get("name"), [], np.eye(3), set()
+        while name in by_child and name not in seen:  # up the tree: rot maps this link's frame into the current one
+            seen.add(name)
+            el = by_child[name]
+            if (el.get("type") or "").lower() in ("revolute", "continuous"):
+                axis_el = _child(el, "axis")
+                a = np.array([float(v) for v in ((axis_el.get("xyz") if axis_el is not None else None)
+                                                 or "1 0 0").split()])
+                axes.append(rot.T @ (a / np.linalg.norm(a)))  # the joint's axis is in its child's frame
+            rot = _rpy(el) @ rot
+            parent = _child(el, "parent")
+            name = parent.get("link") if parent is not None else None
+        out[link.get("name")] = axes
+    return out
+
+
+def _keep_hinge_moment(tensor: np.ndarray, axes: list) -> np.ndarray | None:
+    """``tensor`` (3, 3) kg m^2 made a body's inertia (every principal moment at most the sum of the other two) by
+    adding ``lam (E - n n')``, a rod along ``n``: the moment about ``n`` is unchanged, so where the link only ever
+    turns about ``n`` (every hinge between it and the root parallel to ``n``) the dynamics are the same. None when no
+    such rod can mend it (the hinges are not parallel, or the excess is about another axis)."""
+    second = 0.5 * np.trace(tensor) * np.eye(3) - tensor  # the mass's second moment: PSD for any body
+    if axes:
+        n = axes[0]
+        if any(np.linalg.norm(np.cross(n, a)) > 1e-9 for a in axes[1:]):
+            return None
+    else:  # the link never turns: any axis keeps its dynamics; the one along the excess mends it least
+        n = np.linalg.eigh(second)[1][:, 0]
+    basis = np.linalg.svd(np.eye(3) - np.outer(n, n))[0][:, :2]  # the plane across n
+    across, mixed, along = basis.T @ second @ basis, basis.T @ second @ n, n @ second @ n
+    scale = max(np.abs(second).max(), _MJ_MINVAL)
+    w, v = np.linalg.eigh(across)
+    if w.min() < -1e-12 * scale:
+        return None
+    proj = v.T @ mixed
+    if np.any((w <= 1e-12 * scale) & (np.abs(proj) > 1e-9 * scale)):
+        return None
+    need = float(np.sum(np.where(w > 1e-12 * scale, proj ** 2 / np.where(w > 0, w, 1.0), 0.0)) - along)
+    lam = max(need, 0.0) * (1 + 1e-9) + 1e-9 * scale  # MuJoCo's A + B >= C has no tolerance
+    return tensor + lam * (np.eye(3) - np.outer(n, n))
+
+
+def _is_body_inertia(tensor: np.ndarray) -> bool:
+    d = np.linalg.eigvalsh(tensor)
+    return bool(d[0] + d[1] >= d[2])
+
+
 def _fix_inertia(robot, compiler, where: str, changes: list) -> None:
-    small = []
+    small, mended = [], []
+    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    axes = None
     for link in _children(robot, "link"):
         inertial = _child(link, "inertial")
         if inertial is None:
@@ -452,22 +525,69 @@ def _fix_inertia(robot, compiler, where: str, changes: list) -> None:
         name = link.get("name")
         inertia = _child(inertial, "inertia")
         if inertia is None:
-            inertia = ET.SubElement(inertial, "inertia", {k: "0" for k in ("ixx", "ixy", "ixz", "iyy", "iyz",
-                                                                           "izz")})
+            inertia = ET.SubElement(inertial, "inertia", {k: "0" for k in keys})
             changes.append(f"link '{name}' has an <inertial> without <inertia>, read as a point mass (as Bullet, "
                            "Isaac Gym and Drake read it)")
+        missing = [k for k in keys if inertia.get(k) is None]
+        if missing:
+            for k in missing:
+                inertia.set(k, "0")
+            changes.append(f"link '{name}' gives <inertia> without {', '.join(missing)}, read as 0")
         mass_el = _child(inertial, "mass")
         mass = _float(mass_el.get("value", "0"), f"link '{name}' a mass", where) if mass_el is not None else 0.0
-        v = {k: _float(inertia.get(k, "0"), f"link '{name}' an inertia {k}", where)
-             for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+        v = {k: _float(inertia.get(k), f"link '{name}' an inertia {k}", where) for k in keys}
         tensor = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]],
                            [v["ixz"], v["iyz"], v["izz"]]])
-        if mass > 0 and np.all(np.isfinite(tensor)) and np.linalg.eigvalsh(tensor).min() < _MJ_MINVAL:
+        if mass <= 0 or not np.all(np.isfinite(tensor)):
+            continue
+        if np.linalg.eigvalsh(tensor).min() < _MJ_MINVAL:
             small.append(name)
+        elif not _is_body_inertia(tensor):
+            axes = _rotation_axes(robot) if axes is None else axes
+            rot = _rpy(inertial)  # the inertia's frame in the link's
+            fixed = _keep_hinge_moment(tensor, [rot.T @ a for a in axes.get(name, [])])
+            d = np.linalg.eigvalsh(tensor)
+            if fixed is None:
+                raise URDFError(f"{where} gives link '{name}' principal moments of inertia {d[0]:.4g}, {d[1]:.4g} "
+                                f"and {d[2]:.4g} kg m^2, which no body has (the largest above the sum of the other "
+                                "two), and no change that keeps its inertia about its hinge mends them; correct its "
+                                "<inertia> (a thin rod of mass m and length l along z: ixx = iyy = m l^2 / 12, "
+                                "izz = 0).")
+            for k, (i, j) in zip(keys, [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]):
+                inertia.set(k, repr(float(fixed[i, j])))
+            mended.append(name)
     if small and compiler.get("boundinertia") is None:
         compiler.set("boundinertia", repr(MIN_INERTIA))
         changes.append(f"link(s) {', '.join(repr(n) for n in small)} have a principal inertia below MuJoCo's "
                        f"minimum (a point mass or a thin rod), raised to {MIN_INERTIA:g} kg m^2 (boundinertia)")
+    if mended:
+        changes.append(f"link(s) {', '.join(repr(n) for n in mended)} give principal moments of inertia no body "
+                       "has (the largest above the sum of the other two), which MuJoCo refuses; the moments across "
+                       "the hinge axis were raised until they are a body's, and the moment about it, the only one "
+                       "that moves a planar chain, kept as the file gives it")
+
+
+def _declare_world(robot, where: str, changes: list) -> None:
+    """Declare a ``world`` link that joints name but the file does not (Drake reads ``world`` as the world); refuse
+    any other undeclared link in one sentence."""
+    links = {el.get("name") for el in _children(robot, "link")}
+    for el in _children(robot, "joint"):
+        for end in ("parent", "child"):
+            ref = _child(el, end)
+            name = ref.get("link") if ref is not None else None
+            if name is None:
+                raise URDFError(f"{where} gives joint '{el.get('name', '')}' no <{end} link=...>; name its {end} "
+                                "link.")
+            if name in links:
+                continue
+            if name == "world" and end == "parent":
+                robot.insert(0, ET.Element("link", {"name": "world"}))
+                links.add("world")
+                changes.append(f"joint '{el.get('name', '')}' hangs from link 'world', which the file does not "
+                               "declare; read as the world (as Drake reads it)")
+                continue
+            raise URDFError(f"{where} gives joint '{el.get('name', '')}' the {end} link '{name}', which the file "
+                            f"does not declare; declare <link name=\"{name}\"/> or fix the name.")
 
 
 def _mujoco_text(text: str, path: str, where: str, changes: list) -> tuple:
@@ -483,6 +603,7 @@ def _mujoco_text(text: str, path: str, where: str, changes: list) -> tuple:
     if compiler is None:
         compiler = ET.SubElement(mj, "compiler")
     base = Path(path).parent if path else Path.cwd()
+    _declare_world(robot, where, changes)
     _fix_meshes(robot, compiler, base, where, changes)
     _fix_inertia(robot, compiler, where, changes)
     return ET.tostring(robot, encoding="unicode"), robot

@@ -195,3 +195,85 @@ def test_the_effort_read_as_no_limit_is_the_largest_force_the_toolkit_accepts():
     from cartpole.models.urdf import EFFORT_AS_UNLIMITED
 
     assert EFFORT_AS_UNLIMITED == MAX_ACTUATOR_FORCE
+
+
+CART_INERTIA = '<inertia ixx="1.0" ixy="0.0" ixz="0.0" iyy="1.0" iyz="0.0" izz="1.0"/>\n    </inertial>\n  </link>\n  <joint'
+POLE_INERTIA = '<origin xyz="0 0 0.5"/>\n      <mass value="10"/>\n      <inertia ixx="1" ixy="0.0" ixz="0.0" iyy="1" iyz="0.0" izz="1"/>'
+
+
+def _pole_inertia(text, moments, rpy="0 0 0"):
+    ixx, iyy, izz = moments
+    return text.replace(POLE_INERTIA, f'<origin xyz="0 0 0.5" rpy="{rpy}"/>\n      <mass value="10"/>\n      '
+                                      f'<inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" iyz="0" izz="{izz}"/>')
+
+
+def _run(path, steps=400):
+    m, d = make_mujoco(read_params(path))[:2]
+    d.qpos[1] = 0.4
+    out = []
+    for k in range(steps):
+        d.ctrl[0] = 300.0 * np.sin(0.05 * k)
+        mujoco.mj_step(m, d)
+        out.append(np.r_[d.qpos, d.qvel])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("link, moments, rpy", [
+    ("pole", ("1e-7", "0.8", "1e-7"), "0 0 0"),      # Drake's thin rod: a moment only about the hinge (y)
+    ("pole", ("1e-7", "0.8", "1e-7"), "0 0.4 0"),    # the same, its frame turned about the hinge
+    ("cart", ("1e-7", "1.0", "1e-7"), "0 0 0"),      # the cart never turns: any mend keeps its dynamics
+])
+def test_an_inertia_no_body_has_is_mended_keeping_the_moment_about_the_hinge(tmp_path, link, moments, rpy):
+    """MuJoCo refuses principal moments with A + B < C (Drake's cart-pole gives its pole ixx = izz = 1e-7); raising
+    the moments across the hinge leaves a planar chain's motion as the file's: the same run, step for step, as a
+    twin whose inertia is a body's with the same moment about the hinge."""
+    bad, twin = tmp_path / "bad.urdf", tmp_path / "twin.urdf"
+    if link == "pole":
+        bad.write_text(_pole_inertia(BULLET, moments, rpy))
+        twin.write_text(_pole_inertia(BULLET, ("0.5", moments[1], "0.5"), rpy))
+    else:
+        ixx, iyy, izz = moments
+        bad.write_text(BULLET.replace(CART_INERTIA, CART_INERTIA.replace(
+            'ixx="1.0" ixy="0.0" ixz="0.0" iyy="1.0" iyz="0.0" izz="1.0"', f'ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" '
+            f'iyz="0" izz="{izz}"'), 1))
+        twin.write_text(BULLET)
+    p = read_params(bad)
+    assert any(f"'{link}' give principal moments of inertia no body has" in c for c in p.urdf.changes)
+    assert p.pole_inertia_about_hinge == pytest.approx(read_params(twin).pole_inertia_about_hinge, rel=1e-12)
+    np.testing.assert_allclose(_run(bad), _run(twin), rtol=0, atol=1e-9)
+
+
+def test_an_inertia_no_body_has_across_the_hinge_is_refused(tmp_path):
+    path = tmp_path / "bad.urdf"
+    path.write_text(_pole_inertia(BULLET, ("1", "1e-3", "1e-3")))  # the excess is about x, not the hinge's y
+    with pytest.raises(MJCFError, match=r"link 'pole' principal moments of inertia 0\.001, 0\.001 and 1 kg m\^2, "
+                                        r"which no body has.*correct its <inertia>"):
+        read_params(path)
+
+
+def test_products_of_inertia_left_out_are_read_as_zero(tmp_path):
+    path = tmp_path / "p.urdf"
+    path.write_text(BULLET.replace('<inertia ixx="1" ixy="0.0" ixz="0.0" iyy="1" iyz="0.0" izz="1"/>',
+                                   '<inertia ixx="1" iyy="1" izz="1"/>'))
+    p = read_params(path)
+    assert any("link 'pole' gives <inertia> without ixy, ixz, iyz, read as 0" in c for c in p.urdf.changes)
+    assert p.pole_inertia_about_hinge == pytest.approx(read_params(write_layout("bullet", tmp_path))
+                                                       .pole_inertia_about_hinge, rel=1e-12)
+
+
+def test_an_undeclared_world_link_is_the_world_and_any_other_undeclared_link_is_refused(tmp_path):
+    start, end = BULLET.index('  <link name="slideBar">'), BULLET.index('  <link name="cart">')
+    no_bar = BULLET[:start] + BULLET[end:]
+    path = tmp_path / "w.urdf"
+    path.write_text(no_bar.replace('<parent link="slideBar"/>', '<parent link="world"/>'))
+    p = read_params(path)
+    assert any("joint 'slider_to_cart' hangs from link 'world', which the file does not declare" in c
+               for c in p.urdf.changes)
+    assert p.nu == 1 and p.cart_mass == 1.0
+    path.write_text(no_bar.replace('<parent link="slideBar"/>', '<parent link="rail"/>'))
+    with pytest.raises(MJCFError, match=r"joint 'slider_to_cart' the parent link 'rail', which the file does not "
+                                        r"declare; declare <link name=\"rail\"/>"):
+        read_params(path)
+    path.write_text(no_bar.replace('<parent link="slideBar"/>', ''))
+    with pytest.raises(MJCFError, match=r"joint 'slider_to_cart' no <parent link=\.\.\.>; name its parent link"):
+        read_params(path)
