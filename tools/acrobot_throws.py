@@ -88,6 +88,19 @@ HEIGHT = 0.9
 TARGET_RADIUS, TARGET_MARGIN = 0.1, 0.5
 
 
+def _tip_and_shoulder(params):
+    """MuJoCo's model of ``params`` and ``qpos -> (tip, shoulder)``: the site ``tip``'s position (3,) m and the body
+    ``upper_arm``'s height (m) in that configuration."""
+    m, d = make_mujoco(params)
+    tip, shoulder = m.site("tip").id, m.body("upper_arm").id
+
+    def at(qpos):
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        return np.array(d.site_xpos[tip], float), float(d.xpos[shoulder][2])
+    return m, at
+
+
 def height_uptime(run, params, model, fraction: float = HEIGHT) -> float:
     """RealAIGym's uptime: the fraction of the run's steps (each counted at its start) whose tip (site ``tip``) is
     above the shoulder (body ``upper_arm``) by more than ``fraction`` of the tip's height over it at upright.
@@ -107,13 +120,11 @@ def height_uptime(run, params, model, fraction: float = HEIGHT) -> float:
     float
         Fraction of the logged time upright by that measure.
     """
-    m, d = make_mujoco(params)
-    tip, shoulder = m.site("tip").id, m.body("upper_arm").id
+    m, tip_and_shoulder = _tip_and_shoulder(params)
 
     def height(qpos) -> float:
-        d.qpos[:] = qpos
-        mujoco.mj_kinematics(m, d)
-        return float(d.site_xpos[tip][2] - d.xpos[shoulder][2])
+        tip, shoulder = tip_and_shoulder(qpos)
+        return float(tip[2] - shoulder)
 
     top = height(np.asarray(model.x_eq, float)[:m.nq])
     qpos, t = np.asarray(run.qpos, float), np.asarray(run.t, float)
@@ -131,11 +142,9 @@ def tip_objective(params, model):
     :func:`~cartpole.ocp.objectives.reward` of ``x`` (nx,) and ``u`` (nu,), maximised."""
 
     site = dmc.site(params, "tip")
-    m, d = make_mujoco(params)
-    d.qpos[:] = np.asarray(model.x_eq, float)[:m.nq]
-    mujoco.mj_kinematics(m, d)
-    top = np.array(d.site_xpos[m.site("tip").id], float)
-    length = float(top[2] - d.xpos[m.body("upper_arm").id][2])
+    m, tip_and_shoulder = _tip_and_shoulder(params)
+    top, shoulder = tip_and_shoulder(np.asarray(model.x_eq, float)[:m.nq])
+    length = float(top[2] - shoulder)
     radius, margin = TARGET_RADIUS * length, TARGET_MARGIN * length
     u_max = float(np.max(np.abs(m.actuator_ctrlrange)))
     weight = dmc.ACROBOT_INPUT_WEIGHT / u_max**2
