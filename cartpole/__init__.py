@@ -43,14 +43,14 @@ inside the package) costs almost nothing before a command knows what it needs: `
 its workers' fork server while this process is still importing NumPy, SciPy, CasADi and MuJoCo. The LQR subpackage
 is :mod:`cartpole.riccati` (named for the equations it solves), so nothing shadows the function ``cartpole.lqr``.
 """
-import importlib
-import os
-import sys
+import importlib as _importlib
+import os as _os
+import sys as _sys
 
 # Offscreen rendering needs MUJOCO_GL set before mujoco is first imported; default to headless EGL (works
 # with and without a display) unless the user chose a backend or already imported mujoco.
-if "mujoco" not in sys.modules:
-    os.environ.setdefault("MUJOCO_GL", "egl")
+if "mujoco" not in _sys.modules:
+    _os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.1.0"
 
@@ -105,7 +105,7 @@ def __getattr__(name: str):
     target = _EXPORTS.get(name)
     if target is None:
         raise AttributeError(f"module 'cartpole' has no attribute {name!r}")
-    value = getattr(importlib.import_module(target), name)
+    value = getattr(_importlib.import_module(target), name)
     globals()[name] = value
     return value
 

@@ -77,3 +77,9 @@ def test_a_sweep_with_workers_starts_the_fork_server_before_building_its_parser(
     cli._start_sweep_workers_early(["lqr", "--workers", "2"])
     cli._start_sweep_workers_early(["sweep", "--workers", "two"])
     assert started == ["trajopt"]
+
+
+def test_the_package_namespace_lists_no_module_it_imports_for_itself():
+    import cartpole
+
+    assert not {"importlib", "os", "sys"} & set(dir(cartpole))
