@@ -2,10 +2,12 @@
 leaves its motor or rail unlimited (or to narrow them); see :func:`cartpole.models.planning_limits`."""
 from __future__ import annotations
 
+from cartpole.commands._numbers import Numbers
+
 
 def add_limit_arguments(parser) -> None:
     """Add ``--u-max U`` and ``--cart-max M`` to a command that plans."""
-    parser.add_argument("--u-max", type=float, nargs="+", default=None, metavar="U",
+    parser.add_argument("--u-max", action=Numbers, default=None, metavar="U",
                         help="largest |ctrl| the swing-up plans and runs with, one number or one per actuator "
                              "(default each actuator's ctrlrange; without one, the ctrl whose force accelerates "
                              "everything the cart carries at 1 g, or on a hinge holds its load horizontal: "

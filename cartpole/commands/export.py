@@ -8,6 +8,7 @@ import cartpole.apps.export as export_app
 from cartpole.apps.export import VERIFY_DURATION
 from cartpole.apps.swingup import MPC_DURATION, TRAJOPT_EXTRA
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._numbers import Numbers
 from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args
 from cartpole.commands._view import add_view_arguments, show_runs, view_mode
 from cartpole.errors import CartPoleError
@@ -31,7 +32,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--float32", action="store_true",
                         help="write the single-precision build (cp_real is float; for a Cortex-M4F's FPU); "
                              "default double")
-    parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
+    parser.add_argument("--x0", action=Numbers, default=None, metavar="V",
                         help="start state [qpos, qvel] of the verification run (and the swing-up's plan); default "
                              "the lab's first start for a balance, the hanging rest for a swing-up")
     parser.add_argument("--verify", action="store_true",

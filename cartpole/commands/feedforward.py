@@ -13,6 +13,7 @@ from cartpole.apps.lab import state_names
 from cartpole.apps.swingup import plan_model_from
 from cartpole.commands._flags import as_flags, flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._numbers import Numbers
 from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args, rig_doc
 from cartpole.commands._rollouts import rollout_doc
 from cartpole.commands._view import add_view_arguments, show_runs, view_mode
@@ -35,7 +36,7 @@ def add_arguments(parser) -> None:
                              "a finite number from -0.9 to 9)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render videos/feedforward_<run>.mp4")
-    parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
+    parser.add_argument("--x0", action=Numbers, default=None, metavar="V",
                         help="start state [qpos..., qvel...] in MuJoCo's joint order, both plans' and every run's "
                              "(default the hanging rest, moved onto a joint range's edge it lies just outside)")
     parser.add_argument("--plan-mjcf", default=None, metavar="PATH",

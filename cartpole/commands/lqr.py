@@ -17,6 +17,7 @@ from cartpole.apps.metrics_csv import append_metrics, metrics_row
 from cartpole.apps.swingup import plan_model_from
 from cartpole.commands._flags import as_flags
 from cartpole.commands._margins import add_margins_argument, ctrl_noise_weights, run_margins
+from cartpole.commands._numbers import Numbers
 from cartpole.commands._rig import (add_budget_argument, add_rig_arguments, check_budget, friction_sentence,
                                     loop_from_args, rig_doc, smoothed_friction_sentence)
 from cartpole.commands._state import state_labels, state_sentence
@@ -63,11 +64,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--discrete", action="store_true",
                         help="design K with dlqr on (Ad, Bd), one step of the MJCF's integrator, instead of "
                              "lqr on the continuous (A, B)")
-    parser.add_argument("--Q", nargs="+", type=float, default=None, metavar="V",
+    parser.add_argument("--Q", action=Numbers, default=None, metavar="V",
                         help="state weights: 2 nq numbers (the diagonal, in the state's order) or (2 nq)^2 (the "
                              "matrix, row by row); default 1 per slide, 10 per hinge angle, 0.1 per rate (the "
                              "lab's 1 10 0.1 0.1 for one pole)")
-    parser.add_argument("--R", nargs="+", type=float, default=None, metavar="V",
+    parser.add_argument("--R", action=Numbers, default=None, metavar="V",
                         help="ctrl weights: nu numbers (the diagonal) or nu^2 (the matrix); default 0.1 per input")
     add_rig_arguments(parser)
     parser.add_argument("--delay-margin", type=float, default=None, metavar="MAX",

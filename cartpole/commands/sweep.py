@@ -17,6 +17,7 @@ from cartpole.apps.sweep.plan import total_runs
 from cartpole.apps.swingup import ENERGY_DURATION, MPC_DURATION, SwingupOptions, default_method, start_state
 from cartpole.commands._flags import flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._numbers import Numbers
 from cartpole.commands._rig import add_budget_argument, add_rig_arguments, check_budget, loop_from_args
 from cartpole.commands.swingup import check_duration, disturbance_fields
 from cartpole.errors import Terminated
@@ -89,7 +90,7 @@ def add_arguments(parser) -> None:
                              "of the rig's (period, delay: rounded to whole MJCF steps; sensor_noise, encoder_cpr, "
                              "encoder_resolution, process_noise); then " + axis_help
                              + "; repeatable")
-    parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
+    parser.add_argument("--x0", action=Numbers, default=None, metavar="V",
                         help="with axis options: the start of every run where no --start sets a component, 2 nq "
                              "numbers [qpos, qvel] (default hanging at rest)")
     parser.add_argument("--objective", default=None, metavar="OBJ",

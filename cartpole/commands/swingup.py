@@ -12,6 +12,7 @@ from cartpole.apps.swingup import (
     check_push, check_upright_reachable, parse_push, plan_model_from, start_state)
 from cartpole.commands._flags import as_flags, flag_words
 from cartpole.commands._limits import add_limit_arguments, limit_keywords, limit_lines
+from cartpole.commands._numbers import Numbers
 from cartpole.commands._rig import (
     add_budget_argument, add_rig_arguments, check_budget, design_friction, friction_sentence, rig_fields,
     smoothed_friction_sentence)
@@ -65,7 +66,7 @@ def add_arguments(parser) -> None:
                              "and 'return_steps'), or MODULE:FUNCTION, a "
                              "function (x, u) -> scalar of CasADi symbols: a cost, or a reward to maximise when "
                              "wrapped with cartpole.ocp.objectives.reward")
-    parser.add_argument("--x0", nargs="+", type=float, default=None, metavar="V",
+    parser.add_argument("--x0", action=Numbers, default=None, metavar="V",
                         help="start state [qpos, qvel], 2 nq numbers in MuJoCo's joint order: every joint's "
                              "position (m or rad, 0 = upright as built), then every joint's rate; one pole: "
                              "X TH XD THD; default every pole hanging at rest (0 pi 0 0 for one pole)")
