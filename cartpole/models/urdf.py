@@ -540,9 +540,7 @@ def _fix_inertia(robot, compiler, where: str, changes: list) -> None:
                            [v["ixz"], v["iyz"], v["izz"]]])
         if mass <= 0 or not np.all(np.isfinite(tensor)):
             continue
-        if np.linalg.eigvalsh(tensor).min() < _MJ_MINVAL:
-            small.append(name)
-        elif not _is_body_inertia(tensor):
+        if not _is_body_inertia(tensor):
             axes = _rotation_axes(robot) if axes is None else axes
             rot = _rpy(inertial)  # the inertia's frame in the link's
             fixed = _keep_hinge_moment(tensor, [rot.T @ a for a in axes.get(name, [])])
@@ -556,6 +554,9 @@ def _fix_inertia(robot, compiler, where: str, changes: list) -> None:
             for k, (i, j) in zip(keys, [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]):
                 inertia.set(k, repr(float(fixed[i, j])))
             mended.append(name)
+            tensor = fixed
+        if np.linalg.eigvalsh(tensor).min() < _MJ_MINVAL:
+            small.append(name)
     if small and compiler.get("boundinertia") is None:
         compiler.set("boundinertia", repr(MIN_INERTIA))
         changes.append(f"link(s) {', '.join(repr(n) for n in small)} have a principal inertia below MuJoCo's "

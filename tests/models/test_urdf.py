@@ -221,6 +221,7 @@ def _run(path, steps=400):
 @pytest.mark.parametrize("link, moments, rpy", [
     ("pole", ("1e-7", "0.8", "1e-7"), "0 0 0"),      # Drake's thin rod: a moment only about the hinge (y)
     ("pole", ("1e-7", "0.8", "1e-7"), "0 0.4 0"),    # the same, its frame turned about the hinge
+    ("pole", ("0", "0.8", "0"), "0 0 0"),            # a rod with no moments across the hinge at all
     ("cart", ("1e-7", "1.0", "1e-7"), "0 0 0"),      # the cart never turns: any mend keeps its dynamics
 ])
 def test_an_inertia_no_body_has_is_mended_keeping_the_moment_about_the_hinge(tmp_path, link, moments, rpy):
