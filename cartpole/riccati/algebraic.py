@@ -4,9 +4,10 @@ Convention (python-control's): ``K, S, E = lqr(A, B, Q, R)`` with the law ``u = 
 ``u = u* - K (x - x*)`` about an equilibrium), ``S`` the cost-to-go matrix (``x' S x``), ``E`` the
 closed-loop eigenvalues. The result is a named tuple, so it unpacks like python-control's tuple.
 
-Both also take the plant, as python-control's ``lqr(sys, Q, R)``: ``lqr(plant, Q, R)`` and ``dlqr(plant, Q, R)``
-with ``plant`` a path, :class:`~cartpole.models.CartPoleParams` or :class:`~cartpole.models.CartPoleModel`
-(:func:`~cartpole.models.plant_model`), designed on its exact linearisation at the upright equilibrium (dry
+Both also take a state-space object (python-control's ``StateSpace``: ``lqr(sys, Q, R)`` on a continuous one,
+``dlqr(sys, Q, R)`` on a discrete one, per-sample weights, as python-control reads them), and the plant:
+``lqr(plant, Q, R)`` and ``dlqr(plant, Q, R)`` with ``plant`` a path, :class:`~cartpole.models.CartPoleParams` or
+:class:`~cartpole.models.CartPoleModel` (:func:`~cartpole.models.plant_model`), designed on its exact linearisation at the upright equilibrium (dry
 friction left out: it has no slope at rest), ``Q`` and ``R`` defaulting to
 :func:`~cartpole.riccati.weights.default_weights`.
 
@@ -43,11 +44,14 @@ class LQRResult(NamedTuple):
 
 
 def _as2d(name: str, M, shape=None) -> np.ndarray:
-    M = np.atleast_2d(np.asarray(M, dtype=float))
+    given = np.asarray(M, dtype=float)
+    M = np.atleast_2d(given)
     if not np.all(np.isfinite(M)):
         raise LQRError(f"{name} contains NaN or inf; give finite numbers.")
     if shape is not None and M.shape != shape:
-        raise LQRError(f"{name} has shape {M.shape} but must be {shape} to match A and B.")
+        diagonal = given.ndim == 1 and given.size == shape[0]
+        hint = f"; for a diagonal of weights give np.diag({name.lower()})" if diagonal else ""
+        raise LQRError(f"{name} has shape {given.shape} but must be {shape} to match A and B{hint}.")
     return M
 
 
@@ -142,9 +146,10 @@ def lqr(A, B=None, Q=None, R=None, *, x=None, u=None) -> LQRResult:
 
     Parameters
     ----------
-    A : (n, n) array, 1/s, or a plant
-        State matrix, or the plant (an MJCF path, CartPoleParams or CartPoleModel), linearised exactly at
-        ``(x, u)`` without dry friction.
+    A : (n, n) array, 1/s, a state-space system, or a plant
+        State matrix; a continuous-time state-space object with ``A`` and ``B`` (python-control's ``StateSpace``;
+        ``Q`` and ``R`` then given positionally, both required); or the plant (an MJCF path, CartPoleParams or
+        CartPoleModel), linearised exactly at ``(x, u)`` without dry friction.
     B : (n, m) array, state-derivative units per unit input (per unit MuJoCo ctrl in this toolkit)
         Input matrix (with a plant: ``Q`` given positionally).
     Q : (n, n) symmetric positive semidefinite array
@@ -170,6 +175,8 @@ def lqr(A, B=None, Q=None, R=None, *, x=None, u=None) -> LQRResult:
     """
     if is_plant(A):
         return _plant_lqr(A, *_plant_weights(B, Q, R), x=x, u=u)
+    if _is_state_space(A):
+        A, B, Q, R = _state_space(A, B, Q, R, discrete=False)
     A, B, Q, R, S = _riccati(A, B, Q, R, discrete=False)
     K = np.linalg.solve(R, B.T @ S)
     E = np.linalg.eigvals(A - B @ K)
@@ -189,8 +196,10 @@ def dlqr(A, B=None, Q=None, R=None, *, period: float | None = None, x=None, u=No
 
     Parameters
     ----------
-    A : (n, n) array, or a plant
-        Discrete state matrix, or the plant (an MJCF path, CartPoleParams or CartPoleModel).
+    A : (n, n) array, a state-space system, or a plant
+        Discrete state matrix; a discrete-time state-space object with ``A`` and ``B`` (python-control's
+        ``StateSpace`` with ``dt > 0``; per-sample ``Q`` and ``R`` given positionally, both required); or the plant
+        (an MJCF path, CartPoleParams or CartPoleModel).
     B : (n, m) array
         Discrete input matrix per unit ctrl (with a plant: ``Q`` given positionally).
     Q : (n, n) symmetric positive semidefinite array
@@ -218,6 +227,8 @@ def dlqr(A, B=None, Q=None, R=None, *, period: float | None = None, x=None, u=No
     """
     if is_plant(A):
         return _plant_dlqr(A, *_plant_weights(B, Q, R), period=period, x=x, u=u)
+    if _is_state_space(A):
+        A, B, Q, R = _state_space(A, B, Q, R, discrete=True)
     A, B, Q, R, S = _riccati(A, B, Q, R, discrete=True)
     K = np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A)
     E = np.linalg.eigvals(A - B @ K)
@@ -236,6 +247,29 @@ def _plant_weights(B, Q, R) -> tuple:
     if B is None:
         return Q, R
     return B, (Q if R is None else R)
+
+
+def _is_state_space(obj) -> bool:
+    """A linear system object with ``A`` and ``B`` matrices (python-control's ``StateSpace``, SciPy's ``lti`` in
+    state-space form): anything that is not an array and has both."""
+    return not isinstance(obj, (np.ndarray, list, tuple)) and hasattr(obj, "A") and hasattr(obj, "B")
+
+
+def _state_space(sys, B, Q, R, *, discrete: bool) -> tuple:
+    """``(A, B, Q, R)`` of ``lqr(sys, Q, R)`` / ``dlqr(sys, Q, R)`` on a state-space object, as python-control
+    reads them: the weights in the slots of ``B`` and ``Q`` (or by keyword), no defaults, and the system's time
+    base (``dt``: 0 continuous, positive or True discrete, None either) matching the design."""
+    Q, R = _plant_weights(B, Q, R)
+    name = "dlqr" if discrete else "lqr"
+    if Q is None or R is None:
+        raise LQRError(f"A design on a state-space system needs both weights; call {name}(sys, Q, R).")
+    dt = getattr(sys, "dt", None)
+    if dt is not None and discrete and dt is not True and not dt > 0:
+        raise LQRError("dlqr was given a continuous-time system (dt = 0); design it with lqr(sys, Q, R), or "
+                       "discretise it first (control.c2d(sys, T)).")
+    if dt is not None and not discrete and (dt is True or dt > 0):
+        raise LQRError(f"lqr was given a discrete-time system (dt = {dt}); design it with dlqr(sys, Q, R).")
+    return np.asarray(sys.A, dtype=float), np.asarray(sys.B, dtype=float), Q, R
 
 
 def _plant_point(plant, Q, R, x, u):

@@ -215,3 +215,39 @@ def test_dlqr_on_a_plant_weighs_per_second_so_S_matches_the_continuous_design(sh
     Ad, Bd = m.hold(4).linearize()
     np.testing.assert_allclose(held.K, dlqr(Ad, Bd, Q, R).K, rtol=1e-8)
     assert np.abs(held.S - cont.S).max() < 0.2 * np.abs(cont.S).max()
+
+
+def test_a_python_control_state_space_is_designed_as_python_control_designs_it(lab_matrices):
+    control = pytest.importorskip("control")
+    A, B, _, _ = lab_matrices
+    sys = control.ss(A, B, np.eye(4), np.zeros((4, 1)))
+    K, S, E = lqr(sys, Q_LAB, R_LAB)
+    Kc, Sc, Ec = control.lqr(sys, Q_LAB, R_LAB)
+    np.testing.assert_allclose(K, Kc, rtol=1e-8)
+    np.testing.assert_allclose(S, Sc, rtol=1e-8)
+    sysd = control.c2d(sys, 0.01)
+    Kd, Sd, _ = dlqr(sysd, Q_LAB, R=R_LAB)
+    Kdc, Sdc, _ = control.dlqr(sysd, Q_LAB, R_LAB)
+    np.testing.assert_allclose(Kd, Kdc, rtol=1e-8)
+    np.testing.assert_allclose(Sd, Sdc, rtol=1e-8)
+
+
+@pytest.mark.parametrize("solver, dt, weights, message", [
+    ("lqr", 0.01, 2, r"lqr was given a discrete-time system \(dt = 0.01\); design it with dlqr\(sys, Q, R\)"),
+    ("dlqr", 0, 2, r"dlqr was given a continuous-time system \(dt = 0\); design it with lqr\(sys, Q, R\)"),
+    ("lqr", 0, 1, r"needs both weights; call lqr\(sys, Q, R\)"),
+])
+def test_a_state_space_of_the_wrong_time_base_or_without_weights_is_refused(lab_matrices, solver, dt, weights,
+                                                                            message):
+    control = pytest.importorskip("control")
+    A, B, _, _ = lab_matrices
+    sys = control.ss(A, B, np.eye(4), np.zeros((4, 1)), dt)
+    with pytest.raises(LQRError, match=message):
+        {"lqr": lqr, "dlqr": dlqr}[solver](sys, *(Q_LAB, R_LAB)[:weights])
+
+
+def test_a_diagonal_given_for_a_weight_matrix_says_how_to_make_it_one(lab_matrices):
+    A, B, _, _ = lab_matrices
+    with pytest.raises(LQRError, match=r"Q has shape \(4,\) but must be \(4, 4\) to match A and B; for a diagonal "
+                                       r"of weights give np.diag\(q\)"):
+        lqr(A, B, np.diag(Q_LAB), R_LAB)
