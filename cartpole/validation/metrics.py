@@ -63,7 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cartpole.models import CartPoleParams, state_error, wrap_angle
+from cartpole.models import CartPoleParams, plant_model, plant_params, state_error, wrap_angle
 from cartpole.ocp import dmc
 from cartpole.sim.disturbance import UPRIGHT_BAND
 
@@ -100,10 +100,20 @@ def _x_eq(x_eq, nx: int) -> np.ndarray:
 
 
 def _layout(source):
-    """``(params, x_eq or None)`` of a model (anything with ``params`` and ``x_eq``) or of parameters."""
+    """``(params, x_eq)`` of a plant: a model (anything with ``params`` and ``x_eq``), or parameters or an MJCF path,
+    whose upright is computed (:func:`~cartpole.models.plant_model`), not assumed at qpos 0: a file built hanging
+    has its upright half a turn away."""
+    if hasattr(source, "params") and hasattr(source, "x_eq"):
+        return source.params, np.asarray(source.x_eq, dtype=float)
+    model = plant_model(source)
+    return model.params, np.asarray(model.x_eq, dtype=float)
+
+
+def _params(source) -> CartPoleParams:
+    """The parameters of a plant (a model, parameters or an MJCF path), without building a model."""
     if isinstance(source, CartPoleParams):
-        return source, None
-    return source.params, np.asarray(source.x_eq, dtype=float)
+        return source
+    return source.params if hasattr(source, "params") else plant_params(source)
 
 
 def pole_angle_errors(x, *, x_eq=None, hinges=None) -> np.ndarray:
@@ -410,7 +420,7 @@ def rest_tolerance(source, rig=None) -> np.ndarray:
 
     Parameters
     ----------
-    source : CartPoleModel or CartPoleParams
+    source : CartPoleModel, CartPoleParams or path
         The cart-pole (its joints, and the masses and geometry the cart's bound uses).
     rig : Rig, optional
         The run's rig (anything with ``spec``, a :class:`~cartpole.estimation.sensors.SensorSpec` or None, and
@@ -423,7 +433,7 @@ def rest_tolerance(source, rig=None) -> np.ndarray:
         Those bounds, each widened by the rate the rig's quantised sensors cannot resolve within one period (the
         module docstring: ``q / T`` per encoder; on the cart also the chain's centre of mass moving that unseen).
     """
-    params, _ = _layout(source)
+    params = _params(source)
     nq = len(params.joints)
     tol = np.full(nq, REST_RATE_TOL)
     tol[list(params.slides)] = REST_SPEED_TOL
@@ -475,9 +485,9 @@ def swingup_success(rollout, source, *, hold: float = 1.0, limit_tol: float = 1e
     Parameters
     ----------
     rollout : Rollout
-    source : CartPoleModel or CartPoleParams
-        The model (its ``x_eq`` is the upright reference) or the MJCF's parameters (upright at qpos 0): hinges,
-        slide, cart and ctrl ranges.
+    source : CartPoleModel, CartPoleParams or path
+        The plant; its upright ``x_eq`` is the reference (computed from parameters or a path, so a file built
+        hanging is judged against its true upright), with its hinges, slide, cart and ctrl ranges.
     hold : float
         Seconds at the end that must be upright and at rest.
     limit_tol : float
@@ -506,7 +516,7 @@ def catch_held(rollout, source, handover_at: float | None, *, hold: float = 1.0,
     Parameters
     ----------
     rollout : Rollout
-    source : CartPoleModel or CartPoleParams
+    source : CartPoleModel, CartPoleParams or path
         As :func:`swingup_success`.
     handover_at : float or None
         s: when the controller handed over to the catch (None: it never did, so nothing was caught).
@@ -553,7 +563,7 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0, rig=None) -> dict:
     Parameters
     ----------
     rollout : Rollout
-    source : CartPoleModel or CartPoleParams
+    source : CartPoleModel, CartPoleParams or path
         As :func:`swingup_success`.
     hold : float
         Seconds at the end that must be upright and at rest.
@@ -603,7 +613,7 @@ def upright_segments(rollout, source, *, band: float = UPRIGHT_BAND) -> list[tup
     Parameters
     ----------
     rollout : Rollout
-    source : CartPoleModel or CartPoleParams
+    source : CartPoleModel, CartPoleParams or path
         As :func:`swingup_success`.
     band : float
         rad; default :data:`cartpole.sim.disturbance.UPRIGHT_BAND`.
@@ -621,7 +631,7 @@ def uptime_metrics(rollout, source, *, band: float = UPRIGHT_BAND, hold: float =
     Parameters
     ----------
     rollout : Rollout
-    source : CartPoleModel or CartPoleParams
+    source : CartPoleModel, CartPoleParams or path
         As :func:`swingup_success`.
     band : float
         rad: every pole's wrapped angle error below this counts as upright.

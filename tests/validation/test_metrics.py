@@ -321,3 +321,22 @@ def test_dmc_scoring_evaluates_the_objectives_reward_function_over_the_rows(chai
         gap = scored[inside] + ocp[inside]
         assert np.all(gap >= -1e-15) and np.all(gap <= (n_poles - 1) * SMOOTH_MIN_WIDTH / 4 + 1e-15)
     assert np.all(-ocp[~inside] < scored[~inside])  # outside the range only the smooth form goes on falling
+
+
+def test_a_file_built_hanging_is_judged_against_its_true_upright_whatever_names_the_plant():
+    """Parameters or a path name the plant as well as its model does: the upright is computed (here half a turn
+    from the file's qpos 0), so a cart-pole left hanging at rest is no swing-up."""
+    from pathlib import Path
+
+    from cartpole.models import build_model
+
+    path = Path(__file__).parents[1] / "assets" / "corpus" / "cartpole_built_hanging.xml"
+    params = read_params(path)
+    model = build_model(params)
+    hanging = _rollout(np.zeros(201))
+    hinge = params.hinges[0]
+    up = _rollout(np.full(201, float(model.x_eq[hinge])))
+    for source in (params, str(path), model):
+        assert not swingup_success(hanging, source)
+        assert swingup_success(up, source)
+        assert swingup_metrics(up, source)["success"] and uptime_metrics(hanging, source)["uptime"] == 0.0
