@@ -129,6 +129,8 @@ ENVIRONMENTS = {e.name: e for e in (
     Environment("cartpole-swingup", "dmc", "trajopt", "dmc_cartpole_swingup", "dmc_cartpole.xml", 883.0, _TDMPC2),
     Environment("cartpole-swingup_sparse", "dmc", "trajopt", "dmc_cartpole_swingup_sparse", "dmc_cartpole.xml",
                 849.0, _TDMPC2),
+    Environment("cartpole-balance", "dmc", "lqr", "dmc_cartpole_balance", "dmc_cartpole.xml"),
+    Environment("cartpole-balance_sparse", "dmc", "lqr", "dmc_cartpole_balance_sparse", "dmc_cartpole.xml"),
     Environment("InvertedPendulum-v5", "gym", "lqr"),
     Environment("InvertedDoublePendulum-v5", "gym", "lqr"),
 )}

@@ -97,6 +97,7 @@ def add_arguments(parser) -> None:
                         help="trajopt: what every plan optimises (as swingup's --objective); mpc: what the MPC minimises, "
                              "run by the DDP MPC (swingup's --mpc-solver ddp --objective); a dm_control task "
                              "(dmc_cartpole_swingup, dmc_cartpole_swingup_sparse, dmc_cartpole_balance, "
+                             "dmc_cartpole_balance_sparse, "
                              "dmc_pendulum_swingup, dmc_acrobot_swingup, dmc_acrobot_swingup_sparse) runs its "
                              "episodes: the starts of its first N episodes seeded by --seed (numpy RandomState, as "
                              "dm_control's task_kwargs={'random': S}), each run's 'return', and their "

@@ -136,6 +136,7 @@ TASKS = {t.name: t for t in (
     Task("dmc_cartpole_swingup", "cartpole", "swingup", False, 10.0, 1, _CARTPOLE),
     Task("dmc_cartpole_swingup_sparse", "cartpole", "swingup_sparse", True, 10.0, 1, _CARTPOLE),
     Task("dmc_cartpole_balance", "cartpole", "balance", False, 10.0, 1, _CARTPOLE),
+    Task("dmc_cartpole_balance_sparse", "cartpole", "balance_sparse", True, 10.0, 1, _CARTPOLE),
     Task("dmc_pendulum_swingup", "pendulum", "swingup", True, 20.0, 1, _PENDULUM),
     Task("dmc_acrobot_swingup", "acrobot", "swingup", False, 10.0, 1, _ACROBOT),
     Task("dmc_acrobot_swingup_sparse", "acrobot", "swingup_sparse", True, 10.0, 1, _ACROBOT),

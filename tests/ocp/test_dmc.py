@@ -82,7 +82,8 @@ def _mjcf(domain: str, tmp_path, n_poles: int = 1) -> str:
 
 
 CASES = [("dmc_cartpole_swingup", 1), ("dmc_cartpole_swingup", 2), ("dmc_cartpole_swingup_sparse", 1),
-         ("dmc_cartpole_swingup_sparse", 2), ("dmc_cartpole_balance", 1), ("dmc_pendulum_swingup", 1),
+         ("dmc_cartpole_swingup_sparse", 2), ("dmc_cartpole_balance", 1), ("dmc_cartpole_balance_sparse", 1),
+         ("dmc_pendulum_swingup", 1),
          ("dmc_acrobot_swingup", 1), ("dmc_acrobot_swingup_sparse", 1)]
 
 
