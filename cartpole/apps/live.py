@@ -412,7 +412,8 @@ def paced_supervisor(supervisor):
     if supervisor.planner is None or not fork_available() or options.plan_in_worker is False:
         return supervisor
     supervisor.options = options.replace(plan_in_worker=True, plan_while_running=True)
-    supervisor.prepare()
+    if supervisor.swingup is None:  # a swing-up law acts first; it plans only once the law runs out (law_budget)
+        supervisor.prepare()
     return supervisor
 
 

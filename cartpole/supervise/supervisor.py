@@ -4,10 +4,12 @@
 
 * **catch**: inside the LQR catch's verified basin (``e' S e < rho``) the catch holds; it lets go only above
   ``release_factor * rho`` (hysteresis, as :class:`~cartpole.control.switching.SwitchingController`).
-* **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own, so
-  the supervisor never needs to plan (it is :class:`~cartpole.control.switching.SwitchingController` with its
-  decisions logged; with ``cart_plans`` and a library it plans too, the law pumping meanwhile); likewise one pole
-  driven at its hinge (a pendulum) with :func:`~cartpole.supervise.pump.hinge_swingup`.
+* **swing-up law**: on one pole driven by the cart, the energy-shaping law swings up from any state on its own
+  where the motor is strong enough for it, so the supervisor need not plan (it is
+  :class:`~cartpole.control.switching.SwitchingController` with its decisions logged; with ``cart_plans`` and a library
+  it plans too, the law pumping meanwhile); a law that has not reached the catch within ``law_budget`` s hands over to
+  the brake and the planner for the rest of the run. Likewise one pole driven at its hinge (a pendulum) with
+  :func:`~cartpole.supervise.pump.hinge_swingup`.
 * **brake**: with any hinge faster than ``calm_rate`` (or, with ``calm_energy``, the energy above it; for at most
   ``calm_budget`` s), a passive PD on the actuated joints (``u = u* - kp (q - q*) - kd q_dot`` on each driven joint)
   removes energy until the state is one the planner handles; passive, so it cannot add energy whatever the state.
@@ -267,6 +269,12 @@ class SupervisorOptions(StageOptions):
     mpc_budget : float
         s the swing-up MPC may run without the catch taking over; then the brake and the planner, until the next catch
         or knock (a calm state turned fast).
+    law_budget : float
+        s the swing-up law (energy shaping on one pole on a cart) may run without the catch taking over; then, where
+        the supervisor has a planner (:func:`supervisor_for` gives it one), the brake and the planner for the rest of
+        the run, after every knock too (a ``law_failed`` decision): a law that cannot reach the catch with the motor it has (a heavy pole on a
+        light cart at the default force bound pumps the pole to within a few tenths of a radian of upright and back,
+        for ever) hands over to a plan, which finds the swing-up within the bound. ``inf``: the law until the catch.
     mpc_step_budget : float or None
         s of wall time one control step of the swing-up MPC may take (its DDP iteration): a step over it applies the
         previous solution's input shifted to this step instead of its own late answer (the ``step_budget`` of
@@ -355,6 +363,7 @@ class SupervisorOptions(StageOptions):
     mpc_energy: float = HINGE_MPC_ENERGY
     mpc_floor: float | None = HINGE_MPC_FLOOR
     mpc_budget: float = 10.0
+    law_budget: float = 20.0
     mpc_step_budget: float | None = None
     mpc_horizon: float | None = None
     mpc_iterations: int = 1
@@ -368,14 +377,14 @@ class SupervisorOptions(StageOptions):
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
-                                "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget",
+                                "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget", "law_budget",
                                 "mpc_step_budget", "mpc_floor", "mpc_latency", "mpc_horizon", "mpc_iterations",
                                 "catch_rollout")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
                            ("retry_after", "s"), ("brake_time", "s"), ("calm_budget", "s"), ("mpc_energy", "J"),
-                           ("mpc_budget", "s"), ("mpc_latency", "s")):
+                           ("mpc_budget", "s"), ("mpc_latency", "s"), ("law_budget", "s")):
             self.number(name, low=0.0, low_open=True, unit=unit)
         self.number("release_factor", low=1.0, low_open=True, unit="(ratio)")
         self.number("charged_latency", low=0.0, unit="s", optional=True)
@@ -421,6 +430,7 @@ class Decision:
         ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
         ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
         ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`),
+        ``"law_failed"`` (the swing-up law ran ``law_budget`` s without a catch: the brake and the planner from then on),
         ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows),
         ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for;
         with ``replan``, a re-plan still on its way when the plan it was for was over);
@@ -569,6 +579,7 @@ class Supervisor:
         self.pending = None  # a re-plan made while tracking: (plan, t0, ready_at)
         self.replan_at = np.inf
         self.still_since, self.stalled = None, False  # the swing-up law's stall watch (STALL_SECONDS)
+        self.law_t0, self.law_spent = None, False  # when the swing-up law took over; whether it ran out (law_budget)
         self.mpc_t0, self.mpc_spent = None, False  # when the MPC took over; whether it failed since a catch or knock
         self.mpc_ready = -np.inf  # when the MPC acts (mpc_converge: the brake until its solve is charged)
         self.mpc_converge_s: list[float] = []  # wall time of each take-over's solve (mpc_converge), s
@@ -977,8 +988,9 @@ class Supervisor:
                 and not self._plan_holds(t, x):
             self._set(t, "catch", cost=cost, **({} if certified is None else {"certified_s": certified}))
             self.still_since, self.stalled, self.mpc_spent = None, False, False
+            self.law_t0 = None  # a law that ran out once stays out (law_budget): the motor is what it is
             return self.catch(t, x)
-        if self.swingup is not None:
+        if self.swingup is not None and not self._law_done(t, cost):
             self._set(t, "swingup", cost=cost)
             self._watch_stall(t, x)
             return self.swingup(t, x)
@@ -1023,6 +1035,21 @@ class Supervisor:
             return self._start_mpc(t, x, cost)
         self._request_plan(t, x)
         return self.brake(t, x)
+
+    def _law_done(self, t: float, cost: float) -> bool:
+        """While the swing-up law acts: whether it has run ``law_budget`` s without a catch and a planner can take
+        over (a ``law_failed`` decision; from then on the brake and the planner take every fall)."""
+        if self.law_spent:
+            return True
+        if self.law_t0 is None:
+            self.law_t0 = t
+        ran = t - self.law_t0
+        if self.planner is None or ran < self.options.law_budget:
+            return False
+        self.law_spent, self.mode = True, None  # the fallback is logged as its own decision next
+        self._decide(t, "law_failed", ran_s=ran, cost=cost,
+                     reason=f"no catch within {self.options.law_budget:g} s of the swing-up law")
+        return True
 
     def _plan_holds(self, t: float, x) -> bool:
         """With ``cart_plans``: whether a plan is tracked, not over and not lost, or (a plan on its way, or after a
@@ -1341,7 +1368,9 @@ def supervisor_for(plant: Plant = None, plan_model: CartPoleModel | None = None,
         sup = Supervisor(model, catch, rho, lead, planner=_cart_planner(params, model, plan, opts, period, catch_R),
                          options=opts, basin=basin, library=lib, calm_brake=lead)
         return _at_period(sup, period)
-    return _at_period(Supervisor(model, catch, rho, brake, swingup=law, options=opts, basin=basin), period)
+    planner = _swingup_planner(params, model, plan, opts, period, catch_R)  # once the law runs out (law_budget)
+    return _at_period(Supervisor(model, catch, rho, brake, swingup=law, planner=planner, options=opts, basin=basin),
+                      period)
 
 
 def _lead_in(params, model: CartPoleModel, lib: PlanLibrary, law, catch: LinearFeedback,

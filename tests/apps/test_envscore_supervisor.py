@@ -70,12 +70,14 @@ def test_supervisor_plans_warm_from_the_library_and_earns_more_than_the_energy_l
 
 def test_an_empty_library_leaves_the_energy_law_in_charge():
     """With cart_plans but no stored plan the supervisor on a cart-pole does not plan (a cold plan is no quick plan):
-    the energy law and the catch, as without the option."""
+    the energy law and the catch, as without the option; its planner waits for the law to run out (law_budget)."""
     mjcf = str(ASSETS / "dmc_cartpole.xml")
     model = build_model(mjcf)
     sup = supervisor_for(mjcf, model, options=SupervisorOptions(cart_plans=True),
                          plan=PlanOptions(objective=SUPERVISOR_OBJECTIVES[ENV]), library=PlanLibrary.empty(model))
-    assert sup.planner is None and sup.swingup is not None
+    assert sup.swingup is not None
+    sup(0.0, np.asarray(model.x_hanging, float))
+    assert sup.mode == "swingup" and sup.plans == 0 and sup.asked is None
 
 
 def test_first_plan_is_asked_from_the_library_plan_and_the_catch_waits_for_its_end(library):

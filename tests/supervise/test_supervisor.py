@@ -1,4 +1,5 @@
 """The supervisor: catch, swing-up law, brake, plan and track, chosen at run time; honest about planning latency."""
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -707,3 +708,48 @@ def test_a_state_outside_the_verified_basin_is_caught_when_the_catchs_run_on_the
     assert too_short.mode != "catch"
     with pytest.raises(SupervisorError, match="catch_rollout"):
         SupervisorOptions(catch_rollout=0.0)
+
+
+def test_a_swing_up_law_that_finds_no_catch_within_its_budget_hands_every_later_fall_to_the_planner(double):
+    """A law that never reaches the catch (the stub pumps nothing) runs law_budget s; then the brake and the planner
+    take over, and after the next catch the planner takes the next fall at once (the law stays out)."""
+    params, model, catch, brake = double
+    asked = []
+
+    def planner(x0, guess=None):
+        asked.append(np.array(x0))
+        raise CartPoleError("No swing-up found within T <= 1 s after 1 attempts.")
+    law = lambda t, x: np.full(model.nu, 0.25)  # noqa: E731
+    sup = Supervisor(model, catch, 1e-9, brake, swingup=law, planner=planner,
+                     options=SupervisorOptions(latency=0.01, law_budget=2.0))
+    hanging = np.asarray(model.x_hanging, float)
+    for t in (0.0, 1.0, 1.99):
+        assert np.allclose(sup(t, hanging), 0.25) and sup.mode == "swingup" and not asked
+    sup(2.0, hanging)
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds == ["swingup", "law_failed", "plan_failed"] and len(asked) == 1
+    assert "no catch within 2 s" in sup.decisions[1].detail["reason"]
+    sup(2.5, np.asarray(model.x_eq, float))  # caught (rho is tiny: only the upright itself)
+    assert sup.mode == "catch"
+    sup(3.0, hanging)  # the next fall: planned from at once
+    assert sup.mode != "swingup" and len(asked) == 2
+    without = Supervisor(model, catch, 1e-9, brake, swingup=law, options=SupervisorOptions(law_budget=2.0))
+    assert np.allclose(without(5.0, hanging), 0.25) and without.mode == "swingup"  # no planner: the law goes on
+    with pytest.raises(SupervisorError, match="law_budget"):
+        SupervisorOptions(law_budget=0.0)
+
+
+def test_a_heavy_pole_the_energy_law_cannot_lift_at_the_default_bound_is_swung_up_by_a_plan(tmp_path):
+    """A 1 kg point mass on a 1 m rod on a 1 kg cart, motor and rail unlimited in the file (the planning default:
+    19.6 N, 1 g on the cart's load): the energy law pumps the pole to within a few tenths of a radian of upright
+    and back, never into the catch's basin; the supervisor runs it law_budget s, then plans and catches it."""
+    path = Path(__file__).parents[1] / "assets" / "heavy_pole_cart.xml"
+    params, _ = planning_limits(read_params(path))
+    model = build_model(params)
+    sup = supervisor_for(params, model, options=SupervisorOptions(law_budget=8.0, plan_in_worker=False),
+                         basin_cache=BasinCache.on_disk(tmp_path))
+    run = simulate(model, sup, x0=np.asarray(model.x_hanging, float), duration=16.0)
+    kinds = [d.kind for d in sup.decisions]
+    assert kinds[:2] == ["swingup", "law_failed"] and sup.decisions[1].t == pytest.approx(8.0, abs=0.01)
+    assert kinds[-1] == "catch" and uptime_metrics(run, model)["swingups"] >= 1
+    assert replays_exactly(run)
