@@ -597,6 +597,10 @@ def _mujoco_text(text: str, path: str, where: str, changes: list) -> tuple:
         robot = _parse_raw(text)
     except (xml.parsers.expat.ExpatError, ValueError) as exc:
         raise URDFError(f"{where} is not well-formed XML ({first_line(exc)}); fix the XML and try again.") from None
+    if any(el.tag.startswith("xacro:") or "${" in (el.text or "") or any("${" in v for v in el.attrib.values())
+           for el in robot.iter()):  # xmlns:xacro alone is no sign: xacro's own output keeps it
+        raise URDFError(f"{where} is a xacro file (xacro macros or ${{...}} expressions), which MuJoCo cannot read; "
+                        "expand it first (ROS's `xacro FILE > robot.urdf`) and give the URDF it writes.")
     mj = _child(robot, "mujoco")
     if mj is None:
         mj = ET.SubElement(robot, "mujoco")

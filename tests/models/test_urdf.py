@@ -278,3 +278,20 @@ def test_an_undeclared_world_link_is_the_world_and_any_other_undeclared_link_is_
     path.write_text(no_bar.replace('<parent link="slideBar"/>', ''))
     with pytest.raises(MJCFError, match=r"joint 'slider_to_cart' no <parent link=\.\.\.>; name its parent link"):
         read_params(path)
+
+
+@pytest.mark.parametrize("edit", [
+    lambda t: t.replace('<robot name="physics">', '<robot name="physics" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                        '\n  <xacro:property name="l" value="1.0"/>'),
+    lambda t: t.replace('<origin xyz="0 0 0.5"/>\n      <mass value="10"/>',
+                        '<origin xyz="0 0 ${l/2}"/>\n      <mass value="10"/>'),
+])
+def test_a_xacro_file_is_refused_saying_to_expand_it_first(tmp_path, edit):
+    path = tmp_path / "c.urdf.xacro"
+    text = edit(BULLET)
+    assert text != BULLET
+    path.write_text(text)
+    with pytest.raises(MJCFError, match=r"is a xacro file .*expand it first \(ROS's `xacro FILE > robot.urdf`\)"):
+        read_params(path)
+    path.write_text(BULLET.replace("<robot", "<!-- written by xacro from ${name}.xacro -->\n<robot", 1))
+    assert read_params(path).nu == 1  # a comment is no expression
