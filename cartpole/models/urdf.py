@@ -294,6 +294,8 @@ class _Joint:
     parent: str
     child: str
     effort: float | None
+    axis: np.ndarray  # (3,) unit axis in the child link's frame (URDF's default 1 0 0)
+    rotation: np.ndarray  # (3, 3) the child link's frame in the parent's (<origin rpy>)
 
 
 @dataclass(frozen=True)
@@ -315,9 +317,32 @@ def _joints(robot, where: str) -> dict:
         effort = None
         if limit is not None and limit.get("effort") is not None:
             effort = abs(_float(limit.get("effort"), f"joint '{name}' an effort limit", where))
+        axis_el = _child(el, "axis")
+        axis = _vector(axis_el.get("xyz") if axis_el is not None else None, "1 0 0", f"joint '{name}' an axis", where)
+        norm = float(np.linalg.norm(axis))
         out[name] = _Joint(name, kind, parent.get("link", "") if parent is not None else "",
-                           child.get("link", "") if child is not None else "", effort)
+                           child.get("link", "") if child is not None else "", effort,
+                           axis / norm if norm > 0 else axis, _rpy(el, f"joint '{name}'", where))
     return out
+
+
+def _vector(text, default: str, what: str, where: str) -> np.ndarray:
+    """Three numbers of a URDF attribute (``default`` when absent), or one URDFError sentence."""
+    parts = (text or default).split()
+    if len(parts) != 3:
+        raise URDFError(f"{where} gives {what} '{text}', which is not three numbers; write three numbers there.")
+    return np.array([_float(v, what, where) for v in parts])
+
+
+def _rpy(el, owner: str, where: str) -> np.ndarray:
+    """(3, 3) rotation of ``el``'s ``<origin rpy>`` (roll, pitch, yaw about the fixed axes, as MuJoCo's URDF reader
+    turns it: Euler sequence ``XYZ``), the identity when absent."""
+    origin = _child(el, "origin")
+    rpy = _vector(origin.get("rpy") if origin is not None else None, "0 0 0", f"{owner} an origin rpy", where)
+    quat, mat = np.zeros(4), np.zeros(9)
+    mujoco.mju_euler2Quat(quat, rpy, "XYZ")
+    mujoco.mju_quat2Mat(mat, quat)
+    return mat.reshape(3, 3)
 
 
 def _transmissions(robot, where: str) -> list:
@@ -447,39 +472,21 @@ def _fix_meshes(robot, compiler, base: Path, where: str, changes: list) -> None:
         compiler.attrib.pop("meshdir", None)
 
 
-def _rpy(el) -> np.ndarray:
-    """The rotation of a URDF ``<origin rpy>`` (fixed axes: R = Rz(yaw) Ry(pitch) Rx(roll)), identity when absent."""
-    origin = _child(el, "origin") if el is not None else None
-    r, p, y = (float(v) for v in ((origin.get("rpy") if origin is not None else None) or "0 0 0").split())
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
-def _rotation_axes(robot) -> dict:
+def _rotation_axes(joints: dict) -> dict:
     """Each link's hinge axes: link name -> unit axes (in the link's frame) of every revolute or continuous joint
-    between it and the root, the directions its angular velocity can take."""
-    by_child = {}
-    for el in _children(robot, "joint"):
-        child = _child(el, "child")
-        if child is not None and child.get("link"):
-            by_child[child.get("link")] = el
+    between it and the root (``joints`` as :func:`_joints` reads them), the directions its angular velocity can take."""
+    by_child = {j.child: j for j in joints.values() if j.child}
     out = {}
-    for link in _children(robot, "link"):
-        name, axes, rot, seen = link.get("name"), [], np.eye(3), set()
+    for link in {j.child for j in joints.values()} | {j.parent for j in joints.values()}:
+        name, axes, rot, seen = link, [], np.eye(3), set()
         while name in by_child and name not in seen:  # up the tree: rot maps this link's frame into the current one
             seen.add(name)
-            el = by_child[name]
-            if (el.get("type") or "").lower() in ("revolute", "continuous"):
-                axis_el = _child(el, "axis")
-                a = np.array([float(v) for v in ((axis_el.get("xyz") if axis_el is not None else None)
-                                                 or "1 0 0").split()])
-                axes.append(rot.T @ (a / np.linalg.norm(a)))  # the joint's axis is in its child's frame
-            rot = _rpy(el) @ rot
-            parent = _child(el, "parent")
-            name = parent.get("link") if parent is not None else None
-        out[link.get("name")] = axes
+            j = by_child[name]
+            if j.kind in ("revolute", "continuous"):
+                axes.append(rot.T @ j.axis)  # the joint's axis is in its child's frame
+            rot = j.rotation @ rot
+            name = j.parent
+        out[link] = axes
     return out
 
 
@@ -514,7 +521,7 @@ def _is_body_inertia(tensor: np.ndarray) -> bool:
     return bool(d[0] + d[1] >= d[2])
 
 
-def _fix_inertia(robot, compiler, where: str, changes: list) -> None:
+def _fix_inertia(robot, joints: dict, compiler, where: str, changes: list) -> None:
     small, mended = [], []
     keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     axes = None
@@ -541,11 +548,11 @@ def _fix_inertia(robot, compiler, where: str, changes: list) -> None:
         if mass <= 0 or not np.all(np.isfinite(tensor)):
             continue
         if not _is_body_inertia(tensor):
-            axes = _rotation_axes(robot) if axes is None else axes
-            rot = _rpy(inertial)  # the inertia's frame in the link's
+            axes = _rotation_axes(joints) if axes is None else axes
+            rot = _rpy(inertial, f"link '{name}'", where)  # the inertia's frame in the link's
             fixed = _keep_hinge_moment(tensor, [rot.T @ a for a in axes.get(name, [])])
-            d = np.linalg.eigvalsh(tensor)
             if fixed is None:
+                d = np.linalg.eigvalsh(tensor)
                 raise URDFError(f"{where} gives link '{name}' principal moments of inertia {d[0]:.4g}, {d[1]:.4g} "
                                 f"and {d[2]:.4g} kg m^2, which no body has (the largest above the sum of the other "
                                 "two), and no change that keeps its inertia about its hinge mends them; correct its "
@@ -568,31 +575,29 @@ def _fix_inertia(robot, compiler, where: str, changes: list) -> None:
                        "that moves a planar chain, kept as the file gives it")
 
 
-def _declare_world(robot, where: str, changes: list) -> None:
-    """Declare a ``world`` link that joints name but the file does not (Drake reads ``world`` as the world); refuse
-    any other undeclared link in one sentence."""
+def _declare_world(robot, joints: dict, where: str, changes: list) -> None:
+    """Declare a ``world`` link that ``joints`` (:func:`_joints`) name but the file does not (Drake reads ``world``
+    as the world); refuse any other undeclared link in one sentence."""
     links = {el.get("name") for el in _children(robot, "link")}
-    for el in _children(robot, "joint"):
-        for end in ("parent", "child"):
-            ref = _child(el, end)
-            name = ref.get("link") if ref is not None else None
-            if name is None:
-                raise URDFError(f"{where} gives joint '{el.get('name', '')}' no <{end} link=...>; name its {end} "
-                                "link.")
+    for j in joints.values():
+        for end, name in (("parent", j.parent), ("child", j.child)):
+            if not name:
+                raise URDFError(f"{where} gives joint '{j.name}' no <{end} link=...>; name its {end} link.")
             if name in links:
                 continue
             if name == "world" and end == "parent":
                 robot.insert(0, ET.Element("link", {"name": "world"}))
                 links.add("world")
-                changes.append(f"joint '{el.get('name', '')}' hangs from link 'world', which the file does not "
-                               "declare; read as the world (as Drake reads it)")
+                changes.append(f"joint '{j.name}' hangs from link 'world', which the file does not declare; read as "
+                               "the world (as Drake reads it)")
                 continue
-            raise URDFError(f"{where} gives joint '{el.get('name', '')}' the {end} link '{name}', which the file "
-                            f"does not declare; declare <link name=\"{name}\"/> or fix the name.")
+            raise URDFError(f"{where} gives joint '{j.name}' the {end} link '{name}', which the file does not "
+                            f"declare; declare <link name=\"{name}\"/> or fix the name.")
 
 
 def _mujoco_text(text: str, path: str, where: str, changes: list) -> tuple:
-    """The URDF rewritten so that MuJoCo reads it from a string anywhere: (text, robot element)."""
+    """The URDF rewritten so that MuJoCo reads it from a string anywhere: (text, robot element, joints by name as
+    :func:`_joints` reads them)."""
     try:
         robot = _parse_raw(text)
     except (xml.parsers.expat.ExpatError, ValueError) as exc:
@@ -608,10 +613,11 @@ def _mujoco_text(text: str, path: str, where: str, changes: list) -> tuple:
     if compiler is None:
         compiler = ET.SubElement(mj, "compiler")
     base = Path(path).parent if path else Path.cwd()
-    _declare_world(robot, where, changes)
+    joints = _joints(robot, where)
+    _declare_world(robot, joints, where, changes)
     _fix_meshes(robot, compiler, base, where, changes)
-    _fix_inertia(robot, compiler, where, changes)
-    return ET.tostring(robot, encoding="unicode"), robot
+    _fix_inertia(robot, joints, compiler, where, changes)
+    return ET.tostring(robot, encoding="unicode"), robot, joints
 
 
 def _name_of(m, objtype, i: int) -> str:
@@ -688,8 +694,7 @@ def import_urdf(text: str, path: str = "", *, actuated_joints: Sequence[str] | N
         actuated_joints = session.actuated_joints
     where = f"URDF '{short(path)}'" if path else "The URDF text"
     changes: list[str] = []
-    mj_text, robot = _mujoco_text(text, path, where, changes)
-    joints = _joints(robot, where)
+    mj_text, robot, joints = _mujoco_text(text, path, where, changes)
     try:
         found = _transmissions(robot, where)
     except URDFError as exc:

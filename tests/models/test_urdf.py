@@ -295,3 +295,16 @@ def test_a_xacro_file_is_refused_saying_to_expand_it_first(tmp_path, edit):
         read_params(path)
     path.write_text(BULLET.replace("<robot", "<!-- written by xacro from ${name}.xacro -->\n<robot", 1))
     assert read_params(path).nu == 1  # a comment is no expression
+
+
+@pytest.mark.parametrize("old, new, words", [
+    ('<axis xyz="0 1 0"/>', '<axis xyz="0 1"/>', r"joint 'cart_to_pole' an axis '0 1', which is not three numbers"),
+    ('<origin xyz="0.0 0.0 0"/>', '<origin xyz="0.0 0.0 0" rpy="0 x 0"/>',
+     r"joint 'cart_to_pole' an origin rpy 'x', which is not a number"),
+])
+def test_a_joint_axis_or_origin_that_is_not_three_numbers_is_one_sentence(tmp_path, old, new, words):
+    path = tmp_path / "bad.urdf"
+    assert old in BULLET
+    path.write_text(BULLET.replace(old, new))
+    with pytest.raises(MJCFError, match=words):
+        read_params(path)
