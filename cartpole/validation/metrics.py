@@ -99,20 +99,21 @@ def _x_eq(x_eq, nx: int) -> np.ndarray:
     return x_eq
 
 
+def _as_model(source):
+    """A model (anything with ``params`` and ``x_eq``) as it is; parameters or an MJCF path built into one
+    (:func:`~cartpole.models.plant_model`), so that the upright is computed, not assumed at qpos 0: a file built
+    hanging has its upright half a turn away."""
+    return source if hasattr(source, "params") and hasattr(source, "x_eq") else plant_model(source)
+
+
 def _layout(source):
-    """``(params, x_eq)`` of a plant: a model (anything with ``params`` and ``x_eq``), or parameters or an MJCF path,
-    whose upright is computed (:func:`~cartpole.models.plant_model`), not assumed at qpos 0: a file built hanging
-    has its upright half a turn away."""
-    if hasattr(source, "params") and hasattr(source, "x_eq"):
-        return source.params, np.asarray(source.x_eq, dtype=float)
-    model = plant_model(source)
+    """``(params, x_eq)`` of a plant (:func:`_as_model`)."""
+    model = _as_model(source)
     return model.params, np.asarray(model.x_eq, dtype=float)
 
 
 def _params(source) -> CartPoleParams:
     """The parameters of a plant (a model, parameters or an MJCF path), without building a model."""
-    if isinstance(source, CartPoleParams):
-        return source
     return source.params if hasattr(source, "params") else plant_params(source)
 
 
@@ -581,6 +582,7 @@ def swingup_metrics(rollout, source, *, hold: float = 1.0, rig=None) -> dict:
         ``diverged_warning`` (MuJoCo's warning, e.g. ``"BADQACC"``, or None), ``contact`` (:func:`touched`: the first
         contact, or None).
     """
+    source = _as_model(source)  # built once for the metrics below
     params, x_eq = _layout(source)
     lo, hi = cart_range_used(rollout, slide=params.slide)
     t_up = settling_time_seed(rollout.t, rollout.x, x_eq=x_eq, hinges=params.hinges)
@@ -656,6 +658,7 @@ def uptime_metrics(rollout, source, *, band: float = UPRIGHT_BAND, hold: float =
     """
     t = np.asarray(rollout.t, dtype=float)
     total = float(t[-1] - t[0]) if duration is None else float(duration)
+    source = _as_model(source)  # built once for the segments and the mask
     segments = upright_segments(rollout, source, band=band)
     up_time = float(np.sum(np.diff(t)[_upright_mask(rollout, source, band)[:-1]]))  # each step upright at its start
     counted = [a for a, b in segments if a > t[0] and b - a >= hold - 1e-9]
