@@ -35,9 +35,9 @@ arrives without actuators, and a URDF cannot hold a ``<motor>``. This module rea
   two, as Drake's cart-pole gives its rod a moment only about the hinge), mended by raising the moments across the
   link's hinge axis, which leaves a planar chain's motion exactly the file's (refused naming the link when no such
   change mends them); an ``<inertia>`` without its products read with them 0; a joint hung from an undeclared link
-  ``world`` hung from the world (as Drake reads it); contacts between a link welded to the world and its child are excluded,
-  as Bullet, Gazebo and Drake keep adjacent links of one robot apart (MuJoCo filters only a moving parent). Each
-  change is said in one sentence (:attr:`URDFImport.changes`).
+  ``world`` hung from the world (as Drake reads it); contacts between a link welded to the world and its child are
+  excluded, as Bullet, Gazebo and Drake keep adjacent links of one robot apart (MuJoCo filters only a moving parent).
+  Each change is said in one sentence (:attr:`URDFImport.changes`).
 
 The result is an MJCF text (``MjSpec.to_xml``, mesh paths absolute) that recompiles to the same model anywhere:
 :func:`cartpole.models.read_params` keeps it as ``CartPoleParams.xml`` and the record as ``CartPoleParams.urdf``.

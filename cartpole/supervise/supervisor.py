@@ -272,9 +272,10 @@ class SupervisorOptions(StageOptions):
     law_budget : float
         s the swing-up law (energy shaping on one pole on a cart) may run without the catch taking over; then, where
         the supervisor has a planner (:func:`supervisor_for` gives it one), the brake and the planner for the rest of
-        the run, after every knock too (a ``law_failed`` decision): a law that cannot reach the catch with the motor it has (a heavy pole on a
-        light cart at the default force bound pumps the pole to within a few tenths of a radian of upright and back,
-        for ever) hands over to a plan, which finds the swing-up within the bound. ``inf``: the law until the catch.
+        the run, after every knock too (a ``law_failed`` decision): a law that cannot reach the catch with the motor
+        it has (a heavy pole on a light cart at the default force bound pumps the pole to within a few tenths of a
+        radian of upright and back, for ever) hands over to a plan, which finds the swing-up within the bound.
+        ``inf``: the law until the catch.
     mpc_step_budget : float or None
         s of wall time one control step of the swing-up MPC may take (its DDP iteration): a step over it applies the
         previous solution's input shifted to this step instead of its own late answer (the ``step_budget`` of
@@ -377,9 +378,9 @@ class SupervisorOptions(StageOptions):
 
     error: ClassVar[type] = SupervisorError
     SCALARS: ClassVar[tuple] = ("plan_budget", "latency", "calm_rate", "funnel", "release_factor", "retry_after",
-                                "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget", "law_budget",
-                                "mpc_step_budget", "mpc_floor", "mpc_latency", "mpc_horizon", "mpc_iterations",
-                                "catch_rollout")
+                                "brake_time", "calm_budget", "charged_latency", "mpc_energy", "mpc_budget",
+                                "law_budget", "mpc_step_budget", "mpc_floor", "mpc_latency", "mpc_horizon",
+                                "mpc_iterations", "catch_rollout")
 
     def __post_init__(self):
         for name, unit in (("plan_budget", "s"), ("latency", "s"), ("calm_rate", "rad/s"), ("funnel", "rad"),
@@ -430,7 +431,8 @@ class Decision:
         ``"track"`` (a plan ready and tracked), ``"plan_failed"``, ``"lost"`` (left the tracking funnel),
         ``"calm_timeout"`` (the brake did not calm the state within ``calm_budget``: planned from it as it is),
         ``"stalled"`` (the swing-up law has left every hinge at rest outside the basin for :data:`STALL_SECONDS`),
-        ``"law_failed"`` (the swing-up law ran ``law_budget`` s without a catch: the brake and the planner from then on),
+        ``"law_failed"`` (the swing-up law ran ``law_budget`` s without a catch: the brake and the planner from then
+        on),
         ``"plan_timeout"`` (a plan made in a worker stopped at ``plan_budget``; ``plan_failed`` follows),
         ``"plan_dropped"`` (with ``plan_while_running``, the catch took over before the plan came: not waited for;
         with ``replan``, a re-plan still on its way when the plan it was for was over);
