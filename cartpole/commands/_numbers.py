@@ -15,7 +15,7 @@ class Numbers(argparse.Action):
 
     def __call__(self, parser, namespace, values, option_string=None):
         out = []
-        for token in values if isinstance(values, list) else [values]:
+        for token in values:
             for part in filter(None, (p.strip() for p in token.split(","))):
                 try:
                     out.append(float(part))

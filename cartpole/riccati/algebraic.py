@@ -7,8 +7,8 @@ closed-loop eigenvalues. The result is a named tuple, so it unpacks like python-
 Both also take a state-space object (python-control's ``StateSpace``: ``lqr(sys, Q, R)`` on a continuous one,
 ``dlqr(sys, Q, R)`` on a discrete one, per-sample weights, as python-control reads them), and the plant:
 ``lqr(plant, Q, R)`` and ``dlqr(plant, Q, R)`` with ``plant`` a path, :class:`~cartpole.models.CartPoleParams` or
-:class:`~cartpole.models.CartPoleModel` (:func:`~cartpole.models.plant_model`), designed on its exact linearisation at the upright equilibrium (dry
-friction left out: it has no slope at rest), ``Q`` and ``R`` defaulting to
+:class:`~cartpole.models.CartPoleModel` (:func:`~cartpole.models.plant_model`), designed on its exact linearisation
+at the upright equilibrium (dry friction left out: it has no slope at rest), ``Q`` and ``R`` defaulting to
 :func:`~cartpole.riccati.weights.default_weights`.
 
 One cost scaling for discrete designs on a plant (**the** convention of the package): ``Q`` and ``R`` are weights
